@@ -1,0 +1,245 @@
+"""Scenario files (SPEC §4): loading, validation (SPEC §6) and the built-in scenarios.
+
+A scenario is what a user writes: the ego's boundary conditions and the surrounding
+vehicles, each given either by a polynomial ``x_poly`` or by an observed ``history`` that a
+predictor turns into a polynomial.  :meth:`Scenario.to_problem` produces the
+:class:`~iamp.planners.problem.Problem` that the planners solve.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from iamp.errors import HistoryError, PredictorRequiredError, ScenarioError
+from iamp.planners.problem import EgoBoundary, Problem, SurroundingVehicle
+
+TOP_KEYS = {"name", "description", "ego", "vehicles"}
+EGO_REQUIRED = ("tf", "x0", "y0", "vx0", "xf", "yf", "vxf")
+EGO_OPTIONAL = ("vy0", "vyf")
+VEHICLE_REQUIRED = ("corner", "y", "length", "width", "safety_x", "safety_y")
+VEHICLE_OPTIONAL = ("name", "x_poly", "history")
+HISTORY_KEYS = ("t", "x")
+#: Smallest history any predictor can use; a predictor may demand more (SPEC §6).
+MIN_HISTORY_SAMPLES = 2
+
+
+@dataclass(frozen=True)
+class History:
+    """An observed longitudinal history before ``t = 0`` (strictly increasing, ends at 0)."""
+
+    t: np.ndarray
+    x: np.ndarray
+    field: str = "vehicles[0].history"
+    source: str | None = None
+
+    def __post_init__(self):
+        t = _number_list(self.t, f"{self.field}.t", self.source)
+        x = _number_list(self.x, f"{self.field}.x", self.source)
+        if len(t) != len(x):
+            raise HistoryError(
+                f"t and x have different lengths ({len(t)} and {len(x)})", f"{self.field}.x", self.source
+            )
+        if len(t) < MIN_HISTORY_SAMPLES:
+            raise HistoryError(
+                f"needs at least {MIN_HISTORY_SAMPLES} samples (got {len(t)})", f"{self.field}.t", self.source
+            )
+        if np.any(np.diff(t) <= 0):
+            k = int(np.argmax(np.diff(t) <= 0)) + 1
+            raise HistoryError(f"must be strictly increasing (t[{k}] = {t[k]} after {t[k - 1]})",
+                               f"{self.field}.t", self.source)
+        if abs(t[-1]) > 1e-9:
+            raise HistoryError(f"must end at 0 (last sample at {t[-1]})", f"{self.field}.t", self.source)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "x", x)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    def require(self, min_samples: int = 0, min_duration: float = 0.0) -> None:
+        """Raise :class:`HistoryError` if the history is shorter than a predictor needs."""
+        if len(self.t) < min_samples:
+            raise HistoryError(f"is shorter than the predictor needs ({len(self.t)} samples, "
+                               f"needs {min_samples})", f"{self.field}.t", self.source)
+        if self.duration + 1e-9 < min_duration:
+            raise HistoryError(f"is shorter than the predictor needs ({self.duration:g} s, needs "
+                               f"{min_duration:g} s)", f"{self.field}.t", self.source)
+
+
+@dataclass(frozen=True)
+class VehicleSpec:
+    """A vehicle as written in the file: geometry plus ``x_poly`` or ``history``."""
+
+    name: str
+    corner: str
+    y: float
+    length: float
+    width: float
+    safety_x: float
+    safety_y: float
+    x_poly: tuple | None
+    history: History | None
+    field: str
+    source: str | None
+
+    def with_poly(self, x_poly) -> SurroundingVehicle:
+        return SurroundingVehicle(
+            x_poly=tuple(float(c) for c in x_poly), corner=self.corner, y=self.y, length=self.length,
+            width=self.width, safety_x=self.safety_x, safety_y=self.safety_y, name=self.name,
+            field_prefix=self.field, source=self.source,
+        )
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario file."""
+
+    name: str
+    description: str
+    ego: EgoBoundary
+    vehicles: tuple
+    source: str | None = None
+
+    @property
+    def needs_prediction(self) -> bool:
+        return any(v.history is not None for v in self.vehicles)
+
+    def to_problem(self, predictor=None) -> tuple[Problem, list]:
+        """Turn the scenario into a :class:`Problem`.
+
+        Vehicles with a ``history`` are predicted by ``predictor`` (an object with
+        ``predict(history, tf) -> Prediction`` whose ``x_poly`` is the fitted cubic).  Returns
+        the problem and the list of predictions (``None`` for vehicles given by ``x_poly``).
+        The same polynomial object reaches every planner that solves this problem.
+        """
+        vehicles, predictions = [], []
+        for v in self.vehicles:
+            if v.history is None:
+                vehicles.append(v.with_poly(v.x_poly))
+                predictions.append(None)
+                continue
+            if predictor is None:
+                raise PredictorRequiredError(
+                    "is an observed history and needs a predictor to become a trajectory",
+                    f"{v.field}.history", self.source)
+            pred = predictor.predict(v.history, self.ego.tf)
+            vehicles.append(v.with_poly(pred.x_poly))
+            predictions.append(pred)
+        return Problem(self.ego, tuple(vehicles), self.name), predictions
+
+
+def _number_list(value, field: str, source) -> np.ndarray:
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if not isinstance(value, (list, tuple)):
+        raise ScenarioError("must be a list of numbers", field, source)
+    out = []
+    for k, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ScenarioError(f"must be a number (got {v!r})", f"{field}[{k}]", source)
+        if not math.isfinite(float(v)):
+            raise ScenarioError(f"must be finite (got {v})", f"{field}[{k}]", source)
+        out.append(float(v))
+    return np.array(out, dtype=float)
+
+
+def _check_keys(table, required, optional, prefix, source):
+    if not isinstance(table, dict):
+        raise ScenarioError("must be a table", prefix, source)
+    for key in table:
+        if key not in required and key not in optional:
+            raise ScenarioError(f"unknown key {key!r}", f"{prefix}.{key}" if prefix else key, source)
+    for key in required:
+        if key not in table:
+            raise ScenarioError("is missing", f"{prefix}.{key}" if prefix else key, source)
+
+
+def parse_scenario(data: dict, source: str | None = None, default_name: str = "scenario") -> Scenario:
+    """Validate a decoded TOML document against SPEC §4 and §6."""
+    _check_keys(data, ("ego", "vehicles"), ("name", "description"), "", source)
+    name = data.get("name", default_name)
+    description = data.get("description", "")
+    if not isinstance(name, str):
+        raise ScenarioError("must be a string", "name", source)
+    if not isinstance(description, str):
+        raise ScenarioError("must be a string", "description", source)
+    ego_t = data["ego"]
+    _check_keys(ego_t, EGO_REQUIRED, EGO_OPTIONAL, "ego", source)
+    ego = EgoBoundary(**{k: ego_t[k] for k in EGO_REQUIRED + EGO_OPTIONAL if k in ego_t}, source=source)
+    vehicles_t = data["vehicles"]
+    if not isinstance(vehicles_t, list) or not vehicles_t:
+        raise ScenarioError("needs at least one [[vehicles]] table", "vehicles", source)
+    specs = []
+    for i, vt in enumerate(vehicles_t):
+        prefix = f"vehicles[{i}]"
+        _check_keys(vt, VEHICLE_REQUIRED, VEHICLE_OPTIONAL, prefix, source)
+        has_poly, has_hist = "x_poly" in vt, "history" in vt
+        if has_poly == has_hist:
+            raise ScenarioError("needs exactly one of x_poly and history (got "
+                                f"{'both' if has_poly else 'neither'})", f"{prefix}.x_poly", source)
+        vname = vt.get("name", f"sv{i + 1}")
+        if not isinstance(vname, str):
+            raise ScenarioError("must be a string", f"{prefix}.name", source)
+        history = None
+        x_poly = None
+        if has_hist:
+            ht = vt["history"]
+            _check_keys(ht, HISTORY_KEYS, (), f"{prefix}.history", source)
+            history = History(ht["t"], ht["x"], field=f"{prefix}.history", source=source)
+        else:
+            x_poly = tuple(_number_list(vt["x_poly"], f"{prefix}.x_poly", source))
+        geometry = {k: vt[k] for k in VEHICLE_REQUIRED}
+        if not isinstance(geometry["corner"], str):
+            raise ScenarioError("must be a string such as 'front-lower'", f"{prefix}.corner", source)
+        # Validate geometry (and x_poly) through the problem object itself.
+        probe = SurroundingVehicle(x_poly=x_poly if x_poly is not None else (0.0,), name=vname,
+                                   field_prefix=prefix, source=source, **geometry)
+        specs.append(VehicleSpec(name=vname, corner=probe.corner, y=probe.y, length=probe.length,
+                                 width=probe.width, safety_x=probe.safety_x, safety_y=probe.safety_y,
+                                 x_poly=x_poly, history=history, field=prefix, source=source))
+    return Scenario(name=name, description=description, ego=ego, vehicles=tuple(specs), source=source)
+
+
+def loads_scenario(text: str, source: str | None = None, default_name: str = "scenario") -> Scenario:
+    """Parse scenario TOML text."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"TOML syntax error: {exc}", None, source) from None
+    return parse_scenario(data, source, default_name)
+
+
+# --- built-in scenarios ---------------------------------------------------------------
+
+def builtin_names() -> list[str]:
+    """Names of the scenarios shipped inside the package."""
+    folder = resources.files("iamp") / "scenarios"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def builtin_text(name: str) -> str:
+    return (resources.files("iamp") / "scenarios" / f"{name}.toml").read_text(encoding="utf-8")
+
+
+def load_scenario(path_or_name: str | Path) -> Scenario:
+    """Load a scenario from a file path or by the name of a built-in scenario."""
+    p = Path(path_or_name)
+    if p.is_file():
+        try:
+            text = p.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ScenarioError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
+        return loads_scenario(text, str(p), default_name=p.stem)
+    name = str(path_or_name)
+    if name in builtin_names():
+        return loads_scenario(builtin_text(name), f"builtin:{name}", default_name=name)
+    if p.exists():
+        raise ScenarioError("is not a file", None, str(p))
+    raise ScenarioError(f"no such file or built-in scenario (built-ins: {', '.join(builtin_names())})",
+                        None, str(p))

@@ -1,0 +1,190 @@
+"""The optimal lane-change problem (SPEC §1) as a self-validating object.
+
+The ego vehicle is a planar double integrator with state ``(s_x, v_x, s_y, v_y)`` and input
+``(u_x, u_y)``; the cost is
+
+.. math::  J = \\tfrac12 \\int_0^{t_f} (u_x^2 + u_y^2)\\,dt .
+
+Every surrounding vehicle ``i`` contributes one interior-point equality constraint at a
+free contact time ``t_i \\in (0, t_f)``: the ego passes through the named corner of the
+vehicle's safety box,
+
+.. math::
+
+    s_x(t_i) = x_{s,i}(t_i) \\pm (L_i/2 + S_{x,i}), \\qquad
+    s_y(t_i) = y_{s,i} \\pm (W_i/2 + S_{y,i}),
+
+``+`` for ``front`` / ``upper`` and ``-`` for ``rear`` / ``lower``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from iamp.errors import ScenarioError
+
+CORNERS = ("front-lower", "front-upper", "rear-lower", "rear-upper")
+
+
+def _finite(value, name: str, source: str | None) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ScenarioError(f"must be a number (got {value!r})", name, source)
+    value = float(value)
+    if not math.isfinite(value):
+        raise ScenarioError(f"must be finite (got {value})", name, source)
+    return value
+
+
+@dataclass(frozen=True)
+class EgoBoundary:
+    """Horizon and the fixed initial and final ego state (SPEC §4 ``[ego]``)."""
+
+    tf: float
+    x0: float
+    y0: float
+    vx0: float
+    xf: float
+    yf: float
+    vxf: float
+    vy0: float = 0.0
+    vyf: float = 0.0
+    source: str | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self):
+        for name in ("tf", "x0", "y0", "vx0", "xf", "yf", "vxf", "vy0", "vyf"):
+            object.__setattr__(self, name, _finite(getattr(self, name), f"ego.{name}", self.source))
+        if self.tf <= 0:
+            raise ScenarioError(f"must be > 0 (got {self.tf})", "ego.tf", self.source)
+
+    @property
+    def initial(self) -> np.ndarray:
+        """Initial state ``(s_x, v_x, s_y, v_y)``."""
+        return np.array([self.x0, self.vx0, self.y0, self.vy0])
+
+    @property
+    def final(self) -> np.ndarray:
+        """Final state ``(s_x, v_x, s_y, v_y)``."""
+        return np.array([self.xf, self.vxf, self.yf, self.vyf])
+
+
+@dataclass(frozen=True)
+class SurroundingVehicle:
+    """A surrounding vehicle with a known longitudinal trajectory ``x_s(t)``.
+
+    ``x_poly`` holds the coefficients in ascending powers, ``x_s(t) = Σ_k c_k t^k``
+    (SPEC §4); any degree is accepted.
+    """
+
+    x_poly: tuple
+    corner: str
+    y: float
+    length: float
+    width: float
+    safety_x: float
+    safety_y: float
+    name: str = "sv"
+    field_prefix: str = field(default="vehicles[0]", compare=False, repr=False)
+    source: str | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self):
+        p, src = self.field_prefix, self.source
+        if self.corner not in CORNERS:
+            raise ScenarioError(
+                f"unknown corner {self.corner!r}; expected one of {', '.join(CORNERS)}", f"{p}.corner", src
+            )
+        for name in ("y", "length", "width", "safety_x", "safety_y"):
+            object.__setattr__(self, name, _finite(getattr(self, name), f"{p}.{name}", src))
+        for name in ("length", "width"):
+            if getattr(self, name) <= 0:
+                raise ScenarioError(f"must be > 0 (got {getattr(self, name)})", f"{p}.{name}", src)
+        for name in ("safety_x", "safety_y"):
+            if getattr(self, name) < 0:
+                raise ScenarioError(f"must be >= 0 (got {getattr(self, name)})", f"{p}.{name}", src)
+        coeffs = self.x_poly
+        if isinstance(coeffs, np.ndarray):
+            coeffs = coeffs.tolist()
+        if not isinstance(coeffs, (list, tuple)):
+            raise ScenarioError("must be a list of numbers (ascending powers)", f"{p}.x_poly", src)
+        if len(coeffs) == 0:
+            raise ScenarioError("must not be empty", f"{p}.x_poly", src)
+        coeffs = tuple(_finite(c, f"{p}.x_poly[{k}]", src) for k, c in enumerate(coeffs))
+        object.__setattr__(self, "x_poly", coeffs)
+
+    # --- geometry --------------------------------------------------------------------
+    @property
+    def sign_x(self) -> float:
+        """+1 for a ``front`` corner, -1 for ``rear``."""
+        return 1.0 if self.corner.startswith("front") else -1.0
+
+    @property
+    def sign_y(self) -> float:
+        """+1 for an ``upper`` corner, -1 for ``lower``."""
+        return 1.0 if self.corner.endswith("upper") else -1.0
+
+    @property
+    def offset_x(self) -> float:
+        """Signed longitudinal offset of the corner from the vehicle centre."""
+        return self.sign_x * (self.length / 2 + self.safety_x)
+
+    @property
+    def corner_y(self) -> float:
+        """Lateral coordinate of the corner, ``y_s ± (W/2 + S_y)``."""
+        return self.y + self.sign_y * (self.width / 2 + self.safety_y)
+
+    @property
+    def poly(self) -> np.polynomial.Polynomial:
+        return np.polynomial.Polynomial(self.x_poly)
+
+    def position(self, t) -> np.ndarray:
+        """``x_s(t)``."""
+        return np.polynomial.polynomial.polyval(t, self.x_poly)
+
+    def speed(self, t) -> np.ndarray:
+        """``ẋ_s(t)``."""
+        d = np.polynomial.polynomial.polyder(self.x_poly) if len(self.x_poly) > 1 else [0.0]
+        return np.polynomial.polynomial.polyval(t, d)
+
+    def corner_x(self, t) -> np.ndarray:
+        """Longitudinal coordinate of the corner at time ``t``."""
+        return self.position(t) + self.offset_x
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One optimal lane change: ego boundary conditions plus ``m >= 1`` vehicles.
+
+    Validates itself on construction (raises :class:`~iamp.errors.ScenarioError`).
+    """
+
+    ego: EgoBoundary
+    vehicles: tuple
+    name: str = "problem"
+
+    def __post_init__(self):
+        vehicles = tuple(self.vehicles)
+        if len(vehicles) == 0:
+            raise ScenarioError("at least one vehicle is required", "vehicles", self.ego.source)
+        for v in vehicles:
+            if not isinstance(v, SurroundingVehicle):
+                raise ScenarioError("every vehicle must be a SurroundingVehicle with x_poly", "vehicles")
+        object.__setattr__(self, "vehicles", vehicles)
+
+    @property
+    def m(self) -> int:
+        """Number of surrounding vehicles (= number of contact times)."""
+        return len(self.vehicles)
+
+    @property
+    def tf(self) -> float:
+        return self.ego.tf
+
+    def corners(self, contact_times) -> np.ndarray:
+        """Corner positions ``(m, 2)`` at the given contact times."""
+        t = np.asarray(contact_times, dtype=float)
+        return np.array([[v.corner_x(ti), v.corner_y] for v, ti in zip(self.vehicles, t)])
+
+    def with_vehicles(self, vehicles) -> "Problem":
+        return Problem(self.ego, tuple(vehicles), self.name)
