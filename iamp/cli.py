@@ -1,0 +1,180 @@
+"""The ``iamp`` command line.
+
+Exit status: 0 success; 2 bad input (one line on standard error naming the file and the
+field, no traceback); 3 a solver failed (the status is reported, never a cost).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+from iamp import __version__
+from iamp.errors import IampError, ScenarioError, SolverError
+
+EXIT_OK, EXIT_BAD_INPUT, EXIT_SOLVER = 0, 2, 3
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors and exit status 2."""
+
+    def error(self, message):  # noqa: D401 - argparse API
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(EXIT_BAD_INPUT)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})")
+    return value
+
+
+def default_predictor():
+    """The shipped predictor, or ``None`` if the predictor package is unavailable."""
+    try:
+        from iamp.prediction.predictor import Predictor
+    except ImportError:
+        return None
+    return Predictor.default()
+
+
+def load_problem(spec: str, model: str | None = None):
+    """Scenario file or built-in name → ``(scenario, problem, predictions)``."""
+    from iamp.scenario import load_scenario
+
+    scenario = load_scenario(spec)
+    predictor = None
+    if scenario.needs_prediction:
+        if model is not None:
+            from iamp.prediction.predictor import Predictor
+
+            predictor = Predictor.from_file(model)
+        else:
+            predictor = default_predictor()
+    problem, predictions = scenario.to_problem(predictor)
+    return scenario, problem, predictions
+
+
+def make_planner(args):
+    if args.planner == "pmp":
+        from iamp.planners.pmp import PMPPlanner
+
+        return PMPPlanner()
+    from iamp.planners.qp import QPPlanner
+
+    return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
+
+
+def _phi_meaning(vehicle, phi_x: float) -> str:
+    """SPEC §2 identity 4, derived from ∂J/∂corner = −Φ (see docs in compare.signs)."""
+    from iamp.compare.signs import jump_meaning
+
+    return jump_meaning(vehicle, phi_x)
+
+
+def cmd_plan(args) -> int:
+    scenario, problem, _ = load_problem(args.scenario, args.model)
+    if args.planner == "qp" and args.steps < problem.m + 1:
+        raise ScenarioError(f"must be at least {problem.m + 1} for {problem.m} vehicle(s)", "--steps")
+    result = make_planner(args).plan(problem)
+    if args.json:
+        print(json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False))
+    else:
+        _print_summary(scenario, problem, result, args)
+    return EXIT_OK if result.is_optimal() else EXIT_SOLVER
+
+
+def _print_summary(scenario, problem, result, args) -> None:
+    cfg = "PMP (indirect, jump conditions)" if result.planner == "pmp" else (
+        f"QP ({result.solver}, {result.hold.upper()}, N = {result.steps}, contact search: {args.contact})")
+    print(f"scenario  {scenario.name}  ({scenario.source})")
+    print(f"planner   {cfg}")
+    print(f"status    {result.status}")
+    if not result.is_optimal():
+        print("no cost is reported: the solver did not reach an optimal solution")
+        return
+    print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
+    print(f"time      {result.solve_time_s * 1e3:.3f} ms")
+    label = "Φ" if result.planner == "pmp" else "ν"
+    for v, t, j in zip(problem.vehicles, result.contact_times, result.jumps):
+        X = result.trajectory.states(np.array([t]))[0]
+        print(f"vehicle {v.name} ({v.corner}): contact t = {t:.6f} s at (x, y) = ({X[0]:.3f}, {X[2]:.3f}) m; "
+              f"{label} = ({j[0]:.6g}, {j[1]:.6g})")
+        print(f"    {_phi_meaning(v, j[0])}")
+    if result.residuals:
+        worst = ", ".join(f"{k} {v:.1e}" for k, v in result.residuals.items())
+        print(f"residuals {worst}")
+
+
+def cmd_scenarios(args) -> int:
+    from iamp.scenario import builtin_names, load_scenario
+
+    for name in builtin_names():
+        sc = load_scenario(name)
+        kind = "history" if sc.needs_prediction else "x_poly"
+        print(f"{name:16s} {len(sc.vehicles)} vehicle(s), {kind:7s} {sc.description}")
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="iamp", description="Interaction-aware optimal lane-change planning.")
+    parser.add_argument("--version", action="version", version=f"iamp {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("plan", help="plan the optimal lane change of a scenario",
+                       description="Plan the optimal lane change of a scenario file or built-in scenario "
+                                   "(see `iamp scenarios`).")
+    p.add_argument("scenario", help="scenario TOML file or built-in name")
+    p.add_argument("--planner", choices=("pmp", "qp"), default="pmp")
+    p.add_argument("--solver", choices=("osqp", "clarabel"), default="clarabel", help="QP only")
+    p.add_argument("--hold", choices=("foh", "zoh"), default="foh", help="QP only")
+    p.add_argument("--steps", type=_positive_int, default=100,
+                   help="grid intervals N for the QP, and output samples t_k = k tf/N for every planner")
+    p.add_argument("--contact", choices=("grid", "refine"), default="grid", help="QP only")
+    p.add_argument("--model", default=None, help="predictor model file for history scenarios "
+                   "(default: the shipped model)")
+    p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")
+    p.set_defaults(func=cmd_plan)
+
+    s = sub.add_parser("scenarios", help="list the built-in scenarios")
+    s.set_defaults(func=cmd_scenarios)
+
+    for module in ("iamp.cli_prediction", "iamp.cli_compare"):
+        try:
+            mod = __import__(module, fromlist=["add_parsers"])
+        except ImportError:
+            continue
+        mod.add_parsers(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ScenarioError as exc:
+        sys.stderr.write(f"iamp: error: {exc.one_line()}\n")
+        return EXIT_BAD_INPUT
+    except SolverError as exc:
+        sys.stderr.write(f"iamp: solver failure ({exc.status}): {exc}\n")
+        return EXIT_SOLVER
+    except IampError as exc:
+        sys.stderr.write(f"iamp: error: {exc}\n")
+        return EXIT_BAD_INPUT
+    except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
+        sys.stderr.write(f"iamp: error: {exc}\n")
+        return EXIT_BAD_INPUT
+    except BrokenPipeError:
+        return EXIT_OK
+
+
+if __name__ == "__main__":
+    sys.exit(main())
