@@ -1,0 +1,37 @@
+"""Every tolerance the tests and the comparison use, in one table.
+
+Relative tolerances compare against ``max(1, |reference|)`` unless said otherwise.  Each
+entry says what it bounds and why it is this size.
+"""
+
+TOLERANCES: dict[str, float] = {
+    # PMP: conditions solved by a dense linear solve -> machine precision times the scale.
+    "pmp_condition_residual": 1e-9,
+    # Hamiltonian-jump residual at t* (Newton/root polish stops at ~1e-11 relative to J).
+    "pmp_hjump_at_optimum": 1e-7,
+    # Central finite differences of J (step 1e-5 s) against r = dJ/dt.
+    "fd_gradient_rel": 1e-5,
+    # FOH QP vs PMP at the same grid contact times (SPEC §3.1).
+    "foh_clarabel_cost_rel": 1e-9,
+    "foh_osqp_cost_rel": 1e-6,
+    "foh_clarabel_state_abs": 1e-7,
+    "foh_osqp_state_abs": 1e-4,
+    # QP multiplier nu vs PMP jump Phi (SPEC §3.3), relative to max(1, |Phi|).
+    "dual_clarabel_rel": 1e-6,
+    "dual_osqp_rel": 1e-4,
+    # ZOH gap ratio per halving of h (SPEC §3.2: ~4).
+    "zoh_ratio_low": 3.5,
+    "zoh_ratio_high": 4.5,
+    # Agreement with an independent solution (issue: done means).
+    "independent_cost_rel": 1e-6,
+    "independent_contact_time_abs": 1e-4,
+    "independent_jump_rel": 1e-4,
+    # QP contact search against the continuous optimum.
+    "refine_cost_rel": 1e-6,
+    "sweep_osqp_cost_rel": 1e-5,
+}
+
+
+def tol(name: str) -> float:
+    """Look up a tolerance by name (KeyError names the missing entry)."""
+    return TOLERANCES[name]

@@ -1,0 +1,81 @@
+"""Named, shared example problems (used by the tests, the comparison and the benchmarks).
+
+* :func:`paper_problem` — the paper's scenarios 1–3 with vehicle 1 as a polynomial
+  (SPEC §8 defaults; scenario 1 at a constant 18 m/s, 2 and 3 with the documented
+  polynomials of the built-in ``paper-N-poly`` files).
+* :func:`random_problem` — seeded random lane changes, to either side, with non-zero lateral
+  boundary speeds, cubic vehicle trajectories, one or two vehicles.
+* :func:`two_minima_problem` — one vehicle whose ``J(t)`` has two local minima, the global
+  one *not* the one nearest the middle of the horizon.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from iamp.planners.problem import EgoBoundary, Problem, SurroundingVehicle
+
+LANE_WIDTH = 3.75
+DEFAULT_GEOMETRY = {"length": 4.8, "width": 1.8, "safety_x": 5.0, "safety_y": 0.5}
+
+
+def paper_problem(k: int) -> Problem:
+    """The paper's scenario ``k`` (1, 2, 3) with vehicle 1 given as a polynomial."""
+    from iamp.scenario import load_scenario
+
+    problem, _ = load_scenario(f"paper-{k}-poly").to_problem()
+    return problem
+
+
+def builtin_problem(name: str) -> Problem:
+    from iamp.scenario import load_scenario
+
+    problem, _ = load_scenario(name).to_problem()
+    return problem
+
+
+def random_problem(seed: int, m: int = 1, side: int | None = None) -> Problem:
+    """A seeded random lane change with ``m`` (1 or 2) vehicles.
+
+    ``side`` = +1 changes lane towards +y, −1 towards −y (mirrored corners); default: drawn.
+    Vehicle 1 is in the target lane behind the ego (``front`` corner); vehicle 2 is ahead in
+    the current lane (``rear`` corner).
+    """
+    rng = np.random.default_rng(seed)
+    if side is None:
+        side = int(rng.choice([-1, 1]))
+    tf = rng.uniform(4.0, 7.0)
+    vx0 = rng.uniform(15.0, 30.0)
+    vxf = vx0 + rng.uniform(-3.0, 3.0)
+    y0 = rng.uniform(-0.3, 0.3)
+    yf = y0 + side * LANE_WIDTH + rng.uniform(-0.2, 0.2)
+    ego = EgoBoundary(tf=tf, x0=0.0, y0=y0, vx0=vx0, xf=0.5 * (vx0 + vxf) * tf + rng.uniform(-10, 10),
+                      yf=yf, vxf=vxf, vy0=rng.uniform(-0.5, 0.5), vyf=rng.uniform(-0.5, 0.5))
+    near, far = ("lower", "upper") if side > 0 else ("upper", "lower")
+    vehicles = [SurroundingVehicle(
+        x_poly=(rng.uniform(-30, -5), rng.uniform(vx0 - 6, vx0 + 2), rng.uniform(-1, 1), rng.uniform(-0.1, 0.1)),
+        corner=f"front-{near}", y=yf, name="sv1", **DEFAULT_GEOMETRY)]
+    if m >= 2:
+        vehicles.append(SurroundingVehicle(
+            x_poly=(rng.uniform(25, 50), rng.uniform(vx0 - 8, vx0 - 2), rng.uniform(-0.5, 0.5),
+                    rng.uniform(-0.05, 0.05)),
+            corner=f"rear-{far}", y=y0, name="sv2", **DEFAULT_GEOMETRY))
+    if m > 2:
+        raise ValueError("random_problem builds one or two vehicles")
+    return Problem(ego, tuple(vehicles), f"random-{seed}-m{m}-side{side:+d}")
+
+
+def two_minima_problem() -> Problem:
+    """One vehicle whose ``J(t)`` has two local minima; the global one is the one farther
+    from ``t_f/2`` (checked by the tests, not assumed).
+
+    Vehicle 1 starts fast (32.9 m/s) and brakes, then recovers (a cubic), so the
+    corner's offset from the ego's unconstrained path has two dips: local minima of ``J``
+    near ``t = 0.81`` (global) and ``t = 2.51`` s, the latter nearer ``t_f/2 = 3``.
+    """
+    ego = EgoBoundary(tf=6.0, x0=0.0, y0=0.0, vx0=20.0, xf=120.0, yf=3.75, vxf=20.0)
+    veh = SurroundingVehicle(x_poly=TWO_MINIMA_POLY, corner="front-lower", y=3.75, name="sv1", **DEFAULT_GEOMETRY)
+    return Problem(ego, (veh,), "two-minima")
+
+
+TWO_MINIMA_POLY = (-14.12, 32.86, -3.57, 0.35)
