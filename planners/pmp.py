@@ -158,24 +158,68 @@ class ValueFunction:
         ``N'(σ) σ(1-σ) − 3 N(σ)(1 − 2σ) = 0``: a polynomial whose real roots in ``(0, 1)``
         are all the stationary points.  Each root is polished by Newton's method.
         """
-        tf = self.tf
-        scale = tf ** np.arange(max(len(self.ex[0]), len(self.ey[0])))
-        ex = self.ex[0] * scale[: len(self.ex[0])]
-        ey = self.ey[0] * scale[: len(self.ey[0])]
-        N = P.polyadd(P.polymul(ex, ex), P.polymul(ey, ey))
-        poly = P.polysub(P.polymul(P.polyder(N), [0.0, 1.0, -1.0]), 3.0 * P.polymul(N, [1.0, -2.0]))
-        poly = np.trim_zeros(poly, "b")
-        if len(poly) <= 1:
+        _, Pc = _one_vehicle_root_polys(self.ex[0][None, :], self.ey[0][None, :], self.tf)
+        if not np.any(Pc):
             return np.array([])
-        roots = P.polyroots(poly)
-        sig = roots.real[(np.abs(roots.imag) <= 1e-7 * np.maximum(1.0, np.abs(roots.real)))
-                         & (roots.real > 0) & (roots.real < 1)]
-        dpoly = P.polyder(poly)
-        for _ in range(3):  # polish (the companion-matrix roots are accurate to ~1e-12 already)
-            d = P.polyval(sig, dpoly)
-            step = np.where(d != 0, P.polyval(sig, poly) / np.where(d != 0, d, 1.0), 0.0)
-            sig = np.clip(sig - step, 1e-15, 1 - 1e-15)
-        return np.unique(sig) * tf
+        sig = _real_roots_in_unit_interval(Pc)[0]
+        return np.unique(sig[np.isfinite(sig)]) * self.tf
+
+
+def _one_vehicle_root_polys(ex: np.ndarray, ey: np.ndarray, tf):
+    """Coefficient rows (ascending, in ``σ = t/t_f``) of ``N`` and of the stationarity
+    polynomial ``P = N'σ(1−σ) − 3N(1−2σ)`` for a batch: ``ex``, ``ey`` have shape
+    ``(K, d+1)`` in powers of ``t``; ``tf`` is a scalar or one horizon per row."""
+    d = max(ex.shape[1], ey.shape[1])
+    scale = np.asarray(tf, dtype=float).reshape(-1, 1) ** np.arange(d)
+    ex = np.pad(ex, ((0, 0), (0, d - ex.shape[1]))) * scale
+    ey = np.pad(ey, ((0, 0), (0, d - ey.shape[1]))) * scale
+    # N = ex² + ey² (row-wise convolution)
+    N = np.zeros((ex.shape[0], 2 * d - 1))
+    for i in range(d):
+        N[:, i:i + d] += ex[:, i:i + 1] * ex + ey[:, i:i + 1] * ey
+    k = np.arange(1, N.shape[1])
+    dN = N[:, 1:] * k  # N' coefficients, degree 2d-3
+    Pc = np.zeros((N.shape[0], N.shape[1] + 1))
+    Pc[:, 1:dN.shape[1] + 1] += dN  # N'·σ
+    Pc[:, 2:dN.shape[1] + 2] -= dN  # −N'·σ²
+    Pc[:, :N.shape[1]] -= 3 * N  # −3N
+    Pc[:, 1:N.shape[1] + 1] += 6 * N  # +6Nσ
+    return N, Pc
+
+
+def _real_roots_in_unit_interval(Pc: np.ndarray):
+    """Real roots in (0, 1) of each row polynomial (batched companion eigenvalues), polished
+    by two Newton steps.  Returns a ``(K, deg)`` array with NaN where there is no root."""
+    Pc = Pc / np.max(np.abs(Pc), axis=1, keepdims=True)
+    deg = Pc.shape[1] - 1
+    lead = Pc[:, -1]
+    # trailing zero leading coefficients (lower degree): perturb-free handling by row
+    if np.any(np.abs(lead) < 1e-14):
+        out = np.full((Pc.shape[0], deg), np.nan)
+        for r in range(Pc.shape[0]):
+            c = np.trim_zeros(Pc[r], "b")
+            if len(c) > 1:
+                rr = np.roots(c[::-1])
+                out[r, : len(rr)] = np.where(np.abs(rr.imag) <= 1e-7 * np.maximum(1, np.abs(rr.real)), rr.real, np.nan)
+        roots = out
+    else:
+        C = np.zeros((Pc.shape[0], deg, deg))
+        C[:, 1:, :-1] = np.eye(deg - 1)
+        C[:, :, -1] = -Pc[:, :-1] / lead[:, None]
+        ev = np.linalg.eigvals(C)
+        roots = np.where(np.abs(ev.imag) <= 1e-7 * np.maximum(1, np.abs(ev.real)), ev.real, np.nan)
+    roots = np.where((roots > 0) & (roots < 1), roots, np.nan)
+    dP = Pc[:, 1:] * np.arange(1, deg + 1)
+    for _ in range(2):
+        pv = np.zeros_like(roots)
+        dv = np.zeros_like(roots)
+        for j in range(deg, -1, -1):
+            pv = pv * roots + Pc[:, j:j + 1]
+        for j in range(deg - 1, -1, -1):
+            dv = dv * roots + dP[:, j:j + 1]
+        step = np.where(dv != 0, pv / np.where(dv != 0, dv, 1), 0.0)
+        roots = np.clip(roots - step, 1e-15, 1 - 1e-15)
+    return roots
 
 
 # --------------------------------------------------------------------------------------
@@ -311,7 +355,8 @@ def solve_fixed_times(problem: Problem, contact_times) -> PMPSolution:
     except np.linalg.LinAlgError:
         raise SolverError(f"contact times {t} make the jump conditions singular", "singular") from None
     res = float(np.max(np.abs(M @ z - rhs)))
-    if not np.all(np.isfinite(z)) or np.linalg.cond(M) > 1e14:
+    scale = max(1.0, float(np.max(np.abs(rhs))), float(np.max(np.abs(M) @ np.abs(z))))
+    if not np.all(np.isfinite(z)) or res > 1e-8 * scale:
         raise SolverError(f"contact times {t} make the jump conditions singular", "singular")
     return PMPSolution(problem, t, z[0], z[1], z[2:], res)
 
@@ -409,8 +454,8 @@ class PMPPlanner:
     ``m ≥ 3``: multistart Newton; global with high probability, not guaranteed.
     """
 
-    grid_2d: int = 64
-    max_basins: int = 6
+    grid_2d: int = 48
+    max_basins: int = 4
     multistart: int = 24
     seed: int = 0
 
@@ -457,14 +502,85 @@ class PMPPlanner:
         t = self.contact_times(problem) if contact_times is None else contact_times
         return solve_fixed_times(problem, t)
 
-    def plan(self, problem: Problem, contact_times=None) -> PlanResult:
+    def plan(self, problem: Problem, contact_times=None, diagnostics: bool = True) -> PlanResult:
         """Plan; returns a :class:`PlanResult` whose ``trajectory`` is the exact
-        :class:`PMPSolution` (evaluable at any time, with co-states and jumps)."""
+        :class:`PMPSolution` (evaluable at any time, with co-states and jumps).
+
+        ``solve_time_s`` covers the contact-time search, the jump-condition solve and the
+        cost; ``diagnostics=False`` skips the residual report (computed after the clock
+        stops either way).
+        """
         start = _time.perf_counter()
         sol = self.solve(problem, contact_times)
         cost = sol.cost()
         elapsed = _time.perf_counter() - start
-        return PlanResult(problem=problem, planner="pmp", status=STATUS_OPTIMAL, cost=cost,
-                          contact_times=sol.contact_times.copy(), jumps=sol.jumps.copy(), trajectory=sol,
-                          solve_time_s=elapsed, residuals=sol.residuals(),
-                          info={"hamiltonian_jump_residuals": sol.hamiltonian_jump_residual()})
+        res = PlanResult(problem=problem, planner="pmp", status=STATUS_OPTIMAL, cost=cost,
+                         contact_times=sol.contact_times.copy(), jumps=sol.jumps.copy(), trajectory=sol,
+                         solve_time_s=elapsed)
+        if diagnostics:
+            res.residuals = sol.residuals()
+            res.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
+        return res
+
+
+@dataclass
+class BatchPlan:
+    """Result of :func:`plan_batch`: arrays over ``K`` one-vehicle problems."""
+
+    contact_time: np.ndarray  # (K,)
+    cost: np.ndarray  # (K,)
+    jumps: np.ndarray  # (K, 2)
+    status: np.ndarray  # (K,) of str
+
+
+def plan_batch(problems) -> BatchPlan:
+    r"""Plan many one-vehicle problems at once (vectorised over problems).
+
+    Same mathematics as :class:`PMPPlanner` for ``m = 1``: all stationary points from the
+    batched roots of ``N'σ(1−σ) − 3N(1−2σ)``, the global one by the closed-form
+    ``J = J̄ + ½ |e|²/K``, and ``Φ = −e/K`` with ``K = t³(t_f−t)³/(3t_f³)``.  Problems may
+    differ in every parameter; vehicle polynomials are padded to a common degree.
+    """
+    problems = list(problems)
+    if any(p.m != 1 for p in problems):
+        raise ValueError("plan_batch plans one-vehicle problems; use PMPPlanner for more")
+    K = len(problems)
+    ego = np.array([[p.ego.tf, p.ego.x0, p.ego.vx0, p.ego.xf, p.ego.vxf, p.ego.y0, p.ego.vy0, p.ego.yf, p.ego.vyf]
+                    for p in problems])
+    tf, x0, vx0, xf, vxf, y0, vy0, yf, vyf = ego.T
+    d = max(4, max(len(p.vehicles[0].x_poly) for p in problems))
+    xs = np.zeros((K, d))
+    for k, p in enumerate(problems):
+        c = p.vehicles[0].x_poly
+        xs[k, : len(c)] = c
+    off_x = np.array([p.vehicles[0].offset_x for p in problems])
+    cy = np.array([p.vehicles[0].corner_y for p in problems])
+
+    def hermite(s0, v0, sf, vf):
+        e = sf - s0 - v0 * tf
+        g = vf - v0
+        return np.stack([s0, v0, (3 * e - g * tf) / tf**2, (-2 * e + g * tf) / tf**3], axis=1)
+
+    hx, hy = hermite(x0, vx0, xf, vxf), hermite(y0, vy0, yf, vyf)
+    ex = xs.copy()
+    ex[:, 0] += off_x
+    ex[:, :4] -= hx
+    ey = -hy
+    ey[:, 0] += cy
+    jbar = transfer_cost(x0, vx0, xf, vxf, tf) + transfer_cost(y0, vy0, yf, vyf, tf)
+    _, Pc = _one_vehicle_root_polys(ex, ey, tf)
+    roots = _real_roots_in_unit_interval(Pc) * tf[:, None]
+    powers = roots[..., None] ** np.arange(d)
+    exv = np.einsum("kd,krd->kr", ex, powers)
+    eyv = np.einsum("kd,krd->kr", np.pad(ey, ((0, 0), (0, d - 4))), powers)
+    kern = roots**3 * (tf[:, None] - roots) ** 3 / (3 * tf[:, None] ** 3)
+    J = jbar[:, None] + 0.5 * (exv**2 + eyv**2) / kern
+    J = np.where(np.isfinite(J), J, np.inf)
+    best = np.argmin(J, axis=1)
+    rows = np.arange(K)
+    ok = np.isfinite(J[rows, best])
+    t = roots[rows, best]
+    phi = -np.stack([exv[rows, best], eyv[rows, best]], axis=1) / kern[rows, best][:, None]
+    status = np.where(ok, STATUS_OPTIMAL, "no_interior_optimum")
+    return BatchPlan(contact_time=np.where(ok, t, np.nan), cost=np.where(ok, J[rows, best], np.nan),
+                     jumps=np.where(ok[:, None], phi, np.nan), status=status)

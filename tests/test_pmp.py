@@ -199,3 +199,16 @@ def test_costates_follow_their_equations():
     U = sol.inputs(t)
     assert np.allclose(dX[:, 0], X[:, 1], atol=1e-5) and np.allclose(dX[:, 1], U[:, 0], atol=1e-5)
     assert np.allclose(dX[:, 2], X[:, 3], atol=1e-5) and np.allclose(dX[:, 3], U[:, 1], atol=1e-5)
+
+
+def test_batch_plan_equals_planner():
+    from iamp.planners.pmp import plan_batch
+
+    problems = ONE_VEHICLE + [random_problem(100 + s, m=1) for s in range(40)]
+    batch = plan_batch(problems)
+    for k, p in enumerate(problems):
+        ref = PMPPlanner().plan(p, diagnostics=False)
+        assert batch.status[k] == "optimal"
+        assert batch.cost[k] == pytest.approx(ref.cost, rel=1e-10)
+        assert batch.contact_time[k] == pytest.approx(ref.contact_times[0], abs=1e-9)
+        assert np.allclose(batch.jumps[k], ref.jumps[0], rtol=1e-8, atol=1e-8)
