@@ -89,6 +89,20 @@ def bridge_kernel(s, t, tf):
     return lo**2 * (tf - hi) ** 2 * (3 * tf * hi - tf * lo - 2 * lo * hi) / (6 * tf**3)
 
 
+def bridge_kernel_ds(s, t, tf):
+    """``∂K(s, t)/∂s`` for ``s ≠ t`` (first argument)."""
+    s = np.asarray(s, dtype=float)
+    t = np.asarray(t, dtype=float)
+    below = (tf - t) ** 2 * s * (2 * tf * t - tf * s - 2 * s * t) / (2 * tf**3)
+    above = t**2 * (tf - s) * (tf**2 - 3 * tf * s + 2 * t * s) / (2 * tf**3)
+    return np.where(s <= t, below, above)
+
+
+def bridge_variance_dt(t, tf):
+    """``d K(t, t)/dt = t²(t_f − t)²(t_f − 2t)/t_f³``."""
+    return t**2 * (tf - t) ** 2 * (tf - 2 * t) / tf**3
+
+
 class ValueFunction:
     r"""The fixed-contact-time optimal cost :math:`J(t)` of a problem, in closed form.
 
@@ -150,6 +164,25 @@ class ValueFunction:
                             qf[n] = np.inf
             J = self.j_bar + 0.5 * q
         return np.where(np.isfinite(J) & (J >= self.j_bar - 1e-9 * max(1.0, abs(self.j_bar))), J, np.inf)
+
+    def gradient(self, t) -> np.ndarray:
+        r"""``∇J(t)`` in closed form (= the Hamiltonian-jump residuals ``r``, identity 1):
+        with ``μ = K⁻¹e`` per axis, ``∂J/∂t_i = Σ_axis μ_i ė_i − ½ μᵀ(∂K/∂t_i)μ``."""
+        t = np.asarray(t, dtype=float)
+        tf, m = self.tf, t.shape[-1]
+        K = bridge_kernel(t[..., :, None], t[..., None, :], tf)
+        dK = bridge_kernel_ds(t[..., :, None], t[..., None, :], tf)  # ∂K_ij/∂t_i (i ≠ j)
+        diag = bridge_variance_dt(t, tf)
+        ex, ey = self.errors(t)
+        dex = np.stack([P.polyval(t[..., i], P.polyder(self.ex[i])) for i in range(m)], axis=-1)
+        dey = np.stack([P.polyval(t[..., i], P.polyder(self.ey[i])) for i in range(m)], axis=-1)
+        g = np.zeros(t.shape)
+        eye = np.eye(m, dtype=bool)
+        for e, de in ((ex, dex), (ey, dey)):
+            mu = np.linalg.solve(K, e[..., None])[..., 0]
+            off = np.where(eye, 0.0, dK)
+            g += mu * de - mu * np.einsum("...ij,...j->...i", off, mu) - 0.5 * mu**2 * diag
+        return g
 
     def stationary_points_1d(self) -> np.ndarray:
         """All zeros of the Hamiltonian-jump residual in ``(0, t_f)`` for one vehicle.
@@ -372,26 +405,25 @@ def hamiltonian_jump_residuals(problem: Problem, contact_times) -> np.ndarray:
 
 
 def _newton_on_jump_conditions(problem, J, t0, tol=1e-11, max_iter=50):
-    """Solve ``r(t) = 0`` from ``t0`` by damped Newton (Jacobian by central differences of
-    ``r``), with backtracking on ``J`` so that it converges to a minimum, inside ``(0, t_f)``."""
+    """Solve ``r(t) = 0`` from ``t0`` by damped Newton, with backtracking on ``J`` so that it
+    converges to a minimum inside ``(0, t_f)``.  ``r`` is the closed-form gradient (identity
+    1: it equals the Hamiltonian-jump residual of the fixed-time solution, which the caller
+    re-checks at the answer); its Jacobian comes from central differences, in one batch."""
     tf = problem.tf
     lo, hi = 1e-9 * tf, tf * (1 - 1e-9)
     t = np.array(t0, dtype=float)
     Jt = float(J(t[None, :])[0])
     m = t.size
+    eps = 1e-6 * tf
+    stencil = np.concatenate([np.eye(m), -np.eye(m)]) * eps
     for _ in range(max_iter):
-        r = hamiltonian_jump_residuals(problem, t)
-        if np.max(np.abs(r)) <= tol * max(1.0, Jt):
+        pts = np.clip(np.vstack([t[None, :], t[None, :] + stencil]), lo, hi)
+        with np.errstate(all="ignore"):
+            G = J.gradient(pts)
+        r = G[0]
+        if not np.all(np.isfinite(r)) or np.max(np.abs(r)) <= tol * max(1.0, Jt):
             break
-        eps = 1e-6 * tf
-        Hs = np.empty((m, m))
-        for k in range(m):
-            d = np.zeros(m)
-            d[k] = eps
-            try:
-                Hs[:, k] = (hamiltonian_jump_residuals(problem, t + d) - hamiltonian_jump_residuals(problem, t - d)) / (2 * eps)
-            except (SolverError, ValueError):
-                Hs[:, k] = np.nan
+        Hs = ((G[1:m + 1] - G[m + 1:]) / (2 * eps)).T
         Hs = 0.5 * (Hs + Hs.T)
         step = None
         if np.all(np.isfinite(Hs)):

@@ -212,3 +212,13 @@ def test_batch_plan_equals_planner():
         assert batch.cost[k] == pytest.approx(ref.cost, rel=1e-10)
         assert batch.contact_time[k] == pytest.approx(ref.contact_times[0], abs=1e-9)
         assert np.allclose(batch.jumps[k], ref.jumps[0], rtol=1e-8, atol=1e-8)
+
+
+@pytest.mark.parametrize("problem", RANDOM_2 + PAPER, ids=ids(RANDOM_2 + PAPER))
+def test_closed_form_gradient_equals_hamiltonian_jump_residual(problem):
+    rng = np.random.default_rng(7)
+    J = ValueFunction(problem)
+    for _ in range(3):
+        t = rng.uniform(0.1, 0.9, problem.m) * problem.tf
+        r = solve_fixed_times(problem, t).hamiltonian_jump_residual()
+        assert np.allclose(J.gradient(t[None, :])[0], r, rtol=1e-8, atol=1e-8 * max(1, np.max(np.abs(r))))
