@@ -191,11 +191,31 @@ class ValueFunction:
         ``N'(σ) σ(1-σ) − 3 N(σ)(1 − 2σ) = 0``: a polynomial whose real roots in ``(0, 1)``
         are all the stationary points.  Each root is polished by Newton's method.
         """
-        _, Pc = _one_vehicle_root_polys(self.ex[0][None, :], self.ey[0][None, :], self.tf)
-        if not np.any(Pc):
+        ex, ey = self.ex[0], self.ey[0]
+        d = max(len(ex), len(ey))
+        scale = self.tf ** np.arange(d)
+        ex = np.pad(ex, (0, d - len(ex))) * scale
+        ey = np.pad(ey, (0, d - len(ey))) * scale
+        N = np.convolve(ex, ex) + np.convolve(ey, ey)
+        dN = N[1:] * np.arange(1, len(N))
+        Pc = np.zeros(len(N) + 1)
+        Pc[1:len(dN) + 1] += dN
+        Pc[2:len(dN) + 2] -= dN
+        Pc[:len(N)] -= 3 * N
+        Pc[1:len(N) + 1] += 6 * N
+        Pc = np.trim_zeros(Pc, "b")
+        if len(Pc) <= 1:
             return np.array([])
-        sig = _real_roots_in_unit_interval(Pc)[0]
-        return np.unique(sig[np.isfinite(sig)]) * self.tf
+        desc = Pc[::-1] / np.max(np.abs(Pc))
+        roots = np.roots(desc)
+        sig = roots.real[(np.abs(roots.imag) <= 1e-7 * np.maximum(1.0, np.abs(roots.real)))
+                         & (roots.real > 0) & (roots.real < 1)]
+        ddesc = np.polyder(desc)
+        for _ in range(2):  # polish: companion-matrix roots are already accurate to ~1e-12
+            dv = np.polyval(ddesc, sig)
+            sig = np.clip(sig - np.where(dv != 0, np.polyval(desc, sig) / np.where(dv != 0, dv, 1.0), 0.0),
+                          1e-15, 1 - 1e-15)
+        return np.unique(sig) * self.tf
 
 
 def _one_vehicle_root_polys(ex: np.ndarray, ey: np.ndarray, tf):
