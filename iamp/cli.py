@@ -103,9 +103,16 @@ def _print_summary(scenario, problem, result, args) -> None:
     print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
     print(f"time      {result.solve_time_s * 1e3:.3f} ms")
     label = "Φ" if result.planner == "pmp" else "ν"
-    for v, t, j in zip(problem.vehicles, result.contact_times, result.jumps):
+    if result.planner == "qp" and result.info.get("failures"):
+        fails = result.info["failures"]
+        print(f"warning   {len(fails)} of {len(result.info['sweep'])} sweep candidates did not solve to optimality "
+              f"(e.g. nodes {fails[0][0]}: {fails[0][1]}); they are excluded from the search")
+    for v, spec, t, j in zip(problem.vehicles, scenario.vehicles, result.contact_times, result.jumps):
+        poly = " ".join(f"{c:+.6g}" + (f"·t^{k}" if k > 1 else "·t" if k == 1 else "") for k, c in enumerate(v.x_poly))
+        origin = "predicted from its history" if spec.history is not None else "given"
+        print(f"vehicle {v.name}: x_s(t) = {poly}  ({origin})")
         X = result.trajectory.states(np.array([t]))[0]
-        print(f"vehicle {v.name} ({v.corner}): contact t = {t:.6f} s at (x, y) = ({X[0]:.3f}, {X[2]:.3f}) m; "
+        print(f"    corner {v.corner}: contact t = {t:.6f} s at (x, y) = ({X[0]:.3f}, {X[2]:.3f}) m; "
               f"{label} = ({j[0]:.6g}, {j[1]:.6g})")
         print(f"    {_phi_meaning(v, j[0])}")
     if result.residuals:
