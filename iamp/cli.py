@@ -153,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("scenarios", help="list the built-in scenarios")
     s.set_defaults(func=cmd_scenarios)
 
-    for module in ("iamp.cli_prediction", "iamp.cli_compare"):
+    for module in ("iamp.cli_prediction", "iamp.cli_compare", "iamp.cli_report"):
         try:
             mod = __import__(module, fromlist=["add_parsers"])
         except ImportError:
