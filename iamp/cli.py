@@ -156,7 +156,9 @@ def build_parser() -> argparse.ArgumentParser:
     for module in ("iamp.cli_prediction", "iamp.cli_compare", "iamp.cli_report"):
         try:
             mod = __import__(module, fromlist=["add_parsers"])
-        except ImportError:
+        except ModuleNotFoundError as exc:  # only a missing command module is optional
+            if exc.name != module:
+                raise
             continue
         mod.add_parsers(sub)
     return parser
