@@ -38,8 +38,16 @@ def osqp_settings(eps_abs: float = 1e-5, max_iter: int = 10_000) -> dict:
     """
     v = _version("osqp") or "1"
     polish_key = "polishing" if int(v.split(".")[0]) >= 1 else "polish"
-    return {"eps_abs": eps_abs, "eps_rel": 0.0, polish_key: True, "max_iter": max_iter,
-            "polish_refine_iter": 10, "verbose": False}
+    settings = {"eps_abs": eps_abs, "eps_rel": 0.0, polish_key: True, "max_iter": max_iter,
+                "polish_refine_iter": 10, "verbose": False}
+    if polish_key == "polishing":
+        # OSQP 1.x also stops on an absolute duality gap; with eps_rel = 0 it cannot reach
+        # 1e-5 on the expensive (far-from-optimal) candidates of a sweep.  Measured on
+        # paper-2-poly, N = 100 sweep: 19 of 99 candidates failed and the sweep took 3.4 s
+        # with the check, 1 failed and 0.54 s without; the polished optimum is identical
+        # (KKT residuals are recomputed by the comparison, not taken from OSQP).
+        settings["check_dualgap"] = False
+    return settings
 
 
 def clarabel_settings(tol: float = 1e-12) -> dict:
