@@ -32,6 +32,35 @@ TOLERANCES: dict[str, float] = {
 }
 
 
+# ------------------------------------------------------------------------------------------
+# compare/agreement.py — the verdict rules of `iamp compare` (see that module's docstring).
+# "_rel" entries are relative to the scale named in the rule; one pair of values per solver:
+# what the configured settings reach with ample margin (measured ~1e-12 for Clarabel and for
+# a polished OSQP solve), while a loose OSQP (eps_abs 1e-2, no polish) misses them by orders.
+# ------------------------------------------------------------------------------------------
+TOLERANCES.update({
+    # QP cost vs its exact reference at the QP's own contact times, relative to |J_ref|.
+    "cmp_cost_rel_clarabel": 1e-9,
+    "cmp_cost_rel_osqp": 1e-6,
+    # nodal states and inputs vs the reference, relative to max(1, max|reference value|).
+    "cmp_state_rel_clarabel": 1e-8,
+    "cmp_state_rel_osqp": 1e-6,
+    # multipliers nu vs the reference jumps, relative to max(1, max|reference jump|).
+    "cmp_jump_rel_clarabel": 1e-6,
+    "cmp_jump_rel_osqp": 1e-4,
+    # KKT residuals recomputed from the QP data (primal, dual, gap; each relative, see
+    # iamp.planners.native.kkt_residuals).
+    "cmp_kkt_rel_clarabel": 1e-9,
+    "cmp_kkt_rel_osqp": 1e-7,
+    # boundary and collision-constraint residuals of a QP trajectory, relative to
+    # max(1, max|boundary state|).
+    "cmp_residual_rel_clarabel": 1e-9,
+    "cmp_residual_rel_osqp": 1e-7,
+    # grid contact times of two QP runs on the same grid are the same node: |dt| / tf.
+    "cmp_node_time_rel": 1e-12,
+})
+
+
 def tol(name: str) -> float:
     """Look up a tolerance by name (KeyError names the missing entry)."""
     return TOLERANCES[name]

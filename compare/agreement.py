@@ -1,0 +1,787 @@
+r"""Do the PMP and the QP baselines agree on one problem?  A comparison that can fail.
+
+:func:`compare_problem` runs the PMP planner and every requested QP configuration
+(:class:`QPConfig`: OSQP or Clarabel, FOH or ZOH, ``N`` steps, through cvxpy or the native
+path, e.g. ``qp-clarabel-foh-100``) on the **same** :class:`~iamp.planners.problem.Problem`
+object, records a fingerprint of the problem each planner reports having solved (the exact
+``x_poly`` coefficients, :func:`problem_fingerprint`), and judges every pair.
+
+References
+----------
+A QP is never compared with the continuous optimum alone: the discretisation has an exact
+reference at the QP's *own* contact times ``t_Q`` (grid nodes) —
+
+* **FOH** is exact (SPEC §3.1): its reference is the PMP's fixed-time solution at ``t_Q``
+  (:func:`iamp.planners.pmp.solve_fixed_times`), and on the grid the PMP's value function
+  :math:`J(t)` (:class:`iamp.planners.pmp.ValueFunction`) is the exact sweep cost;
+* **ZOH** restricts the input to piecewise constants; with the contact times on nodes the
+  QP is the moment problem :math:`\min \tfrac12\int u^2` s.t. :math:`\int \varphi_j u = c_j`
+  over piecewise-constant ``u``, with :math:`\varphi \in \{1,\ t_f-\tau,\ (t_i-\tau)_+\}`
+  (final speed, final position, contact positions).  Its solution is
+  :math:`u = \sum_j \mu_j \Pi_h\varphi_j` with :math:`(G - E)\mu = c`, where
+  :math:`G_{jk} = \int\varphi_j\varphi_k` is the continuous (PMP) Gram matrix and
+  :math:`E_{jk} = \int(\varphi_j - \Pi_h\varphi_j)(\varphi_k - \Pi_h\varphi_k)
+  = \sum_k \tfrac{h_k^3}{12}\varphi_j'\varphi_k'` (each :math:`\varphi` is linear on every
+  interval).  So :math:`J_{ZOH} = \tfrac12\sum_{axes} c^\top (G-E)^{-1} c` exactly, the
+  multipliers are :math:`\nu_i = -\mu_i`, and (with :math:`\lambda = G^{-1}c`,
+  the PMP's input :math:`u^* = \sum\lambda_j\varphi_j`, and
+  :math:`\rho = \lambda_{\max}(G^{-1}E) = O(h^2)`)
+
+  .. math::  \Delta_1 \le J_{ZOH} - J_{PMP} \le \frac{\Delta_1}{1-\rho},\qquad
+             \Delta_1 = \tfrac12\lambda^\top E\lambda = \frac{h^2}{24}\int_0^{t_f}|\dot u^*|^2\,dt
+
+  (uniform grid) — the ``O(h²)`` gap of SPEC §3.2 with its constant and a rigorous bracket
+  (:func:`zoh_reference`).
+
+Verdict rules (pair ``pmp`` / QP run; every rule must pass for ``agree``)
+-------------------------------------------------------------------------
+0. *Same problem*: both planners report the identical problem (fingerprints of the
+   ``x_poly`` coefficients and of all other data are equal).
+1. *Status*: both runs are ``optimal``.  The PMP's own conditions hold: every residual of
+   :meth:`~iamp.planners.pmp.PMPSolution.residuals` ``≤ pmp_condition_residual·scale`` and the
+   Hamiltonian-jump residual at ``t*`` ``≤ pmp_hjump_at_optimum·max(1, J*)``.
+2. *Solver precision at the QP's contact times* ``t_Q``: cost, nodal states and inputs, and
+   multipliers ``ν`` match the exact reference (FOH: the PMP at ``t_Q``; ZOH: the closed form)
+   within the solver's ``cmp_cost_rel_*``, ``cmp_state_rel_*``, ``cmp_jump_rel_*``.
+3. *KKT*: primal, dual and duality-gap residuals recomputed from the QP matrices and the
+   returned primal/dual solution (:func:`iamp.planners.native.kkt_residuals`; never the
+   solver's own report) are below ``cmp_kkt_rel_*``.
+4. *Constraints*: the QP trajectory's boundary and collision residuals are below
+   ``cmp_residual_rel_*``.
+5. *Search* (grid sweeps): the QP's candidate is the grid optimum of the exact sweep cost —
+   ``J_ref(t_Q) ≤ min_grid J_ref + tol`` (ties within solver precision allowed).  For FOH this
+   is "the sweep's best equals the PMP's global optimum restricted to the grid" (SPEC §3.4).
+6. *Continuous optimum*: ``J_PMP(t_Q) ≥ J* − tol`` (the PMP's ``t*`` is a lower bound over the
+   grid; this fails if the PMP missed the global minimum) and ``J_QP ≤ min J_ref`` over the
+   ``2^m`` grid candidates bracketing ``t*`` ``+ tol`` (the sweep saw them).  The contact-time
+   gap to ``t*`` is expected ``≤ h`` (not ``h/2``: of the two nodes bracketing ``t*`` the
+   cheaper need not be the nearer when ``J`` is asymmetric); a larger gap with rule 6's cost
+   bounds satisfied is a near-tie between basins and is reported as a note, not a failure.
+   ``refine`` runs instead need, for FOH, ``|J_QP − J*| ≤ refine_cost_rel·J*``.
+7. *ZOH only*: ``J_QP ≥ J_PMP(t_Q)`` and ``J_QP − J_PMP(t_Q)`` inside the bracket above.
+
+Pairs of QP runs (same hold and ``N``, e.g. OSQP vs Clarabel, native vs cvxpy): rules 0–1,
+rule 3 for each run at its own solver's tolerance, the same grid contact times (or equal costs within precision: a tie), and cost, states and
+multipliers equal within the looser solver's tolerances.
+
+Signs (SPEC §2, identity 4) are reported for the PMP's ``Φ_i`` and every QP's ``ν_i`` through
+:mod:`iamp.compare.signs`.  That module derives the meaning from
+:math:`\partial J/\partial \text{corner} = -\Phi`: ``Φ_x > 0`` means the unconstrained ego would
+be *ahead of* the corner.  This differs from the parenthetical in SPEC §2.4 ("for a ``front``
+corner, ``Φ_x > 0`` means the ego would otherwise be behind the corner"); the derivation is
+kept (it is what identity 2 implies and what the numbers show: in ``paper-1-poly`` the
+unconstrained ego is 2.8 m ahead of the corner at ``t*`` and ``Φ_x = +7.4``).
+
+Headline numbers (SPEC §5b): ``cost_rel_gap = (J_QP − J_PMP(t_Q))/J_PMP(t_Q)`` (signed; ~0 for
+FOH, the ``O(h²)`` excess for ZOH), ``contact_time_gap = max|t_Q − t_grid*|`` with ``t_grid*``
+the PMP's optimum restricted to the QP's grid, ``state_sup_gap`` the sup-norm of the nodal
+state difference to the PMP at ``t_Q`` on the QP's grid, ``jump_gap = max|ν − Φ(t_Q)|``
+(absolute).  The gaps to the continuous optimum ``t*`` are in ``continuous``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from iamp.planners.pmp import PMPPlanner, ValueFunction, solve_fixed_times
+from iamp.planners.problem import Problem
+from iamp.tolerances import tol
+
+VERDICT_AGREE, VERDICT_DISAGREE = "agree", "disagree"
+
+
+# --------------------------------------------------------------------------------------
+# Fingerprints
+# --------------------------------------------------------------------------------------
+
+
+def _hex(x) -> str:
+    return float(x).hex()
+
+
+def x_poly_fingerprint(problem: Problem) -> str:
+    """SHA-256 of the exact ``x_poly`` coefficients (``float.hex``) of every vehicle."""
+    text = json.dumps([[_hex(c) for c in v.x_poly] for v in problem.vehicles])
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def problem_fingerprint(problem: Problem) -> str:
+    """SHA-256 of every number of the problem (ego, geometry, corners, ``x_poly``)."""
+    e = problem.ego
+    data = {
+        "ego": [_hex(getattr(e, k)) for k in ("tf", "x0", "y0", "vx0", "vy0", "xf", "yf", "vxf", "vyf")],
+        "vehicles": [{"corner": v.corner, "x_poly": [_hex(c) for c in v.x_poly],
+                      "geom": [_hex(getattr(v, k)) for k in ("y", "length", "width", "safety_x", "safety_y")]}
+                     for v in problem.vehicles],
+    }
+    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+
+
+# --------------------------------------------------------------------------------------
+# Configurations and runs
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class QPConfig:
+    """One QP configuration.
+
+    ``path`` is ``"cvxpy"`` (:class:`iamp.planners.qp.QPPlanner`) or ``"native"``
+    (:class:`iamp.planners.native.NativeQPPlanner`); ``settings`` override the solver's
+    settings (e.g. a deliberately loose OSQP) and should come with a ``tag``.
+    """
+
+    solver: str = "clarabel"
+    hold: str = "foh"
+    steps: int = 100
+    path: str = "cvxpy"
+    contact: str = "grid"
+    settings: dict | None = field(default=None, compare=False, hash=False)
+    tag: str | None = None
+
+    @property
+    def label(self) -> str:
+        parts = ["qp", self.solver, self.hold, str(self.steps)]
+        if self.contact != "grid":
+            parts.append(self.contact)
+        if self.path != "cvxpy":
+            parts.append(self.path)
+        if self.tag:
+            parts.append(self.tag)
+        return "-".join(parts)
+
+    def planner(self):
+        kw = dict(steps=self.steps, hold=self.hold, solver=self.solver, contact=self.contact,
+                  solver_settings=self.settings)
+        if self.path == "native":
+            from iamp.planners.native import NativeQPPlanner
+
+            return NativeQPPlanner(**kw)
+        if self.path != "cvxpy":
+            raise ValueError(f"unknown path {self.path!r}; choose cvxpy or native")
+        from iamp.planners.qp import QPPlanner
+
+        return QPPlanner(**kw)
+
+
+def default_configs(steps=(100,), solvers=("osqp", "clarabel"), holds=("foh", "zoh"),
+                    native: bool = False) -> list[QPConfig]:
+    """Every combination of solver, hold and ``N`` (cvxpy path; plus native if asked)."""
+    paths = ("cvxpy", "native") if native else ("cvxpy",)
+    return [QPConfig(solver=s, hold=h, steps=int(n), path=p)
+            for n in steps for h in holds for s in solvers for p in paths]
+
+
+@dataclass
+class Run:
+    """One planner run: its result, timing and fingerprints."""
+
+    label: str
+    planner: str
+    result: object  # PlanResult
+    time: object  # TimingStats
+    config: QPConfig | None = None
+    kkt: dict | None = None
+    fingerprint: str = ""
+    x_poly_fingerprint: str = ""
+    notes: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.result is not None and self.result.status == "optimal"
+
+    def to_json(self) -> dict:
+        r, c = self.result, self.config
+        ok = self.ok
+        info = getattr(r, "info", {}) or {}
+        out = {
+            "label": self.label, "planner": self.planner,
+            "solver": c.solver if c else None, "hold": c.hold if c else None,
+            "steps": c.steps if c else None, "path": c.path if c else None,
+            "contact": c.contact if c else None,
+            "settings": dict(c.settings) if c and c.settings else None,
+            "status": r.status,
+            "cost": float(r.cost) if ok else None,
+            "contact_times": [float(t) for t in r.contact_times] if ok else [],
+            "jumps": [[float(j[0]), float(j[1])] for j in r.jumps] if ok else [],
+            "time_s": self.time.to_dict() if self.time is not None else None,
+            "x_poly_sha256": self.x_poly_fingerprint,
+            "problem_sha256": self.fingerprint,
+            "residuals": {k: float(v) for k, v in (r.residuals or {}).items()} if ok else {},
+            "kkt": self.kkt,
+            "notes": list(self.notes),
+        }
+        if c is not None:
+            failures = info.get("failures", [])
+            out["n_solves"] = int(info.get("n_solves", 0))
+            out["failed_candidates"] = len(failures)
+            out["failed_statuses"] = sorted({str(s) for _, s in failures})
+            out["unpolished_candidates"] = int(info.get("unpolished", 0) or 0)
+        return out
+
+
+def _finish_run(run: Run) -> Run:
+    problem = run.result.problem
+    run.fingerprint = problem_fingerprint(problem)
+    run.x_poly_fingerprint = x_poly_fingerprint(problem)
+    return run
+
+
+def _measure(fn, repeats, warmup, budget_s=None):
+    from iamp.compare.timing import measure
+
+    return measure(fn, repeats, warmup, budget_s)
+
+
+def run_pmp(problem: Problem, repeats: int = 20, warmup: int = 2) -> Run:
+    """Plan with the PMP (global contact time), timed (the residual report is computed on a
+    final untimed call)."""
+    import inspect
+
+    planner = PMPPlanner()
+    if "diagnostics" in inspect.signature(planner.plan).parameters:
+        fn = lambda: planner.plan(problem, diagnostics=False)  # noqa: E731
+    else:
+        fn = lambda: planner.plan(problem)  # noqa: E731
+    try:
+        stats, _ = _measure(fn, repeats, warmup)
+        result = planner.plan(problem)
+    except Exception as exc:  # a failed PMP is reported as a status, never a cost
+        from iamp.errors import SolverError
+        from iamp.planners.result import PlanResult
+
+        if not isinstance(exc, SolverError):
+            raise
+        result = PlanResult(problem=problem, planner="pmp", status=str(exc.status), cost=None,
+                            contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
+                            trajectory=None)
+        stats = None
+    return _finish_run(Run("pmp", "pmp", result, stats))
+
+
+def run_qp(problem: Problem, config: QPConfig, repeats: int = 3, warmup: int = 1,
+           budget_s: float = 30.0) -> Run:
+    """Plan with one QP configuration (its own contact-time search), timed over full plans
+    (build + search), then recompute the KKT residuals of the reported solution."""
+    planner = config.planner()
+    keep = {}
+
+    def fn():
+        qp = planner.build(problem)
+        keep["qp"] = qp
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return planner.plan(problem, qp=qp)
+
+    stats, result = _measure(fn, repeats, warmup, budget_s)
+    run = _finish_run(Run(config.label, "qp", result, stats, config=config))
+    if run.ok:
+        run.kkt = _kkt_of_result(problem, config, keep["qp"], result, run)
+    return run
+
+
+def _kkt_of_result(problem, config, qp, result, run) -> dict | None:
+    """Re-solve the reported candidate on the planner's own QP object and recompute the KKT
+    residuals from the QP matrices (built by :class:`iamp.planners.native.QPData`, the same
+    rows as the cvxpy model) and the returned primal and dual vectors."""
+    from iamp.planners.native import QPData
+
+    traj = result.trajectory
+    t_nodes = np.asarray(traj.t_nodes)
+    nodes = [int(np.argmin(np.abs(t_nodes - t))) for t in result.contact_times]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        qp.set_grid(t_nodes)
+        r = qp.solve_nodes(nodes)
+    if r["status"] != "optimal":
+        run.notes.append(f"re-solve for the KKT check returned {r['status']}")
+        return None
+    if abs(r["cost"] - result.cost) > tol(f"cmp_cost_rel_{config.solver}") * max(1.0, abs(result.cost)):
+        run.notes.append("re-solve for the KKT check changed the cost beyond the solver tolerance")
+    data = QPData(problem, config.steps, config.hold)
+    data.set_grid(t_nodes)
+    data.selector_update(nodes)
+    if config.path == "native":
+        z, y = r["z"], r["y"]
+    else:
+        try:
+            y = data.dual_from_cvxpy(qp)
+        except (IndexError, TypeError, ValueError) as exc:  # the cvxpy model changed shape
+            run.notes.append(f"KKT check unavailable: {exc}")
+            return None
+        z = data.pack(r["trajectory"].X, r["trajectory"].U)
+    out = data.kkt_residuals(z, y)
+    out["source"] = "recomputed from the QP matrices and the returned (x, y)"
+    return {k: (float(v) if not isinstance(v, str) else v) for k, v in out.items()}
+
+
+# --------------------------------------------------------------------------------------
+# Exact references
+# --------------------------------------------------------------------------------------
+
+
+def _gram(t, T):
+    """``G`` and ``D = ∫φ'φ'`` for contact times ``t`` of shape ``(..., m)``."""
+    t = np.asarray(t, dtype=float)
+    m = t.shape[-1]
+    shp = t.shape[:-1]
+    G = np.empty(shp + (m + 2, m + 2))
+    G[..., 0, 0] = T
+    G[..., 0, 1] = G[..., 1, 0] = T**2 / 2
+    G[..., 1, 1] = T**3 / 3
+    G[..., 0, 2:] = G[..., 2:, 0] = t**2 / 2
+    G[..., 1, 2:] = G[..., 2:, 1] = T * t**2 / 2 - t**3 / 6
+    ti, tj = t[..., :, None], t[..., None, :]
+    a = np.minimum(ti, tj)
+    G[..., 2:, 2:] = ti * tj * a - (ti + tj) * a**2 / 2 + a**3 / 3
+    return G
+
+
+def _rhs(problem: Problem, t):
+    """``c`` of shape ``(..., m+2, 2)``: final speed, final position, contact positions."""
+    t = np.asarray(t, dtype=float)
+    e, T = problem.ego, problem.tf
+    c = np.empty(t.shape[:-1] + (t.shape[-1] + 2, 2))
+    c[..., 0, :] = [e.vxf - e.vx0, e.vyf - e.vy0]
+    c[..., 1, :] = [e.xf - e.x0 - e.vx0 * T, e.yf - e.y0 - e.vy0 * T]
+    for i, v in enumerate(problem.vehicles):
+        c[..., 2 + i, 0] = v.corner_x(t[..., i]) - e.x0 - e.vx0 * t[..., i]
+        c[..., 2 + i, 1] = v.corner_y - e.y0 - e.vy0 * t[..., i]
+    return c
+
+
+def _e_matrix(node_idx, cw):
+    """``E`` from the cumulative interval weights ``cw[k] = Σ_{intervals < k} h³/12``."""
+    node_idx = np.asarray(node_idx)
+    m = node_idx.shape[-1]
+    E = np.zeros(node_idx.shape[:-1] + (m + 2, m + 2))
+    E[..., 1, 1] = cw[-1]
+    E[..., 1, 2:] = E[..., 2:, 1] = cw[node_idx]
+    E[..., 2:, 2:] = cw[np.minimum(node_idx[..., :, None], node_idx[..., None, :])]
+    return E
+
+
+def zoh_reference(problem: Problem, t_nodes, nodes) -> dict:
+    r"""The exact ZOH optimum with the contacts at grid nodes ``nodes`` of ``t_nodes``.
+
+    Returns ``cost``, nodal states ``X`` ``(N+1, 4)``, inputs ``U`` ``(N, 2)``, multipliers
+    ``nu`` ``(m, 2)``, the continuous cost ``J_continuous`` (= the PMP's, from the same
+    Gram matrix), the leading gap term ``gap_leading`` :math:`\Delta_1` and
+    :math:`\rho = \lambda_{\max}(G^{-1}E)`; see the module docstring.
+    """
+    from scipy.linalg import eigh
+
+    t_nodes = np.asarray(t_nodes, dtype=float)
+    nodes = np.asarray(nodes, dtype=int)
+    T = problem.tf
+    t = t_nodes[nodes]
+    h = np.diff(t_nodes)
+    cw = np.r_[0.0, np.cumsum(h**3 / 12)]
+    G = _gram(t, T)
+    E = _e_matrix(nodes, cw)
+    c = _rhs(problem, t)
+    mu = np.linalg.solve(G - E, c)
+    lam = np.linalg.solve(G, c)
+    cost = 0.5 * float(np.sum(c * mu))
+    j_cont = 0.5 * float(np.sum(c * lam))
+    gap_leading = 0.5 * float(np.sum(lam * (E @ lam)))
+    rho = float(eigh(E, G, eigvals_only=True)[-1])
+    mids = 0.5 * (t_nodes[:-1] + t_nodes[1:])
+    phi = np.column_stack([np.ones_like(mids), T - mids] + [np.maximum(ti - mids, 0.0) for ti in t])
+    U = phi @ mu  # (N, 2)
+    e = problem.ego
+    X = np.empty((len(t_nodes), 4))
+    X[0] = [e.x0, e.vx0, e.y0, e.vy0]
+    for k in range(len(h)):
+        for ax in range(2):
+            s, v = X[k, 2 * ax], X[k, 2 * ax + 1]
+            X[k + 1, 2 * ax] = s + h[k] * v + h[k] ** 2 / 2 * U[k, ax]
+            X[k + 1, 2 * ax + 1] = v + h[k] * U[k, ax]
+    return {"cost": cost, "X": X, "U": U, "nu": -mu[2:].copy(), "J_continuous": j_cont,
+            "gap_leading": gap_leading, "rho": rho}
+
+
+def candidate_table(problem: Problem, steps: int) -> np.ndarray:
+    """Every ordered combination of distinct interior nodes, ``(K, m)``."""
+    return np.array(list(itertools.permutations(range(1, steps), problem.m)), dtype=int).reshape(-1, problem.m)
+
+
+def grid_cost_table(problem: Problem, steps: int, hold: str) -> tuple[np.ndarray, np.ndarray]:
+    """The exact sweep cost at every candidate of the uniform grid: ``(candidates, J)``.
+
+    FOH: the PMP's value function :math:`J(t)`.  ZOH: :math:`\\tfrac12\\sum c^\\top(G-E)^{-1}c`.
+    """
+    cands = candidate_table(problem, steps)
+    h = problem.tf / steps
+    t = cands * h
+    if hold == "foh":
+        J = ValueFunction(problem)(t)
+    else:
+        cw = np.arange(steps + 1) * h**3 / 12
+        G = _gram(t, problem.tf)
+        E = _e_matrix(cands, cw)
+        c = _rhs(problem, t)
+        with np.errstate(all="ignore"):
+            try:
+                mu = np.linalg.solve(G - E, c)
+                J = 0.5 * np.sum(c * mu, axis=(-1, -2))
+            except np.linalg.LinAlgError:
+                J = np.full(len(cands), np.inf)
+                for k in range(len(cands)):
+                    try:
+                        J[k] = 0.5 * np.sum(c[k] * np.linalg.solve(G[k] - E[k], c[k]))
+                    except np.linalg.LinAlgError:
+                        pass
+    J = np.where(np.isfinite(J), J, np.inf)
+    return cands, J
+
+
+# --------------------------------------------------------------------------------------
+# Judging
+# --------------------------------------------------------------------------------------
+
+
+class _Checks:
+    """Collects named checks ``value ≤ limit`` and free-text notes."""
+
+    def __init__(self):
+        self.items: dict = {}
+        self.reasons: list = []
+        self.notes: list = []
+
+    def check(self, name: str, value, limit, ok=None, why: str = "") -> bool:
+        value = float(value) if value is not None else None
+        limit = float(limit) if limit is not None else None
+        if ok is None:
+            ok = value is not None and np.isfinite(value) and value <= limit
+        ok = bool(ok)
+        self.items[name] = {"value": value, "limit": limit, "ok": ok}
+        if not ok:
+            self.reasons.append(f"{name}: {value:.3g} > {limit:.3g}" + (f" ({why})" if why else "")
+                                if value is not None and limit is not None else f"{name} failed ({why})")
+        return ok
+
+    def fail(self, text: str) -> None:
+        self.reasons.append(text)
+
+    def verdict(self) -> str:
+        return VERDICT_AGREE if not self.reasons else VERDICT_DISAGREE
+
+
+def _solver_tol(kind: str, solver: str) -> float:
+    return tol(f"cmp_{kind}_{solver}")
+
+
+def _same_problem(a: Run, b: Run, checks: _Checks) -> None:
+    if a.x_poly_fingerprint != b.x_poly_fingerprint:
+        checks.fail(f"the planners received different x_poly (sha256 {a.x_poly_fingerprint[:12]} vs "
+                    f"{b.x_poly_fingerprint[:12]})")
+    elif a.fingerprint != b.fingerprint:
+        checks.fail(f"the planners received different problem data (sha256 {a.fingerprint[:12]} vs "
+                    f"{b.fingerprint[:12]})")
+
+
+def _pmp_own_checks(pmp: Run, checks: _Checks) -> None:
+    res = pmp.result
+    scale = max(1.0, abs(res.cost), float(np.max(np.abs(res.problem.ego.final))))
+    for name in ("linear_system", "boundary", "interior_constraint", "h_minimisation", "costate_jump"):
+        if name in res.residuals:
+            checks.check(f"pmp_{name}_residual", res.residuals[name] / scale, tol("pmp_condition_residual"))
+    if "hamiltonian_jump" in res.residuals:
+        checks.check("pmp_hamiltonian_jump_at_t*", res.residuals["hamiltonian_jump"] / max(1.0, res.cost),
+                     tol("pmp_hjump_at_optimum"))
+
+
+def _nodes_of(traj, times) -> list:
+    t_nodes = np.asarray(traj.t_nodes)
+    return [int(np.argmin(np.abs(t_nodes - t))) for t in times]
+
+
+def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = None) -> dict:
+    """Judge one ``pmp`` / QP pair (module docstring, rules 0–7).  ``tables`` caches
+    :func:`grid_cost_table` results by ``(steps, hold)``."""
+    checks = _Checks()
+    cfg = qp.config
+    out = {"a": pmp.label, "b": qp.label, "cost_rel_gap": None, "contact_time_gap": None,
+           "state_sup_gap": None, "input_sup_gap": None, "jump_gap": None}
+    _same_problem(pmp, qp, checks)
+    if not pmp.ok:
+        checks.fail(f"pmp status {pmp.result.status}")
+    if not qp.ok:
+        checks.fail(f"{qp.label} status {qp.result.status}")
+    if not (pmp.ok and qp.ok):
+        out.update(verdict=checks.verdict(), reasons=checks.reasons, notes=checks.notes, checks=checks.items)
+        return out
+    _pmp_own_checks(pmp, checks)
+    solver, hold = cfg.solver, cfg.hold
+    res = qp.result
+    traj = res.trajectory
+    t_nodes = np.asarray(traj.t_nodes)
+    N = len(t_nodes) - 1
+    h_max = float(np.max(np.diff(t_nodes)))
+    nodes = _nodes_of(traj, res.contact_times)
+    tQ = t_nodes[nodes]
+    if np.max(np.abs(tQ - res.contact_times)) > 1e-12 * problem.tf:
+        checks.fail("the QP's contact times are not nodes of its grid")
+    J_star, t_star = pmp.result.cost, pmp.result.contact_times
+    # PMP at the QP's contact times (FOH's exact reference)
+    pmp_at = solve_fixed_times(problem, tQ)
+    J_pmp_tQ = pmp_at.cost()
+    X_qp, U_qp = traj.states(t_nodes), traj.inputs(t_nodes)
+    X_p, U_p = pmp_at.states(t_nodes), pmp_at.inputs(t_nodes)
+    out["cost_rel_gap"] = float((res.cost - J_pmp_tQ) / abs(J_pmp_tQ))
+    out["state_sup_gap"] = float(np.max(np.abs(X_qp - X_p)))
+    out["input_sup_gap"] = float(np.max(np.abs(U_qp - U_p)))
+    out["jump_gap"] = float(np.max(np.abs(res.jumps - pmp_at.jumps)))
+    out["nu_minus_phi"] = (res.jumps - pmp_at.jumps).tolist()  # per vehicle (x, y), Φ at t_Q
+    # the exact reference at t_Q
+    if hold == "foh":
+        ref = {"cost": J_pmp_tQ, "X": X_p, "U": U_p, "nu": pmp_at.jumps, "what": "PMP at the QP's contact times"}
+        U_cmp = U_qp
+    else:
+        z = zoh_reference(problem, t_nodes, nodes)
+        ref = {"cost": z["cost"], "X": z["X"], "U": z["U"], "nu": z["nu"],
+               "what": "closed-form ZOH optimum at the QP's contact times"}
+        U_cmp = np.asarray(traj.U)
+    out["reference"] = ref["what"]
+    # rule 2: solver precision
+    checks.check("cost_vs_reference_rel", abs(res.cost - ref["cost"]) / abs(ref["cost"]), _solver_tol("cost_rel", solver))
+    xs = max(1.0, float(np.max(np.abs(ref["X"]))))
+    checks.check("state_vs_reference_rel", np.max(np.abs(X_qp - ref["X"])) / xs, _solver_tol("state_rel", solver))
+    us = max(1.0, float(np.max(np.abs(ref["U"]))))
+    checks.check("input_vs_reference_rel", np.max(np.abs(U_cmp - ref["U"])) / us, _solver_tol("state_rel", solver))
+    js = max(1.0, float(np.max(np.abs(ref["nu"]))))
+    checks.check("jump_vs_reference_rel", np.max(np.abs(res.jumps - ref["nu"])) / js, _solver_tol("jump_rel", solver))
+    # rule 3: KKT
+    if qp.kkt is None:
+        checks.fail("KKT residuals unavailable")
+    else:
+        for k in ("primal_rel", "dual_rel", "gap_rel"):
+            checks.check(f"kkt_{k}", qp.kkt[k], _solver_tol("kkt_rel", solver))
+    # rule 4: constraints
+    bscale = max(1.0, float(np.max(np.abs(np.r_[problem.ego.initial, problem.ego.final]))))
+    checks.check("boundary_residual_rel", res.boundary_residual() / bscale, _solver_tol("residual_rel", solver))
+    checks.check("collision_residual_rel", res.corner_residual() / bscale, _solver_tol("residual_rel", solver))
+    # signs
+    out["signs"] = [_sign_entry(v, j[0]) for v, j in zip(problem.vehicles, res.jumps)]
+    ctol = _solver_tol("cost_rel", solver)
+    # rule 6 (lower bound, both contact searches): t* is the global optimum
+    J_vf_tQ = float(ValueFunction(problem)(tQ[None, :])[0])
+    checks.check("pmp_global_lower_bound", (J_star - J_vf_tQ) / abs(J_star), ctol,
+                 why="the QP's candidate has a lower PMP cost than t*: the PMP's search missed the global optimum")
+    cont = {"cost_rel_gap": float((res.cost - J_star) / abs(J_star)),
+            "contact_time_gap": float(np.max(np.abs(res.contact_times - t_star))), "h": h_max}
+    if cfg.contact == "grid":
+        key = (N, hold)
+        if tables is not None and key in tables:
+            cands, Jtab = tables[key]
+        else:
+            cands, Jtab = grid_cost_table(problem, N, hold)
+            if tables is not None:
+                tables[key] = (cands, Jtab)
+        lookup = {tuple(c): j for c, j in zip(cands.tolist(), Jtab)}
+        J_ref_tQ = lookup.get(tuple(nodes), np.inf)
+        k_best = int(np.argmin(Jtab))
+        J_grid_best = float(Jtab[k_best])
+        # t_grid*: the PMP's optimum restricted to the grid (for the headline gap)
+        uniform = np.linspace(0.0, problem.tf, N + 1)  # the QP's own grid
+        if hold == "foh":
+            t_grid_star = uniform[cands[k_best]]
+        else:
+            if tables is not None and (N, "foh") in tables:
+                _, Jf = tables[(N, "foh")]
+            else:
+                _, Jf = grid_cost_table(problem, N, "foh")
+                if tables is not None:
+                    tables[(N, "foh")] = (cands, Jf)
+            t_grid_star = uniform[cands[int(np.argmin(Jf))]]
+        out["contact_time_gap"] = float(np.max(np.abs(tQ - t_grid_star)))
+        # rule 5: the sweep found the grid optimum of the exact sweep cost
+        checks.check("search_grid_optimum_rel", (J_ref_tQ - J_grid_best) / abs(J_grid_best), ctol,
+                     why="the QP's best candidate is not the grid optimum")
+        # rule 6 (upper bound): the candidates bracketing t* were swept
+        h = problem.tf / N
+        lo = np.clip(np.floor(t_star / h).astype(int), 1, N - 1)
+        hi = np.clip(np.ceil(t_star / h).astype(int), 1, N - 1)
+        brackets = [c for c in itertools.product(*[sorted({int(a), int(b)}) for a, b in zip(lo, hi)])
+                    if len(set(c)) == len(c)]
+        if brackets:
+            J_bracket = min(lookup.get(tuple(c), np.inf) for c in brackets)
+            checks.check("bracket_upper_bound_rel", (res.cost - J_bracket) / abs(J_bracket), ctol,
+                         why="the sweep's best is worse than a grid candidate bracketing t*")
+            cont["bracket_cost"] = float(J_bracket)
+        if cont["contact_time_gap"] > h * (1 + 1e-9):
+            checks.notes.append(f"contact time {cont['contact_time_gap']:.3g} s from t* (> h = {h:.3g} s): the grid "
+                                "optimum lies in another basin with a cost within the grid resolution (near tie)")
+    else:  # refine
+        out["contact_time_gap"] = float(np.max(np.abs(res.contact_times - t_star)))
+        if hold == "foh":
+            checks.check("refine_cost_vs_continuous_rel", abs(res.cost - J_star) / abs(J_star), tol("refine_cost_rel"))
+    # rule 7: ZOH above PMP, gap inside the O(h²) bracket
+    if hold == "zoh":
+        gap = res.cost - J_pmp_tQ
+        lower, rho = z["gap_leading"], z["rho"]
+        upper = lower / (1 - rho) if rho < 1 else np.inf
+        slack = ctol * abs(J_pmp_tQ)
+        checks.check("zoh_above_pmp", -gap / abs(J_pmp_tQ), ctol, why="ZOH cost below the PMP's at the same times")
+        checks.check("zoh_gap_in_bracket", 0.0, 0.0, ok=(lower - slack <= gap <= upper + slack),
+                     why=f"gap {gap:.6g} outside [{lower:.6g}, {upper:.6g}]")
+        out["zoh_gap"] = {"gap": float(gap), "leading_h2_term": float(lower), "upper_bound": float(upper),
+                          "rho": float(rho), "ratio_to_leading": float(gap / lower) if lower > 0 else None}
+    out["continuous"] = cont
+    if res.info.get("failures"):
+        checks.notes.append(f"{len(res.info['failures'])} sweep candidate(s) failed "
+                            f"({', '.join(sorted({str(s) for _, s in res.info['failures']}))}); the best is taken "
+                            "among the rest")
+    out.update(verdict=checks.verdict(), reasons=checks.reasons, notes=checks.notes, checks=checks.items)
+    return out
+
+
+def compare_qp_qp(problem: Problem, a: Run, b: Run) -> dict:
+    """Judge two QP runs with the same hold and ``N`` (e.g. OSQP vs Clarabel)."""
+    checks = _Checks()
+    out = {"a": a.label, "b": b.label, "cost_rel_gap": None, "contact_time_gap": None,
+           "state_sup_gap": None, "input_sup_gap": None, "jump_gap": None}
+    _same_problem(a, b, checks)
+    for r in (a, b):
+        if not r.ok:
+            checks.fail(f"{r.label} status {r.result.status}")
+    if a.ok and b.ok:
+        ra, rb = a.result, b.result
+        for r in (a, b):  # both must be KKT points at their own solver's precision
+            if r.kkt is None:
+                checks.fail(f"{r.label}: KKT residuals unavailable")
+            else:
+                for k in ("primal_rel", "dual_rel", "gap_rel"):
+                    checks.check(f"{r.label}_kkt_{k}", r.kkt[k], _solver_tol("kkt_rel", r.config.solver))
+        loose = "osqp" if "osqp" in (a.config.solver, b.config.solver) else "clarabel"
+        ctol = _solver_tol("cost_rel", loose)
+        out["cost_rel_gap"] = float((rb.cost - ra.cost) / abs(ra.cost))
+        dt = float(np.max(np.abs(ra.contact_times - rb.contact_times)))
+        out["contact_time_gap"] = dt
+        checks.check("cost_rel", abs(out["cost_rel_gap"]), ctol)
+        if dt > tol("cmp_node_time_rel") * problem.tf and a.config.contact == "grid":
+            checks.notes.append("different grid candidates with equal costs (a tie within solver precision)")
+        else:
+            tn = np.asarray(ra.trajectory.t_nodes)
+            Xa, Xb = ra.trajectory.states(tn), rb.trajectory.states(tn)
+            Ua, Ub = ra.trajectory.inputs(tn), rb.trajectory.inputs(tn)
+            out["state_sup_gap"] = float(np.max(np.abs(Xa - Xb)))
+            out["input_sup_gap"] = float(np.max(np.abs(Ua - Ub)))
+            out["jump_gap"] = float(np.max(np.abs(ra.jumps - rb.jumps)))
+            checks.check("state_rel", out["state_sup_gap"] / max(1.0, float(np.max(np.abs(Xa)))),
+                         _solver_tol("state_rel", loose))
+            checks.check("input_rel", out["input_sup_gap"] / max(1.0, float(np.max(np.abs(Ua)))),
+                         _solver_tol("state_rel", loose))
+            checks.check("jump_rel", out["jump_gap"] / max(1.0, float(np.max(np.abs(ra.jumps)))),
+                         _solver_tol("jump_rel", loose))
+    out.update(verdict=checks.verdict(), reasons=checks.reasons, notes=checks.notes, checks=checks.items)
+    return out
+
+
+def _sign_entry(vehicle, phi_x: float) -> dict:
+    from iamp.compare.signs import constraint_is_binding_for_safety, jump_meaning
+
+    return {"vehicle": vehicle.name, "corner": vehicle.corner, "phi_x": float(phi_x),
+            "sign": int(np.sign(phi_x)), "binding_for_safety": bool(constraint_is_binding_for_safety(vehicle, phi_x)),
+            "meaning": jump_meaning(vehicle, phi_x)}
+
+
+# --------------------------------------------------------------------------------------
+# One problem, every configuration
+# --------------------------------------------------------------------------------------
+
+
+@dataclass
+class ProblemComparison:
+    """Runs and verdicts of one problem (:func:`compare_problem`)."""
+
+    name: str
+    problem: Problem
+    runs: list
+    agreement: list
+    timing: dict = field(default_factory=dict)
+
+    @property
+    def all_agree(self) -> bool:
+        return all(a["verdict"] == VERDICT_AGREE for a in self.agreement)
+
+    @property
+    def any_failed(self) -> bool:
+        return any(not r.ok for r in self.runs)
+
+    def run(self, label: str) -> Run:
+        for r in self.runs:
+            if r.label == label:
+                return r
+        raise KeyError(label)
+
+    def pair(self, a: str, b: str) -> dict:
+        for p in self.agreement:
+            if p["a"] == a and p["b"] == b:
+                return p
+        raise KeyError((a, b))
+
+    def to_json(self) -> dict:
+        pmp = next((r for r in self.runs if r.planner == "pmp"), None)
+        out = {"name": self.name, "m": self.problem.m,
+               "x_poly": [list(map(float, v.x_poly)) for v in self.problem.vehicles],
+               "x_poly_sha256": x_poly_fingerprint(self.problem),
+               "problem_sha256": problem_fingerprint(self.problem),
+               "runs": [r.to_json() for r in self.runs],
+               "agreement": self.agreement}
+        if pmp is not None and pmp.ok:
+            out["pmp"] = {
+                "signs": [_sign_entry(v, j[0]) for v, j in zip(self.problem.vehicles, pmp.result.jumps)],
+                "hamiltonian_jump_residuals": [float(r) for r in
+                                               pmp.result.trajectory.hamiltonian_jump_residual()],
+            }
+        if self.timing:
+            out["timing"] = self.timing
+        return out
+
+
+def compare_problem(problem: Problem, configs, name: str | None = None, repeats: int = 3,
+                    pmp_repeats: int | None = None, budget_s: float = 30.0, problems: dict | None = None,
+                    qp_pairs: bool = True, warmup: int = 1) -> ProblemComparison:
+    """Run the PMP and every QP configuration on ``problem`` and judge every pair.
+
+    Parameters
+    ----------
+    problem : Problem
+        Given, as the same object, to every planner.
+    configs : iterable of QPConfig
+    repeats : int
+        Timed full plans per QP configuration (after one warm-up; see
+        :func:`iamp.compare.timing.measure` for ``budget_s``).
+    pmp_repeats : int, optional
+        Timed PMP plans (default ``max(20, 10·repeats)``; the PMP is cheap).
+    warmup : int
+        Untimed plans before the timed ones (each configuration).
+    problems : dict, optional
+        ``label → Problem`` to hand a *different* problem to one planner (used to test that
+        the identical-problem check catches it).
+    qp_pairs : bool
+        Also judge OSQP/Clarabel and native/cvxpy pairs of the same hold and ``N``.
+    """
+    problems = problems or {}
+    configs = list(configs)
+    runs = [run_pmp(problems.get("pmp", problem), pmp_repeats or max(20, 10 * repeats), warmup=max(warmup, 1))]
+    for cfg in configs:
+        runs.append(run_qp(problems.get(cfg.label, problem), cfg, repeats=repeats, warmup=warmup, budget_s=budget_s))
+    pmp = runs[0]
+    tables: dict = {}
+    agreement = [compare_pmp_qp(problem, pmp, r, tables) for r in runs[1:]]
+    if qp_pairs:
+        qps = runs[1:]
+        for a, b in itertools.combinations(qps, 2):
+            ca, cb = a.config, b.config
+            if (ca.hold, ca.steps, ca.contact) == (cb.hold, cb.steps, cb.contact):
+                agreement.append(compare_qp_qp(problem, a, b))
+    return ProblemComparison(name or problem.name, problem, runs, agreement)

@@ -1,0 +1,138 @@
+r"""Booktabs tables for the reports, written atomically.
+
+* :func:`escape` — LaTeX-escape plain text (``\ & % $ # _ { } ~ ^``).
+* :class:`Raw` — a cell that is already LaTeX (e.g. ``Raw(r"$1.2\times10^{-9}$")``), not
+  escaped.
+* :func:`sci` — a number as ``$m\times10^{e}$`` (a :class:`Raw` cell).
+* :func:`booktabs_table` — a ``table``/``tabular`` with ``\toprule``, ``\midrule``,
+  ``\bottomrule`` (needs ``\usepackage{booktabs}``).
+* :func:`write_atomic` — write text to a temporary file in the destination's folder, then
+  :func:`os.replace` it over the destination, so a reader never sees a half-written file and
+  an existing file is replaced only by a complete one.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+
+_ESCAPES = {
+    "\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
+    "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+}
+
+
+class Raw(str):
+    """A table cell that is already valid LaTeX and must not be escaped."""
+
+
+def escape(text) -> str:
+    """Escape LaTeX's special characters in plain text (a :class:`Raw` passes unchanged)."""
+    if isinstance(text, Raw):
+        return str(text)
+    return "".join(_ESCAPES.get(ch, ch) for ch in str(text))
+
+
+def sci(x, digits: int = 2) -> Raw:
+    r"""``x`` as ``$m\times10^{e}$`` with ``digits`` decimals (``--`` for ``None``/NaN)."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return Raw("--")
+    x = float(x)
+    if x == 0:
+        return Raw("$0$")
+    e = int(math.floor(math.log10(abs(x))))
+    m = x / 10**e
+    if round(abs(m), digits) >= 10:
+        m, e = m / 10, e + 1
+    if -2 <= e <= 3:
+        return Raw(f"${x:.{max(0, digits - e)}f}$")
+    return Raw(f"${m:.{digits}f}\\times10^{{{e}}}$")
+
+
+def fixed(x, digits: int = 3) -> Raw:
+    """``x`` with ``digits`` decimals in math mode (``--`` for ``None``/NaN)."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return Raw("--")
+    return Raw(f"${float(x):.{digits}f}$")
+
+
+def booktabs_table(header, rows, caption: str | None = None, label: str | None = None,
+                   align: str | None = None, notes: str | None = None, float_env: bool = True) -> str:
+    """A booktabs table as LaTeX source.
+
+    Parameters
+    ----------
+    header : list
+        Column headings (escaped unless :class:`Raw`).
+    rows : list of list
+        Cells (escaped unless :class:`Raw`); a row equal to ``None`` inserts ``\\midrule``.
+    caption, label : str, optional
+        ``label`` is used verbatim; ``caption`` is escaped unless :class:`Raw`.
+    align : str, optional
+        Column specification (default: ``l`` then ``r`` for every other column).
+    notes : str, optional
+        A footnote line below the table (escaped unless :class:`Raw`).
+    """
+    ncol = len(header)
+    align = align or ("l" + "r" * (ncol - 1))
+    lines = []
+    if float_env:
+        lines += [r"\begin{table}[htbp]", r"\centering"]
+        if caption:
+            lines.append(rf"\caption{{{escape(caption)}}}")
+        if label:
+            lines.append(rf"\label{{{label}}}")
+    lines += [rf"\begin{{tabular}}{{{align}}}", r"\toprule", " & ".join(escape(h) for h in header) + r" \\",
+              r"\midrule"]
+    for row in rows:
+        if row is None:
+            lines.append(r"\midrule")
+            continue
+        if len(row) != ncol:
+            raise ValueError(f"row has {len(row)} cells, header has {ncol}")
+        lines.append(" & ".join(escape(c) for c in row) + r" \\")
+    lines += [r"\bottomrule", r"\end{tabular}"]
+    if notes:
+        lines.append(rf"\par\smallskip{{\footnotesize {escape(notes)}}}")
+    if float_env:
+        lines.append(r"\end{table}")
+    return "\n".join(lines) + "\n"
+
+
+def write_atomic(path, text: str, encoding: str = "utf-8") -> Path:
+    """Write ``text`` to ``path`` atomically (temporary file in the same folder, then
+    :func:`os.replace`).  The temporary file is removed if anything fails."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "w", encoding=encoding) as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, _target_mode(path))
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def _target_mode(path: Path) -> int:
+    """The existing file's permissions, else ``0o666`` minus the umask (what ``open`` gives)."""
+    try:
+        return path.stat().st_mode & 0o7777
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
+def write_table(path, header, rows, **kwargs) -> Path:
+    """:func:`booktabs_table` written with :func:`write_atomic`."""
+    return write_atomic(path, booktabs_table(header, rows, **kwargs))

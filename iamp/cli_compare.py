@@ -1,0 +1,290 @@
+"""``iamp compare`` and ``iamp bench`` (registered by :func:`iamp.cli.build_parser`).
+
+``iamp compare SCENARIO... [--json] [--latex FILE] [--steps N ...] [--repeats K]``
+    Runs the PMP and every QP configuration (OSQP and Clarabel × FOH and ZOH × each ``N``;
+    ``--native`` adds the native-solver path) on each scenario (a file or a built-in name;
+    history scenarios go through the predictor once, so every planner gets the identical
+    polynomial), and prints the runs, their timing and a verdict per pair (rules in
+    :mod:`iamp.compare.agreement`).  Default ``N``: 100 for one vehicle, 20 for two or more
+    (a two-vehicle sweep solves ``(N−1)(N−2)`` QPs per configuration).
+
+``iamp bench [--json] [--quick]``
+    The speed numbers against their targets (:mod:`iamp.compare.bench`).
+
+Exit status: 0 when every run finished (verdicts are printed, ``disagree`` included); 3 if
+any planner or solver failed (a run whose status is not ``optimal``); 2 for bad input (one
+line on standard error, from :func:`iamp.cli.main`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+from iamp.errors import ScenarioError
+
+EXIT_OK, EXIT_SOLVER = 0, 3
+MAX_CANDIDATES = 20_000
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive number (got {text!r})") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number (got {text!r})")
+    return value
+
+
+def add_parsers(sub) -> None:
+    """Add ``compare`` and ``bench`` to the ``iamp`` sub-command parsers."""
+    c = sub.add_parser("compare", help="PMP vs QP (OSQP/Clarabel, FOH/ZOH): agreement and timing",
+                       description="Run the PMP and the QP baselines on the same problem and judge whether "
+                                   "they agree (cost, contact times, states, jumps vs multipliers, KKT "
+                                   "residuals), with timing. Exit 0 when every run finished (verdicts printed), "
+                                   "3 if a planner or solver failed, 2 for bad input.")
+    c.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario TOML files or built-in names")
+    c.add_argument("--steps", type=_positive_int, nargs="+", default=None, metavar="N",
+                   help="QP grid intervals (several allowed; default 100 for one vehicle, 20 for more)")
+    c.add_argument("--solvers", nargs="+", choices=("osqp", "clarabel"), default=["osqp", "clarabel"])
+    c.add_argument("--holds", nargs="+", choices=("foh", "zoh"), default=["foh", "zoh"])
+    c.add_argument("--native", action="store_true", help="also run the native OSQP/Clarabel path")
+    c.add_argument("--repeats", type=_positive_int, default=3, metavar="K",
+                   help="timed full plans per QP configuration (the PMP gets max(20, 10K)); default 3")
+    c.add_argument("--budget", type=_positive_float, default=5.0, metavar="S",
+                   help="stop repeating a configuration once its timed plans exceed S seconds (default 5)")
+    c.add_argument("--no-breakdown", action="store_true",
+                   help="skip the per-solve timing breakdown (cvxpy compile / re-solve / solver / native)")
+    c.add_argument("--model", default=None, help="predictor model file for history scenarios")
+    c.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
+    c.add_argument("--latex", default=None, metavar="FILE", help="write a booktabs table (atomically)")
+    c.set_defaults(func=cmd_compare)
+
+    b = sub.add_parser("bench", help="speed numbers against the project's targets",
+                       description="Medians of the PMP plan, the batch API, native QP solves and FOH grid sweeps "
+                                   "against their targets, with ratios and library versions.")
+    b.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
+    b.add_argument("--quick", action="store_true", help="fewer repeats")
+    b.set_defaults(func=cmd_bench)
+
+
+# --------------------------------------------------------------------------------------
+# compare
+# --------------------------------------------------------------------------------------
+
+
+def _candidates(m: int, N: int) -> int:
+    return math.perm(N - 1, m) if N - 1 >= m else 0
+
+
+def _steps_for(problem, args) -> list[int]:
+    steps = args.steps or ([100] if problem.m == 1 else [20])
+    for N in steps:
+        if N < problem.m + 1:
+            raise ScenarioError(f"must be at least {problem.m + 1} for {problem.m} vehicle(s) (got {N})", "--steps")
+        if _candidates(problem.m, N) > MAX_CANDIDATES:
+            raise ScenarioError(f"N = {N} with {problem.m} vehicles means {_candidates(problem.m, N)} QPs per "
+                                f"configuration (limit {MAX_CANDIDATES}); choose a smaller N", "--steps")
+    return list(dict.fromkeys(steps))
+
+
+def run_compare(args) -> dict:
+    """Everything ``iamp compare`` computes, as the JSON object (no printing)."""
+    from iamp.cli import load_problem
+    from iamp.compare.agreement import compare_problem, default_configs
+    from iamp.compare.timing import DEFAULT_SHIFT_S, geomean_table, qp_breakdown, solver_settings, versions
+    from iamp.tolerances import TOLERANCES
+
+    loaded = []
+    for spec in args.scenarios:  # validate every input before any solve
+        scenario, problem, _ = load_problem(spec, args.model)
+        loaded.append((scenario, problem, _steps_for(problem, args)))
+    scenarios, medians = [], {}
+    for scenario, problem, steps in loaded:
+        configs = default_configs(steps=steps, solvers=tuple(args.solvers), holds=tuple(args.holds),
+                                  native=args.native)
+        comp = compare_problem(problem, configs, name=scenario.name, repeats=args.repeats, budget_s=args.budget)
+        if not args.no_breakdown:
+            comp.timing["breakdown"] = [
+                qp_breakdown(problem, N, h, s, repeats=max(5, 4 * args.repeats), native=True)
+                for N in steps for h in args.holds for s in args.solvers]
+        data = comp.to_json()
+        data["source"] = str(scenario.source) if getattr(scenario, "source", None) else None
+        scenarios.append(data)
+        medians[scenario.name] = {_summary_key(r, auto=args.steps is None): (r["time_s"] or {}).get("median")
+                                  for r in data["runs"]}
+    return {
+        "scenarios": scenarios,
+        "timing_summary": geomean_table(medians, DEFAULT_SHIFT_S),
+        "repeats": args.repeats,
+        "budget_s": args.budget,
+        "versions": versions(),
+        "solver_settings": solver_settings(),
+        "tolerances": {k: v for k, v in TOLERANCES.items()
+                       if k.startswith(("cmp_", "pmp_", "refine_cost_rel"))},
+    }
+
+
+def _summary_key(run: dict, auto: bool) -> str:
+    """Label for the cross-scenario summary; with the default (per-scenario) ``N`` the step
+    count is replaced by ``N`` so that one configuration is one row."""
+    if run["planner"] == "pmp" or not auto:
+        return run["label"]
+    return (run["label"] + "-").replace(f"-{run['steps']}-", "-N-", 1).rstrip("-")
+
+
+def _fmt_time(x) -> str:
+    if x is None:
+        return "-"
+    if x < 1e-3:
+        return f"{x * 1e6:.1f} µs"
+    if x < 1:
+        return f"{x * 1e3:.2f} ms"
+    return f"{x:.2f} s"
+
+
+def _fmt_g(x, spec=".3g") -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def _print_text(out: dict, write) -> None:
+    for sc in out["scenarios"]:
+        write(f"scenario {sc['name']} ({sc['m']} vehicle(s)); x_poly sha256 {sc['x_poly_sha256'][:16]}\n")
+        write(f"  {'run':28s} {'status':10s} {'cost J':>14s}  {'contact times [s]':22s} {'jumps (x, y)':34s} "
+              f"{'time median [IQR]':>24s}\n")
+        for r in sc["runs"]:
+            ct = ", ".join(f"{t:.4f}" for t in r["contact_times"])
+            jp = "; ".join(f"{j[0]:.4g}, {j[1]:.4g}" for j in r["jumps"])
+            ts = r["time_s"] or {}
+            tm = f"{_fmt_time(ts.get('median'))} [{_fmt_time(ts.get('iqr'))}] n={ts.get('n', 0)}" if ts else "-"
+            cost = f"{r['cost']:.9g}" if r["cost"] is not None else "-"
+            extra = ""
+            if r.get("failed_candidates"):
+                extra = f"  ({r['failed_candidates']} of {r['n_solves']} candidates failed)"
+            write(f"  {r['label']:28s} {r['status']:10s} {cost:>14s}  {ct:22s} {jp:34s} {tm:>24s}{extra}\n")
+        if "pmp" in sc:
+            for s in sc["pmp"]["signs"]:
+                write(f"  PMP {s['vehicle']} ({s['corner']}): {s['meaning']}\n")
+        write(f"  {'pair':52s} {'verdict':9s} {'cost gap':>10s} {'t gap':>9s} {'state gap':>10s} {'jump gap':>10s}\n")
+        for a in sc["agreement"]:
+            write(f"  {a['a'] + ' / ' + a['b']:52s} {a['verdict']:9s} {_fmt_g(a['cost_rel_gap'], '.2e'):>10s} "
+                  f"{_fmt_g(a['contact_time_gap'], '.2e'):>9s} {_fmt_g(a['state_sup_gap'], '.2e'):>10s} "
+                  f"{_fmt_g(a['jump_gap'], '.2e'):>10s}\n")
+            for reason in a["reasons"]:
+                write(f"      reason: {reason}\n")
+            for note in a["notes"]:
+                write(f"      note: {note}\n")
+        for b in sc.get("timing", {}).get("breakdown", []):
+            write(f"  timing {b['solver']}-{b['hold']}-{b['steps']}: cvxpy compile {_fmt_time(b['cvxpy_compile_s'])}, "
+                  f"re-solve {_fmt_time(b['cvxpy_resolve_s']['median'])} (solver-reported {_fmt_time(b['cvxpy_solver_s']['median'])}"
+                  f", overhead {_fmt_time(b['cvxpy_overhead_s']['median'])}); native "
+                  f"{_fmt_time(b['native_solve_s']['median'])} (solve() call {_fmt_time(b['native_solve_call_s']['median'])}, "
+                  f"solver-reported {_fmt_time(b['native_solver_s']['median'])})\n")
+        write("\n")
+    ts = out["timing_summary"]
+    if ts["means"]:
+        write(f"shifted geometric means of the medians across scenarios (shift {ts['shift_s'] * 1e3:g} ms):\n")
+        for lab, m in ts["means"].items():
+            write(f"  {lab:28s} {_fmt_time(m['shifted_geomean_s']):>12s}  (n = {m['n']})\n")
+    v = out["versions"]
+    write("versions: " + ", ".join(f"{k} {v[k]}" for k in ("python", "numpy", "scipy", "cvxpy", "osqp", "clarabel"))
+          + "\n")
+    n_dis = sum(a["verdict"] != "agree" for sc in out["scenarios"] for a in sc["agreement"])
+    n_all = sum(len(sc["agreement"]) for sc in out["scenarios"])
+    write(f"verdicts: {n_all - n_dis} of {n_all} pairs agree\n")
+
+
+def latex_table(out: dict) -> str:
+    """One booktabs table: every run of every scenario with its verdict against the PMP."""
+    from iamp.compare.latex import Raw, booktabs_table, escape, sci
+
+    rows = []
+    for k, sc in enumerate(out["scenarios"]):
+        if k:
+            rows.append(None)
+        verdicts = {a["b"]: a for a in sc["agreement"] if a["a"] == "pmp"}
+        for r in sc["runs"]:
+            a = verdicts.get(r["label"])
+            ct = ", ".join(f"{t:.3f}" for t in r["contact_times"]) or "--"
+            rows.append([
+                escape(sc["name"]), Raw(r"\texttt{" + escape(r["label"]) + "}"), escape(r["status"]),
+                sci(r["cost"], 6) if r["cost"] is not None else Raw("--"), ct,
+                sci((r["time_s"] or {}).get("median")),
+                sci(a["cost_rel_gap"]) if a else Raw("--"),
+                sci(a["jump_gap"]) if a else Raw("--"),
+                escape(a["verdict"]) if a else Raw("--"),
+            ])
+    header = ["scenario", "run", "status", Raw("$J$"), Raw("$t_i$ [s]"), Raw("time [s]"),
+              Raw(r"$\Delta J/J$"), Raw(r"$|\nu-\Phi|$"), "verdict"]
+    v = out["versions"]
+    notes = (f"Medians of up to {out['repeats']} timed full plans per configuration (contact-time search "
+             f"included; fewer once {out['budget_s']:g} s are spent). "
+             f"Gaps against the PMP at the QP's own contact times. python {v['python']}, cvxpy {v['cvxpy']}, "
+             f"osqp {v['osqp']}, clarabel {v['clarabel']}.")
+    return booktabs_table(header, rows, caption="PMP and QP baselines: cost, contact times, timing and agreement",
+                          label="tab:compare", align="llllrrrrl", notes=notes)
+
+
+def cmd_compare(args) -> int:
+    out = run_compare(args)
+    if args.latex:
+        from iamp.compare.latex import write_atomic
+
+        write_atomic(args.latex, latex_table(out))
+    if args.json:
+        sys.stdout.write(json.dumps(_jsonable(out), allow_nan=False) + "\n")
+    else:
+        _print_text(out, sys.stdout.write)
+        if args.latex:
+            sys.stdout.write(f"wrote {args.latex}\n")
+    failed = any(r["status"] != "optimal" for sc in out["scenarios"] for r in sc["runs"])
+    return EXIT_SOLVER if failed else EXIT_OK
+
+
+def _jsonable(obj):
+    """Replace non-finite floats by ``None`` (strict JSON) and numpy scalars by Python ones."""
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        x = float(obj)
+        return x if math.isfinite(x) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    return obj
+
+
+# --------------------------------------------------------------------------------------
+# bench
+# --------------------------------------------------------------------------------------
+
+
+def cmd_bench(args) -> int:
+    from iamp.compare.bench import format_bench, run_bench
+
+    out = run_bench(quick=args.quick)
+    if args.json:
+        sys.stdout.write(json.dumps(_jsonable(out), allow_nan=False) + "\n")
+    else:
+        sys.stdout.write(format_bench(out) + "\n")
+    return EXIT_OK
