@@ -1,0 +1,140 @@
+"""Command-line wiring of the reproduction report: ``iamp reproduce [--out DIR] [--no-pdf]``.
+
+:func:`add_parsers` adds the sub-command to the main ``iamp`` parser.  The handler runs
+:func:`iamp.compare.report.reproduce` with a progress display on standard error
+(``[3/13] planning paper-2 ...``), then compiles ``report.tex`` with ``pdflatex`` (twice, in
+a temporary folder inside the output folder, ``-interaction=nonstopmode -halt-on-error``) and
+moves ``report.pdf`` into place atomically.  Standard output carries only the final summary.
+
+Exit status: 0 success; 1 the report was written but ``pdflatex`` failed; 2 bad input;
+3 a solver failed.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+EXIT_OK, EXIT_LATEX = 0, 1
+
+__all__ = ["add_parsers", "cmd_reproduce", "compile_pdf"]
+
+
+def compile_pdf(out_dir, tex_name: str = "report.tex", runs: int = 2, timeout: float = 300.0):
+    """Compile ``out_dir/tex_name`` with ``pdflatex``; returns ``(ok, message)``.
+
+    The auxiliary files go to a temporary folder inside ``out_dir`` (removed afterwards);
+    the PDF replaces ``out_dir/<stem>.pdf`` atomically, and only on success.  Returns
+    ``(False, "pdflatex not found ...")`` if ``pdflatex`` is not installed.
+    """
+    exe = shutil.which("pdflatex")
+    out = Path(out_dir)
+    if exe is None:
+        return False, ("pdflatex not found: report.tex was written but not compiled (install TeX Live, e.g. "
+                       "apt-get install texlive-latex-recommended texlive-latex-extra lmodern)")
+    stem = Path(tex_name).stem
+    build = Path(tempfile.mkdtemp(prefix=".pdflatex-", dir=str(out)))
+    try:
+        for _ in range(runs):
+            try:
+                proc = subprocess.run([exe, "-interaction=nonstopmode", "-halt-on-error",
+                                       f"-output-directory={build.name}", tex_name],
+                                      cwd=str(out), capture_output=True, text=True, errors="replace",
+                                      timeout=timeout)
+            except subprocess.TimeoutExpired:
+                return False, f"pdflatex timed out after {timeout:g} s"
+            if proc.returncode != 0:
+                log = (build / f"{stem}.log")
+                text = log.read_text(errors="replace") if log.is_file() else proc.stdout
+                lines = text.splitlines()
+                err = [i for i, line in enumerate(lines) if line.startswith("!")]
+                excerpt = "\n".join(lines[err[0]:err[0] + 6]) if err else "\n".join(lines[-15:])
+                return False, f"pdflatex failed (exit {proc.returncode}):\n{excerpt}"
+        pdf = build / f"{stem}.pdf"
+        if not pdf.is_file():
+            return False, "pdflatex produced no PDF"
+        os.replace(pdf, out / f"{stem}.pdf")
+        return True, str(out / f"{stem}.pdf")
+    finally:
+        shutil.rmtree(build, ignore_errors=True)
+
+
+class _ProgressPrinter:
+    """``[i/n] message ...`` lines on standard error, with the elapsed time of the last step."""
+
+    def __init__(self, stream=None):
+        self.stream = stream or sys.stderr
+        self.start = time.perf_counter()
+        self.last = self.start
+
+    def __call__(self, step: int, total: int, message: str):
+        now = time.perf_counter()
+        self.stream.write(f"[{step}/{total}] {message} ...  (t = {now - self.start:.0f} s)\n")
+        self.stream.flush()
+        self.last = now
+
+
+def cmd_reproduce(args) -> int:
+    from iamp.compare.report import reproduce
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        from iamp.errors import ScenarioError
+
+        raise ScenarioError("exists and is not a folder", "--out", str(out))
+    progress = _ProgressPrinter()
+    config = None
+    if args.select_predictor:
+        import dataclasses
+
+        from iamp.compare.report import ReproduceConfig
+
+        base = ReproduceConfig.quick_config() if args.quick else ReproduceConfig()
+        config = dataclasses.replace(base, predictor_select=True)
+    res = reproduce(out, progress=progress, quick=args.quick, config=config)
+    for note in res.get("notes", []):
+        sys.stderr.write(f"note: {note}\n")
+    status = EXIT_OK
+    if args.no_pdf:
+        pdf_msg = "PDF not compiled (--no-pdf)"
+    else:
+        sys.stderr.write("compiling report.tex with pdflatex (twice) ...\n")
+        ok, msg = compile_pdf(out)
+        if ok:
+            pdf_msg = f"PDF: {msg}"
+        elif msg.startswith("pdflatex not found"):
+            pdf_msg = msg
+        else:
+            pdf_msg = f"report.tex did not compile: {msg}"
+            status = EXIT_LATEX
+    print(f"reproduction written to {out}/ in {time.perf_counter() - progress.start:.0f} s")
+    print(f"  {len(res.get('outputs', []))} files: report.tex, results.json, tables/*.tex, figures/*.pdf|png")
+    print(f"  {pdf_msg}")
+    for name, q in res.get("qualitative", {}).items():
+        print(f"  {name} vs paper-1: paper says {q['paper_claim']}; measured {q['observed_majority']} "
+              f"({q['n_more_aggressive']} of {q['n_measures']} measures more aggressive)")
+    return status
+
+
+def add_parsers(subparsers) -> None:
+    """Add ``reproduce`` to the ``iamp`` sub-command parsers."""
+    p = subparsers.add_parser(
+        "reproduce", help="reproduce the paper's scenarios and the PMP/QP comparison as a report",
+        description="Run the paper's scenarios 1-3 (from their histories, through the shipped predictor) and the "
+                    "two-vehicle scenario with the PMP and QP planners, the ZOH convergence study, solve-time "
+                    "samples and the predictor evaluation; write tables (booktabs), figures (PDF and PNG), "
+                    "results.json and report.tex into the output folder, and compile report.pdf with pdflatex "
+                    "if it is installed. Takes a few minutes.")
+    p.add_argument("--out", default="reports", help="output folder (default: reports/)")
+    p.add_argument("--no-pdf", action="store_true", help="do not run pdflatex")
+    p.add_argument("--quick", action="store_true", help="small grids and few repetitions (a smoke run)")
+    p.add_argument("--select-predictor", action="store_true",
+                   help="re-run the predictor's model-selection grid (many minutes); by default an existing "
+                        "DIR/predictor_eval.json with a selection for the same data is reused, else the shipped "
+                        "configuration is evaluated without selection")
+    p.set_defaults(func=cmd_reproduce)
