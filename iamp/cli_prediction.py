@@ -1,0 +1,251 @@
+"""Command-line wiring of the predictor: ``iamp train``, ``iamp predict``,
+``iamp evaluate-predictor``.
+
+:func:`add_parsers` adds the sub-commands to the main ``iamp`` parser; every handler takes
+the parsed arguments and returns the exit status (0 success, 2 bad input: one line on
+standard error, no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+
+from iamp.errors import IampError, ScenarioError
+
+EXIT_OK, EXIT_BAD_INPUT = 0, 2
+
+__all__ = ["add_parsers", "cmd_evaluate_predictor", "cmd_predict", "cmd_train", "parse_bins", "predict_json"]
+
+
+def _error(exc) -> int:
+    msg = exc.one_line() if isinstance(exc, ScenarioError) else str(exc)
+    sys.stderr.write(f"iamp: error: {msg}\n")
+    return EXIT_BAD_INPUT
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive number (got {text!r})") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number (got {text!r})")
+    return v
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})")
+    return v
+
+
+def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
+    """Interior acceleration bin edges from the ``--bins`` / ``--bin-width`` / ``--a-max`` options.
+
+    ``spec`` ``None``: bins of ``width`` centred on 0 over ``±a_max``; an integer ``N``: ``N``
+    equal bins over ``[-a_max, a_max]`` (outer bins open); a comma-separated list: the
+    interior edges themselves (strictly increasing, m/s²).
+    """
+    from iamp.prediction.predictor import symmetric_edges
+
+    if spec is None:
+        return symmetric_edges(width, a_max)
+    spec = spec.strip()
+    if "," not in spec:
+        try:
+            n = int(spec)
+        except ValueError:
+            raise ValueError(f"--bins must be a number of bins or comma-separated edges (got {spec!r})") from None
+        if n < 2:
+            raise ValueError(f"--bins needs at least 2 bins (got {n})")
+        return np.linspace(-a_max, a_max, n + 1)[1:-1]
+    try:
+        edges = np.array([float(s) for s in spec.split(",") if s.strip()], dtype=float)
+    except ValueError:
+        raise ValueError(f"--bins edges must be numbers (got {spec!r})") from None
+    if edges.size < 1 or not np.all(np.isfinite(edges)) or np.any(np.diff(edges) <= 0):
+        raise ValueError("--bins edges must be finite and strictly increasing")
+    return edges
+
+
+# ---------------------------------------------------------------------------------------
+# iamp train
+# ---------------------------------------------------------------------------------------
+
+def cmd_train(args) -> int:
+    """``iamp train``: fit an MTD model on recorded tracks and write it (atomically)."""
+    from iamp.prediction.loaders import load
+    from iamp.prediction.predictor import train_from_tracks
+
+    try:
+        edges = parse_bins(args.bins, args.bin_width, args.a_max)
+        tracks = load(args.data, args.format)
+        model = train_from_tracks(
+            tracks, dt=args.dt, edges=edges, order=args.order, estimator=args.estimator, v0_window_s=args.v0_window,
+            provenance={"trained_by": "iamp train", "inputs": [str(p) for p in args.data], "format": args.format})
+        model.save(args.out)
+    except (IampError, ValueError, OSError) as exc:
+        return _error(exc)
+    s = model.summary()
+    print(f"trained MTD model: order {s['order']}, {s['n_states']} states, dt {model.dt:g} s, "
+          f"estimator {s['estimator']}, {model.provenance.get('n_tracks_used')} tracks")
+    print(f"log-likelihood {s['loglik']:.6g} over N = {s['n_obs']} transitions")
+    print(f"parameters k = n m (m-1) + (n-1) = {s['n_parameters']}")
+    print(f"AIC {s['aic']:.6g}   BIC {s['bic']:.6g}")
+    print("lambda " + " ".join(f"{v:.6f}" for v in s["lambda"]))
+    print(f"wrote {args.out}")
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------
+# iamp predict
+# ---------------------------------------------------------------------------------------
+
+def predict_json(scenario, predictor, model_label: str) -> dict:
+    """The SPEC §5b object for ``scenario``.
+
+    Vehicles with a ``history`` are predicted (``t``/``x`` are the predicted samples before
+    the cubic fit); vehicles given by ``x_poly`` pass through unchanged and their ``t``/``x``
+    are the polynomial sampled at the same times ``0, Δt, …, t_f`` (Δt of the model).
+    """
+    tf = scenario.ego.tf
+    vehicles = []
+    preds = {}
+    for i, v in enumerate(scenario.vehicles):
+        if v.history is not None:
+            preds[i] = predictor.predict(v.history, tf)
+    if preds:
+        t = next(iter(preds.values())).t
+    else:
+        dt = predictor.dt if predictor is not None else 0.1
+        M = max(int(math.ceil(tf / dt - 1e-9)), 1)
+        t = dt * np.arange(M + 1)
+        t[-1] = tf
+    for i, v in enumerate(scenario.vehicles):
+        if i in preds:
+            p = preds[i]
+            vehicles.append({"name": v.name, "x_poly": list(p.x_poly), "t": p.t.tolist(), "x": p.x.tolist(),
+                             "source": "history", "fit_rmse": p.fit_rmse})
+        else:
+            x = np.polynomial.polynomial.polyval(t, np.asarray(v.x_poly, dtype=float))
+            vehicles.append({"name": v.name, "x_poly": [float(c) for c in v.x_poly], "t": t.tolist(),
+                             "x": x.tolist(), "source": "x_poly"})
+    return {"scenario": scenario.name, "model": model_label, "vehicles": vehicles}
+
+
+def cmd_predict(args) -> int:
+    """``iamp predict``: predict every history vehicle of a scenario."""
+    from iamp.prediction.predictor import Predictor
+    from iamp.scenario import load_scenario
+
+    try:
+        scenario = load_scenario(args.scenario)
+        predictor = Predictor.from_file(args.model) if args.model else Predictor.default()
+        out = predict_json(scenario, predictor, predictor.name)
+    except (IampError, ValueError, OSError) as exc:
+        return _error(exc)
+    if args.json:
+        sys.stdout.write(json.dumps(out) + "\n")
+        return EXIT_OK
+    print(f"scenario {out['scenario']}  (model: {out['model']}, {predictor!r})")
+    for v in out["vehicles"]:
+        c = v["x_poly"]
+        poly = " + ".join(f"{ci:.6g}{'' if k == 0 else ' t' if k == 1 else f' t^{k}'}" for k, ci in enumerate(c))
+        extra = f", fit RMSE {v['fit_rmse']:.3g} m" if "fit_rmse" in v else ""
+        print(f"  {v['name']:8s} [{v['source']}] x(t) = {poly}{extra}")
+        print(f"           x({v['t'][-1]:g}) = {v['x'][-1]:.3f} m")
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------
+# iamp evaluate-predictor
+# ---------------------------------------------------------------------------------------
+
+def cmd_evaluate_predictor(args) -> int:
+    """``iamp evaluate-predictor``: run the evaluation protocol and write the report."""
+    from iamp.prediction.evaluate import HORIZONS, write_evaluation_report
+
+    try:
+        res = write_evaluation_report(args.out, rerun=args.rerun, select=not args.no_select)
+    except (IampError, ValueError, OSError) as exc:
+        return _error(exc)
+    cfg = res["chosen"]
+    print(f"chosen: order {cfg['order']}, dt {cfg['dt']:g} s, bin width {cfg['width']:g} m/s^2, "
+          f"estimator {cfg.get('estimator', 'mle')}")
+    print("test RMSE [m] at " + "/".join(f"{h:g}" for h in HORIZONS) + " s, ADE, FDE:")
+    for name, r in res["test"].items():
+        print(f"  {name:22s} " + " ".join(f"{v:6.2f}" for v in r["rmse"]) + f"   {r['ade']:6.2f} {r['fde']:6.2f}")
+    print(f"wrote {args.out}/predictor_eval.json and {args.out}/tables/predictor_*.tex")
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------
+# parsers
+# ---------------------------------------------------------------------------------------
+
+def add_parsers(subparsers) -> None:
+    """Add ``train``, ``predict`` and ``evaluate-predictor`` to ``iamp``'s sub-parsers."""
+    from iamp.prediction.evaluate import DEFAULT_CONFIG
+
+    t = subparsers.add_parser(
+        "train", help="train an MTD predictor model on recorded trajectories",
+        description="Fit Raftery's mixture-transition-distribution model of the longitudinal "
+                    "acceleration to recorded tracks and write it as JSON (atomically). Prints the "
+                    "log-likelihood, the parameter count k = n m (m-1) + (n-1), AIC, BIC and the lag weights.")
+    t.add_argument("data", nargs="+", help="data files or directories")
+    t.add_argument("--format", required=True, choices=("highd", "ngsim", "sumo"), help="data format")
+    t.add_argument("--out", required=True, help="model file to write (JSON)")
+    t.add_argument("--order", type=_positive_int, default=DEFAULT_CONFIG["order"],
+                   help=f"chain order n (default {DEFAULT_CONFIG['order']})")
+    t.add_argument("--bins", default=None,
+                   help="acceleration bins: a number N of equal bins over [-A, A] (A = --a-max; outer bins "
+                        "open), or comma-separated interior edges in m/s^2 (default: bins of --bin-width "
+                        "centred on 0)")
+    t.add_argument("--bin-width", type=_positive_float, default=DEFAULT_CONFIG["width"],
+                   help=f"bin width in m/s^2 when --bins is not given (default {DEFAULT_CONFIG['width']:g})")
+    t.add_argument("--a-max", type=_positive_float, default=DEFAULT_CONFIG["a_max"],
+                   help=f"range of the bins in m/s^2 (default {DEFAULT_CONFIG['a_max']:g})")
+    t.add_argument("--dt", type=_positive_float, default=DEFAULT_CONFIG["dt"],
+                   help=f"chain time step in s (default {DEFAULT_CONFIG['dt']:g})")
+    t.add_argument("--v0-window", type=_positive_float, default=DEFAULT_CONFIG["v0_window_s"],
+                   help="window in s of the quadratic fit giving the initial speed at prediction time "
+                        f"(stored in the model; default {DEFAULT_CONFIG['v0_window_s']:g})")
+    t.add_argument("--estimator", choices=("mle", "mle-lambda", "lp"), default="mle",
+                   help="mle: joint maximum likelihood of lambda and Q_i (EM, default); mle-lambda: Q_i from "
+                        "lag-i counts, lambda by maximum likelihood; lp: Q_i from lag-i counts, lambda by the "
+                        "Ching-Fung-Ng linear programme")
+    t.set_defaults(func=cmd_train)
+
+    p = subparsers.add_parser(
+        "predict", help="predict the trajectories of a scenario's history vehicles",
+        description="Predict every vehicle of the scenario that is given by an observed history and fit "
+                    "its cubic x_poly (ascending powers c0..c3). With --json, print exactly one JSON object "
+                    '{"scenario", "model", "vehicles": [{"name", "x_poly", "t", "x", ...}]} where t/x are the '
+                    "predicted samples before the fit. A vehicle given with x_poly in the file passes through "
+                    "with its polynomial unchanged; its t/x are then that polynomial sampled at the same times.")
+    p.add_argument("scenario", help="scenario TOML file or built-in name")
+    p.add_argument("--model", default=None, help="model file (default: the shipped model, reported as 'builtin')")
+    p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
+    p.set_defaults(func=cmd_predict)
+
+    e = subparsers.add_parser(
+        "evaluate-predictor", help="evaluate the predictor against baselines and write the report",
+        description="Run the evaluation protocol on the shipped SUMO data (selection on a validation split, "
+                    "final numbers on a held-out test split) and write predictor_eval.json and "
+                    "tables/predictor_rmse.tex, tables/predictor_selection.tex under --out.")
+    e.add_argument("--out", default="reports", help="output directory (default: reports)")
+    e.add_argument("--rerun", action="store_true",
+                   help="recompute even if DIR/predictor_eval.json already holds results of this protocol "
+                        "version for the shipped data (by default those are reused and only the tables rewritten)")
+    e.add_argument("--no-select", action="store_true",
+                   help="when running, skip the grid search and evaluate the default configuration only (fast)")
+    e.set_defaults(func=cmd_evaluate_predictor)
