@@ -22,11 +22,11 @@ then :func:`os.replace`).  Each returns the list of the two paths written.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from iamp.atomic import atomic_path
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
@@ -70,15 +70,9 @@ def save_figure(fig: Figure, stem, formats=FORMATS) -> list[Path]:
     written = []
     for fmt in formats:
         path = stem.with_name(f"{stem.name}.{fmt}")
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
-        os.close(fd)
-        try:
+        with atomic_path(path) as tmp:
             fig.savefig(tmp, format=fmt, dpi=DPI, bbox_inches="tight",
                         metadata={"CreationDate": None} if fmt == "pdf" else None)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
         written.append(path)
     return written
 

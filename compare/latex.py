@@ -14,9 +14,9 @@ r"""Booktabs tables for the reports, written atomically.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
+
+from iamp.atomic import write_text as write_atomic  # re-exported for callers
 
 _ESCAPES = {
     "\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
@@ -101,36 +101,6 @@ def booktabs_table(header, rows, caption: str | None = None, label: str | None =
     return "\n".join(lines) + "\n"
 
 
-def write_atomic(path, text: str, encoding: str = "utf-8") -> Path:
-    """Write ``text`` to ``path`` atomically (temporary file in the same folder, then
-    :func:`os.replace`).  The temporary file is removed if anything fails."""
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "w", encoding=encoding) as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, _target_mode(path))
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
-
-
-def _target_mode(path: Path) -> int:
-    """The existing file's permissions, else ``0o666`` minus the umask (what ``open`` gives)."""
-    try:
-        return path.stat().st_mode & 0o7777
-    except FileNotFoundError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
 
 
 def write_table(path, header, rows, **kwargs) -> Path:

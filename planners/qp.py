@@ -38,7 +38,6 @@ import cvxpy as cp
 import numpy as np
 from scipy import optimize
 
-from iamp.errors import SolverError
 from iamp.planners.problem import Problem
 from iamp.planners.result import STATUS_OPTIMAL, PlanResult
 from iamp.planners.solvers import SolverBackend, get_solver
@@ -232,7 +231,7 @@ class DiscretisedQP:
                 warnings.simplefilter("ignore")
                 self.cp_problem.solve(solver=b.cvxpy_name, warm_start=True, **b.settings)
             status = self.cp_problem.status
-        except cp.error.SolverError as exc:
+        except cp.error.SolverError:
             status = "solver_error"
         self.n_solves += 1
         stats = self.cp_problem.solver_stats

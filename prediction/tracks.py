@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from importlib import resources
@@ -22,6 +21,8 @@ from pathlib import Path
 from typing import Iterator, Sequence
 
 import numpy as np
+
+from iamp.atomic import atomic_open
 
 from iamp.errors import IampError
 
@@ -383,21 +384,8 @@ class Tracks:
         arrays["header"] = np.array(json.dumps(header, sort_keys=True))
         arrays["meta"] = np.array(meta_json)
 
-        directory = path.parent if str(path.parent) else Path(".")
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                _write_npz(fh, arrays)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.chmod(tmp, _new_file_mode(path))  # mkstemp makes 0600
-            os.replace(tmp, path)
-        except BaseException:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
-            raise
+        with atomic_open(path, "wb") as fh:
+            _write_npz(fh, arrays)
         return path
 
     @classmethod
@@ -447,16 +435,6 @@ class Tracks:
                 raise TrackDataError(f"has {cols['track_id'].size} rows, header says {header['rows']}",
                                      column="track_id", source=path)
         return cls(cols["track_id"], cols["t"], cols["x"], cols["v"], cols["a"], cols["lane"], dt, meta)
-
-
-def _new_file_mode(path: Path) -> int:
-    """The mode of the file being replaced, else what ``open()`` would give (0666 & ~umask)."""
-    try:
-        return path.stat().st_mode & 0o777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        return 0o666 & ~mask
 
 
 def _write_npz(fh, arrays: dict[str, np.ndarray]) -> None:

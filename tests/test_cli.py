@@ -1,7 +1,6 @@
 """SPEC §4–§6 through the CLI: the JSON contract, exit codes, and every bad input."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
