@@ -4,6 +4,8 @@ r"""Booktabs tables for the reports, written atomically.
 * :class:`Raw` — a cell that is already LaTeX (e.g. ``Raw(r"$1.2\times10^{-9}$")``), not
   escaped.
 * :func:`sci` — a number as ``$m\times10^{e}$`` (a :class:`Raw` cell).
+* :func:`is_missing`, :func:`mantissa_exponent` — the pieces of :func:`sci`, shared with
+  :mod:`iamp.compare.report_tex`; :data:`ESCAPES` — what :func:`escape` replaces.
 * :func:`booktabs_table` — a ``table``/``tabular`` with ``\toprule``, ``\midrule``,
   ``\bottomrule`` (needs ``\usepackage{booktabs}``).
 * :func:`write_atomic` — write text to a temporary file in the destination's folder, then
@@ -18,7 +20,8 @@ from pathlib import Path
 
 from iamp.atomic import write_text as write_atomic  # re-exported for callers
 
-_ESCAPES = {
+#: The characters :func:`escape` replaces, and their LaTeX.
+ESCAPES = {
     "\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
     "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
 }
@@ -32,20 +35,32 @@ def escape(text) -> str:
     """Escape LaTeX's special characters in plain text (a :class:`Raw` passes unchanged)."""
     if isinstance(text, Raw):
         return str(text)
-    return "".join(_ESCAPES.get(ch, ch) for ch in str(text))
+    return "".join(ESCAPES.get(ch, ch) for ch in str(text))
 
 
-def sci(x, digits: int = 2) -> Raw:
-    r"""``x`` as ``$m\times10^{e}$`` with ``digits`` decimals (``--`` for ``None``/NaN)."""
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return Raw("--")
-    x = float(x)
-    if x == 0:
-        return Raw("$0$")
+def is_missing(x) -> bool:
+    """``None`` or a non-finite float: a table shows ``--`` for it."""
+    return x is None or (isinstance(x, float) and not math.isfinite(x))
+
+
+def mantissa_exponent(x: float, digits: int) -> tuple[float, int]:
+    """``(m, e)`` with ``x = m·10^e`` and ``|m|``, rounded to ``digits`` decimals, in ``[1, 10)``
+    (``x`` finite and non-zero)."""
     e = int(math.floor(math.log10(abs(x))))
     m = x / 10**e
     if round(abs(m), digits) >= 10:
         m, e = m / 10, e + 1
+    return m, e
+
+
+def sci(x, digits: int = 2) -> Raw:
+    r"""``x`` as ``$m\times10^{e}$`` with ``digits`` decimals (``--`` for ``None``/NaN)."""
+    if is_missing(x):
+        return Raw("--")
+    x = float(x)
+    if x == 0:
+        return Raw("$0$")
+    m, e = mantissa_exponent(x, digits)
     if -2 <= e <= 3:
         return Raw(f"${x:.{max(0, digits - e)}f}$")
     return Raw(f"${m:.{digits}f}\\times10^{{{e}}}$")
@@ -53,7 +68,7 @@ def sci(x, digits: int = 2) -> Raw:
 
 def fixed(x, digits: int = 3) -> Raw:
     """``x`` with ``digits`` decimals in math mode (``--`` for ``None``/NaN)."""
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+    if is_missing(x):
         return Raw("--")
     return Raw(f"${float(x):.{digits}f}$")
 

@@ -18,13 +18,18 @@ def constraint_is_binding_for_safety(vehicle, phi_x: float) -> bool:
     return (phi_x < 0) if vehicle.sign_x > 0 else (phi_x > 0)
 
 
+def constraint_role(vehicle, phi_x: float) -> str:
+    """What the equality is, as the end of a sentence ("the equality is …")."""
+    return ("a real safety constraint (it pushes the ego to the safe side of the corner)"
+            if constraint_is_binding_for_safety(vehicle, phi_x)
+            else "not a safety constraint: it drags the ego towards the obstacle")
+
+
 def jump_meaning(vehicle, phi_x: float) -> str:
     """One sentence for reports: is the equality a real safety constraint here?"""
     side = "ahead of" if phi_x > 0 else "behind"
     if phi_x == 0:
         return "Φ_x = 0: the corner lies on the unconstrained path; the equality costs nothing longitudinally"
-    verdict = ("a real safety constraint (it pushes the ego to the safe side of the corner)"
-               if constraint_is_binding_for_safety(vehicle, phi_x)
-               else "not a safety constraint: it drags the ego towards the obstacle")
+    verdict = constraint_role(vehicle, phi_x)
     return (f"Φ_x {'>' if phi_x > 0 else '<'} 0: without it the ego would be {side} the "
             f"{vehicle.corner.split('-')[0]} corner; the equality is {verdict}")

@@ -121,7 +121,8 @@ def shifted_geomean(values, shift: float = DEFAULT_SHIFT_S) -> float:
     return float(np.exp(np.mean(np.log(v + shift))) - shift)
 
 
-def _dist_version(name: str) -> str | None:
+def dist_version(name: str) -> str | None:
+    """The installed version of distribution ``name``, or ``None``."""
     try:
         return metadata.version(name)
     except metadata.PackageNotFoundError:
@@ -144,9 +145,9 @@ def versions() -> dict:
         "numpy": numpy.__version__,
         "scipy": scipy.__version__,
         "cvxpy": cvxpy_v,
-        "osqp": _dist_version("osqp"),
-        "clarabel": _dist_version("clarabel"),
-        "iamp": _dist_version("iamp"),
+        "osqp": dist_version("osqp"),
+        "clarabel": dist_version("clarabel"),
+        "iamp": dist_version("iamp"),
         "platform": platform.platform(),
         "machine": platform.machine(),
         "cpu_count": os.cpu_count(),
@@ -184,7 +185,7 @@ def time_pmp(problem, repeats: int = 50, warmup: int = 3) -> TimingStats:
     return stats
 
 
-def _sample_nodes(problem, N: int, count: int, seed: int = 0):
+def sample_nodes(problem, N: int, count: int, seed: int = 0):
     """``count`` distinct candidate node tuples spread over the sweep (deterministic)."""
     rng = np.random.default_rng(seed)
     m = problem.m
@@ -214,7 +215,7 @@ def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "cl
 
     from iamp.planners.qp import QPPlanner
 
-    nodes = _sample_nodes(problem, steps, repeats + 1)
+    nodes = sample_nodes(problem, steps, repeats + 1)
     out: dict = {"solver": solver, "hold": hold, "steps": int(steps)}
     t0 = time.perf_counter()
     qp = QPPlanner(steps=steps, hold=hold, solver=solver).build(problem)

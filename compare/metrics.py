@@ -1,0 +1,144 @@
+"""Measurable aggressiveness and safety of a plan, and the paper's qualitative claims.
+
+* :func:`manoeuvre_metrics` — contact time, lane-divider crossing, peak accelerations and
+  jerks, the cost split by axis, and where the ego is inside a safety box or overlaps a
+  vehicle's body (on a 1 ms grid);
+* :func:`qualitative_comparison` — scenario 2 against 1 (the paper: more aggressive) and 3
+  against 1 (the paper: more conservative), measure by measure
+  (:data:`AGGRESSION_MEASURES`).
+
+Used by :func:`iamp.compare.report.reproduce`; re-exported there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["INSIDE_TOL_M", "AGGRESSION_MEASURES", "manoeuvre_metrics", "qualitative_comparison"]
+
+
+def _crossing_time(t, y, level):
+    """First time ``y`` crosses ``level`` (linear interpolation), or ``None``."""
+    d = y - level
+    idx = np.nonzero(np.sign(d[:-1]) != np.sign(d[1:]))[0]
+    if idx.size == 0:
+        return None
+    k = idx[0]
+    return float(t[k] - d[k] * (t[k + 1] - t[k]) / (d[k + 1] - d[k]))
+
+
+def _intervals(t, mask):
+    """``[[start, end], ...]`` of the runs where ``mask`` holds."""
+    out = []
+    k = 0
+    while k < len(mask):
+        if mask[k]:
+            j = k
+            while j + 1 < len(mask) and mask[j + 1]:
+                j += 1
+            out.append([float(t[k]), float(t[j])])
+            k = j + 1
+        else:
+            k += 1
+    return out
+
+
+#: Depth [m] beyond which the ego's point counts as inside a safety box (touching the corner at
+#: ``t_i`` and numerical round-off are not "inside").
+INSIDE_TOL_M = 1e-3
+
+
+def manoeuvre_metrics(result) -> dict:
+    """Measurable aggressiveness and safety of a plan (on a 1 ms grid).
+
+    ``t_cross``: first crossing of the lane divider half-way between ``y0`` and vehicle 1's
+    lane; ``peak_*``: max-abs acceleration / jerk; ``J_x``, ``J_y``: the cost split by axis;
+    ``inside_safety_box``: time intervals where the ego's point is strictly inside a safety
+    box by more than :data:`INSIDE_TOL_M` (the equality touches its corner at ``t_i`` only) and
+    ``max_depth_inside_safety_box``
+    the largest distance from the point to the box's boundary while inside; ``body_overlap``: where an ego body
+    of vehicle 1's size overlaps a vehicle's body.
+    """
+    prob = result.problem
+    tf = prob.tf
+    t = np.linspace(0.0, tf, int(round(tf * 1000)) + 1)
+    X = result.trajectory.states(t)
+    U = result.trajectory.inputs(t)
+    jerk = np.diff(U, axis=0) / np.diff(t)[:, None]
+    v1 = prob.vehicles[0]
+    divider = 0.5 * (prob.ego.y0 + v1.y)
+    inside, body, depths = [], [], []
+    for v in prob.vehicles:
+        dx = X[:, 0] - v.position(t)
+        dy = X[:, 2] - v.y
+        depth = np.minimum(v.length / 2 + v.safety_x - np.abs(dx), v.width / 2 + v.safety_y - np.abs(dy))
+        m_box = depth > INSIDE_TOL_M
+        depths.append(float(max(np.max(depth), 0.0)))
+        m_body = (np.abs(dx) < v.length) & (np.abs(dy) < v.width)
+        inside.append(_intervals(t, m_box))
+        body.append(_intervals(t, m_body))
+    w = np.diff(t)
+    return {
+        "J": float(result.cost),
+        "J_x": float(0.5 * np.sum(w * 0.5 * (U[:-1, 0] ** 2 + U[1:, 0] ** 2))),
+        "J_y": float(0.5 * np.sum(w * 0.5 * (U[:-1, 1] ** 2 + U[1:, 1] ** 2))),
+        "t_contact": [float(x) for x in result.contact_times],
+        "x_contact": [float(x) for x in result.trajectory.states(result.contact_times)[:, 0]],
+        "t_cross": _crossing_time(t, X[:, 2], divider),
+        "lane_divider_y": divider,
+        "peak_ax": float(np.max(np.abs(U[:, 0]))),
+        "peak_ay": float(np.max(np.abs(U[:, 1]))),
+        "peak_jerk_x": float(np.max(np.abs(jerk[:, 0]))),
+        "peak_jerk_y": float(np.max(np.abs(jerk[:, 1]))),
+        "min_vx": float(np.min(X[:, 1])),
+        "max_vx": float(np.max(X[:, 1])),
+        "final_gap_to_corner": [float(X[-1, 0] - v.corner_x(tf)) for v in prob.vehicles],
+        "vehicle_speed_0": [float(v.speed(0.0)) for v in prob.vehicles],
+        "vehicle_speed_tf": [float(v.speed(tf)) for v in prob.vehicles],
+        "inside_safety_box": inside,
+        "max_depth_inside_safety_box": depths,
+        "body_overlap": body,
+    }
+
+
+#: (key, label, +1 if larger is more aggressive, −1 if smaller is)
+AGGRESSION_MEASURES = (
+    ("t_contact", "earlier contact time $t^*_1$", -1),
+    ("t_cross", "earlier crossing of the lane divider", -1),
+    ("peak_ay", "larger peak lateral acceleration $|u_y|$", +1),
+    ("peak_jerk_y", "larger peak lateral jerk", +1),
+    ("peak_ax", "larger peak longitudinal acceleration $|u_x|$", +1),
+    ("J", "higher cost $J$", +1),
+    ("final_gap_to_corner", "smaller final clearance $s_x(t_f) - \\mathrm{corner}_x(t_f)$ ahead of vehicle 1", -1),
+)
+
+
+def qualitative_comparison(metrics: dict) -> dict:
+    """Scenario 2 vs 1 (paper: more aggressive) and 3 vs 1 (paper: more conservative)."""
+    def val(m, key):
+        v = m.get(key)
+        return v[0] if isinstance(v, list) else v
+
+    out = {}
+    if "paper-1" not in metrics:
+        return out
+    base = metrics["paper-1"]
+    for other, claim in (("paper-2", "more aggressive"), ("paper-3", "more conservative")):
+        if other not in metrics:
+            continue
+        rows, n_agg, n_cons = [], 0, 0
+        for key, label, sign in AGGRESSION_MEASURES:
+            a, b = val(base, key), val(metrics[other], key)
+            if a is None or b is None:
+                continue
+            diff = (b - a) * sign  # > 0: 'other' more aggressive on this measure
+            more = "more aggressive" if diff > 0 else ("more conservative" if diff < 0 else "equal")
+            n_agg += diff > 0
+            n_cons += diff < 0
+            rows.append({"measure": key, "label": label, "scenario_1": a, "other": b, "other_is": more})
+        n = len(rows)
+        observed = ("more aggressive" if n_agg > n / 2 else "more conservative" if n_cons > n / 2 else "mixed")
+        out[other] = {"paper_claim": claim, "observed_majority": observed, "n_more_aggressive": int(n_agg),
+                      "n_more_conservative": int(n_cons), "n_measures": n, "measures": rows,
+                      "consistent_with_paper": observed == claim}
+    return out
