@@ -191,31 +191,7 @@ class ValueFunction:
         ``N'(σ) σ(1-σ) − 3 N(σ)(1 − 2σ) = 0``: a polynomial whose real roots in ``(0, 1)``
         are all the stationary points.  Each root is polished by Newton's method.
         """
-        ex, ey = self.ex[0], self.ey[0]
-        d = max(len(ex), len(ey))
-        scale = self.tf ** np.arange(d)
-        ex = np.pad(ex, (0, d - len(ex))) * scale
-        ey = np.pad(ey, (0, d - len(ey))) * scale
-        N = np.convolve(ex, ex) + np.convolve(ey, ey)
-        dN = N[1:] * np.arange(1, len(N))
-        Pc = np.zeros(len(N) + 1)
-        Pc[1:len(dN) + 1] += dN
-        Pc[2:len(dN) + 2] -= dN
-        Pc[:len(N)] -= 3 * N
-        Pc[1:len(N) + 1] += 6 * N
-        Pc = np.trim_zeros(Pc, "b")
-        if len(Pc) <= 1:
-            return np.array([])
-        desc = Pc[::-1] / np.max(np.abs(Pc))
-        roots = np.roots(desc)
-        sig = roots.real[(np.abs(roots.imag) <= 1e-7 * np.maximum(1.0, np.abs(roots.real)))
-                         & (roots.real > 0) & (roots.real < 1)]
-        ddesc = np.polyder(desc)
-        for _ in range(2):  # polish: companion-matrix roots are already accurate to ~1e-12
-            dv = np.polyval(ddesc, sig)
-            sig = np.clip(sig - np.where(dv != 0, np.polyval(desc, sig) / np.where(dv != 0, dv, 1.0), 0.0),
-                          1e-15, 1 - 1e-15)
-        return np.unique(sig) * self.tf
+        return _stationary_times_one_vehicle(self.ex[0], self.ey[0], self.tf)
 
 
 def _one_vehicle_root_polys(ex: np.ndarray, ey: np.ndarray, tf):
@@ -275,6 +251,93 @@ def _real_roots_in_unit_interval(Pc: np.ndarray):
     return roots
 
 
+def _stationary_times_one_vehicle(ex, ey, tf: float) -> np.ndarray:
+    """All zeros of ``dJ/dt`` in ``(0, t_f)`` for one vehicle (see
+    :meth:`ValueFunction.stationary_points_1d`); ``ex``, ``ey`` ascending in ``t``.
+
+    Scalar code on purpose (a handful of coefficients): only the companion-matrix
+    eigenvalues go through numpy.
+    """
+    d = max(len(ex), len(ey))
+    ex = [float(c) * tf**k for k, c in enumerate(ex)] + [0.0] * (d - len(ex))
+    ey = [float(c) * tf**k for k, c in enumerate(ey)] + [0.0] * (d - len(ey))
+    N = [0.0] * (2 * d - 1)
+    for i in range(d):
+        for j in range(d):
+            N[i + j] += ex[i] * ex[j] + ey[i] * ey[j]
+    # P(σ) = N'(σ)·σ(1−σ) − 3N(σ)(1−2σ), ascending
+    Pc = [0.0] * (len(N) + 1)
+    for k in range(1, len(N)):
+        dk = k * N[k]  # coefficient of σ^(k−1) in N'
+        Pc[k] += dk
+        Pc[k + 1] -= dk
+    for k, n in enumerate(N):
+        Pc[k] -= 3 * n
+        Pc[k + 1] += 6 * n
+    while len(Pc) > 1 and Pc[-1] == 0.0:
+        Pc.pop()
+    deg = len(Pc) - 1
+    if deg < 1:
+        return np.array([])
+    lead = Pc[-1]
+    if deg == 1:
+        ev = np.array([-Pc[0] / lead])
+    else:
+        C = np.zeros((deg, deg))
+        C[1:, :-1] = np.eye(deg - 1)
+        C[:, -1] = [-c / lead for c in Pc[:-1]]
+        ev = np.linalg.eigvals(C)
+    out = []
+    for r in ev.tolist() if ev.dtype.kind == "c" else ev.astype(complex).tolist():
+        x = r.real
+        if abs(r.imag) > 1e-7 * max(1.0, abs(x)) or not 0.0 < x < 1.0:
+            continue
+        for _ in range(2):  # Newton polish (the eigenvalues are already accurate to ~1e-12)
+            p = dp = 0.0
+            for c in reversed(Pc):
+                dp = dp * x + p
+                p = p * x + c
+            if dp != 0.0:
+                x = min(max(x - p / dp, 1e-15), 1 - 1e-15)
+        out.append(x * tf)
+    return np.sort(np.array(out))
+
+
+def _horner(desc, x):
+    """Polynomial (descending coefficients) at ``x``."""
+    y = np.zeros_like(x)
+    for c in desc:
+        y = y * x + c
+    return y
+
+
+def one_vehicle_contact_time(problem: Problem) -> float:
+    r"""The exact global contact time for one vehicle, in scalar code.
+
+    Every stationary point of ``J`` (every zero of the Hamiltonian-jump residual) is a real
+    root in ``(0, t_f)`` of ``N'(t) t(t_f−t) − 3N(t)(t_f−2t)`` with ``N = e_x² + e_y²``; the
+    global minimiser is the root with the least ``J = J̄ + ½N/K``.
+    """
+    ego, T = problem.ego, problem.tf
+    veh = problem.vehicles[0]
+    hx = hermite_cubic(ego.x0, ego.vx0, ego.xf, ego.vxf, T)
+    hy = hermite_cubic(ego.y0, ego.vy0, ego.yf, ego.vyf, T)
+    xp = np.asarray(veh.x_poly, float)
+    ex = np.zeros(max(4, len(xp)))
+    ex[: len(xp)] = xp
+    ex[0] += veh.offset_x
+    ex[:4] -= hx
+    ey = -hy
+    ey[0] += veh.corner_y
+    roots = _stationary_times_one_vehicle(ex, ey, T)
+    if roots.size == 0:
+        raise SolverError("J(t) has no stationary point in (0, tf): no interior contact time",
+                          "no_interior_optimum")
+    N = _horner(ex[::-1], roots) ** 2 + _horner(ey[::-1], roots) ** 2
+    K = roots**3 * (T - roots) ** 3
+    return float(roots[int(np.argmin(N / K))])
+
+
 # --------------------------------------------------------------------------------------
 # The fixed-time solution of the necessary and jump conditions
 # --------------------------------------------------------------------------------------
@@ -293,7 +356,6 @@ class PMPSolution:
     a: np.ndarray  # (2,)  = (-p2(0), -p4(0))
     b: np.ndarray  # (2,)  = (p1(0), p3(0))
     jumps: np.ndarray  # (m, 2)  Φ_i = (Φ_i,x, Φ_i,y)
-    system_residual: float
 
     # --- trajectory -------------------------------------------------------------------
     def _ramps(self, t, power, side="right"):
@@ -336,10 +398,16 @@ class PMPSolution:
                 + p[:, 2] * X[:, 3] + p[:, 3] * U[:, 1])
 
     # --- the conditions -----------------------------------------------------------------
+    def system_residual(self) -> float:
+        """max |M z − rhs| of the jump system (:func:`jump_system`) at this solution."""
+        M, rhs = jump_system(self.problem, self.contact_times)
+        z = np.vstack([self.a, self.b, self.jumps])
+        return float(np.max(np.abs(M @ z - rhs)))
+
     def cost(self) -> float:
         """Exact ``J = ½∫|u|²``: ``u`` is linear between breakpoints, so each piece
         contributes ``h/3·(u_0² + u_0u_1 + u_1²)``."""
-        bp = np.unique(np.r_[0.0, self.contact_times, self.problem.tf])
+        bp = np.sort(np.r_[0.0, self.contact_times, self.problem.tf])
         U = self.inputs(bp)
         h = np.diff(bp)[:, None]
         return float(0.5 * np.sum(h / 3 * (U[:-1] ** 2 + U[:-1] * U[1:] + U[1:] ** 2)))
@@ -367,7 +435,7 @@ class PMPSolution:
         jump = max(np.max(np.abs(pl[:, [0, 2]] - pr[:, [0, 2]] - self.jumps)),
                    np.max(np.abs(pl[:, [1, 3]] - pr[:, [1, 3]])))
         return {
-            "linear_system": float(self.system_residual),
+            "linear_system": self.system_residual(),
             "boundary": float(boundary),
             "interior_constraint": float(interior),
             "h_minimisation": float(h_min),
@@ -376,21 +444,14 @@ class PMPSolution:
         }
 
 
-def solve_fixed_times(problem: Problem, contact_times) -> PMPSolution:
-    """Solve the necessary and co-state jump conditions for given contact times.
+def jump_system(problem: Problem, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The linear system ``M z = rhs`` of the necessary and co-state jump conditions.
 
-    Unknowns per axis: ``z = (a, b, Φ_1..Φ_m)``; equations: the ``m`` interior-point
-    constraints ``s(t_j) = corner_j`` and the final position and speed.  Both axes share
-    the ``(m+2)×(m+2)`` matrix.  Raises :class:`SolverError` if the matrix is singular
-    (two contact times coincide).
+    Unknowns per axis (columns of ``z``): ``(a, b, Φ_1..Φ_m)``; rows: the ``m``
+    interior-point constraints ``s(t_j) = corner_j``, then the final position and speed.
+    Both axes share ``M`` (``(m+2)×(m+2)``); ``rhs`` has one column per axis.
     """
-    t = np.asarray(contact_times, dtype=float).reshape(-1)
-    m = problem.m
-    if t.shape != (m,):
-        raise ValueError(f"need {m} contact times, got {t.shape[0]}")
-    if np.any(t <= 0) or np.any(t >= problem.tf):
-        raise ValueError(f"contact times must lie in (0, {problem.tf}); got {t}")
-    ego, T = problem.ego, problem.tf
+    m, ego, T = problem.m, problem.ego, problem.tf
     M = np.empty((m + 2, m + 2))
     M[:m, 0] = t**2 / 2
     M[:m, 1] = t**3 / 6
@@ -403,6 +464,24 @@ def solve_fixed_times(problem: Problem, contact_times) -> PMPSolution:
     rhs[:m, 1] = C[:, 1] - ego.y0 - ego.vy0 * t
     rhs[m] = [ego.xf - ego.x0 - ego.vx0 * T, ego.yf - ego.y0 - ego.vy0 * T]
     rhs[m + 1] = [ego.vxf - ego.vx0, ego.vyf - ego.vy0]
+    return M, rhs
+
+
+def _check_times(problem: Problem, contact_times) -> np.ndarray:
+    t = np.asarray(contact_times, dtype=float).reshape(-1)
+    if t.shape != (problem.m,):
+        raise ValueError(f"need {problem.m} contact times, got {t.shape[0]}")
+    if np.any(t <= 0) or np.any(t >= problem.tf):
+        raise ValueError(f"contact times must lie in (0, {problem.tf}); got {t}")
+    return t
+
+
+def solve_fixed_times(problem: Problem, contact_times) -> PMPSolution:
+    """Solve the necessary and co-state jump conditions (:func:`jump_system`) for given
+    contact times.  Raises :class:`SolverError` if the system is singular (two contact
+    times coincide)."""
+    t = _check_times(problem, contact_times)
+    M, rhs = jump_system(problem, t)
     try:
         z = np.linalg.solve(M, rhs)
     except np.linalg.LinAlgError:
@@ -411,7 +490,37 @@ def solve_fixed_times(problem: Problem, contact_times) -> PMPSolution:
     scale = max(1.0, float(np.max(np.abs(rhs))), float(np.max(np.abs(M) @ np.abs(z))))
     if not np.all(np.isfinite(z)) or res > 1e-8 * scale:
         raise SolverError(f"contact times {t} make the jump conditions singular", "singular")
-    return PMPSolution(problem, t, z[0], z[1], z[2:], res)
+    return PMPSolution(problem, t, z[0], z[1], z[2:])
+
+
+def solve_one_vehicle(problem: Problem, contact_time: float) -> PMPSolution:
+    r""":func:`solve_fixed_times` for one vehicle, by eliminating ``Φ`` first (scalar code).
+
+    Per axis, ``Φ = −e/K`` with ``e = corner − s̄(t_1)`` and ``K = t_1^3 (t_f−t_1)^3/(3t_f^3)``
+    (the Schur complement of the jump system), then ``(a, b)`` from the two final
+    conditions.  Same solution as the dense solve (the residuals report checks
+    ``M z = rhs``); about three times faster, for the contact-time search and the batch.
+    """
+    t1 = float(_check_times(problem, [contact_time])[0])
+    ego, T = problem.ego, problem.tf
+    veh = problem.vehicles[0]
+    K = t1**3 * (T - t1) ** 3 / (3 * T**3)
+    a, b, phi = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
+    axes = ((ego.x0, ego.vx0, ego.xf, ego.vxf, float(veh.corner_x(t1))),
+            (ego.y0, ego.vy0, ego.yf, ego.vyf, veh.corner_y))
+    for k, (s0, v0, sf, vf, c) in enumerate(axes):
+        es = sf - s0 - v0 * T
+        g = vf - v0
+        c2 = (3 * es - g * T) / T**2
+        c3 = (-2 * es + g * T) / T**3
+        e = c - (s0 + v0 * t1 + c2 * t1**2 + c3 * t1**3)
+        phi[k] = -e / K
+        # a T²/2 + b T³/6 = es + Φ (T−t1)³/6 ;  a T + b T²/2 = g + Φ (T−t1)²/2
+        r1 = es + phi[k] * (T - t1) ** 3 / 6
+        r2 = g + phi[k] * (T - t1) ** 2 / 2
+        b[k] = (12 * r1 - 6 * r2 * T) / -T**3
+        a[k] = (r2 - b[k] * T**2 / 2) / T
+    return PMPSolution(problem, np.array([t1]), np.array(a), np.array(b), np.array([phi]))
 
 
 def hamiltonian_jump_residuals(problem: Problem, contact_times) -> np.ndarray:
@@ -513,15 +622,10 @@ class PMPPlanner:
 
     def contact_times(self, problem: Problem) -> np.ndarray:
         """The global minimiser ``t*`` of ``J`` over ``(0, t_f)^m``."""
+        if problem.m == 1:
+            return np.array([one_vehicle_contact_time(problem)])
         J = ValueFunction(problem)
         tf, m = problem.tf, problem.m
-        if m == 1:
-            roots = J.stationary_points_1d()
-            if roots.size == 0:
-                raise SolverError("J(t) has no stationary point in (0, tf): no interior contact time",
-                                  "no_interior_optimum")
-            vals = J(roots[:, None])
-            return np.array([roots[int(np.argmin(vals))]])
         if m == 2:
             g = tf * (np.arange(self.grid_2d) + 0.5) / self.grid_2d
             T1, T2 = np.meshgrid(g, g, indexing="ij")
@@ -552,6 +656,8 @@ class PMPPlanner:
     def solve(self, problem: Problem, contact_times=None) -> PMPSolution:
         """Fixed-time solution at ``contact_times`` (default: the global ``t*``)."""
         t = self.contact_times(problem) if contact_times is None else contact_times
+        if problem.m == 1:
+            return solve_one_vehicle(problem, np.asarray(t, dtype=float).reshape(-1)[0])
         return solve_fixed_times(problem, t)
 
     def plan(self, problem: Problem, contact_times=None, diagnostics: bool = True) -> PlanResult:
