@@ -13,6 +13,7 @@ import sys
 import numpy as np
 
 from iamp import __version__
+from iamp.cli_types import positive_int as _positive_int
 from iamp.errors import IampError, ScenarioError, SolverError
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_SOLVER = 0, 2, 3
@@ -26,14 +27,6 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_BAD_INPUT)
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})")
-    return value
 
 
 def default_predictor():

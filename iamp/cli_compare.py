@@ -18,35 +18,19 @@ line on standard error, from :func:`iamp.cli.main`).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 
+from iamp.cli_types import positive_float as _positive_float, positive_int as _positive_int
 from iamp.errors import ScenarioError
 
 EXIT_OK, EXIT_SOLVER = 0, 3
 MAX_CANDIDATES = 20_000
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})")
-    return value
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive number (got {text!r})") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive number (got {text!r})")
-    return value
 
 
 def add_parsers(sub) -> None:

@@ -8,13 +8,13 @@ standard error, no traceback).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 
 import numpy as np
 
+from iamp.cli_types import positive_float as _positive_float, positive_int as _positive_int
 from iamp.errors import IampError, ScenarioError
 
 EXIT_OK, EXIT_BAD_INPUT = 0, 2
@@ -28,24 +28,8 @@ def _error(exc) -> int:
     return EXIT_BAD_INPUT
 
 
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive number (got {text!r})") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive number (got {text!r})")
-    return v
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (got {text!r})")
-    return v
 
 
 def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
