@@ -292,7 +292,8 @@ def bic(loglik: float, k: int, n_obs: int) -> float:
 # the model
 # ---------------------------------------------------------------------------------------
 
-def _readonly(a) -> np.ndarray:
+def readonly_array(a) -> np.ndarray:
+    """A float copy of ``a`` that cannot be written to (for immutable results)."""
     a = np.array(a, dtype=float)
     a.setflags(write=False)
     return a
@@ -363,23 +364,23 @@ class MTDModel:
             raise ValueError("lam must lie on the simplex (λ_i >= 0, Σλ_i = 1)")
         Q = np.clip(Q, 0.0, None)  # only round-off negatives (>= -1e-12) reach this
         lam = np.clip(lam, 0.0, None)
-        object.__setattr__(self, "Q", _readonly(Q))
-        object.__setattr__(self, "lam", _readonly(lam))
+        object.__setattr__(self, "Q", readonly_array(Q))
+        object.__setattr__(self, "lam", readonly_array(lam))
         if self.edges is not None:
             e = np.array(self.edges, dtype=float).ravel()
             if e.shape != (m - 1,) or np.any(np.diff(e) <= 0) or not np.all(np.isfinite(e)):
                 raise ValueError(f"edges must be {m - 1} strictly increasing finite numbers")
-            object.__setattr__(self, "edges", _readonly(e))
+            object.__setattr__(self, "edges", readonly_array(e))
         if self.centres is not None:
             c = np.array(self.centres, dtype=float).ravel()
             if c.shape != (m,) or not np.all(np.isfinite(c)):
                 raise ValueError(f"centres must be {m} finite numbers")
-            object.__setattr__(self, "centres", _readonly(c))
+            object.__setattr__(self, "centres", readonly_array(c))
         if self.counts is not None:
             cnt = np.array(self.counts, dtype=float)
             if cnt.shape != (n, m, m) or np.any(cnt < 0):
                 raise ValueError(f"counts must be non-negative with shape {(n, m, m)}")
-            object.__setattr__(self, "counts", _readonly(cnt))
+            object.__setattr__(self, "counts", readonly_array(cnt))
         if self.dt is not None:
             if not (math.isfinite(float(self.dt)) and float(self.dt) > 0):
                 raise ValueError("dt must be a positive number")

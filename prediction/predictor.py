@@ -59,7 +59,7 @@ from importlib import resources
 
 import numpy as np
 
-from iamp.prediction.mtd import ModelFileError, MTDModel
+from iamp.prediction.mtd import ModelFileError, MTDModel, readonly_array
 
 __all__ = [
     "DEFAULT_MODEL_FILE",
@@ -216,12 +216,6 @@ def integrate_nodes(x0, v0, abar: np.ndarray, dt: float, query) -> tuple[np.ndar
 # the prediction
 # ---------------------------------------------------------------------------------------
 
-def _ro(a) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
-
-
 @dataclass(frozen=True, eq=False)
 class Prediction:
     """The output of Ω for one vehicle.
@@ -267,8 +261,8 @@ class Prediction:
     def __post_init__(self):
         object.__setattr__(self, "x_poly", tuple(float(c) for c in self.x_poly))
         for name in ("t", "x", "v", "a", "probs"):
-            object.__setattr__(self, name, _ro(getattr(self, name)))
-        object.__setattr__(self, "quantiles", {float(q): _ro(v) for q, v in self.quantiles.items()})
+            object.__setattr__(self, name, readonly_array(getattr(self, name)))
+        object.__setattr__(self, "quantiles", {float(q): readonly_array(v) for q, v in self.quantiles.items()})
 
     def x_fit(self, t=None) -> np.ndarray:
         """The fitted cubic evaluated at ``t`` (default: the prediction times)."""
