@@ -103,6 +103,14 @@ def bridge_variance_dt(t, tf):
     return t**2 * (tf - t) ** 2 * (tf - 2 * t) / tf**3
 
 
+def _horner_rows(C: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Row ``i`` of ``C`` (ascending coefficients) evaluated at ``t[..., i]``."""
+    y = np.broadcast_to(C[:, -1], t.shape).copy()
+    for k in range(C.shape[1] - 2, -1, -1):
+        y = y * t + C[:, k]
+    return y
+
+
 class ValueFunction:
     r"""The fixed-contact-time optimal cost :math:`J(t)` of a problem, in closed form.
 
@@ -121,13 +129,18 @@ class ValueFunction:
         # e_x,i(t) and e_y,i(t) as ascending polynomials
         self.ex = [P.polysub(np.r_[v.x_poly[0] + v.offset_x, v.x_poly[1:]], self.sx_bar) for v in problem.vehicles]
         self.ey = [P.polysub([v.corner_y], self.sy_bar) for v in problem.vehicles]
+        # padded coefficient matrices (m, d) so all vehicles evaluate in one operation
+        d = max(len(c) for c in self.ex + self.ey)
+        pad = lambda cs: np.array([np.pad(c, (0, d - len(c))) for c in cs])  # noqa: E731
+        self._EX, self._EY = pad(self.ex), pad(self.ey)
+        k = np.arange(d)
+        self._DEX = np.pad(self._EX[:, 1:] * k[1:], ((0, 0), (0, 1)))
+        self._DEY = np.pad(self._EY[:, 1:] * k[1:], ((0, 0), (0, 1)))
 
     def errors(self, t):
         """``(e_x, e_y)`` with shape of ``t`` (``(..., m)``)."""
         t = np.asarray(t, dtype=float)
-        ex = np.stack([P.polyval(t[..., i], self.ex[i]) for i in range(t.shape[-1])], axis=-1)
-        ey = np.stack([P.polyval(t[..., i], self.ey[i]) for i in range(t.shape[-1])], axis=-1)
-        return ex, ey
+        return _horner_rows(self._EX, t), _horner_rows(self._EY, t)
 
     def __call__(self, t) -> np.ndarray:
         """``J(t)`` for ``t`` of shape ``(..., m)``; ``inf`` where the times are degenerate."""
@@ -173,9 +186,8 @@ class ValueFunction:
         K = bridge_kernel(t[..., :, None], t[..., None, :], tf)
         dK = bridge_kernel_ds(t[..., :, None], t[..., None, :], tf)  # ∂K_ij/∂t_i (i ≠ j)
         diag = bridge_variance_dt(t, tf)
-        ex, ey = self.errors(t)
-        dex = np.stack([P.polyval(t[..., i], P.polyder(self.ex[i])) for i in range(m)], axis=-1)
-        dey = np.stack([P.polyval(t[..., i], P.polyder(self.ey[i])) for i in range(m)], axis=-1)
+        ex, ey = _horner_rows(self._EX, t), _horner_rows(self._EY, t)
+        dex, dey = _horner_rows(self._DEX, t), _horner_rows(self._DEY, t)
         g = np.zeros(t.shape)
         eye = np.eye(m, dtype=bool)
         for e, de in ((ex, dex), (ey, dey)):
