@@ -10,29 +10,10 @@ from iamp.planners.pmp import PMPPlanner
 from iamp.scenario import builtin_text
 
 from conftest import run_cli
+from scenario_texts import history_scenario
 
 GOOD = builtin_text("paper-1-poly")
-HIST = """
-[ego]
-tf = 5.0
-x0 = 0.0
-y0 = -2.0
-vx0 = 20.0
-xf = 85.0
-yf = 3.75
-vxf = 20.0
-
-[[vehicles]]
-corner = "front-lower"
-y = 3.75
-length = 4.8
-width = 1.8
-safety_x = 5.0
-safety_y = 0.5
-[vehicles.history]
-t = [-1.0, -0.5, 0.0]
-x = [-33.0, -24.0, -15.0]
-"""
+HIST = history_scenario("-1.0, -0.5, 0.0", "-33.0, -24.0, -15.0", xf=85.0)
 
 KEYS = {"scenario", "planner", "solver", "hold", "steps", "status", "cost", "contact_times", "jumps",
         "solve_time_s", "trajectory"}

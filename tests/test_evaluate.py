@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from scenario_texts import history_scenario
 
 from iamp import cli_prediction
 from iamp.prediction import evaluate as E
@@ -147,29 +148,7 @@ def test_train_default_model_reproduces_the_shipped_model():
 # CLI
 # ---------------------------------------------------------------------------------------
 
-SCENARIO = """
-name = "{name}"
-[ego]
-tf = 5.0
-x0 = 0.0
-y0 = -2.0
-vx0 = 20.0
-xf = 73.0
-yf = 3.75
-vxf = 20.0
-
-[[vehicles]]
-name = "sv1"
-corner = "front-lower"
-y = 3.75
-length = 4.8
-width = 1.8
-safety_x = 5.0
-safety_y = 0.5
-[vehicles.history]
-t = [{t}]
-x = [{x}]
-
+SV2 = """
 [[vehicles]]
 name = "sv2"
 corner = "rear-upper"
@@ -187,7 +166,7 @@ def _scenario_file(tmp_path, t=None, name="hist-2"):
     t = h.t if t is None else t
     x = -15.0 + 20.0 * np.asarray(t) - 0.75 * np.asarray(t) ** 2
     p = tmp_path / f"{name}.toml"
-    p.write_text(SCENARIO.format(name=name, t=", ".join(f"{v:g}" for v in t), x=", ".join(f"{v:.9g}" for v in x)))
+    p.write_text(history_scenario(t, x, name=name, extra=SV2))
     return p
 
 

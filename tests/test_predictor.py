@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+from scenario_texts import history_scenario
 
 from iamp.errors import HistoryError
 from iamp.prediction.evaluate import paper_histories, synthetic_tracks
@@ -254,29 +255,7 @@ def test_from_file_and_default(tmp_path, synthetic_predictor):
 
 
 def test_scenario_to_problem_uses_the_prediction():
-    t = ", ".join(f"{v:g}" for v in T_HIST)
-    x = ", ".join(f"{v:.6f}" for v in braking().x)
-    text = f"""
-name = "hist"
-[ego]
-tf = 5.0
-x0 = 0.0
-y0 = -2.0
-vx0 = 20.0
-xf = 73.0
-yf = 3.75
-vxf = 20.0
-[[vehicles]]
-corner = "front-lower"
-y = 3.75
-length = 4.8
-width = 1.8
-safety_x = 5.0
-safety_y = 0.5
-[vehicles.history]
-t = [{t}]
-x = [{x}]
-"""
+    text = history_scenario(T_HIST, braking().x)
     sc = loads_scenario(text, "hist.toml")
     P = Predictor.default()
     problem, preds = sc.to_problem(P)
