@@ -2,7 +2,7 @@ r"""Do the PMP and the QP baselines agree on one problem?  A comparison that can
 
 :func:`compare_problem` runs the PMP planner and every requested QP configuration
 (:class:`QPConfig`: OSQP or Clarabel, FOH or ZOH, ``N`` steps, through cvxpy or the native
-path, e.g. ``qp-clarabel-foh-100``) on the **same** :class:`~iamp.planners.problem.Problem`
+path, e.g. ``qp-clarabel-foh-100``) on the **same** :class:`~iamp.core.problem.Problem`
 object, records a fingerprint of the problem each planner reports having solved (the exact
 ``x_poly`` coefficients, :func:`problem_fingerprint`), and judges every pair.
 
@@ -65,7 +65,7 @@ rule 3 for each run at its own solver's tolerance, the same grid contact times (
 multipliers equal within the looser solver's tolerances.
 
 Signs (SPEC §2, identity 4) are reported for the PMP's ``Φ_i`` and every QP's ``ν_i`` through
-:mod:`iamp.compare.signs`.  That module derives the meaning from
+:mod:`iamp.comparison.signs`.  That module derives the meaning from
 :math:`\partial J/\partial \text{corner} = -\Phi`: ``Φ_x > 0`` means the unconstrained ego would
 be *ahead of* the corner.  This differs from the parenthetical in SPEC §2.4 ("for a ``front``
 corner, ``Φ_x > 0`` means the ego would otherwise be behind the corner"); the derivation is
@@ -90,8 +90,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from iamp.planners.pmp import PMPPlanner, ValueFunction, solve_fixed_times
-from iamp.planners.problem import Problem
-from iamp.tolerances import tol
+from iamp.core.problem import Problem
+from iamp.core.tolerances import tol
 
 VERDICT_AGREE, VERDICT_DISAGREE = "agree", "disagree"
 
@@ -234,7 +234,7 @@ def _finish_run(run: Run) -> Run:
 
 
 def _measure(fn, repeats, warmup, budget_s=None):
-    from iamp.compare.timing import measure
+    from iamp.comparison.timing import measure
 
     return measure(fn, repeats, warmup, budget_s)
 
@@ -253,8 +253,8 @@ def run_pmp(problem: Problem, repeats: int = 20, warmup: int = 2) -> Run:
         stats, _ = _measure(fn, repeats, warmup)
         result = planner.plan(problem)
     except Exception as exc:  # a failed PMP is reported as a status, never a cost
-        from iamp.errors import SolverError
-        from iamp.planners.result import PlanResult
+        from iamp.core.errors import SolverError
+        from iamp.core.plan import PlanResult
 
         if not isinstance(exc, SolverError):
             raise
@@ -686,7 +686,7 @@ def compare_qp_qp(problem: Problem, a: Run, b: Run) -> dict:
 
 
 def _sign_entry(vehicle, phi_x: float) -> dict:
-    from iamp.compare.signs import constraint_is_binding_for_safety, jump_meaning
+    from iamp.comparison.signs import constraint_is_binding_for_safety, jump_meaning
 
     return {"vehicle": vehicle.name, "corner": vehicle.corner, "phi_x": float(phi_x),
             "sign": int(np.sign(phi_x)), "binding_for_safety": bool(constraint_is_binding_for_safety(vehicle, phi_x)),
@@ -759,7 +759,7 @@ def compare_problem(problem: Problem, configs, name: str | None = None, repeats:
     configs : iterable of QPConfig
     repeats : int
         Timed full plans per QP configuration (after one warm-up; see
-        :func:`iamp.compare.timing.measure` for ``budget_s``).
+        :func:`iamp.comparison.timing.measure` for ``budget_s``).
     pmp_repeats : int, optional
         Timed PMP plans (default ``max(20, 10·repeats)``; the PMP is cheap).
     warmup : int

@@ -1,7 +1,7 @@
 r"""``iamp bench``: the project's speed numbers against their targets, in one run.
 
 All numbers are medians of individual :func:`time.perf_counter` samples after a warm-up
-(:mod:`iamp.compare.timing`), on whatever machine runs the command (the targets were set
+(:mod:`iamp.comparison.timing`), on whatever machine runs the command (the targets were set
 for a 2-core machine).  Targets:
 
 ==================================================  ==================
@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from iamp.compare.timing import measure, qp_breakdown, solver_settings, summarize, versions
+from iamp.comparison.timing import measure, qp_breakdown, solver_settings, summarize, versions
 
 TARGETS = {
     "pmp_plan_one_vehicle_s": ("<=", 100e-6),

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from iamp.atomic import atomic_path
+from iamp.core.atomic import atomic_path
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 

@@ -5,7 +5,7 @@ r"""Booktabs tables for the reports, written atomically.
   escaped.
 * :func:`sci` — a number as ``$m\times10^{e}$`` (a :class:`Raw` cell).
 * :func:`is_missing`, :func:`mantissa_exponent` — the pieces of :func:`sci`, shared with
-  :mod:`iamp.compare.report_tex`; :data:`ESCAPES` — what :func:`escape` replaces.
+  :mod:`iamp.comparison.report_tex`; :data:`ESCAPES` — what :func:`escape` replaces.
 * :func:`booktabs_table` — a ``table``/``tabular`` with ``\toprule``, ``\midrule``,
   ``\bottomrule`` (needs ``\usepackage{booktabs}``).
 * :func:`write_atomic` — write text to a temporary file in the destination's folder, then
@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from iamp.atomic import write_text as write_atomic  # re-exported for callers
+from iamp.core.atomic import write_text as write_atomic  # re-exported for callers
 
 #: The characters :func:`escape` replaces, and their LaTeX.
 ESCAPES = {

@@ -1,5 +1,5 @@
 """The paper's facts the reproduction report needs (its Table I and figure numbers) and the
-scenarios :func:`iamp.compare.report.reproduce` runs."""
+scenarios :func:`iamp.comparison.report.reproduce` runs."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ PAPER_TABLE_I = {
     "paper-3": {"scenario": 3, "v_e": 20.0, "s_xf": 90.0, "t_f": 5.0, "x_s0": -15.0, "v_s0": 13.0,
                 "before": "accelerating"},
 }
-#: The built-in scenarios :func:`iamp.compare.report.reproduce` runs by default.
+#: The built-in scenarios :func:`iamp.comparison.report.reproduce` runs by default.
 SCENARIOS = ("paper-1", "paper-2", "paper-3", "two-vehicle")
 #: The paper's figure numbers per scenario: (the ``(x, y)`` snapshots, the positions).
 PAPER_FIG = {"paper-1": (4, 7), "paper-2": (5, 8), "paper-3": (6, 9)}

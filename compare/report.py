@@ -22,8 +22,8 @@ Every file is written atomically.  The library never prints: progress goes to th
 ``progress(step, total, message)`` callback.
 
 This module runs the steps; the LaTeX (tables and ``report.tex``) is
-:mod:`iamp.compare.report_tex`, the plan metrics and the qualitative comparison are
-:mod:`iamp.compare.metrics`, the paper's Table I is :mod:`iamp.compare.paper`.  Their public
+:mod:`iamp.comparison.report_tex`, the plan metrics and the qualitative comparison are
+:mod:`iamp.comparison.metrics`, the paper's Table I is :mod:`iamp.comparison.paper`.  Their public
 names are re-exported here.
 """
 
@@ -39,10 +39,10 @@ from pathlib import Path
 
 import numpy as np
 
-from iamp.atomic import write_text as atomic_write_text  # re-exported for callers
-from iamp.compare.metrics import AGGRESSION_MEASURES, INSIDE_TOL_M, manoeuvre_metrics, qualitative_comparison
-from iamp.compare.paper import PAPER_FIG, PAPER_TABLE_I, SCENARIOS
-from iamp.compare.report_tex import (
+from iamp.core.atomic import write_text as atomic_write_text  # re-exported for callers
+from iamp.comparison.metrics import AGGRESSION_MEASURES, INSIDE_TOL_M, manoeuvre_metrics, qualitative_comparison
+from iamp.comparison.paper import PAPER_FIG, PAPER_TABLE_I, SCENARIOS
+from iamp.comparison.report_tex import (
     SOLVER_NAMES,
     agreement_notes,
     build_report_tex,
@@ -55,10 +55,10 @@ from iamp.compare.report_tex import (
     table_timing,
     tex_escape,
 )
-from iamp.compare.timing import dist_version, sample_nodes, summarize
+from iamp.comparison.timing import dist_version, sample_nodes, summarize
 
 __all__ = ["ReproduceConfig", "reproduce", "zoh_convergence", "atomic_write_text",
-           # re-exported from iamp.compare.paper, .metrics and .report_tex
+           # re-exported from iamp.comparison.paper, .metrics and .report_tex
            "PAPER_TABLE_I", "SCENARIOS", "PAPER_FIG", "SOLVER_NAMES", "INSIDE_TOL_M", "AGGRESSION_MEASURES",
            "manoeuvre_metrics", "qualitative_comparison", "tex_escape", "table_scenarios", "table_results",
            "table_metrics", "table_agreement", "agreement_notes", "table_timing", "table_convergence",
@@ -142,9 +142,9 @@ class _Progress:
 def _load_scenario(name: str, notes: list) -> dict:
     """Load a built-in scenario through the CLI's loader (the shipped predictor for
     histories); fall back to ``<name>-poly`` with a note if that is impossible."""
-    from iamp.cli import load_problem
-    from iamp.errors import IampError
-    from iamp.scenario import builtin_names
+    from iamp.prediction.resolve import load_problem
+    from iamp.core.errors import IampError
+    from iamp.core.scenario import builtin_names
 
     candidates = [name] if name in builtin_names() else []
     reason = None if candidates else f"the built-in scenario '{name}' (history version) does not exist yet"
@@ -198,14 +198,14 @@ def _table1_row(entry: dict) -> dict:
 
 
 def _roles(problem, jumps) -> list:
-    from iamp.compare.signs import constraint_is_binding_for_safety
+    from iamp.comparison.signs import constraint_is_binding_for_safety
 
     return ["safety" if constraint_is_binding_for_safety(v, j[0]) else "drag" for v, j in zip(problem.vehicles, jumps)]
 
 
 def _qp_configs(cfg: ReproduceConfig, problem) -> list:
     """The QP configurations of ``cfg`` for ``problem`` (one or several vehicles)."""
-    from iamp.compare.agreement import QPConfig
+    from iamp.comparison.agreement import QPConfig
 
     one = problem.m == 1
     steps = cfg.steps_one if one else cfg.steps_two
@@ -216,10 +216,10 @@ def _qp_configs(cfg: ReproduceConfig, problem) -> list:
 def _plan_scenario(name: str, problem, cfg: ReproduceConfig) -> dict:
     """Plan one scenario with the PMP and every QP configuration, judge every pair.
 
-    Uses :func:`iamp.compare.agreement.compare_problem` (the same problem object to every
+    Uses :func:`iamp.comparison.agreement.compare_problem` (the same problem object to every
     planner, identical-polynomial fingerprints, verdicts with reasons, timed plans).
     """
-    from iamp.compare.agreement import compare_problem
+    from iamp.comparison.agreement import compare_problem
 
     one = problem.m == 1
     steps = cfg.steps_one if one else cfg.steps_two
@@ -236,7 +236,7 @@ def _plan_scenario(name: str, problem, cfg: ReproduceConfig) -> dict:
             if "grid_best" in r.info:
                 d["grid_best"] = r.info["grid_best"]
     return {"results": results, "runs": runs, "agreement": pc.agreement,
-            "agreement_source": "iamp.compare.agreement.compare_problem", "steps": steps}
+            "agreement_source": "iamp.comparison.agreement.compare_problem", "steps": steps}
 
 
 # --------------------------------------------------------------------------------------
@@ -255,7 +255,7 @@ def _samples(fn, repeats: int) -> list[float]:
 
 
 def _summary(samples) -> dict:
-    """:func:`iamp.compare.timing.summarize` as a dict (``n = 0`` and ``None`` statistics for no
+    """:func:`iamp.comparison.timing.summarize` as a dict (``n = 0`` and ``None`` statistics for no
     samples)."""
     if len(samples) == 0:
         return {"n": 0, "median": None, "q1": None, "q3": None, "iqr": None}
@@ -439,7 +439,7 @@ def reproduce(out_dir="reports", progress=None, *, quick: bool = False, config: 
     dict
         The contents of ``results.json`` (plus ``outputs``: the files written).
     """
-    from iamp.compare import figures as F
+    from iamp.comparison import figures as F
 
     cfg = config or (ReproduceConfig.quick_config() if quick else ReproduceConfig())
     start = time.perf_counter()
@@ -566,7 +566,7 @@ def reproduce(out_dir="reports", progress=None, *, quick: bool = False, config: 
                       ("convergence", table_convergence(conv))):
         written.append(atomic_write_text(tdir / f"{key}.tex", text))
         tables[key] = f"tables/{key}.tex"
-    res = {"produced_by": "iamp.compare.report.reproduce", "config": asdict(cfg), "notes": notes,
+    res = {"produced_by": "iamp.comparison.report.reproduce", "config": asdict(cfg), "notes": notes,
            "versions": _versions(), "scenarios": scen_out, "qualitative": qual, "zoh_convergence": conv,
            "timing": timing, "predictor": predictor}
     res["runtime_s"] = time.perf_counter() - start

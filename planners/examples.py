@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from iamp.planners.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 
 LANE_WIDTH = 3.75
 DEFAULT_GEOMETRY = {"length": 4.8, "width": 1.8, "safety_x": 5.0, "safety_y": 0.5}
@@ -21,14 +21,14 @@ DEFAULT_GEOMETRY = {"length": 4.8, "width": 1.8, "safety_x": 5.0, "safety_y": 0.
 
 def paper_problem(k: int) -> Problem:
     """The paper's scenario ``k`` (1, 2, 3) with vehicle 1 given as a polynomial."""
-    from iamp.scenario import load_scenario
+    from iamp.core.scenario import load_scenario
 
     problem, _ = load_scenario(f"paper-{k}-poly").to_problem()
     return problem
 
 
 def builtin_problem(name: str) -> Problem:
-    from iamp.scenario import load_scenario
+    from iamp.core.scenario import load_scenario
 
     problem, _ = load_scenario(name).to_problem()
     return problem

@@ -76,9 +76,9 @@ import time as _time
 import numpy as np
 import scipy.sparse as sp
 
-from iamp.planners.problem import Problem
+from iamp.core.problem import Problem
 from iamp.planners.qp import HOLDS, HoldTrajectory, QPPlanner, aligned_grid
-from iamp.planners.result import STATUS_OPTIMAL
+from iamp.core.plan import STATUS_OPTIMAL
 from iamp.planners.solvers import clarabel_settings, osqp_settings
 
 

@@ -56,9 +56,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-from iamp.errors import SolverError
-from iamp.planners.problem import Problem
-from iamp.planners.result import STATUS_OPTIMAL, PlanResult
+from iamp.core.errors import SolverError
+from iamp.core.problem import Problem
+from iamp.core.plan import STATUS_OPTIMAL, PlanResult
 
 # --------------------------------------------------------------------------------------
 # Closed-form pieces

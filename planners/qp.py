@@ -38,8 +38,8 @@ import cvxpy as cp
 import numpy as np
 from scipy import optimize
 
-from iamp.planners.problem import Problem
-from iamp.planners.result import STATUS_OPTIMAL, PlanResult
+from iamp.core.problem import Problem
+from iamp.core.plan import STATUS_OPTIMAL, PlanResult
 from iamp.planners.solvers import SolverBackend, get_solver
 
 HOLDS = ("foh", "zoh")

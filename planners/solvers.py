@@ -3,7 +3,7 @@ signature, registered in :data:`SOLVERS`.
 
 Each backend maps to cvxpy's solver name plus the explicit high-accuracy settings the
 comparison relies on (SPEC §3).  A missing solver raises
-:class:`~iamp.errors.MissingDependencyError` saying how to install it.
+:class:`~iamp.core.errors.MissingDependencyError` saying how to install it.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from importlib import metadata
 
-from iamp.errors import MissingDependencyError
+from iamp.core.errors import MissingDependencyError
 
 
 def _version(dist: str) -> str | None:

@@ -382,7 +382,7 @@ def paper_histories():
     1. constant 18 m/s;  2. braking at -1.5 m/s² to 20 m/s at ``t = 0``;
     3. accelerating at +2 m/s² to 13 m/s at ``t = 0``.
     """
-    from iamp.scenario import History
+    from iamp.core.scenario import History
 
     t = np.round(np.arange(-30, 1) * 0.1, 10)
     xs = {"paper-1": -15.0 + 18.0 * t,

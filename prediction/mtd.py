@@ -98,10 +98,10 @@ from pathlib import Path
 
 import numpy as np
 
-from iamp.atomic import write_text as atomic_write_text  # re-exported for callers
+from iamp.core.atomic import write_text as atomic_write_text  # re-exported for callers
 from scipy.optimize import linprog
 
-from iamp.errors import IampError
+from iamp.core.errors import IampError
 
 __all__ = [
     "ESTIMATORS",

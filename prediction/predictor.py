@@ -370,7 +370,7 @@ class Predictor:
 
         Parameters
         ----------
-        history : iamp.scenario.History
+        history : iamp.core.scenario.History
             Observed longitudinal history (strictly increasing ``t`` ending at 0).
         tf : float
             Horizon [s], > 0.
@@ -388,7 +388,7 @@ class Predictor:
 
         Raises
         ------
-        iamp.errors.HistoryError
+        iamp.core.errors.HistoryError
             The history is shorter than :attr:`min_history_s` or has fewer than
             :attr:`min_samples` samples (the error names the history field).
         ValueError

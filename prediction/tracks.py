@@ -22,9 +22,9 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
-from iamp.atomic import atomic_open
+from iamp.core.atomic import atomic_open
 
-from iamp.errors import IampError
+from iamp.core.errors import IampError
 
 __all__ = ["Tracks", "TrackDataError", "load_shipped_dataset", "SHIPPED_DATASET"]
 

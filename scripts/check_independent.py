@@ -94,7 +94,7 @@ def main():
             problem = random_problem(seed, m=args.m)
             path = Path(tmp) / "s.toml"
             path.write_text(to_toml(problem))
-            out = json.loads(subprocess.run([sys.executable, "-m", "iamp.cli", "plan", str(path), "--json"],
+            out = json.loads(subprocess.run([sys.executable, "-m", "iamp", "plan", str(path), "--json"],
                                             capture_output=True, text=True, check=True).stdout)
             t, cost, jumps = independent(problem)
             worst["cost_rel"] = max(worst["cost_rel"], abs(out["cost"] - cost) / abs(cost))

@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-IAMP = [sys.executable, "-m", "iamp.cli"]
+IAMP = [sys.executable, "-m", "iamp"]
 
 
 def run_cli(*args, cwd=None, timeout=600):

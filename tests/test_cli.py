@@ -7,7 +7,7 @@ import pytest
 
 from iamp.planners.examples import paper_problem
 from iamp.planners.pmp import PMPPlanner
-from iamp.scenario import builtin_text
+from iamp.core.scenario import builtin_text
 
 from conftest import run_cli
 from scenario_texts import history_scenario
@@ -143,7 +143,7 @@ def test_missing_file_and_bad_options(tmp_path):
 
 
 def test_solver_failure_exits_3_without_a_cost(monkeypatch, capsys):
-    from iamp import cli
+    from iamp.cli import main as cli
     from iamp.planners.qp import QPPlanner
 
     orig = cli.make_planner

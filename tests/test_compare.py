@@ -11,11 +11,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from iamp.compare import timing
-from iamp.compare.agreement import (QPConfig, Run, compare_pmp_qp, compare_problem, default_configs,
+from iamp.comparison import timing
+from iamp.comparison.agreement import (QPConfig, Run, compare_pmp_qp, compare_problem, default_configs,
                                     grid_cost_table, problem_fingerprint, run_qp, x_poly_fingerprint,
                                     zoh_reference)
-from iamp.compare.latex import Raw, booktabs_table, escape, sci, write_atomic
+from iamp.comparison.latex import Raw, booktabs_table, escape, sci, write_atomic
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
 from iamp.planners.native import build_native
 from iamp.planners.pmp import PMPPlanner, ValueFunction

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scenario_texts import history_scenario
 
-from iamp import cli_prediction
+from iamp.cli import prediction as cli_prediction
 from iamp.prediction import evaluate as E
 from iamp.prediction.mtd import MTDModel
 from iamp.prediction.predictor import DEFAULT_MODEL_FILE, Predictor

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from iamp.errors import IampError
+from iamp.core.errors import IampError
 from iamp.prediction.loaders import FEET, load, load_highd, load_ngsim, load_sumo_fcd
 from iamp.prediction.tracks import TrackDataError, Tracks, load_shipped_dataset
 

@@ -7,8 +7,8 @@ from scipy import interpolate, optimize
 
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
 from iamp.planners.pmp import PMPPlanner, ValueFunction, solve_fixed_times
-from iamp.planners.problem import Problem
-from iamp.tolerances import tol
+from iamp.core.problem import Problem
+from iamp.core.tolerances import tol
 
 PAPER = [paper_problem(k) for k in (1, 2, 3)]
 RANDOM_1 = [random_problem(seed, m=1) for seed in range(8)]

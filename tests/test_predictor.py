@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scenario_texts import history_scenario
 
-from iamp.errors import HistoryError
+from iamp.core.errors import HistoryError
 from iamp.prediction.evaluate import paper_histories, synthetic_tracks
 from iamp.prediction.mtd import ModelFileError, MTDModel
 from iamp.prediction.predictor import (
@@ -20,7 +20,7 @@ from iamp.prediction.predictor import (
     symmetric_edges,
     train_from_tracks,
 )
-from iamp.scenario import History, loads_scenario
+from iamp.core.scenario import History, loads_scenario
 
 T_HIST = np.round(np.arange(-30, 1) * 0.1, 10)
 

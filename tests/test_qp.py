@@ -6,7 +6,7 @@ import pytest
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
 from iamp.planners.pmp import PMPPlanner, ValueFunction
 from iamp.planners.qp import QPPlanner, aligned_grid
-from iamp.tolerances import tol
+from iamp.core.tolerances import tol
 
 PMP = PMPPlanner()
 CASES_1 = [paper_problem(1), paper_problem(2), paper_problem(3), random_problem(11, m=1, side=-1),

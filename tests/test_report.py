@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from iamp.compare.figures import lane_lines, plot_positions, plot_xy_snapshots, save_figure
-from iamp.compare.report import (
+from iamp.comparison.figures import lane_lines, plot_positions, plot_xy_snapshots, save_figure
+from iamp.comparison.report import (
     ReproduceConfig,
     manoeuvre_metrics,
     qualitative_comparison,
@@ -118,7 +118,7 @@ def test_generated_tables_compile(quick_report, tmp_path):
 @needs_pdflatex
 def test_report_compiles(quick_report):
     out, _, _ = quick_report
-    from iamp.cli_report import compile_pdf
+    from iamp.cli.report import compile_pdf
 
     ok, msg = compile_pdf(out)
     assert ok, msg
@@ -132,7 +132,7 @@ def test_results_json_matches_a_direct_plan(quick_report):
     """The PMP numbers in results.json are those of PMPPlanner().plan on the same problem."""
     out, _, _ = quick_report
     data = json.loads((out / "results.json").read_text())
-    from iamp.cli import load_problem
+    from iamp.prediction.resolve import load_problem
 
     for s in data["scenarios"]:
         _, problem, _ = load_problem(s["builtin"])

@@ -5,11 +5,11 @@
     ``--native`` adds the native-solver path) on each scenario (a file or a built-in name;
     history scenarios go through the predictor once, so every planner gets the identical
     polynomial), and prints the runs, their timing and a verdict per pair (rules in
-    :mod:`iamp.compare.agreement`).  Default ``N``: 100 for one vehicle, 20 for two or more
+    :mod:`iamp.comparison.agreement`).  Default ``N``: 100 for one vehicle, 20 for two or more
     (a two-vehicle sweep solves ``(N−1)(N−2)`` QPs per configuration).
 
 ``iamp bench [--json] [--quick]``
-    The speed numbers against their targets (:mod:`iamp.compare.bench`).
+    The speed numbers against their targets (:mod:`iamp.comparison.bench`).
 
 Exit status: 0 when every run finished (verdicts are printed, ``disagree`` included); 3 if
 any planner or solver failed (a run whose status is not ``optimal``); 2 for bad input (one
@@ -22,8 +22,8 @@ import json
 import math
 import sys
 
-from iamp.cli_types import positive_float as _positive_float, positive_int as _positive_int
-from iamp.errors import ScenarioError
+from iamp.cli.types import positive_float as _positive_float, positive_int as _positive_int
+from iamp.core.errors import ScenarioError
 
 EXIT_OK, EXIT_SOLVER = 0, 3
 MAX_CANDIDATES = 20_000
@@ -87,10 +87,10 @@ def _steps_for(problem, args) -> list[int]:
 
 def run_compare(args) -> dict:
     """Everything ``iamp compare`` computes, as the JSON object (no printing)."""
-    from iamp.cli import load_problem
-    from iamp.compare.agreement import compare_problem, default_configs
-    from iamp.compare.timing import DEFAULT_SHIFT_S, geomean_table, qp_breakdown, solver_settings, versions
-    from iamp.tolerances import TOLERANCES
+    from iamp.prediction.resolve import load_problem
+    from iamp.comparison.agreement import compare_problem, default_configs
+    from iamp.comparison.timing import DEFAULT_SHIFT_S, geomean_table, qp_breakdown, solver_settings, versions
+    from iamp.core.tolerances import TOLERANCES
 
     loaded = []
     for spec in args.scenarios:  # validate every input before any solve
@@ -193,7 +193,7 @@ def _print_text(out: dict, write) -> None:
 
 def latex_table(out: dict) -> str:
     """One booktabs table: every run of every scenario with its verdict against the PMP."""
-    from iamp.compare.latex import Raw, booktabs_table, escape, sci
+    from iamp.comparison.latex import Raw, booktabs_table, escape, sci
 
     rows = []
     for k, sc in enumerate(out["scenarios"]):
@@ -225,7 +225,7 @@ def latex_table(out: dict) -> str:
 def cmd_compare(args) -> int:
     out = run_compare(args)
     if args.latex:
-        from iamp.compare.latex import write_atomic
+        from iamp.comparison.latex import write_atomic
 
         write_atomic(args.latex, latex_table(out))
     if args.json:
@@ -264,7 +264,7 @@ def _jsonable(obj):
 
 
 def cmd_bench(args) -> int:
-    from iamp.compare.bench import format_bench, run_bench
+    from iamp.comparison.bench import format_bench, run_bench
 
     out = run_bench(quick=args.quick)
     if args.json:

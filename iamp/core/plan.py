@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from iamp.planners.problem import Problem
+from iamp.core.problem import Problem
 
 STATUS_OPTIMAL = "optimal"
 

@@ -14,8 +14,8 @@ import sys
 
 import numpy as np
 
-from iamp.cli_types import positive_float as _positive_float, positive_int as _positive_int
-from iamp.errors import IampError, ScenarioError
+from iamp.cli.types import positive_float as _positive_float, positive_int as _positive_int
+from iamp.core.errors import IampError, ScenarioError
 
 EXIT_OK, EXIT_BAD_INPUT = 0, 2
 
@@ -129,7 +129,7 @@ def predict_json(scenario, predictor, model_label: str) -> dict:
 def cmd_predict(args) -> int:
     """``iamp predict``: predict every history vehicle of a scenario."""
     from iamp.prediction.predictor import Predictor
-    from iamp.scenario import load_scenario
+    from iamp.core.scenario import load_scenario
 
     try:
         scenario = load_scenario(args.scenario)

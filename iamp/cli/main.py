@@ -12,9 +12,10 @@ import sys
 
 import numpy as np
 
-from iamp import __version__
-from iamp.cli_types import positive_int as _positive_int
-from iamp.errors import IampError, ScenarioError, SolverError
+from iamp._version import __version__
+from iamp.cli.types import positive_int as _positive_int
+from iamp.core.errors import IampError, ScenarioError, SolverError
+from iamp.prediction.resolve import load_problem
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_SOLVER = 0, 2, 3
 
@@ -29,32 +30,6 @@ class _Parser(argparse.ArgumentParser):
 
 
 
-def default_predictor():
-    """The shipped predictor, or ``None`` if the predictor package is unavailable."""
-    try:
-        from iamp.prediction.predictor import Predictor
-    except ImportError:
-        return None
-    return Predictor.default()
-
-
-def load_problem(spec: str, model: str | None = None):
-    """Scenario file or built-in name → ``(scenario, problem, predictions)``."""
-    from iamp.scenario import load_scenario
-
-    scenario = load_scenario(spec)
-    predictor = None
-    if scenario.needs_prediction:
-        if model is not None:
-            from iamp.prediction.predictor import Predictor
-
-            predictor = Predictor.from_file(model)
-        else:
-            predictor = default_predictor()
-    problem, predictions = scenario.to_problem(predictor)
-    return scenario, problem, predictions
-
-
 def make_planner(args):
     if args.planner == "pmp":
         from iamp.planners.pmp import PMPPlanner
@@ -67,7 +42,7 @@ def make_planner(args):
 
 def _phi_meaning(vehicle, phi_x: float) -> str:
     """SPEC §2 identity 4, derived from ∂J/∂corner = −Φ (see docs in compare.signs)."""
-    from iamp.compare.signs import jump_meaning
+    from iamp.comparison.signs import jump_meaning
 
     return jump_meaning(vehicle, phi_x)
 
@@ -114,7 +89,7 @@ def _print_summary(scenario, problem, result, args) -> None:
 
 
 def cmd_scenarios(args) -> int:
-    from iamp.scenario import builtin_names, load_scenario
+    from iamp.core.scenario import builtin_names, load_scenario
 
     for name in builtin_names():
         sc = load_scenario(name)
@@ -146,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("scenarios", help="list the built-in scenarios")
     s.set_defaults(func=cmd_scenarios)
 
-    for module in ("iamp.cli_prediction", "iamp.cli_compare", "iamp.cli_report"):
+    for module in ("iamp.cli.prediction", "iamp.cli.compare", "iamp.cli.report"):
         try:
             mod = __import__(module, fromlist=["add_parsers"])
         except ModuleNotFoundError as exc:  # only a missing command module is optional

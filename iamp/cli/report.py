@@ -1,7 +1,7 @@
 """Command-line wiring of the reproduction report: ``iamp reproduce [--out DIR] [--no-pdf]``.
 
 :func:`add_parsers` adds the sub-command to the main ``iamp`` parser.  The handler runs
-:func:`iamp.compare.report.reproduce` with a progress display on standard error
+:func:`iamp.comparison.report.reproduce` with a progress display on standard error
 (``[3/13] planning paper-2 ...``), then compiles ``report.tex`` with ``pdflatex`` (twice, in
 a temporary folder inside the output folder, ``-interaction=nonstopmode -halt-on-error``) and
 moves ``report.pdf`` into place atomically.  Standard output carries only the final summary.
@@ -80,11 +80,11 @@ class _ProgressPrinter:
 
 
 def cmd_reproduce(args) -> int:
-    from iamp.compare.report import reproduce
+    from iamp.comparison.report import reproduce
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
-        from iamp.errors import ScenarioError
+        from iamp.core.errors import ScenarioError
 
         raise ScenarioError("exists and is not a folder", "--out", str(out))
     progress = _ProgressPrinter()
@@ -92,7 +92,7 @@ def cmd_reproduce(args) -> int:
     if args.select_predictor:
         import dataclasses
 
-        from iamp.compare.report import ReproduceConfig
+        from iamp.comparison.report import ReproduceConfig
 
         base = ReproduceConfig.quick_config() if args.quick else ReproduceConfig()
         config = dataclasses.replace(base, predictor_select=True)

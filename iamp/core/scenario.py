@@ -3,7 +3,7 @@
 A scenario is what a user writes: the ego's boundary conditions and the surrounding
 vehicles, each given either by a polynomial ``x_poly`` or by an observed ``history`` that a
 predictor turns into a polynomial.  :meth:`Scenario.to_problem` produces the
-:class:`~iamp.planners.problem.Problem` that the planners solve.
+:class:`~iamp.core.problem.Problem` that the planners solve.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from iamp.errors import HistoryError, PredictorRequiredError, ScenarioError
-from iamp.planners.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.errors import HistoryError, PredictorRequiredError, ScenarioError
+from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 
 TOP_KEYS = {"name", "description", "ego", "vehicles"}
 EGO_REQUIRED = ("tf", "x0", "y0", "vx0", "xf", "yf", "vxf")
@@ -219,12 +219,12 @@ def loads_scenario(text: str, source: str | None = None, default_name: str = "sc
 
 def builtin_names() -> list[str]:
     """Names of the scenarios shipped inside the package."""
-    folder = resources.files("iamp") / "scenarios"
+    folder = resources.files("iamp.core") / "scenarios"
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
 def builtin_text(name: str) -> str:
-    return (resources.files("iamp") / "scenarios" / f"{name}.toml").read_text(encoding="utf-8")
+    return (resources.files("iamp.core") / "scenarios" / f"{name}.toml").read_text(encoding="utf-8")
 
 
 def load_scenario(path_or_name: str | Path) -> Scenario:

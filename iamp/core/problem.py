@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from iamp.errors import ScenarioError
+from iamp.core.errors import ScenarioError
 
 CORNERS = ("front-lower", "front-upper", "rear-lower", "rear-upper")
 
@@ -156,7 +156,7 @@ class SurroundingVehicle:
 class Problem:
     """One optimal lane change: ego boundary conditions plus ``m >= 1`` vehicles.
 
-    Validates itself on construction (raises :class:`~iamp.errors.ScenarioError`).
+    Validates itself on construction (raises :class:`~iamp.core.errors.ScenarioError`).
     """
 
     ego: EgoBoundary
