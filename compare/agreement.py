@@ -184,7 +184,7 @@ class Run:
 
     label: str
     planner: str
-    result: object  # PlanResult
+    result: object  # Plan
     time: object  # TimingStats
     config: QPConfig | None = None
     kkt: dict | None = None
@@ -254,11 +254,11 @@ def run_pmp(problem: Problem, repeats: int = 20, warmup: int = 2) -> Run:
         result = planner.plan(problem)
     except Exception as exc:  # a failed PMP is reported as a status, never a cost
         from iamp.core.errors import SolverError
-        from iamp.core.plan import PlanResult
+        from iamp.core.plan import Plan
 
         if not isinstance(exc, SolverError):
             raise
-        result = PlanResult(problem=problem, planner="pmp", status=str(exc.status), cost=None,
+        result = Plan(problem=problem, planner="pmp", status=str(exc.status), cost=None,
                             contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
                             trajectory=None)
         stats = None

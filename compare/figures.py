@@ -109,7 +109,7 @@ def plot_xy_snapshots(result, stem, *, dt: float = 0.5, title: str | None = None
 
     Parameters
     ----------
-    result : PlanResult
+    result : Plan
         An optimal plan (its ``problem`` gives the vehicles).
     stem : path-like
         Output path without extension.

@@ -259,7 +259,7 @@ def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "cl
 
 
 def time_search(planner_fn, repeats: int = 3, warmup: int = 1, budget_s: float = 30.0):
-    """Time a full contact-time search ``planner_fn() -> PlanResult`` (build included);
+    """Time a full contact-time search ``planner_fn() -> Plan`` (build included);
     returns ``(stats, last_result)`` (see :func:`measure` for ``budget_s``)."""
     return measure(planner_fn, repeats, warmup, budget_s)
 

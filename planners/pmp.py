@@ -58,7 +58,7 @@ from numpy.polynomial import polynomial as P
 
 from iamp.core.errors import SolverError
 from iamp.core.problem import Problem
-from iamp.core.plan import STATUS_OPTIMAL, PlanResult
+from iamp.core.plan import STATUS_OPTIMAL, Plan
 
 # --------------------------------------------------------------------------------------
 # Closed-form pieces
@@ -672,8 +672,8 @@ class PMPPlanner:
             return solve_one_vehicle(problem, np.asarray(t, dtype=float).reshape(-1)[0])
         return solve_fixed_times(problem, t)
 
-    def plan(self, problem: Problem, contact_times=None, diagnostics: bool = True) -> PlanResult:
-        """Plan; returns a :class:`PlanResult` whose ``trajectory`` is the exact
+    def plan(self, problem: Problem, contact_times=None, diagnostics: bool = True) -> Plan:
+        """Plan; returns a :class:`Plan` whose ``trajectory`` is the exact
         :class:`PMPSolution` (evaluable at any time, with co-states and jumps).
 
         ``solve_time_s`` covers the contact-time search, the jump-condition solve and the
@@ -684,7 +684,7 @@ class PMPPlanner:
         sol = self.solve(problem, contact_times)
         cost = sol.cost()
         elapsed = _time.perf_counter() - start
-        res = PlanResult(problem=problem, planner="pmp", status=STATUS_OPTIMAL, cost=cost,
+        res = Plan(problem=problem, planner="pmp", status=STATUS_OPTIMAL, cost=cost,
                          contact_times=sol.contact_times.copy(), jumps=sol.jumps.copy(), trajectory=sol,
                          solve_time_s=elapsed)
         if diagnostics:

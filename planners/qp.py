@@ -39,7 +39,7 @@ import numpy as np
 from scipy import optimize
 
 from iamp.core.problem import Problem
-from iamp.core.plan import STATUS_OPTIMAL, PlanResult
+from iamp.core.plan import STATUS_OPTIMAL, Plan
 from iamp.planners.solvers import SolverBackend, get_solver
 
 HOLDS = ("foh", "zoh")
@@ -334,7 +334,7 @@ class QPPlanner:
                                        "fatol": 1e-14, "maxiter": 2000})
         return best["r"]
 
-    def plan(self, problem: Problem, qp: DiscretisedQP | None = None) -> PlanResult:
+    def plan(self, problem: Problem, qp: DiscretisedQP | None = None) -> Plan:
         """Sweep (and optionally refine) the contact times, then report the best QP."""
         start = _time.perf_counter()
         qp = qp or self.build(problem)
@@ -342,7 +342,7 @@ class QPPlanner:
         info = {"n_solves": qp.n_solves, "sweep": table, "failures": failures, "unpolished": self.unpolished}
         if best is None:
             status = failures[0][1] if failures else "no_candidate"
-            return PlanResult(problem=problem, planner="qp", status=status, cost=None,
+            return Plan(problem=problem, planner="qp", status=status, cost=None,
                               contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
                               trajectory=None, solve_time_s=_time.perf_counter() - start, solver=self.solver,
                               hold=self.hold, steps=self.steps, info=info)
@@ -351,30 +351,30 @@ class QPPlanner:
             best = self._refine(qp, best)
             info["n_solves"] = qp.n_solves
         elapsed = _time.perf_counter() - start
-        res = PlanResult(problem=problem, planner="qp", status=STATUS_OPTIMAL, cost=best["cost"],
+        res = Plan(problem=problem, planner="qp", status=STATUS_OPTIMAL, cost=best["cost"],
                          contact_times=best["contact_times"], jumps=best["multipliers"],
                          trajectory=best["trajectory"], solve_time_s=elapsed, solver=self.solver,
                          hold=self.hold, steps=self.steps, info=info)
         res.residuals = {"boundary": res.boundary_residual(), "interior_constraint": res.corner_residual()}
         return res
 
-    def plan_at_nodes(self, problem: Problem, nodes) -> PlanResult:
+    def plan_at_nodes(self, problem: Problem, nodes) -> Plan:
         """Solve once with the contacts at given nodes of the uniform grid (no search)."""
         start = _time.perf_counter()
         qp = self.build(problem)
         r = qp.solve_nodes(nodes)
         return self._result(problem, r, start)
 
-    def plan_at_times(self, problem: Problem, times) -> PlanResult:
+    def plan_at_times(self, problem: Problem, times) -> Plan:
         """Solve once on a grid aligned with given contact times (no search)."""
         start = _time.perf_counter()
         qp = self.build(problem)
         r = qp.solve_times(times)
         return self._result(problem, r, start)
 
-    def _result(self, problem, r, start) -> PlanResult:
+    def _result(self, problem, r, start) -> Plan:
         ok = r["status"] == STATUS_OPTIMAL
-        res = PlanResult(problem=problem, planner="qp", status=r["status"], cost=r["cost"] if ok else None,
+        res = Plan(problem=problem, planner="qp", status=r["status"], cost=r["cost"] if ok else None,
                          contact_times=r.get("contact_times", np.full(problem.m, np.nan)),
                          jumps=r.get("multipliers", np.full((problem.m, 2), np.nan)),
                          trajectory=r.get("trajectory"), solve_time_s=_time.perf_counter() - start,

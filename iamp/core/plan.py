@@ -1,6 +1,6 @@
 """Planner results shared by every planner (PMP and QP).
 
-A :class:`PlanResult` carries the problem it came from, the status, the cost
+A :class:`Plan` carries the problem it came from, the status, the cost
 ``J = ½∫(u_x² + u_y²)dt`` evaluated on the planner's own solution, the contact times, the
 jumps (``Φ_i`` for the PMP, the multipliers ``ν_i`` for the QP — SPEC §3.3), and a
 trajectory that can be evaluated at any time.
@@ -14,11 +14,11 @@ import numpy as np
 
 from iamp.core.problem import Problem
 
-STATUS_OPTIMAL = "optimal"
+from iamp.core.status import OPTIMAL as STATUS_OPTIMAL  # noqa: F401 - re-exported
 
 
 @dataclass
-class PlanResult:
+class Plan:
     """The outcome of one plan.
 
     Attributes
