@@ -144,9 +144,10 @@ def test_missing_file_and_bad_options(tmp_path):
 
 def test_solver_failure_exits_3_without_a_cost(monkeypatch, capsys):
     from iamp.cli import main as cli
+    from iamp.cli import plan as cli_plan
     from iamp.planners.qp import QPPlanner
 
-    orig = cli.make_planner
+    orig = cli_plan.make_planner
 
     def loose(args):
         planner = orig(args)
@@ -154,7 +155,7 @@ def test_solver_failure_exits_3_without_a_cost(monkeypatch, capsys):
             planner.solver_settings = {"max_iter": 2, "polishing": False, "eps_abs": 1e-12}
         return planner
 
-    monkeypatch.setattr(cli, "make_planner", loose)
+    monkeypatch.setattr(cli_plan, "make_planner", loose)
     code = cli.main(["plan", "paper-1-poly", "--planner", "qp", "--solver", "osqp", "--steps", "10", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert code == 3

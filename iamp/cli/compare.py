@@ -22,7 +22,8 @@ import json
 import math
 import sys
 
-from iamp.cli.types import positive_float as _positive_float, positive_int as _positive_int
+from iamp.cli.types import positive_float as _positive_float
+from iamp.cli.types import positive_int as _positive_int
 from iamp.core.errors import ScenarioError
 
 EXIT_OK, EXIT_SOLVER = 0, 3
@@ -87,10 +88,10 @@ def _steps_for(problem, args) -> list[int]:
 
 def run_compare(args) -> dict:
     """Everything ``iamp compare`` computes, as the JSON object (no printing)."""
-    from iamp.prediction.resolve import load_problem
     from iamp.comparison.agreement import compare_problem, default_configs
     from iamp.comparison.timing import DEFAULT_SHIFT_S, geomean_table, qp_breakdown, solver_settings, versions
     from iamp.core.tolerances import TOLERANCES
+    from iamp.prediction.resolve import load_problem
 
     loaded = []
     for spec in args.scenarios:  # validate every input before any solve

@@ -14,7 +14,8 @@ import sys
 
 import numpy as np
 
-from iamp.cli.types import positive_float as _positive_float, positive_int as _positive_int
+from iamp.cli.types import positive_float as _positive_float
+from iamp.cli.types import positive_int as _positive_int
 from iamp.core.errors import IampError, ScenarioError
 
 EXIT_OK, EXIT_BAD_INPUT = 0, 2
@@ -128,8 +129,8 @@ def predict_json(scenario, predictor, model_label: str) -> dict:
 
 def cmd_predict(args) -> int:
     """``iamp predict``: predict every history vehicle of a scenario."""
-    from iamp.prediction.predictor import Predictor
     from iamp.core.scenario import load_scenario
+    from iamp.prediction.predictor import Predictor
 
     try:
         scenario = load_scenario(args.scenario)

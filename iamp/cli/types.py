@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import math
 
+#: Exit statuses (SPEC §5, §6, §9): success, bad input, solver failure, unsafe plan with
+#: ``--require-safe``.
+EXIT_OK, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_UNSAFE = 0, 2, 3, 4
+
 
 def positive_int(text: str) -> int:
     """An integer ``>= 1``."""
