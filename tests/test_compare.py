@@ -47,9 +47,16 @@ def test_verdicts_agree_one_vehicle(problem):
     _assert_all_agree(comp)
     v = _verdicts(comp)
     foh = v[("pmp", "qp-clarabel-foh-24")]
-    assert abs(foh["cost_rel_gap"]) < 1e-9 and foh["contact_time_gap"] == 0.0
+    same = foh["at_same_contact_times"]
+    assert abs(same["cost_rel_gap"]) < 1e-9 and same["contact_time_gap_to_grid_optimum"] == 0.0
+    # run against run (SPEC §5b): the grid run can only be at or above the continuous optimum,
+    # and its contact times are the QP's own, not the PMP's
+    assert foh["cost_rel_gap"] >= -1e-12
+    assert foh["contact_time_gap"] == pytest.approx(np.max(np.abs(np.asarray(same["contact_times"])
+                                                                  - comp.run("pmp").result.contact_times)), abs=1e-12)
     zoh = v[("pmp", "qp-clarabel-zoh-24")]
-    assert zoh["cost_rel_gap"] > 0  # ZOH only restricts the input
+    assert zoh["at_same_contact_times"]["cost_rel_gap"] > 0  # ZOH only restricts the input
+    assert zoh["cost_rel_gap"] >= foh["cost_rel_gap"] - 1e-12
     assert 1.0 <= zoh["zoh_gap"]["ratio_to_leading"] <= 1.0 / (1.0 - zoh["zoh_gap"]["rho"]) + 1e-6
     # same polynomial reached every planner
     assert len({r.x_poly_fingerprint for r in comp.runs}) == 1
@@ -290,3 +297,22 @@ def test_compare_text_output_and_bad_options(cli, tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr
     r = cli("compare", "paper-1-poly", "--repeats", "0")
     assert r.returncode == 2
+
+
+def test_headline_gaps_are_run_against_run():
+    """SPEC §5b: a coarse grid run that misses t* reads its real gap, not the identity at t_Q."""
+    problem = paper_problem(1)
+    comp = compare_problem(problem, [QPConfig("clarabel", "foh", 7)], repeats=1, warmup=0, pmp_repeats=1)
+    a = comp.agreement[0]
+    pmp, qp = comp.run("pmp").result, comp.run("qp-clarabel-foh-7").result
+    assert a["cost_rel_gap"] == pytest.approx((qp.cost - pmp.cost) / pmp.cost, rel=1e-12)
+    assert a["cost_rel_gap"] > 1e-4  # a 7-interval grid cannot hit t*
+    assert a["contact_time_gap"] == pytest.approx(float(np.max(np.abs(qp.contact_times - pmp.contact_times))))
+    assert a["contact_time_gap"] > 1e-3
+    tn = np.asarray(qp.trajectory.t_nodes)
+    assert a["state_sup_gap"] == pytest.approx(float(np.max(np.abs(qp.trajectory.states(tn)
+                                                                   - pmp.trajectory.states(tn)))))
+    assert a["jump_gap"] == pytest.approx(float(np.max(np.abs(qp.jumps - pmp.jumps))))
+    # the exact identity lives under its own key
+    assert abs(a["at_same_contact_times"]["cost_rel_gap"]) < 1e-9
+    assert a["verdict"] == "agree" and "at_same_contact_times" in a["verdict_basis"]

@@ -156,7 +156,7 @@ def test_results_json_foh_agrees_with_pmp(quick_report):
         for a in s["agreement"]:
             if a["a"] == "pmp" and "-foh-" in a["b"] and "clarabel" in a["b"]:
                 assert a["verdict"] == "agree", (s["name"], a["b"], a.get("reasons"))
-                assert abs(a["cost_rel_gap"]) < 1e-8
+                assert abs(a["at_same_contact_times"]["cost_rel_gap"]) < 1e-8
 
 
 def test_results_json_zoh_convergence(quick_report):
