@@ -15,19 +15,67 @@ standard error is not a terminal, so piped and scripted use sees no escape seque
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, Protocol
 
-__all__ = ["ProgressCallback", "add_quiet_flag", "progress_bar", "progress_enabled"]
+__all__ = ["ProgressCallback", "ProgressTick", "accepts_progress", "add_quiet_flag", "progress_bar",
+           "progress_enabled"]
 
 ProgressCallback = Callable[[int, int], None]
 """Signature of every progress callback: ``callback(done, total)``."""
 
 
-def _noop(done: int, total: int) -> None:
-    """Accept a progress report and do nothing."""
+class ProgressTick(Protocol):
+    """What :func:`progress_bar` yields: a ``(done, total)`` callback that can also relabel the bar."""
+
+    def __call__(self, done: int, total: int) -> None: ...
+
+    def describe(self, text: str) -> None:
+        """Show ``text`` as the bar's label (the step under way)."""
+
+
+class _Noop:
+    """The disabled bar: accepts every report and writes nothing."""
+
+    def __call__(self, done: int, total: int) -> None:
+        return None
+
+    def describe(self, text: str) -> None:
+        return None
+
+
+class _Tick:
+    """Drives one :mod:`tqdm` bar from absolute ``(done, total)`` reports."""
+
+    def __init__(self, bar: Any) -> None:
+        self._bar = bar
+
+    def __call__(self, done: int, total: int) -> None:
+        bar = self._bar
+        if total and total != bar.total:
+            bar.total = total
+        step = int(done) - int(bar.n)
+        if step > 0:
+            bar.update(step)
+        elif step < 0:  # a restarted count (e.g. a new sub-task): show it as it is
+            bar.n = int(done)
+            bar.refresh()
+
+    def describe(self, text: str) -> None:
+        self._bar.set_description_str(text, refresh=True)
+
+
+def accepts_progress(fn: Callable[..., Any]) -> bool:
+    """Whether ``fn`` takes a ``progress`` keyword argument (so the CLI can pass its bar's
+    callback to library functions that grew the parameter, and nothing to those that did not)."""
+    try:
+        params = inspect.signature(fn).parameters
+    except (TypeError, ValueError):
+        return False
+    return "progress" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
 
 
 def add_quiet_flag(parser: argparse.ArgumentParser) -> None:
@@ -59,7 +107,7 @@ def _stderr_is_tty() -> bool:
 
 
 @contextmanager
-def progress_bar(total: int | None, desc: str, *, enabled: bool) -> Iterator[ProgressCallback]:
+def progress_bar(total: int | None, desc: str, *, enabled: bool) -> Iterator[ProgressTick]:
     """Context manager yielding a ``(done, total)`` callback that drives a progress bar.
 
     Parameters
@@ -76,26 +124,19 @@ def progress_bar(total: int | None, desc: str, *, enabled: bool) -> Iterator[Pro
 
     Yields
     ------
-    Callable[[int, int], None]
-        ``callback(done, total)``; ``done`` is the number of steps finished so far
-        (monotone, absolute, not an increment).
+    ProgressTick
+        ``callback(done, total)``, a ``Callable[[int, int], None]``; ``done`` is the number of
+        steps finished so far (absolute, not an increment). ``callback.describe(text)``
+        relabels the bar.
     """
     if not enabled or not _stderr_is_tty():
-        yield _noop
+        yield _Noop()
         return
     from tqdm import tqdm  # imported lazily: only interactive runs pay for it
 
     # tqdm's default layout ends with "[elapsed<remaining, rate]": the time left is shown.
     bar: Any = tqdm(total=total, desc=desc, file=sys.stderr, leave=False, dynamic_ncols=True, unit="step")
-
-    def tick(done: int, new_total: int) -> None:
-        if new_total and new_total != bar.total:
-            bar.total = new_total
-        step = int(done) - int(bar.n)
-        if step > 0:
-            bar.update(step)
-
     try:
-        yield tick
+        yield _Tick(bar)
     finally:
         bar.close()
