@@ -1,20 +1,43 @@
-"""Planner results shared by every planner (PMP and QP).
+r"""The result every planner returns (PMP, equality QP, avoidance QP): :class:`Plan`.
 
-A :class:`Plan` carries the problem it came from, the status, the cost
-``J = ½∫(u_x² + u_y²)dt`` evaluated on the planner's own solution, the contact times, the
-jumps (``Φ_i`` for the PMP, the multipliers ``ν_i`` for the QP — SPEC §3.3), and a
-trajectory that can be evaluated at any time.
+A :class:`Plan` carries the problem it came from, the status (:mod:`iamp.core.status`), the
+cost
+
+.. math::  J = \tfrac12 \int_0^{t_f} \big(u_x^2 + u_y^2\big)\,dt
+
+evaluated on the planner's own solution, the contact times :math:`t_i`, the jumps (the co-state
+jumps :math:`\Phi_i` for the PMP, the multipliers :math:`\nu_i` for the QP, SPEC §3.3), and a
+trajectory that can be evaluated at any :math:`t \in [0, t_f]`.  A plan whose status is not in
+:data:`~iamp.core.status.SUCCESS` carries no cost, no contact times and no jumps.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from iamp.core.problem import Problem
+from iamp.core.status import OPTIMAL, SUCCESS
+from iamp.core.status import OPTIMAL as STATUS_OPTIMAL  # noqa: F401 - kept for callers
 
-from iamp.core.status import OPTIMAL as STATUS_OPTIMAL  # noqa: F401 - re-exported
+FloatArray = NDArray[np.float64]
+#: Column names of a sampled trajectory (SPEC §5), in order.
+TRAJECTORY_KEYS = ("t", "x", "y", "vx", "vy", "ax", "ay")
+
+
+class Trajectory(Protocol):
+    """A continuous ego trajectory: states ``(s_x, v_x, s_y, v_y)`` and inputs ``(u_x, u_y)``."""
+
+    def states(self, t: ArrayLike) -> FloatArray:
+        """States at the times ``t``, shape ``(len(t), 4)``."""
+        ...
+
+    def inputs(self, t: ArrayLike) -> FloatArray:
+        """Inputs at the times ``t``, shape ``(len(t), 2)``."""
+        ...
 
 
 @dataclass
@@ -28,16 +51,16 @@ class Plan:
     planner : str
         ``"pmp"`` or ``"qp"``.
     status : str
-        ``"optimal"`` or the solver's failure status.
+        One of :data:`iamp.core.status.STATUSES`; ``"optimal"`` only after the plan checked
+        its own residuals against the tolerance table.
     cost : float or None
-        ``J`` on the planner's own solution; ``None`` unless ``status == "optimal"``.
+        ``J`` on the planner's own solution; ``None`` unless the status is a success.
     contact_times : ndarray, shape (m,)
         ``t_i`` in the order of ``problem.vehicles``.
     jumps : ndarray, shape (m, 2)
         ``(Φ_i,x, Φ_i,y)`` (PMP) or ``(ν_i,x, ν_i,y)`` (QP).
-    trajectory : object
-        Has ``states(t) -> (len(t), 4)`` and ``inputs(t) -> (len(t), 2)``; states are
-        ``(s_x, v_x, s_y, v_y)``.
+    trajectory : Trajectory
+        ``states(t) -> (len(t), 4)`` and ``inputs(t) -> (len(t), 2)``.
     solve_time_s : float
         Wall time of the whole plan (including the contact-time search).
     residuals : dict
@@ -45,59 +68,85 @@ class Plan:
     solver, hold, steps : optional
         QP configuration (``None`` for the PMP; ``steps`` is the output sampling).
     info : dict
-        Planner-specific extras (e.g. the sweep's candidate costs).
+        Planner-specific extras (the sweep's candidates, the checks and which one failed).
     """
 
     problem: Problem
     planner: str
     status: str
     cost: float | None
-    contact_times: np.ndarray
-    jumps: np.ndarray
-    trajectory: object
+    contact_times: FloatArray
+    jumps: FloatArray
+    trajectory: Any
     solve_time_s: float = 0.0
-    residuals: dict = field(default_factory=dict)
+    residuals: dict[str, float] = field(default_factory=dict)
     solver: str | None = None
     hold: str | None = None
     steps: int | None = None
-    info: dict = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
 
+    # --- status ------------------------------------------------------------------------
     def is_optimal(self) -> bool:
-        return self.status == STATUS_OPTIMAL
+        """``True`` when the status is ``"optimal"`` (verified, and globally so)."""
+        return self.status == OPTIMAL
 
-    def sample(self, steps: int) -> dict:
+    @property
+    def ok(self) -> bool:
+        """``True`` when the plan is verified (``"optimal"`` or ``"local"``) and has a cost."""
+        return self.status in SUCCESS and self.cost is not None
+
+    # --- the trajectory ----------------------------------------------------------------
+    def states(self, t: ArrayLike) -> FloatArray:
+        """States ``(s_x, v_x, s_y, v_y)`` at the times ``t`` (any in ``[0, t_f]``), shape ``(n, 4)``."""
+        return np.asarray(self.trajectory.states(np.atleast_1d(np.asarray(t, dtype=float))), dtype=float)
+
+    def inputs(self, t: ArrayLike) -> FloatArray:
+        """Inputs ``(u_x, u_y)`` at the times ``t``, shape ``(n, 2)``."""
+        return np.asarray(self.trajectory.inputs(np.atleast_1d(np.asarray(t, dtype=float))), dtype=float)
+
+    def sample(self, steps: int) -> dict[str, FloatArray]:
         """Trajectory sampled at ``t_k = k·t_f/N``, ``k = 0..N`` (SPEC §5)."""
         t = np.linspace(0.0, self.problem.tf, int(steps) + 1)
-        X = self.trajectory.states(t)
-        U = self.trajectory.inputs(t)
+        X = self.states(t)
+        U = self.inputs(t)
         return {"t": t, "x": X[:, 0], "y": X[:, 2], "vx": X[:, 1], "vy": X[:, 3], "ax": U[:, 0], "ay": U[:, 1]}
 
+    # --- residuals of the problem's own conditions --------------------------------------
     def corner_residual(self) -> float:
-        """max |s(t_i) − corner_i(t_i)| over vehicles and axes."""
-        X = self.trajectory.states(self.contact_times)
+        """``max |s(t_i) − corner_i(t_i)|`` over vehicles and axes."""
+        X = self.states(self.contact_times)
         C = self.problem.corners(self.contact_times)
         return float(np.max(np.abs(X[:, [0, 2]] - C)))
 
     def boundary_residual(self) -> float:
-        """max |state(0) − x0|, |state(t_f) − x_f|."""
-        X = self.trajectory.states(np.array([0.0, self.problem.tf]))
+        """``max |state(0) − x0|, |state(t_f) − x_f|``."""
+        X = self.states(np.array([0.0, self.problem.tf]))
         return float(max(np.max(np.abs(X[0] - self.problem.ego.initial)),
                          np.max(np.abs(X[1] - self.problem.ego.final))))
 
-    def to_json(self, scenario: str, steps: int) -> dict:
-        """The SPEC §5 JSON object."""
-        ok = self.is_optimal()
-        traj = self.sample(steps) if ok else {k: [] for k in ("t", "x", "y", "vx", "vy", "ax", "ay")}
-        return {
-            "scenario": scenario,
+    # --- output --------------------------------------------------------------------------
+    def to_json(self, scenario: str | None = None, steps: int | None = None) -> dict[str, Any]:
+        """The SPEC §5 JSON object (``scenario`` defaults to the problem's name, ``steps`` to
+        the QP's ``N`` or 100).  A failed plan has ``cost = null`` and empty arrays."""
+        name = self.problem.name if scenario is None else scenario
+        n = int(steps if steps is not None else (self.steps or 100))
+        ok = self.ok
+        traj: dict[str, Any] = self.sample(n) if ok else {k: [] for k in TRAJECTORY_KEYS}
+        out: dict[str, Any] = {
+            "scenario": name,
             "planner": self.planner,
             "solver": self.solver,
             "hold": self.hold,
-            "steps": int(steps),
+            "steps": n,
             "status": self.status,
-            "cost": float(self.cost) if ok else None,
+            "cost": float(self.cost) if ok and self.cost is not None else None,
             "contact_times": [float(t) for t in self.contact_times] if ok else [],
             "jumps": [[float(j[0]), float(j[1])] for j in self.jumps] if ok else [],
             "solve_time_s": float(self.solve_time_s),
             "trajectory": {k: [float(x) for x in np.asarray(v)] for k, v in traj.items()},
         }
+        if not ok and self.info.get("failed_check") is not None:
+            out["failed_check"] = self.info["failed_check"]
+        if not ok and self.info.get("reason") is not None:
+            out["reason"] = self.info["reason"]
+        return out
