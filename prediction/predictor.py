@@ -365,7 +365,7 @@ class Predictor:
         probs = self.model.propagate_batch(np.atleast_2d(states), M + 1)
         return probs, probs @ self.model.centres
 
-    def predict(self, history, tf: float, *, n_samples: int = 0, quantiles=(), seed=None) -> Prediction:
+    def predict(self, history, tf: float = 5.0, *, n_samples: int = 0, quantiles=(), seed=None) -> Prediction:
         """Predict the trajectory over ``[0, tf]`` and fit the cubic.
 
         Parameters
