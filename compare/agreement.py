@@ -61,8 +61,9 @@ Verdict rules (pair ``pmp`` / QP run; every rule must pass for ``agree``)
 7. *ZOH only*: ``J_QP ≥ J_PMP(t_Q)`` and ``J_QP − J_PMP(t_Q)`` inside the bracket above.
 
 Pairs of QP runs (same hold and ``N``, e.g. OSQP vs Clarabel, native vs cvxpy): rules 0–1,
-rule 3 for each run at its own solver's tolerance, the same grid contact times (or equal costs within precision: a tie), and cost, states and
-multipliers equal within the looser solver's tolerances.
+rule 3 for each run at its own solver's tolerance, the same grid contact times (or equal costs
+within precision: a tie), and cost, states and multipliers equal within the looser solver's
+tolerances.
 
 Signs (SPEC §2, identity 4) are reported for the PMP's ``Φ_i`` and every QP's ``ν_i`` through
 :mod:`iamp.comparison.signs`.  That module derives the meaning from
@@ -84,46 +85,19 @@ verdict judged.
 
 from __future__ import annotations
 
-import hashlib
 import itertools
-import json
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from iamp.planners.pmp import PMPPlanner, ValueFunction, solve_fixed_times
+from iamp.comparison.fingerprints import problem_fingerprint, x_poly_fingerprint
+from iamp.comparison.references import grid_cost_table, zoh_reference
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
+from iamp.planners.pmp import PMPPlanner, ValueFunction, solve_fixed_times
 
 VERDICT_AGREE, VERDICT_DISAGREE = "agree", "disagree"
-
-
-# --------------------------------------------------------------------------------------
-# Fingerprints
-# --------------------------------------------------------------------------------------
-
-
-def _hex(x) -> str:
-    return float(x).hex()
-
-
-def x_poly_fingerprint(problem: Problem) -> str:
-    """SHA-256 of the exact ``x_poly`` coefficients (``float.hex``) of every vehicle."""
-    text = json.dumps([[_hex(c) for c in v.x_poly] for v in problem.vehicles])
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def problem_fingerprint(problem: Problem) -> str:
-    """SHA-256 of every number of the problem (ego, geometry, corners, ``x_poly``)."""
-    e = problem.ego
-    data = {
-        "ego": [_hex(getattr(e, k)) for k in ("tf", "x0", "y0", "vx0", "vy0", "xf", "yf", "vxf", "vyf")],
-        "vehicles": [{"corner": v.corner, "x_poly": [_hex(c) for c in v.x_poly],
-                      "geom": [_hex(getattr(v, k)) for k in ("y", "length", "width", "safety_x", "safety_y")]}
-                     for v in problem.vehicles],
-    }
-    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
 
 
 # --------------------------------------------------------------------------------------
@@ -325,127 +299,6 @@ def _kkt_of_result(problem, config, qp, result, run) -> dict | None:
 
 
 # --------------------------------------------------------------------------------------
-# Exact references
-# --------------------------------------------------------------------------------------
-
-
-def _gram(t, T):
-    """``G`` and ``D = ∫φ'φ'`` for contact times ``t`` of shape ``(..., m)``."""
-    t = np.asarray(t, dtype=float)
-    m = t.shape[-1]
-    shp = t.shape[:-1]
-    G = np.empty(shp + (m + 2, m + 2))
-    G[..., 0, 0] = T
-    G[..., 0, 1] = G[..., 1, 0] = T**2 / 2
-    G[..., 1, 1] = T**3 / 3
-    G[..., 0, 2:] = G[..., 2:, 0] = t**2 / 2
-    G[..., 1, 2:] = G[..., 2:, 1] = T * t**2 / 2 - t**3 / 6
-    ti, tj = t[..., :, None], t[..., None, :]
-    a = np.minimum(ti, tj)
-    G[..., 2:, 2:] = ti * tj * a - (ti + tj) * a**2 / 2 + a**3 / 3
-    return G
-
-
-def _rhs(problem: Problem, t):
-    """``c`` of shape ``(..., m+2, 2)``: final speed, final position, contact positions."""
-    t = np.asarray(t, dtype=float)
-    e, T = problem.ego, problem.tf
-    c = np.empty(t.shape[:-1] + (t.shape[-1] + 2, 2))
-    c[..., 0, :] = [e.vxf - e.vx0, e.vyf - e.vy0]
-    c[..., 1, :] = [e.xf - e.x0 - e.vx0 * T, e.yf - e.y0 - e.vy0 * T]
-    for i, v in enumerate(problem.vehicles):
-        c[..., 2 + i, 0] = v.corner_x(t[..., i]) - e.x0 - e.vx0 * t[..., i]
-        c[..., 2 + i, 1] = v.corner_y - e.y0 - e.vy0 * t[..., i]
-    return c
-
-
-def _e_matrix(node_idx, cw):
-    """``E`` from the cumulative interval weights ``cw[k] = Σ_{intervals < k} h³/12``."""
-    node_idx = np.asarray(node_idx)
-    m = node_idx.shape[-1]
-    E = np.zeros(node_idx.shape[:-1] + (m + 2, m + 2))
-    E[..., 1, 1] = cw[-1]
-    E[..., 1, 2:] = E[..., 2:, 1] = cw[node_idx]
-    E[..., 2:, 2:] = cw[np.minimum(node_idx[..., :, None], node_idx[..., None, :])]
-    return E
-
-
-def zoh_reference(problem: Problem, t_nodes, nodes) -> dict:
-    r"""The exact ZOH optimum with the contacts at grid nodes ``nodes`` of ``t_nodes``.
-
-    Returns ``cost``, nodal states ``X`` ``(N+1, 4)``, inputs ``U`` ``(N, 2)``, multipliers
-    ``nu`` ``(m, 2)``, the continuous cost ``J_continuous`` (= the PMP's, from the same
-    Gram matrix), the leading gap term ``gap_leading`` :math:`\Delta_1` and
-    :math:`\rho = \lambda_{\max}(G^{-1}E)`; see the module docstring.
-    """
-    from scipy.linalg import eigh
-
-    t_nodes = np.asarray(t_nodes, dtype=float)
-    nodes = np.asarray(nodes, dtype=int)
-    T = problem.tf
-    t = t_nodes[nodes]
-    h = np.diff(t_nodes)
-    cw = np.r_[0.0, np.cumsum(h**3 / 12)]
-    G = _gram(t, T)
-    E = _e_matrix(nodes, cw)
-    c = _rhs(problem, t)
-    mu = np.linalg.solve(G - E, c)
-    lam = np.linalg.solve(G, c)
-    cost = 0.5 * float(np.sum(c * mu))
-    j_cont = 0.5 * float(np.sum(c * lam))
-    gap_leading = 0.5 * float(np.sum(lam * (E @ lam)))
-    rho = float(eigh(E, G, eigvals_only=True)[-1])
-    mids = 0.5 * (t_nodes[:-1] + t_nodes[1:])
-    phi = np.column_stack([np.ones_like(mids), T - mids] + [np.maximum(ti - mids, 0.0) for ti in t])
-    U = phi @ mu  # (N, 2)
-    e = problem.ego
-    X = np.empty((len(t_nodes), 4))
-    X[0] = [e.x0, e.vx0, e.y0, e.vy0]
-    for k in range(len(h)):
-        for ax in range(2):
-            s, v = X[k, 2 * ax], X[k, 2 * ax + 1]
-            X[k + 1, 2 * ax] = s + h[k] * v + h[k] ** 2 / 2 * U[k, ax]
-            X[k + 1, 2 * ax + 1] = v + h[k] * U[k, ax]
-    return {"cost": cost, "X": X, "U": U, "nu": -mu[2:].copy(), "J_continuous": j_cont,
-            "gap_leading": gap_leading, "rho": rho}
-
-
-def candidate_table(problem: Problem, steps: int) -> np.ndarray:
-    """Every ordered combination of distinct interior nodes, ``(K, m)``."""
-    return np.array(list(itertools.permutations(range(1, steps), problem.m)), dtype=int).reshape(-1, problem.m)
-
-
-def grid_cost_table(problem: Problem, steps: int, hold: str) -> tuple[np.ndarray, np.ndarray]:
-    """The exact sweep cost at every candidate of the uniform grid: ``(candidates, J)``.
-
-    FOH: the PMP's value function :math:`J(t)`.  ZOH: :math:`\\tfrac12\\sum c^\\top(G-E)^{-1}c`.
-    """
-    cands = candidate_table(problem, steps)
-    h = problem.tf / steps
-    t = cands * h
-    if hold == "foh":
-        J = ValueFunction(problem)(t)
-    else:
-        cw = np.arange(steps + 1) * h**3 / 12
-        G = _gram(t, problem.tf)
-        E = _e_matrix(cands, cw)
-        c = _rhs(problem, t)
-        with np.errstate(all="ignore"):
-            try:
-                mu = np.linalg.solve(G - E, c)
-                J = 0.5 * np.sum(c * mu, axis=(-1, -2))
-            except np.linalg.LinAlgError:
-                J = np.full(len(cands), np.inf)
-                for k in range(len(cands)):
-                    try:
-                        J[k] = 0.5 * np.sum(c[k] * np.linalg.solve(G[k] - E[k], c[k]))
-                    except np.linalg.LinAlgError:
-                        pass
-    J = np.where(np.isfinite(J), J, np.inf)
-    return cands, J
-
-
-# --------------------------------------------------------------------------------------
 # Judging
 # --------------------------------------------------------------------------------------
 
@@ -565,7 +418,8 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
         U_cmp = np.asarray(traj.U)
     out["reference"] = ref["what"]
     # rule 2: solver precision
-    checks.check("cost_vs_reference_rel", abs(res.cost - ref["cost"]) / abs(ref["cost"]), _solver_tol("cost_rel", solver))
+    checks.check("cost_vs_reference_rel", abs(res.cost - ref["cost"]) / abs(ref["cost"]),
+                 _solver_tol("cost_rel", solver))
     xs = max(1.0, float(np.max(np.abs(ref["X"]))))
     checks.check("state_vs_reference_rel", np.max(np.abs(X_qp - ref["X"])) / xs, _solver_tol("state_rel", solver))
     us = max(1.0, float(np.max(np.abs(ref["U"]))))

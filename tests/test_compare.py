@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from iamp.comparison import timing
-from iamp.comparison.agreement import (QPConfig, Run, compare_pmp_qp, compare_problem, default_configs,
-                                    grid_cost_table, problem_fingerprint, run_qp, x_poly_fingerprint,
-                                    zoh_reference)
+from iamp.comparison.agreement import QPConfig, Run, compare_pmp_qp, compare_problem, default_configs, run_qp
+from iamp.comparison.fingerprints import problem_fingerprint, x_poly_fingerprint
 from iamp.comparison.latex import Raw, booktabs_table, escape, sci, write_atomic
+from iamp.comparison.references import grid_cost_table, zoh_reference
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
 from iamp.planners.native import build_native
 from iamp.planners.pmp import PMPPlanner, ValueFunction
@@ -160,7 +160,7 @@ def test_grid_cost_tables_match_the_solvers():
     p = paper_problem(2)
     n = 16
     for hold in ("foh", "zoh"):
-        cands, J = grid_cost_table(p, n, hold)
+        _cands, J = grid_cost_table(p, n, hold)
         q = build_native(p, n, hold, "clarabel")
         for k in (1, 5, 9, 15):
             assert q.solve_nodes([k])["cost"] == pytest.approx(J[k - 1], rel=1e-9)
@@ -218,7 +218,7 @@ def test_qp_breakdown_reports_every_part():
     b = timing.qp_breakdown(paper_problem(1), steps=10, hold="foh", solver="clarabel", repeats=3)
     for k in ("cvxpy_resolve_s", "cvxpy_solver_s", "cvxpy_overhead_s", "native_solve_s", "native_solve_call_s",
               "native_solver_s"):
-        assert b[k]["n"] == 3 and b[k]["median"] >= 0 or k == "cvxpy_overhead_s"
+        assert (b[k]["n"] == 3 and b[k]["median"] >= 0) or k == "cvxpy_overhead_s"
     assert b["cvxpy_compile_s"] > 0 and b["native_setup_s"] > 0
 
 
