@@ -60,6 +60,31 @@ TOLERANCES.update({
     "cmp_node_time_rel": 1e-12,
 })
 
+# ------------------------------------------------------------------------------------------
+# PMP self-verification (iamp.planners.pmp_verify): every check is dimensionless, in the
+# units t_f (time) and L (the problem's largest position, iamp.planners.pmp_scale).
+# ------------------------------------------------------------------------------------------
+TOLERANCES.update({
+    # trailing x_poly terms with |c_k| t_f^k below this fraction of the largest term are
+    # dropped: 100x below the rounding error (1.1e-16) of evaluating the kept terms.
+    "pmp_poly_negligible_rel": 1e-18,
+    # backward error |Mz - r| / (|M||z| + |r|) of the jump system: LU's bound is
+    # ~ n*eps*growth ~ 1e-14 for m <= 16; 100x margin.
+    "pmp_linear_system_rel": 1e-12,
+    # boundary, corner, H-minimisation and co-state-jump residuals in scaled units: the
+    # piecewise cubics carry ~cond(M)*eps, cond up to ~1e5 for close contact times.
+    "pmp_scaled_residual": 1e-9,
+    # Hamiltonian-jump residual r_i over the size of its terms |Phi_x|(|v_x|+|xdot_s|)+|Phi_y||v_y|:
+    # the root polish reaches ~1e-13; a double root (J'' = 0) only ~sqrt(eps).
+    "pmp_hjump_rel": 1e-7,
+    # closed-form J(t*) vs the exact integral of |u|^2 of the trajectory (both sums of
+    # positive terms, ~1e-15 apart): catches a jump/coefficient mix-up.
+    "pmp_cost_consistency_rel": 1e-10,
+    # branch and bound: a box is discarded when its lower bound on J is within this
+    # fraction of the best J found; OPTIMAL then means global to this relative accuracy.
+    "pmp_global_certificate_rel": 1e-9,
+})
+
 
 def tol(name: str) -> float:
     """Look up a tolerance by name (KeyError names the missing entry)."""
