@@ -3,10 +3,12 @@ scenarios :func:`iamp.comparison.report.reproduce` runs."""
 
 from __future__ import annotations
 
-__all__ = ["PAPER_TABLE_I", "SCENARIOS", "PAPER_FIG"]
+from typing import Any
+
+__all__ = ["PAPER_FIG", "PAPER_TABLE_I", "SCENARIOS"]
 
 #: The paper's Table I (SPEC §8) and the qualitative behaviour of vehicle 1 before t = 0.
-PAPER_TABLE_I = {
+PAPER_TABLE_I: dict[str, dict[str, Any]] = {
     "paper-1": {"scenario": 1, "v_e": 20.0, "s_xf": 85.0, "t_f": 5.0, "x_s0": -15.0, "v_s0": 18.0,
                 "before": "constant speed"},
     "paper-2": {"scenario": 2, "v_e": 20.0, "s_xf": 73.0, "t_f": 5.0, "x_s0": -15.0, "v_s0": 20.0,
@@ -17,4 +19,4 @@ PAPER_TABLE_I = {
 #: The built-in scenarios :func:`iamp.comparison.report.reproduce` runs by default.
 SCENARIOS = ("paper-1", "paper-2", "paper-3", "two-vehicle")
 #: The paper's figure numbers per scenario: (the ``(x, y)`` snapshots, the positions).
-PAPER_FIG = {"paper-1": (4, 7), "paper-2": (5, 8), "paper-3": (6, 9)}
+PAPER_FIG: dict[str, tuple[int, int]] = {"paper-1": (4, 7), "paper-2": (5, 8), "paper-3": (6, 9)}

@@ -14,14 +14,20 @@ r"""Exact references of the discretised QP at given grid contact times (SPEC §3
 from __future__ import annotations
 
 import itertools
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from iamp.core.problem import Problem
 from iamp.planners.pmp import ValueFunction
 
+__all__ = ["candidate_table", "grid_cost_table", "zoh_reference"]
 
-def _gram(t, T):
+FloatArray = NDArray[np.float64]
+
+
+def _gram(t: ArrayLike, T: float) -> FloatArray:
     """``G`` and ``D = ∫φ'φ'`` for contact times ``t`` of shape ``(..., m)``."""
     t = np.asarray(t, dtype=float)
     m = t.shape[-1]
@@ -38,7 +44,7 @@ def _gram(t, T):
     return G
 
 
-def _rhs(problem: Problem, t):
+def _rhs(problem: Problem, t: ArrayLike) -> FloatArray:
     """``c`` of shape ``(..., m+2, 2)``: final speed, final position, contact positions."""
     t = np.asarray(t, dtype=float)
     e, T = problem.ego, problem.tf
@@ -51,7 +57,7 @@ def _rhs(problem: Problem, t):
     return c
 
 
-def _e_matrix(node_idx, cw):
+def _e_matrix(node_idx: ArrayLike, cw: FloatArray) -> FloatArray:
     """``E`` from the cumulative interval weights ``cw[k] = Σ_{intervals < k} h³/12``."""
     node_idx = np.asarray(node_idx)
     m = node_idx.shape[-1]
@@ -62,7 +68,7 @@ def _e_matrix(node_idx, cw):
     return E
 
 
-def zoh_reference(problem: Problem, t_nodes, nodes) -> dict:
+def zoh_reference(problem: Problem, t_nodes: ArrayLike, nodes: ArrayLike) -> dict[str, Any]:
     r"""The exact ZOH optimum with the contacts at grid nodes ``nodes`` of ``t_nodes``.
 
     Returns ``cost``, nodal states ``X`` ``(N+1, 4)``, inputs ``U`` ``(N, 2)``, multipliers
@@ -102,12 +108,12 @@ def zoh_reference(problem: Problem, t_nodes, nodes) -> dict:
             "gap_leading": gap_leading, "rho": rho}
 
 
-def candidate_table(problem: Problem, steps: int) -> np.ndarray:
+def candidate_table(problem: Problem, steps: int) -> NDArray[np.int_]:
     """Every ordered combination of distinct interior nodes, ``(K, m)``."""
     return np.array(list(itertools.permutations(range(1, steps), problem.m)), dtype=int).reshape(-1, problem.m)
 
 
-def grid_cost_table(problem: Problem, steps: int, hold: str) -> tuple[np.ndarray, np.ndarray]:
+def grid_cost_table(problem: Problem, steps: int, hold: str) -> tuple[NDArray[np.int_], FloatArray]:
     """The exact sweep cost at every candidate of the uniform grid: ``(candidates, J)``.
 
     FOH: the PMP's value function :math:`J(t)`.  ZOH: :math:`\\tfrac12\\sum c^\\top(G-E)^{-1}c`.

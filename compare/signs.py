@@ -12,20 +12,22 @@ safety box).  For a ``rear`` corner (the ego stays behind) the roles swap.
 
 from __future__ import annotations
 
+from iamp.core.problem import SurroundingVehicle
 
-def constraint_is_binding_for_safety(vehicle, phi_x: float) -> bool:
+
+def constraint_is_binding_for_safety(vehicle: SurroundingVehicle, phi_x: float) -> bool:
     """True if the longitudinal part of the equality pushes the ego to the safe side."""
-    return (phi_x < 0) if vehicle.sign_x > 0 else (phi_x > 0)
+    return bool(phi_x < 0) if vehicle.sign_x > 0 else bool(phi_x > 0)
 
 
-def constraint_role(vehicle, phi_x: float) -> str:
+def constraint_role(vehicle: SurroundingVehicle, phi_x: float) -> str:
     """What the equality is, as the end of a sentence ("the equality is …")."""
     return ("a real safety constraint (it pushes the ego to the safe side of the corner)"
             if constraint_is_binding_for_safety(vehicle, phi_x)
             else "not a safety constraint: it drags the ego towards the obstacle")
 
 
-def jump_meaning(vehicle, phi_x: float) -> str:
+def jump_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
     """One sentence for reports: is the equality a real safety constraint here?"""
     side = "ahead of" if phi_x > 0 else "behind"
     if phi_x == 0:
