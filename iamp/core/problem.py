@@ -25,17 +25,32 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from iamp.core.errors import ScenarioError
+from iamp.core.limits import LIMITS, abs_message, bound_message, polynomial_message
 
 CORNERS = ("front-lower", "front-upper", "rear-lower", "rear-upper")
 
 
-def _finite(value, name: str, source: str | None) -> float:
+def _finite(value: object, name: str, source: str | None) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise ScenarioError(f"must be a number (got {value!r})", name, source)
-    value = float(value)
-    if not math.isfinite(value):
-        raise ScenarioError(f"must be finite (got {value})", name, source)
-    return value
+    try:
+        out = float(value)
+    except OverflowError:  # an integer beyond the float range
+        raise ScenarioError(f"must be finite (got an integer of {len(str(value))} digits)", name, source) from None
+    if not math.isfinite(out):
+        raise ScenarioError(f"must be finite (got {out})", name, source)
+    return out
+
+
+def _check(msg: str | None, name: str, source: str | None) -> None:
+    """Raise :class:`ScenarioError` for ``name`` if a bound check returned a message."""
+    if msg is not None:
+        raise ScenarioError(msg, name, source)
+
+
+#: Which bound of :data:`iamp.core.limits.LIMITS` each ego field obeys.
+_EGO_KIND = {"x0": "position", "y0": "position", "xf": "position", "yf": "position",
+             "vx0": "speed", "vy0": "speed", "vxf": "speed", "vyf": "speed"}
 
 
 @dataclass(frozen=True)
@@ -53,11 +68,15 @@ class EgoBoundary:
     vyf: float = 0.0
     source: str | None = field(default=None, compare=False, repr=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("tf", "x0", "y0", "vx0", "xf", "yf", "vxf", "vy0", "vyf"):
             object.__setattr__(self, name, _finite(getattr(self, name), f"ego.{name}", self.source))
         if self.tf <= 0:
             raise ScenarioError(f"must be > 0 (got {self.tf})", "ego.tf", self.source)
+        _check(bound_message(self.tf, LIMITS["tf_min_s"], LIMITS["tf_max_s"], "s"), "ego.tf", self.source)
+        for name, kind in _EGO_KIND.items():
+            bound, unit = (LIMITS["position_max_m"], "m") if kind == "position" else (LIMITS["speed_max_mps"], "m/s")
+            _check(abs_message(getattr(self, name), bound, unit), f"ego.{name}", self.source)
 
     @property
     def initial(self) -> np.ndarray:
@@ -103,6 +122,9 @@ class SurroundingVehicle:
         for name in ("safety_x", "safety_y"):
             if getattr(self, name) < 0:
                 raise ScenarioError(f"must be >= 0 (got {getattr(self, name)})", f"{p}.{name}", src)
+        for name in ("length", "width", "safety_x", "safety_y"):
+            _check(bound_message(getattr(self, name), None, LIMITS["size_max_m"], "m"), f"{p}.{name}", src)
+        _check(abs_message(self.y, LIMITS["position_max_m"], "m"), f"{p}.y", src)
         coeffs = self.x_poly
         if isinstance(coeffs, np.ndarray):
             coeffs = coeffs.tolist()
@@ -110,6 +132,9 @@ class SurroundingVehicle:
             raise ScenarioError("must be a list of numbers (ascending powers)", f"{p}.x_poly", src)
         if len(coeffs) == 0:
             raise ScenarioError("must not be empty", f"{p}.x_poly", src)
+        if len(coeffs) > LIMITS["poly_max_terms"]:
+            raise ScenarioError(f"has {len(coeffs)} coefficients; at most {LIMITS['poly_max_terms']:g} are accepted",
+                                f"{p}.x_poly", src)
         coeffs = tuple(_finite(c, f"{p}.x_poly[{k}]", src) for k, c in enumerate(coeffs))
         object.__setattr__(self, "x_poly", coeffs)
 
@@ -170,6 +195,11 @@ class Problem:
         for v in vehicles:
             if not isinstance(v, SurroundingVehicle):
                 raise ScenarioError("every vehicle must be a SurroundingVehicle with x_poly", "vehicles")
+        if len(vehicles) > LIMITS["vehicles_max"]:
+            raise ScenarioError(f"at most {LIMITS['vehicles_max']:g} vehicles are accepted (got {len(vehicles)})",
+                                "vehicles", self.ego.source)
+        for v in vehicles:
+            _check(polynomial_message(v.x_poly, self.ego.tf), f"{v.field_prefix}.x_poly", v.source)
         object.__setattr__(self, "vehicles", vehicles)
 
     @property

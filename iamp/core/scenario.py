@@ -10,14 +10,19 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from iamp.core.errors import HistoryError, PredictorRequiredError, ScenarioError
+from iamp.core.limits import LIMITS, abs_message, polynomial_message, prediction_message
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.toml_lines import line_of
 
 TOP_KEYS = {"name", "description", "ego", "vehicles"}
 EGO_REQUIRED = ("tf", "x0", "y0", "vx0", "xf", "yf", "vxf")
@@ -27,20 +32,35 @@ VEHICLE_OPTIONAL = ("name", "x_poly", "history")
 HISTORY_KEYS = ("t", "x")
 #: Smallest history any predictor can use; a predictor may demand more (SPEC §6).
 MIN_HISTORY_SAMPLES = 2
+#: Largest scenario file read (a history of ``history_samples_max`` samples fits easily).
+MAX_FILE_BYTES = 16 * 1024 * 1024
+
+
+class _Prediction(Protocol):
+    x_poly: Sequence[float]
+
+
+class PredictorLike(Protocol):
+    """What :meth:`Scenario.to_problem` needs of a predictor."""
+
+    def predict(self, history: History, tf: float) -> Any: ...
 
 
 @dataclass(frozen=True)
 class History:
     """An observed longitudinal history before ``t = 0`` (strictly increasing, ends at 0)."""
 
-    t: np.ndarray
-    x: np.ndarray
+    t: npt.NDArray[np.float64]
+    x: npt.NDArray[np.float64]
     field: str = "vehicles[0].history"
     source: str | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         t = _number_list(self.t, f"{self.field}.t", self.source)
         x = _number_list(self.x, f"{self.field}.x", self.source)
+        cap = int(LIMITS["history_samples_max"])
+        if len(t) > cap:
+            raise HistoryError(f"has {len(t)} samples; at most {cap} are accepted", f"{self.field}.t", self.source)
         if len(t) != len(x):
             raise HistoryError(
                 f"t and x have different lengths ({len(t)} and {len(x)})", f"{self.field}.x", self.source
@@ -55,11 +75,25 @@ class History:
                                f"{self.field}.t", self.source)
         if abs(t[-1]) > 1e-9:
             raise HistoryError(f"must end at 0 (last sample at {t[-1]})", f"{self.field}.t", self.source)
+        span, step = LIMITS["history_span_max_s"], LIMITS["history_step_min_s"]
+        if t[0] < -span:
+            raise HistoryError(f"must start at t >= {-span:g} s (first sample at {t[0]:g})",
+                               f"{self.field}.t", self.source)
+        if np.any(np.diff(t) < step):
+            k = int(np.argmax(np.diff(t) < step)) + 1
+            raise HistoryError(f"samples must be at least {step:g} s apart (t[{k}] - t[{k - 1}] = "
+                               f"{t[k] - t[k - 1]:.3g} s)", f"{self.field}.t", self.source)
+        big = np.abs(x) > LIMITS["position_max_m"]
+        if big.any():
+            k = int(np.argmax(big))
+            raise HistoryError(str(abs_message(float(x[k]), LIMITS["position_max_m"], "m")),
+                               f"{self.field}.x[{k}]", self.source)
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "x", x)
 
     @property
     def duration(self) -> float:
+        """``t[-1] − t[0]`` [s]."""
         return float(self.t[-1] - self.t[0])
 
     def require(self, min_samples: int = 0, min_duration: float = 0.0) -> None:
@@ -83,12 +117,13 @@ class VehicleSpec:
     width: float
     safety_x: float
     safety_y: float
-    x_poly: tuple | None
+    x_poly: tuple[float, ...] | None
     history: History | None
     field: str
     source: str | None
 
-    def with_poly(self, x_poly) -> SurroundingVehicle:
+    def with_poly(self, x_poly: Sequence[float]) -> SurroundingVehicle:
+        """The :class:`SurroundingVehicle` of this geometry moving along ``x_poly``."""
         return SurroundingVehicle(
             x_poly=tuple(float(c) for c in x_poly), corner=self.corner, y=self.y, length=self.length,
             width=self.width, safety_x=self.safety_x, safety_y=self.safety_y, name=self.name,
@@ -103,25 +138,48 @@ class Scenario:
     name: str
     description: str
     ego: EgoBoundary
-    vehicles: tuple
+    vehicles: tuple[VehicleSpec, ...]
     source: str | None = None
+    text: str | None = field(default=None, compare=False, repr=False)
 
     @property
     def needs_prediction(self) -> bool:
+        """Whether any vehicle is given by a history (and so needs a predictor)."""
         return any(v.history is not None for v in self.vehicles)
 
-    def to_problem(self, predictor=None) -> tuple[Problem, list]:
+    def locate(self, exc: ScenarioError) -> ScenarioError:
+        """``exc`` with the TOML line of its field added to the source (``file:line``)."""
+        return with_line(exc, self.text, self.source)
+
+    def to_problem(self, predictor: PredictorLike | None = None) -> tuple[Problem, list[Any]]:
         """Turn the scenario into a :class:`Problem`.
 
         Vehicles with a ``history`` are predicted by ``predictor`` (an object with
         ``predict(history, tf) -> Prediction`` whose ``x_poly`` is the fitted cubic).  Returns
         the problem and the list of predictions (``None`` for vehicles given by ``x_poly``).
         The same polynomial object reaches every planner that solves this problem.
+
+        Refusals (:class:`ScenarioError`, including the predictor's) name the TOML line.
         """
-        vehicles, predictions = [], []
+        try:
+            return self._to_problem(predictor)
+        except ScenarioError as exc:
+            raise self.locate(exc) from None
+
+    def _to_problem(self, predictor: PredictorLike | None) -> tuple[Problem, list[Any]]:
+        vehicles: list[SurroundingVehicle] = []
+        predictions: list[Any] = []
+        if predictor is not None and self.needs_prediction:
+            dt = getattr(predictor, "dt", None)
+            if isinstance(dt, (int, float)):
+                msg = prediction_message(self.ego.tf, float(dt))
+                if msg is not None:
+                    name = getattr(predictor, "name", None)
+                    raise ScenarioError(f"the predictor model's time step: {msg}", "dt",
+                                        str(name) if name is not None else None)
         for v in self.vehicles:
             if v.history is None:
-                vehicles.append(v.with_poly(v.x_poly))
+                vehicles.append(v.with_poly(v.x_poly or ()))
                 predictions.append(None)
                 continue
             if predictor is None:
@@ -129,12 +187,16 @@ class Scenario:
                     "is an observed history and needs a predictor to become a trajectory",
                     f"{v.field}.history", self.source)
             pred = predictor.predict(v.history, self.ego.tf)
+            msg = polynomial_message(pred.x_poly, self.ego.tf)
+            if msg is not None:
+                raise ScenarioError(f"the trajectory predicted from this history {msg}", f"{v.field}.history",
+                                    self.source)
             vehicles.append(v.with_poly(pred.x_poly))
             predictions.append(pred)
         return Problem(self.ego, tuple(vehicles), self.name), predictions
 
 
-def _number_list(value, field: str, source) -> np.ndarray:
+def _number_list(value: object, field: str, source: str | None) -> npt.NDArray[np.float64]:
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if not isinstance(value, (list, tuple)):
@@ -142,26 +204,39 @@ def _number_list(value, field: str, source) -> np.ndarray:
     out = []
     for k, v in enumerate(value):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ScenarioError(f"must be a number (got {v!r})", f"{field}[{k}]", source)
-        if not math.isfinite(float(v)):
+            raise ScenarioError(f"must be a number (got {_short(v)})", f"{field}[{k}]", source)
+        try:
+            f = float(v)
+        except OverflowError:
+            raise ScenarioError(f"must be finite (got an integer of {len(str(v))} digits)", f"{field}[{k}]",
+                                source) from None
+        if not math.isfinite(f):
             raise ScenarioError(f"must be finite (got {v})", f"{field}[{k}]", source)
-        out.append(float(v))
+        out.append(f)
     return np.array(out, dtype=float)
 
 
-def _check_keys(table, required, optional, prefix, source):
+def _short(value: object, n: int = 40) -> str:
+    """``repr(value)`` cut to ``n`` characters (a refusal is one line)."""
+    r = repr(value)
+    return r if len(r) <= n else r[: n - 3] + "..."
+
+
+def _check_keys(table: object, required: Sequence[str], optional: Sequence[str], prefix: str,
+                source: str | None) -> None:
     if not isinstance(table, dict):
         raise ScenarioError("must be a table", prefix, source)
     for key in table:
         if key not in required and key not in optional:
-            raise ScenarioError(f"unknown key {key!r}", f"{prefix}.{key}" if prefix else key, source)
+            raise ScenarioError(f"unknown key {_short(key)}", f"{prefix}.{key}" if prefix else key, source)
     for key in required:
         if key not in table:
             raise ScenarioError("is missing", f"{prefix}.{key}" if prefix else key, source)
 
 
-def parse_scenario(data: dict, source: str | None = None, default_name: str = "scenario") -> Scenario:
-    """Validate a decoded TOML document against SPEC §4 and §6."""
+def parse_scenario(data: dict[str, Any], source: str | None = None, default_name: str = "scenario") -> Scenario:
+    """Validate a decoded TOML document against SPEC §4 and §6 and the bounds of
+    :mod:`iamp.core.limits`."""
     _check_keys(data, ("ego", "vehicles"), ("name", "description"), "", source)
     name = data.get("name", default_name)
     description = data.get("description", "")
@@ -175,7 +250,11 @@ def parse_scenario(data: dict, source: str | None = None, default_name: str = "s
     vehicles_t = data["vehicles"]
     if not isinstance(vehicles_t, list) or not vehicles_t:
         raise ScenarioError("needs at least one [[vehicles]] table", "vehicles", source)
-    specs = []
+    if len(vehicles_t) > LIMITS["vehicles_max"]:
+        raise ScenarioError(f"at most {LIMITS['vehicles_max']:g} vehicles are accepted (got {len(vehicles_t)})",
+                            "vehicles", source)
+    specs: list[VehicleSpec] = []
+    names: dict[str, int] = {}
     for i, vt in enumerate(vehicles_t):
         prefix = f"vehicles[{i}]"
         _check_keys(vt, VEHICLE_REQUIRED, VEHICLE_OPTIONAL, prefix, source)
@@ -186,6 +265,10 @@ def parse_scenario(data: dict, source: str | None = None, default_name: str = "s
         vname = vt.get("name", f"sv{i + 1}")
         if not isinstance(vname, str):
             raise ScenarioError("must be a string", f"{prefix}.name", source)
+        if vname in names:
+            raise ScenarioError(f"duplicate vehicle name {_short(vname)} (also vehicles[{names[vname]}])",
+                                f"{prefix}.name", source)
+        names[vname] = i
         history = None
         x_poly = None
         if has_hist:
@@ -193,26 +276,60 @@ def parse_scenario(data: dict, source: str | None = None, default_name: str = "s
             _check_keys(ht, HISTORY_KEYS, (), f"{prefix}.history", source)
             history = History(ht["t"], ht["x"], field=f"{prefix}.history", source=source)
         else:
-            x_poly = tuple(_number_list(vt["x_poly"], f"{prefix}.x_poly", source))
+            x_poly = tuple(float(c) for c in _number_list(vt["x_poly"], f"{prefix}.x_poly", source))
         geometry = {k: vt[k] for k in VEHICLE_REQUIRED}
         if not isinstance(geometry["corner"], str):
             raise ScenarioError("must be a string such as 'front-lower'", f"{prefix}.corner", source)
         # Validate geometry (and x_poly) through the problem object itself.
         probe = SurroundingVehicle(x_poly=x_poly if x_poly is not None else (0.0,), name=vname,
                                    field_prefix=prefix, source=source, **geometry)
+        if x_poly is not None:
+            msg = polynomial_message(x_poly, ego.tf)
+            if msg is not None:
+                raise ScenarioError(msg, f"{prefix}.x_poly", source)
         specs.append(VehicleSpec(name=vname, corner=probe.corner, y=probe.y, length=probe.length,
                                  width=probe.width, safety_x=probe.safety_x, safety_y=probe.safety_y,
                                  x_poly=x_poly, history=history, field=prefix, source=source))
     return Scenario(name=name, description=description, ego=ego, vehicles=tuple(specs), source=source)
 
 
+def with_line(exc: ScenarioError, text: str | None, source: str | None) -> ScenarioError:
+    """``exc`` again, its source extended to ``file:line`` when the field's line is known."""
+    if text is None or exc.source != source or source is None:
+        return exc
+    line = line_of(text, exc.field)
+    if line is None:
+        return exc
+    return type(exc)(exc.message, exc.field, f"{source}:{line}")
+
+
+def _syntax_line(message: str) -> int | None:
+    import re
+
+    m = re.search(r"at line (\d+)", message)
+    return int(m.group(1)) if m else None
+
+
 def loads_scenario(text: str, source: str | None = None, default_name: str = "scenario") -> Scenario:
-    """Parse scenario TOML text."""
+    """Parse scenario TOML text (TOML 1.0: a carriage return only as part of CRLF)."""
+    lone_cr = [k for k, c in enumerate(text) if c == "\r" and text[k + 1 : k + 2] != "\n"]
+    if lone_cr:
+        line = text.count("\n", 0, lone_cr[0]) + 1
+        raise ScenarioError("TOML syntax error: a bare carriage return (CR without LF) is not allowed in TOML",
+                            None, f"{source}:{line}" if source else f"line {line}")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"TOML syntax error: {exc}", None, source) from None
-    return parse_scenario(data, source, default_name)
+        line = _syntax_line(str(exc))
+        where = f"{source}:{line}" if source and line else source
+        raise ScenarioError(f"TOML syntax error: {exc}", None, where) from None
+    except (RecursionError, MemoryError):
+        raise ScenarioError("TOML document is nested too deeply or too large to parse", None, source) from None
+    try:
+        scenario = parse_scenario(data, source, default_name)
+    except ScenarioError as exc:
+        raise with_line(exc, text, source) from None
+    return Scenario(scenario.name, scenario.description, scenario.ego, scenario.vehicles, scenario.source, text)
 
 
 # --- built-in scenarios ---------------------------------------------------------------
@@ -224,6 +341,7 @@ def builtin_names() -> list[str]:
 
 
 def builtin_text(name: str) -> str:
+    """The TOML text of a built-in scenario."""
     return (resources.files("iamp.core") / "scenarios" / f"{name}.toml").read_text(encoding="utf-8")
 
 
@@ -232,7 +350,15 @@ def load_scenario(path_or_name: str | Path) -> Scenario:
     p = Path(path_or_name)
     if p.is_file():
         try:
-            text = p.read_text(encoding="utf-8")
+            size = p.stat().st_size
+        except OSError as exc:
+            raise ScenarioError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
+        if size > MAX_FILE_BYTES:
+            raise ScenarioError(f"is {size} bytes; a scenario file may have at most {MAX_FILE_BYTES} bytes",
+                                None, str(p))
+        try:
+            # bytes, not read_text(): universal newlines would turn a bare CR (invalid TOML) into LF
+            text = p.read_bytes().decode("utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise ScenarioError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
         return loads_scenario(text, str(p), default_name=p.stem)
