@@ -86,14 +86,18 @@ verdict judged.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from iamp.comparison.fingerprints import problem_fingerprint, x_poly_fingerprint
 from iamp.comparison.references import grid_cost_table, zoh_reference
 from iamp.comparison.runs import QPConfig, Run, default_configs, run_pmp, run_qp
-from iamp.core.problem import Problem
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem, SurroundingVehicle
 from iamp.core.tolerances import tol
 from iamp.planners.pmp import ValueFunction, solve_fixed_times
 
@@ -106,22 +110,22 @@ VERDICT_AGREE, VERDICT_DISAGREE = "agree", "disagree"
 class _Checks:
     """Collects named checks ``value ≤ limit`` and free-text notes."""
 
-    def __init__(self):
-        self.items: dict = {}
-        self.reasons: list = []
-        self.notes: list = []
+    def __init__(self) -> None:
+        self.items: dict[str, dict[str, Any]] = {}
+        self.reasons: list[str] = []
+        self.notes: list[str] = []
 
-    def check(self, name: str, value, limit, ok=None, why: str = "") -> bool:
-        value = float(value) if value is not None else None
-        limit = float(limit) if limit is not None else None
+    def check(self, name: str, value: Any, limit: Any, ok: bool | None = None, why: str = "") -> bool:
+        v = float(value) if value is not None else None
+        lim = float(limit) if limit is not None else None
         if ok is None:
-            ok = value is not None and np.isfinite(value) and value <= limit
-        ok = bool(ok)
-        self.items[name] = {"value": value, "limit": limit, "ok": ok}
-        if not ok:
-            self.reasons.append(f"{name}: {value:.3g} > {limit:.3g}" + (f" ({why})" if why else "")
-                                if value is not None and limit is not None else f"{name} failed ({why})")
-        return ok
+            ok = v is not None and lim is not None and bool(np.isfinite(v)) and v <= lim
+        passed = bool(ok)
+        self.items[name] = {"value": v, "limit": lim, "ok": passed}
+        if not passed:
+            self.reasons.append(f"{name}: {v:.3g} > {lim:.3g}" + (f" ({why})" if why else "")
+                                if v is not None and lim is not None else f"{name} failed ({why})")
+        return passed
 
     def fail(self, text: str) -> None:
         self.reasons.append(text)
@@ -145,33 +149,40 @@ def _same_problem(a: Run, b: Run, checks: _Checks) -> None:
 
 def _pmp_own_checks(pmp: Run, checks: _Checks) -> None:
     res = pmp.result
-    scale = max(1.0, abs(res.cost), float(np.max(np.abs(res.problem.ego.final))))
+    cost = _cost(res)
+    scale = max(1.0, abs(cost), float(np.max(np.abs(res.problem.ego.final))))
     for name in ("linear_system", "boundary", "interior_constraint", "h_minimisation", "costate_jump"):
         if name in res.residuals:
             checks.check(f"pmp_{name}_residual", res.residuals[name] / scale, tol("pmp_condition_residual"))
     if "hamiltonian_jump" in res.residuals:
-        checks.check("pmp_hamiltonian_jump_at_t*", res.residuals["hamiltonian_jump"] / max(1.0, res.cost),
+        checks.check("pmp_hamiltonian_jump_at_t*", res.residuals["hamiltonian_jump"] / max(1.0, cost),
                      tol("pmp_hjump_at_optimum"))
 
 
-def _nodes_of(traj, times) -> list:
+def _cost(plan: Plan) -> float:
+    """The cost of a verified plan (callers check ``Run.ok`` first)."""
+    return float("nan") if plan.cost is None else float(plan.cost)
+
+
+def _nodes_of(traj: Any, times: NDArray[np.float64]) -> list[int]:
     t_nodes = np.asarray(traj.t_nodes)
     return [int(np.argmin(np.abs(t_nodes - t))) for t in times]
 
 
-def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = None) -> dict:
+def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run,
+                   tables: dict[tuple[int, str], tuple[Any, Any]] | None = None) -> dict[str, Any]:
     """Judge one ``pmp`` / QP pair (module docstring, rules 0–7).  ``tables`` caches
     :func:`grid_cost_table` results by ``(steps, hold)``."""
     checks = _Checks()
     cfg = qp.config
-    out = {"a": pmp.label, "b": qp.label, "cost_rel_gap": None, "contact_time_gap": None,
-           "state_sup_gap": None, "input_sup_gap": None, "jump_gap": None}
+    out: dict[str, Any] = {"a": pmp.label, "b": qp.label, "cost_rel_gap": None, "contact_time_gap": None,
+                           "state_sup_gap": None, "input_sup_gap": None, "jump_gap": None}
     _same_problem(pmp, qp, checks)
     if not pmp.ok:
         checks.fail(f"pmp status {pmp.result.status}")
     if not qp.ok:
         checks.fail(f"{qp.label} status {qp.result.status}")
-    if not (pmp.ok and qp.ok):
+    if not (pmp.ok and qp.ok) or cfg is None:
         out.update(verdict=checks.verdict(), reasons=checks.reasons, notes=checks.notes, checks=checks.items)
         return out
     _pmp_own_checks(pmp, checks)
@@ -185,7 +196,8 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
     tQ = t_nodes[nodes]
     if np.max(np.abs(tQ - res.contact_times)) > 1e-12 * problem.tf:
         checks.fail("the QP's contact times are not nodes of its grid")
-    J_star, t_star = pmp.result.cost, pmp.result.contact_times
+    J_star, t_star = _cost(pmp.result), pmp.result.contact_times
+    J_qp = _cost(res)
     # PMP at the QP's contact times (FOH's exact reference)
     pmp_at = solve_fixed_times(problem, tQ)
     J_pmp_tQ = pmp_at.cost()
@@ -193,15 +205,15 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
     X_p, U_p = pmp_at.states(t_nodes), pmp_at.inputs(t_nodes)
     # SPEC §5b headline: run b against run a as they came out (each at its own contact times)
     X_run, U_run = pmp.result.trajectory.states(t_nodes), pmp.result.trajectory.inputs(t_nodes)
-    out["cost_rel_gap"] = float((res.cost - J_star) / abs(J_star))
+    out["cost_rel_gap"] = float((J_qp - J_star) / abs(J_star))
     out["contact_time_gap"] = float(np.max(np.abs(res.contact_times - pmp.result.contact_times)))
     out["state_sup_gap"] = float(np.max(np.abs(X_qp - X_run)))
     out["input_sup_gap"] = float(np.max(np.abs(U_qp - U_run)))
     out["jump_gap"] = float(np.max(np.abs(res.jumps - pmp.result.jumps)))
     # the identity at the QP's own contact times (FOH exact, SPEC §3.1): a separate, named key
-    same = {"reference": "PMP re-solved at the QP's contact times",
+    same: dict[str, Any] = {"reference": "PMP re-solved at the QP's contact times",
             "contact_times": [float(t) for t in tQ],
-            "cost_rel_gap": float((res.cost - J_pmp_tQ) / abs(J_pmp_tQ)),
+            "cost_rel_gap": float((J_qp - J_pmp_tQ) / abs(J_pmp_tQ)),
             "state_sup_gap": float(np.max(np.abs(X_qp - X_p))),
             "input_sup_gap": float(np.max(np.abs(U_qp - U_p))),
             "jump_gap": float(np.max(np.abs(res.jumps - pmp_at.jumps))),
@@ -209,7 +221,8 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
     out["at_same_contact_times"] = same
     # the exact reference at t_Q
     if hold == "foh":
-        ref = {"cost": J_pmp_tQ, "X": X_p, "U": U_p, "nu": pmp_at.jumps, "what": "PMP at the QP's contact times"}
+        ref: dict[str, Any] = {"cost": J_pmp_tQ, "X": X_p, "U": U_p, "nu": pmp_at.jumps,
+                               "what": "PMP at the QP's contact times"}
         U_cmp = U_qp
     else:
         z = zoh_reference(problem, t_nodes, nodes)
@@ -218,7 +231,7 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
         U_cmp = np.asarray(traj.U)
     out["reference"] = ref["what"]
     # rule 2: solver precision
-    checks.check("cost_vs_reference_rel", abs(res.cost - ref["cost"]) / abs(ref["cost"]),
+    checks.check("cost_vs_reference_rel", abs(J_qp - ref["cost"]) / abs(ref["cost"]),
                  _solver_tol("cost_rel", solver))
     xs = max(1.0, float(np.max(np.abs(ref["X"]))))
     checks.check("state_vs_reference_rel", np.max(np.abs(X_qp - ref["X"])) / xs, _solver_tol("state_rel", solver))
@@ -243,7 +256,7 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
     J_vf_tQ = float(ValueFunction(problem)(tQ[None, :])[0])
     checks.check("pmp_global_lower_bound", (J_star - J_vf_tQ) / abs(J_star), ctol,
                  why="the QP's candidate has a lower PMP cost than t*: the PMP's search missed the global optimum")
-    cont: dict = {"h": h_max}
+    cont: dict[str, Any] = {"h": h_max}
     if cfg.contact == "grid":
         key = (N, hold)
         if tables is not None and key in tables:
@@ -280,7 +293,7 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
                     if len(set(c)) == len(c)]
         if brackets:
             J_bracket = min(lookup.get(tuple(c), np.inf) for c in brackets)
-            checks.check("bracket_upper_bound_rel", (res.cost - J_bracket) / abs(J_bracket), ctol,
+            checks.check("bracket_upper_bound_rel", (J_qp - J_bracket) / abs(J_bracket), ctol,
                          why="the sweep's best is worse than a grid candidate bracketing t*")
             cont["bracket_cost"] = float(J_bracket)
         if out["contact_time_gap"] > h * (1 + 1e-9):
@@ -288,10 +301,10 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
                                 "optimum lies in another basin with a cost within the grid resolution (near tie)")
     else:  # refine
         if hold == "foh":
-            checks.check("refine_cost_vs_continuous_rel", abs(res.cost - J_star) / abs(J_star), tol("refine_cost_rel"))
+            checks.check("refine_cost_vs_continuous_rel", abs(J_qp - J_star) / abs(J_star), tol("refine_cost_rel"))
     # rule 7: ZOH above PMP, gap inside the O(h²) bracket
     if hold == "zoh":
-        gap = res.cost - J_pmp_tQ
+        gap = J_qp - J_pmp_tQ
         lower, rho = z["gap_leading"], z["rho"]
         upper = lower / (1 - rho) if rho < 1 else np.inf
         slack = ctol * abs(J_pmp_tQ)
@@ -311,49 +324,49 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: dict | None = No
     return out
 
 
-def compare_qp_qp(problem: Problem, a: Run, b: Run) -> dict:
+def compare_qp_qp(problem: Problem, a: Run, b: Run) -> dict[str, Any]:
     """Judge two QP runs with the same hold and ``N`` (e.g. OSQP vs Clarabel)."""
     checks = _Checks()
-    out = {"a": a.label, "b": b.label, "cost_rel_gap": None, "contact_time_gap": None,
+    out: dict[str, Any] = {"a": a.label, "b": b.label, "cost_rel_gap": None, "contact_time_gap": None,
            "state_sup_gap": None, "input_sup_gap": None, "jump_gap": None}
     _same_problem(a, b, checks)
     for r in (a, b):
         if not r.ok:
             checks.fail(f"{r.label} status {r.result.status}")
-    if a.ok and b.ok:
+    if a.ok and b.ok and a.config is not None and b.config is not None:
         ra, rb = a.result, b.result
+        ca, cb = a.config, b.config
         for r in (a, b):  # both must be KKT points at their own solver's precision
             if r.kkt is None:
                 checks.fail(f"{r.label}: KKT residuals unavailable")
             else:
                 for k in ("primal_rel", "dual_rel", "gap_rel"):
-                    checks.check(f"{r.label}_kkt_{k}", r.kkt[k], _solver_tol("kkt_rel", r.config.solver))
-        loose = "osqp" if "osqp" in (a.config.solver, b.config.solver) else "clarabel"
+                    checks.check(f"{r.label}_kkt_{k}", r.kkt[k], _solver_tol("kkt_rel", (ca if r is a else cb).solver))
+        loose = "osqp" if "osqp" in (ca.solver, cb.solver) else "clarabel"
         ctol = _solver_tol("cost_rel", loose)
-        out["cost_rel_gap"] = float((rb.cost - ra.cost) / abs(ra.cost))
+        cost_gap = (_cost(rb) - _cost(ra)) / abs(_cost(ra))
+        out["cost_rel_gap"] = float(cost_gap)
         dt = float(np.max(np.abs(ra.contact_times - rb.contact_times)))
         out["contact_time_gap"] = dt
-        checks.check("cost_rel", abs(out["cost_rel_gap"]), ctol)
-        if dt > tol("cmp_node_time_rel") * problem.tf and a.config.contact == "grid":
+        checks.check("cost_rel", abs(cost_gap), ctol)
+        if dt > tol("cmp_node_time_rel") * problem.tf and ca.contact == "grid":
             checks.notes.append("different grid candidates with equal costs (a tie within solver precision)")
         else:
             tn = np.asarray(ra.trajectory.t_nodes)
             Xa, Xb = ra.trajectory.states(tn), rb.trajectory.states(tn)
             Ua, Ub = ra.trajectory.inputs(tn), rb.trajectory.inputs(tn)
-            out["state_sup_gap"] = float(np.max(np.abs(Xa - Xb)))
-            out["input_sup_gap"] = float(np.max(np.abs(Ua - Ub)))
-            out["jump_gap"] = float(np.max(np.abs(ra.jumps - rb.jumps)))
-            checks.check("state_rel", out["state_sup_gap"] / max(1.0, float(np.max(np.abs(Xa)))),
-                         _solver_tol("state_rel", loose))
-            checks.check("input_rel", out["input_sup_gap"] / max(1.0, float(np.max(np.abs(Ua)))),
-                         _solver_tol("state_rel", loose))
-            checks.check("jump_rel", out["jump_gap"] / max(1.0, float(np.max(np.abs(ra.jumps)))),
-                         _solver_tol("jump_rel", loose))
+            dx = float(np.max(np.abs(Xa - Xb)))
+            du = float(np.max(np.abs(Ua - Ub)))
+            dj = float(np.max(np.abs(ra.jumps - rb.jumps)))
+            out.update(state_sup_gap=dx, input_sup_gap=du, jump_gap=dj)
+            checks.check("state_rel", dx / max(1.0, float(np.max(np.abs(Xa)))), _solver_tol("state_rel", loose))
+            checks.check("input_rel", du / max(1.0, float(np.max(np.abs(Ua)))), _solver_tol("state_rel", loose))
+            checks.check("jump_rel", dj / max(1.0, float(np.max(np.abs(ra.jumps)))), _solver_tol("jump_rel", loose))
     out.update(verdict=checks.verdict(), reasons=checks.reasons, notes=checks.notes, checks=checks.items)
     return out
 
 
-def _sign_entry(vehicle, phi_x: float) -> dict:
+def _sign_entry(vehicle: SurroundingVehicle, phi_x: float) -> dict[str, Any]:
     from iamp.comparison.signs import constraint_is_binding_for_safety, jump_meaning
 
     return {"vehicle": vehicle.name, "corner": vehicle.corner, "phi_x": float(phi_x),
@@ -372,33 +385,38 @@ class ProblemComparison:
 
     name: str
     problem: Problem
-    runs: list
-    agreement: list
-    timing: dict = field(default_factory=dict)
+    runs: list[Run]
+    agreement: list[dict[str, Any]]
+    timing: dict[str, Any] = field(default_factory=dict)
 
     @property
     def all_agree(self) -> bool:
+        """Every pair's verdict is ``agree``."""
         return all(a["verdict"] == VERDICT_AGREE for a in self.agreement)
 
     @property
     def any_failed(self) -> bool:
+        """Some run did not finish with a verified optimum."""
         return any(not r.ok for r in self.runs)
 
     def run(self, label: str) -> Run:
+        """The run with this label."""
         for r in self.runs:
             if r.label == label:
                 return r
         raise KeyError(label)
 
-    def pair(self, a: str, b: str) -> dict:
+    def pair(self, a: str, b: str) -> dict[str, Any]:
+        """The verdict of the pair ``(a, b)``."""
         for p in self.agreement:
             if p["a"] == a and p["b"] == b:
                 return p
         raise KeyError((a, b))
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
+        """One entry of SPEC §5b's ``scenarios``."""
         pmp = next((r for r in self.runs if r.planner == "pmp"), None)
-        out = {"name": self.name, "m": self.problem.m,
+        out: dict[str, Any] = {"name": self.name, "m": self.problem.m,
                "x_poly": [list(map(float, v.x_poly)) for v in self.problem.vehicles],
                "x_poly_sha256": x_poly_fingerprint(self.problem),
                "problem_sha256": problem_fingerprint(self.problem),
@@ -415,8 +433,9 @@ class ProblemComparison:
         return out
 
 
-def compare_problem(problem: Problem, configs, name: str | None = None, repeats: int = 3,
-                    pmp_repeats: int | None = None, budget_s: float = 30.0, problems: dict | None = None,
+def compare_problem(problem: Problem, configs: Iterable[QPConfig], name: str | None = None, repeats: int = 3,
+                    pmp_repeats: int | None = None, budget_s: float = 30.0,
+                    problems: dict[str, Problem] | None = None,
                     qp_pairs: bool = True, warmup: int = 1) -> ProblemComparison:
     """Run the PMP and every QP configuration on ``problem`` and judge every pair.
 
@@ -439,17 +458,16 @@ def compare_problem(problem: Problem, configs, name: str | None = None, repeats:
         Also judge OSQP/Clarabel and native/cvxpy pairs of the same hold and ``N``.
     """
     problems = problems or {}
-    configs = list(configs)
     runs = [run_pmp(problems.get("pmp", problem), pmp_repeats or max(20, 10 * repeats), warmup=max(warmup, 1))]
     for cfg in configs:
         runs.append(run_qp(problems.get(cfg.label, problem), cfg, repeats=repeats, warmup=warmup, budget_s=budget_s))
     pmp = runs[0]
-    tables: dict = {}
+    tables: dict[tuple[int, str], tuple[Any, Any]] = {}
     agreement = [compare_pmp_qp(problem, pmp, r, tables) for r in runs[1:]]
     if qp_pairs:
         qps = runs[1:]
         for a, b in itertools.combinations(qps, 2):
             ca, cb = a.config, b.config
-            if (ca.hold, ca.steps, ca.contact) == (cb.hold, cb.steps, cb.contact):
+            if ca is not None and cb is not None and (ca.hold, ca.steps, ca.contact) == (cb.hold, cb.steps, cb.contact):
                 agreement.append(compare_qp_qp(problem, a, b))
     return ProblemComparison(name or problem.name, problem, runs, agreement)
