@@ -1,30 +1,66 @@
 """The ``iamp`` command line.
 
 Exit status: 0 success; 2 bad input (one line on standard error naming the file and the
-field, no traceback); 3 a solver failed (the status is reported, never a cost).
+field, no traceback); 3 a solver failed (the status is reported, never a cost); 4 an unsafe
+plan with ``--require-safe``; 1 an unexpected internal error (one line; ``--debug``, anywhere
+on the command line, or ``IAMP_DEBUG=1`` shows the traceback); 130 interrupted (Ctrl-C or
+SIGTERM: temporary files are removed, nothing half-written is left).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
+import threading
+import traceback
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from types import FrameType
+from typing import NoReturn
 
 from iamp._version import __version__
-from iamp.cli.types import EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVER
+from iamp.cli.types import EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_SOLVER
 from iamp.core.errors import IampError, ScenarioError, SolverError
 
 
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors and exit status 2."""
 
-    def error(self, message):
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"{self.prog}: error: {' '.join(message.split())}\n")
         raise SystemExit(EXIT_BAD_INPUT)
 
 
+class Terminated(BaseException):
+    """Raised in the main thread by SIGTERM so that ``finally`` blocks (temporary files,
+    locks) run, exactly as for Ctrl-C."""
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    raise Terminated(signum)
+
+
+@contextmanager
+def _sigterm_unwinds() -> Iterator[None]:
+    """Turn SIGTERM into :class:`Terminated` while the command runs (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def build_parser() -> argparse.ArgumentParser:
+    """The ``iamp`` parser with every available sub-command."""
     parser = _Parser(prog="iamp", description="Interaction-aware optimal lane-change planning.")
     parser.add_argument("--version", action="version", version=f"iamp {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of an unexpected error (also accepted after the sub-command)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     for module in ("iamp.cli.plan", "iamp.cli.scenarios", "iamp.cli.prediction", "iamp.cli.compare",
@@ -39,24 +75,74 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv=None) -> int:
+def _one_line(text: str, limit: int = 300) -> str:
+    flat = " ".join(str(text).split())
+    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``iamp`` with ``argv`` (default ``sys.argv[1:]``); returns the exit status.
+
+    Never lets a traceback reach the user: an error iamp raises on purpose is one line with
+    its exit status; anything else is a bug, reported in one line with exit status 1 (the
+    traceback with ``--debug``).
+    """
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    debug = os.environ.get("IAMP_DEBUG", "") not in ("", "0")
+    if "--debug" in args_list:
+        cut = args_list.index("--") if "--" in args_list else len(args_list)
+        debug = debug or "--debug" in args_list[:cut]
+        args_list = [a for k, a in enumerate(args_list) if not (a == "--debug" and k < cut)]
+    with _sigterm_unwinds():
+        try:
+            return _run(args_list)
+        except KeyboardInterrupt:
+            sys.stderr.write("iamp: interrupted\n")
+            return EXIT_INTERRUPTED
+        except Terminated:
+            sys.stderr.write("iamp: terminated (SIGTERM)\n")
+            return EXIT_INTERRUPTED
+        except SystemExit:
+            raise
+        except RecursionError:
+            _report_bug("RecursionError: input nested too deeply", debug)
+            return EXIT_INTERNAL
+        except MemoryError:
+            _report_bug("MemoryError: out of memory", debug)
+            return EXIT_INTERNAL
+        except Exception as exc:
+            _report_bug(f"{exc.__class__.__name__}: {exc}", debug)
+            return EXIT_INTERNAL
+
+
+def _report_bug(what: str, debug: bool) -> None:
+    if debug:
+        traceback.print_exc()
+    sys.stderr.write(f"iamp: internal error ({_one_line(what)}); this is a bug"
+                     + ("" if debug else " - run with --debug for the traceback") + "\n")
+
+
+def _run(args_list: list[str]) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(args_list)
     try:
         return int(args.func(args) or 0)
     except ScenarioError as exc:
-        sys.stderr.write(f"iamp: error: {exc.one_line()}\n")
+        sys.stderr.write(f"iamp: error: {_one_line(exc.one_line())}\n")
         return EXIT_BAD_INPUT
     except SolverError as exc:
-        sys.stderr.write(f"iamp: solver failure ({exc.status}): {exc}\n")
+        sys.stderr.write(f"iamp: solver failure ({exc.status}): {_one_line(str(exc))}\n")
         return EXIT_SOLVER
     except IampError as exc:
-        sys.stderr.write(f"iamp: error: {exc}\n")
+        sys.stderr.write(f"iamp: error: {_one_line(str(exc))}\n")
         return EXIT_BAD_INPUT
-    except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
-        sys.stderr.write(f"iamp: error: {exc}\n")
+    except (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError) as exc:
+        sys.stderr.write(f"iamp: error: {_one_line(str(exc))}\n")
         return EXIT_BAD_INPUT
     except BrokenPipeError:
+        # the reader went away (``iamp ... | head``): stop quietly, without a second error at exit
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
         return EXIT_OK
 
 

@@ -7,10 +7,13 @@ import json
 
 import numpy as np
 
-from iamp.cli.types import EXIT_OK, EXIT_SOLVER
-from iamp.cli.types import positive_int as _positive_int
-from iamp.core.errors import ScenarioError
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, model_file, steps_int
+from iamp.core.errors import ScenarioError, SolverError
 from iamp.prediction.resolve import load_problem
+
+#: Options that only the QP planner reads, with their defaults (SPEC §5).  They default to
+#: ``None`` in the parser so that "given by the user" can be told from "the default".
+QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
 
 
 def make_planner(args):
@@ -30,16 +33,68 @@ def _phi_meaning(vehicle, phi_x: float) -> str:
     return jump_meaning(vehicle, phi_x)
 
 
+def check_options(args: argparse.Namespace) -> None:
+    """Refuse options that do not apply to the chosen planner; fill in the QP defaults."""
+    for name, default in QP_ONLY.items():
+        if getattr(args, name, None) is not None and args.planner != "qp":
+            raise ScenarioError(f"applies to the QP planner only (add --planner qp or drop --{name})", f"--{name}")
+        if getattr(args, name, None) is None:
+            setattr(args, name, default)
+
+
+def failure_json(scenario: str, args: argparse.Namespace, status: str, message: str) -> dict:
+    """The SPEC §5 object of a plan that failed before it produced a :class:`Plan`:
+    the failure ``status``, ``cost`` null, no contact times, no trajectory."""
+    qp = args.planner == "qp"
+    return {"scenario": scenario, "planner": args.planner, "solver": args.solver if qp else None,
+            "hold": args.hold if qp else None, "steps": int(args.steps), "status": status, "cost": None,
+            "contact_times": [], "jumps": [], "solve_time_s": None,
+            "trajectory": {k: [] for k in ("t", "x", "y", "vx", "vy", "ax", "ay")}, "error": message}
+
+
 def cmd_plan(args) -> int:
+    from iamp.core.limits import qp_work_message
+    from iamp.core.scenario import load_scenario
+    from iamp.core.status import NUMERICAL_ERROR
+
+    check_options(args)
+    if args.model is not None and not load_scenario(args.scenario).needs_prediction:
+        raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
+                            "vehicle's x_poly", "--model", args.scenario)
     scenario, problem, _ = load_problem(args.scenario, args.model)
-    if args.planner == "qp" and args.steps < problem.m + 1:
-        raise ScenarioError(f"must be at least {problem.m + 1} for {problem.m} vehicle(s)", "--steps")
-    result = make_planner(args).plan(problem)
+    if args.planner == "qp":
+        msg = qp_work_message(problem.m, args.steps)
+        if msg is not None:
+            raise ScenarioError(msg, "--steps")
+    try:
+        result = make_planner(args).plan(problem)
+        text = json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False) if args.json else ""
+    except SolverError as exc:
+        return _report_failure(scenario, args, exc.status, str(exc))
+    except (np.linalg.LinAlgError, ArithmeticError, ValueError) as exc:
+        if isinstance(exc, ScenarioError):
+            raise
+        # the numerics broke down on an accepted input: a failed plan, never a traceback
+        return _report_failure(scenario, args, NUMERICAL_ERROR, f"{exc.__class__.__name__}: {exc}")
     if args.json:
-        print(json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False))
+        print(text)
     else:
         _print_summary(scenario, problem, result, args)
     return EXIT_OK if result.is_optimal() else EXIT_SOLVER
+
+
+def _report_failure(scenario, args: argparse.Namespace, status: str, message: str) -> int:
+    """A plan that failed with an exception: the JSON object or the text summary, exit 3."""
+    message = " ".join(message.split())
+    if args.json:
+        print(json.dumps(failure_json(scenario.name, args, status, message), allow_nan=False))
+    else:
+        print(f"scenario  {scenario.name}  ({scenario.source})")
+        print(f"planner   {args.planner}")
+        print(f"status    {status}")
+        print(f"reason    {message}")
+        print("no cost is reported: the solver did not reach an optimal solution")
+    return EXIT_SOLVER
 
 
 def _print_summary(scenario, problem, result, args) -> None:
@@ -78,12 +133,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                                    "(see `iamp scenarios`).")
     p.add_argument("scenario", help="scenario TOML file or built-in name")
     p.add_argument("--planner", choices=("pmp", "qp"), default="pmp")
-    p.add_argument("--solver", choices=("osqp", "clarabel"), default="clarabel", help="QP only")
-    p.add_argument("--hold", choices=("foh", "zoh"), default="foh", help="QP only")
-    p.add_argument("--steps", type=_positive_int, default=100,
-                   help="grid intervals N for the QP, and output samples t_k = k tf/N for every planner")
-    p.add_argument("--contact", choices=("grid", "refine"), default="grid", help="QP only")
-    p.add_argument("--model", default=None, help="predictor model file for history scenarios "
+    p.add_argument("--solver", choices=("osqp", "clarabel"), default=None, help="QP only (default clarabel)")
+    p.add_argument("--hold", choices=("foh", "zoh"), default=None, help="QP only (default foh)")
+    p.add_argument("--steps", type=steps_int, default=100,
+                   help="grid intervals N for the QP, and output samples t_k = k tf/N for every planner "
+                        "(at most 20000; the QP's sweep is limited to perm(N-1, m)·N <= 1e6)")
+    p.add_argument("--contact", choices=("grid", "refine"), default=None, help="QP only (default grid)")
+    p.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios "
                    "(default: the shipped model)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")
     p.set_defaults(func=cmd_plan)
