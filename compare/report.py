@@ -29,6 +29,7 @@ names are re-exported here.
 
 from __future__ import annotations
 
+import inspect
 import json
 import math
 import os
@@ -39,7 +40,6 @@ from pathlib import Path
 
 import numpy as np
 
-from iamp.core.atomic import write_text as atomic_write_text  # re-exported for callers
 from iamp.comparison.metrics import AGGRESSION_MEASURES, INSIDE_TOL_M, manoeuvre_metrics, qualitative_comparison
 from iamp.comparison.paper import PAPER_FIG, PAPER_TABLE_I, SCENARIOS
 from iamp.comparison.report_tex import (
@@ -56,13 +56,33 @@ from iamp.comparison.report_tex import (
     tex_escape,
 )
 from iamp.comparison.timing import dist_version, sample_nodes, summarize
+from iamp.core.atomic import write_text as atomic_write_text  # re-exported for callers
 
-__all__ = ["ReproduceConfig", "reproduce", "zoh_convergence", "atomic_write_text",
-           # re-exported from iamp.comparison.paper, .metrics and .report_tex
-           "PAPER_TABLE_I", "SCENARIOS", "PAPER_FIG", "SOLVER_NAMES", "INSIDE_TOL_M", "AGGRESSION_MEASURES",
-           "manoeuvre_metrics", "qualitative_comparison", "tex_escape", "table_scenarios", "table_results",
-           "table_metrics", "table_agreement", "agreement_notes", "table_timing", "table_convergence",
-           "build_report_tex", "short_label"]
+# (names from iamp.comparison.paper, .metrics and .report_tex are re-exported)
+__all__ = [
+    "AGGRESSION_MEASURES",
+    "INSIDE_TOL_M",
+    "PAPER_FIG",
+    "PAPER_TABLE_I",
+    "SCENARIOS",
+    "SOLVER_NAMES",
+    "ReproduceConfig",
+    "agreement_notes",
+    "atomic_write_text",
+    "build_report_tex",
+    "manoeuvre_metrics",
+    "qualitative_comparison",
+    "reproduce",
+    "short_label",
+    "table_agreement",
+    "table_convergence",
+    "table_metrics",
+    "table_results",
+    "table_scenarios",
+    "table_timing",
+    "tex_escape",
+    "zoh_convergence",
+]
 
 
 @dataclass
@@ -96,7 +116,7 @@ class ReproduceConfig:
     quick: bool = False
 
     @classmethod
-    def quick_config(cls) -> "ReproduceConfig":
+    def quick_config(cls) -> ReproduceConfig:
         return cls(steps_one=20, steps_two=8, zoh_steps=(25, 50, 100), plan_repeats=1, pmp_repeats=20,
                    pmp_repeats_two=5, qp_solve_repeats=5, predictor_select=False, quick=True)
 
@@ -125,13 +145,34 @@ def _jsonable(obj):
 
 
 class _Progress:
-    def __init__(self, callback, total):
-        self.callback, self.total, self.step = callback, total, 0
+    """Steps of :func:`reproduce` as ``progress(done, total)`` in hundredths of a step (so that a
+    step whose library call reports its own progress moves the bar smoothly), and each step's
+    message to ``status(message)``."""
 
-    def __call__(self, message: str):
+    SCALE = 100
+
+    def __init__(self, callback, status, total: int):
+        self.callback, self.status, self.total, self.step = callback, status, total, 0
+
+    def __call__(self, message: str) -> None:
+        """Start the next step (the previous one is done)."""
+        self._report(self.step * self.SCALE)
         self.step += 1
+        if self.status is not None:
+            self.status(message)
+
+    def sub(self, done: int, total: int) -> None:
+        """Progress inside the current step (``done`` of ``total``)."""
+        if total > 0:
+            frac = min(max(done / total, 0.0), 1.0)
+            self._report(int((self.step - 1 + frac) * self.SCALE))
+
+    def finish(self) -> None:
+        self._report(self.total * self.SCALE)
+
+    def _report(self, done: int) -> None:
         if self.callback is not None:
-            self.callback(self.step, self.total, message)
+            self.callback(done, self.total * self.SCALE)
 
 
 # --------------------------------------------------------------------------------------
@@ -142,9 +183,9 @@ class _Progress:
 def _load_scenario(name: str, notes: list) -> dict:
     """Load a built-in scenario through the CLI's loader (the shipped predictor for
     histories); fall back to ``<name>-poly`` with a note if that is impossible."""
-    from iamp.prediction.resolve import load_problem
     from iamp.core.errors import IampError
     from iamp.core.scenario import builtin_names
+    from iamp.prediction.resolve import load_problem
 
     candidates = [name] if name in builtin_names() else []
     reason = None if candidates else f"the built-in scenario '{name}' (history version) does not exist yet"
@@ -213,7 +254,7 @@ def _qp_configs(cfg: ReproduceConfig, problem) -> list:
     return [QPConfig(solver=s, hold=h, steps=steps, contact=c, path=p) for s, h, c, p in confs]
 
 
-def _plan_scenario(name: str, problem, cfg: ReproduceConfig) -> dict:
+def _plan_scenario(name: str, problem, cfg: ReproduceConfig, progress=None) -> dict:
     """Plan one scenario with the PMP and every QP configuration, judge every pair.
 
     Uses :func:`iamp.comparison.agreement.compare_problem` (the same problem object to every
@@ -224,8 +265,10 @@ def _plan_scenario(name: str, problem, cfg: ReproduceConfig) -> dict:
     one = problem.m == 1
     steps = cfg.steps_one if one else cfg.steps_two
     pmp_repeats = cfg.pmp_repeats if one else cfg.pmp_repeats_two
+    extra = {"progress": progress} if progress is not None and "progress" in inspect.signature(
+        compare_problem).parameters else {}
     pc = compare_problem(problem, _qp_configs(cfg, problem), name=name, repeats=cfg.plan_repeats,
-                         pmp_repeats=pmp_repeats, budget_s=cfg.plan_budget_s, warmup=0)
+                         pmp_repeats=pmp_repeats, budget_s=cfg.plan_budget_s, warmup=0, **extra)
     results = {r.label: r.result for r in pc.runs}
     runs = [r.to_json() for r in pc.runs]
     for d in runs:
@@ -262,47 +305,57 @@ def _summary(samples) -> dict:
     return summarize(samples).to_dict()
 
 
-def _timing(entries: dict, plans: dict, cfg: ReproduceConfig) -> dict:
-    """Timing samples: the PMP plan, and one QP solve at a changed candidate node (cvxpy
-    re-solve of the compiled problem, and the native path) per solver; plus the full-plan
-    statistics of every run from the planning step."""
-    from iamp.planners.pmp import PMPPlanner
-    from iamp.planners.qp import QPPlanner
+def _timing(entries: dict, plans: dict, cfg: ReproduceConfig, progress=None) -> dict:
+    """Timing: one QP solve at a changed candidate node (the cvxpy re-solve of the compiled
+    problem, and the native path) per solver, as raw samples; and the whole-plan statistics
+    of every run of the planning step (:func:`iamp.comparison.agreement.compare_problem`).
 
-    try:
-        from iamp.planners.native import build_native
-    except ImportError:
-        build_native = None
+    The PMP is timed once only, there (a whole plan, its global contact-time search included,
+    the residual report left out of the clock as for every planner). An earlier version also
+    timed ``PMPPlanner.plan`` here *with* its residual report, and the report showed the two
+    different measures side by side under the same name.
+    """
+    from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
+    from iamp.planners.qp_core import DiscretisedQP as build_native
+    names = [n for n in cfg.timing_scenarios if n in entries]
     samples: dict = {}
-    for name in cfg.timing_scenarios:
-        if name not in entries:
-            continue
+    for k, name in enumerate(names):
         prob = entries[name]["problem"]
         m = prob.m
         tag = "1 vehicle" if m == 1 else f"{m} vehicles"
-        planner = PMPPlanner()
-        planner.plan(prob)
-        samples[f"PMP plan ({tag})"] = _samples(lambda: planner.plan(prob),
-                                                cfg.pmp_repeats if m == 1 else cfg.pmp_repeats_two)
         steps = cfg.steps_one if m == 1 else cfg.steps_two
         nodes = sample_nodes(prob, steps, cfg.qp_solve_repeats + 1)
         for solver in ("clarabel", "osqp"):
-            qp = QPPlanner(steps, "foh", solver).build(prob)
+            qp = CvxpyQPPlanner(steps, "foh", solver).build(prob)
             qp.solve_nodes(nodes[0])  # compiles the cvxpy problem
             it = iter(nodes[1:])
-            samples[f"QP {solver} solve, cvxpy, N={steps} ({tag})"] = _samples(lambda: qp.solve_nodes(next(it)),
-                                                                              cfg.qp_solve_repeats)
+            samples[f"QP {solver} solve, cvxpy, N={steps} ({tag})"] = _samples(
+                lambda qp=qp, it=it: qp.solve_nodes(next(it)), cfg.qp_solve_repeats)
             if build_native is not None:
                 nq = build_native(prob, steps, "foh", solver)
                 nq.solve_nodes(nodes[0])
                 it2 = iter(nodes[1:])
                 samples[f"QP {solver} solve, native, N={steps} ({tag})"] = _samples(
-                    lambda: nq.solve_nodes(next(it2)), cfg.qp_solve_repeats)
+                    lambda nq=nq, it2=it2: nq.solve_nodes(next(it2)), cfg.qp_solve_repeats)
+        if progress is not None:
+            progress(k + 1, len(names))
     plans_stats = {name: {d["label"]: d.get("time_s") for d in p["runs"]} for name, p in plans.items()}
     return {"samples": samples, "summary": {k: _summary(v) for k, v in samples.items()}, "full_plans": plans_stats,
+            "pmp_timed_without_diagnostics": True,
             "machine": {"python": platform.python_version(), "cpu_count": os.cpu_count(),
                         "platform": platform.platform(),
                         "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}}
+
+
+def _whole_plan_stats(timing: dict, cfg: ReproduceConfig) -> dict:
+    """``{"<scenario>: <run label>": stats}`` of the whole plans of the timing scenarios (the
+    figure's left panel; the same numbers as the table's whole-plan rows)."""
+    out = {}
+    for name in cfg.timing_scenarios:
+        for label, st in (timing["full_plans"].get(name) or {}).items():
+            if st and st.get("n"):
+                out[f"{name}: {short_label(label)}"] = st
+    return out
 
 
 # --------------------------------------------------------------------------------------
@@ -357,7 +410,7 @@ def zoh_convergence(problem, steps=(25, 50, 100, 200, 400), t_contact=None, solv
 # --------------------------------------------------------------------------------------
 
 
-def _predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list) -> dict | None:
+def _predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list, progress=None) -> dict | None:
     """Run (or reuse) the predictor's evaluation and let it write its tables into ``out``.
 
     ``cfg.predictor_select``: ``True`` runs the model-selection grid (many minutes);
@@ -396,7 +449,9 @@ def _predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list) -> dict 
                    "set, chose the shipped configuration); its tables were rewritten")
         else:
             select = mode is True
-            res = ev.write_evaluation_report(out, select=select)
+            extra = ({"progress": progress} if progress is not None
+                     and "progress" in inspect.signature(ev.write_evaluation_report).parameters else {})
+            res = ev.write_evaluation_report(out, select=select, **extra)
             how = ("ran the evaluation with model selection" if select else
                    "evaluated the shipped configuration on the test split without re-running the model-selection "
                    "grid (run `iamp evaluate-predictor --out DIR` for it; it takes many minutes)")
@@ -416,8 +471,8 @@ def _versions() -> dict:
     return out
 
 
-def reproduce(out_dir="reports", progress=None, *, quick: bool = False, config: ReproduceConfig | None = None,
-              scenarios=SCENARIOS) -> dict:
+def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = False,
+              config: ReproduceConfig | None = None, scenarios=SCENARIOS) -> dict:
     """Run the whole reproduction and write the report into ``out_dir``.
 
     Parameters
@@ -426,7 +481,11 @@ def reproduce(out_dir="reports", progress=None, *, quick: bool = False, config: 
         Output folder (created); gets ``tables/``, ``figures/``, ``report.tex``,
         ``results.json`` and (from the predictor) ``predictor_eval.json``.
     progress : callable, optional
-        ``progress(step, total, message)``, called at the start of every step.
+        ``progress(done, total)`` (the project's convention), in hundredths of a step:
+        ``total = 100 × number of steps``; called as each step starts and, where the work
+        reports it, within a step.
+    status : callable, optional
+        ``status(message)``: what the step that starts now does (``"planning paper-2: ..."``).
     quick : bool
         Small grids and few repetitions (a smoke test, well under a minute plus the
         predictor evaluation); ignored if ``config`` is given.
@@ -449,7 +508,7 @@ def reproduce(out_dir="reports", progress=None, *, quick: bool = False, config: 
     notes: list = []
     scenarios = tuple(scenarios)
     total = 1 + 2 * len(scenarios) + 4
-    step = _Progress(progress, total)
+    step = _Progress(progress, status, total)
     written: list = []
 
     # 1. scenarios -----------------------------------------------------------------------
@@ -468,7 +527,7 @@ def reproduce(out_dir="reports", progress=None, *, quick: bool = False, config: 
         steps = cfg.steps_one if prob.m == 1 else cfg.steps_two
         step(f"planning {name}: PMP and QP sweeps on N = {steps} ("
              + ", ".join(short_label(c.label) for c in _qp_configs(cfg, prob)) + ")")
-        plan = _plan_scenario(name, prob, cfg)
+        plan = _plan_scenario(name, prob, cfg, progress=step.sub)
         plans[name] = plan
         runs[name] = plan["results"]
         pmp = runs[name]["pmp"]
@@ -534,21 +593,25 @@ def reproduce(out_dir="reports", progress=None, *, quick: bool = False, config: 
 
     # 4. ZOH convergence -----------------------------------------------------------------
     step("ZOH convergence study (N = " + ", ".join(map(str, cfg.zoh_steps)) + ")")
-    conv = {name: zoh_convergence(entries[name]["problem"], cfg.zoh_steps)
-            for name in scenarios if entries[name]["problem"].m == 1}
+    one = [name for name in scenarios if entries[name]["problem"].m == 1]
+    conv = {}
+    for k, name in enumerate(one):
+        conv[name] = zoh_convergence(entries[name]["problem"], cfg.zoh_steps)
+        step.sub(k + 1, len(one))
     if conv:
         fig("zoh", F.plot_zoh_convergence({n: ([r["h"] for r in c["rows"]], [r["zoh_gap"] or np.nan for r in c["rows"]])
                                            for n, c in conv.items()}, out / "figures" / "zoh-convergence"))
 
     # 5. timing --------------------------------------------------------------------------
-    step("timing (PMP plans and single QP solves)")
-    timing = _timing(entries, plans, cfg)
-    fig("timing", F.plot_timing(timing["samples"], out / "figures" / "timing"))
+    step("timing (single QP solves at a changed node)")
+    timing = _timing(entries, plans, cfg, progress=step.sub)
+    fig("timing", F.plot_timing(timing["samples"], out / "figures" / "timing",
+                                whole_plans=_whole_plan_stats(timing, cfg)))
 
     # 6. predictor evaluation --------------------------------------------------------------
     step("predictor evaluation")
     tables: dict = {}
-    predictor = _predictor_evaluation(out, cfg, notes)
+    predictor = _predictor_evaluation(out, cfg, notes, progress=step.sub)
     if predictor is not None:
         for key in ("predictor_rmse", "predictor_selection"):
             if (out / "tables" / f"{key}.tex").is_file():
@@ -574,4 +637,5 @@ def reproduce(out_dir="reports", progress=None, *, quick: bool = False, config: 
     written.append(atomic_write_text(out / "report.tex", tex))
     res["outputs"] = sorted({str(Path(p).relative_to(out)) for p in written} | {"results.json"})
     atomic_write_text(out / "results.json", json.dumps(_jsonable(res), indent=1, allow_nan=False) + "\n")
+    step.finish()
     return res
