@@ -34,8 +34,9 @@ needs_pdflatex = pytest.mark.skipif(PDFLATEX is None, reason="pdflatex is not in
 @pytest.fixture(scope="module")
 def quick_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
-    calls = []
-    res = reproduce(out, progress=lambda i, n, msg: calls.append((i, n, msg)), quick=True)
+    calls: dict = {"progress": [], "status": []}
+    res = reproduce(out, progress=lambda done, total: calls["progress"].append((done, total)),
+                    status=calls["status"].append, quick=True)
     return out, res, calls
 
 
@@ -58,13 +59,17 @@ def _compile(folder: Path, tex: str) -> subprocess.CompletedProcess:
 
 
 def test_progress_is_reported_per_step(quick_report):
+    """``progress(done, total)``: one total, ``done`` never goes back and ends at the total;
+    ``status(message)`` names every step."""
     _, _, calls = quick_report
-    assert calls, "the progress callback was never called"
-    steps = [c[0] for c in calls]
-    totals = {c[1] for c in calls}
-    assert steps == list(range(1, len(calls) + 1))
-    assert totals == {len(calls)}
-    assert all(isinstance(c[2], str) and c[2] for c in calls)
+    prog, status = calls["progress"], calls["status"]
+    assert prog, "the progress callback was never called"
+    totals = {total for _, total in prog}
+    assert len(totals) == 1
+    done = [d for d, _ in prog]
+    assert done == sorted(done) and done[0] == 0 and done[-1] == prog[0][1]
+    assert len(status) >= 5 and all(isinstance(m, str) and m for m in status)
+    assert prog[0][1] == 100 * len(status)  # hundredths of a step
 
 
 def test_outputs_exist(quick_report):

@@ -1,17 +1,23 @@
 """Command-line wiring of the reproduction report: ``iamp reproduce [--out DIR] [--no-pdf]``.
 
 :func:`add_parsers` adds the sub-command to the main ``iamp`` parser.  The handler runs
-:func:`iamp.comparison.report.reproduce` with a progress display on standard error
-(``[3/13] planning paper-2 ...``), then compiles ``report.tex`` with ``pdflatex`` (twice, in
-a temporary folder inside the output folder, ``-interaction=nonstopmode -halt-on-error``) and
-moves ``report.pdf`` into place atomically.  Standard output carries only the final summary.
+:func:`iamp.comparison.report.reproduce` with a progress bar on standard error (the step under
+way and the time left; silent with ``--quiet`` or when standard error is not a terminal), then
+compiles ``report.tex`` with ``pdflatex`` (twice, in a temporary folder inside the output
+folder, ``-interaction=nonstopmode -halt-on-error``) and moves ``report.pdf`` into place
+atomically.  Standard output carries only the final summary.
 
-Exit status: 0 success; 1 the report was written but ``pdflatex`` failed; 2 bad input;
-3 a solver failed.
+Without ``pdflatex`` (or with ``--no-pdf``, or when it fails) no PDF is produced, and a
+``report.pdf`` left by an earlier run is deleted, so the folder never pairs a new
+``report.tex`` with an old PDF; the summary says so and how to install LaTeX.
+
+Exit status: 0 success (also without ``pdflatex``: the report is written, the PDF is not);
+1 the report was written but ``pdflatex`` failed; 2 bad input; 3 a solver failed.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import shutil
 import subprocess
@@ -25,7 +31,8 @@ EXIT_OK, EXIT_LATEX = 0, 1
 __all__ = ["add_parsers", "cmd_reproduce", "compile_pdf"]
 
 
-def compile_pdf(out_dir, tex_name: str = "report.tex", runs: int = 2, timeout: float = 300.0):
+def compile_pdf(out_dir: str | os.PathLike[str], tex_name: str = "report.tex", runs: int = 2,
+                timeout: float = 300.0) -> tuple[bool, str]:
     """Compile ``out_dir/tex_name`` with ``pdflatex``; returns ``(ok, message)``.
 
     The auxiliary files go to a temporary folder inside ``out_dir`` (removed afterwards);
@@ -64,22 +71,21 @@ def compile_pdf(out_dir, tex_name: str = "report.tex", runs: int = 2, timeout: f
         shutil.rmtree(build, ignore_errors=True)
 
 
-class _ProgressPrinter:
-    """``[i/n] message ...`` lines on standard error, with the elapsed time of the last step."""
-
-    def __init__(self, stream=None):
-        self.stream = stream or sys.stderr
-        self.start = time.perf_counter()
-        self.last = self.start
-
-    def __call__(self, step: int, total: int, message: str):
-        now = time.perf_counter()
-        self.stream.write(f"[{step}/{total}] {message} ...  (t = {now - self.start:.0f} s)\n")
-        self.stream.flush()
-        self.last = now
+LATEX_INSTALL = "apt-get install texlive-latex-recommended texlive-latex-extra lmodern"
 
 
-def cmd_reproduce(args) -> int:
+def _remove_stale_pdf(out: Path) -> str | None:
+    """Delete ``out/report.pdf`` left by an earlier run (it does not match the new report.tex);
+    returns a sentence saying so, or ``None`` if there was none."""
+    pdf = out / "report.pdf"
+    if not pdf.is_file():
+        return None
+    pdf.unlink()
+    return f"removed the stale {pdf} (from an earlier run; it does not match the new report.tex)"
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.comparison.report import reproduce
 
     out = Path(args.out)
@@ -87,7 +93,7 @@ def cmd_reproduce(args) -> int:
         from iamp.core.errors import ScenarioError
 
         raise ScenarioError("exists and is not a folder", "--out", str(out))
-    progress = _ProgressPrinter()
+    start = time.perf_counter()
     config = None
     if args.select_predictor:
         import dataclasses
@@ -96,23 +102,34 @@ def cmd_reproduce(args) -> int:
 
         base = ReproduceConfig.quick_config() if args.quick else ReproduceConfig()
         config = dataclasses.replace(base, predictor_select=True)
-    res = reproduce(out, progress=progress, quick=args.quick, config=config)
+    with progress_bar(None, "reproduce", enabled=progress_enabled(args)) as tick:
+        res = reproduce(out, progress=tick, status=tick.describe, quick=args.quick, config=config)
     for note in res.get("notes", []):
         sys.stderr.write(f"note: {note}\n")
     status = EXIT_OK
     if args.no_pdf:
         pdf_msg = "PDF not compiled (--no-pdf)"
+        ok = False
+    elif shutil.which("pdflatex") is None:
+        ok = False
+        sys.stderr.write("iamp: cannot compile the PDF: pdflatex is not installed; report.tex and its tables and "
+                         f"figures were written. To get report.pdf install LaTeX ({LATEX_INSTALL}) and run "
+                         "iamp reproduce again.\n")
+        pdf_msg = "PDF not compiled: pdflatex is not installed"
     else:
-        sys.stderr.write("compiling report.tex with pdflatex (twice) ...\n")
+        if not args.quiet:
+            sys.stderr.write("compiling report.tex with pdflatex (twice) ...\n")
         ok, msg = compile_pdf(out)
         if ok:
             pdf_msg = f"PDF: {msg}"
-        elif msg.startswith("pdflatex not found"):
-            pdf_msg = msg
         else:
             pdf_msg = f"report.tex did not compile: {msg}"
             status = EXIT_LATEX
-    print(f"reproduction written to {out}/ in {time.perf_counter() - progress.start:.0f} s")
+    if not ok:
+        stale = _remove_stale_pdf(out)
+        if stale:
+            pdf_msg += f"; {stale}"
+    print(f"reproduction written to {out}/ in {time.perf_counter() - start:.0f} s")
     print(f"  {len(res.get('outputs', []))} files: report.tex, results.json, tables/*.tex, figures/*.pdf|png")
     print(f"  {pdf_msg}")
     for name, q in res.get("qualitative", {}).items():
@@ -121,8 +138,10 @@ def cmd_reproduce(args) -> int:
     return status
 
 
-def add_parsers(subparsers) -> None:
+def add_parsers(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add ``reproduce`` to the ``iamp`` sub-command parsers."""
+    from iamp.cli.progress import add_quiet_flag
+
     p = subparsers.add_parser(
         "reproduce", help="reproduce the paper's scenarios and the PMP/QP comparison as a report",
         description="Run the paper's scenarios 1-3 (from their histories, through the shipped predictor) and the "
@@ -137,4 +156,5 @@ def add_parsers(subparsers) -> None:
                    help="re-run the predictor's model-selection grid (many minutes); by default an existing "
                         "DIR/predictor_eval.json with a selection for the same data is reused, else the shipped "
                         "configuration is evaluated without selection")
+    add_quiet_flag(p)
     p.set_defaults(func=cmd_reproduce)
