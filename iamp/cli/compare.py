@@ -25,6 +25,7 @@ import sys
 from iamp.cli.types import positive_float as _positive_float
 from iamp.cli.types import positive_int as _positive_int
 from iamp.core.errors import ScenarioError
+from iamp.core.jsonable import to_jsonable
 
 EXIT_OK, EXIT_SOLVER = 0, 3
 MAX_CANDIDATES = 20_000
@@ -173,11 +174,11 @@ def _print_text(out: dict, write) -> None:
             for note in a["notes"]:
                 write(f"      note: {note}\n")
         for b in sc.get("timing", {}).get("breakdown", []):
+            med = {k: _fmt_time(v["median"]) for k, v in b.items() if isinstance(v, dict) and "median" in v}
             write(f"  timing {b['solver']}-{b['hold']}-{b['steps']}: cvxpy compile {_fmt_time(b['cvxpy_compile_s'])}, "
-                  f"re-solve {_fmt_time(b['cvxpy_resolve_s']['median'])} (solver-reported {_fmt_time(b['cvxpy_solver_s']['median'])}"
-                  f", overhead {_fmt_time(b['cvxpy_overhead_s']['median'])}); native "
-                  f"{_fmt_time(b['native_solve_s']['median'])} (solve() call {_fmt_time(b['native_solve_call_s']['median'])}, "
-                  f"solver-reported {_fmt_time(b['native_solver_s']['median'])})\n")
+                  f"re-solve {med['cvxpy_resolve_s']} (solver-reported {med['cvxpy_solver_s']}, overhead "
+                  f"{med['cvxpy_overhead_s']}); native {med['native_solve_s']} (solve() call "
+                  f"{med['native_solve_call_s']}, solver-reported {med['native_solver_s']})\n")
         write("\n")
     ts = out["timing_summary"]
     if ts["means"]:
@@ -230,33 +231,13 @@ def cmd_compare(args) -> int:
 
         write_atomic(args.latex, latex_table(out))
     if args.json:
-        sys.stdout.write(json.dumps(_jsonable(out), allow_nan=False) + "\n")
+        sys.stdout.write(json.dumps(to_jsonable(out), allow_nan=False) + "\n")
     else:
         _print_text(out, sys.stdout.write)
         if args.latex:
             sys.stdout.write(f"wrote {args.latex}\n")
     failed = any(r["status"] != "optimal" for sc in out["scenarios"] for r in sc["runs"])
     return EXIT_SOLVER if failed else EXIT_OK
-
-
-def _jsonable(obj):
-    """Replace non-finite floats by ``None`` (strict JSON) and numpy scalars by Python ones."""
-    import numpy as np
-
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        x = float(obj)
-        return x if math.isfinite(x) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    return obj
 
 
 # --------------------------------------------------------------------------------------
@@ -269,7 +250,7 @@ def cmd_bench(args) -> int:
 
     out = run_bench(quick=args.quick)
     if args.json:
-        sys.stdout.write(json.dumps(_jsonable(out), allow_nan=False) + "\n")
+        sys.stdout.write(json.dumps(to_jsonable(out), allow_nan=False) + "\n")
     else:
         sys.stdout.write(format_bench(out) + "\n")
     return EXIT_OK
