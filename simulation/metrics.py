@@ -1,0 +1,107 @@
+r"""Safety and comfort of an executed episode, measured on what happened (not on plans).
+
+Per step ``k`` the log holds the ego's centre ``(x_e, y_e)``, its body ``L_e × W_e`` and every
+observed neighbour ``i`` with centre ``(x_i, y_i)``, body ``L_i × W_i``, speed and
+acceleration.  With ``Δx = x_i - x_e``, ``Δy = y_i - y_e`` (bodies axis-aligned; headings
+during a lane change stay below a few degrees):
+
+* **overlap** (a collision, SPEC §9): ``|Δx| < (L_e + L_i)/2`` and ``|Δy| < (W_e + W_i)/2``.
+  ``collisions`` = the number of distinct neighbours the ego collided with, by SUMO's
+  report or by overlap (the union: one crash reported both ways counts once).
+* **intrusion**: the ego's point inside ``i``'s safety region by more than 1 mm,
+  ``|Δx| < L_i/2 + S_x - 10⁻³`` and ``|Δy| < W_i/2 + S_y - 10⁻³``; ``intrusion_s`` = the
+  time with at least one intrusion (steps × period).
+* **gap** to a neighbour whose body overlaps the ego's laterally
+  (``|Δy| < (W_e + W_i)/2``): ``|Δx| - (L_e + L_i)/2`` bumper to bumper; ``min_gap_m`` its
+  minimum over the episode.
+* **time to collision** for those neighbours: ``gap / closing speed`` when they close in
+  (ego faster than one ahead, or one behind faster than the ego); ``min_ttc_s``.
+* **induced braking**: the most negative acceleration of a neighbour within 50 m behind the
+  ego with lateral body overlap (SUMO drivers braking for the ego).
+* **comfort**: RMS of the ego's acceleration and jerk per axis from second and third
+  differences of the executed positions (the same estimate for every planner, including
+  the SUMO-driven parts).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class StepLog:
+    """Arrays appended every step (lists of per-step arrays for the neighbours)."""
+
+    t: list[float] = field(default_factory=list)
+    ego: list[tuple[float, float, float, float, float, float]] = field(default_factory=list)
+    mode: list[str] = field(default_factory=list)
+    plan_time: list[float] = field(default_factory=list)
+    ids: list[tuple[str, ...]] = field(default_factory=list)
+    nb: list[np.ndarray] = field(default_factory=list)  # (n, 7): x, y, v, a, lane, length, width
+
+
+def percentile_stats(values: list[float]) -> dict[str, float | None]:
+    if not values:
+        return {"p50": None, "p95": None, "max": None}
+    a = np.asarray(values)
+    return {"p50": float(np.percentile(a, 50)), "p95": float(np.percentile(a, 95)), "max": float(a.max())}
+
+
+def _rms(a: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(a**2))) if a.size else 0.0
+
+
+def episode_metrics(log: StepLog, dt: float, ego_size: tuple[float, float], safety: tuple[float, float],
+                    sumo_collisions: list[tuple[float, str, str]]) -> dict[str, Any]:
+    """The safety and comfort numbers of SPEC §11 (plus a few more) from a step log."""
+    Le, We = ego_size
+    Sx, Sy = safety
+    overlapped: set[str] = set()
+    intr_steps = 0
+    min_gap, min_ttc, min_follower_a = math.inf, math.inf, math.inf
+    E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
+    for k, (ids, nb) in enumerate(zip(log.ids, log.nb)):
+        if not ids:
+            continue
+        xe, vxe, ye = E[k, 0], E[k, 1], E[k, 2]
+        dx, dy = nb[:, 0] - xe, nb[:, 1] - ye
+        L, W = nb[:, 5], nb[:, 6]
+        lat = np.abs(dy) < (We + W) / 2
+        over = lat & (np.abs(dx) < (Le + L) / 2)
+        for j in np.flatnonzero(over):
+            overlapped.add(ids[j])
+        if np.any((np.abs(dx) < L / 2 + Sx - 1e-3) & (np.abs(dy) < W / 2 + Sy - 1e-3)):
+            intr_steps += 1
+        if lat.any():
+            gap = np.abs(dx[lat]) - (Le + L[lat]) / 2
+            min_gap = min(min_gap, float(gap.min()))
+            closing = np.where(dx[lat] > 0, vxe - nb[lat, 2], nb[lat, 2] - vxe)
+            ok = closing > 0.1
+            if ok.any():
+                min_ttc = min(min_ttc, float(np.min(np.maximum(gap[ok], 0.0) / closing[ok])))
+            behind = (dx[lat] < 0) & (dx[lat] > -50.0)
+            if behind.any():
+                min_follower_a = min(min_follower_a, float(nb[lat, 3][behind].min()))
+    sumo_ids = {other for _, other, _ in sumo_collisions}
+    x, y = E[:, 0], E[:, 2]
+    ax, ay = np.diff(x, 2) / dt**2, np.diff(y, 2) / dt**2
+    jx, jy = np.diff(x, 3) / dt**3, np.diff(y, 3) / dt**3
+
+    def finite(v: float) -> float | None:
+        return None if not math.isfinite(v) else v
+
+    return {
+        "collisions": len(overlapped | sumo_ids),
+        "sumo_collisions": len(sumo_ids),
+        "overlap_collisions": len(overlapped),
+        "intrusion_s": round(intr_steps * dt, 10),
+        "min_gap_m": finite(min_gap),
+        "min_ttc_s": finite(min_ttc),
+        "min_follower_accel": finite(min_follower_a),
+        "rms_accel": [_rms(ax), _rms(ay)],
+        "rms_jerk": [_rms(jx), _rms(jy)],
+    }

@@ -1,0 +1,250 @@
+"""SUMO as the closed loop's world: traffic, the ego as a SUMO vehicle, observations.
+
+One :class:`Simulator` runs one episode in ``libsumo`` (SUMO linked into this process; one
+simulation per process, which is why campaigns run episodes in worker processes).
+
+The ego is the SUMO vehicle ``"ego"``.  Two modes:
+
+* **SUMO drives** (:meth:`Simulator.release`): Krauss car following in its lane with the
+  default safety checks (``speedMode 31``); its own lane changes are off
+  (``laneChangeMode 0``) except a lane change requested with :meth:`request_lane_change`
+  (``laneChangeMode 512``: a TraCI request that respects the other drivers' safe gaps — the
+  ``sumo`` reference planner).
+* **iamp drives** (:meth:`Simulator.command`): every step the ego's centre ``(x, y)``,
+  speed and heading are set from the executed plan with ``moveToXY(..., keepRoute=2)`` (the
+  exact position, mapped to the nearest lane, which is what the other drivers see) and
+  ``setSpeed`` with ``speedMode 0`` (no SUMO check overrides the plan).  SUMO's drivers react
+  to it: a follower whose lane the ego enters brakes, a leader does not yield.
+
+SUMO's position is the front bumper; everything here is converted to vehicle **centres**
+(``centre = front - L/2·(cos ψ, sin ψ)``).  Collisions are reported, not resolved
+(``--collision.action warn``, ``--collision.check-junctions``): no teleport removes a
+vehicle from the record.  SUMO's lane changes are continuous (``--lanechange.duration``),
+so SUMO drivers and the ``sumo`` ego move laterally over seconds, not in one step.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from iamp.simulation.network import Highway, build_network, require_sumo
+from iamp.simulation.traffic import routes_xml
+
+EGO = "ego"
+#: laneChangeMode: no own lane changes / a TraCI request that respects others' safe gaps.
+LC_NONE, LC_REQUEST_SAFE = 0, 512
+#: speedMode: all SUMO checks / none (iamp sets the speed).
+SPEED_CHECKED, SPEED_UNCHECKED = 31, 0
+
+
+@dataclass(frozen=True)
+class Observation:
+    """Surrounding vehicles at one step (centres; arrays indexed like ``ids``)."""
+
+    t: float
+    ids: tuple[str, ...]
+    x: np.ndarray
+    y: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    lane: np.ndarray
+    length: np.ndarray
+    width: np.ndarray
+
+
+@dataclass
+class EgoState:
+    """Ego centre state ``(x, v_x, y, v_y)`` and its last input ``(a_x, a_y)``."""
+
+    x: float
+    vx: float
+    y: float
+    vy: float
+    ax: float = 0.0
+    ay: float = 0.0
+
+
+@dataclass
+class Simulator:
+    """One SUMO episode.
+
+    Parameters
+    ----------
+    traffic : {"light", "medium", "dense"}
+    seed : int
+        SUMO's ``--seed`` and the seed of the initial platoon.
+    step : float
+        SUMO step = control period [s].
+    highway : Highway
+    ego_lane, ego_pos : int, float
+        Where the ego departs (front bumper at ``ego_pos``).
+    radius : float
+        Neighbours within this distance of the ego are observed [m].
+    history_s : float
+        Length of the kept histories [s].
+    """
+
+    traffic: str
+    seed: int
+    step: float = 0.1
+    highway: Highway = field(default_factory=Highway)
+    ego_lane: int = 1
+    ego_pos: float = 400.0
+    radius: float = 150.0
+    history_s: float = 3.0
+    lanechange_duration: float = 3.0
+    t: float = 0.0
+    histories: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
+    collisions: list[tuple[float, str, str]] = field(default_factory=list)
+    ego_length: float = 4.8
+    ego_width: float = 1.8
+    _lengths: dict[str, tuple[float, float]] = field(default_factory=dict)
+    _tmp: Any = None
+    _ls: Any = None
+
+    def start(self) -> None:
+        """Build the network, write the routes, start ``libsumo``."""
+        require_sumo()
+        import libsumo
+
+        net = build_network(self.highway)
+        self._tmp = tempfile.TemporaryDirectory(prefix="iamp-sim-")
+        routes = Path(self._tmp.name) / "episode.rou.xml"
+        routes.write_text(routes_xml(self.traffic, self.seed, lanes=self.highway.lanes, edge=self.highway.edge,
+                                     ego_pos=self.ego_pos, ego_lane=self.ego_lane))
+        if libsumo.simulation.isLoaded():
+            libsumo.close()
+        libsumo.start(["sumo", "-n", str(net), "-r", str(routes), "--step-length", f"{self.step:g}",
+                       "--seed", str(int(self.seed)), "--begin", "0", "--no-step-log", "--no-warnings",
+                       "--collision.action", "warn", "--collision.check-junctions",
+                       "--lanechange.duration", f"{self.lanechange_duration:g}",
+                       "--default.action-step-length", f"{self.step:g}"])
+        self._ls = libsumo
+        libsumo.simulationStep()  # t = step: the ego and the initial platoon are inserted
+        self.t = float(libsumo.simulation.getTime())
+        if EGO not in libsumo.vehicle.getIDList():
+            raise RuntimeError("SUMO could not insert the ego")  # pragma: no cover
+        libsumo.vehicle.setLaneChangeMode(EGO, LC_NONE)
+        libsumo.vehicle.subscribeContext(EGO, libsumo.CMD_GET_VEHICLE_VARIABLE, self.radius,
+                                         [libsumo.VAR_POSITION, libsumo.VAR_SPEED, libsumo.VAR_LANE_INDEX,
+                                          libsumo.VAR_ACCELERATION, libsumo.VAR_ANGLE])
+        self.ego_length = float(libsumo.vehicle.getLength(EGO))
+        self.ego_width = float(libsumo.vehicle.getWidth(EGO))
+        libsumo.simulationStep()
+        self.t = float(libsumo.simulation.getTime())
+
+    def close(self) -> None:
+        if self._ls is not None:
+            self._ls.close()
+            self._ls = None
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+    # -- stepping -------------------------------------------------------------------------
+    def advance(self) -> None:
+        """One SUMO step; records SUMO's collision reports involving the ego."""
+        ls = self._ls
+        ls.simulationStep()
+        self.t = float(ls.simulation.getTime())
+        for c in ls.simulation.getCollisions():
+            if EGO in (c.collider, c.victim):
+                other = c.victim if c.collider == EGO else c.collider
+                self.collisions.append((self.t, other, str(c.type)))
+
+    # -- observation ------------------------------------------------------------------------
+    def _size(self, vid: str) -> tuple[float, float]:
+        size = self._lengths.get(vid)
+        if size is None:
+            size = (float(self._ls.vehicle.getLength(vid)), float(self._ls.vehicle.getWidth(vid)))
+            self._lengths[vid] = size
+        return size
+
+    def ego(self) -> EgoState:
+        """The ego's centre state as SUMO has it (used when SUMO drives)."""
+        ls = self._ls
+        fx, fy = ls.vehicle.getPosition(EGO)
+        psi = math.radians(90.0 - float(ls.vehicle.getAngle(EGO)))
+        v = float(ls.vehicle.getSpeed(EGO))
+        half = self.ego_length / 2
+        vy = float(ls.vehicle.getLateralSpeed(EGO)) if hasattr(ls.vehicle, "getLateralSpeed") else 0.0
+        return EgoState(x=fx - half * math.cos(psi), vx=v * math.cos(psi), y=fy - half * math.sin(psi), vy=vy,
+                        ax=float(ls.vehicle.getAcceleration(EGO)))
+
+    def observe(self) -> Observation:
+        """Neighbours within ``radius`` (context subscription); updates the histories."""
+        ls = self._ls
+        res = ls.vehicle.getContextSubscriptionResults(EGO) or {}
+        ids = tuple(sorted(k for k in res if k != EGO))
+        n = len(ids)
+        x, y, v, a = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+        lane, L, W = np.empty(n, dtype=int), np.empty(n), np.empty(n)
+        P, S, LI, A, ANG = (ls.VAR_POSITION, ls.VAR_SPEED, ls.VAR_LANE_INDEX, ls.VAR_ACCELERATION, ls.VAR_ANGLE)
+        horizon = self.history_s + 1e-6
+        for k, vid in enumerate(ids):
+            r = res[vid]
+            L[k], W[k] = self._size(vid)
+            psi = math.radians(90.0 - float(r[ANG]))
+            fx, fy = r[P]
+            x[k] = fx - L[k] / 2 * math.cos(psi)
+            y[k] = fy - L[k] / 2 * math.sin(psi)
+            v[k], a[k], lane[k] = r[S], r[A], r[LI]
+            hist = self.histories.get(vid)
+            if hist is None:
+                hist = self.histories[vid] = deque()
+            if hist and hist[-1][0] >= self.t - 1e-9:
+                hist.pop()
+            hist.append((self.t, float(x[k])))
+            while hist and hist[0][0] < self.t - horizon:
+                hist.popleft()
+        for vid in [k for k in self.histories if k not in res]:
+            del self.histories[vid]
+        return Observation(self.t, ids, x, y, v, a, lane, L, W)
+
+    def history(self, vid: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(t - now, x)`` of the last ``history_s`` seconds of ``vid`` (may be shorter)."""
+        h = self.histories.get(vid, ())
+        t = np.array([s[0] for s in h]) - self.t
+        x = np.array([s[1] for s in h])
+        if t.size:
+            t = np.round(t, 9)
+            t[-1] = 0.0
+        return t, x
+
+    # -- ego control -------------------------------------------------------------------------
+    def command(self, state: EgoState) -> None:
+        """Place the ego's centre at ``state`` for the next step (iamp drives)."""
+        ls = self._ls
+        psi = math.atan2(state.vy, max(state.vx, 1e-6))
+        half = self.ego_length / 2
+        fx, fy = state.x + half * math.cos(psi), state.y + half * math.sin(psi)
+        lane = self.highway.lane_of(state.y)
+        ls.vehicle.setSpeedMode(EGO, SPEED_UNCHECKED)
+        ls.vehicle.moveToXY(EGO, self.highway.edge, lane, fx, fy, 90.0 - math.degrees(psi), 2)
+        ls.vehicle.setSpeed(EGO, max(math.hypot(state.vx, state.vy), 0.0))
+
+    def release(self) -> None:
+        """Hand the ego back to SUMO's driver model (no own lane changes)."""
+        ls = self._ls
+        ls.vehicle.setSpeed(EGO, -1.0)
+        ls.vehicle.setSpeedMode(EGO, SPEED_CHECKED)
+        ls.vehicle.setLaneChangeMode(EGO, LC_NONE)
+
+    def request_lane_change(self, lane: int, duration: float) -> None:
+        """The ``sumo`` reference: ask LC2013 to change to ``lane`` when it judges it safe."""
+        ls = self._ls
+        ls.vehicle.setLaneChangeMode(EGO, LC_REQUEST_SAFE)
+        ls.vehicle.changeLane(EGO, int(lane), float(duration))
+
+    def ego_lane_index(self) -> int:
+        return int(self._ls.vehicle.getLaneIndex(EGO))
+
+    def ego_lateral_offset(self) -> float:
+        return float(self._ls.vehicle.getLateralLanePosition(EGO))
