@@ -15,6 +15,7 @@ import signal
 import sys
 import threading
 import traceback
+import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from types import FrameType
@@ -64,7 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     for module in ("iamp.cli.plan", "iamp.cli.scenarios", "iamp.cli.prediction", "iamp.cli.compare",
-                   "iamp.cli.report"):
+                   "iamp.cli.report", "iamp.cli.plot", "iamp.cli.completion"):
         try:
             mod = __import__(module, fromlist=["add_parsers"])
         except ModuleNotFoundError as exc:  # only a missing command module is optional
@@ -93,7 +94,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         cut = args_list.index("--") if "--" in args_list else len(args_list)
         debug = debug or "--debug" in args_list[:cut]
         args_list = [a for k, a in enumerate(args_list) if not (a == "--debug" and k < cut)]
-    with _sigterm_unwinds():
+    with _sigterm_unwinds(), warnings.catch_warnings():
+        if not debug:
+            # numerical warnings (overflow in a rejected candidate, ...) are not messages for the
+            # user: the plan's status and residuals say whether the result is good
+            warnings.simplefilter("ignore", RuntimeWarning)
         try:
             return _run(args_list)
         except KeyboardInterrupt:

@@ -92,7 +92,8 @@ def _stationary_points(coeffs: npt.NDArray[np.float64], tf: float) -> npt.NDArra
     """Real roots in ``[0, t_f]`` of the derivative of ``Σ c_k t^k`` (best effort)."""
     if coeffs.size < 3:
         return np.empty(0)
-    d = np.polynomial.polynomial.polyder(coeffs)
+    with np.errstate(all="ignore"):
+        d = np.polynomial.polynomial.polyder(coeffs)
     nz = np.flatnonzero(d)
     if nz.size == 0:
         return np.empty(0)
@@ -122,8 +123,8 @@ def polynomial_message(coeffs: Sequence[float], tf: float) -> str | None:
     if c.size > n_max:
         return f"has {c.size} coefficients; at most {n_max} are accepted (degree {n_max - 1})"
     t = np.concatenate([np.linspace(0.0, tf, POLY_GRID), _stationary_points(c, tf)])
-    dc = np.polynomial.polynomial.polyder(c) if c.size > 1 else np.zeros(1)
     with np.errstate(all="ignore"):
+        dc = np.polynomial.polynomial.polyder(c) if c.size > 1 else np.zeros(1)
         x = np.polynomial.polynomial.polyval(t, c)
         v = np.polynomial.polynomial.polyval(np.linspace(0.0, tf, POLY_GRID), dc)
     pmax, vmax = LIMITS["position_max_m"], LIMITS["speed_max_mps"]

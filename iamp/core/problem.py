@@ -216,5 +216,5 @@ class Problem:
         t = np.asarray(contact_times, dtype=float)
         return np.array([[v.corner_x(ti), v.corner_y] for v, ti in zip(self.vehicles, t)])
 
-    def with_vehicles(self, vehicles) -> "Problem":
+    def with_vehicles(self, vehicles) -> Problem:
         return Problem(self.ego, tuple(vehicles), self.name)
