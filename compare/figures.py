@@ -43,6 +43,7 @@ __all__ = [
     "PALETTE",
     "draw_xy",
     "lane_lines",
+    "legend_below",
     "planner_style",
     "plot_costates",
     "plot_positions",
@@ -262,6 +263,13 @@ def draw_xy(ax, result, times, *, ego_size=None, time_labels: bool = False, ego_
     ax.grid(True, lw=0.3, alpha=0.5)
 
 
+def legend_below(ax, *, ncol: int = 3, fontsize: float = 7, below_points: float = 36.0):
+    """A legend under ``ax``, ``below_points`` below its lower edge (clear of the tick labels and
+    the x label however short the axes are: equal-aspect road strips are)."""
+    return ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=ncol, fontsize=fontsize, frameon=False,
+                     borderaxespad=below_points / fontsize)
+
+
 def xy_figsize(result, width: float = 10.0, extra_height: float = 1.6) -> tuple[float, float]:
     """A figure size whose x–y axes fill the width at equal aspect (plus room for the title and
     a legend below)."""
@@ -291,7 +299,7 @@ def plot_xy_snapshots(result, stem, *, dt: float = 0.5, title: str | None = None
     draw_xy(ax, result, _snapshot_times(problem.tf, dt), ego_size=ego_size)
     ax.set_title(title or f"{problem.name}: ego and surrounding vehicles every {dt:g} s (lighter = earlier), "
                  "to scale", fontsize=10)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.35), ncol=2, fontsize=8, frameon=False)
+    legend_below(ax, ncol=2, fontsize=8)
     return save_figure(fig, stem)
 
 

@@ -21,8 +21,8 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, Protocol
 
-__all__ = ["ProgressCallback", "ProgressTick", "accepts_progress", "add_quiet_flag", "progress_bar",
-           "progress_enabled"]
+__all__ = ["ProgressCallback", "ProgressTick", "accepts_progress", "add_quiet_flag", "call_with_progress",
+           "progress_bar", "progress_enabled"]
 
 ProgressCallback = Callable[[int, int], None]
 """Signature of every progress callback: ``callback(done, total)``."""
@@ -140,3 +140,16 @@ def progress_bar(total: int | None, desc: str, *, enabled: bool) -> Iterator[Pro
         yield _Tick(bar)
     finally:
         bar.close()
+
+
+def call_with_progress(fn: Callable[..., Any], /, *args: Any, desc: str, enabled: bool,
+                       total: int | None = None, **kwargs: Any) -> Any:
+    """``fn(*args, **kwargs)``, with ``progress=`` a bar's callback if ``fn`` accepts one.
+
+    For library calls that may or may not have grown a ``progress`` parameter yet (the bar
+    appears as soon as they do; until then the call is made unchanged).
+    """
+    if not accepts_progress(fn):
+        return fn(*args, **kwargs)
+    with progress_bar(total, desc, enabled=enabled) as tick:
+        return fn(*args, progress=tick, **kwargs)

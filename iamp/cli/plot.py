@@ -1,0 +1,221 @@
+r"""``iamp plot SCENARIO --out FILE.png|.pdf|.svg``: one plan, drawn; and ``plan --csv``.
+
+The figure (:func:`plan_figure`):
+
+* top, **to scale** (equal aspect): the x–y plane with the lanes, every surrounding
+  vehicle's body and safety box :math:`x_{s,i}(t) \pm (L_i/2 + S_{x,i})` by
+  :math:`y_{s,i} \pm (W_i/2 + S_{y,i})` at several instants, the ego's path and body at the
+  same instants, and each contact point (the named corner at :math:`t_i`);
+* below, against time, longitudinal on the left and lateral on the right: the speeds
+  :math:`v_x, v_y` [m/s], the accelerations (the inputs) :math:`a_x = u_x, a_y = u_y`
+  [m/s²] and the jerks :math:`\dot u_x, \dot u_y` [m/s³], with the contact times marked.
+
+The PMP's and the FOH QP's inputs are piecewise linear, so their jerk is piecewise constant
+(it jumps at the contact times, where the co-states :math:`p_1, p_3` jump). A ZOH input is
+piecewise constant: its jerk is a train of impulses, drawn as the input step divided by the
+step, :math:`(u_k - u_{k-1})/h`, at the nodes and labelled so.
+
+The planner options are the ones ``iamp plan`` has (copied from its parser), so the figure
+shows exactly the plan that ``iamp plan`` with the same options prints.
+
+:func:`write_trajectory_csv` writes the SPEC §5 sampled trajectory for ``iamp plan --csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, positive_int
+from iamp.core.errors import ScenarioError
+from iamp.core.plan import TRAJECTORY_KEYS, Plan
+
+__all__ = ["FORMATS", "add_parsers", "cmd_plot", "plan_figure", "plan_label", "write_trajectory_csv"]
+
+#: Output formats of ``iamp plot`` (by the suffix of ``--out``).
+FORMATS = ("png", "pdf", "svg")
+#: Options of ``iamp plan`` that are not planner options (not copied to ``iamp plot``).
+_NOT_COPIED = {"help", "scenario", "json", "csv", "require_safe", "quiet", "func"}
+
+
+def plan_label(result: Plan) -> str:
+    """``PMP`` or ``QP clarabel FOH N=100`` (with ``avoid`` for the avoidance QP)."""
+    if result.planner == "pmp":
+        return "PMP"
+    extra = " avoid" if "avoid" in str(result.info.get("constraint", "")) else ""
+    return f"QP{extra} {result.solver} {str(result.hold).upper()} N={result.steps}"
+
+
+def write_trajectory_csv(result: Plan, path: str | Path, steps: int) -> Path:
+    """The plan sampled at :math:`t_k = k\\,t_f/N`, :math:`k = 0..N` (SPEC §5), as CSV.
+
+    Columns ``t,x,y,vx,vy,ax,ay`` (SI units: s, m, m/s, m/s²), one header line and ``N + 1``
+    rows, full double precision (``repr`` of each float), written atomically.
+    """
+    from iamp.core.atomic import atomic_open
+
+    data = result.sample(steps)
+    cols = [np.asarray(data[k], dtype=float) for k in TRAJECTORY_KEYS]
+    with atomic_open(path, "w") as fh:
+        fh.write(",".join(TRAJECTORY_KEYS) + "\n")
+        for row in zip(*cols):
+            fh.write(",".join(repr(float(v)) for v in row) + "\n")
+    return Path(path)
+
+
+def _jerk(result: Plan, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """``(t, jerk (n, 2), impulsive)``: the time derivative of the input.
+
+    Piecewise-linear inputs: finite differences on the fine grid ``tt`` (exact between kinks),
+    at the midpoints. ZOH: the input steps over the step size at the interior nodes.
+    """
+    if result.planner == "qp" and result.hold == "zoh" and result.steps:
+        h = result.problem.tf / int(result.steps)
+        mid = (np.arange(int(result.steps)) + 0.5) * h  # one sample inside each interval
+        u = result.inputs(mid)
+        return np.arange(1, int(result.steps)) * h, np.diff(u, axis=0) / h, True
+    u = result.inputs(tt)
+    return 0.5 * (tt[1:] + tt[:-1]), np.diff(u, axis=0) / np.diff(tt)[:, None], False
+
+
+def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -> Figure:
+    """The ``iamp plot`` figure of one plan (see the module docstring).
+
+    Parameters
+    ----------
+    result : Plan
+        A plan with a trajectory.
+    title : str, optional
+    snapshots : int
+        Number of instants drawn in the x–y plane, evenly spaced over ``[0, t_f]``.
+    """
+    from iamp.comparison.figures import SAFETY_COLOR, draw_xy, legend_below, planner_style, xy_limits
+
+    problem = result.problem
+    tf = problem.tf
+    label = plan_label(result)
+    color = planner_style(label)["color"]
+    xmin, xmax, ymin, ymax = xy_limits(result)
+    width = 10.0
+    xy_height = 0.92 * width * (ymax - ymin) / (xmax - xmin) + 1.3  # to scale, plus the legend
+    fig = Figure(figsize=(width, xy_height + 3 * 2.1 + 0.4), layout="constrained")
+    gs = fig.add_gridspec(4, 2, height_ratios=[xy_height, 2.1, 2.1, 2.1])
+    ax_xy = fig.add_subplot(gs[0, :])
+    draw_xy(ax_xy, result, np.linspace(0.0, tf, max(int(snapshots), 2)), time_labels=True, ego_color=color)
+    ax_xy.set_title("x–y plane to scale (equal aspect); ego and vehicles at the labelled instants, lighter = "
+                    "earlier", fontsize=9)
+    legend_below(ax_xy, ncol=3, fontsize=7)
+
+    tt = np.linspace(0.0, tf, 2001)
+    X = result.states(tt)
+    U = result.inputs(tt)
+    tj, J, impulsive = _jerk(result, tt)
+    rows: list[tuple[str, Any, Any, str]] = [
+        ("speed", (tt, X[:, 1]), (tt, X[:, 3]), "m/s"),
+        ("acceleration", (tt, U[:, 0]), (tt, U[:, 1]), "m/s$^2$"),
+        ("jerk", (tj, J[:, 0]), (tj, J[:, 1]), "m/s$^3$"),
+    ]
+    names = {"speed": ("$v_x$", "$v_y$"), "acceleration": ("$a_x = u_x$", "$a_y = u_y$"),
+             "jerk": ("$\\dot u_x$", "$\\dot u_y$")}
+    for r, (kind, left, right, unit) in enumerate(rows):
+        for c, (tv, yv) in enumerate((left, right)):
+            ax = fig.add_subplot(gs[r + 1, c])
+            sym = names[kind][c]
+            if kind == "jerk" and impulsive:
+                ax.plot(tv, yv, "o", ms=2.5, color=color, label=f"{sym}: ZOH input step / $h$ (impulses)")
+            else:
+                ax.plot(tv, yv, color=color, lw=1.5, label=f"{sym}, {label}")
+            for i, ti in enumerate(result.contact_times):
+                if np.isfinite(ti):
+                    ax.axvline(float(ti), color=SAFETY_COLOR, ls=":", lw=1.0,
+                               label="contact time $t_i$" if i == 0 else None)
+            ax.set_xlim(0.0, tf)
+            ax.set_ylabel(f"{sym} [{unit}]")
+            ax.set_xlabel("$t$ [s]")
+            ax.grid(True, lw=0.3, alpha=0.5)
+            ax.legend(fontsize=7, loc="best")
+    cost = f", $J$ = {result.cost:.6g} m$^2$/s$^3$" if result.cost is not None else ""
+    fig.suptitle(title or f"{problem.name}: {label}{cost}", fontsize=11)
+    return fig
+
+
+def _check_out(path: str) -> Path:
+    out = Path(path)
+    fmt = out.suffix.lstrip(".").lower()
+    if fmt not in FORMATS:
+        raise ScenarioError(f"must end in {', '.join('.' + f for f in FORMATS)} (got {out.name!r})", "--out")
+    if out.is_dir():
+        raise ScenarioError("is a folder; give a file name", "--out", str(out))
+    return out
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    """Plan the scenario with the given options and draw the plan into ``--out``."""
+    from iamp.cli import plan as plan_cli
+    from iamp.cli.progress import call_with_progress, progress_enabled
+    from iamp.cli.scenarios import load_cli_problem
+    from iamp.comparison.figures import save_one
+
+    out = _check_out(args.out)
+    if hasattr(plan_cli, "check_options"):
+        plan_cli.check_options(args)
+    if getattr(args, "constraint", "equality") == "avoid" and not getattr(args, "_constraint_from_plan", False):
+        raise ScenarioError("the avoidance QP (SPEC §10) is not available in this version of iamp plan",
+                            "--constraint")
+    _, problem, _ = load_cli_problem(args.scenario, args.model)
+    make_planner: Any = plan_cli.make_planner  # the planner `iamp plan` builds from the same options
+    planner = make_planner(args)
+    result = call_with_progress(planner.plan, problem, desc="planning", enabled=progress_enabled(args))
+    if not result.ok or result.trajectory is None:
+        sys.stderr.write(f"iamp: the plan failed (status {result.status}); nothing to draw, {out} not written\n")
+        return EXIT_SOLVER
+    fig = plan_figure(result, title=args.title, snapshots=args.snapshots)
+    save_one(fig, out)
+    print(f"wrote {out} ({plan_label(result)}, status {result.status}, J = {result.cost:.9g} m²/s³)")
+    return EXIT_OK
+
+
+def _copy_plan_options(target: argparse.ArgumentParser) -> set[str]:
+    """Give ``target`` the planner options of ``iamp plan`` (same names, types, defaults);
+    returns their destinations."""
+    from iamp.cli import plan as plan_cli
+
+    scratch = argparse.ArgumentParser(add_help=False).add_subparsers()
+    plan_cli.add_parsers(scratch)
+    plan_parser = scratch.choices["plan"]
+    copied = set()
+    for action in plan_parser._actions:
+        if action.dest in _NOT_COPIED or not action.option_strings:
+            continue
+        target._add_action(action)
+        copied.add(action.dest)
+    return copied
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``iamp plot``."""
+    from iamp.cli.progress import add_quiet_flag
+
+    p = sub.add_parser("plot", help="plan a scenario and draw the plan (x-y to scale, speeds, accelerations, "
+                                    "jerks) into a PNG, PDF or SVG",
+                       description="Plan a scenario (same planner options as `iamp plan`) and draw it: the x-y "
+                                   "plane to scale with every vehicle's safety box at several instants and the "
+                                   "contact points, and the speeds, accelerations and jerks against time. "
+                                   "SCENARIO is a TOML file, a built-in name, or - for standard input.")
+    p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
+    p.add_argument("--out", required=True, metavar="FILE", help="output file: .png, .pdf or .svg (written atomically)")
+    copied = _copy_plan_options(p)
+    if "constraint" not in copied:
+        p.add_argument("--constraint", choices=("equality", "avoid"), default="equality",
+                       help="QP only: the paper's equality at a contact time, or the avoidance QP (SPEC §10)")
+    p.set_defaults(_constraint_from_plan="constraint" in copied)
+    p.add_argument("--snapshots", type=positive_int, default=6, metavar="K",
+                   help="instants drawn in the x-y plane, evenly spaced over [0, tf] (default 6)")
+    p.add_argument("--title", default=None, help="figure title (default: scenario, planner and cost)")
+    add_quiet_flag(p)
+    p.set_defaults(func=cmd_plot)
