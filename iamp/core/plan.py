@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from iamp.core.problem import Problem
+from iamp.core.safety import SafetyReport, safety_report
 from iamp.core.status import OPTIMAL, SUCCESS
 from iamp.core.status import OPTIMAL as STATUS_OPTIMAL  # noqa: F401 - kept for callers
 
@@ -84,6 +85,7 @@ class Plan:
     hold: str | None = None
     steps: int | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    _safety: SafetyReport | None = field(default=None, init=False, repr=False, compare=False)
 
     # --- status ------------------------------------------------------------------------
     def is_optimal(self) -> bool:
@@ -110,6 +112,16 @@ class Plan:
         X = self.states(t)
         U = self.inputs(t)
         return {"t": t, "x": X[:, 0], "y": X[:, 2], "vx": X[:, 1], "vy": X[:, 3], "ax": U[:, 0], "ay": U[:, 1]}
+
+    # --- safety (SPEC §9) -----------------------------------------------------------------
+    @property
+    def safety(self) -> SafetyReport | None:
+        """Where the plan is unsafe (:func:`iamp.core.safety.safety_report`), computed once on
+        the plan's own continuous trajectory (a QP's exact hold trajectory); ``None`` for a
+        plan without a trajectory."""
+        if self._safety is None and self.trajectory is not None:
+            self._safety = safety_report(self.problem, self.trajectory)
+        return self._safety
 
     # --- residuals of the problem's own conditions --------------------------------------
     def corner_residual(self) -> float:
@@ -145,6 +157,8 @@ class Plan:
             "solve_time_s": float(self.solve_time_s),
             "trajectory": {k: [float(x) for x in np.asarray(v)] for k, v in traj.items()},
         }
+        safety = self.safety if ok else None
+        out["safety"] = safety.to_json() if safety is not None else None
         if not ok and self.info.get("failed_check") is not None:
             out["failed_check"] = self.info["failed_check"]
         if not ok and self.info.get("reason") is not None:

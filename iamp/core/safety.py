@@ -162,7 +162,7 @@ def _breakpoints(traj: object, tf: float) -> FloatArray | None:
     if bp is None and getattr(traj, "t_nodes", None) is not None:
         bp = traj.t_nodes  # type: ignore[attr-defined]
     if bp is None and getattr(traj, "contact_times", None) is not None:
-        ct = np.asarray(traj.contact_times, dtype=float).ravel()  # type: ignore[attr-defined]
+        ct: FloatArray = np.asarray(getattr(traj, "contact_times"), dtype=np.float64).ravel()  # noqa: B009
         bp = ct[(ct > 0) & (ct < tf)]
     if bp is None:
         return None
@@ -240,7 +240,7 @@ def roots_in_unit_interval(C: FloatArray, imag_tol: float = 1e-6) -> tuple[NDArr
         Row index and root of every root found, polished by Newton steps.
     """
     C = np.asarray(C, dtype=float)
-    K, D1 = C.shape
+    D1 = C.shape[1]
     scale = np.max(np.abs(C), axis=1)
     big = np.abs(C) > 1e-12 * scale[:, None]
     deg = np.where(big.any(axis=1), D1 - 1 - np.argmax(big[:, ::-1], axis=1), 0)
