@@ -9,7 +9,6 @@ import numpy as np
 
 from iamp.cli.types import EXIT_OK, EXIT_SOLVER, model_file, steps_int
 from iamp.core.errors import ScenarioError, SolverError
-from iamp.prediction.resolve import load_problem
 
 #: Options that only the QP planner reads, with their defaults (SPEC §5).  They default to
 #: ``None`` in the parser so that "given by the user" can be told from "the default".
@@ -53,21 +52,24 @@ def failure_json(scenario: str, args: argparse.Namespace, status: str, message: 
 
 
 def cmd_plan(args) -> int:
+    from iamp.cli.progress import call_with_progress, progress_enabled
+    from iamp.cli.scenarios import load_cli_problem
+    from iamp.cli.scenarios import load_cli_scenario as load_scenario  # a file, a built-in, or - (stdin)
     from iamp.core.limits import qp_work_message
-    from iamp.core.scenario import load_scenario
     from iamp.core.status import NUMERICAL_ERROR
 
     check_options(args)
     if args.model is not None and not load_scenario(args.scenario).needs_prediction:
         raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
                             "vehicle's x_poly", "--model", args.scenario)
-    scenario, problem, _ = load_problem(args.scenario, args.model)
+    scenario, problem, _ = load_cli_problem(args.scenario, args.model)
     if args.planner == "qp":
         msg = qp_work_message(problem.m, args.steps)
         if msg is not None:
             raise ScenarioError(msg, "--steps")
     try:
-        result = make_planner(args).plan(problem)
+        result = call_with_progress(make_planner(args).plan, problem, desc="QP sweep" if args.planner == "qp"
+                                    else "planning", enabled=progress_enabled(args))
         text = json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False) if args.json else ""
     except SolverError as exc:
         return _report_failure(scenario, args, exc.status, str(exc))
@@ -76,10 +78,16 @@ def cmd_plan(args) -> int:
             raise
         # the numerics broke down on an accepted input: a failed plan, never a traceback
         return _report_failure(scenario, args, NUMERICAL_ERROR, f"{exc.__class__.__name__}: {exc}")
+    if args.csv is not None and result.ok:
+        from iamp.cli.plot import write_trajectory_csv
+
+        write_trajectory_csv(result, args.csv, args.steps)
     if args.json:
         print(text)
     else:
         _print_summary(scenario, problem, result, args)
+        if args.csv is not None:
+            print(f"wrote {args.csv} ({args.steps + 1} rows)" if result.ok else f"{args.csv} not written: no plan")
     return EXIT_OK if result.is_optimal() else EXIT_SOLVER
 
 
@@ -131,7 +139,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p = sub.add_parser("plan", help="plan the optimal lane change of a scenario",
                        description="Plan the optimal lane change of a scenario file or built-in scenario "
                                    "(see `iamp scenarios`).")
-    p.add_argument("scenario", help="scenario TOML file or built-in name")
+    p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
     p.add_argument("--planner", choices=("pmp", "qp"), default="pmp")
     p.add_argument("--solver", choices=("osqp", "clarabel"), default=None, help="QP only (default clarabel)")
     p.add_argument("--hold", choices=("foh", "zoh"), default=None, help="QP only (default foh)")
@@ -142,4 +150,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios "
                    "(default: the shipped model)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")
+    p.add_argument("--csv", metavar="FILE", default=None,
+                   help="also write the trajectory sampled at t_k = k tf/N, k = 0..N, as CSV with the columns "
+                        "t,x,y,vx,vy,ax,ay (SI units; written atomically)")
+    from iamp.cli.progress import add_quiet_flag
+
+    add_quiet_flag(p)
     p.set_defaults(func=cmd_plan)
