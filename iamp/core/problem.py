@@ -67,10 +67,17 @@ class EgoBoundary:
     vy0: float = 0.0
     vyf: float = 0.0
     source: str | None = field(default=None, compare=False, repr=False)
+    #: The ego's body ``[ego] length`` x ``width`` [m] (SPEC §9 overlap; default 4.8 x 1.8).
+    ego_length: float = 4.8
+    ego_width: float = 1.8
 
     def __post_init__(self) -> None:
         for name in ("tf", "x0", "y0", "vx0", "xf", "yf", "vxf", "vy0", "vyf"):
             object.__setattr__(self, name, _finite(getattr(self, name), f"ego.{name}", self.source))
+        for name, key in (("ego_length", "length"), ("ego_width", "width")):
+            object.__setattr__(self, name, _finite(getattr(self, name), f"ego.{key}", self.source))
+            if getattr(self, name) <= 0:
+                raise ScenarioError(f"must be > 0 (got {getattr(self, name)})", f"ego.{key}", self.source)
         if self.tf <= 0:
             raise ScenarioError(f"must be > 0 (got {self.tf})", "ego.tf", self.source)
         _check(bound_message(self.tf, LIMITS["tf_min_s"], LIMITS["tf_max_s"], "s"), "ego.tf", self.source)

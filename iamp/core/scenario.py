@@ -26,7 +26,9 @@ from iamp.core.toml_lines import line_of
 
 TOP_KEYS = {"name", "description", "ego", "vehicles"}
 EGO_REQUIRED = ("tf", "x0", "y0", "vx0", "xf", "yf", "vxf")
-EGO_OPTIONAL = ("vy0", "vyf")
+EGO_OPTIONAL = ("vy0", "vyf", "length", "width")
+#: ``[ego]`` keys whose EgoBoundary field has another name (the ego body, SPEC §9).
+EGO_RENAMED = {"length": "ego_length", "width": "ego_width"}
 VEHICLE_REQUIRED = ("corner", "y", "length", "width", "safety_x", "safety_y")
 VEHICLE_OPTIONAL = ("name", "x_poly", "history")
 HISTORY_KEYS = ("t", "x")
@@ -246,7 +248,8 @@ def parse_scenario(data: dict[str, Any], source: str | None = None, default_name
         raise ScenarioError("must be a string", "description", source)
     ego_t = data["ego"]
     _check_keys(ego_t, EGO_REQUIRED, EGO_OPTIONAL, "ego", source)
-    ego = EgoBoundary(**{k: ego_t[k] for k in EGO_REQUIRED + EGO_OPTIONAL if k in ego_t}, source=source)
+    ego = EgoBoundary(**{EGO_RENAMED.get(k, k): ego_t[k] for k in EGO_REQUIRED + EGO_OPTIONAL if k in ego_t},
+                      source=source)
     vehicles_t = data["vehicles"]
     if not isinstance(vehicles_t, list) or not vehicles_t:
         raise ScenarioError("needs at least one [[vehicles]] table", "vehicles", source)
