@@ -17,33 +17,29 @@ resolution ``r`` quantises ``a_k`` in steps of ``r/Δt²`` (1 m/s² for centimet
 
 Pipeline of :meth:`Predictor.predict`:
 
-1. **Resample** the observed positions onto ``t_k = k·Δt``, ``k = -K..0``,
+1. **Initial-state estimation**: the observed positions are smoothed by the RTS smoother of
+   :mod:`iamp.prediction.initial_state` (constant acceleration driven by white jerk of
+   spectral density ``q = model.settings["jerk_psd"]``, default
+   :data:`~iamp.prediction.initial_state.DEFAULT_JERK_PSD`; noise level estimated from the
+   history).  ``x_0``, ``v_0`` are the smoothed position and speed at ``t = 0`` (``v_0 >= 0``);
+   the constant-velocity and constant-acceleration baselines use the same estimates.  For a
+   noise-free history on a quadratic the estimates are exact.
+2. **Resample** the smoothed positions onto ``t_k = k·Δt``, ``k = -K..0``,
    ``K = ⌊duration/Δt⌋``, by linear interpolation.
-2. **States** of the last ``n`` available nodes ``k = -n..-1`` (``a_0`` needs ``x_1``):
+3. **States** of the last ``n`` available nodes ``k = -n..-1`` (``a_0`` needs ``x_1``):
    one-hot vectors ``\hat x_{-n}, …, \hat x_{-1}``.
-3. **Propagation** ``\hat x_k = Σ_i λ_i Q_i \hat x_{k-i}`` for ``k = 0..M``,
+4. **Propagation** ``\hat x_k = Σ_i λ_i Q_i \hat x_{k-i}`` for ``k = 0..M``,
    ``M = ⌈t_f/Δt⌉``, and the expected accelerations ``ā_k = c · \hat x_k`` at the nodes
    (``c``: the mean training ``a`` within each bin).
-4. **Initial speed** ``v_0``: slope at ``t = 0`` of the least-squares quadratic through the
-   raw history samples with ``t >= -w`` (at least the last three samples), ``w`` =
-   ``model.settings["v0_window_s"]`` (chosen on validation data together with the
-   constant-velocity baseline, which uses the same estimate).  ``x_0`` is the last observed
-   position.
-5. **Integration**, exact for the acceleration that is linear between the node values
-   (``s ∈ [0, Δt]``, ``δ_k = ā_{k+1} - ā_k``):
-
-   .. math::
-
-       v(t_k + s) = v_k + ā_k s + δ_k \frac{s^2}{2Δt}, \qquad
-       x(t_k + s) = x_k + v_k s + ā_k \frac{s^2}{2} + δ_k \frac{s^3}{6Δt},
-
-   with the speed clamped at 0: if ``v_{k+1}`` would be negative the vehicle stops after
-   ``v_k/|ā|`` with the interval's mean ``ā = (ā_k + ā_{k+1})/2``, moving ``v_k²/(2|ā|)``,
-   and stays stopped for the interval.  Without the clamp the positions are linear in the
-   ``ā_k``, i.e. they are the model's expected positions.
+5. **Integration** of the ``ā_k``, exact for an acceleration linear between the nodes, with
+   the speed clamped at 0 (:func:`~iamp.prediction.kinematics.integrate_nodes`).  Without the
+   clamp the positions are linear in the ``ā_k``, i.e. they are the model's expected positions.
 6. **Samples** at ``t = 0, Δt, …`` up to ``t_f`` (the last step shorter if ``t_f`` is not a
    multiple of ``Δt``), and the **fit**: the cubic ``x_s(t) = c_0 + c_1 t + c_2 t² + c_3 t³``
    minimising ``Σ_k (x_s(t_k) - x(t_k))²`` over the samples.
+
+Lateral motion is not predicted: the planners keep every surrounding vehicle in its lane
+(SPEC: ``y`` constant); the evaluation reports the lateral error of that assumption.
 
 Optionally (``n_samples > 0``) state paths are sampled from the chain, integrated the same
 way from the centres of the sampled states, and position quantiles returned.
@@ -59,7 +55,23 @@ from importlib import resources
 
 import numpy as np
 
+from iamp.prediction._typing import FloatArray, IntArray
+from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
+from iamp.prediction.kinematics import (
+    cubic_fit,
+    history_grid,
+    integrate_nodes,
+    local_quadratic,
+    second_differences,
+)
 from iamp.prediction.mtd import ModelFileError, MTDModel, readonly_array
+from iamp.prediction.training import (
+    STATE_DEFINITION,
+    bin_centres,
+    symmetric_edges,
+    track_accelerations,
+    train_from_tracks,
+)
 
 __all__ = [
     "DEFAULT_MODEL_FILE",
@@ -79,137 +91,6 @@ __all__ = [
 
 #: Package-data file of the shipped model (``prediction/data/``).
 DEFAULT_MODEL_FILE = "mtd_default.json"
-#: Initial-speed fit window [s] for models that do not set ``settings["v0_window_s"]``.
-DEFAULT_V0_WINDOW = 0.2
-#: Written into trained models.
-STATE_DEFINITION = ("longitudinal acceleration a_k = (x_{k+1} - 2 x_k + x_{k-1}) / dt^2 of the positions "
-                    "linearly resampled to the model step dt [m/s^2]")
-
-
-# ---------------------------------------------------------------------------------------
-# finite differences and fits
-# ---------------------------------------------------------------------------------------
-
-def history_grid(t: np.ndarray, x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Resample a history onto ``t_k = k·dt``, ``k = -K..0`` (linear interpolation)."""
-    t = np.asarray(t, dtype=float)
-    K = int(math.floor((t[-1] - t[0]) / dt + 1e-9))
-    tg = dt * np.arange(-K, 1)
-    tg[-1] = 0.0
-    return tg, np.interp(tg, t, np.asarray(x, dtype=float))
-
-
-def second_differences(x: np.ndarray, dt: float) -> np.ndarray:
-    """``(x_{k+1} - 2 x_k + x_{k-1}) / dt²`` along the last axis (length ``K - 2``)."""
-    x = np.asarray(x, dtype=float)
-    return (x[..., 2:] - 2.0 * x[..., 1:-1] + x[..., :-2]) / (dt * dt)
-
-
-def cubic_fit(t: np.ndarray, x: np.ndarray) -> tuple[tuple, float]:
-    """Least-squares cubic ``c0 + c1 t + c2 t² + c3 t³``; returns ``(c, rmse)``."""
-    t = np.asarray(t, dtype=float)
-    V = np.vander(t, 4, increasing=True)
-    c, *_ = np.linalg.lstsq(V, np.asarray(x, dtype=float), rcond=None)
-    rmse = float(np.sqrt(np.mean((V @ c - x) ** 2)))
-    return tuple(float(ci) for ci in c), rmse
-
-
-def local_quadratic(t: np.ndarray, X: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Speed and acceleration at ``t = 0`` from a least-squares quadratic.
-
-    Parameters
-    ----------
-    t : numpy.ndarray, shape (K,)
-        Sample times (increasing, ending at 0), shared by all rows.
-    X : numpy.ndarray, shape (K,) or (B, K)
-        Positions.
-    window_s : float
-        The fit uses the samples with ``t >= -window_s`` (at least the last three).
-
-    Returns
-    -------
-    v0, a0 : numpy.ndarray, shape (B,) (scalars for 1-D ``X``)
-        ``c_1`` and ``2 c_2`` of ``x ≈ c_0 + c_1 t + c_2 t²``.
-    """
-    t = np.asarray(t, dtype=float)
-    keep = max(int(np.count_nonzero(t >= -window_s - 1e-9)), 3)
-    if t.size < 3:
-        raise ValueError("needs at least 3 samples")
-    tt = t[-keep:]
-    V = np.vander(tt, 3, increasing=True)
-    G = np.linalg.pinv(V)  # (3, keep)
-    C = np.asarray(X, dtype=float)[..., -keep:] @ G.T
-    return C[..., 1], 2.0 * C[..., 2]
-
-
-def _foh_nodes(x0, v0, abar, dt):
-    """Node positions and speeds (B, M+1) under linear-between-nodes acceleration, v >= 0."""
-    B, M1 = abar.shape
-    M = M1 - 1
-    a0, a1 = abar[:, :-1], abar[:, 1:]
-    dv = dt * 0.5 * (a0 + a1)
-    vs = np.empty((B, M + 1))
-    vs[:, 0] = v0
-    np.cumsum(dv, axis=1, out=vs[:, 1:])
-    vs[:, 1:] += v0[:, None]
-    xs = np.empty((B, M + 1))
-    if np.all(vs >= 0.0):
-        xs[:, 0] = x0
-        np.cumsum(vs[:, :-1] * dt + dt * dt * (a0 / 3.0 + a1 / 6.0), axis=1, out=xs[:, 1:])
-        xs[:, 1:] += x0[:, None]
-        return xs, vs
-    xs[:, 0], vs[:, 0] = x0, v0
-    for k in range(M):
-        v, x = vs[:, k], xs[:, k]
-        v_new = v + dv[:, k]
-        x_new = x + v * dt + dt * dt * (a0[:, k] / 3.0 + a1[:, k] / 6.0)
-        stop = v_new < 0.0
-        if np.any(stop):
-            am = np.minimum(0.5 * (a0[:, k] + a1[:, k]), -1e-12)
-            x_new = np.where(stop, x + v * v / (2.0 * -am), x_new)
-            v_new = np.where(stop, 0.0, v_new)
-        xs[:, k + 1], vs[:, k + 1] = x_new, v_new
-    return xs, vs
-
-
-def integrate_nodes(x0, v0, abar: np.ndarray, dt: float, query) -> tuple[np.ndarray, np.ndarray]:
-    """Positions and speeds at ``query`` for accelerations linear between node values.
-
-    Parameters
-    ----------
-    x0, v0 : array_like, shape (B,)
-        Position and speed at ``t = 0`` (``v0 < 0`` is taken as 0).
-    abar : numpy.ndarray, shape (B, M + 1)
-        Accelerations at ``t_k = k dt``, ``k = 0..M``.
-    dt : float
-    query : array_like, shape (Q,)
-        Times in ``[0, M dt]``.
-
-    Returns
-    -------
-    x, v : numpy.ndarray, shape (B, Q)
-        Exact (see the module docstring), with the speed clamped at 0.
-    """
-    abar = np.atleast_2d(np.asarray(abar, dtype=float))
-    B = abar.shape[0]
-    x0 = np.broadcast_to(np.asarray(x0, dtype=float), (B,)).copy()
-    v0 = np.maximum(np.broadcast_to(np.asarray(v0, dtype=float), (B,)), 0.0)
-    xs, vs = _foh_nodes(x0, v0, abar, dt)
-    M = abar.shape[1] - 1
-    q = np.asarray(query, dtype=float)
-    k = np.clip(np.floor(q / dt + 1e-9).astype(int), 0, M - 1)
-    s = (q - k * dt)[None, :]
-    ak, d = abar[:, k], (abar[:, k + 1] - abar[:, k])
-    xk, vk = xs[:, k], vs[:, k]
-    x = xk + vk * s + 0.5 * ak * s * s + d * s ** 3 / (6.0 * dt)
-    v = vk + ak * s + d * s * s / (2.0 * dt)
-    # inside an interval where the vehicle stops: hold the stopping point
-    stopped = vs[:, k + 1] == 0.0
-    if np.any(stopped):
-        x = np.where(stopped, np.minimum(x, xs[:, k + 1]), x)
-        x = np.where(stopped & (v < 0), xs[:, k + 1], x)
-        v = np.where(stopped, np.maximum(v, 0.0), v)
-    return x, np.maximum(v, 0.0)
 
 
 # ---------------------------------------------------------------------------------------
@@ -356,9 +237,25 @@ class Predictor:
         return M, t
 
     @property
-    def v0_window_s(self) -> float:
-        """Window of the initial-speed fit [s] (``model.settings["v0_window_s"]``, default 0.2)."""
-        return float(self.model.settings.get("v0_window_s", DEFAULT_V0_WINDOW))
+    def jerk_psd(self) -> float:
+        """Jerk spectral density ``q`` of the initial-state smoother [m²/s⁵] (``model.settings``)."""
+        return float(self.model.settings.get("jerk_psd", DEFAULT_JERK_PSD))
+
+    def initial_state(self, t_hist: FloatArray, X_hist: FloatArray) -> tuple[FloatArray, FloatArray, IntArray]:
+        """``(x_0, v_0, states)`` of histories sharing the times ``t_hist`` (steps 1–3).
+
+        ``x_0``, ``v_0`` (shape ``(B,)``, ``v_0 >= 0``) are the RTS-smoothed position and speed
+        at ``t = 0``; ``states`` (``(B, n)``, oldest first) the bins of the second differences
+        of the smoothed positions resampled to the model grid.
+        """
+        t_hist = np.asarray(t_hist, dtype=float)
+        sm = smooth_histories(t_hist, X_hist, self.jerk_psd)
+        n = self.model.order
+        tg, _ = history_grid(t_hist, sm.x[0], self.dt)
+        tg = tg[-(n + 2):]
+        R = np.stack([np.interp(tg, t_hist, e) for e in np.eye(t_hist.size)], axis=1)  # linear in x
+        states = self.model.states(second_differences(sm.x @ R.T, self.dt))
+        return sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0), states
 
     def _node_accelerations(self, states: np.ndarray, M: int) -> tuple[np.ndarray, np.ndarray]:
         """``(\\hat x_k, ā_k)`` for ``k = 0..M`` from the last ``n`` states (batch)."""
@@ -400,12 +297,10 @@ class Predictor:
         if any(not (0.0 <= q <= 1.0) for q in qs):
             raise ValueError("quantiles must lie in [0, 1]")
         model = self.model
-        n = model.order
-        _, xg = history_grid(history.t, history.x, self.dt)
-        states = model.states(second_differences(xg[-(n + 2):], self.dt))  # a_{-n} .. a_{-1}
+        x0s, v0s, st = self.initial_state(np.asarray(history.t, dtype=float), np.asarray(history.x, dtype=float))
+        states = st[0]  # a_{-n} .. a_{-1}
         probs, abar = self._node_accelerations(states, M)
-        x0 = float(history.x[-1])
-        v0 = max(float(local_quadratic(history.t, history.x, self.v0_window_s)[0]), 0.0)
+        x0, v0 = float(x0s[0]), float(v0s[0])
         x, v = integrate_nodes(x0, v0, abar, self.dt, t)
         x, v = x[0], v[0]
         a = np.interp(t, self.dt * np.arange(M + 1), abar[0])
@@ -458,121 +353,12 @@ class Predictor:
             raise ValueError(f"histories of {t_hist[-1] - t_hist[0]:g} s are shorter than the "
                              f"{self.min_history_s:g} s the model needs")
         M, t = self._horizon(tf)
-        model = self.model
-        n = model.order
-        tg, _ = history_grid(t_hist, X_hist[0], self.dt)
-        tg = tg[-(n + 2):]
-        R = np.stack([np.interp(tg, t_hist, e) for e in np.eye(t_hist.size)], axis=1)  # linear in x
-        states = model.states(second_differences(X_hist @ R.T, self.dt))
+        x0, v0, states = self.initial_state(t_hist, X_hist)
         _, abar = self._node_accelerations(states, M)
-        v0 = np.maximum(local_quadratic(t_hist, X_hist, self.v0_window_s)[0], 0.0)
         q = np.asarray(query, dtype=float)
         if not cubic:
-            return integrate_nodes(X_hist[:, -1], v0, abar, self.dt, q)[0]
-        x, _ = integrate_nodes(X_hist[:, -1], v0, abar, self.dt, t)
+            return integrate_nodes(x0, v0, abar, self.dt, q)[0]
+        x, _ = integrate_nodes(x0, v0, abar, self.dt, t)
         V = np.vander(t, 4, increasing=True)
         C, *_ = np.linalg.lstsq(V, x.T, rcond=None)
         return np.polynomial.polynomial.polyval(q, C)
-
-
-# ---------------------------------------------------------------------------------------
-# training from trajectory tables
-# ---------------------------------------------------------------------------------------
-
-def symmetric_edges(width: float, a_max: float) -> np.ndarray:
-    """Interior edges of bins of ``width`` centred on 0: ``±width/2, ±3width/2, …``.
-
-    The outer bins are open: everything below ``-a_max`` / above ``a_max`` (rounded to the
-    bin grid) falls into the first / last bin.  The number of bins is
-    ``2·round(a_max/width) + 1`` (odd, with a bin centred on 0).
-    """
-    K = int(round(a_max / width))
-    if K < 1:
-        raise ValueError("a_max must be at least one bin width")
-    return width * (np.arange(-K, K) + 0.5)
-
-
-def track_accelerations(tracks, dt: float) -> list[np.ndarray]:
-    """State values ``a_k`` of every track, computed as the predictor does.
-
-    Each track's positions are linearly resampled onto ``t0 + k·dt`` and differenced
-    (:func:`second_differences`); tracks with fewer than 3 resampled samples are skipped.
-    """
-    out = []
-    for _tid, t, x, *_ in tracks.iter_tracks():
-        if t.size < 2:
-            continue
-        K = int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1
-        if K < 3:
-            continue
-        out.append(second_differences(np.interp(t[0] + dt * np.arange(K), t, x), dt))
-    return out
-
-
-def bin_centres(accels: list[np.ndarray], edges: np.ndarray) -> np.ndarray:
-    """Mean value within every bin (the bin's midpoint, or edge ± width/2, when empty)."""
-    a = np.concatenate(accels) if accels else np.zeros(0)
-    m = edges.size + 1
-    s = np.searchsorted(edges, a, side="right")
-    cnt = np.bincount(s, minlength=m)
-    tot = np.bincount(s, weights=a, minlength=m)
-    width = float(np.diff(edges).mean()) if edges.size > 1 else 1.0
-    mid = np.r_[edges[0] - width / 2, 0.5 * (edges[:-1] + edges[1:]), edges[-1] + width / 2]
-    return np.where(cnt > 0, tot / np.maximum(cnt, 1), mid)
-
-
-def train_from_tracks(tracks, *, dt: float, edges, order: int, estimator: str = "mle",
-                      v0_window_s: float = DEFAULT_V0_WINDOW, provenance: dict | None = None,
-                      **fit_kwargs) -> MTDModel:
-    """Train an MTD acceleration model on a :class:`~iamp.prediction.tracks.Tracks` table.
-
-    Parameters
-    ----------
-    tracks : Tracks
-        Recorded trajectories (only ``t`` and ``x`` are used, so that the states are
-        computed exactly as from an observed history).
-    dt : float
-        Chain time step [s].
-    edges : array_like
-        Interior acceleration bin edges [m/s²] (see :func:`symmetric_edges`).
-    order : int
-        Chain order ``n``.
-    estimator : {"mle", "mle-lambda", "lp"}
-    v0_window_s : float
-        Window of the predictor's initial-speed fit [s], stored in ``model.settings``.
-    provenance : dict, optional
-        Merged into the model's provenance (with the data's ``meta`` and sizes).
-    **fit_kwargs
-        Passed to :func:`iamp.prediction.mtd.fit`.
-
-    Returns
-    -------
-    MTDModel
-        With ``centres`` the mean training ``a_k`` per bin.
-    """
-    from iamp.prediction.mtd import fit
-
-    dt = float(dt)
-    if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be positive (got {dt})")
-    edges = np.asarray(edges, dtype=float)
-    accels = track_accelerations(tracks, dt)
-    if not accels or sum(a.size for a in accels) <= order:
-        raise ValueError(f"no track is long enough to train an order-{order} chain at dt = {dt:g} s")
-    seqs = [np.searchsorted(edges, a, side="right") for a in accels]
-    meta = getattr(tracks, "meta", {})
-    prov = {"data_meta": _jsonable({k: v for k, v in meta.items() if k != "source_ids"} if isinstance(meta, dict)
-                                   else meta),
-            "n_tracks_used": len(seqs), "n_states_observed": int(sum(s.size for s in seqs))}
-    prov.update(provenance or {})
-    return fit(seqs, edges.size + 1, order, estimator, edges=edges, centres=bin_centres(accels, edges),
-               dt=dt, state=STATE_DEFINITION, settings={"v0_window_s": float(v0_window_s)}, provenance=prov,
-               **fit_kwargs)
-
-
-def _jsonable(obj):
-    try:
-        json.dumps(obj, allow_nan=False)
-        return obj
-    except (TypeError, ValueError):
-        return str(obj)

@@ -101,6 +101,9 @@ class Tracks:
     meta : dict
         Provenance: format, source files, frame rate, units converted, etc.  Must be JSON
         serialisable for :meth:`save`.
+    y : ndarray of float64 or None
+        Lateral position of the vehicle centre in m (optional; the loaders fill it when the
+        data have it, in the dataset's lateral axis, in metres).
 
     The constructor converts the columns to the dtypes above and checks that they are
     one-dimensional, of equal length, finite, sorted by ``(track_id, t)`` and uniformly
@@ -115,7 +118,8 @@ class Tracks:
     a: np.ndarray
     lane: np.ndarray
     dt: float
-    meta: dict = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
+    y: np.ndarray | None = None
 
     # -- construction -------------------------------------------------------------------------
 
@@ -156,6 +160,13 @@ class Tracks:
                 raise TrackDataError(f"has {arr.size} rows, expected {n} (the length of 'track_id')",
                                      column=name, source=source)
             object.__setattr__(self, name, arr)
+        if self.y is not None:
+            y = np.ascontiguousarray(np.asarray(self.y), dtype=np.float64)
+            if y.shape != (n,):
+                raise TrackDataError(f"has shape {y.shape}, expected ({n},)", column="y", source=source)
+            if not np.all(np.isfinite(y)):
+                raise TrackDataError("contains NaN or infinite values", column="y", source=source)
+            object.__setattr__(self, "y", y)
 
         try:
             dt = float(self.dt)
@@ -213,7 +224,8 @@ class Tracks:
 
     def _take(self, index, meta: dict | None = None) -> "Tracks":
         return Tracks(self.track_id[index], self.t[index], self.x[index], self.v[index], self.a[index],
-                      self.lane[index], self.dt, dict(self.meta) if meta is None else meta)
+                      self.lane[index], self.dt, dict(self.meta) if meta is None else meta,
+                      None if self.y is None else self.y[index])
 
     def track(self, tid) -> "Tracks":
         """The rows of one track; :class:`TrackDataError` if there is no such track."""
@@ -252,7 +264,9 @@ class Tracks:
             raise TrackDataError(f"must be positive and finite, got {dt}", column="dt")
         out = {name: [] for name in _COLUMNS}
         eps = 1e-9 * max(dt, self.dt)
-        for tid, t, x, v, a, lane in self.iter_tracks():
+        ys: list[np.ndarray] = []
+        y_all = np.split(self.y, _boundaries(self.track_id)) if self.y is not None and len(self) else []
+        for k, (tid, t, x, v, a, lane) in enumerate(self.iter_tracks()):
             n_new = int(np.floor((t[-1] - t[0]) / dt + 1e-6)) + 1
             tn = t[0] + dt * np.arange(n_new)
             out["track_id"].append(np.full(n_new, tid, dtype=np.int64))
@@ -260,12 +274,15 @@ class Tracks:
             out["x"].append(np.interp(tn, t, x))
             out["v"].append(np.interp(tn, t, v))
             out["a"].append(np.interp(tn, t, a))
+            if y_all:
+                ys.append(np.interp(tn, t, y_all[k]))
             idx = np.clip(np.searchsorted(t, tn + eps, side="right") - 1, 0, t.size - 1)
             out["lane"].append(lane[idx])
         meta = dict(self.meta)
         meta["resampled"] = {"from_dt": self.dt, "to_dt": dt, "method": "linear (lane: previous sample)"}
         cols = {k: (np.concatenate(v) if v else np.empty(0)) for k, v in out.items()}
-        return Tracks(cols["track_id"], cols["t"], cols["x"], cols["v"], cols["a"], cols["lane"], dt, meta)
+        y_new = (np.concatenate(ys) if ys else np.empty(0)) if self.y is not None else None
+        return Tracks(cols["track_id"], cols["t"], cols["x"], cols["v"], cols["a"], cols["lane"], dt, meta, y_new)
 
     @staticmethod
     def concat(tables: Sequence["Tracks"]) -> "Tracks":
@@ -302,7 +319,10 @@ class Tracks:
         meta = {"format": "concat", "parts": [tb.meta for tb in tables]}
         if any(offsets):
             meta["parts_id_offset"] = offsets
-        return Tracks(*(cols[name][order] for name in _COLUMNS), dt=dt, meta=meta)
+        y = None
+        if all(tb.y is not None for tb in tables):
+            y = np.concatenate([tb.y for tb in tables if tb.y is not None])[order]
+        return Tracks(*(cols[name][order] for name in _COLUMNS), dt=dt, meta=meta, y=y)
 
     def split_by_track(self, test_fraction: float, seed: int = 0) -> tuple["Tracks", "Tracks"]:
         """A deterministic held-out split by whole tracks: ``(train, test)``.
@@ -333,149 +353,24 @@ class Tracks:
 
     # -- files --------------------------------------------------------------------------------
 
-    def save(self, path: str | os.PathLike, *, decimals: int | None = None) -> Path:
-        """Write the table to a compressed ``.npz`` file, atomically; returns the path.
+    # -- files (layout in iamp.prediction.tracks_io) -----------------------------------------
 
-        The file is written to a temporary file in the same directory and then renamed over
-        ``path``, so a reader never sees a partial file.  The bytes depend only on the table
-        (fixed zip timestamps), so saving equal tables gives identical files.
+    def save(self, path: str | os.PathLike[str], *, decimals: int | None = None) -> Path:
+        """Write the table to a compressed ``.npz`` file, atomically (:func:`~iamp.prediction.tracks_io.save_tracks`)."""
+        from iamp.prediction.tracks_io import save_tracks
 
-        With ``decimals=None`` (default) the columns are stored exactly (float64).  With
-        ``decimals=d`` the columns ``x``, ``v`` and ``a`` are rounded to ``d`` decimals and stored
-        as difference-coded integers, which compresses far better; use it only when the data
-        carry no more precision than that (e.g. SUMO output, written with 2 decimals).  Times
-        that lie on the grid ``k·dt`` are always stored as integer step indices.  The meta dict
-        is stored as a JSON string.
-        """
-        path = Path(path)
-        try:
-            meta_json = json.dumps(self.meta, sort_keys=True, allow_nan=False)
-        except (TypeError, ValueError) as exc:
-            raise TrackDataError(f"meta is not JSON serialisable ({exc})", column="meta", source=path) from None
-        if decimals is not None:
-            decimals = int(decimals)
-            if not 0 <= decimals <= 9:
-                raise TrackDataError(f"decimals must be within 0..9, got {decimals}")
-        arrays: dict[str, np.ndarray] = {}
-        header = {"format": FILE_FORMAT, "version": FILE_VERSION, "dt": self.dt, "rows": len(self),
-                  "encoding": {}}
-        arrays["track_id"] = _delta_int(self.track_id)
-        header["encoding"]["track_id"] = "delta"
-        arrays["lane"] = _small_int(self.lane)
-        header["encoding"]["lane"] = "int"
-        steps = np.round(self.t / self.dt)
-        if len(self) and np.all(np.abs(steps * self.dt - self.t) <= 1e-9 * max(1.0, float(np.abs(self.t).max()))):
-            arrays["t"] = _delta_int(steps.astype(np.int64))
-            header["encoding"]["t"] = "delta-steps"
-        else:
-            arrays["t"] = self.t
-            header["encoding"]["t"] = "float64"
-        for name in ("x", "v", "a"):
-            col = getattr(self, name)
-            if decimals is None:
-                arrays[name] = col
-                header["encoding"][name] = "float64"
-            else:
-                q = np.round(col * 10.0 ** decimals)
-                if q.size and np.abs(q).max() >= 2 ** 53:
-                    raise TrackDataError(f"values too large for {decimals} decimals", column=name)
-                arrays[name] = _delta_int(q.astype(np.int64))
-                header["encoding"][name] = f"delta-decimals-{decimals}"
-        arrays["header"] = np.array(json.dumps(header, sort_keys=True))
-        arrays["meta"] = np.array(meta_json)
-
-        with atomic_open(path, "wb") as fh:
-            _write_npz(fh, arrays)
-        return path
+        return save_tracks(self, path, decimals=decimals)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "Tracks":
-        """Read a table written by :meth:`save`; :class:`TrackDataError` for a bad file."""
-        path = Path(path)
-        try:
-            npz = np.load(path, allow_pickle=False)
-        except FileNotFoundError:
-            raise TrackDataError("no such file", source=path) from None
-        except Exception as exc:
-            raise TrackDataError(f"not a tracks .npz file ({type(exc).__name__}: {exc})", source=path) from None
-        with npz:
-            names = set(npz.files)
-            for key in ("header", "meta", *_COLUMNS):
-                if key not in names:
-                    raise TrackDataError("missing from the file", column=key, source=path)
-            try:
-                header = json.loads(str(npz["header"][()]))
-                meta = json.loads(str(npz["meta"][()]))
-            except (ValueError, TypeError) as exc:
-                raise TrackDataError(f"not valid JSON ({exc})", column="header/meta", source=path) from None
-            if header.get("format") != FILE_FORMAT:
-                raise TrackDataError(f"unknown format {header.get('format')!r}", column="header", source=path)
-            if int(header.get("version", 0)) > FILE_VERSION:
-                raise TrackDataError(f"file version {header.get('version')} is newer than this iamp reads "
-                                     f"({FILE_VERSION})", column="header", source=path)
-            dt = float(header["dt"])
-            enc = header.get("encoding", {})
-            cols = {}
-            for name in _COLUMNS:
-                raw = npz[name]
-                kind = enc.get(name, "float64")
-                if kind == "delta":
-                    col = np.cumsum(raw.astype(np.int64))
-                elif kind == "delta-steps":
-                    col = np.cumsum(raw.astype(np.int64)) * dt
-                elif kind.startswith("delta-decimals-"):
-                    d = int(kind.rsplit("-", 1)[1])
-                    col = np.cumsum(raw.astype(np.int64)) / 10.0 ** d
-                elif kind in ("int", "float64"):
-                    col = raw
-                else:
-                    raise TrackDataError(f"unknown encoding {kind!r}", column=name, source=path)
-                cols[name] = col
-            if "rows" in header and cols["track_id"].size != int(header["rows"]):
-                raise TrackDataError(f"has {cols['track_id'].size} rows, header says {header['rows']}",
-                                     column="track_id", source=path)
-        return cls(cols["track_id"], cols["t"], cols["x"], cols["v"], cols["a"], cols["lane"], dt, meta)
+    def load(cls, path: str | os.PathLike[str]) -> Tracks:
+        """Read a table written by :meth:`save` (:func:`~iamp.prediction.tracks_io.load_tracks`)."""
+        from iamp.prediction.tracks_io import load_tracks
 
-
-def _write_npz(fh, arrays: dict[str, np.ndarray]) -> None:
-    """``np.savez_compressed`` with fixed zip timestamps, so equal tables give equal bytes."""
-    with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=9, allowZip64=True) as zf:
-        for name, arr in arrays.items():
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = 0o644 << 16
-            with zf.open(info, "w", force_zip64=True) as out:
-                np.lib.format.write_array(out, np.asanyarray(arr), allow_pickle=False)
-
-
-def _delta_int(values: np.ndarray) -> np.ndarray:
-    """First differences (first value kept) in the smallest integer dtype that holds them."""
-    d = np.diff(values.astype(np.int64), prepend=np.int64(0))
-    return _small_int(d)
-
-
-def _small_int(values: np.ndarray) -> np.ndarray:
-    values = np.asarray(values, dtype=np.int64)
-    if values.size == 0:
-        return values.astype(np.int8)
-    lo, hi = int(values.min()), int(values.max())
-    for dtype in (np.int8, np.int16, np.int32):
-        info = np.iinfo(dtype)
-        if info.min <= lo and hi <= info.max:
-            return values.astype(dtype)
-    return values
+        return load_tracks(path)
 
 
 def load_shipped_dataset() -> Tracks:
-    """The simulated highway dataset shipped inside the package (``prediction/data``).
+    """The simulated highway dataset shipped inside the package (see :mod:`~iamp.prediction.tracks_io`)."""
+    from iamp.prediction.tracks_io import load_shipped_dataset as _load
 
-    It is generated by ``scripts/sumo/generate_dataset.py`` with Eclipse SUMO; its provenance
-    (SUMO version, seed, configuration, checksum) is in ``sumo_highway.json`` beside it and in
-    the table's ``meta``.
-    """
-    ref = resources.files("iamp.prediction").joinpath("data", SHIPPED_DATASET)
-    if not ref.is_file():
-        raise TrackDataError("the shipped dataset is missing from the installed package",
-                             source=f"iamp.prediction/data/{SHIPPED_DATASET}")
-    with resources.as_file(ref) as path:
-        return Tracks.load(path)
+    return _load()

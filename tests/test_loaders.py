@@ -131,8 +131,10 @@ class TestNgsim:
         assert tb.meta["source_ids"] == [["i-80", 7, 200], ["us-101", 7, 100], ["us-101", 9, 100],
                                          ["us-101", 9, 120]]
         assert list(tb.ids()) == [0, 1, 2, 3]
-        assert tb.meta["duplicate_rows_dropped"] == 5
-        assert tb.meta["conflicting_rows_dropped"] == 1
+        rep = tb.meta["load_report"]
+        assert rep["dropped"]["exact duplicate row (same vehicle, frame and values)"] == 5
+        assert rep["dropped"]["conflicting row for the same vehicle and frame (the first in file order kept)"] == 1
+        assert rep["rows_read"] == rep["rows_kept"] + 6 == len(tb) + 6
         tr = tracks_of(tb)
 
         # us-101 vehicle 7: Local_Y is the front -> centre = Local_Y - v_length/2, feet -> metres

@@ -3,7 +3,6 @@ Prediction contract, refusal of bad histories, exactness of the integration, spe
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 import pytest
@@ -227,18 +226,6 @@ def test_batch_equals_single(predictor):
         p = predictor.predict(h, 5.0)
         assert np.allclose(raw[k], np.interp(q, p.t, p.x), atol=1e-9)
         assert np.allclose(cub[k], p.x_fit(q), atol=1e-8)
-
-
-def test_predict_is_cheap():
-    P = Predictor.default()
-    h = braking()
-    P.predict(h, 5.0)
-    n = 200
-    t0 = time.perf_counter()
-    for _ in range(n):
-        P.predict(h, 5.0)
-    per_call = (time.perf_counter() - t0) / n
-    assert per_call < 2e-3, per_call  # typically ~0.2 ms
 
 
 def test_from_file_and_default(tmp_path, synthetic_predictor):

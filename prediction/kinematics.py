@@ -1,0 +1,147 @@
+r"""Finite differences, fits and the exact integration of the predicted accelerations.
+
+Integration (:func:`integrate_nodes`), exact for an acceleration linear between node values
+``ā_k`` at ``t_k = kΔt`` (``s ∈ [0, Δt]``, ``δ_k = ā_{k+1} - ā_k``):
+
+.. math::
+
+    v(t_k + s) = v_k + ā_k s + δ_k \frac{s^2}{2Δt}, \qquad
+    x(t_k + s) = x_k + v_k s + ā_k \frac{s^2}{2} + δ_k \frac{s^3}{6Δt},
+
+with the speed clamped at 0: if ``v_{k+1}`` would be negative the vehicle stops after
+``v_k/|ā|`` with the interval's mean ``ā = (ā_k + ā_{k+1})/2``, moving ``v_k²/(2|ā|)``, and
+stays stopped for the interval.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from iamp.prediction._typing import FloatArray
+
+__all__ = ["cubic_fit", "history_grid", "integrate_nodes", "local_quadratic", "second_differences"]
+
+
+def history_grid(t: np.ndarray, x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Resample a history onto ``t_k = k·dt``, ``k = -K..0`` (linear interpolation)."""
+    t = np.asarray(t, dtype=float)
+    K = int(math.floor((t[-1] - t[0]) / dt + 1e-9))
+    tg = dt * np.arange(-K, 1)
+    tg[-1] = 0.0
+    return tg, np.interp(tg, t, np.asarray(x, dtype=float))
+
+
+def second_differences(x: np.ndarray, dt: float) -> np.ndarray:
+    """``(x_{k+1} - 2 x_k + x_{k-1}) / dt²`` along the last axis (length ``K - 2``)."""
+    x = np.asarray(x, dtype=float)
+    return (x[..., 2:] - 2.0 * x[..., 1:-1] + x[..., :-2]) / (dt * dt)
+
+
+def cubic_fit(t: np.ndarray, x: np.ndarray) -> tuple[tuple, float]:
+    """Least-squares cubic ``c0 + c1 t + c2 t² + c3 t³``; returns ``(c, rmse)``."""
+    t = np.asarray(t, dtype=float)
+    V = np.vander(t, 4, increasing=True)
+    c, *_ = np.linalg.lstsq(V, np.asarray(x, dtype=float), rcond=None)
+    rmse = float(np.sqrt(np.mean((V @ c - x) ** 2)))
+    return tuple(float(ci) for ci in c), rmse
+
+
+def local_quadratic(t: np.ndarray, X: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Speed and acceleration at ``t = 0`` from a least-squares quadratic.
+
+    Parameters
+    ----------
+    t : numpy.ndarray, shape (K,)
+        Sample times (increasing, ending at 0), shared by all rows.
+    X : numpy.ndarray, shape (K,) or (B, K)
+        Positions.
+    window_s : float
+        The fit uses the samples with ``t >= -window_s`` (at least the last three).
+
+    Returns
+    -------
+    v0, a0 : numpy.ndarray, shape (B,) (scalars for 1-D ``X``)
+        ``c_1`` and ``2 c_2`` of ``x ≈ c_0 + c_1 t + c_2 t²``.
+    """
+    t = np.asarray(t, dtype=float)
+    keep = max(int(np.count_nonzero(t >= -window_s - 1e-9)), 3)
+    if t.size < 3:
+        raise ValueError("needs at least 3 samples")
+    tt = t[-keep:]
+    V = np.vander(tt, 3, increasing=True)
+    G = np.linalg.pinv(V)  # (3, keep)
+    C = np.asarray(X, dtype=float)[..., -keep:] @ G.T
+    return C[..., 1], 2.0 * C[..., 2]
+
+
+def _foh_nodes(x0, v0, abar, dt):
+    """Node positions and speeds (B, M+1) under linear-between-nodes acceleration, v >= 0."""
+    B, M1 = abar.shape
+    M = M1 - 1
+    a0, a1 = abar[:, :-1], abar[:, 1:]
+    dv = dt * 0.5 * (a0 + a1)
+    vs = np.empty((B, M + 1))
+    vs[:, 0] = v0
+    np.cumsum(dv, axis=1, out=vs[:, 1:])
+    vs[:, 1:] += v0[:, None]
+    xs = np.empty((B, M + 1))
+    if np.all(vs >= 0.0):
+        xs[:, 0] = x0
+        np.cumsum(vs[:, :-1] * dt + dt * dt * (a0 / 3.0 + a1 / 6.0), axis=1, out=xs[:, 1:])
+        xs[:, 1:] += x0[:, None]
+        return xs, vs
+    xs[:, 0], vs[:, 0] = x0, v0
+    for k in range(M):
+        v, x = vs[:, k], xs[:, k]
+        v_new = v + dv[:, k]
+        x_new = x + v * dt + dt * dt * (a0[:, k] / 3.0 + a1[:, k] / 6.0)
+        stop = v_new < 0.0
+        if np.any(stop):
+            am = np.minimum(0.5 * (a0[:, k] + a1[:, k]), -1e-12)
+            x_new = np.where(stop, x + v * v / (2.0 * -am), x_new)
+            v_new = np.where(stop, 0.0, v_new)
+        xs[:, k + 1], vs[:, k + 1] = x_new, v_new
+    return xs, vs
+
+
+def integrate_nodes(x0, v0, abar: np.ndarray, dt: float, query) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and speeds at ``query`` for accelerations linear between node values.
+
+    Parameters
+    ----------
+    x0, v0 : array_like, shape (B,)
+        Position and speed at ``t = 0`` (``v0 < 0`` is taken as 0).
+    abar : numpy.ndarray, shape (B, M + 1)
+        Accelerations at ``t_k = k dt``, ``k = 0..M``.
+    dt : float
+    query : array_like, shape (Q,)
+        Times in ``[0, M dt]``.
+
+    Returns
+    -------
+    x, v : numpy.ndarray, shape (B, Q)
+        Exact (see the module docstring), with the speed clamped at 0.
+    """
+    abar = np.atleast_2d(np.asarray(abar, dtype=float))
+    B = abar.shape[0]
+    x0 = np.broadcast_to(np.asarray(x0, dtype=float), (B,)).copy()
+    v0 = np.maximum(np.broadcast_to(np.asarray(v0, dtype=float), (B,)), 0.0)
+    xs, vs = _foh_nodes(x0, v0, abar, dt)
+    M = abar.shape[1] - 1
+    q = np.asarray(query, dtype=float)
+    k = np.clip(np.floor(q / dt + 1e-9).astype(int), 0, M - 1)
+    s = (q - k * dt)[None, :]
+    ak, d = abar[:, k], (abar[:, k + 1] - abar[:, k])
+    xk, vk = xs[:, k], vs[:, k]
+    x = xk + vk * s + 0.5 * ak * s * s + d * s ** 3 / (6.0 * dt)
+    v = vk + ak * s + d * s * s / (2.0 * dt)
+    # inside an interval where the vehicle stops: hold the stopping point
+    stopped = vs[:, k + 1] == 0.0
+    if np.any(stopped):
+        x = np.where(stopped, np.minimum(x, xs[:, k + 1]), x)
+        x = np.where(stopped & (v < 0), xs[:, k + 1], x)
+        v = np.where(stopped, np.maximum(v, 0.0), v)
+    return x, np.maximum(v, 0.0)
