@@ -42,7 +42,8 @@ def add_parsers(sub) -> None:
                                    "they agree (cost, contact times, states, jumps vs multipliers, KKT "
                                    "residuals), with timing. Exit 0 when every run finished (verdicts printed), "
                                    "3 if a planner or solver failed, 2 for bad input.")
-    c.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario TOML files or built-in names")
+    c.add_argument("scenarios", nargs="+", metavar="SCENARIO",
+                   help="scenario TOML files, built-in names, or - (standard input)")
     c.add_argument("--steps", type=_positive_int, nargs="+", default=None, metavar="N",
                    help="QP grid intervals (several allowed; default 100 for one vehicle, 20 for more)")
     c.add_argument("--solvers", nargs="+", choices=("osqp", "clarabel"), default=["osqp", "clarabel"])
@@ -57,6 +58,9 @@ def add_parsers(sub) -> None:
     c.add_argument("--model", default=None, help="predictor model file for history scenarios")
     c.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     c.add_argument("--latex", default=None, metavar="FILE", help="write a booktabs table (atomically)")
+    from iamp.cli.progress import add_quiet_flag
+
+    add_quiet_flag(c)
     c.set_defaults(func=cmd_compare)
 
     b = sub.add_parser("bench", help="speed numbers against the project's targets",
@@ -89,29 +93,38 @@ def _steps_for(problem, args) -> list[int]:
 
 def run_compare(args) -> dict:
     """Everything ``iamp compare`` computes, as the JSON object (no printing)."""
+    from iamp.cli.progress import accepts_progress, progress_bar, progress_enabled
+    from iamp.cli.scenarios import load_cli_problem  # a file, a built-in, or - (standard input)
     from iamp.comparison.agreement import compare_problem, default_configs
     from iamp.comparison.timing import DEFAULT_SHIFT_S, geomean_table, qp_breakdown, solver_settings, versions
     from iamp.core.tolerances import TOLERANCES
-    from iamp.prediction.resolve import load_problem
 
     loaded = []
     for spec in args.scenarios:  # validate every input before any solve
-        scenario, problem, _ = load_problem(spec, args.model)
+        scenario, problem, _ = load_cli_problem(spec, args.model)
         loaded.append((scenario, problem, _steps_for(problem, args)))
     scenarios, medians = [], {}
-    for scenario, problem, steps in loaded:
-        configs = default_configs(steps=steps, solvers=tuple(args.solvers), holds=tuple(args.holds),
-                                  native=args.native)
-        comp = compare_problem(problem, configs, name=scenario.name, repeats=args.repeats, budget_s=args.budget)
-        if not args.no_breakdown:
-            comp.timing["breakdown"] = [
-                qp_breakdown(problem, N, h, s, repeats=max(5, 4 * args.repeats), native=True)
-                for N in steps for h in args.holds for s in args.solvers]
-        data = comp.to_json()
-        data["source"] = str(scenario.source) if getattr(scenario, "source", None) else None
-        scenarios.append(data)
-        medians[scenario.name] = {_summary_key(r, auto=args.steps is None): (r["time_s"] or {}).get("median")
-                                  for r in data["runs"]}
+    # progress: 1000 units per scenario, 800 for the planners (finer if compare_problem reports), 200 breakdown
+    with progress_bar(1000 * len(loaded), "compare", enabled=progress_enabled(args)) as tick:
+        for k, (scenario, problem, steps) in enumerate(loaded):
+            tick.describe(f"compare {scenario.name}")
+            configs = default_configs(steps=steps, solvers=tuple(args.solvers), holds=tuple(args.holds),
+                                      native=args.native)
+            sub = ({"progress": lambda d, n, k=k: tick(1000 * k + (800 * d) // max(n, 1), 1000 * len(loaded))}
+                   if accepts_progress(compare_problem) else {})
+            comp = compare_problem(problem, configs, name=scenario.name, repeats=args.repeats, budget_s=args.budget,
+                                   **sub)
+            tick(1000 * k + 800, 1000 * len(loaded))
+            if not args.no_breakdown:
+                comp.timing["breakdown"] = [
+                    qp_breakdown(problem, N, h, s, repeats=max(5, 4 * args.repeats), native=True)
+                    for N in steps for h in args.holds for s in args.solvers]
+            tick(1000 * (k + 1), 1000 * len(loaded))
+            data = comp.to_json()
+            data["source"] = str(scenario.source) if getattr(scenario, "source", None) else None
+            scenarios.append(data)
+            medians[scenario.name] = {_summary_key(r, auto=args.steps is None): (r["time_s"] or {}).get("median")
+                                      for r in data["runs"]}
     return {
         "scenarios": scenarios,
         "timing_summary": geomean_table(medians, DEFAULT_SHIFT_S),
