@@ -68,14 +68,16 @@ def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
 
 def cmd_train(args) -> int:
     """``iamp train``: fit an MTD model on recorded tracks and write it (atomically)."""
+    from iamp.cli.progress import call_with_progress, progress_enabled
     from iamp.prediction.loaders import load
     from iamp.prediction.predictor import train_from_tracks
 
     try:
         edges = parse_bins(args.bins, args.bin_width, args.a_max)
         tracks = load(args.data, args.format)
-        model = train_from_tracks(
-            tracks, dt=args.dt, edges=edges, order=args.order, estimator=args.estimator, v0_window_s=args.v0_window,
+        model = call_with_progress(
+            train_from_tracks, tracks, desc="train", enabled=progress_enabled(args), dt=args.dt, edges=edges,
+            order=args.order, estimator=args.estimator, v0_window_s=args.v0_window,
             provenance={"trained_by": "iamp train", "inputs": [str(p) for p in args.data], "format": args.format})
         model.save(args.out)
     except (IampError, ValueError, OSError) as exc:
@@ -157,10 +159,12 @@ def cmd_predict(args) -> int:
 
 def cmd_evaluate_predictor(args) -> int:
     """``iamp evaluate-predictor``: run the evaluation protocol and write the report."""
+    from iamp.cli.progress import call_with_progress, progress_enabled
     from iamp.prediction.evaluate import HORIZONS, write_evaluation_report
 
     try:
-        res = write_evaluation_report(args.out, rerun=args.rerun, select=not args.no_select)
+        res = call_with_progress(write_evaluation_report, args.out, desc="evaluate-predictor",
+                                 enabled=progress_enabled(args), rerun=args.rerun, select=not args.no_select)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
     cfg = res["chosen"]
@@ -179,6 +183,7 @@ def cmd_evaluate_predictor(args) -> int:
 
 def add_parsers(subparsers) -> None:
     """Add ``train``, ``predict`` and ``evaluate-predictor`` to ``iamp``'s sub-parsers."""
+    from iamp.cli.progress import add_quiet_flag
     from iamp.prediction.evaluate import DEFAULT_CONFIG
 
     t = subparsers.add_parser(
@@ -208,6 +213,7 @@ def add_parsers(subparsers) -> None:
                    help="mle: joint maximum likelihood of lambda and Q_i (EM, default); mle-lambda: Q_i from "
                         "lag-i counts, lambda by maximum likelihood; lp: Q_i from lag-i counts, lambda by the "
                         "Ching-Fung-Ng linear programme")
+    add_quiet_flag(t)
     t.set_defaults(func=cmd_train)
 
     p = subparsers.add_parser(
@@ -233,4 +239,5 @@ def add_parsers(subparsers) -> None:
                         "version for the shipped data (by default those are reused and only the tables rewritten)")
     e.add_argument("--no-select", action="store_true",
                    help="when running, skip the grid search and evaluate the default configuration only (fast)")
+    add_quiet_flag(e)
     e.set_defaults(func=cmd_evaluate_predictor)
