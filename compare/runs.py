@@ -29,8 +29,8 @@ __all__ = ["QPConfig", "Run", "default_configs", "run_pmp", "run_qp"]
 class QPConfig:
     """One QP configuration.
 
-    ``path`` is ``"cvxpy"`` (:class:`iamp.planners.qp.QPPlanner`) or ``"native"``
-    (:class:`iamp.planners.native.NativeQPPlanner`); ``settings`` override the solver's
+    ``path`` is ``"cvxpy"`` (the cross-check :class:`iamp.comparison.cvxpy_qp.CvxpyQPPlanner`)
+    or ``"native"`` (:class:`iamp.planners.qp.QPPlanner`); ``settings`` override the solver's
     settings (e.g. a deliberately loose OSQP) and should come with a ``tag``.
     """
 
@@ -58,14 +58,14 @@ class QPConfig:
         kw: dict[str, Any] = dict(steps=self.steps, hold=self.hold, solver=self.solver, contact=self.contact,
                                   solver_settings=self.settings)
         if self.path == "native":
-            from iamp.planners.native import NativeQPPlanner
+            from iamp.planners.qp import QPPlanner
 
-            return NativeQPPlanner(**kw)
+            return QPPlanner(**kw)
         if self.path != "cvxpy":
             raise ValueError(f"unknown path {self.path!r}; choose cvxpy or native")
-        from iamp.planners.qp import QPPlanner
+        from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
 
-        return QPPlanner(**kw)
+        return CvxpyQPPlanner(**kw)
 
 
 def default_configs(steps: tuple[int, ...] | list[int] = (100,), solvers: tuple[str, ...] = ("osqp", "clarabel"),
@@ -193,9 +193,10 @@ def run_qp(problem: Problem, config: QPConfig, repeats: int = 3, warmup: int = 1
 
 def _kkt_of_result(problem: Problem, config: QPConfig, qp: Any, result: Plan, run: Run) -> dict[str, Any] | None:
     """Re-solve the reported candidate on the planner's own QP object and recompute the KKT
-    residuals from the QP matrices (built by :class:`iamp.planners.native.QPData`, the same
-    rows as the cvxpy model) and the returned primal and dual vectors."""
-    from iamp.planners.native import QPData
+    residuals from the QP matrices (built by :class:`iamp.planners.qp_data.QPData`, the same
+    rows as the cvxpy model) and the returned primal and dual vectors (both paths return them
+    in that row order)."""
+    from iamp.planners.qp_data import QPData
 
     traj = result.trajectory
     t_nodes = np.asarray(traj.t_nodes)
@@ -204,27 +205,18 @@ def _kkt_of_result(problem: Problem, config: QPConfig, qp: Any, result: Plan, ru
         warnings.simplefilter("ignore")
         qp.set_grid(t_nodes)
         r = qp.solve_nodes(nodes)
-    if r["status"] != "optimal":
-        run.notes.append(f"re-solve for the KKT check returned {r['status']}")
+    if r.status != "optimal" or r.z is None or r.y is None:
+        run.notes.append(f"re-solve for the KKT check returned {r.status}")
         return None
     cost = float(result.cost) if result.cost is not None else float("nan")
-    if not abs(r["cost"] - cost) <= tol(f"cmp_cost_rel_{config.solver}") * max(1.0, abs(cost)):
+    if not abs(r.cost - cost) <= tol(f"cmp_cost_rel_{config.solver}") * max(1.0, abs(cost)):
         run.notes.append("re-solve for the KKT check changed the cost beyond the solver tolerance")
     data = QPData(problem, config.steps, config.hold)
     data.set_grid(t_nodes)
     data.selector_update(nodes)
-    if config.path == "native":
-        z, y = r["z"], r["y"]
-    else:
-        try:
-            y = data.dual_from_cvxpy(qp)
-        except (IndexError, TypeError, ValueError) as exc:  # the cvxpy model changed shape
-            run.notes.append(f"KKT check unavailable: {exc}")
-            return None
-        z = data.pack(r["trajectory"].X, r["trajectory"].U)
-    out = data.kkt_residuals(z, y)
+    out: dict[str, Any] = data.kkt_residuals(r.z, r.y).as_dict()
     out["source"] = "recomputed from the QP matrices and the returned (x, y)"
-    return {k: (float(v) if not isinstance(v, str) else v) for k, v in out.items()}
+    return out
 
 
 # --------------------------------------------------------------------------------------

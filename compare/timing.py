@@ -9,13 +9,15 @@ targets and the tests only check the statistics on known samples.
 
 What is timed, separately (:func:`qp_breakdown`, :func:`time_problem`):
 
-* **cvxpy compile** — building the :class:`~iamp.planners.qp.DiscretisedQP` and its first
-  solve (cvxpy canonicalises the DPP problem on the first ``solve``);
+* **cvxpy compile** — building the cross-check :class:`~iamp.comparison.cvxpy_qp.CvxpyQP`
+  and its first solve (cvxpy canonicalises the DPP problem on the first ``solve``);
 * **cvxpy re-solve** — a later ``solve_nodes`` (parameters changed, problem re-used), its
   total wall time, the solver's own reported time, and the **overhead**
   ``total − solver's own time`` (cvxpy's parameter update, data copy, result unpacking);
-* **native** — :mod:`iamp.planners.native`: the values updated in place, OSQP warm-started,
-  Clarabel re-used through its data update (no warm start);
+* **native** — :class:`iamp.planners.qp_core.DiscretisedQP` on a backend of
+  :mod:`iamp.planners.backends`: the values updated in place, OSQP warm-started, Clarabel
+  and PIQP re-used through their data updates (no warm start), ``kkt`` re-using its
+  factorisation;
 * **PMP plan** — :meth:`iamp.planners.pmp.PMPPlanner.plan` including its global
   contact-time search;
 * **full contact-time search** — a complete plan of each planner (QP: build + sweep of every
@@ -156,10 +158,10 @@ def versions() -> dict:
 
 
 def solver_settings() -> dict:
-    """The settings every QP solve uses (from :data:`iamp.planners.solvers.SOLVERS`)."""
-    from iamp.planners.solvers import SOLVERS
+    """The default settings of every QP backend (:data:`iamp.planners.backends.BACKENDS`)."""
+    from iamp.planners.backends import BACKENDS
 
-    return {name: dict(b.settings) for name, b in SOLVERS.items()}
+    return {name: cls.default_settings() for name, cls in BACKENDS.items()}
 
 
 # --------------------------------------------------------------------------------------
@@ -213,12 +215,12 @@ def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "cl
     """
     import warnings
 
-    from iamp.planners.qp import QPPlanner
+    from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
 
     nodes = sample_nodes(problem, steps, repeats + 1)
     out: dict = {"solver": solver, "hold": hold, "steps": int(steps)}
     t0 = time.perf_counter()
-    qp = QPPlanner(steps=steps, hold=hold, solver=solver).build(problem)
+    qp = CvxpyQPPlanner(steps=steps, hold=hold, solver=solver).build(problem)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         qp.solve_nodes(nodes[0])
@@ -228,18 +230,18 @@ def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "cl
         t0 = time.perf_counter()
         r = qp.solve_nodes(nd)
         totals.append(time.perf_counter() - t0)
-        own.append(r["solver_time_s"] if r["solver_time_s"] is not None else np.nan)
-        fails += r["status"] != "optimal"
+        own.append(r.solver_time_s if r.solver_time_s is not None else np.nan)
+        fails += r.status != "optimal"
     totals, own = np.array(totals), np.array(own)
     out["cvxpy_resolve_s"] = summarize(totals).to_dict()
     out["cvxpy_solver_s"] = summarize(own).to_dict()
     out["cvxpy_overhead_s"] = summarize(totals - own).to_dict()
     out["cvxpy_failed"] = int(fails)
     if native:
-        from iamp.planners.native import build_native
+        from iamp.planners.qp_core import DiscretisedQP
 
         t0 = time.perf_counter()
-        nq = build_native(problem, steps, hold, solver)
+        nq = DiscretisedQP(problem, steps, hold, solver)
         nq.solve_nodes(nodes[0])
         out["native_setup_s"] = time.perf_counter() - t0
         walls, own, calls, fails = [], [], [], 0
@@ -247,14 +249,14 @@ def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "cl
             t0 = time.perf_counter()
             r = nq.solve_nodes(nd)
             walls.append(time.perf_counter() - t0)
-            own.append(r["solver_time_s"])
-            calls.append(r["solve_call_s"])
-            fails += r["status"] != "optimal"
+            own.append(r.solver_time_s if r.solver_time_s is not None else np.nan)
+            calls.append(r.solve_call_s)
+            fails += r.status != "optimal"
         out["native_solve_s"] = summarize(walls).to_dict()
         out["native_solve_call_s"] = summarize(calls).to_dict()
         out["native_solver_s"] = summarize(own).to_dict()
         out["native_failed"] = int(fails)
-        out["native_info"] = dict(nq.info)
+        out["native_info"] = nq.backend.describe()
     return out
 
 

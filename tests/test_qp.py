@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from iamp.core.tolerances import tol
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
 from iamp.planners.pmp import PMPPlanner, ValueFunction
 from iamp.planners.qp import QPPlanner, aligned_grid
-from iamp.core.tolerances import tol
 
 PMP = PMPPlanner()
 CASES_1 = [paper_problem(1), paper_problem(2), paper_problem(3), random_problem(11, m=1, side=-1),
@@ -34,8 +34,9 @@ def test_fact1_foh_equals_pmp_at_grid_times_and_fact3_duals_equal_jumps(problem,
     rel = tol(f"foh_{solver}_cost_rel")
     assert qp.cost == pytest.approx(pmp.cost, rel=rel)
     tk = np.linspace(0, problem.tf, N + 1)
-    assert np.max(np.abs(qp.trajectory.states(tk) - pmp.trajectory.states(tk))) <= tol(f"foh_{solver}_state_abs") * max(1, pmp.cost)
-    assert np.max(np.abs(qp.trajectory.inputs(tk) - pmp.trajectory.inputs(tk))) <= tol(f"foh_{solver}_state_abs") * max(1, pmp.cost)
+    lim = tol(f"foh_{solver}_state_abs") * max(1, pmp.cost)
+    assert np.max(np.abs(qp.trajectory.states(tk) - pmp.trajectory.states(tk))) <= lim
+    assert np.max(np.abs(qp.trajectory.inputs(tk) - pmp.trajectory.inputs(tk))) <= lim
     scale = np.maximum(1.0, np.abs(pmp.jumps))
     assert np.all(np.abs(qp.jumps - pmp.jumps) <= tol(f"dual_{solver}_rel") * scale), (qp.jumps, pmp.jumps)
 
@@ -126,3 +127,110 @@ def test_aligned_grid_places_contact_times_on_nodes():
     assert len(t_nodes) == 51 and t_nodes[0] == 0 and t_nodes[-1] == 5.0
     assert t_nodes[idx[0]] == 3.3 and t_nodes[idx[1]] == 1.234
     assert np.all(np.diff(t_nodes) > 0)
+
+
+# --------------------------------------------------------------------------------------
+# a sweep certifies its best (issue 9.3): failed candidates that could beat it
+# --------------------------------------------------------------------------------------
+
+
+def _fail_on(qp, bad_nodes, make_failure):
+    """Make the candidates ``bad_nodes`` of the sweep fail as ``make_failure(data)`` says."""
+    d = qp.data
+    orig = qp.backend.solve
+
+    def solve():
+        return make_failure(d) if d.nodes in bad_nodes else orig()
+
+    qp.backend.solve = solve
+
+
+def _piqp_limited(d):
+    from iamp.planners.backends import get_backend
+
+    return get_backend("piqp")(d.P, d.q, d.A, d.b, d.b, {"max_iter": 1}).solve()
+
+
+def _clarabel_time_limit(d):
+    # Clarabel solves this equality QP at its initial point (0 iterations), so no real time or
+    # iteration limit makes it fail; the outcome is injected as Clarabel reports a MaxTime stop:
+    # status TIME_LIMIT with a non-converged iterate.
+    from dataclasses import replace
+
+    from iamp.planners.backends import get_backend
+
+    sol = get_backend("clarabel")(d.P, d.q, d.A, d.b, d.b).solve()
+    return replace(sol, status="time_limit_reached", raw_status="MaxTime", z=sol.z * 0.9, y=sol.y * 0.5)
+
+
+@pytest.mark.parametrize("solver, failure", [("clarabel", _clarabel_time_limit), ("piqp", _piqp_limited)])
+def test_failed_candidates_that_could_beat_the_best_make_the_sweep_not_optimal(solver, failure):
+    problem = paper_problem(1)
+    N = 40
+    tk = np.arange(1, N) * problem.tf / N
+    J = ValueFunction(problem)(tk[:, None])
+    k_best = int(np.argmin(J)) + 1
+    planner = QPPlanner(steps=N, hold="foh", solver=solver)
+    qp = planner.build(problem)
+    bad = {(k,) for k in range(k_best - 2, k_best + 3)}  # the true best and its neighbours
+    _fail_on(qp, bad, failure)
+    res = planner.plan(problem, qp=qp)
+    assert res.status != "optimal" and res.cost is None
+    assert res.info["failed_check"] == "sweep_candidates" and "could beat" in res.info["why"]
+    c = res.info["candidates"]
+    assert c["total"] == N - 1 and c["solved"] == N - 1 - len(bad)
+    assert sum(c["failed"].values()) + c["inaccurate"] == len(bad)
+    assert {tuple(x["nodes"]) for x in res.info["could_beat"]} <= bad
+    # the bound is the PMP cost at the failed node (exact for FOH)
+    lb = {tuple(x["nodes"]): x["lower_bound"] for x in res.info["could_beat"]}
+    assert lb[(k_best,)] == pytest.approx(J[k_best - 1], rel=1e-12)
+    out = res.to_json("x", N)
+    assert out["status"] != "optimal" and out["cost"] is None
+
+
+def test_failed_candidates_that_cannot_beat_the_best_leave_it_optimal():
+    problem = paper_problem(1)
+    N = 40
+    tk = np.arange(1, N) * problem.tf / N
+    J = ValueFunction(problem)(tk[:, None])
+    worst = {(int(k) + 1,) for k in np.argsort(J)[-5:]}  # the five most expensive nodes
+    planner = QPPlanner(steps=N, hold="foh", solver="clarabel")
+    qp = planner.build(problem)
+    _fail_on(qp, worst, _clarabel_time_limit)
+    res = planner.plan(problem, qp=qp)
+    assert res.status == "optimal"
+    assert res.cost == pytest.approx(J.min(), rel=tol("foh_clarabel_cost_rel"))
+    assert res.info["candidates"] == {"total": N - 1, "solved": N - 6, "failed": {"time_limit_reached": 5},
+                                      "inaccurate": 0}
+    assert res.info["checks"]["sweep_candidates"]["ok"] and res.info["failed_check"] is None
+
+
+def test_zoh_failures_are_bounded_by_the_pmp_cost():
+    """ZOH: the PMP cost at the same node is a lower bound (fact 2), so a failed node whose
+    bound lies above the best cannot beat it."""
+    problem = paper_problem(2)
+    N = 30
+    planner = QPPlanner(steps=N, hold="zoh", solver="kkt")
+    full = planner.plan(problem)
+    k_best = full.info["grid_best"]["contact_times"][0] * N / problem.tf
+    far = {(1,), (2,), (N - 1,)}
+    assert round(k_best) not in {1, 2, N - 1}
+    qp = planner.build(problem)
+    _fail_on(qp, far, _clarabel_time_limit)
+    res = planner.plan(problem, qp=qp)
+    assert res.status == "optimal" and res.cost == pytest.approx(full.cost, rel=1e-12)
+
+
+@pytest.mark.parametrize("solver", ["kkt", "piqp"])
+def test_new_backends_sweep_to_the_grid_restricted_pmp(solver):
+    problem = CASES_1[5]
+    N = 60
+    res = QPPlanner(steps=N, hold="foh", solver=solver).plan(problem)
+    tk = np.arange(1, N) * problem.tf / N
+    J = ValueFunction(problem)(tk[:, None])
+    assert res.status == "optimal"
+    assert res.cost == pytest.approx(J.min(), rel=1e-9)
+    assert res.contact_times[0] == pytest.approx(tk[np.argmin(J)], abs=1e-12)
+    swept = np.array([c for _, c in res.info["sweep"]])
+    assert np.allclose(swept, J, rtol=1e-9)
+    assert res.info["candidates"] == {"total": N - 1, "solved": N - 1, "failed": {}, "inaccurate": 0}

@@ -1,0 +1,286 @@
+r"""One interface for every QP backend: the general OSQP form with value updates.
+
+Every backend solves
+
+.. math::
+
+    \min_z\ \tfrac12 z^\top P z + q^\top z \quad\text{s.t.}\quad l \le A z \le u ,
+
+(an equality row has :math:`l_i = u_i`; an absent bound is :math:`\pm\infty`) with the
+Lagrangian :math:`L = \tfrac12 z^\top P z + q^\top z + y^\top A z` plus the support terms of
+the box, so its KKT conditions are
+
+.. math::
+
+    Pz + q + A^\top y = 0, \qquad l \le Az \le u, \qquad
+    y_i > 0 \Rightarrow (Az)_i = u_i, \quad y_i < 0 \Rightarrow (Az)_i = l_i .
+
+``P`` is given as its **upper triangle** (CSC), ``A`` as CSC.  Their sparsity patterns are
+fixed at construction; afterwards only values change (:meth:`QPBackend.update`), which is
+what lets a backend keep its symbolic factorisation (and, for the direct backend, the
+numeric one) across the candidates of a sweep.
+
+Residuals are recomputed from the data (:func:`kkt_residuals`; qpbenchmark's definitions),
+never taken from a solver's word:
+
+.. math::
+
+    r_p = \|Az - \Pi_{[l,u]}(Az)\|_\infty, \qquad
+    r_d = \|Pz + q + A^\top y\|_\infty, \qquad
+    r_g = \big|z^\top P z + q^\top z + \textstyle\sum_i (u_i y_i^+ - l_i y_i^-)\big| ,
+
+(:math:`y^\pm = \max(\pm y, 0)`; for an equality row the last sum is :math:`b^\top y`).  The
+relative versions divide by the largest magnitude among each expression's terms (at least
+1), like OSQP's relative criteria.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from importlib import metadata
+from typing import Any, ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from iamp.core.errors import IampError, MissingDependencyError
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+class UnsupportedProblemError(IampError, ValueError):
+    """A backend was given a problem it does not solve (e.g. inequalities to ``kkt``)."""
+
+
+@dataclass(frozen=True)
+class KKTResiduals:
+    """Absolute and relative KKT residuals (see the module docstring for the formulas)."""
+
+    primal: float
+    dual: float
+    gap: float
+    primal_rel: float
+    dual_rel: float
+    gap_rel: float
+
+    def as_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in asdict(self).items()}
+
+    def worst_rel(self) -> tuple[str, float]:
+        """The largest relative residual and its name (``"kkt_primal_rel"``, …)."""
+        items = (("kkt_primal_rel", self.primal_rel), ("kkt_dual_rel", self.dual_rel),
+                 ("kkt_gap_rel", self.gap_rel))
+        name, value = max(items, key=lambda kv: kv[1] if np.isfinite(kv[1]) else np.inf)
+        return name, float(value)
+
+
+def kkt_residuals(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
+                  z: FloatArray, y: FloatArray, *, symmetric: bool = False) -> KKTResiduals:
+    """KKT residuals of ``(z, y)`` for ``min ½zᵀPz + qᵀz`` s.t. ``l ≤ Az ≤ u``.
+
+    ``P`` holds the upper triangle only (the symmetric matrix ``P + triu(P, 1)ᵀ`` is used)
+    unless ``symmetric=True`` says it is already the whole matrix.  A multiplier pushing
+    against an infinite bound makes the gap infinite.
+    """
+    z, y = np.asarray(z, dtype=float), np.asarray(y, dtype=float)
+    if symmetric:
+        Pz = P @ z
+    else:
+        Pu = sp.csc_matrix(P)
+        Pz = Pu @ z + sp.triu(Pu, 1).T @ z
+    Az, Aty = A @ z, A.T @ y
+    rp = float(np.max(np.abs(Az - np.clip(Az, l, u)), initial=0.0))
+    rd = float(np.max(np.abs(Pz + q + Aty), initial=0.0))
+    yp, ym = np.maximum(y, 0.0), np.maximum(-y, 0.0)
+    with np.errstate(invalid="ignore"):
+        up = np.where(yp > 0, u * yp, 0.0)
+        lo = np.where(ym > 0, l * ym, 0.0)
+    support = float(np.sum(up) - np.sum(lo))
+    zPz, qz = float(z @ Pz), float(q @ z)
+    rg = abs(zPz + qz + support) if np.isfinite(support) else np.inf
+    bound = np.where(np.isfinite(u), np.abs(u), 0.0) + 0.0
+    bound = np.maximum(bound, np.where(np.isfinite(l), np.abs(l), 0.0))
+    sp_ = max(1.0, float(np.max(np.abs(Az), initial=0.0)), float(np.max(bound, initial=0.0)))
+    sd = max(1.0, float(np.max(np.abs(Pz), initial=0.0)), float(np.max(np.abs(q), initial=0.0)),
+             float(np.max(np.abs(Aty), initial=0.0)))
+    sg = max(1.0, abs(zPz), abs(qz), abs(support) if np.isfinite(support) else 1.0)
+    return KKTResiduals(rp, rd, rg, rp / sp_, rd / sd, rg / sg)
+
+
+@dataclass(frozen=True)
+class QPSolution:
+    """What one :meth:`QPBackend.solve` returns.
+
+    Attributes
+    ----------
+    z, y : ndarray
+        Primal vector and multipliers of the rows of ``A`` (the sign convention of the
+        module docstring; for an equality row ``a_iᵀz = b_i``, ``y_i`` is the multiplier of
+        ``a_iᵀz − b_i`` in ``L = ½zᵀPz + qᵀz + yᵀ(Az − b)``).
+    status : str
+        In the :mod:`iamp.core.status` vocabulary, as mapped from the solver's own status
+        (not yet verified: see :meth:`kkt_residuals`).
+    raw_status : str
+        The solver's own status word.
+    iterations : int
+    solver_time_s : float or None
+        The solver's own reported time.
+    solve_call_s : float
+        Wall time of the ``solve`` call, measured here.
+    polished : bool or None
+        OSQP only: whether solution polishing succeeded.
+    """
+
+    z: FloatArray
+    y: FloatArray
+    status: str
+    raw_status: str
+    iterations: int
+    solver_time_s: float | None
+    solve_call_s: float
+    polished: bool | None = None
+
+    def kkt_residuals(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray,
+                      u: FloatArray) -> KKTResiduals:
+        """Recompute the KKT residuals of ``(z, y)`` from the data (:func:`kkt_residuals`)."""
+        return kkt_residuals(P, q, A, l, u, self.z, self.y)
+
+    @property
+    def finite(self) -> bool:
+        return bool(np.isfinite(self.z).all() and np.isfinite(self.y).all())
+
+
+def dist_version(name: str) -> str | None:
+    """Installed version of the distribution ``name`` (``None`` if absent)."""
+    try:
+        return metadata.version(name)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+class QPBackend(abc.ABC):
+    """A QP solver behind one signature (module docstring for the problem form).
+
+    Parameters
+    ----------
+    P : scipy.sparse matrix
+        Upper triangle of the cost Hessian (CSC); its pattern is fixed from here on.
+    q, l, u : ndarray
+    A : scipy.sparse matrix
+        Constraint matrix (CSC); its pattern (explicit zeros included) is fixed.
+    settings : mapping, optional
+        Overrides of :meth:`default_settings`.
+
+    Use ``backend.update(Ax=values, Ax_idx=positions, l=…, u=…)`` to change values on the
+    fixed pattern, ``backend.warm_start(z, y)`` (ignored by interior-point and direct
+    solvers) and ``backend.solve() -> QPSolution``.  :meth:`residuals` recomputes the KKT
+    residuals of a solution on the backend's current data.
+    """
+
+    name: ClassVar[str] = ""
+    distribution: ClassVar[str] = ""
+    #: Does the backend accept rows with ``l_i < u_i``?
+    supports_inequalities: ClassVar[bool] = True
+    #: Does :meth:`warm_start` do anything?
+    warm_starts: ClassVar[bool] = False
+    #: Name of the relative KKT tolerance in :data:`iamp.core.tolerances.TOLERANCES`.
+    tolerance_key: ClassVar[str] = "cmp_kkt_rel_clarabel"
+
+    def __init__(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
+                 settings: Mapping[str, Any] | None = None) -> None:
+        self.require()
+        self.P = sp.csc_matrix(P, dtype=float, copy=True)
+        self.A = sp.csc_matrix(A, dtype=float, copy=True)
+        self.P.sort_indices()
+        self.A.sort_indices()
+        self.q = np.array(q, dtype=float)
+        self.l = np.array(l, dtype=float)
+        self.u = np.array(u, dtype=float)
+        if self.A.shape != (self.l.size, self.q.size) or self.u.shape != self.l.shape:
+            raise ValueError("A must be (len(l), len(q)) and l, u of the same length")
+        self.settings: dict[str, Any] = {**self.default_settings(), **dict(settings or {})}
+        self._check_form()
+        self._setup()
+
+    # --- to implement ------------------------------------------------------------------
+    @classmethod
+    def default_settings(cls) -> dict[str, Any]:
+        return {}
+
+    @abc.abstractmethod
+    def _setup(self) -> None:
+        """Build the solver from ``self.P, q, A, l, u`` and ``self.settings``."""
+
+    @abc.abstractmethod
+    def _push(self, P: bool, A: bool, A_idx: IntArray | None, q: bool, bounds: bool) -> None:
+        """Send the changed data (already stored on ``self``) to the solver."""
+
+    @abc.abstractmethod
+    def solve(self) -> QPSolution:
+        """Solve with the current data."""
+
+    # --- shared --------------------------------------------------------------------------
+    @classmethod
+    def version(cls) -> str | None:
+        return dist_version(cls.distribution) if cls.distribution else None
+
+    @classmethod
+    def require(cls) -> None:
+        """Raise :class:`MissingDependencyError` (with the pip command) if not installed."""
+        if cls.distribution and cls.version() is None:
+            raise MissingDependencyError(
+                f"QP backend {cls.name!r} needs the package {cls.distribution!r}: pip install {cls.distribution}")
+
+    def _check_form(self) -> None:
+        if not self.supports_inequalities and not np.array_equal(self.l, self.u):
+            bad = int(np.flatnonzero(self.l != self.u)[0])
+            raise UnsupportedProblemError(
+                f"QP backend {self.name!r} solves equality-constrained QPs only (l == u), but row {bad} has "
+                f"l = {self.l[bad]:g} < u = {self.u[bad]:g}; use osqp, clarabel or piqp for inequalities")
+
+    def update(self, *, Px: FloatArray | None = None, Ax: FloatArray | None = None,
+               Ax_idx: IntArray | None = None, q: FloatArray | None = None, l: FloatArray | None = None,
+               u: FloatArray | None = None) -> None:
+        """Change values on the fixed patterns.
+
+        ``Px``: the whole ``P.data`` (upper triangle, CSC order).  ``Ax``: the whole
+        ``A.data``, or, with ``Ax_idx``, the values at those positions of ``A.data``.
+        ``q, l, u``: whole vectors.
+        """
+        if Px is not None:
+            if Px.shape != self.P.data.shape:
+                raise ValueError("Px must have one value per stored entry of P")
+            self.P.data[:] = Px
+        idx = None
+        if Ax is not None:
+            if Ax_idx is None:
+                if Ax.shape != self.A.data.shape:
+                    raise ValueError("Ax must have one value per stored entry of A (or give Ax_idx)")
+                self.A.data[:] = Ax
+            else:
+                idx = np.asarray(Ax_idx, dtype=np.int64)
+                self.A.data[idx] = Ax
+        if q is not None:
+            self.q[:] = q
+        if l is not None:
+            self.l[:] = l
+        if u is not None:
+            self.u[:] = u
+        if l is not None or u is not None:
+            self._check_form()
+        self._push(Px is not None, Ax is not None, idx, q is not None, l is not None or u is not None)
+
+    def warm_start(self, z: FloatArray, y: FloatArray) -> None:  # noqa: B027 - optional hook
+        """Start the next solve from ``(z, y)`` (no-op unless :attr:`warm_starts`)."""
+
+    def residuals(self, sol: QPSolution) -> KKTResiduals:
+        """KKT residuals of ``sol`` on the backend's current data."""
+        return sol.kkt_residuals(self.P, self.q, self.A, self.l, self.u)
+
+    def describe(self) -> dict[str, Any]:
+        """Name, version and settings (for reports)."""
+        return {"name": self.name, "version": self.version(), "settings": dict(self.settings)}

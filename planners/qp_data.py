@@ -1,0 +1,295 @@
+r"""The matrices of the discretised QP of SPEC §3, built once per problem.
+
+Per axis the variables are the nodal positions ``s_0..s_N``, speeds ``v_0..v_N`` and inputs
+(``u_0..u_{N-1}`` for ZOH, ``u_0..u_N`` for FOH); ``z = (s_x, v_x, u_x, s_y, v_y, u_y)``.
+The QP is
+
+.. math::
+
+    \min_z\ \tfrac12 z^\top P z + q^\top z \quad\text{s.t.}\quad A z = b
+    \qquad (l = u = b \text{ in the backends' form } l \le Az \le u),
+
+with ``q = 0`` and ``½ zᵀPz = J`` exactly (no scaling):
+
+* FOH: :math:`J = \sum_k \tfrac{h_k}{6}(u_k^2 + u_k u_{k+1} + u_{k+1}^2)`, so
+  :math:`P_{kk} \mathrel{+}= h_k/3,\ P_{k+1,k+1} \mathrel{+}= h_k/3,\ P_{k,k+1} = h_k/6`;
+* ZOH: :math:`J = \tfrac12\sum_k h_k u_k^2`, so :math:`P_{kk} = h_k`.
+
+The rows of ``A z = b`` are, per axis, the exact discretisation of the double integrator
+
+.. math::
+
+    s_{k+1} - s_k - h_k v_k - \alpha_k u_k - \beta_k u_{k+1} = 0, \qquad
+    v_{k+1} - v_k - \gamma_k u_k - \delta_k u_{k+1} = 0,
+
+(FOH: :math:`\alpha = h^2/3,\ \beta = h^2/6,\ \gamma = \delta = h/2`; ZOH:
+:math:`\alpha = h^2/2,\ \gamma = h`, no :math:`u_{k+1}` term), the four boundary rows
+:math:`s_0 = s(0),\ v_0 = v(0),\ s_N = s(t_f),\ v_N = v(t_f)`, and, per vehicle ``i``, two
+*selector rows* :math:`\sum_{j=1}^{N-1} w_{ij} s_{x,j} = \text{corner}_{x,i}`,
+:math:`\sum_j w_{ij} s_{y,j} = \text{corner}_{y,i}` whose pattern holds every interior node
+(explicit zeros): moving the contact to node ``k`` (:math:`w_{ij} = [j = k]`) is a *value*
+update of ``A`` on an unchanged pattern, plus the corner values in ``b``.  A non-uniform
+(aligned) grid is likewise a value update of ``P`` and ``A``.
+
+Multipliers: with :math:`L = \tfrac12 z^\top Pz + y^\top(Az - b)` the selector rows read
+:math:`s(t_i) - \text{corner}_i`, so their multipliers are :math:`\nu_i` in the SPEC §3.3
+convention, equal to the PMP jumps :math:`\Phi_i` (FOH).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from iamp.core.problem import Problem
+from iamp.planners.backends.base import FloatArray, IntArray, KKTResiduals
+from iamp.planners.hold import HOLDS
+
+
+class QPData:
+    r"""The data ``P, q, A, b`` of the discretised QP with a fixed sparsity pattern.
+
+    Parameters
+    ----------
+    problem : Problem
+    steps : int
+        Number of intervals ``N`` (at least ``m + 1``).
+    hold : {"foh", "zoh"}
+
+    Attributes
+    ----------
+    P : scipy.sparse.csc_matrix
+        Upper triangle of the cost Hessian, ``½ zᵀPz = J``.
+    q : ndarray
+        Zero.
+    A : scipy.sparse.csc_matrix
+        Equality-constraint matrix (dynamics, boundary, selector rows).
+    b : ndarray
+        Right-hand side.
+    n, n_rows : int
+        Number of variables and of rows.
+    row_collision : int
+        First selector row (vehicle ``i``'s rows are ``row_collision + 2i + {0, 1}``).
+    """
+
+    def __init__(self, problem: Problem, steps: int, hold: str = "foh") -> None:
+        if hold not in HOLDS:
+            raise ValueError(f"unknown hold {hold!r}; choose from {', '.join(HOLDS)}")
+        if int(steps) != steps or steps < problem.m + 1:
+            raise ValueError(f"steps must be an integer >= {problem.m + 1} (got {steps})")
+        self.problem, self.N, self.hold = problem, int(steps), hold
+        N, m = self.N, problem.m
+        self.nu = N if hold == "zoh" else N + 1
+        self.block = 2 * (N + 1) + self.nu  # variables per axis
+        self.n = 2 * self.block
+        self.n_dyn = 2 * N + 4  # rows per axis
+        self.row_collision = 2 * self.n_dyn
+        self.n_rows = self.row_collision + 2 * m
+        self._build_pattern()
+        self.q = np.zeros(self.n)
+        self.nodes: tuple[int, ...] | None = None
+        self.t_nodes = np.linspace(0.0, problem.tf, N + 1)
+        self.h = np.diff(self.t_nodes)
+        self.b = np.zeros(self.n_rows)
+        ego = problem.ego
+        for ax, (s0, v0, sf, vf) in enumerate([(ego.x0, ego.vx0, ego.xf, ego.vxf),
+                                               (ego.y0, ego.vy0, ego.yf, ego.vyf)]):
+            r = ax * self.n_dyn + 2 * N
+            self.b[r:r + 4] = (s0, v0, sf, vf)
+        self.set_grid(self.t_nodes)
+
+    # --- indices ---------------------------------------------------------------------
+    def idx_s(self, ax: int, k: IntArray | int) -> IntArray:
+        return np.asarray(ax * self.block + np.asarray(k), dtype=np.int64)
+
+    def idx_v(self, ax: int, k: IntArray | int) -> IntArray:
+        return np.asarray(ax * self.block + self.N + 1 + np.asarray(k), dtype=np.int64)
+
+    def idx_u(self, ax: int, k: IntArray | int) -> IntArray:
+        return np.asarray(ax * self.block + 2 * (self.N + 1) + np.asarray(k), dtype=np.int64)
+
+    def _build_pattern(self) -> None:
+        """COO triplets with symbolic value tags, then the CSC data permutation."""
+        N, m, foh = self.N, self.problem.m, self.hold == "foh"
+        k = np.arange(N)
+        rows: list[IntArray] = []
+        cols: list[IntArray] = []
+        tags: list[IntArray] = []  # which value formula (see set_grid)
+
+        def add(r: IntArray | int | list[int], c: IntArray | list[IntArray], tag: int) -> None:
+            rr, cc = np.broadcast_arrays(np.asarray(r), np.asarray(c))
+            rows.append(rr.ravel().astype(np.int64))
+            cols.append(cc.ravel().astype(np.int64))
+            tags.append(np.full(rr.size, tag, dtype=np.int64))
+
+        for ax in range(2):
+            r0 = ax * self.n_dyn
+            rp, rv = r0 + k, r0 + N + k  # position rows, speed rows
+            add(rp, self.idx_s(ax, k + 1), 0)  # +1
+            add(rp, self.idx_s(ax, k), 1)  # -1
+            add(rp, self.idx_v(ax, k), 2)  # -h
+            add(rp, self.idx_u(ax, k), 3)  # -alpha
+            if foh:
+                add(rp, self.idx_u(ax, k + 1), 4)  # -beta
+            add(rv, self.idx_v(ax, k + 1), 0)
+            add(rv, self.idx_v(ax, k), 1)
+            add(rv, self.idx_u(ax, k), 5)  # -gamma
+            if foh:
+                add(rv, self.idx_u(ax, k + 1), 6)  # -delta
+            rb = r0 + 2 * N
+            add(np.array([rb, rb + 1, rb + 2, rb + 3]),
+                np.array([self.idx_s(ax, 0), self.idx_v(ax, 0), self.idx_s(ax, N), self.idx_v(ax, N)]), 0)
+        interior = np.arange(1, N)
+        for i in range(m):
+            for ax in range(2):
+                add(self.row_collision + 2 * i + ax, self.idx_s(ax, interior), 7)  # selector
+        R, C, T = np.concatenate(rows), np.concatenate(cols), np.concatenate(tags)
+        self._coo_tags = T
+        local = R % self.n_dyn
+        coo_k = np.where(R < self.row_collision, np.where(local < N, local, local - N), 0)
+        self._coo_k = np.minimum(coo_k, N - 1)
+        ids = sp.coo_matrix((np.arange(1, R.size + 1, dtype=float), (R, C)), shape=(self.n_rows, self.n)).tocsc()
+        if ids.nnz != R.size:  # pragma: no cover - a modelling bug
+            raise RuntimeError("duplicate entries in the QP pattern")
+        self._perm = ids.data.astype(np.int64) - 1  # CSC position -> COO entry
+        self.A = sp.csc_matrix((np.zeros(R.size), ids.indices.copy(), ids.indptr.copy()),
+                               shape=(self.n_rows, self.n))
+        inv = np.empty_like(self._perm)
+        inv[self._perm] = np.arange(self._perm.size)
+        sel = np.flatnonzero(T == 7)
+        self._sel_pos = inv[sel].reshape(m, 2, N - 1)  # [vehicle, axis, interior node - 1]
+        pr: list[IntArray] = []
+        pc: list[IntArray] = []
+        for ax in range(2):
+            uu = self.idx_u(ax, np.arange(self.nu))
+            pr.append(uu)
+            pc.append(uu)
+            if foh:
+                pr.append(uu[:-1])
+                pc.append(uu[1:])
+        PR, PC = np.concatenate(pr), np.concatenate(pc)
+        pids = sp.coo_matrix((np.arange(1, PR.size + 1, dtype=float), (PR, PC)), shape=(self.n, self.n)).tocsc()
+        self._p_perm = pids.data.astype(np.int64) - 1
+        self.P = sp.csc_matrix((np.zeros(PR.size), pids.indices.copy(), pids.indptr.copy()), shape=(self.n, self.n))
+        self._AT = self.A.T  # a CSR view sharing A.data (values are updated in place)
+
+    # --- values ----------------------------------------------------------------------
+    def set_grid(self, t_nodes: Sequence[float] | FloatArray) -> None:
+        """Fill the ``h``-dependent values of ``P`` and ``A`` for the grid ``t_nodes``
+        (pattern unchanged); any contact selection is cleared."""
+        t = np.asarray(t_nodes, dtype=float)
+        if t.shape != (self.N + 1,) or np.any(np.diff(t) <= 0):
+            raise ValueError("t_nodes must be N + 1 strictly increasing times")
+        h = np.diff(t)
+        self.t_nodes, self.h = t.copy(), h
+        foh = self.hold == "foh"
+        hk = h[self._coo_k]
+        table = {
+            0: np.ones_like(hk), 1: -np.ones_like(hk), 2: -hk,
+            3: -(hk**2 / 3 if foh else hk**2 / 2), 4: -hk**2 / 6,
+            5: -(hk / 2 if foh else hk), 6: -hk / 2, 7: np.zeros_like(hk),
+        }
+        vals = np.zeros(self._coo_tags.size)
+        for tag, v in table.items():
+            mask = self._coo_tags == tag
+            vals[mask] = v[mask]
+        self.A.data[:] = vals[self._perm]
+        pv = np.zeros(self._p_perm.size)
+        nu = self.nu
+        for ax in range(2):
+            base = ax * (nu + (self.N if foh else 0))
+            if foh:
+                d = np.zeros(nu)
+                d[:-1] += h / 3
+                d[1:] += h / 3
+                pv[base:base + nu] = d
+                pv[base + nu:base + nu + self.N] = h / 6
+            else:
+                pv[base:base + nu] = h
+        self.P.data[:] = pv[self._p_perm]
+        self._P_full: sp.csr_matrix | None = None  # P + triu(P, 1)ᵀ, built on demand
+        self.nodes = None
+        self.b[self.row_collision:] = 0.0
+
+    def check_nodes(self, nodes: Sequence[int]) -> tuple[int, ...]:
+        out = tuple(int(k) for k in nodes)
+        if len(out) != self.problem.m or any(not 0 < k < self.N for k in out):
+            raise ValueError(f"need {self.problem.m} interior node(s) in 1..{self.N - 1}, got {out}")
+        return out
+
+    def selector_update(self, nodes: Sequence[int]) -> tuple[IntArray, FloatArray]:
+        """Put vehicle ``i``'s contact at interior node ``nodes[i]``.
+
+        Returns ``(positions, values)`` of the entries of ``A.data`` that changed (the old
+        ones set to 0, the new ones to 1), and writes the corner values into ``b``.
+        """
+        nd = self.check_nodes(nodes)
+        pos: list[IntArray] = []
+        vals: list[FloatArray] = []
+        old = self.nodes
+        for i, k in enumerate(nd):
+            if old is not None and old[i] == k:
+                continue
+            if old is not None:
+                pos.append(self._sel_pos[i, :, old[i] - 1])
+                vals.append(np.zeros(2))
+            pos.append(self._sel_pos[i, :, k - 1])
+            vals.append(np.ones(2))
+        for i, k in enumerate(nd):
+            veh = self.problem.vehicles[i]
+            self.b[self.row_collision + 2 * i] = float(veh.corner_x(self.t_nodes[k]))
+            self.b[self.row_collision + 2 * i + 1] = float(veh.corner_y)
+        self.nodes = nd
+        if not pos:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        p, v = np.concatenate(pos), np.concatenate(vals)
+        self.A.data[p] = v
+        return p, v
+
+    # --- solution <-> arrays -----------------------------------------------------------
+    def unpack(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Primal vector → nodal states ``(N+1, 4)`` ``(s_x, v_x, s_y, v_y)`` and inputs."""
+        z = np.asarray(z, dtype=float)
+        k, ku = np.arange(self.N + 1), np.arange(self.nu)
+        X = np.stack([z[self.idx_s(0, k)], z[self.idx_v(0, k)], z[self.idx_s(1, k)], z[self.idx_v(1, k)]], axis=1)
+        U = np.stack([z[self.idx_u(0, ku)], z[self.idx_u(1, ku)]], axis=1)
+        return X, U
+
+    def pack(self, X: FloatArray, U: FloatArray) -> FloatArray:
+        """Inverse of :meth:`unpack`."""
+        z = np.empty(self.n)
+        k, ku = np.arange(self.N + 1), np.arange(self.nu)
+        for ax in range(2):
+            z[self.idx_s(ax, k)] = X[:, 2 * ax]
+            z[self.idx_v(ax, k)] = X[:, 2 * ax + 1]
+            z[self.idx_u(ax, ku)] = U[:, ax]
+        return z
+
+    def collision_multipliers(self, y: FloatArray) -> FloatArray:
+        """``ν`` of shape ``(m, 2)`` from the dual vector."""
+        return np.asarray(y, dtype=float)[self.row_collision:].reshape(self.problem.m, 2).copy()
+
+    def kkt_residuals(self, z: FloatArray, y: FloatArray) -> KKTResiduals:
+        """KKT residuals of ``(z, y)`` on the current data (``l = u = b``)."""
+        if self._P_full is None:
+            self._P_full = sp.csr_matrix(self.P + sp.triu(self.P, 1).T)
+        return equality_residuals(self._P_full, self.A, self._AT, self.b, np.asarray(z, dtype=float),
+                                  np.asarray(y, dtype=float))
+
+
+def equality_residuals(P_full: sp.csr_matrix, A: sp.csc_matrix, AT: sp.csr_matrix, b: FloatArray, z: FloatArray,
+                       y: FloatArray) -> KKTResiduals:
+    """:func:`iamp.planners.backends.base.kkt_residuals` for ``q = 0``, ``l = u = b`` and a
+    symmetric ``P_full`` (the same formulas, without the general-form bookkeeping; the
+    sweep verifies every candidate with it)."""
+    Pz, Az, Aty = P_full @ z, A @ z, AT @ y
+    rp = float(np.max(np.abs(Az - b)))
+    rd = float(np.max(np.abs(Pz + Aty)))
+    zPz, by = float(z @ Pz), float(b @ y)
+    rg = abs(zPz + by)
+    sp_ = max(1.0, float(np.max(np.abs(Az))), float(np.max(np.abs(b))))
+    sd = max(1.0, float(np.max(np.abs(Pz))), float(np.max(np.abs(Aty))))
+    sg = max(1.0, abs(zPz), abs(by))
+    return KKTResiduals(rp, rd, rg, rp / sp_, rd / sd, rg / sg)
