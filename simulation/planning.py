@@ -123,7 +123,7 @@ def make_planner(name: str) -> PlanFn:
             qp: Any = QPPlanner(steps=QP_STEPS, hold="foh", solver="kkt", contact="grid")
         except ValueError:  # pragma: no cover - older planner without the kkt backend
             qp = QPPlanner(steps=QP_STEPS, hold="foh", solver="osqp", contact="grid")
-        return lambda problem: qp.plan(problem)  # type: ignore[no-any-return]
+        return lambda problem: qp.plan(problem)
     if name == "qp-avoid":
         try:
             from iamp.planners.avoid import AvoidQPPlanner  # type: ignore[import-not-found,unused-ignore]
@@ -131,5 +131,5 @@ def make_planner(name: str) -> PlanFn:
             raise PlannerUnavailable(f"planner 'qp-avoid' is unavailable: iamp.planners.avoid is not installed "
                                      f"({exc})") from None
         avoid: Any = AvoidQPPlanner(steps=QP_STEPS, hold="foh", solver="osqp")
-        return lambda problem: avoid.plan(problem)  # type: ignore[no-any-return]
+        return lambda problem: avoid.plan(problem)
     raise IampError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}")

@@ -1,0 +1,137 @@
+"""``iamp simulate`` (one closed-loop episode in SUMO) and ``iamp campaign`` (many, on Dask).
+
+Both need the optional extra ``pip install 'iamp[sim]'``; without it they exit with status 2
+and one line saying so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from iamp.cli.types import EXIT_OK, positive_float, positive_int
+
+TRAFFIC = ("light", "medium", "dense")
+PLANNERS = ("pmp", "qp", "qp-avoid", "sumo")
+
+
+def _csv_choice(choices: tuple[str, ...]):  # type: ignore[no-untyped-def]
+    def parse(text: str) -> list[str]:
+        items = [s.strip() for s in text.split(",") if s.strip()]
+        bad = [s for s in items if s not in choices]
+        if bad or not items:
+            raise argparse.ArgumentTypeError(f"expected a comma-separated list of {', '.join(choices)} "
+                                             f"(got {text!r})")
+        return items
+
+    return parse
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from iamp.simulation.episode import EpisodeSpec, run_episode, write_log
+
+    spec = EpisodeSpec(traffic=args.traffic, seed=args.seed, planner=args.planner, duration_s=args.duration,
+                       period_s=args.period, deadline_s=None if args.no_deadline else args.period)
+    if args.planner == "qp-avoid":
+        from iamp.simulation.planning import make_planner
+
+        make_planner("qp-avoid")  # refuses with one line before SUMO starts if unavailable
+    result = run_episode(spec)
+    if args.log:
+        write_log(result, args.log)
+    if args.figure:
+        from iamp.simulation.figures import episode_figure
+
+        episode_figure(result, args.figure)
+    s = result.summary
+    if args.json:
+        print(json.dumps(s, allow_nan=False))
+        return EXIT_OK
+    pt = s["plan_time_s"]
+    print(f"episode   {s['planner']}, {s['traffic']} traffic, seed {s['seed']}, {s['duration_s']:g} s at "
+          f"{s['period_s']:g} s")
+    done = s["lane_change_done_s"]
+    print(f"lane      {s['lane_changes']} lane changes; first done at "
+          f"{'never' if done is None else f'{done:.1f} s'}")
+    print(f"safety    {s['collisions']} collisions (SUMO {s['sumo_collisions']}, body overlap "
+          f"{s['overlap_collisions']}); intrusion {s['intrusion_s']:.1f} s; min gap {s['min_gap_m']} m; "
+          f"min TTC {s['min_ttc_s']} s")
+    print(f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
+          f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³")
+    if s["plans"]:
+        print(f"plans     {s['plans']} (failed {s['failed_plans']}, late {s['late_plans']}, fallbacks "
+              f"{s['fallbacks']}, aborts {s['aborts']}); time p50 {pt['p50'] * 1e3:.2f} ms, p95 "
+              f"{pt['p95'] * 1e3:.2f} ms, max {pt['max'] * 1e3:.2f} ms")
+    w = s["wall_s"]
+    print(f"wall      {w['total']:.1f} s (SUMO {w['sumo']:.1f}, prediction {w['prediction']:.1f}, "
+          f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
+    return EXIT_OK
+
+
+def cmd_campaign(args: argparse.Namespace) -> int:
+    from iamp.cli.progress import progress_bar
+    from iamp.simulation.campaign import latex_table, read_rows, run_campaign, summarise
+    from iamp.simulation.figures import campaign_figures
+
+    if "qp-avoid" in args.planners:
+        from iamp.simulation.planning import make_planner
+
+        make_planner("qp-avoid")
+    out = Path(args.out)
+    quiet = bool(args.quiet) or not sys.stderr.isatty()
+    with progress_bar(0, "campaign", enabled=not quiet) as tick:
+        stats = run_campaign(args.planners, args.traffic, args.seeds, out, workers=args.workers,
+                             scheduler=args.scheduler, duration_s=args.duration, period_s=args.period,
+                             progress=tick)
+    wanted = {(p, t) for p in args.planners for t in args.traffic}
+    rows = [r for r in read_rows(out / "episodes.csv") if (r["planner"], r["traffic"]) in wanted
+            and int(r["seed"]) <= args.seeds]
+    summary = summarise(rows)
+    from iamp.core.atomic import write_text
+
+    write_text(out / "table.tex", latex_table(summary))
+    write_text(out / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
+    campaign_figures(summary, rows, out)
+    if not args.quiet:
+        print(f"{stats['ran']} episodes run, {stats['skipped']} already done, {stats['failed']} failed "
+              f"({stats['seconds']:.0f} s); {out / 'episodes.csv'}, table.tex, summary.json, rates.png, "
+              "distributions.png")
+        for s in summary:
+            lo, hi = s["collision_ci"]
+            print(f"  {s['planner']:>8} {s['traffic']:>6}: collisions {s['collision_episodes']}/{s['episodes']} "
+                  f"[{100 * lo:.0f}, {100 * hi:.0f}] %, lane change {100 * s['lane_change_rate']:.0f} %")
+    return EXIT_OK
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``iamp simulate`` and ``iamp campaign``."""
+    p = sub.add_parser("simulate", help="one closed-loop lane-change episode in SUMO traffic (needs iamp[sim])",
+                       description="Run one closed-loop episode: SUMO traffic, the shared predictor, the planner "
+                                   "every period (SPEC §11).")
+    p.add_argument("--traffic", choices=TRAFFIC, default="medium")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--planner", choices=PLANNERS, default="pmp")
+    p.add_argument("--duration", type=positive_float, default=60.0, help="episode length [s] (default 60)")
+    p.add_argument("--period", type=positive_float, default=0.1, help="control period = SUMO step [s]")
+    p.add_argument("--no-deadline", action="store_true",
+                   help="use plans however long they take (default: a plan slower than the period is late "
+                        "and falls back)")
+    p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV")
+    p.add_argument("--figure", default=None, help="write a figure of the episode (PNG/PDF by extension)")
+    p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §11)")
+    p.set_defaults(func=cmd_simulate)
+
+    c = sub.add_parser("campaign", help="every planner x traffic x seed episode on Dask (needs iamp[sim])",
+                       description="Run a campaign of closed-loop episodes on Dask distributed; resumes.")
+    c.add_argument("--planners", type=_csv_choice(PLANNERS), default=["pmp", "qp", "sumo"])
+    c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=list(TRAFFIC))
+    c.add_argument("--seeds", type=positive_int, default=20, help="seeds 1..N")
+    c.add_argument("--out", required=True, help="output folder (episodes.csv, table.tex, figures)")
+    c.add_argument("--workers", type=positive_int, default=2, help="local Dask workers (processes)")
+    c.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
+    c.add_argument("--duration", type=positive_float, default=60.0)
+    c.add_argument("--period", type=positive_float, default=0.1)
+    c.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+    c.set_defaults(func=cmd_campaign)

@@ -1,0 +1,142 @@
+"""Figures of an episode and of a campaign (matplotlib, Agg; written atomically)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from iamp.core.atomic import atomic_path
+from iamp.simulation.episode import EpisodeResult
+
+
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def episode_figure(result: EpisodeResult, path: str | Path) -> None:
+    """x-y of the ego with its neighbours (to scale), speeds, accelerations, plan time per step."""
+    plt = _plt()
+    from matplotlib.patches import Rectangle
+
+    log = result.log
+    t = np.asarray(log.t)
+    E = np.asarray(log.ego).reshape(-1, 6)
+    s = result.summary
+    fig = plt.figure(figsize=(11, 9), constrained_layout=True)
+    gs = fig.add_gridspec(4, 1, height_ratios=[1.3, 1, 1, 1])
+    ax = fig.add_subplot(gs[0])
+    active = np.array([m == "active" or m == "abort" for m in log.mode])
+    # the first manoeuvre, in the frame moving with the ego (x relative to the ego's centre)
+    idx = np.flatnonzero(active)
+    k0 = int(idx[0]) if idx.size else 0
+    k1 = min(k0 + int(7.0 / s["period_s"]), len(t) - 1)
+    ks = range(max(k0 - int(1.0 / s["period_s"]), 0), k1 + 1)
+    tracks: dict[str, list[tuple[float, float]]] = {}
+    for k in ks:
+        for vid, row in zip(log.ids[k], log.nb[k]):
+            if abs(row[0] - E[k, 0]) < 70:
+                tracks.setdefault(vid, []).append((row[0] - E[k, 0], row[1]))
+    for pts in tracks.values():
+        a = np.asarray(pts)
+        ax.plot(a[:, 0], a[:, 1], color="tab:blue", lw=0.8, alpha=0.6)
+    ax.plot(np.zeros(len(ks)), E[list(ks), 2], color="tab:red", lw=2, label="ego (centre)")
+    for k in list(ks)[:: max(len(ks) // 6, 1)]:
+        for row in log.nb[k]:
+            if abs(row[0] - E[k, 0]) < 70:
+                ax.add_patch(Rectangle((row[0] - E[k, 0] - row[5] / 2, row[1] - row[6] / 2), row[5], row[6],
+                                       fc="tab:blue", alpha=0.12, ec="none"))
+        ax.add_patch(Rectangle((-2.4, E[k, 2] - 0.9), 4.8, 1.8, fc="tab:red", alpha=0.25, ec="none"))
+    for lane_edge in (0.0, -3.75, -7.5, -11.25):
+        ax.axhline(lane_edge, color="k", lw=0.5, ls="--")
+    ax.set_xlim(-70, 70)
+    ax.set_ylim(-12, 1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x relative to the ego's centre [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{s['planner']}, {s['traffic']} traffic, seed {s['seed']}: {s['lane_changes']} lane changes, "
+                 f"{s['collisions']} collisions; first manoeuvre t = {t[ks[0]]:.1f}..{t[ks[-1]]:.1f} s "
+                 "(neighbours blue, to scale)", fontsize=9)
+    ax.legend(loc="lower right", fontsize=8)
+    ax = fig.add_subplot(gs[1])
+    ax.plot(t, E[:, 1], color="tab:red", label="ego $v_x$")
+    ax.plot(t, E[:, 3], color="tab:orange", label="ego $v_y$")
+    ax.set_ylabel("speed [m/s]")
+    ax.legend(fontsize=8)
+    ax = fig.add_subplot(gs[2])
+    dt = s["period_s"]
+    ax.plot(t[1:-1], np.diff(E[:, 0], 2) / dt**2, color="tab:red", lw=1, label="ego $a_x$ (executed)")
+    ax.plot(t[1:-1], np.diff(E[:, 2], 2) / dt**2, color="tab:orange", lw=1, label="ego $a_y$ (executed)")
+    ax.set_ylabel("acceleration [m/s²]")
+    ax.legend(fontsize=8)
+    ax = fig.add_subplot(gs[3])
+    pt = np.asarray(log.plan_time) * 1e3
+    ax.semilogy(t, pt, ".", ms=3, color="tab:green", label="plan time")
+    ax.axhline(dt * 1e3, color="k", lw=0.8, ls=":", label="period")
+    ax.set_ylabel("plan time [ms]")
+    ax.set_xlabel("episode time t [s]")
+    ax.legend(fontsize=8)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format=Path(path).suffix.lstrip(".") or "png", dpi=110)
+    plt.close(fig)
+
+
+def campaign_figures(summary: list[dict[str, Any]], rows: list[dict[str, str]], folder: str | Path) -> list[Path]:
+    """Collision and intrusion rates with Wilson intervals; plan-time p95 and min-gap distributions."""
+    plt = _plt()
+    folder = Path(folder)
+    planners = sorted({s["planner"] for s in summary})
+    traffics = [t for t in ("light", "medium", "dense") if any(s["traffic"] == t for s in summary)]
+    written = []
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
+    width = 0.8 / max(len(planners), 1)
+    for ax, (key, label) in zip(axes, (("collision", "collision"), ("intrusion", "intrusion"),
+                                       ("lane_change", "lane change done"))):
+        for j, p in enumerate(planners):
+            xs, ys, lo, hi = [], [], [], []
+            for i, tr in enumerate(traffics):
+                s = next((s for s in summary if s["planner"] == p and s["traffic"] == tr), None)
+                if s is None:
+                    continue
+                xs.append(i + (j - (len(planners) - 1) / 2) * width)
+                ys.append(100 * s[f"{key}_rate"])
+                lo.append(100 * (s[f"{key}_rate"] - s[f"{key}_ci"][0]))
+                hi.append(100 * (s[f"{key}_ci"][1] - s[f"{key}_rate"]))
+            ax.bar(xs, ys, width, yerr=[lo, hi], capsize=3, label=p)
+        ax.set_xticks(range(len(traffics)), traffics)
+        ax.set_ylabel(f"episodes with {label} [%]")
+        ax.set_ylim(0, 100)
+        ax.set_title(f"{label} rate, Wilson 95 % interval")
+    axes[0].legend(fontsize=8)
+    written.append(_save(plt, fig, folder / "rates.png"))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
+    labels, p95, gaps = [], [], []
+    for p in planners:
+        for tr in traffics:
+            rs = [r for r in rows if r["planner"] == p and r["traffic"] == tr]
+            labels.append(f"{p}\n{tr}")
+            p95.append([1e3 * float(r["plan_time_p95_s"]) for r in rs if r["plan_time_p95_s"] not in ("", "None")])
+            gaps.append([float(r["min_gap_m"]) for r in rs if r["min_gap_m"] not in ("", "None")])
+    axes[0].boxplot([v if v else [np.nan] for v in p95], tick_labels=labels)
+    axes[0].set_yscale("log")
+    axes[0].axhline(100.0, color="k", ls=":", lw=0.8)
+    axes[0].set_ylabel("plan time p95 per episode [ms] (period: dotted)")
+    axes[1].boxplot([v if v else [np.nan] for v in gaps], tick_labels=labels)
+    axes[1].set_ylabel("min bumper-to-bumper gap per episode [m]")
+    for ax in axes:
+        ax.tick_params(axis="x", labelsize=7)
+    written.append(_save(plt, fig, folder / "distributions.png"))
+    return written
+
+
+def _save(plt: Any, fig: Any, path: Path) -> Path:
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+    return path
