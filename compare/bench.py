@@ -1,218 +1,302 @@
-r"""``iamp bench``: the project's speed numbers against their targets, in one run.
+r"""``iamp bench``: iamp's speed numbers, its peers and limits, and their ratios, in ONE run.
 
-All numbers are medians of individual :func:`time.perf_counter` samples after a warm-up
-(:mod:`iamp.comparison.timing`), on whatever machine runs the command (the targets were set
-for a 2-core machine).  Targets:
+Everything is measured in the same process, one after the other, so the ratios compare
+numbers taken under the same machine load.  Numbers are medians of individual
+:func:`time.perf_counter` samples after a warm-up (:mod:`iamp.comparison.timing`).  The spread
+of every measurement (IQR/median) is checked: above :data:`BUSY_SPREAD` the output warns that
+the machine was probably busy (the 2-core machines here are shared).
 
-==================================================  ==================
-PMP plan with the global contact time, one vehicle  ≤ 100 µs
-PMP plan, two vehicles                              ≤ 2 ms
-batch PMP planning, one-vehicle scenarios           ≥ 10,000 plans/s
-native QP solve (one candidate), N = 100            ≤ 1 ms (per solver)
-FOH grid sweep, one vehicle, N = 100                ≤ 0.5 s (cvxpy and native, per solver)
-==================================================  ==================
+What is measured (one vehicle: ``paper-1-poly``; two: ``two-vehicle``; FOH, ``N = 100``):
 
-Problems: ``paper-1-poly`` (one vehicle) and ``two-vehicle`` (two), both built in; the batch
-uses seeded :func:`~iamp.planners.examples.random_problem` scenarios (built before the clock
-starts).  The native solve time is the wall time of
-:meth:`~iamp.planners.native._NativeQP.solve_nodes` (data update + solve + unpacking) over
-the candidates of a full sweep in sweep order (so OSQP's warm start comes from the
-neighbouring node, as in a sweep); the solver-reported time is given beside it.  The grid
-sweep is a complete :meth:`QPPlanner.plan` (cvxpy: model build and compile included, since a
-user's plan pays for it) and a complete native sweep (set-up included).
+* **PMP** — from :func:`iamp.comparison.bench_pmp.bench_pmp` when that module exists (its
+  keys are merged, including its compiled-limit ratio), otherwise measured here: a whole plan
+  with the global contact-time search, and the batch API's plans per second.
+* **QP per candidate** (``qp_native_solve_s``) — for every backend of the registry
+  (:mod:`iamp.planners.backends`): the value update plus the backend's ``solve()`` for each
+  candidate of a full sweep, in sweep order (OSQP warm-starts from the neighbouring node, the
+  direct ``kkt`` backend re-uses its factorisation, as in a real sweep); the candidate's whole
+  wall time (with verification and unpacking) is reported beside it.
+* **QP grid sweep** (``qp_grid_sweep_s``) — a complete :meth:`QPPlanner.plan` (build, sweep,
+  verification, certification) on each backend (``native_*``), and through the cvxpy
+  cross-check (:mod:`iamp.comparison.cvxpy_qp`; ``osqp``, ``clarabel``: model build and compile
+  included, since a user of that formulation pays for them).
+* **Avoidance QP** (``avoid_grid_sweep_s``) — :class:`iamp.planners.avoid.AvoidQPPlanner`'s
+  plan, if that module exists.
+* **CasADi + IPOPT** — skipped (with a note) unless ``casadi`` is installed.
+* **OSQP tuning** (not with ``--quick``) — what each OSQP setting buys on the equality QP:
+  verified candidates, polish successes, iterations, recomputed KKT residuals, time.
 """
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
+import os
+import platform
 import time
+import warnings
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
-from iamp.comparison.timing import measure, qp_breakdown, solver_settings, summarize, versions
+from iamp.comparison.timing import TimingStats, measure, summarize, versions
 
-TARGETS = {
+#: IQR/median above which a measurement is flagged as taken on a busy machine.
+BUSY_SPREAD = 0.5
+STEPS = 100
+BACKEND_NAMES = ("osqp", "clarabel", "piqp", "kkt")
+
+TARGETS: dict[str, tuple[str, float]] = {
     "pmp_plan_one_vehicle_s": ("<=", 100e-6),
     "pmp_plan_two_vehicles_s": ("<=", 2e-3),
     "pmp_batch_plans_per_s": (">=", 10_000.0),
-    "qp_native_solve_osqp_s": ("<=", 1e-3),
-    "qp_native_solve_clarabel_s": ("<=", 1e-3),
-    "qp_grid_sweep_osqp_s": ("<=", 0.5),
-    "qp_grid_sweep_clarabel_s": ("<=", 0.5),
-    "qp_grid_sweep_native_osqp_s": ("<=", 0.5),
-    "qp_grid_sweep_native_clarabel_s": ("<=", 0.5),
+    "qp_native_solve_kkt_s": ("<=", 0.2e-3),
+    "qp_native_solve_best_iterative_s": ("<=", 0.25e-3),
+    "qp_native_solve_osqp_s": ("<=", 0.5e-3),
+    "qp_grid_sweep_native_best_s": ("<=", 20e-3),
 }
 
 
-def _pmp_fn(problem):
+# --------------------------------------------------------------------------------------
+# PMP
+# --------------------------------------------------------------------------------------
+
+
+def _pmp_fallback(quick: bool, notes: list[str]) -> dict[str, Any]:
+    """The PMP numbers measured here (used until ``compare/bench_pmp.py`` exists)."""
     import inspect
 
-    from iamp.planners.pmp import PMPPlanner
-
-    planner = PMPPlanner()
-    if "diagnostics" in inspect.signature(planner.plan).parameters:
-        return lambda: planner.plan(problem, diagnostics=False)
-    return lambda: planner.plan(problem)
-
-
-def _batch(quick: bool, notes: list) -> tuple[float, dict, dict]:
-    """Plans per second of the batch API over one-vehicle scenarios."""
     from iamp.planners import pmp as pmp_mod
-    from iamp.planners.examples import random_problem
+    from iamp.planners.examples import builtin_problem, paper_problem, random_problem
 
+    planner = pmp_mod.PMPPlanner()
+    kw = {"diagnostics": False} if "diagnostics" in inspect.signature(planner.plan).parameters else {}
+    one, two = paper_problem(1), builtin_problem("two-vehicle")
+    s1, _ = measure(lambda: planner.plan(one, **kw), repeats=30 if quick else 300, warmup=5)
+    s2, _ = measure(lambda: planner.plan(two, **kw), repeats=5 if quick else 30, warmup=2)
     K = 2_000 if quick else 10_000
     problems = [random_problem(seed, m=1) for seed in range(K)]
     batch = getattr(pmp_mod, "plan_batch", None)
     if batch is not None:
-        stats, res = measure(lambda: batch(problems), repeats=2 if quick else 5, warmup=1)
-        ok = int(np.sum(np.asarray(res.status) == "optimal"))
+        sb, _ = measure(lambda: batch(problems), repeats=2 if quick else 5, warmup=1)
         api = "iamp.planners.pmp.plan_batch"
     else:  # honest fallback: the per-problem planner in a loop
-        planner = pmp_mod.PMPPlanner()
-        sub = problems[: 500 if quick else 2_000]
-        stats, _ = measure(lambda: [planner.plan(p) for p in sub], repeats=1, warmup=0)
-        K = len(sub)
-        ok = K
-        api = "PMPPlanner().plan in a Python loop (plan_batch not available)"
+        sub = problems[:500]
+        sb, _ = measure(lambda: [planner.plan(p, **kw) for p in sub], repeats=1, warmup=0)
+        K, api = len(sub), "PMPPlanner().plan in a Python loop (plan_batch not available)"
         notes.append("plan_batch does not exist: the batch number is a loop over PMPPlanner.plan")
-    rate = K / stats.median
-    return rate, stats.to_dict(), {"api": api, "problems": K, "optimal": ok}
+    return {"pmp_plan_s": {"one_vehicle": s1.median, "two_vehicles": s2.median},
+            "pmp_batch_plans_per_s": K / sb.median,
+            "stats": {"pmp_plan_one_vehicle_s": s1.to_dict(), "pmp_plan_two_vehicles_s": s2.to_dict(),
+                      "pmp_batch_s": sb.to_dict()},
+            "batch": {"api": api, "problems": K}, "source": "iamp.comparison.bench (fallback)"}
 
 
-def _native_sweep_times(problem, solver: str, steps: int, repeats: int):
-    """Per-candidate solve times of native sweeps, and the sweep totals."""
-    from iamp.planners.native import native_sweep
+def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
+    if importlib.util.find_spec("iamp.comparison.bench_pmp") is not None:
+        mod = importlib.import_module("iamp.comparison.bench_pmp")
+        out: dict[str, Any] = dict(mod.bench_pmp(3 if quick else 10))
+        out.setdefault("source", "iamp.comparison.bench_pmp.bench_pmp")
+        return out
+    notes.append("compare/bench_pmp.py not found: PMP numbers measured by the fallback in bench.py")
+    return _pmp_fallback(quick, notes)
 
-    per_solve, per_solver_time, per_call, totals, failures = [], [], [], [], 0
-    for _ in range(repeats + 1):  # the first sweep is the warm-up
-        from iamp.planners.native import build_native
 
+# --------------------------------------------------------------------------------------
+# QP
+# --------------------------------------------------------------------------------------
+
+
+def _per_candidate(problem: Any, solver: str, repeats: int) -> dict[str, Any]:
+    """Update+solve, solve() call and whole-candidate times over full sweeps (first = warm-up)."""
+    from iamp.planners.qp_core import DiscretisedQP
+
+    backend, call, wall, failed = [], [], [], 0
+    for rep in range(repeats + 1):
+        qp = DiscretisedQP(problem, STEPS, "foh", solver)
+        rs = [qp.solve_nodes(nodes) for nodes in qp.candidate_nodes()]
+        if rep:
+            backend += [r.backend_s for r in rs]
+            call += [r.solve_call_s for r in rs]
+            wall += [r.wall_time_s for r in rs]
+        failed = sum(not r.ok for r in rs)
+    out = {"backend": summarize(backend), "call": summarize(call), "wall": summarize(wall), "failed": failed,
+           "describe": qp.backend.describe()}
+    if solver == "kkt":
+        out["describe"]["bandwidth"] = int(getattr(qp.backend, "bandwidth", -1))
+    return out
+
+
+def _sweep(fn: Callable[[], Any], repeats: int) -> tuple[TimingStats, Any]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return measure(fn, repeats=repeats, warmup=1, budget_s=20.0)
+
+
+def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | None:
+    if importlib.util.find_spec("iamp.planners.avoid") is None:
+        notes.append("iamp.planners.avoid not found: no avoidance-QP sweep measured")
+        return None
+    mod = importlib.import_module("iamp.planners.avoid")
+    out: dict[str, Any] = {}
+    for solver in ("osqp", "clarabel", "piqp"):
+        try:
+            planner = mod.AvoidQPPlanner(steps=STEPS, hold="foh", solver=solver)
+            stats, res = _sweep(lambda planner=planner: planner.plan(problem), repeats)
+            out[solver] = {"median": stats.median, "stats": stats.to_dict(), "status": str(res.status)}
+        except Exception as exc:  # an optional peer: report, never fail the bench
+            out[solver] = {"median": None, "error": f"{type(exc).__name__}: {exc}"}
+    return out
+
+
+def _casadi(notes: list[str]) -> dict[str, Any] | None:
+    if importlib.util.find_spec("casadi") is None:
+        notes.append("casadi not installed: the CasADi+IPOPT peer is skipped (pip install casadi)")
+        return None
+    notes.append("casadi is installed but no CasADi formulation is implemented yet: skipped")
+    return None
+
+
+def osqp_tuning(problem: Any) -> list[dict[str, Any]]:
+    """What each OSQP setting buys on the equality QP (one FOH sweep, ``N = 100``, per row)."""
+    from iamp.planners.qp_core import DiscretisedQP
+
+    rows = []
+    grid: list[dict[str, Any]] = [{"eps_abs": e, "polish_refine_iter": k} for e in (1e-3, 1e-5) for k in (1, 3, 10)]
+    grid += [{"eps_abs": 1e-6, "polish_refine_iter": 10}, {"eps_abs": 1e-5, "polishing": False},
+             {"eps_abs": 1e-6, "polishing": False}]
+    for s in grid:
+        qp = DiscretisedQP(problem, STEPS, "foh", "osqp", s)
         t0 = time.perf_counter()
-        qp = build_native(problem, steps, "foh", solver)
-        walls, own, calls = [], [], []
-        orig = qp.solve_nodes
-
-        def timed(nodes, _orig=orig, _walls=walls, _own=own, _calls=calls):
-            r = _orig(nodes)
-            _walls.append(r["wall_time_s"])
-            _own.append(r["solver_time_s"])
-            _calls.append(r["solve_call_s"])
-            return r
-
-        qp.solve_nodes = timed
-        s = native_sweep(problem, steps, "foh", solver, qp=qp)
-        totals.append(time.perf_counter() - t0)
-        per_solve.append(walls)
-        per_solver_time.append(own)
-        per_call.append(calls)
-        failures = len(s["failures"])
-    info = dict(qp.info)
-    info["solve_call_s"] = summarize(np.concatenate(per_call[1:])).to_dict()
-    return (summarize(np.concatenate(per_solve[1:])), summarize(np.concatenate(per_solver_time[1:])),
-            summarize(totals[1:], warmup=1), failures, info)
+        rs = [qp.solve_nodes(n) for n in qp.candidate_nodes()]
+        total = time.perf_counter() - t0
+        kkt = [r.kkt.worst_rel()[1] if r.kkt is not None else np.inf for r in rs]
+        rows.append({"settings": s, "verified": sum(r.ok for r in rs), "polished": sum(bool(r.polished) for r in rs),
+                     "solver_solved": sum(r.solver_status == "optimal" for r in rs), "candidates": len(rs),
+                     "iterations_median": float(np.median([r.iterations for r in rs])),
+                     "iterations_max": int(max(r.iterations for r in rs)),
+                     "kkt_rel_median": float(np.median(kkt)), "kkt_rel_max": float(np.max(kkt)),
+                     "backend_s_median": float(np.median([r.backend_s for r in rs])), "sweep_s": total})
+    return rows
 
 
-def run_bench(quick: bool = False) -> dict:
+# --------------------------------------------------------------------------------------
+# the run
+# --------------------------------------------------------------------------------------
+
+
+def _busy(stats: dict[str, TimingStats]) -> list[str]:
+    return [f"{k}: IQR/median = {s.iqr / s.median:.2f}" for k, s in stats.items()
+            if s.n >= 3 and s.median > 0 and s.iqr / s.median > BUSY_SPREAD]
+
+
+def run_bench(quick: bool = False) -> dict[str, Any]:
     """Measure everything; returns the ``iamp bench --json`` object (SPEC §5b keys and more)."""
-    import warnings
-
-    from iamp.planners.examples import builtin_problem, paper_problem
+    from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
+    from iamp.planners.backends import ITERATIVE
+    from iamp.planners.examples import paper_problem
     from iamp.planners.qp import QPPlanner
 
-    notes: list = []
-    one, two = paper_problem(1), builtin_problem("two-vehicle")
-    r1 = 30 if quick else 300
-    r2 = 5 if quick else 30
-    s1, _ = measure(_pmp_fn(one), repeats=r1, warmup=5)
-    s2, _ = measure(_pmp_fn(two), repeats=r2, warmup=2)
-    rate, batch_stats, batch_info = _batch(quick, notes)
+    notes: list[str] = []
+    load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    pmp = _pmp_numbers(quick, notes)
+    one = paper_problem(1)
+    reps = 1 if quick else 3
 
-    steps = 100
-    native_solve, native_solver, native_sweep_s, native_fail, native_info = {}, {}, {}, {}, {}
-    for solver in ("osqp", "clarabel"):
-        a, b, c, f, info = _native_sweep_times(one, solver, steps, 1 if quick else 3)
-        native_solve[solver], native_solver[solver], native_sweep_s[solver] = a, b, c
-        native_fail[solver], native_info[solver] = f, info
+    cand = {s: _per_candidate(one, s, reps) for s in BACKEND_NAMES}
+    native: dict[str, TimingStats] = {}
+    fails: dict[str, int] = {}
+    for s in BACKEND_NAMES:
+        planner = QPPlanner(steps=STEPS, hold="foh", solver=s)
+        native[s], res = _sweep(lambda planner=planner: planner.plan(one), 3 if quick else 7)
+        fails[f"native_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
+        if res.status != "optimal":
+            notes.append(f"native {s} sweep: status {res.status} ({res.info.get('why', '')})")
+    cvx: dict[str, TimingStats] = {}
+    for s in ("osqp", "clarabel"):
+        planner = CvxpyQPPlanner(steps=STEPS, hold="foh", solver=s)
+        cvx[s], res = _sweep(lambda planner=planner: planner.plan(one), reps)
+        fails[f"cvxpy_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
+    avoid = _avoid(one, reps, notes)
+    casadi = _casadi(notes)
+    tuning = [] if quick else osqp_tuning(one)
 
-    cvx_sweep, cvx_fail = {}, {}
-    for solver in ("osqp", "clarabel"):
-        planner = QPPlanner(steps=steps, hold="foh", solver=solver)
-
-        def plan(planner=planner):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                return planner.plan(one)
-
-        stats, res = measure(plan, repeats=1 if quick else 3, warmup=1, budget_s=20.0)
-        cvx_sweep[solver] = stats
-        cvx_fail[solver] = len(res.info.get("failures", []))
-
-    breakdown = {s: qp_breakdown(one, steps, "foh", s, repeats=10 if quick else 40, native=False)
-                 for s in ("osqp", "clarabel")}
-
-    for solver in ("osqp", "clarabel"):
-        if native_fail[solver] or cvx_fail[solver]:
-            notes.append(f"{solver}: {native_fail[solver]} (native) / {cvx_fail[solver]} (cvxpy) of {steps - 1} "
-                         "sweep candidates did not reach 'solved' with the configured settings; they run to "
-                         "max_iter and dominate the sweep time")
-
+    solve = {s: cand[s]["backend"].median for s in BACKEND_NAMES}
+    best_it = min(ITERATIVE, key=lambda s: solve[s])
+    sweeps = {**{s: cvx[s].median for s in cvx}, **{f"native_{s}": native[s].median for s in native}}
+    best_native = min(native, key=lambda s: native[s].median)
+    pmp_one = float(pmp["pmp_plan_s"]["one_vehicle"])
+    ratios: dict[str, float | None] = {
+        "pmp_to_compiled_limit": (pmp.get("ratios") or {}).get("pmp_to_compiled_limit", pmp.get("pmp_to_compiled_limit")),
+        "qp_best_to_kkt": solve[best_it] / solve["kkt"],
+        **{f"qp_{s}_to_kkt": solve[s] / solve["kkt"] for s in ITERATIVE},
+        "native_sweep_best_to_pmp_plan": native[best_native].median / pmp_one,
+        "native_kkt_sweep_to_pmp_plan": native["kkt"].median / pmp_one,
+        **{f"cvxpy_{s}_sweep_to_native": cvx[s].median / native[s].median for s in cvx},
+        "kkt_solve_to_pmp_plan": solve["kkt"] / pmp_one,
+    }
+    if avoid is not None and avoid.get("osqp", {}).get("median"):
+        ratios["avoid_osqp_sweep_to_equality_osqp_sweep"] = avoid["osqp"]["median"] / native["osqp"].median
     values = {
-        "pmp_plan_one_vehicle_s": s1.median,
-        "pmp_plan_two_vehicles_s": s2.median,
-        "pmp_batch_plans_per_s": rate,
-        "qp_native_solve_osqp_s": native_solve["osqp"].median,
-        "qp_native_solve_clarabel_s": native_solve["clarabel"].median,
-        "qp_grid_sweep_osqp_s": cvx_sweep["osqp"].median,
-        "qp_grid_sweep_clarabel_s": cvx_sweep["clarabel"].median,
-        "qp_grid_sweep_native_osqp_s": native_sweep_s["osqp"].median,
-        "qp_grid_sweep_native_clarabel_s": native_sweep_s["clarabel"].median,
+        "pmp_plan_one_vehicle_s": pmp_one,
+        "pmp_plan_two_vehicles_s": float(pmp["pmp_plan_s"]["two_vehicles"]),
+        "pmp_batch_plans_per_s": float(pmp["pmp_batch_plans_per_s"]),
+        "qp_native_solve_kkt_s": solve["kkt"],
+        "qp_native_solve_best_iterative_s": solve[best_it],
+        "qp_native_solve_osqp_s": solve["osqp"],
+        "qp_grid_sweep_native_best_s": native[best_native].median,
     }
-    targets = {}
-    for k, (op, target) in TARGETS.items():
-        v = values[k]
-        met = v <= target if op == "<=" else v >= target
-        targets[k] = {"value": float(v), "target": target, "op": op, "met": bool(met)}
-    ratios = {
-        "pmp_two_over_one_vehicle": s2.median / s1.median,
-        "native_clarabel_solve_over_pmp_plan": native_solve["clarabel"].median / s1.median,
-        "native_osqp_solve_over_pmp_plan": native_solve["osqp"].median / s1.median,
-        "cvxpy_clarabel_sweep_over_pmp_plan": cvx_sweep["clarabel"].median / s1.median,
-        "cvxpy_osqp_sweep_over_pmp_plan": cvx_sweep["osqp"].median / s1.median,
-        "cvxpy_over_native_sweep_clarabel": cvx_sweep["clarabel"].median / native_sweep_s["clarabel"].median,
-        "cvxpy_over_native_sweep_osqp": cvx_sweep["osqp"].median / native_sweep_s["osqp"].median,
-        "osqp_over_clarabel_native_solve": native_solve["osqp"].median / native_solve["clarabel"].median,
-        "pmp_batch_speedup_over_single_plan": rate * s1.median,
-    }
+    targets = {k: {"value": float(values[k]), "target": t, "op": op,
+                   "met": bool(values[k] <= t if op == "<=" else values[k] >= t)} for k, (op, t) in TARGETS.items()}
+    all_stats = {**{f"qp_native_solve_{s}": cand[s]["backend"] for s in cand},
+                 **{f"qp_grid_sweep_native_{s}": native[s] for s in native},
+                 **{f"qp_grid_sweep_cvxpy_{s}": cvx[s] for s in cvx}}
+    busy = _busy(all_stats)
+    for k, v in (pmp.get("stats") or {}).items():
+        if isinstance(v, dict) and v.get("n", 0) >= 3 and v.get("median") and v["iqr"] / v["median"] > BUSY_SPREAD:
+            busy.append(f"{k}: IQR/median = {v['iqr'] / v['median']:.2f}")
+    ver = versions()
+    ver["casadi"] = importlib.util.find_spec("casadi") is not None or None
     return {
-        "pmp_plan_s": {"one_vehicle": s1.median, "two_vehicles": s2.median},
-        "pmp_batch_plans_per_s": rate,
-        "qp_native_solve_s": {s: native_solve[s].median for s in ("osqp", "clarabel")},
-        "qp_grid_sweep_s": {s: cvx_sweep[s].median for s in ("osqp", "clarabel")},
-        "qp_grid_sweep_native_s": {s: native_sweep_s[s].median for s in ("osqp", "clarabel")},
-        "versions": versions(),
-        "solver_settings": solver_settings(),
-        "quick": bool(quick),
-        "steps": steps,
-        "problems": {"one_vehicle": one.name, "two_vehicles": two.name},
-        "stats": {
-            "pmp_plan_one_vehicle_s": s1.to_dict(), "pmp_plan_two_vehicles_s": s2.to_dict(),
-            "pmp_batch_s": batch_stats,
-            "qp_native_solve_s": {s: v.to_dict() for s, v in native_solve.items()},
-            "qp_native_solver_reported_s": {s: v.to_dict() for s, v in native_solver.items()},
-            "qp_grid_sweep_s": {s: v.to_dict() for s, v in cvx_sweep.items()},
-            "qp_grid_sweep_native_s": {s: v.to_dict() for s, v in native_sweep_s.items()},
-            "cvxpy_breakdown": breakdown,
-        },
-        "batch": batch_info,
-        "native": native_info,
-        "failed_sweep_candidates": {"native": native_fail, "cvxpy": cvx_fail},
+        "pmp_plan_s": pmp["pmp_plan_s"],
+        "pmp_batch_plans_per_s": float(pmp["pmp_batch_plans_per_s"]),
+        "qp_native_solve_s": solve,
+        "qp_grid_sweep_s": sweeps,
+        "avoid_grid_sweep_s": None if avoid is None else {s: v.get("median") for s, v in avoid.items()},
+        "ratios": ratios,
+        "versions": ver,
+        "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(), "machine": platform.machine(),
+                    "python": platform.python_version(), "load_average_1min_before": load_before,
+                    "load_average_1min_after": os.getloadavg()[0] if hasattr(os, "getloadavg") else None},
+        "warnings": ([f"the machine was probably busy (spread above {BUSY_SPREAD:.0%} of the median): "
+                      + "; ".join(busy)] if busy else []),
+        "quick": bool(quick), "steps": STEPS, "problem": one.name,
+        "best_iterative_backend": best_it, "best_native_sweep": best_native,
+        "qp_candidate": {s: {"backend_s": c["backend"].to_dict(), "solve_call_s": c["call"].to_dict(),
+                             "wall_s": c["wall"].to_dict(), "failed": c["failed"], "backend": c["describe"]}
+                         for s, c in cand.items()},
+        "stats": {"qp_grid_sweep_native_s": {s: v.to_dict() for s, v in native.items()},
+                  "qp_grid_sweep_cvxpy_s": {s: v.to_dict() for s, v in cvx.items()},
+                  "pmp": pmp.get("stats"), "avoid": avoid},
+        "pmp": {k: v for k, v in pmp.items() if k not in ("pmp_plan_s", "pmp_batch_plans_per_s", "stats")},
+        "failed_sweep_candidates": fails,
+        "casadi_ipopt": casadi,
+        "osqp_tuning": tuning,
         "targets": targets,
         "missed": [k for k, t in targets.items() if not t["met"]],
-        "ratios": ratios,
         "notes": notes,
     }
 
 
-def _fmt_s(x: float) -> str:
+# --------------------------------------------------------------------------------------
+# text output
+# --------------------------------------------------------------------------------------
+
+
+def _fmt_s(x: float | None) -> str:
+    if x is None:
+        return "       n/a"
     if x < 1e-3:
         return f"{x * 1e6:8.1f} µs"
     if x < 1:
@@ -221,52 +305,47 @@ def _fmt_s(x: float) -> str:
 
 
 def _fmt_target(x: float) -> str:
-    if x < 1e-3:
-        return f"{x * 1e6:g} µs"
-    if x < 1:
-        return f"{x * 1e3:g} ms"
-    return f"{x:g} s"
+    return f"{x * 1e6:g} µs" if x < 1e-3 else f"{x * 1e3:g} ms" if x < 1 else f"{x:g} s"
 
 
-def format_bench(out: dict) -> str:
+def format_bench(out: dict[str, Any]) -> str:
     """The human-readable report of :func:`run_bench`'s result."""
-    lines = ["iamp bench — medians" + (" (quick)" if out.get("quick") else ""), ""]
-    names = {
-        "pmp_plan_one_vehicle_s": "PMP plan, one vehicle (global t*)",
-        "pmp_plan_two_vehicles_s": "PMP plan, two vehicles",
-        "pmp_batch_plans_per_s": "PMP batch planning, one vehicle",
-        "qp_native_solve_osqp_s": "native QP solve N=100, OSQP (warm)",
-        "qp_native_solve_clarabel_s": "native QP solve N=100, Clarabel",
-        "qp_grid_sweep_osqp_s": "FOH grid sweep N=100, cvxpy+OSQP",
-        "qp_grid_sweep_clarabel_s": "FOH grid sweep N=100, cvxpy+Clarabel",
-        "qp_grid_sweep_native_osqp_s": "FOH grid sweep N=100, native OSQP",
-        "qp_grid_sweep_native_clarabel_s": "FOH grid sweep N=100, native Clarabel",
-    }
+    lines = [f"iamp bench — medians, {out['problem']}, FOH, N = {out['steps']}" + (" (quick)" if out["quick"] else ""),
+             ""]
+    lines.append(f"  {'PMP plan, one vehicle (global t*)':44s} {_fmt_s(out['pmp_plan_s']['one_vehicle'])}")
+    lines.append(f"  {'PMP plan, two vehicles':44s} {_fmt_s(out['pmp_plan_s']['two_vehicles'])}")
+    lines.append(f"  {'PMP batch, one vehicle':44s} {out['pmp_batch_plans_per_s']:8.0f} /s")
+    lines += ["", "  QP per candidate (update + solve; whole candidate incl. verification):"]
+    for s, c in out["qp_candidate"].items():
+        lines.append(f"    {s:10s} {_fmt_s(c['backend_s']['median'])}   {_fmt_s(c['wall_s']['median'])}"
+                     + (f"   ({c['failed']} unverified)" if c["failed"] else ""))
+    lines += ["", "  QP grid sweep (whole plan, build included):"]
+    for k, v in out["qp_grid_sweep_s"].items():
+        label = k.replace("native_", "native ") if k.startswith("native_") else f"cvxpy {k}"
+        lines.append(f"    {label:18s} {_fmt_s(v)}")
+    if out["avoid_grid_sweep_s"]:
+        for k, v in out["avoid_grid_sweep_s"].items():
+            lines.append(f"    {'avoid ' + k:18s} {_fmt_s(v)}")
+    lines += ["", "targets:"]
     for k, t in out["targets"].items():
-        if k == "pmp_batch_plans_per_s":
-            val, tgt = f"{t['value']:8.0f} /s", f"{t['op']} {t['target']:.0f} /s"
-        else:
-            val, tgt = _fmt_s(t["value"]), f"{t['op']} {_fmt_target(t['target'])}"
-        lines.append(f"  {names[k]:40s} {val}   target {tgt:12s} {'met' if t['met'] else 'MISSED'}")
-    st = out["stats"]
-    lines += ["", "  native solve, bare solve() call: "
-              + ", ".join(f"{s} {_fmt_s(out['native'][s]['solve_call_s']['median']).strip()}" for s in out["native"])
-              + "; solver-reported: "
-              + ", ".join(f"{s} {_fmt_s(v['median']).strip()}" for s, v in st["qp_native_solver_reported_s"].items())]
-    for s, b in st["cvxpy_breakdown"].items():
-        lines.append(f"  cvxpy+{s}: compile (build + first solve) {_fmt_s(b['cvxpy_compile_s']).strip()}, "
-                     f"re-solve {_fmt_s(b['cvxpy_resolve_s']['median']).strip()} (solver-reported "
-                     f"{_fmt_s(b['cvxpy_solver_s']['median']).strip()}, overhead total-solver "
-                     f"{_fmt_s(b['cvxpy_overhead_s']['median']).strip()})")
+        val = f"{t['value']:8.0f} /s" if k.endswith("per_s") else _fmt_s(t["value"])
+        tgt = f"{t['target']:.0f} /s" if k.endswith("per_s") else _fmt_target(t["target"])
+        lines.append(f"  {k:38s} {val}   {t['op']} {tgt:8s} {'met' if t['met'] else 'MISSED'}")
     lines += ["", "ratios (same run):"]
     for k, v in out["ratios"].items():
-        lines.append(f"  {k:42s} {v:10.3g}")
-    lines += ["", f"batch API: {out['batch']['api']} ({out['batch']['problems']} problems)"]
-    missed = out["missed"]
-    lines.append("targets missed: " + (", ".join(missed) if missed else "none"))
-    for n in out["notes"]:
-        lines.append(f"note: {n}")
-    v = out["versions"]
-    lines.append("versions: " + ", ".join(f"{k} {v[k]}" for k in ("python", "numpy", "scipy", "cvxpy", "osqp",
-                                                                    "clarabel")) + f"; {v['cpu_count']} CPU(s)")
+        lines.append(f"  {k:42s} " + ("n/a" if v is None else f"{v:10.3g}"))
+    if out["osqp_tuning"]:
+        lines += ["", "OSQP settings on the equality QP (one sweep each; KKT recomputed):"]
+        for r in out["osqp_tuning"]:
+            s = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in r["settings"].items())
+            lines.append(f"  {s:36s} verified {r['verified']:3d}/{r['candidates']}  polished {r['polished']:3d}  "
+                         f"iter {r['iterations_median']:5.0f} (max {r['iterations_max']})  KKT max {r['kkt_rel_max']:.1e}  "
+                         f"{_fmt_s(r['backend_s_median']).strip()}/candidate")
+    m, v = out["machine"], out["versions"]
+    lines += ["", f"machine: {m['cpu_count']} CPU(s), {m['platform']}; load {m['load_average_1min_before']} -> "
+              f"{m['load_average_1min_after']}",
+              "versions: " + ", ".join(f"{k} {v.get(k)}" for k in ("python", "numpy", "scipy", "cvxpy", "osqp", "clarabel",
+                                                                  "piqp"))]
+    lines += [f"warning: {w}" for w in out["warnings"]]
+    lines += [f"note: {n}" for n in out["notes"]]
     return "\n".join(lines)

@@ -149,6 +149,7 @@ def versions() -> dict:
         "cvxpy": cvxpy_v,
         "osqp": dist_version("osqp"),
         "clarabel": dist_version("clarabel"),
+        "piqp": dist_version("piqp"),
         "iamp": dist_version("iamp"),
         "platform": platform.platform(),
         "machine": platform.machine(),

@@ -39,7 +39,9 @@ class CandidateResult:
     """One solve of the QP with the contacts at given grid nodes.
 
     ``status`` is verified (see the module docstring); ``cost`` is ``J`` of the held input
-    when the status is OPTIMAL and ``inf`` otherwise.  ``checks`` maps each verified
+    when the status is OPTIMAL and ``inf`` otherwise.  Times: ``solve_call_s`` the backend's
+    ``solve()`` call, ``backend_s`` the value update plus that call (what a solver costs per
+    candidate), ``wall_time_s`` everything (selector update, solve, verification, unpacking).  ``checks`` maps each verified
     condition to ``{"value", "tol", "ok"}``; ``failed_check`` names the first that failed.
     """
 
@@ -52,6 +54,7 @@ class CandidateResult:
     iterations: int = 0
     solver_time_s: float | None = None
     solve_call_s: float = 0.0
+    backend_s: float = 0.0
     wall_time_s: float = 0.0
     polished: bool | None = None
     trajectory: HoldTrajectory | None = None
@@ -177,6 +180,7 @@ class DiscretisedQP:
         t0 = time.perf_counter()
         d, b = self.data, self.backend
         pos, vals = d.selector_update(nodes)
+        tb = time.perf_counter()
         if self._grid_dirty:
             b.update(Px=d.P.data, Ax=d.A.data, l=d.b, u=d.b)
             self._grid_dirty = False
@@ -185,6 +189,7 @@ class DiscretisedQP:
         if b.warm_starts and self._last is not None:
             b.warm_start(*self._last)
         sol = b.solve()
+        backend_s = time.perf_counter() - tb
         self.n_solves += 1
         nd = tuple(int(k) for k in nodes)
         times = d.t_nodes[np.asarray(nd, dtype=np.int64)].copy()
@@ -196,7 +201,7 @@ class DiscretisedQP:
         r = CandidateResult(nodes=nd, status=status, solver_status=sol.status, raw_status=sol.raw_status,
                             cost=np.inf, contact_times=times, iterations=sol.iterations,
                             solver_time_s=sol.solver_time_s, solve_call_s=sol.solve_call_s, polished=sol.polished,
-                            kkt=kkt, checks=checks, failed_check=failed)
+                            backend_s=backend_s, kkt=kkt, checks=checks, failed_check=failed)
         if finite:
             r.z, r.y = sol.z, sol.y
         if status == st.OPTIMAL:
