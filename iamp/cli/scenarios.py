@@ -23,7 +23,7 @@ __all__ = ["STDIN", "TEMPLATE", "add_parsers", "cmd_scenarios", "cmd_template", 
 
 #: The scenario argument that means "read the TOML from standard input".
 STDIN = "-"
-_stdin_text: str | None = None
+_stdin_cache: tuple[object, str] | None = None  # (the stream read, its text)
 
 #: The commented scenario printed by ``iamp template`` (paper scenario 1, vehicle 1 given by its
 #: polynomial; the history alternative is shown commented out). It must plan as it is.
@@ -71,14 +71,17 @@ x_poly = [-15.0, 18.0, 0.0, 0.0]   # x_s(t) = c0 + c1 t + c2 t^2 + c3 t^3 [m], a
 
 
 def _read_stdin() -> str:
-    """Standard input, read once (a second ``-`` in the same command gets the same text)."""
-    global _stdin_text
-    if _stdin_text is None:
-        if sys.stdin is None or sys.stdin.isatty():
-            raise ScenarioError("standard input is a terminal: pipe a scenario into it "
-                                "(e.g. iamp template | iamp plan -)", None, "<stdin>")
-        _stdin_text = sys.stdin.read()
-    return _stdin_text
+    """Standard input, read once per stream (a second ``-`` in the same command, or a second
+    look at the same scenario, gets the same text)."""
+    global _stdin_cache
+    stream = sys.stdin
+    if _stdin_cache is not None and _stdin_cache[0] is stream:
+        return _stdin_cache[1]
+    if stream is None or stream.isatty():
+        raise ScenarioError("standard input is a terminal: pipe a scenario into it "
+                            "(e.g. iamp template | iamp plan -)", None, "<stdin>")
+    _stdin_cache = (stream, stream.read())
+    return _stdin_cache[1]
 
 
 def load_cli_scenario(spec: str) -> Scenario:
