@@ -88,6 +88,9 @@ class QPData:
         self.row_collision = 2 * self.n_dyn
         self.n_rows = self.row_collision + 2 * m
         self._build_pattern()
+        k, ku = np.arange(N + 1), np.arange(self.nu)
+        self._X_idx = np.stack([self.idx_s(0, k), self.idx_v(0, k), self.idx_s(1, k), self.idx_v(1, k)], axis=1)
+        self._U_idx = np.stack([self.idx_u(0, ku), self.idx_u(1, ku)], axis=1)
         self.q = np.zeros(self.n)
         self.nodes: tuple[int, ...] | None = None
         self.t_nodes = np.linspace(0.0, problem.tf, N + 1)
@@ -252,10 +255,7 @@ class QPData:
     def unpack(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Primal vector → nodal states ``(N+1, 4)`` ``(s_x, v_x, s_y, v_y)`` and inputs."""
         z = np.asarray(z, dtype=float)
-        k, ku = np.arange(self.N + 1), np.arange(self.nu)
-        X = np.stack([z[self.idx_s(0, k)], z[self.idx_v(0, k)], z[self.idx_s(1, k)], z[self.idx_v(1, k)]], axis=1)
-        U = np.stack([z[self.idx_u(0, ku)], z[self.idx_u(1, ku)]], axis=1)
-        return X, U
+        return z[self._X_idx], z[self._U_idx]
 
     def pack(self, X: FloatArray, U: FloatArray) -> FloatArray:
         """Inverse of :meth:`unpack`."""
