@@ -71,7 +71,7 @@ def _pmp_fallback(quick: bool, notes: list[str]) -> dict[str, Any]:
     from iamp.planners.examples import builtin_problem, paper_problem, random_problem
 
     planner = pmp_mod.PMPPlanner()
-    kw = {"diagnostics": False} if "diagnostics" in inspect.signature(planner.plan).parameters else {}
+    kw: dict[str, Any] = {"diagnostics": False} if "diagnostics" in inspect.signature(planner.plan).parameters else {}
     one, two = paper_problem(1), builtin_problem("two-vehicle")
     s1, _ = measure(lambda: planner.plan(one, **kw), repeats=30 if quick else 300, warmup=5)
     s2, _ = measure(lambda: planner.plan(two, **kw), repeats=5 if quick else 30, warmup=2)
@@ -121,17 +121,22 @@ def _per_candidate(problem: Any, solver: str, repeats: int) -> dict[str, Any]:
             call += [r.solve_call_s for r in rs]
             wall += [r.wall_time_s for r in rs]
         failed = sum(not r.ok for r in rs)
-    out = {"backend": summarize(backend), "call": summarize(call), "wall": summarize(wall), "failed": failed,
-           "describe": qp.backend.describe()}
+    describe = qp.backend.describe()
     if solver == "kkt":
-        out["describe"]["bandwidth"] = int(getattr(qp.backend, "bandwidth", -1))
-    return out
+        describe["bandwidth"] = int(getattr(qp.backend, "bandwidth", -1))
+    return {"backend": summarize(backend), "call": summarize(call), "wall": summarize(wall), "failed": failed,
+            "describe": describe}
 
 
 def _sweep(fn: Callable[[], Any], repeats: int) -> tuple[TimingStats, Any]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return measure(fn, repeats=repeats, warmup=1, budget_s=20.0)
+        stats, res = measure(fn, repeats=repeats, warmup=1, budget_s=20.0)
+    return stats, res
+
+
+def _plan_fn(planner: Any, problem: Any) -> Callable[[], Any]:
+    return lambda: planner.plan(problem)
 
 
 def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | None:
@@ -143,7 +148,7 @@ def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | Non
     for solver in ("osqp", "clarabel", "piqp"):
         try:
             planner = mod.AvoidQPPlanner(steps=STEPS, hold="foh", solver=solver)
-            stats, res = _sweep(lambda planner=planner: planner.plan(problem), repeats)
+            stats, res = _sweep(_plan_fn(planner, problem), repeats)
             out[solver] = {"median": stats.median, "stats": stats.to_dict(), "status": str(res.status)}
         except Exception as exc:  # an optional peer: report, never fail the bench
             out[solver] = {"median": None, "error": f"{type(exc).__name__}: {exc}"}
@@ -209,14 +214,14 @@ def run_bench(quick: bool = False) -> dict[str, Any]:
     fails: dict[str, int] = {}
     for s in BACKEND_NAMES:
         planner = QPPlanner(steps=STEPS, hold="foh", solver=s)
-        native[s], res = _sweep(lambda planner=planner: planner.plan(one), 3 if quick else 7)
+        native[s], res = _sweep(_plan_fn(planner, one), 3 if quick else 7)
         fails[f"native_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
         if res.status != "optimal":
             notes.append(f"native {s} sweep: status {res.status} ({res.info.get('why', '')})")
     cvx: dict[str, TimingStats] = {}
     for s in ("osqp", "clarabel"):
         planner = CvxpyQPPlanner(steps=STEPS, hold="foh", solver=s)
-        cvx[s], res = _sweep(lambda planner=planner: planner.plan(one), reps)
+        cvx[s], res = _sweep(_plan_fn(planner, one), reps)
         fails[f"cvxpy_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
     avoid = _avoid(one, reps, notes)
     casadi = _casadi(notes)
@@ -227,8 +232,9 @@ def run_bench(quick: bool = False) -> dict[str, Any]:
     sweeps = {**{s: cvx[s].median for s in cvx}, **{f"native_{s}": native[s].median for s in native}}
     best_native = min(native, key=lambda s: native[s].median)
     pmp_one = float(pmp["pmp_plan_s"]["one_vehicle"])
+    limit = (pmp.get("ratios") or {}).get("pmp_to_compiled_limit", pmp.get("pmp_to_compiled_limit"))
     ratios: dict[str, float | None] = {
-        "pmp_to_compiled_limit": (pmp.get("ratios") or {}).get("pmp_to_compiled_limit", pmp.get("pmp_to_compiled_limit")),
+        "pmp_to_compiled_limit": limit,
         "qp_best_to_kkt": solve[best_it] / solve["kkt"],
         **{f"qp_{s}_to_kkt": solve[s] / solve["kkt"] for s in ITERATIVE},
         "native_sweep_best_to_pmp_plan": native[best_native].median / pmp_one,
@@ -339,13 +345,13 @@ def format_bench(out: dict[str, Any]) -> str:
         for r in out["osqp_tuning"]:
             s = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in r["settings"].items())
             lines.append(f"  {s:36s} verified {r['verified']:3d}/{r['candidates']}  polished {r['polished']:3d}  "
-                         f"iter {r['iterations_median']:5.0f} (max {r['iterations_max']})  KKT max {r['kkt_rel_max']:.1e}  "
-                         f"{_fmt_s(r['backend_s_median']).strip()}/candidate")
+                         f"iter {r['iterations_median']:5.0f} (max {r['iterations_max']})  "
+                         f"KKT max {r['kkt_rel_max']:.1e}  {_fmt_s(r['backend_s_median']).strip()}/candidate")
     m, v = out["machine"], out["versions"]
     lines += ["", f"machine: {m['cpu_count']} CPU(s), {m['platform']}; load {m['load_average_1min_before']} -> "
               f"{m['load_average_1min_after']}",
-              "versions: " + ", ".join(f"{k} {v.get(k)}" for k in ("python", "numpy", "scipy", "cvxpy", "osqp", "clarabel",
-                                                                  "piqp"))]
+              "versions: " + ", ".join(f"{k} {v.get(k)}" for k in ("python", "numpy", "scipy", "cvxpy", "osqp",
+                                                                  "clarabel", "piqp"))]
     lines += [f"warning: {w}" for w in out["warnings"]]
     lines += [f"note: {n}" for n in out["notes"]]
     return "\n".join(lines)

@@ -35,10 +35,14 @@ import os
 import platform
 import sys
 import time
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict, dataclass
 from importlib import metadata
+from typing import Any, TypeVar
 
 import numpy as np
+
+T = TypeVar("T")
 
 #: Default shift of the shifted geometric mean [s].
 DEFAULT_SHIFT_S = 0.01
@@ -62,11 +66,11 @@ class TimingStats:
     max: float
     warmup: int = 0
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
-def summarize(samples, warmup: int = 0) -> TimingStats:
+def summarize(samples: Iterable[float], warmup: int = 0) -> TimingStats:
     """Statistics of a non-empty sequence of samples (numpy type-7 percentiles)."""
     x = np.asarray(list(samples), dtype=float)
     if x.size == 0:
@@ -77,7 +81,8 @@ def summarize(samples, warmup: int = 0) -> TimingStats:
                        warmup=int(warmup))
 
 
-def measure(fn, repeats: int = 20, warmup: int = 1, budget_s: float | None = None):
+def measure(fn: Callable[[], T], repeats: int = 20, warmup: int = 1,
+            budget_s: float | None = None) -> tuple[TimingStats, T | None]:
     """Time ``fn()``: ``warmup`` untimed calls, then up to ``repeats`` timed calls.
 
     If ``budget_s`` is given, stop adding samples once their sum exceeds it (at least one
@@ -86,7 +91,8 @@ def measure(fn, repeats: int = 20, warmup: int = 1, budget_s: float | None = Non
     """
     if repeats < 1:
         raise ValueError("repeats must be >= 1")
-    samples, result = [], None
+    samples: list[float] = []
+    result: T | None = None
     done_warmup = 0
     for _ in range(max(0, warmup)):
         t0 = time.perf_counter()
@@ -109,7 +115,7 @@ def measure(fn, repeats: int = 20, warmup: int = 1, budget_s: float | None = Non
     return summarize(samples, done_warmup), result
 
 
-def shifted_geomean(values, shift: float = DEFAULT_SHIFT_S) -> float:
+def shifted_geomean(values: Iterable[float], shift: float = DEFAULT_SHIFT_S) -> float:
     r"""Shifted geometric mean :math:`\exp\big(\tfrac1n\sum_i \ln(v_i + s)\big) - s`.
 
     The shift ``s`` (seconds; default 10 ms) damps the weight of very small times, as in
@@ -131,7 +137,7 @@ def dist_version(name: str) -> str | None:
         return None
 
 
-def versions() -> dict:
+def versions() -> dict[str, Any]:
     """Library versions and the machine the numbers come from."""
     import numpy
     import scipy
@@ -139,7 +145,7 @@ def versions() -> dict:
     try:
         import cvxpy
 
-        cvxpy_v = cvxpy.__version__
+        cvxpy_v = getattr(cvxpy, "__version__", None)
     except ImportError:  # pragma: no cover
         cvxpy_v = None
     return {
@@ -158,7 +164,7 @@ def versions() -> dict:
     }
 
 
-def solver_settings() -> dict:
+def solver_settings() -> dict[str, dict[str, Any]]:
     """The default settings of every QP backend (:data:`iamp.planners.backends.BACKENDS`)."""
     from iamp.planners.backends import BACKENDS
 
@@ -170,7 +176,7 @@ def solver_settings() -> dict:
 # --------------------------------------------------------------------------------------
 
 
-def _pmp_plan_fn(problem):
+def _pmp_plan_fn(problem: Any) -> Callable[[], Any]:
     import inspect
 
     from iamp.planners.pmp import PMPPlanner
@@ -181,26 +187,26 @@ def _pmp_plan_fn(problem):
     return lambda: planner.plan(problem)
 
 
-def time_pmp(problem, repeats: int = 50, warmup: int = 3) -> TimingStats:
+def time_pmp(problem: Any, repeats: int = 50, warmup: int = 3) -> TimingStats:
     """The PMP plan (global contact-time search + jump-condition solve + cost); the
     residual report is left out when the planner allows it (it is a diagnostic)."""
     stats, _ = measure(_pmp_plan_fn(problem), repeats, warmup)
     return stats
 
 
-def sample_nodes(problem, N: int, count: int, seed: int = 0):
+def sample_nodes(problem: Any, N: int, count: int, seed: int = 0) -> list[tuple[int, ...]]:
     """``count`` distinct candidate node tuples spread over the sweep (deterministic)."""
     rng = np.random.default_rng(seed)
     m = problem.m
-    out = []
+    out: list[tuple[int, ...]] = []
     while len(out) < count:
         nodes = tuple(int(k) for k in rng.choice(np.arange(1, N), size=m, replace=False))
         out.append(nodes)
     return out
 
 
-def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "clarabel",
-                 repeats: int = 20, native: bool = True) -> dict:
+def qp_breakdown(problem: Any, steps: int = 100, hold: str = "foh", solver: str = "clarabel",
+                 repeats: int = 20, native: bool = True) -> dict[str, Any]:
     """Per-solve timing of one QP configuration, cvxpy and native, separated.
 
     Returns ``{"cvxpy_compile_s", "cvxpy_resolve_s", "cvxpy_solver_s", "cvxpy_overhead_s",
@@ -219,24 +225,25 @@ def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "cl
     from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
 
     nodes = sample_nodes(problem, steps, repeats + 1)
-    out: dict = {"solver": solver, "hold": hold, "steps": int(steps)}
+    out: dict[str, Any] = {"solver": solver, "hold": hold, "steps": int(steps)}
     t0 = time.perf_counter()
     qp = CvxpyQPPlanner(steps=steps, hold=hold, solver=solver).build(problem)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         qp.solve_nodes(nodes[0])
     out["cvxpy_compile_s"] = time.perf_counter() - t0
-    totals, own, fails = [], [], 0
+    totals: list[float] = []
+    own: list[float] = []
+    fails = 0
     for nd in nodes[1:]:
         t0 = time.perf_counter()
         r = qp.solve_nodes(nd)
         totals.append(time.perf_counter() - t0)
         own.append(r.solver_time_s if r.solver_time_s is not None else np.nan)
         fails += r.status != "optimal"
-    totals, own = np.array(totals), np.array(own)
     out["cvxpy_resolve_s"] = summarize(totals).to_dict()
     out["cvxpy_solver_s"] = summarize(own).to_dict()
-    out["cvxpy_overhead_s"] = summarize(totals - own).to_dict()
+    out["cvxpy_overhead_s"] = summarize(np.array(totals) - np.array(own)).to_dict()
     out["cvxpy_failed"] = int(fails)
     if native:
         from iamp.planners.qp_core import DiscretisedQP
@@ -245,7 +252,9 @@ def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "cl
         nq = DiscretisedQP(problem, steps, hold, solver)
         nq.solve_nodes(nodes[0])
         out["native_setup_s"] = time.perf_counter() - t0
-        walls, own, calls, fails = [], [], [], 0
+        walls: list[float] = []
+        calls: list[float] = []
+        own, fails = [], 0
         for nd in nodes[1:]:
             t0 = time.perf_counter()
             r = nq.solve_nodes(nd)
@@ -261,23 +270,25 @@ def qp_breakdown(problem, steps: int = 100, hold: str = "foh", solver: str = "cl
     return out
 
 
-def time_search(planner_fn, repeats: int = 3, warmup: int = 1, budget_s: float = 30.0):
+def time_search(planner_fn: Callable[[], T], repeats: int = 3, warmup: int = 1,
+                budget_s: float = 30.0) -> tuple[TimingStats, T | None]:
     """Time a full contact-time search ``planner_fn() -> Plan`` (build included);
     returns ``(stats, last_result)`` (see :func:`measure` for ``budget_s``)."""
     return measure(planner_fn, repeats, warmup, budget_s)
 
 
-def geomean_table(per_scenario: dict, shift: float = DEFAULT_SHIFT_S) -> dict:
+def geomean_table(per_scenario: Mapping[str, Mapping[str, float | None]],
+                  shift: float = DEFAULT_SHIFT_S) -> dict[str, Any]:
     """Shifted geometric means across scenarios.
 
     ``per_scenario`` maps a scenario name to ``{label: median seconds}``; labels missing
     from a scenario are left out of that label's mean (the count is reported).
     """
     labels = sorted({lab for d in per_scenario.values() for lab in d})
-    out = {"shift_s": shift, "means": {}}
+    means: dict[str, Any] = {}
+    out: dict[str, Any] = {"shift_s": shift, "means": means}
     for lab in labels:
-        vals = [d[lab] for d in per_scenario.values() if lab in d and d[lab] is not None
-                and math.isfinite(d[lab])]
+        vals = [float(v) for d in per_scenario.values() if (v := d.get(lab)) is not None and math.isfinite(v)]
         if vals:
-            out["means"][lab] = {"shifted_geomean_s": shifted_geomean(vals, shift), "n": len(vals)}
+            means[lab] = {"shifted_geomean_s": shifted_geomean(vals, shift), "n": len(vals)}
     return out
