@@ -65,9 +65,7 @@ from iamp.prediction.evaluate_windows import (
     metrics,
 )
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD
-from iamp.prediction.mtd_model import MTDModel
 from iamp.prediction.predictor import DEFAULT_MODEL_FILE, Predictor
-from iamp.prediction.tracks import Tracks
 from iamp.prediction.training import track_accelerations
 
 __all__ = [
@@ -76,6 +74,7 @@ __all__ = [
     "FUTURE_S",
     "HISTORY_S",
     "HORIZONS",
+    "STRIDE_S",
     "Windows",
     "baseline_ca",
     "baseline_cv",
@@ -86,7 +85,6 @@ __all__ = [
     "run_evaluation",
     "select_model",
     "split_tracks",
-    "STRIDE_S",
     "synthetic_tracks",
     "train_default_model",
     "write_evaluation_report",

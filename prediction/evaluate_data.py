@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from iamp.prediction.tracks import Tracks
@@ -34,7 +32,6 @@ def synthetic_tracks(n_tracks: int = 40, duration: float = 90.0, dt: float = 0.1
     at 0.8–2 m/s² with probability 0.25 each); the acceleration follows the phase's target
     with a 0.5 s first-order lag; speeds start in 12–30 m/s and stay within 5–33 m/s.
     """
-    from iamp.prediction.tracks import Tracks
 
     rng = np.random.default_rng(seed)
     cols = {k: [] for k in ("track_id", "t", "x", "v", "a", "lane")}

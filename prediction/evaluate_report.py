@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 from iamp.core.atomic import write_text as atomic_write_text
 from iamp.prediction.evaluate_windows import HORIZONS

@@ -15,16 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from iamp.prediction.initial_state import DEFAULT_JERK_PSD
 from iamp.prediction.evaluate_windows import (
     FUTURE_S,
     HISTORY_S,
-    Windows,
     baseline_ca,
     baseline_cv,
     make_windows,
     metrics,
 )
+from iamp.prediction.initial_state import DEFAULT_JERK_PSD
 from iamp.prediction.mtd_model import MTDModel
 from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks import Tracks

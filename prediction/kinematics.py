@@ -16,11 +16,8 @@ stays stopped for the interval.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
-
-from iamp.prediction._typing import FloatArray
 
 __all__ = ["cubic_fit", "history_grid", "integrate_nodes", "local_quadratic", "second_differences"]
 

@@ -97,9 +97,17 @@ def _read_txt(path: Path) -> dict[str, Array]:
     return cols
 
 
+def _is_number(tok: str) -> bool:
+    try:
+        float(tok)
+    except ValueError:
+        return False
+    return True
+
+
 def _read(path: Path) -> tuple[dict[str, Array], str]:
     first = _first_line(path)
-    if re.search(r"[A-Za-z_]", first) is None:
+    if all(_is_number(tok) for tok in re.split(r"[\s,;]+", first.strip())):
         return _read_txt(path), "headerless whitespace-separated text (NGSIM documentation column order)"
     delim = ";" if first.count(";") > first.count(",") else ("," if "," in first else None)
     if delim is None:  # whitespace-separated with a header: normalise to the CSV reader

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linprog
 
-from iamp.prediction._typing import FloatArray, IntArray
+from iamp.prediction._typing import FloatArray, IntArray, Progress
 from iamp.prediction.mtd_counts import (
     _as_sequences,
     _check_empty,
@@ -60,7 +60,7 @@ def fit(sequences: Any, n_states: int, order: int, estimator: str = "mle", *, to
         empty: str = "uniform", lp_norm: str = "inf",
         edges: Any = None, centres: Any = None, dt: float | None = None, state: str | None = None,
         settings: dict[str, Any] | None = None,
-        provenance: dict[str, Any] | None = None) -> MTDModel:
+        provenance: dict[str, Any] | None = None, progress: Progress | None = None) -> MTDModel:
     r"""Fit an order-``n`` MTD model to integer state sequences.
 
     Parameters
@@ -97,6 +97,8 @@ def fit(sequences: Any, n_states: int, order: int, estimator: str = "mle", *, to
         Norm of the LP estimator.
     edges, centres, dt, state, settings, provenance
         Stored in the model unchanged (the physical meaning of the states).
+    progress : callable, optional
+        ``progress(done, total)`` after each EM start (``"mle"``).
 
     Returns
     -------
@@ -142,12 +144,14 @@ def fit(sequences: Any, n_states: int, order: int, estimator: str = "mle", *, to
                 starts.append((0.5 * Q + 0.5 * Qr, srng.dirichlet(np.ones(n))))
             best: tuple[float, FloatArray, FloatArray, int] | None = None
             runs: list[dict[str, Any]] = []
-            for Qs, ls in starts:
+            for k_start, (Qs, ls) in enumerate(starts):
                 Qe, le, joint = em_joint(rows, w, Qs, ls, m, pseudocount, empty, tol, max_iter)
                 ll = float(np.sum(w * np.log(np.maximum(_lag_probs(Qe, rows) @ le, 1e-300))))
                 runs.append({**joint, "loglik": ll})
                 if best is None or ll > best[0]:
                     best = (ll, Qe, le, len(runs) - 1)
+                if progress is not None:
+                    progress(k_start + 1, len(starts))
             assert best is not None  # at least one start
             _, Q, lam, ibest = best
             info.update({"joint_em": {"starts": runs, "best_start": ibest, "seed": seed}})

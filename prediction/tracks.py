@@ -12,21 +12,16 @@ dataset shipped with the package is returned by :func:`load_shipped_dataset`.
 
 from __future__ import annotations
 
-import json
 import os
-import zipfile
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
-from typing import Iterator, Sequence
 
 import numpy as np
 
-from iamp.core.atomic import atomic_open
-
 from iamp.core.errors import IampError
 
-__all__ = ["Tracks", "TrackDataError", "load_shipped_dataset", "SHIPPED_DATASET"]
+__all__ = ["SHIPPED_DATASET", "TrackDataError", "Tracks", "load_shipped_dataset"]
 
 #: File name of the shipped dataset inside the ``iamp.prediction`` package's ``data`` folder.
 SHIPPED_DATASET = "sumo_highway.npz"
@@ -222,12 +217,12 @@ class Tracks:
             return np.empty(0, dtype=np.int64)
         return self.track_id[np.concatenate(([0], _boundaries(self.track_id)))].copy()
 
-    def _take(self, index, meta: dict | None = None) -> "Tracks":
+    def _take(self, index, meta: dict | None = None) -> Tracks:
         return Tracks(self.track_id[index], self.t[index], self.x[index], self.v[index], self.a[index],
                       self.lane[index], self.dt, dict(self.meta) if meta is None else meta,
                       None if self.y is None else self.y[index])
 
-    def track(self, tid) -> "Tracks":
+    def track(self, tid) -> Tracks:
         """The rows of one track; :class:`TrackDataError` if there is no such track."""
         lo = np.searchsorted(self.track_id, tid, side="left")
         hi = np.searchsorted(self.track_id, tid, side="right")
@@ -245,13 +240,13 @@ class Tracks:
         for k, start in enumerate(starts):
             yield (int(self.track_id[start]), parts[0][k], parts[1][k], parts[2][k], parts[3][k], parts[4][k])
 
-    def select(self, mask) -> "Tracks":
+    def select(self, mask) -> Tracks:
         """The rows where the boolean ``mask`` holds (tracks must stay gap-free)."""
         return self._take(np.asarray(mask, dtype=bool))
 
     # -- transformations ----------------------------------------------------------------------
 
-    def resample(self, dt: float) -> "Tracks":
+    def resample(self, dt: float) -> Tracks:
         """Linear interpolation of ``x``, ``v`` and ``a`` per track onto a new uniform period.
 
         Each track is sampled at ``t0 + k·dt`` for every ``k`` that stays within the track's
@@ -285,7 +280,7 @@ class Tracks:
         return Tracks(cols["track_id"], cols["t"], cols["x"], cols["v"], cols["a"], cols["lane"], dt, meta, y_new)
 
     @staticmethod
-    def concat(tables: Sequence["Tracks"]) -> "Tracks":
+    def concat(tables: Sequence[Tracks]) -> Tracks:
         """Stack several tables with the same ``dt`` into one.
 
         Track ids are kept when they do not collide; otherwise every table after the first is
@@ -324,7 +319,7 @@ class Tracks:
             y = np.concatenate([tb.y for tb in tables if tb.y is not None])[order]
         return Tracks(*(cols[name][order] for name in _COLUMNS), dt=dt, meta=meta, y=y)
 
-    def split_by_track(self, test_fraction: float, seed: int = 0) -> tuple["Tracks", "Tracks"]:
+    def split_by_track(self, test_fraction: float, seed: int = 0) -> tuple[Tracks, Tracks]:
         """A deterministic held-out split by whole tracks: ``(train, test)``.
 
         ``round(test_fraction × n_tracks)`` tracks, drawn with ``numpy.random.default_rng(seed)``

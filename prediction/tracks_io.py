@@ -7,7 +7,6 @@ import os
 import zipfile
 from importlib import resources
 from pathlib import Path
-from typing import IO, Any
 
 import numpy as np
 

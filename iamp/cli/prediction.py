@@ -8,6 +8,7 @@ standard error, no traceback).
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
@@ -69,15 +70,17 @@ def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
 def cmd_train(args) -> int:
     """``iamp train``: fit an MTD model on recorded tracks and write it (atomically)."""
     from iamp.cli.progress import call_with_progress, progress_enabled
-    from iamp.prediction.loaders import load
+    from iamp.prediction.loaders import load_with_report
     from iamp.prediction.predictor import train_from_tracks
 
     try:
         edges = parse_bins(args.bins, args.bin_width, args.a_max)
-        tracks = load(args.data, args.format)
+        tracks, report = load_with_report(args.data, args.format)
+        for line in report.lines():
+            print(line)
         model = call_with_progress(
             train_from_tracks, tracks, desc="train", enabled=progress_enabled(args), dt=args.dt, edges=edges,
-            order=args.order, estimator=args.estimator, v0_window_s=args.v0_window,
+            order=args.order, estimator=args.estimator, jerk_psd=args.jerk_psd,
             provenance={"trained_by": "iamp train", "inputs": [str(p) for p in args.data], "format": args.format})
         model.save(args.out)
     except (IampError, ValueError, OSError) as exc:
@@ -157,16 +160,56 @@ def cmd_predict(args) -> int:
 # iamp evaluate-predictor
 # ---------------------------------------------------------------------------------------
 
-def cmd_evaluate_predictor(args) -> int:
-    """``iamp evaluate-predictor``: run the evaluation protocol and write the report."""
-    from iamp.cli.progress import call_with_progress, progress_enabled
+def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
+    """``iamp evaluate-predictor``: on ``--data`` (SPEC §13), else the protocol on the shipped data."""
+    if args.data is None:
+        return _evaluate_shipped(args)
+    if args.format is None:
+        return _error(ValueError("--data needs --format (highd, ngsim or sumo)"))
+    from iamp.prediction.evaluate_user import evaluate_file
+
+    try:
+        try:
+            from iamp.cli.progress import progress_bar, progress_enabled
+        except ImportError:  # pragma: no cover - the UX helper's module is optional
+            res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed)
+        else:
+            with progress_bar(7, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
+                res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed,
+                                    progress=tick)
+    except (IampError, ValueError, OSError) as exc:
+        return _error(exc)
+    if args.json:
+        sys.stdout.write(json.dumps(res, allow_nan=False) + "\n")
+        return EXIT_OK
+    from iamp.prediction.load_report import LoadReport
+
+    for line in LoadReport.from_dict(res["load_report"]).lines():
+        print(line)
+    print(f"{res['data']}: {res['tracks']} tracks, {res['windows']} windows (3 s history, 5 s future); "
+          f"model: {res['model']}")
+    print("RMSE [m] at " + "/".join(f"{h:g}" for h in res["horizons_s"]) + " s, ADE, FDE:")
+    for name in res["rmse_m"]:
+        print(f"  {name:4s} " + " ".join(f"{v:6.2f}" for v in res["rmse_m"][name])
+              + f"   {res['ade_m'][name]:6.2f} {res['fde_m'][name]:6.2f}")
+    for name, d in res["diff_to_cv"].items():
+        lo, hi = d["fde_m"]["ci95"]
+        print(f"  {name} - cv: FDE {d['fde_m']['diff']:+.2f} m (95 % CI {lo:+.2f} .. {hi:+.2f}, track bootstrap)")
+    if res["lateral_rmse_m"]:
+        print("lateral RMSE of y = const [m]: " + " ".join(f"{v:.2f}" for v in res["lateral_rmse_m"]["constant_y"]))
+    return EXIT_OK
+
+
+def _evaluate_shipped(args: argparse.Namespace) -> int:
     from iamp.prediction.evaluate import HORIZONS, write_evaluation_report
 
     try:
-        res = call_with_progress(write_evaluation_report, args.out, desc="evaluate-predictor",
-                                 enabled=progress_enabled(args), rerun=args.rerun, select=not args.no_select)
+        res = write_evaluation_report(args.out, rerun=args.rerun, select=not args.no_select)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
+    if args.json:
+        sys.stdout.write(json.dumps(res, allow_nan=False) + "\n")
+        return EXIT_OK
     cfg = res["chosen"]
     print(f"chosen: order {cfg['order']}, dt {cfg['dt']:g} s, bin width {cfg['width']:g} m/s^2, "
           f"estimator {cfg.get('estimator', 'mle')}")
@@ -206,9 +249,9 @@ def add_parsers(subparsers) -> None:
                    help=f"range of the bins in m/s^2 (default {DEFAULT_CONFIG['a_max']:g})")
     t.add_argument("--dt", type=_positive_float, default=DEFAULT_CONFIG["dt"],
                    help=f"chain time step in s (default {DEFAULT_CONFIG['dt']:g})")
-    t.add_argument("--v0-window", type=_positive_float, default=DEFAULT_CONFIG["v0_window_s"],
-                   help="window in s of the quadratic fit giving the initial speed at prediction time "
-                        f"(stored in the model; default {DEFAULT_CONFIG['v0_window_s']:g})")
+    t.add_argument("--jerk-psd", type=_positive_float, default=DEFAULT_CONFIG["jerk_psd"],
+                   help="jerk spectral density q in m^2/s^5 of the smoother estimating the initial state at "
+                        f"prediction time (stored in the model; default {DEFAULT_CONFIG['jerk_psd']:g})")
     t.add_argument("--estimator", choices=("mle", "mle-lambda", "lp"), default="mle",
                    help="mle: joint maximum likelihood of lambda and Q_i (EM, default); mle-lambda: Q_i from "
                         "lag-i counts, lambda by maximum likelihood; lp: Q_i from lag-i counts, lambda by the "
@@ -230,10 +273,21 @@ def add_parsers(subparsers) -> None:
 
     e = subparsers.add_parser(
         "evaluate-predictor", help="evaluate the predictor against baselines and write the report",
-        description="Run the evaluation protocol on the shipped SUMO data (selection on a validation split, "
-                    "final numbers on a held-out test split) and write predictor_eval.json and "
-                    "tables/predictor_rmse.tex, tables/predictor_selection.tex under --out.")
-    e.add_argument("--out", default="reports", help="output directory (default: reports)")
+        description="With --data FILE --format F: evaluate constant velocity, constant acceleration, the MTD "
+                    "predictor and a first-order chain on windows of 3 s history / 5 s future of the file "
+                    "(RMSE at 1..5 s, ADE, FDE, lateral RMSE of y = const, track-bootstrap 95 %% intervals of each "
+                    "method's difference to CV; dropped rows are reported). Without --data: run the evaluation "
+                    "protocol on the shipped SUMO data and write predictor_eval.json and tables under --out.")
+    e.add_argument("--data", default=None,
+                   help="evaluate on this recorded-data file (SPEC §13) instead of the shipped SUMO data")
+    e.add_argument("--format", default=None, choices=("highd", "ngsim", "sumo"), help="format of --data")
+    e.add_argument("--model", default=None, help="model file to evaluate (default: the shipped model)")
+    e.add_argument("--split", default=None, choices=("vehicle", "time"),
+                   help="train on part of --data and evaluate on the held-out rest: 20 %% of the vehicles "
+                        "(seeded) or the last 20 %% of the time span")
+    e.add_argument("--seed", type=int, default=0, help="seed of the vehicle split and the bootstrap (default 0)")
+    e.add_argument("--json", action="store_true", help="print exactly one JSON object")
+    e.add_argument("--out", default="reports", help="output directory without --data (default: reports)")
     e.add_argument("--rerun", action="store_true",
                    help="recompute even if DIR/predictor_eval.json already holds results of this protocol "
                         "version for the shipped data (by default those are reused and only the tables rewritten)")
