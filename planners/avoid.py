@@ -1,0 +1,312 @@
+r"""The avoidance QP (SPEC §10): true collision avoidance with linear inequalities.
+
+For each vehicle ``i`` the ego must stay out of its safety region, convexified around the
+named corner: the corner names two half-planes :math:`H_x, H_y`
+(:class:`~iamp.planners.avoid_data.HalfPlane`); the ego starts in one and ends in the other,
+and at a crossing time :math:`\tau_i` leaves the first:
+
+.. math::  t \le \tau_i \Rightarrow s(t) \in H_{\text{first}}, \qquad
+           t \ge \tau_i \Rightarrow s(t) \in H_{\text{second}} .
+
+For fixed :math:`\tau` this is the convex QP of SPEC §3 (same holds, same steps, same cost
+:math:`J = \tfrac12\int|u|^2`) with linear inequalities at every interior grid node
+(:class:`~iamp.planners.avoid_data.AvoidData`), solved through the QP backend registry
+(:func:`iamp.planners.backends.get_backend`, OSQP or Clarabel, general form
+:math:`l \le Az \le u`).
+
+Crossing-time search
+--------------------
+* ``grid`` (global over the grid): a crossing between nodes ``j`` and ``j + 1`` imposes the
+  first half-plane at nodes ``k <= j`` and the second at ``k >= j + 1``; every
+  ``j = 0..N-1`` (and both orders when the start and end allow both) is one candidate, a
+  bound update of one set-up solver.  A crossing *on* a node imposes both half-planes there
+  and is never cheaper than the crossings beside it, so the sweep is the global minimum over
+  every crossing time the grid can express.  With ``m > 1`` vehicles every combination is
+  swept while there are at most ``max_combinations`` (e.g. ``N = 50`` for two vehicles);
+  beyond that a coarse sweep (``coarse`` switches per vehicle, every combination) is
+  followed by coordinate descent over the full grid, and the plan is reported ``local``
+  (not certified global).
+* ``refine``: then, per vehicle, a bounded scalar search of :math:`\tau_i` within one step of
+  the grid's crossing interval, on grids aligned with :math:`\tau_i` (the node at
+  :math:`\tau_i` lies in both half-planes, as the continuous constraint requires).
+
+The reported crossing time is the last instant the plan's continuous trajectory is in the
+first half-plane (a root, to 1e-12 s).  Where the inequalities do not bind around the
+crossing, every switch in a range of nodes gives the same optimum (the QP's optimum is
+unique, its crossing-time *constraint* is not): the plan reports that range
+(``optimal_switch_range``) and the crossing of the trajectory itself, which is the same for
+all of them.
+
+Verification
+------------
+A plan is ``optimal`` only after the KKT conditions of its final QP, recomputed from the data
+(:func:`kkt_conditions`: stationarity, primal feasibility, dual sign, complementarity), pass
+``cmp_kkt_rel_<solver>`` of the tolerance table and, for ``m > 1``, the sweep was complete.
+The plan reports (``info["avoidance"]``, the ``"avoidance"`` key of its JSON) the crossing
+of every vehicle, the active set (the nodes where each inequality binds), their multipliers,
+and the largest intrusion *between* nodes — the constraint holds at the nodes only; the
+intrusion between them (measured exactly by :mod:`iamp.core.safety`) falls as ``N`` grows.
+
+Where the ego's start or end state lies inside a safety region no safe plan exists: the plan
+is ``infeasible`` with the reason.  Where it lies outside the region but in neither of the
+corner's half-planes, :class:`~iamp.core.errors.ScenarioError` names the vehicle.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import optimize
+
+from iamp.core import status as st
+from iamp.core.errors import ScenarioError
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+from iamp.core.tolerances import tol
+from iamp.planners.avoid_check import (
+    AXIS_NAMES,
+    Candidate,
+    FloatArray,
+    crossing_orders,
+    kkt_conditions,
+    leave_time,
+)
+from iamp.planners.avoid_data import AvoidData
+from iamp.planners.avoid_solve import BoundSolver
+from iamp.planners.qp import HOLDS, HoldTrajectory, aligned_grid
+
+Progress = Callable[[int, int], None]
+
+#: A row binds when its slack is at most this [m].
+ACTIVE_SLACK_M = 1e-6
+
+
+@dataclass
+class AvoidQPPlanner:
+    """The avoidance QP planner (module docstring).
+
+    Parameters
+    ----------
+    steps : int
+        Grid intervals ``N``.
+    hold : {"foh", "zoh"}
+    solver : {"osqp", "clarabel"}
+    contact : {"grid", "refine"}
+        Crossing-time search.
+    solver_settings : dict, optional
+        Overrides of the backend's settings.
+    max_combinations : int
+        Largest full sweep for ``m > 1`` vehicles.
+    coarse : int
+        Switches per vehicle of the coarse sweep beyond ``max_combinations``.
+    """
+
+    steps: int = 100
+    hold: str = "foh"
+    solver: str = "clarabel"
+    contact: str = "grid"
+    solver_settings: dict[str, Any] | None = None
+    max_combinations: int = 5000
+    coarse: int = 24
+
+    def __post_init__(self) -> None:
+        if self.hold not in HOLDS:
+            raise ValueError(f"unknown hold {self.hold!r}; choose from {', '.join(HOLDS)}")
+        if self.contact not in ("grid", "refine"):
+            raise ValueError(f"unknown contact search {self.contact!r}; choose grid or refine")
+        if self.solver not in ("osqp", "clarabel"):
+            raise ValueError(f"unknown solver {self.solver!r}; choose osqp or clarabel")
+
+    # --- solving one grid ------------------------------------------------------------------
+    def _backend(self, data: AvoidData, on: np.ndarray) -> BoundSolver:
+        _, u = data.bounds(on)
+        return BoundSolver(self.solver, data.P, data.A, data.b_eq, u[data.n_eq:], self.solver_settings)
+
+    def _solve(self, data: AvoidData, backend: BoundSolver, phases: Sequence[tuple[int, int, int, int]],
+               warm: Candidate | None = None) -> Candidate:
+        on = data.imposed(phases)
+        _, u = data.bounds(on)
+        backend.set_upper(u[data.n_eq:])
+        if warm is not None:
+            backend.warm_start(warm.z, warm.y)
+        sol = backend.solve()
+        ok = sol.status == st.OPTIMAL and sol.finite
+        # J = ½ zᵀ P z with P stored as its upper triangle
+        cost = float(sol.z @ (data.P @ sol.z) - 0.5 * sol.z @ (data.P.diagonal() * sol.z)) if ok else np.inf
+        return Candidate(tuple(phases), sol.status if ok or sol.status != st.OPTIMAL else st.NUMERICAL_ERROR,
+                         cost, sol.z, sol.y, on, sol)
+
+    # --- the plan ----------------------------------------------------------------------------
+    def plan(self, problem: Problem, progress: Progress | None = None) -> Plan:
+        """Search the crossing times, solve, verify; an infeasible start/end gives an
+        ``infeasible`` plan with the reason (see the module docstring)."""
+        start = time.perf_counter()
+        N, m = int(self.steps), problem.m
+        if N < 2:
+            raise ScenarioError(f"must be at least 2 (got {N})", "--steps")
+        orders, reason = crossing_orders(problem)
+        if reason is not None:
+            return self._failed(problem, st.INFEASIBLE, reason, start)
+        data = AvoidData(problem, np.linspace(0.0, problem.tf, N + 1), self.hold)
+        per_vehicle = [[(f, s, j, j + 1) for (f, s) in orders[i] for j in range(N)] for i in range(m)]
+        total = int(np.prod([len(c) for c in per_vehicle]))
+        complete = total <= self.max_combinations
+        backend = self._backend(data, np.zeros(data.n_rows - data.n_eq, dtype=bool))
+        table: list[tuple[Any, float]] = []
+        best: Candidate | None = None
+        failures: list[tuple[Any, str]] = []
+
+        def run(combos: Sequence[tuple[tuple[int, int, int, int], ...]]) -> None:
+            nonlocal best
+            for n_done, phases in enumerate(combos, 1):
+                r = self._solve(data, backend, phases, best)
+                table.append(([p[2] for p in phases], r.cost))
+                if r.status != st.OPTIMAL:
+                    failures.append(([p[2] for p in phases], r.status))
+                elif best is None or r.cost < best.cost:
+                    best = r
+                if progress is not None:
+                    progress(n_done, len(combos))
+
+        if complete:
+            run(list(itertools.product(*per_vehicle)))
+        else:
+            step = [max(1, len(c) // self.coarse) for c in per_vehicle]
+            run(list(itertools.product(*[c[::s] for c, s in zip(per_vehicle, step)])))
+            for _ in range(6):  # coordinate descent over the full grid
+                before = best.cost if best is not None else np.inf
+                for i in range(m):
+                    if best is None:
+                        break
+                    fixed = list(best.phases)
+                    run([tuple(fixed[:i] + [p] + fixed[i + 1:]) for p in per_vehicle[i]])
+                if best is None or best.cost >= before - 1e-12 * max(1.0, abs(before)):
+                    break
+        info: dict[str, Any] = {"constraint": "avoid", "n_solves": len(table), "sweep": table, "failures": failures,
+                                "complete_sweep": complete, "candidates": total}
+        if best is None:
+            status = failures[0][1] if failures else st.SOLVER_ERROR
+            return self._failed(problem, status, "no crossing-time candidate solved", start, info)
+        grid_best: Candidate = best
+        info["grid_best"] = {"switch_nodes": [p[2] for p in grid_best.phases], "cost": grid_best.cost}
+        if m == 1:  # every switch node whose optimum ties the best (the crossing constraint is not unique)
+            near = [int(k[0]) for k, c in table if c <= grid_best.cost + 1e-9 * max(1.0, grid_best.cost)]
+            info["grid_best"]["optimal_switch_range"] = [min(near), max(near)]
+        final_data, final = data, grid_best
+        taus: FloatArray | None = None
+        if self.contact == "refine":
+            final_data, final, taus = self._refine(problem, grid_best)
+            info["n_solves"] += int(info.pop("refine_solves", 0))
+        return self._result(problem, final_data, final, taus, complete, info, start)
+
+    def _refine(self, problem: Problem, seed: Candidate) -> tuple[AvoidData, Candidate, FloatArray]:
+        """Per vehicle, a bounded scalar search of ``τ_i`` on grids aligned with ``τ``."""
+        N, tf = int(self.steps), problem.tf
+        h = tf / N
+        taus = np.array([(p[2] + 0.5) * h for p in seed.phases])
+        cache: dict[tuple[float, ...], tuple[AvoidData, Candidate]] = {}
+
+        def solve_at(t: FloatArray) -> tuple[AvoidData, Candidate] | None:
+            key = tuple(float(x) for x in t)
+            if key in cache:
+                return cache[key]
+            try:
+                t_nodes, idx = aligned_grid(t, tf, N)
+            except ValueError:
+                return None
+            data = AvoidData(problem, t_nodes, self.hold)
+            phases = [(p[0], p[1], int(k), int(k)) for p, k in zip(seed.phases, idx)]
+            on = data.imposed(phases)
+            r = self._solve(data, self._backend(data, on), phases)
+            cache[key] = (data, r)
+            return data, r
+
+        for _ in range(2 if problem.m > 1 else 1):
+            for i in range(problem.m):
+                lo = max(seed.phases[i][2] * h - h, 1e-6 * tf)
+                hi = min((seed.phases[i][2] + 1) * h + h, tf * (1 - 1e-6))
+
+                def f(x: float, i: int = i) -> float:
+                    t = taus.copy()
+                    t[i] = x
+                    out = solve_at(t)
+                    return out[1].cost if out is not None and out[1].status == st.OPTIMAL else np.inf
+
+                res = optimize.minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7 * tf})
+                if np.isfinite(res.fun) and res.fun <= f(float(taus[i])):
+                    taus[i] = float(res.x)
+        out = solve_at(taus)
+        if out is None:  # pragma: no cover - the seed's own times are always valid
+            raise RuntimeError("refine lost its seed")
+        return out[0], out[1], taus
+
+    # --- results ---------------------------------------------------------------------------
+    def _failed(self, problem: Problem, status: str, reason: str, start: float,
+                info: dict[str, Any] | None = None) -> Plan:
+        info = {**(info or {}), "constraint": "avoid", "reason": reason}
+        return Plan(problem=problem, planner="qp", status=status, cost=None,
+                    contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
+                    trajectory=None, solve_time_s=time.perf_counter() - start, solver=self.solver, hold=self.hold,
+                    steps=self.steps, info=info)
+
+    def _result(self, problem: Problem, data: AvoidData, cand: Candidate, taus: FloatArray | None,
+                complete: bool, info: dict[str, Any], start: float) -> Plan:
+        X, U = data.unpack(cand.z)
+        traj = HoldTrajectory(data.t_nodes.copy(), X, U, self.hold)
+        cost = traj.cost()
+        elapsed = time.perf_counter() - start
+        l, u = data.bounds(cand.on)
+        kkt = kkt_conditions(data.P, data.q, data.A, l, u, cand.z, cand.y, n_eq=data.n_eq)
+        limit = tol(f"cmp_kkt_rel_{self.solver}")
+        failed = [k for k, v in kkt.items() if v > limit]
+        ineq_y = cand.y[data.n_eq:]
+        slack = u[data.n_eq:] - (data.A @ cand.z)[data.n_eq:]
+        relaxed_binding = bool(np.any((~cand.on) & (slack <= ACTIVE_SLACK_M)))
+        if relaxed_binding:
+            failed.append("relaxed_row_binding")
+        vehicles, jumps, crossing = [], np.zeros((problem.m, 2)), np.zeros(problem.m)
+        for i, (v, phases) in enumerate(zip(problem.vehicles, cand.phases)):
+            first, second, last_first, first_second = phases
+            planes = data.planes[i]
+            rows_i = {a: data.row(i, a, data.interior) - data.n_eq for a in (0, 1)}
+            entry: dict[str, Any] = {"name": v.name, "first": AXIS_NAMES[first], "second": AXIS_NAMES[second],
+                                     "first_half_plane": planes[first].describe(),
+                                     "second_half_plane": planes[second].describe()}
+            for a in (0, 1):
+                r = rows_i[a]
+                act = cand.on[r] & (slack[r] <= ACTIVE_SLACK_M)
+                nodes = data.interior[act]
+                entry[f"active_{AXIS_NAMES[a]}"] = {
+                    "nodes": [int(k) for k in nodes], "t": [float(data.t_nodes[k]) for k in nodes],
+                    "multipliers": [float(y) for y in ineq_y[r][act]]}
+                # the equivalent of ν_i (L = J + ν_i·(s − ...)): Σ_k σ y_k on the axis
+                jumps[i, a] = float(planes[a].sigma * np.sum(ineq_y[r][cand.on[r]]))
+            crossing[i] = leave_time(traj, planes[first], problem.tf)
+            entry["crossing_time"] = float(crossing[i])
+            entry["imposed_switch"] = [float(data.t_nodes[last_first]), float(data.t_nodes[first_second])]
+            vehicles.append(entry)
+        if failed:
+            status = st.INACCURATE
+        else:
+            status = st.OPTIMAL if complete else st.LOCAL
+        plan = Plan(problem=problem, planner="qp", status=status, cost=cost if status in st.SUCCESS else None,
+                    contact_times=crossing, jumps=jumps, trajectory=traj, solve_time_s=elapsed, solver=self.solver,
+                    hold=self.hold, steps=self.steps, info=info)
+        safety = plan.safety
+        for entry, vs in zip(vehicles, safety.vehicles if safety is not None else ()):
+            entry["between_node_intrusion_m"] = vs.max_intrusion_m
+        plan.residuals = {"boundary": plan.boundary_residual(), **kkt}
+        info.update(kkt=kkt, kkt_tol=limit, failed_checks=failed,
+                    solver_status=cand.status, solver_iterations=int(cand.sol.iterations))
+        info["avoidance"] = {"constraint": "avoid", "contact": self.contact, "complete_sweep": complete,
+                             "n_solves": info["n_solves"], "vehicles": vehicles,
+                             "kkt": kkt, "kkt_tol": limit, "failed_checks": failed,
+                             "grid_best": info["grid_best"]}
+        if failed:
+            info["failed_check"] = failed[0]
+        return plan
