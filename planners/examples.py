@@ -35,11 +35,13 @@ def builtin_problem(name: str) -> Problem:
 
 
 def random_problem(seed: int, m: int = 1, side: int | None = None) -> Problem:
-    """A seeded random lane change with ``m`` (1 or 2) vehicles.
+    """A seeded random lane change with ``m`` (1 to 4) vehicles.
 
     ``side`` = +1 changes lane towards +y, −1 towards −y (mirrored corners); default: drawn.
     Vehicle 1 is in the target lane behind the ego (``front`` corner); vehicle 2 is ahead in
-    the current lane (``rear`` corner).
+    the current lane (``rear`` corner); vehicle 3 is ahead in the target lane (``rear``
+    corner, near side); vehicle 4 behind in the current lane (``front`` corner, far side).
+    The draws for vehicles 1 and 2 do not depend on ``m``.
     """
     rng = np.random.default_rng(seed)
     if side is None:
@@ -60,8 +62,18 @@ def random_problem(seed: int, m: int = 1, side: int | None = None) -> Problem:
             x_poly=(rng.uniform(25, 50), rng.uniform(vx0 - 8, vx0 - 2), rng.uniform(-0.5, 0.5),
                     rng.uniform(-0.05, 0.05)),
             corner=f"rear-{far}", y=y0, name="sv2", **DEFAULT_GEOMETRY))
-    if m > 2:
-        raise ValueError("random_problem builds one or two vehicles")
+    if m >= 3:
+        vehicles.append(SurroundingVehicle(
+            x_poly=(rng.uniform(40, 80), rng.uniform(vx0 - 4, vx0 + 2), rng.uniform(-0.5, 0.5),
+                    rng.uniform(-0.05, 0.05)),
+            corner=f"rear-{near}", y=yf, name="sv3", **DEFAULT_GEOMETRY))
+    if m >= 4:
+        vehicles.append(SurroundingVehicle(
+            x_poly=(rng.uniform(-45, -20), rng.uniform(vx0 - 2, vx0 + 4), rng.uniform(-0.5, 0.5),
+                    rng.uniform(-0.05, 0.05)),
+            corner=f"front-{far}", y=y0, name="sv4", **DEFAULT_GEOMETRY))
+    if not 1 <= m <= 4:
+        raise ValueError("random_problem builds one to four vehicles")
     return Problem(ego, tuple(vehicles), f"random-{seed}-m{m}-side{side:+d}")
 
 

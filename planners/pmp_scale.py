@@ -1,0 +1,163 @@
+r"""Dimensionless form of a problem: time in units of the horizon, lengths in units of the
+problem's own size.
+
+With :math:`T = t_f` and a length :math:`L` (the largest position the problem mentions,
+see :func:`length_unit`), the scaled variables are :math:`\sigma = t/T`,
+:math:`\tilde s = s/L`, :math:`\tilde v = vT/L`, :math:`\tilde u = uT^2/L`,
+:math:`\tilde\Phi = \Phi T^3/L`, :math:`\tilde J = J T^3/L^2` and
+:math:`\tilde H = H T^4/L^2`.  The necessary conditions are invariant under this change of
+units, so every solve happens on numbers of order one and every residual is compared,
+dimensionless, with the tolerance table.
+
+The vehicle polynomials become polynomials in :math:`\sigma`:
+:math:`\tilde c_k = c_k T^k / L`.  Trailing coefficients whose contribution on
+:math:`[0, t_f]` is below ``pmp_poly_negligible_rel`` times the polynomial's size are
+dropped (a ``1e-300`` last coefficient solves exactly like the polynomial without it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.core.problem import Problem
+from iamp.core.tolerances import tol
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def strip_negligible(coeffs: FloatArray, T: float) -> FloatArray:
+    r"""``coeffs`` (ascending in ``t``) without trailing terms with
+    :math:`|c_k| T^k \le \epsilon \max_j |c_j| T^j` (``ε = pmp_poly_negligible_rel``)."""
+    c = np.asarray(coeffs, dtype=float)
+    with np.errstate(over="ignore"):
+        size = np.abs(c) * float(T) ** np.arange(c.size)
+    big = float(np.max(size)) if c.size else 0.0
+    keep = c.size
+    eps = tol("pmp_poly_negligible_rel")
+    while keep > 1 and size[keep - 1] <= eps * big:
+        keep -= 1
+    return c[:keep]
+
+
+def hermite_sigma(s0: float, v0: float, sf: float, vf: float) -> FloatArray:
+    """Ascending coefficients in ``σ`` of the unconstrained path on ``[0, 1]`` (scaled data)."""
+    e = sf - s0 - v0
+    g = vf - v0
+    return np.array([s0, v0, 3 * e - g, -2 * e + g])
+
+
+def transfer_cost_sigma(s0: float, v0: float, sf: float, vf: float) -> float:
+    r"""Scaled :math:`\tilde J` of one axis on ``[0, 1]``: :math:`6e^2 - 6eg + 2g^2`."""
+    e = sf - s0 - v0
+    g = vf - v0
+    return 6 * e * e - 6 * e * g + 2 * g * g
+
+
+def length_unit(problem: Problem) -> float:
+    """``L``: the largest of the boundary positions, the distances the boundary speeds
+    cover in ``t_f``, and the corners' coordinates (bounded by the sum of the absolute
+    scaled coefficients); ``1`` if all vanish."""
+    ego, T = problem.ego, problem.tf
+    vals = [abs(ego.x0), abs(ego.xf), abs(ego.y0), abs(ego.yf),
+            abs(ego.vx0) * T, abs(ego.vxf) * T, abs(ego.vy0) * T, abs(ego.vyf) * T]
+    for v in problem.vehicles:
+        c = strip_negligible(np.asarray(v.x_poly, dtype=float), T)
+        vals.append(float(np.sum(np.abs(c * float(T) ** np.arange(c.size)))) + abs(v.offset_x))
+        vals.append(abs(v.corner_y))
+    L = max(vals)
+    return L if L > 0 and np.isfinite(L) else 1.0
+
+
+@dataclass(frozen=True)
+class Units:
+    """Time unit ``T`` (s) and length unit ``L`` (m) with the derived units."""
+
+    T: float
+    L: float
+
+    @property
+    def vel(self) -> float:
+        return self.L / self.T
+
+    @property
+    def acc(self) -> float:
+        return self.L / self.T**2
+
+    @property
+    def jerk(self) -> float:
+        """Unit of ``p1``, ``p3`` and of the jumps ``Φ``."""
+        return self.L / self.T**3
+
+    @property
+    def cost(self) -> float:
+        return self.L**2 / self.T**3
+
+    @property
+    def ham(self) -> float:
+        """Unit of ``H`` and of the Hamiltonian-jump residual ``r = ∂J/∂t``."""
+        return self.L**2 / self.T**4
+
+
+@dataclass(frozen=True)
+class Scaled:
+    """A problem in scaled units.
+
+    Attributes
+    ----------
+    units : Units
+    ego : ndarray (8,)
+        ``(x0, vx0, xf, vxf, y0, vy0, yf, vyf)`` scaled.
+    EX, EY : ndarray (m, d), (m, 4)
+        Ascending ``σ``-coefficients of ``e_x,i = (corner_x,i − s̄_x)/L`` and
+        ``e_y,i = (corner_y,i − s̄_y)/L``.
+    CX : ndarray (m, d)
+        ``σ``-coefficients of ``corner_x,i / L`` (for the corner speed).
+    CY : ndarray (m,)
+        ``corner_y,i / L``.
+    jbar : float
+        Scaled cost of the unconstrained path.
+    """
+
+    units: Units
+    ego: FloatArray
+    EX: FloatArray
+    EY: FloatArray
+    CX: FloatArray
+    CY: FloatArray
+    jbar: float
+
+    @property
+    def m(self) -> int:
+        return int(self.EX.shape[0])
+
+
+def scale_problem(problem: Problem) -> Scaled:
+    """The dimensionless data of ``problem`` (see the module docstring)."""
+    T = float(problem.tf)
+    L = length_unit(problem)
+    ego = problem.ego
+    e = np.array([ego.x0 / L, ego.vx0 * T / L, ego.xf / L, ego.vxf * T / L,
+                  ego.y0 / L, ego.vy0 * T / L, ego.yf / L, ego.vyf * T / L])
+    hx = hermite_sigma(*e[:4])
+    hy = hermite_sigma(*e[4:])
+    polys = []
+    for v in problem.vehicles:
+        c = strip_negligible(np.asarray(v.x_poly, dtype=float), T)
+        cs = c * (T ** np.arange(c.size)) / L
+        cs[0] += v.offset_x / L
+        polys.append(cs)
+    d = max(4, max(p.size for p in polys))
+    m = len(polys)
+    CX = np.zeros((m, d))
+    for i, p in enumerate(polys):
+        CX[i, : p.size] = p
+    EX = CX.copy()
+    EX[:, :4] -= hx
+    CY = np.array([v.corner_y for v in problem.vehicles]) / L
+    EY = np.tile(-hy, (m, 1))
+    EY[:, 0] += CY
+    jbar = transfer_cost_sigma(*e[:4]) + transfer_cost_sigma(*e[4:])
+    return Scaled(Units(T, L), e, EX, EY, CX, CY, float(jbar))

@@ -1,0 +1,209 @@
+r"""The global contact-time search: the minimiser of :math:`J(t)` over :math:`(0, t_f)^m`.
+
+All work is in scaled units (``σ = t/t_f``, :mod:`iamp.planners.pmp_scale`).
+
+One vehicle (exact)
+-------------------
+With :math:`N(\sigma) = \tilde e_x^2 + \tilde e_y^2` and :math:`\tilde K = \sigma^3(1-\sigma)^3/3`,
+:math:`\tilde J = \tilde J_0 + \tfrac12 N/\tilde K` and :math:`d\tilde J/d\sigma = 0` exactly where
+
+.. math::  P(\sigma) = N'(\sigma)\,\sigma(1-\sigma) - 3N(\sigma)(1-2\sigma) = 0 .
+
+Every root of ``P`` in ``(0, 1)`` is isolated (:func:`iamp.planners.pmp_roots.unit_roots`) and
+the global minimiser is the root with the least ``N/K̃`` (``J → ∞`` at both ends when the
+corner is not on the ego's start or end state).
+
+Several vehicles
+----------------
+Starts from every combination of the one-vehicle stationary points (each vehicle alone),
+polished by Newton's method on the Hamiltonian-jump residuals ``r = ∇J`` (closed form,
+:meth:`ValueFunction.gradient_sigma`), then certified by branch and bound
+(:mod:`iamp.planners.pmp_bound`) which also reveals and polishes any better basin it finds.
+If the bound cannot close within its budget the result is only *local*.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from itertools import product
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.planners.pmp_fixed import ValueFunction
+from iamp.planners.pmp_roots import unit_roots
+from iamp.planners.pmp_scale import Scaled
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def stationarity_poly(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
+    """Ascending coefficients of ``P = N'σ(1−σ) − 3N(1−2σ)`` with ``N = ex² + ey²``
+    (``ex``, ``ey`` ascending in ``σ``)."""
+    d = max(len(ex), len(ey))
+    x = [float(c) for c in ex] + [0.0] * (d - len(ex))
+    y = [float(c) for c in ey] + [0.0] * (d - len(ey))
+    N = [0.0] * (2 * d - 1)
+    for i in range(d):
+        xi = x[i]
+        yi = y[i]
+        for j in range(d):
+            N[i + j] += xi * x[j] + yi * y[j]
+    Pc = [0.0] * (len(N) + 1)
+    for k in range(1, len(N)):
+        dk = k * N[k]
+        Pc[k] += dk
+        Pc[k + 1] -= dk
+    for k in range(len(N)):
+        Pc[k] -= 3 * N[k]
+        Pc[k + 1] += 6 * N[k]
+    return Pc
+
+
+def stationary_sigmas(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
+    """Every zero of ``dJ̃/dσ`` in ``(0, 1)`` for one vehicle (sorted)."""
+    return unit_roots(stationarity_poly(ex, ey))
+
+
+def _q_one(ex: Sequence[float], ey: Sequence[float], s: float) -> float:
+    """``N(σ)/K̃(σ)`` for one vehicle (scalar Horner)."""
+    px = 0.0
+    for c in reversed(ex):
+        px = px * s + c
+    py = 0.0
+    for c in reversed(ey):
+        py = py * s + c
+    return (px * px + py * py) * 3.0 / (s**3 * (1.0 - s) ** 3)
+
+
+def one_vehicle_sigma(ex: Sequence[float], ey: Sequence[float]) -> tuple[float, float]:
+    """``(σ*, q*)``: the global minimiser of ``q = N/K̃`` over ``(0, 1)`` and its value;
+    ``(nan, inf)`` if ``J`` has no interior stationary point."""
+    best_s, best_q = float("nan"), float("inf")
+    for s in stationary_sigmas(ex, ey):
+        q = _q_one(ex, ey, s)
+        if q < best_q:
+            best_s, best_q = s, q
+    return best_s, best_q
+
+
+def newton_sigma(vf: ValueFunction, s0: FloatArray, max_iter: int = 60) -> tuple[FloatArray, float]:
+    """Damped Newton on ``∇J̃(σ) = 0`` from ``s0`` with backtracking on ``J̃`` (stays a descent
+    method, inside ``(0, 1)``); the Hessian is the central difference of the closed-form
+    gradient.  Returns ``(σ, q(σ))``."""
+    lo, hi = 1e-12, 1.0 - 1e-12
+    s = np.clip(np.array(s0, dtype=float), lo, hi)
+    q = float(vf.quad_sigma(s[None, :])[0])
+    m = s.size
+    h = 1e-6
+    stencil = np.concatenate([np.eye(m), -np.eye(m)]) * h
+    for _ in range(max_iter):
+        pts = np.vstack([s[None, :], s[None, :] + stencil])
+        with np.errstate(all="ignore"):
+            try:
+                G = vf.gradient_sigma(pts)
+            except np.linalg.LinAlgError:
+                break
+        g = G[0]
+        if not np.all(np.isfinite(G)) or not np.isfinite(q):
+            break
+        Hs = (G[1:m + 1] - G[m + 1:]).T / (2 * h)
+        Hs = 0.5 * (Hs + Hs.T)
+        step = None
+        if np.all(np.isfinite(Hs)) and np.linalg.eigvalsh(Hs)[0] > 0:
+            step = -np.linalg.solve(Hs, g)
+        if step is None:
+            gmax = float(np.max(np.abs(g)))
+            if gmax == 0.0:
+                break
+            step = -g / gmax * 0.02
+        alpha = 1.0
+        accepted = False
+        while alpha > 1e-10:
+            sn = np.clip(s + alpha * step, lo, hi)
+            qn = float(vf.quad_sigma(sn[None, :])[0])
+            if qn <= q + 1e-15 * max(1.0, abs(q)):
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break
+        moved = float(np.max(np.abs(sn - s)))
+        s, q = sn, qn
+        if moved < 1e-15:
+            break
+    return s, q
+
+
+def trusted_q(vf: ValueFunction, s: FloatArray) -> float:
+    """``q(σ)`` if it can be trusted as an incumbent of the branch and bound, else ``inf``:
+    the times are distinct (``|σ_i − σ_j| > 1e-6``, below that ``K`` is too ill-conditioned
+    for the closed form) and the closed form agrees with the exact integral of ``|u|²`` of
+    the solved trajectory (``pmp_cost_consistency_rel``)."""
+    from iamp.core.tolerances import tol
+    from iamp.planners.pmp_fixed import solution_from_sigma, solve_sigma
+
+    ss = np.sort(s)
+    if ss.size > 1 and float(np.min(np.diff(ss))) <= 1e-6:
+        return float("inf")
+    q = float(vf.quad_sigma(s[None, :])[0])
+    try:
+        with np.errstate(all="ignore"):
+            sol = solution_from_sigma(vf.problem, vf.scaled, s, solve_sigma(vf.scaled, s))
+            J_traj = sol.cost() / vf.units.cost
+    except Exception:  # any failure of the check disqualifies the candidate
+        return float("inf")
+    J = vf.scaled.jbar + 0.5 * q
+    if not (np.isfinite(J) and abs(J - J_traj) <= tol("pmp_cost_consistency_rel") * max(abs(J_traj), 1e-300)):
+        return float("inf")
+    return q
+
+
+@dataclass
+class SearchResult:
+    """Outcome of :func:`global_search` (scaled units)."""
+
+    sigma: FloatArray
+    q: float
+    certified: bool
+    boxes: int
+    starts: int
+
+
+def start_points(S: Scaled, max_starts: int = 32) -> list[FloatArray]:
+    """Every combination of the one-vehicle stationary points (each vehicle alone, every
+    ordering of the contact times this implies), best ``max_starts`` by ``J``."""
+    per = []
+    for i in range(S.m):
+        roots = stationary_sigmas(S.EX[i].tolist(), S.EY[i].tolist())
+        per.append(roots if roots else [0.5])
+    combos = [np.array(c) for c in product(*per)]
+    if len(combos) > 4 * max_starts:
+        rng = np.random.default_rng(0)
+        combos = [combos[k] for k in rng.choice(len(combos), 4 * max_starts, replace=False)]
+    return combos
+
+
+def global_search(vf: ValueFunction, max_starts: int = 32, max_boxes: int = 200_000,
+                  progress: Callable[[int, int], None] | None = None) -> SearchResult:
+    """The global minimiser of ``J̃`` over ``(0, 1)^m`` (module docstring)."""
+    from iamp.planners.pmp_bound import branch_and_bound
+
+    S = vf.scaled
+    starts = start_points(S, max_starts)
+    vals = vf.quad_sigma(np.array(starts))
+    order = np.argsort(vals)[:max_starts]
+
+    def polish(s0: FloatArray) -> tuple[FloatArray, float]:
+        s, _ = newton_sigma(vf, s0)
+        return s, trusted_q(vf, s)
+
+    best_s, best_q = starts[int(order[0])], float("inf")
+    for k in order:
+        s, q = polish(starts[int(k)])
+        if q < best_q:
+            best_s, best_q = s, q
+
+    bb = branch_and_bound(vf, best_s, best_q, polish, max_boxes=max_boxes, progress=progress)
+    return SearchResult(bb.sigma, bb.q, bb.certified, bb.boxes, len(order))

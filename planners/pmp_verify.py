@@ -1,0 +1,110 @@
+r"""The PMP plan checks itself before it is called optimal (issue 9.1).
+
+Every condition the planner solved is recomputed from the returned solution, made
+dimensionless with the units of :mod:`iamp.planners.pmp_scale` (time ``T = t_f``, length
+``L``), and compared with a named entry of :mod:`iamp.core.tolerances`:
+
+* ``linear_system`` — backward error
+  :math:`\|\tilde M\tilde z-\tilde r\|_\infty/(\|\tilde M\|_\infty\|\tilde z\|_\infty+\|\tilde r\|_\infty)`
+  of the scaled jump system (``pmp_linear_system_rel``);
+* ``boundary`` — :math:`|s(0)-s_0|/L`, :math:`|v(0)-v_0|T/L`, the same at :math:`t_f`
+  (``pmp_scaled_residual``);
+* ``corner`` — :math:`|s(t_i)-\text{corner}_i(t_i)|/L` (``pmp_scaled_residual``);
+* ``h_minimisation`` — :math:`|u+p_{2,4}|\,T^2/L` at ``0, t_i, t_f`` (``pmp_scaled_residual``);
+* ``costate_jump`` — :math:`|p^-_{1,3}-p^+_{1,3}-\Phi|\,T^3/L` and
+  :math:`|p^-_{2,4}-p^+_{2,4}|\,T^2/L` (``pmp_scaled_residual``);
+* ``hamiltonian_jump`` — :math:`|H^- - H^+ - \dot x_s\Phi_x|` over the size of its terms
+  (``pmp_hjump_rel``; free contact times only);
+* ``cost_consistency`` — :math:`|J(t) - \tfrac12\int|u|^2|/J`, closed form against the
+  trajectory (``pmp_cost_consistency_rel``).
+
+(:math:`p_{2,4}` are integrated from :math:`\dot p_2 = -p_1`, not read off ``u``.)  A
+non-finite value fails as ``numerical_error``; any other failure as ``inaccurate``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.core.status import INACCURATE, NUMERICAL_ERROR
+from iamp.core.tolerances import tol
+from iamp.planners.pmp_fixed import ValueFunction, jump_system_sigma
+from iamp.planners.pmp_scale import Scaled, scale_problem
+from iamp.planners.pmp_solution import PMPSolution
+
+FloatArray = npt.NDArray[np.float64]
+Checks = dict[str, dict[str, float | bool]]
+
+_TOLS = {
+    "linear_system": "pmp_linear_system_rel",
+    "boundary": "pmp_scaled_residual",
+    "corner": "pmp_scaled_residual",
+    "h_minimisation": "pmp_scaled_residual",
+    "costate_jump": "pmp_scaled_residual",
+    "hamiltonian_jump": "pmp_hjump_rel",
+    "cost_consistency": "pmp_cost_consistency_rel",
+}
+
+
+def check_values(sol: PMPSolution, S: Scaled | None = None, stationary: bool = True) -> dict[str, float]:
+    """The dimensionless value of every check (module docstring).  ``stationary=False``
+    leaves out the Hamiltonian-jump condition (contact times given by the caller)."""
+    prob = sol.problem
+    S = S if S is not None else (sol.scaled if sol.scaled is not None else scale_problem(prob))
+    u = S.units
+    t = sol.contact_times
+    sig = t / u.T
+    out: dict[str, float] = {}
+    with np.errstate(all="ignore"):
+        M, rhs = jump_system_sigma(S, sig)
+        if sol.z_scaled is not None:
+            z = sol.z_scaled
+        else:
+            z = np.vstack([sol.a / u.acc, sol.b / u.jerk, sol.jumps / u.jerk])
+        den = float(np.max(np.sum(np.abs(M), axis=1)) * np.max(np.abs(z)) + np.max(np.abs(rhs)))
+        out["linear_system"] = float(np.max(np.abs(M @ z - rhs))) / max(den, 1e-300)
+        vel_pos = np.array([u.L, u.vel, u.L, u.vel])
+        ends = sol.states(np.array([0.0, u.T]))
+        out["boundary"] = float(max(np.max(np.abs(ends[0] - prob.ego.initial) / vel_pos),
+                                    np.max(np.abs(ends[1] - prob.ego.final) / vel_pos)))
+        X = sol.states(t)
+        out["corner"] = float(np.max(np.abs(X[:, [0, 2]] - prob.corners(t)))) / u.L
+        bp = np.r_[0.0, t, u.T]
+        p = sol.costates(bp)
+        out["h_minimisation"] = float(np.max(np.abs(sol.inputs(bp) + p[:, [1, 3]]))) / u.acc
+        pl, pr = sol.costates(t, "left"), sol.costates(t, "right")
+        out["costate_jump"] = float(max(np.max(np.abs(pl[:, [0, 2]] - pr[:, [0, 2]] - sol.jumps)) / u.jerk,
+                                        np.max(np.abs(pl[:, [1, 3]] - pr[:, [1, 3]])) / u.acc))
+        if stationary:
+            r, size = sol.hamiltonian_jump_terms()
+            out["hamiltonian_jump"] = float(np.max(np.abs(r) / np.maximum(size, 1e-300 * u.ham)))
+        J_closed = float(ValueFunction(prob, S)(t[None, :])[0])
+        J_traj = sol.cost()
+        out["cost_consistency"] = abs(J_closed - J_traj) / max(abs(J_traj), 1e-300 * u.cost)
+    return out
+
+
+def judge(values: dict[str, float]) -> tuple[Checks, str | None, str | None]:
+    """``(checks, failed_check, status)``: the table of ``{value, tol, ok}``, the first
+    failing check (or ``None``) and the failure status (``None`` if all pass)."""
+    checks: Checks = {}
+    failed: str | None = None
+    status: str | None = None
+    for name, v in values.items():
+        limit = tol(_TOLS[name])
+        finite = bool(np.isfinite(v))
+        ok = finite and v <= limit
+        checks[name] = {"value": float(v), "tol": limit, "ok": ok}
+        if not ok and failed is None:
+            failed = name
+            status = INACCURATE if finite else NUMERICAL_ERROR
+        if not finite:
+            status = NUMERICAL_ERROR
+    return checks, failed, status
+
+
+def verify(sol: PMPSolution, S: Scaled | None = None,
+           stationary: bool = True) -> tuple[Checks, str | None, str | None]:
+    """:func:`judge` of :func:`check_values`."""
+    return judge(check_values(sol, S, stationary))
