@@ -129,7 +129,7 @@ class QPPlanner:
         if ok:
             res.residuals = {"boundary": res.boundary_residual(), "interior_constraint": res.corner_residual()}
         if r is not None and r.kkt is not None:
-            res.residuals.update({f"kkt_{k}": v for k, v in r.kkt.as_dict().items()})
+            res.residuals.update({f"kkt_{k}": v for k, v in r.kkt.as_dict().items() if k.endswith("_rel")})
         return res
 
     def plan(self, problem: Problem, qp: CandidateSolver | None = None,
