@@ -105,6 +105,19 @@ def test_native_core_equals_the_cvxpy_formulation(problem, hold, solver):
     assert r.cost == pytest.approx(c.cost, rel=REF_TOL[solver])
 
 
+@settings(max_examples=8, deadline=None)
+@given(seed=hs.integers(0, 10_000), m=hs.sampled_from([1, 2]), hold=hs.sampled_from(["foh", "zoh"]),
+       N=hs.sampled_from([6, 16, 40]), data=hs.data())
+def test_kkt_reference_equals_the_cvxpy_formulation_on_random_problems(seed, m, hold, N, data):
+    p = random_problem(seed, m=m)
+    nodes = data.draw(hs.lists(hs.integers(1, N - 1), min_size=m, max_size=m, unique=True))
+    r = DiscretisedQP(p, N, hold, "kkt").solve_nodes(nodes)
+    c = CvxpyQP(p, N, hold, "clarabel").solve_nodes(nodes)
+    assert r.ok and c.ok, (r.status, c.status)
+    assert r.cost == pytest.approx(c.cost, rel=1e-9)
+    assert _rel(r.z, c.z) <= 1e-8 and _rel(r.y, c.y) <= 1e-6
+
+
 @pytest.mark.parametrize("solver", sorted(BACKENDS))
 @pytest.mark.parametrize("problem", [paper_problem(1), random_problem(22, m=2, side=-1)], ids=["paper-1", "r22-m2"])
 def test_foh_equals_pmp_and_multipliers_equal_jumps_on_every_backend(problem, solver):
