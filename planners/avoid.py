@@ -310,3 +310,35 @@ class AvoidQPPlanner:
         if failed:
             info["failed_check"] = failed[0]
         return plan
+
+
+def summary_lines(plan: Plan) -> list[str]:
+    """The text summary of an avoidance plan (the CLI prints it)."""
+    info = plan.info
+    av = info.get("avoidance", {})
+    out = [f"cost J    {plan.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]",
+           f"time      {plan.solve_time_s * 1e3:.3f} ms ({info.get('n_solves')} QPs; "
+           f"{'every' if av.get('complete_sweep') else 'coarse + descent over'} crossing candidate)"]
+    for v in av.get("vehicles", []):
+        out.append(f"vehicle {v['name']}: in {v['first']} until it crosses at t = {v['crossing_time']:.6f} s, then "
+                   f"in {v['second']}")
+        for key in ("active_H_x", "active_H_y"):
+            act = v[key]
+            if act["nodes"]:
+                ts = act["t"]
+                out.append(f"    {key[7:]} binds at {len(ts)} node(s) t = {ts[0]:.3f}..{ts[-1]:.3f} s, "
+                           f"multipliers sum {sum(act['multipliers']):.6g}")
+            else:
+                out.append(f"    {key[7:]} binds at no node")
+        out.append(f"    largest intrusion between nodes {v['between_node_intrusion_m']:.3g} m")
+    rng = av.get("grid_best", {}).get("optimal_switch_range")
+    if rng is not None and rng[0] != rng[1]:
+        out.append(f"note      the crossing constraint is not unique: every switch node {rng[0]}..{rng[1]} gives the "
+                   "same optimum (no inequality binds there)")
+    kkt = av.get("kkt", {})
+    if kkt:
+        out.append("residuals " + ", ".join(f"{k} {val:.1e}" for k, val in kkt.items())
+                   + f" (tol {av.get('kkt_tol', 0):.0e})")
+    if plan.safety is not None:
+        out += plan.safety.lines()
+    return out

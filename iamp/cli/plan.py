@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from iamp.cli.types import EXIT_OK, EXIT_SOLVER, model_file, steps_int
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, model_file, steps_int
 from iamp.core.errors import ScenarioError, SolverError
 
 #: Options that only the QP planner reads, with their defaults (SPEC §5).  They default to
@@ -20,6 +20,10 @@ def make_planner(args):
         from iamp.planners.pmp import PMPPlanner
 
         return PMPPlanner()
+    if getattr(args, "constraint", None) == "avoid":
+        from iamp.planners.avoid import AvoidQPPlanner
+
+        return AvoidQPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
     from iamp.planners.qp import QPPlanner
 
     return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
@@ -59,6 +63,10 @@ def cmd_plan(args) -> int:
     from iamp.core.status import NUMERICAL_ERROR
 
     check_options(args)
+    if args.constraint is None:
+        args.constraint = "equality"
+    if args.constraint == "avoid" and args.planner != "qp":
+        raise ScenarioError("the avoidance constraint is a QP (add --planner qp)", "--constraint")
     if args.model is not None and not load_scenario(args.scenario).needs_prediction:
         raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
                             "vehicle's x_poly", "--model", args.scenario)
@@ -88,7 +96,10 @@ def cmd_plan(args) -> int:
         _print_summary(scenario, problem, result, args)
         if args.csv is not None:
             print(f"wrote {args.csv} ({args.steps + 1} rows)" if result.ok else f"{args.csv} not written: no plan")
-    return EXIT_OK if result.is_optimal() else EXIT_SOLVER
+    if not result.is_optimal():
+        return EXIT_SOLVER
+    safety = result.safety
+    return EXIT_UNSAFE if args.require_safe and safety is not None and not safety.safe else EXIT_OK
 
 
 def _report_failure(scenario, args: argparse.Namespace, status: str, message: str) -> int:
@@ -112,7 +123,15 @@ def _print_summary(scenario, problem, result, args) -> None:
     print(f"planner   {cfg}")
     print(f"status    {result.status}")
     if not result.is_optimal():
+        if result.info.get("reason"):
+            print(f"reason    {result.info['reason']}")
         print("no cost is reported: the solver did not reach an optimal solution")
+        return
+    if result.info.get("constraint") == "avoid":
+        from iamp.planners.avoid import summary_lines
+
+        for line in summary_lines(result):
+            print(line)
         return
     print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
     print(f"time      {result.solve_time_s * 1e3:.3f} ms")
@@ -132,6 +151,9 @@ def _print_summary(scenario, problem, result, args) -> None:
     if result.residuals:
         worst = ", ".join(f"{k} {v:.1e}" for k, v in result.residuals.items())
         print(f"residuals {worst}")
+    if result.safety is not None:
+        for line in result.safety.lines():
+            print(line)
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -147,6 +169,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    help="grid intervals N for the QP, and output samples t_k = k tf/N for every planner "
                         "(at most 20000; the QP's sweep is limited to perm(N-1, m)·N <= 1e6)")
     p.add_argument("--contact", choices=("grid", "refine"), default=None, help="QP only (default grid)")
+    p.add_argument("--constraint", choices=("equality", "avoid"), default=None,
+                   help="QP only: the paper's corner equality (default) or the avoidance inequalities (SPEC §10)")
+    p.add_argument("--require-safe", action="store_true",
+                   help="exit with status 4 when the plan enters a safety region or overlaps a vehicle (SPEC §9); "
+                        "the plan is still printed")
     p.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios "
                    "(default: the shipped model)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")

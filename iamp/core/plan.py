@@ -159,6 +159,8 @@ class Plan:
         }
         safety = self.safety if ok else None
         out["safety"] = safety.to_json() if safety is not None else None
+        if ok and "avoidance" in self.info:
+            out["avoidance"] = self.info["avoidance"]
         if not ok and self.info.get("failed_check") is not None:
             out["failed_check"] = self.info["failed_check"]
         if not ok and self.info.get("reason") is not None:

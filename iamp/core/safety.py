@@ -142,6 +142,14 @@ class SafetyReport:
         """The vehicles whose region the ego enters or whose body it overlaps."""
         return [v for v in self.vehicles if not v.safe]
 
+    def lines(self) -> list[str]:
+        """The text output: one line per unsafe vehicle with its intervals (or that it is safe)."""
+        bad = self.unsafe()
+        if not bad:
+            return [f"safety    intrusion-free and collision-free (ego body {self.ego_length_m:g} x "
+                    f"{self.ego_width_m:g} m)"]
+        return [f"UNSAFE    {v.describe()}" for v in bad]
+
     def to_json(self) -> dict[str, Any]:
         return {"collision_free": self.collision_free, "intrusion_free": self.intrusion_free,
                 "vehicles": [v.to_json() for v in self.vehicles],
