@@ -91,7 +91,8 @@ def selection_table_tex(res: dict) -> str:
         "\\caption{Model selection on the validation split: mean over 1--5\\,s of the longitudinal RMSE (m) of "
         f"the propagated MTD prediction ({sel['n_val_windows']} windows) for each time step $\\Delta t$, bin width "
         "and order $n$; training BIC of the best order of each row in the last column. "
-        + (f"Constant velocity scores {cv_best:.3f} (smoother jerk spectral density {q:g}\\,m$^2$/s$^5$, also used by MTD). "
+        + (f"Constant velocity scores {cv_best:.3f} (smoother jerk spectral density {q:g}\\,m$^2$/s$^5$, "
+           "also used by MTD). "
            if cv_best is not None else "")
         + f"Chosen (bold): $\\Delta t={ch['dt']:g}$\\,s, width {ch['width']:g}\\,m/s$^2$, $n={ch['order']}$. "
         + (f"$^\\dagger$Excluded: bins narrower than two acceleration quanta $r/\\Delta t^2$ of positions "
@@ -153,6 +154,8 @@ def write_evaluation_report(out_dir="reports", results: dict | None = None, *, r
     dict
         The results that were written.
     """
+    from iamp.prediction.evaluate import EVAL_VERSION, _dataset_fingerprint, _load_default_data, run_evaluation
+
     out = Path(out_dir)
     res = results
     cached = out / "predictor_eval.json"

@@ -153,7 +153,7 @@ def baseline_cv(win: Windows, jerk_psd: float = DEFAULT_JERK_PSD) -> FloatArray:
 
 
 def baseline_ca(win: Windows, jerk_psd: float = DEFAULT_JERK_PSD) -> FloatArray:
-    """Constant acceleration ``x_0 + v_0 s + ½ a_0 s²`` with ``s = min(τ, v_0/(-a_0))`` when braking (stops at v = 0)."""
+    """Constant acceleration ``x_0 + v_0 s + ½ a_0 s²``, ``s = min(τ, v_0/(-a_0))`` when braking (stops)."""
     x0, v0, a0 = initial_kinematics(win, jerk_psd)
     tau = win.t_fut[None, :]
     with np.errstate(divide="ignore", invalid="ignore"):

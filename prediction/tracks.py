@@ -16,6 +16,7 @@ import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -351,7 +352,7 @@ class Tracks:
     # -- files (layout in iamp.prediction.tracks_io) -----------------------------------------
 
     def save(self, path: str | os.PathLike[str], *, decimals: int | None = None) -> Path:
-        """Write the table to a compressed ``.npz`` file, atomically (:func:`~iamp.prediction.tracks_io.save_tracks`)."""
+        """Write the table to a compressed ``.npz`` file, atomically (see :mod:`~iamp.prediction.tracks_io`)."""
         from iamp.prediction.tracks_io import save_tracks
 
         return save_tracks(self, path, decimals=decimals)

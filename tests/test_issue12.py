@@ -193,7 +193,7 @@ def test_em_likelihood_never_decreases():
     w = rng.integers(1, 4, size=400).astype(float)
     Q = rng.dirichlet(np.ones(4), size=(3, 4)).transpose(0, 2, 1)
     trace: list[float] = []
-    Qf, lam, info = em_joint(rows, w, Q, np.array([0.2, 0.3, 0.5]), 4, 0.0, "uniform", 1e-12, 5000, trace)
+    Qf, lam, _ = em_joint(rows, w, Q, np.array([0.2, 0.3, 0.5]), 4, 0.0, "uniform", 1e-12, 5000, trace)
     assert np.all(np.diff(trace) >= -1e-12)
     assert np.allclose(Qf.sum(axis=1), 1.0) and lam.sum() == pytest.approx(1.0)
 
