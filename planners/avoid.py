@@ -82,6 +82,18 @@ from iamp.planners.qp import HOLDS, HoldTrajectory, aligned_grid
 
 Progress = Callable[[int, int], None]
 
+
+@dataclass(frozen=True)
+class QPSolutionData:
+    """The final QP of a plan and its primal/dual solution (for independent checks)."""
+
+    data: AvoidData
+    l: FloatArray
+    u: FloatArray
+    z: FloatArray
+    y: FloatArray
+    imposed: np.ndarray
+
 #: A row binds when its slack is at most this [m].
 ACTIVE_SLACK_M = 1e-6
 
@@ -173,7 +185,12 @@ class AvoidQPPlanner:
                 if progress is not None:
                     progress(n_done, len(combos))
 
-        if complete:
+        certified = self._certify_free(data, backend, orders)
+        if certified is not None:
+            best = certified[0]
+            table.append(([p[2] for p in best.phases], best.cost))
+            complete = True
+        elif complete:
             run(list(itertools.product(*per_vehicle)))
         else:
             step = [max(1, len(c) // self.coarse) for c in per_vehicle]
@@ -188,13 +205,19 @@ class AvoidQPPlanner:
                 if best is None or best.cost >= before - 1e-12 * max(1.0, abs(before)):
                     break
         info: dict[str, Any] = {"constraint": "avoid", "n_solves": len(table), "sweep": table, "failures": failures,
-                                "complete_sweep": complete, "candidates": total}
+                                "complete_sweep": complete,
+                                "certificate": None if certified is None else
+                                "the unconstrained optimum keeps every inequality at the nodes: a lower bound "
+                                "attained, so it is the global optimum over every crossing time",
+                                "candidates": {"total": total, "solved": len(table) - len(failures)}}
         if best is None:
             status = failures[0][1] if failures else st.SOLVER_ERROR
             return self._failed(problem, status, "no crossing-time candidate solved", start, info)
         grid_best: Candidate = best
         info["grid_best"] = {"switch_nodes": [p[2] for p in grid_best.phases], "cost": grid_best.cost}
-        if m == 1:  # every switch node whose optimum ties the best (the crossing constraint is not unique)
+        if certified is not None:  # every switch in these ranges gives the same (free) optimum
+            info["grid_best"]["optimal_switch_range"] = certified[1][0] if m == 1 else certified[1]
+        elif m == 1:  # every switch node whose optimum ties the best (the crossing constraint is not unique)
             near = [int(k[0]) for k, c in table if c <= grid_best.cost + 1e-9 * max(1.0, grid_best.cost)]
             info["grid_best"]["optimal_switch_range"] = [min(near), max(near)]
         final_data, final = data, grid_best
@@ -204,6 +227,34 @@ class AvoidQPPlanner:
             info["n_solves"] += int(info.pop("refine_solves", 0))
         return self._result(problem, final_data, final, taus, complete, info, start)
 
+    def _certify_free(self, data: AvoidData, backend: BoundSolver, orders: Sequence[Sequence[tuple[int, int]]]
+                      ) -> tuple[Candidate, list[list[int]]] | None:
+        """Solve with every inequality relaxed; if that optimum (a lower bound of every
+        candidate) keeps some candidate's inequalities at the nodes, it is the global optimum.
+        Returns it with the chosen switches and, per vehicle, the range of valid switch nodes."""
+        free = self._solve(data, backend, [])
+        if free.status != st.OPTIMAL:
+            return None
+        X, _ = data.unpack(free.z)
+        k = data.interior
+        phases, ranges = [], []
+        for pair, vehicle_orders in zip(data.planes, orders):
+            ok = [pair[a].margin(data.t_nodes[k], X[k, 2 * a]) >= -1e-9 for a in (0, 1)]
+            found = None
+            for f, s2 in vehicle_orders:
+                bad_f, bad_s = k[~ok[f]], k[~ok[s2]]
+                j_max = int(bad_f[0]) - 1 if bad_f.size else data.N - 1
+                j_min = int(bad_s[-1]) if bad_s.size else 0
+                if j_min <= j_max:
+                    found = ((f, s2, j_min, j_min + 1), [j_min, j_max])
+                    break
+            if found is None:
+                return None
+            phases.append(found[0])
+            ranges.append(found[1])
+        on = data.imposed(phases)
+        return Candidate(tuple(phases), free.status, free.cost, free.z, free.y, on, free.sol), ranges
+
     def _refine(self, problem: Problem, seed: Candidate) -> tuple[AvoidData, Candidate, FloatArray]:
         """Per vehicle, a bounded scalar search of ``τ_i`` on grids aligned with ``τ``."""
         N, tf = int(self.steps), problem.tf
@@ -211,20 +262,16 @@ class AvoidQPPlanner:
         taus = np.array([(p[2] + 0.5) * h for p in seed.phases])
         cache: dict[tuple[float, ...], tuple[AvoidData, Candidate]] = {}
 
+        orders = [(p[0], p[1]) for p in seed.phases]
+
         def solve_at(t: FloatArray) -> tuple[AvoidData, Candidate] | None:
             key = tuple(float(x) for x in t)
-            if key in cache:
-                return cache[key]
-            try:
-                t_nodes, idx = aligned_grid(t, tf, N)
-            except ValueError:
-                return None
-            data = AvoidData(problem, t_nodes, self.hold)
-            phases = [(p[0], p[1], int(k), int(k)) for p, k in zip(seed.phases, idx)]
-            on = data.imposed(phases)
-            r = self._solve(data, self._backend(data, on), phases)
-            cache[key] = (data, r)
-            return data, r
+            if key not in cache:
+                out = self._solve_times(problem, t, orders)
+                if out is None:
+                    return None
+                cache[key] = out
+            return cache[key]
 
         for _ in range(2 if problem.m > 1 else 1):
             for i in range(problem.m):
@@ -244,6 +291,34 @@ class AvoidQPPlanner:
         if out is None:  # pragma: no cover - the seed's own times are always valid
             raise RuntimeError("refine lost its seed")
         return out[0], out[1], taus
+
+    def _solve_times(self, problem: Problem, taus: FloatArray,
+                     orders: Sequence[tuple[int, int]]) -> tuple[AvoidData, Candidate] | None:
+        """One QP on the grid aligned with ``taus`` (the node at ``τ_i`` in both half-planes)."""
+        try:
+            t_nodes, idx = aligned_grid(np.asarray(taus, dtype=float), problem.tf, int(self.steps))
+        except ValueError:
+            return None
+        data = AvoidData(problem, t_nodes, self.hold)
+        phases = [(f, s, int(k), int(k)) for (f, s), k in zip(orders, idx)]
+        return data, self._solve(data, self._backend(data, data.imposed(phases)), phases)
+
+    def plan_at_times(self, problem: Problem, taus: Sequence[float]) -> Plan:
+        """Solve once with the crossing times ``taus`` (no search; each vehicle's first
+        half-plane order), on the grid aligned with them."""
+        start = time.perf_counter()
+        orders, reason = crossing_orders(problem)
+        if reason is not None:
+            return self._failed(problem, st.INFEASIBLE, reason, start)
+        out = self._solve_times(problem, np.asarray(taus, dtype=float), [o[0] for o in orders])
+        if out is None:
+            raise ValueError("crossing times must be distinct and inside (0, tf)")
+        data, cand = out
+        info: dict[str, Any] = {"constraint": "avoid", "n_solves": 1, "sweep": [], "failures": [],
+                                "grid_best": {"switch_nodes": [p[2] for p in cand.phases], "cost": cand.cost}}
+        if cand.status != st.OPTIMAL:
+            return self._failed(problem, cand.status, "the QP did not solve", start, info)
+        return self._result(problem, data, cand, np.asarray(taus, dtype=float), True, info, start)
 
     # --- results ---------------------------------------------------------------------------
     def _failed(self, problem: Problem, status: str, reason: str, start: float,
@@ -302,7 +377,8 @@ class AvoidQPPlanner:
             entry["between_node_intrusion_m"] = vs.max_intrusion_m
         plan.residuals = {"boundary": plan.boundary_residual(), **kkt}
         info.update(kkt=kkt, kkt_tol=limit, failed_checks=failed,
-                    solver_status=cand.status, solver_iterations=int(cand.sol.iterations))
+                    solver_status=cand.status, solver_iterations=int(cand.sol.iterations),
+                    qp_solution=QPSolutionData(data, l, u, cand.z, cand.y, cand.on))
         info["avoidance"] = {"constraint": "avoid", "contact": self.contact, "complete_sweep": complete,
                              "n_solves": info["n_solves"], "vehicles": vehicles,
                              "kkt": kkt, "kkt_tol": limit, "failed_checks": failed,
