@@ -210,3 +210,28 @@ def _path(p) -> Path:
 
 
 _read_csv = read_csv  # the former private name
+
+
+#: Drop reasons shared by every loader.
+EXACT_DUPLICATE = "exact duplicate row (same vehicle, frame and values)"
+CONFLICTING_DUPLICATE = "conflicting row for the same vehicle and frame (the first in file order kept)"
+
+
+def duplicate_rows(same_key: BoolArray, values: Sequence[Array], report: LoadReport) -> BoolArray:
+    """Rows to keep of a table sorted by key (then file order), counting the dropped ones.
+
+    ``same_key[k]`` says row ``k + 1`` has the key of row ``k``.  Of every group of rows with
+    one key the first is kept; a later row is an *exact* duplicate when all ``values`` equal the
+    first row's, else a *conflicting* one (both counted in ``report``).
+    """
+    m = same_key.size + 1
+    dup = np.zeros(m, dtype=bool)
+    dup[1:] = same_key
+    first = np.maximum.accumulate(np.where(~dup, np.arange(m), 0))
+    differs = np.zeros(m, dtype=bool)
+    for v in values:
+        differs |= v != v[first]
+    report.drop(EXACT_DUPLICATE, int(np.sum(dup & ~differs)))
+    report.drop(CONFLICTING_DUPLICATE, int(np.sum(dup & differs)))
+    keep: BoolArray = ~dup
+    return keep

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from iamp.prediction.loaders_csv import _integers, _path, _segments, read_csv
+from iamp.prediction.load_report import LoadReport
+from iamp.prediction.loaders_csv import _integers, _path, _segments, duplicate_rows, read_csv
 from iamp.prediction.tracks import TrackDataError, Tracks
 
 __all__ = ["HIGHD_DEFAULT_FRAME_RATE", "load_highd"]
@@ -23,6 +24,8 @@ _HIGHD_TRACKS = (
     ("xVelocity", ("xVelocity",), True),
     ("xAcceleration", ("xAcceleration",), True),
     ("laneId", ("laneId",), True),
+    ("y", ("y",), False),
+    ("height", ("height",), False),
 )
 _HIGHD_TRACKS_META = (
     ("id", ("id",), True),
@@ -73,6 +76,7 @@ def load_highd(tracks_csv, tracks_meta_csv=None, recording_meta_csv=None) -> Tra
     meta: dict = {"format": "highd", "source": str(path), "reference_point": "centre (x + width/2)",
                   "units": "SI (as recorded)"}
     n = cols["frame"].size
+    report = LoadReport(sources=[str(path)], rows_read=int(n))
     if n == 0:
         raise TrackDataError("no data rows", source=path)
     frame = _integers(cols["frame"], "frame", path)
@@ -145,12 +149,16 @@ def load_highd(tracks_csv, tracks_meta_csv=None, recording_meta_csv=None) -> Tra
     a = sign * cols["xAcceleration"] + 0.0
     t = frame / frame_rate
 
-    order = np.lexsort((frame, vid))
+    y = sign * (cols["y"] + 0.5 * cols["height"]) + 0.0 if "y" in cols and "height" in cols else None
+    order = np.lexsort((np.arange(n), frame, vid))
     vid, frame, t, x, v, a, lane, direction = (c[order] for c in (vid, frame, t, x, v, a, lane, direction))
-    dup = (np.diff(vid) == 0) & (np.diff(frame) == 0)
-    if np.any(dup):
-        k = int(np.flatnonzero(dup)[0])
-        raise TrackDataError(f"vehicle {vid[k]} has two rows for frame {frame[k]}", column="frame", source=path)
+    if y is not None:
+        y = y[order]
+    keep = duplicate_rows((np.diff(vid) == 0) & (np.diff(frame) == 0), [x, v, a, lane], report)
+    vid, frame, t, x, v, a, lane, direction = (c[keep] for c in (vid, frame, t, x, v, a, lane, direction))
+    if y is not None:
+        y = y[keep]
+    report.rows_kept = int(vid.size)
     seg = _segments(np.diff(vid) != 0, frame)
     starts = np.concatenate(([0], np.flatnonzero(np.diff(seg)) + 1))
     if starts.size == np.unique(vid).size:
@@ -163,4 +171,9 @@ def load_highd(tracks_csv, tracks_meta_csv=None, recording_meta_csv=None) -> Tra
     meta["n_tracks_direction_1_mirrored"] = int(np.sum(dir_per_track == 1))
     meta["n_tracks_direction_2"] = int(np.sum(dir_per_track == 2))
     meta["mirrored"] = "driving direction 1: x -> -(x + width/2), xVelocity and xAcceleration negated"
-    return Tracks(track_id, t, x, v, a, lane, 1.0 / frame_rate, meta)
+    if starts.size > np.unique(vid).size:
+        report.note(f"{starts.size - np.unique(vid).size} track split(s) at frame gaps (no row dropped)")
+    meta["lateral"] = "y + height/2 (centre), mirrored like x" if y is not None else "no y/height columns"
+    meta["load_report"] = report.to_dict()
+    report.check()
+    return Tracks(track_id, t, x, v, a, lane, 1.0 / frame_rate, meta, y)

@@ -36,7 +36,7 @@ import numpy as np
 
 from iamp.prediction._typing import Array, FloatArray, IntArray
 from iamp.prediction.load_report import LoadReport
-from iamp.prediction.loaders_csv import _integers, _open_text, _path, _segments, read_csv
+from iamp.prediction.loaders_csv import _integers, _open_text, _path, _segments, duplicate_rows, read_csv
 from iamp.prediction.tracks import TrackDataError, Tracks
 
 __all__ = ["FEET", "NGSIM_FRAME_PERIOD", "NGSIM_TXT_COLUMNS", "load_ngsim"]
@@ -195,16 +195,7 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
 
     # duplicates of the key (the first row in file order is kept)
     same_key = (np.diff(loc_code) == 0) & (np.diff(vid) == 0) & (np.diff(frame) == 0)
-    dup = np.zeros(m, dtype=bool)
-    dup[1:] = same_key
-    first = np.maximum.accumulate(np.where(~dup, np.arange(m), 0))
-    differs = np.zeros(m, dtype=bool)
-    for v in vals.values():
-        differs |= v != v[first]
-    report.drop("exact duplicate row (same vehicle, frame and values)", int(np.sum(dup & ~differs)))
-    report.drop("conflicting row for the same vehicle and frame (the first in file order kept)",
-                int(np.sum(dup & differs)))
-    keep = ~dup
+    keep = duplicate_rows(same_key, list(vals.values()), report)
     loc_code, vid, frame = loc_code[keep], vid[keep], frame[keep]
     vals = {k: v[keep] for k, v in vals.items()}
     lane = _integers(vals["Lane_ID"], "Lane_ID", path)

@@ -8,10 +8,12 @@ import xml.etree.ElementTree as ET
 from array import array
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from iamp.prediction.loaders_csv import _open_text, _path, read_csv
+from iamp.prediction.load_report import LoadReport
+from iamp.prediction.loaders_csv import _open_text, _path, duplicate_rows, read_csv
 from iamp.prediction.tracks import TrackDataError, Tracks
 
 __all__ = ["SUMO_DEFAULT_LENGTH", "load_sumo_fcd"]
@@ -19,7 +21,7 @@ __all__ = ["SUMO_DEFAULT_LENGTH", "load_sumo_fcd"]
 SUMO_DEFAULT_LENGTH = 5.0
 
 
-_SUMO_ATTRS = ("time", "id", "x", "angle", "type", "speed", "pos", "lane", "acceleration", "length")
+_SUMO_ATTRS = ("time", "id", "x", "y", "angle", "type", "speed", "pos", "lane", "acceleration", "length")
 _SUMO_TEXT = ("id", "type", "lane")
 
 
@@ -51,9 +53,9 @@ def _is_xml(path: Path) -> bool:
 def _read_fcd_xml(path: Path, coordinate: str) -> tuple[dict, dict]:
     """Columns of an FCD XML file (iterparse; memory stays flat) and the vType lengths in it."""
     required = ("id", "speed", "lane", coordinate)
-    floats = {k: array("d") for k in ("time", "x", "angle", "speed", "pos", "acceleration", "length")}
+    floats = {k: array("d") for k in ("time", "x", "y", "angle", "speed", "pos", "acceleration", "length")}
     texts: dict[str, list] = {"id": [], "type": [], "lane": []}
-    seen = {k: 0 for k in ("x", "angle", "pos", "acceleration", "length", "type")}
+    seen = {k: 0 for k in ("x", "y", "angle", "pos", "acceleration", "length", "type")}
     vtype_len: dict[str, float] = {}
     time = None
     n = 0
@@ -92,14 +94,14 @@ def _read_fcd_xml(path: Path, coordinate: str) -> tuple[dict, dict]:
                         try:
                             floats["time"].append(time)
                             floats["speed"].append(float(at["speed"]))
-                            for key in ("x", "angle", "pos", "acceleration", "length"):
+                            for key in ("x", "y", "angle", "pos", "acceleration", "length"):
                                 if key in at:
                                     floats[key].append(float(at[key]))
                                     seen[key] += 1
                                 else:
                                     floats[key].append(math.nan)
                         except ValueError as exc:
-                            bad = next(k for k in ("speed", "x", "angle", "pos", "acceleration", "length")
+                            bad = next(k for k in ("speed", "x", "y", "angle", "pos", "acceleration", "length")
                                        if k in at and not _floatable(at[k]))
                             raise TrackDataError(f"vehicle {at['id']!r} at time {time:g}: cannot read "
                                                  f"{at[bad]!r} as a number", column=bad, source=path) from exc
@@ -121,14 +123,14 @@ def _read_fcd_xml(path: Path, coordinate: str) -> tuple[dict, dict]:
     cols: dict = {"time": np.frombuffer(floats["time"], dtype=np.float64) if n else np.empty(0),
                   "speed": np.frombuffer(floats["speed"], dtype=np.float64) if n else np.empty(0),
                   "id": np.asarray(texts["id"], dtype=str), "lane": np.asarray(texts["lane"], dtype=str)}
-    for key in ("x", "angle", "pos", "acceleration", "length"):
+    for key in ("x", "y", "angle", "pos", "acceleration", "length"):
         if seen[key] == n and n:
             cols[key] = np.frombuffer(floats[key], dtype=np.float64)
         elif seen[key]:
             raise TrackDataError(f"present on only {seen[key]} of {n} vehicle records", column=key, source=path)
     if seen["type"]:
         cols["type"] = np.asarray(texts["type"], dtype=str)
-    for key in ("time", "speed", "x", "angle", "pos", "acceleration", "length"):
+    for key in ("time", "speed", "x", "y", "angle", "pos", "acceleration", "length"):
         if key in cols and not np.all(np.isfinite(cols[key])):
             raise TrackDataError("contains a non-finite value", column=key, source=path)
     return cols, vtype_len
@@ -205,7 +207,8 @@ def load_sumo_fcd(path, *, lengths: Mapping[str, float] | None = None,
     n = cols["time"].size
     if n == 0:
         raise TrackDataError("no vehicle records", source=path)
-    meta: dict = {"format": "sumo-fcd", "source": str(path), "file_type": fmt, "coordinate": coordinate,
+    report = LoadReport(sources=[str(path)], rows_read=int(n))
+    meta: dict[str, Any] = {"format": "sumo-fcd", "source": str(path), "file_type": fmt, "coordinate": coordinate,
                   "units": "SI (as recorded)"}
 
     # vehicles in order of first appearance
@@ -217,11 +220,14 @@ def load_sumo_fcd(path, *, lengths: Mapping[str, float] | None = None,
     cols = {k: val[order] for k, val in cols.items()}
     code = code[order]
     time = cols["time"]
-    dup = (np.diff(code) == 0) & (np.diff(time) == 0)
-    if np.any(dup):
-        k = int(np.flatnonzero(dup)[0])
-        raise TrackDataError(f"vehicle {cols['id'][k]!r} appears twice at time {time[k]:g}", column="time",
-                             source=path)
+    value_cols = [cols[k] for k in ("x", "pos", "speed", "acceleration", "y") if k in cols]
+    keep = duplicate_rows((np.diff(code) == 0) & (np.diff(time) == 0), value_cols + [cols["lane"]], report)
+    if not np.all(keep):
+        cols = {k: val[keep] for k, val in cols.items()}
+        code = code[keep]
+        time = cols["time"]
+        n = int(time.size)
+    report.rows_kept = n
     steps = np.diff(np.unique(time))
     dt = float(np.median(steps)) if steps.size else 1.0
     dt = float(np.round(dt, 9))
@@ -304,4 +310,13 @@ def load_sumo_fcd(path, *, lengths: Mapping[str, float] | None = None,
     meta["source_ids"] = [str(s) for s in cols["id"][starts]]
     if "type" in cols:
         meta["track_types"] = [str(s) for s in vtypes[starts]]
-    return Tracks(seg, time, pos, speed, acc, lane, dt, meta)
+    y_lat = None
+    if "y" in cols and coordinate == "x":
+        cos = np.cos(np.radians(cols["angle"])) if "angle" in cols else np.zeros(n)
+        y_lat = cols["y"] - 0.5 * length * cos
+        meta["lateral"] = "centre y - length/2 * cos(angle) (SUMO y is the front bumper)"
+    if starts.size > names.size:
+        report.note(f"{starts.size - names.size} track split(s) at missing time steps (no row dropped)")
+    meta["load_report"] = report.to_dict()
+    report.check()
+    return Tracks(seg, time, pos, speed, acc, lane, dt, meta, y_lat)

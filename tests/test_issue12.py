@@ -232,3 +232,40 @@ def test_cli_evaluate_predictor_json(ngsim_file):
     res = json.loads(out.stdout)
     assert {"data", "tracks", "windows", "horizons_s", "rmse_m", "ade_m", "fde_m"} <= set(res)
     assert res["load_report"]["rows_read"] == 5400
+
+
+FIX = __import__("pathlib").Path(__file__).resolve().parent / "fixtures"
+
+
+def _with_duplicates(src, dst, picks, change=None):
+    lines = src.read_text().splitlines()
+    extra = [lines[k] for k in picks]
+    if change is not None:
+        extra.append(change(lines[picks[0]]))
+    dst.write_text("\n".join(lines + extra) + "\n")
+    return len(lines) - 1
+
+
+@pytest.mark.parametrize("fmt", ["highd", "sumo"])
+def test_highd_and_sumo_duplicates_are_counted_not_fatal(tmp_path, fmt):
+    if fmt == "highd":
+        src, dst = FIX / "highd" / "02_tracks.csv", tmp_path / "02_tracks.csv"
+
+        def change(line):  # same vehicle and frame, another x
+            f = line.split(",")
+            f[2] = str(float(f[2]) + 1.0)
+            return ",".join(f)
+    else:
+        src, dst = FIX / "sumo_fcd.csv", tmp_path / "fcd.csv"
+
+        def change(line):  # same vehicle and time, another speed
+            f = line.split(";")
+            f[6] = str(float(f[6]) + 1.0)
+            return ";".join(f)
+    clean, _ = load_with_report([src], fmt)
+    n = _with_duplicates(src, dst, [3, 4], change)
+    tb, rep = load_with_report([dst], fmt)
+    assert rep.dropped["exact duplicate row (same vehicle, frame and values)"] == 2
+    assert rep.dropped["conflicting row for the same vehicle and frame (the first in file order kept)"] == 1
+    assert rep.rows_read == rep.rows_kept + 3 and rep.rows_kept == len(tb) == len(clean)
+    assert np.array_equal(tb.x, clean.x) and n >= len(clean)
