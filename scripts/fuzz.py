@@ -15,7 +15,9 @@ and picks random options (``--planner``, ``--solver``, ``--hold``, ``--contact``
 shared), with ``--subprocess`` as a real ``python -m iamp`` process.  A case that runs past
 ``--timeout`` seconds is killed and counted as a hang.
 
-Outcomes: ``ok`` (exit 0), ``refused`` (2), ``failed`` (3), ``unsafe`` (4), ``crash`` (exit 1:
+Outcomes: ``ok`` (exit 0), ``local`` (exit 3, status ``local``: verified at its contact times, the
+global optimum not certified, so a cost is reported), ``refused`` (2), ``failed`` (3, no cost),
+``unsafe`` (4), ``crash`` (exit 1:
 an internal error, or any traceback on standard error), ``hang``, ``other`` (any other exit
 status, more than one line on standard error for a refusal, or stdout that is not exactly
 one JSON object), and ``unchecked-optimal``: exit 0 whose JSON does not satisfy its own
@@ -289,11 +291,13 @@ def classify(code: int | None, stdout: str, stderr: str, path: Path, argv: list[
             out = json.loads(stdout)
         except json.JSONDecodeError:
             return "other", f"exit {code} without exactly one JSON object on stdout"
-        if code == 3:
-            return ("failed", out.get("status", "")) if out.get("cost") is None else ("other", "failed with a cost")
-        if code == 0:
-            if out.get("status") != "optimal" or out.get("cost") is None:
-                return "other", "exit 0 but not optimal"
+        if code == 3 and out.get("cost") is None:
+            return "failed", out.get("status", "")
+        if code == 3 and out.get("status") != "local":  # "local": verified, global optimum not certified
+            return "other", f"failed ({out.get('status')}) with a cost"
+        if code == 0 and (out.get("status") != "optimal" or out.get("cost") is None):
+            return "other", "exit 0 but not optimal"
+        if code in (0, 3):
             try:
                 from iamp.prediction.resolve import load_problem
 
@@ -302,7 +306,9 @@ def classify(code: int | None, stdout: str, stderr: str, path: Path, argv: list[
                 bad = check_plan_json(out, problem)
             except Exception as exc:  # the fuzzer reports, never stops
                 return "other", f"check failed: {exc.__class__.__name__}: {exc}"
-            return ("unchecked-optimal", "; ".join(bad)) if bad else ("ok", "")
+            if bad:
+                return "unchecked-optimal", "; ".join(bad)
+            return ("ok", "") if code == 0 else ("local", "")
         return "unsafe", ""
     return "other", f"exit {code}"
 
@@ -346,7 +352,7 @@ def main(argv: list[str] | None = None) -> int:
             code, out, err = run(cmd, args.timeout)
             kind, detail = classify(code, out, err, path, cmd)
             counts[kind] += 1
-            if kind not in ("ok", "refused", "failed"):
+            if kind not in ("ok", "local", "refused", "failed"):
                 examples.setdefault(kind, []).append(f"{base} [{'; '.join(notes)}] {' '.join(opts)} -> {detail}")
                 if keep:
                     shutil.copy(path, keep / f"{kind}-{case}.toml")
@@ -361,7 +367,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(summary, indent=1))
     else:
         print(f"{args.n} cases (seed {args.seed}) in {summary['seconds']} s")
-        for k in ("ok", "refused", "failed", "unsafe", "crash", "hang", "unchecked-optimal", "other"):
+        for k in ("ok", "local", "refused", "failed", "unsafe", "crash", "hang", "unchecked-optimal", "other"):
             print(f"  {k:18s} {counts.get(k, 0)}")
         for k, v in examples.items():
             for line in v[:5]:

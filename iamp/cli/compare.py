@@ -22,6 +22,7 @@ import json
 import math
 import sys
 
+from iamp.cli.types import model_file
 from iamp.cli.types import positive_float as _positive_float
 from iamp.cli.types import positive_int as _positive_int
 from iamp.core.errors import ScenarioError
@@ -55,7 +56,8 @@ def add_parsers(sub) -> None:
                    help="stop repeating a configuration once its timed plans exceed S seconds (default 5)")
     c.add_argument("--no-breakdown", action="store_true",
                    help="skip the per-solve timing breakdown (cvxpy compile / re-solve / solver / native)")
-    c.add_argument("--model", default=None, help="predictor model file for history scenarios")
+    c.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios")
+    c.add_argument("--force", action="store_true", help="replace existing output files (--latex, --json-out)")
     c.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     c.add_argument("--latex", default=None, metavar="FILE", help="write a booktabs table (atomically)")
     from iamp.cli.progress import add_quiet_flag
@@ -99,10 +101,17 @@ def run_compare(args) -> dict:
     from iamp.comparison.timing import DEFAULT_SHIFT_S, geomean_table, qp_breakdown, solver_settings, versions
     from iamp.core.tolerances import TOLERANCES
 
-    loaded = []
-    for spec in args.scenarios:  # validate every input before any solve
-        scenario, problem, _ = load_cli_problem(spec, args.model)
-        loaded.append((scenario, problem, _steps_for(problem, args)))
+    loaded, refused = [], []
+    for spec in args.scenarios:  # validate every input before any solve; a bad one does not stop the good ones
+        try:
+            scenario, problem, _ = load_cli_problem(spec, args.model)
+            loaded.append((scenario, problem, _steps_for(problem, args)))
+        except ScenarioError as exc:
+            if len(args.scenarios) == 1:
+                raise
+            refused.append({"scenario": spec, "error": " ".join(exc.one_line().split())})
+    if not loaded and refused:
+        raise ScenarioError("no scenario could be loaded", "scenarios", ", ".join(args.scenarios))
     scenarios, medians = [], {}
     # progress: 1000 units per scenario, 800 for the planners (finer if compare_problem reports), 200 breakdown
     with progress_bar(1000 * len(loaded), "compare", enabled=progress_enabled(args)) as tick:
@@ -127,6 +136,7 @@ def run_compare(args) -> dict:
                                       for r in data["runs"]}
     return {
         "scenarios": scenarios,
+        "refused": refused,
         "timing_summary": geomean_table(medians, DEFAULT_SHIFT_S),
         "repeats": args.repeats,
         "budget_s": args.budget,
@@ -238,6 +248,14 @@ def latex_table(out: dict) -> str:
 
 
 def cmd_compare(args) -> int:
+    from pathlib import Path
+
+    from iamp.core.outputs import check_output
+
+    inputs = [s for s in args.scenarios if Path(s).is_file()]
+    for option in ("latex", "json_out"):  # fail fast, before the solves
+        if getattr(args, option, None):
+            check_output(getattr(args, option), inputs, args.force, option="--" + option.replace("_", "-"))
     out = run_compare(args)
     if args.latex:
         from iamp.comparison.latex import write_atomic
@@ -250,6 +268,10 @@ def cmd_compare(args) -> int:
         if args.latex:
             sys.stdout.write(f"wrote {args.latex}\n")
     failed = any(r["status"] != "optimal" for sc in out["scenarios"] for r in sc["runs"])
+    if out.get("refused"):
+        for r in out["refused"]:
+            sys.stderr.write(f"iamp: error: {r['error']} (this scenario was skipped; the others ran)\n")
+        return 2
     return EXIT_SOLVER if failed else EXIT_OK
 
 
