@@ -138,7 +138,7 @@ def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
     if k == t.size - 1:
         return float(tf)
 
-    def g(x: float) -> float:
-        return float(margin(np.array([x]))[0])
+    def g(x: float) -> float:  # the same 1e-12 m tolerance as the scan: a sign change is bracketed
+        return float(margin(np.array([x]))[0]) + 1e-12
 
     return float(optimize.brentq(g, float(t[k]), float(t[k + 1]), xtol=1e-13))
