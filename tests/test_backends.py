@@ -149,6 +149,15 @@ def test_updates_on_a_fixed_pattern_equal_a_fresh_setup():
         assert _rel(b.solve().z, fresh.z) <= REF_TOL[name], name
 
 
+def test_a_sweep_reuses_one_kkt_factorisation():
+    p = random_problem(3, m=2)
+    planner = QPPlanner(steps=12, hold="foh", solver="kkt")
+    qp = planner.build(p)
+    res = planner.plan(p, qp=qp)
+    assert res.status == st.OPTIMAL and res.info["candidates"]["total"] == 11 * 10
+    assert qp.backend.factorisations == 1  # type: ignore[attr-defined]
+
+
 def test_kkt_backend_bandwidth_is_small_and_grid_independent():
     p = paper_problem(1)
     for N in (20, 100, 400):

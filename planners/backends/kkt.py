@@ -126,6 +126,7 @@ class KKTBackend(QPBackend):
         self._b_range = np.arange(self._border.size)
         self._factor: tuple[np.ndarray, np.ndarray] | None = None
         self._info = 0
+        self.factorisations = 0  # numeric factorisations so far (one per grid)
         self._P_full: sp.csr_matrix | None = None
         self._AT = self.A.T  # a CSR view sharing A.data (updated in place)
 
@@ -139,6 +140,7 @@ class KKTBackend(QPBackend):
         flat[self._a_pos] = ad
         flat[self._a_pos_t] = ad
         lu, piv, info = lapack.dgbtrf(ab, self._kl, self._ku, overwrite_ab=True)
+        self.factorisations += 1
         self._factor = (lu, piv)
         self._info = int(info)
         self._uses = 0
