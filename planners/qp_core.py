@@ -41,8 +41,9 @@ class CandidateResult:
     ``status`` is verified (see the module docstring); ``cost`` is ``J`` of the held input
     when the status is OPTIMAL and ``inf`` otherwise.  Times: ``solve_call_s`` the backend's
     ``solve()`` call, ``backend_s`` the value update plus that call (what a solver costs per
-    candidate), ``wall_time_s`` everything (selector update, solve, verification, unpacking).  ``checks`` maps each verified
-    condition to ``{"value", "tol", "ok"}``; ``failed_check`` names the first that failed.
+    candidate), ``wall_time_s`` everything (selector update, solve, verification, unpacking).
+    ``checks`` maps each verified condition to ``{"value", "tol", "ok"}``; ``failed_check``
+    names the first that failed.
     """
 
     nodes: tuple[int, ...]
