@@ -98,7 +98,12 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
         mod = importlib.import_module("iamp.comparison.bench_pmp")
         out: dict[str, Any] = dict(mod.bench_pmp(3 if quick else 10))
         out.setdefault("source", "iamp.comparison.bench_pmp.bench_pmp")
-        return out
+        plan = out.get("pmp_plan_s")
+        if isinstance(plan, dict) and {"one_vehicle", "two_vehicles"} <= set(plan) and "pmp_batch_plans_per_s" in out:
+            return out
+        notes.append("bench_pmp() lacks the SPEC §5b keys pmp_plan_s{one_vehicle, two_vehicles} and "
+                     "pmp_batch_plans_per_s: PMP numbers measured by the fallback in bench.py")
+        return {**_pmp_fallback(quick, notes), "bench_pmp": out}
     notes.append("compare/bench_pmp.py not found: PMP numbers measured by the fallback in bench.py")
     return _pmp_fallback(quick, notes)
 
