@@ -66,8 +66,10 @@ def add_parsers(sub) -> None:
     c.set_defaults(func=cmd_compare)
 
     b = sub.add_parser("bench", help="speed numbers against the project's targets",
-                       description="Medians of the PMP plan, the batch API, native QP solves and FOH grid sweeps "
-                                   "against their targets, with ratios and library versions.")
+                       description="One run: medians of the PMP plan and batch API, every QP backend per "
+                                   "candidate (osqp, clarabel, piqp, the exact kkt), FOH grid sweeps (native and "
+                                   "through cvxpy), the avoidance-QP sweep, OSQP settings; targets, ratios, machine, "
+                                   "library versions, and a warning when the spread says the machine was busy.")
     b.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     b.add_argument("--quick", action="store_true", help="fewer repeats")
     b.set_defaults(func=cmd_bench)
