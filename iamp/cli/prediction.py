@@ -70,9 +70,11 @@ def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
 def cmd_train(args) -> int:
     """``iamp train``: fit an MTD model on recorded tracks and write it (atomically)."""
     from iamp.cli.progress import call_with_progress, progress_enabled
+    from iamp.core.outputs import check_output  # fail fast: not an input, no silent overwrite, writable
     from iamp.prediction.loaders import load_with_report
     from iamp.prediction.predictor import train_from_tracks
 
+    check_output(args.out, args.data, getattr(args, "force", False))
     try:
         edges = parse_bins(args.bins, args.bin_width, args.a_max)
         tracks, report = load_with_report(args.data, args.format)
@@ -201,6 +203,13 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
 
 
 def _evaluate_shipped(args: argparse.Namespace) -> int:
+    from iamp.core.outputs import guarded_folder  # checked, locked and marked output folder
+
+    with guarded_folder(args.out, "evaluate-predictor", getattr(args, "force", False)):
+        return _evaluate_shipped_into(args)
+
+
+def _evaluate_shipped_into(args: argparse.Namespace) -> int:
     from iamp.prediction.evaluate import HORIZONS, write_evaluation_report
 
     try:
@@ -237,6 +246,7 @@ def add_parsers(subparsers) -> None:
     t.add_argument("data", nargs="+", help="data files or directories")
     t.add_argument("--format", required=True, choices=("highd", "ngsim", "sumo"), help="data format")
     t.add_argument("--out", required=True, help="model file to write (JSON)")
+    t.add_argument("--force", action="store_true", help="replace --out if it exists")
     t.add_argument("--order", type=_positive_int, default=DEFAULT_CONFIG["order"],
                    help=f"chain order n (default {DEFAULT_CONFIG['order']})")
     t.add_argument("--bins", default=None,
@@ -288,6 +298,7 @@ def add_parsers(subparsers) -> None:
     e.add_argument("--seed", type=int, default=0, help="seed of the vehicle split and the bootstrap (default 0)")
     e.add_argument("--json", action="store_true", help="print exactly one JSON object")
     e.add_argument("--out", default="reports", help="output directory without --data (default: reports)")
+    e.add_argument("--force", action="store_true", help="write into an existing --out folder iamp did not write")
     e.add_argument("--rerun", action="store_true",
                    help="recompute even if DIR/predictor_eval.json already holds results of this protocol "
                         "version for the shipped data (by default those are reused and only the tables rewritten)")

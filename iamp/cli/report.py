@@ -85,6 +85,13 @@ def _remove_stale_pdf(out: Path) -> str | None:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
+    from iamp.core.outputs import guarded_folder  # checked (writable, ours or --force), locked, marked
+
+    with guarded_folder(args.out, "reproduce", getattr(args, "force", False)):
+        return _reproduce_into(args)
+
+
+def _reproduce_into(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.comparison.report import reproduce
 
@@ -150,6 +157,8 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:  # type: ignore
                     "results.json and report.tex into the output folder, and compile report.pdf with pdflatex "
                     "if it is installed. Takes a few minutes.")
     p.add_argument("--out", default="reports", help="output folder (default: reports/)")
+    p.add_argument("--force", action="store_true",
+                   help="write into an existing folder that iamp did not write (no .iamp-output marker)")
     p.add_argument("--no-pdf", action="store_true", help="do not run pdflatex")
     p.add_argument("--quick", action="store_true", help="small grids and few repetitions (a smoke run)")
     p.add_argument("--select-predictor", action="store_true",

@@ -175,3 +175,17 @@ def output_lock(folder: PathLike, option: str = "--out") -> Iterator[Path]:
             fcntl.flock(fd, fcntl.LOCK_UN)
     finally:
         os.close(fd)
+
+
+@contextmanager
+def guarded_folder(folder: PathLike, command: str, force: bool = False, inputs: Iterable[PathLike] = (),
+                   option: str = "--out") -> Iterator[Path]:
+    """Everything a command that writes into an output folder needs, in one ``with``:
+
+    :func:`check_output` (fail fast, before the work), :func:`output_lock` for the whole
+    block, and :func:`write_marker` so that the folder may be regenerated later.
+    """
+    p = check_output(folder, inputs, force, option=option, folder=True)
+    with output_lock(p, option=option):
+        write_marker(p, command)
+        yield p
