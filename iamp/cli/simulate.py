@@ -71,6 +71,13 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
+    from iamp.core.outputs import guarded_folder  # checked (writable, ours or --force), locked, marked
+
+    with guarded_folder(args.out, "campaign", getattr(args, "force", False)):
+        return _campaign_into(args)
+
+
+def _campaign_into(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar
     from iamp.simulation.campaign import latex_table, read_rows, run_campaign, summarise
     from iamp.simulation.figures import campaign_figures
@@ -129,6 +136,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=list(TRAFFIC))
     c.add_argument("--seeds", type=positive_int, default=20, help="seeds 1..N")
     c.add_argument("--out", required=True, help="output folder (episodes.csv, table.tex, figures)")
+    c.add_argument("--force", action="store_true",
+                   help="write into an existing folder that iamp did not write (no .iamp-output marker)")
     c.add_argument("--workers", type=positive_int, default=2, help="local Dask workers (processes)")
     c.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
     c.add_argument("--duration", type=positive_float, default=60.0)
