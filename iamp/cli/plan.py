@@ -63,6 +63,10 @@ def cmd_plan(args) -> int:
     from iamp.core.status import NUMERICAL_ERROR
 
     check_options(args)
+    if getattr(args, "csv", None) is not None:  # fail fast: not the scenario, no silent overwrite, writable
+        from iamp.core.outputs import check_output
+
+        check_output(args.csv, [args.scenario], args.force, option="--csv")
     if args.constraint is None:
         args.constraint = "equality"
     if args.constraint == "avoid" and args.planner != "qp":
@@ -177,6 +181,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios "
                    "(default: the shipped model)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")
+    p.add_argument("--force", action="store_true", help="replace the --csv file if it exists")
     p.add_argument("--csv", metavar="FILE", default=None,
                    help="also write the trajectory sampled at t_k = k tf/N, k = 0..N, as CSV with the columns "
                         "t,x,y,vx,vy,ax,ay (SI units; written atomically)")
