@@ -1,0 +1,169 @@
+r"""Equality vs avoidance, side by side (SPEC §9, §10): the cost of safety.
+
+For one problem :func:`safety_comparison` runs
+
+* the paper's equality: the PMP (exact, continuous) and the equality QP;
+* the avoidance QP (:class:`~iamp.planners.avoid.AvoidQPPlanner`) with the same solver,
+  hold and ``N`` as the equality QP,
+
+and reports per run its status, cost, contact / crossing times and its SPEC §9 safety report
+(intrusion and overlap intervals), plus
+
+.. math::  \Delta J_{\text{safety}} = J_{\text{avoid}} - J_{\text{eq}}
+
+against the equality QP of the same configuration (``cost_of_safety``) and against the PMP
+(``cost_of_safety_vs_pmp``).  It can be negative: the equality forces the ego through the
+corner, which may be far from where it would go; the avoidance QP only keeps it out.  A
+``verdict`` says in words which case the scenario is (:func:`explain`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+
+#: Relative cost difference below which two plans count as the same optimum.
+SAME_COST_REL = 1e-6
+
+
+def _run_json(label: str, plan: Plan, constraint: str) -> dict[str, Any]:
+    ok = plan.ok
+    safety = plan.safety if ok else None
+    out: dict[str, Any] = {
+        "label": label, "planner": plan.planner, "constraint": constraint, "solver": plan.solver, "hold": plan.hold,
+        "steps": plan.steps, "status": plan.status, "cost": float(plan.cost) if ok and plan.cost is not None else None,
+        "contact_times": [float(t) for t in plan.contact_times] if ok else [],
+        "time_s": float(plan.solve_time_s),
+        "safety": safety.to_json() if safety is not None else None,
+    }
+    if plan.info.get("reason"):
+        out["reason"] = plan.info["reason"]
+    if "avoidance" in plan.info and ok:
+        av = plan.info["avoidance"]
+        out["avoidance"] = {"vehicles": [{k: v[k] for k in ("name", "first", "second", "crossing_time",
+                                                            "between_node_intrusion_m", "active_H_x", "active_H_y")}
+                                         for v in av["vehicles"]],
+                            "complete_sweep": av["complete_sweep"], "n_solves": av["n_solves"],
+                            "certificate": plan.info.get("certificate")}
+    return out
+
+
+def explain(eq: Plan, avoid: Plan) -> str:
+    """In words: is the equality plan safe, does the avoidance optimum coincide with it, why."""
+    if not avoid.ok:
+        reason = avoid.info.get("reason", avoid.status)
+        eq_part = ""
+        if eq.ok and eq.safety is not None and not eq.safety.safe:
+            eq_part = " The equality plan is unsafe: " + "; ".join(v.describe() for v in eq.safety.unsafe()) + "."
+        return f"{reason[0].upper()}{reason[1:]}.{eq_part}"
+    assert avoid.cost is not None
+    if not eq.ok or eq.cost is None:
+        return f"The equality plan failed ({eq.status}); the avoidance plan costs {avoid.cost:.6g}."
+    d = avoid.cost - eq.cost
+    same = abs(d) <= SAME_COST_REL * max(1.0, abs(eq.cost))
+    binds = [v["name"] for v in avoid.info["avoidance"]["vehicles"]
+             if v["active_H_x"]["nodes"] or v["active_H_y"]["nodes"]]
+    bind_txt = (f"the inequalities bind for {', '.join(binds)}" if binds else
+                "no inequality binds: the unconstrained optimum is safe")
+    eq_safety = eq.safety
+    if eq_safety is not None and not eq_safety.safe:
+        return (f"The equality plan is unsafe ({'; '.join(v.describe() for v in eq_safety.unsafe())}); the "
+                f"avoidance plan keeps out of every region at the nodes ({bind_txt}); cost of safety {d:+.6g}.")
+    if same:
+        return (f"The equality plan is safe and the avoidance optimum coincides with it (J = {avoid.cost:.6g}): "
+                f"{bind_txt}; the inequality is active only where the equality touches the corner.")
+    if d < 0:
+        return (f"The equality plan is safe but the avoidance optimum is cheaper by {-d:.6g}: the equality drags the "
+                f"ego to the corner, which keeping out of the region does not require ({bind_txt}).")
+    return (f"The equality plan is safe; the avoidance optimum costs {d:.6g} more ({bind_txt}): its crossing "
+            "differs from the equality's corner touch.")
+
+
+def safety_comparison(problem: Problem, *, name: str | None = None, steps: int | None = None,
+                      solver: str = "clarabel", hold: str = "foh") -> dict[str, Any]:
+    """Equality (PMP and QP) and avoidance QP runs on ``problem`` with the cost of safety.
+
+    ``steps`` defaults to 100 for one vehicle and 20 for more (SPEC §5b's compare default).
+    Returns ``{"name", "runs", "cost_of_safety", "cost_of_safety_vs_pmp", "verdict", "plans"}``;
+    ``plans`` holds the :class:`Plan` objects (not JSON; see :func:`to_json`).
+    """
+    from iamp.planners.avoid import AvoidQPPlanner
+    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.qp import QPPlanner
+
+    n = int(steps or (100 if problem.m == 1 else 20))
+    pmp = PMPPlanner().plan(problem)
+    eq = QPPlanner(steps=n, hold=hold, solver=solver).plan(problem)
+    avoid = AvoidQPPlanner(steps=n, hold=hold, solver=solver).plan(problem)
+    cfg = f"{solver}-{hold}-{n}"
+    runs = [_run_json("pmp", pmp, "equality"), _run_json(f"qp-{cfg}", eq, "equality"),
+            _run_json(f"qp-avoid-{cfg}", avoid, "avoid")]
+
+    def gap(a: Plan, b: Plan) -> float | None:
+        return float(a.cost - b.cost) if a.ok and b.ok and a.cost is not None and b.cost is not None else None
+
+    return {"name": name or problem.name, "runs": runs, "cost_of_safety": gap(avoid, eq),
+            "cost_of_safety_vs_pmp": gap(avoid, pmp), "verdict": explain(eq, avoid),
+            "plans": {"pmp": pmp, "equality": eq, "avoid": avoid}}
+
+
+def to_json(result: dict[str, Any]) -> dict[str, Any]:
+    """:func:`safety_comparison`'s result without the :class:`Plan` objects."""
+    return {k: v for k, v in result.items() if k != "plans"}
+
+
+def _tex(s: str) -> str:
+    return s.replace("_", r"\_").replace("%", r"\%").replace("&", r"\&")
+
+
+def _intervals(iv: list[list[float]]) -> str:
+    return ", ".join(f"{a:.2f}--{b:.2f}" for a, b in iv) or "--"
+
+
+def table_safety(results: list[dict[str, Any]]) -> str:
+    """A booktabs table: per scenario and run, cost, intrusion and overlap, and the cost of safety."""
+    lines = [r"\begin{tabular}{llrlll}", r"\toprule",
+             r"scenario & run & $J$ & inside safety region [s] & bodies overlap [s] & $J_{\mathrm{avoid}} - "
+             r"J_{\mathrm{eq}}$ \\", r"\midrule"]
+    for res in results:
+        for k, run in enumerate(res["runs"]):
+            cost = f"{run['cost']:.3f}" if run["cost"] is not None else run["status"]
+            saf = run["safety"]
+            inside = "; ".join(_intervals(v["intrusion"]) for v in saf["vehicles"]) if saf else "--"
+            over = "; ".join(_intervals(v["overlap"]) for v in saf["vehicles"]) if saf else "--"
+            cos = ""
+            if k == len(res["runs"]) - 1:
+                cos = f"{res['cost_of_safety']:+.3f}" if res["cost_of_safety"] is not None else "no safe plan"
+            lines.append(f"{_tex(res['name']) if k == 0 else ''} & {_tex(run['label'])} & {cost} & {inside} & "
+                         f"{over} & {cos} \\\\")
+        lines.append(r"\midrule" if res is not results[-1] else r"\bottomrule")
+    lines.append(r"\end{tabular}")
+    return "\n".join(lines) + "\n"
+
+
+def summary_lines(result: dict[str, Any]) -> list[str]:
+    """Text lines for ``iamp compare --avoid``."""
+    out = [f"{result['name']}: equality vs avoidance"]
+    for run in result["runs"]:
+        cost = f"J = {run['cost']:.6g}" if run["cost"] is not None else f"status {run['status']}"
+        saf = run["safety"]
+        if saf is None:
+            safe = run.get("reason", "no plan")
+        elif saf["intrusion_free"] and saf["collision_free"]:
+            safe = "safe"
+        else:
+            safe = "; ".join(f"{v['name']} inside {_intervals(v['intrusion'])} s, overlap {_intervals(v['overlap'])} s"
+                             for v in saf["vehicles"] if v["intrusion"] or v["overlap"])
+        out.append(f"  {run['label']:<28} {cost:<16} {safe}")
+    cos = result["cost_of_safety"]
+    out.append("  cost of safety J_avoid - J_eq = " + (f"{cos:+.6g}" if cos is not None else "n/a (no safe plan)")
+               + (f" (vs PMP {result['cost_of_safety_vs_pmp']:+.6g})" if result["cost_of_safety_vs_pmp"] is not None
+                  else ""))
+    out.append(f"  {result['verdict']}")
+    return out
+
+
+__all__ = ["SAME_COST_REL", "explain", "safety_comparison", "summary_lines", "table_safety", "to_json"]
+
