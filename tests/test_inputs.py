@@ -135,7 +135,7 @@ def test_steps_and_qp_work_are_bounded(tmp_path):
     p.write_text(GOOD)
     refused(*run("plan", p, "--steps", "100000"), "--steps", "20000")
     refused(*run("plan", p, "--steps", "0"), "--steps")
-    code, out, err = run("plan", p, "--json", "--steps", "20000")  # the PMP samples 20001 points: fine
+    code, out, _err = run("plan", p, "--json", "--steps", "20000")  # the PMP samples 20001 points: fine
     assert code == 0 and len(json.loads(out)["trajectory"]["t"]) == 20001
     refused(*run("plan", p, "--planner", "qp", "--steps", "5000"), "--steps", "limit")
 
@@ -303,7 +303,7 @@ def test_pmp_failure_under_json_prints_the_object(monkeypatch):
         raise SolverError("J(t) has no stationary point in (0, tf)", "numerical_error")
 
     monkeypatch.setattr(PMPPlanner, "plan", boom)
-    code, out, err = run("plan", "paper-1-poly", "--json")
+    code, out, _err = run("plan", "paper-1-poly", "--json")
     assert code == 3
     d = json.loads(out)
     assert d["status"] == "numerical_error" and d["cost"] is None and d["planner"] == "pmp"
@@ -330,10 +330,10 @@ def test_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypatch)
         raise KeyError("oops")
 
     monkeypatch.setattr(cli_plan, "make_planner", bug)
-    code, out, err = run("plan", "paper-1-poly")
+    code, _, err = run("plan", "paper-1-poly")
     assert code == 1 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert "internal error" in err and "--debug" in err
-    code, out, err = run("plan", "paper-1-poly", "--debug")
+    code, _out, err = run("plan", "paper-1-poly", "--debug")
     assert code == 1 and "Traceback" in err and "KeyError" in err
 
 
@@ -344,5 +344,5 @@ def test_ctrl_c_is_exit_130_in_one_line(monkeypatch):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(cli_plan, "make_planner", interrupted)
-    code, out, err = run("plan", "paper-1-poly")
+    code, _out, err = run("plan", "paper-1-poly")
     assert code == 130 and err.strip() == "iamp: interrupted"
