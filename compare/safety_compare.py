@@ -101,17 +101,70 @@ def safety_comparison(problem: Problem, *, name: str | None = None, steps: int |
     runs = [_run_json("pmp", pmp, "equality"), _run_json(f"qp-{cfg}", eq, "equality"),
             _run_json(f"qp-avoid-{cfg}", avoid, "avoid")]
 
-    def gap(a: Plan, b: Plan) -> float | None:
-        return float(a.cost - b.cost) if a.ok and b.ok and a.cost is not None and b.cost is not None else None
-
-    return {"name": name or problem.name, "runs": runs, "cost_of_safety": gap(avoid, eq),
-            "cost_of_safety_vs_pmp": gap(avoid, pmp), "verdict": explain(eq, avoid),
+    return {"name": name or problem.name, "runs": runs, "cost_of_safety": _gap(avoid, eq),
+            "cost_of_safety_vs_pmp": _gap(avoid, pmp), "verdict": explain(eq, avoid),
             "plans": {"pmp": pmp, "equality": eq, "avoid": avoid}}
 
 
 def to_json(result: dict[str, Any]) -> dict[str, Any]:
     """:func:`safety_comparison`'s result without the :class:`Plan` objects."""
     return {k: v for k, v in result.items() if k != "plans"}
+
+
+def avoid_section(problem: Problem, equality: dict[str, Plan], steps: list[int], solvers: tuple[str, ...],
+                  holds: tuple[str, ...]) -> dict[str, Any]:
+    """``iamp compare --avoid``: an avoidance run per ``(N, solver, hold)`` beside the
+    equality runs ``equality`` (label -> plan, e.g. ``{"pmp": ..., "qp-clarabel-foh-100": ...}``),
+    each with its cost of safety against the equality QP of the same label (and the PMP), and
+    every run's SPEC §9 safety."""
+    from iamp.planners.avoid import AvoidQPPlanner
+
+    eq_json = [_run_json(lbl, plan, "equality") for lbl, plan in equality.items() if plan is not None]
+    pmp = equality.get("pmp")
+    runs = []
+    for n in steps:
+        for solver in solvers:
+            for hold in holds:
+                plan = AvoidQPPlanner(steps=n, hold=hold, solver=solver).plan(problem)
+                run = _run_json(f"qp-avoid-{solver}-{hold}-{n}", plan, "avoid")
+                eq = equality.get(f"qp-{solver}-{hold}-{n}")
+                run["equality_label"] = f"qp-{solver}-{hold}-{n}" if eq is not None else "pmp"
+                ref = eq if eq is not None else pmp
+                run["cost_of_safety"] = _gap(plan, ref)
+                run["cost_of_safety_vs_pmp"] = _gap(plan, pmp)
+                run["verdict"] = explain(ref, plan) if ref is not None else ""
+                runs.append(run)
+    return {"equality": eq_json, "runs": runs}
+
+
+def _gap(a: Plan, b: Plan | None) -> float | None:
+    if b is None or not (a.ok and b.ok) or a.cost is None or b.cost is None:
+        return None
+    return float(a.cost - b.cost)
+
+
+def section_lines(name: str, section: dict[str, Any]) -> list[str]:
+    """Text lines of :func:`avoid_section`'s result."""
+    out = [f"{name}: equality vs avoidance (SPEC §9, §10)"]
+    for run in section["equality"] + section["runs"]:
+        cost = f"J = {run['cost']:.6g}" if run["cost"] is not None else f"status {run['status']}"
+        out.append(f"  {run['label']:<28} {cost:<16} {_safety_text(run)}")
+        if run["constraint"] == "avoid":
+            cos = run["cost_of_safety"]
+            text = f"{cos:+.6g}" if cos is not None else "n/a"
+            out.append(f"    cost of safety vs {run['equality_label']}: {text}")
+            out.append(f"    {run['verdict']}")
+    return out
+
+
+def _safety_text(run: dict[str, Any]) -> str:
+    saf = run["safety"]
+    if saf is None:
+        return str(run.get("reason", "no plan"))
+    if saf["intrusion_free"] and saf["collision_free"]:
+        return "safe"
+    return "; ".join(f"{v['name']} inside {_intervals(v['intrusion'])} s, overlap {_intervals(v['overlap'])} s"
+                     for v in saf["vehicles"] if v["intrusion"] or v["overlap"])
 
 
 def _tex(s: str) -> str:
@@ -148,15 +201,7 @@ def summary_lines(result: dict[str, Any]) -> list[str]:
     out = [f"{result['name']}: equality vs avoidance"]
     for run in result["runs"]:
         cost = f"J = {run['cost']:.6g}" if run["cost"] is not None else f"status {run['status']}"
-        saf = run["safety"]
-        if saf is None:
-            safe = run.get("reason", "no plan")
-        elif saf["intrusion_free"] and saf["collision_free"]:
-            safe = "safe"
-        else:
-            safe = "; ".join(f"{v['name']} inside {_intervals(v['intrusion'])} s, overlap {_intervals(v['overlap'])} s"
-                             for v in saf["vehicles"] if v["intrusion"] or v["overlap"])
-        out.append(f"  {run['label']:<28} {cost:<16} {safe}")
+        out.append(f"  {run['label']:<28} {cost:<16} {_safety_text(run)}")
     cos = result["cost_of_safety"]
     out.append("  cost of safety J_avoid - J_eq = " + (f"{cos:+.6g}" if cos is not None else "n/a (no safe plan)")
                + (f" (vs PMP {result['cost_of_safety_vs_pmp']:+.6g})" if result["cost_of_safety_vs_pmp"] is not None
@@ -165,5 +210,6 @@ def summary_lines(result: dict[str, Any]) -> list[str]:
     return out
 
 
-__all__ = ["SAME_COST_REL", "explain", "safety_comparison", "summary_lines", "table_safety", "to_json"]
+__all__ = ["SAME_COST_REL", "avoid_section", "explain", "safety_comparison", "section_lines", "summary_lines",
+           "table_safety", "to_json"]
 

@@ -50,6 +50,10 @@ def add_parsers(sub) -> None:
     c.add_argument("--solvers", nargs="+", choices=("osqp", "clarabel"), default=["osqp", "clarabel"])
     c.add_argument("--holds", nargs="+", choices=("foh", "zoh"), default=["foh", "zoh"])
     c.add_argument("--native", action="store_true", help="also run the native OSQP/Clarabel path")
+    c.add_argument("--avoid", action="store_true",
+                   help="also run the avoidance QP (SPEC §10) per solver, hold and N, with every run's intrusion "
+                        "and overlap (SPEC §9) and the cost of safety J_avoid - J_eq; an infeasible avoidance run "
+                        "(start or end inside a safety region) is reported with its reason, not counted as a failure")
     c.add_argument("--repeats", type=_positive_int, default=3, metavar="K",
                    help="timed full plans per QP configuration (the PMP gets max(20, 10K)); default 3")
     c.add_argument("--budget", type=_positive_float, default=5.0, metavar="S",
@@ -133,6 +137,11 @@ def run_compare(args) -> dict:
             tick(1000 * (k + 1), 1000 * len(loaded))
             data = comp.to_json()
             data["source"] = str(scenario.source) if getattr(scenario, "source", None) else None
+            if getattr(args, "avoid", False):
+                from iamp.comparison.safety_compare import avoid_section
+
+                data["avoidance"] = avoid_section(problem, {r.label: r.result for r in comp.runs}, steps,
+                                                  tuple(args.solvers), tuple(args.holds))
             scenarios.append(data)
             medians[scenario.name] = {_summary_key(r, auto=args.steps is None): (r["time_s"] or {}).get("median")
                                       for r in data["runs"]}
@@ -267,6 +276,11 @@ def cmd_compare(args) -> int:
         sys.stdout.write(json.dumps(to_jsonable(out), allow_nan=False) + "\n")
     else:
         _print_text(out, sys.stdout.write)
+        if getattr(args, "avoid", False):
+            from iamp.comparison.safety_compare import section_lines
+
+            for sc in out["scenarios"]:
+                sys.stdout.write("\n".join(section_lines(sc["name"], sc["avoidance"])) + "\n")
         if args.latex:
             sys.stdout.write(f"wrote {args.latex}\n")
     failed = any(r["status"] != "optimal" for sc in out["scenarios"] for r in sc["runs"])
