@@ -36,6 +36,9 @@ COLUMNS = ("planner", "traffic", "seed", "duration_s", "period_s", "lane_change_
            "plan_time_p95_s", "plan_time_max_s", "plans", "failed_plans", "late_plans", "fallbacks", "aborts",
            "wall_total_s", "wall_sumo_s", "wall_prediction_s", "wall_planning_s", "max_rss_mb")
 Key = tuple[str, str, int]
+#: A neighbour behind the ego braking harder than this [m/s²] (the "average" driver's
+#: ``decel``; beyond it SUMO's drivers brake in emergency) marks a hard-brake episode.
+HARD_BRAKE = -4.5
 
 
 def flatten(summary: dict[str, Any]) -> dict[str, Any]:
@@ -159,12 +162,15 @@ def summarise(rows: list[dict[str, str]]) -> list[dict[str, Any]]:
         k_col = sum(int(r["collisions"]) > 0 for r in rs)
         k_int = sum(float(r["intrusion_s"]) > 0 for r in rs)
         k_lc = sum(r["lane_change_done_s"] not in ("", "None") for r in rs)
+        k_brk = sum(r.get("min_follower_accel", "") not in ("", "None") and float(r["min_follower_accel"]) < HARD_BRAKE
+                    for r in rs)
         p95 = _floats(rs, "plan_time_p95_s")
         gaps, ttc = _floats(rs, "min_gap_m"), _floats(rs, "min_ttc_s")
         out.append({
             "planner": planner, "traffic": traffic, "episodes": n,
             "collision_episodes": k_col, "collision_rate": k_col / n, "collision_ci": wilson(k_col, n),
             "intrusion_episodes": k_int, "intrusion_rate": k_int / n, "intrusion_ci": wilson(k_int, n),
+            "hard_brake_episodes": k_brk, "hard_brake_rate": k_brk / n, "hard_brake_ci": wilson(k_brk, n),
             "lane_change_rate": k_lc / n, "lane_change_ci": wilson(k_lc, n),
             "lane_changes_mean": float(np.mean(_floats(rs, "lane_changes"))),
             "intrusion_s_mean": float(np.mean(_floats(rs, "intrusion_s"))),
@@ -189,13 +195,14 @@ def latex_table(summary: list[dict[str, Any]]) -> str:
     def num(v: float | None, fmt: str) -> str:
         return "--" if v is None else format(v, fmt)
 
-    lines = [r"\begin{tabular}{llrlllrrr}", r"\toprule",
-             r"planner & traffic & $n$ & collisions [\%] & intrusion [\%] & lane change [\%] & "
+    lines = [r"\begin{tabular}{llrllllrrr}", r"\toprule",
+             r"planner & traffic & $n$ & collisions [\%] & intrusion [\%] & hard brake [\%] & lane change [\%] & "
              r"min gap [m] & plan $p_{95}$ [ms] & fallbacks \\", r"\midrule"]
     for s in summary:
         p95 = s["plan_time_p95_s_median"]
         lines.append(f"{s['planner']} & {s['traffic']} & {s['episodes']} & "
                      f"{pct(s['collision_rate'], s['collision_ci'])} & {pct(s['intrusion_rate'], s['intrusion_ci'])} & "
+                     f"{pct(s['hard_brake_rate'], s['hard_brake_ci'])} & "
                      f"{pct(s['lane_change_rate'], s['lane_change_ci'])} & {num(s['min_gap_m_median'], '.1f')} & "
                      f"{num(None if p95 is None else 1e3 * p95, '.2f')} & {s['fallbacks']} \\\\")
     lines += [r"\bottomrule", r"\end{tabular}"]

@@ -89,9 +89,9 @@ class ControllerConfig:
     relevant_m: float = 50.0
     hold_s: float = 5.0
     brake: float = 3.0
-    kp: float = 1.0
-    kd: float = 2.0
-    abort_s: float = 2.0
+    kp: float = 2.25
+    kd: float = 3.0
+    abort_s: float = 3.0
     deadline_s: float | None = 0.1
 
 
@@ -118,8 +118,8 @@ class Counters:
     planning_s: float = 0.0
 
 
-#: Planners with the paper's interior-point equality (SPEC §1); they get the active-set rule.
-EQUALITY_PLANNERS = ("pmp", "qp")
+#: Planners that get the active-set rule (``pmp-all``/``qp-all`` do not: the paper literally).
+ACTIVE_SET_PLANNERS = ("pmp", "qp", "qp-avoid")
 
 
 def _poly_at(c: tuple[float, ...], t: np.ndarray) -> np.ndarray:
@@ -226,12 +226,15 @@ class Controller:
                         trajectory=None, info={"error": repr(exc)})
 
     def _active_set(self, prob: Problem) -> Plan:
-        """Equality planners: impose vehicle ``i``'s corner only where it is needed.
+        """Impose vehicle ``i``'s constraint only where it is needed.
 
         Start from the unconstrained plan; add every vehicle whose safety region the current
         plan's point enters (on its continuous trajectory); re-plan; repeat until no excluded
-        region is entered (at most ``m`` rounds).  Without this the equality drags the ego to
-        the corner of every neighbour (SPEC §2 identity 4), however far it is.
+        region is entered (at most ``m`` rounds).  For the avoidance QP this is an exact
+        active-set argument: a plan optimal without some inequalities that satisfies them is
+        optimal with them.  For the equality planners it is a modelling choice: without it the
+        equality drags the ego to the corner of every neighbour, however far (SPEC §2
+        identity 4; ``pmp-all``/``qp-all`` show that).
         """
         chosen: list[SurroundingVehicle] = []
         plan = free_plan(prob.ego, self.name)
@@ -253,7 +256,7 @@ class Controller:
     def solve(self, prob: Problem | EgoBoundary) -> tuple[Plan, bool]:
         """Plan (timed); returns the plan and whether it is usable (succeeded, not late)."""
         start = time.perf_counter()
-        if self.name in EQUALITY_PLANNERS and isinstance(prob, Problem):
+        if self.name in ACTIVE_SET_PLANNERS and isinstance(prob, Problem):
             plan = self._active_set(prob)
         else:
             plan = self._call(prob)
@@ -310,7 +313,10 @@ class Controller:
         if self.mode == "abort":
             if t + 1e-9 >= self.abort_until:
                 self.sim.release()
-                self.mode = "seek"
+                if self.sim.highway.lane_of(ego.y) == self.target:
+                    self._done(t)  # it ended up in the target lane after all
+                else:
+                    self.mode = "seek"
                 return None
             return self._brake(ego)
         dt = self.sim.step

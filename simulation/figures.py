@@ -94,10 +94,10 @@ def campaign_figures(summary: list[dict[str, Any]], rows: list[dict[str, str]], 
     planners = sorted({s["planner"] for s in summary})
     traffics = [t for t in ("light", "medium", "dense") if any(s["traffic"] == t for s in summary)]
     written = []
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
+    fig, axes = plt.subplots(1, 4, figsize=(16, 4), constrained_layout=True)
     width = 0.8 / max(len(planners), 1)
     for ax, (key, label) in zip(axes, (("collision", "collision"), ("intrusion", "intrusion"),
-                                       ("lane_change", "lane change done"))):
+                                       ("hard_brake", "hard braking behind"), ("lane_change", "lane change done"))):
         for j, p in enumerate(planners):
             xs, ys, lo, hi = [], [], [], []
             for i, tr in enumerate(traffics):
