@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from iamp.core.safety import INTRUSION_TOL_M, safety_report
+
 __all__ = ["INSIDE_TOL_M", "AGGRESSION_MEASURES", "manoeuvre_metrics", "qualitative_comparison"]
 
 
@@ -27,25 +29,9 @@ def _crossing_time(t, y, level):
     return float(t[k] - d[k] * (t[k + 1] - t[k]) / (d[k + 1] - d[k]))
 
 
-def _intervals(t, mask):
-    """``[[start, end], ...]`` of the runs where ``mask`` holds."""
-    out = []
-    k = 0
-    while k < len(mask):
-        if mask[k]:
-            j = k
-            while j + 1 < len(mask) and mask[j + 1]:
-                j += 1
-            out.append([float(t[k]), float(t[j])])
-            k = j + 1
-        else:
-            k += 1
-    return out
-
-
 #: Depth [m] beyond which the ego's point counts as inside a safety box (touching the corner at
-#: ``t_i`` and numerical round-off are not "inside").
-INSIDE_TOL_M = 1e-3
+#: ``t_i`` and numerical round-off are not "inside"); the one of :mod:`iamp.core.safety`.
+INSIDE_TOL_M = INTRUSION_TOL_M
 
 
 def manoeuvre_metrics(result) -> dict:
@@ -56,8 +42,10 @@ def manoeuvre_metrics(result) -> dict:
     ``inside_safety_box``: time intervals where the ego's point is strictly inside a safety
     box by more than :data:`INSIDE_TOL_M` (the equality touches its corner at ``t_i`` only) and
     ``max_depth_inside_safety_box``
-    the largest distance from the point to the box's boundary while inside; ``body_overlap``: where an ego body
-    of vehicle 1's size overlaps a vehicle's body.
+    the largest distance from the point to the box's boundary while inside; ``body_overlap``: where the ego's
+    body (``[ego] length`` x ``width``, default 4.8 x 1.8 m) overlaps a vehicle's body.  These three are
+    the plan's SPEC §9 report (:attr:`iamp.core.plan.Plan.safety`): interval ends are exact roots of
+    the piecewise-polynomial trajectory, not the last sample of a grid.
     """
     prob = result.problem
     tf = prob.tf
@@ -67,16 +55,11 @@ def manoeuvre_metrics(result) -> dict:
     jerk = np.diff(U, axis=0) / np.diff(t)[:, None]
     v1 = prob.vehicles[0]
     divider = 0.5 * (prob.ego.y0 + v1.y)
-    inside, body, depths = [], [], []
-    for v in prob.vehicles:
-        dx = X[:, 0] - v.position(t)
-        dy = X[:, 2] - v.y
-        depth = np.minimum(v.length / 2 + v.safety_x - np.abs(dx), v.width / 2 + v.safety_y - np.abs(dy))
-        m_box = depth > INSIDE_TOL_M
-        depths.append(float(max(np.max(depth), 0.0)))
-        m_body = (np.abs(dx) < v.length) & (np.abs(dy) < v.width)
-        inside.append(_intervals(t, m_box))
-        body.append(_intervals(t, m_body))
+    # where the plan is unsafe: exact interval ends (roots), SPEC §9 (iamp.core.safety)
+    report = result.safety if hasattr(result, "safety") else safety_report(prob, result.trajectory)
+    inside = [[list(iv) for iv in v.intrusion] for v in report.vehicles]
+    body = [[list(iv) for iv in v.overlap] for v in report.vehicles]
+    depths = [v.max_intrusion_m for v in report.vehicles]
     w = np.diff(t)
     return {
         "J": float(result.cost),
