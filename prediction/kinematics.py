@@ -17,7 +17,11 @@ from __future__ import annotations
 
 import math
 
+from typing import Any
+
 import numpy as np
+
+from iamp.prediction._typing import FloatArray
 
 __all__ = ["cubic_fit", "history_grid", "integrate_nodes", "local_quadratic", "second_differences"]
 
@@ -33,11 +37,12 @@ def history_grid(t: np.ndarray, x: np.ndarray, dt: float) -> tuple[np.ndarray, n
 
 def second_differences(x: np.ndarray, dt: float) -> np.ndarray:
     """``(x_{k+1} - 2 x_k + x_{k-1}) / dt²`` along the last axis (length ``K - 2``)."""
-    x = np.asarray(x, dtype=float)
-    return (x[..., 2:] - 2.0 * x[..., 1:-1] + x[..., :-2]) / (dt * dt)
+    xa = np.asarray(x, dtype=float)
+    out: FloatArray = (xa[..., 2:] - 2.0 * xa[..., 1:-1] + xa[..., :-2]) / (dt * dt)
+    return out
 
 
-def cubic_fit(t: np.ndarray, x: np.ndarray) -> tuple[tuple, float]:
+def cubic_fit(t: np.ndarray, x: np.ndarray) -> tuple[tuple[float, ...], float]:
     """Least-squares cubic ``c0 + c1 t + c2 t² + c3 t³``; returns ``(c, rmse)``."""
     t = np.asarray(t, dtype=float)
     V = np.vander(t, 4, increasing=True)
@@ -74,7 +79,7 @@ def local_quadratic(t: np.ndarray, X: np.ndarray, window_s: float) -> tuple[np.n
     return C[..., 1], 2.0 * C[..., 2]
 
 
-def _foh_nodes(x0, v0, abar, dt):
+def _foh_nodes(x0: FloatArray, v0: FloatArray, abar: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
     """Node positions and speeds (B, M+1) under linear-between-nodes acceleration, v >= 0."""
     B, M1 = abar.shape
     M = M1 - 1
@@ -104,7 +109,7 @@ def _foh_nodes(x0, v0, abar, dt):
     return xs, vs
 
 
-def integrate_nodes(x0, v0, abar: np.ndarray, dt: float, query) -> tuple[np.ndarray, np.ndarray]:
+def integrate_nodes(x0: Any, v0: Any, abar: np.ndarray, dt: float, query: Any) -> tuple[FloatArray, FloatArray]:
     """Positions and speeds at ``query`` for accelerations linear between node values.
 
     Parameters

@@ -13,9 +13,12 @@ import warnings
 from array import array
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import IO, Any
 
 import numpy as np
 
+from iamp.prediction._typing import Array, BoolArray, IntArray
+from iamp.prediction.load_report import LoadReport
 from iamp.prediction.tracks import TrackDataError
 
 __all__ = ["ColumnSpec", "read_csv"]
@@ -26,7 +29,7 @@ ColumnSpec = Sequence[tuple[str, tuple[str, ...], bool]]
 _CHUNK_ROWS = 200_000  # CSV rows converted to arrays at a time
 
 
-def _open_text(path: Path):
+def _open_text(path: Path) -> IO[str]:
     if path.suffix == ".gz":
         return gzip.open(path, "rt", newline="", encoding="utf-8-sig")
     return open(path, newline="", encoding="utf-8-sig")
@@ -54,10 +57,10 @@ def _read_header(path: Path, delimiter: str | None) -> tuple[list[str], str]:
 
 def _resolve(header: list[str], spec: Sequence[tuple[str, tuple[str, ...], bool]], path: Path) -> dict[str, int]:
     """Map logical column names to header indices; a missing required column is an error."""
-    index = {}
+    index: dict[str, int] = {}
     for i, name in enumerate(header):
         index.setdefault(_norm(name), i)
-    found = {}
+    found: dict[str, int] = {}
     for logical, candidates, required in spec:
         for cand in candidates:
             if cand.lower() in index:
@@ -70,7 +73,7 @@ def _resolve(header: list[str], spec: Sequence[tuple[str, tuple[str, ...], bool]
     return found
 
 
-def _to_float(strings: Sequence[str], column: str, path: Path, lines=None) -> np.ndarray:
+def _to_float(strings: Sequence[str], column: str, path: Path, lines: Any = None) -> Array:
     try:
         out = np.asarray(strings, dtype=str).astype(np.float64)
     except ValueError:
@@ -97,7 +100,7 @@ def _to_float(strings: Sequence[str], column: str, path: Path, lines=None) -> np
 
 
 def read_csv(path: Path, spec: Sequence[tuple[str, tuple[str, ...], bool]], *, text: Iterable[str] = (),
-              delimiter: str | None = None, skip_empty: str | None = None, row_hash: bool = False) -> dict:
+              delimiter: str | None = None, skip_empty: str | None = None, row_hash: bool = False) -> dict[str, Array]:
     """Read the columns of ``spec`` (logical name, accepted header names, required).
 
     Numeric columns come back as float64 arrays, the ``text`` ones as str arrays; with
@@ -108,25 +111,10 @@ def read_csv(path: Path, spec: Sequence[tuple[str, tuple[str, ...], bool]], *, t
     header, delimiter = _read_header(path, delimiter)
     where = _resolve(header, spec, path)
     text = set(text)
-    numeric_only = not (text & set(where)) and skip_empty is None and not row_hash
-
-    if numeric_only:  # fast path for big purely numeric files (highD)
-        names = list(where)
-        try:
-            with _open_text(path) as fh, warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # "input contained no data": reported below
-                data = np.loadtxt(fh, delimiter=delimiter, skiprows=1, usecols=[where[n] for n in names],
-                                  dtype=np.float64, ndmin=2)
-        except ValueError:
-            data = None  # fall through to the slow path, which names the bad column and line
-        if data is not None:
-            cols = {n: data[:, k] for k, n in enumerate(names)}
-            for n in names:
-                if not np.all(np.isfinite(cols[n])):
-                    k = int(np.flatnonzero(~np.isfinite(cols[n]))[0])
-                    raise TrackDataError(f"line {k + 2}: value is not finite", column=header[where[n]].strip(),
-                                         source=path)
-            return cols
+    if skip_empty is None and not row_hash:  # fast path (numpy's C parser); errors fall through
+        cols_fast = _read_fast(path, header, where, set(text), delimiter)
+        if cols_fast is not None:
+            return cols_fast
 
     names = list(where)
     idx = [where[n] for n in names]
@@ -137,7 +125,7 @@ def read_csv(path: Path, spec: Sequence[tuple[str, tuple[str, ...], bool]], *, t
     skip_k = names.index(skip_empty) if skip_empty in where else None
     parts: dict[str, list[np.ndarray]] = {n: [] for n in names}
 
-    def flush():  # convert the strings read so far (bounded memory for big files)
+    def flush() -> None:  # convert the strings read so far (bounded memory for big files)
         line_arr = np.frombuffer(lines, dtype=np.int64)[len(lines) - len(store[0]):]
         for n, lst in zip(names, store):
             if not lst:
@@ -205,7 +193,7 @@ def _segments(key_change: np.ndarray, frame: np.ndarray) -> np.ndarray:
     return np.cumsum(new) - 1
 
 
-def _path(p) -> Path:
+def _path(p: Any) -> Path:
     return Path(os.fspath(p))
 
 
@@ -235,3 +223,40 @@ def duplicate_rows(same_key: BoolArray, values: Sequence[Array], report: LoadRep
     report.drop(CONFLICTING_DUPLICATE, int(np.sum(dup & differs)))
     keep: BoolArray = ~dup
     return keep
+
+
+def _read_fast(path: Path, header: list[str], where: dict[str, int], text: set[str],
+               delimiter: str | None) -> dict[str, Array] | None:
+    """All columns with :func:`numpy.loadtxt` (one pass for the numbers, one per text column).
+
+    Returns ``None`` when numpy cannot parse the file (a bad value, a short row): the slow path
+    then names the column and line.  ``"__line__"`` is the line number assuming one row per line
+    (only used for messages and to keep file order).
+    """
+    nums = [n for n in where if n not in text]
+    cols: dict[str, Array] = {}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "input contained no data": reported by the caller
+            if nums:
+                with _open_text(path) as fh:
+                    data = np.loadtxt(fh, delimiter=delimiter, skiprows=1, usecols=[where[n] for n in nums],
+                                      dtype=np.float64, ndmin=2, quotechar='"')
+                for k, n in enumerate(nums):
+                    cols[n] = data[:, k]
+            for n in where:
+                if n in text:
+                    with _open_text(path) as fh:
+                        cols[n] = np.char.strip(np.loadtxt(fh, delimiter=delimiter, skiprows=1, usecols=[where[n]],
+                                                           dtype=str, ndmin=1, quotechar='"'))
+    except ValueError:
+        return None
+    sizes = {c.shape[0] for c in cols.values()}
+    if len(sizes) != 1:
+        return None
+    for n in nums:
+        if not np.all(np.isfinite(cols[n])):
+            k = int(np.flatnonzero(~np.isfinite(cols[n]))[0])
+            raise TrackDataError(f"line {k + 2}: value is not finite", column=header[where[n]].strip(), source=path)
+    cols["__line__"] = np.arange(2, sizes.pop() + 2, dtype=np.int64)
+    return cols

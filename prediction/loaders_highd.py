@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -48,7 +50,8 @@ def _highd_sibling(tracks_csv: Path, suffix: str) -> Path | None:
     return cand if cand.is_file() else None
 
 
-def load_highd(tracks_csv, tracks_meta_csv=None, recording_meta_csv=None) -> Tracks:
+def load_highd(tracks_csv: str | os.PathLike[str], tracks_meta_csv: str | os.PathLike[str] | None = None,
+               recording_meta_csv: str | os.PathLike[str] | None = None) -> Tracks:
     """Load one highD recording.
 
     Parameters
@@ -73,7 +76,7 @@ def load_highd(tracks_csv, tracks_meta_csv=None, recording_meta_csv=None) -> Tra
     """
     path = _path(tracks_csv)
     cols = read_csv(path, _HIGHD_TRACKS)
-    meta: dict = {"format": "highd", "source": str(path), "reference_point": "centre (x + width/2)",
+    meta: dict[str, Any] = {"format": "highd", "source": str(path), "reference_point": "centre (x + width/2)",
                   "units": "SI (as recorded)"}
     n = cols["frame"].size
     report = LoadReport(sources=[str(path)], rows_read=int(n))

@@ -166,31 +166,38 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
                             "keyed_by": "(Location, Vehicle_ID, Frame_ID)"}
     if n == 0:
         raise TrackDataError("no data rows", source=path)
+    # locations as integer codes (the strings are dropped at once: memory on big files)
     if "Location" in cols:
-        loc_str = np.char.lower(np.char.strip(cols["Location"].astype(str)))
+        raw_names, loc_code = np.unique(cols.pop("Location"), return_inverse=True)
+        names = np.asarray([str(x).strip().lower() for x in raw_names])
+        locations, remap = np.unique(names, return_inverse=True)
+        loc_code = remap[loc_code]
     else:
-        loc_str = np.full(n, (location or "unknown").strip().lower())
+        locations = np.asarray([(location or "unknown").strip().lower()])
+        loc_code = np.zeros(n, dtype=np.int64)
         meta["location_source"] = "argument" if location else "unknown (no Location column)"
-    if location is not None and "Location" in cols:
-        keep = loc_str == location.strip().lower()
-        if not np.any(keep):
-            present = ", ".join(sorted(set(loc_str.tolist()))[:6])
+    if location is not None and "location_source" not in meta:
+        want = location.strip().lower()
+        if want not in locations:
+            present = ", ".join(str(x) for x in locations[:6])
             raise TrackDataError(f"no rows for location {location!r} (present: {present})", column="Location",
                                  source=path)
+        keep = loc_code == int(np.flatnonzero(locations == want)[0])
         report.drop(f"Location is not {location!r}", int(np.sum(~keep)))
         cols = {k: val[keep] for k, val in cols.items()}
-        loc_str = loc_str[keep]
+        loc_code = np.zeros(int(np.sum(keep)), dtype=np.int64)
+        locations = np.asarray([want])
         meta["location_filter"] = location
     if "Global_Time" in cols:
-        zeros = int(np.sum(cols["Global_Time"] == 0))
+        zeros = int(np.sum(cols.pop("Global_Time") == 0))
         report.note("Global_Time ignored: rows are keyed by Vehicle_ID and Frame_ID"
-                    + (f" (Global_Time is 0 in {zeros} of {loc_str.size} rows)" if zeros else ""))
-    vid = _integers(cols["Vehicle_ID"], "Vehicle_ID", path)
-    frame = _integers(cols["Frame_ID"], "Frame_ID", path)
-    locations, loc_code = np.unique(loc_str, return_inverse=True)
-    order = np.lexsort((cols["__line__"], frame, vid, loc_code))
+                    + (f" (Global_Time is 0 in {zeros} of {loc_code.size} rows)" if zeros else ""))
+    vid = _integers(cols.pop("Vehicle_ID"), "Vehicle_ID", path)
+    frame = _integers(cols.pop("Frame_ID"), "Frame_ID", path)
+    order = np.lexsort((cols.pop("__line__"), frame, vid, loc_code))
     loc_code, vid, frame = loc_code[order], vid[order], frame[order]
-    vals = {k: cols[k][order] for k in _VALUES if k in cols}
+    vals = {k: cols.pop(k)[order] for k in _VALUES if k in cols}
+    del cols, order
     m = loc_code.size
 
     # duplicates of the key (the first row in file order is kept)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gzip
+import os
 import math
 import xml.etree.ElementTree as ET
 from array import array
@@ -12,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from iamp.prediction._typing import Array
 from iamp.prediction.load_report import LoadReport
 from iamp.prediction.loaders_csv import _open_text, _path, duplicate_rows, read_csv
 from iamp.prediction.tracks import TrackDataError, Tracks
@@ -25,9 +27,9 @@ _SUMO_ATTRS = ("time", "id", "x", "y", "angle", "type", "speed", "pos", "lane", 
 _SUMO_TEXT = ("id", "type", "lane")
 
 
-def _sumo_csv_spec(coordinate: str):
+def _sumo_csv_spec(coordinate: str) -> list[tuple[str, tuple[str, ...], bool]]:
     req = {"time", "id", "speed", "lane", coordinate}
-    spec = []
+    spec: list[tuple[str, tuple[str, ...], bool]] = []
     for attr in _SUMO_ATTRS:
         prefix = "timestep" if attr == "time" else "vehicle"
         spec.append((attr, (f"{prefix}_{attr}", attr), attr in req))
@@ -47,14 +49,14 @@ def _is_xml(path: Path) -> bool:
         raise TrackDataError("no such file", source=path) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise TrackDataError(f"cannot read the file ({exc})", source=path) from None
-    return head.lstrip().startswith("<")
+    return bool(head.lstrip().startswith("<"))
 
 
-def _read_fcd_xml(path: Path, coordinate: str) -> tuple[dict, dict]:
+def _read_fcd_xml(path: Path, coordinate: str) -> tuple[dict[str, Array], dict[str, float]]:
     """Columns of an FCD XML file (iterparse; memory stays flat) and the vType lengths in it."""
     required = ("id", "speed", "lane", coordinate)
     floats = {k: array("d") for k in ("time", "x", "y", "angle", "speed", "pos", "acceleration", "length")}
-    texts: dict[str, list] = {"id": [], "type": [], "lane": []}
+    texts: dict[str, list[str]] = {"id": [], "type": [], "lane": []}
     seen = {k: 0 for k in ("x", "y", "angle", "pos", "acceleration", "length", "type")}
     vtype_len: dict[str, float] = {}
     time = None
@@ -120,7 +122,7 @@ def _read_fcd_xml(path: Path, coordinate: str) -> tuple[dict, dict]:
     if root is None or root.tag != "fcd-export":
         raise TrackDataError(f"not an FCD file (root element {getattr(root, 'tag', None)!r}, "
                              f"expected 'fcd-export')", source=path)
-    cols: dict = {"time": np.frombuffer(floats["time"], dtype=np.float64) if n else np.empty(0),
+    cols: dict[str, Array] = {"time": np.frombuffer(floats["time"], dtype=np.float64) if n else np.empty(0),
                   "speed": np.frombuffer(floats["speed"], dtype=np.float64) if n else np.empty(0),
                   "id": np.asarray(texts["id"], dtype=str), "lane": np.asarray(texts["lane"], dtype=str)}
     for key in ("x", "y", "angle", "pos", "acceleration", "length"):
@@ -160,7 +162,7 @@ def _lane_index(lanes: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
     return idx[inv], internal[inv]
 
 
-def load_sumo_fcd(path, *, lengths: Mapping[str, float] | None = None,
+def load_sumo_fcd(path: str | os.PathLike[str], *, lengths: Mapping[str, float] | None = None,
                   default_length: float = SUMO_DEFAULT_LENGTH, coordinate: str = "x") -> Tracks:
     """Load SUMO floating-car-data output (``sumo --fcd-output``), XML or CSV.
 

@@ -53,8 +53,11 @@ import math
 from dataclasses import dataclass, field
 from importlib import resources
 
+from typing import Any
+
 import numpy as np
 
+from iamp.core.scenario import History
 from iamp.prediction._typing import FloatArray, IntArray
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
 from iamp.prediction.kinematics import (
@@ -128,7 +131,7 @@ class Prediction:
         Number of sampled paths behind ``quantiles``.
     """
 
-    x_poly: tuple
+    x_poly: tuple[float, ...]
     t: np.ndarray
     x: np.ndarray
     v: np.ndarray
@@ -136,21 +139,22 @@ class Prediction:
     probs: np.ndarray
     model: str
     fit_rmse: float
-    quantiles: dict = field(default_factory=dict)
+    quantiles: dict[float, FloatArray] = field(default_factory=dict)
     n_samples: int = 0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "x_poly", tuple(float(c) for c in self.x_poly))
         for name in ("t", "x", "v", "a", "probs"):
             object.__setattr__(self, name, readonly_array(getattr(self, name)))
         object.__setattr__(self, "quantiles", {float(q): readonly_array(v) for q, v in self.quantiles.items()})
 
-    def x_fit(self, t=None) -> np.ndarray:
+    def x_fit(self, t: Any = None) -> FloatArray:
         """The fitted cubic evaluated at ``t`` (default: the prediction times)."""
         t = self.t if t is None else np.asarray(t, dtype=float)
-        return np.polynomial.polynomial.polyval(t, self.x_poly)
+        out: FloatArray = np.polynomial.polynomial.polyval(t, self.x_poly)
+        return out
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (``x_poly``, ``t``, ``x``, ``v``, ``a``, ``model``, ``fit_rmse``)."""
         d = {"x_poly": list(self.x_poly), "t": self.t.tolist(), "x": self.x.tolist(),
              "v": self.v.tolist(), "a": self.a.tolist(), "model": self.model, "fit_rmse": self.fit_rmse}
@@ -194,10 +198,12 @@ class Predictor:
         missing = [k for k in ("edges", "centres", "dt") if getattr(model, k) is None]
         if missing:
             raise ModelFileError(f"the model lacks {', '.join(missing)} needed for prediction", missing[0], name)
+        assert model.dt is not None and model.centres is not None  # checked above
         self.model = model
+        self.centres: FloatArray = model.centres
         self.name = str(name)
         self.dt = float(model.dt)
-        self._fit_cache: dict = {}
+        self._fit_cache: dict[tuple[int, float], tuple[FloatArray, FloatArray]] = {}
 
     def __repr__(self) -> str:
         return (f"Predictor(model={self.name!r}, order={self.model.order}, states={self.model.n_states}, "
@@ -209,7 +215,7 @@ class Predictor:
         return cls(_default_model(), "builtin")
 
     @classmethod
-    def from_file(cls, path) -> Predictor:
+    def from_file(cls, path: Any) -> Predictor:
         """A predictor with the model in a JSON file (:meth:`MTDModel.save`)."""
         return cls(MTDModel.load(path), str(path))
 
@@ -225,14 +231,14 @@ class Predictor:
         return 3
 
     # -- prediction ------------------------------------------------------------------------
-    def _horizon(self, tf) -> tuple[int, np.ndarray]:
+    def _horizon(self, tf: Any) -> tuple[int, FloatArray]:
         if isinstance(tf, bool) or not isinstance(tf, (int, float, np.integer, np.floating)):
             raise ValueError(f"tf must be a number (got {tf!r})")
         tf = float(tf)
         if not (math.isfinite(tf) and tf > 0):
             raise ValueError(f"tf must be positive and finite (got {tf})")
         M = max(int(math.ceil(tf / self.dt - 1e-9)), 1)
-        t = self.dt * np.arange(M + 1)
+        t = np.asarray(self.dt * np.arange(M + 1), dtype=np.float64)
         t[-1] = tf
         return M, t
 
@@ -260,9 +266,10 @@ class Predictor:
     def _node_accelerations(self, states: np.ndarray, M: int) -> tuple[np.ndarray, np.ndarray]:
         """``(\\hat x_k, ā_k)`` for ``k = 0..M`` from the last ``n`` states (batch)."""
         probs = self.model.propagate_batch(np.atleast_2d(states), M + 1)
-        return probs, probs @ self.model.centres
+        return probs, probs @ self.centres
 
-    def predict(self, history, tf: float = 5.0, *, n_samples: int = 0, quantiles=(), seed=None) -> Prediction:
+    def predict(self, history: History, tf: float = 5.0, *, n_samples: int = 0, quantiles: Any = (),
+                seed: Any = None) -> Prediction:
         """Predict the trajectory over ``[0, tf]`` and fit the cubic.
 
         Parameters
@@ -304,22 +311,23 @@ class Predictor:
         x, v = integrate_nodes(x0, v0, abar, self.dt, t)
         x, v = x[0], v[0]
         a = np.interp(t, self.dt * np.arange(M + 1), abar[0])
-        key = (M, t[-1])
+        key = (M, float(t[-1]))
         cached = self._fit_cache.get(key)
         if cached is None:
             if len(self._fit_cache) > 64:
                 self._fit_cache.clear()
-            V = np.vander(t, 4, increasing=True)
-            cached = self._fit_cache[key] = (np.linalg.pinv(V), V)
+            V = np.asarray(np.vander(t, 4, increasing=True), dtype=np.float64)
+            cached = (np.asarray(np.linalg.pinv(V), dtype=np.float64), V)
+            self._fit_cache[key] = cached
         coef = cached[0] @ x
         rmse = float(np.sqrt(np.mean((cached[1] @ coef - x) ** 2)))
-        qdict = {}
+        qdict: dict[float, FloatArray] = {}
         if qs and n_samples <= 0:
             n_samples = 500
         if n_samples > 0:
             paths = model.sample(states, M + 1, int(n_samples), seed)
             xs, _ = integrate_nodes(np.full(int(n_samples), x0), np.full(int(n_samples), v0),
-                                    model.centres[paths], self.dt, t)
+                                    self.centres[paths], self.dt, t)
             qdict = {q: np.quantile(xs, q, axis=0) for q in qs}
         return Prediction(x_poly=coef, t=t, x=x, v=v, a=a, probs=probs[0], model=self.name, fit_rmse=rmse,
                           quantiles=qdict, n_samples=int(max(n_samples, 0)))
@@ -361,4 +369,5 @@ class Predictor:
         x, _ = integrate_nodes(x0, v0, abar, self.dt, t)
         V = np.vander(t, 4, increasing=True)
         C, *_ = np.linalg.lstsq(V, x.T, rcond=None)
-        return np.polynomial.polynomial.polyval(q, C)
+        out: FloatArray = np.polynomial.polynomial.polyval(q, C)
+        return out

@@ -53,7 +53,7 @@ class TrackDataError(IampError, ValueError):
         The file the data came from.
     """
 
-    def __init__(self, message: str, column: str | None = None, source: str | os.PathLike | None = None):
+    def __init__(self, message: str, column: str | None = None, source: str | os.PathLike[str] | None = None):
         self.message = message
         self.column = column
         self.source = None if source is None else str(source)
@@ -218,12 +218,12 @@ class Tracks:
             return np.empty(0, dtype=np.int64)
         return self.track_id[np.concatenate(([0], _boundaries(self.track_id)))].copy()
 
-    def _take(self, index, meta: dict | None = None) -> Tracks:
+    def _take(self, index: Any, meta: dict[str, Any] | None = None) -> Tracks:
         return Tracks(self.track_id[index], self.t[index], self.x[index], self.v[index], self.a[index],
                       self.lane[index], self.dt, dict(self.meta) if meta is None else meta,
                       None if self.y is None else self.y[index])
 
-    def track(self, tid) -> Tracks:
+    def track(self, tid: int) -> Tracks:
         """The rows of one track; :class:`TrackDataError` if there is no such track."""
         lo = np.searchsorted(self.track_id, tid, side="left")
         hi = np.searchsorted(self.track_id, tid, side="right")
@@ -241,7 +241,7 @@ class Tracks:
         for k, start in enumerate(starts):
             yield (int(self.track_id[start]), parts[0][k], parts[1][k], parts[2][k], parts[3][k], parts[4][k])
 
-    def select(self, mask) -> Tracks:
+    def select(self, mask: Any) -> Tracks:
         """The rows where the boolean ``mask`` holds (tracks must stay gap-free)."""
         return self._take(np.asarray(mask, dtype=bool))
 
@@ -258,7 +258,7 @@ class Tracks:
         dt = float(dt)
         if not np.isfinite(dt) or dt <= 0:
             raise TrackDataError(f"must be positive and finite, got {dt}", column="dt")
-        out = {name: [] for name in _COLUMNS}
+        out: dict[str, list[np.ndarray]] = {name: [] for name in _COLUMNS}
         eps = 1e-9 * max(dt, self.dt)
         ys: list[np.ndarray] = []
         y_all = np.split(self.y, _boundaries(self.track_id)) if self.y is not None and len(self) else []
@@ -312,13 +312,14 @@ class Tracks:
         cols = {name: np.concatenate([getattr(tb, name) for tb in tables]) for name in _COLUMNS}
         cols["track_id"] = np.concatenate([tb.track_id + off for tb, off in zip(tables, offsets)])
         order = np.lexsort((cols["t"], cols["track_id"]))
-        meta = {"format": "concat", "parts": [tb.meta for tb in tables]}
+        meta: dict[str, Any] = {"format": "concat", "parts": [tb.meta for tb in tables]}
         if any(offsets):
             meta["parts_id_offset"] = offsets
         y = None
         if all(tb.y is not None for tb in tables):
             y = np.concatenate([tb.y for tb in tables if tb.y is not None])[order]
-        return Tracks(*(cols[name][order] for name in _COLUMNS), dt=dt, meta=meta, y=y)
+        c = {name: cols[name][order] for name in _COLUMNS}
+        return Tracks(c["track_id"], c["t"], c["x"], c["v"], c["a"], c["lane"], dt=dt, meta=meta, y=y)
 
     def split_by_track(self, test_fraction: float, seed: int = 0) -> tuple[Tracks, Tracks]:
         """A deterministic held-out split by whole tracks: ``(train, test)``.

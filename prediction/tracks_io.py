@@ -7,6 +7,7 @@ import os
 import zipfile
 from importlib import resources
 from pathlib import Path
+from typing import IO, Any
 
 import numpy as np
 
@@ -40,32 +41,33 @@ def save_tracks(tracks: Tracks, path: str | os.PathLike[str], *, decimals: int |
         if not 0 <= decimals <= 9:
             raise TrackDataError(f"decimals must be within 0..9, got {decimals}")
     arrays: dict[str, np.ndarray] = {}
-    header = {"format": FILE_FORMAT, "version": FILE_VERSION, "dt": tracks.dt, "rows": len(tracks),
-              "encoding": {}}
+    encoding: dict[str, str] = {}
+    header: dict[str, Any] = {"format": FILE_FORMAT, "version": FILE_VERSION, "dt": tracks.dt, "rows": len(tracks),
+              "encoding": encoding}
     arrays["track_id"] = _delta_int(tracks.track_id)
-    header["encoding"]["track_id"] = "delta"
+    encoding["track_id"] = "delta"
     arrays["lane"] = _small_int(tracks.lane)
-    header["encoding"]["lane"] = "int"
+    encoding["lane"] = "int"
     steps = np.round(tracks.t / tracks.dt)
     if len(tracks) and np.all(np.abs(steps * tracks.dt - tracks.t) <= 1e-9 * max(1.0, float(np.abs(tracks.t).max()))):
         arrays["t"] = _delta_int(steps.astype(np.int64))
-        header["encoding"]["t"] = "delta-steps"
+        encoding["t"] = "delta-steps"
     else:
         arrays["t"] = tracks.t
-        header["encoding"]["t"] = "float64"
+        encoding["t"] = "float64"
     for name in ("x", "v", "a", "y"):
         col = getattr(tracks, name)
         if col is None:
             continue
         if decimals is None:
             arrays[name] = col
-            header["encoding"][name] = "float64"
+            encoding[name] = "float64"
         else:
             q = np.round(col * 10.0 ** decimals)
             if q.size and np.abs(q).max() >= 2 ** 53:
                 raise TrackDataError(f"values too large for {decimals} decimals", column=name)
             arrays[name] = _delta_int(q.astype(np.int64))
-            header["encoding"][name] = f"delta-decimals-{decimals}"
+            encoding[name] = f"delta-decimals-{decimals}"
     arrays["header"] = np.array(json.dumps(header, sort_keys=True))
     arrays["meta"] = np.array(meta_json)
 
@@ -129,7 +131,7 @@ def load_tracks(path: str | os.PathLike[str]) -> Tracks:
                   cols.get("y"))
 
 
-def _write_npz(fh, arrays: dict[str, np.ndarray]) -> None:
+def _write_npz(fh: IO[bytes], arrays: dict[str, np.ndarray]) -> None:
     """``np.savez_compressed`` with fixed zip timestamps, so equal tables give equal bytes."""
     with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=9, allowZip64=True) as zf:
         for name, arr in arrays.items():

@@ -11,11 +11,16 @@ from __future__ import annotations
 import json
 import math
 
+from typing import Any
+
 import numpy as np
+
+from iamp.prediction._typing import FloatArray, IntArray
 
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD
 from iamp.prediction.kinematics import second_differences
 from iamp.prediction.mtd_model import MTDModel
+from iamp.prediction.tracks import Tracks
 
 __all__ = ["STATE_DEFINITION", "bin_centres", "symmetric_edges", "track_accelerations", "train_from_tracks"]
 
@@ -37,7 +42,7 @@ def symmetric_edges(width: float, a_max: float) -> np.ndarray:
     return width * (np.arange(-K, K) + 0.5)
 
 
-def track_accelerations(tracks, dt: float) -> list[np.ndarray]:
+def track_accelerations(tracks: Tracks, dt: float) -> list[FloatArray]:
     """State values ``a_k`` of every track, computed as the predictor does.
 
     Each track's positions are linearly resampled onto ``t0 + k·dt`` and differenced
@@ -66,9 +71,9 @@ def bin_centres(accels: list[np.ndarray], edges: np.ndarray) -> np.ndarray:
     return np.where(cnt > 0, tot / np.maximum(cnt, 1), mid)
 
 
-def train_from_tracks(tracks, *, dt: float, edges, order: int, estimator: str = "mle",
-                      jerk_psd: float = DEFAULT_JERK_PSD, provenance: dict | None = None,
-                      **fit_kwargs) -> MTDModel:
+def train_from_tracks(tracks: Tracks, *, dt: float, edges: Any, order: int, estimator: str = "mle",
+                      jerk_psd: float = DEFAULT_JERK_PSD, provenance: dict[str, Any] | None = None,
+                      **fit_kwargs: Any) -> MTDModel:
     """Train an MTD acceleration model on a :class:`~iamp.prediction.tracks.Tracks` table.
 
     Parameters
@@ -115,7 +120,7 @@ def train_from_tracks(tracks, *, dt: float, edges, order: int, estimator: str = 
                **fit_kwargs)
 
 
-def _jsonable(obj):
+def _jsonable(obj: Any) -> Any:
     try:
         json.dumps(obj, allow_nan=False)
         return obj
