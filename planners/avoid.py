@@ -116,6 +116,9 @@ class AvoidQPPlanner:
         Largest full sweep for ``m > 1`` vehicles.
     coarse : int
         Switches per vehicle of the coarse sweep beyond ``max_combinations``.
+    prune : bool
+        One vehicle: skip the switches that monotone relaxations prove no better than the
+        best found (exact; see :meth:`_pruned_sweep`).  ``False`` solves every switch.
     """
 
     steps: int = 100
@@ -125,6 +128,7 @@ class AvoidQPPlanner:
     solver_settings: dict[str, Any] | None = None
     max_combinations: int = 5000
     coarse: int = 24
+    prune: bool = True
 
     def __post_init__(self) -> None:
         if self.hold not in HOLDS:
@@ -170,6 +174,7 @@ class AvoidQPPlanner:
         complete = total <= self.max_combinations
         backend = self._backend(data, np.zeros(data.n_rows - data.n_eq, dtype=bool))
         table: list[tuple[Any, float]] = []
+        self._extra_solves = 0  # free solves and relaxations (pruning), beside the candidates
         best: Candidate | None = None
         failures: list[tuple[Any, str]] = []
 
@@ -190,6 +195,12 @@ class AvoidQPPlanner:
             best = certified[0]
             table.append(([p[2] for p in best.phases], best.cost))
             complete = True
+        elif complete and m == 1 and self.prune:
+            for first, second in orders[0]:
+                seeds = self._seeds(data, backend, first)
+                run([((first, second, j, j + 1),) for j in seeds])
+                bound = best.cost if best is not None else np.inf
+                run([((first, second, j, j + 1),) for j in self._pruned(data, backend, first, second, seeds, bound)])
         elif complete:
             run(list(itertools.product(*per_vehicle)))
         else:
@@ -204,7 +215,9 @@ class AvoidQPPlanner:
                     run([tuple(fixed[:i] + [p] + fixed[i + 1:]) for p in per_vehicle[i]])
                 if best is None or best.cost >= before - 1e-12 * max(1.0, abs(before)):
                     break
-        info: dict[str, Any] = {"constraint": "avoid", "n_solves": len(table), "sweep": table, "failures": failures,
+        info: dict[str, Any] = {"constraint": "avoid", "n_solves": len(table) + self._extra_solves, "sweep": table,
+                                "failures": failures,
+                                "pruned": complete and m == 1 and self.prune and certified is None,
                                 "complete_sweep": complete,
                                 "certificate": None if certified is None else
                                 "the unconstrained optimum keeps every inequality at the nodes: a lower bound "
@@ -226,6 +239,59 @@ class AvoidQPPlanner:
             final_data, final, taus = self._refine(problem, grid_best)
             info["n_solves"] += int(info.pop("refine_solves", 0))
         return self._result(problem, final_data, final, taus, complete, info, start)
+
+    def _seeds(self, data: AvoidData, backend: BoundSolver, first: int) -> list[int]:
+        """The switches around the free optimum's own crossing (solved first when pruning)."""
+        N = data.N
+        free = self._solve(data, backend, [])
+        self._extra_solves += 1
+        if free.status != st.OPTIMAL:
+            return [N // 2]
+        X, _ = data.unpack(free.z)
+        k = data.interior
+        in_first = data.planes[0][first].margin(data.t_nodes[k], X[k, 2 * first]) >= 0
+        out = np.flatnonzero(~in_first)
+        j0 = int(k[out[0]]) - 1 if out.size else N - 1
+        return sorted({min(max(j, 0), N - 1) for j in (j0 - 1, j0, j0 + 1)})
+
+    def _pruned(self, data: AvoidData, backend: BoundSolver, first: int, second: int, seeds: list[int],
+                bound: float) -> list[int]:
+        r"""One vehicle, one order: the switches ``j`` still to solve after pruning, exactly.
+
+        Candidate ``j`` imposes the first half-plane at nodes ``k <= j`` and the second at
+        ``k >= j + 1``; dropping either set gives the relaxations ``R_pre(j)`` (first only,
+        nondecreasing in ``j``) and ``R_suf(j)`` (second only, nonincreasing), both lower bounds
+        of its cost.  With ``B`` = ``bound`` the best cost found so far (the ``seeds`` around
+        the free optimum's crossing are solved first), bisection finds the smallest ``j_hi``
+        with ``R_pre(j_hi) > B`` and the largest ``j_lo`` with ``R_suf(j_lo) > B``: every
+        ``j >= j_hi`` or ``<= j_lo`` costs more than ``B``, so only ``j_lo < j < j_hi`` remain
+        and the search stays global over the grid.
+        """
+        N = data.N
+        if not np.isfinite(bound):
+            return [j for j in range(N) if j not in seeds]
+        limit = bound * (1 + 1e-9) + 1e-12
+
+        def relax(phases: tuple[int, int, int, int]) -> float:
+            r = self._solve(data, backend, [phases])
+            self._extra_solves += 1
+            return r.cost if r.status == st.OPTIMAL else np.inf
+
+        hi_j, a, b = N, max(seeds), N - 1  # smallest j >= max(seeds) with R_pre(j) > B (N: none)
+        while a <= b:
+            mid = (a + b) // 2
+            if relax((first, second, mid, N)) > limit:
+                hi_j, b = mid, mid - 1
+            else:
+                a = mid + 1
+        lo_cut, a, b = -1, 0, min(seeds)  # largest j <= min(seeds) with R_suf(j) > B (-1: none)
+        while a <= b:
+            mid = (a + b) // 2
+            if relax((first, second, 0, mid + 1)) > limit:
+                lo_cut, a = mid, mid + 1
+            else:
+                b = mid - 1
+        return [j for j in range(lo_cut + 1, hi_j) if j not in seeds]
 
     def _certify_free(self, data: AvoidData, backend: BoundSolver, orders: Sequence[Sequence[tuple[int, int]]]
                       ) -> tuple[Candidate, list[list[int]]] | None:

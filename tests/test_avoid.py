@@ -133,6 +133,16 @@ def test_crossing_time_is_the_global_minimiser_over_a_dense_grid():
     assert g.cost == pytest.approx(min(c for _, c in g.info["sweep"]), rel=1e-12)
 
 
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_pruned_sweep_equals_the_full_sweep(hold):
+    prob = binding_problem()
+    pruned = AvoidQPPlanner(steps=40, hold=hold).plan(prob)
+    full = AvoidQPPlanner(steps=40, hold=hold, prune=False).plan(prob)
+    assert pruned.info["pruned"] and pruned.info["n_solves"] < full.info["n_solves"]
+    assert pruned.cost == pytest.approx(full.cost, rel=1e-12)
+    assert pruned.info["grid_best"]["switch_nodes"] == full.info["grid_best"]["switch_nodes"]
+
+
 def test_between_node_intrusion_falls_with_n():
     prob = binding_problem()
     worst = [AvoidQPPlanner(steps=N).plan(prob).info["avoidance"]["vehicles"][0]["between_node_intrusion_m"]
