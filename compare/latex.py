@@ -16,7 +16,9 @@ r"""Booktabs tables for the reports, written atomically.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 from iamp.core.atomic import write_text as write_atomic  # re-exported for callers
 
@@ -31,14 +33,14 @@ class Raw(str):
     """A table cell that is already valid LaTeX and must not be escaped."""
 
 
-def escape(text) -> str:
+def escape(text: object) -> str:
     """Escape LaTeX's special characters in plain text (a :class:`Raw` passes unchanged)."""
     if isinstance(text, Raw):
         return str(text)
     return "".join(ESCAPES.get(ch, ch) for ch in str(text))
 
 
-def is_missing(x) -> bool:
+def is_missing(x: object) -> bool:
     """``None`` or a non-finite float: a table shows ``--`` for it."""
     return x is None or (isinstance(x, float) and not math.isfinite(x))
 
@@ -53,27 +55,28 @@ def mantissa_exponent(x: float, digits: int) -> tuple[float, int]:
     return m, e
 
 
-def sci(x, digits: int = 2) -> Raw:
+def sci(x: float | None, digits: int = 2) -> Raw:
     r"""``x`` as ``$m\times10^{e}$`` with ``digits`` decimals (``--`` for ``None``/NaN)."""
-    if is_missing(x):
+    if x is None or is_missing(x):
         return Raw("--")
-    x = float(x)
-    if x == 0:
+    v = float(x)
+    if v == 0:
         return Raw("$0$")
-    m, e = mantissa_exponent(x, digits)
+    m, e = mantissa_exponent(v, digits)
     if -2 <= e <= 3:
-        return Raw(f"${x:.{max(0, digits - e)}f}$")
+        return Raw(f"${v:.{max(0, digits - e)}f}$")
     return Raw(f"${m:.{digits}f}\\times10^{{{e}}}$")
 
 
-def fixed(x, digits: int = 3) -> Raw:
+def fixed(x: float | None, digits: int = 3) -> Raw:
     """``x`` with ``digits`` decimals in math mode (``--`` for ``None``/NaN)."""
-    if is_missing(x):
+    if x is None or is_missing(x):
         return Raw("--")
     return Raw(f"${float(x):.{digits}f}$")
 
 
-def booktabs_table(header, rows, caption: str | None = None, label: str | None = None,
+def booktabs_table(header: Sequence[object], rows: Iterable[Sequence[object] | None], caption: str | None = None,
+                   label: str | None = None,
                    align: str | None = None, notes: str | None = None, float_env: bool = True) -> str:
     """A booktabs table as LaTeX source.
 
@@ -116,8 +119,7 @@ def booktabs_table(header, rows, caption: str | None = None, label: str | None =
     return "\n".join(lines) + "\n"
 
 
-
-
-def write_table(path, header, rows, **kwargs) -> Path:
+def write_table(path: str | Path, header: Sequence[object], rows: Iterable[Sequence[object] | None],
+                **kwargs: Any) -> Path:
     """:func:`booktabs_table` written with :func:`write_atomic`."""
     return write_atomic(path, booktabs_table(header, rows, **kwargs))

@@ -12,14 +12,18 @@ Used by :func:`iamp.comparison.report.reproduce`; re-exported there.
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
+from iamp.core.plan import Plan
 from iamp.core.safety import INTRUSION_TOL_M, safety_report
 
-__all__ = ["INSIDE_TOL_M", "AGGRESSION_MEASURES", "manoeuvre_metrics", "qualitative_comparison"]
+__all__ = ["AGGRESSION_MEASURES", "INSIDE_TOL_M", "manoeuvre_metrics", "qualitative_comparison"]
 
 
-def _crossing_time(t, y, level):
+def _crossing_time(t: NDArray[np.float64], y: NDArray[np.float64], level: float) -> float | None:
     """First time ``y`` crosses ``level`` (linear interpolation), or ``None``."""
     d = y - level
     idx = np.nonzero(np.sign(d[:-1]) != np.sign(d[1:]))[0]
@@ -34,7 +38,7 @@ def _crossing_time(t, y, level):
 INSIDE_TOL_M = INTRUSION_TOL_M
 
 
-def manoeuvre_metrics(result) -> dict:
+def manoeuvre_metrics(result: Plan) -> dict[str, Any]:
     """Measurable aggressiveness and safety of a plan (on a 1 ms grid).
 
     ``t_cross``: first crossing of the lane divider half-way between ``y0`` and vehicle 1's
@@ -56,11 +60,13 @@ def manoeuvre_metrics(result) -> dict:
     v1 = prob.vehicles[0]
     divider = 0.5 * (prob.ego.y0 + v1.y)
     # where the plan is unsafe: exact interval ends (roots), SPEC §9 (iamp.core.safety)
-    report = result.safety if hasattr(result, "safety") else safety_report(prob, result.trajectory)
+    report = getattr(result, "safety", None) or safety_report(prob, result.trajectory)
     inside = [[list(iv) for iv in v.intrusion] for v in report.vehicles]
     body = [[list(iv) for iv in v.overlap] for v in report.vehicles]
     depths = [v.max_intrusion_m for v in report.vehicles]
     w = np.diff(t)
+    if result.cost is None:
+        raise ValueError(f"a plan with status {result.status!r} has no cost and no manoeuvre to measure")
     return {
         "J": float(result.cost),
         "J_x": float(0.5 * np.sum(w * 0.5 * (U[:-1, 0] ** 2 + U[1:, 0] ** 2))),
@@ -96,13 +102,13 @@ AGGRESSION_MEASURES = (
 )
 
 
-def qualitative_comparison(metrics: dict) -> dict:
+def qualitative_comparison(metrics: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """Scenario 2 vs 1 (paper: more aggressive) and 3 vs 1 (paper: more conservative)."""
-    def val(m, key):
+    def val(m: dict[str, Any], key: str) -> Any:
         v = m.get(key)
         return v[0] if isinstance(v, list) else v
 
-    out = {}
+    out: dict[str, Any] = {}
     if "paper-1" not in metrics:
         return out
     base = metrics["paper-1"]
