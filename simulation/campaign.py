@@ -33,8 +33,9 @@ from iamp.simulation.network import INSTALL_HINT
 COLUMNS = ("planner", "traffic", "seed", "duration_s", "period_s", "lane_change_done_s", "lane_changes",
            "collisions", "sumo_collisions", "overlap_collisions", "intrusion_s", "min_gap_m", "min_ttc_s",
            "min_follower_accel", "rms_accel_x", "rms_accel_y", "rms_jerk_x", "rms_jerk_y", "plan_time_p50_s",
-           "plan_time_p95_s", "plan_time_max_s", "plans", "failed_plans", "late_plans", "fallbacks", "aborts",
-           "wall_total_s", "wall_sumo_s", "wall_prediction_s", "wall_planning_s", "max_rss_mb")
+           "plan_time_p95_s", "plan_time_max_s", "plans", "constrained_plans", "failed_plans", "late_plans",
+           "fallbacks", "aborts",
+           "deadline_s", "wall_total_s", "wall_sumo_s", "wall_prediction_s", "wall_planning_s", "max_rss_mb")
 Key = tuple[str, str, int]
 #: A neighbour behind the ego braking harder than this [m/s²] (the "average" driver's
 #: ``decel``; beyond it SUMO's drivers brake in emergency) marks a hard-brake episode.
@@ -84,7 +85,8 @@ def _append(path: Path, columns: tuple[str, ...], row: dict[str, Any]) -> None:
 
 def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, out: str | Path, *,
                  workers: int = 2, scheduler: str | None = None, duration_s: float = 60.0,
-                 period_s: float = 0.1, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+                 period_s: float = 0.1, deadline: bool = True,
+                 progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Run the missing episodes of the campaign; returns ``{"ran", "skipped", "failed", "seconds"}``."""
     try:
         dist: Any = importlib.import_module("distributed")
@@ -109,8 +111,9 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
                                dashboard_address=None, memory_limit="2GiB")
         client = dist.Client(cluster)
     try:
+        limit = period_s if deadline else None
         futures = {client.submit(run_one, {"planner": p, "traffic": t, "seed": s, "duration_s": duration_s,
-                                           "period_s": period_s, "deadline_s": period_s}, pure=False): (p, t, s)
+                                           "period_s": period_s, "deadline_s": limit}, pure=False): (p, t, s)
                    for p, t, s in todo}
         n_done = skipped
         for fut in dist.as_completed(futures):
@@ -178,6 +181,7 @@ def summarise(rows: list[dict[str, str]]) -> list[dict[str, Any]]:
             "min_ttc_s_median": float(np.median(ttc)) if ttc.size else None,
             "plan_time_p95_s_median": float(np.median(p95)) if p95.size else None,
             "plan_time_max_s": float(np.max(_floats(rs, "plan_time_max_s"))) if p95.size else None,
+            "plans": int(_floats(rs, "plans").sum()), "constrained_plans": int(_floats(rs, "constrained_plans").sum()),
             "failed_plans": int(_floats(rs, "failed_plans").sum()), "fallbacks": int(_floats(rs, "fallbacks").sum()),
             "late_plans": int(_floats(rs, "late_plans").sum()), "aborts": int(_floats(rs, "aborts").sum()),
             "wall_s_median": float(np.median(_floats(rs, "wall_total_s"))),

@@ -109,6 +109,7 @@ class Counters:
     plans: int = 0
     failed_plans: int = 0
     late_plans: int = 0
+    constrained_plans: int = 0
     fallbacks: int = 0
     aborts: int = 0
     lane_changes: int = 0
@@ -267,6 +268,8 @@ class Controller:
         ok = plan.status in SUCCESS and plan.trajectory is not None
         if not ok:
             self.n.failed_plans += 1
+        elif getattr(plan.problem, "m", 0) > 0:
+            self.n.constrained_plans += 1
         late = self.cfg.deadline_s is not None and elapsed > self.cfg.deadline_s
         if ok and late:
             self.n.late_plans += 1

@@ -121,8 +121,8 @@ def _summary(planner, traffic, seed, collisions=0):
             "lane_change_done_s": 4.0, "lane_changes": 1, "collisions": collisions, "sumo_collisions": 0,
             "overlap_collisions": collisions, "intrusion_s": 0.0, "min_gap_m": 10.0, "min_ttc_s": None,
             "min_follower_accel": -1.0, "rms_accel": [0.1, 0.2], "rms_jerk": [0.3, 0.4],
-            "plan_time_s": {"p50": 1e-4, "p95": 2e-4, "max": 1e-3}, "plans": 10, "failed_plans": 0,
-            "late_plans": 0, "fallbacks": 0, "aborts": 0,
+            "plan_time_s": {"p50": 1e-4, "p95": 2e-4, "max": 1e-3}, "plans": 10, "constrained_plans": 2, "failed_plans": 0,
+            "late_plans": 0, "deadline_s": 0.1, "fallbacks": 0, "aborts": 0,
             "wall_s": {"total": 1.0, "sumo": 0.5, "prediction": 0.3, "planning": 0.1}, "max_rss_mb": 150.0}
 
 

@@ -61,7 +61,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     print(f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
           f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³")
     if s["plans"]:
-        print(f"plans     {s['plans']} (failed {s['failed_plans']}, late {s['late_plans']}, fallbacks "
+        print(f"plans     {s['plans']} ({s['constrained_plans']} with a constraint; failed {s['failed_plans']}, "
+              f"late {s['late_plans']}, fallbacks "
               f"{s['fallbacks']}, aborts {s['aborts']}); time p50 {pt['p50'] * 1e3:.2f} ms, p95 "
               f"{pt['p95'] * 1e3:.2f} ms, max {pt['max'] * 1e3:.2f} ms")
     w = s["wall_s"]
@@ -91,7 +92,7 @@ def _campaign_into(args: argparse.Namespace) -> int:
     with progress_bar(0, "campaign", enabled=not quiet) as tick:
         stats = run_campaign(args.planners, args.traffic, args.seeds, out, workers=args.workers,
                              scheduler=args.scheduler, duration_s=args.duration, period_s=args.period,
-                             progress=tick)
+                             deadline=not args.no_deadline, progress=tick)
     wanted = {(p, t) for p in args.planners for t in args.traffic}
     rows = [r for r in read_rows(out / "episodes.csv") if (r["planner"], r["traffic"]) in wanted
             and int(r["seed"]) <= args.seeds]
@@ -142,5 +143,6 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     c.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
     c.add_argument("--duration", type=positive_float, default=60.0)
     c.add_argument("--period", type=positive_float, default=0.1)
+    c.add_argument("--no-deadline", action="store_true", help="use plans however long they take")
     c.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     c.set_defaults(func=cmd_campaign)
