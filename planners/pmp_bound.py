@@ -232,6 +232,13 @@ def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
     while c.shape[0]:
         evaluated += c.shape[0]
         if evaluated > max_boxes:
+            # not certified: at least polish from the most promising boxes left
+            qc = vf.quad_sigma(c)
+            for k in np.argsort(qc)[:32]:
+                if np.isfinite(qc[k]):
+                    s_new, q_new = polish(c[k])
+                    if q_new < q_best:
+                        s_best, q_best = s_new, q_new
             return BoundResult(s_best, q_best, False, evaluated)
         qc = vf.quad_sigma(c)
         k = int(np.argmin(qc))

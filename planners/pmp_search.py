@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from itertools import product
+from itertools import permutations, product
 
 import numpy as np
 import numpy.typing as npt
@@ -172,16 +172,27 @@ class SearchResult:
 
 
 def start_points(S: Scaled, max_starts: int = 32) -> list[FloatArray]:
-    """Every combination of the one-vehicle stationary points (each vehicle alone, every
-    ordering of the contact times this implies), best ``max_starts`` by ``J``."""
+    """Every combination of the one-vehicle stationary points (each vehicle alone) and one
+    evenly spaced start per ordering of the contact times (sampled beyond ``m = 5``); the
+    caller keeps the best ``max_starts`` by ``J``."""
     per = []
     for i in range(S.m):
         roots = stationary_sigmas(S.EX[i].tolist(), S.EY[i].tolist())
         per.append(roots if roots else [0.5])
     combos = [np.array(c) for c in product(*per)]
-    if len(combos) > 4 * max_starts:
-        rng = np.random.default_rng(0)
-        combos = [combos[k] for k in rng.choice(len(combos), 4 * max_starts, replace=False)]
+    # every ordering of the contact times, evenly spaced (capped at 4·max_starts orderings)
+    m = S.m
+    spaced = (np.arange(m) + 1.0) / (m + 1.0)
+    orders = list(permutations(range(m))) if m <= 5 else []
+    rng = np.random.default_rng(0)
+    if not orders or len(orders) > 4 * max_starts:
+        orders = [tuple(rng.permutation(m)) for _ in range(4 * max_starts)]
+    for perm in orders:
+        start = np.empty(m)
+        start[list(perm)] = spaced
+        combos.append(start)
+    if len(combos) > 8 * max_starts:
+        combos = [combos[k] for k in rng.choice(len(combos), 8 * max_starts, replace=False)]
     return combos
 
 
