@@ -83,7 +83,7 @@ problems = st.tuples(
 ).map(problem_from)
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow], phases=PHASES)
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow], phases=PHASES)
 @given(problems, st.floats(0.1, 0.9), st.floats(0.0, 6.0), st.floats(0.0, 1.5))
 def test_pmp_plan_report_matches_dense_evaluation(problem, frac, sx, sy):
     plan = PMPPlanner().plan(problem, [frac * problem.tf], diagnostics=False)
@@ -119,7 +119,7 @@ def _step(x, U, k, t, hold):
     return np.array([sn[0], vn[0], sn[1], vn[1]])
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow], phases=PHASES)
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow], phases=PHASES)
 @given(problems, st.integers(3, 40), st.sampled_from(["foh", "zoh"]), st.integers(0, 10_000))
 def test_hold_trajectory_report_matches_dense_evaluation(problem, N, hold, seed):
     traj = integrated_hold(problem, N, hold, seed)
@@ -148,3 +148,48 @@ def test_equality_plan_touches_its_corner_and_paper_2_poly_is_unsafe():
     assert v.intrusion[-1][1] == pytest.approx(p2.problem.tf)
     assert v.intrusion[0][0] == pytest.approx(p2.contact_times[0], abs=2e-3)
     assert v.max_intrusion_m == pytest.approx(1.4, abs=1e-9)  # W/2 + S_y: the ego reaches y_s
+
+
+# --- the CLI (SPEC §9 JSON, text lines, --require-safe) and the ego body ------------------
+
+
+def test_cli_plan_json_carries_the_safety_report_and_require_safe_exits_4(cli):
+    import json
+
+    out = cli("plan", "paper-2-poly", "--json")
+    assert out.returncode == 0, out.stderr
+    saf = json.loads(out.stdout)["safety"]
+    assert saf["collision_free"] is False and saf["intrusion_free"] is False
+    v = saf["vehicles"][0]
+    assert set(v) >= {"name", "intrusion", "max_intrusion_m", "overlap", "min_clearance_m"}
+    assert v["intrusion"][-1][1] == pytest.approx(5.0)
+    unsafe = cli("plan", "paper-2-poly", "--require-safe")
+    assert unsafe.returncode == 4
+    assert "UNSAFE" in unsafe.stdout and "sv1" in unsafe.stdout  # one line per unsafe vehicle
+    safe = cli("plan", "paper-3-poly", "--require-safe")
+    assert safe.returncode == 0 and "intrusion-free and collision-free" in safe.stdout
+
+
+def test_cli_avoid_infeasible_exits_3_with_the_reason(cli):
+    import json
+
+    out = cli("plan", "paper-2-poly", "--planner", "qp", "--constraint", "avoid", "--steps", "20", "--json")
+    assert out.returncode == 3
+    d = json.loads(out.stdout)
+    assert d["status"] == "infeasible" and d["cost"] is None and "inside" in d["reason"]
+
+
+def test_ego_body_keys_change_the_overlap():
+    from iamp.core.scenario import builtin_text, loads_scenario
+
+    base = loads_scenario(builtin_text("paper-2-poly")).to_problem()[0]
+    small = loads_scenario(builtin_text("paper-2-poly").replace("[ego]", "[ego]\nlength = 1.0\nwidth = 0.5"))
+    problem = small.to_problem()[0]
+    assert (problem.ego.ego_length, problem.ego.ego_width) == (1.0, 0.5)
+    plan = PMPPlanner().plan(base)
+    big_overlap = safety_report(base, plan.trajectory).vehicles[0].overlap
+    small_overlap = safety_report(problem, plan.trajectory).vehicles[0].overlap
+    # a smaller ego body overlaps later (the same trajectory, the same vehicle)
+    assert small_overlap[0][0] > big_overlap[0][0]
+    with pytest.raises(ValueError, match="ego.width"):
+        loads_scenario(builtin_text("paper-2-poly").replace("[ego]", "[ego]\nwidth = 0"))
