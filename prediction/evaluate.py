@@ -65,7 +65,9 @@ from iamp.prediction.evaluate_windows import (
     metrics,
 )
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD
+from iamp.prediction.mtd_model import MTDModel
 from iamp.prediction.predictor import DEFAULT_MODEL_FILE, Predictor
+from iamp.prediction.tracks import Tracks
 from iamp.prediction.training import track_accelerations
 
 __all__ = [
@@ -103,32 +105,33 @@ DEFAULT_CONFIG: dict[str, Any] = {"dt": 0.2, "width": 0.5, "order": 4, "a_max": 
 # data, splits, windows
 # ---------------------------------------------------------------------------------------
 
-def split_tracks(tracks):
+def split_tracks(tracks: Tracks) -> tuple[Tracks, Tracks, Tracks, Tracks]:
     """``(train, val, test)`` by whole track with the module's fixed seeds."""
     rest, test = tracks.split_by_track(TEST_FRACTION, seed=TEST_SEED)
     train, val = rest.split_by_track(VAL_FRACTION, seed=VAL_SEED)
     return train, val, test, rest
 
 
-def _dataset_fingerprint(tracks) -> str:
+def _dataset_fingerprint(tracks: Tracks) -> str:
     h = hashlib.sha256()
     for col in (tracks.track_id, tracks.t, tracks.x):
         h.update(np.ascontiguousarray(col).tobytes())
     return h.hexdigest()
 
 
-def _dataset_name(tracks) -> str:
+def _dataset_name(tracks: Tracks) -> str:
     meta = tracks.meta if isinstance(tracks.meta, dict) else {}
     return str(meta.get("dataset") or meta.get("name") or meta.get("format") or "unknown")
 
 
-def _load_default_data():
+def _load_default_data() -> Tracks:
     from iamp.prediction.tracks import load_shipped_dataset
 
     return load_shipped_dataset()
 
 
-def train_default_model(path=None, *, tracks=None, config: dict | None = None):
+def train_default_model(path: Any = None, *, tracks: Tracks | None = None,
+                        config: dict[str, Any] | None = None) -> MTDModel:
     """Train the shipped default model deterministically and (optionally) write it.
 
     Parameters
@@ -168,7 +171,7 @@ def train_default_model(path=None, *, tracks=None, config: dict | None = None):
     return model
 
 
-def _paper_predictions(predictor: Predictor) -> dict:
+def _paper_predictions(predictor: Predictor) -> dict[str, Any]:
     out = {}
     for name, h in paper_histories().items():
         p = predictor.predict(h, 5.0)
@@ -178,7 +181,8 @@ def _paper_predictions(predictor: Predictor) -> dict:
     return out
 
 
-def run_evaluation(tracks=None, *, select: bool = True, config: dict | None = None) -> dict:
+def run_evaluation(tracks: Tracks | None = None, *, select: bool = True,
+                   config: dict[str, Any] | None = None) -> dict[str, Any]:
     """The whole protocol: selection on validation, final numbers on test.
 
     Parameters
@@ -210,6 +214,7 @@ def run_evaluation(tracks=None, *, select: bool = True, config: dict | None = No
     win = make_windows(test)
     results = evaluate_methods(win, models, q)
     # held-out log-likelihood of the state sequences (per transition)
+    assert final.edges is not None and final.centres is not None
     seqs = [np.searchsorted(final.edges, a, side="right") for a in track_accelerations(test, cfg["dt"])]
     heldout = {}
     for name, m in models.items():

@@ -4,18 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from iamp.core.scenario import History
 from iamp.prediction.tracks import Tracks
 
 __all__ = ["paper_histories", "synthetic_tracks"]
 
 
-def paper_histories():
+def paper_histories() -> dict[str, History]:
     """The three 3-s histories of SPEC §8 (0.1 s sampling, ``x(0) = -15``).
 
     1. constant 18 m/s;  2. braking at -1.5 m/s² to 20 m/s at ``t = 0``;
     3. accelerating at +2 m/s² to 13 m/s at ``t = 0``.
     """
-    from iamp.core.scenario import History
 
     t = np.round(np.arange(-30, 1) * 0.1, 10)
     xs = {"paper-1": -15.0 + 18.0 * t,
@@ -25,7 +25,7 @@ def paper_histories():
 
 
 
-def synthetic_tracks(n_tracks: int = 40, duration: float = 90.0, dt: float = 0.1, seed: int = 0):
+def synthetic_tracks(n_tracks: int = 40, duration: float = 90.0, dt: float = 0.1, seed: int = 0) -> Tracks:
     """Synthetic highway-like tracks for tests: regime-switching, jerk-limited acceleration.
 
     Each track alternates phases of 2–6 s (cruise with probability 0.5, accelerate or brake
@@ -34,7 +34,7 @@ def synthetic_tracks(n_tracks: int = 40, duration: float = 90.0, dt: float = 0.1
     """
 
     rng = np.random.default_rng(seed)
-    cols = {k: [] for k in ("track_id", "t", "x", "v", "a", "lane")}
+    cols: dict[str, list[np.ndarray]] = {k: [] for k in ("track_id", "t", "x", "v", "a", "lane")}
     n = int(round(duration / dt)) + 1
     for tid in range(n_tracks):
         target = np.zeros(n)
@@ -54,5 +54,6 @@ def synthetic_tracks(n_tracks: int = 40, duration: float = 90.0, dt: float = 0.1
             x[i] = x[i - 1] + v[i - 1] * dt + 0.5 * a[i] * dt * dt
         for key, val in zip(cols, (np.full(n, tid), dt * np.arange(n), x, v, a, np.zeros(n, dtype=int))):
             cols[key].append(val)
-    return Tracks(*(np.concatenate(cols[k]) for k in cols), dt=dt,
+    c = {k: np.concatenate(v) for k, v in cols.items()}
+    return Tracks(c["track_id"], c["t"], c["x"], c["v"], c["a"], c["lane"], dt=dt,
                   meta={"format": "synthetic", "name": "synthetic", "seed": seed})

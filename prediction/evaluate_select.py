@@ -18,6 +18,7 @@ import numpy as np
 from iamp.prediction.evaluate_windows import (
     FUTURE_S,
     HISTORY_S,
+    Windows,
     baseline_ca,
     baseline_cv,
     make_windows,
@@ -48,7 +49,7 @@ def train_config(tracks: Tracks, cfg: dict[str, Any], estimator: str | None = No
                              jerk_psd=cfg.get("jerk_psd", DEFAULT_JERK_PSD), provenance=provenance)
 
 
-def position_resolution(tracks) -> float | None:
+def position_resolution(tracks: Tracks) -> float | None:
     """The rounding step of the recorded positions (``10^-d`` m), or ``None`` if finer than 1 µm."""
     x = np.asarray(tracks.x, dtype=float)
     for d in range(7):
@@ -58,7 +59,7 @@ def position_resolution(tracks) -> float | None:
     return None
 
 
-def eligible(cfg: dict, resolution: float | None) -> tuple[bool, str]:
+def eligible(cfg: dict[str, Any], resolution: float | None) -> tuple[bool, str]:
     """Selection rule: bins must be at least two acceleration quanta ``r/Δt²`` wide.
 
     Rounding positions to ``r`` makes ``a_k`` a multiple of ``r/Δt²``; narrower bins hold a
@@ -75,8 +76,9 @@ def eligible(cfg: dict, resolution: float | None) -> tuple[bool, str]:
     return True, ""
 
 
-def select_model(train, val, *, grid_dt=GRID_DT, grid_width=GRID_WIDTH, grid_order=GRID_ORDER,
-                 estimator: str = "mle", history_s: float = HISTORY_S, resolution="auto") -> dict:
+def select_model(train: Tracks, val: Tracks, *, grid_dt: tuple[float, ...] = GRID_DT,
+                 grid_width: tuple[float, ...] = GRID_WIDTH, grid_order: tuple[int, ...] = GRID_ORDER,
+                 estimator: str = "mle", history_s: float = HISTORY_S, resolution: Any = "auto") -> dict[str, Any]:
     """Grid search on the validation windows; returns the table and the chosen config.
 
     1. The jerk spectral density ``q`` of the initial-state smoother is chosen on the
@@ -120,7 +122,7 @@ def select_model(train, val, *, grid_dt=GRID_DT, grid_width=GRID_WIDTH, grid_ord
             "best_overall": {**{k: overall[k] for k in keys}, "estimator": estimator}}
 
 
-def _selection_row(train, win, cfg, estimator):
+def _selection_row(train: Tracks, win: Windows, cfg: dict[str, Any], estimator: str) -> dict[str, Any]:
     t0 = time.perf_counter()
     model = train_config(train, cfg, estimator=estimator)
     fit_s = time.perf_counter() - t0

@@ -102,14 +102,14 @@ def _bootstrap(errs: dict[str, tuple[FloatArray, FloatArray, FloatArray]], win: 
             continue
         rm, ad, fd = stats(e)
         d_rmse, d_ade, d_fde = rm - base[0], ad - base[1], fd - base[2]
-        full = {"rmse_m": [float(np.sqrt(np.mean(e[0][:, k]))) - float(np.sqrt(np.mean(errs["cv"][0][:, k])))
-                           for k in range(len(HORIZONS))],
-                "ade_m": float(np.mean(e[1]) - np.mean(errs["cv"][1])),
-                "fde_m": float(np.mean(e[2]) - np.mean(errs["cv"][2]))}
+        full_rmse = [float(np.sqrt(np.mean(e[0][:, k]))) - float(np.sqrt(np.mean(errs["cv"][0][:, k])))
+                     for k in range(len(HORIZONS))]
+        full_ade = float(np.mean(e[1]) - np.mean(errs["cv"][1]))
+        full_fde = float(np.mean(e[2]) - np.mean(errs["cv"][2]))
         out[name] = {
-            "rmse_m": [{"diff": full["rmse_m"][k], "ci95": _ci(d_rmse[:, k])} for k in range(len(HORIZONS))],
-            "ade_m": {"diff": full["ade_m"], "ci95": _ci(d_ade)},
-            "fde_m": {"diff": full["fde_m"], "ci95": _ci(d_fde)},
+            "rmse_m": [{"diff": full_rmse[k], "ci95": _ci(d_rmse[:, k])} for k in range(len(HORIZONS))],
+            "ade_m": {"diff": full_ade, "ci95": _ci(d_ade)},
+            "fde_m": {"diff": full_fde, "ci95": _ci(d_fde)},
         }
     return out
 

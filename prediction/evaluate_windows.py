@@ -123,9 +123,10 @@ def make_windows(tracks: Tracks, history_s: float = HISTORY_S, future_s: float =
         t0s.append(tg[starts + kh])
     if not H:
         raise ValueError(f"no track is long enough for {history_s:g} s + {future_s:g} s windows")
-    t_hist = dt * np.arange(-kh, 1)
+    t_hist = np.asarray(dt * np.arange(-kh, 1), dtype=np.float64)
     t_hist[-1] = 0.0
-    return Windows(t_hist, np.concatenate(H), dt * np.arange(1, kf + 1), np.concatenate(F), np.concatenate(ids),
+    t_fut = np.asarray(dt * np.arange(1, kf + 1), dtype=np.float64)
+    return Windows(t_hist, np.concatenate(H), t_fut, np.concatenate(F), np.concatenate(ids),
                    np.concatenate(t0s), np.concatenate(YH) if lateral else None,
                    np.concatenate(YF) if lateral else None)
 

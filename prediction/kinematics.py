@@ -16,7 +16,6 @@ stays stopped for the interval.
 from __future__ import annotations
 
 import math
-
 from typing import Any
 
 import numpy as np

@@ -17,7 +17,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from iamp.prediction._typing import Array, BoolArray, IntArray
+from iamp.prediction._typing import Array, BoolArray
 from iamp.prediction.load_report import LoadReport
 from iamp.prediction.tracks import TrackDataError
 

@@ -198,7 +198,6 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
     loc_code, vid, frame = loc_code[order], vid[order], frame[order]
     vals = {k: cols.pop(k)[order] for k in _VALUES if k in cols}
     del cols, order
-    m = loc_code.size
 
     # duplicates of the key (the first row in file order is kept)
     same_key = (np.diff(loc_code) == 0) & (np.diff(vid) == 0) & (np.diff(frame) == 0)

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import gzip
-import os
 import math
+import os
 import xml.etree.ElementTree as ET
 from array import array
 from collections.abc import Mapping

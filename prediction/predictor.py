@@ -52,7 +52,6 @@ import json
 import math
 from dataclasses import dataclass, field
 from importlib import resources
-
 from typing import Any
 
 import numpy as np

@@ -6,6 +6,8 @@ default); :mod:`iamp.core.scenario` itself never imports the predictor.
 
 from __future__ import annotations
 
+from typing import Any
+
 from iamp.core.problem import Problem
 from iamp.core.scenario import Scenario, load_scenario
 from iamp.prediction.predictor import Predictor
@@ -16,7 +18,7 @@ def default_predictor() -> Predictor:
     return Predictor.default()
 
 
-def load_problem(spec: str, model: str | None = None) -> tuple[Scenario, Problem, list]:
+def load_problem(spec: str, model: str | None = None) -> tuple[Scenario, Problem, list[Any]]:
     """Scenario file or built-in name -> ``(scenario, problem, predictions)``.
 
     Vehicles given by a ``history`` are predicted with the model file ``model`` or, if it is

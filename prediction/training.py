@@ -10,13 +10,11 @@ from __future__ import annotations
 
 import json
 import math
-
 from typing import Any
 
 import numpy as np
 
-from iamp.prediction._typing import FloatArray, IntArray
-
+from iamp.prediction._typing import FloatArray
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD
 from iamp.prediction.kinematics import second_differences
 from iamp.prediction.mtd_model import MTDModel

@@ -12,6 +12,7 @@ import argparse
 import json
 import math
 import sys
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -19,12 +20,16 @@ from iamp.cli.types import positive_float as _positive_float
 from iamp.cli.types import positive_int as _positive_int
 from iamp.core.errors import IampError, ScenarioError
 
+if TYPE_CHECKING:
+    from iamp.core.scenario import Scenario
+    from iamp.prediction.predictor import Predictor
+
 EXIT_OK, EXIT_BAD_INPUT = 0, 2
 
 __all__ = ["add_parsers", "cmd_evaluate_predictor", "cmd_predict", "cmd_train", "parse_bins", "predict_json"]
 
 
-def _error(exc) -> int:
+def _error(exc: BaseException) -> int:
     msg = exc.one_line() if isinstance(exc, ScenarioError) else str(exc)
     sys.stderr.write(f"iamp: error: {msg}\n")
     return EXIT_BAD_INPUT
@@ -67,7 +72,7 @@ def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
 # iamp train
 # ---------------------------------------------------------------------------------------
 
-def cmd_train(args) -> int:
+def cmd_train(args: argparse.Namespace) -> int:
     """``iamp train``: fit an MTD model on recorded tracks and write it (atomically)."""
     from iamp.cli.progress import call_with_progress, progress_enabled
     from iamp.core.outputs import check_output  # fail fast: not an input, no silent overwrite, writable
@@ -102,7 +107,7 @@ def cmd_train(args) -> int:
 # iamp predict
 # ---------------------------------------------------------------------------------------
 
-def predict_json(scenario, predictor, model_label: str) -> dict:
+def predict_json(scenario: Scenario, predictor: Predictor | None, model_label: str) -> dict[str, Any]:
     """The SPEC §5b object for ``scenario``.
 
     Vehicles with a ``history`` are predicted (``t``/``x`` are the predicted samples before
@@ -114,6 +119,8 @@ def predict_json(scenario, predictor, model_label: str) -> dict:
     preds = {}
     for i, v in enumerate(scenario.vehicles):
         if v.history is not None:
+            if predictor is None:
+                raise ValueError(f"vehicle {v.name!r} is given by a history but no predictor was given")
             preds[i] = predictor.predict(v.history, tf)
     if preds:
         t = next(iter(preds.values())).t
@@ -129,12 +136,12 @@ def predict_json(scenario, predictor, model_label: str) -> dict:
                              "source": "history", "fit_rmse": p.fit_rmse})
         else:
             x = np.polynomial.polynomial.polyval(t, np.asarray(v.x_poly, dtype=float))
-            vehicles.append({"name": v.name, "x_poly": [float(c) for c in v.x_poly], "t": t.tolist(),
+            vehicles.append({"name": v.name, "x_poly": [float(c) for c in v.x_poly or ()], "t": t.tolist(),
                              "x": x.tolist(), "source": "x_poly"})
     return {"scenario": scenario.name, "model": model_label, "vehicles": vehicles}
 
 
-def cmd_predict(args) -> int:
+def cmd_predict(args: argparse.Namespace) -> int:
     """``iamp predict``: predict every history vehicle of a scenario."""
     from iamp.core.scenario import load_scenario
     from iamp.prediction.predictor import Predictor
@@ -233,7 +240,7 @@ def _evaluate_shipped_into(args: argparse.Namespace) -> int:
 # parsers
 # ---------------------------------------------------------------------------------------
 
-def add_parsers(subparsers) -> None:
+def add_parsers(subparsers: Any) -> None:
     """Add ``train``, ``predict`` and ``evaluate-predictor`` to ``iamp``'s sub-parsers."""
     from iamp.cli.progress import add_quiet_flag
     from iamp.prediction.evaluate import DEFAULT_CONFIG
