@@ -50,6 +50,40 @@ def _run_json(label: str, plan: Plan, constraint: str) -> dict[str, Any]:
     return out
 
 
+def plan_avoid(problem: Problem, *, steps: int, hold: str, solver: str) -> tuple[Plan | None, str | None]:
+    """The avoidance plan of ``problem``; when a vehicle's corner does not describe the
+    manoeuvre (SPEC §10 refuses it), the plan with that vehicle's corner mirrored
+    longitudinally (``front`` <-> ``rear``: merging behind instead of ahead), with a note.
+    Returns ``(plan or None, note or None)``."""
+    import re
+
+    from iamp.core.errors import ScenarioError
+    from iamp.core.problem import SurroundingVehicle
+    from iamp.planners.avoid import AvoidQPPlanner
+
+    planner = AvoidQPPlanner(steps=steps, hold=hold, solver=solver)
+    try:
+        return planner.plan(problem), None
+    except ScenarioError as exc:
+        first = exc.message
+        match = re.match(r"vehicles\[(\d+)\]", exc.field or "")
+        if match is None:
+            return None, first
+        i = int(match.group(1))
+        v = problem.vehicles[i]
+        side, lat = v.corner.split("-")
+        corner = f"{'rear' if side == 'front' else 'front'}-{lat}"
+        mirrored = SurroundingVehicle(v.x_poly, corner, v.y, v.length, v.width, v.safety_x, v.safety_y, v.name)
+        vehicles = list(problem.vehicles)
+        vehicles[i] = mirrored
+        try:
+            plan = planner.plan(problem.with_vehicles(vehicles))
+        except ScenarioError as exc2:
+            return None, f"{first}; with corner {corner!r} too: {exc2.message}"
+        return plan, (f"corner {v.corner!r} of {v.name} refused ({first}); planned with {corner!r} instead "
+                      f"(the ego passes {'behind' if side == 'front' else 'ahead of'} it)")
+
+
 def explain(eq: Plan, avoid: Plan) -> str:
     """In words: is the equality plan safe, does the avoidance optimum coincide with it, why."""
     if not avoid.ok:
@@ -67,6 +101,11 @@ def explain(eq: Plan, avoid: Plan) -> str:
              if v["active_H_x"]["nodes"] or v["active_H_y"]["nodes"]]
     bind_txt = (f"the inequalities bind for {', '.join(binds)}" if binds else
                 "no inequality binds: the unconstrained optimum is safe")
+    av_safety = avoid.safety
+    if av_safety is not None and not av_safety.intrusion_free:
+        depth = max(v.max_intrusion_m for v in av_safety.vehicles)
+        bind_txt += (f"; between nodes it cuts the corner by up to {depth:.3g} m (the inequalities hold at the nodes "
+                     "only; this falls as N grows)")
     eq_safety = eq.safety
     if eq_safety is not None and not eq_safety.safe:
         return (f"The equality plan is unsafe ({'; '.join(v.describe() for v in eq_safety.unsafe())}); the "
@@ -89,21 +128,35 @@ def safety_comparison(problem: Problem, *, name: str | None = None, steps: int |
     Returns ``{"name", "runs", "cost_of_safety", "cost_of_safety_vs_pmp", "verdict", "plans"}``;
     ``plans`` holds the :class:`Plan` objects (not JSON; see :func:`to_json`).
     """
-    from iamp.planners.avoid import AvoidQPPlanner
     from iamp.planners.pmp import PMPPlanner
     from iamp.planners.qp import QPPlanner
 
     n = int(steps or (100 if problem.m == 1 else 20))
     pmp = PMPPlanner().plan(problem)
     eq = QPPlanner(steps=n, hold=hold, solver=solver).plan(problem)
-    avoid = AvoidQPPlanner(steps=n, hold=hold, solver=solver).plan(problem)
+    avoid, note = plan_avoid(problem, steps=n, hold=hold, solver=solver)
     cfg = f"{solver}-{hold}-{n}"
     runs = [_run_json("pmp", pmp, "equality"), _run_json(f"qp-{cfg}", eq, "equality"),
-            _run_json(f"qp-avoid-{cfg}", avoid, "avoid")]
-
+            _avoid_json(f"qp-avoid-{cfg}", avoid, note, n, hold, solver)]
+    verdict = explain(eq, avoid) if avoid is not None else f"No avoidance plan: {note}."
+    if note is not None and avoid is not None:
+        verdict = f"{note[0].upper()}{note[1:]}. {verdict}"
     return {"name": name or problem.name, "runs": runs, "cost_of_safety": _gap(avoid, eq),
-            "cost_of_safety_vs_pmp": _gap(avoid, pmp), "verdict": explain(eq, avoid),
+            "cost_of_safety_vs_pmp": _gap(avoid, pmp), "verdict": verdict,
             "plans": {"pmp": pmp, "equality": eq, "avoid": avoid}}
+
+
+def _avoid_json(label: str, plan: Plan | None, note: str | None, steps: int, hold: str,
+                solver: str) -> dict[str, Any]:
+    if plan is None:
+        return {"label": label, "planner": "qp", "constraint": "avoid", "solver": solver, "hold": hold,
+                "steps": steps, "status": "refused", "cost": None, "contact_times": [], "time_s": None,
+                "safety": None, "reason": note}
+    out = _run_json(label, plan, "avoid")
+    if note is not None:
+        out["note"] = note
+        out["corners"] = [v.corner for v in plan.problem.vehicles]
+    return out
 
 
 def to_json(result: dict[str, Any]) -> dict[str, Any]:
@@ -117,28 +170,29 @@ def avoid_section(problem: Problem, equality: dict[str, Plan], steps: list[int],
     equality runs ``equality`` (label -> plan, e.g. ``{"pmp": ..., "qp-clarabel-foh-100": ...}``),
     each with its cost of safety against the equality QP of the same label (and the PMP), and
     every run's SPEC §9 safety."""
-    from iamp.planners.avoid import AvoidQPPlanner
-
     eq_json = [_run_json(lbl, plan, "equality") for lbl, plan in equality.items() if plan is not None]
     pmp = equality.get("pmp")
     runs = []
     for n in steps:
         for solver in solvers:
             for hold in holds:
-                plan = AvoidQPPlanner(steps=n, hold=hold, solver=solver).plan(problem)
-                run = _run_json(f"qp-avoid-{solver}-{hold}-{n}", plan, "avoid")
+                plan, note = plan_avoid(problem, steps=n, hold=hold, solver=solver)
+                run = _avoid_json(f"qp-avoid-{solver}-{hold}-{n}", plan, note, n, hold, solver)
                 eq = equality.get(f"qp-{solver}-{hold}-{n}")
                 run["equality_label"] = f"qp-{solver}-{hold}-{n}" if eq is not None else "pmp"
                 ref = eq if eq is not None else pmp
                 run["cost_of_safety"] = _gap(plan, ref)
                 run["cost_of_safety_vs_pmp"] = _gap(plan, pmp)
-                run["verdict"] = explain(ref, plan) if ref is not None else ""
+                run["verdict"] = (explain(ref, plan) if ref is not None and plan is not None
+                                  else f"No avoidance plan: {note}." if plan is None else "")
+                if note is not None and plan is not None:
+                    run["verdict"] = f"{note[0].upper()}{note[1:]}. {run['verdict']}"
                 runs.append(run)
     return {"equality": eq_json, "runs": runs}
 
 
-def _gap(a: Plan, b: Plan | None) -> float | None:
-    if b is None or not (a.ok and b.ok) or a.cost is None or b.cost is None:
+def _gap(a: Plan | None, b: Plan | None) -> float | None:
+    if a is None or b is None or not (a.ok and b.ok) or a.cost is None or b.cost is None:
         return None
     return float(a.cost - b.cost)
 
@@ -210,6 +264,70 @@ def summary_lines(result: dict[str, Any]) -> list[str]:
     return out
 
 
-__all__ = ["SAME_COST_REL", "avoid_section", "explain", "safety_comparison", "section_lines", "summary_lines",
-           "table_safety", "to_json"]
+def reproduction_section(problems: dict[str, Problem], fig_dir: Any, *, steps_one: int = 100,
+                         steps_two: int = 20) -> dict[str, Any]:
+    """The reproduction's safety part: :func:`safety_comparison` per scenario (equality PMP and
+    QP against the avoidance QP, Clarabel FOH), one x–y figure each
+    (:func:`iamp.comparison.figures_safety.plot_safety_xy`), the booktabs table (a ``table``
+    float) and the LaTeX section that shows them.
+
+    Returns ``{"json": [...], "figures": {key: paths}, "table": tex, "section": tex(figs)}``
+    where ``section`` is a function of the figures' and the table's paths relative to the
+    report.
+    """
+    from pathlib import Path
+
+    from iamp.comparison.figures_safety import plot_safety_xy
+
+    results, figures = [], {}
+    for name, problem in problems.items():
+        res = safety_comparison(problem, name=name, steps=steps_one if problem.m == 1 else steps_two)
+        results.append(res)
+        plans = res["plans"]
+        drawn = {"equality (PMP)": plans["pmp"]}
+        avoid = plans["avoid"]
+        if avoid is not None:
+            corners = ", ".join(v.corner for v in avoid.problem.vehicles)
+            drawn[f"avoidance QP ({avoid.solver}, N = {avoid.steps}; {corners})"] = avoid
+        figures[f"safety-{name}"] = plot_safety_xy(drawn, Path(fig_dir) / f"safety-{name}")
+    table = ("% generated by iamp.comparison.safety_compare -- do not edit\n\n\\begin{table}[H]\n\\centering\n"
+             "\\small\n\\caption{Equality (the paper's corner touch) against the avoidance QP (SPEC \\S10, Clarabel, "
+             "FOH): cost, where the ego's point is inside a safety region by more than 1\\,mm and where the bodies "
+             "overlap (exact, SPEC \\S9), and the cost of safety $J_{\\mathrm{avoid}} - J_{\\mathrm{eq}}$ against "
+             "the equality QP of the same configuration.}\n\\label{tab:safety}\n" + table_safety(results)
+             + "\\end{table}\n")
+
+    def section(fig_paths: dict[str, str], table_path: str) -> str:
+        out = ["\\section{Safety: equality against avoidance}",
+               "The paper's equality touches the corner of the safety region at one instant and does not keep the "
+               "ego out of it. Table~\\ref{tab:safety} measures every plan's intrusion and overlap exactly and "
+               "sets the avoidance QP (half-plane inequalities at every node, SPEC \\S10) beside it.",
+               "\\begin{itemize}"]
+        out += [f"\\item {_tex(r['name'])}: {_tex(r['verdict'])}" for r in results]
+        out += ["\\end{itemize}", f"\\input{{{table_path}}}"]
+        for r in results:
+            key = f"safety-{r['name']}"
+            if key in fig_paths:
+                out.append("\\begin{figure}[H]\n\\centering\n"
+                           f"\\includegraphics[width=\\linewidth]{{{fig_paths[key]}}}\n"
+                           f"\\caption{{{_tex(r['name'])}: equality (PMP, green) and avoidance QP (blue, dashed) "
+                           "with the vehicles' safety regions (red, dashed) and bodies at six instants, to scale; a "
+                           "filled marker means the ego's point is inside a region.}\n"
+                           f"\\label{{fig:safety-{r['name']}}}\n\\end{{figure}}")
+        return "\n".join(out) + "\n"
+
+    return {"json": [to_json(r) for r in results], "figures": figures, "table": table, "section": section}
+
+
+__all__ = [
+    "SAME_COST_REL",
+    "avoid_section",
+    "explain",
+    "reproduction_section",
+    "safety_comparison",
+    "section_lines",
+    "summary_lines",
+    "table_safety",
+    "to_json",
+]
 
