@@ -269,3 +269,13 @@ def test_highd_and_sumo_duplicates_are_counted_not_fatal(tmp_path, fmt):
     assert rep.dropped["conflicting row for the same vehicle and frame (the first in file order kept)"] == 1
     assert rep.rows_read == rep.rows_kept + 3 and rep.rows_kept == len(tb) == len(clean)
     assert np.array_equal(tb.x, clean.x) and n >= len(clean)
+
+
+def test_choose_jerk_psd_prefers_smoothing_under_noise():
+    from iamp.prediction.evaluate_data import synthetic_tracks
+    from iamp.prediction.evaluate_select import choose_jerk_psd
+    from iamp.prediction.evaluate_windows import make_windows
+
+    win = make_windows(synthetic_tracks(n_tracks=6, duration=40.0, seed=3))
+    q, table = choose_jerk_psd(win, grid=(1.0, 1000.0), noise_m=(0.1,))
+    assert table["score"]["1"] < table["score"]["1000"] and q == 1.0  # 10 cm of noise: smooth more
