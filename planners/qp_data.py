@@ -285,11 +285,11 @@ def equality_residuals(P_full: sp.csr_matrix, A: sp.csc_matrix, AT: sp.csr_matri
     symmetric ``P_full`` (the same formulas, without the general-form bookkeeping; the
     sweep verifies every candidate with it)."""
     Pz, Az, Aty = P_full @ z, A @ z, AT @ y
-    rp = float(np.max(np.abs(Az - b)))
-    rd = float(np.max(np.abs(Pz + Aty)))
+    rp = float(np.abs(Az - b).max())
+    rd = float(np.abs(Pz + Aty).max())
     zPz, by = float(z @ Pz), float(b @ y)
     rg = abs(zPz + by)
-    sp_ = max(1.0, float(np.max(np.abs(Az))), float(np.max(np.abs(b))))
-    sd = max(1.0, float(np.max(np.abs(Pz))), float(np.max(np.abs(Aty))))
+    sp_ = max(1.0, float(np.abs(Az).max()), float(np.abs(b).max()))
+    sd = max(1.0, float(np.abs(Pz).max()), float(np.abs(Aty).max()))
     sg = max(1.0, abs(zPz), abs(by))
     return KKTResiduals(rp, rd, rg, rp / sp_, rd / sd, rg / sg)
