@@ -474,9 +474,12 @@ def summary_lines(plan: Plan) -> list[str]:
                 out.append(f"    {key[7:]} binds at no node")
         out.append(f"    largest intrusion between nodes {v['between_node_intrusion_m']:.3g} m")
     rng = av.get("grid_best", {}).get("optimal_switch_range")
-    if rng is not None and rng[0] != rng[1]:
-        out.append(f"note      the crossing constraint is not unique: every switch node {rng[0]}..{rng[1]} gives the "
-                   "same optimum (no inequality binds there)")
+    if rng is not None:
+        ranges = [rng] if not isinstance(rng[0], list) else rng
+        if any(r[0] != r[1] for r in ranges):
+            text = "; ".join(f"{v['name']} {r[0]}..{r[1]}" for v, r in zip(av.get("vehicles", []), ranges))
+            out.append(f"note      the crossing constraint is not unique: every switch node in {text} gives the "
+                       "same optimum (no inequality binds there)")
     kkt = av.get("kkt", {})
     if kkt:
         out.append("residuals " + ", ".join(f"{k} {val:.1e}" for k, val in kkt.items())

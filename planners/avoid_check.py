@@ -81,10 +81,12 @@ def crossing_orders(problem: Problem) -> tuple[list[list[tuple[int, int]]], str 
             member[label] = {a for a in (0, 1)
                              if float(planes[a].margin(np.array(t), np.array(s[a]))) >= -BOUNDARY_TOL_M}
             if not member[label]:
+                side, lat = v.corner.split("-")
+                other = f"{'rear' if side == 'front' else 'front'}-{lat}"
                 raise ScenarioError(
-                    f"vehicle {v.name}: the ego's {label} state (s_x = {x:g} m, s_y = {y:g} m at t = {t:g} s) is "
-                    f"outside its safety region but in neither half-plane of corner {v.corner!r} "
-                    f"({planes[0].describe()}, {planes[1].describe()}): the corner does not describe the manoeuvre",
+                    f"vehicle {v.name}: corner {v.corner!r} does not describe the manoeuvre: the ego's {label} state "
+                    f"(s_x = {x:g} m, s_y = {y:g} m at t = {t:g} s) is outside its safety region but in neither "
+                    f"{planes[0].describe()} nor {planes[1].describe()} (try {other!r})",
                     f"vehicles[{i}].corner", getattr(ego, "source", None))
         if inside:
             return [], "; ".join(inside) + ": no safe plan exists"

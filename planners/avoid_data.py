@@ -82,13 +82,13 @@ class HalfPlane:
         return self.bound(t) - self.sigma * np.asarray(s, dtype=float)
 
     def describe(self) -> str:
+        """``"H_x (s_x >= x_s(t) + 7.4 m)"`` and the like."""
         v = self.vehicle
         if self.axis == "x":
-            side = "ahead of its front" if self.sigma < 0 else "behind its rear"
-            return f"H_x ({side} + S_x)"
-        side = "below" if self.sigma > 0 else "above"
-        return f"H_y ({side} its side + S_y, y {'<=' if self.sigma > 0 else '>='} " \
-               f"{v.y + (-1 if self.sigma > 0 else 1) * (v.width / 2 + v.safety_y):g} m)"
+            ax = v.length / 2 + v.safety_x
+            return f"H_x (s_x {'>=' if self.sigma < 0 else '<='} x_s(t) {'+' if self.sigma < 0 else '-'} {ax:g} m)"
+        edge = v.y + (-1 if self.sigma > 0 else 1) * (v.width / 2 + v.safety_y)
+        return f"H_y (s_y {'<=' if self.sigma > 0 else '>='} {edge:g} m)"
 
 
 class AvoidData:
