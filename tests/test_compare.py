@@ -16,10 +16,10 @@ from iamp.comparison.agreement import QPConfig, Run, compare_pmp_qp, compare_pro
 from iamp.comparison.fingerprints import problem_fingerprint, x_poly_fingerprint
 from iamp.comparison.latex import Raw, booktabs_table, escape, sci, write_atomic
 from iamp.comparison.references import grid_cost_table, zoh_reference
-from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
-from iamp.planners.qp_core import DiscretisedQP as build_native
-from iamp.planners.pmp import PMPPlanner, ValueFunction
 from iamp.core.tolerances import tol
+from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
+from iamp.planners.pmp import PMPPlanner, ValueFunction
+from iamp.planners.qp_core import DiscretisedQP as build_native
 
 LOOSE_OSQP = {"eps_abs": 1e-2, "eps_rel": 1e-2, "polishing": False, "max_iter": 200}
 
