@@ -4,19 +4,18 @@ import json
 
 import numpy as np
 import pytest
-
-from iamp.planners.examples import paper_problem
-from iamp.planners.pmp import PMPPlanner
-from iamp.core.scenario import builtin_text
-
 from conftest import run_cli
 from scenario_texts import history_scenario
+
+from iamp.core.scenario import builtin_text
+from iamp.planners.examples import paper_problem
+from iamp.planners.pmp import PMPPlanner
 
 GOOD = builtin_text("paper-1-poly")
 HIST = history_scenario("-1.0, -0.5, 0.0", "-33.0, -24.0, -15.0", xf=85.0)
 
 KEYS = {"scenario", "planner", "solver", "hold", "steps", "status", "cost", "contact_times", "jumps",
-        "solve_time_s", "trajectory"}
+        "solve_time_s", "trajectory", "safety"}  # "safety": SPEC §9
 
 
 def write(tmp_path, text, name="s.toml"):
@@ -86,17 +85,20 @@ BAD = [
     ("safety-y", lambda t: _replace(t, "safety_y = 0.5", "safety_y = -0.5"), "vehicles[0].safety_y"),
     ("corner", lambda t: _replace(t, 'corner = "front-lower"', 'corner = "front-left"'), "vehicles[0].corner"),
     ("empty-poly", lambda t: _replace(t, "x_poly = [-15.0, 18.0, 0.0, 0.0]", "x_poly = []"), "vehicles[0].x_poly"),
-    ("poly-nan", lambda t: _replace(t, "x_poly = [-15.0, 18.0, 0.0, 0.0]", "x_poly = [-15.0, nan]"), "vehicles[0].x_poly[1]"),
+    ("poly-nan", lambda t: _replace(t, "x_poly = [-15.0, 18.0, 0.0, 0.0]", "x_poly = [-15.0, nan]"),
+     "vehicles[0].x_poly[1]"),
     ("neither", lambda t: _replace(t, "x_poly = [-15.0, 18.0, 0.0, 0.0]", ""), "vehicles[0].x_poly"),
     ("both", lambda t: t + "[vehicles.history]\nt = [-1.0, 0.0]\nx = [-33.0, -15.0]\n", "vehicles[0].x_poly"),
     ("no-vehicles", lambda t: t[: t.index("[[vehicles]]")], "vehicles"),
 ]
 
 BAD_HISTORY = [
-    ("not-increasing", lambda t: _replace(t, "t = [-1.0, -0.5, 0.0]", "t = [-1.0, -1.0, 0.0]"), "vehicles[0].history.t"),
+    ("not-increasing", lambda t: _replace(t, "t = [-1.0, -0.5, 0.0]", "t = [-1.0, -1.0, 0.0]"),
+     "vehicles[0].history.t"),
     ("mismatched", lambda t: _replace(t, "x = [-33.0, -24.0, -15.0]", "x = [-33.0, -15.0]"), "vehicles[0].history.x"),
     ("not-at-zero", lambda t: _replace(t, "t = [-1.0, -0.5, 0.0]", "t = [-1.5, -1.0, -0.5]"), "vehicles[0].history.t"),
-    ("too-short", lambda t: _replace(_replace(t, "t = [-1.0, -0.5, 0.0]", "t = [0.0]"), "x = [-33.0, -24.0, -15.0]", "x = [-15.0]"),
+    ("too-short", lambda t: _replace(_replace(t, "t = [-1.0, -0.5, 0.0]", "t = [0.0]"), "x = [-33.0, -24.0, -15.0]",
+                                     "x = [-15.0]"),
      "vehicles[0].history.t"),
     ("history-unknown-key", lambda t: t + "v = [1.0, 2.0, 3.0]\n", "vehicles[0].history.v"),
 ]
@@ -129,7 +131,8 @@ def test_bad_histories_are_refused(tmp_path, name, mutate, field):
 
 def test_history_shorter_than_the_predictor_needs(tmp_path):
     """A valid history that the shipped predictor cannot use (too short for its order)."""
-    text = _replace(_replace(HIST, "t = [-1.0, -0.5, 0.0]", "t = [-0.1, 0.0]"), "x = [-33.0, -24.0, -15.0]", "x = [-16.8, -15.0]")
+    text = _replace(_replace(HIST, "t = [-1.0, -0.5, 0.0]", "t = [-0.1, 0.0]"), "x = [-33.0, -24.0, -15.0]",
+                    "x = [-16.8, -15.0]")
     line_naming(run_cli("plan", write(tmp_path, text)), "vehicles[0].history")
 
 

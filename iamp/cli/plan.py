@@ -4,18 +4,23 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 import numpy as np
 
 from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, model_file, steps_int
 from iamp.core.errors import ScenarioError, SolverError
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem, SurroundingVehicle
+from iamp.core.scenario import Scenario
 
 #: Options that only the QP planner reads, with their defaults (SPEC §5).  They default to
 #: ``None`` in the parser so that "given by the user" can be told from "the default".
 QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
 
 
-def make_planner(args):
+def make_planner(args: argparse.Namespace) -> Any:
+    """The planner the options ask for."""
     if args.planner == "pmp":
         from iamp.planners.pmp import PMPPlanner
 
@@ -29,7 +34,7 @@ def make_planner(args):
     return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
 
 
-def _phi_meaning(vehicle, phi_x: float) -> str:
+def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
     """SPEC §2 identity 4, derived from ∂J/∂corner = −Φ (see docs in compare.signs)."""
     from iamp.comparison.signs import jump_meaning
 
@@ -45,17 +50,18 @@ def check_options(args: argparse.Namespace) -> None:
             setattr(args, name, default)
 
 
-def failure_json(scenario: str, args: argparse.Namespace, status: str, message: str) -> dict:
+def failure_json(scenario: str, args: argparse.Namespace, status: str, message: str) -> dict[str, Any]:
     """The SPEC §5 object of a plan that failed before it produced a :class:`Plan`:
     the failure ``status``, ``cost`` null, no contact times, no trajectory."""
     qp = args.planner == "qp"
     return {"scenario": scenario, "planner": args.planner, "solver": args.solver if qp else None,
             "hold": args.hold if qp else None, "steps": int(args.steps), "status": status, "cost": None,
             "contact_times": [], "jumps": [], "solve_time_s": None,
-            "trajectory": {k: [] for k in ("t", "x", "y", "vx", "vy", "ax", "ay")}, "error": message}
+            "trajectory": {k: [] for k in ("t", "x", "y", "vx", "vy", "ax", "ay")}, "safety": None, "error": message}
 
 
-def cmd_plan(args) -> int:
+def cmd_plan(args: argparse.Namespace) -> int:
+    """``iamp plan``: validate, plan, print (text or the SPEC §5 JSON); returns the exit status."""
     from iamp.cli.progress import call_with_progress, progress_enabled
     from iamp.cli.scenarios import load_cli_problem
     from iamp.cli.scenarios import load_cli_scenario as load_scenario  # a file, a built-in, or - (stdin)
@@ -106,7 +112,7 @@ def cmd_plan(args) -> int:
     return EXIT_UNSAFE if args.require_safe and safety is not None and not safety.safe else EXIT_OK
 
 
-def _report_failure(scenario, args: argparse.Namespace, status: str, message: str) -> int:
+def _report_failure(scenario: Scenario, args: argparse.Namespace, status: str, message: str) -> int:
     """A plan that failed with an exception: the JSON object or the text summary, exit 3."""
     message = " ".join(message.split())
     if args.json:
@@ -120,9 +126,9 @@ def _report_failure(scenario, args: argparse.Namespace, status: str, message: st
     return EXIT_SOLVER
 
 
-def _print_summary(scenario, problem, result, args) -> None:
+def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: argparse.Namespace) -> None:
     cfg = "PMP (indirect, jump conditions)" if result.planner == "pmp" else (
-        f"QP ({result.solver}, {result.hold.upper()}, N = {result.steps}, contact search: {args.contact})")
+        f"QP ({result.solver}, {str(result.hold).upper()}, N = {result.steps}, contact search: {args.contact})")
     print(f"scenario  {scenario.name}  ({scenario.source})")
     print(f"planner   {cfg}")
     print(f"status    {result.status}")

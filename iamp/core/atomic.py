@@ -10,8 +10,12 @@ from __future__ import annotations
 
 import os
 import tempfile
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import IO, Any
+
+PathLike = str | os.PathLike[str]
 
 
 def _final_mode(path: Path) -> int:
@@ -25,10 +29,13 @@ def _final_mode(path: Path) -> int:
 
 
 @contextmanager
-def atomic_path(path):
+def atomic_path(path: PathLike) -> Iterator[str]:
     """Yield a temporary path beside ``path``; on success it replaces ``path``.
 
-    For writers that want a file name (``Figure.savefig``, ``np.savez``).
+    For writers that want a file name (``Figure.savefig``, ``np.savez``).  The temporary
+    file is removed however the block exits — an exception, Ctrl-C (``KeyboardInterrupt``)
+    or SIGTERM under the ``iamp`` command line (which turns it into an exception) — so an
+    interrupted run leaves the previous file and no ``.tmp`` behind.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -46,7 +53,7 @@ def atomic_path(path):
 
 
 @contextmanager
-def atomic_open(path, mode: str = "w", encoding: str | None = "utf-8"):
+def atomic_open(path: PathLike, mode: str = "w", encoding: str | None = "utf-8") -> Iterator[IO[Any]]:
     """Like ``open(path, mode)`` for writing, but atomic (``mode`` is ``"w"`` or ``"wb"``)."""
     if mode not in ("w", "wb"):
         raise ValueError(f"atomic_open writes only ('w' or 'wb'), got {mode!r}")
@@ -55,7 +62,7 @@ def atomic_open(path, mode: str = "w", encoding: str | None = "utf-8"):
             yield fh
 
 
-def write_text(path, text: str, encoding: str = "utf-8") -> Path:
+def write_text(path: PathLike, text: str, encoding: str = "utf-8") -> Path:
     """Write ``text`` to ``path`` atomically; returns the path."""
     with atomic_open(path, "w", encoding) as fh:
         fh.write(text)

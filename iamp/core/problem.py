@@ -20,9 +20,11 @@ vehicle's safety box,
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from iamp.core.errors import ScenarioError
 from iamp.core.limits import LIMITS, abs_message, bound_message, polynomial_message
@@ -104,7 +106,7 @@ class SurroundingVehicle:
     (SPEC §4); any degree is accepted.
     """
 
-    x_poly: tuple
+    x_poly: tuple[float, ...]
     corner: str
     y: float
     length: float
@@ -115,7 +117,7 @@ class SurroundingVehicle:
     field_prefix: str = field(default="vehicles[0]", compare=False, repr=False)
     source: str | None = field(default=None, compare=False, repr=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         p, src = self.field_prefix, self.source
         if self.corner not in CORNERS:
             raise ScenarioError(
@@ -168,18 +170,20 @@ class SurroundingVehicle:
 
     @property
     def poly(self) -> np.polynomial.Polynomial:
+        """``x_s`` as a numpy polynomial."""
         return np.polynomial.Polynomial(self.x_poly)
 
-    def position(self, t) -> np.ndarray:
+    def position(self, t: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """``x_s(t)``."""
-        return np.polynomial.polynomial.polyval(t, self.x_poly)
+        return np.asarray(np.polynomial.polynomial.polyval(np.asarray(t, dtype=np.float64), self.x_poly),
+                          dtype=np.float64)
 
-    def speed(self, t) -> np.ndarray:
+    def speed(self, t: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """``ẋ_s(t)``."""
         d = np.polynomial.polynomial.polyder(self.x_poly) if len(self.x_poly) > 1 else [0.0]
-        return np.polynomial.polynomial.polyval(t, d)
+        return np.asarray(np.polynomial.polynomial.polyval(np.asarray(t, dtype=np.float64), d), dtype=np.float64)
 
-    def corner_x(self, t) -> np.ndarray:
+    def corner_x(self, t: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Longitudinal coordinate of the corner at time ``t``."""
         return self.position(t) + self.offset_x
 
@@ -192,10 +196,10 @@ class Problem:
     """
 
     ego: EgoBoundary
-    vehicles: tuple
+    vehicles: tuple[SurroundingVehicle, ...]
     name: str = "problem"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         vehicles = tuple(self.vehicles)
         if len(vehicles) == 0:
             raise ScenarioError("at least one vehicle is required", "vehicles", self.ego.source)
@@ -216,12 +220,14 @@ class Problem:
 
     @property
     def tf(self) -> float:
+        """The horizon ``t_f``."""
         return self.ego.tf
 
-    def corners(self, contact_times) -> np.ndarray:
+    def corners(self, contact_times: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Corner positions ``(m, 2)`` at the given contact times."""
         t = np.asarray(contact_times, dtype=float)
         return np.array([[v.corner_x(ti), v.corner_y] for v, ti in zip(self.vehicles, t)])
 
-    def with_vehicles(self, vehicles) -> Problem:
+    def with_vehicles(self, vehicles: Iterable[SurroundingVehicle]) -> Problem:
+        """The same ego problem with other vehicles."""
         return Problem(self.ego, tuple(vehicles), self.name)

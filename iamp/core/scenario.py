@@ -9,6 +9,7 @@ predictor turns into a polynomial.  :meth:`Scenario.to_problem` produces the
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -307,24 +308,22 @@ def with_line(exc: ScenarioError, text: str | None, source: str | None) -> Scena
 
 
 def _syntax_line(message: str) -> int | None:
-    import re
-
     m = re.search(r"at line (\d+)", message)
     return int(m.group(1)) if m else None
 
 
 def loads_scenario(text: str, source: str | None = None, default_name: str = "scenario") -> Scenario:
     """Parse scenario TOML text (TOML 1.0: a carriage return only as part of CRLF)."""
-    lone_cr = [k for k, c in enumerate(text) if c == "\r" and text[k + 1 : k + 2] != "\n"]
+    lone_cr = re.search("\r(?!\n)", text)
     if lone_cr:
-        line = text.count("\n", 0, lone_cr[0]) + 1
+        line = text.count("\n", 0, lone_cr.start()) + 1
         raise ScenarioError("TOML syntax error: a bare carriage return (CR without LF) is not allowed in TOML",
                             None, f"{source}:{line}" if source else f"line {line}")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        line = _syntax_line(str(exc))
-        where = f"{source}:{line}" if source and line else source
+        at = _syntax_line(str(exc))
+        where = f"{source}:{at}" if source and at else source
         raise ScenarioError(f"TOML syntax error: {exc}", None, where) from None
     except (RecursionError, MemoryError):
         raise ScenarioError("TOML document is nested too deeply or too large to parse", None, source) from None
