@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from iamp.cli.types import model_file
 from iamp.cli.types import positive_float as _positive_float
 from iamp.cli.types import positive_int as _positive_int
 from iamp.core.errors import IampError, ScenarioError
@@ -284,7 +285,8 @@ def add_parsers(subparsers: Any) -> None:
                     "predicted samples before the fit. A vehicle given with x_poly in the file passes through "
                     "with its polynomial unchanged; its t/x are then that polynomial sampled at the same times.")
     p.add_argument("scenario", help="scenario TOML file or built-in name")
-    p.add_argument("--model", default=None, help="model file (default: the shipped model, reported as 'builtin')")
+    p.add_argument("--model", type=model_file, default=None,
+                   help="model file (default: the shipped model, reported as 'builtin')")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     p.set_defaults(func=cmd_predict)
 
@@ -298,7 +300,8 @@ def add_parsers(subparsers: Any) -> None:
     e.add_argument("--data", default=None,
                    help="evaluate on this recorded-data file (SPEC §13) instead of the shipped SUMO data")
     e.add_argument("--format", default=None, choices=("highd", "ngsim", "sumo"), help="format of --data")
-    e.add_argument("--model", default=None, help="model file to evaluate (default: the shipped model)")
+    e.add_argument("--model", type=model_file, default=None,
+                   help="model file to evaluate (default: the shipped model)")
     e.add_argument("--split", default=None, choices=("vehicle", "time"),
                    help="train on part of --data and evaluate on the held-out rest: 20 %% of the vehicles "
                         "(seeded) or the last 20 %% of the time span")
