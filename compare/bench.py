@@ -9,8 +9,9 @@ the machine was probably busy (the 2-core machines here are shared).
 What is measured (one vehicle: ``paper-1-poly``; two: ``two-vehicle``; FOH, ``N = 100``):
 
 * **PMP** — from :func:`iamp.comparison.bench_pmp.bench_pmp` when that module exists (its
-  keys are merged, including its compiled-limit ratio), otherwise measured here: a whole plan
-  with the global contact-time search, and the batch API's plans per second.
+  medians of a whole plan, one and two vehicles, the batch API's plans per second, and the
+  compiled limit: ``pmp_to_compiled_limit`` = PMP plan / compiled-kernel plan, one vehicle),
+  otherwise measured here by a fallback (whole plans and the batch API).
 * **QP per candidate** (``qp_native_solve_s``) — for every backend of the registry
   (:mod:`iamp.planners.backends`): the value update plus the backend's ``solve()`` for each
   candidate of a full sweep, in sweep order (OSQP warm-starts from the neighbouring node, the
@@ -96,14 +97,23 @@ def _pmp_fallback(quick: bool, notes: list[str]) -> dict[str, Any]:
 def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
     if importlib.util.find_spec("iamp.comparison.bench_pmp") is not None:
         mod = importlib.import_module("iamp.comparison.bench_pmp")
-        out: dict[str, Any] = dict(mod.bench_pmp(3 if quick else 10))
-        out.setdefault("source", "iamp.comparison.bench_pmp.bench_pmp")
+        raw: dict[str, Any] = dict(mod.bench_pmp(3 if quick else 7))
+        out: dict[str, Any] = {"source": "iamp.comparison.bench_pmp.bench_pmp", "bench_pmp": raw}
+        if {"one_vehicle", "two_vehicles", "batch_plans_per_s"} <= set(raw):  # its flat keys
+            out["pmp_plan_s"] = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"]}
+            out["pmp_batch_plans_per_s"] = raw["batch_plans_per_s"]
+            if raw.get("compiled_limit_one_vehicle"):
+                out["pmp_to_compiled_limit"] = raw["one_vehicle"] / raw["compiled_limit_one_vehicle"]
+            else:
+                notes.append("bench_pmp: no compiled limit (numba missing?): pmp_to_compiled_limit n/a")
+        else:
+            out.update(raw)
         plan = out.get("pmp_plan_s")
         if isinstance(plan, dict) and {"one_vehicle", "two_vehicles"} <= set(plan) and "pmp_batch_plans_per_s" in out:
             return out
         notes.append("bench_pmp() lacks the SPEC §5b keys pmp_plan_s{one_vehicle, two_vehicles} and "
                      "pmp_batch_plans_per_s: PMP numbers measured by the fallback in bench.py")
-        return {**_pmp_fallback(quick, notes), "bench_pmp": out}
+        return {**_pmp_fallback(quick, notes), "bench_pmp": raw}
     notes.append("compare/bench_pmp.py not found: PMP numbers measured by the fallback in bench.py")
     return _pmp_fallback(quick, notes)
 
