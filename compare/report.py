@@ -507,7 +507,7 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
     (out / "figures").mkdir(parents=True, exist_ok=True)
     notes: list = []
     scenarios = tuple(scenarios)
-    total = 1 + 2 * len(scenarios) + 4
+    total = 1 + 2 * len(scenarios) + 5
     step = _Progress(progress, status, total)
     written: list = []
 
@@ -591,6 +591,15 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
         fig("predictions", F.plot_predictions(pred_entries, out / "figures" / "predictions",
                                               tf=entries[next(iter(pred_entries))]["problem"].tf))
 
+    # safety: equality against the avoidance QP (SPEC §9, §10), a table and a figure per scenario
+    from iamp.comparison.safety_compare import reproduction_section
+
+    step("safety: equality against the avoidance QP")
+    safety = reproduction_section({n: entries[n]["problem"] for n in scenarios}, out / "figures",
+                                  steps_one=cfg.steps_one, steps_two=cfg.steps_two)
+    for key, paths in safety["figures"].items():
+        fig(key, paths)
+
     # 4. ZOH convergence -----------------------------------------------------------------
     step("ZOH convergence study (N = " + ", ".join(map(str, cfg.zoh_steps)) + ")")
     one = [name for name in scenarios if entries[name]["problem"].m == 1]
@@ -626,14 +635,15 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
     for key, text in (("scenarios", table_scenarios(entries, rows1)), ("results", table_results(scen_out, cfg)),
                       ("metrics", table_metrics(metrics)), ("agreement", table_agreement(scen_out)),
                       ("timing", table_timing(timing, scen_out)),
-                      ("convergence", table_convergence(conv))):
+                      ("convergence", table_convergence(conv)), ("safety", safety["table"])):
         written.append(atomic_write_text(tdir / f"{key}.tex", text))
         tables[key] = f"tables/{key}.tex"
     res = {"produced_by": "iamp.comparison.report.reproduce", "config": asdict(cfg), "notes": notes,
            "versions": _versions(), "scenarios": scen_out, "qualitative": qual, "zoh_convergence": conv,
-           "timing": timing, "predictor": predictor}
+           "timing": timing, "predictor": predictor, "safety": safety["json"]}
     res["runtime_s"] = time.perf_counter() - start
     tex = build_report_tex(res, out, figs, tables, entries)
+    tex = tex.replace("\\end{document}", safety["section"](figs, tables["safety"]) + "\\end{document}", 1)
     written.append(atomic_write_text(out / "report.tex", tex))
     res["outputs"] = sorted({str(Path(p).relative_to(out)) for p in written} | {"results.json"})
     atomic_write_text(out / "results.json", json.dumps(_jsonable(res), indent=1, allow_nan=False) + "\n")
