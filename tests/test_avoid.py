@@ -186,3 +186,50 @@ def test_two_vehicles_sweep_every_combination():
     assert plan.status == st.OPTIMAL
     assert node_depth(plan) <= 1e-6
     assert len(plan.contact_times) == 2
+
+
+from hypothesis import HealthCheck, assume, given, settings  # noqa: E402
+from hypothesis import strategies as st_h  # noqa: E402
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st_h.floats(-20.0, 15.0), st_h.floats(12.0, 26.0), st_h.floats(60.0, 130.0), st_h.floats(15.0, 26.0),
+       st_h.sampled_from(["foh", "zoh"]))
+def test_random_problems_safe_at_nodes_and_solvers_agree(x0v, speed, xf, vxf, hold):
+    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=xf, yf=3.75, vxf=vxf)
+    v = SurroundingVehicle(x_poly=(x0v, speed), corner="front-lower", y=3.75, length=4.8, width=1.8,
+                           safety_x=5.0, safety_y=0.5, name="sv1")
+    prob = Problem(ego, (v,), "random")
+    try:
+        c = AvoidQPPlanner(steps=20, hold=hold).plan(prob)
+    except ScenarioError:
+        assume(False)
+    if c.status == st.INFEASIBLE:  # then the start or the end really is inside the region
+        inside = [abs(x - float(v.position(t))) < 7.4 and abs(y - 3.75) < 1.4
+                  for t, x, y in ((0.0, 0.0, -2.0), (5.0, xf, 3.75))]
+        assert any(inside) and "inside" in c.info["reason"]
+        return
+    assert c.status == st.OPTIMAL
+    o = AvoidQPPlanner(steps=20, hold=hold, solver="osqp").plan(prob)
+    assert o.status == st.OPTIMAL and o.cost == pytest.approx(c.cost, rel=1e-6)
+    assert node_depth(c) <= 1e-6
+    # the free optimum bounds every safe plan from below: per axis, with e1 = s_f − s_0 − v_0 T and
+    # e2 = v_f − v_0, min ½∫u² = (6 e1² − 6 T e1 e2 + 2 T² e2²)/T³ (FOH reproduces it exactly)
+    e, T = prob.ego, prob.tf
+    free = sum((6 * e1**2 - 6 * T * e1 * e2 + 2 * T**2 * e2**2) / T**3
+               for e1, e2 in ((e.xf - e.x0 - e.vx0 * T, e.vxf - e.vx0), (e.yf - e.y0 - e.vy0 * T, e.vyf - e.vy0)))
+    if hold == "foh":
+        assert c.cost >= free * (1 - 1e-9)
+
+
+def test_many_vehicles_beyond_the_full_sweep_are_local():
+    prob = builtin_problem("two-vehicle")
+    v1, v2 = prob.vehicles
+    # sv2 made faster so that the free optimum is not safe: no certificate, a real search
+    fast = SurroundingVehicle((30.0, 17.0), v2.corner, v2.y, v2.length, v2.width, v2.safety_x, v2.safety_y, v2.name)
+    p = prob.with_vehicles([v1, fast])
+    plan = AvoidQPPlanner(steps=16, max_combinations=50, coarse=5).plan(p)
+    assert plan.status in (st.LOCAL, st.OPTIMAL)
+    if plan.info["certificate"] is None:
+        assert plan.status == st.LOCAL and not plan.info["complete_sweep"]
+    assert node_depth(plan) <= 1e-6
