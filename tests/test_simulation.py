@@ -121,8 +121,8 @@ def _summary(planner, traffic, seed, collisions=0):
             "lane_change_done_s": 4.0, "lane_changes": 1, "collisions": collisions, "sumo_collisions": 0,
             "overlap_collisions": collisions, "intrusion_s": 0.0, "min_gap_m": 10.0, "min_ttc_s": None,
             "min_follower_accel": -1.0, "rms_accel": [0.1, 0.2], "rms_jerk": [0.3, 0.4],
-            "plan_time_s": {"p50": 1e-4, "p95": 2e-4, "max": 1e-3}, "plans": 10, "constrained_plans": 2, "failed_plans": 0,
-            "late_plans": 0, "deadline_s": 0.1, "fallbacks": 0, "aborts": 0,
+            "plan_time_s": {"p50": 1e-4, "p95": 2e-4, "max": 1e-3}, "plans": 10,
+            "constrained_plans": 2, "failed_plans": 0, "late_plans": 0, "deadline_s": 0.1, "fallbacks": 0, "aborts": 0,
             "wall_s": {"total": 1.0, "sumo": 0.5, "prediction": 0.3, "planning": 0.1}, "max_rss_mb": 150.0}
 
 
@@ -203,3 +203,17 @@ def test_a_full_minute_of_each_planner_runs_and_reports_finite_numbers():
         s = _episode(planner, seed=3, traffic="dense", duration=60.0).summary
         assert s["plans"] == 0 if planner == "sumo" else s["plans"] > 0
         assert all(math.isfinite(v) for v in s["rms_accel"] + s["rms_jerk"])
+
+
+def test_campaign_on_an_existing_scheduler_writes_rows_and_resumes(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0") as cluster:
+        seen = []
+        stats = run_campaign(["sumo"], ["light"], 2, tmp_path, scheduler=cluster.scheduler_address,
+                             duration_s=1.0, progress=lambda d, t: seen.append((d, t)))
+        assert stats["ran"] == 2 and stats["failed"] == 0 and seen[-1] == (2, 2)
+        rows = read_rows(tmp_path / "episodes.csv")
+        assert sorted(int(r["seed"]) for r in rows) == [1, 2]
+        again = run_campaign(["sumo"], ["light"], 2, tmp_path, scheduler=cluster.scheduler_address, duration_s=1.0)
+        assert again["ran"] == 0 and again["skipped"] == 2
