@@ -54,10 +54,11 @@ from iamp.planners.pmp_fixed import (
     solve_sigma,
     transfer_cost,
 )
+from iamp.planners.pmp_one import CHECK_NAMES, one_vehicle_data, one_vehicle_kernel
 from iamp.planners.pmp_scale import Scaled, scale_problem
 from iamp.planners.pmp_search import global_search, newton_sigma, one_vehicle_sigma
 from iamp.planners.pmp_solution import PMPSolution
-from iamp.planners.pmp_verify import verify
+from iamp.planners.pmp_verify import judge, verify
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -93,10 +94,14 @@ class PMPPlanner:
         Newton starts (combinations of one-vehicle stationary points) for ``m ≥ 2``.
     max_boxes : int
         Box budget of the branch-and-bound certificate; beyond it the status is ``local``.
+    kernel : callable
+        The one-vehicle kernel (:func:`~iamp.planners.pmp_one.one_vehicle_kernel`, or its
+        numba-compiled twin from :func:`iamp.planners.pmp_compiled.compiled_kernel`).
     """
 
     max_starts: int = 32
     max_boxes: int = 200_000
+    kernel: Callable[..., list[float]] = one_vehicle_kernel
 
     def search(self, problem: Problem, S: Scaled | None = None,
                progress: Callable[[int, int], None] | None = None) -> tuple[FloatArray, float, bool, dict[str, Any]]:
@@ -138,6 +143,8 @@ class PMPPlanner:
         m = problem.m
         info: dict[str, Any] = {}
         fixed = contact_times is not None
+        if m == 1 and not fixed:
+            return self._plan_one(problem, start, diagnostics)
         if fixed:
             t_given = check_times(problem, contact_times)
         try:
@@ -173,6 +180,43 @@ class PMPPlanner:
                 plan.residuals = sol.residuals()
                 plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
         return plan
+
+    def _plan_one(self, problem: Problem, start: float, diagnostics: bool) -> Plan:
+        """One vehicle: :func:`~iamp.planners.pmp_one.one_vehicle_kernel` (scalar code)."""
+        info: dict[str, Any] = {"search": {"method": "all roots of the stationarity polynomial"}}
+        try:
+            T, L, ego, ex, ey, cx, cy = one_vehicle_data(problem)
+            k = self.kernel(ego, ex, ey, cx, cy)
+        except (OverflowError, ZeroDivisionError, ValueError) as exc:
+            info["error"] = f"{type(exc).__name__}: {exc}"
+            return self._failed(problem, NUMERICAL_ERROR, "linear_algebra", info, start)
+        if not k[0] == k[0]:
+            return self._failed(problem, INFEASIBLE, "no_interior_contact_time", info, start)
+        checks, failed, bad = judge(dict(zip(CHECK_NAMES, k[8:])))
+        acc, jerk = L / (T * T), L / (T * T * T)
+        z = np.array([[k[1], k[2]], [k[3], k[4]], [k[5], k[6]]])
+        sol = PMPSolution(problem, np.array([k[0] * T]), z[0] * acc, z[1] * jerk, z[2:] * jerk, z_scaled=z)
+        info["checks"] = checks
+        info["failed_check"] = failed
+        info["certified_global"] = True
+        plan = Plan(problem=problem, planner="pmp", status=OPTIMAL if bad is None else bad,
+                    cost=k[7] * L * L / (T * T * T) if bad is None else None, contact_times=sol.contact_times,
+                    jumps=sol.jumps, trajectory=sol, solve_time_s=_time.perf_counter() - start, info=info)
+        if diagnostics:
+            self._full_checks(plan, sol)
+        return plan
+
+    @staticmethod
+    def _full_checks(plan: Plan, sol: PMPSolution) -> None:
+        """After the clock: every check of :mod:`~iamp.planners.pmp_verify` and the physical
+        residuals; a failure downgrades the plan."""
+        with np.errstate(all="ignore"):
+            checks, failed, bad = verify(sol, stationary=True)
+            plan.residuals = sol.residuals()
+            plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
+        plan.info["checks"] = checks
+        if bad is not None and plan.status in (OPTIMAL, LOCAL):
+            plan.status, plan.cost, plan.info["failed_check"] = bad, None, failed
 
     @staticmethod
     def _failed(problem: Problem, status: str, check: str, info: dict[str, Any], start: float) -> Plan:

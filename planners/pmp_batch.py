@@ -67,7 +67,7 @@ def batch_data(problems: list[Problem]) -> tuple[FloatArray, ...]:
         c = p.vehicles[0].x_poly
         C[k, : len(c)] = c
     with np.errstate(over="ignore"):
-        Cs = C * T[:, None] ** np.arange(d)
+        Cs = C * np.cumprod(np.column_stack([np.ones(K)] + [T] * (d - 1)), axis=1)
     size = np.abs(Cs)
     big = np.max(size, axis=1, keepdims=True)
     negl = size <= tol("pmp_poly_negligible_rel") * big
@@ -133,14 +133,15 @@ def plan_batch(problems: Iterable[Problem]) -> BatchPlan:
         found = np.isfinite(q[rows, best])
         s = roots[rows, best]
         qs = q[rows, best]
-        Kt = s**3 * (1 - s) ** 3 / 3
+        w1 = 1.0 - s
+        Kt = s * s * s * w1 * w1 * w1 / 3.0
         phi = -np.stack([ex[rows, best], ey[rows, best]], axis=1) / Kt[:, None]
         x0, vx0, xf, vxf, y0, vy0, yf, vyf = ego.T
         E = np.stack([xf - x0 - vx0, yf - y0 - vy0], axis=1)
         G = np.stack([vxf - vx0, vyf - vy0], axis=1)
         w = (1 - s)[:, None]
-        r1 = E + phi * w**3 / 6
-        r2 = G + phi * w**2 / 2
+        r1 = E + phi * w * w * w / 6.0
+        r2 = G + phi * w * w / 2.0
         b = 6 * r2 - 12 * r1
         a = r2 - b / 2
         jbar = 6 * E * E - 6 * E * G + 2 * G * G
@@ -148,9 +149,8 @@ def plan_batch(problems: Iterable[Problem]) -> BatchPlan:
         status, J_traj = _batch_checks(ego, CX, CY, EX, EY, s, a, b, phi, J_closed)
     status = np.where(found, status, INFEASIBLE)
     ok = status == OPTIMAL
-    cost_unit = L**2 / T**3
-    jerk = L / T**3
-    return BatchPlan(contact_time=np.where(ok, s * T, np.nan), cost=np.where(ok, J_traj * cost_unit, np.nan),
+    jerk = L / (T * T * T)
+    return BatchPlan(contact_time=np.where(ok, s * T, np.nan), cost=np.where(ok, J_traj * L * L / (T * T * T), np.nan),
                      jumps=np.where(ok[:, None], phi * jerk[:, None], np.nan), status=status)
 
 

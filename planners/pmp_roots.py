@@ -125,9 +125,9 @@ def unit_roots(a: Sequence[float]) -> list[float]:
     while n > 0 and a[n] == 0.0:
         n -= 1
     if n < 1:
-        return []
+        return [0.0] * 0  # a typed empty list (numba)
     coeffs = [float(a[i]) for i in range(n + 1)]
-    out: list[float] = []
+    out = [0.0] * 0
     # the stack holds (lo, hi) and the Bernstein coefficients of each pending interval
     los = [0.0]
     his = [1.0]
@@ -156,7 +156,7 @@ def unit_roots(a: Sequence[float]) -> list[float]:
         his.append(mid)
         bs.append(left)
     out.sort()
-    dedup: list[float] = []
+    dedup = [0.0] * 0
     for r in out:
         if 0.0 < r < 1.0 and (len(dedup) == 0 or r - dedup[-1] > 4 * MIN_WIDTH):
             dedup.append(r)
@@ -176,42 +176,104 @@ def bernstein_matrix(n: int) -> FloatArray:
     return W
 
 
-def batch_unit_roots(Pc: FloatArray) -> FloatArray:
-    """All roots in ``(0, 1)`` of every row of ``Pc`` (ascending coefficients, ``(K, n+1)``).
-
-    Rows whose Bernstein coefficients change sign exactly once (one root, bracketed by
-    ``[0, 1]``) are solved together by vectorised safeguarded Newton — the same iteration
-    as :func:`newton_in_bracket`; the other rows go through :func:`unit_roots`.  Returns
-    ``(K, n)`` with NaN padding.
-    """
-    K, n1 = Pc.shape
-    n = n1 - 1
-    out = np.full((K, max(n, 1)), np.nan)
-    beta = Pc @ bernstein_matrix(n)
+def _variations_rows(beta: FloatArray) -> npt.NDArray[np.int64]:
+    """:func:`sign_variations` of every row (zeros skipped)."""
     s = np.sign(beta)
     nz = s != 0
-    # sign variations with zeros skipped: compare each nonzero sign with the previous nonzero
-    idx = np.where(nz, np.arange(n1), 0)
+    idx = np.where(nz, np.arange(beta.shape[1]), 0)
     prev = np.maximum.accumulate(idx, axis=1)
-    last_sign = np.take_along_axis(s, prev, axis=1)
-    changes = np.sum(nz[:, 1:] & (s[:, 1:] != last_sign[:, :-1]) & (last_sign[:, :-1] != 0), axis=1)
-    simple = (changes == 1) & (beta[:, 0] != 0) & (beta[:, -1] != 0) & (Pc[:, -1] != 0)
-    rows = np.flatnonzero(simple)
-    if rows.size:
-        out[rows, 0] = _batch_newton(Pc[rows])
-    for r in np.flatnonzero(~simple):
-        roots = unit_roots(Pc[r].tolist())
-        out[r, : len(roots)] = roots
+    last = np.take_along_axis(s, prev, axis=1)
+    out: npt.NDArray[np.int64] = np.sum(nz[:, 1:] & (s[:, 1:] != last[:, :-1]) & (last[:, :-1] != 0), axis=1)
     return out
 
 
-def _batch_newton(A: FloatArray) -> FloatArray:
-    """Vectorised :func:`newton_in_bracket` on ``(0, 1)`` for rows with one root."""
+def _casteljau_rows(B: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`casteljau_halves` of every row."""
+    work = B.copy()
+    n = B.shape[1] - 1
+    left = np.empty_like(B)
+    right = np.empty_like(B)
+    left[:, 0] = work[:, 0]
+    right[:, n] = work[:, n]
+    for r in range(1, n + 1):
+        work[:, : n - r + 1] = 0.5 * (work[:, : n - r + 1] + work[:, 1: n - r + 2])
+        left[:, r] = work[:, 0]
+        right[:, n - r] = work[:, n - r]
+    return left, right
+
+
+def batch_unit_roots(Pc: FloatArray) -> FloatArray:
+    """All roots in ``(0, 1)`` of every row of ``Pc`` (ascending coefficients, ``(K, n+1)``).
+
+    The same isolation as :func:`unit_roots`, vectorised over rows and pending intervals
+    (Bernstein variations, de Casteljau halving), then :func:`newton_in_bracket` on every
+    isolating interval at once; rows whose own leading coefficient is zero go through
+    :func:`unit_roots`.  Returns ``(K, n)`` sorted per row, NaN padded.
+    """
+    while Pc.shape[1] > 2 and not np.any(Pc[:, -1]):  # leading zeros shared by every row
+        Pc = Pc[:, :-1]
+    K, n1 = Pc.shape
+    n = n1 - 1
+    out = np.full((K, max(n, 1)), np.nan)
+    full = Pc[:, -1] != 0
+    rows = np.flatnonzero(full)
+    owner = rows.copy()
+    lo = np.zeros(rows.size)
+    hi = np.ones(rows.size)
+    B = Pc[rows] @ bernstein_matrix(n)
+    found_owner, found_lo, found_hi, found_mid = [], [], [], []
+    while owner.size:
+        v = _variations_rows(B)
+        iso = (v == 1) & (B[:, 0] != 0) & (B[:, -1] != 0)
+        found_owner.append(owner[iso])
+        found_lo.append(lo[iso])
+        found_hi.append(hi[iso])
+        found_mid.append(np.zeros(int(iso.sum()), dtype=bool))
+        split = (v >= 1) & ~iso
+        mid = 0.5 * (lo + hi)
+        tiny = split & (hi - lo < MIN_WIDTH)
+        found_owner.append(owner[tiny])
+        found_lo.append(mid[tiny])
+        found_hi.append(mid[tiny])
+        found_mid.append(np.ones(int(tiny.sum()), dtype=bool))
+        split &= ~tiny
+        L, R = _casteljau_rows(B[split])
+        at_mid = R[:, 0] == 0.0
+        found_owner.append(owner[split][at_mid])
+        found_lo.append(mid[split][at_mid])
+        found_hi.append(mid[split][at_mid])
+        found_mid.append(np.ones(int(at_mid.sum()), dtype=bool))
+        owner = np.concatenate([owner[split], owner[split]])
+        lo, hi = np.concatenate([lo[split], mid[split]]), np.concatenate([mid[split], hi[split]])
+        B = np.vstack([L, R])
+    fo = np.concatenate(found_owner)
+    flo, fhi, fmid = np.concatenate(found_lo), np.concatenate(found_hi), np.concatenate(found_mid)
+    roots = np.where(fmid, flo, 0.0)
+    need = ~fmid
+    if np.any(need):
+        roots[need] = _batch_newton(Pc[fo[need]], flo[need], fhi[need])
+    order = np.lexsort((roots, fo))
+    fo, roots = fo[order], roots[order]
+    keep = (roots > 0.0) & (roots < 1.0)
+    same = np.r_[False, (fo[1:] == fo[:-1]) & (roots[1:] - roots[:-1] <= 4 * MIN_WIDTH)]
+    fo, roots = fo[keep & ~same], roots[keep & ~same]
+    start = np.searchsorted(fo, fo, side="left")
+    out[fo, np.arange(fo.size) - start] = roots
+    for r in np.flatnonzero(~full):
+        rr = unit_roots(Pc[r].tolist())
+        out[r, : len(rr)] = rr
+    return out
+
+
+def _batch_newton(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
+    """Vectorised :func:`newton_in_bracket` (one bracket and polynomial per row)."""
     K, n1 = A.shape
-    lo = np.zeros(K)
-    hi = np.ones(K)
-    plo = A[:, 0].copy()
-    x = np.full(K, 0.5)
+    lo = lo.copy()
+    hi = hi.copy()
+    plo = np.zeros(K)
+    for k in range(n1 - 1, -1, -1):
+        plo = plo * lo + A[:, k]
+    x = 0.5 * (lo + hi)
     done = np.zeros(K, dtype=bool)
     for _ in range(200):
         p = np.zeros(K)

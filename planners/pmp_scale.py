@@ -28,12 +28,19 @@ from iamp.core.tolerances import tol
 FloatArray = npt.NDArray[np.float64]
 
 
+def powers(T: float, n: int) -> FloatArray:
+    """``[1, T, T², …, T^(n−1)]`` by repeated multiplication (the scalar and batched paths
+    use the same products, so they give the same numbers)."""
+    out: FloatArray = np.cumprod(np.r_[1.0, np.full(max(n - 1, 0), float(T))])[:n]
+    return out
+
+
 def strip_negligible(coeffs: FloatArray, T: float) -> FloatArray:
     r"""``coeffs`` (ascending in ``t``) without trailing terms with
     :math:`|c_k| T^k \le \epsilon \max_j |c_j| T^j` (``ε = pmp_poly_negligible_rel``)."""
     c = np.asarray(coeffs, dtype=float)
     with np.errstate(over="ignore"):
-        size = np.abs(c) * float(T) ** np.arange(c.size)
+        size = np.abs(c) * powers(T, c.size)
     big = float(np.max(size)) if c.size else 0.0
     keep = c.size
     eps = tol("pmp_poly_negligible_rel")
@@ -65,7 +72,7 @@ def length_unit(problem: Problem) -> float:
             abs(ego.vx0) * T, abs(ego.vxf) * T, abs(ego.vy0) * T, abs(ego.vyf) * T]
     for v in problem.vehicles:
         c = strip_negligible(np.asarray(v.x_poly, dtype=float), T)
-        vals.append(float(np.sum(np.abs(c * float(T) ** np.arange(c.size)))) + abs(v.offset_x))
+        vals.append(float(np.sum(np.abs(c * powers(T, c.size)))) + abs(v.offset_x))
         vals.append(abs(v.corner_y))
     L = max(vals)
     return L if L > 0 and np.isfinite(L) else 1.0
@@ -146,7 +153,7 @@ def scale_problem(problem: Problem) -> Scaled:
     polys = []
     for v in problem.vehicles:
         c = strip_negligible(np.asarray(v.x_poly, dtype=float), T)
-        cs = c * (T ** np.arange(c.size)) / L
+        cs = c * powers(T, c.size) / L
         cs[0] += v.offset_x / L
         polys.append(cs)
     d = max(4, max(p.size for p in polys))

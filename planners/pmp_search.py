@@ -42,8 +42,12 @@ def stationarity_poly(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
     """Ascending coefficients of ``P = N'σ(1−σ) − 3N(1−2σ)`` with ``N = ex² + ey²``
     (``ex``, ``ey`` ascending in ``σ``)."""
     d = max(len(ex), len(ey))
-    x = [float(c) for c in ex] + [0.0] * (d - len(ex))
-    y = [float(c) for c in ey] + [0.0] * (d - len(ey))
+    x = [0.0] * d
+    y = [0.0] * d
+    for k in range(len(ex)):
+        x[k] = float(ex[k])
+    for k in range(len(ey)):
+        y[k] = float(ey[k])
     N = [0.0] * (2 * d - 1)
     for i in range(d):
         xi = x[i]
@@ -69,11 +73,11 @@ def stationary_sigmas(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
 def _q_one(ex: Sequence[float], ey: Sequence[float], s: float) -> float:
     """``N(σ)/K̃(σ)`` for one vehicle (scalar Horner)."""
     px = 0.0
-    for c in reversed(ex):
-        px = px * s + c
+    for k in range(len(ex) - 1, -1, -1):
+        px = px * s + ex[k]
     py = 0.0
-    for c in reversed(ey):
-        py = py * s + c
+    for k in range(len(ey) - 1, -1, -1):
+        py = py * s + ey[k]
     return (px * px + py * py) * 3.0 / (s**3 * (1.0 - s) ** 3)
 
 

@@ -1,0 +1,155 @@
+r"""One vehicle, start to verified finish, in scalar code (the planner's fast path).
+
+The same mathematics as the general path, specialised to ``m = 1`` in scaled units
+(:mod:`iamp.planners.pmp_scale`): the global contact time is the root of
+:math:`P = N'\sigma(1-\sigma) - 3N(1-2\sigma)` with the least :math:`N/\tilde K`
+(:func:`iamp.planners.pmp_search.one_vehicle_sigma`), :math:`\tilde\Phi = -\tilde e/\tilde K`,
+``(ã, b̃)`` from the two final conditions, and the checks of :mod:`iamp.planners.pmp_verify`
+written out for the three-piece solution:
+
+* ``linear_system`` — backward error of the 3×3 system per axis (rows: corner, final
+  position, final speed);
+* ``corner`` and ``boundary`` — the corner and the final state reached by the solution;
+* ``hamiltonian_jump`` — :math:`r = \tilde\Phi_x(\tilde v_x - \dot{\tilde x}_s) + \tilde\Phi_y\tilde v_y`
+  over :math:`|\tilde\Phi_x|(|\tilde v_x|+|\dot{\tilde x}_s|) + |\tilde\Phi_y||\tilde v_y|`;
+* ``cost_consistency`` — :math:`\tilde J_0 + N/(2\tilde K)` against
+  :math:`\tfrac12\int|\tilde u|^2` of the piecewise-linear input.
+
+(``h_minimisation`` and ``costate_jump`` hold by construction of the scalar formulas and are
+checked by the general path, :func:`iamp.planners.pmp_verify.check_values`, in the tests.)
+The kernel takes and returns plain floats and lists, so numba compiles it unchanged
+(:mod:`iamp.planners.pmp_compiled`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from iamp.core.problem import Problem
+from iamp.core.tolerances import tol
+from iamp.planners.pmp_search import one_vehicle_sigma
+
+#: Names of the values returned by :func:`one_vehicle_kernel` after ``(σ, ã_x, ã_y, b̃_x,
+#: b̃_y, Φ̃_x, Φ̃_y, J̃)``, in order.
+CHECK_NAMES = ("linear_system", "corner", "boundary", "hamiltonian_jump", "cost_consistency")
+
+
+def one_vehicle_kernel(ego: Sequence[float], ex: Sequence[float], ey: Sequence[float],
+                       cx: Sequence[float], cy: float) -> list[float]:
+    """``[σ, ã_x, ã_y, b̃_x, b̃_y, Φ̃_x, Φ̃_y, J̃, checks...]`` (scaled); ``σ`` is NaN if ``J`` has
+    no interior stationary point.  ``ego`` = scaled ``(x0, vx0, xf, vxf, y0, vy0, yf, vyf)``."""
+    s, q = one_vehicle_sigma(ex, ey)
+    out = [s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    if not s == s:  # NaN: no stationary point
+        return out
+    w = 1.0 - s
+    Kt = s * s * s * w * w * w / 3.0
+    # e at σ and the corner x and its speed (Horner)
+    exv = 0.0
+    for k in range(len(ex) - 1, -1, -1):
+        exv = exv * s + ex[k]
+    eyv = 0.0
+    for k in range(len(ey) - 1, -1, -1):
+        eyv = eyv * s + ey[k]
+    cxv = 0.0
+    cxd = 0.0
+    for k in range(len(cx) - 1, -1, -1):
+        cxd = cxd * s + cxv
+        cxv = cxv * s + cx[k]
+    lin = 0.0
+    den = 0.0
+    corner = 0.0
+    bound = 0.0
+    rj = 0.0
+    size = 0.0
+    jbar = 0.0
+    uint = 0.0
+    for axis in range(2):
+        s0 = ego[4 * axis]
+        v0 = ego[4 * axis + 1]
+        sf = ego[4 * axis + 2]
+        vf = ego[4 * axis + 3]
+        e = exv if axis == 0 else eyv
+        c = cxv if axis == 0 else cy
+        E = sf - s0 - v0
+        G = vf - v0
+        phi = -e / Kt
+        r1 = E + phi * w * w * w / 6.0
+        r2 = G + phi * w * w / 2.0
+        b = 6.0 * r2 - 12.0 * r1
+        a = r2 - b / 2.0
+        out[1 + axis] = a
+        out[3 + axis] = b
+        out[5 + axis] = phi
+        jbar += 6.0 * E * E - 6.0 * E * G + 2.0 * G * G
+        # the three rows of M z − rhs (corner, final position, final speed)
+        pos = s0 + v0 * s + a * s * s / 2.0 + b * s * s * s / 6.0
+        vel = v0 + a * s + b * s * s / 2.0
+        sF = s0 + v0 + a / 2.0 + b / 6.0 - phi * w * w * w / 6.0
+        vF = v0 + a + b / 2.0 - phi * w * w / 2.0
+        lin = max(lin, abs(pos - c), abs(sF - sf), abs(vF - vf))
+        zmax = max(abs(a), abs(b), abs(phi))
+        rmax = max(abs(c - s0 - v0 * s), abs(E), abs(G))
+        den = max(den, max(s * s / 2.0 + s * s * s / 6.0, 2.0 / 3.0 + w * w * w / 6.0,
+                           1.5 + w * w / 2.0) * zmax + rmax)
+        corner = max(corner, abs(pos - c))
+        bound = max(bound, abs(sF - sf), abs(vF - vf))
+        xdot = cxd if axis == 0 else 0.0
+        rj += phi * (vel - xdot)
+        size += abs(phi) * (abs(vel) + abs(xdot))
+        u0 = a
+        u1 = a + b * s
+        u2 = a + b - phi * w
+        uint += s / 3.0 * (u0 * u0 + u0 * u1 + u1 * u1) + w / 3.0 * (u1 * u1 + u1 * u2 + u2 * u2)
+    J_closed = jbar + 0.5 * q
+    J_traj = 0.5 * uint
+    out[7] = J_traj
+    out[8] = lin / max(den, 1e-300)
+    out[9] = corner
+    out[10] = bound
+    out[11] = abs(rj) / max(size, 1e-300)
+    out[12] = abs(J_closed - J_traj) / max(abs(J_traj), 1e-300)
+    return out
+
+
+def one_vehicle_data(problem: Problem) -> tuple[float, float, list[float], list[float], list[float], list[float],
+                                                float]:
+    """``(T, L, ego, ex, ey, cx, cy)``: :func:`iamp.planners.pmp_scale.scale_problem` for one
+    vehicle in plain floats (same operations, same numbers)."""
+    e = problem.ego
+    v = problem.vehicles[0]
+    T = e.tf
+    eps = tol("pmp_poly_negligible_rel")
+    raw = []
+    tk = 1.0
+    for k, c in enumerate(v.x_poly):
+        if k:
+            tk = tk * T
+        raw.append(float(c) * tk)
+    big = max(abs(c) for c in raw)
+    keep = len(raw)
+    while keep > 1 and abs(raw[keep - 1]) <= eps * big:
+        keep -= 1
+    raw = raw[:keep]
+    off = v.offset_x
+    cyr = v.corner_y
+    L = max(abs(e.x0), abs(e.xf), abs(e.y0), abs(e.yf), abs(e.vx0) * T, abs(e.vxf) * T, abs(e.vy0) * T,
+            abs(e.vyf) * T, sum(abs(c) for c in raw) + abs(off), abs(cyr))
+    if not (L > 0 and math.isfinite(L)):
+        L = 1.0
+    ego = [e.x0 / L, e.vx0 * T / L, e.xf / L, e.vxf * T / L, e.y0 / L, e.vy0 * T / L, e.yf / L, e.vyf * T / L]
+    cx = [c / L for c in raw] + [0.0] * (4 - len(raw))
+    cx[0] += off / L
+    ex = list(cx)
+    ey = [0.0, 0.0, 0.0, 0.0]
+    for axis, target in ((0, ex), (1, ey)):
+        s0, v0, sf, vf = ego[4 * axis: 4 * axis + 4]
+        E = sf - s0 - v0
+        G = vf - v0
+        h = (s0, v0, 3 * E - G, -2 * E + G)
+        for k in range(4):
+            target[k] -= h[k]
+    cy = cyr / L
+    ey[0] += cy
+    return T, L, ego, ex, ey, cx, cy
