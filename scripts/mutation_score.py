@@ -5,7 +5,7 @@ mutmut 3 rewrites a whole tree into ``mutants/`` and expects a flat layout; iamp
 reaches ``planners/``, ``prediction/`` and ``compare/`` through symlinks, so this script does
 the same job directly and never touches the working tree:
 
-1. copy the repository (``git ls-files`` plus untracked, unignored files) to a temporary folder;
+1. export the committed tree (``git archive HEAD``) to a temporary folder;
 2. enumerate mutation points of FILE with :mod:`ast` — comparison operators
    (``<``/``<=``, ``>``/``>=``, ``==``/``!=``), arithmetic (``+``/``-``, ``*``/``/``),
    ``and``/``or``, numeric constants (``c -> c*1000 + 1`` and ``c -> -c``), ``not x -> x``,
@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import ast
 import random
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -109,15 +108,9 @@ def _mutate(tree: ast.Module, m: Mutation) -> ast.Module:
 
 
 def _copy_repo(src: Path, dst: Path) -> None:
-    files = subprocess.run(["git", "ls-files", "-co", "--exclude-standard"], cwd=src, capture_output=True,
-                           text=True, check=True).stdout.splitlines()
-    for rel in files:
-        s, d = src / rel, dst / rel
-        d.parent.mkdir(parents=True, exist_ok=True)
-        if s.is_symlink():
-            d.symlink_to(s.readlink())
-        elif s.is_file():
-            shutil.copy2(s, d)
+    """The committed tree (``HEAD``), so that work in progress in the checkout cannot leak in."""
+    archive = subprocess.run(["git", "archive", "--format=tar", "HEAD"], cwd=src, capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", str(dst)], input=archive.stdout, check=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -131,7 +124,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     root = Path(subprocess.run(["git", "rev-parse", "--show-toplevel"], capture_output=True, text=True,
                                check=True).stdout.strip())
-    source = (root / args.file).read_text(encoding="utf-8")
+    source = subprocess.run(["git", "show", f"HEAD:{args.file}"], cwd=root, capture_output=True, text=True,
+                            check=True).stdout
     points = _points(ast.parse(source))
     rng = random.Random(args.seed)
     chosen = rng.sample(points, min(args.sample, len(points)))
