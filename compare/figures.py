@@ -31,13 +31,25 @@ contacts and jumps only); legends sit where they hide no data.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
+from numpy.typing import ArrayLike
 
 from iamp.core.atomic import atomic_path
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.axes import Axes
+
+    from iamp.core.plan import Plan
+    from iamp.core.problem import Problem
+
+PathLike = str | os.PathLike[str]
 
 __all__ = [
     "PALETTE",
@@ -87,7 +99,7 @@ SCENARIO_COLORS: dict[str, str] = {"paper-1": "0.15", "paper-2": "tab:pink", "pa
 _SCENARIO_CYCLE = ("0.15", "tab:pink", "tab:olive", "tab:cyan", "0.55")
 
 
-def planner_style(label: str) -> dict:
+def planner_style(label: str) -> dict[str, str]:
     """Colour, marker, fill and line style of a run label (``pmp``, ``qp-osqp-zoh-100``,
     ``QP clarabel solve, native, ...``): the colour follows the planner or QP solver
     (:data:`PALETTE`), the marker the solver and hold, a filled marker the native path, a
@@ -118,7 +130,7 @@ def _qp_style(label: str, k: int = 0) -> tuple[str, str]:
     return st["marker"], st["color"]
 
 
-def save_figure(fig: Figure, stem, formats=FORMATS) -> list[Path]:
+def save_figure(fig: Figure, stem: PathLike, formats: Sequence[str] = FORMATS) -> list[Path]:
     """Write ``fig`` as ``stem.<fmt>`` for every format, atomically; return the paths."""
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
@@ -132,7 +144,7 @@ def save_figure(fig: Figure, stem, formats=FORMATS) -> list[Path]:
     return written
 
 
-def save_one(fig: Figure, path) -> Path:
+def save_one(fig: Figure, path: PathLike) -> Path:
     """Write ``fig`` to ``path`` atomically, in the format its suffix names (``.png``, ``.pdf``,
     ``.svg``, …); returns the path."""
     path = Path(path)
@@ -143,7 +155,7 @@ def save_one(fig: Figure, path) -> Path:
     return path
 
 
-def lane_lines(problem) -> tuple[list[float], list[float]]:
+def lane_lines(problem: Problem) -> tuple[list[float], list[float]]:
     """Lane geometry used by the x–y figure: ``(edges, dividers)``.
 
     The paper gives no lane width beyond ``s_yf``; the lanes drawn here are centred at the
@@ -169,7 +181,7 @@ def _snapshot_times(tf: float, dt: float) -> np.ndarray:
     return np.arange(n + 1) * dt
 
 
-def xy_limits(result, margin_x: float = 12.0, margin_y: float = 1.0) -> tuple[float, float, float, float]:
+def xy_limits(result: Plan, margin_x: float = 12.0, margin_y: float = 1.0) -> tuple[float, float, float, float]:
     """``(xmin, xmax, ymin, ymax)`` of the x–y figure: every vehicle and the ego path over the
     horizon with a margin, and at least the lanes (:func:`lane_lines`)."""
     problem = result.problem
@@ -183,7 +195,8 @@ def xy_limits(result, margin_x: float = 12.0, margin_y: float = 1.0) -> tuple[fl
             float(min(np.min(y) for y in ys)) - margin_y, float(max(np.max(y) for y in ys)) + margin_y)
 
 
-def draw_xy(ax, result, times, *, ego_size=None, time_labels: bool = False, ego_color: str = EGO_COLOR) -> None:
+def draw_xy(ax: Axes, result: Plan, times: ArrayLike, *, ego_size: tuple[float, float] | None = None,
+            time_labels: bool = False, ego_color: str = EGO_COLOR) -> None:
     """Draw a plan in the x–y plane on ``ax`` **to scale** (equal aspect: one metre is as long
     across as along the road, so a lane change looks as gentle as it is).
 
@@ -263,22 +276,22 @@ def draw_xy(ax, result, times, *, ego_size=None, time_labels: bool = False, ego_
     ax.grid(True, lw=0.3, alpha=0.5)
 
 
-def legend_below(ax, *, ncol: int = 3, fontsize: float = 7, below_points: float = 36.0):
+def legend_below(ax: Axes, *, ncol: int = 3, fontsize: float = 7, below_points: float = 36.0) -> Any:
     """A legend under ``ax``, ``below_points`` below its lower edge (clear of the tick labels and
     the x label however short the axes are: equal-aspect road strips are)."""
     return ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=ncol, fontsize=fontsize, frameon=False,
                      borderaxespad=below_points / fontsize)
 
 
-def xy_figsize(result, width: float = 10.0, extra_height: float = 1.6) -> tuple[float, float]:
+def xy_figsize(result: Plan, width: float = 10.0, extra_height: float = 1.6) -> tuple[float, float]:
     """A figure size whose x–y axes fill the width at equal aspect (plus room for the title and
     a legend below)."""
     xmin, xmax, ymin, ymax = xy_limits(result)
     return width, 0.9 * width * (ymax - ymin) / (xmax - xmin) + extra_height
 
 
-def plot_xy_snapshots(result, stem, *, dt: float = 0.5, title: str | None = None,
-                      ego_size=None) -> list[Path]:
+def plot_xy_snapshots(result: Plan, stem: PathLike, *, dt: float = 0.5, title: str | None = None,
+                      ego_size: tuple[float, float] | None = None) -> list[Path]:
     """The paper's Figs. 4–6: ego and surrounding vehicles every ``dt`` s in the x–y plane,
     to scale (:func:`draw_xy`).
 
@@ -303,7 +316,7 @@ def plot_xy_snapshots(result, stem, *, dt: float = 0.5, title: str | None = None
     return save_figure(fig, stem)
 
 
-def plot_positions(result, stem, *, title: str | None = None, show_vehicles: bool = True) -> list[Path]:
+def plot_positions(result: Plan, stem: PathLike, *, title: str | None = None, show_vehicles: bool = True) -> list[Path]:
     """The paper's Figs. 7–9: ``s_x(t)`` and ``s_y(t)`` with the safety-critical lines.
 
     At each contact time ``t_i`` a vertical red dashed line, and a horizontal red dashed
@@ -350,7 +363,8 @@ def plot_positions(result, stem, *, title: str | None = None, show_vehicles: boo
     return save_figure(fig, stem)
 
 
-def plot_value_function(problem, pmp_result, sweeps: dict, stem, *, title: str | None = None) -> list[Path]:
+def plot_value_function(problem: Problem, pmp_result: Plan, sweeps: dict[str, Any], stem: PathLike, *,
+                        title: str | None = None) -> list[Path]:
     """``J(t)`` (closed form, one vehicle), the PMP's ``t*`` and the QP sweep points.
 
     Parameters
@@ -390,7 +404,7 @@ def plot_value_function(problem, pmp_result, sweeps: dict, stem, *, title: str |
                 ax.plot([best[0]], [best[1]], marker, ms=12, mfc="none", mew=1.5,
                         color=color, label=f"QP sweep best, {label}: $t$ = {best[0]:.3f} s" if zoom else None)
         ax.axvline(t_star, color=SAFETY_COLOR, ls="--", lw=1.0)
-        ax.plot([t_star], [pmp_result.cost], "*", ms=14, color=PALETTE["pmp"], mec="k", zorder=5,
+        ax.plot([t_star], [float(pmp_result.cost or np.nan)], "*", ms=14, color=PALETTE["pmp"], mec="k", zorder=5,
                 label=f"PMP $t^*$ = {t_star:.4f} s, $J^*$ = {pmp_result.cost:.4f}" if zoom else "PMP $t^*$")
         ax.grid(True, which="both", lw=0.3, alpha=0.5)
         ax.set_xlabel("contact time $t_1$ [s]")
@@ -413,7 +427,8 @@ def plot_value_function(problem, pmp_result, sweeps: dict, stem, *, title: str |
     return save_figure(fig, stem)
 
 
-def plot_costates(pmp_result, qp_results: dict, stem, *, title: str | None = None) -> list[Path]:
+def plot_costates(pmp_result: Plan, qp_results: dict[str, Plan | None], stem: PathLike, *,
+                  title: str | None = None) -> list[Path]:
     """Co-states ``p1..p4`` with their jumps, beside the QP multipliers ``ν``.
 
     Layout: the x axis in the left column, y in the right; rows ``p1 | p3`` (the jumping
@@ -498,7 +513,7 @@ def plot_costates(pmp_result, qp_results: dict, stem, *, title: str | None = Non
     return save_figure(fig, stem)
 
 
-def plot_zoh_convergence(series: dict, stem, *, title: str | None = None) -> list[Path]:
+def plot_zoh_convergence(series: dict[str, Any], stem: PathLike, *, title: str | None = None) -> list[Path]:
     """``J_ZOH − J_PMP`` (same contact node) against ``h`` on log–log axes.
 
     Parameters
@@ -534,7 +549,8 @@ def plot_zoh_convergence(series: dict, stem, *, title: str | None = None) -> lis
     return save_figure(fig, stem)
 
 
-def plot_timing(samples: dict, stem, *, whole_plans: dict | None = None, title: str | None = None) -> list[Path]:
+def plot_timing(samples: dict[str, Any], stem: PathLike, *, whole_plans: dict[str, Any] | None = None,
+                title: str | None = None) -> list[Path]:
     """Wall times, log scale, coloured by planner (:func:`planner_style`).
 
     Left (if ``whole_plans``): whole plans, contact-time search included — the median with
@@ -595,7 +611,7 @@ def plot_timing(samples: dict, stem, *, whole_plans: dict | None = None, title: 
     return save_figure(fig, stem)
 
 
-def plot_predictions(entries: dict, stem, *, tf: float, title: str | None = None) -> list[Path]:
+def plot_predictions(entries: dict[str, Any], stem: PathLike, *, tf: float, title: str | None = None) -> list[Path]:
     """Observed history, the predictor's samples and the fitted cubic handed to the planners.
 
     Parameters
