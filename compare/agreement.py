@@ -44,7 +44,7 @@ Verdict rules (pair ``pmp`` / QP run; every rule must pass for ``agree``)
    multipliers ``ν`` match the exact reference (FOH: the PMP at ``t_Q``; ZOH: the closed form)
    within the solver's ``cmp_cost_rel_*``, ``cmp_state_rel_*``, ``cmp_jump_rel_*``.
 3. *KKT*: primal, dual and duality-gap residuals recomputed from the QP matrices and the
-   returned primal/dual solution (:func:`iamp.planners.native.kkt_residuals`; never the
+   returned primal/dual solution (:func:`iamp.planners.backends.kkt_residuals`; never the
    solver's own report) are below ``cmp_kkt_rel_*``.
 4. *Constraints*: the QP trajectory's boundary and collision residuals are below
    ``cmp_residual_rel_*``.

@@ -49,7 +49,7 @@ TOLERANCES.update({
     "cmp_jump_rel_clarabel": 1e-6,
     "cmp_jump_rel_osqp": 1e-4,
     # KKT residuals recomputed from the QP data (primal, dual, gap; each relative, see
-    # iamp.planners.native.kkt_residuals).
+    # iamp.planners.backends.kkt_residuals).
     "cmp_kkt_rel_clarabel": 1e-9,
     "cmp_kkt_rel_osqp": 1e-7,
     # boundary and collision-constraint residuals of a QP trajectory, relative to
