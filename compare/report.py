@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import math
 import os
 import platform
 import time
@@ -57,6 +56,7 @@ from iamp.comparison.report_tex import (
 )
 from iamp.comparison.timing import dist_version, sample_nodes, summarize
 from iamp.core.atomic import write_text as atomic_write_text  # re-exported for callers
+from iamp.core.jsonable import to_jsonable
 
 # (names from iamp.comparison.paper, .metrics and .report_tex are re-exported)
 __all__ = [
@@ -124,24 +124,6 @@ class ReproduceConfig:
 # --------------------------------------------------------------------------------------
 # small utilities
 # --------------------------------------------------------------------------------------
-
-
-def _jsonable(obj):
-    """Recursively convert numpy types; non-finite floats become ``None``."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, (np.bool_,)):
-        return bool(obj)
-    return obj
 
 
 class _Progress:
@@ -646,6 +628,6 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
     tex = tex.replace("\\end{document}", safety["section"](figs, tables["safety"]) + "\\end{document}", 1)
     written.append(atomic_write_text(out / "report.tex", tex))
     res["outputs"] = sorted({str(Path(p).relative_to(out)) for p in written} | {"results.json"})
-    atomic_write_text(out / "results.json", json.dumps(_jsonable(res), indent=1, allow_nan=False) + "\n")
+    atomic_write_text(out / "results.json", json.dumps(to_jsonable(res), indent=1, allow_nan=False) + "\n")
     step.finish()
     return res
