@@ -242,10 +242,10 @@ def table_metrics(metrics: dict[str, Any]) -> str:
     head = " & ".join(f"Scenario {PAPER_TABLE_I[n]['scenario']}" for n in names)
     lines = [_GEN, "\\begin{table}[H]", "\\centering", "\\small",
              "\\caption{Measurable aggressiveness and safety of the PMP plans (peaks on a 1\\,ms grid). The lane "
-             "divider is half-way between $s_{y0}$ and $y_{s,1}$. The equality constraint touches the safety box's corner at "
-             "$t^*_1$ only; the last three rows check the box and the bodies (the ego's body is its \\texttt{[ego]} "
-             "length $\\times$ width, default $4.8\\times1.8$\\,m) over the whole horizon, with exact interval ends "
-             "(SPEC \\S9).}",
+             "divider is half-way between $s_{y0}$ and $y_{s,1}$. The equality constraint touches the safety box's "
+             "corner at $t^*_1$ only; the last three rows check the box and the bodies (the ego's body is its "
+             "\\texttt{[ego]} length $\\times$ width, default $4.8\\times1.8$\\,m) over the whole horizon, with "
+             "exact interval ends (SPEC \\S9).}",
              "\\label{tab:metrics}",
              "\\begin{tabular}{l" + "r" * len(names) + "}", "\\toprule", f"Measure & {head} \\\\", "\\midrule"]
     for label, fn in rows:
