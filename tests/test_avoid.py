@@ -233,3 +233,21 @@ def test_many_vehicles_beyond_the_full_sweep_are_local():
     if plan.info["certificate"] is None:
         assert plan.status == st.LOCAL and not plan.info["complete_sweep"]
     assert node_depth(plan) <= 1e-6
+
+
+def test_pmp_side_avoidance_agrees_with_the_qp():
+    """Stretch: the continuous-time avoidance candidates (free optimum; one touch per vehicle
+    at the corner = the equality plan when its jumps have the inequality multipliers' sign)
+    against the avoidance QP's global sweep refined off the grid (FOH is exact)."""
+    from iamp.planners.avoid_pmp import PMPAvoidPlanner
+
+    for prob in (binding_problem(), paper_problem(1), builtin_problem("two-vehicle")):
+        pmp = PMPAvoidPlanner().plan(prob)
+        qp = AvoidQPPlanner(steps=40, contact="refine").plan(prob)
+        assert pmp.status in (st.OPTIMAL, st.LOCAL) and qp.status == st.OPTIMAL
+        assert pmp.cost == pytest.approx(qp.cost, rel=1e-9)
+        assert np.allclose(pmp.contact_times, qp.contact_times, atol=1e-5)
+    touch = PMPAvoidPlanner().plan(binding_problem())
+    assert touch.status == st.LOCAL and touch.info["touches"].startswith("one")
+    assert touch.jumps[0, 0] < 0 < touch.jumps[0, 1]  # front: σ_x = −1; lower: σ_y = +1
+    assert PMPAvoidPlanner().plan(paper_problem(2)).status == st.INFEASIBLE
