@@ -126,7 +126,8 @@ def plan_batch(problems: Iterable[Problem]) -> BatchPlan:
         roots = batch_unit_roots(_stationarity_rows(EX, EY))
         ex = _horner(EX, roots)
         ey = _horner(EY, roots)
-        q = (ex * ex + ey * ey) * 3.0 / (roots**3 * (1.0 - roots) ** 3)
+        wr = 1.0 - roots
+        q = (ex * ex + ey * ey) * 3.0 / (roots * roots * roots * wr * wr * wr)
         q = np.where(np.isfinite(q), q, np.inf)
         best = np.argmin(q, axis=1)
         rows = np.arange(K)
@@ -185,7 +186,7 @@ def _batch_checks(ego: FloatArray, CX: FloatArray, CY: FloatArray, EX: FloatArra
     u0 = a
     u1 = a + b * ss
     u2 = a + b - phi * w
-    J_traj = 0.5 * np.sum(ss / 3 * (u0**2 + u0 * u1 + u1**2) + w / 3 * (u1**2 + u1 * u2 + u2**2), axis=1)
+    J_traj = 0.5 * np.sum(ss / 3.0 * (u0 * u0 + u0 * u1 + u1 * u1) + w / 3.0 * (u1 * u1 + u1 * u2 + u2 * u2), axis=1)
     cons = np.abs(J_closed - J_traj) / np.maximum(np.abs(J_traj), 1e-300)
     vals = np.stack([lin, pos_err, end_err, hj, cons], axis=1)
     lim = np.array([tol("pmp_linear_system_rel"), tol("pmp_scaled_residual"), tol("pmp_scaled_residual"),

@@ -78,7 +78,8 @@ def _q_one(ex: Sequence[float], ey: Sequence[float], s: float) -> float:
     py = 0.0
     for k in range(len(ey) - 1, -1, -1):
         py = py * s + ey[k]
-    return (px * px + py * py) * 3.0 / (s**3 * (1.0 - s) ** 3)
+    w = 1.0 - s
+    return (px * px + py * py) * 3.0 / (s * s * s * w * w * w)
 
 
 def one_vehicle_sigma(ex: Sequence[float], ey: Sequence[float]) -> tuple[float, float]:
