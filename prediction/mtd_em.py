@@ -48,17 +48,18 @@ def em_lambda(P: FloatArray, w: FloatArray, lam0: FloatArray, tol: float,
     lam = lam0.copy()
     gap = np.inf
     it = 0
+    converged = False
     while it < max_iter:
         it += 1
         mix = np.maximum(P @ lam, 1e-300)
         g = (w / mix) @ P / N  # gradient of ℓ/N
         gap = float(g.max() - 1.0)
         if gap < tol:
+            converged = True
             break
-        lam = lam * g
-        lam = lam / lam.sum()
+        lam = lam * g  # stays on the simplex: Σ_i λ_i g_i = 1 (no renormalisation needed)
     return lam, {"iterations": it, "tolerance": tol, "certificate_max_grad_minus_1": gap,
-                 "converged": bool(gap < tol)}
+                 "converged": converged}
 
 
 def squarem_extrapolate(lam0: FloatArray, Q0: FloatArray, lam1: FloatArray, Q1: FloatArray,
@@ -132,22 +133,23 @@ def em_joint(rows: IntArray, w: FloatArray, Q: FloatArray, lam: FloatArray, m: i
     idx = [rows[:, 0] * m + rows[:, i + 1] for i in range(n)]
 
     def lag_probs(Q: FloatArray) -> FloatArray:
-        return np.stack([Q[i].ravel()[idx[i]] for i in range(n)], axis=1)
+        return np.column_stack([Q[i].ravel()[idx[i]] for i in range(n)])
 
     def em(lam: FloatArray, Q: FloatArray) -> tuple[FloatArray, FloatArray, float]:
         P = lag_probs(Q)
         mix = np.maximum(P @ lam, 1e-300)
         ll = float(np.sum(w * np.log(mix))) / N
         R = P * lam * (w / mix)[:, None]  # weighted responsibilities r_ti
-        lam2 = R.sum(axis=0) / N
+        lam2 = R.sum(axis=0) / N  # on the simplex: every row of responsibilities sums to 1
         C = np.stack([np.bincount(idx[i], weights=R[:, i], minlength=m * m).reshape(m, m)
                       for i in range(n)]).astype(np.float64, copy=False)
-        return lam2 / lam2.sum(), _normalise_columns(C, pseudocount, empty), ll
+        return lam2, _normalise_columns(C, pseudocount, empty), ll
 
     evals = 0
     prev = -np.inf
     delta = np.inf
     accepted = 0
+    converged = False
     while evals < max_iter:
         lam_n, Q_n, ll0, used, acc = squarem_cycle(em, lam, Q)
         evals += used
@@ -155,12 +157,13 @@ def em_joint(rows: IntArray, w: FloatArray, Q: FloatArray, lam: FloatArray, m: i
             trace.append(ll0)
         delta = ll0 - prev
         if delta < tol:
+            converged = True
             break
         prev = ll0
         accepted += int(acc)
         lam, Q = lam_n, Q_n
     P = lag_probs(Q)
     ll = float(np.sum(w * np.log(np.maximum(P @ lam, 1e-300)))) / N
-    return Q, lam / lam.sum(), {"iterations": evals, "tolerance": tol, "accelerated_steps": accepted,
+    return Q, lam, {"iterations": evals, "tolerance": tol, "accelerated_steps": accepted,
                                 "last_increase_avg_loglik": float(delta), "avg_loglik": ll,
-                                "converged": bool(delta < tol), "method": "EM + SQUAREM (S3)"}
+                                "converged": converged, "method": "EM + SQUAREM (S3)"}

@@ -183,7 +183,8 @@ def test_em_from_a_fixed_point_stops_with_zero_accepted_steps():
     Qf, lam, info = em_joint(rows, w, Q, np.array([1.0]), 2, 0.0, "uniform", 1e-12, 100, trace)
     assert info["accelerated_steps"] == 0 and info["converged"] and info["iterations"] == 4
     assert len(trace) == 2 and trace[0] == trace[1]
-    assert trace[0] == pytest.approx((2 * np.log(0.5) + 2 * np.log(2 / 3) + np.log(1 / 3)) / 5)
+    expected = (2 * np.log(0.5) + 2 * np.log(2 / 3) + np.log(1 / 3)) / 5
+    assert trace[0] == pytest.approx(expected, rel=1e-12) and info["avg_loglik"] == pytest.approx(expected, rel=1e-12)
     assert np.allclose(Qf, Q) and lam[0] == 1.0
 
 
@@ -279,3 +280,51 @@ def test_choose_jerk_psd_prefers_smoothing_under_noise():
     win = make_windows(synthetic_tracks(n_tracks=6, duration=40.0, seed=3))
     q, table = choose_jerk_psd(win, grid=(1.0, 1000.0), noise_m=(0.1,))
     assert table["score"]["1"] < table["score"]["1000"] and q == 1.0  # 10 cm of noise: smooth more
+
+
+def test_squarem_floor_and_renormalisation_when_extrapolation_overshoots():
+    """α = -10 overshoots below zero: entries are floored at half their θ_2 value, then λ and every
+    column of every Q_i (axis 1) renormalised to sum to one."""
+    lam0, lam1, lam2 = np.array([0.5, 0.5]), np.array([0.3, 0.7]), np.array([0.12, 0.88])
+    q0, q1, q2 = (np.array([[a, 0.5], [1 - a, 0.5]]) for a in (0.5, 0.3, 0.12))
+    Q0, Q1, Q2 = (np.stack([q, q]) for q in (q0, q1, q2))
+    lam_e, Q_e = squarem_extrapolate(lam0, Q0, lam1, Q1, lam2, Q2)
+    # ‖r‖ = sqrt(5 · 0.2²), ‖v‖ = sqrt(5 · 0.02²): α = -10, θ' = 81 θ0 - 180 θ1 + 100 θ2
+    raw = 81 * lam0 - 180 * lam1 + 100 * lam2  # (-1.5, 2.5)
+    floored = np.maximum(raw, 0.5 * lam2)
+    assert np.allclose(lam_e, floored / floored.sum(), rtol=1e-12)
+    col = np.maximum(81 * q0[:, 0] - 180 * q1[:, 0] + 100 * q2[:, 0], 0.5 * q2[:, 0])
+    assert np.allclose(Q_e[:, :, 0], col / col.sum(), rtol=1e-12)
+    assert np.allclose(Q_e[:, :, 1], 0.5) and np.allclose(Q_e.sum(axis=1), 1.0) and np.all(Q_e > 0)
+
+
+def test_squarem_cycle_accepts_a_better_extrapolation():
+    lam_s = np.array([0.2, 0.8])
+    Q = np.stack([np.full((2, 2), 0.5)] * 2)
+    calls = []
+
+    def em(lam, Q):  # linear contraction to lam_s; "likelihood" rises towards it
+        calls.append(lam.copy())
+        return lam_s + 0.5 * (lam - lam_s), Q, -float(np.sum((lam - lam_s) ** 2))
+
+    lam_n, _, ll0, evals, accepted = squarem_cycle(em, np.array([0.6, 0.4]), Q)
+    assert accepted and evals == 3 == len(calls)
+    assert np.allclose(calls[2], lam_s, atol=1e-12)  # the extrapolation hit the fixed point
+    assert np.allclose(lam_n, lam_s, atol=1e-12) and ll0 == pytest.approx(-0.32)
+
+
+def test_em_lambda_certificate_and_iteration_count():
+    from iamp.prediction.mtd_em import em_lambda
+
+    # two lags, P columns: the ML weights maximise Σ w log(P λ); here λ* = (0.5, 0.5) by symmetry
+    P = np.array([[0.9, 0.1], [0.1, 0.9]])
+    w = np.array([1.0, 1.0])
+    lam, info = em_lambda(P, w, np.array([0.8, 0.2]), 1e-12, 10000)
+    assert info["converged"] and info["certificate_max_grad_minus_1"] < 1e-12
+    assert np.allclose(lam, 0.5, atol=1e-5) and lam.sum() == pytest.approx(1.0, abs=1e-12)
+    lam1, info1 = em_lambda(P, w, np.array([0.8, 0.2]), 1e-12, 1)
+    assert info1["iterations"] == 1 and not info1["converged"]
+    g = (w / (P @ np.array([0.8, 0.2]))) @ P / 2
+    assert np.allclose(lam1, np.array([0.8, 0.2]) * g)  # one multiplicative update
+    lam0, info0 = em_lambda(P, w, np.array([0.5, 0.5]), 1e-12, 5)
+    assert info0["iterations"] == 1 and info0["converged"] and np.array_equal(lam0, [0.5, 0.5])
