@@ -1,0 +1,83 @@
+"""The branch-and-bound certificate: its lower bound is valid on every box, tight to second
+order at a minimum, and unbounded where two contact times meet or touch the ends."""
+
+import numpy as np
+import pytest
+
+from iamp.planners.examples import random_problem
+from iamp.planners.pmp_bound import branch_and_bound, lower_bound, poly2_range, poly_range, taylor_shift
+from iamp.planners.pmp_fixed import ValueFunction
+from iamp.planners.pmp_search import newton_sigma, start_points
+
+
+def test_taylor_shift_and_ranges_are_exact_and_enclosing():
+    rng = np.random.default_rng(0)
+    C = rng.normal(size=(50, 6))
+    c = rng.uniform(0, 1, 50)
+    r = rng.uniform(0, 0.2, 50)
+    A = taylor_shift(C, c)
+    h = rng.uniform(-1, 1, 50) * r
+    direct = np.array([np.polynomial.polynomial.polyval(c[k] + h[k], C[k]) for k in range(50)])
+    shifted = np.array([np.polynomial.polynomial.polyval(h[k], A[k]) for k in range(50)])
+    assert np.allclose(direct, shifted, atol=1e-12)
+    lo, hi = poly_range(C, c, r)
+    assert np.all(lo <= direct + 1e-12) and np.all(direct <= hi + 1e-12)
+    # bivariate: s^2 t - 3 s t^2 + 1
+    A2 = np.zeros((4, 4))
+    A2[2, 1], A2[1, 2], A2[0, 0] = 1.0, -3.0, 1.0
+    cs, ct, rs, rt = rng.uniform(0, 1, 30), rng.uniform(0, 1, 30), np.full(30, 0.05), np.full(30, 0.1)
+    lo2, hi2 = poly2_range(A2, cs, ct, rs, rt)
+    for k in range(30):
+        s = cs[k] + rs[k] * rng.uniform(-1, 1, 40)
+        t = ct[k] + rt[k] * rng.uniform(-1, 1, 40)
+        v = s**2 * t - 3 * s * t**2 + 1
+        assert np.all(lo2[k] <= v + 1e-12) and np.all(v <= hi2[k] + 1e-12)
+    assert np.allclose(poly2_range(A2, cs, ct, 0 * rs, 0 * rt)[0], cs**2 * ct - 3 * cs * ct**2 + 1)
+
+
+@pytest.mark.parametrize("m,seed", [(2, 0), (2, 5), (3, 1)])
+def test_lower_bound_is_valid_on_random_boxes(m, seed):
+    vf = ValueFunction(random_problem(seed, m=m))
+    rng = np.random.default_rng(seed)
+    n = 300
+    c = rng.uniform(0.05, 0.95, (n, m))
+    r = rng.choice([0.003, 0.02, 0.08], size=(n, 1)) * np.ones((1, m))
+    lb = lower_bound(vf, c, r)
+    for k in range(n):
+        pts = c[k] + r[k] * rng.uniform(-1, 1, (200, m))
+        pts = np.vstack([pts, c[k] + r[k] * np.sign(rng.uniform(-1, 1, (20, m)))])  # corners too
+        q = vf.quad_sigma(np.clip(pts, 1e-9, 1 - 1e-9))
+        assert lb[k] <= np.min(q) * (1 + 1e-9) + 1e-12, (k, lb[k], np.min(q))
+
+
+def test_lower_bound_is_second_order_tight_at_a_minimum():
+    vf = ValueFunction(random_problem(0, m=2))
+    s, q = newton_sigma(vf, start_points(vf.scaled)[0])
+    gaps = []
+    for w in (1e-2, 1e-3, 1e-4):
+        c = s[None, :] + np.array([[0.3 * w, -0.2 * w]])
+        gaps.append(q - float(lower_bound(vf, c, np.full((1, 2), w))[0]))
+    assert all(g >= -1e-12 for g in gaps)
+    # gap ~ w²: a factor ~100 per factor 10 in w (first order would give ~10)
+    assert gaps[1] < gaps[0] / 50 and gaps[2] < gaps[1] / 50
+
+
+def test_lower_bound_blows_up_at_the_diagonal_and_the_ends():
+    vf = ValueFunction(random_problem(2, m=2))
+    near_diag = lower_bound(vf, np.array([[0.5, 0.5]]), np.full((1, 2), 1e-5))[0]
+    near_end = lower_bound(vf, np.array([[1e-5, 0.5]]), np.array([[1e-5, 1e-3]]))[0]
+    q_typ = float(np.min(vf.quad_sigma(np.random.default_rng(0).uniform(0.05, 0.95, (2000, 2)))))
+    assert near_diag > 100 * q_typ and near_end > 100 * q_typ
+
+
+def test_branch_and_bound_finds_the_global_basin_from_a_bad_start():
+    vf = ValueFunction(random_problem(3, m=2))
+    bad = np.array([0.9, 0.1])
+    q_bad = float(vf.quad_sigma(bad[None, :])[0])
+    res = branch_and_bound(vf, bad, q_bad, lambda s0: newton_sigma(vf, s0), max_boxes=200_000)
+    assert res.certified
+    g = (np.arange(300) + 0.5) / 300
+    A, B = np.meshgrid(g, g, indexing="ij")
+    Z = vf.quad_sigma(np.stack([A, B], axis=-1))
+    assert res.q <= float(np.min(Z)) * (1 + 1e-9)
+    assert res.q < q_bad
