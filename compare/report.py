@@ -34,8 +34,10 @@ import json
 import os
 import platform
 import time
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -57,6 +59,10 @@ from iamp.comparison.report_tex import (
 from iamp.comparison.timing import dist_version, sample_nodes, summarize
 from iamp.core.atomic import write_text as atomic_write_text  # re-exported for callers
 from iamp.core.jsonable import to_jsonable
+from iamp.core.problem import Problem
+
+#: ``progress(done, total)``, the project's progress convention.
+ProgressFn = Callable[[int, int], None]
 
 # (names from iamp.comparison.paper, .metrics and .report_tex are re-exported)
 __all__ = [
@@ -99,18 +105,18 @@ class ReproduceConfig:
 
     steps_one: int = 100
     steps_two: int = 30
-    qp_one: tuple = (("clarabel", "foh", "grid", "cvxpy"), ("osqp", "foh", "grid", "cvxpy"),
+    qp_one: tuple[Any, ...] = (("clarabel", "foh", "grid", "cvxpy"), ("osqp", "foh", "grid", "cvxpy"),
                      ("clarabel", "zoh", "grid", "cvxpy"), ("clarabel", "foh", "refine", "cvxpy"),
                      ("clarabel", "foh", "grid", "native"))
-    qp_two: tuple = (("clarabel", "foh", "grid", "cvxpy"), ("osqp", "foh", "grid", "cvxpy"),
+    qp_two: tuple[Any, ...] = (("clarabel", "foh", "grid", "cvxpy"), ("osqp", "foh", "grid", "cvxpy"),
                      ("clarabel", "foh", "grid", "native"))
-    zoh_steps: tuple = (25, 50, 100, 200, 400)
+    zoh_steps: tuple[Any, ...] = (25, 50, 100, 200, 400)
     plan_repeats: int = 3
     plan_budget_s: float = 4.0
     pmp_repeats: int = 200
     pmp_repeats_two: int = 20
     qp_solve_repeats: int = 30
-    timing_scenarios: tuple = ("paper-1", "two-vehicle")
+    timing_scenarios: tuple[Any, ...] = ("paper-1", "two-vehicle")
     predictor_eval: bool = True
     predictor_select: bool | str = "auto"
     quick: bool = False
@@ -133,7 +139,7 @@ class _Progress:
 
     SCALE = 100
 
-    def __init__(self, callback, status, total: int):
+    def __init__(self, callback: ProgressFn | None, status: Callable[[str], None] | None, total: int) -> None:
         self.callback, self.status, self.total, self.step = callback, status, total, 0
 
     def __call__(self, message: str) -> None:
@@ -162,7 +168,7 @@ class _Progress:
 # --------------------------------------------------------------------------------------
 
 
-def _load_scenario(name: str, notes: list) -> dict:
+def _load_scenario(name: str, notes: list[Any]) -> dict[str, Any]:
     """Load a built-in scenario through the CLI's loader (the shipped predictor for
     histories); fall back to ``<name>-poly`` with a note if that is impossible."""
     from iamp.core.errors import IampError
@@ -189,7 +195,7 @@ def _load_scenario(name: str, notes: list) -> dict:
             "source": "x_poly", "fallback": True}
 
 
-def _history_speed_at_0(history) -> float:
+def _history_speed_at_0(history: Any) -> float:
     """Speed at ``t = 0`` from the last second of a history (quadratic fit)."""
     t, x = np.asarray(history.t), np.asarray(history.x)
     sel = t >= -1.0 - 1e-9
@@ -200,7 +206,7 @@ def _history_speed_at_0(history) -> float:
     return float(c[1]) if deg >= 1 else 0.0
 
 
-def _table1_row(entry: dict) -> dict:
+def _table1_row(entry: dict[str, Any]) -> dict[str, Any]:
     sc, prob = entry["scenario"], entry["problem"]
     v = prob.vehicles[0]
     spec_v = sc.vehicles[0]
@@ -211,7 +217,7 @@ def _table1_row(entry: dict) -> dict:
         x0, v0 = float(v.position(0.0)), float(v.speed(0.0))
         hist = None
     return {"v_e": prob.ego.vx0, "s_xf": prob.ego.xf, "t_f": prob.tf, "x_s0": x0, "v_s0": v0,
-            "x_poly": list(v.x_poly), "history": hist, "L": v.length, "W": v.width, "S_x": v.safety_x,
+            "x_poly": list[Any](v.x_poly), "history": hist, "L": v.length, "W": v.width, "S_x": v.safety_x,
             "S_y": v.safety_y, "y_s": v.y, "corner": v.corner}
 
 
@@ -220,13 +226,13 @@ def _table1_row(entry: dict) -> dict:
 # --------------------------------------------------------------------------------------
 
 
-def _roles(problem, jumps) -> list:
+def _roles(problem: Problem, jumps: Any) -> list[Any]:
     from iamp.comparison.signs import constraint_is_binding_for_safety
 
     return ["safety" if constraint_is_binding_for_safety(v, j[0]) else "drag" for v, j in zip(problem.vehicles, jumps)]
 
 
-def _qp_configs(cfg: ReproduceConfig, problem) -> list:
+def _qp_configs(cfg: ReproduceConfig, problem: Problem) -> list[Any]:
     """The QP configurations of ``cfg`` for ``problem`` (one or several vehicles)."""
     from iamp.comparison.agreement import QPConfig
 
@@ -236,7 +242,8 @@ def _qp_configs(cfg: ReproduceConfig, problem) -> list:
     return [QPConfig(solver=s, hold=h, steps=steps, contact=c, path=p) for s, h, c, p in confs]
 
 
-def _plan_scenario(name: str, problem, cfg: ReproduceConfig, progress=None) -> dict:
+def _plan_scenario(name: str, problem: Problem, cfg: ReproduceConfig,
+                   progress: ProgressFn | None = None) -> dict[str, Any]:
     """Plan one scenario with the PMP and every QP configuration, judge every pair.
 
     Uses :func:`iamp.comparison.agreement.compare_problem` (the same problem object to every
@@ -247,8 +254,8 @@ def _plan_scenario(name: str, problem, cfg: ReproduceConfig, progress=None) -> d
     one = problem.m == 1
     steps = cfg.steps_one if one else cfg.steps_two
     pmp_repeats = cfg.pmp_repeats if one else cfg.pmp_repeats_two
-    extra = {"progress": progress} if progress is not None and "progress" in inspect.signature(
-        compare_problem).parameters else {}
+    extra: dict[str, Any] = ({"progress": progress} if progress is not None
+                             and "progress" in inspect.signature(compare_problem).parameters else {})
     pc = compare_problem(problem, _qp_configs(cfg, problem), name=name, repeats=cfg.plan_repeats,
                          pmp_repeats=pmp_repeats, budget_s=cfg.plan_budget_s, warmup=0, **extra)
     results = {r.label: r.result for r in pc.runs}
@@ -269,7 +276,12 @@ def _plan_scenario(name: str, problem, cfg: ReproduceConfig, progress=None) -> d
 # --------------------------------------------------------------------------------------
 
 
-def _samples(fn, repeats: int) -> list[float]:
+def _next_solve(qp: Any, nodes: Iterator[Any]) -> Callable[[], object]:
+    """A call that solves ``qp`` at the next candidate of ``nodes`` (one changed node per sample)."""
+    return lambda: qp.solve_nodes(next(nodes))
+
+
+def _samples(fn: Callable[[], object], repeats: int) -> list[float]:
     """``repeats`` wall times of ``fn()``, no warm-up (the raw samples go to the timing figure)."""
     out = []
     for _ in range(max(int(repeats), 0)):
@@ -279,7 +291,7 @@ def _samples(fn, repeats: int) -> list[float]:
     return out
 
 
-def _summary(samples) -> dict:
+def _summary(samples: Sequence[float]) -> dict[str, Any]:
     """:func:`iamp.comparison.timing.summarize` as a dict (``n = 0`` and ``None`` statistics for no
     samples)."""
     if len(samples) == 0:
@@ -287,7 +299,8 @@ def _summary(samples) -> dict:
     return summarize(samples).to_dict()
 
 
-def _timing(entries: dict, plans: dict, cfg: ReproduceConfig, progress=None) -> dict:
+def _timing(entries: dict[str, Any], plans: dict[str, Any], cfg: ReproduceConfig,
+            progress: ProgressFn | None = None) -> dict[str, Any]:
     """Timing: one QP solve at a changed candidate node (the cvxpy re-solve of the compiled
     problem, and the native path) per solver, as raw samples; and the whole-plan statistics
     of every run of the planning step (:func:`iamp.comparison.agreement.compare_problem`).
@@ -300,7 +313,7 @@ def _timing(entries: dict, plans: dict, cfg: ReproduceConfig, progress=None) -> 
     from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
     from iamp.planners.qp_core import DiscretisedQP as build_native
     names = [n for n in cfg.timing_scenarios if n in entries]
-    samples: dict = {}
+    samples: dict[str, Any] = {}
     for k, name in enumerate(names):
         prob = entries[name]["problem"]
         m = prob.m
@@ -311,14 +324,14 @@ def _timing(entries: dict, plans: dict, cfg: ReproduceConfig, progress=None) -> 
             qp = CvxpyQPPlanner(steps, "foh", solver).build(prob)
             qp.solve_nodes(nodes[0])  # compiles the cvxpy problem
             it = iter(nodes[1:])
-            samples[f"QP {solver} solve, cvxpy, N={steps} ({tag})"] = _samples(
-                lambda qp=qp, it=it: qp.solve_nodes(next(it)), cfg.qp_solve_repeats)
+            samples[f"QP {solver} solve, cvxpy, N={steps} ({tag})"] = _samples(_next_solve(qp, it),
+                                                                              cfg.qp_solve_repeats)
             if build_native is not None:
                 nq = build_native(prob, steps, "foh", solver)
                 nq.solve_nodes(nodes[0])
                 it2 = iter(nodes[1:])
-                samples[f"QP {solver} solve, native, N={steps} ({tag})"] = _samples(
-                    lambda nq=nq, it2=it2: nq.solve_nodes(next(it2)), cfg.qp_solve_repeats)
+                samples[f"QP {solver} solve, native, N={steps} ({tag})"] = _samples(_next_solve(nq, it2),
+                                                                                   cfg.qp_solve_repeats)
         if progress is not None:
             progress(k + 1, len(names))
     plans_stats = {name: {d["label"]: d.get("time_s") for d in p["runs"]} for name, p in plans.items()}
@@ -329,7 +342,7 @@ def _timing(entries: dict, plans: dict, cfg: ReproduceConfig, progress=None) -> 
                         "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}}
 
 
-def _whole_plan_stats(timing: dict, cfg: ReproduceConfig) -> dict:
+def _whole_plan_stats(timing: dict[str, Any], cfg: ReproduceConfig) -> dict[str, Any]:
     """``{"<scenario>: <run label>": stats}`` of the whole plans of the timing scenarios (the
     figure's left panel; the same numbers as the table's whole-plan rows)."""
     out = {}
@@ -345,7 +358,8 @@ def _whole_plan_stats(timing: dict, cfg: ReproduceConfig) -> dict:
 # --------------------------------------------------------------------------------------
 
 
-def zoh_convergence(problem, steps=(25, 50, 100, 200, 400), t_contact=None, solver: str = "clarabel") -> dict:
+def zoh_convergence(problem: Problem, steps: Sequence[int] = (25, 50, 100, 200, 400), t_contact: float | None = None,
+                    solver: str = "clarabel") -> dict[str, Any]:
     """``J_ZOH − J_PMP`` at one fixed contact time on grids ``N ∈ steps``.
 
     The contact time is a node of every grid (a multiple of ``t_f / gcd(steps)``, the one
@@ -366,7 +380,7 @@ def zoh_convergence(problem, steps=(25, 50, 100, 200, 400), t_contact=None, solv
     else:
         k0 = int(round(float(t_contact) / h0))
     t_c = k0 * h0
-    rows = []
+    rows: list[dict[str, Any]] = []
     for N in steps:
         k = k0 * (N // base)
         t_node = np.linspace(0.0, tf, N + 1)[k]
@@ -375,8 +389,8 @@ def zoh_convergence(problem, steps=(25, 50, 100, 200, 400), t_contact=None, solv
         f = QPPlanner(N, "foh", solver).plan_at_nodes(problem, [k])
         rows.append({"N": N, "h": tf / N, "node": k, "t_node": float(t_node), "J_pmp": j_pmp,
                      "J_zoh": z.cost if z.is_optimal() else None, "J_foh": f.cost if f.is_optimal() else None,
-                     "zoh_gap": (z.cost - j_pmp) if z.is_optimal() else None,
-                     "foh_gap": (f.cost - j_pmp) if f.is_optimal() else None,
+                     "zoh_gap": (z.cost - j_pmp) if z.is_optimal() and z.cost is not None else None,
+                     "foh_gap": (f.cost - j_pmp) if f.is_optimal() and f.cost is not None else None,
                      "status_zoh": z.status, "status_foh": f.status})
     for a, b in zip(rows[:-1], rows[1:]):
         a["ratio_to_next"] = (a["zoh_gap"] / b["zoh_gap"]) if a["zoh_gap"] and b["zoh_gap"] else None
@@ -392,7 +406,8 @@ def zoh_convergence(problem, steps=(25, 50, 100, 200, 400), t_contact=None, solv
 # --------------------------------------------------------------------------------------
 
 
-def _predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list, progress=None) -> dict | None:
+def _predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list[Any],
+                          progress: ProgressFn | None = None) -> dict[str, Any] | None:
     """Run (or reuse) the predictor's evaluation and let it write its tables into ``out``.
 
     ``cfg.predictor_select``: ``True`` runs the model-selection grid (many minutes);
@@ -431,8 +446,9 @@ def _predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list, progress
                    "set, chose the shipped configuration); its tables were rewritten")
         else:
             select = mode is True
-            extra = ({"progress": progress} if progress is not None
-                     and "progress" in inspect.signature(ev.write_evaluation_report).parameters else {})
+            extra: dict[str, Any] = ({"progress": progress} if progress is not None
+                                     and "progress" in inspect.signature(ev.write_evaluation_report).parameters
+                                     else {})
             res = ev.write_evaluation_report(out, select=select, **extra)
             how = ("ran the evaluation with model selection" if select else
                    "evaluated the shipped configuration on the test split without re-running the model-selection "
@@ -446,15 +462,16 @@ def _predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list, progress
             "selection_run": bool(res.get("selection")), "file": "predictor_eval.json"}
 
 
-def _versions() -> dict:
-    out = {"python": platform.python_version()}
+def _versions() -> dict[str, Any]:
+    out: dict[str, str | None] = {"python": platform.python_version()}
     for dist in ("iamp", "numpy", "scipy", "cvxpy", "osqp", "clarabel", "matplotlib"):
         out[dist] = dist_version(dist)
     return out
 
 
-def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = False,
-              config: ReproduceConfig | None = None, scenarios=SCENARIOS) -> dict:
+def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn | None = None, *,
+              status: Callable[[str], None] | None = None, quick: bool = False,
+              config: ReproduceConfig | None = None, scenarios: Sequence[str] = SCENARIOS) -> dict[str, Any]:
     """Run the whole reproduction and write the report into ``out_dir``.
 
     Parameters
@@ -487,11 +504,11 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
     out = Path(out_dir)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
-    notes: list = []
+    notes: list[Any] = []
     scenarios = tuple(scenarios)
     total = 1 + 2 * len(scenarios) + 5
     step = _Progress(progress, status, total)
-    written: list = []
+    written: list[Any] = []
 
     # 1. scenarios -----------------------------------------------------------------------
     step("loading scenarios and predictions")
@@ -499,10 +516,10 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
     rows1 = {name: _table1_row(e) for name, e in entries.items()}
 
     # 2. planning ------------------------------------------------------------------------
-    runs: dict = {}
-    plans: dict = {}
-    scen_out: list = []
-    metrics: dict = {}
+    runs: dict[str, Any] = {}
+    plans: dict[str, Any] = {}
+    scen_out: list[Any] = []
+    metrics: dict[str, Any] = {}
     for name in scenarios:
         e = entries[name]
         prob = e["problem"]
@@ -520,7 +537,7 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
         pred = None
         if e["predictions"] and e["predictions"][0] is not None:
             p0 = e["predictions"][0]
-            pred = {"x_poly": list(p0.x_poly), "t": p0.t, "x": p0.x, "v": p0.v, "a": p0.a, "model": p0.model,
+            pred = {"x_poly": list[Any](p0.x_poly), "t": p0.t, "x": p0.x, "v": p0.v, "a": p0.a, "model": p0.model,
                     "fit_rmse": p0.fit_rmse}
         scen_out.append({"name": name, "builtin": e["builtin"], "source": e["source"], "fallback": e["fallback"],
                          "table1": rows1[name], "paper_table1": PAPER_TABLE_I.get(name),
@@ -528,15 +545,15 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
                                                                    "vyf")},
                          "vehicles": [{"name": v.name, "corner": v.corner, "y": v.y, "length": v.length,
                                        "width": v.width, "safety_x": v.safety_x, "safety_y": v.safety_y,
-                                       "x_poly": list(v.x_poly)} for v in prob.vehicles],
+                                       "x_poly": list[Any](v.x_poly)} for v in prob.vehicles],
                          "prediction": pred, "runs": plan["runs"], "agreement": plan["agreement"],
                          "agreement_source": plan["agreement_source"], "metrics": metrics.get(name),
                          "sweeps": sweeps})
 
     # 3. figures -------------------------------------------------------------------------
-    figs: dict = {}
+    figs: dict[str, Any] = {}
 
-    def fig(key, paths):
+    def fig(key: str, paths: list[Path]) -> None:
         written.extend(paths)
         figs[key] = f"figures/{Path(paths[-1]).name}"  # the PDF
 
@@ -551,10 +568,10 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
         qp_runs = {short_label(lbl): r for lbl, r in runs[name].items()
                    if lbl != "pmp" and "refine" not in lbl and "native" not in lbl}
         if prob.m == 1:
-            sweeps = {short_label(lbl): (r.steps, r.info["sweep"]) for lbl, r in runs[name].items()
-                      if lbl != "pmp" and r.is_optimal() and r.hold == "foh" and "sweep" in r.info
-                      and "refine" not in lbl and "native" not in lbl}
-            fig(f"J-{name}", F.plot_value_function(prob, pmp, sweeps, fd / f"J-{name}",
+            fig_sweeps = {short_label(lbl): (r.steps, r.info["sweep"]) for lbl, r in runs[name].items()
+                          if lbl != "pmp" and r.is_optimal() and r.hold == "foh" and "sweep" in r.info
+                          and "refine" not in lbl and "native" not in lbl}
+            fig(f"J-{name}", F.plot_value_function(prob, pmp, fig_sweeps, fd / f"J-{name}",
                                                    title=f"{name}: cost against contact time"))
         fig(f"costates-{name}", F.plot_costates(pmp, qp_runs, fd / f"costates-{name}",
                                                 title=f"{name}: PMP co-states and jumps against QP multipliers"))
@@ -601,7 +618,7 @@ def reproduce(out_dir="reports", progress=None, *, status=None, quick: bool = Fa
 
     # 6. predictor evaluation --------------------------------------------------------------
     step("predictor evaluation")
-    tables: dict = {}
+    tables: dict[str, Any] = {}
     predictor = _predictor_evaluation(out, cfg, notes, progress=step.sub)
     if predictor is not None:
         for key in ("predictor_rmse", "predictor_selection"):
