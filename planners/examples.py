@@ -11,12 +11,14 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 
 LANE_WIDTH = 3.75
-DEFAULT_GEOMETRY = {"length": 4.8, "width": 1.8, "safety_x": 5.0, "safety_y": 0.5}
+DEFAULT_GEOMETRY: dict[str, Any] = {"length": 4.8, "width": 1.8, "safety_x": 5.0, "safety_y": 0.5}
 
 
 def paper_problem(k: int) -> Problem:

@@ -68,7 +68,8 @@ def bridge_kernel_ds(s: ArrayLike, t: ArrayLike, tf: float) -> FloatArray:
     t = np.asarray(t, dtype=float)
     below = (tf - t) ** 2 * s * (2 * tf * t - tf * s - 2 * s * t) / (2 * tf**3)
     above = t**2 * (tf - s) * (tf**2 - 3 * tf * s + 2 * t * s) / (2 * tf**3)
-    return np.where(s <= t, below, above)
+    out: FloatArray = np.where(s <= t, below, above)
+    return out
 
 
 def bridge_variance_dt(t: ArrayLike, tf: float) -> FloatArray:
@@ -252,7 +253,8 @@ def solve_sigma(S: Scaled, sig: FloatArray) -> FloatArray:
                           "numerical_error") from None
     if not np.all(np.isfinite(z)):
         raise SolverError(f"contact times {sig * S.units.T} make the jump conditions singular", "numerical_error")
-    return z
+    out: FloatArray = np.asarray(z, dtype=np.float64)
+    return out
 
 
 def solution_from_sigma(problem: Problem, S: Scaled, sig: FloatArray, z: FloatArray) -> PMPSolution:

@@ -31,7 +31,7 @@ FloatArray = npt.NDArray[np.float64]
 def powers(T: float, n: int) -> FloatArray:
     """``[1, T, T², …, T^(n−1)]`` by repeated multiplication (the scalar and batched paths
     use the same products, so they give the same numbers)."""
-    out: FloatArray = np.cumprod(np.r_[1.0, np.full(max(n - 1, 0), float(T))])[:n]
+    out: FloatArray = np.cumprod(np.r_[1.0, np.full(max(n - 1, 0), float(T))], dtype=np.float64)[:n]
     return out
 
 
