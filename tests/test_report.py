@@ -165,7 +165,7 @@ def test_results_json_foh_agrees_with_pmp(quick_report):
 
 
 def test_results_json_zoh_convergence(quick_report):
-    out, res, _ = quick_report
+    _, res, _ = quick_report
     conv = res["zoh_convergence"]
     assert set(conv) == {"paper-1", "paper-2", "paper-3"}
     for c in conv.values():
