@@ -54,6 +54,7 @@ PathLike = str | os.PathLike[str]
 __all__ = [
     "PALETTE",
     "draw_xy",
+    "is_avoidance",
     "lane_lines",
     "legend_below",
     "planner_style",
@@ -67,6 +68,7 @@ __all__ = [
     "save_figure",
     "save_one",
     "scenario_color",
+    "tidy_axis",
     "xy_figsize",
     "xy_limits",
 ]
@@ -117,6 +119,26 @@ def planner_style(label: str) -> dict[str, str]:
             return {"color": color, "marker": marker, "mfc": color if filled else "none",
                     "ls": "--" if "avoid" in low else "-"}
     return {"color": PALETTE["other"], "marker": "^", "mfc": "none", "ls": ":"}
+
+
+def is_avoidance(result: Plan) -> bool:
+    """Whether ``result`` comes from the avoidance QP (SPEC §10), whose times are crossings."""
+    return "avoid" in str((result.info or {}).get("constraint", ""))
+
+
+def tidy_axis(ax: Axes, values: ArrayLike, *, min_span: float = 0.1) -> None:
+    """No offset notation, and a y-range of at least ``min_span`` (relative to the values' size)
+    around values that are constant up to rounding, so that 1e-13 noise is not drawn as a signal."""
+    ax.ticklabel_format(axis="y", useOffset=False)
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return
+    lo, hi = float(np.min(v)), float(np.max(v))
+    span = max(min_span * max(abs(lo), abs(hi)), min_span)
+    if hi - lo < 1e-6 * span:
+        mid = 0.5 * (lo + hi)
+        ax.set_ylim(mid - span, mid + span)
 
 
 def scenario_color(name: str, k: int = 0) -> str:
@@ -219,6 +241,9 @@ def draw_xy(ax: Axes, result: Plan, times: ArrayLike, *, ego_size: tuple[float, 
         Write ``t = …`` above each ego snapshot.
     """
     problem = result.problem
+    # the avoidance QP (SPEC §10) reports crossing times τ_i (the ego leaves one half-plane of the
+    # corner for the other), not touches of the corner
+    crossing = is_avoidance(result)
     ts = np.asarray(times, dtype=float)
     X = result.trajectory.states(ts)
     tt = np.linspace(0.0, problem.tf, 401)
@@ -266,7 +291,9 @@ def draw_xy(ax: Axes, result: Plan, times: ArrayLike, *, ego_size: tuple[float, 
                                lw=0.9, ls="--", zorder=6))
         cx, cy = float(v.corner_x(ti)), v.corner_y
         ax.plot([cx], [cy], "*", ms=11, color=SAFETY_COLOR, mec="k", mew=0.5, zorder=7,
-                label=f"contact {i + 1}: {v.corner} corner of vehicle {i + 1} at $t_{i + 1}$ = {ti:.2f} s")
+                label=(f"vehicle {i + 1}: {v.corner} corner at its crossing time $\\tau_{i + 1}$ = {ti:.2f} s"
+                       if crossing else
+                       f"contact {i + 1}: {v.corner} corner of vehicle {i + 1} at $t_{i + 1}$ = {ti:.2f} s"))
     xmin, xmax, ymin, ymax = xy_limits(result)
     ax.set_xlim(xmin, xmax)
     ax.set_ylim(ymin, ymax)

@@ -341,3 +341,23 @@ def test_timing_table_states_the_pmp_once():
     tex = table_timing(timing, scen)
     rows = [line for line in tex.splitlines() if line.rstrip().endswith("\\\\") and "PMP" in line]
     assert len(rows) == 1 and "One measurement set" in tex  # one PMP row: the whole plan, timed once
+
+
+def test_rounding_noise_is_not_drawn_as_a_signal():
+    """A jerk that is constant up to 1e-13 gets a readable y-range, without offset notation."""
+    from matplotlib.figure import Figure
+
+    from iamp.comparison.figures import tidy_axis
+
+    ax = Figure().add_subplot(1, 1, 1)
+    y = 1.44 + 1e-13 * np.sin(np.arange(200.0))
+    ax.plot(np.arange(200.0), y)
+    tidy_axis(ax, y)
+    lo, hi = ax.get_ylim()
+    assert hi - lo >= 0.2 * 1.44 - 1e-12 and lo < 1.44 < hi
+    ax2 = Figure().add_subplot(1, 1, 1)
+    y2 = np.linspace(-3.0, 5.0, 50)  # a real signal keeps matplotlib's own limits
+    ax2.plot(y2, y2)
+    before = ax2.get_ylim()
+    tidy_axis(ax2, y2)
+    assert ax2.get_ylim() == before

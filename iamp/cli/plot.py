@@ -94,7 +94,15 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
     snapshots : int
         Number of instants drawn in the x–y plane, evenly spaced over ``[0, t_f]``.
     """
-    from iamp.comparison.figures import SAFETY_COLOR, draw_xy, legend_below, planner_style, xy_limits
+    from iamp.comparison.figures import (
+        SAFETY_COLOR,
+        draw_xy,
+        is_avoidance,
+        legend_below,
+        planner_style,
+        tidy_axis,
+        xy_limits,
+    )
 
     problem = result.problem
     tf = problem.tf
@@ -111,6 +119,7 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
                     "earlier", fontsize=9)
     legend_below(ax_xy, ncol=3, fontsize=7)
 
+    time_name = "crossing time $\\tau_i$" if is_avoidance(result) else "contact time $t_i$"
     tt = np.linspace(0.0, tf, 2001)
     X = result.states(tt)
     U = result.inputs(tt)
@@ -130,10 +139,11 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
                 ax.plot(tv, yv, "o", ms=2.5, color=color, label=f"{sym}: ZOH input step / $h$ (impulses)")
             else:
                 ax.plot(tv, yv, color=color, lw=1.5, label=f"{sym}, {label}")
+            tidy_axis(ax, yv)
             for i, ti in enumerate(result.contact_times):
                 if np.isfinite(ti):
                     ax.axvline(float(ti), color=SAFETY_COLOR, ls=":", lw=1.0,
-                               label="contact time $t_i$" if i == 0 else None)
+                               label=(time_name if i == 0 else None))
             ax.set_xlim(0.0, tf)
             ax.set_ylabel(f"{sym} [{unit}]")
             ax.set_xlabel("$t$ [s]")
