@@ -96,7 +96,8 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         raise ScenarioError(f"must be a positive integer (got {steps!r})", "steps")
     if planner == "pmp":
-        given = [name for name, value in (("solver", solver), ("hold", hold), ("contact", contact)) if value is not None]
+        options = (("solver", solver), ("hold", hold), ("contact", contact))
+        given = [name for name, value in options if value is not None]
         if given:
             raise ScenarioError("applies to the QP only (planner='qp')", given[0])
         if constraint != "equality":
@@ -111,10 +112,10 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
     if constraint == "avoid":
         from iamp.planners.avoid import AvoidQPPlanner
 
-        return AvoidQPPlanner(**kwargs).plan(problem)  # type: ignore[no-any-return]
+        return AvoidQPPlanner(**kwargs).plan(problem)
     from iamp.planners.qp import QPPlanner
 
-    return QPPlanner(**kwargs).plan(problem)  # type: ignore[no-any-return]
+    return QPPlanner(**kwargs).plan(problem)
 
 
 def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
