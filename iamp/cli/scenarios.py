@@ -80,7 +80,13 @@ def _read_stdin() -> str:
     if stream is None or stream.isatty():
         raise ScenarioError("standard input is a terminal: pipe a scenario into it "
                             "(e.g. iamp template | iamp plan -)", None, "<stdin>")
-    _stdin_cache = (stream, stream.read())
+    # bytes when possible: text-mode universal newlines would turn a bare CR (invalid TOML) into LF
+    buffer = getattr(stream, "buffer", None)
+    try:
+        text = buffer.read().decode("utf-8") if buffer is not None else stream.read()
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"cannot be read (UnicodeDecodeError: {exc})", None, "<stdin>") from None
+    _stdin_cache = (stream, text)
     return _stdin_cache[1]
 
 
