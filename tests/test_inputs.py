@@ -346,3 +346,16 @@ def test_ctrl_c_is_exit_130_in_one_line(monkeypatch):
     monkeypatch.setattr(cli_plan, "make_planner", interrupted)
     code, _out, err = run("plan", "paper-1-poly")
     assert code == 130 and err.strip() == "iamp: interrupted"
+
+
+def test_stdin_is_read_as_bytes_so_a_bare_cr_is_refused_there_too():
+    import subprocess
+    import sys
+
+    bare = sub(GOOD, "tf = 5.0\n", "tf = 5.0 # c\rx = 1\n").encode()
+    r = subprocess.run([sys.executable, "-m", "iamp", "plan", "-"], input=bare, capture_output=True, timeout=120)
+    err = r.stderr.decode()
+    assert r.returncode == 2 and "carriage return" in err and "<stdin>:" in err and "Traceback" not in err
+    r = subprocess.run([sys.executable, "-m", "iamp", "--debug", "plan", "-", "--json"], input=GOOD.encode(),
+                       capture_output=True, timeout=120)
+    assert r.returncode == 0 and json.loads(r.stdout)["status"] == "optimal"
