@@ -172,6 +172,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from iamp.comparison.figures import save_one
 
     out = _check_out(args.out)
+    from iamp.core.outputs import check_output  # fail fast: not the scenario, existing only with --force, writable
+
+    check_output(out, [args.scenario], getattr(args, "force", False))
     if hasattr(plan_cli, "check_options"):
         plan_cli.check_options(args)
     if getattr(args, "constraint", "equality") == "avoid" and not getattr(args, "_constraint_from_plan", False):
