@@ -86,7 +86,7 @@ verdict judged.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -436,7 +436,8 @@ class ProblemComparison:
 def compare_problem(problem: Problem, configs: Iterable[QPConfig], name: str | None = None, repeats: int = 3,
                     pmp_repeats: int | None = None, budget_s: float = 30.0,
                     problems: dict[str, Problem] | None = None,
-                    qp_pairs: bool = True, warmup: int = 1) -> ProblemComparison:
+                    qp_pairs: bool = True, warmup: int = 1,
+                    progress: Callable[[int, int], None] | None = None) -> ProblemComparison:
     """Run the PMP and every QP configuration on ``problem`` and judge every pair.
 
     Parameters
@@ -456,11 +457,18 @@ def compare_problem(problem: Problem, configs: Iterable[QPConfig], name: str | N
         the identical-problem check catches it).
     qp_pairs : bool
         Also judge OSQP/Clarabel and native/cvxpy pairs of the same hold and ``N``.
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each run (the PMP and every configuration).
     """
     problems = problems or {}
+    configs = list(configs)
     runs = [run_pmp(problems.get("pmp", problem), pmp_repeats or max(20, 10 * repeats), warmup=max(warmup, 1))]
-    for cfg in configs:
+    if progress is not None:
+        progress(1, len(configs) + 1)
+    for k, cfg in enumerate(configs):
         runs.append(run_qp(problems.get(cfg.label, problem), cfg, repeats=repeats, warmup=warmup, budget_s=budget_s))
+        if progress is not None:
+            progress(k + 2, len(configs) + 1)
     pmp = runs[0]
     tables: dict[tuple[int, str], tuple[Any, Any]] = {}
     agreement = [compare_pmp_qp(problem, pmp, r, tables) for r in runs[1:]]

@@ -18,25 +18,25 @@ line on standard error, from :func:`iamp.cli.main`).
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
+from collections.abc import Callable
+from typing import Any
 
 from iamp.cli.types import model_file
 from iamp.cli.types import positive_float as _positive_float
 from iamp.cli.types import positive_int as _positive_int
 from iamp.core.errors import ScenarioError
 from iamp.core.jsonable import to_jsonable
+from iamp.core.problem import Problem
 
 EXIT_OK, EXIT_SOLVER = 0, 3
 MAX_CANDIDATES = 20_000
 
 
-
-
-
-
-def add_parsers(sub) -> None:
+def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add ``compare`` and ``bench`` to the ``iamp`` sub-command parsers."""
     c = sub.add_parser("compare", help="PMP vs QP (OSQP/Clarabel, FOH/ZOH): agreement and timing",
                        description="Run the PMP and the QP baselines on the same problem and judge whether "
@@ -88,7 +88,7 @@ def _candidates(m: int, N: int) -> int:
     return math.perm(N - 1, m) if N - 1 >= m else 0
 
 
-def _steps_for(problem, args) -> list[int]:
+def _steps_for(problem: Problem, args: argparse.Namespace) -> list[int]:
     steps = args.steps or ([100] if problem.m == 1 else [20])
     for N in steps:
         if N < problem.m + 1:
@@ -99,15 +99,16 @@ def _steps_for(problem, args) -> list[int]:
     return list(dict.fromkeys(steps))
 
 
-def run_compare(args) -> dict:
+def run_compare(args: argparse.Namespace) -> dict[str, Any]:
     """Everything ``iamp compare`` computes, as the JSON object (no printing)."""
-    from iamp.cli.progress import accepts_progress, progress_bar, progress_enabled
+    from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.cli.scenarios import load_cli_problem  # a file, a built-in, or - (standard input)
     from iamp.comparison.agreement import compare_problem, default_configs
     from iamp.comparison.timing import DEFAULT_SHIFT_S, geomean_table, qp_breakdown, solver_settings, versions
     from iamp.core.tolerances import TOLERANCES
 
-    loaded, refused = [], []
+    loaded: list[tuple[Any, Problem, list[int]]] = []
+    refused: list[dict[str, str]] = []
     for spec in args.scenarios:  # validate every input before any solve; a bad one does not stop the good ones
         try:
             scenario, problem, _ = load_cli_problem(spec, args.model)
@@ -118,17 +119,20 @@ def run_compare(args) -> dict:
             refused.append({"scenario": spec, "error": " ".join(exc.one_line().split())})
     if not loaded and refused:
         raise ScenarioError("no scenario could be loaded", "scenarios", ", ".join(args.scenarios))
-    scenarios, medians = [], {}
+    scenarios: list[dict[str, Any]] = []
+    medians: dict[str, dict[str, Any]] = {}
     # progress: 1000 units per scenario, 800 for the planners (finer if compare_problem reports), 200 breakdown
     with progress_bar(1000 * len(loaded), "compare", enabled=progress_enabled(args)) as tick:
         for k, (scenario, problem, steps) in enumerate(loaded):
             tick.describe(f"compare {scenario.name}")
             configs = default_configs(steps=steps, solvers=tuple(args.solvers), holds=tuple(args.holds),
                                       native=args.native)
-            sub = ({"progress": lambda d, n, k=k: tick(1000 * k + (800 * d) // max(n, 1), 1000 * len(loaded))}
-                   if accepts_progress(compare_problem) else {})
+
+            def sub(d: int, n: int, k: int = k) -> None:
+                tick(1000 * k + (800 * d) // max(n, 1), 1000 * len(loaded))
+
             comp = compare_problem(problem, configs, name=scenario.name, repeats=args.repeats, budget_s=args.budget,
-                                   **sub)
+                                   progress=sub)
             tick(1000 * k + 800, 1000 * len(loaded))
             if not args.no_breakdown:
                 comp.timing["breakdown"] = [
@@ -158,15 +162,15 @@ def run_compare(args) -> dict:
     }
 
 
-def _summary_key(run: dict, auto: bool) -> str:
+def _summary_key(run: dict[str, Any], auto: bool) -> str:
     """Label for the cross-scenario summary; with the default (per-scenario) ``N`` the step
     count is replaced by ``N`` so that one configuration is one row."""
     if run["planner"] == "pmp" or not auto:
-        return run["label"]
-    return (run["label"] + "-").replace(f"-{run['steps']}-", "-N-", 1).rstrip("-")
+        return str(run["label"])
+    return (str(run["label"]) + "-").replace(f"-{run['steps']}-", "-N-", 1).rstrip("-")
 
 
-def _fmt_time(x) -> str:
+def _fmt_time(x: float | None) -> str:
     if x is None:
         return "-"
     if x < 1e-3:
@@ -176,11 +180,11 @@ def _fmt_time(x) -> str:
     return f"{x:.2f} s"
 
 
-def _fmt_g(x, spec=".3g") -> str:
+def _fmt_g(x: float | None, spec: str = ".3g") -> str:
     return "-" if x is None else format(x, spec)
 
 
-def _print_text(out: dict, write) -> None:
+def _print_text(out: dict[str, Any], write: Callable[[str], Any]) -> None:
     for sc in out["scenarios"]:
         write(f"scenario {sc['name']} ({sc['m']} vehicle(s)); x_poly sha256 {sc['x_poly_sha256'][:16]}\n")
         write(f"  {'run':28s} {'status':10s} {'cost J':>14s}  {'contact times [s]':22s} {'jumps (x, y)':34s} "
@@ -227,11 +231,11 @@ def _print_text(out: dict, write) -> None:
     write(f"verdicts: {n_all - n_dis} of {n_all} pairs agree\n")
 
 
-def latex_table(out: dict) -> str:
+def latex_table(out: dict[str, Any]) -> str:
     """One booktabs table: every run of every scenario with its verdict against the PMP."""
     from iamp.comparison.latex import Raw, booktabs_table, escape, sci
 
-    rows = []
+    rows: list[list[Any] | None] = []
     for k, sc in enumerate(out["scenarios"]):
         if k:
             rows.append(None)
@@ -252,13 +256,13 @@ def latex_table(out: dict) -> str:
     v = out["versions"]
     notes = (f"Medians of up to {out['repeats']} timed full plans per configuration (contact-time search "
              f"included; fewer once {out['budget_s']:g} s are spent). "
-             f"Gaps against the PMP at the QP's own contact times. python {v['python']}, cvxpy {v['cvxpy']}, "
-             f"osqp {v['osqp']}, clarabel {v['clarabel']}.")
+             f"Gaps: each QP run against the PMP run as they came out (SPEC 5b). "
+             f"python {v['python']}, cvxpy {v['cvxpy']}, osqp {v['osqp']}, clarabel {v['clarabel']}.")
     return booktabs_table(header, rows, caption="PMP and QP baselines: cost, contact times, timing and agreement",
                           label="tab:compare", align="llllrrrrl", notes=notes)
 
 
-def cmd_compare(args) -> int:
+def cmd_compare(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from iamp.core.outputs import check_output
@@ -269,9 +273,9 @@ def cmd_compare(args) -> int:
             check_output(getattr(args, option), inputs, args.force, option="--" + option.replace("_", "-"))
     out = run_compare(args)
     if args.latex:
-        from iamp.comparison.latex import write_atomic
+        from iamp.core.atomic import write_text
 
-        write_atomic(args.latex, latex_table(out))
+        write_text(args.latex, latex_table(out))
     if args.json:
         sys.stdout.write(json.dumps(to_jsonable(out), allow_nan=False) + "\n")
     else:
@@ -296,7 +300,7 @@ def cmd_compare(args) -> int:
 # --------------------------------------------------------------------------------------
 
 
-def cmd_bench(args) -> int:
+def cmd_bench(args: argparse.Namespace) -> int:
     from iamp.comparison.bench import format_bench, run_bench
 
     out = run_bench(quick=args.quick)
