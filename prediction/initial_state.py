@@ -39,6 +39,7 @@ contains constant acceleration and the initialisation is unbiased).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,6 +123,11 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
     -------
     SmoothedHistory
         Arrays of shape ``(B, K)`` (``B = 1`` for a 1-D ``Z``).
+
+    For fixed ``t``, ``σ`` and ``q`` the gains do not depend on the data, so the smoother is a
+    linear map ``z ↦ (x, v, a)``; it is computed once (by smoothing the unit vectors) and cached.
+    Estimated noise levels are rounded to two significant digits for that (the estimate's own
+    sampling error is far larger, about ``1/√(K-3)``).
     """
     t = np.asarray(t, dtype=float)
     Z = np.atleast_2d(np.asarray(Z, dtype=float))
@@ -130,7 +136,33 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
         raise ValueError("needs at least 3 samples, as many times as positions")
     if not jerk_psd > 0:
         raise ValueError(f"jerk_psd must be positive (got {jerk_psd})")
-    sig = noise_sigma(t, Z) if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=float), (B,)).copy()
+    if sigma is None:
+        sig = np.asarray([float(f"{s:.2g}") for s in noise_sigma(t, Z)])
+    else:
+        sig = np.broadcast_to(np.asarray(sigma, dtype=float), (B,)).copy()
+    out = np.empty((3, B, K))
+    levels, inverse = np.unique(sig, return_inverse=True)
+    key = t.tobytes()
+    for j, level in enumerate(levels):
+        rows = inverse == j
+        M = _operator(key, K, float(level), float(jerk_psd))  # (3, K, K)
+        out[:, rows] = np.einsum("bj,cjk->cbk", Z[rows], M)
+    return SmoothedHistory(out[0], out[1], out[2], sig)
+
+
+@functools.lru_cache(maxsize=256)
+def _operator(t_bytes: bytes, K: int, sigma: float, jerk_psd: float) -> FloatArray:
+    """``M[c, j, k]``: component ``c`` (x, v, a) at sample ``k`` of the smoothed unit vector ``e_j``."""
+    t = np.frombuffer(t_bytes, dtype=np.float64, count=K)
+    s = _rts(t, np.eye(K), jerk_psd, np.full(K, sigma))
+    M: FloatArray = np.stack([s.x, s.v, s.a])
+    M.setflags(write=False)
+    return M
+
+
+def _rts(t: FloatArray, Z: FloatArray, jerk_psd: float, sig: FloatArray) -> SmoothedHistory:
+    """The Kalman filter and RTS recursions (module docstring) for rows ``Z`` with noise ``sig``."""
+    B, K = Z.shape
     R = sig * sig  # (B,)
     # diffuse initialisation: the quadratic through samples 0..2, its state at t_2
     t0, t1, t2 = t[0] - t[2], t[1] - t[2], 0.0

@@ -166,6 +166,17 @@ class Prediction:
 # the predictor
 # ---------------------------------------------------------------------------------------
 
+@functools.lru_cache(maxsize=64)
+def _grid_operator(t_bytes: bytes, K: int, dt: float, n: int) -> FloatArray:
+    """``R`` with ``R @ x`` = the positions linearly resampled to the last ``n + 2`` grid nodes."""
+    t = np.frombuffer(t_bytes, dtype=np.float64, count=K)
+    tg, _ = history_grid(t, t, dt)
+    tg = tg[-(n + 2):]
+    R: FloatArray = np.stack([np.interp(tg, t, e) for e in np.eye(K)], axis=1)
+    R.setflags(write=False)
+    return R
+
+
 @functools.lru_cache(maxsize=1)
 def _default_model() -> MTDModel:
     name = f"iamp.prediction/data/{DEFAULT_MODEL_FILE}"
@@ -255,10 +266,7 @@ class Predictor:
         """
         t_hist = np.asarray(t_hist, dtype=float)
         sm = smooth_histories(t_hist, X_hist, self.jerk_psd)
-        n = self.model.order
-        tg, _ = history_grid(t_hist, sm.x[0], self.dt)
-        tg = tg[-(n + 2):]
-        R = np.stack([np.interp(tg, t_hist, e) for e in np.eye(t_hist.size)], axis=1)  # linear in x
+        R = _grid_operator(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
         states = self.model.states(second_differences(sm.x @ R.T, self.dt))
         return sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0), states
 
