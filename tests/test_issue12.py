@@ -328,3 +328,13 @@ def test_em_lambda_certificate_and_iteration_count():
     assert np.allclose(lam1, np.array([0.8, 0.2]) * g)  # one multiplicative update
     lam0, info0 = em_lambda(P, w, np.array([0.5, 0.5]), 1e-12, 5)
     assert info0["iterations"] == 1 and info0["converged"] and np.array_equal(lam0, [0.5, 0.5])
+
+
+def test_em_joint_max_iter_counts_em_evaluations():
+    """max_iter bounds the EM evaluations: from the ML point one cycle costs 2 (nothing to
+    extrapolate), so max_iter = 2 stops after that cycle, before the convergence test can pass."""
+    rows = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [1, 1]])
+    Q = np.array([[[0.5, 1 / 3], [0.5, 2 / 3]]])
+    trace: list[float] = []
+    _, _, info = em_joint(rows, np.ones(5), Q, np.array([1.0]), 2, 0.0, "uniform", 1e-12, 2, trace)
+    assert info["iterations"] == 2 and len(trace) == 1 and not info["converged"]
