@@ -6,7 +6,9 @@ cost integrated by Gauss–Legendre; the contact time(s) come from a dense grid 
 polish (bounded Brent for one vehicle, Nelder–Mead for two); the jumps are the jumps of the
 spline's third derivative (u̇ = p1, so Φ = −Δs'''), read off the spline.
 
-Usage: python scripts/check_independent.py [--seeds 1000 2000] [--m 1]
+For ``m >= 3`` the grid is coarser and the eight best grid points are polished.
+
+Usage: python scripts/check_independent.py [--seeds 1000 2000] [--m 1]  (m = 1..4)
 """
 
 from __future__ import annotations
@@ -57,11 +59,25 @@ def independent(problem):
                                        method="bounded", options={"xatol": 1e-12})
         t = np.array([res.x])
     else:
-        g = np.linspace(0, tf, 122)[1:-1]
-        best = min(((spline_cost(problem, [a, b]), (a, b)) for a in g for b in g if abs(a - b) > 1e-9))
-        res = optimize.minimize(lambda x: spline_cost(problem, x) if abs(x[0] - x[1]) > 1e-9 and np.all((x > 0) & (x < tf)) else np.inf,
-                                best[1], method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-14, "maxiter": 5000})
-        t = res.x
+        import itertools
+
+        n = {2: 122, 3: 22, 4: 10}.get(m, 6)
+        g = np.linspace(0, tf, n)[1:-1]
+        cands = sorted((spline_cost(problem, list(c)), c) for c in itertools.product(g, repeat=m)
+                       if len(set(np.round(c, 12))) == m)
+
+        def f(x):
+            xs = np.sort(x)
+            ok = np.all(np.diff(xs) > 1e-9) and np.all((x > 0) & (x < tf))
+            return spline_cost(problem, x) if ok else np.inf
+
+        best = None
+        for _, c in cands[: 1 if m == 2 else 8]:  # polish the best grid points
+            res = optimize.minimize(f, np.array(c), method="Nelder-Mead",
+                                    options={"xatol": 1e-12, "fatol": 1e-14, "maxiter": 20000})
+            if best is None or res.fun < best.fun:
+                best = res
+        t = best.x
     t_knots, order, splines = spline_parts(problem, t)
     jumps = np.empty((m, 2))
     for axis, cs in enumerate(splines):
