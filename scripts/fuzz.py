@@ -27,6 +27,9 @@ contact times is the clamped cubic spline through the boundary states and the co
 start and end at the file's boundary states, and report its cost (FOH QP: same optimum,
 SPEC §3.1; ZOH QP: a cost not below it).
 
+``refused-unnamed`` counts the refusals (already in ``refused``) whose line names neither a
+field, an option nor a TOML line (e.g. a file that is not UTF-8: only the file is named).
+
 Prints the counts (and with ``--keep DIR`` saves every non-ok case's file and command).
 """
 
@@ -37,6 +40,7 @@ import io
 import json
 import os
 import random
+import re
 import shutil
 import signal
 import sys
@@ -352,6 +356,9 @@ def main(argv: list[str] | None = None) -> int:
             code, out, err = run(cmd, args.timeout)
             kind, detail = classify(code, out, err, path, cmd)
             counts[kind] += 1
+            if kind == "refused" and not re.search(r"field '|argument --|\.toml:\d+:", detail):
+                counts["refused-unnamed"] += 1  # names neither a field, an option nor a TOML line
+                examples.setdefault("refused-unnamed", []).append(detail)
             if kind not in ("ok", "local", "refused", "failed"):
                 examples.setdefault(kind, []).append(f"{base} [{'; '.join(notes)}] {' '.join(opts)} -> {detail}")
                 if keep:
@@ -367,7 +374,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(summary, indent=1))
     else:
         print(f"{args.n} cases (seed {args.seed}) in {summary['seconds']} s")
-        for k in ("ok", "local", "refused", "failed", "unsafe", "crash", "hang", "unchecked-optimal", "other"):
+        for k in ("ok", "local", "refused", "refused-unnamed", "failed", "unsafe", "crash", "hang",
+                  "unchecked-optimal", "other"):
             print(f"  {k:18s} {counts.get(k, 0)}")
         for k, v in examples.items():
             for line in v[:5]:

@@ -323,6 +323,8 @@ def loads_scenario(text: str, source: str | None = None, default_name: str = "sc
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         at = _syntax_line(str(exc))
+        if at is None and "end of document" in str(exc):
+            at = text.rstrip("\n").count("\n") + 1  # the last line: where the document stopped
         where = f"{source}:{at}" if source and at else source
         raise ScenarioError(f"TOML syntax error: {exc}", None, where) from None
     except (RecursionError, MemoryError):
