@@ -4,7 +4,7 @@
   (SPEC §8 defaults; scenario 1 at a constant 18 m/s, 2 and 3 with the documented
   polynomials of the built-in ``paper-N-poly`` files).
 * :func:`random_problem` — seeded random lane changes, to either side, with non-zero lateral
-  boundary speeds, cubic vehicle trajectories, one or two vehicles.
+  boundary speeds, cubic vehicle trajectories, one to four vehicles.
 * :func:`two_minima_problem` — one vehicle whose ``J(t)`` has two local minima, the global
   one *not* the one nearest the middle of the horizon.
 """
