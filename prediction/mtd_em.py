@@ -32,6 +32,10 @@ from iamp.prediction.mtd_counts import _normalise_columns
 
 __all__ = ["em_joint", "em_lambda", "squarem_cycle", "squarem_extrapolate"]
 
+#: Floor of a mixture probability before ``log`` and division: a guard only, since every observed
+#: transition keeps a positive probability under EM (its responsibilities, hence counts, are > 0).
+_LOG_FLOOR = 1e-300
+
 #: One EM map: ``(λ, Q) -> (λ', Q', \bar\ell(λ, Q))``.
 EMMap = Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray, float]]
 
@@ -51,7 +55,7 @@ def em_lambda(P: FloatArray, w: FloatArray, lam0: FloatArray, tol: float,
     converged = False
     while it < max_iter:
         it += 1
-        mix = np.maximum(P @ lam, 1e-300)
+        mix = np.maximum(P @ lam, _LOG_FLOOR)
         g = (w / mix) @ P / N  # gradient of ℓ/N
         gap = float(g.max() - 1.0)
         if gap < tol:
@@ -137,7 +141,7 @@ def em_joint(rows: IntArray, w: FloatArray, Q: FloatArray, lam: FloatArray, m: i
 
     def em(lam: FloatArray, Q: FloatArray) -> tuple[FloatArray, FloatArray, float]:
         P = lag_probs(Q)
-        mix = np.maximum(P @ lam, 1e-300)
+        mix = np.maximum(P @ lam, _LOG_FLOOR)
         ll = float(np.sum(w * np.log(mix))) / N
         R = P * lam * (w / mix)[:, None]  # weighted responsibilities r_ti
         lam2 = R.sum(axis=0) / N  # on the simplex: every row of responsibilities sums to 1
@@ -163,7 +167,7 @@ def em_joint(rows: IntArray, w: FloatArray, Q: FloatArray, lam: FloatArray, m: i
         accepted += int(acc)
         lam, Q = lam_n, Q_n
     P = lag_probs(Q)
-    ll = float(np.sum(w * np.log(np.maximum(P @ lam, 1e-300)))) / N
+    ll = float(np.sum(w * np.log(np.maximum(P @ lam, _LOG_FLOOR)))) / N
     return Q, lam, {"iterations": evals, "tolerance": tol, "accelerated_steps": accepted,
                                 "last_increase_avg_loglik": float(delta), "avg_loglik": ll,
                                 "converged": converged, "method": "EM + SQUAREM (S3)"}

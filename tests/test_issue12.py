@@ -338,3 +338,12 @@ def test_em_joint_max_iter_counts_em_evaluations():
     trace: list[float] = []
     _, _, info = em_joint(rows, np.ones(5), Q, np.array([1.0]), 2, 0.0, "uniform", 1e-12, 2, trace)
     assert info["iterations"] == 2 and len(trace) == 1 and not info["converged"]
+
+
+def test_fit_reports_progress_per_em_start():
+    from iamp.prediction.mtd_fit import fit
+
+    rng = np.random.default_rng(7)
+    seen: list[tuple[int, int]] = []
+    fit([rng.integers(0, 3, 200)], 3, 2, "mle", n_starts=3, progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(1, 3), (2, 3), (3, 3)]
