@@ -235,9 +235,11 @@ def test_jerk_of_a_pmp_plan_is_piecewise_constant_with_a_jump_at_the_contact():
 
 def test_reproduce_without_pdflatex_says_so_and_removes_the_stale_pdf(tmp_path, capsys, monkeypatch):
     import iamp.comparison.report as report
+    from iamp.core.outputs import write_marker
 
     out = tmp_path / "rep"
     out.mkdir()
+    write_marker(out, "reproduce")  # the folder of an earlier run of iamp reproduce
     (out / "report.pdf").write_bytes(b"%PDF-1.5 stale, from an earlier run")
 
     def fake_reproduce(out_dir, progress=None, *, status=None, quick=False, config=None):
@@ -266,8 +268,11 @@ def test_reproduce_quick_end_to_end_without_pdflatex(tmp_path):
     """The real command in a PATH without pdflatex (a minute: marked slow)."""
     import os
 
+    from iamp.core.outputs import write_marker
+
     out = tmp_path / "rep"
     out.mkdir()
+    write_marker(out, "reproduce")
     (out / "report.pdf").write_bytes(b"%PDF-1.5 stale")
     env = dict(os.environ, PATH=str(Path(sys.executable).parent))
     proc = subprocess.run([sys.executable, "-m", "iamp.cli", "reproduce", "--quick", "--out", str(out)],
