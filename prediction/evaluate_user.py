@@ -120,7 +120,7 @@ def _ci(x: FloatArray) -> list[float]:
 
 
 def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None = None, split: str | None = None,
-                  seed: int = 0, resamples: int = BOOTSTRAP_RESAMPLES,
+                  seed: int = 0, resamples: int = BOOTSTRAP_RESAMPLES, location: str | None = None,
                   progress: Progress | None = None) -> dict[str, Any]:
     """Evaluate CV, CA, MTD and the first-order chain on a data file (SPEC §13 JSON).
 
@@ -136,6 +136,8 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         Seed of the vehicle split and of the bootstrap.
     resamples : int
         Bootstrap resamples.
+    location : str, optional
+        NGSIM only: keep the rows of this ``Location`` (e.g. ``"us-101"``, ``"i-80"``).
     progress : callable, optional
         ``progress(done, total)`` after each step.
 
@@ -163,7 +165,9 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         raise ValueError(f"split must be one of {', '.join(SPLITS)} (got {split!r})")
     if split is not None and model is not None:
         raise ValueError("--model and --split exclude each other (--split trains the model on the file)")
-    tracks, report = load_with_report([data], fmt)
+    if location is not None and fmt != "ngsim":
+        raise ValueError("--location applies to NGSIM data only")
+    tracks, report = load_with_report([data], fmt, **({"location": location} if location is not None else {}))
     tick()
     test = tracks
     mtd: MTDModel

@@ -83,7 +83,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     check_output(args.out, args.data, getattr(args, "force", False))
     try:
         edges = parse_bins(args.bins, args.bin_width, args.a_max)
-        tracks, report = load_with_report(args.data, args.format)
+        if args.location is not None and args.format != "ngsim":
+            raise ValueError("--location applies to NGSIM data only")
+        tracks, report = load_with_report(args.data, args.format,
+                                          **({"location": args.location} if args.location else {}))
         for line in report.lines():
             print(line)
         model = call_with_progress(
@@ -176,17 +179,13 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
         return _evaluate_shipped(args)
     if args.format is None:
         return _error(ValueError("--data needs --format (highd, ngsim or sumo)"))
+    from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.prediction.evaluate_user import evaluate_file
 
     try:
-        try:
-            from iamp.cli.progress import progress_bar, progress_enabled
-        except ImportError:  # pragma: no cover - the UX helper's module is optional
-            res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed)
-        else:
-            with progress_bar(7, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
-                res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed,
-                                    progress=tick)
+        with progress_bar(7, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
+            res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed,
+                                location=args.location, progress=tick)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
     if args.json:
@@ -253,6 +252,9 @@ def add_parsers(subparsers: Any) -> None:
                     "log-likelihood, the parameter count k = n m (m-1) + (n-1), AIC, BIC and the lag weights.")
     t.add_argument("data", nargs="+", help="data files or directories")
     t.add_argument("--format", required=True, choices=("highd", "ngsim", "sumo"), help="data format")
+    t.add_argument("--location", default=None,
+                   help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
+                        "dropped")
     t.add_argument("--out", required=True, help="model file to write (JSON)")
     t.add_argument("--force", action="store_true", help="replace --out if it exists")
     t.add_argument("--order", type=_positive_int, default=DEFAULT_CONFIG["order"],
@@ -306,6 +308,9 @@ def add_parsers(subparsers: Any) -> None:
                    help="train on part of --data and evaluate on the held-out rest: 20 %% of the vehicles "
                         "(seeded) or the last 20 %% of the time span")
     e.add_argument("--seed", type=int, default=0, help="seed of the vehicle split and the bootstrap (default 0)")
+    e.add_argument("--location", default=None,
+                   help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
+                        "dropped")
     e.add_argument("--json", action="store_true", help="print exactly one JSON object")
     e.add_argument("--out", default="reports", help="output directory without --data (default: reports)")
     e.add_argument("--force", action="store_true", help="write into an existing --out folder iamp did not write")
