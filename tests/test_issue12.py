@@ -347,3 +347,16 @@ def test_fit_reports_progress_per_em_start():
     seen: list[tuple[int, int]] = []
     fit([rng.integers(0, 3, 200)], 3, 2, "mle", n_starts=3, progress=lambda d, t: seen.append((d, t)))
     assert seen == [(1, 3), (2, 3), (3, 3)]
+
+
+def test_fit_keeps_the_best_start_and_rejects_data_without_transitions():
+    from iamp.prediction.mtd_fit import fit
+
+    rng = np.random.default_rng(8)
+    model = fit([rng.integers(0, 3, 300)], 3, 2, "mle", n_starts=4, seed=5)
+    runs = model.fit_info["joint_em"]["starts"]
+    best = model.fit_info["joint_em"]["best_start"]
+    assert len(runs) == 4 and runs[best]["loglik"] == max(r["loglik"] for r in runs)
+    assert model.loglik == pytest.approx(runs[best]["loglik"], rel=1e-12)
+    with pytest.raises(ValueError, match="no transitions to fit"):
+        fit([np.array([0, 1])], 3, 2)
