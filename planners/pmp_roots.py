@@ -96,6 +96,8 @@ def newton_in_bracket(a: Sequence[float], lo: float, hi: float) -> float:
     Newton's method from the midpoint, falling back to bisection whenever a step leaves
     the bracket; the bracket shrinks every iteration."""
     plo, _ = horner2(a, lo)
+    if plo == 0.0:  # the bracket's end is an exact root
+        return lo
     x = 0.5 * (lo + hi)
     for _ in range(200):
         p, dp = horner2(a, x)
@@ -147,7 +149,7 @@ def unit_roots(a: Sequence[float]) -> list[float]:
             out.append(mid)
             continue
         left, right = casteljau_halves(b)
-        if right[0] == 0.0:
+        if horner2(coeffs, mid)[0] == 0.0:  # an exact root on the split point
             out.append(mid)
         los.append(mid)
         his.append(hi)
@@ -238,7 +240,11 @@ def batch_unit_roots(Pc: FloatArray) -> FloatArray:
         found_mid.append(np.ones(int(tiny.sum()), dtype=bool))
         split &= ~tiny
         L, R = _casteljau_rows(B[split])
-        at_mid = R[:, 0] == 0.0
+        msp = mid[split]
+        pm = np.zeros(msp.size)
+        for k in range(n, -1, -1):
+            pm = pm * msp + Pc[owner[split], k]
+        at_mid = pm == 0.0  # an exact root on the split point
         found_owner.append(owner[split][at_mid])
         found_lo.append(mid[split][at_mid])
         found_hi.append(mid[split][at_mid])
@@ -273,8 +279,8 @@ def _batch_newton(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
     plo = np.zeros(K)
     for k in range(n1 - 1, -1, -1):
         plo = plo * lo + A[:, k]
-    x = 0.5 * (lo + hi)
-    done = np.zeros(K, dtype=bool)
+    x = np.where(plo == 0.0, lo, 0.5 * (lo + hi))  # an exact root at the bracket's end
+    done = plo == 0.0
     for _ in range(200):
         p = np.zeros(K)
         dp = np.zeros(K)

@@ -147,3 +147,27 @@ def test_compiled_kernel_gives_identical_numbers():
         a = PMPPlanner(kernel=kern).plan(p, diagnostics=False)
         b = PMPPlanner().plan(p, diagnostics=False)
         assert a.cost == b.cost and np.array_equal(a.contact_times, b.contact_times)
+
+
+@pytest.mark.parametrize("roots,expected", [
+    ([0.5, 0.25, 0.8], [0.25, 0.5, 0.8]),  # a root exactly at the first split point
+    ([0.0, 0.3, 2.0], [0.3]),  # a root at the end of the interval (zero Bernstein end)
+    ([0.75, 0.125, 1.0, -3.0], [0.125, 0.75]),  # roots at later split points and at 1
+])
+def test_roots_on_split_points_and_ends_are_found_once(roots, expected):
+    a = P.polyfromroots(roots)
+    assert np.allclose(unit_roots(list(a)), expected, atol=1e-12)
+    assert len(unit_roots(list(a))) == len(expected)
+    B = batch_unit_roots(np.vstack([a, a]))
+    for row in B:
+        got = row[~np.isnan(row)]
+        assert got.size == len(expected) and np.allclose(got, expected, atol=1e-12)
+
+
+def test_a_double_root_is_reported_near_its_place():
+    """A double root is ill-conditioned (±sqrt(eps)); it may come back as two close roots."""
+    a = P.polyfromroots([0.375, 0.375, 0.9])
+    for got in (np.array(unit_roots(list(a))), batch_unit_roots(a[None, :])[0]):
+        got = got[~np.isnan(got)]
+        assert np.min(np.abs(got - 0.9)) < 1e-12 and np.min(np.abs(got - 0.375)) < 1e-7
+        assert np.all(np.min(np.abs(got[:, None] - np.array([0.375, 0.9])[None, :]), axis=1) < 1e-7)
