@@ -31,7 +31,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 def _sumo_binary(name: str) -> str | None:
     try:
-        import sumo  # noqa: F401
+        import sumo
 
         cand = Path(sumo.SUMO_HOME) / "bin" / name
         if cand.is_file():

@@ -110,7 +110,7 @@ def _seqs(sampled):
 
 
 def test_empirical_matrices_are_the_marginal_lag_matrices(sampled, fits):
-    true, seqs = sampled
+    true, _ = sampled
     marg = _marginal_lag_matrices(true)
     for est in ("lp", "mle-lambda"):
         assert np.max(np.abs(fits[est].Q - marg)) < 0.03

@@ -3,12 +3,14 @@ Prediction contract, refusal of bad histories, exactness of the integration, spe
 
 from __future__ import annotations
 
+import dataclasses
 
 import numpy as np
 import pytest
 from scenario_texts import history_scenario
 
 from iamp.core.errors import HistoryError
+from iamp.core.scenario import History, loads_scenario
 from iamp.prediction.evaluate import paper_histories, synthetic_tracks
 from iamp.prediction.mtd import ModelFileError, MTDModel
 from iamp.prediction.predictor import (
@@ -19,7 +21,6 @@ from iamp.prediction.predictor import (
     symmetric_edges,
     train_from_tracks,
 )
-from iamp.core.scenario import History, loads_scenario
 
 T_HIST = np.round(np.arange(-30, 1) * 0.1, 10)
 
@@ -85,7 +86,7 @@ def test_prediction_contract(predictor):
     assert np.allclose(p.x_poly, c, atol=1e-9)
     assert p.fit_rmse == pytest.approx(np.sqrt(np.mean((V @ c - p.x) ** 2)), abs=1e-12)
     assert np.allclose(p.x_fit(), V @ c)
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError):
         p.x_poly = (0.0,)
     with pytest.raises(ValueError):
         p.x[0] = 1.0  # read-only arrays
