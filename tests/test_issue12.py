@@ -360,3 +360,14 @@ def test_fit_keeps_the_best_start_and_rejects_data_without_transitions():
     assert model.loglik == pytest.approx(runs[best]["loglik"], rel=1e-12)
     with pytest.raises(ValueError, match="no transitions to fit"):
         fit([np.array([0, 1])], 3, 2)
+
+
+def test_sample_sequence_length_and_deterministic_chain():
+    from iamp.prediction.mtd_fit import sample_sequence
+
+    shift = np.roll(np.eye(4), 1, axis=0)  # state k -> k + 1 (mod 4) with certainty
+    model = MTDModel(Q=np.stack([shift, np.eye(4)]), lam=[1.0, 0.0])
+    seq = sample_sequence(model, 10, rng=0, init=[2, 3])
+    assert seq.tolist() == [2, 3, 0, 1, 2, 3, 0, 1, 2, 3]
+    drawn = sample_sequence(model, 7, rng=1)
+    assert drawn.size == 7 and np.all(np.diff(drawn[1:]) % 4 == 1)
