@@ -81,3 +81,35 @@ def test_branch_and_bound_finds_the_global_basin_from_a_bad_start():
     Z = vf.quad_sigma(np.stack([A, B], axis=-1))
     assert res.q <= float(np.min(Z)) * (1 + 1e-9)
     assert res.q < q_bad
+
+
+def _on_the_free_path(m: int, gap: float) -> ValueFunction:
+    """Corners that lie (almost) on the unconstrained path: q ≈ 0 everywhere."""
+    from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+    from iamp.planners.examples import DEFAULT_GEOMETRY
+    from iamp.planners.pmp_fixed import hermite_cubic
+
+    ego = EgoBoundary(tf=5.0, x0=0.0, y0=3.75, vx0=20.0, xf=105.0, yf=3.75, vxf=22.0)
+    hx = hermite_cubic(ego.x0, ego.vx0, ego.xf, ego.vxf, ego.tf)
+    vs = []
+    for i in range(m):
+        off = DEFAULT_GEOMETRY["length"] / 2 + DEFAULT_GEOMETRY["safety_x"]
+        poly = tuple(hx - np.r_[off - i * gap, 0, 0, 0])
+        y = 3.75 - DEFAULT_GEOMETRY["width"] / 2 - DEFAULT_GEOMETRY["safety_y"]
+        vs.append(SurroundingVehicle(x_poly=poly, corner="front-upper", y=y, name=f"v{i}", **DEFAULT_GEOMETRY))
+    return ValueFunction(Problem(ego, tuple(vs), "free-path"))
+
+
+@pytest.mark.parametrize("m,gap", [(2, 0.01), (3, 0.02)])
+def test_lower_bound_is_valid_where_q_is_tiny_and_near_the_diagonal(m, gap):
+    vf = _on_the_free_path(m, gap)
+    rng = np.random.default_rng(1)
+    n = 200
+    base = rng.uniform(0.1, 0.9, (n, 1))
+    c = np.clip(base + rng.normal(0, 0.01, (n, m)), 0.02, 0.98)  # all times close together
+    r = np.full((n, m), 0.01)
+    lb = lower_bound(vf, c, r)
+    for k in range(n):
+        pts = np.clip(c[k] + r[k] * rng.uniform(-1, 1, (300, m)), 1e-9, 1 - 1e-9)
+        q = vf.quad_sigma(pts)
+        assert lb[k] <= np.min(q) * (1 + 1e-9) + 1e-15, (k, lb[k], np.min(q))
