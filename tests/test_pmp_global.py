@@ -78,7 +78,7 @@ def test_reference_agrees_with_the_planner_at_fixed_times():
         assert plan.cost == pytest.approx(spline_costs(problem, row[None, :])[0], rel=1e-9)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0])
 def test_three_vehicles_global(seed):
     problem = random_problem(seed, m=3)
     plan = PMPPlanner().plan(problem)
@@ -88,7 +88,7 @@ def test_three_vehicles_global(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", range(2, 10))
+@pytest.mark.parametrize("seed", range(1, 10))
 def test_three_vehicles_global_more(seed):
     problem = random_problem(seed, m=3)
     plan = PMPPlanner().plan(problem)
@@ -107,7 +107,7 @@ def test_four_vehicles_global(seed):
     assert plan.cost <= ref + tol("independent_cost_rel") * ref
 
 
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10_000), side=st.sampled_from([-1, 1]))
 def test_two_vehicles_never_above_the_dense_reference(seed, side):
     problem = random_problem(seed, m=2, side=side)
