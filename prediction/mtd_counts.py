@@ -63,7 +63,7 @@ def lag_table(sequences: Any, order: int, n_states: int | None = None) -> IntArr
         T = s.size
         if T <= order:
             continue
-        rows.append(np.stack([s[order - i: T - i] for i in range(order + 1)], axis=1))
+        rows.append(np.column_stack([s[order - i: T - i] for i in range(order + 1)]))
     if not rows:
         return np.zeros((0, order + 1), dtype=np.int64)
     return np.concatenate(rows, axis=0)
@@ -101,7 +101,7 @@ def _normalise_columns(C: FloatArray, pseudocount: float, empty: str) -> FloatAr
     m = C.shape[-1]
     tot = C.sum(axis=-2, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
-        Q = np.where(tot > 0, C / np.where(tot > 0, tot, 1.0), 0.0)
+        Q: FloatArray = C / tot  # counts are >= 0: a column with total 0 is empty (NaN here, filled below)
     emptycols = (tot[..., 0, :] <= 0)  # shape (..., m)
     if np.any(emptycols):
         fill = np.full((m, m), 1.0 / m) if empty == "uniform" else np.eye(m)
@@ -131,8 +131,7 @@ def _check_empty(empty: str) -> None:
 
 
 def _unique_rows(rows: IntArray) -> tuple[IntArray, FloatArray]:
-    if rows.shape[0] == 0:
-        return rows, np.zeros(0)
+    """The distinct rows and their multiplicities (as weights)."""
     u, w = np.unique(rows, axis=0, return_counts=True)
     return u, w.astype(float)
 

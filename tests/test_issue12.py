@@ -371,3 +371,23 @@ def test_sample_sequence_length_and_deterministic_chain():
     assert seq.tolist() == [2, 3, 0, 1, 2, 3, 0, 1, 2, 3]
     drawn = sample_sequence(model, 7, rng=1)
     assert drawn.size == 7 and np.all(np.diff(drawn[1:]) % 4 == 1)
+
+
+def test_counting_helpers_validate_and_handle_edges():
+    from iamp.prediction.mtd_counts import _normalise_columns, _unique_rows, count_transitions, lag_table
+
+    with pytest.raises(ValueError, match="must hold integers"):
+        lag_table([np.array([0.5, 1.0, 2.0])], 1, 3)
+    assert lag_table([np.array([0.0, 1.0, 2.0])], 1, 3).tolist() == [[1, 0], [2, 1]]  # integral floats are fine
+    with pytest.raises(ValueError, match=r"states must lie in 0\.\.2 \(got 0\.\.3\)"):
+        count_transitions([np.array([0, 3, 1])], 3, 1)
+    with pytest.raises(ValueError, match=r"got -1\.\.1"):
+        count_transitions([np.array([-1, 1])], 3, 1)
+    empty = lag_table([np.array([1, 2])], 2, 3)
+    assert empty.shape == (0, 3) and empty.dtype == np.int64
+    u, w = _unique_rows(empty)
+    assert u.shape == (0, 3) and w.size == 0
+    C = np.array([[[3.0, 0.0], [1.0, 0.0]]])
+    assert np.allclose(_normalise_columns(C, 0.0, "uniform"), [[[0.75, 0.5], [0.25, 0.5]]])
+    assert np.allclose(_normalise_columns(C, 0.0, "identity"), [[[0.75, 0.0], [0.25, 1.0]]])
+    assert np.allclose(_normalise_columns(C, 1.0, "identity"), [[[4 / 6, 0.5], [2 / 6, 0.5]]])
