@@ -391,3 +391,33 @@ def test_counting_helpers_validate_and_handle_edges():
     assert np.allclose(_normalise_columns(C, 0.0, "uniform"), [[[0.75, 0.5], [0.25, 0.5]]])
     assert np.allclose(_normalise_columns(C, 0.0, "identity"), [[[0.75, 0.0], [0.25, 1.0]]])
     assert np.allclose(_normalise_columns(C, 1.0, "identity"), [[[4 / 6, 0.5], [2 / 6, 0.5]]])
+
+
+_Q2 = np.stack([np.full((2, 2), 0.5)] * 2)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"Q": np.zeros((0, 2, 2)), "lam": []}, r"shape \(n, m, m\)"),
+    ({"Q": np.full((1, 2, 3), 0.5), "lam": [1.0]}, r"shape \(n, m, m\)"),
+    ({"Q": _Q2, "lam": [1.0]}, "lam must have 2 entries"),
+    ({"Q": _Q2, "lam": [np.nan, 1.0]}, "finite"),
+    ({"Q": np.stack([np.array([[1.1, 0.5], [-0.1, 0.5]])] * 2), "lam": [0.5, 0.5]}, "probability distribution"),
+    ({"Q": np.stack([np.array([[0.6, 0.5], [0.5, 0.5]])] * 2), "lam": [0.5, 0.5]}, "probability distribution"),
+    ({"Q": _Q2, "lam": [1.000001, -0.000001]}, "simplex"),
+    ({"Q": _Q2, "lam": [0.5, 0.6]}, "simplex"),
+    ({"Q": _Q2, "lam": [0.5, 0.5], "edges": [0.0, 1.0]}, "edges must be 1 strictly"),
+    ({"Q": np.stack([np.full((3, 3), 1 / 3)] * 2), "lam": [0.5, 0.5], "edges": [1.0, 0.0]}, "strictly increasing"),
+    ({"Q": _Q2, "lam": [0.5, 0.5], "centres": [0.0]}, "centres must be 2"),
+    ({"Q": _Q2, "lam": [0.5, 0.5], "counts": np.ones((2, 2, 3))}, "counts must be non-negative"),
+    ({"Q": _Q2, "lam": [0.5, 0.5], "counts": -np.ones((2, 2, 2))}, "counts must be non-negative"),
+    ({"Q": _Q2, "lam": [0.5, 0.5], "dt": 0.0}, "dt must be a positive"),
+])
+def test_mtd_model_validation(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        MTDModel(**kwargs)
+
+
+def test_mtd_model_accepts_round_off():
+    m = MTDModel(Q=_Q2 + np.array([[[1e-13, 0], [-1e-13, 0]]] * 2), lam=[0.5 + 1e-9, 0.5], dt=0.2,
+                 counts=np.zeros((2, 2, 2)))
+    assert np.all(m.Q >= 0) and m.lam.sum() == pytest.approx(1.0, abs=2e-9) and m.dt == 0.2
