@@ -52,6 +52,8 @@ LIMITS: Final[dict[str, float]] = {
     # load: m = 3 in 16 s, m = 4 in 80 s, m = 6 over 120 s); the paper uses m <= 2
     "vehicles_max": 4,
     "steps_max": 20_000,
+    # perm(N−1, m)·N: the two-vehicle OSQP sweep at the default N = 100 (9.7e5) took 45 s here,
+    # one vehicle at N = 400 (1.6e5) 5 s with Clarabel; N = 5000 (2.5e7) would take hours
     "qp_work_max": 1_000_000,
     "history_samples_max": 100_000,
     "history_span_max_s": 1e3,
