@@ -51,7 +51,14 @@ def to_bernstein(a: Sequence[float]) -> list[float]:
     w = _WEIGHTS.get(n)
     if w is None:
         w = _WEIGHTS[n] = bernstein_weights(n)
-    return [sum(wj[i] * a[i] for i in range(j + 1)) for j, wj in enumerate(w)]
+    out = [0.0] * (n + 1)
+    for j in range(n + 1):
+        wj = w[j]
+        acc = 0.0
+        for i in range(j + 1):
+            acc += wj[i] * a[i]
+        out[j] = acc
+    return out
 
 
 def sign_variations(b: Sequence[float]) -> int:

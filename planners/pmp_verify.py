@@ -24,6 +24,8 @@ non-finite value fails as ``numerical_error``; any other failure as ``inaccurate
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -93,7 +95,7 @@ def judge(values: dict[str, float]) -> tuple[Checks, str | None, str | None]:
     status: str | None = None
     for name, v in values.items():
         limit = tol(_TOLS[name])
-        finite = bool(np.isfinite(v))
+        finite = math.isfinite(v)
         ok = finite and v <= limit
         checks[name] = {"value": float(v), "tol": limit, "ok": ok}
         if not ok and failed is None:
