@@ -180,9 +180,7 @@ class MTDModel:
             ``ℓ`` (``-inf`` if a transition has probability 0) and the number ``N`` of
             scored transitions (times ``t >= n`` of every sequence).
         """
-        rows = lag_table(sequences, self.order, self.n_states)
-        if rows.shape[0] == 0:
-            return 0.0, 0
+        rows = lag_table(sequences, self.order, self.n_states)  # no rows: ℓ = 0 (empty sum), N = 0
         p = _lag_probs(self.Q, rows) @ self.lam
         with np.errstate(divide="ignore"):
             return float(np.sum(np.log(p))), int(rows.shape[0])

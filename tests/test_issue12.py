@@ -411,6 +411,7 @@ _Q2 = np.stack([np.full((2, 2), 0.5)] * 2)
     ({"Q": _Q2, "lam": [0.5, 0.5], "counts": np.ones((2, 2, 3))}, "counts must be non-negative"),
     ({"Q": _Q2, "lam": [0.5, 0.5], "counts": -np.ones((2, 2, 2))}, "counts must be non-negative"),
     ({"Q": _Q2, "lam": [0.5, 0.5], "dt": 0.0}, "dt must be a positive"),
+    ({"Q": _Q2, "lam": [0.5, 0.5], "dt": np.inf}, "dt must be a positive"),
 ])
 def test_mtd_model_validation(kwargs, message):
     with pytest.raises(ValueError, match=message):
@@ -421,3 +422,11 @@ def test_mtd_model_accepts_round_off():
     m = MTDModel(Q=_Q2 + np.array([[[1e-13, 0], [-1e-13, 0]]] * 2), lam=[0.5 + 1e-9, 0.5], dt=0.2,
                  counts=np.zeros((2, 2, 2)))
     assert np.all(m.Q >= 0) and m.lam.sum() == pytest.approx(1.0, abs=2e-9) and m.dt == 0.2
+
+
+def test_log_likelihood_of_no_transitions_is_an_empty_sum():
+    m = MTDModel(Q=_Q2, lam=[0.5, 0.5])
+    ll, N = m.log_likelihood([np.array([0, 1])])
+    assert ll == 0.0 and N == 0 and isinstance(N, int)
+    ll3, N3 = m.log_likelihood([np.array([0, 1, 1, 0])])
+    assert N3 == 2 and ll3 == pytest.approx(2 * np.log(0.5))
