@@ -182,7 +182,8 @@ def test_syntax_error_names_its_line(tmp_path):
 def test_invalid_utf8_and_missing_file(tmp_path):
     p = tmp_path / "latin.toml"
     p.write_bytes(GOOD.encode() + b"# caf\xe9\n")
-    refused(*run("plan", p), str(p), "cannot be read")
+    line = refused(*run("plan", p), str(p), "not UTF-8")
+    assert f"{p}:{GOOD.count(chr(10)) + 1}:" in line  # the line holding the bad byte
     refused(*run("plan", tmp_path / "nope.toml"), "nope.toml")
 
 

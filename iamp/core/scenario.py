@@ -362,9 +362,15 @@ def load_scenario(path_or_name: str | Path) -> Scenario:
                                 None, str(p))
         try:
             # bytes, not read_text(): universal newlines would turn a bare CR (invalid TOML) into LF
-            text = p.read_bytes().decode("utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
+            raw = p.read_bytes()
+        except OSError as exc:
             raise ScenarioError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            line = raw.count(b"\n", 0, exc.start) + 1
+            raise ScenarioError(f"cannot be read: not UTF-8 (byte {raw[exc.start]:#04x} at offset {exc.start}; "
+                                "TOML files are UTF-8)", None, f"{p}:{line}") from None
         return loads_scenario(text, str(p), default_name=p.stem)
     name = str(path_or_name)
     if name in builtin_names():
