@@ -296,6 +296,7 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run,
             checks.check("bracket_upper_bound_rel", (J_qp - J_bracket) / abs(J_bracket), ctol,
                          why="the sweep's best is worse than a grid candidate bracketing t*")
             cont["bracket_cost"] = float(J_bracket)
+            cont["bracket_nodes"] = [list(c) for c in brackets]
         if out["contact_time_gap"] > h * (1 + 1e-9):
             checks.notes.append(f"contact time {out['contact_time_gap']:.3g} s from t* (> h = {h:.3g} s): the grid "
                                 "optimum lies in another basin with a cost within the grid resolution (near tie)")

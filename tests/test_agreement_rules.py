@@ -51,6 +51,8 @@ def test_bracket_bound_is_the_best_grid_node_around_t_star(comp):
     expect = min(lookup[int(np.floor(t_star / h))], lookup[int(np.ceil(t_star / h))])
     pair = comp.pair("pmp", f"qp-clarabel-foh-{N}")
     assert pair["continuous"]["bracket_cost"] == pytest.approx(expect, rel=1e-12)
+    lo, hi = int(np.floor(t_star / h)), int(np.ceil(t_star / h))
+    assert sorted(map(tuple, pair["continuous"]["bracket_nodes"])) == sorted({(lo,), (hi,)})
     qp = comp.run(f"qp-clarabel-foh-{N}").result
     assert pair["checks"]["bracket_upper_bound_rel"]["value"] == pytest.approx((qp.cost - expect) / expect, abs=1e-12)
 
@@ -104,3 +106,60 @@ def test_compare_problem_default_repeats_time_every_run():
     qp = out.run("qp-clarabel-foh-6")
     assert qp.time is not None and qp.time.n >= 1
     assert out.run("pmp").time.n >= 20  # the PMP gets max(20, 10 * repeats)
+
+
+def test_every_reference_check_value_is_recomputed(comp):
+    """Rule 2 and 4 check values, recomputed from the QP's trajectory and the PMP at t_Q."""
+    from iamp.planners.pmp import solve_fixed_times
+
+    problem = comp.problem
+    pair = comp.pair("pmp", f"qp-clarabel-foh-{N}")
+    qp = comp.run(f"qp-clarabel-foh-{N}").result
+    pmp = comp.run("pmp").result
+    tn = np.asarray(qp.trajectory.t_nodes)
+    ref = solve_fixed_times(problem, qp.contact_times)
+    X, U = qp.trajectory.states(tn), qp.trajectory.inputs(tn)
+    Xr, Ur = ref.states(tn), ref.inputs(tn)
+    c = pair["checks"]
+    assert c["cost_vs_reference_rel"]["value"] == pytest.approx(abs(qp.cost - ref.cost()) / abs(ref.cost()),
+                                                                rel=1e-9, abs=1e-15)
+    assert c["state_vs_reference_rel"]["value"] == pytest.approx(
+        np.max(np.abs(X - Xr)) / max(1.0, np.max(np.abs(Xr))), rel=1e-9, abs=1e-15)
+    assert c["input_vs_reference_rel"]["value"] == pytest.approx(
+        np.max(np.abs(U - Ur)) / max(1.0, np.max(np.abs(Ur))), rel=1e-9, abs=1e-15)
+    assert c["jump_vs_reference_rel"]["value"] == pytest.approx(
+        np.max(np.abs(qp.jumps - ref.jumps)) / max(1.0, np.max(np.abs(ref.jumps))), rel=1e-9, abs=1e-15)
+    bscale = max(1.0, float(np.max(np.abs(np.r_[problem.ego.initial, problem.ego.final]))))
+    assert c["boundary_residual_rel"]["value"] == pytest.approx(qp.boundary_residual() / bscale, rel=1e-12, abs=0)
+    assert c["collision_residual_rel"]["value"] == pytest.approx(qp.corner_residual() / bscale, rel=1e-12, abs=0)
+    hj = pmp.residuals["hamiltonian_jump"] / max(1.0, pmp.cost)
+    assert c["pmp_hamiltonian_jump_at_t*"]["value"] == pytest.approx(hj, rel=1e-12, abs=1e-300)
+    same = pair["at_same_contact_times"]
+    assert same["input_sup_gap"] == pytest.approx(float(np.max(np.abs(U - Ur))), rel=1e-9, abs=1e-15)
+    assert [s["phi_x"] for s in pair["signs"]] == [float(j[0]) for j in qp.jumps]
+
+
+def test_qp_pair_state_check_is_scaled(comp):
+    a, b = comp.run(f"qp-clarabel-zoh-{N}").result, comp.run(f"qp-osqp-zoh-{N}").result
+    pair = comp.pair(f"qp-clarabel-zoh-{N}", f"qp-osqp-zoh-{N}")
+    tn = np.asarray(a.trajectory.t_nodes)
+    Xa, Xb = a.trajectory.states(tn), b.trajectory.states(tn)
+    assert pair["checks"]["state_rel"]["value"] == pytest.approx(
+        np.max(np.abs(Xa - Xb)) / max(1.0, np.max(np.abs(Xa))), rel=1e-12, abs=1e-300)
+
+
+def test_refine_cost_check_is_relative_to_the_continuous_optimum():
+    problem = paper_problem(1)
+    comp = compare_problem(problem, [QPConfig("clarabel", "foh", 10, contact="refine")], repeats=1, warmup=0,
+                           pmp_repeats=1)
+    pair = comp.agreement[0]
+    qp, pmp = comp.runs[1].result, comp.run("pmp").result
+    assert pair["checks"]["refine_cost_vs_continuous_rel"]["value"] == pytest.approx(
+        abs(qp.cost - pmp.cost) / pmp.cost, rel=1e-9, abs=1e-15)
+
+
+def test_progress_counts_every_run_once():
+    calls = []
+    compare_problem(paper_problem(1), [QPConfig("clarabel", "foh", 6), QPConfig("osqp", "foh", 6)], repeats=1,
+                    warmup=0, pmp_repeats=1, progress=lambda d, n: calls.append((d, n)))
+    assert calls == [(1, 3), (2, 3), (3, 3)]
