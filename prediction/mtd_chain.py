@@ -120,6 +120,8 @@ def sample(model: MTDModel, init: Any, steps: int, n_samples: int, rng: Any = No
     n = model.order
     buf = np.empty((n_samples, n + int(steps)), dtype=np.int64)
     buf[:, :n] = init[-n:]
+    # inverse-CDF sampling with u in [0, 1): the last CDF value is set to exactly 1 (not a
+    # round-off 1 - 1e-16), so the drawn index never exceeds the last state / lag
     cdf = np.cumsum(model.Q, axis=1)  # (n, m, m): cdf over j for each column k
     cdf[:, -1, :] = 1.0
     lam_cdf = np.cumsum(model.lam)
@@ -127,10 +129,9 @@ def sample(model: MTDModel, init: Any, steps: int, n_samples: int, rng: Any = No
     rows = np.arange(n_samples)
     for s in range(int(steps)):
         t = n + s
-        lag = np.searchsorted(lam_cdf, rng.random(n_samples), side="right")
-        lag = np.minimum(lag, n - 1)  # 0-based lag index -> lag i = lag + 1
+        lag = np.searchsorted(lam_cdf, rng.random(n_samples), side="right")  # 0-based: lag i = lag + 1
         src = buf[rows, t - 1 - lag]
         col_cdf = cdf[lag, :, src]  # (n_samples, m)
         u = rng.random(n_samples)
-        buf[:, t] = np.minimum((col_cdf < u[:, None]).sum(axis=1), model.n_states - 1)
+        buf[:, t] = (col_cdf < u[:, None]).sum(axis=1)
     return buf[:, n:]

@@ -430,3 +430,31 @@ def test_log_likelihood_of_no_transitions_is_an_empty_sum():
     assert ll == 0.0 and N == 0 and isinstance(N, int)
     ll3, N3 = m.log_likelihood([np.array([0, 1, 1, 0])])
     assert N3 == 2 and ll3 == pytest.approx(2 * np.log(0.5))
+
+
+def test_propagate_accepts_states_or_distributions_and_rejects_bad_states():
+    rng = np.random.default_rng(9)
+    Q = rng.dirichlet(np.ones(3), size=(2, 3)).transpose(0, 2, 1)
+    model = MTDModel(Q=Q, lam=[0.3, 0.7])
+    past = [0, 2]
+    a = model.propagate(past, 4)
+    b = model.propagate(np.eye(3)[past], 4)
+    assert np.allclose(a, b) and np.allclose(a.sum(axis=1), 1.0)
+    # one step by hand: x_1 = 0.3 Q_1 e_2 + 0.7 Q_2 e_0
+    assert np.allclose(a[0], 0.3 * Q[0][:, 2] + 0.7 * Q[1][:, 0])
+    with pytest.raises(ValueError, match="out of range"):
+        model.propagate([0, 3], 2)
+    with pytest.raises(ValueError, match="out of range"):
+        model.propagate([-1, 0], 2)
+    with pytest.raises(ValueError):
+        model.propagate(np.eye(3)[[0]], 2)  # one distribution, order 2
+
+
+def test_sampling_matches_the_transition_law():
+    rng = np.random.default_rng(10)
+    Q = rng.dirichlet(np.ones(3), size=(2, 3)).transpose(0, 2, 1)
+    model = MTDModel(Q=Q, lam=[0.4, 0.6])
+    draws = model.sample([1, 2], 1, 20000, rng=0)[:, 0]
+    freq = np.bincount(draws, minlength=3) / draws.size
+    assert np.allclose(freq, model.transition_probabilities([1, 2]), atol=0.015)
+    assert draws.min() >= 0 and draws.max() <= 2
