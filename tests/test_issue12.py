@@ -458,3 +458,11 @@ def test_sampling_matches_the_transition_law():
     freq = np.bincount(draws, minlength=3) / draws.size
     assert np.allclose(freq, model.transition_probabilities([1, 2]), atol=0.015)
     assert draws.min() >= 0 and draws.max() <= 2
+
+
+def test_a_single_sequence_array_is_one_sequence():
+    from iamp.prediction.mtd_counts import lag_table
+
+    assert lag_table(np.array([0, 1, 2]), 1, 3).tolist() == [[1, 0], [2, 1]]
+    with pytest.raises(ValueError, match="one-dimensional"):
+        lag_table([np.zeros((2, 2), dtype=int)], 1, 3)
