@@ -113,3 +113,25 @@ def test_lower_bound_is_valid_where_q_is_tiny_and_near_the_diagonal(m, gap):
         pts = np.clip(c[k] + r[k] * rng.uniform(-1, 1, (300, m)), 1e-9, 1 - 1e-9)
         q = vf.quad_sigma(pts)
         assert lb[k] <= np.min(q) * (1 + 1e-9) + 1e-15, (k, lb[k], np.min(q))
+
+
+def test_stationarity_polynomial_matches_its_definition():
+    """P = N'σ(1−σ) − 3N(1−2σ), N = ex² + ey², also for inputs of different lengths."""
+    from numpy.polynomial import polynomial as Pn
+
+    from iamp.planners.pmp_search import stationarity_poly
+
+    long, short = [0.3, -1.2, 0.5, 0.7, -0.1], [0.2, 0.4]
+    for ex, ey in ((long, short), (short, long)):
+        N = Pn.polyadd(Pn.polymul(ex, ex), Pn.polymul(ey, ey))
+        ref = Pn.polysub(Pn.polymul(Pn.polyder(N), [0.0, 1.0, -1.0]), Pn.polymul(3 * N, [1.0, -2.0]))
+        got = np.array(stationarity_poly(ex, ey))
+        assert np.allclose(got[: ref.size], ref, atol=1e-14) and not np.any(got[ref.size:])
+
+
+def test_newton_converges_quadratically_near_a_minimum():
+    vf = ValueFunction(random_problem(0, m=2))
+    s_star, _ = newton_sigma(vf, start_points(vf.scaled)[0])
+    s, _ = newton_sigma(vf, s_star + np.array([2e-3, -1e-3]), max_iter=5)
+    assert np.max(np.abs(s - s_star)) < 1e-10
+    assert np.max(np.abs(vf.gradient_sigma(s[None, :])[0])) < 1e-9
