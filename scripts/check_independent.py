@@ -55,7 +55,8 @@ def independent(problem):
         g = np.linspace(0, tf, 4001)[1:-1]
         J = np.array([spline_cost(problem, [x]) for x in g])
         k = int(np.argmin(J))
-        res = optimize.minimize_scalar(lambda x: spline_cost(problem, [x]), bounds=(g[max(k - 1, 0)], g[min(k + 1, len(g) - 1)]),
+        res = optimize.minimize_scalar(lambda x: spline_cost(problem, [x]),
+                                       bounds=(g[max(k - 1, 0)], g[min(k + 1, len(g) - 1)]),
                                        method="bounded", options={"xatol": 1e-12})
         t = np.array([res.x])
     else:
@@ -78,7 +79,7 @@ def independent(problem):
             if best is None or res.fun < best.fun:
                 best = res
         t = best.x
-    t_knots, order, splines = spline_parts(problem, t)
+    _, order, splines = spline_parts(problem, t)
     jumps = np.empty((m, 2))
     for axis, cs in enumerate(splines):
         third = 6 * cs.c[0]  # s''' on each piece
@@ -114,8 +115,10 @@ def main():
                                             capture_output=True, text=True, check=True).stdout)
             t, cost, jumps = independent(problem)
             worst["cost_rel"] = max(worst["cost_rel"], abs(out["cost"] - cost) / abs(cost))
-            worst["contact_time_abs"] = max(worst["contact_time_abs"], float(np.max(np.abs(np.array(out["contact_times"]) - t))))
-            worst["jump_rel"] = max(worst["jump_rel"], float(np.max(np.abs(np.array(out["jumps"]) - jumps) / np.maximum(1, np.abs(jumps)))))
+            dt = float(np.max(np.abs(np.array(out["contact_times"]) - t)))
+            dj = float(np.max(np.abs(np.array(out["jumps"]) - jumps) / np.maximum(1, np.abs(jumps))))
+            worst["contact_time_abs"] = max(worst["contact_time_abs"], dt)
+            worst["jump_rel"] = max(worst["jump_rel"], dj)
             n += 1
     print(json.dumps({"scenarios": n, "vehicles": args.m, "seeds": list(args.seeds), "worst": worst}))
 

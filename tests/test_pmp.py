@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from scipy import interpolate, optimize
 
-from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
-from iamp.planners.pmp import PMPPlanner, ValueFunction, solve_fixed_times
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
+from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
+from iamp.planners.pmp import PMPPlanner, ValueFunction, solve_fixed_times
 
 PAPER = [paper_problem(k) for k in (1, 2, 3)]
 RANDOM_1 = [random_problem(seed, m=1) for seed in range(8)]
@@ -118,7 +118,8 @@ def test_identity3_global_optimum_one_vehicle(problem):
     assert res.cost <= Jd.min() + 1e-9 * res.cost
     # independent: bounded Brent on the clamped-spline cost around the best grid point
     k = int(np.argmin(Jd))
-    ind = optimize.minimize_scalar(lambda t: spline_cost(problem, [t]), bounds=(grid[max(k - 5, 0)], grid[min(k + 5, len(grid) - 1)]),
+    ind = optimize.minimize_scalar(lambda t: spline_cost(problem, [t]),
+                                   bounds=(grid[max(k - 5, 0)], grid[min(k + 5, len(grid) - 1)]),
                                    method="bounded", options={"xatol": 1e-10})
     assert res.cost == pytest.approx(ind.fun, rel=tol("independent_cost_rel"))
     assert res.contact_times[0] == pytest.approx(ind.x, abs=tol("independent_contact_time_abs"))
@@ -174,8 +175,8 @@ def test_three_vehicles_still_work():
     base = random_problem(3, m=2, side=1)
     import dataclasses
 
-    third = dataclasses.replace(base.vehicles[1], x_poly=(base.vehicles[1].x_poly[0] + 40,) + base.vehicles[1].x_poly[1:],
-                                name="sv3")
+    v2 = base.vehicles[1]
+    third = dataclasses.replace(v2, x_poly=(v2.x_poly[0] + 40,) + v2.x_poly[1:], name="sv3")
     problem = base.with_vehicles(base.vehicles + (third,))
     res = PMPPlanner().plan(problem)
     assert res.residuals["hamiltonian_jump"] <= tol("pmp_hjump_at_optimum") * max(1, res.cost)
