@@ -506,7 +506,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     (out / "figures").mkdir(parents=True, exist_ok=True)
     notes: list[Any] = []
     scenarios = tuple(scenarios)
-    total = 1 + 2 * len(scenarios) + 5
+    total = 1 + 2 * len(scenarios) + 6
     step = _Progress(progress, status, total)
     written: list[Any] = []
 
@@ -627,7 +627,17 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
                 written.append(out / "tables" / f"{key}.tex")
         written.append(out / "predictor_eval.json")
 
-    # 7. tables, results.json, report.tex ----------------------------------------------------
+    # 7. a small closed-loop campaign, only with the [sim] extra (SPEC §11) -------------------
+    from iamp.comparison.report_campaign import campaign_section, campaign_tex
+
+    step("closed loop: a small SUMO campaign (needs the [sim] extra)")
+    campaign = campaign_section(out, quick=quick, progress=step.sub)
+    if campaign.get("available"):
+        written.append(out / campaign["table"])
+    else:
+        notes.append(campaign["note"])
+
+    # 8. tables, results.json, report.tex ----------------------------------------------------
     step("tables, results.json and report.tex")
     qual = qualitative_comparison(metrics)
     tdir = out / "tables"
@@ -639,10 +649,12 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
         tables[key] = f"tables/{key}.tex"
     res = {"produced_by": "iamp.comparison.report.reproduce", "config": asdict(cfg), "notes": notes,
            "versions": _versions(), "scenarios": scen_out, "qualitative": qual, "zoh_convergence": conv,
-           "timing": timing, "predictor": predictor, "safety": safety["json"]}
+           "timing": timing, "predictor": predictor, "safety": safety["json"],
+           "campaign": {k: v for k, v in campaign.items() if k != "table"}}
     res["runtime_s"] = time.perf_counter() - start
     tex = build_report_tex(res, out, figs, tables, entries)
-    tex = tex.replace("\\end{document}", safety["section"](figs, tables["safety"]) + "\\end{document}", 1)
+    tex = tex.replace("\\end{document}", safety["section"](figs, tables["safety"]) + campaign_tex(campaign)
+                      + "\\end{document}", 1)
     written.append(atomic_write_text(out / "report.tex", tex))
     res["outputs"] = sorted({str(Path(p).relative_to(out)) for p in written} | {"results.json"})
     atomic_write_text(out / "results.json", json.dumps(to_jsonable(res), indent=1, allow_nan=False) + "\n")
