@@ -121,6 +121,9 @@ def test_predictor_gives_the_cubic_of_a_constant_speed_history():
     pred = iamp.Predictor.default().predict(iamp.History(t, -15.0 + 18.0 * t))
     c0, c1, c2, c3 = pred.x_poly
     assert c0 == pytest.approx(-15.0, abs=0.5) and c1 == pytest.approx(18.0, abs=1.0)
+    # a constant-speed history is forecast as (nearly) constant speed: the cubic's curvature
+    # terms move the 5 s position by well under a metre
+    assert abs(c2) * 25 + abs(c3) * 125 < 1.0
 
 
 def _readme_python_example() -> str:
