@@ -24,7 +24,12 @@ def load_problem(spec: str, model: str | None = None) -> tuple[Scenario, Problem
     Vehicles given by a ``history`` are predicted with the model file ``model`` or, if it is
     ``None``, the shipped model; vehicles given by ``x_poly`` pass through unchanged.
     """
-    scenario = load_scenario(spec)
+    return problem_from_scenario(load_scenario(spec), model)
+
+
+def problem_from_scenario(scenario: Scenario, model: str | None = None) -> tuple[Scenario, Problem, list[Any]]:
+    """A loaded scenario -> ``(scenario, problem, predictions)``, predicting history vehicles
+    with the model file ``model`` or the shipped model."""
     predictor = None
     if scenario.needs_prediction:
         predictor = Predictor.from_file(model) if model is not None else default_predictor()

@@ -105,19 +105,11 @@ def load_cli_problem(spec: str, model: str | None = None) -> tuple[Scenario, Pro
     Vehicles given by a history go through the predictor (the model file ``model``, else the
     shipped model); returns ``(scenario, problem, predictions)``.
     """
-    from iamp.prediction.resolve import load_problem
+    from iamp.prediction.resolve import load_problem, problem_from_scenario
 
     if spec != STDIN:
         return load_problem(spec, model)
-    scenario = load_cli_scenario(spec)
-    predictor = None
-    if scenario.needs_prediction:
-        from iamp.prediction.predictor import Predictor
-        from iamp.prediction.resolve import default_predictor
-
-        predictor = Predictor.from_file(model) if model is not None else default_predictor()
-    problem, predictions = scenario.to_problem(predictor)
-    return scenario, problem, predictions
+    return problem_from_scenario(load_cli_scenario(spec), model)
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
