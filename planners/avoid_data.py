@@ -46,6 +46,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from iamp.core.problem import Problem, SurroundingVehicle
+from iamp.planners.qp_data import StateIndex
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -91,7 +92,7 @@ class HalfPlane:
         return f"H_y (s_y {'<=' if self.sigma > 0 else '>='} {edge:g} m)"
 
 
-class AvoidData:
+class AvoidData(StateIndex):
     """``P, q, A, l, u`` of the avoidance QP on one grid (module docstring).
 
     Parameters
@@ -185,16 +186,7 @@ class AvoidData:
         #: Added to a relaxed row's bound: ten times any position scale in the problem.
         self.relax = 10.0 * scale + 1e3
 
-    # --- indices -----------------------------------------------------------------------
-    def idx_s(self, ax: int, k: IntArray | int) -> IntArray:
-        return np.asarray(ax * self.block + np.asarray(k), dtype=np.int64)
-
-    def idx_v(self, ax: int, k: IntArray | int) -> IntArray:
-        return np.asarray(ax * self.block + self.N + 1 + np.asarray(k), dtype=np.int64)
-
-    def idx_u(self, ax: int, k: IntArray | int) -> IntArray:
-        return np.asarray(ax * self.block + 2 * (self.N + 1) + np.asarray(k), dtype=np.int64)
-
+    # --- indices (idx_s, idx_v, idx_u from StateIndex) ------------------------------------
     def row(self, vehicle: int, axis: int, node: IntArray | int) -> IntArray:
         """Row of vehicle ``vehicle``'s half-plane ``axis`` (0 = H_x, 1 = H_y) at interior ``node``."""
         return np.asarray(self.n_eq + (2 * vehicle + axis) * (self.N - 1) + np.asarray(node) - 1, dtype=np.int64)

@@ -48,7 +48,27 @@ from iamp.planners.backends.base import FloatArray, IntArray, KKTResiduals
 from iamp.planners.hold import HOLDS
 
 
-class QPData:
+class StateIndex:
+    """Where ``s_k``, ``v_k``, ``u_k`` of axis ``ax`` sit in ``z = (s_x, v_x, u_x, s_y, v_y, u_y)``.
+
+    Shared by the equality QP and the avoidance QP (same variable layout: ``N + 1`` positions,
+    ``N + 1`` speeds and ``nu`` inputs per axis, ``block`` variables per axis).
+    """
+
+    N: int
+    block: int
+
+    def idx_s(self, ax: int, k: IntArray | int) -> IntArray:
+        return np.asarray(ax * self.block + np.asarray(k), dtype=np.int64)
+
+    def idx_v(self, ax: int, k: IntArray | int) -> IntArray:
+        return np.asarray(ax * self.block + self.N + 1 + np.asarray(k), dtype=np.int64)
+
+    def idx_u(self, ax: int, k: IntArray | int) -> IntArray:
+        return np.asarray(ax * self.block + 2 * (self.N + 1) + np.asarray(k), dtype=np.int64)
+
+
+class QPData(StateIndex):
     r"""The data ``P, q, A, b`` of the discretised QP with a fixed sparsity pattern.
 
     Parameters
@@ -102,16 +122,6 @@ class QPData:
             r = ax * self.n_dyn + 2 * N
             self.b[r:r + 4] = (s0, v0, sf, vf)
         self.set_grid(self.t_nodes)
-
-    # --- indices ---------------------------------------------------------------------
-    def idx_s(self, ax: int, k: IntArray | int) -> IntArray:
-        return np.asarray(ax * self.block + np.asarray(k), dtype=np.int64)
-
-    def idx_v(self, ax: int, k: IntArray | int) -> IntArray:
-        return np.asarray(ax * self.block + self.N + 1 + np.asarray(k), dtype=np.int64)
-
-    def idx_u(self, ax: int, k: IntArray | int) -> IntArray:
-        return np.asarray(ax * self.block + 2 * (self.N + 1) + np.asarray(k), dtype=np.int64)
 
     def _build_pattern(self) -> None:
         """COO triplets with symbolic value tags, then the CSC data permutation."""
