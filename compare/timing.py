@@ -137,6 +137,13 @@ def dist_version(name: str) -> str | None:
         return None
 
 
+def _iamp_version() -> str:
+    """The version of the iamp being run (not whatever distribution metadata is installed)."""
+    from iamp._version import __version__
+
+    return __version__
+
+
 def versions() -> dict[str, Any]:
     """Library versions and the machine the numbers come from."""
     import numpy
@@ -156,7 +163,8 @@ def versions() -> dict[str, Any]:
         "osqp": dist_version("osqp"),
         "clarabel": dist_version("clarabel"),
         "piqp": dist_version("piqp"),
-        "iamp": dist_version("iamp"),
+        "iamp": _iamp_version(),
+        "numba": dist_version("numba"),
         "platform": platform.platform(),
         "machine": platform.machine(),
         "cpu_count": os.cpu_count(),
