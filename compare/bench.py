@@ -23,7 +23,9 @@ What is measured (one vehicle: ``paper-1-poly``; two: ``two-vehicle``; FOH, ``N 
   included, since a user of that formulation pays for them).
 * **Avoidance QP** (``avoid_grid_sweep_s``) — :class:`iamp.planners.avoid.AvoidQPPlanner`'s
   plan, if that module exists.
-* **CasADi + IPOPT** — skipped (with a note) unless ``casadi`` is installed.
+* **CasADi + IPOPT** — the free-contact-time problem written in ``Opti`` the way users type
+  it (:mod:`.bench_casadi`: build, cold and warm solve, its discretised ``t_1`` and ``J``);
+  skipped (with a note) unless ``casadi`` is installed.
 * **OSQP tuning** (not with ``--quick``) — what each OSQP setting buys on the equality QP:
   verified candidates, polish successes, iterations, recomputed KKT residuals, time.
 """
@@ -170,12 +172,18 @@ def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | Non
     return out
 
 
-def _casadi(notes: list[str]) -> dict[str, Any] | None:
+def _casadi(problem: Any, quick: bool, notes: list[str]) -> dict[str, Any] | None:
+    """CasADi ``Opti`` + IPOPT on the free-contact-time problem (:mod:`.bench_casadi`)."""
     if importlib.util.find_spec("casadi") is None:
         notes.append("casadi not installed: the CasADi+IPOPT peer is skipped (pip install casadi)")
         return None
-    notes.append("casadi is installed but no CasADi formulation is implemented yet: skipped")
-    return None
+    from iamp.comparison.bench_casadi import casadi_free_time
+
+    try:
+        return casadi_free_time(problem, STEPS, 2 if quick else 5)
+    except Exception as exc:  # an optional peer: report, never fail the bench
+        notes.append(f"CasADi+IPOPT peer failed: {type(exc).__name__}: {exc}")
+        return None
 
 
 def osqp_tuning(problem: Any) -> list[dict[str, Any]]:
@@ -239,7 +247,7 @@ def run_bench(quick: bool = False) -> dict[str, Any]:
         cvx[s], res = _sweep(_plan_fn(planner, one), reps)
         fails[f"cvxpy_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
     avoid = _avoid(one, reps, notes)
-    casadi = _casadi(notes)
+    casadi = _casadi(one, quick, notes)
     tuning = [] if quick else osqp_tuning(one)
 
     solve = {s: cand[s]["backend"].median for s in BACKEND_NAMES}
@@ -257,6 +265,9 @@ def run_bench(quick: bool = False) -> dict[str, Any]:
         **{f"cvxpy_{s}_sweep_to_native": cvx[s].median / native[s].median for s in cvx},
         "kkt_solve_to_pmp_plan": solve["kkt"] / pmp_one,
     }
+    if casadi is not None:
+        ratios["casadi_ipopt_warm_to_pmp_plan"] = casadi["warm_s"] / pmp_one
+        ratios["casadi_ipopt_cold_to_pmp_plan"] = casadi["cold_s"] / pmp_one
     if avoid is not None and avoid.get("osqp", {}).get("median"):
         ratios["avoid_osqp_sweep_to_equality_osqp_sweep"] = avoid["osqp"]["median"] / native["osqp"].median
     values = {
@@ -347,6 +358,15 @@ def format_bench(out: dict[str, Any]) -> str:
     if out["avoid_grid_sweep_s"]:
         for k, v in out["avoid_grid_sweep_s"].items():
             lines.append(f"    {'avoid ' + k:18s} {_fmt_s(v)}")
+    cas = out.get("casadi_ipopt")
+    if cas:
+        pmp_t = out["pmp_plan_s"]["one_vehicle"]
+        lines += ["", f"  CasADi Opti + IPOPT, free contact time, ZOH N = {cas['steps']} "
+                  f"({cas['variables']} variables):",
+                  f"    build {_fmt_s(cas['build_s'])}   cold solve {_fmt_s(cas['cold_s'])} "
+                  f"({cas['iterations_cold']} it)   warm solve {_fmt_s(cas['warm_s'])} ({cas['iterations_warm']} it)",
+                  f"    t1 = {cas['contact_time']:.6f} s, J = {cas['cost']:.6f} (discretised; PMP plan "
+                  f"{_fmt_s(pmp_t).strip()})"]
     lines += ["", "targets:"]
     for k, t in out["targets"].items():
         val = f"{t['value']:8.0f} /s" if k.endswith("per_s") else _fmt_s(t["value"])
