@@ -8,7 +8,7 @@
     :mod:`iamp.comparison.agreement`).  Default ``N``: 100 for one vehicle, 20 for two or more
     (a two-vehicle sweep solves ``(N−1)(N−2)`` QPs per configuration).
 
-``iamp bench [--json] [--quick]``
+``iamp bench [--json] [--quick] [-q]``
     The speed numbers against their targets (:mod:`iamp.comparison.bench`).
 
 Exit status: 0 when every run finished (verdicts are printed, ``disagree`` included); 3 if
@@ -76,6 +76,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                                    "library versions, and a warning when the spread says the machine was busy.")
     b.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     b.add_argument("--quick", action="store_true", help="fewer repeats")
+    add_quiet_flag(b)
     b.set_defaults(func=cmd_bench)
 
 
@@ -301,9 +302,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.comparison.bench import format_bench, run_bench
 
-    out = run_bench(quick=args.quick)
+    with progress_bar(7, "bench", enabled=progress_enabled(args)) as tick:
+        out = run_bench(quick=args.quick, progress=tick)
     if args.json:
         sys.stdout.write(json.dumps(to_jsonable(out), allow_nan=False) + "\n")
     else:

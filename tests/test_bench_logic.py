@@ -1,0 +1,83 @@
+"""``iamp bench``'s bookkeeping, with the measurements replaced by known numbers.
+
+No timing is asserted: the measuring functions are swapped for fakes so that the targets,
+ratios, busy-machine warning and progress reports can be checked exactly.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from iamp.comparison import bench
+from iamp.comparison.timing import summarize
+
+
+def _stats(median: float, spread: float = 0.0):
+    return summarize([median * (1 - spread)] * 2 + [median] + [median * (1 + spread)] * 2)
+
+
+@pytest.fixture
+def fake(monkeypatch):
+    per = {"osqp": 4e-4, "clarabel": 3e-4, "piqp": 2e-4, "kkt": 1e-4}
+    sweep = {"osqp": 0.1, "clarabel": 0.05, "piqp": 0.03, "kkt": 0.018}
+
+    def pmp(quick, notes):
+        return {"pmp_plan_s": {"one_vehicle": 20e-6, "two_vehicles": 0.5e-3}, "pmp_batch_plans_per_s": 250_000.0,
+                "pmp_to_compiled_limit": 1.5}
+
+    def per_candidate(problem, solver, repeats):
+        return {"backend": _stats(per[solver]), "call": _stats(per[solver]), "wall": _stats(per[solver]),
+                "failed": 0, "describe": {"name": solver}}
+
+    calls = []
+
+    def sweep_fn(fn, repeats):
+        planner = fn.__closure__[0].cell_contents if fn.__closure__ else None
+        calls.append(planner)
+        name = getattr(planner, "solver", "kkt")
+        cvx = type(planner).__name__.startswith("Cvxpy")
+        res = SimpleNamespace(status="optimal", info={"candidates": {"total": 99, "solved": 99}})
+        return _stats(sweep[name] * (5 if cvx else 1), spread=0.9 if name == "clarabel" and cvx else 0.0), res
+
+    def plan_fn(planner, problem):
+        return lambda: planner
+
+    monkeypatch.setattr(bench, "_pmp_numbers", pmp)
+    monkeypatch.setattr(bench, "_per_candidate", per_candidate)
+    monkeypatch.setattr(bench, "_sweep", lambda fn, repeats: sweep_fn(fn, repeats))
+    monkeypatch.setattr(bench, "_plan_fn", plan_fn)
+    monkeypatch.setattr(bench, "_avoid", lambda problem, repeats, notes: None)
+    monkeypatch.setattr(bench, "_casadi", lambda problem, quick, notes: {
+        "build_s": 0.2, "cold_s": 0.02, "warm_s": 0.004, "contact_time": 3.52, "cost": 22.87,
+        "iterations_cold": 20, "iterations_warm": 5, "return_status": "Solve_Succeeded", "steps": 100,
+        "variables": 605})
+    monkeypatch.setattr(bench, "osqp_tuning", lambda problem: [])
+    return per, sweep
+
+
+def test_targets_ratios_and_warnings_follow_the_numbers(fake):
+    per, sweep = fake
+    seen: list[tuple[int, int]] = []
+    out = bench.run_bench(quick=True, progress=lambda d, t: seen.append((d, t)))
+    t = out["targets"]
+    assert t["pmp_plan_one_vehicle_s"]["met"] and t["pmp_plan_one_vehicle_s"]["target"] == 25e-6
+    assert not t["pmp_plan_two_vehicles_s"]["met"]  # 0.5 ms > 0.3 ms
+    assert t["pmp_batch_plans_per_s"]["met"]
+    assert t["qp_native_solve_kkt_s"]["met"]
+    assert t["qp_native_solve_best_iterative_s"]["met"] and out["best_iterative_backend"] == "piqp"
+    assert t["qp_native_solve_osqp_s"]["met"]  # 0.4 ms <= 0.5 ms
+    assert t["qp_grid_sweep_native_best_s"]["met"] and out["best_native_sweep"] == "kkt"  # 18 ms <= 20 ms
+    assert out["missed"] == ["pmp_plan_two_vehicles_s"]
+    assert sorted(out["missed"]) == sorted(k for k, v in t.items() if not v["met"])
+    r = out["ratios"]
+    assert r["qp_best_to_kkt"] == pytest.approx(per["piqp"] / per["kkt"])
+    assert r["qp_osqp_to_kkt"] == pytest.approx(per["osqp"] / per["kkt"])
+    assert r["native_kkt_sweep_to_pmp_plan"] == pytest.approx(sweep["kkt"] / 20e-6)
+    assert r["casadi_ipopt_warm_to_pmp_plan"] == pytest.approx(0.004 / 20e-6)
+    assert len(out["warnings"]) == 1 and "qp_grid_sweep_cvxpy_clarabel" in out["warnings"][0]
+    assert seen[0] == (0, 7) and seen[-1] == (7, 7)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+    text = bench.format_bench(out)
+    assert "CasADi Opti + IPOPT" in text and "MISSED" in text
