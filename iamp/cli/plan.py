@@ -138,7 +138,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         print("no cost is reported: the solver did not reach an optimal solution")
         return
     if result.info.get("constraint") == "avoid":
-        from iamp.planners.avoid import summary_lines
+        from iamp.planners.avoid_result import summary_lines
 
         for line in summary_lines(result):
             print(line)
