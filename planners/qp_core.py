@@ -18,6 +18,7 @@ but misses a tolerance is reported INACCURATE, with the check and its value.
 from __future__ import annotations
 
 import itertools
+import math
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -84,7 +85,7 @@ def verify(kkt: KKTResiduals | None, tolerance: float, solver_status: str) -> tu
     failed = None
     for name, value in (("kkt_primal_rel", kkt.primal_rel), ("kkt_dual_rel", kkt.dual_rel),
                         ("kkt_gap_rel", kkt.gap_rel)):
-        ok = bool(np.isfinite(value) and value <= tolerance)
+        ok = math.isfinite(value) and value <= tolerance
         checks[name] = {"value": float(value), "tol": tolerance, "ok": ok}
         if not ok and failed is None:
             failed = name
@@ -172,8 +173,6 @@ class DiscretisedQP:
         return itertools.permutations(range(1, self.N), self.problem.m)
 
     def n_candidates(self) -> int:
-        import math
-
         return math.perm(self.N - 1, self.problem.m)
 
     def solve_nodes(self, nodes: Sequence[int]) -> CandidateResult:

@@ -270,7 +270,7 @@ class QPBackend(abc.ABC):
             self.l[:] = l
         if u is not None:
             self.u[:] = u
-        if l is not None or u is not None:
+        if (l is not None or u is not None) and l is not u:  # the same array twice: equalities
             self._check_form()
         self._push(Px is not None, Ax is not None, idx, q is not None, l is not None or u is not None)
 

@@ -17,24 +17,42 @@ Structure used
 Rows of ``A`` whose stored pattern is long (more than ``border_row_nnz`` entries, default
 8 — in the lane-change QP the contact *selector* rows, whose pattern holds every interior
 node) are treated as a **border**; the remaining *core* KKT matrix :math:`K_0` (dynamics,
-boundary rows and ``P``) is banded after a reverse Cuthill–McKee ordering computed once from
-the pattern (bandwidth 3–7 for the lane-change QP at any ``N``; reported as
-:attr:`KKTBackend.bandwidth`).  With the border rows :math:`C = [A_1\ 0]`,
+boundary rows and ``P``) is block diagonal — one block per connected component of its
+pattern (the two axes of the lane-change QP) — and each block is banded after a reverse
+Cuthill–McKee ordering computed once from the pattern (bandwidth 3–7 for the lane-change
+QP at any ``N``; the largest is :attr:`KKTBackend.bandwidth`).  With the border rows
+:math:`C = [A_1\ 0]`,
 
 .. math::
 
     K_0 w_0 = r_0,\quad K_0 W = C^\top,\quad S = C W,\quad
     S\,y_1 = C w_0 - b_1,\quad w = w_0 - W y_1 ,
 
-a Schur complement of size (number of border rows).  :math:`K_0` is factorised by LAPACK's
-banded LU (``dgbtrf``, partial pivoting) only when ``P`` or the core of ``A`` changes — a
-new grid — so every candidate of a sweep on one grid reuses **one** factorisation (symbolic
-and numeric) and costs one banded triangular solve (``dgbtrs``) with ``1 + #border``
-right-hand sides.  Optionally (setting ``refine_above``, relative; default ``None`` = off)
-one step of iterative refinement on the full system follows when the recomputed residual
-exceeds it.  Off by default because it is not needed: the recomputed relative KKT residuals
-of the unrefined solutions of the lane-change QP are ~1e-14 (tests assert < 1e-12), and the
-caller (:class:`~iamp.planners.qp_core.DiscretisedQP`) verifies every solution anyway.
+a Schur complement of size (number of border rows).
+
+What is computed when (a sweep: one grid, many candidates):
+
+* **symbolic** (set-up, once): the components, their RCM orders, where every stored value
+  of ``P`` and ``A`` goes in the band storage, and which blocks have the same pattern;
+* **numeric factorisation** (only when ``P`` or the core of ``A`` changes — a new grid):
+  LAPACK's banded LU (``dgbtrf``, partial pivoting) of each block; blocks whose banded
+  values are identical (the two axes: same steps, same dynamics) share **one**
+  factorisation (:attr:`KKTBackend.factorisations` counts the calls, :attr:`KKTBackend.blocks`
+  the distinct factors of the last one);
+* **per candidate**: only the border values and ``b`` change, so :math:`w_0` is re-used
+  (same right-hand side) and :math:`W` is gathered from the columns :math:`K_0^{-1}e_c` of
+  the border pattern.  The first candidate on a factorisation solves for the columns it
+  needs; the second computes every column of the border pattern in one multi-right-hand-side
+  ``dgbtrs`` per distinct factor (each column only on its own block, and once for identical
+  blocks), so the rest of the sweep does no triangular solve at all: a gather, a Schur
+  complement of size (#border rows) — diagonal when the border rows touch different blocks
+  (then divided, not factorised) — and one ``w_0 − W y_1``.
+
+Optionally (setting ``refine_above``, relative; default ``None`` = off) one step of
+iterative refinement on the full system follows when the recomputed residual exceeds it.
+Off by default because it is not needed: the recomputed relative KKT residuals of the
+unrefined solutions of the lane-change QP are ~1e-14 (tests assert < 1e-12), and the caller
+(:class:`~iamp.planners.qp_core.DiscretisedQP`) verifies every solution anyway.
 
 Status: OPTIMAL when the factorisation is regular and the solution finite; otherwise
 NUMERICAL_ERROR (a singular KKT matrix: ``A`` rank-deficient or ``P`` not positive definite
@@ -49,10 +67,10 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack
-from scipy.sparse.csgraph import reverse_cuthill_mckee
+from scipy.sparse.csgraph import connected_components, reverse_cuthill_mckee
 
 from iamp.core import status as st
-from iamp.planners.backends.base import IntArray, QPBackend, QPSolution
+from iamp.planners.backends.base import FloatArray, IntArray, QPBackend, QPSolution
 
 
 class KKTBackend(QPBackend):
@@ -78,45 +96,60 @@ class KKTBackend(QPBackend):
         core_of_row[self._core] = np.arange(self._core.size)
         nk = n + self._core.size
         self._nk = nk
-        # COO of A.data with its rows/cols
         a_cols = np.repeat(np.arange(n), np.diff(A.indptr))
         a_rows = A.indices.astype(np.int64)
         in_core = core_of_row[a_rows] >= 0
         self._a_core_pos = np.flatnonzero(in_core)
         self._a_in_core = in_core
-        kr = n + core_of_row[a_rows[in_core]]
-        kc = a_cols[in_core]
-        # COO of P.data (upper triangle)
+        kr, kc = n + core_of_row[a_rows[in_core]], a_cols[in_core]
         P = self.P
         p_cols = np.repeat(np.arange(n), np.diff(P.indptr))
         p_rows = P.indices.astype(np.int64)
-        # symmetric pattern of K0 and its RCM order
         pr = np.concatenate([p_rows, p_cols, kr, kc, np.arange(nk)])
         pc = np.concatenate([p_cols, p_rows, kc, kr, np.arange(nk)])
         pattern = sp.csr_matrix((np.ones(pr.size), (pr, pc)), shape=(nk, nk))
-        perm = np.asarray(reverse_cuthill_mckee(pattern, symmetric_mode=True), dtype=np.int64)
+        # blocks: connected components, each in its own RCM order, stored one after another
+        ncomp, label = connected_components(pattern, directed=False)
+        perm_parts, starts = [], [0]
+        for c in range(ncomp):
+            nodes = np.flatnonzero(label == c)
+            sub = pattern[nodes][:, nodes]
+            order = np.asarray(reverse_cuthill_mckee(sp.csr_matrix(sub), symmetric_mode=True), dtype=np.int64)
+            perm_parts.append(nodes[order])
+            starts.append(starts[-1] + nodes.size)
+        perm = np.concatenate(perm_parts)
         inv = np.empty(nk, dtype=np.int64)
         inv[perm] = np.arange(nk)
         self._perm, self._inv = perm, inv
+        self._starts = np.asarray(starts, dtype=np.int64)
+        self._comp_of_perm = np.repeat(np.arange(ncomp), np.diff(self._starts))  # block of a permuted index
         bw = int(np.max(np.abs(inv[pr] - inv[pc])))
         self.bandwidth = bw
-        kl = ku = bw
-        self._kl, self._ku = kl, ku
-        ldab = 2 * kl + ku + 1
+        self._kl = self._ku = bw
+        ldab = 3 * bw + 1
 
-        def flat(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        def flat(i: IntArray, j: IntArray) -> IntArray:
             ii, jj = inv[i], inv[j]
-            return np.asarray((kl + ku + ii - jj) * nk + jj, dtype=np.int64)
+            return np.asarray((2 * bw + ii - jj) * nk + jj, dtype=np.int64)
 
         self._ab_shape = (ldab, nk)
-        # P entry d -> (d, d') positions; off-diagonal entries also mirrored
         self._p_pos = flat(p_rows, p_cols)
         off = p_rows != p_cols
         self._p_off = np.flatnonzero(off)
         self._p_pos_mirror = flat(p_cols[off], p_rows[off])
         self._a_pos = flat(kr, kc)
         self._a_pos_t = flat(kc, kr)
-        # border rows: positions in A.data and their columns
+        # blocks with the same size and the same banded pattern may share a factorisation
+        band_pattern = np.zeros(self._ab_shape, dtype=bool).reshape(-1)
+        band_pattern[np.concatenate([self._p_pos, self._p_pos_mirror, self._a_pos, self._a_pos_t])] = True
+        bp = band_pattern.reshape(self._ab_shape)
+        self._twin_of: list[int] = []  # block -> first earlier block with the same pattern
+        for c in range(ncomp):
+            s, e = starts[c], starts[c + 1]
+            twin = next((d for d in range(c) if starts[d + 1] - starts[d] == e - s
+                         and np.array_equal(bp[:, starts[d]:starts[d + 1]], bp[:, s:e])), c)
+            self._twin_of.append(twin)
+        # border rows: positions in A.data, their rows, columns, blocks and local (permuted) rows
         b_mask = ~in_core
         self._b_pos = np.flatnonzero(b_mask)
         border_of_row = np.full(mrows, -1, dtype=np.int64)
@@ -124,9 +157,19 @@ class KKTBackend(QPBackend):
         self._b_row = border_of_row[a_rows[b_mask]]
         self._b_col = a_cols[b_mask]
         self._b_range = np.arange(self._border.size)
-        self._factor: tuple[np.ndarray, np.ndarray] | None = None
+        self._b_pc = inv[self._b_col]  # permuted position of each border entry's column
+        ucols, b_ucol = np.unique(self._b_col, return_inverse=True)  # the distinct border columns
+        self._b_ucol = np.asarray(b_ucol, dtype=np.int64).reshape(-1)
+        pu = inv[ucols]
+        self._u_comp = self._comp_of_perm[pu]
+        self._u_loc = pu - self._starts[self._u_comp]
+        self._b_info = np.stack([self._b_row, self._b_pc, self._b_ucol])  # one gather per solve
+        sizes = np.diff(self._starts)
+        self._block_max = int(np.max(sizes))
+        self._factor: list[tuple[int, FloatArray, IntArray]] | None = None
         self._info = 0
         self.factorisations = 0  # numeric factorisations so far (one per grid)
+        self.blocks = 0  # distinct banded factors of the last factorisation
         self._P_full: sp.csr_matrix | None = None
         self._AT = self.A.T  # a CSR view sharing A.data (updated in place)
 
@@ -139,14 +182,31 @@ class KKTBackend(QPBackend):
         ad = self.A.data[self._a_core_pos]
         flat[self._a_pos] = ad
         flat[self._a_pos_t] = ad
-        lu, piv, info = lapack.dgbtrf(ab, self._kl, self._ku, overwrite_ab=True)
+        st_ = self._starts
+        # factor of each block: its own, or its twin's when the banded values are identical
+        self._factor_of: list[int] = []
+        factors: list[tuple[int, FloatArray, IntArray]] = []
+        info = 0
+        for c, twin in enumerate(self._twin_of):
+            blk = ab[:, st_[c]:st_[c + 1]]
+            if twin != c and np.array_equal(ab[:, st_[twin]:st_[twin + 1]], blk):
+                self._factor_of.append(self._factor_of[twin])
+                continue
+            lu, piv, inf = lapack.dgbtrf(np.asfortranarray(blk), self._kl, self._ku, overwrite_ab=True)
+            info = info or int(inf)
+            self._factor_of.append(len(factors))
+            factors.append((c, lu, piv))
         self.factorisations += 1
-        self._factor = (lu, piv)
-        self._info = int(info)
+        self.blocks = len(factors)
+        self._factor = factors
+        self._info = info
         self._uses = 0
-        self._all_cols: np.ndarray | None = None
-        self._col_block = np.zeros((0, 0))
-        self._w0: tuple[np.ndarray, np.ndarray] | None = None
+        # the distinct block solves K_b⁻¹ e_i the border needs: one per (factor, local row)
+        key = np.asarray(self._factor_of, dtype=np.int64)[self._u_comp] * self._nk + self._u_loc
+        self._keys, self._u_key = np.unique(key, return_inverse=True)
+        self._u_key = np.asarray(self._u_key, dtype=np.int64).reshape(-1)
+        self._col_all: FloatArray | None = None  # every border column, once computed
+        self._w0: tuple[FloatArray, FloatArray] | None = None
 
     def _push(self, P: bool, A: bool, A_idx: IntArray | None, q: bool, bounds: bool) -> None:
         if P:
@@ -158,69 +218,122 @@ class KKTBackend(QPBackend):
             elif A_idx.size and bool(self._a_in_core[A_idx].any()):
                 self._factor = None
 
-    def _k0_solve(self, rhs: np.ndarray) -> np.ndarray:
+    def _block_solve(self, f: int, rhs: FloatArray) -> FloatArray:
+        """``K_b⁻¹ rhs`` for the block(s) of factor ``f`` (local, permuted coordinates)."""
         assert self._factor is not None
-        lu, piv = self._factor
-        x, info = lapack.dgbtrs(lu, self._kl, self._ku, np.asfortranarray(rhs[self._perm]), piv, overwrite_b=True)
+        _, lu, piv = self._factor[f]
+        x, info = lapack.dgbtrs(lu, self._kl, self._ku, rhs, piv, overwrite_b=True)
         if info != 0:  # pragma: no cover - only for malformed input
             raise ValueError("dgbtrs failed")
-        return np.asarray(x[self._inv])
+        return np.asarray(x)
 
-    def _columns(self, cols: np.ndarray) -> np.ndarray:
-        """``K0⁻¹ e_c`` for the columns ``cols``, cached for the current factorisation.
+    def _k0_solve(self, rhs_perm: FloatArray) -> FloatArray:
+        """``K0⁻¹ r`` for one right-hand side given in permuted order (result permuted).
+
+        Blocks sharing a factor are solved together, as columns of one ``dgbtrs`` call."""
+        st_ = self._starts
+        out = np.empty(self._nk)
+        groups: dict[int, list[int]] = {}
+        for c, f in enumerate(self._factor_of):
+            groups.setdefault(f, []).append(c)
+        for f, comps in groups.items():
+            R = np.empty((st_[comps[0] + 1] - st_[comps[0]], len(comps)), order="F")
+            for j, c in enumerate(comps):
+                R[:, j] = rhs_perm[st_[c]:st_[c + 1]]
+            X = self._block_solve(f, R)
+            for j, c in enumerate(comps):
+                out[st_[c]:st_[c + 1]] = X[:, j]
+        return out
+
+    def _unit_columns(self, keys: IntArray) -> FloatArray:
+        """``K_b⁻¹ e_i`` for the keys ``factor·nk + i`` (``i`` a local permuted row), as the
+        columns of one zero-padded ``(largest block, len(keys))`` array."""
+        out = np.zeros((self._block_max, keys.size))
+        fac, row = np.divmod(keys, self._nk)
+        assert self._factor is not None
+        for f in np.unique(fac):
+            sel = np.flatnonzero(fac == f)
+            c = self._factor[int(f)][0]
+            size = int(self._starts[c + 1] - self._starts[c])
+            E = np.zeros((size, sel.size), order="F")
+            E[row[sel], np.arange(sel.size)] = 1.0
+            out[:size, sel] = self._block_solve(int(f), E)
+        return out
+
+    def _full_columns(self, u: IntArray) -> FloatArray:
+        """``(K0⁻¹ e_c)ᵀ`` (rows; permuted coordinates, ``(len(u), nk)``) for the distinct
+        border columns ``u``: each solved on its own block only, once per distinct
+        (factor, row)."""
+        needed, j = np.unique(self._u_key[u], return_inverse=True)
+        j = np.asarray(j, dtype=np.int64).reshape(-1)
+        X = self._unit_columns(self._keys[needed])
+        out = np.zeros((u.size, self._nk))
+        comp = self._u_comp[u]
+        st_ = self._starts
+        for c in np.unique(comp):
+            sel = np.flatnonzero(comp == c)
+            s0, s1 = st_[c], st_[c + 1]
+            out[sel, s0:s1] = X[:s1 - s0, j[sel]].T
+        return out
+
+    def _columns(self, ucols: IntArray) -> FloatArray:
+        """``(K0⁻¹ e_c)ᵀ`` (rows, permuted coordinates) for the distinct border columns
+        ``ucols``.
 
         The first solve on a factorisation computes only the columns it needs; the second
         one (a sweep: the same grid, another candidate) computes every column of the border
-        rows' pattern in one multi-right-hand-side solve, so the rest of the sweep only
-        gathers columns.
+        rows' pattern (one multi-right-hand-side solve per distinct factor, on its block
+        only), so the rest of the sweep only gathers (contiguous) rows.
         """
         self._uses += 1
-        if self._all_cols is None and self._uses >= 2:
-            pattern = np.unique(self._b_col)
-            E = np.zeros((self._nk, pattern.size))
-            E[pattern, np.arange(pattern.size)] = 1.0
-            self._all_cols = np.full(self._nk, -1, dtype=np.int64)
-            self._all_cols[pattern] = np.arange(pattern.size)
-            self._col_block = self._k0_solve(E)
-        if self._all_cols is not None:
-            return np.asarray(self._col_block[:, self._all_cols[cols]])
-        E = np.zeros((self._nk, cols.size))
-        E[cols, np.arange(cols.size)] = 1.0
-        return np.asarray(self._k0_solve(E))
+        if self._col_all is None and self._uses >= 2:
+            self._col_all = self._full_columns(np.arange(self._u_key.size))
+        if self._col_all is not None:
+            return np.asarray(self._col_all[ucols])
+        return self._full_columns(ucols)
 
-    def _core_solve(self, r0: np.ndarray) -> np.ndarray:
-        """``K0⁻¹ r0``, remembered for a repeated right-hand side (the candidates of a
-        sweep share it: only the border rows' values and right-hand sides change)."""
-        if self._w0 is not None and np.array_equal(self._w0[0], r0):
+    def _core_solve(self, r0_perm: FloatArray) -> FloatArray:
+        """``K0⁻¹ r0`` (permuted), remembered for a repeated right-hand side (the candidates
+        of a sweep share it: only the border rows' values and right-hand sides change)."""
+        if self._w0 is not None and np.array_equal(self._w0[0], r0_perm):
             return self._w0[1]
-        w0 = self._k0_solve(r0)
-        self._w0 = (r0.copy(), w0)
+        w0 = self._k0_solve(r0_perm)
+        self._w0 = (r0_perm.copy(), w0)
         return w0
 
-    def _full_solve(self, rhs_z: np.ndarray, b: np.ndarray, cache: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    def _full_solve(self, rhs_z: FloatArray, b: FloatArray, cache: bool = True) -> tuple[FloatArray, FloatArray]:
         n, nb = self.q.size, self._border.size
-        r0 = np.concatenate([rhs_z, b[self._core]])
+        r0 = np.concatenate([rhs_z, b[self._core]])[self._perm]
         w0 = self._core_solve(r0) if cache else self._k0_solve(r0)
         if nb == 0:
             w, y1 = w0, np.zeros(0)
         else:
             vals = self.A.data[self._b_pos]
-            nz = vals != 0
-            rows, cols, v = self._b_row[nz], self._b_col[nz], vals[nz]
-            # W = K0⁻¹ Cᵀ: column r = Σ_j v_j K0⁻¹ e_{col_j} over border row r's nonzeros
-            Wc = self._columns(cols) * v
-            if rows.size == nb and np.array_equal(rows, self._b_range):
-                W = Wc  # one nonzero per border row (the selector rows): C = diag(v) E_colsᵀ
-                S = v[:, None] * W[cols, :]
-                Cw0 = v * w0[cols]
+            ent = np.flatnonzero(vals)
+            if ent.size == nb:  # the selector case: one entry per border row?
+                ent = ent[np.argsort(self._b_row[ent])]
+            rows, pc, uc = self._b_info[:, ent]
+            v = vals[ent]
+            # Wᵀ = (K0⁻¹ Cᵀ)ᵀ: row r = Σ_k v_k (K0⁻¹ e_{c_k})ᵀ over border row r's entries
+            Wc = self._columns(uc) * v[:, None]
+            if ent.size == nb and bool((rows == self._b_range).all()):
+                WT = Wc  # one entry per border row: C = diag(v) E_colsᵀ
+                S = v[:, None] * WT[:, pc].T
+                Cw0 = v * w0[pc]
             else:
-                W = np.zeros((self._nk, nb))
-                np.add.at(W.T, rows, Wc.T)
+                WT = np.zeros((nb, self._nk))
+                np.add.at(WT, rows, Wc)
                 S = np.zeros((nb, nb))
-                np.add.at(S, rows, v[:, None] * W[cols, :])  # S = C W
-                Cw0 = np.bincount(rows, weights=v * w0[cols], minlength=nb)
-            y1 = np.linalg.solve(S, Cw0 - b[self._border])
-            w = w0 - W @ y1
+                np.add.at(S, rows, v[:, None] * WT[:, pc].T)  # S = C W
+                Cw0 = np.bincount(rows, weights=v * w0[pc], minlength=nb)
+            rhs = Cw0 - b[self._border]
+            d = S.diagonal()
+            if np.count_nonzero(S) == np.count_nonzero(d):
+                y1 = rhs / d  # S is diagonal (the border rows touch different blocks)
+            else:
+                y1 = np.linalg.solve(S, rhs)
+            w = w0 - y1 @ WT
+        w = w[self._inv]
         y = np.empty(self.l.size)
         y[self._core] = w[n:]
         y[self._border] = y1
@@ -247,7 +360,7 @@ class KKTBackend(QPBackend):
         return QPSolution(z=z, y=y, status=status, raw_status=raw, iterations=iters, solver_time_s=call,
                           solve_call_s=call)
 
-    def _refine(self, z: np.ndarray, y: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray, int]:
+    def _refine(self, z: FloatArray, y: FloatArray, threshold: float) -> tuple[FloatArray, FloatArray, int]:
         """One step of iterative refinement when the recomputed residual exceeds ``threshold``."""
         if self._P_full is None:
             self._P_full = sp.csr_matrix(self.P + sp.triu(self.P, 1).T)
