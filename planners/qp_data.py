@@ -38,7 +38,9 @@ convention, equal to the PMP jumps :math:`\Phi_i` (FOH).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -46,6 +48,10 @@ import scipy.sparse as sp
 from iamp.core.problem import Problem
 from iamp.planners.backends.base import FloatArray, IntArray, KKTResiduals
 from iamp.planners.hold import HOLDS
+
+#: (N, hold, m) -> the pattern-only arrays of :class:`QPData` (the last 16 used).
+_PATTERNS: OrderedDict[tuple[int, str, int], dict[str, Any]] = OrderedDict()
+_PATTERN_ARRAYS = ("_coo_tags", "_coo_k", "_perm", "_sel_pos", "_p_perm", "_m_src", "_m_of_a", "_res_segments")
 
 
 class StateIndex:
@@ -124,6 +130,36 @@ class QPData(StateIndex):
         self.set_grid(self.t_nodes)
 
     def _build_pattern(self) -> None:
+        """The sparsity patterns and value maps, computed once per ``(N, hold, m)`` and then
+        taken from a small cache (read-only index arrays, fresh value arrays)."""
+        key = (self.N, self.hold, self.problem.m)
+        pat = _PATTERNS.get(key)
+        if pat is None:
+            self._compute_pattern()
+            pat = {name: getattr(self, name) for name in _PATTERN_ARRAYS}
+            pat.update(A=(self.A.indices, self.A.indptr), P=(self.P.indices, self.P.indptr),
+                       M=(self._M.indices, self._M.indptr, self._M.shape))
+            for v in pat.values():
+                for a in v if isinstance(v, tuple) else (v,):
+                    if isinstance(a, np.ndarray):
+                        a.setflags(write=False)
+            _PATTERNS[key] = pat
+            while len(_PATTERNS) > 16:
+                _PATTERNS.popitem(last=False)
+            return
+        _PATTERNS.move_to_end(key)
+        self._coo_tags, self._coo_k, self._perm = pat["_coo_tags"], pat["_coo_k"], pat["_perm"]
+        self._sel_pos, self._p_perm, self._m_src = pat["_sel_pos"], pat["_p_perm"], pat["_m_src"]
+        self._m_of_a, self._res_segments = pat["_m_of_a"], pat["_res_segments"]
+        ind, ptr = pat["A"]
+        self.A = sp.csc_matrix((np.zeros(ind.size), ind.copy(), ptr.copy()), shape=(self.n_rows, self.n))
+        ind, ptr = pat["P"]
+        self.P = sp.csc_matrix((np.zeros(ind.size), ind.copy(), ptr.copy()), shape=(self.n, self.n))
+        self._AT = self.A.T
+        ind, ptr, shape = pat["M"]
+        self._M = sp.csr_matrix((np.zeros(ind.size), ind.copy(), ptr.copy()), shape=shape)
+
+    def _compute_pattern(self) -> None:
         """COO triplets with symbolic value tags, then the CSC data permutation."""
         N, m, foh = self.N, self.problem.m, self.hold == "foh"
         k = np.arange(N)

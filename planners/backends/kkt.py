@@ -67,10 +67,10 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack
-from scipy.sparse.csgraph import connected_components, reverse_cuthill_mckee
 
 from iamp.core import status as st
 from iamp.planners.backends.base import FloatArray, IntArray, QPBackend, QPSolution
+from iamp.planners.backends.kkt_symbolic import analyse
 
 
 class KKTBackend(QPBackend):
@@ -85,87 +85,36 @@ class KKTBackend(QPBackend):
     def default_settings(cls) -> dict[str, Any]:
         return {"border_row_nnz": 8, "refine_above": None}
 
-    # --- symbolic analysis (once) --------------------------------------------------------
+    # --- symbolic analysis (once per pattern: iamp.planners.backends.kkt_symbolic) -------
     def _setup(self) -> None:
-        n, mrows = self.q.size, self.l.size
-        A = self.A
-        row_nnz = np.bincount(A.indices, minlength=mrows)
-        self._border = np.flatnonzero(row_nnz > int(self.settings["border_row_nnz"]))
-        self._core = np.flatnonzero(row_nnz <= int(self.settings["border_row_nnz"]))
-        core_of_row = np.full(mrows, -1, dtype=np.int64)
-        core_of_row[self._core] = np.arange(self._core.size)
-        nk = n + self._core.size
-        self._nk = nk
-        a_cols = np.repeat(np.arange(n), np.diff(A.indptr))
-        a_rows = A.indices.astype(np.int64)
-        in_core = core_of_row[a_rows] >= 0
-        self._a_core_pos = np.flatnonzero(in_core)
-        self._a_in_core = in_core
-        kr, kc = n + core_of_row[a_rows[in_core]], a_cols[in_core]
-        P = self.P
-        p_cols = np.repeat(np.arange(n), np.diff(P.indptr))
-        p_rows = P.indices.astype(np.int64)
-        pr = np.concatenate([p_rows, p_cols, kr, kc, np.arange(nk)])
-        pc = np.concatenate([p_cols, p_rows, kc, kr, np.arange(nk)])
-        pattern = sp.csr_matrix((np.ones(pr.size), (pr, pc)), shape=(nk, nk))
-        # blocks: connected components, each in its own RCM order, stored one after another
-        ncomp, label = connected_components(pattern, directed=False)
-        perm_parts, starts = [], [0]
-        for c in range(ncomp):
-            nodes = np.flatnonzero(label == c)
-            sub = pattern[nodes][:, nodes]
-            order = np.asarray(reverse_cuthill_mckee(sp.csr_matrix(sub), symmetric_mode=True), dtype=np.int64)
-            perm_parts.append(nodes[order])
-            starts.append(starts[-1] + nodes.size)
-        perm = np.concatenate(perm_parts)
-        inv = np.empty(nk, dtype=np.int64)
-        inv[perm] = np.arange(nk)
-        self._perm, self._inv = perm, inv
-        self._starts = np.asarray(starts, dtype=np.int64)
-        self._comp_of_perm = np.repeat(np.arange(ncomp), np.diff(self._starts))  # block of a permuted index
-        bw = int(np.max(np.abs(inv[pr] - inv[pc])))
-        self.bandwidth = bw
-        self._kl = self._ku = bw
-        ldab = 3 * bw + 1
-
-        def flat(i: IntArray, j: IntArray) -> IntArray:
-            ii, jj = inv[i], inv[j]
-            return np.asarray((2 * bw + ii - jj) * nk + jj, dtype=np.int64)
-
-        self._ab_shape = (ldab, nk)
-        self._p_pos = flat(p_rows, p_cols)
-        off = p_rows != p_cols
-        self._p_off = np.flatnonzero(off)
-        self._p_pos_mirror = flat(p_cols[off], p_rows[off])
-        self._a_pos = flat(kr, kc)
-        self._a_pos_t = flat(kc, kr)
-        # blocks with the same size and the same banded pattern may share a factorisation
-        band_pattern = np.zeros(self._ab_shape, dtype=bool).reshape(-1)
-        band_pattern[np.concatenate([self._p_pos, self._p_pos_mirror, self._a_pos, self._a_pos_t])] = True
-        bp = band_pattern.reshape(self._ab_shape)
-        self._twin_of: list[int] = []  # block -> first earlier block with the same pattern
-        for c in range(ncomp):
-            s, e = starts[c], starts[c + 1]
-            twin = next((d for d in range(c) if starts[d + 1] - starts[d] == e - s
-                         and np.array_equal(bp[:, starts[d]:starts[d + 1]], bp[:, s:e])), c)
-            self._twin_of.append(twin)
-        # border rows: positions in A.data, their rows, columns, blocks and local (permuted) rows
-        b_mask = ~in_core
-        self._b_pos = np.flatnonzero(b_mask)
-        border_of_row = np.full(mrows, -1, dtype=np.int64)
-        border_of_row[self._border] = np.arange(self._border.size)
-        self._b_row = border_of_row[a_rows[b_mask]]
-        self._b_col = a_cols[b_mask]
-        self._b_range = np.arange(self._border.size)
-        self._b_pc = inv[self._b_col]  # permuted position of each border entry's column
-        ucols, b_ucol = np.unique(self._b_col, return_inverse=True)  # the distinct border columns
-        self._b_ucol = np.asarray(b_ucol, dtype=np.int64).reshape(-1)
-        pu = inv[ucols]
-        self._u_comp = self._comp_of_perm[pu]
-        self._u_loc = pu - self._starts[self._u_comp]
-        self._b_info = np.stack([self._b_row, self._b_pc, self._b_ucol])  # one gather per solve
-        sizes = np.diff(self._starts)
-        self._block_max = int(np.max(sizes))
+        s = analyse(self.P, self.A, int(self.settings["border_row_nnz"]))  # cached per pattern
+        self.structure = s
+        self._nk = s.nk
+        self._border = s.border
+        self._core = s.core
+        self._a_core_pos = s.a_core_pos
+        self._a_in_core = s.a_in_core
+        self._perm = s.perm
+        self._inv = s.inv
+        self._starts = s.starts
+        self._comp_of_perm = s.comp_of_perm
+        self._ab_shape = s.ab_shape
+        self._p_pos = s.p_pos
+        self._p_off = s.p_off
+        self._p_pos_mirror = s.p_pos_mirror
+        self._a_pos = s.a_pos
+        self._a_pos_t = s.a_pos_t
+        self._twin_of = s.twin_of
+        self._b_pos = s.b_pos
+        self._b_row = s.b_row
+        self._b_range = s.b_range
+        self._b_pc = s.b_pc
+        self._u_comp = s.u_comp
+        self._u_loc = s.u_loc
+        self._b_info = s.b_info
+        self._block_max = s.block_max
+        self.bandwidth = s.bandwidth
+        self._kl = self._ku = s.bandwidth
         self._factor: list[tuple[int, FloatArray, IntArray]] | None = None
         self._info = 0
         self.factorisations = 0  # numeric factorisations so far (one per grid)
