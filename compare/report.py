@@ -497,7 +497,9 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     dict
         The contents of ``results.json`` (plus ``outputs``: the files written).
     """
-    from iamp.comparison import figures as F
+    from iamp.comparison.figures_comparison import plot_costates, plot_value_function
+    from iamp.comparison.figures_studies import plot_predictions, plot_timing, plot_zoh_convergence
+    from iamp.comparison.figures_trajectory import plot_positions, plot_xy_snapshots
 
     cfg = config or (ReproduceConfig.quick_config() if quick else ReproduceConfig())
     start = time.perf_counter()
@@ -561,20 +563,20 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
         step(f"figures for {name}")
         prob, pmp = entries[name]["problem"], runs[name]["pmp"]
         fd = out / "figures"
-        fig(f"xy-{name}", F.plot_xy_snapshots(pmp, fd / f"xy-{name}",
-                                              title=f"{name}: ego and vehicles every 0.5 s (lighter = earlier)"))
-        fig(f"pos-{name}", F.plot_positions(pmp, fd / f"pos-{name}",
-                                            title=f"{name}: optimal longitudinal and lateral position"))
+        fig(f"xy-{name}", plot_xy_snapshots(pmp, fd / f"xy-{name}",
+                                            title=f"{name}: ego and vehicles every 0.5 s (lighter = earlier)"))
+        fig(f"pos-{name}", plot_positions(pmp, fd / f"pos-{name}",
+                                          title=f"{name}: optimal longitudinal and lateral position"))
         qp_runs = {short_label(lbl): r for lbl, r in runs[name].items()
                    if lbl != "pmp" and "refine" not in lbl and "native" not in lbl}
         if prob.m == 1:
             fig_sweeps = {short_label(lbl): (r.steps, r.info["sweep"]) for lbl, r in runs[name].items()
                           if lbl != "pmp" and r.is_optimal() and r.hold == "foh" and "sweep" in r.info
                           and "refine" not in lbl and "native" not in lbl}
-            fig(f"J-{name}", F.plot_value_function(prob, pmp, fig_sweeps, fd / f"J-{name}",
-                                                   title=f"{name}: cost against contact time"))
-        fig(f"costates-{name}", F.plot_costates(pmp, qp_runs, fd / f"costates-{name}",
-                                                title=f"{name}: PMP co-states and jumps against QP multipliers"))
+            fig(f"J-{name}", plot_value_function(prob, pmp, fig_sweeps, fd / f"J-{name}",
+                                                 title=f"{name}: cost against contact time"))
+        fig(f"costates-{name}", plot_costates(pmp, qp_runs, fd / f"costates-{name}",
+                                              title=f"{name}: PMP co-states and jumps against QP multipliers"))
     pred_entries = {}
     for name in scenarios[:3] if len(scenarios) >= 3 else scenarios:
         e = entries[name]
@@ -587,8 +589,8 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
                               "pred_t": p0.t if p0 is not None else None, "pred_x": p0.x if p0 is not None else None,
                               "x_poly": e["problem"].vehicles[0].x_poly}
     if pred_entries:
-        fig("predictions", F.plot_predictions(pred_entries, out / "figures" / "predictions",
-                                              tf=entries[next(iter(pred_entries))]["problem"].tf))
+        fig("predictions", plot_predictions(pred_entries, out / "figures" / "predictions",
+                                            tf=entries[next(iter(pred_entries))]["problem"].tf))
 
     # safety: equality against the avoidance QP (SPEC §9, §10), a table and a figure per scenario
     from iamp.comparison.safety_compare import reproduction_section
@@ -607,14 +609,14 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
         conv[name] = zoh_convergence(entries[name]["problem"], cfg.zoh_steps)
         step.sub(k + 1, len(one))
     if conv:
-        fig("zoh", F.plot_zoh_convergence({n: ([r["h"] for r in c["rows"]], [r["zoh_gap"] or np.nan for r in c["rows"]])
-                                           for n, c in conv.items()}, out / "figures" / "zoh-convergence"))
+        fig("zoh", plot_zoh_convergence({n: ([r["h"] for r in c["rows"]], [r["zoh_gap"] or np.nan for r in c["rows"]])
+                                         for n, c in conv.items()}, out / "figures" / "zoh-convergence"))
 
     # 5. timing --------------------------------------------------------------------------
     step("timing (single QP solves at a changed node)")
     timing = _timing(entries, plans, cfg, progress=step.sub)
-    fig("timing", F.plot_timing(timing["samples"], out / "figures" / "timing",
-                                whole_plans=_whole_plan_stats(timing, cfg)))
+    fig("timing", plot_timing(timing["samples"], out / "figures" / "timing",
+                              whole_plans=_whole_plan_stats(timing, cfg)))
 
     # 6. predictor evaluation --------------------------------------------------------------
     step("predictor evaluation")

@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from iamp.comparison.figures import lane_lines, plot_positions, plot_xy_snapshots, save_figure
+from iamp.comparison.figures import save_figure
+from iamp.comparison.figures_trajectory import lane_lines, plot_positions, plot_xy_snapshots
 from iamp.comparison.report import (
     ReproduceConfig,
     manoeuvre_metrics,

@@ -96,13 +96,12 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
     """
     from iamp.comparison.figures import (
         SAFETY_COLOR,
-        draw_xy,
         is_avoidance,
         legend_below,
         planner_style,
         tidy_axis,
-        xy_limits,
     )
+    from iamp.comparison.figures_trajectory import draw_xy, xy_limits
 
     problem = result.problem
     tf = problem.tf
