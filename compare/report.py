@@ -21,10 +21,10 @@ r"""``iamp reproduce``: the paper's experiments end to end, and the comparison b
 Every file is written atomically.  The library never prints: progress goes to the optional
 ``progress(step, total, message)`` callback.
 
-This module runs the steps; the LaTeX (tables and ``report.tex``) is
-:mod:`iamp.comparison.report_tex`, the plan metrics and the qualitative comparison are
-:mod:`iamp.comparison.metrics`, the paper's Table I is :mod:`iamp.comparison.paper`.  Their public
-names are re-exported here.
+This module runs the steps; the LaTeX is :mod:`iamp.comparison.report_tables` (the tables),
+:mod:`iamp.comparison.report_document` (``report.tex``) and :mod:`iamp.comparison.report_tex`
+(their text and number formats); the plan metrics and the qualitative comparison are
+:mod:`iamp.comparison.metrics`, the paper's Table I is :mod:`iamp.comparison.paper`.
 """
 
 from __future__ import annotations
@@ -41,54 +41,27 @@ from typing import Any
 
 import numpy as np
 
-from iamp.comparison.metrics import AGGRESSION_MEASURES, INSIDE_TOL_M, manoeuvre_metrics, qualitative_comparison
-from iamp.comparison.paper import PAPER_FIG, PAPER_TABLE_I, SCENARIOS
-from iamp.comparison.report_tex import (
-    SOLVER_NAMES,
-    agreement_notes,
-    build_report_tex,
-    short_label,
+from iamp.comparison.metrics import manoeuvre_metrics, qualitative_comparison
+from iamp.comparison.paper import PAPER_TABLE_I, SCENARIOS
+from iamp.comparison.report_document import build_report_tex
+from iamp.comparison.report_tables import (
     table_agreement,
     table_convergence,
     table_metrics,
     table_results,
     table_scenarios,
     table_timing,
-    tex_escape,
 )
+from iamp.comparison.report_tex import short_label
 from iamp.comparison.timing import dist_version, sample_nodes, summarize
-from iamp.core.atomic import write_text as atomic_write_text  # re-exported for callers
+from iamp.core.atomic import write_text as atomic_write_text
 from iamp.core.jsonable import to_jsonable
 from iamp.core.problem import Problem
 
 #: ``progress(done, total)``, the project's progress convention.
 ProgressFn = Callable[[int, int], None]
 
-# (names from iamp.comparison.paper, .metrics and .report_tex are re-exported)
-__all__ = [
-    "AGGRESSION_MEASURES",
-    "INSIDE_TOL_M",
-    "PAPER_FIG",
-    "PAPER_TABLE_I",
-    "SCENARIOS",
-    "SOLVER_NAMES",
-    "ReproduceConfig",
-    "agreement_notes",
-    "atomic_write_text",
-    "build_report_tex",
-    "manoeuvre_metrics",
-    "qualitative_comparison",
-    "reproduce",
-    "short_label",
-    "table_agreement",
-    "table_convergence",
-    "table_metrics",
-    "table_results",
-    "table_scenarios",
-    "table_timing",
-    "tex_escape",
-    "zoh_convergence",
-]
+__all__ = ["ReproduceConfig", "reproduce", "zoh_convergence"]
 
 
 @dataclass

@@ -45,6 +45,7 @@ class QPSolutionData:
     y: FloatArray
     imposed: np.ndarray
 
+
 #: A row binds when its slack is at most this [m].
 ACTIVE_SLACK_M = 1e-6
 

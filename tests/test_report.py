@@ -17,14 +17,9 @@ import pytest
 
 from iamp.comparison.figures import save_figure
 from iamp.comparison.figures_trajectory import lane_lines, plot_positions, plot_xy_snapshots
-from iamp.comparison.report import (
-    ReproduceConfig,
-    manoeuvre_metrics,
-    qualitative_comparison,
-    reproduce,
-    tex_escape,
-    zoh_convergence,
-)
+from iamp.comparison.metrics import manoeuvre_metrics, qualitative_comparison
+from iamp.comparison.report import ReproduceConfig, reproduce, zoh_convergence
+from iamp.comparison.report_tex import tex_escape
 from iamp.planners.examples import paper_problem
 from iamp.planners.pmp import PMPPlanner
 

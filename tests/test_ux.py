@@ -336,7 +336,7 @@ def test_one_colour_per_planner_in_every_figure():
 
 
 def test_timing_table_states_the_pmp_once():
-    from iamp.comparison.report_tex import table_timing
+    from iamp.comparison.report_tables import table_timing
 
     timing = {"machine": {"python": "3.11", "cpu_count": 2, "load_average_1min": 1.0},
               "summary": {"QP clarabel solve, cvxpy, N=100 (1 vehicle)":
