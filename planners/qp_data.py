@@ -100,6 +100,10 @@ class QPData(StateIndex):
         First selector row (vehicle ``i``'s rows are ``row_collision + 2i + {0, 1}``).
     """
 
+    A: sp.csc_matrix
+    P: sp.csc_matrix
+    _M: sp.csr_matrix
+
     def __init__(self, problem: Problem, steps: int, hold: str = "foh") -> None:
         if hold not in HOLDS:
             raise ValueError(f"unknown hold {hold!r}; choose from {', '.join(HOLDS)}")
@@ -137,8 +141,8 @@ class QPData(StateIndex):
         if pat is None:
             self._compute_pattern()
             pat = {name: getattr(self, name) for name in _PATTERN_ARRAYS}
-            pat.update(A=(self.A.indices, self.A.indptr), P=(self.P.indices, self.P.indptr),
-                       M=(self._M.indices, self._M.indptr, self._M.shape))
+            pat.update(A=(self.A.indices.copy(), self.A.indptr.copy()), P=(self.P.indices.copy(), self.P.indptr.copy()),
+                       M=(self._M.indices.copy(), self._M.indptr.copy(), self._M.shape))
             for v in pat.values():
                 for a in v if isinstance(v, tuple) else (v,):
                     if isinstance(a, np.ndarray):

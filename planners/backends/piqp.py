@@ -9,7 +9,45 @@ multipliers are mapped back to OSQP's convention: ``y`` for equality rows, ``z_u
 for the others (stationarity ``Px + c + Aᵀy + Gᵀ(z_u − z_l) = 0``).
 
 Settings (:func:`default`): ``eps_abs = 1e-10``, ``eps_rel = 0`` (PIQP's defaults are
-1e-8 / 1e-9), ``compute_timings = True`` so the solver's own time is reported.
+1e-8 / 1e-9), ``compute_timings = True`` so the solver's own time is reported.  When every
+row is an equality (the QP of SPEC §3) :func:`equality_settings` are added unless given
+explicitly: ``rho_init = delta_init = 1e-10`` (PIQP's ``reg_lower_limit``; its defaults are
+1e-6 and 1e-4) and ``eps_abs = 1e-11``.  With no inequality there is no barrier to follow:
+the only reason PIQP iterates is its proximal regularisation, and started at the lower limit
+the first (regularised) Newton step is already the solution of the KKT system up to
+~1e-10 relative, so one iteration is enough.
+
+Measured on ``paper-1-poly``, FOH, ``N = 100``, all 99 candidates of a sweep per row, KKT
+residuals recomputed (tolerance ``cmp_kkt_rel_clarabel`` = 1e-9), PIQP 0.7.0; times are
+medians of update + solve per candidate on the shared 2-core machine, all rows in one run
+(``/tmp``-script ``study.py``, reproduced by ``tests/test_qp_speed_paths.py`` for accuracy):
+
+==========================================================  ========  ==========  =========  ========
+settings (besides eps_abs 1e-10, eps_rel 0)                 verified  iterations  max KKT    time
+==========================================================  ========  ==========  =========  ========
+PIQP defaults (rho_init 1e-6, delta_init 1e-4): before      99        3 (≤ 6)     5.6e-10    310 µs
+``eps_abs`` 1e-8 or 1e-9 (defaults otherwise)               99        3 (≤ 6)     6.8e-10    same
+``delta_init`` 1e-7                                         99        2 (≤ 3)     1.1e-11    265 µs
+``rho_init`` 1e-9, ``delta_init`` 1e-7                      99        1 (≤ 3)     5.0e-10    168 µs
+``rho_init = delta_init`` 1e-10                             99        1 (≤ 2)     1.7e-12    164 µs
+… and ``eps_abs`` 1e-11 (**the default here**)              99        1 (≤ 3)     1.6e-12    165 µs
+… and ``preconditioner_iter`` 0                             99        1           1.7e-12    151 µs
+… and ``iterative_refinement_always_enabled``               99        1 (≤ 2)     1.8e-12    191 µs
+… and ``kkt_solver`` ``sparse_ldlt_ineq_cond``              99        1           1.7e-12    180 µs
+``kkt_solver`` ``sparse_ldlt_eq_cond`` / ``sparse_ldlt_cond``  99     3           5.6e-10    1.5 ms
+``kkt_solver`` ``sparse_multistage``                        99        3           5.6e-10    3.5 ms
+==========================================================  ========  ==========  =========  ========
+
+``eps_abs = 1e-11`` is kept because at 1e-10 one of 600 random candidates (``random_problem``,
+FOH/ZOH, ``N`` 10–100, one or two vehicles, on- and off-grid) stopped after one step with a
+duality-gap residual of 1.9e-9 (INACCURATE); with 1e-11 all 600 verify (worst 4.3e-11).
+``preconditioner_iter = 0`` (no Ruiz scaling) gains ~10 µs, within the noise, and is not
+worth the robustness on badly scaled data.  The condensed KKT solvers refactorise a denser
+matrix (the selector rows' patterns hold every interior node); ``sparse_multistage`` does
+not recognise stages in this variable order (axis-major).  Re-setting up instead of
+updating costs ~300 µs (the symbolic analysis again).  Where the remaining time goes: the
+value update (~30 µs: ``A`` and ``b``, the preconditioner recomputed) and one sparse LDLᵀ
+of the ~1000 × 1000 KKT matrix with its triangular solves (~130 µs).
 
 Status mapping: ``PIQP_SOLVED`` → OPTIMAL; ``PIQP_MAX_ITER_REACHED`` → MAX_ITER;
 ``PIQP_PRIMAL_INFEASIBLE`` → INFEASIBLE; ``PIQP_NUMERICS`` → NUMERICAL_ERROR; anything else
@@ -19,13 +57,14 @@ Status mapping: ``PIQP_SOLVED`` → OPTIMAL; ``PIQP_MAX_ITER_REACHED`` → MAX_I
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 import scipy.sparse as sp
 
 from iamp.core import status as st
-from iamp.planners.backends.base import IntArray, QPBackend, QPSolution
+from iamp.planners.backends.base import FloatArray, IntArray, QPBackend, QPSolution
 
 PIQP_STATUS: dict[str, str] = {
     "PIQP_SOLVED": st.OPTIMAL,
@@ -48,6 +87,13 @@ def default() -> dict[str, Any]:
     return {"eps_abs": 1e-10, "eps_rel": 0.0, "compute_timings": True, "verbose": False}
 
 
+def equality_settings() -> dict[str, Any]:
+    """Added to :func:`default` when every row is an equality (module docstring): start the
+    proximal regularisations at PIQP's lower limit, so the first Newton step is the exact
+    one."""
+    return {"rho_init": 1e-10, "delta_init": 1e-10, "eps_abs": 1e-11}
+
+
 class PIQPBackend(QPBackend):
     """PIQP behind :class:`~iamp.planners.backends.base.QPBackend`."""
 
@@ -55,9 +101,19 @@ class PIQPBackend(QPBackend):
     distribution: ClassVar[str] = "piqp"
     tolerance_key: ClassVar[str] = "cmp_kkt_rel_clarabel"
 
+    def __init__(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
+                 settings: Mapping[str, Any] | None = None) -> None:
+        self._given = frozenset(settings or ())  # the settings the caller chose explicitly
+        super().__init__(P, q, A, l, u, settings)
+
     @classmethod
     def default_settings(cls) -> dict[str, Any]:
         return default()
+
+    def describe(self) -> dict[str, Any]:
+        """Name, version and the settings applied (with :func:`equality_settings` when every
+        row is an equality)."""
+        return {**super().describe(), "settings": dict(self.applied_settings)}
 
     def _parts(self) -> tuple[sp.csc_matrix, np.ndarray, sp.csc_matrix | None, np.ndarray | None,
                               np.ndarray | None]:
@@ -73,7 +129,13 @@ class PIQPBackend(QPBackend):
         eq = self.l == self.u
         self._eq, self._ineq = np.flatnonzero(eq), np.flatnonzero(~eq)
         self.solver = piqp.SparseSolver()
-        for k, v in self.settings.items():
+        settings = dict(self.settings)
+        if self._ineq.size == 0:  # equality-only: the one-step settings, unless given explicitly
+            settings.update({k: v for k, v in equality_settings().items() if k not in self._given})
+        self.applied_settings = settings
+        for k, v in settings.items():
+            if k == "kkt_solver" and isinstance(v, str):
+                v = getattr(piqp.KKTSolver, v)  # by name, e.g. "sparse_ldlt"
             setattr(self.solver.settings, k, v)
         A, b, G, hl, hu = self._parts()
         self.solver.setup(self.P, self.q, A, b, G, hl, hu)
