@@ -27,7 +27,7 @@ from iamp.comparison.report_tex import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
-    from iamp.comparison.report import ReproduceConfig
+    from iamp.comparison.report_config import ReproduceConfig
 
 __all__ = [
     "agreement_notes",

@@ -18,7 +18,8 @@ import pytest
 from iamp.comparison.figures import save_figure
 from iamp.comparison.figures_trajectory import lane_lines, plot_positions, plot_xy_snapshots
 from iamp.comparison.metrics import manoeuvre_metrics, qualitative_comparison
-from iamp.comparison.report import ReproduceConfig, reproduce, zoh_convergence
+from iamp.comparison.report import ReproduceConfig, reproduce
+from iamp.comparison.report_convergence import zoh_convergence
 from iamp.comparison.report_tex import tex_escape
 from iamp.planners.examples import paper_problem
 from iamp.planners.pmp import PMPPlanner
