@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from iamp.comparison.durations import format_seconds
 from iamp.comparison.timing import TimingStats, measure, summarize, versions
 
 #: IQR/median above which a measurement is flagged as taken on a busy machine.
@@ -344,13 +345,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
 
 
 def _fmt_s(x: float | None) -> str:
-    if x is None:
-        return "       n/a"
-    if x < 1e-3:
-        return f"{x * 1e6:8.1f} µs"
-    if x < 1:
-        return f"{x * 1e3:8.3f} ms"
-    return f"{x:8.3f} s "
+    return format_seconds(x, digits=3, width=8, missing="       n/a")
 
 
 def _fmt_target(x: float) -> str:

@@ -28,6 +28,7 @@ from typing import Any
 from iamp.cli.types import model_file
 from iamp.cli.types import positive_float as _positive_float
 from iamp.cli.types import positive_int as _positive_int
+from iamp.comparison.durations import format_seconds as _fmt_time
 from iamp.core.errors import ScenarioError
 from iamp.core.jsonable import to_jsonable
 from iamp.core.problem import Problem
@@ -169,16 +170,6 @@ def _summary_key(run: dict[str, Any], auto: bool) -> str:
     if run["planner"] == "pmp" or not auto:
         return str(run["label"])
     return (str(run["label"]) + "-").replace(f"-{run['steps']}-", "-N-", 1).rstrip("-")
-
-
-def _fmt_time(x: float | None) -> str:
-    if x is None:
-        return "-"
-    if x < 1e-3:
-        return f"{x * 1e6:.1f} µs"
-    if x < 1:
-        return f"{x * 1e3:.2f} ms"
-    return f"{x:.2f} s"
 
 
 def _fmt_g(x: float | None, spec: str = ".3g") -> str:
