@@ -258,7 +258,8 @@ def test_status_words_map_to_one_vocabulary():
     assert osqp_mod.map_status("something new") == st.SOLVER_ERROR
 
 
-@pytest.mark.parametrize("solver, limit", [("osqp", {"max_iter": 3, "polishing": False}), ("piqp", {"max_iter": 1})])
+@pytest.mark.parametrize("solver, limit", [("osqp", {"max_iter": 3, "polishing": False, "eps_abs": 1e-5}),
+                                           ("piqp", {"max_iter": 1})])
 def test_a_real_iteration_limit_is_max_iter_without_a_cost(solver, limit):
     res = QPPlanner(steps=30, hold="foh", solver=solver, solver_settings=limit).plan_at_nodes(paper_problem(1), [15])
     assert res.status == st.MAX_ITER and res.cost is None

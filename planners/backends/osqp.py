@@ -4,41 +4,69 @@ Set up once; :meth:`update` sends only the changed values (``Ax``/``Ax_idx``, ``
 so OSQP refactorises numerically on the same symbolic structure, and every solve is
 warm-started from the previous solution when :meth:`warm_start` is called.
 
-Settings for the equality-only QP of SPEC §3 (:func:`equality_settings`, the default).
-Measured on ``paper-1-poly``, FOH, ``N = 100``, one warm-started sweep over all 99 candidates
-per row, KKT residuals recomputed (``iamp bench`` prints this table as "OSQP settings";
-OSQP 1.1.3; counts are deterministic, times were taken on a loaded 2-core machine):
+Settings for the equality-only QP of SPEC §3: :func:`equality_settings` (the defaults, used
+for any problem) plus, when every row is an equality, :func:`polish_first_settings` (unless
+a setting is given explicitly; :meth:`OSQPBackend.describe` reports what was applied).
 
-=====================================  ========  ========  ==========  ============
-setting                                verified  polished  iterations  max KKT rel
-=====================================  ========  ========  ==========  ============
-eps_abs 1e-3 … 1e-5, refine_iter 10    99        99        50 (≤ 75)   1.9e-13
-eps_abs 1e-3 … 1e-5, refine_iter 3     99        97        50          6.9e-08
-eps_abs 1e-3 … 1e-5, refine_iter 1     76        76        50          5.0e-07
-eps_abs 1e-5, polishing off            2         0         50          7.2e-07
-eps_abs 1e-6, refine_iter 10           98        99        50 (10000)  4.9e-07
-eps_abs 1e-7, polishing off            89        0         50 (10000)  3.4e-07
-=====================================  ========  ========  ==========  ============
+The accuracy comes from the **polish**: with only equality rows every row is "active", so a
+successful polish solves the reduced KKT system directly (a fresh LDLᵀ plus
+``polish_refine_iter`` refinement steps) and the solution is exact to ~1e-13 whatever ADMM's
+``eps_abs`` was; ADMM only has to bring the iterate close enough for the polish to succeed.
+So the ADMM part is made as short as it can be:
 
-(verified: the recomputed relative KKT residuals are within ``cmp_kkt_rel_osqp`` = 1e-7.)
-What each setting buys:
+* ``eps_abs = 0.1`` checked every iteration (``check_termination = 1``; the default checks
+  every 25, so ADMM ran 50 iterations whatever the tolerance);
+* ``alpha = 1.0`` (no over-relaxation): from the neighbouring candidate's solution
+  (warm start) ADMM meets 0.1 in 3 iterations instead of 22 with OSQP's 1.6;
+* ``scaling = 0``: with Ruiz scaling every value update rescales the data (~0.2 ms of the
+  update); the lane-change QP is well scaled and verifies without it.
 
-* ``polishing = True`` does the accuracy: with only equality rows every row is "active",
-  so a successful polish solves the reduced KKT system directly and the solution is exact
-  to ~1e-13 whatever ADMM's ``eps_abs`` was; ADMM only has to get close enough for the
-  polish to succeed.  ``polish_refine_iter = 10`` is needed for that: 3 leaves residuals up
-  to 7e-8, 1 fails the check on a quarter of the candidates.
-* ``eps_abs`` between 1e-3 and 1e-5 costs the same: OSQP checks termination every 25
-  iterations and stops at 50 either way; 1e-5 is kept.  Tighter is worse: at 1e-6 one
-  candidate, at 1e-7 nine, run to ``max_iter`` (ADMM stalls; 1e-7 without polishing takes
-  ~2.8 s per sweep and still fails ten candidates).  ``eps_rel = 0`` and, in OSQP 1.x,
-  ``check_dualgap = False`` (the gap criterion cannot be met with ``eps_rel = 0`` on the
-  expensive candidates).
-* Per candidate, OSQP costs about 1 ms at ``N = 100``: the value update refactorises the KKT
-  matrix (~0.2 ms), 50 ADMM iterations (~0.55 ms) and the polish (~0.45 ms) — the 0.5 ms
-  target is out of reach without giving up the exact polish.
+Measured on ``paper-1-poly``, FOH, ``N = 100``, all 99 candidates of a warm-started sweep per
+row, KKT residuals recomputed (verified: relative residuals within ``cmp_kkt_rel_osqp`` =
+1e-7), OSQP 1.1.3.  Times: medians of update + solve per candidate, rows interleaved over
+four rounds in one run on the shared, loaded 2-core machine (compare rows, not absolute
+values: ``iamp bench`` gives the quiet-machine numbers); iteration counts are deterministic.
+
+==========================================================  ========  ========  ============  =========  =======
+settings (besides eps_rel 0, check_dualgap off, polishing,  verified  polished  iterations    max KKT    time
+polish_refine_iter 10)                                                          median (max)
+==========================================================  ========  ========  ============  =========  =======
+before: eps_abs 1e-5, check every 25, alpha 1.6, scaling    99        99        50 (75)       1.9e-13    1.90 ms
+**default now** (eps_abs 0.1, check every 1, alpha 1.0,    99        99        3 (67)        1.9e-13    0.96 ms
+scaling 0)
+… eps_abs 1e-2 (1e-3: same, ≤ 91 iterations)                 99        99        3 (79)        1.9e-13    0.99 ms
+… with Ruiz scaling (``scaling = 10``)                       99        99        3 (54)        1.9e-13    1.24 ms
+… with over-relaxation ``alpha = 1.6``                       99        99        22 (58)       1.9e-13    1.56 ms
+… ``adaptive_rho`` off (no refactorisation on rho updates)  99        99        3 (2410)      1.9e-13    ≈ same
+… without warm start (``warm_starting`` off)                 99        99        3 (67)        1.9e-13    0.97 ms
+… ``polish_refine_iter = 3``                                  97        99        3 (67)        2.3e-05    0.78 ms
+… ``polish_refine_iter = 1``                                  77        96        3 (67)        1.0e-01    ≈ 0.67 ms
+… ``polishing`` off                                           0         0         3 (67)        1.0e-01    0.22 ms
+==========================================================  ========  ========  ============  =========  =======
+
+What the rest buys or costs:
+
+* ``adaptive_rho`` stays on: off, a few candidates stall (up to 2410 iterations; the same
+  with ``alpha`` 1.6: 1506); on, the worst is 67.  ``rho`` 1.0 instead of 0.1 and the polish
+  ``delta`` (1e-6 … 1e-12) change nothing measurable.
+* ``polish_refine_iter = 10`` is needed: 3 leaves two candidates unverified (2.3e-5), 1 a
+  quarter of them.  ``eps_abs`` tighter than 1e-5 makes ADMM stall (earlier study: at 1e-6
+  one candidate, at 1e-7 nine run to ``max_iter``; 1e-7 without polishing still fails ten
+  candidates); a large ``rho`` (10 … 1e4, unpolished, ``eps_abs`` 1e-8 … 1e-10) verifies at
+  most 71 of 99.
 * An unpolished solution is accurate only to about ``eps_abs``: it fails the KKT check and
-  is reported INACCURATE, not optimal.
+  is reported INACCURATE, never optimal.
+* Over 600 random candidates (``random_problem``, FOH and ZOH, ``N`` 10–100, one and two
+  vehicles, on and off the grid) the defaults verify every one (worst 6.3e-13; ADMM median
+  4, max 66 iterations).
+* Where the time goes now, per candidate (OSQP's own timers): the value update with its
+  numeric refactorisation ~50 µs, 3 ADMM iterations ~70 µs, the polish ~450 µs (its fresh
+  factorisation of the reduced KKT matrix ~300 µs, ten refinement solves ~140 µs).  The
+  0.5 ms target is therefore out of reach with a verified solution: the polish alone is
+  about that on a quiet machine, and it is what makes the answer exact.  The unverified
+  0.2 ms is not offered.
+* Problems with inequalities (the avoidance QP) keep :func:`equality_settings` alone: with a
+  loose ADMM the polish's active-set guess could be wrong.
 
 Status mapping (OSQP word → :mod:`iamp.core.status`): ``solved`` → OPTIMAL;
 ``solved inaccurate`` → INACCURATE; ``maximum iterations reached`` → MAX_ITER;
@@ -49,12 +77,14 @@ Status mapping (OSQP word → :mod:`iamp.core.status`): ``solved`` → OPTIMAL;
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
+import scipy.sparse as sp
 
 from iamp.core import status as st
-from iamp.planners.backends.base import IntArray, QPBackend, QPSolution, dist_version
+from iamp.planners.backends.base import FloatArray, IntArray, QPBackend, QPSolution, dist_version
 
 OSQP_STATUS: dict[str, str] = {
     "solved": st.OPTIMAL,
@@ -92,6 +122,14 @@ def equality_settings(eps_abs: float = 1e-5, max_iter: int = 10_000) -> dict[str
     return settings
 
 
+def polish_first_settings() -> dict[str, Any]:
+    """Added to :func:`equality_settings` when every row is an equality (module docstring):
+    ADMM only brings the iterate near the solution (loose ``eps_abs``, checked every
+    iteration, no over-relaxation, no scaling to redo on each update); the exact answer is
+    the polish."""
+    return {"eps_abs": 0.1, "check_termination": 1, "alpha": 1.0, "scaling": 0}
+
+
 class OSQPBackend(QPBackend):
     """OSQP behind :class:`~iamp.planners.backends.base.QPBackend`."""
 
@@ -100,6 +138,11 @@ class OSQPBackend(QPBackend):
     warm_starts: ClassVar[bool] = True
     tolerance_key: ClassVar[str] = "cmp_kkt_rel_osqp"
 
+    def __init__(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
+                 settings: Mapping[str, Any] | None = None) -> None:
+        self._given = frozenset(settings or ())  # the settings the caller chose explicitly
+        super().__init__(P, q, A, l, u, settings)
+
     @classmethod
     def default_settings(cls) -> dict[str, Any]:
         return equality_settings()
@@ -107,9 +150,17 @@ class OSQPBackend(QPBackend):
     def _setup(self) -> None:
         import osqp
 
+        settings = dict(self.settings)
+        if np.array_equal(self.l, self.u):  # equality-only: polish first, unless given explicitly
+            settings.update({k: v for k, v in polish_first_settings().items() if k not in self._given})
+        self.applied_settings = settings
         self.solver = osqp.OSQP()
-        self.solver.setup(self.P, self.q, self.A, self.l, self.u, **self.settings)
+        self.solver.setup(self.P, self.q, self.A, self.l, self.u, **settings)
         self._warm: tuple[np.ndarray, np.ndarray] | None = None
+
+    def describe(self) -> dict[str, Any]:
+        """Name, version and the settings applied (module docstring)."""
+        return {**super().describe(), "settings": dict(self.applied_settings)}
 
     def _push(self, P: bool, A: bool, A_idx: IntArray | None, q: bool, bounds: bool) -> None:
         kw: dict[str, Any] = {}
