@@ -95,7 +95,8 @@ class AvoidQPPlanner:
         Switches per vehicle of the coarse sweep beyond ``max_combinations``.
     prune : bool
         One vehicle: skip the switches that monotone relaxations prove no better than the
-        best found (exact; see :func:`~iamp.planners.avoid_search.pruned_switches`).  ``False`` solves every switch.
+        best found (exact; see :func:`~iamp.planners.avoid_search.pruned_switches`).
+        ``False`` solves every switch.
     """
 
     steps: int = 100
@@ -120,8 +121,10 @@ class AvoidQPPlanner:
         _, u = data.bounds(on)
         return BoundSolver(self.solver, data.P, data.A, data.b_eq, u[data.n_eq:], self.solver_settings)
 
-    def _solve(self, data: AvoidData, backend: BoundSolver, phases: Sequence[tuple[int, int, int, int]],
+    def _solve(self, data: AvoidData, backend: BoundSolver, phases: Sequence[Phase],
                warm: Candidate | None = None) -> Candidate:
+        """Solve candidate ``phases`` (one per vehicle; none: every inequality relaxed) on the
+        set-up ``backend``, a bound update; cost :math:`J = \\tfrac12 z^\\top P z`."""
         on = data.imposed(phases)
         _, u = data.bounds(on)
         backend.set_upper(u[data.n_eq:])
