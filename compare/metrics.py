@@ -7,7 +7,7 @@
   against 1 (the paper: more conservative), measure by measure
   (:data:`AGGRESSION_MEASURES`).
 
-Used by :func:`iamp.comparison.report.reproduce`; re-exported there.
+Used by :func:`iamp.comparison.report.reproduce`.
 """
 
 from __future__ import annotations
