@@ -97,11 +97,17 @@ class PMPPlanner:
     kernel : callable
         The one-vehicle kernel (:func:`~iamp.planners.pmp_one.one_vehicle_kernel`, or its
         numba-compiled twin from :func:`iamp.planners.pmp_compiled.compiled_kernel`).
+    compiled : bool or None
+        The ``m ≥ 2`` search on the numba path (:mod:`~iamp.planners.pmp_compiled_search`):
+        ``None`` (default) uses it only if it is already loaded in this process (never
+        compiles), ``True`` loads it now (compiles once per machine, then numba's disk cache;
+        pure path if numba is missing), ``False`` never.  Same answers either way.
     """
 
     max_starts: int = 32
     max_boxes: int = 200_000
     kernel: Callable[..., list[float]] = one_vehicle_kernel
+    compiled: bool | None = None
 
     def search(self, problem: Problem, S: Scaled | None = None,
                progress: Callable[[int, int], None] | None = None) -> tuple[FloatArray, float, bool, dict[str, Any]]:
@@ -110,8 +116,13 @@ class PMPPlanner:
         if problem.m == 1:
             s, q = one_vehicle_sigma(S.EX[0].tolist(), S.EY[0].tolist())
             return np.array([s]), q, True, {"method": "all roots of the stationarity polynomial"}
-        res = global_search(ValueFunction(problem, S), self.max_starts, self.max_boxes, progress)
-        return res.sigma, res.q, res.certified, {"method": "starts + Newton + branch and bound",
+        from iamp.planners import pmp_compiled_search as fast
+
+        vf = ValueFunction(problem, S)
+        compiled = fast.use(self.compiled)
+        res = (fast.run(vf, self.max_starts, self.max_boxes, progress) if compiled
+               else global_search(vf, self.max_starts, self.max_boxes, progress))
+        return res.sigma, res.q, res.certified, {"method": "starts + Newton + branch and bound", "compiled": compiled,
                                                  "boxes": res.boxes, "starts": res.starts}
 
     def contact_times(self, problem: Problem) -> FloatArray:
