@@ -24,9 +24,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from iamp.core import status as st
-from iamp.planners.backends import ITERATIVE, get_backend
+from iamp.planners.backends import ITERATIVE, get_backend, kkt_symbolic
 from iamp.planners.backends import clarabel as clarabel_mod
-from iamp.planners.backends import kkt_symbolic
 from iamp.planners.backends import osqp as osqp_mod
 from iamp.planners.backends import piqp as piqp_mod
 from iamp.planners.examples import paper_problem, random_problem
@@ -44,7 +43,7 @@ def _lu_kkt(P_upper: sp.spmatrix, A: sp.spmatrix, b: np.ndarray, q: np.ndarray |
     Pu = sp.csc_matrix(P_upper)
     P = Pu + sp.triu(Pu, 1).T
     As = sp.csc_matrix(A)
-    n, m = P.shape[0], As.shape[0]
+    n = P.shape[0]
     K = sp.bmat([[P, As.T], [As, None]], format="csc")
     sol = spla.splu(K).solve(np.r_[-(np.zeros(n) if q is None else q), b])
     return sol[:n], sol[n:]
@@ -125,7 +124,8 @@ def test_random_equality_qps_equal_an_lu_solve(seed, n, data):
     P = sp.triu(sp.csc_matrix(L @ L.T + 0.1 * sp.eye(n)), format="csc")
     A = sp.random(m, n, density=0.3, random_state=rng, format="csc") + sp.eye(m, n, format="csc")
     b, q = rng.normal(size=m), rng.normal(size=n)
-    sol = get_backend("kkt")(P, q, sp.csc_matrix(A), b, b, {"border_row_nnz": int(data.draw(hs.integers(1, n)))}).solve()
+    border = {"border_row_nnz": int(data.draw(hs.integers(1, n)))}
+    sol = get_backend("kkt")(P, q, sp.csc_matrix(A), b, b, border).solve()
     z, y = _lu_kkt(P, A, b, q)
     assert sol.status == st.OPTIMAL
     assert _rel(sol.z, z) <= 1e-8 and _rel(sol.y, y) <= 1e-8
