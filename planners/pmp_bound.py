@@ -17,9 +17,12 @@ q_{\text{axis}}(\sigma)` with :math:`q = e^\top K^{-1} e`.  Three lower bounds o
    :math:`\min_B e^2` from the Taylor range and :math:`\max_B K_{ii}` exact (unimodal).  This
    grows without bound at ``σ_i → 0, 1`` where the first bound cannot.
 3. **Two vehicles at the same time.**  With :math:`w = \epsilon_i - \epsilon_j`,
-   :math:`q \ge (e_i - e_j)^2 / \operatorname{Var}(s(\sigma_i)-s(\sigma_j))` and the variance is
-   at most :math:`(\sigma_i-\sigma_j)^2/4` (the speed variance of the bridge is
-   :math:`\le \sigma(1-\sigma) \le 1/4`): infinite on the diagonal unless the corners meet.
+   :math:`q \ge (e_i - e_j)^2 / \operatorname{Var}(s(\sigma_i)-s(\sigma_j))` (Cauchy–Schwarz) and,
+   since :math:`s(\sigma_i)-s(\sigma_j) = \int_{\sigma_j}^{\sigma_i} v`, the variance is at most
+   :math:`(\sigma_i-\sigma_j)^2 \max \operatorname{Var} v` over the times between.  The speed
+   variance of the bridge is :math:`\partial_s\partial_t K|_{s=t} = x(1-3x)`,
+   :math:`x = \sigma(1-\sigma)` (:func:`speed_variance_max`; at most ``1/12``, and small
+   near the ends): infinite on the diagonal unless the corners meet.
 
 A box is discarded when its bound is within ``pmp_global_certificate_rel`` of the best
 value found; the others are halved along every side at least half as long as their
@@ -41,6 +44,7 @@ from iamp.core.tolerances import tol
 from iamp.planners.pmp_fixed import bridge_kernel
 
 if TYPE_CHECKING:
+    from iamp.planners.pmp_basin import Basin
     from iamp.planners.pmp_fixed import ValueFunction
 
 FloatArray = npt.NDArray[np.float64]
@@ -111,6 +115,16 @@ def _min_sq(lo: FloatArray, hi: FloatArray) -> FloatArray:
     return out
 
 
+def speed_variance_max(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``max Var v(σ) = x(1 − 3x)``, ``x = σ(1 − σ)``, over ``σ ∈ [a, b]`` (exact: ``x`` is
+    unimodal in ``σ`` with its peak at ``1/2``, ``x(1 − 3x)`` peaks at ``x = 1/6``)."""
+    xa, xb = a * (1 - a), b * (1 - b)
+    pk = np.clip(0.5, a, b)
+    x = np.clip(1.0 / 6.0, np.minimum(xa, xb), pk * (1 - pk))
+    out: FloatArray = x * (1 - 3 * x)
+    return out
+
+
 def lower_bound(vf: ValueFunction, c: FloatArray, r: FloatArray) -> FloatArray:
     """A rigorous lower bound of ``q(σ) = Σ_axis eᵀK⁻¹e`` on each box ``c ± r`` (``(n, m)``)."""
     n, m = c.shape
@@ -131,8 +145,9 @@ def lower_bound(vf: ValueFunction, c: FloatArray, r: FloatArray) -> FloatArray:
         for j in range(i + 1, m):
             num = sum(_min_sq(rg[0][:, i] - rg[1][:, j], rg[1][:, i] - rg[0][:, j]) for rg in rng)
             dist = np.maximum(np.abs(hi[:, i] - lo[:, j]), np.abs(hi[:, j] - lo[:, i]))
+            vmax = speed_variance_max(np.minimum(lo[:, i], lo[:, j]), np.maximum(hi[:, i], hi[:, j]))
             with np.errstate(divide="ignore", invalid="ignore"):
-                pb = 4 * num / dist**2
+                pb = num / (dist**2 * vmax)
             best = np.maximum(best, np.where(np.isnan(pb), 0.0, pb))
     # 1. Fenchel + mean value
     K = bridge_kernel(c[:, :, None], c[:, None, :], 1.0)
@@ -219,11 +234,18 @@ class BoundResult:
 
 def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
                      polish: Callable[[FloatArray], tuple[FloatArray, float]], max_boxes: int = 200_000,
-                     progress: Callable[[int, int], None] | None = None) -> BoundResult:
-    """Certify (or improve) ``s_best`` as the global minimiser of ``q`` over ``(0, 1)^m``."""
+                     progress: Callable[[int, int], None] | None = None,
+                     basins: list[Basin] | None = None) -> BoundResult:
+    """Certify (or improve) ``s_best`` as the global minimiser of ``q`` over ``(0, 1)^m``.
+
+    ``basins`` (:mod:`iamp.planners.pmp_basin`, extended in place) give the lower bound of
+    every box inside one of them; each polished improvement adds its own basin box."""
     m = s_best.size
     eps = tol("pmp_global_certificate_rel")
     jbar = vf.scaled.jbar
+    from iamp.planners.pmp_basin import add_basin, in_basins
+
+    basins = [] if basins is None else basins
     c = np.full((1, m), 0.5)
     r = np.full((1, m), 0.5)
     for _ in range(max(1, 6 // m)):  # start from a coarse grid of boxes
@@ -242,11 +264,14 @@ def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
             return BoundResult(s_best, q_best, False, evaluated)
         qc = vf.quad_sigma(c)
         k = int(np.argmin(qc))
-        if qc[k] < q_best:
+        if qc[k] < q_best and not in_basins(basins, c[k], r[k]):
             s_new, q_new = polish(c[k])  # the polished, verified value (inf if untrusted)
+            add_basin(vf, basins, s_new)
             if q_new < q_best:
                 s_best, q_best = s_new, q_new
         lb = lower_bound(vf, c, r)
+        for b in basins:
+            lb = np.where(b.contains(c, r), np.maximum(lb, b.lower), lb)
         J_best = jbar + 0.5 * q_best
         keep = jbar + 0.5 * lb < J_best - eps * abs(J_best)
         c, r = c[keep], r[keep]

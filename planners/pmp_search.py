@@ -204,6 +204,7 @@ def start_points(S: Scaled, max_starts: int = 32) -> list[FloatArray]:
 def global_search(vf: ValueFunction, max_starts: int = 32, max_boxes: int = 200_000,
                   progress: Callable[[int, int], None] | None = None) -> SearchResult:
     """The global minimiser of ``J̃`` over ``(0, 1)^m`` (module docstring)."""
+    from iamp.planners.pmp_basin import Basin, add_basin, in_basins
     from iamp.planners.pmp_bound import branch_and_bound
 
     S = vf.scaled
@@ -211,15 +212,23 @@ def global_search(vf: ValueFunction, max_starts: int = 32, max_boxes: int = 200_
     vals = vf.quad_sigma(np.array(starts))
     order = np.argsort(vals)[:max_starts]
 
-    def polish(s0: FloatArray) -> tuple[FloatArray, float]:
-        s, _ = newton_sigma(vf, s0)
-        return s, trusted_q(vf, s)
+    basins: list[Basin] = []
+    best_q = float("inf")
 
-    best_s, best_q = starts[int(order[0])], float("inf")
+    def polish(s0: FloatArray) -> tuple[FloatArray, float]:
+        """Newton, then ``q`` — checked by :func:`trusted_q` only if it would improve the
+        incumbent (an untrusted or worse point is never the incumbent either way)."""
+        s, q = newton_sigma(vf, s0)
+        return s, (trusted_q(vf, s) if q < best_q else float("inf"))
+
+    best_s = starts[int(order[0])]
     for k in order:
+        if in_basins(basins, starts[int(k)], np.zeros(S.m)):
+            continue  # Newton would return to that basin's minimiser
         s, q = polish(starts[int(k)])
+        add_basin(vf, basins, s)
         if q < best_q:
             best_s, best_q = s, q
 
-    bb = branch_and_bound(vf, best_s, best_q, polish, max_boxes=max_boxes, progress=progress)
+    bb = branch_and_bound(vf, best_s, best_q, polish, max_boxes=max_boxes, progress=progress, basins=basins)
     return SearchResult(bb.sigma, bb.q, bb.certified, bb.boxes, len(order))
