@@ -159,7 +159,6 @@ class QPData(StateIndex):
         self.A = sp.csc_matrix((np.zeros(ind.size), ind.copy(), ptr.copy()), shape=(self.n_rows, self.n))
         ind, ptr = pat["P"]
         self.P = sp.csc_matrix((np.zeros(ind.size), ind.copy(), ptr.copy()), shape=(self.n, self.n))
-        self._AT = self.A.T
         ind, ptr, shape = pat["M"]
         self._M = sp.csr_matrix((np.zeros(ind.size), ind.copy(), ptr.copy()), shape=shape)
 
@@ -226,7 +225,6 @@ class QPData(StateIndex):
         pids = sp.coo_matrix((np.arange(1, PR.size + 1, dtype=float), (PR, PC)), shape=(self.n, self.n)).tocsc()
         self._p_perm = pids.data.astype(np.int64) - 1
         self.P = sp.csc_matrix((np.zeros(PR.size), pids.indices.copy(), pids.indptr.copy()), shape=(self.n, self.n))
-        self._AT = self.A.T  # a CSR view sharing A.data (values are updated in place)
         self._build_residual_matrix()
 
     def _build_residual_matrix(self) -> None:
@@ -296,7 +294,6 @@ class QPData(StateIndex):
             else:
                 pv[base:base + nu] = h
         self.P.data[:] = pv[self._p_perm]
-        self._P_full: sp.csr_matrix | None = None  # P + triu(P, 1)ᵀ, built on demand
         self.nodes = None
         self.b[self.row_collision:] = 0.0
         self._refresh_residual_matrix()
@@ -376,14 +373,6 @@ class QPData(StateIndex):
         sd = max(1.0, float(mx[2]), float(mx[3]))
         sg = max(1.0, abs(zPz), abs(by))
         return KKTResiduals(rp, rd, rg, rp / sp_, rd / sd, rg / sg)
-
-    def kkt_residuals_reference(self, z: FloatArray, y: FloatArray) -> KKTResiduals:
-        """:meth:`kkt_residuals` computed the plain way (:func:`equality_residuals` with
-        separate products), the cross-check of the stacked path in the tests."""
-        if self._P_full is None:
-            self._P_full = sp.csr_matrix(self.P + sp.triu(self.P, 1).T)
-        return equality_residuals(self._P_full, self.A, self._AT, self.b, np.asarray(z, dtype=float),
-                                  np.asarray(y, dtype=float))
 
 
 def equality_residuals(P_full: sp.csr_matrix, A: sp.csc_matrix, AT: sp.csr_matrix, b: FloatArray, z: FloatArray,

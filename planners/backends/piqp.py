@@ -19,8 +19,9 @@ the first (regularised) Newton step is already the solution of the KKT system up
 
 Measured on ``paper-1-poly``, FOH, ``N = 100``, all 99 candidates of a sweep per row, KKT
 residuals recomputed (tolerance ``cmp_kkt_rel_clarabel`` = 1e-9), PIQP 0.7.0; times are
-medians of update + solve per candidate on the shared 2-core machine, all rows in one run
-(``/tmp``-script ``study.py``, reproduced by ``tests/test_qp_speed_paths.py`` for accuracy):
+medians of update + solve per candidate on the shared, loaded 2-core machine, all rows in
+one run (compare rows, not absolute values; ``tests/test_qp_speed_paths.py`` asserts that the
+default verifies and equals the exact answer on random problems):
 
 ==========================================================  ========  ==========  =========  ========
 settings (besides eps_abs 1e-10, eps_rel 0)                 verified  iterations  max KKT    time
