@@ -12,6 +12,10 @@ safety box).  For a ``rear`` corner (the ego stays behind) the roles swap.
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
+
 from iamp.core.problem import SurroundingVehicle
 
 
@@ -35,3 +39,10 @@ def jump_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
     verdict = constraint_role(vehicle, phi_x)
     return (f"Φ_x {'>' if phi_x > 0 else '<'} 0: without it the ego would be {side} the "
             f"{vehicle.corner.split('-')[0]} corner; the equality is {verdict}")
+
+
+def sign_entry(vehicle: SurroundingVehicle, phi_x: float) -> dict[str, Any]:
+    """One entry of a comparison's ``signs``: ``Φ_x`` (or ``ν_x``), its sign and meaning."""
+    return {"vehicle": vehicle.name, "corner": vehicle.corner, "phi_x": float(phi_x),
+            "sign": int(np.sign(phi_x)), "binding_for_safety": bool(constraint_is_binding_for_safety(vehicle, phi_x)),
+            "meaning": jump_meaning(vehicle, phi_x)}
