@@ -8,8 +8,9 @@ import pytest
 from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
+from iamp.core.polyroots import roots_in_unit_interval
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
-from iamp.core.safety import INTRUSION_TOL_M, roots_in_unit_interval, safety_report
+from iamp.core.safety import INTRUSION_TOL_M, safety_report
 from iamp.planners.examples import paper_problem
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.qp import HoldTrajectory

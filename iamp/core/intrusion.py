@@ -1,0 +1,150 @@
+r"""Where the ego is inside one vehicle's safety region or overlaps its body, exactly (SPEC §9).
+
+With the ego's offset from vehicle :math:`i`'s centre :math:`d_x = s_x - x_{s,i}(t)`,
+:math:`d_y = s_y - y_{s,i}`, the region's half-sizes :math:`A_x = L_i/2 + S_{x,i}`,
+:math:`A_y = W_i/2 + S_{y,i}` and the overlap box's :math:`B_x = (L_e + L_i)/2`,
+:math:`B_y = (W_e + W_i)/2`:
+
+* **intrusion** where the depth :math:`D = \min(A_x - |d_x|,\ A_y - |d_y|) > \delta`
+  (:data:`INTRUSION_TOL_M`, 1 mm; :func:`depth`);
+* **overlap** where :math:`|d_x| < B_x` and :math:`|d_y| < B_y`;
+* :math:`\max(0, \max_t D)` and the clearance :math:`\min_t \|(\max(|d_x| - A_x, 0),
+  \max(|d_y| - A_y, 0))\|_2` (:func:`distance`).
+
+On the polynomial pieces of :mod:`iamp.core.trajectory_pieces`, :math:`d_x, d_y` are
+polynomials in :math:`\sigma \in [0, 1]`.  The interval ends are their roots with the
+boundaries (e.g. :math:`d_x \mp (A_x - \delta)`, :math:`d_y \mp B_y`), found by
+:func:`iamp.core.polyroots.roots_in_unit_interval`; each condition is decided at the midpoint
+of every sub-interval between consecutive cut points.  The extremes are attained at a finite
+set of candidates, where the true functions are evaluated: piece ends, the roots of
+:math:`d_x, d_y, d_x', d_y'` and of :math:`d_x \mp A_x`, :math:`d_y \mp A_y`, the crossings
+:math:`A_x - \sigma_x d_x = A_y - \sigma_y d_y` of the two depths, and the stationary points
+:math:`(d_x - \sigma_x A_x) d_x' + (d_y - \sigma_y A_y) d_y' = 0` of the squared distance to
+each corner, for the four sign pairs :math:`\sigma_x, \sigma_y = \pm 1`.  Interval ends are
+exact to about 1e-9 s.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from iamp.core.polyroots import pad_coeffs, poly_deriv, poly_mul, roots_in_unit_interval
+from iamp.core.trajectory_pieces import PiecewiseTrajectory, cut_times, shifted_poly
+
+__all__ = ["INTRUSION_TOL_M", "Interval", "VehicleSets", "depth", "distance", "vehicle_sets"]
+
+FloatArray = NDArray[np.float64]
+Interval = tuple[float, float]
+
+#: Depth [m] beyond which the ego's point counts as inside a safety region (touching the
+#: corner at a contact time and round-off are not an intrusion).
+INTRUSION_TOL_M = 1e-3
+
+
+class VehicleSets(NamedTuple):
+    """The intervals and extremes of one vehicle (the fields of SPEC §9 ``vehicles[i]``)."""
+
+    intrusion: tuple[Interval, ...]
+    max_intrusion_m: float
+    overlap: tuple[Interval, ...]
+    min_clearance_m: float
+
+
+def depth(dx: FloatArray, dy: FloatArray, ax: float, ay: float) -> FloatArray:
+    """``min(A_x − |d_x|, A_y − |d_y|)``: > 0 inside the region, the distance to its boundary."""
+    return np.minimum(ax - np.abs(dx), ay - np.abs(dy))
+
+
+def distance(dx: FloatArray, dy: FloatArray, ax: float, ay: float) -> FloatArray:
+    """Euclidean distance from the point to the box ``|d_x| ≤ A_x, |d_y| ≤ A_y`` (0 inside)."""
+    return np.hypot(np.maximum(np.abs(dx) - ax, 0.0), np.maximum(np.abs(dy) - ay, 0.0))
+
+
+def _runs(cuts: FloatArray, flags: NDArray[np.bool_]) -> tuple[Interval, ...]:
+    """The maximal runs of consecutive sub-intervals ``[cuts[j], cuts[j+1]]`` with ``flags[j]``."""
+    out: list[Interval] = []
+    start = None
+    for j, f in enumerate(flags):
+        if f and start is None:
+            start = float(cuts[j])
+        if not f and start is not None:
+            out.append((start, float(cuts[j])))
+            start = None
+    if start is not None:
+        out.append((start, float(cuts[-1])))
+    return tuple(out)
+
+
+def _offsets(vehicle: Any, traj: PiecewiseTrajectory, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(d_x, d_y)`` at ``t``, from the trajectory's own evaluation."""
+    X = traj.states(t)
+    return X[:, 0] - vehicle.position(t), X[:, 2] - vehicle.y
+
+
+def vehicle_sets(v: Any, traj: PiecewiseTrajectory, breaks: FloatArray, C: FloatArray,
+                 Le: float, We: float) -> VehicleSets:
+    """Intrusion and overlap intervals, deepest intrusion and smallest clearance for vehicle ``v``.
+
+    Parameters
+    ----------
+    v : SurroundingVehicle
+    traj : PiecewiseTrajectory
+        The plan's trajectory (evaluated at the midpoints and candidates).
+    breaks, C : ndarray
+        Piece ends and the ego position's coefficients per piece
+        (:func:`iamp.core.trajectory_pieces.taylor_pieces`, shape ``(P, 2, 4)``).
+    Le, We : float
+        The ego body.
+    """
+    a, h = breaks[:-1], np.diff(breaks)
+    P = a.size
+    degree = max(3, len(v.x_poly) - 1)
+    xs = shifted_poly(v.x_poly, a, h, degree)
+    dX = pad_coeffs(C[:, 0, :], degree + 1) - xs
+    dY = pad_coeffs(C[:, 1, :], degree + 1)
+    dY[:, 0] -= v.y
+    Ax, Ay = v.length / 2 + v.safety_x, v.width / 2 + v.safety_y
+    Bx, By = (Le + v.length) / 2, (We + v.width) / 2
+    d = INTRUSION_TOL_M
+    n2 = 2 * degree + 1
+
+    def shift(A: FloatArray, c: float) -> FloatArray:
+        B = A.copy()
+        B[:, 0] -= c
+        return B
+
+    def cuts_of(polys: list[FloatArray]) -> FloatArray:
+        rows, sig = roots_in_unit_interval(np.concatenate([pad_coeffs(p, n2) for p in polys]))
+        return cut_times(breaks, rows % P, sig)
+
+    # intrusion: |dx| < Ax − δ and |dy| < Ay − δ
+    if Ax > d and Ay > d:
+        cuts = cuts_of([shift(dX, Ax - d), shift(dX, -(Ax - d)), shift(dY, Ay - d), shift(dY, -(Ay - d))])
+        mid = 0.5 * (cuts[:-1] + cuts[1:])
+        mx, my = _offsets(v, traj, mid)
+        intrusion = _runs(cuts, depth(mx, my, Ax, Ay) > d)
+    else:
+        intrusion = ()
+    # overlap of the bodies: |dx| < Bx and |dy| < By
+    cuts = cuts_of([shift(dX, Bx), shift(dX, -Bx), shift(dY, By), shift(dY, -By)])
+    mid = 0.5 * (cuts[:-1] + cuts[1:])
+    mx, my = _offsets(v, traj, mid)
+    overlap = _runs(cuts, (np.abs(mx) < Bx) & (np.abs(my) < By))
+    # extremes: candidates where depth / distance can attain a max / min
+    ddX, ddY = poly_deriv(dX), poly_deriv(dY)
+    polys = [dX, dY, ddX, ddY, shift(dX, Ax), shift(dX, -Ax), shift(dY, Ay), shift(dY, -Ay)]
+    for sx in (1.0, -1.0):
+        for sy in (1.0, -1.0):
+            # depth crossing: Ax − sx dx = Ay − sy dy
+            polys.append(shift(sy * dY - sx * dX, Ay - Ax))
+            # stationary points of (dx − sx Ax)² + (dy − sy Ay)²
+            polys.append(poly_mul(shift(dX, sx * Ax), ddX) + pad_coeffs(poly_mul(shift(dY, sy * Ay), ddY),
+                                                                         2 * degree))
+    cand = cuts_of(polys)
+    cx, cy = _offsets(v, traj, cand)
+    max_depth = max(0.0, float(np.max(depth(cx, cy, Ax, Ay))))
+    min_clear = float(np.min(distance(cx, cy, Ax, Ay)))
+    return VehicleSets(intrusion=intrusion, max_intrusion_m=max_depth, overlap=overlap, min_clearance_m=min_clear)
