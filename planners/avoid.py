@@ -154,22 +154,27 @@ class AvoidQPPlanner:
         complete = total <= self.max_combinations
         backend = self._backend(data, np.zeros(data.n_rows - data.n_eq, dtype=bool))
         table: list[tuple[Any, float]] = []
-        extra_solves = 0  # free solves and relaxations (pruning), beside the candidates
+        n_solves = 0  # every QP solved: candidates, free solves, relaxations (pruning), refinement
         best: Candidate | None = None
         failures: list[tuple[Any, str]] = []
 
-        def solve(phases: Sequence[Phase]) -> Candidate:
-            return self._solve(data, backend, phases)
+        def solve(phases: Sequence[Phase], warm: Candidate | None = None) -> Candidate:
+            nonlocal n_solves
+            n_solves += 1
+            return self._solve(data, backend, phases, warm)
 
-        def solve_extra(phases: Sequence[Phase]) -> Candidate:
-            nonlocal extra_solves
-            extra_solves += 1
-            return self._solve(data, backend, phases)
+        def solve_times(prob: Problem, taus: FloatArray,
+                        orders: Sequence[tuple[int, int]]) -> tuple[AvoidData, Candidate] | None:
+            nonlocal n_solves
+            out = self._solve_times(prob, taus, orders)
+            if out is not None:  # one QP, unless the times could not be aligned (none)
+                n_solves += 1
+            return out
 
         def run(combos: Sequence[tuple[Phase, ...]]) -> None:
             nonlocal best
             for n_done, phases in enumerate(combos, 1):
-                r = self._solve(data, backend, phases, best)
+                r = solve(phases, best)
                 table.append(([p[2] for p in phases], r.cost))
                 if r.status != st.OPTIMAL:
                     failures.append(([p[2] for p in phases], r.status))
@@ -185,11 +190,10 @@ class AvoidQPPlanner:
             complete = True
         elif complete and m == 1 and self.prune:
             for first, second in orders[0]:
-                seeds = seed_switches(data, solve_extra, first)
+                seeds = seed_switches(data, solve, first)
                 run([((first, second, j, j + 1),) for j in seeds])
                 bound = best.cost if best is not None else np.inf
-                run([((first, second, j, j + 1),) for j in pruned_switches(data, solve_extra, first, second, seeds,
-                                                                           bound)])
+                run([((first, second, j, j + 1),) for j in pruned_switches(data, solve, first, second, seeds, bound)])
         elif complete:
             run(list(itertools.product(*per_vehicle)))
         else:
@@ -204,7 +208,7 @@ class AvoidQPPlanner:
                     run([tuple(fixed[:i] + [p] + fixed[i + 1:]) for p in per_vehicle[i]])
                 if best is None or best.cost >= before - 1e-12 * max(1.0, abs(before)):
                     break
-        info: dict[str, Any] = {"constraint": "avoid", "n_solves": len(table) + extra_solves, "sweep": table,
+        info: dict[str, Any] = {"constraint": "avoid", "n_solves": n_solves, "sweep": table,
                                 "failures": failures,
                                 "pruned": complete and m == 1 and self.prune and certified is None,
                                 "complete_sweep": complete,
@@ -223,8 +227,9 @@ class AvoidQPPlanner:
             near = [int(k[0]) for k, c in table if c <= grid_best.cost + 1e-9 * max(1.0, grid_best.cost)]
             info["grid_best"]["optimal_switch_range"] = [min(near), max(near)]
         final_data, final = data, grid_best
-        if self.contact == "refine":  # (its solves are not counted in n_solves)
-            final_data, final, _ = refine_crossings(problem, grid_best, self.steps, self._solve_times)
+        if self.contact == "refine":
+            final_data, final, _ = refine_crossings(problem, grid_best, self.steps, solve_times)
+            info["n_solves"] = n_solves
         return self._result(problem, final_data, final, complete, info, start)
 
     def _solve_times(self, problem: Problem, taus: FloatArray,
