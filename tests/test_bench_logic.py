@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import pytest
 
 from iamp.comparison import bench
+from iamp.comparison.bench_text import format_bench
 from iamp.comparison.timing import summarize
 
 
@@ -79,5 +80,5 @@ def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     assert len(out["warnings"]) == 1 and "qp_grid_sweep_cvxpy_clarabel" in out["warnings"][0]
     assert seen[0] == (0, 7) and seen[-1] == (7, 7)
     assert [d for d, _ in seen] == sorted(d for d, _ in seen)
-    text = bench.format_bench(out)
+    text = format_bench(out)
     assert "CasADi Opti + IPOPT" in text and "MISSED" in text

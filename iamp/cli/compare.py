@@ -294,7 +294,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar, progress_enabled
-    from iamp.comparison.bench import format_bench, run_bench
+    from iamp.comparison.bench import run_bench
+    from iamp.comparison.bench_text import format_bench
 
     with progress_bar(7, "bench", enabled=progress_enabled(args)) as tick:
         out = run_bench(quick=args.quick, progress=tick)
