@@ -118,10 +118,9 @@ class PMPPlanner:
             return np.array([s]), q, True, {"method": "all roots of the stationarity polynomial"}
         from iamp.planners import pmp_compiled_search as fast
 
-        vf = ValueFunction(problem, S)
         compiled = fast.use(self.compiled)
-        res = (fast.run(vf, self.max_starts, self.max_boxes, progress) if compiled
-               else global_search(vf, self.max_starts, self.max_boxes, progress))
+        res = (fast.run(S, self.max_starts, self.max_boxes, progress) if compiled
+               else global_search(ValueFunction(problem, S), self.max_starts, self.max_boxes, progress))
         return res.sigma, res.q, res.certified, {"method": "starts + Newton + branch and bound", "compiled": compiled,
                                                  "boxes": res.boxes, "starts": res.starts}
 

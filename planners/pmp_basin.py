@@ -54,6 +54,9 @@ for _b1, _v1 in ((0, 1.0), (1, -2.0), (2, 1.0)):
 K_DIAG = np.array([0.0, 0.0, 0.0, 1.0, -3.0, 3.0, -1.0]) / 3.0
 #: most vehicles with a basin box (the dense expansion has ``9^m`` coefficients)
 MAX_M = 5
+#: most vehicles for :meth:`Basin.box_bound` on every open box (its Taylor shift costs
+#: ``m·9^(m+1)``: it pays for two vehicles, not for three)
+BOX_BOUND_MAX_M = 2
 #: relative allowance for rounding in the basin's lower bound (``≪ pmp_global_certificate_rel``)
 ROUNDING_REL = 1e-11
 
@@ -65,10 +68,57 @@ class Basin:
     centre: FloatArray
     radius: float
     lower: float
+    coeffs: FloatArray
 
     def contains(self, c: FloatArray, r: FloatArray) -> npt.NDArray[np.bool_]:
         """Which boxes ``c ± r`` (rows) lie inside the basin box."""
         out: npt.NDArray[np.bool_] = np.all(np.abs(c - self.centre) + r <= self.radius, axis=-1)
+        return out
+
+    def box_bound(self, c: FloatArray, r: FloatArray) -> FloatArray:
+        r"""A lower bound of ``q`` on each box ``c ± r`` (rows) from the minorant ``G`` of this
+        basin's centre, valid on the boxes whose times keep the centre's order (``−inf``
+        elsewhere): with ``G``'s Taylor coefficients ``c'`` at the box centre,
+        :math:`c'_0 + \sum_i \min_{|\delta_i|\le r_i}(c'_{\epsilon_i}\delta_i + \lambda'\delta_i^2)
+        - \sum_{|\alpha|\ge3}|c'_\alpha| r^\alpha` (``λ'`` the least eigenvalue of the
+        quadratic part): second order, so boxes next to the minimiser are decided at their
+        own scale."""
+        n, m = c.shape
+        s = self.centre
+        lo, hi = c - r, c + r
+        ok = np.ones(n, dtype=bool)
+        for i in range(m):
+            for j in range(m):
+                if s[i] < s[j]:
+                    ok &= hi[:, i] < lo[:, j]
+        out = np.full(n, -np.inf)
+        if not np.any(ok):
+            return out
+        h, rr = c[ok] - s, r[ok]
+        k = h.shape[0]
+        A = np.broadcast_to(self.coeffs, (k,) + self.coeffs.shape).copy()
+        for a in range(m):
+            B = np.moveaxis(A, a + 1, -1)
+            A = np.moveaxis(taylor_shift(B, h[:, a].reshape((k,) + (1,) * (m - 1))), -1, a + 1)
+        eye = np.eye(m, dtype=int)
+        flat = A.reshape(k, -1)
+        c0 = flat[:, 0]
+        g = np.stack([A[(slice(None),) + tuple(eye[i])] for i in range(m)], axis=1)
+        H = np.empty((k, m, m))
+        for i in range(m):
+            for j in range(m):
+                H[:, i, j] = A[(slice(None),) + tuple(eye[i] + eye[j])] * (1.0 if i == j else 0.5)
+        lam = np.linalg.eigvalsh(H)[:, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = np.clip(-g / (2 * lam[:, None]), -rr, rr)
+        quad = np.where(lam > 0, np.sum(g * d + lam[:, None] * d * d, axis=1),
+                        -np.sum(np.abs(g) * rr, axis=1) + np.minimum(lam, 0.0) * np.sum(rr * rr, axis=1))
+        idx = np.indices(self.coeffs.shape).reshape(m, -1)
+        deg = np.sum(idx, axis=0)
+        pw = np.prod(rr[:, :, None] ** idx[None, :, :], axis=1)
+        rem = np.sum(np.abs(flat[:, deg >= 3]) * pw[:, deg >= 3], axis=1)
+        rnd = 64 * np.finfo(float).eps * np.sum(np.abs(flat) * pw, axis=1) + ROUNDING_REL * np.abs(c0)
+        out[ok] = c0 + quad - rem - rnd
         return out
 
 
@@ -198,7 +248,7 @@ def basin_box(vf: ValueFunction, s: FloatArray, delta: float) -> Basin | None:
     # rounding (of the coefficients, and of q itself when K is ill-conditioned): far below
     # the certificate's tolerance, but accounted for
     roundoff = 64 * np.finfo(float).eps * float(np.sum(np.abs(c) * rho ** deg)) + ROUNDING_REL * abs(float(c[(0,) * m]))
-    return Basin(s.copy(), rho, float(c[(0,) * m]) - g1 * rho - roundoff)
+    return Basin(s.copy(), rho, float(c[(0,) * m]) - g1 * rho - roundoff, c)
 
 
 def in_basins(basins: list[Basin], c: FloatArray, r: FloatArray) -> bool:

@@ -243,7 +243,7 @@ def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
     m = s_best.size
     eps = tol("pmp_global_certificate_rel")
     jbar = vf.scaled.jbar
-    from iamp.planners.pmp_basin import add_basin, in_basins
+    from iamp.planners.pmp_basin import BOX_BOUND_MAX_M, add_basin, in_basins
 
     basins = [] if basins is None else basins
     c = np.full((1, m), 0.5)
@@ -274,6 +274,11 @@ def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
             lb = np.where(b.contains(c, r), np.maximum(lb, b.lower), lb)
         J_best = jbar + 0.5 * q_best
         keep = jbar + 0.5 * lb < J_best - eps * abs(J_best)
+        for b in basins if m <= BOX_BOUND_MAX_M else ():  # the basins' minorants, on the boxes still open
+            if np.any(keep):
+                near = np.nonzero(keep)[0]
+                lb[near] = np.maximum(lb[near], b.box_bound(c[near], r[near]))
+                keep = jbar + 0.5 * lb < J_best - eps * abs(J_best)
         c, r = c[keep], r[keep]
         if progress is not None:
             progress(min(evaluated, max_boxes), max_boxes)

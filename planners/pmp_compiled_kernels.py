@@ -23,7 +23,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from iamp.planners.pmp_basin import K_BELOW, K_DIAG, ROUNDING_REL
+from iamp.planners.pmp_basin import BOX_BOUND_MAX_M, K_BELOW, K_DIAG, ROUNDING_REL
 from iamp.planners.pmp_bound import _DK_ABOVE, _DK_BELOW, _DKDIAG
 
 jit = numba.njit(cache=True, error_model="numpy", nogil=True)
@@ -116,11 +116,25 @@ def kmatrix(sig):  # type: ignore[no-untyped-def]
 
 
 @jit
-def quad(EX, EY, sig, jbar):  # type: ignore[no-untyped-def]
-    """``q(σ) = Σ_axis ẽᵀK̃⁻¹ẽ``; ``inf`` if degenerate (as ``quad_sigma``)."""
-    E = errors(EX, EY, sig)
-    X, ok = solve(kmatrix(sig), E)
-    if not ok:
+def load_kx(EX, EY, sig, K, X, E):  # type: ignore[no-untyped-def]
+    """``K ← K̃(σ)`` overwritten by its elimination, ``E ← ẽ``, ``X ← K̃⁻¹ẽ``; ``False`` if
+    singular."""
+    m = sig.size
+    for i in range(m):
+        for j in range(m):
+            K[i, j] = kern(sig[i], sig[j])
+        E[i, 0] = horner(EX[i], sig[i])
+        E[i, 1] = horner(EY[i], sig[i])
+        X[i, 0] = E[i, 0]
+        X[i, 1] = E[i, 1]
+    return solve_ip(K, X)
+
+
+@jit
+def quad_ws(EX, EY, sig, jbar, K, X, E):  # type: ignore[no-untyped-def]
+    """``q(σ) = Σ_axis ẽᵀK̃⁻¹ẽ``; ``inf`` if degenerate (as ``quad_sigma``; scratch
+    ``K``, ``X``, ``E``)."""
+    if not load_kx(EX, EY, sig, K, X, E):
         return np.inf
     q = 0.0
     for i in range(sig.size):
@@ -131,13 +145,19 @@ def quad(EX, EY, sig, jbar):  # type: ignore[no-untyped-def]
 
 
 @jit
-def gradient(EX, EY, DEX, DEY, sig):  # type: ignore[no-untyped-def]
-    """``∇_σ J̃`` (as ``gradient_sigma``); ``(g, False)`` if ``K`` is singular."""
+def quad(EX, EY, sig, jbar):  # type: ignore[no-untyped-def]
+    """:func:`quad_ws` with its own scratch."""
     m = sig.size
-    E = errors(EX, EY, sig)
-    X, ok = solve(kmatrix(sig), E)
-    g = np.zeros(m)
+    return quad_ws(EX, EY, sig, jbar, np.empty((m, m)), np.empty((m, 2)), np.empty((m, 2)))
+
+
+@jit
+def gradient_ws(EX, EY, DEX, DEY, sig, g, K, X, E):  # type: ignore[no-untyped-def]
+    """``g ← ∇_σ J̃`` (as ``gradient_sigma``); ``False`` if ``K`` is singular."""
+    m = sig.size
+    ok = load_kx(EX, EY, sig, K, X, E)
     for i in range(m):
+        g[i] = 0.0
         dd = sig[i] ** 2 * (1.0 - sig[i]) ** 2 * (1.0 - 2.0 * sig[i])
         for a in range(2):
             mu = X[i, a]
@@ -147,6 +167,15 @@ def gradient(EX, EY, DEX, DEY, sig):  # type: ignore[no-untyped-def]
                 if j != i:
                     cross += kern_ds(sig[i], sig[j]) * X[j, a]
             g[i] += mu * de - mu * cross - 0.5 * mu * mu * dd
+    return ok
+
+
+@jit
+def gradient(EX, EY, DEX, DEY, sig):  # type: ignore[no-untyped-def]
+    """``(∇_σ J̃, ok)`` with its own scratch (:func:`gradient_ws`)."""
+    m = sig.size
+    g = np.empty(m)
+    ok = gradient_ws(EX, EY, DEX, DEY, sig, g, np.empty((m, m)), np.empty((m, 2)), np.empty((m, 2)))
     return g, ok
 
 
@@ -330,6 +359,7 @@ _DKA_NB = np.asarray(_DK_ABOVE, dtype=np.float64)
 _KB_NB = np.asarray(K_BELOW, dtype=np.float64)
 _KD_NB = np.asarray(K_DIAG, dtype=np.float64)
 _ROUNDING_REL = float(ROUNDING_REL)
+_BOX_BOUND_MAX_M = int(BOX_BOUND_MAX_M)
 
 
 @jit
@@ -348,19 +378,19 @@ def _mul_lin_add(P, c0, c, strides, D, sign, out):  # type: ignore[no-untyped-de
 
 @jit
 def basin_box(EX, EY, DEX, DEY, s, delta, max_m):  # type: ignore[no-untyped-def]
-    """``(radius, lower)`` of the basin box at ``s`` (``pmp_basin.basin_box``); radius 0
-    if there is none."""
+    """``(radius, lower, G)`` of the basin box at ``s`` (``pmp_basin.basin_box``; ``G`` the
+    flat dense Taylor coefficients of the minorant); radius 0 if there is none."""
     m = s.size
     if m < 1 or m > max_m:
-        return 0.0, 0.0
+        return 0.0, 0.0, np.zeros(1)
     gap = 2.0
     for i in range(m):
         if not (0.0 < s[i] < 1.0):
-            return 0.0, 0.0
+            return 0.0, 0.0, np.zeros(1)
         for j in range(i + 1, m):
             gap = min(gap, abs(s[i] - s[j]))
     if gap <= 1e-6:
-        return 0.0, 0.0
+        return 0.0, 0.0, np.zeros(1)
     D = max(8, EX.shape[1])
     N = (D + 1) ** m
     strides = np.empty(m, dtype=np.int64)
@@ -374,7 +404,7 @@ def basin_box(EX, EY, DEX, DEY, s, delta, max_m):  # type: ignore[no-untyped-def
     R = np.zeros((m, 2 * m))
     Wst, ok = solve(K, E)
     if not ok:
-        return 0.0, 0.0
+        return 0.0, 0.0, np.zeros(1)
     for a in range(2):
         for i in range(m):
             R[i, a * m + i] = horner(DEX[i], s[i]) if a == 0 else horner(DEY[i], s[i])
@@ -388,7 +418,7 @@ def basin_box(EX, EY, DEX, DEY, s, delta, max_m):  # type: ignore[no-untyped-def
             R[k, a * m + k] -= vk
     Wd, ok = solve(K, R)
     if not ok:
-        return 0.0, 0.0
+        return 0.0, 0.0, np.zeros(1)
     # the shifted kernel pieces, embedded sparsely
     Kb = np.zeros((m, m, 7, 7))
     buf = np.empty(7)
@@ -463,7 +493,7 @@ def basin_box(EX, EY, DEX, DEY, s, delta, max_m):  # type: ignore[no-untyped-def
             hmax = max(hmax, abs(H[i, j]))
     lam = np.linalg.eigvalsh(H)[0] - 1e-12 * hmax
     if not lam > 0:
-        return 0.0, 0.0
+        return 0.0, 0.0, np.zeros(1)
     rho_max = min(0.499 * gap, 0.5)
     if g1 > 0:
         rho_max = min(rho_max, delta / g1)
@@ -485,7 +515,7 @@ def basin_box(EX, EY, DEX, DEY, s, delta, max_m):  # type: ignore[no-untyped-def
                 hi_ = mid
         rho = lo_
     if rho <= 0:
-        return 0.0, 0.0
+        return 0.0, 0.0, np.zeros(1)
     roundoff = 0.0
     for idx in range(N):
         dg = 0
@@ -493,7 +523,163 @@ def basin_box(EX, EY, DEX, DEY, s, delta, max_m):  # type: ignore[no-untyped-def
             dg += (idx // strides[k]) % (D + 1)
         roundoff += abs(G[idx]) * rho ** dg
     roundoff = roundoff * 64 * 2.220446049250313e-16 + _ROUNDING_REL * abs(G[0])
-    return rho, G[0] - g1 * rho - roundoff
+    return rho, G[0] - g1 * rho - roundoff, G
+
+
+@jit
+def g_bound(G, s, c, r, D, A, H, expo, rp):  # type: ignore[no-untyped-def]
+    """:meth:`iamp.planners.pmp_basin.Basin.box_bound` for one box (``-inf`` where the box
+    does not keep the order of the times at ``s``; ``A``, ``H``, ``rp`` are scratch, ``expo``
+    the exponents of every flat index and, in its last column, their sum)."""
+    m = s.size
+    for i in range(m):
+        for j in range(m):
+            if s[i] < s[j] and not c[i] + r[i] < c[j] - r[j]:
+                return -np.inf
+    N = A.size
+    for idx in range(N):
+        A[idx] = G[idx]
+    st = 1
+    for a in range(m - 1, -1, -1):  # C order: the last variable has stride 1
+        h = c[a] - s[a]
+        for base in range(N):
+            if expo[base, a] != 0:
+                continue
+            n = D - expo[base, m]  # total degree ≤ D: the line's own degree
+            for i in range(n):
+                for j in range(n - 1, i - 1, -1):
+                    A[base + j * st] += h * A[base + (j + 1) * st]
+        st *= D + 1
+    c0 = A[0]
+    st_i = 1
+    for i in range(m - 1, -1, -1):
+        st_j = 1
+        for j in range(m - 1, -1, -1):
+            H[i, j] = A[st_i + st_j] * (1.0 if i == j else 0.5)
+            st_j *= D + 1
+        st_i *= D + 1
+    if m == 1:
+        lam = H[0, 0]
+    elif m == 2:
+        lam = 0.5 * (H[0, 0] + H[1, 1]) - np.sqrt(0.25 * (H[0, 0] - H[1, 1]) ** 2 + H[0, 1] ** 2)
+    else:
+        lam = np.linalg.eigvalsh(H)[0]
+    quadv = 0.0
+    st = 1
+    for i in range(m - 1, -1, -1):
+        g = A[st]
+        if lam > 0:
+            d = min(max(-g / (2 * lam), -r[i]), r[i])
+            quadv += g * d + lam * d * d
+        else:
+            quadv += -abs(g) * r[i] + lam * r[i] * r[i]
+        st *= D + 1
+    for k in range(m):
+        rp[k, 0] = 1.0
+        for e in range(1, D + 1):
+            rp[k, e] = rp[k, e - 1] * r[k]
+    rem = 0.0
+    tot = 0.0
+    for idx in range(N):
+        v = abs(A[idx])
+        if v == 0.0:
+            continue
+        dg = 0
+        for k in range(m):
+            v *= rp[k, expo[idx, k]]
+            dg += expo[idx, k]
+        tot += v
+        if dg >= 3:
+            rem += v
+    return c0 + quadv - rem - (64 * 2.220446049250313e-16 * tot + _ROUNDING_REL * abs(c0))
+
+
+@jit
+def stationary_points(ex, ey):  # type: ignore[no-untyped-def]
+    """Zeros in ``(0, 1)`` of ``P = N'σ(1−σ) − 3N(1−2σ)``, ``N = e_x² + e_y²`` (one vehicle
+    alone, :func:`iamp.planners.pmp_search.stationarity_poly`), by sign changes on 256 cells
+    and bisection: starting points only (a missed double root costs boxes, not rigour)."""
+    d = ex.size
+    N = np.zeros(2 * d - 1)
+    for i in range(d):
+        for j in range(d):
+            N[i + j] += ex[i] * ex[j] + ey[i] * ey[j]
+    P = np.zeros(2 * d)
+    for k in range(1, N.size):
+        P[k] += k * N[k]
+        P[k + 1] -= k * N[k]
+    for k in range(N.size):
+        P[k] -= 3 * N[k]
+        P[k + 1] += 6 * N[k]
+    out = np.empty(2 * d)
+    n = 0
+    prev = horner(P, 0.0)
+    for g in range(1, 257):
+        x = g / 256.0
+        v = horner(P, x)
+        if (prev < 0.0) != (v < 0.0) and n < out.size:
+            lo, hi, flo = x - 1.0 / 256.0, x, prev
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                fm = horner(P, mid)
+                if (fm < 0.0) == (flo < 0.0):
+                    lo, flo = mid, fm
+                else:
+                    hi = mid
+            r = 0.5 * (lo + hi)
+            if 0.0 < r < 1.0:
+                out[n] = r
+                n += 1
+        prev = v
+    return out[:n]
+
+
+@jit
+def make_starts(EX, EY, jbar, max_starts):  # type: ignore[no-untyped-def]
+    """:func:`iamp.planners.pmp_search.start_points` for ``m ≤ 5`` (every combination of the
+    one-vehicle stationary points, every ordering evenly spaced), the best ``max_starts``
+    by ``q``; an empty array if there would be more than ``8·max_starts`` combinations
+    (the caller then samples them as the pure path does)."""
+    m = EX.shape[0]
+    R = np.full((m, 2 * EX.shape[1]), 0.5)
+    nr = np.ones(m, dtype=np.int64)
+    total = 1
+    for i in range(m):
+        rt = stationary_points(EX[i], EY[i])
+        if rt.size:
+            R[i, :rt.size] = rt
+            nr[i] = rt.size
+        total *= nr[i]
+    nperm = 1
+    for k in range(2, m + 1):
+        nperm *= k
+    if total + nperm > 8 * max_starts or m > 5:
+        return np.empty((0, m))
+    out = np.empty((total + nperm, m))
+    for t in range(total):
+        rem = t
+        for i in range(m - 1, -1, -1):
+            out[t, i] = R[i, rem % nr[i]]
+            rem //= nr[i]
+    perm = np.arange(m)
+    for t in range(nperm):  # lexicographic order, as itertools.permutations
+        for k in range(m):
+            out[total + t, perm[k]] = (k + 1.0) / (m + 1.0)
+        i = m - 2
+        while i >= 0 and perm[i] > perm[i + 1]:
+            i -= 1
+        if i < 0:
+            break
+        j = m - 1
+        while perm[j] < perm[i]:
+            j -= 1
+        perm[i], perm[j] = perm[j], perm[i]
+        perm[i + 1:] = perm[i + 1:][::-1].copy()
+    vals = np.empty(out.shape[0])
+    for t in range(out.shape[0]):
+        vals[t] = quad(EX, EY, out[t], jbar)
+    order = np.argsort(vals)[:max_starts]
+    return out[order]
 
 
 @jit
@@ -501,30 +687,38 @@ def newton(EX, EY, DEX, DEY, s0, jbar, max_iter):  # type: ignore[no-untyped-def
     """:func:`iamp.planners.pmp_search.newton_sigma` (Cholesky for the definiteness test)."""
     lo, hi = 1e-12, 1.0 - 1e-12
     m = s0.size
-    s = np.minimum(np.maximum(s0.copy(), lo), hi)
-    q = quad(EX, EY, s, jbar)
-    h = 1e-6
+    K = np.empty((m, m))
+    X = np.empty((m, 2))
+    E = np.empty((m, 2))
+    g = np.empty(m)
+    gp = np.empty(m)
+    gm = np.empty(m)
+    sp = np.empty(m)
+    sn = np.empty(m)
+    step = np.empty(m)
     Hs = np.empty((m, m))
+    L = np.empty((m, m))
+    s = np.minimum(np.maximum(s0.copy(), lo), hi)
+    q = quad_ws(EX, EY, s, jbar, K, X, E)
+    h = 1e-6
     for _ in range(max_iter):
         if not np.isfinite(q):
             break
-        g, ok = gradient(EX, EY, DEX, DEY, s)
-        good = ok
+        good = gradient_ws(EX, EY, DEX, DEY, s, g, K, X, E)
         for k in range(m):
-            sp = s.copy()
+            sp[:] = s
             sp[k] += h
-            gp, okp = gradient(EX, EY, DEX, DEY, sp)
-            sm = s.copy()
-            sm[k] -= h
-            gm, okm = gradient(EX, EY, DEX, DEY, sm)
-            good = good and okp and okm
+            good = gradient_ws(EX, EY, DEX, DEY, sp, gp, K, X, E) and good
+            sp[k] -= 2 * h
+            good = gradient_ws(EX, EY, DEX, DEY, sp, gm, K, X, E) and good
             for i in range(m):
                 Hs[k, i] = (gp[i] - gm[i]) / (2 * h)
         if not good or not np.all(np.isfinite(g)) or not np.all(np.isfinite(Hs)):
             break
-        Hs = 0.5 * (Hs + Hs.T)
-        L = np.zeros((m, m))  # Cholesky: positive definite?
-        pd = True
+        for i in range(m):
+            for j in range(i):
+                Hs[i, j] = Hs[j, i] = 0.5 * (Hs[i, j] + Hs[j, i])
+        pd = True  # Cholesky: positive definite?
         for i in range(m):
             for j in range(i + 1):
                 acc = Hs[i, j]
@@ -539,33 +733,45 @@ def newton(EX, EY, DEX, DEY, s0, jbar, max_iter):  # type: ignore[no-untyped-def
                     L[i, j] = acc / L[j, j]
             if not pd:
                 break
-        if pd:
-            X, okx = solve(Hs, -g.reshape(m, 1))
-            step = X[:, 0]
-            pd = okx
-        if not pd:
+        if pd:  # step = −H⁻¹g by the two triangular solves
+            for i in range(m):
+                acc = -g[i]
+                for k in range(i):
+                    acc -= L[i, k] * step[k]
+                step[i] = acc / L[i, i]
+            for i in range(m - 1, -1, -1):
+                acc = step[i]
+                for k in range(i + 1, m):
+                    acc -= L[k, i] * step[k]
+                step[i] = acc / L[i, i]
+        else:
             gmax = np.max(np.abs(g))
             if gmax == 0.0:
                 break
-            step = -g / gmax * 0.02
+            for i in range(m):
+                step[i] = -g[i] / gmax * 0.02
         alpha = 1.0
         accepted = False
-        sn = s
         qn = q
         while alpha > 1e-10:
-            sn = np.minimum(np.maximum(s + alpha * step, lo), hi)
-            qn = quad(EX, EY, sn, jbar)
+            for i in range(m):
+                sn[i] = min(max(s[i] + alpha * step[i], lo), hi)
+            qn = quad_ws(EX, EY, sn, jbar, K, X, E)
             if qn <= q + 1e-15 * max(1.0, abs(q)):
                 accepted = True
                 break
             alpha *= 0.5
         if not accepted:
             break
-        moved = np.max(np.abs(sn - s))
-        s, q = sn, qn
+        moved = 0.0
+        for i in range(m):
+            moved = max(moved, abs(sn[i] - s[i]))
+            s[i] = sn[i]
+        q = qn
         if moved < 1e-15:
             break
     return s, q
+
 
 @jit
 def trusted(P, s, q):  # type: ignore[no-untyped-def]
@@ -632,7 +838,7 @@ def in_basins(B, nb, c, r):  # type: ignore[no-untyped-def]
     return -1
 
 @jit
-def add_basin(EX, EY, DEX, DEY, B, nb, s, jbar, eps, max_m):  # type: ignore[no-untyped-def]
+def add_basin(EX, EY, DEX, DEY, B, BG, nb, s, jbar, eps, max_m):  # type: ignore[no-untyped-def]
     m = s.size
     if nb >= B.shape[0] or in_basins(B, nb, s, np.zeros(m)) >= 0:
         return nb
@@ -642,12 +848,13 @@ def add_basin(EX, EY, DEX, DEY, B, nb, s, jbar, eps, max_m):  # type: ignore[no-
     q = quad(EX, EY, s, jbar)
     if not np.isfinite(q):
         return nb
-    rho, low = basin_box(EX, EY, DEX, DEY, s, 0.25 * eps * (jbar + 0.5 * q), max_m)
+    rho, low, G = basin_box(EX, EY, DEX, DEY, s, 0.25 * eps * (jbar + 0.5 * q), max_m)
     if rho <= 0:
         return nb
     B[nb, :m] = s
     B[nb, m] = rho
     B[nb, m + 1] = low
+    BG[nb, :G.size] = G
     return nb + 1
 
 @jit
@@ -658,6 +865,21 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
     m = starts.shape[1]
     ws = workspace(m, EX.shape[1])
     B = np.empty((64, m + 2))
+    D = max(8, EX.shape[1])
+    BG = np.zeros((64, (D + 1) ** m if m <= max_m else 1))
+    Hbuf = np.empty((m, m))
+    Kq = np.empty((m, m))
+    Xq = np.empty((m, 2))
+    Eq = np.empty((m, 2))
+    Abuf = np.empty(BG.shape[1])
+    expo = np.zeros((BG.shape[1], m + 1), dtype=np.int64)
+    for idx in range(BG.shape[1] if m <= max_m else 0):
+        rem = idx
+        for k in range(m - 1, -1, -1):
+            expo[idx, k] = rem % (D + 1)
+            expo[idx, m] += expo[idx, k]
+            rem //= D + 1
+    rp = np.empty((m, D + 1))
     nb = 0
     best_s = starts[0].copy()
     best_q = np.inf
@@ -665,7 +887,7 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
         if in_basins(B, nb, starts[k], np.zeros(m)) >= 0:
             continue
         s, q = newton(EX, EY, DEX, DEY, starts[k], jbar, 60)
-        nb = add_basin(EX, EY, DEX, DEY, B, nb, s, jbar, eps, max_m)
+        nb = add_basin(EX, EY, DEX, DEY, B, BG, nb, s, jbar, eps, max_m)
         q = trusted(P, s, q)
         if q < best_q:
             best_s, best_q = s, q
@@ -698,12 +920,12 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
         kbest = -1
         qmin = np.inf
         for k in range(n):
-            qk = quad(EX, EY, c[k], jbar)
+            qk = quad_ws(EX, EY, c[k], jbar, Kq, Xq, Eq)
             if qk < qmin:
                 qmin, kbest = qk, k
         if kbest >= 0 and qmin < best_q and in_basins(B, nb, c[kbest], r[kbest]) < 0:
             s, q = newton(EX, EY, DEX, DEY, c[kbest], jbar, 60)
-            nb = add_basin(EX, EY, DEX, DEY, B, nb, s, jbar, eps, max_m)
+            nb = add_basin(EX, EY, DEX, DEY, B, BG, nb, s, jbar, eps, max_m)
             q = trusted(P, s, q)
             if q < best_q:
                 best_s, best_q = s, q
@@ -715,6 +937,10 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
             if b >= 0 and B[b, m + 1] >= qstop:
                 continue
             lb = lower_bound_box(EX, EY, DEX, DEY, c[k], r[k], qstop, ws)
+            for bb in range(nb if m <= _BOX_BOUND_MAX_M else 0):
+                if lb >= qstop:
+                    break
+                lb = max(lb, g_bound(BG[bb], B[bb, :m], c[k], r[k], D, Abuf, Hbuf, expo, rp))
             if lb < qstop:
                 c[keep] = c[k]
                 r[keep] = r[k]

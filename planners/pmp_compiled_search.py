@@ -74,27 +74,50 @@ def load() -> bool:
 def _warm_up() -> None:
     """Compile for the array types the planner passes (a two-vehicle example)."""
     from iamp.planners.examples import random_problem
-    from iamp.planners.pmp_fixed import ValueFunction
+    from iamp.planners.pmp_scale import scale_problem
 
-    run(ValueFunction(random_problem(0, m=2)))
+    run(scale_problem(random_problem(0, m=2)))
 
 
-def run(vf: Any, max_starts: int = 32, max_boxes: int = 200_000,
+def padded(S: Any) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """``(EX, EY, DEX, DEY)``: the error polynomials padded to one width and their
+    derivatives (as :class:`~iamp.planners.pmp_fixed.ValueFunction` holds them)."""
+    m = S.EX.shape[0]
+    d = max(S.EX.shape[1], S.EY.shape[1])
+    E = np.zeros((2, m, d))
+    E[0, :, :S.EX.shape[1]] = S.EX
+    E[1, :, :S.EY.shape[1]] = S.EY
+    DE = np.zeros((2, m, d))
+    DE[:, :, :-1] = E[:, :, 1:] * np.arange(1, d)
+    return E[0], E[1], DE[0], DE[1]
+
+
+def run(S: Any, max_starts: int = 32, max_boxes: int = 200_000,
         progress: Callable[[int, int], None] | None = None) -> Any:
-    """:func:`~iamp.planners.pmp_search.global_search` on the compiled path (call
-    :func:`load` first); returns a :class:`~iamp.planners.pmp_search.SearchResult`."""
+    """:func:`~iamp.planners.pmp_search.global_search` on the compiled path for the scaled
+    problem ``S`` (call :func:`load` first); returns a
+    :class:`~iamp.planners.pmp_search.SearchResult`."""
     from iamp.core.tolerances import tol
     from iamp.planners.pmp_basin import MAX_M
+    from iamp.planners.pmp_compiled_kernels import make_starts
     from iamp.planners.pmp_search import SearchResult, start_points
 
-    S = vf.scaled
-    starts = np.array(start_points(S, max_starts))
-    vals = vf.quad_sigma(starts)
-    order = np.argsort(vals)[:max_starts]
-    P = (S.ego, np.ascontiguousarray(S.CX, dtype=float), np.asarray(S.CY, dtype=float), float(S.jbar),
+    EX, EY, DEX, DEY = padded(S)
+    jbar = float(S.jbar)
+    starts = make_starts(EX, EY, jbar, max_starts)
+    if not starts.shape[0]:  # many vehicles: the pure path's sampled starts
+        pts = np.array(start_points(S, max_starts))
+        starts = np.ascontiguousarray(pts[np.argsort(_quad_rows(EX, EY, pts, jbar))[:max_starts]])
+    P = (S.ego, np.ascontiguousarray(S.CX, dtype=float), np.asarray(S.CY, dtype=float), jbar,
          tol("pmp_cost_consistency_rel"))
-    s, q, cert, boxes = _STATE["run"](vf._EX, vf._EY, vf._DEX, vf._DEY, P, np.ascontiguousarray(starts[order]),
-                                      tol("pmp_global_certificate_rel"), int(max_boxes), MAX_M)
+    s, q, cert, boxes = _STATE["run"](EX, EY, DEX, DEY, P, starts, tol("pmp_global_certificate_rel"),
+                                      int(max_boxes), MAX_M)
     if progress is not None:
         progress(min(int(boxes), max_boxes), max_boxes)
-    return SearchResult(np.asarray(s, dtype=float), float(q), bool(cert), int(boxes), int(order.size))
+    return SearchResult(np.asarray(s, dtype=float), float(q), bool(cert), int(boxes), int(starts.shape[0]))
+
+
+def _quad_rows(EX: FloatArray, EY: FloatArray, pts: FloatArray, jbar: float) -> FloatArray:
+    from iamp.planners.pmp_compiled_kernels import quad
+
+    return np.array([quad(EX, EY, np.ascontiguousarray(p), jbar) for p in pts])

@@ -59,6 +59,24 @@ def test_basin_lower_bound_holds_on_the_whole_box(case):
     assert q - _delta(vf, q) - 2e-11 * q <= b.lower <= q
 
 
+@SETTINGS
+@given(st.integers(0, 10_000), st.sampled_from([-1, 1]))
+def test_box_bound_of_the_minorant_holds_on_random_boxes(seed, side):
+    vf = ValueFunction(random_problem(seed, m=2, side=side))
+    s, q = _minimiser(vf)
+    b = basin_box(vf, s, _delta(vf, q))
+    if b is None:
+        return
+    rng = np.random.default_rng(seed)
+    c = np.clip(s + rng.uniform(-0.3, 0.3, (60, 2)), 0.02, 0.98)
+    r = rng.uniform(1e-4, 0.05, (60, 2))
+    lb = b.box_bound(c, r)
+    assert np.any(np.isfinite(lb))
+    for k in np.nonzero(np.isfinite(lb))[0]:
+        pts = np.clip(c[k] + r[k] * rng.uniform(-1, 1, (300, 2)), 1e-9, 1 - 1e-9)
+        assert lb[k] <= np.min(vf.quad_sigma(pts))
+
+
 @pytest.mark.parametrize("seed,m", [(0, 2), (1, 3), (2, 2)])
 def test_expansion_is_a_minorant_touching_q_to_third_order(seed, m):
     """``G ≤ q`` and ``q − G = O(|h|⁴)``: the ratio over a decade of ``|h|`` is ≈ 10⁴."""
@@ -142,8 +160,20 @@ def test_compiled_kernels_equal_the_numpy_ones(fast):
         assert np.allclose(qc, vf.quad_sigma(c), rtol=1e-8)  # Gaussian elimination vs LAPACK
         s, q = _minimiser(vf)
         b = basin_box(vf, s, _delta(vf, q))
-        rho, low = kk.basin_box(vf._EX, vf._EY, vf._DEX, vf._DEY, s, _delta(vf, q), 5)
+        rho, low, G = kk.basin_box(vf._EX, vf._EY, vf._DEX, vf._DEY, s, _delta(vf, q), 5)
         assert b is not None and rho == pytest.approx(b.radius, rel=1e-9) and low == pytest.approx(b.lower, rel=1e-12)
+        assert np.allclose(G, b.coeffs.reshape(-1), rtol=1e-12, atol=1e-12 * np.max(np.abs(G)))
+        if m == 2:  # the second-order box bound, on boxes around the minimiser
+            D = b.coeffs.shape[0] - 1
+            expo = np.array([list(ix) + [sum(ix)] for ix in np.ndindex(*b.coeffs.shape)], dtype=np.int64)
+            cb = s + rng.uniform(-0.1, 0.1, (40, m))
+            rb = rng.uniform(1e-3, 0.03, (40, m))
+            ref = b.box_bound(cb, rb)
+            got = np.array([kk.g_bound(G, s, cb[k], rb[k], D, np.empty(G.size), np.empty((m, m)), expo,
+                                       np.empty((m, D + 1))) for k in range(40)])
+            fin = np.isfinite(ref)
+            assert np.array_equal(fin, np.isfinite(got)) and fin.any()
+            assert np.allclose(got[fin], ref[fin], rtol=1e-9, atol=1e-9 * abs(q))
         S = vf.scaled
         P = (S.ego, np.ascontiguousarray(S.CX), np.asarray(S.CY, float), S.jbar, tol("pmp_cost_consistency_rel"))
         assert kk.trusted(P, s, q) == q == trusted_q(vf, s)
@@ -155,7 +185,7 @@ def test_compiled_search_gives_the_pure_answer(fast, case):
     seed, m, side = case
     vf = ValueFunction(random_problem(seed, m=m, side=side))
     a = global_search(vf)
-    b = fast.run(vf)
+    b = fast.run(vf.scaled)
     assert a.certified == b.certified
     assert np.max(np.abs(a.sigma - b.sigma)) <= 1e-9 or abs(a.q - b.q) <= 1e-9 * (vf.scaled.jbar + 0.5 * a.q)
     assert abs(a.q - b.q) <= 2 * tol("pmp_global_certificate_rel") * (vf.scaled.jbar + 0.5 * min(a.q, b.q))
