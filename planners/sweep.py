@@ -3,7 +3,10 @@ r"""The contact-time grid sweep of the QP (SPEC §3.4) and what it can certify.
 The sweep solves one QP per candidate (every ordered combination of distinct interior
 nodes, one per vehicle) on the uniform grid and keeps the cheapest *verified* candidate.
 Its accounting (:meth:`SweepResult.candidates`) is
-``{"total", "solved", "failed": {status: count}, "inaccurate"}``.
+``{"total", "solved", "failed": {status: count}, "inaccurate"}``.  Candidates go to
+:meth:`~iamp.planners.qp_core.DiscretisedQP.solve_many` :data:`SWEEP_CHUNK` at a time (the
+``kkt`` backend solves them as a family; progress is reported per chunk); a solver without
+``solve_many`` (the cvxpy cross-check) gets them one by one.
 
 A candidate that failed (or is inaccurate) has no verified cost, so it might have been the
 best.  Each one is bounded below by the PMP cost at the same contact times
@@ -20,6 +23,7 @@ counted as able to.  Then the sweep's best is not certified: the plan is not OPT
 
 from __future__ import annotations
 
+import itertools
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -33,6 +37,10 @@ from iamp.core.tolerances import tol
 from iamp.planners.qp_core import CandidateResult, CandidateSolver
 
 Progress = Callable[[int, int], None]
+
+#: Candidates handed to :meth:`~iamp.planners.qp_core.DiscretisedQP.solve_many` at a time
+#: (between two progress calls).
+SWEEP_CHUNK = 512
 
 
 @dataclass
@@ -94,13 +102,19 @@ def run_sweep(qp: CandidateSolver, progress: Progress | None = None) -> SweepRes
     total = qp.n_candidates()
     results: list[CandidateResult] = []
     best: CandidateResult | None = None
-    for i, nodes in enumerate(qp.candidate_nodes()):
-        r = qp.solve_nodes(nodes)
-        results.append(r)
-        if r.ok and (best is None or r.cost < best.cost):
-            best = r
+    many = getattr(qp, "solve_many", None)  # DiscretisedQP: a family at a time (kkt)
+    todo = qp.candidate_nodes()
+    while True:
+        chunk = list(itertools.islice(todo, SWEEP_CHUNK if many is not None else 1))
+        if not chunk:
+            break
+        rs = many(chunk) if many is not None else [qp.solve_nodes(chunk[0])]
+        for r in rs:
+            results.append(r)
+            if r.ok and (best is None or r.cost < best.cost):
+                best = r
         if progress is not None:
-            progress(i + 1, total)
+            progress(len(results), total)
     out = SweepResult(best=best, results=results)
     if best is not None:
         margin = tol("foh_clarabel_cost_rel") * max(1.0, abs(best.cost))

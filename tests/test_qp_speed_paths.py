@@ -7,6 +7,8 @@
 * :class:`QPData` computes the residuals from one stacked product and tabulates the
   corners per grid: the same numbers as the plain formulas; its cached patterns are shared
   read-only and its values are not;
+* the kkt sweep solves all candidates of a grid as one family: the same results as one by
+  one, each candidate's residuals its own;
 * the iterative backends apply their equality-only settings only to equality-only problems
   and never over an explicit setting, and their answers still verify and equal the exact
   one; an unpolished OSQP answer is reported INACCURATE, not optimal.
@@ -29,8 +31,9 @@ from iamp.planners.backends import clarabel as clarabel_mod
 from iamp.planners.backends import osqp as osqp_mod
 from iamp.planners.backends import piqp as piqp_mod
 from iamp.planners.examples import paper_problem, random_problem
-from iamp.planners.qp_core import DiscretisedQP
+from iamp.planners.qp_core import DiscretisedQP, family_residuals
 from iamp.planners.qp_data import QPData, equality_residuals
+from iamp.planners.sweep import run_sweep
 
 FAST = {"osqp": osqp_mod.polish_first_settings(), "clarabel": clarabel_mod.equality_settings(),
         "piqp": piqp_mod.equality_settings()}
@@ -239,3 +242,60 @@ def test_an_unpolished_osqp_answer_is_inaccurate_not_optimal():
     r = qp.solve_nodes([20])
     assert r.solver_status == st.OPTIMAL  # OSQP says solved (to eps_abs 0.1) ...
     assert r.status == st.INACCURATE and r.cost == np.inf and r.failed_check is not None  # ... the check does not
+
+
+# --------------------------------------------------------------------------------------
+# the kkt sweep's family solve (all candidates of a grid at once)
+# --------------------------------------------------------------------------------------
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=hs.integers(0, 10_000), m=hs.sampled_from([1, 2, 3]), hold=hs.sampled_from(["foh", "zoh"]),
+       N=hs.sampled_from([8, 12, 21]))
+def test_a_family_sweep_equals_the_sweep_one_candidate_at_a_time(seed, m, hold, N):
+    """Every candidate: the same solution, residuals, verdict, cost and multipliers; the
+    same best.  (``N = 8``: the selector rows are core rows, the family does not apply.)"""
+    N = N if m < 3 else min(N, 11)  # three vehicles: (N−1)(N−2)(N−3) candidates
+    p = random_problem(seed, m=m)
+    fam = run_sweep(DiscretisedQP(p, N, hold, "kkt"))
+    one = DiscretisedQP(p, N, hold, "kkt")
+    one.set_uniform_grid()
+    ref = [one.solve_nodes(c) for c in one.candidate_nodes()]
+    assert [r.nodes for r in fam.results] == [r.nodes for r in ref]
+    for a, b in zip(fam.results, ref, strict=True):
+        assert a.status == b.status == st.OPTIMAL
+        assert _rel(a.z, b.z) <= 1e-12 and _rel(a.y, b.y) <= 1e-10
+        assert a.cost == pytest.approx(b.cost, rel=1e-13)
+        np.testing.assert_allclose(a.multipliers, b.multipliers, rtol=1e-9, atol=1e-12)
+        for k, v in b.kkt.as_dict().items():  # round-off level both: equal up to round-off
+            assert abs(a.kkt.as_dict()[k] - v) <= 1e-10 * max(1.0, abs(b.cost)), k
+        assert a.kkt.worst_rel()[1] <= 1e-12
+    assert fam.best.nodes == min(ref, key=lambda r: r.cost).nodes
+
+
+def test_family_residuals_are_each_candidates_own_residuals():
+    """Perturbed solutions (so the residuals are not ~0): the batched residuals of candidate
+    ``j`` equal :meth:`QPData.kkt_residuals` with ``j``'s own selector in ``A`` and ``b``."""
+    p = random_problem(8, m=2)
+    d = QPData(p, 16, "foh")
+    rng = np.random.default_rng(3)
+    cands = [(3, 9), (9, 3), (1, 15), (7, 8)]
+    Z, Y = rng.normal(size=(len(cands), d.n)), rng.normal(size=(len(cands), d.n_rows))
+    veh, axis = np.repeat(np.arange(2), 2), np.tile(np.arange(2), 2)
+    K = np.asarray(cands)[:, veh]
+    cols = axis * d.block + K
+    B1 = np.where(axis == 0, d._corner_x[veh, K], d._corner_y[veh])
+    got = family_residuals(d, Z, Y, cols, B1)
+    for j, c in enumerate(cands):
+        d.selector_update(c)
+        want = d.kkt_residuals(Z[j], Y[j]).as_dict()
+        for k, v in want.items():
+            assert got[j].as_dict()[k] == pytest.approx(v, rel=1e-12), (c, k)
+
+
+def test_a_failing_family_falls_back_to_one_at_a_time(monkeypatch):
+    p = paper_problem(1)
+    qp = DiscretisedQP(p, 20, "foh", "kkt")
+    monkeypatch.setattr(type(qp.backend), "solve_family", lambda *a, **k: None)
+    sw = run_sweep(qp)
+    assert len(sw.results) == 19 and all(r.ok for r in sw.results) and qp.n_solves == 19

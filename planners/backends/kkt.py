@@ -46,7 +46,10 @@ What is computed when (a sweep: one grid, many candidates):
   ``dgbtrs`` per distinct factor (each column only on its own block, and once for identical
   blocks), so the rest of the sweep does no triangular solve at all: a gather, a Schur
   complement of size (#border rows) — diagonal when the border rows touch different blocks
-  (then divided, not factorised) — and one ``w_0 − W y_1``.
+  (then divided, not factorised) — and one ``w_0 − W y_1``;
+* **a family of candidates** (:meth:`KKTBackend.solve_family`, what a sweep uses): the same
+  per-candidate formulas for many candidates at once, as array operations over the
+  candidates (a batched Schur complement, one gathered update of ``w_0`` per border row).
 
 Optionally (setting ``refine_above``, relative; default ``None`` = off) one step of
 iterative refinement on the full system follows when the recomputed residual exceeds it.
@@ -287,6 +290,61 @@ class KKTBackend(QPBackend):
         y[self._core] = w[n:]
         y[self._border] = y1
         return w[:n], y
+
+    def solve_family(self, ent: IntArray, vals: FloatArray, b_border: FloatArray
+                     ) -> tuple[FloatArray, FloatArray] | None:
+        r"""Solve a family of candidates that differ from the current data only in the border.
+
+        Candidate ``j`` has in border row ``r`` the single entry ``ent[j, r]`` (an index into
+        the border pattern, :attr:`KKTStructure.b_row` order) with value ``vals[j, r]`` and the
+        right-hand side ``b_border[j, r]``; everything else is the current ``P, q, A, b``.
+        Uses the current factorisation and the column block (computed here if needed): per
+        candidate the formulas of a single solve, for all candidates at once,
+
+        .. math::  S_j = V_j E_j^\top K_0^{-1} E_j V_j, \quad
+                   S_j y_{1j} = V_j E_j^\top w_0 - b_{1j}, \quad
+                   w_j = w_0 - K_0^{-1} E_j V_j y_{1j} .
+
+        Returns ``(Z, Y)`` (one row per candidate) or ``None`` when it does not apply (no
+        regular factorisation, no border, a singular Schur complement or a non-finite result):
+        then solve them one by one.
+        """
+        nb = self._border.size
+        if nb == 0 or ent.shape[1] != nb:
+            return None
+        if self._factor is None:
+            self._factorise()
+        if self._info != 0:
+            return None
+        if self._col_all is None:
+            self._uses = max(self._uses, 1)
+            self._col_all = self._full_columns(np.arange(self._u_key.size))
+        r0 = np.concatenate([-self.q, self.l[self._core]])[self._perm]
+        w0 = self._core_solve(r0)
+        C, pc, uc = self._col_all, self._b_pc[ent], self._b_info[2][ent]
+        S = C[uc[:, None, :], pc[:, :, None]] * vals[:, :, None] * vals[:, None, :]
+        rhs = vals * w0[pc] - b_border
+        diag = np.diagonal(S, axis1=1, axis2=2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if np.count_nonzero(S) == np.count_nonzero(diag):
+                y1 = rhs / diag  # the border rows touch different blocks: S_j diagonal
+            else:
+                try:
+                    y1 = np.linalg.solve(S, rhs[..., None])[..., 0]
+                except np.linalg.LinAlgError:
+                    return None
+        coef = y1 * vals
+        W = np.broadcast_to(w0, (ent.shape[0], w0.size)).copy()
+        for r in range(nb):
+            W -= coef[:, r, None] * C[uc[:, r]]
+        if not (np.isfinite(W).all() and np.isfinite(y1).all()):
+            return None
+        W = W[:, self._inv]
+        n = self.q.size
+        Y = np.empty((ent.shape[0], self.l.size))
+        Y[:, self._core] = W[:, n:]
+        Y[:, self._border] = y1
+        return np.ascontiguousarray(W[:, :n]), Y
 
     def solve(self) -> QPSolution:
         t0 = time.perf_counter()
