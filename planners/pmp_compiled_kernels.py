@@ -753,7 +753,8 @@ def newton(EX, EY, DEX, DEY, s0, jbar, max_iter):  # type: ignore[no-untyped-def
         alpha = 1.0
         accepted = False
         qn = q
-        while alpha > 1e-10:
+        smax = np.max(np.abs(step))
+        while alpha > 1e-10 and alpha * smax >= 1e-15:  # below that nothing moves
             for i in range(m):
                 sn[i] = min(max(s[i] + alpha * step[i], lo), hi)
             qn = quad_ws(EX, EY, sn, jbar, K, X, E)
@@ -854,7 +855,8 @@ def add_basin(EX, EY, DEX, DEY, B, BG, nb, s, jbar, eps, max_m):  # type: ignore
     B[nb, :m] = s
     B[nb, m] = rho
     B[nb, m + 1] = low
-    BG[nb, :G.size] = G
+    if BG.shape[1] == G.size:
+        BG[nb] = G
     return nb + 1
 
 @jit
@@ -866,14 +868,14 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
     ws = workspace(m, EX.shape[1])
     B = np.empty((64, m + 2))
     D = max(8, EX.shape[1])
-    BG = np.zeros((64, (D + 1) ** m if m <= max_m else 1))
+    BG = np.zeros((64, (D + 1) ** m if m <= _BOX_BOUND_MAX_M else 1))  # minorants kept for g_bound only
     Hbuf = np.empty((m, m))
     Kq = np.empty((m, m))
     Xq = np.empty((m, 2))
     Eq = np.empty((m, 2))
     Abuf = np.empty(BG.shape[1])
     expo = np.zeros((BG.shape[1], m + 1), dtype=np.int64)
-    for idx in range(BG.shape[1] if m <= max_m else 0):
+    for idx in range(BG.shape[1] if m <= _BOX_BOUND_MAX_M else 0):
         rem = idx
         for k in range(m - 1, -1, -1):
             expo[idx, k] = rem % (D + 1)

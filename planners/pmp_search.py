@@ -125,7 +125,8 @@ def newton_sigma(vf: ValueFunction, s0: FloatArray, max_iter: int = 60) -> tuple
             step = -g / gmax * 0.02
         alpha = 1.0
         accepted = False
-        while alpha > 1e-10:
+        smax = float(np.max(np.abs(step)))
+        while alpha > 1e-10 and alpha * smax >= 1e-15:  # below that nothing moves
             sn = np.clip(s + alpha * step, lo, hi)
             qn = float(vf.quad_sigma(sn[None, :])[0])
             if qn <= q + 1e-15 * max(1.0, abs(q)):
