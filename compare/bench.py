@@ -189,12 +189,17 @@ def _casadi(problem: Any, quick: bool, notes: list[str]) -> dict[str, Any] | Non
 
 def osqp_tuning(problem: Any) -> list[dict[str, Any]]:
     """What each OSQP setting buys on the equality QP (one FOH sweep, ``N = 100``, per row)."""
+    from iamp.planners.backends.osqp import _polish_key
     from iamp.planners.qp_core import DiscretisedQP
 
     rows = []
-    grid: list[dict[str, Any]] = [{"eps_abs": e, "polish_refine_iter": k} for e in (1e-3, 1e-5) for k in (1, 3, 10)]
-    grid += [{"eps_abs": 1e-6, "polish_refine_iter": 10}, {"eps_abs": 1e-5, "polishing": False},
-             {"eps_abs": 1e-6, "polishing": False}]
+    off = {_polish_key(): False}
+    # iamp's equality-QP default (ADMM near, the polish exact) with fewer refinements or no
+    # polish, then OSQP's own ADMM settings (check every 25, over-relaxation 1.6, scaling 10)
+    old_admm = {"check_termination": 25, "alpha": 1.6, "scaling": 10}
+    grid: list[dict[str, Any]] = [{}, {"polish_refine_iter": 3}, {"polish_refine_iter": 1}, off]
+    grid += [{**old_admm, "eps_abs": e, "polish_refine_iter": k} for e in (1e-3, 1e-5) for k in (3, 10)]
+    grid += [{**old_admm, "eps_abs": 1e-5, **off}, {**old_admm, "eps_abs": 1e-7, **off}]
     for s in grid:
         qp = DiscretisedQP(problem, STEPS, "foh", "osqp", s)
         t0 = time.perf_counter()

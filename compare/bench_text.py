@@ -55,6 +55,7 @@ def format_bench(out: dict[str, Any]) -> str:
         lines += ["", "OSQP settings on the equality QP (one sweep each; KKT recomputed):"]
         for r in out["osqp_tuning"]:
             s = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in r["settings"].items())
+            s = s or "iamp's equality-QP default"
             lines.append(f"  {s:36s} verified {r['verified']:3d}/{r['candidates']}  polished {r['polished']:3d}  "
                          f"iter {r['iterations_median']:5.0f} (max {r['iterations_max']})  "
                          f"KKT max {r['kkt_rel_max']:.1e}  {_fmt_s(r['backend_s_median']).strip()}/candidate")
