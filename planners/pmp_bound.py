@@ -29,6 +29,11 @@ value found; the others are halved along every side at least half as long as the
 longest one.  Box centres better than the
 incumbent are polished by Newton and replace it.  The search is *certified* when no box
 remains within the budget.
+
+Two more bounds come from the polished minimisers (:mod:`iamp.planners.pmp_basin`): every
+box inside a basin box has that basin's lower bound, and (two vehicles) every open box is
+also bounded by each basin's third-order minorant ``G`` (:meth:`~iamp.planners.pmp_basin.Basin.box_bound`), which
+decides the boxes next to a minimiser at their own scale.
 """
 
 from __future__ import annotations

@@ -257,7 +257,7 @@ def lower_bound_box(EX, EY, DEX, DEY, c, r, qstop, ws):  # type: ignore[no-untyp
     returns early, with a bound ``≥ qstop``, once the one-vehicle or pair bound reaches
     ``qstop`` (the caller discards the box either way)."""
     m = c.size
-    buf, rlo, rhi, K, Kr, W, xlo, xhi, V, B4 = ws
+    buf, rlo, rhi = ws[0], ws[1], ws[2]
     best = 0.0
     for i in range(m):
         rlo[i, 0], rhi[i, 0] = range1(EX[i], c[i], r[i], buf)
@@ -282,7 +282,15 @@ def lower_bound_box(EX, EY, DEX, DEY, c, r, qstop, ws):  # type: ignore[no-untyp
                 best = max(best, pb)
     if best >= qstop:
         return best
-    # Fenchel + mean value
+    return max(best, fenchel_bound(EX, EY, DEX, DEY, c, r, ws))
+
+
+@jit
+def fenchel_bound(EX, EY, DEX, DEY, c, r, ws):  # type: ignore[no-untyped-def]
+    """Bound 1 of :func:`iamp.planners.pmp_bound.lower_bound` (Fenchel with ``w`` at the box
+    centre, mean value with exact Taylor ranges) on the box ``c ± r``."""
+    m = c.size
+    buf, rlo, K, Kr, W, xlo, xhi, V, B4 = ws[0], ws[1], ws[3], ws[4], ws[5], ws[6], ws[7], ws[8], ws[9]
     dmax = 0.0
     for i in range(m):
         for j in range(m):
@@ -350,7 +358,7 @@ def lower_bound_box(EX, EY, DEX, DEY, c, r, qstop, ws):  # type: ignore[no-untyp
     fench = max(g0 - slack, 0.0)
     if not np.isfinite(fench):
         fench = 0.0
-    return max(best, fench)
+    return fench
 
 
 _DKDIAG_NB = np.asarray(_DKDIAG, dtype=np.float64)
@@ -939,7 +947,7 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
             if b >= 0 and B[b, m + 1] >= qstop:
                 continue
             lb = lower_bound_box(EX, EY, DEX, DEY, c[k], r[k], qstop, ws)
-            for bb in range(nb if m <= _BOX_BOUND_MAX_M else 0):
+            for bb in range(nb if m <= _BOX_BOUND_MAX_M else 0):  # the basins' minorants
                 if lb >= qstop:
                     break
                 lb = max(lb, g_bound(BG[bb], B[bb, :m], c[k], r[k], D, Abuf, Hbuf, expo, rp))

@@ -19,7 +19,13 @@ Starts from every combination of the one-vehicle stationary points (each vehicle
 polished by Newton's method on the Hamiltonian-jump residuals ``r = ∇J`` (closed form,
 :meth:`ValueFunction.gradient_sigma`), then certified by branch and bound
 (:mod:`iamp.planners.pmp_bound`) which also reveals and polishes any better basin it finds.
+Every polished minimiser contributes a *basin box* (:mod:`iamp.planners.pmp_basin`): a
+rigorous lower bound of ``q`` on a whole neighbourhood, so the certificate does not refine
+down to ``√ε`` around it.  A start inside a known basin box is not polished again, and
+:func:`trusted_q` (which solves the jump system) runs only for would-be incumbents.
 If the bound cannot close within its budget the result is only *local*.
+
+The same algorithm compiled by numba: :mod:`iamp.planners.pmp_compiled_search`.
 """
 
 from __future__ import annotations
