@@ -603,6 +603,54 @@ def g_bound(G, s, c, r, D, A, H, expo, rp):  # type: ignore[no-untyped-def]
 
 
 @jit
+def g_bound2(G, s, c, r, D, A):  # type: ignore[no-untyped-def]
+    """:func:`g_bound` for two vehicles on a ``(D+1, D+1)`` scratch ``A``, looping only over
+    total degrees ``≤ D`` (the minorant's degree)."""
+    if s[0] < s[1] and not c[0] + r[0] < c[1] - r[1]:
+        return -np.inf
+    if s[1] < s[0] and not c[1] + r[1] < c[0] - r[0]:
+        return -np.inf
+    n = D + 1
+    h0 = c[0] - s[0]
+    h1 = c[1] - s[1]
+    for a in range(n):
+        for b in range(n - a):
+            A[a, b] = G[a * n + b]
+    for a in range(n):  # shift in the second time
+        d = D - a
+        for i in range(d):
+            for j in range(d - 1, i - 1, -1):
+                A[a, j] += h1 * A[a, j + 1]
+    for b in range(n):  # then in the first
+        d = D - b
+        for i in range(d):
+            for j in range(d - 1, i - 1, -1):
+                A[j, b] += h0 * A[j + 1, b]
+    c0 = A[0, 0]
+    g0, g1 = A[1, 0], A[0, 1]
+    lam = 0.5 * (A[2, 0] + A[0, 2]) - np.sqrt(0.25 * (A[2, 0] - A[0, 2]) ** 2 + 0.25 * A[1, 1] ** 2)
+    if lam > 0:
+        d0 = min(max(-g0 / (2 * lam), -r[0]), r[0])
+        d1 = min(max(-g1 / (2 * lam), -r[1]), r[1])
+        quadv = g0 * d0 + lam * d0 * d0 + g1 * d1 + lam * d1 * d1
+    else:
+        quadv = -abs(g0) * r[0] - abs(g1) * r[1] + lam * (r[0] * r[0] + r[1] * r[1])
+    rem = 0.0
+    tot = 0.0
+    pa = 1.0
+    for a in range(n):
+        pb = pa
+        for b in range(n - a):
+            v = abs(A[a, b]) * pb
+            tot += v
+            if a + b >= 3:
+                rem += v
+            pb *= r[1]
+        pa *= r[0]
+    return c0 + quadv - rem - (64 * 2.220446049250313e-16 * tot + _ROUNDING_REL * abs(c0))
+
+
+@jit
 def stationary_points(ex, ey):  # type: ignore[no-untyped-def]
     """Zeros in ``(0, 1)`` of ``P = N'σ(1−σ) − 3N(1−2σ)``, ``N = e_x² + e_y²`` (one vehicle
     alone, :func:`iamp.planners.pmp_search.stationarity_poly`), by sign changes on 256 cells
@@ -890,6 +938,7 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
             expo[idx, m] += expo[idx, k]
             rem //= D + 1
     rp = np.empty((m, D + 1))
+    A2buf = np.empty((D + 1, D + 1))
     nb = 0
     best_s = starts[0].copy()
     best_q = np.inf
@@ -950,7 +999,10 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
             for bb in range(nb if m <= _BOX_BOUND_MAX_M else 0):  # the basins' minorants
                 if lb >= qstop:
                     break
-                lb = max(lb, g_bound(BG[bb], B[bb, :m], c[k], r[k], D, Abuf, Hbuf, expo, rp))
+                if m == 2:
+                    lb = max(lb, g_bound2(BG[bb], B[bb, :m], c[k], r[k], D, A2buf))
+                else:
+                    lb = max(lb, g_bound(BG[bb], B[bb, :m], c[k], r[k], D, Abuf, Hbuf, expo, rp))
             if lb < qstop:
                 c[keep] = c[k]
                 r[keep] = r[k]

@@ -171,9 +171,11 @@ def test_compiled_kernels_equal_the_numpy_ones(fast):
             ref = b.box_bound(cb, rb)
             got = np.array([kk.g_bound(G, s, cb[k], rb[k], D, np.empty(G.size), np.empty((m, m)), expo,
                                        np.empty((m, D + 1))) for k in range(40)])
+            got2 = np.array([kk.g_bound2(G, s, cb[k], rb[k], D, np.empty((D + 1, D + 1))) for k in range(40)])
             fin = np.isfinite(ref)
-            assert np.array_equal(fin, np.isfinite(got)) and fin.any()
+            assert np.array_equal(fin, np.isfinite(got)) and np.array_equal(fin, np.isfinite(got2)) and fin.any()
             assert np.allclose(got[fin], ref[fin], rtol=1e-9, atol=1e-9 * abs(q))
+            assert np.allclose(got2[fin], ref[fin], rtol=1e-9, atol=1e-9 * abs(q))
         S = vf.scaled
         P = (S.ego, np.ascontiguousarray(S.CX), np.asarray(S.CY, float), S.jbar, tol("pmp_cost_consistency_rel"))
         assert kk.trusted(P, s, q) == q == trusted_q(vf, s)
