@@ -67,58 +67,23 @@ TARGETS: dict[str, tuple[str, float]] = {
 # --------------------------------------------------------------------------------------
 
 
-def _pmp_fallback(quick: bool, notes: list[str]) -> dict[str, Any]:
-    """The PMP numbers measured here (used until ``compare/bench_pmp.py`` exists)."""
-    import inspect
-
-    from iamp.planners import pmp as pmp_mod
-    from iamp.planners.examples import builtin_problem, paper_problem, random_problem
-
-    planner = pmp_mod.PMPPlanner()
-    kw: dict[str, Any] = {"diagnostics": False} if "diagnostics" in inspect.signature(planner.plan).parameters else {}
-    one, two = paper_problem(1), builtin_problem("two-vehicle")
-    s1, _ = measure(lambda: planner.plan(one, **kw), repeats=30 if quick else 300, warmup=5)
-    s2, _ = measure(lambda: planner.plan(two, **kw), repeats=5 if quick else 30, warmup=2)
-    K = 2_000 if quick else 10_000
-    problems = [random_problem(seed, m=1) for seed in range(K)]
-    batch = getattr(pmp_mod, "plan_batch", None)
-    if batch is not None:
-        sb, _ = measure(lambda: batch(problems), repeats=2 if quick else 5, warmup=1)
-        api = "iamp.planners.pmp.plan_batch"
-    else:  # honest fallback: the per-problem planner in a loop
-        sub = problems[:500]
-        sb, _ = measure(lambda: [planner.plan(p, **kw) for p in sub], repeats=1, warmup=0)
-        K, api = len(sub), "PMPPlanner().plan in a Python loop (plan_batch not available)"
-        notes.append("plan_batch does not exist: the batch number is a loop over PMPPlanner.plan")
-    return {"pmp_plan_s": {"one_vehicle": s1.median, "two_vehicles": s2.median},
-            "pmp_batch_plans_per_s": K / sb.median,
-            "stats": {"pmp_plan_one_vehicle_s": s1.to_dict(), "pmp_plan_two_vehicles_s": s2.to_dict(),
-                      "pmp_batch_s": sb.to_dict()},
-            "batch": {"api": api, "problems": K}, "source": "iamp.comparison.bench (fallback)"}
-
-
 def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
-    if importlib.util.find_spec("iamp.comparison.bench_pmp") is not None:
-        mod = importlib.import_module("iamp.comparison.bench_pmp")
-        raw: dict[str, Any] = dict(mod.bench_pmp(3 if quick else 7))
-        out: dict[str, Any] = {"source": "iamp.comparison.bench_pmp.bench_pmp", "bench_pmp": raw}
-        if {"one_vehicle", "two_vehicles", "batch_plans_per_s"} <= set(raw):  # its flat keys
-            out["pmp_plan_s"] = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"]}
-            out["pmp_batch_plans_per_s"] = raw["batch_plans_per_s"]
-            if raw.get("compiled_limit_one_vehicle"):
-                out["pmp_to_compiled_limit"] = raw["one_vehicle"] / raw["compiled_limit_one_vehicle"]
-            else:
-                notes.append("bench_pmp: no compiled limit (numba missing?): pmp_to_compiled_limit n/a")
-        else:
-            out.update(raw)
-        plan = out.get("pmp_plan_s")
-        if isinstance(plan, dict) and {"one_vehicle", "two_vehicles"} <= set(plan) and "pmp_batch_plans_per_s" in out:
-            return out
-        notes.append("bench_pmp() lacks the SPEC §5b keys pmp_plan_s{one_vehicle, two_vehicles} and "
-                     "pmp_batch_plans_per_s: PMP numbers measured by the fallback in bench.py")
-        return {**_pmp_fallback(quick, notes), "bench_pmp": raw}
-    notes.append("compare/bench_pmp.py not found: PMP numbers measured by the fallback in bench.py")
-    return _pmp_fallback(quick, notes)
+    """The PMP medians of :func:`iamp.comparison.bench_pmp.bench_pmp` in the SPEC §5b keys."""
+    from iamp.comparison.bench_pmp import bench_pmp
+
+    raw: dict[str, Any] = dict(bench_pmp(3 if quick else 7))
+    plan_s = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
+              "two_vehicles_pure": raw["two_vehicles_pure"]}
+    out: dict[str, Any] = {"source": "iamp.comparison.bench_pmp.bench_pmp", "bench_pmp": raw,
+                           "pmp_plan_s": plan_s, "pmp_batch_plans_per_s": raw["batch_plans_per_s"]}
+    if raw.get("compiled_limit_one_vehicle"):
+        out["pmp_to_compiled_limit"] = raw["one_vehicle"] / raw["compiled_limit_one_vehicle"]
+    else:
+        notes.append("numba missing (pip install 'iamp[fast]'): no compiled limit, two vehicles on the pure path")
+    if raw.get("two_vehicles_compiled"):
+        out["pmp_two_vehicles_pure_to_compiled"] = raw["two_vehicles_pure"] / raw["two_vehicles_compiled"]
+        plan_s["two_vehicles_compiled"] = raw["two_vehicles_compiled"]
+    return out
 
 
 # --------------------------------------------------------------------------------------
@@ -277,9 +242,9 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     sweeps = {**{s: cvx[s].median for s in cvx}, **{f"native_{s}": native[s].median for s in native}}
     best_native = min(native, key=lambda s: native[s].median)
     pmp_one = float(pmp["pmp_plan_s"]["one_vehicle"])
-    limit = (pmp.get("ratios") or {}).get("pmp_to_compiled_limit", pmp.get("pmp_to_compiled_limit"))
     ratios: dict[str, float | None] = {
-        "pmp_to_compiled_limit": limit,
+        "pmp_to_compiled_limit": pmp.get("pmp_to_compiled_limit"),
+        "pmp_two_vehicles_pure_to_compiled": pmp.get("pmp_two_vehicles_pure_to_compiled"),
         "qp_best_to_kkt": solve[best_it] / solve["kkt"],
         **{f"qp_{s}_to_kkt": solve[s] / solve["kkt"] for s in ITERATIVE},
         "native_sweep_best_to_pmp_plan": native[best_native].median / pmp_one,

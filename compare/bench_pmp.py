@@ -6,7 +6,10 @@ times an inner loop and divides), in seconds:
 * ``one_vehicle`` — ``PMPPlanner().plan(paper scenario 1, diagnostics=False)``: scaling,
   exact global contact time (Bernstein root isolation), solve and self-check (pure Python);
 * ``two_vehicles`` — the same for ``random_problem(0, m=2)`` including the certified branch
-  and bound;
+  and bound: with the numba-compiled search (``PMPPlanner(compiled=True)``, compiled or loaded
+  from numba's cache before the clock starts) where numba is installed, else the pure path;
+  ``two_vehicles_pure`` is always the pure numpy path, ``two_vehicles_search_compiled`` the
+  compiled search alone (no solve, no self-check);
 * ``fixed_t_closed_form`` — ``solve_one_vehicle`` at a given contact time (closed-form
   Schur-complement solve, no search);
 * ``batch_plans_per_s`` — one-vehicle plans per second of ``plan_batch`` on 10,000 seeded
@@ -39,6 +42,7 @@ def bench_pmp(repeats: int = 7) -> dict[str, float]:
     """The PMP medians (module docstring); keys ``one_vehicle``, ``two_vehicles``,
     ``fixed_t_closed_form``, ``batch_plans_per_s`` and, with numba,
     ``compiled_limit_one_vehicle`` and ``compiled_kernel_only``."""
+    from iamp.planners import pmp_compiled_search
     from iamp.planners.examples import paper_problem, random_problem
     from iamp.planners.pmp import PMPPlanner, plan_batch, solve_one_vehicle
     from iamp.planners.pmp_compiled import compiled_kernel, numba_available
@@ -47,12 +51,19 @@ def bench_pmp(repeats: int = 7) -> dict[str, float]:
     one = paper_problem(1)
     two = random_problem(0, m=2)
     planner = PMPPlanner()
+    pure = PMPPlanner(compiled=False)
     t1 = float(planner.plan(one, diagnostics=False).contact_times[0])
     out = {
         "one_vehicle": _median_per_call(lambda: planner.plan(one, diagnostics=False), repeats, 200),
-        "two_vehicles": _median_per_call(lambda: planner.plan(two, diagnostics=False), repeats, 3),
+        "two_vehicles_pure": _median_per_call(lambda: pure.plan(two, diagnostics=False), repeats, 3),
         "fixed_t_closed_form": _median_per_call(lambda: solve_one_vehicle(one, t1), repeats, 200),
     }
+    out["two_vehicles"] = out["two_vehicles_pure"]
+    if pmp_compiled_search.load():  # compiled (or loaded from numba's cache) outside the timing
+        fast2 = PMPPlanner(compiled=True)
+        out["two_vehicles_compiled"] = _median_per_call(lambda: fast2.plan(two, diagnostics=False), repeats, 50)
+        out["two_vehicles"] = out["two_vehicles_compiled"]
+        out["two_vehicles_search_compiled"] = _median_per_call(lambda: fast2.search(two), repeats, 50)
     problems = [random_problem(seed, m=1) for seed in range(10_000)]
     out["batch_plans_per_s"] = len(problems) / _median_per_call(lambda: plan_batch(problems), repeats, 1)
     if numba_available():

@@ -21,7 +21,11 @@ def format_bench(out: dict[str, Any]) -> str:
     lines = [f"iamp bench — medians, {out['problem']}, FOH, N = {out['steps']}" + (" (quick)" if out["quick"] else ""),
              ""]
     lines.append(f"  {'PMP plan, one vehicle (global t*)':44s} {_fmt_s(out['pmp_plan_s']['one_vehicle'])}")
-    lines.append(f"  {'PMP plan, two vehicles':44s} {_fmt_s(out['pmp_plan_s']['two_vehicles'])}")
+    plan_s = out["pmp_plan_s"]
+    two = "compiled search" if plan_s.get("two_vehicles_compiled") else "pure numpy"
+    lines.append(f"  {'PMP plan, two vehicles (' + two + ')':44s} {_fmt_s(plan_s['two_vehicles'])}")
+    if plan_s.get("two_vehicles_compiled"):
+        lines.append(f"  {'PMP plan, two vehicles (pure numpy)':44s} {_fmt_s(plan_s['two_vehicles_pure'])}")
     lines.append(f"  {'PMP batch, one vehicle':44s} {out['pmp_batch_plans_per_s']:8.0f} /s")
     lines += ["", "  QP per candidate (update + solve; whole candidate incl. verification):"]
     for s, c in out["qp_candidate"].items():

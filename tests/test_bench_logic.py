@@ -25,8 +25,10 @@ def fake(monkeypatch):
     sweep = {"osqp": 0.1, "clarabel": 0.05, "piqp": 0.03, "kkt": 0.018}
 
     def pmp(quick, notes):
-        return {"pmp_plan_s": {"one_vehicle": 20e-6, "two_vehicles": 0.5e-3}, "pmp_batch_plans_per_s": 250_000.0,
-                "pmp_to_compiled_limit": 1.5}
+        return {"pmp_plan_s": {"one_vehicle": 20e-6, "two_vehicles": 0.5e-3, "two_vehicles_pure": 5e-3,
+                               "two_vehicles_compiled": 0.5e-3},
+                "pmp_batch_plans_per_s": 250_000.0, "pmp_to_compiled_limit": 1.5,
+                "pmp_two_vehicles_pure_to_compiled": 10.0}
 
     def per_candidate(problem, solver, repeats):
         return {"backend": _stats(per[solver]), "call": _stats(per[solver]), "wall": _stats(per[solver]),
@@ -81,4 +83,5 @@ def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     assert seen[0] == (0, 7) and seen[-1] == (7, 7)
     assert [d for d, _ in seen] == sorted(d for d, _ in seen)
     text = format_bench(out)
-    assert "CasADi Opti + IPOPT" in text and "MISSED" in text
+    assert "CasADi Opti + IPOPT" in text and "MISSED" in text and "two vehicles (compiled search)" in text
+    assert r["pmp_two_vehicles_pure_to_compiled"] == 10.0
