@@ -57,10 +57,12 @@ from iamp.planners.pmp_fixed import (
 from iamp.planners.pmp_one import CHECK_NAMES, one_vehicle_data, one_vehicle_kernel
 from iamp.planners.pmp_scale import Scaled, scale_problem
 from iamp.planners.pmp_search import global_search, newton_sigma, one_vehicle_sigma
-from iamp.planners.pmp_solution import PMPSolution
-from iamp.planners.pmp_verify import judge, verify
+from iamp.planners.pmp_solution import OneVehicleSolution, PMPSolution
+from iamp.planners.pmp_verify import judge_pairs, verify
 
 FloatArray = npt.NDArray[np.float64]
+#: ``info["search"]["method"]`` of a one-vehicle plan.
+ONE_VEHICLE_METHOD = "all roots of the stationarity polynomial"
 
 __all__ = [
     "BatchPlan", "PMPPlanner", "PMPSolution", "ValueFunction", "bridge_kernel", "bridge_kernel_ds",
@@ -151,10 +153,10 @@ class PMPPlanner:
         """
         start = _time.perf_counter()
         m = problem.m
-        info: dict[str, Any] = {}
         fixed = contact_times is not None
         if m == 1 and not fixed:
             return self._plan_one(problem, start, diagnostics)
+        info: dict[str, Any] = {}
         if fixed:
             t_given = check_times(problem, contact_times)
         try:
@@ -192,26 +194,29 @@ class PMPPlanner:
         return plan
 
     def _plan_one(self, problem: Problem, start: float, diagnostics: bool) -> Plan:
-        """One vehicle: :func:`~iamp.planners.pmp_one.one_vehicle_kernel` (scalar code)."""
-        info: dict[str, Any] = {"search": {"method": "all roots of the stationarity polynomial"}}
+        """One vehicle: :func:`~iamp.planners.pmp_one.one_vehicle_kernel` (scalar code); the
+        kernel's five checks are judged before the plan is called optimal, the solution's
+        trajectory arrays are made on first use (:class:`~iamp.planners.pmp_solution.OneVehicleSolution`)."""
         try:
             T, L, ego, ex, ey, cx, cy = one_vehicle_data(problem)
             k = self.kernel(ego, ex, ey, cx, cy)
         except (OverflowError, ZeroDivisionError, ValueError) as exc:
-            info["error"] = f"{type(exc).__name__}: {exc}"
+            info: dict[str, Any] = {"search": {"method": ONE_VEHICLE_METHOD}, "error": f"{type(exc).__name__}: {exc}"}
             return self._failed(problem, NUMERICAL_ERROR, "linear_algebra", info, start)
         if not k[0] == k[0]:
-            return self._failed(problem, INFEASIBLE, "no_interior_contact_time", info, start)
-        checks, failed, bad = judge(dict(zip(CHECK_NAMES, k[8:])))
-        acc, jerk = L / (T * T), L / (T * T * T)
-        z = np.array([[k[1], k[2]], [k[3], k[4]], [k[5], k[6]]])
-        sol = PMPSolution(problem, np.array([k[0] * T]), z[0] * acc, z[1] * jerk, z[2:] * jerk, z_scaled=z)
-        info["checks"] = checks
-        info["failed_check"] = failed
-        info["certified_global"] = True
+            return self._failed(problem, INFEASIBLE, "no_interior_contact_time",
+                                {"search": {"method": ONE_VEHICLE_METHOD}}, start)
+        checks, failed, bad = judge_pairs(CHECK_NAMES, k[8:])
+        jerk = L / (T * T * T)
+        ct = np.array([k[0] * T])
+        jumps = np.array([[k[5] * jerk, k[6] * jerk]])
+        sol = OneVehicleSolution.from_kernel(problem, ct, jumps, k, T, L)
         plan = Plan(problem=problem, planner="pmp", status=OPTIMAL if bad is None else bad,
-                    cost=k[7] * L * L / (T * T * T) if bad is None else None, contact_times=sol.contact_times,
-                    jumps=sol.jumps, trajectory=sol, solve_time_s=_time.perf_counter() - start, info=info)
+                    cost=k[7] * L * L / (T * T * T) if bad is None else None, contact_times=ct, jumps=jumps,
+                    trajectory=sol, solve_time_s=0.0,
+                    info={"search": {"method": ONE_VEHICLE_METHOD}, "checks": checks, "failed_check": failed,
+                          "certified_global": True})
+        plan.solve_time_s = _time.perf_counter() - start
         if diagnostics:
             self._full_checks(plan, sol)
         return plan

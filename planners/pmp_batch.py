@@ -17,6 +17,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from itertools import chain
+from operator import attrgetter
 
 import numpy as np
 import numpy.typing as npt
@@ -54,18 +56,38 @@ def _horner(C: FloatArray, x: FloatArray) -> FloatArray:
     return y if x.ndim == 2 else y[:, 0]
 
 
+_EGO_FIELDS = attrgetter("tf", "x0", "vx0", "xf", "vxf", "y0", "vy0", "yf", "vyf")
+_VEHICLE_FIELDS = attrgetter("length", "safety_x", "y", "width", "safety_y")
+
+
 def batch_data(problems: list[Problem]) -> tuple[FloatArray, ...]:
     """Scaled data ``(units (K,2) = (T, L), ego (K,8), EX, EY, CX, CY)`` as in
-    :func:`iamp.planners.pmp_scale.scale_problem`, vectorised."""
+    :func:`iamp.planners.pmp_scale.scale_problem`, vectorised.
+
+    The fields are read with :func:`operator.attrgetter` (one C call per object); the corner
+    offset and lateral coordinate are :attr:`SurroundingVehicle.offset_x` and ``corner_y``
+    with the same operations, ``sign_x·(length/2 + safety_x)`` and ``y + sign_y·(width/2 +
+    safety_y)``, the signs read once per corner name from the vehicles themselves."""
     K = len(problems)
-    raw = np.array([[p.ego.tf, p.ego.x0, p.ego.vx0, p.ego.xf, p.ego.vxf, p.ego.y0, p.ego.vy0, p.ego.yf, p.ego.vyf,
-                     p.vehicles[0].offset_x, p.vehicles[0].corner_y] for p in problems])
+    vehicles = [p.vehicles[0] for p in problems]
+    raw = np.fromiter(chain.from_iterable(map(_EGO_FIELDS, [p.ego for p in problems])), dtype=np.float64,
+                      count=9 * K).reshape(K, 9)
+    geo = np.fromiter(chain.from_iterable(map(_VEHICLE_FIELDS, vehicles)), dtype=np.float64,
+                      count=5 * K).reshape(K, 5)
+    signs: dict[str, tuple[float, float]] = {}
+    for v in vehicles:
+        if v.corner not in signs:
+            signs[v.corner] = (v.sign_x, v.sign_y)
+    sxy = np.array([signs[v.corner] for v in vehicles])
+    off = sxy[:, 0] * (geo[:, 0] / 2 + geo[:, 1])
+    cyr = geo[:, 2] + sxy[:, 1] * (geo[:, 3] / 2 + geo[:, 4])
     T = raw[:, 0]
-    d = max(4, max(len(p.vehicles[0].x_poly) for p in problems))
-    C = np.zeros((K, d))
-    for k, p in enumerate(problems):
-        c = p.vehicles[0].x_poly
-        C[k, : len(c)] = c
+    polys = [v.x_poly for v in vehicles]
+    d = max(4, max(len(c) for c in polys))
+    if all(len(c) == d for c in polys):
+        C = np.array(polys)
+    else:
+        C = np.array([c + (0.0,) * (d - len(c)) for c in polys])
     with np.errstate(over="ignore"):
         Cs = C * np.cumprod(np.column_stack([np.ones(K)] + [T] * (d - 1)), axis=1)
     size = np.abs(Cs)
@@ -76,16 +98,16 @@ def batch_data(problems: list[Problem]) -> tuple[FloatArray, ...]:
     Cs = np.where(trailing, 0.0, Cs)
     pos = np.abs(raw[:, [1, 3, 5, 7]])
     spd = np.abs(raw[:, [2, 4, 6, 8]]) * T[:, None]
-    L = np.max(np.column_stack([pos, spd, np.sum(np.abs(Cs), axis=1) + np.abs(raw[:, 9]), np.abs(raw[:, 10])]), axis=1)
+    L = np.max(np.column_stack([pos, spd, np.sum(np.abs(Cs), axis=1) + np.abs(off), np.abs(cyr)]), axis=1)
     L = np.where((L > 0) & np.isfinite(L), L, 1.0)
     ego = np.column_stack([raw[:, 1] / L, raw[:, 2] * T / L, raw[:, 3] / L, raw[:, 4] * T / L,
                            raw[:, 5] / L, raw[:, 6] * T / L, raw[:, 7] / L, raw[:, 8] * T / L])
     CX = Cs / L[:, None]
-    CX[:, 0] += raw[:, 9] / L
+    CX[:, 0] += off / L
     EX = CX.copy()
     EX[:, :4] -= _hermite(*ego[:, :4].T)
     EY = -_hermite(*ego[:, 4:].T)
-    CY = raw[:, 10] / L
+    CY = cyr / L
     EY[:, 0] += CY
     return np.column_stack([T, L]), ego, EX, EY, CX, CY
 
@@ -114,7 +136,7 @@ def plan_batch(problems: Iterable[Problem]) -> BatchPlan:
     """Plan many one-vehicle problems at once (module docstring); problems may differ in
     every parameter (polynomials are padded to a common degree)."""
     problems = list(problems)
-    if any(p.m != 1 for p in problems):
+    if any(len(p.vehicles) != 1 for p in problems):
         raise ValueError("plan_batch plans one-vehicle problems; use PMPPlanner for more")
     K = len(problems)
     if K == 0:

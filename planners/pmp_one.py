@@ -38,7 +38,10 @@ CHECK_NAMES = ("linear_system", "corner", "boundary", "hamiltonian_jump", "cost_
 def one_vehicle_kernel(ego: Sequence[float], ex: Sequence[float], ey: Sequence[float],
                        cx: Sequence[float], cy: float) -> list[float]:
     """``[σ, ã_x, ã_y, b̃_x, b̃_y, Φ̃_x, Φ̃_y, J̃, checks...]`` (scaled); ``σ`` is NaN if ``J`` has
-    no interior stationary point.  ``ego`` = scaled ``(x0, vx0, xf, vxf, y0, vy0, yf, vyf)``."""
+    no interior stationary point.  ``ego`` = scaled ``(x0, vx0, xf, vxf, y0, vy0, yf, vyf)``.
+
+    (The maxima are written as comparisons, ``if x > m: m = x``: the same values as
+    ``max(m, x)``, NaN included, without a call.)"""
     s, q = one_vehicle_sigma(ex, ey)
     out = [s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     if not s == s:  # NaN: no stationary point
@@ -47,16 +50,18 @@ def one_vehicle_kernel(ego: Sequence[float], ex: Sequence[float], ey: Sequence[f
     Kt = s * s * s * w * w * w / 3.0
     # e at σ and the corner x and its speed (Horner)
     exv = 0.0
-    for k in range(len(ex) - 1, -1, -1):
-        exv = exv * s + ex[k]
+    for c in ex[::-1]:
+        exv = exv * s + c
     eyv = 0.0
-    for k in range(len(ey) - 1, -1, -1):
-        eyv = eyv * s + ey[k]
+    for c in ey[::-1]:
+        eyv = eyv * s + c
     cxv = 0.0
     cxd = 0.0
-    for k in range(len(cx) - 1, -1, -1):
+    for c in cx[::-1]:
         cxd = cxd * s + cxv
-        cxv = cxv * s + cx[k]
+        cxv = cxv * s + c
+    # the largest row sum of the 3x3 matrix (rows: corner, final position, final speed)
+    mrow = max(s * s / 2.0 + s * s * s / 6.0, 2.0 / 3.0 + w * w * w / 6.0, 1.5 + w * w / 2.0)
     lin = 0.0
     den = 0.0
     corner = 0.0
@@ -66,12 +71,19 @@ def one_vehicle_kernel(ego: Sequence[float], ex: Sequence[float], ey: Sequence[f
     jbar = 0.0
     uint = 0.0
     for axis in range(2):
-        s0 = ego[4 * axis]
-        v0 = ego[4 * axis + 1]
-        sf = ego[4 * axis + 2]
-        vf = ego[4 * axis + 3]
-        e = exv if axis == 0 else eyv
-        c = cxv if axis == 0 else cy
+        i = 4 * axis
+        s0 = ego[i]
+        v0 = ego[i + 1]
+        sf = ego[i + 2]
+        vf = ego[i + 3]
+        if axis == 0:
+            e = exv
+            c = cxv
+            xdot = cxd
+        else:
+            e = eyv
+            c = cy
+            xdot = 0.0
         E = sf - s0 - v0
         G = vf - v0
         phi = -e / Kt
@@ -86,22 +98,39 @@ def one_vehicle_kernel(ego: Sequence[float], ex: Sequence[float], ey: Sequence[f
         # the three rows of M z − rhs (corner, final position, final speed)
         pos = s0 + v0 * s + a * s * s / 2.0 + b * s * s * s / 6.0
         vel = v0 + a * s + b * s * s / 2.0
-        sF = s0 + v0 + a / 2.0 + b / 6.0 - phi * w * w * w / 6.0
-        vF = v0 + a + b / 2.0 - phi * w * w / 2.0
-        lin = max(lin, abs(pos - c), abs(sF - sf), abs(vF - vf))
-        zmax = max(abs(a), abs(b), abs(phi))
-        rmax = max(abs(c - s0 - v0 * s), abs(E), abs(G))
-        den = max(den, max(s * s / 2.0 + s * s * s / 6.0, 2.0 / 3.0 + w * w * w / 6.0,
-                           1.5 + w * w / 2.0) * zmax + rmax)
-        corner = max(corner, abs(pos - c))
-        bound = max(bound, abs(sF - sf), abs(vF - vf))
-        xdot = cxd if axis == 0 else 0.0
+        d_pos = abs(pos - c)
+        d_sf = abs(s0 + v0 + a / 2.0 + b / 6.0 - phi * w * w * w / 6.0 - sf)
+        d_vf = abs(v0 + a + b / 2.0 - phi * w * w / 2.0 - vf)
+        if d_pos > lin:
+            lin = d_pos
+        if d_sf > lin:
+            lin = d_sf
+        if d_vf > lin:
+            lin = d_vf
+        zmax = abs(a)
+        if abs(b) > zmax:
+            zmax = abs(b)
+        if abs(phi) > zmax:
+            zmax = abs(phi)
+        rmax = abs(c - s0 - v0 * s)
+        if abs(E) > rmax:
+            rmax = abs(E)
+        if abs(G) > rmax:
+            rmax = abs(G)
+        d_row = mrow * zmax + rmax
+        if d_row > den:
+            den = d_row
+        if d_pos > corner:
+            corner = d_pos
+        if d_sf > bound:
+            bound = d_sf
+        if d_vf > bound:
+            bound = d_vf
         rj += phi * (vel - xdot)
         size += abs(phi) * (abs(vel) + abs(xdot))
-        u0 = a
         u1 = a + b * s
         u2 = a + b - phi * w
-        uint += s / 3.0 * (u0 * u0 + u0 * u1 + u1 * u1) + w / 3.0 * (u1 * u1 + u1 * u2 + u2 * u2)
+        uint += s / 3.0 * (a * a + a * u1 + u1 * u1) + w / 3.0 * (u1 * u1 + u1 * u2 + u2 * u2)
     J_closed = jbar + 0.5 * q
     J_traj = 0.5 * uint
     out[7] = J_traj
@@ -116,40 +145,54 @@ def one_vehicle_kernel(ego: Sequence[float], ex: Sequence[float], ey: Sequence[f
 def one_vehicle_data(problem: Problem) -> tuple[float, float, list[float], list[float], list[float], list[float],
                                                 float]:
     """``(T, L, ego, ex, ey, cx, cy)``: :func:`iamp.planners.pmp_scale.scale_problem` for one
-    vehicle in plain floats (same operations, same numbers)."""
+    vehicle in plain floats (same operations, same numbers; the maxima and sums written as
+    loops with the same order of operations)."""
     e = problem.ego
     v = problem.vehicles[0]
     T = e.tf
-    eps = tol("pmp_poly_negligible_rel")
-    raw = []
+    xp = v.x_poly
+    r = xp[0] * 1.0
+    raw = [r]
+    big = abs(r)
     tk = 1.0
-    for k, c in enumerate(v.x_poly):
-        if k:
-            tk = tk * T
-        raw.append(float(c) * tk)
-    big = max(abs(c) for c in raw)
+    for k in range(1, len(xp)):
+        tk = tk * T
+        r = xp[k] * tk
+        raw.append(r)
+        if abs(r) > big:
+            big = abs(r)
+    eps = tol("pmp_poly_negligible_rel")
     keep = len(raw)
     while keep > 1 and abs(raw[keep - 1]) <= eps * big:
         keep -= 1
-    raw = raw[:keep]
+    if keep < len(raw):
+        del raw[keep:]
     off = v.offset_x
     cyr = v.corner_y
+    size = 0.0
+    for c in raw:
+        size += abs(c)
     L = max(abs(e.x0), abs(e.xf), abs(e.y0), abs(e.yf), abs(e.vx0) * T, abs(e.vxf) * T, abs(e.vy0) * T,
-            abs(e.vyf) * T, sum(abs(c) for c in raw) + abs(off), abs(cyr))
+            abs(e.vyf) * T, size + abs(off), abs(cyr))
     if not (L > 0 and math.isfinite(L)):
         L = 1.0
-    ego = [e.x0 / L, e.vx0 * T / L, e.xf / L, e.vxf * T / L, e.y0 / L, e.vy0 * T / L, e.yf / L, e.vyf * T / L]
-    cx = [c / L for c in raw] + [0.0] * (4 - len(raw))
+    x0, vx0, xf, vxf = e.x0 / L, e.vx0 * T / L, e.xf / L, e.vxf * T / L
+    y0, vy0, yf, vyf = e.y0 / L, e.vy0 * T / L, e.yf / L, e.vyf * T / L
+    ego = [x0, vx0, xf, vxf, y0, vy0, yf, vyf]
+    cx = [c / L for c in raw]
+    while len(cx) < 4:
+        cx.append(0.0)
     cx[0] += off / L
+    # e = corner − the unconstrained (Hermite) path, coefficients (s0, v0, 3E − G, −2E + G)
+    E = xf - x0 - vx0
+    G = vxf - vx0
     ex = list(cx)
-    ey = [0.0, 0.0, 0.0, 0.0]
-    for axis, target in ((0, ex), (1, ey)):
-        s0, v0, sf, vf = ego[4 * axis: 4 * axis + 4]
-        E = sf - s0 - v0
-        G = vf - v0
-        h = (s0, v0, 3 * E - G, -2 * E + G)
-        for k in range(4):
-            target[k] -= h[k]
+    ex[0] -= x0
+    ex[1] -= vx0
+    ex[2] -= 3 * E - G
+    ex[3] -= -2 * E + G
+    E = yf - y0 - vy0
+    G = vyf - vy0
     cy = cyr / L
-    ey[0] += cy
+    ey = [0.0 - y0 + cy, 0.0 - vy0, 0.0 - (3 * E - G), 0.0 - (-2 * E + G)]
     return T, L, ego, ex, ey, cx, cy

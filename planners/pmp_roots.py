@@ -46,30 +46,56 @@ _WEIGHTS: dict[int, list[list[float]]] = {}
 
 
 def to_bernstein(a: Sequence[float]) -> list[float]:
-    """Bernstein coefficients on ``[0, 1]`` of the polynomial with ascending coefficients ``a``."""
+    """Bernstein coefficients on ``[0, 1]`` of the polynomial with ascending coefficients ``a``
+    (``β_j = Σ_{i≤j} w_ji a_i`` summed from ``0.0`` in ascending ``i``; degree 6, that of
+    every cubic ``x_poly``, written out term by term with the same operations)."""
     n = len(a) - 1
+    if n == 6:
+        return _to_bernstein6(a)
     w = _WEIGHTS.get(n)
     if w is None:
         w = _WEIGHTS[n] = bernstein_weights(n)
     out = [0.0] * (n + 1)
     for j in range(n + 1):
-        wj = w[j]
         acc = 0.0
-        for i in range(j + 1):
-            acc += wj[i] * a[i]
+        i = 0
+        for wji in w[j]:  # i = 0..j, ascending
+            acc += wji * a[i]
+            i += 1
         out[j] = acc
     return out
 
 
+_W6 = tuple(w for row in bernstein_weights(6) for w in row)
+
+
+def _to_bernstein6(a: Sequence[float]) -> list[float]:
+    """:func:`to_bernstein` for degree 6, unrolled (the same sums in the same order)."""
+    a0, a1, a2, a3, a4, a5, a6 = a
+    (w00, w10, w11, w20, w21, w22, w30, w31, w32, w33, w40, w41, w42, w43, w44,
+     w50, w51, w52, w53, w54, w55, w60, w61, w62, w63, w64, w65, w66) = _W6
+    return [0.0 + w00 * a0,
+            0.0 + w10 * a0 + w11 * a1,
+            0.0 + w20 * a0 + w21 * a1 + w22 * a2,
+            0.0 + w30 * a0 + w31 * a1 + w32 * a2 + w33 * a3,
+            0.0 + w40 * a0 + w41 * a1 + w42 * a2 + w43 * a3 + w44 * a4,
+            0.0 + w50 * a0 + w51 * a1 + w52 * a2 + w53 * a3 + w54 * a4 + w55 * a5,
+            0.0 + w60 * a0 + w61 * a1 + w62 * a2 + w63 * a3 + w64 * a4 + w65 * a5 + w66 * a6]
+
+
 def sign_variations(b: Sequence[float]) -> int:
-    """Sign changes of the sequence ``b``, zeros skipped."""
+    """Sign changes of the sequence ``b``, zeros skipped (a NaN counts as negative)."""
     v = 0
-    last = 0.0
+    last = 0  # sign of the last non-zero entry: 1, -1, or 0 before the first
     for x in b:
-        if x != 0.0:
-            if last != 0.0 and (x > 0.0) != (last > 0.0):
+        if x > 0.0:
+            if last < 0:
                 v += 1
-            last = x
+            last = 1
+        elif x != 0.0:
+            if last > 0:
+                v += 1
+            last = -1
     return v
 
 
@@ -101,18 +127,56 @@ def horner2(a: Sequence[float], x: float) -> tuple[float, float]:
 def newton_in_bracket(a: Sequence[float], lo: float, hi: float) -> float:
     """The single root of ``a`` in ``(lo, hi)`` (``p(lo)``, ``p(hi)`` of opposite signs):
     Newton's method from the midpoint, falling back to bisection whenever a step leaves
-    the bracket; the bracket shrinks every iteration."""
-    plo, _ = horner2(a, lo)
+    the bracket; the bracket shrinks every iteration.
+
+    This is the planner's innermost loop, so the Horner evaluations of :func:`horner2` are
+    written out: for degree ≤ 6 (every cubic ``x_poly``) term by term with zero leading
+    coefficients (``0·x + c = c``, so the values are those of the loop), beyond as a loop
+    over the descending coefficients; the same operations in the same order either way."""
+    n = len(a) - 1
+    small = n <= 6
+    c0 = a[0]
+    c1 = a[1] if n >= 1 else 0.0
+    c2 = a[2] if n >= 2 else 0.0
+    c3 = a[3] if n >= 3 else 0.0
+    c4 = a[4] if n >= 4 else 0.0
+    c5 = a[5] if n >= 5 else 0.0
+    c6 = a[6] if n >= 6 else 0.0
+    rev = [0.0] * 0 if small else [a[n - k] for k in range(n + 1)]  # descending coefficients
+    if small:
+        plo = (((((c6 * lo + c5) * lo + c4) * lo + c3) * lo + c2) * lo + c1) * lo + c0
+    else:
+        plo = 0.0
+        for c in rev:
+            plo = plo * lo + c
     if plo == 0.0:  # the bracket's end is an exact root
         return lo
+    lo_pos = plo > 0.0
     x = 0.5 * (lo + hi)
     for _ in range(200):
-        p, dp = horner2(a, x)
+        if small:
+            p = c6 * x + c5
+            dp = c6
+            dp = dp * x + p
+            p = p * x + c4
+            dp = dp * x + p
+            p = p * x + c3
+            dp = dp * x + p
+            p = p * x + c2
+            dp = dp * x + p
+            p = p * x + c1
+            dp = dp * x + p
+            p = p * x + c0
+        else:
+            p = 0.0
+            dp = 0.0
+            for c in rev:
+                dp = dp * x + p
+                p = p * x + c
         if p == 0.0:
             return x
-        if (p > 0.0) == (plo > 0.0):
+        if (p > 0.0) == lo_pos:
             lo = x
-            plo = p
         else:
             hi = x
         if hi - lo <= ROOT_XTOL:
@@ -136,11 +200,18 @@ def unit_roots(a: Sequence[float]) -> list[float]:
     if n < 1:
         return [0.0] * 0  # a typed empty list (numba)
     coeffs = [float(a[i]) for i in range(n + 1)]
+    b = to_bernstein(coeffs)
+    v = sign_variations(b)
+    if v == 0:
+        return [0.0] * 0
+    if v == 1 and b[0] != 0.0 and b[n] != 0.0:  # one root, isolated by [0, 1] itself
+        r = newton_in_bracket(coeffs, 0.0, 1.0)
+        return [r] if 0.0 < r < 1.0 else [0.0] * 0
     out = [0.0] * 0
     # the stack holds (lo, hi) and the Bernstein coefficients of each pending interval
     los = [0.0]
     his = [1.0]
-    bs = [to_bernstein(coeffs)]
+    bs = [b]
     while len(los) > 0:
         lo = los.pop()
         hi = his.pop()
@@ -279,34 +350,40 @@ def batch_unit_roots(Pc: FloatArray) -> FloatArray:
 
 
 def _batch_newton(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
-    """Vectorised :func:`newton_in_bracket` (one bracket and polynomial per row)."""
-    K, n1 = A.shape
-    lo = lo.copy()
-    hi = hi.copy()
-    plo = np.zeros(K)
+    """Vectorised :func:`newton_in_bracket` (one bracket and polynomial per row).
+
+    Every row runs exactly the scalar iteration (same operations, element by element); a
+    row leaves the working set as soon as its scalar twin would return, so late iterations
+    only touch the few slow rows."""
+    At = np.ascontiguousarray(A.T)  # (n+1, K): one contiguous row per power
+    n1 = At.shape[0]
+    plo = np.zeros(lo.size)
     for k in range(n1 - 1, -1, -1):
-        plo = plo * lo + A[:, k]
-    x = np.where(plo == 0.0, lo, 0.5 * (lo + hi))  # an exact root at the bracket's end
-    done = plo == 0.0
+        plo = plo * lo + At[k]
+    out = np.where(plo == 0.0, lo, 0.5 * (lo + hi))  # an exact root at the bracket's end
+    idx = np.flatnonzero(plo != 0.0)
+    At, lo, hi, x, pos = At[:, idx], lo[idx], hi[idx], out[idx], plo[idx] > 0.0
     for _ in range(200):
-        p = np.zeros(K)
-        dp = np.zeros(K)
+        if idx.size == 0:
+            break
+        p = np.zeros(idx.size)
+        dp = np.zeros(idx.size)
         for k in range(n1 - 1, -1, -1):
             dp = dp * x + p
-            p = p * x + A[:, k]
-        exact = p == 0.0
-        same = (p > 0.0) == (plo > 0.0)
-        act = ~done & ~exact
-        lo = np.where(act & same, x, lo)
-        plo = np.where(act & same, p, plo)
-        hi = np.where(act & ~same, x, hi)
-        done |= exact | (hi - lo <= ROOT_XTOL)
+            p = p * x + At[k]
+        same = (p > 0.0) == pos
+        lo = np.where(same, x, lo)
+        hi = np.where(same, hi, x)
+        fin = (p == 0.0) | (hi - lo <= ROOT_XTOL)  # the scalar returns x here
         with np.errstate(divide="ignore", invalid="ignore"):
             nx = np.where(dp != 0.0, x - p / dp, lo - 1.0)
         nx = np.where((lo < nx) & (nx < hi), nx, 0.5 * (lo + hi))
-        small = np.abs(nx - x) <= ROOT_XTOL
-        x = np.where(done, x, nx)
-        done |= small
-        if done.all():
-            break
-    return x
+        stop = fin | (np.abs(nx - x) <= ROOT_XTOL)  # ... or returns nx
+        x = np.where(fin, x, nx)
+        if stop.any():
+            out[idx[stop]] = x[stop]
+            keep = ~stop
+            At, lo, hi, x, pos, idx = At[:, keep], lo[keep], hi[keep], x[keep], pos[keep], idx[keep]
+    if idx.size:  # 200 iterations: the scalar returns its last x
+        out[idx] = x
+    return out

@@ -7,6 +7,7 @@ positions and speeds by integrating twice from the initial state.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -137,3 +138,54 @@ class PMPSolution:
             "costate_jump": float(jump),
             "hamiltonian_jump": float(np.max(np.abs(self.hamiltonian_jump_residual()))),
         }
+
+
+class _FromKernel:
+    """Non-data descriptor of :class:`OneVehicleSolution`: ``a``, ``b`` and ``z_scaled`` are
+    made together on the first read of any of them and stored in the instance (later reads,
+    and values set by the dataclass constructor, never reach the descriptor)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: OneVehicleSolution | None, objtype: type | None = None) -> Any:
+        if obj is None:
+            return self
+        d = obj.__dict__
+        k, T, L = d.pop("_kernel")
+        z = np.array([[k[1], k[2]], [k[3], k[4]], [k[5], k[6]]])
+        d["z_scaled"] = z
+        d["a"] = z[0] * (L / (T * T))
+        d["b"] = z[1] * (L / (T * T * T))
+        return d[self.name]
+
+
+class OneVehicleSolution(PMPSolution):
+    """A :class:`PMPSolution` of the one-vehicle kernel (:mod:`iamp.planners.pmp_one`) whose
+    ``a``, ``b`` and ``z_scaled`` are built from the kernel's scaled numbers on first access.
+
+    The planner's fast path returns plans whose callers mostly read only the contact time,
+    the jumps and the cost; the arrays the trajectory needs are made when it is first
+    evaluated, with the same products as an eager build (``ã·L/T²``, ``b̃·L/T³``), so the
+    numbers do not depend on when they are made.  Constructed by :meth:`from_kernel`; the
+    inherited dataclass constructor (used by :func:`dataclasses.replace`) sets every field
+    and builds an ordinary, eager instance.
+    """
+
+    a = _FromKernel()
+    b = _FromKernel()
+    z_scaled = _FromKernel()
+
+    @classmethod
+    def from_kernel(cls, problem: Problem, contact_times: FloatArray, jumps: FloatArray,
+                    kernel_out: Sequence[float], T: float, L: float) -> OneVehicleSolution:
+        """The solution with contact times and jumps (physical units) given and ``ã, b̃, Φ̃``
+        from ``kernel_out[1:7]`` (:func:`~iamp.planners.pmp_one.one_vehicle_kernel`)."""
+        sol = cls.__new__(cls)
+        d = sol.__dict__
+        d["problem"] = problem
+        d["contact_times"] = contact_times
+        d["jumps"] = jumps
+        d["scaled"] = None
+        d["_kernel"] = (kernel_out, T, L)
+        return sol

@@ -25,18 +25,20 @@ non-finite value fails as ``numerical_error``; any other failure as ``inaccurate
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 import numpy.typing as npt
 
 from iamp.core.status import INACCURATE, NUMERICAL_ERROR
-from iamp.core.tolerances import tol
+from iamp.core.tolerances import TOLERANCES
 from iamp.planners.pmp_fixed import ValueFunction, jump_system_sigma
 from iamp.planners.pmp_scale import Scaled, scale_problem
 from iamp.planners.pmp_solution import PMPSolution
 
 FloatArray = npt.NDArray[np.float64]
 Checks = dict[str, dict[str, float | bool]]
+_INF = math.inf
 
 _TOLS = {
     "linear_system": "pmp_linear_system_rel",
@@ -90,15 +92,24 @@ def check_values(sol: PMPSolution, S: Scaled | None = None, stationary: bool = T
 def judge(values: dict[str, float]) -> tuple[Checks, str | None, str | None]:
     """``(checks, failed_check, status)``: the table of ``{value, tol, ok}``, the first
     failing check (or ``None``) and the failure status (``None`` if all pass)."""
+    return judge_pairs(values.keys(), values.values())
+
+
+def judge_pairs(names: Iterable[str], values: Iterable[float]) -> tuple[Checks, str | None, str | None]:
+    """:func:`judge` of the checks ``names`` with the values ``values`` (in order), without
+    building the ``{name: value}`` dictionary first (the one-vehicle fast path)."""
     checks: Checks = {}
     failed: str | None = None
     status: str | None = None
-    for name, v in values.items():
-        limit = tol(_TOLS[name])
-        finite = math.isfinite(v)
-        ok = finite and v <= limit
-        checks[name] = {"value": float(v), "tol": limit, "ok": ok}
-        if not ok and failed is None:
+    for name, v in zip(names, values):
+        limit = TOLERANCES[_TOLS[name]]  # = tol(...), without the call
+        value = float(v)
+        if -_INF < value <= limit:  # finite and inside (a NaN compares False)
+            checks[name] = {"value": value, "tol": limit, "ok": True}
+            continue
+        finite = math.isfinite(value)
+        checks[name] = {"value": value, "tol": limit, "ok": False}
+        if failed is None:
             failed = name
             status = INACCURATE if finite else NUMERICAL_ERROR
         if not finite:
