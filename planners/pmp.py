@@ -21,6 +21,17 @@ are the certified global minimiser (for caller-given contact times: the fixed-ti
 ``inaccurate`` / ``numerical_error`` — a check failed or the linear algebra broke down (no
 cost; ``info["failed_check"]`` names it); ``infeasible`` — ``J`` has no interior stationary
 point (a corner sits on the ego's start or end state).
+
+Speed (issue 14).  One vehicle goes through the scalar kernel of
+:mod:`~iamp.planners.pmp_one` (no arrays until the plan is built; the solution's ``a``, ``b``
+and ``z_scaled`` are made on first use, :class:`~iamp.planners.pmp_solution.OneVehicleSolution`);
+the kernel's five checks are judged before the plan is called optimal.  The default kernel is
+the pure-Python one even when numba is installed: compiling the numba twin
+(:func:`iamp.planners.pmp_compiled.compiled_kernel`) takes about 7 s on the first plan and
+``import numba`` alone about 0.2–0.4 s, while a pure-Python plan takes about 25 µs, so a
+command-line plan, or any process that plans fewer than some 10⁵ problems, would only lose.
+Long-running callers opt in with ``PMPPlanner(kernel=compiled_kernel())`` (the same numbers,
+tested); many problems at once go through :func:`plan_batch` (numpy, no compilation).
 """
 
 from __future__ import annotations
@@ -54,11 +65,11 @@ from iamp.planners.pmp_fixed import (
     solve_sigma,
     transfer_cost,
 )
-from iamp.planners.pmp_one import CHECK_NAMES, one_vehicle_data, one_vehicle_kernel
+from iamp.planners.pmp_one import judge_kernel, one_vehicle_data, one_vehicle_kernel
 from iamp.planners.pmp_scale import Scaled, scale_problem
 from iamp.planners.pmp_search import global_search, newton_sigma, one_vehicle_sigma
 from iamp.planners.pmp_solution import OneVehicleSolution, PMPSolution
-from iamp.planners.pmp_verify import judge_pairs, verify
+from iamp.planners.pmp_verify import verify
 
 FloatArray = npt.NDArray[np.float64]
 #: ``info["search"]["method"]`` of a one-vehicle plan.
@@ -206,10 +217,13 @@ class PMPPlanner:
         if not k[0] == k[0]:
             return self._failed(problem, INFEASIBLE, "no_interior_contact_time",
                                 {"search": {"method": ONE_VEHICLE_METHOD}}, start)
-        checks, failed, bad = judge_pairs(CHECK_NAMES, k[8:])
+        checks, failed, bad = judge_kernel(k)
         jerk = L / (T * T * T)
-        ct = np.array([k[0] * T])
-        jumps = np.array([[k[5] * jerk, k[6] * jerk]])
+        ct = np.empty(1)
+        ct[0] = k[0] * T
+        jumps = np.empty((1, 2))
+        jumps[0, 0] = k[5] * jerk
+        jumps[0, 1] = k[6] * jerk
         sol = OneVehicleSolution.from_kernel(problem, ct, jumps, k, T, L)
         plan = Plan(problem=problem, planner="pmp", status=OPTIMAL if bad is None else bad,
                     cost=k[7] * L * L / (T * T * T) if bad is None else None, contact_times=ct, jumps=jumps,

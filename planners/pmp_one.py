@@ -25,10 +25,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from operator import attrgetter
 
 from iamp.core.problem import Problem
-from iamp.core.tolerances import tol
+from iamp.core.tolerances import TOLERANCES, tol
 from iamp.planners.pmp_search import one_vehicle_sigma
+from iamp.planners.pmp_verify import TOLERANCE_OF, Checks, judge_pairs
+
+_EGO_FIELDS = attrgetter("tf", "x0", "vx0", "xf", "vxf", "y0", "vy0", "yf", "vyf")
+_INF = math.inf
 
 #: Names of the values returned by :func:`one_vehicle_kernel` after ``(σ, ã_x, ã_y, b̃_x,
 #: b̃_y, Φ̃_x, Φ̃_y, J̃)``, in order.
@@ -147,9 +152,8 @@ def one_vehicle_data(problem: Problem) -> tuple[float, float, list[float], list[
     """``(T, L, ego, ex, ey, cx, cy)``: :func:`iamp.planners.pmp_scale.scale_problem` for one
     vehicle in plain floats (same operations, same numbers; the maxima and sums written as
     loops with the same order of operations)."""
-    e = problem.ego
     v = problem.vehicles[0]
-    T = e.tf
+    T, ex0, evx0, exf, evxf, ey0, evy0, eyf, evyf = _EGO_FIELDS(problem.ego)
     xp = v.x_poly
     r = xp[0] * 1.0
     raw = [r]
@@ -172,12 +176,12 @@ def one_vehicle_data(problem: Problem) -> tuple[float, float, list[float], list[
     size = 0.0
     for c in raw:
         size += abs(c)
-    L = max(abs(e.x0), abs(e.xf), abs(e.y0), abs(e.yf), abs(e.vx0) * T, abs(e.vxf) * T, abs(e.vy0) * T,
-            abs(e.vyf) * T, size + abs(off), abs(cyr))
+    L = max(abs(ex0), abs(exf), abs(ey0), abs(eyf), abs(evx0) * T, abs(evxf) * T, abs(evy0) * T,
+            abs(evyf) * T, size + abs(off), abs(cyr))
     if not (L > 0 and math.isfinite(L)):
         L = 1.0
-    x0, vx0, xf, vxf = e.x0 / L, e.vx0 * T / L, e.xf / L, e.vxf * T / L
-    y0, vy0, yf, vyf = e.y0 / L, e.vy0 * T / L, e.yf / L, e.vyf * T / L
+    x0, vx0, xf, vxf = ex0 / L, evx0 * T / L, exf / L, evxf * T / L
+    y0, vy0, yf, vyf = ey0 / L, evy0 * T / L, eyf / L, evyf * T / L
     ego = [x0, vx0, xf, vxf, y0, vy0, yf, vyf]
     cx = [c / L for c in raw]
     while len(cx) < 4:
@@ -196,3 +200,23 @@ def one_vehicle_data(problem: Problem) -> tuple[float, float, list[float], list[
     cy = cyr / L
     ey = [0.0 - y0 + cy, 0.0 - vy0, 0.0 - (3 * E - G), 0.0 - (-2 * E + G)]
     return T, L, ego, ex, ey, cx, cy
+
+
+def judge_kernel(k: Sequence[float]) -> tuple[Checks, str | None, str | None]:
+    """:func:`iamp.planners.pmp_verify.judge_pairs` of the kernel's checks ``k[8:13]``
+    (:data:`CHECK_NAMES`), the usual case — every check finite and inside its tolerance —
+    built as one literal: the same table, the same verdict."""
+    v0, v1, v2, v3, v4 = k[8:13]
+    t = TOLERANCES
+    l0 = t[TOLERANCE_OF["linear_system"]]
+    l1 = t[TOLERANCE_OF["corner"]]
+    l2 = t[TOLERANCE_OF["boundary"]]
+    l3 = t[TOLERANCE_OF["hamiltonian_jump"]]
+    l4 = t[TOLERANCE_OF["cost_consistency"]]
+    if -_INF < v0 <= l0 and -_INF < v1 <= l1 and -_INF < v2 <= l2 and -_INF < v3 <= l3 and -_INF < v4 <= l4:
+        return ({"linear_system": {"value": float(v0), "tol": l0, "ok": True},
+                 "corner": {"value": float(v1), "tol": l1, "ok": True},
+                 "boundary": {"value": float(v2), "tol": l2, "ok": True},
+                 "hamiltonian_jump": {"value": float(v3), "tol": l3, "ok": True},
+                 "cost_consistency": {"value": float(v4), "tol": l4, "ok": True}}, None, None)
+    return judge_pairs(CHECK_NAMES, k[8:13])

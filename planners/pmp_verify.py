@@ -40,7 +40,8 @@ FloatArray = npt.NDArray[np.float64]
 Checks = dict[str, dict[str, float | bool]]
 _INF = math.inf
 
-_TOLS = {
+#: The entry of :data:`iamp.core.tolerances.TOLERANCES` each check is compared with.
+TOLERANCE_OF = _TOLS = {
     "linear_system": "pmp_linear_system_rel",
     "boundary": "pmp_scaled_residual",
     "corner": "pmp_scaled_residual",
