@@ -15,7 +15,7 @@ entry                      bound                                why
 ``tf_min_s``/``max``       ``1e-2 <= t_f <= 1e3`` s             horizon
 ``size_max_m``             ``L, W, S_x, S_y <= 1e3`` m          vehicle geometry
 ``poly_max_terms``         ``len(x_poly) <= 64``                degree 63
-``vehicles_max``           ``m <= 4``                           contact times solved jointly
+``vehicles_max``           ``m <= 8``                           contact times solved jointly
 ``steps_max``              ``N <= 20000``                       output samples / QP grid
 ``qp_work_max``            ``candidates · N <= 1e6``            QP contact-time sweep
 ``history_samples_max``    ``<= 100000`` samples                one observed history
@@ -48,9 +48,11 @@ LIMITS: Final[dict[str, float]] = {
     "tf_max_s": 1e3,
     "size_max_m": 1e3,
     "poly_max_terms": 64,
-    # the global contact-time search grows exponentially with m (measured on this machine under
-    # load: m = 3 in 16 s, m = 4 in 80 s, m = 6 over 120 s); the paper uses m <= 2
-    "vehicles_max": 4,
+    # the global contact-time search grows exponentially with m; its box budget bounds the
+    # time (pure numpy path, loaded 2-core machine: m = 4 10-20 s, m = 5-8 10-18 s, status
+    # `local` beyond m = 3 when the budget runs out; compiled search 0.5-3.6 s); the paper
+    # uses m <= 2
+    "vehicles_max": 8,
     "steps_max": 20_000,
     # perm(N−1, m)·N: the two-vehicle OSQP sweep at the default N = 100 (9.7e5) took 45 s here,
     # one vehicle at N = 400 (1.6e5) 5 s with Clarabel; N = 5000 (2.5e7) would take hours
