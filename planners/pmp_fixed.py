@@ -23,6 +23,7 @@ with :math:`K(s,t) = s^2 (t_f-t)^2 (3 t_f t - t_f s - 2 s t) / (6 t_f^3)` for :m
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -92,6 +93,39 @@ def _deriv_rows(C: FloatArray) -> FloatArray:
     return np.pad(C[:, 1:] * k[1:], ((0, 0), (0, 1)))
 
 
+def quad_from_errors(ex: FloatArray, ey: FloatArray, sig: FloatArray, jbar: float) -> FloatArray:
+    """``q = Σ_axis ẽᵀ K̃⁻¹ ẽ`` from the errors at ``σ`` (:meth:`ValueFunction.quad_sigma`)."""
+    m = sig.shape[-1]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if m == 1:
+            k = bridge_kernel(sig[..., 0], sig[..., 0], 1.0)
+            q: FloatArray = (ex[..., 0] ** 2 + ey[..., 0] ** 2) / k
+        elif m == 2:
+            k11 = bridge_kernel(sig[..., 0], sig[..., 0], 1.0)
+            k22 = bridge_kernel(sig[..., 1], sig[..., 1], 1.0)
+            k12 = bridge_kernel(sig[..., 0], sig[..., 1], 1.0)
+            det = k11 * k22 - k12**2
+            q = sum((k22 * e[..., 0] ** 2 - 2 * k12 * e[..., 0] * e[..., 1] + k11 * e[..., 1] ** 2)
+                    for e in (ex, ey)) / det
+        else:
+            K = bridge_kernel(sig[..., :, None], sig[..., None, :], 1.0)
+            E = np.stack([ex, ey], axis=-1)
+            flat_K = K.reshape(-1, m, m)
+            flat_E = E.reshape(-1, m, 2)
+            try:
+                qf = np.sum(flat_E * np.linalg.solve(flat_K, flat_E), axis=(-1, -2))
+            except np.linalg.LinAlgError:
+                qf = np.full(flat_K.shape[0], np.inf)
+                for n in range(flat_K.shape[0]):
+                    try:
+                        qf[n] = np.sum(flat_E[n] * np.linalg.solve(flat_K[n], flat_E[n]))
+                    except np.linalg.LinAlgError:
+                        qf[n] = np.inf
+            q = qf.reshape(sig.shape[:-1])
+    ok = np.isfinite(q) & (q >= -1e-9 * max(1.0, jbar))
+    return np.where(ok, np.maximum(q, 0.0), np.inf)
+
+
 class ValueFunction:
     r"""The fixed-contact-time optimal cost :math:`J(t)` of a problem, in closed form.
 
@@ -120,35 +154,7 @@ class ValueFunction:
     def quad_sigma(self, sig: FloatArray) -> FloatArray:
         """``q(σ) = Σ_axis ẽᵀ K̃⁻¹ ẽ`` with the unit-horizon kernel; ``inf`` if degenerate."""
         ex, ey = self.errors_sigma(sig)
-        m = sig.shape[-1]
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            if m == 1:
-                k = bridge_kernel(sig[..., 0], sig[..., 0], 1.0)
-                q: FloatArray = (ex[..., 0] ** 2 + ey[..., 0] ** 2) / k
-            elif m == 2:
-                k11 = bridge_kernel(sig[..., 0], sig[..., 0], 1.0)
-                k22 = bridge_kernel(sig[..., 1], sig[..., 1], 1.0)
-                k12 = bridge_kernel(sig[..., 0], sig[..., 1], 1.0)
-                det = k11 * k22 - k12**2
-                q = sum((k22 * e[..., 0] ** 2 - 2 * k12 * e[..., 0] * e[..., 1] + k11 * e[..., 1] ** 2)
-                        for e in (ex, ey)) / det
-            else:
-                K = bridge_kernel(sig[..., :, None], sig[..., None, :], 1.0)
-                E = np.stack([ex, ey], axis=-1)
-                flat_K = K.reshape(-1, m, m)
-                flat_E = E.reshape(-1, m, 2)
-                try:
-                    qf = np.sum(flat_E * np.linalg.solve(flat_K, flat_E), axis=(-1, -2))
-                except np.linalg.LinAlgError:
-                    qf = np.full(flat_K.shape[0], np.inf)
-                    for n in range(flat_K.shape[0]):
-                        try:
-                            qf[n] = np.sum(flat_E[n] * np.linalg.solve(flat_K[n], flat_E[n]))
-                        except np.linalg.LinAlgError:
-                            qf[n] = np.inf
-                q = qf.reshape(sig.shape[:-1])
-        ok = np.isfinite(q) & (q >= -1e-9 * max(1.0, self.scaled.jbar))
-        return np.where(ok, np.maximum(q, 0.0), np.inf)
+        return quad_from_errors(ex, ey, sig, self.scaled.jbar)
 
     def gradient_sigma(self, sig: FloatArray) -> FloatArray:
         r"""Scaled :math:`\nabla_\sigma \tilde J`: with ``μ = K̃⁻¹ẽ`` per axis,
@@ -190,23 +196,68 @@ class ValueFunction:
         return np.array(stationary_sigmas(self._EX[0], self._EY[0])) * self.tf
 
 
-def jump_system_sigma(S: Scaled, sig: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Scaled jump system ``M̃ z̃ = r̃`` at ``σ`` (see :func:`jump_system`)."""
-    m = S.m
-    x0, vx0, xf, vxf, y0, vy0, yf, vyf = S.ego
-    M = np.empty((m + 2, m + 2))
-    M[:m, 0] = sig**2 / 2
-    M[:m, 1] = sig**3 / 6
-    M[:m, 2:] = -np.maximum(sig[:, None] - sig[None, :], 0.0) ** 3 / 6
-    M[m] = np.r_[0.5, 1.0 / 6.0, -((1.0 - sig) ** 3) / 6]
-    M[m + 1] = np.r_[1.0, 0.5, -((1.0 - sig) ** 2) / 2]
-    cx = horner_rows(S.CX, sig)
-    rhs = np.empty((m + 2, 2))
-    rhs[:m, 0] = cx - x0 - vx0 * sig
-    rhs[:m, 1] = S.CY - y0 - vy0 * sig
-    rhs[m] = [xf - x0 - vx0, yf - y0 - vy0]
-    rhs[m + 1] = [vxf - vx0, vyf - vy0]
+def _horner(c: list[float], s: float) -> float:
+    """Ascending coefficients ``c`` at ``s`` (the order of :func:`horner_rows`)."""
+    y = c[-1]
+    for k in range(len(c) - 2, -1, -1):
+        y = y * s + c[k]
+    return y
+
+
+def _kernel(s: float, t: float) -> float:
+    """:func:`bridge_kernel` on the unit horizon for two floats (the same operations)."""
+    tf = 1.0
+    lo = min(s, t)
+    hi = max(s, t)
+    return lo**2 * (tf - hi) ** 2 * (3 * tf * hi - tf * lo - 2 * lo * hi) / (6 * tf**3)
+
+
+def quad_at(S: Scaled, sig: list[float]) -> float:
+    """:meth:`ValueFunction.quad_sigma` at one point ``σ`` (scalar code for ``m ≤ 2``, the
+    same floating operations; numpy's solve for ``m ≥ 3``)."""
+    m = len(sig)
+    d = max(S.EX.shape[1], S.EY.shape[1])
+    ex = [_horner(row + [0.0] * (d - len(row)), s) for row, s in zip(S.EX.tolist(), sig)]
+    ey = [_horner(row + [0.0] * (d - len(row)), s) for row, s in zip(S.EY.tolist(), sig)]
+    if m > 2:
+        sa = np.array([sig])
+        return float(quad_from_errors(np.array([ex]), np.array([ey]), sa, S.jbar)[0])
+    try:
+        if m == 1:
+            q = (ex[0] ** 2 + ey[0] ** 2) / _kernel(sig[0], sig[0])
+        else:
+            k11 = _kernel(sig[0], sig[0])
+            k22 = _kernel(sig[1], sig[1])
+            k12 = _kernel(sig[0], sig[1])
+            det = k11 * k22 - k12**2
+            q = (0 + (k22 * ex[0] ** 2 - 2 * k12 * ex[0] * ex[1] + k11 * ex[1] ** 2)
+                 + (k22 * ey[0] ** 2 - 2 * k12 * ey[0] * ey[1] + k11 * ey[1] ** 2)) / det
+    except (ZeroDivisionError, OverflowError):
+        return float(quad_from_errors(np.array([ex]), np.array([ey]), np.array([sig]), S.jbar)[0])
+    ok = math.isfinite(q) and q >= -1e-9 * max(1.0, S.jbar)
+    return max(q, 0.0) if ok else math.inf
+
+
+def jump_rows(S: Scaled, sig: list[float]) -> tuple[list[list[float]], list[list[float]]]:
+    """:func:`jump_system_sigma` as nested lists (scalar code, the same numbers)."""
+    m = len(sig)
+    x0, vx0, xf, vxf, y0, vy0, yf, vyf = S.ego.tolist()
+    M = [[s**2 / 2, s**3 / 6, *[-max(s - r, 0.0) ** 3 / 6 for r in sig]] for s in sig]
+    M.append([0.5, 1.0 / 6.0, *[-((1.0 - s) ** 3) / 6 for s in sig]])
+    M.append([1.0, 0.5, *[-((1.0 - s) ** 2) / 2 for s in sig]])
+    CY = S.CY.tolist()
+    rhs = [[_horner(c, s) - x0 - vx0 * s, CY[i] - y0 - vy0 * s] for i, (c, s) in enumerate(zip(S.CX.tolist(), sig))]
+    rhs.append([xf - x0 - vx0, yf - y0 - vy0])
+    rhs.append([vxf - vx0, vyf - vy0])
+    assert len(rhs) == m + 2
     return M, rhs
+
+
+def jump_system_sigma(S: Scaled, sig: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Scaled jump system ``M̃ z̃ = r̃`` at ``σ`` (see :func:`jump_system`); built by
+    :func:`jump_rows`."""
+    M, rhs = jump_rows(S, np.asarray(sig, dtype=float).tolist())
+    return np.array(M), np.array(rhs)
 
 
 def jump_system(problem: Problem, t: ArrayLike) -> tuple[FloatArray, FloatArray]:

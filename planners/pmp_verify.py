@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from iamp.core.status import INACCURATE, NUMERICAL_ERROR
 from iamp.core.tolerances import TOLERANCES
-from iamp.planners.pmp_fixed import ValueFunction, jump_system_sigma
+from iamp.planners.pmp_fixed import ValueFunction, jump_rows, jump_system_sigma, quad_at
 from iamp.planners.pmp_scale import Scaled, scale_problem
 from iamp.planners.pmp_solution import PMPSolution
 
@@ -118,7 +118,204 @@ def judge_pairs(names: Iterable[str], values: Iterable[float]) -> tuple[Checks, 
     return checks, failed, status
 
 
-def verify(sol: PMPSolution, S: Scaled | None = None,
-           stationary: bool = True) -> tuple[Checks, str | None, str | None]:
-    """:func:`judge` of :func:`check_values`."""
+def verify(sol: PMPSolution, S: Scaled | None = None, stationary: bool = True,
+           lean: bool = False) -> tuple[Checks, str | None, str | None]:
+    """:func:`judge` of :func:`check_values` (``lean``: of :func:`check_values_lean`, for a
+    solution solved in the scaled units ``S``)."""
+    if lean and S is not None and sol.z_scaled is not None:
+        return judge(check_values_lean(sol, S, stationary))
     return judge(check_values(sol, S, stationary))
+
+
+# --- the lean path: the same checks in scalar code ---------------------------------------------
+
+
+def _amax(xs: Iterable[float]) -> float:
+    """``np.max`` of a few floats (NaN if any is NaN, as numpy)."""
+    best = -_INF
+    for x in xs:
+        if x > best:
+            best = x
+        elif x != x:
+            return math.nan
+    return best
+
+
+def _sum(a: list[float]) -> float:
+    """``np.sum`` of a short contiguous float64 vector, in numpy's order (pairwise
+    summation: a plain loop below 8 terms, eight accumulators up to 128)."""
+    n = len(a)
+    if n < 8:
+        res = -0.0
+        for x in a:
+            res += x
+        return res
+    if n > 128:
+        return float(np.sum(np.array(a)))
+    r = a[:8]
+    i = 8
+    while i < n - n % 8:
+        for j in range(8):
+            r[j] += a[i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        res += a[i]
+        i += 1
+    return res
+
+
+def check_values_lean(sol: PMPSolution, S: Scaled, stationary: bool = True) -> dict[str, float]:
+    """:func:`check_values` in scalar code for a solution solved in scaled units
+    (``sol.z_scaled`` set): the same quantities with the same floating operations, evaluated
+    only where the conditions live (``0``, the contact times, ``t_f``), no trajectory arrays.
+
+    Matrix products of the generic path (``ramps @ jumps``, ``M @ z``) are written as
+    left-to-right sums here, so a check value may differ from :func:`check_values` in its
+    last bits; the check table, tolerances and verdicts are the same.  Any float exception
+    (``OverflowError``, ``ZeroDivisionError``) falls back to :func:`check_values`.
+    """
+    try:
+        return _lean(sol, S, stationary)
+    except (OverflowError, ZeroDivisionError, ValueError):
+        return check_values(sol, S, stationary)
+
+
+def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
+    prob = sol.problem
+    ego = prob.ego
+    u = S.units
+    T, L = u.T, u.L
+    vel, acc, jerk = L / T, L / T**2, L / T**3
+    t = sol.contact_times.tolist()
+    ax, ay = sol.a.tolist()
+    bx, by = sol.b.tolist()
+    jumps = sol.jumps.tolist()
+    z = sol.z_scaled
+    assert z is not None
+    out: dict[str, float] = {}
+    sig = [ti / T for ti in t]
+
+    # linear_system: the scaled jump system rebuilt from (S, σ), numpy's product
+    M, rhs = jump_rows(S, sig)
+    Ma = np.array(M)
+    ra = np.array(rhs)
+    den = _amax(_sum([abs(x) for x in row]) for row in M) * float(np.max(np.abs(z))) + _amax(
+        abs(x) for row in rhs for x in row)
+    out["linear_system"] = float(np.max(np.abs(Ma @ z - ra))) / max(den, 1e-300)
+
+    x0, vx0, y0, vy0 = float(ego.x0), float(ego.vx0), float(ego.y0), float(ego.vy0)
+
+    def ramp(tt: float, p: int) -> tuple[float, float]:
+        """``Σ_i (tt − t_i)_+^p Φ_i`` per axis (``p ≥ 1``)."""
+        rx = ry = 0.0
+        first = True
+        for ti, (jx, jy) in zip(t, jumps):
+            d = tt - ti
+            w = max(d, 0.0) ** p if p > 1 else max(d, 0.0)
+            if first:
+                rx, ry, first = w * jx, w * jy, False
+            else:
+                rx, ry = rx + w * jx, ry + w * jy
+        return rx, ry
+
+    def step(tt: float, left: bool) -> tuple[float, float]:
+        rx = ry = 0.0
+        first = True
+        for ti, (jx, jy) in zip(t, jumps):
+            d = tt - ti
+            w = 1.0 if (d > 0 if left else d >= 0) else 0.0
+            if first:
+                rx, ry, first = w * jx, w * jy, False
+            else:
+                rx, ry = rx + w * jx, ry + w * jy
+        return rx, ry
+
+    def state(tt: float) -> tuple[float, float, float, float]:
+        r2x, r2y = ramp(tt, 2)
+        r3x, r3y = ramp(tt, 3)
+        t2, t3 = tt**2, tt**3
+        return (x0 + vx0 * tt + ax * t2 / 2 + bx * t3 / 6 - r3x / 6, vx0 + ax * tt + bx * t2 / 2 - r2x / 2,
+                y0 + vy0 * tt + ay * t2 / 2 + by * t3 / 6 - r3y / 6, vy0 + ay * tt + by * t2 / 2 - r2y / 2)
+
+    def inputs(tt: float) -> tuple[float, float]:
+        r1x, r1y = ramp(tt, 1)
+        return ax + bx * tt - r1x, ay + by * tt - r1y
+
+    def costate(tt: float, left: bool) -> tuple[float, float, float, float]:
+        r0x, r0y = step(tt, left)
+        r1x, r1y = ramp(tt, 1)
+        return bx - r0x, -ax - bx * tt + r1x, by - r0y, -ay - by * tt + r1y
+
+    # boundary
+    vp = (L, vel, L, vel)
+    e0 = state(0.0)
+    e1 = state(T)
+    ini = (x0, vx0, y0, vy0)
+    fin = (float(ego.xf), float(ego.vxf), float(ego.yf), float(ego.vyf))
+    out["boundary"] = max(_amax(abs(e0[k] - ini[k]) / vp[k] for k in range(4)),
+                          _amax(abs(e1[k] - fin[k]) / vp[k] for k in range(4)))
+
+    # corner (the vehicles' own polynomials, numpy's polyval order)
+    X = [state(ti) for ti in t]
+    dev: list[float] = []
+    xdot: list[float] = []
+    for v, ti, Xi in zip(prob.vehicles, t, X):
+        c = [float(ck) for ck in v.x_poly]
+        pos = c[-1] + ti * 0
+        for k in range(2, len(c) + 1):
+            pos = c[-k] + pos * ti
+        dev.append(abs(Xi[0] - (pos + v.offset_x)))
+        dev.append(abs(Xi[2] - v.corner_y))
+        if len(c) > 1:
+            dc = [j * c[j] for j in range(1, len(c))]
+            sp = dc[-1] + ti * 0
+            for k in range(2, len(dc) + 1):
+                sp = dc[-k] + sp * ti
+        else:
+            sp = 0.0
+        xdot.append(sp)
+    out["corner"] = _amax(dev) / L
+
+    # h_minimisation at 0, t_i, t_f
+    hm: list[float] = []
+    for tt in [0.0, *t, T]:
+        ux, uy = inputs(tt)
+        p = costate(tt, False)
+        hm.append(abs(ux + p[1]))
+        hm.append(abs(uy + p[3]))
+    out["h_minimisation"] = _amax(hm) / acc
+
+    # costate_jump
+    pl = [costate(ti, True) for ti in t]
+    pr = [costate(ti, False) for ti in t]
+    j13 = _amax(abs(a[k] - b[k] - jj[n]) for a, b, jj in zip(pl, pr, jumps) for n, k in ((0, 0), (1, 2)))
+    j24 = _amax(abs(a[k] - b[k]) for a, b in zip(pl, pr) for k in (1, 3))
+    out["costate_jump"] = max(j13 / jerk, j24 / acc)
+
+    if stationary:
+        ham = u.ham
+        vals: list[float] = []
+        for ti, Xi, (jx, jy), sp, plm, prp in zip(t, X, jumps, xdot, pl, pr):
+            ux, uy = inputs(ti)
+            half = 0.5 * (ux**2 + uy**2)
+            Hm = half + plm[0] * Xi[1] + plm[1] * ux + plm[2] * Xi[3] + plm[3] * uy
+            Hp = half + prp[0] * Xi[1] + prp[1] * ux + prp[2] * Xi[3] + prp[3] * uy
+            size = abs(jx) * (abs(Xi[1]) + abs(sp)) + abs(jy) * abs(Xi[3])
+            r = Hm - Hp - sp * jx
+            vals.append(abs(r) / max(size, 1e-300 * ham))
+        out["hamiltonian_jump"] = _amax(vals)
+
+    # cost_consistency: closed form J(t) against ½∫|u|² of the trajectory
+    J_closed = (S.jbar + 0.5 * quad_at(S, [ti / T for ti in t])) * (L**2 / T**3)
+    bp = sorted([0.0, *t, float(prob.tf)])
+    U = [inputs(tt) for tt in bp]
+    terms: list[float] = []
+    for n in range(len(bp) - 1):
+        h3 = (bp[n + 1] - bp[n]) / 3
+        for k in (0, 1):
+            u0, u1 = U[n][k], U[n + 1][k]
+            terms.append(h3 * (u0**2 + u0 * u1 + u1**2))
+    J_traj = 0.5 * _sum(terms)
+    out["cost_consistency"] = abs(J_closed - J_traj) / max(abs(J_traj), 1e-300 * (L**2 / T**3))
+    return out
