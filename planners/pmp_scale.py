@@ -17,6 +17,8 @@ dropped (a ``1e-300`` last coefficient solves exactly like the polynomial withou
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,11 +73,56 @@ def length_unit(problem: Problem) -> float:
     vals = [abs(ego.x0), abs(ego.xf), abs(ego.y0), abs(ego.yf),
             abs(ego.vx0) * T, abs(ego.vxf) * T, abs(ego.vy0) * T, abs(ego.vyf) * T]
     for v in problem.vehicles:
-        c = strip_negligible(np.asarray(v.x_poly, dtype=float), T)
-        vals.append(float(np.sum(np.abs(c * powers(T, c.size)))) + abs(v.offset_x))
+        c = _stripped(v.x_poly, float(T))
+        vals.append(_sum_small([abs(ck * pk) for ck, pk in zip(c, _powers(float(T), len(c)))]) + abs(v.offset_x))
         vals.append(abs(v.corner_y))
     L = max(vals)
-    return L if L > 0 and np.isfinite(L) else 1.0
+    return L if L > 0 and math.isfinite(L) else 1.0
+
+
+def _powers(T: float, n: int) -> list[float]:
+    """:func:`powers` as a list (the same products)."""
+    out = [1.0]
+    p = 1.0
+    for _ in range(n - 1):
+        p = p * T
+        out.append(p)
+    return out[:n]
+
+
+def _stripped(coeffs: Sequence[float], T: float) -> list[float]:
+    """:func:`strip_negligible` in scalar code (the same comparisons)."""
+    c = [float(x) for x in coeffs]
+    n = len(c)
+    size = []
+    for ck, pk in zip(c, _powers(T, n)):
+        try:
+            size.append(abs(ck) * pk)
+        except OverflowError:  # pragma: no cover - float products give inf, never raise
+            size.append(math.inf)
+    if not n:
+        return c
+    big = size[0]
+    for x in size:  # np.max: NaN wins
+        if x > big or x != x:
+            big = x
+            if x != x:
+                break
+    keep = n
+    eps = tol("pmp_poly_negligible_rel")
+    while keep > 1 and size[keep - 1] <= eps * big:
+        keep -= 1
+    return c[:keep]
+
+
+def _sum_small(a: list[float]) -> float:
+    """``np.sum`` of a short vector in numpy's order (plain loop below 8 terms)."""
+    if len(a) >= 8:
+        return float(np.sum(np.array(a)))
+    res = -0.0
+    for x in a:
+        res += x
+    return res
 
 
 @dataclass(frozen=True)
@@ -146,25 +193,31 @@ def scale_problem(problem: Problem) -> Scaled:
     T = float(problem.tf)
     L = length_unit(problem)
     ego = problem.ego
-    e = np.array([ego.x0 / L, ego.vx0 * T / L, ego.xf / L, ego.vxf * T / L,
-                  ego.y0 / L, ego.vy0 * T / L, ego.yf / L, ego.vyf * T / L])
-    hx = hermite_sigma(*e[:4])
-    hy = hermite_sigma(*e[4:])
+    e = [ego.x0 / L, ego.vx0 * T / L, ego.xf / L, ego.vxf * T / L,
+         ego.y0 / L, ego.vy0 * T / L, ego.yf / L, ego.vyf * T / L]
+    ea = np.array(e)
+    e = ea.tolist()
+    hx = _hermite(*e[:4])
+    hy = _hermite(*e[4:])
     polys = []
     for v in problem.vehicles:
-        c = strip_negligible(np.asarray(v.x_poly, dtype=float), T)
-        cs = c * powers(T, c.size) / L
+        c = _stripped(v.x_poly, T)
+        cs = [ck * pk / L for ck, pk in zip(c, _powers(T, len(c)))]
         cs[0] += v.offset_x / L
         polys.append(cs)
-    d = max(4, max(p.size for p in polys))
-    m = len(polys)
-    CX = np.zeros((m, d))
-    for i, p in enumerate(polys):
-        CX[i, : p.size] = p
-    EX = CX.copy()
-    EX[:, :4] -= hx
-    CY = np.array([v.corner_y for v in problem.vehicles]) / L
-    EY = np.tile(-hy, (m, 1))
-    EY[:, 0] += CY
+    d = max(4, max(len(p) for p in polys))
+    CXl = [p + [0.0] * (d - len(p)) for p in polys]
+    EXl = [[r[k] - hx[k] if k < 4 else r[k] for k in range(d)] for r in CXl]
+    CYl = [v.corner_y / L for v in problem.vehicles]
+    EYl = [[cy - hy[0], -hy[1], -hy[2], -hy[3]] for cy in CYl]
     jbar = transfer_cost_sigma(*e[:4]) + transfer_cost_sigma(*e[4:])
-    return Scaled(Units(T, L), e, EX, EY, CX, CY, float(jbar))
+    m = len(polys)
+    return Scaled(Units(T, L), ea, np.array(EXl).reshape(m, d), np.array(EYl).reshape(m, 4),
+                  np.array(CXl).reshape(m, d), np.array(CYl), float(jbar))
+
+
+def _hermite(s0: float, v0: float, sf: float, vf: float) -> list[float]:
+    """:func:`hermite_sigma` as a list."""
+    e = sf - s0 - v0
+    g = vf - v0
+    return [s0, v0, 3 * e - g, -2 * e + g]
