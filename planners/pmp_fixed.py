@@ -209,7 +209,8 @@ def _kernel(s: float, t: float) -> float:
     tf = 1.0
     lo = min(s, t)
     hi = max(s, t)
-    return lo**2 * (tf - hi) ** 2 * (3 * tf * hi - tf * lo - 2 * lo * hi) / (6 * tf**3)
+    w = tf - hi
+    return lo * lo * (w * w) * (3 * tf * hi - tf * lo - 2 * lo * hi) / (6 * tf * tf * tf)
 
 
 def quad_at(S: Scaled, sig: list[float]) -> float:
@@ -224,27 +225,36 @@ def quad_at(S: Scaled, sig: list[float]) -> float:
         return float(quad_from_errors(np.array([ex]), np.array([ey]), sa, S.jbar)[0])
     try:
         if m == 1:
-            q = (ex[0] ** 2 + ey[0] ** 2) / _kernel(sig[0], sig[0])
+            q = (ex[0] * ex[0] + ey[0] * ey[0]) / _kernel(sig[0], sig[0])
         else:
             k11 = _kernel(sig[0], sig[0])
             k22 = _kernel(sig[1], sig[1])
             k12 = _kernel(sig[0], sig[1])
-            det = k11 * k22 - k12**2
-            q = (0 + (k22 * ex[0] ** 2 - 2 * k12 * ex[0] * ex[1] + k11 * ex[1] ** 2)
-                 + (k22 * ey[0] ** 2 - 2 * k12 * ey[0] * ey[1] + k11 * ey[1] ** 2)) / det
+            det = k11 * k22 - k12 * k12
+            q = (0 + (k22 * (ex[0] * ex[0]) - 2 * k12 * ex[0] * ex[1] + k11 * (ex[1] * ex[1]))
+                 + (k22 * (ey[0] * ey[0]) - 2 * k12 * ey[0] * ey[1] + k11 * (ey[1] * ey[1]))) / det
     except (ZeroDivisionError, OverflowError):
         return float(quad_from_errors(np.array([ex]), np.array([ey]), np.array([sig]), S.jbar)[0])
     ok = math.isfinite(q) and q >= -1e-9 * max(1.0, S.jbar)
     return max(q, 0.0) if ok else math.inf
 
 
+def cubes(xs: list[float]) -> list[float]:
+    """``x**3`` for every ``x`` as numpy computes it on arrays (``np.power``; squares are
+    ``x*x`` both in numpy and here)."""
+    out: list[float] = np.power(np.array(xs, dtype=float), 3).tolist()
+    return out
+
+
 def jump_rows(S: Scaled, sig: list[float]) -> tuple[list[list[float]], list[list[float]]]:
     """:func:`jump_system_sigma` as nested lists (scalar code, the same numbers)."""
     m = len(sig)
     x0, vx0, xf, vxf, y0, vy0, yf, vyf = S.ego.tolist()
-    M = [[s**2 / 2, s**3 / 6, *[-max(s - r, 0.0) ** 3 / 6 for r in sig]] for s in sig]
-    M.append([0.5, 1.0 / 6.0, *[-((1.0 - s) ** 3) / 6 for s in sig]])
-    M.append([1.0, 0.5, *[-((1.0 - s) ** 2) / 2 for s in sig]])
+    # cubes through numpy's power (its results differ from libm's pow in the last bit)
+    cub = cubes([*sig, *[max(s - r, 0.0) for s in sig for r in sig], *[1.0 - s for s in sig]])
+    M = [[s * s / 2, cub[i] / 6, *[-cub[m + m * i + j] / 6 for j in range(m)]] for i, s in enumerate(sig)]
+    M.append([0.5, 1.0 / 6.0, *[-cub[m + m * m + i] / 6 for i in range(m)]])
+    M.append([1.0, 0.5, *[-((1.0 - s) * (1.0 - s)) / 2 for s in sig]])
     CY = S.CY.tolist()
     rhs = [[_horner(c, s) - x0 - vx0 * s, CY[i] - y0 - vy0 * s] for i, (c, s) in enumerate(zip(S.CX.tolist(), sig))]
     rhs.append([xf - x0 - vx0, yf - y0 - vy0])

@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from iamp.core.status import INACCURATE, NUMERICAL_ERROR
 from iamp.core.tolerances import TOLERANCES
-from iamp.planners.pmp_fixed import ValueFunction, jump_rows, jump_system_sigma, quad_at
+from iamp.planners.pmp_fixed import ValueFunction, cubes, jump_rows, jump_system_sigma, quad_at
 from iamp.planners.pmp_scale import Scaled, scale_problem
 from iamp.planners.pmp_solution import PMPSolution
 
@@ -188,6 +188,7 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
     T, L = u.T, u.L
     vel, acc, jerk = L / T, L / T**2, L / T**3
     t = sol.contact_times.tolist()
+    m = len(t)
     ax, ay = sol.a.tolist()
     bx, by = sol.b.tolist()
     jumps = sol.jumps.tolist()
@@ -207,34 +208,29 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
     x0, vx0, y0, vy0 = float(ego.x0), float(ego.vx0), float(ego.y0), float(ego.vy0)
 
     def ramp(tt: float, p: int) -> tuple[float, float]:
-        """``Σ_i (tt − t_i)_+^p Φ_i`` per axis (``p ≥ 1``)."""
-        rx = ry = 0.0
-        first = True
-        for ti, (jx, jy) in zip(t, jumps):
-            d = tt - ti
-            w = max(d, 0.0) ** p if p > 1 else max(d, 0.0)
-            if first:
-                rx, ry, first = w * jx, w * jy, False
-            else:
-                rx, ry = rx + w * jx, ry + w * jy
+        """``Σ_i (tt − t_i)_+^p Φ_i`` per axis (``p = 1, 2``; cubes come from :func:`state`)."""
+        return _dot([max(tt - ti, 0.0) if p == 1 else max(tt - ti, 0.0) * max(tt - ti, 0.0) for ti in t])
+
+    def _dot(w: list[float]) -> tuple[float, float]:
+        """``w @ jumps`` as a left-to-right sum."""
+        rx, ry = w[0] * jumps[0][0], w[0] * jumps[0][1]
+        for wi, (jx, jy) in zip(w[1:], jumps[1:]):
+            rx, ry = rx + wi * jx, ry + wi * jy
         return rx, ry
 
     def step(tt: float, left: bool) -> tuple[float, float]:
-        rx = ry = 0.0
-        first = True
-        for ti, (jx, jy) in zip(t, jumps):
-            d = tt - ti
-            w = 1.0 if (d > 0 if left else d >= 0) else 0.0
-            if first:
-                rx, ry, first = w * jx, w * jy, False
-            else:
-                rx, ry = rx + w * jx, ry + w * jy
-        return rx, ry
+        return _dot([1.0 if (tt - ti > 0 if left else tt - ti >= 0) else 0.0 for ti in t])
 
-    def state(tt: float) -> tuple[float, float, float, float]:
+    # the states are needed at 0, t_f and the contact times; their cubes through numpy's power
+    pts = [0.0, T, *t]
+    n_pts = len(pts)
+    cub = cubes([*pts, *[max(p - ti, 0.0) for p in pts for ti in t]])
+
+    def state(n: int) -> tuple[float, float, float, float]:
+        tt = pts[n]
         r2x, r2y = ramp(tt, 2)
-        r3x, r3y = ramp(tt, 3)
-        t2, t3 = tt**2, tt**3
+        r3x, r3y = _dot(cub[n_pts + n * m: n_pts + (n + 1) * m])
+        t2, t3 = tt * tt, cub[n]
         return (x0 + vx0 * tt + ax * t2 / 2 + bx * t3 / 6 - r3x / 6, vx0 + ax * tt + bx * t2 / 2 - r2x / 2,
                 y0 + vy0 * tt + ay * t2 / 2 + by * t3 / 6 - r3y / 6, vy0 + ay * tt + by * t2 / 2 - r2y / 2)
 
@@ -249,15 +245,15 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
 
     # boundary
     vp = (L, vel, L, vel)
-    e0 = state(0.0)
-    e1 = state(T)
+    e0 = state(0)
+    e1 = state(1)
     ini = (x0, vx0, y0, vy0)
     fin = (float(ego.xf), float(ego.vxf), float(ego.yf), float(ego.vyf))
     out["boundary"] = max(_amax(abs(e0[k] - ini[k]) / vp[k] for k in range(4)),
                           _amax(abs(e1[k] - fin[k]) / vp[k] for k in range(4)))
 
     # corner (the vehicles' own polynomials, numpy's polyval order)
-    X = [state(ti) for ti in t]
+    X = [state(2 + i) for i in range(m)]
     dev: list[float] = []
     xdot: list[float] = []
     for v, ti, Xi in zip(prob.vehicles, t, X):
@@ -298,7 +294,7 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
         vals: list[float] = []
         for ti, Xi, (jx, jy), sp, plm, prp in zip(t, X, jumps, xdot, pl, pr):
             ux, uy = inputs(ti)
-            half = 0.5 * (ux**2 + uy**2)
+            half = 0.5 * (ux * ux + uy * uy)
             Hm = half + plm[0] * Xi[1] + plm[1] * ux + plm[2] * Xi[3] + plm[3] * uy
             Hp = half + prp[0] * Xi[1] + prp[1] * ux + prp[2] * Xi[3] + prp[3] * uy
             size = abs(jx) * (abs(Xi[1]) + abs(sp)) + abs(jy) * abs(Xi[3])
@@ -315,7 +311,7 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
         h3 = (bp[n + 1] - bp[n]) / 3
         for k in (0, 1):
             u0, u1 = U[n][k], U[n + 1][k]
-            terms.append(h3 * (u0**2 + u0 * u1 + u1**2))
+            terms.append(h3 * (u0 * u0 + u0 * u1 + u1 * u1))
     J_traj = 0.5 * _sum(terms)
     out["cost_consistency"] = abs(J_closed - J_traj) / max(abs(J_traj), 1e-300 * (L**2 / T**3))
     return out

@@ -1,0 +1,115 @@
+"""The lean m >= 2 plan path (issue 14) against the generic numpy code it replaces."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.planners.examples import random_problem
+from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp_fixed import horner_rows, jump_system_sigma, quad_at, solve_fixed_times
+from iamp.planners.pmp_scale import scale_problem
+from iamp.planners.pmp_search import stationarity_poly
+from iamp.planners.pmp_verify import check_values, check_values_lean, judge
+
+finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
+
+
+def _loop_poly(ex: list[float], ey: list[float]) -> list[float]:
+    """The generic loops of ``stationarity_poly`` (the reference)."""
+    d = max(len(ex), len(ey))
+    x = [0.0] * d
+    y = [0.0] * d
+    for k in range(len(ex)):
+        x[k] = float(ex[k])
+    for k in range(len(ey)):
+        y[k] = float(ey[k])
+    N = [0.0] * (2 * d - 1)
+    for i in range(d):
+        for j in range(d):
+            N[i + j] += x[i] * x[j] + y[i] * y[j]
+    Pc = [0.0] * (len(N) + 1)
+    for k in range(1, len(N)):
+        dk = k * N[k]
+        Pc[k] += dk
+        Pc[k + 1] -= dk
+    for k in range(len(N)):
+        Pc[k] -= 3 * N[k]
+        Pc[k + 1] += 6 * N[k]
+    return Pc
+
+
+@given(st.lists(finite, min_size=4, max_size=4), st.lists(finite, min_size=4, max_size=4))
+@settings(max_examples=300, deadline=None)
+def test_stationarity_poly_written_out_is_bit_identical(ex: list[float], ey: list[float]) -> None:
+    got = stationarity_poly(ex, ey)
+    ref = _loop_poly(ex, ey)
+    assert [math.copysign(1.0, v) for v in got] == [math.copysign(1.0, v) for v in ref]
+    assert got == ref
+
+
+def _old_jump_system(S, sig):  # type: ignore[no-untyped-def]
+    m = S.m
+    x0, vx0, xf, vxf, y0, vy0, yf, vyf = S.ego
+    M = np.empty((m + 2, m + 2))
+    M[:m, 0] = sig**2 / 2
+    M[:m, 1] = sig**3 / 6
+    M[:m, 2:] = -np.maximum(sig[:, None] - sig[None, :], 0.0) ** 3 / 6
+    M[m] = np.r_[0.5, 1.0 / 6.0, -((1.0 - sig) ** 3) / 6]
+    M[m + 1] = np.r_[1.0, 0.5, -((1.0 - sig) ** 2) / 2]
+    cx = horner_rows(S.CX, sig)
+    rhs = np.empty((m + 2, 2))
+    rhs[:m, 0] = cx - x0 - vx0 * sig
+    rhs[:m, 1] = S.CY - y0 - vy0 * sig
+    rhs[m] = [xf - x0 - vx0, yf - y0 - vy0]
+    rhs[m + 1] = [vxf - vx0, vyf - vy0]
+    return M, rhs
+
+
+@given(st.integers(0, 10_000), st.integers(2, 3), st.lists(st.floats(0.02, 0.98), min_size=3, max_size=3))
+@settings(max_examples=60, deadline=None)
+def test_lean_checks_equal_generic(seed: int, m: int, frac: list[float]) -> None:
+    """At arbitrary distinct contact times: the scalar jump system is the numpy one bit for
+    bit, the closed-form q matches, and the lean self-check has the same table, values to
+    rounding (far below every tolerance) and the same verdicts."""
+    prob = random_problem(seed, m=m)
+    S = scale_problem(prob)
+    sig = np.sort(np.array(frac[:m]))
+    if np.min(np.diff(sig)) < 0.02:
+        return
+    M, rhs = jump_system_sigma(S, sig)
+    M0, rhs0 = _old_jump_system(S, sig)
+    assert np.array_equal(M, M0) and np.array_equal(rhs, rhs0)
+    from iamp.planners.pmp_fixed import ValueFunction
+
+    q_ref = float(ValueFunction(prob, S).quad_sigma(sig[None, :])[0])
+    q = quad_at(S, sig.tolist())
+    assert q == q_ref or abs(q - q_ref) <= 1e-12 * abs(q_ref)
+    sol = solve_fixed_times(prob, sig * S.units.T, S)
+    for stationary in (True, False):
+        a = check_values(sol, S, stationary)
+        b = check_values_lean(sol, S, stationary)
+        assert list(a) == list(b)
+        for k in a:
+            assert abs(a[k] - b[k]) <= 1e-12 * max(1.0, abs(a[k])), (k, a[k], b[k])
+        ja, jb = judge(a), judge(b)
+        assert ja[1:] == jb[1:]
+        assert [c["ok"] for c in ja[0].values()] == [c["ok"] for c in jb[0].values()]
+        assert [c["tol"] for c in ja[0].values()] == [c["tol"] for c in jb[0].values()]
+
+
+@given(st.integers(0, 10_000))
+@settings(max_examples=15, deadline=None)
+def test_plan_uses_lean_checks_with_the_generic_verdict(seed: int) -> None:
+    prob = random_problem(seed, m=2)
+    plan = PMPPlanner().plan(prob, diagnostics=False)
+    if plan.trajectory is None:
+        return
+    a = check_values(plan.trajectory, plan.trajectory.scaled, True)
+    assert list(plan.info["checks"]) == list(a)
+    for k, v in a.items():
+        assert abs(plan.info["checks"][k]["value"] - v) <= 1e-12 * max(1.0, abs(v))
+    assert judge(a)[1] == plan.info["failed_check"]
