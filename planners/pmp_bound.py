@@ -214,10 +214,16 @@ def _scale(k: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, F
     return np.minimum(a, b), np.maximum(a, b)
 
 
+def _cut(r: FloatArray) -> npt.NDArray[np.bool_]:
+    """The sides :func:`_split` halves: those at least half as long as the box's longest."""
+    out: npt.NDArray[np.bool_] = r >= 0.5 * np.max(r, axis=1, keepdims=True)
+    return out
+
+
 def _split(c: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Halve every box along each side at least half as long as its longest one."""
     m = c.shape[1]
-    cut = r >= 0.5 * np.max(r, axis=1, keepdims=True)
+    cut = _cut(r)
     rn = np.where(cut, 0.5 * r, r)
     cs, rs = [], []
     for signs in np.ndindex(*([2] * m)):
@@ -256,17 +262,22 @@ def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
     for _ in range(max(1, 6 // m)):  # start from a coarse grid of boxes
         c, r = _split(c, r)
     evaluated = 0
+    truncated = False
+
+    def uncertified(c: FloatArray, s_best: FloatArray, q_best: float) -> BoundResult:
+        """Budget spent: not certified; at least polish from the most promising boxes left."""
+        qc = vf.quad_sigma(c)
+        for k in np.argsort(qc)[:32]:
+            if np.isfinite(qc[k]):
+                s_new, q_new = polish(c[k])
+                if q_new < q_best:
+                    s_best, q_best = s_new, q_new
+        return BoundResult(s_best, q_best, False, evaluated)
+
     while c.shape[0]:
         evaluated += c.shape[0]
         if evaluated > max_boxes:
-            # not certified: at least polish from the most promising boxes left
-            qc = vf.quad_sigma(c)
-            for k in np.argsort(qc)[:32]:
-                if np.isfinite(qc[k]):
-                    s_new, q_new = polish(c[k])
-                    if q_new < q_best:
-                        s_best, q_best = s_new, q_new
-            return BoundResult(s_best, q_best, False, evaluated)
+            return uncertified(c, s_best, q_best)
         qc = vf.quad_sigma(c)
         k = int(np.argmin(qc))
         if qc[k] < q_best and not in_basins(basins, c[k], r[k]):
@@ -284,10 +295,22 @@ def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
                 near = np.nonzero(keep)[0]
                 lb[near] = np.maximum(lb[near], b.box_bound(c[near], r[near]))
                 keep = jbar + 0.5 * lb < J_best - eps * abs(J_best)
-        c, r = c[keep], r[keep]
+        c, r, lb = c[keep], r[keep], lb[keep]
         if progress is not None:
             progress(min(evaluated, max_boxes), max_boxes)
         if not c.shape[0]:
             break
+        children = 2 ** np.sum(_cut(r), axis=1)
+        if evaluated + int(np.sum(children)) > max_boxes:
+            # the next level would overrun the budget (and memory: up to 2^m children a box):
+            # no certificate any more; go on with the boxes of least lower bound that fit
+            truncated = True
+            order = np.argsort(lb)
+            take = order[np.cumsum(children[order]) <= max_boxes - evaluated]
+            if take.size == 0:
+                return uncertified(c, s_best, q_best)
+            c, r = c[take], r[take]
         c, r = _split(c, r)
+    if truncated:
+        return uncertified(np.vstack([s_best[None, :], c]), s_best, q_best)
     return BoundResult(s_best, q_best, True, evaluated)
