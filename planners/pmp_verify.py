@@ -170,9 +170,9 @@ def check_values_lean(sol: PMPSolution, S: Scaled, stationary: bool = True) -> d
     (``sol.z_scaled`` set): the same quantities with the same floating operations, evaluated
     only where the conditions live (``0``, the contact times, ``t_f``), no trajectory arrays.
 
-    Matrix products of the generic path (``ramps @ jumps``, ``M @ z``) are written as
-    left-to-right sums here, so a check value may differ from :func:`check_values` in its
-    last bits; the check table, tolerances and verdicts are the same.  Any float exception
+    The matrix products stay numpy's (``M @ z``; every ``ramps @ jumps`` row in one
+    product, whose rows do not depend on how many there are), cubes go through numpy's
+    power and squares are products, as numpy computes them.  Any float exception
     (``OverflowError``, ``ZeroDivisionError``) falls back to :func:`check_values`.
     """
     try:
@@ -207,40 +207,36 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
 
     x0, vx0, y0, vy0 = float(ego.x0), float(ego.vx0), float(ego.y0), float(ego.vy0)
 
-    def ramp(tt: float, p: int) -> tuple[float, float]:
-        """``Σ_i (tt − t_i)_+^p Φ_i`` per axis (``p = 1, 2``; cubes come from :func:`state`)."""
-        return _dot([max(tt - ti, 0.0) if p == 1 else max(tt - ti, 0.0) * max(tt - ti, 0.0) for ti in t])
-
-    def _dot(w: list[float]) -> tuple[float, float]:
-        """``w @ jumps`` as a left-to-right sum."""
-        rx, ry = w[0] * jumps[0][0], w[0] * jumps[0][1]
-        for wi, (jx, jy) in zip(w[1:], jumps[1:]):
-            rx, ry = rx + wi * jx, ry + wi * jy
-        return rx, ry
-
-    def step(tt: float, left: bool) -> tuple[float, float]:
-        return _dot([1.0 if (tt - ti > 0 if left else tt - ti >= 0) else 0.0 for ti in t])
-
-    # the states are needed at 0, t_f and the contact times; their cubes through numpy's power
+    # every ramp/step sum the checks need, ``W @ jumps`` in one product (numpy's, so the
+    # numbers are the generic path's): rows (kind, point) for the points 0, t_f, t_1..t_m,
+    # kinds (t−t_i)_+, (t−t_i)_+², (t−t_i)_+³, H(t−t_i) left and right limits
     pts = [0.0, T, *t]
     n_pts = len(pts)
-    cub = cubes([*pts, *[max(p - ti, 0.0) for p in pts for ti in t]])
+    dpos = [[max(p - ti, 0.0) for ti in t] for p in pts]
+    cub = cubes([*pts, *[w for row in dpos for w in row]])
+    W = [*dpos, *[[w * w for w in row] for row in dpos],
+         *[cub[n_pts + n * m: n_pts + (n + 1) * m] for n in range(n_pts)],
+         *[[1.0 if p - ti > 0 else 0.0 for ti in t] for p in pts],
+         *[[1.0 if p - ti >= 0 else 0.0 for ti in t] for p in pts]]
+    R = (np.array(W) @ sol.jumps).tolist()
 
     def state(n: int) -> tuple[float, float, float, float]:
         tt = pts[n]
-        r2x, r2y = ramp(tt, 2)
-        r3x, r3y = _dot(cub[n_pts + n * m: n_pts + (n + 1) * m])
+        r2x, r2y = R[n_pts + n]
+        r3x, r3y = R[2 * n_pts + n]
         t2, t3 = tt * tt, cub[n]
         return (x0 + vx0 * tt + ax * t2 / 2 + bx * t3 / 6 - r3x / 6, vx0 + ax * tt + bx * t2 / 2 - r2x / 2,
                 y0 + vy0 * tt + ay * t2 / 2 + by * t3 / 6 - r3y / 6, vy0 + ay * tt + by * t2 / 2 - r2y / 2)
 
-    def inputs(tt: float) -> tuple[float, float]:
-        r1x, r1y = ramp(tt, 1)
+    def inputs(n: int) -> tuple[float, float]:
+        tt = pts[n]
+        r1x, r1y = R[n]
         return ax + bx * tt - r1x, ay + by * tt - r1y
 
-    def costate(tt: float, left: bool) -> tuple[float, float, float, float]:
-        r0x, r0y = step(tt, left)
-        r1x, r1y = ramp(tt, 1)
+    def costate(n: int, left: bool) -> tuple[float, float, float, float]:
+        tt = pts[n]
+        r0x, r0y = R[(3 if left else 4) * n_pts + n]
+        r1x, r1y = R[n]
         return bx - r0x, -ax - bx * tt + r1x, by - r0y, -ay - by * tt + r1y
 
     # boundary
@@ -275,16 +271,16 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
 
     # h_minimisation at 0, t_i, t_f
     hm: list[float] = []
-    for tt in [0.0, *t, T]:
-        ux, uy = inputs(tt)
-        p = costate(tt, False)
+    for n in [0, *range(2, n_pts), 1]:
+        ux, uy = inputs(n)
+        p = costate(n, False)
         hm.append(abs(ux + p[1]))
         hm.append(abs(uy + p[3]))
     out["h_minimisation"] = _amax(hm) / acc
 
     # costate_jump
-    pl = [costate(ti, True) for ti in t]
-    pr = [costate(ti, False) for ti in t]
+    pl = [costate(2 + i, True) for i in range(m)]
+    pr = [costate(2 + i, False) for i in range(m)]
     j13 = _amax(abs(a[k] - b[k] - jj[n]) for a, b, jj in zip(pl, pr, jumps) for n, k in ((0, 0), (1, 2)))
     j24 = _amax(abs(a[k] - b[k]) for a, b in zip(pl, pr) for k in (1, 3))
     out["costate_jump"] = max(j13 / jerk, j24 / acc)
@@ -292,8 +288,8 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
     if stationary:
         ham = u.ham
         vals: list[float] = []
-        for ti, Xi, (jx, jy), sp, plm, prp in zip(t, X, jumps, xdot, pl, pr):
-            ux, uy = inputs(ti)
+        for i, (Xi, (jx, jy), sp, plm, prp) in enumerate(zip(X, jumps, xdot, pl, pr)):
+            ux, uy = inputs(2 + i)
             half = 0.5 * (ux * ux + uy * uy)
             Hm = half + plm[0] * Xi[1] + plm[1] * ux + plm[2] * Xi[3] + plm[3] * uy
             Hp = half + prp[0] * Xi[1] + prp[1] * ux + prp[2] * Xi[3] + prp[3] * uy
@@ -304,8 +300,9 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
 
     # cost_consistency: closed form J(t) against ½∫|u|² of the trajectory
     J_closed = (S.jbar + 0.5 * quad_at(S, [ti / T for ti in t])) * (L**2 / T**3)
-    bp = sorted([0.0, *t, float(prob.tf)])
-    U = [inputs(tt) for tt in bp]
+    order = sorted(range(n_pts), key=pts.__getitem__)  # = np.sort(np.r_[0, t, t_f])
+    bp = [pts[n] for n in order]
+    U = [inputs(n) for n in order]
     terms: list[float] = []
     for n in range(len(bp) - 1):
         h3 = (bp[n + 1] - bp[n]) / 3
