@@ -916,6 +916,25 @@ def add_basin(EX, EY, DEX, DEY, B, BG, nb, s, jbar, eps, max_m):  # type: ignore
     return nb + 1
 
 @jit
+def polish_best(EX, EY, DEX, DEY, P, c, n, best_s, best_q):  # type: ignore[no-untyped-def]
+    """Budget spent: Newton from the 32 box centres of least ``q`` (``pmp_bound``'s
+    ``uncertified``); ``(σ, q)`` of the best trusted point."""
+    jbar = P[3]
+    qc = np.empty(n)
+    for k in range(n):
+        qc[k] = quad(EX, EY, c[k], jbar)
+    order = np.argsort(qc)
+    for t in range(min(32, n)):
+        k = order[t]
+        if np.isfinite(qc[k]):
+            s, q = newton(EX, EY, DEX, DEY, c[k], jbar, 60)
+            q = trusted(P, s, q)
+            if q < best_q:
+                best_s, best_q = s, q
+    return best_s, best_q
+
+
+@jit
 def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[no-untyped-def]
     """``(σ, q, certified, boxes)``: :func:`~iamp.planners.pmp_search.global_search`
     (``P`` as in :func:`trusted`)."""
@@ -961,20 +980,11 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
             c[idx, i] = (rem % 2 ** levels + 0.5) / 2 ** levels
             rem //= 2 ** levels
     evaluated = 0
+    truncated = False
     while n:
         evaluated += n
         if evaluated > max_boxes:
-            qc = np.empty(n)
-            for k in range(n):
-                qc[k] = quad(EX, EY, c[k], jbar)
-            order = np.argsort(qc)
-            for t in range(min(32, n)):
-                k = order[t]
-                if np.isfinite(qc[k]):
-                    s, q = newton(EX, EY, DEX, DEY, c[k], jbar, 60)
-                    q = trusted(P, s, q)
-                    if q < best_q:
-                        best_s, best_q = s, q
+            best_s, best_q = polish_best(EX, EY, DEX, DEY, P, c, n, best_s, best_q)
             return best_s, best_q, False, evaluated
         kbest = -1
         qmin = np.inf
@@ -991,6 +1001,7 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
         J_best = jbar + 0.5 * best_q
         qstop = 2.0 * (J_best - eps * abs(J_best) - jbar)  # discard a box with q ≥ qstop on it
         keep = 0
+        lbk = np.empty(n)
         for k in range(n):
             b = in_basins(B, nb, c[k], r[k])
             if b >= 0 and B[b, m + 1] >= qstop:
@@ -1006,11 +1017,13 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
             if lb < qstop:
                 c[keep] = c[k]
                 r[keep] = r[k]
+                lbk[keep] = lb
                 keep += 1
         n = keep
         if n == 0:
             break
         # split: halve every side at least half as long as the longest one
+        cntk = np.empty(n, dtype=np.int64)
         cnt = 0
         for k in range(n):
             rmax = np.max(r[k])
@@ -1018,7 +1031,27 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
             for i in range(m):
                 if r[k, i] >= 0.5 * rmax:
                     ncut += 1
-            cnt += 2 ** ncut
+            cntk[k] = 2 ** ncut
+            cnt += cntk[k]
+        if evaluated + cnt > max_boxes:  # the budget would overrun: boxes of least bound that fit
+            truncated = True
+            order = np.argsort(lbk[:n], kind="mergesort")
+            ct = np.empty((n, m))
+            rt = np.empty((n, m))
+            sel = 0
+            cnt = 0
+            for j in range(n):
+                k = order[j]
+                if evaluated + cnt + cntk[k] > max_boxes:
+                    break
+                ct[sel] = c[k]
+                rt[sel] = r[k]
+                cnt += cntk[k]
+                sel += 1
+            if sel == 0:
+                best_s, best_q = polish_best(EX, EY, DEX, DEY, P, c, n, best_s, best_q)
+                return best_s, best_q, False, evaluated
+            c, r, n = ct, rt, sel
         c2 = np.empty((cnt, m))
         r2 = np.empty((cnt, m))
         t = 0
@@ -1042,5 +1075,5 @@ def search(EX, EY, DEX, DEY, P, starts, eps, max_boxes, max_m):  # type: ignore[
                         c2[t, i] = c[k, i]
                 t += 1
         c, r, n = c2, r2, cnt
-    return best_s, best_q, True, evaluated
+    return best_s, best_q, not truncated, evaluated
 

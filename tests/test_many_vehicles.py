@@ -48,3 +48,15 @@ def test_the_cap_is_enforced_with_the_field_named():
     with pytest.raises(ScenarioError) as err:
         crowd(0, int(LIMITS["vehicles_max"]) + 1)
     assert "vehicles" in str(err.value)
+
+
+@pytest.mark.parametrize("m", [5, 7])
+def test_compiled_search_truncates_the_budget_like_the_pure_one(m):
+    pytest.importorskip("numba")
+    problem = crowd(2, m)
+    pure = PMPPlanner(max_boxes=4000, compiled=False).plan(problem, diagnostics=False)
+    fast = PMPPlanner(max_boxes=4000, compiled=True).plan(problem, diagnostics=False)
+    assert fast.info["search"]["compiled"] and not pure.info["search"]["compiled"]
+    assert fast.status == pure.status
+    assert fast.info["search"]["boxes"] == pure.info["search"]["boxes"] <= 4000
+    np.testing.assert_allclose(fast.contact_times, pure.contact_times, rtol=0, atol=1e-9 * problem.tf)
