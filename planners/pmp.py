@@ -69,7 +69,7 @@ from iamp.planners.pmp_one import judge_kernel, one_vehicle_data, one_vehicle_ke
 from iamp.planners.pmp_scale import Scaled, scale_problem
 from iamp.planners.pmp_search import global_search, newton_sigma, one_vehicle_sigma
 from iamp.planners.pmp_solution import OneVehicleSolution, PMPSolution
-from iamp.planners.pmp_verify import verify
+from iamp.planners.pmp_verify import judge, lean_checks_and_cost, verify
 
 FloatArray = npt.NDArray[np.float64]
 #: ``info["search"]["method"]`` of a one-vehicle plan.
@@ -183,7 +183,8 @@ class PMPPlanner:
             with np.errstate(over="raise", divide="raise", invalid="raise"):
                 z = one_vehicle_z(S, float(sig[0])) if m == 1 else solve_sigma(S, sig)
                 sol = solution_from_sigma(problem, S, sig, z)
-            checks, failed, bad = verify(sol, S, stationary=not fixed, lean=True)
+            values, traj_cost = lean_checks_and_cost(sol, S, stationary=not fixed)
+            checks, failed, bad = judge(values)
         except SolverError as exc:
             info["error"] = str(exc)
             return self._failed(problem, NUMERICAL_ERROR, "linear_system", info, start)
@@ -194,7 +195,7 @@ class PMPPlanner:
         info["failed_check"] = failed
         info["certified_global"] = bool(certified)
         status = bad if bad is not None else (OPTIMAL if certified else LOCAL)
-        cost = sol.cost() if bad is None else None
+        cost = traj_cost if bad is None else None  # = sol.cost(), computed by the check
         elapsed = _time.perf_counter() - start
         plan = Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=sol.contact_times.copy(),
                     jumps=sol.jumps.copy(), trajectory=sol, solve_time_s=elapsed, info=info)

@@ -175,13 +175,19 @@ def check_values_lean(sol: PMPSolution, S: Scaled, stationary: bool = True) -> d
     power and squares are products, as numpy computes them.  Any float exception
     (``OverflowError``, ``ZeroDivisionError``) falls back to :func:`check_values`.
     """
+    return lean_checks_and_cost(sol, S, stationary)[0]
+
+
+def lean_checks_and_cost(sol: PMPSolution, S: Scaled, stationary: bool = True) -> tuple[dict[str, float], float]:
+    """:func:`check_values_lean` and the trajectory's cost ``½∫|u|²`` it computed on the way
+    (the numbers of ``sol.cost()``, which the plan reports)."""
     try:
         return _lean(sol, S, stationary)
     except (OverflowError, ZeroDivisionError, ValueError):
-        return check_values(sol, S, stationary)
+        return check_values(sol, S, stationary), sol.cost()
 
 
-def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
+def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> tuple[dict[str, float], float]:
     prob = sol.problem
     ego = prob.ego
     u = S.units
@@ -311,4 +317,4 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> dict[str, float]:
             terms.append(h3 * (u0 * u0 + u0 * u1 + u1 * u1))
     J_traj = 0.5 * _sum(terms)
     out["cost_consistency"] = abs(J_closed - J_traj) / max(abs(J_traj), 1e-300 * (L**2 / T**3))
-    return out
+    return out, J_traj

@@ -13,7 +13,7 @@ from iamp.planners.pmp import PMPPlanner
 from iamp.planners.pmp_fixed import horner_rows, jump_system_sigma, quad_at, solve_fixed_times
 from iamp.planners.pmp_scale import scale_problem
 from iamp.planners.pmp_search import stationarity_poly
-from iamp.planners.pmp_verify import check_values, check_values_lean, judge
+from iamp.planners.pmp_verify import check_values, check_values_lean, judge, lean_checks_and_cost
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 
@@ -91,7 +91,9 @@ def test_lean_checks_equal_generic(seed: int, m: int, frac: list[float]) -> None
     sol = solve_fixed_times(prob, sig * S.units.T, S)
     for stationary in (True, False):
         a = check_values(sol, S, stationary)
-        b = check_values_lean(sol, S, stationary)
+        b, cost = lean_checks_and_cost(sol, S, stationary)
+        assert b == check_values_lean(sol, S, stationary)
+        assert cost == sol.cost()
         assert list(a) == list(b)
         for k in a:  # bit for bit (NaN where the generic value is NaN)
             assert a[k] == b[k] or (math.isnan(a[k]) and math.isnan(b[k])), (k, a[k], b[k])
@@ -113,3 +115,5 @@ def test_plan_uses_lean_checks_with_the_generic_verdict(seed: int) -> None:
     for k, v in a.items():
         assert plan.info["checks"][k]["value"] == v
     assert judge(a)[1] == plan.info["failed_check"]
+    if plan.cost is not None:
+        assert plan.cost == plan.trajectory.cost()
