@@ -14,7 +14,7 @@ from iamp.planners.pmp import PMPPlanner
 
 pytest.importorskip("casadi")
 
-from iamp.comparison.bench_casadi import casadi_free_time  # noqa: E402
+from iamp.comparison.bench_casadi import casadi_free_time
 
 
 @pytest.mark.parametrize("problem", [paper_problem(1), *(random_problem(s, m=1) for s in (1, 2, 3))],

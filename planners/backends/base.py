@@ -202,7 +202,9 @@ class QPBackend(abc.ABC):
         self.u = np.array(u, dtype=float)
         if self.A.shape != (self.l.size, self.q.size) or self.u.shape != self.l.shape:
             raise ValueError("A must be (len(l), len(q)) and l, u of the same length")
+        self._given = frozenset(settings or ())  # the settings the caller chose explicitly
         self.settings: dict[str, Any] = {**self.default_settings(), **dict(settings or {})}
+        self.applied_settings: dict[str, Any] = dict(self.settings)
         self._check_form()
         self._setup()
 
@@ -281,6 +283,16 @@ class QPBackend(abc.ABC):
         """KKT residuals of ``sol`` on the backend's current data."""
         return sol.kkt_residuals(self.P, self.q, self.A, self.l, self.u)
 
+    def _apply_settings(self, equality_only: bool, equality: Mapping[str, Any]) -> dict[str, Any]:
+        """``self.settings`` plus, when every row is an equality, the backend's measured
+        ``equality`` settings except those the caller gave explicitly; kept as
+        ``applied_settings`` (what :meth:`describe` reports)."""
+        settings = dict(self.settings)
+        if equality_only:
+            settings.update({k: v for k, v in equality.items() if k not in self._given})
+        self.applied_settings = settings
+        return settings
+
     def describe(self) -> dict[str, Any]:
-        """Name, version and settings (for reports)."""
-        return {"name": self.name, "version": self.version(), "settings": dict(self.settings)}
+        """Name, version and the settings applied (for reports)."""
+        return {"name": self.name, "version": self.version(), "settings": dict(self.applied_settings)}

@@ -48,14 +48,13 @@ TIME_LIMIT; ``NumericalError``, ``InsufficientProgress`` → NUMERICAL_ERROR; an
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 import scipy.sparse as sp
 
 from iamp.core import status as st
-from iamp.planners.backends.base import FloatArray, IntArray, QPBackend, QPSolution
+from iamp.planners.backends.base import IntArray, QPBackend, QPSolution
 
 CLARABEL_STATUS: dict[str, str] = {
     "Solved": st.OPTIMAL,
@@ -96,11 +95,6 @@ class ClarabelBackend(QPBackend):
     distribution: ClassVar[str] = "clarabel"
     tolerance_key: ClassVar[str] = "cmp_kkt_rel_clarabel"
 
-    def __init__(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
-                 settings: Mapping[str, Any] | None = None) -> None:
-        self._given = frozenset(settings or ())  # the settings the caller chose explicitly
-        super().__init__(P, q, A, l, u, settings)
-
     @classmethod
     def default_settings(cls) -> dict[str, Any]:
         return default()
@@ -108,18 +102,11 @@ class ClarabelBackend(QPBackend):
     def _make_settings(self) -> Any:
         import clarabel
 
-        settings = dict(self.settings)
-        if self._pure_eq:  # equality-only: no static regularisation, unless given explicitly
-            settings.update({k: v for k, v in equality_settings().items() if k not in self._given})
-        self.applied_settings = settings
+        settings = self._apply_settings(self._pure_eq, equality_settings())  # no static regularisation
         s = clarabel.DefaultSettings()
         for k, v in settings.items():
             setattr(s, k, v)
         return s
-
-    def describe(self) -> dict[str, Any]:
-        """Name, version and the settings applied (module docstring)."""
-        return {**super().describe(), "settings": dict(self.applied_settings)}
 
     def _split(self) -> None:
         """Rows of Clarabel's stacked matrix: equalities, then upper sides, then lower."""

@@ -77,14 +77,12 @@ Status mapping (OSQP word → :mod:`iamp.core.status`): ``solved`` → OPTIMAL;
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-import scipy.sparse as sp
 
 from iamp.core import status as st
-from iamp.planners.backends.base import FloatArray, IntArray, QPBackend, QPSolution, dist_version
+from iamp.planners.backends.base import IntArray, QPBackend, QPSolution, dist_version
 
 OSQP_STATUS: dict[str, str] = {
     "solved": st.OPTIMAL,
@@ -138,11 +136,6 @@ class OSQPBackend(QPBackend):
     warm_starts: ClassVar[bool] = True
     tolerance_key: ClassVar[str] = "cmp_kkt_rel_osqp"
 
-    def __init__(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
-                 settings: Mapping[str, Any] | None = None) -> None:
-        self._given = frozenset(settings or ())  # the settings the caller chose explicitly
-        super().__init__(P, q, A, l, u, settings)
-
     @classmethod
     def default_settings(cls) -> dict[str, Any]:
         return equality_settings()
@@ -150,17 +143,10 @@ class OSQPBackend(QPBackend):
     def _setup(self) -> None:
         import osqp
 
-        settings = dict(self.settings)
-        if np.array_equal(self.l, self.u):  # equality-only: polish first, unless given explicitly
-            settings.update({k: v for k, v in polish_first_settings().items() if k not in self._given})
-        self.applied_settings = settings
+        settings = self._apply_settings(bool(np.array_equal(self.l, self.u)), polish_first_settings())  # polish first
         self.solver = osqp.OSQP()
         self.solver.setup(self.P, self.q, self.A, self.l, self.u, **settings)
         self._warm: tuple[np.ndarray, np.ndarray] | None = None
-
-    def describe(self) -> dict[str, Any]:
-        """Name, version and the settings applied (module docstring)."""
-        return {**super().describe(), "settings": dict(self.applied_settings)}
 
     def _push(self, P: bool, A: bool, A_idx: IntArray | None, q: bool, bounds: bool) -> None:
         kw: dict[str, Any] = {}

@@ -58,14 +58,13 @@ Status mapping: ``PIQP_SOLVED`` → OPTIMAL; ``PIQP_MAX_ITER_REACHED`` → MAX_I
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 import scipy.sparse as sp
 
 from iamp.core import status as st
-from iamp.planners.backends.base import FloatArray, IntArray, QPBackend, QPSolution
+from iamp.planners.backends.base import IntArray, QPBackend, QPSolution
 
 PIQP_STATUS: dict[str, str] = {
     "PIQP_SOLVED": st.OPTIMAL,
@@ -102,19 +101,9 @@ class PIQPBackend(QPBackend):
     distribution: ClassVar[str] = "piqp"
     tolerance_key: ClassVar[str] = "cmp_kkt_rel_clarabel"
 
-    def __init__(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
-                 settings: Mapping[str, Any] | None = None) -> None:
-        self._given = frozenset(settings or ())  # the settings the caller chose explicitly
-        super().__init__(P, q, A, l, u, settings)
-
     @classmethod
     def default_settings(cls) -> dict[str, Any]:
         return default()
-
-    def describe(self) -> dict[str, Any]:
-        """Name, version and the settings applied (with :func:`equality_settings` when every
-        row is an equality)."""
-        return {**super().describe(), "settings": dict(self.applied_settings)}
 
     def _parts(self) -> tuple[sp.csc_matrix, np.ndarray, sp.csc_matrix | None, np.ndarray | None,
                               np.ndarray | None]:
@@ -130,10 +119,7 @@ class PIQPBackend(QPBackend):
         eq = self.l == self.u
         self._eq, self._ineq = np.flatnonzero(eq), np.flatnonzero(~eq)
         self.solver = piqp.SparseSolver()
-        settings = dict(self.settings)
-        if self._ineq.size == 0:  # equality-only: the one-step settings, unless given explicitly
-            settings.update({k: v for k, v in equality_settings().items() if k not in self._given})
-        self.applied_settings = settings
+        settings = self._apply_settings(self._ineq.size == 0, equality_settings())  # the one-step settings
         for k, v in settings.items():
             if k == "kkt_solver" and isinstance(v, str):
                 v = getattr(piqp.KKTSolver, v)  # by name, e.g. "sparse_ldlt"
