@@ -104,6 +104,21 @@ def test_speed_variance_bound_covers_the_kernel():
     assert np.isclose(float(speed_variance_max(np.array(0.0), np.array(1.0))), 1 / 12)
 
 
+def test_speed_variance_max_is_the_exact_maximum_over_the_interval():
+    """``max_{σ∈[a,b]} x(1 − 3x)`` with ``x = σ(1 − σ)``: never below a dense sample of the
+    interval (a valid bound) and never above it by more than the sampling error (sharp)."""
+    rng = np.random.default_rng(11)
+    a = rng.uniform(0.0, 1.0, 500)
+    b = np.minimum(a + rng.uniform(0.0, 0.6, 500), 1.0)
+    got = speed_variance_max(a, b)
+    for k in range(a.size):
+        sig = np.linspace(a[k], b[k], 2001)
+        x = sig * (1 - sig)
+        sampled = float(np.max(x * (1 - 3 * x)))
+        assert sampled <= got[k] * (1 + 1e-12) + 1e-15
+        assert got[k] <= sampled + 1e-6
+
+
 @pytest.mark.parametrize("m,seed", [(2, 5), (3, 6)])
 def test_sharper_pair_bound_is_still_valid(m, seed):
     vf = ValueFunction(random_problem(seed, m=m))
