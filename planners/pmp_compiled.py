@@ -73,7 +73,8 @@ def compiled_kernel() -> Callable[..., list[float]]:
     env["to_bernstein"] = jit(_to_bernstein_nb)
     for mod, name in ((pmp_roots, "sign_variations"), (pmp_roots, "casteljau_halves"), (pmp_roots, "horner2"),
                       (pmp_roots, "newton_in_bracket"), (pmp_roots, "unit_roots"),
-                      (pmp_search, "stationarity_poly"), (pmp_search, "stationary_sigmas"),
+                      (pmp_search, "stationarity_poly_loops"), (pmp_search, "stationarity_poly"),
+                      (pmp_search, "stationary_sigmas"),
                       (pmp_search, "_q_one"), (pmp_search, "one_vehicle_sigma")):
         env[name] = rebuild(getattr(mod, name))
     compiled = rebuild(pmp_one.one_vehicle_kernel)

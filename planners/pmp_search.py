@@ -73,6 +73,11 @@ def stationarity_poly(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
                 ((0.0 - d4) + d5) + 6 * n4 - 3 * n5,
                 ((0.0 - d5) + d6) + 6 * n5 - 3 * n6,
                 (0.0 - d6) + 6 * n6]
+    return stationarity_poly_loops(ex, ey)
+
+
+def stationarity_poly_loops(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
+    """:func:`stationarity_poly` for any number of coefficients (the general loops)."""
     d = max(len(ex), len(ey))
     x = [0.0] * d
     y = [0.0] * d

@@ -12,41 +12,17 @@ from iamp.planners.examples import random_problem
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.pmp_fixed import horner_rows, jump_system_sigma, quad_at, solve_fixed_times
 from iamp.planners.pmp_scale import scale_problem
-from iamp.planners.pmp_search import stationarity_poly
+from iamp.planners.pmp_search import stationarity_poly, stationarity_poly_loops
 from iamp.planners.pmp_verify import check_values, check_values_lean, judge, lean_checks_and_cost
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
-
-
-def _loop_poly(ex: list[float], ey: list[float]) -> list[float]:
-    """The generic loops of ``stationarity_poly`` (the reference)."""
-    d = max(len(ex), len(ey))
-    x = [0.0] * d
-    y = [0.0] * d
-    for k in range(len(ex)):
-        x[k] = float(ex[k])
-    for k in range(len(ey)):
-        y[k] = float(ey[k])
-    N = [0.0] * (2 * d - 1)
-    for i in range(d):
-        for j in range(d):
-            N[i + j] += x[i] * x[j] + y[i] * y[j]
-    Pc = [0.0] * (len(N) + 1)
-    for k in range(1, len(N)):
-        dk = k * N[k]
-        Pc[k] += dk
-        Pc[k + 1] -= dk
-    for k in range(len(N)):
-        Pc[k] -= 3 * N[k]
-        Pc[k + 1] += 6 * N[k]
-    return Pc
 
 
 @given(st.lists(finite, min_size=4, max_size=4), st.lists(finite, min_size=4, max_size=4))
 @settings(max_examples=300, deadline=None)
 def test_stationarity_poly_written_out_is_bit_identical(ex: list[float], ey: list[float]) -> None:
     got = stationarity_poly(ex, ey)
-    ref = _loop_poly(ex, ey)
+    ref = stationarity_poly_loops(ex, ey)  # the general loops (checked against the definition in test_pmp_bound)
     assert [math.copysign(1.0, v) for v in got] == [math.copysign(1.0, v) for v in ref]
     assert got == ref
 
