@@ -128,7 +128,7 @@ class PMPPlanner:
         S = scale_problem(problem) if S is None else S
         if problem.m == 1:
             s, q = one_vehicle_sigma(S.EX[0].tolist(), S.EY[0].tolist())
-            return np.array([s]), q, True, {"method": "all roots of the stationarity polynomial"}
+            return np.array([s]), q, True, {"method": ONE_VEHICLE_METHOD}
         from iamp.planners import pmp_compiled_search as fast
 
         compiled = fast.use(self.compiled)
