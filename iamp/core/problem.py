@@ -28,6 +28,7 @@ import numpy.typing as npt
 
 from iamp.core.errors import ScenarioError
 from iamp.core.limits import LIMITS, abs_message, bound_message, polynomial_message
+from iamp.core.physical import PhysicalLimits
 
 CORNERS = ("front-lower", "front-upper", "rear-lower", "rear-upper")
 
@@ -198,6 +199,9 @@ class Problem:
     ego: EgoBoundary
     vehicles: tuple[SurroundingVehicle, ...]
     name: str = "problem"
+    #: The ego's physical limits (the scenario's ``[limits]`` table); ``None``: the paper's
+    #: unbounded problem.
+    limits: PhysicalLimits | None = None
 
     def __post_init__(self) -> None:
         vehicles = tuple(self.vehicles)
@@ -212,6 +216,8 @@ class Problem:
         for v in vehicles:
             _check(polynomial_message(v.x_poly, self.ego.tf), f"{v.field_prefix}.x_poly", v.source)
         object.__setattr__(self, "vehicles", vehicles)
+        if self.limits is not None and not isinstance(self.limits, PhysicalLimits):
+            raise ScenarioError("must be an iamp.core.physical.PhysicalLimits or None", "limits", self.ego.source)
 
     @property
     def m(self) -> int:
@@ -230,4 +236,8 @@ class Problem:
 
     def with_vehicles(self, vehicles: Iterable[SurroundingVehicle]) -> Problem:
         """The same ego problem with other vehicles."""
-        return Problem(self.ego, tuple(vehicles), self.name)
+        return Problem(self.ego, tuple(vehicles), self.name, self.limits)
+
+    def with_limits(self, limits: PhysicalLimits | None) -> Problem:
+        """The same problem with other physical limits (``None``: unbounded)."""
+        return Problem(self.ego, self.vehicles, self.name, limits)
