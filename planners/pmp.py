@@ -162,6 +162,8 @@ class PMPPlanner:
         the contact times: the plan is then the fixed-time optimum and the Hamiltonian-jump
         condition is reported in ``info`` but not required.
         """
+        if problem.limits is not None and not problem.limits.empty:
+            return self._plan_limited(problem, contact_times, diagnostics, progress)
         start = _time.perf_counter()
         m = problem.m
         fixed = contact_times is not None
@@ -204,6 +206,32 @@ class PMPPlanner:
                 plan.residuals = sol.residuals()
                 plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
         return plan
+
+    def _plan_limited(self, problem: Problem, contact_times: Any, diagnostics: bool,
+                      progress: Callable[[int, int], None] | None) -> Plan:
+        """``problem.limits`` given (SPEC §14, :mod:`~iamp.planners.pmp_bounded`).
+
+        Dispatch: the unbounded plan first (the paper's problem, unchanged).  If its inputs
+        stay in the ``ax``/``ay`` box (or no box is given), it is the bounded optimum too
+        (``J_b ≥ J_u ≥ J_u(t*) = J_b(t*)``) and is returned as it is, with the limits report;
+        otherwise the saturated PMP plans from the unbounded ``t*``.  Either way every given
+        bound is then checked with exact peaks (``limits_violated`` if one fails).
+        """
+        from iamp.planners.pmp_bounded import apply_state_limits, box_respected, plan_bounded
+
+        start = _time.perf_counter()
+        base = self.plan(problem.with_limits(None), contact_times, diagnostics, progress)
+        base.problem = problem
+        if base.status not in (OPTIMAL, LOCAL) or box_respected(base):
+            base.info["bounded"] = {"box_active": False,
+                                    "note": "the unbounded plan respects the input box, so it solves "
+                                            "the bounded problem too"} if base.trajectory is not None else {}
+            return apply_state_limits(base)
+        plan = plan_bounded(problem, base.contact_times, contact_times, start)
+        plan.info["bounded"]["box_active"] = True
+        plan.info["unbounded"] = {"status": base.status, "cost": base.cost,
+                                  "contact_times": [float(x) for x in base.contact_times]}
+        return apply_state_limits(plan)
 
     def _plan_one(self, problem: Problem, start: float, diagnostics: bool) -> Plan:
         """One vehicle: :func:`~iamp.planners.pmp_one.one_vehicle_kernel` (scalar code); the
