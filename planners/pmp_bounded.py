@@ -35,7 +35,7 @@ autonomous), a further check of the switching structure.
 * if the unbounded global optimum (:class:`~iamp.planners.pmp.PMPPlanner`) respects the box,
   it is the bounded optimum too (:math:`J_b \ge J_u \ge J_u(t^*) = J_b(t^*)`): the unbounded
   plan is returned unchanged and stays ``optimal`` (certified global);
-* otherwise a grid over :math:`(0,t_f)^m` (one vehicle: 32 points; two: 8×8) plus the
+* otherwise a grid over :math:`(0,t_f)^m` (one vehicle: 16 points; two: 8×8) plus the
   unbounded ``t*`` as starts, then a polish on :math:`\partial J/\partial t = r(t)` (Brent's
   root on ``r`` for one vehicle, L-BFGS-B with the exact gradient ``r`` otherwise).  No bound
   certifies this search between grid points, so the status is ``local`` (honest).
@@ -73,6 +73,9 @@ from iamp.planners.pmp_saturated import AxisInfeasible, AxisNoConvergence, AxisS
 
 FloatArray = npt.NDArray[np.float64]
 INF = math.inf
+
+#: Grid points of the one-vehicle contact-time search (the starts of Brent's polish).
+GRID_ONE = 16
 
 #: The tolerance entry of each check of :func:`check_values`.
 BOUNDED_TOLERANCE_OF = {
@@ -397,51 +400,82 @@ def plan_knots(plan: Plan) -> list[float]:
 # the contact-time search and the plan
 # ------------------------------------------------------------------------------------------
 class _Evaluator:
-    """``J_b(t)`` and ``r(t) = ∇J_b(t)`` with warm starts from the nearest evaluated point."""
+    """``J_b(t)`` and ``r(t) = ∇J_b(t)`` with warm starts from the nearest evaluated point.
+
+    Lean: the two axis solves only, ``r_i = Σ_axis Φ_i (v(t_i) − ċ_i)`` (= the Hamiltonian-
+    jump residual, module docstring) from the axes' contact speeds; the full
+    :class:`BoundedSolution` is built once, for the final contact times.
+    """
 
     def __init__(self, problem: Problem):
         self.problem = problem
-        self.memory: list[tuple[FloatArray, list[list[float] | None]]] = []
+        self.memory: list[tuple[FloatArray, list[list[float]]]] = []
         self.evaluations = 0
+        ego = problem.ego
+        self.T = float(problem.tf)
+        (lx, hx), (ly, hy) = input_box(problem)
+        self.data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
 
-    def __call__(self, t: FloatArray) -> tuple[float, FloatArray, BoundedSolution | None]:
-        T = float(self.problem.tf)
+    def warm_for(self, t: FloatArray) -> list[list[float] | None] | None:
+        """The multipliers of the nearest evaluated contact times (or ``None``)."""
+        if not self.memory:
+            return None
+        dist = [float(np.max(np.abs(tm - t))) for tm, _ in self.memory]
+        return list(self.memory[int(np.argmin(dist))][1])
+
+    def __call__(self, t: FloatArray) -> tuple[float, FloatArray, list[list[float]] | None]:
+        T = self.T
         t = np.asarray(t, dtype=float)
         if np.any(t <= 0) or np.any(t >= T) or (len(t) > 1 and np.min(np.diff(np.sort(t))) <= 1e-9 * T):
             return INF, np.full(len(t), np.nan), None
-        warm = None
+        warm: list[list[float]] | None = None
         if self.memory:
             dist = [float(np.max(np.abs(tm - t))) for tm, _ in self.memory]
             warm = self.memory[int(np.argmin(dist))][1]
         self.evaluations += 1
-        sol: BoundedSolution | None = None
-        for start in ([warm, None] if warm is not None else [None]):
-            try:
-                sol = solve_bounded_fixed(self.problem, t, start)
-                break
-            except (AxisInfeasible, AxisNoConvergence):
-                continue
-        if sol is None:
-            return INF, np.full(len(t), np.nan), None
-        self.memory.append((t.copy(), [sol.axes[0].lam, sol.axes[1].lam]))
+        times = t.tolist()
+        C = self.problem.corners(t)
+        cdot = [float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, times)]
+        axes: list[AxisSolution] = []
+        for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.data):
+            corners = C[:, k].tolist()
+            sol = None
+            for start in ([warm[k], None] if warm is not None else [None]):
+                try:
+                    sol = solve_axis(times, T, s0, v0, sf, vf, corners, lo, hi, start)
+                    break
+                except (AxisInfeasible, AxisNoConvergence):
+                    continue
+            if sol is None:
+                return INF, np.full(len(t), np.nan), None
+            axes.append(sol)
+        r = np.array([axes[0].jumps[i] * (axes[0].contact_speeds[i] - cdot[i])
+                      + axes[1].jumps[i] * axes[1].contact_speeds[i] for i in range(len(times))])
+        lams = [axes[0].lam, axes[1].lam]
+        self.memory.append((t.copy(), lams))
         if len(self.memory) > 64:
             self.memory.pop(0)
-        return sol.cost, sol.hamiltonian_jump_residual(), sol
+        return axes[0].cost + axes[1].cost, r, lams
 
 
 def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tuple[FloatArray, dict[str, Any]]:
     from scipy.optimize import brentq
 
     pts = sorted(set([T * (k + 0.5) / grid for k in range(grid)] + [s for s in starts if 0 < s < T]))
+    # the unbounded t* first: the warm starts of the grid then begin near the answer
+    for s in starts:
+        if 0 < s < T:
+            ev(np.array([s]))
     vals = [ev(np.array([p]))[0] for p in pts]
     if not any(math.isfinite(v) for v in vals):
         return np.array([np.nan]), {"grid": grid, "evaluations": ev.evaluations}
     order = np.argsort(vals)
     best_t, best_J = pts[int(order[0])], vals[int(order[0])]
     # polish the best few grid basins by Brent's root of r on a sign-changing bracket
-    for idx in order[: min(3, len(order))]:
+    for rank, idx in enumerate(order[: min(3, len(order))]):
         i = int(idx)
-        if not math.isfinite(vals[i]):
+        # polish the best grid basin, and others only when their grid value is within 5 %
+        if not math.isfinite(vals[i]) or (rank > 0 and vals[i] > vals[int(order[0])] * 1.05):
             continue
         lo_t = pts[i - 1] if i > 0 else 1e-6 * T
         hi_t = pts[i + 1] if i + 1 < len(pts) else T * (1 - 1e-6)
@@ -454,7 +488,7 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
             return float(rr) if np.isfinite(rr) else 0.0
 
         try:
-            root = float(brentq(r_of, lo_t, hi_t, xtol=1e-14 * T, maxiter=200))
+            root = float(brentq(r_of, lo_t, hi_t, xtol=1e-11 * T, maxiter=200))
         except (ValueError, RuntimeError):
             continue
         J_root = ev(np.array([root]))[0]
@@ -514,8 +548,8 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         search: dict[str, Any] = {"method": "given contact times"}
     elif m == 1:
         starts = [float(start_times[0])] if start_times is not None and np.all(np.isfinite(start_times)) else []
-        t, search = _search_one(ev, T, starts, 32)
-        search["method"] = "grid of 32 + unbounded t* + Brent on dJ/dt = H⁻−H⁺−ẋ_sΦ_x"
+        t, search = _search_one(ev, T, starts, GRID_ONE)
+        search["method"] = f"grid of {GRID_ONE} + unbounded t* + Brent on dJ/dt = H⁻−H⁺−ẋ_sΦ_x"
     else:
         starts_m = [np.asarray(start_times, dtype=float)] if start_times is not None and np.all(
             np.isfinite(start_times)) else []
@@ -529,7 +563,7 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         return _failed(problem, INFEASIBLE, "box_infeasible_at_contact_times", info, t0, msg)
     try:
         with np.errstate(all="ignore"):
-            sol = solve_bounded_fixed(problem, t)
+            sol = solve_bounded_fixed(problem, t, ev.warm_for(t))
             values = check_values(sol, stationary=not fixed)
     except AxisInfeasible as exc:
         return _failed(problem, INFEASIBLE, "box_infeasible_at_contact_times", info, t0, str(exc))

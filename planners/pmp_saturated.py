@@ -106,6 +106,8 @@ class AxisSolution:
     iterations: int
     newton_residual: float
     lam: list[float] = field(default_factory=list)
+    #: ``v(t_i)`` at the contact times (order of the contact times given).
+    contact_speeds: list[float] = field(default_factory=list)
 
 
 class AxisInfeasible(Exception):
@@ -155,6 +157,7 @@ class _Axis:
     def __init__(self, times: list[float], T: float, s0: float, v0: float, sf: float, vf: float,
                  corners: list[float], lo: float, hi: float):
         self.T = T
+        self.v0 = v0
         self.m = m = len(times)
         d = [c - s0 - v0 * t for c, t in zip(corners, times)] + [sf - s0 - v0 * T, (vf - v0) * T]
         scale = max([abs(x) for x in d] + [1e-300])
@@ -367,6 +370,17 @@ def _axis_solution(ax: _Axis, lam: list[float], D: float, ps: list[tuple[float, 
             switching.append((b * T, bound * ucon, "upper" if side > 0 else "lower", 1 if nxt != 0 else -1))
     knots[-1] = T
     m = ax.m
+    # v(σ_i) = v0 + ∫_0^{σ_i} ũ (the σ_i are piece ends), in physical units
+    vcum = [0.0]
+    ends = [0.0]
+    for a, b, wa, wb, kind in ps:
+        ua, ub = (wa, wb) if kind == 0 else ((ax.lo, ax.lo) if kind < 0 else (ax.hi, ax.hi))
+        vcum.append(vcum[-1] + (b - a) * (ua + ub) / 2)
+        ends.append(b)
+    speeds = []
+    for s_i in ax.sig:
+        j = min(range(len(ends)), key=lambda q: abs(ends[q] - s_i))
+        speeds.append(ax.v0 + vcum[j] * ell / T)
     lam_ramp = [x * ell / T**3 for x in lam[:m]]
     lam_lin = lam[m] * ell / T**3
     lam_c = lam[m + 1] * ell / T**2
@@ -376,4 +390,4 @@ def _axis_solution(ax: _Axis, lam: list[float], D: float, ps: list[tuple[float, 
     cost_phys = cost * ell * ell / T**3  # cost accumulated ½∫ũ²
     return AxisSolution(knots=knots, u=u, a=a, b=b, jumps=[-x for x in lam_ramp], switching=switching,
                         cost=cost_phys, dual=D * ell * ell / T**3, iterations=it, newton_residual=res,
-                        lam=list(lam))
+                        lam=list(lam), contact_speeds=speeds)

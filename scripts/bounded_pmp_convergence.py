@@ -16,11 +16,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from test_pmp_bounded import BOX, bounded_foh_qp  # noqa: E402
+from test_pmp_bounded import BOX, bounded_foh_qp
 
-from iamp.api import load_scenario  # noqa: E402
-from iamp.planners.pmp import PMPPlanner  # noqa: E402
-from iamp.planners.pmp_bounded import solve_bounded_fixed  # noqa: E402
+from iamp.api import load_scenario
+from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp_bounded import solve_bounded_fixed
 
 
 def main() -> None:
@@ -36,7 +36,7 @@ def main() -> None:
     prev = None
     for steps in (100, 200, 400, 800):
         h = problem.tf / steps
-        status, j_qp = bounded_foh_qp(problem, [round(t / h)], steps)
+        _status, j_qp = bounded_foh_qp(problem, [round(t / h)], steps)
         gap = (j_qp - j_fixed) / j_fixed if j_qp is not None else float("nan")
         k0 = round(t_star / h)
         best = min((bounded_foh_qp(problem, [k], steps)[1] or float("inf"), k) for k in range(k0 - 4, k0 + 5))

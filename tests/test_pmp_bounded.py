@@ -14,6 +14,7 @@ import os
 
 import cvxpy as cp
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -310,3 +311,23 @@ def test_fixed_contact_times_are_the_unique_fixed_time_optimum() -> None:
     assert math.isclose(plan.cost, solve_bounded_fixed(problem, [3.35]).cost, rel_tol=1e-14)
     assert "hamiltonian_jump" not in plan.info["checks"]
     assert TOLERANCES["pmp_bounded_residual"] >= max(v["value"] for v in plan.info["checks"].values())
+
+
+def test_casadi_bounded_peer_approaches_the_bounded_pmp() -> None:
+    """The CasADi + IPOPT peer of ``iamp bench`` (ZOH, box on every u_k: a restriction) costs
+    at least the bounded PMP's J*, and approaches it as N grows, at a nearby contact time."""
+    pytest.importorskip("casadi")
+    from iamp.comparison.bench_casadi import casadi_free_time
+    from iamp.planners.examples import paper_problem
+
+    problem = paper_problem(1).with_limits(BOX)
+    plan = PMPPlanner().plan(problem)
+    assert plan.ok
+    gaps = []
+    for steps in (40, 160):
+        res = casadi_free_time(problem, steps=steps, repeats=1, box=True)
+        assert res["return_status"] == "Solve_Succeeded"
+        assert res["cost"] >= plan.cost * (1 - 1e-9)
+        gaps.append(res["cost"] - plan.cost)
+        assert abs(res["contact_time"] - plan.contact_times[0]) < 0.05
+    assert gaps[1] < gaps[0]
