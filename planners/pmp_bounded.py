@@ -409,31 +409,34 @@ class _Evaluator:
 
     def __init__(self, problem: Problem):
         self.problem = problem
-        self.memory: list[tuple[FloatArray, list[list[float]]]] = []
+        self.memory: list[tuple[list[float], list[list[float]]]] = []
         self.evaluations = 0
         ego = problem.ego
         self.T = float(problem.tf)
         (lx, hx), (ly, hy) = input_box(problem)
         self.data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
 
+    def _nearest(self, times: list[float]) -> list[list[float]] | None:
+        best, found = INF, None
+        for tm, lams in self.memory:
+            d = max(abs(a - b) for a, b in zip(tm, times))
+            if d < best:
+                best, found = d, lams
+        return found
+
     def warm_for(self, t: FloatArray) -> list[list[float] | None] | None:
         """The multipliers of the nearest evaluated contact times (or ``None``)."""
-        if not self.memory:
-            return None
-        dist = [float(np.max(np.abs(tm - t))) for tm, _ in self.memory]
-        return list(self.memory[int(np.argmin(dist))][1])
+        found = self._nearest([float(x) for x in np.asarray(t).reshape(-1)])
+        return None if found is None else list(found)
 
     def __call__(self, t: FloatArray) -> tuple[float, FloatArray, list[list[float]] | None]:
         T = self.T
         t = np.asarray(t, dtype=float)
         if np.any(t <= 0) or np.any(t >= T) or (len(t) > 1 and np.min(np.diff(np.sort(t))) <= 1e-9 * T):
             return INF, np.full(len(t), np.nan), None
-        warm: list[list[float]] | None = None
-        if self.memory:
-            dist = [float(np.max(np.abs(tm - t))) for tm, _ in self.memory]
-            warm = self.memory[int(np.argmin(dist))][1]
-        self.evaluations += 1
         times = t.tolist()
+        warm = self._nearest(times)
+        self.evaluations += 1
         C = self.problem.corners(t)
         cdot = [float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, times)]
         axes: list[AxisSolution] = []
@@ -452,31 +455,58 @@ class _Evaluator:
         r = np.array([axes[0].jumps[i] * (axes[0].contact_speeds[i] - cdot[i])
                       + axes[1].jumps[i] * axes[1].contact_speeds[i] for i in range(len(times))])
         lams = [axes[0].lam, axes[1].lam]
-        self.memory.append((t.copy(), lams))
+        self.memory.append((times, lams))
         if len(self.memory) > 64:
             self.memory.pop(0)
         return axes[0].cost + axes[1].cost, r, lams
 
 
+def _lower_bound(problem: Problem, t: FloatArray) -> FloatArray:
+    """``J_u(t)`` (the unbounded fixed-time cost, closed form): a lower bound of ``J_b(t)``,
+    since the box only removes inputs.  ``t`` has shape ``(..., m)``."""
+    from iamp.planners.pmp_fixed import ValueFunction
+
+    with np.errstate(all="ignore"):
+        out: FloatArray = ValueFunction(problem.with_limits(None))(t)
+    return out
+
+
 def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tuple[FloatArray, dict[str, Any]]:
+    """One vehicle: ``J_b`` at the unbounded ``t*``, then at the grid points whose lower bound
+    ``J_u(t)`` is below the best ``J_b`` so far (the others cannot win), then Brent's root of
+    ``r = dJ_b/dt`` in the best point's bracket (and in any other within 5 %)."""
     from scipy.optimize import brentq
 
-    pts = sorted(set([T * (k + 0.5) / grid for k in range(grid)] + [s for s in starts if 0 < s < T]))
-    # the unbounded t* first: the warm starts of the grid then begin near the answer
+    grid_pts = [T * (k + 0.5) / grid for k in range(grid)]
+    pts = sorted(set(grid_pts + [s for s in starts if 0 < s < T]))
+    lower = _lower_bound(ev.problem, np.array(pts)[:, None])
+    vals = [INF] * len(pts)
+    best_J = INF
     for s in starts:
         if 0 < s < T:
-            ev(np.array([s]))
-    vals = [ev(np.array([p]))[0] for p in pts]
+            vals[pts.index(s)] = best_J = ev(np.array([s]))[0]
+    pruned = 0
+    for i in np.argsort(lower):
+        i = int(i)
+        if vals[i] < INF:
+            continue
+        if lower[i] >= best_J:
+            pruned += 1
+            continue
+        vals[i] = ev(np.array([pts[i]]))[0]
+        best_J = min(best_J, vals[i])
+    info = {"grid": grid, "pruned_by_unbounded_bound": pruned}
     if not any(math.isfinite(v) for v in vals):
-        return np.array([np.nan]), {"grid": grid, "evaluations": ev.evaluations}
+        info["evaluations"] = ev.evaluations
+        return np.array([np.nan]), info
     order = np.argsort(vals)
     best_t, best_J = pts[int(order[0])], vals[int(order[0])]
-    # polish the best few grid basins by Brent's root of r on a sign-changing bracket
     for rank, idx in enumerate(order[: min(3, len(order))]):
         i = int(idx)
         # polish the best grid basin, and others only when their grid value is within 5 %
-        if not math.isfinite(vals[i]) or (rank > 0 and vals[i] > vals[int(order[0])] * 1.05):
-            continue
+        if not math.isfinite(vals[i]) or (rank > 0 and (vals[i] > vals[int(order[0])] * 1.05
+                                                         or abs(i - int(order[0])) <= 1)):
+            continue  # (a neighbour of the best point lies in the bracket already polished)
         lo_t = pts[i - 1] if i > 0 else 1e-6 * T
         hi_t = pts[i + 1] if i + 1 < len(pts) else T * (1 - 1e-6)
         r_lo, r_hi = ev(np.array([lo_t]))[1][0], ev(np.array([hi_t]))[1][0]
@@ -494,7 +524,8 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
         J_root = ev(np.array([root]))[0]
         if J_root < best_J:
             best_t, best_J = root, J_root
-    return np.array([best_t]), {"grid": grid, "evaluations": ev.evaluations}
+    info["evaluations"] = ev.evaluations
+    return np.array([best_t]), info
 
 
 def _search_many(ev: _Evaluator, T: float, m: int, starts: list[FloatArray], grid: int
