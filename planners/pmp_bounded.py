@@ -254,6 +254,69 @@ def boundary_feasible(problem: Problem) -> str | None:
     return None
 
 
+def certify_infeasible_one(problem: Problem, max_solves: int = 4000) -> tuple[bool, float | None, int]:
+    r"""One vehicle: is the box infeasible for *every* contact time in ``(0, t_f)``?
+
+    Returns ``(certified, feasible_t, intervals)``.  ``(0, t_f)`` is covered by intervals; at
+    the midpoint ``t`` of each, an axis whose fixed-time problem is infeasible gives a Farkas
+    certificate :math:`\lambda` with margin :math:`M(t) = \lambda^\top d(t) - \sigma_t(\lambda) > 0`
+    (physical units).  Moving the contact time changes only the ramp :math:`(t-\tau)_+` and
+    :math:`d_1(t) = c(t) - s_0 - v_0 t`, so with the same :math:`\lambda`
+
+    .. math::  |M(t') - M(t)| \le |t'-t|\,|\lambda_1|\,\big(\max|\dot c| + |v_0|
+               + \max(|\ell|, |h|)\,t_f\big),
+
+    (:math:`|\partial\sigma/\partial t| \le \max(|\ell|,|h|)|\lambda_1| t`); an interval of
+    half-width ``δ`` with ``M(t) > δ·L`` is infeasible throughout, otherwise it is halved.  A
+    midpoint where both axes are feasible ends the search (``feasible_t``); so does the budget
+    ``max_solves`` (``certified`` False).
+    """
+    if problem.m != 1:
+        return False, None, 0
+    ego, veh = problem.ego, problem.vehicles[0]
+    T = float(problem.tf)
+    (lx, hx), (ly, hy) = input_box(problem)
+    deriv = [k * c for k, c in enumerate(veh.x_poly)][1:]
+    cdot_max = sum(abs(c) * T**k for k, c in enumerate(deriv))
+    lip_rate = ((cdot_max + abs(ego.vx0) + max(abs(lx), abs(hx)) * T) if math.isfinite(lx) and math.isfinite(hx)
+                else INF, abs(ego.vy0) + max(abs(ly), abs(hy)) * T if math.isfinite(ly) and math.isfinite(hy) else INF)
+    stack = [(T * k / 32, T * (k + 1) / 32) for k in range(32)]
+    solves = intervals = 0
+    while stack:
+        a, b = stack.pop()
+        t = 0.5 * (a + b)
+        C = problem.corners(np.array([t]))
+        covered = False
+        for k, (s0, v0, sf, vf, lo, hi) in enumerate(((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx),
+                                                       (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))):
+            solves += 1
+            try:
+                solve_axis([t], T, s0, v0, sf, vf, [float(C[0, k])], lo, hi)
+            except AxisInfeasible as exc:
+                if exc.lam_phys is None or exc.margin_phys is None:
+                    continue
+                if exc.margin_phys > 0.5 * (b - a) * abs(exc.lam_phys[0]) * lip_rate[k] * (1 + 1e-9):
+                    covered = True
+                    break
+                continue
+            except AxisNoConvergence:
+                continue
+            continue
+        if covered:
+            intervals += 1
+            continue
+        # both axes feasible at t?
+        try:
+            solve_bounded_fixed(problem, [t])
+            return False, t, intervals
+        except (AxisInfeasible, AxisNoConvergence):
+            pass
+        if solves > max_solves or b - a < 1e-9 * T:
+            return False, None, intervals
+        stack += [(a, t), (t, b)]
+    return True, None, intervals
+
+
 # ------------------------------------------------------------------------------------------
 # self-check
 # ------------------------------------------------------------------------------------------
@@ -587,6 +650,16 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         t, search = _search_many(ev, T, m, starts_m, 8)
         search["method"] = "grid (8 per axis for m <= 2) + unbounded t* + L-BFGS-B with the exact gradient r"
     info["search"] = search
+    if not fixed and m == 1 and not np.all(np.isfinite(t)):
+        certified, t_feasible, intervals = certify_infeasible_one(problem)
+        search["infeasibility_intervals"] = intervals
+        if certified:
+            return _failed(problem, INFEASIBLE, "box_infeasible_at_every_contact_time", info, t0,
+                           "no contact time in (0, t_f) admits a plan within the input box (certified: "
+                           f"{intervals} intervals, each with a Farkas certificate and a Lipschitz margin)")
+        if t_feasible is not None:
+            t, more = _search_one(ev, T, [t_feasible], GRID_ONE)
+            search.update(more)
     if not np.all(np.isfinite(t)):
         msg = ("no contact time admits a plan within the input box" +
                ("" if fixed else f" (all {search.get('evaluations', 0)} evaluated times infeasible; "

@@ -112,12 +112,17 @@ class AxisSolution:
 
 class AxisInfeasible(Exception):
     """The box cannot meet the equalities; ``certificate`` is the Farkas direction and
-    ``margin = λ̂ᵀd − σ(λ̂) > 0`` (scaled units)."""
+    ``margin = λ̂ᵀd − σ(λ̂) > 0`` (scaled units); ``lam_phys`` and ``margin_phys`` the same in
+    physical units (``λ`` of the ramps and of ``T − τ`` times ``ℓ/T³``, of ``1`` times
+    ``ℓ/T²``; the margin times ``ℓ²/T³``)."""
 
-    def __init__(self, message: str, certificate: list[float], margin: float):
+    def __init__(self, message: str, certificate: list[float], margin: float,
+                 lam_phys: list[float] | None = None, margin_phys: float | None = None):
         super().__init__(message)
         self.certificate = certificate
         self.margin = margin
+        self.lam_phys = lam_phys
+        self.margin_phys = margin_phys
 
 
 class AxisNoConvergence(Exception):
@@ -345,8 +350,11 @@ def _raise_infeasible_or_stall(ax: _Axis, lam: list[float], F: list[float], res:
         direc = [x / norm for x in cand]
         margin = sum(x * y for x, y in zip(direc, ax.d)) - ax.support(direc)
         if margin > 1e-9:
+            T, ell = ax.T, ax.ell
+            lam_phys = [x * ell / T**3 for x in direc[:-1]] + [direc[-1] * ell / T**2]
             raise AxisInfeasible("no input in the box meets the boundary and corner conditions "
-                                 f"(Farkas margin {margin:.3g} in scaled units)", direc, margin)
+                                 f"(Farkas margin {margin:.3g} in scaled units)", direc, margin,
+                                 lam_phys, margin * ell * ell / T**3)
     raise AxisNoConvergence(f"the dual Newton method stalled at residual {res:.3g}")
 
 

@@ -331,3 +331,54 @@ def test_casadi_bounded_peer_approaches_the_bounded_pmp() -> None:
         gaps.append(res["cost"] - plan.cost)
         assert abs(res["contact_time"] - plan.contact_times[0]) < 0.05
     assert gaps[1] < gaps[0]
+
+
+def _margin_dense(problem: Problem, axis: int, t: float, lam: list[float], n: int = 200001) -> float:
+    """``λᵀd(t) − ∫ max(h w, ℓ w)`` by dense trapezoids (physical units), independent of the
+    exact piecewise integral in the planner."""
+    ego, T = problem.ego, problem.tf
+    s0, v0, sf, vf = ((ego.x0, ego.vx0, ego.xf, ego.vxf) if axis == 0 else (ego.y0, ego.vy0, ego.yf, ego.vyf))
+    lo, hi = (problem.limits.ax if axis == 0 else problem.limits.ay)  # type: ignore[union-attr]
+    c = float(problem.corners(np.array([t]))[0, axis])
+    d = np.array([c - s0 - v0 * t, sf - s0 - v0 * T, vf - v0])
+    tau = np.linspace(0, T, n)
+    w = lam[0] * np.maximum(t - tau, 0) + lam[1] * (T - tau) + lam[2]
+    f = np.maximum(hi * w, lo * w)
+    return float(lam @ d - np.sum((f[1:] + f[:-1]) / 2 * np.diff(tau)))
+
+
+def test_farkas_certificates_are_real_and_lipschitz_in_the_contact_time() -> None:
+    """paper-3 under the passenger car's box: the planner certifies infeasibility for every
+    contact time; each certificate's margin, recomputed by dense quadrature, is positive, and
+    the Lipschitz rate the certification uses bounds the margin's change in t."""
+    from iamp.planners.pmp_bounded import certify_infeasible_one
+    from iamp.planners.pmp_saturated import solve_axis
+
+    problem = load_scenario("paper-3").with_limits(BOX)
+    plan = PMPPlanner().plan(problem)
+    assert plan.status == INFEASIBLE and "certified" in plan.info["reason"]
+    certified, feasible_t, intervals = certify_infeasible_one(problem)
+    assert certified and feasible_t is None and intervals >= 32
+    ego, T = problem.ego, problem.tf
+    veh = problem.vehicles[0]
+    cdot = max(abs(float(veh.speed(x))) for x in np.linspace(0, T, 2001))
+    for t in np.linspace(0.02, 0.98, 25) * T:
+        C = problem.corners(np.array([t]))
+        infeasible_axes = 0
+        for k, (s0, v0, sf, vf, (lo, hi)) in enumerate(((ego.x0, ego.vx0, ego.xf, ego.vxf, BOX.ax),
+                                                         (ego.y0, ego.vy0, ego.yf, ego.vyf, BOX.ay))):
+            try:
+                solve_axis([t], T, s0, v0, sf, vf, [float(C[0, k])], lo, hi)
+                continue
+            except AxisInfeasible as exc:
+                infeasible_axes += 1
+                lam = exc.lam_phys
+                assert lam is not None and exc.margin_phys is not None
+                dense = _margin_dense(problem, k, t, lam)
+                assert dense > 0 and abs(dense - exc.margin_phys) <= 1e-6 * max(1.0, abs(dense))
+                rate = abs(lam[0]) * ((cdot if k == 0 else 0.0) + abs(v0) + max(abs(lo), abs(hi)) * T)
+                for dt in (1e-3, 1e-2, 5e-2):
+                    for t2 in (t - dt, t + dt):
+                        if 0 < t2 < T:
+                            assert abs(_margin_dense(problem, k, t2, lam) - dense) <= rate * dt * (1 + 1e-6) + 1e-9
+        assert infeasible_axes >= 1
