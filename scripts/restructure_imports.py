@@ -8,7 +8,8 @@ rewrites, in each given file, every dotted name that starts with an old module â
 (``from iamp.planners.pmp_fixed import X``, ``import iamp.planners.pmp_fixed as m``), the
 ``from iamp.planners import pmp_fixed`` form, and strings such as monkeypatch targets
 (``"iamp.planners.pmp_fixed.foo"``).  It is idempotent: names that already start with a new module
-are left alone.  ``--check`` only lists the files it would change (exit 1 if any).
+are left alone, and so are lines marked ``# restructure: keep``.  ``--check`` only lists the files
+it would change (exit 1 if any).
 """
 
 from __future__ import annotations
@@ -119,6 +120,8 @@ _OLD = sorted(MOVES, key=len, reverse=True)
 #: Old modules that are now packages (``iamp.planners.pmp``: the package re-exports ``pmp.planner``).
 _PACKAGES = frozenset(old for old in MOVES if any(new.startswith(old + ".") for new in MOVES.values()))
 
+#: A line with this comment is left alone (provenance strings that outputs and shipped data carry).
+KEEP = "restructure: keep"
 _DOTTED = re.compile(r"\biamp\.(?:planners|prediction|comparison)(?:\.[A-Za-z_]\w*)+")
 _FROM = re.compile(r"^(\s*from\s+)(iamp(?:\.[A-Za-z_]\w*)+)(\s+import\s+)(.*)$")
 _ONE = re.compile(r"^([A-Za-z_]\w*)(\s+as\s+[A-Za-z_]\w*)?(\s*(?:#.*)?)$")
@@ -197,6 +200,9 @@ def rewrite_text(text: str) -> str:
     out = []
     for line in text.splitlines(keepends=True):
         body = line.rstrip("\r\n")
+        if KEEP in body:
+            out.append(line)
+            continue
         m = _FROM.match(body)
         if m is not None:
             out.append(_from_line(m) + line[len(body):])

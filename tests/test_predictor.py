@@ -238,7 +238,7 @@ def test_from_file_and_default(tmp_path, synthetic_predictor):
     d = Predictor.default()
     assert d.name == "builtin" and d.predict(h, 5.0).model == "builtin"
     prov = d.model.provenance
-    assert prov["trained_by"].endswith("evaluate.train_default_model")  # the shipped model predates issue 18
+    assert prov["trained_by"] == "iamp.prediction.evaluate.train_default_model"  # restructure: keep
     assert "dataset_sha256_track_t_x" in prov and prov["split"]["test_seed"] == 0
 
 

@@ -224,7 +224,8 @@ def build_report_tex(res: dict[str, Any], out: Path, figs: dict[str, str], table
     L.append("\\section{The predictor}")
     if tables.get("predictor_rmse"):
         L += ["The predictor's own evaluation (\\texttt{predictor\\_eval.json}), written by "
-              "\\texttt{iamp.prediction.evaluation}:", "", f"\\inputhere{{{tables['predictor_rmse']}}}"]
+              "\\texttt{iamp.prediction.evaluate}:", "",  # restructure: keep (the report's text)
+              f"\\inputhere{{{tables['predictor_rmse']}}}"]
         if tables.get("predictor_selection"):
             L += [f"\\inputhere{{{tables['predictor_selection']}}}"]
     else:
