@@ -20,7 +20,7 @@ from test_pmp_bounded import BOX, bounded_foh_qp
 
 from iamp.api import load_scenario
 from iamp.planners.pmp import PMPPlanner
-from iamp.planners.pmp_bounded import solve_bounded_fixed
+from iamp.planners.pmp.bounded import solve_bounded_fixed
 
 
 def main() -> None:

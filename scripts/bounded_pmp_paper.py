@@ -14,7 +14,7 @@ from iamp.api import load_scenario
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.scenario import builtin_names
 from iamp.planners.pmp import PMPPlanner
-from iamp.planners.pmp_bounded import exact_peaks, plan_knots
+from iamp.planners.pmp.bounded import exact_peaks, plan_knots
 
 
 def _peaks(plan) -> str:  # type: ignore[no-untyped-def]

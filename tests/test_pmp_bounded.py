@@ -24,14 +24,14 @@ from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.status import INFEASIBLE, LIMITS_VIOLATED, LOCAL, OPTIMAL
 from iamp.core.tolerances import TOLERANCES
 from iamp.planners.pmp import PMPPlanner
-from iamp.planners.pmp_bounded import (
+from iamp.planners.pmp.bounded import (
     boundary_feasible,
     check_values,
     exact_peaks,
     judge,
     solve_bounded_fixed,
 )
-from iamp.planners.pmp_saturated import AxisInfeasible, AxisNoConvergence
+from iamp.planners.pmp.saturated import AxisInfeasible, AxisNoConvergence
 
 EXAMPLES = {"ci": 15, "dev": 200, "long": 2000}.get(os.environ.get("HYPOTHESIS_PROFILE", "ci"), 15)
 SETTINGS = settings(max_examples=EXAMPLES, deadline=None, derandomize=os.environ.get("HYPOTHESIS_PROFILE") is None,
@@ -317,7 +317,7 @@ def test_casadi_bounded_peer_approaches_the_bounded_pmp() -> None:
     """The CasADi + IPOPT peer of ``iamp bench`` (ZOH, box on every u_k: a restriction) costs
     at least the bounded PMP's J*, and approaches it as N grows, at a nearby contact time."""
     pytest.importorskip("casadi")
-    from iamp.comparison.bench_casadi import casadi_free_time
+    from iamp.comparison.bench.casadi import casadi_free_time
     from iamp.planners.examples import paper_problem
 
     problem = paper_problem(1).with_limits(BOX)
@@ -351,8 +351,8 @@ def test_farkas_certificates_are_real_and_lipschitz_in_the_contact_time() -> Non
     """paper-3 under the passenger car's box: the planner certifies infeasibility for every
     contact time; each certificate's margin, recomputed by dense quadrature, is positive, and
     the Lipschitz rate the certification uses bounds the margin's change in t."""
-    from iamp.planners.pmp_bounded import certify_infeasible_one
-    from iamp.planners.pmp_saturated import solve_axis
+    from iamp.planners.pmp.bounded import certify_infeasible_one
+    from iamp.planners.pmp.saturated import solve_axis
 
     problem = load_scenario("paper-3").with_limits(BOX)
     plan = PMPPlanner().plan(problem)
