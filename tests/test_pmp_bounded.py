@@ -382,3 +382,25 @@ def test_farkas_certificates_are_real_and_lipschitz_in_the_contact_time() -> Non
                         if 0 < t2 < T:
                             assert abs(_margin_dense(problem, k, t2, lam) - dense) <= rate * dt * (1 + 1e-6) + 1e-9
         assert infeasible_axes >= 1
+
+
+@SETTINGS
+@given(bounded_problems())
+def test_bounded_plan_is_exact_pieces_for_the_safety_report(problem: Problem) -> None:
+    """The pieces the safety report and the peaks use (:mod:`iamp.core.trajectory_pieces`)
+    end at the bounded plan's knots (contact and switching times): each piece's cubic
+    reproduces the states at its end, and the report is ``exact`` (not the 1 ms fallback)."""
+    from iamp.core.safety import safety_report
+    from iamp.core.trajectory_pieces import breakpoints, taylor_pieces
+
+    plan = PMPPlanner().plan(problem)
+    assume(plan.trajectory is not None and plan.info.get("bounded", {}).get("box_active", True))
+    sol = plan.trajectory
+    br = breakpoints(sol, problem.tf)
+    assert br is not None
+    kn = np.asarray(sol.knots())
+    # every knot is a piece end, up to the merge of knots closer than MERGE_S
+    assert np.all(np.min(np.abs(kn[:, None] - br[None, :]), axis=1) < 1e-6)
+    _, mismatch = taylor_pieces(sol, br)
+    assert mismatch < 1e-9
+    assert safety_report(problem, sol).exact

@@ -214,6 +214,11 @@ class BoundedSolution:
         """Every time where ``u_x`` or ``u_y`` may kink (sorted, with ``0`` and ``t_f``)."""
         return sorted(set(self.axes[0].knots) | set(self.axes[1].knots))
 
+    def breakpoints(self) -> list[float]:
+        """The piece ends of the exact polynomial pieces (:mod:`iamp.core.trajectory_pieces`):
+        the knots, since ``u`` is linear and the position cubic between them."""
+        return self.knots()
+
 
 def solve_bounded_fixed(problem: Problem, contact_times: Any, warm: list[list[float] | None] | None = None
                         ) -> BoundedSolution:
