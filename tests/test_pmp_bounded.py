@@ -404,3 +404,43 @@ def test_bounded_plan_is_exact_pieces_for_the_safety_report(problem: Problem) ->
     _, mismatch = taylor_pieces(sol, br)
     assert mismatch < 1e-9
     assert safety_report(problem, sol).exact
+
+
+@pytest.mark.parametrize("factor", [0.95, 0.8, 0.7])
+def test_two_vehicles_bounded_is_stationary_below_a_dense_grid_and_the_bounded_qp(factor: float) -> None:
+    """Two vehicles, a box cutting the unbounded plan's peaks by ``factor``: the bounded PMP
+    is ``local`` (no certificate between grid points), passes every check (the Hamiltonian
+    jump of both vehicles included), costs at most the fixed-time bounded optimum on a dense
+    21×21 grid of contact times, at least the unbounded optimum, and at most the independent
+    bounded FOH QP (N = 200) at the grid nodes nearest its contact times, within 1e-3."""
+    base = load_scenario("two-vehicle")
+    ref = PMPPlanner().plan(base)
+    U = ref.inputs(np.linspace(0, base.tf, 4001))
+    box = PhysicalLimits(ax=(U[:, 0].min() * factor, U[:, 0].max() * factor),
+                         ay=(min(-0.05, U[:, 1].min() * factor), max(0.05, U[:, 1].max() * factor)))
+    problem = base.with_limits(box)
+    plan = PMPPlanner().plan(problem)
+    assert plan.status == LOCAL, (plan.info.get("failed_check"), plan.info.get("reason"))
+    assert all(c["ok"] for c in plan.info["checks"].values())
+    assert plan.cost >= ref.cost - 1e-9 * ref.cost
+    dense = np.inf
+    for a in np.linspace(0.05, 0.95, 21) * base.tf:
+        for b in np.linspace(0.05, 0.95, 21) * base.tf:
+            try:
+                dense = min(dense, solve_bounded_fixed(problem, [a, b]).cost)
+            except (AxisInfeasible, AxisNoConvergence):
+                continue
+    assert plan.cost <= dense * (1 + 1e-9)
+    # the QP at the grid nodes around the contact times (a tight box leaves a narrow set of
+    # feasible contact times, so some of the four neighbours may be infeasible): a restriction
+    qp_costs = []
+    for steps in (200, 400):
+        lo = [math.floor(float(t) / base.tf * steps) for t in plan.contact_times]
+        for da in (0, 1):
+            for db in (0, 1):
+                status, j_qp = bounded_foh_qp(problem, [lo[0] + da, lo[1] + db], steps)
+                if status == cp.OPTIMAL and j_qp is not None:
+                    qp_costs.append(j_qp)
+    assert qp_costs, "no neighbouring grid node admits the box"
+    assert plan.cost <= min(qp_costs) * (1 + 1e-7)
+    assert (min(qp_costs) - plan.cost) / plan.cost < 1e-3, (min(qp_costs), plan.cost)

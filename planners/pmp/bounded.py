@@ -626,7 +626,61 @@ def _search_many(ev: _Evaluator, T: float, m: int, starts: list[FloatArray], gri
                        options={"ftol": 1e-15, "gtol": 1e-12 * max(1.0, abs(best_J)), "maxiter": 200})
         if res.fun < best_J:
             best, best_J = np.asarray(res.x, dtype=float), float(res.fun)
+    # L-BFGS-B stops where its line search leaves the feasible set of contact times (a narrow
+    # one under a tight box); a damped Newton method on r finishes the polish of the best
+    best, best_J = _newton_polish(ev, best, best_J, T)
     return best, {"grid": grid, "evaluations": ev.evaluations}
+
+
+def _newton_polish(ev: _Evaluator, x: FloatArray, J: float, T: float, iterations: int = 25
+                   ) -> tuple[FloatArray, float]:
+    r"""Damped Newton on :math:`r(t) = \nabla J_b(t) = 0` (several contact times): the Hessian
+    by central differences of the exact gradient ``r`` (symmetrised; steepest descent where it
+    is not positive definite), an Armijo backtracking on ``J_b`` that also backs off from
+    infeasible contact times; stops when ``r`` vanishes to the ``pmp_hjump_rel`` scale or no
+    step decreases ``J_b``."""
+    m = len(x)
+    Jx, r, _ = ev(x)
+    if not math.isfinite(Jx):
+        return x, J
+    h = 1e-6 * T
+    for _ in range(iterations):
+        if float(np.max(np.abs(r))) * T <= 1e-12 * max(1.0, abs(Jx)):
+            break
+        H = np.empty((m, m))
+        ok = True
+        for i in range(m):
+            e = np.zeros(m)
+            e[i] = h
+            rp, rm = ev(x + e)[1], ev(x - e)[1]
+            if not (np.all(np.isfinite(rp)) and np.all(np.isfinite(rm))):
+                ok = False
+                break
+            H[:, i] = (rp - rm) / (2 * h)
+        d = -r
+        if ok:
+            H = 0.5 * (H + H.T)
+            try:
+                if np.all(np.linalg.eigvalsh(H) > 0):
+                    d = np.asarray(-np.linalg.solve(H, r), dtype=np.float64)
+            except np.linalg.LinAlgError:
+                pass
+        slope = float(r @ d)
+        if slope >= 0:
+            d, slope = -r, -float(r @ r)
+        alpha, moved = 1.0, False
+        for _k in range(30):
+            if alpha * float(np.max(np.abs(d))) < 1e-12 * T:
+                break
+            xn = x + alpha * d
+            Jn, rn, _ = ev(xn)
+            if math.isfinite(Jn) and Jn <= Jx + 1e-4 * alpha * slope:
+                x, Jx, r, moved = xn, Jn, rn, True
+                break
+            alpha *= 0.5
+        if not moved:
+            break
+    return x, Jx
 
 
 def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times: Any = None,
