@@ -27,7 +27,7 @@ def fake(monkeypatch):
     def pmp(quick, notes):
         return {"pmp_plan_s": {"one_vehicle": 20e-6, "two_vehicles": 0.5e-3, "two_vehicles_pure": 5e-3,
                                "two_vehicles_compiled": 0.5e-3, "one_vehicle_bounded": 80e-6,
-                               "fixed_t_bounded": 30e-6},
+                               "one_vehicle_bounded_certified": 0.2, "fixed_t_bounded": 30e-6},
                 "pmp_batch_plans_per_s": 250_000.0, "pmp_to_compiled_limit": 1.5,
                 "pmp_two_vehicles_pure_to_compiled": 10.0}
 

@@ -26,6 +26,7 @@ from iamp.core.tolerances import TOLERANCES
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.pmp.bounded import (
     boundary_feasible,
+    certify_global_one,
     check_values,
     exact_peaks,
     judge,
@@ -228,7 +229,9 @@ def test_no_limits_and_inactive_box_give_the_unbounded_plan_exactly() -> None:
 def test_free_contact_time_is_stationary_and_below_every_grid_time() -> None:
     problem = load_scenario("paper-1").with_limits(BOX)
     plan = PMPPlanner().plan(problem)
-    assert plan.status == LOCAL, plan.info.get("reason")  # box active: not certified global
+    # box active: the interval certificate over (0, t_f) closes, so the plan is global
+    assert plan.status == OPTIMAL, plan.info.get("reason")
+    assert plan.info["certified_global"] and plan.info["global_certificate"]["certified"]
     t_star = float(plan.contact_times[0])
     assert plan.info["checks"]["hamiltonian_jump"]["ok"]
     for t in np.linspace(0.05, 0.95, 181) * problem.tf:
@@ -260,7 +263,7 @@ def test_state_bounds_it_cannot_impose_are_checked_with_exact_peaks() -> None:
     # without the jerk bound the same plan is fine (box imposed, vx and a_total hold)
     no_jerk = PhysicalLimits(ax=(-6.0, 3.0), ay=(-2.0, 2.0), a_total=8.0, vx=(0.0, 40.0))
     ok = PMPPlanner().plan(problem.with_limits(no_jerk))
-    assert ok.status == LOCAL and "limits_note" in ok.info
+    assert ok.status == OPTIMAL and "optimal for the bounded problem" in ok.info["limits_note"]
 
 
 def _reach_interval(s0: float, v0: float, vf: float, T: float, lo: float, hi: float) -> tuple[float, float] | None:
@@ -444,3 +447,26 @@ def test_two_vehicles_bounded_is_stationary_below_a_dense_grid_and_the_bounded_q
     assert qp_costs, "no neighbouring grid node admits the box"
     assert plan.cost <= min(qp_costs) * (1 + 1e-7)
     assert (min(qp_costs) - plan.cost) / plan.cost < 1e-3, (min(qp_costs), plan.cost)
+
+
+@SETTINGS
+@given(bounded_problems())
+def test_global_certificate_is_sound_over_generated_boxes(problem: Problem) -> None:
+    """One vehicle, free contact time: a plan called ``optimal`` (certified global) costs at
+    most the fixed-time bounded optimum at each of 241 contact times (to 1e-9), and the
+    certificate refuses a value 1e-4 above the minimum (it cannot certify what is false);
+    without the certificate the same plan is ``local``."""
+    plan = PMPPlanner().plan(problem)
+    assume(plan.info.get("bounded", {}).get("box_active") and plan.status in (OPTIMAL, LOCAL))
+    assert plan.cost is not None
+    if plan.status == OPTIMAL:
+        assert plan.info["global_certificate"]["certified"]
+        for t in np.linspace(0.02, 0.98, 241) * problem.tf:
+            try:
+                j = solve_bounded_fixed(problem, [t]).cost
+            except (AxisInfeasible, AxisNoConvergence):
+                continue
+            assert plan.cost <= j * (1 + 1e-9), (t, j, plan.cost)
+    assert not certify_global_one(problem, plan.cost * (1 + 1e-4))["certified"]
+    quick = PMPPlanner(certify_bounded=False).plan(problem)
+    assert quick.status == LOCAL and quick.cost == plan.cost

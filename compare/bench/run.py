@@ -78,6 +78,7 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
     raw: dict[str, Any] = dict(bench_pmp(3 if quick else 7))
     plan_s = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
               "two_vehicles_pure": raw["two_vehicles_pure"], "one_vehicle_bounded": raw["one_vehicle_bounded"],
+              "one_vehicle_bounded_certified": raw["one_vehicle_bounded_certified"],
               "fixed_t_bounded": raw["fixed_t_bounded"]}
     out: dict[str, Any] = {"source": "iamp.comparison.bench.pmp.bench_pmp", "bench_pmp": raw,
                            "pmp_plan_s": plan_s, "pmp_batch_plans_per_s": raw["batch_plans_per_s"]}
@@ -267,6 +268,8 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         ratios["casadi_ipopt_cold_to_pmp_plan"] = casadi["cold_s"] / pmp_one
     pmp_bounded = float(pmp["pmp_plan_s"]["one_vehicle_bounded"])
     ratios["pmp_bounded_to_unbounded_plan"] = pmp_bounded / pmp_one
+    ratios["pmp_bounded_certified_to_bounded_plan"] = (float(pmp["pmp_plan_s"]["one_vehicle_bounded_certified"])
+                                                       / pmp_bounded)
     if casadi_bounded is not None:
         ratios["casadi_ipopt_bounded_warm_to_pmp_bounded_plan"] = casadi_bounded["warm_s"] / pmp_bounded
         ratios["casadi_ipopt_bounded_cold_to_pmp_bounded_plan"] = casadi_bounded["cold_s"] / pmp_bounded

@@ -116,12 +116,16 @@ class PMPPlanner:
         ``None`` (default) uses it only if it is already loaded in this process (never
         compiles), ``True`` loads it now (compiles once per machine, then numba's disk cache;
         pure path if numba is missing), ``False`` never.  Same answers either way.
+    certify_bounded : bool
+        With an active input box (SPEC §14), one vehicle: certify the bounded contact-time
+        search global (status ``optimal``) or say ``local``; ``False`` skips the certificate.
     """
 
     max_starts: int = 32
     max_boxes: int = 200_000
     kernel: Callable[..., list[float]] = one_vehicle_kernel
     compiled: bool | None = None
+    certify_bounded: bool = True
 
     def search(self, problem: Problem, S: Scaled | None = None,
                progress: Callable[[int, int], None] | None = None) -> tuple[FloatArray, float, bool, dict[str, Any]]:
@@ -228,7 +232,7 @@ class PMPPlanner:
                                     "note": "the unbounded plan respects the input box, so it solves "
                                             "the bounded problem too"} if base.trajectory is not None else {}
             return apply_state_limits(base)
-        plan = plan_bounded(problem, base.contact_times, contact_times, start)
+        plan = plan_bounded(problem, base.contact_times, contact_times, start, certify=self.certify_bounded)
         plan.info["bounded"]["box_active"] = True
         plan.info["unbounded"] = {"status": base.status, "cost": base.cost,
                                   "contact_times": [float(x) for x in base.contact_times]}
