@@ -354,13 +354,13 @@ def test_farkas_certificates_are_real_and_lipschitz_in_the_contact_time() -> Non
     """paper-3 under the passenger car's box: the planner certifies infeasibility for every
     contact time; each certificate's margin, recomputed by dense quadrature, is positive, and
     the Lipschitz rate the certification uses bounds the margin's change in t."""
-    from iamp.planners.pmp.bounded import certify_infeasible_one
+    from iamp.planners.pmp.bounded import certify_infeasible
     from iamp.planners.pmp.saturated import solve_axis
 
     problem = load_scenario("paper-3").with_limits(BOX)
     plan = PMPPlanner().plan(problem)
     assert plan.status == INFEASIBLE and "certified" in plan.info["reason"]
-    certified, feasible_t, intervals = certify_infeasible_one(problem)
+    certified, feasible_t, intervals = certify_infeasible(problem)
     assert certified and feasible_t is None and intervals >= 32
     ego, T = problem.ego, problem.tf
     veh = problem.vehicles[0]
@@ -470,3 +470,26 @@ def test_global_certificate_is_sound_over_generated_boxes(problem: Problem) -> N
     assert not certify_global_one(problem, plan.cost * (1 + 1e-4))["certified"]
     quick = PMPPlanner(certify_bounded=False).plan(problem)
     assert quick.status == LOCAL and quick.cost == plan.cost
+
+
+def test_two_vehicles_infeasibility_is_certified_and_true_on_random_contact_times() -> None:
+    """two-vehicle under the passenger car's box: certified infeasible over (0, t_f)²; at 300
+    random pairs of contact times an axis' fixed-time problem is indeed infeasible (its Farkas
+    margin is positive); with a box cut 0.8 from the unbounded peaks the same search finds a
+    feasible pair instead (and the plan is verified)."""
+    from iamp.planners.pmp.bounded import certify_infeasible
+
+    problem = load_scenario("two-vehicle").with_limits(BOX)
+    plan = PMPPlanner().plan(problem)
+    assert plan.status == INFEASIBLE and "certified" in plan.info["reason"] and "(0, t_f)^2" in plan.info["reason"]
+    rng = np.random.default_rng(0)
+    for t in rng.uniform(0.01, 0.99, size=(300, 2)) * problem.tf:
+        with pytest.raises(AxisInfeasible) as exc:
+            solve_bounded_fixed(problem, t)
+        assert exc.value.margin > 0
+    ref = PMPPlanner().plan(load_scenario("two-vehicle"))
+    U = ref.inputs(np.linspace(0, problem.tf, 4001))
+    box = PhysicalLimits(ax=(U[:, 0].min() * 0.8, U[:, 0].max() * 0.8), ay=(U[:, 1].min() * 0.8, U[:, 1].max() * 0.8))
+    certified, feasible_t, _ = certify_infeasible(problem.with_limits(box))
+    assert not certified and feasible_t is not None
+    assert solve_bounded_fixed(problem.with_limits(box), feasible_t).cost > 0

@@ -62,6 +62,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -262,67 +263,82 @@ def boundary_feasible(problem: Problem) -> str | None:
     return None
 
 
-def certify_infeasible_one(problem: Problem, max_solves: int = 4000) -> tuple[bool, float | None, int]:
-    r"""One vehicle: is the box infeasible for *every* contact time in ``(0, t_f)``?
+def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, FloatArray | None, int]:
+    r"""Is the box infeasible for *every* choice of contact times in ``(0, t_f)^m``?
 
-    Returns ``(certified, feasible_t, intervals)``.  ``(0, t_f)`` is covered by intervals; at
-    the midpoint ``t`` of each, an axis whose fixed-time problem is infeasible gives a Farkas
-    certificate :math:`\lambda` with margin :math:`M(t) = \lambda^\top d(t) - \sigma_t(\lambda) > 0`
-    (physical units).  Moving the contact time changes only the ramp :math:`(t-\tau)_+` and
-    :math:`d_1(t) = c(t) - s_0 - v_0 t`, so with the same :math:`\lambda`
+    Returns ``(certified, feasible_t, boxes)``.  ``(0, t_f)^m`` is covered by boxes (32
+    intervals for one vehicle, an 8×8 grid for two, 4 per axis beyond); at the centre ``t`` of
+    each, an axis whose fixed-time problem is infeasible gives a Farkas certificate
+    :math:`\lambda` with margin :math:`M(t) = \lambda^\top d(t) - \sigma_t(\lambda) > 0`
+    (physical units).  Moving contact time ``i`` changes only its ramp :math:`(t_i-\tau)_+`
+    and :math:`d_i(t_i) = c_i(t_i) - s_0 - v_0 t_i`, so with the same :math:`\lambda`
 
-    .. math::  |M(t') - M(t)| \le |t'-t|\,|\lambda_1|\,\big(\max|\dot c| + |v_0|
+    .. math::  |M(t') - M(t)| \le \sum_i |t_i'-t_i|\,|\lambda_i|\,\big(\max|\dot c_i| + |v_0|
                + \max(|\ell|, |h|)\,t_f\big),
 
-    (:math:`|\partial\sigma/\partial t| \le \max(|\ell|,|h|)|\lambda_1| t`); an interval of
-    half-width ``δ`` with ``M(t) > δ·L`` is infeasible throughout, otherwise it is halved.  A
-    midpoint where both axes are feasible ends the search (``feasible_t``); so does the budget
-    ``max_solves`` (``certified`` False).
+    (:math:`|\partial\sigma/\partial t_i| \le \max(|\ell|,|h|)|\lambda_i| t_f`); a box of
+    half-widths ``δ_i`` with :math:`M(t) > \sum_i δ_i|\lambda_i|L_i` is infeasible throughout,
+    otherwise it is halved along its longest side.  A centre where both axes are feasible ends
+    the search (``feasible_t``); so does the budget ``max_solves`` (``certified`` False).
     """
-    if problem.m != 1:
-        return False, None, 0
-    ego, veh = problem.ego, problem.vehicles[0]
+    m = problem.m
+    ego = problem.ego
     T = float(problem.tf)
     (lx, hx), (ly, hy) = input_box(problem)
-    deriv = [k * c for k, c in enumerate(veh.x_poly)][1:]
-    cdot_max = sum(abs(c) * T**k for k, c in enumerate(deriv))
-    lip_rate = ((cdot_max + abs(ego.vx0) + max(abs(lx), abs(hx)) * T) if math.isfinite(lx) and math.isfinite(hx)
-                else INF, abs(ego.vy0) + max(abs(ly), abs(hy)) * T if math.isfinite(ly) and math.isfinite(hy) else INF)
-    stack = [(T * k / 32, T * (k + 1) / 32) for k in range(32)]
-    solves = intervals = 0
+    axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
+    cdot_max = []
+    for veh in problem.vehicles:
+        deriv = [k * c for k, c in enumerate(veh.x_poly)][1:]
+        cdot_max.append(sum(abs(c) * T**k for k, c in enumerate(deriv)))
+    lip = []
+    for k, (_, v0, _, _, lo, hi) in enumerate(axes_data):
+        finite = math.isfinite(lo) and math.isfinite(hi)
+        lip.append([((cdot_max[i] if k == 0 else 0.0) + abs(v0) + max(abs(lo), abs(hi)) * T) if finite else INF
+                    for i in range(m)])
+    per_axis = 32 if m == 1 else 8 if m == 2 else 4
+    edges = [T * j / per_axis for j in range(per_axis + 1)]
+    stack: deque[tuple[FloatArray, FloatArray]] = deque()  # breadth first: a feasible region shows early
+    for idx in np.ndindex(*([per_axis] * m)):
+        stack.append((np.array([edges[j] for j in idx]), np.array([edges[j + 1] for j in idx])))
+    solves = boxes = 0
     while stack:
-        a, b = stack.pop()
+        a, b = stack.popleft()
         t = 0.5 * (a + b)
-        C = problem.corners(np.array([t]))
+        half = 0.5 * (b - a)
+        times = [float(x) for x in t]
+        C = problem.corners(t)
         covered = False
-        for k, (s0, v0, sf, vf, lo, hi) in enumerate(((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx),
-                                                       (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))):
-            solves += 1
-            try:
-                solve_axis([t], T, s0, v0, sf, vf, [float(C[0, k])], lo, hi)
-            except AxisInfeasible as exc:
-                if exc.lam_phys is None or exc.margin_phys is None:
+        if len(set(times)) == m:
+            for k, (s0, v0, sf, vf, lo, hi) in enumerate(axes_data):
+                solves += 1
+                try:
+                    solve_axis(times, T, s0, v0, sf, vf, [float(c) for c in C[:, k]], lo, hi)
+                except AxisInfeasible as exc:
+                    if exc.lam_phys is None or exc.margin_phys is None:
+                        continue
+                    rate = sum(half[i] * abs(exc.lam_phys[i]) * lip[k][i] for i in range(m))
+                    if exc.margin_phys > rate * (1 + 1e-9):
+                        covered = True
+                        break
                     continue
-                if exc.margin_phys > 0.5 * (b - a) * abs(exc.lam_phys[0]) * lip_rate[k] * (1 + 1e-9):
-                    covered = True
-                    break
+                except AxisNoConvergence:
+                    continue
+            if covered:
+                boxes += 1
                 continue
-            except AxisNoConvergence:
-                continue
-            continue
-        if covered:
-            intervals += 1
-            continue
-        # both axes feasible at t?
-        try:
-            solve_bounded_fixed(problem, [t])
-            return False, t, intervals
-        except (AxisInfeasible, AxisNoConvergence):
-            pass
-        if solves > max_solves or b - a < 1e-9 * T:
-            return False, None, intervals
-        stack += [(a, t), (t, b)]
-    return True, None, intervals
+            # both axes feasible at t?
+            try:
+                solve_bounded_fixed(problem, t)
+                return False, t, boxes
+            except (AxisInfeasible, AxisNoConvergence):
+                pass
+        if solves > max_solves or float(np.max(b - a)) < 1e-9 * T:
+            return False, None, boxes
+        i = int(np.argmax(b - a))
+        mid_b, mid_a = b.copy(), a.copy()
+        mid_b[i] = mid_a[i] = t[i]
+        stack += [(a, mid_b), (mid_a, b)]
+    return True, None, boxes
 
 
 def certify_global_one(problem: Problem, J_best: float, rel: float | None = None, max_solves: int = 3000
@@ -350,7 +366,7 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     (the slopes add up to ``r(t)``, which vanishes at a stationary contact time).
 
     An axis infeasible at the midpoint covers its interval by the Farkas margin of
-    :func:`certify_infeasible_one` instead.  ``(0, t_f)`` is covered by intervals whose bound
+    :func:`certify_infeasible` instead.  ``(0, t_f)`` is covered by intervals whose bound
     is at least :math:`J_{best}(1 - rel)` (halved otherwise); the certificate fails (``local``)
     when an axis solve stalls on an interval below ``1e-12 t_f`` or the budget ``max_solves``
     is spent.
@@ -810,15 +826,20 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         t, search = _search_many(ev, T, m, starts_m, 8)
         search["method"] = "grid (8 per axis for m <= 2) + unbounded t* + L-BFGS-B with the exact gradient r"
     info["search"] = search
-    if not fixed and m == 1 and not np.all(np.isfinite(t)):
-        certified, t_feasible, intervals = certify_infeasible_one(problem)
+    if not fixed and not np.all(np.isfinite(t)):
+        certified, t_feasible, intervals = certify_infeasible(problem)
         search["infeasibility_intervals"] = intervals
         if certified:
+            what = "contact time in (0, t_f)" if m == 1 else f"choice of the {m} contact times in (0, t_f)^{m}"
             return _failed(problem, INFEASIBLE, "box_infeasible_at_every_contact_time", info, t0,
-                           "no contact time in (0, t_f) admits a plan within the input box (certified: "
-                           f"{intervals} intervals, each with a Farkas certificate and a Lipschitz margin)")
+                           f"no {what} admits a plan within the input box (certified: {intervals} "
+                           f"{'intervals' if m == 1 else 'boxes'}, each with a Farkas certificate and a "
+                           "Lipschitz margin)")
         if t_feasible is not None:
-            t, more = _search_one(ev, T, [t_feasible], GRID_ONE)
+            if m == 1:
+                t, more = _search_one(ev, T, [float(t_feasible[0])], GRID_ONE)
+            else:
+                t, more = _search_many(ev, T, m, [t_feasible], 8)
             search.update(more)
     if not np.all(np.isfinite(t)):
         msg = ("no contact time admits a plan within the input box" +
