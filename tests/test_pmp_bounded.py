@@ -493,3 +493,24 @@ def test_two_vehicles_infeasibility_is_certified_and_true_on_random_contact_time
     certified, feasible_t, _ = certify_infeasible(problem.with_limits(box))
     assert not certified and feasible_t is not None
     assert solve_bounded_fixed(problem.with_limits(box), feasible_t).cost > 0
+
+
+def test_zero_vehicles_bounded_is_the_fixed_time_optimum_and_matches_the_qp() -> None:
+    """No vehicle, an active box: the bounded free problem (no contact time, strictly convex)
+    is ``optimal``, its inputs stay in the box, it costs more than the free cubic, and the
+    independent bounded FOH QP (a restriction) costs at least as much and agrees to 1e-6."""
+    base = load_scenario("paper-1").with_vehicles(())
+    problem = base.with_limits(BOX)
+    plan = PMPPlanner().plan(problem)
+    free = PMPPlanner().plan(base)
+    assert plan.status == OPTIMAL and plan.info["bounded"]["box_active"]
+    U = plan.inputs(np.linspace(0, problem.tf, 2001))
+    assert U[:, 0].min() >= BOX.ax[0] - 1e-12 and U[:, 0].max() <= BOX.ax[1] + 1e-12
+    assert free.cost is not None and plan.cost is not None and plan.cost > free.cost
+    gaps = []
+    for steps in (50, 100, 200):
+        status, j_qp = bounded_foh_qp(problem, [], steps)
+        assert status == cp.OPTIMAL and j_qp is not None
+        gaps.append((j_qp - plan.cost) / plan.cost)
+    # (here the switching time falls where FOH can follow it: the QP matches to solver accuracy)
+    assert all(-1e-9 <= g < 1e-6 for g in gaps), gaps

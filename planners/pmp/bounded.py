@@ -131,7 +131,8 @@ class BoundedSolution:
     @property
     def jumps(self) -> FloatArray:
         """``(Φ_i,x, Φ_i,y)`` per vehicle."""
-        return np.array([[jx, jy] for jx, jy in zip(self.axes[0].jumps, self.axes[1].jumps)], dtype=float)
+        return np.array([[jx, jy] for jx, jy in zip(self.axes[0].jumps, self.axes[1].jumps)],
+                        dtype=float).reshape(-1, 2)
 
     @property
     def cost(self) -> float:
@@ -233,7 +234,7 @@ def solve_bounded_fixed(problem: Problem, contact_times: Any, warm: list[list[fl
     t = [float(x) for x in np.asarray(contact_times, dtype=float).reshape(-1)]
     ego = problem.ego
     T = float(problem.tf)
-    C = problem.corners(np.asarray(t))
+    C = problem.corners(np.asarray(t)).reshape(-1, 2)
     (lx, hx), (ly, hy) = input_box(problem)
     warm = warm or [None, None]
     axes = []
@@ -447,7 +448,7 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
     t = sol.contact_times
     ego = prob.ego
     (lx, hx), (ly, hy) = input_box(prob)
-    C = prob.corners(t)
+    C = prob.corners(t).reshape(-1, 2)
     ends = sol.states(np.array([0.0, T]))
     X = sol.states(t)
     vals: dict[str, float] = {}

@@ -45,6 +45,7 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.core.errors import SolverError
+from iamp.core.free import free_plan, transfer_cost
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.status import INFEASIBLE, LOCAL, NUMERICAL_ERROR, OPTIMAL
@@ -64,7 +65,6 @@ from .fixed import (
     solve_fixed_times,
     solve_one_vehicle,
     solve_sigma,
-    transfer_cost,
 )
 from .one import judge_kernel, one_vehicle_data, one_vehicle_kernel
 from .scale import Scaled, scale_problem
@@ -125,6 +125,7 @@ class PMPPlanner:
     max_boxes: int = 200_000
     kernel: Callable[..., list[float]] = one_vehicle_kernel
     compiled: bool | None = None
+    diagnostics: bool = True
     certify_bounded: bool = True
 
     def search(self, problem: Problem, S: Scaled | None = None,
@@ -157,19 +158,22 @@ class PMPPlanner:
             return solve_one_vehicle(problem, float(np.asarray(t, dtype=float).reshape(-1)[0]))
         return solve_fixed_times(problem, t)
 
-    def plan(self, problem: Problem, contact_times: Any = None, diagnostics: bool = True,
+    def plan(self, problem: Problem, contact_times: Any = None, diagnostics: bool | None = None,
              progress: Callable[[int, int], None] | None = None) -> Plan:
         """Plan and verify; never raises for numerical trouble (returns a failed Plan).
 
         ``solve_time_s`` covers the search, the solve and the self-check.  ``diagnostics``
-        adds the physical max-abs residuals (``plan.residuals``) after the clock stops.
+        (default: the planner's field) adds the physical max-abs residuals (``plan.residuals``) after the clock stops.
         ``contact_times`` (optional, validated: ``ValueError`` if outside ``(0, t_f)``) fixes
         the contact times: the plan is then the fixed-time optimum and the Hamiltonian-jump
         condition is reported in ``info`` but not required.
         """
         if problem.limits is not None and not problem.limits.empty:
             return self._plan_limited(problem, contact_times, diagnostics, progress)
+        if problem.m == 0:  # nothing to contact: the minimum-energy cubic, exact and self-checked
+            return free_plan(problem, "pmp")
         start = _time.perf_counter()
+        diagnostics = self.diagnostics if diagnostics is None else diagnostics
         m = problem.m
         fixed = contact_times is not None
         if m == 1 and not fixed:
@@ -212,7 +216,7 @@ class PMPPlanner:
                 plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
         return plan
 
-    def _plan_limited(self, problem: Problem, contact_times: Any, diagnostics: bool,
+    def _plan_limited(self, problem: Problem, contact_times: Any, diagnostics: bool | None,
                       progress: Callable[[int, int], None] | None) -> Plan:
         """``problem.limits`` given (SPEC §14, :mod:`~iamp.planners.pmp.bounded`).
 
@@ -232,7 +236,9 @@ class PMPPlanner:
                                     "note": "the unbounded plan respects the input box, so it solves "
                                             "the bounded problem too"} if base.trajectory is not None else {}
             return apply_state_limits(base)
-        plan = plan_bounded(problem, base.contact_times, contact_times, start, certify=self.certify_bounded)
+        # no vehicle: the fixed-time problem with no contact time (strictly convex, unique)
+        fixed = contact_times if problem.m else np.empty(0)
+        plan = plan_bounded(problem, base.contact_times, fixed, start, certify=self.certify_bounded)
         plan.info["bounded"]["box_active"] = True
         plan.info["unbounded"] = {"status": base.status, "cost": base.cost,
                                   "contact_times": [float(x) for x in base.contact_times]}
