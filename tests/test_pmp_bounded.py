@@ -514,3 +514,23 @@ def test_zero_vehicles_bounded_is_the_fixed_time_optimum_and_matches_the_qp() ->
         gaps.append((j_qp - plan.cost) / plan.cost)
     # (here the switching time falls where FOH can follow it: the QP matches to solver accuracy)
     assert all(-1e-9 <= g < 1e-6 for g in gaps), gaps
+
+
+def test_bounded_pmp_through_the_registry_and_import_iamp() -> None:
+    """``import iamp``: ``iamp.plan`` on a problem with ``limits`` reaches the bounded PMP
+    through the registry's ``pmp`` entry (certified ``optimal`` on paper-1 with the passenger
+    car's box, inputs in the box); ``certify_bounded=False`` is an API option (``local``, the
+    same plan); a bad value is an :class:`iamp.OptionError` naming the field."""
+    import iamp
+    from iamp.core.errors import OptionError
+
+    problem = iamp.load_scenario("paper-1").with_limits(BOX)
+    plan = iamp.plan(problem)
+    assert plan.status == OPTIMAL and plan.info["bounded"]["box_active"] and plan.info["certified_global"]
+    U = plan.inputs(np.linspace(0, problem.tf, 2001))
+    assert U[:, 0].max() <= BOX.ax[1] + 1e-12 and U[:, 0].min() >= BOX.ax[0] - 1e-12
+    quick = iamp.plan(problem, "pmp", certify_bounded=False)
+    assert quick.status == LOCAL and quick.cost == plan.cost
+    with pytest.raises(OptionError) as err:
+        iamp.plan(problem, "pmp", certify_bounded="yes")
+    assert "certify_bounded" in str(err.value) or getattr(err.value, "field", "") == "certify_bounded"
