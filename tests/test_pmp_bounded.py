@@ -534,3 +534,31 @@ def test_bounded_pmp_through_the_registry_and_import_iamp() -> None:
     with pytest.raises(OptionError) as err:
         iamp.plan(problem, "pmp", certify_bounded="yes")
     assert "certify_bounded" in str(err.value) or getattr(err.value, "field", "") == "certify_bounded"
+
+
+@SETTINGS
+@given(bounded_problems(), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5), st.floats(-4.0, 4.0))
+def test_exact_peaks_equal_a_dense_evaluation(problem: Problem, vy0: float, vyf: float, vx_shift: float) -> None:
+    """Every exact peak (inputs at the knots, v_x where u_x = 0, s_y where v_y = 0, |u|, jerk)
+    equals the extreme of a dense evaluation of the same plan (200001 points) and bounds it;
+    lateral end speeds make s_y overshoot inside a piece, so the interior roots matter."""
+    import dataclasses
+
+    ego = dataclasses.replace(problem.ego, vy0=vy0, vyf=vyf, vxf=problem.ego.vxf + vx_shift)
+    prob = Problem(ego, problem.vehicles, problem.name, problem.limits)
+    plan = PMPPlanner(certify_bounded=False).plan(prob)
+    assume(plan.trajectory is not None)
+    sol = plan.trajectory
+    t = np.linspace(0, prob.tf, 200001)
+    X, U = sol.states(t), sol.inputs(t)
+    peaks = exact_peaks(sol, prob.tf, sol.knots() if hasattr(sol, "knots") else list(plan.contact_times))
+    for name, col, arr in (("vx", 1, X), ("y", 2, X), ("ax", 0, U), ("ay", 1, U)):
+        lo, hi = peaks[name]
+        scale = max(1.0, float(np.max(np.abs(arr[:, col]))))
+        assert lo <= arr[:, col].min() + 1e-9 * scale and hi >= arr[:, col].max() - 1e-9 * scale, name
+        # equal to the sampling's resolution (one step of the dense grid), and to 1e-6 at least
+        res = max(1e-6 * scale, float(np.max(np.abs(np.diff(arr[:, col])))))
+        assert abs(lo - arr[:, col].min()) <= res and abs(hi - arr[:, col].max()) <= res, name
+    norm = np.hypot(U[:, 0], U[:, 1])
+    res = max(1e-6 * max(1.0, norm.max()), float(np.max(np.abs(np.diff(norm)))))
+    assert peaks["a_total"] >= norm.max() - 1e-9 and peaks["a_total"] - norm.max() <= res
