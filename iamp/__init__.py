@@ -13,7 +13,7 @@ The public API (SPEC §12)::
     plan.status, plan.cost, plan.contact_times, plan.jumps, plan.safety
     plan.states(t), plan.inputs(t)                # at any times in [0, tf]
     plan.to_json()                                # the object of SPEC §5 and §9
-    iamp.compare(prob)                            # the object of SPEC §5b's compare
+    iamp.compare(prob).to_json()                  # the object of SPEC §5b's compare
     iamp.Predictor.default().predict(history)     # the cubic of SPEC §7
 
 Sub-packages (dependencies flow one way): :mod:`iamp.core` (problem, scenario files, plan,
