@@ -21,6 +21,8 @@ status, tolerances, errors, atomic output) <- :mod:`iamp.planners`, :mod:`iamp.p
 <- :mod:`iamp.comparison`, :mod:`iamp.simulation` <- :mod:`iamp.cli`.
 """
 
+from typing import TYPE_CHECKING, Any
+
 from iamp import status
 from iamp._version import __version__
 from iamp.api import compare, load_scenario, plan
@@ -37,7 +39,21 @@ from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.scenario import History, Scenario
 from iamp.prediction.predictor import Prediction, Predictor
 
+if TYPE_CHECKING:
+    from iamp.comparison.agreement.judge import Comparison
+
+
+def __getattr__(name: str) -> Any:
+    """``iamp.Comparison`` (what :func:`iamp.compare` returns), imported on first use."""
+    if name == "Comparison":
+        from iamp.comparison.agreement.judge import Comparison
+
+        return Comparison
+    raise AttributeError(f"module 'iamp' has no attribute {name!r}")
+
+
 __all__ = [
+    "Comparison",
     "EgoBoundary",
     "History",
     "HistoryError",
