@@ -126,7 +126,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         # the numerics broke down on an accepted input: a failed plan, never a traceback
         return _report_failure(scenario, args, NUMERICAL_ERROR, f"{exc.__class__.__name__}: {exc}")
     if args.csv is not None and result.ok:
-        from iamp.cli.plot import write_trajectory_csv
+        from iamp.cli.trajectory_csv import write_trajectory_csv
 
         write_trajectory_csv(result, args.csv, args.steps)
     if args.json:
