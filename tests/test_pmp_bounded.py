@@ -29,6 +29,7 @@ from iamp.planners.pmp.bounded import (
     certify_global_one,
     check_values,
     exact_peaks,
+    interval_bound,
     judge,
     solve_bounded_fixed,
 )
@@ -568,3 +569,26 @@ def test_exact_peaks_equal_a_dense_evaluation(problem: Problem, vy0: float, vyf:
     norm = np.hypot(U[:, 0], U[:, 1])
     res = max(1e-6 * max(1.0, norm.max()), float(np.max(np.abs(np.diff(norm)))))
     assert peaks["a_total"] >= norm.max() - 1e-9 and peaks["a_total"] - norm.max() <= res
+
+
+@SETTINGS
+@given(bounded_problems(), st.floats(0.03, 0.97), st.floats(0.002, 0.15))
+def test_interval_bound_is_below_the_bounded_cost_on_its_interval(problem: Problem, centre: float, width: float
+                                                                 ) -> None:
+    """The certificate's interval bound (weak duality + the second-order Taylor term in the
+    contact time) is below the bounded cost at 81 contact times of its interval, and an
+    interval it calls infeasible is infeasible at each of them: the bound is a bound, wherever
+    :math:`J_b` is convex or not."""
+    T = problem.tf
+    a, b = max(1e-3 * T, (centre - width / 2) * T), min((1 - 1e-3) * T, (centre + width / 2) * T)
+    kind, value = interval_bound(problem, a, b)
+    assume(kind != "unknown")
+    for t in np.linspace(a, b, 81):
+        try:
+            j = solve_bounded_fixed(problem, [t]).cost
+        except AxisInfeasible:
+            continue  # J_b = +inf here: any bound holds
+        except AxisNoConvergence:
+            continue
+        assert kind == "bound", (t, kind)  # a feasible contact time inside an "infeasible" interval
+        assert j >= value - 1e-9 * max(1.0, abs(j)), (t, j, value)

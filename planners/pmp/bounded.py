@@ -342,6 +342,67 @@ def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, 
     return True, None, boxes
 
 
+class _IntervalBound:
+    """The data of :func:`interval_bound` for one problem (one vehicle)."""
+
+    def __init__(self, problem: Problem):
+        ego, veh = problem.ego, problem.vehicles[0]
+        self.problem, self.veh, self.T = problem, veh, float(problem.tf)
+        T = self.T
+        (lx, hx), (ly, hy) = input_box(problem)
+        d1 = [k * c for k, c in enumerate(veh.x_poly)][1:]
+        d2 = [k * c for k, c in enumerate(d1)][1:]
+        cdot_max = sum(abs(c) * T**k for k, c in enumerate(d1))
+        self.cddot_max = (sum(abs(c) * T**k for k, c in enumerate(d2)), 0.0)
+        self.axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
+        self.lip_rate = tuple(cd + abs(v0) + max(abs(lo), abs(hi)) * T
+                              if math.isfinite(lo) and math.isfinite(hi) else INF
+                              for cd, (_, v0, _, _, lo, hi) in zip((cdot_max, 0.0), self.axes_data))
+
+    def __call__(self, a: float, b: float, warm: list[list[float] | None]
+                 ) -> tuple[str, float, list[list[float] | None], int]:
+        """``(kind, value, multipliers, solves)`` on ``[a, b]``: ``("bound", B)`` with
+        :math:`J_b \\ge B` on the interval, ``("infeasible", margin)`` when a Farkas margin
+        covers it, ``("unknown", nan)`` when an axis is infeasible without enough margin or
+        its solve stalls."""
+        T, veh = self.T, self.veh
+        t, delta = 0.5 * (a + b), 0.5 * (b - a)
+        C = self.problem.corners(np.array([t]))
+        cdot = (float(veh.speed(t)), 0.0)
+        dual = slope = M = 0.0
+        lams: list[list[float] | None] = [None, None]
+        solves = 0
+        for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.axes_data):
+            solves += 1
+            try:
+                sol = solve_axis([t], T, s0, v0, sf, vf, [float(C[0, k])], lo, hi, warm[k])
+            except AxisInfeasible as exc:
+                if exc.lam_phys is not None and exc.margin_phys is not None:
+                    rate = delta * abs(exc.lam_phys[0]) * self.lip_rate[k]
+                    if exc.margin_phys > rate * (1 + 1e-9):
+                        return "infeasible", exc.margin_phys - rate, lams, solves
+                return "unknown", math.nan, lams, solves
+            except AxisNoConvergence:
+                return "unknown", math.nan, lams, solves
+            phi = abs(sol.jumps[0])
+            ends = [sol.a + sol.b * x - sol.jumps[0] * (x - t) for x in (a, b)]
+            u_max = min(max(abs(lo), abs(hi)), max(abs(e) for e in ends))
+            dual += sol.dual
+            slope += sol.jumps[0] * (sol.contact_speeds[0] - cdot[k])
+            M += phi * (self.cddot_max[k] + u_max + phi * b)
+            lams[k] = sol.lam
+        # the axes' expansions add up: the slope is r(t) (zero at a stationary t)
+        return "bound", dual - abs(slope) * delta - 0.5 * M * delta * delta, lams, solves
+
+
+def interval_bound(problem: Problem, a: float, b: float) -> tuple[str, float]:
+    """A lower bound of :math:`J_b` on the contact-time interval ``[a, b]`` (one vehicle;
+    :func:`certify_global_one`): ``("bound", B)``, ``("infeasible", margin)`` or
+    ``("unknown", nan)``."""
+    kind, value, _, _ = _IntervalBound(problem)(a, b, [None, None])
+    return kind, value
+
+
 def certify_global_one(problem: Problem, J_best: float, rel: float | None = None, max_solves: int = 3000
                        ) -> dict[str, Any]:
     r"""One vehicle: is ``J_best`` the global minimum of :math:`J_b(t)` over ``(0, t_f)`` to the
@@ -378,17 +439,9 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     out: dict[str, Any] = {"certified": False, "intervals": 0, "solves": 0, "lowest_bound": INF}
     if problem.m != 1 or not math.isfinite(J_best):
         return out
-    ego, veh = problem.ego, problem.vehicles[0]
     T = float(problem.tf)
     target = J_best - rel * abs(J_best)
-    (lx, hx), (ly, hy) = input_box(problem)
-    d1 = [k * c for k, c in enumerate(veh.x_poly)][1:]
-    d2 = [k * c for k, c in enumerate(d1)][1:]
-    cdot_max = sum(abs(c) * T**k for k, c in enumerate(d1))
-    cddot_max = (sum(abs(c) * T**k for k, c in enumerate(d2)), 0.0)
-    axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
-    lip_rate = tuple(cd + abs(v0) + max(abs(lo), abs(hi)) * T if math.isfinite(lo) and math.isfinite(hi) else INF
-                     for cd, (_, v0, _, _, lo, hi) in zip((cdot_max, 0.0), axes_data))
+    bound_on = _IntervalBound(problem)
     pieces = 64
     stack: list[tuple[float, float, list[list[float] | None]]] = [
         (T * k / pieces, T * (k + 1) / pieces, [None, None]) for k in range(pieces)]
@@ -396,43 +449,17 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     lowest = INF
     while stack:
         a, b, warm = stack.pop()
-        t, delta = 0.5 * (a + b), 0.5 * (b - a)
-        C = problem.corners(np.array([t]))
-        cdot = (float(veh.speed(t)), 0.0)
-        dual, slope, M, covered, split = 0.0, 0.0, 0.0, False, False
-        lams: list[list[float] | None] = [None, None]
-        for k, (s0, v0, sf, vf, lo, hi) in enumerate(axes_data):
-            solves += 1
-            try:
-                sol = solve_axis([t], T, s0, v0, sf, vf, [float(C[0, k])], lo, hi, warm[k])
-            except AxisInfeasible as exc:
-                if (exc.lam_phys is not None and exc.margin_phys is not None
-                        and exc.margin_phys > delta * abs(exc.lam_phys[0]) * lip_rate[k] * (1 + 1e-9)):
-                    covered = True
-                else:
-                    split = True
-                break
-            except AxisNoConvergence:
-                split = True
-                break
-            phi = abs(sol.jumps[0])
-            ends = [sol.a + sol.b * x - sol.jumps[0] * (x - t) for x in (a, b)]
-            u_max = min(max(abs(lo), abs(hi)), max(abs(e) for e in ends))
-            dual += sol.dual
-            slope += sol.jumps[0] * (sol.contact_speeds[0] - cdot[k])
-            M += phi * (cddot_max[k] + u_max + phi * b)
-            lams[k] = sol.lam
-        if not covered and not split:
-            # the axes' expansions add up: the slope is r(t) (zero at a stationary t)
-            bound = dual - abs(slope) * delta - 0.5 * M * delta * delta
-            lowest = min(lowest, bound)
-            covered = bound >= target
-        if covered:
+        kind, value, lams, used = bound_on(a, b, warm)
+        solves += used
+        if kind == "bound":
+            lowest = min(lowest, value)
+        if kind == "infeasible" or (kind == "bound" and value >= target):
             intervals += 1
             continue
         if solves > max_solves or b - a < 1e-12 * T:
             out.update(intervals=intervals, solves=solves, lowest_bound=lowest)
             return out
+        t = 0.5 * (a + b)
         stack += [(a, t, lams), (t, b, lams)]
     out.update(certified=True, intervals=intervals, solves=solves, lowest_bound=lowest)
     return out
@@ -929,5 +956,5 @@ def box_respected(plan: Plan) -> bool:
 
 
 __all__ = ["BoundedSolution", "apply_state_limits", "boundary_feasible", "box_respected", "certify_global_one",
-           "check_values",
-           "exact_peaks", "input_box", "judge", "limits_report", "plan_bounded", "solve_bounded_fixed"]
+           "check_values", "exact_peaks", "input_box", "interval_bound", "judge", "limits_report", "plan_bounded",
+           "solve_bounded_fixed"]
