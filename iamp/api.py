@@ -32,7 +32,8 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 
 PLANNERS = ("pmp", "qp")
-CONSTRAINTS = ("equality", "avoid")
+CONSTRAINTS = ("equality", "avoid", "active")
+SAFETY_MODES = ("continuous", "nodes")
 
 
 def load_scenario(spec: str | Path, model: str | Path | None = None) -> Problem:
@@ -54,7 +55,8 @@ def load_scenario(spec: str | Path, model: str | Path | None = None) -> Problem:
 
 
 def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, hold: str | None = None,
-         steps: int = 100, contact: str | None = None, constraint: str = "equality") -> Plan:
+         steps: int = 100, contact: str | None = None, constraint: str = "equality",
+         safety: str | None = None) -> Plan:
     """Plan the lane change of ``problem``.
 
     Parameters
@@ -72,9 +74,14 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
     contact : {"grid", "refine"}, optional
         The QP's contact-time search: every grid node, or refined off the grid (default
         ``"grid"``); QP only.
-    constraint : {"equality", "avoid"}
-        The paper's interior-point equality (default) or the avoidance inequalities of
-        SPEC §10 (QP only).
+    constraint : {"equality", "avoid", "active"}
+        The paper's interior-point equality on every vehicle (default), the avoidance
+        inequalities of SPEC §10/§14 (QP only), or the equality only on the vehicles in the
+        way, chosen by the jump's sign (``"active"``, SPEC §14; PMP and QP).
+    safety : {"continuous", "nodes"}, optional
+        The avoidance QP's safety (default ``"continuous"``: both half-planes at the crossing
+        time and every piece certified by its Bernstein coefficients; ``"nodes"``: at the
+        grid nodes only, kept for study); ``constraint="avoid"`` only.
 
     Returns
     -------
@@ -95,16 +102,23 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
         raise ScenarioError(f"unknown constraint {constraint!r}; choose from {', '.join(CONSTRAINTS)}", "constraint")
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         raise ScenarioError(f"must be a positive integer (got {steps!r})", "steps")
+    if safety is not None and constraint != "avoid":
+        raise ScenarioError("applies to the avoidance QP only (constraint='avoid')", "safety")
+    if safety is not None and safety not in SAFETY_MODES:
+        raise ScenarioError(f"unknown safety mode {safety!r}; choose from {', '.join(SAFETY_MODES)}", "safety")
     if planner == "pmp":
         options = (("solver", solver), ("hold", hold), ("contact", contact))
         given = [name for name, value in options if value is not None]
         if given:
             raise ScenarioError("applies to the QP only (planner='qp')", given[0])
-        if constraint != "equality":
-            raise ScenarioError("the PMP planner implements the paper's equality only; use planner='qp'",
-                                "constraint")
+        if constraint == "avoid":
+            raise ScenarioError("the avoidance constraint is a QP; use planner='qp'", "constraint")
         from iamp.planners.pmp import PMPPlanner
 
+        if constraint == "active":
+            from iamp.planners.active_set import ActiveSetPlanner
+
+            return ActiveSetPlanner(PMPPlanner(), "pmp").plan(problem)
         result: Plan = PMPPlanner().plan(problem)
         return result
     kwargs: dict[str, Any] = {"steps": steps, "hold": hold or "foh", "solver": solver or "clarabel",
@@ -112,8 +126,13 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
     if constraint == "avoid":
         from iamp.planners.avoid import AvoidQPPlanner
 
-        return AvoidQPPlanner(**kwargs).plan(problem)
+        return AvoidQPPlanner(**kwargs, safety=safety or "continuous").plan(problem)
     from iamp.planners.qp import QPPlanner
+
+    if constraint == "active":
+        from iamp.planners.active_set import ActiveSetPlanner
+
+        return ActiveSetPlanner(QPPlanner(**kwargs), "qp").plan(problem)
 
     return QPPlanner(**kwargs).plan(problem)
 

@@ -66,6 +66,7 @@ from iamp.core.errors import ScenarioError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.planners.avoid_check import Candidate, FloatArray, crossing_orders
+from iamp.planners.avoid_continuous import ContinuousAvoidPlanner
 from iamp.planners.avoid_data import AvoidData
 from iamp.planners.avoid_result import failed_plan, verified_plan
 from iamp.planners.avoid_search import Phase, certify_free, pruned_switches, refine_crossings, seed_switches
@@ -73,6 +74,9 @@ from iamp.planners.avoid_solve import BoundSolver
 from iamp.planners.qp import HOLDS, aligned_grid
 
 Progress = Callable[[int, int], None]
+
+#: ``--safety``: the continuous-time certificate (default) or the node-only formulation.
+SAFETY_MODES = ("continuous", "nodes")
 
 
 @dataclass
@@ -93,6 +97,13 @@ class AvoidQPPlanner:
         Largest full sweep for ``m > 1`` vehicles.
     coarse : int
         Switches per vehicle of the coarse sweep beyond ``max_combinations``.
+    safety : {"continuous", "nodes"}
+        ``"continuous"`` (default, SPEC §14): both half-planes at the crossing time itself and
+        every piece certified by its Bernstein coefficients, the crossing times found by
+        branch and bound (:class:`~iamp.planners.avoid_continuous.ContinuousAvoidPlanner`);
+        ``"nodes"``: the inequalities at the grid nodes only (SPEC §10 as first written,
+        kept for study: it cuts corners between nodes, and a plan that intrudes is reported
+        ``unsafe``).
     prune : bool
         One vehicle: skip the switches that monotone relaxations prove no better than the
         best found (exact; see :func:`~iamp.planners.avoid_search.pruned_switches`).
@@ -107,6 +118,9 @@ class AvoidQPPlanner:
     max_combinations: int = 5000
     coarse: int = 24
     prune: bool = True
+    safety: str = "continuous"
+    max_solves: int = 2000
+    time_limit_s: float = 60.0
 
     def __post_init__(self) -> None:
         if self.hold not in HOLDS:
@@ -115,6 +129,13 @@ class AvoidQPPlanner:
             raise ValueError(f"unknown contact search {self.contact!r}; choose grid or refine")
         if self.solver not in ("osqp", "clarabel"):
             raise ValueError(f"unknown solver {self.solver!r}; choose osqp or clarabel")
+        if self.safety not in SAFETY_MODES:
+            raise ValueError(f"unknown safety mode {self.safety!r}; choose continuous or nodes")
+
+    def _continuous(self) -> ContinuousAvoidPlanner:
+        return ContinuousAvoidPlanner(steps=self.steps, hold=self.hold, solver=self.solver,
+                                      solver_settings=self.solver_settings, max_solves=self.max_solves,
+                                      time_limit_s=self.time_limit_s)
 
     # --- solving one grid ------------------------------------------------------------------
     def _backend(self, data: AvoidData, on: np.ndarray) -> BoundSolver:
@@ -141,6 +162,8 @@ class AvoidQPPlanner:
     def plan(self, problem: Problem, progress: Progress | None = None) -> Plan:
         """Search the crossing times, solve, verify; an infeasible start/end gives an
         ``infeasible`` plan with the reason (see the module docstring)."""
+        if self.safety == "continuous":
+            return self._continuous().plan(problem)
         start = time.perf_counter()
         N, m = int(self.steps), problem.m
         if N < 2:
@@ -245,7 +268,10 @@ class AvoidQPPlanner:
 
     def plan_at_times(self, problem: Problem, taus: Sequence[float]) -> Plan:
         """Solve once with the crossing times ``taus`` (no search; each vehicle's first
-        half-plane order), on the grid aligned with them."""
+        half-plane order), on the grid aligned with them (``nodes``) or on the uniform grid
+        with both half-planes at ``τ`` (``continuous``)."""
+        if self.safety == "continuous":
+            return self._continuous().plan_at_times(problem, taus)
         start = time.perf_counter()
         orders, reason = crossing_orders(problem)
         if reason is not None:

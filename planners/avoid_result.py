@@ -108,11 +108,17 @@ def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: 
     safety = plan.safety
     for entry, vs in zip(vehicles, safety.vehicles if safety is not None else ()):
         entry["between_node_intrusion_m"] = vs.max_intrusion_m
+    if status in st.SUCCESS and safety is not None and not safety.intrusion_free:
+        # SPEC §14: an avoidance plan is optimal only if its own §9 report is intrusion-free
+        failed.append("intrusion")
+        plan.status = st.UNSAFE
+        info["unsafe_reason"] = ("the node-only constraints hold at the grid nodes, but the trajectory enters a "
+                                 "safety region between them (use --safety continuous)")
     plan.residuals = {"boundary": plan.boundary_residual(), **kkt}
     info.update(kkt=kkt, kkt_tol=limit, failed_checks=failed,
                 solver_status=cand.status, solver_iterations=int(cand.sol.iterations),
                 qp_solution=QPSolutionData(data, l, u, cand.z, cand.y, cand.on))
-    info["avoidance"] = {"constraint": "avoid", "contact": contact, "complete_sweep": complete,
+    info["avoidance"] = {"constraint": "avoid", "safety": "nodes", "contact": contact, "complete_sweep": complete,
                          "n_solves": info["n_solves"], "vehicles": vehicles,
                          "kkt": kkt, "kkt_tol": limit, "failed_checks": failed,
                          "grid_best": info["grid_best"]}

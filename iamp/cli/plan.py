@@ -21,17 +21,28 @@ QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
 
 def make_planner(args: argparse.Namespace) -> Any:
     """The planner the options ask for."""
+    active = getattr(args, "constraint", None) == "active"
     if args.planner == "pmp":
         from iamp.planners.pmp import PMPPlanner
 
+        if active:
+            from iamp.planners.active_set import ActiveSetPlanner
+
+            return ActiveSetPlanner(PMPPlanner(), "pmp")
         return PMPPlanner()
     if getattr(args, "constraint", None) == "avoid":
         from iamp.planners.avoid import AvoidQPPlanner
 
-        return AvoidQPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
+        return AvoidQPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact,
+                              safety=getattr(args, "safety", None) or "continuous")
     from iamp.planners.qp import QPPlanner
 
-    return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
+    qp = QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
+    if active:
+        from iamp.planners.active_set import ActiveSetPlanner
+
+        return ActiveSetPlanner(qp, "qp")
+    return qp
 
 
 def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
@@ -77,11 +88,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
         args.constraint = "equality"
     if args.constraint == "avoid" and args.planner != "qp":
         raise ScenarioError("the avoidance constraint is a QP (add --planner qp)", "--constraint")
+    if getattr(args, "safety", None) is not None and args.constraint != "avoid":
+        raise ScenarioError("applies to the avoidance QP only (add --constraint avoid)", "--safety")
     if args.model is not None and not load_scenario(args.scenario).needs_prediction:
         raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
                             "vehicle's x_poly", "--model", args.scenario)
     scenario, problem, _ = load_cli_problem(args.scenario, args.model)
-    if args.planner == "qp":
+    if args.planner == "qp" and args.constraint != "avoid":  # the avoidance search has a budget, no work limit
         msg = qp_work_message(problem.m, args.steps)
         if msg is not None:
             raise ScenarioError(msg, "--steps")
@@ -132,13 +145,26 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     print(f"scenario  {scenario.name}  ({scenario.source})")
     print(f"planner   {cfg}")
     print(f"status    {result.status}")
+    if "active_set" in result.info:
+        _print_active(result)
+        return
+    if result.status == "unsafe" and result.info.get("constraint") == "avoid":
+        print(f"reason    {result.info.get('unsafe_reason')}")
+        from iamp.planners.avoid_result import summary_lines as nodes_lines
+
+        for line in nodes_lines(result):
+            print(line)
+        return
     if not result.is_optimal():
         if result.info.get("reason"):
             print(f"reason    {result.info['reason']}")
         print("no cost is reported: the solver did not reach an optimal solution")
         return
     if result.info.get("constraint") == "avoid":
-        from iamp.planners.avoid_result import summary_lines
+        if result.info.get("safety_mode") == "continuous":
+            from iamp.planners.avoid_continuous import summary_lines
+        else:
+            from iamp.planners.avoid_result import summary_lines
 
         for line in summary_lines(result):
             print(line)
@@ -166,6 +192,26 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
             print(line)
 
 
+def _print_active(result: Plan) -> None:
+    """The text summary of ``--constraint active``: what was imposed, dropped and why."""
+    act = result.info["active_set"]
+    if result.info.get("reason"):
+        print(f"reason    {result.info['reason']}")
+    if result.cost is not None:
+        print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
+    print(f"time      {result.solve_time_s * 1e3:.3f} ms ({act['iterations']} iteration(s))")
+    for v in act["imposed"]:
+        print(f"imposed   {v['name']}: contact t = {v['contact_time']:.6f} s, Φ = ({v['phi'][0]:.6g}, "
+              f"{v['phi'][1]:.6g}); {v['reason']}")
+    if not act["imposed"]:
+        print("imposed   none: the unconstrained plan")
+    for v in act["dropped"]:
+        print(f"dropped   {v['name']}: {v['reason']}")
+    if result.safety is not None:
+        for line in result.safety.lines():
+            print(line)
+
+
 def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``iamp plan``."""
     p = sub.add_parser("plan", help="plan the optimal lane change of a scenario",
@@ -179,8 +225,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    help="grid intervals N for the QP, and output samples t_k = k tf/N for every planner "
                         "(at most 20000; the QP's sweep is limited to perm(N-1, m)·N <= 1e6)")
     p.add_argument("--contact", choices=("grid", "refine"), default=None, help="QP only (default grid)")
-    p.add_argument("--constraint", choices=("equality", "avoid"), default=None,
-                   help="QP only: the paper's corner equality (default) or the avoidance inequalities (SPEC §10)")
+    p.add_argument("--constraint", choices=("equality", "avoid", "active"), default=None,
+                   help="the paper's corner equality on every vehicle (default), the avoidance inequalities "
+                        "(QP only, SPEC §10/§14), or the equality only on the vehicles in the way, chosen by the "
+                        "jump's sign (active, SPEC §14)")
+    p.add_argument("--safety", choices=("continuous", "nodes"), default=None,
+                   help="avoidance QP only: both half-planes at the crossing time and every piece certified by "
+                        "its Bernstein coefficients (continuous, default) or the inequalities at the nodes only "
+                        "(nodes, kept for study)")
     p.add_argument("--require-safe", action="store_true",
                    help="exit with status 4 when the plan enters a safety region or overlaps a vehicle (SPEC §9); "
                         "the plan is still printed")
