@@ -147,8 +147,8 @@ def test_pruned_sweep_equals_the_full_sweep(hold):
 
 def test_between_node_intrusion_falls_with_n():
     prob = binding_problem()
-    worst = [AvoidQPPlanner(safety="nodes", steps=N).plan(prob).info["avoidance"]["vehicles"][0]["between_node_intrusion_m"]
-             for N in (20, 40, 80)]
+    worst = [AvoidQPPlanner(safety="nodes", steps=N).plan(prob).info["avoidance"]["vehicles"][0]
+             ["between_node_intrusion_m"] for N in (20, 40, 80)]
     assert worst[0] > worst[1] > worst[2] > 0
     assert worst[2] < 0.35 * worst[0]  # O(h): about halves per halving of h (measured 0.285, 0.149, 0.076 m)
 
