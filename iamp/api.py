@@ -124,7 +124,7 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
     kwargs: dict[str, Any] = {"steps": steps, "hold": hold or "foh", "solver": solver or "clarabel",
                               "contact": contact or "grid"}
     if constraint == "avoid":
-        from iamp.planners.avoid import AvoidQPPlanner
+        from iamp.planners.avoid.planner import AvoidQPPlanner
 
         return AvoidQPPlanner(**kwargs, safety=safety or "continuous").plan(problem)
     from iamp.planners.qp import QPPlanner
@@ -145,7 +145,7 @@ def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
     Returns the object of SPEC §5b's ``iamp compare --json`` for this one problem:
     ``{"scenarios": [{"name", "runs", "agreement", ...}]}``.  In ``agreement`` the headline
     gaps compare the two runs as they came out; the identity at the QP's own contact times
-    is under ``at_same_contact_times`` (see :mod:`iamp.comparison.agreement` for every rule).
+    is under ``at_same_contact_times`` (see :mod:`iamp.comparison.agreement.judge` for every rule).
 
     Parameters
     ----------
@@ -156,7 +156,7 @@ def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
     repeats : int
         Timed plans per QP configuration.
     """
-    from iamp.comparison.agreement import compare_problem, default_configs
+    from iamp.comparison.agreement.judge import compare_problem, default_configs
 
     if not isinstance(problem, Problem):
         raise ScenarioError(f"must be an iamp.Problem (got {type(problem).__name__})", "problem")

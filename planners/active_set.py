@@ -2,7 +2,7 @@ r"""The paper's equality only where it is needed: ``--constraint active`` (SPEC 
 
 Imposing every vehicle's corner drags the ego towards vehicles that are not in its way.  The
 active-set mode starts from the unconstrained plan (per axis the minimum-energy cubic,
-:class:`~iamp.planners.avoid_pmp.FreeTrajectory`) and repeats:
+:class:`~iamp.planners.avoid.pmp.FreeTrajectory`) and repeats:
 
 1. measure the plan's safety (SPEC §9, exact roots) against **every** vehicle of the problem;
 2. if it is intrusion-free and every imposed corner is a real safety constraint: done
@@ -34,7 +34,7 @@ from iamp.core import status as st
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
 from iamp.core.safety import safety_report
-from iamp.planners.avoid_pmp import FreeTrajectory
+from iamp.planners.avoid.pmp import FreeTrajectory
 
 __all__ = ["ActiveSetPlanner", "drags"]
 

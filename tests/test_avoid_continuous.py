@@ -20,9 +20,9 @@ from iamp.core.errors import ScenarioError
 from iamp.core.physical import PhysicalLimits
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.planners.avoid import AvoidQPPlanner
-from iamp.planners.avoid_bernstein import piece_matrix, poly_bernstein
-from iamp.planners.avoid_continuous import ContinuousAvoidPlanner
-from iamp.planners.avoid_data import HalfPlane
+from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
+from iamp.planners.avoid.continuous import ContinuousAvoidPlanner
+from iamp.planners.avoid.data import HalfPlane
 
 
 def binding_problem(xf: float = 118.0, vxf: float = 24.0, x0v: float = 5.0, speed: float = 20.0) -> Problem:

@@ -23,7 +23,7 @@ def make_planner(args: argparse.Namespace) -> Any:
     """The planner the options ask for."""
     active = getattr(args, "constraint", None) == "active"
     if args.planner == "pmp":
-        from iamp.planners.pmp import PMPPlanner
+        from iamp.planners.pmp.planner import PMPPlanner
 
         if active:
             from iamp.planners.active_set import ActiveSetPlanner
@@ -31,7 +31,7 @@ def make_planner(args: argparse.Namespace) -> Any:
             return ActiveSetPlanner(PMPPlanner(), "pmp")
         return PMPPlanner()
     if getattr(args, "constraint", None) == "avoid":
-        from iamp.planners.avoid import AvoidQPPlanner
+        from iamp.planners.avoid.planner import AvoidQPPlanner
 
         return AvoidQPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact,
                               safety=getattr(args, "safety", None) or "continuous")
@@ -47,7 +47,7 @@ def make_planner(args: argparse.Namespace) -> Any:
 
 def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
     """SPEC §2 identity 4, derived from ∂J/∂corner = −Φ (see docs in compare.signs)."""
-    from iamp.comparison.signs import jump_meaning
+    from iamp.comparison.agreement.signs import jump_meaning
 
     return jump_meaning(vehicle, phi_x)
 
@@ -150,7 +150,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         return
     if result.status == "unsafe" and result.info.get("constraint") == "avoid":
         print(f"reason    {result.info.get('unsafe_reason')}")
-        from iamp.planners.avoid_result import summary_lines as nodes_lines
+        from iamp.planners.avoid.result import summary_lines as nodes_lines
 
         for line in nodes_lines(result):
             print(line)
@@ -162,9 +162,9 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         return
     if result.info.get("constraint") == "avoid":
         if result.info.get("safety_mode") == "continuous":
-            from iamp.planners.avoid_continuous import summary_lines
+            from iamp.planners.avoid.continuous import summary_lines
         else:
-            from iamp.planners.avoid_result import summary_lines
+            from iamp.planners.avoid.result import summary_lines
 
         for line in summary_lines(result):
             print(line)
