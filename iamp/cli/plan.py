@@ -219,7 +219,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                                    "(see `iamp scenarios`).")
     p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
     p.add_argument("--planner", choices=("pmp", "qp"), default="pmp")
-    p.add_argument("--solver", choices=("osqp", "clarabel"), default=None, help="QP only (default clarabel)")
+    p.add_argument("--solver", choices=("osqp", "clarabel", "piqp"), default=None, help="QP only (default clarabel)")
     p.add_argument("--hold", choices=("foh", "zoh"), default=None, help="QP only (default foh)")
     p.add_argument("--steps", type=steps_int, default=100,
                    help="grid intervals N for the QP, and output samples t_k = k tf/N for every planner "

@@ -70,7 +70,7 @@ from iamp.planners.avoid.continuous import ContinuousAvoidPlanner
 from iamp.planners.avoid.data import AvoidData
 from iamp.planners.avoid.result import failed_plan, verified_plan
 from iamp.planners.avoid.search import Phase, certify_free, pruned_switches, refine_crossings, seed_switches
-from iamp.planners.avoid.solve import BoundSolver
+from iamp.planners.avoid.solve import SOLVERS, BoundSolver
 from iamp.planners.qp import HOLDS, aligned_grid
 
 Progress = Callable[[int, int], None]
@@ -127,8 +127,8 @@ class AvoidQPPlanner:
             raise ValueError(f"unknown hold {self.hold!r}; choose from {', '.join(HOLDS)}")
         if self.contact not in ("grid", "refine"):
             raise ValueError(f"unknown contact search {self.contact!r}; choose grid or refine")
-        if self.solver not in ("osqp", "clarabel"):
-            raise ValueError(f"unknown solver {self.solver!r}; choose osqp or clarabel")
+        if self.solver not in SOLVERS:
+            raise ValueError(f"unknown solver {self.solver!r}; choose {', '.join(SOLVERS)}")
         if self.safety not in SAFETY_MODES:
             raise ValueError(f"unknown safety mode {self.safety!r}; choose continuous or nodes")
 
