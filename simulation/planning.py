@@ -3,13 +3,12 @@ r"""The planners the closed loop can use, behind one call: ``plan(problem) -> Pl
 * ``pmp`` — :class:`iamp.planners.pmp.planner.PMPPlanner` (the paper's equality constraints, global
   contact times).
 * ``qp`` — the discretised QP with the same equality constraints (SPEC §3), solved by the
-  direct KKT backend (exact for an equality QP; OSQP where that backend is absent), FOH
+  direct KKT backend (exact for an equality QP), FOH
   hold, ``N = 20`` intervals over the (shrinking) horizon, contact nodes
   by the full grid sweep.  ``N`` is small because the sweep solves ``(N-1)(N-2)`` QPs for
   two vehicles every period.
 * ``qp-avoid`` — the avoidance QP of SPEC §10 (``iamp.planners.avoid.planner.AvoidQPPlanner``,
-  Clarabel, FOH, ``N = 20``, grid crossing search), if that module is installed; otherwise
-  :func:`make_planner` raises :class:`PlannerUnavailable`.  Clarabel, not OSQP: with the
+  Clarabel, FOH, ``N = 20``, grid crossing search).  Clarabel, not OSQP: with the
   planner's OSQP accuracy (``eps_abs = 1e-7``) some closed-loop sweeps took seconds
   (measured: p50 1.9 s per plan over a 15 s episode, every vehicle constrained).
 * ``sumo`` — no iamp planner: SUMO's own LC2013 lane change (handled by the controller).
@@ -42,13 +41,13 @@ from iamp.core.errors import IampError
 from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem
 from iamp.core.status import OPTIMAL
+from iamp.planners import registry
 
-PLANNERS = ("pmp", "qp", "qp-avoid", "sumo", "pmp-all", "qp-all")
+#: Registry names whose ``-all`` variant constrains every vehicle (the paper literally, no active set).
+ALL_VARIANTS = ("pmp", "qp")
+#: The closed loop's planners: every registry entry, SUMO's own lane change, and the ``-all`` variants.
+PLANNERS = (*registry.names(), "sumo", *(f"{n}-all" for n in ALL_VARIANTS))
 QP_STEPS = 20
-
-
-class PlannerUnavailable(IampError):
-    """The planner's module is not installed in this checkout."""
 
 
 def _cubic(s0: float, v0: float, sf: float, vf: float, tf: float) -> np.ndarray:
@@ -115,28 +114,19 @@ def free_plan(ego: EgoBoundary, planner: str) -> Plan:
 PlanFn = Callable[[Problem], Plan]
 
 
+#: The closed loop's options per registry name (small grids: the sweep runs every period).
+SIM_OPTIONS: dict[str, dict[str, Any]] = {
+    "pmp": {"diagnostics": False},
+    "qp": {"steps": QP_STEPS, "hold": "foh", "solver": "kkt", "contact": "grid"},
+    "qp-avoid": {"steps": QP_STEPS, "hold": "foh", "solver": "clarabel"},
+}
+
+
 def make_planner(name: str) -> PlanFn:
-    """``plan(problem) -> Plan`` for ``pmp``, ``qp`` or ``qp-avoid`` (``-all``: the same planner)."""
-    name = name.removesuffix("-all")
-    if name == "pmp":
-        from iamp.planners.pmp.planner import PMPPlanner
-
-        pmp = PMPPlanner()
-        return lambda problem: pmp.plan(problem, diagnostics=False)
-    if name == "qp":
-        from iamp.planners.qp.planner import QPPlanner
-
-        try:  # the exact KKT solve of the equality QP where the backend registry has it
-            qp: Any = QPPlanner(steps=QP_STEPS, hold="foh", solver="kkt", contact="grid")
-        except ValueError:  # pragma: no cover - older planner without the kkt backend
-            qp = QPPlanner(steps=QP_STEPS, hold="foh", solver="osqp", contact="grid")
-        return lambda problem: qp.plan(problem)
-    if name == "qp-avoid":
-        try:
-            from iamp.planners.avoid.planner import AvoidQPPlanner  # type: ignore[import-not-found,unused-ignore]
-        except ImportError as exc:
-            raise PlannerUnavailable(f"planner 'qp-avoid' is unavailable: iamp.planners.avoid.planner is not installed "
-                                     f"({exc})") from None
-        avoid: Any = AvoidQPPlanner(steps=QP_STEPS, hold="foh", solver="clarabel")
-        return lambda problem: avoid.plan(problem)
-    raise IampError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}")
+    """``plan(problem) -> Plan`` for ``pmp``, ``qp`` or ``qp-avoid`` (``-all``: the same planner),
+    from the planner registry (:mod:`iamp.planners.registry`) with :data:`SIM_OPTIONS`."""
+    base = name.removesuffix("-all")
+    if base not in registry.REGISTRY:
+        raise IampError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}")
+    planner = registry.make_planner(base, **SIM_OPTIONS.get(base, {}))
+    return lambda problem: planner.plan(problem)

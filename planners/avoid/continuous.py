@@ -62,7 +62,8 @@ from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan
-from iamp.planners.avoid.solve import BoundSolver, kkt_tol_key
+from iamp.planners.avoid.solve import BoundSolver
+from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.hold import HoldTrajectory
 
 __all__ = ["GAP_REL", "ROW_TOL_M", "ContinuousAvoidPlanner", "ContinuousAvoidQP", "Spec"]
@@ -453,7 +454,7 @@ class ContinuousAvoidPlanner:
         n_eq = d.n_eq
         l = np.r_[d.b_eq, np.full(sol.A.shape[0] - n_eq, -np.inf)]
         kkt = kkt_conditions(d.P, d.q, sol.A, l, sol.u, sol.z, sol.y, n_eq)
-        limit = tol(kkt_tol_key(self.solver))
+        limit = tol(BACKENDS[self.solver].tolerance_key)
         failed = [k for k, v in kkt.items() if v > limit]
         traj = qp.trajectory(sol.z)
         cost = traj.cost()

@@ -65,19 +65,18 @@ from iamp.core import status as st
 from iamp.core.errors import ScenarioError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
-from iamp.planners.avoid.check import Candidate, FloatArray, crossing_orders
-from iamp.planners.avoid.continuous import ContinuousAvoidPlanner
-from iamp.planners.avoid.data import AvoidData
-from iamp.planners.avoid.result import failed_plan, verified_plan
-from iamp.planners.avoid.search import Phase, certify_free, pruned_switches, refine_crossings, seed_switches
-from iamp.planners.avoid.solve import SOLVERS, BoundSolver
-from iamp.planners.qp import HOLDS, aligned_grid
+from iamp.planners.qp.planner import HOLDS, aligned_grid
+
+from ..qp.options import CONTACTS, check_choice
+from .check import Candidate, FloatArray, crossing_orders
+from .continuous import ContinuousAvoidPlanner
+from .data import AvoidData
+from .options import SAFETY_MODES, check_avoid_solver
+from .result import failed_plan, verified_plan
+from .search import Phase, certify_free, pruned_switches, refine_crossings, seed_switches
+from .solve import BoundSolver
 
 Progress = Callable[[int, int], None]
-
-#: ``--safety``: the continuous-time certificate (default) or the node-only formulation.
-SAFETY_MODES = ("continuous", "nodes")
-
 
 @dataclass
 class AvoidQPPlanner:
@@ -88,7 +87,7 @@ class AvoidQPPlanner:
     steps : int
         Grid intervals ``N``.
     hold : {"foh", "zoh"}
-    solver : {"osqp", "clarabel"}
+    solver : {"osqp", "clarabel", "piqp"}
     contact : {"grid", "refine"}
         Crossing-time search.
     solver_settings : dict, optional
@@ -123,14 +122,10 @@ class AvoidQPPlanner:
     time_limit_s: float = 60.0
 
     def __post_init__(self) -> None:
-        if self.hold not in HOLDS:
-            raise ValueError(f"unknown hold {self.hold!r}; choose from {', '.join(HOLDS)}")
-        if self.contact not in ("grid", "refine"):
-            raise ValueError(f"unknown contact search {self.contact!r}; choose grid or refine")
-        if self.solver not in SOLVERS:
-            raise ValueError(f"unknown solver {self.solver!r}; choose {', '.join(SOLVERS)}")
-        if self.safety not in SAFETY_MODES:
-            raise ValueError(f"unknown safety mode {self.safety!r}; choose continuous or nodes")
+        check_choice(self.hold, HOLDS, "hold", "hold")
+        check_choice(self.contact, CONTACTS, "contact", "contact search")
+        check_avoid_solver(self.solver)
+        check_choice(self.safety, SAFETY_MODES, "safety", "safety mode")
 
     def _continuous(self) -> ContinuousAvoidPlanner:
         return ContinuousAvoidPlanner(steps=self.steps, hold=self.hold, solver=self.solver,

@@ -29,9 +29,9 @@ from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners.qp.planner import HoldTrajectory
 
+from ..qp.backends import BACKENDS
 from .check import AXIS_NAMES, Candidate, FloatArray, kkt_conditions, leave_time
 from .data import AvoidData
-from .solve import kkt_tol_key
 
 __all__ = ["ACTIVE_SLACK_M", "QPSolutionData", "failed_plan", "summary_lines", "verified_plan"]
 
@@ -72,7 +72,7 @@ def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: 
     elapsed = time.perf_counter() - start
     l, u = data.bounds(cand.on)
     kkt = kkt_conditions(data.P, data.q, data.A, l, u, cand.z, cand.y, n_eq=data.n_eq)
-    limit = tol(kkt_tol_key(solver))
+    limit = tol(BACKENDS[solver].tolerance_key)
     failed = [k for k, v in kkt.items() if v > limit]
     ineq_y = cand.y[data.n_eq:]
     slack = u[data.n_eq:] - (data.A @ cand.z)[data.n_eq:]

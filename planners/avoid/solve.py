@@ -1,4 +1,4 @@
-r"""The avoidance QP's solver adapter: OSQP, Clarabel or PIQP, set up once, then bound updates only.
+r"""The avoidance QP's solver adapter: OSQP or Clarabel, set up once, then bound updates only.
 
 The problem is :math:`\min \tfrac12 z^\top P z` s.t. equality rows :math:`A_{eq} z = b` and
 one-sided rows :math:`A_{in} z \le u` (:mod:`iamp.planners.avoid.data`); a sweep candidate
@@ -13,15 +13,13 @@ vector unchanged.
   KKT check reports it ``inaccurate``).
 * Clarabel: ``update(b=…)`` on the set-up solver (its data-update API; no warm start),
   tolerances 1e-12.
-* PIQP: equality rows ``A z = b``, inequality rows ``G z <= h_u`` (``h_l = -inf``);
-  ``update(h_u=…)``; ``eps_abs = 1e-10``.  Its Lagrangian
-  :math:`\tfrac12 z^\top P z + y^\top (Az - b) + z_u^\top (Gz - h_u) + z_l^\top (h_l - Gz)`
-  gives the OSQP-convention multipliers ``(y, z_u - z_l)``.
 
-This is the same general form as the project's QP backend registry
-(:mod:`iamp.planners.qp.backends`); it is kept here, specialised to one-sided rows, because a
-bound update must not rebuild the stacked Clarabel matrix (measured: the generic update
-re-stacks ``A`` on every candidate).
+Every other backend comes from the project's QP backend registry
+(:mod:`iamp.planners.qp.backends`; e.g. PIQP) through its general form ``l <= Az <= u`` with
+``update(u=…)``; a backend that solves equality-constrained QPs only (``kkt``) is refused with
+:class:`~iamp.core.errors.OptionError`.  OSQP and Clarabel keep the specialised adapters above
+because a bound update must not rebuild the stacked Clarabel matrix (measured: the generic
+update re-stacks ``A`` on every candidate).
 """
 
 from __future__ import annotations
@@ -39,12 +37,14 @@ from numpy.typing import NDArray
 from iamp.core import status as st
 from iamp.core.errors import MissingDependencyError
 
+from ..qp.backends import QPBackend, get_backend
+from .options import check_avoid_solver
+
 FloatArray = NDArray[np.float64]
 
 OSQP_STATUS = {"solved": st.OPTIMAL, "solved inaccurate": st.INACCURATE, "maximum iterations reached": st.MAX_ITER,
                "run time limit reached": st.TIME_LIMIT, "primal infeasible": st.INFEASIBLE,
                "primal infeasible inaccurate": st.INFEASIBLE}
-SOLVERS = ("osqp", "clarabel", "piqp")
 CLARABEL_STATUS = {"Solved": st.OPTIMAL, "AlmostSolved": st.INACCURATE, "PrimalInfeasible": st.INFEASIBLE,
                    "AlmostPrimalInfeasible": st.INFEASIBLE, "MaxIterations": st.MAX_ITER, "MaxTime": st.TIME_LIMIT,
                    "NumericalError": st.NUMERICAL_ERROR, "InsufficientProgress": st.NUMERICAL_ERROR}
@@ -74,17 +74,6 @@ def osqp_settings() -> dict[str, Any]:
     return out
 
 
-def kkt_tol_key(solver: str) -> str:
-    """The tolerance-table key of the recomputed KKT check for ``solver`` (PIQP, an
-    interior-point method solved to 1e-10 like Clarabel, shares Clarabel's row)."""
-    return "cmp_kkt_rel_clarabel" if solver == "piqp" else f"cmp_kkt_rel_{solver}"
-
-
-def piqp_settings() -> dict[str, Any]:
-    """PIQP: absolute tolerance 1e-10 (as the equality QP's PIQP backend)."""
-    return {"eps_abs": 1e-10, "eps_rel": 0.0, "verbose": False}
-
-
 def clarabel_settings() -> dict[str, Any]:
     """Clarabel: gap and feasibility tolerances 1e-12."""
     return {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10,
@@ -111,7 +100,9 @@ class BoundSolver:
 
     Parameters
     ----------
-    name : {"osqp", "clarabel", "piqp"}
+    name : str
+        A registered QP backend that accepts inequalities (osqp and clarabel: specialised
+        adapters; others, e.g. piqp: the registry's general form).
     P : sparse
         Upper triangle of the cost Hessian.
     A : sparse
@@ -124,15 +115,21 @@ class BoundSolver:
 
     def __init__(self, name: str, P: sp.spmatrix, A: sp.spmatrix, b_eq: FloatArray, u_in: FloatArray,
                  settings: dict[str, Any] | None = None) -> None:
-        if name not in SOLVERS:
-            raise ValueError(f"unknown solver {name!r}; choose {', '.join(SOLVERS)}")
-        _require(name)
+        check_avoid_solver(name)
         self.name = name
         self.n_eq = b_eq.size
         self.b_eq = np.asarray(b_eq, dtype=float)
         P = sp.csc_matrix(P)
         A = sp.csc_matrix(A)
         n = P.shape[0]
+        self._generic: QPBackend | None = None
+        if name not in ("osqp", "clarabel"):  # any other registered backend, in the general form
+            cls = get_backend(name)
+            l = np.r_[self.b_eq, np.full(u_in.size, -np.inf)]
+            self._generic = cls(P, np.zeros(n), A, l, np.r_[self.b_eq, u_in], settings)
+            self.settings = dict(self._generic.settings)
+            return
+        _require(name)
         if name == "osqp":
             import osqp
 
@@ -140,16 +137,6 @@ class BoundSolver:
             self._s = osqp.OSQP()
             l = np.r_[self.b_eq, np.full(u_in.size, -np.inf)]
             self._s.setup(P, np.zeros(n), A, l, np.r_[self.b_eq, u_in], **self.settings)
-        elif name == "piqp":
-            import piqp
-
-            self.settings = {**piqp_settings(), **(settings or {})}
-            self._s = piqp.SparseSolver()
-            for k, v in self.settings.items():
-                setattr(self._s.settings, k, v)
-            Aeq, G = sp.csc_matrix(A[: self.n_eq]), sp.csc_matrix(A[self.n_eq:])
-            self._s.setup(sp.csc_matrix(sp.triu(P)), np.zeros(n), Aeq, self.b_eq.copy(), G,
-                          np.full(u_in.size, -np.inf), np.asarray(u_in, dtype=float).copy())
         else:
             import clarabel
 
@@ -164,10 +151,10 @@ class BoundSolver:
 
     def set_upper(self, u_in: FloatArray) -> None:
         """New upper bounds of the inequality rows."""
-        if self.name == "osqp":
+        if self._generic is not None:
+            self._generic.update(u=np.r_[self.b_eq, u_in])
+        elif self.name == "osqp":
             self._s.update(u=np.r_[self.b_eq, u_in])
-        elif self.name == "piqp":
-            self._s.update(h_u=np.asarray(u_in, dtype=float).copy())
         elif self._update_ok:
             self._s.update(b=np.r_[self.b_eq, u_in])
         else:  # pragma: no cover - a Clarabel without data updates
@@ -177,11 +164,17 @@ class BoundSolver:
             self._s = clarabel.DefaultSolver(P, np.zeros(P.shape[0]), A, np.r_[self.b_eq, u_in], cones, cs)
 
     def warm_start(self, z: FloatArray, y: FloatArray) -> None:
-        """OSQP only (Clarabel, an interior-point method, has none)."""
-        if self.name == "osqp" and np.all(np.isfinite(z)) and np.all(np.isfinite(y)):
+        """OSQP (and any registry backend that warm-starts); Clarabel, an interior-point method, has none."""
+        if self._generic is not None:
+            if np.all(np.isfinite(z)) and np.all(np.isfinite(y)):
+                self._generic.warm_start(z, y)
+        elif self.name == "osqp" and np.all(np.isfinite(z)) and np.all(np.isfinite(y)):
             self._s.warm_start(x=z, y=y)
 
     def solve(self) -> Solution:
+        if self._generic is not None:
+            g = self._generic.solve()
+            return Solution(g.z, g.y, g.status, g.raw_status, g.iterations, g.solve_call_s, g.polished)
         t0 = time.perf_counter()
         if self.name == "osqp":
             res = self._s.solve(raise_error=False)
@@ -192,16 +185,6 @@ class BoundSolver:
             y = np.array(res.y, dtype=float) if res.y is not None else np.full(self.n_eq, np.nan)
             return Solution(z, y, OSQP_STATUS.get(raw.strip().lower(), st.SOLVER_ERROR), raw, int(res.info.iter), call,
                             int(getattr(res.info, "status_polish", 0)) == 1)
-        if self.name == "piqp":
-            from iamp.planners.qp.backends.piqp import map_status
-
-            status = self._s.solve()
-            call = time.perf_counter() - t0
-            res = self._s.result
-            raw = str(status).split(".")[-1]
-            z_in = np.asarray(res.z_u, dtype=float) - np.asarray(res.z_l, dtype=float)
-            y = np.r_[np.asarray(res.y, dtype=float), z_in]
-            return Solution(np.array(res.x, dtype=float), y, map_status(raw), raw, int(res.info.iter), call)
         sol = self._s.solve()
         call = time.perf_counter() - t0
         raw = str(sol.status)

@@ -36,6 +36,7 @@ from iamp.core.problem import Problem
 from .backends import BACKENDS
 from .core import CandidateResult, CandidateSolver, DiscretisedQP
 from .hold import HOLDS, HoldTrajectory, aligned_grid
+from .options import CONTACTS, check_choice
 from .sweep import Progress, SweepResult, run_sweep
 
 __all__ = ["HOLDS", "CandidateResult", "DiscretisedQP", "HoldTrajectory", "QPPlanner", "SweepResult",
@@ -105,12 +106,9 @@ class QPPlanner:
     path = "native"
 
     def __post_init__(self) -> None:
-        if self.contact not in ("grid", "refine"):
-            raise ValueError(f"unknown contact search {self.contact!r}; choose grid or refine")
-        if self.hold not in HOLDS:
-            raise ValueError(f"unknown hold {self.hold!r}; choose from {', '.join(HOLDS)}")
-        if self.solver not in BACKENDS:
-            raise ValueError(f"unknown solver {self.solver!r}; choose from {', '.join(BACKENDS)}")
+        check_choice(self.contact, CONTACTS, "contact", "contact search")
+        check_choice(self.hold, HOLDS, "hold", "hold")
+        check_choice(self.solver, tuple(BACKENDS), "solver", "solver")
 
     def build(self, problem: Problem) -> CandidateSolver:
         """The QP of ``problem`` on the configured backend (built once, re-solved per candidate)."""
