@@ -42,9 +42,12 @@ def _run_json(label: str, plan: Plan, constraint: str) -> dict[str, Any]:
         out["reason"] = plan.info["reason"]
     if "avoidance" in plan.info and ok:
         av = plan.info["avoidance"]
-        out["avoidance"] = {"vehicles": [{k: v[k] for k in ("name", "first", "second", "crossing_time",
-                                                            "between_node_intrusion_m", "active_H_x", "active_H_y")}
-                                         for v in av["vehicles"]],
+        # node-only plans report between_node_intrusion_m and active rows; continuous ones
+        # (SPEC §14, the default) max_intrusion_m and binding_rows
+        keys = ("name", "first", "second", "crossing_time", "between_node_intrusion_m", "max_intrusion_m",
+                "active_H_x", "active_H_y", "binding_rows")
+        out["avoidance"] = {"safety": av.get("safety", "nodes"),
+                            "vehicles": [{k: v[k] for k in keys if k in v} for v in av["vehicles"]],
                             "complete_sweep": av["complete_sweep"], "n_solves": av["n_solves"],
                             "certificate": plan.info.get("certificate")}
     return out

@@ -166,7 +166,7 @@ class AvoidQPPlanner:
         orders, reason = crossing_orders(problem)
         if reason is not None:
             return self._failed(problem, st.INFEASIBLE, reason, start)
-        data = AvoidData(problem, np.linspace(0.0, problem.tf, N + 1), self.hold)
+        data = AvoidData(problem, np.linspace(0.0, problem.tf, N + 1), self.hold, with_limits=True)
         per_vehicle = [[(f, s, j, j + 1) for (f, s) in orders[i] for j in range(N)] for i in range(m)]
         total = int(np.prod([len(c) for c in per_vehicle]))
         complete = total <= self.max_combinations
@@ -257,7 +257,7 @@ class AvoidQPPlanner:
             t_nodes, idx = aligned_grid(np.asarray(taus, dtype=float), problem.tf, int(self.steps))
         except ValueError:
             return None
-        data = AvoidData(problem, t_nodes, self.hold)
+        data = AvoidData(problem, t_nodes, self.hold, with_limits=True)
         phases = [(f, s, int(k), int(k)) for (f, s), k in zip(orders, idx)]
         return data, self._solve(data, self._backend(data, data.imposed(phases)), phases)
 

@@ -76,7 +76,7 @@ def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: 
     failed = [k for k, v in kkt.items() if v > limit]
     ineq_y = cand.y[data.n_eq:]
     slack = u[data.n_eq:] - (data.A @ cand.z)[data.n_eq:]
-    relaxed_binding = bool(np.any((~cand.on) & (slack <= ACTIVE_SLACK_M)))
+    relaxed_binding = bool(np.any((~data.effective_on(cand.on)) & (slack <= ACTIVE_SLACK_M)))
     if relaxed_binding:
         failed.append("relaxed_row_binding")
     vehicles, jumps, crossing = [], np.zeros((problem.m, 2)), np.zeros(problem.m)
