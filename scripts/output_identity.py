@@ -38,8 +38,9 @@ COMMANDS["predict-paper-2"] = ["predict", "paper-2", "--json"]
 SIM_COMMANDS = {f"simulate-{p}": ["simulate", "--planner", p, "--duration", "12", "--seed", "3", "--no-deadline",
                                   "--json"] for p in ("pmp", "qp", "qp-avoid", "sumo", "pmp-all")}
 
-#: Keys whose values are wall times or machine facts.
-TIMING = re.compile(r"(_s$|^timing|time_s$|^machine$|^versions$|^platform$|^cpu_count$|^plan_times$)")
+#: Keys whose values are wall times, memory or machine facts (everything else is compared).
+TIMING = re.compile(r"^(solve_time_s|time_s|plan_time_s|wall_s|max_rss_mb|budget_s|timing|timing_summary|machine|"
+                    r"versions|platform|cpu_count)$")
 
 
 def strip(doc: Any, dropped: set[str]) -> Any:

@@ -161,6 +161,9 @@ class AvoidQPPlanner:
             return self._continuous().plan(problem)
         start = time.perf_counter()
         N, m = int(self.steps), problem.m
+        if m == 0:
+            raise ScenarioError("the QP planners need at least one vehicle (a problem with zero vehicles has no "
+                                "contact time: its optimum is iamp.core.free.free_plan, or planner 'pmp')", "vehicles")
         if N < 2:
             raise ScenarioError(f"must be at least 2 (got {N})", "--steps")
         orders, reason = crossing_orders(problem)

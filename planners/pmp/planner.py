@@ -45,6 +45,7 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.core.errors import SolverError
+from iamp.core.free import free_plan, transfer_cost
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.status import INFEASIBLE, LOCAL, NUMERICAL_ERROR, OPTIMAL
@@ -64,7 +65,6 @@ from .fixed import (
     solve_fixed_times,
     solve_one_vehicle,
     solve_sigma,
-    transfer_cost,
 )
 from .one import judge_kernel, one_vehicle_data, one_vehicle_kernel
 from .scale import Scaled, scale_problem
@@ -164,6 +164,8 @@ class PMPPlanner:
         the contact times: the plan is then the fixed-time optimum and the Hamiltonian-jump
         condition is reported in ``info`` but not required.
         """
+        if problem.m == 0:  # nothing to contact: the minimum-energy cubic, exact and self-checked
+            return free_plan(problem, "pmp")
         start = _time.perf_counter()
         diagnostics = self.diagnostics if diagnostics is None else diagnostics
         m = problem.m

@@ -30,6 +30,7 @@ import numpy as np
 from scipy import optimize
 
 from iamp.core import status as st
+from iamp.core.errors import ScenarioError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 
@@ -112,6 +113,9 @@ class QPPlanner:
 
     def build(self, problem: Problem) -> CandidateSolver:
         """The QP of ``problem`` on the configured backend (built once, re-solved per candidate)."""
+        if problem.m == 0:
+            raise ScenarioError("the QP planners need at least one vehicle (a problem with zero vehicles has no "
+                                "contact time: its optimum is iamp.core.free.free_plan, or planner 'pmp')", "vehicles")
         return DiscretisedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
 
     def sweep(self, qp: CandidateSolver, progress: Progress | None = None) -> SweepResult:
