@@ -31,10 +31,10 @@ from typing import Any
 import numpy as np
 
 from iamp.core import status as st
+from iamp.core.free import FreeTrajectory
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
 from iamp.core.safety import safety_report
-from iamp.planners.avoid.pmp import FreeTrajectory
 
 __all__ = ["ActiveSetPlanner", "drags"]
 
@@ -72,7 +72,7 @@ class ActiveSetPlanner:
         dropped_idx: set[int] = set()
         steps: list[dict[str, Any]] = []
         sub: Plan | None = None
-        traj: Any = FreeTrajectory(problem)
+        traj: Any = FreeTrajectory.of(problem.ego)
         iterations = 0
         while True:
             iterations += 1
@@ -94,7 +94,7 @@ class ActiveSetPlanner:
                     steps.append({"iteration": iterations, "dropped": [vehicles[i].name for _, i in drag]})
                     imposed = [i for i in imposed if i not in dropped_idx]
                     if not imposed:
-                        sub, traj = None, FreeTrajectory(problem)
+                        sub, traj = None, FreeTrajectory.of(problem.ego)
                         iterations += 1
                     else:
                         continue
@@ -130,7 +130,7 @@ class ActiveSetPlanner:
                     times[i] = sub.contact_times[k]
                     jumps[i] = sub.jumps[k]
             else:
-                cost = float(traj.cost())
+                cost = float(traj.cost(problem.tf))
         else:
             jumps[:] = np.nan
         vehicles = problem.vehicles
