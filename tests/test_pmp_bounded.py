@@ -592,3 +592,24 @@ def test_interval_bound_is_below_the_bounded_cost_on_its_interval(problem: Probl
             continue
         assert kind == "bound", (t, kind)  # a feasible contact time inside an "infeasible" interval
         assert j >= value - 1e-9 * max(1.0, abs(j)), (t, j, value)
+
+
+@pytest.mark.parametrize("coeffs", [(-15.0, 18.0, 0.6, -0.08), (-30.0, 22.0, -1.2, 0.05), (5.0, 12.0, 0.0, 0.02)])
+def test_certificate_rates_bound_the_true_derivatives(coeffs: tuple[float, float, float, float]) -> None:
+    """The constants of the interval certificates are bounds: ``max|c̈|`` and the Farkas
+    margin's rate ``max|ċ| + |v0| + max(|ℓ|,|h|) t_f`` (x axis) are at least their values on
+    a dense grid of (0, t_f), for cubic vehicle predictions."""
+    from iamp.planners.pmp.bounded import _IntervalBound
+
+    base = load_scenario("paper-1")
+    veh = SurroundingVehicle(x_poly=coeffs, corner="front-lower", y=base.vehicles[0].y, length=4.8, width=1.8,
+                             safety_x=5.0, safety_y=0.5)
+    problem = Problem(base.ego, (veh,), "cubic", BOX)
+    ib = _IntervalBound(problem)
+    ego, T = problem.ego, problem.tf
+    t = np.linspace(0, T, 20001)
+    poly = np.polynomial.Polynomial(coeffs)
+    cdot, cddot = np.abs(poly.deriv(1)(t)).max(), np.abs(poly.deriv(2)(t)).max()
+    assert ib.cddot_max[0] >= cddot - 1e-12 and ib.cddot_max[1] == 0.0
+    assert ib.lip_rate[0] >= cdot + abs(ego.vx0) + max(abs(b) for b in BOX.ax) * T - 1e-9
+    assert ib.lip_rate[1] >= abs(ego.vy0) + max(abs(b) for b in BOX.ay) * T - 1e-9
