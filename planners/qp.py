@@ -80,8 +80,24 @@ class QPPlanner:
             raise ValueError(f"unknown solver {self.solver!r}; choose from {', '.join(BACKENDS)}")
 
     def build(self, problem: Problem) -> CandidateSolver:
-        """The QP of ``problem`` on the configured backend (built once, re-solved per candidate)."""
+        """The QP of ``problem`` on the configured backend (built once, re-solved per candidate);
+        with ``problem.limits`` the bounded QP (:class:`~iamp.planners.qp_bounded.BoundedQP`)."""
+        if problem.limits is not None and not problem.limits.empty:
+            from iamp.planners.qp_bounded import BoundedQP
+
+            return BoundedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
         return DiscretisedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
+
+    @staticmethod
+    def _limits_info(qp: CandidateSolver) -> dict[str, Any]:
+        rows = getattr(qp, "rows", None)
+        if rows is None:
+            return {}
+        out: dict[str, Any] = {"limit_rows": rows.describe()}
+        if rows.polygon_sides is not None:
+            out["polygon_sides"] = rows.polygon_sides
+            out["limits_polygon_sides"] = rows.polygon_sides
+        return out
 
     def sweep(self, qp: CandidateSolver, progress: Progress | None = None) -> SweepResult:
         """Solve one QP per candidate node combination (:func:`iamp.planners.sweep.run_sweep`)."""
@@ -141,7 +157,17 @@ class QPPlanner:
         info: dict[str, Any] = {"path": self.path, "sweep": sw.table, "failures": sw.failures,
                                 "candidates": sw.candidates(),
                                 "unpolished": sum(r.polished is False for r in sw.results)}
+        info.update(self._limits_info(qp))
         best = sw.best
+        if best is None and sw.results and "limit_rows" in info:
+            from iamp.planners.qp_bounded import infeasibility_reason
+
+            n_cert = sum(r.infeasible_certified for r in sw.results)
+            reason = infeasibility_reason(problem, self.steps, self.hold, self.solver, len(sw.results), n_cert)
+            if all(r.solver_status == st.INFEASIBLE for r in sw.results):
+                info.update(n_solves=qp.n_solves, failed_check="limits", reason=reason, limits_infeasible=reason)
+                return self._plan(problem, None, st.INFEASIBLE, start, info)
+            info["reason"] = f"no candidate solved within the limits: {sw.candidates()['failed']}; {reason}"
         if best is None:
             failed = Counter(r.failed_check for r in sw.results if r.failed_check)
             worst = max(sw.results, key=lambda r: r.kkt.worst_rel()[1] if r.kkt is not None else -1.0)
@@ -184,4 +210,6 @@ class QPPlanner:
         info: dict[str, Any] = {"path": self.path, "solver_time_s": r.solver_time_s, "polished": r.polished,
                                 "iterations": r.iterations, "checks": _checks_of(r),
                                 "failed_check": r.failed_check, "solver_status": r.raw_status}
+        if problem.limits is not None and not problem.limits.empty and r.infeasible_certified:
+            info["reason"] = "the QP at these contact times has no plan within the limits (Farkas certificate)"
         return self._plan(problem, r, r.status, start, info)

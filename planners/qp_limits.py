@@ -129,7 +129,9 @@ def polygon_normals(sides: int = POLYGON_SIDES) -> tuple[FloatArray, float]:
     if sides < 16 or sides % 2:
         raise ValueError(f"the friction-circle polygon needs an even number >= 16 of sides (got {sides})")
     theta = 2.0 * np.pi * np.arange(sides // 2) / sides
-    return np.stack([np.cos(theta), np.sin(theta)], axis=1), math.cos(math.pi / sides)
+    normals = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    normals[np.abs(normals) < 1e-15] = 0.0  # cos(π/2) is 6e-17 in floating point: an exact zero
+    return normals, math.cos(math.pi / sides)
 
 
 def check_hold(limits: PhysicalLimits, hold: str) -> None:
@@ -214,8 +216,10 @@ def limit_rows(index: StateIndex, t_nodes: FloatArray, hold: str, limits: Physic
         normals, apothem = polygon_normals(sides)
         r_max = float(limits.a_total) * apothem
         for c, s in normals:
-            terms: list[tuple[IntArray, FloatArray | float]] = [(index.idx_u(0, ku), float(c))]
-            if abs(s) > 0:
+            terms: list[tuple[IntArray, FloatArray | float]] = []
+            if c != 0:
+                terms.append((index.idx_u(0, ku), float(c)))
+            if s != 0:
                 terms.append((index.idx_u(1, ku), float(s)))
             block_rows(ku, terms, -r_max, r_max, "a_total")
     if limits.vx is not None:

@@ -19,6 +19,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from iamp.core.peaks import PeaksReport, peaks_report
 from iamp.core.problem import Problem
 from iamp.core.safety import SafetyReport, safety_report
 from iamp.core.status import OPTIMAL, SUCCESS
@@ -86,6 +87,7 @@ class Plan:
     steps: int | None = None
     info: dict[str, Any] = field(default_factory=dict)
     _safety: SafetyReport | None = field(default=None, init=False, repr=False, compare=False)
+    _peaks: PeaksReport | None = field(default=None, init=False, repr=False, compare=False)
 
     # --- status ------------------------------------------------------------------------
     def is_optimal(self) -> bool:
@@ -123,6 +125,18 @@ class Plan:
             self._safety = safety_report(self.problem, self.trajectory)
         return self._safety
 
+    # --- physical limits (SPEC §14) ----------------------------------------------------------
+    @property
+    def peaks(self) -> PeaksReport | None:
+        """The exact peaks of the plan's own trajectory against ``problem.limits``
+        (:func:`iamp.core.peaks.peaks_report`), computed once; ``None`` without a trajectory."""
+        if self._peaks is None and self.trajectory is not None:
+            self._peaks = peaks_report(self.trajectory, self.problem.tf, self.problem.limits)
+            sides = self.info.get("polygon_sides")
+            if sides is not None:
+                self._peaks.polygon_sides = int(sides)
+        return self._peaks
+
     # --- residuals of the problem's own conditions --------------------------------------
     def corner_residual(self) -> float:
         """``max |s(t_i) − corner_i(t_i)|`` over vehicles and axes."""
@@ -159,6 +173,14 @@ class Plan:
         }
         safety = self.safety if ok else None
         out["safety"] = safety.to_json() if safety is not None else None
+        peaks = self.peaks if ok else None
+        if peaks is not None:
+            out["limits"] = peaks.to_json()
+            if peaks.warnings:
+                out["limits_warnings"] = list(peaks.warnings)
+        for key in ("limits_infeasible", "limits_polygon_sides"):
+            if key in self.info:
+                out[key] = self.info[key]
         if ok and "avoidance" in self.info:
             out["avoidance"] = self.info["avoidance"]
         if not ok and self.info.get("failed_check") is not None:
