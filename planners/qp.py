@@ -60,6 +60,11 @@ class QPPlanner:
         then an off-grid search seeded by the sweep, on aligned grids.
     solver_settings : dict, optional
         Overrides of the backend's settings (e.g. ``{"eps_abs": 1e-3}`` for a loose OSQP).
+    limits_between : {"nodes", "certified"}
+        With ``problem.limits``: the speed and ``y`` bounds at the grid nodes only (SPEC §14;
+        a plan that exceeds them between nodes is ``limits_violated``, with the exact
+        violation) or certified between the nodes too (Bernstein rows,
+        :mod:`iamp.planners.qp_limits`).
     """
 
     steps: int = 100
@@ -68,6 +73,7 @@ class QPPlanner:
     contact: str = "grid"
     solver_settings: dict[str, Any] | None = None
     refine_xtol: float = 1e-9
+    limits_between: str = "nodes"
 
     path = "native"
 
@@ -85,7 +91,8 @@ class QPPlanner:
         if problem.limits is not None and not problem.limits.empty:
             from iamp.planners.qp_bounded import BoundedQP
 
-            return BoundedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
+            return BoundedQP(problem, self.steps, self.hold, self.solver, self.solver_settings,
+                             between=self.limits_between)
         return DiscretisedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
 
     @staticmethod
@@ -184,7 +191,7 @@ class QPPlanner:
         info["checks"] = checks
         if sw.certified:
             info["failed_check"] = None
-            return self._plan(problem, best, st.OPTIMAL, start, info)
+            return self._limits_checked(self._plan(problem, best, st.OPTIMAL, start, info))
         info["failed_check"] = "sweep_candidates"
         nodes, why_status, bound = min(sw.could_beat, key=lambda c: c[2])
         info["why"] = (f"{len(sw.could_beat)} candidate(s) without a verified solution could beat the best "
@@ -193,6 +200,26 @@ class QPPlanner:
         info["could_beat"] = [{"nodes": list(n), "status": s, "lower_bound": lb} for n, s, lb in sw.could_beat]
         info["best_unverified_search"] = {"contact_times": best.contact_times.tolist(), "cost": best.cost}
         return self._plan(problem, best, sw.failure_status(), start, info)
+
+    @staticmethod
+    def _limits_checked(plan: Plan) -> Plan:
+        """SPEC §14: a bounded plan reports the largest violation of the ``vx`` and ``y`` bounds
+        between the nodes (exact, :mod:`iamp.core.peaks`); beyond the bound tolerance an
+        ``optimal`` plan becomes ``limits_violated`` with the reason."""
+        lim = plan.problem.limits
+        if lim is None or lim.empty or not plan.ok or plan.peaks is None:
+            return plan
+        between = {name: plan.peaks.peaks[name].violation for name in ("vx", "y")
+                   if name in plan.peaks.peaks and plan.peaks.peaks[name].bound is not None}
+        plan.info["limits_between_nodes"] = between
+        bad = [p for p in plan.peaks.exceeded]
+        if bad and plan.status == st.OPTIMAL:
+            what = "; ".join(f"{p.name} peaks at {p.peak} beyond {p.bound} by {p.violation:.3g} (t = {p.at})"
+                             for p in bad)
+            plan.info["reason"] = (f"the plan exceeds its limits between the grid nodes: {what}; use "
+                                   "limits_between='certified' (--limits-between certified) or a larger N")
+            plan.status = st.LIMITS_VIOLATED
+        return plan
 
     def plan_at_nodes(self, problem: Problem, nodes: Sequence[int]) -> Plan:
         """Solve once with the contacts at given nodes of the uniform grid (no search)."""

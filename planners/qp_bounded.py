@@ -109,10 +109,13 @@ class BoundedQP(DiscretisedQP):
         With ``problem.limits`` set.
     steps, hold, solver, settings
         As for :class:`~iamp.planners.qp_core.DiscretisedQP`.
+    between : {"nodes", "certified"}
+        Speed and ``y`` bounds at the nodes only (SPEC §14) or certified between them too
+        (:mod:`iamp.planners.qp_limits`).
     """
 
     def __init__(self, problem: Problem, steps: int = 100, hold: str = "foh", solver: str = "clarabel",
-                 settings: Mapping[str, Any] | None = None) -> None:
+                 settings: Mapping[str, Any] | None = None, between: str = "nodes") -> None:
         if problem.limits is None:
             raise ValueError("BoundedQP needs problem.limits")
         cls = get_backend(solver)
@@ -124,7 +127,7 @@ class BoundedQP(DiscretisedQP):
         self.data = QPData(problem, steps, hold)
         self.N, self.hold, self.solver = self.data.N, hold, solver
         d = self.data
-        self.rows: LimitRows = limit_rows(d, d.t_nodes, hold, problem.limits)
+        self.rows: LimitRows = limit_rows(d, d.t_nodes, hold, problem.limits, between=between)
         self._stack()
         if solver == "osqp":  # certificates accurate enough to verify (module docstring)
             settings = {**OSQP_SETTINGS, **dict(settings or {})}

@@ -16,7 +16,7 @@ from iamp.core.scenario import Scenario
 
 #: Options that only the QP planner reads, with their defaults (SPEC §5).  They default to
 #: ``None`` in the parser so that "given by the user" can be told from "the default".
-QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
+QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid", "limits_between": "nodes"}
 
 
 def make_planner(args: argparse.Namespace) -> Any:
@@ -31,7 +31,8 @@ def make_planner(args: argparse.Namespace) -> Any:
         return AvoidQPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
     from iamp.planners.qp import QPPlanner
 
-    return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
+    return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact,
+                     limits_between=args.limits_between)
 
 
 def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
@@ -45,7 +46,8 @@ def check_options(args: argparse.Namespace) -> None:
     """Refuse options that do not apply to the chosen planner; fill in the QP defaults."""
     for name, default in QP_ONLY.items():
         if getattr(args, name, None) is not None and args.planner != "qp":
-            raise ScenarioError(f"applies to the QP planner only (add --planner qp or drop --{name})", f"--{name}")
+            flag = "--" + name.replace("_", "-")
+            raise ScenarioError(f"applies to the QP planner only (add --planner qp or drop {flag})", flag)
         if getattr(args, name, None) is None:
             setattr(args, name, default)
 
@@ -195,6 +197,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--contact", choices=("grid", "refine"), default=None, help="QP only (default grid)")
     p.add_argument("--constraint", choices=("equality", "avoid"), default=None,
                    help="QP only: the paper's corner equality (default) or the avoidance inequalities (SPEC §10)")
+    p.add_argument("--limits-between", choices=("nodes", "certified"), default=None,
+                   help="QP only, with a [limits] table: impose the speed and y bounds at the grid nodes (default; "
+                        "the exact violation between nodes is reported, and a plan beyond a bound is "
+                        "limits_violated) or certify them between the nodes too (Bernstein rows)")
     p.add_argument("--require-safe", action="store_true",
                    help="exit with status 4 when the plan enters a safety region or overlaps a vehicle (SPEC §9); "
                         "the plan is still printed")

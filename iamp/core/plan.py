@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from iamp.core.peaks import PeaksReport, peaks_report
 from iamp.core.problem import Problem
 from iamp.core.safety import SafetyReport, safety_report
-from iamp.core.status import OPTIMAL, SUCCESS
+from iamp.core.status import LIMITS_VIOLATED, OPTIMAL, SUCCESS
 from iamp.core.status import OPTIMAL as STATUS_OPTIMAL  # noqa: F401 - kept for callers
 
 FloatArray = NDArray[np.float64]
@@ -173,7 +173,7 @@ class Plan:
         }
         safety = self.safety if ok else None
         out["safety"] = safety.to_json() if safety is not None else None
-        peaks = self.peaks if ok else None
+        peaks = self.peaks if ok or self.status == LIMITS_VIOLATED else None
         if peaks is not None:
             out["limits"] = peaks.to_json()
             if peaks.warnings:
