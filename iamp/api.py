@@ -106,16 +106,18 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
         from iamp.planners.pmp.planner import PMPPlanner
 
         result: Plan = PMPPlanner().plan(problem)
-        return result
+        return result.judge_limits()  # SPEC §14: no verified plan beyond a given bound
     kwargs: dict[str, Any] = {"steps": steps, "hold": hold or "foh", "solver": solver or "clarabel",
                               "contact": contact or "grid"}
     if constraint == "avoid":
         from iamp.planners.avoid.planner import AvoidQPPlanner
 
-        return AvoidQPPlanner(**kwargs).plan(problem)
+        avoided: Plan = AvoidQPPlanner(**kwargs).plan(problem)
+        return avoided.judge_limits()
     from iamp.planners.qp.planner import QPPlanner
 
-    return QPPlanner(**kwargs).plan(problem)
+    qp: Plan = QPPlanner(**kwargs).plan(problem)
+    return qp.judge_limits()
 
 
 def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,

@@ -19,9 +19,9 @@ from iamp.core.peaks import peaks_report
 from iamp.core.physical import PhysicalLimits
 from iamp.core.trajectory_pieces import breakpoints
 from iamp.planners.examples import random_problem
-from iamp.planners.hold import HoldTrajectory
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.qp import QPPlanner
+from iamp.planners.qp.hold import HoldTrajectory
 
 DENSE = 40_001
 
@@ -99,7 +99,11 @@ def test_every_peak_equals_a_dense_evaluation(case: tuple[object, float, Physica
         if hold == "zoh":
             assert pk.peak is None and pk.ok is False
         else:
-            slopes = np.abs(np.diff(Ud, axis=0)) / np.diff(t)[:, None]
+            # intervals of a dense point and a piece end a rounding error apart carry only
+            # rounding in u: the slope is measured on intervals longer than 1e-6 dt
+            dts = np.diff(t)
+            long = dts > 1e-6 * dt
+            slopes = np.abs(np.diff(Ud, axis=0))[long] / dts[long][:, None]
             assert pk.peak == pytest.approx(float(slopes.max()), rel=1e-6, abs=1e-6)
     # ok is the comparison of peak and bound
     for p in rep.peaks.values():

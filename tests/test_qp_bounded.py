@@ -18,11 +18,11 @@ from iamp.core import status as sts
 from iamp.core.errors import IampError
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.problem import Problem
-from iamp.planners.backends.base import farkas_residuals
 from iamp.planners.examples import random_problem
 from iamp.planners.qp import QPPlanner
-from iamp.planners.qp_bounded import BoundedQP, complementarity
-from iamp.planners.qp_data import QPData
+from iamp.planners.qp.backends.base import farkas_residuals
+from iamp.planners.qp.bounded import BoundedQP, complementarity
+from iamp.planners.qp.data import QPData
 from iamp.prediction.resolve import load_problem
 
 BACKENDS = ("clarabel", "osqp", "piqp")
@@ -231,7 +231,7 @@ def test_direct_kkt_backend_is_refused_naming_the_others() -> None:
 
 def test_no_limits_is_the_unbounded_qp() -> None:
     """Without a [limits] table (or with an empty one) the QP is the unbounded one, unchanged."""
-    from iamp.planners.qp_core import DiscretisedQP
+    from iamp.planners.qp.core import DiscretisedQP
 
     _, p, _ = load_problem("paper-1-poly")
     assert type(QPPlanner().build(p)) is DiscretisedQP
@@ -368,7 +368,7 @@ def test_cli_limits_errors_name_file_and_field(cli, tmp_path) -> None:  # type: 
 
 def test_qpdata_layout_matches_the_rows() -> None:
     """The limit rows address the same z as QPData.unpack (one layout, StateIndex)."""
-    from iamp.planners.qp_limits import limit_rows
+    from iamp.planners.qp.limits import limit_rows
 
     p = random_problem(7)
     d = QPData(p, 12, "foh")

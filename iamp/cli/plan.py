@@ -90,6 +90,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     try:
         result = call_with_progress(make_planner(args).plan, problem, desc="QP sweep" if args.planner == "qp"
                                     else "planning", enabled=progress_enabled(args))
+        result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
         text = json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False) if args.json else ""
     except SolverError as exc:
         return _report_failure(scenario, args, exc.status, str(exc))

@@ -126,6 +126,29 @@ class Plan:
         return self._safety
 
     # --- physical limits (SPEC §14) ----------------------------------------------------------
+    def judge_limits(self, remedy: str | None = None) -> Plan:
+        r"""SPEC §14: no verified plan exceeds a given bound.
+
+        A plan that is ``optimal`` or ``local`` whose exact peaks (:attr:`peaks`) exceed a bound
+        of ``problem.limits`` by more than the bound tolerance becomes ``limits_violated`` with
+        the reason (the peak, the bound, the violation and where); its cost and trajectory stay,
+        so the user sees what an unconstrained planner did.  Idempotent; without limits, or for
+        a plan without a trajectory, nothing changes.  ``remedy`` is appended to the reason
+        (e.g. the option that would impose the bound).  Returns the plan itself.
+        """
+        lim = self.problem.limits
+        if lim is None or lim.empty or not self.ok or self.peaks is None:
+            return self
+        bad = self.peaks.exceeded
+        if not bad:
+            return self
+        what = "; ".join(f"{p.name} peaks at {p.peak} beyond {p.bound} by {p.violation:.3g} (t = {p.at})"
+                         for p in bad)
+        self.info["reason"] = f"the plan exceeds its limits: {what}" + (f"; {remedy}" if remedy else "")
+        self.info["status_before_limits"] = self.status
+        self.status = LIMITS_VIOLATED
+        return self
+
     @property
     def peaks(self) -> PeaksReport | None:
         """The exact peaks of the plan's own trajectory against ``problem.limits``

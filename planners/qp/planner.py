@@ -65,7 +65,7 @@ class QPPlanner:
         With ``problem.limits``: the speed and ``y`` bounds at the grid nodes only (SPEC §14;
         a plan that exceeds them between nodes is ``limits_violated``, with the exact
         violation) or certified between the nodes too (Bernstein rows,
-        :mod:`iamp.planners.qp_limits`).
+        :mod:`iamp.planners.qp.limits`).
     """
 
     steps: int = 100
@@ -88,9 +88,9 @@ class QPPlanner:
 
     def build(self, problem: Problem) -> CandidateSolver:
         """The QP of ``problem`` on the configured backend (built once, re-solved per candidate);
-        with ``problem.limits`` the bounded QP (:class:`~iamp.planners.qp_bounded.BoundedQP`)."""
+        with ``problem.limits`` the bounded QP (:class:`~iamp.planners.qp.bounded.BoundedQP`)."""
         if problem.limits is not None and not problem.limits.empty:
-            from iamp.planners.qp_bounded import BoundedQP
+            from iamp.planners.qp.bounded import BoundedQP
 
             return BoundedQP(problem, self.steps, self.hold, self.solver, self.solver_settings,
                              between=self.limits_between)
@@ -168,7 +168,7 @@ class QPPlanner:
         info.update(self._limits_info(qp))
         best = sw.best
         if best is None and sw.results and "limit_rows" in info:
-            from iamp.planners.qp_bounded import infeasibility_reason
+            from iamp.planners.qp.bounded import infeasibility_reason
 
             n_cert = sum(r.infeasible_certified for r in sw.results)
             reason = infeasibility_reason(problem, self.steps, self.hold, self.solver, len(sw.results), n_cert)
@@ -213,14 +213,9 @@ class QPPlanner:
         between = {name: plan.peaks.peaks[name].violation for name in ("vx", "y")
                    if name in plan.peaks.peaks and plan.peaks.peaks[name].bound is not None}
         plan.info["limits_between_nodes"] = between
-        bad = [p for p in plan.peaks.exceeded]
-        if bad and plan.status == st.OPTIMAL:
-            what = "; ".join(f"{p.name} peaks at {p.peak} beyond {p.bound} by {p.violation:.3g} (t = {p.at})"
-                             for p in bad)
-            plan.info["reason"] = (f"the plan exceeds its limits between the grid nodes: {what}; use "
-                                   "limits_between='certified' (--limits-between certified) or a larger N")
-            plan.status = st.LIMITS_VIOLATED
-        return plan
+        return plan.judge_limits("the QP imposes every bound at the grid nodes, so the excess lies between "
+                                 "the grid nodes: use limits_between='certified' (--limits-between certified) "
+                                 "or a larger N")
 
     def plan_at_nodes(self, problem: Problem, nodes: Sequence[int]) -> Plan:
         """Solve once with the contacts at given nodes of the uniform grid (no search)."""

@@ -20,7 +20,7 @@ the best verified cost by more than the cost tolerance ``foh_clarabel_cost_rel``
 to ``max(1, J_best)``); if the bound cannot be computed (singular jump system) it is
 counted as able to.  Then the sweep's best is not certified: the plan is not OPTIMAL.  A
 candidate of the bounded QP whose infeasibility is certified (a verified Farkas certificate,
-:mod:`iamp.planners.qp_bounded`) has no plan at all and cannot beat the best.
+:mod:`iamp.planners.qp.bounded`) has no plan at all and cannot beat the best.
 """
 
 from __future__ import annotations

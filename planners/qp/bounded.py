@@ -1,15 +1,15 @@
 r"""The equality QP of SPEC §3 with the scenario's physical limits (SPEC §14) at every node.
 
-The rows of :class:`~iamp.planners.qp_data.QPData` (dynamics, boundary, corner selectors;
+The rows of :class:`~iamp.planners.qp.data.QPData` (dynamics, boundary, corner selectors;
 all equalities, ``l = u = b``) are stacked over the limit rows of
-:func:`iamp.planners.qp_limits.limit_rows` (``lo <= A_L z <= hi``)::
+:func:`iamp.planners.qp.limits.limit_rows` (``lo <= A_L z <= hi``)::
 
     [ A   ]  z  in  [ b  , b  ]
     [ A_L ]         [ lo , hi ]
 
 and solved on a backend that takes inequalities (``osqp``, ``clarabel``, ``piqp``; the direct
 ``kkt`` backend solves equalities only and is refused with
-:class:`~iamp.planners.backends.base.UnsupportedProblemError` naming them).  A candidate is
+:class:`~iamp.planners.qp.backends.base.UnsupportedProblemError` naming them).  A candidate is
 still a value update: the selector entries of ``A`` (mapped to their positions in the
 stacked matrix) and the corner values of ``b``; a new grid updates ``P``, ``A`` and the jerk
 rows' bounds.
@@ -17,7 +17,7 @@ rows' bounds.
 Verification of every solve (recomputed here, never the solver's word), with the backend's
 relative tolerance (``cmp_kkt_rel_*``):
 
-* the KKT residuals of the general form (:func:`~iamp.planners.backends.base.kkt_residuals`:
+* the KKT residuals of the general form (:func:`~iamp.planners.qp.backends.base.kkt_residuals`:
   primal feasibility of every row, stationarity, duality gap);
 * **dual sign and complementarity** of the limit rows, :math:`y_i > 0` only at the upper
   bound, :math:`y_i < 0` only at the lower one:
@@ -25,10 +25,10 @@ relative tolerance (``cmp_kkt_rel_*``):
   :math:`\max(1, \|y\|_\infty)\,\max(1, \|A_L z\|_\infty)` (``kkt_complementarity_rel``).
 
 A candidate the solver calls infeasible counts as infeasible only with a verified Farkas
-certificate (:func:`~iamp.planners.backends.base.farkas_residuals`: ``A^T δy = 0`` to
+certificate (:func:`~iamp.planners.qp.backends.base.farkas_residuals`: ``A^T δy = 0`` to
 :data:`FARKAS_STATIONARITY` and a support below ``-``:data:`FARKAS_SUPPORT`); such a candidate
 cannot beat the sweep's best, so it does not spoil the certificate of the sweep
-(:mod:`iamp.planners.sweep`).  When no candidate is feasible, the planner says why
+(:mod:`iamp.planners.qp.sweep`).  When no candidate is feasible, the planner says why
 (:func:`infeasibility_reason`); the status is ``infeasible`` when the solver says so for
 every candidate, and the reason says how many were certified (PIQP gives no certificate).
 """
@@ -46,8 +46,8 @@ from iamp.core import status as st
 from iamp.core.physical import PhysicalLimits
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
-from iamp.planners.backends import BACKENDS, QPBackend, get_backend
-from iamp.planners.backends.base import (
+from iamp.planners.qp.backends import BACKENDS, QPBackend, get_backend
+from iamp.planners.qp.backends.base import (
     FloatArray,
     IntArray,
     KKTResiduals,
@@ -56,10 +56,10 @@ from iamp.planners.backends.base import (
     farkas_residuals,
     kkt_residuals,
 )
-from iamp.planners.hold import HoldTrajectory
-from iamp.planners.qp_core import CandidateResult, DiscretisedQP, verify
-from iamp.planners.qp_data import QPData
-from iamp.planners.qp_limits import LimitRows, limit_rows
+from iamp.planners.qp.core import CandidateResult, DiscretisedQP, verify
+from iamp.planners.qp.data import QPData
+from iamp.planners.qp.hold import HoldTrajectory
+from iamp.planners.qp.limits import LimitRows, limit_rows
 
 #: Added to OSQP's settings for the bounded QP: its infeasibility test at the default
 #: ``eps_prim_inf = 1e-4`` returns certificates with ``‖Aᵀδy‖ / ‖A‖`` of 1e-5..1e-4 (not
@@ -101,17 +101,17 @@ def boundary_reason(problem: Problem, limits: PhysicalLimits) -> str | None:
 
 
 class BoundedQP(DiscretisedQP):
-    """:class:`~iamp.planners.qp_core.DiscretisedQP` with the limit rows (module docstring).
+    """:class:`~iamp.planners.qp.core.DiscretisedQP` with the limit rows (module docstring).
 
     Parameters
     ----------
     problem : Problem
         With ``problem.limits`` set.
     steps, hold, solver, settings
-        As for :class:`~iamp.planners.qp_core.DiscretisedQP`.
+        As for :class:`~iamp.planners.qp.core.DiscretisedQP`.
     between : {"nodes", "certified"}
         Speed and ``y`` bounds at the nodes only (SPEC §14) or certified between them too
-        (:mod:`iamp.planners.qp_limits`).
+        (:mod:`iamp.planners.qp.limits`).
     """
 
     def __init__(self, problem: Problem, steps: int = 100, hold: str = "foh", solver: str = "clarabel",

@@ -1,7 +1,7 @@
 r"""The inequality rows that impose a scenario's physical limits (SPEC §14) on a discretised QP.
 
 Shared by the equality QP (SPEC §3) and the avoidance QP (SPEC §10): both use the variable
-layout of :class:`iamp.planners.qp_data.StateIndex`, ``z = (s_x, v_x, u_x, s_y, v_y, u_y)``
+layout of :class:`iamp.planners.qp.data.StateIndex`, ``z = (s_x, v_x, u_x, s_y, v_y, u_y)``
 with ``N + 1`` nodal positions and speeds and ``nu`` nodal inputs per axis (ZOH ``nu = N``,
 FOH ``nu = N + 1``).  :func:`limit_rows` returns the rows ``lo <= A z <= hi``:
 
@@ -63,7 +63,7 @@ from numpy.typing import NDArray
 
 from iamp.core.errors import ScenarioError
 from iamp.core.physical import PhysicalLimits
-from iamp.planners.qp_data import StateIndex
+from iamp.planners.qp.data import StateIndex
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -174,8 +174,8 @@ def limit_rows(index: StateIndex, t_nodes: FloatArray, hold: str, limits: Physic
     Parameters
     ----------
     index : StateIndex
-        The QP's variable layout (``N``, ``block``; :class:`~iamp.planners.qp_data.QPData`
-        or :class:`~iamp.planners.avoid_data.AvoidData`).
+        The QP's variable layout (``N``, ``block``; :class:`~iamp.planners.qp.data.QPData`
+        or :class:`~iamp.planners.avoid.data.AvoidData`).
     t_nodes : ndarray, shape (N+1,)
         The grid (used for the jerk rows' bounds :math:`\pm J h_k` only).
     hold : {"foh", "zoh"}
