@@ -34,7 +34,7 @@ from iamp.core.problem import Problem
 from iamp.core.status import SUCCESS
 
 __all__ = ["BOUNDED_PLANNERS", "BoundedRow", "bounded_rows", "bounded_section", "latex_table", "markdown_table",
-           "section_lines"]
+           "pmp_qp_gap", "section_lines"]
 
 #: The planners of the bounded comparison, in table order, with the module each needs.
 BOUNDED_PLANNERS: dict[str, str] = {
@@ -158,15 +158,21 @@ def bounded_section(name: str, problem: Problem, limits: PhysicalLimits | None =
                     hold: str = "foh", solver: str = "clarabel") -> dict[str, Any]:
     """The JSON of one scenario's bounded comparison: the rows, the limits and the PMP = QP gap."""
     rows = bounded_rows(name, problem, limits, steps, hold, solver)
-    by = {r.planner: r for r in rows}
-    gap = None
-    pmp, eq = by.get("pmp"), by.get("equality")
-    if pmp is not None and eq is not None and pmp.cost is not None and eq.cost is not None and pmp.imposed:
-        gap = abs(pmp.cost - eq.cost) / max(abs(eq.cost), 1e-300)
     lim = limits if limits is not None else problem.limits
     return {"limits": None if lim is None else lim.given(),
             "steps": steps, "hold": hold, "solver": solver, "rows": [r.to_json() for r in rows],
-            "pmp_vs_qp_rel_gap": gap}
+            "pmp_vs_qp_rel_gap": pmp_qp_gap(rows)}
+
+
+def pmp_qp_gap(rows: list[BoundedRow]) -> float | None:
+    r"""PMP = bounded QP: :math:`|J_\text{PMP} - J_\text{QP}| / J_\text{QP}` of one scenario's
+    rows when both are verified under the bounds and the PMP imposed them (the bounded PMP);
+    ``None`` otherwise."""
+    by = {r.planner: r for r in rows}
+    pmp, eq = by.get("pmp"), by.get("equality")
+    if pmp is None or eq is None or pmp.cost is None or eq.cost is None or not pmp.imposed:
+        return None
+    return abs(pmp.cost - eq.cost) / max(abs(eq.cost), 1e-300)
 
 
 def _fmt(x: float | None, spec: str) -> str:
@@ -194,7 +200,7 @@ def markdown_table(rows: list[BoundedRow]) -> str:
     lines = ["| scenario | planner | status | J | bounds cost | imposed | peaks / reason |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:
-        rel = None if r.bound_cost_rel is None else f"{100 * r.bound_cost_rel:+.2f} %"
+        rel = None if r.bound_cost_rel is None else f"{100 * r.bound_cost_rel + 0.0:+.2f} %".replace("-0.00", "+0.00")
         what = r.peaks if r.peaks else ""
         if r.reason and r.status != "limits_violated":  # limits_violated: the peaks say it (EXCEEDS)
             what = (what + " — " if what else "") + r.reason.replace("|", "/")

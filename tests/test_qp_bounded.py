@@ -377,3 +377,18 @@ def test_qpdata_layout_matches_the_rows() -> None:
     X, U = d.unpack(z)
     sel = rows.kind == "vx_between"
     np.testing.assert_allclose(rows.A[sel] @ z, X[:-1, 1] + d.h / 2 * U[:-1, 0], rtol=1e-13)
+
+
+def test_a_certificate_without_the_corners_makes_every_candidate_infeasible() -> None:
+    """paper-2-poly under the passenger car's box: the x boundary (20 -> 20 m/s, 73 m in 5 s)
+    needs a speed dip whose deficit at a_x in [-6, 3] is at most 9 t1^2 = 25 m (3 t1 = 5 s) < 27 m,
+    so no plan exists even without the corner.  At N = 100 one candidate's solve ended in a
+    numerical error (Clarabel); the certificate of the corner-free problem still makes the plan
+    ``infeasible`` (it was ``inaccurate`` before), and an independent solver agrees."""
+    _, p, _ = load_problem("paper-2-poly")
+    box = p.with_limits(PhysicalLimits(ax=(-6.0, 3.0), ay=(-2.0, 2.0)))
+    plan = QPPlanner(steps=100).plan(box)
+    assert plan.status == sts.INFEASIBLE, plan.info.get("reason")
+    assert "even without the corner constraints" in plan.info["reason"]
+    assert cvxpy_bounded(box, 100, "foh", (), "SCS")[0].startswith("infeasible")
+    assert cvxpy_bounded(box, 100, "foh", (), "CLARABEL")[0].startswith("infeasible")

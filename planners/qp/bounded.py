@@ -30,7 +30,9 @@ certificate (:func:`~iamp.planners.qp.backends.base.farkas_residuals`: ``A^T δy
 cannot beat the sweep's best, so it does not spoil the certificate of the sweep
 (:mod:`iamp.planners.qp.sweep`).  When no candidate is feasible, the planner says why
 (:func:`infeasibility_reason`); the status is ``infeasible`` when the solver says so for
-every candidate, and the reason says how many were certified (PIQP gives no certificate).
+every candidate, or when the problem without the corners is certified infeasible (then every
+candidate is, whatever its own solve said), and the reason says how many were certified (PIQP
+gives no certificate).
 """
 
 from __future__ import annotations
@@ -269,24 +271,30 @@ def free_problem_feasible(problem: Problem, steps: int, hold: str, solver: str) 
 
 
 def infeasibility_reason(problem: Problem, steps: int, hold: str, solver: str, n_candidates: int,
-                         n_certified: int) -> str:
+                         n_certified: int) -> tuple[str, bool]:
     """Why the bounded sweep found no plan: a boundary value outside a bound, the bounds
-    unreachable even without the corners, or the corners unreachable within the bounds."""
+    unreachable even without the corners, or the corners unreachable within the bounds.
+
+    Returns the reason and whether it certifies every candidate at once: a boundary value
+    outside a bound, or a Farkas certificate of the problem without the corners (adding the
+    corner rows keeps it infeasible), makes the whole sweep infeasible whatever any single
+    candidate's solver said.
+    """
     limits = problem.limits
     assert limits is not None
     why = boundary_reason(problem, limits)
     if why is not None:
-        return why
+        return why, True
     free = free_problem_feasible(problem, steps, hold, solver)
     given = ", ".join(limits.given())
     if free is False:
         return (f"the boundary conditions cannot be joined within the limits ({given}) even without the corner "
-                f"constraints (Farkas certificate, N = {steps}, {hold.upper()})")
+                f"constraints (Farkas certificate, N = {steps}, {hold.upper()})"), True
     cert = f"{n_certified} of {n_candidates} candidate contact nodes certified infeasible (Farkas)"
     if free is True:
         return (f"no contact node admits a plan through the corner(s) within the limits ({given}); the boundary "
-                f"conditions alone are reachable; {cert}")
-    return f"no contact node admits a plan within the limits ({given}); {cert}"
+                f"conditions alone are reachable; {cert}"), False
+    return f"no contact node admits a plan within the limits ({given}); {cert}", False
 
 
 __all__ = ["FARKAS_STATIONARITY", "FARKAS_SUPPORT", "BoundedQP", "IntArray", "boundary_reason", "complementarity",

@@ -208,8 +208,9 @@ class QPPlanner:
             from iamp.planners.qp.bounded import infeasibility_reason
 
             n_cert = sum(r.infeasible_certified for r in sw.results)
-            reason = infeasibility_reason(problem, self.steps, self.hold, self.solver, len(sw.results), n_cert)
-            if all(r.solver_status == st.INFEASIBLE for r in sw.results):
+            reason, whole = infeasibility_reason(problem, self.steps, self.hold, self.solver, len(sw.results),
+                                                 n_cert)
+            if whole or all(r.solver_status == st.INFEASIBLE for r in sw.results):
                 info.update(n_solves=qp.n_solves, failed_check="limits", reason=reason, limits_infeasible=reason)
                 return self._plan(problem, None, st.INFEASIBLE, start, info)
             info["reason"] = f"no candidate solved within the limits: {sw.candidates()['failed']}; {reason}"
