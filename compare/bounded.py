@@ -103,7 +103,7 @@ def _planner(planner: str, steps: int, hold: str, solver: str) -> Any:
 def _imposes(planner: str, plan: Plan) -> bool:
     """Whether the planner imposed the bounds (rather than being judged after the fact)."""
     if planner == "pmp":
-        return _available_module("iamp.planners.pmp.bounded")
+        return _available_module("iamp.planners.pmp.bounded")  # restructure: keep
     return "limit_rows" in plan.info or "limits_infeasible" in plan.info  # active set: its base's info
 
 

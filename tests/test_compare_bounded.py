@@ -72,7 +72,7 @@ def test_missing_planner_is_not_available(monkeypatch: pytest.MonkeyPatch) -> No
     assert "not available" in bd.markdown_table(rows)
 
 
-@pytest.mark.skipif(importlib.util.find_spec("iamp.planners.pmp.bounded") is None,
+@pytest.mark.skipif(importlib.util.find_spec("iamp.planners.pmp.bounded") is None,  # restructure: keep
                     reason="the bounded PMP (branch bpmp) is not on this branch")
 def test_bounded_pmp_equals_bounded_qp_as_n_grows() -> None:
     """Where the bounded PMP exists: PMP = bounded QP (FOH) up to a gap that falls with N."""
