@@ -156,5 +156,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
 
     t = sub.add_parser("template", help="print a commented scenario file that plans as it is",
                        description="Print a scenario file (SPEC §4) with every key explained; "
-                                   "`iamp template > my.toml` and edit. It plans unchanged.")
+                                   "`iamp template > my.toml` and edit. It plans unchanged: the QP imposes its "
+                                   "passenger car's [limits]; a planner that cannot impose a bound reports "
+                                   "limits_violated with the peaks.")
     t.set_defaults(func=cmd_template)
