@@ -19,9 +19,10 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from iamp.core.peaks import PeaksReport, peaks_report
 from iamp.core.problem import Problem
 from iamp.core.safety import SafetyReport, safety_report
-from iamp.core.status import OPTIMAL, SUCCESS, UNSAFE
+from iamp.core.status import LIMITS_VIOLATED, OPTIMAL, SUCCESS, UNSAFE
 from iamp.core.status import OPTIMAL as STATUS_OPTIMAL  # noqa: F401 - kept for callers
 
 FloatArray = NDArray[np.float64]
@@ -87,6 +88,7 @@ class Plan:
     steps: int | None = None
     info: dict[str, Any] = field(default_factory=dict)
     _safety: SafetyReport | None = field(default=None, init=False, repr=False, compare=False)
+    _peaks: PeaksReport | None = field(default=None, init=False, repr=False, compare=False)
 
     # --- status ------------------------------------------------------------------------
     def is_optimal(self) -> bool:
@@ -130,6 +132,41 @@ class Plan:
             self._safety = safety_report(self.problem, self.trajectory)
         return self._safety
 
+    # --- physical limits (SPEC §14) ----------------------------------------------------------
+    def judge_limits(self, remedy: str | None = None) -> Plan:
+        r"""SPEC §14: no verified plan exceeds a given bound.
+
+        A plan that is ``optimal`` or ``local`` whose exact peaks (:attr:`peaks`) exceed a bound
+        of ``problem.limits`` by more than the bound tolerance becomes ``limits_violated`` with
+        the reason (the peak, the bound, the violation and where); its cost and trajectory stay,
+        so the user sees what an unconstrained planner did.  Idempotent; without limits, or for
+        a plan without a trajectory, nothing changes.  ``remedy`` is appended to the reason
+        (e.g. the option that would impose the bound).  Returns the plan itself.
+        """
+        lim = self.problem.limits
+        if lim is None or lim.empty or not self.ok or self.peaks is None:
+            return self
+        bad = self.peaks.exceeded
+        if not bad:
+            return self
+        what = "; ".join(f"{p.name} peaks at {p.peak} beyond {p.bound} by {p.violation:.3g} (t = {p.at})"
+                         for p in bad)
+        self.info["reason"] = f"the plan exceeds its limits: {what}" + (f"; {remedy}" if remedy else "")
+        self.info["status_before_limits"] = self.status
+        self.status = LIMITS_VIOLATED
+        return self
+
+    @property
+    def peaks(self) -> PeaksReport | None:
+        """The exact peaks of the plan's own trajectory against ``problem.limits``
+        (:func:`iamp.core.peaks.peaks_report`), computed once; ``None`` without a trajectory."""
+        if self._peaks is None and self.trajectory is not None:
+            self._peaks = peaks_report(self.trajectory, self.problem.tf, self.problem.limits)
+            sides = self.info.get("polygon_sides")
+            if sides is not None:
+                self._peaks.polygon_sides = int(sides)
+        return self._peaks
+
     # --- residuals of the problem's own conditions --------------------------------------
     def corner_residual(self) -> float:
         """``max |s(t_i) − corner_i(t_i)|`` over vehicles and axes."""
@@ -168,6 +205,14 @@ class Plan:
         }
         safety = self.safety if ok else None
         out["safety"] = safety.to_json() if safety is not None else None
+        peaks = self.peaks if ok or self.status == LIMITS_VIOLATED else None
+        if peaks is not None:
+            out["limits"] = peaks.to_json()
+            if peaks.warnings:
+                out["limits_warnings"] = list(peaks.warnings)
+        for key in ("limits_infeasible", "limits_polygon_sides"):
+            if key in self.info:
+                out[key] = self.info[key]
         if ok and "avoidance" in self.info:
             out["avoidance"] = self.info["avoidance"]
         if "active_set" in self.info:
