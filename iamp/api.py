@@ -120,7 +120,7 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
             raise OptionError(refusal(name, spec), name)
     values = {**registry.options_of(spec, {"steps": steps, **given}), **options}
     result: Plan = spec.make(**values).plan(problem)
-    return result
+    return result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
 
 
 def refusal(option: str, spec: registry.PlannerSpec) -> str:

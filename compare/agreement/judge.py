@@ -100,6 +100,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from iamp.comparison.trajectories import pmp_solution
 from iamp.core.problem import Problem
 
 from .fingerprints import problem_fingerprint, x_poly_fingerprint
@@ -164,7 +165,7 @@ class ProblemComparison:
             out["pmp"] = {
                 "signs": [sign_entry(v, j[0]) for v, j in zip(self.problem.vehicles, pmp.result.jumps)],
                 "hamiltonian_jump_residuals": [float(r) for r in
-                                               pmp.result.trajectory.hamiltonian_jump_residual()],
+                                               pmp_solution(pmp.result).hamiltonian_jump_residual()],
             }
         if self.timing:
             out["timing"] = self.timing
