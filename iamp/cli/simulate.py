@@ -29,8 +29,36 @@ def _csv_choice(choices: tuple[str, ...]):  # type: ignore[no-untyped-def]
     return parse
 
 
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def check_destinations(args: argparse.Namespace) -> None:
+    """Check ``--log`` and ``--figure`` before the episode (issue 22 item 2).
+
+    Each must be a writable file path that does not exist (or ``--force``), the figure must
+    end in a known format, and the two must differ (``--log x --figure x`` would lose the log).
+    """
+    from iamp.core.errors import ScenarioError
+    from iamp.core.outputs import _same, check_output
+
+    force = bool(getattr(args, "force", False))
+    if args.log and args.figure and _same(Path(args.log), Path(args.figure)):
+        raise ScenarioError("is also the --log file; writing the figure would replace the log - choose another "
+                            "path", "--figure", str(args.figure))
+    if args.figure:
+        suffix = Path(args.figure).suffix.lstrip(".").lower()
+        if suffix not in FIGURE_FORMATS:
+            raise ScenarioError(f"must end in {', '.join('.' + f for f in FIGURE_FORMATS)} "
+                                f"(got {Path(args.figure).name!r})", "--figure", str(args.figure))
+        check_output(args.figure, (), force, option="--figure")
+    if args.log:
+        check_output(args.log, (), force, option="--log")
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from iamp.simulation.episode import EpisodeSpec, run_episode, write_log
+
+    check_destinations(args)  # before SUMO starts: a refusal costs a second, not an episode
 
     spec = EpisodeSpec(traffic=args.traffic, seed=args.seed, planner=args.planner, duration_s=args.duration,
                        period_s=args.period, deadline_s=None if args.no_deadline else args.period)
@@ -126,8 +154,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--no-deadline", action="store_true",
                    help="use plans however long they take (default: a plan slower than the period is late "
                         "and falls back)")
-    p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV")
-    p.add_argument("--figure", default=None, help="write a figure of the episode (PNG/PDF by extension)")
+    p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV "
+                   "(an existing file only with --force)")
+    p.add_argument("--figure", default=None, help="write a figure of the episode (.png, .pdf or .svg; an "
+                   "existing file only with --force)")
+    p.add_argument("--force", action="store_true", help="replace an existing --log / --figure file")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §11)")
     p.set_defaults(func=cmd_simulate)
 
