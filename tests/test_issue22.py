@@ -6,10 +6,6 @@ was measured); the item number is in each test's name.
 
 from __future__ import annotations
 
-import errno
-import sys
-from pathlib import Path
-
 import pytest
 
 from iamp.cli.main import main
