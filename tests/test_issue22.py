@@ -6,6 +6,9 @@ was measured); the item number is in each test's name.
 
 from __future__ import annotations
 
+import errno
+from pathlib import Path
+
 import pytest
 
 from iamp.cli.main import main
@@ -58,3 +61,97 @@ def test_item2_simulate_refuses_an_unwritable_or_unknown_destination_before_the_
     (tmp_path / "a-file").write_text("")
     code, _, err = run_main(["simulate", "--log", str(tmp_path / "a-file" / "f.csv")], capsys)
     assert code == 2 and err.count("\n") == 1 and "--log" in err and "a-file" in err
+
+
+# --- item 4: environment errors are the user's situation: one line naming the path, exit 2 ----
+
+
+def _full_disk(monkeypatch: pytest.MonkeyPatch, after: int = 0) -> None:
+    """``os.fsync`` (every atomic write calls it) fails with ENOSPC after ``after`` successes."""
+    import os
+
+    calls = {"n": 0}
+    real = os.fsync
+
+    def fsync(fd: int) -> None:
+        calls["n"] += 1
+        if calls["n"] > after:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+
+
+def _assert_env_line(code: int, err: str, path: object) -> None:
+    assert code == 2, err
+    assert err.count("\n") == 1 and "No space left on device" in err and str(path) in err
+    assert "internal error" not in err and "Traceback" not in err
+
+
+def test_item4_plan_csv_on_a_full_disk(tmp_path, capsys, monkeypatch):
+    _full_disk(monkeypatch)
+    target = tmp_path / "traj.csv"
+    code, _, err = run_main(["plan", "paper-1-poly", "--csv", str(target)], capsys)
+    _assert_env_line(code, err, target)
+    assert list(tmp_path.iterdir()) == []  # no half file, no .tmp
+
+
+def test_item4_plot_on_a_full_disk(tmp_path, capsys, monkeypatch):
+    _full_disk(monkeypatch)
+    target = tmp_path / "plan.png"
+    code, _, err = run_main(["plot", "paper-1-poly", "--out", str(target)], capsys)
+    _assert_env_line(code, err, target)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_item4_reproduce_on_a_full_disk_midway(tmp_path, capsys, monkeypatch):
+    import iamp.comparison.report as report
+    from iamp.core.atomic import write_text
+
+    def fake_reproduce(out_dir, progress=None, *, status=None, quick=False, config=None):  # type: ignore[no-untyped-def]
+        write_text(Path(out_dir) / "tables" / "results.tex", "x")
+        return {}
+
+    monkeypatch.setattr(report, "reproduce", fake_reproduce)
+    _full_disk(monkeypatch, after=1)  # the folder's marker is written, the first table is not
+    out = tmp_path / "rep"
+    code, _, err = run_main(["reproduce", "--out", str(out), "--no-pdf", "--quiet"], capsys)
+    _assert_env_line(code, err, out / "tables" / "results.tex")
+    assert not [p for p in out.rglob("*") if p.name.endswith(".tmp")]
+
+
+def test_item4_campaign_on_a_full_disk(tmp_path, capsys, monkeypatch):
+    _full_disk(monkeypatch)
+    out = tmp_path / "camp"
+    code, _, err = run_main(["campaign", "--out", str(out), "--seeds", "1", "--quiet"], capsys)
+    _assert_env_line(code, err, out)
+
+
+def test_item4_simulate_log_on_a_read_only_folder_is_refused_before_the_episode(tmp_path, capsys, monkeypatch):
+    import os
+    import tempfile
+
+    _no_episode(monkeypatch)
+
+    def read_only(*a: object, **k: object) -> tuple[int, str]:
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    code, _, err = run_main(["simulate", "--log", str(tmp_path / "log.csv")], capsys)
+    assert code == 2 and err.count("\n") == 1 and "Read-only file system" in err and "--log" in err
+
+
+def test_item4_unreachable_scheduler_is_one_line_before_any_work(tmp_path, capsys):
+    import socket
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    out = tmp_path / "camp"
+    code, _, err = run_main(["campaign", "--out", str(out), "--seeds", "1", "--scheduler", address, "--quiet"],
+                            capsys)
+    assert code == 2 and err.count("\n") == 1 and address in err and "scheduler" in err
+    assert not out.exists()  # checked before the folder is made
+    code, _, err = run_main(["campaign", "--out", str(out), "--scheduler", "tcp://:x", "--quiet"], capsys)
+    assert code == 2 and "--scheduler" in err

@@ -99,8 +99,48 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+#: Seconds allowed for the TCP connection to ``--scheduler`` before a campaign starts.
+SCHEDULER_TIMEOUT_S = 3.0
+DASK_DEFAULT_PORT = 8786
+
+
+def check_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> None:
+    """Connect to the Dask scheduler at ``address`` once, with a short timeout, before any work.
+
+    ``tcp://HOST[:PORT]`` / ``tls://...`` / ``HOST:PORT`` (Dask's default port 8786 when none is
+    given); other transports are left to Dask.  An address that does not parse is bad input
+    (:class:`~iamp.core.errors.ScenarioError`); one that does not answer is the user's
+    environment (:class:`~iamp.core.errors.EnvironmentProblem`); both name the address.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    from iamp.core.errors import EnvironmentProblem, ScenarioError
+
+    parsed = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parsed.scheme not in ("tcp", "tls"):
+        return
+    try:
+        host, port = parsed.hostname, parsed.port or DASK_DEFAULT_PORT
+    except ValueError:
+        host, port = None, 0
+    if not host:
+        raise ScenarioError("must be an address like tcp://HOST:PORT", "--scheduler", address)
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        reason = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        if isinstance(exc, TimeoutError):
+            reason = f"no answer within {timeout:g} s"
+        raise EnvironmentProblem(f"cannot reach the Dask scheduler at {address}", reason,
+                                 getattr(exc, "errno", None)) from None
+
+
 def cmd_campaign(args: argparse.Namespace) -> int:
     from iamp.core.outputs import guarded_folder  # checked (writable, ours or --force), locked, marked
+
+    if args.scheduler:
+        check_scheduler(args.scheduler)  # seconds, before the folder is touched (Dask itself waits 30 s)
 
     with guarded_folder(args.out, "campaign", getattr(args, "force", False)):
         return _campaign_into(args)

@@ -4,10 +4,15 @@ Every file iamp writes goes to a temporary file in the destination's folder, is 
 fsync'ed, given the permissions a plain ``open()`` would give (or those of the file it
 replaces), and then renamed over the destination with :func:`os.replace`.  If anything
 fails, the temporary file is removed and the destination is untouched.
+
+A write the machine refuses (a full disk, a read-only file system, no permission, a quota)
+raises :class:`~iamp.core.errors.EnvironmentProblem` naming the *destination* (not the
+temporary file): ``cannot write reports/results.json: No space left on device``.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from collections.abc import Iterator
@@ -16,6 +21,20 @@ from pathlib import Path
 from typing import IO, Any
 
 PathLike = str | os.PathLike[str]
+
+#: ``errno`` values that mean "the machine refuses this write" (not a bug in iamp).
+WRITE_REFUSED = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG,
+                           errno.EIO, errno.ENAMETOOLONG, errno.ENOTDIR, errno.EISDIR, errno.EMFILE})
+
+
+def write_refused(path: PathLike, exc: OSError) -> Exception | None:
+    """The :class:`EnvironmentProblem` for ``exc`` while writing ``path``, or ``None`` when its
+    ``errno`` is not one of :data:`WRITE_REFUSED` (then ``exc`` propagates as it is)."""
+    from iamp.core.errors import EnvironmentProblem
+
+    if exc.errno not in WRITE_REFUSED:
+        return None
+    return EnvironmentProblem(f"cannot write {path}", exc.strerror or str(exc), exc.errno)
 
 
 def _final_mode(path: Path) -> int:
@@ -38,15 +57,26 @@ def atomic_path(path: PathLike) -> Iterator[str]:
     interrupted run leaves the previous file and no ``.tmp`` behind.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
-    os.close(fd)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
+        os.close(fd)
+    except OSError as exc:
+        problem = write_refused(path, exc)
+        if problem is None:
+            raise
+        raise problem from exc
     try:
         yield tmp
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.chmod(tmp, _final_mode(path))
         os.replace(tmp, path)
+    except OSError as exc:
+        problem = write_refused(path, exc)
+        if problem is None:
+            raise
+        raise problem from exc
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
