@@ -17,7 +17,10 @@ from iamp.cli.main import main
 def run_main(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
     """``iamp argv`` in-process: ``(exit status, stdout, stderr)``."""
     capsys.readouterr()
-    code = main(argv)
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's refusals
+        code = int(exc.code or 0)
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -155,3 +158,38 @@ def test_item4_unreachable_scheduler_is_one_line_before_any_work(tmp_path, capsy
     assert not out.exists()  # checked before the folder is made
     code, _, err = run_main(["campaign", "--out", str(out), "--scheduler", "tcp://:x", "--quiet"], capsys)
     assert code == 2 and "--scheduler" in err
+
+
+# --- item 5: every numeric option is bounded and validated before any work -------------------
+
+
+@pytest.mark.parametrize("argv", [
+    ["simulate", "--seed", "-1"],
+    ["simulate", "--seed", "4294967296"],
+    ["simulate", "--duration", "1e9"],
+    ["simulate", "--period", "0"],
+    ["campaign", "--seeds", "1000000000", "--out", "{tmp}/c"],
+    ["campaign", "--workers", "100000", "--out", "{tmp}/c"],
+    ["compare", "paper-1-poly", "--repeats", "1000000000"],
+    ["plot", "paper-1-poly", "--snapshots", "100000", "--out", "{tmp}/p.png"],
+    ["train", "x.csv", "--out", "{tmp}/m.json", "--order", "1000"],
+    ["train", "x.csv", "--out", "{tmp}/m.json", "--dt", "1e-9"],
+    ["evaluate-predictor", "--data", "x.csv", "--format", "sumo", "--seed", "-5"],
+])
+def test_item5_numeric_options_are_bounded(tmp_path, capsys, monkeypatch, argv):
+    _no_episode(monkeypatch)
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    code, out, err = run_main(argv, capsys)
+    option = next(a for a in argv if a.startswith("--") and a not in ("--out", "--data", "--format"))
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert option in err and "must be" in err
+    assert not (tmp_path / "c").exists()
+
+
+def test_item5_bounds_accept_their_ends():
+    from iamp.cli.types import OPTION_BOUNDS, float_in, int_in
+
+    seed = int_in("seed")
+    assert seed("0") == 0 and seed(str(2**31 - 1)) == 2**31 - 1
+    lo, hi = OPTION_BOUNDS["period_s"]
+    assert float_in("period_s")(repr(lo)) == lo and float_in("period_s")(repr(hi)) == hi

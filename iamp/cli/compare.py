@@ -25,8 +25,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from iamp.cli.types import model_file
-from iamp.cli.types import positive_float as _positive_float
+from iamp.cli.types import float_in, int_in, model_file
 from iamp.cli.types import positive_int as _positive_int
 from iamp.comparison.durations import format_seconds as _fmt_time
 from iamp.core.errors import ScenarioError
@@ -55,9 +54,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    help="also run the avoidance QP (SPEC §10) per solver, hold and N, with every run's intrusion "
                         "and overlap (SPEC §9) and the cost of safety J_avoid - J_eq; an infeasible avoidance run "
                         "(start or end inside a safety region) is reported with its reason, not counted as a failure")
-    c.add_argument("--repeats", type=_positive_int, default=3, metavar="K",
+    c.add_argument("--repeats", type=int_in("repeats"), default=3, metavar="K",
                    help="timed full plans per QP configuration (the PMP gets max(20, 10K)); default 3")
-    c.add_argument("--budget", type=_positive_float, default=5.0, metavar="S",
+    c.add_argument("--budget", type=float_in("budget_s"), default=5.0, metavar="S",
                    help="stop repeating a configuration once its timed plans exceed S seconds (default 5)")
     c.add_argument("--no-breakdown", action="store_true",
                    help="skip the per-solve timing breakdown (cvxpy compile / re-solve / solver / native)")

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from iamp.cli.types import EXIT_OK, EXIT_SOLVER, positive_int
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, int_in
 from iamp.core.errors import ScenarioError
 from iamp.core.plan import TRAJECTORY_KEYS, Plan
 
@@ -226,7 +226,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
         p.add_argument("--constraint", choices=("equality", "avoid"), default="equality",
                        help="QP only: the paper's equality at a contact time, or the avoidance QP (SPEC §10)")
     p.set_defaults(_constraint_from_plan="constraint" in copied)
-    p.add_argument("--snapshots", type=positive_int, default=6, metavar="K",
+    p.add_argument("--snapshots", type=int_in("snapshots"), default=6, metavar="K",
                    help="instants drawn in the x-y plane, evenly spaced over [0, tf] (default 6)")
     p.add_argument("--title", default=None, help="figure title (default: scenario, planner and cost)")
     add_quiet_flag(p)

@@ -16,9 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from iamp.cli.types import model_file
-from iamp.cli.types import positive_float as _positive_float
-from iamp.cli.types import positive_int as _positive_int
+from iamp.cli.types import float_in, int_in, model_file
 from iamp.core.errors import IampError, ScenarioError
 
 if TYPE_CHECKING:
@@ -257,19 +255,19 @@ def add_parsers(subparsers: Any) -> None:
                         "dropped")
     t.add_argument("--out", required=True, help="model file to write (JSON)")
     t.add_argument("--force", action="store_true", help="replace --out if it exists")
-    t.add_argument("--order", type=_positive_int, default=DEFAULT_CONFIG["order"],
+    t.add_argument("--order", type=int_in("order"), default=DEFAULT_CONFIG["order"],
                    help=f"chain order n (default {DEFAULT_CONFIG['order']})")
     t.add_argument("--bins", default=None,
                    help="acceleration bins: a number N of equal bins over [-A, A] (A = --a-max; outer bins "
                         "open), or comma-separated interior edges in m/s^2 (default: bins of --bin-width "
                         "centred on 0)")
-    t.add_argument("--bin-width", type=_positive_float, default=DEFAULT_CONFIG["width"],
+    t.add_argument("--bin-width", type=float_in("accel_mps2"), default=DEFAULT_CONFIG["width"],
                    help=f"bin width in m/s^2 when --bins is not given (default {DEFAULT_CONFIG['width']:g})")
-    t.add_argument("--a-max", type=_positive_float, default=DEFAULT_CONFIG["a_max"],
+    t.add_argument("--a-max", type=float_in("accel_mps2"), default=DEFAULT_CONFIG["a_max"],
                    help=f"range of the bins in m/s^2 (default {DEFAULT_CONFIG['a_max']:g})")
-    t.add_argument("--dt", type=_positive_float, default=DEFAULT_CONFIG["dt"],
+    t.add_argument("--dt", type=float_in("model_dt_s"), default=DEFAULT_CONFIG["dt"],
                    help=f"chain time step in s (default {DEFAULT_CONFIG['dt']:g})")
-    t.add_argument("--jerk-psd", type=_positive_float, default=DEFAULT_CONFIG["jerk_psd"],
+    t.add_argument("--jerk-psd", type=float_in("jerk_psd"), default=DEFAULT_CONFIG["jerk_psd"],
                    help="jerk spectral density q in m^2/s^5 of the smoother estimating the initial state at "
                         f"prediction time (stored in the model; default {DEFAULT_CONFIG['jerk_psd']:g})")
     t.add_argument("--estimator", choices=("mle", "mle-lambda", "lp"), default="mle",
@@ -307,7 +305,8 @@ def add_parsers(subparsers: Any) -> None:
     e.add_argument("--split", default=None, choices=("vehicle", "time"),
                    help="train on part of --data and evaluate on the held-out rest: 20 %% of the vehicles "
                         "(seeded) or the last 20 %% of the time span")
-    e.add_argument("--seed", type=int, default=0, help="seed of the vehicle split and the bootstrap (default 0)")
+    e.add_argument("--seed", type=int_in("seed"), default=0,
+                   help="seed of the vehicle split and the bootstrap, in [0, 2^31-1] (default 0)")
     e.add_argument("--location", default=None,
                    help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
                         "dropped")

@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from iamp.cli.types import EXIT_OK, positive_float, positive_int
+from iamp.cli.types import EXIT_OK, float_in, int_in
 
 TRAFFIC = ("light", "medium", "dense")
 PLANNERS = ("pmp", "qp", "qp-avoid", "sumo", "pmp-all", "qp-all")
@@ -187,10 +187,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                        description="Run one closed-loop episode: SUMO traffic, the shared predictor, the planner "
                                    "every period (SPEC §11).")
     p.add_argument("--traffic", choices=TRAFFIC, default="medium")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--seed", type=int_in("seed"), default=1, help="SUMO and traffic seed in [0, 2^31-1]")
     p.add_argument("--planner", choices=PLANNERS, default="pmp")
-    p.add_argument("--duration", type=positive_float, default=60.0, help="episode length [s] (default 60)")
-    p.add_argument("--period", type=positive_float, default=0.1, help="control period = SUMO step [s]")
+    p.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s] (default 60)")
+    p.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period = SUMO step [s]")
     p.add_argument("--no-deadline", action="store_true",
                    help="use plans however long they take (default: a plan slower than the period is late "
                         "and falls back)")
@@ -206,14 +206,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                        description="Run a campaign of closed-loop episodes on Dask distributed; resumes.")
     c.add_argument("--planners", type=_csv_choice(PLANNERS), default=["pmp", "qp", "sumo"])
     c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=list(TRAFFIC))
-    c.add_argument("--seeds", type=positive_int, default=20, help="seeds 1..N")
+    c.add_argument("--seeds", type=int_in("seeds"), default=20, help="seeds 1..N (N at most 10000)")
     c.add_argument("--out", required=True, help="output folder (episodes.csv, table.tex, figures)")
     c.add_argument("--force", action="store_true",
                    help="write into an existing folder that iamp did not write (no .iamp-output marker)")
-    c.add_argument("--workers", type=positive_int, default=2, help="local Dask workers (processes)")
+    c.add_argument("--workers", type=int_in("workers"), default=2, help="local Dask workers (processes)")
     c.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
-    c.add_argument("--duration", type=positive_float, default=60.0)
-    c.add_argument("--period", type=positive_float, default=0.1)
+    c.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s]")
+    c.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period [s]")
     c.add_argument("--no-deadline", action="store_true", help="use plans however long they take")
     c.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     c.set_defaults(func=cmd_campaign)
