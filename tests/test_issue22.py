@@ -193,3 +193,50 @@ def test_item5_bounds_accept_their_ends():
     assert seed("0") == 0 and seed(str(2**31 - 1)) == 2**31 - 1
     lo, hi = OPTION_BOUNDS["period_s"]
     assert float_in("period_s")(repr(lo)) == lo and float_in("period_s")(repr(hi)) == hi
+
+
+# --- item 8: one rule for exit 3 and the cost ------------------------------------------------
+
+
+@pytest.fixture
+def local_planner(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``iamp plan`` with a PMP whose certificate budget is one box: two vehicles end ``local``."""
+    import iamp.cli.plan as plan_cli
+    from iamp.planners.pmp import PMPPlanner
+
+    monkeypatch.setattr(plan_cli, "make_planner", lambda args: PMPPlanner(max_boxes=1))
+
+
+def test_item8_local_plan_exits_3_with_its_cost_in_json_and_text(capsys, local_planner):
+    import json
+
+    code, out, _ = run_main(["plan", "two-vehicle", "--json"], capsys)
+    obj = json.loads(out)
+    assert code == 3 and obj["status"] == "local" and obj["cost"] > 0 and len(obj["trajectory"]["t"]) == 101
+    code, text, _ = run_main(["plan", "two-vehicle"], capsys)
+    assert code == 3
+    assert "status    local" in text and "no cost is reported" not in text
+    assert f"cost J    {obj['cost']:.9g}" in text and "not certify" in text
+
+
+def test_item8_failed_plan_exits_3_with_cost_null(capsys, monkeypatch):
+    import json
+
+    import iamp.cli.plan as plan_cli
+    from iamp.core.errors import SolverError
+
+    class Failing:
+        def plan(self, problem: object) -> None:
+            raise SolverError("diverged", "numerical_error")
+
+    monkeypatch.setattr(plan_cli, "make_planner", lambda args: Failing())
+    code, out, _ = run_main(["plan", "paper-1-poly", "--json"], capsys)
+    assert code == 3 and json.loads(out)["cost"] is None
+    code, text, _ = run_main(["plan", "paper-1-poly"], capsys)
+    assert code == 3 and "no cost is reported" in text
+
+
+def test_item8_readme_states_the_rule():
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    assert "a\n`local` plan" in readme or "a `local` plan" in readme.replace("\n", " ")
+    assert "exits 3 *with* its cost" in readme.replace("\n", " ")

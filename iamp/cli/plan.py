@@ -14,6 +14,13 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
 from iamp.core.scenario import Scenario
 
+#: The one rule for exit status 3 and the cost (issue 22 item 8; SPEC §5): exit 3 whenever the
+#: status is not ``optimal``; the cost (and the trajectory) is reported exactly when the plan
+#: verified itself (``optimal`` or ``local``), so a ``local`` plan exits 3 *with* its cost,
+#: labelled by its status, and every other failure exits 3 with ``"cost": null``.
+LOCAL_NOTE = ("status local: this plan is verified at its contact times, but the search could not certify "
+              "that they are the global minimiser; its cost is reported under that status (exit 3)")
+
 #: Options that only the QP planner reads, with their defaults (SPEC §5).  They default to
 #: ``None`` in the parser so that "given by the user" can be told from "the default".
 QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
@@ -132,11 +139,13 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     print(f"scenario  {scenario.name}  ({scenario.source})")
     print(f"planner   {cfg}")
     print(f"status    {result.status}")
-    if not result.is_optimal():
+    if not result.ok:
         if result.info.get("reason"):
             print(f"reason    {result.info['reason']}")
         print("no cost is reported: the solver did not reach an optimal solution")
         return
+    if not result.is_optimal():  # `local`: verified at its contact times, not certified global (exit 3)
+        print(f"note      {LOCAL_NOTE}")
     if result.info.get("constraint") == "avoid":
         from iamp.planners.avoid_result import summary_lines
 
