@@ -240,3 +240,53 @@ def test_item8_readme_states_the_rule():
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
     assert "a\n`local` plan" in readme or "a `local` plan" in readme.replace("\n", " ")
     assert "exits 3 *with* its cost" in readme.replace("\n", " ")
+
+
+# --- item 9: a touch of the corner is a touch, not UNSAFE / exit 4 -----------------------------
+
+
+def test_item9_the_equality_touch_is_reported_as_a_touch_not_unsafe(capsys):
+    import json
+
+    code, text, _ = run_main(["plan", "paper-1-poly", "--require-safe"], capsys)
+    assert code == 0 and "UNSAFE" not in text
+    touch = [line for line in text.splitlines() if line.startswith("touch")]
+    assert len(touch) == 1 and "sv1" in touch[0] and "[3.534, 3.550] s (16 ms)" in touch[0]
+    assert "1.1 mm" in touch[0] and "10 mm" in touch[0]
+    code, out, _ = run_main(["plan", "paper-1-poly", "--json", "--require-safe"], capsys)
+    safety = json.loads(out)["safety"]
+    v = safety["vehicles"][0]
+    assert code == 0 and safety["unsafe"] is False and safety["safety_tolerance_m"] == 0.01
+    assert safety["intrusion_free"] is False and 0.001 < v["max_intrusion_m"] < 0.0012  # still reported
+
+
+def test_item9_the_tolerance_is_the_threshold(capsys):
+    code, text, _ = run_main(["plan", "paper-1-poly", "--require-safe", "--safety-tolerance", "0"], capsys)
+    assert code == 4 and "UNSAFE    sv1" in text
+    code, text, _ = run_main(["plan", "paper-1-poly", "--require-safe", "--safety-tolerance", "0.00114"], capsys)
+    assert code == 4  # the depth is 1.1414 mm: just above
+    code, text, _ = run_main(["plan", "paper-1-poly", "--require-safe", "--safety-tolerance", "0.00115"], capsys)
+    assert code == 0 and "touch" in text
+
+
+def test_item9_a_real_intrusion_stays_unsafe(capsys):
+    code, text, _ = run_main(["plan", "paper-2-poly", "--require-safe", "--safety-tolerance", "1"], capsys)
+    assert code == 4 and "UNSAFE" in text  # the bodies overlap: never a touch, whatever the depth tolerance
+
+
+def test_item9_touch_rule_on_generated_reports():
+    from hypothesis import given
+    from hypothesis import strategies as st
+
+    from iamp.core.safety import SafetyReport, VehicleSafety
+
+    @given(st.floats(0.0, 2.0), st.booleans(), st.booleans(), st.floats(0.0, 1.0))
+    def check(depth: float, enters: bool, overlaps: bool, tol: float) -> None:
+        v = VehicleSafety("v", ((1.0, 1.1),) if enters else (), depth if enters else 0.0,
+                          ((1.0, 1.05),) if overlaps else (), 0.0)
+        report = SafetyReport((v,), 4.8, 1.8, True)
+        # unsafe beyond the tolerance  <=>  an overlap, or an entry deeper than the tolerance
+        assert report.unsafe_beyond(tol) == (overlaps or (enters and depth > tol))
+        assert v.touch_only(tol) == (enters and not overlaps and depth <= tol)
+
+    check()

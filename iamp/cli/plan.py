@@ -8,10 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, model_file, steps_int
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, float_in, model_file, steps_int
 from iamp.core.errors import ScenarioError, SolverError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
+from iamp.core.safety import SAFETY_TOLERANCE_M, SafetyReport
 from iamp.core.scenario import Scenario
 
 #: The one rule for exit status 3 and the cost (issue 22 item 8; SPEC §5): exit 3 whenever the
@@ -107,7 +108,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from iamp.cli.plot import write_trajectory_csv
 
         write_trajectory_csv(result, args.csv, args.steps)
+    tolerance = float(getattr(args, "safety_tolerance", SAFETY_TOLERANCE_M))
     if args.json:
+        if tolerance != SAFETY_TOLERANCE_M and result.safety is not None:  # the user's threshold, not the default
+            obj = json.loads(text)
+            obj["safety"].update(safety_tolerance_m=tolerance, unsafe=result.safety.unsafe_beyond(tolerance))
+            text = json.dumps(obj, allow_nan=False)
         print(text)
     else:
         _print_summary(scenario, problem, result, args)
@@ -116,7 +122,25 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if not result.is_optimal():
         return EXIT_SOLVER
     safety = result.safety
-    return EXIT_UNSAFE if args.require_safe and safety is not None and not safety.safe else EXIT_OK
+    unsafe = safety is not None and safety.unsafe_beyond(tolerance)
+    return EXIT_UNSAFE if args.require_safe and unsafe else EXIT_OK
+
+
+def safety_lines(report: SafetyReport, tolerance_m: float) -> list[str]:
+    """The text output's safety lines: one per vehicle the ego enters, a *touch* (depth within
+    ``tolerance_m``, no overlap: interval, duration and depth in mm) or ``UNSAFE`` (SPEC §9)."""
+    if report.safe:
+        return report.lines()
+    lines = []
+    for v in report.unsafe():
+        if v.touch_only(tolerance_m):
+            spans = ", ".join(f"[{a:.3f}, {b:.3f}] s ({(b - a) * 1e3:.0f} ms)" for a, b in v.intrusion)
+            lines.append(f"touch     {v.name}: touches its safety region {spans}, depth at most "
+                         f"{v.max_intrusion_m * 1e3:.1f} mm, within the safety tolerance {tolerance_m * 1e3:g} mm "
+                         "(--safety-tolerance); bodies do not overlap")
+        else:
+            lines.append(f"UNSAFE    {v.describe()}")
+    return lines
 
 
 def _report_failure(scenario: Scenario, args: argparse.Namespace, status: str, message: str) -> int:
@@ -171,7 +195,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         worst = ", ".join(f"{k} {v:.1e}" for k, v in result.residuals.items())
         print(f"residuals {worst}")
     if result.safety is not None:
-        for line in result.safety.lines():
+        for line in safety_lines(result.safety, float(getattr(args, "safety_tolerance", SAFETY_TOLERANCE_M))):
             print(line)
 
 
@@ -191,8 +215,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--constraint", choices=("equality", "avoid"), default=None,
                    help="QP only: the paper's corner equality (default) or the avoidance inequalities (SPEC §10)")
     p.add_argument("--require-safe", action="store_true",
-                   help="exit with status 4 when the plan enters a safety region or overlaps a vehicle (SPEC §9); "
-                        "the plan is still printed")
+                   help="exit with status 4 when the plan is unsafe: it overlaps a vehicle or enters a safety region "
+                        "deeper than --safety-tolerance (SPEC §9); the plan is still printed")
+    p.add_argument("--safety-tolerance", type=float_in("safety_tolerance_m"), default=SAFETY_TOLERANCE_M,
+                   metavar="M", help="depth [m] up to which entering a safety region without body overlap is "
+                   f"reported as a touch, not UNSAFE (default {SAFETY_TOLERANCE_M:g} m; 0: any entry is unsafe)")
     p.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios "
                    "(default: the shipped model)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")

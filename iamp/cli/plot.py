@@ -40,7 +40,7 @@ __all__ = ["FORMATS", "add_parsers", "cmd_plot", "plan_figure", "plan_label", "w
 #: Output formats of ``iamp plot`` (by the suffix of ``--out``).
 FORMATS = ("png", "pdf", "svg")
 #: Options of ``iamp plan`` that are not planner options (not copied to ``iamp plot``).
-_NOT_COPIED = {"help", "scenario", "json", "csv", "require_safe", "quiet", "func"}
+_NOT_COPIED = {"help", "scenario", "json", "csv", "require_safe", "safety_tolerance", "quiet", "func"}
 
 
 def plan_label(result: Plan) -> str:

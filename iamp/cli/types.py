@@ -101,6 +101,7 @@ OPTION_BOUNDS: dict[str, tuple[float, float]] = {
     "order": (1, 20),
     "accel_mps2": (1e-3, 50.0),
     "jerk_psd": (1e-9, 1e6),
+    "safety_tolerance_m": (0.0, 1.0),
 }
 
 
