@@ -290,3 +290,100 @@ def test_item9_touch_rule_on_generated_reports():
         assert v.touch_only(tol) == (enters and not overlaps and depth <= tol)
 
     check()
+
+
+# --- item 3: the history smoother is linear in the history's length ----------------------------
+
+
+def _old_grid_operator(t, dt: float, n: int):  # type: ignore[no-untyped-def]
+    """The operator as the code before issue 22 built it: K interpolations of the K unit vectors."""
+    import numpy as np
+
+    from iamp.prediction.kinematics import history_grid
+
+    tg, _ = history_grid(t, t, dt)
+    return np.stack([np.interp(tg[-(n + 2):], t, e) for e in np.eye(t.size)], axis=1)
+
+
+def test_item3_recursions_equal_the_dense_operator_on_small_histories():
+    """The linear path (recursions on the data) equals the dense operator (recursions on the unit
+    vectors, then a matrix product) to rounding, on generated sample times, noise and positions."""
+    import numpy as np
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from iamp.prediction.initial_state import _operator, _rts
+
+    @settings(max_examples=40, deadline=None)
+    @given(st.integers(3, 60), st.integers(1, 4), st.floats(1e-3, 0.5), st.floats(0.1, 100.0),
+           st.integers(0, 2**32 - 1))
+    def check(K: int, B: int, sigma: float, q: float, seed: int) -> None:
+        rng = np.random.default_rng(seed)
+        t = np.cumsum(rng.uniform(0.02, 0.2, K))
+        t = t - t[-1]
+        Z = 20.0 * t + rng.normal(0.0, 0.5, (B, K))
+        M = _operator(t.tobytes(), K, sigma, q)
+        dense = np.einsum("bj,cjk->cbk", Z, M)
+        s = _rts(t, Z, q, np.full(B, sigma))
+        for c, got in enumerate((s.x, s.v, s.a)):
+            scale = np.abs(Z).max() * (1.0 + np.abs(M[c]).sum(axis=0).max())
+            np.testing.assert_allclose(got, dense[c], rtol=0, atol=1e-11 * scale)
+
+    check()
+
+
+def test_item3_grid_weights_equal_the_old_interpolation_operator():
+    import numpy as np
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from iamp.prediction.predictor import _grid_operator
+
+    @settings(max_examples=60, deadline=None)
+    @given(st.integers(3, 80), st.sampled_from([0.05, 0.1, 0.2]), st.integers(1, 6), st.integers(0, 2**32 - 1))
+    def check(K: int, dt: float, n: int, seed: int) -> None:
+        rng = np.random.default_rng(seed)
+        t = np.cumsum(rng.uniform(0.01, 0.3, K))
+        t = t - t[-1]
+        if t[-1] - t[0] < (n + 1) * dt:
+            return
+        old = _old_grid_operator(t, dt, n)
+        new = _grid_operator(t.tobytes(), K, dt, n)
+        np.testing.assert_allclose(new, old, rtol=0, atol=1e-12)
+
+    check()
+
+
+def test_item3_a_long_history_costs_linear_memory():
+    """1,200 samples: the old K x K operators needed ~0.35 GB (3,000: 2.1 GB, 10,000: ~18 GB)."""
+    import tracemalloc
+
+    import numpy as np
+
+    import iamp
+    from iamp.prediction.predictor import Predictor
+
+    K = 1200
+    t = np.linspace(-0.01 * (K - 1), 0.0, K)
+    x = 20.0 * t + 0.01 * np.random.default_rng(1).standard_normal(K)
+    predictor = Predictor.default()
+    tracemalloc.start()
+    pred = predictor.predict(iamp.History(t=t, x=x))
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 20e6, peak  # ~30 doubles per sample, not per sample squared
+    assert abs(pred.x_poly[1] - 20.0) < 0.5
+
+
+def test_item3_operator_cache_is_bounded_in_bytes(monkeypatch):
+    import numpy as np
+
+    import iamp.prediction.initial_state as ist
+
+    monkeypatch.setattr(ist, "OPERATOR_CACHE_BYTES", 3 * 8 * 100 * 100 * 3)  # three operators of K = 100
+    monkeypatch.setattr(ist, "_OPERATORS", type(ist._OPERATORS)())
+    t = np.linspace(-1.0, 0.0, 100)
+    for k in range(10):
+        ist.smooth_histories(t, np.sin(t + k)[None], sigma=0.01 * (k + 1))
+    assert sum(m.nbytes for m in ist._OPERATORS.values()) <= ist.OPERATOR_CACHE_BYTES
+    assert len(ist._OPERATORS) == 3
