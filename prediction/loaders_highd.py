@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from iamp.prediction import plausibility
 from iamp.prediction.load_report import LoadReport
 from iamp.prediction.loaders_csv import _integers, _path, _segments, duplicate_rows, read_csv
 from iamp.prediction.tracks import TrackDataError, Tracks
@@ -110,6 +111,8 @@ def load_highd(tracks_csv: str | os.PathLike[str], tracks_meta_csv: str | os.Pat
                 meta[{"id": "recording_id"}.get(key, key)] = int(val) if val == int(val) else val
     else:
         meta["frame_rate_source"] = f"default ({HIGHD_DEFAULT_FRAME_RATE:g} Hz, no recordingMeta)"
+        report.note(f"no XX_recordingMeta.csv beside the tracks file: the frame rate {HIGHD_DEFAULT_FRAME_RATE:g} Hz "
+                    "(highD's) was assumed")
     meta["frame_rate"] = frame_rate
 
     # driving direction per vehicle
@@ -179,4 +182,5 @@ def load_highd(tracks_csv: str | os.PathLike[str], tracks_meta_csv: str | os.Pat
     meta["lateral"] = "y + height/2 (centre), mirrored like x" if y is not None else "no y/height columns"
     meta["load_report"] = report.to_dict()
     report.check()
-    return Tracks(track_id, t, x, v, a, lane, 1.0 / frame_rate, meta, y)
+    tracks = Tracks(track_id, t, x, v, a, lane, 1.0 / frame_rate, meta, y)
+    return plausibility.apply(tracks, path, "metres (highD)", report)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from iamp.prediction import plausibility
 from iamp.prediction._typing import Array
 from iamp.prediction.load_report import LoadReport
 from iamp.prediction.loaders_csv import _open_text, _path, duplicate_rows, read_csv
@@ -321,4 +322,5 @@ def load_sumo_fcd(path: str | os.PathLike[str], *, lengths: Mapping[str, float] 
         report.note(f"{starts.size - names.size} track split(s) at missing time steps (no row dropped)")
     meta["load_report"] = report.to_dict()
     report.check()
-    return Tracks(seg, time, pos, speed, acc, lane, dt, meta, y_lat)
+    tracks = Tracks(seg, time, pos, speed, acc, lane, dt, meta, y_lat)
+    return plausibility.apply(tracks, path, "metres (SUMO)", report)

@@ -93,6 +93,9 @@ __all__ = [
 
 #: Package-data file of the shipped model (``prediction/data/``).
 DEFAULT_MODEL_FILE = "mtd_default.json"
+#: Bytes of node probabilities :meth:`Predictor.predict_batch` holds at once (histories are
+#: predicted in chunks below it: memory bounded whatever the model's ``dt``).
+BATCH_BYTES = 64 << 20
 
 
 # ---------------------------------------------------------------------------------------
@@ -387,6 +390,12 @@ class Predictor:
             raise ValueError(f"histories of {t_hist[-1] - t_hist[0]:g} s are shorter than the "
                              f"{self.min_history_s:g} s the model needs")
         M, t = self._horizon(tf)
+        # the node probabilities take B (M+1) m floats: histories go in chunks of at most
+        # BATCH_BYTES (a model with the smallest legal dt has M = 5000 nodes over 5 s)
+        rows = max(1, BATCH_BYTES // (8 * (M + 1) * (self.model.n_states + 4)))
+        if X_hist.shape[0] > rows:
+            return np.concatenate([self.predict_batch(t_hist, X_hist[s:s + rows], query, tf, cubic=cubic)
+                                   for s in range(0, X_hist.shape[0], rows)])
         x0, v0, states = self.initial_state(t_hist, X_hist)
         _, abar = self._node_accelerations(states, M)
         q = np.asarray(query, dtype=float)

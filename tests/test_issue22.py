@@ -387,3 +387,127 @@ def test_item3_operator_cache_is_bounded_in_bytes(monkeypatch):
         ist.smooth_histories(t, np.sin(t + k)[None], sigma=0.01 * (k + 1))
     assert sum(m.nbytes for m in ist._OPERATORS.values()) <= ist.OPERATOR_CACHE_BYTES
     assert len(ist._OPERATORS) == 3
+
+
+# --- item 6: recorded data is checked for absurd values and plausibility; memory stays bounded --
+
+_NGSIM = Path(__file__).parent / "fixtures" / "ngsim.csv"
+
+
+def _ngsim_variant(tmp_path: Path, name: str, edit: object) -> Path:
+    import csv
+
+    header, *body = list(csv.reader(_NGSIM.open(newline="")))
+    edit(header, body)  # type: ignore[operator]
+    out = tmp_path / name
+    with out.open("w", newline="") as fh:
+        csv.writer(fh).writerows([header, *body])
+    return out
+
+
+def _set(column: str, row: int, value: str) -> object:
+    def edit(header: list[str], body: list[list[str]]) -> None:
+        body[row][header.index(column)] = value
+    return edit
+
+
+@pytest.mark.parametrize("column", ["Local_Y", "v_Vel", "v_Acc"])
+@pytest.mark.parametrize("command", ["train", "evaluate-predictor"])
+def test_item6_an_absurd_value_is_one_line_naming_file_and_line(tmp_path, capsys, column, command):
+    # before: Local_Y = 1e308 -> exit 1 (a non-JSON float) in evaluate-predictor; v_Vel = 1e308 trained a model
+    data = _ngsim_variant(tmp_path, "bad.csv", _set(column, 4, "1e308"))  # body row 4 = file line 6
+    argv = (["train", "--format", "ngsim", "--out", str(tmp_path / "m.json"), str(data)] if command == "train"
+            else ["evaluate-predictor", "--data", str(data), "--format", "ngsim", "--json"])
+    code, out, err = run_main(argv, capsys)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and str(data) in err and "line 6" in err
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_item6_positions_in_centimetres_are_refused_with_the_unit_assumed(tmp_path, capsys):
+    def to_cm(header: list[str], body: list[list[str]]) -> None:
+        k = header.index("Local_Y")
+        for r in body:
+            r[k] = repr(float(r[k]) * 30.48)  # feet -> centimetres, the header still says feet
+    data = _ngsim_variant(tmp_path, "cm.csv", to_cm)
+    code, _, err = run_main(["train", "--format", "ngsim", "--out", str(tmp_path / "m.json"), str(data)], capsys)
+    assert code == 2 and "feet (NGSIM)" in err and str(data) in err
+
+
+def test_item6_reversed_frames_are_refused_swapped_ones_are_noted(tmp_path, capsys):
+    def reverse(header: list[str], body: list[list[str]]) -> None:
+        f = header.index("Frame_ID")
+        for r in body:
+            r[f] = str(1000 - int(r[f]))
+    code, _, err = run_main(["train", "--format", "ngsim", "--out", str(tmp_path / "m.json"),
+                             str(_ngsim_variant(tmp_path, "rev.csv", reverse))], capsys)
+    assert code == 2 and "reversed" in err
+
+    def swap(header: list[str], body: list[list[str]]) -> None:
+        body[0], body[2] = body[2], body[0]  # vehicle 7's frame 101 before its 100
+    from iamp.prediction.loaders import load
+
+    tracks = load(_ngsim_variant(tmp_path, "swap.csv", swap), "ngsim")
+    notes = " ".join(tracks.meta["load_report"]["notes"])
+    assert "Frame_ID order" in notes and "plausibility: median implied speed" in notes
+
+
+def test_item6_highd_without_recording_meta_says_the_frame_rate_it_assumed(tmp_path):
+    import shutil
+
+    from iamp.prediction.loaders import load
+
+    src = Path(__file__).parent / "fixtures" / "highd"
+    shutil.copy(src / "01_tracks.csv", tmp_path / "01_tracks.csv")
+    shutil.copy(src / "01_tracksMeta.csv", tmp_path / "01_tracksMeta.csv")
+    tracks = load(tmp_path / "01_tracks.csv", "highd")
+    assert any("25 Hz" in n and "assumed" in n for n in tracks.meta["load_report"]["notes"])
+    assert tracks.dt == pytest.approx(1 / 25)
+
+
+def test_item6_a_huge_line_is_refused_before_it_is_read_whole(tmp_path, monkeypatch):
+    import io
+
+    import iamp.prediction.loaders_csv as lc
+
+    monkeypatch.setattr(lc, "MAX_LINE_CHARS", 1000)
+    fh = io.StringIO("a,b\n1,2\n" + "9" * 100_000 + "\n3,4\n")
+    with pytest.raises(lc.TrackDataError, match="line 3 is longer than 1000 characters"):
+        list(lc._bounded_lines(fh, tmp_path / "f.csv"))
+    assert fh.tell() <= 8 + 1001  # read no further than the limit into the long line
+    data = tmp_path / "long.csv"
+    data.write_text(_NGSIM.read_text() + "7," + "1" * 5000 + "\n")
+    from iamp.prediction.loaders import load
+
+    with pytest.raises(lc.TrackDataError, match="longer than 1000"):
+        load(data, "ngsim")
+
+
+def test_item6_training_at_a_tiny_dt_is_refused_before_allocating(monkeypatch):
+    import numpy as np
+
+    import iamp.prediction.training as tr
+    from iamp.prediction.tracks import Tracks
+
+    t = np.arange(0, 100.0, 0.1)
+    tracks = Tracks(np.zeros(t.size, dtype=np.int64), t, 20 * t, np.full(t.size, 20.0), np.zeros(t.size),
+                    np.ones(t.size, dtype=np.int64), 0.1, {})
+    monkeypatch.setattr(tr, "TRAIN_STATES_MAX", 50_000)  # 99.9 s at 1e-3 s: 99,901 states
+    with pytest.raises(ValueError, match="99,901 states"):
+        tr.track_accelerations(tracks, 1e-3)
+    assert len(tr.track_accelerations(tracks, 2e-3)[0]) == 49_951 - 2
+
+
+def test_item6_batch_prediction_in_chunks_equals_one_batch(monkeypatch):
+    import numpy as np
+
+    import iamp.prediction.predictor as pr
+
+    P = pr.Predictor.default()
+    rng = np.random.default_rng(1)
+    t_hist = np.arange(-3.0, 1e-9, 0.1)
+    X = 20.0 * t_hist[None, :] + rng.normal(0, 0.05, (37, t_hist.size)).cumsum(axis=1)
+    q = np.linspace(0, 5, 11)
+    whole = P.predict_batch(t_hist, X, q, 5.0)
+    monkeypatch.setattr(pr, "BATCH_BYTES", 8 * 26 * (P.model.n_states + 4) * 5)  # 5 histories per chunk
+    np.testing.assert_allclose(P.predict_batch(t_hist, X, q, 5.0), whole, rtol=0, atol=1e-9)
