@@ -468,7 +468,7 @@ def test_item6_highd_without_recording_meta_says_the_frame_rate_it_assumed(tmp_p
 def test_item6_a_huge_line_is_refused_before_it_is_read_whole(tmp_path, monkeypatch):
     import io
 
-    import iamp.prediction.loaders_csv as lc
+    import iamp.prediction.loaders.csv as lc
 
     monkeypatch.setattr(lc, "MAX_LINE_CHARS", 1000)
     fh = io.StringIO("a,b\n1,2\n" + "9" * 100_000 + "\n3,4\n")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from iamp.comparison.report_campaign import campaign_section, campaign_tex
+from iamp.comparison.report.campaign import campaign_section, campaign_tex
 
 
 def test_without_the_extra_the_section_names_it(tmp_path, monkeypatch):
@@ -75,7 +75,7 @@ def test_the_full_campaign_is_described_from_its_summary(tmp_path):
     """Issue 22 item 15: the report counted '3 planners' for a 4-planner campaign (typed in)."""
     import json
 
-    from iamp.comparison.report_campaign import full_campaign_shape
+    from iamp.comparison.report.campaign import full_campaign_shape
 
     rows = [{"planner": p, "traffic": t, "episodes": 20} for p in ("pmp", "qp", "qp-avoid", "sumo")
             for t in ("light", "medium", "dense")]
