@@ -511,3 +511,64 @@ def test_item6_batch_prediction_in_chunks_equals_one_batch(monkeypatch):
     whole = P.predict_batch(t_hist, X, q, 5.0)
     monkeypatch.setattr(pr, "BATCH_BYTES", 8 * 26 * (P.model.n_states + 4) * 5)  # 5 histories per chunk
     np.testing.assert_allclose(P.predict_batch(t_hist, X, q, 5.0), whole, rtol=0, atol=1e-9)
+
+
+# --- item 7: model files: JSON types, an integer order, n_states = size of Q; plain messages -----
+
+
+def _model_variant(tmp_path: Path, name: str, **changes: object) -> Path:
+    import json
+
+    from iamp.prediction.predictor import DEFAULT_MODEL_FILE
+
+    src = Path(__file__).parents[1] / "prediction" / "data" / DEFAULT_MODEL_FILE
+    d = json.loads(src.read_text())
+    d.update(changes)
+    out = tmp_path / name
+    out.write_text(json.dumps(d))
+    return out
+
+
+@pytest.mark.parametrize(("changes", "key"), [
+    ({"dt": "0.2"}, "dt"), ({"order": 4.5}, "order"), ({"order": 4.0}, "order"), ({"order": "4"}, "order"),
+    ({"order": True}, "order"), ({"n_states": 14}, "n_states"), ({"n_states": 13.0}, "n_states"),
+    ({"Q": "abc"}, "Q"), ({"lambda": [1, "x", 0, 0]}, "lambda"), ({"n_obs": "many"}, "n_obs")])
+def test_item7_malformed_model_fields_are_refused_naming_the_key(tmp_path, capsys, changes, key):
+    # before: a string dt was parsed, order 4.5 truncated to 4, n_states 14 with a 13-state Q accepted
+    from iamp.prediction.mtd.io import load_model
+    from iamp.prediction.mtd.model import ModelFileError
+
+    path = _model_variant(tmp_path, "m.json", **changes)
+    with pytest.raises(ModelFileError) as info:
+        load_model(path)
+    assert info.value.key == key
+    code, out, err = run_main(["predict", "paper-2", "--model", str(path), "--json"], capsys)
+    assert code == 2 and out == "" and f"key '{key}'" in err and len(err.strip().splitlines()) == 1
+
+
+def test_item7_the_shipped_model_passes_the_type_checks():
+    from iamp.prediction.mtd.io import load_model
+    from iamp.prediction.predictor import DEFAULT_MODEL_FILE
+
+    m = load_model(Path(__file__).parents[1] / "prediction" / "data" / DEFAULT_MODEL_FILE)
+    assert m.n_states == m.Q.shape[1] and isinstance(m.order, int)
+
+
+def test_item7_messages_carry_no_python_exception_names(tmp_path, capsys):
+    import re
+
+    from iamp.prediction.mtd.io import load_model
+    from iamp.prediction.mtd.model import ModelFileError
+
+    folder = tmp_path / "dir.json"
+    folder.mkdir()
+    binary = tmp_path / "bin.json"
+    binary.write_bytes(b"\xff\xfe\x00garbage")
+    for bad in (folder, binary):
+        with pytest.raises(ModelFileError) as info:
+            load_model(bad)
+        assert not re.search(r"\b[A-Z][A-Za-z]*(Error|Exception)\b", str(info.value)), str(info.value)
+    for changes in ({"Q": [[["a"]]]}, {"lambda": {"x": 1}}, {"Q": [[[1.0]]]}):
+        code, _, err = run_main(["predict", "paper-2", "--model", str(_model_variant(tmp_path, "m.json", **changes)),
+                                 "--json"], capsys)
+        assert code == 2 and not re.search(r"\b[A-Z][A-Za-z]*(Error|Exception)\b", err), err

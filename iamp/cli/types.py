@@ -75,7 +75,7 @@ def model_file(text: str) -> str:
         predictor = Predictor.from_file(text)
         dt = float(predictor.dt)
     except Exception as exc:  # the file is user input: every way it can be malformed is a refusal
-        detail = exc.one_line() if hasattr(exc, "one_line") else f"{exc.__class__.__name__}: {exc}"
+        detail = exc.one_line() if hasattr(exc, "one_line") else str(exc) or "malformed"
         detail = " ".join(str(detail).split())[:300]
         raise argparse.ArgumentTypeError(f"{text}: not a usable predictor model ({detail})") from None
     msg = bound_message(dt, LIMITS["model_dt_min_s"], LIMITS["model_dt_max_s"], "s")

@@ -356,7 +356,7 @@ def load_scenario(path_or_name: str | Path) -> Scenario:
         try:
             size = p.stat().st_size
         except OSError as exc:
-            raise ScenarioError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
+            raise ScenarioError(f"cannot be read ({exc.strerror or exc})", None, str(p)) from None
         if size > MAX_FILE_BYTES:
             raise ScenarioError(f"is {size} bytes; a scenario file may have at most {MAX_FILE_BYTES} bytes",
                                 None, str(p))
@@ -364,7 +364,7 @@ def load_scenario(path_or_name: str | Path) -> Scenario:
             # bytes, not read_text(): universal newlines would turn a bare CR (invalid TOML) into LF
             raw = p.read_bytes()
         except OSError as exc:
-            raise ScenarioError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
+            raise ScenarioError(f"cannot be read ({exc.strerror or exc})", None, str(p)) from None
         try:
             text = raw.decode("utf-8")
         except UnicodeDecodeError as exc:
