@@ -107,7 +107,8 @@ def _check_types(d: dict[str, Any], source: str | None) -> None:
                           ("loglik", _is_number, "a number")):
         if key in d and not (d[key] is None and key in ("dt", "loglik")) and not ok(d[key]):
             raise ModelFileError(f"must be {what} (got {json.dumps(d[key])[:60]})", key, source)
-    bins = d.get("bins") if isinstance(d.get("bins"), dict) else {}
+    raw_bins = d.get("bins")
+    bins: dict[str, Any] = raw_bins if isinstance(raw_bins, dict) else {}
     for key, value in (("Q", d["Q"]), ("lambda", d["lambda"]), ("counts", d.get("counts")),
                        ("bins.edges", bins.get("edges")), ("bins.centres", bins.get("centres"))):
         if value is None and key != "Q" and key != "lambda":
