@@ -572,3 +572,47 @@ def test_item7_messages_carry_no_python_exception_names(tmp_path, capsys):
         code, _, err = run_main(["predict", "paper-2", "--model", str(_model_variant(tmp_path, "m.json", **changes)),
                                  "--json"], capsys)
         assert code == 2 and not re.search(r"\b[A-Z][A-Za-z]*(Error|Exception)\b", err), err
+
+
+# --- item 10: plan, predict and scenarios import no heavy module --------------------------------
+# A comparison of import *sets*, not a timed test: before, `iamp plan` imported matplotlib (via
+# iamp.cli.plot) and scipy.optimize (via the MTD estimators) -- 3.4x the CPU of a bare
+# `import numpy, scipy.linalg`; without them it is 0.9x (measured with /usr/bin/time-like
+# rusage in the closing note of issue 22).
+
+_HEAVY = ("matplotlib", "scipy.optimize", "scipy.sparse", "scipy.stats", "cvxpy", "osqp", "clarabel", "piqp",
+          "dask", "distributed", "numba", "pandas", "traci", "sumolib", "libsumo")
+
+
+@pytest.mark.parametrize("argv", [["plan", "paper-1-poly", "--json"], ["plan", "two-vehicle", "--json"],
+                                  ["predict", "paper-2", "--json"], ["scenarios"], []])
+def test_item10_everyday_commands_import_no_heavy_module(argv):
+    import json
+    import subprocess
+    import sys
+
+    code = ("import contextlib, io, json, sys\n"
+            "from iamp.cli.main import main\n"
+            "argv = json.loads(sys.argv[1])\n"
+            "if argv:\n"
+            "    with contextlib.redirect_stdout(io.StringIO()):\n"
+            "        status = main(argv)\n"
+            "    assert status == 0, status\n"
+            "else:\n"
+            "    import iamp\n"
+            "print(json.dumps(sorted(sys.modules)))\n")
+    proc = subprocess.run([sys.executable, "-c", code, json.dumps(argv)], capture_output=True, text=True,
+                          timeout=300, env={**__import__("os").environ, "PYTHONPATH": str(Path(__file__).parents[1])})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    loaded = json.loads(proc.stdout.strip().splitlines()[-1])
+    heavy = sorted(m for m in loaded if any(m == h or m.startswith(h + ".") for h in _HEAVY))
+    assert heavy == [], heavy
+
+
+def test_item10_the_lazy_names_still_resolve():
+    import iamp.prediction.mtd as mtd
+    from iamp.prediction.mtd.estimation import ESTIMATORS, fit, sample_sequence
+
+    assert (mtd.fit, mtd.sample_sequence, mtd.ESTIMATORS) == (fit, sample_sequence, ESTIMATORS)
+    with pytest.raises(AttributeError):
+        mtd.no_such_name  # noqa: B018

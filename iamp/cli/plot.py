@@ -26,14 +26,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from iamp.cli.types import EXIT_OK, EXIT_SOLVER, int_in
 from iamp.core.errors import ScenarioError
 from iamp.core.plan import TRAJECTORY_KEYS, Plan
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["FORMATS", "add_parsers", "cmd_plot", "plan_figure", "plan_label", "write_trajectory_csv"]
 
@@ -110,6 +112,8 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
     xmin, xmax, ymin, ymax = xy_limits(result)
     width = 10.0
     xy_height = 0.92 * width * (ymax - ymin) / (xmax - xmin) + 1.3  # to scale, plus the legend
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(width, xy_height + 3 * 2.1 + 0.4), layout="constrained")
     gs = fig.add_gridspec(4, 2, height_ratios=[xy_height, 2.1, 2.1, 2.1])
     ax_xy = fig.add_subplot(gs[0, :])
