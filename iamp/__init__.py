@@ -13,6 +13,8 @@ The public API (SPEC §12)::
     plan.status, plan.cost, plan.contact_times, plan.jumps, plan.safety
     plan.states(t), plan.inputs(t)                # at any times in [0, tf]
     plan.to_json()                                # the object of SPEC §5 and §9
+    iamp.plan_batch([prob1, prob2, ...])          # many one-vehicle plans at once (arrays)
+    iamp.PMPPlanner(compiled=True).plan(prob)     # the PMP planner with its options
     iamp.compare(prob)                            # the object of SPEC §5b's compare
     iamp.Predictor.default().predict(history)     # the cubic of SPEC §7
 
@@ -20,6 +22,8 @@ Sub-packages (dependencies flow one way): :mod:`iamp.core` (problem, scenario fi
 status, tolerances, errors, atomic output) <- :mod:`iamp.planners`, :mod:`iamp.prediction`
 <- :mod:`iamp.comparison`, :mod:`iamp.simulation` <- :mod:`iamp.cli`.
 """
+
+from typing import TYPE_CHECKING, Any
 
 from iamp import status
 from iamp._version import __version__
@@ -36,12 +40,17 @@ from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.scenario import History, Scenario
 from iamp.prediction.predictor import Prediction, Predictor
 
+if TYPE_CHECKING:
+    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.batch import plan_batch
+
 __all__ = [
     "EgoBoundary",
     "History",
     "HistoryError",
     "IampError",
     "MissingDependencyError",
+    "PMPPlanner",
     "Plan",
     "Prediction",
     "Predictor",
@@ -54,5 +63,20 @@ __all__ = [
     "compare",
     "load_scenario",
     "plan",
+    "plan_batch",
     "status",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``PMPPlanner`` and ``plan_batch`` on first use (the planner package is not needed to import
+    iamp; issue 22 item 10)."""
+    if name == "PMPPlanner":
+        from iamp.planners.pmp import PMPPlanner
+
+        return PMPPlanner
+    if name == "plan_batch":
+        from iamp.planners.pmp.batch import plan_batch
+
+        return plan_batch
+    raise AttributeError(f"module 'iamp' has no attribute {name!r}")

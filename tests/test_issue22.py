@@ -616,3 +616,99 @@ def test_item10_the_lazy_names_still_resolve():
     assert (mtd.fit, mtd.sample_sequence, mtd.ESTIMATORS) == (fit, sample_sequence, ESTIMATORS)
     with pytest.raises(AttributeError):
         mtd.no_such_name  # noqa: B018
+
+
+# --- item 11: evaluate-predictor reads simulate --log; predict - reads stdin; exports -----------
+
+
+def _synthetic_log(path: Path, seconds: float = 60.0, dt: float = 0.1) -> dict[str, tuple[object, object]]:
+    """A step log written by iamp's own writer (SUMO is not needed): an ego and five neighbours
+    with smooth speed profiles; returns each neighbour's (t, x) as written."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from iamp.simulation.episode import write_log
+    from iamp.simulation.metrics import StepLog
+
+    log = StepLog()
+    t = np.round(np.arange(0.0, seconds, dt), 6)
+    rng = np.random.default_rng(3)
+    v0 = rng.uniform(18, 30, 5)
+    amp = rng.uniform(0.2, 1.0, 5)
+    w = rng.uniform(0.1, 0.3, 5)
+    x0 = np.array([-40.0, -10.0, 15.0, 45.0, 80.0])
+    truth: dict[str, tuple[object, object]] = {}
+    for tk in t:
+        a = amp * np.sin(w * tk)
+        v = v0 + amp / w * (1 - np.cos(w * tk))
+        x = x0 + v0 * tk + amp / w * (tk - np.sin(w * tk) / w)
+        log.t.append(float(tk))
+        log.ego.append((25.0 * tk, 25.0, 1.75, 0.0, 0.0, 0.0))
+        log.mode.append("track")
+        log.plan_time.append(float("nan"))
+        log.ids.append(tuple(f"car{i}" for i in range(5)))
+        log.nb.append(np.column_stack([x, np.full(5, 5.25), v, a, np.ones(5), np.full(5, 4.5), np.full(5, 1.8)]))
+    write_log(SimpleNamespace(log=log), path)  # type: ignore[arg-type]
+    for i in range(5):
+        truth[f"car{i}"] = (t, np.array([row[i, 0] for row in log.nb]))
+    return truth
+
+
+def test_item11_the_simulate_log_loads_as_sumo_traffic_without_the_ego(tmp_path):
+    import numpy as np
+
+    from iamp.prediction.loaders import load
+    from iamp.prediction.loaders.iamplog import IAMP_LOG_COLUMNS
+    from iamp.simulation.episode import LOG_COLUMNS
+
+    assert IAMP_LOG_COLUMNS == LOG_COLUMNS  # the loader's copy of the writer's header
+    truth = _synthetic_log(tmp_path / "log.csv")
+    tracks = load(tmp_path / "log.csv", "sumo")
+    assert tracks.n_tracks == 5 and tracks.dt == pytest.approx(0.1)
+    assert tracks.meta["load_report"]["dropped"] == {
+        "the ego (iamp's planned vehicle; the predictor is evaluated on the traffic)": 600}
+    for tid, t, x, v, *_ in tracks.iter_tracks():
+        t_true, x_true = truth[tracks.meta["source_ids"][tid]]
+        np.testing.assert_allclose(t, t_true, atol=5e-4)
+        np.testing.assert_allclose(x, x_true, atol=5e-5)  # written with 4 decimals
+        np.testing.assert_allclose(np.diff(x) / 0.1, 0.5 * (v[1:] + v[:-1]), atol=0.02)
+
+
+def test_item11_evaluate_predictor_reads_the_simulate_log(tmp_path, capsys):
+    import json
+
+    _synthetic_log(tmp_path / "log.csv")
+    code, out, err = run_main(["evaluate-predictor", "--data", str(tmp_path / "log.csv"), "--format", "sumo",
+                               "--json"], capsys)
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["tracks"] == 5 and res["windows"] > 0 and res["format"] == "sumo"
+    assert any("iamp simulate --log" in n for n in res["load_report"]["notes"])
+
+
+def test_item11_predict_reads_the_scenario_from_stdin(capsys, monkeypatch):
+    import io
+    import json
+
+    code, text, _ = run_main(["scenarios", "--show", "paper-2"], capsys)
+    assert code == 0
+    monkeypatch.setattr("sys.stdin", io.StringIO(text))
+    code, out, err = run_main(["predict", "-", "--json"], capsys)
+    assert code == 0, err
+    from_file = run_main(["predict", "paper-2", "--json"], capsys)[1]
+    a, b = json.loads(out), json.loads(from_file)
+    assert [v["x_poly"] for v in a["vehicles"]] == [v["x_poly"] for v in b["vehicles"]]
+
+
+def test_item11_plan_batch_and_pmp_planner_are_exported():
+    import iamp
+
+    assert "plan_batch" in iamp.__all__ and "PMPPlanner" in iamp.__all__
+    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.batch import plan_batch
+
+    assert iamp.PMPPlanner is PMPPlanner and iamp.plan_batch is plan_batch
+    prob = iamp.load_scenario("paper-1-poly")
+    batch = iamp.plan_batch([prob, prob])
+    assert list(batch.cost) == pytest.approx([iamp.plan(prob).cost] * 2, rel=1e-9)

@@ -145,7 +145,7 @@ def predict_json(scenario: Scenario, predictor: Predictor | None, model_label: s
 
 def cmd_predict(args: argparse.Namespace) -> int:
     """``iamp predict``: predict every history vehicle of a scenario."""
-    from iamp.core.scenario import load_scenario
+    from iamp.cli.scenarios import load_cli_scenario as load_scenario  # a file, a built-in, or - (stdin)
     from iamp.prediction.predictor import Predictor
 
     try:
@@ -284,7 +284,7 @@ def add_parsers(subparsers: Any) -> None:
                     '{"scenario", "model", "vehicles": [{"name", "x_poly", "t", "x", ...}]} where t/x are the '
                     "predicted samples before the fit. A vehicle given with x_poly in the file passes through "
                     "with its polynomial unchanged; its t/x are then that polynomial sampled at the same times.")
-    p.add_argument("scenario", help="scenario TOML file or built-in name")
+    p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
     p.add_argument("--model", type=model_file, default=None,
                    help="model file (default: the shipped model, reported as 'builtin')")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
@@ -299,7 +299,8 @@ def add_parsers(subparsers: Any) -> None:
                     "protocol on the shipped SUMO data and write predictor_eval.json and tables under --out.")
     e.add_argument("--data", default=None,
                    help="evaluate on this recorded-data file (SPEC §13) instead of the shipped SUMO data")
-    e.add_argument("--format", default=None, choices=("highd", "ngsim", "sumo"), help="format of --data")
+    e.add_argument("--format", default=None, choices=("highd", "ngsim", "sumo"),
+                   help="format of --data (sumo also reads the log of iamp simulate --log)")
     e.add_argument("--model", type=model_file, default=None,
                    help="model file to evaluate (default: the shipped model)")
     e.add_argument("--split", default=None, choices=("vehicle", "time"),
