@@ -712,3 +712,35 @@ def test_item11_plan_batch_and_pmp_planner_are_exported():
     prob = iamp.load_scenario("paper-1-poly")
     batch = iamp.plan_batch([prob, prob])
     assert list(batch.cost) == pytest.approx([iamp.plan(prob).cost] * 2, rel=1e-9)
+
+
+# --- item 12: every help text names only options that exist -------------------------------------
+
+
+def _subparsers() -> dict[str, object]:
+    import argparse
+
+    from iamp.cli.main import build_parser
+
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return {"": parser, **action.choices}
+
+
+def test_item12_help_texts_name_only_existing_options():
+    import re
+
+    subs = _subparsers()
+    top = set(subs[""]._option_string_actions)  # type: ignore[attr-defined]
+    every = set().union(*(p._option_string_actions for p in subs.values()))  # type: ignore[attr-defined]
+    problems = []
+    for name, parser in subs.items():
+        text = parser.format_help()  # type: ignore[attr-defined]
+        own = (set(parser._option_string_actions) | top) if name else every  # type: ignore[attr-defined]
+        for opt in sorted(set(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", text))):
+            # options of another command named as such ("iamp simulate --log") are allowed
+            if opt not in own and not re.search(rf"iamp\s+\w[\w-]*(?:\s+[^\s,;.)]+)*\s+{re.escape(opt)}\b", text):
+                problems.append(f"{name or 'iamp'} --help names {opt}, which it does not have")
+        if "%%" in text:
+            problems.append(f"{name or 'iamp'} --help shows a literal %%")
+    assert problems == [], problems

@@ -61,7 +61,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     c.add_argument("--no-breakdown", action="store_true",
                    help="skip the per-solve timing breakdown (cvxpy compile / re-solve / solver / native)")
     c.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios")
-    c.add_argument("--force", action="store_true", help="replace existing output files (--latex, --json-out)")
+    c.add_argument("--force", action="store_true", help="replace an existing --latex file")
     c.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     c.add_argument("--latex", default=None, metavar="FILE", help="write a booktabs table (atomically)")
     from iamp.cli.progress import add_quiet_flag

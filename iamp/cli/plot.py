@@ -24,6 +24,7 @@ shows exactly the plan that ``iamp plan`` with the same options prints.
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -208,6 +209,9 @@ def _copy_plan_options(target: argparse.ArgumentParser) -> set[str]:
     for action in plan_parser._actions:
         if action.dest in _NOT_COPIED or not action.option_strings:
             continue
+        if action.dest == "force":  # plan's says "the --csv file"; plot writes --out
+            action = copy.copy(action)
+            action.help = "replace the --out file if it exists"
         target._add_action(action)
         copied.add(action.dest)
     return copied

@@ -294,7 +294,7 @@ def add_parsers(subparsers: Any) -> None:
         "evaluate-predictor", help="evaluate the predictor against baselines and write the report",
         description="With --data FILE --format F: evaluate constant velocity, constant acceleration, the MTD "
                     "predictor and a first-order chain on windows of 3 s history / 5 s future of the file "
-                    "(RMSE at 1..5 s, ADE, FDE, lateral RMSE of y = const, track-bootstrap 95 %% intervals of each "
+                    "(RMSE at 1..5 s, ADE, FDE, lateral RMSE of y = const, track-bootstrap 95 % intervals of each "
                     "method's difference to CV; dropped rows are reported). Without --data: run the evaluation "
                     "protocol on the shipped SUMO data and write predictor_eval.json and tables under --out.")
     e.add_argument("--data", default=None,
