@@ -744,3 +744,87 @@ def test_item12_help_texts_name_only_existing_options():
         if "%%" in text:
             problems.append(f"{name or 'iamp'} --help shows a literal %%")
     assert problems == [], problems
+
+
+# --- item 13: output polish: rounded numbers, one sign per term, no None/never, exact limits ----
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_coef = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False, allow_infinity=False)
+
+
+@given(st.lists(_coef, min_size=1, max_size=6), st.floats(min_value=-3, max_value=3))
+@settings(max_examples=200, deadline=None)
+def test_item13_polynomial_text_reads_back_as_the_polynomial(coeffs, t):
+    # before: "-14.9664 + 19.7382 t + -0.0670795 t^2"
+    import re
+
+    import numpy as np
+
+    from iamp.cli.text import polynomial
+
+    text = polynomial(coeffs)
+    assert "+ -" not in text and "- -" not in text and "+ +" not in text
+    expr = re.sub(r" t\^(\d)", r"*t**\1", text).replace(" t", "*t")
+    value = eval(expr, {"t": t})
+    exact = float(np.polynomial.polynomial.polyval(t, coeffs))
+    scale = sum(abs(c) * abs(t) ** k for k, c in enumerate(coeffs))
+    assert abs(value - exact) <= 1e-5 * scale + 1e-300
+
+
+def test_item13_simulate_summary_has_no_none_never_or_long_floats():
+    from iamp.cli.simulate import summary_lines
+
+    s = {"planner": "pmp", "traffic": "dense", "seed": 1, "duration_s": 60.0, "period_s": 0.2,
+         "lane_changes": 0, "lane_change_done_s": None, "collisions": 0, "sumo_collisions": 0,
+         "overlap_collisions": 0, "intrusion_s": 0.0, "min_gap_m": None, "min_ttc_s": None,
+         "rms_accel": [0.1, 0.2], "rms_jerk": [0.3, 0.4], "plans": 3, "constrained_plans": 1,
+         "failed_plans": 0, "late_plans": 0, "fallbacks": 0, "aborts": 0,
+         "plan_time_s": {"p50": 1e-4, "p95": 2e-4, "max": 3e-4},
+         "wall_s": {"total": 1.0, "sumo": 0.5, "prediction": 0.1, "planning": 0.1}, "max_rss_mb": 100.0}
+    text = "\n".join(summary_lines(s))
+    assert "None" not in text and "at never" not in text and "none completed" in text and "n/a" in text
+    text = "\n".join(summary_lines({**s, "min_gap_m": 11.01702131844893, "min_ttc_s": 2.345678901,
+                                    "lane_changes": 1, "lane_change_done_s": 7.25}))
+    assert "min gap 11 m" in text and "min TTC 2.35 s" in text and "first completed at 7.2 s" in text
+
+
+@given(st.floats(min_value=1e5, max_value=1e9, allow_nan=False).filter(lambda v: v > 1e5))
+@settings(max_examples=100, deadline=None)
+def test_item13_limit_messages_show_the_exact_offending_value(value):
+    # before: x0 = -100000.1 was reported as "got -100000" (%g)
+    import re
+
+    from iamp.core.limits import LIMITS, abs_message, bound_message
+
+    for msg in (abs_message(-value, LIMITS["position_max_m"], "m"), bound_message(value, 0.0, 1e5, "m")):
+        assert msg is not None
+        got = re.search(r"\(got (\S+)\)", msg)
+        assert (got is not None and float(got.group(1)) == value) or float(got.group(1)) == -value
+
+
+def test_item13_x0_just_beyond_the_limit_is_named_exactly(tmp_path, capsys):
+    code, text, _ = run_main(["template"], capsys)
+    assert code == 0
+    import re
+
+    bad = re.sub(r"(?m)^x0 = [^#\n]*", "x0 = -100000.1 ", text, count=1)
+    assert bad != text
+    (tmp_path / "s.toml").write_text(bad)
+    code, _, err = run_main(["plan", str(tmp_path / "s.toml")], capsys)
+    assert code == 2 and "-100000.1" in err
+
+
+@pytest.mark.parametrize("n", [4, 10, 1000])
+def test_item13_a_nominal_minimum_history_step_is_accepted(n):
+    # before: t = -0.0003, -0.0002, -0.0001, 0 was refused: -0.0002 - -0.0003 = 9.999999999999999e-05 < 1e-4
+    import numpy as np
+
+    from iamp.core.errors import HistoryError
+    from iamp.core.scenario import History
+
+    t = [round(-1e-4 * k, 10) for k in range(n - 1, -1, -1)]
+    History(t=t, x=[20.0 * s for s in t])
+    with pytest.raises(HistoryError, match="at least 0.0001 s apart"):
+        History(t=list(np.asarray(t) * 0.99), x=[20.0 * s for s in t])

@@ -158,6 +158,8 @@ def _report_failure(scenario: Scenario, args: argparse.Namespace, status: str, m
 
 
 def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: argparse.Namespace) -> None:
+    from iamp.cli.text import polynomial
+
     cfg = "PMP (indirect, jump conditions)" if result.planner == "pmp" else (
         f"QP ({result.solver}, {str(result.hold).upper()}, N = {result.steps}, contact search: {args.contact})")
     print(f"scenario  {scenario.name}  ({scenario.source})")
@@ -184,7 +186,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         print(f"warning   {len(fails)} of {len(result.info['sweep'])} sweep candidates did not solve to optimality "
               f"(e.g. nodes {fails[0][0]}: {fails[0][1]}); they are excluded from the search")
     for v, spec, t, j in zip(problem.vehicles, scenario.vehicles, result.contact_times, result.jumps):
-        poly = " ".join(f"{c:+.6g}" + (f"·t^{k}" if k > 1 else "·t" if k == 1 else "") for k, c in enumerate(v.x_poly))
+        poly = polynomial(v.x_poly)
         origin = "predicted from its history" if spec.history is not None else "given"
         print(f"vehicle {v.name}: x_s(t) = {poly}  ({origin})")
         X = result.trajectory.states(np.array([t]))[0]

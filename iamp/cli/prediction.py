@@ -146,6 +146,7 @@ def predict_json(scenario: Scenario, predictor: Predictor | None, model_label: s
 def cmd_predict(args: argparse.Namespace) -> int:
     """``iamp predict``: predict every history vehicle of a scenario."""
     from iamp.cli.scenarios import load_cli_scenario as load_scenario  # a file, a built-in, or - (stdin)
+    from iamp.cli.text import polynomial
     from iamp.prediction.predictor import Predictor
 
     try:
@@ -160,7 +161,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     print(f"scenario {out['scenario']}  (model: {out['model']}, {predictor!r})")
     for v in out["vehicles"]:
         c = v["x_poly"]
-        poly = " + ".join(f"{ci:.6g}{'' if k == 0 else ' t' if k == 1 else f' t^{k}'}" for k, ci in enumerate(c))
+        poly = polynomial(c)
         extra = f", fit RMSE {v['fit_rmse']:.3g} m" if "fit_rmse" in v else ""
         print(f"  {v['name']:8s} [{v['source']}] x(t) = {poly}{extra}")
         print(f"           x({v['t'][-1]:g}) = {v['x'][-1]:.3f} m")

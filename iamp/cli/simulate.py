@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from iamp.cli.types import EXIT_OK, float_in, int_in
 
@@ -55,6 +56,34 @@ def check_destinations(args: argparse.Namespace) -> None:
         check_output(args.log, (), force, option="--log")
 
 
+
+def summary_lines(s: dict[str, Any]) -> list[str]:
+    """The text summary of an episode (``iamp simulate`` without ``--json``): rounded numbers,
+    ``n/a`` with its reason where a metric has no value, no ``None``."""
+    from iamp.cli.text import quantity
+
+    pt = s["plan_time_s"]
+    done = s["lane_change_done_s"]
+    lines = [f"episode   {s['planner']}, {s['traffic']} traffic, seed {s['seed']}, {s['duration_s']:g} s at "
+             f"{s['period_s']:g} s",
+             f"lane      {s['lane_changes']} lane changes; "
+             + ("none completed" if done is None else f"first completed at {done:.1f} s"),
+             f"safety    {s['collisions']} collisions (SUMO {s['sumo_collisions']}, body overlap "
+             f"{s['overlap_collisions']}); intrusion {s['intrusion_s']:.1f} s; min gap "
+             f"{quantity(s['min_gap_m'], 'm', missing='n/a (no vehicle in the lane of the ego)')}; min TTC "
+             f"{quantity(s['min_ttc_s'], 's', missing='n/a (no vehicle closing in)')}",
+             f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
+             f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³"]
+    if s["plans"]:
+        ms = [quantity(None if pt[k] is None else pt[k] * 1e3, "ms") for k in ("p50", "p95", "max")]
+        lines.append(f"plans     {s['plans']} ({s['constrained_plans']} with a constraint; failed "
+                     f"{s['failed_plans']}, late {s['late_plans']}, fallbacks {s['fallbacks']}, aborts "
+                     f"{s['aborts']}); time p50 {ms[0]}, p95 {ms[1]}, max {ms[2]}")
+    w = s["wall_s"]
+    lines.append(f"wall      {w['total']:.1f} s (SUMO {w['sumo']:.1f}, prediction {w['prediction']:.1f}, "
+                 f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
+    return lines
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from iamp.simulation.episode import EpisodeSpec, run_episode, write_log
 
@@ -77,25 +106,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(s, allow_nan=False))
         return EXIT_OK
-    pt = s["plan_time_s"]
-    print(f"episode   {s['planner']}, {s['traffic']} traffic, seed {s['seed']}, {s['duration_s']:g} s at "
-          f"{s['period_s']:g} s")
-    done = s["lane_change_done_s"]
-    print(f"lane      {s['lane_changes']} lane changes; first done at "
-          f"{'never' if done is None else f'{done:.1f} s'}")
-    print(f"safety    {s['collisions']} collisions (SUMO {s['sumo_collisions']}, body overlap "
-          f"{s['overlap_collisions']}); intrusion {s['intrusion_s']:.1f} s; min gap {s['min_gap_m']} m; "
-          f"min TTC {s['min_ttc_s']} s")
-    print(f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
-          f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³")
-    if s["plans"]:
-        print(f"plans     {s['plans']} ({s['constrained_plans']} with a constraint; failed {s['failed_plans']}, "
-              f"late {s['late_plans']}, fallbacks "
-              f"{s['fallbacks']}, aborts {s['aborts']}); time p50 {pt['p50'] * 1e3:.2f} ms, p95 "
-              f"{pt['p95'] * 1e3:.2f} ms, max {pt['max'] * 1e3:.2f} ms")
-    w = s["wall_s"]
-    print(f"wall      {w['total']:.1f} s (SUMO {w['sumo']:.1f}, prediction {w['prediction']:.1f}, "
-          f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
+    for line in summary_lines(s):
+        print(line)
     return EXIT_OK
 
 

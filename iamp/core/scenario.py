@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.core.errors import HistoryError, PredictorRequiredError, ScenarioError
-from iamp.core.limits import LIMITS, abs_message, polynomial_message, prediction_message
+from iamp.core.limits import LIMITS, abs_message, exact, polynomial_message, prediction_message
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.toml_lines import line_of
 
@@ -80,10 +80,13 @@ class History:
             raise HistoryError(f"must end at 0 (last sample at {t[-1]})", f"{self.field}.t", self.source)
         span, step = LIMITS["history_span_max_s"], LIMITS["history_step_min_s"]
         if t[0] < -span:
-            raise HistoryError(f"must start at t >= {-span:g} s (first sample at {t[0]:g})",
+            raise HistoryError(f"must start at t >= {-span:g} s (first sample at {exact(t[0])})",
                                f"{self.field}.t", self.source)
-        if np.any(np.diff(t) < step):
-            k = int(np.argmax(np.diff(t) < step)) + 1
+        # a nominal step of exactly the minimum passes: the difference of two decimal times
+        # is off by rounding (-0.0002 - -0.0003 = 9.999999999999999e-05), so compare with a margin
+        short = np.diff(t) < step * (1.0 - 1e-6)
+        if np.any(short):
+            k = int(np.argmax(short)) + 1
             raise HistoryError(f"samples must be at least {step:g} s apart (t[{k}] - t[{k - 1}] = "
                                f"{t[k] - t[k - 1]:.3g} s)", f"{self.field}.t", self.source)
         big = np.abs(x) > LIMITS["position_max_m"]
