@@ -27,22 +27,32 @@ from typing import TYPE_CHECKING, Any
 
 from iamp import status
 from iamp._version import __version__
-from iamp.api import compare, load_scenario, plan
 from iamp.core.errors import (
     HistoryError,
     IampError,
     MissingDependencyError,
+    OptionError,
     ScenarioError,
     SolverError,
 )
-from iamp.core.plan import Plan
-from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
-from iamp.core.scenario import History, Scenario
-from iamp.prediction.predictor import Prediction, Predictor
 
 if TYPE_CHECKING:
+    from iamp.api import compare, load_scenario, plan
+    from iamp.core.plan import Plan
+    from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+    from iamp.core.scenario import History, Scenario
     from iamp.planners.pmp import PMPPlanner
     from iamp.planners.pmp.batch import plan_batch
+    from iamp.prediction.predictor import Prediction, Predictor
+
+#: Public names imported on first use (PEP 562): ``import iamp`` -- which every ``iamp``
+#: command runs -- costs almost nothing (issue 22 item 10).
+_LAZY = {"compare": "iamp.api", "load_scenario": "iamp.api", "plan": "iamp.api", "Plan": "iamp.core.plan",
+         "EgoBoundary": "iamp.core.problem", "Problem": "iamp.core.problem",
+         "SurroundingVehicle": "iamp.core.problem", "History": "iamp.core.scenario",
+         "Scenario": "iamp.core.scenario", "PMPPlanner": "iamp.planners.pmp",
+         "plan_batch": "iamp.planners.pmp.batch", "Prediction": "iamp.prediction.predictor",
+         "Predictor": "iamp.prediction.predictor"}
 
 __all__ = [
     "EgoBoundary",
@@ -50,6 +60,7 @@ __all__ = [
     "HistoryError",
     "IampError",
     "MissingDependencyError",
+    "OptionError",
     "PMPPlanner",
     "Plan",
     "Prediction",
@@ -68,15 +79,18 @@ __all__ = [
 ]
 
 
+
 def __getattr__(name: str) -> Any:
-    """``PMPPlanner`` and ``plan_batch`` on first use (the planner package is not needed to import
-    iamp; issue 22 item 10)."""
-    if name == "PMPPlanner":
-        from iamp.planners.pmp import PMPPlanner
+    """The names of :data:`_LAZY`, imported on first use."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'iamp' has no attribute {name!r}")
+    import importlib
 
-        return PMPPlanner
-    if name == "plan_batch":
-        from iamp.planners.pmp.batch import plan_batch
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
 
-        return plan_batch
-    raise AttributeError(f"module 'iamp' has no attribute {name!r}")
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -108,7 +108,7 @@ def test_item4_plot_on_a_full_disk(tmp_path, capsys, monkeypatch):
 
 
 def test_item4_reproduce_on_a_full_disk_midway(tmp_path, capsys, monkeypatch):
-    import iamp.comparison.report as report
+    import iamp.comparison.report as report  # restructure: keep (the package, where the CLI imports it from)
     from iamp.core.atomic import write_text
 
     def fake_reproduce(out_dir, progress=None, *, status=None, quick=False, config=None):  # type: ignore[no-untyped-def]
@@ -828,3 +828,13 @@ def test_item13_a_nominal_minimum_history_step_is_accepted(n):
     History(t=t, x=[20.0 * s for s in t])
     with pytest.raises(HistoryError, match="at least 0.0001 s apart"):
         History(t=list(np.asarray(t) * 0.99), x=[20.0 * s for s in t])
+
+
+def test_item10_the_lazy_backend_registry_agrees_with_the_classes():
+    from iamp.planners.qp.backends import BACKENDS, SUPPORTS_INEQUALITIES
+    from iamp.planners.qp.backends.base import QPBackend
+
+    assert set(SUPPORTS_INEQUALITIES) == set(BACKENDS)
+    for name, cls in BACKENDS.items():
+        assert issubclass(cls, QPBackend) and cls.name == name
+        assert cls.supports_inequalities is SUPPORTS_INEQUALITIES[name]

@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 from iamp.cli.types import EXIT_OK, float_in, int_in
+from iamp.simulation.planning import PLANNERS
 
 TRAFFIC = ("light", "medium", "dense")
-PLANNERS = ("pmp", "qp", "qp-avoid", "sumo", "pmp-all", "qp-all")
 
 
 def _csv_choice(choices: tuple[str, ...]):  # type: ignore[no-untyped-def]
