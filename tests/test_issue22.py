@@ -838,3 +838,92 @@ def test_item10_the_lazy_backend_registry_agrees_with_the_classes():
     for name, cls in BACKENDS.items():
         assert issubclass(cls, QPBackend) and cls.name == name
         assert cls.supports_inequalities is SUPPORTS_INEQUALITIES[name]
+
+
+# --- item 16: stale .tmp after SIGKILL, --force through a symlink, a quiet interrupted campaign ---
+
+
+def test_item16_a_killed_runs_temporary_files_are_removed_by_the_next_run(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from iamp.core.outputs import guarded_folder
+
+    out = tmp_path / "rep"
+    with guarded_folder(out, "reproduce"):
+        (out / "tables").mkdir()
+    # a run killed (SIGKILL: no cleanup runs) in the middle of an atomic write
+    code = ("import os, signal, sys\n"
+            "from iamp.core.atomic import atomic_open\n"
+            "with atomic_open(sys.argv[1]) as fh:\n"
+            "    fh.write('half'); fh.flush()\n"
+            "    os.kill(os.getpid(), signal.SIGKILL)\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(out / "tables" / "results.tex")],
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[1])}, timeout=120)
+    assert proc.returncode == -9
+    stale = list(out.rglob("*.tmp"))
+    assert len(stale) == 1 and not (out / "tables" / "results.tex").exists()
+    (out / ".notes.tmp").write_text("the user's")  # not an iamp temporary name: kept
+    with guarded_folder(out, "reproduce"):
+        assert list(out.rglob("*.tmp")) == [out / ".notes.tmp"]
+
+
+def test_item16_force_onto_a_symlink_writes_through_it(tmp_path, capsys):
+    import os
+
+    target = tmp_path / "data" / "run.csv"
+    target.parent.mkdir()
+    target.write_text("old")
+    link = tmp_path / "out.csv"
+    os.symlink(target, link)
+    code, _, err = run_main(["plan", "paper-1-poly", "--csv", str(link)], capsys)
+    assert code == 2 and "--force" in err and target.read_text() == "old"
+    code, _, err = run_main(["plan", "paper-1-poly", "--csv", str(link), "--force"], capsys)
+    assert code == 0, err
+    assert link.is_symlink() and os.readlink(link) == str(target)  # before: the link became a plain file
+    assert target.read_text().startswith("t,x,y,vx,vy,ax,ay")
+    assert sorted(p.name for p in target.parent.iterdir()) == ["run.csv"]  # no temporary left
+
+
+def test_item16_interrupting_a_campaign_prints_only_iamps_line(tmp_path, capsys, monkeypatch):
+    import logging
+    import sys
+    import types
+    import warnings
+
+    class Future:
+        pass
+
+    class Client:
+        def __init__(self, *a, **k):
+            pass
+
+        def submit(self, fn, spec, pure=False):
+            return Future()
+
+        def close(self):  # what Dask says when its workers are killed mid-task
+            logging.getLogger("distributed.nanny").warning("Restarting worker")
+            logging.getLogger("distributed.client").error("Failed to reconnect to scheduler")
+            warnings.warn("Stream is closed", RuntimeWarning, stacklevel=2)
+            warnings.warn("leaked semaphore", UserWarning, stacklevel=2)
+
+    class LocalCluster:
+        def __init__(self, *a, **k):
+            pass
+
+        def close(self):
+            logging.getLogger("distributed.core").warning("Lost connection to 'tcp://127.0.0.1:1'")
+
+    def as_completed(futures):
+        raise KeyboardInterrupt
+        yield  # pragma: no cover
+
+    fake = types.ModuleType("distributed")
+    fake.Client, fake.LocalCluster, fake.as_completed = Client, LocalCluster, as_completed  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "distributed", fake)
+    code, _, err = run_main(["campaign", "--out", str(tmp_path / "camp"), "--seeds", "1", "--quiet"], capsys)
+    assert code == 130
+    assert err == "iamp: interrupted\n", err
+    # and the loggers are back to their levels afterwards
+    assert logging.getLogger("distributed").level == logging.NOTSET

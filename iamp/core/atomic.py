@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -47,6 +48,39 @@ def _final_mode(path: Path) -> int:
         return 0o666 & ~umask
 
 
+def write_through(path: Path) -> Path:
+    """The file a write to ``path`` replaces: for a symbolic link, the file it points to.
+
+    A link is written *through* (issue 22 item 16): ``--force`` onto ``out.csv -> data/run.csv``
+    replaces ``data/run.csv`` and the link stays a link, as ``open(path, "w")`` would; the
+    atomic replacement happens beside the target, in the target's folder (a link to a missing
+    file creates that file).
+    """
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+#: The temporary names :func:`atomic_path` makes: ``.<name>.<8 random characters>.tmp``.
+TEMPORARY_NAME = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.tmp$")
+
+
+def remove_stale_temporaries(folder: PathLike) -> list[Path]:
+    """Delete the temporary files a killed run left in ``folder`` (recursively); returns them.
+
+    Only for a folder the caller holds the exclusive output lock of (so no live iamp run is
+    writing there) and that iamp owns (its marker): a ``SIGKILL`` cannot run the cleanup of
+    :func:`atomic_path`, so its ``.<name>.XXXXXXXX.tmp`` stays until the next run removes it.
+    """
+    removed = []
+    for p in Path(folder).rglob(".*.tmp"):
+        if TEMPORARY_NAME.match(p.name) and p.is_file() and not p.is_symlink():
+            try:
+                p.unlink()
+            except OSError:
+                continue
+            removed.append(p)
+    return removed
+
+
 @contextmanager
 def atomic_path(path: PathLike) -> Iterator[str]:
     """Yield a temporary path beside ``path``; on success it replaces ``path``.
@@ -56,7 +90,7 @@ def atomic_path(path: PathLike) -> Iterator[str]:
     or SIGTERM under the ``iamp`` command line (which turns it into an exception) — so an
     interrupted run leaves the previous file and no ``.tmp`` behind.
     """
-    path = Path(path)
+    path = write_through(Path(path))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
