@@ -927,3 +927,100 @@ def test_item16_interrupting_a_campaign_prints_only_iamps_line(tmp_path, capsys,
     assert err == "iamp: interrupted\n", err
     # and the loggers are back to their levels afterwards
     assert logging.getLogger("distributed").level == logging.NOTSET
+
+
+# --- item 15: the README's numbers are the committed run's ---------------------------------------
+
+_ROOT = Path(__file__).parents[1]
+
+
+def _readme() -> str:
+    return " ".join((_ROOT / "README.md").read_text(encoding="utf-8").split())
+
+
+def test_item15_campaign_numbers_come_from_the_committed_campaign():
+    import csv
+    import json
+    import re
+    import statistics
+
+    summary = json.loads((_ROOT / "reports" / "campaign" / "summary.json").read_text())
+    rows = list(csv.DictReader((_ROOT / "reports" / "campaign" / "episodes.csv").open()))
+    text = _readme()
+    planners = sorted({r["planner"] for r in summary})
+    seeds = {r["episodes"] for r in summary}
+    assert f"{len(planners)} planners × 3 densities × {seeds.pop()} seeds, {len(rows)} episodes" in text
+    by = {(r["planner"], r["traffic"]): r for r in summary}
+
+    def ci(r: dict) -> str:
+        lo, hi = r["collision_ci"]
+        return f"{round(100 * r['collision_episodes'] / r['episodes'])} [{round(100 * lo)}, {round(100 * hi)}] %"
+
+    for label, group in (("pmp, qp, qp-avoid", ("pmp", "qp", "qp-avoid")), ("sumo (LC2013)", ("sumo",))):
+        cells = [ci(by[(group[0], t)]) for t in ("light", "medium", "dense")]
+        assert all(ci(by[(p, t)]) == c for p in group for t, c in zip(("light", "medium", "dense"), cells))
+        brake = round(100 * by[(group[0], "dense")]["hard_brake_rate"])
+        assert f"| {label} | {' | '.join(cells)} | {brake} % |" in text
+    for p in ("pmp", "qp-avoid"):
+        p95 = " / ".join(f"{1e3 * by[(p, t)]['plan_time_p95_s_median']:.1f}" for t in ("light", "medium", "dense"))
+        assert f"{p} {p95} ms" in text
+    light = [r for r in rows if r["planner"] == "pmp" and r["traffic"] == "light"]
+    dense = [r for r in rows if r["planner"] == "pmp" and r["traffic"] == "dense"]
+
+    def med(rs: list, key: str) -> float:
+        return statistics.median(float(r[key]) for r in rs)
+
+    m = re.search(r"A 60 s pmp episode took ([\d.]+) s of wall time in light traffic \(median over seeds: SUMO "
+                  r"([\d.]+) s, prediction ([\d.]+) s, planning ([\d.]+) s\) and ([\d.]+) s in dense", text)
+    assert m is not None
+    assert [float(g) for g in m.groups()] == [
+        round(med(light, "wall_total_s"), 1), round(med(light, "wall_sumo_s"), 1),
+        round(med(light, "wall_prediction_s"), 1), round(med(light, "wall_planning_s"), 2),
+        round(med(dense, "wall_total_s"), 1)]
+    peak = max(float(r["max_rss_mb"]) for r in rows)
+    assert f"workers peaked at {round(peak, -1):.0f} MB" in text
+
+
+def test_item15_predictor_table_comes_from_the_committed_evaluation():
+    import json
+
+    ev = json.loads((_ROOT / "reports" / "predictor_eval.json").read_text())
+    text = _readme()
+    for label, key in (("constant velocity", "cv"), ("constant acceleration (v ≥ 0)", "ca"),
+                       ("first-order chain", "markov1"), ("MTD, LP lag weights", "mtd-lp")):
+        r = ev["test"][key]
+        cells = [f"{v:.2f}" for v in (*r["rmse"], r["ade"], r["fde"])]
+        assert f"| {label} | " in text
+        row = text.split(f"| {label} | ")[1].split(" |", 7)[:7]
+        assert [c.strip("* ") for c in row] == cells, (label, row, cells)  # bold marks the column's best
+    r = ev["test"]["mtd-cubic"]
+    row = text.split("| **MTD, order 4** (its cubic: the planner's input) | ")[1].split(" |", 7)[:7]
+    assert [c.strip("* ") for c in row] == [f"{v:.2f}" for v in (*r["rmse"], r["ade"], r["fde"])]
+    assert f"({ev['test']['cv']['n_windows']:,} windows" in text
+    gains = [100 * (1 - m / c) for m, c in zip(r["rmse"], ev["test"]["cv"]["rmse"])]
+    assert f"by {round(min(gains))}–{round(max(gains))} % in RMSE" in text
+
+
+def test_item15_no_selection_result_is_cited_when_the_committed_run_did_not_select():
+    import json
+
+    ev = json.loads((_ROOT / "reports" / "predictor_eval.json").read_text())
+    tex = (_ROOT / "reports" / "tables" / "predictor_selection.tex").read_text()
+    text = _readme()
+    if ev["selection"] is None:
+        assert "not run" in tex
+        assert "was chosen on a separate validation split" not in text
+        assert "no selection result is claimed" in text
+
+
+def test_item15_speed_table_medians_come_from_the_committed_bench():
+    import json
+
+    b = json.loads((_ROOT / "reports" / "bench.json").read_text())
+    text = _readme()
+    assert f"| `plan_batch`, one-vehicle plans | {b['pmp_batch_plans_per_s']:,.0f} / s" in text
+    solve = b["qp_native_solve_s"]
+    assert f"`kkt` (direct banded KKT solve) | {1e6 * solve['kkt']:.0f} µs" in text
+    assert f"… best iterative, PIQP | {1e6 * solve['piqp']:.0f} µs" in text
+    assert f"… OSQP (polished to the exact solution) | {1e6 * solve['osqp']:.0f} µs" in text
+    assert f"certified global (numba search) | {1e3 * b['pmp_plan_s']['two_vehicles']:.2f} ms" in text
