@@ -1024,3 +1024,97 @@ def test_item15_speed_table_medians_come_from_the_committed_bench():
     assert f"… best iterative, PIQP | {1e6 * solve['piqp']:.0f} µs" in text
     assert f"… OSQP (polished to the exact solution) | {1e6 * solve['osqp']:.0f} µs" in text
     assert f"certified global (numba search) | {1e3 * b['pmp_plan_s']['two_vehicles']:.2f} ms" in text
+
+
+# --- item 14: figures a paper reader can read ---------------------------------------------------
+
+
+def _texts_inside(fig: object) -> list[str]:
+    """Titles, labels and legend texts that stick out of the figure (clipped when saved)."""
+    fig.canvas.draw()  # type: ignore[attr-defined]
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    box = fig.bbox  # type: ignore[attr-defined]
+    texts = list(fig.texts)  # type: ignore[attr-defined]
+    if getattr(fig, "_suptitle", None) is not None:
+        texts.append(fig._suptitle)  # type: ignore[attr-defined]
+    for ax in fig.axes:  # type: ignore[attr-defined]
+        texts += [ax.title, ax.xaxis.label, ax.yaxis.label, *ax.texts]
+        leg = ax.get_legend()
+        if leg is not None:
+            texts += list(leg.get_texts())
+    out = []
+    for t in texts:
+        if not t.get_text() or not t.get_visible():
+            continue
+        b = t.get_window_extent(renderer)
+        if b.x0 < box.x0 - 1 or b.x1 > box.x1 + 1 or b.y0 < box.y0 - 1 or b.y1 > box.y1 + 1:
+            out.append(t.get_text())
+    return out
+
+
+def _synthetic_episode() -> object:
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from iamp.simulation.metrics import StepLog
+
+    log = StepLog()
+    dt = 0.1
+    for k in range(300):
+        tk = k * dt
+        s = min(max((tk - 10.0) / 5.0, 0.0), 1.0)
+        y = -5.625 + 3.75 * (10 * s**3 - 15 * s**4 + 6 * s**5)
+        log.t.append(tk)
+        log.ego.append((25.0 * tk, 25.0, y, 0.0, 0.0, 0.0))
+        log.mode.append("active" if 0 < s < 1 else "track")
+        log.plan_time.append(1e-3)
+        log.ids.append(("a", "b"))
+        log.nb.append(np.array([[25.0 * tk - 30.0, -1.875, 25.0, 0.0, 1, 4.5, 1.8],
+                                [24.0 * tk + 40.0, -1.875, 24.0, 0.0, 1, 4.5, 1.8]]))
+    summary = {"planner": "pmp", "traffic": "light", "seed": 1, "lane_changes": 1, "collisions": 0,
+               "period_s": dt}
+    return SimpleNamespace(log=log, summary=summary)
+
+
+def test_item14_simulate_figure_shows_the_lane_change_against_distance(tmp_path):
+    import numpy as np
+
+    from iamp.simulation.figures import episode_figure, episode_figure_object
+
+    fig = episode_figure_object(_synthetic_episode())  # type: ignore[arg-type]
+    ego = next(line for line in fig.axes[0].lines if line.get_label() == "ego (centre)")
+    x, y = np.asarray(ego.get_xdata()), np.asarray(ego.get_ydata())
+    # before: the ego was drawn at x = 0 throughout (the frame moving with it): a vertical bar
+    assert np.ptp(x) > 100.0 and np.ptp(y) == pytest.approx(3.75, abs=1e-6)
+    assert np.all(np.diff(x) > 0)
+    assert _texts_inside(fig) == []
+    episode_figure(_synthetic_episode(), tmp_path / "e.png")  # type: ignore[arg-type]
+    assert (tmp_path / "e.png").stat().st_size > 10_000
+
+
+def test_item14_campaign_rates_titles_are_not_clipped(tmp_path, monkeypatch):
+    import iamp.simulation.figures as figures
+
+    figs = []
+    monkeypatch.setattr(figures, "_save", lambda plt, fig, path: figs.append(fig) or path)
+    summary = [{"planner": p, "traffic": t, **{f"{k}_rate": 0.5 for k in ("collision", "intrusion", "hard_brake",
+                                                                           "lane_change")},
+                **{f"{k}_ci": [0.3, 0.7] for k in ("collision", "intrusion", "hard_brake", "lane_change")}}
+               for p in ("pmp", "qp", "qp-avoid", "sumo") for t in ("light", "medium", "dense")]
+    figures.campaign_figures(summary, [], tmp_path)
+    assert figs and all(_texts_inside(f) == [] for f in figs), [_texts_inside(f) for f in figs]
+
+
+def test_item14_xy_caption_describes_the_prediction_the_plan_used():
+    from iamp.cli.scenarios import load_cli_problem
+    from iamp.comparison.report.document import vehicle1_words
+
+    for name, before in (("paper-2", "decelerating"), ("paper-3", "accelerating")):
+        _, prob, _ = load_cli_problem(name)
+        text = vehicle1_words(name, prob)
+        c = list(prob.vehicles[0].x_poly) + [0.0] * 4
+        mean_a = (2 * c[2] * 5.0 + 3 * c[3] * 25.0) / 5.0
+        assert f"was {before} before $t=0$" in text and f"{mean_a:+.2f}" in text
+        # the predictions of scenarios 2 and 3 change speed by well under 1 m/s over 5 s
+        assert abs(mean_a) < 0.1 and "nearly constant speed" in text
