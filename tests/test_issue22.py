@@ -1118,3 +1118,95 @@ def test_item14_xy_caption_describes_the_prediction_the_plan_used():
         assert f"was {before} before $t=0$" in text and f"{mean_a:+.2f}" in text
         # the predictions of scenarios 2 and 3 change speed by well under 1 m/s over 5 s
         assert abs(mean_a) < 0.1 and "nearly constant speed" in text
+
+
+def _capture_figures(monkeypatch: pytest.MonkeyPatch, module: object) -> list:
+    figs: list = []
+    monkeypatch.setattr(module, "save_figure", lambda fig, stem: figs.append(fig) or [])
+    return figs
+
+
+def test_item14_costate_jump_labels_sit_off_the_lines_and_inside_the_axes(monkeypatch, tmp_path):
+    import numpy as np
+
+    import iamp
+    import iamp.comparison.figures.comparison as comparison
+
+    figs = _capture_figures(monkeypatch, comparison)
+    for name in ("paper-1", "two-vehicle"):
+        prob = iamp.load_scenario(name)
+        comparison.plot_costates(iamp.plan(prob), {}, tmp_path / name)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    for fig in figs:
+        canvas = FigureCanvasAgg(fig)
+        canvas.draw()
+        r = canvas.get_renderer()
+        for ax in fig.axes:
+            for text in ax.texts:
+                b = text.get_window_extent(r)
+                a = ax.get_window_extent(r)
+                assert a.x0 - 1 <= b.x0 and b.x1 <= a.x1 + 1, text.get_text()  # before: Φ_1,y ran past x = tf
+                for line in ax.lines:
+                    if line.get_color() != comparison.PALETTE["pmp"]:
+                        continue  # the co-state curves: a label must not cover them
+                    pts = ax.transData.transform(np.column_stack([line.get_xdata(), line.get_ydata()]))
+                    inside = ((pts[:, 0] > b.x0) & (pts[:, 0] < b.x1) & (pts[:, 1] > b.y0) & (pts[:, 1] < b.y1))
+                    assert not inside.any(), text.get_text()  # before: Φ_2,y = -0.4323 lay on p_3
+
+
+def test_item14_timing_shows_no_quartiles_of_few_samples(monkeypatch, tmp_path):
+    from matplotlib.container import ErrorbarContainer
+
+    import iamp.comparison.figures.studies as studies
+
+    figs = _capture_figures(monkeypatch, studies)
+    whole = {"paper-1: PMP": {"median": 2e-5, "q1": 1.9e-5, "q3": 2.2e-5, "n": 200, "min": 1.5e-5, "max": 4e-5},
+             "paper-1: osqp-foh-100": {"median": 1.1, "q1": 1.05, "q3": 1.2, "n": 3, "min": 1.0, "max": 1.3},
+             "two-vehicle: osqp-foh-30": {"median": 4.0, "q1": 4.0, "q3": 4.0, "n": 1, "min": 4.0, "max": 4.0}}
+    studies.plot_timing({"QP clarabel solve": [1e-3] * 10}, tmp_path / "t", whole_plans=whole)
+    ax = figs[0].axes[0]
+    bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
+    assert len(bars) == 1  # only the row with n = 200 draws quartiles
+    caps = {id(c) for b in bars for c in b.lines[1]}
+    ends = sorted(float(x) for line in ax.lines if line.get_marker() == "|" and id(line) not in caps
+                  for x in line.get_xdata())
+    assert ends == [1.0, 1.3, 4.0, 4.0]
+
+
+def test_item14_two_vehicle_safety_regions_are_told_apart(monkeypatch, tmp_path):
+    from matplotlib.colors import to_rgba
+    from matplotlib.patches import Rectangle
+
+    import iamp
+    import iamp.comparison.figures.safety as safety
+
+    figs = _capture_figures(monkeypatch, safety)
+    prob = iamp.load_scenario("two-vehicle")
+    safety.plot_safety_xy({"equality (PMP)": iamp.plan(prob)}, tmp_path / "s")
+    regions = [p for p in figs[0].axes[0].patches if isinstance(p, Rectangle) and not p.get_fill()]
+    styles = {(to_rgba(p.get_edgecolor())[:3], str(p.get_linestyle())) for p in regions}
+    assert len(styles) == 2  # before: one style (red dashed) for both vehicles' regions
+
+
+def test_item14_xy_figures_are_readable_at_text_width(monkeypatch, tmp_path):
+    # a figure set at a paper's text width (6.5 in) scales its fonts by 6.5 / width: the legend
+    # must stay >= 7.5 pt (before: 10-11 in wide figures with 7-8 pt legends, i.e. 4-5 pt)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    import iamp
+    import iamp.comparison.figures.safety as safety
+    import iamp.comparison.figures.trajectory as trajectory
+
+    figs_t = _capture_figures(monkeypatch, trajectory)
+    figs_s = _capture_figures(monkeypatch, safety)
+    trajectory.plot_xy_snapshots(iamp.plan(iamp.load_scenario("paper-2")), tmp_path / "xy")
+    prob = iamp.load_scenario("two-vehicle")
+    safety.plot_safety_xy({"equality (PMP)": iamp.plan(prob)}, tmp_path / "s")
+    assert len(figs_t) == len(figs_s) == 1
+    for fig in figs_t + figs_s:
+        FigureCanvasAgg(fig)
+        width = fig.get_size_inches()[0]
+        legend = next(ax.get_legend() for ax in fig.axes if ax.get_legend() is not None)
+        assert min(t.get_fontsize() for t in legend.get_texts()) * 6.5 / width >= 7.5
+        assert _texts_inside(fig) == []
