@@ -919,11 +919,20 @@ def test_item16_interrupting_a_campaign_prints_only_iamps_line(tmp_path, capsys,
         raise KeyboardInterrupt
         yield  # pragma: no cover
 
+    class ToStderr(logging.Handler):  # Dask configures its loggers with handlers to stderr
+        def emit(self, record: logging.LogRecord) -> None:
+            sys.stderr.write(self.format(record) + "\n")
+
+    handler = ToStderr()
+    logging.getLogger("distributed").addHandler(handler)
+    monkeypatch.setattr(warnings, "showwarning",  # as outside pytest: a warning is printed on stderr
+                        lambda message, category, *a, **k: sys.stderr.write(f"{category.__name__}: {message}\n"))
     fake = types.ModuleType("distributed")
     fake.Client, fake.LocalCluster, fake.as_completed = Client, LocalCluster, as_completed  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "distributed", fake)
     code, _, err = run_main(["campaign", "--out", str(tmp_path / "camp"), "--seeds", "1", "--quiet"], capsys)
     assert code == 130
+    logging.getLogger("distributed").removeHandler(handler)
     assert err == "iamp: interrupted\n", err
     # and the loggers are back to their levels afterwards
     assert logging.getLogger("distributed").level == logging.NOTSET
