@@ -240,7 +240,8 @@ def options_of(spec: PlannerSpec, values: Mapping[str, Any]) -> dict[str, Any]:
 def _pmp(o: PMPOptions) -> PMPPlanner:
     from .pmp.planner import PMPPlanner
 
-    return PMPPlanner(max_starts=o.max_starts, max_boxes=o.max_boxes, compiled=o.compiled, diagnostics=o.diagnostics)
+    return PMPPlanner(max_starts=o.max_starts, max_boxes=o.max_boxes, compiled=o.compiled, diagnostics=o.diagnostics,
+                      certify_bounded=o.certify_bounded)
 
 
 def _qp(o: QPOptions) -> QPPlanner:
