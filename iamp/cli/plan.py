@@ -127,7 +127,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         # the numerics broke down on an accepted input: a failed plan, never a traceback
         return _report_failure(scenario, args, NUMERICAL_ERROR, f"{exc.__class__.__name__}: {exc}")
     if args.csv is not None and result.ok:
-        from iamp.cli.plot import write_trajectory_csv
+        from iamp.cli.trajectory_csv import write_trajectory_csv
 
         write_trajectory_csv(result, args.csv, args.steps)
     if args.json:
@@ -198,7 +198,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         poly = " ".join(f"{c:+.6g}" + (f"·t^{k}" if k > 1 else "·t" if k == 1 else "") for k, c in enumerate(v.x_poly))
         origin = "predicted from its history" if spec.history is not None else "given"
         print(f"vehicle {v.name}: x_s(t) = {poly}  ({origin})")
-        X = result.trajectory.states(np.array([t]))[0]
+        X = result.require_trajectory().states(np.array([t]))[0]
         print(f"    corner {v.corner}: contact t = {t:.6f} s at (x, y) = ({X[0]:.3f}, {X[2]:.3f}) m; "
               f"{label} = ({j[0]:.6g}, {j[1]:.6g})")
         print(f"    {_phi_meaning(v, j[0])}")

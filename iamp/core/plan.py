@@ -61,8 +61,9 @@ class Plan:
         ``t_i`` in the order of ``problem.vehicles``.
     jumps : ndarray, shape (m, 2)
         ``(Φ_i,x, Φ_i,y)`` (PMP) or ``(ν_i,x, ν_i,y)`` (QP).
-    trajectory : Trajectory
-        ``states(t) -> (len(t), 4)`` and ``inputs(t) -> (len(t), 2)``.
+    trajectory : Trajectory or None
+        ``states(t) -> (len(t), 4)`` and ``inputs(t) -> (len(t), 2)`` (the planner's own class:
+        the PMP's solution, the QP's exact hold trajectory); ``None`` for a failed plan.
     solve_time_s : float
         Wall time of the whole plan (including the contact-time search).
     residuals : dict
@@ -79,7 +80,7 @@ class Plan:
     cost: float | None
     contact_times: FloatArray
     jumps: FloatArray
-    trajectory: Any
+    trajectory: Trajectory | None
     solve_time_s: float = 0.0
     residuals: dict[str, float] = field(default_factory=dict)
     solver: str | None = None
@@ -100,13 +101,19 @@ class Plan:
         return self.status in SUCCESS and self.cost is not None
 
     # --- the trajectory ----------------------------------------------------------------
+    def require_trajectory(self) -> Trajectory:
+        """The trajectory; ``ValueError`` naming the status for a plan without one (a failure)."""
+        if self.trajectory is None:
+            raise ValueError(f"this {self.planner} plan has no trajectory (status {self.status})")
+        return self.trajectory
+
     def states(self, t: ArrayLike) -> FloatArray:
         """States ``(s_x, v_x, s_y, v_y)`` at the times ``t`` (any in ``[0, t_f]``), shape ``(n, 4)``."""
-        return np.asarray(self.trajectory.states(np.atleast_1d(np.asarray(t, dtype=float))), dtype=float)
+        return np.asarray(self.require_trajectory().states(np.atleast_1d(np.asarray(t, dtype=float))), dtype=float)
 
     def inputs(self, t: ArrayLike) -> FloatArray:
         """Inputs ``(u_x, u_y)`` at the times ``t``, shape ``(n, 2)``."""
-        return np.asarray(self.trajectory.inputs(np.atleast_1d(np.asarray(t, dtype=float))), dtype=float)
+        return np.asarray(self.require_trajectory().inputs(np.atleast_1d(np.asarray(t, dtype=float))), dtype=float)
 
     def sample(self, steps: int) -> dict[str, FloatArray]:
         """Trajectory sampled at ``t_k = k·t_f/N``, ``k = 0..N`` (SPEC §5)."""

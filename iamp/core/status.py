@@ -36,7 +36,7 @@ SOLVER_ERROR: Final = "solver_error"
 UNSAFE: Final = "unsafe"
 
 STATUSES: Final = (OPTIMAL, LOCAL, INACCURATE, INFEASIBLE, MAX_ITER, TIME_LIMIT, NUMERICAL_ERROR, SOLVER_ERROR,
-                   LIMITS_VIOLATED, UNSAFE)
+                   UNSAFE, LIMITS_VIOLATED)
 
 #: Statuses that carry a verified plan (a cost is reported).
 SUCCESS: Final = frozenset({OPTIMAL, LOCAL})
