@@ -949,7 +949,7 @@ def box_respected(plan: Plan) -> bool:
     U = plan.inputs(kn)
     rel = TOLERANCES["limits_bound_rel"]
     for k, (lo, hi) in enumerate(((lx, hx), (ly, hy))):
-        slack = rel * max(1.0, *(abs(b) for b in (lo, hi) if math.isfinite(b)))
+        slack = rel * max([1.0, *(abs(b) for b in (lo, hi) if math.isfinite(b))])
         if U[:, k].min() < lo - slack or U[:, k].max() > hi + slack:
             return False
     return True
