@@ -923,7 +923,7 @@ def apply_state_limits(plan: Plan) -> Plan:
     bad = [name for name, r in report.items() if not r["ok"]]
     if bad:
         plan.info["reason"] = "the plan exceeds " + ", ".join(
-            f"{n} (peak {report[n]['peak']}, bound {report[n]['bound']})" for n in bad)
+            f"{n} (peak {_fmt_bound(report[n]['peak'])}, bound {_fmt_bound(report[n]['bound'])})" for n in bad)
         plan.info["limits_violated"] = bad
         plan.status = LIMITS_VIOLATED
     else:
@@ -939,6 +939,15 @@ def _failed(problem: Problem, status: str, check: str, info: dict[str, Any], sta
     return Plan(problem=problem, planner="pmp", status=status, cost=None,
                 contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
                 trajectory=None, solve_time_s=_time.perf_counter() - start, info=info)
+
+
+def _fmt_bound(value: Any) -> str:
+    """A peak or bound for a message: 4 significant digits, a range as ``[lo, hi]``."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_fmt_bound(v) for v in value) + "]"
+    if isinstance(value, (int, float)):
+        return f"{float(value):.4g}"
+    return str(value)
 
 
 def box_respected(plan: Plan) -> bool:
