@@ -1,0 +1,384 @@
+r"""The leader-aware predictor: a calibrated car-following law along the leader's forecast, MTD elsewhere.
+
+For a follower with a known leader (gap at ``t = 0`` below :data:`~iamp.prediction.car_following.MAX_GAP_M`):
+
+1. ``x_0``, ``v_0`` of the follower and ``x_{l,0}``, ``v_{l,0}`` of the leader from the same RTS
+   smoother as every other method (:mod:`iamp.prediction.initial_state`);
+2. the leader's forecast over ``[0, t_f]``: constant velocity ``x_{l,0} + v_{l,0} τ`` (or a
+   trajectory the caller gives: the leader's recorded future for the oracle bound, the ego's
+   plan in a merge, :func:`predict_follower_of_plan`);
+3. the follower's trajectory: the calibrated law integrated along that forecast
+   (:func:`~iamp.prediction.car_following.simulate`, step 0.1 s).
+
+Without a known leader (or a leader beyond ``MAX_GAP_M``) the prediction **is** the fallback
+single-vehicle model's (the MTD predictor, bit for bit).
+
+The model file (``format: iamp-leader/1``, ``kind: "leader"``) holds the law, its parameters
+and calibration summary, the leader-forecast rule and the fallback (``"builtin"`` or an embedded
+MTD model); :func:`load_any_model` reads either kind and names the offending field otherwise.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from iamp.core.atomic import write_text as atomic_write_text
+from iamp.prediction._typing import FloatArray, IntArray
+from iamp.prediction.car_following import (
+    ACC_HALF_WINDOW_S,
+    MAX_GAP_M,
+    CarFollowingLaw,
+    calibrate,
+    calibrate_trajectories,
+    simulate,
+)
+from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
+from iamp.prediction.leaders import Leaders
+from iamp.prediction.mtd_model import ModelFileError, MTDModel
+from iamp.prediction.predictor import Predictor
+from iamp.prediction.tracks import Tracks
+
+__all__ = ["LEADER_FORMAT", "SIM_DT", "LeaderModel", "LeaderPredictor", "calibration_rows", "iterate_with_planner",
+           "load_any_model", "predict_follower_of_plan", "train_leader_model"]
+
+LEADER_FORMAT = "iamp-leader/1"
+#: Step of the forward simulation [s].
+SIM_DT = 0.1
+
+
+@dataclass(frozen=True)
+class LeaderModel:
+    """A calibrated law plus the single-vehicle fallback (module docstring)."""
+
+    law: CarFollowingLaw
+    fallback: MTDModel | None = None  # None: the shipped MTD model
+    jerk_psd: float = DEFAULT_JERK_PSD
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (``kind: "leader"``)."""
+        return {"format": LEADER_FORMAT, "kind": "leader", **self.law.to_dict(),
+                "leader_forecast": "constant velocity from the leader's smoothed history",
+                "max_gap_m": MAX_GAP_M, "jerk_psd": self.jerk_psd,
+                "fallback": "builtin" if self.fallback is None else self.fallback.to_dict(),
+                "provenance": self.provenance}
+
+    def save(self, path: Any) -> Path:
+        """Write the model as JSON, atomically."""
+        out = Path(path)
+        atomic_write_text(out, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
+        return out
+
+    @classmethod
+    def from_dict(cls, d: Any, source: str | None = None) -> LeaderModel:
+        """Inverse of :meth:`to_dict`; :class:`ModelFileError` naming the field."""
+        if not isinstance(d, dict):
+            raise ModelFileError("must be a JSON object", None, source)
+        if d.get("kind") != "leader":
+            raise ModelFileError(f"is {d.get('kind')!r}, expected 'leader'", "kind", source)
+        if d.get("format") != LEADER_FORMAT:
+            raise ModelFileError(f"unsupported format {d.get('format')!r} (expected {LEADER_FORMAT!r})", "format",
+                                 source)
+        try:
+            law = CarFollowingLaw.from_dict(d)
+        except (ValueError, TypeError) as exc:
+            raise ModelFileError(str(exc), "params", source) from None
+        fb = d.get("fallback", "builtin")
+        fallback = None if fb == "builtin" else MTDModel.from_dict(fb, source=f"{source}: fallback")
+        q = d.get("jerk_psd", DEFAULT_JERK_PSD)
+        if not isinstance(q, (int, float)) or not q > 0:
+            raise ModelFileError(f"must be a positive number (got {q!r})", "jerk_psd", source)
+        return cls(law, fallback, float(q), dict(d.get("provenance") or {}))
+
+
+def load_any_model(path: Any) -> MTDModel | LeaderModel:
+    """Read a model file of either kind (``kind`` absent or ``"mtd"``: MTD; ``"leader"``)."""
+    p = Path(path)
+    try:
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelFileError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
+    except json.JSONDecodeError as exc:
+        raise ModelFileError(f"is not valid JSON ({exc})", None, str(p)) from None
+    kind = d.get("kind", "mtd") if isinstance(d, dict) else None
+    if kind == "leader":
+        return LeaderModel.from_dict(d, str(p))
+    if kind == "mtd":
+        return MTDModel.from_dict(d, str(p))
+    raise ModelFileError(f"unknown model kind {kind!r} (expected 'mtd' or 'leader')", "kind", str(p))
+
+
+# ---------------------------------------------------------------------------------------
+# calibration data
+# ---------------------------------------------------------------------------------------
+
+def _central(values: FloatArray, h: int, dt: float, order: int) -> FloatArray:
+    """First (``order=1``) or second derivative by central differences over ``±h`` samples (NaN at ends)."""
+    out = np.full(values.size, np.nan)
+    if values.size > 2 * h:
+        if order == 1:
+            out[h:-h] = (values[2 * h:] - values[:-2 * h]) / (2 * h * dt)
+        else:
+            out[h:-h] = (values[2 * h:] - 2 * values[h:-h] + values[:-2 * h]) / (h * dt) ** 2
+    return out
+
+
+def calibration_rows(tracks: Tracks, leaders: Leaders) -> dict[str, FloatArray]:
+    """``v, s, vl, a`` of every row with a leader (module docstring of :mod:`.car_following`)."""
+    h = max(int(round(ACC_HALF_WINDOW_S / tracks.dt)), 1)
+    n = len(tracks)
+    v = np.full(n, np.nan)
+    a = np.full(n, np.nan)
+    cuts = np.flatnonzero(np.diff(tracks.track_id)) + 1
+    starts = np.concatenate(([0], cuts))
+    for s0, xs in zip(starts, np.split(tracks.x, cuts)):
+        v[s0:s0 + xs.size] = _central(xs, h, tracks.dt, 1)
+        a[s0:s0 + xs.size] = _central(xs, h, tracks.dt, 2)
+    frame = np.round(tracks.t / tracks.dt).astype(np.int64)
+    rows = _row_lookup(tracks, frame)
+    lr = rows(leaders.leader, frame)
+    ok = (leaders.leader >= 0) & (lr >= 0)
+    L = leaders.lengths()
+    i = np.flatnonzero(ok)
+    j = lr[ok]
+    s = tracks.x[j] - tracks.x[i] - 0.5 * (L[i] + L[j])
+    return {"v": v[i], "s": s, "vl": v[j], "a": a[i]}
+
+
+def _row_lookup(tracks: Tracks, frame: IntArray) -> Any:
+    key = tracks.track_id * 100_000_000 + frame
+    order = np.argsort(key, kind="stable")
+    sk = key[order]
+
+    def rows(tid: IntArray, fr: IntArray) -> IntArray:
+        k = np.asarray(tid, dtype=np.int64) * 100_000_000 + fr
+        pos = np.clip(np.searchsorted(sk, k), 0, max(sk.size - 1, 0))
+        out: IntArray = np.where((tid >= 0) & (sk[pos] == k), order[pos], -1)
+        return out
+
+    return rows
+
+
+#: How the law is calibrated by default (:func:`train_leader_model`).
+CALIBRATION = "trajectory"
+#: The leader trajectory the trajectory calibration follows by default.
+CALIBRATION_LEADER = "cv"
+
+
+def train_leader_model(tracks: Tracks, leaders: Leaders, law: str = "idm", fallback: MTDModel | None = None,
+                       provenance: dict[str, Any] | None = None, *, calibration: str = CALIBRATION,
+                       leader: str = CALIBRATION_LEADER) -> LeaderModel:
+    """Calibrate ``law`` on the rows / windows of ``tracks`` that have a leader.
+
+    ``calibration="acceleration"``: least squares on observed accelerations
+    (:func:`~iamp.prediction.car_following.calibrate`).  ``"trajectory"`` (default): that fit
+    refined on the 3 s + 5 s windows of ``tracks`` with a known leader
+    (:func:`~iamp.prediction.car_following.calibrate_trajectories`), the simulated follower
+    starting from the smoothed initial state and following the leader's constant-velocity
+    forecast (``leader="cv"``, default: the law is calibrated for the prediction it makes) or its
+    recorded future (``leader="recorded"``: the behavioural law).
+    """
+    from iamp.prediction.evaluate_leader import leader_windows
+    from iamp.prediction.evaluate_windows import make_windows
+
+    if calibration not in ("acceleration", "trajectory"):
+        raise ValueError(f"calibration must be 'acceleration' or 'trajectory' (got {calibration!r})")
+    if leader not in ("cv", "recorded"):
+        raise ValueError(f"leader must be 'cv' or 'recorded' (got {leader!r})")
+    d = calibration_rows(tracks, leaders)
+    cf = calibrate(law, d["v"], d["s"], d["vl"], d["a"])
+    q = float(fallback.settings.get("jerk_psd", DEFAULT_JERK_PSD)) if fallback is not None else DEFAULT_JERK_PSD
+    if calibration == "trajectory":
+        win = make_windows(tracks)
+        lw = leader_windows(tracks, leaders, win)
+        k = lw.known
+        if int(np.sum(k)) < 5:
+            raise ValueError(f"too few windows with a known leader to calibrate on trajectories ({int(np.sum(k))})")
+        sm = smooth_histories(win.t_hist, win.X_hist[k], q)
+        x0, v0 = sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0)
+        x_true = np.concatenate([win.X_hist[k][:, -1:], win.X_fut[k]], axis=1)
+        tn = SIM_DT * np.arange(x_true.shape[1])
+        if leader == "recorded":
+            xl = np.concatenate([lw.XL_hist[k][:, -1:], lw.XL_fut[k]], axis=1)
+            vl = np.gradient(xl, tn, axis=1)
+        else:
+            sl = smooth_histories(win.t_hist, lw.XL_hist[k], q)
+            vl0 = np.maximum(sl.v[:, -1], 0.0)
+            xl = sl.x[:, -1:] + vl0[:, None] * tn[None, :]
+            vl = np.repeat(vl0[:, None], tn.size, axis=1)
+        near = (xl[:, 0] - x0 - lw.offset[k]) < MAX_GAP_M
+        cf = calibrate_trajectories(cf, x0[near], v0[near], xl[near], vl[near], lw.offset[k][near], x_true[near],
+                                    SIM_DT)
+        cf = CarFollowingLaw(cf.name, cf.params, {**cf.fit, "leader_trajectory": leader})
+    prov = {"n_tracks": int(tracks.n_tracks), "leader_source": leaders.source,
+            "leader_known_fraction": leaders.known_fraction, "calibration": calibration, **(provenance or {})}
+    return LeaderModel(cf, fallback, q, prov)
+
+
+# ---------------------------------------------------------------------------------------
+# prediction
+# ---------------------------------------------------------------------------------------
+
+class LeaderPredictor:
+    """Batched leader-aware prediction (module docstring).
+
+    Parameters
+    ----------
+    model : LeaderModel
+    name : str
+    """
+
+    def __init__(self, model: LeaderModel, name: str = "leader"):
+        self.model = model
+        self.name = name
+        self.fallback = Predictor(model.fallback, "fallback") if model.fallback is not None else Predictor.default()
+
+    @classmethod
+    def from_file(cls, path: Any) -> LeaderPredictor:
+        """A predictor from a ``kind: "leader"`` model file."""
+        m = load_any_model(path)
+        if not isinstance(m, LeaderModel):
+            raise ModelFileError("is an MTD model; a leader model (kind 'leader') is needed here", "kind", str(path))
+        return cls(m, str(path))
+
+    def _nodes(self, tf: float) -> FloatArray:
+        M = max(int(math.ceil(tf / SIM_DT - 1e-9)), 1)
+        t: FloatArray = SIM_DT * np.arange(M + 1)
+        return t
+
+    def leader_forecast_cv(self, t_hist: FloatArray, XL_hist: FloatArray, tf: float) -> tuple[FloatArray, FloatArray]:
+        """The leaders' constant-velocity forecasts ``(xl, vl)`` at the simulation nodes over ``[0, tf]``."""
+        sm = smooth_histories(np.asarray(t_hist, dtype=float), np.atleast_2d(XL_hist), self.model.jerk_psd)
+        t = self._nodes(tf)
+        v = np.maximum(sm.v[:, -1], 0.0)
+        xl: FloatArray = sm.x[:, -1:] + v[:, None] * t[None, :]
+        return xl, np.repeat(v[:, None], t.size, axis=1)
+
+    def predict_batch(self, t_hist: FloatArray, X_hist: FloatArray, query: FloatArray, tf: float, *,
+                      XL_hist: FloatArray | None = None, has_leader: Any = None, offset: Any = 4.5,
+                      leader_future: tuple[FloatArray, FloatArray] | None = None) -> FloatArray:
+        """Positions at ``query`` of ``B`` followers sharing the history times ``t_hist``.
+
+        Parameters
+        ----------
+        t_hist : numpy.ndarray, shape (K,)
+        X_hist : numpy.ndarray, shape (B, K)
+            Followers' observed positions (centres).
+        query : numpy.ndarray, shape (Q,)
+            Times in ``[0, tf]``.
+        tf : float
+        XL_hist : numpy.ndarray, shape (B, K), optional
+            Leaders' observed positions at ``t_hist`` (same frame); rows without a leader are ignored.
+        has_leader : array of bool, shape (B,), optional
+            Default: ``XL_hist`` given and finite.
+        offset : float or array (B,)
+            ``(L_leader + L_follower) / 2`` [m].
+        leader_future : (xl, vl), each (B, M + 1) at the nodes ``0, 0.1, ..`` s, optional
+            The leaders' trajectories to follow instead of their CV forecast (oracle, ego's plan).
+
+        Returns
+        -------
+        numpy.ndarray, shape (B, Q)
+        """
+        t_hist = np.asarray(t_hist, dtype=float)
+        X_hist = np.atleast_2d(np.asarray(X_hist, dtype=float))
+        B = X_hist.shape[0]
+        q = np.asarray(query, dtype=float)
+        out = self.fallback.predict_batch(t_hist, X_hist, q, tf)
+        if XL_hist is None and leader_future is None:
+            return out
+        if has_leader is None:
+            hl = np.ones(B, dtype=bool) if XL_hist is None else np.all(np.isfinite(np.atleast_2d(XL_hist)), axis=1)
+        else:
+            hl = np.asarray(has_leader, dtype=bool).copy()
+        off = np.broadcast_to(np.asarray(offset, dtype=float), (B,))
+        sm = smooth_histories(t_hist, X_hist, self.model.jerk_psd)
+        x0, v0 = sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0)
+        if leader_future is not None:
+            xl, vl = (np.atleast_2d(np.asarray(z, dtype=float)) for z in leader_future)
+        else:
+            assert XL_hist is not None
+            XL = np.where(np.isfinite(XL_hist), XL_hist, 0.0)
+            xl, vl = self.leader_forecast_cv(t_hist, XL, tf)
+        gap0 = xl[:, 0] - x0 - off
+        use = hl & np.isfinite(gap0) & (gap0 < MAX_GAP_M)
+        if not np.any(use):
+            return out
+        t = self._nodes(tf)
+        if xl.shape[1] != t.size:
+            raise ValueError(f"leader_future must have {t.size} nodes (0..{t[-1]:g} s by {SIM_DT:g} s)")
+        xs, _ = simulate(self.model.law, x0[use], v0[use], xl[use], vl[use], off[use], SIM_DT)
+        out[use] = np.stack([np.interp(q, t, row) for row in xs])
+        return out
+
+
+def predict_follower_of_plan(predictor: LeaderPredictor, t_hist: FloatArray, x_hist: FloatArray,
+                             plan_t: FloatArray, plan_x: FloatArray, tf: float, *, offset: float = 4.5,
+                             current_leader_hist: FloatArray | None = None) -> tuple[tuple[float, ...], FloatArray]:
+    """The target-lane follower's prediction when the ego's plan becomes its leader (a merge).
+
+    Parameters
+    ----------
+    predictor : LeaderPredictor
+    t_hist, x_hist : numpy.ndarray, shape (K,)
+        The follower's observed history (centre positions, the planner's frame).
+    plan_t, plan_x : numpy.ndarray
+        The ego's planned centre positions over ``[0, tf]`` (any increasing times covering it).
+    tf : float
+    offset : float
+        ``(L_ego + L_follower) / 2`` [m].
+    current_leader_hist : numpy.ndarray, shape (K,), optional
+        The follower's present leader in its lane: the follower then reacts to the nearer of the
+        two at each node (the ego once it is ahead of the follower and behind that leader).
+
+    Returns
+    -------
+    x_poly, x : (tuple of 4 float, numpy.ndarray)
+        The least-squares cubic of the predicted positions over ``[0, tf]`` (ascending powers,
+        as SPEC §7's Ω) and the positions at the nodes ``0, 0.1, .., tf``.
+    """
+    t = predictor._nodes(tf)
+    xe = np.interp(t, np.asarray(plan_t, dtype=float), np.asarray(plan_x, dtype=float))
+    ve = np.gradient(xe, t)
+    xl, vl = xe[None, :], ve[None, :]
+    th = np.asarray(t_hist, dtype=float)
+    if current_leader_hist is not None:
+        xo, vo = predictor.leader_forecast_cv(th, np.asarray(current_leader_hist, dtype=float)[None, :], tf)
+        nearer = xo < xl  # the nearer vehicle ahead leads
+        xl, vl = np.where(nearer, xo, xl), np.where(nearer, vo, vl)
+    x = predictor.predict_batch(th, np.asarray(x_hist, dtype=float)[None, :], t, tf, has_leader=[True],
+                                offset=offset, leader_future=(xl, vl))[0]
+    V = np.vander(t, 4, increasing=True)
+    c, *_ = np.linalg.lstsq(V, x, rcond=None)
+    return tuple(float(ci) for ci in c), x
+
+
+def iterate_with_planner(plan: Any, predict: Any, x_poly0: tuple[float, ...], *, max_iter: int = 3,
+                         tol_m: float = 0.1, tf: float = 5.0) -> dict[str, Any]:
+    """Fixed-point iteration plan ↔ follower prediction, at most ``max_iter`` re-plans.
+
+    ``plan(x_poly)`` plans against the follower's cubic and returns ``(plan_t, plan_x)``;
+    ``predict(plan_t, plan_x)`` returns the follower's new cubic (e.g. :func:`predict_follower_of_plan`).
+    Stops when the follower's cubic moves less than ``tol_m`` (max over ``[0, tf]``) or after
+    ``max_iter`` plans.  Returns ``{"x_poly", "plan", "iterations", "converged", "changes_m"}``.
+    """
+    tt = np.linspace(0.0, tf, 51)
+    poly = tuple(x_poly0)
+    changes: list[float] = []
+    result = plan(poly)
+    for k in range(max_iter):
+        new = tuple(predict(*result))
+        change = float(np.max(np.abs(np.polynomial.polynomial.polyval(tt, new)
+                                     - np.polynomial.polynomial.polyval(tt, poly))))
+        changes.append(change)
+        poly = new
+        if change < tol_m:
+            return {"x_poly": poly, "plan": result, "iterations": k + 1, "converged": True, "changes_m": changes}
+        result = plan(poly)
+    return {"x_poly": poly, "plan": result, "iterations": max_iter, "converged": False, "changes_m": changes}
