@@ -177,3 +177,63 @@ def subset_tables(errs: dict[str, dict[str, FloatArray]], track_id: IntArray, ma
         sub = {k: {f: v[m] for f, v in e.items()} for k, e in errs.items()}
         out[name] = bootstrap_table(sub, track_id[m], seed, resamples)
     return out
+
+
+def _rows_mask(full: Tracks, part: Tracks) -> BoolArray:
+    """Rows of ``full`` that are in ``part`` (a row subset), by ``(track_id, frame)``."""
+    def key(tb: Tracks) -> IntArray:
+        out: IntArray = tb.track_id * 100_000_000 + np.round(tb.t / tb.dt).astype(np.int64)
+        return out
+
+    return np.isin(key(full), key(part))
+
+
+def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train: Tracks | None, win: Windows,
+                        mtd: Any, preds: dict[str, FloatArray], *, leader_model: str | None, split: str | None,
+                        seed: int, resamples: int) -> tuple[dict[str, Any], dict[str, FloatArray]]:
+    """The leader-aware rows and the ``interaction`` section of ``evaluate-predictor`` (module docstring).
+
+    Returns ``(section, extra predictions)``: ``extra`` holds ``"leader"`` (the leader-aware
+    predictor with the leader's CV forecast), which joins the §13 tables; the section holds the
+    tables of every method overall, per traffic state and per leader known/unknown, with the
+    oracle bound ``"leader-oracle"`` (the same law along the leader's *recorded* future).
+    """
+    from iamp.prediction.evaluate_windows import FUTURE_S
+    from iamp.prediction.initial_state import smooth_histories
+    from iamp.prediction.leader_model import SIM_DT, LeaderPredictor, default_leader_model, train_leader_model
+    from iamp.prediction.leaders import leaders_for
+
+    leaders = leaders_for(data, fmt, tracks)
+    if split is None:
+        lm = (LeaderPredictor.from_file(leader_model).model if leader_model is not None else default_leader_model())
+        note = leader_model if leader_model is not None else "builtin (calibrated on the shipped SUMO data)"
+    else:
+        assert train is not None
+        m = _rows_mask(tracks, train)
+        lt = Leaders(leaders.leader[m], leaders.length[m], leaders.source)
+        lm = train_leader_model(train, lt, fallback=mtd)
+        note = f"calibrated on the {split} split's training part ({train.n_tracks} tracks)"
+    lp = LeaderPredictor(lm, "leader")
+    lw = leader_windows(tracks, leaders, win)
+    kw = {"XL_hist": lw.XL_hist, "has_leader": lw.known, "offset": lw.offset}
+    extra = {"leader": lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S, **kw)}
+    tn = SIM_DT * np.arange(win.t_fut.size + 1)
+    xl = np.nan_to_num(np.concatenate([lw.XL_hist[:, -1:], lw.XL_fut], axis=1))
+    oracle = lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S,
+                              leader_future=(xl, np.gradient(xl, tn, axis=1)), **kw)
+    allp = {**preds, **extra, "leader-oracle": oracle}
+    errs = {k: errors(p, win.X_fut, win.t_fut) for k, p in allp.items()}
+    sm = smooth_histories(win.t_hist, win.X_hist, lm.jerk_psd)
+    v0 = np.maximum(sm.v[:, -1], 0.0)
+    cong = v0 < CONGESTED_BELOW_MPS
+    masks = {"all": np.ones(win.n, dtype=bool), "free": ~cong, "congested": cong,
+             "leader_known": lw.known, "leader_unknown": ~lw.known}
+    section = {
+        "leader_source": leaders.source, "leader_rows_known": leaders.known_fraction,
+        "windows_leader_known": int(np.sum(lw.known)), "leader_future_extended": int(np.sum(lw.future_extended)),
+        "congested_below_mps": CONGESTED_BELOW_MPS, "windows_congested": int(np.sum(cong)),
+        "leader_model": {"note": note, **lm.law.to_dict()},
+        "oracle": "leader-oracle: the leader model along the leader's recorded future (a bound, not a predictor)",
+        "tables": subset_tables(errs, win.track_id, masks, seed, resamples),
+    }
+    return section, extra

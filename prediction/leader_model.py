@@ -44,7 +44,7 @@ from iamp.prediction.mtd_model import ModelFileError, MTDModel
 from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks import Tracks
 
-__all__ = ["LEADER_FORMAT", "SIM_DT", "LeaderModel", "LeaderPredictor", "calibration_rows", "iterate_with_planner",
+__all__ = ["DEFAULT_LEADER_FILE", "LEADER_FORMAT", "default_leader_model", "train_default_leader_model", "SIM_DT", "LeaderModel", "LeaderPredictor", "calibration_rows", "iterate_with_planner",
            "load_any_model", "predict_follower_of_plan", "train_leader_model"]
 
 LEADER_FORMAT = "iamp-leader/1"
@@ -95,6 +95,51 @@ class LeaderModel:
         if not isinstance(q, (int, float)) or not q > 0:
             raise ModelFileError(f"must be a positive number (got {q!r})", "jerk_psd", source)
         return cls(law, fallback, float(q), dict(d.get("provenance") or {}))
+
+
+#: Package-data file of the shipped leader model (``prediction/data/``).
+DEFAULT_LEADER_FILE = "leader_default.json"
+
+
+def default_leader_model() -> LeaderModel:
+    """The shipped leader model (calibrated on the shipped SUMO data, :func:`train_default_leader_model`)."""
+    from importlib import resources
+
+    name = f"iamp.prediction/data/{DEFAULT_LEADER_FILE}"
+    ref = resources.files("iamp.prediction").joinpath("data", DEFAULT_LEADER_FILE)
+    if not ref.is_file():
+        raise ModelFileError("the shipped leader model is missing (iamp.prediction.leader_model."
+                             "train_default_leader_model('package') rebuilds it)", None, name)
+    try:
+        d = json.loads(ref.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ModelFileError(f"is not valid JSON ({exc})", None, name) from None
+    return LeaderModel.from_dict(d, name)
+
+
+def train_default_leader_model(path: Any = None) -> LeaderModel:
+    """Calibrate the shipped leader model on the shipped SUMO data's training tracks (train ∪ val).
+
+    Leaders derived from lane and position; the IDM calibrated on trajectories (windows every
+    5 s to bound the cost); fallback: the shipped MTD model.  ``path="package"`` writes
+    ``prediction/data/leader_default.json``.
+    """
+    from iamp.prediction.evaluate import split_tracks
+    from iamp.prediction.leaders import derive_leaders
+    from iamp.prediction.tracks import load_shipped_dataset
+
+    tracks = load_shipped_dataset()
+    _, _, test, rest = split_tracks(tracks)
+    leaders = derive_leaders(rest)
+    model = train_leader_model(rest, leaders, "idm", None, {
+        "trained_by": "iamp.prediction.leader_model.train_default_leader_model",
+        "dataset": "shipped SUMO highway data (prediction/data/sumo_highway.npz), train + validation tracks",
+        "n_test_tracks_held_out": int(test.n_tracks)}, stride_s=5.0)
+    if path is not None:
+        if str(path) == "package":
+            path = Path(__file__).resolve().parent / "data" / DEFAULT_LEADER_FILE
+        model.save(path)
+    return model
 
 
 def load_any_model(path: Any) -> MTDModel | LeaderModel:
@@ -173,7 +218,7 @@ CALIBRATION_LEADER = "cv"
 
 def train_leader_model(tracks: Tracks, leaders: Leaders, law: str = "idm", fallback: MTDModel | None = None,
                        provenance: dict[str, Any] | None = None, *, calibration: str = CALIBRATION,
-                       leader: str = CALIBRATION_LEADER) -> LeaderModel:
+                       leader: str = CALIBRATION_LEADER, stride_s: float = 1.0) -> LeaderModel:
     """Calibrate ``law`` on the rows / windows of ``tracks`` that have a leader.
 
     ``calibration="acceleration"``: least squares on observed accelerations
@@ -195,7 +240,7 @@ def train_leader_model(tracks: Tracks, leaders: Leaders, law: str = "idm", fallb
     cf = calibrate(law, d["v"], d["s"], d["vl"], d["a"])
     q = float(fallback.settings.get("jerk_psd", DEFAULT_JERK_PSD)) if fallback is not None else DEFAULT_JERK_PSD
     if calibration == "trajectory":
-        win = make_windows(tracks)
+        win = make_windows(tracks, stride_s=stride_s)
         lw = leader_windows(tracks, leaders, win)
         k = lw.known
         if int(np.sum(k)) < 5:

@@ -183,9 +183,10 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
     from iamp.prediction.evaluate_user import evaluate_file
 
     try:
-        with progress_bar(7, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
+        with progress_bar(9, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
             res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed,
-                                location=args.location, progress=tick)
+                                location=args.location, progress=tick, leader_model=args.leader_model,
+                                interaction=not args.no_interaction)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
     if args.json:
@@ -206,7 +207,30 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
         print(f"  {name} - cv: FDE {d['fde_m']['diff']:+.2f} m (95 % CI {lo:+.2f} .. {hi:+.2f}, track bootstrap)")
     if res["lateral_rmse_m"]:
         print("lateral RMSE of y = const [m]: " + " ".join(f"{v:.2f}" for v in res["lateral_rmse_m"]["constant_y"]))
+    if res.get("interaction"):
+        print_interaction(res["interaction"])
     return EXIT_OK
+
+
+def print_interaction(inter: dict[str, Any]) -> None:
+    """The ``interaction`` section as text: per subset, RMSE at 5 s with its CI and the change against CV."""
+    lm = inter["leader_model"]
+    print(f"leaders: {inter['leader_source']}; {inter['windows_leader_known']} windows with a known leader; "
+          f"congested: speed < {inter['congested_below_mps']:.2f} m/s ({inter['windows_congested']} windows)")
+    print(f"leader model: {lm['law']} " + ", ".join(f"{k}={v:.3g}" for k, v in lm["params"].items())
+          + f" ({lm['note']})")
+    for sub, tb in inter["tables"].items():
+        if "methods" not in tb:
+            print(f"  [{sub}] no windows")
+            continue
+        print(f"  [{sub}] {tb['windows']} windows, {tb['tracks']} tracks: RMSE at 5 s [m] (95 % CI), vs CV")
+        for name, r in tb["methods"].items():
+            lo, hi = r["rmse_ci95"][-1]
+            d = r.get("diff_to_cv")
+            rel = (f"{100 * d['rmse_5s_rel']:+6.1f} % ({100 * d['rmse_5s_rel_ci95'][0]:+.1f} .. "
+                   f"{100 * d['rmse_5s_rel_ci95'][1]:+.1f})") if d else ""
+            print(f"    {name:14s} {r['rmse_m'][-1]:6.2f} ({lo:.2f} .. {hi:.2f})  ADE {r['ade_m']:.2f}  "
+                  f"FDE {r['fde_m']:.2f}  {rel}")
 
 
 def _evaluate_shipped(args: argparse.Namespace) -> int:
@@ -311,6 +335,11 @@ def add_parsers(subparsers: Any) -> None:
     e.add_argument("--location", default=None,
                    help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
                         "dropped")
+    e.add_argument("--leader-model", type=model_file, default=None,
+                   help="leader model file (kind 'leader', from iamp train --model-kind leader) to evaluate "
+                        "(default: the shipped one; with --split one is calibrated on the training part)")
+    e.add_argument("--no-interaction", action="store_true",
+                   help="skip the leader-aware predictor and the tables per traffic state and leader")
     e.add_argument("--json", action="store_true", help="print exactly one JSON object")
     e.add_argument("--out", default="reports", help="output directory without --data (default: reports)")
     e.add_argument("--force", action="store_true", help="write into an existing --out folder iamp did not write")
