@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from iamp.cli.types import model_file
+from iamp.cli.types import leader_model_file, model_file
 from iamp.cli.types import positive_float as _positive_float
 from iamp.cli.types import positive_int as _positive_int
 from iamp.core.errors import IampError, ScenarioError
@@ -89,13 +89,37 @@ def cmd_train(args: argparse.Namespace) -> int:
                                           **({"location": args.location} if args.location else {}))
         for line in report.lines():
             print(line)
+        if args.model_kind == "leader" and len(args.data) != 1:
+            raise ValueError("--model-kind leader needs exactly one data file (leaders are found within one recording)")
         model = call_with_progress(
             train_from_tracks, tracks, desc="train", enabled=progress_enabled(args), dt=args.dt, edges=edges,
             order=args.order, estimator=args.estimator, jerk_psd=args.jerk_psd,
             provenance={"trained_by": "iamp train", "inputs": [str(p) for p in args.data], "format": args.format})
-        model.save(args.out)
+        if args.model_kind == "leader":
+            from iamp.prediction.leader_model import train_leader_model
+            from iamp.prediction.leaders import leaders_for
+
+            leaders = leaders_for(args.data[0], args.format, tracks)
+            lm = call_with_progress(
+                train_leader_model, tracks, leaders, args.law, model, desc="calibrate", enabled=progress_enabled(args),
+                provenance={"trained_by": "iamp train --model-kind leader", "inputs": [str(p) for p in args.data],
+                            "format": args.format}, calibration=args.calibration)
+            lm.save(args.out)
+        else:
+            model.save(args.out)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
+    if args.model_kind == "leader":
+        fit = lm.law.fit
+        print(f"leader model: {lm.law.name} " + ", ".join(f"{k}={v:.4g}" for k, v in lm.law.params.items()))
+        print(f"leaders: {leaders.source} ({100 * leaders.known_fraction:.1f} % of rows); calibration: "
+              f"{fit.get('criterion')}")
+        if "trajectory_rms_m" in fit:
+            print(f"trajectory RMS over {fit['trajectory_windows']} windows: {fit['trajectory_rms_m_start']:.3f} m "
+                  f"(acceleration fit) -> {fit['trajectory_rms_m']:.3f} m")
+        print(f"fallback (no leader): the MTD model trained here, order {model.order}, {model.n_states} states")
+        print(f"wrote {args.out}")
+        return EXIT_OK
     s = model.summary()
     print(f"trained MTD model: order {s['order']}, {s['n_states']} states, dt {model.dt:g} s, "
           f"estimator {s['estimator']}, {model.provenance.get('n_tracks_used')} tracks")
@@ -280,6 +304,14 @@ def add_parsers(subparsers: Any) -> None:
                    help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
                         "dropped")
     t.add_argument("--out", required=True, help="model file to write (JSON)")
+    t.add_argument("--model-kind", choices=("mtd", "leader"), default="mtd",
+                   help="mtd: the paper's single-vehicle chain (default); leader: a car-following law calibrated on "
+                        "the vehicles with a leader (NGSIM Preceding, else lane + position), with the MTD trained "
+                        "here as the fallback where no leader is known")
+    t.add_argument("--law", choices=("idm", "linear"), default="idm", help="leader model: car-following law")
+    t.add_argument("--calibration", choices=("trajectory", "acceleration"), default="trajectory",
+                   help="leader model: least squares on 5-s trajectories along the leader's CV forecast (default) "
+                        "or on observed accelerations")
     t.add_argument("--force", action="store_true", help="replace --out if it exists")
     t.add_argument("--order", type=_positive_int, default=DEFAULT_CONFIG["order"],
                    help=f"chain order n (default {DEFAULT_CONFIG['order']})")
@@ -335,7 +367,7 @@ def add_parsers(subparsers: Any) -> None:
     e.add_argument("--location", default=None,
                    help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
                         "dropped")
-    e.add_argument("--leader-model", type=model_file, default=None,
+    e.add_argument("--leader-model", type=leader_model_file, default=None,
                    help="leader model file (kind 'leader', from iamp train --model-kind leader) to evaluate "
                         "(default: the shipped one; with --split one is calibrated on the training part)")
     e.add_argument("--no-interaction", action="store_true",
