@@ -258,7 +258,8 @@ def calibrate_trajectories(start: CarFollowingLaw, x0: FloatArray, v0: FloatArra
     res = least_squares(resid, th0, bounds=(lo, hi), x_scale="jac", max_nfev=300)
     law = CarFollowingLaw(start.name, dict(zip(names, (float(z) for z in res.x))))
     r0, r1 = resid(th0), resid(res.x)
-    fit = {**{f"acceleration_fit_{k}": v for k, v in start.fit.items()}, "trajectory_windows": int(np.atleast_2d(x0).size),
+    fit = {**{f"acceleration_fit_{k}": v for k, v in start.fit.items()},
+           "trajectory_windows": int(np.atleast_2d(x0).size),
            "trajectory_rms_m_start": float(np.sqrt(np.mean(r0 * r0))),
            "trajectory_rms_m": float(np.sqrt(np.mean(r1 * r1))),
            "criterion": "least squares on positions over the windows (start: least squares on accelerations)"}

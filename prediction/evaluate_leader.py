@@ -215,7 +215,7 @@ def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train
         note = f"calibrated on the {split} split's training part ({train.n_tracks} tracks)"
     lp = LeaderPredictor(lm, "leader")
     lw = leader_windows(tracks, leaders, win)
-    kw = {"XL_hist": lw.XL_hist, "has_leader": lw.known, "offset": lw.offset}
+    kw: dict[str, Any] = {"XL_hist": lw.XL_hist, "has_leader": lw.known, "offset": lw.offset}
     extra = {"leader": lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S, **kw)}
     tn = SIM_DT * np.arange(win.t_fut.size + 1)
     xl = np.nan_to_num(np.concatenate([lw.XL_hist[:, -1:], lw.XL_fut], axis=1))

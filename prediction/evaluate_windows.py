@@ -35,8 +35,8 @@ from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
 from iamp.prediction.mtd_model import MTDModel
 from iamp.prediction.tracks import Tracks
 
-__all__ = ["CA_WINDOW_S", "EVAL_DT", "FUTURE_S", "HISTORY_S", "HORIZONS", "STRIDE_S", "Windows", "baseline_ca", "baseline_cv",
-           "evaluate_methods", "make_windows", "metrics"]
+__all__ = ["CA_WINDOW_S", "EVAL_DT", "FUTURE_S", "HISTORY_S", "HORIZONS", "STRIDE_S", "Windows", "baseline_ca",
+           "baseline_cv", "evaluate_methods", "make_windows", "metrics"]
 
 #: Horizons [s] of the RMSE table.
 HORIZONS = (1.0, 2.0, 3.0, 4.0, 5.0)

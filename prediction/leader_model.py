@@ -44,8 +44,22 @@ from iamp.prediction.mtd_model import ModelFileError, MTDModel
 from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks import Tracks
 
-__all__ = ["DEFAULT_LEADER_FILE", "LEADER_FORMAT", "default_leader_model", "train_default_leader_model", "SIM_DT", "LeaderModel", "LeaderPredictor", "calibration_rows", "iterate_with_planner",
-           "load_any_model", "predict_follower_of_plan", "train_leader_model"]
+__all__ = [
+    "DEFAULT_LEADER_FILE",
+    "LEADER_FORMAT",
+    "SIM_DT",
+    "LeaderModel",
+    "LeaderPredictor",
+    "calibration_rows",
+    "default_leader_model",
+    "iterate_with_planner",
+    "load_any_model",
+    "predict_follower_of_plan",
+    "predict_scenario",
+    "scenario_leaders",
+    "train_default_leader_model",
+    "train_leader_model",
+]
 
 LEADER_FORMAT = "iamp-leader/1"
 #: Step of the forward simulation [s].
@@ -294,7 +308,7 @@ class LeaderPredictor:
 
     def _nodes(self, tf: float) -> FloatArray:
         M = max(int(math.ceil(tf / SIM_DT - 1e-9)), 1)
-        t: FloatArray = SIM_DT * np.arange(M + 1)
+        t: FloatArray = np.asarray(SIM_DT * np.arange(M + 1), dtype=np.float64)
         return t
 
     def leader_forecast_cv(self, t_hist: FloatArray, XL_hist: FloatArray, tf: float) -> tuple[FloatArray, FloatArray]:
@@ -427,3 +441,59 @@ def iterate_with_planner(plan: Any, predict: Any, x_poly0: tuple[float, ...], *,
             return {"x_poly": poly, "plan": result, "iterations": k + 1, "converged": True, "changes_m": changes}
         result = plan(poly)
     return {"x_poly": poly, "plan": result, "iterations": max_iter, "converged": False, "changes_m": changes}
+
+
+#: Two vehicles of a scenario share a lane when their lateral positions differ by less than this [m].
+SAME_LANE_TOL_M = 1.75
+
+
+def scenario_leaders(vehicles: Any) -> dict[int, int]:
+    """Leader index of every history vehicle of a scenario: the nearest history vehicle ahead at ``t = 0``
+    whose ``|y - y_i|`` is below :data:`SAME_LANE_TOL_M` (half a 3.5-m lane)."""
+    out: dict[int, int] = {}
+    have = [(i, v) for i, v in enumerate(vehicles) if v.history is not None]
+    for i, v in have:
+        x_i = float(v.history.x[-1])
+        best = None
+        for j, w in have:
+            if j == i or abs(float(w.y) - float(v.y)) >= SAME_LANE_TOL_M:
+                continue
+            dx = float(w.history.x[-1]) - x_i
+            if dx > 0 and (best is None or dx < best[0]):
+                best = (dx, j)
+        if best is not None:
+            out[i] = best[1]
+    return out
+
+
+def predict_scenario(predictor: LeaderPredictor, vehicles: Any, tf: float) -> dict[int, tuple[tuple[float, ...],
+                                                                                          FloatArray, FloatArray]]:
+    """Leader-aware predictions ``{index: (x_poly, t, x)}`` of a scenario's history vehicles.
+
+    The leader of a vehicle is :func:`scenario_leaders`'s; its history is interpolated onto the
+    follower's history times (a leader whose history does not cover them counts as unknown).
+    Vehicles without a known leader get the fallback MTD prediction.  ``x_poly``: the
+    least-squares cubic over ``[0, tf]`` (SPEC §7).
+    """
+    lead = scenario_leaders(vehicles)
+    t = predictor._nodes(tf)
+    t[-1] = tf
+    out = {}
+    V = np.vander(t, 4, increasing=True)
+    for i, v in enumerate(vehicles):
+        if v.history is None:
+            continue
+        th = np.asarray(v.history.t, dtype=float)
+        xh = np.asarray(v.history.x, dtype=float)
+        kw: dict[str, Any] = {}
+        j = lead.get(i)
+        if j is not None:
+            lh = vehicles[j].history
+            lt = np.asarray(lh.t, dtype=float)
+            if lt[0] <= th[0] + 1e-9 and lt[-1] >= th[-1] - 1e-9:
+                kw = {"XL_hist": np.interp(th, lt, np.asarray(lh.x, dtype=float))[None, :],
+                      "offset": 0.5 * (float(v.length) + float(vehicles[j].length))}
+        x: FloatArray = predictor.predict_batch(th, xh[None, :], t, tf, **kw)[0]
+        c, *_ = np.linalg.lstsq(V, x, rcond=None)
+        out[i] = (tuple(float(z) for z in c), t, x)
+    return out

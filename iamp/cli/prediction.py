@@ -178,6 +178,16 @@ def cmd_predict(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
         predictor = Predictor.from_file(args.model) if args.model else Predictor.default()
         out = predict_json(scenario, predictor, predictor.name)
+        if args.leader_model is not None:
+            from iamp.prediction.leader_model import LeaderPredictor, predict_scenario, scenario_leaders
+
+            lp = LeaderPredictor.from_file(args.leader_model)
+            lead = scenario_leaders(scenario.vehicles)
+            for i, (coef, tt, xx) in predict_scenario(lp, scenario.vehicles, scenario.ego.tf).items():
+                fr = float(np.sqrt(np.mean((np.polynomial.polynomial.polyval(tt, coef) - xx) ** 2)))
+                out["vehicles"][i].update({"x_poly": list(coef), "t": tt.tolist(), "x": xx.tolist(), "fit_rmse": fr,
+                                           "leader": scenario.vehicles[lead[i]].name if i in lead else None})
+            out["model"] = args.leader_model
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
     if args.json:
@@ -345,6 +355,9 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("scenario", help="scenario TOML file or built-in name")
     p.add_argument("--model", type=model_file, default=None,
                    help="model file (default: the shipped model, reported as 'builtin')")
+    p.add_argument("--leader-model", type=leader_model_file, default=None,
+                   help="leader model (iamp train --model-kind leader): a history vehicle with another history "
+                        "vehicle ahead in its lane (|dy| < 1.75 m) is predicted following it")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     p.set_defaults(func=cmd_predict)
 
