@@ -214,6 +214,15 @@ def simulate(law: CarFollowingLaw, x0: Any, v0: Any, xl: FloatArray, vl: FloatAr
     x[:, 0] = np.broadcast_to(np.asarray(x0, dtype=float), (B,))
     v[:, 0] = np.maximum(np.broadcast_to(np.asarray(v0, dtype=float), (B,)), 0.0)
     off = np.broadcast_to(np.asarray(offset, dtype=float), (B,))
+    if law.name == "idm":
+        kernel = _kernel()
+        if kernel is not None:
+            p = law.params
+            kernel(p["a"], p["b"], p["v0"], p["T"], p["s0"], x, v, np.ascontiguousarray(xl), np.ascontiguousarray(vl),
+                   np.ascontiguousarray(off), float(dt), A_MAX, B_MAX, MIN_GAP_M)
+        else:
+            _simulate_idm(law.params, x, v, xl, vl, off, dt)
+        return x, v
     for k in range(M1 - 1):
         s = xl[:, k] - x[:, k] - off
         a = np.clip(accel(law, v[:, k], s, vl[:, k]), -B_MAX, A_MAX)
@@ -264,3 +273,48 @@ def calibrate_trajectories(start: CarFollowingLaw, x0: FloatArray, v0: FloatArra
            "trajectory_rms_m": float(np.sqrt(np.mean(r1 * r1))),
            "criterion": "least squares on positions over the windows (start: least squares on accelerations)"}
     return CarFollowingLaw(law.name, law.params, fit)
+
+
+def _simulate_idm(p: dict[str, float], x: FloatArray, v: FloatArray, xl: FloatArray, vl: FloatArray,
+                  off: FloatArray, dt: float) -> None:
+    """:func:`simulate` for IDM, in place, with the law inlined (the same arithmetic, fewer temporaries)."""
+    a_, T, s0 = p["a"], p["T"], p["s0"]
+    inv_v0 = 1.0 / p["v0"]
+    c = 1.0 / (2.0 * np.sqrt(p["a"] * p["b"]))
+    xlo = xl - off[:, None]  # leader rear minus the follower's half length
+    for k in range(xl.shape[1] - 1):
+        vk = v[:, k]
+        s = np.maximum(xlo[:, k] - x[:, k], 0.1)
+        star = np.maximum(vk * (T + c * (vk - vl[:, k])), 0.0)
+        star += s0
+        star /= s
+        r = vk * inv_v0
+        r *= r
+        acc = a_ * (1.0 - r * r - star * star)
+        np.clip(acc, -B_MAX, A_MAX, out=acc)
+        acc *= dt
+        acc += vk
+        vn = np.maximum(acc, 0.0)
+        xn = x[:, k] + 0.5 * dt * (vk + vn)
+        cap = xlo[:, k + 1] - MIN_GAP_M
+        over = xn > cap
+        if over.any():
+            xn = np.where(over, np.maximum(cap, x[:, k]), xn)
+            vn = np.where(over, np.minimum(vn, np.maximum(vl[:, k + 1], 0.0)), vn)
+        x[:, k + 1] = xn
+        v[:, k + 1] = vn
+
+
+_KERNEL: list[Any] = []
+
+
+def _kernel() -> Any:
+    """The numba kernel of :mod:`.car_following_kernel`, or ``None`` without numba (cached)."""
+    if not _KERNEL:
+        try:
+            from iamp.prediction.car_following_kernel import simulate_idm_kernel
+
+            _KERNEL.append(simulate_idm_kernel)
+        except ImportError:
+            _KERNEL.append(None)
+    return _KERNEL[0]
