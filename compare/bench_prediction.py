@@ -48,7 +48,7 @@ def bench_leader_prediction(repeats: int = 50) -> dict[str, Any]:
 
     case = neighbours_case()
     lp = LeaderPredictor(default_leader_model(), "builtin")
-    q = 0.1 * np.arange(51)
+    q = np.asarray(0.1 * np.arange(51), dtype=np.float64)
     XL = np.where(case["has_leader"][:, None], case["XL_hist"], 0.0)
 
     def run() -> Any:

@@ -17,7 +17,7 @@ import numpy as np
 __all__ = ["simulate_idm_kernel"]
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)  # type: ignore[misc]
+@numba.njit(cache=True, error_model="numpy", nogil=True)
 def simulate_idm_kernel(a_: float, b_: float, v0_: float, T: float, s0: float, x: np.ndarray, v: np.ndarray,
                         xl: np.ndarray, vl: np.ndarray, off: np.ndarray, dt: float, a_max: float, b_max: float,
                         min_gap: float) -> None:  # pragma: no cover - compiled

@@ -159,7 +159,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
     from iamp.prediction.evaluate_select import train_config
     from iamp.prediction.tracks import load_shipped_dataset
 
-    total = 9
+    total = 8
     step = 0
 
     def tick() -> None:

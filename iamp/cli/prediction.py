@@ -217,7 +217,7 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
     from iamp.prediction.evaluate_user import evaluate_file
 
     try:
-        with progress_bar(9, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
+        with progress_bar(8, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
             res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed,
                                 location=args.location, progress=tick, leader_model=args.leader_model,
                                 interaction=not args.no_interaction)
