@@ -13,12 +13,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from iamp.prediction import car_following as cf
-from iamp.prediction.car_following import CarFollowingLaw, accel, calibrate, simulate
-from iamp.prediction.evaluate_leader import _rows_mask, bootstrap_table, errors
-from iamp.prediction.evaluate_windows import Windows, baseline_ca, baseline_cv, make_windows, metrics
+from iamp.prediction.evaluation.leader import _rows_mask, bootstrap_table, errors
+from iamp.prediction.evaluation.windows import Windows, baseline_ca, baseline_cv, make_windows, metrics
 from iamp.prediction.initial_state import smooth_histories
-from iamp.prediction.leader_model import (
+from iamp.prediction.leader import car_following as cf
+from iamp.prediction.leader.car_following import CarFollowingLaw, accel, calibrate, simulate
+from iamp.prediction.leader.leaders import derive_leaders, ngsim_leaders
+from iamp.prediction.leader.model import (
     LeaderModel,
     LeaderPredictor,
     default_leader_model,
@@ -27,9 +28,8 @@ from iamp.prediction.leader_model import (
     predict_follower_of_plan,
     train_leader_model,
 )
-from iamp.prediction.leaders import derive_leaders, ngsim_leaders
 from iamp.prediction.loaders import load
-from iamp.prediction.mtd_model import ModelFileError
+from iamp.prediction.mtd.model import ModelFileError
 from iamp.prediction.predictor import Predictor
 
 REPO = Path(__file__).resolve().parents[1]
@@ -240,7 +240,7 @@ def test_leader_model_learns_the_platoon_and_beats_cv(tmp_path: Path) -> None:
     tr = load([tmp_path / "p0.csv.gz"], "ngsim")
     lm = train_leader_model(tr, ngsim_leaders(tmp_path / "p0.csv.gz", tr), "idm")
     te = load([tmp_path / "p1.csv.gz"], "ngsim")
-    from iamp.prediction.evaluate_leader import leader_windows
+    from iamp.prediction.evaluation.leader import leader_windows
 
     win = make_windows(te)
     lw = leader_windows(te, ngsim_leaders(tmp_path / "p1.csv.gz", te), win)
@@ -291,7 +291,7 @@ def test_bootstrap_intervals() -> None:
 
 
 def test_rows_mask_of_a_vehicle_split() -> None:
-    from iamp.prediction.evaluate_data import synthetic_tracks
+    from iamp.prediction.evaluation.data import synthetic_tracks
 
     tr = synthetic_tracks(10, 20.0)
     train, test = tr.split_by_track(0.3, seed=0)
@@ -358,7 +358,7 @@ def test_cli_train_leader_and_evaluate_json_is_additive(tmp_path: Path) -> None:
 @needs_us101
 def test_us101_leaders_and_vehicle_split_beats_cv() -> None:
     """US-101: Preceding maps to tracks, the derivation agrees, and the leader model beats CV at 5 s."""
-    from iamp.prediction.evaluate_user import evaluate_file
+    from iamp.prediction.evaluation.user import evaluate_file
 
     tr = load([US101], "ngsim")
     L = ngsim_leaders(US101, tr)

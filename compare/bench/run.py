@@ -27,7 +27,7 @@ What is measured (one vehicle: ``paper-1-poly``; two: ``two-vehicle``; FOH, ``N 
   it (:mod:`.bench_casadi`: build, cold and warm solve, its discretised ``t_1`` and ``J``);
   skipped (with a note) unless ``casadi`` is installed.
 * **Leader-aware prediction** (``prediction_leader_20_s``) — one batched prediction of 20
-  neighbours with leaders (:mod:`.bench_prediction`; issue 23's target 2 ms).
+  neighbours with leaders (:mod:`.prediction`; issue 23's target 2 ms).
 * **OSQP tuning** (not with ``--quick``) — what each OSQP setting buys on the equality QP:
   verified candidates, polish successes, iterations, recomputed KKT residuals, time.
 """
@@ -238,7 +238,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     casadi = _casadi(one, quick, notes)
     tick(6)
     tuning = [] if quick else osqp_tuning(one)
-    from iamp.comparison.bench_prediction import bench_leader_prediction
+    from iamp.comparison.bench.prediction import bench_leader_prediction
 
     lead_pred = bench_leader_prediction(20 if quick else 100)
     tick(7)

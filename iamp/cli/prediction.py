@@ -96,8 +96,8 @@ def cmd_train(args: argparse.Namespace) -> int:
             order=args.order, estimator=args.estimator, jerk_psd=args.jerk_psd,
             provenance={"trained_by": "iamp train", "inputs": [str(p) for p in args.data], "format": args.format})
         if args.model_kind == "leader":
-            from iamp.prediction.leader_model import train_leader_model
-            from iamp.prediction.leaders import leaders_for
+            from iamp.prediction.leader.leaders import leaders_for
+            from iamp.prediction.leader.model import train_leader_model
 
             leaders = leaders_for(args.data[0], args.format, tracks)
             lm = call_with_progress(
@@ -179,7 +179,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
         predictor = Predictor.from_file(args.model) if args.model else Predictor.default()
         out = predict_json(scenario, predictor, predictor.name)
         if args.leader_model is not None:
-            from iamp.prediction.leader_model import LeaderPredictor, predict_scenario, scenario_leaders
+            from iamp.prediction.leader.model import LeaderPredictor, predict_scenario, scenario_leaders
 
             lp = LeaderPredictor.from_file(args.leader_model)
             lead = scenario_leaders(scenario.vehicles)

@@ -99,7 +99,7 @@ def leader_model_file(text: str) -> str:
         raise argparse.ArgumentTypeError(f"{text}: is {size} bytes; a model file may have at most "
                                          f"{MODEL_FILE_MAX_BYTES} bytes")
     try:
-        from iamp.prediction.leader_model import LeaderPredictor
+        from iamp.prediction.leader.model import LeaderPredictor
 
         LeaderPredictor.from_file(text)
     except Exception as exc:  # the file is user input: every way it can be malformed is a refusal

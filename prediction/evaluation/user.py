@@ -147,7 +147,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         shipped one).  With ``split`` a leader model is calibrated on the training part.
     interaction : bool
         Evaluate the leader-aware predictor and add the ``interaction`` section (module
-        docstring of :mod:`~iamp.prediction.evaluate_leader`).
+        docstring of :mod:`~iamp.prediction.evaluation.leader`).
 
     Returns
     -------
@@ -207,7 +207,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
     tick()
     inter = None
     if interaction:
-        from iamp.prediction.evaluate_leader import interaction_section
+        from iamp.prediction.evaluation.leader import interaction_section
 
         inter, extra = interaction_section(data, fmt, tracks, test, train, win, mtd, preds, leader_model=leader_model,
                                            split=split, seed=seed, resamples=resamples)

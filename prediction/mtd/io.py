@@ -70,7 +70,7 @@ def model_from_dict(d: Any, source: str | None = None) -> MTDModel:
                              "format", source)
     if d.get("kind", "mtd") != "mtd":
         raise ModelFileError(f"is {d.get('kind')!r}, expected 'mtd' (a leader model is read by "
-                             "iamp.prediction.leader_model.load_any_model)", "kind", source)
+                             "iamp.prediction.leader.model.load_any_model)", "kind", source)
     for key in ("Q", "lambda", "order"):
         if key not in d:
             raise ModelFileError("is missing", key, source)

@@ -1,6 +1,6 @@
 r"""Evaluation that shows the interaction: leader windows, the split by traffic state and by leader, CIs.
 
-Leader of a window: the follower's leader at ``t = 0`` (:class:`~iamp.prediction.leaders.Leaders`),
+Leader of a window: the follower's leader at ``t = 0`` (:class:`~iamp.prediction.leader.leaders.Leaders`),
 *known* when that leader's track covers the whole 3-s history ``[t_0 - 3, t_0]`` (its observed past is
 what a predictor may use).  Its recorded future (for the oracle bound only) is used where its track
 covers ``[t_0, t_0 + 5]``; otherwise the oracle continues the recording at the leader's last recorded
@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 
 from iamp.prediction._typing import BoolArray, FloatArray, IntArray
-from iamp.prediction.evaluate_windows import HORIZONS, Windows
+from iamp.prediction.evaluation.windows import HORIZONS, Windows
 from iamp.prediction.kinematics import local_quadratic
-from iamp.prediction.leaders import Leaders
+from iamp.prediction.leader.leaders import Leaders
 from iamp.prediction.tracks import Tracks
 
 __all__ = ["CONGESTED_BELOW_MPS", "LeaderWindows", "bootstrap_table", "errors", "leader_windows", "subset_tables"]
@@ -55,7 +55,7 @@ class LeaderWindows:
 
 
 def leader_windows(tracks: Tracks, leaders: Leaders, win: Windows) -> LeaderWindows:
-    """The leaders of ``win`` (made by :func:`~iamp.prediction.evaluate_windows.make_windows` of ``tracks``)."""
+    """The leaders of ``win`` (made by :func:`~iamp.prediction.evaluation.windows.make_windows` of ``tracks``)."""
     if win.t0 is None:
         raise ValueError("windows without t0")
     W, K, F = win.n, win.t_hist.size, win.t_fut.size
@@ -198,10 +198,10 @@ def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train
     tables of every method overall, per traffic state and per leader known/unknown, with the
     oracle bound ``"leader-oracle"`` (the same law along the leader's *recorded* future).
     """
-    from iamp.prediction.evaluate_windows import FUTURE_S
+    from iamp.prediction.evaluation.windows import FUTURE_S
     from iamp.prediction.initial_state import smooth_histories
-    from iamp.prediction.leader_model import SIM_DT, LeaderPredictor, default_leader_model, train_leader_model
-    from iamp.prediction.leaders import leaders_for
+    from iamp.prediction.leader.leaders import leaders_for
+    from iamp.prediction.leader.model import SIM_DT, LeaderPredictor, default_leader_model, train_leader_model
 
     leaders = leaders_for(data, fmt, tracks)
     if split is None:

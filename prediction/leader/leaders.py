@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from iamp.prediction._typing import FloatArray, IntArray
-from iamp.prediction.loaders_csv import _integers, _path, read_csv
-from iamp.prediction.loaders_ngsim import FEET
+from iamp.prediction.loaders.csv import _integers, _path, read_csv
+from iamp.prediction.loaders.ngsim import FEET
 from iamp.prediction.tracks import TrackDataError, Tracks
 
 __all__ = ["DEFAULT_LENGTH_M", "Leaders", "derive_leaders", "ngsim_leaders"]
@@ -118,13 +118,13 @@ _SPEC = (
 def ngsim_leaders(path: str | os.PathLike[str], tracks: Tracks) -> Leaders:
     """Leaders of an NGSIM table from its file's ``Preceding`` column (module docstring).
 
-    ``tracks`` must be :func:`~iamp.prediction.loaders_ngsim.load_ngsim` of the same file (its
+    ``tracks`` must be :func:`~iamp.prediction.loaders.ngsim.load_ngsim` of the same file (its
     ``meta["source_ids"]`` maps tracks to ``(Vehicle_ID, first Frame_ID)``).  Falls back to
     :func:`derive_leaders` when the column is absent or 0 in every row.
     """
     p = _path(path)
     first = ""
-    from iamp.prediction.loaders_csv import _open_text
+    from iamp.prediction.loaders.csv import _open_text
 
     with _open_text(p) as fh:
         first = fh.readline()

@@ -309,10 +309,10 @@ _KERNEL: list[Any] = []
 
 
 def _kernel() -> Any:
-    """The numba kernel of :mod:`.car_following_kernel`, or ``None`` without numba (cached)."""
+    """The numba kernel of :mod:`.kernel`, or ``None`` without numba (cached)."""
     if not _KERNEL:
         try:
-            from iamp.prediction.car_following_kernel import simulate_idm_kernel
+            from iamp.prediction.leader.kernel import simulate_idm_kernel
 
             _KERNEL.append(simulate_idm_kernel)
         except ImportError:

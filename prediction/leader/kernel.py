@@ -1,10 +1,10 @@
 """numba kernel of the IDM forward simulation (``pip install iamp[fast]``).
 
-The same arithmetic as :func:`iamp.prediction.car_following._simulate_idm` (checked against it
+The same arithmetic as :func:`iamp.prediction.leader.car_following._simulate_idm` (checked against it
 in ``tests/test_leader.py``), as scalar loops compiled by numba: the 20-neighbour prediction of
 ``iamp bench`` is dominated by numpy's per-call overhead on short arrays otherwise.  This
 module imports numba at import time: import it only through
-:func:`iamp.prediction.car_following.simulate`, which falls back to numpy without numba.
+:func:`iamp.prediction.leader.car_following.simulate`, which falls back to numpy without numba.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 The case (deterministic): 20 vehicles in two lanes of 10, 3 s of history at 10 Hz (31
 samples), speeds 8–20 m/s with gaps of 8–30 m, each vehicle's leader the one ahead in its lane
 (the two lane heads have none and take the MTD fallback).  Timed: one
-:meth:`~iamp.prediction.leader_model.LeaderPredictor.predict_batch` of all 20 over 5 s at the
+:meth:`~iamp.prediction.leader.model.LeaderPredictor.predict_batch` of all 20 over 5 s at the
 0.1-s nodes (initial states, the leaders' CV forecasts, the IDM simulation, the MTD fallback).
 """
 
@@ -44,7 +44,7 @@ def neighbours_case(n: int = 20, seed: int = 0) -> dict[str, Any]:
 
 def bench_leader_prediction(repeats: int = 50) -> dict[str, Any]:
     """Median time of one batched leader-aware prediction of 20 neighbours (module docstring)."""
-    from iamp.prediction.leader_model import LeaderPredictor, default_leader_model
+    from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
 
     case = neighbours_case()
     lp = LeaderPredictor(default_leader_model(), "builtin")

@@ -1,6 +1,6 @@
 r"""The leader-aware predictor: a calibrated car-following law along the leader's forecast, MTD elsewhere.
 
-For a follower with a known leader (gap at ``t = 0`` below :data:`~iamp.prediction.car_following.MAX_GAP_M`):
+For a follower with a known leader (gap at ``t = 0`` below :data:`~iamp.prediction.leader.car_following.MAX_GAP_M`):
 
 1. ``x_0``, ``v_0`` of the follower and ``x_{l,0}``, ``v_{l,0}`` of the leader from the same RTS
    smoother as every other method (:mod:`iamp.prediction.initial_state`);
@@ -8,7 +8,7 @@ For a follower with a known leader (gap at ``t = 0`` below :data:`~iamp.predicti
    trajectory the caller gives: the leader's recorded future for the oracle bound, the ego's
    plan in a merge, :func:`predict_follower_of_plan`);
 3. the follower's trajectory: the calibrated law integrated along that forecast
-   (:func:`~iamp.prediction.car_following.simulate`, step 0.1 s).
+   (:func:`~iamp.prediction.leader.car_following.simulate`, step 0.1 s).
 
 Without a known leader (or a leader beyond ``MAX_GAP_M``) the prediction **is** the fallback
 single-vehicle model's (the MTD predictor, bit for bit).
@@ -30,7 +30,8 @@ import numpy as np
 
 from iamp.core.atomic import write_text as atomic_write_text
 from iamp.prediction._typing import FloatArray, IntArray
-from iamp.prediction.car_following import (
+from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
+from iamp.prediction.leader.car_following import (
     ACC_HALF_WINDOW_S,
     MAX_GAP_M,
     CarFollowingLaw,
@@ -38,9 +39,8 @@ from iamp.prediction.car_following import (
     calibrate_trajectories,
     simulate,
 )
-from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
-from iamp.prediction.leaders import Leaders
-from iamp.prediction.mtd_model import ModelFileError, MTDModel
+from iamp.prediction.leader.leaders import Leaders
+from iamp.prediction.mtd.model import ModelFileError, MTDModel
 from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks import Tracks
 
@@ -122,7 +122,7 @@ def default_leader_model() -> LeaderModel:
     name = f"iamp.prediction/data/{DEFAULT_LEADER_FILE}"
     ref = resources.files("iamp.prediction").joinpath("data", DEFAULT_LEADER_FILE)
     if not ref.is_file():
-        raise ModelFileError("the shipped leader model is missing (iamp.prediction.leader_model."
+        raise ModelFileError("the shipped leader model is missing (iamp.prediction.leader.model."
                              "train_default_leader_model('package') rebuilds it)", None, name)
     try:
         d = json.loads(ref.read_text(encoding="utf-8"))
@@ -138,15 +138,15 @@ def train_default_leader_model(path: Any = None) -> LeaderModel:
     5 s to bound the cost); fallback: the shipped MTD model.  ``path="package"`` writes
     ``prediction/data/leader_default.json``.
     """
-    from iamp.prediction.evaluate import split_tracks
-    from iamp.prediction.leaders import derive_leaders
+    from iamp.prediction.evaluation.evaluate import split_tracks
+    from iamp.prediction.leader.leaders import derive_leaders
     from iamp.prediction.tracks import load_shipped_dataset
 
     tracks = load_shipped_dataset()
     _, _, test, rest = split_tracks(tracks)
     leaders = derive_leaders(rest)
     model = train_leader_model(rest, leaders, "idm", None, {
-        "trained_by": "iamp.prediction.leader_model.train_default_leader_model",
+        "trained_by": "iamp.prediction.leader.model.train_default_leader_model",
         "dataset": "shipped SUMO highway data (prediction/data/sumo_highway.npz), train + validation tracks",
         "n_test_tracks_held_out": int(test.n_tracks)}, stride_s=5.0)
     if path is not None:
@@ -236,15 +236,15 @@ def train_leader_model(tracks: Tracks, leaders: Leaders, law: str = "idm", fallb
     """Calibrate ``law`` on the rows / windows of ``tracks`` that have a leader.
 
     ``calibration="acceleration"``: least squares on observed accelerations
-    (:func:`~iamp.prediction.car_following.calibrate`).  ``"trajectory"`` (default): that fit
+    (:func:`~iamp.prediction.leader.car_following.calibrate`).  ``"trajectory"`` (default): that fit
     refined on the 3 s + 5 s windows of ``tracks`` with a known leader
-    (:func:`~iamp.prediction.car_following.calibrate_trajectories`), the simulated follower
+    (:func:`~iamp.prediction.leader.car_following.calibrate_trajectories`), the simulated follower
     starting from the smoothed initial state and following the leader's constant-velocity
     forecast (``leader="cv"``, default: the law is calibrated for the prediction it makes) or its
     recorded future (``leader="recorded"``: the behavioural law).
     """
-    from iamp.prediction.evaluate_leader import leader_windows
-    from iamp.prediction.evaluate_windows import make_windows
+    from iamp.prediction.evaluation.leader import leader_windows
+    from iamp.prediction.evaluation.windows import make_windows
 
     if calibration not in ("acceleration", "trajectory"):
         raise ValueError(f"calibration must be 'acceleration' or 'trajectory' (got {calibration!r})")
