@@ -18,14 +18,13 @@ from iamp.prediction.evaluation.windows import Windows, baseline_ca, baseline_cv
 from iamp.prediction.initial_state import smooth_histories
 from iamp.prediction.leader import car_following as cf
 from iamp.prediction.leader.car_following import CarFollowingLaw, accel, calibrate, simulate
+from iamp.prediction.leader.ego import iterate_with_planner, predict_follower_of_plan
 from iamp.prediction.leader.leaders import derive_leaders, ngsim_leaders
 from iamp.prediction.leader.model import (
     LeaderModel,
     LeaderPredictor,
     default_leader_model,
-    iterate_with_planner,
     load_any_model,
-    predict_follower_of_plan,
     train_leader_model,
 )
 from iamp.prediction.loaders import load

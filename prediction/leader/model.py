@@ -6,7 +6,7 @@ For a follower with a known leader (gap at ``t = 0`` below :data:`~iamp.predicti
    smoother as every other method (:mod:`iamp.prediction.initial_state`);
 2. the leader's forecast over ``[0, t_f]``: constant velocity ``x_{l,0} + v_{l,0} τ`` (or a
    trajectory the caller gives: the leader's recorded future for the oracle bound, the ego's
-   plan in a merge, :func:`predict_follower_of_plan`);
+   plan in a merge, :func:`~iamp.prediction.leader.ego.predict_with_ego_leader`);
 3. the follower's trajectory: the calibrated law integrated along that forecast
    (:func:`~iamp.prediction.leader.car_following.simulate`, step 0.1 s).
 
@@ -52,9 +52,7 @@ __all__ = [
     "LeaderPredictor",
     "calibration_rows",
     "default_leader_model",
-    "iterate_with_planner",
     "load_any_model",
-    "predict_follower_of_plan",
     "predict_scenario",
     "scenario_leaders",
     "train_default_leader_model",
@@ -375,72 +373,6 @@ class LeaderPredictor:
         xs, _ = simulate(self.model.law, x0[use], v0[use], xl[use], vl[use], off[use], SIM_DT)
         out[use] = np.stack([np.interp(q, t, row) for row in xs])
         return out
-
-
-def predict_follower_of_plan(predictor: LeaderPredictor, t_hist: FloatArray, x_hist: FloatArray,
-                             plan_t: FloatArray, plan_x: FloatArray, tf: float, *, offset: float = 4.5,
-                             current_leader_hist: FloatArray | None = None) -> tuple[tuple[float, ...], FloatArray]:
-    """The target-lane follower's prediction when the ego's plan becomes its leader (a merge).
-
-    Parameters
-    ----------
-    predictor : LeaderPredictor
-    t_hist, x_hist : numpy.ndarray, shape (K,)
-        The follower's observed history (centre positions, the planner's frame).
-    plan_t, plan_x : numpy.ndarray
-        The ego's planned centre positions over ``[0, tf]`` (any increasing times covering it).
-    tf : float
-    offset : float
-        ``(L_ego + L_follower) / 2`` [m].
-    current_leader_hist : numpy.ndarray, shape (K,), optional
-        The follower's present leader in its lane: the follower then reacts to the nearer of the
-        two at each node (the ego once it is ahead of the follower and behind that leader).
-
-    Returns
-    -------
-    x_poly, x : (tuple of 4 float, numpy.ndarray)
-        The least-squares cubic of the predicted positions over ``[0, tf]`` (ascending powers,
-        as SPEC §7's Ω) and the positions at the nodes ``0, 0.1, .., tf``.
-    """
-    t = predictor._nodes(tf)
-    xe = np.interp(t, np.asarray(plan_t, dtype=float), np.asarray(plan_x, dtype=float))
-    ve = np.gradient(xe, t)
-    xl, vl = xe[None, :], ve[None, :]
-    th = np.asarray(t_hist, dtype=float)
-    if current_leader_hist is not None:
-        xo, vo = predictor.leader_forecast_cv(th, np.asarray(current_leader_hist, dtype=float)[None, :], tf)
-        nearer = xo < xl  # the nearer vehicle ahead leads
-        xl, vl = np.where(nearer, xo, xl), np.where(nearer, vo, vl)
-    x = predictor.predict_batch(th, np.asarray(x_hist, dtype=float)[None, :], t, tf, has_leader=[True],
-                                offset=offset, leader_future=(xl, vl))[0]
-    V = np.vander(t, 4, increasing=True)
-    c, *_ = np.linalg.lstsq(V, x, rcond=None)
-    return tuple(float(ci) for ci in c), x
-
-
-def iterate_with_planner(plan: Any, predict: Any, x_poly0: tuple[float, ...], *, max_iter: int = 3,
-                         tol_m: float = 0.1, tf: float = 5.0) -> dict[str, Any]:
-    """Fixed-point iteration plan ↔ follower prediction, at most ``max_iter`` re-plans.
-
-    ``plan(x_poly)`` plans against the follower's cubic and returns ``(plan_t, plan_x)``;
-    ``predict(plan_t, plan_x)`` returns the follower's new cubic (e.g. :func:`predict_follower_of_plan`).
-    Stops when the follower's cubic moves less than ``tol_m`` (max over ``[0, tf]``) or after
-    ``max_iter`` plans.  Returns ``{"x_poly", "plan", "iterations", "converged", "changes_m"}``.
-    """
-    tt = np.linspace(0.0, tf, 51)
-    poly = tuple(x_poly0)
-    changes: list[float] = []
-    result = plan(poly)
-    for k in range(max_iter):
-        new = tuple(predict(*result))
-        change = float(np.max(np.abs(np.polynomial.polynomial.polyval(tt, new)
-                                     - np.polynomial.polynomial.polyval(tt, poly))))
-        changes.append(change)
-        poly = new
-        if change < tol_m:
-            return {"x_poly": poly, "plan": result, "iterations": k + 1, "converged": True, "changes_m": changes}
-        result = plan(poly)
-    return {"x_poly": poly, "plan": result, "iterations": max_iter, "converged": False, "changes_m": changes}
 
 
 #: Two vehicles of a scenario share a lane when their lateral positions differ by less than this [m].

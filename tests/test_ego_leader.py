@@ -1,0 +1,110 @@
+"""The ego in the forecast (issue 23 item 3) and the I-80-like generator: properties over generated merges."""
+
+from __future__ import annotations
+
+import gzip
+from pathlib import Path
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.prediction.leader import car_following as cf
+from iamp.prediction.leader.ego import predict_with_ego_leader
+from iamp.prediction.leader.leaders import ngsim_leaders
+from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
+from iamp.prediction.leader.synthetic import SECTION_M, i80_like, write_ngsim_csv
+from iamp.prediction.loaders import load
+
+T_HIST = np.linspace(-3.0, 0.0, 31)
+LP = LeaderPredictor(default_leader_model())
+T_PLAN = np.linspace(0.0, 5.0, 51)
+
+
+@settings(max_examples=40, deadline=None)
+@given(vf=st.floats(5.0, 30.0), vl=st.floats(0.0, 30.0), gl=st.floats(8.0, 60.0),
+       ve=st.floats(0.0, 30.0), ge=st.floats(-20.0, 80.0))
+def test_an_ego_that_never_enters_the_lane_changes_nothing(vf: float, vl: float, gl: float, ve: float,
+                                                           ge: float) -> None:
+    """Ego kept in its own lane (y 3.5 m from the target centre, 1.8 m wide): the follower's forecast is
+    the leader model's along its present leader only, whatever the ego does longitudinally."""
+    x_hist = vf * T_HIST
+    xl_hist = gl + 4.5 + vl * T_HIST
+    f = predict_with_ego_leader(LP, T_HIST, x_hist, T_PLAN, ge + ve * T_PLAN, 5.0, plan_y=np.full(51, 3.5),
+                                target_y=0.0, leader_hist=xl_hist)
+    ref = LP.predict_batch(T_HIST, x_hist[None, :], f.t, 5.0, XL_hist=xl_hist[None, :], has_leader=[True],
+                           offset=4.5)[0]
+    assert not f.ego_leads.any()
+    assert np.max(np.abs(f.x - ref)) < 1e-8
+
+
+@settings(max_examples=40, deadline=None)
+@given(vf=st.floats(5.0, 30.0), ve=st.floats(0.0, 30.0), ge=st.floats(0.5, 40.0), t_in=st.floats(0.0, 4.0))
+def test_the_follower_never_closes_below_the_minimum_gap_behind_the_ego(vf: float, ve: float, ge: float,
+                                                                       t_in: float) -> None:
+    """The ego leads from the first node at which it is in the target lane ahead of the follower; from
+    then on the gap behind the ego's rear never falls below min(MIN_GAP_M, the gap at entry); before
+    that the follower drives the free road (its path without the ego)."""
+    x_hist = vf * T_HIST
+    xe = 4.5 + ge + ve * T_PLAN
+    ye = np.where(T_PLAN >= t_in, 0.0, 3.5)  # jumps into the lane at t_in
+    f = predict_with_ego_leader(LP, T_HIST, x_hist, T_PLAN, xe, 5.0, plan_y=ye, target_y=0.0)
+    free = predict_with_ego_leader(LP, T_HIST, x_hist, T_PLAN, xe, 5.0, plan_y=np.full(51, 9.0), target_y=0.0)
+    inside = np.interp(f.t, T_PLAN, ye) == 0.0
+    gap_free = np.interp(f.t, T_PLAN, xe) - 4.5 - free.x
+    enter = np.flatnonzero(inside & (gap_free > 0))
+    expected = np.zeros(f.t.size, dtype=bool)
+    if enter.size:
+        expected[enter[0]:] = True
+    assert np.array_equal(f.ego_leads, expected)
+    k0 = enter[0] if enter.size else f.t.size
+    assert np.array_equal(f.x[:k0], free.x[:k0])  # the step into k0 already sees the ego (its clamp)
+    if enter.size:
+        gap = np.interp(f.t, T_PLAN, xe)[k0:] - 4.5 - f.x[k0:]
+        assert np.all(gap >= min(cf.MIN_GAP_M, gap_free[k0]) - 1e-9)
+    assert np.all(np.diff(f.x) >= -1e-12) and np.all(f.v >= 0.0)
+    # the cubic is the least-squares fit of the nodes: its residual is orthogonal to 1, t, t^2, t^3
+    V = np.vander(f.t, 4, increasing=True)
+    r = V @ np.asarray(f.x_poly) - f.x
+    assert np.max(np.abs(V.T @ r)) < 1e-6 * max(1.0, float(np.max(np.abs(V.T @ f.x))))
+
+
+@settings(max_examples=25, deadline=None)
+@given(vf=st.floats(10.0, 30.0), dv=st.floats(2.0, 10.0), ge=st.floats(2.0, 15.0))
+def test_a_slower_ego_cutting_in_ahead_of_the_leader_slows_the_follower(vf: float, dv: float, ge: float) -> None:
+    """A leader far ahead at the follower's speed; the ego merges at t = 0 between them, slower: the
+    follower ends behind where it ends without the ego."""
+    x_hist = vf * T_HIST
+    xl_hist = 120.0 + vf * T_HIST
+    xe = 4.5 + ge + (vf - dv) * T_PLAN
+    with_ego = predict_with_ego_leader(LP, T_HIST, x_hist, T_PLAN, xe, 5.0, plan_y=np.zeros(51), target_y=0.0,
+                                       leader_hist=xl_hist)
+    without = predict_with_ego_leader(LP, T_HIST, x_hist, T_PLAN, xe, 5.0, plan_y=np.full(51, 9.0), target_y=0.0,
+                                      leader_hist=xl_hist)
+    assert with_ego.ego_leads.all() and not without.ego_leads.any()
+    assert with_ego.x[-1] < without.x[-1] - 0.5
+
+
+def test_i80_like_traffic_is_consistent_and_reads_as_ngsim(tmp_path: Path) -> None:
+    """The generator's vehicles never overlap their leaders, speeds stay physical, and the written
+    file reads back through the NGSIM loader with Preceding = the lane predecessor."""
+    tr = i80_like(3, lanes=2, duration_s=150.0)
+    for i in range(tr.x_true.shape[1]):
+        j = tr.leader[i]
+        if j >= 0:
+            gap = tr.x_true[:, j] - 4.6 - tr.x_true[:, i]
+            assert np.nanmin(gap) >= 0.5 - 1e-9
+            assert tr.lane[j] == tr.lane[i]
+    v = tr.v_true[np.isfinite(tr.v_true)]
+    assert v.min() >= 0.0 and v.max() < 38.0  # v0 <= 33 m/s plus the drivers' acceleration noise
+    noise = tr.x_rec - tr.x_true
+    assert 0.3 < float(np.nanstd(noise)) < 0.6
+    p = write_ngsim_csv(tmp_path / "i80.csv.gz", tr)
+    with gzip.open(p, "rt") as fh:
+        assert fh.readline().startswith("Vehicle_ID,Frame_ID")
+    tracks = load([p], "ngsim")
+    assert tracks.n_tracks > 10
+    front = tracks.x + 0.5 * 4.6
+    assert front.min() >= SECTION_M[0] - 3.0 and front.max() <= SECTION_M[1] + 3.0
+    L = ngsim_leaders(p, tracks)
+    assert L.source == "Preceding column"
