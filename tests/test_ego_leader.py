@@ -108,3 +108,39 @@ def test_i80_like_traffic_is_consistent_and_reads_as_ngsim(tmp_path: Path) -> No
     assert front.min() >= SECTION_M[0] - 3.0 and front.max() <= SECTION_M[1] + 3.0
     L = ngsim_leaders(p, tracks)
     assert L.source == "Preceding column"
+
+
+def _platoon_scenario(path: Path) -> Path:
+    """The target-lane follower sv1 (18 m/s, x(0) = -15 m) behind sv2 (12 m/s, x(0) = 10 m), both histories."""
+    t = np.round(np.linspace(-3.0, 0.0, 31), 4)
+
+    def arr(a: np.ndarray) -> str:
+        return "[" + ", ".join(f"{z:.4f}" for z in a) + "]"
+
+    veh = []
+    for name, corner, x0, v in (("sv1", "front-lower", -15.0, 18.0), ("sv2", "rear-lower", 10.0, 12.0)):
+        veh.append(f'[[vehicles]]\nname = "{name}"\ncorner = "{corner}"\ny = 3.75\nlength = 4.8\nwidth = 1.8\n'
+                   f"safety_x = 5.0\nsafety_y = 0.5\n\n[vehicles.history]\nt = {arr(t)}\nx = {arr(x0 + v * t)}\n")
+    path.write_text('name = "merge-platoon"\n\n[ego]\ntf = 5.0\nx0 = 0.0\ny0 = -2.0\nvx0 = 20.0\nvy0 = 0.0\n'
+                    "xf = 85.0\nyf = 3.75\nvxf = 20.0\nvyf = 0.0\n\n" + "\n".join(veh))
+    return path
+
+
+def test_plan_with_a_leader_model_uses_the_leader_aware_cubics(tmp_path: Path) -> None:
+    """`iamp plan --leader-model`: the problem's cubics are predict_scenario's; the follower (sv1, closing
+    on the slower sv2) is predicted behind its MTD forecast; the head (sv2, no leader) keeps the MTD's
+    cubic exactly."""
+    from iamp.core.scenario import load_scenario
+    from iamp.prediction.leader.model import predict_scenario
+    from iamp.prediction.resolve import problem_from_scenario, problem_with_leader_model
+
+    sc = load_scenario(str(_platoon_scenario(tmp_path / "m.toml")))
+    model = default_leader_model()
+    path = model.save(tmp_path / "leader.json")
+    prob, _ = problem_with_leader_model(sc, str(path))
+    _, ref, _ = problem_from_scenario(sc)
+    res = predict_scenario(LeaderPredictor(model), sc.vehicles, sc.ego.tf)
+    assert tuple(prob.vehicles[0].x_poly) == res[0][0] and tuple(prob.vehicles[1].x_poly) == res[1][0]
+    assert tuple(prob.vehicles[1].x_poly) == tuple(ref.vehicles[1].x_poly)
+    at5 = [float(np.polynomial.polynomial.polyval(5.0, v.x_poly)) for v in (prob.vehicles[0], ref.vehicles[0])]
+    assert at5[0] < at5[1] - 3.0

@@ -5,6 +5,10 @@ samples), speeds 8–20 m/s with gaps of 8–30 m, each vehicle's leader the one
 (the two lane heads have none and take the MTD fallback).  Timed: one
 :meth:`~iamp.prediction.leader.model.LeaderPredictor.predict_batch` of all 20 over 5 s at the
 0.1-s nodes (initial states, the leaders' CV forecasts, the IDM simulation, the MTD fallback).
+
+``prediction_ego_follower_s``: one :func:`~iamp.prediction.leader.ego.predict_with_ego_leader`
+(a follower at 20 m/s with a leader 40 m ahead; the ego's plan moves into the lane from 1.5 s on,
+10 m ahead of it at 15 m/s) — the cost of one iteration of the closed loop's ego-in-the-forecast.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ import numpy as np
 
 from iamp.comparison.timing import measure
 
-__all__ = ["bench_leader_prediction", "neighbours_case"]
+__all__ = ["bench_ego_follower", "bench_leader_prediction", "neighbours_case"]
 
 
 def neighbours_case(n: int = 20, seed: int = 0) -> dict[str, Any]:
@@ -58,3 +62,21 @@ def bench_leader_prediction(repeats: int = 50) -> dict[str, Any]:
     stats, _ = measure(run, repeats=repeats, warmup=3)
     return {"median": stats.median, "stats": stats.to_dict(), "vehicles": 20,
             "with_leader": int(np.sum(case["has_leader"]))}
+
+
+def bench_ego_follower(repeats: int = 50) -> dict[str, Any]:
+    """Median time of one follower forecast with the ego's plan as its leader (module docstring)."""
+    from iamp.prediction.leader.ego import predict_with_ego_leader
+    from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
+
+    lp = LeaderPredictor(default_leader_model(), "builtin")
+    th = np.round(np.arange(-30, 1) * 0.1, 10)
+    tp = np.linspace(0.0, 5.0, 51)
+    yp = np.where(tp < 1.5, 3.5, 0.0)
+
+    def run() -> Any:
+        return predict_with_ego_leader(lp, th, 20.0 * th, tp, 14.5 + 15.0 * tp, 5.0, plan_y=yp, target_y=0.0,
+                                       leader_hist=44.5 + 20.0 * th)
+
+    stats, _ = measure(run, repeats=repeats, warmup=3)
+    return {"median": stats.median, "stats": stats.to_dict()}

@@ -238,9 +238,10 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     casadi = _casadi(one, quick, notes)
     tick(6)
     tuning = [] if quick else osqp_tuning(one)
-    from iamp.comparison.bench.prediction import bench_leader_prediction
+    from iamp.comparison.bench.prediction import bench_ego_follower, bench_leader_prediction
 
     lead_pred = bench_leader_prediction(20 if quick else 100)
+    ego_pred = bench_ego_follower(20 if quick else 100)
     tick(7)
 
     solve = {s: cand[s]["backend"].median for s in BACKEND_NAMES}
@@ -291,6 +292,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "qp_grid_sweep_s": sweeps,
         "avoid_grid_sweep_s": None if avoid is None else {s: v.get("median") for s, v in avoid.items()},
         "prediction_leader_20_s": lead_pred["median"],
+        "prediction_ego_follower_s": ego_pred["median"],
         "ratios": ratios,
         "versions": ver,
         "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(), "machine": platform.machine(),
@@ -305,7 +307,8 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
                          for s, c in cand.items()},
         "stats": {"qp_grid_sweep_native_s": {s: v.to_dict() for s, v in native.items()},
                   "qp_grid_sweep_cvxpy_s": {s: v.to_dict() for s, v in cvx.items()},
-                  "pmp": pmp.get("stats"), "avoid": avoid, "prediction_leader_20": lead_pred},
+                  "pmp": pmp.get("stats"), "avoid": avoid, "prediction_leader_20": lead_pred,
+                  "prediction_ego_follower": ego_pred},
         "pmp": {k: v for k, v in pmp.items() if k not in ("pmp_plan_s", "pmp_batch_plans_per_s", "stats")},
         "failed_sweep_candidates": fails,
         "casadi_ipopt": casadi,

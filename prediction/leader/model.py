@@ -404,7 +404,8 @@ def predict_scenario(predictor: LeaderPredictor, vehicles: Any, tf: float) -> di
 
     The leader of a vehicle is :func:`scenario_leaders`'s; its history is interpolated onto the
     follower's history times (a leader whose history does not cover them counts as unknown).
-    Vehicles without a known leader get the fallback MTD prediction.  ``x_poly``: the
+    Vehicles without a known leader get the fallback MTD predictor's own prediction (its nodes and
+    cubic, identical to planning without a leader model).  ``x_poly``: the
     least-squares cubic over ``[0, tf]`` (SPEC §7).
     """
     lead = scenario_leaders(vehicles)
@@ -425,6 +426,10 @@ def predict_scenario(predictor: LeaderPredictor, vehicles: Any, tf: float) -> di
             if lt[0] <= th[0] + 1e-9 and lt[-1] >= th[-1] - 1e-9:
                 kw = {"XL_hist": np.interp(th, lt, np.asarray(lh.x, dtype=float))[None, :],
                       "offset": 0.5 * (float(v.length) + float(vehicles[j].length))}
+        if not kw:  # no leader known: the fallback's own prediction and cubic (as without a leader model)
+            p = predictor.fallback.predict(v.history, tf)
+            out[i] = (tuple(float(z) for z in p.x_poly), np.asarray(p.t, dtype=float), np.asarray(p.x, dtype=float))
+            continue
         x: FloatArray = predictor.predict_batch(th, xh[None, :], t, tf, **kw)[0]
         c, *_ = np.linalg.lstsq(V, x, rcond=None)
         out[i] = (tuple(float(z) for z in c), t, x)
