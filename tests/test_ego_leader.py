@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from iamp.prediction.leader import car_following as cf
-from iamp.prediction.leader.ego import predict_with_ego_leader
+from iamp.prediction.leader.ego import follower_poly_for_plan, predict_with_ego_leader
 from iamp.prediction.leader.leaders import ngsim_leaders
 from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
 from iamp.prediction.leader.synthetic import SECTION_M, i80_like, write_ngsim_csv
@@ -144,3 +144,27 @@ def test_plan_with_a_leader_model_uses_the_leader_aware_cubics(tmp_path: Path) -
     assert tuple(prob.vehicles[1].x_poly) == tuple(ref.vehicles[1].x_poly)
     at5 = [float(np.polynomial.polynomial.polyval(5.0, v.x_poly)) for v in (prob.vehicles[0], ref.vehicles[0])]
     assert at5[0] < at5[1] - 3.0
+
+
+def test_the_loop_hook_equals_the_forecast_on_the_plan_nodes() -> None:
+    """follower_poly_for_plan (plan as a states callable, leader history on other times) gives the cubic of
+    predict_with_ego_leader on the same arrays; a leader history not covering the follower's is dropped."""
+    th = T_HIST
+    xh = 20.0 * th
+
+    def states(t: np.ndarray) -> np.ndarray:
+        return np.stack([10.0 + 15.0 * t, np.full_like(t, 15.0), np.where(t < 1.5, 3.5, 0.0), np.zeros_like(t)], 1)
+
+    lt = np.linspace(-4.0, 0.0, 81)
+    poly = follower_poly_for_plan(LP, (th, xh), states, 5.0, target_y=0.0, ego_length=4.8, ego_width=1.8,
+                                  follower_length=4.6, leader_hist=(lt, 50.0 + 18.0 * lt), leader_length=4.4)
+    tt = np.round(np.arange(51) * 0.1, 12)
+    X = states(tt)
+    ref = predict_with_ego_leader(LP, th, xh, tt, X[:, 0], 5.0, plan_y=X[:, 2], target_y=0.0, ego_length=4.8,
+                                  ego_width=1.8, follower_length=4.6, leader_hist=50.0 + 18.0 * th, leader_length=4.4)
+    np.testing.assert_allclose(poly, ref.x_poly, rtol=0, atol=1e-9)
+    short = follower_poly_for_plan(LP, (th, xh), states, 5.0, target_y=0.0, ego_length=4.8, ego_width=1.8,
+                                   follower_length=4.6, leader_hist=(lt[-10:], 50.0 + 18.0 * lt[-10:]))
+    none = predict_with_ego_leader(LP, th, xh, tt, X[:, 0], 5.0, plan_y=X[:, 2], target_y=0.0, ego_length=4.8,
+                                   ego_width=1.8, follower_length=4.6)
+    np.testing.assert_allclose(short, none.x_poly, rtol=0, atol=1e-9)

@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -216,6 +218,15 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.prediction.evaluation.user import evaluate_file
 
+    if args.markdown is not None:
+        if args.no_interaction:
+            return _error(ValueError("--markdown writes the interaction tables; it excludes --no-interaction"))
+        from iamp.core.outputs import check_output
+
+        try:
+            check_output(args.markdown, [args.data], args.force, option="--markdown")
+        except (IampError, ValueError, OSError) as exc:
+            return _error(exc)
     try:
         with progress_bar(8, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
             res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed,
@@ -223,6 +234,12 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
                                 interaction=not args.no_interaction)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
+    if args.markdown is not None:
+        from iamp.core.atomic import write_text
+        from iamp.prediction.evaluation.leader_report import interaction_markdown
+
+        cmd = "iamp evaluate-predictor " + " ".join(shlex.quote(a) for a in sys.argv[2:])
+        write_text(args.markdown, interaction_markdown(res, Path(str(args.data)).name) + f"\nCommand: `{cmd}`\n")
     if args.json:
         sys.stdout.write(json.dumps(res, allow_nan=False) + "\n")
         return EXIT_OK
@@ -386,6 +403,10 @@ def add_parsers(subparsers: Any) -> None:
     e.add_argument("--no-interaction", action="store_true",
                    help="skip the leader-aware predictor and the tables per traffic state and leader")
     e.add_argument("--json", action="store_true", help="print exactly one JSON object")
+    e.add_argument("--markdown", metavar="FILE", default=None,
+                   help="with --data: also write the tables (RMSE per horizon, ADE/FDE with CIs, change against CV, "
+                        "RMSE at 5 s per traffic state and leader) as Markdown, with the command (atomically; "
+                        "--force to replace)")
     e.add_argument("--out", default="reports", help="output directory without --data (default: reports)")
     e.add_argument("--force", action="store_true", help="write into an existing --out folder iamp did not write")
     e.add_argument("--rerun", action="store_true",

@@ -196,12 +196,15 @@ def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train
     Returns ``(section, extra predictions)``: ``extra`` holds ``"leader"`` (the leader-aware
     predictor with the leader's CV forecast), which joins the §13 tables; the section holds the
     tables of every method overall, per traffic state and per leader known/unknown, with the
-    oracle bound ``"leader-oracle"`` (the same law along the leader's *recorded* future).
+    oracle bound ``"leader-oracle"``: a law along the leader's *recorded* future (smoothed over its
+    past and future together); in a split the law is calibrated along the recorded leader futures
+    of the training part (what the follower did given what its leader did), else the evaluated
+    model's law.
     """
     from iamp.prediction.evaluation.windows import FUTURE_S
     from iamp.prediction.initial_state import smooth_histories
     from iamp.prediction.leader.leaders import leaders_for
-    from iamp.prediction.leader.model import SIM_DT, LeaderPredictor, default_leader_model, train_leader_model
+    from iamp.prediction.leader.model import LeaderPredictor, default_leader_model, train_leader_model
 
     leaders = leaders_for(data, fmt, tracks)
     if split is None:
@@ -217,10 +220,23 @@ def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train
     lw = leader_windows(tracks, leaders, win)
     kw: dict[str, Any] = {"XL_hist": lw.XL_hist, "has_leader": lw.known, "offset": lw.offset}
     extra = {"leader": lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S, **kw)}
-    tn = SIM_DT * np.arange(win.t_fut.size + 1)
-    xl = np.nan_to_num(np.concatenate([lw.XL_hist[:, -1:], lw.XL_fut], axis=1))
-    oracle = lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S,
-                              leader_future=(xl, np.gradient(xl, tn, axis=1)), **kw)
+    # the oracle: the leader's recorded past and future, smoothed as one sequence (an oracle may look
+    # ahead; raw positions differentiated would feed the law the video noise), and in a split the law
+    # calibrated along recorded leader futures (the behavioural law) instead of along CV forecasts
+    t_all = np.concatenate([win.t_hist, win.t_fut])
+    xl_all = np.nan_to_num(np.concatenate([lw.XL_hist, lw.XL_fut], axis=1))
+    sm_l = smooth_histories(t_all, xl_all, lm.jerk_psd)
+    K = win.t_hist.size
+    xl, vl = sm_l.x[:, K - 1:], np.maximum(sm_l.v[:, K - 1:], 0.0)
+    lo = lm
+    if split is not None:
+        assert train is not None
+        lo = train_leader_model(train, lt, fallback=mtd, leader="recorded")
+        note_oracle = "the law calibrated along the recorded leader futures of the training part"
+    else:
+        note_oracle = "the evaluated leader model's law"
+    oracle = LeaderPredictor(lo, "oracle").predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S,
+                                                         leader_future=(xl, vl), **kw)
     allp = {**preds, **extra, "leader-oracle": oracle}
     errs = {k: errors(p, win.X_fut, win.t_fut) for k, p in allp.items()}
     sm = smooth_histories(win.t_hist, win.X_hist, lm.jerk_psd)
@@ -233,7 +249,9 @@ def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train
         "windows_leader_known": int(np.sum(lw.known)), "leader_future_extended": int(np.sum(lw.future_extended)),
         "congested_below_mps": CONGESTED_BELOW_MPS, "windows_congested": int(np.sum(cong)),
         "leader_model": {"note": note, **lm.law.to_dict()},
-        "oracle": "leader-oracle: the leader model along the leader's recorded future (a bound, not a predictor)",
+        "oracle": ("leader-oracle: a car-following law along the leader's recorded future, smoothed over past and "
+                   f"future ({note_oracle}; a bound, not a predictor)"),
+        "oracle_law": lo.law.to_dict(),
         "tables": subset_tables(errs, win.track_id, masks, seed, resamples),
     }
     return section, extra

@@ -36,8 +36,8 @@ from iamp.prediction.initial_state import smooth_histories
 from iamp.prediction.leader.car_following import simulate
 from iamp.prediction.leader.model import SIM_DT, LeaderPredictor
 
-__all__ = ["LANE_WIDTH_M", "EgoLeaderForecast", "iterate_with_planner", "predict_follower_of_plan",
-           "predict_with_ego_leader"]
+__all__ = ["LANE_WIDTH_M", "EgoLeaderForecast", "follower_poly_for_plan", "iterate_with_planner",
+           "predict_follower_of_plan", "predict_with_ego_leader"]
 
 #: Lane width used for the intrusion test when the caller gives none [m].
 LANE_WIDTH_M = 3.5
@@ -182,3 +182,27 @@ def iterate_with_planner(plan: Callable[[tuple[float, ...]], Any], predict: Call
             return {"x_poly": poly, "plan": result, "iterations": k + 1, "converged": True, "changes_m": changes}
         result = plan(poly)
     return {"x_poly": poly, "plan": result, "iterations": max_iter, "converged": False, "changes_m": changes}
+
+
+def follower_poly_for_plan(predictor: LeaderPredictor, follower_hist: tuple[FloatArray, FloatArray],
+                           plan_states: Callable[[FloatArray], Any], tf: float, *, target_y: float,
+                           ego_length: float, ego_width: float, follower_length: float,
+                           leader_hist: tuple[FloatArray, FloatArray] | None = None, leader_length: float = 4.5,
+                           lane_width: float = LANE_WIDTH_M) -> tuple[float, ...]:
+    """The closed loop's one call: the follower's cubic given a plan (``docs/prediction-interaction.md``).
+
+    ``follower_hist``/``leader_hist``: ``(t, x)`` observed histories (the leader's is interpolated onto
+    the follower's times and dropped unless it covers them); ``plan_states(t)`` -> rows
+    ``(x, vx, y, vy, ...)`` of the ego's plan (e.g. ``plan.trajectory.states``).
+    """
+    th, xh = (np.asarray(z, dtype=float) for z in follower_hist)
+    lh = None
+    if leader_hist is not None:
+        lt, lx = (np.asarray(z, dtype=float) for z in leader_hist)
+        if lt.size >= 2 and lt[0] <= th[0] + 1e-9 and lt[-1] >= th[-1] - 1e-9:
+            lh = np.interp(th, lt, lx)
+    tt = _nodes(tf)
+    X = np.asarray(plan_states(tt), dtype=float)
+    return predict_with_ego_leader(predictor, th, xh, tt, X[:, 0], tf, plan_y=X[:, 2], target_y=target_y,
+                                   ego_length=ego_length, ego_width=ego_width, follower_length=follower_length,
+                                   lane_width=lane_width, leader_hist=lh, leader_length=leader_length).x_poly

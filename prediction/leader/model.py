@@ -53,6 +53,7 @@ __all__ = [
     "calibration_rows",
     "default_leader_model",
     "load_any_model",
+    "predict_one",
     "predict_scenario",
     "scenario_leaders",
     "train_default_leader_model",
@@ -398,39 +399,45 @@ def scenario_leaders(vehicles: Any) -> dict[int, int]:
     return out
 
 
+def predict_one(predictor: LeaderPredictor, history: Any, tf: float, *, leader_history: Any = None,
+                offset: float = 4.5) -> tuple[tuple[float, ...], FloatArray, FloatArray]:
+    """One vehicle's leader-aware prediction ``(x_poly, t, x)`` (the closed loop's per-neighbour call).
+
+    ``history`` and ``leader_history`` have ``.t`` and ``.x`` (e.g. :class:`iamp.core.scenario.History`);
+    the leader's is interpolated onto the follower's times and counts as unknown unless it covers
+    them.  Without a known leader: the fallback MTD predictor's own prediction and cubic.
+    ``offset`` = ``(L_leader + L_follower)/2`` [m].
+    """
+    th = np.asarray(history.t, dtype=float)
+    xh = np.asarray(history.x, dtype=float)
+    if leader_history is not None:
+        lt = np.asarray(leader_history.t, dtype=float)
+        if lt[0] <= th[0] + 1e-9 and lt[-1] >= th[-1] - 1e-9:
+            t = predictor._nodes(tf)
+            t[-1] = tf
+            xl = np.interp(th, lt, np.asarray(leader_history.x, dtype=float))[None, :]
+            x: FloatArray = predictor.predict_batch(th, xh[None, :], t, tf, XL_hist=xl, offset=offset)[0]
+            c, *_ = np.linalg.lstsq(np.vander(t, 4, increasing=True), x, rcond=None)
+            return tuple(float(z) for z in c), t, x
+    p = predictor.fallback.predict(history, tf)
+    return tuple(float(z) for z in p.x_poly), np.asarray(p.t, dtype=float), np.asarray(p.x, dtype=float)
+
+
 def predict_scenario(predictor: LeaderPredictor, vehicles: Any, tf: float) -> dict[int, tuple[tuple[float, ...],
                                                                                           FloatArray, FloatArray]]:
     """Leader-aware predictions ``{index: (x_poly, t, x)}`` of a scenario's history vehicles.
 
-    The leader of a vehicle is :func:`scenario_leaders`'s; its history is interpolated onto the
-    follower's history times (a leader whose history does not cover them counts as unknown).
-    Vehicles without a known leader get the fallback MTD predictor's own prediction (its nodes and
-    cubic, identical to planning without a leader model).  ``x_poly``: the
-    least-squares cubic over ``[0, tf]`` (SPEC §7).
+    The leader of a vehicle is :func:`scenario_leaders`'s; each vehicle is :func:`predict_one`'s
+    (a leader whose history does not cover the follower's counts as unknown; without a known
+    leader the fallback MTD predictor's own prediction and cubic, identical to planning without a
+    leader model).  ``x_poly``: the least-squares cubic over ``[0, tf]`` (SPEC §7).
     """
     lead = scenario_leaders(vehicles)
-    t = predictor._nodes(tf)
-    t[-1] = tf
     out = {}
-    V = np.vander(t, 4, increasing=True)
     for i, v in enumerate(vehicles):
         if v.history is None:
             continue
-        th = np.asarray(v.history.t, dtype=float)
-        xh = np.asarray(v.history.x, dtype=float)
-        kw: dict[str, Any] = {}
         j = lead.get(i)
-        if j is not None:
-            lh = vehicles[j].history
-            lt = np.asarray(lh.t, dtype=float)
-            if lt[0] <= th[0] + 1e-9 and lt[-1] >= th[-1] - 1e-9:
-                kw = {"XL_hist": np.interp(th, lt, np.asarray(lh.x, dtype=float))[None, :],
-                      "offset": 0.5 * (float(v.length) + float(vehicles[j].length))}
-        if not kw:  # no leader known: the fallback's own prediction and cubic (as without a leader model)
-            p = predictor.fallback.predict(v.history, tf)
-            out[i] = (tuple(float(z) for z in p.x_poly), np.asarray(p.t, dtype=float), np.asarray(p.x, dtype=float))
-            continue
-        x: FloatArray = predictor.predict_batch(th, xh[None, :], t, tf, **kw)[0]
-        c, *_ = np.linalg.lstsq(V, x, rcond=None)
-        out[i] = (tuple(float(z) for z in c), t, x)
+        out[i] = predict_one(predictor, v.history, tf, leader_history=None if j is None else vehicles[j].history,
+                             offset=0.5 * (float(v.length) + float(vehicles[j].length)) if j is not None else 4.5)
     return out
