@@ -354,6 +354,26 @@ def test_cli_train_leader_and_evaluate_json_is_additive(tmp_path: Path) -> None:
     assert r.returncode == 2 and "not a usable leader model" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_cli_markdown_tables_match_the_json_and_refuse_overwrite(tmp_path: Path) -> None:
+    """--markdown writes the 5-s RMSE of every method as the JSON has it, with the command; a second run
+    without --force exits 2 with one line; --markdown with --no-interaction is refused."""
+    _platoon_csv(tmp_path / "p.csv.gz", n=8, seconds=40.0)
+    md = tmp_path / "t.md"
+    args = ("evaluate-predictor", "--data", str(tmp_path / "p.csv.gz"), "--format", "ngsim", "--markdown", str(md))
+    r = _iamp(*args, "--json", "-q")
+    assert r.returncode == 0, r.stderr
+    res = json.loads(r.stdout)
+    text = md.read_text()
+    for name, row in res["interaction"]["tables"]["all"]["methods"].items():
+        line = next(ln for ln in text.splitlines() if ln.startswith(f"| {name} |"))
+        assert f"| {row['rmse_m'][-1]:.2f} [" in line
+    assert "Command: `iamp evaluate-predictor" in text and "--markdown" in text
+    r = _iamp(*args, "-q")
+    assert r.returncode == 2 and "--force" in r.stderr and "Traceback" not in r.stderr
+    r = _iamp(*args, "--force", "--no-interaction", "-q")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+
+
 @needs_us101
 def test_us101_leaders_and_vehicle_split_beats_cv() -> None:
     """US-101: Preceding maps to tracks, the derivation agrees, and the leader model beats CV at 5 s."""
