@@ -6,18 +6,18 @@ generated to have the properties that matter for it in NGSIM I-80 (Emeryville, 4
 
 * **lanes** ``lanes`` independent single-lane streams (no lane changes: a stated limitation; the
   leader of a vehicle is its predecessor in its lane for its whole track);
-* **traffic state in time**: each lane's downstream end is a virtual head vehicle whose speed
-  follows a profile (free flow ``V_FREE`` until ``t_congest``, then a congested mean ``V_CONG`` with
-  stop-and-go oscillations of amplitude ``A_WAVE`` and period ``P_WAVE`` plus an Ornstein-Uhlenbeck
-  disturbance, then a partial recovery), so the section sees free flow, the transition and
-  stop-and-go;
-* **demand** at the upstream end: Poisson arrivals at ``q_in`` vehicles/s per lane, inserted when the
-  gap to the last vehicle allows, else queued;
+* **traffic state in time**: beyond :data:`BOTTLENECK_M` (50 m downstream of the section) each
+  lane's speed is limited by a profile: free flow ``V_FREE`` until 20-40 s, then a congested mean
+  ``V_CONG`` with stop-and-go oscillations (amplitude ``A_WAVE``, period ``P_WAVE``) plus an
+  Ornstein-Uhlenbeck disturbance, then a partial recovery to 12 m/s from 300-340 s; the queue spills
+  back through the section, so it sees free flow, the transition and (mostly) stop-and-go;
+* **demand** at the upstream end: Poisson arrivals at ``q_in`` vehicles/s per lane, inserted at up to
+  18 m/s when the gap to the last vehicle allows, else queued;
 * **drivers** (each its own): IDM (module :mod:`.car_following`) with parameters drawn uniformly
-  (``a`` 0.8-1.6 m/s², ``b`` 1.5-2.5 m/s², ``v_0`` 26-33 m/s, ``T`` 0.9-1.7 s, ``s_0`` 1.5-3 m),
-  a reaction delay 0.3-0.9 s (the leader's state that long ago), and an Ornstein-Uhlenbeck
-  acceleration noise (σ 0.25 m/s², correlation time 2 s): not the law the predictor calibrates, as
-  real drivers are not;
+  (``a`` 1.0-2.0 m/s², ``b`` 1.5-2.5 m/s², ``v_0`` 20-27 m/s, ``T`` 1.2-1.9 s, ``s_0`` 1.5-3 m),
+  a reaction delay 0.2-0.5 s (the leader's state that long ago, extrapolated at its speed then), and
+  an Ornstein-Uhlenbeck acceleration noise (σ 0.15 m/s², correlation time 2 s): not the law the
+  predictor calibrates, as real drivers are not;
 * **measurement**: the recorded front-bumper position carries white noise (σ 0.25 m) plus a
   correlated error (Ornstein-Uhlenbeck, σ 0.35 m, correlation time 0.5 s), the kind of raw video
   noise that makes NGSIM's accelerations from positions useless without smoothing; ``v_Vel`` and
@@ -25,7 +25,7 @@ generated to have the properties that matter for it in NGSIM I-80 (Emeryville, 4
 
 Only rows whose front bumper lies in the recorded section ``[SECTION_M]`` are written (one track
 per vehicle; ``Preceding`` = the lane predecessor's ``Vehicle_ID`` or 0 for the first vehicle of a
-lane, whose leader is the unrecorded virtual head).  Units and columns are NGSIM's (feet, ft/s,
+lane, which drives the free road).  Units and columns are NGSIM's (feet, ft/s,
 ft/s², 18 columns), so ``--format ngsim`` reads the file.
 """
 
@@ -47,7 +47,7 @@ __all__ = ["A_WAVE", "BOTTLENECK_M", "P_WAVE", "SECTION_M", "V_CONG", "V_FREE", 
 #: Recorded section [m] (front-bumper position along the road).
 SECTION_M = (300.0, 800.0)
 #: Bottleneck speed limit in free flow, the congested mean and the stop-and-go amplitude [m/s], its period [s].
-V_FREE, V_CONG, A_WAVE, P_WAVE = 30.0, 6.0, 2.0, 60.0
+V_FREE, V_CONG, A_WAVE, P_WAVE = 30.0, 4.0, 1.5, 60.0
 #: Start of the bottleneck (a speed-limited zone without end) [m].
 BOTTLENECK_M = 850.0
 _FT = 0.3048
@@ -110,13 +110,13 @@ def i80_like(seed: int = 0, *, lanes: int = 4, duration_s: float = 420.0, q_in: 
     leader = np.full(nmax, -1)
     a_ = rng.uniform(1.0, 2.0, nmax)
     b_ = rng.uniform(1.5, 2.5, nmax)
-    v0 = rng.uniform(26.0, 33.0, nmax)
-    T = rng.uniform(0.9, 1.7, nmax)
+    v0 = rng.uniform(20.0, 27.0, nmax)
+    T = rng.uniform(1.2, 1.9, nmax)
     s0 = rng.uniform(1.5, 3.0, nmax)
     delay = np.round(rng.uniform(0.2, 0.5, nmax) / dt).astype(int)
-    noise = _ou(rng, K, nmax, 0.25, 2.0, dt)
+    noise = _ou(rng, K, nmax, 0.15, 2.0, dt)
     # the bottleneck's speed limit per lane (downstream of the section)
-    vb = np.stack([_head_speed(t, rng.uniform(50, 80), rng.uniform(300, 340), rng.uniform(0, 2 * np.pi),
+    vb = np.stack([_head_speed(t, rng.uniform(20, 40), rng.uniform(300, 340), rng.uniform(0, 2 * np.pi),
                                _ou(rng, K, 1, 1.0, 5.0, dt)[:, 0]) for _ in range(lanes)], axis=1)
     last = [-1] * lanes  # last inserted vehicle per lane
     next_arrival = rng.exponential(1 / q_in, lanes)
@@ -128,7 +128,7 @@ def i80_like(seed: int = 0, *, lanes: int = 4, duration_s: float = 420.0, q_in: 
             if t[k] < next_arrival[ln] or n >= nmax:
                 continue
             j = last[ln]
-            vin = 22.0 if j < 0 else min(float(v[k, j]), 22.0)
+            vin = 18.0 if j < 0 else min(float(v[k, j]), 18.0)
             if j >= 0 and x[k, j] - _LENGTH_M < s0[n] + vin * T[n] + 2.0:
                 continue
             x[k, n], v[k, n], lane[n], leader[n] = 0.0, vin, ln, j
