@@ -168,3 +168,28 @@ def test_the_loop_hook_equals_the_forecast_on_the_plan_nodes() -> None:
     none = predict_with_ego_leader(LP, th, xh, tt, X[:, 0], 5.0, plan_y=X[:, 2], target_y=0.0, ego_length=4.8,
                                    ego_width=1.8, follower_length=4.6)
     np.testing.assert_allclose(short, none.x_poly, rtol=0, atol=1e-9)
+
+
+@settings(max_examples=50, deadline=None)
+@given(a=st.floats(-3.0, 0.9), b=st.floats(-20.0, 20.0), c0=st.floats(-20.0, 20.0))
+def test_relaxed_iteration_solves_an_affine_map_in_one_step(a: float, b: float, c0: float) -> None:
+    """P(c) = a c + b (constant cubics): relax = 1/(1 - a) lands on the fixed point b/(1 - a) in one
+    step (c1 = c0 + (P(c0) - c0)/(1 - a)); the next residual is below tol, so it converges at the
+    second prediction, and undamped with a <= -1 it never converges."""
+    from iamp.prediction.leader.ego import iterate_with_planner
+
+    def plan(poly: tuple[float, ...]) -> tuple[float]:
+        return (poly[0],)
+
+    def predict(c: float) -> tuple[float, float, float, float]:
+        return (a * c + b, 0.0, 0.0, 0.0)
+
+    fix = b / (1.0 - a)
+    res = iterate_with_planner(plan, predict, (c0, 0.0, 0.0, 0.0), max_iter=5, tol_m=1e-6, relax=1.0 / (1.0 - a)
+                               if a <= 0 else 1.0)
+    if a <= 0:
+        assert res["converged"] and res["iterations"] <= 2
+        assert abs(res["x_poly"][0] - fix) < 1e-6 * max(1.0, abs(fix))
+    if a <= -1.0 and abs(c0 - fix) > 1e-3:
+        osc = iterate_with_planner(plan, predict, (c0, 0.0, 0.0, 0.0), max_iter=5, tol_m=1e-6)
+        assert not osc["converged"]

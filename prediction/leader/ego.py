@@ -158,7 +158,7 @@ def predict_follower_of_plan(predictor: LeaderPredictor, t_hist: FloatArray, x_h
 
 def iterate_with_planner(plan: Callable[[tuple[float, ...]], Any], predict: Callable[..., Any],
                          x_poly0: tuple[float, ...], *, max_iter: int = 3, tol_m: float = 0.1,
-                         tf: float = 5.0) -> dict[str, Any]:
+                         tf: float = 5.0, relax: float = 1.0) -> dict[str, Any]:
     """Fixed-point iteration plan ↔ follower prediction, at most ``max_iter`` re-plans.
 
     ``plan(x_poly)`` plans against the follower's cubic and returns a tuple (e.g.
@@ -167,19 +167,31 @@ def iterate_with_planner(plan: Callable[[tuple[float, ...]], Any], predict: Call
     ``tol_m`` (max over ``[0, tf]``) or after ``max_iter`` re-plans (``max_iter + 1`` plans; the
     returned ``plan`` is made against the returned ``x_poly``, or, when converged, against a
     cubic within ``tol_m`` of it).  Returns ``{"x_poly", "plan", "iterations", "converged", "changes_m"}``.
+
+    ``relax`` in ``(0, 1]`` damps the iteration: the next cubic is
+    ``c_{k+1} = c_k + relax (P(c_k) - c_k)`` with ``P(c_k)`` the prediction against the plan made
+    for ``c_k`` (1: plain fixed-point iteration).  A map that is not a contraction (the plan jumps
+    between solutions as the follower's cubic moves) can oscillate undamped.  ``changes_m`` are the
+    residuals ``max_t |P(c_k)(t) - c_k(t)|``; converged means the last is below ``tol_m``, and then
+    ``x_poly = P(c_k)`` with ``plan`` made against ``c_k``.
     """
+    if not 0.0 < relax <= 1.0:
+        raise ValueError(f"relax must be in (0, 1] (got {relax!r})")
     tt = np.linspace(0.0, tf, 51)
-    poly = tuple(x_poly0)
+    P = np.polynomial.polynomial
+    poly = tuple(float(z) for z in x_poly0)
     changes: list[float] = []
     result = plan(poly)
     for k in range(max_iter):
-        new = tuple(predict(*result))
-        change = float(np.max(np.abs(np.polynomial.polynomial.polyval(tt, new)
-                                     - np.polynomial.polynomial.polyval(tt, poly))))
-        changes.append(change)
-        poly = new
-        if change < tol_m:
-            return {"x_poly": poly, "plan": result, "iterations": k + 1, "converged": True, "changes_m": changes}
+        pred = tuple(float(z) for z in predict(*result))
+        residual = float(np.max(np.abs(P.polyval(tt, pred) - P.polyval(tt, poly))))
+        changes.append(residual)
+        if residual < tol_m:
+            return {"x_poly": pred, "plan": result, "iterations": k + 1, "converged": True, "changes_m": changes}
+        n = max(len(pred), len(poly))
+        c_old = np.pad(np.asarray(poly), (0, n - len(poly)))
+        c_new = np.pad(np.asarray(pred), (0, n - len(pred)))
+        poly = tuple(float(z) for z in c_old + relax * (c_new - c_old))
         result = plan(poly)
     return {"x_poly": poly, "plan": result, "iterations": max_iter, "converged": False, "changes_m": changes}
 
