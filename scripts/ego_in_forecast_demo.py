@@ -79,8 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     res = iterate_with_planner(plan_fn, predict_fn, aware, max_iter=a.iterations, tol_m=0.1, tf=5.0)
     p = res["plan"][0]
     print(describe("follower, reacting to the plan:", res["x_poly"]))
-    print(f"iterated {res['iterations']} re-plans, converged {res['converged']}, cubic changes [m] "
-          + " ".join(f"{c:.2f}" for c in res["changes_m"]))
+    print(f"{res['iterations']} predictions against {res['iterations']} plans, converged {res['converged']}, "
+          "residuals [m] " + " ".join(f"{c:.2f}" for c in res["changes_m"]))
     print(f"plan with the ego in the forecast: {p.status}, cost {p.cost:.1f}, "
           f"contact times {np.round(p.contact_times, 2).tolist()}")
     return 0
