@@ -117,13 +117,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from iamp.prediction.resolve import problem_with_leader_model
 
         problem, _ = problem_with_leader_model(scenario, args.leader_model)
-    if args.planner == "qp":
+    if args.planner == "qp" and args.constraint != "avoid":  # the avoidance search has a budget, no work limit
         msg = qp_work_message(problem.m, args.steps)
         if msg is not None:
             raise ScenarioError(msg, "--steps")
     try:
         result = call_with_progress(make_planner(args).plan, problem, desc="QP sweep" if args.planner == "qp"
                                     else "planning", enabled=progress_enabled(args))
+        result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
         text = json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False) if args.json else ""
     except SolverError as exc:
         return _report_failure(scenario, args, exc.status, str(exc))
@@ -133,7 +134,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         # the numerics broke down on an accepted input: a failed plan, never a traceback
         return _report_failure(scenario, args, NUMERICAL_ERROR, f"{exc.__class__.__name__}: {exc}")
     if args.csv is not None and result.ok:
-        from iamp.cli.plot import write_trajectory_csv
+        from iamp.cli.trajectory_csv import write_trajectory_csv
 
         write_trajectory_csv(result, args.csv, args.steps)
     if args.json:
@@ -168,16 +169,30 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     print(f"scenario  {scenario.name}  ({scenario.source})")
     print(f"planner   {cfg}")
     print(f"status    {result.status}")
+    if "active_set" in result.info:
+        _print_active(result)
+        return
+    if result.status == "unsafe" and result.info.get("constraint") == "avoid":
+        print(f"reason    {result.info.get('unsafe_reason')}")
+        from iamp.planners.avoid.result import summary_lines as nodes_lines
+
+        for line in nodes_lines(result):
+            print(line)
+        return
     if not result.is_optimal():
         if result.info.get("reason"):
             print(f"reason    {result.info['reason']}")
         print("no cost is reported: the solver did not reach an optimal solution")
         return
     if result.info.get("constraint") == "avoid":
-        from iamp.planners.avoid.result import summary_lines
+        if result.info.get("safety_mode") == "continuous":
+            from iamp.planners.avoid.continuous import summary_lines
+        else:
+            from iamp.planners.avoid.result import summary_lines
 
         for line in summary_lines(result):
             print(line)
+        _print_limits(result)
         return
     print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
     print(f"time      {result.solve_time_s * 1e3:.3f} ms")
@@ -190,7 +205,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         poly = " ".join(f"{c:+.6g}" + (f"·t^{k}" if k > 1 else "·t" if k == 1 else "") for k, c in enumerate(v.x_poly))
         origin = "predicted from its history" if spec.history is not None else "given"
         print(f"vehicle {v.name}: x_s(t) = {poly}  ({origin})")
-        X = result.trajectory.states(np.array([t]))[0]
+        X = result.require_trajectory().states(np.array([t]))[0]
         print(f"    corner {v.corner}: contact t = {t:.6f} s at (x, y) = ({X[0]:.3f}, {X[2]:.3f}) m; "
               f"{label} = ({j[0]:.6g}, {j[1]:.6g})")
         print(f"    {_phi_meaning(v, j[0])}")
@@ -200,6 +215,19 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     if result.safety is not None:
         for line in result.safety.lines():
             print(line)
+    _print_limits(result)
+
+
+def _print_limits(result: Plan) -> None:
+    """SPEC §14: one line of peaks against the bounds, and a warning beyond any car."""
+    peaks = result.peaks
+    if peaks is None:
+        return
+    sides = result.info.get("polygon_sides")
+    poly = f" (QP: |u| <= a_total imposed as an inscribed {sides}-gon)" if sides else ""
+    print(f"limits    {peaks.line()}{poly}")
+    for w in peaks.warnings:
+        print(f"warning   {w}")
 
 
 def _planner_help() -> str:
@@ -209,6 +237,26 @@ def _planner_help() -> str:
         flag = "" if spec.constraint == "equality" else f" --constraint {spec.constraint}"
         parts.append(f"{spec.planner}{flag}: {spec.summary}")
     return "; ".join(parts) + " (default pmp)"
+
+
+def _print_active(result: Plan) -> None:
+    """The text summary of ``--constraint active``: what was imposed, dropped and why."""
+    act = result.info["active_set"]
+    if result.info.get("reason"):
+        print(f"reason    {result.info['reason']}")
+    if result.cost is not None:
+        print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
+    print(f"time      {result.solve_time_s * 1e3:.3f} ms ({act['iterations']} iteration(s))")
+    for v in act["imposed"]:
+        print(f"imposed   {v['name']}: contact t = {v['contact_time']:.6f} s, Φ = ({v['phi'][0]:.6g}, "
+              f"{v['phi'][1]:.6g}); {v['reason']}")
+    if not act["imposed"]:
+        print("imposed   none: the unconstrained plan")
+    for v in act["dropped"]:
+        print(f"dropped   {v['name']}: {v['reason']}")
+    if result.safety is not None:
+        for line in result.safety.lines():
+            print(line)
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -227,7 +275,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                         "(at most 20000; the QP's sweep is limited to perm(N-1, m)·N <= 1e6)")
     p.add_argument("--contact", choices=CONTACTS, default=None, help="QP only (default grid)")
     p.add_argument("--constraint", choices=registry.constraints(), default=None,
-                   help="QP only: the paper's corner equality (default) or the avoidance inequalities (SPEC §10)")
+                   help="the paper's corner equality on every vehicle (default), the avoidance inequalities "
+                        "(QP only, SPEC §10/§14), or the equality only on the vehicles in the way, chosen by the "
+                        "jump's sign (active, SPEC §14)")
     for name, f in registry.cli_options().items():  # the options other planners register
         if name not in QP_ONLY and name != "steps":
             who = " or ".join(registry.accepting(name))
