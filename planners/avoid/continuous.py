@@ -76,11 +76,10 @@ GAP_REL = 1e-4
 ROW_TOL_M = 1e-9
 
 #: Backends whose search runs on the fixed pattern (:meth:`ContinuousAvoidQP.solve_fixed`).
-#: Measured on the ``avoid_bounded`` bench plan (N = 50, load 12-15): PIQP 3.3 s -> 2.1 s;
-#: OSQP ``optimal`` in 55 s / 262 QPs where the rebuilt rows stopped ``local`` at the 60 s
-#: budget after 186 QPs (with a warm start from the previous box it was far slower: 293 s for
-#: 41 QPs, so none).  Clarabel rebuilt on the padded pattern was slower (5.8 s against 3.9 s)
-#: and keeps the rebuilt rows.
+#: Measured on the ``avoid_bounded`` bench plan (N = 50), before/after back to back at load
+#: 10.6-11.6: PIQP 3.62 s -> 2.00 s, OSQP 52.0 s -> 47.8 s (a warm start from the previous box
+#: made OSQP far slower: 293 s for 41 QPs, so none).  Clarabel rebuilt on the padded pattern
+#: was slower (5.8 s against 3.9 s) and keeps the rebuilt rows.
 FIXED_PATTERN_SOLVERS = ("piqp", "osqp")
 
 #: Per vehicle ``(first, second, a, b)``: first half-plane on ``[0, a]``, second on ``[b, t_f]``.
