@@ -1,13 +1,13 @@
 r"""The planners the closed loop can use, behind one call: ``plan(problem) -> Plan``.
 
-* ``pmp`` — :class:`iamp.planners.pmp.PMPPlanner` (the paper's equality constraints, global
+* ``pmp`` — :class:`iamp.planners.pmp.planner.PMPPlanner` (the paper's equality constraints, global
   contact times).
 * ``qp`` — the discretised QP with the same equality constraints (SPEC §3), solved by the
   direct KKT backend (exact for an equality QP; OSQP where that backend is absent), FOH
   hold, ``N = 20`` intervals over the (shrinking) horizon, contact nodes
   by the full grid sweep.  ``N`` is small because the sweep solves ``(N-1)(N-2)`` QPs for
   two vehicles every period.
-* ``qp-avoid`` — the avoidance QP of SPEC §10 (``iamp.planners.avoid.AvoidQPPlanner``,
+* ``qp-avoid`` — the avoidance QP of SPEC §10 (``iamp.planners.avoid.planner.AvoidQPPlanner``,
   Clarabel, FOH, ``N = 20``, grid crossing search), if that module is installed; otherwise
   :func:`make_planner` raises :class:`PlannerUnavailable`.  Clarabel, not OSQP: with the
   planner's OSQP accuracy (``eps_abs = 1e-7``) some closed-loop sweeps took seconds
@@ -119,12 +119,12 @@ def make_planner(name: str) -> PlanFn:
     """``plan(problem) -> Plan`` for ``pmp``, ``qp`` or ``qp-avoid`` (``-all``: the same planner)."""
     name = name.removesuffix("-all")
     if name == "pmp":
-        from iamp.planners.pmp import PMPPlanner
+        from iamp.planners.pmp.planner import PMPPlanner
 
         pmp = PMPPlanner()
         return lambda problem: pmp.plan(problem, diagnostics=False)
     if name == "qp":
-        from iamp.planners.qp import QPPlanner
+        from iamp.planners.qp.planner import QPPlanner
 
         try:  # the exact KKT solve of the equality QP where the backend registry has it
             qp: Any = QPPlanner(steps=QP_STEPS, hold="foh", solver="kkt", contact="grid")
@@ -133,9 +133,9 @@ def make_planner(name: str) -> PlanFn:
         return lambda problem: qp.plan(problem)
     if name == "qp-avoid":
         try:
-            from iamp.planners.avoid import AvoidQPPlanner  # type: ignore[import-not-found,unused-ignore]
+            from iamp.planners.avoid.planner import AvoidQPPlanner  # type: ignore[import-not-found,unused-ignore]
         except ImportError as exc:
-            raise PlannerUnavailable(f"planner 'qp-avoid' is unavailable: iamp.planners.avoid is not installed "
+            raise PlannerUnavailable(f"planner 'qp-avoid' is unavailable: iamp.planners.avoid.planner is not installed "
                                      f"({exc})") from None
         avoid: Any = AvoidQPPlanner(steps=QP_STEPS, hold="foh", solver="clarabel")
         return lambda problem: avoid.plan(problem)
