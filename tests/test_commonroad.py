@@ -210,3 +210,69 @@ def test_plan_cli_writes_and_refuses_to_overwrite(tmp_path: Path) -> None:
     assert out.is_file() and "valid (corrected goal)     yes" in first.stdout
     again = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert again.returncode == 2 and "exists" in again.stderr and "Traceback" not in again.stderr
+
+
+@needs_data
+def test_predicted_mode_is_the_predictors_pipeline() -> None:
+    """``--predict``: each vehicle's predicted centre equals what the §7 predictor itself predicts
+    from a noise-free history consistent with the recorded state at t = 0 (position, road speed,
+    acceleration a0: a quadratic, on which the smoother is exact and every chain state is the bin of
+    a0) — an independent path through ``Predictor.predict`` — at every model node; the box keeps
+    the recorded t = 0 extents (lane kept), and the fitted cubic covers the predicted centre."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.predicted import _road_speed, predict_obstacles
+    from iamp.core.scenario import History
+    from iamp.prediction.predictor import Predictor
+
+    cr = load(DATA / "USA_US101-11_1_T-1.xml")
+    pc = predict_obstacles(cr)
+    pred = Predictor.default()
+    assert [o.obstacle_id for o in pc.obstacles] == [o.obstacle_id for o in cr.obstacles if o.t[0] == 0.0]
+    moved = 0
+    for ob, pr in zip(cr.obstacles, pc.obstacles, strict=True):
+        a0 = float(cr.scenario.obstacle_by_id(ob.obstacle_id).initial_state.acceleration)
+        s0 = 0.5 * (ob.s_lo[0] + ob.s_hi[0])
+        v0 = _road_speed(cr, ob.obstacle_id, s0, 0.5 * (ob.d_lo[0] + ob.d_hi[0]))
+        th = np.linspace(-1.0, 0.0, 11)
+        ref = pred.predict(History(th, s0 + v0 * th + 0.5 * a0 * th**2), float(ob.t[-1]))
+        centre = 0.5 * (pr.s_lo + pr.s_hi)
+        nodes = [k for k, t in enumerate(ob.t) if abs(t / pred.dt - round(t / pred.dt)) < 1e-9]
+        np.testing.assert_allclose(centre[nodes], np.interp(ob.t[nodes], ref.t, ref.x), atol=1e-8)
+        np.testing.assert_allclose(pr.s_hi - pr.s_lo, ob.s_hi[0] - ob.s_lo[0], atol=1e-12)
+        assert np.all(pr.d_lo == ob.d_lo[0]) and np.all(pr.d_hi == ob.d_hi[0])
+        fit = np.polynomial.polynomial.polyval(ob.t, pr.cubic)
+        assert np.all(np.abs(fit - centre) <= pr.fit_residual_m + 1e-12)
+        moved += bool(np.max(np.abs(centre - 0.5 * (ob.s_lo + ob.s_hi))) > 0.5)
+    assert moved > 0  # the prediction is not the recording
+
+
+HAVE_SUMO = importlib.util.find_spec("libsumo") is not None or importlib.util.find_spec("traci") is not None
+INTERACTIVE = ROOT.parent / "shared" / "data" / "commonroad" / "interactive-US101"
+
+
+@pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not INTERACTIVE.is_dir(),
+                    reason="needs the [commonroad] and [sim] extras and the shared interactive scenarios "
+                           f"({INTERACTIVE})")
+def test_interactive_closed_loop_reaches_the_goal_without_contact() -> None:
+    """``iamp simulate --commonroad``: the executed run ends inside CommonRoad's goal region (the
+    goal test of commonroad-io, orientation corrected) within its time window, without body
+    overlap or SUMO collision, within the vehicle's acceleration limit; SUMO's traffic is compared
+    with the recording of the same vehicles."""
+    from iamp.commonroad.interactive import simulate
+
+    r = simulate(INTERACTIVE / "USA_US101-11_1_I-1-1", recording=DATA / "USA_US101-11_1_T-1.xml")
+    assert r["goal_reached"] and r["status"] == "goal reached"
+    lo, hi = r["goal_window_s"]
+    assert lo - 1e-9 <= r["time_to_goal_s"] <= hi + 1e-9
+    assert r["collisions"] == 0 and r["limit_violations"] == 0 and r["ego_peak_accel"] <= r["a_max"]
+    assert r["sumo_vs_recording"]["vehicles_compared"] > 0
+
+
+@needs_data
+def test_interactive_folder_without_a_planning_problem_is_refused() -> None:
+    cmd = [sys.executable, "-W", "ignore", "-m", "iamp", "simulate", "--commonroad",
+           str(INTERACTIVE / "USA_US101-11_10_I-1-1")]
+    if not (INTERACTIVE / "USA_US101-11_10_I-1-1").is_dir():
+        pytest.skip(f"the shared interactive scenarios are absent ({INTERACTIVE})")
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "no planning problem" in r.stderr and "Traceback" not in r.stderr

@@ -20,11 +20,17 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if args.out:
         check_output(args.out, inputs=[args.scenario], force=args.force)
     cr = load(args.scenario)
-    rp = plan(cr, args.planner)
+    seen = cr
+    if args.predict:
+        from iamp.commonroad.predicted import predict_obstacles
+
+        seen = predict_obstacles(cr)
+    rp = plan(seen, args.planner)
     out = describe(rp)
     out["scenario"] = cr.name
     out["frame_fit_residual_m"] = cr.frame_fit_residual_m
-    out["notes"] = cr.notes
+    out["notes"] = seen.notes
+    out["predict"] = bool(args.predict)
     if rp.trajectory is None or rp.candidate is None:
         if args.json:
             sys.stdout.write(json.dumps(out, indent=1) + "\n")
@@ -69,12 +75,12 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from iamp.commonroad.bench import bench, summary, write_reports
+    from iamp.commonroad.bench import PREDICT_SUFFIX, bench, summary, write_reports
     from iamp.commonroad.planning import PLANNERS
 
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
     for p in planners:
-        if p not in PLANNERS:
+        if p.removesuffix(PREDICT_SUFFIX) not in PLANNERS:
             sys.stderr.write(f"iamp: error: --planners: unknown planner {p!r}; choose from {', '.join(PLANNERS)}\n")
             return EXIT_BAD_INPUT
     folder = Path(args.folder)
@@ -122,6 +128,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--cost-function", default=DEFAULT_COST_FUNCTION,
                    choices=("JB1", "SA1", "WX1", "SM1", "SM2", "SM3", "MW1", "TR1", "TR2"),
                    help=f"cost function named in the solution (default {DEFAULT_COST_FUNCTION})")
+    p.add_argument("--predict", action="store_true",
+                   help="plan with the vehicles predicted by the §7 predictor from their state at t = 0 (the "
+                        "checker still judges against the recorded future)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=cmd_plan)
     c = csub.add_parser("check", help="CommonRoad's verdict on a solution, every check separately")
@@ -132,7 +141,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     b = csub.add_parser("bench", help="plan every scenario of a folder with each planner and check it")
     b.add_argument("folder")
     b.add_argument("--planners", default="avoid,pmp,qp,all-pmp,free",
-                   help="comma-separated planners (default avoid,pmp,qp,all-pmp,free)")
+                   help="comma-separated planners; NAME+predict plans with the predicted vehicles "
+                        "(default avoid,pmp,qp,all-pmp,free)")
     b.add_argument("--out", default=None, metavar="DIR", help="bench.md/.tex/.json and the solutions go here")
     b.add_argument("--timeout", type=positive_float, default=120.0, metavar="S",
                    help="per scenario and planner (default 120 s)")

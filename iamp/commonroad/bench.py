@@ -24,9 +24,12 @@ from iamp.commonroad import require
 from iamp.commonroad.check import check
 from iamp.commonroad.convert import load
 from iamp.commonroad.planning import describe, plan
+from iamp.commonroad.predicted import predict_obstacles
 from iamp.commonroad.solution import DEFAULT_COST_FUNCTION, build_solution, write_solution
 from iamp.core.atomic import write_text
 
+#: A planner label ending in this plans with the predicted vehicles (``avoid+predict``).
+PREDICT_SUFFIX = "+predict"
 CATEGORIES = ("valid", "collision", "infeasible", "goal missed", "off road", "no plan", "timeout")
 
 
@@ -56,13 +59,17 @@ class Row:
 
 def run_one(path: Path, planner: str, out_dir: Path | None, timeout_s: float,
             cost_function: str = DEFAULT_COST_FUNCTION) -> Row:
-    """Plan, write and check one scenario."""
+    """Plan, write and check one scenario (``planner`` may end in :data:`PREDICT_SUFFIX`: the
+    planner sees the §7 prediction, the checker the recorded future)."""
     cr = load(path)
+    base = planner.removesuffix(PREDICT_SUFFIX)
+    seen = cr if base == planner else predict_obstacles(cr)
     previous = signal.signal(signal.SIGALRM, _alarm)
     signal.setitimer(signal.ITIMER_REAL, timeout_s)
     start = time.perf_counter()
     try:
-        rp = plan(cr, planner)
+        rp = plan(seen, base)
+        rp.planner = planner
     except _Timeout:
         return Row(cr.name, planner, "timeout", solve_time_s=time.perf_counter() - start)
     finally:

@@ -187,6 +187,32 @@ def unconstrained_cost(T: float, p0: float, v0: float, pf: float, vf: float) -> 
     return 6 * D * D / T**3 - 6 * D * dv / T**2 + 2 * dv * dv / T
 
 
+def final_candidates(x0: tuple[float, float, float, float], goal: Goal, dt: float,
+                     elapsed_steps: int = 0) -> list[Candidate]:
+    """Final states and horizons for every time step of the goal's interval still ahead (module
+    docstring, "Goal -> final state"), cheapest unconstrained cost first; ``elapsed_steps`` steps
+    have already passed (the closed loop replans from a later state)."""
+    s0, vs0, d0, vd0 = x0
+    speed = goal.speed
+    vlo, vhi = speed[0] + SPEED_MARGIN_MPS, speed[1] - SPEED_MARGIN_MPS
+    if vlo > vhi:
+        vlo = vhi = 0.5 * (speed[0] + speed[1])
+    candidates: list[Candidate] = []
+    for k in range(max(goal.steps[0], elapsed_steps + 1), goal.steps[1] + 1):
+        T = (k - elapsed_steps) * dt
+        if goal.lanelet_goal:
+            # the unconstrained optimum's end point at the speed interval's nearest speed, on the lanelet
+            vf = min(max(vs0, vlo), vhi)
+            sf = min(max(s0 + 0.5 * (vs0 + vf) * T, goal.s - goal.s_half + 3.0), goal.s + goal.s_half - 3.0)
+        else:
+            sf = goal.s
+            vf = min(max(vs0 + 1.5 * (sf - s0 - vs0 * T) / T, vlo), vhi)
+        j0 = unconstrained_cost(T, s0, vs0, sf, vf) + unconstrained_cost(T, d0, vd0, goal.d, 0.0)
+        candidates.append(Candidate(k - elapsed_steps, T, sf, vf, goal.d, j0))
+    candidates.sort(key=lambda c: c.cost0)
+    return candidates
+
+
 def _corners(center: FloatArray, length: float, width: float, orientation: float) -> FloatArray:
     c, s = math.cos(orientation), math.sin(orientation)
     half = np.array([[length / 2, width / 2], [length / 2, -width / 2], [-length / 2, width / 2],
@@ -295,22 +321,7 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
         raise ScenarioError("goal position must be a rectangle or a lanelet", "goalState.position", src)
 
     # --- final-state candidates --------------------------------------------------------------
-    vlo, vhi = speed[0] + SPEED_MARGIN_MPS, speed[1] - SPEED_MARGIN_MPS
-    if vlo > vhi:
-        vlo = vhi = 0.5 * (speed[0] + speed[1])
-    candidates: list[Candidate] = []
-    for k in range(max(steps[0], 1), steps[1] + 1):
-        T = k * dt
-        if lanelet_goal:
-            # the unconstrained optimum's end point at the speed interval's nearest speed, on the lanelet
-            vf = min(max(vs0, vlo), vhi)
-            sf = min(max(s0 + 0.5 * (vs0 + vf) * T, goal.s - goal.s_half + 3.0), goal.s + goal.s_half - 3.0)
-        else:
-            sf = goal.s
-            vf = min(max(vs0 + 1.5 * (sf - s0 - vs0 * T) / T, vlo), vhi)
-        j0 = unconstrained_cost(T, s0, vs0, sf, vf) + unconstrained_cost(T, d0, vd0, goal.d, 0.0)
-        candidates.append(Candidate(k, T, sf, vf, goal.d, j0))
-    candidates.sort(key=lambda c: c.cost0)
+    candidates = final_candidates((s0, vs0, d0, vd0), goal, dt)
     k_max = steps[1]
 
     # --- lanes and road edges -----------------------------------------------------------------
