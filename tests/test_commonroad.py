@@ -133,7 +133,7 @@ def test_conversion_of_a_scenario() -> None:
 
 
 @needs_data
-@pytest.mark.parametrize("name", ["USA_US101-2_1_T-1", "USA_US101-20_1_T-1"])
+@pytest.mark.parametrize("name", ["USA_US101-2_1_T-1", "USA_US101-20_1_T-1", "USA_US101-21_1_T-1"])
 def test_default_planner_solution_is_valid_by_commonroad(name: str) -> None:
     """The default planner's solution passes every CommonRoad check (the goal with the PM
     orientation defect worked around), and the raw goal test fails for exactly that defect:
@@ -158,6 +158,34 @@ def test_default_planner_solution_is_valid_by_commonroad(name: str) -> None:
     assert goal.start <= correct <= goal.end
     if not goal.start <= defect <= goal.end:
         assert not v.checks["goal_reached"]["ok"] and not v.valid_commonroad_raw
+
+
+@needs_data
+def test_road_edges_follow_commonroads_road_boundary() -> None:
+    """USA_US101-21 has an on-ramp behind a gore area that joins the road at s = 85.7 m: the
+    corridor reachable by adjacency is narrower before it, and that part becomes a road-edge box.
+    Every box is on the narrow side of the §14 ``y`` limits, and a 0.2 m square 0.25 m inside its
+    inner edge (on the corridor's side) is on the road by CommonRoad's own boundary (the checker's
+    triangulation), so the boxes never forbid road CommonRoad accepts by more than that."""
+    import commonroad_dc.feasibility.solution_checker as sc
+    from commonroad_dc import pycrcc
+
+    from iamp.commonroad.convert import EDGE_TOL_M, load
+
+    cr = load(DATA / "USA_US101-21_1_T-1.xml")
+    assert cr.road_edges, "the gore area before the merge must be a road-edge box"
+    lo, hi = cr.road_y
+    before_merge = [b for b in cr.road_edges if b.d_lo[0] < lo and b.s_hi[0] < 86.0]
+    assert before_merge and max(b.d_hi[0] for b in before_merge) < lo + 4.5  # lane 20's right edge
+    boundary = sc._construct_boundary_checker(cr.scenario)
+    for b in cr.road_edges:
+        below = b.d_lo[0] < lo
+        inner = b.d_hi[0] if below else b.d_lo[0]
+        assert (inner > lo + EDGE_TOL_M) if below else (inner < hi - EDGE_TOL_M)
+        s_mid = 0.5 * (b.s_lo[0] + b.s_hi[0])
+        p = cr.frame.to_world(s_mid, inner + (0.25 if below else -0.25))[0]
+        heading = float(np.atleast_1d(cr.frame.heading(s_mid))[0])
+        assert not boundary.collide(pycrcc.RectOBB(0.1, 0.1, heading, float(p[0]), float(p[1]))), b.obstacle_id
 
 
 @needs_data

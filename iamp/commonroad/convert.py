@@ -31,6 +31,12 @@ lane (its lanelet with every predecessor and successor, centre line fitted by a 
   changes lanes (its centre moves more than :data:`LANE_CHANGE_M`) is therefore handled
   **conservatively**: its box spans both lanes for the whole horizon (flagged
   ``lane_change``).  Its lane is the lane whose centre is nearest its mean offset.
+* **Road edges** (:func:`_road_edges`): the corridor of lanelets reachable from the ego's lane
+  by same-direction adjacency, at every arc length; its widest range is the §14 ``y`` limit
+  (less the ego's lateral half extent), and where it is narrower (an on-ramp behind a gore
+  area that joins the road only further on, a lane that ends) the missing part is a static box
+  the planner avoids with the same corners as a vehicle.  CommonRoad's road-boundary check uses
+  the same lanelet geometry, so a plan that avoids these boxes stays on the road.
 * **Margins** (:func:`ego_margins`): the ego's body turned by its heading relative to the
   road :math:`\varphi` has half extents
   :math:`L/2\cos\varphi + W/2\sin\varphi` along and :math:`L/2\sin\varphi + W/2\cos\varphi`
@@ -64,6 +70,16 @@ BUFFER_M = 0.15
 HEADING_GUESS_RAD = 0.06
 #: Margin kept inside the goal's speed interval [m/s].
 SPEED_MARGIN_MPS = 0.3
+#: The road corridor is measured this far before the start and beyond the goal [m].
+EDGE_REACH_M = 15.0
+#: Spacing of the corridor's samples along the road [m].
+EDGE_STEP_M = 0.5
+#: Longest road-edge box along the road [m].
+EDGE_CHUNK_M = 4.0
+#: Clearance added to the body's half extents at a road edge (vehicles: BUFFER_M) [m].
+EDGE_BUFFER_M = 0.02
+#: A corridor narrower than the widest by more than this becomes a road-edge box [m].
+EDGE_TOL_M = 0.05
 #: Vehicles considered relevant: lateral distance of their box to the ego's corridor [m].
 CORRIDOR_M = 2.5
 
@@ -85,6 +101,11 @@ class Obstacle:
     fit_residual_m: float
     lane: int
     lane_change: bool
+
+    @property
+    def road_edge(self) -> bool:
+        """A static road-edge box of :func:`_road_edges` (negative id), not a vehicle."""
+        return self.obstacle_id < 0
 
     @property
     def y(self) -> float:
@@ -144,6 +165,7 @@ class CommonRoadProblem:
     goal: Goal
     candidates: list[Candidate]
     obstacles: list[Obstacle]
+    road_edges: list[Obstacle]
     lanes: list[float]
     road_y: tuple[float, float]
     ego_length: float
@@ -151,6 +173,11 @@ class CommonRoadProblem:
     a_max: float
     speed_range: tuple[float, float]
     notes: list[str] = field(default_factory=list)
+
+    @property
+    def all_obstacles(self) -> list[Obstacle]:
+        """The vehicles and the road-edge boxes (:func:`_road_edges`): everything the plan must avoid."""
+        return [*self.obstacles, *self.road_edges]
 
     @property
     def name(self) -> str:
@@ -213,6 +240,84 @@ def final_candidates(x0: tuple[float, float, float, float], goal: Goal, dt: floa
     return candidates
 
 
+def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_b: float,
+                t: FloatArray) -> tuple[tuple[float, float], list[Obstacle]]:
+    r"""The road corridor of the ego's lane: its widest lateral range as §14 ``y`` limits and the
+    parts where it is narrower as static boxes to avoid (module docstring, "Road edges").
+
+    At every arc length ``s`` (step :data:`EDGE_STEP_M`) the corridor is the ego's lane (the
+    lanelet of ``chain`` covering ``s``) with every lanelet reachable from it by same-direction
+    adjacency (``adj_left``/``adj_right``), :math:`[d^-(s), d^+(s)]` = the extreme bounds of those
+    lanelets at ``s``.  A lanelet that is not adjacent (an on-ramp behind a gore area, a lane that
+    is separated by a barrier) is not part of it.  The limits are
+    :math:`(\min_s d^-(s), \max_s d^+(s))`; every run of ``s`` where :math:`d^-(s)` is above
+    its minimum (or :math:`d^+(s)` below its maximum) by more than :data:`EDGE_TOL_M` becomes a
+    box :math:`[s_1, s_2] \times [\min_s d^- - 3, \max_{run} d^-]` (resp. above), which the planner
+    avoids like a standing vehicle (obstacle ids -1, -2, ...).
+    """
+    cache: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
+
+    def bounds(ll: Any) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        if ll.lanelet_id not in cache:
+            r = frame.to_road(np.asarray(ll.right_vertices, dtype=float))
+            lf = frame.to_road(np.asarray(ll.left_vertices, dtype=float))
+            ro, lo_ = np.argsort(r[:, 0]), np.argsort(lf[:, 0])
+            cache[ll.lanelet_id] = (r[ro, 0], r[ro, 1], lf[lo_, 0], lf[lo_, 1])
+        return cache[ll.lanelet_id]
+
+    def at(ll: Any, s: float) -> tuple[float, float] | None:
+        rs, rd, ls, ld = bounds(ll)
+        if not (rs[0] - 1e-6 <= s <= rs[-1] + 1e-6 and ls[0] - 1e-6 <= s <= ls[-1] + 1e-6):
+            return None
+        return float(np.interp(s, rs, rd)), float(np.interp(s, ls, ld))
+
+    grid = np.arange(s_a, s_b + EDGE_STEP_M, EDGE_STEP_M)
+    lo = np.full(grid.size, np.nan)
+    hi = np.full(grid.size, np.nan)
+    for i, s in enumerate(grid):
+        own = next((ll for ll in chain if at(ll, float(s)) is not None), None)
+        if own is None:
+            continue
+        group, todo = {own.lanelet_id: own}, [own]
+        while todo:
+            cur = todo.pop()
+            for nid, same in ((cur.adj_left, cur.adj_left_same_direction),
+                              (cur.adj_right, cur.adj_right_same_direction)):
+                if nid is not None and same and nid not in group:
+                    nb = network.find_lanelet_by_id(nid)
+                    if at(nb, float(s)) is not None:
+                        group[nid] = nb
+                        todo.append(nb)
+        ds = [v for ll in group.values() for v in (at(ll, float(s)) or ())]
+        lo[i], hi[i] = min(ds), max(ds)
+    ok = np.isfinite(lo)
+    if not ok.any():
+        return (-1e3, 1e3), []
+    y_lo, y_hi = float(np.min(lo[ok])), float(np.max(hi[ok]))
+    boxes: list[Obstacle] = []
+    n = t.size
+    for side, narrow in (("lo", ok & (lo > y_lo + EDGE_TOL_M)), ("hi", ok & (hi < y_hi - EDGE_TOL_M))):
+        idx = np.flatnonzero(narrow)
+        if idx.size == 0:
+            continue
+        runs = []
+        for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1):
+            # pieces of at most EDGE_CHUNK_M, so a box follows a slanted edge within the edge's slope
+            k = max(1, int(np.ceil(run.size * EDGE_STEP_M / EDGE_CHUNK_M)))
+            runs += [r for r in np.array_split(run, k) if r.size]
+        for run in runs:
+            s1, s2 = float(grid[run[0]]) - EDGE_STEP_M, float(grid[run[-1]]) + EDGE_STEP_M
+            if side == "lo":
+                d1, d2 = y_lo - 3.0, float(np.max(lo[run]))
+            else:
+                d1, d2 = float(np.min(hi[run])), y_hi + 3.0
+            oid = -(len(boxes) + 1)
+            half = 0.5 * (s2 - s1)
+            boxes.append(Obstacle(oid, t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
+                                  2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
+    return (y_lo, y_hi), boxes
+
+
 def _corners(center: FloatArray, length: float, width: float, orientation: float) -> FloatArray:
     c, s = math.cos(orientation), math.sin(orientation)
     half = np.array([[length / 2, width / 2], [length / 2, -width / 2], [-length / 2, width / 2],
@@ -236,14 +341,6 @@ def _chain(network: Any, start_id: int) -> list[Any]:
         seen.add(cur.lanelet_id)
         chain.append(cur)
     return chain
-
-
-def _bound_at(frame: RoadFrame, vertices: FloatArray, s_query: FloatArray) -> FloatArray:
-    sd = frame.to_road(vertices)
-    order = np.argsort(sd[:, 0])
-    s, d = sd[order, 0], sd[order, 1]
-    out = np.interp(s_query, s, d, left=np.nan, right=np.nan)
-    return np.asarray(out, dtype=float)
 
 
 def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
@@ -330,18 +427,10 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     for y in lanes:
         if not merged or y - merged[-1] > 1.5:
             merged.append(y)
-    s_end = max(c.s for c in candidates)
-    s_query = np.linspace(min(s0, s_end), max(s0, s_end), 60)
-    lo = np.full_like(s_query, np.inf)
-    hi = np.full_like(s_query, -np.inf)
-    for ll in network.lanelets:
-        right = _bound_at(frame, np.asarray(ll.right_vertices, dtype=float), s_query)
-        left = _bound_at(frame, np.asarray(ll.left_vertices, dtype=float), s_query)
-        ok = np.isfinite(right) & np.isfinite(left)
-        lo[ok] = np.minimum(lo[ok], np.minimum(right[ok], left[ok]))
-        hi[ok] = np.maximum(hi[ok], np.maximum(right[ok], left[ok]))
-    finite = np.isfinite(lo) & np.isfinite(hi)
-    road_y = (float(lo[finite].max()), float(hi[finite].min())) if finite.any() else (-1e3, 1e3)
+    s_end = max((c.s for c in candidates), default=goal.s)
+    road_y, road_edges = _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M,
+                                     max(s0, s_end) + EDGE_REACH_M,
+                                     np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64))
 
     # --- recorded vehicles --------------------------------------------------------------------
     obstacles: list[Obstacle] = []
@@ -373,6 +462,7 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     return CommonRoadProblem(
         path=p, scenario=scenario, planning_problem_set=pps, planning_problem=pp, frame=frame,
         frame_fit_residual_m=fit_res, dt=dt, x0=(s0, vs0, d0, vd0), goal=goal, candidates=candidates,
-        obstacles=obstacles, lanes=merged, road_y=road_y, ego_length=float(params.l), ego_width=float(params.w),
+        obstacles=obstacles, road_edges=road_edges, lanes=merged, road_y=road_y, ego_length=float(params.l),
+        ego_width=float(params.w),
         a_max=float(params.longitudinal.a_max),
         speed_range=(max(0.0, float(params.longitudinal.v_min)), float(params.longitudinal.v_max)), notes=notes)

@@ -34,6 +34,8 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.commonroad.convert import (
+    BUFFER_M,
+    EDGE_BUFFER_M,
     HEADING_GUESS_RAD,
     Candidate,
     CommonRoadProblem,
@@ -55,10 +57,14 @@ PLANNERS: dict[str, tuple[str, str, bool]] = {
 DEFAULT_PLANNER = "avoid"
 #: Buffer of the body check (the planners' margins carry the larger convert.BUFFER_M) [m].
 CHECK_BUFFER_M = 0.05
+#: Overlap with a road-edge box that the self-check tolerates: the boxes take the narrowest
+#: edge over :data:`~iamp.commonroad.convert.EDGE_CHUNK_M` and the frame's fit error is a few cm,
+#: so a start that CommonRoad's road check accepts can touch them [m].
+EDGE_SLACK_M = 0.1
 #: Longitudinal reach of "relevant" for the all-vehicles equality [m].
 RELEVANT_S_M = 10.0
 #: Active-set iterations.
-MAX_IMPOSED = 4
+MAX_IMPOSED = 6
 
 
 class FreeTrajectory:
@@ -126,7 +132,7 @@ class RoadPlan:
 def intrusions(cr: CommonRoadProblem, trajectory: Any, T: float, buffer: float = CHECK_BUFFER_M) -> list[Intrusion]:
     """Every recorded vehicle whose box the ego's body box enters, deepest first (module doc, step 2)."""
     out = []
-    for ob in cr.obstacles:
+    for ob in cr.all_obstacles:
         keep = ob.t <= T + 1e-9
         if not keep.any():
             continue
@@ -134,8 +140,9 @@ def intrusions(cr: CommonRoadProblem, trajectory: Any, T: float, buffer: float =
         X = trajectory.states(t)
         heading = np.arctan2(X[:, 3], np.maximum(X[:, 1], 1e-6))
         c, s = np.abs(np.cos(heading)), np.abs(np.sin(heading))
-        hx = cr.ego_length / 2 * c + cr.ego_width / 2 * s + buffer
-        hy = cr.ego_length / 2 * s + cr.ego_width / 2 * c + buffer
+        b = -EDGE_SLACK_M if ob.road_edge else buffer
+        hx = cr.ego_length / 2 * c + cr.ego_width / 2 * s + b
+        hy = cr.ego_length / 2 * s + cr.ego_width / 2 * c + b
         pen_s = np.minimum(X[:, 0] - (ob.s_lo[keep] - hx), (ob.s_hi[keep] + hx) - X[:, 0])
         pen_d = np.minimum(X[:, 2] - (ob.d_lo[keep] - hy), (ob.d_hi[keep] + hy) - X[:, 2])
         depth = np.minimum(pen_s, pen_d)
@@ -147,8 +154,29 @@ def intrusions(cr: CommonRoadProblem, trajectory: Any, T: float, buffer: float =
 
 
 def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float, float],
-               sy: float) -> str | None:
-    """The corner describing the manoeuvre around ``ob`` (module docstring, step 3), or ``None``."""
+               sy: float, sx: float = 0.0) -> str | None:
+    """The corner describing the manoeuvre around ``ob`` (module docstring, step 3), or ``None``.
+
+    A road-edge box (``ob.road_edge``) is passed on the side of the road (``upper`` for an edge
+    below the corridor, ``lower`` above it): ``front-<side>`` when the ego starts beside it (in
+    the lateral half-plane, with the edge margins of :func:`_avoided`) and ends ahead of it,
+    ``rear-<side>`` when it starts behind it and ends beside it.
+    """
+    if ob.road_edge:
+        sx_e, sy_e = sx - BUFFER_M + EDGE_BUFFER_M, sy - BUFFER_M + EDGE_BUFFER_M
+        top, bottom = float(ob.d_hi.max()), float(ob.d_lo.min())
+        upper = ob.y < x0[2]  # the box is below the ego: pass above it
+        edge_side = "upper" if upper else "lower"
+
+        def beside(d: float) -> bool:
+            return d >= top + sy_e if upper else d <= bottom - sy_e
+
+        s_lo, s_hi = float(ob.s_lo.min()), float(ob.s_hi.max())
+        if beside(x0[2]) and candidate.s >= s_hi + sx_e:
+            return f"front-{edge_side}"
+        if x0[0] <= s_lo - sx_e and beside(candidate.d):
+            return f"rear-{edge_side}"
+        return None
     end_ahead = candidate.s > float(np.polynomial.polynomial.polyval(candidate.tf, ob.cubic))
     band = ob.box_width / 2 + sy
     starts_beside = abs(x0[2] - ob.y) >= band
@@ -243,9 +271,9 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
         vehicles = []
         imposed = []
         for ob in chosen:
-            corner = corner_for(ob, cand, cr.x0, sy)
+            corner = corner_for(ob, cand, cr.x0, sy, sx)
             if corner is not None:
-                vehicles.append(ob.vehicle(corner, sx, sy))
+                vehicles.append(_avoided(ob, corner, sx, sy))
                 imposed.append((ob.obstacle_id, corner))
         if not vehicles:
             h, peak = _heading_and_peak(free, cand.tf)
@@ -259,13 +287,13 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
         for hit in hits:
             if hit.obstacle.obstacle_id in {i for i, _ in imposed}:
                 continue
-            corner = corner_for(hit.obstacle, cand, cr.x0, sy)
+            corner = corner_for(hit.obstacle, cand, cr.x0, sy, sx)
             if corner is not None:
                 new = (hit.obstacle, corner)
                 break
         if new is None:
             break
-        vehicles.append(new[0].vehicle(new[1], sx, sy))
+        vehicles.append(_avoided(new[0], new[1], sx, sy))
         imposed.append((new[0].obstacle_id, new[1]))
         current = _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps)
         if current.trajectory is None or current.safe:
@@ -279,10 +307,19 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
     return current
 
 
+def _avoided(ob: Obstacle, corner: str, sx: float, sy: float) -> Any:
+    """The iamp vehicle of ``ob``: a vehicle with the body margins ``sx, sy`` (which include
+    :data:`~iamp.commonroad.convert.BUFFER_M`), a road edge with only
+    :data:`~iamp.commonroad.convert.EDGE_BUFFER_M` of clearance beyond the body."""
+    if ob.road_edge:
+        return ob.vehicle(corner, sx - BUFFER_M + EDGE_BUFFER_M, sy - BUFFER_M + EDGE_BUFFER_M)
+    return ob.vehicle(corner, sx, sy)
+
+
 def _relevant(cr: CommonRoadProblem, cand: Candidate, free: Any, sy: float) -> list[Obstacle]:
     lo, hi = min(cr.x0[2], cand.d), max(cr.x0[2], cand.d)
     out = []
-    for ob in cr.obstacles:
+    for ob in cr.all_obstacles:
         if ob.d_hi.max() + sy < lo or ob.d_lo.min() - sy > hi:
             continue
         keep = ob.t <= cand.tf
