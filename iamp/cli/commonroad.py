@@ -94,6 +94,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
             sys.stderr.write(f"  {text}\n")
 
     rows = bench(folder, planners, out, args.timeout, progress)
+    if args.peer:
+        from iamp.commonroad.bench import PEER_LABEL, peer_rows
+
+        rows += peer_rows(folder, args.peer)
+        planners = [*planners, PEER_LABEL]
     command = "iamp commonroad bench " + " ".join(sys.argv[3:]) if len(sys.argv) > 3 else "iamp commonroad bench"
     if out is not None:
         write_reports(rows, planners, out, command)
@@ -146,5 +151,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     b.add_argument("--out", default=None, metavar="DIR", help="bench.md/.tex/.json and the solutions go here")
     b.add_argument("--timeout", type=positive_float, default=120.0, metavar="S",
                    help="per scenario and planner (default 120 s)")
+    b.add_argument("--peer", default=None, metavar="DIR",
+                   help="add the peer commonroad-reactive-planner's rows from DIR (written by "
+                        "scripts/commonroad_peer.py in the peer's own environment)")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)

@@ -107,6 +107,43 @@ def bench(folder: str | Path, planners: list[str], out_dir: Path | None = None, 
     return rows
 
 
+#: The planner label of the peer's rows.
+PEER_LABEL = "reactive-peer"
+
+
+def peer_rows(folder: str | Path, peer_dir: str | Path) -> list[Row]:
+    """Rows of the peer ``commonroad-reactive-planner``, run beforehand in its own environment by
+    ``scripts/commonroad_peer.py`` into ``peer_dir`` (``peer.json`` + ``<scenario>.solution.xml``),
+    judged here by the same checks as iamp's plans."""
+    require()
+    from commonroad.common.solution import CommonRoadSolutionReader
+
+    from iamp.core.errors import ScenarioError
+
+    pdir = Path(peer_dir)
+    index = pdir / "peer.json"
+    if not index.is_file():
+        raise ScenarioError("holds no peer.json (run scripts/commonroad_peer.py first)", "--peer", str(pdir))
+    status = {str(r.get("scenario")): r for r in json.loads(index.read_text())}
+    rows = []
+    for f in sorted(Path(folder).glob("*.xml")):
+        cr = load(f)
+        info = status.get(f.stem, {"status": "not run"})
+        row = Row(cr.name, PEER_LABEL, "no plan", solve_time_s=info.get("solve_time_s"),
+                  plan={"reason": str(info.get("status"))})
+        sol_path = pdir / f"{f.stem}.solution.xml"
+        if sol_path.is_file():
+            verdict = check(cr.scenario, cr.planning_problem_set, CommonRoadSolutionReader.open(str(sol_path)))
+            row.category = verdict.category
+            row.valid_raw = verdict.valid_commonroad_raw
+            row.cost_commonroad = verdict.cost
+            row.checks = verdict.checks
+            row.colliding_obstacles = verdict.colliding_obstacles
+            row.plan["reason"] = None
+        rows.append(row)
+    return rows
+
+
 def _median(values: list[float | None]) -> float | None:
     vals = [v for v in values if v is not None]
     return statistics.median(vals) if vals else None
