@@ -304,3 +304,31 @@ def test_interactive_folder_without_a_planning_problem_is_refused() -> None:
         pytest.skip(f"the shared interactive scenarios are absent ({INTERACTIVE})")
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "no planning problem" in r.stderr and "Traceback" not in r.stderr
+
+
+@needs_data
+def test_bench_cli_table_and_refusals(tmp_path: Path) -> None:
+    """``iamp commonroad bench``: an unknown planner is refused (exit 2, one line); on a folder of
+    one scenario every planner has exactly one row, the counts of every planner sum to the
+    scenarios, the report names its command, and the default planner's row is valid there."""
+    import json
+
+    folder = tmp_path / "one"
+    folder.mkdir()
+    (folder / "USA_US101-20_1_T-1.xml").symlink_to(DATA / "USA_US101-20_1_T-1.xml")
+    base = [sys.executable, "-W", "ignore", "-m", "iamp", "commonroad", "bench", str(folder)]
+    bad = subprocess.run([*base, "--planners", "avoid,nope"], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "nope" in bad.stderr and "Traceback" not in bad.stderr
+    out = tmp_path / "out"
+    r = subprocess.run([*base, "--planners", "avoid,free,avoid+predict", "--out", str(out), "--json"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    data = json.loads((out / "bench.json").read_text())
+    assert "iamp commonroad bench" in data["command"] and data["command"] in (out / "bench.md").read_text()
+    for e in data["summary"]:
+        assert e["scenarios"] == 1
+        assert sum(e[c] for c in ("valid", "collision", "infeasible", "goal missed", "off road", "no plan",
+                                  "timeout")) == 1
+    rows = {row["planner"]: row for row in data["rows"]}
+    assert rows["avoid"]["category"] == "valid"
+    assert (out / "solutions" / "avoid" / "USA_US101-20_1_T-1.solution.xml").is_file()
