@@ -9,7 +9,8 @@ Writes ``OUT_DIR/<scenario>.solution.xml`` (the planner's kinematic single-track
 cost function ``JB1``) for every scenario it finishes and ``OUT_DIR/peer.json`` (status and
 planning time per scenario); ``iamp commonroad bench --peer OUT_DIR`` judges them with the same
 checker as iamp's plans.  The planner's own example (``run_planner.py``) is followed: route
-planner reference path, replanning every 3 steps, desired speed = the goal interval's middle.
+planner reference path, replanning every 3 steps, desired speed = the current speed (the 2024.1
+example) or, with ``--desired=goal``, the goal interval's middle (the older example).
 """
 
 from __future__ import annotations
@@ -22,6 +23,10 @@ import traceback
 from pathlib import Path
 
 import numpy as np
+
+#: The desired speed: "current" (the package's 2024.1 example: keep the current speed) or "goal"
+#: (the middle of the goal's speed interval); ``--desired goal`` on the command line.
+DESIRED = "current"
 
 CONFIG = """planning:
   dt: 0.1
@@ -89,7 +94,12 @@ def run(path: Path, out: Path) -> dict[str, object]:
             status = "goal window passed"
             break
         if count % config.planning.replanning_frequency == 0:
-            planner.set_desired_velocity(current_speed=planner.x_0.velocity)
+            if DESIRED == "goal" and goal.has_value("velocity"):
+                # the goal interval's middle, as the package's older example (run_planner.py 2022)
+                planner.set_desired_velocity(desired_velocity=0.5 * (goal.velocity.start + goal.velocity.end),
+                                             current_speed=planner.x_0.velocity)
+            else:
+                planner.set_desired_velocity(current_speed=planner.x_0.velocity)
             optimal = planner.plan()
             if not optimal:
                 status = "no feasible sample"
@@ -103,7 +113,7 @@ def run(path: Path, out: Path) -> dict[str, object]:
                       initial_state_curv=(optimal[1][k], optimal[2][k]),
                       collision_checker=planner.collision_checker, coordinate_system=planner.coordinate_system)
     elapsed = time.perf_counter() - start
-    row: dict[str, object] = {"scenario": path.stem, "status": status, "solve_time_s": elapsed,
+    row: dict[str, object] = {"scenario": path.stem, "status": status, "solve_time_s": elapsed, "desired": DESIRED,
                               "steps": len(planner.record_state_list) - 1}
     if status == "goal reached":
         traj = create_full_solution_trajectory(config, planner.record_state_list)
@@ -113,7 +123,12 @@ def run(path: Path, out: Path) -> dict[str, object]:
 
 
 def main() -> int:
-    folder, out = Path(sys.argv[1]), Path(sys.argv[2])
+    global DESIRED
+    args = [a for a in sys.argv[1:] if not a.startswith("--desired=")]
+    for a in sys.argv[1:]:
+        if a.startswith("--desired="):
+            DESIRED = a.split("=", 1)[1]
+    folder, out = Path(args[0]), Path(args[1])
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for path in sorted(folder.glob("*.xml")):
