@@ -243,7 +243,7 @@ class Controller:
             if plan.trajectory is None or plan.status not in SUCCESS:
                 return plan
             t = np.linspace(0.0, prob.tf, int(prob.tf / 0.05) + 1)
-            X = np.asarray(plan.trajectory.states(t))
+            X = np.asarray(plan.require_trajectory().states(t))
             hit = [v for v in prob.vehicles if v not in chosen and bool(np.any(
                 (np.abs(X[:, 0] - v.position(t)) < v.length / 2 + v.safety_x)
                 & (np.abs(X[:, 2] - v.y) < v.width / 2 + v.safety_y)))]
@@ -280,7 +280,7 @@ class Controller:
         """SPEC §9 overlap test of the plan (from ``t_from``) against the predicted bodies."""
         tf = float(plan.problem.tf)
         t = np.linspace(t_from, tf, max(int((tf - t_from) / 0.05), 1) + 1)
-        X = np.asarray(plan.trajectory.states(t))
+        X = np.asarray(plan.require_trajectory().states(t))
         Le, We = self.sim.ego_length, self.sim.ego_width
         for k, poly in ctx["polys"].items():
             xs = _poly_at(poly, t - t_from)
@@ -292,7 +292,7 @@ class Controller:
     def acceptable(self, plan: Plan, obs: Observation, ctx: dict[str, Any]) -> bool:
         cfg = self.cfg
         tf = float(plan.problem.tf)
-        U = np.asarray(plan.trajectory.inputs(np.linspace(0.0, tf, 51)))
+        U = np.asarray(plan.require_trajectory().inputs(np.linspace(0.0, tf, 51)))
         if np.max(np.abs(U[:, 0])) > cfg.a_max_x or np.max(np.abs(U[:, 1])) > cfg.a_max_y:
             return False
         xf = float(plan.problem.ego.xf)
@@ -344,8 +344,8 @@ class Controller:
                         return self._brake(ego)
         assert self.plan is not None
         tau = min(t + dt - self.plan_t0, float(self.plan.problem.tf))
-        X = np.asarray(self.plan.trajectory.states(np.array([tau])))[0]
-        U = np.asarray(self.plan.trajectory.inputs(np.array([max(tau - dt / 2, 0.0)])))[0]
+        X = np.asarray(self.plan.require_trajectory().states(np.array([tau])))[0]
+        U = np.asarray(self.plan.require_trajectory().inputs(np.array([max(tau - dt / 2, 0.0)])))[0]
         nxt = EgoState(x=float(X[0]), vx=float(X[1]), y=float(X[2]), vy=float(X[3]), ax=float(U[0]), ay=float(U[1]))
         if t + dt >= self.t_end - 1e-9:
             self._done(t + dt)

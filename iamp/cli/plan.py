@@ -9,29 +9,39 @@ from typing import Any
 import numpy as np
 
 from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, model_file, steps_int
-from iamp.core.errors import ScenarioError, SolverError
+from iamp.core.errors import OptionError, ScenarioError, SolverError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
 from iamp.core.scenario import Scenario
+from iamp.planners import registry
+from iamp.planners.avoid.options import inequality_backends
+from iamp.planners.qp.hold import HOLDS
+from iamp.planners.qp.options import CONTACTS
 
-#: Options that only the QP planner reads, with their defaults (SPEC §5).  They default to
-#: ``None`` in the parser so that "given by the user" can be told from "the default".
+#: Options that only some planners read (the QP's), with their defaults (SPEC §5).  They default
+#: to ``None`` in the parser so that "given by the user" can be told from "the default".
 QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
 
 
-def make_planner(args: argparse.Namespace) -> Any:
-    """The planner the options ask for."""
-    if args.planner == "pmp":
-        from iamp.planners.pmp.planner import PMPPlanner
+def planner_spec(args: argparse.Namespace) -> registry.PlannerSpec:
+    """The registry entry of ``--planner`` with ``--constraint`` (default: equality)."""
+    return registry.lookup(args.planner, getattr(args, "constraint", None) or "equality")
 
-        return PMPPlanner()
-    if getattr(args, "constraint", None) == "avoid":
-        from iamp.planners.avoid.planner import AvoidQPPlanner
 
-        return AvoidQPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
-    from iamp.planners.qp.planner import QPPlanner
+def make_planner(args: argparse.Namespace) -> registry.Planner:
+    """The planner the options ask for, from the registry."""
+    spec = planner_spec(args)
+    names = (*QP_ONLY, *extra_options())
+    values = {"steps": args.steps, **{name: getattr(args, name, None) for name in names}}
+    try:
+        return spec.make(**registry.options_of(spec, values))
+    except OptionError as exc:  # name the CLI's option
+        raise ScenarioError(exc.message, f"--{exc.field}" if exc.field else None) from None
 
-    return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
+
+def extra_options() -> tuple[str, ...]:
+    """The registry's CLI options (:func:`iamp.planners.registry.cli_options`) beyond the QP's."""
+    return tuple(name for name in registry.cli_options() if name not in QP_ONLY and name != "steps")
 
 
 def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
@@ -43,11 +53,27 @@ def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
 
 def check_options(args: argparse.Namespace) -> None:
     """Refuse options that do not apply to the chosen planner; fill in the QP defaults."""
+    accepted = {name for spec in registry.REGISTRY.values() if spec.planner == args.planner
+                for name in spec.option_names()}
     for name, default in QP_ONLY.items():
-        if getattr(args, name, None) is not None and args.planner != "qp":
-            raise ScenarioError(f"applies to the QP planner only (add --planner qp or drop --{name})", f"--{name}")
+        if getattr(args, name, None) is not None and name not in accepted:
+            accept = registry.accepting(name)
+            add = " or ".join(f"--planner {a}" for a in accept)
+            who = "the QP planner" if accept == ("qp",) else "planner " + " or ".join(accept)
+            raise ScenarioError(f"applies to {who} only (add {add} or drop --{name})", f"--{name}")
         if getattr(args, name, None) is None:
             setattr(args, name, default)
+    exact = [s for s in registry.REGISTRY.values()
+             if s.planner == args.planner and s.constraint == (getattr(args, "constraint", None) or "equality")]
+    if exact:  # the options of the one entry --planner/--constraint select
+        accepted = set(exact[0].option_names())
+    for name in extra_options():
+        if getattr(args, name, None) is not None and name not in accepted:
+            entries = [s for s in registry.REGISTRY.values() if name in s.option_names()]
+            add = " or ".join(f"--planner {s.planner}" + ("" if s.constraint == "equality" else
+                                                          f" --constraint {s.constraint}") for s in entries)
+            flag = "--" + name.replace("_", "-")
+            raise ScenarioError(f"does not apply to this planner (add {add} or drop {flag})", flag)
 
 
 def failure_json(scenario: str, args: argparse.Namespace, status: str, message: str) -> dict[str, Any]:
@@ -75,19 +101,23 @@ def cmd_plan(args: argparse.Namespace) -> int:
         check_output(args.csv, [args.scenario], args.force, option="--csv")
     if args.constraint is None:
         args.constraint = "equality"
-    if args.constraint == "avoid" and args.planner != "qp":
-        raise ScenarioError("the avoidance constraint is a QP (add --planner qp)", "--constraint")
+    if not any(x.planner == args.planner and x.constraint == args.constraint for x in registry.REGISTRY.values()):
+        offer = " or ".join(f"--planner {x.planner}" for x in registry.REGISTRY.values()
+                            if x.constraint == args.constraint)
+        raise ScenarioError(f"the {args.constraint} constraint is not implemented by the {args.planner} planner "
+                            f"(add {offer})", "--constraint")
     if args.model is not None and not load_scenario(args.scenario).needs_prediction:
         raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
                             "vehicle's x_poly", "--model", args.scenario)
     scenario, problem, _ = load_cli_problem(args.scenario, args.model)
-    if args.planner == "qp":
+    if args.planner == "qp" and args.constraint != "avoid":  # the avoidance search has a budget, no work limit
         msg = qp_work_message(problem.m, args.steps)
         if msg is not None:
             raise ScenarioError(msg, "--steps")
     try:
         result = call_with_progress(make_planner(args).plan, problem, desc="QP sweep" if args.planner == "qp"
                                     else "planning", enabled=progress_enabled(args))
+        result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
         text = json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False) if args.json else ""
     except SolverError as exc:
         return _report_failure(scenario, args, exc.status, str(exc))
@@ -97,7 +127,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         # the numerics broke down on an accepted input: a failed plan, never a traceback
         return _report_failure(scenario, args, NUMERICAL_ERROR, f"{exc.__class__.__name__}: {exc}")
     if args.csv is not None and result.ok:
-        from iamp.cli.plot import write_trajectory_csv
+        from iamp.cli.trajectory_csv import write_trajectory_csv
 
         write_trajectory_csv(result, args.csv, args.steps)
     if args.json:
@@ -132,16 +162,30 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     print(f"scenario  {scenario.name}  ({scenario.source})")
     print(f"planner   {cfg}")
     print(f"status    {result.status}")
+    if "active_set" in result.info:
+        _print_active(result)
+        return
+    if result.status == "unsafe" and result.info.get("constraint") == "avoid":
+        print(f"reason    {result.info.get('unsafe_reason')}")
+        from iamp.planners.avoid.result import summary_lines as nodes_lines
+
+        for line in nodes_lines(result):
+            print(line)
+        return
     if not result.is_optimal():
         if result.info.get("reason"):
             print(f"reason    {result.info['reason']}")
         print("no cost is reported: the solver did not reach an optimal solution")
         return
     if result.info.get("constraint") == "avoid":
-        from iamp.planners.avoid.result import summary_lines
+        if result.info.get("safety_mode") == "continuous":
+            from iamp.planners.avoid.continuous import summary_lines
+        else:
+            from iamp.planners.avoid.result import summary_lines
 
         for line in summary_lines(result):
             print(line)
+        _print_limits(result)
         return
     print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
     print(f"time      {result.solve_time_s * 1e3:.3f} ms")
@@ -154,13 +198,55 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         poly = " ".join(f"{c:+.6g}" + (f"·t^{k}" if k > 1 else "·t" if k == 1 else "") for k, c in enumerate(v.x_poly))
         origin = "predicted from its history" if spec.history is not None else "given"
         print(f"vehicle {v.name}: x_s(t) = {poly}  ({origin})")
-        X = result.trajectory.states(np.array([t]))[0]
+        X = result.require_trajectory().states(np.array([t]))[0]
         print(f"    corner {v.corner}: contact t = {t:.6f} s at (x, y) = ({X[0]:.3f}, {X[2]:.3f}) m; "
               f"{label} = ({j[0]:.6g}, {j[1]:.6g})")
         print(f"    {_phi_meaning(v, j[0])}")
     if result.residuals:
         worst = ", ".join(f"{k} {v:.1e}" for k, v in result.residuals.items())
         print(f"residuals {worst}")
+    if result.safety is not None:
+        for line in result.safety.lines():
+            print(line)
+    _print_limits(result)
+
+
+def _print_limits(result: Plan) -> None:
+    """SPEC §14: one line of peaks against the bounds, and a warning beyond any car."""
+    peaks = result.peaks
+    if peaks is None:
+        return
+    sides = result.info.get("polygon_sides")
+    poly = f" (QP: |u| <= a_total imposed as an inscribed {sides}-gon)" if sides else ""
+    print(f"limits    {peaks.line()}{poly}")
+    for w in peaks.warnings:
+        print(f"warning   {w}")
+
+
+def _planner_help() -> str:
+    """The ``--planner`` help, one clause per registry entry."""
+    parts = []
+    for spec in registry.REGISTRY.values():
+        flag = "" if spec.constraint == "equality" else f" --constraint {spec.constraint}"
+        parts.append(f"{spec.planner}{flag}: {spec.summary}")
+    return "; ".join(parts) + " (default pmp)"
+
+
+def _print_active(result: Plan) -> None:
+    """The text summary of ``--constraint active``: what was imposed, dropped and why."""
+    act = result.info["active_set"]
+    if result.info.get("reason"):
+        print(f"reason    {result.info['reason']}")
+    if result.cost is not None:
+        print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
+    print(f"time      {result.solve_time_s * 1e3:.3f} ms ({act['iterations']} iteration(s))")
+    for v in act["imposed"]:
+        print(f"imposed   {v['name']}: contact t = {v['contact_time']:.6f} s, Φ = ({v['phi'][0]:.6g}, "
+              f"{v['phi'][1]:.6g}); {v['reason']}")
+    if not act["imposed"]:
+        print("imposed   none: the unconstrained plan")
+    for v in act["dropped"]:
+        print(f"dropped   {v['name']}: {v['reason']}")
     if result.safety is not None:
         for line in result.safety.lines():
             print(line)
@@ -172,15 +258,24 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                        description="Plan the optimal lane change of a scenario file or built-in scenario "
                                    "(see `iamp scenarios`).")
     p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
-    p.add_argument("--planner", choices=("pmp", "qp"), default="pmp")
-    p.add_argument("--solver", choices=("osqp", "clarabel"), default=None, help="QP only (default clarabel)")
-    p.add_argument("--hold", choices=("foh", "zoh"), default=None, help="QP only (default foh)")
+    p.add_argument("--planner", choices=registry.planners(), default="pmp", help=_planner_help())
+    p.add_argument("--solver", choices=registry.solvers(), default=None,
+                   help=f"QP backend, QP only (default clarabel): {', '.join(registry.solvers())}; "
+                        f"the avoidance QP needs one that accepts inequalities ({', '.join(inequality_backends())})")
+    p.add_argument("--hold", choices=HOLDS, default=None, help="QP only (default foh)")
     p.add_argument("--steps", type=steps_int, default=100,
                    help="grid intervals N for the QP, and output samples t_k = k tf/N for every planner "
                         "(at most 20000; the QP's sweep is limited to perm(N-1, m)·N <= 1e6)")
-    p.add_argument("--contact", choices=("grid", "refine"), default=None, help="QP only (default grid)")
-    p.add_argument("--constraint", choices=("equality", "avoid"), default=None,
-                   help="QP only: the paper's corner equality (default) or the avoidance inequalities (SPEC §10)")
+    p.add_argument("--contact", choices=CONTACTS, default=None, help="QP only (default grid)")
+    p.add_argument("--constraint", choices=registry.constraints(), default=None,
+                   help="the paper's corner equality on every vehicle (default), the avoidance inequalities "
+                        "(QP only, SPEC §10/§14), or the equality only on the vehicles in the way, chosen by the "
+                        "jump's sign (active, SPEC §14)")
+    for name, f in registry.cli_options().items():  # the options other planners register
+        if name not in QP_ONLY and name != "steps":
+            who = " or ".join(registry.accepting(name))
+            p.add_argument("--" + name.replace("_", "-"), dest=name, choices=f.metadata["choices"], default=None,
+                           help=f"{f.metadata['cli']} ({who} only; default {f.default})")
     p.add_argument("--require-safe", action="store_true",
                    help="exit with status 4 when the plan enters a safety region or overlaps a vehicle (SPEC §9); "
                         "the plan is still printed")

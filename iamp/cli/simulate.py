@@ -12,9 +12,9 @@ import sys
 from pathlib import Path
 
 from iamp.cli.types import EXIT_OK, positive_float, positive_int
+from iamp.simulation.planning import PLANNERS
 
 TRAFFIC = ("light", "medium", "dense")
-PLANNERS = ("pmp", "qp", "qp-avoid", "sumo", "pmp-all", "qp-all")
 
 
 def _csv_choice(choices: tuple[str, ...]):  # type: ignore[no-untyped-def]

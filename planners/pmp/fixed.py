@@ -30,28 +30,22 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.core.errors import SolverError
+from iamp.core.free import min_energy_cubic
 from iamp.core.problem import Problem
 
+from .jumps import jump_system as jump_system
 from .scale import Scaled, scale_problem
 from .solution import PMPSolution
+from .stationary import stationary_sigmas
 
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = Any
 
 
 def hermite_cubic(s0: float, v0: float, sf: float, vf: float, tf: float) -> FloatArray:
-    """Ascending coefficients of the unconstrained minimum-energy path ``s̄(t)``."""
-    e = sf - s0 - v0 * tf
-    g = vf - v0
-    return np.array([s0, v0, (3 * e - g * tf) / tf**2, (-2 * e + g * tf) / tf**3])
-
-
-def transfer_cost(s0: ArrayLike, v0: ArrayLike, sf: ArrayLike, vf: ArrayLike, T: ArrayLike) -> Any:
-    r"""Minimum of :math:`\tfrac12\int_0^T u^2` taking ``(s0, v0)`` to ``(sf, vf)`` in ``T``:
-    :math:`6e^2/T^3 - 6eg/T^2 + 2g^2/T` with :math:`e = s_f - s_0 - v_0T`, :math:`g = v_f - v_0`."""
-    e = sf - s0 - v0 * T
-    g = vf - v0
-    return 6 * e**2 / T**3 - 6 * e * g / T**2 + 2 * g**2 / T
+    """Ascending coefficients of the unconstrained minimum-energy path ``s̄(t)``
+    (:func:`iamp.core.free.min_energy_cubic`)."""
+    return np.array(min_energy_cubic(s0, v0, sf, vf, tf))
 
 
 def bridge_kernel(s: ArrayLike, t: ArrayLike, tf: float) -> FloatArray:
@@ -192,8 +186,6 @@ class ValueFunction:
 
     def stationary_points_1d(self) -> FloatArray:
         """All zeros of the Hamiltonian-jump residual in ``(0, t_f)`` for one vehicle."""
-        from .search import stationary_sigmas
-
         return np.array(stationary_sigmas(self._EX[0], self._EY[0])) * self.tf
 
 
@@ -269,29 +261,6 @@ def jump_system_sigma(S: Scaled, sig: FloatArray) -> tuple[FloatArray, FloatArra
     :func:`jump_rows`."""
     M, rhs = jump_rows(S, np.asarray(sig, dtype=float).tolist())
     return np.array(M), np.array(rhs)
-
-
-def jump_system(problem: Problem, t: ArrayLike) -> tuple[FloatArray, FloatArray]:
-    """The linear system ``M z = rhs`` of the necessary and co-state jump conditions.
-
-    Unknowns per axis (columns of ``z``): ``(a, b, Φ_1..Φ_m)``; rows: the ``m``
-    interior-point constraints ``s(t_j) = corner_j``, then the final position and speed.
-    """
-    t = np.asarray(t, dtype=float)
-    m, ego, T = problem.m, problem.ego, problem.tf
-    M = np.empty((m + 2, m + 2))
-    M[:m, 0] = t**2 / 2
-    M[:m, 1] = t**3 / 6
-    M[:m, 2:] = -np.maximum(t[:, None] - t[None, :], 0.0) ** 3 / 6
-    M[m] = np.r_[T**2 / 2, T**3 / 6, -((T - t) ** 3) / 6]
-    M[m + 1] = np.r_[T, T**2 / 2, -((T - t) ** 2) / 2]
-    C = problem.corners(t)
-    rhs = np.empty((m + 2, 2))
-    rhs[:m, 0] = C[:, 0] - ego.x0 - ego.vx0 * t
-    rhs[:m, 1] = C[:, 1] - ego.y0 - ego.vy0 * t
-    rhs[m] = [ego.xf - ego.x0 - ego.vx0 * T, ego.yf - ego.y0 - ego.vy0 * T]
-    rhs[m + 1] = [ego.vxf - ego.vx0, ego.vyf - ego.vy0]
-    return M, rhs
 
 
 def check_times(problem: Problem, contact_times: ArrayLike) -> FloatArray:
