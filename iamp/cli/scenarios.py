@@ -96,7 +96,8 @@ def _read_stdin() -> str:
     try:
         text = buffer.read().decode("utf-8") if buffer is not None else stream.read()
     except UnicodeDecodeError as exc:
-        raise ScenarioError(f"cannot be read (UnicodeDecodeError: {exc})", None, "<stdin>") from None
+        raise ScenarioError(f"cannot be read (not UTF-8 text: {exc.reason} at byte {exc.start})", None,
+                            "<stdin>") from None
     _stdin_cache = (stream, text)
     return _stdin_cache[1]
 
