@@ -78,6 +78,8 @@ EDGE_STEP_M = 0.5
 EDGE_CHUNK_M = 4.0
 #: Clearance added to the body's half extents at a road edge (vehicles: BUFFER_M) [m].
 EDGE_BUFFER_M = 0.02
+#: Two lanelets whose bounds stay this close over their common stretch are neighbours [m].
+EDGE_JOIN_M = 0.1
 #: A corridor narrower than the widest by more than this becomes a road-edge box [m].
 EDGE_TOL_M = 0.05
 #: Vehicles considered relevant: lateral distance of their box to the ego's corridor [m].
@@ -241,15 +243,19 @@ def final_candidates(x0: tuple[float, float, float, float], goal: Goal, dt: floa
 
 
 def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_b: float,
-                t: FloatArray) -> tuple[tuple[float, float], list[Obstacle]]:
+                t: FloatArray, via: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0), (1.0, 0.0)),
+                ) -> tuple[tuple[float, float], list[Obstacle]]:
     r"""The road corridor of the ego's lane: its widest lateral range as §14 ``y`` limits and the
     parts where it is narrower as static boxes to avoid (module docstring, "Road edges").
 
-    At every arc length ``s`` (step :data:`EDGE_STEP_M`) the corridor is the ego's lane (the
-    lanelet of ``chain`` covering ``s``) with every lanelet reachable from it by same-direction
-    adjacency (``adj_left``/``adj_right``), :math:`[d^-(s), d^+(s)]` = the extreme bounds of those
-    lanelets at ``s``.  A lanelet that is not adjacent (an on-ramp behind a gore area, a lane that
-    is separated by a barrier) is not part of it.  The limits are
+    At every arc length ``s`` (step :data:`EDGE_STEP_M`) the corridor grows from two seeds, the
+    ego's lane (the lanelet of ``chain`` covering ``s``) and the lanelet under the straight line
+    from the start ``via[0]`` to the goal ``via[1]`` (where the road splits, the goal's branch),
+    by every lanelet reachable by same-direction adjacency (``adj_left``/``adj_right``) or sharing
+    a bound (within :data:`EDGE_JOIN_M` over their whole common stretch: converted NGSIM maps miss
+    some adjacency references); :math:`[d^-(s), d^+(s)]` = the extreme bounds of those lanelets at
+    ``s``.  A lanelet that touches the road only at its end (an on-ramp behind a gore area) is not
+    part of it.  The limits are
     :math:`(\min_s d^-(s), \max_s d^+(s))`; every run of ``s`` where :math:`d^-(s)` is above
     its minimum (or :math:`d^+(s)` below its maximum) by more than :data:`EDGE_TOL_M` becomes a
     box :math:`[s_1, s_2] \times [\min_s d^- - 3, \max_{run} d^-]` (resp. above), which the planner
@@ -271,14 +277,54 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             return None
         return float(np.interp(s, rs, rd)), float(np.interp(s, ls, ld))
 
+    shared: dict[tuple[int, int], bool] = {}
+
+    def shares_bound(a: Any, b: Any) -> bool:
+        """Do ``a`` and ``b`` run side by side with a common bound (within EDGE_JOIN_M) over their
+        whole common stretch?  (An on-ramp touches the road only at its merge point: no.)"""
+        key = (a.lanelet_id, b.lanelet_id)
+        if key not in shared:
+            ra, la = bounds(a)[0:2], bounds(a)[2:4]
+            rb, lb = bounds(b)[0:2], bounds(b)[2:4]
+            lo_s = max(ra[0][0], rb[0][0])
+            hi_s = min(ra[0][-1], rb[0][-1])
+            ok = hi_s - lo_s > 2.0
+            if ok:
+                q = np.linspace(lo_s, hi_s, 25)
+                gap = np.minimum(np.abs(np.interp(q, *la) - np.interp(q, *rb)),
+                                 np.abs(np.interp(q, *ra) - np.interp(q, *lb)))
+                ok = bool(np.all(gap < EDGE_JOIN_M))
+            shared[key] = ok
+        return shared[key]
+
     grid = np.arange(s_a, s_b + EDGE_STEP_M, EDGE_STEP_M)
     lo = np.full(grid.size, np.nan)
     hi = np.full(grid.size, np.nan)
+    forward = []
+    for ll in network.lanelets:
+        c = frame.to_road(np.asarray(ll.center_vertices, dtype=float))[:, 0]
+        if c[-1] > c[0]:
+            forward.append(ll)
+
+    def containing(s: float, d: float) -> Any:
+        for ll in forward:
+            b = at(ll, s)
+            if b is not None and min(b) <= d <= max(b):
+                return ll
+        return None
+
     for i, s in enumerate(grid):
-        own = next((ll for ll in chain if at(ll, float(s)) is not None), None)
+        # seeds: the ego's own lane and the lanelet under the straight line from the start to the
+        # goal (where the road splits, the goal's branch is part of the corridor too)
+        d_line = float(np.interp(s, [via[0][0], via[1][0]], [via[0][1], via[1][1]]))
+        line = containing(float(s), d_line)
+        own = next((ll for ll in chain if at(ll, float(s)) is not None), None) or line
         if own is None:
             continue
         group, todo = {own.lanelet_id: own}, [own]
+        if line is not None and line.lanelet_id not in group:
+            group[line.lanelet_id] = line
+            todo.append(line)
         while todo:
             cur = todo.pop()
             for nid, same in ((cur.adj_left, cur.adj_left_same_direction),
@@ -288,6 +334,10 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
                     if at(nb, float(s)) is not None:
                         group[nid] = nb
                         todo.append(nb)
+            for nb in network.lanelets:  # a neighbour the map does not reference (shared bound)
+                if nb.lanelet_id not in group and at(nb, float(s)) is not None and shares_bound(cur, nb):
+                    group[nb.lanelet_id] = nb
+                    todo.append(nb)
         ds = [v for ll in group.values() for v in (at(ll, float(s)) or ())]
         lo[i], hi[i] = min(ds), max(ds)
     ok = np.isfinite(lo)
@@ -430,7 +480,8 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     s_end = max((c.s for c in candidates), default=goal.s)
     road_y, road_edges = _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M,
                                      max(s0, s_end) + EDGE_REACH_M,
-                                     np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64))
+                                     np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64),
+                                     ((s0, d0), (goal.s, goal.d)))
 
     # --- recorded vehicles --------------------------------------------------------------------
     obstacles: list[Obstacle] = []
