@@ -85,6 +85,8 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
     return lines
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    if getattr(args, "commonroad", None):
+        return _simulate_commonroad(args)
     from iamp.simulation.episode import EpisodeSpec, run_episode, write_log
 
     check_destinations(args)  # before SUMO starts: a refusal costs a second, not an episode
@@ -108,6 +110,35 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         return EXIT_OK
     for line in summary_lines(s):
         print(line)
+    return EXIT_OK
+
+
+def _simulate_commonroad(args: argparse.Namespace) -> int:
+    """``iamp simulate --commonroad FOLDER`` (SPEC §16): the interactive scenario in closed loop."""
+    from iamp.commonroad import require
+    from iamp.commonroad.interactive import simulate
+
+    require()
+
+    def progress(text: str) -> None:
+        if not args.json:
+            sys.stderr.write(f"  {text}\n")
+
+    r = simulate(args.commonroad, args.road_planner, recording=args.recording, progress=progress)
+    if args.json:
+        sys.stdout.write(json.dumps(r, indent=1, default=float) + "\n")
+        return EXIT_OK
+    ttg = "-" if r["time_to_goal_s"] is None else f"{r['time_to_goal_s']:.1f} s"
+    sys.stdout.write(f"{r['scenario']}: {r['status']} (time {ttg}, window {r['goal_window_s'][0]:.1f}-"
+                     f"{r['goal_window_s'][1]:.1f} s), collisions {r['collisions']}, min TTC "
+                     f"{r['min_ttc_s'] if r['min_ttc_s'] is None else round(r['min_ttc_s'], 2)} s, peak |u| "
+                     f"{r['ego_peak_accel']:.2f} m/s^2, infeasible plans {r['infeasible_plans']}, fallbacks "
+                     f"{r['fallbacks']}, plan time median {r['plan_time_s']['median'] or 0:.3f} s\n")
+    d = r["sumo_vs_recording"]
+    if d is not None and d["vehicles_compared"]:
+        sys.stdout.write(f"SUMO vs the recording: {d['vehicles_compared']} vehicles, largest position deviation "
+                         f"median {d['median_abs_deviation_m']:.1f} m, max {d['max_abs_deviation_m']:.1f} m; "
+                         f"lane changes recorded {d['lane_changes_recorded']}, in SUMO {d['lane_changes_sumo']}\n")
     return EXIT_OK
 
 
@@ -212,6 +243,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    "existing file only with --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --log / --figure file")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §11)")
+    p.add_argument("--commonroad", default=None, metavar="FOLDER",
+                   help="an interactive CommonRoad scenario folder (*.cr.xml + *.sumo.cfg): the ego from its "
+                        "planning problem, closed loop to its goal (SPEC §16; needs iamp[sim,commonroad])")
+    p.add_argument("--road-planner", default="avoid", choices=("avoid", "pmp", "qp", "all-pmp", "free"),
+                   help="with --commonroad: the road planner (iamp commonroad plan --planner; default avoid)")
+    p.add_argument("--recording", default=None, metavar="SCENARIO.xml",
+                   help="with --commonroad: the recorded scenario of the same vehicles, to report how SUMO's "
+                        "traffic differs from it")
     p.set_defaults(func=cmd_simulate)
 
     c = sub.add_parser("campaign", help="every planner x traffic x seed episode on Dask (needs iamp[sim])",
