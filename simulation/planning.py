@@ -1,32 +1,33 @@
 r"""The planners the closed loop can use, behind one call: ``plan(problem) -> Plan``.
 
-* ``pmp`` — :class:`iamp.planners.pmp.PMPPlanner` (the paper's equality constraints, global
-  contact times).
-* ``qp`` — the discretised QP with the same equality constraints (SPEC §3), solved by the
-  direct KKT backend (exact for an equality QP; OSQP where that backend is absent), FOH
-  hold, ``N = 20`` intervals over the (shrinking) horizon, contact nodes
-  by the full grid sweep.  ``N`` is small because the sweep solves ``(N-1)(N-2)`` QPs for
-  two vehicles every period.
-* ``qp-avoid`` — the avoidance QP of SPEC §10 (``iamp.planners.avoid.AvoidQPPlanner``,
-  Clarabel, FOH, ``N = 20``, grid crossing search), if that module is installed; otherwise
-  :func:`make_planner` raises :class:`PlannerUnavailable`.  Clarabel, not OSQP: with the
-  planner's OSQP accuracy (``eps_abs = 1e-7``) some closed-loop sweeps took seconds
-  (measured: p50 1.9 s per plan over a 15 s episode, every vehicle constrained).
-* ``sumo`` — no iamp planner: SUMO's own LC2013 lane change (handled by the controller).
-* ``pmp-all``, ``qp-all`` — the same planners with the paper's rule taken literally: both
-  corners are imposed whenever the two vehicles are there (the controller's active-set rule,
-  which imposes a corner only where the unconstrained plan would enter that vehicle's
-  safety region, is off).  An ablation: it shows what the equality does in closed loop.
+Every iamp planner receives the same problem from the decision layer
+(:mod:`iamp.simulation.decision`): the target-lane follower, the target-lane leader and the
+current-lane leader, each with its paper corner.
 
-With no vehicle left to constrain (every constraint already met or no neighbour), every
-planner returns the unconstrained optimum, a cubic per axis (:class:`FreeTrajectory`):
-with ``ṡ = v, v̇ = u`` and ``J = ½∫u²``, the minimiser with fixed end states is
+* ``pmp`` — :class:`iamp.planners.pmp.PMPPlanner`, the paper's equality on **every** vehicle of
+  the problem (global contact times).
+* ``qp`` — the discretised QP with the same equality constraints (SPEC §3), FOH, ``N = 20``
+  intervals over the (shrinking) horizon, contact nodes by ``refine`` (a grid sweep over
+  three vehicles would solve ~6000 QPs a period), the exact KKT backend.
+* ``pmp-active`` — the PMP with SPEC §14's active set (:func:`active_set_plan`): start from the
+  unconstrained plan, impose the corner of the vehicle whose safety region it enters most
+  deeply, drop a vehicle whose jump has the dragging sign, repeat.  One function, so that the
+  planner's own ``constraint="active"`` (being built on branch ``avoid``) can replace it.
+* ``qp-avoid`` — the avoidance QP of SPEC §10/§14 (``iamp.planners.avoid.AvoidQPPlanner``,
+  Clarabel, FOH, ``N = 20``, every vehicle as an inequality).
+* ``free`` — no constraint at all (the ablation): the minimum-energy cubic below.
+* ``mobil`` and ``sumo`` — no iamp planner (:mod:`iamp.simulation.mobil`, SUMO's LC2013).
+
+With no vehicle left to constrain (every constraint met or no neighbour), every iamp planner
+returns the unconstrained optimum, a cubic per axis (:class:`FreeTrajectory`): with
+``ṡ = v, v̇ = u`` and ``J = ½∫u²``, the minimiser with fixed end states is
 
 .. math::  s(t) = s_0 + v_0 t + c_2 t^2 + c_3 t^3,\quad
            c_2 = \frac{3e - g t_f}{t_f^2},\ c_3 = \frac{-2e + g t_f}{t_f^3},\quad
            e = s_f - s_0 - v_0 t_f,\ g = v_f - v_0,
 
-whose cost is :math:`J = \sum_{axes} (6 e^2/t_f^3 - 6 e g/t_f^2 + 2 g^2/t_f)`.
+whose cost is :math:`J = \sum_{axes} (6 e^2/t_f^3 - 6 e g/t_f^2 + 2 g^2/t_f)`.  Such a call
+is not a planner call: it is not timed into ``plan_time_s``.
 """
 
 from __future__ import annotations
@@ -41,10 +42,16 @@ import numpy as np
 from iamp.core.errors import IampError
 from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem
-from iamp.core.status import OPTIMAL
+from iamp.core.status import OPTIMAL, SUCCESS
 
-PLANNERS = ("pmp", "qp", "qp-avoid", "sumo", "pmp-all", "qp-all")
-QP_STEPS = 20
+PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
+#: Planners that call an iamp planner through the decision layer.
+IAMP_PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free")
+QP_STEPS = 12
+#: The PMP's branch-and-bound box budget in the loop (the library's 200 000 took 1-8 s on
+#: three-vehicle lane changes; 5000 gave the same cost to 1e-12 on the cases measured, status
+#: ``local`` — checked residuals, global optimality not certified — which the decision layer accepts).
+PMP_BOXES = 5000
 
 
 class PlannerUnavailable(IampError):
@@ -77,6 +84,11 @@ class FreeTrajectory:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         P = np.polynomial.polynomial
         return np.stack([P.polyval(t, P.polyder(self.cx, 2)), P.polyval(t, P.polyder(self.cy, 2))], axis=1)
+
+    @property
+    def contact_times(self) -> np.ndarray:
+        """No pieces: one cubic on ``[0, t_f]`` (lets the §9 report be exact)."""
+        return np.zeros(0)
 
     def cost(self, tf: float) -> float:
         """``½∫(u_x² + u_y²)dt`` (``u`` is linear, so Simpson's rule is exact)."""
@@ -115,14 +127,80 @@ def free_plan(ego: EgoBoundary, planner: str) -> Plan:
 PlanFn = Callable[[Problem], Plan]
 
 
+def _failed(problem: Problem, planner: str, exc: BaseException) -> Plan:
+    return Plan(problem=problem, planner=planner, status="solver_error", cost=None,
+                contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
+                trajectory=None, info={"error": repr(exc)})
+
+
+def _safe(fn: PlanFn, name: str) -> PlanFn:
+    """A planner crash is a failed plan, not a crashed episode."""
+    def call(problem: Problem) -> Plan:
+        try:
+            return fn(problem)
+        except Exception as exc:
+            return _failed(problem, name, exc)
+    return call
+
+
+def enters(plan: Plan, vehicle: Any, dt: float = 0.05) -> float:
+    """How deep the plan's point enters ``vehicle``'s safety region (0: not at all), sampled."""
+    tf = float(plan.problem.tf)
+    t = np.linspace(0.0, tf, int(tf / dt) + 1)
+    X = np.asarray(plan.trajectory.states(t))
+    dx = vehicle.length / 2 + vehicle.safety_x - np.abs(X[:, 0] - vehicle.position(t))
+    dy = vehicle.width / 2 + vehicle.safety_y - np.abs(X[:, 2] - vehicle.y)
+    depth = np.minimum(dx, dy)
+    return float(max(depth.max(), 0.0))
+
+
+def active_set_plan(problem: Problem, fn: PlanFn, name: str) -> Plan:
+    """SPEC §14's active set around the equality planner ``fn`` (see the module docstring).
+
+    Start from the unconstrained plan; while it enters a safety region of a vehicle not yet
+    imposed, impose the one it enters most deeply and re-plan; a vehicle whose jump (the
+    co-state jump ``Φ_x``) comes out with the dragging sign — the ego pulled towards the
+    vehicle instead of pushed away (SPEC §2 identity 2: ``sign(Φ_x) = -s_x`` is the pushing
+    sign) — is dropped and not imposed again.  Stops when no region is entered (``info
+    ["active"]``: the imposed vehicles, ``info["dropped"]``: the dropped ones) or when nothing
+    changes; the decision layer judges the result like any other plan.
+    """
+    chosen: list[Any] = []
+    dropped: list[str] = []
+    plan = free_plan(problem.ego, name)
+    for _ in range(2 * problem.m):
+        if plan.trajectory is None or plan.status not in SUCCESS:
+            break
+        depths = [(enters(plan, v), v) for v in problem.vehicles if v not in chosen and v.name not in dropped]
+        depths = [d for d in depths if d[0] > 1e-3]
+        if not depths:
+            break
+        chosen.append(max(depths, key=lambda d: d[0])[1])
+        plan = fn(problem.with_vehicles(chosen))
+        if plan.status in SUCCESS and plan.jumps is not None and len(plan.jumps) == len(chosen):
+            bad = [v for v, j in zip(chosen, np.asarray(plan.jumps)) if np.isfinite(j[0]) and j[0] * v.sign_x > 1e-9]
+            if bad:
+                for v in bad:
+                    chosen.remove(v)
+                    dropped.append(str(v.name))
+                plan = fn(problem.with_vehicles(chosen)) if chosen else free_plan(problem.ego, name)
+    plan.info["active"] = [str(v.name) for v in chosen]
+    plan.info["dropped"] = dropped
+    return plan
+
+
 def make_planner(name: str) -> PlanFn:
-    """``plan(problem) -> Plan`` for ``pmp``, ``qp`` or ``qp-avoid`` (``-all``: the same planner)."""
-    name = name.removesuffix("-all")
-    if name == "pmp":
+    """``plan(problem) -> Plan`` for the iamp planners (``IAMP_PLANNERS``)."""
+    if name == "free":
+        return lambda problem: free_plan(problem.ego, "free")
+    if name in ("pmp", "pmp-active"):
         from iamp.planners.pmp import PMPPlanner
 
-        pmp = PMPPlanner()
-        return lambda problem: pmp.plan(problem, diagnostics=False)
+        pmp = PMPPlanner(max_boxes=PMP_BOXES)
+        fn = _safe(lambda problem: pmp.plan(problem, diagnostics=False), "pmp")
+        if name == "pmp":
+            return fn
+        return lambda problem: active_set_plan(problem, fn, "pmp-active")
     if name == "qp":
         from iamp.planners.qp import QPPlanner
 
@@ -130,7 +208,7 @@ def make_planner(name: str) -> PlanFn:
             qp: Any = QPPlanner(steps=QP_STEPS, hold="foh", solver="kkt", contact="grid")
         except ValueError:  # pragma: no cover - older planner without the kkt backend
             qp = QPPlanner(steps=QP_STEPS, hold="foh", solver="osqp", contact="grid")
-        return lambda problem: qp.plan(problem)
+        return _safe(lambda problem: qp.plan(problem), "qp")
     if name == "qp-avoid":
         try:
             from iamp.planners.avoid import AvoidQPPlanner  # type: ignore[import-not-found,unused-ignore]
@@ -138,5 +216,5 @@ def make_planner(name: str) -> PlanFn:
             raise PlannerUnavailable(f"planner 'qp-avoid' is unavailable: iamp.planners.avoid is not installed "
                                      f"({exc})") from None
         avoid: Any = AvoidQPPlanner(steps=QP_STEPS, hold="foh", solver="clarabel")
-        return lambda problem: avoid.plan(problem)
-    raise IampError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}")
+        return _safe(lambda problem: avoid.plan(problem), "qp-avoid")
+    raise IampError(f"planner {name!r} is not an iamp planner; choose from {', '.join(IAMP_PLANNERS)}")

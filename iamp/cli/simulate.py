@@ -13,8 +13,10 @@ from pathlib import Path
 
 from iamp.cli.types import EXIT_OK, positive_float, positive_int
 
-TRAFFIC = ("light", "medium", "dense")
-PLANNERS = ("pmp", "qp", "qp-avoid", "sumo", "pmp-all", "qp-all")
+TRAFFIC = ("light", "medium", "dense", "los-e")
+PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
+MISSIONS = ("merge", "onramp", "slow-leader", "discretionary")
+COOPERATION = ("low", "default", "high")
 
 
 def _csv_choice(choices: tuple[str, ...]):  # type: ignore[no-untyped-def]
@@ -32,8 +34,9 @@ def _csv_choice(choices: tuple[str, ...]):  # type: ignore[no-untyped-def]
 def cmd_simulate(args: argparse.Namespace) -> int:
     from iamp.simulation.episode import EpisodeSpec, run_episode, write_log
 
-    spec = EpisodeSpec(traffic=args.traffic, seed=args.seed, planner=args.planner, duration_s=args.duration,
-                       period_s=args.period, deadline_s=None if args.no_deadline else args.period)
+    spec = EpisodeSpec(traffic=args.traffic, seed=args.seed, planner=args.planner, mission=args.mission,
+                       cooperation=args.cooperation, sublane=args.sublane, duration_s=args.duration,
+                       period_s=args.period, deadline_s=args.period if args.deadline else None)
     if args.planner == "qp-avoid":
         from iamp.simulation.planning import make_planner
 
@@ -50,21 +53,28 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         print(json.dumps(s, allow_nan=False))
         return EXIT_OK
     pt = s["plan_time_s"]
-    print(f"episode   {s['planner']}, {s['traffic']} traffic, seed {s['seed']}, {s['duration_s']:g} s at "
-          f"{s['period_s']:g} s")
-    done = s["lane_change_done_s"]
-    print(f"lane      {s['lane_changes']} lane changes; first done at "
-          f"{'never' if done is None else f'{done:.1f} s'}")
-    print(f"safety    {s['collisions']} collisions (SUMO {s['sumo_collisions']}, body overlap "
-          f"{s['overlap_collisions']}); intrusion {s['intrusion_s']:.1f} s; min gap {s['min_gap_m']} m; "
-          f"min TTC {s['min_ttc_s']} s")
+    print(f"episode   {s['mission']}: {s['planner']}, {s['traffic']} traffic ({s['cooperation']} cooperation), "
+          f"seed {s['seed']}, {s['simulated_s']:g} of {s['duration_s']:g} s at {s['period_s']:g} s")
+    merged = s["time_to_merge_s"]
+    print(f"mission   {'success' if s['success'] else 'FAILED'}; in the target lane at "
+          f"{'never' if merged is None else f'{merged:.1f} s'}"
+          + ("; stopped at the lane's end" if s["stopped_at_end"] else ""))
+    fd = s["follower_max_decel"]
+    print(f"safety    {s['contacts']} contacts (body overlap {s['overlap_contacts']}, SUMO {s['sumo_contacts']}); "
+          f"{s['mingap_violations']} minGap violations; min TTC {s['min_ttc_s']} s "
+          f"({s['ttc_below_1_5_s']:.1f} s below 1.5 s); new follower braked "
+          f"{'--' if fd is None else f'{fd:.1f} m/s²'}")
+    lo, hi = s['ego_ax_range']
+    print(f"executed  peak |a| {s['ego_peak_accel']:.2f} m/s² (a_x {lo:.2f}..{hi:.2f},"
+          f" |a_y| {s['ego_ay_peak']:.2f}); {s['limit_violations']} steps beyond the passenger car's limits")
     print(f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
           f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³")
     if s["plans"]:
-        print(f"plans     {s['plans']} ({s['constrained_plans']} with a constraint; failed {s['failed_plans']}, "
-              f"late {s['late_plans']}, fallbacks "
-              f"{s['fallbacks']}, aborts {s['aborts']}); time p50 {pt['p50'] * 1e3:.2f} ms, p95 "
-              f"{pt['p95'] * 1e3:.2f} ms, max {pt['max'] * 1e3:.2f} ms")
+        times = ("no planner call" if pt["p50"] is None else
+                 f"time p50 {pt['p50'] * 1e3:.2f} ms, p95 {pt['p95'] * 1e3:.2f} ms, max {pt['max'] * 1e3:.2f} ms")
+        print(f"plans     {s['plans']} ({s['planner_calls']} planner calls, {s['infeasible_plans']} not verified; "
+              f"{s['executed_plans']} periods executed, {s['constrained_plans']} with an imposed constraint; "
+              f"fallbacks {s['fallbacks']}, aborts {s['aborts']}); {times}")
     w = s["wall_s"]
     print(f"wall      {w['total']:.1f} s (SUMO {w['sumo']:.1f}, prediction {w['prediction']:.1f}, "
           f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
@@ -80,7 +90,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 def _campaign_into(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar
-    from iamp.simulation.campaign import latex_table, read_rows, run_campaign, summarise
+    from iamp.simulation.campaign import latex_table, paired_table, read_rows, run_campaign
     from iamp.simulation.figures import campaign_figures
 
     if "qp-avoid" in args.planners:
@@ -90,26 +100,32 @@ def _campaign_into(args: argparse.Namespace) -> int:
     out = Path(args.out)
     quiet = bool(args.quiet) or not sys.stderr.isatty()
     with progress_bar(0, "campaign", enabled=not quiet) as tick:
-        stats = run_campaign(args.planners, args.traffic, args.seeds, out, workers=args.workers,
-                             scheduler=args.scheduler, duration_s=args.duration, period_s=args.period,
-                             deadline=not args.no_deadline, progress=tick)
-    wanted = {(p, t) for p in args.planners for t in args.traffic}
-    rows = [r for r in read_rows(out / "episodes.csv") if (r["planner"], r["traffic"]) in wanted
-            and int(r["seed"]) <= args.seeds]
-    summary = summarise(rows)
+        if args.no_run:
+            stats = {"ran": 0, "skipped": 0, "failed": 0, "seconds": 0.0}
+        else:
+            stats = run_campaign(args.planners, args.traffic, args.seeds, out, missions=args.missions,
+                                 workers=args.workers, scheduler=args.scheduler, duration_s=args.duration,
+                                 period_s=args.period, deadline=args.deadline, cooperation=args.cooperation,
+                                 sublane=args.sublane, force=args.force, progress=tick)
+    from iamp.simulation.stats import campaign_report
+
+    rows = [r for r in read_rows(out / "episodes.csv") if r["planner"] in args.planners
+            and r["traffic"] in args.traffic and r.get("mission", "discretionary") in args.missions]
+    report = campaign_report(rows, args.planners, reference=args.reference)
     from iamp.core.atomic import write_text
 
-    write_text(out / "table.tex", latex_table(summary))
-    write_text(out / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
-    campaign_figures(summary, rows, out)
+    write_text(out / "table.tex", latex_table(report["cells"]))
+    write_text(out / "paired.tex", paired_table(report["paired"]))
+    write_text(out / "summary.json", json.dumps(report, indent=1, allow_nan=False) + "\n")
+    campaign_figures(report["cells"], rows, out)
     if not args.quiet:
         print(f"{stats['ran']} episodes run, {stats['skipped']} already done, {stats['failed']} failed "
-              f"({stats['seconds']:.0f} s); {out / 'episodes.csv'}, table.tex, summary.json, rates.png, "
-              "distributions.png")
-        for s in summary:
-            lo, hi = s["collision_ci"]
-            print(f"  {s['planner']:>8} {s['traffic']:>6}: collisions {s['collision_episodes']}/{s['episodes']} "
-                  f"[{100 * lo:.0f}, {100 * hi:.0f}] %, lane change {100 * s['lane_change_rate']:.0f} %")
+              f"({stats['seconds']:.0f} s); {out / 'episodes.csv'}, manifest.json, table.tex, paired.tex, "
+              "summary.json, rates.png, distributions.png")
+        for c in report["cells"]:
+            lo, hi = c["success_ci"]
+            print(f"  {c['mission']:>13} {c['planner']:>10} {c['traffic']:>6}: success {c['success_episodes']}/"
+                  f"{c['episodes']} [{100 * lo:.0f}, {100 * hi:.0f}] %, contacts {c['contact_episodes']}")
     return EXIT_OK
 
 
@@ -118,14 +134,20 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p = sub.add_parser("simulate", help="one closed-loop lane-change episode in SUMO traffic (needs iamp[sim])",
                        description="Run one closed-loop episode: SUMO traffic, the shared predictor, the planner "
                                    "every period (SPEC §11).")
+    p.add_argument("--mission", choices=MISSIONS, default="merge",
+                   help="what the ego must do (SPEC §15; default merge: its lane ends 400 m ahead)")
     p.add_argument("--traffic", choices=TRAFFIC, default="medium")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--planner", choices=PLANNERS, default="pmp")
+    p.add_argument("--cooperation", choices=COOPERATION, default="default",
+                   help="SUMO drivers' cooperation (lcCooperative, lcAssertive, lcSpeedGain, "
+                        "sigma; docs/closed-loop.md)")
+    p.add_argument("--sublane", action="store_true", help="the sumo planner with SUMO's sublane model SL2015")
     p.add_argument("--duration", type=positive_float, default=60.0, help="episode length [s] (default 60)")
     p.add_argument("--period", type=positive_float, default=0.1, help="control period = SUMO step [s]")
-    p.add_argument("--no-deadline", action="store_true",
-                   help="use plans however long they take (default: a plan slower than the period is late "
-                        "and falls back)")
+    p.add_argument("--deadline", action="store_true",
+                   help="a plan slower than the period is late and falls back (default: use plans however long "
+                        "they take, so that the same seed gives the same numbers)")
     p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV")
     p.add_argument("--figure", default=None, help="write a figure of the episode (PNG/PDF by extension)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §11)")
@@ -133,16 +155,23 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
 
     c = sub.add_parser("campaign", help="every planner x traffic x seed episode on Dask (needs iamp[sim])",
                        description="Run a campaign of closed-loop episodes on Dask distributed; resumes.")
-    c.add_argument("--planners", type=_csv_choice(PLANNERS), default=["pmp", "qp", "sumo"])
-    c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=list(TRAFFIC))
+    c.add_argument("--missions", type=_csv_choice(MISSIONS), default=["merge"])
+    c.add_argument("--planners", type=_csv_choice(PLANNERS), default=list(PLANNERS))
+    c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=["medium", "dense", "los-e"])
+    c.add_argument("--cooperation", choices=COOPERATION, default="default")
+    c.add_argument("--sublane", action="store_true", help="the sumo planner with SL2015")
+    c.add_argument("--reference", choices=PLANNERS, default="pmp",
+                   help="the planner every other one is compared with, seed by seed (default pmp)")
+    c.add_argument("--no-run", action="store_true", help="only summarise the episodes already in --out")
     c.add_argument("--seeds", type=positive_int, default=20, help="seeds 1..N")
     c.add_argument("--out", required=True, help="output folder (episodes.csv, table.tex, figures)")
     c.add_argument("--force", action="store_true",
-                   help="write into an existing folder that iamp did not write (no .iamp-output marker)")
+                   help="write into an existing folder that iamp did not write (no .iamp-output marker), and "
+                        "discard its episodes if they were made with other parameters")
     c.add_argument("--workers", type=positive_int, default=2, help="local Dask workers (processes)")
     c.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
     c.add_argument("--duration", type=positive_float, default=60.0)
     c.add_argument("--period", type=positive_float, default=0.1)
-    c.add_argument("--no-deadline", action="store_true", help="use plans however long they take")
+    c.add_argument("--deadline", action="store_true", help="a plan slower than the period falls back")
     c.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     c.set_defaults(func=cmd_campaign)
