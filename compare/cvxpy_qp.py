@@ -1,9 +1,9 @@
 r"""The independent cross-check: the discretised QP of SPEC §3 written in cvxpy.
 
-Not a production path (that is :mod:`iamp.planners.qp`): this is the same QP formulated a
+Not a production path (that is :mod:`iamp.planners.qp.planner`): this is the same QP formulated a
 second time, independently — as cvxpy expressions, compiled once (DPP) and re-solved per
 candidate through cvxpy's own canonicalisation — so that tests and ``iamp compare`` can
-check the matrices of :mod:`iamp.planners.qp_data` against it.
+check the matrices of :mod:`iamp.planners.qp.data` against it.
 
 Per axis, with steps :math:`h_k`:
 
@@ -17,9 +17,9 @@ The contact node of vehicle ``i`` is picked by a one-hot Parameter :math:`w_i`
 (:math:`s_x^\top w_i = \text{corner}_{x,i}`, :math:`s_y^\top w_i = \text{corner}_{y,i}`); the
 steps are Parameters too.  cvxpy's ``dual_value`` of ``lhs == rhs`` is the multiplier of
 ``lhs − rhs``, i.e. :math:`\nu_i` in the convention :math:`L = J + \nu_i^\top(s(t_i) -
-\text{corner}_i)`.  Results are :class:`~iamp.planners.qp_core.CandidateResult`, verified
+\text{corner}_i)`.  Results are :class:`~iamp.planners.qp.core.CandidateResult`, verified
 like the production path: the primal and dual vectors are mapped onto the rows of
-:class:`~iamp.planners.qp_data.QPData` and the KKT residuals recomputed from those matrices.
+:class:`~iamp.planners.qp.data.QPData` and the KKT residuals recomputed from those matrices.
 
 cvxpy status → :mod:`iamp.core.status`: ``optimal`` → OPTIMAL; ``optimal_inaccurate`` →
 INACCURATE; ``infeasible(_inaccurate)`` → INFEASIBLE; ``user_limit`` → MAX_ITER (cvxpy's word
@@ -42,12 +42,12 @@ import numpy as np
 from iamp.core import status as st
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
-from iamp.planners.backends import BACKENDS, get_backend
-from iamp.planners.backends.base import FloatArray
-from iamp.planners.hold import HOLDS, HoldTrajectory, aligned_grid
-from iamp.planners.qp import QPPlanner
-from iamp.planners.qp_core import CandidateResult, CandidateSolver, verify
-from iamp.planners.qp_data import QPData
+from iamp.planners.qp.backends import BACKENDS, get_backend
+from iamp.planners.qp.backends.base import FloatArray
+from iamp.planners.qp.core import CandidateResult, CandidateSolver, verify
+from iamp.planners.qp.data import QPData
+from iamp.planners.qp.hold import HOLDS, HoldTrajectory, aligned_grid
+from iamp.planners.qp.planner import QPPlanner
 
 cp: Any = _cvxpy  # cvxpy's partial annotations are not what this module checks
 
@@ -74,9 +74,9 @@ def map_status(raw: str) -> str:
 class CvxpyQP:
     """The QP of one problem in cvxpy, compiled once (DPP), re-solved per candidate.
 
-    Same interface as :class:`iamp.planners.qp_core.DiscretisedQP` (``set_grid``,
+    Same interface as :class:`iamp.planners.qp.core.DiscretisedQP` (``set_grid``,
     ``solve_nodes``, ``solve_times``, ``candidate_nodes``), so
-    :class:`~iamp.planners.qp.QPPlanner`'s sweep and refinement run on it unchanged.
+    :class:`~iamp.planners.qp.planner.QPPlanner`'s sweep and refinement run on it unchanged.
     """
 
     def __init__(self, problem: Problem, steps: int = 100, hold: str = "foh", solver: str = "clarabel",
@@ -234,7 +234,7 @@ class CvxpyQP:
 
 
 class CvxpyQPPlanner(QPPlanner):
-    """:class:`~iamp.planners.qp.QPPlanner` on the cvxpy formulation (cross-check only)."""
+    """:class:`~iamp.planners.qp.planner.QPPlanner` on the cvxpy formulation (cross-check only)."""
 
     path = "cvxpy"
 

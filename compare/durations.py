@@ -7,7 +7,7 @@
 * otherwise — seconds with ``digits`` decimals (``"1.23 s"``).
 
 The report's LaTeX tables have their own format (``\\,``-spaced units, fewer digits for
-large microsecond counts): :func:`iamp.comparison.report_tex.tex_time`.
+large microsecond counts): :func:`iamp.comparison.report.tex.tex_time`.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ r"""Equality vs avoidance, side by side (SPEC §9, §10): the cost of safety.
 For one problem :func:`safety_comparison` runs
 
 * the paper's equality: the PMP (exact, continuous) and the equality QP;
-* the avoidance QP (:class:`~iamp.planners.avoid.AvoidQPPlanner`) with the same solver,
+* the avoidance QP (:class:`~iamp.planners.avoid.planner.AvoidQPPlanner`) with the same solver,
   hold and ``N`` as the equality QP,
 
 and reports per run its status, cost, contact / crossing times and its SPEC §9 safety report
@@ -59,7 +59,7 @@ def plan_avoid(problem: Problem, *, steps: int, hold: str, solver: str) -> tuple
 
     from iamp.core.errors import ScenarioError
     from iamp.core.problem import SurroundingVehicle
-    from iamp.planners.avoid import AvoidQPPlanner
+    from iamp.planners.avoid.planner import AvoidQPPlanner
 
     planner = AvoidQPPlanner(steps=steps, hold=hold, solver=solver)
     try:
@@ -128,8 +128,8 @@ def safety_comparison(problem: Problem, *, name: str | None = None, steps: int |
     Returns ``{"name", "runs", "cost_of_safety", "cost_of_safety_vs_pmp", "verdict", "plans"}``;
     ``plans`` holds the :class:`Plan` objects (not JSON; see :func:`to_json`).
     """
-    from iamp.planners.pmp import PMPPlanner
-    from iamp.planners.qp import QPPlanner
+    from iamp.planners.pmp.planner import PMPPlanner
+    from iamp.planners.qp.planner import QPPlanner
 
     n = int(steps or (100 if problem.m == 1 else 20))
     pmp = PMPPlanner().plan(problem)
@@ -268,7 +268,7 @@ def reproduction_section(problems: dict[str, Problem], fig_dir: Any, *, steps_on
                          steps_two: int = 20) -> dict[str, Any]:
     """The reproduction's safety part: :func:`safety_comparison` per scenario (equality PMP and
     QP against the avoidance QP, Clarabel FOH), one x–y figure each
-    (:func:`iamp.comparison.figures_safety.plot_safety_xy`), the booktabs table (a ``table``
+    (:func:`iamp.comparison.figures.safety.plot_safety_xy`), the booktabs table (a ``table``
     float) and the LaTeX section that shows them.
 
     Returns ``{"json": [...], "figures": {key: paths}, "table": tex, "section": tex(figs)}``
@@ -277,7 +277,7 @@ def reproduction_section(problems: dict[str, Problem], fig_dir: Any, *, steps_on
     """
     from pathlib import Path
 
-    from iamp.comparison.figures_safety import plot_safety_xy
+    from iamp.comparison.figures.safety import plot_safety_xy
 
     results, figures = [], {}
     for name, problem in problems.items():

@@ -14,11 +14,11 @@ What is timed, separately (:func:`qp_breakdown`, :func:`time_problem`):
 * **cvxpy re-solve** — a later ``solve_nodes`` (parameters changed, problem re-used), its
   total wall time, the solver's own reported time, and the **overhead**
   ``total − solver's own time`` (cvxpy's parameter update, data copy, result unpacking);
-* **native** — :class:`iamp.planners.qp_core.DiscretisedQP` on a backend of
-  :mod:`iamp.planners.backends`: the values updated in place, OSQP warm-started, Clarabel
+* **native** — :class:`iamp.planners.qp.core.DiscretisedQP` on a backend of
+  :mod:`iamp.planners.qp.backends`: the values updated in place, OSQP warm-started, Clarabel
   and PIQP re-used through their data updates (no warm start), ``kkt`` re-using its
   factorisation;
-* **PMP plan** — :meth:`iamp.planners.pmp.PMPPlanner.plan` including its global
+* **PMP plan** — :meth:`iamp.planners.pmp.planner.PMPPlanner.plan` including its global
   contact-time search;
 * **full contact-time search** — a complete plan of each planner (QP: build + sweep of every
   interior node combination).
@@ -173,8 +173,8 @@ def versions() -> dict[str, Any]:
 
 
 def solver_settings() -> dict[str, dict[str, Any]]:
-    """The default settings of every QP backend (:data:`iamp.planners.backends.BACKENDS`)."""
-    from iamp.planners.backends import BACKENDS
+    """The default settings of every QP backend (:data:`iamp.planners.qp.backends.BACKENDS`)."""
+    from iamp.planners.qp.backends import BACKENDS
 
     return {name: cls.default_settings() for name, cls in BACKENDS.items()}
 
@@ -187,7 +187,7 @@ def solver_settings() -> dict[str, dict[str, Any]]:
 def _pmp_plan_fn(problem: Any) -> Callable[[], Any]:
     import inspect
 
-    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.planner import PMPPlanner
 
     planner = PMPPlanner()
     if "diagnostics" in inspect.signature(planner.plan).parameters:
@@ -254,7 +254,7 @@ def qp_breakdown(problem: Any, steps: int = 100, hold: str = "foh", solver: str 
     out["cvxpy_overhead_s"] = summarize(np.array(totals) - np.array(own)).to_dict()
     out["cvxpy_failed"] = int(fails)
     if native:
-        from iamp.planners.qp_core import DiscretisedQP
+        from iamp.planners.qp.core import DiscretisedQP
 
         t0 = time.perf_counter()
         nq = DiscretisedQP(problem, steps, hold, solver)

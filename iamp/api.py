@@ -103,17 +103,17 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
         if constraint != "equality":
             raise ScenarioError("the PMP planner implements the paper's equality only; use planner='qp'",
                                 "constraint")
-        from iamp.planners.pmp import PMPPlanner
+        from iamp.planners.pmp.planner import PMPPlanner
 
         result: Plan = PMPPlanner().plan(problem)
         return result
     kwargs: dict[str, Any] = {"steps": steps, "hold": hold or "foh", "solver": solver or "clarabel",
                               "contact": contact or "grid"}
     if constraint == "avoid":
-        from iamp.planners.avoid import AvoidQPPlanner
+        from iamp.planners.avoid.planner import AvoidQPPlanner
 
         return AvoidQPPlanner(**kwargs).plan(problem)
-    from iamp.planners.qp import QPPlanner
+    from iamp.planners.qp.planner import QPPlanner
 
     return QPPlanner(**kwargs).plan(problem)
 
@@ -126,7 +126,7 @@ def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
     Returns the object of SPEC §5b's ``iamp compare --json`` for this one problem:
     ``{"scenarios": [{"name", "runs", "agreement", ...}]}``.  In ``agreement`` the headline
     gaps compare the two runs as they came out; the identity at the QP's own contact times
-    is under ``at_same_contact_times`` (see :mod:`iamp.comparison.agreement` for every rule).
+    is under ``at_same_contact_times`` (see :mod:`iamp.comparison.agreement.judge` for every rule).
 
     Parameters
     ----------
@@ -137,7 +137,7 @@ def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
     repeats : int
         Timed plans per QP configuration.
     """
-    from iamp.comparison.agreement import compare_problem, default_configs
+    from iamp.comparison.agreement.judge import compare_problem, default_configs
 
     if not isinstance(problem, Problem):
         raise ScenarioError(f"must be an iamp.Problem (got {type(problem).__name__})", "problem")

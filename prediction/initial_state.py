@@ -49,7 +49,7 @@ from iamp.prediction._typing import FloatArray
 __all__ = ["DEFAULT_JERK_PSD", "NOISE_FLOOR_M", "SmoothedHistory", "noise_sigma", "smooth_histories"]
 
 #: Jerk spectral density ``q`` [m²/s⁵], chosen on the validation windows of the shipped data by
-#: :func:`iamp.prediction.evaluate_select.choose_jerk_psd` (constant-velocity RMSE, mean over
+#: :func:`iamp.prediction.evaluation.select.choose_jerk_psd` (constant-velocity RMSE, mean over
 #: 1..5 s, averaged over added noise of 0, 3 and 10 cm; 20 569 windows): q = 1: 3.81 m, 3: 3.76,
 #: **10: 3.73**, 30: 3.74, 100: 3.79 (clean: 3.58 / 3.57 / 3.56 / 3.55 / 3.55; the former 0.2-s
 #: quadratic fit scores 3.55 clean but 4.26 and 8.39 with 3 and 10 cm of noise).

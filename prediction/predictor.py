@@ -183,7 +183,8 @@ def _default_model() -> MTDModel:
     ref = resources.files("iamp.prediction").joinpath("data", DEFAULT_MODEL_FILE)
     if not ref.is_file():
         raise ModelFileError("the shipped model is missing from the installed package "
-                             "(iamp.prediction.evaluate.train_default_model('package') rebuilds it)", None, name)
+                             "(iamp.prediction.evaluation.evaluate.train_default_model('package') rebuilds it)",
+                             None, name)
     try:
         d = json.loads(ref.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:

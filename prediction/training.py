@@ -1,4 +1,4 @@
-r"""Training the predictor's MTD model on a :class:`~iamp.prediction.tracks.Tracks` table.
+r"""Training the predictor's MTD model on a :class:`~iamp.prediction.tracks.table.Tracks` table.
 
 The chain's state is the central second difference of the positions linearly resampled to
 the model step ``Δt``, ``a_k = (x_{k+1} - 2 x_k + x_{k-1}) / Δt²``, binned by interior edges
@@ -17,8 +17,8 @@ import numpy as np
 from iamp.prediction._typing import FloatArray
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD
 from iamp.prediction.kinematics import second_differences
-from iamp.prediction.mtd_model import MTDModel
-from iamp.prediction.tracks import Tracks
+from iamp.prediction.mtd.model import MTDModel
+from iamp.prediction.tracks.table import Tracks
 
 __all__ = ["STATE_DEFINITION", "bin_centres", "symmetric_edges", "track_accelerations", "train_from_tracks"]
 
@@ -72,7 +72,7 @@ def bin_centres(accels: list[np.ndarray], edges: np.ndarray) -> np.ndarray:
 def train_from_tracks(tracks: Tracks, *, dt: float, edges: Any, order: int, estimator: str = "mle",
                       jerk_psd: float = DEFAULT_JERK_PSD, provenance: dict[str, Any] | None = None,
                       **fit_kwargs: Any) -> MTDModel:
-    """Train an MTD acceleration model on a :class:`~iamp.prediction.tracks.Tracks` table.
+    """Train an MTD acceleration model on a :class:`~iamp.prediction.tracks.table.Tracks` table.
 
     Parameters
     ----------
@@ -98,7 +98,7 @@ def train_from_tracks(tracks: Tracks, *, dt: float, edges: Any, order: int, esti
     MTDModel
         With ``centres`` the mean training ``a_k`` per bin.
     """
-    from iamp.prediction.mtd_fit import fit
+    from iamp.prediction.mtd.estimation import fit
 
     dt = float(dt)
     if not (math.isfinite(dt) and dt > 0):

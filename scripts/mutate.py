@@ -21,7 +21,7 @@ file is run first and must pass.
 
 Usage::
 
-    python scripts/mutate.py --file planners/pmp_roots.py --tests tests/test_pmp_fast.py \\
+    python scripts/mutate.py --file planners/pmp/roots.py --tests tests/test_pmp_fast.py \\
         --sample 40 --seed 0 [--workdir /tmp/iamp-mutate] [--timeout 300] [-m "not slow"]
 """
 

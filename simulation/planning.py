@@ -211,7 +211,7 @@ def make_planner(name: str) -> PlanFn:
         return _safe(lambda problem: qp.plan(problem), "qp")
     if name == "qp-avoid":
         try:
-            from iamp.planners.avoid import AvoidQPPlanner  # type: ignore[import-not-found,unused-ignore]
+            from iamp.planners.avoid.planner import AvoidQPPlanner  # type: ignore[import-not-found,unused-ignore]
         except ImportError as exc:
             raise PlannerUnavailable(f"planner 'qp-avoid' is unavailable: iamp.planners.avoid is not installed "
                                      f"({exc})") from None

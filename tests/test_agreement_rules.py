@@ -12,8 +12,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from iamp.comparison.agreement import QPConfig, compare_pmp_qp, compare_problem
-from iamp.comparison.references import grid_cost_table
+from iamp.comparison.agreement.judge import QPConfig, compare_pmp_qp, compare_problem
+from iamp.comparison.agreement.references import grid_cost_table
 from iamp.core.tolerances import tol
 from iamp.planners.examples import paper_problem
 
@@ -110,7 +110,7 @@ def test_compare_problem_default_repeats_time_every_run():
 
 def test_every_reference_check_value_is_recomputed(comp):
     """Rule 2 and 4 check values, recomputed from the QP's trajectory and the PMP at t_Q."""
-    from iamp.planners.pmp import solve_fixed_times
+    from iamp.planners.pmp.planner import solve_fixed_times
 
     problem = comp.problem
     pair = comp.pair("pmp", f"qp-clarabel-foh-{N}")

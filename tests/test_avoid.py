@@ -13,9 +13,9 @@ from iamp.core import status as st
 from iamp.core.errors import ScenarioError
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.tolerances import tol
-from iamp.planners.avoid import AvoidQPPlanner
+from iamp.planners.avoid.planner import AvoidQPPlanner
 from iamp.planners.examples import builtin_problem, paper_problem
-from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp.planner import PMPPlanner
 
 
 def binding_problem(xf: float = 118.0, vxf: float = 24.0) -> Problem:
@@ -60,7 +60,7 @@ def test_binding_case_active_set_multipliers_and_cost_of_safety():
     assert all(y > 0 for y in v["active_H_x"]["multipliers"] + v["active_H_y"]["multipliers"])
     # a binding inequality costs something: above the free optimum (all rows relaxed)
     free = AvoidQPPlanner(steps=40)._solve
-    from iamp.planners.avoid_data import AvoidData
+    from iamp.planners.avoid.data import AvoidData
 
     data = AvoidData(plan.problem, np.linspace(0, 5, 41), "foh")
     backend = AvoidQPPlanner(steps=40)._backend(data, data.imposed([]))
@@ -239,7 +239,7 @@ def test_pmp_side_avoidance_agrees_with_the_qp():
     """Stretch: the continuous-time avoidance candidates (free optimum; one touch per vehicle
     at the corner = the equality plan when its jumps have the inequality multipliers' sign)
     against the avoidance QP's global sweep refined off the grid (FOH is exact)."""
-    from iamp.planners.avoid_pmp import PMPAvoidPlanner
+    from iamp.planners.avoid.pmp import PMPAvoidPlanner
 
     for prob in (binding_problem(), paper_problem(1), builtin_problem("two-vehicle")):
         pmp = PMPAvoidPlanner().plan(prob)

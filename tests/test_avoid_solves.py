@@ -11,8 +11,8 @@ import pytest
 
 from iamp.core import status as st
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
-from iamp.planners.avoid import AvoidQPPlanner
-from iamp.planners.avoid_solve import BoundSolver
+from iamp.planners.avoid.planner import AvoidQPPlanner
+from iamp.planners.avoid.solve import BoundSolver
 from iamp.planners.examples import builtin_problem, paper_problem
 
 

@@ -18,15 +18,22 @@ from iamp.comparison.cvxpy_qp import CvxpyQP
 from iamp.core import status as st
 from iamp.core.errors import MissingDependencyError
 from iamp.core.tolerances import tol
-from iamp.planners.backends import BACKENDS, ITERATIVE, QPSolution, UnsupportedProblemError, get_backend, kkt_residuals
-from iamp.planners.backends import clarabel as clarabel_mod
-from iamp.planners.backends import osqp as osqp_mod
-from iamp.planners.backends import piqp as piqp_mod
 from iamp.planners.examples import paper_problem, random_problem
-from iamp.planners.pmp import solve_fixed_times
-from iamp.planners.qp import QPPlanner
-from iamp.planners.qp_core import DiscretisedQP
-from iamp.planners.qp_data import QPData
+from iamp.planners.pmp.planner import solve_fixed_times
+from iamp.planners.qp.backends import (
+    BACKENDS,
+    ITERATIVE,
+    QPSolution,
+    UnsupportedProblemError,
+    get_backend,
+    kkt_residuals,
+)
+from iamp.planners.qp.backends import clarabel as clarabel_mod
+from iamp.planners.qp.backends import osqp as osqp_mod
+from iamp.planners.qp.backends import piqp as piqp_mod
+from iamp.planners.qp.core import DiscretisedQP
+from iamp.planners.qp.data import QPData
+from iamp.planners.qp.planner import QPPlanner
 
 #: agreement with the KKT reference, relative to max(1, |reference|), per backend
 REF_TOL = {"kkt": 1e-10, "clarabel": 1e-9, "piqp": 1e-8, "osqp": 1e-6}

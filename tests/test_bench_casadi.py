@@ -10,11 +10,11 @@ from __future__ import annotations
 import pytest
 
 from iamp.planners.examples import paper_problem, random_problem
-from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp.planner import PMPPlanner
 
 pytest.importorskip("casadi")
 
-from iamp.comparison.bench_casadi import casadi_free_time
+from iamp.comparison.bench.casadi import casadi_free_time
 
 
 @pytest.mark.parametrize("problem", [paper_problem(1), *(random_problem(s, m=1) for s in (1, 2, 3))],

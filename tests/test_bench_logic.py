@@ -10,8 +10,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from iamp.comparison import bench
-from iamp.comparison.bench_text import format_bench
+from iamp.comparison.bench import run as bench
+from iamp.comparison.bench.text import format_bench
 from iamp.comparison.timing import summarize
 
 

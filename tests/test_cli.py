@@ -9,7 +9,7 @@ from scenario_texts import history_scenario
 
 from iamp.core.scenario import builtin_text
 from iamp.planners.examples import paper_problem
-from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp.planner import PMPPlanner
 
 GOOD = builtin_text("paper-1-poly")
 HIST = history_scenario("-1.0, -0.5, 0.0", "-33.0, -24.0, -15.0", xf=85.0)
@@ -148,7 +148,7 @@ def test_missing_file_and_bad_options(tmp_path):
 def test_solver_failure_exits_3_without_a_cost(monkeypatch, capsys):
     from iamp.cli import main as cli
     from iamp.cli import plan as cli_plan
-    from iamp.planners.qp import QPPlanner
+    from iamp.planners.qp.planner import QPPlanner
 
     orig = cli_plan.make_planner
 

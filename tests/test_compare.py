@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 
 from iamp.comparison import timing
-from iamp.comparison.agreement import QPConfig, Run, compare_pmp_qp, compare_problem, default_configs, run_qp
-from iamp.comparison.fingerprints import problem_fingerprint, x_poly_fingerprint
-from iamp.comparison.latex import Raw, booktabs_table, escape, sci, write_atomic
-from iamp.comparison.references import grid_cost_table, zoh_reference
+from iamp.comparison.agreement.fingerprints import problem_fingerprint, x_poly_fingerprint
+from iamp.comparison.agreement.judge import QPConfig, Run, compare_pmp_qp, compare_problem, default_configs, run_qp
+from iamp.comparison.agreement.references import grid_cost_table, zoh_reference
+from iamp.comparison.report.latex import Raw, booktabs_table, escape, sci, write_atomic
 from iamp.core.tolerances import tol
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
-from iamp.planners.pmp import PMPPlanner, ValueFunction
-from iamp.planners.qp_core import DiscretisedQP as build_native
+from iamp.planners.pmp.planner import PMPPlanner, ValueFunction
+from iamp.planners.qp.core import DiscretisedQP as build_native
 
 LOOSE_OSQP = {"eps_abs": 1e-2, "eps_rel": 1e-2, "polishing": False, "max_iter": 200}
 
@@ -125,7 +125,7 @@ def test_a_pmp_stuck_in_a_local_minimum_is_caught():
     ts = np.linspace(0.05, p.tf - 0.05, 2000)
     far = np.abs(ts - t_glob[0]) > 1.0
     t_loc = ts[far][np.argmin(vf(ts[far][:, None]))]
-    from iamp.planners.pmp import _newton_on_jump_conditions  # polish to the local minimum
+    from iamp.planners.pmp.planner import _newton_on_jump_conditions  # polish to the local minimum
 
     t_loc, _ = _newton_on_jump_conditions(p, vf, np.array([t_loc]))
     local = pmp.plan(p, t_loc)

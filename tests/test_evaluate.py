@@ -12,10 +12,10 @@ import pytest
 from scenario_texts import history_scenario
 
 from iamp.cli import prediction as cli_prediction
-from iamp.prediction import evaluate as E
+from iamp.prediction.evaluation import evaluate as E
 from iamp.prediction.mtd import MTDModel
 from iamp.prediction.predictor import DEFAULT_MODEL_FILE, Predictor
-from iamp.prediction.tracks import Tracks
+from iamp.prediction.tracks.table import Tracks
 
 # ---------------------------------------------------------------------------------------
 # protocol pieces

@@ -298,7 +298,7 @@ def test_model_dt_bound_also_applies_to_predictors_in_the_api():
 
 def test_pmp_failure_under_json_prints_the_object(monkeypatch):
     from iamp.core.errors import SolverError
-    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.planner import PMPPlanner
 
     def boom(self, problem, *a, **k):
         raise SolverError("J(t) has no stationary point in (0, tf)", "numerical_error")
@@ -312,7 +312,7 @@ def test_pmp_failure_under_json_prints_the_object(monkeypatch):
 
 
 def test_numerical_breakdown_is_a_failed_plan_not_a_traceback(monkeypatch):
-    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.planner import PMPPlanner
 
     def singular(self, problem, *a, **k):
         raise np.linalg.LinAlgError("Singular matrix")

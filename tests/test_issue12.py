@@ -9,11 +9,11 @@ import sys
 import numpy as np
 import pytest
 
-from iamp.prediction.evaluate_user import evaluate_file
+from iamp.prediction.evaluation.user import evaluate_file
 from iamp.prediction.initial_state import noise_sigma, smooth_histories
-from iamp.prediction.loaders import FEET, NGSIM_TXT_COLUMNS, load_ngsim, load_with_report
-from iamp.prediction.mtd_em import em_joint, squarem_cycle, squarem_extrapolate
-from iamp.prediction.mtd_model import MTDModel
+from iamp.prediction.loaders.formats import FEET, NGSIM_TXT_COLUMNS, load_ngsim, load_with_report
+from iamp.prediction.mtd.em import em_joint, squarem_cycle, squarem_extrapolate
+from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.predictor import Predictor
 
 HEADER = ("Vehicle_ID,Frame_ID,Total_Frames,Global_Time,Local_X,Local_Y,Global_X,Global_Y,v_length,v_Width,"
@@ -273,9 +273,9 @@ def test_highd_and_sumo_duplicates_are_counted_not_fatal(tmp_path, fmt):
 
 
 def test_choose_jerk_psd_prefers_smoothing_under_noise():
-    from iamp.prediction.evaluate_data import synthetic_tracks
-    from iamp.prediction.evaluate_select import choose_jerk_psd
-    from iamp.prediction.evaluate_windows import make_windows
+    from iamp.prediction.evaluation.data import synthetic_tracks
+    from iamp.prediction.evaluation.select import choose_jerk_psd
+    from iamp.prediction.evaluation.windows import make_windows
 
     win = make_windows(synthetic_tracks(n_tracks=6, duration=40.0, seed=3))
     q, table = choose_jerk_psd(win, grid=(1.0, 1000.0), noise_m=(0.1,))
@@ -314,7 +314,7 @@ def test_squarem_cycle_accepts_a_better_extrapolation():
 
 
 def test_em_lambda_certificate_and_iteration_count():
-    from iamp.prediction.mtd_em import em_lambda
+    from iamp.prediction.mtd.em import em_lambda
 
     # two lags, P columns: the ML weights maximise Σ w log(P λ); here λ* = (0.5, 0.5) by symmetry
     P = np.array([[0.9, 0.1], [0.1, 0.9]])
@@ -341,7 +341,7 @@ def test_em_joint_max_iter_counts_em_evaluations():
 
 
 def test_fit_reports_progress_per_em_start():
-    from iamp.prediction.mtd_fit import fit
+    from iamp.prediction.mtd.estimation import fit
 
     rng = np.random.default_rng(7)
     seen: list[tuple[int, int]] = []
@@ -350,7 +350,7 @@ def test_fit_reports_progress_per_em_start():
 
 
 def test_fit_keeps_the_best_start_and_rejects_data_without_transitions():
-    from iamp.prediction.mtd_fit import fit
+    from iamp.prediction.mtd.estimation import fit
 
     rng = np.random.default_rng(8)
     model = fit([rng.integers(0, 3, 300)], 3, 2, "mle", n_starts=4, seed=5)
@@ -363,7 +363,7 @@ def test_fit_keeps_the_best_start_and_rejects_data_without_transitions():
 
 
 def test_sample_sequence_length_and_deterministic_chain():
-    from iamp.prediction.mtd_fit import sample_sequence
+    from iamp.prediction.mtd.estimation import sample_sequence
 
     shift = np.roll(np.eye(4), 1, axis=0)  # state k -> k + 1 (mod 4) with certainty
     model = MTDModel(Q=np.stack([shift, np.eye(4)]), lam=[1.0, 0.0])
@@ -374,7 +374,7 @@ def test_sample_sequence_length_and_deterministic_chain():
 
 
 def test_counting_helpers_validate_and_handle_edges():
-    from iamp.prediction.mtd_counts import _normalise_columns, _unique_rows, count_transitions, lag_table
+    from iamp.prediction.mtd.counts import _normalise_columns, _unique_rows, count_transitions, lag_table
 
     with pytest.raises(ValueError, match="must hold integers"):
         lag_table([np.array([0.5, 1.0, 2.0])], 1, 3)
@@ -461,7 +461,7 @@ def test_sampling_matches_the_transition_law():
 
 
 def test_a_single_sequence_array_is_one_sequence():
-    from iamp.prediction.mtd_counts import lag_table
+    from iamp.prediction.mtd.counts import lag_table
 
     assert lag_table(np.array([0, 1, 2]), 1, 3).tolist() == [[1, 0], [2, 1]]
     with pytest.raises(ValueError, match="one-dimensional"):

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from iamp.core.errors import IampError
-from iamp.prediction.loaders import FEET, load, load_highd, load_ngsim, load_sumo_fcd
-from iamp.prediction.tracks import TrackDataError, Tracks, load_shipped_dataset
+from iamp.prediction.loaders.formats import FEET, load, load_highd, load_ngsim, load_sumo_fcd
+from iamp.prediction.tracks.table import TrackDataError, Tracks, load_shipped_dataset
 
 FIX = Path(__file__).resolve().parent / "fixtures"
 HIGHD = FIX / "highd"

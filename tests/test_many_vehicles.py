@@ -11,7 +11,7 @@ import pytest
 from iamp.core.errors import ScenarioError
 from iamp.core.limits import LIMITS
 from iamp.planners.examples import random_problem
-from iamp.planners.pmp import PMPPlanner, ValueFunction
+from iamp.planners.pmp.planner import PMPPlanner, ValueFunction
 
 
 def crowd(seed: int, m: int):

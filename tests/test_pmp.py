@@ -8,7 +8,7 @@ from scipy import interpolate, optimize
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
-from iamp.planners.pmp import PMPPlanner, ValueFunction, solve_fixed_times
+from iamp.planners.pmp.planner import PMPPlanner, ValueFunction, solve_fixed_times
 
 PAPER = [paper_problem(k) for k in (1, 2, 3)]
 RANDOM_1 = [random_problem(seed, m=1) for seed in range(8)]
@@ -162,7 +162,7 @@ def test_two_minima_global_is_not_the_middle_one():
 def test_jumps_equal_closed_form(problem):
     """Φ from the jump conditions equals −K⁻¹e from the bridge form (two formulations)."""
     res = PMPPlanner().plan(problem)
-    from iamp.planners.pmp import bridge_kernel
+    from iamp.planners.pmp.planner import bridge_kernel
 
     t = res.contact_times
     K = bridge_kernel(t[:, None], t[None, :], problem.tf)
@@ -203,7 +203,7 @@ def test_costates_follow_their_equations():
 
 
 def test_batch_plan_equals_planner():
-    from iamp.planners.pmp import plan_batch
+    from iamp.planners.pmp.planner import plan_batch
 
     problems = ONE_VEHICLE + [random_problem(100 + s, m=1) for s in range(40)]
     batch = plan_batch(problems)

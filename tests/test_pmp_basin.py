@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 
 from iamp.core.tolerances import tol
 from iamp.planners.examples import random_problem
-from iamp.planners.pmp_basin import basin_box, expansion
-from iamp.planners.pmp_bound import lower_bound, speed_variance_max
-from iamp.planners.pmp_fixed import ValueFunction, bridge_kernel
-from iamp.planners.pmp_search import global_search, newton_sigma, start_points, trusted_q
+from iamp.planners.pmp.basin import basin_box, expansion
+from iamp.planners.pmp.bound import lower_bound, speed_variance_max
+from iamp.planners.pmp.fixed import ValueFunction, bridge_kernel
+from iamp.planners.pmp.search import global_search, newton_sigma, start_points, trusted_q
 
 SETTINGS = settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 problems = st.tuples(st.integers(0, 10_000), st.integers(2, 3), st.sampled_from([-1, 1]))
@@ -152,14 +152,14 @@ numba = pytest.importorskip("numba")
 
 @pytest.fixture(scope="module")
 def fast():
-    from iamp.planners import pmp_compiled_search as fast
+    from iamp.planners.pmp import compiled_search as fast
 
     assert fast.load(), fast._STATE.get("error")
     return fast
 
 
 def test_compiled_kernels_equal_the_numpy_ones(fast):
-    from iamp.planners import pmp_compiled_kernels as kk
+    from iamp.planners.pmp import compiled_kernels as kk
 
     for m, seed in ((2, 3), (3, 4)):
         vf = ValueFunction(random_problem(seed, m=m))
@@ -209,7 +209,7 @@ def test_compiled_search_gives_the_pure_answer(fast, case):
 
 
 def test_planner_uses_the_compiled_path_only_when_asked(fast):
-    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.planner import PMPPlanner
 
     p = random_problem(7, m=2)
     on = PMPPlanner(compiled=True).plan(p, diagnostics=False)

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from iamp.planners.examples import random_problem
-from iamp.planners.pmp_bound import branch_and_bound, lower_bound, poly2_range, poly_range, taylor_shift
-from iamp.planners.pmp_fixed import ValueFunction
-from iamp.planners.pmp_search import newton_sigma, start_points
+from iamp.planners.pmp.bound import branch_and_bound, lower_bound, poly2_range, poly_range, taylor_shift
+from iamp.planners.pmp.fixed import ValueFunction
+from iamp.planners.pmp.search import newton_sigma, start_points
 
 
 def test_taylor_shift_and_ranges_are_exact_and_enclosing():
@@ -87,7 +87,7 @@ def _on_the_free_path(m: int, gap: float) -> ValueFunction:
     """Corners that lie (almost) on the unconstrained path: q ≈ 0 everywhere."""
     from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
     from iamp.planners.examples import DEFAULT_GEOMETRY
-    from iamp.planners.pmp_fixed import hermite_cubic
+    from iamp.planners.pmp.fixed import hermite_cubic
 
     ego = EgoBoundary(tf=5.0, x0=0.0, y0=3.75, vx0=20.0, xf=105.0, yf=3.75, vxf=22.0)
     hx = hermite_cubic(ego.x0, ego.vx0, ego.xf, ego.vxf, ego.tf)
@@ -119,7 +119,7 @@ def test_stationarity_polynomial_matches_its_definition():
     """P = N'σ(1−σ) − 3N(1−2σ), N = ex² + ey², also for inputs of different lengths."""
     from numpy.polynomial import polynomial as Pn
 
-    from iamp.planners.pmp_search import stationarity_poly
+    from iamp.planners.pmp.search import stationarity_poly
 
     long, short = [0.3, -1.2, 0.5, 0.7, -0.1], [0.2, 0.4]
     for ex, ey in ((long, short), (short, long)):

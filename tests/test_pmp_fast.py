@@ -9,17 +9,17 @@ from numpy.polynomial import polynomial as P
 
 from iamp.core.status import OPTIMAL
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
-from iamp.planners.pmp import PMPPlanner, ValueFunction, plan_batch, solve_fixed_times
-from iamp.planners.pmp_compiled import numba_available
-from iamp.planners.pmp_one import one_vehicle_data, one_vehicle_kernel
-from iamp.planners.pmp_roots import (
+from iamp.planners.pmp.compiled import numba_available
+from iamp.planners.pmp.one import one_vehicle_data, one_vehicle_kernel
+from iamp.planners.pmp.planner import PMPPlanner, ValueFunction, plan_batch, solve_fixed_times
+from iamp.planners.pmp.roots import (
     batch_unit_roots,
     casteljau_halves,
     sign_variations,
     to_bernstein,
     unit_roots,
 )
-from iamp.planners.pmp_verify import check_values, judge
+from iamp.planners.pmp.verify import check_values, judge
 
 
 def companion_roots(a):
@@ -138,7 +138,7 @@ def test_batch_of_nothing_and_of_several_vehicles():
 @pytest.mark.slow
 @pytest.mark.skipif(not numba_available(), reason="numba not installed")
 def test_compiled_kernel_gives_identical_numbers():
-    from iamp.planners.pmp_compiled import compiled_kernel
+    from iamp.planners.pmp.compiled import compiled_kernel
 
     kern = compiled_kernel()
     for p in [paper_problem(k) for k in (1, 2, 3)] + [random_problem(s) for s in range(50)] + [two_minima_problem()]:

@@ -19,7 +19,7 @@ from iamp.core.problem import Problem
 from iamp.core.status import LOCAL, OPTIMAL
 from iamp.core.tolerances import tol
 from iamp.planners.examples import random_problem
-from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp.planner import PMPPlanner
 
 
 def spline_costs(problem: Problem, T: np.ndarray) -> np.ndarray:

@@ -9,11 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from iamp.planners.examples import random_problem
-from iamp.planners.pmp import PMPPlanner
-from iamp.planners.pmp_fixed import horner_rows, jump_system_sigma, quad_at, solve_fixed_times
-from iamp.planners.pmp_scale import scale_problem
-from iamp.planners.pmp_search import stationarity_poly, stationarity_poly_loops
-from iamp.planners.pmp_verify import check_values, check_values_lean, judge, lean_checks_and_cost
+from iamp.planners.pmp.fixed import horner_rows, jump_system_sigma, quad_at, solve_fixed_times
+from iamp.planners.pmp.planner import PMPPlanner
+from iamp.planners.pmp.scale import scale_problem
+from iamp.planners.pmp.search import stationarity_poly, stationarity_poly_loops
+from iamp.planners.pmp.verify import check_values, check_values_lean, judge, lean_checks_and_cost
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 
@@ -59,7 +59,7 @@ def test_lean_checks_equal_generic(seed: int, m: int, frac: list[float]) -> None
     M, rhs = jump_system_sigma(S, sig)
     M0, rhs0 = _old_jump_system(S, sig)
     assert np.array_equal(M, M0) and np.array_equal(rhs, rhs0)
-    from iamp.planners.pmp_fixed import ValueFunction
+    from iamp.planners.pmp.fixed import ValueFunction
 
     q_ref = float(ValueFunction(prob, S).quad_sigma(sig[None, :])[0])
     q = quad_at(S, sig.tolist())

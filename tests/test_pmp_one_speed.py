@@ -12,11 +12,11 @@ from hypothesis import strategies as st
 from iamp.core.problem import Problem
 from iamp.core.status import INACCURATE, NUMERICAL_ERROR, OPTIMAL
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
-from iamp.planners.pmp import PMPPlanner, plan_batch
-from iamp.planners.pmp_one import CHECK_NAMES, judge_kernel
-from iamp.planners.pmp_roots import ROOT_XTOL, bernstein_weights, newton_in_bracket, to_bernstein, unit_roots
-from iamp.planners.pmp_solution import OneVehicleSolution, PMPSolution
-from iamp.planners.pmp_verify import check_values, judge, judge_pairs
+from iamp.planners.pmp.one import CHECK_NAMES, judge_kernel
+from iamp.planners.pmp.planner import PMPPlanner, plan_batch
+from iamp.planners.pmp.roots import ROOT_XTOL, bernstein_weights, newton_in_bracket, to_bernstein, unit_roots
+from iamp.planners.pmp.solution import OneVehicleSolution, PMPSolution
+from iamp.planners.pmp.verify import check_values, judge, judge_pairs
 
 
 def loop_bernstein(a):

@@ -13,9 +13,9 @@ from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.status import INACCURATE, NUMERICAL_ERROR, OPTIMAL
 from iamp.core.tolerances import tol
 from iamp.planners.examples import DEFAULT_GEOMETRY, paper_problem, random_problem
-from iamp.planners.pmp import PMPPlanner, solve_fixed_times
-from iamp.planners.pmp_scale import scale_problem, strip_negligible
-from iamp.planners.pmp_verify import check_values, judge
+from iamp.planners.pmp.planner import PMPPlanner, solve_fixed_times
+from iamp.planners.pmp.scale import scale_problem, strip_negligible
+from iamp.planners.pmp.verify import check_values, judge
 
 CHECKS = {"linear_system", "boundary", "corner", "h_minimisation", "costate_jump", "hamiltonian_jump",
           "cost_consistency"}

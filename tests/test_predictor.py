@@ -11,7 +11,7 @@ from scenario_texts import history_scenario
 
 from iamp.core.errors import HistoryError
 from iamp.core.scenario import History, loads_scenario
-from iamp.prediction.evaluate import paper_histories, synthetic_tracks
+from iamp.prediction.evaluation.evaluate import paper_histories, synthetic_tracks
 from iamp.prediction.mtd import ModelFileError, MTDModel
 from iamp.prediction.predictor import (
     Prediction,
@@ -238,7 +238,7 @@ def test_from_file_and_default(tmp_path, synthetic_predictor):
     d = Predictor.default()
     assert d.name == "builtin" and d.predict(h, 5.0).model == "builtin"
     prov = d.model.provenance
-    assert prov["trained_by"] == "iamp.prediction.evaluate.train_default_model"
+    assert prov["trained_by"] == "iamp.prediction.evaluate.train_default_model"  # restructure: keep
     assert "dataset_sha256_track_t_x" in prov and prov["split"]["test_seed"] == 0
 
 

@@ -143,7 +143,7 @@ def test_api_plans_check_their_own_residuals(text):
     """Through the Python API: an optimal PMP plan meets its boundary conditions and contact
     equalities to the PMP's condition tolerance (scaled by the problem's magnitude)."""
     from iamp.core.scenario import loads_scenario
-    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.planner import PMPPlanner
 
     problem, _ = loads_scenario(text, "generated").to_problem()
     plan = PMPPlanner().plan(problem)

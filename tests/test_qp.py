@@ -5,8 +5,8 @@ import pytest
 
 from iamp.core.tolerances import tol
 from iamp.planners.examples import paper_problem, random_problem, two_minima_problem
-from iamp.planners.pmp import PMPPlanner, ValueFunction
-from iamp.planners.qp import QPPlanner, aligned_grid
+from iamp.planners.pmp.planner import PMPPlanner, ValueFunction
+from iamp.planners.qp.planner import QPPlanner, aligned_grid
 
 PMP = PMPPlanner()
 CASES_1 = [paper_problem(1), paper_problem(2), paper_problem(3), random_problem(11, m=1, side=-1),
@@ -146,7 +146,7 @@ def _fail_on(qp, bad_nodes, make_failure):
 
 
 def _piqp_limited(d):
-    from iamp.planners.backends import get_backend
+    from iamp.planners.qp.backends import get_backend
 
     return get_backend("piqp")(d.P, d.q, d.A, d.b, d.b, {"max_iter": 1}).solve()
 
@@ -157,7 +157,7 @@ def _clarabel_time_limit(d):
     # status TIME_LIMIT with a non-converged iterate.
     from dataclasses import replace
 
-    from iamp.planners.backends import get_backend
+    from iamp.planners.qp.backends import get_backend
 
     sol = get_backend("clarabel")(d.P, d.q, d.A, d.b, d.b).solve()
     return replace(sol, status="time_limit_reached", raw_status="MaxTime", z=sol.z * 0.9, y=sol.y * 0.5)

@@ -26,14 +26,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from iamp.core import status as st
-from iamp.planners.backends import ITERATIVE, get_backend, kkt_symbolic
-from iamp.planners.backends import clarabel as clarabel_mod
-from iamp.planners.backends import osqp as osqp_mod
-from iamp.planners.backends import piqp as piqp_mod
 from iamp.planners.examples import paper_problem, random_problem
-from iamp.planners.qp_core import DiscretisedQP, family_residuals
-from iamp.planners.qp_data import QPData, equality_residuals
-from iamp.planners.sweep import run_sweep
+from iamp.planners.qp.backends import ITERATIVE, get_backend, kkt_symbolic
+from iamp.planners.qp.backends import clarabel as clarabel_mod
+from iamp.planners.qp.backends import osqp as osqp_mod
+from iamp.planners.qp.backends import piqp as piqp_mod
+from iamp.planners.qp.core import DiscretisedQP, family_residuals
+from iamp.planners.qp.data import QPData, equality_residuals
+from iamp.planners.qp.sweep import run_sweep
 
 FAST = {"osqp": osqp_mod.polish_first_settings(), "clarabel": clarabel_mod.equality_settings(),
         "piqp": piqp_mod.equality_settings()}

@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from iamp.comparison.figures import save_figure
-from iamp.comparison.figures_trajectory import lane_lines, plot_positions, plot_xy_snapshots
+from iamp.comparison.figures.style import save_figure
+from iamp.comparison.figures.trajectory import lane_lines, plot_positions, plot_xy_snapshots
 from iamp.comparison.metrics import manoeuvre_metrics, qualitative_comparison
-from iamp.comparison.report import ReproduceConfig, reproduce
-from iamp.comparison.report_convergence import zoh_convergence
-from iamp.comparison.report_tex import tex_escape
+from iamp.comparison.report.convergence import zoh_convergence
+from iamp.comparison.report.reproduction import ReproduceConfig, reproduce
+from iamp.comparison.report.tex import tex_escape
 from iamp.planners.examples import paper_problem
-from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp.planner import PMPPlanner
 
 PDFLATEX = shutil.which("pdflatex")
 needs_pdflatex = pytest.mark.skipif(PDFLATEX is None, reason="pdflatex is not installed")

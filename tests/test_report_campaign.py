@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from iamp.comparison.report_campaign import campaign_section, campaign_tex
+from iamp.comparison.report.campaign import campaign_section, campaign_tex
 
 
 def test_without_the_extra_the_section_names_it(tmp_path, monkeypatch):

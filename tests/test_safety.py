@@ -12,8 +12,8 @@ from iamp.core.polyroots import roots_in_unit_interval
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.safety import INTRUSION_TOL_M, safety_report
 from iamp.planners.examples import paper_problem
-from iamp.planners.pmp import PMPPlanner
-from iamp.planners.qp import HoldTrajectory
+from iamp.planners.pmp.planner import PMPPlanner
+from iamp.planners.qp.planner import HoldTrajectory
 
 DT = 1e-5  # dense sampling step [s]
 EDGE = 3 * DT  # samples this close to an exact interval end are not judged

@@ -88,7 +88,7 @@ def test_qp_sweep_progress_is_silent_under_json_even_on_a_terminal(monkeypatch, 
     """On a terminal the QP sweep draws a bar on stderr; with --json (or --quiet) stderr stays
     empty and stdout is exactly one JSON object."""
     monkeypatch.setattr(progress_mod, "_stderr_is_tty", lambda: True)
-    from iamp.planners.qp import QPPlanner
+    from iamp.planners.qp.planner import QPPlanner
 
     for flag in ("--json", "--quiet"):
         code, _, err = run_main(["plan", "paper-1-poly", "--planner", "qp", "--steps", "20", flag], capsys)
@@ -200,7 +200,7 @@ def test_plot_refuses_an_unknown_format_before_planning(tmp_path, capsys):
 
 def test_plan_figure_is_to_scale_and_shows_the_contacts():
     from iamp.cli.plot import plan_figure
-    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.planner import PMPPlanner
 
     plan = PMPPlanner().plan(load_scenario("two-vehicle").to_problem()[0])
     fig = plan_figure(plan)
@@ -216,7 +216,7 @@ def test_plan_figure_is_to_scale_and_shows_the_contacts():
 
 def test_jerk_of_a_pmp_plan_is_piecewise_constant_with_a_jump_at_the_contact():
     from iamp.cli.plot import _jerk
-    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.planner import PMPPlanner
 
     plan = PMPPlanner().plan(load_scenario("paper-1-poly").to_problem()[0])
     tt = np.linspace(0.0, plan.problem.tf, 2001)
@@ -234,7 +234,7 @@ def test_jerk_of_a_pmp_plan_is_piecewise_constant_with_a_jump_at_the_contact():
 
 
 def test_reproduce_without_pdflatex_says_so_and_removes_the_stale_pdf(tmp_path, capsys, monkeypatch):
-    import iamp.comparison.report as report
+    import iamp.comparison.report.reproduction as report
     from iamp.core.outputs import write_marker
 
     out = tmp_path / "rep"
@@ -324,7 +324,7 @@ def test_zsh_completion_parses(tmp_path, capsys):
 
 
 def test_one_colour_per_planner_in_every_figure():
-    from iamp.comparison.figures import PALETTE, planner_style
+    from iamp.comparison.figures.style import PALETTE, planner_style
 
     labels = {"pmp": ["pmp", "PMP", "paper-1: PMP", "PMP plan (1 vehicle)"],
               "osqp": ["qp-osqp-foh-100", "osqp-zoh-20", "QP osqp solve, native, N=30 (2 vehicles)",
@@ -336,7 +336,7 @@ def test_one_colour_per_planner_in_every_figure():
 
 
 def test_timing_table_states_the_pmp_once():
-    from iamp.comparison.report_tables import table_timing
+    from iamp.comparison.report.tables import table_timing
 
     timing = {"machine": {"python": "3.11", "cpu_count": 2, "load_average_1min": 1.0},
               "summary": {"QP clarabel solve, cvxpy, N=100 (1 vehicle)":
@@ -352,7 +352,7 @@ def test_rounding_noise_is_not_drawn_as_a_signal():
     """A jerk that is constant up to 1e-13 gets a readable y-range, without offset notation."""
     from matplotlib.figure import Figure
 
-    from iamp.comparison.figures import tidy_axis
+    from iamp.comparison.figures.style import tidy_axis
 
     ax = Figure().add_subplot(1, 1, 1)
     y = 1.44 + 1e-13 * np.sin(np.arange(200.0))

@@ -5,11 +5,11 @@
     ``--native`` adds the native-solver path) on each scenario (a file or a built-in name;
     history scenarios go through the predictor once, so every planner gets the identical
     polynomial), and prints the runs, their timing and a verdict per pair (rules in
-    :mod:`iamp.comparison.agreement`).  Default ``N``: 100 for one vehicle, 20 for two or more
+    :mod:`iamp.comparison.agreement.judge`).  Default ``N``: 100 for one vehicle, 20 for two or more
     (a two-vehicle sweep solves ``(N−1)(N−2)`` QPs per configuration).
 
 ``iamp bench [--json] [--quick] [-q]``
-    The speed numbers against their targets (:mod:`iamp.comparison.bench`).
+    The speed numbers against their targets (:mod:`iamp.comparison.bench.run`).
 
 Exit status: 0 when every run finished (verdicts are printed, ``disagree`` included); 3 if
 any planner or solver failed (a run whose status is not ``optimal``); 2 for bad input (one
@@ -105,7 +105,7 @@ def run_compare(args: argparse.Namespace) -> dict[str, Any]:
     """Everything ``iamp compare`` computes, as the JSON object (no printing)."""
     from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.cli.scenarios import load_cli_problem  # a file, a built-in, or - (standard input)
-    from iamp.comparison.agreement import compare_problem, default_configs
+    from iamp.comparison.agreement.judge import compare_problem, default_configs
     from iamp.comparison.timing import DEFAULT_SHIFT_S, geomean_table, qp_breakdown, solver_settings, versions
     from iamp.core.tolerances import TOLERANCES
 
@@ -225,7 +225,7 @@ def _print_text(out: dict[str, Any], write: Callable[[str], Any]) -> None:
 
 def latex_table(out: dict[str, Any]) -> str:
     """One booktabs table: every run of every scenario with its verdict against the PMP."""
-    from iamp.comparison.latex import Raw, booktabs_table, escape, sci
+    from iamp.comparison.report.latex import Raw, booktabs_table, escape, sci
 
     rows: list[list[Any] | None] = []
     for k, sc in enumerate(out["scenarios"]):
@@ -294,8 +294,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar, progress_enabled
-    from iamp.comparison.bench import run_bench
-    from iamp.comparison.bench_text import format_bench
+    from iamp.comparison.bench.run import run_bench
+    from iamp.comparison.bench.text import format_bench
 
     with progress_bar(7, "bench", enabled=progress_enabled(args)) as tick:
         out = run_bench(quick=args.quick, progress=tick)

@@ -22,21 +22,21 @@ QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
 def make_planner(args: argparse.Namespace) -> Any:
     """The planner the options ask for."""
     if args.planner == "pmp":
-        from iamp.planners.pmp import PMPPlanner
+        from iamp.planners.pmp.planner import PMPPlanner
 
         return PMPPlanner()
     if getattr(args, "constraint", None) == "avoid":
-        from iamp.planners.avoid import AvoidQPPlanner
+        from iamp.planners.avoid.planner import AvoidQPPlanner
 
         return AvoidQPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
-    from iamp.planners.qp import QPPlanner
+    from iamp.planners.qp.planner import QPPlanner
 
     return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
 
 
 def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
     """SPEC §2 identity 4, derived from ∂J/∂corner = −Φ (see docs in compare.signs)."""
-    from iamp.comparison.signs import jump_meaning
+    from iamp.comparison.agreement.signs import jump_meaning
 
     return jump_meaning(vehicle, phi_x)
 
@@ -138,7 +138,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         print("no cost is reported: the solver did not reach an optimal solution")
         return
     if result.info.get("constraint") == "avoid":
-        from iamp.planners.avoid_result import summary_lines
+        from iamp.planners.avoid.result import summary_lines
 
         for line in summary_lines(result):
             print(line)

@@ -94,14 +94,14 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
     snapshots : int
         Number of instants drawn in the x–y plane, evenly spaced over ``[0, t_f]``.
     """
-    from iamp.comparison.figures import (
+    from iamp.comparison.figures.style import (
         SAFETY_COLOR,
         is_avoidance,
         legend_below,
         planner_style,
         tidy_axis,
     )
-    from iamp.comparison.figures_trajectory import draw_xy, xy_limits
+    from iamp.comparison.figures.trajectory import draw_xy, xy_limits
 
     problem = result.problem
     tf = problem.tf
@@ -168,7 +168,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from iamp.cli import plan as plan_cli
     from iamp.cli.progress import call_with_progress, progress_enabled
     from iamp.cli.scenarios import load_cli_problem
-    from iamp.comparison.figures import save_one
+    from iamp.comparison.figures.style import save_one
 
     out = _check_out(args.out)
     from iamp.core.outputs import check_output  # fail fast: not the scenario, existing only with --force, writable

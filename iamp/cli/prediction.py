@@ -77,7 +77,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     """``iamp train``: fit an MTD model on recorded tracks and write it (atomically)."""
     from iamp.cli.progress import call_with_progress, progress_enabled
     from iamp.core.outputs import check_output  # fail fast: not an input, no silent overwrite, writable
-    from iamp.prediction.loaders import load_with_report
+    from iamp.prediction.loaders.formats import load_with_report
     from iamp.prediction.predictor import train_from_tracks
 
     check_output(args.out, args.data, getattr(args, "force", False))
@@ -180,7 +180,7 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
     if args.format is None:
         return _error(ValueError("--data needs --format (highd, ngsim or sumo)"))
     from iamp.cli.progress import progress_bar, progress_enabled
-    from iamp.prediction.evaluate_user import evaluate_file
+    from iamp.prediction.evaluation.user import evaluate_file
 
     try:
         with progress_bar(7, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
@@ -191,7 +191,7 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
     if args.json:
         sys.stdout.write(json.dumps(res, allow_nan=False) + "\n")
         return EXIT_OK
-    from iamp.prediction.load_report import LoadReport
+    from iamp.prediction.loaders.report import LoadReport
 
     for line in LoadReport.from_dict(res["load_report"]).lines():
         print(line)
@@ -217,7 +217,7 @@ def _evaluate_shipped(args: argparse.Namespace) -> int:
 
 
 def _evaluate_shipped_into(args: argparse.Namespace) -> int:
-    from iamp.prediction.evaluate import HORIZONS, write_evaluation_report
+    from iamp.prediction.evaluation.evaluate import HORIZONS, write_evaluation_report
 
     try:
         res = write_evaluation_report(args.out, rerun=args.rerun, select=not args.no_select)
@@ -243,7 +243,7 @@ def _evaluate_shipped_into(args: argparse.Namespace) -> int:
 def add_parsers(subparsers: Any) -> None:
     """Add ``train``, ``predict`` and ``evaluate-predictor`` to ``iamp``'s sub-parsers."""
     from iamp.cli.progress import add_quiet_flag
-    from iamp.prediction.evaluate import DEFAULT_CONFIG
+    from iamp.prediction.evaluation.evaluate import DEFAULT_CONFIG
 
     t = subparsers.add_parser(
         "train", help="train an MTD predictor model on recorded trajectories",

@@ -105,7 +105,7 @@ def _reproduce_into(args: argparse.Namespace) -> int:
     if args.select_predictor:
         import dataclasses
 
-        from iamp.comparison.report import ReproduceConfig
+        from iamp.comparison.report.reproduction import ReproduceConfig
 
         base = ReproduceConfig.quick_config() if args.quick else ReproduceConfig()
         config = dataclasses.replace(base, predictor_select=True)

@@ -49,7 +49,7 @@ TOLERANCES.update({
     "cmp_jump_rel_clarabel": 1e-6,
     "cmp_jump_rel_osqp": 1e-4,
     # KKT residuals recomputed from the QP data (primal, dual, gap; each relative, see
-    # iamp.planners.backends.kkt_residuals).
+    # iamp.planners.qp.backends.kkt_residuals).
     "cmp_kkt_rel_clarabel": 1e-9,
     "cmp_kkt_rel_osqp": 1e-7,
     # boundary and collision-constraint residuals of a QP trajectory, relative to
@@ -61,8 +61,8 @@ TOLERANCES.update({
 })
 
 # ------------------------------------------------------------------------------------------
-# PMP self-verification (iamp.planners.pmp_verify): every check is dimensionless, in the
-# units t_f (time) and L (the problem's largest position, iamp.planners.pmp_scale).
+# PMP self-verification (iamp.planners.pmp.verify): every check is dimensionless, in the
+# units t_f (time) and L (the problem's largest position, iamp.planners.pmp.scale).
 # ------------------------------------------------------------------------------------------
 TOLERANCES.update({
     # trailing x_poly terms with |c_k| t_f^k below this fraction of the largest term are

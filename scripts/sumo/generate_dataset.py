@@ -15,7 +15,7 @@ What it does
    Krauss with sigma 0.3..0.8, speedFactor distributions, LC2013 lane changing, Poisson arrivals
    rising to a peak that overloads the bottleneck) with ``--seed``, ``--step-length`` and FCD
    output including the acceleration, as ``;``-separated CSV.
-3. :func:`iamp.prediction.loaders.load_sumo_fcd` reads it (vehicle lengths from the vTypes, so
+3. :func:`iamp.prediction.loaders.formats.load_sumo_fcd` reads it (vehicle lengths from the vTypes, so
    positions are vehicle centres); the warm-up (``t < --warmup``) and the road's ends
    (outside ``--x-min .. --x-max``: insertion and arrival) are dropped, as are tracks shorter
    than ``--min-track``; tracks are renumbered 0..n-1 in order of appearance.
@@ -175,8 +175,8 @@ def table_statistics(tracks) -> dict:
 
 
 def build_table(fcd: Path, args, lengths: dict, extra_meta: dict):
-    from iamp.prediction.loaders import load_sumo_fcd
-    from iamp.prediction.tracks import Tracks
+    from iamp.prediction.loaders.formats import load_sumo_fcd
+    from iamp.prediction.tracks.table import Tracks
 
     raw = load_sumo_fcd(fcd, lengths=lengths)
     keep = (raw.t >= args.warmup) & (raw.x >= args.x_min) & (raw.x <= args.x_max)
@@ -214,7 +214,7 @@ def build_table(fcd: Path, args, lengths: dict, extra_meta: dict):
 
 def select_tracks(table, fraction: float, seed: int):
     """Keep a seeded random subset of whole tracks (used only if the file is too large)."""
-    from iamp.prediction.tracks import Tracks
+    from iamp.prediction.tracks.table import Tracks
 
     ids = table.ids()
     n_keep = max(1, int(fraction * ids.size))
@@ -315,7 +315,7 @@ def main(argv=None) -> int:
                        "netconvert_options": netconvert_opts},
         "configuration": config_summary(),
         "processing": {
-            "loader": "iamp.prediction.loaders.load_sumo_fcd (x = front bumper - length/2, lengths from the vTypes)",
+            "loader": "iamp.prediction.loaders.formats.load_sumo_fcd (x = front bumper - length/2, lengths from the vTypes)",
             "warmup_dropped_s": args.warmup,
             "x_window_m": [args.x_min, args.x_max],
             "min_track_duration_s": args.min_track,

@@ -1,0 +1,85 @@
+"""PMP measurements for ``iamp bench`` (imported by :mod:`iamp.comparison.bench.run`).
+
+:func:`bench_pmp` returns medians over ``repeats`` of the per-call wall time (each repeat
+times an inner loop and divides), in seconds:
+
+* ``one_vehicle`` — ``PMPPlanner().plan(paper scenario 1, diagnostics=False)``: scaling,
+  exact global contact time (Bernstein root isolation), solve and self-check (pure Python);
+* ``two_vehicles`` — the same for ``random_problem(0, m=2)`` including the certified branch
+  and bound: with the numba-compiled search (``PMPPlanner(compiled=True)``, compiled or loaded
+  from numba's cache before the clock starts) where numba is installed, else the pure path;
+  ``two_vehicles_pure`` is always the pure numpy path, ``two_vehicles_search_compiled`` the
+  compiled search alone (no solve, no self-check);
+* ``fixed_t_closed_form`` — ``solve_one_vehicle`` at a given contact time (closed-form
+  Schur-complement solve, no search);
+* ``batch_plans_per_s`` — one-vehicle plans per second of ``plan_batch`` on 10,000 seeded
+  random problems (a rate, not a time);
+* ``compiled_limit_one_vehicle`` — ``one_vehicle`` with the numba-compiled kernel (only if
+  numba is installed; compiled before timing), and ``compiled_kernel_only`` — the compiled
+  kernel alone (the limit the Python around it cannot beat).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+from typing import Any
+
+
+def _median_per_call(fn: Callable[[], Any], repeats: int, inner: int) -> float:
+    fn()  # warm-up
+    samples = []
+    for _ in range(max(1, repeats)):
+        t0 = time.perf_counter()
+        for _ in range(inner):
+            fn()
+        samples.append((time.perf_counter() - t0) / inner)
+    return float(statistics.median(samples))
+
+
+def bench_pmp(repeats: int = 7) -> dict[str, float]:
+    """The PMP medians (module docstring); keys ``one_vehicle``, ``two_vehicles``,
+    ``fixed_t_closed_form``, ``batch_plans_per_s`` and, with numba,
+    ``compiled_limit_one_vehicle`` and ``compiled_kernel_only``."""
+    from iamp.planners.examples import paper_problem, random_problem
+    from iamp.planners.pmp import compiled_search as pmp_compiled_search
+    from iamp.planners.pmp.compiled import compiled_kernel, numba_available
+    from iamp.planners.pmp.one import one_vehicle_data
+    from iamp.planners.pmp.planner import PMPPlanner, plan_batch, solve_one_vehicle
+
+    one = paper_problem(1)
+    two = random_problem(0, m=2)
+    planner = PMPPlanner()
+    pure = PMPPlanner(compiled=False)
+    t1 = float(planner.plan(one, diagnostics=False).contact_times[0])
+    out = {
+        "one_vehicle": _median_per_call(lambda: planner.plan(one, diagnostics=False), repeats, 200),
+        "two_vehicles_pure": _median_per_call(lambda: pure.plan(two, diagnostics=False), repeats, 3),
+        "fixed_t_closed_form": _median_per_call(lambda: solve_one_vehicle(one, t1), repeats, 200),
+    }
+    out["two_vehicles"] = out["two_vehicles_pure"]
+    if pmp_compiled_search.load():  # compiled (or loaded from numba's cache) outside the timing
+        fast2 = PMPPlanner(compiled=True)
+        out["two_vehicles_compiled"] = _median_per_call(lambda: fast2.plan(two, diagnostics=False), repeats, 50)
+        out["two_vehicles"] = out["two_vehicles_compiled"]
+        out["two_vehicles_search_compiled"] = _median_per_call(lambda: fast2.search(two), repeats, 50)
+    problems = [random_problem(seed, m=1) for seed in range(10_000)]
+    out["batch_plans_per_s"] = len(problems) / _median_per_call(lambda: plan_batch(problems), repeats, 1)
+    if numba_available():
+        kern = compiled_kernel()
+        fast = PMPPlanner(kernel=kern)
+        out["compiled_limit_one_vehicle"] = _median_per_call(lambda: fast.plan(one, diagnostics=False), repeats, 200)
+        import numpy as np
+
+        _, _, ego, ex, ey, cx, cy = one_vehicle_data(one)
+        arrays = [np.asarray(x, dtype=float) for x in (ego, ex, ey, cx)]
+        out["compiled_kernel_only"] = _median_per_call(lambda: kern(*arrays, cy), repeats, 2000)
+    return out
+
+
+if __name__ == "__main__":  # pragma: no cover - manual measurement
+    import json
+    import sys
+
+    print(json.dumps(bench_pmp(int(sys.argv[1]) if len(sys.argv) > 1 else 7), indent=1))

@@ -1,0 +1,308 @@
+r"""``iamp bench``: iamp's speed numbers, its peers and limits, and their ratios, in ONE run.
+
+Everything is measured in the same process, one after the other, so the ratios compare
+numbers taken under the same machine load.  Numbers are medians of individual
+:func:`time.perf_counter` samples after a warm-up (:mod:`iamp.comparison.timing`).  The spread
+of every measurement (IQR/median) is checked: above :data:`BUSY_SPREAD` the output warns that
+the machine was probably busy (the 2-core machines here are shared).
+
+What is measured (one vehicle: ``paper-1-poly``; two: ``two-vehicle``; FOH, ``N = 100``):
+
+* **PMP** — from :func:`iamp.comparison.bench.pmp.bench_pmp` when that module exists (its
+  medians of a whole plan, one and two vehicles, the batch API's plans per second, and the
+  compiled limit: ``pmp_to_compiled_limit`` = PMP plan / compiled-kernel plan, one vehicle),
+  otherwise measured here by a fallback (whole plans and the batch API).
+* **QP per candidate** (``qp_native_solve_s``) — for every backend of the registry
+  (:mod:`iamp.planners.qp.backends`): the value update plus the backend's ``solve()`` for each
+  candidate of a full sweep, in sweep order (OSQP warm-starts from the neighbouring node, the
+  direct ``kkt`` backend re-uses its factorisation, as in a real sweep); the candidate's whole
+  wall time (with verification and unpacking) is reported beside it.
+* **QP grid sweep** (``qp_grid_sweep_s``) — a complete :meth:`QPPlanner.plan` (build, sweep,
+  verification, certification) on each backend (``native_*``), and through the cvxpy
+  cross-check (:mod:`iamp.comparison.cvxpy_qp`; ``osqp``, ``clarabel``: model build and compile
+  included, since a user of that formulation pays for them).
+* **Avoidance QP** (``avoid_grid_sweep_s``) — :class:`iamp.planners.avoid.planner.AvoidQPPlanner`'s
+  plan, if that module exists.
+* **CasADi + IPOPT** — the free-contact-time problem written in ``Opti`` the way users type
+  it (:mod:`.bench_casadi`: build, cold and warm solve, its discretised ``t_1`` and ``J``);
+  skipped (with a note) unless ``casadi`` is installed.
+* **OSQP tuning** (not with ``--quick``) — what each OSQP setting buys on the equality QP:
+  verified candidates, polish successes, iterations, recomputed KKT residuals, time.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import platform
+import time
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from iamp.comparison.timing import TimingStats, measure, summarize, versions
+
+#: IQR/median above which a measurement is flagged as taken on a busy machine.
+BUSY_SPREAD = 0.5
+STEPS = 100
+BACKEND_NAMES = ("osqp", "clarabel", "piqp", "kkt")
+
+#: Issue 14's targets (medians on this 2-core machine when quiet).
+TARGETS: dict[str, tuple[str, float]] = {
+    "pmp_plan_one_vehicle_s": ("<=", 25e-6),
+    "pmp_plan_two_vehicles_s": ("<=", 0.3e-3),
+    "pmp_batch_plans_per_s": (">=", 200_000.0),
+    "qp_native_solve_kkt_s": ("<=", 0.2e-3),
+    "qp_native_solve_best_iterative_s": ("<=", 0.25e-3),
+    "qp_native_solve_osqp_s": ("<=", 0.5e-3),
+    "qp_grid_sweep_native_best_s": ("<=", 20e-3),
+}
+
+
+# --------------------------------------------------------------------------------------
+# PMP
+# --------------------------------------------------------------------------------------
+
+
+def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
+    """The PMP medians of :func:`iamp.comparison.bench.pmp.bench_pmp` in the SPEC §5b keys."""
+    from .pmp import bench_pmp
+
+    raw: dict[str, Any] = dict(bench_pmp(3 if quick else 7))
+    plan_s = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
+              "two_vehicles_pure": raw["two_vehicles_pure"]}
+    out: dict[str, Any] = {"source": "iamp.comparison.bench.pmp.bench_pmp", "bench_pmp": raw,
+                           "pmp_plan_s": plan_s, "pmp_batch_plans_per_s": raw["batch_plans_per_s"]}
+    if raw.get("compiled_limit_one_vehicle"):
+        out["pmp_to_compiled_limit"] = raw["one_vehicle"] / raw["compiled_limit_one_vehicle"]
+    else:
+        notes.append("numba missing (pip install 'iamp[fast]'): no compiled limit, two vehicles on the pure path")
+    if raw.get("two_vehicles_compiled"):
+        out["pmp_two_vehicles_pure_to_compiled"] = raw["two_vehicles_pure"] / raw["two_vehicles_compiled"]
+        plan_s["two_vehicles_compiled"] = raw["two_vehicles_compiled"]
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# QP
+# --------------------------------------------------------------------------------------
+
+
+def _per_candidate(problem: Any, solver: str, repeats: int) -> dict[str, Any]:
+    """Update+solve, solve() call and whole-candidate times over full sweeps (first = warm-up)."""
+    from iamp.planners.qp.core import DiscretisedQP
+
+    backend, call, wall, failed = [], [], [], 0
+    for rep in range(repeats + 1):
+        qp = DiscretisedQP(problem, STEPS, "foh", solver)
+        rs = [qp.solve_nodes(nodes) for nodes in qp.candidate_nodes()]
+        if rep:
+            backend += [r.backend_s for r in rs]
+            call += [r.solve_call_s for r in rs]
+            wall += [r.wall_time_s for r in rs]
+        failed = sum(not r.ok for r in rs)
+    describe = qp.backend.describe()
+    if solver == "kkt":
+        describe["bandwidth"] = int(getattr(qp.backend, "bandwidth", -1))
+    return {"backend": summarize(backend), "call": summarize(call), "wall": summarize(wall), "failed": failed,
+            "describe": describe}
+
+
+def _sweep(fn: Callable[[], Any], repeats: int) -> tuple[TimingStats, Any]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        stats, res = measure(fn, repeats=repeats, warmup=1, budget_s=20.0)
+    return stats, res
+
+
+def _plan_fn(planner: Any, problem: Any) -> Callable[[], Any]:
+    return lambda: planner.plan(problem)
+
+
+def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | None:
+    if importlib.util.find_spec("iamp.planners.avoid.planner") is None:
+        notes.append("iamp.planners.avoid.planner not found: no avoidance-QP sweep measured")
+        return None
+    mod = importlib.import_module("iamp.planners.avoid.planner")
+    out: dict[str, Any] = {}
+    for solver in ("osqp", "clarabel", "piqp"):
+        try:
+            planner = mod.AvoidQPPlanner(steps=STEPS, hold="foh", solver=solver)
+            stats, res = _sweep(_plan_fn(planner, problem), repeats)
+            out[solver] = {"median": stats.median, "stats": stats.to_dict(), "status": str(res.status)}
+        except Exception as exc:  # an optional peer: report, never fail the bench
+            out[solver] = {"median": None, "error": f"{type(exc).__name__}: {exc}"}
+    return out
+
+
+def _casadi(problem: Any, quick: bool, notes: list[str]) -> dict[str, Any] | None:
+    """CasADi ``Opti`` + IPOPT on the free-contact-time problem (:mod:`.bench_casadi`)."""
+    if importlib.util.find_spec("casadi") is None:
+        notes.append("casadi not installed: the CasADi+IPOPT peer is skipped (pip install casadi)")
+        return None
+    from .casadi import casadi_free_time
+
+    try:
+        return casadi_free_time(problem, STEPS, 2 if quick else 5)
+    except Exception as exc:  # an optional peer: report, never fail the bench
+        notes.append(f"CasADi+IPOPT peer failed: {type(exc).__name__}: {exc}")
+        return None
+
+
+def osqp_tuning(problem: Any) -> list[dict[str, Any]]:
+    """What each OSQP setting buys on the equality QP (one FOH sweep, ``N = 100``, per row)."""
+    from iamp.planners.qp.backends.osqp import _polish_key
+    from iamp.planners.qp.core import DiscretisedQP
+
+    rows = []
+    off = {_polish_key(): False}
+    # iamp's equality-QP default (ADMM near, the polish exact) with fewer refinements or no
+    # polish, then OSQP's own ADMM settings (check every 25, over-relaxation 1.6, scaling 10)
+    old_admm = {"check_termination": 25, "alpha": 1.6, "scaling": 10}
+    grid: list[dict[str, Any]] = [{}, {"polish_refine_iter": 3}, {"polish_refine_iter": 1}, off]
+    grid += [{**old_admm, "eps_abs": e, "polish_refine_iter": k} for e in (1e-3, 1e-5) for k in (3, 10)]
+    grid += [{**old_admm, "eps_abs": 1e-5, **off}, {**old_admm, "eps_abs": 1e-7, **off}]
+    for s in grid:
+        qp = DiscretisedQP(problem, STEPS, "foh", "osqp", s)
+        t0 = time.perf_counter()
+        rs = [qp.solve_nodes(n) for n in qp.candidate_nodes()]
+        total = time.perf_counter() - t0
+        kkt = [r.kkt.worst_rel()[1] if r.kkt is not None else np.inf for r in rs]
+        rows.append({"settings": s, "verified": sum(r.ok for r in rs), "polished": sum(bool(r.polished) for r in rs),
+                     "solver_solved": sum(r.solver_status == "optimal" for r in rs), "candidates": len(rs),
+                     "iterations_median": float(np.median([r.iterations for r in rs])),
+                     "iterations_max": int(max(r.iterations for r in rs)),
+                     "kkt_rel_median": float(np.median(kkt)), "kkt_rel_max": float(np.max(kkt)),
+                     "backend_s_median": float(np.median([r.backend_s for r in rs])), "sweep_s": total})
+    return rows
+
+
+# --------------------------------------------------------------------------------------
+# the run
+# --------------------------------------------------------------------------------------
+
+
+def _busy(stats: dict[str, TimingStats]) -> list[str]:
+    return [f"{k}: IQR/median = {s.iqr / s.median:.2f}" for k, s in stats.items()
+            if s.n >= 3 and s.median > 0 and s.iqr / s.median > BUSY_SPREAD]
+
+
+def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """Measure everything; returns the ``iamp bench --json`` object (SPEC §5b keys and more).
+
+    ``progress(done, total)`` is called between the measurements (never inside a timed loop).
+    """
+    from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
+    from iamp.planners.examples import paper_problem
+    from iamp.planners.qp.backends import ITERATIVE
+    from iamp.planners.qp.planner import QPPlanner
+
+    notes: list[str] = []
+
+    def tick(done: int) -> None:
+        if progress is not None:
+            progress(done, 7)
+
+    tick(0)
+    load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    pmp = _pmp_numbers(quick, notes)
+    tick(1)
+    one = paper_problem(1)
+    reps = 1 if quick else 3
+
+    cand = {s: _per_candidate(one, s, reps) for s in BACKEND_NAMES}
+    tick(2)
+    native: dict[str, TimingStats] = {}
+    fails: dict[str, int] = {}
+    for s in BACKEND_NAMES:
+        planner = QPPlanner(steps=STEPS, hold="foh", solver=s)
+        native[s], res = _sweep(_plan_fn(planner, one), 3 if quick else 7)
+        fails[f"native_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
+        if res.status != "optimal":
+            notes.append(f"native {s} sweep: status {res.status} ({res.info.get('why', '')})")
+    tick(3)
+    cvx: dict[str, TimingStats] = {}
+    for s in ("osqp", "clarabel"):
+        planner = CvxpyQPPlanner(steps=STEPS, hold="foh", solver=s)
+        cvx[s], res = _sweep(_plan_fn(planner, one), reps)
+        fails[f"cvxpy_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
+    tick(4)
+    avoid = _avoid(one, reps, notes)
+    tick(5)
+    casadi = _casadi(one, quick, notes)
+    tick(6)
+    tuning = [] if quick else osqp_tuning(one)
+    tick(7)
+
+    solve = {s: cand[s]["backend"].median for s in BACKEND_NAMES}
+    best_it = min(ITERATIVE, key=lambda s: solve[s])
+    sweeps = {**{s: cvx[s].median for s in cvx}, **{f"native_{s}": native[s].median for s in native}}
+    best_native = min(native, key=lambda s: native[s].median)
+    pmp_one = float(pmp["pmp_plan_s"]["one_vehicle"])
+    ratios: dict[str, float | None] = {
+        "pmp_to_compiled_limit": pmp.get("pmp_to_compiled_limit"),
+        "pmp_two_vehicles_pure_to_compiled": pmp.get("pmp_two_vehicles_pure_to_compiled"),
+        "qp_best_to_kkt": solve[best_it] / solve["kkt"],
+        **{f"qp_{s}_to_kkt": solve[s] / solve["kkt"] for s in ITERATIVE},
+        "native_sweep_best_to_pmp_plan": native[best_native].median / pmp_one,
+        "native_kkt_sweep_to_pmp_plan": native["kkt"].median / pmp_one,
+        **{f"cvxpy_{s}_sweep_to_native": cvx[s].median / native[s].median for s in cvx},
+        "kkt_solve_to_pmp_plan": solve["kkt"] / pmp_one,
+    }
+    if casadi is not None:
+        ratios["casadi_ipopt_warm_to_pmp_plan"] = casadi["warm_s"] / pmp_one
+        ratios["casadi_ipopt_cold_to_pmp_plan"] = casadi["cold_s"] / pmp_one
+    if avoid is not None and avoid.get("osqp", {}).get("median"):
+        ratios["avoid_osqp_sweep_to_equality_osqp_sweep"] = avoid["osqp"]["median"] / native["osqp"].median
+    values = {
+        "pmp_plan_one_vehicle_s": pmp_one,
+        "pmp_plan_two_vehicles_s": float(pmp["pmp_plan_s"]["two_vehicles"]),
+        "pmp_batch_plans_per_s": float(pmp["pmp_batch_plans_per_s"]),
+        "qp_native_solve_kkt_s": solve["kkt"],
+        "qp_native_solve_best_iterative_s": solve[best_it],
+        "qp_native_solve_osqp_s": solve["osqp"],
+        "qp_grid_sweep_native_best_s": native[best_native].median,
+    }
+    targets = {k: {"value": float(values[k]), "target": t, "op": op,
+                   "met": bool(values[k] <= t if op == "<=" else values[k] >= t)} for k, (op, t) in TARGETS.items()}
+    all_stats = {**{f"qp_native_solve_{s}": cand[s]["backend"] for s in cand},
+                 **{f"qp_grid_sweep_native_{s}": native[s] for s in native},
+                 **{f"qp_grid_sweep_cvxpy_{s}": cvx[s] for s in cvx}}
+    busy = _busy(all_stats)
+    for k, v in (pmp.get("stats") or {}).items():
+        if isinstance(v, dict) and v.get("n", 0) >= 3 and v.get("median") and v["iqr"] / v["median"] > BUSY_SPREAD:
+            busy.append(f"{k}: IQR/median = {v['iqr'] / v['median']:.2f}")
+    ver = versions()
+    ver["casadi"] = importlib.util.find_spec("casadi") is not None or None
+    return {
+        "pmp_plan_s": pmp["pmp_plan_s"],
+        "pmp_batch_plans_per_s": float(pmp["pmp_batch_plans_per_s"]),
+        "qp_native_solve_s": solve,
+        "qp_grid_sweep_s": sweeps,
+        "avoid_grid_sweep_s": None if avoid is None else {s: v.get("median") for s, v in avoid.items()},
+        "ratios": ratios,
+        "versions": ver,
+        "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(), "machine": platform.machine(),
+                    "python": platform.python_version(), "load_average_1min_before": load_before,
+                    "load_average_1min_after": os.getloadavg()[0] if hasattr(os, "getloadavg") else None},
+        "warnings": ([f"the machine was probably busy (spread above {BUSY_SPREAD:.0%} of the median): "
+                      + "; ".join(busy)] if busy else []),
+        "quick": bool(quick), "steps": STEPS, "problem": one.name,
+        "best_iterative_backend": best_it, "best_native_sweep": best_native,
+        "qp_candidate": {s: {"backend_s": c["backend"].to_dict(), "solve_call_s": c["call"].to_dict(),
+                             "wall_s": c["wall"].to_dict(), "failed": c["failed"], "backend": c["describe"]}
+                         for s, c in cand.items()},
+        "stats": {"qp_grid_sweep_native_s": {s: v.to_dict() for s, v in native.items()},
+                  "qp_grid_sweep_cvxpy_s": {s: v.to_dict() for s, v in cvx.items()},
+                  "pmp": pmp.get("stats"), "avoid": avoid},
+        "pmp": {k: v for k, v in pmp.items() if k not in ("pmp_plan_s", "pmp_batch_plans_per_s", "stats")},
+        "failed_sweep_candidates": fails,
+        "casadi_ipopt": casadi,
+        "osqp_tuning": tuning,
+        "targets": targets,
+        "missed": [k for k, t in targets.items() if not t["met"]],
+        "notes": notes,
+    }

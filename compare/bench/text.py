@@ -1,0 +1,73 @@
+"""The human-readable report of ``iamp bench`` (:func:`format_bench`; the numbers come from
+:func:`iamp.comparison.bench.run.run_bench`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from iamp.comparison.durations import format_seconds
+
+
+def _fmt_s(x: float | None) -> str:
+    return format_seconds(x, digits=3, width=8, missing="       n/a")
+
+
+def _fmt_target(x: float) -> str:
+    return f"{x * 1e6:g} µs" if x < 1e-3 else f"{x * 1e3:g} ms" if x < 1 else f"{x:g} s"
+
+
+def format_bench(out: dict[str, Any]) -> str:
+    """The human-readable report of :func:`~iamp.comparison.bench.run.run_bench`'s result."""
+    lines = [f"iamp bench — medians, {out['problem']}, FOH, N = {out['steps']}" + (" (quick)" if out["quick"] else ""),
+             ""]
+    lines.append(f"  {'PMP plan, one vehicle (global t*)':44s} {_fmt_s(out['pmp_plan_s']['one_vehicle'])}")
+    plan_s = out["pmp_plan_s"]
+    two = "compiled search" if plan_s.get("two_vehicles_compiled") else "pure numpy"
+    lines.append(f"  {'PMP plan, two vehicles (' + two + ')':44s} {_fmt_s(plan_s['two_vehicles'])}")
+    if plan_s.get("two_vehicles_compiled"):
+        lines.append(f"  {'PMP plan, two vehicles (pure numpy)':44s} {_fmt_s(plan_s['two_vehicles_pure'])}")
+    lines.append(f"  {'PMP batch, one vehicle':44s} {out['pmp_batch_plans_per_s']:8.0f} /s")
+    lines += ["", "  QP per candidate (update + solve; whole candidate incl. verification):"]
+    for s, c in out["qp_candidate"].items():
+        lines.append(f"    {s:10s} {_fmt_s(c['backend_s']['median'])}   {_fmt_s(c['wall_s']['median'])}"
+                     + (f"   ({c['failed']} unverified)" if c["failed"] else ""))
+    lines += ["", "  QP grid sweep (whole plan, build included):"]
+    for k, v in out["qp_grid_sweep_s"].items():
+        label = k.replace("native_", "native ") if k.startswith("native_") else f"cvxpy {k}"
+        lines.append(f"    {label:18s} {_fmt_s(v)}")
+    if out["avoid_grid_sweep_s"]:
+        for k, v in out["avoid_grid_sweep_s"].items():
+            lines.append(f"    {'avoid ' + k:18s} {_fmt_s(v)}")
+    cas = out.get("casadi_ipopt")
+    if cas:
+        pmp_t = out["pmp_plan_s"]["one_vehicle"]
+        lines += ["", f"  CasADi Opti + IPOPT, free contact time, ZOH N = {cas['steps']} "
+                  f"({cas['variables']} variables):",
+                  f"    build {_fmt_s(cas['build_s'])}   cold solve {_fmt_s(cas['cold_s'])} "
+                  f"({cas['iterations_cold']} it)   warm solve {_fmt_s(cas['warm_s'])} ({cas['iterations_warm']} it)",
+                  f"    t1 = {cas['contact_time']:.6f} s, J = {cas['cost']:.6f} (discretised; PMP plan "
+                  f"{_fmt_s(pmp_t).strip()})"]
+    lines += ["", "targets:"]
+    for k, t in out["targets"].items():
+        val = f"{t['value']:8.0f} /s" if k.endswith("per_s") else _fmt_s(t["value"])
+        tgt = f"{t['target']:.0f} /s" if k.endswith("per_s") else _fmt_target(t["target"])
+        lines.append(f"  {k:38s} {val}   {t['op']} {tgt:8s} {'met' if t['met'] else 'MISSED'}")
+    lines += ["", "ratios (same run):"]
+    for k, v in out["ratios"].items():
+        lines.append(f"  {k:42s} " + ("n/a" if v is None else f"{v:10.3g}"))
+    if out["osqp_tuning"]:
+        lines += ["", "OSQP settings on the equality QP (one sweep each; KKT recomputed):"]
+        for r in out["osqp_tuning"]:
+            s = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in r["settings"].items())
+            s = s or "iamp's equality-QP default"
+            lines.append(f"  {s:36s} verified {r['verified']:3d}/{r['candidates']}  polished {r['polished']:3d}  "
+                         f"iter {r['iterations_median']:5.0f} (max {r['iterations_max']})  "
+                         f"KKT max {r['kkt_rel_max']:.1e}  {_fmt_s(r['backend_s_median']).strip()}/candidate")
+    m, v = out["machine"], out["versions"]
+    lines += ["", f"machine: {m['cpu_count']} CPU(s), {m['platform']}; load {m['load_average_1min_before']} -> "
+              f"{m['load_average_1min_after']}",
+              "versions: " + ", ".join(f"{k} {v.get(k)}" for k in ("python", "numpy", "scipy", "cvxpy", "osqp",
+                                                                  "clarabel", "piqp"))]
+    lines += [f"warning: {w}" for w in out["warnings"]]
+    lines += [f"note: {n}" for n in out["notes"]]
+    return "\n".join(lines)

@@ -1,0 +1,86 @@
+r"""The safety figure (SPEC §9/§10): equality and avoidance plans in the x–y plane, with every
+vehicle's safety region :math:`x_{s,i}(t) \pm (L_i/2 + S_{x,i})` by
+:math:`y_{s,i} \pm (W_i/2 + S_{y,i})` and its body drawn at several instants, to scale
+(equal aspect), axes in metres.
+
+At each instant the ego's position on each plan is marked (a filled marker when the point is
+inside a safety region, hollow otherwise); the vehicles' boxes are drawn lighter for earlier
+instants.  Colours follow the report's palette (:data:`iamp.comparison.figures.style.PALETTE`): the
+equality PMP green, the avoidance QP blue dashed, safety regions red.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+
+from iamp.core.plan import Plan
+
+from .style import PALETTE, SAFETY_COLOR, VEHICLE_COLORS, save_figure
+
+
+def _inside(plan: Plan, t: float) -> bool:
+    X = plan.trajectory.states(np.array([t]))[0]
+    for v in plan.problem.vehicles:
+        dx, dy = X[0] - float(v.position(t)), X[2] - v.y
+        if abs(dx) < v.length / 2 + v.safety_x - 1e-3 and abs(dy) < v.width / 2 + v.safety_y - 1e-3:
+            return True
+    return False
+
+
+def plot_safety_xy(plans: dict[str, Plan], stem: Any, *, times: np.ndarray | None = None,
+                   title: str | None = None) -> list[Path]:
+    """Draw ``plans`` (label -> plan of the same problem; failed plans are skipped and named in
+    the legend) with the vehicles' safety regions and bodies at ``times`` (default: 6 instants).
+
+    Returns the written paths (PNG and PDF).
+    """
+    ok = {k: p for k, p in plans.items() if p.ok and p.trajectory is not None}
+    failed = [k for k, p in plans.items() if k not in ok]
+    problem = next(iter(plans.values())).problem
+    tf = problem.tf
+    times = np.linspace(0.0, tf, 6) if times is None else np.asarray(times, dtype=float)
+    tt = np.linspace(0.0, tf, 501)
+    fig = Figure(figsize=(11.0, 4.2), layout="constrained")
+    ax = fig.add_subplot(1, 1, 1)
+    xs_all: list[float] = []
+    for i, v in enumerate(problem.vehicles):
+        col = VEHICLE_COLORS[i % len(VEHICLE_COLORS)]
+        ax_, ay_ = v.length / 2 + v.safety_x, v.width / 2 + v.safety_y
+        for k, t in enumerate(times):
+            alpha = 0.25 + 0.6 * k / max(1, len(times) - 1)
+            xc = float(v.position(t))
+            xs_all += [xc - ax_, xc + ax_]
+            ax.add_patch(Rectangle((xc - ax_, v.y - ay_), 2 * ax_, 2 * ay_, fill=False, ec=SAFETY_COLOR, lw=1.0,
+                                   alpha=alpha, ls="--",
+                                   label=f"safety region of {v.name}" if k == 0 else None))
+            ax.add_patch(Rectangle((xc - v.length / 2, v.y - v.width / 2), v.length, v.width, color=col,
+                                   alpha=alpha * 0.8, label=f"{v.name} body" if k == 0 else None))
+            ax.annotate(f"{t:.1f} s", (xc, v.y + ay_), textcoords="offset points", xytext=(0, 2),
+                        ha="center", fontsize=6, color=col)
+    styles = {"equality": (PALETTE["pmp"], "-", "o"), "avoid": (PALETTE["clarabel"], "--", "s")}
+    for label, plan in ok.items():
+        color, ls, marker = styles["avoid" if "avoid" in label else "equality"]
+        X = plan.trajectory.states(tt)
+        xs_all += [float(X[:, 0].min()), float(X[:, 0].max())]
+        cost = f", J = {plan.cost:.3g}" if plan.cost is not None else ""
+        ax.plot(X[:, 0], X[:, 2], color=color, ls=ls, lw=1.8, label=f"{label}{cost}")
+        Xk = plan.trajectory.states(times)
+        for t, row in zip(times, Xk):
+            filled = _inside(plan, float(t))
+            ax.plot([row[0]], [row[2]], marker=marker, ms=6, color=color, mfc=color if filled else "none", zorder=5)
+    for label in failed:
+        ax.plot([], [], color="0.5", ls=":", label=f"{label}: {plans[label].status} (no plan)")
+    ax.set_aspect("equal", adjustable="datalim")
+    if xs_all:  # y follows from the equal aspect
+        ax.set_xlim(min(xs_all) - 3.0, max(xs_all) + 3.0)
+    ax.set_xlabel("longitudinal position $x$ [m]")
+    ax.set_ylabel("lateral position $y$ [m]")
+    ax.set_title(title or f"{problem.name}: equality vs avoidance; safety regions and bodies at "
+                 + ", ".join(f"{t:.1f}" for t in times) + " s (filled marker = ego inside a region)", fontsize=9)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, fontsize=7, frameon=False)
+    return save_figure(fig, stem)

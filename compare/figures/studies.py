@@ -1,0 +1,151 @@
+r"""Figures of the report's studies beyond the paper: the ZOH discretisation error, the solve
+times and the predictions.
+
+* :func:`plot_zoh_convergence` — ``J_ZOH − J_PMP`` against ``h`` on log–log axes with a
+  slope-2 guide (``O(h²)``).
+* :func:`plot_timing` — whole-plan medians and single-solve distributions per planner
+  configuration.
+* :func:`plot_predictions` — observed history, predicted samples and the fitted cubic.
+
+Palette, conventions and the atomic writing: :mod:`iamp.comparison.figures.style`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from .style import PathLike, planner_style, save_figure, scenario_color
+
+__all__ = ["plot_predictions", "plot_timing", "plot_zoh_convergence"]
+
+
+def plot_zoh_convergence(series: dict[str, Any], stem: PathLike, *, title: str | None = None) -> list[Path]:
+    """``J_ZOH − J_PMP`` (same contact node) against ``h`` on log–log axes.
+
+    Parameters
+    ----------
+    series : dict
+        ``{label: (h_values, gaps)}``; a slope-2 guide is drawn through the first series.
+    """
+    fig = Figure(figsize=(6.0, 4.5))
+    ax = fig.add_subplot(1, 1, 1)
+    first = None
+    for k, (label, (h, gap)) in enumerate(series.items()):
+        h = np.asarray(h, dtype=float)
+        gap = np.asarray(gap, dtype=float)
+        ok = gap > 0
+        ax.loglog(h[ok], gap[ok], "o-", color=scenario_color(label, k), label=label)
+        if first is None and ok.sum() >= 2:
+            first = (h[ok], gap[ok])
+    if first is not None:
+        h, gap = first
+        ref = gap[-1] * (h / h[-1]) ** 2
+        ax.loglog(h, ref * 0.5, "k--", lw=1.0, label="slope 2 guide, $\\propto h^2$")
+    if first is not None:  # label the measured step sizes only (minor log labels overlap)
+        from matplotlib.ticker import FixedLocator, NullLocator
+
+        ax.xaxis.set_major_locator(FixedLocator(sorted(first[0])))
+        ax.xaxis.set_minor_locator(NullLocator())
+        ax.set_xticklabels([f"{h:.4g}" for h in sorted(first[0])])
+    ax.set_xlabel("step $h = t_f/N$ [s]")
+    ax.set_ylabel("$J_\\mathrm{ZOH} - J_\\mathrm{PMP}$ [m$^2$/s$^3$] (same contact time)")
+    ax.grid(True, which="both", lw=0.3, alpha=0.5)
+    ax.legend(fontsize=8)
+    ax.set_title(title or "ZOH discretisation gap against step size", fontsize=10)
+    return save_figure(fig, stem)
+
+
+def plot_timing(samples: dict[str, Any], stem: PathLike, *, whole_plans: dict[str, Any] | None = None,
+                title: str | None = None) -> list[Path]:
+    """Wall times, log scale, coloured by planner (:func:`planner_style`).
+
+    Left (if ``whole_plans``): whole plans, contact-time search included — the median with
+    its quartiles as a bar, one row per run, from the statistics of the planning step (the
+    same numbers as the timing table). Right: single QP solves at a changed candidate node —
+    box (quartiles, whiskers 5–95 %) with every sample jittered over it.
+
+    Parameters
+    ----------
+    samples : dict
+        ``{label: sequence of seconds}``; empty sequences are skipped.
+    whole_plans : dict, optional
+        ``{label: {"median", "q1", "q3", "n"}}``.
+    """
+    items = [(k, np.asarray(v, dtype=float)) for k, v in samples.items() if len(v)]
+    plans = [(k, st) for k, st in (whole_plans or {}).items() if st and st.get("median")]
+    rows = max(len(items), len(plans), 1)
+    ncols = 2 if plans else 1
+    fig = Figure(figsize=(7.0 * ncols, max(3.0, 0.42 * rows + 1.4)), layout="constrained")
+    axes = [fig.add_subplot(1, ncols, c + 1) for c in range(ncols)]
+    if plans:
+        ax = axes[0]
+        pos = np.arange(len(plans), 0, -1)
+        for y, (label, st) in zip(pos, plans):
+            sty = planner_style(label)
+            ax.errorbar([st["median"]], [y], xerr=[[st["median"] - st["q1"]], [st["q3"] - st["median"]]],
+                        fmt=sty["marker"], ms=7, mfc=sty["mfc"], color=sty["color"], capsize=3)
+        ax.set_yticks(pos)
+        ax.set_yticklabels([f"{k} (n={st['n']})" for k, st in plans], fontsize=8)
+        ax.set_xscale("log")
+        ax.set_xlabel("wall time of a whole plan [s] (median, bar: quartiles)")
+        ax.set_title("whole plans, contact-time search included", fontsize=9)
+        ax.grid(True, axis="x", which="both", lw=0.3, alpha=0.5)
+    ax = axes[-1]
+    if items:
+        data = [v[v > 0] for _, v in items]
+        pos = np.arange(len(items), 0, -1)  # first configuration on top
+        import inspect
+
+        horizontal = ({"orientation": "horizontal"}
+                      if "orientation" in inspect.signature(ax.boxplot).parameters else {"vert": False})
+        ax.boxplot(data, positions=pos, whis=(5, 95), showfliers=False, widths=0.5,
+                   medianprops={"color": "k"}, **horizontal)
+        rng = np.random.default_rng(0)
+        for k, d in enumerate(data):
+            ax.plot(d, pos[k] + rng.uniform(-0.15, 0.15, d.size), ".", ms=3, alpha=0.6,
+                    color=planner_style(items[k][0])["color"])
+        ax.set_yticks(pos)
+        ax.set_yticklabels([f"{k} (n={len(v)})" for k, v in items], fontsize=8)
+        ax.set_xscale("log")
+    else:
+        ax.text(0.5, 0.5, "no timing samples", ha="center", va="center", transform=ax.transAxes)
+    ax.set_xlabel("wall time of one QP solve [s]")
+    ax.grid(True, axis="x", which="both", lw=0.3, alpha=0.5)
+    ax.set_title("one QP solve at a changed candidate node (box: quartiles, whiskers: 5-95 %)", fontsize=9)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return save_figure(fig, stem)
+
+
+def plot_predictions(entries: dict[str, Any], stem: PathLike, *, tf: float, title: str | None = None) -> list[Path]:
+    """Observed history, the predictor's samples and the fitted cubic handed to the planners.
+
+    Parameters
+    ----------
+    entries : dict
+        ``{label: {"history_t", "history_x", "pred_t", "pred_x", "x_poly"}}`` (any of the
+        sample arrays may be ``None``).
+    """
+    fig = Figure(figsize=(7.0, 4.5))
+    ax = fig.add_subplot(1, 1, 1)
+    tt = np.linspace(0.0, tf, 200)
+    for k, (label, e) in enumerate(entries.items()):
+        col = scenario_color(label, k)
+        if e.get("history_t") is not None:
+            ax.plot(e["history_t"], e["history_x"], ".", ms=3, color=col, label=f"{label}: observed history")
+        if e.get("pred_t") is not None:
+            ax.plot(e["pred_t"], e["pred_x"], "o", ms=3, mfc="none", color=col, alpha=0.6,
+                    label=f"{label}: predicted samples")
+        ax.plot(tt, np.polynomial.polynomial.polyval(tt, e["x_poly"]), "-", lw=1.5, color=col,
+                label=f"{label}: cubic $x_{{s,1}}(t)$")
+    ax.axvline(0.0, color="0.4", lw=0.8)
+    ax.set_xlabel("$t$ [s]")
+    ax.set_ylabel("$x_{s,1}$ [m]")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.13), frameon=False)
+    ax.set_title(title or "vehicle 1: history and prediction", fontsize=10)
+    return save_figure(fig, stem)

@@ -1,0 +1,147 @@
+r"""Checks of the avoidance QP (SPEC §10): which half-plane comes first, the recomputed KKT
+conditions, and the exact crossing time of a solution.
+
+KKT conditions of :math:`\min \tfrac12 z^\top P z + q^\top z` s.t. :math:`l \le Az \le u`
+with multipliers :math:`y` (OSQP's convention, :math:`L = \tfrac12 z^\top Pz + q^\top z +
+y^\top Az` plus the bounds' support terms), recomputed from the data, each relative to the
+largest magnitude among its terms (at least 1):
+
+.. math::
+
+    r_{\text{stat}} = \|Pz + q + A^\top y\|_\infty, \quad
+    r_{\text{primal}} = \|Az - \Pi_{[l,u]}(Az)\|_\infty, \quad
+    r_{\text{sign}} = \max_{i \in \mathcal I} \max(-y_i, 0), \quad
+    r_{\text{compl}} = \max_{i \in \mathcal I} |y_i|\,(u_i - a_i^\top z),
+
+with :math:`\mathcal I` the inequality rows (``l = −∞``, so the multiplier must be
+:math:`\ge 0` and vanish unless the row binds); the relative complementarity divides by
+:math:`\max(1, z^\top P z)` (a multiplier times a slack has the unit of the cost).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+from scipy import optimize
+
+from iamp.core.errors import ScenarioError
+from iamp.core.problem import Problem
+
+from .data import HalfPlane
+
+FloatArray = NDArray[np.float64]
+
+AXIS_NAMES = ("H_x", "H_y")
+#: Start/end states inside a region by less than this [m] count as on its boundary.
+BOUNDARY_TOL_M = 1e-9
+
+
+@dataclass
+class Candidate:
+    """One solved crossing-time candidate."""
+
+    phases: tuple[tuple[int, int, int, int], ...]
+    status: str
+    cost: float
+    z: FloatArray
+    y: FloatArray
+    on: NDArray[np.bool_]
+    sol: Any
+
+
+def crossing_orders(problem: Problem) -> tuple[list[list[tuple[int, int]]], str | None]:
+    """Per vehicle, the possible ``(first, second)`` half-plane orders (0 = H_x, 1 = H_y).
+
+    Returns ``(orders, reason)``; ``reason`` says why no safe plan exists (a start or end
+    state inside a safety region) and is ``None`` otherwise.  Raises
+    :class:`~iamp.core.errors.ScenarioError` naming the vehicle when a start or end state
+    lies outside the region but in neither half-plane, or when no order leads from the
+    start's half-plane to another at the end.
+    """
+    ego = problem.ego
+    ends = (("initial", 0.0, ego.x0, ego.y0), ("final", problem.tf, ego.xf, ego.yf))
+    orders: list[list[tuple[int, int]]] = []
+    for i, v in enumerate(problem.vehicles):
+        ax, ay = v.length / 2 + v.safety_x, v.width / 2 + v.safety_y
+        inside: list[str] = []
+        member: dict[str, set[int]] = {}
+        for label, t, x, y in ends:
+            xs = float(v.position(t))
+            dx, dy = x - xs, y - v.y
+            if abs(dx) < ax - BOUNDARY_TOL_M and abs(dy) < ay - BOUNDARY_TOL_M:
+                inside.append(f"the ego's {label} state (s_x = {x:g} m, s_y = {y:g} m at t = {t:g} s) lies inside "
+                              f"vehicle {v.name}'s safety region (x in [{xs - ax:.2f}, {xs + ax:.2f}] m, "
+                              f"y in [{v.y - ay:.2f}, {v.y + ay:.2f}] m)")
+                continue
+            planes = (HalfPlane(v, "x"), HalfPlane(v, "y"))
+            s = (x, y)
+            member[label] = {a for a in (0, 1)
+                             if float(planes[a].margin(np.array(t), np.array(s[a]))) >= -BOUNDARY_TOL_M}
+            if not member[label]:
+                side, lat = v.corner.split("-")
+                other = f"{'rear' if side == 'front' else 'front'}-{lat}"
+                raise ScenarioError(
+                    f"vehicle {v.name}: corner {v.corner!r} does not describe the manoeuvre: the ego's {label} state "
+                    f"(s_x = {x:g} m, s_y = {y:g} m at t = {t:g} s) is outside its safety region but in neither "
+                    f"{planes[0].describe()} nor {planes[1].describe()} (try {other!r})",
+                    f"vehicles[{i}].corner", getattr(ego, "source", None))
+        if inside:
+            return [], "; ".join(inside) + ": no safe plan exists"
+        pairs = [(f, s) for f in sorted(member["initial"]) for s in sorted(member["final"]) if f != s]
+        if not pairs:
+            only = AXIS_NAMES[next(iter(member["initial"]))]
+            raise ScenarioError(
+                f"vehicle {v.name}: the ego starts and ends in {only} only, so corner {v.corner!r} names no "
+                f"crossing (SPEC §10 needs the start in one half-plane and the end in the other)",
+                f"vehicles[{i}].corner", getattr(ego, "source", None))
+        orders.append(pairs)
+    return orders, None
+
+
+def kkt_conditions(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
+                   z: FloatArray, y: FloatArray, n_eq: int) -> dict[str, float]:
+    """The four relative KKT residuals of the module docstring (rows ``>= n_eq`` are the
+    one-sided inequalities ``a_i z <= u_i``)."""
+    Pu = sp.csc_matrix(P)
+    Pz = Pu @ z + sp.triu(Pu, 1).T @ z
+    Az = A @ z
+    Aty = A.T @ y
+    stat = float(np.max(np.abs(Pz + q + Aty)))
+    stat_scale = max(1.0, float(np.max(np.abs(Pz))), float(np.max(np.abs(Aty))))
+    primal = float(np.max(np.abs(Az - np.clip(Az, l, u))))
+    finite = np.r_[np.abs(l[np.isfinite(l)]), np.abs(u[np.isfinite(u)])]
+    primal_scale = max(1.0, float(np.max(np.abs(Az))), float(np.max(finite, initial=0.0)))
+    yi = y[n_eq:]
+    slack = u[n_eq:] - Az[n_eq:]
+    sign = float(np.max(np.maximum(-yi, 0.0), initial=0.0))
+    compl = float(np.max(np.abs(yi) * np.maximum(slack, 0.0), initial=0.0))
+    zPz = float(z @ Pz)
+    return {"kkt_stationarity_rel": stat / stat_scale, "kkt_primal_rel": primal / primal_scale,
+            "kkt_dual_sign_rel": sign / max(1.0, float(np.max(np.abs(y)))),
+            "kkt_complementarity_rel": compl / max(1.0, abs(zPz))}
+
+
+def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
+    r"""The last instant the trajectory is in ``plane``: :math:`\sup\{t : c(t) - \sigma s(t) \ge 0\}`
+    (1 ms scan, then a root to 1e-12 s); ``tf`` when it ends inside, 0 when it never is."""
+    t = np.linspace(0.0, tf, max(2, int(np.ceil(tf / 1e-3)) + 1))
+    axis = 0 if plane.axis == "x" else 2
+
+    def margin(x: FloatArray) -> FloatArray:
+        return np.asarray(plane.margin(x, traj.states(x)[:, axis]), dtype=float)
+
+    inside = np.flatnonzero(margin(t) >= -1e-12)
+    if inside.size == 0:
+        return 0.0
+    k = int(inside[-1])
+    if k == t.size - 1:
+        return float(tf)
+
+    def g(x: float) -> float:  # the same 1e-12 m tolerance as the scan: a sign change is bracketed
+        return float(margin(np.array([x]))[0]) + 1e-12
+
+    return float(optimize.brentq(g, float(t[k]), float(t[k + 1]), xtol=1e-13))

@@ -1,0 +1,258 @@
+r"""The paper's indirect planner: Pontryagin's minimum principle with interior-point
+equality constraints at free contact times (SPEC §2).
+
+The pieces, one concern per module:
+
+* :mod:`~iamp.planners.pmp.scale` — the dimensionless problem (time over ``t_f``, lengths
+  over the problem's size ``L``; negligible trailing ``x_poly`` terms dropped);
+* :mod:`~iamp.planners.pmp.fixed` — the fixed-contact-time jump system
+  (:func:`solve_fixed_times`) and the closed-form value function :class:`ValueFunction`
+  :math:`J(t) = \bar J + \tfrac12\sum_{\text{axis}} e^\top K(t)^{-1}e`;
+* :mod:`~iamp.planners.pmp.roots` — real roots on ``(0, 1)`` without eigenvalues;
+* :mod:`~iamp.planners.pmp.search` / :mod:`~iamp.planners.pmp.bound` — the global contact
+  times (exact for one vehicle; starts + Newton + certified branch and bound for more);
+* :mod:`~iamp.planners.pmp.verify` — the self-check every plan passes before it is called
+  optimal;
+* :mod:`~iamp.planners.pmp.batch` — many one-vehicle problems at once.
+
+Statuses (:mod:`iamp.core.status`): ``optimal`` — every check passed and the contact times
+are the certified global minimiser (for caller-given contact times: the fixed-time optimum);
+``local`` — checks passed, global optimality not certified within the box budget;
+``inaccurate`` / ``numerical_error`` — a check failed or the linear algebra broke down (no
+cost; ``info["failed_check"]`` names it); ``infeasible`` — ``J`` has no interior stationary
+point (a corner sits on the ego's start or end state).
+
+Speed (issue 14).  One vehicle goes through the scalar kernel of
+:mod:`~iamp.planners.pmp.one` (no arrays until the plan is built; the solution's ``a``, ``b``
+and ``z_scaled`` are made on first use, :class:`~iamp.planners.pmp.solution.OneVehicleSolution`);
+the kernel's five checks are judged before the plan is called optimal.  The default kernel is
+the pure-Python one even when numba is installed: compiling the numba twin
+(:func:`iamp.planners.pmp.compiled.compiled_kernel`) takes about 7 s on the first plan and
+``import numba`` alone about 0.2–0.4 s, while a pure-Python plan takes about 25 µs, so a
+command-line plan, or any process that plans fewer than some 10⁵ problems, would only lose.
+Long-running callers opt in with ``PMPPlanner(kernel=compiled_kernel())`` (the same numbers,
+tested); many problems at once go through :func:`plan_batch` (numpy, no compilation).
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.core.errors import SolverError
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+from iamp.core.status import INFEASIBLE, LOCAL, NUMERICAL_ERROR, OPTIMAL
+
+from .batch import BatchPlan, plan_batch
+from .fixed import (
+    ValueFunction,
+    bridge_kernel,
+    bridge_kernel_ds,
+    bridge_variance_dt,
+    check_times,
+    hamiltonian_jump_residuals,
+    hermite_cubic,
+    jump_system,
+    one_vehicle_z,
+    solution_from_sigma,
+    solve_fixed_times,
+    solve_one_vehicle,
+    solve_sigma,
+    transfer_cost,
+)
+from .one import judge_kernel, one_vehicle_data, one_vehicle_kernel
+from .scale import Scaled, scale_problem
+from .search import global_search, newton_sigma, one_vehicle_sigma
+from .solution import OneVehicleSolution, PMPSolution
+from .verify import judge, lean_checks_and_cost, verify
+
+FloatArray = npt.NDArray[np.float64]
+#: ``info["search"]["method"]`` of a one-vehicle plan.
+ONE_VEHICLE_METHOD = "all roots of the stationarity polynomial"
+
+__all__ = [
+    "BatchPlan", "PMPPlanner", "PMPSolution", "ValueFunction", "bridge_kernel", "bridge_kernel_ds",
+    "bridge_variance_dt", "hamiltonian_jump_residuals", "hermite_cubic", "jump_system",
+    "one_vehicle_contact_time", "plan_batch", "solve_fixed_times", "solve_one_vehicle", "transfer_cost",
+]
+
+
+def one_vehicle_contact_time(problem: Problem) -> float:
+    """The exact global contact time for one vehicle (raises SolverError if none)."""
+    S = scale_problem(problem)
+    s, _ = one_vehicle_sigma(S.EX[0].tolist(), S.EY[0].tolist())
+    if not np.isfinite(s):
+        raise SolverError("J(t) has no stationary point in (0, tf): no interior contact time", INFEASIBLE)
+    return float(s * S.units.T)
+
+
+def _newton_on_jump_conditions(problem: Problem, J: ValueFunction, t0: Any) -> tuple[FloatArray, float]:
+    """Newton on ``r(t) = ∇J(t) = 0`` from ``t0`` (physical units) → ``(t, J(t))``."""
+    s, q = newton_sigma(J, np.asarray(t0, dtype=float) / J.tf)
+    return s * J.tf, float((J.scaled.jbar + 0.5 * q) * J.units.cost)
+
+
+@dataclass
+class PMPPlanner:
+    """The PMP planner with a global contact-time search.
+
+    Parameters
+    ----------
+    max_starts : int
+        Newton starts (combinations of one-vehicle stationary points) for ``m ≥ 2``.
+    max_boxes : int
+        Box budget of the branch-and-bound certificate; beyond it the status is ``local``.
+    kernel : callable
+        The one-vehicle kernel (:func:`~iamp.planners.pmp.one.one_vehicle_kernel`, or its
+        numba-compiled twin from :func:`iamp.planners.pmp.compiled.compiled_kernel`).
+    compiled : bool or None
+        The ``m ≥ 2`` search on the numba path (:mod:`~iamp.planners.pmp.compiled_search`):
+        ``None`` (default) uses it only if it is already loaded in this process (never
+        compiles), ``True`` loads it now (compiles once per machine, then numba's disk cache;
+        pure path if numba is missing), ``False`` never.  Same answers either way.
+    """
+
+    max_starts: int = 32
+    max_boxes: int = 200_000
+    kernel: Callable[..., list[float]] = one_vehicle_kernel
+    compiled: bool | None = None
+
+    def search(self, problem: Problem, S: Scaled | None = None,
+               progress: Callable[[int, int], None] | None = None) -> tuple[FloatArray, float, bool, dict[str, Any]]:
+        """``(σ*, q*, certified, info)`` in scaled units (``J̃ = J̃₀ + q/2``)."""
+        S = scale_problem(problem) if S is None else S
+        if problem.m == 1:
+            s, q = one_vehicle_sigma(S.EX[0].tolist(), S.EY[0].tolist())
+            return np.array([s]), q, True, {"method": ONE_VEHICLE_METHOD}
+        from . import compiled_search as fast
+
+        compiled = fast.use(self.compiled)
+        res = (fast.run(S, self.max_starts, self.max_boxes, progress) if compiled
+               else global_search(ValueFunction(problem, S), self.max_starts, self.max_boxes, progress))
+        return res.sigma, res.q, res.certified, {"method": "starts + Newton + branch and bound", "compiled": compiled,
+                                                 "boxes": res.boxes, "starts": res.starts}
+
+    def contact_times(self, problem: Problem) -> FloatArray:
+        """The minimiser ``t*`` of ``J`` over ``(0, t_f)^m`` (SolverError if there is none)."""
+        S = scale_problem(problem)
+        s, _, _, _ = self.search(problem, S)
+        if not np.all(np.isfinite(s)):
+            raise SolverError("J(t) has no stationary point in (0, tf): no interior contact time", INFEASIBLE)
+        return s * S.units.T
+
+    def solve(self, problem: Problem, contact_times: Any = None) -> PMPSolution:
+        """Fixed-time solution at ``contact_times`` (default: the global ``t*``)."""
+        t = self.contact_times(problem) if contact_times is None else contact_times
+        if problem.m == 1:
+            return solve_one_vehicle(problem, float(np.asarray(t, dtype=float).reshape(-1)[0]))
+        return solve_fixed_times(problem, t)
+
+    def plan(self, problem: Problem, contact_times: Any = None, diagnostics: bool = True,
+             progress: Callable[[int, int], None] | None = None) -> Plan:
+        """Plan and verify; never raises for numerical trouble (returns a failed Plan).
+
+        ``solve_time_s`` covers the search, the solve and the self-check.  ``diagnostics``
+        adds the physical max-abs residuals (``plan.residuals``) after the clock stops.
+        ``contact_times`` (optional, validated: ``ValueError`` if outside ``(0, t_f)``) fixes
+        the contact times: the plan is then the fixed-time optimum and the Hamiltonian-jump
+        condition is reported in ``info`` but not required.
+        """
+        start = _time.perf_counter()
+        m = problem.m
+        fixed = contact_times is not None
+        if m == 1 and not fixed:
+            return self._plan_one(problem, start, diagnostics)
+        info: dict[str, Any] = {}
+        if fixed:
+            t_given = check_times(problem, contact_times)
+        try:
+            with np.errstate(over="raise", divide="raise", invalid="raise"):
+                S = scale_problem(problem)
+            if fixed:
+                sig = t_given / S.units.T
+                certified = True
+            else:
+                sig, _, certified, info["search"] = self.search(problem, S, progress)
+                if not np.all(np.isfinite(sig)):
+                    return self._failed(problem, INFEASIBLE, "no_interior_contact_time", info, start)
+            with np.errstate(over="raise", divide="raise", invalid="raise"):
+                z = one_vehicle_z(S, float(sig[0])) if m == 1 else solve_sigma(S, sig)
+                sol = solution_from_sigma(problem, S, sig, z)
+            values, traj_cost = lean_checks_and_cost(sol, S, stationary=not fixed)
+            checks, failed, bad = judge(values)
+        except SolverError as exc:
+            info["error"] = str(exc)
+            return self._failed(problem, NUMERICAL_ERROR, "linear_system", info, start)
+        except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
+            info["error"] = f"{type(exc).__name__}: {exc}"
+            return self._failed(problem, NUMERICAL_ERROR, "linear_algebra", info, start)
+        info["checks"] = checks
+        info["failed_check"] = failed
+        info["certified_global"] = bool(certified)
+        status = bad if bad is not None else (OPTIMAL if certified else LOCAL)
+        cost = traj_cost if bad is None else None  # = sol.cost(), computed by the check
+        elapsed = _time.perf_counter() - start
+        plan = Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=sol.contact_times.copy(),
+                    jumps=sol.jumps.copy(), trajectory=sol, solve_time_s=elapsed, info=info)
+        if diagnostics:
+            with np.errstate(all="ignore"):
+                plan.residuals = sol.residuals()
+                plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
+        return plan
+
+    def _plan_one(self, problem: Problem, start: float, diagnostics: bool) -> Plan:
+        """One vehicle: :func:`~iamp.planners.pmp.one.one_vehicle_kernel` (scalar code); the
+        kernel's five checks are judged before the plan is called optimal, the solution's
+        trajectory arrays are made on first use (:class:`~iamp.planners.pmp.solution.OneVehicleSolution`)."""
+        try:
+            T, L, ego, ex, ey, cx, cy = one_vehicle_data(problem)
+            k = self.kernel(ego, ex, ey, cx, cy)
+        except (OverflowError, ZeroDivisionError, ValueError) as exc:
+            info: dict[str, Any] = {"search": {"method": ONE_VEHICLE_METHOD}, "error": f"{type(exc).__name__}: {exc}"}
+            return self._failed(problem, NUMERICAL_ERROR, "linear_algebra", info, start)
+        if not k[0] == k[0]:
+            return self._failed(problem, INFEASIBLE, "no_interior_contact_time",
+                                {"search": {"method": ONE_VEHICLE_METHOD}}, start)
+        checks, failed, bad = judge_kernel(k)
+        jerk = L / (T * T * T)
+        ct = np.empty(1)
+        ct[0] = k[0] * T
+        jumps = np.empty((1, 2))
+        jumps[0, 0] = k[5] * jerk
+        jumps[0, 1] = k[6] * jerk
+        sol = OneVehicleSolution.from_kernel(problem, ct, jumps, k, T, L)
+        plan = Plan(problem=problem, planner="pmp", status=OPTIMAL if bad is None else bad,
+                    cost=k[7] * L * L / (T * T * T) if bad is None else None, contact_times=ct, jumps=jumps,
+                    trajectory=sol, solve_time_s=0.0,
+                    info={"search": {"method": ONE_VEHICLE_METHOD}, "checks": checks, "failed_check": failed,
+                          "certified_global": True})
+        plan.solve_time_s = _time.perf_counter() - start
+        if diagnostics:
+            self._full_checks(plan, sol)
+        return plan
+
+    @staticmethod
+    def _full_checks(plan: Plan, sol: PMPSolution) -> None:
+        """After the clock: every check of :mod:`~iamp.planners.pmp.verify` and the physical
+        residuals; a failure downgrades the plan."""
+        with np.errstate(all="ignore"):
+            checks, failed, bad = verify(sol, stationary=True)
+            plan.residuals = sol.residuals()
+            plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
+        plan.info["checks"] = checks
+        if bad is not None and plan.status in (OPTIMAL, LOCAL):
+            plan.status, plan.cost, plan.info["failed_check"] = bad, None, failed
+
+    @staticmethod
+    def _failed(problem: Problem, status: str, check: str, info: dict[str, Any], start: float) -> Plan:
+        info["failed_check"] = check
+        info.setdefault("checks", {})
+        return Plan(problem=problem, planner="pmp", status=status, cost=None,
+                    contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
+                    trajectory=None, solve_time_s=_time.perf_counter() - start, info=info)

@@ -1,0 +1,389 @@
+r"""Real-root isolation on the unit interval, without eigenvalues (scalar and batched).
+
+The one-vehicle contact time is a root of the stationarity polynomial
+:math:`P(\sigma) = N'(\sigma)\,\sigma(1-\sigma) - 3N(\sigma)(1-2\sigma)` on
+:math:`\sigma = t/t_f \in (0, 1)` (see :mod:`iamp.planners.pmp.search`).  Its roots are
+isolated in the Bernstein basis of :math:`[0, 1]`,
+
+.. math::  P(\sigma) = \sum_{j=0}^{n} \beta_j \binom{n}{j}\sigma^j(1-\sigma)^{n-j},\qquad
+           \beta_j = \sum_{i \le j} \frac{\binom{j}{i}}{\binom{n}{i}}\, a_i ,
+
+where :math:`a_i` are the monomial coefficients.  By Descartes' rule in Bernstein form, the
+number of roots in the open interval is at most the number of sign variations
+:math:`V(\beta)` and has the same parity: ``V = 0`` means no root, ``V = 1`` exactly one.
+Intervals with ``V ≥ 2`` are halved by de Casteljau's algorithm until every piece has
+``V ≤ 1`` (or is narrower than :data:`MIN_WIDTH`, a multiple root); each isolated root is
+then found by Newton's method safeguarded by bisection inside its bracket.  Every root in
+``(0, 1)`` is found; no companion matrix, no ``np.roots``.
+
+The scalar functions use plain Python lists and loops on purpose: they are also compiled
+unchanged by numba (:mod:`iamp.planners.pmp.compiled`), so both paths run the same
+arithmetic.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Narrowest interval subdivided; below it a cluster of roots counts as one (multiple) root.
+MIN_WIDTH = 1e-13
+#: Newton/bisection stops when the bracket is this narrow (relative to 1 = the horizon).
+ROOT_XTOL = 4e-16
+
+
+def bernstein_weights(n: int) -> list[list[float]]:
+    """Row ``j``: the weights ``C(j,i)/C(n,i)``, ``i ≤ j``, of monomial → Bernstein."""
+    return [[math.comb(j, i) / math.comb(n, i) for i in range(j + 1)] for j in range(n + 1)]
+
+
+_WEIGHTS: dict[int, list[list[float]]] = {}
+
+
+def to_bernstein(a: Sequence[float]) -> list[float]:
+    """Bernstein coefficients on ``[0, 1]`` of the polynomial with ascending coefficients ``a``
+    (``β_j = Σ_{i≤j} w_ji a_i`` summed from ``0.0`` in ascending ``i``; degree 6, that of
+    every cubic ``x_poly``, written out term by term with the same operations)."""
+    n = len(a) - 1
+    if n == 6:
+        return _to_bernstein6(a)
+    w = _WEIGHTS.get(n)
+    if w is None:
+        w = _WEIGHTS[n] = bernstein_weights(n)
+    out = [0.0] * (n + 1)
+    for j in range(n + 1):
+        acc = 0.0
+        i = 0
+        for wji in w[j]:  # i = 0..j, ascending
+            acc += wji * a[i]
+            i += 1
+        out[j] = acc
+    return out
+
+
+_W6 = tuple(w for row in bernstein_weights(6) for w in row)
+
+
+def _to_bernstein6(a: Sequence[float]) -> list[float]:
+    """:func:`to_bernstein` for degree 6, unrolled (the same sums in the same order)."""
+    a0, a1, a2, a3, a4, a5, a6 = a
+    (w00, w10, w11, w20, w21, w22, w30, w31, w32, w33, w40, w41, w42, w43, w44,
+     w50, w51, w52, w53, w54, w55, w60, w61, w62, w63, w64, w65, w66) = _W6
+    return [0.0 + w00 * a0,
+            0.0 + w10 * a0 + w11 * a1,
+            0.0 + w20 * a0 + w21 * a1 + w22 * a2,
+            0.0 + w30 * a0 + w31 * a1 + w32 * a2 + w33 * a3,
+            0.0 + w40 * a0 + w41 * a1 + w42 * a2 + w43 * a3 + w44 * a4,
+            0.0 + w50 * a0 + w51 * a1 + w52 * a2 + w53 * a3 + w54 * a4 + w55 * a5,
+            0.0 + w60 * a0 + w61 * a1 + w62 * a2 + w63 * a3 + w64 * a4 + w65 * a5 + w66 * a6]
+
+
+def sign_variations(b: Sequence[float]) -> int:
+    """Sign changes of the sequence ``b``, zeros skipped (a NaN counts as negative)."""
+    v = 0
+    last = 0  # sign of the last non-zero entry: 1, -1, or 0 before the first
+    for x in b:
+        if x > 0.0:
+            if last < 0:
+                v += 1
+            last = 1
+        elif x != 0.0:
+            if last > 0:
+                v += 1
+            last = -1
+    return v
+
+
+def casteljau_halves(b: Sequence[float]) -> tuple[list[float], list[float]]:
+    """Bernstein coefficients of the left and right halves of the interval (de Casteljau)."""
+    work = list(b)
+    n = len(work) - 1
+    left = [work[0]]
+    right = [work[n]]
+    for r in range(1, n + 1):
+        for i in range(n - r + 1):
+            work[i] = 0.5 * (work[i] + work[i + 1])
+        left.append(work[0])
+        right.append(work[n - r])
+    right.reverse()
+    return left, right
+
+
+def horner2(a: Sequence[float], x: float) -> tuple[float, float]:
+    """``(p(x), p'(x))`` for ascending coefficients ``a``."""
+    p = 0.0
+    dp = 0.0
+    for k in range(len(a) - 1, -1, -1):
+        dp = dp * x + p
+        p = p * x + a[k]
+    return p, dp
+
+
+def newton_in_bracket(a: Sequence[float], lo: float, hi: float) -> float:
+    """The single root of ``a`` in ``(lo, hi)`` (``p(lo)``, ``p(hi)`` of opposite signs):
+    Newton's method from the midpoint, falling back to bisection whenever a step leaves
+    the bracket; the bracket shrinks every iteration.
+
+    This is the planner's innermost loop, so the Horner evaluations of :func:`horner2` are
+    written out: for degree ≤ 6 (every cubic ``x_poly``) term by term with zero leading
+    coefficients (``0·x + c = c``, so the values are those of the loop), beyond as a loop
+    over the descending coefficients; the same operations in the same order either way."""
+    n = len(a) - 1
+    small = n <= 6
+    c0 = a[0]
+    c1 = a[1] if n >= 1 else 0.0
+    c2 = a[2] if n >= 2 else 0.0
+    c3 = a[3] if n >= 3 else 0.0
+    c4 = a[4] if n >= 4 else 0.0
+    c5 = a[5] if n >= 5 else 0.0
+    c6 = a[6] if n >= 6 else 0.0
+    rev = [0.0] * 0 if small else [a[n - k] for k in range(n + 1)]  # descending coefficients
+    if small:
+        plo = (((((c6 * lo + c5) * lo + c4) * lo + c3) * lo + c2) * lo + c1) * lo + c0
+    else:
+        plo = 0.0
+        for c in rev:
+            plo = plo * lo + c
+    if plo == 0.0:  # the bracket's end is an exact root
+        return lo
+    lo_pos = plo > 0.0
+    x = 0.5 * (lo + hi)
+    for _ in range(200):
+        if small:
+            p = c6 * x + c5
+            dp = c6
+            dp = dp * x + p
+            p = p * x + c4
+            dp = dp * x + p
+            p = p * x + c3
+            dp = dp * x + p
+            p = p * x + c2
+            dp = dp * x + p
+            p = p * x + c1
+            dp = dp * x + p
+            p = p * x + c0
+        else:
+            p = 0.0
+            dp = 0.0
+            for c in rev:
+                dp = dp * x + p
+                p = p * x + c
+        if p == 0.0:
+            return x
+        if (p > 0.0) == lo_pos:
+            lo = x
+        else:
+            hi = x
+        if hi - lo <= ROOT_XTOL:
+            break
+        nx = x - p / dp if dp != 0.0 else lo - 1.0
+        if not lo < nx < hi:
+            nx = 0.5 * (lo + hi)
+        if abs(nx - x) <= ROOT_XTOL:
+            x = nx
+            break
+        x = nx
+    return x
+
+
+def unit_roots(a: Sequence[float]) -> list[float]:
+    """Every real root in ``(0, 1)`` of the polynomial with ascending coefficients ``a``,
+    sorted (a multiple root is returned once, to about ``MIN_WIDTH``)."""
+    n = len(a) - 1
+    while n > 0 and a[n] == 0.0:
+        n -= 1
+    if n < 1:
+        return [0.0] * 0  # a typed empty list (numba)
+    coeffs = [float(a[i]) for i in range(n + 1)]
+    b = to_bernstein(coeffs)
+    v = sign_variations(b)
+    if v == 0:
+        return [0.0] * 0
+    if v == 1 and b[0] != 0.0 and b[n] != 0.0:  # one root, isolated by [0, 1] itself
+        r = newton_in_bracket(coeffs, 0.0, 1.0)
+        return [r] if 0.0 < r < 1.0 else [0.0] * 0
+    out = [0.0] * 0
+    # the stack holds (lo, hi) and the Bernstein coefficients of each pending interval
+    los = [0.0]
+    his = [1.0]
+    bs = [b]
+    while len(los) > 0:
+        lo = los.pop()
+        hi = his.pop()
+        b = bs.pop()
+        v = sign_variations(b)
+        if v == 0:
+            continue
+        if v == 1 and b[0] != 0.0 and b[n] != 0.0:
+            out.append(newton_in_bracket(coeffs, lo, hi))
+            continue
+        mid = 0.5 * (lo + hi)
+        if hi - lo < MIN_WIDTH:
+            out.append(mid)
+            continue
+        left, right = casteljau_halves(b)
+        if horner2(coeffs, mid)[0] == 0.0:  # an exact root on the split point
+            out.append(mid)
+        los.append(mid)
+        his.append(hi)
+        bs.append(right)
+        los.append(lo)
+        his.append(mid)
+        bs.append(left)
+    out.sort()
+    dedup = [0.0] * 0
+    for r in out:
+        if 0.0 < r < 1.0 and (len(dedup) == 0 or r - dedup[-1] > 4 * MIN_WIDTH):
+            dedup.append(r)
+    return dedup
+
+
+# ------------------------------------------------------------------------------------------
+# Batched version (one polynomial per row)
+# ------------------------------------------------------------------------------------------
+
+
+def bernstein_matrix(n: int) -> FloatArray:
+    """``B`` with ``β = a @ B`` for rows of ascending coefficients of degree ``n``."""
+    W = np.zeros((n + 1, n + 1))
+    for j, row in enumerate(bernstein_weights(n)):
+        W[: j + 1, j] = row
+    return W
+
+
+def _variations_rows(beta: FloatArray) -> npt.NDArray[np.int64]:
+    """:func:`sign_variations` of every row (zeros skipped)."""
+    s = np.sign(beta)
+    nz = s != 0
+    idx = np.where(nz, np.arange(beta.shape[1]), 0)
+    prev = np.maximum.accumulate(idx, axis=1)
+    last = np.take_along_axis(s, prev, axis=1)
+    out: npt.NDArray[np.int64] = np.sum(nz[:, 1:] & (s[:, 1:] != last[:, :-1]) & (last[:, :-1] != 0), axis=1)
+    return out
+
+
+def _casteljau_rows(B: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`casteljau_halves` of every row."""
+    work = B.copy()
+    n = B.shape[1] - 1
+    left = np.empty_like(B)
+    right = np.empty_like(B)
+    left[:, 0] = work[:, 0]
+    right[:, n] = work[:, n]
+    for r in range(1, n + 1):
+        work[:, : n - r + 1] = 0.5 * (work[:, : n - r + 1] + work[:, 1: n - r + 2])
+        left[:, r] = work[:, 0]
+        right[:, n - r] = work[:, n - r]
+    return left, right
+
+
+def batch_unit_roots(Pc: FloatArray) -> FloatArray:
+    """All roots in ``(0, 1)`` of every row of ``Pc`` (ascending coefficients, ``(K, n+1)``).
+
+    The same isolation as :func:`unit_roots`, vectorised over rows and pending intervals
+    (Bernstein variations, de Casteljau halving), then :func:`newton_in_bracket` on every
+    isolating interval at once; rows whose own leading coefficient is zero go through
+    :func:`unit_roots`.  Returns ``(K, n)`` sorted per row, NaN padded.
+    """
+    while Pc.shape[1] > 2 and not np.any(Pc[:, -1]):  # leading zeros shared by every row
+        Pc = Pc[:, :-1]
+    K, n1 = Pc.shape
+    n = n1 - 1
+    out = np.full((K, max(n, 1)), np.nan)
+    full = Pc[:, -1] != 0
+    rows = np.flatnonzero(full)
+    owner = rows.copy()
+    lo = np.zeros(rows.size)
+    hi = np.ones(rows.size)
+    B = Pc[rows] @ bernstein_matrix(n)
+    found_owner, found_lo, found_hi, found_mid = [], [], [], []
+    while owner.size:
+        v = _variations_rows(B)
+        iso = (v == 1) & (B[:, 0] != 0) & (B[:, -1] != 0)
+        found_owner.append(owner[iso])
+        found_lo.append(lo[iso])
+        found_hi.append(hi[iso])
+        found_mid.append(np.zeros(int(iso.sum()), dtype=bool))
+        split = (v >= 1) & ~iso
+        mid = 0.5 * (lo + hi)
+        tiny = split & (hi - lo < MIN_WIDTH)
+        found_owner.append(owner[tiny])
+        found_lo.append(mid[tiny])
+        found_hi.append(mid[tiny])
+        found_mid.append(np.ones(int(tiny.sum()), dtype=bool))
+        split &= ~tiny
+        L, R = _casteljau_rows(B[split])
+        msp = mid[split]
+        pm = np.zeros(msp.size)
+        for k in range(n, -1, -1):
+            pm = pm * msp + Pc[owner[split], k]
+        at_mid = pm == 0.0  # an exact root on the split point
+        found_owner.append(owner[split][at_mid])
+        found_lo.append(mid[split][at_mid])
+        found_hi.append(mid[split][at_mid])
+        found_mid.append(np.ones(int(at_mid.sum()), dtype=bool))
+        owner = np.concatenate([owner[split], owner[split]])
+        lo, hi = np.concatenate([lo[split], mid[split]]), np.concatenate([mid[split], hi[split]])
+        B = np.vstack([L, R])
+    fo = np.concatenate(found_owner)
+    flo, fhi, fmid = np.concatenate(found_lo), np.concatenate(found_hi), np.concatenate(found_mid)
+    roots = np.where(fmid, flo, 0.0)
+    need = ~fmid
+    if np.any(need):
+        roots[need] = _batch_newton(Pc[fo[need]], flo[need], fhi[need])
+    order = np.lexsort((roots, fo))
+    fo, roots = fo[order], roots[order]
+    keep = (roots > 0.0) & (roots < 1.0)
+    same = np.r_[False, (fo[1:] == fo[:-1]) & (roots[1:] - roots[:-1] <= 4 * MIN_WIDTH)]
+    fo, roots = fo[keep & ~same], roots[keep & ~same]
+    start = np.searchsorted(fo, fo, side="left")
+    out[fo, np.arange(fo.size) - start] = roots
+    for r in np.flatnonzero(~full):
+        rr = unit_roots(Pc[r].tolist())
+        out[r, : len(rr)] = rr
+    return out
+
+
+def _batch_newton(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
+    """Vectorised :func:`newton_in_bracket` (one bracket and polynomial per row).
+
+    Every row runs exactly the scalar iteration (same operations, element by element); a
+    row leaves the working set as soon as its scalar twin would return, so late iterations
+    only touch the few slow rows."""
+    At = np.ascontiguousarray(A.T)  # (n+1, K): one contiguous row per power
+    n1 = At.shape[0]
+    plo = np.zeros(lo.size)
+    for k in range(n1 - 1, -1, -1):
+        plo = plo * lo + At[k]
+    out = np.where(plo == 0.0, lo, 0.5 * (lo + hi))  # an exact root at the bracket's end
+    idx = np.flatnonzero(plo != 0.0)
+    At, lo, hi, x, pos = At[:, idx], lo[idx], hi[idx], out[idx], plo[idx] > 0.0
+    for _ in range(200):
+        if idx.size == 0:
+            break
+        p = np.zeros(idx.size)
+        dp = np.zeros(idx.size)
+        for k in range(n1 - 1, -1, -1):
+            dp = dp * x + p
+            p = p * x + At[k]
+        same = (p > 0.0) == pos
+        lo = np.where(same, x, lo)
+        hi = np.where(same, hi, x)
+        fin = (p == 0.0) | (hi - lo <= ROOT_XTOL)  # the scalar returns x here
+        with np.errstate(divide="ignore", invalid="ignore"):
+            nx = np.where(dp != 0.0, x - p / dp, lo - 1.0)
+        nx = np.where((lo < nx) & (nx < hi), nx, 0.5 * (lo + hi))
+        stop = fin | (np.abs(nx - x) <= ROOT_XTOL)  # ... or returns nx
+        x = np.where(fin, x, nx)
+        if stop.any():
+            out[idx[stop]] = x[stop]
+            keep = ~stop
+            At, lo, hi, x, pos, idx = At[:, keep], lo[keep], hi[keep], x[keep], pos[keep], idx[keep]
+    if idx.size:  # 200 iterations: the scalar returns its last x
+        out[idx] = x
+    return out

@@ -1,0 +1,273 @@
+r"""The global contact-time search: the minimiser of :math:`J(t)` over :math:`(0, t_f)^m`.
+
+All work is in scaled units (``σ = t/t_f``, :mod:`iamp.planners.pmp.scale`).
+
+One vehicle (exact)
+-------------------
+With :math:`N(\sigma) = \tilde e_x^2 + \tilde e_y^2` and :math:`\tilde K = \sigma^3(1-\sigma)^3/3`,
+:math:`\tilde J = \tilde J_0 + \tfrac12 N/\tilde K` and :math:`d\tilde J/d\sigma = 0` exactly where
+
+.. math::  P(\sigma) = N'(\sigma)\,\sigma(1-\sigma) - 3N(\sigma)(1-2\sigma) = 0 .
+
+Every root of ``P`` in ``(0, 1)`` is isolated (:func:`iamp.planners.pmp.roots.unit_roots`) and
+the global minimiser is the root with the least ``N/K̃`` (``J → ∞`` at both ends when the
+corner is not on the ego's start or end state).
+
+Several vehicles
+----------------
+Starts from every combination of the one-vehicle stationary points (each vehicle alone),
+polished by Newton's method on the Hamiltonian-jump residuals ``r = ∇J`` (closed form,
+:meth:`ValueFunction.gradient_sigma`), then certified by branch and bound
+(:mod:`iamp.planners.pmp.bound`) which also reveals and polishes any better basin it finds.
+Every polished minimiser contributes a *basin box* (:mod:`iamp.planners.pmp.basin`): a
+rigorous lower bound of ``q`` on a whole neighbourhood, so the certificate does not refine
+down to ``√ε`` around it.  A start inside a known basin box is not polished again, and
+:func:`trusted_q` (which solves the jump system) runs only for would-be incumbents.
+If the bound cannot close within its budget the result is only *local*.
+
+The same algorithm compiled by numba: :mod:`iamp.planners.pmp.compiled_search`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from itertools import permutations, product
+
+import numpy as np
+import numpy.typing as npt
+
+from .fixed import ValueFunction
+from .roots import unit_roots
+from .scale import Scaled
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def stationarity_poly(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
+    """Ascending coefficients of ``P = N'σ(1−σ) − 3N(1−2σ)`` with ``N = ex² + ey²``
+    (``ex``, ``ey`` ascending in ``σ``).  The common case (cubic ``x_poly``: four
+    coefficients per axis) is written out term by term with the loops' order of floating
+    operations (bit-identical, tested)."""
+    if len(ex) == 4 and len(ey) == 4:
+        x0, x1, x2, x3 = float(ex[0]), float(ex[1]), float(ex[2]), float(ex[3])
+        y0, y1, y2, y3 = float(ey[0]), float(ey[1]), float(ey[2]), float(ey[3])
+        n0 = 0.0 + (x0 * x0 + y0 * y0)
+        n1 = (0.0 + (x0 * x1 + y0 * y1)) + (x1 * x0 + y1 * y0)
+        n2 = ((0.0 + (x0 * x2 + y0 * y2)) + (x1 * x1 + y1 * y1)) + (x2 * x0 + y2 * y0)
+        n3 = (((0.0 + (x0 * x3 + y0 * y3)) + (x1 * x2 + y1 * y2)) + (x2 * x1 + y2 * y1)) + (x3 * x0 + y3 * y0)
+        n4 = ((0.0 + (x1 * x3 + y1 * y3)) + (x2 * x2 + y2 * y2)) + (x3 * x1 + y3 * y1)
+        n5 = (0.0 + (x2 * x3 + y2 * y3)) + (x3 * x2 + y3 * y2)
+        n6 = 0.0 + (x3 * x3 + y3 * y3)
+        d1 = 1 * n1
+        d2 = 2 * n2
+        d3 = 3 * n3
+        d4 = 4 * n4
+        d5 = 5 * n5
+        d6 = 6 * n6
+        return [0.0 - 3 * n0,
+                ((0.0 + d1) + 6 * n0) - 3 * n1,
+                ((0.0 - d1) + d2) + 6 * n1 - 3 * n2,
+                ((0.0 - d2) + d3) + 6 * n2 - 3 * n3,
+                ((0.0 - d3) + d4) + 6 * n3 - 3 * n4,
+                ((0.0 - d4) + d5) + 6 * n4 - 3 * n5,
+                ((0.0 - d5) + d6) + 6 * n5 - 3 * n6,
+                (0.0 - d6) + 6 * n6]
+    return stationarity_poly_loops(ex, ey)
+
+
+def stationarity_poly_loops(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
+    """:func:`stationarity_poly` for any number of coefficients (the general loops)."""
+    d = max(len(ex), len(ey))
+    x = [0.0] * d
+    y = [0.0] * d
+    for k in range(len(ex)):
+        x[k] = float(ex[k])
+    for k in range(len(ey)):
+        y[k] = float(ey[k])
+    N = [0.0] * (2 * d - 1)
+    for i in range(d):
+        xi = x[i]
+        yi = y[i]
+        for j in range(d):
+            N[i + j] += xi * x[j] + yi * y[j]
+    Pc = [0.0] * (len(N) + 1)
+    for k in range(1, len(N)):
+        dk = k * N[k]
+        Pc[k] += dk
+        Pc[k + 1] -= dk
+    for k in range(len(N)):
+        Pc[k] -= 3 * N[k]
+        Pc[k + 1] += 6 * N[k]
+    return Pc
+
+
+def stationary_sigmas(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
+    """Every zero of ``dJ̃/dσ`` in ``(0, 1)`` for one vehicle (sorted)."""
+    return unit_roots(stationarity_poly(ex, ey))
+
+
+def _q_one(ex: Sequence[float], ey: Sequence[float], s: float) -> float:
+    """``N(σ)/K̃(σ)`` for one vehicle (scalar Horner)."""
+    px = 0.0
+    for k in range(len(ex) - 1, -1, -1):
+        px = px * s + ex[k]
+    py = 0.0
+    for k in range(len(ey) - 1, -1, -1):
+        py = py * s + ey[k]
+    w = 1.0 - s
+    return (px * px + py * py) * 3.0 / (s * s * s * w * w * w)
+
+
+def one_vehicle_sigma(ex: Sequence[float], ey: Sequence[float]) -> tuple[float, float]:
+    """``(σ*, q*)``: the global minimiser of ``q = N/K̃`` over ``(0, 1)`` and its value;
+    ``(nan, inf)`` if ``J`` has no interior stationary point."""
+    best_s, best_q = float("nan"), float("inf")
+    for s in stationary_sigmas(ex, ey):
+        q = _q_one(ex, ey, s)
+        if q < best_q:
+            best_s, best_q = s, q
+    return best_s, best_q
+
+
+def newton_sigma(vf: ValueFunction, s0: FloatArray, max_iter: int = 60) -> tuple[FloatArray, float]:
+    """Damped Newton on ``∇J̃(σ) = 0`` from ``s0`` with backtracking on ``J̃`` (stays a descent
+    method, inside ``(0, 1)``); the Hessian is the central difference of the closed-form
+    gradient.  Returns ``(σ, q(σ))``."""
+    lo, hi = 1e-12, 1.0 - 1e-12
+    s = np.clip(np.array(s0, dtype=float), lo, hi)
+    q = float(vf.quad_sigma(s[None, :])[0])
+    m = s.size
+    h = 1e-6
+    stencil = np.concatenate([np.eye(m), -np.eye(m)]) * h
+    for _ in range(max_iter):
+        pts = np.vstack([s[None, :], s[None, :] + stencil])
+        with np.errstate(all="ignore"):
+            try:
+                G = vf.gradient_sigma(pts)
+            except np.linalg.LinAlgError:
+                break
+        g = G[0]
+        if not np.all(np.isfinite(G)) or not np.isfinite(q):
+            break
+        Hs = (G[1:m + 1] - G[m + 1:]).T / (2 * h)
+        Hs = 0.5 * (Hs + Hs.T)
+        step = None
+        if np.all(np.isfinite(Hs)) and np.linalg.eigvalsh(Hs)[0] > 0:
+            step = -np.linalg.solve(Hs, g)
+        if step is None:
+            gmax = float(np.max(np.abs(g)))
+            if gmax == 0.0:
+                break
+            step = -g / gmax * 0.02
+        alpha = 1.0
+        accepted = False
+        smax = float(np.max(np.abs(step)))
+        while alpha > 1e-10 and alpha * smax >= 1e-15:  # below that nothing moves
+            sn = np.clip(s + alpha * step, lo, hi)
+            qn = float(vf.quad_sigma(sn[None, :])[0])
+            if qn <= q + 1e-15 * max(1.0, abs(q)):
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break
+        moved = float(np.max(np.abs(sn - s)))
+        s, q = sn, qn
+        if moved < 1e-15:
+            break
+    return s, q
+
+
+def trusted_q(vf: ValueFunction, s: FloatArray) -> float:
+    """``q(σ)`` if it can be trusted as an incumbent of the branch and bound, else ``inf``:
+    the times are distinct (``|σ_i − σ_j| > 1e-6``, below that ``K`` is too ill-conditioned
+    for the closed form) and the closed form agrees with the exact integral of ``|u|²`` of
+    the solved trajectory (``pmp_cost_consistency_rel``)."""
+    from iamp.core.tolerances import tol
+
+    from .fixed import solution_from_sigma, solve_sigma
+
+    ss = np.sort(s)
+    if ss.size > 1 and float(np.min(np.diff(ss))) <= 1e-6:
+        return float("inf")
+    q = float(vf.quad_sigma(s[None, :])[0])
+    try:
+        with np.errstate(all="ignore"):
+            sol = solution_from_sigma(vf.problem, vf.scaled, s, solve_sigma(vf.scaled, s))
+            J_traj = sol.cost() / vf.units.cost
+    except Exception:  # any failure of the check disqualifies the candidate
+        return float("inf")
+    J = vf.scaled.jbar + 0.5 * q
+    if not (np.isfinite(J) and abs(J - J_traj) <= tol("pmp_cost_consistency_rel") * max(abs(J_traj), 1e-300)):
+        return float("inf")
+    return q
+
+
+@dataclass
+class SearchResult:
+    """Outcome of :func:`global_search` (scaled units)."""
+
+    sigma: FloatArray
+    q: float
+    certified: bool
+    boxes: int
+    starts: int
+
+
+def start_points(S: Scaled, max_starts: int = 32) -> list[FloatArray]:
+    """Every combination of the one-vehicle stationary points (each vehicle alone) and one
+    evenly spaced start per ordering of the contact times (sampled beyond ``m = 5``); the
+    caller keeps the best ``max_starts`` by ``J``."""
+    per = []
+    for i in range(S.m):
+        roots = stationary_sigmas(S.EX[i].tolist(), S.EY[i].tolist())
+        per.append(roots if roots else [0.5])
+    combos = [np.array(c) for c in product(*per)]
+    # every ordering of the contact times, evenly spaced (capped at 4·max_starts orderings)
+    m = S.m
+    spaced = (np.arange(m) + 1.0) / (m + 1.0)
+    orders = list(permutations(range(m))) if m <= 5 else []
+    rng = np.random.default_rng(0)
+    if not orders or len(orders) > 4 * max_starts:
+        orders = [tuple(rng.permutation(m)) for _ in range(4 * max_starts)]
+    for perm in orders:
+        start = np.empty(m)
+        start[list(perm)] = spaced
+        combos.append(start)
+    if len(combos) > 8 * max_starts:
+        combos = [combos[k] for k in rng.choice(len(combos), 8 * max_starts, replace=False)]
+    return combos
+
+
+def global_search(vf: ValueFunction, max_starts: int = 32, max_boxes: int = 200_000,
+                  progress: Callable[[int, int], None] | None = None) -> SearchResult:
+    """The global minimiser of ``J̃`` over ``(0, 1)^m`` (module docstring)."""
+    from .basin import Basin, add_basin, in_basins
+    from .bound import branch_and_bound
+
+    S = vf.scaled
+    starts = start_points(S, max_starts)
+    vals = vf.quad_sigma(np.array(starts))
+    order = np.argsort(vals)[:max_starts]
+
+    basins: list[Basin] = []
+    best_q = float("inf")
+
+    def polish(s0: FloatArray) -> tuple[FloatArray, float]:
+        """Newton, then ``q`` — checked by :func:`trusted_q` only if it would improve the
+        incumbent (an untrusted or worse point is never the incumbent either way)."""
+        s, q = newton_sigma(vf, s0)
+        return s, (trusted_q(vf, s) if q < best_q else float("inf"))
+
+    best_s = starts[int(order[0])]
+    for k in order:
+        if in_basins(basins, starts[int(k)], np.zeros(S.m)):
+            continue  # Newton would return to that basin's minimiser
+        s, q = polish(starts[int(k)])
+        add_basin(vf, basins, s)
+        if q < best_q:
+            best_s, best_q = s, q
+
+    bb = branch_and_bound(vf, best_s, best_q, polish, max_boxes=max_boxes, progress=progress, basins=basins)
+    return SearchResult(bb.sigma, bb.q, bb.certified, bb.boxes, len(order))

@@ -1,0 +1,188 @@
+r"""The convex baseline (SPEC §3): the lane change discretised as a QP, with its own
+contact-time search, returning an :class:`iamp.core.plan.Plan`.
+
+The QP itself — data built once (:mod:`iamp.planners.qp.data`), solved on a backend of the
+one registry (:mod:`iamp.planners.qp.backends`: ``osqp``, ``clarabel``, ``piqp``, ``kkt``),
+every solution verified from recomputed KKT residuals — is
+:class:`~iamp.planners.qp.core.DiscretisedQP`.  The QP never sees the PMP's contact times:
+``grid`` sweeps every interior node (every ordered combination of distinct nodes for
+several vehicles; :mod:`iamp.planners.qp.sweep`), ``refine`` then searches off the grid,
+seeded by the sweep (bounded Brent for one vehicle, Nelder–Mead for several), on grids
+aligned with the candidate times (:func:`~iamp.planners.qp.hold.aligned_grid`).
+
+A plan is OPTIMAL only if its best candidate passed the KKT check and no candidate that
+failed could have beaten it (:mod:`iamp.planners.qp.sweep`); otherwise its status says what
+failed and ``plan.info`` says why: ``info["checks"]`` (every check with value and
+tolerance), ``info["failed_check"]``, ``info["candidates"]`` = ``{"total", "solved",
+"failed": {status: count}, "inaccurate"}``.  cvxpy is not used here; it is the independent
+cross-check in :mod:`iamp.comparison.cvxpy_qp`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import optimize
+
+from iamp.core import status as st
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+
+from .backends import BACKENDS
+from .core import CandidateResult, CandidateSolver, DiscretisedQP
+from .hold import HOLDS, HoldTrajectory, aligned_grid
+from .sweep import Progress, SweepResult, run_sweep
+
+__all__ = ["HOLDS", "CandidateResult", "DiscretisedQP", "HoldTrajectory", "QPPlanner", "SweepResult",
+           "aligned_grid"]
+
+
+def _checks_of(r: CandidateResult) -> dict[str, dict[str, Any]]:
+    return {k: dict(v) for k, v in r.checks.items()}
+
+
+@dataclass
+class QPPlanner:
+    """The QP/MPC baseline planner with its own contact-time search.
+
+    Parameters
+    ----------
+    steps : int
+        Grid intervals ``N``.
+    hold : {"foh", "zoh"}
+    solver : {"osqp", "clarabel", "piqp", "kkt"}
+    contact : {"grid", "refine"}
+        ``grid``: best of the sweep over every interior node (combination); ``refine``:
+        then an off-grid search seeded by the sweep, on aligned grids.
+    solver_settings : dict, optional
+        Overrides of the backend's settings (e.g. ``{"eps_abs": 1e-3}`` for a loose OSQP).
+    """
+
+    steps: int = 100
+    hold: str = "foh"
+    solver: str = "clarabel"
+    contact: str = "grid"
+    solver_settings: dict[str, Any] | None = None
+    refine_xtol: float = 1e-9
+
+    path = "native"
+
+    def __post_init__(self) -> None:
+        if self.contact not in ("grid", "refine"):
+            raise ValueError(f"unknown contact search {self.contact!r}; choose grid or refine")
+        if self.hold not in HOLDS:
+            raise ValueError(f"unknown hold {self.hold!r}; choose from {', '.join(HOLDS)}")
+        if self.solver not in BACKENDS:
+            raise ValueError(f"unknown solver {self.solver!r}; choose from {', '.join(BACKENDS)}")
+
+    def build(self, problem: Problem) -> CandidateSolver:
+        """The QP of ``problem`` on the configured backend (built once, re-solved per candidate)."""
+        return DiscretisedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
+
+    def sweep(self, qp: CandidateSolver, progress: Progress | None = None) -> SweepResult:
+        """Solve one QP per candidate node combination (:func:`iamp.planners.qp.sweep.run_sweep`)."""
+        return run_sweep(qp, progress)
+
+    def _refine(self, qp: CandidateSolver, seed: CandidateResult) -> CandidateResult:
+        tf, h = qp.problem.tf, qp.problem.tf / qp.N
+        t0 = seed.contact_times
+        lo = np.maximum(t0 - h, 1e-6 * tf)
+        hi = np.minimum(t0 + h, tf * (1 - 1e-6))
+        best = {"r": seed}
+
+        def f(t: np.ndarray) -> float:
+            try:
+                r = qp.solve_times(np.atleast_1d(t))
+            except ValueError:
+                return float(np.inf)
+            if r.ok and r.cost < best["r"].cost:
+                best["r"] = r
+            return r.cost if r.ok else float(np.inf)
+
+        m = qp.problem.m
+        if m == 1:
+            optimize.minimize_scalar(f, bounds=(lo[0], hi[0]), method="bounded",
+                                     options={"xatol": self.refine_xtol * tf})
+        else:
+            simplex = np.vstack([t0] + [t0 + 0.5 * h * np.eye(m)[k] for k in range(m)])
+            optimize.minimize(f, t0, method="Nelder-Mead",
+                              options={"initial_simplex": simplex, "xatol": self.refine_xtol * tf,
+                                       "fatol": 1e-14, "maxiter": 2000})
+        return best["r"]
+
+    def _plan(self, problem: Problem, r: CandidateResult | None, status: str, start: float,
+              info: dict[str, Any]) -> Plan:
+        ok = r is not None and status in st.SUCCESS and r.trajectory is not None
+        m = problem.m
+        res = Plan(problem=problem, planner="qp", status=status,
+                   cost=r.cost if ok and r is not None else None,
+                   contact_times=r.contact_times if r is not None else np.full(m, np.nan),
+                   jumps=r.multipliers if ok and r is not None and r.multipliers is not None
+                   else np.full((m, 2), np.nan),
+                   trajectory=r.trajectory if ok and r is not None else None,
+                   solve_time_s=time.perf_counter() - start, solver=self.solver, hold=self.hold,
+                   steps=self.steps, info=info)
+        if ok:
+            res.residuals = {"boundary": res.boundary_residual(), "interior_constraint": res.corner_residual()}
+        if r is not None and r.kkt is not None:
+            res.residuals.update({f"kkt_{k}": v for k, v in r.kkt.as_dict().items() if k.endswith("_rel")})
+        return res
+
+    def plan(self, problem: Problem, qp: CandidateSolver | None = None,
+             progress: Progress | None = None) -> Plan:
+        """Sweep (and optionally refine) the contact times, then report the best QP."""
+        start = time.perf_counter()
+        qp = qp or self.build(problem)
+        sw = self.sweep(qp, progress)
+        info: dict[str, Any] = {"path": self.path, "sweep": sw.table, "failures": sw.failures,
+                                "candidates": sw.candidates(),
+                                "unpolished": sum(r.polished is False for r in sw.results)}
+        best = sw.best
+        if best is None:
+            failed = Counter(r.failed_check for r in sw.results if r.failed_check)
+            worst = max(sw.results, key=lambda r: r.kkt.worst_rel()[1] if r.kkt is not None else -1.0)
+            info.update(n_solves=qp.n_solves, checks=_checks_of(worst),
+                        failed_check=failed.most_common(1)[0][0] if failed else "sweep_candidates",
+                        why="no candidate of the sweep solved to a verified optimum")
+            return self._plan(problem, None, sw.failure_status(), start, info)
+        info["grid_best"] = {"contact_times": best.contact_times.tolist(), "cost": best.cost}
+        if self.contact == "refine":
+            best = self._refine(qp, best)
+        info["n_solves"] = qp.n_solves
+        checks = _checks_of(best)
+        checks["sweep_candidates"] = {"value": len(sw.could_beat), "tol": 0, "ok": sw.certified}
+        info["checks"] = checks
+        if sw.certified:
+            info["failed_check"] = None
+            return self._plan(problem, best, st.OPTIMAL, start, info)
+        info["failed_check"] = "sweep_candidates"
+        nodes, why_status, bound = min(sw.could_beat, key=lambda c: c[2])
+        info["why"] = (f"{len(sw.could_beat)} candidate(s) without a verified solution could beat the best "
+                       f"(J = {best.cost:.9g}): e.g. nodes {nodes} ({why_status}) has the lower bound "
+                       f"J_PMP = {bound:.9g}")
+        info["could_beat"] = [{"nodes": list(n), "status": s, "lower_bound": lb} for n, s, lb in sw.could_beat]
+        info["best_unverified_search"] = {"contact_times": best.contact_times.tolist(), "cost": best.cost}
+        return self._plan(problem, best, sw.failure_status(), start, info)
+
+    def plan_at_nodes(self, problem: Problem, nodes: Sequence[int]) -> Plan:
+        """Solve once with the contacts at given nodes of the uniform grid (no search)."""
+        start = time.perf_counter()
+        r = self.build(problem).solve_nodes(nodes)
+        return self._single(problem, r, start)
+
+    def plan_at_times(self, problem: Problem, times: Sequence[float]) -> Plan:
+        """Solve once on a grid aligned with given contact times (no search)."""
+        start = time.perf_counter()
+        r = self.build(problem).solve_times(times)
+        return self._single(problem, r, start)
+
+    def _single(self, problem: Problem, r: CandidateResult, start: float) -> Plan:
+        info: dict[str, Any] = {"path": self.path, "solver_time_s": r.solver_time_s, "polished": r.polished,
+                                "iterations": r.iterations, "checks": _checks_of(r),
+                                "failed_check": r.failed_check, "solver_status": r.raw_status}
+        return self._plan(problem, r, r.status, start, info)

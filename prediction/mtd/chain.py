@@ -1,0 +1,138 @@
+r"""Propagation and sampling of an MTD chain.
+
+Marginal propagation (the paper's eq. ``prediction``): with ``\hat x_{t-i}`` the state
+distributions of the last ``n`` steps (one-hot for observed states),
+
+.. math::
+
+    \hat x_t = \sum_{i=1}^{n} λ_i\, Q_i\, \hat x_{t-i}.
+
+Sampling uses the latent-lag form: at every step a lag ``i`` is drawn with probability
+``λ_i`` and the next state from column ``x_{t-i}`` of ``Q_i``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from iamp.prediction._typing import FloatArray, IntArray
+
+from .model import MTDModel
+
+__all__ = ["propagate", "propagate_batch", "sample"]
+
+
+def _initial_distributions(model: MTDModel, init: Any) -> FloatArray:
+    init = np.asarray(init)
+    if init.ndim == 1:
+        idx = init.astype(np.int64)
+        if idx.size < model.order:
+            raise ValueError(f"needs at least {model.order} initial states (got {idx.size})")
+        if idx.min() < 0 or idx.max() >= model.n_states:
+            raise ValueError("initial states out of range")
+        D = np.zeros((idx.size, model.n_states))
+        D[np.arange(idx.size), idx] = 1.0
+        return D
+    if init.ndim == 2 and init.shape[1] == model.n_states and init.shape[0] >= model.order:
+        return np.asarray(init, dtype=float)
+    raise ValueError("init must be a state sequence or an array of distributions (T, m)")
+
+def propagate(model: MTDModel, init: Any, steps: int) -> FloatArray:
+    r"""Propagate state distributions ``\hat x_t = Σ_i λ_i Q_i \hat x_{t-i}``.
+
+    Parameters
+    ----------
+    init : array_like
+        The past, oldest first: either at least ``n`` state indices (turned into one-hot
+        vectors) or an array ``(T, m)`` of distributions with ``T >= n``.
+    steps : int
+        Number of future steps.
+
+    Returns
+    -------
+    numpy.ndarray, shape (steps, m)
+        Row ``s`` is ``\hat x`` at ``s + 1`` steps after the last given state.
+    """
+    D = _initial_distributions(model, init)
+    n = model.order
+    hist = [D[-1 - i] for i in range(n)]  # hist[i] = \hat x_{t-1-i}
+    out = np.empty((int(steps), model.n_states))
+    W = model.Q * model.lam[:, None, None]
+    for s in range(int(steps)):
+        x = W[0] @ hist[0]
+        for i in range(1, n):
+            x = x + W[i] @ hist[i]
+        out[s] = x
+        hist = [x] + hist[:-1]
+    return out
+
+def propagate_batch(model: MTDModel, init_states: IntArray, steps: int) -> FloatArray:
+    """Vectorised :meth:`propagate` for many one-hot pasts.
+
+    Parameters
+    ----------
+    init_states : numpy.ndarray of int, shape (B, T)
+        ``B`` pasts of ``T >= n`` states each, oldest first.
+    steps : int
+
+    Returns
+    -------
+    numpy.ndarray, shape (B, steps, m)
+    """
+    S = np.asarray(init_states, dtype=np.int64)
+    B = S.shape[0]
+    n, m = model.order, model.n_states
+    W = model.Q * model.lam[:, None, None]
+    # hist[i] : (B, m) distribution at t-1-i ; Q_i x  ->  x @ Q_i^T
+    hist = [np.eye(m)[S[:, -1 - i]] for i in range(n)]
+    out = np.empty((B, int(steps), m))
+    WT = np.transpose(W, (0, 2, 1))
+    for s in range(int(steps)):
+        x = hist[0] @ WT[0]
+        for i in range(1, n):
+            x = x + hist[i] @ WT[i]
+        out[:, s] = x
+        hist = [x] + hist[:-1]
+    return out
+
+def sample(model: MTDModel, init: Any, steps: int, n_samples: int, rng: Any = None) -> IntArray:
+    """Draw state paths from the chain.
+
+    At every step a lag ``i`` is drawn with probability ``λ_i`` and the next state from
+    column ``x_{t-i}`` of ``Q_i`` (the latent-lag form of the MTD model).
+
+    Parameters
+    ----------
+    init : array_like of int
+        At least ``n`` past states, oldest first.
+    steps, n_samples : int
+    rng : numpy.random.Generator or int or None
+
+    Returns
+    -------
+    numpy.ndarray of int, shape (n_samples, steps)
+    """
+    rng = np.random.default_rng(rng)
+    init = np.asarray(init, dtype=np.int64)
+    if init.size < model.order:
+        raise ValueError(f"needs at least {model.order} initial states")
+    n = model.order
+    buf = np.empty((n_samples, n + int(steps)), dtype=np.int64)
+    buf[:, :n] = init[-n:]
+    # inverse-CDF sampling with u in [0, 1): the last CDF value is set to exactly 1 (not a
+    # round-off 1 - 1e-16), so the drawn index never exceeds the last state / lag
+    cdf = np.cumsum(model.Q, axis=1)  # (n, m, m): cdf over j for each column k
+    cdf[:, -1, :] = 1.0
+    lam_cdf = np.cumsum(model.lam)
+    lam_cdf[-1] = 1.0
+    rows = np.arange(n_samples)
+    for s in range(int(steps)):
+        t = n + s
+        lag = np.searchsorted(lam_cdf, rng.random(n_samples), side="right")  # 0-based: lag i = lag + 1
+        src = buf[rows, t - 1 - lag]
+        col_cdf = cdf[lag, :, src]  # (n_samples, m)
+        u = rng.random(n_samples)
+        buf[:, t] = (col_cdf < u[:, None]).sum(axis=1)
+    return buf[:, n:]

@@ -1,0 +1,98 @@
+"""The JSON file format of an MTD model (``format: iamp-mtd/1``).
+
+Keys: ``format``, ``orientation`` (column-stochastic ``Q[i-1][j][k] = P(x_t = j | x_{t-i} = k)``),
+``order``, ``n_states``, ``dt``, ``state``, ``settings``, ``bins`` (``edges``, ``centres``),
+``estimator``, ``lambda``, ``Q``, ``counts``, ``loglik``, ``n_obs``, ``n_parameters``, ``aic``,
+``bic``, ``fit_info``, ``provenance``.  Files are written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from iamp.core.atomic import write_text as atomic_write_text
+
+from .model import FORMAT, ModelFileError, MTDModel
+
+__all__ = ["load_model", "model_from_dict", "model_to_dict", "save_model"]
+
+
+def model_to_dict(model: MTDModel) -> dict[str, Any]:
+    """A JSON-serialisable description (see :meth:`save`)."""
+    return {
+        "format": FORMAT,
+        "orientation": "column-stochastic: Q[i-1][j][k] = P(x_t = j | x_{t-i} = k)",
+        "order": model.order,
+        "n_states": model.n_states,
+        "dt": model.dt,
+        "state": model.state,
+        "settings": model.settings,
+        "bins": {
+            "quantity": "longitudinal acceleration [m/s^2]",
+            "edges": None if model.edges is None else model.edges.tolist(),
+            "centres": None if model.centres is None else model.centres.tolist(),
+        },
+        "estimator": model.estimator,
+        "lambda": model.lam.tolist(),
+        "Q": model.Q.tolist(),
+        "counts": None if model.counts is None else model.counts.astype(int).tolist()
+        if np.all(model.counts == np.round(model.counts)) else model.counts.tolist(),
+        "loglik": model.loglik if math.isfinite(model.loglik) else None,
+        "n_obs": model.n_obs,
+        "n_parameters": model.n_parameters,
+        "aic": model.aic if math.isfinite(model.loglik) else None,
+        "bic": model.bic if math.isfinite(model.loglik) else None,
+        "fit_info": model.fit_info,
+        "provenance": model.provenance,
+    }
+
+
+def save_model(model: MTDModel, path: Any) -> Path:
+    """Write the model as JSON, atomically (temporary file + ``os.replace``)."""
+    out = Path(path)
+    text = json.dumps(model_to_dict(model), indent=1, allow_nan=False) + "\n"
+    atomic_write_text(out, text)
+    return out
+
+
+def model_from_dict(d: Any, source: str | None = None) -> MTDModel:
+    """Build a model from :meth:`to_dict` output; raises :class:`ModelFileError`."""
+    if not isinstance(d, dict):
+        raise ModelFileError("must be a JSON object", None, source)
+    if d.get("format") != FORMAT:
+        raise ModelFileError(f"unsupported format {d.get('format')!r} (expected {FORMAT!r})",
+                             "format", source)
+    for key in ("Q", "lambda", "order"):
+        if key not in d:
+            raise ModelFileError("is missing", key, source)
+    bins = d.get("bins") or {}
+    try:
+        model = MTDModel(Q=d["Q"], lam=d["lambda"], estimator=str(d.get("estimator", "given")),
+                    edges=bins.get("edges"), centres=bins.get("centres"), dt=d.get("dt"),
+                    state=d.get("state"), settings=d.get("settings") or {}, counts=d.get("counts"),
+                    loglik=float(d["loglik"]) if d.get("loglik") is not None else float("nan"),
+                    n_obs=int(d.get("n_obs", 0)), provenance=d.get("provenance") or {},
+                    fit_info=d.get("fit_info") or {})
+    except (ValueError, TypeError) as exc:
+        raise ModelFileError(str(exc), None, source) from None
+    if model.order != int(d["order"]):
+        raise ModelFileError(f"says {d['order']} but Q has {model.order} lags", "order", source)
+    return model
+
+def load_model(path: Any) -> MTDModel:
+    """Read a model written by :meth:`save`; raises :class:`ModelFileError`."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelFileError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(path)) from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ModelFileError(f"is not valid JSON ({exc})", None, str(path)) from None
+    return model_from_dict(d, source=str(path))
