@@ -45,7 +45,7 @@ COLUMNS = ("mission", "planner", "traffic", "seed", "cooperation", "sublane", "d
            "simulated_s", "distance_to_end_m", "success", "time_to_merge_s", "stopped_at_end", "contacts",
            "overlap_contacts", "sumo_contacts", "mingap_violations", "min_ttc_s", "ttc_below_1_5_s",
            "new_follower", "follower_max_decel", "ego_peak_accel", "ego_ax_min", "ego_ax_max", "ego_ay_peak",
-           "ego_jerk_peak", "limit_violations", "jerk_violations", "lane_change_done_s", "lane_changes",
+           "ego_jerk_peak", "limit_violations", "jerk_violations", "ego_lost", "lane_change_done_s", "lane_changes",
            "intrusion_s", "min_gap_m", "min_follower_accel", "rms_accel_x", "rms_accel_y", "rms_jerk_x",
            "rms_jerk_y", "plan_time_p50_s", "plan_time_p95_s", "plan_time_max_s", "plans", "planner_calls",
            "executed_plans", "constrained_plans", "infeasible_plans", "rejected", "late_plans", "fallbacks",

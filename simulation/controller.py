@@ -2,10 +2,11 @@ r"""The closed-loop controller: observe, predict (batched), decide, plan, apply 
 
 Modes
 -----
-* ``seek`` — SUMO's Krauss drives the ego in its lane (no own lane changes).  Every period
-  the decision layer (:mod:`iamp.simulation.decision`) tries the candidate gaps with the
-  planner and accepts the first verified, bounded, intrusion-free plan; ``mobil`` asks MOBIL
-  about the adjacent gap instead; ``sumo`` has asked LC2013 once and waits.
+* ``seek`` — SUMO's Krauss drives the ego in its lane (no own lane changes).  Every
+  ``seek_every_s`` (0.3 s, three periods; the same for ``mobil``) the decision layer
+  (:mod:`iamp.simulation.decision`) tries the candidate gaps with the planner and accepts
+  the first verified, bounded, intrusion-free plan; ``mobil`` asks MOBIL about the adjacent
+  gap instead; ``sumo`` has asked LC2013 once and waits.
 * ``active`` — the accepted manoeuvre.  Every period the problem into the **committed gap**
   (the same follower and leader, by name) is rebuilt from the measured state and fresh
   predictions with the remaining horizon ``t_f = t_end - t`` and planned again; the new plan
@@ -67,6 +68,7 @@ class ControllerConfig:
 
     decision: DecisionConfig = field(default_factory=DecisionConfig)
     min_replan_s: float = 0.5
+    seek_every_s: float = 0.3
     hold_s: float = 5.0
     brake: float = 3.0
     kp: float = 2.25
@@ -135,6 +137,7 @@ class Controller:
         self.committed: tuple[str | None, str | None] = (None, None)
         self.lateral: np.ndarray | None = None  # mobil: the lateral cubic
         self.lat_t0 = 0.0
+        self.next_seek = -math.inf
 
     # -- prediction ---------------------------------------------------------------------------
     def neighbours(self, obs: Observation, ego: EgoState, tf: float) -> list[Neighbour]:
@@ -233,6 +236,9 @@ class Controller:
         dt = self.sim.step
         cfg = self.cfg.decision
         if self.mode == "seek":
+            if t + 1e-9 < self.next_seek:
+                return None
+            self.next_seek = t + self.cfg.seek_every_s
             nbs = self.neighbours(obs, ego, cfg.horizon_s)
             verdict, all_v = decide(self.ego_now(ego), self.y_target(), self.target, self.origin, nbs,
                                     self._plan, cfg)
@@ -307,10 +313,17 @@ class Controller:
 
     def _brake(self, ego: EgoState) -> EgoState:
         """Brake in lane towards the centre of the lane the ego is in (exact for one step of
-        constant input)."""
+        constant input): ``brake``, or harder (up to the passenger car's ``a_x`` bound) to stop
+        1 m before the end of an ending lane, ``a = v²/(2 d)``."""
         cfg, dt = self.cfg, self.sim.step
-        y_lane = self.sim.highway.lane_centre(self.sim.highway.lane_of(ego.y))
-        ax = -cfg.brake if ego.vx > cfg.brake * dt else -ego.vx / dt
+        lane = self.sim.highway.lane_of(ego.y)
+        y_lane = self.sim.highway.lane_centre(lane)
+        brake = cfg.brake
+        drop = self.mission.drop_x
+        if drop is not None and lane == self.mission.ego_lane:  # stop before the lane's end: v²/2d
+            room = drop - (ego.x + self.sim.ego_length / 2) - 1.0
+            brake = max(brake, min(ego.vx**2 / (2 * max(room, 0.1)), -(PASSENGER_CAR.ax or (-6.0, 0.0))[0]))
+        ax = -brake if ego.vx > brake * dt else -ego.vx / dt
         ay = -cfg.kp * (ego.y - y_lane) - cfg.kd * ego.vy
         return EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt,
                         y=ego.y + ego.vy * dt + ay * dt**2 / 2, vy=ego.vy + ay * dt, ax=ax, ay=ay)
@@ -334,6 +347,9 @@ class Controller:
         cars = self._cars(obs, ego)
         me = Car(ego.x, ego.vx, self.sim.ego_length)
         if self.mode == "seek":
+            if t + 1e-9 < self.next_seek:
+                return None
+            self.next_seek = t + cfg.seek_every_s
             start = time.perf_counter()
             ok, reason = mobil_accepts(idm, cfg.mobil, me, cars["ol"], cars["of"], cars["nl"], cars["nf"],
                                        mandatory=self.mission.lane_end_m is not None or not self.mission.alternating)

@@ -77,7 +77,8 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
     The warm-up lasts ``warmup_s`` and until the ego's centre reaches the mission's
     ``start_x``; the mission clock then runs until ``duration_s``, or ``settle_s`` after the
     mission is done (the target lane reached, not alternating), or 3 s after the ego stood
-    still at its lane's end.
+    still at its lane's end, or at once when its front passes that end still in its lane (SUMO
+    would move it; the mission has failed).
     """
     spec.validate()
     wall0 = time.perf_counter()
@@ -106,6 +107,7 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
         x_start = ego.x
         n_steps = int(round(spec.duration_s / spec.period_s))
         driven = False
+        lost = False
         end_at = math.inf
         still = 0.0
         for _ in range(n_steps):
@@ -115,6 +117,9 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
             obs = sim.observe()
             if not driven:
                 ego = sim.ego()
+                if not (math.isfinite(ego.x) and abs(ego.x) < 1e5):  # SUMO took the ego off the road
+                    lost = True
+                    break
             n_plans = len(ctl.n.plan_times)
             nxt = ctl.step(t, obs, ego)
             plan_time = ctl.n.plan_times[-1] if len(ctl.n.plan_times) > n_plans else math.nan
@@ -128,6 +133,9 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
             if not mission.alternating and math.isinf(end_at) and hw.lane_of(ego.y) == mission.target_lane \
                     and ctl.mode in ("done", "seek", "sumo"):
                 end_at = t + spec.settle_s
+            if mission.drop_x is not None and ego.x + sim.ego_length / 2 > mission.drop_x \
+                    and hw.lane_of(ego.y) == mission.ego_lane and math.isinf(end_at):
+                end_at = t  # the front passed the end of its lane: the mission failed (SUMO would move it)
             if mission.drop_x is not None and ego.vx < 0.5 and ego.x + sim.ego_length / 2 > mission.drop_x - 30.0:
                 still += spec.period_s
                 if still >= 3.0 and math.isinf(end_at):
@@ -158,6 +166,7 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
         "simulated_s": round(len(log.t) * spec.period_s, 10),
         "distance_to_end_m": None if mission.drop_x is None else float(mission.drop_x - x_start),
         **measured,
+        "ego_lost": lost,
         "lane_change_done_s": None if not n.done_t else round(n.done_t[0], 10),
         "lane_changes": n.lane_changes,
         "collisions": measured["contacts"],

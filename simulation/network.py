@@ -92,12 +92,16 @@ class Highway:
     speed_limit: float = 33.33
     edge: str = "hw"
     #: ``x`` where the rightmost lane ends (a lane drop; ``None``: no drop).  Upstream of it the
-    #: road is edge ``hw1`` (``lanes`` lanes), downstream ``hw2`` (``lanes - 1``; lane ``k`` of
-    #: ``hw2`` continues lane ``k + 1`` of ``hw1``, lane 0 has no successor).
+    #: road is edge ``hw1``, downstream ``hw2``; both have ``lanes`` lanes of the same geometry
+    #: (so the junction between them has no length: with ``--no-internal-links`` a junction of
+    #: 8 m, which netconvert makes where the lane count changes, made every vehicle jump 8 m),
+    #: but lane 0 of ``hw2`` is closed (``disallow="all"``) and lane 0 of ``hw1`` has no
+    #: successor.
     drop_x: float | None = None
     #: ``x`` where an on-ramp joins (``None``: no ramp).  Upstream of it (edge ``hw0``) lane 0 is
-    #: the ramp with speed limit ``ramp_speed``; from ``ramp_x`` to ``drop_x`` it is the
-    #: acceleration lane.
+    #: the ramp with speed limit ``ramp_speed``, separated from lane 1 (no vehicle class may
+    #: change between them: ``changeLeft``/``changeRight`` only for ``custom1``, which nobody
+    #: is); from ``ramp_x`` to ``drop_x`` it is the acceleration lane.
     ramp_x: float | None = None
     ramp_speed: float = 16.67
 
@@ -115,7 +119,8 @@ class Highway:
         return out
 
     def edge_at(self, x: float) -> tuple[str, float, int]:
-        """``(edge id, its start x, the global index of its lane 0)`` of the edge containing ``x``."""
+        """``(edge id, its start x, its first open lane)`` of the edge containing ``x`` (lane
+        indices are the same on every edge)."""
         segs = self.segments()
         for eid, x0, x1, n in segs:
             if x < x1:
@@ -139,7 +144,7 @@ class Highway:
 
     def key(self) -> str:
         text = (f"{self.length:.3f}|{self.lanes}|{self.lane_width:.3f}|{self.speed_limit:.3f}|{self.edge}|"
-                f"{self.drop_x}|{self.ramp_x}|{self.ramp_speed:.3f}")
+                f"{self.drop_x}|{self.ramp_x}|{self.ramp_speed:.3f}|closed-lane")
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def nodes_xml(self) -> str:
@@ -153,20 +158,21 @@ class Highway:
     def edges_xml(self) -> str:
         lines = ['<edges>']
         for k, (eid, _, _, n) in enumerate(self.segments()):
-            ramp = eid == "hw0"
-            lines.append(f'    <edge id="{eid}" from="n{k}" to="n{k + 1}" numLanes="{n}" '
+            inner = ([f'        <lane index="0" speed="{self.ramp_speed:.3f}" changeLeft="custom1"/>',
+                      '        <lane index="1" changeRight="custom1"/>'] if eid == "hw0" else [])
+            inner += [f'        <lane index="{j}" disallow="all"/>' for j in range(self.lanes - n)]
+            lines.append(f'    <edge id="{eid}" from="n{k}" to="n{k + 1}" numLanes="{self.lanes}" '
                          f'speed="{self.speed_limit:.3f}" width="{self.lane_width:.3f}" priority="1"'
-                         + (f'>\n        <lane index="0" speed="{self.ramp_speed:.3f}"/>\n    </edge>'
-                            if ramp else '/>'))
+                         + (">\n" + "\n".join(inner) + "\n    </edge>" if inner else "/>"))
         return "\n".join(lines + ['</edges>']) + "\n"
 
     def connections_xml(self) -> str:
         """Lane-to-lane connections: straight on; the dropped lane 0 has none."""
         segs = self.segments()
         lines = ['<connections>']
-        for (a, _, _, na), (b, _, _, nb) in zip(segs, segs[1:]):
-            for k in range(na - nb, na):
-                lines.append(f'    <connection from="{a}" to="{b}" fromLane="{k}" toLane="{k - (na - nb)}"/>')
+        for (a, _, _, _), (b, _, _, nb) in zip(segs, segs[1:]):
+            for k in range(self.lanes - nb, self.lanes):
+                lines.append(f'    <connection from="{a}" to="{b}" fromLane="{k}" toLane="{k}"/>')
         return "\n".join(lines + ['</connections>']) + "\n"
 
 

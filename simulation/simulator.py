@@ -238,7 +238,7 @@ class Simulator:
         half = self.ego_length / 2
         fx, fy = state.x + half * math.cos(psi), state.y + half * math.sin(psi)
         eid, _, first = self.highway.edge_at(fx)
-        lane = max(self.highway.lane_of(state.y) - first, 0)
+        lane = max(self.highway.lane_of(state.y), first)
         ls.vehicle.setSpeedMode(EGO, SPEED_UNCHECKED)
         ls.vehicle.moveToXY(EGO, eid, lane, fx, fy, 90.0 - math.degrees(psi), 2)
         ls.vehicle.setSpeed(EGO, max(math.hypot(state.vx, state.vy), 0.0))
@@ -255,7 +255,7 @@ class Simulator:
         ls = self._ls
         ls.vehicle.setLaneChangeMode(EGO, LC_REQUEST_SAFE)
         _, _, first = self.highway.edge_at(self.ego().x)
-        ls.vehicle.changeLane(EGO, int(lane) - first, float(duration))
+        ls.vehicle.changeLane(EGO, max(int(lane), first), float(duration))
 
     def ego_lane_index(self) -> int:
         """The ego's global lane index (from its centre's ``y``)."""

@@ -122,7 +122,7 @@ def routes_xml(traffic: str, seed: int, *, lanes: int, edge: str, ego_pos: float
         eid, x0, first = highway.edge_at(pos)
         if lane < first:
             return None
-        return f"r_{eid}", pos - x0, lane - first
+        return f"r_{eid}", pos - x0, lane
 
     if highway is None:
         lines.append(f'    <route id="r0" edges="{edge}"/>')
