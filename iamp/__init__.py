@@ -28,6 +28,7 @@ from iamp.core.errors import (
     HistoryError,
     IampError,
     MissingDependencyError,
+    OptionError,
     ScenarioError,
     SolverError,
 )
@@ -42,6 +43,7 @@ __all__ = [
     "HistoryError",
     "IampError",
     "MissingDependencyError",
+    "OptionError",
     "Plan",
     "Prediction",
     "Predictor",

@@ -27,12 +27,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from iamp.core.errors import ScenarioError
+from iamp.core.errors import OptionError, ScenarioError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
+from iamp.planners import registry
 
-PLANNERS = ("pmp", "qp")
-CONSTRAINTS = ("equality", "avoid")
+#: The planner families and constraint kinds of the registry (:mod:`iamp.planners.registry`).
+PLANNERS = registry.planners()
+CONSTRAINTS = registry.constraints()
 
 
 def load_scenario(spec: str | Path, model: str | Path | None = None) -> Problem:
@@ -54,17 +56,20 @@ def load_scenario(spec: str | Path, model: str | Path | None = None) -> Problem:
 
 
 def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, hold: str | None = None,
-         steps: int = 100, contact: str | None = None, constraint: str = "equality") -> Plan:
+         steps: int = 100, contact: str | None = None, constraint: str = "equality", **options: Any) -> Plan:
     """Plan the lane change of ``problem``.
 
     Parameters
     ----------
     problem : Problem
-    planner : {"pmp", "qp"}
+    planner : str
+        A planner family of the registry (:func:`iamp.planners.registry.planners`):
         ``"pmp"`` (default): the indirect method with jump conditions, global contact times.
         ``"qp"``: the discretised QP on a uniform grid ``t_k = k t_f / N``.
-    solver : {"clarabel", "osqp", ...}, optional
-        QP backend (default ``"clarabel"``); QP only.
+    solver : {"clarabel", "osqp", "piqp", "kkt"}, optional
+        QP backend (default ``"clarabel"``; every backend of
+        :data:`iamp.planners.qp.backends.BACKENDS`; the avoidance QP refuses ``kkt``, which
+        solves equality-constrained QPs only); QP only.
     hold : {"foh", "zoh"}, optional
         Input hold of the QP (default ``"foh"``, which is exact: SPEC §3.1); QP only.
     steps : int
@@ -75,6 +80,10 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
     constraint : {"equality", "avoid"}
         The paper's interior-point equality (default) or the avoidance inequalities of
         SPEC §10 (QP only).
+    **options
+        Further fields of the chosen planner's options dataclass (the registry entry's
+        ``options``, e.g. :class:`~iamp.planners.pmp.options.PMPOptions` ``max_starts``);
+        a name the planner does not have is an :class:`iamp.OptionError` listing its options.
 
     Returns
     -------
@@ -84,38 +93,38 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
 
     Raises
     ------
-    iamp.ScenarioError
-        An option that does not exist or does not apply to the chosen planner.
+    iamp.OptionError
+        An option (planner, constraint, solver, hold, contact, steps) that does not exist, has an
+        invalid value or does not apply to the chosen planner; the message names the choices.
+        It derives from :class:`iamp.ScenarioError` and :class:`iamp.IampError`.
     """
     if not isinstance(problem, Problem):
         raise ScenarioError(f"must be an iamp.Problem (got {type(problem).__name__})", "problem")
-    if planner not in PLANNERS:
-        raise ScenarioError(f"unknown planner {planner!r}; choose from {', '.join(PLANNERS)}", "planner")
-    if constraint not in CONSTRAINTS:
-        raise ScenarioError(f"unknown constraint {constraint!r}; choose from {', '.join(CONSTRAINTS)}", "constraint")
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
-        raise ScenarioError(f"must be a positive integer (got {steps!r})", "steps")
-    if planner == "pmp":
-        options = (("solver", solver), ("hold", hold), ("contact", contact))
-        given = [name for name, value in options if value is not None]
-        if given:
-            raise ScenarioError("applies to the QP only (planner='qp')", given[0])
-        if constraint != "equality":
-            raise ScenarioError("the PMP planner implements the paper's equality only; use planner='qp'",
-                                "constraint")
-        from iamp.planners.pmp.planner import PMPPlanner
+        raise OptionError(f"must be a positive integer (got {steps!r})", "steps")
+    spec = registry.lookup(planner, constraint)
+    given = {"solver": solver, "hold": hold, "contact": contact}
+    for name, value in given.items():
+        if value is not None and name not in spec.option_names():
+            for other in registry.REGISTRY.values():  # an invalid value: name the choices first
+                if name in other.option_names():
+                    try:
+                        other.make_options(**{name: value})
+                    except OptionError as exc:
+                        raise OptionError(f"{exc.message} ({refusal(name, spec)})", name) from None
+            raise OptionError(refusal(name, spec), name)
+    values = {**registry.options_of(spec, {"steps": steps, **given}), **options}
+    result: Plan = spec.make(**values).plan(problem)
+    return result
 
-        result: Plan = PMPPlanner().plan(problem)
-        return result
-    kwargs: dict[str, Any] = {"steps": steps, "hold": hold or "foh", "solver": solver or "clarabel",
-                              "contact": contact or "grid"}
-    if constraint == "avoid":
-        from iamp.planners.avoid.planner import AvoidQPPlanner
 
-        return AvoidQPPlanner(**kwargs).plan(problem)
-    from iamp.planners.qp.planner import QPPlanner
-
-    return QPPlanner(**kwargs).plan(problem)
+def refusal(option: str, spec: registry.PlannerSpec) -> str:
+    """Why ``option`` does not apply to ``spec``'s planner, naming the planners it applies to."""
+    accept = registry.accepting(option)
+    if accept == ("qp",):
+        return "applies to the QP only (planner='qp')"
+    return (f"does not apply to planner {spec.planner!r}"
+            + (f" (it applies to planner {' or '.join(repr(a) for a in accept)})" if accept else ""))
 
 
 def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,

@@ -31,7 +31,8 @@ After ``T = horizon_s`` the ego is at the target lane's centre ``y_f`` with ``v_
   the part of the predicted gap at ``T`` that leaves a bumper-to-bumper headway
   ``headway_s·v_{x,f}`` to ``f`` and ``l`` (its middle if the gap is shorter).
 
-The constraint set (a change to the left, +y; mirrored to the right): the target-lane
+The problem carries ``cfg.limits`` (:data:`~iamp.core.physical.PASSENGER_CAR`) as
+``Problem.limits``.  The constraint set (a change to the left, +y; mirrored to the right): the target-lane
 follower ``f`` → ``front-lower``, the target-lane leader ``l`` → ``rear-lower``, the current
 lane's leader ``c`` → ``rear-upper``; safety region ``S_x × S_y`` (SPEC §8: 5 m, 0.5 m)
 around each body.  A vehicle whose corner the ego has already passed laterally is met and
@@ -176,7 +177,7 @@ def lane_change_problem(ego: EgoNow, y_target: float, gap: Gap, current_leader: 
         sv = _vehicle(n, corner, cfg, sx)
         if d * (ego.y - sv.corner_y) < 0:  # not yet passed laterally
             vehicles.append(sv)
-    return Problem(boundary, tuple(vehicles)) if vehicles else boundary
+    return Problem(boundary, tuple(vehicles), "lane-change", cfg.limits) if vehicles else boundary
 
 
 def check_problem(boundary: EgoBoundary, ego: EgoNow, neighbours: Sequence[Neighbour], lanes: Sequence[int],

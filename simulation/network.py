@@ -50,7 +50,7 @@ def find_binary(name: str) -> str:
     :func:`sumolib.checkBinary` (``$SUMO_HOME``, ``$<NAME>_BINARY``, ``PATH``).
     """
     try:
-        import sumo  # type: ignore[import-untyped]  # the eclipse-sumo wheel
+        import sumo  # the eclipse-sumo wheel (typed as Any: pyproject mypy overrides)
 
         cand = Path(sumo.SUMO_HOME) / "bin" / name
         if cand.is_file() and os.access(cand, os.X_OK):

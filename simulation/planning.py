@@ -4,22 +4,28 @@ Every iamp planner receives the same problem from the decision layer
 (:mod:`iamp.simulation.decision`): the target-lane follower, the target-lane leader and the
 current-lane leader, each with its paper corner.
 
-* ``pmp`` — :class:`iamp.planners.pmp.PMPPlanner`, the paper's equality on **every** vehicle of
-  the problem (global contact times).
-* ``qp`` — the discretised QP with the same equality constraints (SPEC §3), FOH, ``N = 20``
-  intervals over the (shrinking) horizon, contact nodes by ``refine`` (a grid sweep over
-  three vehicles would solve ~6000 QPs a period), the exact KKT backend.
+* ``pmp`` — the registry's ``pmp`` (:class:`iamp.planners.pmp.planner.PMPPlanner`), the paper's
+  equality on **every** vehicle of the problem (global contact times; the branch-and-bound box
+  budget is :data:`PMP_BOXES`).
+* ``qp`` — the registry's ``qp``: the discretised QP with the same equality constraints
+  (SPEC §3), FOH, ``N = QP_STEPS`` intervals over the (shrinking) horizon, contact nodes by the
+  grid sweep, the exact KKT backend.
 * ``pmp-active`` — the PMP with SPEC §14's active set (:func:`active_set_plan`): start from the
   unconstrained plan, impose the corner of the vehicle whose safety region it enters most
   deeply, drop a vehicle whose jump has the dragging sign, repeat.  One function, so that the
   planner's own ``constraint="active"`` (being built on branch ``avoid``) can replace it.
-* ``qp-avoid`` — the avoidance QP of SPEC §10/§14 (``iamp.planners.avoid.AvoidQPPlanner``,
-  Clarabel, FOH, ``N = 20``, every vehicle as an inequality).
+* ``qp-avoid`` — the registry's ``qp-avoid``: the avoidance QP of SPEC §10/§14, Clarabel, FOH,
+  ``N = QP_STEPS``, every vehicle as an inequality.
+
+Every problem carries :data:`~iamp.core.physical.PASSENGER_CAR` as ``Problem.limits`` (a planner
+that imposes limits imposes them; the decision layer checks every plan's peaks either way).
+Where the registry holds an entry of the same name (``pmp-active`` and the bounded planners
+from the ``avoid``/``limits``/``bpmp`` branches), :func:`make_planner` takes the registry's.
 * ``free`` — no constraint at all (the ablation): the minimum-energy cubic below.
 * ``mobil`` and ``sumo`` — no iamp planner (:mod:`iamp.simulation.mobil`, SUMO's LC2013).
 
 With no vehicle left to constrain (every constraint met or no neighbour), every iamp planner
-returns the unconstrained optimum, a cubic per axis (:class:`FreeTrajectory`): with
+returns the unconstrained optimum, a cubic per axis (:class:`iamp.core.free.FreeTrajectory`): with
 ``ṡ = v, v̇ = u`` and ``J = ½∫u²``, the minimiser with fixed end states is
 
 .. math::  s(t) = s_0 + v_0 t + c_2 t^2 + c_3 t^3,\quad
@@ -32,17 +38,20 @@ is not a planner call: it is not timed into ``plan_time_s``.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from iamp.core.errors import IampError
+from iamp.core.free import FreeTrajectory, free_plan
 from iamp.core.plan import Plan
-from iamp.core.problem import EgoBoundary, Problem
-from iamp.core.status import OPTIMAL, SUCCESS
+from iamp.core.problem import Problem
+from iamp.core.status import SUCCESS
+from iamp.planners import registry
+
+__all__ = ["IAMP_PLANNERS", "PLANNERS", "PMP_BOXES", "QP_STEPS", "SIM_OPTIONS", "FreeTrajectory", "PlanFn",
+           "active_set_plan", "free_plan", "make_planner"]
 
 PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
 #: Planners that call an iamp planner through the decision layer.
@@ -52,77 +61,12 @@ QP_STEPS = 12
 #: three-vehicle lane changes; 5000 gave the same cost to 1e-12 on the cases measured, status
 #: ``local`` — checked residuals, global optimality not certified — which the decision layer accepts).
 PMP_BOXES = 5000
-
-
-class PlannerUnavailable(IampError):
-    """The planner's module is not installed in this checkout."""
-
-
-def _cubic(s0: float, v0: float, sf: float, vf: float, tf: float) -> np.ndarray:
-    e, g = sf - s0 - v0 * tf, vf - v0
-    return np.array([s0, v0, (3 * e - g * tf) / tf**2, (-2 * e + g * tf) / tf**3])
-
-
-@dataclass(frozen=True)
-class FreeTrajectory:
-    """The unconstrained minimum-energy trajectory (a cubic per axis), see the module doc."""
-
-    cx: np.ndarray
-    cy: np.ndarray
-
-    @classmethod
-    def of(cls, ego: EgoBoundary) -> FreeTrajectory:
-        return cls(_cubic(ego.x0, ego.vx0, ego.xf, ego.vxf, ego.tf), _cubic(ego.y0, ego.vy0, ego.yf, ego.vyf, ego.tf))
-
-    def states(self, t: Any) -> np.ndarray:
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        P = np.polynomial.polynomial
-        dx, dy = P.polyder(self.cx), P.polyder(self.cy)
-        return np.stack([P.polyval(t, self.cx), P.polyval(t, dx), P.polyval(t, self.cy), P.polyval(t, dy)], axis=1)
-
-    def inputs(self, t: Any) -> np.ndarray:
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        P = np.polynomial.polynomial
-        return np.stack([P.polyval(t, P.polyder(self.cx, 2)), P.polyval(t, P.polyder(self.cy, 2))], axis=1)
-
-    @property
-    def contact_times(self) -> np.ndarray:
-        """No pieces: one cubic on ``[0, t_f]`` (lets the §9 report be exact)."""
-        return np.zeros(0)
-
-    def cost(self, tf: float) -> float:
-        """``½∫(u_x² + u_y²)dt`` (``u`` is linear, so Simpson's rule is exact)."""
-        U = self.inputs(np.array([0.0, tf / 2, tf]))
-        sq = np.sum(U**2, axis=1)
-        return float(0.5 * tf / 6 * (sq[0] + 4 * sq[1] + sq[2]))
-
-
-@dataclass(frozen=True)
-class FreeProblem:
-    """Stand-in for a :class:`Problem` without vehicles (``Problem`` needs at least one)."""
-
-    ego: EgoBoundary
-    vehicles: tuple[()] = ()
-    name: str = "free"
-
-    @property
-    def tf(self) -> float:
-        return self.ego.tf
-
-    @property
-    def m(self) -> int:
-        return 0
-
-
-def free_plan(ego: EgoBoundary, planner: str) -> Plan:
-    """The unconstrained optimum as a :class:`Plan` (status ``optimal``, exact)."""
-    start = time.perf_counter()
-    traj = FreeTrajectory.of(ego)
-    cost = traj.cost(ego.tf)
-    return Plan(problem=FreeProblem(ego), planner=planner, status=OPTIMAL, cost=cost,  # type: ignore[arg-type]
-                contact_times=np.zeros(0), jumps=np.zeros((0, 2)), trajectory=traj,
-                solve_time_s=time.perf_counter() - start, info={"free": True})
-
+#: The closed loop's options per registry name (small grids: the planners run every period).
+SIM_OPTIONS: dict[str, dict[str, Any]] = {
+    "pmp": {"diagnostics": False, "max_boxes": PMP_BOXES},
+    "qp": {"steps": QP_STEPS, "hold": "foh", "solver": "kkt", "contact": "grid"},
+    "qp-avoid": {"steps": QP_STEPS, "hold": "foh", "solver": "clarabel"},
+}
 
 PlanFn = Callable[[Problem], Plan]
 
@@ -138,9 +82,16 @@ def _safe(fn: PlanFn, name: str) -> PlanFn:
     def call(problem: Problem) -> Plan:
         try:
             return fn(problem)
-        except Exception as exc:
+        except Exception as exc:  # any solver failure
             return _failed(problem, name, exc)
     return call
+
+
+def _registered(name: str) -> PlanFn:
+    known = set(registry.REGISTRY[name].option_names())
+    opts = {k: v for k, v in SIM_OPTIONS.get(name, {}).items() if k in known}
+    planner = registry.make_planner(name, **opts)
+    return _safe(lambda problem: planner.plan(problem), name)
 
 
 def enters(plan: Plan, vehicle: Any, dt: float = 0.05) -> float:
@@ -190,31 +141,14 @@ def active_set_plan(problem: Problem, fn: PlanFn, name: str) -> Plan:
 
 
 def make_planner(name: str) -> PlanFn:
-    """``plan(problem) -> Plan`` for the iamp planners (``IAMP_PLANNERS``)."""
+    """``plan(problem) -> Plan`` for the iamp planners (:data:`IAMP_PLANNERS`)."""
     if name == "free":
         return lambda problem: free_plan(problem.ego, "free")
-    if name in ("pmp", "pmp-active"):
-        from iamp.planners.pmp import PMPPlanner
-
-        pmp = PMPPlanner(max_boxes=PMP_BOXES)
-        fn = _safe(lambda problem: pmp.plan(problem, diagnostics=False), "pmp")
-        if name == "pmp":
-            return fn
+    if name not in IAMP_PLANNERS:
+        raise IampError(f"unknown planner {name!r} (not an iamp planner); choose from {', '.join(IAMP_PLANNERS)}")
+    if name in registry.REGISTRY:
+        return _registered(name)
+    if name == "pmp-active":  # until the registry has the planner's own active set
+        fn = _registered("pmp")
         return lambda problem: active_set_plan(problem, fn, "pmp-active")
-    if name == "qp":
-        from iamp.planners.qp import QPPlanner
-
-        try:  # the exact KKT solve of the equality QP where the backend registry has it
-            qp: Any = QPPlanner(steps=QP_STEPS, hold="foh", solver="kkt", contact="grid")
-        except ValueError:  # pragma: no cover - older planner without the kkt backend
-            qp = QPPlanner(steps=QP_STEPS, hold="foh", solver="osqp", contact="grid")
-        return _safe(lambda problem: qp.plan(problem), "qp")
-    if name == "qp-avoid":
-        try:
-            from iamp.planners.avoid.planner import AvoidQPPlanner  # type: ignore[import-not-found,unused-ignore]
-        except ImportError as exc:
-            raise PlannerUnavailable(f"planner 'qp-avoid' is unavailable: iamp.planners.avoid is not installed "
-                                     f"({exc})") from None
-        avoid: Any = AvoidQPPlanner(steps=QP_STEPS, hold="foh", solver="clarabel")
-        return _safe(lambda problem: avoid.plan(problem), "qp-avoid")
-    raise IampError(f"planner {name!r} is not an iamp planner; choose from {', '.join(IAMP_PLANNERS)}")
+    raise IampError(f"planner {name!r} is not in the planner registry")  # pragma: no cover

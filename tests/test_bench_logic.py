@@ -60,6 +60,19 @@ def fake(monkeypatch):
     return per, sweep
 
 
+def test_a_core_install_without_piqp_measures_the_rest_and_names_the_extra(fake, monkeypatch):
+    """PIQP is an extra: without it the bench runs the other backends and says which extra adds it."""
+    per, _ = fake
+    monkeypatch.setattr(bench.BACKENDS["piqp"], "version", classmethod(lambda cls: None))
+    out = bench.run_bench(quick=True)
+    assert set(out["qp_native_solve_s"]) == {"osqp", "clarabel", "kkt"}
+    assert out["best_iterative_backend"] == "clarabel"  # the fastest installed iterative backend
+    assert out["ratios"]["qp_best_to_kkt"] == pytest.approx(per["clarabel"] / per["kkt"])
+    assert "qp_piqp_to_kkt" not in out["ratios"]
+    assert any("pip install 'iamp[solvers]'" in n and "piqp" in n for n in out["notes"])
+    assert "note: piqp missing (pip install 'iamp[solvers]')" in format_bench(out)
+
+
 def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     per, sweep = fake
     seen: list[tuple[int, int]] = []

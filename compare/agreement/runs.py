@@ -19,7 +19,7 @@ from iamp.comparison.timing import TimingStats
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
-from iamp.planners.pmp.planner import PMPPlanner
+from iamp.planners import registry
 
 from .fingerprints import problem_fingerprint, x_poly_fingerprint
 
@@ -59,9 +59,7 @@ class QPConfig:
         kw: dict[str, Any] = dict(steps=self.steps, hold=self.hold, solver=self.solver, contact=self.contact,
                                   solver_settings=self.settings)
         if self.path == "native":
-            from iamp.planners.qp.planner import QPPlanner
-
-            return QPPlanner(**kw)
+            return registry.make_planner("qp", **kw)
         if self.path != "cvxpy":
             raise ValueError(f"unknown path {self.path!r}; choose cvxpy or native")
         from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
@@ -145,15 +143,11 @@ def _measure(fn: Callable[[], Any], repeats: int, warmup: int,
 def run_pmp(problem: Problem, repeats: int = 20, warmup: int = 2) -> Run:
     """Plan with the PMP (global contact time), timed (the residual report is computed on a
     final untimed call)."""
-    import inspect
+    timed = registry.make_planner("pmp", diagnostics=False)
+    planner = registry.make_planner("pmp")
 
-    planner = PMPPlanner()
-    if "diagnostics" in inspect.signature(planner.plan).parameters:
-        def fn() -> Any:
-            return planner.plan(problem, diagnostics=False)
-    else:
-        def fn() -> Any:
-            return planner.plan(problem)
+    def fn() -> Any:
+        return timed.plan(problem)
     stats: TimingStats | None
     try:
         stats, _ = _measure(fn, repeats, warmup)

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from iamp.comparison.timing import TimingStats, measure, summarize, versions
+from iamp.planners.qp.backends import BACKENDS, ITERATIVE
 
 #: IQR/median above which a measurement is flagged as taken on a busy machine.
 BUSY_SPREAD = 0.5
@@ -122,6 +123,24 @@ def _plan_fn(planner: Any, problem: Any) -> Callable[[], Any]:
     return lambda: planner.plan(problem)
 
 
+#: The extra that installs each optional QP backend's package.
+BACKEND_EXTRA = {"piqp": "solvers"}
+
+
+def _installed_backends(notes: list[str]) -> tuple[str, ...]:
+    """The backends of :data:`BACKEND_NAMES` whose package is installed; a note for each other one
+    naming the extra that adds it (a core install has no PIQP: the bench runs without it)."""
+    names = []
+    for s in BACKEND_NAMES:
+        cls = BACKENDS[s]
+        if cls.distribution and cls.version() is None:
+            extra = BACKEND_EXTRA.get(s, "bench")
+            notes.append(f"{cls.distribution} missing (pip install 'iamp[{extra}]'): the {s} backend is not measured")
+        else:
+            names.append(s)
+    return tuple(names)
+
+
 def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | None:
     if importlib.util.find_spec("iamp.planners.avoid.planner") is None:
         notes.append("iamp.planners.avoid.planner not found: no avoidance-QP sweep measured")
@@ -129,6 +148,8 @@ def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | Non
     mod = importlib.import_module("iamp.planners.avoid.planner")
     out: dict[str, Any] = {}
     for solver in ("osqp", "clarabel", "piqp"):
+        if BACKENDS[solver].version() is None and BACKENDS[solver].distribution:
+            continue  # not installed: _installed_backends has said which extra adds it
         try:
             planner = mod.AvoidQPPlanner(steps=STEPS, hold="foh", solver=solver)
             stats, res = _sweep(_plan_fn(planner, problem), repeats)
@@ -197,10 +218,11 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     """
     from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
     from iamp.planners.examples import paper_problem
-    from iamp.planners.qp.backends import ITERATIVE
     from iamp.planners.qp.planner import QPPlanner
 
     notes: list[str] = []
+    names = _installed_backends(notes)
+    iterative = tuple(s for s in ITERATIVE if s in names)
 
     def tick(done: int) -> None:
         if progress is not None:
@@ -213,11 +235,11 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     one = paper_problem(1)
     reps = 1 if quick else 3
 
-    cand = {s: _per_candidate(one, s, reps) for s in BACKEND_NAMES}
+    cand = {s: _per_candidate(one, s, reps) for s in names}
     tick(2)
     native: dict[str, TimingStats] = {}
     fails: dict[str, int] = {}
-    for s in BACKEND_NAMES:
+    for s in names:
         planner = QPPlanner(steps=STEPS, hold="foh", solver=s)
         native[s], res = _sweep(_plan_fn(planner, one), 3 if quick else 7)
         fails[f"native_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
@@ -237,8 +259,8 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     tuning = [] if quick else osqp_tuning(one)
     tick(7)
 
-    solve = {s: cand[s]["backend"].median for s in BACKEND_NAMES}
-    best_it = min(ITERATIVE, key=lambda s: solve[s])
+    solve = {s: cand[s]["backend"].median for s in names}
+    best_it = min(iterative, key=lambda s: solve[s])
     sweeps = {**{s: cvx[s].median for s in cvx}, **{f"native_{s}": native[s].median for s in native}}
     best_native = min(native, key=lambda s: native[s].median)
     pmp_one = float(pmp["pmp_plan_s"]["one_vehicle"])
@@ -246,7 +268,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "pmp_to_compiled_limit": pmp.get("pmp_to_compiled_limit"),
         "pmp_two_vehicles_pure_to_compiled": pmp.get("pmp_two_vehicles_pure_to_compiled"),
         "qp_best_to_kkt": solve[best_it] / solve["kkt"],
-        **{f"qp_{s}_to_kkt": solve[s] / solve["kkt"] for s in ITERATIVE},
+        **{f"qp_{s}_to_kkt": solve[s] / solve["kkt"] for s in iterative},
         "native_sweep_best_to_pmp_plan": native[best_native].median / pmp_one,
         "native_kkt_sweep_to_pmp_plan": native["kkt"].median / pmp_one,
         **{f"cvxpy_{s}_sweep_to_native": cvx[s].median / native[s].median for s in cvx},

@@ -9,29 +9,39 @@ from typing import Any
 import numpy as np
 
 from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, model_file, steps_int
-from iamp.core.errors import ScenarioError, SolverError
+from iamp.core.errors import OptionError, ScenarioError, SolverError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
 from iamp.core.scenario import Scenario
+from iamp.planners import registry
+from iamp.planners.avoid.options import inequality_backends
+from iamp.planners.qp.hold import HOLDS
+from iamp.planners.qp.options import CONTACTS
 
-#: Options that only the QP planner reads, with their defaults (SPEC §5).  They default to
-#: ``None`` in the parser so that "given by the user" can be told from "the default".
+#: Options that only some planners read (the QP's), with their defaults (SPEC §5).  They default
+#: to ``None`` in the parser so that "given by the user" can be told from "the default".
 QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
 
 
-def make_planner(args: argparse.Namespace) -> Any:
-    """The planner the options ask for."""
-    if args.planner == "pmp":
-        from iamp.planners.pmp.planner import PMPPlanner
+def planner_spec(args: argparse.Namespace) -> registry.PlannerSpec:
+    """The registry entry of ``--planner`` with ``--constraint`` (default: equality)."""
+    return registry.lookup(args.planner, getattr(args, "constraint", None) or "equality")
 
-        return PMPPlanner()
-    if getattr(args, "constraint", None) == "avoid":
-        from iamp.planners.avoid.planner import AvoidQPPlanner
 
-        return AvoidQPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
-    from iamp.planners.qp.planner import QPPlanner
+def make_planner(args: argparse.Namespace) -> registry.Planner:
+    """The planner the options ask for, from the registry."""
+    spec = planner_spec(args)
+    names = (*QP_ONLY, *extra_options())
+    values = {"steps": args.steps, **{name: getattr(args, name, None) for name in names}}
+    try:
+        return spec.make(**registry.options_of(spec, values))
+    except OptionError as exc:  # name the CLI's option
+        raise ScenarioError(exc.message, f"--{exc.field}" if exc.field else None) from None
 
-    return QPPlanner(steps=args.steps, hold=args.hold, solver=args.solver, contact=args.contact)
+
+def extra_options() -> tuple[str, ...]:
+    """The registry's CLI options (:func:`iamp.planners.registry.cli_options`) beyond the QP's."""
+    return tuple(name for name in registry.cli_options() if name not in QP_ONLY and name != "steps")
 
 
 def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
@@ -43,11 +53,27 @@ def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
 
 def check_options(args: argparse.Namespace) -> None:
     """Refuse options that do not apply to the chosen planner; fill in the QP defaults."""
+    accepted = {name for spec in registry.REGISTRY.values() if spec.planner == args.planner
+                for name in spec.option_names()}
     for name, default in QP_ONLY.items():
-        if getattr(args, name, None) is not None and args.planner != "qp":
-            raise ScenarioError(f"applies to the QP planner only (add --planner qp or drop --{name})", f"--{name}")
+        if getattr(args, name, None) is not None and name not in accepted:
+            accept = registry.accepting(name)
+            add = " or ".join(f"--planner {a}" for a in accept)
+            who = "the QP planner" if accept == ("qp",) else "planner " + " or ".join(accept)
+            raise ScenarioError(f"applies to {who} only (add {add} or drop --{name})", f"--{name}")
         if getattr(args, name, None) is None:
             setattr(args, name, default)
+    exact = [s for s in registry.REGISTRY.values()
+             if s.planner == args.planner and s.constraint == (getattr(args, "constraint", None) or "equality")]
+    if exact:  # the options of the one entry --planner/--constraint select
+        accepted = set(exact[0].option_names())
+    for name in extra_options():
+        if getattr(args, name, None) is not None and name not in accepted:
+            entries = [s for s in registry.REGISTRY.values() if name in s.option_names()]
+            add = " or ".join(f"--planner {s.planner}" + ("" if s.constraint == "equality" else
+                                                          f" --constraint {s.constraint}") for s in entries)
+            flag = "--" + name.replace("_", "-")
+            raise ScenarioError(f"does not apply to this planner (add {add} or drop {flag})", flag)
 
 
 def failure_json(scenario: str, args: argparse.Namespace, status: str, message: str) -> dict[str, Any]:
@@ -75,8 +101,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
         check_output(args.csv, [args.scenario], args.force, option="--csv")
     if args.constraint is None:
         args.constraint = "equality"
-    if args.constraint == "avoid" and args.planner != "qp":
-        raise ScenarioError("the avoidance constraint is a QP (add --planner qp)", "--constraint")
+    if not any(x.planner == args.planner and x.constraint == args.constraint for x in registry.REGISTRY.values()):
+        offer = " or ".join(f"--planner {x.planner}" for x in registry.REGISTRY.values()
+                            if x.constraint == args.constraint)
+        raise ScenarioError(f"the {args.constraint} constraint is not implemented by the {args.planner} planner "
+                            f"(add {offer})", "--constraint")
     if args.model is not None and not load_scenario(args.scenario).needs_prediction:
         raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
                             "vehicle's x_poly", "--model", args.scenario)
@@ -166,21 +195,37 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
             print(line)
 
 
+def _planner_help() -> str:
+    """The ``--planner`` help, one clause per registry entry."""
+    parts = []
+    for spec in registry.REGISTRY.values():
+        flag = "" if spec.constraint == "equality" else f" --constraint {spec.constraint}"
+        parts.append(f"{spec.planner}{flag}: {spec.summary}")
+    return "; ".join(parts) + " (default pmp)"
+
+
 def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``iamp plan``."""
     p = sub.add_parser("plan", help="plan the optimal lane change of a scenario",
                        description="Plan the optimal lane change of a scenario file or built-in scenario "
                                    "(see `iamp scenarios`).")
     p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
-    p.add_argument("--planner", choices=("pmp", "qp"), default="pmp")
-    p.add_argument("--solver", choices=("osqp", "clarabel"), default=None, help="QP only (default clarabel)")
-    p.add_argument("--hold", choices=("foh", "zoh"), default=None, help="QP only (default foh)")
+    p.add_argument("--planner", choices=registry.planners(), default="pmp", help=_planner_help())
+    p.add_argument("--solver", choices=registry.solvers(), default=None,
+                   help=f"QP backend, QP only (default clarabel): {', '.join(registry.solvers())}; "
+                        f"the avoidance QP needs one that accepts inequalities ({', '.join(inequality_backends())})")
+    p.add_argument("--hold", choices=HOLDS, default=None, help="QP only (default foh)")
     p.add_argument("--steps", type=steps_int, default=100,
                    help="grid intervals N for the QP, and output samples t_k = k tf/N for every planner "
                         "(at most 20000; the QP's sweep is limited to perm(N-1, m)·N <= 1e6)")
-    p.add_argument("--contact", choices=("grid", "refine"), default=None, help="QP only (default grid)")
-    p.add_argument("--constraint", choices=("equality", "avoid"), default=None,
+    p.add_argument("--contact", choices=CONTACTS, default=None, help="QP only (default grid)")
+    p.add_argument("--constraint", choices=registry.constraints(), default=None,
                    help="QP only: the paper's corner equality (default) or the avoidance inequalities (SPEC §10)")
+    for name, f in registry.cli_options().items():  # the options other planners register
+        if name not in QP_ONLY and name != "steps":
+            who = " or ".join(registry.accepting(name))
+            p.add_argument("--" + name.replace("_", "-"), dest=name, choices=f.metadata["choices"], default=None,
+                           help=f"{f.metadata['cli']} ({who} only; default {f.default})")
     p.add_argument("--require-safe", action="store_true",
                    help="exit with status 4 when the plan enters a safety region or overlaps a vehicle (SPEC §9); "
                         "the plan is still printed")

@@ -12,9 +12,9 @@ import sys
 from pathlib import Path
 
 from iamp.cli.types import EXIT_OK, positive_float, positive_int
+from iamp.simulation.planning import PLANNERS
 
 TRAFFIC = ("light", "medium", "dense", "los-e")
-PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
 MISSIONS = ("merge", "onramp", "slow-leader", "discretionary")
 COOPERATION = ("low", "default", "high")
 

@@ -49,6 +49,11 @@ class PredictorRequiredError(ScenarioError):
     """A vehicle is given by its history but no predictor was supplied."""
 
 
+class OptionError(ScenarioError):
+    """A planner option that does not exist, has an invalid value, or does not apply to the chosen
+    planner (``field`` names the option, e.g. ``"solver"``)."""
+
+
 class SolverError(IampError):
     """A numerical solver failed or reported a non-optimal status."""
 

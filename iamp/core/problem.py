@@ -205,8 +205,6 @@ class Problem:
 
     def __post_init__(self) -> None:
         vehicles = tuple(self.vehicles)
-        if len(vehicles) == 0:
-            raise ScenarioError("at least one vehicle is required", "vehicles", self.ego.source)
         for v in vehicles:
             if not isinstance(v, SurroundingVehicle):
                 raise ScenarioError("every vehicle must be a SurroundingVehicle with x_poly", "vehicles")

@@ -67,8 +67,10 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.planners.qp.planner import HOLDS, aligned_grid
 
+from ..qp.options import CONTACTS, check_choice
 from .check import Candidate, FloatArray, crossing_orders
 from .data import AvoidData
+from .options import check_avoid_solver
 from .result import failed_plan, verified_plan
 from .search import Phase, certify_free, pruned_switches, refine_crossings, seed_switches
 from .solve import BoundSolver
@@ -110,12 +112,9 @@ class AvoidQPPlanner:
     prune: bool = True
 
     def __post_init__(self) -> None:
-        if self.hold not in HOLDS:
-            raise ValueError(f"unknown hold {self.hold!r}; choose from {', '.join(HOLDS)}")
-        if self.contact not in ("grid", "refine"):
-            raise ValueError(f"unknown contact search {self.contact!r}; choose grid or refine")
-        if self.solver not in ("osqp", "clarabel"):
-            raise ValueError(f"unknown solver {self.solver!r}; choose osqp or clarabel")
+        check_choice(self.hold, HOLDS, "hold", "hold")
+        check_choice(self.contact, CONTACTS, "contact", "contact search")
+        check_avoid_solver(self.solver)
 
     # --- solving one grid ------------------------------------------------------------------
     def _backend(self, data: AvoidData, on: np.ndarray) -> BoundSolver:
@@ -144,6 +143,9 @@ class AvoidQPPlanner:
         ``infeasible`` plan with the reason (see the module docstring)."""
         start = time.perf_counter()
         N, m = int(self.steps), problem.m
+        if m == 0:
+            raise ScenarioError("the QP planners need at least one vehicle (a problem with zero vehicles has no "
+                                "contact time: its optimum is iamp.core.free.free_plan, or planner 'pmp')", "vehicles")
         if N < 2:
             raise ScenarioError(f"must be at least 2 (got {N})", "--steps")
         orders, reason = crossing_orders(problem)

@@ -33,9 +33,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from iamp.core import status as st
+from iamp.core.free import FreeTrajectory
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 
@@ -43,46 +44,6 @@ from .check import crossing_orders, leave_time
 from .data import HalfPlane
 
 FloatArray = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class FreeTrajectory:
-    """The unconstrained optimum: per axis ``u(t) = a + b t`` (a cubic position)."""
-
-    problem: Problem
-
-    def _coeffs(self) -> tuple[FloatArray, FloatArray]:
-        e, T = self.problem.ego, self.problem.tf
-        s0, v0 = np.array([e.x0, e.y0]), np.array([e.vx0, e.vy0])
-        sf, vf = np.array([e.xf, e.yf]), np.array([e.vxf, e.vyf])
-        e1, e2 = sf - s0 - v0 * T, vf - v0
-        # u = a + b t with ∫u = e2 and ∫∫u = e1: a T + b T²/2 = e2, a T²/2 + b T³/6 = e1
-        b = (12 * e1 - 6 * T * e2) / T**3 * -1
-        a = (e2 - b * T**2 / 2) / T
-        return a, b
-
-    @property
-    def contact_times(self) -> FloatArray:
-        return np.zeros(0)
-
-    def inputs(self, t: ArrayLike) -> FloatArray:
-        tt = np.atleast_1d(np.asarray(t, dtype=float))[:, None]
-        a, b = self._coeffs()
-        return np.asarray(a + b * tt, dtype=float)
-
-    def states(self, t: ArrayLike) -> FloatArray:
-        tt = np.atleast_1d(np.asarray(t, dtype=float))[:, None]
-        e = self.problem.ego
-        a, b = self._coeffs()
-        s0, v0 = np.array([e.x0, e.y0]), np.array([e.vx0, e.vy0])
-        v = v0 + a * tt + b * tt**2 / 2
-        s = s0 + v0 * tt + a * tt**2 / 2 + b * tt**3 / 6
-        return np.stack([s[:, 0], v[:, 0], s[:, 1], v[:, 1]], axis=1)
-
-    def cost(self) -> float:
-        a, b = self._coeffs()
-        T = self.problem.tf
-        return float(0.5 * np.sum(a**2 * T + a * b * T**2 + b**2 * T**3 / 3))
 
 
 def crossing_feasible(problem: Problem, traj: Any, orders: list[list[tuple[int, int]]]) -> list[bool]:
@@ -123,12 +84,12 @@ class PMPAvoidPlanner:
 
         if reason is not None:
             return done(st.INFEASIBLE, None, nan_t, nan_j, None, {"reason": reason})
-        free = FreeTrajectory(problem)
+        free = FreeTrajectory.of(problem.ego)
         if all(crossing_feasible(problem, free, orders)):
             # crossing time: the last instant in the first half-plane (as the QP reports it)
             taus = np.array([leave_time(free, HalfPlane(v, "xy"[o[0][0]]), problem.tf)
                              for v, o in zip(problem.vehicles, orders)])
-            return done(st.OPTIMAL, free.cost(), taus, np.zeros((m, 2)), free,
+            return done(st.OPTIMAL, free.cost(problem.tf), taus, np.zeros((m, 2)), free,
                         {"touches": "none", "certificate": "the unconstrained optimum keeps every crossing "
                          "constraint: a lower bound attained"})
         eq = PMPPlanner().plan(problem)

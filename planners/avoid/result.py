@@ -29,6 +29,7 @@ from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners.qp.planner import HoldTrajectory
 
+from ..qp.backends import BACKENDS
 from .check import AXIS_NAMES, Candidate, FloatArray, kkt_conditions, leave_time
 from .data import AvoidData
 
@@ -71,7 +72,7 @@ def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: 
     elapsed = time.perf_counter() - start
     l, u = data.bounds(cand.on)
     kkt = kkt_conditions(data.P, data.q, data.A, l, u, cand.z, cand.y, n_eq=data.n_eq)
-    limit = tol(f"cmp_kkt_rel_{solver}")
+    limit = tol(BACKENDS[solver].tolerance_key)
     failed = [k for k, v in kkt.items() if v > limit]
     ineq_y = cand.y[data.n_eq:]
     slack = u[data.n_eq:] - (data.A @ cand.z)[data.n_eq:]

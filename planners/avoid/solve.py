@@ -14,10 +14,12 @@ vector unchanged.
 * Clarabel: ``update(b=…)`` on the set-up solver (its data-update API; no warm start),
   tolerances 1e-12.
 
-This is the same general form as the project's QP backend registry
-(:mod:`iamp.planners.qp.backends`); it is kept here, specialised to one-sided rows, because a
-bound update must not rebuild the stacked Clarabel matrix (measured: the generic update
-re-stacks ``A`` on every candidate).
+Every other backend comes from the project's QP backend registry
+(:mod:`iamp.planners.qp.backends`; e.g. PIQP) through its general form ``l <= Az <= u`` with
+``update(u=…)``; a backend that solves equality-constrained QPs only (``kkt``) is refused with
+:class:`~iamp.core.errors.OptionError`.  OSQP and Clarabel keep the specialised adapters above
+because a bound update must not rebuild the stacked Clarabel matrix (measured: the generic
+update re-stacks ``A`` on every candidate).
 """
 
 from __future__ import annotations
@@ -33,6 +35,9 @@ from numpy.typing import NDArray
 
 from iamp.core import status as st
 from iamp.core.errors import MissingDependencyError
+
+from ..qp.backends import QPBackend, get_backend
+from .options import check_avoid_solver
 
 FloatArray = NDArray[np.float64]
 
@@ -88,7 +93,9 @@ class BoundSolver:
 
     Parameters
     ----------
-    name : {"osqp", "clarabel"}
+    name : str
+        A registered QP backend that accepts inequalities (osqp and clarabel: specialised
+        adapters; others, e.g. piqp: the registry's general form).
     P : sparse
         Upper triangle of the cost Hessian.
     A : sparse
@@ -101,15 +108,21 @@ class BoundSolver:
 
     def __init__(self, name: str, P: sp.spmatrix, A: sp.spmatrix, b_eq: FloatArray, u_in: FloatArray,
                  settings: dict[str, Any] | None = None) -> None:
-        if name not in ("osqp", "clarabel"):
-            raise ValueError(f"unknown solver {name!r}; choose osqp or clarabel")
-        _require(name)
+        check_avoid_solver(name)
         self.name = name
         self.n_eq = b_eq.size
         self.b_eq = np.asarray(b_eq, dtype=float)
         P = sp.csc_matrix(P)
         A = sp.csc_matrix(A)
         n = P.shape[0]
+        self._generic: QPBackend | None = None
+        if name not in ("osqp", "clarabel"):  # any other registered backend, in the general form
+            cls = get_backend(name)
+            l = np.r_[self.b_eq, np.full(u_in.size, -np.inf)]
+            self._generic = cls(P, np.zeros(n), A, l, np.r_[self.b_eq, u_in], settings)
+            self.settings = dict(self._generic.settings)
+            return
+        _require(name)
         if name == "osqp":
             import osqp
 
@@ -131,7 +144,9 @@ class BoundSolver:
 
     def set_upper(self, u_in: FloatArray) -> None:
         """New upper bounds of the inequality rows."""
-        if self.name == "osqp":
+        if self._generic is not None:
+            self._generic.update(u=np.r_[self.b_eq, u_in])
+        elif self.name == "osqp":
             self._s.update(u=np.r_[self.b_eq, u_in])
         elif self._update_ok:
             self._s.update(b=np.r_[self.b_eq, u_in])
@@ -142,11 +157,17 @@ class BoundSolver:
             self._s = clarabel.DefaultSolver(P, np.zeros(P.shape[0]), A, np.r_[self.b_eq, u_in], cones, cs)
 
     def warm_start(self, z: FloatArray, y: FloatArray) -> None:
-        """OSQP only (Clarabel, an interior-point method, has none)."""
-        if self.name == "osqp" and np.all(np.isfinite(z)) and np.all(np.isfinite(y)):
+        """OSQP (and any registry backend that warm-starts); Clarabel, an interior-point method, has none."""
+        if self._generic is not None:
+            if np.all(np.isfinite(z)) and np.all(np.isfinite(y)):
+                self._generic.warm_start(z, y)
+        elif self.name == "osqp" and np.all(np.isfinite(z)) and np.all(np.isfinite(y)):
             self._s.warm_start(x=z, y=y)
 
     def solve(self) -> Solution:
+        if self._generic is not None:
+            g = self._generic.solve()
+            return Solution(g.z, g.y, g.status, g.raw_status, g.iterations, g.solve_call_s, g.polished)
         t0 = time.perf_counter()
         if self.name == "osqp":
             res = self._s.solve(raise_error=False)

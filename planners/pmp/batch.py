@@ -23,6 +23,7 @@ from operator import attrgetter
 import numpy as np
 import numpy.typing as npt
 
+from iamp.core.free import min_energy_cubic
 from iamp.core.problem import Problem
 from iamp.core.status import INACCURATE, INFEASIBLE, NUMERICAL_ERROR, OPTIMAL
 from iamp.core.tolerances import tol
@@ -43,9 +44,8 @@ class BatchPlan:
 
 
 def _hermite(s0: FloatArray, v0: FloatArray, sf: FloatArray, vf: FloatArray) -> FloatArray:
-    e = sf - s0 - v0
-    g = vf - v0
-    return np.stack([s0, v0, 3 * e - g, -2 * e + g], axis=1)
+    """Rows of :func:`iamp.core.free.min_energy_cubic` in scaled time (``t_f = 1``)."""
+    return np.stack(min_energy_cubic(s0, v0, sf, vf), axis=1)
 
 
 def _horner(C: FloatArray, x: FloatArray) -> FloatArray:

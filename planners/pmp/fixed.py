@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.core.errors import SolverError
+from iamp.core.free import min_energy_cubic
 from iamp.core.problem import Problem
 
 from .scale import Scaled, scale_problem
@@ -40,18 +41,9 @@ ArrayLike = Any
 
 
 def hermite_cubic(s0: float, v0: float, sf: float, vf: float, tf: float) -> FloatArray:
-    """Ascending coefficients of the unconstrained minimum-energy path ``s̄(t)``."""
-    e = sf - s0 - v0 * tf
-    g = vf - v0
-    return np.array([s0, v0, (3 * e - g * tf) / tf**2, (-2 * e + g * tf) / tf**3])
-
-
-def transfer_cost(s0: ArrayLike, v0: ArrayLike, sf: ArrayLike, vf: ArrayLike, T: ArrayLike) -> Any:
-    r"""Minimum of :math:`\tfrac12\int_0^T u^2` taking ``(s0, v0)`` to ``(sf, vf)`` in ``T``:
-    :math:`6e^2/T^3 - 6eg/T^2 + 2g^2/T` with :math:`e = s_f - s_0 - v_0T`, :math:`g = v_f - v_0`."""
-    e = sf - s0 - v0 * T
-    g = vf - v0
-    return 6 * e**2 / T**3 - 6 * e * g / T**2 + 2 * g**2 / T
+    """Ascending coefficients of the unconstrained minimum-energy path ``s̄(t)``
+    (:func:`iamp.core.free.min_energy_cubic`)."""
+    return np.array(min_energy_cubic(s0, v0, sf, vf, tf))
 
 
 def bridge_kernel(s: ArrayLike, t: ArrayLike, tf: float) -> FloatArray:

@@ -45,6 +45,7 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.core.errors import SolverError
+from iamp.core.free import free_plan, transfer_cost
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.status import INFEASIBLE, LOCAL, NUMERICAL_ERROR, OPTIMAL
@@ -64,7 +65,6 @@ from .fixed import (
     solve_fixed_times,
     solve_one_vehicle,
     solve_sigma,
-    transfer_cost,
 )
 from .one import judge_kernel, one_vehicle_data, one_vehicle_kernel
 from .scale import Scaled, scale_problem
@@ -122,6 +122,7 @@ class PMPPlanner:
     max_boxes: int = 200_000
     kernel: Callable[..., list[float]] = one_vehicle_kernel
     compiled: bool | None = None
+    diagnostics: bool = True
 
     def search(self, problem: Problem, S: Scaled | None = None,
                progress: Callable[[int, int], None] | None = None) -> tuple[FloatArray, float, bool, dict[str, Any]]:
@@ -153,17 +154,20 @@ class PMPPlanner:
             return solve_one_vehicle(problem, float(np.asarray(t, dtype=float).reshape(-1)[0]))
         return solve_fixed_times(problem, t)
 
-    def plan(self, problem: Problem, contact_times: Any = None, diagnostics: bool = True,
+    def plan(self, problem: Problem, contact_times: Any = None, diagnostics: bool | None = None,
              progress: Callable[[int, int], None] | None = None) -> Plan:
         """Plan and verify; never raises for numerical trouble (returns a failed Plan).
 
         ``solve_time_s`` covers the search, the solve and the self-check.  ``diagnostics``
-        adds the physical max-abs residuals (``plan.residuals``) after the clock stops.
+        (default: the planner's field) adds the physical max-abs residuals (``plan.residuals``) after the clock stops.
         ``contact_times`` (optional, validated: ``ValueError`` if outside ``(0, t_f)``) fixes
         the contact times: the plan is then the fixed-time optimum and the Hamiltonian-jump
         condition is reported in ``info`` but not required.
         """
+        if problem.m == 0:  # nothing to contact: the minimum-energy cubic, exact and self-checked
+            return free_plan(problem, "pmp")
         start = _time.perf_counter()
+        diagnostics = self.diagnostics if diagnostics is None else diagnostics
         m = problem.m
         fixed = contact_times is not None
         if m == 1 and not fixed:

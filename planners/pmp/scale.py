@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from iamp.core.free import min_energy_cubic
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 
@@ -52,10 +53,9 @@ def strip_negligible(coeffs: FloatArray, T: float) -> FloatArray:
 
 
 def hermite_sigma(s0: float, v0: float, sf: float, vf: float) -> FloatArray:
-    """Ascending coefficients in ``σ`` of the unconstrained path on ``[0, 1]`` (scaled data)."""
-    e = sf - s0 - v0
-    g = vf - v0
-    return np.array([s0, v0, 3 * e - g, -2 * e + g])
+    """Ascending coefficients in ``σ`` of the unconstrained path on ``[0, 1]`` (scaled data;
+    :func:`iamp.core.free.min_energy_cubic` with ``t_f = 1``)."""
+    return np.array(min_energy_cubic(s0, v0, sf, vf))
 
 
 def transfer_cost_sigma(s0: float, v0: float, sf: float, vf: float) -> float:
@@ -218,6 +218,4 @@ def scale_problem(problem: Problem) -> Scaled:
 
 def _hermite(s0: float, v0: float, sf: float, vf: float) -> list[float]:
     """:func:`hermite_sigma` as a list."""
-    e = sf - s0 - v0
-    g = vf - v0
-    return [s0, v0, 3 * e - g, -2 * e + g]
+    return list(min_energy_cubic(s0, v0, sf, vf))

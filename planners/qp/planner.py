@@ -30,12 +30,14 @@ import numpy as np
 from scipy import optimize
 
 from iamp.core import status as st
+from iamp.core.errors import ScenarioError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 
 from .backends import BACKENDS
 from .core import CandidateResult, CandidateSolver, DiscretisedQP
 from .hold import HOLDS, HoldTrajectory, aligned_grid
+from .options import CONTACTS, check_choice
 from .sweep import Progress, SweepResult, run_sweep
 
 __all__ = ["HOLDS", "CandidateResult", "DiscretisedQP", "HoldTrajectory", "QPPlanner", "SweepResult",
@@ -73,15 +75,15 @@ class QPPlanner:
     path = "native"
 
     def __post_init__(self) -> None:
-        if self.contact not in ("grid", "refine"):
-            raise ValueError(f"unknown contact search {self.contact!r}; choose grid or refine")
-        if self.hold not in HOLDS:
-            raise ValueError(f"unknown hold {self.hold!r}; choose from {', '.join(HOLDS)}")
-        if self.solver not in BACKENDS:
-            raise ValueError(f"unknown solver {self.solver!r}; choose from {', '.join(BACKENDS)}")
+        check_choice(self.contact, CONTACTS, "contact", "contact search")
+        check_choice(self.hold, HOLDS, "hold", "hold")
+        check_choice(self.solver, tuple(BACKENDS), "solver", "solver")
 
     def build(self, problem: Problem) -> CandidateSolver:
         """The QP of ``problem`` on the configured backend (built once, re-solved per candidate)."""
+        if problem.m == 0:
+            raise ScenarioError("the QP planners need at least one vehicle (a problem with zero vehicles has no "
+                                "contact time: its optimum is iamp.core.free.free_plan, or planner 'pmp')", "vehicles")
         return DiscretisedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
 
     def sweep(self, qp: CandidateSolver, progress: Progress | None = None) -> SweepResult:

@@ -32,6 +32,8 @@ is requested.  ``kkt`` refuses rows with ``l < u`` with
 
 from __future__ import annotations
 
+from iamp.core.errors import OptionError
+
 from .base import KKTResiduals, QPBackend, QPSolution, UnsupportedProblemError, kkt_residuals
 from .clarabel import ClarabelBackend
 from .kkt import KKTBackend
@@ -53,14 +55,14 @@ ITERATIVE = ("osqp", "clarabel", "piqp")
 def get_backend(name: str) -> type[QPBackend]:
     """The backend class registered as ``name``.
 
-    Raises ``ValueError`` for an unknown name and
+    Raises :class:`~iamp.core.errors.OptionError` (a ``ValueError``) for an unknown name and
     :class:`~iamp.core.errors.MissingDependencyError` (with the ``pip install`` command) when
     its package is not installed.
     """
     try:
         cls = BACKENDS[name]
     except KeyError:
-        raise ValueError(f"unknown QP backend {name!r}; choose from {', '.join(BACKENDS)}") from None
+        raise OptionError(f"unknown QP backend {name!r}; choose from {', '.join(BACKENDS)}", "solver") from None
     cls.require()
     return cls
 

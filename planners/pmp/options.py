@@ -1,0 +1,39 @@
+"""The options of the PMP planner (:class:`PMPOptions`), validated on construction."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from iamp.core.errors import OptionError
+
+
+@dataclass(frozen=True)
+class PMPOptions:
+    """Options of :class:`~iamp.planners.pmp.planner.PMPPlanner`.
+
+    Parameters
+    ----------
+    max_starts : int
+        Newton starts of the global contact-time search for ``m >= 2``.
+    max_boxes : int
+        Box budget of the branch-and-bound certificate (beyond it the status is ``local``).
+    compiled : bool or None
+        The numba path of the ``m >= 2`` search (``None``: only if already loaded).
+    diagnostics : bool
+        Add the physical max-abs residuals to the plan after the clock stops.
+    """
+
+    max_starts: int = 32
+    max_boxes: int = 200_000
+    compiled: bool | None = None
+    diagnostics: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("max_starts", "max_boxes"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise OptionError(f"must be a positive integer (got {value!r})", name)
+        if self.compiled not in (None, True, False):
+            raise OptionError(f"must be true, false or none (got {self.compiled!r})", "compiled")
+        if not isinstance(self.diagnostics, bool):
+            raise OptionError(f"must be true or false (got {self.diagnostics!r})", "diagnostics")
