@@ -26,7 +26,9 @@ The problem for one gap
 After ``T = horizon_s`` the ego is at the target lane's centre ``y_f`` with ``v_{y,f}=0`` and
 
 * ``v_{x,f}`` = the mean predicted speed of ``f`` and ``l`` at ``T`` (those that exist; the
-  ego's own speed if neither), capped at ``speed_cap``;
+  ego's own speed if neither), clipped to what ``REACH = 0.8`` of the ``a_x`` bounds held for
+  ``T`` reaches, ``v_{x,0} + 0.8 [a_{x,min}, a_{x,max}] T`` (a slow on-ramp entry cannot match
+  the main road's speed in one horizon), and to ``[0, speed_cap]``;
 * ``x_f`` = the constant-acceleration end point ``x_0 + (v_{x,0} + v_{x,f})T/2`` moved into
   the part of the predicted gap at ``T`` that leaves a bumper-to-bumper headway
   ``headway_s·v_{x,f}`` to ``f`` and ``l`` (its middle if the gap is shorter).
@@ -48,11 +50,17 @@ from typing import Any
 
 import numpy as np
 
+from iamp.core.free import FreeTrajectory
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.safety import safety_report
 from iamp.core.status import SUCCESS
+
+#: A :class:`Problem` holds at most 8 vehicles: the §9 check takes the nearest ones.
+MAX_CHECKED = 8
+#: The end speed is reachable at this fraction of the ``a_x`` bounds held over the horizon.
+REACH = 0.8
 
 
 @dataclass(frozen=True)
@@ -139,7 +147,10 @@ def candidate_gaps(ego: EgoNow, target: Sequence[Neighbour], cfg: DecisionConfig
 def end_state(ego: EgoNow, gap: Gap, cfg: DecisionConfig, T: float) -> tuple[float, float]:
     """``(x_f, v_{x,f})`` into ``gap`` after ``T`` (module docstring)."""
     speeds = [n.v(T) for n in (gap.follower, gap.leader) if n is not None]
-    vxf = float(np.clip(np.mean(speeds), 0.0, cfg.speed_cap)) if speeds else float(np.clip(ego.vx, 0.0, cfg.speed_cap))
+    vxf = float(np.mean(speeds)) if speeds else ego.vx
+    ax = cfg.limits.ax or (-np.inf, np.inf)  # reachable at a constant REACH of the a_x bounds
+    vxf = float(np.clip(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T))
+    vxf = float(np.clip(vxf, 0.0, cfg.speed_cap))
     x = ego.x + (ego.vx + vxf) * T / 2
     head = cfg.headway_s * vxf
     lo = -np.inf if gap.follower is None else gap.follower.x(T) + gap.follower.length / 2 + ego.length / 2
@@ -182,17 +193,19 @@ def lane_change_problem(ego: EgoNow, y_target: float, gap: Gap, current_leader: 
 
 def check_problem(boundary: EgoBoundary, ego: EgoNow, neighbours: Sequence[Neighbour], lanes: Sequence[int],
                   cfg: DecisionConfig) -> Problem | None:
-    """Every neighbour in ``lanes`` within ``relevant_m``, as vehicles for the §9 report."""
+    """The ``MAX_CHECKED`` neighbours in ``lanes`` within ``relevant_m`` nearest the ego, as
+    vehicles for the §9 report (a :class:`Problem` holds at most 8)."""
     vs = []
-    for n in neighbours:
-        if n.lane in lanes and abs(n.x(0.0) - ego.x) <= cfg.relevant_m:
-            sx = cfg.safety_x
-            ahead_same = n.lane == lanes[0] and n.x(0.0) > ego.x and abs(n.y - ego.y) < (n.width + ego.width) / 2
-            if ahead_same:
-                gap_now = n.x(0.0) - n.length / 2 - ego.x
-                if gap_now < cfg.safety_x:
-                    sx = max(gap_now - 0.5, 0.0)
-            vs.append(_vehicle(n, "rear-upper", cfg, sx))
+    near = sorted((n for n in neighbours if n.lane in lanes and abs(n.x(0.0) - ego.x) <= cfg.relevant_m),
+                  key=lambda n: abs(n.x(0.0) - ego.x))[:MAX_CHECKED]
+    for n in near:
+        sx = cfg.safety_x
+        ahead_same = n.lane == lanes[0] and n.x(0.0) > ego.x and abs(n.y - ego.y) < (n.width + ego.width) / 2
+        if ahead_same:
+            gap_now = n.x(0.0) - n.length / 2 - ego.x
+            if gap_now < cfg.safety_x:
+                sx = max(gap_now - 0.5, 0.0)
+        vs.append(_vehicle(n, "rear-upper", cfg, sx))
     return Problem(boundary, tuple(vs)) if vs else None
 
 
@@ -219,6 +232,23 @@ def limit_violations_of(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: 
     return bad
 
 
+@dataclass(frozen=True)
+class _OnePiece:
+    """A :class:`FreeTrajectory` that tells :func:`safety_report` it is one cubic piece."""
+
+    inner: FreeTrajectory
+
+    def states(self, t: Any) -> Any:
+        return self.inner.states(t)
+
+    def inputs(self, t: Any) -> Any:
+        return self.inner.inputs(t)
+
+    @property
+    def contact_times(self) -> np.ndarray:
+        return np.zeros(0)
+
+
 def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig) -> str:
     """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``intrusion:``)."""
     if plan.status not in SUCCESS or plan.trajectory is None:
@@ -228,7 +258,10 @@ def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig) -> str:
     if bad:
         return "limits:" + ",".join(bad)
     if check is not None:
-        rep = safety_report(check, plan.trajectory)
+        traj = plan.trajectory
+        if isinstance(traj, FreeTrajectory):  # one cubic on [0, t_f]: say so (else 1 ms pieces)
+            traj = _OnePiece(traj)
+        rep = safety_report(check, traj)
         hit = [v.name for v in rep.vehicles if not v.intrusion_free]
         if hit:
             return "intrusion:" + ",".join(hit)

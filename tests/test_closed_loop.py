@@ -16,11 +16,14 @@ from iamp.core.physical import PASSENGER_CAR
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.simulation.campaign import EPISODE_KEYS, ManifestMismatch, check_manifest, manifest_of
 from iamp.simulation.decision import (
+    MAX_CHECKED,
     DecisionConfig,
     EgoNow,
     Gap,
     Neighbour,
     candidate_gaps,
+    check_problem,
+    end_state,
     judge,
     lane_change_problem,
     limit_violations_of,
@@ -269,6 +272,21 @@ def test_lane_change_problem_corners_follow_the_paper_and_cover_the_target_leade
     prob = lane_change_problem(EgoNow(0.0, 25.0, 3.2, 0.0), 3.5, Gap(_nb("f", -20.0, 25.0, 1, 3.5), None), None,
                                cfg, 5.0)
     assert isinstance(prob, EgoBoundary)
+
+
+def test_end_speed_is_reachable_within_the_limits_and_the_check_holds_at_most_eight():
+    cfg = DecisionConfig()
+    ax = cfg.limits.ax
+    assert ax is not None
+    slow = EgoNow(0.0, 16.7, 0.0, 0.0)  # an on-ramp entry; the gap drives at 33 m/s
+    gap = Gap(_nb("f", -30.0, 33.0, 1, 3.5), _nb("l", 30.0, 33.0, 1, 3.5))
+    _, vxf = end_state(slow, gap, cfg, 5.0)
+    assert vxf == pytest.approx(16.7 + 0.8 * ax[1] * 5.0)
+    crowd = [_nb(f"v{k}", -50.0 + 10.0 * k, 25.0, k % 2, 3.5 * (k % 2)) for k in range(11)]
+    boundary = EgoBoundary(tf=5.0, x0=0.0, y0=0.0, vx0=25.0, vy0=0.0, xf=125.0, yf=3.5, vxf=25.0, vyf=0.0)
+    check = check_problem(boundary, EgoNow(0.0, 25.0, 0.0, 0.0), crowd, (0, 1), cfg)
+    assert check is not None and check.m == MAX_CHECKED
+    assert max(abs(v.position(np.array([0.0]))[0]) for v in check.vehicles) <= 40.0  # the nearest eight
 
 
 def test_judge_accepts_a_bounded_intrusion_free_plan_and_rejects_beyond_the_limits():
