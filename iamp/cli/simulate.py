@@ -60,8 +60,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
           f"{'never' if merged is None else f'{merged:.1f} s'}"
           + ("; stopped at the lane's end" if s["stopped_at_end"] else ""))
     fd = s["follower_max_decel"]
+    ttc = "--" if s["min_ttc_s"] is None else f"{s['min_ttc_s']:.1f}"
     print(f"safety    {s['contacts']} contacts (body overlap {s['overlap_contacts']}, SUMO {s['sumo_contacts']}); "
-          f"{s['mingap_violations']} minGap violations; min TTC {s['min_ttc_s']} s "
+          f"{s['mingap_violations']} minGap violations; min TTC {ttc} s "
           f"({s['ttc_below_1_5_s']:.1f} s below 1.5 s); new follower braked "
           f"{'--' if fd is None else f'{fd:.1f} m/s²'}")
     lo, hi = s['ego_ax_range']
