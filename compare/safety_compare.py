@@ -42,12 +42,23 @@ def _run_json(label: str, plan: Plan, constraint: str) -> dict[str, Any]:
         out["reason"] = plan.info["reason"]
     if "avoidance" in plan.info and ok:
         av = plan.info["avoidance"]
-        out["avoidance"] = {"vehicles": [{k: v[k] for k in ("name", "first", "second", "crossing_time",
-                                                            "between_node_intrusion_m", "active_H_x", "active_H_y")}
-                                         for v in av["vehicles"]],
-                            "complete_sweep": av["complete_sweep"], "n_solves": av["n_solves"],
+        # node-only plans report between_node_intrusion_m and active rows; continuous ones
+        # (SPEC §14, the default) max_intrusion_m and binding_rows
+        keys = ("name", "first", "second", "crossing_time", "between_node_intrusion_m", "max_intrusion_m",
+                "active_H_x", "active_H_y", "binding_rows")
+        out["avoidance"] = {"safety": av.get("safety", "nodes"),
+                            "vehicles": [{k: v[k] for k in keys if k in v} for v in av["vehicles"]],
+                            "complete_sweep": av.get("complete_sweep"), "n_solves": av.get("n_solves"),
                             "certificate": plan.info.get("certificate")}
     return out
+
+
+def _binds(vehicle: dict[str, Any]) -> bool:
+    """Does an avoidance plan's inequality bind for this vehicle?  Node-only plans list the
+    active nodes per half-plane; continuous ones (SPEC §14) count binding Bernstein rows."""
+    if "binding_rows" in vehicle:
+        return any(int(n) > 0 for n in vehicle["binding_rows"].values())
+    return bool(vehicle["active_H_x"]["nodes"] or vehicle["active_H_y"]["nodes"])
 
 
 def plan_avoid(problem: Problem, *, steps: int, hold: str, solver: str) -> tuple[Plan | None, str | None]:
@@ -97,8 +108,7 @@ def explain(eq: Plan, avoid: Plan) -> str:
         return f"The equality plan failed ({eq.status}); the avoidance plan costs {avoid.cost:.6g}."
     d = avoid.cost - eq.cost
     same = abs(d) <= SAME_COST_REL * max(1.0, abs(eq.cost))
-    binds = [v["name"] for v in avoid.info["avoidance"]["vehicles"]
-             if v["active_H_x"]["nodes"] or v["active_H_y"]["nodes"]]
+    binds = [v["name"] for v in avoid.info["avoidance"]["vehicles"] if _binds(v)]
     bind_txt = (f"the inequalities bind for {', '.join(binds)}" if binds else
                 "no inequality binds: the unconstrained optimum is safe")
     av_safety = avoid.safety

@@ -77,9 +77,11 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
     contact : {"grid", "refine"}, optional
         The QP's contact-time search: every grid node, or refined off the grid (default
         ``"grid"``); QP only.
-    constraint : {"equality", "avoid"}
-        The paper's interior-point equality (default) or the avoidance inequalities of
-        SPEC §10 (QP only).
+    constraint : {"equality", "avoid", "active"}
+        The paper's interior-point equality on every vehicle (default), the avoidance
+        inequalities of SPEC §10/§14 (QP only; option ``safety="continuous"`` (default) or
+        ``"nodes"``), or the equality only on the vehicles in the way, chosen by the jump's
+        sign (``"active"``, SPEC §14; PMP and QP).
     **options
         Further fields of the chosen planner's options dataclass (the registry entry's
         ``options``, e.g. :class:`~iamp.planners.pmp.options.PMPOptions` ``max_starts``);

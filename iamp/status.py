@@ -11,7 +11,8 @@ from iamp.core.status import (
     STATUSES,
     SUCCESS,
     TIME_LIMIT,
+    UNSAFE,
 )
 
 __all__ = ["INACCURATE", "INFEASIBLE", "LOCAL", "MAX_ITER", "NUMERICAL_ERROR", "OPTIMAL", "SOLVER_ERROR",
-           "STATUSES", "SUCCESS", "TIME_LIMIT"]
+           "STATUSES", "SUCCESS", "TIME_LIMIT", "UNSAFE"]

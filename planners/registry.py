@@ -49,6 +49,8 @@ name          planner   constraint  planner class
 ``pmp``       pmp       equality    :class:`~iamp.planners.pmp.planner.PMPPlanner`
 ``qp``        qp        equality    :class:`~iamp.planners.qp.planner.QPPlanner`
 ``qp-avoid``  qp        avoid       :class:`~iamp.planners.avoid.planner.AvoidQPPlanner`
+``pmp-active`` pmp      active      :class:`~iamp.planners.active_set.ActiveSetPlanner` (PMP)
+``qp-active`` qp        active      :class:`~iamp.planners.active_set.ActiveSetPlanner` (QP)
 ============= ========= =========== =====================================================
 """
 
@@ -63,6 +65,7 @@ from iamp.core.errors import OptionError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 
+from .active_set import ActiveSetPlanner
 from .avoid.options import AvoidOptions
 from .avoid.planner import AvoidQPPlanner
 from .pmp.options import PMPOptions
@@ -241,7 +244,16 @@ def _qp(o: QPOptions) -> QPPlanner:
 
 def _avoid(o: AvoidOptions) -> AvoidQPPlanner:
     return AvoidQPPlanner(steps=o.steps, hold=o.hold, solver=o.solver, contact=o.contact,
-                          solver_settings=o.solver_settings)
+                          solver_settings=o.solver_settings, safety=o.safety, max_solves=o.max_solves,
+                          time_limit_s=o.time_limit_s)
+
+
+def _pmp_active(o: PMPOptions) -> ActiveSetPlanner:
+    return ActiveSetPlanner(_pmp(o), "pmp")
+
+
+def _qp_active(o: QPOptions) -> ActiveSetPlanner:
+    return ActiveSetPlanner(_qp(o), "qp")
 
 
 register(PlannerSpec("pmp", "pmp", "equality", PMPOptions, _pmp,
@@ -250,6 +262,10 @@ register(PlannerSpec("qp", "qp", "equality", QPOptions, _qp,
                      "the discretised QP with a search over grid contact times"))
 register(PlannerSpec("qp-avoid", "qp", "avoid", AvoidOptions, _avoid,
                      "the avoidance QP: the ego stays out of every safety region"))
+register(PlannerSpec("pmp-active", "pmp", "active", PMPOptions, _pmp_active,
+                     "the paper's equality only on the vehicles in the way, chosen by the jump's sign (SPEC §14)"))
+register(PlannerSpec("qp-active", "qp", "active", QPOptions, _qp_active,
+                     "the equality QP with the corner imposed only on the vehicles in the way (SPEC §14)"))
 
 __all__ = ["REGISTRY", "Planner", "PlannerSpec", "accepting", "cli_options", "constraints", "get", "lookup",
            "make_planner", "names", "option", "options_of", "planners", "register", "solvers"]

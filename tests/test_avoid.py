@@ -43,33 +43,35 @@ def node_depth(plan) -> float:
 @pytest.mark.parametrize("problem", [binding_problem(), paper_problem(1), paper_problem(3)],
                          ids=["binding", "p1", "p3"])
 def test_safe_at_nodes_and_osqp_agrees_with_clarabel(problem, hold):
-    c = AvoidQPPlanner(steps=40, hold=hold, solver="clarabel").plan(problem)
-    o = AvoidQPPlanner(steps=40, hold=hold, solver="osqp").plan(problem)
-    assert c.status == st.OPTIMAL and o.status == st.OPTIMAL
+    c = AvoidQPPlanner(safety="nodes", steps=40, hold=hold, solver="clarabel").plan(problem)
+    o = AvoidQPPlanner(safety="nodes", steps=40, hold=hold, solver="osqp").plan(problem)
+    # node-only safety: optimal when the plan is intrusion-free between nodes too, else unsafe (SPEC §14)
+    for p in (c, o):
+        assert p.status == (st.OPTIMAL if p.safety.intrusion_free else st.UNSAFE)
     assert o.cost == pytest.approx(c.cost, rel=1e-6)
     assert node_depth(c) <= 1e-6 and node_depth(o) <= 1e-6
     assert c.boundary_residual() < 1e-8
 
 
 def test_binding_case_active_set_multipliers_and_cost_of_safety():
-    plan = AvoidQPPlanner(steps=40).plan(binding_problem())
+    plan = AvoidQPPlanner(safety="nodes", steps=40).plan(binding_problem())
     v = plan.info["avoidance"]["vehicles"][0]
     # the corner binds: H_y at the last node before the crossing, H_x at the first after it
     assert v["active_H_y"]["nodes"] and v["active_H_x"]["nodes"]
     assert max(v["active_H_y"]["nodes"]) < min(v["active_H_x"]["nodes"])
     assert all(y > 0 for y in v["active_H_x"]["multipliers"] + v["active_H_y"]["multipliers"])
     # a binding inequality costs something: above the free optimum (all rows relaxed)
-    free = AvoidQPPlanner(steps=40)._solve
+    free = AvoidQPPlanner(safety="nodes", steps=40)._solve
     from iamp.planners.avoid.data import AvoidData
 
     data = AvoidData(plan.problem, np.linspace(0, 5, 41), "foh")
-    backend = AvoidQPPlanner(steps=40)._backend(data, data.imposed([]))
+    backend = AvoidQPPlanner(safety="nodes", steps=40)._backend(data, data.imposed([]))
     assert plan.cost > free(data, backend, []).cost + 1e-3
 
 
 def test_kkt_conditions_recomputed_independently():
     for solver in ("clarabel", "osqp"):
-        plan = AvoidQPPlanner(steps=30, solver=solver).plan(binding_problem())
+        plan = AvoidQPPlanner(safety="nodes", steps=30, solver=solver).plan(binding_problem())
         q = plan.info["qp_solution"]
         P = sp.csc_matrix(q.data.P)
         P = (P + sp.triu(P, 1).T).toarray()  # the whole symmetric Hessian
@@ -90,7 +92,7 @@ def test_kkt_conditions_recomputed_independently():
 def test_matches_an_independent_cvxpy_model_at_the_chosen_switch():
     """The same QP written from SPEC §3/§10 directly in cvxpy (FOH), at the plan's switch."""
     prob, N = binding_problem(), 30
-    plan = AvoidQPPlanner(steps=N).plan(prob)
+    plan = AvoidQPPlanner(safety="nodes", steps=N).plan(prob)
     j = plan.info["grid_best"]["switch_nodes"][0]
     v = prob.vehicles[0]
     t = np.linspace(0, prob.tf, N + 1)
@@ -119,7 +121,7 @@ def test_matches_an_independent_cvxpy_model_at_the_chosen_switch():
 
 def test_crossing_time_is_the_global_minimiser_over_a_dense_grid():
     prob = binding_problem()
-    planner = AvoidQPPlanner(steps=30, contact="refine")
+    planner = AvoidQPPlanner(safety="nodes", steps=30, contact="refine")
     plan = planner.plan(prob)
     assert plan.status == st.OPTIMAL
     costs = []
@@ -129,15 +131,15 @@ def test_crossing_time_is_the_global_minimiser_over_a_dense_grid():
             costs.append(p.cost)
     assert plan.cost <= min(costs) * (1 + 1e-9)
     # and the grid sweep's best is the minimum of its own table
-    g = AvoidQPPlanner(steps=30).plan(prob)
+    g = AvoidQPPlanner(safety="nodes", steps=30).plan(prob)
     assert g.cost == pytest.approx(min(c for _, c in g.info["sweep"]), rel=1e-12)
 
 
 @pytest.mark.parametrize("hold", ["foh", "zoh"])
 def test_pruned_sweep_equals_the_full_sweep(hold):
     prob = binding_problem()
-    pruned = AvoidQPPlanner(steps=40, hold=hold).plan(prob)
-    full = AvoidQPPlanner(steps=40, hold=hold, prune=False).plan(prob)
+    pruned = AvoidQPPlanner(safety="nodes", steps=40, hold=hold).plan(prob)
+    full = AvoidQPPlanner(safety="nodes", steps=40, hold=hold, prune=False).plan(prob)
     assert pruned.info["pruned"] and pruned.info["n_solves"] < full.info["n_solves"]
     assert pruned.cost == pytest.approx(full.cost, rel=1e-12)
     assert pruned.info["grid_best"]["switch_nodes"] == full.info["grid_best"]["switch_nodes"]
@@ -145,8 +147,8 @@ def test_pruned_sweep_equals_the_full_sweep(hold):
 
 def test_between_node_intrusion_falls_with_n():
     prob = binding_problem()
-    worst = [AvoidQPPlanner(steps=N).plan(prob).info["avoidance"]["vehicles"][0]["between_node_intrusion_m"]
-             for N in (20, 40, 80)]
+    worst = [AvoidQPPlanner(safety="nodes", steps=N).plan(prob).info["avoidance"]["vehicles"][0]
+             ["between_node_intrusion_m"] for N in (20, 40, 80)]
     assert worst[0] > worst[1] > worst[2] > 0
     assert worst[2] < 0.35 * worst[0]  # O(h): about halves per halving of h (measured 0.285, 0.149, 0.076 m)
 
@@ -154,7 +156,7 @@ def test_between_node_intrusion_falls_with_n():
 def test_free_optimum_is_certified_and_coincides_when_no_inequality_binds():
     """Paper 1: the unconstrained optimum is safe, so the avoidance optimum is that optimum
     (J = 12.387 = 10.8 + 1.587 exactly: 6 d²/t_f³ per axis), far below the equality's 22.87."""
-    plan = AvoidQPPlanner(steps=100).plan(paper_problem(1))
+    plan = AvoidQPPlanner(safety="nodes", steps=100).plan(paper_problem(1))
     e = plan.problem.ego
     free = 6 * ((e.xf - e.x0 - e.vx0 * e.tf) ** 2 + (e.yf - e.y0) ** 2) / e.tf**3
     assert plan.cost == pytest.approx(free, rel=1e-9)
@@ -164,7 +166,7 @@ def test_free_optimum_is_certified_and_coincides_when_no_inequality_binds():
 
 
 def test_end_inside_a_safety_region_is_infeasible_with_the_reason():
-    plan = AvoidQPPlanner(steps=20).plan(paper_problem(2))
+    plan = AvoidQPPlanner(safety="nodes", steps=20).plan(paper_problem(2))
     assert plan.status == st.INFEASIBLE and plan.cost is None
     assert "final state" in plan.info["reason"] and "inside" in plan.info["reason"]
     assert plan.to_json()["reason"] == plan.info["reason"]
@@ -177,12 +179,12 @@ def test_corner_that_does_not_describe_the_manoeuvre_is_refused():
     v = SurroundingVehicle(x_poly=(20.0, 30.0), corner="front-lower", y=3.75, length=4.8, width=1.8,
                            safety_x=5.0, safety_y=0.5, name="ahead")
     with pytest.raises(ScenarioError, match="ahead"):
-        AvoidQPPlanner(steps=20).plan(Problem(ego, (v,), "bad"))
+        AvoidQPPlanner(safety="nodes", steps=20).plan(Problem(ego, (v,), "bad"))
 
 
 def test_two_vehicles_sweep_every_combination():
     prob = builtin_problem("two-vehicle")
-    plan = AvoidQPPlanner(steps=12, max_combinations=10**6).plan(prob)
+    plan = AvoidQPPlanner(safety="nodes", steps=12, max_combinations=10**6).plan(prob)
     assert plan.status == st.OPTIMAL
     assert node_depth(plan) <= 1e-6
     assert len(plan.contact_times) == 2
@@ -201,7 +203,7 @@ def test_random_problems_safe_at_nodes_and_solvers_agree(x0v, speed, xf, vxf, ho
                            safety_x=5.0, safety_y=0.5, name="sv1")
     prob = Problem(ego, (v,), "random")
     try:
-        c = AvoidQPPlanner(steps=20, hold=hold).plan(prob)
+        c = AvoidQPPlanner(safety="nodes", steps=20, hold=hold).plan(prob)
     except ScenarioError:
         assume(False)
     if c.status == st.INFEASIBLE:  # then the start or the end really is inside the region
@@ -209,9 +211,10 @@ def test_random_problems_safe_at_nodes_and_solvers_agree(x0v, speed, xf, vxf, ho
                   for t, x, y in ((0.0, 0.0, -2.0), (5.0, xf, 3.75))]
         assert any(inside) and "inside" in c.info["reason"]
         return
-    assert c.status == st.OPTIMAL
-    o = AvoidQPPlanner(steps=20, hold=hold, solver="osqp").plan(prob)
-    assert o.status == st.OPTIMAL and o.cost == pytest.approx(c.cost, rel=1e-6)
+    assert c.status == (st.OPTIMAL if c.safety.intrusion_free else st.UNSAFE)
+    o = AvoidQPPlanner(safety="nodes", steps=20, hold=hold, solver="osqp").plan(prob)
+    assert o.status == (st.OPTIMAL if o.safety.intrusion_free else st.UNSAFE)
+    assert o.cost == pytest.approx(c.cost, rel=1e-6)
     assert node_depth(c) <= 1e-6
     # the free optimum bounds every safe plan from below: per axis, with e1 = s_f − s_0 − v_0 T and
     # e2 = v_f − v_0, min ½∫u² = (6 e1² − 6 T e1 e2 + 2 T² e2²)/T³ (FOH reproduces it exactly)
@@ -228,7 +231,7 @@ def test_many_vehicles_beyond_the_full_sweep_are_local():
     # sv2 made faster so that the free optimum is not safe: no certificate, a real search
     fast = SurroundingVehicle((30.0, 17.0), v2.corner, v2.y, v2.length, v2.width, v2.safety_x, v2.safety_y, v2.name)
     p = prob.with_vehicles([v1, fast])
-    plan = AvoidQPPlanner(steps=16, max_combinations=50, coarse=5).plan(p)
+    plan = AvoidQPPlanner(safety="nodes", steps=16, max_combinations=50, coarse=5).plan(p)
     assert plan.status in (st.LOCAL, st.OPTIMAL)
     if plan.info["certificate"] is None:
         assert plan.status == st.LOCAL and not plan.info["complete_sweep"]
@@ -243,7 +246,7 @@ def test_pmp_side_avoidance_agrees_with_the_qp():
 
     for prob in (binding_problem(), paper_problem(1), builtin_problem("two-vehicle")):
         pmp = PMPAvoidPlanner().plan(prob)
-        qp = AvoidQPPlanner(steps=40, contact="refine").plan(prob)
+        qp = AvoidQPPlanner(safety="nodes", steps=40, contact="refine").plan(prob)
         assert pmp.status in (st.OPTIMAL, st.LOCAL) and qp.status == st.OPTIMAL
         assert pmp.cost == pytest.approx(qp.cost, rel=1e-9)
         assert np.allclose(pmp.contact_times, qp.contact_times, atol=1e-5)

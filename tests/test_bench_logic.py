@@ -52,6 +52,10 @@ def fake(monkeypatch):
     monkeypatch.setattr(bench, "_sweep", lambda fn, repeats: sweep_fn(fn, repeats))
     monkeypatch.setattr(bench, "_plan_fn", plan_fn)
     monkeypatch.setattr(bench, "_avoid", lambda problem, repeats, notes: None)
+    monkeypatch.setattr(bench, "_avoid_bounded", lambda quick, notes: {
+        "problem": "overtake", "steps": 50, "safety": "continuous", "target_plan_s": 2e-3,
+        "backends": {"piqp": {"plan_s": 3.0e-3, "status": "optimal", "cost": 6.7, "n_solves": 9, "qp_s": 1e-3}},
+        "plan_fastest_s": 3.0e-3, "ratios": {"casadi_ipopt_qp_to_iamp_qp": 16.0}})
     monkeypatch.setattr(bench, "_casadi", lambda problem, quick, notes: {
         "build_s": 0.2, "cold_s": 0.02, "warm_s": 0.004, "contact_time": 3.52, "cost": 22.87,
         "iterations_cold": 20, "iterations_warm": 5, "return_status": "Solve_Succeeded", "steps": 100,
@@ -85,7 +89,8 @@ def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     assert t["qp_native_solve_best_iterative_s"]["met"] and out["best_iterative_backend"] == "piqp"
     assert t["qp_native_solve_osqp_s"]["met"]  # 0.4 ms <= 0.5 ms
     assert t["qp_grid_sweep_native_best_s"]["met"] and out["best_native_sweep"] == "kkt"  # 18 ms <= 20 ms
-    assert out["missed"] == ["pmp_plan_two_vehicles_s"]
+    assert out["missed"] == ["pmp_plan_two_vehicles_s", "avoid_bounded_plan_fastest_s"]  # 3 ms > 2 ms
+    assert out["ratios"]["avoid_bounded_casadi_ipopt_qp_to_iamp_qp"] == 16.0
     assert sorted(out["missed"]) == sorted(k for k, v in t.items() if not v["met"])
     r = out["ratios"]
     assert r["qp_best_to_kkt"] == pytest.approx(per["piqp"] / per["kkt"])
@@ -97,4 +102,5 @@ def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     assert [d for d, _ in seen] == sorted(d for d, _ in seen)
     text = format_bench(out)
     assert "CasADi Opti + IPOPT" in text and "MISSED" in text and "two vehicles (compiled search)" in text
+    assert "Bounded avoidance" in text and "avoid_bounded_plan_fastest_s" in text
     assert r["pmp_two_vehicles_pure_to_compiled"] == 10.0

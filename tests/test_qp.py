@@ -234,3 +234,19 @@ def test_new_backends_sweep_to_the_grid_restricted_pmp(solver):
     swept = np.array([c for _, c in res.info["sweep"]])
     assert np.allclose(swept, J, rtol=1e-9)
     assert res.info["candidates"] == {"total": N - 1, "solved": N - 1, "failed": {}, "inaccurate": 0}
+
+
+@pytest.mark.parametrize("name", [1, 3])
+def test_refine_is_optimal_only_when_the_pmp_certifies_its_contact_times_global(name):
+    """Issue 19 item 6: FOH refine is ``optimal`` only when its cost reaches the PMP's certified
+    global J* (FOH is exact, so J_QP(t) = J(t) >= J*); ZOH refine is ``local``."""
+    prob = paper_problem(name)
+    pmp = PMPPlanner().plan(prob)
+    foh = QPPlanner(hold="foh", steps=40, contact="refine").plan(prob)
+    cert = foh.info["refine_certificate"]
+    assert cert["pmp_cost"] == pytest.approx(pmp.cost, rel=1e-12)
+    assert cert["global"] == (foh.cost <= pmp.cost * (1 + cert["tol_rel"]) + cert["tol_rel"])
+    assert (foh.status == "optimal") == cert["global"]
+    assert foh.cost >= pmp.cost * (1 - 1e-9)
+    zoh = QPPlanner(hold="zoh", steps=40, contact="refine").plan(prob)
+    assert zoh.status == "local" and not zoh.info["refine_certificate"]["global"]

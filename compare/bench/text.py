@@ -38,6 +38,21 @@ def format_bench(out: dict[str, Any]) -> str:
     if out["avoid_grid_sweep_s"]:
         for k, v in out["avoid_grid_sweep_s"].items():
             lines.append(f"    {'avoid ' + k:18s} {_fmt_s(v)}")
+    ab = out.get("avoid_bounded")
+    if ab and ab.get("backends"):
+        lines += ["", f"  Bounded avoidance, {ab['problem']}, FOH, N = {ab['steps']}, safety {ab['safety']}:",
+                  f"    {'backend':10s} {'whole plan':>10s}  {'QPs':>5s}  {'one QP':>10s}  status"]
+        for k, r in ab["backends"].items():
+            if r.get("plan_s") is None:
+                lines.append(f"    {k:10s} {r.get('error', 'n/a')}")
+                continue
+            lines.append(f"    {k:10s} {_fmt_s(r['plan_s'])}  {r.get('n_solves', 0):5d}  {_fmt_s(r.get('qp_s'))}  "
+                         f"{r['status']} (J = {r['cost']:.9g})" if r.get("cost") is not None else
+                         f"    {k:10s} {_fmt_s(r['plan_s'])}  {r['status']}")
+        c = ab.get("casadi_ipopt")
+        if c and "solve_s" in c:
+            lines.append(f"    CasADi + IPOPT, the same QP at the crossing time: solve {_fmt_s(c['solve_s'])} "
+                         f"({c['iterations']} it, J = {c['cost']:.9g}), build {_fmt_s(c['build_s']).strip()}")
     cas = out.get("casadi_ipopt")
     if cas:
         pmp_t = out["pmp_plan_s"]["one_vehicle"]

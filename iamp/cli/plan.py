@@ -110,7 +110,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
                             "vehicle's x_poly", "--model", args.scenario)
     scenario, problem, _ = load_cli_problem(args.scenario, args.model)
-    if args.planner == "qp":
+    if args.planner == "qp" and args.constraint != "avoid":  # the avoidance search has a budget, no work limit
         msg = qp_work_message(problem.m, args.steps)
         if msg is not None:
             raise ScenarioError(msg, "--steps")
@@ -161,13 +161,26 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     print(f"scenario  {scenario.name}  ({scenario.source})")
     print(f"planner   {cfg}")
     print(f"status    {result.status}")
+    if "active_set" in result.info:
+        _print_active(result)
+        return
+    if result.status == "unsafe" and result.info.get("constraint") == "avoid":
+        print(f"reason    {result.info.get('unsafe_reason')}")
+        from iamp.planners.avoid.result import summary_lines as nodes_lines
+
+        for line in nodes_lines(result):
+            print(line)
+        return
     if not result.is_optimal():
         if result.info.get("reason"):
             print(f"reason    {result.info['reason']}")
         print("no cost is reported: the solver did not reach an optimal solution")
         return
     if result.info.get("constraint") == "avoid":
-        from iamp.planners.avoid.result import summary_lines
+        if result.info.get("safety_mode") == "continuous":
+            from iamp.planners.avoid.continuous import summary_lines
+        else:
+            from iamp.planners.avoid.result import summary_lines
 
         for line in summary_lines(result):
             print(line)
@@ -204,6 +217,26 @@ def _planner_help() -> str:
     return "; ".join(parts) + " (default pmp)"
 
 
+def _print_active(result: Plan) -> None:
+    """The text summary of ``--constraint active``: what was imposed, dropped and why."""
+    act = result.info["active_set"]
+    if result.info.get("reason"):
+        print(f"reason    {result.info['reason']}")
+    if result.cost is not None:
+        print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
+    print(f"time      {result.solve_time_s * 1e3:.3f} ms ({act['iterations']} iteration(s))")
+    for v in act["imposed"]:
+        print(f"imposed   {v['name']}: contact t = {v['contact_time']:.6f} s, Φ = ({v['phi'][0]:.6g}, "
+              f"{v['phi'][1]:.6g}); {v['reason']}")
+    if not act["imposed"]:
+        print("imposed   none: the unconstrained plan")
+    for v in act["dropped"]:
+        print(f"dropped   {v['name']}: {v['reason']}")
+    if result.safety is not None:
+        for line in result.safety.lines():
+            print(line)
+
+
 def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``iamp plan``."""
     p = sub.add_parser("plan", help="plan the optimal lane change of a scenario",
@@ -220,7 +253,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                         "(at most 20000; the QP's sweep is limited to perm(N-1, m)·N <= 1e6)")
     p.add_argument("--contact", choices=CONTACTS, default=None, help="QP only (default grid)")
     p.add_argument("--constraint", choices=registry.constraints(), default=None,
-                   help="QP only: the paper's corner equality (default) or the avoidance inequalities (SPEC §10)")
+                   help="the paper's corner equality on every vehicle (default), the avoidance inequalities "
+                        "(QP only, SPEC §10/§14), or the equality only on the vehicles in the way, chosen by the "
+                        "jump's sign (active, SPEC §14)")
     for name, f in registry.cli_options().items():  # the options other planners register
         if name not in QP_ONLY and name != "steps":
             who = " or ".join(registry.accepting(name))

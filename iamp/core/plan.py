@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from iamp.core.problem import Problem
 from iamp.core.safety import SafetyReport, safety_report
-from iamp.core.status import OPTIMAL, SUCCESS
+from iamp.core.status import OPTIMAL, SUCCESS, UNSAFE
 from iamp.core.status import OPTIMAL as STATUS_OPTIMAL  # noqa: F401 - kept for callers
 
 FloatArray = NDArray[np.float64]
@@ -142,7 +142,8 @@ class Plan:
         the QP's ``N`` or 100).  A failed plan has ``cost = null`` and empty arrays."""
         name = self.problem.name if scenario is None else scenario
         n = int(steps if steps is not None else (self.steps or 100))
-        ok = self.ok
+        # an ``unsafe`` plan (SPEC §14) is a verified trajectory that intrudes: shown with its report
+        ok = self.ok or (self.status == UNSAFE and self.trajectory is not None and self.cost is not None)
         traj: dict[str, Any] = self.sample(n) if ok else {k: [] for k in TRAJECTORY_KEYS}
         out: dict[str, Any] = {
             "scenario": name,
@@ -152,7 +153,8 @@ class Plan:
             "steps": n,
             "status": self.status,
             "cost": float(self.cost) if ok and self.cost is not None else None,
-            "contact_times": [float(t) for t in self.contact_times] if ok else [],
+            # null for a vehicle without a contact (--constraint active: a corner not imposed)
+            "contact_times": [float(t) if np.isfinite(t) else None for t in self.contact_times] if ok else [],
             "jumps": [[float(j[0]), float(j[1])] for j in self.jumps] if ok else [],
             "solve_time_s": float(self.solve_time_s),
             "trajectory": {k: [float(x) for x in np.asarray(v)] for k, v in traj.items()},
@@ -161,8 +163,12 @@ class Plan:
         out["safety"] = safety.to_json() if safety is not None else None
         if ok and "avoidance" in self.info:
             out["avoidance"] = self.info["avoidance"]
+        if "active_set" in self.info:
+            out["active_set"] = self.info["active_set"]
         if not ok and self.info.get("failed_check") is not None:
             out["failed_check"] = self.info["failed_check"]
+        if self.status == UNSAFE and self.info.get("unsafe_reason") is not None:
+            out["reason"] = self.info["unsafe_reason"]
         if not ok and self.info.get("reason") is not None:
             out["reason"] = self.info["reason"]
         return out

@@ -27,8 +27,13 @@ TIME_LIMIT: Final = "time_limit_reached"
 NUMERICAL_ERROR: Final = "numerical_error"
 #: Any other solver failure.
 SOLVER_ERROR: Final = "solver_error"
+#: A verified solution of the problem as posed whose own safety report (SPEC §9) finds an
+#: intrusion (SPEC §14: node-only avoidance, ``--constraint active`` that could not make the
+#: plan safe).  The plan and its cost are reported; exit status 3.
+UNSAFE: Final = "unsafe"
 
-STATUSES: Final = (OPTIMAL, LOCAL, INACCURATE, INFEASIBLE, MAX_ITER, TIME_LIMIT, NUMERICAL_ERROR, SOLVER_ERROR)
+STATUSES: Final = (OPTIMAL, LOCAL, INACCURATE, INFEASIBLE, MAX_ITER, TIME_LIMIT, NUMERICAL_ERROR, SOLVER_ERROR,
+                   UNSAFE)
 
 #: Statuses that carry a verified plan (a cost is reported).
 SUCCESS: Final = frozenset({OPTIMAL, LOCAL})

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -103,7 +104,7 @@ class AvoidData(StateIndex):
     hold : {"foh", "zoh"}
     """
 
-    def __init__(self, problem: Problem, t_nodes: FloatArray, hold: str) -> None:
+    def __init__(self, problem: Problem, t_nodes: FloatArray, hold: str, with_limits: bool = False) -> None:
         self.problem, self.hold = problem, hold
         self.t_nodes = np.asarray(t_nodes, dtype=float)
         N = self.N = self.t_nodes.size - 1
@@ -158,6 +159,19 @@ class AvoidData(StateIndex):
                 c_on[r - self.n_eq] = hp.bound(self.t_nodes[self.interior])
         self.A = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                                shape=(self.n_rows, self.n))
+        #: physical limits (``with_limits``): rows ``[A_lim; -A_lim] z <= [hi; -lo]`` after the
+        #: vehicles' rows, always imposed (:meth:`bounds`)
+        self.limit_rows: Any = None
+        self.n_limit_rows = 0
+        if with_limits and problem.limits is not None:
+            from iamp.planners.qp_limits import check_hold, limit_rows
+
+            check_hold(problem.limits, hold)
+            self.limit_rows = lr = limit_rows(self, self.t_nodes, hold, problem.limits)
+            self.A = sp.csc_matrix(sp.vstack([self.A, lr.A, -lr.A]))
+            c_on = np.r_[c_on, lr.hi, -lr.lo]
+            self.n_limit_rows = 2 * lr.A.shape[0]
+            self.n_rows += self.n_limit_rows
         self.A.sort_indices()
         # P (upper triangle), 1/2 z'Pz = J
         pr: list[IntArray] = []
@@ -207,8 +221,17 @@ class AvoidData(StateIndex):
             on[self.row(i, second, k[k >= first_second]) - self.n_eq] = True
         return on
 
+    def effective_on(self, on: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """``on`` with the physical-limit rows imposed (they are never relaxed)."""
+        if not self.n_limit_rows:
+            return on
+        on = on.copy()
+        on[on.size - self.n_limit_rows:] = True
+        return on
+
     def bounds(self, on: NDArray[np.bool_]) -> tuple[FloatArray, FloatArray]:
         """``l, u`` for the imposed rows ``on``."""
+        on = self.effective_on(on)
         l = np.r_[self.b_eq, np.full(on.size, -np.inf)]
         u = np.r_[self.b_eq, np.where(on, self.c_on, self.c_on + self.relax)]
         return l, u

@@ -69,14 +69,14 @@ from iamp.planners.qp.planner import HOLDS, aligned_grid
 
 from ..qp.options import CONTACTS, check_choice
 from .check import Candidate, FloatArray, crossing_orders
+from .continuous import ContinuousAvoidPlanner
 from .data import AvoidData
-from .options import check_avoid_solver
+from .options import SAFETY_MODES, check_avoid_solver
 from .result import failed_plan, verified_plan
 from .search import Phase, certify_free, pruned_switches, refine_crossings, seed_switches
 from .solve import BoundSolver
 
 Progress = Callable[[int, int], None]
-
 
 @dataclass
 class AvoidQPPlanner:
@@ -87,7 +87,7 @@ class AvoidQPPlanner:
     steps : int
         Grid intervals ``N``.
     hold : {"foh", "zoh"}
-    solver : {"osqp", "clarabel"}
+    solver : {"osqp", "clarabel", "piqp"}
     contact : {"grid", "refine"}
         Crossing-time search.
     solver_settings : dict, optional
@@ -96,6 +96,13 @@ class AvoidQPPlanner:
         Largest full sweep for ``m > 1`` vehicles.
     coarse : int
         Switches per vehicle of the coarse sweep beyond ``max_combinations``.
+    safety : {"continuous", "nodes"}
+        ``"continuous"`` (default, SPEC §14): both half-planes at the crossing time itself and
+        every piece certified by its Bernstein coefficients, the crossing times found by
+        branch and bound (:class:`~iamp.planners.avoid.continuous.ContinuousAvoidPlanner`);
+        ``"nodes"``: the inequalities at the grid nodes only (SPEC §10 as first written,
+        kept for study: it cuts corners between nodes, and a plan that intrudes is reported
+        ``unsafe``).
     prune : bool
         One vehicle: skip the switches that monotone relaxations prove no better than the
         best found (exact; see :func:`~iamp.planners.avoid.search.pruned_switches`).
@@ -110,11 +117,20 @@ class AvoidQPPlanner:
     max_combinations: int = 5000
     coarse: int = 24
     prune: bool = True
+    safety: str = "continuous"
+    max_solves: int = 2000
+    time_limit_s: float = 60.0
 
     def __post_init__(self) -> None:
         check_choice(self.hold, HOLDS, "hold", "hold")
         check_choice(self.contact, CONTACTS, "contact", "contact search")
         check_avoid_solver(self.solver)
+        check_choice(self.safety, SAFETY_MODES, "safety", "safety mode")
+
+    def _continuous(self) -> ContinuousAvoidPlanner:
+        return ContinuousAvoidPlanner(steps=self.steps, hold=self.hold, solver=self.solver,
+                                      solver_settings=self.solver_settings, max_solves=self.max_solves,
+                                      time_limit_s=self.time_limit_s)
 
     # --- solving one grid ------------------------------------------------------------------
     def _backend(self, data: AvoidData, on: np.ndarray) -> BoundSolver:
@@ -141,6 +157,8 @@ class AvoidQPPlanner:
     def plan(self, problem: Problem, progress: Progress | None = None) -> Plan:
         """Search the crossing times, solve, verify; an infeasible start/end gives an
         ``infeasible`` plan with the reason (see the module docstring)."""
+        if self.safety == "continuous":
+            return self._continuous().plan(problem)
         start = time.perf_counter()
         N, m = int(self.steps), problem.m
         if m == 0:
@@ -151,7 +169,7 @@ class AvoidQPPlanner:
         orders, reason = crossing_orders(problem)
         if reason is not None:
             return self._failed(problem, st.INFEASIBLE, reason, start)
-        data = AvoidData(problem, np.linspace(0.0, problem.tf, N + 1), self.hold)
+        data = AvoidData(problem, np.linspace(0.0, problem.tf, N + 1), self.hold, with_limits=True)
         per_vehicle = [[(f, s, j, j + 1) for (f, s) in orders[i] for j in range(N)] for i in range(m)]
         total = int(np.prod([len(c) for c in per_vehicle]))
         complete = total <= self.max_combinations
@@ -242,13 +260,16 @@ class AvoidQPPlanner:
             t_nodes, idx = aligned_grid(np.asarray(taus, dtype=float), problem.tf, int(self.steps))
         except ValueError:
             return None
-        data = AvoidData(problem, t_nodes, self.hold)
+        data = AvoidData(problem, t_nodes, self.hold, with_limits=True)
         phases = [(f, s, int(k), int(k)) for (f, s), k in zip(orders, idx)]
         return data, self._solve(data, self._backend(data, data.imposed(phases)), phases)
 
     def plan_at_times(self, problem: Problem, taus: Sequence[float]) -> Plan:
         """Solve once with the crossing times ``taus`` (no search; each vehicle's first
-        half-plane order), on the grid aligned with them."""
+        half-plane order), on the grid aligned with them (``nodes``) or on the uniform grid
+        with both half-planes at ``τ`` (``continuous``)."""
+        if self.safety == "continuous":
+            return self._continuous().plan_at_times(problem, taus)
         start = time.perf_counter()
         orders, reason = crossing_orders(problem)
         if reason is not None:

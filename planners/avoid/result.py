@@ -76,7 +76,7 @@ def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: 
     failed = [k for k, v in kkt.items() if v > limit]
     ineq_y = cand.y[data.n_eq:]
     slack = u[data.n_eq:] - (data.A @ cand.z)[data.n_eq:]
-    relaxed_binding = bool(np.any((~cand.on) & (slack <= ACTIVE_SLACK_M)))
+    relaxed_binding = bool(np.any((~data.effective_on(cand.on)) & (slack <= ACTIVE_SLACK_M)))
     if relaxed_binding:
         failed.append("relaxed_row_binding")
     vehicles, jumps, crossing = [], np.zeros((problem.m, 2)), np.zeros(problem.m)
@@ -110,11 +110,17 @@ def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: 
     safety = plan.safety
     for entry, vs in zip(vehicles, safety.vehicles if safety is not None else ()):
         entry["between_node_intrusion_m"] = vs.max_intrusion_m
+    if status in st.SUCCESS and safety is not None and not safety.intrusion_free:
+        # SPEC §14: an avoidance plan is optimal only if its own §9 report is intrusion-free
+        failed.append("intrusion")
+        plan.status = st.UNSAFE
+        info["unsafe_reason"] = ("the node-only constraints hold at the grid nodes, but the trajectory enters a "
+                                 "safety region between them (use --safety continuous)")
     plan.residuals = {"boundary": plan.boundary_residual(), **kkt}
     info.update(kkt=kkt, kkt_tol=limit, failed_checks=failed,
                 solver_status=cand.status, solver_iterations=int(cand.sol.iterations),
                 qp_solution=QPSolutionData(data, l, u, cand.z, cand.y, cand.on))
-    info["avoidance"] = {"constraint": "avoid", "contact": contact, "complete_sweep": complete,
+    info["avoidance"] = {"constraint": "avoid", "safety": "nodes", "contact": contact, "complete_sweep": complete,
                          "n_solves": info["n_solves"], "vehicles": vehicles,
                          "kkt": kkt, "kkt_tol": limit, "failed_checks": failed,
                          "grid_best": info["grid_best"]}

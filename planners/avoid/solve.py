@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import cache, lru_cache
 from importlib import metadata
 from typing import Any
 
@@ -49,6 +50,7 @@ CLARABEL_STATUS = {"Solved": st.OPTIMAL, "AlmostSolved": st.INACCURATE, "PrimalI
                    "NumericalError": st.NUMERICAL_ERROR, "InsufficientProgress": st.NUMERICAL_ERROR}
 
 
+@cache
 def _require(dist: str) -> None:
     try:
         metadata.version(dist)
@@ -56,9 +58,14 @@ def _require(dist: str) -> None:
         raise MissingDependencyError(f"solver {dist!r} needs the package {dist!r}: pip install {dist}") from None
 
 
+@lru_cache(maxsize=1)
+def _osqp_major() -> int:
+    return int((metadata.version("osqp") or "1").split(".")[0])
+
+
 def osqp_settings() -> dict[str, Any]:
     """OSQP for the avoidance QP (module docstring)."""
-    major = int((metadata.version("osqp") or "1").split(".")[0])
+    major = _osqp_major()
     polish = "polishing" if major >= 1 else "polish"
     out: dict[str, Any] = {"eps_abs": 1e-7, "eps_rel": 0.0, polish: True, "polish_refine_iter": 10,
                            "max_iter": 50_000, "verbose": False}

@@ -44,6 +44,38 @@ __all__ = ["HOLDS", "CandidateResult", "DiscretisedQP", "HoldTrajectory", "QPPla
            "aligned_grid"]
 
 
+def refine_certificate(problem: Problem, best: CandidateResult, hold: str) -> dict[str, Any]:
+    r"""Is the refined contact time the global minimiser over every contact time?
+
+    The sweep is global over the grid only, and the off-grid refinement is a local search in
+    the grid's best basin.  The PMP certifies its global optimum :math:`J^* = \min_t J(t)`
+    (branch and bound on the closed-form value function).  With FOH the refined QP is exact
+    (SPEC §3 fact 1, :math:`J_\text{QP}(t) = J(t) \ge J^*`), so the refined plan is global
+    exactly when :math:`J_\text{QP}(t_\text{ref}) \le J^*(1 + \epsilon)` with
+    :math:`\epsilon` = ``refine_cost_rel``.  With ZOH, :math:`J_\text{ZOH}(t) \ge J(t)` bounds
+    the other basins only up to the ZOH gap, which does not certify a minimiser: ``local``.
+    """
+    from iamp.core.tolerances import tol
+    from iamp.planners.pmp import PMPPlanner
+
+    if hold != "foh":
+        return {"global": False, "reason": "ZOH refine: J_ZOH(t) >= J_PMP(t) bounds the other basins only up to "
+                                           "the ZOH gap; the refined contact time is a local minimiser"}
+    pmp = PMPPlanner().plan(problem)
+    if pmp.status != st.OPTIMAL or pmp.cost is None:
+        return {"global": False, "reason": f"the PMP could not certify the global optimum ({pmp.status})",
+                "pmp_status": pmp.status}
+    eps = tol("refine_cost_rel")
+    ok = best.cost <= pmp.cost * (1 + eps) + eps
+    out: dict[str, Any] = {"global": bool(ok), "pmp_cost": float(pmp.cost),
+                           "pmp_contact_times": [float(t) for t in pmp.contact_times], "tol_rel": eps,
+                           "method": "the PMP's certified global optimum J* bounds every contact time (FOH is exact)"}
+    if not ok:
+        out["reason"] = (f"the refined contact times lie in another basin: J = {best.cost:.9g} > the certified "
+                         f"global J* = {pmp.cost:.9g} (PMP, t* = {', '.join(f'{t:.6g}' for t in pmp.contact_times)})")
+    return out
+
+
 def _checks_of(r: CandidateResult) -> dict[str, dict[str, Any]]:
     return {k: dict(v) for k, v in r.checks.items()}
 
@@ -161,7 +193,14 @@ class QPPlanner:
         info["checks"] = checks
         if sw.certified:
             info["failed_check"] = None
-            return self._plan(problem, best, st.OPTIMAL, start, info)
+            status = st.OPTIMAL
+            if self.contact == "refine":
+                cert = refine_certificate(problem, best, self.hold)
+                info["refine_certificate"] = cert
+                if not cert["global"]:
+                    status = st.LOCAL
+                    info["why"] = cert["reason"]
+            return self._plan(problem, best, status, start, info)
         info["failed_check"] = "sweep_candidates"
         nodes, why_status, bound = min(sw.could_beat, key=lambda c: c[2])
         info["why"] = (f"{len(sw.could_beat)} candidate(s) without a verified solution could beat the best "

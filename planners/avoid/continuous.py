@@ -1,0 +1,528 @@
+r"""The avoidance QP safe in continuous time (SPEC §14, amending §10): ``--safety continuous``.
+
+For each vehicle ``i`` with half-plane order (first, second) and crossing time
+:math:`\tau_i`, the ego must be in the first half-plane for :math:`t \le \tau_i` and in the
+second for :math:`t \ge \tau_i` — at :math:`\tau_i` itself in both.  On the uniform grid of
+SPEC §3 (same holds, cost, boundary rows), every piece's position is a cubic whose Bernstein
+coefficients are linear in the node variables (:mod:`iamp.planners.avoid.bernstein`), so the
+constraint is imposed by rows
+
+* first half-plane on every Bernstein coefficient of the pieces (and sub-piece) of
+  :math:`[0, \tau_i]`, second on those of :math:`[\tau_i, t_f]` — the piece containing
+  :math:`\tau_i` split at :math:`\tau_i` (:meth:`ContinuousAvoidQP.spec_rows`).
+
+A feasible point of these rows is safe for every ``t`` (the polynomial lies in the convex hull
+of its coefficients), so the crossing cannot cut the corner between nodes.  The rows are
+sufficient, not necessary: the QP's optimum is an upper bound of the continuous-time safe
+optimum on this grid's piecewise-polynomial trajectories, and it converges to it as ``N``
+grows (the certificate is exact as the pieces shrink).
+
+Crossing-time search: branch and bound over boxes
+-------------------------------------------------
+For fixed :math:`\tau` the problem is a convex QP with optimal cost :math:`J(\tau)`.  For a box
+:math:`\tau_i \in [a_i, b_i]` (and an order per vehicle) the *relaxation* imposes the first
+half-plane on :math:`[0, a_i]` and the second on :math:`[b_i, t_f]` only; every
+:math:`\tau` in the box satisfies those rows, so its optimum is a lower bound
+:math:`R(\text{box}) \le \min_{\tau \in \text{box}} J(\tau)`, and it tends to :math:`J(\tau)`
+as the box shrinks to :math:`\tau`.  The search keeps the boxes in a heap by bound; it pops
+the lowest, evaluates :math:`J` at the crossing its relaxed optimum suggests (an upper bound
+``U``), and splits the box at its widest vehicle's midpoint unless
+:math:`U - R \le` the gap tolerance.  It stops when every remaining box has
+:math:`R \ge U - \text{gap}` (``closed``: the best :math:`\tau` is the global minimiser over
+all crossing times, to the gap :data:`GAP_REL`) or after ``max_solves`` QPs (``local``, with
+the remaining bound reported).  No work limit refuses a problem: the budget only decides
+between ``optimal`` and ``local``.
+
+Verification
+------------
+``optimal`` only when the KKT conditions of the final QP, recomputed from the data
+(:func:`~iamp.planners.avoid.check.kkt_conditions`), pass ``cmp_kkt_rel_<solver>``, the search
+closed, and the plan's own SPEC §9 report (exact roots) is intrusion-free.  Physical limits
+(``problem.limits``, :mod:`iamp.planners.qp_limits`) are imposed at every node as two
+one-sided rows each, inside the same KKT check.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from iamp.core import status as st
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+from iamp.core.tolerances import tol
+from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
+from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
+from iamp.planners.avoid.data import AvoidData, HalfPlane
+from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan
+from iamp.planners.avoid.solve import BoundSolver
+from iamp.planners.qp.backends import BACKENDS
+from iamp.planners.qp.hold import HoldTrajectory
+
+__all__ = ["GAP_REL", "ROW_TOL_M", "ContinuousAvoidPlanner", "ContinuousAvoidQP", "Spec"]
+
+#: The branch and bound closes when no box's bound is below the best cost by more than this
+#: (relative to ``max(1, J)``).
+GAP_REL = 1e-4
+#: Added to every Bernstein row's bound [m]: a start or end on a half-plane's boundary (to
+#: round-off) stays feasible; far below the 1 mm intrusion tolerance of SPEC §9.
+ROW_TOL_M = 1e-9
+
+#: Per vehicle ``(first, second, a, b)``: first half-plane on ``[0, a]``, second on ``[b, t_f]``.
+Spec = tuple[tuple[int, int, float, float], ...]
+
+
+@dataclass
+class Solved:
+    """One solved QP of the search."""
+
+    spec: Spec
+    status: str
+    cost: float
+    z: FloatArray
+    y: FloatArray
+    A: sp.csc_matrix
+    u: FloatArray
+    iterations: int
+
+
+class ContinuousAvoidQP:
+    """The data of the continuous-time avoidance QP on the uniform grid of ``steps`` pieces."""
+
+    def __init__(self, problem: Problem, steps: int, hold: str, solver: str,
+                 settings: dict[str, Any] | None = None) -> None:
+        self.problem, self.hold, self.solver, self.settings = problem, hold, solver, settings
+        self.N = int(steps)
+        self.tf = problem.tf
+        self.h = self.tf / self.N
+        self.data = AvoidData(problem, np.linspace(0.0, self.tf, self.N + 1), hold)
+        d = self.data
+        self.A_eq = sp.csr_matrix(d.A[: d.n_eq])
+        self.degree = max([3] + [len(v.x_poly) - 1 for v in problem.vehicles])
+        self.M_full = piece_matrix(self.h, 0.0, 1.0, self.degree)
+        self._full: dict[tuple[int, int], tuple[sp.csr_matrix, FloatArray]] = {}
+        self.limit_rows: Any = None
+        A_lim, u_lim = sp.csr_matrix((0, d.n)), np.zeros(0)
+        if problem.limits is not None:
+            from iamp.planners.qp_limits import check_hold, limit_rows
+
+            check_hold(problem.limits, hold)
+            self.limit_rows = limit_rows(d, d.t_nodes, hold, problem.limits)
+            lr = self.limit_rows
+            A_lim = sp.csr_matrix(sp.vstack([lr.A, -lr.A]))
+            u_lim = np.r_[lr.hi, -lr.lo]
+        self.A_lim, self.u_lim = A_lim, u_lim
+        self.n_solves = 0
+
+    # --- rows ----------------------------------------------------------------------------
+    def _piece_rows(self, i: int, a: int, k: int, lam0: float, lam1: float, M: FloatArray
+                    ) -> tuple[list[int], list[int], list[float], FloatArray]:
+        d, hp = self.data, self.data.planes[i][a]
+        cols = [int(d.idx_s(a, k)), int(d.idx_v(a, k)), int(d.idx_s(a, k + 1)), int(d.idx_v(a, k + 1))]
+        n = M.shape[0]
+        r = np.repeat(np.arange(n), 4)
+        c = np.tile(cols, n)
+        vals = hp.sigma * M.ravel()
+        t0 = float(d.t_nodes[k])
+        ta, tb = t0 + lam0 * self.h, t0 + lam1 * self.h
+        rhs = self._rhs(hp, ta, tb)
+        return list(r), list(c), list(vals), rhs
+
+    def _rhs(self, hp: HalfPlane, ta: float, tb: float) -> FloatArray:
+        v = hp.vehicle
+        if hp.axis == "x":
+            beta = poly_bernstein(np.asarray(v.x_poly, dtype=float), ta, tb, self.degree)
+            half = v.length / 2 + v.safety_x
+        else:
+            beta = np.full(self.degree + 1, float(v.y))
+            half = v.width / 2 + v.safety_y
+        return np.asarray(hp.sigma * beta - half + ROW_TOL_M, dtype=float)
+
+    def _full_rows(self, i: int, a: int) -> tuple[sp.csr_matrix, FloatArray]:
+        """Every piece's rows of vehicle ``i``'s half-plane ``a`` (piece ``k``: rows
+        ``k(d+1) .. (k+1)(d+1) - 1``)."""
+        key = (i, a)
+        if key not in self._full:
+            rows: list[int] = []
+            cols: list[int] = []
+            vals: list[float] = []
+            rhs: list[FloatArray] = []
+            n = self.degree + 1
+            for k in range(self.N):
+                r, c, v, b = self._piece_rows(i, a, k, 0.0, 1.0, self.M_full)
+                rows += [x + k * n for x in r]
+                cols += c
+                vals += v
+                rhs.append(b)
+            A = sp.csr_matrix((vals, (rows, cols)), shape=(self.N * n, self.data.n))
+            self._full[key] = (A, np.concatenate(rhs))
+        return self._full[key]
+
+    def segment_rows(self, i: int, a: int, ta: float, tb: float) -> tuple[sp.csr_matrix, FloatArray]:
+        """Rows keeping vehicle ``i``'s half-plane ``a`` on ``[ta, tb]`` (empty when ``tb <= ta``
+        but a point ``ta = tb`` inside ``(0, t_f)`` gives the state's own row)."""
+        n = self.degree + 1
+        d = self.data
+        if tb < ta or tb <= 0.0 or ta >= self.tf:
+            return sp.csr_matrix((0, d.n)), np.zeros(0)
+        ka = min(int(np.floor(ta / self.h)), self.N - 1)
+        kb = min(int(np.ceil(tb / self.h)) - 1, self.N - 1)
+        kb = max(kb, ka)
+        lam = [(ta - d.t_nodes[ka]) / self.h, (tb - d.t_nodes[kb]) / self.h]
+        full_lo = ka + (1 if lam[0] > 1e-12 else 0)
+        full_hi = kb - (1 if lam[1] < 1 - 1e-12 else 0)
+        blocks: list[sp.csr_matrix] = []
+        rhs: list[FloatArray] = []
+
+        def partial(k: int, l0: float, l1: float) -> None:
+            M = piece_matrix(self.h, l0, l1, self.degree)
+            r, c, v, b = self._piece_rows(i, a, k, l0, l1, M)
+            blocks.append(sp.csr_matrix((v, (r, c)), shape=(n, d.n)))
+            rhs.append(b)
+
+        if ka == kb and full_lo > full_hi:
+            partial(ka, float(lam[0]), float(lam[1]))
+        else:
+            if full_lo > ka:
+                partial(ka, float(lam[0]), 1.0)
+            if full_hi >= full_lo:
+                A, b = self._full_rows(i, a)
+                blocks.append(A[full_lo * n:(full_hi + 1) * n])
+                rhs.append(b[full_lo * n:(full_hi + 1) * n])
+            if full_hi < kb:
+                partial(kb, 0.0, float(lam[1]))
+        if not blocks:
+            return sp.csr_matrix((0, d.n)), np.zeros(0)
+        return sp.csr_matrix(sp.vstack(blocks)), np.concatenate(rhs)
+
+    def spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, list[tuple[int, int, int]]]:
+        """The Bernstein rows of ``spec`` and, per block, ``(vehicle, half-plane, rows)``."""
+        blocks, rhs, owner = [], [], []
+        for i, (first, second, a, b) in enumerate(spec):
+            for plane, (ta, tb) in ((first, (0.0, a)), (second, (b, self.tf))):
+                if (plane == first and a <= 0.0) or (plane == second and b >= self.tf):
+                    continue
+                A, u = self.segment_rows(i, plane, ta, tb)
+                if A.shape[0]:
+                    blocks.append(A)
+                    rhs.append(u)
+                    owner.append((i, plane, A.shape[0]))
+        if not blocks:
+            return sp.csr_matrix((0, self.data.n)), np.zeros(0), owner
+        return sp.csr_matrix(sp.vstack(blocks)), np.concatenate(rhs), owner
+
+    # --- solving ---------------------------------------------------------------------------
+    def solve(self, spec: Spec) -> Solved:
+        """The QP with the rows of ``spec`` (plus the limit rows)."""
+        self.n_solves += 1
+        A_in, u_in, _ = self.spec_rows(spec)
+        d = self.data
+        A_in = sp.vstack([A_in, self.A_lim])
+        u_in = np.r_[u_in, self.u_lim]
+        if A_in.shape[0] == 0:  # one always-true row keeps the cone non-empty
+            A_in = sp.csr_matrix((1, d.n))
+            u_in = np.ones(1)
+        A = sp.csc_matrix(sp.vstack([self.A_eq, A_in]))
+        solver = BoundSolver(self.solver, d.P, A, d.b_eq, u_in, self.settings)
+        sol = solver.solve()
+        ok = sol.status == st.OPTIMAL and sol.finite
+        cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (d.P.diagonal() * sol.z)) if ok else np.inf
+        status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
+        return Solved(spec, status, cost, sol.z, sol.y, A, np.r_[d.b_eq, u_in], sol.iterations)
+
+    def trajectory(self, z: FloatArray) -> HoldTrajectory:
+        X, U = self.data.unpack(z)
+        return HoldTrajectory(self.data.t_nodes.copy(), X, U, self.hold)
+
+
+@dataclass(order=True)
+class _Box:
+    bound: float
+    serial: int
+    orders: tuple[tuple[int, int], ...] = field(compare=False)
+    lo: FloatArray = field(compare=False)
+    hi: FloatArray = field(compare=False)
+    relaxed: Solved = field(compare=False)
+
+
+def _spec(orders: Sequence[tuple[int, int]], a: Sequence[float] | FloatArray, b: Sequence[float] | FloatArray) -> Spec:
+    return tuple((int(f), int(s), float(x), float(y)) for (f, s), x, y in zip(orders, a, b))
+
+
+@dataclass
+class ContinuousAvoidPlanner:
+    """The continuous-time avoidance QP (module docstring).
+
+    Parameters
+    ----------
+    steps : int
+        Grid intervals ``N``.
+    hold : {"foh", "zoh"}
+    solver : {"osqp", "clarabel"}
+    max_solves : int
+        QPs the branch and bound may solve before it stops with ``local``.
+    time_limit_s : float
+        Wall time after which it stops with ``local`` (the budget decides between
+        ``optimal`` and ``local``; it never refuses a problem).
+    gap_rel : float
+        Relative gap at which a box is closed.
+    """
+
+    steps: int = 100
+    hold: str = "foh"
+    solver: str = "clarabel"
+    solver_settings: dict[str, Any] | None = None
+    max_solves: int = 2000
+    time_limit_s: float = 60.0
+    gap_rel: float = GAP_REL
+
+    def _candidate_tau(self, qp: ContinuousAvoidQP, box: _Box) -> tuple[FloatArray, FloatArray]:
+        """Per vehicle, the ``τ`` in its box where the relaxed optimum best keeps the first
+        half-plane before and the second after (a max-min of margins on 33 samples), and that
+        margin (negative: the relaxed optimum breaks vehicle ``i``'s constraint in the box)."""
+        traj = qp.trajectory(box.relaxed.z)
+        out = np.empty(len(box.orders))
+        worst = np.empty(len(box.orders))
+        for i, ((f, s), a, b) in enumerate(zip(box.orders, box.lo, box.hi)):
+            t = np.linspace(a, b, 33)
+            X = traj.states(t)
+            planes = qp.data.planes[i]
+            mf = planes[f].margin(t, X[:, 2 * f])
+            ms = planes[s].margin(t, X[:, 2 * s])
+            score = np.minimum(np.minimum.accumulate(mf), np.minimum.accumulate(ms[::-1])[::-1])
+            out[i] = t[int(np.argmax(score))]
+            worst[i] = float(np.max(score))
+        return out, worst
+
+    def search(self, qp: ContinuousAvoidQP, orders: list[list[tuple[int, int]]]) -> dict[str, Any]:
+        """Branch and bound over crossing-time boxes (module docstring)."""
+        tf = qp.tf
+        m = len(orders)
+        t_start = time.perf_counter()
+        serial = itertools.count()
+        heap: list[_Box] = []
+        best: Solved | None = None
+        best_tau = np.full(m, np.nan)
+        n_boxes = 0
+        closed_bound = np.inf  # the smallest bound of a box closed to the gap
+        free = qp.solve(_spec([o[0] for o in orders], np.zeros(m), np.full(m, tf)))
+        for combo in itertools.product(*orders):
+            if free.status == st.OPTIMAL:
+                heapq.heappush(heap, _Box(free.cost, next(serial), tuple(combo), np.zeros(m), np.full(m, tf), free))
+                n_boxes += 1
+        failures: list[str] = [] if free.status in (st.OPTIMAL, st.INFEASIBLE) else [free.status]
+
+        def gap(u: float) -> float:
+            return self.gap_rel * max(1.0, abs(u))
+
+        while heap:
+            box = heap[0]
+            U = best.cost if best is not None else np.inf
+            if box.bound >= U - gap(U):
+                break
+            if qp.n_solves >= self.max_solves or time.perf_counter() - t_start > self.time_limit_s:
+                break
+            heapq.heappop(heap)
+            tau, margin = self._candidate_tau(qp, box)
+            cand = qp.solve(_spec(box.orders, tau, tau))
+            if cand.status == st.OPTIMAL:
+                if best is None or cand.cost < best.cost:
+                    best, best_tau = cand, tau.copy()
+            elif cand.status != st.INFEASIBLE:
+                failures.append(cand.status)
+            U = best.cost if best is not None else np.inf
+            if cand.status == st.OPTIMAL and cand.cost - box.bound <= gap(cand.cost):
+                closed_bound = min(closed_bound, box.bound)
+                continue  # the box is closed: its bound is attained to the gap
+            # branch on the vehicle whose constraint the relaxed optimum breaks most (a vehicle
+            # it keeps gains nothing from a split); the widest box when none is broken
+            widths = box.hi - box.lo
+            broken = (margin < 0) & (widths > 1e-9 * tf)
+            i = int(np.argmin(np.where(broken, margin, np.inf))) if broken.any() else int(np.argmax(widths))
+            if widths[i] <= 1e-9 * tf:
+                continue  # a point: its bound is J(τ) itself
+            mid = 0.5 * (box.lo[i] + box.hi[i])
+            for lo_i, hi_i in ((box.lo[i], mid), (mid, box.hi[i])):
+                lo, hi = box.lo.copy(), box.hi.copy()
+                lo[i], hi[i] = lo_i, hi_i
+                rel = qp.solve(_spec(box.orders, lo, hi))
+                n_boxes += 1
+                if rel.status == st.OPTIMAL:
+                    if rel.cost < U - gap(U):
+                        heapq.heappush(heap, _Box(max(rel.cost, box.bound), next(serial), box.orders, lo, hi, rel))
+                    else:
+                        closed_bound = min(closed_bound, max(rel.cost, box.bound))
+                elif rel.status != st.INFEASIBLE:
+                    failures.append(rel.status)
+                    # an unsolved relaxation cannot prune: keep the box with its parent's bound
+                    heapq.heappush(heap, _Box(box.bound, next(serial), box.orders, lo, hi, box.relaxed))
+        if best is not None and best.cost > min(closed_bound, heap[0].bound if heap else np.inf) + 1e-12 * max(
+                1.0, best.cost):
+            best, best_tau = self._polish(qp, best, best_tau)
+        U = best.cost if best is not None else np.inf
+        open_bound = heap[0].bound if heap else np.inf
+        lower = min(U, open_bound, closed_bound)
+        closed = not heap or open_bound >= U - gap(U)
+        return {"best": best, "tau": best_tau, "lower_bound": float(lower), "upper_bound": float(U),
+                "closed": bool(closed and best is not None), "n_boxes": n_boxes, "open_boxes": len(heap),
+                "failures": failures, "free": free}
+
+    def _polish(self, qp: ContinuousAvoidQP, best: Solved, tau: FloatArray) -> tuple[Solved, FloatArray]:
+        """Per vehicle, a bounded scalar search of ``J(τ_i)`` within one grid step of the best
+        ``τ`` (the others fixed); it only lowers the upper bound, so the search's certificate
+        stands."""
+        from scipy import optimize
+
+        orders = [(f, s) for f, s, _, _ in best.spec]
+        tau = tau.copy()
+        found = {"sol": best}
+
+        def f(x: float, i: int) -> float:
+            t = tau.copy()
+            t[i] = x
+            r = qp.solve(_spec(orders, t, t))
+            if r.status == st.OPTIMAL and r.cost < found["sol"].cost:
+                found["sol"] = r
+            return r.cost if r.status == st.OPTIMAL else float(np.inf)
+
+        for i in range(len(tau)):
+            lo, hi = max(0.0, tau[i] - qp.h), min(qp.tf, tau[i] + qp.h)
+            optimize.minimize_scalar(f, bounds=(lo, hi), args=(i,), method="bounded",
+                                     options={"xatol": 1e-9 * qp.tf, "maxiter": 40})
+            tau[i] = found["sol"].spec[i][2]
+        return found["sol"], np.array([sp_[2] for sp_ in found["sol"].spec])
+
+    def plan(self, problem: Problem) -> Plan:
+        """Search the crossing times, solve, verify (module docstring)."""
+        start = time.perf_counter()
+        N = int(self.steps)
+        if N < 2:
+            from iamp.core.errors import ScenarioError
+
+            raise ScenarioError(f"must be at least 2 (got {N})", "--steps")
+        orders, reason = crossing_orders(problem)
+        common: dict[str, Any] = {"solver": self.solver, "hold": self.hold, "steps": N}
+        if reason is not None:
+            return failed_plan(problem, st.INFEASIBLE, reason, start, **common,
+                               info={"safety_mode": "continuous"})
+        qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings)
+        out = self.search(qp, orders)
+        info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": qp.n_solves}
+        search = {"method": "branch and bound over crossing-time boxes (relaxation: each box's half-planes "
+                            "outside the box only)", "n_solves": qp.n_solves, "boxes": out["n_boxes"],
+                  "open_boxes": out["open_boxes"], "lower_bound": out["lower_bound"],
+                  "upper_bound": out["upper_bound"], "gap_rel_tol": self.gap_rel, "closed": out["closed"],
+                  "max_solves": self.max_solves, "time_limit_s": self.time_limit_s, "failures": len(out["failures"])}
+        info["search"] = search
+        best: Solved | None = out["best"]
+        if best is None:
+            free: Solved = out["free"]
+            if free.status == st.INFEASIBLE or not out["failures"]:
+                why = ("no trajectory satisfies the boundary conditions and the bounds" if free.status == st.INFEASIBLE
+                       else "no crossing time gives a feasible QP")
+                return failed_plan(problem, st.INFEASIBLE, why, start, **common, info=info)
+            return failed_plan(problem, out["failures"][0], "no crossing-time candidate solved", start, **common,
+                               info=info)
+        return self._verified(problem, qp, best, out["tau"], orders, out["closed"], info, start)
+
+    def plan_at_times(self, problem: Problem, taus: Sequence[float]) -> Plan:
+        """One QP with the crossing times ``taus`` (each vehicle's first order; no search)."""
+        start = time.perf_counter()
+        orders, reason = crossing_orders(problem)
+        common: dict[str, Any] = {"solver": self.solver, "hold": self.hold, "steps": int(self.steps)}
+        if reason is not None:
+            return failed_plan(problem, st.INFEASIBLE, reason, start, **common)
+        qp = ContinuousAvoidQP(problem, int(self.steps), self.hold, self.solver, self.solver_settings)
+        tau = np.asarray(taus, dtype=float)
+        sol = qp.solve(_spec([o[0] for o in orders], tau, tau))
+        info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": 1,
+                                "search": {"method": "fixed crossing times", "closed": False}}
+        if sol.status != st.OPTIMAL:
+            return failed_plan(problem, sol.status, "the QP did not solve", start, **common, info=info)
+        return self._verified(problem, qp, sol, tau, [[o] for o in (s[:2] for s in sol.spec)], False, info, start)
+
+    def _verified(self, problem: Problem, qp: ContinuousAvoidQP, sol: Solved, tau: FloatArray,
+                  orders: list[list[tuple[int, int]]], closed: bool, info: dict[str, Any], start: float) -> Plan:
+        d = qp.data
+        n_eq = d.n_eq
+        l = np.r_[d.b_eq, np.full(sol.A.shape[0] - n_eq, -np.inf)]
+        kkt = kkt_conditions(d.P, d.q, sol.A, l, sol.u, sol.z, sol.y, n_eq)
+        limit = tol(BACKENDS[self.solver].tolerance_key)
+        failed = [k for k, v in kkt.items() if v > limit]
+        traj = qp.trajectory(sol.z)
+        cost = traj.cost()
+        _, _, owner = qp.spec_rows(sol.spec)
+        slack = sol.u[n_eq:] - (sol.A @ sol.z)[n_eq:]
+        y_in = sol.y[n_eq:]
+        jumps = np.zeros((problem.m, 2))
+        vehicles: list[dict[str, Any]] = []
+        pos = 0
+        binding: dict[tuple[int, int], int] = {}
+        for i, plane, n in owner:
+            hp = d.planes[i][plane]
+            jumps[i, plane] += float(hp.sigma * np.sum(y_in[pos:pos + n]))
+            binding[(i, plane)] = binding.get((i, plane), 0) + int(np.sum(slack[pos:pos + n] <= ACTIVE_SLACK_M))
+            pos += n
+        for i, (v, (f, s, _, _)) in enumerate(zip(problem.vehicles, sol.spec)):
+            planes = d.planes[i]
+            vehicles.append({"name": v.name, "first": AXIS_NAMES[f], "second": AXIS_NAMES[s],
+                             "first_half_plane": planes[f].describe(), "second_half_plane": planes[s].describe(),
+                             "crossing_time": float(tau[i]),
+                             "leave_time": float(leave_time(traj, planes[f], problem.tf)),
+                             "binding_rows": {AXIS_NAMES[a]: binding.get((i, a), 0) for a in (0, 1)},
+                             "multiplier_sums": [float(jumps[i, 0]), float(jumps[i, 1])]})
+        if qp.limit_rows is not None:
+            info["limit_rows"] = qp.limit_rows.describe()
+        if failed:
+            status = st.INACCURATE
+        else:
+            status = st.OPTIMAL if closed else st.LOCAL
+        plan = Plan(problem=problem, planner="qp", status=status, cost=cost if status in st.SUCCESS else None,
+                    contact_times=np.asarray(tau, dtype=float), jumps=jumps, trajectory=traj,
+                    solve_time_s=0.0, solver=self.solver, hold=self.hold, steps=int(self.steps), info=info)
+        safety = plan.safety
+        intrusion = max((vs.max_intrusion_m for vs in safety.vehicles), default=0.0) if safety is not None else 0.0
+        if safety is not None and not safety.intrusion_free:
+            failed.append("intrusion")
+            plan.status, plan.cost = st.INACCURATE, None
+        for entry, vs in zip(vehicles, safety.vehicles if safety is not None else ()):
+            entry["max_intrusion_m"] = vs.max_intrusion_m
+        plan.residuals = {"boundary": plan.boundary_residual(), **kkt}
+        info.update(kkt=kkt, kkt_tol=limit, failed_checks=failed, solver_iterations=sol.iterations)
+        if failed:
+            info["failed_check"] = failed[0]
+        info["avoidance"] = {"constraint": "avoid", "safety": "continuous", "search": info["search"],
+                             "complete_sweep": bool(closed), "n_solves": info["n_solves"], "vehicles": vehicles,
+                             "max_intrusion_m": float(intrusion), "kkt": kkt, "kkt_tol": limit,
+                             "failed_checks": failed}
+        plan.solve_time_s = time.perf_counter() - start
+        return plan
+
+
+def summary_lines(plan: Plan) -> list[str]:
+    """The text summary of a continuous-time avoidance plan."""
+    av = plan.info.get("avoidance", {})
+    sr = av.get("search", {})
+    out = [f"cost J    {plan.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]",
+           f"time      {plan.solve_time_s * 1e3:.3f} ms ({av.get('n_solves')} QPs; branch and bound over crossing "
+           f"times, {'closed: global' if sr.get('closed') else 'stopped at its budget: local'}, "
+           f"lower bound {sr.get('lower_bound', float('nan')):.9g})",
+           "safety    continuous: every FOH/ZOH piece certified by its Bernstein coefficients"]
+    for v in av.get("vehicles", []):
+        out.append(f"vehicle {v['name']}: in {v['first']} until t = {v['crossing_time']:.6f} s, then in "
+                   f"{v['second']} (binding rows {v['binding_rows']}, multiplier sums "
+                   f"({v['multiplier_sums'][0]:.6g}, {v['multiplier_sums'][1]:.6g}))")
+    kkt = av.get("kkt", {})
+    if kkt:
+        out.append("residuals " + ", ".join(f"{k} {val:.1e}" for k, val in kkt.items())
+                   + f" (tol {av.get('kkt_tol', 0):.0e})")
+    if plan.safety is not None:
+        out += plan.safety.lines()
+    return out
