@@ -62,11 +62,16 @@ QP_STEPS = 12
 #: here for time).  Status ``local`` — residuals checked, global optimality not certified —
 #: which the decision layer accepts like ``optimal``.
 PMP_BOXES = 2000
+#: The avoidance QP's budget of QP solves in its crossing-time search (deterministic, unlike a
+#: time limit; beyond it the plan is ``local``, which the decision layer judges like any other).
+AVOID_SOLVES = 100
 #: The closed loop's options per registry name (small grids: the planners run every period).
 SIM_OPTIONS: dict[str, dict[str, Any]] = {
     "pmp": {"diagnostics": False, "max_boxes": PMP_BOXES},
+    "pmp-active": {"diagnostics": False, "max_boxes": PMP_BOXES},
     "qp": {"steps": QP_STEPS, "hold": "foh", "solver": "kkt", "contact": "grid"},
-    "qp-avoid": {"steps": QP_STEPS, "hold": "foh", "solver": "clarabel"},
+    "qp-avoid": {"steps": QP_STEPS, "hold": "foh", "solver": "clarabel", "safety": "continuous",
+                 "max_solves": AVOID_SOLVES},
 }
 
 PlanFn = Callable[[Problem], Plan]
