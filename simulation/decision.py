@@ -50,7 +50,6 @@ from typing import Any
 
 import numpy as np
 
-from iamp.core.free import FreeTrajectory
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
@@ -232,23 +231,6 @@ def limit_violations_of(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: 
     return bad
 
 
-@dataclass(frozen=True)
-class _OnePiece:
-    """A :class:`FreeTrajectory` that tells :func:`safety_report` it is one cubic piece."""
-
-    inner: FreeTrajectory
-
-    def states(self, t: Any) -> Any:
-        return self.inner.states(t)
-
-    def inputs(self, t: Any) -> Any:
-        return self.inner.inputs(t)
-
-    @property
-    def contact_times(self) -> np.ndarray:
-        return np.zeros(0)
-
-
 def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig) -> str:
     """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``intrusion:``)."""
     if plan.status not in SUCCESS or plan.trajectory is None:
@@ -258,10 +240,7 @@ def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig) -> str:
     if bad:
         return "limits:" + ",".join(bad)
     if check is not None:
-        traj = plan.trajectory
-        if isinstance(traj, FreeTrajectory):  # one cubic on [0, t_f]: say so (else 1 ms pieces)
-            traj = _OnePiece(traj)
-        rep = safety_report(check, traj)
+        rep = safety_report(check, plan.trajectory)
         hit = [v.name for v in rep.vehicles if not v.intrusion_free]
         if hit:
             return "intrusion:" + ",".join(hit)

@@ -9,7 +9,7 @@ table (success, contacts, the new follower's hard brakes, executed limit violati
 Wilson 95 % intervals; medians of time to merge, follower deceleration, executed peak, plan
 time) to the report.  Without SUMO and Dask the section says so and names the extra to
 install; the rest of the reproduction is unchanged.  The published campaign (4 missions x 7
-planners x 3 densities, paired seeds) is ``reports/campaign/``, made by ``iamp campaign``
+planners x 3 densities, paired seeds) is ``reports/campaign-new/``, made by ``iamp campaign``
 (its README gives the command).
 
 This is the one place where the comparison layer reaches the simulation layer, lazily and
@@ -74,5 +74,5 @@ def campaign_tex(section: dict[str, Any]) -> str:
             "run afresh by the reproduction with: \\texttt{"
             + str(tex_escape(section["command"])) + "}. Too few seeds to tell planners apart; the published "
             "campaign (4 missions $\\times$ 7 planners $\\times$ 3 densities) is in "
-            "\\texttt{reports/campaign/}.\n\n"
+            "\\texttt{reports/campaign-new/}.\n\n"
             "\\noindent\\resizebox{\\linewidth}{!}{\\input{" + str(section["table"]) + "}}\n\n")
