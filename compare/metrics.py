@@ -54,8 +54,8 @@ def manoeuvre_metrics(result: Plan) -> dict[str, Any]:
     prob = result.problem
     tf = prob.tf
     t = np.linspace(0.0, tf, int(round(tf * 1000)) + 1)
-    X = result.trajectory.states(t)
-    U = result.trajectory.inputs(t)
+    X = result.require_trajectory().states(t)
+    U = result.require_trajectory().inputs(t)
     jerk = np.diff(U, axis=0) / np.diff(t)[:, None]
     v1 = prob.vehicles[0]
     divider = 0.5 * (prob.ego.y0 + v1.y)
@@ -72,7 +72,7 @@ def manoeuvre_metrics(result: Plan) -> dict[str, Any]:
         "J_x": float(0.5 * np.sum(w * 0.5 * (U[:-1, 0] ** 2 + U[1:, 0] ** 2))),
         "J_y": float(0.5 * np.sum(w * 0.5 * (U[:-1, 1] ** 2 + U[1:, 1] ** 2))),
         "t_contact": [float(x) for x in result.contact_times],
-        "x_contact": [float(x) for x in result.trajectory.states(result.contact_times)[:, 0]],
+        "x_contact": [float(x) for x in result.require_trajectory().states(result.contact_times)[:, 0]],
         "t_cross": _crossing_time(t, X[:, 2], divider),
         "lane_divider_y": divider,
         "peak_ax": float(np.max(np.abs(U[:, 0]))),

@@ -25,12 +25,15 @@ SPEC §10, whose ego stays out of every safety region.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from iamp.core.errors import OptionError, ScenarioError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.planners import registry
+
+if TYPE_CHECKING:
+    from iamp.comparison.agreement.judge import Comparison
 
 #: The planner families and constraint kinds of the registry (:mod:`iamp.planners.registry`).
 PLANNERS = registry.planners()
@@ -117,7 +120,7 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
             raise OptionError(refusal(name, spec), name)
     values = {**registry.options_of(spec, {"steps": steps, **given}), **options}
     result: Plan = spec.make(**values).plan(problem)
-    return result
+    return result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
 
 
 def refusal(option: str, spec: registry.PlannerSpec) -> str:
@@ -131,10 +134,12 @@ def refusal(option: str, spec: registry.PlannerSpec) -> str:
 
 def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
             solvers: tuple[str, ...] = ("osqp", "clarabel"), holds: tuple[str, ...] = ("foh", "zoh"),
-            repeats: int = 3) -> dict[str, Any]:
+            repeats: int = 3) -> Comparison:
     """Run the PMP and every QP configuration on ``problem`` and judge every pair.
 
-    Returns the object of SPEC §5b's ``iamp compare --json`` for this one problem:
+    Returns a :class:`~iamp.comparison.agreement.judge.Comparison` (``.scenarios[0]``: the
+    :class:`~iamp.comparison.agreement.judge.ProblemComparison` with ``runs`` and ``agreement``);
+    its ``to_json()`` is the object of SPEC §5b's ``iamp compare --json`` for this one problem:
     ``{"scenarios": [{"name", "runs", "agreement", ...}]}``.  In ``agreement`` the headline
     gaps compare the two runs as they came out; the identity at the QP's own contact times
     is under ``at_same_contact_times`` (see :mod:`iamp.comparison.agreement.judge` for every rule).
@@ -148,7 +153,7 @@ def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
     repeats : int
         Timed plans per QP configuration.
     """
-    from iamp.comparison.agreement.judge import compare_problem, default_configs
+    from iamp.comparison.agreement.judge import Comparison, compare_problem, default_configs
 
     if not isinstance(problem, Problem):
         raise ScenarioError(f"must be an iamp.Problem (got {type(problem).__name__})", "problem")
@@ -158,4 +163,4 @@ def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
             raise ScenarioError(f"must be at least {problem.m + 1} for {problem.m} vehicle(s) (got {n})", "steps")
     configs = default_configs(steps=tuple(grid), solvers=tuple(solvers), holds=tuple(holds))
     comp = compare_problem(problem, configs, name=problem.name, repeats=repeats)
-    return {"scenarios": [comp.to_json()]}
+    return Comparison([comp])

@@ -239,7 +239,8 @@ def _pmp(o: PMPOptions) -> PMPPlanner:
 
 
 def _qp(o: QPOptions) -> QPPlanner:
-    return QPPlanner(steps=o.steps, hold=o.hold, solver=o.solver, contact=o.contact, solver_settings=o.solver_settings)
+    return QPPlanner(steps=o.steps, hold=o.hold, solver=o.solver, contact=o.contact, solver_settings=o.solver_settings,
+                     limits_between=o.limits_between)
 
 
 def _avoid(o: AvoidOptions) -> AvoidQPPlanner:

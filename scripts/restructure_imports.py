@@ -46,6 +46,9 @@ MOVES: dict[str, str] = {
     "iamp.planners.sweep": "iamp.planners.qp.sweep",
     "iamp.planners.hold": "iamp.planners.qp.hold",
     "iamp.planners.backends": "iamp.planners.qp.backends",
+    # branch limits (issue 19): the bounded equality QP's modules, moved into the package
+    "iamp.planners.qp_limits": "iamp.planners.qp.limits",
+    "iamp.planners.qp_bounded": "iamp.planners.qp.bounded",
     # planners/avoid/
     "iamp.planners.avoid": "iamp.planners.avoid.planner",
     "iamp.planners.avoid_check": "iamp.planners.avoid.check",

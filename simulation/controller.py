@@ -281,8 +281,8 @@ class Controller:
         if imposed(self.plan) > 0:
             self.n.constrained_plans += 1
         tau = min(t + dt - self.plan_t0, float(self.plan.problem.tf))
-        X = np.asarray(self.plan.trajectory.states(np.array([tau])))[0]
-        U = np.asarray(self.plan.trajectory.inputs(np.array([max(tau - dt / 2, 0.0)])))[0]
+        X = np.asarray(self.plan.require_trajectory().states(np.array([tau])))[0]
+        U = np.asarray(self.plan.require_trajectory().inputs(np.array([max(tau - dt / 2, 0.0)])))[0]
         nxt = EgoState(x=float(X[0]), vx=float(X[1]), y=float(X[2]), vy=float(X[3]), ax=float(U[0]), ay=float(U[1]))
         if t + dt >= self.t_end - 1e-9:
             self._done(t + dt)
@@ -294,7 +294,7 @@ class Controller:
         if t_from >= tf:
             return True
         t = np.linspace(t_from, tf, max(int((tf - t_from) / 0.05), 1) + 1)
-        X = np.asarray(plan.trajectory.states(t))
+        X = np.asarray(plan.require_trajectory().states(t))
         Le, We = self.sim.ego_length, self.sim.ego_width
         for n in nbs:
             xs = np.polynomial.polynomial.polyval(t - t_from, n.poly)

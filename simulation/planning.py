@@ -104,7 +104,7 @@ def enters(plan: Plan, vehicle: Any, dt: float = 0.05) -> float:
     """How deep the plan's point enters ``vehicle``'s safety region (0: not at all), sampled."""
     tf = float(plan.problem.tf)
     t = np.linspace(0.0, tf, int(tf / dt) + 1)
-    X = np.asarray(plan.trajectory.states(t))
+    X = np.asarray(plan.require_trajectory().states(t))
     dx = vehicle.length / 2 + vehicle.safety_x - np.abs(X[:, 0] - vehicle.position(t))
     dy = vehicle.width / 2 + vehicle.safety_y - np.abs(X[:, 2] - vehicle.y)
     depth = np.minimum(dx, dy)

@@ -106,8 +106,14 @@ def test_options_that_do_not_apply_are_refused(kwargs, field):
 
 def test_compare_returns_the_spec_object():
     prob = iamp.load_scenario("paper-1-poly")
-    out = iamp.compare(prob, steps=(12,), solvers=("clarabel",), holds=("foh",), repeats=1)
+    comp = iamp.compare(prob, steps=(12,), solvers=("clarabel",), holds=("foh",), repeats=1)
+    assert comp.all_agree and not comp.any_failed
+    out = comp.to_json()
     (sc,) = out["scenarios"]
+    # the typed object and its JSON tell the same numbers: the PMP run's cost is the plan's
+    (pc,) = comp.scenarios
+    assert pc.run("pmp").result.cost == pytest.approx(iamp.plan(prob).cost, rel=1e-12)
+    assert sc["runs"][0]["cost"] == pc.run("pmp").result.cost
     labels = [r["label"] for r in sc["runs"]]
     assert labels[0] == "pmp" and any("clarabel-foh-12" in lab for lab in labels)
     pair = sc["agreement"][0]

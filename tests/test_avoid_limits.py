@@ -3,7 +3,7 @@ every backend (OSQP, Clarabel, PIQP), with ``--safety continuous`` and ``nodes``
 backends agree.
 
 The bounds are re-checked here from the plan's nodal states and inputs, independently of the
-rows of :mod:`iamp.planners.qp_limits`: ``ax``/``ay`` on ``u``, the friction circle
+rows of :mod:`iamp.planners.qp.limits`: ``ax``/``ay`` on ``u``, the friction circle
 ``|u| <= a_total`` (the inscribed 16-gon lies inside it), ``vx`` on the nodal speeds, the FOH
 jerk ``|u_{k+1} - u_k| <= J h`` per axis; a plan called ``optimal`` is also intrusion-free
 (SPEC §9, exact roots) and costs at least the unbounded plan."""

@@ -15,7 +15,7 @@ GOOD = builtin_text("paper-1-poly")
 HIST = history_scenario("-1.0, -0.5, 0.0", "-33.0, -24.0, -15.0", xf=85.0)
 
 KEYS = {"scenario", "planner", "solver", "hold", "steps", "status", "cost", "contact_times", "jumps",
-        "solve_time_s", "trajectory", "safety"}  # "safety": SPEC §9
+        "solve_time_s", "trajectory", "safety", "limits"}  # "safety": SPEC §9, "limits": SPEC §14
 
 
 def write(tmp_path, text, name="s.toml"):

@@ -1,4 +1,4 @@
-"""The limit rows of planners/qp_limits.py: each row is the bound it names, on every layout."""
+"""The limit rows of planners/qp/limits.py: each row is the bound it names, on every layout."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from iamp.core.errors import ScenarioError
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.planners.examples import random_problem
 from iamp.planners.qp.data import QPData
-from iamp.planners.qp_limits import limit_rows, polygon_normals
+from iamp.planners.qp.limits import limit_rows, polygon_normals
 
 ALL = PhysicalLimits(ax=(-6.0, 3.0), ay=(-2.0, 2.5), a_total=8.0, vx=(1.0, 40.0), y=(-1.0, 4.75), jerk=5.0)
 

@@ -141,10 +141,24 @@ def test_template_plans_as_it_is_to_the_paper_scenario_1_optimum(capsys, monkeyp
     code, out, _ = run_main(["template"], capsys)
     assert code == 0 and out == TEMPLATE
     assert sum(line.lstrip().startswith("#") for line in out.splitlines()) > 10  # it explains itself
-    obj = plan_json(["-"], capsys, stdin=out, monkeypatch=monkeypatch)
+    # without its [limits] table (a passenger car, SPEC §14) the template is the paper's scenario 1
+    free = out[:out.index("[limits]")]
+    obj = plan_json(["-"], capsys, stdin=free, monkeypatch=monkeypatch)
     ref = plan_json(["paper-1-poly"], capsys)
     assert obj["status"] == "optimal"
     assert obj["cost"] == pytest.approx(ref["cost"], rel=1e-12)  # same problem as the paper's scenario 1
+    # as it is, the QP imposes the car's limits and plans within them
+    obj = plan_json(["-", "--planner", "qp", "--steps", "40"], capsys, stdin=out, monkeypatch=monkeypatch)
+    assert obj["status"] == "optimal" and all(v["ok"] for v in obj["limits"].values())
+    assert obj["cost"] > ref["cost"]  # the bounds bind (a_x <= 3 m/s^2)
+    # a planner that cannot impose every bound says so: never 'optimal' beyond a bound (exit 3)
+    code, text, _ = run_main(["plan", "-", "--json"], capsys, stdin=out, monkeypatch=monkeypatch)
+    pmp = json.loads(text)
+    assert (code, pmp["status"]) in ((0, "optimal"), (3, "limits_violated"))
+    if pmp["status"] == "optimal":
+        assert all(v["ok"] for v in pmp["limits"].values())
+    else:
+        assert "beyond" in pmp["reason"] and any(not v["ok"] for v in pmp["limits"].values())
 
 
 def test_template_history_alternative_is_valid_when_uncommented():

@@ -42,8 +42,8 @@ FloatArray = NDArray[np.float64]
 def run_vs_run_gaps(a: Plan, b: Plan, t_nodes: FloatArray) -> dict[str, float]:
     """The headline gaps of run ``b`` against run ``a`` (module docstring), states and inputs
     compared at ``t_nodes``; both plans verified (``optimal``)."""
-    Xa, Ua = a.trajectory.states(t_nodes), a.trajectory.inputs(t_nodes)
-    Xb, Ub = b.trajectory.states(t_nodes), b.trajectory.inputs(t_nodes)
+    Xa, Ua = a.require_trajectory().states(t_nodes), a.require_trajectory().inputs(t_nodes)
+    Xb, Ub = b.require_trajectory().states(t_nodes), b.require_trajectory().inputs(t_nodes)
     J_a, J_b = plan_cost(a), plan_cost(b)
     return {"cost_rel_gap": float((J_b - J_a) / abs(J_a)),
             "contact_time_gap": float(np.max(np.abs(b.contact_times - a.contact_times))),
@@ -66,7 +66,7 @@ def at_same_contact_times(qp: Plan, pmp_at: Any, tQ: FloatArray, t_nodes: FloatA
         The QP's contact times, as nodes of its grid ``t_nodes``.
     """
     J_qp, J_at = plan_cost(qp), pmp_at.cost()
-    X_qp, U_qp = qp.trajectory.states(t_nodes), qp.trajectory.inputs(t_nodes)
+    X_qp, U_qp = qp.require_trajectory().states(t_nodes), qp.require_trajectory().inputs(t_nodes)
     X_p, U_p = pmp_at.states(t_nodes), pmp_at.inputs(t_nodes)
     return {"reference": "PMP re-solved at the QP's contact times",
             "contact_times": [float(t) for t in tQ],

@@ -100,6 +100,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from iamp.comparison.trajectories import pmp_solution
 from iamp.core.problem import Problem
 
 from .fingerprints import problem_fingerprint, x_poly_fingerprint
@@ -109,7 +110,7 @@ from .runs import QPConfig, Run, default_configs, run_pmp, run_qp
 from .signs import sign_entry
 from .verdict import VERDICT_AGREE, VERDICT_DISAGREE
 
-__all__ = ["VERDICT_AGREE", "VERDICT_DISAGREE", "ProblemComparison", "QPConfig", "Run", "compare_pmp_qp",
+__all__ = ["VERDICT_AGREE", "VERDICT_DISAGREE", "Comparison", "ProblemComparison", "QPConfig", "Run", "compare_pmp_qp",
            "compare_problem", "compare_qp_qp", "default_configs", "run_pmp", "run_qp"]
 
 # --------------------------------------------------------------------------------------
@@ -164,11 +165,36 @@ class ProblemComparison:
             out["pmp"] = {
                 "signs": [sign_entry(v, j[0]) for v, j in zip(self.problem.vehicles, pmp.result.jumps)],
                 "hamiltonian_jump_residuals": [float(r) for r in
-                                               pmp.result.trajectory.hamiltonian_jump_residual()],
+                                               pmp_solution(pmp.result).hamiltonian_jump_residual()],
             }
         if self.timing:
             out["timing"] = self.timing
         return out
+
+
+@dataclass
+class Comparison:
+    """What :func:`iamp.compare` returns: the comparison of one or more problems.
+
+    ``to_json()`` is the object of ``iamp compare --json`` (``{"scenarios": [...]}``, one entry
+    per problem, :meth:`ProblemComparison.to_json`).
+    """
+
+    scenarios: list[ProblemComparison]
+
+    @property
+    def all_agree(self) -> bool:
+        """Every pair of every problem agrees."""
+        return all(s.all_agree for s in self.scenarios)
+
+    @property
+    def any_failed(self) -> bool:
+        """Some run of some problem did not finish with a verified optimum."""
+        return any(s.any_failed for s in self.scenarios)
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``iamp compare --json`` object."""
+        return {"scenarios": [s.to_json() for s in self.scenarios]}
 
 
 def compare_problem(problem: Problem, configs: Iterable[QPConfig], name: str | None = None, repeats: int = 3,

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from iamp.comparison.trajectories import hold_trajectory
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners.pmp.planner import ValueFunction, solve_fixed_times
@@ -85,7 +86,7 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: GridTables | Non
     pmp_own_checks(pmp, checks)
     solver, hold = cfg.solver, cfg.hold
     res = qp.result
-    traj = res.trajectory
+    traj = hold_trajectory(res)
     t_nodes = np.asarray(traj.t_nodes)
     N = len(t_nodes) - 1
     h_max = float(np.max(np.diff(t_nodes)))

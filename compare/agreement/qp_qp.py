@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from iamp.comparison.trajectories import hold_trajectory
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 
@@ -53,7 +54,7 @@ def compare_qp_qp(problem: Problem, a: Run, b: Run) -> dict[str, Any]:
                     checks.check(f"{r.label}_kkt_{k}", r.kkt[k], solver_tol("kkt_rel", (ca if r is a else cb).solver))
         loose = "osqp" if "osqp" in (ca.solver, cb.solver) else "clarabel"
         ctol = solver_tol("cost_rel", loose)
-        tn = np.asarray(ra.trajectory.t_nodes)
+        tn = np.asarray(hold_trajectory(ra).t_nodes)
         gaps = run_vs_run_gaps(ra, rb, tn)
         out["cost_rel_gap"] = gaps["cost_rel_gap"]
         dt = gaps["contact_time_gap"]
@@ -64,7 +65,7 @@ def compare_qp_qp(problem: Problem, a: Run, b: Run) -> dict[str, Any]:
         else:
             dx, du, dj = gaps["state_sup_gap"], gaps["input_sup_gap"], gaps["jump_gap"]
             out.update(state_sup_gap=dx, input_sup_gap=du, jump_gap=dj)
-            Xa, Ua = ra.trajectory.states(tn), ra.trajectory.inputs(tn)
+            Xa, Ua = ra.require_trajectory().states(tn), ra.require_trajectory().inputs(tn)
             checks.check("state_rel", dx / max(1.0, float(np.max(np.abs(Xa)))), solver_tol("state_rel", loose))
             checks.check("input_rel", du / max(1.0, float(np.max(np.abs(Ua)))), solver_tol("state_rel", loose))
             checks.check("jump_rel", dj / max(1.0, float(np.max(np.abs(ra.jumps)))), solver_tol("jump_rel", loose))

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from iamp.comparison.timing import TimingStats
+from iamp.comparison.trajectories import hold_trajectory
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
@@ -193,7 +194,7 @@ def _kkt_of_result(problem: Problem, config: QPConfig, qp: Any, result: Plan, ru
     in that row order)."""
     from iamp.planners.qp.data import QPData
 
-    traj = result.trajectory
+    traj = hold_trajectory(result)
     t_nodes = np.asarray(traj.t_nodes)
     nodes = [int(np.argmin(np.abs(t_nodes - t))) for t in result.contact_times]
     with warnings.catch_warnings():

@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from iamp.comparison.trajectories import pmp_solution
+
 from .style import PALETTE, SAFETY_COLOR, PathLike, planner_style, save_figure
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -100,7 +102,7 @@ def plot_costates(pmp_result: Plan, qp_results: dict[str, Plan | None], stem: Pa
     (continuous), and the jumps themselves: ``Φ_i,x`` against ``ν_i,x``, ``Φ_i,y`` against
     ``ν_i,y``, each marker at its planner's own contact time.
     """
-    sol = pmp_result.trajectory
+    sol = pmp_solution(pmp_result)
     problem = pmp_result.problem
     tf = problem.tf
     ct = np.asarray(pmp_result.contact_times, dtype=float)

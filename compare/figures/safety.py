@@ -24,7 +24,7 @@ from .style import PALETTE, SAFETY_COLOR, VEHICLE_COLORS, save_figure
 
 
 def _inside(plan: Plan, t: float) -> bool:
-    X = plan.trajectory.states(np.array([t]))[0]
+    X = plan.require_trajectory().states(np.array([t]))[0]
     for v in plan.problem.vehicles:
         dx, dy = X[0] - float(v.position(t)), X[2] - v.y
         if abs(dx) < v.length / 2 + v.safety_x - 1e-3 and abs(dy) < v.width / 2 + v.safety_y - 1e-3:
@@ -65,11 +65,11 @@ def plot_safety_xy(plans: dict[str, Plan], stem: Any, *, times: np.ndarray | Non
     styles = {"equality": (PALETTE["pmp"], "-", "o"), "avoid": (PALETTE["clarabel"], "--", "s")}
     for label, plan in ok.items():
         color, ls, marker = styles["avoid" if "avoid" in label else "equality"]
-        X = plan.trajectory.states(tt)
+        X = plan.require_trajectory().states(tt)
         xs_all += [float(X[:, 0].min()), float(X[:, 0].max())]
         cost = f", J = {plan.cost:.3g}" if plan.cost is not None else ""
         ax.plot(X[:, 0], X[:, 2], color=color, ls=ls, lw=1.8, label=f"{label}{cost}")
-        Xk = plan.trajectory.states(times)
+        Xk = plan.require_trajectory().states(times)
         for t, row in zip(times, Xk):
             filled = _inside(plan, float(t))
             ax.plot([row[0]], [row[2]], marker=marker, ms=6, color=color, mfc=color if filled else "none", zorder=5)

@@ -71,7 +71,7 @@ def xy_limits(result: Plan, margin_x: float = 12.0, margin_y: float = 1.0) -> tu
     horizon with a margin, and at least the lanes (:func:`lane_lines`)."""
     problem = result.problem
     tt = np.linspace(0.0, problem.tf, 401)
-    X = result.trajectory.states(tt)
+    X = result.require_trajectory().states(tt)
     xs = [X[:, 0]] + [v.position(tt) for v in problem.vehicles]
     edges, _ = lane_lines(problem)
     ys = [X[:, 2], np.array(edges)] + [np.array([v.y - v.width / 2 - v.safety_y, v.y + v.width / 2 + v.safety_y])
@@ -108,9 +108,9 @@ def draw_xy(ax: Axes, result: Plan, times: ArrayLike, *, ego_size: tuple[float, 
     # corner for the other), not touches of the corner
     crossing = is_avoidance(result)
     ts = np.asarray(times, dtype=float)
-    X = result.trajectory.states(ts)
+    X = result.require_trajectory().states(ts)
     tt = np.linspace(0.0, problem.tf, 401)
-    Xd = result.trajectory.states(tt)
+    Xd = result.require_trajectory().states(tt)
     ego = problem.ego
     L_e, W_e = ego_size or (float(getattr(ego, "length", 0) or problem.vehicles[0].length),
                             float(getattr(ego, "width", 0) or problem.vehicles[0].width))
@@ -210,7 +210,7 @@ def plot_positions(result: Plan, stem: PathLike, *, title: str | None = None, sh
     problem = result.problem
     tf = problem.tf
     tt = np.linspace(0.0, tf, 501)
-    X = result.trajectory.states(tt)
+    X = result.require_trajectory().states(tt)
     fig = Figure(figsize=(7.0, 6.0))
     ax1 = fig.add_subplot(2, 1, 1)
     ax2 = fig.add_subplot(2, 1, 2, sharex=ax1)

@@ -138,7 +138,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     (out / "figures").mkdir(parents=True, exist_ok=True)
     notes: list[Any] = []
     scenarios = tuple(scenarios)
-    total = 1 + 2 * len(scenarios) + 6
+    total = 1 + 2 * len(scenarios) + 7
     step = _Progress(progress, status, total)
     written: list[Any] = []
 
@@ -231,7 +231,17 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     for key, paths in safety["figures"].items():
         fig(key, paths)
 
-    # 4. ZOH convergence -----------------------------------------------------------------
+    # the bounded problem: the scenarios under a passenger car's limits (SPEC §14) ------------
+    from iamp.comparison.bounded import bounded_rows
+    from iamp.comparison.bounded import latex_table as bounded_latex
+
+    step("the bounded problem: every planner under a passenger car's limits")
+    bounded = []
+    for k, name in enumerate(scenarios):
+        prob = entries[name]["problem"]
+        bounded += bounded_rows(name, prob, steps=cfg.steps_one if prob.m <= 1 else cfg.steps_two)
+        step.sub(k + 1, len(scenarios))
+
     step("ZOH convergence study (N = " + ", ".join(map(str, cfg.zoh_steps)) + ")")
     one = [name for name in scenarios if entries[name]["problem"].m == 1]
     conv = {}
@@ -276,17 +286,21 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     for key, text in (("scenarios", table_scenarios(entries, rows1)), ("results", table_results(scen_out, cfg)),
                       ("metrics", table_metrics(metrics)), ("agreement", table_agreement(scen_out)),
                       ("timing", table_timing(timing, scen_out)),
-                      ("convergence", table_convergence(conv)), ("safety", safety["table"])):
+                      ("convergence", table_convergence(conv)), ("safety", safety["table"]),
+                      ("bounded", bounded_latex(bounded))):
         written.append(atomic_write_text(tdir / f"{key}.tex", text))
         tables[key] = f"tables/{key}.tex"
     res = {"produced_by": "iamp.comparison.report.reproduce", "config": asdict(cfg), "notes": notes,
            "versions": versions_used(), "scenarios": scen_out, "qualitative": qual, "zoh_convergence": conv,
            "timing": timing, "predictor": predictor, "safety": safety["json"],
-           "campaign": {k: v for k, v in campaign.items() if k != "table"}}
+           "campaign": {k: v for k, v in campaign.items() if k != "table"},
+           "bounded": [r.to_json() for r in bounded]}
     res["runtime_s"] = time.perf_counter() - start
     tex = build_report_tex(res, out, figs, tables, entries)
+    bounded_tex = ("\\section{The bounded problem}\nThe scenarios under a passenger car's limits (SPEC 14): "
+                   "which become infeasible, what the bounds cost.\n\\input{" + tables["bounded"] + "}\n\n")
     tex = tex.replace("\\end{document}", safety["section"](figs, tables["safety"]) + campaign_tex(campaign)
-                      + "\\end{document}", 1)
+                      + bounded_tex + "\\end{document}", 1)
     written.append(atomic_write_text(out / "report.tex", tex))
     res["outputs"] = sorted({str(Path(p).relative_to(out)) for p in written} | {"results.json"})
     atomic_write_text(out / "results.json", json.dumps(to_jsonable(res), indent=1, allow_nan=False) + "\n")

@@ -31,6 +31,7 @@ from iamp.cli.types import positive_int as _positive_int
 from iamp.comparison.durations import format_seconds as _fmt_time
 from iamp.core.errors import ScenarioError
 from iamp.core.jsonable import to_jsonable
+from iamp.core.physical import PASSENGER_CAR
 from iamp.core.problem import Problem
 
 EXIT_OK, EXIT_SOLVER = 0, 3
@@ -55,6 +56,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    help="also run the avoidance QP (SPEC §10) per solver, hold and N, with every run's intrusion "
                         "and overlap (SPEC §9) and the cost of safety J_avoid - J_eq; an infeasible avoidance run "
                         "(start or end inside a safety region) is reported with its reason, not counted as a failure")
+    c.add_argument("--bounded", action="store_true",
+                   help="also plan the bounded problem (SPEC §14): each scenario under a passenger car's limits "
+                        "(or its own [limits]) with the PMP, the equality QP, the active set and the avoidance QP: "
+                        "status (infeasible with the reason), cost, what the bounds cost, exact peaks, and the "
+                        "bounded PMP vs bounded QP gap where the bounded PMP exists")
     c.add_argument("--repeats", type=_positive_int, default=3, metavar="K",
                    help="timed full plans per QP configuration (the PMP gets max(20, 10K)); default 3")
     c.add_argument("--budget", type=_positive_float, default=5.0, metavar="S",
@@ -143,6 +149,12 @@ def run_compare(args: argparse.Namespace) -> dict[str, Any]:
             tick(1000 * (k + 1), 1000 * len(loaded))
             data = comp.to_json()
             data["source"] = str(scenario.source) if getattr(scenario, "source", None) else None
+            if getattr(args, "bounded", False):
+                from iamp.comparison.bounded import bounded_section
+
+                own = problem.limits is not None and not problem.limits.empty
+                data["bounded"] = bounded_section(scenario.name, problem, None if own else PASSENGER_CAR,
+                                                  steps=max(steps))
             if getattr(args, "avoid", False):
                 from iamp.comparison.safety_compare import avoid_section
 
@@ -272,6 +284,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
         sys.stdout.write(json.dumps(to_jsonable(out), allow_nan=False) + "\n")
     else:
         _print_text(out, sys.stdout.write)
+        if getattr(args, "bounded", False):
+            from iamp.comparison import bounded
+
+            for sc in out["scenarios"]:
+                sys.stdout.write("\n".join(bounded.section_lines(sc["name"], sc["bounded"])) + "\n")
         if getattr(args, "avoid", False):
             from iamp.comparison.safety_compare import section_lines
 

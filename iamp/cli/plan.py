@@ -117,6 +117,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     try:
         result = call_with_progress(make_planner(args).plan, problem, desc="QP sweep" if args.planner == "qp"
                                     else "planning", enabled=progress_enabled(args))
+        result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
         text = json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False) if args.json else ""
     except SolverError as exc:
         return _report_failure(scenario, args, exc.status, str(exc))
@@ -126,7 +127,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         # the numerics broke down on an accepted input: a failed plan, never a traceback
         return _report_failure(scenario, args, NUMERICAL_ERROR, f"{exc.__class__.__name__}: {exc}")
     if args.csv is not None and result.ok:
-        from iamp.cli.plot import write_trajectory_csv
+        from iamp.cli.trajectory_csv import write_trajectory_csv
 
         write_trajectory_csv(result, args.csv, args.steps)
     if args.json:
@@ -184,6 +185,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
 
         for line in summary_lines(result):
             print(line)
+        _print_limits(result)
         return
     print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
     print(f"time      {result.solve_time_s * 1e3:.3f} ms")
@@ -196,7 +198,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         poly = " ".join(f"{c:+.6g}" + (f"·t^{k}" if k > 1 else "·t" if k == 1 else "") for k, c in enumerate(v.x_poly))
         origin = "predicted from its history" if spec.history is not None else "given"
         print(f"vehicle {v.name}: x_s(t) = {poly}  ({origin})")
-        X = result.trajectory.states(np.array([t]))[0]
+        X = result.require_trajectory().states(np.array([t]))[0]
         print(f"    corner {v.corner}: contact t = {t:.6f} s at (x, y) = ({X[0]:.3f}, {X[2]:.3f}) m; "
               f"{label} = ({j[0]:.6g}, {j[1]:.6g})")
         print(f"    {_phi_meaning(v, j[0])}")
@@ -206,6 +208,19 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     if result.safety is not None:
         for line in result.safety.lines():
             print(line)
+    _print_limits(result)
+
+
+def _print_limits(result: Plan) -> None:
+    """SPEC §14: one line of peaks against the bounds, and a warning beyond any car."""
+    peaks = result.peaks
+    if peaks is None:
+        return
+    sides = result.info.get("polygon_sides")
+    poly = f" (QP: |u| <= a_total imposed as an inscribed {sides}-gon)" if sides else ""
+    print(f"limits    {peaks.line()}{poly}")
+    for w in peaks.warnings:
+        print(f"warning   {w}")
 
 
 def _planner_help() -> str:

@@ -18,7 +18,8 @@ step, :math:`(u_k - u_{k-1})/h`, at the nodes and labelled so.
 The planner options are the ones ``iamp plan`` has (copied from its parser), so the figure
 shows exactly the plan that ``iamp plan`` with the same options prints.
 
-:func:`write_trajectory_csv` writes the SPEC §5 sampled trajectory for ``iamp plan --csv``.
+:func:`write_trajectory_csv` (from :mod:`iamp.cli.trajectory_csv`) writes the SPEC §5 sampled
+trajectory for ``iamp plan --csv``.
 """
 
 from __future__ import annotations
@@ -33,7 +34,9 @@ from matplotlib.figure import Figure
 
 from iamp.cli.types import EXIT_OK, EXIT_SOLVER, positive_int
 from iamp.core.errors import ScenarioError
-from iamp.core.plan import TRAJECTORY_KEYS, Plan
+from iamp.core.plan import Plan
+
+from .trajectory_csv import write_trajectory_csv
 
 __all__ = ["FORMATS", "add_parsers", "cmd_plot", "plan_figure", "plan_label", "write_trajectory_csv"]
 
@@ -49,23 +52,6 @@ def plan_label(result: Plan) -> str:
         return "PMP"
     extra = " avoid" if "avoid" in str(result.info.get("constraint", "")) else ""
     return f"QP{extra} {result.solver} {str(result.hold).upper()} N={result.steps}"
-
-
-def write_trajectory_csv(result: Plan, path: str | Path, steps: int) -> Path:
-    """The plan sampled at :math:`t_k = k\\,t_f/N`, :math:`k = 0..N` (SPEC §5), as CSV.
-
-    Columns ``t,x,y,vx,vy,ax,ay`` (SI units: s, m, m/s, m/s²), one header line and ``N + 1``
-    rows, full double precision (``repr`` of each float), written atomically.
-    """
-    from iamp.core.atomic import atomic_open
-
-    data = result.sample(steps)
-    cols = [np.asarray(data[k], dtype=float) for k in TRAJECTORY_KEYS]
-    with atomic_open(path, "w") as fh:
-        fh.write(",".join(TRAJECTORY_KEYS) + "\n")
-        for row in zip(*cols):
-            fh.write(",".join(repr(float(v)) for v in row) + "\n")
-    return Path(path)
 
 
 def _jerk(result: Plan, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:

@@ -67,6 +67,17 @@ x_poly = [-15.0, 18.0, 0.0, 0.0]   # x_s(t) = c0 + c1 t + c2 t^2 + c3 t^3 [m], a
 # [vehicles.history]
 # t = [-3.0, -2.5, -2.0, -1.5, -1.0, -0.5, 0.0]            # [s], strictly increasing, ends at 0
 # x = [-69.0, -60.0, -51.0, -42.0, -33.0, -24.0, -15.0]    # [m], same length as t
+
+# What the ego can do (SPEC §14): a passenger car. Every key is optional; delete the table for
+# the paper's unbounded problem. Every plan reports its peaks against these bounds; the QP
+# imposes all of them at every grid node, the PMP the input box (ax, ay) exactly.
+[limits]
+ax = [-6.0, 3.0]      # longitudinal acceleration range [m/s^2] (braking, accelerating)
+ay = [-2.0, 2.0]      # lateral acceleration range [m/s^2]
+a_total = 8.0         # |u| <= a_total [m/s^2] (friction circle; the QP uses an inscribed 16-gon)
+vx = [0.0, 40.0]      # longitudinal speed range [m/s]
+jerk = 5.0            # |du/dt| per axis [m/s^3] (QP: FOH only)
+# y = [-3.0, 4.75]    # range of the ego's centre s_y [m] (road edges less half its width)
 '''
 
 
@@ -145,5 +156,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
 
     t = sub.add_parser("template", help="print a commented scenario file that plans as it is",
                        description="Print a scenario file (SPEC §4) with every key explained; "
-                                   "`iamp template > my.toml` and edit. It plans unchanged.")
+                                   "`iamp template > my.toml` and edit. It plans unchanged: the QP imposes its "
+                                   "passenger car's [limits]; a planner that cannot impose a bound reports "
+                                   "limits_violated with the peaks.")
     t.set_defaults(func=cmd_template)

@@ -22,10 +22,11 @@ import numpy.typing as npt
 
 from iamp.core.errors import HistoryError, PredictorRequiredError, ScenarioError
 from iamp.core.limits import LIMITS, abs_message, polynomial_message, prediction_message
+from iamp.core.physical import PhysicalLimits
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.toml_lines import line_of
 
-TOP_KEYS = {"name", "description", "ego", "vehicles"}
+TOP_KEYS = {"name", "description", "ego", "vehicles", "limits"}
 EGO_REQUIRED = ("tf", "x0", "y0", "vx0", "xf", "yf", "vxf")
 EGO_OPTIONAL = ("vy0", "vyf", "length", "width")
 #: ``[ego]`` keys whose EgoBoundary field has another name (the ego body, SPEC §9).
@@ -144,6 +145,8 @@ class Scenario:
     vehicles: tuple[VehicleSpec, ...]
     source: str | None = None
     text: str | None = field(default=None, compare=False, repr=False)
+    #: The ``[limits]`` table (SPEC §14); ``None`` when the file has none (the paper's problem).
+    limits: PhysicalLimits | None = None
 
     @property
     def needs_prediction(self) -> bool:
@@ -196,7 +199,7 @@ class Scenario:
                                     self.source)
             vehicles.append(v.with_poly(pred.x_poly))
             predictions.append(pred)
-        return Problem(self.ego, tuple(vehicles), self.name), predictions
+        return Problem(self.ego, tuple(vehicles), self.name, self.limits), predictions
 
 
 def _number_list(value: object, field: str, source: str | None) -> npt.NDArray[np.float64]:
@@ -240,7 +243,7 @@ def _check_keys(table: object, required: Sequence[str], optional: Sequence[str],
 def parse_scenario(data: dict[str, Any], source: str | None = None, default_name: str = "scenario") -> Scenario:
     """Validate a decoded TOML document against SPEC §4 and §6 and the bounds of
     :mod:`iamp.core.limits`."""
-    _check_keys(data, ("ego", "vehicles"), ("name", "description"), "", source)
+    _check_keys(data, ("ego", "vehicles"), ("name", "description", "limits"), "", source)
     name = data.get("name", default_name)
     description = data.get("description", "")
     if not isinstance(name, str):
@@ -294,7 +297,13 @@ def parse_scenario(data: dict[str, Any], source: str | None = None, default_name
         specs.append(VehicleSpec(name=vname, corner=probe.corner, y=probe.y, length=probe.length,
                                  width=probe.width, safety_x=probe.safety_x, safety_y=probe.safety_y,
                                  x_poly=x_poly, history=history, field=prefix, source=source))
-    return Scenario(name=name, description=description, ego=ego, vehicles=tuple(specs), source=source)
+    limits = None
+    if "limits" in data:
+        if not isinstance(data["limits"], dict):
+            raise ScenarioError("must be a table [limits]", "limits", source)
+        limits = PhysicalLimits.from_table(data["limits"], source)
+    return Scenario(name=name, description=description, ego=ego, vehicles=tuple(specs), source=source,
+                    limits=limits)
 
 
 def with_line(exc: ScenarioError, text: str | None, source: str | None) -> ScenarioError:
@@ -333,7 +342,8 @@ def loads_scenario(text: str, source: str | None = None, default_name: str = "sc
         scenario = parse_scenario(data, source, default_name)
     except ScenarioError as exc:
         raise with_line(exc, text, source) from None
-    return Scenario(scenario.name, scenario.description, scenario.ego, scenario.vehicles, scenario.source, text)
+    return Scenario(scenario.name, scenario.description, scenario.ego, scenario.vehicles, scenario.source, text,
+                    scenario.limits)
 
 
 # --- built-in scenarios ---------------------------------------------------------------

@@ -25,6 +25,9 @@ MAX_ITER: Final = "maximum_iterations_reached"
 TIME_LIMIT: Final = "time_limit_reached"
 #: The linear algebra broke down (singular system, overflow, NaN).
 NUMERICAL_ERROR: Final = "numerical_error"
+#: A verified plan that exceeds a given physical bound its planner cannot impose (SPEC §14;
+#: the peaks are in ``info["limits"]``).
+LIMITS_VIOLATED: Final = "limits_violated"
 #: Any other solver failure.
 SOLVER_ERROR: Final = "solver_error"
 #: A verified solution of the problem as posed whose own safety report (SPEC §9) finds an
@@ -33,7 +36,7 @@ SOLVER_ERROR: Final = "solver_error"
 UNSAFE: Final = "unsafe"
 
 STATUSES: Final = (OPTIMAL, LOCAL, INACCURATE, INFEASIBLE, MAX_ITER, TIME_LIMIT, NUMERICAL_ERROR, SOLVER_ERROR,
-                   UNSAFE)
+                   UNSAFE, LIMITS_VIOLATED)
 
 #: Statuses that carry a verified plan (a cost is reported).
 SUCCESS: Final = frozenset({OPTIMAL, LOCAL})

@@ -38,7 +38,7 @@ Verification
 ``optimal`` only when the KKT conditions of the final QP, recomputed from the data
 (:func:`~iamp.planners.avoid.check.kkt_conditions`), pass ``cmp_kkt_rel_<solver>``, the search
 closed, and the plan's own SPEC §9 report (exact roots) is intrusion-free.  Physical limits
-(``problem.limits``, :mod:`iamp.planners.qp_limits`) are imposed at every node as two
+(``problem.limits``, :mod:`iamp.planners.qp.limits`) are imposed at every node as two
 one-sided rows each, inside the same KKT check.
 """
 
@@ -111,7 +111,7 @@ class ContinuousAvoidQP:
         self.limit_rows: Any = None
         A_lim, u_lim = sp.csr_matrix((0, d.n)), np.zeros(0)
         if problem.limits is not None:
-            from iamp.planners.qp_limits import check_hold, limit_rows
+            from iamp.planners.qp.limits import check_hold, limit_rows
 
             check_hold(problem.limits, hold)
             self.limit_rows = limit_rows(d, d.t_nodes, hold, problem.limits)

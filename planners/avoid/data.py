@@ -164,7 +164,7 @@ class AvoidData(StateIndex):
         self.limit_rows: Any = None
         self.n_limit_rows = 0
         if with_limits and problem.limits is not None:
-            from iamp.planners.qp_limits import check_hold, limit_rows
+            from iamp.planners.qp.limits import check_hold, limit_rows
 
             check_hold(problem.limits, hold)
             self.limit_rows = lr = limit_rows(self, self.t_nodes, hold, problem.limits)

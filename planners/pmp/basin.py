@@ -40,8 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from .bound import taylor_shift
 from .fixed import ValueFunction, bridge_kernel, bridge_kernel_ds, bridge_variance_dt
+from .taylor import taylor_shift
 
 FloatArray = npt.NDArray[np.float64]
 

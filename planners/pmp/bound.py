@@ -48,6 +48,7 @@ import numpy.typing as npt
 from iamp.core.tolerances import tol
 
 from .fixed import bridge_kernel
+from .taylor import taylor_shift as taylor_shift
 
 if TYPE_CHECKING:
     from .basin import Basin
@@ -76,17 +77,6 @@ _DK_BELOW = _poly2(_mul2({(0, 0): 0.5, (0, 1): -1.0, (0, 2): 0.5}, {(1, 1): 2.0,
 _DK_ABOVE = _poly2(_mul2({(0, 2): 0.5}, {(0, 0): 1.0, (1, 0): -4.0, (2, 0): 3.0, (1, 1): 2.0, (2, 1): -2.0}))
 # d K(σ,σ)/dσ = σ²(1−σ)²(1−2σ)
 _DKDIAG = np.array([0.0, 0.0, 1.0, -4.0, 5.0, -2.0])
-
-
-def taylor_shift(C: FloatArray, c: FloatArray) -> FloatArray:
-    """Coefficients in ``h`` of ``p(c + h)`` for every row ``p`` of ``C`` (ascending) and the
-    matching centre ``c`` (shape ``C.shape[:-1]``; repeated synthetic division)."""
-    A = np.array(C, dtype=float, copy=True)
-    d = A.shape[-1]
-    for i in range(d - 1):
-        for j in range(d - 2, i - 1, -1):
-            A[..., j] += c * A[..., j + 1]
-    return A
 
 
 def poly_range(C: FloatArray, c: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:

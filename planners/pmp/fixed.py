@@ -33,8 +33,10 @@ from iamp.core.errors import SolverError
 from iamp.core.free import min_energy_cubic
 from iamp.core.problem import Problem
 
+from .jumps import jump_system as jump_system
 from .scale import Scaled, scale_problem
 from .solution import PMPSolution
+from .stationary import stationary_sigmas
 
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = Any
@@ -184,8 +186,6 @@ class ValueFunction:
 
     def stationary_points_1d(self) -> FloatArray:
         """All zeros of the Hamiltonian-jump residual in ``(0, t_f)`` for one vehicle."""
-        from .search import stationary_sigmas
-
         return np.array(stationary_sigmas(self._EX[0], self._EY[0])) * self.tf
 
 
@@ -261,29 +261,6 @@ def jump_system_sigma(S: Scaled, sig: FloatArray) -> tuple[FloatArray, FloatArra
     :func:`jump_rows`."""
     M, rhs = jump_rows(S, np.asarray(sig, dtype=float).tolist())
     return np.array(M), np.array(rhs)
-
-
-def jump_system(problem: Problem, t: ArrayLike) -> tuple[FloatArray, FloatArray]:
-    """The linear system ``M z = rhs`` of the necessary and co-state jump conditions.
-
-    Unknowns per axis (columns of ``z``): ``(a, b, Φ_1..Φ_m)``; rows: the ``m``
-    interior-point constraints ``s(t_j) = corner_j``, then the final position and speed.
-    """
-    t = np.asarray(t, dtype=float)
-    m, ego, T = problem.m, problem.ego, problem.tf
-    M = np.empty((m + 2, m + 2))
-    M[:m, 0] = t**2 / 2
-    M[:m, 1] = t**3 / 6
-    M[:m, 2:] = -np.maximum(t[:, None] - t[None, :], 0.0) ** 3 / 6
-    M[m] = np.r_[T**2 / 2, T**3 / 6, -((T - t) ** 3) / 6]
-    M[m + 1] = np.r_[T, T**2 / 2, -((T - t) ** 2) / 2]
-    C = problem.corners(t)
-    rhs = np.empty((m + 2, 2))
-    rhs[:m, 0] = C[:, 0] - ego.x0 - ego.vx0 * t
-    rhs[:m, 1] = C[:, 1] - ego.y0 - ego.vy0 * t
-    rhs[m] = [ego.xf - ego.x0 - ego.vx0 * T, ego.yf - ego.y0 - ego.vy0 * T]
-    rhs[m + 1] = [ego.vxf - ego.vx0, ego.vyf - ego.vy0]
-    return M, rhs
 
 
 def check_times(problem: Problem, contact_times: ArrayLike) -> FloatArray:

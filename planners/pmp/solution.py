@@ -16,6 +16,8 @@ import numpy.typing as npt
 
 from iamp.core.problem import Problem
 
+from .jumps import jump_system
+
 if TYPE_CHECKING:
     from .scale import Scaled
 
@@ -85,8 +87,6 @@ class PMPSolution:
     # --- the conditions -----------------------------------------------------------------
     def system_residual(self) -> float:
         """max |M z − rhs| of the physical jump system at this solution."""
-        from .fixed import jump_system
-
         M, rhs = jump_system(self.problem, self.contact_times)
         z = np.vstack([self.a, self.b, self.jumps])
         return float(np.max(np.abs(M @ z - rhs)))

@@ -77,6 +77,8 @@ class CandidateResult:
     kkt: KKTResiduals | None = None
     checks: dict[str, dict[str, Any]] = field(default_factory=dict)
     failed_check: str | None = None
+    #: INFEASIBLE with a verified Farkas certificate (the bounded QP, :mod:`iamp.planners.qp.bounded`).
+    infeasible_certified: bool = False
 
     @property
     def ok(self) -> bool:

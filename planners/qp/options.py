@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from iamp.core.errors import OptionError
@@ -12,6 +12,8 @@ from .hold import HOLDS
 
 #: The contact-time searches of the QP planners: every grid node, or refined off the grid.
 CONTACTS = ("grid", "refine")
+#: Where the bounded QP imposes the speed and ``y`` bounds (SPEC §14).
+LIMITS_BETWEEN = ("nodes", "certified")
 
 
 def check_choice(value: object, choices: tuple[str, ...] | list[str], field: str, what: str) -> None:
@@ -41,6 +43,9 @@ class QPOptions:
         A registered QP backend (:data:`iamp.planners.qp.backends.BACKENDS`: osqp, clarabel,
         piqp, kkt).
     contact : {"grid", "refine"}
+    limits_between : {"nodes", "certified"}
+        With ``problem.limits``: the speed and ``y`` bounds at the nodes only, or certified
+        between them (:mod:`iamp.planners.qp.limits`).
     solver_settings : dict, optional
         Overrides of the backend's settings.
     """
@@ -50,9 +55,19 @@ class QPOptions:
     solver: str = "clarabel"
     contact: str = "grid"
     solver_settings: dict[str, Any] | None = None
+    #: With a ``[limits]`` table (SPEC §14): the speed and ``y`` bounds at the grid nodes only
+    #: (``nodes``; the exact violation between nodes is reported and a plan beyond a bound is
+    #: ``limits_violated``) or certified between them by Bernstein rows (``certified``).  A CLI
+    #: option (``--limits-between``; the metadata of :func:`iamp.planners.registry.option`, written
+    #: out here because the registry imports this module).
+    limits_between: str = field(default="nodes", metadata={
+        "cli": "with a [limits] table: the speed and y bounds at the grid nodes (nodes; the exact violation "
+               "between nodes is reported, a plan beyond a bound is limits_violated) or certified between the "
+               "nodes too (Bernstein rows)", "choices": LIMITS_BETWEEN})
 
     def __post_init__(self) -> None:
         check_steps(self.steps)
         check_choice(self.hold, HOLDS, "hold", "hold")
         check_choice(self.solver, tuple(BACKENDS), "solver", "solver")
         check_choice(self.contact, CONTACTS, "contact", "contact search")
+        check_choice(self.limits_between, LIMITS_BETWEEN, "limits_between", "limits_between")

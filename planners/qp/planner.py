@@ -54,6 +54,11 @@ def refine_certificate(problem: Problem, best: CandidateResult, hold: str) -> di
     exactly when :math:`J_\text{QP}(t_\text{ref}) \le J^*(1 + \epsilon)` with
     :math:`\epsilon` = ``refine_cost_rel``.  With ZOH, :math:`J_\text{ZOH}(t) \ge J(t)` bounds
     the other basins only up to the ZOH gap, which does not certify a minimiser: ``local``.
+
+    With physical limits (SPEC §14) the bounded QP's cost at any contact time is at least the
+    unbounded one, :math:`J^\text{bounded}_\text{QP}(t) \ge J(t) \ge J^*`, so the unbounded
+    PMP's :math:`J^*` is still a lower bound over every basin: the certificate holds when the
+    bounds do not bind and is (correctly) refused when they raise the cost.
     """
     from iamp.core.tolerances import tol
     from iamp.planners.pmp import PMPPlanner
@@ -61,7 +66,7 @@ def refine_certificate(problem: Problem, best: CandidateResult, hold: str) -> di
     if hold != "foh":
         return {"global": False, "reason": "ZOH refine: J_ZOH(t) >= J_PMP(t) bounds the other basins only up to "
                                            "the ZOH gap; the refined contact time is a local minimiser"}
-    pmp = PMPPlanner().plan(problem)
+    pmp = PMPPlanner().plan(problem.with_limits(None))
     if pmp.status != st.OPTIMAL or pmp.cost is None:
         return {"global": False, "reason": f"the PMP could not certify the global optimum ({pmp.status})",
                 "pmp_status": pmp.status}
@@ -95,6 +100,11 @@ class QPPlanner:
         then an off-grid search seeded by the sweep, on aligned grids.
     solver_settings : dict, optional
         Overrides of the backend's settings (e.g. ``{"eps_abs": 1e-3}`` for a loose OSQP).
+    limits_between : {"nodes", "certified"}
+        With ``problem.limits``: the speed and ``y`` bounds at the grid nodes only (SPEC §14;
+        a plan that exceeds them between nodes is ``limits_violated``, with the exact
+        violation) or certified between the nodes too (Bernstein rows,
+        :mod:`iamp.planners.qp.limits`).
     """
 
     steps: int = 100
@@ -103,6 +113,7 @@ class QPPlanner:
     contact: str = "grid"
     solver_settings: dict[str, Any] | None = None
     refine_xtol: float = 1e-9
+    limits_between: str = "nodes"
 
     path = "native"
 
@@ -112,11 +123,28 @@ class QPPlanner:
         check_choice(self.solver, tuple(BACKENDS), "solver", "solver")
 
     def build(self, problem: Problem) -> CandidateSolver:
-        """The QP of ``problem`` on the configured backend (built once, re-solved per candidate)."""
+        """The QP of ``problem`` on the configured backend (built once, re-solved per candidate);
+        with ``problem.limits`` the bounded QP (:class:`~iamp.planners.qp.bounded.BoundedQP`)."""
         if problem.m == 0:
             raise ScenarioError("the QP planners need at least one vehicle (a problem with zero vehicles has no "
                                 "contact time: its optimum is iamp.core.free.free_plan, or planner 'pmp')", "vehicles")
+        if problem.limits is not None and not problem.limits.empty:
+            from iamp.planners.qp.bounded import BoundedQP
+
+            return BoundedQP(problem, self.steps, self.hold, self.solver, self.solver_settings,
+                             between=self.limits_between)
         return DiscretisedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
+
+    @staticmethod
+    def _limits_info(qp: CandidateSolver) -> dict[str, Any]:
+        rows = getattr(qp, "rows", None)
+        if rows is None:
+            return {}
+        out: dict[str, Any] = {"limit_rows": rows.describe()}
+        if rows.polygon_sides is not None:
+            out["polygon_sides"] = rows.polygon_sides
+            out["limits_polygon_sides"] = rows.polygon_sides
+        return out
 
     def sweep(self, qp: CandidateSolver, progress: Progress | None = None) -> SweepResult:
         """Solve one QP per candidate node combination (:func:`iamp.planners.qp.sweep.run_sweep`)."""
@@ -176,7 +204,18 @@ class QPPlanner:
         info: dict[str, Any] = {"path": self.path, "sweep": sw.table, "failures": sw.failures,
                                 "candidates": sw.candidates(),
                                 "unpolished": sum(r.polished is False for r in sw.results)}
+        info.update(self._limits_info(qp))
         best = sw.best
+        if best is None and sw.results and "limit_rows" in info:
+            from iamp.planners.qp.bounded import infeasibility_reason
+
+            n_cert = sum(r.infeasible_certified for r in sw.results)
+            reason, whole = infeasibility_reason(problem, self.steps, self.hold, self.solver, len(sw.results),
+                                                 n_cert)
+            if whole or all(r.solver_status == st.INFEASIBLE for r in sw.results):
+                info.update(n_solves=qp.n_solves, failed_check="limits", reason=reason, limits_infeasible=reason)
+                return self._plan(problem, None, st.INFEASIBLE, start, info)
+            info["reason"] = f"no candidate solved within the limits: {sw.candidates()['failed']}; {reason}"
         if best is None:
             failed = Counter(r.failed_check for r in sw.results if r.failed_check)
             worst = max(sw.results, key=lambda r: r.kkt.worst_rel()[1] if r.kkt is not None else -1.0)
@@ -200,7 +239,7 @@ class QPPlanner:
                 if not cert["global"]:
                     status = st.LOCAL
                     info["why"] = cert["reason"]
-            return self._plan(problem, best, status, start, info)
+            return self._limits_checked(self._plan(problem, best, status, start, info))
         info["failed_check"] = "sweep_candidates"
         nodes, why_status, bound = min(sw.could_beat, key=lambda c: c[2])
         info["why"] = (f"{len(sw.could_beat)} candidate(s) without a verified solution could beat the best "
@@ -209,6 +248,21 @@ class QPPlanner:
         info["could_beat"] = [{"nodes": list(n), "status": s, "lower_bound": lb} for n, s, lb in sw.could_beat]
         info["best_unverified_search"] = {"contact_times": best.contact_times.tolist(), "cost": best.cost}
         return self._plan(problem, best, sw.failure_status(), start, info)
+
+    @staticmethod
+    def _limits_checked(plan: Plan) -> Plan:
+        """SPEC §14: a bounded plan reports the largest violation of the ``vx`` and ``y`` bounds
+        between the nodes (exact, :mod:`iamp.core.peaks`); beyond the bound tolerance an
+        ``optimal`` plan becomes ``limits_violated`` with the reason."""
+        lim = plan.problem.limits
+        if lim is None or lim.empty or not plan.ok or plan.peaks is None:
+            return plan
+        between = {name: plan.peaks.peaks[name].violation for name in ("vx", "y")
+                   if name in plan.peaks.peaks and plan.peaks.peaks[name].bound is not None}
+        plan.info["limits_between_nodes"] = between
+        return plan.judge_limits("the QP imposes every bound at the grid nodes, so the excess lies between "
+                                 "the grid nodes: use limits_between='certified' (--limits-between certified) "
+                                 "or a larger N")
 
     def plan_at_nodes(self, problem: Problem, nodes: Sequence[int]) -> Plan:
         """Solve once with the contacts at given nodes of the uniform grid (no search)."""
@@ -226,4 +280,6 @@ class QPPlanner:
         info: dict[str, Any] = {"path": self.path, "solver_time_s": r.solver_time_s, "polished": r.polished,
                                 "iterations": r.iterations, "checks": _checks_of(r),
                                 "failed_check": r.failed_check, "solver_status": r.raw_status}
+        if problem.limits is not None and not problem.limits.empty and r.infeasible_certified:
+            info["reason"] = "the QP at these contact times has no plan within the limits (Farkas certificate)"
         return self._plan(problem, r, r.status, start, info)

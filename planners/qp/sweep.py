@@ -18,7 +18,9 @@ with equality for FOH (SPEC §3 fact 1: the FOH QP is exact) and ``≥`` for ZOH
 only restricts the input).  A failed candidate *could beat* the best if its bound is below
 the best verified cost by more than the cost tolerance ``foh_clarabel_cost_rel`` (relative
 to ``max(1, J_best)``); if the bound cannot be computed (singular jump system) it is
-counted as able to.  Then the sweep's best is not certified: the plan is not OPTIMAL.
+counted as able to.  Then the sweep's best is not certified: the plan is not OPTIMAL.  A
+candidate of the bounded QP whose infeasibility is certified (a verified Farkas certificate,
+:mod:`iamp.planners.qp.bounded`) has no plan at all and cannot beat the best.
 """
 
 from __future__ import annotations
@@ -120,7 +122,7 @@ def run_sweep(qp: CandidateSolver, progress: Progress | None = None) -> SweepRes
     if best is not None:
         margin = tol("foh_clarabel_cost_rel") * max(1.0, abs(best.cost))
         for r in results:
-            if not r.ok:
+            if not r.ok and not r.infeasible_certified:  # a certified infeasible candidate cannot beat it
                 lb = pmp_lower_bound(qp, r.nodes)
                 if lb < best.cost - margin:
                     out.could_beat.append((r.nodes, r.status, lb))

@@ -1,16 +1,13 @@
-"""The predictor evaluation report: ``predictor_eval.json`` and two LaTeX booktabs tables."""
+"""The predictor evaluation report's two LaTeX booktabs tables (written, with ``predictor_eval.json``,
+by :func:`iamp.prediction.evaluation.evaluate.write_evaluation_report`)."""
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
 from typing import Any
-
-from iamp.core.atomic import write_text as atomic_write_text
 
 from .windows import HORIZONS
 
-__all__ = ["NGSIM_CV_REFERENCE", "rmse_table_tex", "selection_table_tex", "write_evaluation_report"]
+__all__ = ["NGSIM_CV_REFERENCE", "rmse_table_tex", "selection_table_tex"]
 
 #: CV reference on NGSIM (Deo & Trivedi 2018, 2-D RMSE in m at 1..5 s) — a different
 #: dataset and a different (2-D) metric; quoted for scale only.
@@ -129,56 +126,3 @@ def selection_table_tex(res: dict[str, Any]) -> str:
         lines.append(f"{dt:g} & {width:g} & {m} & " + " & ".join(cells) + f" & {rb['bic']:.4g} \\\\")
     lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}", ""]
     return "\n".join(lines)
-
-
-def write_evaluation_report(out_dir: Any = "reports", results: dict[str, Any] | None = None, *, rerun: bool = False,
-                            select: bool = True) -> dict[str, Any]:
-    """Write the evaluation report (running the evaluation only when needed).
-
-    Writes, atomically, ``out_dir/predictor_eval.json``, ``out_dir/tables/predictor_rmse.tex``
-    and ``out_dir/tables/predictor_selection.tex``.
-
-    Parameters
-    ----------
-    out_dir : path-like
-    results : dict, optional
-        Results of :func:`run_evaluation` to write.
-    rerun : bool
-        Recompute even if ``out_dir/predictor_eval.json`` already holds results of this
-        protocol version (:data:`EVAL_VERSION`) for the shipped dataset; by default such
-        results are reused and only the tables are regenerated (the full run with model
-        selection takes minutes).
-    select : bool
-        When running: include the grid search (see :func:`run_evaluation`).
-
-    Returns
-    -------
-    dict
-        The results that were written.
-    """
-    from .evaluate import (
-        EVAL_VERSION,
-        _dataset_fingerprint,
-        _load_default_data,
-        run_evaluation,
-    )
-
-    out = Path(out_dir)
-    res = results
-    cached = out / "predictor_eval.json"
-    if res is None and not rerun and cached.is_file():
-        try:
-            old = json.loads(cached.read_text(encoding="utf-8"))
-            proto = old.get("protocol", {})
-            if (proto.get("eval_version") == EVAL_VERSION
-                    and proto.get("dataset_sha256_track_t_x") == _dataset_fingerprint(_load_default_data())
-                    and (old.get("selection") is not None or not select)):
-                res = old
-        except (OSError, ValueError, AttributeError):
-            res = None
-    if res is None:
-        res = run_evaluation(select=select)
-    atomic_write_text(cached, json.dumps(res, indent=1, allow_nan=False) + "\n")
-    atomic_write_text(out / "tables" / "predictor_rmse.tex", rmse_table_tex(res))
-    atomic_write_text(out / "tables" / "predictor_selection.tex", selection_table_tex(res))
-    return res

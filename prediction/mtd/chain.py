@@ -13,13 +13,14 @@ Sampling uses the latent-lag form: at every step a lag ``i`` is drawn with proba
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from iamp.prediction._typing import FloatArray, IntArray
 
-from .model import MTDModel
+if TYPE_CHECKING:
+    from .model import MTDModel
 
 __all__ = ["propagate", "propagate_batch", "sample"]
 

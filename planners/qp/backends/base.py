@@ -111,6 +111,34 @@ def kkt_residuals(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, 
     return KKTResiduals(rp, rd, rg, rp / sp_, rd / sd, rg / sg)
 
 
+def farkas_residuals(A: sp.spmatrix, l: FloatArray, u: FloatArray, dy: FloatArray) -> tuple[float, float]:
+    r"""How well ``δy`` certifies that ``l <= Az <= u`` has no solution (Farkas' lemma).
+
+    ``δy`` is a certificate when :math:`A^\top \delta y = 0` and its support is negative,
+    :math:`\sum_i u_i \delta y_i^+ - l_i \delta y_i^- < 0` (then
+    :math:`0 = z^\top A^\top \delta y \le` the support for any feasible ``z``: a contradiction).
+    Returns ``(stationarity, support)`` after scaling ``δy`` to unit max-norm:
+    :math:`\|A^\top\delta y\|_\infty / \|A\|_{\max}` and the support divided by
+    :math:`\max(1, \|l, u\|_\infty)`.  A certificate is accepted when the first is tiny and the
+    second clearly negative (the caller's tolerances); a pushing multiplier against an
+    infinite bound gives ``+inf``.
+    """
+    dy = np.asarray(dy, dtype=float)
+    norm = float(np.max(np.abs(dy), initial=0.0))
+    if not np.isfinite(norm) or norm == 0.0:
+        return float("inf"), float("inf")
+    dy = dy / norm
+    Amax = max(1e-300, float(abs(sp.csc_matrix(A)).max()))
+    stat = float(np.max(np.abs(A.T @ dy), initial=0.0)) / Amax
+    yp, ym = np.maximum(dy, 0.0), np.maximum(-dy, 0.0)
+    if np.any((yp > 0) & ~np.isfinite(u)) or np.any((ym > 0) & ~np.isfinite(l)):
+        return stat, float("inf")
+    finite = np.r_[np.abs(l[np.isfinite(l)]), np.abs(u[np.isfinite(u)])]
+    scale = max(1.0, float(np.max(finite, initial=0.0)))
+    support = float(np.sum(np.where(yp > 0, u * yp, 0.0)) - np.sum(np.where(ym > 0, l * ym, 0.0)))
+    return stat, support / scale
+
+
 @dataclass(frozen=True)
 class QPSolution:
     """What one :meth:`QPBackend.solve` returns.
@@ -133,6 +161,9 @@ class QPSolution:
         Wall time of the ``solve`` call, measured here.
     polished : bool or None
         OSQP only: whether solution polishing succeeded.
+    certificate : ndarray or None
+        With status INFEASIBLE, the solver's primal infeasibility certificate ``δy`` in the
+        convention of ``y`` (osqp, clarabel; not yet verified: :func:`farkas_residuals`).
     """
 
     z: FloatArray
@@ -143,6 +174,7 @@ class QPSolution:
     solver_time_s: float | None
     solve_call_s: float
     polished: bool | None = None
+    certificate: FloatArray | None = None
 
     def kkt_residuals(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray,
                       u: FloatArray) -> KKTResiduals:

@@ -184,5 +184,7 @@ class ClarabelBackend(QPBackend):
             y[self._eq] = w[:ne]
             y[self._up] += w[ne:ne + nu]
             y[self._lo] -= w[ne + nu:]
-        return QPSolution(z=z, y=y, status=map_status(raw), raw_status=raw, iterations=int(sol.iterations),
-                          solver_time_s=float(sol.solve_time), solve_call_s=call)
+        status = map_status(raw)
+        return QPSolution(z=z, y=y, status=status, raw_status=raw, iterations=int(sol.iterations),
+                          solver_time_s=float(sol.solve_time), solve_call_s=call,
+                          certificate=y.copy() if status == st.INFEASIBLE else None)

@@ -180,5 +180,9 @@ class OSQPBackend(QPBackend):
         polished = int(getattr(info, "status_polish", 0)) == 1
         z = np.array(res.x, dtype=float) if res.x is not None else np.full(self.q.size, np.nan)
         y = np.array(res.y, dtype=float) if res.y is not None else np.full(self.l.size, np.nan)
-        return QPSolution(z=z, y=y, status=map_status(raw), raw_status=raw, iterations=int(info.iter),
-                          solver_time_s=float(info.run_time), solve_call_s=call, polished=polished)
+        status = map_status(raw)
+        cert = getattr(res, "prim_inf_cert", None)
+        certificate = np.array(cert, dtype=float) if status == st.INFEASIBLE and cert is not None else None
+        return QPSolution(z=z, y=y, status=status, raw_status=raw, iterations=int(info.iter),
+                          solver_time_s=float(info.run_time), solve_call_s=call, polished=polished,
+                          certificate=certificate)

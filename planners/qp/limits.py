@@ -27,13 +27,29 @@ What the rows guarantee between nodes:
 * the polygon lies inside the circle :math:`|u| \le A` (its vertices are on it), so the
   friction circle holds everywhere, conservatively by at most the factor
   :math:`\cos(\pi/M)` (0.981 for ``M = 16``);
-* ``vx`` and ``y`` hold at the nodes only; between them the speed (quadratic per FOH piece)
-  and ``s_y`` (cubic) can overshoot.  The plan reports the largest such violation exactly
-  (:mod:`iamp.core.peaks`); it falls as ``N`` grows.
+* ``vx`` and ``y`` hold at the nodes only (``between="nodes"``, SPEC §14); between them the
+  speed (quadratic per FOH piece) and ``s_y`` (cubic; quadratic with ZOH) can overshoot.  The
+  plan reports the largest such violation exactly (:mod:`iamp.core.peaks`); it falls as ``N``
+  grows.
+* ``between="certified"`` adds, per interval, the inner **Bernstein coefficients** of those
+  polynomials, which are linear in ``z``; a polynomial lies in the hull of its Bernstein
+  coefficients, so the bound then holds for all ``t`` (conservatively, by :math:`O(h^2)`):
 
-The matrix ``A`` depends on the layout and ``M`` only, not on the grid: the jerk rows read
-:math:`-J h_k \le u_{k+1} - u_k \le J h_k`, so a new grid (an aligned one for ``refine``)
-changes only ``lo, hi`` (:meth:`LimitRows.bounds_for`).
+  ===========  ====================================================================  =====
+  quantity     inner Bernstein coefficients on :math:`[t_k, t_{k+1}]`                 hold
+  ===========  ====================================================================  =====
+  :math:`v_x`  :math:`v_k + \tfrac{h_k}{2} u_{x,k}`                                    FOH
+  :math:`s_y`  :math:`s_k + \tfrac{h_k}{3} v_k,\ s_k + \tfrac{2h_k}{3} v_k + \tfrac{h_k^2}{6} u_{y,k}`  FOH
+  :math:`s_y`  :math:`s_k + \tfrac{h_k}{2} v_k`                                        ZOH
+  ===========  ====================================================================  =====
+
+  (ZOH's speed is linear per interval: its node rows already hold everywhere.)
+
+Without ``certified`` rows the matrix ``A`` depends on the layout and ``M`` only, not on the
+grid: the jerk rows read :math:`-J h_k \le u_{k+1} - u_k \le J h_k`, so a new grid (an
+aligned one for ``refine``) changes only ``lo, hi`` (:meth:`LimitRows.bounds_for`); the
+certified rows' coefficients depend on :math:`h_k`, and :meth:`LimitRows.set_grid` rebuilds
+``A``'s values on the same pattern.
 """
 
 from __future__ import annotations
@@ -56,7 +72,9 @@ IntArray = NDArray[np.int64]
 POLYGON_SIDES = 16
 
 #: Row kinds, in the order the rows are stacked.
-KINDS = ("ax", "ay", "a_total", "vx", "y", "jerk_x", "jerk_y")
+KINDS = ("ax", "ay", "a_total", "vx", "y", "vx_between", "y_between", "jerk_x", "jerk_y")
+#: Where the speed and ``y`` bounds are imposed (module docstring).
+BETWEEN = ("nodes", "certified")
 
 
 @dataclass
@@ -87,6 +105,8 @@ class LimitRows:
     limits: PhysicalLimits
     hold: str
     _jerk_rows: IntArray = field(repr=False, default_factory=lambda: np.zeros(0, dtype=np.int64))
+    between: str = "nodes"
+    index: StateIndex | None = field(default=None, repr=False)
 
     @property
     def n_rows(self) -> int:
@@ -104,7 +124,12 @@ class LimitRows:
         return lo, hi
 
     def set_grid(self, t_nodes: FloatArray) -> None:
-        """Replace ``lo, hi`` by their values on ``t_nodes``."""
+        """Replace ``lo, hi`` (and, with certified rows, the values of ``A``) by their values on
+        ``t_nodes`` (same pattern)."""
+        if self.between == "certified" and self.index is not None:
+            fresh = limit_rows(self.index, t_nodes, self.hold, self.limits, self.polygon_sides or POLYGON_SIDES,
+                               between=self.between)
+            self.A.data[:] = fresh.A.data
         self.lo, self.hi = self.bounds_for(t_nodes)
 
     def violation(self, z: FloatArray) -> FloatArray:
@@ -129,7 +154,9 @@ def polygon_normals(sides: int = POLYGON_SIDES) -> tuple[FloatArray, float]:
     if sides < 16 or sides % 2:
         raise ValueError(f"the friction-circle polygon needs an even number >= 16 of sides (got {sides})")
     theta = 2.0 * np.pi * np.arange(sides // 2) / sides
-    return np.stack([np.cos(theta), np.sin(theta)], axis=1), math.cos(math.pi / sides)
+    normals = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    normals[np.abs(normals) < 1e-15] = 0.0  # cos(π/2) is 6e-17 in floating point: an exact zero
+    return normals, math.cos(math.pi / sides)
 
 
 def check_hold(limits: PhysicalLimits, hold: str) -> None:
@@ -141,7 +168,7 @@ def check_hold(limits: PhysicalLimits, hold: str) -> None:
 
 
 def limit_rows(index: StateIndex, t_nodes: FloatArray, hold: str, limits: PhysicalLimits,
-               polygon_sides: int = POLYGON_SIDES) -> LimitRows:
+               polygon_sides: int = POLYGON_SIDES, between: str = "nodes") -> LimitRows:
     r"""The inequality rows of ``limits`` on the layout ``index`` (module docstring's table).
 
     Parameters
@@ -155,6 +182,9 @@ def limit_rows(index: StateIndex, t_nodes: FloatArray, hold: str, limits: Physic
     limits : PhysicalLimits
     polygon_sides : int
         ``M`` of the friction-circle polygon (even, >= 16).
+    between : {"nodes", "certified"}
+        ``certified`` adds the Bernstein rows that make the ``vx`` and ``y`` bounds hold
+        between the nodes too (module docstring).
 
     Returns
     -------
@@ -168,6 +198,8 @@ def limit_rows(index: StateIndex, t_nodes: FloatArray, hold: str, limits: Physic
     """
     if hold not in ("foh", "zoh"):
         raise ValueError(f"unknown hold {hold!r}")
+    if between not in BETWEEN:
+        raise ValueError(f"unknown between {between!r}; choose from {', '.join(BETWEEN)}")
     check_hold(limits, hold)
     N, block = int(index.N), int(index.block)
     nu = block - 2 * (N + 1)
@@ -214,14 +246,29 @@ def limit_rows(index: StateIndex, t_nodes: FloatArray, hold: str, limits: Physic
         normals, apothem = polygon_normals(sides)
         r_max = float(limits.a_total) * apothem
         for c, s in normals:
-            terms: list[tuple[IntArray, FloatArray | float]] = [(index.idx_u(0, ku), float(c))]
-            if abs(s) > 0:
+            terms: list[tuple[IntArray, FloatArray | float]] = []
+            if c != 0:
+                terms.append((index.idx_u(0, ku), float(c)))
+            if s != 0:
                 terms.append((index.idx_u(1, ku), float(s)))
             block_rows(ku, terms, -r_max, r_max, "a_total")
     if limits.vx is not None:
         block_rows(kn, [(index.idx_v(0, kn), 1.0)], float(limits.vx[0]), float(limits.vx[1]), "vx")
     if limits.y is not None:
         block_rows(kn, [(index.idx_s(1, kn), 1.0)], float(limits.y[0]), float(limits.y[1]), "y")
+    if between == "certified":
+        kk = np.arange(N, dtype=np.int64)
+        if limits.vx is not None and hold == "foh":
+            block_rows(kk, [(index.idx_v(0, kk), 1.0), (index.idx_u(0, kk), h / 2)], float(limits.vx[0]),
+                       float(limits.vx[1]), "vx_between")
+        if limits.y is not None:
+            y_lo, y_hi = float(limits.y[0]), float(limits.y[1])
+            if hold == "foh":
+                block_rows(kk, [(index.idx_s(1, kk), 1.0), (index.idx_v(1, kk), h / 3)], y_lo, y_hi, "y_between")
+                block_rows(kk, [(index.idx_s(1, kk), 1.0), (index.idx_v(1, kk), 2 * h / 3),
+                                (index.idx_u(1, kk), h**2 / 6)], y_lo, y_hi, "y_between")
+            else:
+                block_rows(kk, [(index.idx_s(1, kk), 1.0), (index.idx_v(1, kk), h / 2)], y_lo, y_hi, "y_between")
     jerk_start = r0
     if limits.jerk is not None:
         kk = np.arange(N, dtype=np.int64)
@@ -244,4 +291,6 @@ def limit_rows(index: StateIndex, t_nodes: FloatArray, hold: str, limits: Physic
         limits=limits,
         hold=hold,
         _jerk_rows=np.arange(jerk_start, n_rows, dtype=np.int64),
+        between=between,
+        index=index,
     )
