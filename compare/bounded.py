@@ -33,7 +33,7 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.status import SUCCESS
 
-__all__ = ["BOUNDED_PLANNERS", "BoundedRow", "bounded_rows", "bounded_section", "latex_table", "markdown_table",
+__all__ = ["BOUNDED_PLANNERS", "BoundedRow", "bounded_rows", "bounded_section", "markdown_table",
            "pmp_qp_gap", "section_lines"]
 
 #: The planners of the bounded comparison, in table order, with the module each needs.
@@ -149,7 +149,8 @@ def bounded_rows(name: str, problem: Problem, limits: PhysicalLimits | None = PA
             name, planner, True, plan.status, cost=plan.cost if plan.status in SUCCESS else None,
             free_cost=free.cost if free.status in SUCCESS else None,
             peaks=pk.line() if pk is not None else "", peaks_json=pk.to_json() if pk is not None else {},
-            imposed=_imposes(planner, plan), reason=plan.info.get("reason") or plan.info.get("why"),
+            imposed=_imposes(planner, plan) if plan.trajectory is not None or _imposes(planner, plan) else None,
+            reason=plan.info.get("reason") or plan.info.get("why"),
             time_s=elapsed))
     return rows
 
@@ -208,27 +209,3 @@ def markdown_table(rows: list[BoundedRow]) -> str:
         lines.append(f"| {r.scenario} | {r.planner} | {r.status} | {_fmt(r.cost, '.6g')} | {rel or '-'} | "
                      f"{imposed} | {what} |")
     return "\n".join(lines)
-
-
-def latex_table(rows: list[BoundedRow]) -> str:
-    """The bounded comparison as a booktabs table (``iamp reproduce``: ``tables/bounded.tex``)."""
-    from iamp.comparison.report.latex import Raw, booktabs_table, escape, sci
-
-    body: list[list[Any] | None] = []
-    last = None
-    for r in rows:
-        if last is not None and r.scenario != last:
-            body.append(None)
-        last = r.scenario
-        exceeded = ", ".join(name for name, p in r.peaks_json.items() if p.get("ok") is False) or "--"
-        body.append([escape(r.scenario), Raw(r"\texttt{" + escape(r.planner) + "}"), escape(r.status),
-                     sci(r.cost, 6) if r.cost is not None else Raw("--"),
-                     Raw(f"{100 * r.bound_cost_rel:+.2f}\\,\\%") if r.bound_cost_rel is not None else Raw("--"),
-                     Raw("--") if r.imposed is None else ("yes" if r.imposed else "judged"), escape(exceeded)])
-    lim = ", ".join(f"{k} {list(v) if isinstance(v, tuple) else v}" for k, v in PASSENGER_CAR.given().items())
-    notes = (f"Limits: a passenger car ({lim}). Status infeasible: certified (Farkas) at every candidate; "
-             "limits\\_violated: a verified plan beyond a bound its planner does not impose (judged by its exact "
-             "peaks). Bounds cost: against the same planner without limits.")
-    return booktabs_table(["scenario", "planner", "status", Raw("$J$"), "bounds cost", "imposed", "exceeds"], body,
-                          caption="The paper's scenarios under a passenger car's limits", label="tab:bounded",
-                          align="lllrrll", notes=notes)

@@ -13,7 +13,9 @@ The public API (SPEC §12)::
     plan.status, plan.cost, plan.contact_times, plan.jumps, plan.safety
     plan.states(t), plan.inputs(t)                # at any times in [0, tf]
     plan.to_json()                                # the object of SPEC §5 and §9
-    iamp.compare(prob).to_json()                  # the object of SPEC §5b's compare
+    iamp.plan_batch([prob1, prob2, ...])          # many one-vehicle plans at once (arrays)
+    iamp.PMPPlanner(compiled=True).plan(prob)     # the PMP planner with its options
+    iamp.compare(prob).to_json()                  # an iamp.Comparison; the object of SPEC §5b
     iamp.Predictor.default().predict(history)     # the cubic of SPEC §7
 
 Sub-packages (dependencies flow one way): :mod:`iamp.core` (problem, scenario files, plan,
@@ -25,7 +27,6 @@ from typing import TYPE_CHECKING, Any
 
 from iamp import status
 from iamp._version import __version__
-from iamp.api import compare, load_scenario, plan
 from iamp.core.errors import (
     HistoryError,
     IampError,
@@ -34,22 +35,27 @@ from iamp.core.errors import (
     ScenarioError,
     SolverError,
 )
-from iamp.core.plan import Plan
-from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
-from iamp.core.scenario import History, Scenario
-from iamp.prediction.predictor import Prediction, Predictor
+
+if TYPE_CHECKING:
+    from iamp.api import compare, load_scenario, plan
+    from iamp.core.plan import Plan
+    from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+    from iamp.core.scenario import History, Scenario
+    from iamp.planners.pmp import PMPPlanner
+    from iamp.planners.pmp.batch import plan_batch
+    from iamp.prediction.predictor import Prediction, Predictor
+
+#: Public names imported on first use (PEP 562): ``import iamp`` -- which every ``iamp``
+#: command runs -- costs almost nothing (issue 22 item 10).
+_LAZY = {"compare": "iamp.api", "load_scenario": "iamp.api", "plan": "iamp.api", "Plan": "iamp.core.plan",
+         "EgoBoundary": "iamp.core.problem", "Problem": "iamp.core.problem",
+         "SurroundingVehicle": "iamp.core.problem", "History": "iamp.core.scenario",
+         "Scenario": "iamp.core.scenario", "PMPPlanner": "iamp.planners.pmp",
+         "plan_batch": "iamp.planners.pmp.batch", "Prediction": "iamp.prediction.predictor",
+         "Predictor": "iamp.prediction.predictor", "Comparison": "iamp.comparison.agreement.judge"}
 
 if TYPE_CHECKING:
     from iamp.comparison.agreement.judge import Comparison
-
-
-def __getattr__(name: str) -> Any:
-    """``iamp.Comparison`` (what :func:`iamp.compare` returns), imported on first use."""
-    if name == "Comparison":
-        from iamp.comparison.agreement.judge import Comparison
-
-        return Comparison
-    raise AttributeError(f"module 'iamp' has no attribute {name!r}")
 
 
 __all__ = [
@@ -60,6 +66,7 @@ __all__ = [
     "IampError",
     "MissingDependencyError",
     "OptionError",
+    "PMPPlanner",
     "Plan",
     "Prediction",
     "Predictor",
@@ -72,5 +79,23 @@ __all__ = [
     "compare",
     "load_scenario",
     "plan",
+    "plan_batch",
     "status",
 ]
+
+
+
+def __getattr__(name: str) -> Any:
+    """The names of :data:`_LAZY`, imported on first use."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'iamp' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

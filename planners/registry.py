@@ -59,7 +59,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from iamp.core.errors import OptionError
 from iamp.core.plan import Plan
@@ -67,12 +67,15 @@ from iamp.core.problem import Problem
 
 from .active_set import ActiveSetPlanner
 from .avoid.options import AvoidOptions
-from .avoid.planner import AvoidQPPlanner
 from .pmp.options import PMPOptions
-from .pmp.planner import PMPPlanner
 from .qp.backends import BACKENDS
 from .qp.options import QPOptions
-from .qp.planner import QPPlanner
+
+if TYPE_CHECKING:  # the planners are imported by their factories, on first use (issue 22 item 10:
+    # `iamp plan` with the PMP must not import scipy.optimize and the QP solvers)
+    from .avoid.planner import AvoidQPPlanner
+    from .pmp.planner import PMPPlanner
+    from .qp.planner import QPPlanner
 
 
 @runtime_checkable
@@ -235,15 +238,22 @@ def options_of(spec: PlannerSpec, values: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _pmp(o: PMPOptions) -> PMPPlanner:
-    return PMPPlanner(max_starts=o.max_starts, max_boxes=o.max_boxes, compiled=o.compiled, diagnostics=o.diagnostics)
+    from .pmp.planner import PMPPlanner
+
+    return PMPPlanner(max_starts=o.max_starts, max_boxes=o.max_boxes, compiled=o.compiled, diagnostics=o.diagnostics,
+                      certify_bounded=o.certify_bounded)
 
 
 def _qp(o: QPOptions) -> QPPlanner:
+    from .qp.planner import QPPlanner
+
     return QPPlanner(steps=o.steps, hold=o.hold, solver=o.solver, contact=o.contact, solver_settings=o.solver_settings,
                      limits_between=o.limits_between)
 
 
 def _avoid(o: AvoidOptions) -> AvoidQPPlanner:
+    from .avoid.planner import AvoidQPPlanner
+
     return AvoidQPPlanner(steps=o.steps, hold=o.hold, solver=o.solver, contact=o.contact,
                           solver_settings=o.solver_settings, safety=o.safety, max_solves=o.max_solves,
                           time_limit_s=o.time_limit_s)

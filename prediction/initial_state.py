@@ -39,7 +39,7 @@ contains constant acceleration and the initialisation is unbiased).
 
 from __future__ import annotations
 
-import functools
+import collections
 from dataclasses import dataclass
 
 import numpy as np
@@ -125,9 +125,13 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
         Arrays of shape ``(B, K)`` (``B = 1`` for a 1-D ``Z``).
 
     For fixed ``t``, ``σ`` and ``q`` the gains do not depend on the data, so the smoother is a
-    linear map ``z ↦ (x, v, a)``; it is computed once (by smoothing the unit vectors) and cached.
-    Estimated noise levels are rounded to two significant digits for that (the estimate's own
-    sampling error is far larger, about ``1/√(K-3)``).
+    linear map ``z ↦ (x, v, a)``.  For short histories (``K <=`` :data:`OPERATOR_MAX_K`, the
+    evaluation's many windows of 3 s) that map is computed once as a dense ``3 × K × K``
+    operator (by smoothing the unit vectors) and cached, at most :data:`OPERATOR_CACHE_BYTES`
+    in all; longer histories run the recursions on the data themselves, linear in ``K`` in
+    time and memory (the two agree to rounding, tested).  Estimated noise levels are rounded to
+    two significant digits (the estimate's own sampling error is far larger, about
+    ``1/√(K-3)``).
     """
     t = np.asarray(t, dtype=float)
     Z = np.atleast_2d(np.asarray(Z, dtype=float))
@@ -140,6 +144,9 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
         sig = np.asarray([float(f"{s:.2g}") for s in noise_sigma(t, Z)])
     else:
         sig = np.broadcast_to(np.asarray(sigma, dtype=float), (B,)).copy()
+    if K > OPERATOR_MAX_K:  # linear: the recursions on the data, O(B·K) time and memory
+        s = _rts(t, Z, float(jerk_psd), sig)
+        return SmoothedHistory(s.x, s.v, s.a, sig)
     out = np.empty((3, B, K))
     levels, inverse = np.unique(sig, return_inverse=True)
     key = t.tobytes()
@@ -150,13 +157,31 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
     return SmoothedHistory(out[0], out[1], out[2], sig)
 
 
-@functools.lru_cache(maxsize=256)
+#: Longest history smoothed through a cached dense operator (3·K² doubles: 6.3 MB at 512);
+#: longer ones run the recursions on the data (linear in K).
+OPERATOR_MAX_K = 512
+#: Bytes the cached operators may hold in all (least recently used dropped first).
+OPERATOR_CACHE_BYTES = 64 * 1024 * 1024
+_OPERATORS: collections.OrderedDict[tuple[bytes, int, float, float], FloatArray] = collections.OrderedDict()
+
+
 def _operator(t_bytes: bytes, K: int, sigma: float, jerk_psd: float) -> FloatArray:
-    """``M[c, j, k]``: component ``c`` (x, v, a) at sample ``k`` of the smoothed unit vector ``e_j``."""
+    """``M[c, j, k]``: component ``c`` (x, v, a) at sample ``k`` of the smoothed unit vector ``e_j``.
+
+    Cached by ``(t, σ, q)``; the cache is bounded in bytes (:data:`OPERATOR_CACHE_BYTES`).
+    """
+    key = (t_bytes, K, sigma, jerk_psd)
+    M = _OPERATORS.get(key)
+    if M is not None:
+        _OPERATORS.move_to_end(key)
+        return M
     t = np.frombuffer(t_bytes, dtype=np.float64, count=K)
     s = _rts(t, np.eye(K), jerk_psd, np.full(K, sigma))
-    M: FloatArray = np.stack([s.x, s.v, s.a])
+    M = np.stack([s.x, s.v, s.a])
     M.setflags(write=False)
+    _OPERATORS[key] = M
+    while sum(m.nbytes for m in _OPERATORS.values()) > OPERATOR_CACHE_BYTES and len(_OPERATORS) > 1:
+        _OPERATORS.popitem(last=False)
     return M
 
 

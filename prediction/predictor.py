@@ -93,6 +93,9 @@ __all__ = [
 
 #: Package-data file of the shipped model (``prediction/data/``).
 DEFAULT_MODEL_FILE = "mtd_default.json"
+#: Bytes of node probabilities :meth:`Predictor.predict_batch` holds at once (histories are
+#: predicted in chunks below it: memory bounded whatever the model's ``dt``).
+BATCH_BYTES = 64 << 20
 
 
 # ---------------------------------------------------------------------------------------
@@ -168,13 +171,31 @@ class Prediction:
 
 @functools.lru_cache(maxsize=64)
 def _grid_operator(t_bytes: bytes, K: int, dt: float, n: int) -> FloatArray:
-    """``R`` with ``R @ x`` = the positions linearly resampled to the last ``n + 2`` grid nodes."""
-    t = np.frombuffer(t_bytes, dtype=np.float64, count=K)
-    tg, _ = history_grid(t, t, dt)
-    tg = tg[-(n + 2):]
-    R: FloatArray = np.stack([np.interp(tg, t, e) for e in np.eye(K)], axis=1)
+    """``R`` with ``R @ x`` = the positions linearly resampled to the last ``n + 2`` grid nodes
+    (dense, ``(n + 2) × K``; kept as the reference of :func:`_grid_weights`, which the predictor uses)."""
+    idx, w = _grid_weights(t_bytes, K, dt, n)
+    R = np.zeros((idx.size, K))
+    rows = np.arange(idx.size)
+    R[rows, idx] += 1.0 - w
+    R[rows, np.minimum(idx + 1, K - 1)] += w
     R.setflags(write=False)
     return R
+
+
+@functools.lru_cache(maxsize=256)
+def _grid_weights(t_bytes: bytes, K: int, dt: float, n: int) -> tuple[IntArray, FloatArray]:
+    """``(i, w)``: grid node ``r`` is ``(1 - w_r) x[i_r] + w_r x[i_r + 1]`` (linear interpolation at the
+    last ``n + 2`` grid nodes, as ``np.interp``); O(n log K) instead of a ``K × K`` identity."""
+    t = np.frombuffer(t_bytes, dtype=np.float64, count=K)
+    tg, _ = history_grid(t, t, dt)
+    tg = np.clip(tg[-(n + 2):], t[0], t[-1])
+    idx = np.clip(np.searchsorted(t, tg, side="right") - 1, 0, K - 1)
+    nxt = np.minimum(idx + 1, K - 1)
+    span = t[nxt] - t[idx]
+    w = np.where(span > 0, (tg - t[idx]) / np.where(span > 0, span, 1.0), 0.0)
+    idx.setflags(write=False)
+    w.setflags(write=False)
+    return idx, w
 
 
 @functools.lru_cache(maxsize=1)
@@ -267,8 +288,9 @@ class Predictor:
         """
         t_hist = np.asarray(t_hist, dtype=float)
         sm = smooth_histories(t_hist, X_hist, self.jerk_psd)
-        R = _grid_operator(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
-        states = self.model.states(second_differences(sm.x @ R.T, self.dt))
+        idx, w = _grid_weights(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
+        resampled = sm.x[:, idx] * (1.0 - w) + sm.x[:, np.minimum(idx + 1, t_hist.size - 1)] * w
+        states = self.model.states(second_differences(resampled, self.dt))
         return sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0), states
 
     def _node_accelerations(self, states: np.ndarray, M: int) -> tuple[np.ndarray, np.ndarray]:
@@ -369,6 +391,12 @@ class Predictor:
             raise ValueError(f"histories of {t_hist[-1] - t_hist[0]:g} s are shorter than the "
                              f"{self.min_history_s:g} s the model needs")
         M, t = self._horizon(tf)
+        # the node probabilities take B (M+1) m floats: histories go in chunks of at most
+        # BATCH_BYTES (a model with the smallest legal dt has M = 5000 nodes over 5 s)
+        rows = max(1, BATCH_BYTES // (8 * (M + 1) * (self.model.n_states + 4)))
+        if X_hist.shape[0] > rows:
+            return np.concatenate([self.predict_batch(t_hist, X_hist[s:s + rows], query, tf, cubic=cubic)
+                                   for s in range(0, X_hist.shape[0], rows)])
         x0, v0, states = self.initial_state(t_hist, X_hist)
         _, abar = self._node_accelerations(states, M)
         q = np.asarray(query, dtype=float)

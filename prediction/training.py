@@ -40,12 +40,24 @@ def symmetric_edges(width: float, a_max: float) -> np.ndarray:
     return width * (np.arange(-K, K) + 0.5)
 
 
+#: Most resampled states a training run builds (a few hundred MB at its peak; a model with the
+#: smallest legal ``dt`` would resample hours of tracks to ~10^8 states otherwise).
+TRAIN_STATES_MAX = 10_000_000
+
+
 def track_accelerations(tracks: Tracks, dt: float) -> list[FloatArray]:
     """State values ``a_k`` of every track, computed as the predictor does.
 
     Each track's positions are linearly resampled onto ``t0 + k·dt`` and differenced
     (:func:`second_differences`); tracks with fewer than 3 resampled samples are skipped.
     """
+    total = sum(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1
+                for _tid, t, *_ in tracks.iter_tracks() if t.size >= 2)
+    if total > TRAIN_STATES_MAX:
+        span = sum(float(t[-1] - t[0]) for _tid, t, *_ in tracks.iter_tracks() if t.size >= 2)
+        raise ValueError(f"a chain step dt = {dt:g} s resamples the {span:.6g} s of tracks to {total:,} states "
+                         "(at most "
+                         f"{TRAIN_STATES_MAX:,}: memory); use dt >= {span / TRAIN_STATES_MAX:.3g} s or less data")
     out = []
     for _tid, t, x, *_ in tracks.iter_tracks():
         if t.size < 2:

@@ -27,12 +27,15 @@ r"""Campaigns: every (mission, planner, traffic, seed) episode on Dask distribut
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import importlib
 import io
 import json
+import logging
 import time
-from collections.abc import Callable, Iterable
+import warnings
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -147,6 +150,30 @@ def _append(path: Path, columns: tuple[str, ...], row: dict[str, Any]) -> None:
     write_text(path, old + buf.getvalue())
 
 
+@contextlib.contextmanager
+def _quiet_dask(quiet: bool) -> Iterator[None]:
+    """While an interrupted campaign shuts its cluster down, Dask's own loggers and warnings
+    (workers killed mid-task, streams closed, ...) stay silent: the user sees only iamp's
+    line ``iamp: interrupted`` (issue 22 item 16)."""
+    if not quiet:
+        yield
+        return
+    loggers = [logging.getLogger(n) for n in ("distributed", "dask", "tornado", "asyncio")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                yield
+            except Exception:  # a failing shutdown of an interrupted run is not the user's news
+                pass
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
+
+
 def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, out: str | Path, *,
                  missions: Iterable[str] = ("merge",), workers: int = 2, scheduler: str | None = None,
                  duration_s: float = 60.0, period_s: float = 0.1, deadline: bool = False,
@@ -184,8 +211,9 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
         client = dist.Client(scheduler)
     else:
         cluster = dist.LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None, memory_limit="2GiB")
+                                    dashboard_address=None, memory_limit="2GiB", silence_logs=logging.ERROR)
         client = dist.Client(cluster)
+    interrupted = False
     try:
         futures = {client.submit(run_one, {"planner": p, "traffic": t, "seed": s, "mission": m,
                                            "duration_s": duration_s, "period_s": period_s,
@@ -205,10 +233,14 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
             n_done += 1
             if progress:
                 progress(n_done, total)
+    except BaseException:  # Ctrl-C, SIGTERM (as an exception under the CLI), a failure
+        interrupted = True
+        raise
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        with _quiet_dask(interrupted):
+            client.close()
+            if cluster is not None:
+                cluster.close()
     return {"ran": len(todo) - failed, "skipped": skipped, "failed": failed, "seconds": time.perf_counter() - start}
 
 

@@ -21,7 +21,24 @@ def _plt() -> Any:
 
 
 def episode_figure(result: EpisodeResult, path: str | Path) -> None:
-    """x-y of the ego with its neighbours (to scale), speeds, accelerations, plan time per step."""
+    """:func:`episode_figure_object`, written atomically to ``path`` (PNG, PDF or SVG)."""
+    plt = _plt()
+    fig = episode_figure_object(result)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format=Path(path).suffix.lstrip(".") or "png", dpi=110)
+    plt.close(fig)
+
+
+def episode_figure_object(result: EpisodeResult) -> Any:
+    """The lane change laterally against distance, speeds, accelerations, plan time per step.
+
+    The top panel shows the first manoeuvre in the road frame: the ego's lateral position
+    against the distance it travelled (``x - x_0``, from one second before the manoeuvre), the
+    neighbours' paths and bodies at the same instants in the same frame.  A lane change over
+    ~100 m is a few metres wide, so the lateral scale is stretched (stated on the axis); the
+    earlier panel in the frame moving with the ego drew the whole manoeuvre as a vertical bar
+    (issue 22 item 14).
+    """
     plt = _plt()
     from matplotlib.patches import Rectangle
 
@@ -30,40 +47,42 @@ def episode_figure(result: EpisodeResult, path: str | Path) -> None:
     E = np.asarray(log.ego).reshape(-1, 6)
     s = result.summary
     fig = plt.figure(figsize=(11, 9), constrained_layout=True)
-    gs = fig.add_gridspec(4, 1, height_ratios=[1.3, 1, 1, 1])
+    gs = fig.add_gridspec(4, 1, height_ratios=[1.5, 1, 1, 1])
     ax = fig.add_subplot(gs[0])
     active = np.array([m == "active" or m == "abort" for m in log.mode])
-    # the first manoeuvre, in the frame moving with the ego (x relative to the ego's centre)
     idx = np.flatnonzero(active)
     k0 = int(idx[0]) if idx.size else 0
     k1 = min(k0 + int(7.0 / s["period_s"]), len(t) - 1)
-    ks = range(max(k0 - int(1.0 / s["period_s"]), 0), k1 + 1)
+    ks = list(range(max(k0 - int(1.0 / s["period_s"]), 0), k1 + 1))
+    x0 = float(E[ks[0], 0])
+    span = float(E[ks[-1], 0] - x0)
+    lo_x, hi_x = -20.0, span + 40.0
     tracks: dict[str, list[tuple[float, float]]] = {}
     for k in ks:
         for vid, row in zip(log.ids[k], log.nb[k]):
-            if abs(row[0] - E[k, 0]) < 70:
-                tracks.setdefault(vid, []).append((row[0] - E[k, 0], row[1]))
-    for pts in tracks.values():
+            if lo_x <= row[0] - x0 <= hi_x:
+                tracks.setdefault(vid, []).append((row[0] - x0, row[1]))
+    for n, pts in enumerate(tracks.values()):
         a = np.asarray(pts)
-        ax.plot(a[:, 0], a[:, 1], color="tab:blue", lw=0.8, alpha=0.6)
-    ax.plot(np.zeros(len(ks)), E[list(ks), 2], color="tab:red", lw=2, label="ego (centre)")
-    for k in list(ks)[:: max(len(ks) // 6, 1)]:
+        ax.plot(a[:, 0], a[:, 1], color="tab:blue", lw=0.8, alpha=0.6, label="neighbours" if n == 0 else None)
+    ax.plot(E[ks, 0] - x0, E[ks, 2], color="tab:red", lw=2, label="ego (centre)")
+    for k in ks[:: max(len(ks) // 6, 1)]:
         for row in log.nb[k]:
-            if abs(row[0] - E[k, 0]) < 70:
-                ax.add_patch(Rectangle((row[0] - E[k, 0] - row[5] / 2, row[1] - row[6] / 2), row[5], row[6],
+            if lo_x <= row[0] - x0 <= hi_x:
+                ax.add_patch(Rectangle((row[0] - x0 - row[5] / 2, row[1] - row[6] / 2), row[5], row[6],
                                        fc="tab:blue", alpha=0.12, ec="none"))
-        ax.add_patch(Rectangle((-2.4, E[k, 2] - 0.9), 4.8, 1.8, fc="tab:red", alpha=0.25, ec="none"))
+        ax.add_patch(Rectangle((E[k, 0] - x0 - 2.4, E[k, 2] - 0.9), 4.8, 1.8, fc="tab:red", alpha=0.25, ec="none"))
+        ax.annotate(f"{t[k]:.1f} s", (E[k, 0] - x0, E[k, 2] + 1.1), fontsize=7, ha="center", color="tab:red")
     for lane_edge in (0.0, -3.75, -7.5, -11.25):
         ax.axhline(lane_edge, color="k", lw=0.5, ls="--")
-    ax.set_xlim(-70, 70)
-    ax.set_ylim(-12, 1)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x relative to the ego's centre [m]")
-    ax.set_ylabel("y [m]")
+    ax.set_xlim(lo_x, hi_x)
+    ax.set_ylim(-12, 1.5)
+    ax.set_xlabel("distance along the road from the ego's position 1 s before the manoeuvre, x - x_0 [m]")
+    ax.set_ylabel("y [m] (lateral scale stretched)")
     ax.set_title(f"{s['planner']}, {s['traffic']} traffic, seed {s['seed']}: {s['lane_changes']} lane changes, "
                  f"{s['collisions']} collisions; first manoeuvre t = {t[ks[0]]:.1f}..{t[ks[-1]]:.1f} s "
-                 "(neighbours blue, to scale)", fontsize=9)
-    ax.legend(loc="lower right", fontsize=8)
+                 "(bodies every ~1 s)", fontsize=9)
+    ax.legend(loc="lower right", fontsize=9)
     ax = fig.add_subplot(gs[1])
     ax.plot(t, E[:, 1], color="tab:red", label="ego $v_x$")
     ax.plot(t, E[:, 3], color="tab:orange", label="ego $v_y$")
@@ -82,9 +101,7 @@ def episode_figure(result: EpisodeResult, path: str | Path) -> None:
     ax.set_ylabel("plan time [ms]")
     ax.set_xlabel("episode time t [s]")
     ax.legend(fontsize=8)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format=Path(path).suffix.lstrip(".") or "png", dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def campaign_figures(cells: list[dict[str, Any]], rows: list[dict[str, str]], folder: str | Path) -> list[Path]:
@@ -115,7 +132,7 @@ def campaign_figures(cells: list[dict[str, Any]], rows: list[dict[str, str]], fo
                     hi.append(100 * (c[f"{key}_ci"][1] - c[f"{key}_rate"]))
                 ax.bar(xs, ys, width, yerr=[lo, hi], capsize=2, label=p)
             ax.set_xticks(range(len(traffics)), traffics)
-            ax.set_ylim(0, 100)
+            ax.set_ylim(0, 105)  # a 100 % bar's interval cap stays visible
             ax.set_ylabel("episodes [%]")
             ax.set_title(f"{m}: {label} (Wilson 95 %)", fontsize=9)
     axes[0][0].legend(fontsize=7)

@@ -26,7 +26,8 @@ def fake(monkeypatch):
 
     def pmp(quick, notes):
         return {"pmp_plan_s": {"one_vehicle": 20e-6, "two_vehicles": 0.5e-3, "two_vehicles_pure": 5e-3,
-                               "two_vehicles_compiled": 0.5e-3},
+                               "two_vehicles_compiled": 0.5e-3, "one_vehicle_bounded": 80e-6,
+                               "one_vehicle_bounded_certified": 0.2, "fixed_t_bounded": 30e-6},
                 "pmp_batch_plans_per_s": 250_000.0, "pmp_to_compiled_limit": 1.5,
                 "pmp_two_vehicles_pure_to_compiled": 10.0}
 
@@ -56,8 +57,8 @@ def fake(monkeypatch):
         "problem": "overtake", "steps": 50, "safety": "continuous", "target_plan_s": 2e-3,
         "backends": {"piqp": {"plan_s": 3.0e-3, "status": "optimal", "cost": 6.7, "n_solves": 9, "qp_s": 1e-3}},
         "plan_fastest_s": 3.0e-3, "ratios": {"casadi_ipopt_qp_to_iamp_qp": 16.0}})
-    monkeypatch.setattr(bench, "_casadi", lambda problem, quick, notes: {
-        "build_s": 0.2, "cold_s": 0.02, "warm_s": 0.004, "contact_time": 3.52, "cost": 22.87,
+    monkeypatch.setattr(bench, "_casadi", lambda problem, quick, notes, box=False: {
+        "build_s": 0.2, "cold_s": 0.02, "warm_s": 0.008 if box else 0.004, "contact_time": 3.52, "cost": 22.87,
         "iterations_cold": 20, "iterations_warm": 5, "return_status": "Solve_Succeeded", "steps": 100,
         "variables": 605})
     monkeypatch.setattr(bench, "osqp_tuning", lambda problem: [])
@@ -97,6 +98,9 @@ def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     assert r["qp_osqp_to_kkt"] == pytest.approx(per["osqp"] / per["kkt"])
     assert r["native_kkt_sweep_to_pmp_plan"] == pytest.approx(sweep["kkt"] / 20e-6)
     assert r["casadi_ipopt_warm_to_pmp_plan"] == pytest.approx(0.004 / 20e-6)
+    assert r["casadi_ipopt_bounded_warm_to_pmp_bounded_plan"] == pytest.approx(0.008 / 80e-6)
+    assert r["pmp_bounded_to_unbounded_plan"] == pytest.approx(80e-6 / 20e-6)
+    assert t["pmp_plan_one_vehicle_bounded_s"]["met"] and t["pmp_plan_one_vehicle_bounded_s"]["target"] == 100e-6
     assert len(out["warnings"]) == 1 and "qp_grid_sweep_cvxpy_clarabel" in out["warnings"][0]
     assert seen[0] == (0, 7) and seen[-1] == (7, 7)
     assert [d for d, _ in seen] == sorted(d for d, _ in seen)

@@ -247,7 +247,7 @@ def test_jerk_of_a_pmp_plan_is_piecewise_constant_with_a_jump_at_the_contact():
 # --- reproduce without LaTeX --------------------------------------------------------------
 
 
-def test_reproduce_without_pdflatex_says_so_and_removes_the_stale_pdf(tmp_path, capsys, monkeypatch):
+def test_reproduce_without_pdflatex_says_so_and_keeps_the_earlier_pdf(tmp_path, capsys, monkeypatch):
     import iamp.comparison.report.reproduction as report
     from iamp.core.outputs import write_marker
 
@@ -272,9 +272,10 @@ def test_reproduce_without_pdflatex_says_so_and_removes_the_stale_pdf(tmp_path, 
     assert code == 0
     assert "cannot compile the PDF" in err and "pdflatex is not installed" in err
     assert "apt-get install texlive-latex-recommended texlive-latex-extra lmodern" in err
-    assert not (out / "report.pdf").exists()  # no stale PDF beside the new report.tex
+    # issue 22 item 1: never delete what cannot be rebuilt; say plainly that it is from an earlier run
+    assert (out / "report.pdf").read_bytes() == b"%PDF-1.5 stale, from an earlier run"
     assert (out / "report.tex").is_file()
-    assert "removed the stale" in stdout
+    assert "kept from an earlier run and does NOT match the new report.tex" in stdout
 
 
 @pytest.mark.slow
@@ -293,7 +294,8 @@ def test_reproduce_quick_end_to_end_without_pdflatex(tmp_path):
                           capture_output=True, text=True, env=env, timeout=900)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "cannot compile the PDF" in proc.stderr
-    assert not (out / "report.pdf").exists() and (out / "report.tex").is_file()
+    assert (out / "report.pdf").read_bytes() == b"%PDF-1.5 stale" and (out / "report.tex").is_file()
+    assert "does NOT match the new report.tex" in proc.stdout
     assert "\x1b[" not in proc.stderr and "\r" not in proc.stderr  # no bar: stderr is not a terminal
 
 

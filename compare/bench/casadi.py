@@ -20,6 +20,10 @@ differences beside the times.  Timed: ``build`` = construct the ``Opti`` problem
 once per problem); ``cold`` = solve it from a straight-line guess with ``t_1 = t_f/2``;
 ``warm`` = solve the built problem again from the previous solution (IPOPT has no true warm
 start of its barrier; re-solving from the last solution is what users do).
+
+With ``box=True`` the input box of ``problem.limits`` (``ax``, ``ay``) is imposed on every
+``u_k`` (:math:`\ell \le u_k \le h`): the bounded problem the saturated PMP
+(:mod:`iamp.planners.pmp.bounded`) solves exactly, typed in as a user would.
 """
 
 from __future__ import annotations
@@ -33,8 +37,9 @@ import numpy as np
 from iamp.core.problem import Problem
 
 
-def _build(problem: Problem, steps: int) -> tuple[Any, Any]:
-    """``(opti, t1)`` for :func:`casadi_free_time` (one vehicle)."""
+def _build(problem: Problem, steps: int, box: bool = False) -> tuple[Any, Any]:
+    """``(opti, t1)`` for :func:`casadi_free_time` (one vehicle); ``box``: impose
+    ``problem.limits``' ``ax``/``ay`` on every input (the bounded problem of SPEC §14)."""
     import casadi as ca
 
     ego, veh = problem.ego, problem.vehicles[0]
@@ -54,6 +59,11 @@ def _build(problem: Problem, steps: int) -> tuple[Any, Any]:
             opti.subject_to(X[2 * ax + 1, k + 1] == v + h * u)
         cost = cost + 0.5 * h * (U[0, k] ** 2 + U[1, k] ** 2)
     opti.minimize(cost)
+    lim = problem.limits
+    if box and lim is not None:
+        for ax, rng in enumerate((lim.ax, lim.ay)):
+            if rng is not None:
+                opti.subject_to(opti.bounded(float(rng[0]), U[ax, :], float(rng[1])))
     opti.subject_to(X[:, 0] == ca.DM([ego.x0, ego.vx0, ego.y0, ego.vy0]))
     opti.subject_to(X[:, steps] == ca.DM([ego.xf, ego.vxf, ego.yf, ego.vyf]))
     corner_x: Any = 0
@@ -71,8 +81,9 @@ def _build(problem: Problem, steps: int) -> tuple[Any, Any]:
     return opti, t1
 
 
-def casadi_free_time(problem: Problem, steps: int = 100, repeats: int = 5) -> dict[str, Any]:
-    """Medians of ``repeats`` cold and warm IPOPT solves (module docstring) and the solution:
+def casadi_free_time(problem: Problem, steps: int = 100, repeats: int = 5, box: bool = False) -> dict[str, Any]:
+    """Medians of ``repeats`` cold and warm IPOPT solves (module docstring) and the solution
+    (``box``: with the input box of ``problem.limits``, the bounded PMP's peer):
     ``{"build_s", "cold_s", "warm_s", "contact_time", "cost", "iterations_cold", "iterations_warm",
     "return_status"}``.  Raises ``ValueError`` unless the problem has one vehicle."""
     if problem.m != 1:
@@ -82,7 +93,7 @@ def casadi_free_time(problem: Problem, steps: int = 100, repeats: int = 5) -> di
     opti: Any = None
     for _ in range(max(1, repeats)):
         t0 = time.perf_counter()
-        opti, t1 = _build(problem, steps)
+        opti, t1 = _build(problem, steps, box)
         t_built = time.perf_counter()
         sol = opti.solve()
         cold.append(time.perf_counter() - t_built)

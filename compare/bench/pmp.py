@@ -10,6 +10,13 @@ times an inner loop and divides), in seconds:
   from numba's cache before the clock starts) where numba is installed, else the pure path;
   ``two_vehicles_pure`` is always the pure numpy path, ``two_vehicles_search_compiled`` the
   compiled search alone (no solve, no self-check);
+* ``one_vehicle_bounded`` — ``one_vehicle`` with a passenger car's input box
+  (``ax`` [-6, 3], ``ay`` [-2, 2]; active: the unbounded plan reaches 4.7 m/s²), the saturated
+  PMP of :mod:`iamp.planners.pmp.bounded` (contact-time grid + Brent polish, self-check;
+  ``certify_bounded=False``: status ``local``, as the CasADi peer, which certifies nothing);
+  ``one_vehicle_bounded_certified`` — the default planner, which adds the global certificate
+  over the contact times (status ``optimal``);
+  ``fixed_t_bounded`` — its fixed-time solve alone (both axes, semi-smooth Newton);
 * ``fixed_t_closed_form`` — ``solve_one_vehicle`` at a given contact time (closed-form
   Schur-complement solve, no search);
 * ``batch_plans_per_s`` — one-vehicle plans per second of ``plan_batch`` on 10,000 seeded
@@ -39,7 +46,8 @@ def _median_per_call(fn: Callable[[], Any], repeats: int, inner: int) -> float:
 
 
 def bench_pmp(repeats: int = 7) -> dict[str, float]:
-    """The PMP medians (module docstring); keys ``one_vehicle``, ``two_vehicles``,
+    """The PMP medians (module docstring); keys ``one_vehicle``, ``one_vehicle_bounded``,
+    ``fixed_t_bounded``, ``two_vehicles``,
     ``fixed_t_closed_form``, ``batch_plans_per_s`` and, with numba,
     ``compiled_limit_one_vehicle`` and ``compiled_kernel_only``."""
     from iamp.planners.examples import paper_problem, random_problem
@@ -59,6 +67,18 @@ def bench_pmp(repeats: int = 7) -> dict[str, float]:
         "fixed_t_closed_form": _median_per_call(lambda: solve_one_vehicle(one, t1), repeats, 200),
     }
     out["two_vehicles"] = out["two_vehicles_pure"]
+    # the bounded PMP (SPEC §14): the same problem with a passenger car's input box, which
+    # the unbounded plan violates (u_x up to 4.7 m/s² against 3), so the saturated law is solved
+    from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
+    from iamp.planners.pmp.bounded import solve_bounded_fixed
+
+    boxed = one.with_limits(PhysicalLimits(ax=PASSENGER_CAR.ax, ay=PASSENGER_CAR.ay))
+    tb = float(planner.plan(boxed, diagnostics=False).contact_times[0])
+    quick = PMPPlanner(certify_bounded=False)
+    out["one_vehicle_bounded"] = _median_per_call(lambda: quick.plan(boxed, diagnostics=False), repeats, 5)
+    out["one_vehicle_bounded_certified"] = _median_per_call(lambda: planner.plan(boxed, diagnostics=False),
+                                                            max(1, repeats // 2), 1)
+    out["fixed_t_bounded"] = _median_per_call(lambda: solve_bounded_fixed(boxed, [tb]), repeats, 50)
     if pmp_compiled_search.load():  # compiled (or loaded from numba's cache) outside the timing
         fast2 = PMPPlanner(compiled=True)
         out["two_vehicles_compiled"] = _median_per_call(lambda: fast2.plan(two, diagnostics=False), repeats, 50)

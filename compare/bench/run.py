@@ -30,7 +30,9 @@ What is measured (one vehicle: ``paper-1-poly``; two: ``two-vehicle``; FOH, ``N 
   backend).
 * **CasADi + IPOPT** — the free-contact-time problem written in ``Opti`` the way users type
   it (:mod:`.bench_casadi`: build, cold and warm solve, its discretised ``t_1`` and ``J``);
-  skipped (with a note) unless ``casadi`` is installed.
+  skipped (with a note) unless ``casadi`` is installed.  ``casadi_ipopt_bounded``: the same
+  with a passenger car's input box on every ``u_k``, the peer of the bounded PMP
+  (``pmp_plan_s.one_vehicle_bounded``, :mod:`iamp.planners.pmp.bounded`).
 * **OSQP tuning** (not with ``--quick``) — what each OSQP setting buys on the equality QP:
   verified candidates, polish successes, iterations, recomputed KKT residuals, time.
 """
@@ -60,6 +62,8 @@ BACKEND_NAMES = ("osqp", "clarabel", "piqp", "kkt")
 TARGETS: dict[str, tuple[str, float]] = {
     "pmp_plan_one_vehicle_s": ("<=", 25e-6),
     "pmp_plan_two_vehicles_s": ("<=", 0.3e-3),
+    # issue 19: a bounded one-vehicle PMP plan (input box active, saturated law)
+    "pmp_plan_one_vehicle_bounded_s": ("<=", 100e-6),
     "pmp_batch_plans_per_s": (">=", 200_000.0),
     "qp_native_solve_kkt_s": ("<=", 0.2e-3),
     "qp_native_solve_best_iterative_s": ("<=", 0.25e-3),
@@ -79,7 +83,9 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
 
     raw: dict[str, Any] = dict(bench_pmp(3 if quick else 7))
     plan_s = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
-              "two_vehicles_pure": raw["two_vehicles_pure"]}
+              "two_vehicles_pure": raw["two_vehicles_pure"], "one_vehicle_bounded": raw["one_vehicle_bounded"],
+              "one_vehicle_bounded_certified": raw["one_vehicle_bounded_certified"],
+              "fixed_t_bounded": raw["fixed_t_bounded"]}
     out: dict[str, Any] = {"source": "iamp.comparison.bench.pmp.bench_pmp", "bench_pmp": raw,
                            "pmp_plan_s": plan_s, "pmp_batch_plans_per_s": raw["batch_plans_per_s"]}
     if raw.get("compiled_limit_one_vehicle"):
@@ -178,15 +184,16 @@ def _avoid_bounded(quick: bool, notes: list[str]) -> dict[str, Any]:
     return out
 
 
-def _casadi(problem: Any, quick: bool, notes: list[str]) -> dict[str, Any] | None:
-    """CasADi ``Opti`` + IPOPT on the free-contact-time problem (:mod:`.bench_casadi`)."""
+def _casadi(problem: Any, quick: bool, notes: list[str], box: bool = False) -> dict[str, Any] | None:
+    """CasADi ``Opti`` + IPOPT on the free-contact-time problem (:mod:`.bench_casadi`;
+    ``box``: with the input box of ``problem.limits``)."""
     if importlib.util.find_spec("casadi") is None:
         notes.append("casadi not installed: the CasADi+IPOPT peer is skipped (pip install casadi)")
         return None
     from .casadi import casadi_free_time
 
     try:
-        return casadi_free_time(problem, STEPS, 2 if quick else 5)
+        return casadi_free_time(problem, STEPS, 2 if quick else 5, box=box)
     except Exception as exc:  # an optional peer: report, never fail the bench
         notes.append(f"CasADi+IPOPT peer failed: {type(exc).__name__}: {exc}")
         return None
@@ -275,6 +282,10 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     avoid_bounded = _avoid_bounded(quick, notes)
     tick(5)
     casadi = _casadi(one, quick, notes)
+    from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
+
+    casadi_bounded = _casadi(one.with_limits(PhysicalLimits(ax=PASSENGER_CAR.ax, ay=PASSENGER_CAR.ay)), quick,
+                             notes, box=True)
     tick(6)
     tuning = [] if quick else osqp_tuning(one)
     tick(7)
@@ -297,11 +308,19 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     if casadi is not None:
         ratios["casadi_ipopt_warm_to_pmp_plan"] = casadi["warm_s"] / pmp_one
         ratios["casadi_ipopt_cold_to_pmp_plan"] = casadi["cold_s"] / pmp_one
+    pmp_bounded = float(pmp["pmp_plan_s"]["one_vehicle_bounded"])
+    ratios["pmp_bounded_to_unbounded_plan"] = pmp_bounded / pmp_one
+    ratios["pmp_bounded_certified_to_bounded_plan"] = (float(pmp["pmp_plan_s"]["one_vehicle_bounded_certified"])
+                                                       / pmp_bounded)
+    if casadi_bounded is not None:
+        ratios["casadi_ipopt_bounded_warm_to_pmp_bounded_plan"] = casadi_bounded["warm_s"] / pmp_bounded
+        ratios["casadi_ipopt_bounded_cold_to_pmp_bounded_plan"] = casadi_bounded["cold_s"] / pmp_bounded
     if avoid is not None and avoid.get("osqp", {}).get("median"):
         ratios["avoid_osqp_sweep_to_equality_osqp_sweep"] = avoid["osqp"]["median"] / native["osqp"].median
     values = {
         "pmp_plan_one_vehicle_s": pmp_one,
         "pmp_plan_two_vehicles_s": float(pmp["pmp_plan_s"]["two_vehicles"]),
+        "pmp_plan_one_vehicle_bounded_s": pmp_bounded,
         "pmp_batch_plans_per_s": float(pmp["pmp_batch_plans_per_s"]),
         "qp_native_solve_kkt_s": solve["kkt"],
         "qp_native_solve_best_iterative_s": solve[best_it],
@@ -350,6 +369,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "pmp": {k: v for k, v in pmp.items() if k not in ("pmp_plan_s", "pmp_batch_plans_per_s", "stats")},
         "failed_sweep_candidates": fails,
         "casadi_ipopt": casadi,
+        "casadi_ipopt_bounded": casadi_bounded,
         "osqp_tuning": tuning,
         "targets": targets,
         "missed": [k for k, t in targets.items() if not t["met"]],

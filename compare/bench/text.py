@@ -26,6 +26,11 @@ def format_bench(out: dict[str, Any]) -> str:
     lines.append(f"  {'PMP plan, two vehicles (' + two + ')':44s} {_fmt_s(plan_s['two_vehicles'])}")
     if plan_s.get("two_vehicles_compiled"):
         lines.append(f"  {'PMP plan, two vehicles (pure numpy)':44s} {_fmt_s(plan_s['two_vehicles_pure'])}")
+    if plan_s.get("one_vehicle_bounded") is not None:
+        lines.append(f"  {'PMP plan, one vehicle, input box (local t*)':44s} {_fmt_s(plan_s['one_vehicle_bounded'])}")
+    if plan_s.get("one_vehicle_bounded_certified") is not None:
+        lines.append(f"  {'  the same, certified global (default)':44s} "
+                     f"{_fmt_s(plan_s['one_vehicle_bounded_certified'])}")
     lines.append(f"  {'PMP batch, one vehicle':44s} {out['pmp_batch_plans_per_s']:8.0f} /s")
     lines += ["", "  QP per candidate (update + solve; whole candidate incl. verification):"]
     for s, c in out["qp_candidate"].items():
@@ -62,6 +67,14 @@ def format_bench(out: dict[str, Any]) -> str:
                   f"({cas['iterations_cold']} it)   warm solve {_fmt_s(cas['warm_s'])} ({cas['iterations_warm']} it)",
                   f"    t1 = {cas['contact_time']:.6f} s, J = {cas['cost']:.6f} (discretised; PMP plan "
                   f"{_fmt_s(pmp_t).strip()})"]
+    casb = out.get("casadi_ipopt_bounded")
+    if casb:
+        lines += ["  the same with the input box ax [-6, 3], ay [-2, 2] on every u_k:",
+                  f"    build {_fmt_s(casb['build_s'])}   cold solve {_fmt_s(casb['cold_s'])} "
+                  f"({casb['iterations_cold']} it)   warm solve {_fmt_s(casb['warm_s'])} "
+                  f"({casb['iterations_warm']} it)",
+                  f"    t1 = {casb['contact_time']:.6f} s, J = {casb['cost']:.6f} (discretised; bounded PMP plan "
+                  f"{_fmt_s(out['pmp_plan_s'].get('one_vehicle_bounded')).strip()})"]
     lines += ["", "targets:"]
     for k, t in out["targets"].items():
         val = f"{t['value']:8.0f} /s" if k.endswith("per_s") else _fmt_s(t["value"])

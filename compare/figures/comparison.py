@@ -128,12 +128,22 @@ def plot_costates(pmp_result: Plan, qp_results: dict[str, Plan | None], stem: Pa
         if col in (0, 2):
             pl = sol.costates(ct, "left")[:, col]
             pr = sol.costates(ct, "right")[:, col]
+            span = float(np.ptp(sol.costates(np.linspace(0.0, tf, 201))[:, col])) or 1.0
             for i, ti in enumerate(ct):
                 ax.plot([ti, ti], [pr[i], pl[i]], color=SAFETY_COLOR, lw=2.0,
                         label="jump $p^- - p^+ = \\Phi_i$" if i == 0 else None)
+                # beside the jump, on the side away from the axes' edge; a small jump's label goes
+                # above or below both levels of p (centred on the segment it would sit on the line)
+                left = ti > 0.7 * tf
+                if abs(pl[i] - pr[i]) > 0.25 * span:
+                    anchor, dy, va = 0.5 * (pl[i] + pr[i]), 0, "center"
+                else:
+                    up = max(pl[i], pr[i]) < float(np.mean(ax.get_ylim()))
+                    anchor, dy, va = (max(pl[i], pr[i]), 8, "bottom") if up else (min(pl[i], pr[i]), -8, "top")
                 ax.annotate(f"$\\Phi_{{{i + 1},{'x' if col == 0 else 'y'}}}$ = {pl[i] - pr[i]:.4g}",
-                            (ti, 0.5 * (pl[i] + pr[i])), textcoords="offset points", xytext=(6, 0), fontsize=8,
-                            color=SAFETY_COLOR)
+                            (ti, anchor), textcoords="offset points", xytext=(-6 if left else 6, dy), fontsize=8,
+                            color=SAFETY_COLOR, ha="right" if left else "left", va=va,
+                            bbox={"fc": "white", "ec": "none", "alpha": 0.85, "pad": 1.0})
         for ti in ct:
             ax.axvline(ti, color=SAFETY_COLOR, ls=":", lw=0.8)
         ax.set_xlim(0, tf)

@@ -20,7 +20,14 @@ from matplotlib.patches import Rectangle
 
 from iamp.core.plan import Plan
 
-from .style import PALETTE, SAFETY_COLOR, VEHICLE_COLORS, save_figure
+from .style import PALETTE, SAFETY_COLOR, VEHICLE_COLORS, legend_below, save_figure
+
+#: Dash of each vehicle's safety region (vehicle 1 red dashed as in the other figures, vehicle 2
+#: in its body's colour dash-dotted, ...).
+REGION_DASHES: tuple[Any, ...] = ("--", "-.", ":", (0, (5, 1, 1, 1)))
+#: Edge colour of each vehicle's safety region (darker than the body colours: the regions'
+#: outlines must read against a white page).
+REGION_COLORS: tuple[str, ...] = (SAFETY_COLOR, "olive", "purple", "0.3")
 
 
 def _inside(plan: Plan, t: float) -> bool:
@@ -45,7 +52,7 @@ def plot_safety_xy(plans: dict[str, Plan], stem: Any, *, times: np.ndarray | Non
     tf = problem.tf
     times = np.linspace(0.0, tf, 6) if times is None else np.asarray(times, dtype=float)
     tt = np.linspace(0.0, tf, 501)
-    fig = Figure(figsize=(11.0, 4.2), layout="constrained")
+    fig = Figure(figsize=(7.5, 4.0), layout="constrained")  # at text width its 9 pt legend stays ~8 pt
     ax = fig.add_subplot(1, 1, 1)
     xs_all: list[float] = []
     for i, v in enumerate(problem.vehicles):
@@ -55,13 +62,15 @@ def plot_safety_xy(plans: dict[str, Plan], stem: Any, *, times: np.ndarray | Non
             alpha = 0.25 + 0.6 * k / max(1, len(times) - 1)
             xc = float(v.position(t))
             xs_all += [xc - ax_, xc + ax_]
-            ax.add_patch(Rectangle((xc - ax_, v.y - ay_), 2 * ax_, 2 * ay_, fill=False, ec=SAFETY_COLOR, lw=1.0,
-                                   alpha=alpha, ls="--",
+            # each vehicle's region in its own colour and dash (both in red read as one vehicle's)
+            ax.add_patch(Rectangle((xc - ax_, v.y - ay_), 2 * ax_, 2 * ay_, fill=False,
+                                   ec=REGION_COLORS[i % len(REGION_COLORS)], lw=1.2, alpha=alpha,
+                                   ls=REGION_DASHES[i % len(REGION_DASHES)],
                                    label=f"safety region of {v.name}" if k == 0 else None))
             ax.add_patch(Rectangle((xc - v.length / 2, v.y - v.width / 2), v.length, v.width, color=col,
                                    alpha=alpha * 0.8, label=f"{v.name} body" if k == 0 else None))
             ax.annotate(f"{t:.1f} s", (xc, v.y + ay_), textcoords="offset points", xytext=(0, 2),
-                        ha="center", fontsize=6, color=col)
+                        ha="center", fontsize=7, color=col)
     styles = {"equality": (PALETTE["pmp"], "-", "o"), "avoid": (PALETTE["clarabel"], "--", "s")}
     for label, plan in ok.items():
         color, ls, marker = styles["avoid" if "avoid" in label else "equality"]
@@ -75,12 +84,19 @@ def plot_safety_xy(plans: dict[str, Plan], stem: Any, *, times: np.ndarray | Non
             ax.plot([row[0]], [row[2]], marker=marker, ms=6, color=color, mfc=color if filled else "none", zorder=5)
     for label in failed:
         ax.plot([], [], color="0.5", ls=":", label=f"{label}: {plans[label].status} (no plan)")
-    ax.set_aspect("equal", adjustable="datalim")
-    if xs_all:  # y follows from the equal aspect
+    # to scale, with the axes' height set by the lanes used (the data limits, not the figure's
+    # shape, decide: the former 'datalim' aspect padded y to +-20 m of empty road)
+    ys = [v.y + sgn * (v.width / 2 + v.safety_y) for v in problem.vehicles for sgn in (-1, 1)]
+    ys += [float(problem.ego.y0), float(problem.ego.yf)]
+    ax.set_ylim(min(ys) - 2.0, max(ys) + 2.0)
+    if xs_all:
         ax.set_xlim(min(xs_all) - 3.0, max(xs_all) + 3.0)
+        xr, yr = np.ptp(ax.get_xlim()), np.ptp(ax.get_ylim())
+        fig.set_size_inches(7.5, 0.9 * 7.5 * yr / xr + 2.6)
+    ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("longitudinal position $x$ [m]")
     ax.set_ylabel("lateral position $y$ [m]")
-    ax.set_title(title or f"{problem.name}: equality vs avoidance; safety regions and bodies at "
-                 + ", ".join(f"{t:.1f}" for t in times) + " s (filled marker = ego inside a region)", fontsize=9)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, fontsize=7, frameon=False)
+    ax.set_title(title or f"{problem.name}: equality vs avoidance; regions and bodies at t = "
+                 + ", ".join(f"{t:g}" for t in times) + " s\n(filled marker: the ego inside a region)", fontsize=9)
+    legend_below(ax, ncol=2, fontsize=9)
     return save_figure(fig, stem)

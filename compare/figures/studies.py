@@ -20,6 +20,9 @@ from matplotlib.figure import Figure
 
 from .style import PathLike, planner_style, save_figure, scenario_color
 
+#: Fewest samples whose quartiles a timing figure draws (fewer: the samples' range instead).
+MIN_QUARTILE_SAMPLES = 5
+
 __all__ = ["plot_predictions", "plot_timing", "plot_zoh_convergence"]
 
 
@@ -86,12 +89,20 @@ def plot_timing(samples: dict[str, Any], stem: PathLike, *, whole_plans: dict[st
         pos = np.arange(len(plans), 0, -1)
         for y, (label, st) in zip(pos, plans):
             sty = planner_style(label)
-            ax.errorbar([st["median"]], [y], xerr=[[st["median"] - st["q1"]], [st["q3"] - st["median"]]],
-                        fmt=sty["marker"], ms=7, mfc=sty["mfc"], color=sty["color"], capsize=3)
+            if int(st.get("n", 0)) >= MIN_QUARTILE_SAMPLES:
+                ax.errorbar([st["median"]], [y], xerr=[[st["median"] - st["q1"]], [st["q3"] - st["median"]]],
+                            fmt=sty["marker"], ms=7, mfc=sty["mfc"], color=sty["color"], capsize=3)
+                continue
+            # quartiles of 1-4 samples say nothing: the median and the extreme samples instead
+            # (for n <= 3 these are the samples themselves)
+            ax.plot([st["median"]], [y], sty["marker"], ms=7, mfc=sty["mfc"], color=sty["color"])
+            ends = [st[k] for k in ("min", "max") if st.get(k) is not None]
+            ax.plot(ends, [y] * len(ends), "|", ms=9, mew=1.5, color=sty["color"])
         ax.set_yticks(pos)
         ax.set_yticklabels([f"{k} (n={st['n']})" for k, st in plans], fontsize=8)
         ax.set_xscale("log")
-        ax.set_xlabel("wall time of a whole plan [s] (median, bar: quartiles)")
+        ax.set_xlabel(f"wall time of a whole plan [s] (median; bar: quartiles when n >= {MIN_QUARTILE_SAMPLES}, "
+                      "else ticks: the fastest and slowest plan)", fontsize=9)
         ax.set_title("whole plans, contact-time search included", fontsize=9)
         ax.grid(True, axis="x", which="both", lw=0.3, alpha=0.5)
     ax = axes[-1]

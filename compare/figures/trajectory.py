@@ -166,9 +166,10 @@ def draw_xy(ax: Axes, result: Plan, times: ArrayLike, *, ego_size: tuple[float, 
     ax.grid(True, lw=0.3, alpha=0.5)
 
 
-def xy_figsize(result: Plan, width: float = 10.0, extra_height: float = 1.6) -> tuple[float, float]:
+def xy_figsize(result: Plan, width: float = 7.5, extra_height: float = 1.6) -> tuple[float, float]:
     """A figure size whose x–y axes fill the width at equal aspect (plus room for the title and
-    a legend below)."""
+    a legend below).  7.5 in wide: set at a paper's text width (~6.5 in) its 9 pt legend stays
+    ~8 pt (at the former 10 in the 8 pt legend shrank to 5 pt; issue 22 item 14)."""
     xmin, xmax, ymin, ymax = xy_limits(result)
     return width, 0.9 * width * (ymax - ymin) / (xmax - xmin) + extra_height
 
@@ -190,12 +191,12 @@ def plot_xy_snapshots(result: Plan, stem: PathLike, *, dt: float = 0.5, title: s
         Body drawn for the ego (default: vehicle 1's ``L × W``).
     """
     problem = result.problem
-    fig = Figure(figsize=xy_figsize(result, extra_height=2.0), layout="constrained")
+    fig = Figure(figsize=xy_figsize(result, extra_height=2.6), layout="constrained")
     ax = fig.add_subplot(1, 1, 1)
     draw_xy(ax, result, _snapshot_times(problem.tf, dt), ego_size=ego_size)
     ax.set_title(title or f"{problem.name}: ego and surrounding vehicles every {dt:g} s (lighter = earlier), "
                  "to scale", fontsize=10)
-    legend_below(ax, ncol=2, fontsize=8)
+    legend_below(ax, ncol=1, fontsize=9)
     return save_figure(fig, stem)
 
 

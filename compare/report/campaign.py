@@ -18,7 +18,9 @@ for the report only.
 
 from __future__ import annotations
 
+import os
 import shutil
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -50,17 +52,64 @@ def campaign_section(out: Path, *, quick: bool, progress: Callable[[int, int], N
         return {"available": False, "note": f"closed-loop section skipped: {exc}"}
     seeds, duration = (1, 30.0) if quick else (3, 60.0)
     folder = out / "campaign-small"
-    if folder.is_dir():  # afresh: rows of an earlier run are not this run's results
-        shutil.rmtree(folder)
-    ran = run_campaign(PLANNERS, ("medium",), seeds, folder, missions=(MISSION,), workers=2, duration_s=duration,
-                       deadline=False, progress=progress)
+    out.mkdir(parents=True, exist_ok=True)
+    fresh = Path(tempfile.mkdtemp(prefix=".campaign-small-", suffix=".tmp", dir=str(out)))
+    try:
+        ran = run_campaign(PLANNERS, ("medium",), seeds, fresh, missions=(MISSION,), workers=2, duration_s=duration,
+                           deadline=False, progress=progress)
+        folder.mkdir(exist_ok=True)
+        for name in ("episodes.csv", "manifest.json", "errors.csv"):
+            if (fresh / name).is_file():
+                os.replace(fresh / name, folder / name)
+            elif (folder / name).is_file() and name == "errors.csv":
+                (folder / name).unlink()  # an old run's failures are not this run's
+    finally:
+        shutil.rmtree(fresh, ignore_errors=True)
     summary = summarise(read_rows(folder / "episodes.csv"), PLANNERS)
     table = latex_table(summary)
     write_text(out / "tables" / "campaign-small.tex", table)
     command = (f"iamp campaign --missions {MISSION} --planners {','.join(PLANNERS)} --traffic medium "
                f"--seeds {seeds} --duration {duration:g} --out {folder.name}")
     return {"available": True, "summary": summary, "ran": ran, "command": command,
-            "table": "tables/campaign-small.tex"}
+            "table": "tables/campaign-small.tex", "full": full_campaign_shape(out)}
+
+
+def full_campaign_shape(out: Path) -> dict[str, Any] | None:
+    """Missions, planners, densities and episodes of the published campaign
+    (``out/campaign-new/summary.json``, SPEC §15: ``{"cells": [...]}``), or None."""
+    import json
+
+    path = out / "campaign-new" / "summary.json"
+    try:
+        rows = json.loads(path.read_text(encoding="utf-8"))["cells"]
+        missions = sorted({str(r["mission"]) for r in rows})
+        planners = sorted({str(r["planner"]) for r in rows})
+        traffic = sorted({str(r["traffic"]) for r in rows})
+        episodes = sum(int(r["episodes"]) for r in rows)
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return {"missions": missions, "planners": planners, "traffic": traffic, "episodes": episodes}
+
+
+def _full_campaign(full: dict[str, Any] | None) -> str:
+    if not full:
+        return "The published campaign is made by \\texttt{iamp campaign} (docs/closed-loop.md)."
+    names = ", ".join(str(tex_escape(p)) for p in full["planners"])
+    return (f"The published campaign in \\texttt{{reports/campaign-new/}}: {len(full['missions'])} missions "
+            f"$\\times$ {len(full['planners'])} planners ({names}) $\\times$ {len(full['traffic'])} densities, "
+            f"{full['episodes']} episodes.")
+
+
+def _provenance(ran: dict[str, Any] | None) -> str:
+    """How many episodes this run made and how many it reused (always 0: it never resumes)."""
+    if not ran:
+        return "episodes run by this reproduction"
+    text = f"{int(ran.get('ran', 0))} episodes run by this reproduction"
+    if ran.get("skipped"):
+        text += f", {int(ran['skipped'])} reused from an earlier run"
+    if ran.get("failed"):
+        text += f", {int(ran['failed'])} failed (errors.csv)"
+    return text
 
 
 def campaign_tex(section: dict[str, Any]) -> str:
@@ -70,9 +119,8 @@ def campaign_tex(section: dict[str, Any]) -> str:
         return head + str(tex_escape(section["note"])) + "\n\n"
     return (head + "Receding-horizon planning every 0.1\\,s in seeded SUMO traffic (SPEC~\\S15): the ego's "
             "lane ends 400\\,m ahead and it must merge; the paper's PMP, the active-set PMP, the avoidance QP, "
-            "the unconstrained ablation, IDM + MOBIL and SUMO's own lane change, medium density, paired seeds, "
-            "run afresh by the reproduction with: \\texttt{"
-            + str(tex_escape(section["command"])) + "}. Too few seeds to tell planners apart; the published "
-            "campaign (4 missions $\\times$ 7 planners $\\times$ 3 densities) is in "
-            "\\texttt{reports/campaign-new/}.\n\n"
+            "the unconstrained ablation, IDM + MOBIL and SUMO's own lane change, medium density, paired seeds "
+            "(too few to tell planners apart), run afresh by the reproduction with: \\texttt{"
+            + str(tex_escape(section["command"])) + "}; " + _provenance(section.get("ran")) + ". "
+            + _full_campaign(section.get("full")) + "\n\n"
             "\\noindent\\resizebox{\\linewidth}{!}{\\input{" + str(section["table"]) + "}}\n\n")

@@ -23,6 +23,28 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["build_report_tex"]
 
 
+
+def vehicle1_words(name: str, problem: Any) -> str:
+    """What vehicle 1 does, in a caption: the paper's history (before ``t = 0``) and the
+    prediction the plan used over ``[0, t_f]`` (issue 22 item 14: the prediction of scenarios 2
+    and 3 is nearly constant speed, so "vehicle 1 decelerates" misdescribes the figure).
+
+    The prediction's speed change is ``x_s'(t_f) - x_s'(0)`` and its mean acceleration that over
+    ``t_f``, from the cubic ``x_s(t) = Σ c_k t^k``.
+    """
+    info = PAPER_TABLE_I[name]
+    c = [float(x) for x in problem.vehicles[0].x_poly] + [0.0] * 4
+    tf = float(problem.ego.tf)
+    v0 = c[1]
+    vf = c[1] + 2 * c[2] * tf + 3 * c[3] * tf**2
+    mean_a = (vf - v0) / tf
+    motion = ("at nearly constant speed" if abs(mean_a) < 0.1
+              else "decelerating" if mean_a < 0 else "accelerating")
+    before = "at constant speed" if info["before"] == "constant speed" else info["before"]
+    return (f"Vehicle 1 was {before} before $t=0$ (scenario {info['scenario']}, its history); the cubic "
+            f"predicted from that history keeps it {motion} over $[0, {tf:g}]$\\,s "
+            f"({v0:.1f} to {vf:.1f}\\,m/s, mean acceleration {mean_a:+.2f}\\,m/s$^2$), in the adjacent lane.")
+
 def _figure(path: str, caption: str, label: str, width: str = "\\linewidth") -> str:
     return ("\\begin{figure}[H]\n\\centering\n"
             f"\\includegraphics[width={width}]{{{path}}}\n\\caption{{{caption}}}\n\\label{{{label}}}\n"
@@ -162,10 +184,9 @@ def build_report_tex(res: dict[str, Any], out: Path, figs: dict[str, str], table
             continue
         k = PAPER_TABLE_I[name]["scenario"]
         f4, _ = PAPER_FIG[name]
-        behaviour = {1: "travels at a constant velocity", 2: "decelerates", 3: "accelerates"}[k]
         L.append(_figure(figs[f"xy-{name}"], f"(Paper Fig.~{f4}.) Ego (green, its body turned along its "
-                         f"heading) and vehicle 1 (grey) every 0.5\\,s in the $(x,y)$ plane, to scale (equal aspect), "
-                         f"where vehicle 1 {behaviour} in the adjacent lane (scenario {k}). "
+                         f"heading) and vehicle 1 (grey) every 0.5\\,s in the $(x,y)$ plane, to scale (equal aspect). "
+                         f"{vehicle1_words(name, entries[name]['problem'])} "
                          "Thin red boxes: the safety regions $x_{s,1}(t)\\pm(L/2+S_x)$ by $y_{s,1}\\pm(W/2+S_y)$; "
                          "dashed: the safety region and body at $t^*_1$; star: the contact corner. Lane lines "
                          "half-way between the lane centres $s_{y0}$ and $y_{s,1}$.", f"fig:xy-{name}"))

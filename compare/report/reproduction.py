@@ -233,7 +233,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
 
     # the bounded problem: the scenarios under a passenger car's limits (SPEC §14) ------------
     from iamp.comparison.bounded import bounded_rows
-    from iamp.comparison.bounded import latex_table as bounded_latex
+    from iamp.comparison.report.bounded import latex_table as bounded_latex
 
     step("the bounded problem: every planner under a passenger car's limits")
     bounded = []

@@ -25,8 +25,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from iamp.cli.types import model_file
-from iamp.cli.types import positive_float as _positive_float
+from iamp.cli.types import float_in, int_in, model_file
 from iamp.cli.types import positive_int as _positive_int
 from iamp.comparison.durations import format_seconds as _fmt_time
 from iamp.core.errors import ScenarioError
@@ -61,14 +60,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                         "(or its own [limits]) with the PMP, the equality QP, the active set and the avoidance QP: "
                         "status (infeasible with the reason), cost, what the bounds cost, exact peaks, and the "
                         "bounded PMP vs bounded QP gap where the bounded PMP exists")
-    c.add_argument("--repeats", type=_positive_int, default=3, metavar="K",
+    c.add_argument("--repeats", type=int_in("repeats"), default=3, metavar="K",
                    help="timed full plans per QP configuration (the PMP gets max(20, 10K)); default 3")
-    c.add_argument("--budget", type=_positive_float, default=5.0, metavar="S",
+    c.add_argument("--budget", type=float_in("budget_s"), default=5.0, metavar="S",
                    help="stop repeating a configuration once its timed plans exceed S seconds (default 5)")
     c.add_argument("--no-breakdown", action="store_true",
                    help="skip the per-solve timing breakdown (cvxpy compile / re-solve / solver / native)")
     c.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios")
-    c.add_argument("--force", action="store_true", help="replace existing output files (--latex, --json-out)")
+    c.add_argument("--force", action="store_true", help="replace an existing --latex file")
     c.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     c.add_argument("--latex", default=None, metavar="FILE", help="write a booktabs table (atomically)")
     from iamp.cli.progress import add_quiet_flag

@@ -1,10 +1,12 @@
 """The ``iamp`` command line.
 
 Exit status: 0 success; 2 bad input (one line on standard error naming the file and the
-field, no traceback); 3 a solver failed (the status is reported, never a cost); 4 an unsafe
-plan with ``--require-safe``; 1 an unexpected internal error (one line; ``--debug``, anywhere
-on the command line, or ``IAMP_DEBUG=1`` shows the traceback); 130 interrupted (Ctrl-C or
-SIGTERM: temporary files are removed, nothing half-written is left).
+field, no traceback) or an environment that stops the work (a full disk, a read-only
+folder, an unreachable ``--scheduler``: one line naming the path or address); 3 a solver
+failed (the status is reported, never a cost); 4 an unsafe plan with ``--require-safe``;
+1 an unexpected internal error (one line; ``--debug``, anywhere on the command line, or
+``IAMP_DEBUG=1`` shows the traceback); 130 interrupted (Ctrl-C or SIGTERM: temporary files
+are removed, nothing half-written is left).
 """
 
 from __future__ import annotations
@@ -149,6 +151,16 @@ def _run(args_list: list[str]) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return EXIT_OK
+    except OSError as exc:
+        # the machine's refusal (a full disk, a read-only file system, a quota) is the user's
+        # situation, not a bug: one line naming the path, exit 2
+        from iamp.core.atomic import WRITE_REFUSED
+
+        if exc.errno not in WRITE_REFUSED:
+            raise
+        where = f"{exc.filename}: " if exc.filename else ""
+        sys.stderr.write(f"iamp: error: {where}{_one_line(exc.strerror or str(exc))}\n")
+        return EXIT_BAD_INPUT
 
 
 if __name__ == "__main__":

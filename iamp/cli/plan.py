@@ -8,15 +8,23 @@ from typing import Any
 
 import numpy as np
 
-from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, model_file, steps_int
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, float_in, model_file, steps_int
 from iamp.core.errors import OptionError, ScenarioError, SolverError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
+from iamp.core.safety import SAFETY_TOLERANCE_M, SafetyReport
 from iamp.core.scenario import Scenario
 from iamp.planners import registry
 from iamp.planners.avoid.options import inequality_backends
 from iamp.planners.qp.hold import HOLDS
 from iamp.planners.qp.options import CONTACTS
+
+#: The one rule for exit status 3 and the cost (issue 22 item 8; SPEC §5): exit 3 whenever the
+#: status is not ``optimal``; the cost (and the trajectory) is reported exactly when the plan
+#: verified itself (``optimal`` or ``local``), so a ``local`` plan exits 3 *with* its cost,
+#: labelled by its status, and every other failure exits 3 with ``"cost": null``.
+LOCAL_NOTE = ("status local: this plan is verified at its contact times, but the search could not certify "
+              "that they are the global minimiser; its cost is reported under that status (exit 3)")
 
 #: Options that only some planners read (the QP's), with their defaults (SPEC §5).  They default
 #: to ``None`` in the parser so that "given by the user" can be told from "the default".
@@ -130,7 +138,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from iamp.cli.trajectory_csv import write_trajectory_csv
 
         write_trajectory_csv(result, args.csv, args.steps)
+    tolerance = float(getattr(args, "safety_tolerance", SAFETY_TOLERANCE_M))
     if args.json:
+        if tolerance != SAFETY_TOLERANCE_M and result.safety is not None:  # the user's threshold, not the default
+            obj = json.loads(text)
+            obj["safety"].update(safety_tolerance_m=tolerance, unsafe=result.safety.unsafe_beyond(tolerance))
+            text = json.dumps(obj, allow_nan=False)
         print(text)
     else:
         _print_summary(scenario, problem, result, args)
@@ -139,7 +152,25 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if not result.is_optimal():
         return EXIT_SOLVER
     safety = result.safety
-    return EXIT_UNSAFE if args.require_safe and safety is not None and not safety.safe else EXIT_OK
+    unsafe = safety is not None and safety.unsafe_beyond(tolerance)
+    return EXIT_UNSAFE if args.require_safe and unsafe else EXIT_OK
+
+
+def safety_lines(report: SafetyReport, tolerance_m: float) -> list[str]:
+    """The text output's safety lines: one per vehicle the ego enters, a *touch* (depth within
+    ``tolerance_m``, no overlap: interval, duration and depth in mm) or ``UNSAFE`` (SPEC §9)."""
+    if report.safe:
+        return report.lines()
+    lines = []
+    for v in report.unsafe():
+        if v.touch_only(tolerance_m):
+            spans = ", ".join(f"[{a:.3f}, {b:.3f}] s ({(b - a) * 1e3:.0f} ms)" for a, b in v.intrusion)
+            lines.append(f"touch     {v.name}: touches its safety region {spans}, depth at most "
+                         f"{v.max_intrusion_m * 1e3:.1f} mm, within the safety tolerance {tolerance_m * 1e3:g} mm "
+                         "(--safety-tolerance); bodies do not overlap")
+        else:
+            lines.append(f"UNSAFE    {v.describe()}")
+    return lines
 
 
 def _report_failure(scenario: Scenario, args: argparse.Namespace, status: str, message: str) -> int:
@@ -157,6 +188,8 @@ def _report_failure(scenario: Scenario, args: argparse.Namespace, status: str, m
 
 
 def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: argparse.Namespace) -> None:
+    from iamp.cli.text import polynomial
+
     cfg = "PMP (indirect, jump conditions)" if result.planner == "pmp" else (
         f"QP ({result.solver}, {str(result.hold).upper()}, N = {result.steps}, contact search: {args.contact})")
     print(f"scenario  {scenario.name}  ({scenario.source})")
@@ -172,11 +205,13 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         for line in nodes_lines(result):
             print(line)
         return
-    if not result.is_optimal():
+    if not result.ok:
         if result.info.get("reason"):
             print(f"reason    {result.info['reason']}")
         print("no cost is reported: the solver did not reach an optimal solution")
         return
+    if not result.is_optimal():  # `local`: verified at its contact times, not certified global (exit 3)
+        print(f"note      {LOCAL_NOTE}")
     if result.info.get("constraint") == "avoid":
         if result.info.get("safety_mode") == "continuous":
             from iamp.planners.avoid.continuous import summary_lines
@@ -195,7 +230,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         print(f"warning   {len(fails)} of {len(result.info['sweep'])} sweep candidates did not solve to optimality "
               f"(e.g. nodes {fails[0][0]}: {fails[0][1]}); they are excluded from the search")
     for v, spec, t, j in zip(problem.vehicles, scenario.vehicles, result.contact_times, result.jumps):
-        poly = " ".join(f"{c:+.6g}" + (f"·t^{k}" if k > 1 else "·t" if k == 1 else "") for k, c in enumerate(v.x_poly))
+        poly = polynomial(v.x_poly)
         origin = "predicted from its history" if spec.history is not None else "given"
         print(f"vehicle {v.name}: x_s(t) = {poly}  ({origin})")
         X = result.require_trajectory().states(np.array([t]))[0]
@@ -206,7 +241,7 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
         worst = ", ".join(f"{k} {v:.1e}" for k, v in result.residuals.items())
         print(f"residuals {worst}")
     if result.safety is not None:
-        for line in result.safety.lines():
+        for line in safety_lines(result.safety, float(getattr(args, "safety_tolerance", SAFETY_TOLERANCE_M))):
             print(line)
     _print_limits(result)
 
@@ -277,8 +312,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
             p.add_argument("--" + name.replace("_", "-"), dest=name, choices=f.metadata["choices"], default=None,
                            help=f"{f.metadata['cli']} ({who} only; default {f.default})")
     p.add_argument("--require-safe", action="store_true",
-                   help="exit with status 4 when the plan enters a safety region or overlaps a vehicle (SPEC §9); "
-                        "the plan is still printed")
+                   help="exit with status 4 when the plan is unsafe: it overlaps a vehicle or enters a safety region "
+                        "deeper than --safety-tolerance (SPEC §9); the plan is still printed")
+    p.add_argument("--safety-tolerance", type=float_in("safety_tolerance_m"), default=SAFETY_TOLERANCE_M,
+                   metavar="M", help="depth [m] up to which entering a safety region without body overlap is "
+                   f"reported as a touch, not UNSAFE (default {SAFETY_TOLERANCE_M:g} m; 0: any entry is unsafe)")
     p.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios "
                    "(default: the shipped model)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")

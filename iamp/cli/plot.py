@@ -25,25 +25,28 @@ trajectory for ``iamp plan --csv``.
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
-from iamp.cli.types import EXIT_OK, EXIT_SOLVER, positive_int
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, int_in
 from iamp.core.errors import ScenarioError
 from iamp.core.plan import Plan
 
 from .trajectory_csv import write_trajectory_csv
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["FORMATS", "add_parsers", "cmd_plot", "plan_figure", "plan_label", "write_trajectory_csv"]
 
 #: Output formats of ``iamp plot`` (by the suffix of ``--out``).
 FORMATS = ("png", "pdf", "svg")
 #: Options of ``iamp plan`` that are not planner options (not copied to ``iamp plot``).
-_NOT_COPIED = {"help", "scenario", "json", "csv", "require_safe", "quiet", "func"}
+_NOT_COPIED = {"help", "scenario", "json", "csv", "require_safe", "safety_tolerance", "quiet", "func"}
 
 
 def plan_label(result: Plan) -> str:
@@ -96,6 +99,8 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
     xmin, xmax, ymin, ymax = xy_limits(result)
     width = 10.0
     xy_height = 0.92 * width * (ymax - ymin) / (xmax - xmin) + 1.3  # to scale, plus the legend
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(width, xy_height + 3 * 2.1 + 0.4), layout="constrained")
     gs = fig.add_gridspec(4, 2, height_ratios=[xy_height, 2.1, 2.1, 2.1])
     ax_xy = fig.add_subplot(gs[0, :])
@@ -190,6 +195,9 @@ def _copy_plan_options(target: argparse.ArgumentParser) -> set[str]:
     for action in plan_parser._actions:
         if action.dest in _NOT_COPIED or not action.option_strings:
             continue
+        if action.dest == "force":  # plan's says "the --csv file"; plot writes --out
+            action = copy.copy(action)
+            action.help = "replace the --out file if it exists"
         target._add_action(action)
         copied.add(action.dest)
     return copied
@@ -212,7 +220,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
         p.add_argument("--constraint", choices=("equality", "avoid"), default="equality",
                        help="QP only: the paper's equality at a contact time, or the avoidance QP (SPEC §10)")
     p.set_defaults(_constraint_from_plan="constraint" in copied)
-    p.add_argument("--snapshots", type=positive_int, default=6, metavar="K",
+    p.add_argument("--snapshots", type=int_in("snapshots"), default=6, metavar="K",
                    help="instants drawn in the x-y plane, evenly spaced over [0, tf] (default 6)")
     p.add_argument("--title", default=None, help="figure title (default: scenario, planner and cost)")
     add_quiet_flag(p)

@@ -16,9 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from iamp.cli.types import model_file
-from iamp.cli.types import positive_float as _positive_float
-from iamp.cli.types import positive_int as _positive_int
+from iamp.cli.types import float_in, int_in, model_file
 from iamp.core.errors import IampError, ScenarioError
 
 if TYPE_CHECKING:
@@ -147,7 +145,8 @@ def predict_json(scenario: Scenario, predictor: Predictor | None, model_label: s
 
 def cmd_predict(args: argparse.Namespace) -> int:
     """``iamp predict``: predict every history vehicle of a scenario."""
-    from iamp.core.scenario import load_scenario
+    from iamp.cli.scenarios import load_cli_scenario as load_scenario  # a file, a built-in, or - (stdin)
+    from iamp.cli.text import polynomial
     from iamp.prediction.predictor import Predictor
 
     try:
@@ -162,7 +161,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     print(f"scenario {out['scenario']}  (model: {out['model']}, {predictor!r})")
     for v in out["vehicles"]:
         c = v["x_poly"]
-        poly = " + ".join(f"{ci:.6g}{'' if k == 0 else ' t' if k == 1 else f' t^{k}'}" for k, ci in enumerate(c))
+        poly = polynomial(c)
         extra = f", fit RMSE {v['fit_rmse']:.3g} m" if "fit_rmse" in v else ""
         print(f"  {v['name']:8s} [{v['source']}] x(t) = {poly}{extra}")
         print(f"           x({v['t'][-1]:g}) = {v['x'][-1]:.3f} m")
@@ -257,19 +256,19 @@ def add_parsers(subparsers: Any) -> None:
                         "dropped")
     t.add_argument("--out", required=True, help="model file to write (JSON)")
     t.add_argument("--force", action="store_true", help="replace --out if it exists")
-    t.add_argument("--order", type=_positive_int, default=DEFAULT_CONFIG["order"],
+    t.add_argument("--order", type=int_in("order"), default=DEFAULT_CONFIG["order"],
                    help=f"chain order n (default {DEFAULT_CONFIG['order']})")
     t.add_argument("--bins", default=None,
                    help="acceleration bins: a number N of equal bins over [-A, A] (A = --a-max; outer bins "
                         "open), or comma-separated interior edges in m/s^2 (default: bins of --bin-width "
                         "centred on 0)")
-    t.add_argument("--bin-width", type=_positive_float, default=DEFAULT_CONFIG["width"],
+    t.add_argument("--bin-width", type=float_in("accel_mps2"), default=DEFAULT_CONFIG["width"],
                    help=f"bin width in m/s^2 when --bins is not given (default {DEFAULT_CONFIG['width']:g})")
-    t.add_argument("--a-max", type=_positive_float, default=DEFAULT_CONFIG["a_max"],
+    t.add_argument("--a-max", type=float_in("accel_mps2"), default=DEFAULT_CONFIG["a_max"],
                    help=f"range of the bins in m/s^2 (default {DEFAULT_CONFIG['a_max']:g})")
-    t.add_argument("--dt", type=_positive_float, default=DEFAULT_CONFIG["dt"],
+    t.add_argument("--dt", type=float_in("model_dt_s"), default=DEFAULT_CONFIG["dt"],
                    help=f"chain time step in s (default {DEFAULT_CONFIG['dt']:g})")
-    t.add_argument("--jerk-psd", type=_positive_float, default=DEFAULT_CONFIG["jerk_psd"],
+    t.add_argument("--jerk-psd", type=float_in("jerk_psd"), default=DEFAULT_CONFIG["jerk_psd"],
                    help="jerk spectral density q in m^2/s^5 of the smoother estimating the initial state at "
                         f"prediction time (stored in the model; default {DEFAULT_CONFIG['jerk_psd']:g})")
     t.add_argument("--estimator", choices=("mle", "mle-lambda", "lp"), default="mle",
@@ -286,7 +285,7 @@ def add_parsers(subparsers: Any) -> None:
                     '{"scenario", "model", "vehicles": [{"name", "x_poly", "t", "x", ...}]} where t/x are the '
                     "predicted samples before the fit. A vehicle given with x_poly in the file passes through "
                     "with its polynomial unchanged; its t/x are then that polynomial sampled at the same times.")
-    p.add_argument("scenario", help="scenario TOML file or built-in name")
+    p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
     p.add_argument("--model", type=model_file, default=None,
                    help="model file (default: the shipped model, reported as 'builtin')")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
@@ -296,18 +295,20 @@ def add_parsers(subparsers: Any) -> None:
         "evaluate-predictor", help="evaluate the predictor against baselines and write the report",
         description="With --data FILE --format F: evaluate constant velocity, constant acceleration, the MTD "
                     "predictor and a first-order chain on windows of 3 s history / 5 s future of the file "
-                    "(RMSE at 1..5 s, ADE, FDE, lateral RMSE of y = const, track-bootstrap 95 %% intervals of each "
+                    "(RMSE at 1..5 s, ADE, FDE, lateral RMSE of y = const, track-bootstrap 95 % intervals of each "
                     "method's difference to CV; dropped rows are reported). Without --data: run the evaluation "
                     "protocol on the shipped SUMO data and write predictor_eval.json and tables under --out.")
     e.add_argument("--data", default=None,
                    help="evaluate on this recorded-data file (SPEC §13) instead of the shipped SUMO data")
-    e.add_argument("--format", default=None, choices=("highd", "ngsim", "sumo"), help="format of --data")
+    e.add_argument("--format", default=None, choices=("highd", "ngsim", "sumo"),
+                   help="format of --data (sumo also reads the log of iamp simulate --log)")
     e.add_argument("--model", type=model_file, default=None,
                    help="model file to evaluate (default: the shipped model)")
     e.add_argument("--split", default=None, choices=("vehicle", "time"),
                    help="train on part of --data and evaluate on the held-out rest: 20 %% of the vehicles "
                         "(seeded) or the last 20 %% of the time span")
-    e.add_argument("--seed", type=int, default=0, help="seed of the vehicle split and the bootstrap (default 0)")
+    e.add_argument("--seed", type=int_in("seed"), default=0,
+                   help="seed of the vehicle split and the bootstrap, in [0, 2^31-1] (default 0)")
     e.add_argument("--location", default=None,
                    help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
                         "dropped")

@@ -7,9 +7,10 @@ compiles ``report.tex`` with ``pdflatex`` (twice, in a temporary folder inside t
 folder, ``-interaction=nonstopmode -halt-on-error``) and moves ``report.pdf`` into place
 atomically.  Standard output carries only the final summary.
 
-Without ``pdflatex`` (or with ``--no-pdf``, or when it fails) no PDF is produced, and a
-``report.pdf`` left by an earlier run is deleted, so the folder never pairs a new
-``report.tex`` with an old PDF; the summary says so and how to install LaTeX.
+Without ``pdflatex`` (or with ``--no-pdf``, or when it fails) no PDF is produced.  A
+``report.pdf`` left by an earlier run is *kept* (iamp never deletes what it cannot rebuild —
+it may be the committed report), and the summary says plainly that it is from an earlier run
+and does not match the new ``report.tex``, and how to install LaTeX.
 
 Exit status: 0 success (also without ``pdflatex``: the report is written, the PDF is not);
 1 the report was written but ``pdflatex`` failed; 2 bad input; 3 a solver failed.
@@ -74,14 +75,13 @@ def compile_pdf(out_dir: str | os.PathLike[str], tex_name: str = "report.tex", r
 LATEX_INSTALL = "apt-get install texlive-latex-recommended texlive-latex-extra lmodern"
 
 
-def _remove_stale_pdf(out: Path) -> str | None:
-    """Delete ``out/report.pdf`` left by an earlier run (it does not match the new report.tex);
-    returns a sentence saying so, or ``None`` if there was none."""
+def _stale_pdf_note(out: Path) -> str | None:
+    """A sentence about ``out/report.pdf`` left by an earlier run (kept: it cannot be rebuilt
+    here, and it does not match the new report.tex), or ``None`` if there is none."""
     pdf = out / "report.pdf"
     if not pdf.is_file():
         return None
-    pdf.unlink()
-    return f"removed the stale {pdf} (from an earlier run; it does not match the new report.tex)"
+    return f"{pdf} is kept from an earlier run and does NOT match the new report.tex (not rebuilt here)"
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
@@ -133,7 +133,7 @@ def _reproduce_into(args: argparse.Namespace) -> int:
             pdf_msg = f"report.tex did not compile: {msg}"
             status = EXIT_LATEX
     if not ok:
-        stale = _remove_stale_pdf(out)
+        stale = _stale_pdf_note(out)
         if stale:
             pdf_msg += f"; {stale}"
     print(f"reproduction written to {out}/ in {time.perf_counter() - start:.0f} s")

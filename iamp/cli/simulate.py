@@ -10,8 +10,9 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
-from iamp.cli.types import EXIT_OK, positive_float, positive_int
+from iamp.cli.types import EXIT_OK, float_in, int_in
 from iamp.simulation.planning import PLANNERS
 
 TRAFFIC = ("light", "medium", "dense", "los-e")
@@ -31,8 +32,103 @@ def _csv_choice(choices: tuple[str, ...]):  # type: ignore[no-untyped-def]
     return parse
 
 
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def check_destinations(args: argparse.Namespace) -> None:
+    """Check ``--log`` and ``--figure`` before the episode (issue 22 item 2).
+
+    Each must be a writable file path that does not exist (or ``--force``), the figure must
+    end in a known format, and the two must differ (``--log x --figure x`` would lose the log).
+    """
+    from iamp.core.errors import ScenarioError
+    from iamp.core.outputs import _same, check_output
+
+    force = bool(getattr(args, "force", False))
+    if args.log and args.figure and _same(Path(args.log), Path(args.figure)):
+        raise ScenarioError("is also the --log file; writing the figure would replace the log - choose another "
+                            "path", "--figure", str(args.figure))
+    if args.figure:
+        suffix = Path(args.figure).suffix.lstrip(".").lower()
+        if suffix not in FIGURE_FORMATS:
+            raise ScenarioError(f"must end in {', '.join('.' + f for f in FIGURE_FORMATS)} "
+                                f"(got {Path(args.figure).name!r})", "--figure", str(args.figure))
+        check_output(args.figure, (), force, option="--figure")
+    if args.log:
+        check_output(args.log, (), force, option="--log")
+
+
+
+def _summary_lines_11(s: dict[str, Any]) -> list[str]:
+    """The SPEC §11 summary (an episode without a mission)."""
+    from iamp.cli.text import quantity
+
+    pt = s["plan_time_s"]
+    done = s["lane_change_done_s"]
+    lines = [f"episode   {s['planner']}, {s['traffic']} traffic, seed {s['seed']}, {s['duration_s']:g} s at "
+             f"{s['period_s']:g} s",
+             f"lane      {s['lane_changes']} lane changes; "
+             + ("none completed" if done is None else f"first completed at {done:.1f} s"),
+             f"safety    {s['collisions']} collisions (SUMO {s['sumo_collisions']}, body overlap "
+             f"{s['overlap_collisions']}); intrusion {s['intrusion_s']:.1f} s; min gap "
+             f"{quantity(s['min_gap_m'], 'm', missing='n/a (no vehicle in the lane of the ego)')}; min TTC "
+             f"{quantity(s['min_ttc_s'], 's', missing='n/a (no vehicle closing in)')}",
+             f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
+             f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³"]
+    if s["plans"]:
+        ms = [quantity(None if pt[k] is None else pt[k] * 1e3, "ms") for k in ("p50", "p95", "max")]
+        lines.append(f"plans     {s['plans']} ({s['constrained_plans']} with a constraint; failed "
+                     f"{s['failed_plans']}, late {s['late_plans']}, fallbacks {s['fallbacks']}, aborts "
+                     f"{s['aborts']}); time p50 {ms[0]}, p95 {ms[1]}, max {ms[2]}")
+    w = s["wall_s"]
+    lines.append(f"wall      {w['total']:.1f} s (SUMO {w['sumo']:.1f}, prediction {w['prediction']:.1f}, "
+                 f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
+    return lines
+
+
+def summary_lines(s: dict[str, Any]) -> list[str]:
+    """The text summary of an episode (``iamp simulate`` without ``--json``): rounded numbers,
+    ``n/a`` with its reason where a metric has no value, no ``None``."""
+    if "mission" not in s:
+        return _summary_lines_11(s)
+    from iamp.cli.text import quantity
+
+    pt = s["plan_time_s"]
+    merged = s["time_to_merge_s"]
+    fd = s["follower_max_decel"]
+    lo, hi = s["ego_ax_range"]
+    lines = [f"episode   {s['mission']}: {s['planner']}, {s['traffic']} traffic ({s['cooperation']} cooperation), "
+             f"seed {s['seed']}, {s['simulated_s']:g} of {s['duration_s']:g} s at {s['period_s']:g} s",
+             f"mission   {'success' if s['success'] else 'FAILED'}; in the target lane "
+             + ("never" if merged is None else f"at {merged:.1f} s")
+             + ("; stopped at the lane's end" if s["stopped_at_end"] else ""),
+             f"safety    {s['contacts']} contacts (body overlap {s['overlap_contacts']}, SUMO {s['sumo_contacts']}); "
+             f"{s['mingap_violations']} minGap violations; min TTC "
+             f"{quantity(s['min_ttc_s'], 's', missing='n/a (no vehicle closing in)')} "
+             f"({s['ttc_below_1_5_s']:.1f} s below 1.5 s); new follower braked "
+             f"{quantity(fd, 'm/s²', missing='n/a (no new follower)')}",
+             f"executed  peak |a| {s['ego_peak_accel']:.2f} m/s² (a_x {lo:.2f}..{hi:.2f}, "
+             f"|a_y| {s['ego_ay_peak']:.2f}); "
+             f"{s['limit_violations']} steps beyond the passenger car's limits",
+             f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
+             f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³"]
+    if s["plans"]:
+        ms = [quantity(None if pt[k] is None else pt[k] * 1e3, "ms", missing="n/a (no planner call)")
+              for k in ("p50", "p95", "max")]
+        lines.append(f"plans     {s['plans']} ({s['planner_calls']} planner calls, "
+                     f"{s['infeasible_plans']} not verified; "
+                     f"{s['executed_plans']} periods executed, {s['constrained_plans']} with an imposed constraint; "
+                     f"fallbacks {s['fallbacks']}, aborts {s['aborts']}); time p50 {ms[0]}, p95 {ms[1]}, max {ms[2]}")
+    w = s["wall_s"]
+    lines.append(f"wall      {w['total']:.1f} s (SUMO {w['sumo']:.1f}, prediction {w['prediction']:.1f}, "
+                 f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
+    return lines
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from iamp.simulation.episode import EpisodeSpec, run_episode, write_log
+
+    check_destinations(args)  # before SUMO starts: a refusal costs a second, not an episode
 
     spec = EpisodeSpec(traffic=args.traffic, seed=args.seed, planner=args.planner, mission=args.mission,
                        cooperation=args.cooperation, sublane=args.sublane, duration_s=args.duration,
@@ -52,38 +148,53 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(s, allow_nan=False))
         return EXIT_OK
-    pt = s["plan_time_s"]
-    print(f"episode   {s['mission']}: {s['planner']}, {s['traffic']} traffic ({s['cooperation']} cooperation), "
-          f"seed {s['seed']}, {s['simulated_s']:g} of {s['duration_s']:g} s at {s['period_s']:g} s")
-    merged = s["time_to_merge_s"]
-    print(f"mission   {'success' if s['success'] else 'FAILED'}; in the target lane at "
-          f"{'never' if merged is None else f'{merged:.1f} s'}"
-          + ("; stopped at the lane's end" if s["stopped_at_end"] else ""))
-    fd = s["follower_max_decel"]
-    ttc = "--" if s["min_ttc_s"] is None else f"{s['min_ttc_s']:.1f}"
-    print(f"safety    {s['contacts']} contacts (body overlap {s['overlap_contacts']}, SUMO {s['sumo_contacts']}); "
-          f"{s['mingap_violations']} minGap violations; min TTC {ttc} s "
-          f"({s['ttc_below_1_5_s']:.1f} s below 1.5 s); new follower braked "
-          f"{'--' if fd is None else f'{fd:.1f} m/s²'}")
-    lo, hi = s['ego_ax_range']
-    print(f"executed  peak |a| {s['ego_peak_accel']:.2f} m/s² (a_x {lo:.2f}..{hi:.2f},"
-          f" |a_y| {s['ego_ay_peak']:.2f}); {s['limit_violations']} steps beyond the passenger car's limits")
-    print(f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
-          f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³")
-    if s["plans"]:
-        times = ("no planner call" if pt["p50"] is None else
-                 f"time p50 {pt['p50'] * 1e3:.2f} ms, p95 {pt['p95'] * 1e3:.2f} ms, max {pt['max'] * 1e3:.2f} ms")
-        print(f"plans     {s['plans']} ({s['planner_calls']} planner calls, {s['infeasible_plans']} not verified; "
-              f"{s['executed_plans']} periods executed, {s['constrained_plans']} with an imposed constraint; "
-              f"fallbacks {s['fallbacks']}, aborts {s['aborts']}); {times}")
-    w = s["wall_s"]
-    print(f"wall      {w['total']:.1f} s (SUMO {w['sumo']:.1f}, prediction {w['prediction']:.1f}, "
-          f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
+    for line in summary_lines(s):
+        print(line)
     return EXIT_OK
+
+
+#: Seconds allowed for the TCP connection to ``--scheduler`` before a campaign starts.
+SCHEDULER_TIMEOUT_S = 3.0
+DASK_DEFAULT_PORT = 8786
+
+
+def check_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> None:
+    """Connect to the Dask scheduler at ``address`` once, with a short timeout, before any work.
+
+    ``tcp://HOST[:PORT]`` / ``tls://...`` / ``HOST:PORT`` (Dask's default port 8786 when none is
+    given); other transports are left to Dask.  An address that does not parse is bad input
+    (:class:`~iamp.core.errors.ScenarioError`); one that does not answer is the user's
+    environment (:class:`~iamp.core.errors.EnvironmentProblem`); both name the address.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    from iamp.core.errors import EnvironmentProblem, ScenarioError
+
+    parsed = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parsed.scheme not in ("tcp", "tls"):
+        return
+    try:
+        host, port = parsed.hostname, parsed.port or DASK_DEFAULT_PORT
+    except ValueError:
+        host, port = None, 0
+    if not host:
+        raise ScenarioError("must be an address like tcp://HOST:PORT", "--scheduler", address)
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        reason = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        if isinstance(exc, TimeoutError):
+            reason = f"no answer within {timeout:g} s"
+        raise EnvironmentProblem(f"cannot reach the Dask scheduler at {address}", reason,
+                                 getattr(exc, "errno", None)) from None
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
     from iamp.core.outputs import guarded_folder  # checked (writable, ours or --force), locked, marked
+
+    if args.scheduler:
+        check_scheduler(args.scheduler)  # seconds, before the folder is touched (Dask itself waits 30 s)
 
     with guarded_folder(args.out, "campaign", getattr(args, "force", False)):
         return _campaign_into(args)
@@ -138,19 +249,22 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--mission", choices=MISSIONS, default="merge",
                    help="what the ego must do (SPEC §15; default merge: its lane ends 400 m ahead)")
     p.add_argument("--traffic", choices=TRAFFIC, default="medium")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--seed", type=int_in("seed"), default=1, help="SUMO and traffic seed in [0, 2^31-1]")
     p.add_argument("--planner", choices=PLANNERS, default="pmp")
     p.add_argument("--cooperation", choices=COOPERATION, default="default",
                    help="SUMO drivers' cooperation (lcCooperative, lcAssertive, lcSpeedGain, "
                         "sigma; docs/closed-loop.md)")
     p.add_argument("--sublane", action="store_true", help="the sumo planner with SUMO's sublane model SL2015")
-    p.add_argument("--duration", type=positive_float, default=60.0, help="episode length [s] (default 60)")
-    p.add_argument("--period", type=positive_float, default=0.1, help="control period = SUMO step [s]")
+    p.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s] (default 60)")
+    p.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period = SUMO step [s]")
     p.add_argument("--deadline", action="store_true",
                    help="a plan slower than the period is late and falls back (default: use plans however long "
                         "they take, so that the same seed gives the same numbers)")
-    p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV")
-    p.add_argument("--figure", default=None, help="write a figure of the episode (PNG/PDF by extension)")
+    p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV "
+                   "(an existing file only with --force)")
+    p.add_argument("--figure", default=None, help="write a figure of the episode (.png, .pdf or .svg; an "
+                   "existing file only with --force)")
+    p.add_argument("--force", action="store_true", help="replace an existing --log / --figure file")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §11)")
     p.set_defaults(func=cmd_simulate)
 
@@ -164,15 +278,15 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     c.add_argument("--reference", choices=PLANNERS, default="pmp",
                    help="the planner every other one is compared with, seed by seed (default pmp)")
     c.add_argument("--no-run", action="store_true", help="only summarise the episodes already in --out")
-    c.add_argument("--seeds", type=positive_int, default=20, help="seeds 1..N")
+    c.add_argument("--seeds", type=int_in("seeds"), default=20, help="seeds 1..N (N at most 10000)")
     c.add_argument("--out", required=True, help="output folder (episodes.csv, table.tex, figures)")
     c.add_argument("--force", action="store_true",
                    help="write into an existing folder that iamp did not write (no .iamp-output marker), and "
                         "discard its episodes if they were made with other parameters")
-    c.add_argument("--workers", type=positive_int, default=2, help="local Dask workers (processes)")
+    c.add_argument("--workers", type=int_in("workers"), default=2, help="local Dask workers (processes)")
     c.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
-    c.add_argument("--duration", type=positive_float, default=60.0)
-    c.add_argument("--period", type=positive_float, default=0.1)
+    c.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s]")
+    c.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period [s]")
     c.add_argument("--deadline", action="store_true", help="a plan slower than the period falls back")
     c.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     c.set_defaults(func=cmd_campaign)

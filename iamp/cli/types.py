@@ -75,10 +75,74 @@ def model_file(text: str) -> str:
         predictor = Predictor.from_file(text)
         dt = float(predictor.dt)
     except Exception as exc:  # the file is user input: every way it can be malformed is a refusal
-        detail = exc.one_line() if hasattr(exc, "one_line") else f"{exc.__class__.__name__}: {exc}"
+        detail = exc.one_line() if hasattr(exc, "one_line") else str(exc) or "malformed"
         detail = " ".join(str(detail).split())[:300]
         raise argparse.ArgumentTypeError(f"{text}: not a usable predictor model ({detail})") from None
     msg = bound_message(dt, LIMITS["model_dt_min_s"], LIMITS["model_dt_max_s"], "s")
     if msg is not None:
         raise argparse.ArgumentTypeError(f"{text}: field 'dt' {msg}")
     return text
+
+
+#: Bounds of the numeric options that are not scenario values (issue 22 item 5): every
+#: number the command line accepts is checked here, before any work, in one line naming it.
+#: ``seed`` is SUMO's and numpy's seed range (a 32-bit signed integer); ``seeds`` bounds a
+#: campaign's episode list (planners x densities x seeds); durations and periods keep one
+#: episode within an hour of simulated time at SUMO's step range.
+OPTION_BOUNDS: dict[str, tuple[float, float]] = {
+    "seed": (0, 2**31 - 1),
+    "seeds": (1, 10_000),
+    "workers": (1, 64),
+    "episode_s": (0.1, 3600.0),
+    "period_s": (0.01, 1.0),
+    "repeats": (1, 10_000),
+    "budget_s": (1e-3, 3600.0),
+    "snapshots": (1, 50),
+    "order": (1, 20),
+    "accel_mps2": (1e-3, 50.0),
+    "jerk_psd": (1e-9, 1e6),
+    "safety_tolerance_m": (0.0, 1.0),
+}
+
+
+def _bounds(name: str) -> tuple[float, float]:
+    """``OPTION_BOUNDS[name]``; ``model_dt_s`` is :mod:`iamp.core.limits`' model time step."""
+    if name == "model_dt_s":
+        from iamp.core.limits import LIMITS
+
+        return LIMITS["model_dt_min_s"], LIMITS["model_dt_max_s"]
+    return OPTION_BOUNDS[name]
+
+
+def int_in(name: str):  # type: ignore[no-untyped-def]
+    """An argparse type: an integer within ``OPTION_BOUNDS[name]``."""
+    lo, hi = (int(b) for b in _bounds(name))
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, {hi}] (got {text!r})") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, {hi}] (got {text})")
+        return value
+
+    parse.__name__ = f"integer in [{lo}, {hi}]"
+    return parse
+
+
+def float_in(name: str):  # type: ignore[no-untyped-def]
+    """An argparse type: a finite number within ``OPTION_BOUNDS[name]``."""
+    lo, hi = _bounds(name)
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a number in [{lo:g}, {hi:g}] (got {text!r})") from None
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise argparse.ArgumentTypeError(f"must be a number in [{lo:g}, {hi:g}] (got {text})")
+        return value
+
+    parse.__name__ = f"number in [{lo:g}, {hi:g}]"
+    return parse

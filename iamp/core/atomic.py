@@ -4,11 +4,17 @@ Every file iamp writes goes to a temporary file in the destination's folder, is 
 fsync'ed, given the permissions a plain ``open()`` would give (or those of the file it
 replaces), and then renamed over the destination with :func:`os.replace`.  If anything
 fails, the temporary file is removed and the destination is untouched.
+
+A write the machine refuses (a full disk, a read-only file system, no permission, a quota)
+raises :class:`~iamp.core.errors.EnvironmentProblem` naming the *destination* (not the
+temporary file): ``cannot write reports/results.json: No space left on device``.
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -16,6 +22,20 @@ from pathlib import Path
 from typing import IO, Any
 
 PathLike = str | os.PathLike[str]
+
+#: ``errno`` values that mean "the machine refuses this write" (not a bug in iamp).
+WRITE_REFUSED = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG,
+                           errno.EIO, errno.ENAMETOOLONG, errno.ENOTDIR, errno.EISDIR, errno.EMFILE})
+
+
+def write_refused(path: PathLike, exc: OSError) -> Exception | None:
+    """The :class:`EnvironmentProblem` for ``exc`` while writing ``path``, or ``None`` when its
+    ``errno`` is not one of :data:`WRITE_REFUSED` (then ``exc`` propagates as it is)."""
+    from iamp.core.errors import EnvironmentProblem
+
+    if exc.errno not in WRITE_REFUSED:
+        return None
+    return EnvironmentProblem(f"cannot write {path}", exc.strerror or str(exc), exc.errno)
 
 
 def _final_mode(path: Path) -> int:
@@ -28,6 +48,39 @@ def _final_mode(path: Path) -> int:
         return 0o666 & ~umask
 
 
+def write_through(path: Path) -> Path:
+    """The file a write to ``path`` replaces: for a symbolic link, the file it points to.
+
+    A link is written *through* (issue 22 item 16): ``--force`` onto ``out.csv -> data/run.csv``
+    replaces ``data/run.csv`` and the link stays a link, as ``open(path, "w")`` would; the
+    atomic replacement happens beside the target, in the target's folder (a link to a missing
+    file creates that file).
+    """
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+#: The temporary names :func:`atomic_path` makes: ``.<name>.<8 random characters>.tmp``.
+TEMPORARY_NAME = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.tmp$")
+
+
+def remove_stale_temporaries(folder: PathLike) -> list[Path]:
+    """Delete the temporary files a killed run left in ``folder`` (recursively); returns them.
+
+    Only for a folder the caller holds the exclusive output lock of (so no live iamp run is
+    writing there) and that iamp owns (its marker): a ``SIGKILL`` cannot run the cleanup of
+    :func:`atomic_path`, so its ``.<name>.XXXXXXXX.tmp`` stays until the next run removes it.
+    """
+    removed = []
+    for p in Path(folder).rglob(".*.tmp"):
+        if TEMPORARY_NAME.match(p.name) and p.is_file() and not p.is_symlink():
+            try:
+                p.unlink()
+            except OSError:
+                continue
+            removed.append(p)
+    return removed
+
+
 @contextmanager
 def atomic_path(path: PathLike) -> Iterator[str]:
     """Yield a temporary path beside ``path``; on success it replaces ``path``.
@@ -37,16 +90,27 @@ def atomic_path(path: PathLike) -> Iterator[str]:
     or SIGTERM under the ``iamp`` command line (which turns it into an exception) — so an
     interrupted run leaves the previous file and no ``.tmp`` behind.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
-    os.close(fd)
+    path = write_through(Path(path))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
+        os.close(fd)
+    except OSError as exc:
+        problem = write_refused(path, exc)
+        if problem is None:
+            raise
+        raise problem from exc
     try:
         yield tmp
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.chmod(tmp, _final_mode(path))
         os.replace(tmp, path)
+    except OSError as exc:
+        problem = write_refused(path, exc)
+        if problem is None:
+            raise
+        raise problem from exc
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)

@@ -64,3 +64,24 @@ class SolverError(IampError):
 
 class MissingDependencyError(IampError, ImportError):
     """An optional dependency is not installed; the message says how to install it."""
+
+
+class EnvironmentProblem(IampError):
+    """The machine stops the work, not the input: a full disk, a read-only folder, an
+    unreachable server.  The message names the path or address (the command line exits 2).
+
+    Parameters
+    ----------
+    what : str
+        ``"cannot write PATH"``, ``"cannot reach the Dask scheduler at ADDRESS"``, ...
+    reason : str
+        The system's reason (``"No space left on device"``).
+    errno : int, optional
+        The ``errno`` of the underlying :class:`OSError`.
+    """
+
+    def __init__(self, what: str, reason: str, errno: int | None = None):
+        self.what = what
+        self.reason = reason
+        self.errno = errno
+        super().__init__(f"{what}: {reason}")

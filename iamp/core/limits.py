@@ -74,15 +74,23 @@ def limit(name: str) -> float:
     return LIMITS[name]
 
 
+def exact(value: float) -> str:
+    """The value as given, not rounded: the shortest text that reads back as the same float
+    (``-100000.1``, not ``%g``'s ``-100000``; ``5`` for 5.0).  A refusal must show the
+    offending value itself (issue 22 item 13)."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
+
+
 def bound_message(value: float, lo: float | None, hi: float | None, unit: str = "") -> str | None:
     """``None`` if ``lo <= value <= hi`` (either side optional), else the refusal text."""
     u = f" {unit}" if unit else ""
     if lo is not None and hi is not None and not (lo <= value <= hi):
-        return f"must lie in [{lo:g}, {hi:g}]{u} (got {value:g})"
+        return f"must lie in [{lo:g}, {hi:g}]{u} (got {exact(value)})"
     if lo is not None and value < lo:
-        return f"must be >= {lo:g}{u} (got {value:g})"
+        return f"must be >= {lo:g}{u} (got {exact(value)})"
     if hi is not None and value > hi:
-        return f"must be <= {hi:g}{u} (got {value:g})"
+        return f"must be <= {hi:g}{u} (got {exact(value)})"
     return None
 
 
@@ -91,7 +99,7 @@ def abs_message(value: float, bound: float, unit: str = "") -> str | None:
     if abs(value) <= bound:
         return None
     u = f" {unit}" if unit else ""
-    return f"|value| must be <= {bound:g}{u} (got {value:g})"
+    return f"|value| must be <= {bound:g}{u} (got {exact(value)})"
 
 
 def _stationary_points(coeffs: npt.NDArray[np.float64], tf: float) -> npt.NDArray[np.float64]:

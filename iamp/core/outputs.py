@@ -185,7 +185,10 @@ def guarded_folder(folder: PathLike, command: str, force: bool = False, inputs: 
     :func:`check_output` (fail fast, before the work), :func:`output_lock` for the whole
     block, and :func:`write_marker` so that the folder may be regenerated later.
     """
+    from iamp.core.atomic import remove_stale_temporaries
+
     p = check_output(folder, inputs, force, option=option, folder=True)
     with output_lock(p, option=option):
         write_marker(p, command)
+        remove_stale_temporaries(p)  # a killed earlier run's .tmp files (we hold the lock)
         yield p

@@ -25,6 +25,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 
 from iamp.core.errors import ScenarioError
+from iamp.core.limits import exact
 
 #: Fields that are ranges ``[lo, hi]`` and fields that are one positive magnitude.
 RANGE_FIELDS = ("ax", "ay", "vx", "y")
@@ -83,7 +84,7 @@ class PhysicalLimits:
                 continue
             number = _number(value, f"limits.{name}", src)
             if number <= 0:
-                raise ScenarioError(f"must be > 0 (got {number:g})", f"limits.{name}", src)
+                raise ScenarioError(f"must be > 0 (got {exact(number)})", f"limits.{name}", src)
             object.__setattr__(self, name, number)
 
     @classmethod

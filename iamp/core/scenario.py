@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.core.errors import HistoryError, PredictorRequiredError, ScenarioError
-from iamp.core.limits import LIMITS, abs_message, polynomial_message, prediction_message
+from iamp.core.limits import LIMITS, abs_message, exact, polynomial_message, prediction_message
 from iamp.core.physical import PhysicalLimits
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.toml_lines import line_of
@@ -81,10 +81,13 @@ class History:
             raise HistoryError(f"must end at 0 (last sample at {t[-1]})", f"{self.field}.t", self.source)
         span, step = LIMITS["history_span_max_s"], LIMITS["history_step_min_s"]
         if t[0] < -span:
-            raise HistoryError(f"must start at t >= {-span:g} s (first sample at {t[0]:g})",
+            raise HistoryError(f"must start at t >= {-span:g} s (first sample at {exact(t[0])})",
                                f"{self.field}.t", self.source)
-        if np.any(np.diff(t) < step):
-            k = int(np.argmax(np.diff(t) < step)) + 1
+        # a nominal step of exactly the minimum passes: the difference of two decimal times
+        # is off by rounding (-0.0002 - -0.0003 = 9.999999999999999e-05), so compare with a margin
+        short = np.diff(t) < step * (1.0 - 1e-6)
+        if np.any(short):
+            k = int(np.argmax(short)) + 1
             raise HistoryError(f"samples must be at least {step:g} s apart (t[{k}] - t[{k - 1}] = "
                                f"{t[k] - t[k - 1]:.3g} s)", f"{self.field}.t", self.source)
         big = np.abs(x) > LIMITS["position_max_m"]
@@ -366,7 +369,7 @@ def load_scenario(path_or_name: str | Path) -> Scenario:
         try:
             size = p.stat().st_size
         except OSError as exc:
-            raise ScenarioError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
+            raise ScenarioError(f"cannot be read ({exc.strerror or exc})", None, str(p)) from None
         if size > MAX_FILE_BYTES:
             raise ScenarioError(f"is {size} bytes; a scenario file may have at most {MAX_FILE_BYTES} bytes",
                                 None, str(p))
@@ -374,7 +377,7 @@ def load_scenario(path_or_name: str | Path) -> Scenario:
             # bytes, not read_text(): universal newlines would turn a bare CR (invalid TOML) into LF
             raw = p.read_bytes()
         except OSError as exc:
-            raise ScenarioError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(p)) from None
+            raise ScenarioError(f"cannot be read ({exc.strerror or exc})", None, str(p)) from None
         try:
             text = raw.decode("utf-8")
         except UnicodeDecodeError as exc:

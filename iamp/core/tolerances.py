@@ -86,6 +86,23 @@ TOLERANCES.update({
 })
 
 
+# ------------------------------------------------------------------------------------------
+# Bounded PMP (iamp.planners.pmp.bounded, SPEC §14), dimensionless per axis (time over t_f,
+# lengths over the axis' data scale, inputs over that scale / t_f²).
+# ------------------------------------------------------------------------------------------
+TOLERANCES.update({
+    # boundary, corner, saturation law, switching times, box, H constant between contact
+    # times: the semi-smooth Newton stops at 1e-12 and the knots integrate exactly; 1000x margin.
+    "pmp_bounded_residual": 1e-9,
+    # primal cost ½∫|u|² against the dual value D(λ) (relative to J): = λᵀF, ~1e-12 at the
+    # Newton tolerance.
+    "pmp_bounded_gap_rel": 1e-9,
+    # a physical bound holds when the exact peak is within this fraction of max(1, |bound|)
+    # beyond it (rounding of the peak evaluation only).
+    "limits_bound_rel": 1e-9,
+})
+
+
 def tol(name: str) -> float:
     """Look up a tolerance by name (KeyError names the missing entry)."""
     return TOLERANCES[name]

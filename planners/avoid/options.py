@@ -7,7 +7,7 @@ from typing import Any
 
 from iamp.core.errors import OptionError
 
-from ..qp.backends import BACKENDS
+from ..qp.backends import BACKENDS, SUPPORTS_INEQUALITIES
 from ..qp.hold import HOLDS
 from ..qp.options import CONTACTS, check_choice, check_steps
 
@@ -17,7 +17,7 @@ SAFETY_MODES = ("continuous", "nodes")
 
 def inequality_backends() -> tuple[str, ...]:
     """The registered QP backends that accept inequality rows (the avoidance QP needs them)."""
-    return tuple(name for name, cls in BACKENDS.items() if cls.supports_inequalities)
+    return tuple(name for name in BACKENDS if SUPPORTS_INEQUALITIES[name])
 
 
 def check_avoid_solver(solver: object) -> None:

@@ -21,12 +21,17 @@ class PMPOptions:
         The numba path of the ``m >= 2`` search (``None``: only if already loaded).
     diagnostics : bool
         Add the physical max-abs residuals to the plan after the clock stops.
+    certify_bounded : bool
+        With an active input box in ``problem.limits`` (SPEC §14), one vehicle: certify the
+        bounded contact-time search global (``optimal``) or say ``local``; ``False`` skips the
+        certificate (``local``, faster).
     """
 
     max_starts: int = 32
     max_boxes: int = 200_000
     compiled: bool | None = None
     diagnostics: bool = True
+    certify_bounded: bool = True
 
     def __post_init__(self) -> None:
         for name in ("max_starts", "max_boxes"):
@@ -35,5 +40,6 @@ class PMPOptions:
                 raise OptionError(f"must be a positive integer (got {value!r})", name)
         if self.compiled not in (None, True, False):
             raise OptionError(f"must be true, false or none (got {self.compiled!r})", "compiled")
-        if not isinstance(self.diagnostics, bool):
-            raise OptionError(f"must be true or false (got {self.diagnostics!r})", "diagnostics")
+        for flag in ("diagnostics", "certify_bounded"):
+            if not isinstance(getattr(self, flag), bool):
+                raise OptionError(f"must be true or false (got {getattr(self, flag)!r})", flag)

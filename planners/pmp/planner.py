@@ -116,6 +116,9 @@ class PMPPlanner:
         ``None`` (default) uses it only if it is already loaded in this process (never
         compiles), ``True`` loads it now (compiles once per machine, then numba's disk cache;
         pure path if numba is missing), ``False`` never.  Same answers either way.
+    certify_bounded : bool
+        With an active input box (SPEC §14), one vehicle: certify the bounded contact-time
+        search global (status ``optimal``) or say ``local``; ``False`` skips the certificate.
     """
 
     max_starts: int = 32
@@ -123,6 +126,7 @@ class PMPPlanner:
     kernel: Callable[..., list[float]] = one_vehicle_kernel
     compiled: bool | None = None
     diagnostics: bool = True
+    certify_bounded: bool = True
 
     def search(self, problem: Problem, S: Scaled | None = None,
                progress: Callable[[int, int], None] | None = None) -> tuple[FloatArray, float, bool, dict[str, Any]]:
@@ -164,6 +168,8 @@ class PMPPlanner:
         the contact times: the plan is then the fixed-time optimum and the Hamiltonian-jump
         condition is reported in ``info`` but not required.
         """
+        if problem.limits is not None and not problem.limits.empty:
+            return self._plan_limited(problem, contact_times, diagnostics, progress)
         if problem.m == 0:  # nothing to contact: the minimum-energy cubic, exact and self-checked
             return free_plan(problem, "pmp")
         start = _time.perf_counter()
@@ -209,6 +215,34 @@ class PMPPlanner:
                 plan.residuals = sol.residuals()
                 plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
         return plan
+
+    def _plan_limited(self, problem: Problem, contact_times: Any, diagnostics: bool | None,
+                      progress: Callable[[int, int], None] | None) -> Plan:
+        """``problem.limits`` given (SPEC §14, :mod:`~iamp.planners.pmp.bounded`).
+
+        Dispatch: the unbounded plan first (the paper's problem, unchanged).  If its inputs
+        stay in the ``ax``/``ay`` box (or no box is given), it is the bounded optimum too
+        (``J_b ≥ J_u ≥ J_u(t*) = J_b(t*)``) and is returned as it is, with the limits report;
+        otherwise the saturated PMP plans from the unbounded ``t*``.  Either way every given
+        bound is then checked with exact peaks (``limits_violated`` if one fails).
+        """
+        from iamp.planners.pmp.bounded import apply_state_limits, box_respected, plan_bounded
+
+        start = _time.perf_counter()
+        base = self.plan(problem.with_limits(None), contact_times, diagnostics, progress)
+        base.problem = problem
+        if base.status not in (OPTIMAL, LOCAL) or box_respected(base):
+            base.info["bounded"] = {"box_active": False,
+                                    "note": "the unbounded plan respects the input box, so it solves "
+                                            "the bounded problem too"} if base.trajectory is not None else {}
+            return apply_state_limits(base)
+        # no vehicle: the fixed-time problem with no contact time (strictly convex, unique)
+        fixed = contact_times if problem.m else np.empty(0)
+        plan = plan_bounded(problem, base.contact_times, fixed, start, certify=self.certify_bounded)
+        plan.info["bounded"]["box_active"] = True
+        plan.info["unbounded"] = {"status": base.status, "cost": base.cost,
+                                  "contact_times": [float(x) for x in base.contact_times]}
+        return apply_state_limits(plan)
 
     def _plan_one(self, problem: Problem, start: float, diagnostics: bool) -> Plan:
         """One vehicle: :func:`~iamp.planners.pmp.one.one_vehicle_kernel` (scalar code); the

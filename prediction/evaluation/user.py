@@ -187,7 +187,10 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
     cfg = {**DEFAULT_CONFIG, "dt": mtd.dt, "jerk_psd": float(mtd.settings.get("jerk_psd", DEFAULT_CONFIG["jerk_psd"]))}
     if mtd.edges is not None and mtd.edges.size > 1:
         cfg["width"] = float(np.diff(mtd.edges).mean())
-    fo = train_config(fo_data, cfg, order=1)
+    try:
+        fo = train_config(fo_data, cfg, order=1)
+    except ValueError as exc:
+        raise ValueError(f"the first-order baseline is trained at the model's dt: {exc}") from None
     tick()
     win = make_windows(test)
     q = float(cfg["jerk_psd"])

@@ -28,6 +28,24 @@ __all__ = ["ColumnSpec", "read_csv"]
 ColumnSpec = Sequence[tuple[str, tuple[str, ...], bool]]
 
 _CHUNK_ROWS = 200_000  # CSV rows converted to arrays at a time
+#: Longest line read [characters]: a longer one is refused as it is read (memory stays bounded;
+#: a row of the supported formats is a few hundred characters).
+MAX_LINE_CHARS = 1 << 20
+
+
+def _bounded_lines(fh: IO[str], path: Path, first_line: int = 1) -> Iterable[str]:
+    """The lines of ``fh``, refusing one longer than :data:`MAX_LINE_CHARS` before it is read whole."""
+    limit = MAX_LINE_CHARS
+    number = first_line
+    while True:
+        line = fh.readline(limit + 1)
+        if not line:
+            return
+        if len(line) > limit:
+            raise TrackDataError(f"line {number} is longer than {limit} characters: not a row of a trajectory table",
+                                 source=path)
+        yield line
+        number += 1
 
 
 def _open_text(path: Path) -> IO[str]:
@@ -43,7 +61,7 @@ def _norm(name: str) -> str:
 def _read_header(path: Path, delimiter: str | None) -> tuple[list[str], str]:
     try:
         with _open_text(path) as fh:
-            first = fh.readline()
+            first = next(iter(_bounded_lines(fh, path)), "")
     except FileNotFoundError:
         raise TrackDataError("no such file", source=path) from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -139,7 +157,7 @@ def read_csv(path: Path, spec: Sequence[tuple[str, tuple[str, ...], bool]], *, t
 
     try:
         with _open_text(path) as fh:
-            reader = csv.reader(fh, delimiter=delimiter)
+            reader = csv.reader(_bounded_lines(fh, path), delimiter=delimiter)
             next(reader)
             for row in reader:
                 if not row or (len(row) == 1 and not row[0].strip()):
@@ -241,14 +259,16 @@ def _read_fast(path: Path, header: list[str], where: dict[str, int], text: set[s
             warnings.simplefilter("ignore")  # "input contained no data": reported by the caller
             if nums:
                 with _open_text(path) as fh:
-                    data = np.loadtxt(fh, delimiter=delimiter, skiprows=1, usecols=[where[n] for n in nums],
+                    data = np.loadtxt(_bounded_lines(fh, path), delimiter=delimiter, skiprows=1,
+                                      usecols=[where[n] for n in nums],
                                       dtype=np.float64, ndmin=2, quotechar='"')
                 for k, n in enumerate(nums):
                     cols[n] = data[:, k]
             for n in where:
                 if n in text:
                     with _open_text(path) as fh:
-                        cols[n] = np.char.strip(np.loadtxt(fh, delimiter=delimiter, skiprows=1, usecols=[where[n]],
+                        cols[n] = np.char.strip(np.loadtxt(_bounded_lines(fh, path), delimiter=delimiter,
+                                                           skiprows=1, usecols=[where[n]],
                                                            dtype=str, ndmin=1, quotechar='"'))
     except ValueError:
         return None

@@ -10,7 +10,8 @@ Supported sources
     whitespace-separated ``.txt`` (:mod:`~iamp.prediction.loaders.ngsim`).
 ``sumo``
     Eclipse SUMO floating-car-data output (``--fcd-output``), XML (optionally gzipped) or
-    the ``;``-separated CSV written by SUMO itself or by ``xml2csv.py``.
+    the ``;``-separated CSV written by SUMO itself or by ``xml2csv.py``; also iamp's own
+    ``iamp simulate --log`` (recognised by its header; :mod:`~iamp.prediction.loaders.iamplog`).
 
 Every loader returns positions of the vehicle *centre*, increasing in the driving direction,
 in metres, speeds in m/s and accelerations in m/s², and records what it converted in

@@ -11,6 +11,7 @@ import numpy as np
 
 from iamp.prediction.tracks.table import TrackDataError, Tracks
 
+from . import plausibility
 from .csv import _integers, _path, _segments, duplicate_rows, read_csv
 from .report import LoadReport
 
@@ -111,6 +112,8 @@ def load_highd(tracks_csv: str | os.PathLike[str], tracks_meta_csv: str | os.Pat
                 meta[{"id": "recording_id"}.get(key, key)] = int(val) if val == int(val) else val
     else:
         meta["frame_rate_source"] = f"default ({HIGHD_DEFAULT_FRAME_RATE:g} Hz, no recordingMeta)"
+        report.note(f"no XX_recordingMeta.csv beside the tracks file: the frame rate {HIGHD_DEFAULT_FRAME_RATE:g} Hz "
+                    "(highD's) was assumed")
     meta["frame_rate"] = frame_rate
 
     # driving direction per vehicle
@@ -180,4 +183,5 @@ def load_highd(tracks_csv: str | os.PathLike[str], tracks_meta_csv: str | os.Pat
     meta["lateral"] = "y + height/2 (centre), mirrored like x" if y is not None else "no y/height columns"
     meta["load_report"] = report.to_dict()
     report.check()
-    return Tracks(track_id, t, x, v, a, lane, 1.0 / frame_rate, meta, y)
+    tracks = Tracks(track_id, t, x, v, a, lane, 1.0 / frame_rate, meta, y)
+    return plausibility.apply(tracks, path, "metres (highD)", report)

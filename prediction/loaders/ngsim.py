@@ -37,6 +37,7 @@ import numpy as np
 from iamp.prediction._typing import Array, FloatArray, IntArray
 from iamp.prediction.tracks.table import TrackDataError, Tracks
 
+from . import plausibility
 from .csv import _integers, _open_text, _path, _segments, duplicate_rows, read_csv
 from .report import LoadReport
 
@@ -195,15 +196,23 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
                     + (f" (Global_Time is 0 in {zeros} of {loc_code.size} rows)" if zeros else ""))
     vid = _integers(cols.pop("Vehicle_ID"), "Vehicle_ID", path)
     frame = _integers(cols.pop("Frame_ID"), "Frame_ID", path)
-    order = np.lexsort((cols.pop("__line__"), frame, vid, loc_code))
+    file_line = cols.pop("__line__")
+    order = np.lexsort((file_line, frame, vid, loc_code))
     loc_code, vid, frame = loc_code[order], vid[order], frame[order]
+    same_vehicle = (np.diff(loc_code) == 0) & (np.diff(vid) == 0)
+    unordered = int(np.sum(same_vehicle & (np.diff(file_line[order]) < 0)))
+    if unordered:
+        report.note(f"{unordered} row(s) of a vehicle came before an earlier Frame_ID in the file (frames swapped or "
+                    "reversed): rows were put in Frame_ID order")
+    file_line = file_line[order]
+    del same_vehicle
     vals = {k: cols.pop(k)[order] for k in _VALUES if k in cols}
     del cols, order
 
     # duplicates of the key (the first row in file order is kept)
     same_key = (np.diff(loc_code) == 0) & (np.diff(vid) == 0) & (np.diff(frame) == 0)
     keep = duplicate_rows(same_key, list(vals.values()), report)
-    loc_code, vid, frame = loc_code[keep], vid[keep], frame[keep]
+    loc_code, vid, frame, file_line = loc_code[keep], vid[keep], frame[keep], file_line[keep]
     vals = {k: v[keep] for k, v in vals.items()}
     lane = _integers(vals["Lane_ID"], "Lane_ID", path)
     report.rows_kept = int(loc_code.size)
@@ -235,8 +244,9 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
     meta["load_report"] = report.to_dict()
     report.check()
     y_lat = vals["Local_X"] * FEET if "Local_X" in vals else None
-    return Tracks(seg, frame * NGSIM_FRAME_PERIOD, centre * FEET, vals["v_Vel"] * FEET, vals["v_Acc"] * FEET, lane,
-                  NGSIM_FRAME_PERIOD, meta, y_lat)
+    tracks = Tracks(seg, frame * NGSIM_FRAME_PERIOD, centre * FEET, vals["v_Vel"] * FEET, vals["v_Acc"] * FEET, lane,
+                    NGSIM_FRAME_PERIOD, meta, y_lat)
+    return plausibility.apply(tracks, path, "feet (NGSIM), converted to metres", report, lines=file_line)
 
 
 def _vehicle_lengths(length: FloatArray | None, vstart: IntArray, n: int) -> FloatArray:

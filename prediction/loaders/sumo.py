@@ -16,7 +16,9 @@ import numpy as np
 from iamp.prediction._typing import Array
 from iamp.prediction.tracks.table import TrackDataError, Tracks
 
+from . import plausibility
 from .csv import _open_text, _path, duplicate_rows, read_csv
+from .iamplog import is_iamp_log, load_iamp_log
 from .report import LoadReport
 
 __all__ = ["SUMO_DEFAULT_LENGTH", "load_sumo_fcd"]
@@ -187,6 +189,9 @@ def load_sumo_fcd(path: str | os.PathLike[str], *, lengths: Mapping[str, float] 
         along the lane, ``pos − L/2``; it restarts on every edge, so a track is split where
         ``pos`` decreases (use it only for a road that is one edge).
 
+    A CSV with the header of ``iamp simulate --log`` is read as that log
+    (:mod:`~iamp.prediction.loaders.iamplog`: the traffic, without the ego).
+
     Acceleration is SUMO's ``acceleration`` attribute when present (``--fcd-output.acceleration``),
     else the backward difference of speed, SUMO's own definition.  Lanes are SUMO lane indices
     (``<edge>_<index>``, 0 = rightmost); on internal junction lanes (``:...``) the previous lane
@@ -199,6 +204,8 @@ def load_sumo_fcd(path: str | os.PathLike[str], *, lengths: Mapping[str, float] 
         raise TrackDataError(f"coordinate must be 'x' or 'pos', got {coordinate!r}")
     if not (default_length > 0 and math.isfinite(default_length)):
         raise TrackDataError(f"default_length must be positive, got {default_length}")
+    if not _is_xml(path) and is_iamp_log(path):  # iamp's own `simulate --log` of SUMO traffic
+        return load_iamp_log(path)
     if _is_xml(path):
         cols, vtype_len = _read_fcd_xml(path, coordinate)
         fmt = "xml"
@@ -322,4 +329,5 @@ def load_sumo_fcd(path: str | os.PathLike[str], *, lengths: Mapping[str, float] 
         report.note(f"{starts.size - names.size} track split(s) at missing time steps (no row dropped)")
     meta["load_report"] = report.to_dict()
     report.check()
-    return Tracks(seg, time, pos, speed, acc, lane, dt, meta, y_lat)
+    tracks = Tracks(seg, time, pos, speed, acc, lane, dt, meta, y_lat)
+    return plausibility.apply(tracks, path, "metres (SUMO)", report)

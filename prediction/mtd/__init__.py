@@ -96,6 +96,8 @@ Modules: :mod:`~iamp.prediction.mtd.counts` (lag tables, counts, AIC/BIC),
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from iamp.core.atomic import write_text as atomic_write_text
 
 from .counts import (
@@ -106,8 +108,20 @@ from .counts import (
     lag_table,
     n_parameters,
 )
-from .estimation import ESTIMATORS, fit, sample_sequence
 from .model import FORMAT, ModelFileError, MTDModel, readonly_array
+
+if TYPE_CHECKING:
+    from .estimation import ESTIMATORS, fit, sample_sequence
+
+
+def __getattr__(name: str) -> Any:
+    """The estimators on first use: they import :mod:`scipy.optimize` (~0.5 s of start-up that
+    prediction with a trained model does not need; issue 22 item 10)."""
+    if name in ("ESTIMATORS", "fit", "sample_sequence"):
+        from . import estimation
+
+        return getattr(estimation, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "ESTIMATORS",

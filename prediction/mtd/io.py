@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +71,7 @@ def model_from_dict(d: Any, source: str | None = None) -> MTDModel:
     for key in ("Q", "lambda", "order"):
         if key not in d:
             raise ModelFileError("is missing", key, source)
+    _check_types(d, source)
     bins = d.get("bins") or {}
     try:
         model = MTDModel(Q=d["Q"], lam=d["lambda"], estimator=str(d.get("estimator", "given")),
@@ -80,9 +82,47 @@ def model_from_dict(d: Any, source: str | None = None) -> MTDModel:
                     fit_info=d.get("fit_info") or {})
     except (ValueError, TypeError) as exc:
         raise ModelFileError(str(exc), None, source) from None
-    if model.order != int(d["order"]):
+    if model.order != d["order"]:
         raise ModelFileError(f"says {d['order']} but Q has {model.order} lags", "order", source)
+    if "n_states" in d and d["n_states"] != model.n_states:
+        raise ModelFileError(f"says {d['n_states']} but Q is {model.n_states} x {model.n_states} per lag",
+                             "n_states", source)
     return model
+
+
+def _is_int(x: Any) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _check_types(d: dict[str, Any], source: str | None) -> None:
+    """The scalar keys have their JSON types: ``order`` and ``n_states`` integers (``4.5`` or
+    ``"4"`` are refused, not truncated or parsed), ``dt`` a number or null, ``n_obs`` an integer,
+    ``loglik`` a number or null."""
+    for key, ok, what in (("order", _is_int, "an integer"), ("n_states", _is_int, "an integer"),
+                          ("n_obs", _is_int, "an integer"), ("dt", _is_number, "a number of seconds"),
+                          ("loglik", _is_number, "a number")):
+        if key in d and not (d[key] is None and key in ("dt", "loglik")) and not ok(d[key]):
+            raise ModelFileError(f"must be {what} (got {json.dumps(d[key])[:60]})", key, source)
+    raw_bins = d.get("bins")
+    bins: dict[str, Any] = raw_bins if isinstance(raw_bins, dict) else {}
+    for key, value in (("Q", d["Q"]), ("lambda", d["lambda"]), ("counts", d.get("counts")),
+                       ("bins.edges", bins.get("edges")), ("bins.centres", bins.get("centres"))):
+        if value is None and key != "Q" and key != "lambda":
+            continue
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                arr = np.asarray(value, dtype=float)
+        except (ValueError, TypeError):
+            raise ModelFileError("must be (nested lists of) numbers of one shape", key, source) from None
+        if not np.all(np.isfinite(arr)):
+            raise ModelFileError("must hold finite numbers only", key, source)
+    if d["order"] < 1:
+        raise ModelFileError(f"must be at least 1 (got {d['order']})", "order", source)
 
 def load_model(path: Any) -> MTDModel:
     """Read a model written by :meth:`save`; raises :class:`ModelFileError`."""
@@ -90,7 +130,8 @@ def load_model(path: Any) -> MTDModel:
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ModelFileError(f"cannot be read ({exc.__class__.__name__}: {exc})", None, str(path)) from None
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else "not UTF-8 text"
+        raise ModelFileError(f"cannot be read ({why})", None, str(path)) from None
     try:
         d = json.loads(text)
     except json.JSONDecodeError as exc:

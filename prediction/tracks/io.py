@@ -84,7 +84,7 @@ def load_tracks(path: str | os.PathLike[str]) -> Tracks:
     except FileNotFoundError:
         raise TrackDataError("no such file", source=path) from None
     except Exception as exc:
-        raise TrackDataError(f"not a tracks .npz file ({type(exc).__name__}: {exc})", source=path) from None
+        raise TrackDataError(f"not a tracks .npz file ({exc})", source=path) from None
     with npz:
         names = set(npz.files)
         for key in ("header", "meta", *_COLUMNS):

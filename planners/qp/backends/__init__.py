@@ -32,21 +32,56 @@ is requested.  ``kkt`` refuses rows with ``l < u`` with
 
 from __future__ import annotations
 
+import importlib
+from collections.abc import Iterator, Mapping
+from typing import TYPE_CHECKING, Any
+
 from iamp.core.errors import OptionError
 
-from .base import KKTResiduals, QPBackend, QPSolution, UnsupportedProblemError, kkt_residuals
-from .clarabel import ClarabelBackend
-from .kkt import KKTBackend
-from .osqp import OSQPBackend
-from .piqp import PIQPBackend
+if TYPE_CHECKING:
+    from .base import KKTResiduals, QPBackend, QPSolution, UnsupportedProblemError, kkt_residuals
+
+#: name -> (module, class); the classes are imported on first use (issue 22 item 10: every
+#: ``iamp`` command builds the parser that names the backends, and the backends import
+#: scipy.sparse, the solvers' packages and the KKT's symbolic analysis).
+_CLASSES = {"osqp": ("osqp", "OSQPBackend"), "clarabel": ("clarabel", "ClarabelBackend"),
+            "piqp": ("piqp", "PIQPBackend"), "kkt": ("kkt", "KKTBackend")}
+
+#: Which backends accept inequality rows (``cls.supports_inequalities``, without importing them;
+#: tests/test_issue22.py checks the two agree).
+SUPPORTS_INEQUALITIES = {"osqp": True, "clarabel": True, "piqp": True, "kkt": False}
+
+
+class _Backends(Mapping[str, "type[QPBackend]"]):
+    """A read-only name -> class mapping that imports a backend's module when it is looked up."""
+
+    def __getitem__(self, name: str) -> type[QPBackend]:
+        module, cls = _CLASSES[name]
+        backend: type[QPBackend] = getattr(importlib.import_module(f"{__name__}.{module}"), cls)
+        return backend
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(_CLASSES)
+
+    def __len__(self) -> int:
+        return len(_CLASSES)
+
+    def __repr__(self) -> str:
+        return f"BACKENDS({', '.join(_CLASSES)})"
+
 
 #: name -> backend class, all with the signature ``cls(P, q, A, l, u, settings=None)``.
-BACKENDS: dict[str, type[QPBackend]] = {
-    "osqp": OSQPBackend,
-    "clarabel": ClarabelBackend,
-    "piqp": PIQPBackend,
-    "kkt": KKTBackend,
-}
+BACKENDS: Mapping[str, type[QPBackend]] = _Backends()
+
+
+def __getattr__(name: str) -> Any:
+    """The base module's names on first use (it imports scipy.sparse)."""
+    if name in ("KKTResiduals", "QPBackend", "QPSolution", "UnsupportedProblemError", "kkt_residuals"):
+        from . import base
+
+        return getattr(base, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 #: The backends that iterate (measured against ``kkt``).
 ITERATIVE = ("osqp", "clarabel", "piqp")

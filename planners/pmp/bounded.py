@@ -1,0 +1,969 @@
+r"""The bounded PMP: the input box ``ax``/``ay`` imposed exactly (SPEC §14).
+
+**Conditions.**  With :math:`H = \tfrac12|u|^2 + p_1v_x + p_2u_x + p_3v_y + p_4u_y` and the
+box :math:`u_x\in[\ell_x,h_x]`, :math:`u_y\in[\ell_y,h_y]`, the minimum principle gives, per
+axis (``p_v`` = ``p2`` or ``p4``, ``p_s`` = ``p1`` or ``p3``):
+
+1. *co-states*: :math:`\dot p_s = 0,\ \dot p_v = -p_s` between contact times, so ``p_v`` is
+   linear there: :math:`-p_v(t) = w(t) = a + bt - \sum_i\Phi_i(t-t_i)_+`;
+2. *saturated law* (minimising ``H`` over the box): :math:`u = \operatorname{clip}(-p_v,\ell,h)`;
+3. *switching times* :math:`\theta`: the roots of :math:`-p_v(\theta) = \ell` or
+   :math:`= h`; ``u`` is continuous, linear between contact and switching times, constant
+   (= the bound) where saturated;
+4. *boundary conditions*: :math:`s(0)=s_0, v(0)=v_0, s(t_f)=s_f, v(t_f)=v_f`;
+5. *interior points*: :math:`s_x(t_i) = x_{s,i}(t_i) \pm (L_i/2+S_{x,i})`,
+   :math:`s_y(t_i) = y_{s,i}\pm(W_i/2+S_{y,i})`;
+6. *co-state jumps*: :math:`p_s^-(t_i) = p_s^+(t_i) + \Phi_i`, ``p_v`` continuous;
+7. *Hamiltonian jump* (free contact times):
+   :math:`H^-(t_i) - H^+(t_i) - \dot x_{s,i}(t_i)\Phi_{i,x} = 0`.
+
+For fixed contact times, 1–6 are the optimality conditions of a strictly convex problem per
+axis (:mod:`~iamp.planners.pmp.saturated` solves them by a semi-smooth Newton method on the
+concave dual).  Condition 7 is still :math:`\partial J/\partial t_i`: by the envelope theorem
+on the dual :math:`J(t) = \max_\lambda D(\lambda; t)`,
+
+.. math::  \frac{\partial J}{\partial t_i} = \sum_{\text{axis}} \lambda_i(\dot c_i - \dot s(t_i))
+           = \sum_{\text{axis}} \Phi_i\,(v(t_i) - \dot c_i) = H^- - H^+ - \dot x_{s,i}\Phi_{i,x},
+
+because only ``p_s`` jumps (``u``, ``p_v``, ``v`` are continuous), so
+:math:`H^- - H^+ = \Phi_{i,x}v_x + \Phi_{i,y}v_y` with or without saturation (tested by finite
+differences).  Along an extremal ``H`` is constant between contact times (the law is
+autonomous), a further check of the switching structure.
+
+**Contact times.**  The free times minimise :math:`J_b(t) = J_x(t) + J_y(t)`:
+
+* if the unbounded global optimum (:class:`~iamp.planners.pmp.PMPPlanner`) respects the box,
+  it is the bounded optimum too (:math:`J_b \ge J_u \ge J_u(t^*) = J_b(t^*)`): the unbounded
+  plan is returned unchanged and stays ``optimal`` (certified global);
+* otherwise a grid over :math:`(0,t_f)^m` (one vehicle: 16 points; two: 8×8) plus the
+  unbounded ``t*`` as starts, then a polish on :math:`\partial J/\partial t = r(t)` (Brent's
+  root on ``r`` for one vehicle, L-BFGS-B with the exact gradient ``r`` and a damped Newton
+  polish otherwise).  One vehicle: :func:`certify_global_one` covers ``(0, t_f)`` with
+  intervals on which a weak-duality Taylor bound (or a Farkas margin) stays above
+  :math:`J^*(1 - 10^{-9})`; certified, the plan is ``optimal``, otherwise ``local``.  Several
+  vehicles: ``local`` (no certificate).
+  Caller-given contact times give the fixed-time optimum, which is unique (strictly convex
+  problem): ``optimal``.
+
+**Self-check** (:func:`check_values`, tolerances ``pmp_bounded_*`` of
+:mod:`iamp.core.tolerances`), every value dimensionless (time over ``t_f``, lengths over the
+axis' data scale): boundary, corners (states integrated from the knots, independent of the
+dual's integrals), saturation law at every knot and piece midpoint (``u`` against
+``clip(−p_v)`` with ``p_v`` from ``a, b, Φ``), switching consistency (``−p_v(θ)`` = the bound),
+the box, ``H`` constant between contact times, the Hamiltonian jump (free times), and the
+duality gap (primal cost = dual value).
+
+**Bounds the PMP cannot impose** (``vx``, ``y``, ``a_total``, ``jerk``) are checked on the
+plan with exact peaks (:func:`exact_peaks`): satisfied, the plan is optimal for the bounded
+problem too (``info["limits_note"]``); violated, status ``limits_violated`` with the peaks.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+from iamp.core.status import INACCURATE, INFEASIBLE, LIMITS_VIOLATED, LOCAL, NUMERICAL_ERROR, OPTIMAL
+from iamp.core.tolerances import TOLERANCES
+from iamp.planners.pmp.saturated import AxisInfeasible, AxisNoConvergence, AxisSolution, solve_axis
+
+FloatArray = npt.NDArray[np.float64]
+INF = math.inf
+
+#: Grid points of the one-vehicle contact-time search (the starts of Brent's polish).
+GRID_ONE = 16
+
+#: The tolerance entry of each check of :func:`check_values`.
+BOUNDED_TOLERANCE_OF = {
+    "boundary": "pmp_bounded_residual",
+    "corner": "pmp_bounded_residual",
+    "saturation_law": "pmp_bounded_residual",
+    "switching": "pmp_bounded_residual",
+    "box": "pmp_bounded_residual",
+    "hamiltonian_constant": "pmp_bounded_residual",
+    "hamiltonian_jump": "pmp_hjump_rel",
+    "duality_gap": "pmp_bounded_gap_rel",
+}
+
+
+def input_box(problem: Problem) -> tuple[tuple[float, float], tuple[float, float]]:
+    """``((ℓ_x, h_x), (ℓ_y, h_y))`` of ``problem.limits`` (``±inf`` where not given)."""
+    lim = problem.limits
+    bx = lim.ax if lim is not None and lim.ax is not None else (-INF, INF)
+    by = lim.ay if lim is not None and lim.ay is not None else (-INF, INF)
+    return (float(bx[0]), float(bx[1])), (float(by[0]), float(by[1]))
+
+
+@dataclass
+class BoundedSolution:
+    """The saturated PMP solution at fixed contact times (both axes).
+
+    ``axes[0]`` is x, ``axes[1]`` is y (:class:`~iamp.planners.pmp.saturated.AxisSolution`):
+    knots (contact and switching times), ``u`` at the knots, ``a``, ``b`` and the jumps of
+    ``w = −p_v``.  States are integrated exactly from the knots.
+    """
+
+    problem: Problem
+    contact_times: FloatArray
+    axes: tuple[AxisSolution, AxisSolution]
+
+    def __post_init__(self) -> None:
+        ego = self.problem.ego
+        self._sv: list[tuple[list[float], list[float]]] = []
+        for k, (s0, v0) in enumerate(((ego.x0, ego.vx0), (ego.y0, ego.vy0))):
+            ax = self.axes[k]
+            s, v = [s0], [v0]
+            for j in range(len(ax.knots) - 1):
+                h = ax.knots[j + 1] - ax.knots[j]
+                ua, ub = ax.u[j], ax.u[j + 1]
+                s.append(s[-1] + h * v[-1] + h * h * (ua / 3 + ub / 6))
+                v.append(v[-1] + h / 2 * (ua + ub))
+            self._sv.append((s, v))
+
+    @property
+    def jumps(self) -> FloatArray:
+        """``(Φ_i,x, Φ_i,y)`` per vehicle."""
+        return np.array([[jx, jy] for jx, jy in zip(self.axes[0].jumps, self.axes[1].jumps)],
+                        dtype=float).reshape(-1, 2)
+
+    @property
+    def cost(self) -> float:
+        """``J = ½∫|u|²`` (exact, from the knots)."""
+        total = 0.0
+        for ax in self.axes:
+            for j in range(len(ax.knots) - 1):
+                h = ax.knots[j + 1] - ax.knots[j]
+                ua, ub = ax.u[j], ax.u[j + 1]
+                total += h / 6 * (ua * ua + ua * ub + ub * ub)
+        return total
+
+    def _axis_eval(self, k: int, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        ax = self.axes[k]
+        s, v = self._sv[k]
+        kn = np.asarray(ax.knots)
+        j = np.clip(np.searchsorted(kn, t, side="right") - 1, 0, len(kn) - 2)
+        h = kn[j + 1] - kn[j]
+        d = t - kn[j]
+        U = np.asarray(ax.u)
+        slope = (U[j + 1] - U[j]) / np.where(h > 0, h, 1.0)
+        ua = U[j]
+        u = ua + slope * d
+        vv = np.asarray(v)[j] + ua * d + slope * d * d / 2
+        ss = np.asarray(s)[j] + np.asarray(v)[j] * d + ua * d * d / 2 + slope * d**3 / 6
+        return ss, vv, u
+
+    def states(self, t: Any) -> FloatArray:
+        """``(s_x, v_x, s_y, v_y)`` at ``t`` → ``(len(t), 4)``."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        sx, vx, _ = self._axis_eval(0, t)
+        sy, vy, _ = self._axis_eval(1, t)
+        return np.stack([sx, vx, sy, vy], axis=1)
+
+    def inputs(self, t: Any) -> FloatArray:
+        """``(u_x, u_y)`` at ``t`` → ``(len(t), 2)``."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return np.stack([self._axis_eval(0, t)[2], self._axis_eval(1, t)[2]], axis=1)
+
+    def w(self, k: int, t: FloatArray) -> FloatArray:
+        """``w = −p_v`` of axis ``k`` from ``a, b, Φ`` (not from the knots)."""
+        ax = self.axes[k]
+        ramps = np.maximum(t[:, None] - self.contact_times[None, :], 0.0)
+        out: FloatArray = ax.a + ax.b * t - ramps @ np.asarray(ax.jumps)
+        return out
+
+    def costates(self, t: Any, side: str = "right") -> FloatArray:
+        """``(p1, p2, p3, p4)`` at ``t`` (``side``: the one-sided limit of ``p1, p3`` at a contact time)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        d = t[:, None] - self.contact_times[None, :]
+        step = (d > 0).astype(float) if side == "left" else (d >= 0).astype(float)
+        cols = []
+        for k in range(2):
+            ax = self.axes[k]
+            cols += [ax.b - step @ np.asarray(ax.jumps), -self.w(k, t)]
+        return np.stack(cols, axis=1)
+
+    def hamiltonian(self, t: Any, side: str = "right") -> FloatArray:
+        """``H = ½|u|² + p1 v_x + p2 u_x + p3 v_y + p4 u_y``."""
+        X, U, p = self.states(t), self.inputs(t), self.costates(t, side)
+        out: FloatArray = (0.5 * np.sum(U**2, axis=1) + p[:, 0] * X[:, 1] + p[:, 1] * U[:, 0]
+                           + p[:, 2] * X[:, 3] + p[:, 3] * U[:, 1])
+        return out
+
+    def hamiltonian_jump_terms(self) -> tuple[FloatArray, FloatArray]:
+        """``(r, size)``: ``r_i = H⁻ − H⁺ − ẋ_s,i Φ_i,x`` (= ``∂J/∂t_i``) and the size of its terms."""
+        t = self.contact_times
+        xdot = np.array([float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, t)])
+        X = self.states(t)
+        J = self.jumps
+        r: FloatArray = self.hamiltonian(t, "left") - self.hamiltonian(t, "right") - xdot * J[:, 0]
+        size = np.abs(J[:, 0]) * (np.abs(X[:, 1]) + np.abs(xdot)) + np.abs(J[:, 1]) * np.abs(X[:, 3])
+        return r, size
+
+    def hamiltonian_jump_residual(self) -> FloatArray:
+        """``r_i`` (= ``∂J/∂t_i``, SPEC §2 identity 1, with the saturated law)."""
+        return self.hamiltonian_jump_terms()[0]
+
+    def switching_times(self) -> dict[str, list[float]]:
+        """Switching times per axis (``"x"``, ``"y"``)."""
+        return {name: [s[0] for s in ax.switching] for name, ax in zip("xy", self.axes)}
+
+    def knots(self) -> list[float]:
+        """Every time where ``u_x`` or ``u_y`` may kink (sorted, with ``0`` and ``t_f``)."""
+        return sorted(set(self.axes[0].knots) | set(self.axes[1].knots))
+
+    def breakpoints(self) -> list[float]:
+        """The piece ends of the exact polynomial pieces (:mod:`iamp.core.trajectory_pieces`):
+        the knots, since ``u`` is linear and the position cubic between them."""
+        return self.knots()
+
+
+def solve_bounded_fixed(problem: Problem, contact_times: Any, warm: list[list[float] | None] | None = None
+                        ) -> BoundedSolution:
+    """The saturated optimum at fixed contact times (both axes; :func:`solve_axis`).
+
+    Raises :class:`~iamp.planners.pmp.saturated.AxisInfeasible` (with the axis in its
+    message) or :class:`~iamp.planners.pmp.saturated.AxisNoConvergence`."""
+    t = [float(x) for x in np.asarray(contact_times, dtype=float).reshape(-1)]
+    ego = problem.ego
+    T = float(problem.tf)
+    C = problem.corners(np.asarray(t)).reshape(-1, 2)
+    (lx, hx), (ly, hy) = input_box(problem)
+    warm = warm or [None, None]
+    axes = []
+    for k, (s0, v0, sf, vf, lo, hi) in enumerate(((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx),
+                                                   (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))):
+        try:
+            axes.append(solve_axis(t, T, s0, v0, sf, vf, [float(c) for c in C[:, k]], lo, hi, warm[k]))
+        except AxisInfeasible as exc:
+            raise AxisInfeasible(f"{'xy'[k]} axis: {exc}", exc.certificate, exc.margin) from None
+    return BoundedSolution(problem, np.asarray(t, dtype=float), (axes[0], axes[1]))
+
+
+def boundary_feasible(problem: Problem) -> str | None:
+    """``None`` if the box can meet the boundary conditions alone, else the reason (a
+    Farkas certificate checked exactly, per axis)."""
+    ego = problem.ego
+    (lx, hx), (ly, hy) = input_box(problem)
+    for name, (s0, v0, sf, vf, lo, hi) in (("x", (ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx)),
+                                           ("y", (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))):
+        try:
+            solve_axis([], float(problem.tf), s0, v0, sf, vf, [], lo, hi)
+        except AxisInfeasible as exc:
+            return (f"the {name} boundary conditions are out of reach with u_{name} in [{lo:g}, {hi:g}] "
+                    f"m/s² over t_f = {problem.tf:g} s ({exc})")
+        except AxisNoConvergence:
+            continue
+    return None
+
+
+def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, FloatArray | None, int]:
+    r"""Is the box infeasible for *every* choice of contact times in ``(0, t_f)^m``?
+
+    Returns ``(certified, feasible_t, boxes)``.  ``(0, t_f)^m`` is covered by boxes (32
+    intervals for one vehicle, an 8×8 grid for two, 4 per axis beyond); at the centre ``t`` of
+    each, an axis whose fixed-time problem is infeasible gives a Farkas certificate
+    :math:`\lambda` with margin :math:`M(t) = \lambda^\top d(t) - \sigma_t(\lambda) > 0`
+    (physical units).  Moving contact time ``i`` changes only its ramp :math:`(t_i-\tau)_+`
+    and :math:`d_i(t_i) = c_i(t_i) - s_0 - v_0 t_i`, so with the same :math:`\lambda`
+
+    .. math::  |M(t') - M(t)| \le \sum_i |t_i'-t_i|\,|\lambda_i|\,\big(\max|\dot c_i| + |v_0|
+               + \max(|\ell|, |h|)\,t_f\big),
+
+    (:math:`|\partial\sigma/\partial t_i| \le \max(|\ell|,|h|)|\lambda_i| t_f`); a box of
+    half-widths ``δ_i`` with :math:`M(t) > \sum_i δ_i|\lambda_i|L_i` is infeasible throughout,
+    otherwise it is halved along its longest side.  A centre where both axes are feasible ends
+    the search (``feasible_t``); so does the budget ``max_solves`` (``certified`` False).
+    """
+    m = problem.m
+    ego = problem.ego
+    T = float(problem.tf)
+    (lx, hx), (ly, hy) = input_box(problem)
+    axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
+    cdot_max = []
+    for veh in problem.vehicles:
+        deriv = [k * c for k, c in enumerate(veh.x_poly)][1:]
+        cdot_max.append(sum(abs(c) * T**k for k, c in enumerate(deriv)))
+    lip = []
+    for k, (_, v0, _, _, lo, hi) in enumerate(axes_data):
+        finite = math.isfinite(lo) and math.isfinite(hi)
+        lip.append([((cdot_max[i] if k == 0 else 0.0) + abs(v0) + max(abs(lo), abs(hi)) * T) if finite else INF
+                    for i in range(m)])
+    per_axis = 32 if m == 1 else 8 if m == 2 else 4
+    edges = [T * j / per_axis for j in range(per_axis + 1)]
+    stack: deque[tuple[FloatArray, FloatArray]] = deque()  # breadth first: a feasible region shows early
+    for idx in np.ndindex(*([per_axis] * m)):
+        stack.append((np.array([edges[j] for j in idx]), np.array([edges[j + 1] for j in idx])))
+    solves = boxes = 0
+    while stack:
+        a, b = stack.popleft()
+        t = 0.5 * (a + b)
+        half = 0.5 * (b - a)
+        times = [float(x) for x in t]
+        C = problem.corners(t)
+        covered = False
+        if len(set(times)) == m:
+            for k, (s0, v0, sf, vf, lo, hi) in enumerate(axes_data):
+                solves += 1
+                try:
+                    solve_axis(times, T, s0, v0, sf, vf, [float(c) for c in C[:, k]], lo, hi)
+                except AxisInfeasible as exc:
+                    if exc.lam_phys is None or exc.margin_phys is None:
+                        continue
+                    rate = sum(half[i] * abs(exc.lam_phys[i]) * lip[k][i] for i in range(m))
+                    if exc.margin_phys > rate * (1 + 1e-9):
+                        covered = True
+                        break
+                    continue
+                except AxisNoConvergence:
+                    continue
+            if covered:
+                boxes += 1
+                continue
+            # both axes feasible at t?
+            try:
+                solve_bounded_fixed(problem, t)
+                return False, t, boxes
+            except (AxisInfeasible, AxisNoConvergence):
+                pass
+        if solves > max_solves or float(np.max(b - a)) < 1e-9 * T:
+            return False, None, boxes
+        i = int(np.argmax(b - a))
+        mid_b, mid_a = b.copy(), a.copy()
+        mid_b[i] = mid_a[i] = t[i]
+        stack += [(a, mid_b), (mid_a, b)]
+    return True, None, boxes
+
+
+class _IntervalBound:
+    """The data of :func:`interval_bound` for one problem (one vehicle)."""
+
+    def __init__(self, problem: Problem):
+        ego, veh = problem.ego, problem.vehicles[0]
+        self.problem, self.veh, self.T = problem, veh, float(problem.tf)
+        T = self.T
+        (lx, hx), (ly, hy) = input_box(problem)
+        d1 = [k * c for k, c in enumerate(veh.x_poly)][1:]
+        d2 = [k * c for k, c in enumerate(d1)][1:]
+        cdot_max = sum(abs(c) * T**k for k, c in enumerate(d1))
+        self.cddot_max = (sum(abs(c) * T**k for k, c in enumerate(d2)), 0.0)
+        self.axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
+        self.lip_rate = tuple(cd + abs(v0) + max(abs(lo), abs(hi)) * T
+                              if math.isfinite(lo) and math.isfinite(hi) else INF
+                              for cd, (_, v0, _, _, lo, hi) in zip((cdot_max, 0.0), self.axes_data))
+
+    def __call__(self, a: float, b: float, warm: list[list[float] | None]
+                 ) -> tuple[str, float, list[list[float] | None], int]:
+        """``(kind, value, multipliers, solves)`` on ``[a, b]``: ``("bound", B)`` with
+        :math:`J_b \\ge B` on the interval, ``("infeasible", margin)`` when a Farkas margin
+        covers it, ``("unknown", nan)`` when an axis is infeasible without enough margin or
+        its solve stalls."""
+        T, veh = self.T, self.veh
+        t, delta = 0.5 * (a + b), 0.5 * (b - a)
+        C = self.problem.corners(np.array([t]))
+        cdot = (float(veh.speed(t)), 0.0)
+        dual = slope = M = 0.0
+        lams: list[list[float] | None] = [None, None]
+        solves = 0
+        for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.axes_data):
+            solves += 1
+            try:
+                sol = solve_axis([t], T, s0, v0, sf, vf, [float(C[0, k])], lo, hi, warm[k])
+            except AxisInfeasible as exc:
+                if exc.lam_phys is not None and exc.margin_phys is not None:
+                    rate = delta * abs(exc.lam_phys[0]) * self.lip_rate[k]
+                    if exc.margin_phys > rate * (1 + 1e-9):
+                        return "infeasible", exc.margin_phys - rate, lams, solves
+                return "unknown", math.nan, lams, solves
+            except AxisNoConvergence:
+                return "unknown", math.nan, lams, solves
+            phi = abs(sol.jumps[0])
+            ends = [sol.a + sol.b * x - sol.jumps[0] * (x - t) for x in (a, b)]
+            u_max = min(max(abs(lo), abs(hi)), max(abs(e) for e in ends))
+            dual += sol.dual
+            slope += sol.jumps[0] * (sol.contact_speeds[0] - cdot[k])
+            M += phi * (self.cddot_max[k] + u_max + phi * b)
+            lams[k] = sol.lam
+        # the axes' expansions add up: the slope is r(t) (zero at a stationary t)
+        return "bound", dual - abs(slope) * delta - 0.5 * M * delta * delta, lams, solves
+
+
+def interval_bound(problem: Problem, a: float, b: float) -> tuple[str, float]:
+    """A lower bound of :math:`J_b` on the contact-time interval ``[a, b]`` (one vehicle;
+    :func:`certify_global_one`): ``("bound", B)``, ``("infeasible", margin)`` or
+    ``("unknown", nan)``."""
+    kind, value, _, _ = _IntervalBound(problem)(a, b, [None, None])
+    return kind, value
+
+
+def certify_global_one(problem: Problem, J_best: float, rel: float | None = None, max_solves: int = 3000
+                       ) -> dict[str, Any]:
+    r"""One vehicle: is ``J_best`` the global minimum of :math:`J_b(t)` over ``(0, t_f)`` to the
+    relative accuracy ``rel`` (default ``pmp_global_certificate_rel``)?
+
+    **Bound.** For one axis at a contact time :math:`t` with dual optimum :math:`\bar\lambda`,
+    weak duality gives :math:`J(t') \ge D(\bar\lambda; t')` for *every* :math:`t'`.  At fixed
+    :math:`\bar\lambda` only :math:`g_1 = (t'-\tau)_+` and :math:`d_1(t') = c(t') - s_0 - v_0t'`
+    move, so (:math:`\psi(w) = \min_{u\in[\ell,h]}\tfrac12u^2 - wu`, :math:`\psi' = -u_\lambda`)
+
+    .. math::
+
+        \partial_{t'}D = -\Phi\big(\dot c(t') - v_0 - \textstyle\int_0^{t'}u_\lambda\big),\qquad
+        |\partial^2_{t'}D| \le |\Phi|\big(\max|\ddot c| + \max|u_\lambda(t';t')| + |\Phi|\,t'\big) =: M,
+
+    with :math:`\partial_{t'}D = \Phi(v(t) - \dot c(t))` at :math:`t' = t` (the axis' share of
+    ``r``) and :math:`u_\lambda(t';t') = \operatorname{clip}(a + bt' - \Phi(t'-t))` bounded at
+    the interval's ends.  Hence on :math:`|t'-t| \le \delta`
+
+    .. math::  J_b(t') \ge \sum_{\text{axis}} D(\bar\lambda; t) - \Big|\sum_{\text{axis}}\partial_{t'}D\Big|\,\delta
+               - \tfrac12\sum_{\text{axis}}M\,\delta^2
+
+    (the slopes add up to ``r(t)``, which vanishes at a stationary contact time).
+
+    An axis infeasible at the midpoint covers its interval by the Farkas margin of
+    :func:`certify_infeasible` instead.  ``(0, t_f)`` is covered by intervals whose bound
+    is at least :math:`J_{best}(1 - rel)` (halved otherwise); the certificate fails (``local``)
+    when an axis solve stalls on an interval below ``1e-12 t_f`` or the budget ``max_solves``
+    is spent.
+
+    Returns ``{"certified", "intervals", "solves", "lowest_bound"}``.
+    """
+    rel = TOLERANCES["pmp_global_certificate_rel"] if rel is None else rel
+    out: dict[str, Any] = {"certified": False, "intervals": 0, "solves": 0, "lowest_bound": INF}
+    if problem.m != 1 or not math.isfinite(J_best):
+        return out
+    T = float(problem.tf)
+    target = J_best - rel * abs(J_best)
+    bound_on = _IntervalBound(problem)
+    pieces = 64
+    stack: list[tuple[float, float, list[list[float] | None]]] = [
+        (T * k / pieces, T * (k + 1) / pieces, [None, None]) for k in range(pieces)]
+    solves = intervals = 0
+    lowest = INF
+    while stack:
+        a, b, warm = stack.pop()
+        kind, value, lams, used = bound_on(a, b, warm)
+        solves += used
+        if kind == "bound":
+            lowest = min(lowest, value)
+        if kind == "infeasible" or (kind == "bound" and value >= target):
+            intervals += 1
+            continue
+        if solves > max_solves or b - a < 1e-12 * T:
+            out.update(intervals=intervals, solves=solves, lowest_bound=lowest)
+            return out
+        t = 0.5 * (a + b)
+        stack += [(a, t, lams), (t, b, lams)]
+    out.update(certified=True, intervals=intervals, solves=solves, lowest_bound=lowest)
+    return out
+
+
+# ------------------------------------------------------------------------------------------
+# self-check
+# ------------------------------------------------------------------------------------------
+def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, float]:
+    """The dimensionless value of every condition (module docstring)."""
+    prob = sol.problem
+    T = float(prob.tf)
+    t = sol.contact_times
+    ego = prob.ego
+    (lx, hx), (ly, hy) = input_box(prob)
+    C = prob.corners(t).reshape(-1, 2)
+    ends = sol.states(np.array([0.0, T]))
+    X = sol.states(t)
+    vals: dict[str, float] = {}
+    bnd = cor = sat = sw = box = hcon = 0.0
+    for k, (lo, hi) in enumerate(((lx, hx), (ly, hy))):
+        ax = sol.axes[k]
+        init = (ego.x0, ego.vx0) if k == 0 else (ego.y0, ego.vy0)
+        fin = (ego.xf, ego.vxf) if k == 0 else (ego.yf, ego.vyf)
+        L = max([1e-300, abs(fin[0] - init[0]), abs(fin[1] - init[1]) * T, abs(init[1]) * T]
+                + [abs(c - init[0]) for c in C[:, k]] + [abs(b) * T * T for b in (lo, hi) if math.isfinite(b)])
+        ua = L / (T * T)
+        for e, ref in ((ends[0, 2 * k], init[0]), (ends[0, 2 * k + 1] * T, init[1] * T),
+                       (ends[1, 2 * k], fin[0]), (ends[1, 2 * k + 1] * T, fin[1] * T)):
+            bnd = max(bnd, abs(e - ref) / L)
+        if len(t):
+            cor = max(cor, float(np.max(np.abs(X[:, 2 * k] - C[:, k]))) / L)
+        kn = np.asarray(ax.knots)
+        mids = 0.5 * (kn[1:] + kn[:-1])
+        pts = np.r_[kn, mids]
+        u = sol.inputs(pts)[:, k]
+        w = sol.w(k, pts)
+        sat = max(sat, float(np.max(np.abs(u - np.clip(w, lo, hi)))) / ua)
+        for theta, value, _, _ in ax.switching:
+            sw = max(sw, abs(float(sol.w(k, np.array([theta]))[0]) - value) / ua)
+        box = max(box, float(np.max(np.maximum(np.asarray(ax.u) - hi, lo - np.asarray(ax.u)), initial=0.0)) / ua)
+    # H constant between contact times (one-sided values at every knot of the interval)
+    bp = np.r_[0.0, np.sort(t), T]
+    allk = np.asarray(sol.knots())
+    Hs = []
+    for j in range(len(bp) - 1):
+        inner = allk[(allk > bp[j]) & (allk < bp[j + 1])]
+        Hj = np.r_[sol.hamiltonian(np.array([bp[j]]), "right"), sol.hamiltonian(inner) if len(inner) else [],
+                   sol.hamiltonian(np.array([bp[j + 1]]), "left")]
+        Hs.append(Hj)
+    hscale = max(1e-300, max(float(np.max(np.abs(h))) for h in Hs), sol.cost / T)
+    hcon = max(float(np.max(h) - np.min(h)) for h in Hs) / hscale
+    vals.update(boundary=bnd, corner=cor, saturation_law=sat, switching=sw, box=box, hamiltonian_constant=hcon)
+    if stationary and len(t):
+        r, size = sol.hamiltonian_jump_terms()
+        vals["hamiltonian_jump"] = float(np.max(np.abs(r) / np.maximum(size, 1e-300)))
+    cost = sol.cost
+    dual = sum(ax.dual for ax in sol.axes)
+    vals["duality_gap"] = abs(cost - dual) / max(cost, 1e-300)
+    return vals
+
+
+def judge(values: dict[str, float]) -> tuple[dict[str, dict[str, float | bool]], str | None, str | None]:
+    """``(checks, failed_check, status)`` against :data:`BOUNDED_TOLERANCE_OF`."""
+    checks: dict[str, dict[str, float | bool]] = {}
+    failed: str | None = None
+    status: str | None = None
+    for name, value in values.items():
+        limit = TOLERANCES[BOUNDED_TOLERANCE_OF[name]]
+        ok = -INF < value <= limit
+        checks[name] = {"value": float(value), "tol": limit, "ok": bool(ok)}
+        if not ok and failed is None:
+            failed = name
+            status = INACCURATE if math.isfinite(value) else NUMERICAL_ERROR
+    return checks, failed, status
+
+
+# ------------------------------------------------------------------------------------------
+# exact peaks and the bounds the PMP cannot impose
+# ------------------------------------------------------------------------------------------
+def exact_peaks(trajectory: Any, tf: float, knots: list[float]) -> dict[str, Any]:
+    """Exact extrema of a trajectory whose inputs are linear between ``knots``.
+
+    ``u`` (per axis) and ``|u|`` peak at knots (``|u|²`` is convex on each piece); ``v_x``
+    at knots or where ``u_x = 0`` inside a piece; ``s_y`` at knots or where ``v_y = 0``
+    (a quadratic per piece); jerk is ``|Δu/Δt|`` per piece.
+    """
+    kn = np.unique(np.clip(np.r_[0.0, np.asarray(knots, dtype=float), tf], 0.0, tf))
+    U = np.asarray(trajectory.inputs(kn))
+    X = np.asarray(trajectory.states(kn))
+    h = np.diff(kn)
+    ok = h > 0
+    du = np.diff(U, axis=0)[ok] / h[ok][:, None]
+    extra_vx: list[float] = []
+    extra_y: list[float] = []
+    for j in np.nonzero(ok)[0]:
+        a, b = kn[j], kn[j + 1]
+        ux0, ux1 = U[j, 0], U[j + 1, 0]
+        if ux0 * ux1 < 0:
+            extra_vx.append(a + (b - a) * ux0 / (ux0 - ux1))
+        # v_y(a + d) = vy + uy d + c d²/2 with c the slope of u_y
+        vy, uy = X[j, 3], U[j, 1]
+        c = (U[j + 1, 1] - uy) / (b - a)
+        roots = np.roots([c / 2, uy, vy]) if abs(c) > 0 else (np.array([-vy / uy]) if uy != 0 else np.array([]))
+        for r in np.atleast_1d(roots):
+            if np.isreal(r) and 0 < float(np.real(r)) < b - a:
+                extra_y.append(a + float(np.real(r)))
+    VX = np.r_[X[:, 1], np.asarray(trajectory.states(np.asarray(extra_vx)))[:, 1] if extra_vx else []]
+    Y = np.r_[X[:, 2], np.asarray(trajectory.states(np.asarray(extra_y)))[:, 2] if extra_y else []]
+    return {
+        "ax": [float(U[:, 0].min()), float(U[:, 0].max())],
+        "ay": [float(U[:, 1].min()), float(U[:, 1].max())],
+        "a_total": float(np.max(np.hypot(U[:, 0], U[:, 1]))),
+        "vx": [float(VX.min()), float(VX.max())],
+        "y": [float(Y.min()), float(Y.max())],
+        "jerk": float(np.max(np.abs(du))) if du.size else 0.0,
+    }
+
+
+def limits_report(problem: Problem, peaks: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """``{name: {"peak", "bound", "ok"}}`` for every bound given (SPEC §14's JSON shape);
+    ``ok`` allows ``limits_bound_rel`` of the bound's size."""
+    lim = problem.limits
+    out: dict[str, dict[str, Any]] = {}
+    if lim is None:
+        return out
+    rel = TOLERANCES["limits_bound_rel"]
+    for name, bound in lim.given().items():
+        peak = peaks[name]
+        if isinstance(bound, tuple):
+            slack = rel * max(1.0, abs(bound[0]), abs(bound[1]))
+            ok = peak[0] >= bound[0] - slack and peak[1] <= bound[1] + slack
+            out[name] = {"peak": list(peak), "bound": list(bound), "ok": bool(ok)}
+        else:
+            ok = peak <= bound + rel * max(1.0, bound)
+            out[name] = {"peak": peak, "bound": bound, "ok": bool(ok)}
+    return out
+
+
+def plan_knots(plan: Plan) -> list[float]:
+    """Where the plan's inputs may kink: contact times, and switching times of a bounded plan."""
+    traj = plan.trajectory
+    if isinstance(traj, BoundedSolution):
+        return traj.knots()
+    return [float(x) for x in plan.contact_times]
+
+
+# ------------------------------------------------------------------------------------------
+# the contact-time search and the plan
+# ------------------------------------------------------------------------------------------
+class _Evaluator:
+    """``J_b(t)`` and ``r(t) = ∇J_b(t)`` with warm starts from the nearest evaluated point.
+
+    Lean: the two axis solves only, ``r_i = Σ_axis Φ_i (v(t_i) − ċ_i)`` (= the Hamiltonian-
+    jump residual, module docstring) from the axes' contact speeds; the full
+    :class:`BoundedSolution` is built once, for the final contact times.
+    """
+
+    def __init__(self, problem: Problem):
+        self.problem = problem
+        self.memory: list[tuple[list[float], list[list[float]]]] = []
+        self.evaluations = 0
+        ego = problem.ego
+        self.T = float(problem.tf)
+        (lx, hx), (ly, hy) = input_box(problem)
+        self.data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
+
+    def _nearest(self, times: list[float]) -> list[list[float]] | None:
+        best, found = INF, None
+        for tm, lams in self.memory:
+            d = max(abs(a - b) for a, b in zip(tm, times))
+            if d < best:
+                best, found = d, lams
+        return found
+
+    def warm_for(self, t: FloatArray) -> list[list[float] | None] | None:
+        """The multipliers of the nearest evaluated contact times (or ``None``)."""
+        found = self._nearest([float(x) for x in np.asarray(t).reshape(-1)])
+        return None if found is None else list(found)
+
+    def __call__(self, t: FloatArray) -> tuple[float, FloatArray, list[list[float]] | None]:
+        T = self.T
+        t = np.asarray(t, dtype=float)
+        if np.any(t <= 0) or np.any(t >= T) or (len(t) > 1 and np.min(np.diff(np.sort(t))) <= 1e-9 * T):
+            return INF, np.full(len(t), np.nan), None
+        times = t.tolist()
+        warm = self._nearest(times)
+        self.evaluations += 1
+        C = self.problem.corners(t)
+        cdot = [float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, times)]
+        axes: list[AxisSolution] = []
+        for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.data):
+            corners = C[:, k].tolist()
+            sol = None
+            for start in ([warm[k], None] if warm is not None else [None]):
+                try:
+                    sol = solve_axis(times, T, s0, v0, sf, vf, corners, lo, hi, start)
+                    break
+                except (AxisInfeasible, AxisNoConvergence):
+                    continue
+            if sol is None:
+                return INF, np.full(len(t), np.nan), None
+            axes.append(sol)
+        r = np.array([axes[0].jumps[i] * (axes[0].contact_speeds[i] - cdot[i])
+                      + axes[1].jumps[i] * axes[1].contact_speeds[i] for i in range(len(times))])
+        lams = [axes[0].lam, axes[1].lam]
+        self.memory.append((times, lams))
+        if len(self.memory) > 64:
+            self.memory.pop(0)
+        return axes[0].cost + axes[1].cost, r, lams
+
+
+def _lower_bound(problem: Problem, t: FloatArray) -> FloatArray:
+    """``J_u(t)`` (the unbounded fixed-time cost, closed form): a lower bound of ``J_b(t)``,
+    since the box only removes inputs.  ``t`` has shape ``(..., m)``."""
+    from iamp.planners.pmp.fixed import ValueFunction
+
+    with np.errstate(all="ignore"):
+        out: FloatArray = ValueFunction(problem.with_limits(None))(t)
+    return out
+
+
+def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tuple[FloatArray, dict[str, Any]]:
+    """One vehicle: ``J_b`` at the unbounded ``t*``, then at the grid points whose lower bound
+    ``J_u(t)`` is below the best ``J_b`` so far (the others cannot win), then Brent's root of
+    ``r = dJ_b/dt`` in the best point's bracket (and in any other within 5 %)."""
+    from scipy.optimize import brentq
+
+    grid_pts = [T * (k + 0.5) / grid for k in range(grid)]
+    pts = sorted(set(grid_pts + [s for s in starts if 0 < s < T]))
+    lower = _lower_bound(ev.problem, np.array(pts)[:, None])
+    vals = [INF] * len(pts)
+    best_J = INF
+    for s in starts:
+        if 0 < s < T:
+            vals[pts.index(s)] = best_J = ev(np.array([s]))[0]
+    pruned = 0
+    for i in np.argsort(lower):
+        i = int(i)
+        if vals[i] < INF:
+            continue
+        if lower[i] >= best_J:
+            pruned += 1
+            continue
+        vals[i] = ev(np.array([pts[i]]))[0]
+        best_J = min(best_J, vals[i])
+    info = {"grid": grid, "pruned_by_unbounded_bound": pruned}
+    if not any(math.isfinite(v) for v in vals):
+        info["evaluations"] = ev.evaluations
+        return np.array([np.nan]), info
+    order = np.argsort(vals)
+    best_t, best_J = pts[int(order[0])], vals[int(order[0])]
+    for rank, idx in enumerate(order[: min(3, len(order))]):
+        i = int(idx)
+        # polish the best grid basin, and others only when their grid value is within 5 %
+        if not math.isfinite(vals[i]) or (rank > 0 and (vals[i] > vals[int(order[0])] * 1.05
+                                                         or abs(i - int(order[0])) <= 1)):
+            continue  # (a neighbour of the best point lies in the bracket already polished)
+        lo_t = pts[i - 1] if i > 0 else 1e-6 * T
+        hi_t = pts[i + 1] if i + 1 < len(pts) else T * (1 - 1e-6)
+        r_lo, r_hi = ev(np.array([lo_t]))[1][0], ev(np.array([hi_t]))[1][0]
+        if not (np.isfinite(r_lo) and np.isfinite(r_hi)) or r_lo * r_hi > 0:
+            continue
+
+        def r_of(x: float) -> float:
+            rr = ev(np.array([x]))[1][0]
+            return float(rr) if np.isfinite(rr) else 0.0
+
+        try:
+            root = float(brentq(r_of, lo_t, hi_t, xtol=1e-11 * T, maxiter=200))
+        except (ValueError, RuntimeError):
+            continue
+        J_root = ev(np.array([root]))[0]
+        if J_root < best_J:
+            best_t, best_J = root, J_root
+    info["evaluations"] = ev.evaluations
+    return np.array([best_t]), info
+
+
+def _search_many(ev: _Evaluator, T: float, m: int, starts: list[FloatArray], grid: int
+                 ) -> tuple[FloatArray, dict[str, Any]]:
+    from scipy.optimize import minimize
+
+    cands = [np.asarray(s, dtype=float) for s in starts]
+    if m <= 2:
+        g = T * (np.arange(grid) + 0.5) / grid
+        mesh = np.stack(np.meshgrid(*([g] * m), indexing="ij"), axis=-1).reshape(-1, m)
+        cands += list(mesh)
+    vals = [ev(c)[0] for c in cands]
+    if not any(math.isfinite(v) for v in vals):
+        return np.full(m, np.nan), {"grid": grid, "evaluations": ev.evaluations}
+    order = np.argsort(vals)
+    best, best_J = cands[int(order[0])], vals[int(order[0])]
+    eps = 1e-6 * T
+
+    def fun(x: FloatArray) -> tuple[float, FloatArray]:
+        J, r, _ = ev(x)
+        if not math.isfinite(J):
+            return 1e300, np.zeros(m)
+        return J, np.nan_to_num(r)
+
+    for idx in order[: min(3, len(order))]:
+        x0 = cands[int(idx)]
+        if not math.isfinite(vals[int(idx)]):
+            continue
+        res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=[(eps, T - eps)] * m,
+                       options={"ftol": 1e-15, "gtol": 1e-12 * max(1.0, abs(best_J)), "maxiter": 200})
+        if res.fun < best_J:
+            best, best_J = np.asarray(res.x, dtype=float), float(res.fun)
+    # L-BFGS-B stops where its line search leaves the feasible set of contact times (a narrow
+    # one under a tight box); a damped Newton method on r finishes the polish of the best
+    best, best_J = _newton_polish(ev, best, best_J, T)
+    return best, {"grid": grid, "evaluations": ev.evaluations}
+
+
+def _newton_polish(ev: _Evaluator, x: FloatArray, J: float, T: float, iterations: int = 25
+                   ) -> tuple[FloatArray, float]:
+    r"""Damped Newton on :math:`r(t) = \nabla J_b(t) = 0` (several contact times): the Hessian
+    by central differences of the exact gradient ``r`` (symmetrised; steepest descent where it
+    is not positive definite), an Armijo backtracking on ``J_b`` that also backs off from
+    infeasible contact times; stops when ``r`` vanishes to the ``pmp_hjump_rel`` scale or no
+    step decreases ``J_b``."""
+    m = len(x)
+    Jx, r, _ = ev(x)
+    if not math.isfinite(Jx):
+        return x, J
+    h = 1e-6 * T
+    for _ in range(iterations):
+        if float(np.max(np.abs(r))) * T <= 1e-12 * max(1.0, abs(Jx)):
+            break
+        H = np.empty((m, m))
+        ok = True
+        for i in range(m):
+            e = np.zeros(m)
+            e[i] = h
+            rp, rm = ev(x + e)[1], ev(x - e)[1]
+            if not (np.all(np.isfinite(rp)) and np.all(np.isfinite(rm))):
+                ok = False
+                break
+            H[:, i] = (rp - rm) / (2 * h)
+        d = -r
+        if ok:
+            H = 0.5 * (H + H.T)
+            try:
+                if np.all(np.linalg.eigvalsh(H) > 0):
+                    d = np.asarray(-np.linalg.solve(H, r), dtype=np.float64)
+            except np.linalg.LinAlgError:
+                pass
+        slope = float(r @ d)
+        if slope >= 0:
+            d, slope = -r, -float(r @ r)
+        alpha, moved = 1.0, False
+        for _k in range(30):
+            if alpha * float(np.max(np.abs(d))) < 1e-12 * T:
+                break
+            xn = x + alpha * d
+            Jn, rn, _ = ev(xn)
+            if math.isfinite(Jn) and Jn <= Jx + 1e-4 * alpha * slope:
+                x, Jx, r, moved = xn, Jn, rn, True
+                break
+            alpha *= 0.5
+        if not moved:
+            break
+    return x, Jx
+
+
+def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times: Any = None,
+                 start: float | None = None, certify: bool = True) -> Plan:
+    """The bounded PMP plan (module docstring): fixed ``contact_times`` or a search from
+    ``start_times`` (the unbounded ``t*``).  With ``certify`` (one vehicle, free contact time)
+    :func:`certify_global_one` decides ``optimal`` (certified global) or ``local``.  Never
+    raises for numerical trouble."""
+    t0 = _time.perf_counter() if start is None else start
+    m = problem.m
+    T = float(problem.tf)
+    info: dict[str, Any] = {"bounded": {"method": "saturated co-state law, semi-smooth Newton on the dual"}}
+    reason = boundary_feasible(problem)
+    if reason is not None:
+        return _failed(problem, INFEASIBLE, "boundary_out_of_reach", info, t0, reason)
+    ev = _Evaluator(problem)
+    fixed = contact_times is not None
+    if fixed:
+        t = np.asarray(contact_times, dtype=float).reshape(-1)
+        search: dict[str, Any] = {"method": "given contact times"}
+    elif m == 1:
+        starts = [float(start_times[0])] if start_times is not None and np.all(np.isfinite(start_times)) else []
+        t, search = _search_one(ev, T, starts, GRID_ONE)
+        search["method"] = f"grid of {GRID_ONE} + unbounded t* + Brent on dJ/dt = H⁻−H⁺−ẋ_sΦ_x"
+    else:
+        starts_m = [np.asarray(start_times, dtype=float)] if start_times is not None and np.all(
+            np.isfinite(start_times)) else []
+        t, search = _search_many(ev, T, m, starts_m, 8)
+        search["method"] = "grid (8 per axis for m <= 2) + unbounded t* + L-BFGS-B with the exact gradient r"
+    info["search"] = search
+    if not fixed and not np.all(np.isfinite(t)):
+        certified, t_feasible, intervals = certify_infeasible(problem)
+        search["infeasibility_intervals"] = intervals
+        if certified:
+            what = "contact time in (0, t_f)" if m == 1 else f"choice of the {m} contact times in (0, t_f)^{m}"
+            return _failed(problem, INFEASIBLE, "box_infeasible_at_every_contact_time", info, t0,
+                           f"no {what} admits a plan within the input box (certified: {intervals} "
+                           f"{'intervals' if m == 1 else 'boxes'}, each with a Farkas certificate and a "
+                           "Lipschitz margin)")
+        if t_feasible is not None:
+            if m == 1:
+                t, more = _search_one(ev, T, [float(t_feasible[0])], GRID_ONE)
+            else:
+                t, more = _search_many(ev, T, m, [t_feasible], 8)
+            search.update(more)
+    if not np.all(np.isfinite(t)):
+        msg = ("no contact time admits a plan within the input box" +
+               ("" if fixed else f" (all {search.get('evaluations', 0)} evaluated times infeasible; "
+                "not certified between grid points)"))
+        return _failed(problem, INFEASIBLE, "box_infeasible_at_contact_times", info, t0, msg)
+    try:
+        with np.errstate(all="ignore"):
+            sol = solve_bounded_fixed(problem, t, ev.warm_for(t))
+            values = check_values(sol, stationary=not fixed)
+    except AxisInfeasible as exc:
+        return _failed(problem, INFEASIBLE, "box_infeasible_at_contact_times", info, t0, str(exc))
+    except (AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError, OverflowError) as exc:
+        info["error"] = f"{type(exc).__name__}: {exc}"
+        return _failed(problem, NUMERICAL_ERROR, "dual_newton", info, t0, str(exc))
+    checks, failed, bad = judge(values)
+    certified = bool(fixed)
+    if bad is None and not fixed:
+        if m == 1 and certify:
+            cert = certify_global_one(problem, sol.cost)
+            certified = bool(cert["certified"])
+            info["global_certificate"] = {**cert, "rel": TOLERANCES["pmp_global_certificate_rel"],
+                                          "method": "dual Taylor bound per interval of contact times, "
+                                                    "Farkas margin where the box is infeasible"}
+            if not certified:
+                info["global_note"] = ("the interval certificate did not close (budget or a stalled solve): "
+                                       "the minimum is verified at its contact time, not shown global")
+        else:
+            info["global_note"] = ("no certificate over the contact times for several vehicles" if m > 1 else
+                                   "certificate not requested (certify=False)")
+    info.update(checks=checks, failed_check=failed, certified_global=certified)
+    info["bounded"].update(switching_times=sol.switching_times(),
+                           newton_iterations=[ax.iterations for ax in sol.axes])
+    status = bad if bad is not None else (OPTIMAL if certified else LOCAL)
+    plan = Plan(problem=problem, planner="pmp", status=status, cost=sol.cost if bad is None else None,
+                contact_times=sol.contact_times.copy(), jumps=sol.jumps, trajectory=sol,
+                solve_time_s=_time.perf_counter() - t0, info=info)
+    plan.residuals = {k: float(v) for k, v in values.items()}
+    plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
+    return plan
+
+
+def apply_state_limits(plan: Plan) -> Plan:
+    """Check every given bound on the plan with exact peaks (``info["limits"]``); a verified
+    plan that violates one becomes ``limits_violated`` (the input box of the PMP is imposed,
+    so only ``vx``, ``y``, ``a_total``, ``jerk`` can fail on a bounded plan)."""
+    if plan.trajectory is None or plan.status not in (OPTIMAL, LOCAL):
+        return plan
+    peaks = exact_peaks(plan.trajectory, float(plan.problem.tf), plan_knots(plan))
+    report = limits_report(plan.problem, peaks)
+    plan.info["limits"] = report
+    plan.info["peaks"] = peaks
+    bad = [name for name, r in report.items() if not r["ok"]]
+    if bad:
+        plan.info["reason"] = "the plan exceeds " + ", ".join(
+            f"{n} (peak {_fmt_bound(report[n]['peak'])}, bound {_fmt_bound(report[n]['bound'])})" for n in bad)
+        plan.info["limits_violated"] = bad
+        plan.status = LIMITS_VIOLATED
+    else:
+        plan.info["limits_note"] = ("every given bound holds on this plan, so it is "
+                                    f"{plan.status} for the bounded problem too")
+    return plan
+
+
+def _failed(problem: Problem, status: str, check: str, info: dict[str, Any], start: float, reason: str) -> Plan:
+    info["failed_check"] = check
+    info["reason"] = reason
+    info.setdefault("checks", {})
+    return Plan(problem=problem, planner="pmp", status=status, cost=None,
+                contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
+                trajectory=None, solve_time_s=_time.perf_counter() - start, info=info)
+
+
+def _fmt_bound(value: Any) -> str:
+    """A peak or bound for a message: 4 significant digits, a range as ``[lo, hi]``."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_fmt_bound(v) for v in value) + "]"
+    if isinstance(value, (int, float)):
+        return f"{float(value):.4g}"
+    return str(value)
+
+
+def box_respected(plan: Plan) -> bool:
+    """Whether an (unbounded) plan's inputs stay in the problem's ``ax``/``ay`` box (exact
+    peaks at the knots, ``limits_bound_rel`` slack)."""
+    (lx, hx), (ly, hy) = input_box(plan.problem)
+    kn = np.asarray(sorted(set([0.0, float(plan.problem.tf)] + plan_knots(plan))))
+    U = plan.inputs(kn)
+    rel = TOLERANCES["limits_bound_rel"]
+    for k, (lo, hi) in enumerate(((lx, hx), (ly, hy))):
+        slack = rel * max([1.0, *(abs(b) for b in (lo, hi) if math.isfinite(b))])
+        if U[:, k].min() < lo - slack or U[:, k].max() > hi + slack:
+            return False
+    return True
+
+
+__all__ = ["BoundedSolution", "apply_state_limits", "boundary_feasible", "box_respected", "certify_global_one",
+           "check_values", "exact_peaks", "input_box", "interval_bound", "judge", "limits_report", "plan_bounded",
+           "solve_bounded_fixed"]
