@@ -18,9 +18,9 @@ current-lane leader, each with its paper corner.
   ``N = QP_STEPS``, every vehicle as an inequality.
 
 Every problem carries :data:`~iamp.core.physical.PASSENGER_CAR` as ``Problem.limits`` (a planner
-that imposes limits imposes them — the avoidance QP does; the PMP ignores them until the bounded
-PMP lands; ``qp`` is given the problem without them, :data:`UNBOUNDED_IN_LOOP`); the decision
-layer checks every plan's peaks either way.
+that imposes limits imposes them — the avoidance QP does; ``pmp``, ``pmp-active`` and ``qp`` are
+given the problem without them, :data:`UNBOUNDED_IN_LOOP`, for time); the decision layer checks
+every plan's peaks either way.
 Where the registry holds an entry of the same name (``pmp-active`` and the bounded planners
 from the ``avoid``/``limits``/``bpmp`` branches), :func:`make_planner` takes the registry's.
 * ``free`` — no constraint at all (the ablation): the minimum-energy cubic below.
@@ -95,12 +95,14 @@ def _safe(fn: PlanFn, name: str) -> PlanFn:
     return call
 
 
-#: Planners given the problem without ``Problem.limits``: the equality QP's grid sweep with the
+#: Planners given the problem without ``Problem.limits`` (their plans are judged against the
+#: limits by the decision layer like every other plan): the equality QP's grid sweep with the
 #: limit rows needs an inequality backend, and with Clarabel it took 4-5 s per three-vehicle
 #: problem (N = 12, under load 12 on 2 cores; every one infeasible within the passenger car's
-#: bounds) against 0.02 s with the KKT solve; its plans are judged against the limits by the
-#: decision layer like every other plan.
-UNBOUNDED_IN_LOOP = ("qp",)
+#: bounds) against 0.02 s with the KKT solve; the bounded PMP (merged from main after the
+#: published campaign started) took 5.6-6.8 s per three-vehicle problem (``infeasible``) and
+#: ``pmp-active`` on it up to 7.5 s, against 0.3 s and 0.04 s unbounded.
+UNBOUNDED_IN_LOOP = ("qp", "pmp", "pmp-active")
 
 
 def _registered(name: str) -> PlanFn:
