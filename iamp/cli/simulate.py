@@ -260,6 +260,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--deadline", action="store_true",
                    help="a plan slower than the period is late and falls back (default: use plans however long "
                         "they take, so that the same seed gives the same numbers)")
+    p.add_argument("--no-deadline", action="store_true", help=argparse.SUPPRESS)  # the default now (was opt-in)
     p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV "
                    "(an existing file only with --force)")
     p.add_argument("--figure", default=None, help="write a figure of the episode (.png, .pdf or .svg; an "
@@ -288,5 +289,6 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     c.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s]")
     c.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period [s]")
     c.add_argument("--deadline", action="store_true", help="a plan slower than the period falls back")
+    c.add_argument("--no-deadline", action="store_true", help=argparse.SUPPRESS)  # the default now (was opt-in)
     c.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     c.set_defaults(func=cmd_campaign)
