@@ -35,7 +35,7 @@ from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
 from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.tracks.table import Tracks
 
-__all__ = ["CA_WINDOW_S", "EVAL_DT", "FUTURE_S", "HISTORY_S", "HORIZONS", "STRIDE_S", "Windows", "baseline_ca",
+__all__ = ["CA_WINDOW_S", "EVAL_DT", "FUTURE_S", "HISTORY_S", "HORIZONS", "STRIDE_S", "Windows", "baseline_ca", "robust_ca",
            "baseline_cv", "evaluate_methods", "make_windows", "metrics"]
 
 #: Horizons [s] of the RMSE table.
@@ -168,9 +168,15 @@ def baseline_ca(win: Windows, jerk_psd: float = DEFAULT_JERK_PSD, window_s: floa
     ``x_0``, ``v_0`` from the smoother, ``a_0`` from the quadratic over the last ``window_s``
     (module docstring).
     """
+    x0, v0, _ = initial_kinematics(win, jerk_psd)
+    return robust_ca(win, x0, v0, window_s)
+
+
+def robust_ca(win: Windows, x0: FloatArray, v0: FloatArray, window_s: float = CA_WINDOW_S) -> FloatArray:
+    """Constant acceleration from ``x_0``, ``v_0`` with ``a_0`` from the least-squares quadratic over
+    the last ``window_s`` of each history (robust to raw-position noise), stopping when braking."""
     from iamp.prediction.kinematics import local_quadratic
 
-    x0, v0, _ = initial_kinematics(win, jerk_psd)
     _, a0 = local_quadratic(win.t_hist, win.X_hist, window_s)
     tau = win.t_fut[None, :]
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -22,7 +22,6 @@ from typing import Any
 import numpy as np
 
 from iamp.prediction._typing import BoolArray, FloatArray, IntArray
-from iamp.prediction.kinematics import local_quadratic
 from iamp.prediction.leader.leaders import Leaders
 from iamp.prediction.leader.windows import LeaderWindows, leader_windows
 from iamp.prediction.tracks import Tracks
@@ -34,17 +33,6 @@ __all__ = ["CONGESTED_BELOW_MPS", "LeaderWindows", "bootstrap_table", "errors", 
 CONGESTED_BELOW_MPS = 60.0 / 3.6
 
 
-
-
-def robust_ca(win: Windows, x0: FloatArray, v0: FloatArray, window_s: float) -> FloatArray:
-    """Constant acceleration with ``a_0`` from the least-squares quadratic over the last ``window_s``."""
-    _, a0 = local_quadratic(win.t_hist, win.X_hist, window_s)
-    tau = win.t_fut[None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        stop = np.where(a0 < 0, v0 / np.where(a0 < 0, -a0, 1.0), np.inf)[:, None]
-    s = np.minimum(tau, stop)
-    out: FloatArray = x0[:, None] + v0[:, None] * s + 0.5 * a0[:, None] * s * s
-    return out
 
 
 def errors(pred: FloatArray, X_fut: FloatArray, t_fut: FloatArray) -> dict[str, FloatArray]:
