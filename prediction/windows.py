@@ -35,8 +35,21 @@ from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
 from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.tracks.table import Tracks
 
-__all__ = ["CA_WINDOW_S", "EVAL_DT", "FUTURE_S", "HISTORY_S", "HORIZONS", "STRIDE_S", "Windows", "baseline_ca", "robust_ca",
-           "baseline_cv", "evaluate_methods", "make_windows", "metrics"]
+__all__ = [
+    "CA_WINDOW_S",
+    "EVAL_DT",
+    "FUTURE_S",
+    "HISTORY_S",
+    "HORIZONS",
+    "STRIDE_S",
+    "Windows",
+    "baseline_ca",
+    "baseline_cv",
+    "evaluate_methods",
+    "make_windows",
+    "metrics",
+    "robust_ca",
+]
 
 #: Horizons [s] of the RMSE table.
 HORIZONS = (1.0, 2.0, 3.0, 4.0, 5.0)
