@@ -53,13 +53,13 @@ COLUMNS = ("mission", "planner", "traffic", "seed", "cooperation", "sublane", "d
            "rms_jerk_y", "plan_time_p50_s", "plan_time_p95_s", "plan_time_max_s", "plans", "planner_calls",
            "executed_plans", "constrained_plans", "infeasible_plans", "rejected", "late_plans", "fallbacks",
            "aborts", "deadline_s", "wall_total_s", "wall_sumo_s", "wall_prediction_s", "wall_planning_s",
-           "max_rss_mb")
+           "max_rss_mb", "ego_in_forecast", "ego_iterations", "ego_converged", "ego_replans")
 Key = tuple[str, str, str, int]
 #: Version of the episode definition (missions, decision layer, metrics); part of the manifest.
 EPISODE_FORMAT = "15.1"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
-                "sublane")
+                "sublane", "ego_in_forecast")
 
 
 class ManifestMismatch(IampError):
@@ -123,6 +123,7 @@ def check_manifest(out: Path, wanted: dict[str, Any], force: bool) -> dict[str, 
         old = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise ManifestMismatch(f"{path}: unreadable manifest ({exc}); use --force to start again") from None
+    old = {"ego_in_forecast": False, **old}  # manifests from before the option: it was off
     diff = [k for k in EPISODE_KEYS if old.get(k) != wanted.get(k)]
     if diff:
         if not force:
@@ -178,7 +179,8 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
                  missions: Iterable[str] = ("merge",), workers: int = 2, scheduler: str | None = None,
                  duration_s: float = 60.0, period_s: float = 0.1, deadline: bool = False,
                  cooperation: str = "default", sublane: bool = False, warmup_s: float = 5.0, settle_s: float = 8.0,
-                 force: bool = False, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+                 ego_in_forecast: bool = False, force: bool = False,
+                 progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Run the missing episodes of the campaign; returns ``{"ran", "skipped", "failed", "seconds"}``.
 
     Raises :class:`ManifestMismatch` when ``out`` holds a campaign made with other episode
@@ -193,7 +195,8 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
     out.mkdir(parents=True, exist_ok=True)
     episode = {"duration_s": float(duration_s), "period_s": float(period_s),
                "deadline_s": float(period_s) if deadline else None, "warmup_s": float(warmup_s),
-               "settle_s": float(settle_s), "cooperation": cooperation, "sublane": bool(sublane)}
+               "settle_s": float(settle_s), "cooperation": cooperation, "sublane": bool(sublane),
+               "ego_in_forecast": bool(ego_in_forecast)}
     manifest = check_manifest(out, manifest_of(missions, planners, traffics, seeds, episode), force)
     write_text(out / "manifest.json", json.dumps(manifest, indent=1) + "\n")
     episodes, errors = out / "episodes.csv", out / "errors.csv"
@@ -218,7 +221,8 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
         futures = {client.submit(run_one, {"planner": p, "traffic": t, "seed": s, "mission": m,
                                            "duration_s": duration_s, "period_s": period_s,
                                            "deadline_s": episode["deadline_s"], "cooperation": cooperation,
-                                           "sublane": sublane, "warmup_s": warmup_s, "settle_s": settle_s},
+                                           "sublane": sublane, "warmup_s": warmup_s, "settle_s": settle_s,
+                                           "ego_in_forecast": bool(ego_in_forecast)},
                                  pure=False): (m, p, t, s)
                    for m, p, t, s in todo}
         n_done = skipped

@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -75,6 +76,9 @@ class ControllerConfig:
     kd: float = 3.0
     abort_s: float = 3.0
     deadline_s: float | None = None
+    ego_in_forecast: bool = False  # the target-lane follower reacts to the plan (decision.decide's react)
+    ego_iter: int = 3              # at most this many re-plans per gap
+    ego_tol_m: float = 1.0         # the follower's cubic moved less than this: converged
     idm: IDM = field(default_factory=IDM)
     mobil: MOBIL = field(default_factory=MOBIL)
 
@@ -96,6 +100,9 @@ class Counters:
     plan_times: list[float] = field(default_factory=list)
     prediction_s: float = 0.0
     planning_s: float = 0.0
+    ego_iterations: int = 0     # gaps planned with the follower reacting (--ego-in-forecast)
+    ego_converged: int = 0      # of those, converged within ego_tol_m
+    ego_replans: int = 0        # planner calls beyond the first per such gap
 
 
 def imposed(plan: Plan) -> int:
@@ -138,6 +145,11 @@ class Controller:
         self.lateral: np.ndarray | None = None  # mobil: the lateral cubic
         self.lat_t0 = 0.0
         self.next_seek = -math.inf
+        self.leader_predictor: Any = None
+        if self.cfg.ego_in_forecast and self.iamp:
+            from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
+
+            self.leader_predictor = LeaderPredictor(default_leader_model())
 
     # -- prediction ---------------------------------------------------------------------------
     def neighbours(self, obs: Observation, ego: EgoState, tf: float) -> list[Neighbour]:
@@ -207,6 +219,35 @@ class Controller:
             plan.info["late"] = True
         return plan
 
+    def _react_kw(self) -> dict[str, Any]:
+        """``decide``'s keywords for the ego in the forecast (none when the option is off)."""
+        if self.leader_predictor is None:
+            return {}
+        return {"react": self._react, "react_iter": self.cfg.ego_iter, "react_tol_m": self.cfg.ego_tol_m,
+                "on_iterate": self._on_iterate}
+
+    def _react(self, gap: Gap, plan: Plan, prob: Problem | EgoBoundary) -> tuple[float, ...]:
+        """The follower's cubic reacting to ``plan`` (:func:`~iamp.prediction.leader.ego.follower_poly_for_plan`);
+        its own cubic unchanged when its history is shorter than the predictor needs."""
+        from iamp.prediction.leader.ego import follower_poly_for_plan
+
+        f = gap.follower
+        assert f is not None
+        t, x = self.sim.history(f.name)
+        if not (t.size >= 3 and -t[0] + 1e-9 >= self.predictor.min_history_s):
+            return f.poly
+        lead = gap.leader
+        return follower_poly_for_plan(self.leader_predictor, (t, x), plan.require_trajectory().states,
+                                      float(prob.tf), target_y=self.y_target(), ego_length=self.sim.ego_length,
+                                      ego_width=self.sim.ego_width, follower_length=f.length,
+                                      leader_hist=self.sim.history(lead.name) if lead is not None else None,
+                                      leader_length=lead.length if lead is not None else 4.5)
+
+    def _on_iterate(self, rec: dict[str, Any]) -> None:
+        self.n.ego_iterations += 1
+        self.n.ego_converged += int(bool(rec["converged"]))
+        self.n.ego_replans += int(rec["plans"]) - 1
+
     def _reject(self, reason: str) -> None:
         key = reason.split(":")[0]
         self.n.rejected[key] = self.n.rejected.get(key, 0) + 1
@@ -241,7 +282,7 @@ class Controller:
             self.next_seek = t + self.cfg.seek_every_s
             nbs = self.neighbours(obs, ego, cfg.horizon_s)
             verdict, all_v = decide(self.ego_now(ego), self.y_target(), self.target, self.origin, nbs,
-                                    self._plan, cfg)
+                                    self._plan, cfg, **self._react_kw())
             for v in all_v:
                 if not v.accepted:
                     self._reject(v.reason)

@@ -40,12 +40,22 @@ lane's leader ``c`` → ``rear-upper``; safety region ``S_x × S_y`` (SPEC §8: 
 around each body.  A vehicle whose corner the ego has already passed laterally is met and
 left out.  If the ego already stands closer than ``S_x`` behind ``c`` (a queue), ``c``'s
 region is shrunk to the present gap less 0.5 m so that a plan is judged on not closing in.
+
+The ego in the forecast (optional)
+----------------------------------
+Given ``react`` (``simulate --ego-in-forecast``), each candidate gap with a follower ``f`` is
+planned by the fixed-point iteration of
+:func:`iamp.prediction.leader.ego.iterate_with_planner`: plan against ``f``'s cubic ``c_k``,
+predict ``c_{k+1} = P(c_k)`` = ``f`` following the nearer of its leader and that plan
+(``react``), re-plan, at most ``react_iter`` re-plans, stopping when
+``max_{t∈[0,T]} |c_{k+1}(t) - c_k(t)| < react_tol_m``.  The plan returned is the one made
+against the last cubic planned for, and the §9 check sees ``f`` with that cubic.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -55,6 +65,7 @@ from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.safety import safety_report
 from iamp.core.status import SUCCESS
+from iamp.prediction.leader.ego import iterate_with_planner
 
 #: A :class:`Problem` holds at most 8 vehicles: the §9 check takes the nearest ones.
 MAX_CHECKED = 8
@@ -247,12 +258,21 @@ def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig) -> str:
     return "accepted"
 
 
+#: ``react(gap, plan, problem)``: the follower's cubic once it reacts to ``plan`` (the ego in the forecast).
+React = Callable[[Gap, Plan, Problem | EgoBoundary], tuple[float, ...]]
+
+
 def decide(ego: EgoNow, y_target: float, target_lane: int, origin_lane: int, neighbours: Sequence[Neighbour],
            planner: Callable[[Problem | EgoBoundary], Plan], cfg: DecisionConfig,
-           on_plan: Callable[[Plan, Problem | EgoBoundary], None] | None = None) -> tuple[Verdict, list[Verdict]]:
+           on_plan: Callable[[Plan, Problem | EgoBoundary], None] | None = None, *,
+           react: React | None = None, react_iter: int = 3, react_tol_m: float = 1.0,
+           on_iterate: Callable[[dict[str, Any]], None] | None = None) -> tuple[Verdict, list[Verdict]]:
     """Try the candidate gaps in order; the first accepted verdict (or the last rejection) and all.
 
-    ``planner`` is called once per candidate; ``on_plan`` sees every plan (for counting).
+    ``planner`` is called once per candidate (without ``react``); ``on_plan`` sees every plan
+    (for counting).  With ``react`` a gap with a follower is planned by the iteration of the
+    module docstring (at most ``1 + react_iter`` planner calls); ``on_iterate`` receives the
+    iteration's record (``iterations``, ``converged``, ``changes_m``, ``plans``).
     """
     target = [n for n in neighbours if n.lane == target_lane]
     ahead = [n for n in neighbours if n.lane == origin_lane and n.x(0.0) > ego.x
@@ -260,12 +280,17 @@ def decide(ego: EgoNow, y_target: float, target_lane: int, origin_lane: int, nei
     current_leader = min(ahead, key=lambda n: n.x(0.0)) if ahead else None
     verdicts: list[Verdict] = []
     for gap in candidate_gaps(ego, target, cfg):
-        prob = lane_change_problem(ego, y_target, gap, current_leader, cfg, cfg.horizon_s)
+        nbs = neighbours
+        if react is None or gap.follower is None:
+            prob = lane_change_problem(ego, y_target, gap, current_leader, cfg, cfg.horizon_s)
+            plan = planner(prob)
+            if on_plan is not None:
+                on_plan(plan, prob)
+        else:
+            plan, gap, prob, nbs = _iterate(ego, y_target, gap, current_leader, neighbours, planner, cfg, on_plan,
+                                            react, react_iter, react_tol_m, on_iterate)
         boundary = prob.ego if isinstance(prob, Problem) else prob
-        check = check_problem(boundary, ego, neighbours, (origin_lane, target_lane), cfg)
-        plan = planner(prob)
-        if on_plan is not None:
-            on_plan(plan, prob)
+        check = check_problem(boundary, ego, nbs, (origin_lane, target_lane), cfg)
         v = Verdict(False, "", plan, gap, prob, check)
         v.reason = judge(plan, check, cfg)
         v.accepted = v.reason == "accepted"
@@ -273,3 +298,41 @@ def decide(ego: EgoNow, y_target: float, target_lane: int, origin_lane: int, nei
         if v.accepted:
             return v, verdicts
     return (verdicts[-1] if verdicts else Verdict(False, "no gap")), verdicts
+
+
+def _iterate(ego: EgoNow, y_target: float, gap: Gap, current_leader: Neighbour | None,
+             neighbours: Sequence[Neighbour], planner: Callable[[Problem | EgoBoundary], Plan], cfg: DecisionConfig,
+             on_plan: Callable[[Plan, Problem | EgoBoundary], None] | None, react: React, max_iter: int,
+             tol_m: float, on_iterate: Callable[[dict[str, Any]], None] | None
+             ) -> tuple[Plan, Gap, Problem | EgoBoundary, list[Neighbour]]:
+    """One gap planned with its follower reacting to the plan (``docs/prediction-interaction.md``)."""
+    assert gap.follower is not None
+    follower = gap.follower
+    plans = 0
+
+    def plan_fn(poly: tuple[float, ...]) -> tuple[Plan, Gap, Problem | EgoBoundary]:
+        nonlocal plans
+        g2 = replace(gap, follower=replace(follower, poly=poly))
+        p2 = lane_change_problem(ego, y_target, g2, current_leader, cfg, cfg.horizon_s)
+        p = planner(p2)
+        plans += 1
+        if on_plan is not None:
+            on_plan(p, p2)
+        return p, g2, p2
+
+    def predict_fn(p: Plan, g2: Gap, p2: Problem | EgoBoundary) -> tuple[float, ...]:
+        assert g2.follower is not None
+        if p.trajectory is None:
+            return g2.follower.poly
+        return react(g2, p, p2)
+
+    res = iterate_with_planner(plan_fn, predict_fn, follower.poly, max_iter=max_iter, tol_m=tol_m,
+                               tf=cfg.horizon_s)
+    plan, g2, prob = res["plan"]
+    if on_iterate is not None:
+        on_iterate({"iterations": res["iterations"], "converged": res["converged"],
+                    "changes_m": list(res["changes_m"]), "plans": plans})
+    assert g2.follower is not None
+    new_f = g2.follower
+    nbs = [new_f if n.name == follower.name else n for n in neighbours]
+    return plan, g2, prob, nbs

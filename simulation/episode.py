@@ -46,6 +46,7 @@ class EpisodeSpec:
     warmup_s: float = 5.0
     settle_s: float = 8.0
     deadline_s: float | None = None
+    ego_in_forecast: bool = False
 
     def validate(self) -> None:
         density_of(self.traffic)
@@ -83,7 +84,8 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
     spec.validate()
     wall0 = time.perf_counter()
     mission = mission_of(spec.mission)
-    cfg = replace(config or ControllerConfig(), deadline_s=spec.deadline_s)
+    cfg = replace(config or ControllerConfig(), deadline_s=spec.deadline_s,
+                  ego_in_forecast=spec.ego_in_forecast or (config is not None and config.ego_in_forecast))
     hw = mission.highway()
     sim = Simulator(spec.traffic, spec.seed, step=spec.period_s, highway=hw, ego_lane=mission.ego_lane,
                     ego_pos=EGO_DEPART_M, empty_lanes=(0,) if mission.ramp else (),
@@ -179,6 +181,8 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
         "rejected": dict(sorted(n.rejected.items())),
         "late_plans": n.late_plans, "deadline_s": spec.deadline_s,
         "fallbacks": n.fallbacks, "aborts": n.aborts,
+        "ego_in_forecast": bool(cfg.ego_in_forecast), "ego_iterations": n.ego_iterations,
+        "ego_converged": n.ego_converged, "ego_replans": n.ego_replans,
         "wall_s": {"total": wall, "sumo": sumo_s, "prediction": n.prediction_s, "planning": n.planning_s},
         "max_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
     }

@@ -134,7 +134,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
     spec = EpisodeSpec(traffic=args.traffic, seed=args.seed, planner=args.planner, mission=args.mission,
                        cooperation=args.cooperation, sublane=args.sublane, duration_s=args.duration,
-                       period_s=args.period, deadline_s=args.period if args.deadline else None)
+                       period_s=args.period, deadline_s=args.period if args.deadline else None,
+                       ego_in_forecast=bool(args.ego_in_forecast))
     if args.planner == "qp-avoid":
         from iamp.simulation.planning import make_planner
 
@@ -249,7 +250,8 @@ def _campaign_into(args: argparse.Namespace) -> int:
             stats = run_campaign(args.planners, args.traffic, args.seeds, out, missions=args.missions,
                                  workers=args.workers, scheduler=args.scheduler, duration_s=args.duration,
                                  period_s=args.period, deadline=args.deadline, cooperation=args.cooperation,
-                                 sublane=args.sublane, force=args.force, progress=tick)
+                                 sublane=args.sublane, ego_in_forecast=bool(args.ego_in_forecast),
+                                 force=args.force, progress=tick)
     from iamp.simulation.stats import campaign_report
 
     rows = [r for r in read_rows(out / "episodes.csv") if r["planner"] in args.planners
@@ -291,6 +293,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--deadline", action="store_true",
                    help="a plan slower than the period is late and falls back (default: use plans however long "
                         "they take, so that the same seed gives the same numbers)")
+    p.add_argument("--ego-in-forecast", action="store_true",
+                   help="the target-lane follower's prediction reacts to the ego's plan, re-planned "
+                        "at most 3 times per gap (tolerance 1 m; iamp planners only; docs/ego-in-forecast.md)")
     p.add_argument("--no-deadline", action="store_true", help=argparse.SUPPRESS)  # the default now (was opt-in)
     p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV "
                    "(an existing file only with --force)")
@@ -328,6 +333,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     c.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s]")
     c.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period [s]")
     c.add_argument("--deadline", action="store_true", help="a plan slower than the period falls back")
+    c.add_argument("--ego-in-forecast", action="store_true",
+                   help="the target-lane follower's prediction reacts to the ego's plan, re-planned "
+                        "at most 3 times per gap (tolerance 1 m; iamp planners only; docs/ego-in-forecast.md)")
     c.add_argument("--no-deadline", action="store_true", help=argparse.SUPPRESS)  # the default now (was opt-in)
     c.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     c.set_defaults(func=cmd_campaign)
