@@ -123,7 +123,8 @@ def check_manifest(out: Path, wanted: dict[str, Any], force: bool) -> dict[str, 
         old = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise ManifestMismatch(f"{path}: unreadable manifest ({exc}); use --force to start again") from None
-    old = {"ego_in_forecast": False, **old}  # manifests from before the option: it was off
+    off = {"ego_in_forecast": False}  # manifests from before the option: it was off
+    old, wanted = {**off, **old}, {**off, **wanted}
     diff = [k for k in EPISODE_KEYS if old.get(k) != wanted.get(k)]
     if diff:
         if not force:
