@@ -152,3 +152,37 @@ def test_the_option_off_gives_the_episode_of_before_bit_for_bit(monkeypatch: pyt
     assert now.log.t == before.log.t and now.log.ego == before.log.ego and now.log.mode == before.log.mode
     for a, b in zip(now.log.nb, before.log.nb, strict=True):
         assert np.array_equal(a, b)
+
+
+def test_the_option_on_plans_each_replan_against_the_controllers_reaction(monkeypatch: pytest.MonkeyPatch) -> None:
+    """In a SUMO merge with the option on, every re-plan's problem carries, for the gap's follower,
+    exactly the cubic ``follower_poly_for_plan`` returned for the plan before it, and the episode's
+    ``ego_replans`` counts exactly those re-plans."""
+    pytest.importorskip("libsumo")
+    import iamp.prediction.leader.ego as ego_mod
+    from iamp.simulation.controller import Controller
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    original, plan_orig = ego_mod.follower_poly_for_plan, Controller._plan
+    events: list[tuple[str, Any]] = []
+
+    def recording(*a: Any, **k: Any) -> tuple[float, ...]:
+        out = original(*a, **k)
+        events.append(("react", out))
+        return out
+
+    def plan(self: Controller, prob: Problem | EgoBoundary) -> Any:
+        events.append(("plan", prob))
+        return plan_orig(self, prob)
+
+    monkeypatch.setattr(ego_mod, "follower_poly_for_plan", recording)
+    monkeypatch.setattr(Controller, "_plan", plan)
+    s = run_episode(EpisodeSpec(traffic="medium", seed=1, planner="pmp-active", mission="merge", duration_s=10.0,
+                                ego_in_forecast=True)).summary
+    assert s["ego_in_forecast"] is True and s["ego_iterations"] > 0
+    replans = 0
+    for (kind, out), (kind2, prob) in zip(events, events[1:]):
+        if kind == "react" and kind2 == "plan" and isinstance(prob, Problem):
+            if any(tuple(v.x_poly) == tuple(out) for v in prob.vehicles):
+                replans += 1
+    assert replans == s["ego_replans"] > 0
