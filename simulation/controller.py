@@ -251,7 +251,7 @@ class Controller:
                 break
             chosen += hit
             plan = self._call(prob.with_vehicles([v for v in prob.vehicles if v in chosen]))
-        plan.info["constrained"] = [v.name for v in chosen]
+        plan.annotate(constrained=[v.name for v in chosen])
         return plan
 
     def solve(self, prob: Problem | EgoBoundary) -> tuple[Plan, bool]:
