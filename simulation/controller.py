@@ -65,6 +65,7 @@ from typing import Any
 
 import numpy as np
 
+from iamp.core.diagnostics import Diagnostics
 from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.scenario import History
@@ -224,7 +225,7 @@ class Controller:
         except Exception as exc:  # a planner crash is a failed plan, not a crashed episode
             return Plan(problem=prob, planner=self.name, status="solver_error", cost=None,
                         contact_times=np.full(prob.m, np.nan), jumps=np.full((prob.m, 2), np.nan),
-                        trajectory=None, info={"error": repr(exc)})
+                        trajectory=None, diagnostics=Diagnostics(error=repr(exc)))
 
     def _active_set(self, prob: Problem) -> Plan:
         """Impose vehicle ``i``'s constraint only where it is needed.

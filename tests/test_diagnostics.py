@@ -155,7 +155,7 @@ def test_avoid_diagnostics_are_the_kkt_residuals_of_its_final_qp() -> None:
     d = plan.diagnostics
     assert isinstance(d, AvoidDiagnostics) and d.constraint == "avoid"
     assert d.kkt is not None and d.kkt_tol is not None and d.qp_solution is not None and d.avoidance is not None
-    s = d.qp_solution
+    s: Any = d.qp_solution
     P = s.data.P.toarray()
     P = P + np.triu(P, 1).T
     A, z, y, l, u = s.data.A.toarray(), s.z, s.y, s.l, s.u

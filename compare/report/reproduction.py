@@ -309,9 +309,9 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     return res
 
 
-def _sweeps(runs: dict[str, Plan]) -> dict[str, list[Any]]:
+def _sweeps(runs: dict[str, Plan]) -> dict[str, list[tuple[tuple[int, ...], float]]]:
     """Each QP run's contact-node sweep (``QPDiagnostics.sweep``: ``(nodes, cost)``), by label."""
-    out: dict[str, list[Any]] = {}
+    out: dict[str, list[tuple[tuple[int, ...], float]]] = {}
     for lbl, r in runs.items():
         qp = r.diagnostics.find(QPDiagnostics) if lbl != "pmp" else None
         if qp is not None and qp.sweep is not None:

@@ -9,7 +9,6 @@ no relaxed row binds, and its own §9 safety report is intrusion-free.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from iamp.core.diagnostics import Record
 from iamp.planners.qp.diagnostics import QPDiagnostics
@@ -54,4 +53,4 @@ class AvoidDiagnostics(QPDiagnostics):
     complete_sweep: bool | None = None
     pruned: bool | None = None
     certificate: str | None = None
-    qp_solution: Any = None
+    qp_solution: object = None

@@ -10,7 +10,6 @@ and after the sweep showed that no unverified candidate could beat the best.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from iamp.core.diagnostics import Diagnostics, Record
 
@@ -50,14 +49,14 @@ class QPDiagnostics(Diagnostics):
     """
 
     path: str | None = None
-    sweep: list[Any] | None = None
-    failures: list[Any] | None = None
+    sweep: list[tuple[tuple[int, ...], float]] | None = None
+    failures: list[tuple[tuple[int, ...], str]] | None = None
     candidates: Record | None = None
     unpolished: int | None = None
     n_solves: int | None = None
     grid_best: Record | None = None
     refine_certificate: Record | None = None
-    could_beat: list[Any] | None = None
+    could_beat: list[Record] | None = None
     best_unverified_search: Record | None = None
     limit_rows: Record | None = None
     limits_between_nodes: Record | None = None
