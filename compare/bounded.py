@@ -151,7 +151,8 @@ def bounded_rows(name: str, problem: Problem, limits: PhysicalLimits | None = PA
             name, planner, True, plan.status, cost=plan.cost if plan.status in SUCCESS else None,
             free_cost=free.cost if free.status in SUCCESS else None,
             peaks=pk.line() if pk is not None else "", peaks_json=pk.to_json() if pk is not None else {},
-            imposed=_imposes(planner, plan), reason=plan.diagnostics.reason or plan.diagnostics.why,
+            imposed=_imposes(planner, plan) if plan.trajectory is not None or _imposes(planner, plan) else None,
+            reason=plan.diagnostics.reason or plan.diagnostics.why,
             time_s=elapsed))
     return rows
 

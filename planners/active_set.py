@@ -72,8 +72,13 @@ class ActiveSetPlanner:
         dropped: list[dict[str, Any]] = []
         dropped_idx: set[int] = set()
         steps: list[dict[str, Any]] = []
-        sub: Plan | None = None
-        traj: Any = FreeTrajectory.of(problem.ego)
+        free_sub, free_traj = self._free(problem)
+        if free_traj is None and free_sub is not None:
+            return self._result(problem, free_sub, None, [], dropped, steps, 1, start, free_sub.status,
+                                f"the plan without any corner failed ({free_sub.status}): "
+                                f"{free_sub.diagnostics.reason or ''}".rstrip(": "))
+        sub: Plan | None = free_sub
+        traj: Any = free_traj
         iterations = 0
         while True:
             iterations += 1
@@ -95,7 +100,7 @@ class ActiveSetPlanner:
                     steps.append({"iteration": iterations, "dropped": [vehicles[i].name for _, i in drag]})
                     imposed = [i for i in imposed if i not in dropped_idx]
                     if not imposed:
-                        sub, traj = None, FreeTrajectory.of(problem.ego)
+                        sub, traj = free_sub, free_traj
                         iterations += 1
                     else:
                         continue
@@ -113,6 +118,25 @@ class ActiveSetPlanner:
             d, i = options[0]
             imposed.append(i)
             steps.append({"iteration": iterations, "imposed": vehicles[i].name, "max_intrusion_m": float(d)})
+
+    def _free(self, problem: Problem) -> tuple[Plan | None, Any]:
+        """The plan with no corner imposed: the minimum-energy cubic without physical limits;
+        with a ``[limits]`` table the bounded plan of the problem with zero vehicles (the PMP:
+        its input box imposed exactly, the other bounds judged; the QPs need a vehicle), so that
+        the active set never starts from a plan beyond the car's limits.  Returns ``(plan or
+        None, trajectory or None)``; a failed bounded plan has no trajectory."""
+        lim = problem.limits
+        if lim is None or lim.empty:
+            return None, FreeTrajectory.of(problem.ego)
+        from iamp.planners.pmp.planner import PMPPlanner
+
+        base = self.base if self.name == "pmp" else PMPPlanner()
+        free = base.plan(problem.with_vehicles([]))
+        if hasattr(free, "judge_limits"):
+            free = free.judge_limits()
+        if not free.ok or free.trajectory is None:
+            return free, None
+        return free, free.trajectory
 
     def _base_attr(self, name: str) -> Any:
         return getattr(self.base, name, None) if self.name == "qp" else None
@@ -149,7 +173,8 @@ class ActiveSetPlanner:
             info["reason"] = reason
             if status == st.UNSAFE:
                 info["unsafe_reason"] = reason
-        plan = Plan(problem=problem, planner=getattr(sub, "planner", None) or self.name, status=status,
+        planner = self.name if sub is None or not imposed else (getattr(sub, "planner", None) or self.name)
+        plan = Plan(problem=problem, planner=planner, status=status,
                     cost=cost if status in st.SUCCESS or status == st.UNSAFE else None,
                     contact_times=times, jumps=jumps, trajectory=traj,
                     solve_time_s=time.perf_counter() - start,

@@ -6,6 +6,7 @@ default); :mod:`iamp.core.scenario` itself never imports the predictor.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from iamp.core.problem import Problem
@@ -35,3 +36,36 @@ def problem_from_scenario(scenario: Scenario, model: str | None = None) -> tuple
         predictor = Predictor.from_file(model) if model is not None else default_predictor()
     problem, predictions = scenario.to_problem(predictor)
     return scenario, problem, predictions
+
+
+@dataclass(frozen=True)
+class _LeaderPrediction:
+    x_poly: tuple[float, ...]
+    t: Any
+    x: Any
+
+
+class _ScenarioLeaderPredictor:
+    """``predict(history, tf)`` answering from :func:`~iamp.prediction.leader.model.predict_scenario`'s
+    results for the scenario's own histories (looked up by identity)."""
+
+    def __init__(self, predictions: dict[int, _LeaderPrediction], name: str, dt: float) -> None:
+        self._by_history = predictions
+        self.name = name
+        self.dt = dt
+
+    def predict(self, history: Any, tf: float) -> _LeaderPrediction:
+        return self._by_history[id(history)]
+
+
+def problem_with_leader_model(scenario: Scenario, leader_model: str) -> tuple[Problem, list[Any]]:
+    """``(problem, predictions)`` with every history vehicle predicted by the leader-aware predictor
+    of the file ``leader_model`` (the vehicle ahead in its lane, |dy| < 1.75 m, as leader; the
+    model's MTD fallback where there is none): the scenario-level counterpart of
+    :func:`problem_from_scenario` (``iamp plan --leader-model``)."""
+    from iamp.prediction.leader.model import SIM_DT, LeaderPredictor, predict_scenario
+
+    lp = LeaderPredictor.from_file(leader_model)
+    res = predict_scenario(lp, scenario.vehicles, scenario.ego.tf)
+    by_history = {id(scenario.vehicles[i].history): _LeaderPrediction(c, t, x) for i, (c, t, x) in res.items()}
+    return scenario.to_problem(_ScenarioLeaderPredictor(by_history, leader_model, SIM_DT))

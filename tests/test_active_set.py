@@ -103,3 +103,27 @@ def test_cli_active_json_lists_imposed_and_dropped(capsys):
     assert set(out["active_set"]) >= {"imposed", "dropped", "iterations"}
     assert out["contact_times"] == [None, None]
     assert np.isfinite(out["cost"])
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st_h.floats(-40.0, -5.0), st_h.floats(10.0, 20.0), st_h.floats(20.0, 60.0), st_h.floats(10.0, 20.0),
+       st_h.floats(65.0, 85.0), st_h.floats(2.0, 4.0))
+def test_active_set_under_limits_never_starts_beyond_the_box(x1, s1, x2, s2, xf, ax_hi):
+    """With a [limits] table the plan without corners is the bounded plan of the problem without
+    vehicles (SPEC §14), not the unbounded cubic: a verified active-set plan keeps the input box
+    (exact peaks), and with nothing imposed its cost is that bounded plan's cost."""
+    from iamp.core.physical import PhysicalLimits
+
+    lim = PhysicalLimits(ax=(-6.0, ax_hi), ay=(-2.0, 2.0))
+    prob = scene(x1, s1, x2, s2, xf).with_limits(lim)
+    free = PMPPlanner().plan(prob.with_vehicles([]))
+    for base, name in ((PMPPlanner(), "pmp"), (QPPlanner(steps=40), "qp")):
+        plan = ActiveSetPlanner(base, name).plan(prob).judge_limits()
+        # both bases impose a box exactly: the active set never ends beyond it
+        assert plan.status != st.LIMITS_VIOLATED, (name, plan.info.get("reason"))
+        if plan.status in (st.OPTIMAL, st.LOCAL):
+            assert plan.peaks is not None and not plan.peaks.exceeded
+            if not plan.info["active_set"]["imposed"]:
+                assert free.ok and plan.cost == pytest.approx(free.cost, rel=1e-9)
+        elif not free.ok:
+            assert plan.status == free.status  # the bounded free plan's own verdict, not a guess

@@ -70,15 +70,21 @@ def test_no_verified_plan_exceeds_a_given_bound(seed: int, lim: PhysicalLimits,
 
 
 def test_the_verdict_is_idempotent_and_names_the_bound() -> None:
+    # the PMP imposes the input box exactly (SPEC §14, planners/pmp/bounded.py): a tight ax is
+    # within its peaks or infeasible with the reason, never exceeded
     problem = random_problem(3).with_limits(PhysicalLimits(ax=(-0.5, 0.5)))
     plan = api.plan(problem, "pmp")
     free = api.plan(problem.with_limits(None), "pmp")
     assert free.status == sts.OPTIMAL
-    peak = plan.peaks.peaks["ax"].peak  # type: ignore[union-attr]
-    if -0.5 <= peak[0] and peak[1] <= 0.5:  # type: ignore[index]
-        assert plan.status == sts.OPTIMAL
-        return
-    assert plan.status == sts.LIMITS_VIOLATED and "ax peaks at" in plan.info["reason"]
+    if plan.peaks is not None:
+        peak = plan.peaks.peaks["ax"].peak
+        assert plan.ok and -0.5 - 1e-9 <= peak[0] and peak[1] <= 0.5 + 1e-9  # type: ignore[index]
+    else:
+        assert plan.status == sts.INFEASIBLE and plan.info["reason"]
+    # a speed bound it cannot impose: the plan is kept, limits_violated, the bound named
+    vmax = float(free.states(np.linspace(0, problem.tf, DENSE))[:, 1].max())
+    plan = api.plan(problem.with_limits(PhysicalLimits(vx=(0.0, vmax - 1.0))), "pmp")
+    assert plan.status == sts.LIMITS_VIOLATED and "vx peaks at" in plan.info["reason"]
     reason = plan.info["reason"]
     assert plan.judge_limits() is plan and plan.info["reason"] == reason
-    assert plan.to_json()["status"] == "limits_violated" and plan.to_json()["limits"]["ax"]["ok"] is False
+    assert plan.to_json()["status"] == "limits_violated" and plan.to_json()["limits"]["vx"]["ok"] is False

@@ -613,3 +613,17 @@ def test_certificate_rates_bound_the_true_derivatives(coeffs: tuple[float, float
     assert ib.cddot_max[0] >= cddot - 1e-12 and ib.cddot_max[1] == 0.0
     assert ib.lip_rate[0] >= cdot + abs(ego.vx0) + max(abs(b) for b in BOX.ax) * T - 1e-9
     assert ib.lip_rate[1] >= abs(ego.vy0) + max(abs(b) for b in BOX.ay) * T - 1e-9
+
+
+def test_a_box_on_one_axis_only() -> None:
+    """``ax`` given, ``ay`` not (and the reverse): the unbounded axis is free, the bounded one
+    imposed; an ``ay``-only box the plan respects returns the unbounded plan unchanged."""
+    base = load_scenario("paper-1")
+    free = PMPPlanner().plan(base)
+    only_x = PMPPlanner().plan(base.with_limits(PhysicalLimits(ax=(-6.0, 3.0))))
+    assert only_x.status == OPTIMAL and only_x.info["bounded"]["box_active"]
+    U = only_x.inputs(np.linspace(0, base.tf, 2001))
+    assert U[:, 0].max() <= 3.0 + 1e-12 and only_x.cost is not None and free.cost is not None
+    assert only_x.cost > free.cost
+    only_y = PMPPlanner().plan(base.with_limits(PhysicalLimits(ay=(-2.0, 2.0))))
+    assert only_y.status == OPTIMAL and not only_y.info["bounded"]["box_active"] and only_y.cost == free.cost

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, float_in, model_file, steps_int
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, EXIT_UNSAFE, float_in, leader_model_file, model_file, steps_int
 from iamp.core.errors import OptionError, ScenarioError, SolverError
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
@@ -121,6 +121,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
                             "vehicle's x_poly", "--model", args.scenario)
     scenario, problem, _ = load_cli_problem(args.scenario, args.model)
+    if getattr(args, "leader_model", None) is not None:
+        if not scenario.needs_prediction:
+            raise ScenarioError("applies only to scenarios with an observed history; this scenario gives every "
+                                "vehicle's x_poly", "--leader-model", args.scenario)
+        from iamp.prediction.resolve import problem_with_leader_model
+
+        problem, _ = problem_with_leader_model(scenario, args.leader_model)
     if args.planner == "qp" and args.constraint != "avoid":  # the avoidance search has a budget, no work limit
         msg = qp_work_message(problem.m, args.steps)
         if msg is not None:
@@ -324,6 +331,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    f"reported as a touch, not UNSAFE (default {SAFETY_TOLERANCE_M:g} m; 0: any entry is unsafe)")
     p.add_argument("--model", type=model_file, default=None, help="predictor model file for history scenarios "
                    "(default: the shipped model)")
+    p.add_argument("--leader-model", type=leader_model_file, default=None,
+                   help="leader model (iamp train --model-kind leader): a history vehicle with another history "
+                        "vehicle ahead in its lane (|dy| < 1.75 m) is predicted following it (issue 23)")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")
     p.add_argument("--force", action="store_true", help="replace the --csv file if it exists")
     p.add_argument("--csv", metavar="FILE", default=None,

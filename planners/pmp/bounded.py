@@ -922,9 +922,14 @@ def apply_state_limits(plan: Plan) -> Plan:
     plan.annotate(limits=report, peaks=peaks)
     bad = [name for name, r in report.items() if not r["ok"]]
     if bad:
-        plan.annotate(reason="the plan exceeds " + ", ".join(
-            f"{n} (peak {report[n]['peak']}, bound {report[n]['bound']})" for n in bad), limits_violated=bad)
-        plan.status = LIMITS_VIOLATED
+        plan.annotate(limits_violated=bad)
+        # the project's one verdict (Plan.judge_limits: core peaks, the same exact pieces via
+        # BoundedSolution.breakpoints) names the bound; this report is the PMP's own check
+        plan.judge_limits("the PMP imposes only the input box ax, ay exactly")
+        if plan.status != LIMITS_VIOLATED:
+            plan.annotate(reason="the plan exceeds " + ", ".join(
+                f"{n} (peak {_fmt_bound(report[n]['peak'])}, bound {_fmt_bound(report[n]['bound'])})" for n in bad))
+            plan.status = LIMITS_VIOLATED
     else:
         plan.annotate(limits_note=("every given bound holds on this plan, so it is "
                                    f"{plan.status} for the bounded problem too"))
@@ -941,6 +946,15 @@ def _failed(problem: Problem, status: str, check: str, info: dict[str, Any], sta
                 diagnostics=BoundedPMPDiagnostics.from_info(info))
 
 
+def _fmt_bound(value: Any) -> str:
+    """A peak or bound for a message: 4 significant digits, a range as ``[lo, hi]``."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_fmt_bound(v) for v in value) + "]"
+    if isinstance(value, (int, float)):
+        return f"{float(value):.4g}"
+    return str(value)
+
+
 def box_respected(plan: Plan) -> bool:
     """Whether an (unbounded) plan's inputs stay in the problem's ``ax``/``ay`` box (exact
     peaks at the knots, ``limits_bound_rel`` slack)."""
@@ -949,7 +963,7 @@ def box_respected(plan: Plan) -> bool:
     U = plan.inputs(kn)
     rel = TOLERANCES["limits_bound_rel"]
     for k, (lo, hi) in enumerate(((lx, hx), (ly, hy))):
-        slack = rel * max(1.0, *(abs(b) for b in (lo, hi) if math.isfinite(b)))
+        slack = rel * max([1.0, *(abs(b) for b in (lo, hi) if math.isfinite(b))])
         if U[:, k].min() < lo - slack or U[:, k].max() > hi + slack:
             return False
     return True

@@ -122,7 +122,8 @@ def _ci(x: FloatArray) -> list[float]:
 
 def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None = None, split: str | None = None,
                   seed: int = 0, resamples: int = BOOTSTRAP_RESAMPLES, location: str | None = None,
-                  progress: Progress | None = None) -> dict[str, Any]:
+                  progress: Progress | None = None, leader_model: str | None = None,
+                  interaction: bool = True) -> dict[str, Any]:
     """Evaluate CV, CA, MTD and the first-order chain on a data file (SPEC §13 JSON).
 
     Parameters
@@ -141,6 +142,12 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         NGSIM only: keep the rows of this ``Location`` (e.g. ``"us-101"``, ``"i-80"``).
     progress : callable, optional
         ``progress(done, total)`` after each step.
+    leader_model : str, optional
+        A leader model file (``kind: "leader"``) to evaluate (without ``split``; default the
+        shipped one).  With ``split`` a leader model is calibrated on the training part.
+    interaction : bool
+        Evaluate the leader-aware predictor and add the ``interaction`` section (module
+        docstring of :mod:`~iamp.prediction.evaluation.leader`).
 
     Returns
     -------
@@ -154,7 +161,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
     from .evaluate import DEFAULT_CONFIG
     from .select import train_config
 
-    total = 7
+    total = 8
     step = 0
 
     def tick() -> None:
@@ -165,7 +172,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
 
     if split is not None and split not in SPLITS:
         raise ValueError(f"split must be one of {', '.join(SPLITS)} (got {split!r})")
-    if split is not None and model is not None:
+    if split is not None and (model is not None or leader_model is not None):
         raise ValueError("--model and --split exclude each other (--split trains the model on the file)")
     if location is not None and fmt != "ngsim":
         raise ValueError("--location applies to NGSIM data only")
@@ -173,6 +180,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
     tick()
     test = tracks
     mtd: MTDModel
+    train: Tracks | None = None
     if split is None:
         mtd = Predictor.from_file(model).model if model is not None else Predictor.default().model
         train_note = model if model is not None else "builtin"
@@ -200,6 +208,14 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
     tick()
     preds["fo"] = Predictor(fo, "fo").predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S)
     tick()
+    inter = None
+    if interaction:
+        from iamp.prediction.evaluation.leader import interaction_section
+
+        inter, extra = interaction_section(data, fmt, tracks, test, train, win, mtd, preds, leader_model=leader_model,
+                                           split=split, seed=seed, resamples=resamples)
+        preds.update(extra)
+    tick()
     errs = {k: _errors(p, win) for k, p in preds.items()}
     lat = lateral_constant(win)
     lateral = None
@@ -220,5 +236,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         "split": split, "seed": seed, "model": train_note, "jerk_psd": q,
         "load_report": report.to_dict(),
     }
+    if inter is not None:
+        out["interaction"] = inter
     tick()
     return out

@@ -27,6 +27,7 @@ def model_to_dict(model: MTDModel) -> dict[str, Any]:
     """A JSON-serialisable description (see :meth:`save`)."""
     return {
         "format": FORMAT,
+        "kind": "mtd",
         "orientation": "column-stochastic: Q[i-1][j][k] = P(x_t = j | x_{t-i} = k)",
         "order": model.order,
         "n_states": model.n_states,
@@ -68,6 +69,9 @@ def model_from_dict(d: Any, source: str | None = None) -> MTDModel:
     if d.get("format") != FORMAT:
         raise ModelFileError(f"unsupported format {d.get('format')!r} (expected {FORMAT!r})",
                              "format", source)
+    if d.get("kind", "mtd") != "mtd":
+        raise ModelFileError(f"is {d.get('kind')!r}, expected 'mtd' (a leader model is read by "
+                             "iamp.prediction.leader.model.load_any_model)", "kind", source)
     for key in ("Q", "lambda", "order"):
         if key not in d:
             raise ModelFileError("is missing", key, source)
