@@ -15,10 +15,10 @@ from iamp.prediction.evaluation.evaluate import DEFAULT_CONFIG
 from iamp.prediction.evaluation.leader import _rows_mask, leader_windows
 from iamp.prediction.evaluation.select import train_config
 from iamp.prediction.evaluation.user import HELD_OUT_FRACTION
-from iamp.prediction.evaluation.windows import FUTURE_S, baseline_cv, make_windows
 from iamp.prediction.leader.leaders import Leaders, leaders_for
 from iamp.prediction.leader.model import LeaderPredictor, train_leader_model
 from iamp.prediction.loaders import load
+from iamp.prediction.windows import FUTURE_S, baseline_cv, make_windows
 
 
 def main(argv: list[str] | None = None) -> int:

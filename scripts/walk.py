@@ -62,7 +62,7 @@ def main() -> int:
         try:
             from iamp.planners.pmp.planner import PMPPlanner
         except ImportError:  # the flat layout before issue 18
-            from iamp.planners.pmp import PMPPlanner  # type: ignore[no-redef]
+            from iamp.planners.pmp.planner import PMPPlanner  # type: ignore[no-redef]
 
         problem = iamp.load_scenario(scenario)
         planner = PMPPlanner()

@@ -1,16 +1,28 @@
-r"""Campaigns: every (planner, traffic, seed) episode on Dask distributed, resumable.
+r"""Campaigns: every (mission, planner, traffic, seed) episode on Dask distributed, resumable.
 
 * Episodes run as tasks on a ``distributed`` cluster: a :class:`distributed.LocalCluster`
   of ``workers`` processes with one thread each (``libsumo`` runs one simulation per
   process) by default, or an existing scheduler at ``scheduler`` (``tcp://host:8786``).
+  Tasks are submitted **seed by seed** (every mission, planner and density of seed 1, then
+  seed 2, ...), so an interrupted campaign holds complete paired seeds.
+* **Seeds are paired**: seed ``S`` gives the same traffic (SUMO's ``--seed`` and the initial
+  platoon) to every planner, so planners can be compared episode by episode.
+* **The manifest** (``manifest.json``) records every parameter that defines an episode
+  (duration, period, deadline, warm-up, settle time, cooperation, sublane, the episode
+  format) and the grid (missions, planners, densities, seeds).  A resumed campaign whose
+  episode parameters differ refuses (:class:`ManifestMismatch`, exit 2, naming them) —
+  unless ``force``, which discards the rows made with the old parameters.  The grid may
+  grow (more seeds, planners, missions); the manifest records the union.
 * Every finished episode is appended to ``episodes.csv`` at once, by an atomic rewrite
   (temporary file + rename), so an interrupt loses at most the episodes still running; a
-  rerun skips every ``(planner, traffic, seed)`` already in the file.  A failed episode
-  goes to ``errors.csv`` instead and is retried by the next run.
+  rerun skips every ``(mission, planner, traffic, seed)`` already in the file.  A failed
+  episode goes to ``errors.csv`` instead and is retried by the next run.
 * Rates are reported with Wilson score intervals (95 %, ``z = 1.96``): for ``k`` of ``n``,
 
   .. math::  \frac{\hat p + z^2/2n}{1 + z^2/n} \pm \frac{z}{1 + z^2/n}
-             \sqrt{\frac{\hat p(1-\hat p)}{n} + \frac{z^2}{4n^2}}, \qquad \hat p = k/n .
+             \sqrt{\frac{\hat p(1-\hat p)}{n} + \frac{z^2}{4n^2}}, \qquad \hat p = k/n ;
+
+  paired differences between planners are in :mod:`iamp.simulation.stats`.
 """
 
 from __future__ import annotations
@@ -19,35 +31,46 @@ import contextlib
 import csv
 import importlib
 import io
+import json
 import logging
-import math
 import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from iamp.core.atomic import write_text
-from iamp.core.errors import MissingDependencyError
+from iamp.core.errors import IampError, MissingDependencyError
 from iamp.simulation.network import INSTALL_HINT
+from iamp.simulation.stats import campaign_report, wilson  # noqa: F401 - wilson re-exported
 
-COLUMNS = ("planner", "traffic", "seed", "duration_s", "period_s", "lane_change_done_s", "lane_changes",
-           "collisions", "sumo_collisions", "overlap_collisions", "intrusion_s", "min_gap_m", "min_ttc_s",
-           "min_follower_accel", "rms_accel_x", "rms_accel_y", "rms_jerk_x", "rms_jerk_y", "plan_time_p50_s",
-           "plan_time_p95_s", "plan_time_max_s", "plans", "constrained_plans", "failed_plans", "late_plans",
-           "fallbacks", "aborts",
-           "deadline_s", "wall_total_s", "wall_sumo_s", "wall_prediction_s", "wall_planning_s", "max_rss_mb")
-Key = tuple[str, str, int]
-#: A neighbour behind the ego braking harder than this [m/s²] (the "average" driver's
-#: ``decel``; beyond it SUMO's drivers brake in emergency) marks a hard-brake episode.
-HARD_BRAKE = -4.5
+COLUMNS = ("mission", "planner", "traffic", "seed", "cooperation", "sublane", "duration_s", "period_s",
+           "simulated_s", "distance_to_end_m", "success", "time_to_merge_s", "stopped_at_end", "contacts",
+           "overlap_contacts", "sumo_contacts", "mingap_violations", "min_ttc_s", "ttc_below_1_5_s",
+           "new_follower", "follower_max_decel", "ego_peak_accel", "ego_ax_min", "ego_ax_max", "ego_ay_peak",
+           "ego_jerk_peak", "limit_violations", "jerk_violations", "ego_lost", "lane_change_done_s", "lane_changes",
+           "intrusion_s", "min_gap_m", "min_follower_accel", "rms_accel_x", "rms_accel_y", "rms_jerk_x",
+           "rms_jerk_y", "plan_time_p50_s", "plan_time_p95_s", "plan_time_max_s", "plans", "planner_calls",
+           "executed_plans", "constrained_plans", "infeasible_plans", "rejected", "late_plans", "fallbacks",
+           "aborts", "deadline_s", "wall_total_s", "wall_sumo_s", "wall_prediction_s", "wall_planning_s",
+           "max_rss_mb")
+Key = tuple[str, str, str, int]
+#: Version of the episode definition (missions, decision layer, metrics); part of the manifest.
+EPISODE_FORMAT = "15.1"
+#: Manifest keys that define an episode: a resumed campaign must match them.
+EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
+                "sublane")
+
+
+class ManifestMismatch(IampError):
+    """A resumed campaign's episode parameters differ from its manifest's."""
 
 
 def flatten(summary: dict[str, Any]) -> dict[str, Any]:
     """One ``episodes.csv`` row from a SPEC §11 summary (nested keys flattened)."""
     row = {k: summary.get(k) for k in COLUMNS if k in summary}
+    row["ego_ax_min"], row["ego_ax_max"] = summary["ego_ax_range"]
+    row["rejected"] = ";".join(f"{k}={v}" for k, v in summary.get("rejected", {}).items())
     row["rms_accel_x"], row["rms_accel_y"] = summary["rms_accel"]
     row["rms_jerk_x"], row["rms_jerk_y"] = summary["rms_jerk"]
     for q in ("p50", "p95", "max"):
@@ -72,7 +95,48 @@ def read_rows(path: Path) -> list[dict[str, str]]:
 
 
 def _key(row: dict[str, Any]) -> Key:
-    return (str(row["planner"]), str(row["traffic"]), int(row["seed"]))
+    return (str(row.get("mission") or "discretionary"), str(row["planner"]), str(row["traffic"]), int(row["seed"]))
+
+
+def manifest_of(missions: Iterable[str], planners: Iterable[str], traffics: Iterable[str], seeds: int,
+                episode: dict[str, Any]) -> dict[str, Any]:
+    """The manifest: the episode parameters and the grid."""
+    return {"episode_format": EPISODE_FORMAT, **{k: episode[k] for k in EPISODE_KEYS if k in episode},
+            "missions": list(missions), "planners": list(planners), "traffic": list(traffics), "seeds": int(seeds)}
+
+
+def check_manifest(out: Path, wanted: dict[str, Any], force: bool) -> dict[str, Any]:
+    """Compare ``wanted`` with ``out/manifest.json``; return the manifest to write.
+
+    Raises :class:`ManifestMismatch` naming the differing episode parameters unless ``force``
+    (then the old rows are discarded).
+    """
+    path = out / "manifest.json"
+    if not path.is_file():
+        if (out / "episodes.csv").is_file() and read_rows(out / "episodes.csv") and not force:
+            raise ManifestMismatch(f"{out / 'episodes.csv'}: episodes without a manifest (made by an older "
+                                   "iamp); use --force to discard them")
+        if force:
+            (out / "episodes.csv").unlink(missing_ok=True)
+        return wanted
+    try:
+        old = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ManifestMismatch(f"{path}: unreadable manifest ({exc}); use --force to start again") from None
+    diff = [k for k in EPISODE_KEYS if old.get(k) != wanted.get(k)]
+    if diff:
+        if not force:
+            said = ", ".join(f"{k} (was {old.get(k)!r}, now {wanted.get(k)!r})" for k in diff)
+            raise ManifestMismatch(f"{path}: the campaign was made with other parameters: {said}; "
+                                   "use the same ones to resume, or --force to discard its episodes")
+        (out / "episodes.csv").unlink(missing_ok=True)
+        (out / "errors.csv").unlink(missing_ok=True)
+        return wanted
+    merged = dict(wanted)
+    for k in ("missions", "planners", "traffic"):
+        merged[k] = list(dict.fromkeys([*old.get(k, []), *wanted[k]]))
+    merged["seeds"] = max(int(old.get("seeds", 0)), int(wanted["seeds"]))
+    return merged
 
 
 def _append(path: Path, columns: tuple[str, ...], row: dict[str, Any]) -> None:
@@ -111,19 +175,31 @@ def _quiet_dask(quiet: bool) -> Iterator[None]:
 
 
 def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, out: str | Path, *,
-                 workers: int = 2, scheduler: str | None = None, duration_s: float = 60.0,
-                 period_s: float = 0.1, deadline: bool = True,
-                 progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
-    """Run the missing episodes of the campaign; returns ``{"ran", "skipped", "failed", "seconds"}``."""
+                 missions: Iterable[str] = ("merge",), workers: int = 2, scheduler: str | None = None,
+                 duration_s: float = 60.0, period_s: float = 0.1, deadline: bool = False,
+                 cooperation: str = "default", sublane: bool = False, warmup_s: float = 5.0, settle_s: float = 8.0,
+                 force: bool = False, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """Run the missing episodes of the campaign; returns ``{"ran", "skipped", "failed", "seconds"}``.
+
+    Raises :class:`ManifestMismatch` when ``out`` holds a campaign made with other episode
+    parameters (unless ``force``).
+    """
+    planners, traffics, missions = list(planners), list(traffics), list(missions)
     try:
         dist: Any = importlib.import_module("distributed")
     except ImportError:
         raise MissingDependencyError(f"campaigns need Dask distributed: {INSTALL_HINT}") from None
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    episode = {"duration_s": float(duration_s), "period_s": float(period_s),
+               "deadline_s": float(period_s) if deadline else None, "warmup_s": float(warmup_s),
+               "settle_s": float(settle_s), "cooperation": cooperation, "sublane": bool(sublane)}
+    manifest = check_manifest(out, manifest_of(missions, planners, traffics, seeds, episode), force)
+    write_text(out / "manifest.json", json.dumps(manifest, indent=1) + "\n")
     episodes, errors = out / "episodes.csv", out / "errors.csv"
     done = {_key(r) for r in read_rows(episodes)}
-    todo = [(p, t, s) for p in planners for t in traffics for s in range(1, int(seeds) + 1) if (p, t, s) not in done]
+    todo = [(m, p, t, s) for s in range(1, int(seeds) + 1) for m in missions for t in traffics for p in planners
+            if (m, p, t, s) not in done]
     total, skipped = len(todo) + len(done), len(done)
     if progress:
         progress(skipped, total)
@@ -139,19 +215,21 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
         client = dist.Client(cluster)
     interrupted = False
     try:
-        limit = period_s if deadline else None
-        futures = {client.submit(run_one, {"planner": p, "traffic": t, "seed": s, "duration_s": duration_s,
-                                           "period_s": period_s, "deadline_s": limit}, pure=False): (p, t, s)
-                   for p, t, s in todo}
+        futures = {client.submit(run_one, {"planner": p, "traffic": t, "seed": s, "mission": m,
+                                           "duration_s": duration_s, "period_s": period_s,
+                                           "deadline_s": episode["deadline_s"], "cooperation": cooperation,
+                                           "sublane": sublane, "warmup_s": warmup_s, "settle_s": settle_s},
+                                 pure=False): (m, p, t, s)
+                   for m, p, t, s in todo}
         n_done = skipped
         for fut in dist.as_completed(futures):
-            p, t, s = futures[fut]
+            m, p, t, s = futures[fut]
             try:
                 _append(episodes, COLUMNS, fut.result())
             except Exception as exc:  # an episode's failure is recorded, not fatal
                 failed += 1
-                _append(errors, ("planner", "traffic", "seed", "error"),
-                        {"planner": p, "traffic": t, "seed": s, "error": repr(exc)[:300]})
+                _append(errors, ("mission", "planner", "traffic", "seed", "error"),
+                        {"mission": m, "planner": p, "traffic": t, "seed": s, "error": repr(exc)[:300]})
             n_done += 1
             if progress:
                 progress(n_done, total)
@@ -167,79 +245,70 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
 
 
 # ---------------------------------------------------------------------------------------
-# summary
+# tables
 # ---------------------------------------------------------------------------------------
 
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson score interval of ``k`` successes in ``n`` trials."""
-    if n == 0:
-        return (0.0, 1.0)
-    p = k / n
-    den = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / den
-    half = z / den * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-    return (max(0.0, centre - half), min(1.0, centre + half))
+def summarise(rows: list[dict[str, str]], planners: Iterable[str] | None = None) -> list[dict[str, Any]]:
+    """Per (mission, traffic, planner): rates with Wilson intervals and medians
+    (:func:`iamp.simulation.stats.cell_summary`)."""
+    names = list(planners) if planners is not None else list(dict.fromkeys(r["planner"] for r in rows))
+    return list(campaign_report(rows, names)["cells"])
 
 
-def _floats(rows: list[dict[str, str]], col: str) -> np.ndarray:
-    return np.array([float(r[col]) for r in rows if r.get(col, "") not in ("", "None")])
+def _pct(k: int, n: int, ci: tuple[float, float]) -> str:
+    return f"{k}/{n} [{100 * ci[0]:.0f}, {100 * ci[1]:.0f}]"
 
 
-def summarise(rows: list[dict[str, str]]) -> list[dict[str, Any]]:
-    """Per (planner, traffic): rates with Wilson intervals and medians."""
-    groups: dict[tuple[str, str], list[dict[str, str]]] = {}
-    for r in rows:
-        groups.setdefault((r["planner"], r["traffic"]), []).append(r)
-    order = {"light": 0, "medium": 1, "dense": 2}
-    out = []
-    for (planner, traffic), rs in sorted(groups.items(), key=lambda kv: (kv[0][0], order.get(kv[0][1], 9))):
-        n = len(rs)
-        k_col = sum(int(r["collisions"]) > 0 for r in rs)
-        k_int = sum(float(r["intrusion_s"]) > 0 for r in rs)
-        k_lc = sum(r["lane_change_done_s"] not in ("", "None") for r in rs)
-        k_brk = sum(r.get("min_follower_accel", "") not in ("", "None") and float(r["min_follower_accel"]) < HARD_BRAKE
-                    for r in rs)
-        p95 = _floats(rs, "plan_time_p95_s")
-        gaps, ttc = _floats(rs, "min_gap_m"), _floats(rs, "min_ttc_s")
-        out.append({
-            "planner": planner, "traffic": traffic, "episodes": n,
-            "collision_episodes": k_col, "collision_rate": k_col / n, "collision_ci": wilson(k_col, n),
-            "intrusion_episodes": k_int, "intrusion_rate": k_int / n, "intrusion_ci": wilson(k_int, n),
-            "hard_brake_episodes": k_brk, "hard_brake_rate": k_brk / n, "hard_brake_ci": wilson(k_brk, n),
-            "lane_change_rate": k_lc / n, "lane_change_ci": wilson(k_lc, n),
-            "lane_changes_mean": float(np.mean(_floats(rs, "lane_changes"))),
-            "intrusion_s_mean": float(np.mean(_floats(rs, "intrusion_s"))),
-            "min_gap_m_median": float(np.median(gaps)) if gaps.size else None,
-            "min_ttc_s_median": float(np.median(ttc)) if ttc.size else None,
-            "plan_time_p95_s_median": float(np.median(p95)) if p95.size else None,
-            "plan_time_max_s": float(np.max(_floats(rs, "plan_time_max_s"))) if p95.size else None,
-            "plans": int(_floats(rs, "plans").sum()), "constrained_plans": int(_floats(rs, "constrained_plans").sum()),
-            "failed_plans": int(_floats(rs, "failed_plans").sum()), "fallbacks": int(_floats(rs, "fallbacks").sum()),
-            "late_plans": int(_floats(rs, "late_plans").sum()), "aborts": int(_floats(rs, "aborts").sum()),
-            "wall_s_median": float(np.median(_floats(rs, "wall_total_s"))),
-            "max_rss_mb": float(np.max(_floats(rs, "max_rss_mb"))),
-        })
-    return out
+def _num(v: float | None, fmt: str, scale: float = 1.0) -> str:
+    return "--" if v is None else format(scale * v, fmt)
 
 
-def latex_table(summary: list[dict[str, Any]]) -> str:
-    """A booktabs table: rates in % with Wilson 95 % intervals, medians."""
-
-    def pct(rate: float, ci: tuple[float, float]) -> str:
-        return f"{100 * rate:.0f} [{100 * ci[0]:.0f}, {100 * ci[1]:.0f}]"
-
-    def num(v: float | None, fmt: str) -> str:
-        return "--" if v is None else format(v, fmt)
-
-    lines = [r"\begin{tabular}{llrllllrrr}", r"\toprule",
-             r"planner & traffic & $n$ & collisions [\%] & intrusion [\%] & hard brake [\%] & lane change [\%] & "
-             r"min gap [m] & plan $p_{95}$ [ms] & fallbacks \\", r"\midrule"]
-    for s in summary:
-        p95 = s["plan_time_p95_s_median"]
-        lines.append(f"{s['planner']} & {s['traffic']} & {s['episodes']} & "
-                     f"{pct(s['collision_rate'], s['collision_ci'])} & {pct(s['intrusion_rate'], s['intrusion_ci'])} & "
-                     f"{pct(s['hard_brake_rate'], s['hard_brake_ci'])} & "
-                     f"{pct(s['lane_change_rate'], s['lane_change_ci'])} & {num(s['min_gap_m_median'], '.1f')} & "
-                     f"{num(None if p95 is None else 1e3 * p95, '.2f')} & {s['fallbacks']} \\\\")
+def latex_table(cells: list[dict[str, Any]]) -> str:
+    """A booktabs table per cell: success and contacts (k/n, Wilson 95 % in %), hard brakes of the
+    new follower, medians of time to merge, follower deceleration, executed peak, plan time."""
+    lines = [r"\begin{tabular}{lllrllllrrrrr}", r"\toprule",
+             r"mission & traffic & planner & $n$ & success & contact & hard brake & limits & $t_{merge}$ [s] & "
+             r"$d_{f}$ [m/s$^2$] & $|a|_{max}$ [m/s$^2$] & constrained & plan $p_{50}$ [ms] \\", r"\midrule"]
+    for c in cells:
+        n = c["episodes"]
+        lines.append(
+            f"{c['mission']} & {c['traffic']} & {c['planner']} & {n} & "
+            f"{_pct(c['success_episodes'], n, c['success_ci'])} & {_pct(c['contact_episodes'], n, c['contact_ci'])} & "
+            f"{_pct(c['hard_brake_episodes'], n, c['hard_brake_ci'])} & "
+            f"{_pct(c['limit_violation_episodes'], n, c['limit_violation_ci'])} & "
+            f"{_num(c['time_to_merge_s_median'], '.1f')} & {_num(c['follower_max_decel_median'], '.1f')} & "
+            f"{_num(c['ego_peak_accel_median'], '.1f')} & {c['constrained_plans']}/{c['executed_plans']} & "
+            f"{_num(c['plan_time_p50_s_median'], '.2f', 1e3)} \\\\")
     lines += [r"\bottomrule", r"\end{tabular}"]
-    return "\n".join(lines).replace("_", r"\_").replace(r"$p\_{95}$", r"$p_{95}$") + "\n"
+    return "\n".join(lines).replace("_", r"\_").replace(r"$t\_{merge}$", r"$t_{merge}$") \
+        .replace(r"$d\_{f}$", r"$d_{f}$").replace(r"$p\_{50}$", r"$p_{50}$").replace(r"$|a|\_{max}$", r"$|a|_{max}$") \
+        + "\n"
+
+
+def paired_table(comparisons: list[dict[str, Any]]) -> str:
+    """Paired differences (other − reference) over all densities of a mission: rates with the
+    McNemar p-value, means with the paired-bootstrap 95 % interval."""
+    def rate(d: dict[str, Any]) -> str:
+        return f"{100 * d['diff']:+.0f} [{100 * d['ci'][0]:+.0f}, {100 * d['ci'][1]:+.0f}] p={d['p']:.2g}"
+
+    def cont(d: dict[str, Any], scale: float = 1.0, fmt: str = "+.2f") -> str:
+        if d["diff"] is None:
+            return "--"
+        lo, hi = (format(scale * v, fmt) for v in d["ci"])
+        return f"{format(scale * d['diff'], fmt)} [{lo}, {hi}]"
+
+    lines = [r"\begin{tabular}{lllrllllll}", r"\toprule",
+             r"mission & planner & vs & pairs & success [pp] & contact [pp] & hard brake [pp] & "
+             r"$\Delta d_f$ [m/s$^2$] & $\Delta t_{merge}$ [s] & $\Delta |a|_{max}$ [m/s$^2$] \\", r"\midrule"]
+    for c in comparisons:
+        if c["traffic"] != "all":
+            continue
+        lines.append(f"{c['mission']} & {c['planner']} & {c['reference']} & {c['pairs']} & {rate(c['success'])} & "
+                     f"{rate(c['contact'])} & {rate(c['hard_brake'])} & {cont(c['follower_max_decel'])} & "
+                     f"{cont(c['time_to_merge_s'])} & {cont(c['ego_peak_accel'])} \\\\")
+    lines += [r"\bottomrule", r"\end{tabular}"]
+    text = "\n".join(lines).replace("_", r"\_")
+    for a, b in ((r"$\Delta d\_f$", r"$\Delta d_f$"), (r"$\Delta t\_{merge}$", r"$\Delta t_{merge}$"),
+                 (r"$\Delta |a|\_{max}$", r"$\Delta |a|_{max}$")):
+        text = text.replace(a, b)
+    return text + "\n"

@@ -1,77 +1,64 @@
-r"""The closed-loop lane-change controller: observe, predict, plan, apply the first period.
+r"""The closed-loop controller: observe, predict (batched), decide, plan, apply the first period.
 
-Mission
--------
-The ego alternates between its lane and the lane to its left (middle ↔ left): it asks for a
-lane change, seeks a gap, changes lanes, holds the new lane for ``hold_s`` and asks again.
-Between manoeuvres SUMO's Krauss model drives it in its lane.
+Modes
+-----
+* ``seek`` — SUMO's Krauss drives the ego in its lane (no own lane changes).  Every
+  ``seek_every_s`` (0.3 s, three periods; the same for ``mobil``) the decision layer
+  (:mod:`iamp.simulation.decision`) tries the candidate gaps with the planner and accepts
+  the first verified, bounded, intrusion-free plan; ``mobil`` asks MOBIL about the adjacent
+  gap instead; ``sumo`` has asked LC2013 once and waits.
+* ``active`` — the accepted manoeuvre.  Every period the problem into the **committed gap**
+  (the same follower and leader, by name) is rebuilt from the measured state and fresh
+  predictions with the remaining horizon ``t_f = t_end - t`` and planned again; the new plan
+  is used if the decision layer's test (:func:`~iamp.simulation.decision.judge`) passes.
+  Below ``min_replan_s`` the last plan is followed to its end.
+* ``done`` / ``hold`` — the ego is in the target lane's centre; SUMO drives it.  In the
+  ``discretionary`` mission the ego holds ``hold_s`` and then seeks the other lane.
+* ``abort`` — see the fallback.
 
-The gap (what a driver does)
-----------------------------
-Like a driver and like SUMO's LC2013, the ego considers only the **adjacent gap** of the
-target lane: the follower ``f`` = the nearest target-lane vehicle whose centre is behind
-the ego's centre, the leader ``l`` = the nearest one ahead.  Each period while seeking it
-plans the lane change into that gap and **accepts** the gap when the plan
+Fallback (counted as ``fallbacks``)
+-----------------------------------
+A re-plan that fails the test (or, with a deadline, arrives late) is not used: the ego keeps
+executing the last accepted plan if that plan's remainder keeps its body clear of the newly
+predicted bodies; otherwise it brakes in lane (``a_x = -brake``, ``a_y = -k_p(y - y_lane) -
+k_d v_y`` back to the centre of the lane it is in; ``aborts``), and after ``abort_s`` SUMO
+takes over and the ego seeks again.
 
-* succeeded (status ``optimal``/``local``),
-* stays within comfort limits ``|u_x| ≤ a_x,max``, ``|u_y| ≤ a_y,max`` over the horizon,
-* keeps the ego's body clear of the *predicted* bodies of ``f``, ``l`` and the current-lane
-  leader ``c`` (the SPEC §9 overlap test against the cubics), and
-* ends with at least ``gap_min_m`` bumper to bumper behind ``l`` and ahead of ``f``.
-
-Otherwise it keeps driving in its lane and tries again next period (the traffic moves the
-next gap alongside).  The same rule serves every iamp planner; each judges its own plan.
-
-The problem (the paper's two-vehicle scenario)
-----------------------------------------------
-``T = horizon_s`` after acceptance the ego is to be in the target lane's centre ``y_f``
-with ``v_{y,f} = 0`` and
-
-* ``v_{x,f}`` = the mean predicted speed of ``f`` and ``l`` at ``T`` (whichever exist;
-  the ego's speed if neither);
-* ``x_f`` = where the ego would be at constant acceleration, ``x_0 + (v_{x,0} + v_{x,f})T/2``,
-  moved into the part of the predicted gap at ``T`` that leaves a time headway
-  ``headway_s·v_{x,f}`` (bumper to bumper) to ``f`` and to ``l``; if the gap is shorter
-  than that, its middle.
-
-Constraints (for a change to the left, +y; mirrored to the right): ``f`` → ``front-lower``,
-``c`` → ``rear-upper``, each with ``S_x, S_y`` (SPEC §8 defaults 5 m, 0.5 m), its cubic from
-the shared predictor fed with the last 3 s of the vehicle's centre positions, and its
-current lateral position.  A neighbour counts only within ``relevant_m`` longitudinally;
-a constraint is dropped once the ego has passed its corner laterally (it has been met).
-
-Receding horizon
-----------------
-Every period the problem is rebuilt from the measured state and fresh predictions with
-the **remaining** horizon ``t_f = t_end - t`` (the manoeuvre's end stays fixed, so it
-finishes); the first period of the new plan is applied.  Below ``min_replan_s`` the last
-plan is followed to its end.  At ``t_end`` the ego is in the target lane's centre and SUMO
-takes over.
-
-Fallback (counted)
-------------------
-A plan that fails, or takes longer than ``deadline_s`` (wall clock; ``None`` = no
-deadline), is not used: the ego keeps executing the **last feasible plan** if that plan's
-remainder is still body-collision-free against the new predictions; otherwise it **brakes
-in lane**: ``a_x = -brake``, and ``a_y = -k_p (y - y_lane) - k_d v_y`` returns it to the
-centre of the lane it is in; after ``abort_s`` SUMO takes over and the ego seeks again.
+Prediction (batched)
+--------------------
+Once per period every neighbour within ``relevant_m + 20`` m in the ego's and the target lane
+is predicted; neighbours with a full history share its sample times and go through
+:meth:`~iamp.prediction.predictor.Predictor.predict_batch` in one call (the cubic fitted to the
+predicted path, read back at four Chebyshev points, which determine it); a neighbour seen for
+less than the predictor needs is extrapolated at constant speed.
 """
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from iamp.core.diagnostics import Diagnostics
+from iamp.core.physical import PASSENGER_CAR
 from iamp.core.plan import Plan
-from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
-from iamp.core.scenario import History
-from iamp.core.status import SUCCESS
+from iamp.core.problem import EgoBoundary, Problem
 from iamp.prediction.predictor import Predictor
-from iamp.simulation.planning import PlanFn, free_plan, make_planner
+from iamp.simulation.decision import (
+    DecisionConfig,
+    EgoNow,
+    Gap,
+    Neighbour,
+    check_problem,
+    decide,
+    end_state,
+    judge,
+    lane_change_problem,
+)
+from iamp.simulation.missions import Mission, mission_of
+from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
+from iamp.simulation.planning import FreeTrajectory, PlanFn, free_plan, make_planner
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 
 
@@ -79,233 +66,156 @@ from iamp.simulation.simulator import EgoState, Observation, Simulator
 class ControllerConfig:
     """Parameters of the controller (see the module docstring)."""
 
-    horizon_s: float = 5.0
+    decision: DecisionConfig = field(default_factory=DecisionConfig)
     min_replan_s: float = 0.5
-    safety_x: float = 5.0
-    safety_y: float = 0.5
-    a_max_x: float = 3.5
-    a_max_y: float = 2.0
-    gap_min_m: float = 2.0
-    headway_s: float = 1.0
-    relevant_m: float = 50.0
+    seek_every_s: float = 0.3
     hold_s: float = 5.0
     brake: float = 3.0
     kp: float = 2.25
     kd: float = 3.0
     abort_s: float = 3.0
-    deadline_s: float | None = 0.1
-
-
-@dataclass
-class Gap:
-    """Indices (into an :class:`Observation`) of ``f``, ``l`` and ``c``; ``-1``: none."""
-
-    follower: int
-    leader: int
-    current_leader: int
+    deadline_s: float | None = None
+    idm: IDM = field(default_factory=IDM)
+    mobil: MOBIL = field(default_factory=MOBIL)
 
 
 @dataclass
 class Counters:
-    plans: int = 0
-    failed_plans: int = 0
+    plans: int = 0              # every planner call (candidates and re-plans)
+    real_calls: int = 0         # calls on a problem with a vehicle to constrain (or `free`)
+    infeasible_plans: int = 0   # calls whose plan is not verified
+    rejected: dict[str, int] = field(default_factory=dict)  # decision-layer rejections by test
     late_plans: int = 0
-    constrained_plans: int = 0
+    constrained_plans: int = 0  # executed periods whose plan carried an imposed constraint
+    executed_plans: int = 0     # executed periods driven by a plan
     fallbacks: int = 0
     aborts: int = 0
     lane_changes: int = 0
-    first_done_t: float | None = None
+    accepted_t: list[float] = field(default_factory=list)
+    done_t: list[float] = field(default_factory=list)
     plan_times: list[float] = field(default_factory=list)
     prediction_s: float = 0.0
     planning_s: float = 0.0
 
 
-#: Planners that get the active-set rule (``pmp-all``/``qp-all`` do not: the paper literally).
-ACTIVE_SET_PLANNERS = ("pmp", "qp", "qp-avoid")
+def imposed(plan: Plan) -> int:
+    """How many constraints the plan imposed (the active set's choice when there is one)."""
+    if "active" in plan.info:
+        return len(plan.info["active"])
+    if plan.info.get("free"):
+        return 0
+    return int(getattr(plan.problem, "m", 0))
 
 
-def _poly_at(c: tuple[float, ...], t: np.ndarray) -> np.ndarray:
-    return np.asarray(np.polynomial.polynomial.polyval(t, c), dtype=float)
+def _cheb(tf: float) -> np.ndarray:
+    k = np.arange(4)
+    return tf / 2 * (1 - np.cos((2 * k + 1) * np.pi / 8))
 
 
 class Controller:
-    """Drives the ego's lane changes with one planner (``pmp``, ``qp``, ``qp-avoid``, ``sumo``)."""
+    """Drives the ego's mission with one planner (``planning.PLANNERS``)."""
 
     def __init__(self, planner: str, sim: Simulator, config: ControllerConfig | None = None,
-                 predictor: Predictor | None = None) -> None:
+                 predictor: Predictor | None = None, mission: Mission | None = None) -> None:
         self.name = planner
         self.sim = sim
         self.cfg = config or ControllerConfig()
-        self.plan_fn: PlanFn | None = None if planner == "sumo" else make_planner(planner)
+        self.mission = mission or mission_of("discretionary")
+        self.iamp = planner not in ("sumo", "mobil")
+        self.plan_fn: PlanFn | None = make_planner(planner) if self.iamp else None
         self.predictor = predictor or Predictor.default()
         self.n = Counters()
         self.mode = "seek"
-        self.origin = sim.ego_lane
-        self.target = sim.ego_lane + 1
+        self.origin = self.mission.ego_lane
+        self.target = self.mission.target_lane
         self.hold_until = 0.0
         self.t_end = 0.0
         self.plan: Plan | None = None
         self.plan_t0 = 0.0
         self.abort_until = 0.0
         self.requested = False
+        self.committed: tuple[str | None, str | None] = (None, None)
+        self.lateral: np.ndarray | None = None  # mobil: the lateral cubic
+        self.lat_t0 = 0.0
+        self.next_seek = -math.inf
 
-    # -- geometry -----------------------------------------------------------------------
-    @property
-    def direction(self) -> float:
-        return 1.0 if self.target > self.origin else -1.0
-
-    def gap(self, obs: Observation, ego: EgoState) -> Gap:
-        rel = np.abs(obs.x - ego.x) <= self.cfg.relevant_m
-        f = l = c = -1
-        tgt = np.flatnonzero(rel & (obs.lane == self.target))
-        behind = tgt[obs.x[tgt] < ego.x]
-        ahead = tgt[obs.x[tgt] >= ego.x]
-        if behind.size:
-            f = int(behind[np.argmax(obs.x[behind])])
-        if ahead.size:
-            l = int(ahead[np.argmin(obs.x[ahead])])
-        cur = np.flatnonzero(rel & (obs.lane == self.origin) & (obs.x > ego.x))
-        if cur.size:
-            c = int(cur[np.argmin(obs.x[cur])])
-        return Gap(f, l, c)
-
-    # -- prediction -----------------------------------------------------------------------
-    def predict(self, obs: Observation, k: int, tf: float) -> tuple[float, ...]:
-        """Cubic ``x_s(t)`` of neighbour ``k`` from its last 3 s (constant speed if shorter than the
-        predictor needs)."""
+    # -- prediction ---------------------------------------------------------------------------
+    def neighbours(self, obs: Observation, ego: EgoState, tf: float) -> list[Neighbour]:
+        """Predicted neighbours in the ego's and the target lane near the ego (batched)."""
         start = time.perf_counter()
-        t, x = self.sim.history(obs.ids[k])
-        if t.size >= 3 and -t[0] + 1e-9 >= self.predictor.min_history_s:
-            poly: tuple[float, ...] = tuple(self.predictor.predict(History(t, x), tf).x_poly)
-        else:
-            poly = (float(obs.x[k]), float(obs.v[k]), 0.0, 0.0)
+        lanes = (self.origin, self.target)
+        near = [k for k in range(len(obs.ids))
+                if int(obs.lane[k]) in lanes and abs(obs.x[k] - ego.x) <= self.cfg.decision.relevant_m + 20.0]
+        polys: dict[int, tuple[float, ...]] = {}
+        full: list[tuple[int, np.ndarray, np.ndarray]] = []
+        need = self.predictor.min_history_s
+        for k in near:
+            t, x = self.sim.history(obs.ids[k])
+            if t.size >= 3 and -t[0] + 1e-9 >= need:
+                full.append((k, t, x))
+            else:
+                polys[k] = (float(obs.x[k]), float(obs.v[k]), 0.0, 0.0)
+        groups: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
+        for item in full:
+            groups.setdefault(item[1].size, []).append(item)
+        q = _cheb(tf)
+        for items in groups.values():
+            t_h = items[0][1]
+            same = [it for it in items if np.allclose(it[1], t_h, atol=1e-6)]
+            rest = [it for it in items if it not in same]
+            X = np.stack([it[2] for it in same])
+            vals = self.predictor.predict_batch(t_h, X, q, tf, cubic=True)
+            V = np.vander(q, 4, increasing=True)
+            C = np.linalg.solve(V, vals.T)  # (4, B)
+            for j, it in enumerate(same):
+                polys[it[0]] = tuple(float(c) for c in C[:, j])
+            for it in rest:  # pragma: no cover - histories with other sample times
+                vals1 = self.predictor.predict_batch(it[1], it[2][None, :], q, tf, cubic=True)
+                polys[it[0]] = tuple(float(c) for c in np.linalg.solve(V, vals1[0]))
         self.n.prediction_s += time.perf_counter() - start
-        return poly
+        return [Neighbour(obs.ids[k], polys[k], float(obs.y[k]), float(obs.length[k]), float(obs.width[k]),
+                          int(obs.lane[k])) for k in near]
 
-    # -- the problem ------------------------------------------------------------------------
-    def build(self, obs: Observation, ego: EgoState, tf: float) -> tuple[Problem | EgoBoundary, dict[str, Any]]:
-        """The lane-change problem towards the adjacent gap over ``tf`` seconds."""
-        cfg, d = self.cfg, self.direction
-        g = self.gap(obs, ego)
-        polys = {k: self.predict(obs, k, tf) for k in (g.follower, g.leader, g.current_leader) if k >= 0}
-        Le = self.sim.ego_length
-        T = np.array([tf])
-        speeds = [float(_poly_at(tuple(np.polynomial.polynomial.polyder(polys[k])), T)[0])
-                  for k in (g.follower, g.leader) if k >= 0]
-        vxf = float(np.clip(np.mean(speeds), 0.0, 1.2 * self.sim.highway.speed_limit)) if speeds else ego.vx
-        f_end = l_end = None
-        if g.follower >= 0:
-            f_end = float(_poly_at(polys[g.follower], T)[0]) + obs.length[g.follower] / 2 + Le / 2
-        if g.leader >= 0:
-            l_end = float(_poly_at(polys[g.leader], T)[0]) - obs.length[g.leader] / 2 - Le / 2
-        lo = -np.inf if f_end is None else f_end + cfg.headway_s * vxf
-        hi = np.inf if l_end is None else l_end - cfg.headway_s * vxf
-        x_nat = ego.x + (ego.vx + vxf) * tf / 2
-        xf = float(np.clip(x_nat, lo, hi)) if lo <= hi else (lo + hi) / 2
-        yf = self.sim.highway.lane_centre(self.target)
-        boundary = EgoBoundary(tf=tf, x0=ego.x, y0=ego.y, vx0=ego.vx, vy0=ego.vy, xf=xf, yf=yf, vxf=vxf, vyf=0.0)
-        vehicles = []
-        for k, front in ((g.follower, True), (g.current_leader, False)):
-            if k < 0:
-                continue
-            corner = ("front-" if front else "rear-") + ("lower" if d * (1 if front else -1) > 0 else "upper")
-            sv = SurroundingVehicle(polys[k], corner, float(obs.y[k]), float(obs.length[k]), float(obs.width[k]),
-                                    cfg.safety_x, cfg.safety_y, name=obs.ids[k])
-            if d * (ego.y - sv.corner_y) < 0:  # not yet passed laterally
-                vehicles.append(sv)
-        ctx = {"gap": g, "polys": polys, "f_end": f_end, "l_end": l_end}
-        return (Problem(boundary, tuple(vehicles)) if vehicles else boundary), ctx
+    def ego_now(self, ego: EgoState) -> EgoNow:
+        return EgoNow(ego.x, ego.vx, ego.y, ego.vy, self.sim.ego_length, self.sim.ego_width)
 
-    def _call(self, prob: Problem | EgoBoundary) -> Plan:
+    def y_target(self) -> float:
+        return self.sim.highway.lane_centre(self.target)
+
+    # -- planning -------------------------------------------------------------------------------
+    def _plan(self, prob: Problem | EgoBoundary) -> Plan:
+        """One planner call, timed and counted (the closed-form cubic when nothing is constrained
+        is not a planner call)."""
         assert self.plan_fn is not None
-        if isinstance(prob, EgoBoundary):
-            return free_plan(prob, self.name)
-        try:
-            return self.plan_fn(prob)
-        except Exception as exc:  # a planner crash is a failed plan, not a crashed episode
-            return Plan(problem=prob, planner=self.name, status="solver_error", cost=None,
-                        contact_times=np.full(prob.m, np.nan), jumps=np.full((prob.m, 2), np.nan),
-                        trajectory=None, diagnostics=Diagnostics(error=repr(exc)))
-
-    def _active_set(self, prob: Problem) -> Plan:
-        """Impose vehicle ``i``'s constraint only where it is needed.
-
-        Start from the unconstrained plan; add every vehicle whose safety region the current
-        plan's point enters (on its continuous trajectory); re-plan; repeat until no excluded
-        region is entered (at most ``m`` rounds).  For the avoidance QP this is an exact
-        active-set argument: a plan optimal without some inequalities that satisfies them is
-        optimal with them.  For the equality planners it is a modelling choice: without it the
-        equality drags the ego to the corner of every neighbour, however far (SPEC §2
-        identity 4; ``pmp-all``/``qp-all`` show that).
-        """
-        chosen: list[SurroundingVehicle] = []
-        plan = free_plan(prob.ego, self.name)
-        for _ in range(prob.m):
-            if plan.trajectory is None or plan.status not in SUCCESS:
-                return plan
-            t = np.linspace(0.0, prob.tf, int(prob.tf / 0.05) + 1)
-            X = np.asarray(plan.require_trajectory().states(t))
-            hit = [v for v in prob.vehicles if v not in chosen and bool(np.any(
-                (np.abs(X[:, 0] - v.position(t)) < v.length / 2 + v.safety_x)
-                & (np.abs(X[:, 2] - v.y) < v.width / 2 + v.safety_y)))]
-            if not hit:
-                break
-            chosen += hit
-            plan = self._call(prob.with_vehicles([v for v in prob.vehicles if v in chosen]))
-        plan.annotate(constrained=[v.name for v in chosen])
-        return plan
-
-    def solve(self, prob: Problem | EgoBoundary) -> tuple[Plan, bool]:
-        """Plan (timed); returns the plan and whether it is usable (succeeded, not late)."""
         start = time.perf_counter()
-        if self.name in ACTIVE_SET_PLANNERS and isinstance(prob, Problem):
-            plan = self._active_set(prob)
+        if isinstance(prob, EgoBoundary):
+            plan = free_plan(prob, self.name)
+            if self.name != "free":
+                self.n.plans += 1
+                return plan
         else:
-            plan = self._call(prob)
+            plan = self.plan_fn(prob)
         elapsed = time.perf_counter() - start
         self.n.plans += 1
+        self.n.real_calls += 1
         self.n.plan_times.append(elapsed)
         self.n.planning_s += elapsed
-        ok = plan.status in SUCCESS and plan.trajectory is not None
-        if not ok:
-            self.n.failed_plans += 1
-        elif getattr(plan.problem, "m", 0) > 0:
-            self.n.constrained_plans += 1
-        late = self.cfg.deadline_s is not None and elapsed > self.cfg.deadline_s
-        if ok and late:
+        if plan.status not in ("optimal", "local") or plan.trajectory is None:
+            self.n.infeasible_plans += 1
+        if self.cfg.deadline_s is not None and elapsed > self.cfg.deadline_s:
             self.n.late_plans += 1
-        return plan, ok and not late
+            plan.annotate(late=True)
+        return plan
 
-    # -- checks -----------------------------------------------------------------------------
-    def clear_of_bodies(self, plan: Plan, obs: Observation, ctx: dict[str, Any], t_from: float = 0.0) -> bool:
-        """SPEC §9 overlap test of the plan (from ``t_from``) against the predicted bodies."""
-        tf = float(plan.problem.tf)
-        t = np.linspace(t_from, tf, max(int((tf - t_from) / 0.05), 1) + 1)
-        X = np.asarray(plan.require_trajectory().states(t))
-        Le, We = self.sim.ego_length, self.sim.ego_width
-        for k, poly in ctx["polys"].items():
-            xs = _poly_at(poly, t - t_from)
-            lon = np.abs(X[:, 0] - xs) < (Le + obs.length[k]) / 2
-            if np.any(lon & (np.abs(X[:, 2] - obs.y[k]) < (We + obs.width[k]) / 2)):
-                return False
-        return True
+    def _reject(self, reason: str) -> None:
+        key = reason.split(":")[0]
+        self.n.rejected[key] = self.n.rejected.get(key, 0) + 1
 
-    def acceptable(self, plan: Plan, obs: Observation, ctx: dict[str, Any]) -> bool:
-        cfg = self.cfg
-        tf = float(plan.problem.tf)
-        U = np.asarray(plan.require_trajectory().inputs(np.linspace(0.0, tf, 51)))
-        if np.max(np.abs(U[:, 0])) > cfg.a_max_x or np.max(np.abs(U[:, 1])) > cfg.a_max_y:
-            return False
-        xf = float(plan.problem.ego.xf)
-        if ctx["l_end"] is not None and xf > ctx["l_end"] - cfg.gap_min_m:
-            return False
-        if ctx["f_end"] is not None and xf < ctx["f_end"] + cfg.gap_min_m:
-            return False
-        return self.clear_of_bodies(plan, obs, ctx)
-
-    # -- one period ---------------------------------------------------------------------------
+    # -- one period -----------------------------------------------------------------------------
     def step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
         """The ego's state for the next step, or ``None`` when SUMO drives it this step."""
+        if self.mode == "done":
+            return None
         if self.mode == "hold":
             if t + 1e-9 < self.hold_until:
                 return None
@@ -317,33 +227,59 @@ class Controller:
         if self.mode == "abort":
             if t + 1e-9 >= self.abort_until:
                 self.sim.release()
-                if self.sim.highway.lane_of(ego.y) == self.target:
-                    self._done(t)  # it ended up in the target lane after all
-                else:
-                    self.mode = "seek"
-                return None
-            return self._brake(ego)
+                self.mode = "seek"
+            else:
+                return self._brake(ego)
+            return None
+        if self.name == "mobil":
+            return self._mobil_step(t, obs, ego)
         dt = self.sim.step
+        cfg = self.cfg.decision
         if self.mode == "seek":
-            prob, ctx = self.build(obs, ego, self.cfg.horizon_s)
-            plan, ok = self.solve(prob)
-            if not (ok and self.acceptable(plan, obs, ctx)):
+            if t + 1e-9 < self.next_seek:
                 return None
-            self.mode, self.plan, self.plan_t0, self.t_end = "active", plan, t, t + self.cfg.horizon_s
+            self.next_seek = t + self.cfg.seek_every_s
+            nbs = self.neighbours(obs, ego, cfg.horizon_s)
+            verdict, all_v = decide(self.ego_now(ego), self.y_target(), self.target, self.origin, nbs,
+                                    self._plan, cfg)
+            for v in all_v:
+                if not v.accepted:
+                    self._reject(v.reason)
+            if not verdict.accepted or verdict.plan is None or verdict.plan.info.get("late"):
+                return None
+            gap = verdict.gap or Gap(None, None)
+            self.committed = (gap.follower.name if gap.follower else None, gap.leader.name if gap.leader else None)
+            self.mode, self.plan, self.plan_t0, self.t_end = "active", verdict.plan, t, t + cfg.horizon_s
+            self.n.accepted_t.append(t)
         else:
             tf = self.t_end - t
             if tf > self.cfg.min_replan_s:
-                prob, ctx = self.build(obs, ego, tf)
-                plan, ok = self.solve(prob)
-                if ok:
+                nbs = self.neighbours(obs, ego, tf)
+                by = {n.name: n for n in nbs}
+                gap = Gap(by.get(self.committed[0] or ""), by.get(self.committed[1] or ""))
+                en = self.ego_now(ego)
+                ahead = [n for n in nbs if n.lane == self.origin and n.x(0.0) > ego.x
+                         and n.x(0.0) - ego.x <= cfg.relevant_m]
+                cur = min(ahead, key=lambda n: n.x(0.0)) if ahead else None
+                dcfg = replace(cfg, horizon_s=tf)
+                prob = lane_change_problem(en, self.y_target(), gap, cur, dcfg, tf, end_state(en, gap, dcfg, tf))
+                boundary = prob.ego if isinstance(prob, Problem) else prob
+                check = check_problem(boundary, en, nbs, (self.origin, self.target), dcfg)
+                plan = self._plan(prob)
+                reason = judge(plan, check, dcfg)
+                if reason == "accepted" and not plan.info.get("late"):
                     self.plan, self.plan_t0 = plan, t
                 else:
+                    self._reject(reason)
                     self.n.fallbacks += 1
-                    if self.plan is None or not self.clear_of_bodies(self.plan, obs, ctx, t - self.plan_t0):
+                    if self.plan is None or not self._clear(self.plan, nbs, t - self.plan_t0):
                         self.mode, self.abort_until, self.plan = "abort", t + self.cfg.abort_s, None
                         self.n.aborts += 1
                         return self._brake(ego)
         assert self.plan is not None
+        self.n.executed_plans += 1
+        if imposed(self.plan) > 0:
+            self.n.constrained_plans += 1
         tau = min(t + dt - self.plan_t0, float(self.plan.problem.tf))
         X = np.asarray(self.plan.require_trajectory().states(np.array([tau])))[0]
         U = np.asarray(self.plan.require_trajectory().inputs(np.array([max(tau - dt / 2, 0.0)])))[0]
@@ -352,27 +288,106 @@ class Controller:
             self._done(t + dt)
         return nxt
 
+    def _clear(self, plan: Plan, nbs: list[Neighbour], t_from: float) -> bool:
+        """The plan's remainder (from ``t_from``) keeps the ego's body clear of the predicted bodies."""
+        tf = float(plan.problem.tf)
+        if t_from >= tf:
+            return True
+        t = np.linspace(t_from, tf, max(int((tf - t_from) / 0.05), 1) + 1)
+        X = np.asarray(plan.require_trajectory().states(t))
+        Le, We = self.sim.ego_length, self.sim.ego_width
+        for n in nbs:
+            xs = np.polynomial.polynomial.polyval(t - t_from, n.poly)
+            if np.any((np.abs(X[:, 0] - xs) < (Le + n.length) / 2) & (np.abs(X[:, 2] - n.y) < (We + n.width) / 2)):
+                return False
+        return True
+
     def _done(self, t_done: float) -> None:
         self.n.lane_changes += 1
-        if self.n.first_done_t is None:
-            self.n.first_done_t = t_done
-        self.mode, self.hold_until, self.plan = "hold", t_done + self.cfg.hold_s, None
+        self.n.done_t.append(t_done)
+        self.plan, self.lateral = None, None
+        if self.mission.alternating:
+            self.mode, self.hold_until = "hold", t_done + self.cfg.hold_s
+        else:
+            self.mode = "done"
 
     def _brake(self, ego: EgoState) -> EgoState:
         """Brake in lane towards the centre of the lane the ego is in (exact for one step of
-        constant input)."""
+        constant input): ``brake``, or harder (up to the passenger car's ``a_x`` bound) to stop
+        1 m before the end of an ending lane, ``a = v²/(2 d)``."""
         cfg, dt = self.cfg, self.sim.step
-        y_lane = self.sim.highway.lane_centre(self.sim.highway.lane_of(ego.y))
-        ax = -cfg.brake if ego.vx > cfg.brake * dt else -ego.vx / dt
+        lane = self.sim.highway.lane_of(ego.y)
+        y_lane = self.sim.highway.lane_centre(lane)
+        brake = cfg.brake
+        drop = self.mission.drop_x
+        if drop is not None and lane == self.mission.ego_lane:  # stop before the lane's end: v²/2d
+            room = drop - (ego.x + self.sim.ego_length / 2) - 1.0
+            brake = max(brake, min(ego.vx**2 / (2 * max(room, 0.1)), -(PASSENGER_CAR.ax or (-6.0, 0.0))[0]))
+        ax = -brake if ego.vx > brake * dt else -ego.vx / dt
         ay = -cfg.kp * (ego.y - y_lane) - cfg.kd * ego.vy
         return EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt,
                         y=ego.y + ego.vy * dt + ay * dt**2 / 2, vy=ego.vy + ay * dt, ax=ax, ay=ay)
 
+    # -- the baselines ----------------------------------------------------------------------------
+    def _cars(self, obs: Observation, ego: EgoState) -> dict[str, Car | None]:
+        def nearest(lane: int, ahead: bool) -> Car | None:
+            ks = [k for k in range(len(obs.ids)) if int(obs.lane[k]) == lane and (obs.x[k] > ego.x) == ahead]
+            if not ks:
+                return None
+            k = min(ks, key=lambda j: abs(obs.x[j] - ego.x))
+            return Car(float(obs.x[k]), float(obs.v[k]), float(obs.length[k]))
+
+        return {"ol": nearest(self.origin, True), "of": nearest(self.origin, False),
+                "nl": nearest(self.target, True), "nf": nearest(self.target, False)}
+
+    def _mobil_step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
+        """IDM + MOBIL (:mod:`iamp.simulation.mobil`) with the lateral minimum-energy cubic."""
+        dt, cfg = self.sim.step, self.cfg
+        idm = replace(cfg.idm, v0=self.sim.highway.speed_limit)
+        cars = self._cars(obs, ego)
+        me = Car(ego.x, ego.vx, self.sim.ego_length)
+        if self.mode == "seek":
+            if t + 1e-9 < self.next_seek:
+                return None
+            self.next_seek = t + cfg.seek_every_s
+            start = time.perf_counter()
+            ok, reason = mobil_accepts(idm, cfg.mobil, me, cars["ol"], cars["of"], cars["nl"], cars["nf"],
+                                       mandatory=self.mission.lane_end_m is not None or not self.mission.alternating)
+            self.n.plan_times.append(time.perf_counter() - start)
+            self.n.plans += 1
+            if not ok:
+                self.n.rejected["mobil-" + reason] = self.n.rejected.get("mobil-" + reason, 0) + 1
+                return None
+            T = cfg.decision.horizon_s
+            self.lateral = FreeTrajectory.of(EgoBoundary(tf=T, x0=0.0, y0=ego.y, vx0=0.0, vy0=ego.vy, xf=0.0,
+                                                         yf=self.y_target(), vxf=0.0, vyf=0.0)).cy
+            self.lat_t0, self.t_end, self.mode = t, t + T, "active"
+            self.n.accepted_t.append(t)
+        assert self.lateral is not None
+        in_target = self.sim.highway.lane_of(ego.y) == self.target
+        leaders = [c for c in ((None if in_target else cars["ol"]), cars["nl"]) if c is not None]
+        acc = min((idm.accel(me.v, c.x - me.x - (c.length + me.length) / 2, c.v) for c in leaders),
+                  default=idm.accel(me.v))
+        lo, hi = PASSENGER_CAR.ax or (-math.inf, math.inf)
+        ax = float(np.clip(acc, lo, hi))
+        if ego.vx + ax * dt < 0:
+            ax = -ego.vx / dt
+        P = np.polynomial.polynomial
+        tau = min(t + dt - self.lat_t0, self.t_end - self.lat_t0)
+        y, vy = float(P.polyval(tau, self.lateral)), float(P.polyval(tau, P.polyder(self.lateral)))
+        ay = float(P.polyval(max(tau - dt / 2, 0.0), P.polyder(self.lateral, 2)))
+        self.n.executed_plans += 1
+        nxt = EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt, y=y, vy=vy, ax=ax, ay=ay)
+        if t + dt >= self.t_end - 1e-9:
+            self._done(t + dt)
+        return nxt
+
     def _sumo_step(self, t: float) -> None:
-        """The reference: LC2013 changes lanes when it judges the gap safe."""
+        """The reference: LC2013 (or SL2015) changes lanes when it judges the gap safe."""
         if not self.requested:
             self.sim.request_lane_change(self.target, 3600.0)
             self.requested = True
+            self.n.accepted_t.append(t)
             return
         if self.sim.ego_lane_index() == self.target and abs(self.sim.ego_lateral_offset()) < 0.05:
             self.sim.release()

@@ -1,4 +1,4 @@
-"""One closed-loop episode: SUMO + predictor + planner, and its SPEC §11 result.
+"""One closed-loop episode: SUMO + predictor + decision layer + planner, and its SPEC §15 result.
 
 Timeline: SUMO runs ``warmup_s`` (the traffic settles, histories fill, SUMO drives the ego
 in its lane), then the episode's clock starts at 0 and the controller acts every period
@@ -24,6 +24,8 @@ from iamp.core.atomic import atomic_open
 from iamp.core.errors import ScenarioError
 from iamp.simulation.controller import Controller, ControllerConfig
 from iamp.simulation.metrics import StepLog, episode_metrics, percentile_stats
+from iamp.simulation.missions import EGO_DEPART_M, cooperation_of, mission_of
+from iamp.simulation.monitor import monitor
 from iamp.simulation.planning import PLANNERS
 from iamp.simulation.simulator import EgoState, Simulator
 from iamp.simulation.traffic import density_of
@@ -31,18 +33,24 @@ from iamp.simulation.traffic import density_of
 
 @dataclass(frozen=True)
 class EpisodeSpec:
-    """What defines an episode."""
+    """What defines an episode (every field goes into a campaign's manifest)."""
 
     traffic: str = "medium"
     seed: int = 1
     planner: str = "pmp"
+    mission: str = "merge"
+    cooperation: str = "default"
+    sublane: bool = False
     duration_s: float = 60.0
     period_s: float = 0.1
     warmup_s: float = 5.0
-    deadline_s: float | None = 0.1
+    settle_s: float = 8.0
+    deadline_s: float | None = None
 
     def validate(self) -> None:
         density_of(self.traffic)
+        mission_of(self.mission)
+        cooperation_of(self.cooperation)
         if self.planner not in PLANNERS:
             raise ScenarioError(f"unknown planner {self.planner!r}; choose from {', '.join(PLANNERS)}", "--planner")
         for name in ("duration_s", "period_s"):
@@ -55,7 +63,7 @@ class EpisodeSpec:
 
 @dataclass
 class EpisodeResult:
-    """The SPEC §11 object (:attr:`summary`) and the step log behind it."""
+    """The SPEC §15 object (:attr:`summary`) and the step log behind it."""
 
     spec: EpisodeSpec
     summary: dict[str, Any]
@@ -64,33 +72,57 @@ class EpisodeResult:
 
 
 def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) -> EpisodeResult:
-    """Run one episode in this process (``libsumo`` allows one simulation per process)."""
+    """Run one episode in this process (``libsumo`` allows one simulation per process).
+
+    The warm-up lasts ``warmup_s`` and until the ego's centre reaches the mission's
+    ``start_x``; the mission clock then runs until ``duration_s``, or ``settle_s`` after the
+    mission is done (the target lane reached, not alternating), or 3 s after the ego stood
+    still at its lane's end, or at once when its front passes that end still in its lane (SUMO
+    would move it; the mission has failed).
+    """
     spec.validate()
     wall0 = time.perf_counter()
+    mission = mission_of(spec.mission)
     cfg = replace(config or ControllerConfig(), deadline_s=spec.deadline_s)
-    sim = Simulator(spec.traffic, spec.seed, step=spec.period_s)
+    hw = mission.highway()
+    sim = Simulator(spec.traffic, spec.seed, step=spec.period_s, highway=hw, ego_lane=mission.ego_lane,
+                    ego_pos=EGO_DEPART_M, empty_lanes=(0,) if mission.ramp else (),
+                    cooperation=cooperation_of(spec.cooperation),
+                    truck=(mission.truck_ahead_m, mission.truck_speed) if mission.truck else None,
+                    sublane=spec.sublane)
     sumo_s = 0.0
     log = StepLog()
+    ctl: Controller | None = None
     try:
         t_start = time.perf_counter()
         sim.start()
-        while sim.t < spec.warmup_s - 1e-9:
+        limit_t = spec.warmup_s + 60.0
+        while sim.t < spec.warmup_s - 1e-9 or (sim.ego().x < mission.start_x and sim.t < limit_t):
             sim.advance()
             sim.observe()
         sumo_s += time.perf_counter() - t_start
-        ctl = Controller(spec.planner, sim, cfg)
+        ctl = Controller(spec.planner, sim, cfg, mission=mission)
         t0 = sim.t
+        ego = sim.ego()
+        x_start = ego.x
         n_steps = int(round(spec.duration_s / spec.period_s))
         driven = False
-        ego = sim.ego()
+        lost = False
+        end_at = math.inf
+        still = 0.0
         for _ in range(n_steps):
             t = sim.t - t0
+            if t >= end_at - 1e-9:
+                break
             obs = sim.observe()
             if not driven:
                 ego = sim.ego()
-            n_plans = ctl.n.plans
+                if not (math.isfinite(ego.x) and abs(ego.x) < 1e5):  # SUMO took the ego off the road
+                    lost = True
+                    break
+            n_plans = len(ctl.n.plan_times)
             nxt = ctl.step(t, obs, ego)
-            plan_time = ctl.n.plan_times[-1] if ctl.n.plans > n_plans else math.nan
+            plan_time = ctl.n.plan_times[-1] if len(ctl.n.plan_times) > n_plans else math.nan
             log.t.append(t)
             log.ego.append((ego.x, ego.vx, ego.y, ego.vy, ego.ax, ego.ay))
             log.mode.append(ctl.mode if nxt is not None or ctl.name == "sumo" else "sumo")
@@ -98,6 +130,16 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
             log.ids.append(obs.ids)
             log.nb.append(np.stack([obs.x, obs.y, obs.v, obs.a, obs.lane, obs.length, obs.width], axis=1)
                           if obs.ids else np.zeros((0, 7)))
+            if not mission.alternating and math.isinf(end_at) and hw.lane_of(ego.y) == mission.target_lane \
+                    and ctl.mode in ("done", "seek", "sumo"):
+                end_at = t + spec.settle_s
+            if mission.drop_x is not None and ego.x + sim.ego_length / 2 > mission.drop_x \
+                    and hw.lane_of(ego.y) == mission.ego_lane and math.isinf(end_at):
+                end_at = t  # the front passed the end of its lane: the mission failed (SUMO would move it)
+            if mission.drop_x is not None and ego.vx < 0.5 and ego.x + sim.ego_length / 2 > mission.drop_x - 30.0:
+                still += spec.period_s
+                if still >= 3.0 and math.isinf(end_at):
+                    end_at = t
             t_s = time.perf_counter()
             if nxt is not None:
                 sim.command(nxt)
@@ -108,19 +150,33 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
             sim.advance()
             sumo_s += time.perf_counter() - t_s
         metrics = episode_metrics(log, spec.period_s, (sim.ego_length, sim.ego_width),
-                                  (cfg.safety_x, cfg.safety_y), [(c[0] - t0, c[1], c[2]) for c in sim.collisions])
+                                  (cfg.decision.safety_x, cfg.decision.safety_y),
+                                  [(c[0] - t0, c[1], c[2]) for c in sim.collisions])
+        measured = monitor(log, spec.period_s, (sim.ego_length, sim.ego_width), hw.lane_of, mission.target_lane,
+                           mission.deadline_s, mission.drop_x, [(c[0] - t0, c[1], c[2]) for c in sim.collisions])
     finally:
         sim.close()
+    assert ctl is not None
     n = ctl.n
     wall = time.perf_counter() - wall0
     summary: dict[str, Any] = {
-        "planner": spec.planner, "traffic": spec.traffic, "seed": int(spec.seed),
+        "planner": spec.planner, "mission": spec.mission, "traffic": spec.traffic, "seed": int(spec.seed),
+        "cooperation": spec.cooperation, "sublane": bool(spec.sublane),
         "duration_s": float(spec.duration_s), "period_s": float(spec.period_s),
-        "lane_change_done_s": None if n.first_done_t is None else round(n.first_done_t, 10),
+        "simulated_s": round(len(log.t) * spec.period_s, 10),
+        "distance_to_end_m": None if mission.drop_x is None else float(mission.drop_x - x_start),
+        **measured,
+        "ego_lost": lost,
+        "lane_change_done_s": None if not n.done_t else round(n.done_t[0], 10),
         "lane_changes": n.lane_changes,
-        **metrics,
+        "collisions": measured["contacts"],
+        "intrusion_s": metrics["intrusion_s"], "min_gap_m": metrics["min_gap_m"],
+        "min_follower_accel": metrics["min_follower_accel"],
+        "rms_accel": metrics["rms_accel"], "rms_jerk": metrics["rms_jerk"],
         "plan_time_s": percentile_stats(n.plan_times),
-        "plans": n.plans, "constrained_plans": n.constrained_plans, "failed_plans": n.failed_plans,
+        "plans": n.plans, "planner_calls": n.real_calls, "executed_plans": n.executed_plans,
+        "constrained_plans": n.constrained_plans, "infeasible_plans": n.infeasible_plans,
+        "rejected": dict(sorted(n.rejected.items())),
         "late_plans": n.late_plans, "deadline_s": spec.deadline_s,
         "fallbacks": n.fallbacks, "aborts": n.aborts,
         "wall_s": {"total": wall, "sumo": sumo_s, "prediction": n.prediction_s, "planning": n.planning_s},

@@ -104,51 +104,55 @@ def episode_figure_object(result: EpisodeResult) -> Any:
     return fig
 
 
-def campaign_figures(summary: list[dict[str, Any]], rows: list[dict[str, str]], folder: str | Path) -> list[Path]:
-    """Collision and intrusion rates with Wilson intervals; plan-time p95 and min-gap distributions."""
+def campaign_figures(cells: list[dict[str, Any]], rows: list[dict[str, str]], folder: str | Path) -> list[Path]:
+    """Per mission: success, contact and hard-brake rates with Wilson intervals (``rates.png``);
+    distributions of the new follower's deceleration, the executed peak acceleration and the
+    plan time (``distributions.png``)."""
     plt = _plt()
     folder = Path(folder)
-    planners = sorted({s["planner"] for s in summary})
-    traffics = [t for t in ("light", "medium", "dense") if any(s["traffic"] == t for s in summary)]
+    planners = list(dict.fromkeys(c["planner"] for c in cells))
+    missions = list(dict.fromkeys(c["mission"] for c in cells)) or ["merge"]
     written = []
-    fig, axes = plt.subplots(1, 4, figsize=(16, 4), constrained_layout=True)
+    keys = (("success", "success"), ("contact", "contact"), ("hard_brake", "new follower brakes > 4.5 m/s²"))
+    fig, axes = plt.subplots(len(missions), 3, figsize=(15, 3.2 * len(missions)), constrained_layout=True,
+                             squeeze=False)
     width = 0.8 / max(len(planners), 1)
-    for ax, (key, label) in zip(axes, (("collision", "collision"), ("intrusion", "intrusion"),
-                                       ("hard_brake", "hard braking behind"), ("lane_change", "lane change done"))):
-        for j, p in enumerate(planners):
-            xs, ys, lo, hi = [], [], [], []
-            for i, tr in enumerate(traffics):
-                s = next((s for s in summary if s["planner"] == p and s["traffic"] == tr), None)
-                if s is None:
-                    continue
-                xs.append(i + (j - (len(planners) - 1) / 2) * width)
-                ys.append(100 * s[f"{key}_rate"])
-                lo.append(100 * (s[f"{key}_rate"] - s[f"{key}_ci"][0]))
-                hi.append(100 * (s[f"{key}_ci"][1] - s[f"{key}_rate"]))
-            ax.bar(xs, ys, width, yerr=[lo, hi], capsize=3, label=p)
-        ax.set_xticks(range(len(traffics)), traffics)
-        ax.set_ylabel(f"episodes with {label} [%]")
-        ax.set_ylim(0, 105)  # a 100 % bar's interval cap stays visible
-        ax.set_title(label)  # short: four panels side by side (the long form was clipped)
-    fig.suptitle("Episode rates per planner and traffic (bars: rate; whiskers: Wilson 95 % interval)")
-    axes[0].legend(fontsize=9)
+    for r, m in enumerate(missions):
+        traffics = list(dict.fromkeys(c["traffic"] for c in cells if c["mission"] == m))
+        for ax, (key, label) in zip(axes[r], keys):
+            for j, p in enumerate(planners):
+                xs, ys, lo, hi = [], [], [], []
+                for i, tr in enumerate(traffics):
+                    c = next((c for c in cells if c["mission"] == m and c["planner"] == p and c["traffic"] == tr), None)
+                    if c is None:
+                        continue
+                    xs.append(i + (j - (len(planners) - 1) / 2) * width)
+                    ys.append(100 * c[f"{key}_rate"])
+                    lo.append(100 * (c[f"{key}_rate"] - c[f"{key}_ci"][0]))
+                    hi.append(100 * (c[f"{key}_ci"][1] - c[f"{key}_rate"]))
+                ax.bar(xs, ys, width, yerr=[lo, hi], capsize=2, label=p)
+            ax.set_xticks(range(len(traffics)), traffics)
+            ax.set_ylim(0, 105)  # a 100 % bar's interval cap stays visible
+            ax.set_ylabel("episodes [%]")
+            ax.set_title(f"{m}: {label} (Wilson 95 %)", fontsize=9)
+    axes[0][0].legend(fontsize=7)
     written.append(_save(plt, fig, folder / "rates.png"))
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
-    labels, p95, gaps = [], [], []
-    for p in planners:
-        for tr in traffics:
-            rs = [r for r in rows if r["planner"] == p and r["traffic"] == tr]
-            labels.append(f"{p}\n{tr}")
-            p95.append([1e3 * float(r["plan_time_p95_s"]) for r in rs if r["plan_time_p95_s"] not in ("", "None")])
-            gaps.append([float(r["min_gap_m"]) for r in rs if r["min_gap_m"] not in ("", "None")])
-    axes[0].boxplot([v if v else [np.nan] for v in p95], tick_labels=labels)
-    axes[0].set_yscale("log")
-    axes[0].axhline(100.0, color="k", ls=":", lw=0.8)
-    axes[0].set_ylabel("plan time p95 per episode [ms] (period: dotted)")
-    axes[1].boxplot([v if v else [np.nan] for v in gaps], tick_labels=labels)
-    axes[1].set_ylabel("min bumper-to-bumper gap per episode [m]")
-    for ax in axes:
-        ax.tick_params(axis="x", labelsize=7)
+    fig, axes = plt.subplots(len(missions), 3, figsize=(15, 3.2 * len(missions)), constrained_layout=True,
+                             squeeze=False)
+    for r, m in enumerate(missions):
+        for ax, (col, label, scale) in zip(axes[r], (("follower_max_decel", "new follower's max decel. [m/s²]", 1),
+                                                     ("ego_peak_accel", "executed peak |a| [m/s²]", 1),
+                                                     ("plan_time_p50_s", "plan time p50 per episode [ms]", 1e3))):
+            data = []
+            for p in planners:
+                vals = [scale * float(x[col]) for x in rows if x.get("mission") == m and x["planner"] == p
+                        and x.get(col, "") not in ("", "None")]
+                data.append(vals if vals else [np.nan])
+            ax.boxplot(data, tick_labels=planners)
+            if col == "plan_time_p50_s":
+                ax.set_yscale("log")
+            ax.set_title(f"{m}: {label}", fontsize=9)
+            ax.tick_params(axis="x", labelsize=7)
     written.append(_save(plt, fig, folder / "distributions.png"))
     return written
 

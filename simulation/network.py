@@ -91,6 +91,47 @@ class Highway:
     lane_width: float = 3.75
     speed_limit: float = 33.33
     edge: str = "hw"
+    #: ``x`` where the rightmost lane ends (a lane drop; ``None``: no drop).  Upstream of it the
+    #: road is edge ``hw1``, downstream ``hw2``; both have ``lanes`` lanes of the same geometry
+    #: (so the junction between them has no length: with ``--no-internal-links`` a junction of
+    #: 8 m, which netconvert makes where the lane count changes, made every vehicle jump 8 m),
+    #: but lane 0 of ``hw2`` is closed (``disallow="all"``) and lane 0 of ``hw1`` has no
+    #: successor.
+    drop_x: float | None = None
+    #: ``x`` where an on-ramp joins (``None``: no ramp).  Upstream of it (edge ``hw0``) lane 0 is
+    #: the ramp with speed limit ``ramp_speed``, separated from lane 1 (no vehicle class may
+    #: change between them: ``changeLeft``/``changeRight`` only for ``custom1``, which nobody
+    #: is); from ``ramp_x`` to ``drop_x`` it is the acceleration lane.
+    ramp_x: float | None = None
+    ramp_speed: float = 16.67
+
+    def segments(self) -> list[tuple[str, float, float, int]]:
+        """The edges ``(id, x_start, x_end, lanes)`` along the road, upstream first."""
+        if self.drop_x is None:
+            return [(self.edge, 0.0, self.length, self.lanes)]
+        out: list[tuple[str, float, float, int]] = []
+        x = 0.0
+        if self.ramp_x is not None:
+            out.append(("hw0", 0.0, self.ramp_x, self.lanes))
+            x = self.ramp_x
+        out.append(("hw1", x, self.drop_x, self.lanes))
+        out.append(("hw2", self.drop_x, self.length, self.lanes - 1))
+        return out
+
+    def edge_at(self, x: float) -> tuple[str, float, int]:
+        """``(edge id, its start x, its first open lane)`` of the edge containing ``x`` (lane
+        indices are the same on every edge)."""
+        segs = self.segments()
+        for eid, x0, x1, n in segs:
+            if x < x1:
+                return eid, x0, self.lanes - n
+        eid, x0, _, n = segs[-1]
+        return eid, x0, self.lanes - n
+
+    def route(self, x: float) -> str:
+        """Edge ids from the edge containing ``x`` to the end."""
+        ids = [eid for eid, _, x1, _ in self.segments() if x < x1]
+        return " ".join(ids or [self.segments()[-1][0]])
 
     def lane_centre(self, lane: int) -> float:
         """``y_k = -(lanes - k - 1/2)·w`` (SUMO spreads lanes to the right of the edge line)."""
@@ -102,20 +143,37 @@ class Highway:
         return min(max(k, 0), self.lanes - 1)
 
     def key(self) -> str:
-        text = f"{self.length:.3f}|{self.lanes}|{self.lane_width:.3f}|{self.speed_limit:.3f}|{self.edge}"
+        text = (f"{self.length:.3f}|{self.lanes}|{self.lane_width:.3f}|{self.speed_limit:.3f}|{self.edge}|"
+                f"{self.drop_x}|{self.ramp_x}|{self.ramp_speed:.3f}|closed-lane")
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def nodes_xml(self) -> str:
-        return ('<nodes>\n'
-                '    <node id="start" x="0.0" y="0.0" type="priority"/>\n'
-                f'    <node id="end" x="{self.length:.3f}" y="0.0" type="priority"/>\n'
-                '</nodes>\n')
+        segs = self.segments()
+        xs = [x0 for _, x0, _, _ in segs] + [segs[-1][2]]
+        lines = ['<nodes>']
+        for k, x in enumerate(xs):
+            lines.append(f'    <node id="n{k}" x="{x:.3f}" y="0.0" type="priority"/>')
+        return "\n".join(lines + ['</nodes>']) + "\n"
 
     def edges_xml(self) -> str:
-        return ('<edges>\n'
-                f'    <edge id="{self.edge}" from="start" to="end" numLanes="{self.lanes}" '
-                f'speed="{self.speed_limit:.3f}" width="{self.lane_width:.3f}" priority="1"/>\n'
-                '</edges>\n')
+        lines = ['<edges>']
+        for k, (eid, _, _, n) in enumerate(self.segments()):
+            inner = ([f'        <lane index="0" speed="{self.ramp_speed:.3f}" changeLeft="custom1"/>',
+                      '        <lane index="1" changeRight="custom1"/>'] if eid == "hw0" else [])
+            inner += [f'        <lane index="{j}" disallow="all"/>' for j in range(self.lanes - n)]
+            lines.append(f'    <edge id="{eid}" from="n{k}" to="n{k + 1}" numLanes="{self.lanes}" '
+                         f'speed="{self.speed_limit:.3f}" width="{self.lane_width:.3f}" priority="1"'
+                         + (">\n" + "\n".join(inner) + "\n    </edge>" if inner else "/>"))
+        return "\n".join(lines + ['</edges>']) + "\n"
+
+    def connections_xml(self) -> str:
+        """Lane-to-lane connections: straight on; the dropped lane 0 has none."""
+        segs = self.segments()
+        lines = ['<connections>']
+        for (a, _, _, _), (b, _, _, nb) in zip(segs, segs[1:]):
+            for k in range(self.lanes - nb, self.lanes):
+                lines.append(f'    <connection from="{a}" to="{b}" fromLane="{k}" toLane="{k}"/>')
+        return "\n".join(lines + ['</connections>']) + "\n"
 
 
 def cache_dir() -> Path:
@@ -142,7 +200,8 @@ def build_network(highway: Highway | None = None, folder: Path | None = None) ->
         work = Path(tmp)
         (work / "hw.nod.xml").write_text(hw.nodes_xml())
         (work / "hw.edg.xml").write_text(hw.edges_xml())
-        cmd = [netconvert, "-n", "hw.nod.xml", "-e", "hw.edg.xml", "-o", "hw.net.xml",
+        (work / "hw.con.xml").write_text(hw.connections_xml())
+        cmd = [netconvert, "-n", "hw.nod.xml", "-e", "hw.edg.xml", "-x", "hw.con.xml", "-o", "hw.net.xml",
                "--offset.disable-normalization", "--no-internal-links", "--no-turnarounds", "--no-warnings"]
         proc = subprocess.run(cmd, cwd=work, capture_output=True, text=True, check=False)
         if proc.returncode != 0:

@@ -1,32 +1,41 @@
 r"""The planners the closed loop can use, behind one call: ``plan(problem) -> Plan``.
 
-* ``pmp`` — :class:`iamp.planners.pmp.planner.PMPPlanner` (the paper's equality constraints, global
-  contact times).
-* ``qp`` — the discretised QP with the same equality constraints (SPEC §3), solved by the
-  direct KKT backend (exact for an equality QP), FOH
-  hold, ``N = 20`` intervals over the (shrinking) horizon, contact nodes
-  by the full grid sweep.  ``N`` is small because the sweep solves ``(N-1)(N-2)`` QPs for
-  two vehicles every period.
-* ``qp-avoid`` — the avoidance QP of SPEC §10 (``iamp.planners.avoid.planner.AvoidQPPlanner``,
-  Clarabel, FOH, ``N = 20``, grid crossing search).  Clarabel, not OSQP: with the
-  planner's OSQP accuracy (``eps_abs = 1e-7``) some closed-loop sweeps took seconds
-  (measured: p50 1.9 s per plan over a 15 s episode, every vehicle constrained).
-* ``sumo`` — no iamp planner: SUMO's own LC2013 lane change (handled by the controller).
-* ``pmp-all``, ``qp-all`` — the same planners with the paper's rule taken literally: both
-  corners are imposed whenever the two vehicles are there (the controller's active-set rule,
-  which imposes a corner only where the unconstrained plan would enter that vehicle's
-  safety region, is off).  An ablation: it shows what the equality does in closed loop.
+Every iamp planner receives the same problem from the decision layer
+(:mod:`iamp.simulation.decision`): the target-lane follower, the target-lane leader and the
+current-lane leader, each with its paper corner.
 
-With no vehicle left to constrain (every constraint already met or no neighbour), every
-planner returns the unconstrained optimum, a cubic per axis (:class:`iamp.core.free.FreeTrajectory`,
-:func:`iamp.core.free.free_plan`, on a :class:`Problem` with zero vehicles):
-with ``ṡ = v, v̇ = u`` and ``J = ½∫u²``, the minimiser with fixed end states is
+* ``pmp`` — the registry's ``pmp`` (:class:`iamp.planners.pmp.planner.PMPPlanner`), the paper's
+  equality on **every** vehicle of the problem (global contact times; the branch-and-bound box
+  budget is :data:`PMP_BOXES`).
+* ``qp`` — the registry's ``qp``: the discretised QP with the same equality constraints
+  (SPEC §3), FOH, ``N = QP_STEPS`` intervals over the (shrinking) horizon, contact nodes by the
+  grid sweep, the exact KKT backend.
+* ``pmp-active`` — the PMP with SPEC §14's active set (:func:`active_set_plan`): start from the
+  unconstrained plan, impose the corner of the vehicle whose safety region it enters most
+  deeply, drop a vehicle whose jump has the dragging sign, repeat.  One function, so that the
+  planner's own ``constraint="active"`` (being built on branch ``avoid``) can replace it.
+* ``qp-avoid`` — the registry's ``qp-avoid``: the avoidance QP of SPEC §10/§14, Clarabel, FOH,
+  ``N = QP_STEPS``, every vehicle as an inequality.
+
+Every problem carries :data:`~iamp.core.physical.PASSENGER_CAR` as ``Problem.limits`` (a planner
+that imposes limits imposes them — the avoidance QP does; ``pmp``, ``pmp-active`` and ``qp`` are
+given the problem without them, :data:`UNBOUNDED_IN_LOOP`, for time); the decision layer checks
+every plan's peaks either way.
+Where the registry holds an entry of the same name (``pmp-active`` and the bounded planners
+from the ``avoid``/``limits``/``bpmp`` branches), :func:`make_planner` takes the registry's.
+* ``free`` — no constraint at all (the ablation): the minimum-energy cubic below.
+* ``mobil`` and ``sumo`` — no iamp planner (:mod:`iamp.simulation.mobil`, SUMO's LC2013).
+
+With no vehicle left to constrain (every constraint met or no neighbour), every iamp planner
+returns the unconstrained optimum, a cubic per axis (:class:`iamp.core.free.FreeTrajectory`): with
+``ṡ = v, v̇ = u`` and ``J = ½∫u²``, the minimiser with fixed end states is
 
 .. math::  s(t) = s_0 + v_0 t + c_2 t^2 + c_3 t^3,\quad
            c_2 = \frac{3e - g t_f}{t_f^2},\ c_3 = \frac{-2e + g t_f}{t_f^3},\quad
            e = s_f - s_0 - v_0 t_f,\ g = v_f - v_0,
 
-whose cost is :math:`J = \sum_{axes} (6 e^2/t_f^3 - 6 e g/t_f^2 + 2 g^2/t_f)`.
+whose cost is :math:`J = \sum_{axes} (6 e^2/t_f^3 - 6 e g/t_f^2 + 2 g^2/t_f)`.  Such a call
+is not a planner call: it is not timed into ``plan_time_s``.
 """
 
 from __future__ import annotations
@@ -34,38 +43,131 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from iamp.core.errors import IampError
 from iamp.core.free import FreeTrajectory, free_plan
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
+from iamp.core.status import SUCCESS
 from iamp.planners import registry
 
-__all__ = ["ALL_VARIANTS", "PLANNERS", "QP_STEPS", "SIM_OPTIONS", "FreeTrajectory", "PlanFn", "free_plan",
-           "make_planner"]
+__all__ = ["IAMP_PLANNERS", "PLANNERS", "PMP_BOXES", "QP_STEPS", "SIM_OPTIONS", "FreeTrajectory", "PlanFn",
+           "active_set_plan", "free_plan", "make_planner"]
 
-#: Registry names whose ``-all`` variant constrains every vehicle (the paper literally, no active set).
-ALL_VARIANTS = ("pmp", "qp")
-#: The closed loop's planners: every registry entry, SUMO's own lane change, and the ``-all`` variants.
-PLANNERS = (*registry.names(), "sumo", *(f"{n}-all" for n in ALL_VARIANTS))
-QP_STEPS = 20
-
+PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
+#: Planners that call an iamp planner through the decision layer.
+IAMP_PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free")
+QP_STEPS = 12
+#: The PMP's branch-and-bound box budget in the loop (the library's 200 000 took 1-8 s on
+#: three-vehicle lane changes; 5000 gave the same cost to 1e-12 on the 4 cases measured; 2000
+#: here for time).  Status ``local`` — residuals checked, global optimality not certified —
+#: which the decision layer accepts like ``optimal``.
+PMP_BOXES = 2000
+#: The avoidance QP's budget of QP solves in its crossing-time search (deterministic, unlike a
+#: time limit; beyond it the plan is ``local``, which the decision layer judges like any other).
+AVOID_SOLVES = 100
+#: The closed loop's options per registry name (small grids: the planners run every period).
+SIM_OPTIONS: dict[str, dict[str, Any]] = {
+    "pmp": {"diagnostics": False, "max_boxes": PMP_BOXES},
+    "pmp-active": {"diagnostics": False, "max_boxes": PMP_BOXES},
+    "qp": {"steps": QP_STEPS, "hold": "foh", "solver": "kkt", "contact": "grid"},
+    "qp-avoid": {"steps": QP_STEPS, "hold": "foh", "solver": "clarabel", "safety": "continuous",
+                 "max_solves": AVOID_SOLVES},
+}
 
 PlanFn = Callable[[Problem], Plan]
 
 
-#: The closed loop's options per registry name (small grids: the sweep runs every period).
-SIM_OPTIONS: dict[str, dict[str, Any]] = {
-    "pmp": {"diagnostics": False},
-    "qp": {"steps": QP_STEPS, "hold": "foh", "solver": "kkt", "contact": "grid"},
-    "qp-avoid": {"steps": QP_STEPS, "hold": "foh", "solver": "clarabel"},
-}
+def _failed(problem: Problem, planner: str, exc: BaseException) -> Plan:
+    return Plan(problem=problem, planner=planner, status="solver_error", cost=None,
+                contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
+                trajectory=None, info={"error": repr(exc)})
+
+
+def _safe(fn: PlanFn, name: str) -> PlanFn:
+    """A planner crash is a failed plan, not a crashed episode."""
+    def call(problem: Problem) -> Plan:
+        try:
+            return fn(problem)
+        except Exception as exc:  # any solver failure
+            return _failed(problem, name, exc)
+    return call
+
+
+#: Planners given the problem without ``Problem.limits`` (their plans are judged against the
+#: limits by the decision layer like every other plan): the equality QP's grid sweep with the
+#: limit rows needs an inequality backend, and with Clarabel it took 4-5 s per three-vehicle
+#: problem (N = 12, under load 12 on 2 cores; every one infeasible within the passenger car's
+#: bounds) against 0.02 s with the KKT solve; the bounded PMP (merged from main after the
+#: published campaign started) took 5.6-6.8 s per three-vehicle problem (``infeasible``) and
+#: ``pmp-active`` on it up to 7.5 s, against 0.3 s and 0.04 s unbounded.
+UNBOUNDED_IN_LOOP = ("qp", "pmp", "pmp-active")
+
+
+def _registered(name: str) -> PlanFn:
+    known = set(registry.REGISTRY[name].option_names())
+    opts = {k: v for k, v in SIM_OPTIONS.get(name, {}).items() if k in known}
+    planner = registry.make_planner(name, **opts)
+    if name in UNBOUNDED_IN_LOOP:
+        return _safe(lambda problem: planner.plan(problem.with_limits(None)), name)
+    return _safe(lambda problem: planner.plan(problem), name)
+
+
+def enters(plan: Plan, vehicle: Any, dt: float = 0.05) -> float:
+    """How deep the plan's point enters ``vehicle``'s safety region (0: not at all), sampled."""
+    tf = float(plan.problem.tf)
+    t = np.linspace(0.0, tf, int(tf / dt) + 1)
+    X = np.asarray(plan.require_trajectory().states(t))
+    dx = vehicle.length / 2 + vehicle.safety_x - np.abs(X[:, 0] - vehicle.position(t))
+    dy = vehicle.width / 2 + vehicle.safety_y - np.abs(X[:, 2] - vehicle.y)
+    depth = np.minimum(dx, dy)
+    return float(max(depth.max(), 0.0))
+
+
+def active_set_plan(problem: Problem, fn: PlanFn, name: str) -> Plan:
+    """SPEC §14's active set around the equality planner ``fn`` (see the module docstring).
+
+    Start from the unconstrained plan; while it enters a safety region of a vehicle not yet
+    imposed, impose the one it enters most deeply and re-plan; a vehicle whose jump (the
+    co-state jump ``Φ_x``) comes out with the dragging sign — the ego pulled towards the
+    vehicle instead of pushed away (SPEC §2 identity 2: ``sign(Φ_x) = -s_x`` is the pushing
+    sign) — is dropped and not imposed again.  Stops when no region is entered (``info
+    ["active"]``: the imposed vehicles, ``info["dropped"]``: the dropped ones) or when nothing
+    changes; the decision layer judges the result like any other plan.
+    """
+    chosen: list[Any] = []
+    dropped: list[str] = []
+    plan = free_plan(problem.ego, name)
+    for _ in range(2 * problem.m):
+        if plan.trajectory is None or plan.status not in SUCCESS:
+            break
+        depths = [(enters(plan, v), v) for v in problem.vehicles if v not in chosen and v.name not in dropped]
+        depths = [d for d in depths if d[0] > 1e-3]
+        if not depths:
+            break
+        chosen.append(max(depths, key=lambda d: d[0])[1])
+        plan = fn(problem.with_vehicles(chosen))
+        if plan.status in SUCCESS and plan.jumps is not None and len(plan.jumps) == len(chosen):
+            bad = [v for v, j in zip(chosen, np.asarray(plan.jumps)) if np.isfinite(j[0]) and j[0] * v.sign_x > 1e-9]
+            if bad:
+                for v in bad:
+                    chosen.remove(v)
+                    dropped.append(str(v.name))
+                plan = fn(problem.with_vehicles(chosen)) if chosen else free_plan(problem.ego, name)
+    plan.annotate(active=[str(v.name) for v in chosen], dropped=dropped)
+    return plan
 
 
 def make_planner(name: str) -> PlanFn:
-    """``plan(problem) -> Plan`` for ``pmp``, ``qp`` or ``qp-avoid`` (``-all``: the same planner),
-    from the planner registry (:mod:`iamp.planners.registry`) with :data:`SIM_OPTIONS`."""
-    base = name.removesuffix("-all")
-    if base not in registry.REGISTRY:
-        raise IampError(f"unknown planner {name!r}; choose from {', '.join(PLANNERS)}")
-    planner = registry.make_planner(base, **SIM_OPTIONS.get(base, {}))
-    return lambda problem: planner.plan(problem)
+    """``plan(problem) -> Plan`` for the iamp planners (:data:`IAMP_PLANNERS`)."""
+    if name == "free":
+        return lambda problem: free_plan(problem.ego, "free")
+    if name not in IAMP_PLANNERS:
+        raise IampError(f"unknown planner {name!r} (not an iamp planner); choose from {', '.join(IAMP_PLANNERS)}")
+    if name in registry.REGISTRY:
+        return _registered(name)
+    if name == "pmp-active":  # until the registry has the planner's own active set
+        fn = _registered("pmp")
+        return lambda problem: active_set_plan(problem, fn, "pmp-active")
+    raise IampError(f"planner {name!r} is not in the planner registry")  # pragma: no cover

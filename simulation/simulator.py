@@ -38,6 +38,7 @@ from iamp.simulation.network import Highway, build_network, require_sumo
 from iamp.simulation.traffic import routes_xml
 
 EGO = "ego"
+TRUCK = "truck_lead"
 #: laneChangeMode: no own lane changes / a TraCI request that respects others' safe gaps.
 LC_NONE, LC_REQUEST_SAFE = 0, 512
 #: speedMode: all SUMO checks / none (iamp sets the speed).
@@ -105,6 +106,10 @@ class Simulator:
     collisions: list[tuple[float, str, str]] = field(default_factory=list)
     ego_length: float = 4.8
     ego_width: float = 1.8
+    empty_lanes: tuple[int, ...] = ()
+    cooperation: dict[str, float] = field(default_factory=dict)
+    truck: tuple[float, float] | None = None
+    sublane: bool = False
     _lengths: dict[str, tuple[float, float]] = field(default_factory=dict)
     _tmp: Any = None
     _ls: Any = None
@@ -118,13 +123,17 @@ class Simulator:
         self._tmp = tempfile.TemporaryDirectory(prefix="iamp-sim-")
         routes = Path(self._tmp.name) / "episode.rou.xml"
         routes.write_text(routes_xml(self.traffic, self.seed, lanes=self.highway.lanes, edge=self.highway.edge,
-                                     ego_pos=self.ego_pos, ego_lane=self.ego_lane))
+                                     ego_pos=self.ego_pos, ego_lane=self.ego_lane, highway=self.highway,
+                                     empty_lanes=self.empty_lanes, cooperation=self.cooperation,
+                                     truck=self.truck, sublane=self.sublane))
         if libsumo.simulation.isLoaded():
             libsumo.close()
         libsumo.start(["sumo", "-n", str(net), "-r", str(routes), "--step-length", f"{self.step:g}",
                        "--seed", str(int(self.seed)), "--begin", "0", "--no-step-log", "--no-warnings",
                        "--collision.action", "warn", "--collision.check-junctions",
-                       "--lanechange.duration", f"{self.lanechange_duration:g}",
+                       "--collision.mingap-factor", "0",
+                       *(["--lateral-resolution", "0.8"] if self.sublane else
+                         ["--lanechange.duration", f"{self.lanechange_duration:g}"]),
                        "--default.action-step-length", f"{self.step:g}"])
         self._ls = libsumo
         libsumo.simulationStep()  # t = step: the ego and the initial platoon are inserted
@@ -132,6 +141,8 @@ class Simulator:
         if EGO not in libsumo.vehicle.getIDList():
             raise RuntimeError("SUMO could not insert the ego")  # pragma: no cover
         libsumo.vehicle.setLaneChangeMode(EGO, LC_NONE)
+        if self.truck is not None and TRUCK in libsumo.vehicle.getIDList():
+            libsumo.vehicle.setLaneChangeMode(TRUCK, LC_NONE)
         libsumo.vehicle.subscribeContext(EGO, libsumo.CMD_GET_VEHICLE_VARIABLE, self.radius,
                                          [libsumo.VAR_POSITION, libsumo.VAR_SPEED, libsumo.VAR_LANE_INDEX,
                                           libsumo.VAR_ACCELERATION, libsumo.VAR_ANGLE])
@@ -186,7 +197,7 @@ class Simulator:
         n = len(ids)
         x, y, v, a = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         lane, L, W = np.empty(n, dtype=int), np.empty(n), np.empty(n)
-        P, S, LI, A, ANG = (ls.VAR_POSITION, ls.VAR_SPEED, ls.VAR_LANE_INDEX, ls.VAR_ACCELERATION, ls.VAR_ANGLE)
+        P, S, A, ANG = ls.VAR_POSITION, ls.VAR_SPEED, ls.VAR_ACCELERATION, ls.VAR_ANGLE
         horizon = self.history_s + 1e-6
         for k, vid in enumerate(ids):
             r = res[vid]
@@ -195,7 +206,8 @@ class Simulator:
             fx, fy = r[P]
             x[k] = fx - L[k] / 2 * math.cos(psi)
             y[k] = fy - L[k] / 2 * math.sin(psi)
-            v[k], a[k], lane[k] = r[S], r[A], r[LI]
+            v[k], a[k] = r[S], r[A]
+            lane[k] = self.highway.lane_of(float(y[k]))  # global index (edges downstream of a drop have fewer)
             hist = self.histories.get(vid)
             if hist is None:
                 hist = self.histories[vid] = deque()
@@ -225,9 +237,10 @@ class Simulator:
         psi = math.atan2(state.vy, max(state.vx, 1e-6))
         half = self.ego_length / 2
         fx, fy = state.x + half * math.cos(psi), state.y + half * math.sin(psi)
-        lane = self.highway.lane_of(state.y)
+        eid, _, first = self.highway.edge_at(fx)
+        lane = max(self.highway.lane_of(state.y), first)
         ls.vehicle.setSpeedMode(EGO, SPEED_UNCHECKED)
-        ls.vehicle.moveToXY(EGO, self.highway.edge, lane, fx, fy, 90.0 - math.degrees(psi), 2)
+        ls.vehicle.moveToXY(EGO, eid, lane, fx, fy, 90.0 - math.degrees(psi), 2)
         ls.vehicle.setSpeed(EGO, max(math.hypot(state.vx, state.vy), 0.0))
 
     def release(self) -> None:
@@ -241,10 +254,12 @@ class Simulator:
         """The ``sumo`` reference: ask LC2013 to change to ``lane`` when it judges it safe."""
         ls = self._ls
         ls.vehicle.setLaneChangeMode(EGO, LC_REQUEST_SAFE)
-        ls.vehicle.changeLane(EGO, int(lane), float(duration))
+        _, _, first = self.highway.edge_at(self.ego().x)
+        ls.vehicle.changeLane(EGO, max(int(lane), first), float(duration))
 
     def ego_lane_index(self) -> int:
-        return int(self._ls.vehicle.getLaneIndex(EGO))
+        """The ego's global lane index (from its centre's ``y``)."""
+        return self.highway.lane_of(self.ego().y)
 
     def ego_lateral_offset(self) -> float:
         return float(self._ls.vehicle.getLateralLanePosition(EGO))

@@ -98,7 +98,16 @@ def test_no_optimal_continuous_plan_intrudes_and_costs_are_bounded(x0v, speed, x
     except ScenarioError:
         assume(False)
     if c.status == st.INFEASIBLE:
-        assert "inside" in c.info["reason"]
+        if "inside" in c.info["reason"]:
+            return
+        # the Bernstein rows are sufficient, not necessary: a coarse grid may certify no crossing
+        # (found: x0v=11, speed=15.9375, xf=98.25, vxf=18, FOH, N = 16; optimal at N = 32); a
+        # finer grid then plans safely or is infeasible too, never an intruding plan
+        assert c.info["reason"] == "no crossing time gives a feasible QP"
+        fine = ContinuousAvoidPlanner(steps=64, hold=hold, max_solves=600).plan(prob)
+        assert fine.status in (st.OPTIMAL, st.LOCAL, st.INFEASIBLE)
+        if fine.status != st.INFEASIBLE:
+            assert fine.safety.intrusion_free and dense_depth(fine) <= 1e-7
         return
     assert c.status in (st.OPTIMAL, st.LOCAL)
     # exact roots (SPEC §9) and a dense check: nothing enters a safety region

@@ -275,7 +275,7 @@ def test_highd_and_sumo_duplicates_are_counted_not_fatal(tmp_path, fmt):
 def test_choose_jerk_psd_prefers_smoothing_under_noise():
     from iamp.prediction.evaluation.data import synthetic_tracks
     from iamp.prediction.evaluation.select import choose_jerk_psd
-    from iamp.prediction.evaluation.windows import make_windows
+    from iamp.prediction.windows import make_windows
 
     win = make_windows(synthetic_tracks(n_tracks=6, duration=40.0, seed=3))
     q, table = choose_jerk_psd(win, grid=(1.0, 1000.0), noise_m=(0.1,))

@@ -1107,10 +1107,11 @@ def test_item14_campaign_rates_titles_are_not_clipped(tmp_path, monkeypatch):
 
     figs = []
     monkeypatch.setattr(figures, "_save", lambda plt, fig, path: figs.append(fig) or path)
-    summary = [{"planner": p, "traffic": t, **{f"{k}_rate": 0.5 for k in ("collision", "intrusion", "hard_brake",
-                                                                           "lane_change")},
-                **{f"{k}_ci": [0.3, 0.7] for k in ("collision", "intrusion", "hard_brake", "lane_change")}}
-               for p in ("pmp", "qp", "qp-avoid", "sumo") for t in ("light", "medium", "dense")]
+    keys = ("success", "contact", "hard_brake")  # the SPEC §15 cells (issue 20)
+    summary = [{"mission": m, "planner": p, "traffic": t, **{f"{k}_rate": 0.5 for k in keys},
+                **{f"{k}_ci": [0.3, 0.7] for k in keys}}
+               for m in ("merge", "onramp") for p in ("pmp", "qp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
+               for t in ("medium", "dense", "los-e")]
     figures.campaign_figures(summary, [], tmp_path)
     assert figs and all(_texts_inside(f) == [] for f in figs), [_texts_inside(f) for f in figs]
 

@@ -14,7 +14,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from iamp.prediction.evaluation.leader import _rows_mask, bootstrap_table, errors
-from iamp.prediction.evaluation.windows import Windows, baseline_ca, baseline_cv, make_windows, metrics
 from iamp.prediction.initial_state import smooth_histories
 from iamp.prediction.leader import car_following as cf
 from iamp.prediction.leader.car_following import CarFollowingLaw, accel, calibrate, simulate
@@ -30,6 +29,7 @@ from iamp.prediction.leader.model import (
 from iamp.prediction.loaders import load
 from iamp.prediction.mtd.model import ModelFileError
 from iamp.prediction.predictor import Predictor
+from iamp.prediction.windows import Windows, baseline_ca, baseline_cv, make_windows, metrics
 
 REPO = Path(__file__).resolve().parents[1]
 US101 = REPO.parent / "shared" / "data" / "ngsim-us101" / "us101_ngsim.csv.gz"

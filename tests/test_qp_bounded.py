@@ -335,9 +335,18 @@ def test_cli_paper3_with_the_template_limits_says_infeasible(cli, tmp_path) -> N
     assert out["status"] == "infeasible" and "corner" in out["reason"]
 
 
+def _template_with_jerk(text: str) -> str:
+    """The template with its commented comfort-jerk bound switched on (the QP imposes it)."""
+    import re
+
+    out = re.sub(r"^# jerk = 5\.0 ", "jerk = 5.0   ", text, flags=re.M)
+    assert out != text
+    return out
+
+
 def test_cli_template_plans_within_its_limits(cli, tmp_path) -> None:  # type: ignore[no-untyped-def]
     path = tmp_path / "t.toml"
-    path.write_text(cli("template").stdout)
+    path.write_text(_template_with_jerk(cli("template").stdout))
     r = cli("plan", str(path), "--planner", "qp", "--steps", "40", "--json")
     assert r.returncode == 0, r.stdout + r.stderr
     out = json.loads(r.stdout)
@@ -350,7 +359,7 @@ def test_cli_template_plans_within_its_limits(cli, tmp_path) -> None:  # type: i
 
 def test_cli_jerk_with_zoh_exits_2(cli, tmp_path) -> None:  # type: ignore[no-untyped-def]
     path = tmp_path / "t.toml"
-    path.write_text(cli("template").stdout)
+    path.write_text(_template_with_jerk(cli("template").stdout))
     r = cli("plan", str(path), "--planner", "qp", "--hold", "zoh", "--steps", "20")
     assert r.returncode == 2 and "limits.jerk" in r.stderr and "Traceback" not in r.stderr
 

@@ -160,9 +160,9 @@ def test_the_closed_loop_and_the_comparison_build_their_planners_from_the_regist
         return real(name, options, **values)
 
     monkeypatch.setattr(registry, "make_planner", spy)
-    for name in ("pmp", "qp", "qp-avoid", "pmp-all"):
+    for name in ("pmp", "qp", "qp-avoid", "pmp-active"):  # pmp-active: the PMP under an active set
         planning.make_planner(name)
     runs.QPConfig(solver="clarabel", hold="foh", steps=20, path="native").planner()
-    assert made == ["pmp", "qp", "qp-avoid", "pmp", "qp"]
+    assert made == ["pmp", "qp", "qp-avoid", "pmp-active", "qp"]
     with pytest.raises(iamp.IampError, match="unknown planner"):
         planning.make_planner("nope")

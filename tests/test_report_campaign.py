@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from iamp.comparison.report.campaign import campaign_section, campaign_tex
+from iamp.comparison.report.campaign import PLANNERS, campaign_section, campaign_tex
 
 
 def test_without_the_extra_the_section_names_it(tmp_path, monkeypatch):
@@ -37,7 +37,8 @@ def _fake_campaign(collisions: int):  # type: ignore[no-untyped-def]
                     if (p, t, s) in done:
                         continue
                     row = {c: 0 for c in COLUMNS}
-                    row.update(planner=p, traffic=t, seed=s, collisions=collisions, duration_s=10.0)
+                    row.update(mission="merge", planner=p, traffic=t, seed=s, contacts=collisions, duration_s=10.0,
+                               success=not collisions)
                     _append(path, COLUMNS, row)
                     ran += 1
         return {"ran": ran, "skipped": len(done), "failed": 0, "seconds": 0.0}
@@ -59,16 +60,17 @@ def test_reproduction_never_resumes_from_an_existing_table(tmp_path, monkeypatch
     folder.mkdir()
     monkeypatch.setattr(campaign, "run_campaign", _fake_campaign(collisions=1))
     old = campaign_section(tmp_path, quick=True)  # the "committed" run: every episode a collision
-    assert all(s["collision_episodes"] == s["episodes"] == 1 for s in old["summary"])
+    assert all(s["contact_episodes"] == s["episodes"] == 1 for s in old["summary"])
     monkeypatch.setattr(campaign, "run_campaign", _fake_campaign(collisions=0))
     new = campaign_section(tmp_path, quick=True)
-    assert new["ran"] == {"ran": 3, "skipped": 0, "failed": 0, "seconds": 0.0}
-    assert all(s["collision_episodes"] == 0 for s in new["summary"])
+    n = len(PLANNERS)
+    assert new["ran"] == {"ran": n, "skipped": 0, "failed": 0, "seconds": 0.0}
+    assert all(s["contact_episodes"] == 0 and s["success_episodes"] == 1 for s in new["summary"])
     rows = campaign.read_rows(folder / "episodes.csv")
-    assert len(rows) == 3 and all(r["collisions"] == "0" for r in rows)
+    assert len(rows) == n and all(r["contacts"] == "0" for r in rows)
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]  # the scratch folder is gone
     tex = campaign_tex(new)
-    assert "3 episodes run by this reproduction" in tex and "reused" not in tex
+    assert f"{n} episodes run by this reproduction" in tex and "reused" not in tex
 
 
 def test_the_full_campaign_is_described_from_its_summary(tmp_path):
@@ -77,12 +79,12 @@ def test_the_full_campaign_is_described_from_its_summary(tmp_path):
 
     from iamp.comparison.report.campaign import full_campaign_shape
 
-    rows = [{"planner": p, "traffic": t, "episodes": 20} for p in ("pmp", "qp", "qp-avoid", "sumo")
-            for t in ("light", "medium", "dense")]
-    (tmp_path / "campaign").mkdir()
-    (tmp_path / "campaign" / "summary.json").write_text(json.dumps(rows))
+    cells = [{"mission": m, "planner": p, "traffic": t, "episodes": 20} for m in ("merge", "onramp")
+             for p in ("pmp", "qp", "qp-avoid", "sumo") for t in ("light", "medium", "dense")]
+    (tmp_path / "campaign-new").mkdir()
+    (tmp_path / "campaign-new" / "summary.json").write_text(json.dumps({"cells": cells, "paired": []}))
     full = full_campaign_shape(tmp_path)
-    assert full == {"planners": ["pmp", "qp", "qp-avoid", "sumo"], "traffic": ["dense", "light", "medium"],
-                    "episodes": 240}
+    assert full == {"missions": ["merge", "onramp"], "planners": ["pmp", "qp", "qp-avoid", "sumo"],
+                    "traffic": ["dense", "light", "medium"], "episodes": 480}
     tex = campaign_tex({"available": True, "command": "c", "table": "t.tex", "full": full})
-    assert "4 planners" in tex and "240 episodes" in tex and "3 planners" not in tex
+    assert "2 missions" in tex and "4 planners" in tex and "480 episodes" in tex and "3 planners" not in tex

@@ -117,26 +117,40 @@ def test_rms_of_a_constant_acceleration_is_that_acceleration():
 
 
 # -- campaign files -----------------------------------------------------------------------------------
-def _summary(planner, traffic, seed, collisions=0):
-    return {"planner": planner, "traffic": traffic, "seed": seed, "duration_s": 5.0, "period_s": 0.1,
-            "lane_change_done_s": 4.0, "lane_changes": 1, "collisions": collisions, "sumo_collisions": 0,
-            "overlap_collisions": collisions, "intrusion_s": 0.0, "min_gap_m": 10.0, "min_ttc_s": None,
-            "min_follower_accel": -1.0, "rms_accel": [0.1, 0.2], "rms_jerk": [0.3, 0.4],
-            "plan_time_s": {"p50": 1e-4, "p95": 2e-4, "max": 1e-3}, "plans": 10,
-            "constrained_plans": 2, "failed_plans": 0, "late_plans": 0, "deadline_s": 0.1, "fallbacks": 0, "aborts": 0,
+def _summary(planner, traffic, seed, contacts=0):
+    """A SPEC §15 summary with every key ``flatten`` reads."""
+    return {"mission": "merge", "planner": planner, "traffic": traffic, "seed": seed, "cooperation": "default",
+            "sublane": False, "duration_s": 5.0, "period_s": 0.1, "simulated_s": 5.0, "distance_to_end_m": 400.0,
+            "success": contacts == 0, "time_to_merge_s": 4.0, "stopped_at_end": False,
+            "contacts": contacts, "ego_lost": False,
+            "overlap_contacts": contacts, "sumo_contacts": 0, "mingap_violations": 0, "min_ttc_s": None,
+            "ttc_below_1_5_s": 0.0, "new_follower": "v1", "follower_max_decel": 1.0, "ego_peak_accel": 2.0,
+            "ego_ax_range": [-1.0, 1.0], "ego_ay_peak": 1.0, "ego_jerk_peak": 3.0, "limit_violations": 0,
+            "jerk_violations": 0, "lane_change_done_s": 4.0, "lane_changes": 1, "intrusion_s": 0.0,
+            "min_gap_m": 10.0, "min_follower_accel": -1.0, "rms_accel": [0.1, 0.2], "rms_jerk": [0.3, 0.4],
+            "plan_time_s": {"p50": 1e-4, "p95": 2e-4, "max": 1e-3}, "plans": 10, "planner_calls": 8,
+            "executed_plans": 40, "constrained_plans": 2, "infeasible_plans": 0, "rejected": {"limits": 2},
+            "late_plans": 0, "deadline_s": None, "fallbacks": 0, "aborts": 0,
             "wall_s": {"total": 1.0, "sumo": 0.5, "prediction": 0.3, "planning": 0.1}, "max_rss_mb": 150.0}
 
 
 def test_campaign_rows_append_and_a_complete_campaign_resumes_without_running(tmp_path):
     path = tmp_path / "episodes.csv"
-    from iamp.simulation.campaign import COLUMNS
+    from iamp.simulation.campaign import COLUMNS, manifest_of
 
     for s in (1, 2):
-        _append(path, COLUMNS, flatten(_summary("pmp", "light", s, collisions=s - 1)))
+        _append(path, COLUMNS, flatten(_summary("pmp", "light", s, contacts=s - 1)))
     rows = read_rows(path)
     assert [int(r["seed"]) for r in rows] == [1, 2] and rows[0]["min_ttc_s"] == ""
+    assert rows[0]["rejected"] == "limits=2" and rows[1]["ego_ax_min"] == "-1.0"
     summ = summarise(rows)
-    assert summ[0]["collision_episodes"] == 1 and summ[0]["collision_ci"] == pytest.approx(wilson(1, 2))
+    assert summ[0]["contact_episodes"] == 1 and summ[0]["contact_ci"] == pytest.approx(wilson(1, 2))
+    assert summ[0]["success_episodes"] == 1
+    episode = {"duration_s": 60.0, "period_s": 0.1, "deadline_s": None, "warmup_s": 5.0, "settle_s": 8.0,
+               "cooperation": "default", "sublane": False}
+    import json
+
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest_of(["merge"], ["pmp"], ["light"], 2, episode)))
     calls = []
     stats = run_campaign(["pmp"], ["light"], 2, tmp_path, progress=lambda d, t: calls.append((d, t)))
     assert stats["ran"] == 0 and stats["skipped"] == 2 and calls == [(2, 2)]
@@ -167,7 +181,7 @@ def _episode(planner, seed=1, traffic="medium", duration=6.0):
     from iamp.simulation.episode import EpisodeSpec, run_episode
 
     return run_episode(EpisodeSpec(traffic=traffic, seed=seed, planner=planner, duration_s=duration,
-                                   deadline_s=None))
+                                   deadline_s=None, mission="discretionary"))
 
 
 def _strip(summary):
@@ -190,7 +204,7 @@ def test_same_seed_same_numbers_and_the_plan_is_what_the_ego_executes():
     s = a.summary
     assert set(s) >= {"planner", "traffic", "seed", "duration_s", "period_s", "lane_change_done_s", "collisions",
                       "intrusion_s", "min_gap_m", "min_ttc_s", "rms_accel", "rms_jerk", "plan_time_s", "plans",
-                      "failed_plans", "fallbacks"}
+                      "infeasible_plans", "fallbacks", "mission", "success", "contacts"}
     assert len(a.log.t) == round(6.0 / 0.1)
     # the executed ego motion is continuous: no step moves it further than its speed allows
     E = np.asarray(a.log.ego)

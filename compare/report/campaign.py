@@ -1,16 +1,16 @@
-"""The reproduction's small closed-loop section (SPEC §11), present only with the ``[sim]`` extra.
+"""The reproduction's small closed-loop section (SPEC §15), present only with the ``[sim]`` extra.
 
-``iamp reproduce`` runs a small campaign — the PMP, the avoidance QP and SUMO's own
-lane-change model (LC2013) in medium traffic, a few seeds of short episodes — through
-:func:`iamp.simulation.campaign.run_campaign` and adds its table (collision and intrusion
-rates with Wilson 95 % intervals, plan times) to the report.  The reproduction *reproduces*:
-its episodes run afresh in a temporary folder, never resumed from an ``episodes.csv`` already
-in ``out/campaign-small`` (a committed table would otherwise be reported as made by this run),
-and the new file replaces the old one only when the campaign finished.  Without SUMO and Dask the
-section says so and names the extra to install; the rest of the reproduction is unchanged.
-The full campaign is ``reports/campaign/``, made by ``iamp campaign`` (its README gives the
-command); the report describes it from its own ``summary.json`` (planners, densities, episodes
-counted, never typed in).
+``iamp reproduce`` runs a small version of the published campaign **afresh** — the ``merge``
+mission (the ego's lane ends 400 m ahead), the paper's PMP, the active-set PMP, the avoidance
+QP, the unconstrained ablation, IDM + MOBIL and SUMO's own lane change (LC2013) in medium
+traffic, paired seeds — through :func:`iamp.simulation.campaign.run_campaign` into an emptied
+``campaign-small`` folder (it never resumes from rows it did not make in this run) and adds its
+table (success, contacts, the new follower's hard brakes, executed limit violations with
+Wilson 95 % intervals; medians of time to merge, follower deceleration, executed peak, plan
+time) to the report.  Without SUMO and Dask the section says so and names the extra to
+install; the rest of the reproduction is unchanged.  The published campaign (4 missions x 7
+planners x 3 densities, paired seeds) is ``reports/campaign-new/``, made by ``iamp campaign``
+(its README gives the command).
 
 This is the one place where the comparison layer reaches the simulation layer, lazily and
 for the report only.
@@ -30,7 +30,8 @@ from iamp.core.errors import MissingDependencyError
 
 from .tex import tex_escape
 
-PLANNERS = ("pmp", "qp-avoid", "sumo")
+PLANNERS = ("pmp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
+MISSION = "merge"
 INSTALL = "pip install 'iamp[sim]'"
 
 
@@ -49,51 +50,54 @@ def campaign_section(out: Path, *, quick: bool, progress: Callable[[int, int], N
         require_sumo()
     except MissingDependencyError as exc:
         return {"available": False, "note": f"closed-loop section skipped: {exc}"}
-    seeds, duration = (1, 10.0) if quick else (3, 30.0)
+    seeds, duration = (1, 30.0) if quick else (3, 60.0)
     folder = out / "campaign-small"
     out.mkdir(parents=True, exist_ok=True)
     fresh = Path(tempfile.mkdtemp(prefix=".campaign-small-", suffix=".tmp", dir=str(out)))
     try:
-        ran = run_campaign(PLANNERS, ("medium",), seeds, fresh, workers=2, duration_s=duration, deadline=False,
-                           progress=progress)
+        ran = run_campaign(PLANNERS, ("medium",), seeds, fresh, missions=(MISSION,), workers=2, duration_s=duration,
+                           deadline=False, progress=progress)
         folder.mkdir(exist_ok=True)
-        for name in ("episodes.csv", "errors.csv"):
+        for name in ("episodes.csv", "manifest.json", "errors.csv"):
             if (fresh / name).is_file():
                 os.replace(fresh / name, folder / name)
             elif (folder / name).is_file() and name == "errors.csv":
                 (folder / name).unlink()  # an old run's failures are not this run's
     finally:
         shutil.rmtree(fresh, ignore_errors=True)
-    summary = summarise(read_rows(folder / "episodes.csv"))
+    summary = summarise(read_rows(folder / "episodes.csv"), PLANNERS)
     table = latex_table(summary)
     write_text(out / "tables" / "campaign-small.tex", table)
-    command = (f"iamp campaign --planners {','.join(PLANNERS)} --traffic medium --seeds {seeds} "
-               f"--duration {duration:g} --no-deadline --out {folder.name}")
+    command = (f"iamp campaign --missions {MISSION} --planners {','.join(PLANNERS)} --traffic medium "
+               f"--seeds {seeds} --duration {duration:g} --out {folder.name}")
     return {"available": True, "summary": summary, "ran": ran, "command": command,
             "table": "tables/campaign-small.tex", "full": full_campaign_shape(out)}
 
 
 def full_campaign_shape(out: Path) -> dict[str, Any] | None:
-    """Planners, densities and episodes of the full campaign in ``out/campaign/summary.json``."""
+    """Missions, planners, densities and episodes of the published campaign
+    (``out/campaign-new/summary.json``, SPEC §15: ``{"cells": [...]}``), or None."""
     import json
 
-    path = out / "campaign" / "summary.json"
+    path = out / "campaign-new" / "summary.json"
     try:
-        rows = json.loads(path.read_text(encoding="utf-8"))
+        rows = json.loads(path.read_text(encoding="utf-8"))["cells"]
+        missions = sorted({str(r["mission"]) for r in rows})
         planners = sorted({str(r["planner"]) for r in rows})
         traffic = sorted({str(r["traffic"]) for r in rows})
         episodes = sum(int(r["episodes"]) for r in rows)
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    return {"planners": planners, "traffic": traffic, "episodes": episodes}
+    return {"missions": missions, "planners": planners, "traffic": traffic, "episodes": episodes}
 
 
 def _full_campaign(full: dict[str, Any] | None) -> str:
     if not full:
-        return "The full campaign is made by \\texttt{iamp campaign} (\\texttt{reports/campaign/README.md})."
+        return "The published campaign is made by \\texttt{iamp campaign} (docs/closed-loop.md)."
     names = ", ".join(str(tex_escape(p)) for p in full["planners"])
-    return (f"The full campaign in \\texttt{{reports/campaign/}}: {len(full['planners'])} planners ({names}) "
-            f"$\\times$ {len(full['traffic'])} densities, {full['episodes']} episodes.")
+    return (f"The published campaign in \\texttt{{reports/campaign-new/}}: {len(full['missions'])} missions "
+            f"$\\times$ {len(full['planners'])} planners ({names}) $\\times$ {len(full['traffic'])} densities, "
+            f"{full['episodes']} episodes.")
 
 
 def _provenance(ran: dict[str, Any] | None) -> str:
@@ -113,9 +117,10 @@ def campaign_tex(section: dict[str, Any]) -> str:
     head = "\\section{Closed loop in SUMO traffic (small campaign)}\n"
     if not section.get("available"):
         return head + str(tex_escape(section["note"])) + "\n\n"
-    return (head + "Receding-horizon planning every 0.1\\,s in seeded SUMO traffic (SPEC~\\S11), "
-            "the paper's PMP, the avoidance QP and SUMO's own lane-change model, medium density. "
-            "A small smoke-size campaign made by the reproduction with: \\texttt{"
+    return (head + "Receding-horizon planning every 0.1\\,s in seeded SUMO traffic (SPEC~\\S15): the ego's "
+            "lane ends 400\\,m ahead and it must merge; the paper's PMP, the active-set PMP, the avoidance QP, "
+            "the unconstrained ablation, IDM + MOBIL and SUMO's own lane change, medium density, paired seeds "
+            "(too few to tell planners apart), run afresh by the reproduction with: \\texttt{"
             + str(tex_escape(section["command"])) + "}; " + _provenance(section.get("ran")) + ". "
             + _full_campaign(section.get("full")) + "\n\n"
             "\\noindent\\resizebox{\\linewidth}{!}{\\input{" + str(section["table"]) + "}}\n\n")

@@ -67,7 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     for module in ("iamp.cli.plan", "iamp.cli.scenarios", "iamp.cli.prediction", "iamp.cli.compare",
-                   "iamp.cli.report", "iamp.cli.plot", "iamp.cli.completion", "iamp.cli.simulate"):
+                   "iamp.cli.report", "iamp.cli.plot", "iamp.cli.completion", "iamp.cli.simulate",
+                   "iamp.cli.commonroad"):
         try:
             mod = __import__(module, fromlist=["add_parsers"])
         except ModuleNotFoundError as exc:  # only a missing command module is optional

@@ -93,7 +93,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 def _reproduce_into(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar, progress_enabled
-    from iamp.comparison.report import reproduce
+    from iamp.comparison.report.reproduction import reproduce
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():

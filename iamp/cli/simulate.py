@@ -15,7 +15,9 @@ from typing import Any
 from iamp.cli.types import EXIT_OK, float_in, int_in
 from iamp.simulation.planning import PLANNERS
 
-TRAFFIC = ("light", "medium", "dense")
+TRAFFIC = ("light", "medium", "dense", "los-e")
+MISSIONS = ("merge", "onramp", "slow-leader", "discretionary")
+COOPERATION = ("low", "default", "high")
 
 
 def _csv_choice(choices: tuple[str, ...]):  # type: ignore[no-untyped-def]
@@ -57,9 +59,8 @@ def check_destinations(args: argparse.Namespace) -> None:
 
 
 
-def summary_lines(s: dict[str, Any]) -> list[str]:
-    """The text summary of an episode (``iamp simulate`` without ``--json``): rounded numbers,
-    ``n/a`` with its reason where a metric has no value, no ``None``."""
+def _summary_lines_11(s: dict[str, Any]) -> list[str]:
+    """The SPEC §11 summary (an episode without a mission)."""
     from iamp.cli.text import quantity
 
     pt = s["plan_time_s"]
@@ -84,13 +85,56 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
                  f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
     return lines
 
+
+def summary_lines(s: dict[str, Any]) -> list[str]:
+    """The text summary of an episode (``iamp simulate`` without ``--json``): rounded numbers,
+    ``n/a`` with its reason where a metric has no value, no ``None``."""
+    if "mission" not in s:
+        return _summary_lines_11(s)
+    from iamp.cli.text import quantity
+
+    pt = s["plan_time_s"]
+    merged = s["time_to_merge_s"]
+    fd = s["follower_max_decel"]
+    lo, hi = s["ego_ax_range"]
+    lines = [f"episode   {s['mission']}: {s['planner']}, {s['traffic']} traffic ({s['cooperation']} cooperation), "
+             f"seed {s['seed']}, {s['simulated_s']:g} of {s['duration_s']:g} s at {s['period_s']:g} s",
+             f"mission   {'success' if s['success'] else 'FAILED'}; in the target lane "
+             + ("never" if merged is None else f"at {merged:.1f} s")
+             + ("; stopped at the lane's end" if s["stopped_at_end"] else ""),
+             f"safety    {s['contacts']} contacts (body overlap {s['overlap_contacts']}, SUMO {s['sumo_contacts']}); "
+             f"{s['mingap_violations']} minGap violations; min TTC "
+             f"{quantity(s['min_ttc_s'], 's', missing='n/a (no vehicle closing in)')} "
+             f"({s['ttc_below_1_5_s']:.1f} s below 1.5 s); new follower braked "
+             f"{quantity(fd, 'm/s²', missing='n/a (no new follower)')}",
+             f"executed  peak |a| {s['ego_peak_accel']:.2f} m/s² (a_x {lo:.2f}..{hi:.2f}, "
+             f"|a_y| {s['ego_ay_peak']:.2f}); "
+             f"{s['limit_violations']} steps beyond the passenger car's limits",
+             f"comfort   rms accel {s['rms_accel'][0]:.2f}, {s['rms_accel'][1]:.2f} m/s²; rms jerk "
+             f"{s['rms_jerk'][0]:.2f}, {s['rms_jerk'][1]:.2f} m/s³"]
+    if s["plans"]:
+        ms = [quantity(None if pt[k] is None else pt[k] * 1e3, "ms", missing="n/a (no planner call)")
+              for k in ("p50", "p95", "max")]
+        lines.append(f"plans     {s['plans']} ({s['planner_calls']} planner calls, "
+                     f"{s['infeasible_plans']} not verified; "
+                     f"{s['executed_plans']} periods executed, {s['constrained_plans']} with an imposed constraint; "
+                     f"fallbacks {s['fallbacks']}, aborts {s['aborts']}); time p50 {ms[0]}, p95 {ms[1]}, max {ms[2]}")
+    w = s["wall_s"]
+    lines.append(f"wall      {w['total']:.1f} s (SUMO {w['sumo']:.1f}, prediction {w['prediction']:.1f}, "
+                 f"planning {w['planning']:.1f}); peak memory {s['max_rss_mb']:.0f} MB")
+    return lines
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
+    if getattr(args, "commonroad", None):
+        return _simulate_commonroad(args)
     from iamp.simulation.episode import EpisodeSpec, run_episode, write_log
 
     check_destinations(args)  # before SUMO starts: a refusal costs a second, not an episode
 
-    spec = EpisodeSpec(traffic=args.traffic, seed=args.seed, planner=args.planner, duration_s=args.duration,
-                       period_s=args.period, deadline_s=None if args.no_deadline else args.period)
+    spec = EpisodeSpec(traffic=args.traffic, seed=args.seed, planner=args.planner, mission=args.mission,
+                       cooperation=args.cooperation, sublane=args.sublane, duration_s=args.duration,
+                       period_s=args.period, deadline_s=args.period if args.deadline else None)
     if args.planner == "qp-avoid":
         from iamp.simulation.planning import make_planner
 
@@ -108,6 +152,35 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         return EXIT_OK
     for line in summary_lines(s):
         print(line)
+    return EXIT_OK
+
+
+def _simulate_commonroad(args: argparse.Namespace) -> int:
+    """``iamp simulate --commonroad FOLDER`` (SPEC §16): the interactive scenario in closed loop."""
+    from iamp.commonroad import require
+    from iamp.commonroad.interactive import simulate
+
+    require()
+
+    def progress(text: str) -> None:
+        if not args.json:
+            sys.stderr.write(f"  {text}\n")
+
+    r = simulate(args.commonroad, args.road_planner, recording=args.recording, progress=progress)
+    if args.json:
+        sys.stdout.write(json.dumps(r, indent=1, default=float) + "\n")
+        return EXIT_OK
+    ttg = "-" if r["time_to_goal_s"] is None else f"{r['time_to_goal_s']:.1f} s"
+    sys.stdout.write(f"{r['scenario']}: {r['status']} (time {ttg}, window {r['goal_window_s'][0]:.1f}-"
+                     f"{r['goal_window_s'][1]:.1f} s), collisions {r['collisions']}, min TTC "
+                     f"{r['min_ttc_s'] if r['min_ttc_s'] is None else round(r['min_ttc_s'], 2)} s, peak |u| "
+                     f"{r['ego_peak_accel']:.2f} m/s^2, infeasible plans {r['infeasible_plans']}, fallbacks "
+                     f"{r['fallbacks']}, plan time median {r['plan_time_s']['median'] or 0:.3f} s\n")
+    d = r["sumo_vs_recording"]
+    if d is not None and d["vehicles_compared"]:
+        sys.stdout.write(f"SUMO vs the recording: {d['vehicles_compared']} vehicles, largest position deviation "
+                         f"median {d['median_abs_deviation_m']:.1f} m, max {d['max_abs_deviation_m']:.1f} m; "
+                         f"lane changes recorded {d['lane_changes_recorded']}, in SUMO {d['lane_changes_sumo']}\n")
     return EXIT_OK
 
 
@@ -160,7 +233,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 def _campaign_into(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar
-    from iamp.simulation.campaign import latex_table, read_rows, run_campaign, summarise
+    from iamp.simulation.campaign import latex_table, paired_table, read_rows, run_campaign
     from iamp.simulation.figures import campaign_figures
 
     if "qp-avoid" in args.planners:
@@ -170,26 +243,32 @@ def _campaign_into(args: argparse.Namespace) -> int:
     out = Path(args.out)
     quiet = bool(args.quiet) or not sys.stderr.isatty()
     with progress_bar(0, "campaign", enabled=not quiet) as tick:
-        stats = run_campaign(args.planners, args.traffic, args.seeds, out, workers=args.workers,
-                             scheduler=args.scheduler, duration_s=args.duration, period_s=args.period,
-                             deadline=not args.no_deadline, progress=tick)
-    wanted = {(p, t) for p in args.planners for t in args.traffic}
-    rows = [r for r in read_rows(out / "episodes.csv") if (r["planner"], r["traffic"]) in wanted
-            and int(r["seed"]) <= args.seeds]
-    summary = summarise(rows)
+        if args.no_run:
+            stats = {"ran": 0, "skipped": 0, "failed": 0, "seconds": 0.0}
+        else:
+            stats = run_campaign(args.planners, args.traffic, args.seeds, out, missions=args.missions,
+                                 workers=args.workers, scheduler=args.scheduler, duration_s=args.duration,
+                                 period_s=args.period, deadline=args.deadline, cooperation=args.cooperation,
+                                 sublane=args.sublane, force=args.force, progress=tick)
+    from iamp.simulation.stats import campaign_report
+
+    rows = [r for r in read_rows(out / "episodes.csv") if r["planner"] in args.planners
+            and r["traffic"] in args.traffic and r.get("mission", "discretionary") in args.missions]
+    report = campaign_report(rows, args.planners, reference=args.reference)
     from iamp.core.atomic import write_text
 
-    write_text(out / "table.tex", latex_table(summary))
-    write_text(out / "summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
-    campaign_figures(summary, rows, out)
+    write_text(out / "table.tex", latex_table(report["cells"]))
+    write_text(out / "paired.tex", paired_table(report["paired"]))
+    write_text(out / "summary.json", json.dumps(report, indent=1, allow_nan=False) + "\n")
+    campaign_figures(report["cells"], rows, out)
     if not args.quiet:
         print(f"{stats['ran']} episodes run, {stats['skipped']} already done, {stats['failed']} failed "
-              f"({stats['seconds']:.0f} s); {out / 'episodes.csv'}, table.tex, summary.json, rates.png, "
-              "distributions.png")
-        for s in summary:
-            lo, hi = s["collision_ci"]
-            print(f"  {s['planner']:>8} {s['traffic']:>6}: collisions {s['collision_episodes']}/{s['episodes']} "
-                  f"[{100 * lo:.0f}, {100 * hi:.0f}] %, lane change {100 * s['lane_change_rate']:.0f} %")
+              f"({stats['seconds']:.0f} s); {out / 'episodes.csv'}, manifest.json, table.tex, paired.tex, "
+              "summary.json, rates.png, distributions.png")
+        for c in report["cells"]:
+            lo, hi = c["success_ci"]
+            print(f"  {c['mission']:>13} {c['planner']:>10} {c['traffic']:>6}: success {c['success_episodes']}/"
+                  f"{c['episodes']} [{100 * lo:.0f}, {100 * hi:.0f}] %, contacts {c['contact_episodes']}")
     return EXIT_OK
 
 
@@ -198,34 +277,57 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p = sub.add_parser("simulate", help="one closed-loop lane-change episode in SUMO traffic (needs iamp[sim])",
                        description="Run one closed-loop episode: SUMO traffic, the shared predictor, the planner "
                                    "every period (SPEC §11).")
+    p.add_argument("--mission", choices=MISSIONS, default="merge",
+                   help="what the ego must do (SPEC §15; default merge: its lane ends 400 m ahead)")
     p.add_argument("--traffic", choices=TRAFFIC, default="medium")
     p.add_argument("--seed", type=int_in("seed"), default=1, help="SUMO and traffic seed in [0, 2^31-1]")
     p.add_argument("--planner", choices=PLANNERS, default="pmp")
+    p.add_argument("--cooperation", choices=COOPERATION, default="default",
+                   help="SUMO drivers' cooperation (lcCooperative, lcAssertive, lcSpeedGain, "
+                        "sigma; docs/closed-loop.md)")
+    p.add_argument("--sublane", action="store_true", help="the sumo planner with SUMO's sublane model SL2015")
     p.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s] (default 60)")
     p.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period = SUMO step [s]")
-    p.add_argument("--no-deadline", action="store_true",
-                   help="use plans however long they take (default: a plan slower than the period is late "
-                        "and falls back)")
+    p.add_argument("--deadline", action="store_true",
+                   help="a plan slower than the period is late and falls back (default: use plans however long "
+                        "they take, so that the same seed gives the same numbers)")
+    p.add_argument("--no-deadline", action="store_true", help=argparse.SUPPRESS)  # the default now (was opt-in)
     p.add_argument("--log", default=None, help="write the step log (ego + neighbours per step) as CSV "
                    "(an existing file only with --force)")
     p.add_argument("--figure", default=None, help="write a figure of the episode (.png, .pdf or .svg; an "
                    "existing file only with --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --log / --figure file")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §11)")
+    p.add_argument("--commonroad", default=None, metavar="FOLDER",
+                   help="an interactive CommonRoad scenario folder (*.cr.xml + *.sumo.cfg): the ego from its "
+                        "planning problem, closed loop to its goal (SPEC §16; needs iamp[sim,commonroad])")
+    p.add_argument("--road-planner", default="avoid", choices=("avoid", "pmp", "qp", "all-pmp", "free"),
+                   help="with --commonroad: the road planner (iamp commonroad plan --planner; default avoid)")
+    p.add_argument("--recording", default=None, metavar="SCENARIO.xml",
+                   help="with --commonroad: the recorded scenario of the same vehicles, to report how SUMO's "
+                        "traffic differs from it")
     p.set_defaults(func=cmd_simulate)
 
     c = sub.add_parser("campaign", help="every planner x traffic x seed episode on Dask (needs iamp[sim])",
                        description="Run a campaign of closed-loop episodes on Dask distributed; resumes.")
-    c.add_argument("--planners", type=_csv_choice(PLANNERS), default=["pmp", "qp", "sumo"])
-    c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=list(TRAFFIC))
+    c.add_argument("--missions", type=_csv_choice(MISSIONS), default=["merge"])
+    c.add_argument("--planners", type=_csv_choice(PLANNERS), default=list(PLANNERS))
+    c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=["medium", "dense", "los-e"])
+    c.add_argument("--cooperation", choices=COOPERATION, default="default")
+    c.add_argument("--sublane", action="store_true", help="the sumo planner with SL2015")
+    c.add_argument("--reference", choices=PLANNERS, default="pmp",
+                   help="the planner every other one is compared with, seed by seed (default pmp)")
+    c.add_argument("--no-run", action="store_true", help="only summarise the episodes already in --out")
     c.add_argument("--seeds", type=int_in("seeds"), default=20, help="seeds 1..N (N at most 10000)")
     c.add_argument("--out", required=True, help="output folder (episodes.csv, table.tex, figures)")
     c.add_argument("--force", action="store_true",
-                   help="write into an existing folder that iamp did not write (no .iamp-output marker)")
+                   help="write into an existing folder that iamp did not write (no .iamp-output marker), and "
+                        "discard its episodes if they were made with other parameters")
     c.add_argument("--workers", type=int_in("workers"), default=2, help="local Dask workers (processes)")
     c.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
     c.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s]")
     c.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period [s]")
-    c.add_argument("--no-deadline", action="store_true", help="use plans however long they take")
+    c.add_argument("--deadline", action="store_true", help="a plan slower than the period falls back")
+    c.add_argument("--no-deadline", action="store_true", help=argparse.SUPPRESS)  # the default now (was opt-in)
     c.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
     c.set_defaults(func=cmd_campaign)

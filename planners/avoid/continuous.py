@@ -76,6 +76,13 @@ GAP_REL = 1e-4
 #: round-off) stays feasible; far below the 1 mm intrusion tolerance of SPEC §9.
 ROW_TOL_M = 1e-9
 
+#: Backends whose search runs on the fixed pattern (:meth:`ContinuousAvoidQP.solve_fixed`).
+#: Measured on the ``avoid_bounded`` bench plan (N = 50), before/after back to back at load
+#: 10.6-11.6: PIQP 3.62 s -> 2.00 s, OSQP 52.0 s -> 47.8 s (a warm start from the previous box
+#: made OSQP far slower: 293 s for 41 QPs, so none).  Clarabel rebuilt on the padded pattern
+#: was slower (5.8 s against 3.9 s) and keeps the rebuilt rows.
+FIXED_PATTERN_SOLVERS = ("piqp", "osqp")
+
 #: Per vehicle ``(first, second, a, b)``: first half-plane on ``[0, a]``, second on ``[b, t_f]``.
 Spec = tuple[tuple[int, int, float, float], ...]
 
@@ -166,6 +173,28 @@ class ContinuousAvoidQP:
             self._full[key] = (A, np.concatenate(rhs))
         return self._full[key]
 
+    def segment_pieces(self, ta: float, tb: float) -> list[tuple[int, float, float]]:
+        """The pieces ``(k, λ0, λ1)`` of ``[ta, tb]`` (local coordinates ``λ ∈ [0, 1]`` of piece
+        ``k``; at most one sub-interval per piece), as :meth:`segment_rows` imposes them."""
+        d = self.data
+        if tb < ta or tb <= 0.0 or ta >= self.tf:
+            return []
+        ka = min(int(np.floor(ta / self.h)), self.N - 1)
+        kb = min(int(np.ceil(tb / self.h)) - 1, self.N - 1)
+        kb = max(kb, ka)
+        lam = [float((ta - d.t_nodes[ka]) / self.h), float((tb - d.t_nodes[kb]) / self.h)]
+        full_lo = ka + (1 if lam[0] > 1e-12 else 0)
+        full_hi = kb - (1 if lam[1] < 1 - 1e-12 else 0)
+        if ka == kb and full_lo > full_hi:
+            return [(ka, lam[0], lam[1])]
+        out: list[tuple[int, float, float]] = []
+        if full_lo > ka:
+            out.append((ka, lam[0], 1.0))
+        out += [(k, 0.0, 1.0) for k in range(full_lo, full_hi + 1)]
+        if full_hi < kb:
+            out.append((kb, 0.0, lam[1]))
+        return out
+
     def segment_rows(self, i: int, a: int, ta: float, tb: float) -> tuple[sp.csr_matrix, FloatArray]:
         """Rows keeping vehicle ``i``'s half-plane ``a`` on ``[ta, tb]`` (empty when ``tb <= ta``
         but a point ``ta = tb`` inside ``(0, t_f)`` gives the state's own row)."""
@@ -238,6 +267,94 @@ class ContinuousAvoidQP:
         status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
         return Solved(spec, status, cost, sol.z, sol.y, A, np.r_[d.b_eq, u_in], sol.iterations)
 
+    # --- the fixed pattern: one QP structure for every crossing-time box ---------------------
+    def _fixed_pattern(self) -> None:
+        r"""Build ``A`` once: equality rows, then for every vehicle ``i``, half-plane ``a`` and
+        piece ``k`` a block of ``d + 1`` Bernstein rows on the piece's four node columns, then
+        the limit rows.  A box (``spec``) changes only the block values and bounds: a piece (or
+        sub-piece) the spec imposes gets its Bernstein matrix and right-hand side, any other
+        block the zero row with bound ``1`` (``0 \le 1``: always true, no effect on the
+        optimum).  The feasible set is the one of :meth:`spec_rows`, row for row."""
+        d = self.data
+        n = self.degree + 1
+        m = len(self.problem.vehicles)
+        rows, cols = [], []
+        for i in range(m):
+            for a in (0, 1):
+                for k in range(self.N):
+                    base = ((i * 2 + a) * self.N + k) * n
+                    cs = [int(d.idx_s(a, k)), int(d.idx_v(a, k)), int(d.idx_s(a, k + 1)), int(d.idx_v(a, k + 1))]
+                    rows.append(base + np.repeat(np.arange(n), 4))
+                    cols.append(np.tile(cs, n))
+        n_b = m * 2 * self.N * n
+        r = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
+        c = np.concatenate(cols) if cols else np.zeros(0, dtype=int)
+        eq = sp.coo_matrix(self.A_eq)
+        lim = sp.coo_matrix(self.A_lim)
+        n_eq = self.A_eq.shape[0]
+        R = np.r_[eq.row, n_eq + r, n_eq + n_b + lim.row]
+        C = np.r_[eq.col, c, lim.col]
+        tag = np.arange(1, R.size + 1, dtype=float)  # position of each entry in the CSC data
+        A = sp.csc_matrix((tag, (R, C)), shape=(n_eq + n_b + lim.shape[0], d.n))
+        A.sort_indices()
+        assert A.nnz == R.size, "the fixed pattern has one entry per (row, column)"
+        order = A.data.astype(np.int64) - 1  # CSC entry j holds the value given at position order[j]
+        self._fx_vals = np.r_[eq.data, np.zeros(r.size), lim.data]
+        self._fx_pos = order  # A.data = values[order]
+        self._fx_A = A
+        self._fx_nb = n_b
+        self._fx_solver: BoundSolver | None = None
+
+    def fixed_data(self, spec: Spec) -> tuple[FloatArray, FloatArray]:
+        """``A.data`` (CSC order of the fixed pattern) and the inequality bounds of ``spec``."""
+        if not hasattr(self, "_fx_A"):
+            self._fixed_pattern()
+        n = self.degree + 1
+        vals = self._fx_vals.copy()
+        u_b = np.ones(self._fx_nb)
+        for i, (first, second, a, b) in enumerate(spec):
+            for plane, (ta, tb) in ((first, (0.0, a)), (second, (b, self.tf))):
+                if (plane == first and a <= 0.0) or (plane == second and b >= self.tf):
+                    continue
+                hp = self.data.planes[i][plane]
+                pieces = self.segment_pieces(ta, tb)
+                full = [k for k, l0, l1 in pieces if l0 == 0.0 and l1 == 1.0]
+                if full:  # contiguous: one slice of the cached full-piece rows
+                    k0, k1 = full[0], full[-1] + 1
+                    _, rhs_f = self._full_rows(i, plane)
+                    base = (i * 2 + plane) * self.N * n
+                    e0 = self.A_eq.nnz + base * 4
+                    vals[e0 + k0 * 4 * n:e0 + k1 * 4 * n] = np.tile(hp.sigma * self.M_full.ravel(), k1 - k0)
+                    u_b[base + k0 * n:base + k1 * n] = rhs_f[k0 * n:k1 * n]
+                for k, l0, l1 in pieces:
+                    if l0 == 0.0 and l1 == 1.0:
+                        continue
+                    M = piece_matrix(self.h, l0, l1, self.degree)
+                    base = ((i * 2 + plane) * self.N + k) * n
+                    e0 = self.A_eq.nnz + base * 4
+                    vals[e0:e0 + 4 * n] = hp.sigma * M.ravel()
+                    t0 = float(self.data.t_nodes[k])
+                    u_b[base:base + n] = self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h)
+        return vals[self._fx_pos], np.r_[u_b, self.u_lim]
+
+    def solve_fixed(self, spec: Spec) -> Solved:
+        """The QP of :meth:`solve` on the fixed pattern: the solver is set up once and each box
+        only updates its values and bounds (same feasible set, so the same optimum)."""
+        self.n_solves += 1
+        Ax, u_in = self.fixed_data(spec)
+        d = self.data
+        A = self._fx_A
+        A.data[:] = Ax
+        if self._fx_solver is None:
+            self._fx_solver = BoundSolver(self.solver, d.P, A, d.b_eq, u_in, self.settings)
+        else:
+            self._fx_solver.set_values(A, u_in)
+        sol = self._fx_solver.solve()
+        ok = sol.status == st.OPTIMAL and sol.finite
+        cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (d.P.diagonal() * sol.z)) if ok else np.inf
+        status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
+        return Solved(spec, status, cost, sol.z, sol.y, A.copy(), np.r_[d.b_eq, u_in], sol.iterations)
+
     def trajectory(self, z: FloatArray) -> HoldTrajectory:
         X, U = self.data.unpack(z)
         return HoldTrajectory(self.data.t_nodes.copy(), X, U, self.hold)
@@ -283,6 +400,15 @@ class ContinuousAvoidPlanner:
     max_solves: int = 2000
     time_limit_s: float = 60.0
     gap_rel: float = GAP_REL
+    #: Solve the search's QPs on one fixed pattern (:meth:`ContinuousAvoidQP.solve_fixed`,
+    #: values and bounds updated); the final QP is always re-solved from its own rows
+    #: (:meth:`ContinuousAvoidQP.solve`) before it is checked.  ``False``: every QP rebuilt.
+    fixed_pattern: bool = True
+
+    def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec) -> Solved:
+        if self.fixed_pattern and self.solver in FIXED_PATTERN_SOLVERS:
+            return qp.solve_fixed(spec)
+        return qp.solve(spec)
 
     def _candidate_tau(self, qp: ContinuousAvoidQP, box: _Box) -> tuple[FloatArray, FloatArray]:
         """Per vehicle, the ``τ`` in its box where the relaxed optimum best keeps the first
@@ -313,7 +439,7 @@ class ContinuousAvoidPlanner:
         best_tau = np.full(m, np.nan)
         n_boxes = 0
         closed_bound = np.inf  # the smallest bound of a box closed to the gap
-        free = qp.solve(_spec([o[0] for o in orders], np.zeros(m), np.full(m, tf)))
+        free = self._qp_solve(qp, _spec([o[0] for o in orders], np.zeros(m), np.full(m, tf)))
         for combo in itertools.product(*orders):
             if free.status == st.OPTIMAL:
                 heapq.heappush(heap, _Box(free.cost, next(serial), tuple(combo), np.zeros(m), np.full(m, tf), free))
@@ -332,7 +458,7 @@ class ContinuousAvoidPlanner:
                 break
             heapq.heappop(heap)
             tau, margin = self._candidate_tau(qp, box)
-            cand = qp.solve(_spec(box.orders, tau, tau))
+            cand = self._qp_solve(qp, _spec(box.orders, tau, tau))
             if cand.status == st.OPTIMAL:
                 if best is None or cand.cost < best.cost:
                     best, best_tau = cand, tau.copy()
@@ -353,7 +479,7 @@ class ContinuousAvoidPlanner:
             for lo_i, hi_i in ((box.lo[i], mid), (mid, box.hi[i])):
                 lo, hi = box.lo.copy(), box.hi.copy()
                 lo[i], hi[i] = lo_i, hi_i
-                rel = qp.solve(_spec(box.orders, lo, hi))
+                rel = self._qp_solve(qp, _spec(box.orders, lo, hi))
                 n_boxes += 1
                 if rel.status == st.OPTIMAL:
                     if rel.cost < U - gap(U):
@@ -367,6 +493,11 @@ class ContinuousAvoidPlanner:
         if best is not None and best.cost > min(closed_bound, heap[0].bound if heap else np.inf) + 1e-12 * max(
                 1.0, best.cost):
             best, best_tau = self._polish(qp, best, best_tau)
+        if best is not None and self.fixed_pattern and self.solver in FIXED_PATTERN_SOLVERS:
+            # the search's QP had padded rows: the plan is the QP of its own rows, solved again
+            again = qp.solve(best.spec)
+            if again.status == st.OPTIMAL:
+                best = again
         U = best.cost if best is not None else np.inf
         open_bound = heap[0].bound if heap else np.inf
         lower = min(U, open_bound, closed_bound)
@@ -388,7 +519,7 @@ class ContinuousAvoidPlanner:
         def f(x: float, i: int) -> float:
             t = tau.copy()
             t[i] = x
-            r = qp.solve(_spec(orders, t, t))
+            r = self._qp_solve(qp, _spec(orders, t, t))
             if r.status == st.OPTIMAL and r.cost < found["sol"].cost:
                 found["sol"] = r
             return r.cost if r.status == st.OPTIMAL else float(np.inf)

@@ -163,6 +163,21 @@ class BoundSolver:
             P, A, cones, cs = self._rebuild
             self._s = clarabel.DefaultSolver(P, np.zeros(P.shape[0]), A, np.r_[self.b_eq, u_in], cones, cs)
 
+    def set_values(self, A: sp.spmatrix, u_in: FloatArray) -> None:
+        """New values of ``A`` on the pattern it was set up with, and new upper bounds."""
+        A = sp.csc_matrix(A)
+        u = np.r_[self.b_eq, u_in]
+        if self._generic is not None:
+            self._generic.update(Ax=np.array(A.data, dtype=float), u=u)
+        elif self.name == "osqp":
+            self._s.update(Ax=np.array(A.data, dtype=float), u=u)
+        else:
+            import clarabel
+
+            P, _, cones, cs = self._rebuild
+            self._s = clarabel.DefaultSolver(P, np.zeros(P.shape[0]), A, u, cones, cs)
+            self._rebuild = (P, A, cones, cs)
+
     def warm_start(self, z: FloatArray, y: FloatArray) -> None:
         """OSQP (and any registry backend that warm-starts); Clarabel, an interior-point method, has none."""
         if self._generic is not None:

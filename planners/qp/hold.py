@@ -85,6 +85,10 @@ class HoldTrajectory:
         return float(np.sum(h / 6 * (u0**2 + u0 * u1 + u1**2)))
 
 
+#: A contact time within this many grid steps of a uniform node is that node (rounding only).
+ON_NODE_REL = 1e-9
+
+
 def aligned_grid(times: Sequence[float] | FloatArray, tf: float, steps: int) -> tuple[FloatArray, IntArray]:
     """A piecewise-uniform grid of ``steps`` intervals with nodes at every contact time.
 
@@ -100,6 +104,12 @@ def aligned_grid(times: Sequence[float] | FloatArray, tf: float, steps: int) -> 
         raise ValueError("contact times must be distinct and inside (0, tf)")
     if steps < len(lengths):
         raise ValueError(f"need at least {len(lengths)} steps for {len(tt)} contact times")
+    k = tt / tf * steps
+    k_node = np.round(k)
+    if np.all(np.abs(k - k_node) <= ON_NODE_REL) and len(set(k_node.tolist())) == len(k_node):
+        # every time is a node of the uniform grid (to rounding): that grid itself, so a sweep's
+        # factorisation is reused (a piecewise linspace differs from it in the last bits)
+        return np.linspace(0.0, tf, steps + 1), k_node.astype(np.int64)
     raw = lengths / tf * steps
     n = np.maximum(1, np.floor(raw).astype(int))
     while n.sum() > steps:

@@ -53,13 +53,11 @@ from iamp.core.atomic import write_text as atomic_write_text
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD
 from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.predictor import DEFAULT_MODEL_FILE, Predictor
+from iamp.prediction.tracks.split import TEST_FRACTION, TEST_SEED, VAL_FRACTION, VAL_SEED, split_tracks
 from iamp.prediction.tracks.table import Tracks
 from iamp.prediction.training import track_accelerations
 
-from .data import paper_histories, synthetic_tracks
-from .report import NGSIM_CV_REFERENCE, rmse_table_tex, selection_table_tex
-from .select import A_MAX, select_model, train_config
-from .windows import (
+from ..windows import (
     EVAL_DT,
     FUTURE_S,
     HISTORY_S,
@@ -72,6 +70,9 @@ from .windows import (
     make_windows,
     metrics,
 )
+from .data import paper_histories, synthetic_tracks
+from .report import NGSIM_CV_REFERENCE, rmse_table_tex, selection_table_tex
+from .select import A_MAX, select_model, train_config
 
 __all__ = [
     "DEFAULT_CONFIG",
@@ -95,7 +96,6 @@ __all__ = [
     "write_evaluation_report",
 ]
 #: Split seeds and fractions (by whole track).
-TEST_FRACTION, TEST_SEED, VAL_FRACTION, VAL_SEED = 0.2, 0, 0.25, 1
 #: Bump when the protocol or the model changes (cached results are then recomputed).
 EVAL_VERSION = 4
 
@@ -108,11 +108,6 @@ DEFAULT_CONFIG: dict[str, Any] = {"dt": 0.2, "width": 0.5, "order": 4, "a_max": 
 # data, splits, windows
 # ---------------------------------------------------------------------------------------
 
-def split_tracks(tracks: Tracks) -> tuple[Tracks, Tracks, Tracks, Tracks]:
-    """``(train, val, test)`` by whole track with the module's fixed seeds."""
-    rest, test = tracks.split_by_track(TEST_FRACTION, seed=TEST_SEED)
-    train, val = rest.split_by_track(VAL_FRACTION, seed=VAL_SEED)
-    return train, val, test, rest
 
 
 def _dataset_fingerprint(tracks: Tracks) -> str:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .windows import HORIZONS
+from ..windows import HORIZONS
 
 __all__ = ["NGSIM_CV_REFERENCE", "rmse_table_tex", "selection_table_tex"]
 

@@ -21,7 +21,7 @@ from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks.table import Tracks
 from iamp.prediction.training import symmetric_edges, train_from_tracks
 
-from .windows import (
+from ..windows import (
     FUTURE_S,
     HISTORY_S,
     Windows,

@@ -1,7 +1,7 @@
 r"""``iamp evaluate-predictor --data FILE --format F`` (SPEC §13): the predictor on a user's data.
 
 Windows: 3 s of history and 5 s of future, every second of every track long enough
-(:func:`~iamp.prediction.evaluation.windows.make_windows`).  Methods: ``cv``, ``ca`` (the
+(:func:`~iamp.prediction.windows.make_windows`).  Methods: ``cv``, ``ca`` (the
 baselines), ``mtd`` (the MTD predictor, raw propagated trajectory) and ``fo`` (a first-order
 chain with the same bins and step).  All four take their initial state from the same RTS
 smoother (:mod:`iamp.prediction.initial_state`).
@@ -40,7 +40,7 @@ from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks.table import Tracks
 
-from .windows import (
+from ..windows import (
     FUTURE_S,
     HORIZONS,
     Windows,

@@ -137,9 +137,9 @@ def train_default_leader_model(path: Any = None) -> LeaderModel:
     5 s to bound the cost); fallback: the shipped MTD model.  ``path="package"`` writes
     ``prediction/data/leader_default.json``.
     """
-    from iamp.prediction.evaluation.evaluate import split_tracks
     from iamp.prediction.leader.leaders import derive_leaders
     from iamp.prediction.tracks import load_shipped_dataset
+    from iamp.prediction.tracks.split import split_tracks
 
     tracks = load_shipped_dataset()
     _, _, test, rest = split_tracks(tracks)
@@ -242,8 +242,9 @@ def train_leader_model(tracks: Tracks, leaders: Leaders, law: str = "idm", fallb
     forecast (``leader="cv"``, default: the law is calibrated for the prediction it makes) or its
     recorded future (``leader="recorded"``: the behavioural law).
     """
-    from iamp.prediction.evaluation.leader import leader_windows
-    from iamp.prediction.evaluation.windows import make_windows
+    from iamp.prediction.windows import make_windows
+
+    from .windows import leader_windows
 
     if calibration not in ("acceleration", "trajectory"):
         raise ValueError(f"calibration must be 'acceleration' or 'trajectory' (got {calibration!r})")

@@ -37,6 +37,7 @@ relative versions divide by the largest magnitude among each expression's terms 
 from __future__ import annotations
 
 import abc
+import functools
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from importlib import metadata
@@ -186,8 +187,13 @@ class QPSolution:
         return bool(np.isfinite(self.z).all() and np.isfinite(self.y).all())
 
 
+@functools.cache
 def dist_version(name: str) -> str | None:
-    """Installed version of the distribution ``name`` (``None`` if absent)."""
+    """Installed version of the distribution ``name`` (``None`` if absent).
+
+    Cached for the process: reading the package metadata cost 3 ms a call, once per QP set-up
+    (measured under ``python -m cProfile`` on the ``avoid_bounded`` bench plan: 1.5 s of 7 s).
+    """
     try:
         return metadata.version(name)
     except metadata.PackageNotFoundError:

@@ -1,0 +1,158 @@
+"""``iamp commonroad plan|check|bench`` (SPEC §16; needs the ``[commonroad]`` extra)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from iamp.cli.types import EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVER, positive_float
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    from iamp.commonroad.check import check
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import describe, plan
+    from iamp.commonroad.solution import build_solution, write_solution
+    from iamp.core.outputs import check_output
+
+    if args.out:
+        check_output(args.out, inputs=[args.scenario], force=args.force)
+    cr = load(args.scenario)
+    seen = cr
+    if args.predict:
+        from iamp.commonroad.predicted import predict_obstacles
+
+        seen = predict_obstacles(cr)
+    rp = plan(seen, args.planner)
+    out = describe(rp)
+    out["scenario"] = cr.name
+    out["frame_fit_residual_m"] = cr.frame_fit_residual_m
+    out["notes"] = seen.notes
+    out["predict"] = bool(args.predict)
+    if rp.trajectory is None or rp.candidate is None:
+        if args.json:
+            sys.stdout.write(json.dumps(out, indent=1) + "\n")
+        else:
+            sys.stdout.write(f"{cr.name}: {args.planner}: no plan ({rp.reason or rp.status})\n")
+        return EXIT_SOLVER
+    solution, drift = build_solution(cr, rp.trajectory, rp.candidate.steps, args.cost_function)
+    out["zoh_drift_m"] = drift
+    if args.out:
+        write_solution(solution, args.out, force=args.force)
+        out["solution"] = str(args.out)
+    verdict = check(cr.scenario, cr.planning_problem_set, solution)
+    out["commonroad"] = verdict.to_json()
+    if args.json:
+        sys.stdout.write(json.dumps(out, indent=1, default=float) + "\n")
+    else:
+        c = rp.candidate
+        sys.stdout.write(f"{cr.name}: planner {args.planner}, status {rp.status}, J = {rp.cost:.4f}, "
+                         f"tf = {c.tf:.1f} s (goal window {cr.goal.steps[0] * cr.dt:.1f}-"
+                         f"{cr.goal.steps[1] * cr.dt:.1f} s), solve {rp.solve_time_s:.2f} s\n")
+        imposed = ", ".join(f"{i}:{k}" for i, k in rp.imposed) or "none (no vehicle in the way)"
+        sys.stdout.write(f"imposed: {imposed}; peak |u| {rp.peak_accel_mps2:.2f} m/s^2; "
+                         f"max heading to road {rp.max_heading_rad:.3f} rad\n")
+        for line in verdict.lines():
+            sys.stdout.write(line + "\n")
+        if args.out:
+            sys.stdout.write(f"wrote {args.out}\n")
+    return EXIT_OK if verdict.valid else EXIT_SOLVER
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from iamp.commonroad.check import check, read
+
+    scenario, pps, solution = read(args.scenario, args.solution)
+    verdict = check(scenario, pps, solution)
+    if args.json:
+        sys.stdout.write(json.dumps(verdict.to_json(), indent=1, default=float) + "\n")
+    else:
+        for line in verdict.lines():
+            sys.stdout.write(line + "\n")
+    return EXIT_OK if verdict.valid else EXIT_SOLVER
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from iamp.commonroad.bench import PREDICT_SUFFIX, bench, summary, write_reports
+    from iamp.commonroad.planning import PLANNERS
+
+    planners = [p.strip() for p in args.planners.split(",") if p.strip()]
+    for p in planners:
+        if p.removesuffix(PREDICT_SUFFIX) not in PLANNERS:
+            sys.stderr.write(f"iamp: error: --planners: unknown planner {p!r}; choose from {', '.join(PLANNERS)}\n")
+            return EXIT_BAD_INPUT
+    folder = Path(args.folder)
+    if not folder.is_dir() or not any(folder.glob("*.xml")):
+        sys.stderr.write(f"iamp: error: {folder}: not a folder of CommonRoad *.xml scenarios\n")
+        return EXIT_BAD_INPUT
+    out = Path(args.out) if args.out else None
+
+    def progress(text: str) -> None:
+        if not args.json:
+            sys.stderr.write(f"  {text}\n")
+
+    rows = bench(folder, planners, out, args.timeout, progress)
+    if args.peer:
+        from iamp.commonroad.bench import PEER_LABEL, peer_rows
+
+        rows += peer_rows(folder, args.peer)
+        planners = [*planners, PEER_LABEL]
+    command = "iamp commonroad bench " + " ".join(sys.argv[3:]) if len(sys.argv) > 3 else "iamp commonroad bench"
+    if out is not None:
+        write_reports(rows, planners, out, command)
+    s = summary(rows, planners)
+    if args.json:
+        sys.stdout.write(json.dumps({"summary": s, "rows": [r.__dict__ for r in rows]}, indent=1, default=float)
+                         + "\n")
+    else:
+        for e in s:
+            sys.stdout.write(f"{e['planner']:8s} valid {e['valid']}/{e['scenarios']} (raw {e['valid_raw']}), "
+                             f"collision {e['collision']}, infeasible {e['infeasible']}, goal missed "
+                             f"{e['goal missed']}, off road {e['off road']}, no plan {e['no plan']}, "
+                             f"timeout {e['timeout']}\n")
+    return EXIT_OK
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``iamp commonroad``."""
+    from iamp.commonroad.planning import DEFAULT_PLANNER, PLANNERS
+    from iamp.commonroad.solution import DEFAULT_COST_FUNCTION
+
+    cr = sub.add_parser("commonroad", help="CommonRoad scenarios: plan, check a solution, benchmark a folder "
+                                           "(needs the [commonroad] extra)")
+    csub = cr.add_subparsers(dest="commonroad_command", required=True, parser_class=type(cr))
+    p = csub.add_parser("plan", help="plan a CommonRoad scenario and judge the plan with CommonRoad's checker")
+    p.add_argument("scenario", help="CommonRoad scenario XML with a planning problem")
+    p.add_argument("--planner", choices=tuple(PLANNERS), default=DEFAULT_PLANNER,
+                   help=f"active set with the avoidance QP (avoid, default), the PMP or the QP equality; all-pmp: "
+                        f"the paper's equality on every relevant vehicle; free: no vehicle (default {DEFAULT_PLANNER})")
+    p.add_argument("--out", default=None, metavar="SOLUTION.xml", help="write the CommonRoad solution here")
+    p.add_argument("--force", action="store_true", help="overwrite --out")
+    p.add_argument("--cost-function", default=DEFAULT_COST_FUNCTION,
+                   choices=("JB1", "SA1", "WX1", "SM1", "SM2", "SM3", "MW1", "TR1", "TR2"),
+                   help=f"cost function named in the solution (default {DEFAULT_COST_FUNCTION})")
+    p.add_argument("--predict", action="store_true",
+                   help="plan with the vehicles predicted by the §7 predictor from their state at t = 0 (the "
+                        "checker still judges against the recorded future)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_plan)
+    c = csub.add_parser("check", help="CommonRoad's verdict on a solution, every check separately")
+    c.add_argument("scenario")
+    c.add_argument("solution")
+    c.add_argument("--json", action="store_true")
+    c.set_defaults(func=cmd_check)
+    b = csub.add_parser("bench", help="plan every scenario of a folder with each planner and check it")
+    b.add_argument("folder")
+    b.add_argument("--planners", default="avoid,pmp,qp,all-pmp,free",
+                   help="comma-separated planners; NAME+predict plans with the predicted vehicles "
+                        "(default avoid,pmp,qp,all-pmp,free)")
+    b.add_argument("--out", default=None, metavar="DIR", help="bench.md/.tex/.json and the solutions go here")
+    b.add_argument("--timeout", type=positive_float, default=120.0, metavar="S",
+                   help="per scenario and planner (default 120 s)")
+    b.add_argument("--peer", default=None, metavar="DIR",
+                   help="add the peer commonroad-reactive-planner's rows from DIR (written by "
+                        "scripts/commonroad_peer.py in the peer's own environment)")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench)

@@ -1,0 +1,203 @@
+r"""CommonRoad's own verdict on a solution, one check at a time.
+
+``commonroad_dc.feasibility.solution_checker.valid_solution`` stops at the first failing
+check (it raises); this module runs every check separately and records each verdict:
+
+* ``starts_at_initial_state`` - the first state matches the planning problem's;
+* ``kinematically_feasible`` - every step reachable by the vehicle model (``PM``: a constant
+  input per step inside the friction circle ``|u| <= a_max``, positions within 2 cm);
+* ``collision`` - the ego's body (the vehicle type's rectangle at each step's heading) against
+  every obstacle; on a collision, **which** obstacles (each one checked alone) and the first
+  time step;
+* ``road_boundary`` - the body against the road boundary built from the lanelet network
+  (needs ``triangle``);
+* ``goal_reached`` - CommonRoad's goal test, as is;
+* ``goal_reached_corrected`` - the same test with the **point-mass orientation defect worked
+  around**: commonroad-io 2024.3's ``GoalRegion._harmonize_state_types`` replaces a PM
+  state's ``velocity`` (``v_x``) by the speed :math:`|v|` and *then* reads the orientation as
+  ``atan2(v_y, velocity)`` = :math:`\operatorname{atan2}(v_y, |v|)` instead of
+  :math:`\operatorname{atan2}(v_y, v_x)`; on US-101 (heading about -0.72 rad) a correct
+  point-mass plan misses the goal's orientation.  The corrected test passes each state to the
+  goal as position, speed :math:`|v|`, orientation :math:`\operatorname{atan2}(v_y, v_x)` and
+  time step, so nothing else changes.
+
+``valid`` is every check passing with the corrected goal test; ``valid_commonroad_raw`` is
+``valid_solution``'s own answer (``False`` whenever the defect bites), both reported.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from iamp.commonroad import require
+from iamp.core.errors import ScenarioError
+
+CHECKS = ("starts_at_initial_state", "kinematically_feasible", "collision", "road_boundary", "goal_reached",
+          "goal_reached_corrected")
+
+
+@dataclass
+class Verdict:
+    """Every check's verdict (``ok`` True/False, ``detail`` text) and the overall validity."""
+
+    checks: dict[str, dict[str, Any]] = field(default_factory=dict)
+    colliding_obstacles: list[int] = field(default_factory=list)
+    cost: float | None = None
+    cost_function: str | None = None
+
+    @property
+    def valid(self) -> bool:
+        need = ("starts_at_initial_state", "kinematically_feasible", "collision", "road_boundary",
+                "goal_reached_corrected")
+        return all(self.checks.get(k, {}).get("ok") is True for k in need)
+
+    @property
+    def valid_commonroad_raw(self) -> bool:
+        need = ("starts_at_initial_state", "kinematically_feasible", "collision", "road_boundary", "goal_reached")
+        return all(self.checks.get(k, {}).get("ok") is True for k in need)
+
+    @property
+    def category(self) -> str:
+        """One word for the bench table: valid / collision / infeasible / goal missed / off road."""
+        if self.valid:
+            return "valid"
+        if not self.checks.get("collision", {}).get("ok", False):
+            return "collision"
+        if not self.checks.get("kinematically_feasible", {}).get("ok", False) or \
+                not self.checks.get("starts_at_initial_state", {}).get("ok", False):
+            return "infeasible"
+        if not self.checks.get("road_boundary", {}).get("ok", False):
+            return "off road"
+        return "goal missed"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"valid": self.valid, "valid_commonroad_raw": self.valid_commonroad_raw, "category": self.category,
+                "checks": self.checks, "colliding_obstacles": self.colliding_obstacles,
+                "cost": self.cost, "cost_function": self.cost_function,
+                "orientation_defect": "commonroad-io 2024.3 reads a PM goal state's orientation as atan2(v_y, |v|); "
+                                      "goal_reached_corrected uses atan2(v_y, v_x)"}
+
+    def lines(self) -> list[str]:
+        out = []
+        for name in CHECKS:
+            c = self.checks.get(name)
+            if c is None:
+                continue
+            out.append(f"{name:26s} {'pass' if c['ok'] else 'FAIL'}  {c.get('detail', '')}".rstrip())
+        out.append(f"{'valid (corrected goal)':26s} {'yes' if self.valid else 'no'}")
+        out.append(f"{'valid_solution (raw)':26s} {'yes' if self.valid_commonroad_raw else 'no'}"
+                   + ("  (the PM orientation defect: see goal_reached_corrected)"
+                      if self.valid and not self.valid_commonroad_raw else ""))
+        if self.cost is not None:
+            out.append(f"{'cost ' + str(self.cost_function):26s} {self.cost:.4f}")
+        return out
+
+
+def read(scenario_path: str | Path, solution_path: str | Path) -> tuple[Any, Any, Any]:
+    """Scenario, planning-problem set and solution from their files (one-line errors)."""
+    require()
+    from commonroad.common.file_reader import CommonRoadFileReader
+    from commonroad.common.solution import CommonRoadSolutionReader
+
+    for p in (scenario_path, solution_path):
+        if not Path(p).is_file():
+            raise ScenarioError("no such file", None, str(p))
+    try:
+        scenario, pps = CommonRoadFileReader(str(scenario_path)).open()
+    except Exception as exc:
+        raise ScenarioError(f"not a readable CommonRoad scenario ({exc.__class__.__name__})", None,
+                            str(scenario_path)) from None
+    try:
+        solution = CommonRoadSolutionReader.open(str(solution_path))
+    except Exception as exc:
+        raise ScenarioError(f"not a readable CommonRoad solution ({exc.__class__.__name__}: {exc})", None,
+                            str(solution_path)) from None
+    return scenario, pps, solution
+
+
+def _corrected_goal(pp: Any, trajectory: Any) -> tuple[bool, int | None]:
+    from commonroad.scenario.state import CustomState
+
+    for st in trajectory.state_list:
+        vx, vy = float(st.velocity), float(getattr(st, "velocity_y", 0.0) or 0.0)
+        probe = CustomState(time_step=st.time_step, position=st.position, velocity=math.hypot(vx, vy),
+                            orientation=math.atan2(vy, vx))
+        if pp.goal.is_reached(probe):
+            return True, int(st.time_step)
+    return False, None
+
+
+def check(scenario: Any, pps: Any, solution: Any, cost: bool = True) -> Verdict:
+    """Run every check of the module docstring on ``solution``."""
+    require()
+    from commonroad_dc.collision.collision_detection.pycrcc_collision_dispatch import create_collision_object
+    from commonroad_dc.feasibility import solution_checker as sc
+
+    v = Verdict()
+    pp_sol = solution.planning_problem_solutions[0]
+    pp = pps.planning_problem_dict.get(pp_sol.planning_problem_id)
+    if pp is None:
+        raise ScenarioError(f"solves planning problem {pp_sol.planning_problem_id}, which the scenario does not have",
+                            "planningProblemSolution")
+
+    def run(name: str, fn: Any) -> None:
+        try:
+            ok, detail = fn()
+        except Exception as exc:  # the checker raises its verdicts
+            ok, detail = False, f"{exc.__class__.__name__}: {' '.join(str(exc).split())[:200]}"
+        v.checks[name] = {"ok": bool(ok), "detail": detail}
+
+    run("starts_at_initial_state", lambda: (sc.starts_at_correct_state(solution, pps), ""))
+
+    def feas() -> tuple[bool, str]:
+        res = sc.solution_feasible(solution, scenario.dt, pps)
+        ok = all(r[0] for r in res.values())
+        return ok, (f"every step reachable by the {pp_sol.vehicle_model.name} model within its limits" if ok
+                    else "a step is not reachable")
+    run("kinematically_feasible", feas)
+
+    def coll() -> tuple[bool, str]:
+        ego = sc._create_pp_solution_collision_object(pps, pp_sol, scenario.dt)
+        hit = []
+        for ob in scenario.obstacles:
+            if create_collision_object(ob).collide(ego):
+                hit.append(int(ob.obstacle_id))
+        v.colliding_obstacles = hit
+        return (not hit), ("no obstacle" if not hit else "with obstacle(s) " + ", ".join(map(str, hit)))
+    run("collision", coll)
+
+    def road() -> tuple[bool, str]:
+        off = sc.boundary_collision(scenario, pps, solution)
+        return (not off), "inside the road boundary"
+    run("road_boundary", road)
+
+    def goal() -> tuple[bool, str]:
+        ok, k = pp.goal_reached(pp_sol.trajectory)
+        return bool(ok), (f"at time step {k}" if ok
+                          else "no state inside the goal region (as checked by commonroad-io)")
+    run("goal_reached", goal)
+
+    def goal_fixed() -> tuple[bool, str]:
+        if pp_sol.vehicle_model.name != "PM":  # the defect is the point-mass state's: nothing to correct
+            ok_raw, k_raw = pp.goal_reached(pp_sol.trajectory)
+            return bool(ok_raw), (f"at time step {k_raw} (vehicle model {pp_sol.vehicle_model.name}: the "
+                                  "commonroad-io test, no PM defect)" if ok_raw else "no state inside the goal region")
+        ok, k = _corrected_goal(pp, pp_sol.trajectory)
+        return ok, (f"at time step {k} (orientation atan2(v_y, v_x))" if ok else "no state inside the goal region")
+    run("goal_reached_corrected", goal_fixed)
+
+    if cost:
+        try:
+            from commonroad_dc.costs.evaluation import CostFunctionEvaluator
+
+            ev = CostFunctionEvaluator.init_from_solution(solution)
+            res = ev.evaluate_solution(scenario, pps, solution)
+            v.cost = float(res.total_costs)
+            v.cost_function = str(pp_sol.cost_function.name)
+        except Exception as exc:
+            v.cost = None
+            v.cost_function = f"{pp_sol.cost_function.name} (not evaluated: {exc.__class__.__name__})"
+    return v

@@ -1,0 +1,519 @@
+r"""A CommonRoad scenario and its planning problem as an iamp problem in the road frame.
+
+Every quantity is expressed in the :class:`~iamp.commonroad.frame.RoadFrame` of the ego's
+lane (its lanelet with every predecessor and successor, centre line fitted by a polynomial):
+``x`` of iamp is the arc length ``s``, ``y`` the lateral offset ``d`` (left positive).
+
+* **Ego.** The initial state (position, speed, heading) maps to
+  :math:`(s_0, \dot s_0, d_0, \dot d_0)` by the Frenet relations.  Its body is the vehicle
+  type's (BMW 320i, CommonRoad type 2: 4.508 x 1.61 m) and its limits the type's
+  (:math:`|a| \le 11.5` m/s² as a friction circle, speed range), stored as §14
+  :class:`~iamp.core.physical.PhysicalLimits` with the road edges as ``y``.
+* **Goal -> final state and t_f.** The goal's position (rectangle, or lanelet) gives
+  :math:`(s_f, d_f)` (its centre; for a lanelet goal the lanelet's centre line at the
+  unconstrained optimum's ``s``), :math:`\dot d_f = 0` (heading along the road, inside every
+  US-101 orientation interval) and a candidate :math:`t_f` for every time step of the goal's
+  interval with the speed :math:`\dot s_f` that minimises the unconstrained cost
+
+  .. math::  J_0 = \sum_{axes} \frac{6\Delta^2}{T^3} - \frac{6\Delta\,\delta v}{T^2} + \frac{2\,\delta v^2}{T},
+             \quad \Delta = p_f - p_0 - v_0 T,\ \delta v = v_f - v_0,
+
+  (:math:`\delta v = 1.5\Delta/T`) clipped to the goal's speed interval less a margin.
+  Candidates are sorted by :math:`J_0`; the planner takes the first it can plan safely
+  (:mod:`iamp.commonroad.planning`), so the search reaches into the window only where the
+  cheapest time fails.
+* **Recorded vehicles -> cubics.** For each dynamic obstacle, its rectangle's four corners
+  at each recorded time step of the horizon, in the road frame, give the box
+  :math:`[s^-_k, s^+_k] \times [d^-_k, d^+_k]`; the centre :math:`(s^-_k + s^+_k)/2` is
+  fitted by a least-squares cubic in ``t``, the half length is the largest half extent plus
+  the fit's largest residual (so the box of the cubic covers every recorded corner), and the
+  lateral box is the union of :math:`[d^-_k, d^+_k]` over the horizon.  A vehicle that
+  changes lanes (its centre moves more than :data:`LANE_CHANGE_M`) is therefore handled
+  **conservatively**: its box spans both lanes for the whole horizon (flagged
+  ``lane_change``).  Its lane is the lane whose centre is nearest its mean offset.
+* **Road edges** (:func:`_road_edges`): the corridor of lanelets reachable from the ego's lane
+  by same-direction adjacency, at every arc length; its widest range is the §14 ``y`` limit
+  (less the ego's lateral half extent), and where it is narrower (an on-ramp behind a gore
+  area that joins the road only further on, a lane that ends) the missing part is a static box
+  the planner avoids with the same corners as a vehicle.  CommonRoad's road-boundary check uses
+  the same lanelet geometry, so a plan that avoids these boxes stays on the road.
+* **Margins** (:func:`ego_margins`): the ego's body turned by its heading relative to the
+  road :math:`\varphi` has half extents
+  :math:`L/2\cos\varphi + W/2\sin\varphi` along and :math:`L/2\sin\varphi + W/2\cos\varphi`
+  across the road; these plus :data:`BUFFER_M` are the safety distances ``S_x, S_y``, so a
+  point outside the safety region means the bodies do not overlap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.commonroad import require
+from iamp.commonroad.frame import RoadFrame
+from iamp.core.errors import ScenarioError
+from iamp.core.physical import PhysicalLimits
+from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+
+FloatArray = npt.NDArray[np.float64]
+
+#: A vehicle whose centre's lateral offset spans more than this changes lanes [m].
+LANE_CHANGE_M = 1.0
+#: Extra clearance added to the body margins [m].
+BUFFER_M = 0.15
+#: Heading of the ego relative to the road assumed for the first plan's margins [rad].
+HEADING_GUESS_RAD = 0.06
+#: Margin kept inside the goal's speed interval [m/s].
+SPEED_MARGIN_MPS = 0.3
+#: The road corridor is measured this far before the start and beyond the goal [m].
+EDGE_REACH_M = 15.0
+#: Spacing of the corridor's samples along the road [m].
+EDGE_STEP_M = 0.5
+#: Longest road-edge box along the road [m].
+EDGE_CHUNK_M = 4.0
+#: Clearance added to the body's half extents at a road edge (vehicles: BUFFER_M) [m].
+EDGE_BUFFER_M = 0.02
+#: Two lanelets whose bounds stay this close over their common stretch are neighbours [m].
+EDGE_JOIN_M = 0.1
+#: A corridor narrower than the widest by more than this becomes a road-edge box [m].
+EDGE_TOL_M = 0.05
+#: Vehicles considered relevant: lateral distance of their box to the ego's corridor [m].
+CORRIDOR_M = 2.5
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """One recorded vehicle in the road frame (times ``t`` [s], boxes per time step)."""
+
+    obstacle_id: int
+    t: FloatArray
+    s_lo: FloatArray
+    s_hi: FloatArray
+    d_lo: FloatArray
+    d_hi: FloatArray
+    length: float
+    width: float
+    cubic: tuple[float, ...]
+    half_length: float
+    fit_residual_m: float
+    lane: int
+    lane_change: bool
+
+    @property
+    def road_edge(self) -> bool:
+        """A static road-edge box of :func:`_road_edges` (negative id), not a vehicle."""
+        return self.obstacle_id < 0
+
+    @property
+    def y(self) -> float:
+        """Centre of the lateral box (union over the horizon)."""
+        return 0.5 * (float(self.d_lo.min()) + float(self.d_hi.max()))
+
+    @property
+    def box_width(self) -> float:
+        """Width of the lateral box (union over the horizon)."""
+        return float(self.d_hi.max()) - float(self.d_lo.min())
+
+    def vehicle(self, corner: str, safety_x: float, safety_y: float) -> SurroundingVehicle:
+        """The iamp vehicle of this obstacle with the given corner and safety distances."""
+        return SurroundingVehicle(x_poly=self.cubic, corner=corner, y=self.y, length=2 * self.half_length,
+                                  width=self.box_width, safety_x=safety_x, safety_y=safety_y,
+                                  name=f"obs{self.obstacle_id}")
+
+
+@dataclass(frozen=True)
+class Goal:
+    """The goal region in the road frame."""
+
+    s: float
+    d: float
+    s_half: float
+    d_half: float
+    steps: tuple[int, int]
+    speed: tuple[float, float]
+    orientation: tuple[float, float] | None
+    lanelet_goal: bool
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A final state and horizon: ``k`` steps, speed ``vs`` [m/s], unconstrained cost ``J0``."""
+
+    steps: int
+    tf: float
+    s: float
+    vs: float
+    d: float
+    cost0: float
+
+
+@dataclass
+class CommonRoadProblem:
+    """A CommonRoad planning problem read into iamp's road frame (module docstring)."""
+
+    path: Path
+    scenario: Any
+    planning_problem_set: Any
+    planning_problem: Any
+    frame: RoadFrame
+    frame_fit_residual_m: float
+    dt: float
+    x0: tuple[float, float, float, float]
+    goal: Goal
+    candidates: list[Candidate]
+    obstacles: list[Obstacle]
+    road_edges: list[Obstacle]
+    lanes: list[float]
+    road_y: tuple[float, float]
+    ego_length: float
+    ego_width: float
+    a_max: float
+    speed_range: tuple[float, float]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def all_obstacles(self) -> list[Obstacle]:
+        """The vehicles and the road-edge boxes (:func:`_road_edges`): everything the plan must avoid."""
+        return [*self.obstacles, *self.road_edges]
+
+    @property
+    def name(self) -> str:
+        return str(self.scenario.scenario_id)
+
+    def limits(self, margin_y: float) -> PhysicalLimits:
+        """§14 limits: the type's friction circle and speed range, the road edges less the ego's
+        lateral half extent ``margin_y`` (widened to contain the start and the goal)."""
+        lo = min(self.road_y[0] + margin_y, self.x0[2], self.goal.d)
+        hi = max(self.road_y[1] - margin_y, self.x0[2], self.goal.d)
+        return PhysicalLimits(a_total=self.a_max, vx=self.speed_range, y=(lo, hi))
+
+    def problem(self, candidate: Candidate, vehicles: list[SurroundingVehicle], margin_y: float) -> Problem:
+        """The iamp problem of ``candidate`` with ``vehicles`` (at least one)."""
+        s0, vs0, d0, vd0 = self.x0
+        ego = EgoBoundary(tf=candidate.tf, x0=s0, y0=d0, vx0=vs0, vy0=vd0, xf=candidate.s, yf=candidate.d,
+                          vxf=candidate.vs, vyf=0.0, source=str(self.path), ego_length=self.ego_length,
+                          ego_width=self.ego_width)
+        return Problem(ego, tuple(vehicles), name=self.name, limits=self.limits(margin_y))
+
+
+def ego_margins(length: float, width: float, heading: float, buffer: float = BUFFER_M) -> tuple[float, float]:
+    r"""Safety distances ``(S_x, S_y)`` covering the ego's body turned by ``heading`` [rad]
+    relative to the road: :math:`L/2\cos\varphi + W/2\sin\varphi` and
+    :math:`L/2\sin\varphi + W/2\cos\varphi`, plus ``buffer``."""
+    c, s = abs(math.cos(heading)), abs(math.sin(heading))
+    return length / 2 * c + width / 2 * s + buffer, length / 2 * s + width / 2 * c + buffer
+
+
+def unconstrained_cost(T: float, p0: float, v0: float, pf: float, vf: float) -> float:
+    r"""½∫u² of the minimum-energy double integrator from ``(p0, v0)`` to ``(pf, vf)`` in ``T``."""
+    D = pf - p0 - v0 * T
+    dv = vf - v0
+    return 6 * D * D / T**3 - 6 * D * dv / T**2 + 2 * dv * dv / T
+
+
+def final_candidates(x0: tuple[float, float, float, float], goal: Goal, dt: float,
+                     elapsed_steps: int = 0) -> list[Candidate]:
+    """Final states and horizons for every time step of the goal's interval still ahead (module
+    docstring, "Goal -> final state"), cheapest unconstrained cost first; ``elapsed_steps`` steps
+    have already passed (the closed loop replans from a later state)."""
+    s0, vs0, d0, vd0 = x0
+    speed = goal.speed
+    vlo, vhi = speed[0] + SPEED_MARGIN_MPS, speed[1] - SPEED_MARGIN_MPS
+    if vlo > vhi:
+        vlo = vhi = 0.5 * (speed[0] + speed[1])
+    candidates: list[Candidate] = []
+    for k in range(max(goal.steps[0], elapsed_steps + 1), goal.steps[1] + 1):
+        T = (k - elapsed_steps) * dt
+        if goal.lanelet_goal:
+            # the unconstrained optimum's end point at the speed interval's nearest speed, on the lanelet
+            vf = min(max(vs0, vlo), vhi)
+            sf = min(max(s0 + 0.5 * (vs0 + vf) * T, goal.s - goal.s_half + 3.0), goal.s + goal.s_half - 3.0)
+        else:
+            sf = goal.s
+            vf = min(max(vs0 + 1.5 * (sf - s0 - vs0 * T) / T, vlo), vhi)
+        j0 = unconstrained_cost(T, s0, vs0, sf, vf) + unconstrained_cost(T, d0, vd0, goal.d, 0.0)
+        candidates.append(Candidate(k - elapsed_steps, T, sf, vf, goal.d, j0))
+    candidates.sort(key=lambda c: c.cost0)
+    return candidates
+
+
+def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_b: float,
+                t: FloatArray, via: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0), (1.0, 0.0)),
+                ) -> tuple[tuple[float, float], list[Obstacle]]:
+    r"""The road corridor of the ego's lane: its widest lateral range as §14 ``y`` limits and the
+    parts where it is narrower as static boxes to avoid (module docstring, "Road edges").
+
+    At every arc length ``s`` (step :data:`EDGE_STEP_M`) the corridor grows from two seeds, the
+    ego's lane (the lanelet of ``chain`` covering ``s``) and the lanelet under the straight line
+    from the start ``via[0]`` to the goal ``via[1]`` (where the road splits, the goal's branch),
+    by every lanelet reachable by same-direction adjacency (``adj_left``/``adj_right``) or sharing
+    a bound (within :data:`EDGE_JOIN_M` over their whole common stretch: converted NGSIM maps miss
+    some adjacency references); :math:`[d^-(s), d^+(s)]` = the extreme bounds of those lanelets at
+    ``s``.  A lanelet that touches the road only at its end (an on-ramp behind a gore area) is not
+    part of it.  The limits are
+    :math:`(\min_s d^-(s), \max_s d^+(s))`; every run of ``s`` where :math:`d^-(s)` is above
+    its minimum (or :math:`d^+(s)` below its maximum) by more than :data:`EDGE_TOL_M` becomes a
+    box :math:`[s_1, s_2] \times [\min_s d^- - 3, \max_{run} d^-]` (resp. above), which the planner
+    avoids like a standing vehicle (obstacle ids -1, -2, ...).
+    """
+    cache: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
+
+    def bounds(ll: Any) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        if ll.lanelet_id not in cache:
+            r = frame.to_road(np.asarray(ll.right_vertices, dtype=float))
+            lf = frame.to_road(np.asarray(ll.left_vertices, dtype=float))
+            ro, lo_ = np.argsort(r[:, 0]), np.argsort(lf[:, 0])
+            cache[ll.lanelet_id] = (r[ro, 0], r[ro, 1], lf[lo_, 0], lf[lo_, 1])
+        return cache[ll.lanelet_id]
+
+    def at(ll: Any, s: float) -> tuple[float, float] | None:
+        rs, rd, ls, ld = bounds(ll)
+        if not (rs[0] - 1e-6 <= s <= rs[-1] + 1e-6 and ls[0] - 1e-6 <= s <= ls[-1] + 1e-6):
+            return None
+        return float(np.interp(s, rs, rd)), float(np.interp(s, ls, ld))
+
+    shared: dict[tuple[int, int], bool] = {}
+
+    def shares_bound(a: Any, b: Any) -> bool:
+        """Do ``a`` and ``b`` run side by side with a common bound (within EDGE_JOIN_M) over their
+        whole common stretch?  (An on-ramp touches the road only at its merge point: no.)"""
+        key = (a.lanelet_id, b.lanelet_id)
+        if key not in shared:
+            ra, la = bounds(a)[0:2], bounds(a)[2:4]
+            rb, lb = bounds(b)[0:2], bounds(b)[2:4]
+            lo_s = max(ra[0][0], rb[0][0])
+            hi_s = min(ra[0][-1], rb[0][-1])
+            ok = hi_s - lo_s > 2.0
+            if ok:
+                q = np.linspace(lo_s, hi_s, 25)
+                gap = np.minimum(np.abs(np.interp(q, *la) - np.interp(q, *rb)),
+                                 np.abs(np.interp(q, *ra) - np.interp(q, *lb)))
+                ok = bool(np.all(gap < EDGE_JOIN_M))
+            shared[key] = ok
+        return shared[key]
+
+    grid = np.arange(s_a, s_b + EDGE_STEP_M, EDGE_STEP_M)
+    lo = np.full(grid.size, np.nan)
+    hi = np.full(grid.size, np.nan)
+    forward = []
+    for ll in network.lanelets:
+        c = frame.to_road(np.asarray(ll.center_vertices, dtype=float))[:, 0]
+        if c[-1] > c[0]:
+            forward.append(ll)
+
+    def containing(s: float, d: float) -> Any:
+        for ll in forward:
+            b = at(ll, s)
+            if b is not None and min(b) <= d <= max(b):
+                return ll
+        return None
+
+    for i, s in enumerate(grid):
+        # seeds: the ego's own lane and the lanelet under the straight line from the start to the
+        # goal (where the road splits, the goal's branch is part of the corridor too)
+        d_line = float(np.interp(s, [via[0][0], via[1][0]], [via[0][1], via[1][1]]))
+        line = containing(float(s), d_line)
+        own = next((ll for ll in chain if at(ll, float(s)) is not None), None) or line
+        if own is None:
+            continue
+        group, todo = {own.lanelet_id: own}, [own]
+        if line is not None and line.lanelet_id not in group:
+            group[line.lanelet_id] = line
+            todo.append(line)
+        while todo:
+            cur = todo.pop()
+            for nid, same in ((cur.adj_left, cur.adj_left_same_direction),
+                              (cur.adj_right, cur.adj_right_same_direction)):
+                if nid is not None and same and nid not in group:
+                    nb = network.find_lanelet_by_id(nid)
+                    if at(nb, float(s)) is not None:
+                        group[nid] = nb
+                        todo.append(nb)
+            for nb in network.lanelets:  # a neighbour the map does not reference (shared bound)
+                if nb.lanelet_id not in group and at(nb, float(s)) is not None and shares_bound(cur, nb):
+                    group[nb.lanelet_id] = nb
+                    todo.append(nb)
+        ds = [v for ll in group.values() for v in (at(ll, float(s)) or ())]
+        lo[i], hi[i] = min(ds), max(ds)
+    ok = np.isfinite(lo)
+    if not ok.any():
+        return (-1e3, 1e3), []
+    y_lo, y_hi = float(np.min(lo[ok])), float(np.max(hi[ok]))
+    boxes: list[Obstacle] = []
+    n = t.size
+    for side, narrow in (("lo", ok & (lo > y_lo + EDGE_TOL_M)), ("hi", ok & (hi < y_hi - EDGE_TOL_M))):
+        idx = np.flatnonzero(narrow)
+        if idx.size == 0:
+            continue
+        runs = []
+        for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1):
+            # pieces of at most EDGE_CHUNK_M, so a box follows a slanted edge within the edge's slope
+            k = max(1, int(np.ceil(run.size * EDGE_STEP_M / EDGE_CHUNK_M)))
+            runs += [r for r in np.array_split(run, k) if r.size]
+        for run in runs:
+            s1, s2 = float(grid[run[0]]) - EDGE_STEP_M, float(grid[run[-1]]) + EDGE_STEP_M
+            if side == "lo":
+                d1, d2 = y_lo - 3.0, float(np.max(lo[run]))
+            else:
+                d1, d2 = float(np.min(hi[run])), y_hi + 3.0
+            oid = -(len(boxes) + 1)
+            half = 0.5 * (s2 - s1)
+            boxes.append(Obstacle(oid, t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
+                                  2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
+    return (y_lo, y_hi), boxes
+
+
+def _corners(center: FloatArray, length: float, width: float, orientation: float) -> FloatArray:
+    c, s = math.cos(orientation), math.sin(orientation)
+    half = np.array([[length / 2, width / 2], [length / 2, -width / 2], [-length / 2, width / 2],
+                     [-length / 2, -width / 2]])
+    return np.asarray(center + half @ np.array([[c, s], [-s, c]]), dtype=float)
+
+
+def _chain(network: Any, start_id: int) -> list[Any]:
+    """The lanelet ``start_id`` with its predecessors before and successors after (first of each)."""
+    lanelet = network.find_lanelet_by_id(start_id)
+    chain = [lanelet]
+    seen = {start_id}
+    cur = lanelet
+    while cur.predecessor and cur.predecessor[0] not in seen:
+        cur = network.find_lanelet_by_id(cur.predecessor[0])
+        seen.add(cur.lanelet_id)
+        chain.insert(0, cur)
+    cur = lanelet
+    while cur.successor and cur.successor[0] not in seen:
+        cur = network.find_lanelet_by_id(cur.successor[0])
+        seen.add(cur.lanelet_id)
+        chain.append(cur)
+    return chain
+
+
+def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
+    """Read ``path`` (a CommonRoad XML scenario with one planning problem) into the road frame.
+
+    Raises
+    ------
+    iamp.ScenarioError
+        Unreadable file, no planning problem, or an ego outside every lanelet.
+    """
+    require()
+    from commonroad.common.file_reader import CommonRoadFileReader
+    from commonroad.common.solution import VehicleType
+    from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics
+
+    src = str(path)
+    p = Path(path)
+    if not p.is_file():
+        raise ScenarioError("no such file", None, src)
+    try:
+        scenario, pps = CommonRoadFileReader(src).open()
+    except Exception as exc:  # the reader raises anything from XML errors to KeyError
+        raise ScenarioError(f"not a readable CommonRoad scenario ({exc.__class__.__name__}: {exc})", None,
+                            src) from None
+    problems = list(pps.planning_problem_dict.values())
+    if not problems:
+        raise ScenarioError("has no planning problem", "planningProblem", src)
+    pp = problems[0]
+    notes: list[str] = []
+    if len(problems) > 1:
+        notes.append(f"{len(problems)} planning problems; the first ({pp.planning_problem_id}) is planned")
+    params = VehicleDynamics.PM(VehicleType(vehicle_type)).parameters
+    dt = float(scenario.dt)
+    network = scenario.lanelet_network
+
+    init = pp.initial_state
+    pos0 = np.asarray(init.position, dtype=float)
+    hits = network.find_lanelet_by_position([pos0])[0]
+    if not hits:
+        raise ScenarioError("the ego's initial position lies on no lanelet", "planningProblem.initialState", src)
+    chain = _chain(network, hits[0])
+    centre = np.concatenate([ll.center_vertices for ll in chain])
+    keep = np.r_[True, np.linalg.norm(np.diff(centre, axis=0), axis=1) > 1e-6]
+    centre = centre[keep]
+    frame = RoadFrame.fit(centre, degree=5)
+    fit_res = float(np.max(np.abs(frame.to_road(centre)[:, 1])))
+
+    # --- ego initial state --------------------------------------------------------------------
+    s0, d0 = (float(v) for v in frame.to_road(pos0)[0])
+    speed0 = float(init.velocity)
+    heading0 = float(init.orientation)
+    vel0 = np.array([[speed0 * math.cos(heading0), speed0 * math.sin(heading0)]])
+    vs0, vd0 = (float(v) for v in frame.velocity_to_road(s0, d0, vel0)[0])
+
+    # --- goal ---------------------------------------------------------------------------------
+    gstate = pp.goal.state_list[0]
+    steps = (int(gstate.time_step.start), int(gstate.time_step.end))
+    speed = ((float(gstate.velocity.start), float(gstate.velocity.end)) if gstate.has_value("velocity")
+             else (params.longitudinal.v_min, params.longitudinal.v_max))
+    orient = ((float(gstate.orientation.start), float(gstate.orientation.end))
+              if gstate.has_value("orientation") else None)
+    lanelet_goal = bool(pp.goal.lanelets_of_goal_position)
+    if lanelet_goal:
+        ids = pp.goal.lanelets_of_goal_position[0]
+        goal_lanelet = network.find_lanelet_by_id(ids[0])
+        sd = frame.to_road(goal_lanelet.center_vertices)
+        gs_lo, gs_hi = float(sd[:, 0].min()), float(sd[:, 0].max())
+        gd = float(np.median(sd[:, 1]))
+        goal = Goal(0.5 * (gs_lo + gs_hi), gd, 0.5 * (gs_hi - gs_lo), 0.5, steps, speed, orient, True)
+    elif gstate.has_value("position") and hasattr(gstate.position, "center"):
+        rect = gstate.position
+        gs, gd = (float(v) for v in frame.to_road(np.asarray(rect.center, dtype=float))[0])
+        goal = Goal(gs, gd, float(rect.length) / 2, float(rect.width) / 2, steps, speed, orient, False)
+    else:
+        raise ScenarioError("goal position must be a rectangle or a lanelet", "goalState.position", src)
+
+    # --- final-state candidates --------------------------------------------------------------
+    candidates = final_candidates((s0, vs0, d0, vd0), goal, dt)
+    k_max = steps[1]
+
+    # --- lanes and road edges -----------------------------------------------------------------
+    lanes = sorted(float(np.median(frame.to_road(ll.center_vertices)[:, 1])) for ll in network.lanelets)
+    merged: list[float] = []
+    for y in lanes:
+        if not merged or y - merged[-1] > 1.5:
+            merged.append(y)
+    s_end = max((c.s for c in candidates), default=goal.s)
+    road_y, road_edges = _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M,
+                                     max(s0, s_end) + EDGE_REACH_M,
+                                     np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64),
+                                     ((s0, d0), (goal.s, goal.d)))
+
+    # --- recorded vehicles --------------------------------------------------------------------
+    obstacles: list[Obstacle] = []
+    for obs in scenario.dynamic_obstacles:
+        shape = obs.obstacle_shape
+        if not hasattr(shape, "length"):
+            continue
+        states = [obs.initial_state] + list(obs.prediction.trajectory.state_list if obs.prediction else [])
+        states = [st for st in states if 0 <= st.time_step <= k_max]
+        if not states:
+            continue
+        t = np.array([st.time_step * dt for st in states])
+        boxes = []
+        for st in states:
+            sd = frame.to_road(_corners(np.asarray(st.position, dtype=float), float(shape.length),
+                                        float(shape.width), float(st.orientation)))
+            boxes.append((sd[:, 0].min(), sd[:, 0].max(), sd[:, 1].min(), sd[:, 1].max()))
+        B = np.array(boxes)
+        centre_s = 0.5 * (B[:, 0] + B[:, 1])
+        deg = int(min(3, len(t) - 1))
+        coeffs = np.polynomial.polynomial.polyfit(t, centre_s, deg) if deg > 0 else np.array([centre_s[0]])
+        resid = float(np.max(np.abs(np.polynomial.polynomial.polyval(t, coeffs) - centre_s)))
+        half = float(np.max(0.5 * (B[:, 1] - B[:, 0]))) + resid
+        centre_d = 0.5 * (B[:, 2] + B[:, 3])
+        lane = int(np.argmin([abs(float(np.mean(centre_d)) - y) for y in merged])) if merged else 0
+        obstacles.append(Obstacle(int(obs.obstacle_id), t, B[:, 0], B[:, 1], B[:, 2], B[:, 3],
+                                  float(shape.length), float(shape.width), tuple(float(c) for c in coeffs), half,
+                                  resid, lane, bool(np.ptp(centre_d) > LANE_CHANGE_M)))
+    return CommonRoadProblem(
+        path=p, scenario=scenario, planning_problem_set=pps, planning_problem=pp, frame=frame,
+        frame_fit_residual_m=fit_res, dt=dt, x0=(s0, vs0, d0, vd0), goal=goal, candidates=candidates,
+        obstacles=obstacles, road_edges=road_edges, lanes=merged, road_y=road_y, ego_length=float(params.l),
+        ego_width=float(params.w),
+        a_max=float(params.longitudinal.a_max),
+        speed_range=(max(0.0, float(params.longitudinal.v_min)), float(params.longitudinal.v_max)), notes=notes)

@@ -1,0 +1,316 @@
+r"""``iamp simulate --commonroad FOLDER``: an interactive CommonRoad scenario in closed loop.
+
+The folder holds a CommonRoad scenario (``*.cr.xml``: lanelets, the recorded vehicles, one
+planning problem) and its SUMO configuration (``*.sumo.cfg`` with the network and the routes
+of the other vehicles).  SUMO drives the other vehicles (they react to the ego); iamp drives
+the ego:
+
+1. The ego is inserted at the planning problem's initial state (position, heading, speed) and
+   moved by iamp every SUMO step (``moveToXY``, SUMO's speed and lane-change logic off).
+2. Every ``replan_s`` the ego observes every vehicle (SUMO's positions, the body from SUMO's
+   vehicle type), turns each one's observed longitudinal history (at most the last 3 s, in the
+   road frame of :mod:`iamp.commonroad.convert`) into a cubic with the §7 predictor (constant
+   speed while fewer than ``min_history_s`` have been observed), keeps its lateral box (lane
+   kept), and plans to the goal with the road planner of :mod:`iamp.commonroad.planning`
+   over the goal's remaining time window (:func:`~iamp.commonroad.convert.final_candidates`).
+   A replan that finds no safe plan within the limits keeps the previous plan (a fallback).
+3. The episode ends when CommonRoad's goal test (with the point-mass orientation corrected,
+   :mod:`iamp.commonroad.check`) passes for the executed state, or when the goal's time window
+   has passed.
+
+Metrics (SPEC §15, measured on what was executed, :func:`iamp.simulation.metrics.episode_metrics`
+in the road frame): ``goal_reached`` and ``time_to_goal_s``, collisions (body overlap or SUMO's
+report with ``collision.mingap-factor`` 0), ``min_ttc_s``, ``min_gap_m``, the follower's
+braking, the ego's peak acceleration, ``limit_violations`` (executed steps above the vehicle's
+``a_max``), ``infeasible_plans``, ``fallbacks`` and the planner's time per call.
+
+**How SUMO's traffic differs from the recording** (reported as ``sumo_vs_recording``): SUMO
+starts each recorded vehicle with its recorded lane, position and speed, then drives it with
+its own car-following (Krauss) and lane-change (LC2013) models, which react to the ego; the
+recording is what NGSIM's drivers did with the original (absent) ego.  The report gives, per
+vehicle present in both, the longitudinal and lateral deviation of SUMO's position from the
+recorded one at the same time, and how many vehicles changed lanes in each (a centre moving
+more than ``LANE_CHANGE_M`` = 1 m laterally, the recording's definition; the recording over its
+goal horizon, SUMO over the episode).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from iamp.commonroad.convert import (
+    LANE_CHANGE_M,
+    CommonRoadProblem,
+    Obstacle,
+    _corners,
+    ego_margins,
+    final_candidates,
+    load,
+)
+from iamp.commonroad.planning import DEFAULT_PLANNER, plan
+from iamp.core.errors import MissingDependencyError, ScenarioError
+
+#: History kept per observed vehicle [s].
+HISTORY_S = 3.0
+#: Observed vehicles farther than this along the road are ignored [m].
+RANGE_M = 120.0
+
+
+def _files(folder: Path) -> tuple[Path, Path]:
+    if not folder.is_dir():
+        raise ScenarioError("not a folder", "--commonroad", str(folder))
+    crs = sorted(folder.glob("*.cr.xml"))
+    cfgs = sorted(folder.glob("*.sumo.cfg"))
+    if not crs:
+        raise ScenarioError("holds no CommonRoad scenario (*.cr.xml)", "--commonroad", str(folder))
+    if not cfgs:
+        raise ScenarioError("holds no SUMO configuration (*.sumo.cfg)", "--commonroad", str(folder))
+    return crs[0], cfgs[0]
+
+
+def _sumo() -> Any:
+    try:
+        import libsumo as traci
+        import sumolib
+    except ImportError:
+        try:
+            import sumolib
+            import traci
+        except ImportError as exc:
+            raise MissingDependencyError("the CommonRoad closed loop needs SUMO: pip install 'iamp[sim,commonroad]'") \
+                from exc
+    return traci, sumolib
+
+
+def _box(cr: CommonRoadProblem, centre: Any, length: float, width: float, heading: float) -> tuple[float, ...]:
+    sd = cr.frame.to_road(_corners(np.asarray(centre, dtype=float), length, width, heading))
+    return float(sd[:, 0].min()), float(sd[:, 0].max()), float(sd[:, 1].min()), float(sd[:, 1].max())
+
+
+def _observed_obstacle(cr: CommonRoadProblem, oid: int, hist_t: list[float], hist_s: list[float],
+                       box: tuple[float, ...], speed: float, t: np.ndarray, predictor: Any) -> Obstacle:
+    """An obstacle over ``t`` (from now) predicted from its observed history (module doc, step 2)."""
+    from iamp.core.scenario import History
+
+    s_lo, s_hi, d_lo, d_hi = box
+    half = 0.5 * (s_hi - s_lo)
+    s0 = 0.5 * (s_lo + s_hi)
+    T = max(float(t[-1]), 0.1)
+    ht = np.asarray(hist_t, dtype=float)
+    if ht.size >= 3 and ht[-1] - ht[0] >= predictor.min_history_s - 1e-9:
+        p = predictor.predict(History(ht - ht[-1], np.asarray(hist_s, dtype=float) - hist_s[-1] + s0), T)
+        centre = np.interp(t, p.t, p.x)
+    else:
+        centre = s0 + speed * t
+    deg = int(min(3, t.size - 1))
+    coeffs = np.polynomial.polynomial.polyfit(t, centre, deg) if deg > 0 else np.array([centre[0]])
+    resid = float(np.max(np.abs(np.polynomial.polynomial.polyval(t, coeffs) - centre)))
+    n = t.size
+    return Obstacle(oid, t, centre - half, centre + half, np.full(n, d_lo), np.full(n, d_hi), 2 * half, d_hi - d_lo,
+                    tuple(float(c) for c in coeffs), half + resid, resid, 0, False)
+
+
+def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
+             recording: str | Path | None = None,
+             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Run the closed loop of the module docstring; returns the metrics (JSON-ready).
+
+    ``recording``: a CommonRoad scenario holding the recorded trajectories of the same vehicles
+    (the interactive ``.cr.xml`` holds only their initial states; for US-101 the benchmark
+    ``USA_US101-<n>_1_T-1.xml`` of the same scene), for ``sumo_vs_recording``.
+
+    Raises
+    ------
+    iamp.ScenarioError
+        The folder lacks the scenario or the SUMO configuration, or the ego cannot be placed.
+    iamp.core.errors.MissingDependencyError
+        SUMO is not installed.
+    """
+    from commonroad.scenario.state import CustomState
+
+    from iamp.prediction.predictor import Predictor
+    from iamp.simulation.metrics import StepLog, episode_metrics
+
+    folder = Path(folder)
+    cr_path, cfg = _files(folder)
+    traci, sumolib = _sumo()
+    cr = load(cr_path)
+    pp = cr.planning_problem
+    dt = cr.dt
+    predictor = Predictor.default()
+    L, W = cr.ego_length, cr.ego_width
+    sx, sy = ego_margins(L, W, 0.06)
+    replan_steps = max(1, round(replan_s / dt))
+    k_end = cr.goal.steps[1]
+    recorded: dict[int, Any] = {}
+    rec_obstacles: list[Obstacle] = []
+    if recording is not None:
+        rec = load(recording)
+        recorded = {int(o.obstacle_id): o for o in rec.scenario.dynamic_obstacles}
+        rec_obstacles = rec.obstacles
+
+    tmp = tempfile.TemporaryDirectory(prefix="iamp-cr-sumo-")
+    cmd = [sumolib.checkBinary("sumo"), "-c", str(cfg), "--ignore-route-errors", "true",
+           "--collision.action", "warn", "--collision.mingap-factor", "0", "--collision.check-junctions", "true",
+           "--step-length", str(dt), "--lanechange-output", str(Path(tmp.name) / "lanechange.xml"),
+           "--no-warnings", "true", "--no-step-log", "true", "--verbose", "false", "--seed", "1"]
+    traci.start(cmd)
+    log = StepLog()
+    hist: dict[str, tuple[list[float], list[float]]] = {}
+    sumo_collisions: list[tuple[float, str, str]] = []
+    dev: dict[int, list[tuple[float, float]]] = {}
+    lanes_seen: dict[str, tuple[float, float]] = {}  # lateral range of each vehicle's centre [m]
+    plan_times: list[float] = []
+    infeasible = fallbacks = limit_violations = 0
+    peak_accel = 0.0
+    goal_step: int | None = None
+    status = "goal missed"
+    try:
+        x0w = np.asarray(pp.initial_state.position, dtype=float)
+        h0 = float(pp.initial_state.orientation)
+        v0 = float(pp.initial_state.velocity)
+        front = x0w + 0.5 * L * np.array([math.cos(h0), math.sin(h0)])
+        try:
+            edge, pos, lane = traci.simulation.convertRoad(float(front[0]), float(front[1]))
+        except Exception as exc:  # SUMO raises its own error types
+            raise ScenarioError(f"the ego's initial position is on no SUMO edge ({exc})", "planningProblem",
+                                str(cr_path)) from None
+        traci.route.add("iamp_ego_route", [edge])
+        traci.vehicle.add("ego", "iamp_ego_route", depart="now", departPos=str(max(pos, 0.0)),
+                          departLane=str(lane), departSpeed=str(v0))
+        traci.vehicle.setLength("ego", L)
+        traci.vehicle.setWidth("ego", W)
+        traci.vehicle.setSpeedMode("ego", 0)
+        traci.vehicle.setLaneChangeMode("ego", 0)
+        x = cr.x0
+        traj: Any = None
+        t_plan = traj_T = 0.0
+        for k in range(k_end + 1):
+            now = k * dt
+            # -- observe ------------------------------------------------------------------------
+            ids, rows, boxes, speeds = [], [], {}, {}
+            for vid in traci.vehicle.getIDList():
+                if vid == "ego":
+                    continue
+                fx, fy = traci.vehicle.getPosition(vid)
+                ang = math.radians(90.0 - traci.vehicle.getAngle(vid))
+                vl, vw = traci.vehicle.getLength(vid), traci.vehicle.getWidth(vid)
+                c = np.array([fx, fy]) - 0.5 * vl * np.array([math.cos(ang), math.sin(ang)])
+                b = _box(cr, c, vl, vw, ang)
+                sc = 0.5 * (b[0] + b[1])
+                if abs(sc - x[0]) > RANGE_M:
+                    continue
+                spd = traci.vehicle.getSpeed(vid)
+                ht, hs = hist.setdefault(vid, ([], []))
+                ht.append(now)
+                hs.append(sc)
+                while ht and ht[0] < now - HISTORY_S - 1e-9:
+                    ht.pop(0)
+                    hs.pop(0)
+                boxes[vid], speeds[vid] = b, spd
+                ids.append(vid)
+                rows.append([sc, 0.5 * (b[2] + b[3]), spd, traci.vehicle.getAcceleration(vid),
+                             traci.vehicle.getLaneIndex(vid), vl, vw])
+                d_c = 0.5 * (b[2] + b[3])
+                lo_hi = lanes_seen.get(vid, (d_c, d_c))
+                lanes_seen[vid] = (min(lo_hi[0], d_c), max(lo_hi[1], d_c))
+                if vid.isdigit() and int(vid) in recorded:
+                    st = recorded[int(vid)].state_at_time(k)
+                    if st is not None:
+                        dx, dy = (float(v) for v in np.asarray(c) - np.asarray(st.position, dtype=float))
+                        dev.setdefault(int(vid), []).append((dx, dy))
+            # -- goal -----------------------------------------------------------------------------
+            if traj is not None:
+                X = traj.states(now - t_plan)[0]
+                pos_w = cr.frame.to_world(X[0], X[2]).reshape(-1)
+                vel_w = cr.frame.velocity_to_world(X[0], X[2], X[1], X[3]).reshape(-1)
+                probe = CustomState(time_step=k, position=pos_w, velocity=float(np.hypot(*vel_w)),
+                                    orientation=float(math.atan2(vel_w[1], vel_w[0])))
+                if pp.goal.is_reached(probe):
+                    goal_step, status = k, "goal reached"
+                    break
+            # -- plan -----------------------------------------------------------------------------
+            if k % replan_steps == 0 and k < k_end:
+                horizon = np.arange(0, k_end - k + 1) * dt
+                obstacles = [_observed_obstacle(cr, int(v) if v.isdigit() else 10**6 + i, *hist[v], boxes[v],
+                                                speeds[v], horizon, predictor) for i, v in enumerate(ids)]
+                cands = final_candidates(x, cr.goal, dt, elapsed_steps=k)
+                if cands:
+                    live = dataclasses.replace(cr, x0=x, candidates=cands, obstacles=obstacles)
+                    start = time.perf_counter()
+                    rp = plan(live, planner, max_candidates=4)
+                    plan_times.append(time.perf_counter() - start)
+                    if rp.candidate is not None and rp.safe and rp.peak_accel_mps2 <= cr.a_max:
+                        traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
+                    else:
+                        infeasible += 1
+                        if traj is not None:
+                            fallbacks += 1
+                        elif rp.trajectory is not None and rp.candidate is not None:
+                            traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
+                            fallbacks += 1
+                if progress is not None:
+                    progress(f"t = {now:.1f} s, {len(ids)} vehicles, plans {len(plan_times)}")
+            if traj is None or now + dt - t_plan > traj_T + 1e-9:
+                status = "no plan"
+                break
+            # -- execute one step -------------------------------------------------------------------
+            Xn = traj.states(now + dt - t_plan)[0]
+            U = traj.inputs(now + dt - t_plan)[0]
+            acc = float(np.hypot(U[0], U[1]))
+            peak_accel = max(peak_accel, acc)
+            limit_violations += acc > cr.a_max + 1e-6
+            x = (float(Xn[0]), float(Xn[1]), float(Xn[2]), float(Xn[3]))
+            pos_w = cr.frame.to_world(Xn[0], Xn[2]).reshape(-1)
+            vel_w = cr.frame.velocity_to_world(Xn[0], Xn[2], Xn[1], Xn[3]).reshape(-1)
+            head = math.atan2(vel_w[1], vel_w[0])
+            fr = pos_w + 0.5 * L * np.array([math.cos(head), math.sin(head)])
+            traci.vehicle.moveToXY("ego", "", -1, float(fr[0]), float(fr[1]), 90.0 - math.degrees(head), 2)
+            traci.vehicle.setSpeed("ego", float(np.hypot(*vel_w)))
+            traci.simulationStep()
+            for col in traci.simulation.getCollisions():
+                if "ego" in (col.collider, col.victim):
+                    other = col.victim if col.collider == "ego" else col.collider
+                    sumo_collisions.append((now + dt, other, col.type))
+            log.t.append(now + dt)
+            log.ego.append((x[0], x[1], x[2], x[3], float(U[0]), float(U[1])))
+            log.mode.append("plan")
+            log.plan_time.append(plan_times[-1] if plan_times else 0.0)
+            log.ids.append(tuple(ids))
+            log.nb.append(np.asarray(rows, dtype=float).reshape(-1, 7))
+    finally:
+        traci.close()
+        tmp.cleanup()
+    metrics = episode_metrics(log, dt, (L, W), (sx, sy), sumo_collisions)
+    devs = {i: np.asarray(v) for i, v in dev.items() if v}
+    compared = {str(i) for i in devs}
+    rec_changes = sum(1 for o in rec_obstacles if o.lane_change and str(o.obstacle_id) in compared)
+    sumo_changes = sum(1 for v, (a, b) in lanes_seen.items() if b - a > LANE_CHANGE_M and v in compared)
+    return {
+        "scenario": cr.name, "planner": planner, "status": status, "goal_reached": goal_step is not None,
+        "time_to_goal_s": None if goal_step is None else goal_step * dt,
+        "goal_window_s": [cr.goal.steps[0] * dt, cr.goal.steps[1] * dt],
+        "success": goal_step is not None and metrics["collisions"] == 0,
+        **metrics,
+        "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
+        "infeasible_plans": infeasible, "fallbacks": fallbacks,
+        "plan_time_s": {"calls": len(plan_times),
+                        "median": float(np.median(plan_times)) if plan_times else None,
+                        "max": float(np.max(plan_times)) if plan_times else None},
+        "sumo_vs_recording": None if recording is None else {
+            "recording": str(recording), "vehicles_compared": len(devs),
+            "median_abs_deviation_m": (float(np.median([np.max(np.linalg.norm(d, axis=1)) for d in devs.values()]))
+                                       if devs else None),
+            "max_abs_deviation_m": (float(max(np.max(np.linalg.norm(d, axis=1)) for d in devs.values()))
+                                    if devs else None),
+            "lane_changes_recorded": rec_changes, "lane_changes_sumo": sumo_changes,
+        },
+    }

@@ -1,0 +1,368 @@
+r"""Planning a CommonRoad problem with iamp's planners: the active set of vehicles in the way.
+
+A recorded scene holds 25-60 vehicles; few are in the ego's way.  The active-set loop
+(SPEC §14's ``--constraint active`` idea, applied to the recorded boxes):
+
+1. start from the unconstrained plan (the minimum-energy cubic per axis, no vehicle);
+2. measure, at every recorded time step, how deeply the ego's body (its bounding box at its
+   heading, :func:`~iamp.commonroad.convert.ego_margins`) enters each recorded vehicle's box
+   (the real recorded corners in the road frame, not the cubic);
+3. impose the deepest intruded vehicle with the corner that describes the manoeuvre
+   (:func:`corner_for`: ``front``/``rear`` by which side of it the ego ends, ``upper``/``lower``
+   by the side it is beside at the start or the end) and plan again with the chosen planner
+   (the paper's equality by the PMP or the QP, or the avoidance QP of §10);
+4. repeat until no vehicle is intruded (the plan is ``safe``) or nothing more can be imposed.
+
+A vehicle the ego neither starts nor ends beside (car following in its lane) has no corner
+(§10's half-plane crossing does not exist); the loop cannot impose it and tries the next final
+state.  Final states are the candidates of :mod:`iamp.commonroad.convert` in order of the
+unconstrained cost; the first safe plan is taken (``max_candidates`` bounds the search).
+
+``planner="all-pmp"`` is the paper's method without the active set: every *relevant* vehicle
+(its recorded box within the ego's lateral corridor and within :data:`RELEVANT_S_M` of the
+unconstrained plan) imposed at once with the PMP.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.commonroad.convert import (
+    BUFFER_M,
+    EDGE_BUFFER_M,
+    HEADING_GUESS_RAD,
+    Candidate,
+    CommonRoadProblem,
+    Obstacle,
+    ego_margins,
+)
+from iamp.core.errors import IampError, ScenarioError
+
+FloatArray = npt.NDArray[np.float64]
+
+#: The planners of ``iamp commonroad plan`` (label -> (iamp planner, constraint, active set)).
+PLANNERS: dict[str, tuple[str, str, bool]] = {
+    "avoid": ("qp", "avoid", True),
+    "pmp": ("pmp", "equality", True),
+    "qp": ("qp", "equality", True),
+    "all-pmp": ("pmp", "equality", False),
+    "free": ("", "", False),
+}
+DEFAULT_PLANNER = "avoid"
+#: Buffer of the body check (the planners' margins carry the larger convert.BUFFER_M) [m].
+CHECK_BUFFER_M = 0.05
+#: Overlap with a road-edge box that the self-check tolerates: the boxes take the narrowest
+#: edge over :data:`~iamp.commonroad.convert.EDGE_CHUNK_M` and the frame's fit error is a few cm,
+#: so a start that CommonRoad's road check accepts can touch them [m].
+EDGE_SLACK_M = 0.1
+#: Longitudinal reach of "relevant" for the all-vehicles equality [m].
+RELEVANT_S_M = 10.0
+#: Active-set iterations.
+MAX_IMPOSED = 6
+
+
+class FreeTrajectory:
+    """The unconstrained minimum-energy plan: a cubic per axis,
+    :math:`p(t) = p_0 + v_0 t + a t^2 + b t^3`, :math:`a = (3\\Delta - \\delta v T)/T^2`,
+    :math:`b = (\\delta v T - 2\\Delta)/T^3`."""
+
+    def __init__(self, T: float, start: tuple[float, float, float, float], end: tuple[float, float, float, float]):
+        self.T = T
+        self.c = []
+        for (p0, v0), (pf, vf) in (((start[0], start[1]), (end[0], end[1])), ((start[2], start[3]), (end[2], end[3]))):
+            D, dv = pf - p0 - v0 * T, vf - v0
+            self.c.append((p0, v0, (3 * D - dv * T) / T**2, (dv * T - 2 * D) / T**3))
+
+    def states(self, t: npt.ArrayLike) -> FloatArray:
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        cols = []
+        for p0, v0, a, b in self.c:
+            cols += [p0 + v0 * tt + a * tt**2 + b * tt**3, v0 + 2 * a * tt + 3 * b * tt**2]
+        return np.stack(cols, axis=1)
+
+    def inputs(self, t: npt.ArrayLike) -> FloatArray:
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        return np.stack([2 * a + 6 * b * tt for _, _, a, b in self.c], axis=1)
+
+    def cost(self) -> float:
+        """½∫|u|² exactly (Gauss-Legendre on the linear inputs)."""
+        x, w = np.polynomial.legendre.leggauss(4)
+        t = 0.5 * self.T * (x + 1)
+        return float(0.25 * self.T * np.sum(w * np.sum(self.inputs(t) ** 2, axis=1)))
+
+
+@dataclass
+class Intrusion:
+    """The deepest entry of the ego's body box into one recorded vehicle's box."""
+
+    obstacle: Obstacle
+    depth_m: float
+    time_s: float
+
+
+@dataclass
+class RoadPlan:
+    """A plan in the road frame with how it was found."""
+
+    planner: str
+    status: str
+    candidate: Candidate | None
+    trajectory: Any
+    cost: float | None
+    solve_time_s: float
+    imposed: list[tuple[int, str]] = field(default_factory=list)
+    intrusions: list[Intrusion] = field(default_factory=list)
+    iamp_status: str | None = None
+    candidates_tried: int = 0
+    reason: str | None = None
+    max_heading_rad: float = 0.0
+    peak_accel_mps2: float = 0.0
+
+    @property
+    def safe(self) -> bool:
+        return self.trajectory is not None and not self.intrusions
+
+
+def intrusions(cr: CommonRoadProblem, trajectory: Any, T: float, buffer: float = CHECK_BUFFER_M) -> list[Intrusion]:
+    """Every recorded vehicle whose box the ego's body box enters, deepest first (module doc, step 2)."""
+    out = []
+    for ob in cr.all_obstacles:
+        keep = ob.t <= T + 1e-9
+        if not keep.any():
+            continue
+        t = ob.t[keep]
+        X = trajectory.states(t)
+        heading = np.arctan2(X[:, 3], np.maximum(X[:, 1], 1e-6))
+        c, s = np.abs(np.cos(heading)), np.abs(np.sin(heading))
+        b = -EDGE_SLACK_M if ob.road_edge else buffer
+        hx = cr.ego_length / 2 * c + cr.ego_width / 2 * s + b
+        hy = cr.ego_length / 2 * s + cr.ego_width / 2 * c + b
+        pen_s = np.minimum(X[:, 0] - (ob.s_lo[keep] - hx), (ob.s_hi[keep] + hx) - X[:, 0])
+        pen_d = np.minimum(X[:, 2] - (ob.d_lo[keep] - hy), (ob.d_hi[keep] + hy) - X[:, 2])
+        depth = np.minimum(pen_s, pen_d)
+        k = int(np.argmax(depth))
+        if depth[k] > 0:
+            out.append(Intrusion(ob, float(depth[k]), float(t[k])))
+    out.sort(key=lambda i: -i.depth_m)
+    return out
+
+
+def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float, float],
+               sy: float, sx: float = 0.0) -> str | None:
+    """The corner describing the manoeuvre around ``ob`` (module docstring, step 3), or ``None``.
+
+    A road-edge box (``ob.road_edge``) is passed on the side of the road (``upper`` for an edge
+    below the corridor, ``lower`` above it): ``front-<side>`` when the ego starts beside it (in
+    the lateral half-plane, with the edge margins of :func:`_avoided`) and ends ahead of it,
+    ``rear-<side>`` when it starts behind it and ends beside it.
+    """
+    if ob.road_edge:
+        sx_e, sy_e = sx - BUFFER_M + EDGE_BUFFER_M, sy - BUFFER_M + EDGE_BUFFER_M
+        top, bottom = float(ob.d_hi.max()), float(ob.d_lo.min())
+        upper = ob.y < x0[2]  # the box is below the ego: pass above it
+        edge_side = "upper" if upper else "lower"
+
+        def beside(d: float) -> bool:
+            return d >= top + sy_e if upper else d <= bottom - sy_e
+
+        s_lo, s_hi = float(ob.s_lo.min()), float(ob.s_hi.max())
+        if beside(x0[2]) and candidate.s >= s_hi + sx_e:
+            return f"front-{edge_side}"
+        if x0[0] <= s_lo - sx_e and beside(candidate.d):
+            return f"rear-{edge_side}"
+        return None
+    end_ahead = candidate.s > float(np.polynomial.polynomial.polyval(candidate.tf, ob.cubic))
+    band = ob.box_width / 2 + sy
+    starts_beside = abs(x0[2] - ob.y) >= band
+    ends_beside = abs(candidate.d - ob.y) >= band
+    if starts_beside:
+        side = x0[2] - ob.y
+    elif ends_beside:
+        side = candidate.d - ob.y
+    else:
+        return None
+    return f"{'front' if end_ahead else 'rear'}-{'upper' if side > 0 else 'lower'}"
+
+
+def _heading_and_peak(trajectory: Any, T: float) -> tuple[float, float]:
+    t = np.linspace(0.0, T, 401)
+    X = trajectory.states(t)
+    U = trajectory.inputs(t)
+    return (float(np.max(np.abs(np.arctan2(X[:, 3], np.maximum(X[:, 1], 1e-6))))),
+            float(np.max(np.hypot(U[:, 0], U[:, 1]))))
+
+
+def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Any], margin_y: float, planner: str,
+               constraint: str, steps: int) -> Any:
+    import iamp
+
+    problem = cr.problem(cand, vehicles, margin_y)
+    if planner == "pmp":
+        return iamp.plan(problem, "pmp")
+    return iamp.plan(problem, "qp", constraint=constraint, steps=steps, hold="foh")
+
+
+def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = 8,
+         steps: int = 40) -> RoadPlan:
+    """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring)."""
+    if planner not in PLANNERS:
+        raise ScenarioError(f"unknown planner {planner!r}; choose from {', '.join(PLANNERS)}", "planner")
+    iamp_planner, constraint, active = PLANNERS[planner]
+    start = time.perf_counter()
+    best: RoadPlan | None = None
+    order = _candidate_order(cr.candidates, max_candidates)
+    heading = HEADING_GUESS_RAD
+    for n_tried, cand in enumerate(order, start=1):
+        for _ in range(2):  # a second pass when the plan turned more than its margins assumed
+            sx, sy = ego_margins(cr.ego_length, cr.ego_width, heading)
+            result = _plan_candidate(cr, cand, planner, iamp_planner, constraint, active, sx, sy, steps)
+            result.candidates_tried = n_tried
+            if result.trajectory is None or result.max_heading_rad <= heading + 1e-9:
+                break
+            heading = result.max_heading_rad + 0.01
+        if result.safe and result.peak_accel_mps2 <= cr.a_max:
+            result.solve_time_s = time.perf_counter() - start
+            return result
+        if best is None or _worse(best, result):
+            best = result
+    assert best is not None
+    best.solve_time_s = time.perf_counter() - start
+    return best
+
+
+def _worse(a: RoadPlan, b: RoadPlan) -> bool:
+    """Is ``a`` a worse fallback than ``b``? (no trajectory < intruding < too hard)."""
+    def key(p: RoadPlan) -> tuple[int, float]:
+        if p.trajectory is None:
+            return (0, 0.0)
+        return (1, -sum(i.depth_m for i in p.intrusions) - max(0.0, p.peak_accel_mps2 - 11.5))
+    return key(a) < key(b)
+
+
+def _candidate_order(cands: list[Candidate], n: int) -> list[Candidate]:
+    """The cheapest candidates, then the window's ends and middle (the search reaches across the window)."""
+    if len(cands) <= n:
+        return list(cands)
+    by_time = sorted(cands, key=lambda c: c.steps)
+    picks = cands[: max(1, n - 3)] + [by_time[0], by_time[-1], by_time[len(by_time) // 2]]
+    out: list[Candidate] = []
+    for c in picks:
+        if c not in out:
+            out.append(c)
+    return out
+
+
+def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: str, constraint: str,
+                    active: bool, sx: float, sy: float, steps: int) -> RoadPlan:
+    free = FreeTrajectory(cand.tf, cr.x0, (cand.s, cand.vs, cand.d, 0.0))
+    free_hits = intrusions(cr, free, cand.tf)
+    if label == "free" or (active and not free_hits):
+        h, peak = _heading_and_peak(free, cand.tf)
+        return RoadPlan(label, "optimal", cand, free, free.cost(), 0.0, [], free_hits, None, 0, None, h, peak)
+    margin_y = ego_margins(cr.ego_length, cr.ego_width, HEADING_GUESS_RAD, 0.0)[1]
+    if not active:
+        chosen = _relevant(cr, cand, free, sy)
+        vehicles = []
+        imposed = []
+        for ob in chosen:
+            corner = corner_for(ob, cand, cr.x0, sy, sx)
+            if corner is not None:
+                vehicles.append(_avoided(ob, corner, sx, sy))
+                imposed.append((ob.obstacle_id, corner))
+        if not vehicles:
+            h, peak = _heading_and_peak(free, cand.tf)
+            return RoadPlan(label, "optimal", cand, free, free.cost(), 0.0, [], free_hits, None, 0, None, h, peak)
+        return _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps)
+    vehicles, imposed = [], []
+    current: RoadPlan | None = None
+    hits = free_hits
+    for _ in range(MAX_IMPOSED):
+        new = None
+        for hit in hits:
+            if hit.obstacle.obstacle_id in {i for i, _ in imposed}:
+                continue
+            corner = corner_for(hit.obstacle, cand, cr.x0, sy, sx)
+            if corner is not None:
+                new = (hit.obstacle, corner)
+                break
+        if new is None:
+            break
+        vehicles.append(_avoided(new[0], new[1], sx, sy))
+        imposed.append((new[0].obstacle_id, new[1]))
+        current = _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps)
+        if current.trajectory is None or current.safe:
+            return current
+        hits = current.intrusions
+    if current is None:
+        h, peak = _heading_and_peak(free, cand.tf)
+        return RoadPlan(label, "unsafe", cand, free, free.cost(), 0.0, [], free_hits, None, 0,
+                        "a vehicle in the way has no corner (the ego starts and ends in its lane)", h, peak)
+    current.status = "unsafe"
+    return current
+
+
+def _avoided(ob: Obstacle, corner: str, sx: float, sy: float) -> Any:
+    """The iamp vehicle of ``ob``: a vehicle with the body margins ``sx, sy`` (which include
+    :data:`~iamp.commonroad.convert.BUFFER_M`), a road edge with only
+    :data:`~iamp.commonroad.convert.EDGE_BUFFER_M` of clearance beyond the body."""
+    if ob.road_edge:
+        return ob.vehicle(corner, sx - BUFFER_M + EDGE_BUFFER_M, sy - BUFFER_M + EDGE_BUFFER_M)
+    return ob.vehicle(corner, sx, sy)
+
+
+def _relevant(cr: CommonRoadProblem, cand: Candidate, free: Any, sy: float) -> list[Obstacle]:
+    lo, hi = min(cr.x0[2], cand.d), max(cr.x0[2], cand.d)
+    out = []
+    for ob in cr.all_obstacles:
+        if ob.d_hi.max() + sy < lo or ob.d_lo.min() - sy > hi:
+            continue
+        keep = ob.t <= cand.tf
+        if not keep.any():
+            continue
+        s = free.states(ob.t[keep])[:, 0]
+        gap = np.maximum(ob.s_lo[keep] - s, s - ob.s_hi[keep])
+        if float(np.min(gap)) <= RELEVANT_S_M:
+            out.append(ob)
+    return out
+
+
+def _finish(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: str, constraint: str,
+            vehicles: list[Any], imposed: list[tuple[int, str]], margin_y: float, steps: int) -> RoadPlan:
+    try:
+        result = _iamp_plan(cr, cand, vehicles, margin_y, iamp_planner, constraint, steps)
+    except IampError as exc:
+        return RoadPlan(label, "refused", cand, None, None, 0.0, list(imposed), [], None, 0, str(exc))
+    if not result.ok:
+        return RoadPlan(label, result.status, cand, None, None, result.solve_time_s, list(imposed), [],
+                        result.status, 0, str(result.info.get("reason") or result.status))
+    h, peak = _heading_and_peak(result, cand.tf)
+    hits = intrusions(cr, result, cand.tf)
+    return RoadPlan(label, "optimal" if not hits else "unsafe", cand, result, result.cost, result.solve_time_s,
+                    list(imposed), hits, result.status, 0, None, h, peak)
+
+
+def describe(p: RoadPlan) -> dict[str, Any]:
+    """The JSON object of a road plan."""
+    c = p.candidate
+    return {
+        "planner": p.planner, "status": p.status, "iamp_status": p.iamp_status,
+        "cost": None if p.cost is None else float(p.cost), "solve_time_s": float(p.solve_time_s),
+        "tf": None if c is None else c.tf, "final_state": None if c is None else
+        {"s": c.s, "vs": c.vs, "d": c.d, "vd": 0.0, "steps": c.steps},
+        "candidates_tried": p.candidates_tried,
+        "imposed": [{"obstacle": i, "corner": k} for i, k in p.imposed],
+        "intrusions": [{"obstacle": i.obstacle.obstacle_id, "depth_m": i.depth_m, "t": i.time_s}
+                       for i in p.intrusions],
+        "max_heading_rad": p.max_heading_rad, "peak_accel_mps2": p.peak_accel_mps2,
+        "reason": p.reason,
+    }
+
+
+def heading_deg(rad: float) -> float:
+    return math.degrees(rad)

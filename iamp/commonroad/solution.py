@@ -1,0 +1,84 @@
+r"""A road-frame plan as a CommonRoad solution: point-mass model ``PM``, a named cost function.
+
+The plan's states at the scenario's time steps :math:`t_k = k\,\Delta t` map to the world by
+:meth:`~iamp.commonroad.frame.RoadFrame.to_world` and
+:meth:`~iamp.commonroad.frame.RoadFrame.velocity_to_world`.  CommonRoad's feasibility check
+reconstructs one constant input per step (``PM``: :math:`\ddot p = u`, :math:`|u| \le a_{max}`)
+and accepts a step when the simulated position is within 2 cm; the written trajectory is
+therefore the exact zero-order-hold simulation
+
+.. math::  u_k = \frac{v(t_{k+1}) - v(t_k)}{\Delta t}, \qquad
+           p_{k+1} = p_k + v_k\,\Delta t + \tfrac12 u_k\,\Delta t^2,
+
+which matches the plan's velocities at every step and its positions to the integral of
+the plan's velocity error inside a step (millimetres per step; the largest drift is reported).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.commonroad import require
+from iamp.commonroad.convert import CommonRoadProblem
+from iamp.core.atomic import write_text
+
+FloatArray = npt.NDArray[np.float64]
+
+#: The cost function named in the solution (CommonRoad's ``WX1`` by default).
+DEFAULT_COST_FUNCTION = "WX1"
+
+
+def world_states(cr: CommonRoadProblem, trajectory: Any, steps: int) -> tuple[FloatArray, FloatArray, float]:
+    """Positions ``(K+1, 2)`` and velocities ``(K+1, 2)`` of the ZOH trajectory, and the largest
+    distance between its positions and the plan's mapped positions [m]."""
+    t = np.arange(steps + 1) * cr.dt
+    X = trajectory.states(t)
+    P = cr.frame.to_world(X[:, 0], X[:, 2])
+    V = cr.frame.velocity_to_world(X[:, 0], X[:, 2], X[:, 1], X[:, 3])
+    P[0] = np.asarray(cr.planning_problem.initial_state.position, dtype=float)
+    U = np.diff(V, axis=0) / cr.dt
+    Z = np.empty_like(P)
+    Z[0] = P[0]
+    for k in range(steps):
+        Z[k + 1] = Z[k] + V[k] * cr.dt + 0.5 * U[k] * cr.dt**2
+    return Z, V, float(np.max(np.linalg.norm(Z - P, axis=1)))
+
+
+def build_solution(cr: CommonRoadProblem, trajectory: Any, steps: int,
+                   cost_function: str = DEFAULT_COST_FUNCTION, vehicle_type: int = 2) -> tuple[Any, float]:
+    """The CommonRoad :class:`Solution` (PM trajectory) and the ZOH drift [m]."""
+    require()
+    from commonroad.common.solution import (
+        CostFunction,
+        PlanningProblemSolution,
+        Solution,
+        VehicleModel,
+        VehicleType,
+    )
+    from commonroad.scenario.state import PMState
+    from commonroad.scenario.trajectory import Trajectory
+
+    Z, V, drift = world_states(cr, trajectory, steps)
+    states = [PMState(time_step=k, position=Z[k].copy(), velocity=float(V[k, 0]), velocity_y=float(V[k, 1]))
+              for k in range(steps + 1)]
+    pps = PlanningProblemSolution(planning_problem_id=cr.planning_problem.planning_problem_id,
+                                  vehicle_type=VehicleType(vehicle_type), vehicle_model=VehicleModel.PM,
+                                  cost_function=CostFunction[cost_function],
+                                  trajectory=Trajectory(initial_time_step=0, state_list=states))
+    return Solution(cr.scenario.scenario_id, [pps]), drift
+
+
+def write_solution(solution: Any, path: str | Path, force: bool = False) -> Path:
+    """Write ``solution`` as CommonRoad XML atomically (refuses to overwrite without ``force``)."""
+    from commonroad.common.solution import CommonRoadSolutionWriter
+
+    from iamp.core.outputs import check_output
+
+    out = check_output(path, force=force)
+    text = CommonRoadSolutionWriter(solution).dump()
+    write_text(out, text)
+    return out

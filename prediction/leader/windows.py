@@ -1,0 +1,87 @@
+"""Leader data of prediction windows (a window's leader history and future in its frame).
+
+The windows are :func:`~iamp.prediction.windows.make_windows`'s; the leaders
+:class:`~iamp.prediction.leader.leaders.Leaders`.  Used to calibrate a car-following law on
+trajectories (:func:`~iamp.prediction.leader.model.train_leader_model`) and by the evaluation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from iamp.prediction._typing import BoolArray, FloatArray
+from iamp.prediction.tracks import Tracks
+from iamp.prediction.windows import Windows
+
+from .leaders import Leaders
+
+__all__ = ["LeaderWindows", "leader_windows"]
+
+
+@dataclass(frozen=True)
+class LeaderWindows:
+    """Leader data of evaluation windows, in each window's frame (follower at 0 at ``t = 0``).
+
+    Attributes
+    ----------
+    known : (W,) bool
+    XL_hist : (W, K) leader positions at the history times (NaN where unknown)
+    XL_fut : (W, F) leader positions at the future times (NaN where unknown)
+    offset : (W,) ``(L_l + L_f)/2`` [m]
+    future_extended : (W,) bool, the oracle future continues at the last recorded speed
+    """
+
+    known: BoolArray
+    XL_hist: FloatArray
+    XL_fut: FloatArray
+    offset: FloatArray
+    future_extended: BoolArray
+
+
+def leader_windows(tracks: Tracks, leaders: Leaders, win: Windows) -> LeaderWindows:
+    """The leaders of ``win`` (made by :func:`~iamp.prediction.windows.make_windows` of ``tracks``)."""
+    if win.t0 is None:
+        raise ValueError("windows without t0")
+    W, K, F = win.n, win.t_hist.size, win.t_fut.size
+    XLh = np.full((W, K), np.nan)
+    XLf = np.full((W, F), np.nan)
+    known = np.zeros(W, dtype=bool)
+    ext = np.zeros(W, dtype=bool)
+    off = np.full(W, np.nan)
+    ids = tracks.ids()
+    cuts = np.flatnonzero(np.diff(tracks.track_id)) + 1
+    starts = np.concatenate(([0], cuts))
+    ends = np.concatenate((cuts, [len(tracks)]))
+    L = leaders.lengths()
+    eps = 1e-6
+    for w in range(W):
+        k = int(np.searchsorted(ids, win.track_id[w]))
+        s, e = starts[k], ends[k]
+        t = tracks.t[s:e]
+        t0 = float(win.t0[w])
+        r = s + int(np.argmin(np.abs(t - t0)))
+        lid = int(leaders.leader[r])
+        if lid < 0:
+            continue
+        j = int(np.searchsorted(ids, lid))
+        if j >= ids.size or ids[j] != lid:
+            continue
+        ls, le = starts[j], ends[j]
+        tl, xl = tracks.t[ls:le], tracks.x[ls:le]
+        if tl[0] > t0 + win.t_hist[0] + eps or tl[-1] < t0 - eps:
+            continue
+        xf0 = float(np.interp(t0, t, tracks.x[s:e]))
+        known[w] = True
+        XLh[w] = np.interp(t0 + win.t_hist, tl, xl) - xf0
+        tf = t0 + win.t_fut
+        fut = np.interp(tf, tl, xl) - xf0
+        beyond = tf > tl[-1] + eps
+        if np.any(beyond):
+            ext[w] = True
+            vlast = (xl[-1] - xl[-2]) / (tl[-1] - tl[-2]) if tl.size > 1 else 0.0
+            fut[beyond] = xl[-1] - xf0 + max(vlast, 0.0) * (tf[beyond] - tl[-1])
+        XLf[w] = fut
+        off[w] = 0.5 * (L[r] + L[ls + int(np.argmin(np.abs(tl - t0)))])
+    return LeaderWindows(known, XLh, XLf, np.where(np.isfinite(off), off, 4.5), ext)

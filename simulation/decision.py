@@ -1,0 +1,275 @@
+r"""The decision layer: which gap, and whether a plan into it may be driven (SPEC §15).
+
+It is the same for every iamp planner and knows nothing about how a planner works: it builds
+one lane-change :class:`~iamp.core.problem.Problem` per candidate gap, calls the planner, and
+accepts the **first** gap whose plan is
+
+1. **verified** — status ``optimal`` or ``local`` (the planner checked its own residuals);
+2. **within the limits** — the plan's peaks (sampled every ``check_dt``) inside
+   :data:`~iamp.core.physical.PASSENGER_CAR`'s ``ax``, ``ay``, ``a_total`` and ``vx``
+   (the jerk bound is measured on the executed trajectory but not used here: the paper's
+   PMP input jumps at its contact times by construction, so every constrained PMP plan
+   would fail it);
+3. **intrusion-free** — :func:`iamp.core.safety.safety_report` of the plan's own continuous
+   trajectory against *every* predicted neighbour in the two lanes within ``relevant_m``
+   (not only the constrained ones) says the ego's point never enters a safety region.
+
+Candidate gaps
+--------------
+The target-lane vehicles within ``relevant_m`` sorted by ``x`` bound gaps (the first and
+last open-ended).  Each gap ``(f, l)`` is scored by how far its usable middle at ``T`` is from
+where the ego would be at constant speed, ``x_0 + v_{x,0} T``; the ``max_gaps`` nearest are
+tried, nearest first.
+
+The problem for one gap
+-----------------------
+After ``T = horizon_s`` the ego is at the target lane's centre ``y_f`` with ``v_{y,f}=0`` and
+
+* ``v_{x,f}`` = the mean predicted speed of ``f`` and ``l`` at ``T`` (those that exist; the
+  ego's own speed if neither), clipped to what ``REACH = 0.8`` of the ``a_x`` bounds held for
+  ``T`` reaches, ``v_{x,0} + 0.8 [a_{x,min}, a_{x,max}] T`` (a slow on-ramp entry cannot match
+  the main road's speed in one horizon), and to ``[0, speed_cap]``;
+* ``x_f`` = the constant-acceleration end point ``x_0 + (v_{x,0} + v_{x,f})T/2`` moved into
+  the part of the predicted gap at ``T`` that leaves a bumper-to-bumper headway
+  ``headway_s·v_{x,f}`` to ``f`` and ``l`` (its middle if the gap is shorter).
+
+The problem carries ``cfg.limits`` (:data:`~iamp.core.physical.PASSENGER_CAR`) as
+``Problem.limits``.  The constraint set (a change to the left, +y; mirrored to the right): the target-lane
+follower ``f`` → ``front-lower``, the target-lane leader ``l`` → ``rear-lower``, the current
+lane's leader ``c`` → ``rear-upper``; safety region ``S_x × S_y`` (SPEC §8: 5 m, 0.5 m)
+around each body.  A vehicle whose corner the ego has already passed laterally is met and
+left out.  If the ego already stands closer than ``S_x`` behind ``c`` (a queue), ``c``'s
+region is shrunk to the present gap less 0.5 m so that a plan is judged on not closing in.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
+from iamp.core.plan import Plan
+from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.safety import safety_report
+from iamp.core.status import SUCCESS
+
+#: A :class:`Problem` holds at most 8 vehicles: the §9 check takes the nearest ones.
+MAX_CHECKED = 8
+#: The end speed is reachable at this fraction of the ``a_x`` bounds held over the horizon.
+REACH = 0.8
+
+
+@dataclass(frozen=True)
+class Neighbour:
+    """A predicted neighbour: ``x(t) = Σ poly[k] t^k`` from now, its lateral centre and body."""
+
+    name: str
+    poly: tuple[float, ...]
+    y: float
+    length: float
+    width: float
+    lane: int
+
+    def x(self, t: float) -> float:
+        return float(np.polynomial.polynomial.polyval(t, self.poly))
+
+    def v(self, t: float) -> float:
+        return float(np.polynomial.polynomial.polyval(t, np.polynomial.polynomial.polyder(self.poly)))
+
+
+@dataclass(frozen=True)
+class EgoNow:
+    """The ego's centre state now."""
+
+    x: float
+    vx: float
+    y: float
+    vy: float
+    length: float = 4.8
+    width: float = 1.8
+
+
+@dataclass(frozen=True)
+class Gap:
+    follower: Neighbour | None
+    leader: Neighbour | None
+
+
+@dataclass(frozen=True)
+class DecisionConfig:
+    """Parameters of the decision layer (module docstring)."""
+
+    horizon_s: float = 5.0
+    safety_x: float = 5.0
+    safety_y: float = 0.5
+    headway_s: float = 1.0
+    relevant_m: float = 60.0
+    max_gaps: int = 3
+    speed_cap: float = 40.0
+    check_dt: float = 0.01
+    limits: PhysicalLimits = field(default=PASSENGER_CAR)
+
+
+@dataclass
+class Verdict:
+    """What the layer concluded about one plan: ``accepted`` or the first failed test."""
+
+    accepted: bool
+    reason: str  # "accepted", "failed:<status>", "limits:<field>", "intrusion:<vehicle>"
+    plan: Plan | None = None
+    gap: Gap | None = None
+    problem: Problem | EgoBoundary | None = None
+    check: Problem | None = None
+
+
+def candidate_gaps(ego: EgoNow, target: Sequence[Neighbour], cfg: DecisionConfig) -> list[Gap]:
+    """The ``max_gaps`` gaps of the target lane nearest the ego's constant-speed end point."""
+    T = cfg.horizon_s
+    near = sorted((n for n in target if abs(n.x(0.0) - ego.x) <= cfg.relevant_m), key=lambda n: n.x(0.0))
+    bounds: list[Neighbour | None] = [None, *near, None]
+    gaps = [Gap(bounds[k], bounds[k + 1]) for k in range(len(bounds) - 1)]
+    x_cs = ego.x + ego.vx * T
+
+    def score(g: Gap) -> float:
+        lo = -np.inf if g.follower is None else g.follower.x(T) + g.follower.length / 2 + ego.length / 2
+        hi = np.inf if g.leader is None else g.leader.x(T) - g.leader.length / 2 - ego.length / 2
+        if lo <= x_cs <= hi:
+            return 0.0
+        return float(min(abs(x_cs - lo), abs(x_cs - hi)))
+
+    return sorted(gaps, key=score)[: cfg.max_gaps]
+
+
+def end_state(ego: EgoNow, gap: Gap, cfg: DecisionConfig, T: float) -> tuple[float, float]:
+    """``(x_f, v_{x,f})`` into ``gap`` after ``T`` (module docstring)."""
+    speeds = [n.v(T) for n in (gap.follower, gap.leader) if n is not None]
+    vxf = float(np.mean(speeds)) if speeds else ego.vx
+    ax = cfg.limits.ax or (-np.inf, np.inf)  # reachable at a constant REACH of the a_x bounds
+    vxf = float(np.clip(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T))
+    vxf = float(np.clip(vxf, 0.0, cfg.speed_cap))
+    x = ego.x + (ego.vx + vxf) * T / 2
+    head = cfg.headway_s * vxf
+    lo = -np.inf if gap.follower is None else gap.follower.x(T) + gap.follower.length / 2 + ego.length / 2
+    hi = np.inf if gap.leader is None else gap.leader.x(T) - gap.leader.length / 2 - ego.length / 2
+    if hi - lo >= 2 * head:
+        x = float(np.clip(x, lo + head, hi - head))
+    else:
+        x = float((lo + hi) / 2)
+    return x, vxf
+
+
+def _vehicle(n: Neighbour, corner: str, cfg: DecisionConfig, safety_x: float | None = None) -> SurroundingVehicle:
+    return SurroundingVehicle(n.poly, corner, n.y, n.length, n.width,
+                              cfg.safety_x if safety_x is None else safety_x, cfg.safety_y, name=n.name)
+
+
+def lane_change_problem(ego: EgoNow, y_target: float, gap: Gap, current_leader: Neighbour | None,
+                        cfg: DecisionConfig, T: float, end: tuple[float, float] | None = None
+                        ) -> Problem | EgoBoundary:
+    """The problem into ``gap`` over ``T`` with the constraint set of the module docstring
+    (an :class:`EgoBoundary` when no vehicle is left to constrain)."""
+    d = 1.0 if y_target > ego.y else -1.0
+    xf, vxf = end if end is not None else end_state(ego, gap, cfg, T)
+    boundary = EgoBoundary(tf=T, x0=ego.x, y0=ego.y, vx0=ego.vx, vy0=ego.vy, xf=xf, yf=y_target, vxf=vxf, vyf=0.0)
+    low, up = ("lower", "upper") if d > 0 else ("upper", "lower")
+    vehicles: list[SurroundingVehicle] = []
+    for n, corner in ((gap.follower, "front-" + low), (gap.leader, "rear-" + low), (current_leader, "rear-" + up)):
+        if n is None:
+            continue
+        sx = None
+        if n is current_leader:
+            gap_now = n.x(0.0) - n.length / 2 - ego.x
+            if gap_now < cfg.safety_x:
+                sx = max(gap_now - 0.5, 0.0)
+        sv = _vehicle(n, corner, cfg, sx)
+        if d * (ego.y - sv.corner_y) < 0:  # not yet passed laterally
+            vehicles.append(sv)
+    return Problem(boundary, tuple(vehicles), "lane-change", cfg.limits) if vehicles else boundary
+
+
+def check_problem(boundary: EgoBoundary, ego: EgoNow, neighbours: Sequence[Neighbour], lanes: Sequence[int],
+                  cfg: DecisionConfig) -> Problem | None:
+    """The ``MAX_CHECKED`` neighbours in ``lanes`` within ``relevant_m`` nearest the ego, as
+    vehicles for the §9 report (a :class:`Problem` holds at most 8)."""
+    vs = []
+    near = sorted((n for n in neighbours if n.lane in lanes and abs(n.x(0.0) - ego.x) <= cfg.relevant_m),
+                  key=lambda n: abs(n.x(0.0) - ego.x))[:MAX_CHECKED]
+    for n in near:
+        sx = cfg.safety_x
+        ahead_same = n.lane == lanes[0] and n.x(0.0) > ego.x and abs(n.y - ego.y) < (n.width + ego.width) / 2
+        if ahead_same:
+            gap_now = n.x(0.0) - n.length / 2 - ego.x
+            if gap_now < cfg.safety_x:
+                sx = max(gap_now - 0.5, 0.0)
+        vs.append(_vehicle(n, "rear-upper", cfg, sx))
+    return Problem(boundary, tuple(vs)) if vs else None
+
+
+def limit_violations(trajectory: Any, tf: float, limits: PhysicalLimits, dt: float = 0.01,
+                     tol: float = 1e-6) -> list[str]:
+    """Names of the bounds (``ax``, ``ay``, ``a_total``, ``vx``) a trajectory breaks on ``[0, tf]``
+    (sampled every ``dt`` and at both ends)."""
+    t = np.linspace(0.0, tf, max(int(np.ceil(tf / dt)), 1) + 1)
+    X = np.asarray(trajectory.states(t))
+    U = np.asarray(trajectory.inputs(t))
+    return limit_violations_of(U[:, 0], U[:, 1], X[:, 1], limits, tol)
+
+
+def limit_violations_of(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: PhysicalLimits,
+                        tol: float = 1e-6) -> list[str]:
+    """Which of ``ax``, ``ay``, ``a_total``, ``vx`` the samples break."""
+    bad = []
+    for name, values in (("ax", ax), ("ay", ay), ("vx", vx)):
+        rng = getattr(limits, name)
+        if rng is not None and values.size and (values.min() < rng[0] - tol or values.max() > rng[1] + tol):
+            bad.append(name)
+    if limits.a_total is not None and ax.size and float(np.max(np.hypot(ax, ay))) > limits.a_total + tol:
+        bad.append("a_total")
+    return bad
+
+
+def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig) -> str:
+    """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``intrusion:``)."""
+    if plan.status not in SUCCESS or plan.trajectory is None:
+        return f"failed:{plan.status}"
+    tf = float(plan.problem.tf)
+    bad = limit_violations(plan.trajectory, tf, cfg.limits, cfg.check_dt)
+    if bad:
+        return "limits:" + ",".join(bad)
+    if check is not None:
+        rep = safety_report(check, plan.trajectory)
+        hit = [v.name for v in rep.vehicles if not v.intrusion_free]
+        if hit:
+            return "intrusion:" + ",".join(hit)
+    return "accepted"
+
+
+def decide(ego: EgoNow, y_target: float, target_lane: int, origin_lane: int, neighbours: Sequence[Neighbour],
+           planner: Callable[[Problem | EgoBoundary], Plan], cfg: DecisionConfig,
+           on_plan: Callable[[Plan, Problem | EgoBoundary], None] | None = None) -> tuple[Verdict, list[Verdict]]:
+    """Try the candidate gaps in order; the first accepted verdict (or the last rejection) and all.
+
+    ``planner`` is called once per candidate; ``on_plan`` sees every plan (for counting).
+    """
+    target = [n for n in neighbours if n.lane == target_lane]
+    ahead = [n for n in neighbours if n.lane == origin_lane and n.x(0.0) > ego.x
+             and n.x(0.0) - ego.x <= cfg.relevant_m]
+    current_leader = min(ahead, key=lambda n: n.x(0.0)) if ahead else None
+    verdicts: list[Verdict] = []
+    for gap in candidate_gaps(ego, target, cfg):
+        prob = lane_change_problem(ego, y_target, gap, current_leader, cfg, cfg.horizon_s)
+        boundary = prob.ego if isinstance(prob, Problem) else prob
+        check = check_problem(boundary, ego, neighbours, (origin_lane, target_lane), cfg)
+        plan = planner(prob)
+        if on_plan is not None:
+            on_plan(plan, prob)
+        v = Verdict(False, "", plan, gap, prob, check)
+        v.reason = judge(plan, check, cfg)
+        v.accepted = v.reason == "accepted"
+        verdicts.append(v)
+        if v.accepted:
+            return v, verdicts
+    return (verdicts[-1] if verdicts else Verdict(False, "no gap")), verdicts
