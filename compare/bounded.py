@@ -32,6 +32,7 @@ from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.status import SUCCESS
+from iamp.planners.qp.diagnostics import QPDiagnostics
 
 __all__ = ["BOUNDED_PLANNERS", "BoundedRow", "bounded_rows", "bounded_section", "markdown_table",
            "pmp_qp_gap", "section_lines"]
@@ -104,7 +105,8 @@ def _imposes(planner: str, plan: Plan) -> bool:
     """Whether the planner imposed the bounds (rather than being judged after the fact)."""
     if planner == "pmp":
         return _available_module("iamp.planners.pmp.bounded")  # restructure: keep
-    return "limit_rows" in plan.info or "limits_infeasible" in plan.info  # active set: its base's info
+    qp = plan.diagnostics.find(QPDiagnostics)  # active set: its base's diagnostics
+    return (qp is not None and qp.limit_rows is not None) or plan.diagnostics.limits_infeasible is not None
 
 
 def _available_module(name: str) -> bool:
@@ -150,7 +152,7 @@ def bounded_rows(name: str, problem: Problem, limits: PhysicalLimits | None = PA
             free_cost=free.cost if free.status in SUCCESS else None,
             peaks=pk.line() if pk is not None else "", peaks_json=pk.to_json() if pk is not None else {},
             imposed=_imposes(planner, plan) if plan.trajectory is not None or _imposes(planner, plan) else None,
-            reason=plan.info.get("reason") or plan.info.get("why"),
+            reason=plan.diagnostics.reason or plan.diagnostics.why,
             time_s=elapsed))
     return rows
 

@@ -23,6 +23,7 @@ from typing import Any
 
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
+from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 
 #: Relative cost difference below which two plans count as the same optimum.
 SAME_COST_REL = 1e-6
@@ -38,10 +39,11 @@ def _run_json(label: str, plan: Plan, constraint: str) -> dict[str, Any]:
         "time_s": float(plan.solve_time_s),
         "safety": safety.to_json() if safety is not None else None,
     }
-    if plan.info.get("reason"):
-        out["reason"] = plan.info["reason"]
-    if "avoidance" in plan.info and ok:
-        av = plan.info["avoidance"]
+    diag = plan.diagnostics
+    if diag.reason:
+        out["reason"] = diag.reason
+    av = diag.avoidance if isinstance(diag, AvoidDiagnostics) else None
+    if av is not None and ok:
         # node-only plans report between_node_intrusion_m and active rows; continuous ones
         # (SPEC §14, the default) max_intrusion_m and binding_rows
         keys = ("name", "first", "second", "crossing_time", "between_node_intrusion_m", "max_intrusion_m",
@@ -49,7 +51,7 @@ def _run_json(label: str, plan: Plan, constraint: str) -> dict[str, Any]:
         out["avoidance"] = {"safety": av.get("safety", "nodes"),
                             "vehicles": [{k: v[k] for k in keys if k in v} for v in av["vehicles"]],
                             "complete_sweep": av.get("complete_sweep"), "n_solves": av.get("n_solves"),
-                            "certificate": plan.info.get("certificate")}
+                            "certificate": diag.certificate if isinstance(diag, AvoidDiagnostics) else None}
     return out
 
 
@@ -98,7 +100,7 @@ def plan_avoid(problem: Problem, *, steps: int, hold: str, solver: str) -> tuple
 def explain(eq: Plan, avoid: Plan) -> str:
     """In words: is the equality plan safe, does the avoidance optimum coincide with it, why."""
     if not avoid.ok:
-        reason = avoid.info.get("reason", avoid.status)
+        reason = avoid.status if avoid.diagnostics.reason is None else avoid.diagnostics.reason
         eq_part = ""
         if eq.ok and eq.safety is not None and not eq.safety.safe:
             eq_part = " The equality plan is unsafe: " + "; ".join(v.describe() for v in eq.safety.unsafe()) + "."
@@ -108,7 +110,7 @@ def explain(eq: Plan, avoid: Plan) -> str:
         return f"The equality plan failed ({eq.status}); the avoidance plan costs {avoid.cost:.6g}."
     d = avoid.cost - eq.cost
     same = abs(d) <= SAME_COST_REL * max(1.0, abs(eq.cost))
-    binds = [v["name"] for v in avoid.info["avoidance"]["vehicles"] if _binds(v)]
+    binds = [v["name"] for v in _avoidance(avoid)["vehicles"] if _binds(v)]
     bind_txt = (f"the inequalities bind for {', '.join(binds)}" if binds else
                 "no inequality binds: the unconstrained optimum is safe")
     av_safety = avoid.safety
@@ -341,3 +343,10 @@ __all__ = [
     "to_json",
 ]
 
+
+def _avoidance(plan: Plan) -> Any:
+    """The ``avoidance`` record of an avoidance plan (``KeyError`` for any other plan)."""
+    diag = plan.diagnostics
+    if not isinstance(diag, AvoidDiagnostics) or diag.avoidance is None:
+        raise KeyError("avoidance")
+    return diag.avoidance

@@ -25,7 +25,7 @@ vehicles and why (``info["active_set"]``, the JSON key ``active_set``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,6 +35,7 @@ from iamp.core.free import FreeTrajectory
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem, SurroundingVehicle
 from iamp.core.safety import safety_report
+from iamp.planners.diagnostics import ActiveSetDiagnostics
 
 __all__ = ["ActiveSetPlanner", "drags"]
 
@@ -75,7 +76,7 @@ class ActiveSetPlanner:
         if free_traj is None and free_sub is not None:
             return self._result(problem, free_sub, None, [], dropped, steps, 1, start, free_sub.status,
                                 f"the plan without any corner failed ({free_sub.status}): "
-                                f"{free_sub.info.get('reason', '')}".rstrip(": "))
+                                f"{free_sub.diagnostics.reason or ''}".rstrip(": "))
         sub: Plan | None = free_sub
         traj: Any = free_traj
         iterations = 0
@@ -158,7 +159,7 @@ class ActiveSetPlanner:
         else:
             jumps[:] = np.nan
         vehicles = problem.vehicles
-        info: dict[str, Any] = dict(sub.info) if sub is not None else {}
+        info: dict[str, Any] = sub.diagnostics.as_info() if sub is not None else {}
         info.pop("avoidance", None)
         info["constraint"] = "active"
         info["active_set"] = {
@@ -179,7 +180,9 @@ class ActiveSetPlanner:
                     solve_time_s=time.perf_counter() - start,
                     solver=getattr(sub, "solver", None) or self._base_attr("solver"),
                     hold=getattr(sub, "hold", None) or self._base_attr("hold"),
-                    steps=getattr(sub, "steps", None) or self._base_attr("steps"), info=info)
+                    steps=getattr(sub, "steps", None) or self._base_attr("steps"),
+                    diagnostics=replace(ActiveSetDiagnostics.from_info(info),
+                                        base=sub.diagnostics if sub is not None else None))
         if sub is not None:
             plan.residuals = dict(sub.residuals)
         else:

@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
             dt = time.perf_counter() - t0
             cost = "—" if plan.cost is None else f"{plan.cost:.6g}"
             if plan.trajectory is None or plan.cost is None:
-                why = plan.info.get("reason") or plan.info.get("why") or ""
+                why = plan.diagnostics.reason or plan.diagnostics.why or ""
                 lines.append(f"| {name} | {label} | {plan.status}{': ' + why[:90] if why else ''} | — | — | — | — | "
                              f"— | — | — | — | {dt:.2f} s |")
                 continue

@@ -18,7 +18,7 @@ from iamp.planners.pmp.bounded import exact_peaks, plan_knots
 
 
 def _peaks(plan) -> str:  # type: ignore[no-untyped-def]
-    p = plan.info.get("peaks") or exact_peaks(plan.trajectory, plan.problem.tf, plan_knots(plan))
+    p = getattr(plan.diagnostics, "peaks", None) or exact_peaks(plan.trajectory, plan.problem.tf, plan_knots(plan))
     return (f"ax [{p['ax'][0]:.2f}, {p['ax'][1]:.2f}], ay [{p['ay'][0]:.2f}, {p['ay'][1]:.2f}], "
             f"|u| {p['a_total']:.2f}, vx [{p['vx'][0]:.1f}, {p['vx'][1]:.1f}], jerk {p['jerk']:.1f}")
 
@@ -36,8 +36,8 @@ def main() -> None:
             cost = f"{plan.cost:.3f}" if plan.cost is not None else "-"
             times = ", ".join(f"{t:.4f}" for t in plan.contact_times) if plan.trajectory is not None else "-"
             what = _peaks(plan) if plan.trajectory is not None else ""
-            if plan.info.get("reason"):
-                what += (" — " if what else "") + plan.info["reason"]
+            if plan.diagnostics.reason:
+                what += (" — " if what else "") + plan.diagnostics.reason
             print(f"| {name} | {label} | {plan.status} | {cost} | {times} | {what} | "
                   f"{free.cost:.3f}: {_peaks(free)} |")
 

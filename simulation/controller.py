@@ -216,7 +216,7 @@ class Controller:
             self.n.infeasible_plans += 1
         if self.cfg.deadline_s is not None and elapsed > self.cfg.deadline_s:
             self.n.late_plans += 1
-            plan.info["late"] = True
+            plan.annotate(late=True)
         return plan
 
     def _react_kw(self) -> dict[str, Any]:

@@ -155,8 +155,7 @@ def active_set_plan(problem: Problem, fn: PlanFn, name: str) -> Plan:
                     chosen.remove(v)
                     dropped.append(str(v.name))
                 plan = fn(problem.with_vehicles(chosen)) if chosen else free_plan(problem.ego, name)
-    plan.info["active"] = [str(v.name) for v in chosen]
-    plan.info["dropped"] = dropped
+    plan.annotate(active=[str(v.name) for v in chosen], dropped=dropped)
     return plan
 
 

@@ -13,6 +13,7 @@ import pytest
 from iamp.comparison.bench import run as bench
 from iamp.comparison.bench.text import format_bench
 from iamp.comparison.timing import summarize
+from iamp.planners.qp.diagnostics import QPDiagnostics
 
 
 def _stats(median: float, spread: float = 0.0):
@@ -42,7 +43,7 @@ def fake(monkeypatch):
         calls.append(planner)
         name = getattr(planner, "solver", "kkt")
         cvx = type(planner).__name__.startswith("Cvxpy")
-        res = SimpleNamespace(status="optimal", info={"candidates": {"total": 99, "solved": 99}})
+        res = SimpleNamespace(status="optimal", diagnostics=QPDiagnostics(candidates={"total": 99, "solved": 99}))
         return _stats(sweep[name] * (5 if cvx else 1), spread=0.9 if name == "clarabel" and cvx else 0.0), res
 
     def plan_fn(planner, problem):

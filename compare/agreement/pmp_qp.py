@@ -35,6 +35,7 @@ from iamp.comparison.trajectories import hold_trajectory
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners.pmp.planner import ValueFunction, solve_fixed_times
+from iamp.planners.qp.diagnostics import QPDiagnostics
 
 from .gaps import at_same_contact_times, grid_optimum_gap, run_vs_run_gaps
 from .references import grid_cost_table, zoh_reference
@@ -151,9 +152,10 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: GridTables | Non
     out["continuous"] = cont
     out["verdict_basis"] = ("solver precision at the QP's own contact times (at_same_contact_times), KKT and "
                             "constraint residuals, and the contact-time search rules against the PMP's t*")
-    if res.info.get("failures"):
-        checks.notes.append(f"{len(res.info['failures'])} sweep candidate(s) failed "
-                            f"({', '.join(sorted({str(s) for _, s in res.info['failures']}))}); the best is taken "
+    qpd = res.diagnostics.find(QPDiagnostics)
+    if qpd is not None and qpd.failures:
+        checks.notes.append(f"{len(qpd.failures)} sweep candidate(s) failed "
+                            f"({', '.join(sorted({str(s) for _, s in qpd.failures}))}); the best is taken "
                             "among the rest")
     return checks.finish(out)
 

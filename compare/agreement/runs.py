@@ -21,6 +21,7 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners import registry
+from iamp.planners.qp.diagnostics import QPDiagnostics
 
 from .fingerprints import problem_fingerprint, x_poly_fingerprint
 
@@ -99,7 +100,7 @@ class Run:
         """The run as in SPEC §5b's ``runs`` (more keys than the minimum)."""
         r, c = self.result, self.config
         ok = self.ok
-        info = getattr(r, "info", {}) or {}
+        qp = r.diagnostics.find(QPDiagnostics)
         out: dict[str, Any] = {
             "label": self.label, "planner": self.planner,
             "solver": c.solver if c else None, "hold": c.hold if c else None,
@@ -118,11 +119,11 @@ class Run:
             "notes": list(self.notes),
         }
         if c is not None:
-            failures = info.get("failures", [])
-            out["n_solves"] = int(info.get("n_solves", 0))
+            failures = (qp.failures if qp is not None else None) or []
+            out["n_solves"] = int((qp.n_solves if qp is not None else None) or 0)
             out["failed_candidates"] = len(failures)
             out["failed_statuses"] = sorted({str(s) for _, s in failures})
-            out["unpolished_candidates"] = int(info.get("unpolished", 0) or 0)
+            out["unpolished_candidates"] = int((qp.unpolished if qp is not None else None) or 0)
         return out
 
 

@@ -35,7 +35,9 @@ import scipy.sparse as sp
 
 from iamp.comparison.timing import measure
 from iamp.core.physical import PASSENGER_CAR
+from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 
 STEPS = 50
 SOLVERS = ("osqp", "clarabel", "piqp")
@@ -55,7 +57,7 @@ def _spec_of(plan: Any) -> tuple[tuple[int, int, float, float], ...]:
     from iamp.planners.avoid.check import AXIS_NAMES
 
     return tuple((AXIS_NAMES.index(v["first"]), AXIS_NAMES.index(v["second"]), float(v["crossing_time"]),
-                  float(v["crossing_time"])) for v in plan.info["avoidance"]["vehicles"])
+                  float(v["crossing_time"])) for v in (_avoid_diagnostics(plan).avoidance or {})["vehicles"])
 
 
 def _casadi_qp(P_upper: sp.spmatrix, A: sp.spmatrix, n_eq: int, rhs: np.ndarray, repeats: int) -> dict[str, Any]:
@@ -106,7 +108,7 @@ def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> dict[str, An
             stats, plan = measure(partial(planner.plan, prob), repeats=repeats, warmup=1, budget_s=budget_s)
             assert plan is not None
             row: dict[str, Any] = {"plan_s": stats.median, "plan_stats": stats.to_dict(), "status": str(plan.status),
-                                   "cost": plan.cost, "n_solves": plan.info.get("n_solves")}
+                                   "cost": plan.cost, "n_solves": _avoid_diagnostics(plan).n_solves}
             if plan.status == "optimal" and spec is None:
                 spec = _spec_of(plan)
             out["backends"][s] = row
@@ -151,3 +153,10 @@ def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> dict[str, An
     except Exception as exc:  # an optional peer: report, never fail the bench
         out["casadi_ipopt"] = {"error": f"{type(exc).__name__}: {exc}"}
     return out
+
+
+def _avoid_diagnostics(plan: Plan) -> AvoidDiagnostics:
+    """The diagnostics of an avoidance plan (``TypeError`` for any other plan)."""
+    if not isinstance(plan.diagnostics, AvoidDiagnostics):
+        raise TypeError(f"not an avoidance plan: {type(plan.diagnostics).__name__}")
+    return plan.diagnostics

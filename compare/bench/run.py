@@ -53,7 +53,9 @@ from typing import Any
 import numpy as np
 
 from iamp.comparison.timing import TimingStats, measure, summarize, versions
+from iamp.core.plan import Plan
 from iamp.planners.qp.backends import BACKENDS, ITERATIVE
+from iamp.planners.qp.diagnostics import QPDiagnostics
 
 #: IQR/median above which a measurement is flagged as taken on a busy machine.
 BUSY_SPREAD = 0.5
@@ -271,15 +273,15 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     for s in names:
         planner = QPPlanner(steps=STEPS, hold="foh", solver=s)
         native[s], res = _sweep(_plan_fn(planner, one), 3 if quick else 7)
-        fails[f"native_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
+        fails[f"native_{s}"] = _failed_candidates(res)
         if res.status != "optimal":
-            notes.append(f"native {s} sweep: status {res.status} ({res.info.get('why', '')})")
+            notes.append(f"native {s} sweep: status {res.status} ({res.diagnostics.why or ''})")
     tick(3)
     cvx: dict[str, TimingStats] = {}
     for s in ("osqp", "clarabel"):
         planner = CvxpyQPPlanner(steps=STEPS, hold="foh", solver=s)
         cvx[s], res = _sweep(_plan_fn(planner, one), reps)
-        fails[f"cvxpy_{s}"] = int(res.info["candidates"]["total"] - res.info["candidates"]["solved"])
+        fails[f"cvxpy_{s}"] = _failed_candidates(res)
     tick(4)
     avoid = _avoid(one, reps, notes)
     avoid_bounded = _avoid_bounded(quick, notes)
@@ -386,3 +388,11 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "missed": [k for k, t in targets.items() if not t["met"]],
         "notes": notes,
     }
+
+
+def _failed_candidates(res: Plan) -> int:
+    """Sweep candidates of a QP plan that did not solve to a verified optimum."""
+    qp = res.diagnostics
+    if not isinstance(qp, QPDiagnostics) or qp.candidates is None:
+        raise KeyError("candidates")
+    return int(qp.candidates["total"] - qp.candidates["solved"])

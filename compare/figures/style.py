@@ -107,7 +107,7 @@ def planner_style(label: str) -> dict[str, str]:
 
 def is_avoidance(result: Plan) -> bool:
     """Whether ``result`` comes from the avoidance QP (SPEC §10), whose times are crossings."""
-    return "avoid" in str((result.info or {}).get("constraint", ""))
+    return "avoid" in str(result.diagnostics.constraint or "")
 
 
 def tidy_axis(ax: Axes, values: ArrayLike, *, min_span: float = 0.1) -> None:

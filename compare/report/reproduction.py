@@ -47,6 +47,8 @@ import numpy as np
 from iamp.comparison.metrics import manoeuvre_metrics, qualitative_comparison
 from iamp.core.atomic import write_text as atomic_write_text
 from iamp.core.jsonable import to_jsonable
+from iamp.core.plan import Plan
+from iamp.planners.qp.diagnostics import QPDiagnostics
 
 from .config import ProgressFn, ReproduceConfig
 from .convergence import zoh_convergence
@@ -162,8 +164,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
         plans[name] = plan
         runs[name] = plan["results"]
         pmp = runs[name]["pmp"]
-        sweeps = {lbl: [[list(n), c] for n, c in r.info.get("sweep", [])]
-                  for lbl, r in runs[name].items() if lbl != "pmp" and "sweep" in (r.info or {})}
+        sweeps = {lbl: [[list(n), c] for n, c in sw] for lbl, sw in _sweeps(runs[name]).items()}
         if pmp.is_optimal():
             metrics[name] = manoeuvre_metrics(pmp)
         pred = None
@@ -200,8 +201,8 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
         qp_runs = {short_label(lbl): r for lbl, r in runs[name].items()
                    if lbl != "pmp" and "refine" not in lbl and "native" not in lbl}
         if prob.m == 1:
-            fig_sweeps = {short_label(lbl): (r.steps, r.info["sweep"]) for lbl, r in runs[name].items()
-                          if lbl != "pmp" and r.is_optimal() and r.hold == "foh" and "sweep" in r.info
+            fig_sweeps = {short_label(lbl): (runs[name][lbl].steps, sw) for lbl, sw in _sweeps(runs[name]).items()
+                          if runs[name][lbl].is_optimal() and runs[name][lbl].hold == "foh"
                           and "refine" not in lbl and "native" not in lbl}
             fig(f"J-{name}", plot_value_function(prob, pmp, fig_sweeps, fd / f"J-{name}",
                                                  title=f"{name}: cost against contact time"))
@@ -306,3 +307,13 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     atomic_write_text(out / "results.json", json.dumps(to_jsonable(res), indent=1, allow_nan=False) + "\n")
     step.finish()
     return res
+
+
+def _sweeps(runs: dict[str, Plan]) -> dict[str, list[tuple[tuple[int, ...], float]]]:
+    """Each QP run's contact-node sweep (``QPDiagnostics.sweep``: ``(nodes, cost)``), by label."""
+    out: dict[str, list[tuple[tuple[int, ...], float]]] = {}
+    for lbl, r in runs.items():
+        qp = r.diagnostics.find(QPDiagnostics) if lbl != "pmp" else None
+        if qp is not None and qp.sweep is not None:
+            out[lbl] = qp.sweep
+    return out

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from iamp.core.problem import Problem
+from iamp.planners.qp.diagnostics import QPDiagnostics
 
 from .config import ProgressFn, ReproduceConfig
 
@@ -123,7 +124,8 @@ def plan_scenario(name: str, problem: Problem, cfg: ReproduceConfig,
         if r.is_optimal():
             d["constraint_role"] = constraint_roles(problem, r.jumps)
             d["solve_time_s"] = r.solve_time_s
-            if "grid_best" in r.info:
-                d["grid_best"] = r.info["grid_best"]
+            qp = r.diagnostics.find(QPDiagnostics)
+            if qp is not None and qp.grid_best is not None:
+                d["grid_best"] = qp.grid_best
     return {"results": results, "runs": runs, "agreement": pc.agreement,
             "agreement_source": "iamp.comparison.agreement.compare_problem", "steps": steps}

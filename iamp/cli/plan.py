@@ -15,7 +15,10 @@ from iamp.core.problem import Problem, SurroundingVehicle
 from iamp.core.safety import SAFETY_TOLERANCE_M, SafetyReport
 from iamp.core.scenario import Scenario
 from iamp.planners import registry
+from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 from iamp.planners.avoid.options import inequality_backends
+from iamp.planners.diagnostics import ActiveSetDiagnostics
+from iamp.planners.qp.diagnostics import QPDiagnostics
 from iamp.planners.qp.hold import HOLDS
 from iamp.planners.qp.options import CONTACTS
 
@@ -202,25 +205,26 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     print(f"scenario  {scenario.name}  ({scenario.source})")
     print(f"planner   {cfg}")
     print(f"status    {result.status}")
-    if "active_set" in result.info:
-        _print_active(result)
+    diag = result.diagnostics
+    if isinstance(diag, ActiveSetDiagnostics):
+        _print_active(result, diag)
         return
-    if result.status == "unsafe" and result.info.get("constraint") == "avoid":
-        print(f"reason    {result.info.get('unsafe_reason')}")
+    if result.status == "unsafe" and diag.constraint == "avoid":
+        print(f"reason    {diag.unsafe_reason}")
         from iamp.planners.avoid.result import summary_lines as nodes_lines
 
         for line in nodes_lines(result):
             print(line)
         return
     if not result.ok:
-        if result.info.get("reason"):
-            print(f"reason    {result.info['reason']}")
+        if diag.reason:
+            print(f"reason    {diag.reason}")
         print("no cost is reported: the solver did not reach an optimal solution")
         return
     if not result.is_optimal():  # `local`: verified at its contact times, not certified global (exit 3)
         print(f"note      {LOCAL_NOTE}")
-    if result.info.get("constraint") == "avoid":
-        if result.info.get("safety_mode") == "continuous":
+    if diag.constraint == "avoid":
+        if isinstance(diag, AvoidDiagnostics) and diag.safety_mode == "continuous":
             from iamp.planners.avoid.continuous import summary_lines
         else:
             from iamp.planners.avoid.result import summary_lines
@@ -232,9 +236,10 @@ def _print_summary(scenario: Scenario, problem: Problem, result: Plan, args: arg
     print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
     print(f"time      {result.solve_time_s * 1e3:.3f} ms")
     label = "Φ" if result.planner == "pmp" else "ν"
-    if result.planner == "qp" and result.info.get("failures"):
-        fails = result.info["failures"]
-        print(f"warning   {len(fails)} of {len(result.info['sweep'])} sweep candidates did not solve to optimality "
+    qp = diag.find(QPDiagnostics)
+    if result.planner == "qp" and qp is not None and qp.failures:
+        fails = qp.failures
+        print(f"warning   {len(fails)} of {len(qp.sweep or ())} sweep candidates did not solve to optimality "
               f"(e.g. nodes {fails[0][0]}: {fails[0][1]}); they are excluded from the search")
     for v, spec, t, j in zip(problem.vehicles, scenario.vehicles, result.contact_times, result.jumps):
         poly = polynomial(v.x_poly)
@@ -258,7 +263,7 @@ def _print_limits(result: Plan) -> None:
     peaks = result.peaks
     if peaks is None:
         return
-    sides = result.info.get("polygon_sides")
+    sides = result.diagnostics.polygon_sides
     poly = f" (QP: |u| <= a_total imposed as an inscribed {sides}-gon)" if sides else ""
     print(f"limits    {peaks.line()}{poly}")
     for w in peaks.warnings:
@@ -274,11 +279,11 @@ def _planner_help() -> str:
     return "; ".join(parts) + " (default pmp)"
 
 
-def _print_active(result: Plan) -> None:
+def _print_active(result: Plan, diag: ActiveSetDiagnostics) -> None:
     """The text summary of ``--constraint active``: what was imposed, dropped and why."""
-    act = result.info["active_set"]
-    if result.info.get("reason"):
-        print(f"reason    {result.info['reason']}")
+    act = diag.active_set or {}
+    if diag.reason:
+        print(f"reason    {diag.reason}")
     if result.cost is not None:
         print(f"cost J    {result.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]")
     print(f"time      {result.solve_time_s * 1e3:.3f} ms ({act['iterations']} iteration(s))")

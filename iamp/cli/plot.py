@@ -53,7 +53,7 @@ def plan_label(result: Plan) -> str:
     """``PMP`` or ``QP clarabel FOH N=100`` (with ``avoid`` for the avoidance QP)."""
     if result.planner == "pmp":
         return "PMP"
-    extra = " avoid" if "avoid" in str(result.info.get("constraint", "")) else ""
+    extra = " avoid" if "avoid" in str(result.diagnostics.constraint or "") else ""
     return f"QP{extra} {result.solver} {str(result.hold).upper()} N={result.steps}"
 
 

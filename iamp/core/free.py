@@ -22,6 +22,7 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from iamp.core.diagnostics import Diagnostics
 from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem
 from iamp.core.status import NUMERICAL_ERROR, OPTIMAL
@@ -105,11 +106,12 @@ def free_plan(problem: Problem | EgoBoundary, planner: str) -> Plan:
     prob = problem if isinstance(problem, Problem) else Problem(problem, (), "free")
     traj = FreeTrajectory.of(prob.ego)
     plan = Plan(problem=prob, planner=planner, status=OPTIMAL, cost=traj.cost(prob.tf), contact_times=np.zeros(0),
-                jumps=np.zeros((0, 2)), trajectory=traj, info={"free": True})
+                jumps=np.zeros((0, 2)), trajectory=traj, diagnostics=Diagnostics(free=True, order=("free",)))
     # the self-check: the boundary conditions recomputed (the input is linear: nothing else to meet)
     scale = max(1.0, float(np.max(np.abs(np.r_[prob.ego.initial, prob.ego.final]))))
     plan.residuals = {"boundary": plan.boundary_residual()}
     if plan.residuals["boundary"] > tol("cmp_residual_rel_clarabel") * scale:
-        plan.status, plan.cost, plan.info["failed_check"] = NUMERICAL_ERROR, None, "boundary"
+        plan.status, plan.cost = NUMERICAL_ERROR, None
+        plan.annotate(failed_check="boundary")
     plan.solve_time_s = time.perf_counter() - start
     return plan

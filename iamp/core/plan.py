@@ -13,12 +13,15 @@ trajectory that can be evaluated at any :math:`t \in [0, t_f]`.  A plan whose st
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from iamp.core.diagnostics import Diagnostics
 from iamp.core.peaks import PeaksReport, peaks_report
 from iamp.core.problem import Problem
 from iamp.core.safety import SafetyReport, safety_report
@@ -42,7 +45,7 @@ class Trajectory(Protocol):
         ...
 
 
-@dataclass
+@dataclass(init=False)
 class Plan:
     """The outcome of one plan.
 
@@ -70,8 +73,14 @@ class Plan:
         Max-abs residual of every condition the planner solved or satisfied.
     solver, hold, steps : optional
         QP configuration (``None`` for the PMP; ``steps`` is the output sampling).
-    info : dict
-        Planner-specific extras (the sweep's candidates, the checks and which one failed).
+    diagnostics : Diagnostics
+        How the planner reached the plan (the checks and which one failed, the search, the
+        sweep's candidates): the planner family's frozen, typed subclass of
+        :class:`~iamp.core.diagnostics.Diagnostics`.
+    info : Mapping (read-only, deprecated)
+        ``diagnostics.as_info()``, the old ``info`` dict's keys and values; kept for one
+        release, read :attr:`diagnostics` instead.  ``Plan(..., info={...})`` is still
+        accepted (converted with :meth:`Diagnostics.from_info`).
     """
 
     problem: Problem
@@ -86,9 +95,35 @@ class Plan:
     solver: str | None = None
     hold: str | None = None
     steps: int | None = None
-    info: dict[str, Any] = field(default_factory=dict)
-    _safety: SafetyReport | None = field(default=None, init=False, repr=False, compare=False)
-    _peaks: PeaksReport | None = field(default=None, init=False, repr=False, compare=False)
+    diagnostics: Diagnostics = field(default_factory=Diagnostics)
+    _safety: SafetyReport | None = field(default=None, repr=False, compare=False)
+    _peaks: PeaksReport | None = field(default=None, repr=False, compare=False)
+
+    def __init__(self, problem: Problem, planner: str, status: str, cost: float | None,
+                 contact_times: FloatArray, jumps: FloatArray, trajectory: Trajectory | None,
+                 solve_time_s: float = 0.0, residuals: dict[str, float] | None = None,
+                 solver: str | None = None, hold: str | None = None, steps: int | None = None,
+                 diagnostics: Diagnostics | None = None, info: Mapping[str, object] | None = None,
+                 _safety: SafetyReport | None = None, _peaks: PeaksReport | None = None) -> None:
+        self.problem, self.planner, self.status, self.cost = problem, planner, status, cost
+        self.contact_times, self.jumps, self.trajectory = contact_times, jumps, trajectory
+        self.solve_time_s = solve_time_s
+        self.residuals = {} if residuals is None else residuals
+        self.solver, self.hold, self.steps = solver, hold, steps
+        if diagnostics is not None and info:
+            raise ValueError("give a plan either diagnostics or info (deprecated), not both")
+        self.diagnostics = diagnostics if diagnostics is not None else Diagnostics.from_info(info or {})
+        self._safety, self._peaks = _safety, _peaks
+
+    @property
+    def info(self) -> Mapping[str, Any]:
+        """Deprecated: the read-only mapping ``diagnostics.as_info()`` (the old ``info`` dict)."""
+        return MappingProxyType(self.diagnostics.as_info())
+
+    def annotate(self, **values: object) -> None:
+        """Set diagnostics fields after the plan is made (a new frozen
+        :class:`~iamp.core.diagnostics.Diagnostics` of the same family)."""
+        self.diagnostics = self.diagnostics.updated(**values)
 
     # --- status ------------------------------------------------------------------------
     def is_optimal(self) -> bool:
@@ -151,8 +186,8 @@ class Plan:
             return self
         what = "; ".join(f"{p.name} peaks at {p.peak} beyond {p.bound} by {p.violation:.3g} (t = {p.at})"
                          for p in bad)
-        self.info["reason"] = f"the plan exceeds its limits: {what}" + (f"; {remedy}" if remedy else "")
-        self.info["status_before_limits"] = self.status
+        self.annotate(reason=f"the plan exceeds its limits: {what}" + (f"; {remedy}" if remedy else ""),
+                      status_before_limits=self.status)
         self.status = LIMITS_VIOLATED
         return self
 
@@ -162,7 +197,7 @@ class Plan:
         (:func:`iamp.core.peaks.peaks_report`), computed once; ``None`` without a trajectory."""
         if self._peaks is None and self.trajectory is not None:
             self._peaks = peaks_report(self.trajectory, self.problem.tf, self.problem.limits)
-            sides = self.info.get("polygon_sides")
+            sides = self.diagnostics.polygon_sides
             if sides is not None:
                 self._peaks.polygon_sides = int(sides)
         return self._peaks
@@ -210,17 +245,21 @@ class Plan:
             out["limits"] = peaks.to_json()
             if peaks.warnings:
                 out["limits_warnings"] = list(peaks.warnings)
+        d = self.diagnostics
+        reported = set(d.order)
         for key in ("limits_infeasible", "limits_polygon_sides"):
-            if key in self.info:
-                out[key] = self.info[key]
-        if ok and "avoidance" in self.info:
-            out["avoidance"] = self.info["avoidance"]
-        if "active_set" in self.info:
-            out["active_set"] = self.info["active_set"]
-        if not ok and self.info.get("failed_check") is not None:
-            out["failed_check"] = self.info["failed_check"]
-        if self.status == UNSAFE and self.info.get("unsafe_reason") is not None:
-            out["reason"] = self.info["unsafe_reason"]
-        if not ok and self.info.get("reason") is not None:
-            out["reason"] = self.info["reason"]
+            if key in reported or getattr(d, key) is not None:
+                out[key] = getattr(d, key)
+        avoidance = getattr(d, "avoidance", None) or d.extra.get("avoidance")
+        if ok and avoidance is not None:
+            out["avoidance"] = avoidance
+        active_set = getattr(d, "active_set", None) or d.extra.get("active_set")
+        if active_set is not None:
+            out["active_set"] = active_set
+        if not ok and d.failed_check is not None:
+            out["failed_check"] = d.failed_check
+        if self.status == UNSAFE and d.unsafe_reason is not None:
+            out["reason"] = d.unsafe_reason
+        if not ok and d.reason is not None:
+            out["reason"] = d.reason
         return out

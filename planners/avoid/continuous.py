@@ -61,6 +61,7 @@ from iamp.core.tolerances import tol
 from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
+from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan
 from iamp.planners.avoid.solve import BoundSolver
 from iamp.planners.qp.backends import BACKENDS
@@ -617,7 +618,7 @@ class ContinuousAvoidPlanner:
             status = st.OPTIMAL if closed else st.LOCAL
         plan = Plan(problem=problem, planner="qp", status=status, cost=cost if status in st.SUCCESS else None,
                     contact_times=np.asarray(tau, dtype=float), jumps=jumps, trajectory=traj,
-                    solve_time_s=0.0, solver=self.solver, hold=self.hold, steps=int(self.steps), info=info)
+                    solve_time_s=0.0, solver=self.solver, hold=self.hold, steps=int(self.steps))
         safety = plan.safety
         intrusion = max((vs.max_intrusion_m for vs in safety.vehicles), default=0.0) if safety is not None else 0.0
         if safety is not None and not safety.intrusion_free:
@@ -633,13 +634,15 @@ class ContinuousAvoidPlanner:
                              "complete_sweep": bool(closed), "n_solves": info["n_solves"], "vehicles": vehicles,
                              "max_intrusion_m": float(intrusion), "kkt": kkt, "kkt_tol": limit,
                              "failed_checks": failed}
+        plan.diagnostics = AvoidDiagnostics.from_info(info)
         plan.solve_time_s = time.perf_counter() - start
         return plan
 
 
 def summary_lines(plan: Plan) -> list[str]:
     """The text summary of a continuous-time avoidance plan."""
-    av = plan.info.get("avoidance", {})
+    diag = plan.diagnostics
+    av: Any = (diag.avoidance if isinstance(diag, AvoidDiagnostics) else None) or {}
     sr = av.get("search", {})
     out = [f"cost J    {plan.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]",
            f"time      {plan.solve_time_s * 1e3:.3f} ms ({av.get('n_solves')} QPs; branch and bound over crossing "

@@ -42,6 +42,7 @@ from iamp.core.problem import Problem
 
 from .check import crossing_orders, leave_time
 from .data import HalfPlane
+from .diagnostics import AvoidDiagnostics
 
 FloatArray = NDArray[np.float64]
 
@@ -80,7 +81,7 @@ class PMPAvoidPlanner:
                  info: dict[str, Any]) -> Plan:
             return Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=times, jumps=jumps,
                         trajectory=traj, solve_time_s=time.perf_counter() - start,
-                        info={"constraint": "avoid", **info})
+                        diagnostics=AvoidDiagnostics.from_info({"constraint": "avoid", **info}))
 
         if reason is not None:
             return done(st.INFEASIBLE, None, nan_t, nan_j, None, {"reason": reason})

@@ -32,6 +32,7 @@ from iamp.planners.qp.planner import HoldTrajectory
 from ..qp.backends import BACKENDS
 from .check import AXIS_NAMES, Candidate, FloatArray, kkt_conditions, leave_time
 from .data import AvoidData
+from .diagnostics import AvoidDiagnostics
 
 __all__ = ["ACTIVE_SLACK_M", "QPSolutionData", "failed_plan", "summary_lines", "verified_plan"]
 
@@ -59,7 +60,7 @@ def failed_plan(problem: Problem, status: str, reason: str, start: float, *, sol
     return Plan(problem=problem, planner="qp", status=status, cost=None,
                 contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
                 trajectory=None, solve_time_s=time.perf_counter() - start, solver=solver, hold=hold,
-                steps=steps, info=info)
+                steps=steps, diagnostics=AvoidDiagnostics.from_info(info))
 
 
 def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: bool, info: dict[str, Any],
@@ -106,7 +107,7 @@ def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: 
         status = st.OPTIMAL if complete else st.LOCAL
     plan = Plan(problem=problem, planner="qp", status=status, cost=cost if status in st.SUCCESS else None,
                 contact_times=crossing, jumps=jumps, trajectory=traj, solve_time_s=elapsed, solver=solver,
-                hold=hold, steps=steps, info=info)
+                hold=hold, steps=steps)
     safety = plan.safety
     for entry, vs in zip(vehicles, safety.vehicles if safety is not None else ()):
         entry["between_node_intrusion_m"] = vs.max_intrusion_m
@@ -126,15 +127,17 @@ def verified_plan(problem: Problem, data: AvoidData, cand: Candidate, complete: 
                          "grid_best": info["grid_best"]}
     if failed:
         info["failed_check"] = failed[0]
+    plan.diagnostics = AvoidDiagnostics.from_info(info)
     return plan
 
 
 def summary_lines(plan: Plan) -> list[str]:
     """The text summary of an avoidance plan (the CLI prints it)."""
-    info = plan.info
-    av = info.get("avoidance", {})
+    diag = plan.diagnostics
+    av: Any = (diag.avoidance if isinstance(diag, AvoidDiagnostics) else None) or {}
+    n_solves = diag.n_solves if isinstance(diag, AvoidDiagnostics) else None
     out = [f"cost J    {plan.cost:.9g}   [½∫(u_x² + u_y²) dt, m²/s³]",
-           f"time      {plan.solve_time_s * 1e3:.3f} ms ({info.get('n_solves')} QPs; "
+           f"time      {plan.solve_time_s * 1e3:.3f} ms ({n_solves} QPs; "
            f"{'every' if av.get('complete_sweep') else 'coarse + descent over'} crossing candidate)"]
     for v in av.get("vehicles", []):
         out.append(f"vehicle {v['name']}: in {v['first']} until it crosses at t = {v['crossing_time']:.6f} s, then "

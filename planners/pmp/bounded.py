@@ -73,6 +73,7 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.status import INACCURATE, INFEASIBLE, LIMITS_VIOLATED, LOCAL, NUMERICAL_ERROR, OPTIMAL
 from iamp.core.tolerances import TOLERANCES
+from iamp.planners.pmp.diagnostics import BoundedPMPDiagnostics
 from iamp.planners.pmp.saturated import AxisInfeasible, AxisNoConvergence, AxisSolution, solve_axis
 
 FloatArray = npt.NDArray[np.float64]
@@ -904,9 +905,9 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
     status = bad if bad is not None else (OPTIMAL if certified else LOCAL)
     plan = Plan(problem=problem, planner="pmp", status=status, cost=sol.cost if bad is None else None,
                 contact_times=sol.contact_times.copy(), jumps=sol.jumps, trajectory=sol,
-                solve_time_s=_time.perf_counter() - t0, info=info)
+                solve_time_s=_time.perf_counter() - t0, diagnostics=BoundedPMPDiagnostics.from_info(info))
     plan.residuals = {k: float(v) for k, v in values.items()}
-    plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
+    plan.annotate(hamiltonian_jump_residuals=sol.hamiltonian_jump_residual())
     return plan
 
 
@@ -918,21 +919,20 @@ def apply_state_limits(plan: Plan) -> Plan:
         return plan
     peaks = exact_peaks(plan.trajectory, float(plan.problem.tf), plan_knots(plan))
     report = limits_report(plan.problem, peaks)
-    plan.info["limits"] = report
-    plan.info["peaks"] = peaks
+    plan.annotate(limits=report, peaks=peaks)
     bad = [name for name, r in report.items() if not r["ok"]]
     if bad:
-        plan.info["limits_violated"] = bad
+        plan.annotate(limits_violated=bad)
         # the project's one verdict (Plan.judge_limits: core peaks, the same exact pieces via
         # BoundedSolution.breakpoints) names the bound; this report is the PMP's own check
         plan.judge_limits("the PMP imposes only the input box ax, ay exactly")
         if plan.status != LIMITS_VIOLATED:
-            plan.info["reason"] = "the plan exceeds " + ", ".join(
-                f"{n} (peak {_fmt_bound(report[n]['peak'])}, bound {_fmt_bound(report[n]['bound'])})" for n in bad)
+            plan.annotate(reason="the plan exceeds " + ", ".join(
+                f"{n} (peak {_fmt_bound(report[n]['peak'])}, bound {_fmt_bound(report[n]['bound'])})" for n in bad))
             plan.status = LIMITS_VIOLATED
     else:
-        plan.info["limits_note"] = ("every given bound holds on this plan, so it is "
-                                    f"{plan.status} for the bounded problem too")
+        plan.annotate(limits_note=("every given bound holds on this plan, so it is "
+                                   f"{plan.status} for the bounded problem too"))
     return plan
 
 
@@ -942,7 +942,8 @@ def _failed(problem: Problem, status: str, check: str, info: dict[str, Any], sta
     info.setdefault("checks", {})
     return Plan(problem=problem, planner="pmp", status=status, cost=None,
                 contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
-                trajectory=None, solve_time_s=_time.perf_counter() - start, info=info)
+                trajectory=None, solve_time_s=_time.perf_counter() - start,
+                diagnostics=BoundedPMPDiagnostics.from_info(info))
 
 
 def _fmt_bound(value: Any) -> str:

@@ -51,6 +51,7 @@ from iamp.core.problem import Problem
 from iamp.core.status import INFEASIBLE, LOCAL, NUMERICAL_ERROR, OPTIMAL
 
 from .batch import BatchPlan, plan_batch
+from .diagnostics import PMPDiagnostics
 from .fixed import (
     ValueFunction,
     bridge_kernel,
@@ -209,11 +210,12 @@ class PMPPlanner:
         cost = traj_cost if bad is None else None  # = sol.cost(), computed by the check
         elapsed = _time.perf_counter() - start
         plan = Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=sol.contact_times.copy(),
-                    jumps=sol.jumps.copy(), trajectory=sol, solve_time_s=elapsed, info=info)
+                    jumps=sol.jumps.copy(), trajectory=sol, solve_time_s=elapsed,
+                    diagnostics=PMPDiagnostics.from_info(info))
         if diagnostics:
             with np.errstate(all="ignore"):
                 plan.residuals = sol.residuals()
-                plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
+                plan.annotate(hamiltonian_jump_residuals=sol.hamiltonian_jump_residual())
         return plan
 
     def _plan_limited(self, problem: Problem, contact_times: Any, diagnostics: bool | None,
@@ -232,16 +234,17 @@ class PMPPlanner:
         base = self.plan(problem.with_limits(None), contact_times, diagnostics, progress)
         base.problem = problem
         if base.status not in (OPTIMAL, LOCAL) or box_respected(base):
-            base.info["bounded"] = {"box_active": False,
-                                    "note": "the unbounded plan respects the input box, so it solves "
-                                            "the bounded problem too"} if base.trajectory is not None else {}
+            base.annotate(bounded={"box_active": False,
+                                   "note": "the unbounded plan respects the input box, so it solves "
+                                           "the bounded problem too"} if base.trajectory is not None else {})
             return apply_state_limits(base)
         # no vehicle: the fixed-time problem with no contact time (strictly convex, unique)
         fixed = contact_times if problem.m else np.empty(0)
         plan = plan_bounded(problem, base.contact_times, fixed, start, certify=self.certify_bounded)
-        plan.info["bounded"]["box_active"] = True
-        plan.info["unbounded"] = {"status": base.status, "cost": base.cost,
-                                  "contact_times": [float(x) for x in base.contact_times]}
+        bounded = getattr(plan.diagnostics, "bounded", None)
+        plan.annotate(bounded={**(bounded or {}), "box_active": True},
+                      unbounded={"status": base.status, "cost": base.cost,
+                                 "contact_times": [float(x) for x in base.contact_times]})
         return apply_state_limits(plan)
 
     def _plan_one(self, problem: Problem, start: float, diagnostics: bool) -> Plan:
@@ -268,8 +271,9 @@ class PMPPlanner:
         plan = Plan(problem=problem, planner="pmp", status=OPTIMAL if bad is None else bad,
                     cost=k[7] * L * L / (T * T * T) if bad is None else None, contact_times=ct, jumps=jumps,
                     trajectory=sol, solve_time_s=0.0,
-                    info={"search": {"method": ONE_VEHICLE_METHOD}, "checks": checks, "failed_check": failed,
-                          "certified_global": True})
+                    diagnostics=PMPDiagnostics(search={"method": ONE_VEHICLE_METHOD}, checks=checks,
+                                               failed_check=failed, certified_global=True,
+                                               order=("search", "checks", "failed_check", "certified_global")))
         plan.solve_time_s = _time.perf_counter() - start
         if diagnostics:
             self._full_checks(plan, sol)
@@ -282,10 +286,11 @@ class PMPPlanner:
         with np.errstate(all="ignore"):
             checks, failed, bad = verify(sol, stationary=True)
             plan.residuals = sol.residuals()
-            plan.info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
-        plan.info["checks"] = checks
+            plan.annotate(hamiltonian_jump_residuals=sol.hamiltonian_jump_residual())
+        plan.annotate(checks=checks)
         if bad is not None and plan.status in (OPTIMAL, LOCAL):
-            plan.status, plan.cost, plan.info["failed_check"] = bad, None, failed
+            plan.status, plan.cost = bad, None
+            plan.annotate(failed_check=failed)
 
     @staticmethod
     def _failed(problem: Problem, status: str, check: str, info: dict[str, Any], start: float) -> Plan:
@@ -293,4 +298,5 @@ class PMPPlanner:
         info.setdefault("checks", {})
         return Plan(problem=problem, planner="pmp", status=status, cost=None,
                     contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
-                    trajectory=None, solve_time_s=_time.perf_counter() - start, info=info)
+                    trajectory=None, solve_time_s=_time.perf_counter() - start,
+                    diagnostics=PMPDiagnostics.from_info(info))

@@ -36,6 +36,7 @@ from iamp.core.problem import Problem
 
 from .backends import BACKENDS
 from .core import CandidateResult, CandidateSolver, DiscretisedQP
+from .diagnostics import QPDiagnostics
 from .hold import HOLDS, HoldTrajectory, aligned_grid
 from .options import CONTACTS, check_choice
 from .sweep import Progress, SweepResult, run_sweep
@@ -188,7 +189,7 @@ class QPPlanner:
                    else np.full((m, 2), np.nan),
                    trajectory=r.trajectory if ok and r is not None else None,
                    solve_time_s=time.perf_counter() - start, solver=self.solver, hold=self.hold,
-                   steps=self.steps, info=info)
+                   steps=self.steps, diagnostics=QPDiagnostics.from_info(info))
         if ok:
             res.residuals = {"boundary": res.boundary_residual(), "interior_constraint": res.corner_residual()}
         if r is not None and r.kkt is not None:
@@ -259,7 +260,7 @@ class QPPlanner:
             return plan
         between = {name: plan.peaks.peaks[name].violation for name in ("vx", "y")
                    if name in plan.peaks.peaks and plan.peaks.peaks[name].bound is not None}
-        plan.info["limits_between_nodes"] = between
+        plan.annotate(limits_between_nodes=between)
         return plan.judge_limits("the QP imposes every bound at the grid nodes, so the excess lies between "
                                  "the grid nodes: use limits_between='certified' (--limits-between certified) "
                                  "or a larger N")
