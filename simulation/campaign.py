@@ -160,10 +160,15 @@ def _quiet_dask(quiet: bool) -> Iterator[None]:
     if not quiet:
         yield
         return
-    loggers = [logging.getLogger(n) for n in ("distributed", "dask", "tornado", "asyncio")]
-    levels = [lg.level for lg in loggers]
+    roots = ("distributed", "dask", "tornado", "asyncio")
+    # every existing logger below them too: Dask's logging configuration gives child loggers
+    # (distributed.client, ...) levels of their own, which a parent's level does not override
+    names = sorted({*roots, *(n for n in logging.root.manager.loggerDict if n.split(".")[0] in roots)})
+    loggers = [logging.getLogger(n) for n in names]
+    levels = [(lg.level, lg.disabled) for lg in loggers]
     for lg in loggers:
         lg.setLevel(logging.CRITICAL + 1)
+        lg.disabled = True
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -172,8 +177,9 @@ def _quiet_dask(quiet: bool) -> Iterator[None]:
             except Exception:  # a failing shutdown of an interrupted run is not the user's news
                 pass
     finally:
-        for lg, level in zip(loggers, levels):
+        for lg, (level, disabled) in zip(loggers, levels):
             lg.setLevel(level)
+            lg.disabled = disabled
 
 
 def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, out: str | Path, *,

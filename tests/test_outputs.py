@@ -142,7 +142,10 @@ def test_concurrent_reproduce_into_one_folder_is_refused(tmp_path):
 # --------------------------------------------------------------------------------------------
 
 WRITER = """
-import sys, time
+import signal, sys, time
+# a process started in the background by a non-interactive shell inherits SIGINT ignored
+# (POSIX); a user's Ctrl-C reaches a foreground iamp, which is what this test stands for
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from iamp.cli.main import _sigterm_unwinds
 from iamp.core.atomic import atomic_open
 with _sigterm_unwinds():
