@@ -128,8 +128,8 @@ def campaign_figures(cells: list[dict[str, Any]], rows: list[dict[str, str]], fo
                         continue
                     xs.append(i + (j - (len(planners) - 1) / 2) * width)
                     ys.append(100 * c[f"{key}_rate"])
-                    lo.append(100 * (c[f"{key}_rate"] - c[f"{key}_ci"][0]))
-                    hi.append(100 * (c[f"{key}_ci"][1] - c[f"{key}_rate"]))
+                    lo.append(max(0.0, 100 * (c[f"{key}_rate"] - c[f"{key}_ci"][0])))  # Wilson ends round past 0 and 1
+                    hi.append(max(0.0, 100 * (c[f"{key}_ci"][1] - c[f"{key}_rate"])))
                 ax.bar(xs, ys, width, yerr=[lo, hi], capsize=2, label=p)
             ax.set_xticks(range(len(traffics)), traffics)
             ax.set_ylim(0, 105)  # a 100 % bar's interval cap stays visible

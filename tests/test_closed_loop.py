@@ -419,3 +419,16 @@ def test_every_planner_on_every_mission_reports_finite_section_15_numbers(planne
     assert math.isfinite(s["ego_peak_accel"])
     if planner in ("mobil", "sumo"):
         assert s["planner_calls"] == 0 and s["constrained_plans"] == 0
+
+
+def test_campaign_rate_figure_accepts_wilson_ends_rounded_past_the_rate(tmp_path):
+    """A Wilson interval of a 100 % (or 0 %) rate ends at 1 (0) only up to rounding; the rates
+    figure's error bars must not become negative (a 6-seed campaign crashed on it)."""
+    from iamp.simulation.figures import campaign_figures
+
+    cell = {"mission": "merge", "planner": "pmp", "traffic": "medium"}
+    for key in ("success", "contact", "hard_brake", "limit_violation", "stopped_at_end", "mingap", "ttc_alarm"):
+        cell[f"{key}_rate"] = 1.0
+        cell[f"{key}_ci"] = [0.6, 1.0 - 1e-16]
+    paths = campaign_figures([cell], [], tmp_path)
+    assert paths and all(p.exists() and p.stat().st_size > 0 for p in paths)
