@@ -19,7 +19,10 @@ corner, which may be far from where it would go; the avoidance QP only keeps it 
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from os import PathLike
+from pathlib import Path
+from typing import NotRequired, TypedDict, cast
 
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
@@ -29,15 +32,115 @@ from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 SAME_COST_REL = 1e-6
 
 
-def _run_json(label: str, plan: Plan, constraint: str) -> dict[str, Any]:
+class VehicleSafetyJSON(TypedDict):
+    """One vehicle of the SPEC §9 safety report (:meth:`iamp.core.safety.VehicleSafety.to_json`)."""
+
+    name: str
+    intrusion: list[list[float]]
+    max_intrusion_m: float
+    overlap: list[list[float]]
+    min_clearance_m: float
+
+
+class SafetyJSON(TypedDict):
+    """The SPEC §9 safety report of a plan (:meth:`iamp.core.safety.SafetyReport.to_json`)."""
+
+    collision_free: bool
+    intrusion_free: bool
+    vehicles: list[VehicleSafetyJSON]
+    ego_length_m: float
+    ego_width_m: float
+    intrusion_tol_m: float
+    method: str
+    safety_tolerance_m: float
+    unsafe: bool
+
+
+class AvoidanceJSON(TypedDict):
+    """A run's ``avoidance`` object: the avoidance plan's per-vehicle half-planes and its sweep."""
+
+    safety: object
+    vehicles: list[dict[str, object]]
+    complete_sweep: object
+    n_solves: object
+    certificate: str | None
+
+
+class RunJSON(TypedDict):
+    """One run of a safety comparison (an equality or avoidance plan, SPEC §9, §10)."""
+
+    label: str
+    planner: str
+    constraint: str
+    solver: str | None
+    hold: str | None
+    steps: int | None
+    status: str
+    cost: float | None
+    contact_times: list[float]
+    time_s: float | None
+    safety: SafetyJSON | None
+    reason: NotRequired[str | None]
+    avoidance: NotRequired[AvoidanceJSON]
+    note: NotRequired[str]
+    corners: NotRequired[list[str]]
+    # avoid_section's runs only
+    equality_label: NotRequired[str]
+    cost_of_safety: NotRequired[float | None]
+    cost_of_safety_vs_pmp: NotRequired[float | None]
+    verdict: NotRequired[str]
+
+
+class SafetyPlans(TypedDict):
+    """The plans behind a :func:`safety_comparison` (not JSON)."""
+
+    pmp: Plan
+    equality: Plan
+    avoid: Plan | None
+
+
+class SafetyComparisonJSON(TypedDict):
+    """:func:`safety_comparison`'s result as JSON (:func:`to_json`)."""
+
+    name: str
+    runs: list[RunJSON]
+    cost_of_safety: float | None
+    cost_of_safety_vs_pmp: float | None
+    verdict: str
+
+
+class SafetyComparison(SafetyComparisonJSON):
+    """:func:`safety_comparison`'s result: the JSON fields and the :class:`Plan` objects."""
+
+    plans: SafetyPlans
+
+
+class AvoidSection(TypedDict):
+    """``iamp compare --avoid``'s ``avoidance`` object (:func:`avoid_section`)."""
+
+    equality: list[RunJSON]
+    runs: list[RunJSON]
+
+
+class ReproductionSafety(TypedDict):
+    """The reproduction's safety part (:func:`reproduction_section`)."""
+
+    json: list[SafetyComparisonJSON]
+    figures: dict[str, list[Path]]
+    table: str
+    section: Callable[[dict[str, str], str], str]
+
+
+def _run_json(label: str, plan: Plan, constraint: str) -> RunJSON:
     ok = plan.ok
     safety = plan.safety if ok else None
-    out: dict[str, Any] = {
+    out: RunJSON = {
         "label": label, "planner": plan.planner, "constraint": constraint, "solver": plan.solver, "hold": plan.hold,
         "steps": plan.steps, "status": plan.status, "cost": float(plan.cost) if ok and plan.cost is not None else None,
         "contact_times": [float(t) for t in plan.contact_times] if ok else [],
         "time_s": float(plan.solve_time_s),
-        "safety": safety.to_json() if safety is not None else None,
+        # SafetyReport.to_json has exactly SafetyJSON's keys (SPEC §9)
+        "safety": cast(SafetyJSON, safety.to_json()) if safety is not None else None,
     }
     diag = plan.diagnostics
     if diag.reason:
@@ -55,12 +158,15 @@ def _run_json(label: str, plan: Plan, constraint: str) -> dict[str, Any]:
     return out
 
 
-def _binds(vehicle: dict[str, Any]) -> bool:
+def _binds(vehicle: Mapping[str, object]) -> bool:
     """Does an avoidance plan's inequality bind for this vehicle?  Node-only plans list the
     active nodes per half-plane; continuous ones (SPEC §14) count binding Bernstein rows."""
-    if "binding_rows" in vehicle:
-        return any(int(n) > 0 for n in vehicle["binding_rows"].values())
-    return bool(vehicle["active_H_x"]["nodes"] or vehicle["active_H_y"]["nodes"])
+    rows = vehicle.get("binding_rows")
+    if isinstance(rows, Mapping):
+        return any(int(n) > 0 for n in rows.values())
+    hx, hy = vehicle["active_H_x"], vehicle["active_H_y"]
+    assert isinstance(hx, Mapping) and isinstance(hy, Mapping)
+    return bool(hx["nodes"] or hy["nodes"])
 
 
 def plan_avoid(problem: Problem, *, steps: int, hold: str, solver: str) -> tuple[Plan | None, str | None]:
@@ -110,7 +216,7 @@ def explain(eq: Plan, avoid: Plan) -> str:
         return f"The equality plan failed ({eq.status}); the avoidance plan costs {avoid.cost:.6g}."
     d = avoid.cost - eq.cost
     same = abs(d) <= SAME_COST_REL * max(1.0, abs(eq.cost))
-    binds = [v["name"] for v in _avoidance(avoid)["vehicles"] if _binds(v)]
+    binds = [str(v["name"]) for v in _avoidance_vehicles(avoid) if _binds(v)]
     bind_txt = (f"the inequalities bind for {', '.join(binds)}" if binds else
                 "no inequality binds: the unconstrained optimum is safe")
     av_safety = avoid.safety
@@ -133,7 +239,7 @@ def explain(eq: Plan, avoid: Plan) -> str:
 
 
 def safety_comparison(problem: Problem, *, name: str | None = None, steps: int | None = None,
-                      solver: str = "clarabel", hold: str = "foh") -> dict[str, Any]:
+                      solver: str = "clarabel", hold: str = "foh") -> SafetyComparison:
     """Equality (PMP and QP) and avoidance QP runs on ``problem`` with the cost of safety.
 
     ``steps`` defaults to 100 for one vehicle and 20 for more (SPEC §5b's compare default).
@@ -159,7 +265,7 @@ def safety_comparison(problem: Problem, *, name: str | None = None, steps: int |
 
 
 def _avoid_json(label: str, plan: Plan | None, note: str | None, steps: int, hold: str,
-                solver: str) -> dict[str, Any]:
+                solver: str) -> RunJSON:
     if plan is None:
         return {"label": label, "planner": "qp", "constraint": "avoid", "solver": solver, "hold": hold,
                 "steps": steps, "status": "refused", "cost": None, "contact_times": [], "time_s": None,
@@ -171,20 +277,21 @@ def _avoid_json(label: str, plan: Plan | None, note: str | None, steps: int, hol
     return out
 
 
-def to_json(result: dict[str, Any]) -> dict[str, Any]:
+def to_json(result: SafetyComparison) -> SafetyComparisonJSON:
     """:func:`safety_comparison`'s result without the :class:`Plan` objects."""
-    return {k: v for k, v in result.items() if k != "plans"}
+    return {"name": result["name"], "runs": result["runs"], "cost_of_safety": result["cost_of_safety"],
+            "cost_of_safety_vs_pmp": result["cost_of_safety_vs_pmp"], "verdict": result["verdict"]}
 
 
-def avoid_section(problem: Problem, equality: dict[str, Plan], steps: list[int], solvers: tuple[str, ...],
-                  holds: tuple[str, ...]) -> dict[str, Any]:
+def avoid_section(problem: Problem, equality: Mapping[str, Plan | None], steps: Sequence[int],
+                  solvers: tuple[str, ...], holds: tuple[str, ...]) -> AvoidSection:
     """``iamp compare --avoid``: an avoidance run per ``(N, solver, hold)`` beside the
     equality runs ``equality`` (label -> plan, e.g. ``{"pmp": ..., "qp-clarabel-foh-100": ...}``),
     each with its cost of safety against the equality QP of the same label (and the PMP), and
     every run's SPEC §9 safety."""
     eq_json = [_run_json(lbl, plan, "equality") for lbl, plan in equality.items() if plan is not None]
     pmp = equality.get("pmp")
-    runs = []
+    runs: list[RunJSON] = []
     for n in steps:
         for solver in solvers:
             for hold in holds:
@@ -209,7 +316,7 @@ def _gap(a: Plan | None, b: Plan | None) -> float | None:
     return float(a.cost - b.cost)
 
 
-def section_lines(name: str, section: dict[str, Any]) -> list[str]:
+def section_lines(name: str, section: AvoidSection) -> list[str]:
     """Text lines of :func:`avoid_section`'s result."""
     out = [f"{name}: equality vs avoidance (SPEC §9, §10)"]
     for run in section["equality"] + section["runs"]:
@@ -223,7 +330,7 @@ def section_lines(name: str, section: dict[str, Any]) -> list[str]:
     return out
 
 
-def _safety_text(run: dict[str, Any]) -> str:
+def _safety_text(run: RunJSON) -> str:
     saf = run["safety"]
     if saf is None:
         return str(run.get("reason", "no plan"))
@@ -237,11 +344,11 @@ def _tex(s: str) -> str:
     return s.replace("_", r"\_").replace("%", r"\%").replace("&", r"\&")
 
 
-def _intervals(iv: list[list[float]]) -> str:
+def _intervals(iv: Sequence[Sequence[float]]) -> str:
     return ", ".join(f"{a:.2f}--{b:.2f}" for a, b in iv) or "--"
 
 
-def table_safety(results: list[dict[str, Any]]) -> str:
+def table_safety(results: Sequence[SafetyComparisonJSON]) -> str:
     """A booktabs table: per scenario and run, cost, intrusion and overlap, and the cost of safety."""
     lines = [r"\begin{tabular}{llrlll}", r"\toprule",
              r"scenario & run & $J$ & inside safety region [s] & bodies overlap [s] & $J_{\mathrm{avoid}} - "
@@ -262,7 +369,7 @@ def table_safety(results: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def summary_lines(result: dict[str, Any]) -> list[str]:
+def summary_lines(result: SafetyComparisonJSON) -> list[str]:
     """Text lines for ``iamp compare --avoid``."""
     out = [f"{result['name']}: equality vs avoidance"]
     for run in result["runs"]:
@@ -276,8 +383,8 @@ def summary_lines(result: dict[str, Any]) -> list[str]:
     return out
 
 
-def reproduction_section(problems: dict[str, Problem], fig_dir: Any, *, steps_one: int = 100,
-                         steps_two: int = 20) -> dict[str, Any]:
+def reproduction_section(problems: Mapping[str, Problem], fig_dir: str | PathLike[str], *, steps_one: int = 100,
+                         steps_two: int = 20) -> ReproductionSafety:
     """The reproduction's safety part: :func:`safety_comparison` per scenario (equality PMP and
     QP against the avoidance QP, Clarabel FOH), one x–y figure each
     (:func:`iamp.comparison.figures.safety.plot_safety_xy`), the booktabs table (a ``table``
@@ -287,11 +394,10 @@ def reproduction_section(problems: dict[str, Problem], fig_dir: Any, *, steps_on
     where ``section`` is a function of the figures' and the table's paths relative to the
     report.
     """
-    from pathlib import Path
-
     from iamp.comparison.figures.safety import plot_safety_xy
 
-    results, figures = [], {}
+    results: list[SafetyComparison] = []
+    figures: dict[str, list[Path]] = {}
     for name, problem in problems.items():
         res = safety_comparison(problem, name=name, steps=steps_one if problem.m == 1 else steps_two)
         results.append(res)
@@ -344,9 +450,10 @@ __all__ = [
 ]
 
 
-def _avoidance(plan: Plan) -> Any:
-    """The ``avoidance`` record of an avoidance plan (``KeyError`` for any other plan)."""
+def _avoidance_vehicles(plan: Plan) -> list[Mapping[str, object]]:
+    """The per-vehicle records of an avoidance plan's ``avoidance`` (``KeyError`` for any other plan)."""
     diag = plan.diagnostics
     if not isinstance(diag, AvoidDiagnostics) or diag.avoidance is None:
         raise KeyError("avoidance")
-    return diag.avoidance
+    vehicles = diag.avoidance["vehicles"]
+    return [v for v in vehicles if isinstance(v, Mapping)]

@@ -38,11 +38,82 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict, dataclass
 from importlib import metadata
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, NotRequired, TypedDict, TypeVar, cast
 
 import numpy as np
 
+if TYPE_CHECKING:  # pragma: no cover
+    from iamp.core.plan import Plan
+    from iamp.core.problem import Problem
+
 T = TypeVar("T")
+
+
+class StatsJSON(TypedDict):
+    """:meth:`TimingStats.to_dict`: the statistics of timing samples [s] as JSON."""
+
+    n: int
+    median: float
+    q1: float
+    q3: float
+    iqr: float
+    p95: float
+    mean: float
+    min: float
+    max: float
+    warmup: int
+
+
+class VersionsJSON(TypedDict):
+    """:func:`versions`: library versions and the machine (``None``: not installed)."""
+
+    python: str
+    numpy: str
+    scipy: str
+    cvxpy: str | None
+    osqp: str | None
+    clarabel: str | None
+    piqp: str | None
+    iamp: str
+    numba: str | None
+    platform: str
+    machine: str
+    cpu_count: int | None
+    implementation: str
+    casadi: NotRequired[bool | None]  # ``iamp bench`` adds it
+
+
+class QPBreakdown(TypedDict):
+    """:func:`qp_breakdown`: per-solve timing of one QP configuration, cvxpy and native."""
+
+    solver: str
+    hold: str
+    steps: int
+    cvxpy_compile_s: float
+    cvxpy_resolve_s: StatsJSON
+    cvxpy_solver_s: StatsJSON
+    cvxpy_overhead_s: StatsJSON
+    cvxpy_failed: int
+    native_setup_s: NotRequired[float]
+    native_solve_s: NotRequired[StatsJSON]
+    native_solve_call_s: NotRequired[StatsJSON]
+    native_solver_s: NotRequired[StatsJSON]
+    native_failed: NotRequired[int]
+    native_info: NotRequired[dict[str, object]]
+
+
+class GeomeanEntry(TypedDict):
+    """One label of :func:`geomean_table`."""
+
+    shifted_geomean_s: float
+    n: int
+
+
+class GeomeanTable(TypedDict):
+    """:func:`geomean_table`: shifted geometric means across scenarios, per label."""
+
+    shift_s: float
+    means: dict[str, GeomeanEntry]
 
 #: Default shift of the shifted geometric mean [s].
 DEFAULT_SHIFT_S = 0.01
@@ -66,8 +137,8 @@ class TimingStats:
     max: float
     warmup: int = 0
 
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+    def to_dict(self) -> StatsJSON:
+        return cast(StatsJSON, asdict(self))  # the fields, in order
 
 
 def summarize(samples: Iterable[float], warmup: int = 0) -> TimingStats:
@@ -144,7 +215,7 @@ def _iamp_version() -> str:
     return __version__
 
 
-def versions() -> dict[str, Any]:
+def versions() -> VersionsJSON:
     """Library versions and the machine the numbers come from."""
     import numpy
     import scipy
@@ -172,7 +243,7 @@ def versions() -> dict[str, Any]:
     }
 
 
-def solver_settings() -> dict[str, dict[str, Any]]:
+def solver_settings() -> dict[str, dict[str, object]]:
     """The default settings of every QP backend (:data:`iamp.planners.qp.backends.BACKENDS`)."""
     from iamp.planners.qp.backends import BACKENDS
 
@@ -184,7 +255,7 @@ def solver_settings() -> dict[str, dict[str, Any]]:
 # --------------------------------------------------------------------------------------
 
 
-def _pmp_plan_fn(problem: Any) -> Callable[[], Any]:
+def _pmp_plan_fn(problem: Problem) -> Callable[[], Plan]:
     import inspect
 
     from iamp.planners.pmp.planner import PMPPlanner
@@ -195,14 +266,14 @@ def _pmp_plan_fn(problem: Any) -> Callable[[], Any]:
     return lambda: planner.plan(problem)
 
 
-def time_pmp(problem: Any, repeats: int = 50, warmup: int = 3) -> TimingStats:
+def time_pmp(problem: Problem, repeats: int = 50, warmup: int = 3) -> TimingStats:
     """The PMP plan (global contact-time search + jump-condition solve + cost); the
     residual report is left out when the planner allows it (it is a diagnostic)."""
     stats, _ = measure(_pmp_plan_fn(problem), repeats, warmup)
     return stats
 
 
-def sample_nodes(problem: Any, N: int, count: int, seed: int = 0) -> list[tuple[int, ...]]:
+def sample_nodes(problem: Problem, N: int, count: int, seed: int = 0) -> list[tuple[int, ...]]:
     """``count`` distinct candidate node tuples spread over the sweep (deterministic)."""
     rng = np.random.default_rng(seed)
     m = problem.m
@@ -213,8 +284,8 @@ def sample_nodes(problem: Any, N: int, count: int, seed: int = 0) -> list[tuple[
     return out
 
 
-def qp_breakdown(problem: Any, steps: int = 100, hold: str = "foh", solver: str = "clarabel",
-                 repeats: int = 20, native: bool = True) -> dict[str, Any]:
+def qp_breakdown(problem: Problem, steps: int = 100, hold: str = "foh", solver: str = "clarabel",
+                 repeats: int = 20, native: bool = True) -> QPBreakdown:
     """Per-solve timing of one QP configuration, cvxpy and native, separated.
 
     Returns ``{"cvxpy_compile_s", "cvxpy_resolve_s", "cvxpy_solver_s", "cvxpy_overhead_s",
@@ -233,13 +304,12 @@ def qp_breakdown(problem: Any, steps: int = 100, hold: str = "foh", solver: str 
     from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
 
     nodes = sample_nodes(problem, steps, repeats + 1)
-    out: dict[str, Any] = {"solver": solver, "hold": hold, "steps": int(steps)}
     t0 = time.perf_counter()
     qp = CvxpyQPPlanner(steps=steps, hold=hold, solver=solver).build(problem)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         qp.solve_nodes(nodes[0])
-    out["cvxpy_compile_s"] = time.perf_counter() - t0
+    compile_s = time.perf_counter() - t0
     totals: list[float] = []
     own: list[float] = []
     fails = 0
@@ -249,10 +319,10 @@ def qp_breakdown(problem: Any, steps: int = 100, hold: str = "foh", solver: str 
         totals.append(time.perf_counter() - t0)
         own.append(r.solver_time_s if r.solver_time_s is not None else np.nan)
         fails += r.status != "optimal"
-    out["cvxpy_resolve_s"] = summarize(totals).to_dict()
-    out["cvxpy_solver_s"] = summarize(own).to_dict()
-    out["cvxpy_overhead_s"] = summarize(np.array(totals) - np.array(own)).to_dict()
-    out["cvxpy_failed"] = int(fails)
+    out: QPBreakdown = {"solver": solver, "hold": hold, "steps": int(steps), "cvxpy_compile_s": compile_s,
+                        "cvxpy_resolve_s": summarize(totals).to_dict(), "cvxpy_solver_s": summarize(own).to_dict(),
+                        "cvxpy_overhead_s": summarize(np.array(totals) - np.array(own)).to_dict(),
+                        "cvxpy_failed": int(fails)}
     if native:
         from iamp.planners.qp.core import DiscretisedQP
 
@@ -286,15 +356,15 @@ def time_search(planner_fn: Callable[[], T], repeats: int = 3, warmup: int = 1,
 
 
 def geomean_table(per_scenario: Mapping[str, Mapping[str, float | None]],
-                  shift: float = DEFAULT_SHIFT_S) -> dict[str, Any]:
+                  shift: float = DEFAULT_SHIFT_S) -> GeomeanTable:
     """Shifted geometric means across scenarios.
 
     ``per_scenario`` maps a scenario name to ``{label: median seconds}``; labels missing
     from a scenario are left out of that label's mean (the count is reported).
     """
     labels = sorted({lab for d in per_scenario.values() for lab in d})
-    means: dict[str, Any] = {}
-    out: dict[str, Any] = {"shift_s": shift, "means": means}
+    means: dict[str, GeomeanEntry] = {}
+    out: GeomeanTable = {"shift_s": shift, "means": means}
     for lab in labels:
         vals = [float(v) for d in per_scenario.values() if (v := d.get(lab)) is not None and math.isfinite(v)]
         if vals:

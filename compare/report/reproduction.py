@@ -291,7 +291,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
                       ("bounded", bounded_latex(bounded))):
         written.append(atomic_write_text(tdir / f"{key}.tex", text))
         tables[key] = f"tables/{key}.tex"
-    res = {"produced_by": "iamp.comparison.report.reproduce", "config": asdict(cfg), "notes": notes,
+    res: dict[str, Any] = {"produced_by": "iamp.comparison.report.reproduce", "config": asdict(cfg), "notes": notes,
            "versions": versions_used(), "scenarios": scen_out, "qualitative": qual, "zoh_convergence": conv,
            "timing": timing, "predictor": predictor, "safety": safety["json"],
            "campaign": {k: v for k, v in campaign.items() if k != "table"},

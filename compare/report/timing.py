@@ -14,14 +14,24 @@ import os
 import platform
 import time
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any
+from typing import Any, TypedDict
 
-from iamp.comparison.timing import dist_version, sample_nodes, summarize
+from iamp.comparison.timing import StatsJSON, dist_version, sample_nodes, summarize
 
 from .config import ProgressFn, ReproduceConfig
 from .tex import short_label
 
-__all__ = ["timing_section", "versions_used", "whole_plan_stats"]
+__all__ = ["EmptyStatsJSON", "timing_section", "versions_used", "whole_plan_stats"]
+
+
+class EmptyStatsJSON(TypedDict):
+    """The statistics of no samples."""
+
+    n: int
+    median: None
+    q1: None
+    q3: None
+    iqr: None
 
 
 def _next_solve(qp: Any, nodes: Iterator[Any]) -> Callable[[], object]:
@@ -39,7 +49,7 @@ def _samples(fn: Callable[[], object], repeats: int) -> list[float]:
     return out
 
 
-def _summary(samples: Sequence[float]) -> dict[str, Any]:
+def _summary(samples: Sequence[float]) -> StatsJSON | EmptyStatsJSON:
     """:func:`iamp.comparison.timing.summarize` as a dict (``n = 0`` and ``None`` statistics for no
     samples)."""
     if len(samples) == 0:
