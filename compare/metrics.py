@@ -12,7 +12,8 @@ Used by :func:`iamp.comparison.report.reproduce`.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Mapping
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,7 +39,53 @@ def _crossing_time(t: NDArray[np.float64], y: NDArray[np.float64], level: float)
 INSIDE_TOL_M = INTRUSION_TOL_M
 
 
-def manoeuvre_metrics(result: Plan) -> dict[str, Any]:
+class ManoeuvreMetrics(TypedDict):
+    """:func:`manoeuvre_metrics`: aggressiveness and safety of a plan (lists: per vehicle)."""
+
+    J: float
+    J_x: float
+    J_y: float
+    t_contact: list[float]
+    x_contact: list[float]
+    t_cross: float | None
+    lane_divider_y: float
+    peak_ax: float
+    peak_ay: float
+    peak_jerk_x: float
+    peak_jerk_y: float
+    min_vx: float
+    max_vx: float
+    final_gap_to_corner: list[float]
+    vehicle_speed_0: list[float]
+    vehicle_speed_tf: list[float]
+    inside_safety_box: list[list[list[float]]]
+    max_depth_inside_safety_box: list[float]
+    body_overlap: list[list[list[float]]]
+
+
+class QualitativeMeasure(TypedDict):
+    """One measure of :func:`qualitative_comparison`: scenario 1's value against the other's."""
+
+    measure: str
+    label: str
+    scenario_1: float
+    other: float
+    other_is: str
+
+
+class QualitativeEntry(TypedDict):
+    """:func:`qualitative_comparison` of one scenario against scenario 1."""
+
+    paper_claim: str
+    observed_majority: str
+    n_more_aggressive: int
+    n_more_conservative: int
+    n_measures: int
+    measures: list[QualitativeMeasure]
+    consistent_with_paper: bool
+
+
+def manoeuvre_metrics(result: Plan) -> ManoeuvreMetrics:
     """Measurable aggressiveness and safety of a plan (on a 1 ms grid).
 
     ``t_cross``: first crossing of the lane divider half-way between ``y0`` and vehicle 1's
@@ -102,20 +149,24 @@ AGGRESSION_MEASURES = (
 )
 
 
-def qualitative_comparison(metrics: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def qualitative_comparison(metrics: Mapping[str, ManoeuvreMetrics]) -> dict[str, QualitativeEntry]:
     """Scenario 2 vs 1 (paper: more aggressive) and 3 vs 1 (paper: more conservative)."""
-    def val(m: dict[str, Any], key: str) -> Any:
+    def val(m: ManoeuvreMetrics, key: str) -> float | None:
         v = m.get(key)
-        return v[0] if isinstance(v, list) else v
+        if isinstance(v, list):
+            v = v[0]
+        assert v is None or isinstance(v, float | int)
+        return v
 
-    out: dict[str, Any] = {}
+    out: dict[str, QualitativeEntry] = {}
     if "paper-1" not in metrics:
         return out
     base = metrics["paper-1"]
     for other, claim in (("paper-2", "more aggressive"), ("paper-3", "more conservative")):
         if other not in metrics:
             continue
-        rows, n_agg, n_cons = [], 0, 0
+        rows: list[QualitativeMeasure] = []
+        n_agg = n_cons = 0
         for key, label, sign in AGGRESSION_MEASURES:
             a, b = val(base, key), val(metrics[other], key)
             if a is None or b is None:

@@ -25,21 +25,25 @@ the grid candidates (the FOH sweep's exact optimum).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from iamp.core.plan import Plan
 
+from .records import RunGaps, SameContactTimes
 from .verdict import plan_cost
+
+if TYPE_CHECKING:  # pragma: no cover
+    from iamp.planners.pmp.solution import PMPSolution
 
 __all__ = ["at_same_contact_times", "grid_optimum_gap", "run_vs_run_gaps"]
 
 FloatArray = NDArray[np.float64]
 
 
-def run_vs_run_gaps(a: Plan, b: Plan, t_nodes: FloatArray) -> dict[str, float]:
+def run_vs_run_gaps(a: Plan, b: Plan, t_nodes: FloatArray) -> RunGaps:
     """The headline gaps of run ``b`` against run ``a`` (module docstring), states and inputs
     compared at ``t_nodes``; both plans verified (``optimal``)."""
     Xa, Ua = a.require_trajectory().states(t_nodes), a.require_trajectory().inputs(t_nodes)
@@ -52,14 +56,15 @@ def run_vs_run_gaps(a: Plan, b: Plan, t_nodes: FloatArray) -> dict[str, float]:
             "jump_gap": float(np.max(np.abs(b.jumps - a.jumps)))}
 
 
-def at_same_contact_times(qp: Plan, pmp_at: Any, tQ: FloatArray, t_nodes: FloatArray) -> dict[str, Any]:
+def at_same_contact_times(qp: Plan, pmp_at: PMPSolution, tQ: FloatArray,
+                          t_nodes: FloatArray) -> SameContactTimes:
     """The QP against the PMP re-solved at its contact times ``tQ``.
 
     Parameters
     ----------
     qp : Plan
         The verified QP plan.
-    pmp_at : FixedTimeSolution
+    pmp_at : PMPSolution
         :func:`iamp.planners.pmp.planner.solve_fixed_times` at ``tQ`` (``cost()``, ``states``,
         ``inputs``, ``jumps``).
     tQ : ndarray

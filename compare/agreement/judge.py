@@ -100,12 +100,17 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
+from iamp.comparison.timing import QPBreakdown
 from iamp.comparison.trajectories import pmp_solution
 from iamp.core.problem import Problem
 
 from .fingerprints import problem_fingerprint, x_poly_fingerprint
 from .pmp_qp import compare_pmp_qp
 from .qp_qp import compare_qp_qp
+from .records import PairJSON
 from .runs import QPConfig, Run, default_configs, run_pmp, run_qp
 from .signs import sign_entry
 from .verdict import VERDICT_AGREE, VERDICT_DISAGREE
@@ -125,8 +130,9 @@ class ProblemComparison:
     name: str
     problem: Problem
     runs: list[Run]
-    agreement: list[dict[str, Any]]
-    timing: dict[str, Any] = field(default_factory=dict)
+    agreement: list[PairJSON]
+    #: ``iamp compare`` adds ``"breakdown"``: :func:`iamp.comparison.timing.qp_breakdown` per configuration
+    timing: dict[str, list[QPBreakdown]] = field(default_factory=dict)
 
     @property
     def all_agree(self) -> bool:
@@ -145,7 +151,7 @@ class ProblemComparison:
                 return r
         raise KeyError(label)
 
-    def pair(self, a: str, b: str) -> dict[str, Any]:
+    def pair(self, a: str, b: str) -> PairJSON:
         """The verdict of the pair ``(a, b)``."""
         for p in self.agreement:
             if p["a"] == a and p["b"] == b:
@@ -234,7 +240,7 @@ def compare_problem(problem: Problem, configs: Iterable[QPConfig], name: str | N
         if progress is not None:
             progress(k + 2, len(configs) + 1)
     pmp = runs[0]
-    tables: dict[tuple[int, str], tuple[Any, Any]] = {}
+    tables: dict[tuple[int, str], tuple[NDArray[np.int_], NDArray[np.float64]]] = {}
     agreement = [compare_pmp_qp(problem, pmp, r, tables) for r in runs[1:]]
     if qp_pairs:
         qps = runs[1:]

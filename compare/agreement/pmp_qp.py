@@ -26,7 +26,7 @@ The gaps reported beside the verdict come from :mod:`iamp.comparison.agreement.g
 from __future__ import annotations
 
 import itertools
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,7 +37,11 @@ from iamp.core.tolerances import tol
 from iamp.planners.pmp.planner import ValueFunction, solve_fixed_times
 from iamp.planners.qp.diagnostics import QPDiagnostics
 
+if TYPE_CHECKING:  # pragma: no cover
+    from iamp.planners.qp.hold import HoldTrajectory
+
 from .gaps import at_same_contact_times, grid_optimum_gap, run_vs_run_gaps
+from .records import ContinuousJSON, PairJSON, SameContactTimes, ZohGapJSON, ZohReference
 from .references import grid_cost_table, zoh_reference
 from .runs import Run
 from .signs import sign_entry
@@ -46,15 +50,17 @@ from .verdict import Checks, plan_cost, pmp_own_checks, same_problem, solver_tol
 __all__ = ["compare_pmp_qp"]
 
 #: ``(steps, hold) -> (candidates, J)`` of :func:`grid_cost_table`, shared by the pairs of one problem.
-GridTables = dict[tuple[int, str], tuple[Any, Any]]
+#: :func:`grid_cost_table` results by ``(steps, hold)``: the candidates and their costs.
+GridTables = dict[tuple[int, str], tuple[NDArray[np.int_], NDArray[np.float64]]]
 
 
-def _nodes_of(traj: Any, times: NDArray[np.float64]) -> list[int]:
+def _nodes_of(traj: HoldTrajectory, times: NDArray[np.float64]) -> list[int]:
     t_nodes = np.asarray(traj.t_nodes)
     return [int(np.argmin(np.abs(t_nodes - t))) for t in times]
 
 
-def _grid_table(problem: Problem, steps: int, hold: str, tables: GridTables | None) -> tuple[Any, Any]:
+def _grid_table(problem: Problem, steps: int, hold: str,
+                tables: GridTables | None) -> tuple[NDArray[np.int_], NDArray[np.float64]]:
     """:func:`grid_cost_table`, cached in ``tables`` by ``(steps, hold)`` when given."""
     key = (steps, hold)
     if tables is not None and key in tables:
@@ -65,7 +71,7 @@ def _grid_table(problem: Problem, steps: int, hold: str, tables: GridTables | No
     return cands, J
 
 
-def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: GridTables | None = None) -> dict[str, Any]:
+def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: GridTables | None = None) -> PairJSON:
     """Judge one ``pmp`` / QP pair (rules 0–7 of :mod:`iamp.comparison.agreement.judge`).
 
     ``tables`` caches :func:`grid_cost_table` results by ``(steps, hold)``.  Returns the
@@ -75,7 +81,7 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: GridTables | Non
     """
     checks = Checks()
     cfg = qp.config
-    out: dict[str, Any] = {"a": pmp.label, "b": qp.label, "cost_rel_gap": None, "contact_time_gap": None,
+    out: PairJSON = {"a": pmp.label, "b": qp.label, "cost_rel_gap": None, "contact_time_gap": None,
                            "state_sup_gap": None, "input_sup_gap": None, "jump_gap": None}
     same_problem(pmp, qp, checks)
     if not pmp.ok:
@@ -102,30 +108,31 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: GridTables | Non
     J_pmp_tQ = pmp_at.cost()
     X_qp = traj.states(t_nodes)
     X_p, U_p = pmp_at.states(t_nodes), pmp_at.inputs(t_nodes)
-    out.update(run_vs_run_gaps(pmp.result, res, t_nodes))  # SPEC §5b headline
+    gaps = run_vs_run_gaps(pmp.result, res, t_nodes)  # SPEC §5b headline
+    out["cost_rel_gap"], out["contact_time_gap"] = gaps["cost_rel_gap"], gaps["contact_time_gap"]
+    out["state_sup_gap"], out["input_sup_gap"] = gaps["state_sup_gap"], gaps["input_sup_gap"]
+    out["jump_gap"] = gaps["jump_gap"]
     same = at_same_contact_times(res, pmp_at, tQ, t_nodes)  # a separate, named key
     out["at_same_contact_times"] = same
     # the exact reference at t_Q
-    z: dict[str, Any] = {}
+    z: ZohReference | None = None
     if hold == "foh":
-        ref: dict[str, Any] = {"cost": J_pmp_tQ, "X": X_p, "U": U_p, "nu": pmp_at.jumps,
-                               "what": "PMP at the QP's contact times"}
+        ref_cost, ref_X, ref_U, ref_nu = J_pmp_tQ, X_p, U_p, pmp_at.jumps
+        out["reference"] = "PMP at the QP's contact times"
         U_cmp = traj.inputs(t_nodes)
     else:
         z = zoh_reference(problem, t_nodes, nodes)
-        ref = {"cost": z["cost"], "X": z["X"], "U": z["U"], "nu": z["nu"],
-               "what": "closed-form ZOH optimum at the QP's contact times"}
+        ref_cost, ref_X, ref_U, ref_nu = z["cost"], z["X"], z["U"], z["nu"]
+        out["reference"] = "closed-form ZOH optimum at the QP's contact times"
         U_cmp = np.asarray(traj.U)
-    out["reference"] = ref["what"]
     # rule 2: solver precision
-    checks.check("cost_vs_reference_rel", abs(J_qp - ref["cost"]) / abs(ref["cost"]),
-                 solver_tol("cost_rel", solver))
-    xs = max(1.0, float(np.max(np.abs(ref["X"]))))
-    checks.check("state_vs_reference_rel", np.max(np.abs(X_qp - ref["X"])) / xs, solver_tol("state_rel", solver))
-    us = max(1.0, float(np.max(np.abs(ref["U"]))))
-    checks.check("input_vs_reference_rel", np.max(np.abs(U_cmp - ref["U"])) / us, solver_tol("state_rel", solver))
-    js = max(1.0, float(np.max(np.abs(ref["nu"]))))
-    checks.check("jump_vs_reference_rel", np.max(np.abs(res.jumps - ref["nu"])) / js, solver_tol("jump_rel", solver))
+    checks.check("cost_vs_reference_rel", abs(J_qp - ref_cost) / abs(ref_cost), solver_tol("cost_rel", solver))
+    xs = max(1.0, float(np.max(np.abs(ref_X))))
+    checks.check("state_vs_reference_rel", np.max(np.abs(X_qp - ref_X)) / xs, solver_tol("state_rel", solver))
+    us = max(1.0, float(np.max(np.abs(ref_U))))
+    checks.check("input_vs_reference_rel", np.max(np.abs(U_cmp - ref_U)) / us, solver_tol("state_rel", solver))
+    js = max(1.0, float(np.max(np.abs(ref_nu))))
+    checks.check("jump_vs_reference_rel", np.max(np.abs(res.jumps - ref_nu)) / js, solver_tol("jump_rel", solver))
     # rule 3: KKT
     if qp.kkt is None:
         checks.fail("KKT residuals unavailable")
@@ -142,12 +149,12 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: GridTables | Non
     J_vf_tQ = float(ValueFunction(problem)(tQ[None, :])[0])
     checks.check("pmp_global_lower_bound", (J_star - J_vf_tQ) / abs(J_star), ctol,
                  why="the QP's candidate has a lower PMP cost than t*: the PMP's search missed the global optimum")
-    cont: dict[str, Any] = {"h": h_max}
+    cont: ContinuousJSON = {"h": h_max}
     if cfg.contact == "grid":
         _grid_rules(problem, N, hold, nodes, tQ, t_star, J_qp, ctol, tables, out, same, cont, checks)
     elif hold == "foh":  # refine
         checks.check("refine_cost_vs_continuous_rel", abs(J_qp - J_star) / abs(J_star), tol("refine_cost_rel"))
-    if hold == "zoh":
+    if hold == "zoh" and z is not None:
         out["zoh_gap"] = _zoh_rule(J_qp, J_pmp_tQ, z, ctol, checks)
     out["continuous"] = cont
     out["verdict_basis"] = ("solver precision at the QP's own contact times (at_same_contact_times), KKT and "
@@ -162,7 +169,7 @@ def compare_pmp_qp(problem: Problem, pmp: Run, qp: Run, tables: GridTables | Non
 
 def _grid_rules(problem: Problem, N: int, hold: str, nodes: list[int], tQ: NDArray[np.float64],
                 t_star: NDArray[np.float64], J_qp: float, ctol: float, tables: GridTables | None,
-                out: dict[str, Any], same: dict[str, Any], cont: dict[str, Any], checks: Checks) -> None:
+                out: PairJSON, same: SameContactTimes, cont: ContinuousJSON, checks: Checks) -> None:
     """Rules 5 and 6 (upper bound) of a grid sweep; the gap to the grid optimum into ``same``."""
     cands, Jtab = _grid_table(problem, N, hold, tables)
     lookup = {tuple(c): j for c, j in zip(cands.tolist(), Jtab)}
@@ -186,12 +193,13 @@ def _grid_rules(problem: Problem, N: int, hold: str, nodes: list[int], tQ: NDArr
                      why="the sweep's best is worse than a grid candidate bracketing t*")
         cont["bracket_cost"] = float(J_bracket)
         cont["bracket_nodes"] = [list(c) for c in brackets]
-    if out["contact_time_gap"] > h * (1 + 1e-9):
+    gap_t = out["contact_time_gap"]
+    if gap_t is not None and gap_t > h * (1 + 1e-9):
         checks.notes.append(f"contact time {out['contact_time_gap']:.3g} s from t* (> h = {h:.3g} s): the grid "
                             "optimum lies in another basin with a cost within the grid resolution (near tie)")
 
 
-def _zoh_rule(J_qp: float, J_pmp_tQ: float, z: dict[str, Any], ctol: float, checks: Checks) -> dict[str, Any]:
+def _zoh_rule(J_qp: float, J_pmp_tQ: float, z: ZohReference, ctol: float, checks: Checks) -> ZohGapJSON:
     """Rule 7: the ZOH cost above the PMP's at the same times, the gap inside the ``O(h²)`` bracket."""
     gap = J_qp - J_pmp_tQ
     lower, rho = z["gap_leading"], z["rho"]

@@ -19,8 +19,6 @@ precision (a tie): only the cost is judged and a note says so.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from iamp.comparison.trajectories import hold_trajectory
@@ -28,16 +26,17 @@ from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 
 from .gaps import run_vs_run_gaps
+from .records import PairJSON
 from .runs import Run
 from .verdict import Checks, same_problem, solver_tol
 
 __all__ = ["compare_qp_qp"]
 
 
-def compare_qp_qp(problem: Problem, a: Run, b: Run) -> dict[str, Any]:
+def compare_qp_qp(problem: Problem, a: Run, b: Run) -> PairJSON:
     """Judge two QP runs with the same hold and ``N`` (e.g. OSQP vs Clarabel)."""
     checks = Checks()
-    out: dict[str, Any] = {"a": a.label, "b": b.label, "cost_rel_gap": None, "contact_time_gap": None,
+    out: PairJSON = {"a": a.label, "b": b.label, "cost_rel_gap": None, "contact_time_gap": None,
                            "state_sup_gap": None, "input_sup_gap": None, "jump_gap": None}
     same_problem(a, b, checks)
     for r in (a, b):
@@ -64,7 +63,7 @@ def compare_qp_qp(problem: Problem, a: Run, b: Run) -> dict[str, Any]:
             checks.notes.append("different grid candidates with equal costs (a tie within solver precision)")
         else:
             dx, du, dj = gaps["state_sup_gap"], gaps["input_sup_gap"], gaps["jump_gap"]
-            out.update(state_sup_gap=dx, input_sup_gap=du, jump_gap=dj)
+            out["state_sup_gap"], out["input_sup_gap"], out["jump_gap"] = dx, du, dj
             Xa, Ua = ra.require_trajectory().states(tn), ra.require_trajectory().inputs(tn)
             checks.check("state_rel", dx / max(1.0, float(np.max(np.abs(Xa)))), solver_tol("state_rel", loose))
             checks.check("input_rel", du / max(1.0, float(np.max(np.abs(Ua)))), solver_tol("state_rel", loose))

@@ -14,13 +14,14 @@ r"""Exact references of the discretised QP at given grid contact times (SPEC §3
 from __future__ import annotations
 
 import itertools
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from iamp.core.problem import Problem
 from iamp.planners.pmp.planner import ValueFunction
+
+from .records import ZohReference
 
 __all__ = ["candidate_table", "grid_cost_table", "zoh_reference"]
 
@@ -68,7 +69,7 @@ def _e_matrix(node_idx: ArrayLike, cw: FloatArray) -> FloatArray:
     return E
 
 
-def zoh_reference(problem: Problem, t_nodes: ArrayLike, nodes: ArrayLike) -> dict[str, Any]:
+def zoh_reference(problem: Problem, t_nodes: ArrayLike, nodes: ArrayLike) -> ZohReference:
     r"""The exact ZOH optimum with the contacts at grid nodes ``nodes`` of ``t_nodes``.
 
     Returns ``cost``, nodal states ``X`` ``(N+1, 4)``, inputs ``U`` ``(N, 2)``, multipliers
@@ -104,7 +105,7 @@ def zoh_reference(problem: Problem, t_nodes: ArrayLike, nodes: ArrayLike) -> dic
             s, v = X[k, 2 * ax], X[k, 2 * ax + 1]
             X[k + 1, 2 * ax] = s + h[k] * v + h[k] ** 2 / 2 * U[k, ax]
             X[k + 1, 2 * ax + 1] = v + h[k] * U[k, ax]
-    return {"cost": cost, "X": X, "U": U, "nu": -mu[2:].copy(), "J_continuous": j_cont,
+    return {"cost": cost, "X": X, "U": U, "nu": np.asarray(-mu[2:], dtype=np.float64), "J_continuous": j_cont,
             "gap_leading": gap_leading, "rho": rho}
 
 

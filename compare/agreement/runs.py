@@ -11,7 +11,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,6 +24,11 @@ from iamp.planners import registry
 from iamp.planners.qp.diagnostics import QPDiagnostics
 
 from .fingerprints import problem_fingerprint, x_poly_fingerprint
+from .records import KKTJSON, RunJSON
+
+if TYPE_CHECKING:  # pragma: no cover
+    from iamp.planners.qp.core import CandidateSolver
+    from iamp.planners.qp.planner import QPPlanner
 
 __all__ = ["QPConfig", "Run", "default_configs", "run_pmp", "run_qp"]
 
@@ -42,7 +47,7 @@ class QPConfig:
     steps: int = 100
     path: str = "cvxpy"
     contact: str = "grid"
-    settings: dict[str, Any] | None = field(default=None, compare=False, hash=False)
+    settings: dict[str, object] | None = field(default=None, compare=False, hash=False)
     tag: str | None = None
 
     @property
@@ -56,17 +61,21 @@ class QPConfig:
             parts.append(self.tag)
         return "-".join(parts)
 
-    def planner(self) -> Any:
+    def planner(self) -> QPPlanner:
         """A fresh planner object for this configuration."""
-        kw: dict[str, Any] = dict(steps=self.steps, hold=self.hold, solver=self.solver, contact=self.contact,
-                                  solver_settings=self.settings)
         if self.path == "native":
-            return registry.make_planner("qp", **kw)
+            from iamp.planners.qp.planner import QPPlanner
+
+            native = registry.make_planner("qp", steps=self.steps, hold=self.hold, solver=self.solver,
+                                           contact=self.contact, solver_settings=self.settings)
+            assert isinstance(native, QPPlanner)
+            return native
         if self.path != "cvxpy":
             raise ValueError(f"unknown path {self.path!r}; choose cvxpy or native")
         from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
 
-        return CvxpyQPPlanner(**kw)
+        return CvxpyQPPlanner(steps=self.steps, hold=self.hold, solver=self.solver, contact=self.contact,
+                              solver_settings=self.settings)
 
 
 def default_configs(steps: tuple[int, ...] | list[int] = (100,), solvers: tuple[str, ...] = ("osqp", "clarabel"),
@@ -86,7 +95,7 @@ class Run:
     result: Plan
     time: TimingStats | None
     config: QPConfig | None = None
-    kkt: dict[str, Any] | None = None
+    kkt: KKTJSON | None = None
     fingerprint: str = ""
     x_poly_fingerprint: str = ""
     notes: list[str] = field(default_factory=list)
@@ -96,12 +105,12 @@ class Run:
         """The run finished with a verified optimum."""
         return self.result is not None and self.result.status == "optimal"
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> RunJSON:
         """The run as in SPEC §5b's ``runs`` (more keys than the minimum)."""
         r, c = self.result, self.config
         ok = self.ok
         qp = r.diagnostics.find(QPDiagnostics)
-        out: dict[str, Any] = {
+        out: RunJSON = {
             "label": self.label, "planner": self.planner,
             "solver": c.solver if c else None, "hold": c.hold if c else None,
             "steps": c.steps if c else None, "path": c.path if c else None,
@@ -134,8 +143,8 @@ def _finish_run(run: Run) -> Run:
     return run
 
 
-def _measure(fn: Callable[[], Any], repeats: int, warmup: int,
-             budget_s: float | None = None) -> tuple[TimingStats, Any]:
+def _measure(fn: Callable[[], Plan], repeats: int, warmup: int,
+             budget_s: float | None = None) -> tuple[TimingStats, Plan | None]:
     from iamp.comparison.timing import measure
 
     stats, last = measure(fn, repeats, warmup, budget_s)
@@ -148,7 +157,7 @@ def run_pmp(problem: Problem, repeats: int = 20, warmup: int = 2) -> Run:
     timed = registry.make_planner("pmp", diagnostics=False)
     planner = registry.make_planner("pmp")
 
-    def fn() -> Any:
+    def fn() -> Plan:
         return timed.plan(problem)
     stats: TimingStats | None
     try:
@@ -172,9 +181,9 @@ def run_qp(problem: Problem, config: QPConfig, repeats: int = 3, warmup: int = 1
     """Plan with one QP configuration (its own contact-time search), timed over full plans
     (build + search), then recompute the KKT residuals of the reported solution."""
     planner = config.planner()
-    keep: dict[str, Any] = {}
+    keep: dict[str, CandidateSolver] = {}
 
-    def fn() -> Any:
+    def fn() -> Plan:
         qp = planner.build(problem)
         keep["qp"] = qp
         with warnings.catch_warnings():
@@ -182,13 +191,15 @@ def run_qp(problem: Problem, config: QPConfig, repeats: int = 3, warmup: int = 1
             return planner.plan(problem, qp=qp)
 
     stats, result = _measure(fn, repeats, warmup, budget_s)
+    assert result is not None  # measure calls fn at least once
     run = _finish_run(Run(config.label, "qp", result, stats, config=config))
     if run.ok:
         run.kkt = _kkt_of_result(problem, config, keep["qp"], result, run)
     return run
 
 
-def _kkt_of_result(problem: Problem, config: QPConfig, qp: Any, result: Plan, run: Run) -> dict[str, Any] | None:
+def _kkt_of_result(problem: Problem, config: QPConfig, qp: CandidateSolver, result: Plan,
+                   run: Run) -> KKTJSON | None:
     """Re-solve the reported candidate on the planner's own QP object and recompute the KKT
     residuals from the QP matrices (built by :class:`iamp.planners.qp.data.QPData`, the same
     rows as the cvxpy model) and the returned primal and dual vectors (both paths return them
@@ -211,9 +222,10 @@ def _kkt_of_result(problem: Problem, config: QPConfig, qp: Any, result: Plan, ru
     data = QPData(problem, config.steps, config.hold)
     data.set_grid(t_nodes)
     data.selector_update(nodes)
-    out: dict[str, Any] = data.kkt_residuals(r.z, r.y).as_dict()
-    out["source"] = "recomputed from the QP matrices and the returned (x, y)"
-    return out
+    k = data.kkt_residuals(r.z, r.y)
+    return {"primal": float(k.primal), "dual": float(k.dual), "gap": float(k.gap), "primal_rel": float(k.primal_rel),
+            "dual_rel": float(k.dual_rel), "gap_rel": float(k.gap_rel),
+            "source": "recomputed from the QP matrices and the returned (x, y)"}
 
 
 # --------------------------------------------------------------------------------------

@@ -12,11 +12,11 @@ safety box).  For a ``rear`` corner (the ego stays behind) the roles swap.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from iamp.core.problem import SurroundingVehicle
+
+from .records import SignEntry
 
 
 def constraint_is_binding_for_safety(vehicle: SurroundingVehicle, phi_x: float) -> bool:
@@ -41,7 +41,7 @@ def jump_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
             f"{vehicle.corner.split('-')[0]} corner; the equality is {verdict}")
 
 
-def sign_entry(vehicle: SurroundingVehicle, phi_x: float) -> dict[str, Any]:
+def sign_entry(vehicle: SurroundingVehicle, phi_x: float) -> SignEntry:
     """One entry of a comparison's ``signs``: ``Φ_x`` (or ``ν_x``), its sign and meaning."""
     return {"vehicle": vehicle.name, "corner": vehicle.corner, "phi_x": float(phi_x),
             "sign": int(np.sign(phi_x)), "binding_for_safety": bool(constraint_is_binding_for_safety(vehicle, phi_x)),

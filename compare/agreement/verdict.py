@@ -20,13 +20,12 @@ limits are named ``cmp_<kind>_<solver>`` (:func:`solver_tol`).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from iamp.core.plan import Plan
 from iamp.core.tolerances import tol
 
+from .records import CheckJSON, PairJSON
 from .runs import Run
 
 __all__ = ["VERDICT_AGREE", "VERDICT_DISAGREE", "Checks", "plan_cost", "pmp_own_checks", "same_problem",
@@ -39,11 +38,12 @@ class Checks:
     """Collects named checks ``value ≤ limit`` and free-text notes."""
 
     def __init__(self) -> None:
-        self.items: dict[str, dict[str, Any]] = {}
+        self.items: dict[str, CheckJSON] = {}
         self.reasons: list[str] = []
         self.notes: list[str] = []
 
-    def check(self, name: str, value: Any, limit: Any, ok: bool | None = None, why: str = "") -> bool:
+    def check(self, name: str, value: float | None, limit: float | None, ok: bool | None = None,
+              why: str = "") -> bool:
         """Record ``value ≤ limit`` (or the given ``ok``) under ``name``; a failure adds a reason."""
         v = float(value) if value is not None else None
         lim = float(limit) if limit is not None else None
@@ -64,9 +64,12 @@ class Checks:
         """``agree`` when nothing failed, else ``disagree``."""
         return VERDICT_AGREE if not self.reasons else VERDICT_DISAGREE
 
-    def finish(self, out: dict[str, Any]) -> dict[str, Any]:
+    def finish(self, out: PairJSON) -> PairJSON:
         """``out`` with ``verdict``, ``reasons``, ``notes`` and ``checks`` appended (in that order)."""
-        out.update(verdict=self.verdict(), reasons=self.reasons, notes=self.notes, checks=self.items)
+        out["verdict"] = self.verdict()
+        out["reasons"] = self.reasons
+        out["notes"] = self.notes
+        out["checks"] = self.items
         return out
 
 

@@ -28,12 +28,12 @@ import importlib.util
 import statistics
 import time
 from functools import partial
-from typing import Any
+from typing import Any, NotRequired, TypedDict
 
 import numpy as np
 import scipy.sparse as sp
 
-from iamp.comparison.timing import measure
+from iamp.comparison.timing import StatsJSON, measure
 from iamp.core.physical import PASSENGER_CAR
 from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
@@ -45,6 +45,59 @@ SOLVERS = ("osqp", "clarabel", "piqp")
 TARGET_PLAN_S = 2e-3
 
 
+class BackendRow(TypedDict):
+    """One backend of :func:`bench_avoid_bounded`: the whole plan, then one QP at its crossing time
+    (``plan_s`` ``None`` and an ``error`` when the backend failed)."""
+
+    plan_s: float | None
+    plan_stats: NotRequired[StatsJSON]
+    status: NotRequired[str]
+    cost: NotRequired[float | None]
+    n_solves: NotRequired[int | None]
+    error: NotRequired[str]
+    qp_s: NotRequired[float]
+    qp_cost: NotRequired[float]
+    qp_status: NotRequired[str]
+
+
+class CasadiQP(TypedDict):
+    """IPOPT on the same QP (:func:`_casadi_qp`)."""
+
+    build_s: float
+    solve_s: float
+    cost: float
+    iterations: int
+    return_status: str
+    variables: int
+    constraints: int
+
+
+class PeerError(TypedDict):
+    """An optional peer that failed."""
+
+    error: str
+
+
+class AvoidBounded(TypedDict):
+    """:func:`bench_avoid_bounded`'s numbers (``iamp bench``'s ``avoid_bounded``)."""
+
+    problem: str
+    steps: int
+    hold: str
+    safety: str
+    backends: dict[str, BackendRow]
+    target_plan_s: float
+    note: NotRequired[str]
+    crossing_spec: NotRequired[list[list[float]]]
+    fastest_backend: NotRequired[str]
+    plan_fastest_s: NotRequired[float]
+    target_met: NotRequired[bool]
+    qp_fastest_backend: NotRequired[str]
+    qp_fastest_s: NotRequired[float]
+    casadi_ipopt: NotRequired[CasadiQP | PeerError | None]
+    ratios: NotRequired[dict[str, float]]
+
+
 def overtake_problem() -> Problem:
     """One vehicle in the target lane, overtaken; the passenger car's limits."""
     ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=118.0, yf=3.75, vxf=24.0)
@@ -53,18 +106,18 @@ def overtake_problem() -> Problem:
     return Problem(ego, (v,), "overtake", limits=PASSENGER_CAR)
 
 
-def _spec_of(plan: Any) -> tuple[tuple[int, int, float, float], ...]:
+def _spec_of(plan: Plan) -> tuple[tuple[int, int, float, float], ...]:
     from iamp.planners.avoid.check import AXIS_NAMES
 
     return tuple((AXIS_NAMES.index(v["first"]), AXIS_NAMES.index(v["second"]), float(v["crossing_time"]),
                   float(v["crossing_time"])) for v in (_avoid_diagnostics(plan).avoidance or {})["vehicles"])
 
 
-def _casadi_qp(P_upper: sp.spmatrix, A: sp.spmatrix, n_eq: int, rhs: np.ndarray, repeats: int) -> dict[str, Any]:
+def _casadi_qp(P_upper: sp.spmatrix, A: sp.spmatrix, n_eq: int, rhs: np.ndarray, repeats: int) -> CasadiQP:
     """IPOPT on ``min ½ zᵀPz`` s.t. ``A[:n_eq] z = rhs[:n_eq]``, ``A[n_eq:] z <= rhs[n_eq:]``."""
     import casadi as ca
 
-    def dm(M: sp.spmatrix) -> Any:
+    def dm(M: sp.spmatrix) -> Any:  # a casadi.DM (its stubs type mtimes by overloads)
         C = sp.csc_matrix(M)
         return ca.DM(ca.Sparsity(C.shape[0], C.shape[1], C.indptr.tolist(), C.indices.tolist()), C.data.tolist())
 
@@ -90,7 +143,7 @@ def _casadi_qp(P_upper: sp.spmatrix, A: sp.spmatrix, n_eq: int, rhs: np.ndarray,
             "variables": int(P.shape[0]), "constraints": int(A.shape[0])}
 
 
-def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> dict[str, Any]:
+def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> AvoidBounded:
     """The bounded avoidance numbers (module docstring); never raises for a missing backend.
 
     Each measurement stops adding repeats once their sum exceeds ``budget_s`` (a whole plan can
@@ -99,7 +152,7 @@ def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> dict[str, An
     from iamp.planners.avoid.planner import AvoidQPPlanner
 
     prob = overtake_problem()
-    out: dict[str, Any] = {"problem": "overtake (binding, passenger car limits)", "steps": STEPS, "hold": "foh",
+    out: AvoidBounded = {"problem": "overtake (binding, passenger car limits)", "steps": STEPS, "hold": "foh",
                            "safety": "continuous", "backends": {}, "target_plan_s": TARGET_PLAN_S}
     spec = None
     for s in SOLVERS:
@@ -107,7 +160,7 @@ def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> dict[str, An
             planner = AvoidQPPlanner(steps=STEPS, hold="foh", solver=s)
             stats, plan = measure(partial(planner.plan, prob), repeats=repeats, warmup=1, budget_s=budget_s)
             assert plan is not None
-            row: dict[str, Any] = {"plan_s": stats.median, "plan_stats": stats.to_dict(), "status": str(plan.status),
+            row: BackendRow = {"plan_s": stats.median, "plan_stats": stats.to_dict(), "status": str(plan.status),
                                    "cost": plan.cost, "n_solves": _avoid_diagnostics(plan).n_solves}
             if plan.status == "optimal" and spec is None:
                 spec = _spec_of(plan)
@@ -118,7 +171,7 @@ def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> dict[str, An
         out["note"] = "no backend planned 'optimal': no fixed-crossing-time QP timed"
         return out
     out["crossing_spec"] = [list(x) for x in spec]
-    qp_data: Any = None
+    qp_data: tuple[sp.spmatrix, sp.spmatrix, int, np.ndarray] | None = None
     for s in SOLVERS:
         row = out["backends"][s]
         if row.get("plan_s") is None:
@@ -130,13 +183,13 @@ def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> dict[str, An
         row["qp_cost"] = sol.cost
         row["qp_status"] = str(sol.status)
         qp_data = (qp.data.P, sol.A, qp.data.n_eq, sol.u)
-    ok = {s: r["plan_s"] for s, r in out["backends"].items() if r.get("plan_s") and r.get("status") == "optimal"}
+    ok = {s: p for s, r in out["backends"].items() if (p := r.get("plan_s")) and r.get("status") == "optimal"}
     if ok:
         best = min(ok, key=lambda k: ok[k])
         out["fastest_backend"] = best
         out["plan_fastest_s"] = ok[best]
         out["target_met"] = bool(ok[best] <= TARGET_PLAN_S)
-        qps = {s: r["qp_s"] for s, r in out["backends"].items() if r.get("qp_s")}
+        qps = {s: q for s, r in out["backends"].items() if (q := r.get("qp_s"))}
         out["qp_fastest_backend"] = min(qps, key=lambda k: qps[k])
         out["qp_fastest_s"] = qps[out["qp_fastest_backend"]]
     if importlib.util.find_spec("casadi") is None:
@@ -144,6 +197,7 @@ def bench_avoid_bounded(repeats: int = 7, budget_s: float = 3.0) -> dict[str, An
         out["note"] = "casadi not installed: the CasADi+IPOPT peer is skipped (pip install casadi)"
         return out
     try:
+        assert qp_data is not None  # a backend planned 'optimal' (spec), so its QP was timed
         P, A, n_eq, rhs = qp_data
         cas = _casadi_qp(P, A, n_eq, rhs, max(1, repeats // 2))
         out["casadi_ipopt"] = cas

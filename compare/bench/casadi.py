@@ -30,11 +30,26 @@ from __future__ import annotations
 
 import statistics
 import time
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
 from iamp.core.problem import Problem
+
+
+class CasadiFreeTime(TypedDict):
+    """:func:`casadi_free_time`: medians [s] of the build and the cold and warm solves, and the solution."""
+
+    build_s: float
+    cold_s: float
+    warm_s: float
+    contact_time: float
+    cost: float
+    iterations_cold: int
+    iterations_warm: int
+    return_status: str
+    steps: int
+    variables: int
 
 
 def _build(problem: Problem, steps: int, box: bool = False) -> tuple[Any, Any]:
@@ -81,7 +96,7 @@ def _build(problem: Problem, steps: int, box: bool = False) -> tuple[Any, Any]:
     return opti, t1
 
 
-def casadi_free_time(problem: Problem, steps: int = 100, repeats: int = 5, box: bool = False) -> dict[str, Any]:
+def casadi_free_time(problem: Problem, steps: int = 100, repeats: int = 5, box: bool = False) -> CasadiFreeTime:
     """Medians of ``repeats`` cold and warm IPOPT solves (module docstring) and the solution
     (``box``: with the input box of ``problem.limits``, the bounded PMP's peer):
     ``{"build_s", "cold_s", "warm_s", "contact_time", "cost", "iterations_cold", "iterations_warm",

@@ -13,16 +13,41 @@ samples), speeds 8–20 m/s with gaps of 8–30 m, each vehicle's leader the one
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
+from numpy.typing import NDArray
 
-from iamp.comparison.timing import measure
+from iamp.comparison.timing import StatsJSON, measure
 
-__all__ = ["bench_ego_follower", "bench_leader_prediction", "neighbours_case"]
+__all__ = ["NeighboursCase", "PredictionBench", "bench_ego_follower", "bench_leader_prediction", "neighbours_case"]
 
 
-def neighbours_case(n: int = 20, seed: int = 0) -> dict[str, Any]:
+class NeighboursCase(TypedDict):
+    """Histories of ``n`` vehicles (rows) at the times ``t_hist`` (:func:`neighbours_case`)."""
+
+    t_hist: NDArray[np.float64]
+    X_hist: NDArray[np.float64]
+    XL_hist: NDArray[np.float64]  # the leader's history (NaN: no leader)
+    has_leader: NDArray[np.bool_]
+    offset: NDArray[np.float64]
+
+
+class PredictionBench(TypedDict):
+    """The median of a timed prediction [s] and its statistics."""
+
+    median: float
+    stats: StatsJSON
+
+
+class LeaderPredictionBench(PredictionBench):
+    """:func:`bench_leader_prediction`: with the number of vehicles and of those with a leader."""
+
+    vehicles: int
+    with_leader: int
+
+
+def neighbours_case(n: int = 20, seed: int = 0) -> NeighboursCase:
     """Histories ``(t_hist, X_hist, XL_hist, has_leader, offset)`` of ``n`` vehicles in two lanes."""
     rng = np.random.default_rng(seed)
     t = np.round(np.arange(-30, 1) * 0.1, 10)
@@ -46,7 +71,7 @@ def neighbours_case(n: int = 20, seed: int = 0) -> dict[str, Any]:
     return {"t_hist": t, "X_hist": X, "XL_hist": XL, "has_leader": has, "offset": np.full(n, 4.5)}
 
 
-def bench_leader_prediction(repeats: int = 50) -> dict[str, Any]:
+def bench_leader_prediction(repeats: int = 50) -> LeaderPredictionBench:
     """Median time of one batched leader-aware prediction of 20 neighbours (module docstring)."""
     from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
 
@@ -55,7 +80,7 @@ def bench_leader_prediction(repeats: int = 50) -> dict[str, Any]:
     q = np.asarray(0.1 * np.arange(51), dtype=np.float64)
     XL = np.where(case["has_leader"][:, None], case["XL_hist"], 0.0)
 
-    def run() -> Any:
+    def run() -> object:
         return lp.predict_batch(case["t_hist"], case["X_hist"], q, 5.0, XL_hist=XL, has_leader=case["has_leader"],
                                 offset=case["offset"])
 
@@ -64,7 +89,7 @@ def bench_leader_prediction(repeats: int = 50) -> dict[str, Any]:
             "with_leader": int(np.sum(case["has_leader"]))}
 
 
-def bench_ego_follower(repeats: int = 50) -> dict[str, Any]:
+def bench_ego_follower(repeats: int = 50) -> PredictionBench:
     """Median time of one follower forecast with the ego's plan as its leader (module docstring)."""
     from iamp.prediction.leader.ego import predict_with_ego_leader
     from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
@@ -74,7 +99,7 @@ def bench_ego_follower(repeats: int = 50) -> dict[str, Any]:
     tp = np.linspace(0.0, 5.0, 51)
     yp = np.where(tp < 1.5, 3.5, 0.0)
 
-    def run() -> Any:
+    def run() -> object:
         return predict_with_ego_leader(lp, th, 20.0 * th, tp, 14.5 + 15.0 * tp, 5.0, plan_y=yp, target_y=0.0,
                                        leader_hist=44.5 + 20.0 * th)
 

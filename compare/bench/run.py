@@ -48,14 +48,22 @@ import platform
 import time
 import warnings
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, NotRequired, TypedDict
 
 import numpy as np
 
-from iamp.comparison.timing import TimingStats, measure, summarize, versions
+from iamp.comparison.timing import StatsJSON, TimingStats, VersionsJSON, measure, summarize, versions
 from iamp.core.plan import Plan
 from iamp.planners.qp.backends import BACKENDS, ITERATIVE
 from iamp.planners.qp.diagnostics import QPDiagnostics
+
+from .avoid import AvoidBounded
+from .casadi import CasadiFreeTime
+from .prediction import LeaderPredictionBench, PredictionBench
+
+if TYPE_CHECKING:  # pragma: no cover
+    from iamp.core.problem import Problem
+    from iamp.planners.registry import Planner
 
 #: IQR/median above which a measurement is flagged as taken on a busy machine.
 BUSY_SPREAD = 0.5
@@ -78,20 +86,149 @@ TARGETS: dict[str, tuple[str, float]] = {
 
 
 # --------------------------------------------------------------------------------------
+# The records
+# --------------------------------------------------------------------------------------
+
+
+class PMPNumbers(TypedDict):
+    """The PMP medians in the SPEC §5b keys (:func:`_pmp_numbers`)."""
+
+    source: str
+    bench_pmp: dict[str, float]
+    pmp_plan_s: dict[str, float]
+    pmp_batch_plans_per_s: float
+    pmp_to_compiled_limit: NotRequired[float]
+    pmp_two_vehicles_pure_to_compiled: NotRequired[float]
+    stats: NotRequired[dict[str, StatsJSON]]
+
+
+class CandidateTimes(TypedDict):
+    """One backend's per-candidate times over full sweeps (:func:`_per_candidate`)."""
+
+    backend: TimingStats
+    call: TimingStats
+    wall: TimingStats
+    failed: int
+    describe: dict[str, object]
+
+
+class CandidateJSON(TypedDict):
+    """:class:`CandidateTimes` as ``qp_candidate`` reports it."""
+
+    backend_s: StatsJSON
+    solve_call_s: StatsJSON
+    wall_s: StatsJSON
+    failed: int
+    backend: dict[str, object]
+
+
+class AvoidSweep(TypedDict):
+    """One backend's avoidance-QP plan (``median`` ``None`` and an ``error`` when it failed)."""
+
+    median: float | None
+    stats: NotRequired[StatsJSON]
+    status: NotRequired[str]
+    error: NotRequired[str]
+
+
+class NoAvoidBounded(TypedDict):
+    """``avoid_bounded`` when the bounded avoidance bench failed (a note says why)."""
+
+
+class TuningRow(TypedDict):
+    """What one OSQP setting buys (:func:`osqp_tuning`)."""
+
+    settings: dict[str, float | int | bool]
+    verified: int
+    polished: int
+    solver_solved: int
+    candidates: int
+    iterations_median: float
+    iterations_max: int
+    kkt_rel_median: float
+    kkt_rel_max: float
+    backend_s_median: float
+    sweep_s: float
+
+
+class Target(TypedDict):
+    """A target of :data:`TARGETS`: the measured value against it."""
+
+    value: float
+    target: float
+    op: str
+    met: bool
+
+
+class BenchMachine(TypedDict):
+    """The machine of the run and its load before and after."""
+
+    cpu_count: int | None
+    platform: str
+    machine: str
+    python: str
+    load_average_1min_before: float | None
+    load_average_1min_after: float | None
+
+
+class BenchStats(TypedDict):
+    """The statistics behind the medians."""
+
+    qp_grid_sweep_native_s: dict[str, StatsJSON]
+    qp_grid_sweep_cvxpy_s: dict[str, StatsJSON]
+    pmp: dict[str, StatsJSON] | None
+    avoid: dict[str, AvoidSweep] | None
+    prediction_leader_20: LeaderPredictionBench
+    prediction_ego_follower: PredictionBench
+
+
+class BenchJSON(TypedDict):
+    """The ``iamp bench --json`` object (SPEC §5b keys and more; :func:`run_bench`)."""
+
+    pmp_plan_s: dict[str, float]
+    pmp_batch_plans_per_s: float
+    qp_native_solve_s: dict[str, float]
+    qp_grid_sweep_s: dict[str, float]
+    avoid_grid_sweep_s: dict[str, float | None] | None
+    prediction_leader_20_s: float
+    prediction_ego_follower_s: float
+    avoid_bounded: AvoidBounded | NoAvoidBounded
+    ratios: dict[str, float | None]
+    versions: VersionsJSON
+    machine: BenchMachine
+    warnings: list[str]
+    quick: bool
+    steps: int
+    problem: str
+    best_iterative_backend: str
+    best_native_sweep: str
+    qp_candidate: dict[str, CandidateJSON]
+    stats: BenchStats
+    pmp: dict[str, object]
+    failed_sweep_candidates: dict[str, int]
+    casadi_ipopt: CasadiFreeTime | None
+    casadi_ipopt_bounded: CasadiFreeTime | None
+    osqp_tuning: list[TuningRow]
+    targets: dict[str, Target]
+    missed: list[str]
+    notes: list[str]
+
+
+# --------------------------------------------------------------------------------------
 # PMP
 # --------------------------------------------------------------------------------------
 
 
-def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
+def _pmp_numbers(quick: bool, notes: list[str]) -> PMPNumbers:
     """The PMP medians of :func:`iamp.comparison.bench.pmp.bench_pmp` in the SPEC §5b keys."""
     from .pmp import bench_pmp
 
-    raw: dict[str, Any] = dict(bench_pmp(3 if quick else 7))
+    raw = dict(bench_pmp(3 if quick else 7))
     plan_s = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
               "two_vehicles_pure": raw["two_vehicles_pure"], "one_vehicle_bounded": raw["one_vehicle_bounded"],
               "one_vehicle_bounded_certified": raw["one_vehicle_bounded_certified"],
               "fixed_t_bounded": raw["fixed_t_bounded"]}
-    out: dict[str, Any] = {"source": "iamp.comparison.bench.pmp.bench_pmp", "bench_pmp": raw,
+    out: PMPNumbers = {"source": "iamp.comparison.bench.pmp.bench_pmp", "bench_pmp": raw,
                            "pmp_plan_s": plan_s, "pmp_batch_plans_per_s": raw["batch_plans_per_s"]}
     if raw.get("compiled_limit_one_vehicle"):
         out["pmp_to_compiled_limit"] = raw["one_vehicle"] / raw["compiled_limit_one_vehicle"]
@@ -108,7 +245,7 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
 # --------------------------------------------------------------------------------------
 
 
-def _per_candidate(problem: Any, solver: str, repeats: int) -> dict[str, Any]:
+def _per_candidate(problem: Problem, solver: str, repeats: int) -> CandidateTimes:
     """Update+solve, solve() call and whole-candidate times over full sweeps (first = warm-up)."""
     from iamp.planners.qp.core import DiscretisedQP
 
@@ -121,21 +258,22 @@ def _per_candidate(problem: Any, solver: str, repeats: int) -> dict[str, Any]:
             call += [r.solve_call_s for r in rs]
             wall += [r.wall_time_s for r in rs]
         failed = sum(not r.ok for r in rs)
-    describe = qp.backend.describe()
+    describe: dict[str, object] = qp.backend.describe()
     if solver == "kkt":
         describe["bandwidth"] = int(getattr(qp.backend, "bandwidth", -1))
     return {"backend": summarize(backend), "call": summarize(call), "wall": summarize(wall), "failed": failed,
             "describe": describe}
 
 
-def _sweep(fn: Callable[[], Any], repeats: int) -> tuple[TimingStats, Any]:
+def _sweep(fn: Callable[[], Plan], repeats: int) -> tuple[TimingStats, Plan]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         stats, res = measure(fn, repeats=repeats, warmup=1, budget_s=20.0)
+    assert res is not None  # measure calls fn at least once
     return stats, res
 
 
-def _plan_fn(planner: Any, problem: Any) -> Callable[[], Any]:
+def _plan_fn(planner: Planner, problem: Problem) -> Callable[[], Plan]:
     return lambda: planner.plan(problem)
 
 
@@ -157,12 +295,12 @@ def _installed_backends(notes: list[str]) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | None:
+def _avoid(problem: Problem, repeats: int, notes: list[str]) -> dict[str, AvoidSweep] | None:
     if importlib.util.find_spec("iamp.planners.avoid.planner") is None:
         notes.append("iamp.planners.avoid.planner not found: no avoidance-QP sweep measured")
         return None
     mod = importlib.import_module("iamp.planners.avoid.planner")
-    out: dict[str, Any] = {}
+    out: dict[str, AvoidSweep] = {}
     for solver in ("osqp", "clarabel", "piqp"):
         if BACKENDS[solver].version() is None and BACKENDS[solver].distribution:
             continue  # not installed: _installed_backends has said which extra adds it
@@ -175,21 +313,21 @@ def _avoid(problem: Any, repeats: int, notes: list[str]) -> dict[str, Any] | Non
     return out
 
 
-def _avoid_bounded(quick: bool, notes: list[str]) -> dict[str, Any]:
-    """:func:`iamp.comparison.bench.avoid.bench_avoid_bounded` (an empty dict if it fails)."""
+def _avoid_bounded(quick: bool, notes: list[str]) -> AvoidBounded | None:
+    """:func:`iamp.comparison.bench.avoid.bench_avoid_bounded` (``None`` if it fails: the JSON has ``{}``)."""
     from .avoid import bench_avoid_bounded
 
     try:
         out = bench_avoid_bounded(3 if quick else 7, 1.0 if quick else 3.0)
     except Exception as exc:  # never fail the bench
         notes.append(f"bounded avoidance failed: {type(exc).__name__}: {exc}")
-        return {}
+        return None
     if out.get("note"):
         notes.append(f"bounded avoidance: {out['note']}")
     return out
 
 
-def _casadi(problem: Any, quick: bool, notes: list[str], box: bool = False) -> dict[str, Any] | None:
+def _casadi(problem: Problem, quick: bool, notes: list[str], box: bool = False) -> CasadiFreeTime | None:
     """CasADi ``Opti`` + IPOPT on the free-contact-time problem (:mod:`.bench_casadi`;
     ``box``: with the input box of ``problem.limits``)."""
     if importlib.util.find_spec("casadi") is None:
@@ -204,17 +342,17 @@ def _casadi(problem: Any, quick: bool, notes: list[str], box: bool = False) -> d
         return None
 
 
-def osqp_tuning(problem: Any) -> list[dict[str, Any]]:
+def osqp_tuning(problem: Problem) -> list[TuningRow]:
     """What each OSQP setting buys on the equality QP (one FOH sweep, ``N = 100``, per row)."""
     from iamp.planners.qp.backends.osqp import _polish_key
     from iamp.planners.qp.core import DiscretisedQP
 
-    rows = []
-    off = {_polish_key(): False}
+    rows: list[TuningRow] = []
+    off: dict[str, float | int | bool] = {_polish_key(): False}
     # iamp's equality-QP default (ADMM near, the polish exact) with fewer refinements or no
     # polish, then OSQP's own ADMM settings (check every 25, over-relaxation 1.6, scaling 10)
-    old_admm = {"check_termination": 25, "alpha": 1.6, "scaling": 10}
-    grid: list[dict[str, Any]] = [{}, {"polish_refine_iter": 3}, {"polish_refine_iter": 1}, off]
+    old_admm: dict[str, float | int | bool] = {"check_termination": 25, "alpha": 1.6, "scaling": 10}
+    grid: list[dict[str, float | int | bool]] = [{}, {"polish_refine_iter": 3}, {"polish_refine_iter": 1}, off]
     grid += [{**old_admm, "eps_abs": e, "polish_refine_iter": k} for e in (1e-3, 1e-5) for k in (3, 10)]
     grid += [{**old_admm, "eps_abs": 1e-5, **off}, {**old_admm, "eps_abs": 1e-7, **off}]
     for s in grid:
@@ -242,7 +380,7 @@ def _busy(stats: dict[str, TimingStats]) -> list[str]:
             if s.n >= 3 and s.median > 0 and s.iqr / s.median > BUSY_SPREAD]
 
 
-def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None = None) -> BenchJSON:
     """Measure everything; returns the ``iamp bench --json`` object (SPEC §5b keys and more).
 
     ``progress(done, total)`` is called between the measurements (never inside a timed loop).
@@ -324,8 +462,9 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     if casadi_bounded is not None:
         ratios["casadi_ipopt_bounded_warm_to_pmp_bounded_plan"] = casadi_bounded["warm_s"] / pmp_bounded
         ratios["casadi_ipopt_bounded_cold_to_pmp_bounded_plan"] = casadi_bounded["cold_s"] / pmp_bounded
-    if avoid is not None and avoid.get("osqp", {}).get("median"):
-        ratios["avoid_osqp_sweep_to_equality_osqp_sweep"] = avoid["osqp"]["median"] / native["osqp"].median
+    avoid_osqp = avoid.get("osqp") if avoid is not None else None
+    if avoid_osqp is not None and (avoid_osqp_s := avoid_osqp["median"]):
+        ratios["avoid_osqp_sweep_to_equality_osqp_sweep"] = avoid_osqp_s / native["osqp"].median
     values = {
         "pmp_plan_one_vehicle_s": pmp_one,
         "pmp_plan_two_vehicles_s": float(pmp["pmp_plan_s"]["two_vehicles"]),
@@ -337,21 +476,22 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "qp_grid_sweep_native_best_s": native[best_native].median,
         "prediction_leader_20_s": float(lead_pred["median"]),
     }
-    targets = {k: {"value": float(values[k]), "target": t, "op": op,
+    targets: dict[str, Target] = {k: {"value": float(values[k]), "target": t, "op": op,
                    "met": bool(values[k] <= t if op == "<=" else values[k] >= t)} for k, (op, t) in TARGETS.items()}
-    if avoid_bounded.get("plan_fastest_s") is not None:
-        v = float(avoid_bounded["plan_fastest_s"])
+    if avoid_bounded is not None and (fastest := avoid_bounded.get("plan_fastest_s")) is not None:
+        v = float(fastest)
         t = float(avoid_bounded["target_plan_s"])
         targets["avoid_bounded_plan_fastest_s"] = {"value": v, "target": t, "op": "<=", "met": bool(v <= t)}
-    for k, r in (avoid_bounded.get("ratios") or {}).items():
+    ab_ratios = avoid_bounded.get("ratios") if avoid_bounded is not None else None
+    for k, r in (ab_ratios or {}).items():
         ratios[f"avoid_bounded_{k}"] = r
     all_stats = {**{f"qp_native_solve_{s}": cand[s]["backend"] for s in cand},
                  **{f"qp_grid_sweep_native_{s}": native[s] for s in native},
                  **{f"qp_grid_sweep_cvxpy_{s}": cvx[s] for s in cvx}}
     busy = _busy(all_stats)
-    for k, v in (pmp.get("stats") or {}).items():
-        if isinstance(v, dict) and v.get("n", 0) >= 3 and v.get("median") and v["iqr"] / v["median"] > BUSY_SPREAD:
-            busy.append(f"{k}: IQR/median = {v['iqr'] / v['median']:.2f}")
+    for k, st in (pmp.get("stats") or {}).items():
+        if isinstance(st, dict) and st.get("n", 0) >= 3 and st.get("median") and st["iqr"] / st["median"] > BUSY_SPREAD:
+            busy.append(f"{k}: IQR/median = {st['iqr'] / st['median']:.2f}")
     ver = versions()
     ver["casadi"] = importlib.util.find_spec("casadi") is not None or None
     return {
@@ -362,7 +502,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "avoid_grid_sweep_s": None if avoid is None else {s: v.get("median") for s, v in avoid.items()},
         "prediction_leader_20_s": lead_pred["median"],
         "prediction_ego_follower_s": ego_pred["median"],
-        "avoid_bounded": avoid_bounded,
+        "avoid_bounded": avoid_bounded if avoid_bounded is not None else NoAvoidBounded(),
         "ratios": ratios,
         "versions": ver,
         "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(), "machine": platform.machine(),

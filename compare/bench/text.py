@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from iamp.comparison.durations import format_seconds
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .run import BenchJSON
 
 
 def _fmt_s(x: float | None) -> str:
@@ -16,7 +19,7 @@ def _fmt_target(x: float) -> str:
     return f"{x * 1e6:g} µs" if x < 1e-3 else f"{x * 1e3:g} ms" if x < 1 else f"{x:g} s"
 
 
-def format_bench(out: dict[str, Any]) -> str:
+def format_bench(out: BenchJSON) -> str:
     """The human-readable report of :func:`~iamp.comparison.bench.run.run_bench`'s result."""
     lines = [f"iamp bench — medians, {out['problem']}, FOH, N = {out['steps']}" + (" (quick)" if out["quick"] else ""),
              ""]
@@ -41,10 +44,10 @@ def format_bench(out: dict[str, Any]) -> str:
         label = k.replace("native_", "native ") if k.startswith("native_") else f"cvxpy {k}"
         lines.append(f"    {label:18s} {_fmt_s(v)}")
     if out["avoid_grid_sweep_s"]:
-        for k, v in out["avoid_grid_sweep_s"].items():
-            lines.append(f"    {'avoid ' + k:18s} {_fmt_s(v)}")
+        for k, av in out["avoid_grid_sweep_s"].items():
+            lines.append(f"    {'avoid ' + k:18s} {_fmt_s(av)}")
     ab = out.get("avoid_bounded")
-    if ab and ab.get("backends"):
+    if ab and "backends" in ab and ab["backends"]:
         lines += ["", f"  Bounded avoidance, {ab['problem']}, FOH, N = {ab['steps']}, safety {ab['safety']}:",
                   f"    {'backend':10s} {'whole plan':>10s}  {'QPs':>5s}  {'one QP':>10s}  status"]
         for k, r in ab["backends"].items():
@@ -81,8 +84,8 @@ def format_bench(out: dict[str, Any]) -> str:
         tgt = f"{t['target']:.0f} /s" if k.endswith("per_s") else _fmt_target(t["target"])
         lines.append(f"  {k:38s} {val}   {t['op']} {tgt:8s} {'met' if t['met'] else 'MISSED'}")
     lines += ["", "ratios (same run):"]
-    for k, v in out["ratios"].items():
-        lines.append(f"  {k:42s} " + ("n/a" if v is None else f"{v:10.3g}"))
+    for k, ratio in out["ratios"].items():
+        lines.append(f"  {k:42s} " + ("n/a" if ratio is None else f"{ratio:10.3g}"))
     if out["osqp_tuning"]:
         lines += ["", "OSQP settings on the equality QP (one sweep each; KKT recomputed):"]
         for r in out["osqp_tuning"]:
@@ -91,10 +94,10 @@ def format_bench(out: dict[str, Any]) -> str:
             lines.append(f"  {s:36s} verified {r['verified']:3d}/{r['candidates']}  polished {r['polished']:3d}  "
                          f"iter {r['iterations_median']:5.0f} (max {r['iterations_max']})  "
                          f"KKT max {r['kkt_rel_max']:.1e}  {_fmt_s(r['backend_s_median']).strip()}/candidate")
-    m, v = out["machine"], out["versions"]
+    m, ver = out["machine"], out["versions"]
     lines += ["", f"machine: {m['cpu_count']} CPU(s), {m['platform']}; load {m['load_average_1min_before']} -> "
               f"{m['load_average_1min_after']}",
-              "versions: " + ", ".join(f"{k} {v.get(k)}" for k in ("python", "numpy", "scipy", "cvxpy", "osqp",
+              "versions: " + ", ".join(f"{k} {ver.get(k)}" for k in ("python", "numpy", "scipy", "cvxpy", "osqp",
                                                                   "clarabel", "piqp"))]
     lines += [f"warning: {w}" for w in out["warnings"]]
     lines += [f"note: {n}" for n in out["notes"]]

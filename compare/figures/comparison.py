@@ -12,6 +12,7 @@ Palette, conventions and the atomic writing: :mod:`iamp.comparison.figures.style
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -93,7 +94,7 @@ def plot_value_function(problem: Problem, pmp_result: Plan, sweeps: dict[str, An
     return save_figure(fig, stem)
 
 
-def plot_costates(pmp_result: Plan, qp_results: dict[str, Plan | None], stem: PathLike, *,
+def plot_costates(pmp_result: Plan, qp_results: Mapping[str, Plan | None], stem: PathLike, *,
                   title: str | None = None) -> list[Path]:
     """Co-states ``p1..p4`` with their jumps, beside the QP multipliers ``ν``.
 

@@ -23,11 +23,12 @@ import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import cast
 
 from iamp.core.atomic import write_text
 from iamp.core.errors import MissingDependencyError
 
+from .records import CampaignRun, CampaignSection, FullCampaign
 from .tex import tex_escape
 
 PLANNERS = ("pmp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
@@ -36,7 +37,7 @@ INSTALL = "pip install 'iamp[sim]'"
 
 
 def campaign_section(out: Path, *, quick: bool, progress: Callable[[int, int], None] | None = None
-                     ) -> dict[str, Any]:
+                     ) -> CampaignSection:
     """Run the small campaign into ``out/campaign-small`` and return its summary and LaTeX.
 
     Returns ``{"available": False, "note": ...}`` when the ``[sim]`` extra is missing.
@@ -70,11 +71,11 @@ def campaign_section(out: Path, *, quick: bool, progress: Callable[[int, int], N
     write_text(out / "tables" / "campaign-small.tex", table)
     command = (f"iamp campaign --missions {MISSION} --planners {','.join(PLANNERS)} --traffic medium "
                f"--seeds {seeds} --duration {duration:g} --out {folder.name}")
-    return {"available": True, "summary": summary, "ran": ran, "command": command,
+    return {"available": True, "summary": summary, "ran": cast(CampaignRun, ran), "command": command,
             "table": "tables/campaign-small.tex", "full": full_campaign_shape(out)}
 
 
-def full_campaign_shape(out: Path) -> dict[str, Any] | None:
+def full_campaign_shape(out: Path) -> FullCampaign | None:
     """Missions, planners, densities and episodes of the published campaign
     (``out/campaign-new/summary.json``, SPEC §15: ``{"cells": [...]}``), or None."""
     import json
@@ -91,7 +92,7 @@ def full_campaign_shape(out: Path) -> dict[str, Any] | None:
     return {"missions": missions, "planners": planners, "traffic": traffic, "episodes": episodes}
 
 
-def _full_campaign(full: dict[str, Any] | None) -> str:
+def _full_campaign(full: FullCampaign | None) -> str:
     if not full:
         return "The published campaign is made by \\texttt{iamp campaign} (docs/closed-loop.md)."
     names = ", ".join(str(tex_escape(p)) for p in full["planners"])
@@ -100,7 +101,7 @@ def _full_campaign(full: dict[str, Any] | None) -> str:
             f"{full['episodes']} episodes.")
 
 
-def _provenance(ran: dict[str, Any] | None) -> str:
+def _provenance(ran: CampaignRun | None) -> str:
     """How many episodes this run made and how many it reused (always 0: it never resumes)."""
     if not ran:
         return "episodes run by this reproduction"
@@ -112,7 +113,7 @@ def _provenance(ran: dict[str, Any] | None) -> str:
     return text
 
 
-def campaign_tex(section: dict[str, Any]) -> str:
+def campaign_tex(section: CampaignSection) -> str:
     """The report's closed-loop section (a paragraph and the table, or the note)."""
     head = "\\section{Closed loop in SUMO traffic (small campaign)}\n"
     if not section.get("available"):

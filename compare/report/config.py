@@ -5,10 +5,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 #: ``progress(done, total)``, the project's progress convention.
 ProgressFn = Callable[[int, int], None]
+#: A QP configuration ``(solver, hold, contact, path)`` (``path`` may be left out: ``"cvxpy"``).
+QPConfigTuple = tuple[str, ...]
 
 __all__ = ["ProgressFn", "ReproduceConfig"]
 
@@ -27,18 +28,18 @@ class ReproduceConfig:
 
     steps_one: int = 100
     steps_two: int = 30
-    qp_one: tuple[Any, ...] = (("clarabel", "foh", "grid", "cvxpy"), ("osqp", "foh", "grid", "cvxpy"),
+    qp_one: tuple[QPConfigTuple, ...] = (("clarabel", "foh", "grid", "cvxpy"), ("osqp", "foh", "grid", "cvxpy"),
                      ("clarabel", "zoh", "grid", "cvxpy"), ("clarabel", "foh", "refine", "cvxpy"),
                      ("clarabel", "foh", "grid", "native"))
-    qp_two: tuple[Any, ...] = (("clarabel", "foh", "grid", "cvxpy"), ("osqp", "foh", "grid", "cvxpy"),
+    qp_two: tuple[QPConfigTuple, ...] = (("clarabel", "foh", "grid", "cvxpy"), ("osqp", "foh", "grid", "cvxpy"),
                      ("clarabel", "foh", "grid", "native"))
-    zoh_steps: tuple[Any, ...] = (25, 50, 100, 200, 400)
+    zoh_steps: tuple[int, ...] = (25, 50, 100, 200, 400)
     plan_repeats: int = 3
     plan_budget_s: float = 4.0
     pmp_repeats: int = 200
     pmp_repeats_two: int = 20
     qp_solve_repeats: int = 30
-    timing_scenarios: tuple[Any, ...] = ("paper-1", "two-vehicle")
+    timing_scenarios: tuple[str, ...] = ("paper-1", "two-vehicle")
     predictor_eval: bool = True
     predictor_select: bool | str = "auto"
     quick: bool = False

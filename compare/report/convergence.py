@@ -9,17 +9,18 @@ The ZOH discretisation of the continuous problem is :math:`O(h^2)` in the cost: 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
 from iamp.core.problem import Problem
 
+from .records import ZohConvergence, ZohRow
+
 __all__ = ["zoh_convergence"]
 
 
 def zoh_convergence(problem: Problem, steps: Sequence[int] = (25, 50, 100, 200, 400), t_contact: float | None = None,
-                    solver: str = "clarabel") -> dict[str, Any]:
+                    solver: str = "clarabel") -> ZohConvergence:
     """``J_ZOH − J_PMP`` at one fixed contact time on grids ``N ∈ steps``.
 
     The contact time is a node of every grid (a multiple of ``t_f / gcd(steps)``, the one
@@ -40,7 +41,7 @@ def zoh_convergence(problem: Problem, steps: Sequence[int] = (25, 50, 100, 200, 
     else:
         k0 = int(round(float(t_contact) / h0))
     t_c = k0 * h0
-    rows: list[dict[str, Any]] = []
+    rows: list[ZohRow] = []
     for N in steps:
         k = k0 * (N // base)
         t_node = np.linspace(0.0, tf, N + 1)[k]

@@ -3,12 +3,25 @@ scenarios :func:`iamp.comparison.report.reproduce` runs."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TypedDict
 
-__all__ = ["PAPER_FIG", "PAPER_TABLE_I", "SCENARIOS"]
+__all__ = ["PAPER_FIG", "PAPER_TABLE_I", "SCENARIOS", "PaperRow"]
+
+
+class PaperRow(TypedDict):
+    """A row of the paper's Table I and vehicle 1's behaviour before ``t = 0``."""
+
+    scenario: int
+    v_e: float
+    s_xf: float
+    t_f: float
+    x_s0: float
+    v_s0: float
+    before: str
+
 
 #: The paper's Table I (SPEC §8) and the qualitative behaviour of vehicle 1 before t = 0.
-PAPER_TABLE_I: dict[str, dict[str, Any]] = {
+PAPER_TABLE_I: dict[str, PaperRow] = {
     "paper-1": {"scenario": 1, "v_e": 20.0, "s_xf": 85.0, "t_f": 5.0, "x_s0": -15.0, "v_s0": 18.0,
                 "before": "constant speed"},
     "paper-2": {"scenario": 2, "v_e": 20.0, "s_xf": 73.0, "t_f": 5.0, "x_s0": -15.0, "v_s0": 20.0,

@@ -10,12 +10,13 @@ from pathlib import Path
 from typing import Any
 
 from .config import ProgressFn, ReproduceConfig
+from .records import PredictorSummary
 
 __all__ = ["predictor_evaluation"]
 
 
-def predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list[Any],
-                         progress: ProgressFn | None = None) -> dict[str, Any] | None:
+def predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list[str],
+                         progress: ProgressFn | None = None) -> PredictorSummary | None:
     """Run (or reuse) the predictor's evaluation and let it write its tables into ``out``.
 
     ``cfg.predictor_select``: ``True`` runs the model-selection grid (many minutes);

@@ -37,14 +37,14 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
-from iamp.comparison.metrics import manoeuvre_metrics, qualitative_comparison
+from iamp.comparison.metrics import ManoeuvreMetrics, manoeuvre_metrics, qualitative_comparison
 from iamp.core.atomic import write_text as atomic_write_text
 from iamp.core.jsonable import to_jsonable
 from iamp.core.plan import Plan
@@ -55,6 +55,7 @@ from .convergence import zoh_convergence
 from .document import build_report_tex
 from .paper import PAPER_TABLE_I, SCENARIOS
 from .predictor import predictor_evaluation
+from .records import ConfigJSON, PredictionJSON, ResultsJSON, ScenarioJSON, ScenarioPlan, ZohConvergence
 from .scenarios import load_scenario, plan_scenario, qp_configs, table1_row
 from .tables import (
     table_agreement,
@@ -66,6 +67,9 @@ from .tables import (
 )
 from .tex import short_label
 from .timing import timing_section, versions_used, whole_plan_stats
+
+if TYPE_CHECKING:  # pragma: no cover
+    from iamp.comparison.bounded import BoundedRow
 
 __all__ = ["ReproduceConfig", "reproduce"]
 
@@ -103,7 +107,7 @@ class _Progress:
 
 def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn | None = None, *,
               status: Callable[[str], None] | None = None, quick: bool = False,
-              config: ReproduceConfig | None = None, scenarios: Sequence[str] = SCENARIOS) -> dict[str, Any]:
+              config: ReproduceConfig | None = None, scenarios: Sequence[str] = SCENARIOS) -> ResultsJSON:
     """Run the whole reproduction and write the report into ``out_dir``.
 
     Parameters
@@ -138,11 +142,11 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     out = Path(out_dir)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
-    notes: list[Any] = []
+    notes: list[str] = []
     scenarios = tuple(scenarios)
     total = 1 + 2 * len(scenarios) + 7
     step = _Progress(progress, status, total)
-    written: list[Any] = []
+    written: list[Path] = []
 
     # 1. scenarios -----------------------------------------------------------------------
     step("loading scenarios and predictions")
@@ -150,41 +154,42 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     rows1 = {name: table1_row(e) for name, e in entries.items()}
 
     # 2. planning ------------------------------------------------------------------------
-    runs: dict[str, Any] = {}
-    plans: dict[str, Any] = {}
-    scen_out: list[Any] = []
-    metrics: dict[str, Any] = {}
+    runs: dict[str, dict[str, Plan]] = {}
+    plans: dict[str, ScenarioPlan] = {}
+    scen_out: list[ScenarioJSON] = []
+    metrics: dict[str, ManoeuvreMetrics] = {}
     for name in scenarios:
         e = entries[name]
-        prob = e["problem"]
+        prob = e.problem
         steps = cfg.steps_one if prob.m == 1 else cfg.steps_two
         step(f"planning {name}: PMP and QP sweeps on N = {steps} ("
              + ", ".join(short_label(c.label) for c in qp_configs(cfg, prob)) + ")")
         plan = plan_scenario(name, prob, cfg, progress=step.sub)
         plans[name] = plan
-        runs[name] = plan["results"]
+        runs[name] = plan.results
         pmp = runs[name]["pmp"]
-        sweeps = {lbl: [[list(n), c] for n, c in sw] for lbl, sw in _sweeps(runs[name]).items()}
+        sweeps: dict[str, list[list[list[int] | float]]] = {
+            lbl: [[list(n), c] for n, c in sw] for lbl, sw in _sweeps(runs[name]).items()}
         if pmp.is_optimal():
             metrics[name] = manoeuvre_metrics(pmp)
-        pred = None
-        if e["predictions"] and e["predictions"][0] is not None:
-            p0 = e["predictions"][0]
-            pred = {"x_poly": list[Any](p0.x_poly), "t": p0.t, "x": p0.x, "v": p0.v, "a": p0.a, "model": p0.model,
+        pred: PredictionJSON | None = None
+        if e.predictions and e.predictions[0] is not None:
+            p0 = e.predictions[0]
+            pred = {"x_poly": list(p0.x_poly), "t": p0.t, "x": p0.x, "v": p0.v, "a": p0.a, "model": p0.model,
                     "fit_rmse": p0.fit_rmse}
-        scen_out.append({"name": name, "builtin": e["builtin"], "source": e["source"], "fallback": e["fallback"],
+        scen_out.append({"name": name, "builtin": e.builtin, "source": e.source, "fallback": e.fallback,
                          "table1": rows1[name], "paper_table1": PAPER_TABLE_I.get(name),
                          "ego": {k: getattr(prob.ego, k) for k in ("tf", "x0", "y0", "vx0", "vy0", "xf", "yf", "vxf",
                                                                    "vyf")},
                          "vehicles": [{"name": v.name, "corner": v.corner, "y": v.y, "length": v.length,
                                        "width": v.width, "safety_x": v.safety_x, "safety_y": v.safety_y,
-                                       "x_poly": list[Any](v.x_poly)} for v in prob.vehicles],
-                         "prediction": pred, "runs": plan["runs"], "agreement": plan["agreement"],
-                         "agreement_source": plan["agreement_source"], "metrics": metrics.get(name),
+                                       "x_poly": list(v.x_poly)} for v in prob.vehicles],
+                         "prediction": pred, "runs": plan.runs, "agreement": plan.agreement,
+                         "agreement_source": plan.agreement_source, "metrics": metrics.get(name),
                          "sweeps": sweeps})
 
     # 3. figures -------------------------------------------------------------------------
-    figs: dict[str, Any] = {}
+    figs: dict[str, str] = {}
 
     def fig(key: str, paths: list[Path]) -> None:
         written.extend(paths)
@@ -192,7 +197,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
 
     for name in scenarios:
         step(f"figures for {name}")
-        prob, pmp = entries[name]["problem"], runs[name]["pmp"]
+        prob, pmp = entries[name].problem, runs[name]["pmp"]
         fd = out / "figures"
         fig(f"xy-{name}", plot_xy_snapshots(pmp, fd / f"xy-{name}",
                                             title=f"{name}: ego and vehicles every 0.5 s (lighter = earlier)"))
@@ -208,26 +213,27 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
                                                  title=f"{name}: cost against contact time"))
         fig(f"costates-{name}", plot_costates(pmp, qp_runs, fd / f"costates-{name}",
                                               title=f"{name}: PMP co-states and jumps against QP multipliers"))
-    pred_entries = {}
+    pred_entries: dict[str, dict[str, object]] = {}
     for name in scenarios[:3] if len(scenarios) >= 3 else scenarios:
         e = entries[name]
-        if e["problem"].m != 1:
+        if e.problem.m != 1:
             continue
-        spec_v = e["scenario"].vehicles[0]
-        p0 = e["predictions"][0] if e["predictions"] else None
+        spec_v = e.scenario.vehicles[0]
+        first = e.predictions[0] if e.predictions else None
         pred_entries[name] = {"history_t": spec_v.history.t if spec_v.history is not None else None,
                               "history_x": spec_v.history.x if spec_v.history is not None else None,
-                              "pred_t": p0.t if p0 is not None else None, "pred_x": p0.x if p0 is not None else None,
-                              "x_poly": e["problem"].vehicles[0].x_poly}
+                              "pred_t": first.t if first is not None else None,
+                              "pred_x": first.x if first is not None else None,
+                              "x_poly": e.problem.vehicles[0].x_poly}
     if pred_entries:
         fig("predictions", plot_predictions(pred_entries, out / "figures" / "predictions",
-                                            tf=entries[next(iter(pred_entries))]["problem"].tf))
+                                            tf=entries[next(iter(pred_entries))].problem.tf))
 
     # safety: equality against the avoidance QP (SPEC §9, §10), a table and a figure per scenario
     from iamp.comparison.safety_compare import reproduction_section
 
     step("safety: equality against the avoidance QP")
-    safety = reproduction_section({n: entries[n]["problem"] for n in scenarios}, out / "figures",
+    safety = reproduction_section({n: entries[n].problem for n in scenarios}, out / "figures",
                                   steps_one=cfg.steps_one, steps_two=cfg.steps_two)
     for key, paths in safety["figures"].items():
         fig(key, paths)
@@ -237,17 +243,17 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     from iamp.comparison.report.bounded import latex_table as bounded_latex
 
     step("the bounded problem: every planner under a passenger car's limits")
-    bounded = []
+    bounded: list[BoundedRow] = []
     for k, name in enumerate(scenarios):
-        prob = entries[name]["problem"]
+        prob = entries[name].problem
         bounded += bounded_rows(name, prob, steps=cfg.steps_one if prob.m <= 1 else cfg.steps_two)
         step.sub(k + 1, len(scenarios))
 
     step("ZOH convergence study (N = " + ", ".join(map(str, cfg.zoh_steps)) + ")")
-    one = [name for name in scenarios if entries[name]["problem"].m == 1]
-    conv = {}
+    one = [name for name in scenarios if entries[name].problem.m == 1]
+    conv: dict[str, ZohConvergence] = {}
     for k, name in enumerate(one):
-        conv[name] = zoh_convergence(entries[name]["problem"], cfg.zoh_steps)
+        conv[name] = zoh_convergence(entries[name].problem, cfg.zoh_steps)
         step.sub(k + 1, len(one))
     if conv:
         fig("zoh", plot_zoh_convergence({n: ([r["h"] for r in c["rows"]], [r["zoh_gap"] or np.nan for r in c["rows"]])
@@ -261,7 +267,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
 
     # 6. predictor evaluation --------------------------------------------------------------
     step("predictor evaluation")
-    tables: dict[str, Any] = {}
+    tables: dict[str, str] = {}
     predictor = predictor_evaluation(out, cfg, notes, progress=step.sub)
     if predictor is not None:
         for key in ("predictor_rmse", "predictor_selection"):
@@ -275,9 +281,9 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
 
     step("closed loop: a small SUMO campaign (needs the [sim] extra)")
     campaign = campaign_section(out, quick=quick, progress=step.sub)
-    if campaign.get("available"):
+    if campaign["available"] and "table" in campaign:
         written.append(out / campaign["table"])
-    else:
+    elif "note" in campaign:
         notes.append(campaign["note"])
 
     # 8. tables, results.json, report.tex ----------------------------------------------------
@@ -291,7 +297,8 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
                       ("bounded", bounded_latex(bounded))):
         written.append(atomic_write_text(tdir / f"{key}.tex", text))
         tables[key] = f"tables/{key}.tex"
-    res: dict[str, Any] = {"produced_by": "iamp.comparison.report.reproduce", "config": asdict(cfg), "notes": notes,
+    cfg_json = cast(ConfigJSON, asdict(cfg))  # ReproduceConfig's fields
+    res: ResultsJSON = {"produced_by": "iamp.comparison.report.reproduce", "config": cfg_json, "notes": notes,
            "versions": versions_used(), "scenarios": scen_out, "qualitative": qual, "zoh_convergence": conv,
            "timing": timing, "predictor": predictor, "safety": safety["json"],
            "campaign": {k: v for k, v in campaign.items() if k != "table"},
@@ -309,7 +316,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     return res
 
 
-def _sweeps(runs: dict[str, Plan]) -> dict[str, list[tuple[tuple[int, ...], float]]]:
+def _sweeps(runs: Mapping[str, Plan]) -> dict[str, list[tuple[tuple[int, ...], float]]]:
     """Each QP run's contact-node sweep (``QPDiagnostics.sweep``: ``(nodes, cost)``), by label."""
     out: dict[str, list[tuple[tuple[int, ...], float]]] = {}
     for lbl, r in runs.items():

@@ -13,28 +13,22 @@ from __future__ import annotations
 import os
 import platform
 import time
-from collections.abc import Callable, Iterator, Sequence
-from typing import Any, TypedDict
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 from iamp.comparison.timing import StatsJSON, dist_version, sample_nodes, summarize
 
 from .config import ProgressFn, ReproduceConfig
+from .records import EmptyStatsJSON, ScenarioEntry, ScenarioPlan, TimingSection
 from .tex import short_label
 
-__all__ = ["EmptyStatsJSON", "timing_section", "versions_used", "whole_plan_stats"]
+if TYPE_CHECKING:  # pragma: no cover
+    from iamp.planners.qp.core import CandidateSolver
+
+__all__ = ["timing_section", "versions_used", "whole_plan_stats"]
 
 
-class EmptyStatsJSON(TypedDict):
-    """The statistics of no samples."""
-
-    n: int
-    median: None
-    q1: None
-    q3: None
-    iqr: None
-
-
-def _next_solve(qp: Any, nodes: Iterator[Any]) -> Callable[[], object]:
+def _next_solve(qp: CandidateSolver, nodes: Iterator[tuple[int, ...]]) -> Callable[[], object]:
     """A call that solves ``qp`` at the next candidate of ``nodes`` (one changed node per sample)."""
     return lambda: qp.solve_nodes(next(nodes))
 
@@ -57,8 +51,8 @@ def _summary(samples: Sequence[float]) -> StatsJSON | EmptyStatsJSON:
     return summarize(samples).to_dict()
 
 
-def timing_section(entries: dict[str, Any], plans: dict[str, Any], cfg: ReproduceConfig,
-                   progress: ProgressFn | None = None) -> dict[str, Any]:
+def timing_section(entries: Mapping[str, ScenarioEntry], plans: Mapping[str, ScenarioPlan], cfg: ReproduceConfig,
+                   progress: ProgressFn | None = None) -> TimingSection:
     """Timing: one QP solve at a changed candidate node (the cvxpy re-solve of the compiled
     problem, and the native path) per solver, as raw samples; and the whole-plan statistics
     of every run of the planning step (:func:`iamp.comparison.agreement.judge.compare_problem`).
@@ -71,9 +65,9 @@ def timing_section(entries: dict[str, Any], plans: dict[str, Any], cfg: Reproduc
     from iamp.comparison.cvxpy_qp import CvxpyQPPlanner
     from iamp.planners.qp.core import DiscretisedQP as build_native
     names = [n for n in cfg.timing_scenarios if n in entries]
-    samples: dict[str, Any] = {}
+    samples: dict[str, list[float]] = {}
     for k, name in enumerate(names):
-        prob = entries[name]["problem"]
+        prob = entries[name].problem
         m = prob.m
         tag = "1 vehicle" if m == 1 else f"{m} vehicles"
         steps = cfg.steps_one if m == 1 else cfg.steps_two
@@ -92,7 +86,7 @@ def timing_section(entries: dict[str, Any], plans: dict[str, Any], cfg: Reproduc
                                                                                    cfg.qp_solve_repeats)
         if progress is not None:
             progress(k + 1, len(names))
-    plans_stats = {name: {d["label"]: d.get("time_s") for d in p["runs"]} for name, p in plans.items()}
+    plans_stats = {name: {d["label"]: d.get("time_s") for d in p.runs} for name, p in plans.items()}
     return {"samples": samples, "summary": {k: _summary(v) for k, v in samples.items()}, "full_plans": plans_stats,
             "pmp_timed_without_diagnostics": True,
             "machine": {"python": platform.python_version(), "cpu_count": os.cpu_count(),
@@ -100,10 +94,10 @@ def timing_section(entries: dict[str, Any], plans: dict[str, Any], cfg: Reproduc
                         "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}}
 
 
-def whole_plan_stats(timing: dict[str, Any], cfg: ReproduceConfig) -> dict[str, Any]:
+def whole_plan_stats(timing: TimingSection, cfg: ReproduceConfig) -> dict[str, StatsJSON]:
     """``{"<scenario>: <run label>": stats}`` of the whole plans of the timing scenarios (the
     figure's left panel; the same numbers as the table's whole-plan rows)."""
-    out = {}
+    out: dict[str, StatsJSON] = {}
     for name in cfg.timing_scenarios:
         for label, st in (timing["full_plans"].get(name) or {}).items():
             if st and st.get("n"):
@@ -111,7 +105,7 @@ def whole_plan_stats(timing: dict[str, Any], cfg: ReproduceConfig) -> dict[str, 
     return out
 
 
-def versions_used() -> dict[str, Any]:
+def versions_used() -> dict[str, str | None]:
     """Python's and each dependency's version (``None`` when not installed)."""
     out: dict[str, str | None] = {"python": platform.python_version()}
     for dist in ("iamp", "numpy", "scipy", "cvxpy", "osqp", "clarabel", "matplotlib"):
