@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import os
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Array", "BoolArray", "FloatArray", "IntArray", "Progress"]
+__all__ = ["Array", "BoolArray", "FloatArray", "IntArray", "Lines", "PathLike", "Progress", "Seed", "StateSequences"]
 
 #: A float64 array.
 FloatArray = npt.NDArray[np.float64]
@@ -20,3 +21,11 @@ BoolArray = npt.NDArray[np.bool_]
 Array = npt.NDArray[Any]
 #: Progress callback ``(done, total)`` (see ``iamp.cli.progress``).
 Progress = Callable[[int, int], None]
+#: The file line of every row of a loaded table (for messages), when the loader knows it.
+Lines = IntArray | None
+#: A file path.
+PathLike = str | os.PathLike[str]
+#: What :func:`numpy.random.default_rng` accepts: a generator, a seed, or ``None`` (fresh entropy).
+Seed = np.random.Generator | int | None
+#: Integer state sequences: one 1-D array, or an iterable of 1-D sequences (one per track).
+StateSequences = npt.NDArray[np.integer[Any]] | Iterable[npt.ArrayLike]

@@ -16,9 +16,9 @@ stays stopped for the interval.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from iamp.prediction._typing import FloatArray
 
@@ -108,7 +108,8 @@ def _foh_nodes(x0: FloatArray, v0: FloatArray, abar: FloatArray, dt: float) -> t
     return xs, vs
 
 
-def integrate_nodes(x0: Any, v0: Any, abar: np.ndarray, dt: float, query: Any) -> tuple[FloatArray, FloatArray]:
+def integrate_nodes(x0: ArrayLike, v0: ArrayLike, abar: np.ndarray, dt: float,
+                    query: ArrayLike) -> tuple[FloatArray, FloatArray]:
     """Positions and speeds at ``query`` for accelerations linear between node values.
 
     Parameters
@@ -128,9 +129,9 @@ def integrate_nodes(x0: Any, v0: Any, abar: np.ndarray, dt: float, query: Any) -
     """
     abar = np.atleast_2d(np.asarray(abar, dtype=float))
     B = abar.shape[0]
-    x0 = np.broadcast_to(np.asarray(x0, dtype=float), (B,)).copy()
-    v0 = np.maximum(np.broadcast_to(np.asarray(v0, dtype=float), (B,)), 0.0)
-    xs, vs = _foh_nodes(x0, v0, abar, dt)
+    x_start = np.broadcast_to(np.asarray(x0, dtype=float), (B,)).copy()
+    v_start = np.maximum(np.broadcast_to(np.asarray(v0, dtype=float), (B,)), 0.0)
+    xs, vs = _foh_nodes(x_start, v_start, abar, dt)
     M = abar.shape[1] - 1
     q = np.asarray(query, dtype=float)
     k = np.clip(np.floor(q / dt + 1e-9).astype(int), 0, M - 1)

@@ -50,14 +50,16 @@ from __future__ import annotations
 import functools
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from iamp.core.scenario import History
-from iamp.prediction._typing import FloatArray, IntArray
+from iamp.prediction._typing import FloatArray, IntArray, PathLike, Seed
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
 from iamp.prediction.kinematics import (
     cubic_fit,
@@ -101,6 +103,22 @@ BATCH_BYTES = 64 << 20
 # ---------------------------------------------------------------------------------------
 # the prediction
 # ---------------------------------------------------------------------------------------
+
+class _PredictionJSONBase(TypedDict):
+    x_poly: list[float]
+    t: list[float]
+    x: list[float]
+    v: list[float]
+    a: list[float]
+    model: str
+    fit_rmse: float
+
+
+class PredictionJSON(_PredictionJSONBase, total=False):
+    """:meth:`Prediction.to_dict` (``quantiles``: positions at ``t`` per quantile, when sampled)."""
+
+    quantiles: dict[str, list[float]]
+
 
 @dataclass(frozen=True, eq=False)
 class Prediction:
@@ -150,15 +168,15 @@ class Prediction:
             object.__setattr__(self, name, readonly_array(getattr(self, name)))
         object.__setattr__(self, "quantiles", {float(q): readonly_array(v) for q, v in self.quantiles.items()})
 
-    def x_fit(self, t: Any = None) -> FloatArray:
+    def x_fit(self, t: ArrayLike | None = None) -> FloatArray:
         """The fitted cubic evaluated at ``t`` (default: the prediction times)."""
-        t = self.t if t is None else np.asarray(t, dtype=float)
-        out: FloatArray = np.polynomial.polynomial.polyval(t, self.x_poly)
+        times = self.t if t is None else np.asarray(t, dtype=float)
+        out: FloatArray = np.polynomial.polynomial.polyval(times, self.x_poly)
         return out
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> PredictionJSON:
         """JSON-ready dict (``x_poly``, ``t``, ``x``, ``v``, ``a``, ``model``, ``fit_rmse``)."""
-        d = {"x_poly": list(self.x_poly), "t": self.t.tolist(), "x": self.x.tolist(),
+        d: PredictionJSON = {"x_poly": list(self.x_poly), "t": self.t.tolist(), "x": self.x.tolist(),
              "v": self.v.tolist(), "a": self.a.tolist(), "model": self.model, "fit_rmse": self.fit_rmse}
         if self.quantiles:
             d["quantiles"] = {f"{q:g}": v.tolist() for q, v in self.quantiles.items()}
@@ -247,7 +265,7 @@ class Predictor:
         return cls(_default_model(), "builtin")
 
     @classmethod
-    def from_file(cls, path: Any) -> Predictor:
+    def from_file(cls, path: PathLike) -> Predictor:
         """A predictor with the model in a JSON file (:meth:`MTDModel.save`)."""
         return cls(MTDModel.load(path), str(path))
 
@@ -263,15 +281,15 @@ class Predictor:
         return 3
 
     # -- prediction ------------------------------------------------------------------------
-    def _horizon(self, tf: Any) -> tuple[int, FloatArray]:
+    def _horizon(self, tf: object) -> tuple[int, FloatArray]:
         if isinstance(tf, bool) or not isinstance(tf, (int, float, np.integer, np.floating)):
             raise ValueError(f"tf must be a number (got {tf!r})")
-        tf = float(tf)
-        if not (math.isfinite(tf) and tf > 0):
-            raise ValueError(f"tf must be positive and finite (got {tf})")
-        M = max(int(math.ceil(tf / self.dt - 1e-9)), 1)
+        horizon = float(tf)
+        if not (math.isfinite(horizon) and horizon > 0):
+            raise ValueError(f"tf must be positive and finite (got {horizon})")
+        M = max(int(math.ceil(horizon / self.dt - 1e-9)), 1)
         t = np.asarray(self.dt * np.arange(M + 1), dtype=np.float64)
-        t[-1] = tf
+        t[-1] = horizon
         return M, t
 
     @property
@@ -298,8 +316,8 @@ class Predictor:
         probs = self.model.propagate_batch(np.atleast_2d(states), M + 1)
         return probs, probs @ self.centres
 
-    def predict(self, history: History, tf: float = 5.0, *, n_samples: int = 0, quantiles: Any = (),
-                seed: Any = None) -> Prediction:
+    def predict(self, history: History, tf: float = 5.0, *, n_samples: int = 0, quantiles: Iterable[float] = (),
+                seed: Seed = None) -> Prediction:
         """Predict the trajectory over ``[0, tf]`` and fit the cubic.
 
         Parameters

@@ -7,11 +7,11 @@ default); :mod:`iamp.core.scenario` itself never imports the predictor.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from iamp.core.problem import Problem
-from iamp.core.scenario import Scenario, load_scenario
-from iamp.prediction.predictor import Predictor
+from iamp.core.scenario import History, Scenario, load_scenario
+from iamp.prediction._typing import FloatArray
+from iamp.prediction.predictor import Prediction, Predictor
 
 
 def default_predictor() -> Predictor:
@@ -19,7 +19,7 @@ def default_predictor() -> Predictor:
     return Predictor.default()
 
 
-def load_problem(spec: str, model: str | None = None) -> tuple[Scenario, Problem, list[Any]]:
+def load_problem(spec: str, model: str | None = None) -> tuple[Scenario, Problem, list[Prediction | None]]:
     """Scenario file or built-in name -> ``(scenario, problem, predictions)``.
 
     Vehicles given by a ``history`` are predicted with the model file ``model`` or, if it is
@@ -28,7 +28,8 @@ def load_problem(spec: str, model: str | None = None) -> tuple[Scenario, Problem
     return problem_from_scenario(load_scenario(spec), model)
 
 
-def problem_from_scenario(scenario: Scenario, model: str | None = None) -> tuple[Scenario, Problem, list[Any]]:
+def problem_from_scenario(scenario: Scenario,
+                          model: str | None = None) -> tuple[Scenario, Problem, list[Prediction | None]]:
     """A loaded scenario -> ``(scenario, problem, predictions)``, predicting history vehicles
     with the model file ``model`` or the shipped model."""
     predictor = None
@@ -41,8 +42,8 @@ def problem_from_scenario(scenario: Scenario, model: str | None = None) -> tuple
 @dataclass(frozen=True)
 class _LeaderPrediction:
     x_poly: tuple[float, ...]
-    t: Any
-    x: Any
+    t: FloatArray
+    x: FloatArray
 
 
 class _ScenarioLeaderPredictor:
@@ -54,11 +55,12 @@ class _ScenarioLeaderPredictor:
         self.name = name
         self.dt = dt
 
-    def predict(self, history: Any, tf: float) -> _LeaderPrediction:
+    def predict(self, history: History, tf: float) -> _LeaderPrediction:
         return self._by_history[id(history)]
 
 
-def problem_with_leader_model(scenario: Scenario, leader_model: str) -> tuple[Problem, list[Any]]:
+def problem_with_leader_model(scenario: Scenario,
+                              leader_model: str) -> tuple[Problem, list[_LeaderPrediction | None]]:
     """``(problem, predictions)`` with every history vehicle predicted by the leader-aware predictor
     of the file ``leader_model`` (the vehicle ahead in its lane, |dy| < 1.75 m, as leader; the
     model's MTD fallback where there is none): the scenario-level counterpart of

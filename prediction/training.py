@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from iamp.prediction._typing import FloatArray
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD
@@ -81,8 +83,8 @@ def bin_centres(accels: list[np.ndarray], edges: np.ndarray) -> np.ndarray:
     return np.where(cnt > 0, tot / np.maximum(cnt, 1), mid)
 
 
-def train_from_tracks(tracks: Tracks, *, dt: float, edges: Any, order: int, estimator: str = "mle",
-                      jerk_psd: float = DEFAULT_JERK_PSD, provenance: dict[str, Any] | None = None,
+def train_from_tracks(tracks: Tracks, *, dt: float, edges: ArrayLike, order: int, estimator: str = "mle",
+                      jerk_psd: float = DEFAULT_JERK_PSD, provenance: Mapping[str, object] | None = None,
                       **fit_kwargs: Any) -> MTDModel:
     """Train an MTD acceleration model on a :class:`~iamp.prediction.tracks.table.Tracks` table.
 
@@ -130,7 +132,7 @@ def train_from_tracks(tracks: Tracks, *, dt: float, edges: Any, order: int, esti
                **fit_kwargs)
 
 
-def _jsonable(obj: Any) -> Any:
+def _jsonable(obj: object) -> object:
     try:
         json.dumps(obj, allow_nan=False)
         return obj

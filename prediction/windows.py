@@ -26,11 +26,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
-from iamp.prediction._typing import FloatArray, IntArray, Progress
+from iamp.prediction._typing import BoolArray, FloatArray, IntArray, Progress
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
 from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.tracks.table import Tracks
@@ -42,6 +42,7 @@ __all__ = [
     "HISTORY_S",
     "HORIZONS",
     "STRIDE_S",
+    "WindowMetrics",
     "Windows",
     "baseline_ca",
     "baseline_cv",
@@ -94,7 +95,7 @@ class Windows:
         """Number of windows."""
         return int(self.X_hist.shape[0])
 
-    def take(self, index: Any) -> Windows:
+    def take(self, index: IntArray | BoolArray | slice) -> Windows:
         """The windows selected by ``index`` (boolean mask or integer indices)."""
         def sub(a: FloatArray | None) -> FloatArray | None:
             return None if a is None else a[index]
@@ -153,7 +154,17 @@ def make_windows(tracks: Tracks, history_s: float = HISTORY_S, future_s: float =
                    np.concatenate(YF) if lateral else None)
 
 
-def metrics(pred: FloatArray, win: Windows, horizons: tuple[float, ...] = HORIZONS) -> dict[str, Any]:
+class WindowMetrics(TypedDict):
+    """:func:`metrics`: RMSE at each horizon, their mean, ADE and FDE [m] over ``n_windows`` windows."""
+
+    rmse: list[float]
+    rmse_mean: float
+    ade: float
+    fde: float
+    n_windows: int
+
+
+def metrics(pred: FloatArray, win: Windows, horizons: tuple[float, ...] = HORIZONS) -> WindowMetrics:
     """RMSE at ``horizons``, ADE and FDE (metres) of predictions ``(W, F)`` at ``win.t_fut``."""
     err = pred - win.X_fut
     cols = [int(np.argmin(np.abs(win.t_fut - h))) for h in horizons]
@@ -208,7 +219,7 @@ def lateral_constant(win: Windows) -> FloatArray | None:
 
 
 def evaluate_methods(win: Windows, models: dict[str, MTDModel], jerk_psd: float = DEFAULT_JERK_PSD,
-                     progress: Progress | None = None) -> dict[str, dict[str, Any]]:
+                     progress: Progress | None = None) -> dict[str, WindowMetrics]:
     """Metrics of the baselines and of every model in ``models`` (name → MTDModel).
 
     For each model ``name`` two rows are produced: ``name`` (raw propagated trajectory)

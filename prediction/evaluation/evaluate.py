@@ -45,11 +45,12 @@ import json
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import cast
 
 import numpy as np
 
 from iamp.core.atomic import write_text as atomic_write_text
+from iamp.prediction._typing import PathLike
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD
 from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.predictor import DEFAULT_MODEL_FILE, Predictor
@@ -71,8 +72,9 @@ from ..windows import (
     metrics,
 )
 from .data import paper_histories, synthetic_tracks
+from .records import EvaluationJSON, HeldoutLoglik, PaperPrediction
 from .report import NGSIM_CV_REFERENCE, rmse_table_tex, selection_table_tex
-from .select import A_MAX, select_model, train_config
+from .select import A_MAX, ModelConfig, select_model, train_config
 
 __all__ = [
     "DEFAULT_CONFIG",
@@ -101,8 +103,8 @@ EVAL_VERSION = 4
 
 #: The configuration chosen by :func:`select_model` on the shipped SUMO data (the evidence
 #: is in ``reports/predictor_eval.json``); :func:`train_default_model` uses it.
-DEFAULT_CONFIG: dict[str, Any] = {"dt": 0.2, "width": 0.5, "order": 4, "a_max": A_MAX,
-                                  "jerk_psd": DEFAULT_JERK_PSD, "estimator": "mle"}
+DEFAULT_CONFIG: ModelConfig = {"dt": 0.2, "width": 0.5, "order": 4, "a_max": A_MAX,
+                               "jerk_psd": DEFAULT_JERK_PSD, "estimator": "mle"}
 
 # ---------------------------------------------------------------------------------------
 # data, splits, windows
@@ -128,8 +130,8 @@ def _load_default_data() -> Tracks:
     return load_shipped_dataset()
 
 
-def train_default_model(path: Any = None, *, tracks: Tracks | None = None,
-                        config: dict[str, Any] | None = None) -> MTDModel:
+def train_default_model(path: PathLike | None = None, *, tracks: Tracks | None = None,
+                        config: ModelConfig | None = None) -> MTDModel:
     """Train the shipped default model deterministically and (optionally) write it.
 
     Parameters
@@ -148,7 +150,7 @@ def train_default_model(path: Any = None, *, tracks: Tracks | None = None,
         Fitted on ``train ∪ val`` (every track not in the test split).
     """
     tracks = _load_default_data() if tracks is None else tracks
-    cfg = dict(DEFAULT_CONFIG if config is None else config)
+    cfg = (DEFAULT_CONFIG if config is None else config).copy()
     _, _, test, rest = split_tracks(tracks)
     prov = {
         "trained_by": "iamp.prediction.evaluate.train_default_model",  # restructure: keep (the shipped model)
@@ -169,8 +171,8 @@ def train_default_model(path: Any = None, *, tracks: Tracks | None = None,
     return model
 
 
-def _paper_predictions(predictor: Predictor) -> dict[str, Any]:
-    out = {}
+def _paper_predictions(predictor: Predictor) -> dict[str, PaperPrediction]:
+    out: dict[str, PaperPrediction] = {}
     for name, h in paper_histories().items():
         p = predictor.predict(h, 5.0)
         out[name] = {"x_poly": list(p.x_poly), "fit_rmse": p.fit_rmse, "v_at_5s": float(p.v[-1]),
@@ -180,7 +182,7 @@ def _paper_predictions(predictor: Predictor) -> dict[str, Any]:
 
 
 def run_evaluation(tracks: Tracks | None = None, *, select: bool = True,
-                   config: dict[str, Any] | None = None) -> dict[str, Any]:
+                   config: ModelConfig | None = None) -> EvaluationJSON:
     """The whole protocol: selection on validation, final numbers on test.
 
     Parameters
@@ -200,7 +202,7 @@ def run_evaluation(tracks: Tracks | None = None, *, select: bool = True,
     tracks = _load_default_data() if tracks is None else tracks
     train, val, test, rest = split_tracks(tracks)
     selection = select_model(train, val) if select else None
-    cfg = dict(selection["chosen"] if selection else (config or DEFAULT_CONFIG))
+    cfg = (selection["chosen"] if selection else (config or DEFAULT_CONFIG)).copy()
     q = float(cfg.get("jerk_psd", DEFAULT_JERK_PSD))
     final = train_config(rest, cfg)
     models = {"mtd": final,
@@ -214,7 +216,7 @@ def run_evaluation(tracks: Tracks | None = None, *, select: bool = True,
     # held-out log-likelihood of the state sequences (per transition)
     assert final.edges is not None and final.centres is not None
     seqs = [np.searchsorted(final.edges, a, side="right") for a in track_accelerations(test, cfg["dt"])]
-    heldout = {}
+    heldout: dict[str, HeldoutLoglik] = {}
     for name, m in models.items():
         if m.dt != final.dt or m.n_states != final.n_states:
             continue
@@ -255,8 +257,8 @@ def run_evaluation(tracks: Tracks | None = None, *, select: bool = True,
     }
 
 
-def write_evaluation_report(out_dir: Any = "reports", results: dict[str, Any] | None = None, *, rerun: bool = False,
-                            select: bool = True) -> dict[str, Any]:
+def write_evaluation_report(out_dir: PathLike = "reports", results: EvaluationJSON | None = None, *,
+                            rerun: bool = False, select: bool = True) -> EvaluationJSON:
     """Write the evaluation report (running the evaluation only when needed).
 
     Writes, atomically, ``out_dir/predictor_eval.json``, ``out_dir/tables/predictor_rmse.tex``
@@ -290,7 +292,7 @@ def write_evaluation_report(out_dir: Any = "reports", results: dict[str, Any] | 
             if (proto.get("eval_version") == EVAL_VERSION
                     and proto.get("dataset_sha256_track_t_x") == _dataset_fingerprint(_load_default_data())
                     and (old.get("selection") is not None or not select)):
-                res = old
+                res = cast(EvaluationJSON, old)  # this protocol version's results, on this data set
         except (OSError, ValueError, AttributeError):
             res = None
     if res is None:

@@ -17,15 +17,16 @@ horizon, its ADE and FDE, and of their differences to constant velocity.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from iamp.prediction._typing import BoolArray, FloatArray, IntArray
+from iamp.prediction._typing import BoolArray, FloatArray, IntArray, PathLike
 from iamp.prediction.leader.leaders import Leaders
 from iamp.prediction.leader.windows import LeaderWindows, leader_windows
+from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.tracks import Tracks
 from iamp.prediction.windows import HORIZONS, Windows
+
+from .records import BootstrapTable, InteractionSection, MethodRow
 
 __all__ = ["CONGESTED_BELOW_MPS", "LeaderWindows", "bootstrap_table", "errors", "leader_windows", "subset_tables"]
 
@@ -48,11 +49,11 @@ def _ci(x: FloatArray) -> list[float]:
 
 
 def bootstrap_table(errs: dict[str, dict[str, FloatArray]], track_id: IntArray, seed: int = 0,
-                    resamples: int = 1000, reference: str = "cv") -> dict[str, Any]:
+                    resamples: int = 1000, reference: str = "cv") -> BootstrapTable:
     """Every method's RMSE per horizon, ADE, FDE with track-bootstrap 95 % intervals, and its difference to CV."""
     _, code = np.unique(track_id, return_inverse=True)
     T = int(code.max()) + 1 if code.size else 0
-    out: dict[str, Any] = {"windows": int(track_id.size), "tracks": T}
+    out: BootstrapTable = {"windows": int(track_id.size), "tracks": T}
     if T == 0:
         return out
     rng = np.random.default_rng(seed)
@@ -70,11 +71,11 @@ def bootstrap_table(errs: dict[str, dict[str, FloatArray]], track_id: IntArray, 
     for name, e in errs.items():
         boot[name] = (np.sqrt(wts @ tsum(e["sq"]) / n_w), (wts @ tsum(e["ade"]) / n_w)[:, 0],
                       (wts @ tsum(e["fde"]) / n_w)[:, 0])
-    methods: dict[str, Any] = {}
+    methods: dict[str, MethodRow] = {}
     ref = errs.get(reference)
     for name, e in errs.items():
         rm = np.sqrt(np.mean(e["sq"], axis=0))
-        row: dict[str, Any] = {
+        row: MethodRow = {
             "rmse_m": [float(v) for v in rm], "rmse_ci95": [_ci(boot[name][0][:, h]) for h in range(rm.size)],
             "ade_m": float(np.mean(e["ade"])), "ade_ci95": _ci(boot[name][1]),
             "fde_m": float(np.mean(e["fde"])), "fde_ci95": _ci(boot[name][2])}
@@ -93,9 +94,9 @@ def bootstrap_table(errs: dict[str, dict[str, FloatArray]], track_id: IntArray, 
 
 
 def subset_tables(errs: dict[str, dict[str, FloatArray]], track_id: IntArray, masks: dict[str, BoolArray],
-                  seed: int = 0, resamples: int = 1000) -> dict[str, Any]:
+                  seed: int = 0, resamples: int = 1000) -> dict[str, BootstrapTable]:
     """:func:`bootstrap_table` of every named subset of the windows (empty subsets: only the counts)."""
-    out = {}
+    out: dict[str, BootstrapTable] = {}
     for name, m in masks.items():
         sub = {k: {f: v[m] for f, v in e.items()} for k, e in errs.items()}
         out[name] = bootstrap_table(sub, track_id[m], seed, resamples)
@@ -111,9 +112,9 @@ def _rows_mask(full: Tracks, part: Tracks) -> BoolArray:
     return np.isin(key(full), key(part))
 
 
-def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train: Tracks | None, win: Windows,
-                        mtd: Any, preds: dict[str, FloatArray], *, leader_model: str | None, split: str | None,
-                        seed: int, resamples: int) -> tuple[dict[str, Any], dict[str, FloatArray]]:
+def interaction_section(data: PathLike, fmt: str, tracks: Tracks, test: Tracks, train: Tracks | None, win: Windows,
+                        mtd: MTDModel, preds: dict[str, FloatArray], *, leader_model: str | None, split: str | None,
+                        seed: int, resamples: int) -> tuple[InteractionSection, dict[str, FloatArray]]:
     """The leader-aware rows and the ``interaction`` section of ``evaluate-predictor`` (module docstring).
 
     Returns ``(section, extra predictions)``: ``extra`` holds ``"leader"`` (the leader-aware
@@ -141,8 +142,8 @@ def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train
         note = f"calibrated on the {split} split's training part ({train.n_tracks} tracks)"
     lp = LeaderPredictor(lm, "leader")
     lw = leader_windows(tracks, leaders, win)
-    kw: dict[str, Any] = {"XL_hist": lw.XL_hist, "has_leader": lw.known, "offset": lw.offset}
-    extra = {"leader": lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S, **kw)}
+    extra = {"leader": lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S, XL_hist=lw.XL_hist,
+                                        has_leader=lw.known, offset=lw.offset)}
     # the oracle: the leader's recorded past and future, smoothed as one sequence (an oracle may look
     # ahead; raw positions differentiated would feed the law the video noise), and in a split the law
     # calibrated along recorded leader futures (the behavioural law) instead of along CV forecasts
@@ -159,7 +160,8 @@ def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train
     else:
         note_oracle = "the evaluated leader model's law"
     oracle = LeaderPredictor(lo, "oracle").predict_batch(win.t_hist, win.X_hist, win.t_fut, FUTURE_S,
-                                                         leader_future=(xl, vl), **kw)
+                                                         leader_future=(xl, vl), XL_hist=lw.XL_hist,
+                                                         has_leader=lw.known, offset=lw.offset)
     allp = {**preds, **extra, "leader-oracle": oracle}
     errs = {k: errors(p, win.X_fut, win.t_fut) for k, p in allp.items()}
     sm = smooth_histories(win.t_hist, win.X_hist, lm.jerk_psd)
@@ -167,7 +169,7 @@ def interaction_section(data: Any, fmt: str, tracks: Tracks, test: Tracks, train
     cong = v0 < CONGESTED_BELOW_MPS
     masks = {"all": np.ones(win.n, dtype=bool), "free": ~cong, "congested": cong,
              "leader_known": lw.known, "leader_unknown": ~lw.known}
-    section = {
+    section: InteractionSection = {
         "leader_source": leaders.source, "leader_rows_known": leaders.known_fraction,
         "windows_leader_known": int(np.sum(lw.known)), "leader_future_extended": int(np.sum(lw.future_extended)),
         "congested_below_mps": CONGESTED_BELOW_MPS, "windows_congested": int(np.sum(cong)),

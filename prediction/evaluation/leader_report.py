@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from .records import UserEvaluation
 
 __all__ = ["interaction_markdown"]
 
@@ -14,7 +14,7 @@ def _ci(c: list[float], fmt: str = "{:.2f}") -> str:
     return f"[{fmt.format(c[0])}, {fmt.format(c[1])}]"
 
 
-def interaction_markdown(res: dict[str, Any], title: str) -> str:
+def interaction_markdown(res: UserEvaluation, title: str) -> str:
     """The §13 table (RMSE per horizon, ADE/FDE with CIs) and the per-subset RMSE at 5 s against CV."""
     tabs = res["interaction"]["tables"]
     allm = tabs["all"]["methods"]

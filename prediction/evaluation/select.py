@@ -11,7 +11,8 @@ is chosen first, on the constant-velocity baseline.
 from __future__ import annotations
 
 import time
-from typing import Any
+from collections.abc import Mapping
+from typing import NotRequired, TypedDict
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from iamp.prediction.training import symmetric_edges, train_from_tracks
 from ..windows import (
     FUTURE_S,
     HISTORY_S,
+    WindowMetrics,
     Windows,
     baseline_ca,
     baseline_cv,
@@ -44,11 +46,70 @@ NOISE_LEVELS_M = (0.0, 0.03, 0.1)
 A_MAX = 3.0
 
 
-def train_config(tracks: Tracks, cfg: dict[str, Any], estimator: str | None = None, order: int | None = None,
-                 provenance: dict[str, Any] | None = None) -> MTDModel:
+class ModelConfig(TypedDict):
+    """A model configuration: chain step [s], bin width and range [m/s²], order, smoother jerk
+    spectral density [m²/s⁵] and estimator (:func:`train_config`)."""
+
+    dt: float
+    width: float
+    order: int
+    a_max: NotRequired[float]
+    jerk_psd: NotRequired[float]
+    estimator: NotRequired[str]
+
+
+class _GridConfig(TypedDict):
+    """A configuration of the selection grid (every key of :class:`ModelConfig` but the estimator)."""
+
+    dt: float
+    width: float
+    order: int
+    a_max: float
+    jerk_psd: float
+
+
+#: A configuration of the selection grid scored on validation (functional form: ``lambda`` is a
+#: keyword); :data:`SelectionRow` adds whether the selection rule admits it.
+ScoredConfig = TypedDict("ScoredConfig", {
+    "dt": float, "width": float, "order": int, "a_max": float, "jerk_psd": float, "n_states": int,
+    "val": WindowMetrics, "val_cubic": WindowMetrics, "loglik": float, "n_obs": int, "n_parameters": int,
+    "aic": float, "bic": float, "lambda": list[float], "fit_seconds": float})
+#: One row of the selection grid (:func:`select_model`).
+SelectionRow = TypedDict("SelectionRow", {
+    "dt": float, "width": float, "order": int, "a_max": float, "jerk_psd": float, "n_states": int,
+    "val": WindowMetrics, "val_cubic": WindowMetrics, "loglik": float, "n_obs": int, "n_parameters": int,
+    "aic": float, "bic": float, "lambda": list[float], "fit_seconds": float, "eligible": bool,
+    "excluded_because": str})
+
+
+class JerkPsdSelection(TypedDict):
+    """How :func:`choose_jerk_psd` chose ``q``: the validation CV RMSE per ``q`` and noise level."""
+
+    criterion: str
+    noise_m: list[float]
+    rmse_mean: dict[str, list[float]]
+    score: dict[str, float]
+
+
+class Selection(TypedDict):
+    """:func:`select_model`'s grid search and choice."""
+
+    criterion: str
+    n_val_windows: int
+    position_resolution_m: float | None
+    rows: list[SelectionRow]
+    baselines: dict[str, dict[str, WindowMetrics]]
+    jerk_psd: float
+    jerk_psd_selection: JerkPsdSelection
+    chosen: ModelConfig
+    best_overall: ModelConfig
+
+
+def train_config(tracks: Tracks, cfg: ModelConfig | _GridConfig, estimator: str | None = None, order: int | None = None,
+                 provenance: Mapping[str, object] | None = None) -> MTDModel:
     """Train the MTD model of a configuration ``{"dt", "width", "order", "a_max", "jerk_psd", "estimator"}``."""
     return train_from_tracks(tracks, dt=cfg["dt"], edges=symmetric_edges(cfg["width"], cfg.get("a_max", A_MAX)),
-                             order=order or cfg["order"], estimator=estimator or cfg.get("estimator", "mle"),
+                             order=order or cfg["order"], estimator=estimator or str(cfg.get("estimator", "mle")),
                              jerk_psd=cfg.get("jerk_psd", DEFAULT_JERK_PSD), provenance=provenance)
 
 
@@ -62,7 +123,7 @@ def position_resolution(tracks: Tracks) -> float | None:
     return None
 
 
-def eligible(cfg: dict[str, Any], resolution: float | None) -> tuple[bool, str]:
+def eligible(cfg: ModelConfig | _GridConfig, resolution: float | None) -> tuple[bool, str]:
     """Selection rule: bins must be at least two acceleration quanta ``r/Δt²`` wide.
 
     Rounding positions to ``r`` makes ``a_k`` a multiple of ``r/Δt²``; narrower bins hold a
@@ -80,7 +141,7 @@ def eligible(cfg: dict[str, Any], resolution: float | None) -> tuple[bool, str]:
 
 
 def choose_jerk_psd(win: Windows, grid: tuple[float, ...] = GRID_JERK_PSD,
-                    noise_m: tuple[float, ...] = NOISE_LEVELS_M, seed: int = 0) -> tuple[float, dict[str, Any]]:
+                    noise_m: tuple[float, ...] = NOISE_LEVELS_M, seed: int = 0) -> tuple[float, JerkPsdSelection]:
     r"""The smoother's jerk spectral density ``q``, chosen on validation windows.
 
     Criterion: the constant-velocity RMSE (mean over ``h = 1..5`` s), averaged over the windows
@@ -102,7 +163,8 @@ def choose_jerk_psd(win: Windows, grid: tuple[float, ...] = GRID_JERK_PSD,
 
 def select_model(train: Tracks, val: Tracks, *, grid_dt: tuple[float, ...] = GRID_DT,
                  grid_width: tuple[float, ...] = GRID_WIDTH, grid_order: tuple[int, ...] = GRID_ORDER,
-                 estimator: str = "mle", history_s: float = HISTORY_S, resolution: Any = "auto") -> dict[str, Any]:
+                 estimator: str = "mle", history_s: float = HISTORY_S,
+                 resolution: float | str | None = "auto") -> Selection:
     """Grid search on the validation windows; returns the table and the chosen config.
 
     1. The jerk spectral density ``q`` of the initial-state smoother is chosen on the
@@ -121,32 +183,37 @@ def select_model(train: Tracks, val: Tracks, *, grid_dt: tuple[float, ...] = GRI
         and the training log-likelihood, N, k, AIC and BIC.
     """
     win = make_windows(val)
-    if resolution == "auto":
-        resolution = position_resolution(train)
+    res_m = position_resolution(train) if resolution == "auto" else resolution
+    assert res_m is None or isinstance(res_m, float | int), "resolution: 'auto', a step in metres or None"
     baselines = {name: {f"{q:g}": metrics(fn(win, q), win) for q in GRID_JERK_PSD}
                  for name, fn in (("cv", baseline_cv), ("ca", baseline_ca))}
     q_cv, q_table = choose_jerk_psd(win)
-    rows = []
+    rows: list[SelectionRow] = []
     for dt in grid_dt:
         for width in grid_width:
             for order in grid_order:
                 if (order + 1) * dt > history_s + 1e-9:
                     continue
-                cfg = {"dt": dt, "width": width, "order": order, "a_max": A_MAX, "jerk_psd": q_cv}
-                ok, why = eligible(cfg, resolution)
+                cfg: _GridConfig = {"dt": dt, "width": width, "order": order, "a_max": A_MAX, "jerk_psd": q_cv}
+                ok, why = eligible(cfg, res_m)
                 rows.append({**_selection_row(train, win, cfg, estimator), "eligible": ok, "excluded_because": why})
-    keys = ("dt", "width", "order", "a_max", "jerk_psd")
     best = min((r for r in rows if r["eligible"]), key=lambda r: r["val"]["rmse_mean"])
     overall = min(rows, key=lambda r: r["val"]["rmse_mean"])
-    chosen = {**{k: best[k] for k in keys}, "estimator": estimator}
+    chosen = _config_of(best, estimator)
     return {"criterion": "mean over h = 1..5 s of the validation RMSE of the raw MTD prediction, among the "
                          "eligible configurations (bins at least two acceleration quanta wide)",
-            "n_val_windows": win.n, "position_resolution_m": resolution, "rows": rows, "baselines": baselines,
+            "n_val_windows": win.n, "position_resolution_m": res_m, "rows": rows, "baselines": baselines,
             "jerk_psd": q_cv, "jerk_psd_selection": q_table, "chosen": chosen,
-            "best_overall": {**{k: overall[k] for k in keys}, "estimator": estimator}}
+            "best_overall": _config_of(overall, estimator)}
 
 
-def _selection_row(train: Tracks, win: Windows, cfg: dict[str, Any], estimator: str) -> dict[str, Any]:
+def _config_of(row: SelectionRow, estimator: str) -> ModelConfig:
+    """A grid row's configuration (``dt``, ``width``, ``order``, ``a_max``, ``jerk_psd``) with ``estimator``."""
+    return {"dt": row["dt"], "width": row["width"], "order": row["order"], "a_max": row["a_max"],
+            "jerk_psd": row["jerk_psd"], "estimator": estimator}
+
+
+def _selection_row(train: Tracks, win: Windows, cfg: _GridConfig, estimator: str) -> ScoredConfig:
     t0 = time.perf_counter()
     model = train_config(train, cfg, estimator=estimator)
     fit_s = time.perf_counter() - t0

@@ -30,7 +30,6 @@ carry lateral positions.
 from __future__ import annotations
 
 import os
-from typing import Any
 
 import numpy as np
 
@@ -49,6 +48,7 @@ from ..windows import (
     lateral_constant,
     make_windows,
 )
+from .records import DiffToCV, UserEvaluation
 
 __all__ = ["SPLITS", "evaluate_file", "split_by_time"]
 
@@ -84,7 +84,7 @@ def _track_sums(values: FloatArray, code: IntArray, n_tracks: int) -> FloatArray
 
 
 def _bootstrap(errs: dict[str, tuple[FloatArray, FloatArray, FloatArray]], win: Windows, seed: int,
-               resamples: int) -> dict[str, dict[str, Any]]:
+               resamples: int) -> dict[str, DiffToCV]:
     """Track-bootstrap 95 % intervals of every method's difference to ``cv`` (module docstring)."""
     _, code = np.unique(win.track_id, return_inverse=True)
     T = int(code.max()) + 1
@@ -97,7 +97,7 @@ def _bootstrap(errs: dict[str, tuple[FloatArray, FloatArray, FloatArray]], win: 
         return np.sqrt(sq), ade[:, 0], fde[:, 0]
 
     base = stats(errs["cv"])
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, DiffToCV] = {}
     for name, e in errs.items():
         if name == "cv":
             continue
@@ -123,7 +123,7 @@ def _ci(x: FloatArray) -> list[float]:
 def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None = None, split: str | None = None,
                   seed: int = 0, resamples: int = BOOTSTRAP_RESAMPLES, location: str | None = None,
                   progress: Progress | None = None, leader_model: str | None = None,
-                  interaction: bool = True) -> dict[str, Any]:
+                  interaction: bool = True) -> UserEvaluation:
     """Evaluate CV, CA, MTD and the first-order chain on a data file (SPEC §13 JSON).
 
     Parameters
@@ -159,7 +159,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
     from iamp.prediction.tracks.table import load_shipped_dataset
 
     from .evaluate import DEFAULT_CONFIG
-    from .select import train_config
+    from .select import ModelConfig, train_config
 
     total = 8
     step = 0
@@ -192,7 +192,9 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         train_note = f"trained on the {split} split's training part ({train.n_tracks} tracks)"
         fo_data = train
     tick()
-    cfg = {**DEFAULT_CONFIG, "dt": mtd.dt, "jerk_psd": float(mtd.settings.get("jerk_psd", DEFAULT_CONFIG["jerk_psd"]))}
+    assert mtd.dt is not None  # a predictor's model (Predictor checks it) or one trained here
+    cfg: ModelConfig = {**DEFAULT_CONFIG, "dt": mtd.dt,
+                        "jerk_psd": float(mtd.settings.get("jerk_psd", DEFAULT_CONFIG["jerk_psd"]))}
     if mtd.edges is not None and mtd.edges.size > 1:
         cfg["width"] = float(np.diff(mtd.edges).mean())
     try:
@@ -223,7 +225,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         e = lat - win.Y_fut
         cols = [int(np.argmin(np.abs(win.t_fut - h))) for h in HORIZONS]
         lateral = {"constant_y": [float(np.sqrt(np.mean(e[:, c] ** 2))) for c in cols]}
-    out: dict[str, Any] = {
+    out: UserEvaluation = {
         "data": os.fspath(data), "format": fmt, "tracks": int(test.n_tracks), "windows": int(win.n),
         "horizons_s": [float(h) for h in HORIZONS],
         "rmse_m": {k: [float(np.sqrt(np.mean(e[0][:, c]))) for c in range(len(HORIZONS))] for k, e in errs.items()},
@@ -237,6 +239,6 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         "load_report": report.to_dict(),
     }
     if inter is not None:
-        out["interaction"] = inter
+        out["interaction"] = dict(inter)
     tick()
     return out

@@ -40,10 +40,12 @@ rear minus :data:`MIN_GAP_M`:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from iamp.prediction._typing import FloatArray
 
@@ -68,6 +70,14 @@ _IDM_START = np.array([1.0, 1.5, 30.0, 1.2, 2.0])
 _LIN_NAMES = ("c_v", "c_s", "T", "s0")
 
 
+class LawJSON(TypedDict):
+    """:meth:`CarFollowingLaw.to_dict`: the law's name, its parameters and how they were fitted."""
+
+    law: str
+    params: dict[str, float]
+    fit: dict[str, object]
+
+
 @dataclass(frozen=True)
 class CarFollowingLaw:
     """A calibrated law: ``name`` in :data:`LAWS` and its parameters (module docstring).
@@ -83,7 +93,7 @@ class CarFollowingLaw:
 
     name: str
     params: dict[str, float]
-    fit: dict[str, Any] = field(default_factory=dict)
+    fit: dict[str, object] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.name not in LAWS:
@@ -99,34 +109,34 @@ class CarFollowingLaw:
             raise ValueError("IDM needs a, b, v0 > 0 and T, s0 >= 0")
         object.__setattr__(self, "params", p)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> LawJSON:
         """JSON-ready ``{"law", "params", "fit"}``."""
         return {"law": self.name, "params": dict(self.params), "fit": self.fit}
 
     @classmethod
-    def from_dict(cls, d: Any) -> CarFollowingLaw:
+    def from_dict(cls, d: object) -> CarFollowingLaw:
         """Inverse of :meth:`to_dict` (``ValueError`` on a bad description)."""
         if not isinstance(d, dict) or "law" not in d or not isinstance(d.get("params"), dict):
             raise ValueError("a law is an object with 'law' and 'params'")
         return cls(str(d["law"]), {str(k): float(v) for k, v in d["params"].items()}, dict(d.get("fit") or {}))
 
-    def equilibrium_gap(self, v: Any) -> FloatArray:
+    def equilibrium_gap(self, v: ArrayLike) -> FloatArray:
         """Gap at which a follower at speed ``v`` behind a leader at the same speed keeps ``v``."""
         if self.name == "idm":
             return idm_equilibrium_gap(self.params, v)
         return linear_equilibrium_gap(self.params, v)
 
 
-def idm_equilibrium_gap(p: dict[str, float], v: Any) -> FloatArray:
+def idm_equilibrium_gap(p: dict[str, float], v: ArrayLike) -> FloatArray:
     r"""``s_e(v) = (s_0 + vT)/\sqrt{1 - (v/v_0)^4}`` (``inf`` for ``v >= v_0``)."""
-    v = np.asarray(v, dtype=float)
+    speed = np.asarray(v, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
-        d = 1.0 - (v / p["v0"]) ** 4
-        out: FloatArray = np.where(d > 0, (p["s0"] + v * p["T"]) / np.sqrt(np.where(d > 0, d, 1.0)), np.inf)
+        d = 1.0 - (speed / p["v0"]) ** 4
+        out: FloatArray = np.where(d > 0, (p["s0"] + speed * p["T"]) / np.sqrt(np.where(d > 0, d, 1.0)), np.inf)
     return out
 
 
-def linear_equilibrium_gap(p: dict[str, float], v: Any) -> FloatArray:
+def linear_equilibrium_gap(p: dict[str, float], v: ArrayLike) -> FloatArray:
     """``s_e(v) = s_0 + T v``."""
     out: FloatArray = p["s0"] + p["T"] * np.asarray(v, dtype=float)
     return out
@@ -140,7 +150,7 @@ def _idm(theta: FloatArray, v: FloatArray, s: FloatArray, vl: FloatArray) -> Flo
     return out
 
 
-def accel(law: CarFollowingLaw, v: Any, s: Any, vl: Any) -> FloatArray:
+def accel(law: CarFollowingLaw, v: ArrayLike, s: ArrayLike, vl: ArrayLike) -> FloatArray:
     """The law's acceleration (unclipped) at speed ``v``, gap ``s`` and leader speed ``vl``."""
     v, s, vl = (np.asarray(z, dtype=float) for z in (v, s, vl))
     p = law.params
@@ -187,7 +197,7 @@ def calibrate(name: str, v: FloatArray, s: FloatArray, vl: FloatArray, a_obs: Fl
     return CarFollowingLaw(law.name, law.params, fit)
 
 
-def simulate(law: CarFollowingLaw, x0: Any, v0: Any, xl: FloatArray, vl: FloatArray, offset: Any,
+def simulate(law: CarFollowingLaw, x0: ArrayLike, v0: ArrayLike, xl: FloatArray, vl: FloatArray, offset: ArrayLike,
              dt: float) -> tuple[FloatArray, FloatArray]:
     """Follower positions and speeds at the nodes ``k dt``, ``k = 0..M``, along leader trajectories.
 
@@ -305,10 +315,10 @@ def _simulate_idm(p: dict[str, float], x: FloatArray, v: FloatArray, xl: FloatAr
         v[:, k + 1] = vn
 
 
-_KERNEL: list[Any] = []
+_KERNEL: list[Callable[..., None] | None] = []
 
 
-def _kernel() -> Any:
+def _kernel() -> Callable[..., None] | None:
     """The numba kernel of :mod:`.kernel`, or ``None`` without numba (cached)."""
     if not _KERNEL:
         try:

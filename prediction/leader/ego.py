@@ -25,9 +25,9 @@ the cubic moves less than ``tol_m``.  The closed loop calls them as described in
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Generic, TypedDict, TypeVar
 
 import numpy as np
 
@@ -156,9 +156,24 @@ def predict_follower_of_plan(predictor: LeaderPredictor, t_hist: FloatArray, x_h
     return f.x_poly, f.x
 
 
-def iterate_with_planner(plan: Callable[[tuple[float, ...]], Any], predict: Callable[..., Any],
+#: What the planner of :func:`iterate_with_planner` returns (and its ``predict`` takes, unpacked).
+R = TypeVar("R", bound=tuple[object, ...])
+
+
+class FixedPoint(TypedDict, Generic[R]):
+    """:func:`iterate_with_planner`'s result: the follower's cubic, the plan made against it, the
+    number of re-plans, whether the iteration converged and its residuals [m]."""
+
+    x_poly: tuple[float, ...]
+    plan: R
+    iterations: int
+    converged: bool
+    changes_m: list[float]
+
+
+def iterate_with_planner(plan: Callable[[tuple[float, ...]], R], predict: Callable[..., Iterable[float]],
                          x_poly0: tuple[float, ...], *, max_iter: int = 3, tol_m: float = 0.1,
-                         tf: float = 5.0, relax: float = 1.0) -> dict[str, Any]:
+                         tf: float = 5.0, relax: float = 1.0) -> FixedPoint[R]:
     """Fixed-point iteration plan ↔ follower prediction, at most ``max_iter`` re-plans.
 
     ``plan(x_poly)`` plans against the follower's cubic and returns a tuple (e.g.
@@ -197,7 +212,7 @@ def iterate_with_planner(plan: Callable[[tuple[float, ...]], Any], predict: Call
 
 
 def follower_poly_for_plan(predictor: LeaderPredictor, follower_hist: tuple[FloatArray, FloatArray],
-                           plan_states: Callable[[FloatArray], Any], tf: float, *, target_y: float,
+                           plan_states: Callable[[FloatArray], FloatArray], tf: float, *, target_y: float,
                            ego_length: float, ego_width: float, follower_length: float,
                            leader_hist: tuple[FloatArray, FloatArray] | None = None, leader_length: float = 4.5,
                            lane_width: float = LANE_WIDTH_M) -> tuple[float, ...]:

@@ -29,11 +29,10 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from iamp.prediction._typing import FloatArray, IntArray
+from iamp.prediction._typing import FloatArray, IntArray, PathLike
 from iamp.prediction.loaders.csv import _integers, _path, read_csv
 from iamp.prediction.loaders.ngsim import FEET
 from iamp.prediction.tracks import TrackDataError, Tracks
@@ -170,7 +169,7 @@ def ngsim_leaders(path: str | os.PathLike[str], tracks: Tracks) -> Leaders:
     return Leaders(leader, length, "Preceding column")
 
 
-def leaders_for(path: Any, fmt: str, tracks: Tracks) -> Leaders:
+def leaders_for(path: PathLike, fmt: str, tracks: Tracks) -> Leaders:
     """The leaders of a loaded file: NGSIM's ``Preceding``, else derived from lane and position."""
     if fmt == "ngsim":
         try:

@@ -22,14 +22,17 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from iamp.core.atomic import write_text as atomic_write_text
-from iamp.prediction._typing import FloatArray, IntArray
+from iamp.core.scenario import History, VehicleSpec
+from iamp.prediction._typing import FloatArray, IntArray, PathLike
 from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
 from iamp.prediction.leader.car_following import (
     ACC_HALF_WINDOW_S,
@@ -40,7 +43,7 @@ from iamp.prediction.leader.car_following import (
     simulate,
 )
 from iamp.prediction.leader.leaders import Leaders
-from iamp.prediction.mtd.model import ModelFileError, MTDModel
+from iamp.prediction.mtd.model import ModelFileError, ModelJSON, MTDModel
 from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks import Tracks
 
@@ -65,6 +68,21 @@ LEADER_FORMAT = "iamp-leader/1"
 SIM_DT = 0.1
 
 
+class LeaderModelJSON(TypedDict):
+    """A leader model file (:meth:`LeaderModel.to_dict`): the law, the leader's forecast, the fallback."""
+
+    format: str
+    kind: str
+    law: str
+    params: dict[str, float]
+    fit: dict[str, object]
+    leader_forecast: str
+    max_gap_m: float
+    jerk_psd: float
+    fallback: str | ModelJSON  # "builtin": the shipped MTD model
+    provenance: dict[str, object]
+
+
 @dataclass(frozen=True)
 class LeaderModel:
     """A calibrated law plus the single-vehicle fallback (module docstring)."""
@@ -72,9 +90,9 @@ class LeaderModel:
     law: CarFollowingLaw
     fallback: MTDModel | None = None  # None: the shipped MTD model
     jerk_psd: float = DEFAULT_JERK_PSD
-    provenance: dict[str, Any] = field(default_factory=dict)
+    provenance: dict[str, object] = field(default_factory=dict)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> LeaderModelJSON:
         """JSON-ready description (``kind: "leader"``)."""
         return {"format": LEADER_FORMAT, "kind": "leader", **self.law.to_dict(),
                 "leader_forecast": "constant velocity from the leader's smoothed history",
@@ -82,14 +100,14 @@ class LeaderModel:
                 "fallback": "builtin" if self.fallback is None else self.fallback.to_dict(),
                 "provenance": self.provenance}
 
-    def save(self, path: Any) -> Path:
+    def save(self, path: PathLike) -> Path:
         """Write the model as JSON, atomically."""
         out = Path(path)
         atomic_write_text(out, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
         return out
 
     @classmethod
-    def from_dict(cls, d: Any, source: str | None = None) -> LeaderModel:
+    def from_dict(cls, d: object, source: str | None = None) -> LeaderModel:
         """Inverse of :meth:`to_dict`; :class:`ModelFileError` naming the field."""
         if not isinstance(d, dict):
             raise ModelFileError("must be a JSON object", None, source)
@@ -130,7 +148,7 @@ def default_leader_model() -> LeaderModel:
     return LeaderModel.from_dict(d, name)
 
 
-def train_default_leader_model(path: Any = None) -> LeaderModel:
+def train_default_leader_model(path: PathLike | None = None) -> LeaderModel:
     """Calibrate the shipped leader model on the shipped SUMO data's training tracks (train ∪ val).
 
     Leaders derived from lane and position; the IDM calibrated on trajectories (windows every
@@ -155,7 +173,7 @@ def train_default_leader_model(path: Any = None) -> LeaderModel:
     return model
 
 
-def load_any_model(path: Any) -> MTDModel | LeaderModel:
+def load_any_model(path: PathLike) -> MTDModel | LeaderModel:
     """Read a model file of either kind (``kind`` absent or ``"mtd"``: MTD; ``"leader"``)."""
     p = Path(path)
     try:
@@ -209,7 +227,7 @@ def calibration_rows(tracks: Tracks, leaders: Leaders) -> dict[str, FloatArray]:
     return {"v": v[i], "s": s, "vl": v[j], "a": a[i]}
 
 
-def _row_lookup(tracks: Tracks, frame: IntArray) -> Any:
+def _row_lookup(tracks: Tracks, frame: IntArray) -> Callable[[IntArray, IntArray], IntArray]:
     key = tracks.track_id * 100_000_000 + frame
     order = np.argsort(key, kind="stable")
     sk = key[order]
@@ -230,7 +248,7 @@ CALIBRATION_LEADER = "cv"
 
 
 def train_leader_model(tracks: Tracks, leaders: Leaders, law: str = "idm", fallback: MTDModel | None = None,
-                       provenance: dict[str, Any] | None = None, *, calibration: str = CALIBRATION,
+                       provenance: Mapping[str, object] | None = None, *, calibration: str = CALIBRATION,
                        leader: str = CALIBRATION_LEADER, stride_s: float = 1.0) -> LeaderModel:
     """Calibrate ``law`` on the rows / windows of ``tracks`` that have a leader.
 
@@ -299,7 +317,7 @@ class LeaderPredictor:
         self.fallback = Predictor(model.fallback, "fallback") if model.fallback is not None else Predictor.default()
 
     @classmethod
-    def from_file(cls, path: Any) -> LeaderPredictor:
+    def from_file(cls, path: PathLike) -> LeaderPredictor:
         """A predictor from a ``kind: "leader"`` model file."""
         m = load_any_model(path)
         if not isinstance(m, LeaderModel):
@@ -320,7 +338,8 @@ class LeaderPredictor:
         return xl, np.repeat(v[:, None], t.size, axis=1)
 
     def predict_batch(self, t_hist: FloatArray, X_hist: FloatArray, query: FloatArray, tf: float, *,
-                      XL_hist: FloatArray | None = None, has_leader: Any = None, offset: Any = 4.5,
+                      XL_hist: FloatArray | None = None, has_leader: ArrayLike | None = None,
+                      offset: ArrayLike = 4.5,
                       leader_future: tuple[FloatArray, FloatArray] | None = None) -> FloatArray:
         """Positions at ``query`` of ``B`` followers sharing the history times ``t_hist``.
 
@@ -381,18 +400,18 @@ class LeaderPredictor:
 SAME_LANE_TOL_M = 1.75
 
 
-def scenario_leaders(vehicles: Any) -> dict[int, int]:
+def scenario_leaders(vehicles: Sequence[VehicleSpec]) -> dict[int, int]:
     """Leader index of every history vehicle of a scenario: the nearest history vehicle ahead at ``t = 0``
     whose ``|y - y_i|`` is below :data:`SAME_LANE_TOL_M` (half a 3.5-m lane)."""
     out: dict[int, int] = {}
-    have = [(i, v) for i, v in enumerate(vehicles) if v.history is not None]
-    for i, v in have:
-        x_i = float(v.history.x[-1])
+    have = [(i, v, v.history) for i, v in enumerate(vehicles) if v.history is not None]
+    for i, v, hv in have:
+        x_i = float(hv.x[-1])
         best = None
-        for j, w in have:
+        for j, w, hw in have:
             if j == i or abs(float(w.y) - float(v.y)) >= SAME_LANE_TOL_M:
                 continue
-            dx = float(w.history.x[-1]) - x_i
+            dx = float(hw.x[-1]) - x_i
             if dx > 0 and (best is None or dx < best[0]):
                 best = (dx, j)
         if best is not None:
@@ -400,7 +419,7 @@ def scenario_leaders(vehicles: Any) -> dict[int, int]:
     return out
 
 
-def predict_one(predictor: LeaderPredictor, history: Any, tf: float, *, leader_history: Any = None,
+def predict_one(predictor: LeaderPredictor, history: History, tf: float, *, leader_history: History | None = None,
                 offset: float = 4.5) -> tuple[tuple[float, ...], FloatArray, FloatArray]:
     """One vehicle's leader-aware prediction ``(x_poly, t, x)`` (the closed loop's per-neighbour call).
 
@@ -424,7 +443,8 @@ def predict_one(predictor: LeaderPredictor, history: Any, tf: float, *, leader_h
     return tuple(float(z) for z in p.x_poly), np.asarray(p.t, dtype=float), np.asarray(p.x, dtype=float)
 
 
-def predict_scenario(predictor: LeaderPredictor, vehicles: Any, tf: float) -> dict[int, tuple[tuple[float, ...],
+def predict_scenario(predictor: LeaderPredictor, vehicles: Sequence[VehicleSpec],
+                     tf: float) -> dict[int, tuple[tuple[float, ...],
                                                                                           FloatArray, FloatArray]]:
     """Leader-aware predictions ``{index: (x_poly, t, x)}`` of a scenario's history vehicles.
 

@@ -13,11 +13,11 @@ import warnings
 from array import array
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
 import numpy as np
 
-from iamp.prediction._typing import Array, BoolArray
+from iamp.prediction._typing import Array, BoolArray, Lines, PathLike
 from iamp.prediction.tracks.table import TrackDataError
 
 from .report import LoadReport
@@ -92,7 +92,7 @@ def _resolve(header: list[str], spec: Sequence[tuple[str, tuple[str, ...], bool]
     return found
 
 
-def _to_float(strings: Sequence[str], column: str, path: Path, lines: Any = None) -> Array:
+def _to_float(strings: Sequence[str], column: str, path: Path, lines: Lines = None) -> Array:
     try:
         out = np.asarray(strings, dtype=str).astype(np.float64)
     except ValueError:
@@ -212,7 +212,7 @@ def _segments(key_change: np.ndarray, frame: np.ndarray) -> np.ndarray:
     return np.cumsum(new) - 1
 
 
-def _path(p: Any) -> Path:
+def _path(p: PathLike) -> Path:
     return Path(os.fspath(p))
 
 

@@ -24,10 +24,10 @@ naming the file and the column.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
 
+from iamp.prediction._typing import PathLike
 from iamp.prediction.tracks.table import TrackDataError, Tracks
 
 from .csv import _path
@@ -51,7 +51,7 @@ _PATTERNS = {"highd": ("*_tracks.csv", "*_tracks.csv.gz"), "ngsim": ("*.csv", "*
              "sumo": ("*.xml", "*.xml.gz", "*.csv", "*.csv.gz")}
 
 
-def load(paths: Any, format: str, **kwargs: Any) -> Tracks:
+def load(paths: PathLike | Iterable[PathLike], format: str, **kwargs: object) -> Tracks:
     """Load one or several files of one format into one table (``iamp train DATA... --format``).
 
     ``format`` is ``"highd"``, ``"ngsim"`` or ``"sumo"``.  A directory stands for its files of
@@ -64,10 +64,9 @@ def load(paths: Any, format: str, **kwargs: Any) -> Tracks:
     loaders: dict[str, Callable[..., Tracks]] = {"highd": load_highd, "ngsim": load_ngsim, "sumo": load_sumo_fcd}
     if fmt not in loaders:
         raise TrackDataError(f"unknown format {format!r}; expected one of {', '.join(FORMATS)}")
-    if isinstance(paths, (str, os.PathLike)):
-        paths = [paths]
+    items = [paths] if isinstance(paths, (str, os.PathLike)) else paths
     files: list[Path] = []
-    for item in paths:
+    for item in items:
         p = _path(item)
         if p.is_dir():
             found = sorted({f for pat in _PATTERNS[fmt] for f in p.glob(pat) if f.is_file()})
@@ -86,7 +85,8 @@ def load(paths: Any, format: str, **kwargs: Any) -> Tracks:
     return Tracks.concat(tables)
 
 
-def load_with_report(paths: Any, format: str, **kwargs: Any) -> tuple[Tracks, LoadReport]:
+def load_with_report(paths: PathLike | Iterable[PathLike], format: str,
+                     **kwargs: object) -> tuple[Tracks, LoadReport]:
     """:func:`load` and the merged :class:`LoadReport` of every file it read."""
     tracks = load(paths, format, **kwargs)
     meta = tracks.meta

@@ -25,11 +25,13 @@ and the unit it assumed) when
 from __future__ import annotations
 
 import os
-from typing import Any
 
 import numpy as np
 
+from iamp.prediction._typing import FloatArray, Lines
 from iamp.prediction.tracks import TrackDataError, Tracks
+
+from .report import LoadReport
 
 __all__ = ["ACCELERATION_MAX_MPS2", "MEDIAN_SPEED_MAX_MPS", "POSITION_MAX_M", "SPEED_RATIO_MAX",
            "STEP_SPEED_MAX_MPS", "check_plausible"]
@@ -46,7 +48,7 @@ MEDIAN_SPEED_MAX_MPS = 150.0
 SPEED_RATIO_MAX = 2.0
 
 
-def _vehicle(tracks: Tracks, row: int, lines: Any) -> str:
+def _vehicle(tracks: Tracks, row: int, lines: Lines) -> str:
     ids = tracks.meta.get("source_ids")
     tid = int(tracks.track_id[row])
     name = ids[tid] if isinstance(ids, list) and 0 <= tid < len(ids) else tid
@@ -56,9 +58,9 @@ def _vehicle(tracks: Tracks, row: int, lines: Any) -> str:
     return f"{where}vehicle {name} at t = {tracks.t[row]:.6g} s"
 
 
-def _absurd(tracks: Tracks, source: str | os.PathLike[str], unit: str, lines: Any) -> None:
+def _absurd(tracks: Tracks, source: str | os.PathLike[str], unit: str, lines: Lines) -> None:
     """Refuse the first row whose position, speed, acceleration or lateral position is absurd."""
-    checks: list[tuple[str, Any, float, str]] = [
+    checks: list[tuple[str, FloatArray, float, str]] = [
         ("x", tracks.x, POSITION_MAX_M, "m"), ("v", tracks.v, STEP_SPEED_MAX_MPS, "m/s"),
         ("a", tracks.a, ACCELERATION_MAX_MPS2, "m/s^2")]
     if tracks.y is not None:
@@ -73,7 +75,7 @@ def _absurd(tracks: Tracks, source: str | os.PathLike[str], unit: str, lines: An
                                  source=str(source))
 
 
-def check_plausible(tracks: Tracks, source: str | os.PathLike[str], unit: str, lines: Any = None) -> list[str]:
+def check_plausible(tracks: Tracks, source: str | os.PathLike[str], unit: str, lines: Lines = None) -> list[str]:
     """Refuse an implausible table (module docstring); returns notes for the load report.
 
     Parameters
@@ -122,7 +124,8 @@ def check_plausible(tracks: Tracks, source: str | os.PathLike[str], unit: str, l
     return notes
 
 
-def apply(tracks: Tracks, source: str | os.PathLike[str], unit: str, report: Any, lines: Any = None) -> Tracks:
+def apply(tracks: Tracks, source: str | os.PathLike[str], unit: str, report: LoadReport,
+          lines: Lines = None) -> Tracks:
     """:func:`check_plausible`, its notes added to ``report`` and to ``tracks.meta["load_report"]``."""
     for note in check_plausible(tracks, source, unit, lines):
         report.note(note)

@@ -9,11 +9,22 @@ tracks split at gaps).  The CLI prints the report; it is also stored in
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypedDict
 
-__all__ = ["LoadReport"]
+__all__ = ["LoadReport", "LoadReportJSON"]
+
+
+class LoadReportJSON(TypedDict):
+    """:meth:`LoadReport.to_dict`."""
+
+    sources: list[str]
+    rows_read: int
+    rows_kept: int
+    rows_dropped: int
+    dropped: dict[str, int]
+    notes: list[str]
 
 
 @dataclass
@@ -75,13 +86,13 @@ class LoadReport:
                 out.note(n)
         return out
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> LoadReportJSON:
         """JSON-ready form."""
         return {"sources": list(self.sources), "rows_read": self.rows_read, "rows_kept": self.rows_kept,
                 "rows_dropped": self.rows_dropped, "dropped": dict(self.dropped), "notes": list(self.notes)}
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> LoadReport:
+    def from_dict(cls, d: Mapping[str, Any]) -> LoadReport:
         """Inverse of :meth:`to_dict`."""
         return cls(list(d.get("sources", [])), int(d.get("rows_read", 0)), int(d.get("rows_kept", 0)),
                    {str(k): int(v) for k, v in dict(d.get("dropped", {})).items()}, list(d.get("notes", [])))

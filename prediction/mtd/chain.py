@@ -13,11 +13,12 @@ Sampling uses the latent-lag form: at every step a lag ``i`` is drawn with proba
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from iamp.prediction._typing import FloatArray, IntArray
+from iamp.prediction._typing import FloatArray, IntArray, Seed
 
 if TYPE_CHECKING:
     from .model import MTDModel
@@ -25,10 +26,10 @@ if TYPE_CHECKING:
 __all__ = ["propagate", "propagate_batch", "sample"]
 
 
-def _initial_distributions(model: MTDModel, init: Any) -> FloatArray:
-    init = np.asarray(init)
-    if init.ndim == 1:
-        idx = init.astype(np.int64)
+def _initial_distributions(model: MTDModel, init: ArrayLike) -> FloatArray:
+    past = np.asarray(init)
+    if past.ndim == 1:
+        idx = past.astype(np.int64)
         if idx.size < model.order:
             raise ValueError(f"needs at least {model.order} initial states (got {idx.size})")
         if idx.min() < 0 or idx.max() >= model.n_states:
@@ -36,11 +37,11 @@ def _initial_distributions(model: MTDModel, init: Any) -> FloatArray:
         D = np.zeros((idx.size, model.n_states))
         D[np.arange(idx.size), idx] = 1.0
         return D
-    if init.ndim == 2 and init.shape[1] == model.n_states and init.shape[0] >= model.order:
-        return np.asarray(init, dtype=float)
+    if past.ndim == 2 and past.shape[1] == model.n_states and past.shape[0] >= model.order:
+        return np.asarray(past, dtype=float)
     raise ValueError("init must be a state sequence or an array of distributions (T, m)")
 
-def propagate(model: MTDModel, init: Any, steps: int) -> FloatArray:
+def propagate(model: MTDModel, init: ArrayLike, steps: int) -> FloatArray:
     r"""Propagate state distributions ``\hat x_t = Σ_i λ_i Q_i \hat x_{t-i}``.
 
     Parameters
@@ -98,7 +99,7 @@ def propagate_batch(model: MTDModel, init_states: IntArray, steps: int) -> Float
         hist = [x] + hist[:-1]
     return out
 
-def sample(model: MTDModel, init: Any, steps: int, n_samples: int, rng: Any = None) -> IntArray:
+def sample(model: MTDModel, init: ArrayLike, steps: int, n_samples: int, rng: Seed = None) -> IntArray:
     """Draw state paths from the chain.
 
     At every step a lag ``i`` is drawn with probability ``λ_i`` and the next state from
@@ -115,13 +116,13 @@ def sample(model: MTDModel, init: Any, steps: int, n_samples: int, rng: Any = No
     -------
     numpy.ndarray of int, shape (n_samples, steps)
     """
-    rng = np.random.default_rng(rng)
-    init = np.asarray(init, dtype=np.int64)
-    if init.size < model.order:
+    gen = np.random.default_rng(rng)
+    past = np.asarray(init, dtype=np.int64)
+    if past.size < model.order:
         raise ValueError(f"needs at least {model.order} initial states")
     n = model.order
     buf = np.empty((n_samples, n + int(steps)), dtype=np.int64)
-    buf[:, :n] = init[-n:]
+    buf[:, :n] = past[-n:]
     # inverse-CDF sampling with u in [0, 1): the last CDF value is set to exactly 1 (not a
     # round-off 1 - 1e-16), so the drawn index never exceeds the last state / lag
     cdf = np.cumsum(model.Q, axis=1)  # (n, m, m): cdf over j for each column k
@@ -131,9 +132,9 @@ def sample(model: MTDModel, init: Any, steps: int, n_samples: int, rng: Any = No
     rows = np.arange(n_samples)
     for s in range(int(steps)):
         t = n + s
-        lag = np.searchsorted(lam_cdf, rng.random(n_samples), side="right")  # 0-based: lag i = lag + 1
+        lag = np.searchsorted(lam_cdf, gen.random(n_samples), side="right")  # 0-based: lag i = lag + 1
         src = buf[rows, t - 1 - lag]
         col_cdf = cdf[lag, :, src]  # (n_samples, m)
-        u = rng.random(n_samples)
+        u = gen.random(n_samples)
         buf[:, t] = (col_cdf < u[:, None]).sum(axis=1)
     return buf[:, n:]

@@ -14,15 +14,14 @@ and the empirical lag-``i`` matrix is its column normalisation
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
-from iamp.prediction._typing import FloatArray, IntArray
+from iamp.prediction._typing import FloatArray, IntArray, StateSequences
 
 __all__ = ["aic", "bic", "count_transitions", "empirical_transition_matrices", "lag_table", "n_parameters"]
 
-def _as_sequences(sequences: Any, n_states: int) -> list[IntArray]:
+def _as_sequences(sequences: StateSequences, n_states: int) -> list[IntArray]:
     if isinstance(sequences, np.ndarray) and sequences.ndim == 1:
         sequences = [sequences]
     out = []
@@ -40,7 +39,7 @@ def _as_sequences(sequences: Any, n_states: int) -> list[IntArray]:
     return out
 
 
-def lag_table(sequences: Any, order: int, n_states: int | None = None) -> IntArray:
+def lag_table(sequences: StateSequences, order: int, n_states: int | None = None) -> IntArray:
     """Stack the scored ``(x_t, x_{t-1}, ..., x_{t-n})`` tuples of all sequences.
 
     Parameters
@@ -69,7 +68,7 @@ def lag_table(sequences: Any, order: int, n_states: int | None = None) -> IntArr
     return np.concatenate(rows, axis=0)
 
 
-def count_transitions(sequences: Any, n_states: int, order: int) -> FloatArray:
+def count_transitions(sequences: StateSequences, n_states: int, order: int) -> FloatArray:
     """Observed lag-``i`` transition counts.
 
     Parameters
@@ -112,7 +111,7 @@ def _normalise_columns(C: FloatArray, pseudocount: float, empty: str) -> FloatAr
     return Q
 
 
-def empirical_transition_matrices(sequences: Any, n_states: int, order: int, *, pseudocount: float = 0.0,
+def empirical_transition_matrices(sequences: StateSequences, n_states: int, order: int, *, pseudocount: float = 0.0,
                                   empty: str = "uniform") -> np.ndarray:
     """Empirical lag-``i`` transition matrices (normalised lag-``i`` counts).
 

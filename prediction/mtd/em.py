@@ -23,7 +23,6 @@ EM step (latent lag ``z_t``, ``P(z_t = i) = λ_i``): responsibilities
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
@@ -42,7 +41,7 @@ EMMap = Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray, float]]
 
 
 def em_lambda(P: FloatArray, w: FloatArray, lam0: FloatArray, tol: float,
-              max_iter: int) -> tuple[FloatArray, dict[str, Any]]:
+              max_iter: int) -> tuple[FloatArray, dict[str, object]]:
     r"""Maximise ``Σ_r w_r log(P_r · λ)`` over the simplex (concave) by EM updates.
 
     The update is ``λ_i ← λ_i g_i`` with ``g_i = \frac1N Σ_r w_r P[r, i] / (P_r · λ)`` the
@@ -125,7 +124,7 @@ def squarem_cycle(em: EMMap, lam: FloatArray,
 
 def em_joint(rows: IntArray, w: FloatArray, Q: FloatArray, lam: FloatArray, m: int, pseudocount: float,
              empty: str, tol: float, max_iter: int,
-             trace: list[float] | None = None) -> tuple[FloatArray, FloatArray, dict[str, Any]]:
+             trace: list[float] | None = None) -> tuple[FloatArray, FloatArray, dict[str, object]]:
     r"""Joint EM for ``(λ, Q_i)`` accelerated with :func:`squarem_cycle`.
 
     Stops when the increase of ``\bar\ell`` over one cycle, ``\bar\ell(θ_0^{(c)}) -

@@ -5,12 +5,13 @@ The estimators and their mathematics are described in :mod:`iamp.prediction.mtd`
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import linprog
 
-from iamp.prediction._typing import FloatArray, IntArray, Progress
+from iamp.prediction._typing import FloatArray, IntArray, Progress, Seed, StateSequences
 
 from .counts import (
     _as_sequences,
@@ -28,7 +29,7 @@ __all__ = ["ESTIMATORS", "fit", "sample_sequence"]
 #: Estimators accepted by :func:`fit`.
 ESTIMATORS = ("mle", "mle-lambda", "lp")
 
-def _lp_lambda(Q: FloatArray, xhat: FloatArray, norm: str) -> tuple[FloatArray, dict[str, Any]]:
+def _lp_lambda(Q: FloatArray, xhat: FloatArray, norm: str) -> tuple[FloatArray, dict[str, object]]:
     r"""Ching–Fung–Ng LP: ``λ`` minimising ``‖Σ_i λ_i Q_i x̂ - x̂‖`` (∞ or ℓ1 norm) on the simplex."""
     n, m, _ = Q.shape
     A = np.stack([Q[i] @ xhat for i in range(n)], axis=1)  # (m, n): column i = Q_i x̂
@@ -56,12 +57,13 @@ def _lp_lambda(Q: FloatArray, xhat: FloatArray, norm: str) -> tuple[FloatArray, 
     return lam, {"lp_norm": norm, "lp_objective": float(res.fun), "lp_status": res.message}
 
 
-def fit(sequences: Any, n_states: int, order: int, estimator: str = "mle", *, tol: float = 1e-10,
+def fit(sequences: StateSequences, n_states: int, order: int, estimator: str = "mle", *, tol: float = 1e-10,
         max_iter: int = 20000, n_starts: int = 3, seed: int = 0, pseudocount: float = 0.0,
         empty: str = "uniform", lp_norm: str = "inf",
-        edges: Any = None, centres: Any = None, dt: float | None = None, state: str | None = None,
-        settings: dict[str, Any] | None = None,
-        provenance: dict[str, Any] | None = None, progress: Progress | None = None) -> MTDModel:
+        edges: ArrayLike | None = None, centres: ArrayLike | None = None, dt: float | None = None,
+        state: str | None = None,
+        settings: Mapping[str, float] | None = None,
+        provenance: Mapping[str, object] | None = None, progress: Progress | None = None) -> MTDModel:
     r"""Fit an order-``n`` MTD model to integer state sequences.
 
     Parameters
@@ -123,7 +125,7 @@ def fit(sequences: Any, n_states: int, order: int, estimator: str = "mle", *, to
         counts[i - 1] = np.bincount(rows_all[:, 0] * m + rows_all[:, i], minlength=m * m).reshape(m, m)
     Q = _normalise_columns(counts, pseudocount, empty)
     rows, w = _unique_rows(rows_all)
-    info: dict[str, Any] = {"estimator": estimator}
+    info: dict[str, object] = {"estimator": estimator}
 
     lam0 = np.full(n, 1.0 / n)
     if estimator == "lp":
@@ -144,7 +146,7 @@ def fit(sequences: Any, n_states: int, order: int, estimator: str = "mle", *, to
                 Qr = np.stack([srng.dirichlet(np.ones(m), size=m).T for _ in range(n)])
                 starts.append((0.5 * Q + 0.5 * Qr, srng.dirichlet(np.ones(n))))
             best: tuple[float, FloatArray, FloatArray, int] | None = None
-            runs: list[dict[str, Any]] = []
+            runs: list[dict[str, object]] = []
             for k_start, (Qs, ls) in enumerate(starts):
                 Qe, le, joint = em_joint(rows, w, Qs, ls, m, pseudocount, empty, tol, max_iter)
                 ll = float(np.sum(w * np.log(np.maximum(_lag_probs(Qe, rows) @ le, 1e-300))))
@@ -156,7 +158,9 @@ def fit(sequences: Any, n_states: int, order: int, estimator: str = "mle", *, to
             assert best is not None  # at least one start
             _, Q, lam, ibest = best
             info.update({"joint_em": {"starts": runs, "best_start": ibest, "seed": seed}})
-    model = MTDModel(Q=Q, lam=lam, estimator=estimator, edges=edges, centres=centres, dt=dt,
+    model = MTDModel(Q=Q, lam=lam, estimator=estimator, dt=dt,
+                     edges=None if edges is None else np.asarray(edges, dtype=float),
+                     centres=None if centres is None else np.asarray(centres, dtype=float),
                      state=state, settings=dict(settings or {}), counts=counts, n_obs=N,
                      provenance=dict(provenance or {}), fit_info=info)
     ll = float(np.sum(w * np.log(np.maximum(_lag_probs(model.Q, rows) @ model.lam, 0.0))))
@@ -164,7 +168,7 @@ def fit(sequences: Any, n_states: int, order: int, estimator: str = "mle", *, to
     return model
 
 
-def sample_sequence(model: MTDModel, length: int, rng: Any = None, init: Any = None) -> IntArray:
+def sample_sequence(model: MTDModel, length: int, rng: Seed = None, init: ArrayLike | None = None) -> IntArray:
     """Sample one state sequence of ``length`` states from ``model`` (for tests/simulation).
 
     The first ``n`` states are ``init`` or drawn uniformly.

@@ -17,13 +17,14 @@ from typing import Any
 import numpy as np
 
 from iamp.core.atomic import write_text as atomic_write_text
+from iamp.prediction._typing import PathLike
 
-from .model import FORMAT, ModelFileError, MTDModel
+from .model import FORMAT, ModelFileError, ModelJSON, MTDModel
 
 __all__ = ["load_model", "model_from_dict", "model_to_dict", "save_model"]
 
 
-def model_to_dict(model: MTDModel) -> dict[str, Any]:
+def model_to_dict(model: MTDModel) -> ModelJSON:
     """A JSON-serialisable description (see :meth:`save`)."""
     return {
         "format": FORMAT,
@@ -54,7 +55,7 @@ def model_to_dict(model: MTDModel) -> dict[str, Any]:
     }
 
 
-def save_model(model: MTDModel, path: Any) -> Path:
+def save_model(model: MTDModel, path: PathLike) -> Path:
     """Write the model as JSON, atomically (temporary file + ``os.replace``)."""
     out = Path(path)
     text = json.dumps(model_to_dict(model), indent=1, allow_nan=False) + "\n"
@@ -62,7 +63,7 @@ def save_model(model: MTDModel, path: Any) -> Path:
     return out
 
 
-def model_from_dict(d: Any, source: str | None = None) -> MTDModel:
+def model_from_dict(d: object, source: str | None = None) -> MTDModel:
     """Build a model from :meth:`to_dict` output; raises :class:`ModelFileError`."""
     if not isinstance(d, dict):
         raise ModelFileError("must be a JSON object", None, source)
@@ -94,11 +95,11 @@ def model_from_dict(d: Any, source: str | None = None) -> MTDModel:
     return model
 
 
-def _is_int(x: Any) -> bool:
+def _is_int(x: object) -> bool:
     return isinstance(x, int) and not isinstance(x, bool)
 
 
-def _is_number(x: Any) -> bool:
+def _is_number(x: object) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
@@ -128,16 +129,16 @@ def _check_types(d: dict[str, Any], source: str | None) -> None:
     if d["order"] < 1:
         raise ModelFileError(f"must be at least 1 (got {d['order']})", "order", source)
 
-def load_model(path: Any) -> MTDModel:
+def load_model(path: PathLike) -> MTDModel:
     """Read a model written by :meth:`save`; raises :class:`ModelFileError`."""
-    path = Path(path)
+    file = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = file.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) and exc.strerror else "not UTF-8 text"
-        raise ModelFileError(f"cannot be read ({why})", None, str(path)) from None
+        raise ModelFileError(f"cannot be read ({why})", None, str(file)) from None
     try:
         d = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ModelFileError(f"is not valid JSON ({exc})", None, str(path)) from None
-    return model_from_dict(d, source=str(path))
+        raise ModelFileError(f"is not valid JSON ({exc})", None, str(file)) from None
+    return model_from_dict(d, source=str(file))

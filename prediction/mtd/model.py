@@ -9,12 +9,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from iamp.core.errors import IampError
-from iamp.prediction._typing import FloatArray, IntArray
+from iamp.prediction._typing import FloatArray, IntArray, PathLike, Seed, StateSequences
 
 from .counts import _lag_probs, aic, bic, lag_table, n_parameters
 
@@ -45,10 +46,38 @@ class ModelFileError(IampError, ValueError):
 
 
 # ---------------------------------------------------------------------------------------
+# the model file and the summary
+# ---------------------------------------------------------------------------------------
+
+
+class BinsJSON(TypedDict):
+    """The state bins of a model file: what they discretise, their interior edges and centres."""
+
+    quantity: str
+    edges: list[float] | None
+    centres: list[float] | None
+
+
+#: A model file (:func:`~iamp.prediction.mtd.io.model_to_dict`, SPEC §4); functional form: ``lambda`` is a
+#: keyword.
+ModelJSON = TypedDict("ModelJSON", {
+    "format": str, "kind": str, "orientation": str, "order": int, "n_states": int, "dt": float | None,
+    "state": str | None, "settings": dict[str, float], "bins": BinsJSON, "estimator": str, "lambda": list[float],
+    "Q": list[list[list[float]]], "counts": list[list[list[float]]] | list[list[list[int]]] | None,
+    "loglik": float | None, "n_obs": int, "n_parameters": int, "aic": float | None, "bic": float | None,
+    "fit_info": dict[str, object], "provenance": dict[str, object]})
+
+#: :meth:`MTDModel.summary`: order, states, estimator, λ, ℓ, N, k, AIC, BIC.
+ModelSummary = TypedDict("ModelSummary", {
+    "order": int, "n_states": int, "dt": float | None, "estimator": str, "lambda": list[float], "loglik": float,
+    "n_obs": int, "n_parameters": int, "aic": float, "bic": float})
+
+
+# ---------------------------------------------------------------------------------------
 # the model
 # ---------------------------------------------------------------------------------------
 
-def readonly_array(a: Any) -> FloatArray:
+def readonly_array(a: ArrayLike) -> FloatArray:
     """A float copy of ``a`` that cannot be written to (for immutable results)."""
     out: FloatArray = np.array(a, dtype=float)
     out.setflags(write=False)
@@ -97,12 +126,12 @@ class MTDModel:
     centres: FloatArray | None = None
     dt: float | None = None
     state: str | None = None
-    settings: dict[str, Any] = field(default_factory=dict)
+    settings: dict[str, float] = field(default_factory=dict)
     counts: FloatArray | None = None
     loglik: float = float("nan")
     n_obs: int = 0
-    provenance: dict[str, Any] = field(default_factory=dict)
-    fit_info: dict[str, Any] = field(default_factory=dict)
+    provenance: dict[str, object] = field(default_factory=dict)
+    fit_info: dict[str, object] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         Q = np.array(self.Q, dtype=float)
@@ -172,7 +201,7 @@ class MTDModel:
         return bic(self.loglik, self.n_parameters, self.n_obs)
 
     # -- likelihood ---------------------------------------------------------------------
-    def log_likelihood(self, sequences: Any) -> tuple[float, int]:
+    def log_likelihood(self, sequences: StateSequences) -> tuple[float, int]:
         """Log-likelihood ``ℓ = Σ_t log Σ_i λ_i q^{(i)}_{x_t x_{t-i}}`` of ``sequences``.
 
         Returns
@@ -186,18 +215,18 @@ class MTDModel:
         with np.errstate(divide="ignore"):
             return float(np.sum(np.log(p))), int(rows.shape[0])
 
-    def transition_probabilities(self, past: Any) -> FloatArray:
+    def transition_probabilities(self, past: ArrayLike) -> FloatArray:
         """``P(x_t = · | x_{t-1}, ..., x_{t-n})`` for a past given oldest-to-newest."""
-        past = np.asarray(past, dtype=np.int64)
-        if past.size < self.order:
+        states = np.asarray(past, dtype=np.int64)
+        if states.size < self.order:
             raise ValueError(f"needs the last {self.order} states")
         out: FloatArray = np.zeros(self.n_states)
         for i in range(self.order):
-            out = out + self.lam[i] * self.Q[i][:, past[-1 - i]]
+            out = out + self.lam[i] * self.Q[i][:, states[-1 - i]]
         return out
 
     # -- states -------------------------------------------------------------------------
-    def states(self, values: Any) -> IntArray:
+    def states(self, values: ArrayLike) -> IntArray:
         """Map physical values (e.g. accelerations) to state indices with :attr:`edges`."""
         if self.edges is None:
             raise ValueError("this model has no bin edges")
@@ -206,7 +235,7 @@ class MTDModel:
     # -- propagation and sampling --------------------------------------------------------
 
     # -- propagation and sampling (mathematics in iamp.prediction.mtd.chain) -------------
-    def propagate(self, init: Any, steps: int) -> FloatArray:
+    def propagate(self, init: ArrayLike, steps: int) -> FloatArray:
         r"""Propagate ``\hat x_t = Σ_i λ_i Q_i \hat x_{t-i}``; see :func:`~iamp.prediction.mtd.chain.propagate`."""
         from .chain import propagate
 
@@ -218,40 +247,40 @@ class MTDModel:
 
         return propagate_batch(self, init_states, steps)
 
-    def sample(self, init: Any, steps: int, n_samples: int, rng: Any = None) -> IntArray:
+    def sample(self, init: ArrayLike, steps: int, n_samples: int, rng: Seed = None) -> IntArray:
         """State paths drawn from the chain; see :func:`~iamp.prediction.mtd.chain.sample`."""
         from .chain import sample
 
         return sample(self, init, steps, n_samples, rng)
 
     # -- persistence (file format in iamp.prediction.mtd.io) ------------------------------
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> ModelJSON:
         """A JSON-serialisable description (see :func:`~iamp.prediction.mtd.io.model_to_dict`)."""
         from .io import model_to_dict
 
         return model_to_dict(self)
 
-    def save(self, path: Any) -> Path:
+    def save(self, path: PathLike) -> Path:
         """Write the model as JSON, atomically (temporary file + ``os.replace``)."""
         from .io import save_model
 
         return save_model(self, path)
 
     @classmethod
-    def from_dict(cls, d: Any, source: str | None = None) -> MTDModel:
+    def from_dict(cls, d: object, source: str | None = None) -> MTDModel:
         """Build a model from :meth:`to_dict` output; raises :class:`ModelFileError`."""
         from .io import model_from_dict
 
         return model_from_dict(d, source)
 
     @classmethod
-    def load(cls, path: Any) -> MTDModel:
+    def load(cls, path: PathLike) -> MTDModel:
         """Read a model written by :meth:`save`; raises :class:`ModelFileError`."""
         from .io import load_model
 
         return load_model(path)
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> ModelSummary:
         """The headline numbers: order, states, estimator, λ, ℓ, N, k, AIC, BIC."""
         return {"order": self.order, "n_states": self.n_states, "dt": self.dt,
                 "estimator": self.estimator, "lambda": self.lam.tolist(), "loglik": self.loglik,

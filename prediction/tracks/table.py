@@ -19,8 +19,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from iamp.core.errors import IampError
+from iamp.prediction._typing import BoolArray, IntArray
 
 __all__ = ["SHIPPED_DATASET", "TrackDataError", "Tracks", "load_shipped_dataset"]
 
@@ -218,7 +220,7 @@ class Tracks:
             return np.empty(0, dtype=np.int64)
         return self.track_id[np.concatenate(([0], _boundaries(self.track_id)))].copy()
 
-    def _take(self, index: Any, meta: dict[str, Any] | None = None) -> Tracks:
+    def _take(self, index: IntArray | BoolArray | slice, meta: dict[str, Any] | None = None) -> Tracks:
         return Tracks(self.track_id[index], self.t[index], self.x[index], self.v[index], self.a[index],
                       self.lane[index], self.dt, dict(self.meta) if meta is None else meta,
                       None if self.y is None else self.y[index])
@@ -241,7 +243,7 @@ class Tracks:
         for k, start in enumerate(starts):
             yield (int(self.track_id[start]), parts[0][k], parts[1][k], parts[2][k], parts[3][k], parts[4][k])
 
-    def select(self, mask: Any) -> Tracks:
+    def select(self, mask: ArrayLike) -> Tracks:
         """The rows where the boolean ``mask`` holds (tracks must stay gap-free)."""
         return self._take(np.asarray(mask, dtype=bool))
 
