@@ -18,12 +18,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import TypedDict
 
 from iamp.commonroad import require
-from iamp.commonroad.check import check
+from iamp.commonroad.check import CheckJSON, check
 from iamp.commonroad.convert import load
-from iamp.commonroad.planning import describe, plan
+from iamp.commonroad.planning import RoadPlanJSON, describe, plan
 from iamp.commonroad.predicted import predict_obstacles
 from iamp.commonroad.solution import DEFAULT_COST_FUNCTION, build_solution, write_solution
 from iamp.core.atomic import write_text
@@ -52,8 +52,8 @@ class Row:
     cost_commonroad: float | None = None
     cost_iamp: float | None = None
     solve_time_s: float | None = None
-    plan: dict[str, Any] = field(default_factory=dict)
-    checks: dict[str, Any] = field(default_factory=dict)
+    plan: RoadPlanJSON = field(default_factory=lambda: RoadPlanJSON())
+    checks: dict[str, CheckJSON] = field(default_factory=dict)
     colliding_obstacles: list[int] = field(default_factory=list)
 
 
@@ -149,24 +149,32 @@ def _median(values: list[float | None]) -> float | None:
     return statistics.median(vals) if vals else None
 
 
-def summary(rows: list[Row], planners: list[str]) -> list[dict[str, Any]]:
+#: Per planner (:func:`summary`): scenarios, the count of every category of :data:`CATEGORIES`,
+#: raw-valid count, medians (functional form: the categories have spaces).
+SummaryRow = TypedDict("SummaryRow", {
+    "planner": str, "scenarios": int, "valid": int, "collision": int, "infeasible": int, "goal missed": int,
+    "off road": int, "no plan": int, "timeout": int, "valid_raw": int, "median_cost_commonroad": float | None,
+    "median_cost_iamp": float | None, "median_solve_time_s": float | None, "max_solve_time_s": float | None})
+
+
+def summary(rows: list[Row], planners: list[str]) -> list[SummaryRow]:
     """Per planner: the counts of every category, raw-valid count, medians."""
-    out = []
+    out: list[SummaryRow] = []
     for p in planners:
         rs = [r for r in rows if r.planner == p]
-        entry: dict[str, Any] = {"planner": p, "scenarios": len(rs)}
-        for c in CATEGORIES:
-            entry[c] = sum(r.category == c for r in rs)
-        entry["valid_raw"] = sum(r.valid_raw for r in rs)
-        entry["median_cost_commonroad"] = _median([r.cost_commonroad for r in rs if r.category == "valid"])
-        entry["median_cost_iamp"] = _median([r.cost_iamp for r in rs if r.category == "valid"])
-        entry["median_solve_time_s"] = _median([r.solve_time_s for r in rs])
-        entry["max_solve_time_s"] = max((r.solve_time_s or 0.0 for r in rs), default=None)
-        out.append(entry)
+        counts = {c: sum(r.category == c for r in rs) for c in CATEGORIES}
+        out.append({"planner": p, "scenarios": len(rs), "valid": counts["valid"], "collision": counts["collision"],
+                    "infeasible": counts["infeasible"], "goal missed": counts["goal missed"],
+                    "off road": counts["off road"], "no plan": counts["no plan"], "timeout": counts["timeout"],
+                    "valid_raw": sum(r.valid_raw for r in rs),
+                    "median_cost_commonroad": _median([r.cost_commonroad for r in rs if r.category == "valid"]),
+                    "median_cost_iamp": _median([r.cost_iamp for r in rs if r.category == "valid"]),
+                    "median_solve_time_s": _median([r.solve_time_s for r in rs]),
+                    "max_solve_time_s": max((r.solve_time_s or 0.0 for r in rs), default=None)})
     return out
 
 
-def _fmt(v: Any, spec: str = ".3f") -> str:
+def _fmt(v: float | None, spec: str = ".3f") -> str:
     return "-" if v is None else format(v, spec)
 
 

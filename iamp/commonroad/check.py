@@ -28,9 +28,10 @@ check (it raises); this module runs every check separately and records each verd
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 from iamp.commonroad import require
 from iamp.core.errors import ScenarioError
@@ -39,11 +40,31 @@ CHECKS = ("starts_at_initial_state", "kinematically_feasible", "collision", "roa
           "goal_reached_corrected")
 
 
+class CheckJSON(TypedDict):
+    """One check's verdict: ``ok`` and a line of detail."""
+
+    ok: bool
+    detail: str
+
+
+class VerdictJSON(TypedDict):
+    """:meth:`Verdict.to_json`."""
+
+    valid: bool
+    valid_commonroad_raw: bool
+    category: str
+    checks: dict[str, CheckJSON]
+    colliding_obstacles: list[int]
+    cost: float | None
+    cost_function: str | None
+    orientation_defect: str
+
+
 @dataclass
 class Verdict:
     """Every check's verdict (``ok`` True/False, ``detail`` text) and the overall validity."""
 
-    checks: dict[str, dict[str, Any]] = field(default_factory=dict)
+    checks: dict[str, CheckJSON] = field(default_factory=dict)
     colliding_obstacles: list[int] = field(default_factory=list)
     cost: float | None = None
     cost_function: str | None = None
@@ -52,28 +73,32 @@ class Verdict:
     def valid(self) -> bool:
         need = ("starts_at_initial_state", "kinematically_feasible", "collision", "road_boundary",
                 "goal_reached_corrected")
-        return all(self.checks.get(k, {}).get("ok") is True for k in need)
+        return all(self._ok(k) for k in need)
 
     @property
     def valid_commonroad_raw(self) -> bool:
         need = ("starts_at_initial_state", "kinematically_feasible", "collision", "road_boundary", "goal_reached")
-        return all(self.checks.get(k, {}).get("ok") is True for k in need)
+        return all(self._ok(k) for k in need)
+
+    def _ok(self, name: str) -> bool:
+        """The check ``name`` ran and passed."""
+        c = self.checks.get(name)
+        return c is not None and c["ok"] is True
 
     @property
     def category(self) -> str:
         """One word for the bench table: valid / collision / infeasible / goal missed / off road."""
         if self.valid:
             return "valid"
-        if not self.checks.get("collision", {}).get("ok", False):
+        if not self._ok("collision"):
             return "collision"
-        if not self.checks.get("kinematically_feasible", {}).get("ok", False) or \
-                not self.checks.get("starts_at_initial_state", {}).get("ok", False):
+        if not self._ok("kinematically_feasible") or not self._ok("starts_at_initial_state"):
             return "infeasible"
-        if not self.checks.get("road_boundary", {}).get("ok", False):
+        if not self._ok("road_boundary"):
             return "off road"
         return "goal missed"
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> VerdictJSON:
         return {"valid": self.valid, "valid_commonroad_raw": self.valid_commonroad_raw, "category": self.category,
                 "checks": self.checks, "colliding_obstacles": self.colliding_obstacles,
                 "cost": self.cost, "cost_function": self.cost_function,
@@ -86,7 +111,7 @@ class Verdict:
             c = self.checks.get(name)
             if c is None:
                 continue
-            out.append(f"{name:26s} {'pass' if c['ok'] else 'FAIL'}  {c.get('detail', '')}".rstrip())
+            out.append(f"{name:26s} {'pass' if c['ok'] else 'FAIL'}  {c['detail']}".rstrip())
         out.append(f"{'valid (corrected goal)':26s} {'yes' if self.valid else 'no'}")
         out.append(f"{'valid_solution (raw)':26s} {'yes' if self.valid_commonroad_raw else 'no'}"
                    + ("  (the PM orientation defect: see goal_reached_corrected)"
@@ -143,7 +168,7 @@ def check(scenario: Any, pps: Any, solution: Any, cost: bool = True) -> Verdict:
         raise ScenarioError(f"solves planning problem {pp_sol.planning_problem_id}, which the scenario does not have",
                             "planningProblemSolution")
 
-    def run(name: str, fn: Any) -> None:
+    def run(name: str, fn: Callable[[], tuple[bool, str]]) -> None:
         try:
             ok, detail = fn()
         except Exception as exc:  # the checker raises its verdicts

@@ -42,9 +42,11 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from iamp.commonroad.convert import (
     LANE_CHANGE_M,
@@ -57,6 +59,8 @@ from iamp.commonroad.convert import (
 )
 from iamp.commonroad.planning import DEFAULT_PLANNER, plan
 from iamp.core.errors import MissingDependencyError, ScenarioError
+from iamp.core.plan import Trajectory
+from iamp.prediction.predictor import Predictor
 
 #: History kept per observed vehicle [s].
 HISTORY_S = 3.0
@@ -76,7 +80,7 @@ def _files(folder: Path) -> tuple[Path, Path]:
     return crs[0], cfgs[0]
 
 
-def _sumo() -> Any:
+def _sumo() -> tuple[ModuleType, ModuleType]:
     try:
         import libsumo as traci
         import sumolib
@@ -90,13 +94,13 @@ def _sumo() -> Any:
     return traci, sumolib
 
 
-def _box(cr: CommonRoadProblem, centre: Any, length: float, width: float, heading: float) -> tuple[float, ...]:
+def _box(cr: CommonRoadProblem, centre: ArrayLike, length: float, width: float, heading: float) -> tuple[float, ...]:
     sd = cr.frame.to_road(_corners(np.asarray(centre, dtype=float), length, width, heading))
     return float(sd[:, 0].min()), float(sd[:, 0].max()), float(sd[:, 1].min()), float(sd[:, 1].max())
 
 
 def _observed_obstacle(cr: CommonRoadProblem, oid: int, hist_t: list[float], hist_s: list[float],
-                       box: tuple[float, ...], speed: float, t: np.ndarray, predictor: Any) -> Obstacle:
+                       box: tuple[float, ...], speed: float, t: np.ndarray, predictor: Predictor) -> Obstacle:
     """An obstacle over ``t`` (from now) predicted from its observed history (module doc, step 2)."""
     from iamp.core.scenario import History
 
@@ -136,7 +140,6 @@ def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: fl
     """
     from commonroad.scenario.state import CustomState
 
-    from iamp.prediction.predictor import Predictor
     from iamp.simulation.metrics import StepLog, episode_metrics
 
     folder = Path(folder)
@@ -191,7 +194,7 @@ def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: fl
         traci.vehicle.setSpeedMode("ego", 0)
         traci.vehicle.setLaneChangeMode("ego", 0)
         x = cr.x0
-        traj: Any = None
+        traj: Trajectory | None = None
         t_plan = traj_T = 0.0
         for k in range(k_end + 1):
             now = k * dt

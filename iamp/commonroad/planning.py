@@ -28,11 +28,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 import numpy.typing as npt
 
+from iamp.commonroad.check import VerdictJSON
 from iamp.commonroad.convert import (
     BUFFER_M,
     EDGE_BUFFER_M,
@@ -43,6 +44,8 @@ from iamp.commonroad.convert import (
     ego_margins,
 )
 from iamp.core.errors import IampError, ScenarioError
+from iamp.core.plan import Plan, Trajectory
+from iamp.core.problem import SurroundingVehicle
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -106,6 +109,57 @@ class Intrusion:
     time_s: float
 
 
+class ImposedJSON(TypedDict):
+    """A vehicle whose corner a plan imposed."""
+
+    obstacle: int
+    corner: str
+
+
+class IntrusionJSON(TypedDict):
+    """A recorded vehicle the ego's body box enters: how deep [m] and when [s]."""
+
+    obstacle: int
+    depth_m: float
+    t: float
+
+
+class FinalStateJSON(TypedDict):
+    """A candidate's final state in the road frame and its number of steps."""
+
+    s: float
+    vs: float
+    d: float
+    vd: float
+    steps: int
+
+
+class RoadPlanJSON(TypedDict, total=False):
+    """The JSON object of a road plan (:func:`describe`, every key; ``iamp commonroad plan`` and the
+    bench add the scenario, the solution's drift and the checker's verdict)."""
+
+    planner: str
+    status: str
+    iamp_status: str | None
+    cost: float | None
+    solve_time_s: float
+    tf: float | None
+    final_state: FinalStateJSON | None
+    candidates_tried: int
+    imposed: list[ImposedJSON]
+    intrusions: list[IntrusionJSON]
+    max_heading_rad: float
+    peak_accel_mps2: float
+    reason: str | None
+    scenario: str
+    frame_fit_residual_m: float
+    notes: list[str]
+    predict: bool
+    zoh_drift_m: float
+    solution: str
+    commonroad: VerdictJSON
+
+
 @dataclass
 class RoadPlan:
     """A plan in the road frame with how it was found."""
@@ -113,7 +167,7 @@ class RoadPlan:
     planner: str
     status: str
     candidate: Candidate | None
-    trajectory: Any
+    trajectory: Trajectory | None  # the iamp plan, or the free cubic
     cost: float | None
     solve_time_s: float
     imposed: list[tuple[int, str]] = field(default_factory=list)
@@ -129,7 +183,8 @@ class RoadPlan:
         return self.trajectory is not None and not self.intrusions
 
 
-def intrusions(cr: CommonRoadProblem, trajectory: Any, T: float, buffer: float = CHECK_BUFFER_M) -> list[Intrusion]:
+def intrusions(cr: CommonRoadProblem, trajectory: Trajectory, T: float,
+               buffer: float = CHECK_BUFFER_M) -> list[Intrusion]:
     """Every recorded vehicle whose box the ego's body box enters, deepest first (module doc, step 2)."""
     out = []
     for ob in cr.all_obstacles:
@@ -190,7 +245,7 @@ def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float
     return f"{'front' if end_ahead else 'rear'}-{'upper' if side > 0 else 'lower'}"
 
 
-def _heading_and_peak(trajectory: Any, T: float) -> tuple[float, float]:
+def _heading_and_peak(trajectory: Trajectory, T: float) -> tuple[float, float]:
     t = np.linspace(0.0, T, 401)
     X = trajectory.states(t)
     U = trajectory.inputs(t)
@@ -198,8 +253,8 @@ def _heading_and_peak(trajectory: Any, T: float) -> tuple[float, float]:
             float(np.max(np.hypot(U[:, 0], U[:, 1]))))
 
 
-def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Any], margin_y: float, planner: str,
-               constraint: str, steps: int) -> Any:
+def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[SurroundingVehicle], margin_y: float,
+               planner: str, constraint: str, steps: int) -> Plan:
     import iamp
 
     problem = cr.problem(cand, vehicles, margin_y)
@@ -307,7 +362,7 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
     return current
 
 
-def _avoided(ob: Obstacle, corner: str, sx: float, sy: float) -> Any:
+def _avoided(ob: Obstacle, corner: str, sx: float, sy: float) -> SurroundingVehicle:
     """The iamp vehicle of ``ob``: a vehicle with the body margins ``sx, sy`` (which include
     :data:`~iamp.commonroad.convert.BUFFER_M`), a road edge with only
     :data:`~iamp.commonroad.convert.EDGE_BUFFER_M` of clearance beyond the body."""
@@ -316,7 +371,7 @@ def _avoided(ob: Obstacle, corner: str, sx: float, sy: float) -> Any:
     return ob.vehicle(corner, sx, sy)
 
 
-def _relevant(cr: CommonRoadProblem, cand: Candidate, free: Any, sy: float) -> list[Obstacle]:
+def _relevant(cr: CommonRoadProblem, cand: Candidate, free: FreeTrajectory, sy: float) -> list[Obstacle]:
     lo, hi = min(cr.x0[2], cand.d), max(cr.x0[2], cand.d)
     out = []
     for ob in cr.all_obstacles:
@@ -333,7 +388,8 @@ def _relevant(cr: CommonRoadProblem, cand: Candidate, free: Any, sy: float) -> l
 
 
 def _finish(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: str, constraint: str,
-            vehicles: list[Any], imposed: list[tuple[int, str]], margin_y: float, steps: int) -> RoadPlan:
+            vehicles: list[SurroundingVehicle], imposed: list[tuple[int, str]], margin_y: float,
+            steps: int) -> RoadPlan:
     try:
         result = _iamp_plan(cr, cand, vehicles, margin_y, iamp_planner, constraint, steps)
     except IampError as exc:
@@ -347,7 +403,7 @@ def _finish(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: st
                     list(imposed), hits, result.status, 0, None, h, peak)
 
 
-def describe(p: RoadPlan) -> dict[str, Any]:
+def describe(p: RoadPlan) -> RoadPlanJSON:
     """The JSON object of a road plan."""
     c = p.candidate
     return {

@@ -21,14 +21,14 @@ between ``--predict`` and the recorded mode is the cost of prediction error.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import numpy as np
 
 from iamp.commonroad.convert import CommonRoadProblem, Obstacle
+from iamp.prediction.predictor import Predictor
 
 
-def predict_obstacles(cr: CommonRoadProblem, predictor: Any = None) -> CommonRoadProblem:
+def predict_obstacles(cr: CommonRoadProblem, predictor: Predictor | None = None) -> CommonRoadProblem:
     """``cr`` with every obstacle's future replaced by the §7 prediction (module docstring).
 
     Parameters
@@ -39,7 +39,6 @@ def predict_obstacles(cr: CommonRoadProblem, predictor: Any = None) -> CommonRoa
         The predictor (default: the shipped model).
     """
     from iamp.prediction.kinematics import integrate_nodes
-    from iamp.prediction.predictor import Predictor
 
     pred = predictor if predictor is not None else Predictor.default()
     model = pred.model

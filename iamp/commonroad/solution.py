@@ -17,7 +17,6 @@ the plan's velocity error inside a step (millimetres per step; the largest drift
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -25,6 +24,7 @@ import numpy.typing as npt
 from iamp.commonroad import require
 from iamp.commonroad.convert import CommonRoadProblem
 from iamp.core.atomic import write_text
+from iamp.core.plan import Trajectory
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -32,7 +32,7 @@ FloatArray = npt.NDArray[np.float64]
 DEFAULT_COST_FUNCTION = "WX1"
 
 
-def world_states(cr: CommonRoadProblem, trajectory: Any, steps: int) -> tuple[FloatArray, FloatArray, float]:
+def world_states(cr: CommonRoadProblem, trajectory: Trajectory, steps: int) -> tuple[FloatArray, FloatArray, float]:
     """Positions ``(K+1, 2)`` and velocities ``(K+1, 2)`` of the ZOH trajectory, and the largest
     distance between its positions and the plan's mapped positions [m]."""
     t = np.arange(steps + 1) * cr.dt
@@ -48,8 +48,8 @@ def world_states(cr: CommonRoadProblem, trajectory: Any, steps: int) -> tuple[Fl
     return Z, V, float(np.max(np.linalg.norm(Z - P, axis=1)))
 
 
-def build_solution(cr: CommonRoadProblem, trajectory: Any, steps: int,
-                   cost_function: str = DEFAULT_COST_FUNCTION, vehicle_type: int = 2) -> tuple[Any, float]:
+def build_solution(cr: CommonRoadProblem, trajectory: Trajectory, steps: int,
+                   cost_function: str = DEFAULT_COST_FUNCTION, vehicle_type: int = 2) -> tuple[object, float]:
     """The CommonRoad :class:`Solution` (PM trajectory) and the ZOH drift [m]."""
     require()
     from commonroad.common.solution import (
@@ -72,7 +72,7 @@ def build_solution(cr: CommonRoadProblem, trajectory: Any, steps: int,
     return Solution(cr.scenario.scenario_id, [pps]), drift
 
 
-def write_solution(solution: Any, path: str | Path, force: bool = False) -> Path:
+def write_solution(solution: object, path: str | Path, force: bool = False) -> Path:
     """Write ``solution`` as CommonRoad XML atomically (refuses to overwrite without ``force``)."""
     from commonroad.common.solution import CommonRoadSolutionWriter
 
