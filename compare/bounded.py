@@ -25,7 +25,7 @@ from __future__ import annotations
 import importlib.util
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict
 
 from iamp.core.errors import IampError, ScenarioError
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
@@ -33,6 +33,7 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.status import SUCCESS
 from iamp.planners.qp.diagnostics import QPDiagnostics
+from iamp.planners.registry import Planner
 
 __all__ = ["BOUNDED_PLANNERS", "BoundedRow", "bounded_rows", "bounded_section", "markdown_table",
            "pmp_qp_gap", "section_lines"]
@@ -46,6 +47,33 @@ BOUNDED_PLANNERS: dict[str, str] = {
 }
 
 
+class BoundedRowJSON(TypedDict):
+    """:meth:`BoundedRow.to_json`: one planner on one bounded scenario."""
+
+    scenario: str
+    planner: str
+    available: bool
+    status: str
+    cost: float | None
+    free_cost: float | None
+    bound_cost_rel: float | None
+    limits: dict[str, dict[str, object]]
+    imposed: bool | None
+    reason: str | None
+    time_s: float | None
+
+
+class BoundedSection(TypedDict):
+    """:func:`bounded_section`: one scenario's bounded comparison (``iamp compare --bounded``)."""
+
+    limits: dict[str, tuple[float, float] | float] | None
+    steps: int
+    hold: str
+    solver: str
+    rows: list[BoundedRowJSON]
+    pmp_vs_qp_rel_gap: float | None
+
+
 @dataclass
 class BoundedRow:
     """One planner on one bounded scenario (module docstring)."""
@@ -57,7 +85,7 @@ class BoundedRow:
     cost: float | None = None
     free_cost: float | None = None
     peaks: str = ""
-    peaks_json: dict[str, Any] = field(default_factory=dict)
+    peaks_json: dict[str, dict[str, object]] = field(default_factory=dict)
     imposed: bool | None = None
     reason: str | None = None
     time_s: float | None = None
@@ -69,7 +97,7 @@ class BoundedRow:
             return None
         return (self.cost - self.free_cost) / self.free_cost
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> BoundedRowJSON:
         return {"scenario": self.scenario, "planner": self.planner, "available": self.available,
                 "status": self.status, "cost": self.cost, "free_cost": self.free_cost,
                 "bound_cost_rel": self.bound_cost_rel, "limits": self.peaks_json, "imposed": self.imposed,
@@ -83,7 +111,7 @@ def _available(planner: str) -> bool:
         return False
 
 
-def _planner(planner: str, steps: int, hold: str, solver: str) -> Any:
+def _planner(planner: str, steps: int, hold: str, solver: str) -> Planner:
     """The planner object (imports only what is installed; see :func:`_available`)."""
     if planner == "pmp":
         from iamp.planners.pmp.planner import PMPPlanner
@@ -95,7 +123,8 @@ def _planner(planner: str, steps: int, hold: str, solver: str) -> Any:
         return QPPlanner(steps=steps, hold=hold, solver=solver)
     if planner == "active":
         active_set = importlib.import_module("iamp.planners.active_set")
-        return active_set.ActiveSetPlanner(QPPlanner(steps=steps, hold=hold, solver=solver), "qp")
+        active: Planner = active_set.ActiveSetPlanner(QPPlanner(steps=steps, hold=hold, solver=solver), "qp")
+        return active
     from iamp.planners.avoid.planner import AvoidQPPlanner
 
     return AvoidQPPlanner(steps=steps, hold=hold, solver=solver)
@@ -158,7 +187,7 @@ def bounded_rows(name: str, problem: Problem, limits: PhysicalLimits | None = PA
 
 
 def bounded_section(name: str, problem: Problem, limits: PhysicalLimits | None = PASSENGER_CAR, steps: int = 50,
-                    hold: str = "foh", solver: str = "clarabel") -> dict[str, Any]:
+                    hold: str = "foh", solver: str = "clarabel") -> BoundedSection:
     """The JSON of one scenario's bounded comparison: the rows, the limits and the PMP = QP gap."""
     rows = bounded_rows(name, problem, limits, steps, hold, solver)
     lim = limits if limits is not None else problem.limits
@@ -182,7 +211,7 @@ def _fmt(x: float | None, spec: str) -> str:
     return "-" if x is None else format(x, spec)
 
 
-def section_lines(name: str, section: dict[str, Any]) -> list[str]:
+def section_lines(name: str, section: BoundedSection) -> list[str]:
     """Text lines of :func:`bounded_section` for ``iamp compare --bounded``."""
     out = [f"bounded problem ({name}; N = {section['steps']}, {section['hold']}, {section['solver']}):"]
     for r in section["rows"]:

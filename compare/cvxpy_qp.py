@@ -80,7 +80,7 @@ class CvxpyQP:
     """
 
     def __init__(self, problem: Problem, steps: int = 100, hold: str = "foh", solver: str = "clarabel",
-                 settings: Mapping[str, Any] | None = None) -> None:
+                 settings: Mapping[str, object] | None = None) -> None:
         if hold not in HOLDS:
             raise ValueError(f"unknown hold {hold!r}; choose from {', '.join(HOLDS)}")
         if solver not in CVXPY_NAMES:

@@ -38,13 +38,12 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict, dataclass
 from importlib import metadata
-from typing import TYPE_CHECKING, NotRequired, TypedDict, TypeVar, cast
+from typing import NotRequired, TypedDict, TypeVar, cast
 
 import numpy as np
 
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.core.plan import Plan
-    from iamp.core.problem import Problem
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
 
 T = TypeVar("T")
 

@@ -25,18 +25,14 @@ the grid candidates (the FOH sweep's exact optimum).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from numpy.typing import NDArray
 
 from iamp.core.plan import Plan
+from iamp.planners.pmp.solution import PMPSolution
 
 from .records import RunGaps, SameContactTimes
 from .verdict import plan_cost
-
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.planners.pmp.solution import PMPSolution
 
 __all__ = ["at_same_contact_times", "grid_optimum_gap", "run_vs_run_gaps"]
 

@@ -26,7 +26,6 @@ The gaps reported beside the verdict come from :mod:`iamp.comparison.agreement.g
 from __future__ import annotations
 
 import itertools
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,9 +35,7 @@ from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners.pmp.planner import ValueFunction, solve_fixed_times
 from iamp.planners.qp.diagnostics import QPDiagnostics
-
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.planners.qp.hold import HoldTrajectory
+from iamp.planners.qp.hold import HoldTrajectory
 
 from .gaps import at_same_contact_times, grid_optimum_gap, run_vs_run_gaps
 from .records import ContinuousJSON, PairJSON, SameContactTimes, ZohGapJSON, ZohReference

@@ -11,7 +11,6 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,14 +20,12 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners import registry
+from iamp.planners.qp.core import CandidateSolver
 from iamp.planners.qp.diagnostics import QPDiagnostics
+from iamp.planners.qp.planner import QPPlanner
 
 from .fingerprints import problem_fingerprint, x_poly_fingerprint
 from .records import KKTJSON, RunJSON
-
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.planners.qp.core import CandidateSolver
-    from iamp.planners.qp.planner import QPPlanner
 
 __all__ = ["QPConfig", "Run", "default_configs", "run_pmp", "run_qp"]
 
@@ -64,8 +61,6 @@ class QPConfig:
     def planner(self) -> QPPlanner:
         """A fresh planner object for this configuration."""
         if self.path == "native":
-            from iamp.planners.qp.planner import QPPlanner
-
             native = registry.make_planner("qp", steps=self.steps, hold=self.hold, solver=self.solver,
                                            contact=self.contact, solver_settings=self.settings)
             assert isinstance(native, QPPlanner)

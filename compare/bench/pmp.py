@@ -31,10 +31,9 @@ from __future__ import annotations
 import statistics
 import time
 from collections.abc import Callable
-from typing import Any
 
 
-def _median_per_call(fn: Callable[[], Any], repeats: int, inner: int) -> float:
+def _median_per_call(fn: Callable[[], object], repeats: int, inner: int) -> float:
     fn()  # warm-up
     samples = []
     for _ in range(max(1, repeats)):

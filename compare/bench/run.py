@@ -48,22 +48,20 @@ import platform
 import time
 import warnings
 from collections.abc import Callable
-from typing import TYPE_CHECKING, NotRequired, TypedDict
+from typing import NotRequired, TypedDict
 
 import numpy as np
 
 from iamp.comparison.timing import StatsJSON, TimingStats, VersionsJSON, measure, summarize, versions
 from iamp.core.plan import Plan
+from iamp.core.problem import Problem
 from iamp.planners.qp.backends import BACKENDS, ITERATIVE
 from iamp.planners.qp.diagnostics import QPDiagnostics
+from iamp.planners.registry import Planner
 
 from .avoid import AvoidBounded
 from .casadi import CasadiFreeTime
 from .prediction import LeaderPredictionBench, PredictionBench
-
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.core.problem import Problem
-    from iamp.planners.registry import Planner
 
 #: IQR/median above which a measurement is flagged as taken on a busy machine.
 BUSY_SPREAD = 0.5

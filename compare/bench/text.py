@@ -3,12 +3,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from iamp.comparison.durations import format_seconds
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .run import BenchJSON
+from .run import BenchJSON
 
 
 def _fmt_s(x: float | None) -> str:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -30,7 +30,8 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["plot_costates", "plot_value_function"]
 
 
-def plot_value_function(problem: Problem, pmp_result: Plan, sweeps: dict[str, Any], stem: PathLike, *,
+def plot_value_function(problem: Problem, pmp_result: Plan,
+                        sweeps: Mapping[str, tuple[int | None, list[tuple[tuple[int, ...], float]]]], stem: PathLike, *,
                         title: str | None = None) -> list[Path]:
     """``J(t)`` (closed form, one vehicle), the PMP's ``t*`` and the QP sweep points.
 
@@ -56,6 +57,7 @@ def plot_value_function(problem: Problem, pmp_result: Plan, sweeps: dict[str, An
         sel = (np.abs(tt - t_star) <= half) if zoom else np.ones_like(tt, dtype=bool)
         ax.plot(tt[sel], Jt[sel], color=PALETTE["pmp"], lw=1.5, label="$J(t)$: PMP fixed-time optimum (closed form)")
         for label, (steps, table) in sweeps.items():
+            assert steps is not None, f"{label}: a QP sweep has its N"
             h = tf / steps
             pts = np.array([(nodes[0] * h, c) for nodes, c in table if np.isfinite(c)])
             if pts.size == 0:

@@ -12,7 +12,6 @@ equality PMP green, the avoidance QP blue dashed, safety regions red.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -20,11 +19,11 @@ from matplotlib.patches import Rectangle
 
 from iamp.core.plan import Plan
 
-from .style import PALETTE, SAFETY_COLOR, VEHICLE_COLORS, legend_below, save_figure
+from .style import PALETTE, SAFETY_COLOR, VEHICLE_COLORS, PathLike, legend_below, save_figure
 
 #: Dash of each vehicle's safety region (vehicle 1 red dashed as in the other figures, vehicle 2
 #: in its body's colour dash-dotted, ...).
-REGION_DASHES: tuple[Any, ...] = ("--", "-.", ":", (0, (5, 1, 1, 1)))
+REGION_DASHES: tuple[str | tuple[int, tuple[int, ...]], ...] = ("--", "-.", ":", (0, (5, 1, 1, 1)))
 #: Edge colour of each vehicle's safety region (darker than the body colours: the regions'
 #: outlines must read against a white page).
 REGION_COLORS: tuple[str, ...] = (SAFETY_COLOR, "olive", "purple", "0.3")
@@ -39,7 +38,7 @@ def _inside(plan: Plan, t: float) -> bool:
     return False
 
 
-def plot_safety_xy(plans: dict[str, Plan], stem: Any, *, times: np.ndarray | None = None,
+def plot_safety_xy(plans: dict[str, Plan], stem: PathLike, *, times: np.ndarray | None = None,
                    title: str | None = None) -> list[Path]:
     """Draw ``plans`` (label -> plan of the same problem; failed plans are skipped and named in
     the legend) with the vehicles' safety regions and bodies at ``times`` (default: 6 instants).

@@ -12,21 +12,36 @@ Palette, conventions and the atomic writing: :mod:`iamp.comparison.figures.style
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 from matplotlib.figure import Figure
+from numpy.typing import NDArray
+
+from iamp.comparison.timing import StatsJSON
 
 from .style import PathLike, planner_style, save_figure, scenario_color
 
 #: Fewest samples whose quartiles a timing figure draws (fewer: the samples' range instead).
 MIN_QUARTILE_SAMPLES = 5
 
-__all__ = ["plot_predictions", "plot_timing", "plot_zoh_convergence"]
+__all__ = ["PredictionCurves", "plot_predictions", "plot_timing", "plot_zoh_convergence"]
 
 
-def plot_zoh_convergence(series: dict[str, Any], stem: PathLike, *, title: str | None = None) -> list[Path]:
+class PredictionCurves(TypedDict):
+    """What :func:`plot_predictions` draws of one scenario (``None``: not available)."""
+
+    history_t: NDArray[np.float64] | None
+    history_x: NDArray[np.float64] | None
+    pred_t: NDArray[np.float64] | None
+    pred_x: NDArray[np.float64] | None
+    x_poly: Sequence[float]
+
+
+def plot_zoh_convergence(series: Mapping[str, tuple[Sequence[float], Sequence[float]]], stem: PathLike, *,
+                         title: str | None = None) -> list[Path]:
     """``J_ZOH − J_PMP`` (same contact node) against ``h`` on log–log axes.
 
     Parameters
@@ -37,9 +52,9 @@ def plot_zoh_convergence(series: dict[str, Any], stem: PathLike, *, title: str |
     fig = Figure(figsize=(6.0, 4.5))
     ax = fig.add_subplot(1, 1, 1)
     first = None
-    for k, (label, (h, gap)) in enumerate(series.items()):
-        h = np.asarray(h, dtype=float)
-        gap = np.asarray(gap, dtype=float)
+    for k, (label, (h_values, gaps)) in enumerate(series.items()):
+        h = np.asarray(h_values, dtype=float)
+        gap = np.asarray(gaps, dtype=float)
         ok = gap > 0
         ax.loglog(h[ok], gap[ok], "o-", color=scenario_color(label, k), label=label)
         if first is None and ok.sum() >= 2:
@@ -62,7 +77,8 @@ def plot_zoh_convergence(series: dict[str, Any], stem: PathLike, *, title: str |
     return save_figure(fig, stem)
 
 
-def plot_timing(samples: dict[str, Any], stem: PathLike, *, whole_plans: dict[str, Any] | None = None,
+def plot_timing(samples: Mapping[str, Sequence[float]], stem: PathLike, *,
+                whole_plans: Mapping[str, StatsJSON] | None = None,
                 title: str | None = None) -> list[Path]:
     """Wall times, log scale, coloured by planner (:func:`planner_style`).
 
@@ -132,7 +148,8 @@ def plot_timing(samples: dict[str, Any], stem: PathLike, *, whole_plans: dict[st
     return save_figure(fig, stem)
 
 
-def plot_predictions(entries: dict[str, Any], stem: PathLike, *, tf: float, title: str | None = None) -> list[Path]:
+def plot_predictions(entries: Mapping[str, PredictionCurves], stem: PathLike, *, tf: float,
+                     title: str | None = None) -> list[Path]:
     """Observed history, the predictor's samples and the fitted cubic handed to the planners.
 
     Parameters
@@ -146,10 +163,11 @@ def plot_predictions(entries: dict[str, Any], stem: PathLike, *, tf: float, titl
     tt = np.linspace(0.0, tf, 200)
     for k, (label, e) in enumerate(entries.items()):
         col = scenario_color(label, k)
-        if e.get("history_t") is not None:
-            ax.plot(e["history_t"], e["history_x"], ".", ms=3, color=col, label=f"{label}: observed history")
-        if e.get("pred_t") is not None:
-            ax.plot(e["pred_t"], e["pred_x"], "o", ms=3, mfc="none", color=col, alpha=0.6,
+        ht, hx, pt, px = e["history_t"], e["history_x"], e["pred_t"], e["pred_x"]
+        if ht is not None and hx is not None:
+            ax.plot(ht, hx, ".", ms=3, color=col, label=f"{label}: observed history")
+        if pt is not None and px is not None:
+            ax.plot(pt, px, "o", ms=3, mfc="none", color=col, alpha=0.6,
                     label=f"{label}: predicted samples")
         ax.plot(tt, np.polynomial.polynomial.polyval(tt, e["x_poly"]), "-", lw=1.5, color=col,
                 label=f"{label}: cubic $x_{{s,1}}(t)$")

@@ -23,10 +23,11 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.legend import Legend
 from numpy.typing import ArrayLike
 
 from iamp.core.atomic import atomic_path
@@ -35,6 +36,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
 
     from iamp.core.plan import Plan
+
 
 PathLike = str | os.PathLike[str]
 
@@ -155,7 +157,7 @@ def save_one(fig: Figure, path: PathLike) -> Path:
     return path
 
 
-def legend_below(ax: Axes, *, ncol: int = 3, fontsize: float = 7, below_points: float = 36.0) -> Any:
+def legend_below(ax: Axes, *, ncol: int = 3, fontsize: float = 7, below_points: float = 36.0) -> Legend:
     """A legend under ``ax``, ``below_points`` below its lower edge (clear of the tick labels and
     the x label however short the axes are: equal-aspect road strips are)."""
     return ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=ncol, fontsize=fontsize, frameon=False,

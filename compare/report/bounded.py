@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from iamp.core.physical import PASSENGER_CAR
 
 from ..bounded import BoundedRow
@@ -12,7 +10,7 @@ from .latex import Raw, booktabs_table, escape, sci
 
 def latex_table(rows: list[BoundedRow]) -> str:
     """The bounded comparison as a booktabs table (``iamp reproduce``: ``tables/bounded.tex``)."""
-    body: list[list[Any] | None] = []
+    body: list[list[str | Raw] | None] = []
     last = None
     for r in rows:
         if last is not None and r.scenario != last:

@@ -14,15 +14,16 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from iamp.comparison.metrics import ManoeuvreMetrics, QualitativeEntry
+
 from .paper import PAPER_FIG, PAPER_TABLE_I, SCENARIOS
+from .records import ResultsJSON, ScenarioEntry
 from .tables import agreement_notes
 from .tex import intervals_tex, tex_escape
 
 if TYPE_CHECKING:  # pragma: no cover
-    from iamp.comparison.metrics import ManoeuvreMetrics, QualitativeEntry
     from iamp.core.problem import Problem, SurroundingVehicle
 
-    from .records import ResultsJSON, ScenarioEntry
 
 __all__ = ["build_report_tex"]
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TypedDict, Unpack
 
 from iamp.core.atomic import write_text as write_atomic  # re-exported for callers
 
@@ -119,7 +119,17 @@ def booktabs_table(header: Sequence[object], rows: Iterable[Sequence[object] | N
     return "\n".join(lines) + "\n"
 
 
+class TableOptions(TypedDict, total=False):
+    """:func:`booktabs_table`'s keyword options."""
+
+    caption: str | None
+    label: str | None
+    align: str | None
+    notes: str | None
+    float_env: bool
+
+
 def write_table(path: str | Path, header: Sequence[object], rows: Iterable[Sequence[object] | None],
-                **kwargs: Any) -> Path:
+                **kwargs: Unpack[TableOptions]) -> Path:
     """:func:`booktabs_table` written with :func:`write_atomic`."""
     return write_atomic(path, booktabs_table(header, rows, **kwargs))

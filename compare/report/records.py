@@ -12,23 +12,22 @@ comparison and the small closed-loop campaign (:class:`CampaignSection`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, NotRequired, TypedDict
+from typing import NotRequired, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
 
 from iamp.comparison.agreement.records import PairJSON, RunJSON
+from iamp.comparison.bounded import BoundedRowJSON
 from iamp.comparison.metrics import ManoeuvreMetrics, QualitativeEntry
 from iamp.comparison.safety_compare import SafetyComparisonJSON
 from iamp.comparison.timing import StatsJSON
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+from iamp.core.scenario import Scenario
+from iamp.prediction.predictor import Prediction
 
 from .paper import PaperRow
-
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.core.plan import Plan
-    from iamp.core.problem import Problem
-    from iamp.core.scenario import Scenario
-    from iamp.prediction.predictor import Prediction
 
 __all__ = ["CampaignRun", "CampaignSection", "ConfigJSON", "EmptyStatsJSON", "FullCampaign", "HistoryJSON",
            "MachineJSON", "PredictionJSON", "PredictorSummary", "ResultsJSON", "ScenarioEntry", "ScenarioJSON",
@@ -272,6 +271,6 @@ class ResultsJSON(TypedDict):
     predictor: PredictorSummary | None
     safety: list[SafetyComparisonJSON]
     campaign: dict[str, object]
-    bounded: list[dict[str, object]]
+    bounded: list[BoundedRowJSON]
     runtime_s: NotRequired[float]
     outputs: NotRequired[list[str]]

@@ -40,10 +40,12 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import numpy as np
 
+from iamp.comparison.bounded import BoundedRow
+from iamp.comparison.figures.studies import PredictionCurves
 from iamp.comparison.metrics import ManoeuvreMetrics, manoeuvre_metrics, qualitative_comparison
 from iamp.core.atomic import write_text as atomic_write_text
 from iamp.core.jsonable import to_jsonable
@@ -67,9 +69,6 @@ from .tables import (
 )
 from .tex import short_label
 from .timing import timing_section, versions_used, whole_plan_stats
-
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.comparison.bounded import BoundedRow
 
 __all__ = ["ReproduceConfig", "reproduce"]
 
@@ -213,7 +212,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
                                                  title=f"{name}: cost against contact time"))
         fig(f"costates-{name}", plot_costates(pmp, qp_runs, fd / f"costates-{name}",
                                               title=f"{name}: PMP co-states and jumps against QP multipliers"))
-    pred_entries: dict[str, dict[str, object]] = {}
+    pred_entries: dict[str, PredictionCurves] = {}
     for name in scenarios[:3] if len(scenarios) >= 3 else scenarios:
         e = entries[name]
         if e.problem.m != 1:

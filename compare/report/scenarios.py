@@ -11,20 +11,16 @@ r"""The scenarios of ``iamp reproduce`` and their plans.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from numpy.typing import NDArray
 
+from iamp.comparison.agreement.judge import QPConfig
 from iamp.core.problem import Problem
+from iamp.core.scenario import History
 from iamp.planners.qp.diagnostics import QPDiagnostics
 
 from .config import ProgressFn, ReproduceConfig
 from .records import HistoryJSON, ScenarioEntry, ScenarioPlan, Table1Row
-
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.comparison.agreement.judge import QPConfig
-    from iamp.core.scenario import History
 
 __all__ = ["constraint_roles", "history_speed_at_0", "load_scenario", "plan_scenario", "qp_configs", "table1_row"]
 

@@ -15,7 +15,11 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, TypeVar
 
+from iamp.comparison.agreement.records import PairJSON, RunJSON
+from iamp.comparison.metrics import ManoeuvreMetrics
+
 from .paper import PAPER_TABLE_I, SCENARIOS
+from .records import ScenarioEntry, ScenarioJSON, Table1Row, TimingSection, ZohConvergence
 from .tex import (
     intervals_tex,
     poly_tex,
@@ -27,11 +31,9 @@ from .tex import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
-    from iamp.comparison.agreement.records import PairJSON, RunJSON
-    from iamp.comparison.metrics import ManoeuvreMetrics
 
     from .config import ReproduceConfig
-    from .records import ScenarioEntry, ScenarioJSON, Table1Row, TimingSection, ZohConvergence
+
 
 T = TypeVar("T")
 

@@ -14,16 +14,13 @@ import os
 import platform
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from typing import TYPE_CHECKING
 
 from iamp.comparison.timing import StatsJSON, dist_version, sample_nodes, summarize
+from iamp.planners.qp.core import CandidateSolver
 
 from .config import ProgressFn, ReproduceConfig
 from .records import EmptyStatsJSON, ScenarioEntry, ScenarioPlan, TimingSection
 from .tex import short_label
-
-if TYPE_CHECKING:  # pragma: no cover
-    from iamp.planners.qp.core import CandidateSolver
 
 __all__ = ["timing_section", "versions_used", "whole_plan_stats"]
 
