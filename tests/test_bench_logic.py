@@ -33,8 +33,8 @@ def fake(monkeypatch):
                 "pmp_two_vehicles_pure_to_compiled": 10.0}
 
     def per_candidate(problem, solver, repeats):
-        return {"backend": _stats(per[solver]), "call": _stats(per[solver]), "wall": _stats(per[solver]),
-                "failed": 0, "describe": {"name": solver}}
+        return bench.CandidateTimes(_stats(per[solver]), _stats(per[solver]), _stats(per[solver]), 0,
+                                    {"name": solver})
 
     calls = []
 

@@ -48,6 +48,7 @@ import platform
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import NotRequired, TypedDict
 
 import numpy as np
@@ -100,8 +101,11 @@ class PMPNumbers(TypedDict):
     stats: NotRequired[dict[str, StatsJSON]]
 
 
-class CandidateTimes(TypedDict):
-    """One backend's per-candidate times over full sweeps (:func:`_per_candidate`)."""
+@dataclass(frozen=True)
+class CandidateTimes:
+    """One backend's per-candidate times over full sweeps (:func:`_per_candidate`): update + solve
+    (``backend``), the bare ``solve()`` call (``call``), the whole candidate (``wall``), the
+    candidates of the last sweep not verified, and the backend's :meth:`describe`."""
 
     backend: TimingStats
     call: TimingStats
@@ -259,8 +263,7 @@ def _per_candidate(problem: Problem, solver: str, repeats: int) -> CandidateTime
     describe: dict[str, object] = qp.backend.describe()
     if solver == "kkt":
         describe["bandwidth"] = int(getattr(qp.backend, "bandwidth", -1))
-    return {"backend": summarize(backend), "call": summarize(call), "wall": summarize(wall), "failed": failed,
-            "describe": describe}
+    return CandidateTimes(summarize(backend), summarize(call), summarize(wall), failed, describe)
 
 
 def _sweep(fn: Callable[[], Plan], repeats: int) -> tuple[TimingStats, Plan]:
@@ -435,7 +438,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     ego_pred = bench_ego_follower(20 if quick else 100)
     tick(7)
 
-    solve = {s: cand[s]["backend"].median for s in names}
+    solve = {s: cand[s].backend.median for s in names}
     best_it = min(iterative, key=lambda s: solve[s])
     sweeps = {**{s: cvx[s].median for s in cvx}, **{f"native_{s}": native[s].median for s in native}}
     best_native = min(native, key=lambda s: native[s].median)
@@ -483,7 +486,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     ab_ratios = avoid_bounded.get("ratios") if avoid_bounded is not None else None
     for k, r in (ab_ratios or {}).items():
         ratios[f"avoid_bounded_{k}"] = r
-    all_stats = {**{f"qp_native_solve_{s}": cand[s]["backend"] for s in cand},
+    all_stats = {**{f"qp_native_solve_{s}": cand[s].backend for s in cand},
                  **{f"qp_grid_sweep_native_{s}": native[s] for s in native},
                  **{f"qp_grid_sweep_cvxpy_{s}": cvx[s] for s in cvx}}
     busy = _busy(all_stats)
@@ -510,8 +513,8 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
                       + "; ".join(busy)] if busy else []),
         "quick": bool(quick), "steps": STEPS, "problem": one.name,
         "best_iterative_backend": best_it, "best_native_sweep": best_native,
-        "qp_candidate": {s: {"backend_s": c["backend"].to_dict(), "solve_call_s": c["call"].to_dict(),
-                             "wall_s": c["wall"].to_dict(), "failed": c["failed"], "backend": c["describe"]}
+        "qp_candidate": {s: {"backend_s": c.backend.to_dict(), "solve_call_s": c.call.to_dict(),
+                             "wall_s": c.wall.to_dict(), "failed": c.failed, "backend": c.describe}
                          for s, c in cand.items()},
         "stats": {"qp_grid_sweep_native_s": {s: v.to_dict() for s, v in native.items()},
                   "qp_grid_sweep_cvxpy_s": {s: v.to_dict() for s, v in cvx.items()},
