@@ -225,6 +225,24 @@ def solve_axis(times: list[float], T: float, s0: float, v0: float, sf: float, vf
     return _axis_solution(ax, lam, D, _tuples(ps), it, res)
 
 
+def solve_axis_value(times: list[float], T: float, s0: float, v0: float, sf: float, vf: float,
+                     corners: list[float], lo: float, hi: float, lam0: list[float] | None = None,
+                     tol_residual: float = 1e-12
+                     ) -> tuple[float, list[float], list[float], list[float]] | None:
+    """What the contact-time search needs of :func:`solve_axis`, without building the
+    :class:`AxisSolution`: ``(cost, jumps, contact_speeds, lam)`` (the same numbers, the same
+    arithmetic), or ``None`` where :func:`solve_axis` raises (infeasible box or a stall)."""
+    ax = _Axis(times, T, s0, v0, sf, vf, corners, lo, hi)
+    code, _, _, _, cost, lam, _, vc, _ = _core(ax, lam0, tol_residual)
+    if code != _kernel.CONVERGED:
+        return None
+    ell = ax.ell
+    T3 = T**3
+    jumps = [-(x * ell / T3) for x in lam[:ax.m]]
+    speeds = [v0 + x * ell / T for x in vc]
+    return cost * ell * ell / T3, jumps, speeds, list(lam)
+
+
 def _core(ax: _Axis, lam0: list[float] | None, tol_residual: float
           ) -> tuple[int, int, float, float, float, list[float], list[float], list[float], list[float]]:
     """:func:`~iamp.planners.pmp.saturated_kernel.axis_core` on ``ax``: the compiled twin
