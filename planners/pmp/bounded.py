@@ -138,6 +138,7 @@ class BoundedSolution:
         self._arr = [(np.asarray(ax.knots), np.asarray(ax.u), np.asarray(s), np.asarray(v))
                      for ax, (s, v) in zip(self.axes, self._sv)]
         self._jumps_arr = [np.asarray(ax.jumps) for ax in self.axes]
+        self._hjump: tuple[FloatArray, FloatArray] | None = None
 
     @property
     def jumps(self) -> FloatArray:
@@ -217,7 +218,13 @@ class BoundedSolution:
         return out
 
     def hamiltonian_jump_terms(self) -> tuple[FloatArray, FloatArray]:
-        """``(r, size)``: ``r_i = H⁻ − H⁺ − ẋ_s,i Φ_i,x`` (= ``∂J/∂t_i``) and the size of its terms."""
+        """``(r, size)``: ``r_i = H⁻ − H⁺ − ẋ_s,i Φ_i,x`` (= ``∂J/∂t_i``) and the size of its terms
+        (computed once: the self-check and the plan's annotation both ask)."""
+        if self._hjump is None:
+            self._hjump = self._hamiltonian_jump_terms()
+        return self._hjump[0].copy(), self._hjump[1].copy()
+
+    def _hamiltonian_jump_terms(self) -> tuple[FloatArray, FloatArray]:
         t = self.contact_times
         m = len(t)
         xdot = np.array([float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, t)])
@@ -588,6 +595,8 @@ def exact_peaks(trajectory: Any, tf: float, knots: list[float]) -> dict[str, Any
         # v_y(a + d) = vy + uy d + c d²/2 with c the slope of u_y
         vy, uy = X[j, 3], U[j, 1]
         c = (U[j + 1, 1] - uy) / (b - a)
+        if _keeps_sign(float(vy), float(uy), float(c), float(b - a)):
+            continue  # v_y has no root in the piece: s_y is monotone there (no np.roots call)
         roots = np.roots([c / 2, uy, vy]) if abs(c) > 0 else (np.array([-vy / uy]) if uy != 0 else np.array([]))
         for r in np.atleast_1d(roots):
             if np.isreal(r) and 0 < float(np.real(r)) < b - a:
@@ -602,6 +611,22 @@ def exact_peaks(trajectory: Any, tf: float, knots: list[float]) -> dict[str, Any
         "y": [float(Y.min()), float(Y.max())],
         "jerk": float(np.max(np.abs(du))) if du.size else 0.0,
     }
+
+
+def _keeps_sign(v0: float, u0: float, c: float, h: float) -> bool:
+    """Whether ``q(d) = v0 + u0 d + c d²/2`` keeps one strict sign on ``[0, h]`` with a margin
+    of ``1e-9`` of its terms' size (so that no root-finder can place a root inside): at both
+    ends and, if inside, at the vertex."""
+    margin = 1e-9 * (abs(v0) + abs(u0) * h + abs(c) * h * h)
+    ends = (v0, v0 + u0 * h + c * h * h / 2)
+    if not (all(q > margin for q in ends) or all(q < -margin for q in ends)):
+        return False
+    if c != 0.0:
+        dv = -u0 / c
+        if 0.0 < dv < h:
+            qv = v0 + u0 * dv + c * dv * dv / 2
+            return bool(qv > margin if v0 > 0 else qv < -margin)
+    return True
 
 
 def limits_report(problem: Problem, peaks: dict[str, Any]) -> dict[str, dict[str, Any]]:
