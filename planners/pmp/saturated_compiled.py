@@ -43,7 +43,8 @@ def core() -> Callable[..., Any] | None:
 
 
 def unload() -> None:
-    """Back to the pure path in this process (tests compare both)."""
+    """Back to the pure path in this process (tests compare both; a later :func:`load`
+    reuses the compiled code)."""
     _STATE.pop("core", None)
 
 
@@ -54,9 +55,13 @@ def load() -> bool:
         return True
     if not available():
         return False
+    if "built" in _STATE:  # compiled earlier in this process (then unloaded)
+        _STATE["core"] = _STATE["built"]
+        return True
     try:
         _STATE["core"] = _build()
         _STATE["core"]([0.5], [0.0, 0.5, 1.0], [0.1, 0.2, 0.0], -1.0, 1.0, None, 1e-12, 60)
+        _STATE["built"] = _STATE["core"]
     except Exception as exc:  # a broken numba install: the pure path stays
         _STATE.pop("core", None)
         _STATE["error"] = f"{type(exc).__name__}: {exc}"
