@@ -150,7 +150,10 @@ def test_pieces_skipped_by_exact_peaks_have_no_speed_root(v0: float, u0: float, 
     d = np.linspace(0.0, h, 2001)
     q = v0 + u0 * d + c * d * d / 2
     assert np.all(q > 0) or np.all(q < 0)
-    roots = np.roots([c / 2, u0, v0]) if c != 0 else (np.array([-v0 / u0]) if u0 != 0 else np.array([]))
+    try:  # np.roots itself fails on a subnormal leading coefficient (which exact_peaks now skips)
+        roots = np.roots([c / 2, u0, v0]) if c != 0 else (np.array([-v0 / u0]) if u0 != 0 else np.array([]))
+    except np.linalg.LinAlgError:
+        return
     inside = [float(np.real(r)) for r in np.atleast_1d(roots) if np.isreal(r) and 0 < float(np.real(r)) < h]
     assert not inside
 
