@@ -383,6 +383,10 @@ class _IntervalBound:
         cdot_max = sum(abs(c) * T**k for k, c in enumerate(d1))
         self.cddot_max = (sum(abs(c) * T**k for k, c in enumerate(d2)), 0.0)
         self.axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
+        self.pos = [float(c) for c in np.asarray(veh.x_poly, dtype=float)]
+        self.der = [float(c) for c in (np.polynomial.polynomial.polyder(np.asarray(veh.x_poly, dtype=float))
+                                       if len(veh.x_poly) > 1 else [0.0])]
+        self.off = (float(veh.offset_x), float(veh.corner_y))
         self.lip_rate = tuple(cd + abs(v0) + max(abs(lo), abs(hi)) * T
                               if math.isfinite(lo) and math.isfinite(hi) else INF
                               for cd, (_, v0, _, _, lo, hi) in zip((cdot_max, 0.0), self.axes_data))
@@ -393,17 +397,18 @@ class _IntervalBound:
         :math:`J_b \\ge B` on the interval, ``("infeasible", margin)`` when a Farkas margin
         covers it, ``("unknown", nan)`` when an axis is infeasible without enough margin or
         its solve stalls."""
-        T, veh = self.T, self.veh
+        T = self.T
         t, delta = 0.5 * (a + b), 0.5 * (b - a)
-        C = self.problem.corners(np.array([t]))
-        cdot = (float(veh.speed(t)), 0.0)
+        # problem.corners and veh.speed, by numpy's polyval recurrence on cached coefficients
+        C = ((_polyval(self.pos, t) + self.off[0], self.off[1]),)
+        cdot = (_polyval(self.der, t), 0.0)
         dual = slope = M = 0.0
         lams: list[list[float] | None] = [None, None]
         solves = 0
         for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.axes_data):
             solves += 1
             try:
-                sol = solve_axis([t], T, s0, v0, sf, vf, [float(C[0, k])], lo, hi, warm[k])
+                sol = solve_axis([t], T, s0, v0, sf, vf, [float(C[0][k])], lo, hi, warm[k])
             except AxisInfeasible as exc:
                 if exc.lam_phys is not None and exc.margin_phys is not None:
                     rate = delta * abs(exc.lam_phys[0]) * self.lip_rate[k]
