@@ -98,6 +98,7 @@ class PMPNumbers(TypedDict):
     pmp_batch_plans_per_s: float
     pmp_to_compiled_limit: NotRequired[float]
     pmp_two_vehicles_pure_to_compiled: NotRequired[float]
+    pmp_bounded_pure_to_compiled: NotRequired[float]
     stats: NotRequired[dict[str, StatsJSON]]
 
 
@@ -226,16 +227,22 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> PMPNumbers:
     from .pmp import bench_pmp
 
     raw = dict(bench_pmp(3 if quick else 7))
-    plan_s = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
-              "two_vehicles_pure": raw["two_vehicles_pure"], "one_vehicle_bounded": raw["one_vehicle_bounded"],
-              "one_vehicle_bounded_certified": raw["one_vehicle_bounded_certified"],
-              "fixed_t_bounded": raw["fixed_t_bounded"]}
+    plan_s: dict[str, float] = {
+        "one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
+        "two_vehicles_pure": raw["two_vehicles_pure"], "one_vehicle_bounded": raw["one_vehicle_bounded"],
+        "one_vehicle_bounded_certified": raw["one_vehicle_bounded_certified"],
+        "fixed_t_bounded": raw["fixed_t_bounded"],
+        **{k: raw[k] for k in ("one_vehicle_bounded_pure", "one_vehicle_bounded_compiled",
+                               "one_vehicle_bounded_certified_pure",
+                               "one_vehicle_bounded_certified_compiled") if k in raw}}
     out: PMPNumbers = {"source": "iamp.comparison.bench.pmp.bench_pmp", "bench_pmp": raw,
                            "pmp_plan_s": plan_s, "pmp_batch_plans_per_s": raw["batch_plans_per_s"]}
     if raw.get("compiled_limit_one_vehicle"):
         out["pmp_to_compiled_limit"] = raw["one_vehicle"] / raw["compiled_limit_one_vehicle"]
     else:
         notes.append("numba missing (pip install 'iamp[fast]'): no compiled limit, two vehicles on the pure path")
+    if raw.get("one_vehicle_bounded_compiled"):
+        out["pmp_bounded_pure_to_compiled"] = raw["one_vehicle_bounded_pure"] / raw["one_vehicle_bounded_compiled"]
     if raw.get("two_vehicles_compiled"):
         out["pmp_two_vehicles_pure_to_compiled"] = raw["two_vehicles_pure"] / raw["two_vehicles_compiled"]
         plan_s["two_vehicles_compiled"] = raw["two_vehicles_compiled"]
@@ -446,6 +453,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     ratios: dict[str, float | None] = {
         "pmp_to_compiled_limit": pmp.get("pmp_to_compiled_limit"),
         "pmp_two_vehicles_pure_to_compiled": pmp.get("pmp_two_vehicles_pure_to_compiled"),
+        "pmp_bounded_pure_to_compiled": pmp.get("pmp_bounded_pure_to_compiled"),
         "qp_best_to_kkt": solve[best_it] / solve["kkt"],
         **{f"qp_{s}_to_kkt": solve[s] / solve["kkt"] for s in iterative},
         "native_sweep_best_to_pmp_plan": native[best_native].median / pmp_one,
