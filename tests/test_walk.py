@@ -4,7 +4,7 @@ A module is *left* when no frame of it remains on the call stack; a *return* is 
 enters a module left earlier; an *upward* call goes from a lower layer into a higher one.
 The metric is tested on synthetic call sequences (against an independent count), then the
 PMP's walk from ``PMPPlanner.plan`` to its ``Plan`` is required to have no return and no upward
-call, and the command line's walk (``iamp plan S --json``) no upward call.
+call, and the command line's walk (``iamp plan S --json``, PMP and QP) no upward call.
 """
 
 from __future__ import annotations
@@ -114,12 +114,14 @@ def test_the_one_vehicle_pmp_walk_goes_down_without_returning(scenario: str) -> 
     assert "iamp.planners.pmp.planner" == stack.entered[0] and "iamp.core.plan" in stack.entered
 
 
-@pytest.mark.parametrize("scenario", (*ONE_VEHICLE, "two-vehicle"))
-def test_the_command_line_walk_of_the_pmp_calls_nothing_upward(scenario: str) -> None:
-    """``iamp plan S --json``: the core evaluates the PMP's trajectory itself
-    (:class:`iamp.core.jump_trajectory.JumpTrajectory`), reads the histories' predictions made
+@pytest.mark.parametrize(("scenario", "planner"), [(s, "pmp") for s in (*ONE_VEHICLE, "two-vehicle")]
+                         + [("paper-1", "qp"), ("paper-1-poly", "qp")])
+def test_the_command_line_walk_calls_nothing_upward(scenario: str, planner: str) -> None:
+    """``iamp plan S --json``: the core evaluates the PMP's and the QP's trajectories itself
+    (:class:`iamp.core.jump_trajectory.JumpTrajectory`,
+    :class:`iamp.core.hold_trajectory.HoldTrajectory`), reads the histories' predictions made
     before (:class:`iamp.core.scenario.Predicted`), and no progress callback goes to the planner
     without a bar."""
-    stack, _ = walk_cli(scenario, "pmp")
+    stack, _ = walk_cli(scenario, planner)
     assert not stack.upward, stack.upward
     assert stack.entered[0] == "iamp.cli.plan"
