@@ -39,12 +39,12 @@ def problem_from_scenario(scenario: Scenario, model: str | None = None) -> tuple
     return scenario, problem, predictions
 
 
-def predicted(scenario: Scenario, predictor: Any) -> Predicted:
+def predicted(scenario: Scenario, predictor: Predictor) -> Predicted:
     """Every history of ``scenario`` predicted by ``predictor`` over the scenario's horizon, for
     :meth:`~iamp.core.scenario.Scenario.to_problem` (a prediction that raises is kept and raised
     there, in the vehicles' order, after the check of the predictor's time step)."""
     tf = scenario.ego.tf
-    out: dict[int, Any] = {}
+    out: dict[int, object] = {}
     for v in scenario.vehicles:
         if v.history is not None:
             try:

@@ -95,10 +95,10 @@ class Diagnostics:
     def from_info(cls: type[D], info: Mapping[str, object]) -> D:
         """The diagnostics of a planner's ``info`` dict: modelled keys to typed fields, the rest
         to :attr:`extra`; the key order is kept (a key given as ``None`` stays present)."""
-        return cls(**cls.info_fields(info))
+        return cls(**cls.info_fields(info))  # type: ignore[arg-type]
 
     @classmethod
-    def info_fields(cls, info: Mapping[str, object]) -> dict[str, Any]:
+    def info_fields(cls, info: Mapping[str, object]) -> dict[str, object]:
         """The constructor's keyword arguments for :meth:`from_info` (a planner that builds its
         own family's diagnostics with them is not called back from the core)."""
         names = set(cls.field_names())

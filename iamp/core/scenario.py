@@ -58,7 +58,7 @@ class Predicted:
     back (``scripts/walk.py``: no upward call).  A history whose prediction raised raises the
     same exception here, when the core asks for it (the refusal then names its TOML line)."""
 
-    by_history: Mapping[int, Any]
+    by_history: Mapping[int, object]
     name: str | None = None
     dt: float | None = None
 

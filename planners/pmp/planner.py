@@ -215,7 +215,7 @@ class PMPPlanner:
                 residuals, info["hamiltonian_jump_residuals"] = sol.residuals_and_jumps()
         return Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=sol.contact_times.copy(),
                     jumps=sol.jumps.copy(), trajectory=sol, solve_time_s=elapsed, residuals=residuals,
-                    diagnostics=PMPDiagnostics(**PMPDiagnostics.info_fields(info)))
+                    diagnostics=PMPDiagnostics(**PMPDiagnostics.info_fields(info)))  # type: ignore[arg-type]
 
     def _plan_limited(self, problem: Problem, contact_times: Any, diagnostics: bool | None,
                       progress: Callable[[int, int], None] | None) -> Plan:
@@ -300,4 +300,4 @@ class PMPPlanner:
         return Plan(problem=problem, planner="pmp", status=status, cost=None,
                     contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
                     trajectory=None, solve_time_s=_time.perf_counter() - start,
-                    diagnostics=PMPDiagnostics(**PMPDiagnostics.info_fields(info)))
+                    diagnostics=PMPDiagnostics(**PMPDiagnostics.info_fields(info)))  # type: ignore[arg-type]
