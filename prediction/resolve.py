@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from iamp.core.problem import Problem
-from iamp.core.scenario import History, Scenario, load_scenario
+from iamp.core.scenario import Predicted, Scenario, load_scenario
 from iamp.prediction._typing import FloatArray
 from iamp.prediction.predictor import Prediction, Predictor
 
@@ -32,11 +32,29 @@ def problem_from_scenario(scenario: Scenario,
                           model: str | None = None) -> tuple[Scenario, Problem, list[Prediction | None]]:
     """A loaded scenario -> ``(scenario, problem, predictions)``, predicting history vehicles
     with the model file ``model`` or the shipped model."""
-    predictor = None
-    if scenario.needs_prediction:
-        predictor = Predictor.from_file(model) if model is not None else default_predictor()
-    problem, predictions = scenario.to_problem(predictor)
+    if not scenario.needs_prediction:
+        problem, predictions = scenario.to_problem(None)
+        return scenario, problem, predictions
+    predictor = Predictor.from_file(model) if model is not None else default_predictor()
+    problem, predictions = scenario.to_problem(predicted(scenario, predictor))
     return scenario, problem, predictions
+
+
+def predicted(scenario: Scenario, predictor: Predictor) -> Predicted:
+    """Every history of ``scenario`` predicted by ``predictor`` over the scenario's horizon, for
+    :meth:`~iamp.core.scenario.Scenario.to_problem` (a prediction that raises is kept and raised
+    there, in the vehicles' order, after the check of the predictor's time step)."""
+    tf = scenario.ego.tf
+    out: dict[int, object] = {}
+    for v in scenario.vehicles:
+        if v.history is not None:
+            try:
+                out[id(v.history)] = predictor.predict(v.history, tf)
+            except Exception as exc:  # raised again by the core, where it is located
+                out[id(v.history)] = exc
+    name = getattr(predictor, "name", None)
+    dt = getattr(predictor, "dt", None)
+    return Predicted(out, str(name) if name is not None else None, float(dt) if isinstance(dt, (int, float)) else None)
 
 
 @dataclass(frozen=True)
@@ -44,19 +62,6 @@ class _LeaderPrediction:
     x_poly: tuple[float, ...]
     t: FloatArray
     x: FloatArray
-
-
-class _ScenarioLeaderPredictor:
-    """``predict(history, tf)`` answering from :func:`~iamp.prediction.leader.model.predict_scenario`'s
-    results for the scenario's own histories (looked up by identity)."""
-
-    def __init__(self, predictions: dict[int, _LeaderPrediction], name: str, dt: float) -> None:
-        self._by_history = predictions
-        self.name = name
-        self.dt = dt
-
-    def predict(self, history: History, tf: float) -> _LeaderPrediction:
-        return self._by_history[id(history)]
 
 
 def problem_with_leader_model(scenario: Scenario,
@@ -70,4 +75,4 @@ def problem_with_leader_model(scenario: Scenario,
     lp = LeaderPredictor.from_file(leader_model)
     res = predict_scenario(lp, scenario.vehicles, scenario.ego.tf)
     by_history = {id(scenario.vehicles[i].history): _LeaderPrediction(c, t, x) for i, (c, t, x) in res.items()}
-    return scenario.to_problem(_ScenarioLeaderPredictor(by_history, leader_model, SIM_DT))
+    return scenario.to_problem(Predicted(by_history, leader_model, SIM_DT))
