@@ -131,7 +131,9 @@ class Controller:
         self.mission = mission or mission_of("discretionary")
         self.iamp = planner not in ("sumo", "mobil")
         dcfg = self.cfg.decision
-        screen = Screen(dcfg.limits, dcfg.check_dt) if self.cfg.screen else None
+        # not with the ego in the forecast: there a rejected plan's trajectory feeds the
+        # follower's next prediction, so a screened plan (equal only to ~1e-9) would change numbers
+        screen = Screen(dcfg.limits, dcfg.check_dt) if self.cfg.screen and not self.cfg.ego_in_forecast else None
         self.plan_fn: PlanFn | None = make_planner(planner, screen) if self.iamp else None
         self.predictor = predictor or Predictor.default()
         self.n = Counters()
