@@ -201,12 +201,31 @@ def test_family_costs_and_states_equal_the_one_by_one_ones_bit_for_bit(hold, see
 
     qp = DiscretisedQP(random_problem(seed % 50, m=m), steps=12, hold=hold, solver="kkt")
     d = qp.data
-    Z = np.random.default_rng(seed).normal(size=(37, d.n)) * scale
-    X, U, costs = family_unpacked(d, Z, hold)
+    rng = np.random.default_rng(seed)
+    Z = rng.normal(size=(37, d.n)) * scale
+    Y = rng.normal(size=(37, d.n_rows))
+    X, U, costs, nu = family_unpacked(d, Z, hold, Y)
     for j in range(Z.shape[0]):
         X1, U1 = d.unpack(Z[j])
         assert np.array_equal(X[j], X1) and np.array_equal(U[j], U1)
         assert costs[j] == HoldTrajectory(d.t_nodes.copy(), X1, U1, hold).cost()
+        assert np.array_equal(nu[j], d.collision_multipliers(Y[j]))
+
+
+def test_family_nodes_are_checked_like_one_by_one():
+    from iamp.planners.examples import random_problem
+    from iamp.planners.qp.core import DiscretisedQP, _checked_nodes
+
+    d = DiscretisedQP(random_problem(1, m=2), steps=12, hold="foh", solver="kkt").data
+    good = [(1, 2), (np.int64(11), 3), [4, 5], (1.5, 2)]
+    assert _checked_nodes(d, good) == [d.check_nodes(c) for c in good] == [(1, 2), (11, 3), (4, 5), (1, 2)]
+    assert all(type(k) is int for c in _checked_nodes(d, good) for k in c)
+    for bad in ([(0, 2)], [(1, 12)], [(1, 2, 3)], [(1, 2), (3, 0)]):
+        with pytest.raises(ValueError) as e1:
+            [d.check_nodes(c) for c in bad]
+        with pytest.raises(ValueError) as e2:
+            _checked_nodes(d, bad)
+        assert str(e1.value) == str(e2.value)
 
 
 # -- polynomial_message and pad_coeffs ---------------------------------------------------------------

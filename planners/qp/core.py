@@ -210,12 +210,13 @@ class DiscretisedQP:
         return r
 
     def _result(self, nd: tuple[int, ...], sol: QPSolution, kkt: KKTResiduals | None,
-                backend_s: float, unpacked: tuple[FloatArray, FloatArray, float] | None = None) -> CandidateResult:
+                backend_s: float, unpacked: tuple[FloatArray, FloatArray, float, FloatArray] | None = None
+                ) -> CandidateResult:
         """The verified :class:`CandidateResult` of one solution (module docstring).
 
-        ``unpacked``: ``(X, U, cost)`` of ``sol.z`` computed for a family at once
-        (:func:`family_unpacked`: the same numbers as :meth:`QPData.unpack` and
-        :meth:`HoldTrajectory.cost`)."""
+        ``unpacked``: ``(X, U, cost, ν)`` of ``sol`` computed for a family at once
+        (:func:`family_unpacked`: the same numbers as :meth:`QPData.unpack`,
+        :meth:`HoldTrajectory.cost` and :meth:`QPData.collision_multipliers`)."""
         d = self.data
         times = d.t_nodes[np.asarray(nd, dtype=np.int64)].copy()
         if kkt is not None:
@@ -235,7 +236,7 @@ class DiscretisedQP:
             else:
                 r.trajectory = HoldTrajectory(d.t_nodes.copy(), unpacked[0], unpacked[1], self.hold)
                 r.cost = unpacked[2]
-            r.multipliers = d.collision_multipliers(sol.y)
+            r.multipliers = d.collision_multipliers(sol.y) if unpacked is None else unpacked[3]
         return r
 
     def solve_many(self, candidates: Sequence[Sequence[int]]) -> list[CandidateResult]:
@@ -301,13 +302,17 @@ def family_residuals(d: QPData, Z: FloatArray, Y: FloatArray, cols: IntArray, B1
             for a, b_, c, s1, s2, s3 in zip(rp, rd, rg, sp_, sd, sg, strict=True)]
 
 
-def family_unpacked(d: QPData, Z: FloatArray, hold: str) -> tuple[FloatArray, FloatArray, list[float]]:
-    r""":meth:`QPData.unpack` and :meth:`HoldTrajectory.cost` of every row of ``Z`` at once:
-    ``(X, U, costs)`` with ``X[j], U[j] = d.unpack(Z[j])`` and ``costs[j]`` equal to
-    ``HoldTrajectory(d.t_nodes, X[j], U[j], hold).cost()`` **bit for bit**: the same
-    element-wise operations, and each candidate's ``2N`` (FOH) or ``2N`` (ZOH) terms summed
-    as one contiguous row (numpy sums a contiguous row, alone or as the last axis of a
-    C-ordered block, with the same pairwise summation; tested against the one-by-one cost)."""
+def family_unpacked(d: QPData, Z: FloatArray, hold: str, Y: FloatArray | None = None
+                    ) -> tuple[FloatArray, FloatArray, list[float], FloatArray | None]:
+    r""":meth:`QPData.unpack`, :meth:`HoldTrajectory.cost` and
+    :meth:`QPData.collision_multipliers` of every row of ``Z`` (``Y``) at once:
+    ``(X, U, costs, ν)`` with ``X[j], U[j] = d.unpack(Z[j])``, ``ν[j] =
+    d.collision_multipliers(Y[j])`` and ``costs[j]`` equal to ``HoldTrajectory(d.t_nodes,
+    X[j], U[j], hold).cost()`` **bit for bit**: the same element-wise operations, and each
+    candidate's ``2N`` terms summed as one contiguous row (numpy sums a contiguous row,
+    alone or as the last axis of a C-ordered block, with the same pairwise summation;
+    tested against the one-by-one cost)."""
+    nu = None if Y is None else Y[:, d.row_collision:].reshape(Y.shape[0], d.problem.m, 2).copy()
     X = Z[:, d._X_idx]
     U = Z[:, d._U_idx]
     J = Z.shape[0]
@@ -319,7 +324,20 @@ def family_unpacked(d: QPData, Z: FloatArray, hold: str) -> tuple[FloatArray, Fl
         u0, u1 = U[:, :-1], U[:, 1:]
         terms = np.ascontiguousarray(h / 6 * (u0**2 + u0 * u1 + u1**2)).reshape(J, -1)
         costs = terms.sum(axis=1).tolist()
-    return X, U, costs
+    return X, U, costs, nu
+
+
+def _checked_nodes(d: QPData, cands: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
+    """``[d.check_nodes(c) for c in cands]`` (tuples of ints), checked for all at once; an
+    invalid candidate raises :meth:`QPData.check_nodes`'s error."""
+    try:
+        K = np.asarray(cands, dtype=np.int64)
+    except (TypeError, ValueError):
+        K = np.zeros((0, 0), dtype=np.int64)
+    if K.ndim == 2 and K.shape == (len(cands), d.problem.m) and bool(np.all((K > 0) & (K < d.N))) and \
+            np.array_equal(K, np.asarray(cands, dtype=float)):
+        return [tuple(row) for row in K.tolist()]
+    return [d.check_nodes(c) for c in cands]
 
 
 def _solve_family(qp: DiscretisedQP, cands: list[Sequence[int]]) -> list[CandidateResult] | None:
@@ -337,7 +355,7 @@ def _solve_family(qp: DiscretisedQP, cands: list[Sequence[int]]) -> list[Candida
     out: list[CandidateResult] = []
     for c0 in range(0, len(cands), FAMILY_CHUNK):
         t0 = time.perf_counter()
-        chunk = [tuple(int(k) for k in d.check_nodes(c)) for c in cands[c0:c0 + FAMILY_CHUNK]]
+        chunk = _checked_nodes(d, cands[c0:c0 + FAMILY_CHUNK])
         K = np.asarray(chunk, dtype=np.int64)[:, veh]  # (J, 2m): node of each selector row
         ent = ent_of_pos[d._sel_pos[veh, axis, K - 1]]
         B1 = np.where(axis == 0, d._corner_x[veh, K], d._corner_y[veh])
@@ -348,11 +366,12 @@ def _solve_family(qp: DiscretisedQP, cands: list[Sequence[int]]) -> list[Candida
         Z, Y = fam
         tb = time.perf_counter() - t0
         kkts = family_residuals(d, Z, Y, cols, B1)
-        XA, UA, costs = family_unpacked(d, Z, qp.hold)
+        XA, UA, costs, NU = family_unpacked(d, Z, qp.hold, Y)
+        assert NU is not None
         share = tb / len(chunk)
         rs = [qp._result(nd, QPSolution(z=Z[j], y=Y[j], status=st.OPTIMAL, raw_status="solved", iterations=1,
                                         solver_time_s=share, solve_call_s=share), kkts[j], share,
-                         (XA[j], UA[j], costs[j]))
+                         (XA[j], UA[j], costs[j], NU[j]))
               for j, nd in enumerate(chunk)]
         wall = (time.perf_counter() - t0) / len(chunk)
         for r in rs:
