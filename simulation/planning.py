@@ -168,7 +168,8 @@ def screened(exact: PlanFn, make_fast: Callable[[], PlanFn | None], screen: Scre
     decision layer's verdict (``limits``), the counters (a verified plan, a planner call)
     and so the episode are the same; a rejected plan is never executed.  Every other plan
     (accepted, or near a bound, or not verified) is made again by ``exact`` and returned:
-    the episode sees exactly the plans it saw without the screen.  Assumed, not proved: the
+    the episode sees exactly the plans it saw without the screen (also when the fast planner
+    raises).  Assumed, not proved: the
     two searches end in the same basin with the same status (1001 of 1001 loop problems did;
     the episodes are compared with the screen on and off in tests/test_closed_loop.py).
     The fast planner is made on the first problem with two or more vehicles (one vehicle has
@@ -183,8 +184,11 @@ def screened(exact: PlanFn, make_fast: Callable[[], PlanFn | None], screen: Scre
             state["fast"] = make_fast()
         fast = state["fast"]
         if fast is not None:
-            plan = fast(problem)
-            if plan.status in SUCCESS and plan.trajectory is not None:
+            try:
+                plan: Plan | None = fast(problem)
+            except Exception:  # the fast twin failed: the exact planner decides, as without the screen
+                plan = None
+            if plan is not None and plan.status in SUCCESS and plan.trajectory is not None:
                 jumps = [float(t) for t in np.asarray(plan.contact_times, dtype=float).reshape(-1) if np.isfinite(t)]
                 if clearly_beyond_limits(plan.trajectory, float(plan.problem.tf), screen.limits, screen.dt, margin,
                                          jumps):

@@ -137,6 +137,12 @@ def test_screened_returns_the_exact_plan_unless_the_fast_one_is_clearly_rejected
     screened(exact, lambda: None, tight)(p)
     assert calls == {"exact": 3, "fast": 2}
 
+    def broken(p):
+        raise ZeroDivisionError
+
+    got = screened(exact, lambda: broken, tight)(p)
+    assert calls == {"exact": 4, "fast": 2} and np.array_equal(got.contact_times, ref.contact_times)
+
 
 def _episode(planner, screen, mission="merge", traffic="medium", seed=1, duration=10.0):
     pytest.importorskip("libsumo")
