@@ -220,8 +220,10 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
     if scheduler:
         client = dist.Client(scheduler)
     else:
+        # dashboard_address=None does not disable the dashboard (dask/distributed#8136): it binds :8787 and
+        # warns "Port 8787 is already in use" beside another cluster; ":0" takes a free port silently
         cluster = dist.LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                                    dashboard_address=None, memory_limit="2GiB", silence_logs=logging.ERROR)
+                                    dashboard_address=":0", memory_limit="2GiB", silence_logs=logging.ERROR)
         client = dist.Client(cluster)
     interrupted = False
     try:

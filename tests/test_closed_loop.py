@@ -57,6 +57,19 @@ def test_wilson_of_no_trials_is_the_unit_interval():
     assert wilson(0, 0) == (0.0, 1.0)
 
 
+def test_wilson_default_is_the_95_percent_score_interval():
+    """Without ``z`` the interval is the 95 % one: z = Φ⁻¹(0.975) (scipy), and lo <= p̂ <= hi."""
+    from scipy.stats import norm
+
+    z95 = float(norm.ppf(0.975))
+    for k, n in [(0, 5), (3, 10), (17, 18), (50, 100)]:
+        lo, hi = wilson(k, n)
+        ph = k / n
+        roots = np.sort(np.roots([1 + z95 * z95 / n, -(2 * ph + z95 * z95 / n), ph * ph]).real)
+        assert (lo, hi) == pytest.approx((max(roots[0], 0.0), min(roots[1], 1.0)), abs=2e-5)
+        assert lo <= ph <= hi
+
+
 # -- McNemar -----------------------------------------------------------------------------------------
 def _mcnemar_by_enumeration(b: int, c: int) -> float:
     """Exact two-sided test by its definition: the probability, under Binomial(b + c, 1/2), of every
@@ -115,6 +128,56 @@ def test_paired_comparison_counts_discordant_pairs():
     assert out["success"]["p"] == pytest.approx(_mcnemar_by_enumeration(2, 4))
     assert out["success"]["diff"] == pytest.approx(0.2)
     assert (out["contact"]["b"], out["contact"]["c"]) == (0, 1)
+
+
+def _row(seed, success, decel, wall=1.0, simulated=60.0):
+    return {"mission": "merge", "planner": "p", "traffic": "medium", "seed": seed, "success": str(success),
+            "follower_max_decel": decel, "wall_total_s": wall, "simulated_s": simulated, "contacts": "0"}
+
+
+def test_hard_brake_is_a_follower_deceleration_beyond_the_drivers_decel():
+    """SPEC §15: the new follower braking harder than 4.5 m/s² (SUMO's default ``decel``) counts."""
+    from iamp.simulation.stats import cell_summary
+
+    rows = [_row(1, True, 4.4), _row(2, True, 4.6), _row(3, False, 9.0), _row(4, True, "")]
+    out = cell_summary(rows)
+    assert out["hard_brake_episodes"] == 2
+    assert out["follower_max_decel_max"] == 9.0
+
+
+def test_wall_time_per_simulated_minute_is_the_ratio_of_sums():
+    from iamp.simulation.stats import cell_summary
+
+    rows = [_row(1, True, 1.0, wall=3.0, simulated=60.0), _row(2, True, 1.0, wall=1.0, simulated=20.0)]
+    assert cell_summary(rows)["wall_per_simulated_minute_s"] == pytest.approx(60.0 * 4.0 / 80.0)
+
+
+def test_cell_counts_are_sums_and_a_missing_count_adds_nothing():
+    from iamp.simulation.stats import cell_summary
+
+    rows = [{**_row(1, True, 1.0), "fallbacks": "3", "plans": "10"}, {**_row(2, True, 1.0), "fallbacks": ""},
+            {**_row(3, False, 1.0), "fallbacks": "None", "plans": "5"}]
+    out = cell_summary(rows)
+    assert (out["fallbacks"], out["plans"], out["aborts"]) == (3, 15, 0)
+
+
+def test_campaign_report_orders_known_missions_and_densities_before_unknown_ones():
+    from iamp.simulation.stats import campaign_report
+
+    rows = []
+    for m in ("zzz-custom", "onramp", "merge"):
+        for t in ("custom-density", "dense", "medium"):
+            for p in ("b", "a"):
+                rows.append({**_row(1, True, 1.0), "mission": m, "traffic": t, "planner": p})
+    out = campaign_report(rows, planners=["a", "b"], reference="a")
+    cells = [(c["mission"], c["traffic"], c["planner"]) for c in out["cells"]]
+    assert cells[:2] == [("merge", "medium", "a"), ("merge", "medium", "b")]
+    assert [c[0] for c in cells[::6]] == ["merge", "onramp", "zzz-custom"]
+    assert [c[1] for c in cells[:6:2]] == ["medium", "dense", "custom-density"]
+    assert {c["planner"] for c in out["paired"]} == {"b"} and {c["reference"] for c in out["paired"]} == {"a"}
+    scopes = [(c["mission"], c["traffic"]) for c in out["paired"]]
+    assert scopes[:4] == [("merge", "all"), ("merge", "medium"), ("merge", "dense"), ("merge", "custom-density")]
+    assert scopes[-1] == ("zzz-custom", "custom-density")
 
 
 # -- the monitor -------------------------------------------------------------------------------------

@@ -526,8 +526,9 @@ class ContinuousAvoidPlanner:
 
         for i in range(len(tau)):
             lo, hi = max(0.0, tau[i] - qp.h), min(qp.tf, tau[i] + qp.h)
-            optimize.minimize_scalar(f, bounds=(lo, hi), args=(i,), method="bounded",
-                                     options={"xatol": 1e-9 * qp.tf, "maxiter": 40})
+            with np.errstate(invalid="ignore"):  # inf at a failed trial: Brent falls back to golden section
+                optimize.minimize_scalar(f, bounds=(lo, hi), args=(i,), method="bounded",
+                                         options={"xatol": 1e-9 * qp.tf, "maxiter": 40})
             tau[i] = found["sol"].spec[i][2]
         return found["sol"], np.array([sp_[2] for sp_ in found["sol"].spec])
 

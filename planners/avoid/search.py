@@ -160,7 +160,8 @@ def refine_crossings(problem: Problem, seed: Candidate, steps: int,
                 out = solve_at(t)
                 return out[1].cost if out is not None and out[1].status == st.OPTIMAL else np.inf
 
-            res = optimize.minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7 * tf})
+            with np.errstate(invalid="ignore"):  # inf at a failed trial: Brent falls back to golden section
+                res = optimize.minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7 * tf})
             if np.isfinite(res.fun) and res.fun <= f(float(taus[i])):
                 taus[i] = float(res.x)
     out = solve_at(taus)

@@ -169,8 +169,10 @@ class QPPlanner:
 
         m = qp.problem.m
         if m == 1:
-            optimize.minimize_scalar(f, bounds=(lo[0], hi[0]), method="bounded",
-                                     options={"xatol": self.refine_xtol * tf})
+            with np.errstate(invalid="ignore"):  # an infeasible trial returns inf; Brent's parabola is
+                # then nan and it takes a golden-section step instead (the intended fallback, no warning)
+                optimize.minimize_scalar(f, bounds=(lo[0], hi[0]), method="bounded",
+                                         options={"xatol": self.refine_xtol * tf})
         else:
             simplex = np.vstack([t0] + [t0 + 0.5 * h * np.eye(m)[k] for k in range(m)])
             optimize.minimize(f, t0, method="Nelder-Mead",

@@ -136,7 +136,8 @@ def farkas_residuals(A: sp.spmatrix, l: FloatArray, u: FloatArray, dy: FloatArra
         return stat, float("inf")
     finite = np.r_[np.abs(l[np.isfinite(l)]), np.abs(u[np.isfinite(u)])]
     scale = max(1.0, float(np.max(finite, initial=0.0)))
-    support = float(np.sum(np.where(yp > 0, u * yp, 0.0)) - np.sum(np.where(ym > 0, l * ym, 0.0)))
+    pos, neg = yp > 0, ym > 0  # only rows that push (their bounds are finite, checked above)
+    support = float(np.sum(u[pos] * yp[pos]) - np.sum(l[neg] * ym[neg]))
     return stat, support / scale
 
 
