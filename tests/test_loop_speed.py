@@ -266,3 +266,23 @@ def test_pad_coeffs_is_np_pad(rows, cols, extra, order):
     got, want = pad_coeffs(A, cols + extra), np.pad(A, ((0, 0), (0, extra)))
     assert got.dtype == want.dtype and np.array_equal(got, want)
     assert got.flags.c_contiguous == want.flags.c_contiguous and got.flags.f_contiguous == want.flags.f_contiguous
+
+
+# -- iamp bench's closed-loop entry --------------------------------------------------------------------
+def test_bench_loop_entry_is_skipped_with_quick_and_reports_a_differing_episode(monkeypatch):
+    from iamp.comparison.bench import loop as bench_loop_mod
+    from iamp.comparison.bench import run as bench
+
+    notes: list[str] = []
+    assert bench._loop(True, notes) is None and "skipped with --quick" in notes[0]
+    pytest.importorskip("libsumo")
+    fake = {"episode_s": {"pmp_screen": 1.0, "pmp_pure": 4.0}, "loop_pmp_screen_to_pure": 0.25,
+            "same_numbers": False}
+    monkeypatch.setattr(bench_loop_mod, "bench_loop", lambda repeats: fake)
+    notes = []
+    assert bench._loop(False, notes) is fake
+    assert any("differs" in n for n in notes)
+    fake["same_numbers"] = True
+    notes = []
+    bench._loop(False, notes)
+    assert notes == []
