@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from test_bench_logic import fake  # noqa: F401  (its fixture: run_bench with every measurement faked)
 
 from iamp.core.physical import PASSENGER_CAR
 from iamp.simulation.decision import check_times, clearly_beyond_limits, limit_violations
@@ -276,13 +277,30 @@ def test_bench_loop_entry_is_skipped_with_quick_and_reports_a_differing_episode(
     notes: list[str] = []
     assert bench._loop(True, notes) is None and "skipped with --quick" in notes[0]
     pytest.importorskip("libsumo")
-    fake = {"episode_s": {"pmp_screen": 1.0, "pmp_pure": 4.0}, "loop_pmp_screen_to_pure": 0.25,
+    stub = {"episode_s": {"pmp_screen": 1.0, "pmp_pure": 4.0}, "loop_pmp_screen_to_pure": 0.25,
             "same_numbers": False}
-    monkeypatch.setattr(bench_loop_mod, "bench_loop", lambda repeats: fake)
+    monkeypatch.setattr(bench_loop_mod, "bench_loop", lambda repeats: stub)
     notes = []
-    assert bench._loop(False, notes) is fake
+    assert bench._loop(False, notes) is stub
     assert any("differs" in n for n in notes)
-    fake["same_numbers"] = True
+    stub["same_numbers"] = True
     notes = []
     bench._loop(False, notes)
     assert notes == []
+
+
+
+@pytest.mark.usefixtures("fake")
+def test_bench_text_shows_the_loop_block(monkeypatch):
+    """``format_bench`` prints the closed-loop block from ``run_bench``'s ``loop`` object."""
+    from iamp.comparison.bench import run as bench
+    from iamp.comparison.bench.text import format_bench
+
+    loop = {"case": {"duration_s": 10.0, "mission": "merge", "traffic": "medium", "seed": 1},
+            "episode_s": {"pmp_screen": 0.5, "pmp_pure": 5.0}, "loop_pmp_screen_to_pure": 0.1, "same_numbers": True}
+    monkeypatch.setattr(bench, "_loop", lambda quick, notes: loop)
+    out = bench.run_bench(quick=True)
+    assert out["loop_episode_s"] == loop["episode_s"] and out["ratios"]["loop_pmp_screen_to_pure"] == 0.1
+    text = format_bench(out)
+    assert "Closed loop, whole 10 s merge episodes (medium, seed 1)" in text
+    assert "pmp screened / pure: 0.100; same numbers: yes" in text
