@@ -298,8 +298,10 @@ def family_residuals(d: QPData, Z: FloatArray, Y: FloatArray, cols: IntArray, B1
     sp_ = np.maximum(1.0, np.maximum(np.abs(Az).max(axis=1), np.abs(B).max(axis=1)))
     sd = np.maximum(1.0, np.maximum(np.abs(Pz).max(axis=1), np.abs(Aty).max(axis=1)))
     sg = np.maximum(1.0, np.maximum(np.abs(zPz), np.abs(by)))
-    return [KKTResiduals(float(a), float(b_), float(c), float(a / s1), float(b_ / s2), float(c / s3))
-            for a, b_, c, s1, s2, s3 in zip(rp, rd, rg, sp_, sd, sg, strict=True)]
+    # element-wise division of the arrays = the scalar divisions one by one; tolist() = float()
+    return [KKTResiduals(a, b_, c, a1, b1, c1) for a, b_, c, a1, b1, c1 in
+            zip(rp.tolist(), rd.tolist(), rg.tolist(), (rp / sp_).tolist(), (rd / sd).tolist(), (rg / sg).tolist(),
+                strict=True)]
 
 
 def family_unpacked(d: QPData, Z: FloatArray, hold: str, Y: FloatArray | None = None
