@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from iamp.core.problem import Problem
-from iamp.core.scenario import Scenario, load_scenario
+from iamp.core.scenario import Predicted, Scenario, load_scenario
 from iamp.prediction.predictor import Predictor
 
 
@@ -31,11 +31,29 @@ def load_problem(spec: str, model: str | None = None) -> tuple[Scenario, Problem
 def problem_from_scenario(scenario: Scenario, model: str | None = None) -> tuple[Scenario, Problem, list[Any]]:
     """A loaded scenario -> ``(scenario, problem, predictions)``, predicting history vehicles
     with the model file ``model`` or the shipped model."""
-    predictor = None
-    if scenario.needs_prediction:
-        predictor = Predictor.from_file(model) if model is not None else default_predictor()
-    problem, predictions = scenario.to_problem(predictor)
+    if not scenario.needs_prediction:
+        problem, predictions = scenario.to_problem(None)
+        return scenario, problem, predictions
+    predictor = Predictor.from_file(model) if model is not None else default_predictor()
+    problem, predictions = scenario.to_problem(predicted(scenario, predictor))
     return scenario, problem, predictions
+
+
+def predicted(scenario: Scenario, predictor: Predictor) -> Predicted:
+    """Every history of ``scenario`` predicted by ``predictor`` over the scenario's horizon, for
+    :meth:`~iamp.core.scenario.Scenario.to_problem` (a prediction that raises is kept and raised
+    there, in the vehicles' order, after the check of the predictor's time step)."""
+    tf = scenario.ego.tf
+    out: dict[int, object] = {}
+    for v in scenario.vehicles:
+        if v.history is not None:
+            try:
+                out[id(v.history)] = predictor.predict(v.history, tf)
+            except Exception as exc:  # raised again by the core, where it is located
+                out[id(v.history)] = exc
+    name = getattr(predictor, "name", None)
+    dt = getattr(predictor, "dt", None)
+    return Predicted(out, str(name) if name is not None else None, float(dt) if isinstance(dt, (int, float)) else None)
 
 
 @dataclass(frozen=True)
@@ -43,19 +61,6 @@ class _LeaderPrediction:
     x_poly: tuple[float, ...]
     t: Any
     x: Any
-
-
-class _ScenarioLeaderPredictor:
-    """``predict(history, tf)`` answering from :func:`~iamp.prediction.leader.model.predict_scenario`'s
-    results for the scenario's own histories (looked up by identity)."""
-
-    def __init__(self, predictions: dict[int, _LeaderPrediction], name: str, dt: float) -> None:
-        self._by_history = predictions
-        self.name = name
-        self.dt = dt
-
-    def predict(self, history: Any, tf: float) -> _LeaderPrediction:
-        return self._by_history[id(history)]
 
 
 def problem_with_leader_model(scenario: Scenario, leader_model: str) -> tuple[Problem, list[Any]]:
@@ -68,4 +73,4 @@ def problem_with_leader_model(scenario: Scenario, leader_model: str) -> tuple[Pr
     lp = LeaderPredictor.from_file(leader_model)
     res = predict_scenario(lp, scenario.vehicles, scenario.ego.tf)
     by_history = {id(scenario.vehicles[i].history): _LeaderPrediction(c, t, x) for i, (c, t, x) in res.items()}
-    return scenario.to_problem(_ScenarioLeaderPredictor(by_history, leader_model, SIM_DT))
+    return scenario.to_problem(Predicted(by_history, leader_model, SIM_DT))

@@ -12,8 +12,7 @@ from iamp.core.free import FreeTrajectory, free_plan, min_energy_cubic, transfer
 from iamp.core.problem import EgoBoundary, Problem
 from iamp.planners.pmp.batch import _hermite
 from iamp.planners.pmp.fixed import hermite_cubic
-from iamp.planners.pmp.scale import _hermite as hermite_list
-from iamp.planners.pmp.scale import hermite_sigma
+from iamp.planners.pmp.scale import _hermites, hermite_sigma
 
 finite = st.floats(-50, 50, allow_nan=False)
 
@@ -37,7 +36,9 @@ def test_the_cubic_meets_its_end_states_and_its_energy_is_the_transfer_cost(s0, 
 def test_every_planner_copy_is_the_shared_cubic_bit_for_bit(s0, v0, sf, vf):
     ref = np.array(min_energy_cubic(s0, v0, sf, vf))
     assert np.array_equal(hermite_sigma(s0, v0, sf, vf), ref)
-    assert np.array_equal(np.array(hermite_list(s0, v0, sf, vf)), ref)
+    hx, hy = _hermites([s0, v0, sf, vf, vf, sf, v0, s0])  # both axes in one call, each the shared cubic
+    assert np.array_equal(np.array(hx), ref)
+    assert np.array_equal(np.array(hy), np.array(min_energy_cubic(vf, sf, v0, s0)))
     assert np.array_equal(hermite_cubic(s0, v0, sf, vf, 1.0), ref)
     rows = _hermite(*(np.array([x, x]) for x in (s0, v0, sf, vf)))
     assert np.array_equal(rows, np.stack([ref, ref]))

@@ -13,6 +13,7 @@ from iamp.planners.pmp.fixed import horner_rows, jump_system_sigma, quad_at, sol
 from iamp.planners.pmp.planner import PMPPlanner
 from iamp.planners.pmp.scale import scale_problem
 from iamp.planners.pmp.search import stationarity_poly, stationarity_poly_loops
+from iamp.planners.pmp.solution import PMPSolution
 from iamp.planners.pmp.verify import check_values, check_values_lean, judge, lean_checks_and_cost
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
@@ -93,3 +94,48 @@ def test_plan_uses_lean_checks_with_the_generic_verdict(seed: int) -> None:
     assert judge(a)[1] == plan.info["failed_check"]
     if plan.cost is not None:
         assert plan.cost == plan.trajectory.cost()
+
+
+def _residuals_one_call_at_a_time(sol: PMPSolution) -> tuple[dict[str, float], np.ndarray]:
+    """The physical residuals as they were computed before the walk's restructuring (issue 18):
+    every evaluation of the trajectory a call of its own, the problem read per use."""
+    prob, t = sol.problem, sol.contact_times
+    ends = sol.states(np.array([0.0, prob.tf]))
+    boundary = max(np.max(np.abs(ends[0] - prob.ego.initial)), np.max(np.abs(ends[1] - prob.ego.final)))
+    X = sol.states(t)
+    interior = np.max(np.abs(X[:, [0, 2]] - prob.corners(t)))
+    ts = np.linspace(0.0, prob.tf, 201)
+    U, p = sol.inputs(ts), sol.costates(ts)
+    h_min = np.max(np.abs(U + p[:, [1, 3]]))
+    pl, pr = sol.costates(t, "left"), sol.costates(t, "right")
+    jump = max(np.max(np.abs(pl[:, [0, 2]] - pr[:, [0, 2]] - sol.jumps)), np.max(np.abs(pl[:, [1, 3]] - pr[:, [1, 3]])))
+    xdot = np.array([float(v.speed(ti)) for v, ti in zip(prob.vehicles, t)])
+    hj = sol.hamiltonian(t, "left") - sol.hamiltonian(t, "right") - xdot * sol.jumps[:, 0]
+    return {"linear_system": sol.system_residual(), "boundary": float(boundary), "interior_constraint": float(interior),
+            "h_minimisation": float(h_min), "costate_jump": float(jump),
+            "hamiltonian_jump": float(np.max(np.abs(hj)))}, hj
+
+
+@given(st.integers(0, 10_000), st.integers(1, 3))
+@settings(max_examples=40, deadline=None)
+def test_one_pass_residuals_and_one_vehicle_checks_are_the_old_numbers(seed: int, m: int) -> None:
+    """The plan's residuals (one read of the problem, one evaluation of the trajectory at every
+    point) are the per-call numbers bit for bit, for m = 1..3; the one-vehicle plan's full
+    self-check (lean path) is the generic :func:`check_values` bit for bit, with its verdict."""
+    prob = random_problem(seed, m=m)
+    plan = PMPPlanner().plan(prob)
+    sol = plan.trajectory
+    if not isinstance(sol, PMPSolution) or plan.residuals is None:
+        return
+    with np.errstate(all="ignore"):
+        ref, hj = _residuals_one_call_at_a_time(sol)
+    assert all((math.isnan(a) and math.isnan(b)) or a == b for a, b in zip(plan.residuals.values(), ref.values()))
+    assert list(plan.residuals) == list(ref)
+    assert np.array_equal(plan.diagnostics.hamiltonian_jump_residuals, hj, equal_nan=True)
+    if m == 1:
+        generic = check_values(sol, scale_problem(prob), True)
+        checks = plan.diagnostics.checks
+        assert checks is not None and list(checks) == list(generic)
+        for k, v in generic.items():
+            assert checks[k]["value"] == v or (math.isnan(v) and math.isnan(checks[k]["value"])), k
+        assert judge(generic)[1] == plan.diagnostics.failed_check

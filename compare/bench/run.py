@@ -90,16 +90,21 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> dict[str, Any]:
     from .pmp import bench_pmp
 
     raw: dict[str, Any] = dict(bench_pmp(3 if quick else 7))
-    plan_s = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
+    plan_s: dict[str, Any] = {"one_vehicle": raw["one_vehicle"], "two_vehicles": raw["two_vehicles"],
               "two_vehicles_pure": raw["two_vehicles_pure"], "one_vehicle_bounded": raw["one_vehicle_bounded"],
               "one_vehicle_bounded_certified": raw["one_vehicle_bounded_certified"],
-              "fixed_t_bounded": raw["fixed_t_bounded"]}
+              "fixed_t_bounded": raw["fixed_t_bounded"],
+              **{k: raw[k] for k in ("one_vehicle_bounded_pure", "one_vehicle_bounded_compiled",
+                                     "one_vehicle_bounded_certified_pure",
+                                     "one_vehicle_bounded_certified_compiled") if k in raw}}
     out: dict[str, Any] = {"source": "iamp.comparison.bench.pmp.bench_pmp", "bench_pmp": raw,
                            "pmp_plan_s": plan_s, "pmp_batch_plans_per_s": raw["batch_plans_per_s"]}
     if raw.get("compiled_limit_one_vehicle"):
         out["pmp_to_compiled_limit"] = raw["one_vehicle"] / raw["compiled_limit_one_vehicle"]
     else:
         notes.append("numba missing (pip install 'iamp[fast]'): no compiled limit, two vehicles on the pure path")
+    if raw.get("one_vehicle_bounded_compiled"):
+        out["pmp_bounded_pure_to_compiled"] = raw["one_vehicle_bounded_pure"] / raw["one_vehicle_bounded_compiled"]
     if raw.get("two_vehicles_compiled"):
         out["pmp_two_vehicles_pure_to_compiled"] = raw["two_vehicles_pure"] / raw["two_vehicles_compiled"]
         plan_s["two_vehicles_compiled"] = raw["two_vehicles_compiled"]
@@ -327,6 +332,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     ratios: dict[str, float | None] = {
         "pmp_to_compiled_limit": pmp.get("pmp_to_compiled_limit"),
         "pmp_two_vehicles_pure_to_compiled": pmp.get("pmp_two_vehicles_pure_to_compiled"),
+        "pmp_bounded_pure_to_compiled": pmp.get("pmp_bounded_pure_to_compiled"),
         "qp_best_to_kkt": solve[best_it] / solve["kkt"],
         **{f"qp_{s}_to_kkt": solve[s] / solve["kkt"] for s in iterative},
         "native_sweep_best_to_pmp_plan": native[best_native].median / pmp_one,

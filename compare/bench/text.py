@@ -27,10 +27,16 @@ def format_bench(out: dict[str, Any]) -> str:
     if plan_s.get("two_vehicles_compiled"):
         lines.append(f"  {'PMP plan, two vehicles (pure numpy)':44s} {_fmt_s(plan_s['two_vehicles_pure'])}")
     if plan_s.get("one_vehicle_bounded") is not None:
-        lines.append(f"  {'PMP plan, one vehicle, input box (local t*)':44s} {_fmt_s(plan_s['one_vehicle_bounded'])}")
+        how = "compiled axis" if plan_s.get("one_vehicle_bounded_compiled") else "pure"
+        lines.append(f"  {'PMP plan, one vehicle, input box (local t*, ' + how + ')':44s} "
+                     f"{_fmt_s(plan_s['one_vehicle_bounded'])}")
     if plan_s.get("one_vehicle_bounded_certified") is not None:
         lines.append(f"  {'  the same, certified global (default)':44s} "
                      f"{_fmt_s(plan_s['one_vehicle_bounded_certified'])}")
+    if plan_s.get("one_vehicle_bounded_compiled") and plan_s.get("one_vehicle_bounded_pure"):
+        lines.append(f"  {'  the same two, pure Python axis solve':44s} {_fmt_s(plan_s['one_vehicle_bounded_pure'])}"
+                     + (f"   {_fmt_s(plan_s['one_vehicle_bounded_certified_pure']).strip()}"
+                        if plan_s.get("one_vehicle_bounded_certified_pure") else ""))
     lines.append(f"  {'PMP batch, one vehicle':44s} {out['pmp_batch_plans_per_s']:8.0f} /s")
     lines += ["", "  QP per candidate (update + solve; whole candidate incl. verification):"]
     for s, c in out["qp_candidate"].items():

@@ -149,7 +149,8 @@ def call_with_progress(fn: Callable[..., Any], /, *args: Any, desc: str, enabled
     For library calls that may or may not have grown a ``progress`` parameter yet (the bar
     appears as soon as they do; until then the call is made unchanged).
     """
-    if not accepts_progress(fn):
+    if not accepts_progress(fn) or not enabled or not _stderr_is_tty():
+        # no bar: no callback either, so the library never calls back into the CLI
         return fn(*args, **kwargs)
     with progress_bar(total, desc, enabled=enabled) as tick:
         return fn(*args, progress=tick, **kwargs)

@@ -95,10 +95,16 @@ class Diagnostics:
     def from_info(cls: type[D], info: Mapping[str, object]) -> D:
         """The diagnostics of a planner's ``info`` dict: modelled keys to typed fields, the rest
         to :attr:`extra`; the key order is kept (a key given as ``None`` stays present)."""
+        return cls(**cls.info_fields(info))  # type: ignore[arg-type]
+
+    @classmethod
+    def info_fields(cls, info: Mapping[str, object]) -> dict[str, object]:
+        """The constructor's keyword arguments for :meth:`from_info` (a planner that builds its
+        own family's diagnostics with them is not called back from the core)."""
         names = set(cls.field_names())
         typed = {k: v for k, v in info.items() if k in names}
         extra = {k: v for k, v in info.items() if k not in names}
-        return cls(**typed, extra=extra, order=tuple(info))  # type: ignore[arg-type]
+        return {**typed, "extra": extra, "order": tuple(info)}
 
     def as_info(self) -> dict[str, object]:
         """The legacy ``info`` dict: the reported keys in their order, then any typed field set

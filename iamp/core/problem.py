@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
@@ -87,16 +88,21 @@ class EgoBoundary:
         for name, kind in _EGO_KIND.items():
             bound, unit = (LIMITS["position_max_m"], "m") if kind == "position" else (LIMITS["speed_max_mps"], "m/s")
             _check(abs_message(getattr(self, name), bound, unit), f"ego.{name}", self.source)
+        self.initial, self.final  # noqa: B018 - once, here: later reads are plain attributes
 
-    @property
+    @cached_property
     def initial(self) -> np.ndarray:
-        """Initial state ``(s_x, v_x, s_y, v_y)``."""
-        return np.array([self.x0, self.vx0, self.y0, self.vy0])
+        """Initial state ``(s_x, v_x, s_y, v_y)`` (read-only)."""
+        out = np.array([self.x0, self.vx0, self.y0, self.vy0])
+        out.flags.writeable = False
+        return out
 
-    @property
+    @cached_property
     def final(self) -> np.ndarray:
-        """Final state ``(s_x, v_x, s_y, v_y)``."""
-        return np.array([self.xf, self.vxf, self.yf, self.vyf])
+        """Final state ``(s_x, v_x, s_y, v_y)`` (read-only)."""
+        out = np.array([self.xf, self.vxf, self.yf, self.vyf])
+        out.flags.writeable = False
+        return out
 
 
 @dataclass(frozen=True)
@@ -147,24 +153,26 @@ class SurroundingVehicle:
                                 f"{p}.x_poly", src)
         coeffs = tuple(_finite(c, f"{p}.x_poly[{k}]", src) for k, c in enumerate(coeffs))
         object.__setattr__(self, "x_poly", coeffs)
+        self.offset_x, self.corner_y  # noqa: B018 - the geometry once, here: later reads are plain attributes
 
-    # --- geometry --------------------------------------------------------------------
-    @property
+    # --- geometry (computed on construction, then plain attributes: a planner reading them does
+    # not call back into this module, scripts/walk.py) ------------------------------------------
+    @cached_property
     def sign_x(self) -> float:
         """+1 for a ``front`` corner, -1 for ``rear``."""
         return 1.0 if self.corner.startswith("front") else -1.0
 
-    @property
+    @cached_property
     def sign_y(self) -> float:
         """+1 for an ``upper`` corner, -1 for ``lower``."""
         return 1.0 if self.corner.endswith("upper") else -1.0
 
-    @property
+    @cached_property
     def offset_x(self) -> float:
         """Signed longitudinal offset of the corner from the vehicle centre."""
         return self.sign_x * (self.length / 2 + self.safety_x)
 
-    @property
+    @cached_property
     def corner_y(self) -> float:
         """Lateral coordinate of the corner, ``y_s ± (W/2 + S_y)``."""
         return self.y + self.sign_y * (self.width / 2 + self.safety_y)
@@ -216,13 +224,14 @@ class Problem:
         object.__setattr__(self, "vehicles", vehicles)
         if self.limits is not None and not isinstance(self.limits, PhysicalLimits):
             raise ScenarioError("must be an iamp.core.physical.PhysicalLimits or None", "limits", self.ego.source)
+        self.m, self.tf  # noqa: B018 - computed once, here: later reads are plain attributes
 
-    @property
+    @cached_property
     def m(self) -> int:
         """Number of surrounding vehicles (= number of contact times)."""
         return len(self.vehicles)
 
-    @property
+    @cached_property
     def tf(self) -> float:
         """The horizon ``t_f``."""
         return self.ego.tf
@@ -232,10 +241,27 @@ class Problem:
         t = np.asarray(contact_times, dtype=float)
         return np.array([[v.corner_x(ti), v.corner_y] for v, ti in zip(self.vehicles, t)])
 
+    def corners_and_speeds(self, contact_times: npt.ArrayLike) -> tuple[npt.NDArray[np.float64],
+                                                                        npt.NDArray[np.float64]]:
+        """``(corners(t), [ẋ_s,i(t_i)])``: what a planner's self-check reads of the vehicles at its
+        contact times, in one call (the same numbers as :meth:`corners` and
+        :meth:`SurroundingVehicle.speed`)."""
+        t = np.asarray(contact_times, dtype=float)
+        return self.corners(t), np.array([float(v.speed(ti)) for v, ti in zip(self.vehicles, t)])
+
     def with_vehicles(self, vehicles: Iterable[SurroundingVehicle]) -> Problem:
         """The same ego problem with other vehicles."""
         return Problem(self.ego, tuple(vehicles), self.name, self.limits)
 
     def with_limits(self, limits: PhysicalLimits | None) -> Problem:
-        """The same problem with other physical limits (``None``: unbounded)."""
-        return Problem(self.ego, self.vehicles, self.name, limits)
+        """The same problem with other physical limits (``None``: unbounded).
+
+        Only ``limits`` is validated: the ego and the vehicles are this problem's, validated
+        when it was made (the vehicle checks cost about 80 µs a problem, and the bounded
+        planners call this on every plan)."""
+        if limits is not None and not isinstance(limits, PhysicalLimits):
+            raise ScenarioError("must be an iamp.core.physical.PhysicalLimits or None", "limits", self.ego.source)
+        new = object.__new__(Problem)
+        for name, value in (("ego", self.ego), ("vehicles", self.vehicles), ("name", self.name), ("limits", limits)):
+            object.__setattr__(new, name, value)
+        return new

@@ -259,13 +259,13 @@ def in_basins(basins: list[Basin], c: FloatArray, r: FloatArray) -> bool:
 def add_basin(vf: ValueFunction, basins: list[Basin], s: FloatArray) -> None:
     """Append the basin box at ``s`` (``δ`` a quarter of the certificate's tolerance on
     ``J̃(s)``) unless ``s`` already lies in one or has none."""
-    from iamp.core.tolerances import tol
+    from iamp.core.tolerances import TOLERANCES
 
     if not np.all(np.isfinite(s)) or in_basins(basins, s, np.zeros_like(s)):
         return
     q = float(vf.quad_sigma(s[None, :])[0])
     if not np.isfinite(q):
         return
-    b = basin_box(vf, s, 0.25 * tol("pmp_global_certificate_rel") * (vf.scaled.jbar + 0.5 * q))
+    b = basin_box(vf, s, 0.25 * TOLERANCES["pmp_global_certificate_rel"] * (vf.scaled.jbar + 0.5 * q))
     if b is not None:
         basins.append(b)

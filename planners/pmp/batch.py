@@ -26,7 +26,7 @@ import numpy.typing as npt
 from iamp.core.free import min_energy_cubic
 from iamp.core.problem import Problem
 from iamp.core.status import INACCURATE, INFEASIBLE, NUMERICAL_ERROR, OPTIMAL
-from iamp.core.tolerances import tol
+from iamp.core.tolerances import TOLERANCES
 
 from .roots import batch_unit_roots
 
@@ -93,7 +93,7 @@ def batch_data(problems: list[Problem]) -> tuple[FloatArray, ...]:
         Cs = C * np.cumprod(np.column_stack([np.ones(K)] + [T] * (d - 1)), axis=1)
     size = np.abs(Cs)
     big = np.max(size, axis=1, keepdims=True)
-    negl = size <= tol("pmp_poly_negligible_rel") * big
+    negl = size <= TOLERANCES["pmp_poly_negligible_rel"] * big
     trailing = np.flip(np.cumprod(np.flip(negl, axis=1), axis=1), axis=1).astype(bool)
     trailing[:, 0] = False
     Cs = np.where(trailing, 0.0, Cs)
@@ -212,8 +212,9 @@ def _batch_checks(ego: FloatArray, CX: FloatArray, CY: FloatArray, EX: FloatArra
     J_traj = 0.5 * np.sum(ss / 3.0 * (u0 * u0 + u0 * u1 + u1 * u1) + w / 3.0 * (u1 * u1 + u1 * u2 + u2 * u2), axis=1)
     cons = np.abs(J_closed - J_traj) / np.maximum(np.abs(J_traj), 1e-300)
     vals = np.stack([lin, pos_err, end_err, hj, cons], axis=1)
-    lim = np.array([tol("pmp_linear_system_rel"), tol("pmp_scaled_residual"), tol("pmp_scaled_residual"),
-                    tol("pmp_hjump_rel"), tol("pmp_cost_consistency_rel")])
+    t = TOLERANCES
+    lim = np.array([t["pmp_linear_system_rel"], t["pmp_scaled_residual"], t["pmp_scaled_residual"],
+                    t["pmp_hjump_rel"], t["pmp_cost_consistency_rel"]])
     finite = np.all(np.isfinite(vals), axis=1)
     good = finite & np.all(vals <= lim, axis=1)
     status = np.where(good, OPTIMAL, np.where(finite, INACCURATE, NUMERICAL_ERROR))

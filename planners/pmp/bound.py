@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from iamp.core.tolerances import tol
+from iamp.core.tolerances import TOLERANCES
 
 from .fixed import bridge_kernel
 from .taylor import taylor_shift as taylor_shift
@@ -243,7 +243,7 @@ def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
     ``basins`` (:mod:`iamp.planners.pmp.basin`, extended in place) give the lower bound of
     every box inside one of them; each polished improvement adds its own basin box."""
     m = s_best.size
-    eps = tol("pmp_global_certificate_rel")
+    eps = TOLERANCES["pmp_global_certificate_rel"]
     jbar = vf.scaled.jbar
     from .basin import BOX_BOUND_MAX_M, add_basin, in_basins
 

@@ -74,7 +74,13 @@ from iamp.core.problem import Problem
 from iamp.core.status import INACCURATE, INFEASIBLE, LIMITS_VIOLATED, LOCAL, NUMERICAL_ERROR, OPTIMAL
 from iamp.core.tolerances import TOLERANCES
 from iamp.planners.pmp.diagnostics import BoundedPMPDiagnostics
-from iamp.planners.pmp.saturated import AxisInfeasible, AxisNoConvergence, AxisSolution, solve_axis
+from iamp.planners.pmp.saturated import (
+    AxisInfeasible,
+    AxisNoConvergence,
+    AxisSolution,
+    solve_axis,
+    solve_axis_value,
+)
 
 FloatArray = npt.NDArray[np.float64]
 INF = math.inf
@@ -128,6 +134,11 @@ class BoundedSolution:
                 s.append(s[-1] + h * v[-1] + h * h * (ua / 3 + ub / 6))
                 v.append(v[-1] + h / 2 * (ua + ub))
             self._sv.append((s, v))
+        # the same data as arrays, made once (every evaluation below indexes them)
+        self._arr = [(np.asarray(ax.knots), np.asarray(ax.u), np.asarray(s), np.asarray(v))
+                     for ax, (s, v) in zip(self.axes, self._sv)]
+        self._jumps_arr = [np.asarray(ax.jumps) for ax in self.axes]
+        self._hjump: tuple[FloatArray, FloatArray] | None = None
 
     @property
     def jumps(self) -> FloatArray:
@@ -147,18 +158,15 @@ class BoundedSolution:
         return total
 
     def _axis_eval(self, k: int, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        ax = self.axes[k]
-        s, v = self._sv[k]
-        kn = np.asarray(ax.knots)
+        kn, U, S, V = self._arr[k]
         j = np.clip(np.searchsorted(kn, t, side="right") - 1, 0, len(kn) - 2)
         h = kn[j + 1] - kn[j]
         d = t - kn[j]
-        U = np.asarray(ax.u)
         slope = (U[j + 1] - U[j]) / np.where(h > 0, h, 1.0)
         ua = U[j]
         u = ua + slope * d
-        vv = np.asarray(v)[j] + ua * d + slope * d * d / 2
-        ss = np.asarray(s)[j] + np.asarray(v)[j] * d + ua * d * d / 2 + slope * d**3 / 6
+        vv = V[j] + ua * d + slope * d * d / 2
+        ss = S[j] + V[j] * d + ua * d * d / 2 + slope * d**3 / 6
         return ss, vv, u
 
     def states(self, t: Any) -> FloatArray:
@@ -177,34 +185,53 @@ class BoundedSolution:
         """``w = −p_v`` of axis ``k`` from ``a, b, Φ`` (not from the knots)."""
         ax = self.axes[k]
         ramps = np.maximum(t[:, None] - self.contact_times[None, :], 0.0)
-        out: FloatArray = ax.a + ax.b * t - ramps @ np.asarray(ax.jumps)
+        out: FloatArray = ax.a + ax.b * t - ramps @ self._jumps_arr[k]
         return out
 
     def costates(self, t: Any, side: str = "right") -> FloatArray:
         """``(p1, p2, p3, p4)`` at ``t`` (``side``: the one-sided limit of ``p1, p3`` at a contact time)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
+        return self._costates(t, np.full(len(t), side == "left"))
+
+    def _costates(self, t: FloatArray, left: Any) -> FloatArray:
         d = t[:, None] - self.contact_times[None, :]
-        step = (d > 0).astype(float) if side == "left" else (d >= 0).astype(float)
+        step = np.where(np.asarray(left)[:, None], d > 0, d >= 0).astype(float)
         cols = []
         for k in range(2):
             ax = self.axes[k]
-            cols += [ax.b - step @ np.asarray(ax.jumps), -self.w(k, t)]
+            cols += [ax.b - step @ self._jumps_arr[k], -self.w(k, t)]
         return np.stack(cols, axis=1)
 
     def hamiltonian(self, t: Any, side: str = "right") -> FloatArray:
         """``H = ½|u|² + p1 v_x + p2 u_x + p3 v_y + p4 u_y``."""
-        X, U, p = self.states(t), self.inputs(t), self.costates(t, side)
-        out: FloatArray = (0.5 * np.sum(U**2, axis=1) + p[:, 0] * X[:, 1] + p[:, 1] * U[:, 0]
-                           + p[:, 2] * X[:, 3] + p[:, 3] * U[:, 1])
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return self._hamiltonian(t, np.full(len(t), side == "left"))
+
+    def _hamiltonian(self, t: FloatArray, left: Any) -> FloatArray:
+        """:meth:`hamiltonian` with the side per point (``left``: a boolean per ``t``)."""
+        _, vx, ux = self._axis_eval(0, t)
+        _, vy, uy = self._axis_eval(1, t)
+        U = np.stack([ux, uy], axis=1)
+        p = self._costates(t, left)
+        out: FloatArray = (0.5 * np.sum(U**2, axis=1) + p[:, 0] * vx + p[:, 1] * U[:, 0]
+                           + p[:, 2] * vy + p[:, 3] * U[:, 1])
         return out
 
     def hamiltonian_jump_terms(self) -> tuple[FloatArray, FloatArray]:
-        """``(r, size)``: ``r_i = H⁻ − H⁺ − ẋ_s,i Φ_i,x`` (= ``∂J/∂t_i``) and the size of its terms."""
+        """``(r, size)``: ``r_i = H⁻ − H⁺ − ẋ_s,i Φ_i,x`` (= ``∂J/∂t_i``) and the size of its terms
+        (computed once: the self-check and the plan's annotation both ask)."""
+        if self._hjump is None:
+            self._hjump = self._hamiltonian_jump_terms()
+        return self._hjump[0].copy(), self._hjump[1].copy()
+
+    def _hamiltonian_jump_terms(self) -> tuple[FloatArray, FloatArray]:
         t = self.contact_times
+        m = len(t)
         xdot = np.array([float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, t)])
         X = self.states(t)
         J = self.jumps
-        r: FloatArray = self.hamiltonian(t, "left") - self.hamiltonian(t, "right") - xdot * J[:, 0]
+        H = self._hamiltonian(np.r_[t, t], np.r_[np.ones(m, dtype=bool), np.zeros(m, dtype=bool)])
+        r: FloatArray = H[:m] - H[m:] - xdot * J[:, 0]
         size = np.abs(J[:, 0]) * (np.abs(X[:, 1]) + np.abs(xdot)) + np.abs(J[:, 1]) * np.abs(X[:, 3])
         return r, size
 
@@ -356,6 +383,10 @@ class _IntervalBound:
         cdot_max = sum(abs(c) * T**k for k, c in enumerate(d1))
         self.cddot_max = (sum(abs(c) * T**k for k, c in enumerate(d2)), 0.0)
         self.axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
+        self.pos = [float(c) for c in np.asarray(veh.x_poly, dtype=float)]
+        self.der = [float(c) for c in (np.polynomial.polynomial.polyder(np.asarray(veh.x_poly, dtype=float))
+                                       if len(veh.x_poly) > 1 else [0.0])]
+        self.off = (float(veh.offset_x), float(veh.corner_y))
         self.lip_rate = tuple(cd + abs(v0) + max(abs(lo), abs(hi)) * T
                               if math.isfinite(lo) and math.isfinite(hi) else INF
                               for cd, (_, v0, _, _, lo, hi) in zip((cdot_max, 0.0), self.axes_data))
@@ -366,17 +397,18 @@ class _IntervalBound:
         :math:`J_b \\ge B` on the interval, ``("infeasible", margin)`` when a Farkas margin
         covers it, ``("unknown", nan)`` when an axis is infeasible without enough margin or
         its solve stalls."""
-        T, veh = self.T, self.veh
+        T = self.T
         t, delta = 0.5 * (a + b), 0.5 * (b - a)
-        C = self.problem.corners(np.array([t]))
-        cdot = (float(veh.speed(t)), 0.0)
+        # problem.corners and veh.speed, by numpy's polyval recurrence on cached coefficients
+        C = ((_polyval(self.pos, t) + self.off[0], self.off[1]),)
+        cdot = (_polyval(self.der, t), 0.0)
         dual = slope = M = 0.0
         lams: list[list[float] | None] = [None, None]
         solves = 0
         for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.axes_data):
             solves += 1
             try:
-                sol = solve_axis([t], T, s0, v0, sf, vf, [float(C[0, k])], lo, hi, warm[k])
+                sol = solve_axis([t], T, s0, v0, sf, vf, [float(C[0][k])], lo, hi, warm[k])
             except AxisInfeasible as exc:
                 if exc.lam_phys is not None and exc.margin_phys is not None:
                     rate = delta * abs(exc.lam_phys[0]) * self.lip_rate[k]
@@ -502,15 +534,19 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
         for theta, value, _, _ in ax.switching:
             sw = max(sw, abs(float(sol.w(k, np.array([theta]))[0]) - value) / ua)
         box = max(box, float(np.max(np.maximum(np.asarray(ax.u) - hi, lo - np.asarray(ax.u)), initial=0.0)) / ua)
-    # H constant between contact times (one-sided values at every knot of the interval)
+    # H constant between contact times (one-sided values at every knot of the interval),
+    # every interval's values in one evaluation
     bp = np.r_[0.0, np.sort(t), T]
     allk = np.asarray(sol.knots())
-    Hs = []
+    pts_h: list[FloatArray] = []
+    left_h: list[FloatArray] = []
     for j in range(len(bp) - 1):
         inner = allk[(allk > bp[j]) & (allk < bp[j + 1])]
-        Hj = np.r_[sol.hamiltonian(np.array([bp[j]]), "right"), sol.hamiltonian(inner) if len(inner) else [],
-                   sol.hamiltonian(np.array([bp[j + 1]]), "left")]
-        Hs.append(Hj)
+        pts_h += [bp[j:j + 1], inner, bp[j + 1:j + 2]]
+        left_h += [np.zeros(1 + len(inner), dtype=bool), np.ones(1, dtype=bool)]
+    sizes = np.cumsum([0] + [2 + len(allk[(allk > bp[j]) & (allk < bp[j + 1])]) for j in range(len(bp) - 1)])
+    H_all = sol._hamiltonian(np.concatenate(pts_h), np.concatenate(left_h))
+    Hs = [H_all[sizes[j]:sizes[j + 1]] for j in range(len(bp) - 1)]
     hscale = max(1e-300, max(float(np.max(np.abs(h))) for h in Hs), sol.cost / T)
     hcon = max(float(np.max(h) - np.min(h)) for h in Hs) / hscale
     vals.update(boundary=bnd, corner=cor, saturation_law=sat, switching=sw, box=box, hamiltonian_constant=hcon)
@@ -564,6 +600,8 @@ def exact_peaks(trajectory: Any, tf: float, knots: list[float]) -> dict[str, Any
         # v_y(a + d) = vy + uy d + c d²/2 with c the slope of u_y
         vy, uy = X[j, 3], U[j, 1]
         c = (U[j + 1, 1] - uy) / (b - a)
+        if _keeps_sign(float(vy), float(uy), float(c), float(b - a)):
+            continue  # v_y has no root in the piece: s_y is monotone there (no np.roots call)
         roots = np.roots([c / 2, uy, vy]) if abs(c) > 0 else (np.array([-vy / uy]) if uy != 0 else np.array([]))
         for r in np.atleast_1d(roots):
             if np.isreal(r) and 0 < float(np.real(r)) < b - a:
@@ -578,6 +616,22 @@ def exact_peaks(trajectory: Any, tf: float, knots: list[float]) -> dict[str, Any
         "y": [float(Y.min()), float(Y.max())],
         "jerk": float(np.max(np.abs(du))) if du.size else 0.0,
     }
+
+
+def _keeps_sign(v0: float, u0: float, c: float, h: float) -> bool:
+    """Whether ``q(d) = v0 + u0 d + c d²/2`` keeps one strict sign on ``[0, h]`` with a margin
+    of ``1e-9`` of its terms' size (so that no root-finder can place a root inside): at both
+    ends and, if inside, at the vertex."""
+    margin = 1e-9 * (abs(v0) + abs(u0) * h + abs(c) * h * h)
+    ends = (v0, v0 + u0 * h + c * h * h / 2)
+    if not (all(q > margin for q in ends) or all(q < -margin for q in ends)):
+        return False
+    if c != 0.0:
+        dv = -u0 / c
+        if 0.0 < dv < h:
+            qv = v0 + u0 * dv + c * dv * dv / 2
+            return bool(qv > margin if v0 > 0 else qv < -margin)
+    return True
 
 
 def limits_report(problem: Problem, peaks: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -627,6 +681,12 @@ class _Evaluator:
         self.T = float(problem.tf)
         (lx, hx), (ly, hy) = input_box(problem)
         self.data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
+        # x_s, ẋ_s as float coefficients: :func:`_polyval` repeats numpy's polyval, so the
+        # corners and speeds are those of ``problem.corners`` and ``vehicle.speed`` exactly
+        self.pos = [[float(c) for c in np.asarray(v.x_poly, dtype=float)] for v in problem.vehicles]
+        self.der = [[float(c) for c in (np.polynomial.polynomial.polyder(np.asarray(v.x_poly, dtype=float))
+                                        if len(v.x_poly) > 1 else [0.0])] for v in problem.vehicles]
+        self.off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
 
     def _nearest(self, times: list[float]) -> list[list[float]] | None:
         best, found = INF, None
@@ -649,28 +709,35 @@ class _Evaluator:
         times = t.tolist()
         warm = self._nearest(times)
         self.evaluations += 1
-        C = self.problem.corners(t)
-        cdot = [float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, times)]
-        axes: list[AxisSolution] = []
+        m = len(times)
+        cdot = [_polyval(self.der[i], times[i]) for i in range(m)]
+        corners = ([_polyval(self.pos[i], times[i]) + self.off[i][0] for i in range(m)],
+                   [self.off[i][1] for i in range(m)])
+        axes: list[tuple[float, list[float], list[float], list[float]]] = []
         for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.data):
-            corners = C[:, k].tolist()
             sol = None
             for start in ([warm[k], None] if warm is not None else [None]):
-                try:
-                    sol = solve_axis(times, T, s0, v0, sf, vf, corners, lo, hi, start)
+                sol = solve_axis_value(times, T, s0, v0, sf, vf, corners[k], lo, hi, start)
+                if sol is not None:
                     break
-                except (AxisInfeasible, AxisNoConvergence):
-                    continue
             if sol is None:
                 return INF, np.full(len(t), np.nan), None
             axes.append(sol)
-        r = np.array([axes[0].jumps[i] * (axes[0].contact_speeds[i] - cdot[i])
-                      + axes[1].jumps[i] * axes[1].contact_speeds[i] for i in range(len(times))])
-        lams = [axes[0].lam, axes[1].lam]
+        (cx, jx, vx, lx), (cy, jy, vy, ly) = axes
+        r = np.array([jx[i] * (vx[i] - cdot[i]) + jy[i] * vy[i] for i in range(m)])
+        lams = [lx, ly]
         self.memory.append((times, lams))
         if len(self.memory) > 64:
             self.memory.pop(0)
-        return axes[0].cost + axes[1].cost, r, lams
+        return cx + cy, r, lams
+
+
+def _polyval(c: list[float], x: float) -> float:
+    """``numpy.polynomial.polynomial.polyval(x, c)`` for a float ``x``, operation for operation."""
+    acc = c[-1] + x * 0
+    for i in range(2, len(c) + 1):
+        acc = c[-i] + acc * x
+    return acc
 
 
 def _lower_bound(problem: Problem, t: FloatArray) -> FloatArray:

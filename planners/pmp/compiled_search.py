@@ -98,7 +98,7 @@ def run(S: Any, max_starts: int = 32, max_boxes: int = 200_000,
     """:func:`~iamp.planners.pmp.search.global_search` on the compiled path for the scaled
     problem ``S`` (call :func:`load` first); returns a
     :class:`~iamp.planners.pmp.search.SearchResult`."""
-    from iamp.core.tolerances import tol
+    from iamp.core.tolerances import TOLERANCES
 
     from .basin import MAX_M
     from .compiled_kernels import make_starts
@@ -111,8 +111,8 @@ def run(S: Any, max_starts: int = 32, max_boxes: int = 200_000,
         pts = np.array(start_points(S, max_starts))
         starts = np.ascontiguousarray(pts[np.argsort(_quad_rows(EX, EY, pts, jbar))[:max_starts]])
     P = (S.ego, np.ascontiguousarray(S.CX, dtype=float), np.asarray(S.CY, dtype=float), jbar,
-         tol("pmp_cost_consistency_rel"))
-    s, q, cert, boxes = _STATE["run"](EX, EY, DEX, DEY, P, starts, tol("pmp_global_certificate_rel"),
+         TOLERANCES["pmp_cost_consistency_rel"])
+    s, q, cert, boxes = _STATE["run"](EX, EY, DEX, DEY, P, starts, TOLERANCES["pmp_global_certificate_rel"],
                                       int(max_boxes), MAX_M)
     if progress is not None:
         progress(min(int(boxes), max_boxes), max_boxes)

@@ -256,6 +256,13 @@ def jump_rows(S: Scaled, sig: list[float]) -> tuple[list[list[float]], list[list
     return M, rhs
 
 
+def system_and_quad(S: Scaled, sig: list[float]) -> tuple[list[list[float]], list[list[float]], float]:
+    """``(M, rhs, q)``: :func:`jump_rows` and :func:`quad_at` at one ``σ``, in one call (what
+    the self-check of :mod:`~iamp.planners.pmp.verify` reads of the fixed-time system)."""
+    M, rhs = jump_rows(S, sig)
+    return M, rhs, quad_at(S, sig)
+
+
 def jump_system_sigma(S: Scaled, sig: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Scaled jump system ``M̃ z̃ = r̃`` at ``σ`` (see :func:`jump_system`); built by
     :func:`jump_rows`."""

@@ -19,11 +19,12 @@ FloatArray = npt.NDArray[np.float64]
 ArrayLike = Any
 
 
-def jump_system(problem: Problem, t: ArrayLike) -> tuple[FloatArray, FloatArray]:
+def jump_system(problem: Problem, t: ArrayLike, corners: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """The linear system ``M z = rhs`` of the necessary and co-state jump conditions.
 
     Unknowns per axis (columns of ``z``): ``(a, b, Φ_1..Φ_m)``; rows: the ``m``
     interior-point constraints ``s(t_j) = corner_j``, then the final position and speed.
+    ``corners``: ``problem.corners(t)`` if the caller has it already.
     """
     t = np.asarray(t, dtype=float)
     m, ego, T = problem.m, problem.ego, problem.tf
@@ -33,7 +34,7 @@ def jump_system(problem: Problem, t: ArrayLike) -> tuple[FloatArray, FloatArray]
     M[:m, 2:] = -np.maximum(t[:, None] - t[None, :], 0.0) ** 3 / 6
     M[m] = np.r_[T**2 / 2, T**3 / 6, -((T - t) ** 3) / 6]
     M[m + 1] = np.r_[T, T**2 / 2, -((T - t) ** 2) / 2]
-    C = problem.corners(t)
+    C = problem.corners(t) if corners is None else corners
     rhs = np.empty((m + 2, 2))
     rhs[:m, 0] = C[:, 0] - ego.x0 - ego.vx0 * t
     rhs[:m, 1] = C[:, 1] - ego.y0 - ego.vy0 * t

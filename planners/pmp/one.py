@@ -24,11 +24,11 @@ The kernel takes and returns plain floats and lists, so numba compiles it unchan
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from operator import attrgetter
 
 from iamp.core.problem import Problem
-from iamp.core.tolerances import TOLERANCES, tol
+from iamp.core.tolerances import TOLERANCES
 
 from .search import one_vehicle_sigma
 from .verify import TOLERANCE_OF, Checks, judge_pairs
@@ -166,7 +166,7 @@ def one_vehicle_data(problem: Problem) -> tuple[float, float, list[float], list[
         raw.append(r)
         if abs(r) > big:
             big = abs(r)
-    eps = tol("pmp_poly_negligible_rel")
+    eps = TOLERANCES["pmp_poly_negligible_rel"]
     keep = len(raw)
     while keep > 1 and abs(raw[keep - 1]) <= eps * big:
         keep -= 1
@@ -201,6 +201,19 @@ def one_vehicle_data(problem: Problem) -> tuple[float, float, list[float], list[
     cy = cyr / L
     ey = [0.0 - y0 + cy, 0.0 - vy0, 0.0 - (3 * E - G), 0.0 - (-2 * E + G)]
     return T, L, ego, ex, ey, cx, cy
+
+
+def solve_one(problem: Problem, kernel: Callable[..., list[float]]
+              ) -> tuple[float, float, list[float], tuple[Checks, str | None, str | None] | None]:
+    """``(T, L, k, judged)``: the problem's data (:func:`one_vehicle_data`), the ``kernel``'s
+    output ``k`` (:func:`one_vehicle_kernel` or its compiled twin) and, when the kernel found a
+    contact time, its five checks judged (:func:`judge_kernel`; ``None`` if ``σ`` is NaN).
+    Raises what the arithmetic raises (``OverflowError``, ``ZeroDivisionError``, ``ValueError``)."""
+    T, L, ego, ex, ey, cx, cy = one_vehicle_data(problem)
+    k = kernel(ego, ex, ey, cx, cy)
+    if not k[0] == k[0]:
+        return T, L, k, None
+    return T, L, k, judge_kernel(k)
 
 
 def judge_kernel(k: Sequence[float]) -> tuple[Checks, str | None, str | None]:

@@ -67,7 +67,7 @@ from .fixed import (
     solve_one_vehicle,
     solve_sigma,
 )
-from .one import judge_kernel, one_vehicle_data, one_vehicle_kernel
+from .one import one_vehicle_kernel, solve_one
 from .scale import Scaled, scale_problem
 from .search import global_search, newton_sigma, one_vehicle_sigma
 from .solution import OneVehicleSolution, PMPSolution
@@ -209,14 +209,13 @@ class PMPPlanner:
         status = bad if bad is not None else (OPTIMAL if certified else LOCAL)
         cost = traj_cost if bad is None else None  # = sol.cost(), computed by the check
         elapsed = _time.perf_counter() - start
-        plan = Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=sol.contact_times.copy(),
-                    jumps=sol.jumps.copy(), trajectory=sol, solve_time_s=elapsed,
-                    diagnostics=PMPDiagnostics.from_info(info))
-        if diagnostics:
+        residuals = None
+        if diagnostics:  # after the clock; the plan is made last, with every diagnostic
             with np.errstate(all="ignore"):
-                plan.residuals = sol.residuals()
-                plan.annotate(hamiltonian_jump_residuals=sol.hamiltonian_jump_residual())
-        return plan
+                residuals, info["hamiltonian_jump_residuals"] = sol.residuals_and_jumps()
+        return Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=sol.contact_times.copy(),
+                    jumps=sol.jumps.copy(), trajectory=sol, solve_time_s=elapsed, residuals=residuals,
+                    diagnostics=PMPDiagnostics(**PMPDiagnostics.info_fields(info)))  # type: ignore[arg-type]
 
     def _plan_limited(self, problem: Problem, contact_times: Any, diagnostics: bool | None,
                       progress: Callable[[int, int], None] | None) -> Plan:
@@ -248,49 +247,51 @@ class PMPPlanner:
         return apply_state_limits(plan)
 
     def _plan_one(self, problem: Problem, start: float, diagnostics: bool) -> Plan:
-        """One vehicle: :func:`~iamp.planners.pmp.one.one_vehicle_kernel` (scalar code); the
-        kernel's five checks are judged before the plan is called optimal, the solution's
-        trajectory arrays are made on first use (:class:`~iamp.planners.pmp.solution.OneVehicleSolution`)."""
+        """One vehicle: :func:`~iamp.planners.pmp.one.solve_one` (scalar code, the data, the
+        kernel and its five checks judged before the plan is called optimal); then, after the
+        clock and with ``diagnostics``, the solution with its physical residuals
+        (:meth:`~iamp.planners.pmp.solution.OneVehicleSolution.checked_from_kernel`) and every
+        check of :mod:`~iamp.planners.pmp.verify` on the scaled problem; a failure downgrades the
+        plan.  Each stage is called once, in this order, and the plan is made last
+        (``python scripts/walk.py``: no module entered twice).  Without ``diagnostics`` the
+        solution's trajectory arrays are made on first use
+        (:class:`~iamp.planners.pmp.solution.OneVehicleSolution`)."""
         try:
-            T, L, ego, ex, ey, cx, cy = one_vehicle_data(problem)
-            k = self.kernel(ego, ex, ey, cx, cy)
+            T, L, k, judged = solve_one(problem, self.kernel)
         except (OverflowError, ZeroDivisionError, ValueError) as exc:
             info: dict[str, Any] = {"search": {"method": ONE_VEHICLE_METHOD}, "error": f"{type(exc).__name__}: {exc}"}
             return self._failed(problem, NUMERICAL_ERROR, "linear_algebra", info, start)
-        if not k[0] == k[0]:
+        if judged is None:
             return self._failed(problem, INFEASIBLE, "no_interior_contact_time",
                                 {"search": {"method": ONE_VEHICLE_METHOD}}, start)
-        checks, failed, bad = judge_kernel(k)
+        checks, failed, bad = judged
         jerk = L / (T * T * T)
         ct = np.empty(1)
         ct[0] = k[0] * T
         jumps = np.empty((1, 2))
         jumps[0, 0] = k[5] * jerk
         jumps[0, 1] = k[6] * jerk
-        sol = OneVehicleSolution.from_kernel(problem, ct, jumps, k, T, L)
-        plan = Plan(problem=problem, planner="pmp", status=OPTIMAL if bad is None else bad,
-                    cost=k[7] * L * L / (T * T * T) if bad is None else None, contact_times=ct, jumps=jumps,
-                    trajectory=sol, solve_time_s=0.0,
+        status = OPTIMAL if bad is None else bad
+        cost = k[7] * L * L / (T * T * T) if bad is None else None
+        order: tuple[str, ...] = ("search", "checks", "failed_check", "certified_global")
+        if not diagnostics:
+            sol = OneVehicleSolution.from_kernel(problem, ct, jumps, k, T, L)
+            return Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=ct, jumps=jumps,
+                        trajectory=sol, solve_time_s=_time.perf_counter() - start,
+                        diagnostics=PMPDiagnostics(search={"method": ONE_VEHICLE_METHOD}, checks=checks,
+                                                   failed_check=failed, certified_global=True, order=order))
+        elapsed = _time.perf_counter() - start
+        sol, residuals, hj = OneVehicleSolution.checked_from_kernel(problem, ct, jumps, k, T, L)
+        with np.errstate(all="ignore"):
+            checks, failed_all, bad_all = verify(sol, scale_problem(problem), stationary=True, lean=True)
+        if bad_all is not None and status in (OPTIMAL, LOCAL):
+            status, cost, failed = bad_all, None, failed_all
+        return Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=ct, jumps=jumps,
+                    trajectory=sol, solve_time_s=elapsed, residuals=residuals,
                     diagnostics=PMPDiagnostics(search={"method": ONE_VEHICLE_METHOD}, checks=checks,
                                                failed_check=failed, certified_global=True,
-                                               order=("search", "checks", "failed_check", "certified_global")))
-        plan.solve_time_s = _time.perf_counter() - start
-        if diagnostics:
-            self._full_checks(plan, sol)
-        return plan
-
-    @staticmethod
-    def _full_checks(plan: Plan, sol: PMPSolution) -> None:
-        """After the clock: every check of :mod:`~iamp.planners.pmp.verify` and the physical
-        residuals; a failure downgrades the plan."""
-        with np.errstate(all="ignore"):
-            checks, failed, bad = verify(sol, stationary=True)
-            plan.residuals = sol.residuals()
-            plan.annotate(hamiltonian_jump_residuals=sol.hamiltonian_jump_residual())
-        plan.annotate(checks=checks)
-        if bad is not None and plan.status in (OPTIMAL, LOCAL):
-            plan.status, plan.cost = bad, None
-            plan.annotate(failed_check=failed)
+                                               hamiltonian_jump_residuals=hj,
+                                               order=(*order, "hamiltonian_jump_residuals")))
 
     @staticmethod
     def _failed(problem: Problem, status: str, check: str, info: dict[str, Any], start: float) -> Plan:
@@ -299,4 +300,4 @@ class PMPPlanner:
         return Plan(problem=problem, planner="pmp", status=status, cost=None,
                     contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
                     trajectory=None, solve_time_s=_time.perf_counter() - start,
-                    diagnostics=PMPDiagnostics.from_info(info))
+                    diagnostics=PMPDiagnostics(**PMPDiagnostics.info_fields(info)))  # type: ignore[arg-type]

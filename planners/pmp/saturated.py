@@ -66,6 +66,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from . import saturated_compiled as _compiled
+from . import saturated_kernel as _kernel
+
 #: Newton iterations before the dual is declared divergent (an infeasibility candidate).
 MAX_NEWTON = 60
 
@@ -129,33 +132,6 @@ class AxisNoConvergence(Exception):
     """The dual Newton method stopped without convergence and without a certificate."""
 
 
-def _solve(A: list[list[float]], r: list[float]) -> list[float] | None:
-    """Gaussian elimination with partial pivoting (small dense systems); None if singular."""
-    n = len(r)
-    M = [row[:] + [r[i]] for i, row in enumerate(A)]
-    for c in range(n):
-        p = max(range(c, n), key=lambda i: abs(M[i][c]))
-        if M[p][c] == 0.0:
-            return None
-        if p != c:
-            M[c], M[p] = M[p], M[c]
-        pc = M[c]
-        inv = 1.0 / pc[c]
-        for i in range(c + 1, n):
-            f = M[i][c] * inv
-            if f != 0.0:
-                row = M[i]
-                for j in range(c, n + 1):
-                    row[j] -= f * pc[j]
-    x = [0.0] * n
-    for i in range(n - 1, -1, -1):
-        acc = M[i][n]
-        for j in range(i + 1, n):
-            acc -= M[i][j] * x[j]
-        x[i] = acc / M[i][i]
-    return x
-
-
 class _Axis:
     """The scaled data of one axis: ``σ_i = t_i/T``, ``d̃``, bounds ``ũ = uT²/ℓ``."""
 
@@ -183,58 +159,10 @@ class _Axis:
 
     def pieces(self, lam: list[float]) -> list[tuple[float, float, float, float, int]]:
         """Sub-pieces ``(τa, τb, wa, wb, kind)`` with kind 0 free, −1 lower, +1 upper."""
-        out: list[tuple[float, float, float, float, int]] = []
-        lo, hi = self.lo, self.hi
-        base = self.base
-        wvals = [sum(lk * gk for lk, gk in zip(lam, self.g(tau))) for tau in base]
-        for j in range(len(base) - 1):
-            ta, tb, wa, wb = base[j], base[j + 1], wvals[j], wvals[j + 1]
-            cuts = [ta]
-            for bnd in (lo, hi):
-                if (wa - bnd) * (wb - bnd) < 0.0:
-                    cuts.append(ta + (tb - ta) * (bnd - wa) / (wb - wa))
-            cuts.sort()
-            cuts.append(tb)
-            for k in range(len(cuts) - 1):
-                a, b = cuts[k], cuts[k + 1]
-                if b <= a:
-                    continue
-                fa = wa + (wb - wa) * (a - ta) / (tb - ta)
-                fb = wa + (wb - wa) * (b - ta) / (tb - ta)
-                mid = 0.5 * (fa + fb)
-                kind = -1 if mid <= lo else (1 if mid >= hi else 0)
-                out.append((a, b, fa, fb, kind))
-        return out
+        return _tuples(_kernel.pieces(self.sig, self.base, lam, self.lo, self.hi))
 
     def clip(self, w: float) -> float:
         return self.lo if w < self.lo else (self.hi if w > self.hi else w)
-
-    def evaluate(self, lam: list[float], hessian: bool
-                 ) -> tuple[list[float], float, list[list[float]], list[tuple[float, float, float, float, int]]]:
-        """``(F, D, G_free, pieces)``: residuals ``∫g u − d̃``, dual value, free Gram matrix."""
-        n = self.n
-        F = [-x for x in self.d]
-        D = sum(lk * dk for lk, dk in zip(lam, self.d))
-        G = [[0.0] * n for _ in range(n)] if hessian else []
-        ps = self.pieces(lam)
-        for a, b, wa, wb, kind in ps:
-            h = b - a
-            ua, ub = (wa, wb) if kind == 0 else ((self.lo, self.lo) if kind < 0 else (self.hi, self.hi))
-            ga, gb = self.g(a), self.g(b)
-            # ∫ (½u² − wu) for linear u, w (Simpson, exact)
-            um = 0.5 * (ua + ub)
-            wm = 0.5 * (wa + wb)
-            D += h / 6 * ((0.5 * ua * ua - wa * ua) + 4 * (0.5 * um * um - wm * um) + (0.5 * ub * ub - wb * ub))
-            for k in range(n):
-                F[k] += h / 6 * (2 * ga[k] * ua + ga[k] * ub + gb[k] * ua + 2 * gb[k] * ub)
-            if hessian and kind == 0:
-                for k in range(n):
-                    for l in range(k, n):
-                        v = h / 6 * (2 * ga[k] * ga[l] + ga[k] * gb[l] + gb[k] * ga[l] + 2 * gb[k] * gb[l])
-                        G[k][l] += v
-                        if l != k:
-                            G[l][k] += v
-        return F, D, G, ps
 
     def support(self, lam: list[float]) -> float:
         """``σ(λ) = ∫ max(h̃ w, ℓ̃ w) dτ`` (exact; ``inf`` when an infinite bound meets a nonzero w)."""
@@ -289,56 +217,49 @@ def solve_axis(times: list[float], T: float, s0: float, v0: float, sf: float, vf
         When Newton stalls without a certificate.
     """
     ax = _Axis(times, T, s0, v0, sf, vf, corners, lo, hi)
-    n = ax.n
-    if lam0 is None:
-        # unbounded optimum: the full Gram system ∫ g gᵀ λ = d̃ (closed form per piece)
-        G = [[0.0] * n for _ in range(n)]
-        for j in range(len(ax.base) - 1):
-            a, b = ax.base[j], ax.base[j + 1]
-            ga, gb = ax.g(a), ax.g(b)
-            h = b - a
-            for k in range(n):
-                for l in range(n):
-                    G[k][l] += h / 6 * (2 * ga[k] * ga[l] + ga[k] * gb[l] + gb[k] * ga[l] + 2 * gb[k] * gb[l])
-        lam_opt = _solve(G, ax.d)
-        if lam_opt is None:
-            raise AxisNoConvergence("the contact times make the jump conditions singular")
-        lam = lam_opt
-    else:
-        lam = list(lam0)
-    F, D, G, ps = ax.evaluate(lam, True)
-    it = 0
-    res = max(abs(x) for x in F)
-    while res > tol_residual:
-        if it >= MAX_NEWTON:
-            break
-        it += 1
-        trace = sum(G[k][k] for k in range(n))
-        reg = 1e-14 * max(trace, 1e-300)
-        A = [[G[k][l] + (reg if k == l else 0.0) for l in range(n)] for k in range(n)]
-        step = _solve(A, [-x for x in F])
-        if step is None or not all(math.isfinite(x) for x in step):
-            step = [-x for x in F]  # gradient ascent direction of D
-        slope = -sum(s * f for s, f in zip(step, F))  # ∇Dᵀ step = −Fᵀ step  (> 0)
-        alpha = 1.0
-        accepted = False
-        for _ in range(40):
-            trial = [lk + alpha * sk for lk, sk in zip(lam, step)]
-            F2, D2, G2, ps2 = ax.evaluate(trial, True)
-            res2 = max(abs(x) for x in F2)
-            if D2 >= D + 1e-4 * alpha * slope or res2 <= tol_residual:
-                accepted = True
-                break
-            alpha *= 0.5
-        if not accepted:
-            break
-        lam, F, D, G, ps, res = trial, F2, D2, G2, ps2, res2
-        norm = max(abs(x) for x in lam)
-        if norm > 1e12:
-            break
-    if res > tol_residual:
+    code, it, res, D, _, lam, F, _, ps = _core(ax, lam0, tol_residual)
+    if code == _kernel.SINGULAR_GRAM:
+        raise AxisNoConvergence("the contact times make the jump conditions singular")
+    if code != _kernel.CONVERGED:
         _raise_infeasible_or_stall(ax, lam, F, res)
-    return _axis_solution(ax, lam, D, ps, it, res)
+    return _axis_solution(ax, lam, D, _tuples(ps), it, res)
+
+
+def solve_axis_value(times: list[float], T: float, s0: float, v0: float, sf: float, vf: float,
+                     corners: list[float], lo: float, hi: float, lam0: list[float] | None = None,
+                     tol_residual: float = 1e-12
+                     ) -> tuple[float, list[float], list[float], list[float]] | None:
+    """What the contact-time search needs of :func:`solve_axis`, without building the
+    :class:`AxisSolution`: ``(cost, jumps, contact_speeds, lam)`` (the same numbers, the same
+    arithmetic), or ``None`` where :func:`solve_axis` raises (infeasible box or a stall)."""
+    ax = _Axis(times, T, s0, v0, sf, vf, corners, lo, hi)
+    code, _, _, _, cost, lam, _, vc, _ = _core(ax, lam0, tol_residual)
+    if code != _kernel.CONVERGED:
+        return None
+    ell = ax.ell
+    T3 = T**3
+    jumps = [-(x * ell / T3) for x in lam[:ax.m]]
+    speeds = [v0 + x * ell / T for x in vc]
+    return cost * ell * ell / T3, jumps, speeds, list(lam)
+
+
+def _core(ax: _Axis, lam0: list[float] | None, tol_residual: float
+          ) -> tuple[int, int, float, float, float, list[float], list[float], list[float], list[float]]:
+    """:func:`~iamp.planners.pmp.saturated_kernel.axis_core` on ``ax``: the compiled twin
+    once :mod:`~iamp.planners.pmp.saturated_compiled` is loaded in the process, else the
+    pure Python one (the same code, the same numbers)."""
+    run = _compiled.core()
+    if run is None:
+        return _kernel.axis_core(ax.sig, ax.base, ax.d, ax.lo, ax.hi, [] if lam0 is None else lam0,
+                                 lam0 is not None, tol_residual, MAX_NEWTON)
+    out: tuple[int, int, float, float, float, list[float], list[float], list[float], list[float]] = run(
+        ax.sig, ax.base, ax.d, ax.lo, ax.hi, lam0, tol_residual, MAX_NEWTON)
+    return out
+
+
+def _tuples(ps: list[float]) -> list[tuple[float, float, float, float, int]]:
+    """The kernel's flat pieces as ``(τa, τb, wa, wb, kind)`` tuples."""
+    return [(ps[q], ps[q + 1], ps[q + 2], ps[q + 3], int(ps[q + 4])) for q in range(0, len(ps), 5)]
 
 
 def _raise_infeasible_or_stall(ax: _Axis, lam: list[float], F: list[float], res: float) -> None:

@@ -20,13 +20,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import numpy.typing as npt
 
 from iamp.core.free import min_energy_cubic
 from iamp.core.problem import Problem
-from iamp.core.tolerances import tol
+from iamp.core.tolerances import TOLERANCES
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -46,7 +47,7 @@ def strip_negligible(coeffs: FloatArray, T: float) -> FloatArray:
         size = np.abs(c) * powers(T, c.size)
     big = float(np.max(size)) if c.size else 0.0
     keep = c.size
-    eps = tol("pmp_poly_negligible_rel")
+    eps = TOLERANCES["pmp_poly_negligible_rel"]
     while keep > 1 and size[keep - 1] <= eps * big:
         keep -= 1
     return c[:keep]
@@ -109,7 +110,7 @@ def _stripped(coeffs: Sequence[float], T: float) -> list[float]:
             if x != x:
                 break
     keep = n
-    eps = tol("pmp_poly_negligible_rel")
+    eps = TOLERANCES["pmp_poly_negligible_rel"]
     while keep > 1 and size[keep - 1] <= eps * big:
         keep -= 1
     return c[:keep]
@@ -132,24 +133,28 @@ class Units:
     T: float
     L: float
 
-    @property
+    def __post_init__(self) -> None:
+        # the derived units once, here: later reads are plain attributes (no call, scripts/walk.py)
+        self.vel, self.acc, self.jerk, self.cost, self.ham  # noqa: B018
+
+    @cached_property
     def vel(self) -> float:
         return self.L / self.T
 
-    @property
+    @cached_property
     def acc(self) -> float:
         return self.L / self.T**2
 
-    @property
+    @cached_property
     def jerk(self) -> float:
         """Unit of ``p1``, ``p3`` and of the jumps ``Φ``."""
         return self.L / self.T**3
 
-    @property
+    @cached_property
     def cost(self) -> float:
         return self.L**2 / self.T**3
 
-    @property
+    @cached_property
     def ham(self) -> float:
         """Unit of ``H`` and of the Hamiltonian-jump residual ``r = ∂J/∂t``."""
         return self.L**2 / self.T**4
@@ -183,7 +188,10 @@ class Scaled:
     CY: FloatArray
     jbar: float
 
-    @property
+    def __post_init__(self) -> None:
+        self.m  # noqa: B018 - once, here: later reads are plain attributes
+
+    @cached_property
     def m(self) -> int:
         return int(self.EX.shape[0])
 
@@ -197,8 +205,7 @@ def scale_problem(problem: Problem) -> Scaled:
          ego.y0 / L, ego.vy0 * T / L, ego.yf / L, ego.vyf * T / L]
     ea = np.array(e)
     e = ea.tolist()
-    hx = _hermite(*e[:4])
-    hy = _hermite(*e[4:])
+    hx, hy = _hermites(e)
     polys = []
     for v in problem.vehicles:
         c = _stripped(v.x_poly, T)
@@ -216,6 +223,9 @@ def scale_problem(problem: Problem) -> Scaled:
                   np.array(CXl).reshape(m, d), np.array(CYl), float(jbar))
 
 
-def _hermite(s0: float, v0: float, sf: float, vf: float) -> list[float]:
-    """:func:`hermite_sigma` as a list."""
-    return list(min_energy_cubic(s0, v0, sf, vf))
+def _hermites(e: list[float]) -> tuple[list[float], list[float]]:
+    """:func:`hermite_sigma` of the x axis (``e[:4]``) and of the y axis (``e[4:]``) as lists, in
+    one elementwise call (numpy's float64 arithmetic is the floats', bit for bit)."""
+    a = np.array(e).reshape(2, 4)
+    cubic = min_energy_cubic(a[:, 0], a[:, 1], a[:, 2], a[:, 3])
+    return [float(c[0]) for c in cubic], [float(c[1]) for c in cubic]

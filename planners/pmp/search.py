@@ -123,7 +123,7 @@ def trusted_q(vf: ValueFunction, s: FloatArray) -> float:
     the times are distinct (``|σ_i − σ_j| > 1e-6``, below that ``K`` is too ill-conditioned
     for the closed form) and the closed form agrees with the exact integral of ``|u|²`` of
     the solved trajectory (``pmp_cost_consistency_rel``)."""
-    from iamp.core.tolerances import tol
+    from iamp.core.tolerances import TOLERANCES
 
     from .fixed import solution_from_sigma, solve_sigma
 
@@ -138,7 +138,7 @@ def trusted_q(vf: ValueFunction, s: FloatArray) -> float:
     except Exception:  # any failure of the check disqualifies the candidate
         return float("inf")
     J = vf.scaled.jbar + 0.5 * q
-    if not (np.isfinite(J) and abs(J - J_traj) <= tol("pmp_cost_consistency_rel") * max(abs(J_traj), 1e-300)):
+    if not (np.isfinite(J) and abs(J - J_traj) <= TOLERANCES["pmp_cost_consistency_rel"] * max(abs(J_traj), 1e-300)):
         return float("inf")
     return q
 

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from iamp.core.jump_trajectory import JumpTrajectory
 from iamp.core.problem import Problem
 
 from .jumps import jump_system
@@ -25,8 +26,11 @@ FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass
-class PMPSolution:
+class PMPSolution(JumpTrajectory):
     """Solution of the necessary + co-state jump conditions for fixed contact times.
+
+    Its trajectory (``inputs``, ``states``, ``costates``, ``hamiltonian``) is evaluated by
+    :class:`iamp.core.jump_trajectory.JumpTrajectory`, in the core.
 
     ``a = (−p2(0), −p4(0))``, ``b = (p1(0), p3(0))``, ``jumps[i] = (Φ_i,x, Φ_i,y)``; when
     solved in scaled units, ``scaled`` and ``z_scaled`` (rows ``ã, b̃, Φ̃``) keep the
@@ -41,53 +45,11 @@ class PMPSolution:
     scaled: Scaled | None = None
     z_scaled: FloatArray | None = None
 
-    # --- trajectory -------------------------------------------------------------------
-    def _ramps(self, t: FloatArray, power: int, side: str = "right") -> FloatArray:
-        d = t[:, None] - self.contact_times[None, :]
-        if power == 0:
-            return (d > 0).astype(float) if side == "left" else (d >= 0).astype(float)
-        out: FloatArray = np.maximum(d, 0.0) ** power
-        return out
-
-    def inputs(self, t: Any) -> FloatArray:
-        """``(u_x, u_y)`` at times ``t`` → shape ``(len(t), 2)``."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        out: FloatArray = self.a[None, :] + self.b[None, :] * t[:, None] - self._ramps(t, 1) @ self.jumps
-        return out
-
-    def states(self, t: Any) -> FloatArray:
-        """``(s_x, v_x, s_y, v_y)`` at times ``t`` → shape ``(len(t), 4)``."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        ego = self.problem.ego
-        s0 = np.array([ego.x0, ego.y0])
-        v0 = np.array([ego.vx0, ego.vy0])
-        tt = t[:, None]
-        v = v0 + self.a * tt + self.b * tt**2 / 2 - self._ramps(t, 2) @ self.jumps / 2
-        s = s0 + v0 * tt + self.a * tt**2 / 2 + self.b * tt**3 / 6 - self._ramps(t, 3) @ self.jumps / 6
-        return np.stack([s[:, 0], v[:, 0], s[:, 1], v[:, 1]], axis=1)
-
-    def costates(self, t: Any, side: str = "right") -> FloatArray:
-        """``(p1, p2, p3, p4)`` at ``t``; ``side`` picks the one-sided limit at a contact time.
-        ``p1, p3`` from the jump rule; ``p2, p4`` by integrating ``ṗ2 = −p1`` from
-        ``p2(0) = −a`` (not from ``u``), so ``∂H/∂u = u + p2`` is a real check."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        p13 = self.b[None, :] - self._ramps(t, 0, side) @ self.jumps
-        p24 = -self.a[None, :] - self.b[None, :] * t[:, None] + self._ramps(t, 1) @ self.jumps
-        return np.stack([p13[:, 0], p24[:, 0], p13[:, 1], p24[:, 1]], axis=1)
-
-    def hamiltonian(self, t: Any, side: str = "right") -> FloatArray:
-        """``H = ½|u|² + p1 v_x + p2 u_x + p3 v_y + p4 u_y`` (one-sided at contact times)."""
-        X = self.states(t)
-        U = self.inputs(t)
-        p = self.costates(t, side)
-        out: FloatArray = (0.5 * np.sum(U**2, axis=1) + p[:, 0] * X[:, 1] + p[:, 1] * U[:, 0]
-                           + p[:, 2] * X[:, 3] + p[:, 3] * U[:, 1])
-        return out
-
     # --- the conditions -----------------------------------------------------------------
-    def system_residual(self) -> float:
-        """max |M z − rhs| of the physical jump system at this solution."""
-        M, rhs = jump_system(self.problem, self.contact_times)
+    def system_residual(self, corners: FloatArray | None = None) -> float:
+        """max |M z − rhs| of the physical jump system at this solution (``corners``: the
+        problem's corners at the contact times, if the caller has them)."""
+        M, rhs = jump_system(self.problem, self.contact_times, corners)
         z = np.vstack([self.a, self.b, self.jumps])
         return float(np.max(np.abs(M @ z - rhs)))
 
@@ -99,13 +61,15 @@ class PMPSolution:
         h = np.diff(bp)[:, None]
         return float(0.5 * np.sum(h / 3 * (U[:-1] ** 2 + U[:-1] * U[1:] + U[1:] ** 2)))
 
-    def hamiltonian_jump_terms(self) -> tuple[FloatArray, FloatArray]:
+    def hamiltonian_jump_terms(self, xdot: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
         r"""``(r, size)``: ``r_i = H⁻(t_i) − H⁺(t_i) − ẋ_s,i(t_i)Φ_i,x`` (= ``∂J/∂t_i``) and the
-        size of its terms, :math:`|\Phi_{i,x}|(|v_x|+|\dot x_{s,i}|) + |\Phi_{i,y}||v_y|`."""
+        size of its terms, :math:`|\Phi_{i,x}|(|v_x|+|\dot x_{s,i}|) + |\Phi_{i,y}||v_y|`
+        (``xdot``: the vehicles' speeds at the contact times, if the caller has them)."""
         t = self.contact_times
         Hm = self.hamiltonian(t, "left")
         Hp = self.hamiltonian(t, "right")
-        xdot = np.array([float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, t)])
+        if xdot is None:
+            xdot = np.array([float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, t)])
         X = self.states(t)
         size = np.abs(self.jumps[:, 0]) * (np.abs(X[:, 1]) + np.abs(xdot)) + np.abs(self.jumps[:, 1]) * np.abs(X[:, 3])
         r: FloatArray = Hm - Hp - xdot * self.jumps[:, 0]
@@ -118,26 +82,36 @@ class PMPSolution:
     def residuals(self) -> dict[str, float]:
         """Max-abs residual (physical units) of every condition solved; the dimensionless
         checks are :func:`iamp.planners.pmp.verify.verify`."""
+        return self.residuals_and_jumps()[0]
+
+    def residuals_and_jumps(self) -> tuple[dict[str, float], FloatArray]:
+        """``(residuals(), hamiltonian_jump_residual())``, reading the problem's corners and
+        speeds at the contact times once and the trajectory once
+        (:meth:`~iamp.core.jump_trajectory.JumpTrajectory.samples`; the same numbers)."""
         prob = self.problem
         t = self.contact_times
-        ends = self.states(np.array([0.0, prob.tf]))
-        boundary = max(np.max(np.abs(ends[0] - prob.ego.initial)), np.max(np.abs(ends[1] - prob.ego.final)))
-        X = self.states(t)
-        interior = np.max(np.abs(X[:, [0, 2]] - prob.corners(t)))
+        m = t.shape[0]
+        corners, xdot = prob.corners_and_speeds(t)
         ts = np.linspace(0.0, prob.tf, 201)
-        U, p = self.inputs(ts), self.costates(ts)
+        at = self.samples(np.concatenate([np.array([0.0, prob.tf]), t, ts]))
+        hj: FloatArray = at.h_left - at.h_right - xdot * self.jumps[:, 0]
+        ends = at.states[:2]
+        boundary = max(np.max(np.abs(ends[0] - prob.ego.initial)), np.max(np.abs(ends[1] - prob.ego.final)))
+        X = at.states[2:2 + m]
+        interior = np.max(np.abs(X[:, [0, 2]] - corners))
+        U, p = at.inputs[2 + m:], at.costates[2 + m:]
         h_min = np.max(np.abs(U + p[:, [1, 3]]))
-        pl, pr = self.costates(t, "left"), self.costates(t, "right")
+        pl, pr = at.costates_left, at.costates[2:2 + m]
         jump = max(np.max(np.abs(pl[:, [0, 2]] - pr[:, [0, 2]] - self.jumps)),
                    np.max(np.abs(pl[:, [1, 3]] - pr[:, [1, 3]])))
         return {
-            "linear_system": self.system_residual(),
+            "linear_system": self.system_residual(corners),
             "boundary": float(boundary),
             "interior_constraint": float(interior),
             "h_minimisation": float(h_min),
             "costate_jump": float(jump),
-            "hamiltonian_jump": float(np.max(np.abs(self.hamiltonian_jump_residual()))),
-        }
+            "hamiltonian_jump": float(np.max(np.abs(hj))),
+        }, hj
 
 
 class _FromKernel:
@@ -151,13 +125,20 @@ class _FromKernel:
     def __get__(self, obj: OneVehicleSolution | None, objtype: type | None = None) -> Any:
         if obj is None:
             return self
-        d = obj.__dict__
-        k, T, L = d.pop("_kernel")
-        z = np.array([[k[1], k[2]], [k[3], k[4]], [k[5], k[6]]])
-        d["z_scaled"] = z
-        d["a"] = z[0] * (L / (T * T))
-        d["b"] = z[1] * (L / (T * T * T))
-        return d[self.name]
+        _fill(obj)
+        return obj.__dict__[self.name]
+
+
+def _fill(obj: OneVehicleSolution) -> None:
+    """Make ``a``, ``b`` and ``z_scaled`` from the kernel's numbers (once)."""
+    d = obj.__dict__
+    if "_kernel" not in d:
+        return
+    k, T, L = d.pop("_kernel")
+    z = np.array([[k[1], k[2]], [k[3], k[4]], [k[5], k[6]]])
+    d["z_scaled"] = z
+    d["a"] = z[0] * (L / (T * T))
+    d["b"] = z[1] * (L / (T * T * T))
 
 
 class OneVehicleSolution(PMPSolution):
@@ -189,3 +170,15 @@ class OneVehicleSolution(PMPSolution):
         d["scaled"] = None
         d["_kernel"] = (kernel_out, T, L)
         return sol
+
+    @classmethod
+    def checked_from_kernel(cls, problem: Problem, contact_times: FloatArray, jumps: FloatArray,
+                            kernel_out: Sequence[float], T: float, L: float
+                            ) -> tuple[OneVehicleSolution, dict[str, float], FloatArray]:
+        """:meth:`from_kernel` with its :meth:`residuals_and_jumps` (the planner's diagnostics,
+        one call: the solution's arrays are made here)."""
+        sol = cls.from_kernel(problem, contact_times, jumps, kernel_out, T, L)
+        _fill(sol)  # here, not on the core's first evaluation of the trajectory
+        with np.errstate(all="ignore"):
+            residuals, hj = sol.residuals_and_jumps()
+        return sol, residuals, hj

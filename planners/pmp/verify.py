@@ -33,7 +33,7 @@ import numpy.typing as npt
 from iamp.core.status import INACCURATE, NUMERICAL_ERROR
 from iamp.core.tolerances import TOLERANCES
 
-from .fixed import ValueFunction, cubes, jump_rows, jump_system_sigma, quad_at
+from .fixed import ValueFunction, jump_system_sigma, system_and_quad
 from .scale import Scaled, scale_problem
 from .solution import PMPSolution
 
@@ -166,6 +166,12 @@ def _sum(a: list[float]) -> float:
     return res
 
 
+def _cubes(xs: list[float]) -> list[float]:
+    """``x**3`` as numpy computes it on arrays (``np.power``; as :func:`.fixed.cubes`)."""
+    out: list[float] = np.power(np.array(xs, dtype=float), 3).tolist()
+    return out
+
+
 def check_values_lean(sol: PMPSolution, S: Scaled, stationary: bool = True) -> dict[str, float]:
     """:func:`check_values` in scalar code for a solution solved in scaled units
     (``sol.z_scaled`` set): the same quantities with the same floating operations, evaluated
@@ -204,8 +210,9 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> tuple[dict[str, floa
     out: dict[str, float] = {}
     sig = [ti / T for ti in t]
 
-    # linear_system: the scaled jump system rebuilt from (S, σ), numpy's product
-    M, rhs = jump_rows(S, sig)
+    # linear_system: the scaled jump system rebuilt from (S, σ), numpy's product; with it the
+    # closed-form q(σ) of the cost check (one read of the fixed-time system)
+    M, rhs, q_sig = system_and_quad(S, sig)
     Ma = np.array(M)
     ra = np.array(rhs)
     den = _amax(_sum([abs(x) for x in row]) for row in M) * float(np.max(np.abs(z))) + _amax(
@@ -220,7 +227,7 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> tuple[dict[str, floa
     pts = [0.0, T, *t]
     n_pts = len(pts)
     dpos = [[max(p - ti, 0.0) for ti in t] for p in pts]
-    cub = cubes([*pts, *[w for row in dpos for w in row]])
+    cub = _cubes([*pts, *[w for row in dpos for w in row]])
     W = [*dpos, *[[w * w for w in row] for row in dpos],
          *[cub[n_pts + n * m: n_pts + (n + 1) * m] for n in range(n_pts)],
          *[[1.0 if p - ti > 0 else 0.0 for ti in t] for p in pts],
@@ -306,7 +313,7 @@ def _lean(sol: PMPSolution, S: Scaled, stationary: bool) -> tuple[dict[str, floa
         out["hamiltonian_jump"] = _amax(vals)
 
     # cost_consistency: closed form J(t) against ½∫|u|² of the trajectory
-    J_closed = (S.jbar + 0.5 * quad_at(S, [ti / T for ti in t])) * (L**2 / T**3)
+    J_closed = (S.jbar + 0.5 * q_sig) * (L**2 / T**3)
     order = sorted(range(n_pts), key=pts.__getitem__)  # = np.sort(np.r_[0, t, t_f])
     bp = [pts[n] for n in order]
     U = [inputs(n) for n in order]

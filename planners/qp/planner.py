@@ -191,7 +191,7 @@ class QPPlanner:
                    else np.full((m, 2), np.nan),
                    trajectory=r.trajectory if ok and r is not None else None,
                    solve_time_s=time.perf_counter() - start, solver=self.solver, hold=self.hold,
-                   steps=self.steps, diagnostics=QPDiagnostics.from_info(info))
+                   steps=self.steps, diagnostics=QPDiagnostics(**QPDiagnostics.info_fields(info)))  # type: ignore[arg-type]
         if ok:
             res.residuals = {"boundary": res.boundary_residual(), "interior_constraint": res.corner_residual()}
         if r is not None and r.kkt is not None:

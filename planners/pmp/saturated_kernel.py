@@ -1,0 +1,319 @@
+r"""The scalar core of the saturated axis solve (:mod:`~iamp.planners.pmp.saturated`).
+
+One function, :func:`axis_core`, runs the semi-smooth Newton method on the concave dual of
+one axis in the scaled units of :class:`~iamp.planners.pmp.saturated._Axis` (the module
+docstring of :mod:`~iamp.planners.pmp.saturated` states the mathematics).  It is written as
+flat scalar loops over lists (row-major ``n × n`` matrices in one list), with the
+arithmetic of the former method-based code operation for operation, so that
+
+* the pure path runs it as Python (the default; no object per piece, no ``g(τ)`` list per
+  piece end, about 3× fewer interpreter operations than before, the same numbers bit for
+  bit), and
+* :mod:`~iamp.planners.pmp.saturated_compiled` compiles the *same code objects* with
+  ``numba.njit`` (no fastmath) for an opt-in compiled path with the same numbers.
+
+Nothing here may use Python features numba lacks (no classes, no exceptions, no
+comprehensions with ``zip``, no ``sum``/``max`` over generators).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+#: Result codes of :func:`axis_core`.
+CONVERGED = 0
+NOT_CONVERGED = 1
+SINGULAR_GRAM = 2
+
+
+def gauss(A: Any, r: Any, n: int) -> tuple[bool, list[float]]:
+    """Solve ``A x = r`` (``A`` row-major ``n × n``) by Gaussian elimination with partial
+    pivoting (first largest pivot); ``(False, ·)`` if a pivot is exactly zero."""
+    w = n + 1
+    M = [0.0] * (n * w)
+    for i in range(n):
+        for j in range(n):
+            M[i * w + j] = A[i * n + j]
+        M[i * w + n] = r[i]
+    x = [0.0] * n
+    for c in range(n):
+        p = c
+        best = abs(M[c * w + c])
+        for i in range(c + 1, n):
+            v = abs(M[i * w + c])
+            if v > best:
+                p = i
+                best = v
+        if M[p * w + c] == 0.0:
+            return False, x
+        if p != c:
+            for j in range(w):
+                tmp = M[c * w + j]
+                M[c * w + j] = M[p * w + j]
+                M[p * w + j] = tmp
+        inv = 1.0 / M[c * w + c]
+        for i in range(c + 1, n):
+            f = M[i * w + c] * inv
+            if f != 0.0:
+                for j in range(c, n + 1):
+                    M[i * w + j] -= f * M[c * w + j]
+    for i in range(n - 1, -1, -1):
+        acc = M[i * w + n]
+        for j in range(i + 1, n):
+            acc -= M[i * w + j] * x[j]
+        x[i] = acc / M[i * w + i]
+    return True, x
+
+
+def pieces(sig: Any, base: Any, lam: Any, lo: float, hi: float) -> list[float]:
+    """Sub-pieces of ``[0, 1]`` between base points and switching points: flat
+    ``[τa, τb, wa, wb, kind, …]`` (kind ``0`` free, ``−1`` lower, ``+1`` upper)."""
+    m = len(sig)
+    nb = len(base)
+    wv = [0.0] * nb
+    for j in range(nb):
+        tau = base[j]
+        acc = 0.0
+        for i in range(m):
+            gi = sig[i] - tau
+            if gi < 0.0:
+                gi = 0.0
+            acc += lam[i] * gi
+        acc += lam[m] * (1.0 - tau)
+        acc += lam[m + 1] * 1.0
+        wv[j] = acc
+    out: list[float] = []
+    cuts = [0.0, 0.0, 0.0, 0.0]
+    for j in range(nb - 1):
+        ta = base[j]
+        tb = base[j + 1]
+        wa = wv[j]
+        wb = wv[j + 1]
+        cuts[0] = ta
+        nc = 1
+        for q in range(2):
+            bnd = lo if q == 0 else hi
+            if (wa - bnd) * (wb - bnd) < 0.0:
+                c = ta + (tb - ta) * (bnd - wa) / (wb - wa)
+                # insertion into the sorted cuts
+                k = nc
+                while k > 0 and cuts[k - 1] > c:
+                    cuts[k] = cuts[k - 1]
+                    k -= 1
+                cuts[k] = c
+                nc += 1
+        cuts[nc] = tb
+        for k in range(nc):
+            a = cuts[k]
+            b = cuts[k + 1]
+            if b <= a:
+                continue
+            fa = wa + (wb - wa) * (a - ta) / (tb - ta)
+            fb = wa + (wb - wa) * (b - ta) / (tb - ta)
+            mid = 0.5 * (fa + fb)
+            kind = -1.0 if mid <= lo else (1.0 if mid >= hi else 0.0)
+            out.append(a)
+            out.append(b)
+            out.append(fa)
+            out.append(fb)
+            out.append(kind)
+    return out
+
+
+def evaluate(sig: Any, base: Any, d: Any, lam: Any, lo: float, hi: float, hessian: bool
+             ) -> tuple[list[float], float, list[float], list[float]]:
+    """``(F, D, G_free, pieces)``: residuals ``∫g u − d̃``, dual value, free Gram matrix
+    (row-major), the flat pieces of :func:`pieces`."""
+    m = len(sig)
+    n = m + 2
+    F = [0.0] * n
+    D = 0.0
+    for k in range(n):
+        F[k] = -d[k]
+        D += lam[k] * d[k]
+    G = [0.0] * (n * n)
+    ps = pieces(sig, base, lam, lo, hi)
+    ga = [0.0] * n
+    gb = [0.0] * n
+    for q in range(len(ps) // 5):
+        a = ps[5 * q]
+        b = ps[5 * q + 1]
+        wa = ps[5 * q + 2]
+        wb = ps[5 * q + 3]
+        kind = ps[5 * q + 4]
+        h = b - a
+        if kind == 0.0:
+            ua = wa
+            ub = wb
+        elif kind < 0.0:
+            ua = lo
+            ub = lo
+        else:
+            ua = hi
+            ub = hi
+        for i in range(m):
+            x = sig[i] - a
+            ga[i] = 0.0 if x < 0.0 else x
+            y = sig[i] - b
+            gb[i] = 0.0 if y < 0.0 else y
+        ga[m] = 1.0 - a
+        gb[m] = 1.0 - b
+        ga[m + 1] = 1.0
+        gb[m + 1] = 1.0
+        um = 0.5 * (ua + ub)
+        wm = 0.5 * (wa + wb)
+        D += h / 6 * ((0.5 * ua * ua - wa * ua) + 4 * (0.5 * um * um - wm * um) + (0.5 * ub * ub - wb * ub))
+        for k in range(n):
+            F[k] += h / 6 * (2 * ga[k] * ua + ga[k] * ub + gb[k] * ua + 2 * gb[k] * ub)
+        if hessian and kind == 0.0:
+            for k in range(n):
+                for l in range(k, n):
+                    v = h / 6 * (2 * ga[k] * ga[l] + ga[k] * gb[l] + gb[k] * ga[l] + 2 * gb[k] * gb[l])
+                    G[k * n + l] += v
+                    if l != k:
+                        G[l * n + k] += v
+    return F, D, G, ps
+
+
+def max_abs(x: Any) -> float:
+    """``max(abs(v) for v in x)`` (first maximum; ``x`` non-empty)."""
+    r: float = abs(x[0])
+    for k in range(1, len(x)):
+        v = abs(x[k])
+        if v > r:
+            r = v
+    return r
+
+
+def axis_core(sig: Any, base: Any, d: Any, lo: float, hi: float, lam0: Any, warm: bool, tol_residual: float,
+              max_newton: int) -> tuple[int, int, float, float, float, list[float], list[float], list[float],
+                                        list[float]]:
+    """The semi-smooth Newton method of :func:`~iamp.planners.pmp.saturated.solve_axis`.
+
+    Returns ``(code, iterations, residual, D, cost, lam, F, vcum_at_contact, pieces)``:
+    ``code`` :data:`CONVERGED`, :data:`NOT_CONVERGED` (the caller looks for a Farkas
+    certificate) or :data:`SINGULAR_GRAM`; ``cost`` = ``½∫ũ²`` and ``vcum_at_contact`` =
+    ``∫_0^{σ_i} ũ`` (at the piece end nearest ``σ_i``), both scaled, at the returned ``lam``."""
+    m = len(sig)
+    n = m + 2
+    lam = [0.0] * n
+    if not warm:
+        # unbounded optimum: the full Gram system ∫ g gᵀ λ = d̃ (closed form per piece)
+        G0 = [0.0] * (n * n)
+        ga = [0.0] * n
+        gb = [0.0] * n
+        for j in range(len(base) - 1):
+            a = base[j]
+            b = base[j + 1]
+            for i in range(m):
+                x = sig[i] - a
+                ga[i] = 0.0 if x < 0.0 else x
+                y = sig[i] - b
+                gb[i] = 0.0 if y < 0.0 else y
+            ga[m] = 1.0 - a
+            gb[m] = 1.0 - b
+            ga[m + 1] = 1.0
+            gb[m + 1] = 1.0
+            h = b - a
+            for k in range(n):
+                for l in range(n):
+                    G0[k * n + l] += h / 6 * (2 * ga[k] * ga[l] + ga[k] * gb[l] + gb[k] * ga[l] + 2 * gb[k] * gb[l])
+        ok, sol = gauss(G0, d, n)
+        if not ok:
+            return SINGULAR_GRAM, 0, math.nan, math.nan, math.nan, lam, lam, [0.0] * m, [0.0] * 0
+        for k in range(n):
+            lam[k] = sol[k]
+    else:
+        for k in range(n):
+            lam[k] = lam0[k]
+    F, D, G, ps = evaluate(sig, base, d, lam, lo, hi, True)
+    it = 0
+    res = max_abs(F)
+    while res > tol_residual:
+        if it >= max_newton:
+            break
+        it += 1
+        trace = 0.0
+        for k in range(n):
+            trace += G[k * n + k]
+        reg = 1e-14 * (trace if not (1e-300 > trace) else 1e-300)
+        A = [0.0] * (n * n)
+        for k in range(n):
+            for l in range(n):
+                A[k * n + l] = G[k * n + l] + (reg if k == l else 0.0)
+        negF = [0.0] * n
+        for k in range(n):
+            negF[k] = -F[k]
+        ok, step = gauss(A, negF, n)
+        finite = ok
+        if ok:
+            for k in range(n):
+                if not math.isfinite(step[k]):
+                    finite = False
+        if not finite:
+            step = negF  # gradient ascent direction of D
+        slope = 0.0
+        for k in range(n):
+            slope += step[k] * F[k]
+        slope = -slope  # ∇Dᵀ step = −Fᵀ step  (> 0)
+        alpha = 1.0
+        accepted = False
+        trial = [0.0] * n
+        F2 = F
+        D2 = D
+        G2 = G
+        ps2 = ps
+        res2 = res
+        for _ in range(40):
+            for k in range(n):
+                trial[k] = lam[k] + alpha * step[k]
+            F2, D2, G2, ps2 = evaluate(sig, base, d, trial, lo, hi, True)
+            res2 = max_abs(F2)
+            if D2 >= D + 1e-4 * alpha * slope or res2 <= tol_residual:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            break
+        lam = trial
+        F = F2
+        D = D2
+        G = G2
+        ps = ps2
+        res = res2
+        if max_abs(lam) > 1e12:
+            break
+    code = CONVERGED if not (res > tol_residual) else NOT_CONVERGED
+    # cost ½∫ũ² and ∫ũ up to every piece end (at lam)
+    cost = 0.0
+    npc = len(ps) // 5
+    vcum = [0.0] * (npc + 1)
+    ends = [0.0] * (npc + 1)
+    for q in range(npc):
+        a = ps[5 * q]
+        b = ps[5 * q + 1]
+        kind = ps[5 * q + 4]
+        if kind == 0.0:
+            ua = ps[5 * q + 2]
+            ub = ps[5 * q + 3]
+        elif kind < 0.0:
+            ua = lo
+            ub = lo
+        else:
+            ua = hi
+            ub = hi
+        cost += (b - a) / 6 * (ua * ua + ua * ub + ub * ub)
+        vcum[q + 1] = vcum[q] + (b - a) * (ua + ub) / 2
+        ends[q + 1] = b
+    vc = [0.0] * m
+    for i in range(m):
+        j = 0
+        dist = abs(ends[0] - sig[i])
+        for q in range(1, npc + 1):
+            e = abs(ends[q] - sig[i])
+            if e < dist:
+                j = q
+                dist = e
+        vc[i] = vcum[j]
+    return code, it, res, D, cost, lam, F, vc, ps

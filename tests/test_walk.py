@@ -1,0 +1,127 @@
+"""The walk of a plan through the code (issue 18): ``scripts/walk.py``'s stack metric.
+
+A module is *left* when no frame of it remains on the call stack; a *return* is a call that
+enters a module left earlier; an *upward* call goes from a lower layer into a higher one.
+The metric is tested on synthetic call sequences (against an independent count), then the
+PMP's walk from ``PMPPlanner.plan`` to its ``Plan`` is required to have no return and no upward
+call, and the command line's walk (``iamp plan S --json``, PMP and QP) no upward call.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+
+from walk import StackWalk, rank, walk_cli, walk_planner
+
+ONE_VEHICLE = ("paper-1", "paper-2", "paper-3", "paper-1-poly")
+
+
+def run(events: list[str | None]) -> StackWalk:
+    """Feed ``events``: a module name (or ``None``, a frame outside iamp) is a call, ``"<"`` a return."""
+    walk = StackWalk()
+    for e in events:
+        if e == "<":
+            walk.ret()
+        else:
+            walk.call(e, "f")
+    return walk
+
+
+def test_a_module_entered_again_after_it_was_left_is_a_return() -> None:
+    a, b = "iamp.planners.pmp.planner", "iamp.core.problem"
+    walk = run([a, b, "<", b, "<", "<"])  # a calls b twice: b is left in between
+    assert [m for m, _, _ in walk.returns] == [b]
+    assert walk.returns[0][2] == a  # named with its caller
+    assert walk.stretches[b] == 2 and walk.stretches[a] == 1
+
+
+def test_a_callee_returning_to_its_caller_does_not_leave_the_caller() -> None:
+    a, b, c = "iamp.cli.plan", "iamp.planners.registry", "iamp.planners.pmp.planner"
+    walk = run([a, b, "<", c, "<", "<"])  # a calls b, then c: a never left
+    assert walk.returns == [] and walk.entered == [a, b, c]
+    # a module calling into itself again while a frame of it is still on the stack: one stretch
+    walk = run([a, b, a, "<", "<", a, "<", "<"])
+    assert walk.returns == []
+
+
+def test_a_module_called_again_after_its_caller_returned_is_a_return() -> None:
+    a, b = "iamp.cli.plan", "iamp.core.plan"
+    walk = run([a, b, "<", "<", None, b, "<", "<"])  # top level calls b again (through a non-iamp frame)
+    assert [m for m, _, _ in walk.returns] == [b]
+
+
+def test_upward_calls_go_from_a_lower_layer_to_a_higher_one_through_foreign_frames() -> None:
+    core, pmp, cli = "iamp.core.plan", "iamp.planners.pmp.solution", "iamp.cli.progress"
+    walk = run([pmp, core, None, pmp, "<", "<", "<", cli, "<", "<"])
+    assert walk.upward == Counter({(core, f"{pmp}.f"): 1, (pmp, f"{cli}.f"): 1})
+    assert rank("iamp.core.x") < rank("iamp.planners.x") == rank("iamp.prediction.x") < rank("iamp.cli.x")
+    assert run([cli, pmp, "<", core, "<", "<"]).upward == Counter()  # downward only
+
+
+@st.composite
+def call_sequences(draw: st.DrawFn) -> list[str | None]:
+    """Balanced call/return sequences over a few modules (and foreign frames)."""
+    mods = st.sampled_from(["iamp.core.a", "iamp.core.b", "iamp.planners.c", "iamp.cli.d", None])
+    events: list[str | None] = []
+    depth = 0
+    for _ in range(draw(st.integers(0, 40))):
+        if depth and draw(st.booleans()):
+            events.append("<")
+            depth -= 1
+        else:
+            events.append(draw(mods))
+            depth += 1
+    return events + ["<"] * depth
+
+
+@settings(max_examples=300, deadline=None)
+@given(call_sequences())
+def test_returns_are_the_extra_stretches_of_each_module(events: list[str | None]) -> None:
+    """Independent count: replay the stack, mark at every step which modules have a frame on it,
+    and count each module's maximal runs of steps with a frame; every run after the first is one
+    return."""
+    stack: list[str | None] = []
+    runs: Counter[str] = Counter()
+    active_before: set[str] = set()
+    for e in events:
+        if e == "<":
+            stack.pop()
+        else:
+            stack.append(e)
+        active = {m for m in stack if m is not None}
+        for m in active - active_before:
+            runs[m] += 1
+        active_before = active
+    walk = run(events)
+    assert len(walk.returns) == sum(n - 1 for n in runs.values())
+    assert Counter(m for m, _, _ in walk.returns) == Counter({m: n - 1 for m, n in runs.items() if n > 1})
+
+
+@pytest.mark.parametrize("scenario", ONE_VEHICLE)
+def test_the_one_vehicle_pmp_walk_goes_down_without_returning(scenario: str) -> None:
+    """``PMPPlanner().plan(problem)``: each module in one contiguous stretch, nothing called upward."""
+    stack, _ = walk_planner(scenario)
+    assert stack.returns == [], stack.returns
+    assert not stack.upward, stack.upward
+    assert "iamp.planners.pmp.planner" == stack.entered[0] and "iamp.core.plan" in stack.entered
+
+
+@pytest.mark.parametrize(("scenario", "planner"), [(s, "pmp") for s in (*ONE_VEHICLE, "two-vehicle")]
+                         + [("paper-1", "qp"), ("paper-1-poly", "qp")])
+def test_the_command_line_walk_calls_nothing_upward(scenario: str, planner: str) -> None:
+    """``iamp plan S --json``: the core evaluates the PMP's and the QP's trajectories itself
+    (:class:`iamp.core.jump_trajectory.JumpTrajectory`,
+    :class:`iamp.core.hold_trajectory.HoldTrajectory`), reads the histories' predictions made
+    before (:class:`iamp.core.scenario.Predicted`), and no progress callback goes to the planner
+    without a bar."""
+    stack, _ = walk_cli(scenario, planner)
+    assert not stack.upward, stack.upward
+    assert stack.entered[0] == "iamp.cli.plan"
