@@ -142,14 +142,28 @@ def check_manifest(out: Path, wanted: dict[str, Any], force: bool) -> dict[str, 
 
 
 def _append(path: Path, columns: tuple[str, ...], row: dict[str, Any]) -> None:
-    """Rewrite ``path`` atomically with ``row`` appended (header kept)."""
+    """Rewrite ``path`` atomically with ``row`` appended.
+
+    A file written with the same columns keeps its bytes and gains one line.  A file from an
+    older iamp with other columns (a resumed campaign) is rewritten under ``columns`` followed by
+    its own columns that ``columns`` lacks: every old value stays under its name, a column the
+    old rows did not have is empty there (never a row longer than its header).
+    """
     old = path.read_text(encoding="utf-8") if path.is_file() else ""
+    header = next(csv.reader(io.StringIO(old)), None) if old else None
+    clean = {k: ("" if v is None else v) for k, v in row.items()}
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n")
-    if not old:
-        w.writeheader()
-    w.writerow({k: ("" if v is None else v) for k, v in row.items()})
-    write_text(path, old + buf.getvalue())
+    if header == list(columns):
+        csv.DictWriter(buf, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n").writerow(clean)
+        write_text(path, old + buf.getvalue())
+        return
+    fields = list(columns) + [c for c in (header or []) if c not in columns]
+    w = csv.DictWriter(buf, fieldnames=fields, extrasaction="ignore", restval="", lineterminator="\n")
+    w.writeheader()
+    if header is not None:
+        w.writerows(csv.DictReader(io.StringIO(old)))
+    w.writerow(clean)
+    write_text(path, buf.getvalue())
 
 
 @contextlib.contextmanager

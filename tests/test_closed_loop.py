@@ -403,6 +403,30 @@ def _start(tmp_path, **changes):
     return check_manifest(tmp_path, wanted, force=False)
 
 
+def test_appending_to_an_older_campaign_rewrites_its_header_and_keeps_every_value(tmp_path):
+    """A resumed campaign whose episodes.csv has fewer (or other) columns: the file is rewritten
+    under the new columns, old values stay under their names, no row is longer than the header."""
+    import csv as _csv
+
+    from iamp.simulation.campaign import _append
+
+    path = tmp_path / "episodes.csv"
+    path.write_text("planner,seed,legacy\npmp,1,x\nqp,2,y\n", encoding="utf-8")
+    _append(path, ("planner", "seed", "ego_in_forecast"), {"planner": "free", "seed": 3, "ego_in_forecast": False})
+    lines = path.read_text(encoding="utf-8").splitlines()
+    assert lines[0] == "planner,seed,ego_in_forecast,legacy"
+    rows = list(_csv.reader(lines))
+    assert all(len(r) == len(rows[0]) for r in rows)
+    recs = list(_csv.DictReader(lines))
+    assert [(r["planner"], r["seed"], r["legacy"], r["ego_in_forecast"]) for r in recs] == [
+        ("pmp", "1", "x", ""), ("qp", "2", "y", ""), ("free", "3", "", "False")]
+    # same columns now: one more line, the earlier bytes untouched
+    before = path.read_text(encoding="utf-8")
+    _append(path, ("planner", "seed", "ego_in_forecast", "legacy"), {"planner": "sumo", "seed": 4, "legacy": None})
+    after = path.read_text(encoding="utf-8")
+    assert after.startswith(before) and after[len(before):] == "sumo,4,,\n"
+
+
 def test_manifest_refuses_a_changed_episode_parameter_and_names_it(tmp_path):
     (tmp_path / "manifest.json").write_text(json.dumps(_start(tmp_path)))
     (tmp_path / "episodes.csv").write_text("mission,planner,traffic,seed\nmerge,pmp,medium,1\n")

@@ -35,6 +35,9 @@ What is measured (one vehicle: ``paper-1-poly``; two: ``two-vehicle``; FOH, ``N 
   (``pmp_plan_s.one_vehicle_bounded``, :mod:`iamp.planners.pmp.bounded`).
 * **Leader-aware prediction** (``prediction_leader_20_s``) — one batched prediction of 20
   neighbours with leaders (:mod:`.prediction`; issue 23's target 2 ms).
+* **Closed loop** (``loop_episode_s``, not with ``--quick``, needs SUMO) — whole 10 s ``merge``
+  episodes (:mod:`.loop`): ``pmp`` with and without the PMP screen (``loop_pmp_screen_to_pure``;
+  ``loop.same_numbers`` says whether the two episodes agree), ``qp``, ``free``.
 * **OSQP tuning** (not with ``--quick``) — what each OSQP setting buys on the equality QP:
   verified candidates, polish successes, iterations, recomputed KKT residuals, time.
 """
@@ -62,6 +65,7 @@ from iamp.planners.registry import Planner
 
 from .avoid import AvoidBounded
 from .casadi import CasadiFreeTime
+from .loop import LoopBench
 from .prediction import LeaderPredictionBench, PredictionBench
 
 #: IQR/median above which a measurement is flagged as taken on a busy machine.
@@ -195,6 +199,8 @@ class BenchJSON(TypedDict):
     avoid_grid_sweep_s: dict[str, float | None] | None
     prediction_leader_20_s: float
     prediction_ego_follower_s: float
+    loop_episode_s: dict[str, float] | None
+    loop: LoopBench | None
     avoid_bounded: AvoidBounded | NoAvoidBounded
     ratios: dict[str, float | None]
     versions: VersionsJSON
@@ -383,6 +389,22 @@ def osqp_tuning(problem: Problem) -> list[TuningRow]:
 # --------------------------------------------------------------------------------------
 
 
+def _loop(quick: bool, notes: list[str]) -> LoopBench | None:
+    """Whole closed-loop episodes (:mod:`.loop`): not with ``--quick``, and only with SUMO."""
+    if quick:
+        notes.append("closed-loop episodes: skipped with --quick")
+        return None
+    if importlib.util.find_spec("libsumo") is None:
+        notes.append("closed-loop episodes: skipped (needs iamp[sim])")
+        return None
+    from iamp.comparison.bench.loop import bench_loop
+
+    out = bench_loop(3)
+    if not out["same_numbers"]:
+        notes.append("closed loop: the pmp episode with the screen differs from the one without it")
+    return out
+
+
 def _busy(stats: dict[str, TimingStats]) -> list[str]:
     return [f"{k}: IQR/median = {s.iqr / s.median:.2f}" for k, s in stats.items()
             if s.n >= 3 and s.median > 0 and s.iqr / s.median > BUSY_SPREAD]
@@ -443,6 +465,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
 
     lead_pred = bench_leader_prediction(20 if quick else 100)
     ego_pred = bench_ego_follower(20 if quick else 100)
+    loop = _loop(quick, notes)
     tick(7)
 
     solve = {s: cand[s].backend.median for s in names}
@@ -471,6 +494,8 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     if casadi_bounded is not None:
         ratios["casadi_ipopt_bounded_warm_to_pmp_bounded_plan"] = casadi_bounded["warm_s"] / pmp_bounded
         ratios["casadi_ipopt_bounded_cold_to_pmp_bounded_plan"] = casadi_bounded["cold_s"] / pmp_bounded
+    if loop is not None:
+        ratios["loop_pmp_screen_to_pure"] = loop["loop_pmp_screen_to_pure"]
     avoid_osqp = avoid.get("osqp") if avoid is not None else None
     if avoid_osqp is not None and (avoid_osqp_s := avoid_osqp["median"]):
         ratios["avoid_osqp_sweep_to_equality_osqp_sweep"] = avoid_osqp_s / native["osqp"].median
@@ -511,6 +536,8 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "avoid_grid_sweep_s": None if avoid is None else {s: v.get("median") for s, v in avoid.items()},
         "prediction_leader_20_s": lead_pred["median"],
         "prediction_ego_follower_s": ego_pred["median"],
+        "loop_episode_s": None if loop is None else loop["episode_s"],
+        "loop": loop,
         "avoid_bounded": avoid_bounded if avoid_bounded is not None else NoAvoidBounded(),
         "ratios": ratios,
         "versions": ver,

@@ -81,6 +81,15 @@ def format_bench(out: BenchJSON) -> str:
                   f"({casb['iterations_warm']} it)",
                   f"    t1 = {casb['contact_time']:.6f} s, J = {casb['cost']:.6f} (discretised; bounded PMP plan "
                   f"{_fmt_s(out['pmp_plan_s'].get('one_vehicle_bounded')).strip()})"]
+    loop = out.get("loop")
+    if loop:
+        case = loop["case"]
+        lines += ["", f"  Closed loop, whole {case['duration_s']:g} s {case['mission']} episodes ({case['traffic']}, "
+                  f"seed {case['seed']}):"]
+        for k, v in loop["episode_s"].items():
+            lines.append(f"    {k:18s} {_fmt_s(v)}")
+        lines.append(f"    pmp screened / pure: {loop['loop_pmp_screen_to_pure']:.3f}; same numbers: "
+                     f"{'yes' if loop['same_numbers'] else 'NO'}")
     lines += ["", "targets:"]
     for k, t in out["targets"].items():
         val = f"{t['value']:8.0f} /s" if k.endswith("per_s") else _fmt_s(t["value"])

@@ -33,6 +33,7 @@ describes is.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Sequence
@@ -131,11 +132,31 @@ def polynomial_message(coeffs: Sequence[float], tf: float) -> str | None:
 
     Evaluated on a grid of :data:`POLY_GRID` points of ``[0, t_f]`` and at the real roots
     of ``ẋ_s`` in that interval, in double precision; an overflow counts as out of bounds.
+    The answer is a function of the coefficients, ``t_f`` and the two bounds only, and is
+    remembered for the last :data:`POLY_CACHE` of them (the closed loop builds many problems
+    with the same predicted vehicles).
     """
     c = np.asarray(coeffs, dtype=float)
     n_max = int(LIMITS["poly_max_terms"])
     if c.size > n_max:
         return f"has {c.size} coefficients; at most {n_max} are accepted (degree {n_max - 1})"
+    if c.ndim != 1:
+        return _polynomial_message(c, float(tf))
+    return _polynomial_message_cached(tuple(c.tolist()), float(tf), float(LIMITS["position_max_m"]),
+                                      float(LIMITS["speed_max_mps"]))
+
+
+#: How many ``(coefficients, t_f)`` answers :func:`polynomial_message` remembers.
+POLY_CACHE = 4096
+
+
+@functools.lru_cache(maxsize=POLY_CACHE)
+def _polynomial_message_cached(c: tuple[float, ...], tf: float, pmax: float, vmax: float) -> str | None:
+    # ``pmax``/``vmax`` are part of the key: the answer changes with LIMITS
+    return _polynomial_message(np.asarray(c, dtype=float), tf)
+
+
+def _polynomial_message(c: npt.NDArray[np.float64], tf: float) -> str | None:
     t = np.concatenate([np.linspace(0.0, tf, POLY_GRID), _stationary_points(c, tf)])
     with np.errstate(all="ignore"):
         dc = np.polynomial.polynomial.polyder(c) if c.size > 1 else np.zeros(1)

@@ -92,7 +92,12 @@ def poly_mul(A: FloatArray, B: FloatArray) -> FloatArray:
 
 def pad_coeffs(A: FloatArray, n: int) -> FloatArray:
     """``A`` with zero coefficients appended up to ``n`` columns (degree ``n − 1``)."""
-    return np.pad(A, ((0, 0), (0, n - A.shape[1])))
+    if n < A.shape[1]:
+        return np.pad(A, ((0, 0), (0, n - A.shape[1])))  # raises, as it always did
+    # np.pad's result (its memory order too), without its overhead
+    out = np.zeros((A.shape[0], n), dtype=A.dtype, order="F" if A.flags.fnc else "C")
+    out[:, :A.shape[1]] = A
+    return out
 
 
 def poly_deriv(A: FloatArray) -> FloatArray:

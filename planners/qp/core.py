@@ -210,8 +210,13 @@ class DiscretisedQP:
         return r
 
     def _result(self, nd: tuple[int, ...], sol: QPSolution, kkt: KKTResiduals | None,
-                backend_s: float) -> CandidateResult:
-        """The verified :class:`CandidateResult` of one solution (module docstring)."""
+                backend_s: float, unpacked: tuple[FloatArray, FloatArray, float, FloatArray] | None = None
+                ) -> CandidateResult:
+        """The verified :class:`CandidateResult` of one solution (module docstring).
+
+        ``unpacked``: ``(X, U, cost, ν)`` of ``sol`` computed for a family at once
+        (:func:`family_unpacked`: the same numbers as :meth:`QPData.unpack`,
+        :meth:`HoldTrajectory.cost` and :meth:`QPData.collision_multipliers`)."""
         d = self.data
         times = d.t_nodes[np.asarray(nd, dtype=np.int64)].copy()
         if kkt is not None:
@@ -224,10 +229,14 @@ class DiscretisedQP:
         if kkt is not None:
             r.z, r.y = sol.z, sol.y
         if status == st.OPTIMAL:
-            X, U = d.unpack(sol.z)
-            r.trajectory = HoldTrajectory(d.t_nodes.copy(), X, U, self.hold)
-            r.cost = r.trajectory.cost()
-            r.multipliers = d.collision_multipliers(sol.y)
+            if unpacked is None:
+                X, U = d.unpack(sol.z)
+                r.trajectory = HoldTrajectory(d.t_nodes.copy(), X, U, self.hold)
+                r.cost = r.trajectory.cost()
+            else:
+                r.trajectory = HoldTrajectory(d.t_nodes.copy(), unpacked[0], unpacked[1], self.hold)
+                r.cost = unpacked[2]
+            r.multipliers = d.collision_multipliers(sol.y) if unpacked is None else unpacked[3]
         return r
 
     def solve_many(self, candidates: Sequence[Sequence[int]]) -> list[CandidateResult]:
@@ -289,8 +298,48 @@ def family_residuals(d: QPData, Z: FloatArray, Y: FloatArray, cols: IntArray, B1
     sp_ = np.maximum(1.0, np.maximum(np.abs(Az).max(axis=1), np.abs(B).max(axis=1)))
     sd = np.maximum(1.0, np.maximum(np.abs(Pz).max(axis=1), np.abs(Aty).max(axis=1)))
     sg = np.maximum(1.0, np.maximum(np.abs(zPz), np.abs(by)))
-    return [KKTResiduals(float(a), float(b_), float(c), float(a / s1), float(b_ / s2), float(c / s3))
-            for a, b_, c, s1, s2, s3 in zip(rp, rd, rg, sp_, sd, sg, strict=True)]
+    # element-wise division of the arrays = the scalar divisions one by one; tolist() = float()
+    return [KKTResiduals(a, b_, c, a1, b1, c1) for a, b_, c, a1, b1, c1 in
+            zip(rp.tolist(), rd.tolist(), rg.tolist(), (rp / sp_).tolist(), (rd / sd).tolist(), (rg / sg).tolist(),
+                strict=True)]
+
+
+def family_unpacked(d: QPData, Z: FloatArray, hold: str, Y: FloatArray | None = None
+                    ) -> tuple[FloatArray, FloatArray, list[float], FloatArray | None]:
+    r""":meth:`QPData.unpack`, :meth:`HoldTrajectory.cost` and
+    :meth:`QPData.collision_multipliers` of every row of ``Z`` (``Y``) at once:
+    ``(X, U, costs, ν)`` with ``X[j], U[j] = d.unpack(Z[j])``, ``ν[j] =
+    d.collision_multipliers(Y[j])`` and ``costs[j]`` equal to ``HoldTrajectory(d.t_nodes,
+    X[j], U[j], hold).cost()`` **bit for bit**: the same element-wise operations, and each
+    candidate's ``2N`` terms summed as one contiguous row (numpy sums a contiguous row,
+    alone or as the last axis of a C-ordered block, with the same pairwise summation;
+    tested against the one-by-one cost)."""
+    nu = None if Y is None else Y[:, d.row_collision:].reshape(Y.shape[0], d.problem.m, 2).copy()
+    X = Z[:, d._X_idx]
+    U = Z[:, d._U_idx]
+    J = Z.shape[0]
+    h = np.diff(d.t_nodes)[:, None]
+    if hold == "zoh":
+        terms = np.ascontiguousarray(h * U**2).reshape(J, -1)
+        costs = (0.5 * terms.sum(axis=1)).tolist()
+    else:
+        u0, u1 = U[:, :-1], U[:, 1:]
+        terms = np.ascontiguousarray(h / 6 * (u0**2 + u0 * u1 + u1**2)).reshape(J, -1)
+        costs = terms.sum(axis=1).tolist()
+    return X, U, costs, nu
+
+
+def _checked_nodes(d: QPData, cands: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
+    """``[d.check_nodes(c) for c in cands]`` (tuples of ints), checked for all at once; an
+    invalid candidate raises :meth:`QPData.check_nodes`'s error."""
+    try:
+        K = np.asarray(cands, dtype=np.int64)
+    except (TypeError, ValueError):
+        K = np.zeros((0, 0), dtype=np.int64)
+    if K.ndim == 2 and K.shape == (len(cands), d.problem.m) and bool(np.all((K > 0) & (K < d.N))) and \
+            np.array_equal(K, np.asarray(cands, dtype=float)):
+        return [tuple(row) for row in K.tolist()]
+    return [d.check_nodes(c) for c in cands]
 
 
 def _solve_family(qp: DiscretisedQP, cands: list[Sequence[int]]) -> list[CandidateResult] | None:
@@ -308,7 +357,7 @@ def _solve_family(qp: DiscretisedQP, cands: list[Sequence[int]]) -> list[Candida
     out: list[CandidateResult] = []
     for c0 in range(0, len(cands), FAMILY_CHUNK):
         t0 = time.perf_counter()
-        chunk = [tuple(int(k) for k in d.check_nodes(c)) for c in cands[c0:c0 + FAMILY_CHUNK]]
+        chunk = _checked_nodes(d, cands[c0:c0 + FAMILY_CHUNK])
         K = np.asarray(chunk, dtype=np.int64)[:, veh]  # (J, 2m): node of each selector row
         ent = ent_of_pos[d._sel_pos[veh, axis, K - 1]]
         B1 = np.where(axis == 0, d._corner_x[veh, K], d._corner_y[veh])
@@ -319,9 +368,12 @@ def _solve_family(qp: DiscretisedQP, cands: list[Sequence[int]]) -> list[Candida
         Z, Y = fam
         tb = time.perf_counter() - t0
         kkts = family_residuals(d, Z, Y, cols, B1)
+        XA, UA, costs, NU = family_unpacked(d, Z, qp.hold, Y)
+        assert NU is not None
         share = tb / len(chunk)
         rs = [qp._result(nd, QPSolution(z=Z[j], y=Y[j], status=st.OPTIMAL, raw_status="solved", iterations=1,
-                                        solver_time_s=share, solve_call_s=share), kkts[j], share)
+                                        solver_time_s=share, solve_call_s=share), kkts[j], share,
+                         (XA[j], UA[j], costs[j], NU[j]))
               for j, nd in enumerate(chunk)]
         wall = (time.perf_counter() - t0) / len(chunk)
         for r in rs:
