@@ -20,6 +20,10 @@ def _stats(median: float, spread: float = 0.0):
     return summarize([median * (1 - spread)] * 2 + [median] + [median * (1 + spread)] * 2)
 
 
+FAKE_LEADER = {"median": 0.75e-3, "stats": _stats(0.75e-3).to_dict(), "vehicles": 20, "with_leader": 12}
+FAKE_EGO = {"median": 0.23e-3, "stats": _stats(0.23e-3).to_dict()}
+
+
 @pytest.fixture
 def fake(monkeypatch):
     per = {"osqp": 4e-4, "clarabel": 3e-4, "piqp": 2e-4, "kkt": 1e-4}
@@ -63,6 +67,12 @@ def fake(monkeypatch):
         "iterations_cold": 20, "iterations_warm": 5, "return_status": "Solve_Succeeded", "steps": 100,
         "variables": 605})
     monkeypatch.setattr(bench, "osqp_tuning", lambda problem: [])
+    # the prediction rows too: a real timing against issue 23's 2 ms target made this test depend on
+    # the machine's load (it failed once on a loaded host)
+    import iamp.comparison.bench.prediction as bench_prediction
+
+    monkeypatch.setattr(bench_prediction, "bench_leader_prediction", lambda repeats: FAKE_LEADER)
+    monkeypatch.setattr(bench_prediction, "bench_ego_follower", lambda repeats: FAKE_EGO)
     return per, sweep
 
 
@@ -109,3 +119,4 @@ def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     assert "CasADi Opti + IPOPT" in text and "MISSED" in text and "two vehicles (compiled search)" in text
     assert "Bounded avoidance" in text and "avoid_bounded_plan_fastest_s" in text
     assert r["pmp_two_vehicles_pure_to_compiled"] == 10.0
+    assert t["prediction_leader_20_s"] == {"value": 0.75e-3, "target": 2e-3, "op": "<=", "met": True}
