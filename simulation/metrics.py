@@ -26,6 +26,7 @@ during a lane change stay below a few degrees):
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -44,6 +45,51 @@ class StepLog:
     nb: list[np.ndarray] = field(default_factory=list)  # (n, 7): x, y, v, a, lane, length, width
 
 
+@dataclass(frozen=True)
+class StepGeometry:
+    """One logged step seen from the ego (module docstring): ``dx, dy`` to every neighbour, their
+    bodies ``L, W``, ``lat`` (bodies overlap laterally), ``over`` (bodies overlap: a contact),
+    ``gap`` bumper to bumper and ``closing`` speed of the ``lat`` neighbours."""
+
+    k: int
+    ids: tuple[str, ...]
+    nb: np.ndarray
+    dx: np.ndarray
+    dy: np.ndarray
+    L: np.ndarray
+    W: np.ndarray
+    lat: np.ndarray
+    over: np.ndarray
+    gap: np.ndarray
+    closing: np.ndarray
+
+    def ttc(self) -> float:
+        """The smallest ``gap / closing`` over the ``lat`` neighbours that close in faster than
+        0.1 m/s (``inf`` if none)."""
+        ok = self.closing > 0.1
+        if not ok.any():
+            return math.inf
+        return float(np.min(np.maximum(self.gap[self.lat][ok], 0.0) / self.closing[ok]))
+
+
+def step_geometry(log: StepLog, ego_size: tuple[float, float]) -> Iterator[StepGeometry]:
+    """:class:`StepGeometry` of every step with at least one neighbour, in order (shared by
+    :func:`episode_metrics` and :func:`iamp.simulation.monitor.monitor`)."""
+    Le, We = ego_size
+    E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
+    for k, (ids, nb) in enumerate(zip(log.ids, log.nb)):
+        if not ids:
+            continue
+        xe, vxe, ye = E[k, 0], E[k, 1], E[k, 2]
+        dx, dy = nb[:, 0] - xe, nb[:, 1] - ye
+        L, W = nb[:, 5], nb[:, 6]
+        lat = np.abs(dy) < (We + W) / 2
+        over = lat & (np.abs(dx) < (Le + L) / 2)
+        gap = np.abs(dx) - (Le + L) / 2
+        closing = np.where(dx[lat] > 0, vxe - nb[lat, 2], nb[lat, 2] - vxe)
+        yield StepGeometry(k, ids, nb, dx, dy, L, W, lat, over, gap, closing)
+
+
 def percentile_stats(values: list[float]) -> dict[str, float | None]:
     if not values:
         return {"p50": None, "p95": None, "max": None}
@@ -58,34 +104,22 @@ def _rms(a: np.ndarray) -> float:
 def episode_metrics(log: StepLog, dt: float, ego_size: tuple[float, float], safety: tuple[float, float],
                     sumo_collisions: list[tuple[float, str, str]]) -> dict[str, Any]:
     """The safety and comfort numbers of SPEC §11 (plus a few more) from a step log."""
-    Le, We = ego_size
     Sx, Sy = safety
     overlapped: set[str] = set()
     intr_steps = 0
     min_gap, min_ttc, min_follower_a = math.inf, math.inf, math.inf
     E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
-    for k, (ids, nb) in enumerate(zip(log.ids, log.nb)):
-        if not ids:
-            continue
-        xe, vxe, ye = E[k, 0], E[k, 1], E[k, 2]
-        dx, dy = nb[:, 0] - xe, nb[:, 1] - ye
-        L, W = nb[:, 5], nb[:, 6]
-        lat = np.abs(dy) < (We + W) / 2
-        over = lat & (np.abs(dx) < (Le + L) / 2)
-        for j in np.flatnonzero(over):
-            overlapped.add(ids[j])
-        if np.any((np.abs(dx) < L / 2 + Sx - 1e-3) & (np.abs(dy) < W / 2 + Sy - 1e-3)):
+    for g in step_geometry(log, ego_size):
+        for j in np.flatnonzero(g.over):
+            overlapped.add(g.ids[j])
+        if np.any((np.abs(g.dx) < g.L / 2 + Sx - 1e-3) & (np.abs(g.dy) < g.W / 2 + Sy - 1e-3)):
             intr_steps += 1
-        if lat.any():
-            gap = np.abs(dx[lat]) - (Le + L[lat]) / 2
-            min_gap = min(min_gap, float(gap.min()))
-            closing = np.where(dx[lat] > 0, vxe - nb[lat, 2], nb[lat, 2] - vxe)
-            ok = closing > 0.1
-            if ok.any():
-                min_ttc = min(min_ttc, float(np.min(np.maximum(gap[ok], 0.0) / closing[ok])))
-            behind = (dx[lat] < 0) & (dx[lat] > -50.0)
+        if g.lat.any():
+            min_gap = min(min_gap, float(g.gap[g.lat].min()))
+            min_ttc = min(min_ttc, g.ttc())
+            behind = (g.dx[g.lat] < 0) & (g.dx[g.lat] > -50.0)
             if behind.any():
-                min_follower_a = min(min_follower_a, float(nb[lat, 3][behind].min()))
+                min_follower_a = min(min_follower_a, float(g.nb[g.lat, 3][behind].min()))
     sumo_ids = {other for _, other, _ in sumo_collisions}
     x, y = E[:, 0], E[:, 2]
     ax, ay = np.diff(x, 2) / dt**2, np.diff(y, 2) / dt**2

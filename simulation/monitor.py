@@ -37,7 +37,7 @@ import numpy as np
 
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.simulation.decision import limit_violations_of
-from iamp.simulation.metrics import StepLog
+from iamp.simulation.metrics import StepLog, step_geometry
 
 #: SUMO's minGap of the ego and the average driver [m].
 MIN_GAP_M = 2.5
@@ -61,32 +61,21 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
             sumo_collisions: Sequence[tuple[float, str, str]], limits: PhysicalLimits = PASSENGER_CAR,
             lookback_s: float = 5.0) -> dict[str, Any]:
     """The §15 measures of an executed episode (module docstring)."""
-    Le, We = ego_size
+    Le = ego_size[0]
     E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
     T = np.asarray(log.t, dtype=float)
     touched: set[str] = set()
     close: set[str] = set()
     min_ttc, ttc_steps = math.inf, 0
-    for k, (ids, nb) in enumerate(zip(log.ids, log.nb)):
-        if not ids:
-            continue
-        xe, vxe, ye = E[k, 0], E[k, 1], E[k, 2]
-        dx, dy = nb[:, 0] - xe, nb[:, 1] - ye
-        L, W = nb[:, 5], nb[:, 6]
-        lat = np.abs(dy) < (We + W) / 2
-        over = lat & (np.abs(dx) < (Le + L) / 2)
-        for j in np.flatnonzero(over):
-            touched.add(ids[j])
-        gap = np.abs(dx) - (Le + L) / 2
-        for j in np.flatnonzero(lat & ~over & (gap < MIN_GAP_M)):
-            close.add(ids[j])
-        if lat.any():
-            closing = np.where(dx[lat] > 0, vxe - nb[lat, 2], nb[lat, 2] - vxe)
-            ok = closing > 0.1
-            if ok.any():
-                ttc = float(np.min(np.maximum(gap[lat][ok], 0.0) / closing[ok]))
-                min_ttc = min(min_ttc, ttc)
-                ttc_steps += ttc < TTC_ALARM_S
+    for g in step_geometry(log, ego_size):
+        for j in np.flatnonzero(g.over):
+            touched.add(g.ids[j])
+        for j in np.flatnonzero(g.lat & ~g.over & (g.gap < MIN_GAP_M)):
+            close.add(g.ids[j])
+        ttc = g.ttc()
+        if math.isfinite(ttc):
+            min_ttc = min(min_ttc, ttc)
+            ttc_steps += ttc < TTC_ALARM_S
     contacts = touched | {other for _, other, _ in sumo_collisions}
     close -= contacts
 
