@@ -337,6 +337,85 @@ def test_lane_change_problem_corners_follow_the_paper_and_cover_the_target_leade
     assert isinstance(prob, EgoBoundary)
 
 
+def _gap_bounds(ego, gap, T):
+    """Where the ego's centre may end in ``gap`` after ``T`` (bodies touching, no headway)."""
+    lo = -np.inf if gap.follower is None else gap.follower.x(T) + (gap.follower.length + ego.length) / 2
+    hi = np.inf if gap.leader is None else gap.leader.x(T) - (gap.leader.length + ego.length) / 2
+    return lo, hi
+
+
+@settings(max_examples=60, deadline=None)
+@given(xf=st.floats(-60, 20), xl=st.floats(25, 80), vf=st.floats(15, 35), vl=st.floats(15, 35),
+       Lf=st.floats(3.0, 18.0), Ll=st.floats(3.0, 18.0), v0=st.floats(15, 35))
+def test_end_state_keeps_the_headway_to_both_bodies_or_takes_the_middle(xf, xl, vf, vl, Lf, Ll, v0):
+    """Independent form: with lo/hi the centre positions where the bodies touch, the end point is
+    the constant-acceleration point clipped into [lo + h, hi - h] (h = headway x end speed) when the
+    gap holds both headways, else the middle of [lo, hi]."""
+    cfg = DecisionConfig()
+    ego = EgoNow(0.0, v0, 0.0, 0.0)
+    f = Neighbour("f", (xf, vf, 0.0, 0.0), 3.5, Lf, 2.0, 1)
+    l_ = Neighbour("l", (xl, vl, 0.0, 0.0), 3.5, Ll, 2.0, 1)
+    T = cfg.horizon_s
+    x, v = end_state(ego, Gap(f, l_), cfg, T)
+    lo, hi = _gap_bounds(ego, Gap(f, l_), T)
+    h = cfg.headway_s * v
+    if hi - lo >= 2 * h:
+        assert lo + h - 1e-9 <= x <= hi - h + 1e-9
+        assert x == pytest.approx(min(max((v0 + v) * T / 2, lo + h), hi - h), abs=1e-9)
+    else:
+        assert x == pytest.approx((lo + hi) / 2, abs=1e-9)
+
+
+def test_candidate_gaps_score_the_end_point_against_the_bodies():
+    """A gap scores 0 when the ego's constant-speed end point lies between the touching positions
+    of its vehicles' bodies; long bodies shrink a gap until the next one is nearer."""
+    cfg = DecisionConfig(max_gaps=3)
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)  # end point 100 m
+    # a (short) ends at 100 - 10 = 90 and b at 100 + 8 = 108: with 4.8 m bodies (a, b) holds 100
+    short = [Neighbour("a", (-10.0, 20.0), 3.5, 4.8, 1.8, 1), Neighbour("b", (8.0, 20.0), 3.5, 4.8, 1.8, 1)]
+    g = candidate_gaps(ego, short, cfg)[0]
+    assert (g.follower.name, g.leader.name) == ("a", "b")
+    # the bodies set the other scores: (None, a) ends at a's rear 90 - La/2 - 2.4, (b, None) starts at
+    # b's front 108 + Lb/2 + 2.4; a 14 m truck as b puts (None, a) second (14.8 < 17.4), as a it puts
+    # (b, None) second (13.4 < 19.4)
+    def order(La, Lb):
+        cars = [Neighbour("a", (-10.0, 20.0), 3.5, La, 1.8, 1), Neighbour("b", (8.0, 20.0), 3.5, Lb, 1.8, 1)]
+        return [(g.follower.name if g.follower else None, g.leader.name if g.leader else None)
+                for g in candidate_gaps(ego, cars, cfg)]
+
+    assert order(4.8, 14.0) == [("a", "b"), (None, "a"), ("b", None)]
+    assert order(14.0, 4.8) == [("a", "b"), ("b", None), (None, "a")]
+    # vehicles beyond relevant_m are not gap bounds
+    far = [*short, Neighbour("z", (cfg.relevant_m + 1.0, 20.0), 3.5, 4.8, 1.8, 1)]
+    assert all(n is None or n.name != "z" for g in candidate_gaps(ego, far, cfg) for n in (g.follower, g.leader))
+
+
+@pytest.mark.parametrize("x_leader, expected", [(7.0, 7.0 - 2.25 - 0.5), (2.6, 0.0), (30.0, None)])
+def test_a_close_current_leader_keeps_a_smaller_safety_distance_to_what_is_left(x_leader, expected):
+    """The current-lane leader closer than ``safety_x`` (bumper gap ``x_l - L_l/2 - x_e``) gets the
+    safety distance ``max(gap - 0.5, 0)``, in the plan's problem and in the §9 check, so that the
+    start is not already inside its region; farther it keeps ``safety_x``."""
+    cfg = DecisionConfig()
+    ego = EgoNow(0.0, 25.0, 0.0, 0.0)
+    c = Neighbour("c", (x_leader, 25.0, 0.0, 0.0), 0.0, 4.5, 1.8, 0)
+    prob = lane_change_problem(ego, 3.5, Gap(None, None), c, cfg, 5.0)
+    assert isinstance(prob, Problem)
+    want = cfg.safety_x if expected is None else expected
+    assert prob.vehicles[0].safety_x == pytest.approx(want)
+    chk = check_problem(prob.ego, ego, [c], [0, 1], cfg)
+    assert chk is not None and chk.vehicles[0].safety_x == pytest.approx(want)
+
+
+def test_check_times_cover_the_horizon_every_dt_and_both_ends():
+    from iamp.simulation.decision import check_times
+
+    for tf, dt in [(5.0, 0.01), (3.3, 0.1), (0.004, 0.01), (7.0, 0.3)]:
+        t = check_times(tf, dt)
+        assert t[0] == 0.0 and t[-1] == tf
+        assert np.max(np.diff(t)) <= dt + 1e-12
+        assert len(t) == max(int(np.ceil(tf / dt)), 1) + 1 and len(t) >= 2
+
+
 def test_end_speed_is_reachable_within_the_limits_and_the_check_holds_at_most_eight():
     cfg = DecisionConfig()
     ax = cfg.limits.ax
