@@ -385,12 +385,16 @@ def test_candidate_gaps_score_the_end_point_against_the_bodies():
 
     assert order(4.8, 14.0) == [("a", "b"), (None, "a"), ("b", None)]
     assert order(14.0, 4.8) == [("a", "b"), ("b", None), (None, "a")]
+    # an 11 m b: (b, None) at 8 + 5.5 + 2.4 = 15.9 against (None, a) at 14.8; the ego's half length is
+    # in both scores, dropping it from one side would swap them
+    assert order(4.8, 11.0) == [("a", "b"), (None, "a"), ("b", None)]
     # vehicles beyond relevant_m are not gap bounds
     far = [*short, Neighbour("z", (cfg.relevant_m + 1.0, 20.0), 3.5, 4.8, 1.8, 1)]
     assert all(n is None or n.name != "z" for g in candidate_gaps(ego, far, cfg) for n in (g.follower, g.leader))
 
 
-@pytest.mark.parametrize("x_leader, expected", [(7.0, 7.0 - 2.25 - 0.5), (2.6, 0.0), (30.0, None)])
+@pytest.mark.parametrize("x_leader, expected", [(7.0, 7.0 - 2.25 - 0.5), (2.6, 0.0), (30.0, None),
+                                                (7.25, None)])  # a bumper gap of exactly safety_x keeps it
 def test_a_close_current_leader_keeps_a_smaller_safety_distance_to_what_is_left(x_leader, expected):
     """The current-lane leader closer than ``safety_x`` (bumper gap ``x_l - L_l/2 - x_e``) gets the
     safety distance ``max(gap - 0.5, 0)``, in the plan's problem and in the §9 check, so that the
@@ -404,6 +408,34 @@ def test_a_close_current_leader_keeps_a_smaller_safety_distance_to_what_is_left(
     assert prob.vehicles[0].safety_x == pytest.approx(want)
     chk = check_problem(prob.ego, ego, [c], [0, 1], cfg)
     assert chk is not None and chk.vehicles[0].safety_x == pytest.approx(want)
+
+
+def test_the_check_takes_the_neighbours_within_relevant_m_now():
+    """The §9 check's neighbours are those within ``relevant_m`` of the ego *now* (t = 0), in the
+    given lanes."""
+    cfg = DecisionConfig()
+    ego = EgoNow(0.0, 25.0, 0.0, 0.0)
+    inside = Neighbour("in", (cfg.relevant_m - 0.5, 25.0, 0.0, 0.0), 3.5, 4.5, 1.8, 1)  # beyond it after 0.02 s
+    outside = Neighbour("out", (-(cfg.relevant_m + 0.5), 30.0, 0.0, 0.0), 3.5, 4.5, 1.8, 1)
+    other_lane = Neighbour("x", (10.0, 25.0, 0.0, 0.0), 7.0, 4.5, 1.8, 2)
+    chk = check_problem(EgoBoundary(tf=5.0, x0=0.0, y0=0.0, vx0=25.0, vy0=0.0, xf=125.0, yf=3.5, vxf=25.0, vyf=0.0),
+                        ego, [inside, outside, other_lane], [0, 1], cfg)
+    assert chk is not None and [v.name for v in chk.vehicles] == ["in"]
+
+
+def test_limit_samples_break_a_bound_only_beyond_its_tolerance():
+    lim = PASSENGER_CAR
+    assert lim.ax is not None
+    z = np.zeros(3)
+    for k, name in ((0, "ax"), (1, "ay")):
+        rng = getattr(lim, name)
+        for edge, sign in ((rng[0], -1.0), (rng[1], 1.0)):
+            within, beyond = z.copy(), z.copy()
+            within[1], beyond[1] = edge + sign * 0.5e-6, edge + sign * 2e-6
+            args_in = [within, z, np.full(3, 20.0)] if k == 0 else [z, within, np.full(3, 20.0)]
+            args_out = [beyond, z, np.full(3, 20.0)] if k == 0 else [z, beyond, np.full(3, 20.0)]
+            assert name not in limit_violations_of(*args_in, lim)
+            assert name in limit_violations_of(*args_out, lim)
 
 
 def test_check_times_cover_the_horizon_every_dt_and_both_ends():
