@@ -3,18 +3,8 @@ r"""The exact continuous-time trajectory of a discretised-QP solution, and align
 The trajectory class, :class:`~iamp.core.hold_trajectory.HoldTrajectory`, lives in the core
 (which evaluates it for the safety report, the peaks and the samples) and is re-exported here.
 
-On a grid :math:`0 = t_0 < \dots < t_N = t_f` with steps :math:`h_k = t_{k+1} - t_k`, the
-input is held per interval: ZOH, :math:`u(t) = u_k`; FOH,
-:math:`u(t) = u_k + (u_{k+1} - u_k)(t - t_k)/h_k`.  Integrating the double integrator
-exactly from the nodal state :math:`(s_k, v_k)` gives, with :math:`\delta = t - t_k`,
-
-* ZOH: :math:`v = v_k + u_k\delta`, :math:`s = s_k + v_k\delta + u_k\delta^2/2`;
-* FOH: :math:`v = v_k + u_k\delta + \dot u\,\delta^2/2`,
-  :math:`s = s_k + v_k\delta + u_k\delta^2/2 + \dot u\,\delta^3/6`,
-  :math:`\dot u = (u_{k+1} - u_k)/h_k`,
-
-and the cost :math:`J = \tfrac12\int |u|^2` exactly: ZOH :math:`\tfrac12\sum_k h_k u_k^2`,
-FOH :math:`\sum_k \tfrac{h_k}{6}(u_k^2 + u_k u_{k+1} + u_{k+1}^2)`.
+The held-input equations (ZOH, FOH) and the exact cost are written out in
+:mod:`iamp.core.hold_trajectory`.
 """
 
 from __future__ import annotations
