@@ -29,6 +29,11 @@ How to add a planner (one entry; nothing else to edit)
            summary="PMP with the physical limits of Problem.limits",   # one line of --planner help
        ))
 
+   Optionally ``run="iamp.planners.<pkg>.planner:plan_with"``: a function ``(options, problem,
+   **kwargs) -> Plan`` in the planner's module that builds the planner and plans in one call
+   (what :func:`prepare`, the CLI's one call into the registry, hands out; without it,
+   ``factory(options).plan``).
+
    A variant of an existing family with another constraint kind shares ``planner`` and differs
    in ``constraint`` (as ``qp``/``qp-avoid``: ``--planner qp --constraint avoid``).  A planner
    that lives above the planners layer (a closed-loop baseline in ``simulation/``) calls
@@ -57,6 +62,8 @@ name          planner   constraint  planner class
 from __future__ import annotations
 
 import dataclasses
+import functools
+import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
@@ -108,6 +115,12 @@ class PlannerSpec:
         ``factory(options) -> Planner``.
     summary : str
         One line for the CLI help.
+    run : str
+        Optional ``"module:function"``: a function ``(options, problem, **kwargs) -> Plan`` in the
+        planner's own module that builds the planner and plans in one call, so that a front end
+        (:func:`prepare`) enters the planner's module once; empty: ``factory(options).plan``.
+    fields : tuple of str
+        The names of the options' fields (computed on construction; :meth:`option_names`).
     """
 
     name: str
@@ -116,10 +129,17 @@ class PlannerSpec:
     options: type[Any]
     factory: Callable[[Any], Planner]
     summary: str = ""
+    run: str = ""
+    fields: tuple[str, ...] = dataclasses.field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not dataclasses.is_dataclass(self.options):
+            raise TypeError(f"options of planner {self.name!r} must be a dataclass")
+        object.__setattr__(self, "fields", tuple(f.name for f in dataclasses.fields(self.options)))
 
     def option_names(self) -> tuple[str, ...]:
         """The fields of the options dataclass."""
-        return tuple(f.name for f in dataclasses.fields(self.options))
+        return self.fields
 
     def make_options(self, **values: Any) -> Any:
         """The options with ``values`` (``None`` means: the default); unknown names are refused."""
@@ -142,17 +162,24 @@ class PlannerSpec:
 #: name -> entry, in registration order.
 REGISTRY: dict[str, PlannerSpec] = {}
 
+#: The options marked with :func:`option` over every entry (the first entry's field wins), kept by
+#: :func:`register`: what :func:`cli_options` returns, readable without a call.
+CLI_OPTIONS: dict[str, dataclasses.Field[Any]] = {}
+
 
 def register(spec: PlannerSpec, *, replace: bool = False) -> PlannerSpec:
     """Add ``spec`` to the registry (a name may be registered once unless ``replace``)."""
-    if not dataclasses.is_dataclass(spec.options):
-        raise TypeError(f"options of planner {spec.name!r} must be a dataclass")
     if spec.name in REGISTRY and not replace:
         raise ValueError(f"planner {spec.name!r} is already registered")
     if not replace and any(s.planner == spec.planner and s.constraint == spec.constraint
                            for s in REGISTRY.values()):
         raise ValueError(f"planner {spec.planner!r} with constraint {spec.constraint!r} is already registered")
     REGISTRY[spec.name] = spec
+    CLI_OPTIONS.clear()
+    for entry in REGISTRY.values():
+        for f in dataclasses.fields(entry.options):
+            if "cli" in f.metadata:
+                CLI_OPTIONS.setdefault(f.name, f)
     return spec
 
 
@@ -213,17 +240,29 @@ def option(default: Any, *, cli: str = "", choices: tuple[str, ...] | None = Non
 def cli_options() -> dict[str, dataclasses.Field[Any]]:
     """The options marked with :func:`option` over every entry (the first entry's field wins):
     the CLI adds ``--NAME`` for each one it does not already define."""
-    out: dict[str, dataclasses.Field[Any]] = {}
-    for spec in REGISTRY.values():
-        for f in dataclasses.fields(spec.options):
-            if "cli" in f.metadata:
-                out.setdefault(f.name, f)
-    return out
+    return dict(CLI_OPTIONS)
 
 
 def make_planner(name: str, options: Any = None, **values: Any) -> Planner:
     """``get(name).make(options, **values)``: a planner by registry name."""
     return get(name).make(options, **values)
+
+
+def prepare(planner: str, constraint: str, values: Mapping[str, Any]) -> Callable[..., Plan]:
+    """``plan(problem, **kwargs) -> Plan`` of the entry ``planner``/``constraint`` with the option
+    ``values`` it accepts (the others are left out; ``None``: the default), the options validated
+    now (:class:`OptionError`).
+
+    One call for a front end: the entry's ``run`` function (see :class:`PlannerSpec`) builds the
+    planner and plans when the returned callable is called, so the planner's module is entered once
+    (``scripts/walk.py``); without one, ``factory(options).plan``.
+    """
+    spec = lookup(planner, constraint)
+    options = spec.make_options(**options_of(spec, values))
+    if not spec.run:
+        return spec.factory(options).plan
+    module, function = spec.run.split(":")
+    return functools.partial(getattr(importlib.import_module(module), function), options)
 
 
 def accepting(option: str) -> tuple[str, ...]:
@@ -240,23 +279,19 @@ def options_of(spec: PlannerSpec, values: Mapping[str, Any]) -> dict[str, Any]:
 def _pmp(o: PMPOptions) -> PMPPlanner:
     from .pmp.planner import PMPPlanner
 
-    return PMPPlanner(max_starts=o.max_starts, max_boxes=o.max_boxes, compiled=o.compiled, diagnostics=o.diagnostics,
-                      certify_bounded=o.certify_bounded)
+    return PMPPlanner.from_options(o)
 
 
 def _qp(o: QPOptions) -> QPPlanner:
     from .qp.planner import QPPlanner
 
-    return QPPlanner(steps=o.steps, hold=o.hold, solver=o.solver, contact=o.contact, solver_settings=o.solver_settings,
-                     limits_between=o.limits_between)
+    return QPPlanner.from_options(o)
 
 
 def _avoid(o: AvoidOptions) -> AvoidQPPlanner:
     from .avoid.planner import AvoidQPPlanner
 
-    return AvoidQPPlanner(steps=o.steps, hold=o.hold, solver=o.solver, contact=o.contact,
-                          solver_settings=o.solver_settings, safety=o.safety, max_solves=o.max_solves,
-                          time_limit_s=o.time_limit_s)
+    return AvoidQPPlanner.from_options(o)
 
 
 def _pmp_active(o: PMPOptions) -> ActiveSetPlanner:
@@ -268,15 +303,18 @@ def _qp_active(o: QPOptions) -> ActiveSetPlanner:
 
 
 register(PlannerSpec("pmp", "pmp", "equality", PMPOptions, _pmp,
-                     "the indirect method (PMP, jump conditions, global contact times)"))
+                     "the indirect method (PMP, jump conditions, global contact times)",
+                     run="iamp.planners.pmp.planner:plan_with"))
 register(PlannerSpec("qp", "qp", "equality", QPOptions, _qp,
-                     "the discretised QP with a search over grid contact times"))
+                     "the discretised QP with a search over grid contact times",
+                     run="iamp.planners.qp.planner:plan_with"))
 register(PlannerSpec("qp-avoid", "qp", "avoid", AvoidOptions, _avoid,
-                     "the avoidance QP: the ego stays out of every safety region"))
+                     "the avoidance QP: the ego stays out of every safety region",
+                     run="iamp.planners.avoid.planner:plan_with"))
 register(PlannerSpec("pmp-active", "pmp", "active", PMPOptions, _pmp_active,
                      "the paper's equality only on the vehicles in the way, chosen by the jump's sign (SPEC §14)"))
 register(PlannerSpec("qp-active", "qp", "active", QPOptions, _qp_active,
                      "the equality QP with the corner imposed only on the vehicles in the way (SPEC §14)"))
 
-__all__ = ["REGISTRY", "Planner", "PlannerSpec", "accepting", "cli_options", "constraints", "get", "lookup",
-           "make_planner", "names", "option", "options_of", "planners", "register", "solvers"]
+__all__ = ["CLI_OPTIONS", "REGISTRY", "Planner", "PlannerSpec", "accepting", "cli_options", "constraints", "get",
+           "lookup", "make_planner", "names", "option", "options_of", "planners", "prepare", "register", "solvers"]

@@ -68,6 +68,8 @@ class StackWalk:
     returns: list[tuple[str, str, str]] = field(default_factory=list)  # (module, function, caller module)
     upward: Counter[tuple[str, str]] = field(default_factory=Counter)  # (caller, callee.function) -> calls
     stretches: Counter[str] = field(default_factory=Counter)  # module -> contiguous stretches on the stack
+    plan_made: int | None = None  # len(returns) when the planner handed its Plan up (None: not yet)
+    planning_from: int | None = None  # len(returns) at the first call into the planners layer
     _stack: list[str | None] = field(default_factory=list)
     _active: Counter[str] = field(default_factory=Counter)
 
@@ -77,6 +79,8 @@ class StackWalk:
 
     def call(self, module: str | None, function: str = "") -> None:
         if module is not None:
+            if self.planning_from is None and layer(module) == "planners":
+                self.planning_from = len(self.returns)
             caller = self.caller()
             if self._active[module] == 0:
                 self.stretches[module] += 1
@@ -97,7 +101,10 @@ class StackWalk:
             self._active[module] -= 1
 
     def summary(self) -> dict[str, Any]:
-        return {"modules": len(self.entered), "returns": len(self.returns),
+        made = len(self.returns) if self.plan_made is None else self.plan_made
+        loading = made if self.planning_from is None else min(self.planning_from, made)
+        return {"modules": len(self.entered), "returns": len(self.returns), "returns_to_plan": made,
+                "returns_loading": loading, "returns_planning": made - loading,
                 "upward_calls": sum(self.upward.values()),
                 "returned_to": dict(Counter(m for m, _, _ in self.returns).most_common()),
                 "upward": {f"{a} -> {b}": n for (a, b), n in sorted(self.upward.items())}}
@@ -122,6 +129,19 @@ class StopWalk:
         return {"stops": len(self.stops), "modules": len(seen), "back": back}
 
 
+def _hands_up_plan(frame: Any, value: Any) -> bool:
+    """Whether ``frame`` (a planners-layer frame) returns a ``Plan`` to a caller outside the planners
+    layer: the moment the walk reaches its Plan (what follows is the output of it)."""
+    from iamp.core.plan import Plan
+
+    if not isinstance(value, Plan) or not frame.f_globals.get("__name__", "").startswith("iamp.planners."):
+        return False
+    back = frame.f_back
+    while back is not None and not back.f_globals.get("__name__", "").startswith("iamp."):
+        back = back.f_back
+    return back is None or not back.f_globals.get("__name__", "").startswith("iamp.planners.")
+
+
 @contextmanager
 def traced(stack: StackWalk, stops: StopWalk) -> Iterator[None]:
     """Feed both metrics from ``sys.setprofile`` while the block runs."""
@@ -134,6 +154,8 @@ def traced(stack: StackWalk, stops: StopWalk) -> Iterator[None]:
             stops.call(module)
         elif event == "return":
             stack.ret()
+            if stack.plan_made is None and _hands_up_plan(frame, arg):
+                stack.plan_made = len(stack.returns)
 
     sys.setprofile(prof)
     try:
@@ -188,10 +210,13 @@ def table(as_json: bool, whole: bool = False) -> int:
     if as_json:
         print(json.dumps(rows, indent=1))
         return 0
-    print(f"{'iamp plan S --json':28s} {'stops':>6s} {'back':>5s} {'modules':>8s} {'returns':>8s} {'upward':>7s}")
+    print(f"{'iamp plan S --json':28s} {'stops':>6s} {'back':>5s} {'modules':>8s} {'returns':>8s} {'loading':>8s} "
+          f"{'planning':>9s} {'output':>7s} {'upward':>7s}")
     for r in rows:
         print(f"{r['scenario'] + ' --planner ' + r['planner']:28s} {r['stop']['stops']:6d} {r['stop']['back']:5d} "
-              f"{r['stack']['modules']:8d} {r['stack']['returns']:8d} {r['stack']['upward_calls']:7d}")
+              f"{r['stack']['modules']:8d} {r['stack']['returns']:8d} {r['stack']['returns_loading']:8d} "
+              f"{r['stack']['returns_planning']:9d} {r['stack']['returns'] - r['stack']['returns_to_plan']:7d} "
+              f"{r['stack']['upward_calls']:7d}")
     return 0
 
 
@@ -217,15 +242,18 @@ def main(argv: list[str]) -> int:
         for k, s in enumerate(stops.stops):
             print(f"{k:3d} {'back ' if s in seen else '     '}{layer(s):11s} {s}")
             seen.add(s)
-        for module, function, caller in stack.returns:
-            print(f"return (entered again after it was left): {module}.{function} from {caller}")
+        for k, (module, function, caller) in enumerate(stack.returns):
+            when = ("loading" if stack.planning_from is None or k < stack.planning_from else
+                    "planning" if stack.plan_made is None or k < stack.plan_made else "output")
+            print(f"return ({when}; entered again after it was left): {module}.{function} from {caller}")
         for (caller, callee), n in sorted(stack.upward.items()):
             print(f"upward call (a callback, not an import): {caller} -> {callee} x{n}")
     s, k = stops.summary(), stack.summary()
     print(f"stop metric: {s['stops']} stops in {s['modules']} modules, {s['back']} of them back into a module "
           "entered before")
     print(f"stack metric: {k['modules']} modules, {k['returns']} returns into a module already left, "
-          f"{k['upward_calls']} upward calls")
+          f"{k['returns_loading']} loading the scenario, {k['returns_planning']} from the planner's selection to the "
+          f"Plan, {k['returns'] - k['returns_to_plan']} in the output; {k['upward_calls']} upward calls")
     return 0
 
 

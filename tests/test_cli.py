@@ -158,7 +158,7 @@ def test_solver_failure_exits_3_without_a_cost(monkeypatch, capsys):
             planner.solver_settings = {"max_iter": 2, "polishing": False, "eps_abs": 1e-12}
         return planner
 
-    monkeypatch.setattr(cli_plan, "make_planner", loose)
+    monkeypatch.setattr(cli_plan, "prepared_plan", lambda args: loose(args).plan)
     code = cli.main(["plan", "paper-1-poly", "--planner", "qp", "--solver", "osqp", "--steps", "10", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert code == 3

@@ -330,7 +330,7 @@ def test_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypatch)
     def bug(args):
         raise KeyError("oops")
 
-    monkeypatch.setattr(cli_plan, "make_planner", bug)
+    monkeypatch.setattr(cli_plan, "prepared_plan", bug)
     code, _, err = run("plan", "paper-1-poly")
     assert code == 1 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert "internal error" in err and "--debug" in err
@@ -344,7 +344,7 @@ def test_ctrl_c_is_exit_130_in_one_line(monkeypatch):
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli_plan, "make_planner", interrupted)
+    monkeypatch.setattr(cli_plan, "prepared_plan", interrupted)
     code, _out, err = run("plan", "paper-1-poly")
     assert code == 130 and err.strip() == "iamp: interrupted"
 

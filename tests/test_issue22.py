@@ -204,7 +204,7 @@ def local_planner(monkeypatch: pytest.MonkeyPatch) -> None:
     import iamp.cli.plan as plan_cli
     from iamp.planners.pmp import PMPPlanner
 
-    monkeypatch.setattr(plan_cli, "make_planner", lambda args: PMPPlanner(max_boxes=1))
+    monkeypatch.setattr(plan_cli, "prepared_plan", lambda args: PMPPlanner(max_boxes=1).plan)
 
 
 def test_item8_local_plan_exits_3_with_its_cost_in_json_and_text(capsys, local_planner):
@@ -229,7 +229,7 @@ def test_item8_failed_plan_exits_3_with_cost_null(capsys, monkeypatch):
         def plan(self, problem: object) -> None:
             raise SolverError("diverged", "numerical_error")
 
-    monkeypatch.setattr(plan_cli, "make_planner", lambda args: Failing())
+    monkeypatch.setattr(plan_cli, "prepared_plan", lambda args: Failing().plan)
     code, out, _ = run_main(["plan", "paper-1-poly", "--json"], capsys)
     assert code == 3 and json.loads(out)["cost"] is None
     code, text, _ = run_main(["plan", "paper-1-poly"], capsys)

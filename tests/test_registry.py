@@ -124,6 +124,7 @@ def test_registering_a_planner_is_one_entry_and_reaches_api_and_cli(one, monkeyp
             return registry.make_planner("pmp").plan(problem)
 
     monkeypatch.setattr(registry, "REGISTRY", dict(registry.REGISTRY))
+    monkeypatch.setattr(registry, "CLI_OPTIONS", dict(registry.CLI_OPTIONS))  # register() keeps both
     registry.register(registry.PlannerSpec("toy", "toy", "equality", ScaledOptions, Shifted, "a toy"))
     assert "toy" in registry.planners() and "toy" in _choices(_parser(), "--planner")
     assert isinstance(registry.make_planner("toy"), registry.Planner)
@@ -166,3 +167,46 @@ def test_the_closed_loop_and_the_comparison_build_their_planners_from_the_regist
     assert made == ["pmp", "qp", "qp-avoid", "pmp-active", "qp"]
     with pytest.raises(iamp.IampError, match="unknown planner"):
         planning.make_planner("nope")
+
+
+def _same_plan(a, b) -> None:
+    assert a.status == b.status and a.planner == b.planner
+    assert a.cost == b.cost  # the same arithmetic: bit for bit
+    np.testing.assert_array_equal(a.contact_times, b.contact_times)
+    np.testing.assert_array_equal(a.jumps, b.jumps)
+
+
+@pytest.mark.parametrize("name", ["pmp", "qp", "qp-avoid", "pmp-active", "qp-active"])
+def test_prepare_plans_as_the_entry_s_planner_does(name, one, two):
+    """``registry.prepare`` (the CLI's one call: options validated now, the planner built when it
+    plans, through the entry's ``run`` where it has one) gives the plan ``make(...).plan`` gives,
+    on a one- and a two-vehicle problem; option values the entry does not take are left out."""
+    spec = registry.get(name)
+    values = {"steps": 40, "hold": None, "solver": None, "safety": None, "not_an_option": 1}
+    known = {k: v for k, v in values.items() if k in spec.fields}
+    for problem in (one, two):
+        prepared = registry.prepare(spec.planner, spec.constraint, values)
+        _same_plan(prepared(problem), spec.make(**known).plan(problem))
+    assert bool(spec.run) == (name in ("pmp", "qp", "qp-avoid"))
+
+
+def test_prepare_validates_the_options_before_any_plan():
+    with pytest.raises(iamp.IampError, match="steps"):
+        registry.prepare("qp", "equality", {"steps": 0})
+    with pytest.raises(iamp.IampError, match="choose from"):
+        registry.prepare("qp", "equality", {"solver": "nope"})
+    with pytest.raises(iamp.IampError, match="constraint"):
+        registry.prepare("pmp", "avoid", {})
+
+
+def test_the_registry_keeps_the_cli_options_and_each_entry_s_field_names():
+    """``CLI_OPTIONS`` (kept by ``register``) is the fields marked with ``option`` over the entries,
+    the first entry's field winning; ``fields`` is the options dataclass's field names."""
+    expected: dict[str, dataclasses.Field] = {}
+    for spec in registry.REGISTRY.values():
+        assert spec.fields == tuple(f.name for f in dataclasses.fields(spec.options)) == spec.option_names()
+        for f in dataclasses.fields(spec.options):
+            if "cli" in f.metadata:
+                expected.setdefault(f.name, f)
+    assert registry.CLI_OPTIONS == expected == registry.cli_options()
+    assert registry.cli_options() is not registry.CLI_OPTIONS  # a copy: callers cannot change the table

@@ -125,3 +125,36 @@ def test_the_command_line_walk_calls_nothing_upward(scenario: str, planner: str)
     stack, _ = walk_cli(scenario, planner)
     assert not stack.upward, stack.upward
     assert stack.entered[0] == "iamp.cli.plan"
+
+
+@pytest.mark.parametrize("scenario", ONE_VEHICLE)
+def test_the_command_line_walk_from_the_planner_selection_to_the_plan_returns_nowhere(scenario: str) -> None:
+    """``iamp plan S --json`` (PMP, one vehicle), from the first call into the planners layer (the
+    registry, asked once: :func:`iamp.planners.registry.prepare`) to the moment the planner hands
+    its ``Plan`` to the command: every module in one contiguous stretch (the planner is built and
+    plans in one call, the corners are read through :mod:`iamp.core.contact`)."""
+    stack, _ = walk_cli(scenario, "pmp")
+    assert stack.planning_from is not None and stack.plan_made is not None
+    planning = stack.returns[stack.planning_from:stack.plan_made]
+    assert planning == [], planning
+    entered = stack.entered
+    assert entered.index("iamp.planners.registry") < entered.index("iamp.planners.pmp.planner")
+    assert entered.index("iamp.planners.pmp.options") < entered.index("iamp.planners.pmp.planner")
+
+
+def test_the_planning_stage_counts_returns_between_the_first_planner_call_and_the_plan() -> None:
+    """The stage bookkeeping of :class:`StackWalk` on a synthetic sequence: returns before the
+    first planners-layer call are loading, those after it planning."""
+    core, pmp, cli = "iamp.core.problem", "iamp.planners.pmp.planner", "iamp.cli.plan"
+    walk = StackWalk()
+    walk.call(cli)
+    for _ in range(2):  # the core entered twice from the command: one loading return
+        walk.call(core)
+        walk.ret()
+    walk.call(pmp)
+    walk.ret()
+    walk.call(pmp)  # the planner entered again: a planning return
+    walk.ret()
+    walk.plan_made = len(walk.returns)
+    summary = walk.summary()
+    assert (summary["returns_loading"], summary["returns_planning"]) == (1, 1)

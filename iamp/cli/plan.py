@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -34,25 +35,34 @@ LOCAL_NOTE = ("status local: this plan is verified at its contact times, but the
 QP_ONLY = {"solver": "clarabel", "hold": "foh", "contact": "grid"}
 
 
-def planner_spec(args: argparse.Namespace) -> registry.PlannerSpec:
-    """The registry entry of ``--planner`` with ``--constraint`` (default: equality)."""
-    return registry.lookup(args.planner, getattr(args, "constraint", None) or "equality")
+def option_values(args: argparse.Namespace) -> dict[str, Any]:
+    """The planner options the parsed arguments carry (``None``: not given, the default)."""
+    names = (*QP_ONLY, *extra_options())
+    return {"steps": args.steps, **{name: getattr(args, name, None) for name in names}}
 
 
 def make_planner(args: argparse.Namespace) -> registry.Planner:
     """The planner the options ask for, from the registry."""
-    spec = planner_spec(args)
-    names = (*QP_ONLY, *extra_options())
-    values = {"steps": args.steps, **{name: getattr(args, name, None) for name in names}}
+    spec = registry.lookup(args.planner, getattr(args, "constraint", None) or "equality")
     try:
-        return spec.make(**registry.options_of(spec, values))
+        return spec.make(**registry.options_of(spec, option_values(args)))
+    except OptionError as exc:  # name the CLI's option
+        raise ScenarioError(exc.message, f"--{exc.field}" if exc.field else None) from None
+
+
+def prepared_plan(args: argparse.Namespace) -> Callable[..., Plan]:
+    """``plan(problem) -> Plan`` of the planner the options ask for: one call into the registry
+    (:func:`iamp.planners.registry.prepare`; the options are validated now, the planner is built
+    when it plans)."""
+    try:
+        return registry.prepare(args.planner, getattr(args, "constraint", None) or "equality", option_values(args))
     except OptionError as exc:  # name the CLI's option
         raise ScenarioError(exc.message, f"--{exc.field}" if exc.field else None) from None
 
 
 def extra_options() -> tuple[str, ...]:
-    """The registry's CLI options (:func:`iamp.planners.registry.cli_options`) beyond the QP's."""
-    return tuple(name for name in registry.cli_options() if name not in QP_ONLY and name != "steps")
+    """The registry's CLI options (:data:`iamp.planners.registry.CLI_OPTIONS`) beyond the QP's."""
+    return tuple(name for name in registry.CLI_OPTIONS if name not in QP_ONLY and name != "steps")
 
 
 def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
@@ -65,7 +75,7 @@ def _phi_meaning(vehicle: SurroundingVehicle, phi_x: float) -> str:
 def check_options(args: argparse.Namespace) -> None:
     """Refuse options that do not apply to the chosen planner; fill in the QP defaults."""
     accepted = {name for spec in registry.REGISTRY.values() if spec.planner == args.planner
-                for name in spec.option_names()}
+                for name in spec.fields}
     for name, default in QP_ONLY.items():
         if getattr(args, name, None) is not None and name not in accepted:
             accept = registry.accepting(name)
@@ -77,10 +87,10 @@ def check_options(args: argparse.Namespace) -> None:
     exact = [s for s in registry.REGISTRY.values()
              if s.planner == args.planner and s.constraint == (getattr(args, "constraint", None) or "equality")]
     if exact:  # the options of the one entry --planner/--constraint select
-        accepted = set(exact[0].option_names())
+        accepted = set(exact[0].fields)
     for name in extra_options():
         if getattr(args, name, None) is not None and name not in accepted:
-            entries = [s for s in registry.REGISTRY.values() if name in s.option_names()]
+            entries = [s for s in registry.REGISTRY.values() if name in s.fields]
             add = " or ".join(f"--planner {s.planner}" + ("" if s.constraint == "equality" else
                                                           f" --constraint {s.constraint}") for s in entries)
             flag = "--" + name.replace("_", "-")
@@ -99,7 +109,7 @@ def failure_json(scenario: str, args: argparse.Namespace, status: str, message: 
 
 def cmd_plan(args: argparse.Namespace) -> int:
     """``iamp plan``: validate, plan, print (text or the SPEC §5 JSON); returns the exit status."""
-    from iamp.cli.progress import call_with_progress, progress_enabled
+    from iamp.cli.progress import call_with_progress
     from iamp.cli.scenarios import load_cli_problem
     from iamp.cli.scenarios import load_cli_scenario as load_scenario  # a file, a built-in, or - (stdin)
     from iamp.core.limits import qp_work_message
@@ -133,8 +143,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         if msg is not None:
             raise ScenarioError(msg, "--steps")
     try:
-        result = call_with_progress(make_planner(args).plan, problem, desc="QP sweep" if args.planner == "qp"
-                                    else "planning", enabled=progress_enabled(args))
+        result = call_with_progress(prepared_plan(args), problem, desc="QP sweep" if args.planner == "qp"
+                                    else "planning", enabled=args)
         result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
         text = json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False) if args.json else ""
     except SolverError as exc:

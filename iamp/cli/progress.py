@@ -142,13 +142,16 @@ def progress_bar(total: int | None, desc: str, *, enabled: bool) -> Iterator[Pro
         bar.close()
 
 
-def call_with_progress(fn: Callable[..., Any], /, *args: Any, desc: str, enabled: bool,
+def call_with_progress(fn: Callable[..., Any], /, *args: Any, desc: str, enabled: bool | argparse.Namespace,
                        total: int | None = None, **kwargs: Any) -> Any:
     """``fn(*args, **kwargs)``, with ``progress=`` a bar's callback if ``fn`` accepts one.
 
     For library calls that may or may not have grown a ``progress`` parameter yet (the bar
-    appears as soon as they do; until then the call is made unchanged).
+    appears as soon as they do; until then the call is made unchanged).  ``enabled`` may be the
+    parsed arguments themselves (:func:`progress_enabled` of them).
     """
+    if isinstance(enabled, argparse.Namespace):
+        enabled = progress_enabled(enabled)
     if not accepts_progress(fn) or not enabled or not _stderr_is_tty():
         # no bar: no callback either, so the library never calls back into the CLI
         return fn(*args, **kwargs)

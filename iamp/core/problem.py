@@ -27,6 +27,7 @@ from functools import cached_property
 import numpy as np
 import numpy.typing as npt
 
+from iamp.core import contact
 from iamp.core.errors import ScenarioError
 from iamp.core.limits import LIMITS, abs_message, bound_message, polynomial_message
 from iamp.core.physical import PhysicalLimits
@@ -237,17 +238,15 @@ class Problem:
         return self.ego.tf
 
     def corners(self, contact_times: npt.ArrayLike) -> npt.NDArray[np.float64]:
-        """Corner positions ``(m, 2)`` at the given contact times."""
-        t = np.asarray(contact_times, dtype=float)
-        return np.array([[v.corner_x(ti), v.corner_y] for v, ti in zip(self.vehicles, t)])
+        """Corner positions ``(m, 2)`` at the given contact times (:func:`iamp.core.contact.corners`)."""
+        return contact.corners(self, contact_times)
 
     def corners_and_speeds(self, contact_times: npt.ArrayLike) -> tuple[npt.NDArray[np.float64],
                                                                         npt.NDArray[np.float64]]:
         """``(corners(t), [ẋ_s,i(t_i)])``: what a planner's self-check reads of the vehicles at its
         contact times, in one call (the same numbers as :meth:`corners` and
-        :meth:`SurroundingVehicle.speed`)."""
-        t = np.asarray(contact_times, dtype=float)
-        return self.corners(t), np.array([float(v.speed(ti)) for v, ti in zip(self.vehicles, t)])
+        :meth:`SurroundingVehicle.speed`; :func:`iamp.core.contact.corners_and_speeds`)."""
+        return contact.corners_and_speeds(self, contact_times)
 
     def with_vehicles(self, vehicles: Iterable[SurroundingVehicle]) -> Problem:
         """The same ego problem with other vehicles."""

@@ -71,7 +71,7 @@ from ..qp.options import CONTACTS, check_choice
 from .check import Candidate, FloatArray, crossing_orders
 from .continuous import ContinuousAvoidPlanner
 from .data import AvoidData
-from .options import SAFETY_MODES, check_avoid_solver
+from .options import SAFETY_MODES, AvoidOptions, check_avoid_solver
 from .result import failed_plan, verified_plan
 from .search import Phase, certify_free, pruned_switches, refine_crossings, seed_switches
 from .solve import BoundSolver
@@ -154,6 +154,13 @@ class AvoidQPPlanner:
                          cost, sol.z, sol.y, on, sol)
 
     # --- the plan ----------------------------------------------------------------------------
+    @classmethod
+    def from_options(cls, options: AvoidOptions) -> AvoidQPPlanner:
+        """The planner of the registry's validated options (:class:`~iamp.planners.avoid.options.AvoidOptions`)."""
+        return cls(steps=options.steps, hold=options.hold, solver=options.solver, contact=options.contact,
+                   solver_settings=options.solver_settings, safety=options.safety, max_solves=options.max_solves,
+                   time_limit_s=options.time_limit_s)
+
     def plan(self, problem: Problem, progress: Progress | None = None) -> Plan:
         """Search the crossing times, solve, verify; an infeasible start/end gives an
         ``infeasible`` plan with the reason (see the module docstring)."""
@@ -294,3 +301,9 @@ class AvoidQPPlanner:
                 start: float) -> Plan:
         return verified_plan(problem, data, cand, complete, info, start, solver=self.solver, hold=self.hold,
                              steps=self.steps, contact=self.contact)
+
+
+def plan_with(options: AvoidOptions, problem: Problem, /, progress: Progress | None = None) -> Plan:
+    """``AvoidQPPlanner.from_options(options).plan(problem, progress=progress)``: the registry's one
+    call (:func:`iamp.planners.registry.prepare`) that builds the planner and plans."""
+    return AvoidQPPlanner.from_options(options).plan(problem, progress=progress)

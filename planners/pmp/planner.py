@@ -68,6 +68,7 @@ from .fixed import (
     solve_sigma,
 )
 from .one import one_vehicle_kernel, solve_one
+from .options import PMPOptions
 from .scale import Scaled, scale_problem
 from .search import global_search, newton_sigma, one_vehicle_sigma
 from .solution import OneVehicleSolution, PMPSolution
@@ -80,7 +81,7 @@ ONE_VEHICLE_METHOD = "all roots of the stationarity polynomial"
 __all__ = [
     "BatchPlan", "PMPPlanner", "PMPSolution", "ValueFunction", "bridge_kernel", "bridge_kernel_ds",
     "bridge_variance_dt", "hamiltonian_jump_residuals", "hermite_cubic", "jump_system",
-    "one_vehicle_contact_time", "plan_batch", "solve_fixed_times", "solve_one_vehicle", "transfer_cost",
+    "one_vehicle_contact_time", "plan_batch", "plan_with", "solve_fixed_times", "solve_one_vehicle", "transfer_cost",
 ]
 
 
@@ -128,6 +129,12 @@ class PMPPlanner:
     compiled: bool | None = None
     diagnostics: bool = True
     certify_bounded: bool = True
+
+    @classmethod
+    def from_options(cls, options: PMPOptions) -> PMPPlanner:
+        """The planner of the registry's validated options (:class:`~iamp.planners.pmp.options.PMPOptions`)."""
+        return cls(max_starts=options.max_starts, max_boxes=options.max_boxes, compiled=options.compiled,
+                   diagnostics=options.diagnostics, certify_bounded=options.certify_bounded)
 
     def search(self, problem: Problem, S: Scaled | None = None,
                progress: Callable[[int, int], None] | None = None) -> tuple[FloatArray, float, bool, dict[str, Any]]:
@@ -301,3 +308,10 @@ class PMPPlanner:
                     contact_times=np.full(problem.m, np.nan), jumps=np.full((problem.m, 2), np.nan),
                     trajectory=None, solve_time_s=_time.perf_counter() - start,
                     diagnostics=PMPDiagnostics(**PMPDiagnostics.info_fields(info)))  # type: ignore[arg-type]
+
+
+def plan_with(options: PMPOptions, problem: Problem, /,
+              progress: Callable[[int, int], None] | None = None) -> Plan:
+    """``PMPPlanner.from_options(options).plan(problem, progress=progress)``: the registry's one call
+    (:func:`iamp.planners.registry.prepare`) that builds the planner and plans."""
+    return PMPPlanner.from_options(options).plan(problem, progress=progress)

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from iamp.core.contact import corners_and_speeds
 from iamp.core.jump_trajectory import JumpTrajectory
 from iamp.core.problem import Problem
 
@@ -91,7 +92,7 @@ class PMPSolution(JumpTrajectory):
         prob = self.problem
         t = self.contact_times
         m = t.shape[0]
-        corners, xdot = prob.corners_and_speeds(t)
+        corners, xdot = corners_and_speeds(prob, t)
         ts = np.linspace(0.0, prob.tf, 201)
         at = self.samples(np.concatenate([np.array([0.0, prob.tf]), t, ts]))
         hj: FloatArray = at.h_left - at.h_right - xdot * self.jumps[:, 0]

@@ -38,11 +38,11 @@ from .backends import BACKENDS
 from .core import CandidateResult, CandidateSolver, DiscretisedQP
 from .diagnostics import QPDiagnostics
 from .hold import HOLDS, HoldTrajectory, aligned_grid
-from .options import CONTACTS, check_choice
+from .options import CONTACTS, QPOptions, check_choice
 from .sweep import Progress, SweepResult, run_sweep
 
 __all__ = ["HOLDS", "CandidateResult", "DiscretisedQP", "HoldTrajectory", "QPPlanner", "SweepResult",
-           "aligned_grid"]
+           "aligned_grid", "plan_with"]
 
 
 def refine_certificate(problem: Problem, best: CandidateResult, hold: str) -> dict[str, Any]:
@@ -117,6 +117,12 @@ class QPPlanner:
     limits_between: str = "nodes"
 
     path = "native"
+
+    @classmethod
+    def from_options(cls, options: QPOptions) -> QPPlanner:
+        """The planner of the registry's validated options (:class:`~iamp.planners.qp.options.QPOptions`)."""
+        return cls(steps=options.steps, hold=options.hold, solver=options.solver, contact=options.contact,
+                   solver_settings=options.solver_settings, limits_between=options.limits_between)
 
     def __post_init__(self) -> None:
         check_choice(self.contact, CONTACTS, "contact", "contact search")
@@ -286,3 +292,9 @@ class QPPlanner:
         if problem.limits is not None and not problem.limits.empty and r.infeasible_certified:
             info["reason"] = "the QP at these contact times has no plan within the limits (Farkas certificate)"
         return self._plan(problem, r, r.status, start, info)
+
+
+def plan_with(options: QPOptions, problem: Problem, /, progress: Progress | None = None) -> Plan:
+    """``QPPlanner.from_options(options).plan(problem, progress=progress)``: the registry's one call
+    (:func:`iamp.planners.registry.prepare`) that builds the planner and plans."""
+    return QPPlanner.from_options(options).plan(problem, progress=progress)
