@@ -55,20 +55,9 @@ def model_file(text: str) -> str:
     Loads the model once to check it (any failure, whatever its type, becomes one line naming
     the file: the file is the user's input); returns the path unchanged.
     """
-    from pathlib import Path
-
     from iamp.core.limits import LIMITS, bound_message
 
-    path = Path(text)
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise argparse.ArgumentTypeError(f"{text}: cannot be read ({exc.strerror or exc})") from None
-    if not path.is_file():
-        raise argparse.ArgumentTypeError(f"{text}: is not a file")
-    if size > MODEL_FILE_MAX_BYTES:
-        raise argparse.ArgumentTypeError(f"{text}: is {size} bytes; a model file may have at most "
-                                         f"{MODEL_FILE_MAX_BYTES} bytes")
+    _readable_model_file(text)
     try:
         from iamp.prediction.predictor import Predictor
 
@@ -86,18 +75,7 @@ def model_file(text: str) -> str:
 
 def leader_model_file(text: str) -> str:
     """A leader model file (``kind: "leader"``) that loads, with a usable fallback; returns the path."""
-    from pathlib import Path
-
-    path = Path(text)
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise argparse.ArgumentTypeError(f"{text}: cannot be read ({exc.strerror or exc})") from None
-    if not path.is_file():
-        raise argparse.ArgumentTypeError(f"{text}: is not a file")
-    if size > MODEL_FILE_MAX_BYTES:
-        raise argparse.ArgumentTypeError(f"{text}: is {size} bytes; a model file may have at most "
-                                         f"{MODEL_FILE_MAX_BYTES} bytes")
+    _readable_model_file(text)
     try:
         from iamp.prediction.leader.model import LeaderPredictor
 
@@ -171,3 +149,20 @@ def float_in(name: str):  # type: ignore[no-untyped-def]
 
     parse.__name__ = f"number in [{lo:g}, {hi:g}]"
     return parse
+
+
+def _readable_model_file(text: str) -> None:
+    """Refuse (one line naming the path) a model file that cannot be read, is not a file or is
+    larger than :data:`MODEL_FILE_MAX_BYTES`."""
+    from pathlib import Path
+
+    path = Path(text)
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"{text}: cannot be read ({exc.strerror or exc})") from None
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text}: is not a file")
+    if size > MODEL_FILE_MAX_BYTES:
+        raise argparse.ArgumentTypeError(f"{text}: is {size} bytes; a model file may have at most "
+                                         f"{MODEL_FILE_MAX_BYTES} bytes")

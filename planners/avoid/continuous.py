@@ -62,7 +62,7 @@ from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
-from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan
+from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
 from iamp.planners.avoid.solve import BoundSolver
 from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.hold import HoldTrajectory
@@ -654,10 +654,4 @@ def summary_lines(plan: Plan) -> list[str]:
         out.append(f"vehicle {v['name']}: in {v['first']} until t = {v['crossing_time']:.6f} s, then in "
                    f"{v['second']} (binding rows {v['binding_rows']}, multiplier sums "
                    f"({v['multiplier_sums'][0]:.6g}, {v['multiplier_sums'][1]:.6g}))")
-    kkt = av.get("kkt", {})
-    if kkt:
-        out.append("residuals " + ", ".join(f"{k} {val:.1e}" for k, val in kkt.items())
-                   + f" (tol {av.get('kkt_tol', 0):.0e})")
-    if plan.safety is not None:
-        out += plan.safety.lines()
-    return out
+    return out + residual_and_safety_lines(plan, av)

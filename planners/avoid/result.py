@@ -158,6 +158,13 @@ def summary_lines(plan: Plan) -> list[str]:
             text = "; ".join(f"{v['name']} {r[0]}..{r[1]}" for v, r in zip(av.get("vehicles", []), ranges))
             out.append(f"note      the crossing constraint is not unique: every switch node in {text} gives the "
                        "same optimum (no inequality binds there)")
+    return out + residual_and_safety_lines(plan, av)
+
+
+def residual_and_safety_lines(plan: Plan, av: dict[str, Any]) -> list[str]:
+    """The last lines of an avoidance plan's text summary: its KKT residuals against their
+    tolerance, then the safety report's lines."""
+    out: list[str] = []
     kkt = av.get("kkt", {})
     if kkt:
         out.append("residuals " + ", ".join(f"{k} {val:.1e}" for k, val in kkt.items())

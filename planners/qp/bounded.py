@@ -220,12 +220,7 @@ class BoundedQP(DiscretisedQP):
                 failed = "kkt_complementarity_rel"
                 if status == st.OPTIMAL:
                     status = st.INACCURATE
-        r = CandidateResult(nodes=nd, status=status, solver_status=sol.status, raw_status=sol.raw_status,
-                            cost=np.inf, contact_times=times, iterations=sol.iterations,
-                            solver_time_s=sol.solver_time_s, solve_call_s=sol.solve_call_s, polished=sol.polished,
-                            backend_s=backend_s, kkt=kkt, checks=checks, failed_check=failed)
-        if kkt is not None:
-            r.z, r.y = sol.z, sol.y
+        r = CandidateResult.of_solve(nd, status, times, sol, backend_s, kkt, checks, failed)
         if status == st.OPTIMAL:
             self._last = (sol.z, sol.y)
             X, U = d.unpack(sol.z)

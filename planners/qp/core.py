@@ -84,6 +84,20 @@ class CandidateResult:
     def ok(self) -> bool:
         return self.status == st.OPTIMAL
 
+    @classmethod
+    def of_solve(cls, nodes: tuple[int, ...], status: str, contact_times: FloatArray, sol: QPSolution, backend_s: float,
+                 kkt: KKTResiduals | None, checks: dict[str, dict[str, Any]], failed: str | None) -> CandidateResult:
+        """The result of one backend solve ``sol`` (:class:`~iamp.planners.qp.backends.base.QPSolution`)
+        with its verified ``status``, before the trajectory is unpacked: ``cost`` ``inf`` until then;
+        the primal and dual vectors are kept when the residuals were recomputed (``kkt``)."""
+        r = cls(nodes=nodes, status=status, solver_status=sol.status, raw_status=sol.raw_status, cost=np.inf,
+                contact_times=contact_times, iterations=sol.iterations, solver_time_s=sol.solver_time_s,
+                solve_call_s=sol.solve_call_s, polished=sol.polished, backend_s=backend_s, kkt=kkt, checks=checks,
+                failed_check=failed)
+        if kkt is not None:
+            r.z, r.y = sol.z, sol.y
+        return r
+
 
 def verify(kkt: KKTResiduals | None, tolerance: float, solver_status: str) -> tuple[str, dict[str, dict[str, Any]],
                                                                                   str | None]:
@@ -222,12 +236,7 @@ class DiscretisedQP:
         if kkt is not None:
             self._last = (sol.z, sol.y)
         status, checks, failed = verify(kkt, self.tolerance, sol.status)
-        r = CandidateResult(nodes=nd, status=status, solver_status=sol.status, raw_status=sol.raw_status,
-                            cost=np.inf, contact_times=times, iterations=sol.iterations,
-                            solver_time_s=sol.solver_time_s, solve_call_s=sol.solve_call_s, polished=sol.polished,
-                            backend_s=backend_s, kkt=kkt, checks=checks, failed_check=failed)
-        if kkt is not None:
-            r.z, r.y = sol.z, sol.y
+        r = CandidateResult.of_solve(nd, status, times, sol, backend_s, kkt, checks, failed)
         if status == st.OPTIMAL:
             if unpacked is None:
                 X, U = d.unpack(sol.z)
