@@ -158,3 +158,18 @@ def test_the_planning_stage_counts_returns_between_the_first_planner_call_and_th
     walk.plan_made = len(walk.returns)
     summary = walk.summary()
     assert (summary["returns_loading"], summary["returns_planning"]) == (1, 1)
+
+
+def test_loading_a_polynomial_scenario_validates_each_object_in_one_call() -> None:
+    """``iamp plan paper-1-poly``'s loading stage: every object of :mod:`iamp.core.problem` checks its
+    fields against the bounds table in one call (:func:`iamp.core.limits.first_refusal`), and the
+    scenario says whether it needs a predictor as a plain attribute. What stays: the parser's
+    probe vehicle, the problem's vehicles and the problem itself are three constructions from
+    :mod:`iamp.core.scenario` (each one call into ``core.problem`` and one into ``core.limits``),
+    the parser's polynomial check, and ``to_problem`` after the parse (8 returns; was 25)."""
+    stack, _ = walk_cli("paper-1-poly", "pmp")
+    loading = stack.returns[:stack.planning_from]
+    assert len(loading) <= 8, loading
+    per_field = [r for r in loading if r[1] in ("bound_message", "abs_message")]
+    assert per_field == [], per_field
+    assert not any(r[1] == "needs_prediction" for r in loading)

@@ -103,6 +103,31 @@ def abs_message(value: float, bound: float, unit: str = "") -> str | None:
     return f"|value| must be <= {bound:g}{u} (got {exact(value)})"
 
 
+#: One bound check of :func:`first_refusal`: ``(field, value, lo, hi, unit)`` (either side ``None``).
+BoundCheck = tuple[str, float, "float | None", "float | None", str]
+#: One magnitude check of :func:`first_refusal`: ``(field, value, bound, unit)``.
+AbsCheck = tuple[str, float, float, str]
+
+
+def first_refusal(bounds: Sequence[BoundCheck] = (), absolutes: Sequence[AbsCheck] = ()) -> tuple[str, str] | None:
+    """``(field, refusal text)`` of the first failing check — the bound checks in order
+    (:func:`bound_message`), then the magnitude checks (:func:`abs_message`) — or ``None``.
+
+    An object validates all its fields against the table in this one call (``scripts/walk.py``:
+    building a problem does not go back and forth between :mod:`iamp.core.problem` and this module
+    once per field).
+    """
+    for field, value, lo, hi, unit in bounds:
+        msg = bound_message(value, lo, hi, unit)
+        if msg is not None:
+            return field, msg
+    for field, value, bound, unit in absolutes:
+        msg = abs_message(value, bound, unit)
+        if msg is not None:
+            return field, msg
+    return None
+
+
 def _stationary_points(coeffs: npt.NDArray[np.float64], tf: float) -> npt.NDArray[np.float64]:
     """Real roots in ``[0, t_f]`` of the derivative of ``Σ c_k t^k`` (best effort)."""
     if coeffs.size < 3:

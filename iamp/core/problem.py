@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 from iamp.core import contact
 from iamp.core.errors import ScenarioError
-from iamp.core.limits import LIMITS, abs_message, bound_message, polynomial_message
+from iamp.core.limits import LIMITS, first_refusal, polynomial_message
 from iamp.core.physical import PhysicalLimits
 
 CORNERS = ("front-lower", "front-upper", "rear-lower", "rear-upper")
@@ -51,6 +51,12 @@ def _check(msg: str | None, name: str, source: str | None) -> None:
     """Raise :class:`ScenarioError` for ``name`` if a bound check returned a message."""
     if msg is not None:
         raise ScenarioError(msg, name, source)
+
+
+def _refuse(refusal: tuple[str, str] | None, source: str | None) -> None:
+    """Raise :class:`ScenarioError` for the ``(field, message)`` of :func:`~iamp.core.limits.first_refusal`."""
+    if refusal is not None:
+        raise ScenarioError(refusal[1], refusal[0], source)
 
 
 #: Which bound of :data:`iamp.core.limits.LIMITS` each ego field obeys.
@@ -85,10 +91,10 @@ class EgoBoundary:
                 raise ScenarioError(f"must be > 0 (got {getattr(self, name)})", f"ego.{key}", self.source)
         if self.tf <= 0:
             raise ScenarioError(f"must be > 0 (got {self.tf})", "ego.tf", self.source)
-        _check(bound_message(self.tf, LIMITS["tf_min_s"], LIMITS["tf_max_s"], "s"), "ego.tf", self.source)
-        for name, kind in _EGO_KIND.items():
-            bound, unit = (LIMITS["position_max_m"], "m") if kind == "position" else (LIMITS["speed_max_mps"], "m/s")
-            _check(abs_message(getattr(self, name), bound, unit), f"ego.{name}", self.source)
+        bound = {"position": (LIMITS["position_max_m"], "m"), "speed": (LIMITS["speed_max_mps"], "m/s")}
+        _refuse(first_refusal([("ego.tf", self.tf, LIMITS["tf_min_s"], LIMITS["tf_max_s"], "s")],
+                              [(f"ego.{name}", getattr(self, name), *bound[kind]) for name, kind in _EGO_KIND.items()]),
+                self.source)
         self.initial, self.final  # noqa: B018 - once, here: later reads are plain attributes
 
     @cached_property
@@ -139,9 +145,9 @@ class SurroundingVehicle:
         for name in ("safety_x", "safety_y"):
             if getattr(self, name) < 0:
                 raise ScenarioError(f"must be >= 0 (got {getattr(self, name)})", f"{p}.{name}", src)
-        for name in ("length", "width", "safety_x", "safety_y"):
-            _check(bound_message(getattr(self, name), None, LIMITS["size_max_m"], "m"), f"{p}.{name}", src)
-        _check(abs_message(self.y, LIMITS["position_max_m"], "m"), f"{p}.y", src)
+        _refuse(first_refusal([(f"{p}.{name}", getattr(self, name), None, LIMITS["size_max_m"], "m")
+                               for name in ("length", "width", "safety_x", "safety_y")],
+                              [(f"{p}.y", self.y, LIMITS["position_max_m"], "m")]), src)
         coeffs = self.x_poly
         if isinstance(coeffs, np.ndarray):
             coeffs = coeffs.tolist()

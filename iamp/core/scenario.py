@@ -13,6 +13,7 @@ import re
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from typing import Any, Protocol
@@ -170,7 +171,10 @@ class Scenario:
     #: The ``[limits]`` table (SPEC §14); ``None`` when the file has none (the paper's problem).
     limits: PhysicalLimits | None = None
 
-    @property
+    def __post_init__(self) -> None:
+        self.needs_prediction  # noqa: B018 - once, here: later reads are plain attributes
+
+    @cached_property
     def needs_prediction(self) -> bool:
         """Whether any vehicle is given by a history (and so needs a predictor)."""
         return any(v.history is not None for v in self.vehicles)
