@@ -195,8 +195,19 @@ def test_prepare_validates_the_options_before_any_plan():
         registry.prepare("qp", "equality", {"steps": 0})
     with pytest.raises(iamp.IampError, match="choose from"):
         registry.prepare("qp", "equality", {"solver": "nope"})
-    with pytest.raises(iamp.IampError, match="constraint"):
+    with pytest.raises(iamp.IampError, match="does not implement the 'avoid' constraint; use planner 'qp'$"):
         registry.prepare("pmp", "avoid", {})
+
+
+def test_an_entry_without_options_names_none_when_given_one():
+    @dataclasses.dataclass(frozen=True)
+    class NoOptions:
+        pass
+
+    spec = registry.PlannerSpec("bare", "bare", "equality", NoOptions, lambda o: None)
+    assert spec.fields == ()
+    with pytest.raises(iamp.OptionError, match=r"does not apply to the 'bare' planner \(its options: none\)"):
+        spec.make_options(steps=3)
 
 
 def test_the_registry_keeps_the_cli_options_and_each_entry_s_field_names():
