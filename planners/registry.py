@@ -135,6 +135,8 @@ class PlannerSpec:
     def __post_init__(self) -> None:
         if not dataclasses.is_dataclass(self.options):
             raise TypeError(f"options of planner {self.name!r} must be a dataclass")
+        if self.run and (self.run.count(":") != 1 or not all(self.run.split(":"))):
+            raise TypeError(f"run of planner {self.name!r} must be 'module:function' (got {self.run!r})")
         object.__setattr__(self, "fields", tuple(f.name for f in dataclasses.fields(self.options)))
 
     def option_names(self) -> tuple[str, ...]:

@@ -221,3 +221,9 @@ def test_the_registry_keeps_the_cli_options_and_each_entry_s_field_names():
                 expected.setdefault(f.name, f)
     assert registry.CLI_OPTIONS == expected == registry.cli_options()
     assert registry.cli_options() is not registry.CLI_OPTIONS  # a copy: callers cannot change the table
+
+
+@pytest.mark.parametrize("run", ["iamp.planners.pmp.planner", "a:b:c", ":plan_with", "module:"])
+def test_a_run_that_is_not_module_colon_function_is_refused_on_construction(run):
+    with pytest.raises(TypeError, match="module:function"):
+        registry.PlannerSpec("x", "x", "equality", registry.REGISTRY["pmp"].options, lambda o: None, run=run)
