@@ -45,6 +45,12 @@ LC_NONE, LC_REQUEST_SAFE = 0, 512
 SPEED_CHECKED, SPEED_UNCHECKED = 31, 0
 
 
+#: Below this speed [m/s] the commanded velocity does not set the ego's heading (it keeps the last
+#: one): at a standstill ``atan2(v_y, v_x)`` of a residual lateral speed turned the car by up to 90°
+#: and put its centre half a length (2.4 m) sideways when iamp took the wheel back after an abort.
+HEADING_MIN_SPEED = 0.5
+
+
 @dataclass(frozen=True)
 class Observation:
     """Surrounding vehicles at one step (centres; arrays indexed like ``ids``)."""
@@ -113,6 +119,9 @@ class Simulator:
     _lengths: dict[str, tuple[float, float]] = field(default_factory=dict)
     _tmp: Any = None
     _ls: Any = None
+    #: The ego's last heading [rad]: SUMO's when it drives, the commanded velocity's direction when
+    #: iamp drives above :data:`HEADING_MIN_SPEED`; kept below it (a standstill has no direction).
+    _heading: float = 0.0
 
     def start(self) -> None:
         """Build the network, write the routes, start ``libsumo``."""
@@ -183,6 +192,7 @@ class Simulator:
         ls = self._ls
         fx, fy = ls.vehicle.getPosition(EGO)
         psi = math.radians(90.0 - float(ls.vehicle.getAngle(EGO)))
+        self._heading = psi
         v = float(ls.vehicle.getSpeed(EGO))
         half = self.ego_length / 2
         vy = float(ls.vehicle.getLateralSpeed(EGO)) if hasattr(ls.vehicle, "getLateralSpeed") else 0.0
@@ -234,7 +244,9 @@ class Simulator:
     def command(self, state: EgoState) -> None:
         """Place the ego's centre at ``state`` for the next step (iamp drives)."""
         ls = self._ls
-        psi = math.atan2(state.vy, max(state.vx, 1e-6))
+        if math.hypot(state.vx, state.vy) >= HEADING_MIN_SPEED:
+            self._heading = math.atan2(state.vy, max(state.vx, 1e-6))
+        psi = self._heading  # at a standstill the last heading: the velocity's direction is noise there
         half = self.ego_length / 2
         fx, fy = state.x + half * math.cos(psi), state.y + half * math.sin(psi)
         eid, _, first = self.highway.edge_at(fx)
