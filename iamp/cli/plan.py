@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -41,23 +42,28 @@ def option_values(args: argparse.Namespace) -> dict[str, Any]:
     return {"steps": args.steps, **{name: getattr(args, name, None) for name in names}}
 
 
-def make_planner(args: argparse.Namespace) -> registry.Planner:
-    """The planner the options ask for, from the registry."""
-    spec = registry.lookup(args.planner, getattr(args, "constraint", None) or "equality")
+@contextmanager
+def _naming_the_flag() -> Iterator[None]:
+    """An option refused by the registry (:class:`OptionError`) as a refusal of the CLI's flag."""
     try:
-        return spec.make(**registry.options_of(spec, option_values(args)))
-    except OptionError as exc:  # name the CLI's option
+        yield
+    except OptionError as exc:
         raise ScenarioError(exc.message, f"--{exc.field}" if exc.field else None) from None
+
+
+def make_planner(args: argparse.Namespace) -> registry.Planner:
+    """The planner object the options ask for, from the registry."""
+    spec = registry.lookup(args.planner, getattr(args, "constraint", None) or "equality")
+    with _naming_the_flag():
+        return spec.make(**registry.options_of(spec, option_values(args)))
 
 
 def prepared_plan(args: argparse.Namespace) -> Callable[..., Plan]:
     """``plan(problem) -> Plan`` of the planner the options ask for: one call into the registry
     (:func:`iamp.planners.registry.prepare`; the options are validated now, the planner is built
-    when it plans)."""
-    try:
+    when it plans). ``iamp plan`` and ``iamp plot`` plan through it."""
+    with _naming_the_flag():
         return registry.prepare(args.planner, getattr(args, "constraint", None) or "equality", option_values(args))
-    except OptionError as exc:  # name the CLI's option
-        raise ScenarioError(exc.message, f"--{exc.field}" if exc.field else None) from None
 
 
 def extra_options() -> tuple[str, ...]:

@@ -157,7 +157,7 @@ def _check_out(path: str) -> Path:
 def cmd_plot(args: argparse.Namespace) -> int:
     """Plan the scenario with the given options and draw the plan into ``--out``."""
     from iamp.cli import plan as plan_cli
-    from iamp.cli.progress import call_with_progress, progress_enabled
+    from iamp.cli.progress import call_with_progress
     from iamp.cli.scenarios import load_cli_problem
     from iamp.comparison.figures.style import save_one
 
@@ -171,9 +171,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
         raise ScenarioError("the avoidance QP (SPEC §10) is not available in this version of iamp plan",
                             "--constraint")
     _, problem, _ = load_cli_problem(args.scenario, args.model)
-    make_planner: Any = plan_cli.make_planner  # the planner `iamp plan` builds from the same options
-    planner = make_planner(args)
-    result = call_with_progress(planner.plan, problem, desc="planning", enabled=progress_enabled(args))
+    # the planner `iamp plan` builds from the same options
+    result = call_with_progress(plan_cli.prepared_plan(args), problem, desc="planning", enabled=args)
     if not result.ok or result.trajectory is None:
         sys.stderr.write(f"iamp: the plan failed (status {result.status}); nothing to draw, {out} not written\n")
         return EXIT_SOLVER
