@@ -98,8 +98,8 @@ def draw_xy(ax: Axes, result: Plan, times: ArrayLike, *, ego_size: tuple[float, 
     times : sequence of float
         The snapshot instants [s].
     ego_size : (length, width), optional
-        The ego's body (default: the problem's ego size if it has one, else vehicle 1's
-        ``L × W``; the planning model is a point mass).
+        The ego's body (default: the scenario's ``[ego] length`` × ``width``, SPEC §9; the
+        planning model is a point mass).
     time_labels : bool
         Write ``t = …`` above each ego snapshot.
     """
@@ -112,8 +112,7 @@ def draw_xy(ax: Axes, result: Plan, times: ArrayLike, *, ego_size: tuple[float, 
     tt = np.linspace(0.0, problem.tf, 401)
     Xd = result.require_trajectory().states(tt)
     ego = problem.ego
-    L_e, W_e = ego_size or (float(getattr(ego, "length", 0) or problem.vehicles[0].length),
-                            float(getattr(ego, "width", 0) or problem.vehicles[0].width))
+    L_e, W_e = ego_size or (ego.ego_length, ego.ego_width)
     alphas = np.linspace(0.3, 1.0, len(ts)) if len(ts) > 1 else np.ones(1)
     edges, dividers = lane_lines(problem)
     for y in edges:
