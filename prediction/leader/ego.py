@@ -203,10 +203,13 @@ def iterate_with_planner(plan: Callable[[tuple[float, ...]], R], predict: Callab
         changes.append(residual)
         if residual < tol_m:
             return {"x_poly": pred, "plan": result, "iterations": k + 1, "converged": True, "changes_m": changes}
-        n = max(len(pred), len(poly))
-        c_old = np.pad(np.asarray(poly), (0, n - len(poly)))
-        c_new = np.pad(np.asarray(pred), (0, n - len(pred)))
-        poly = tuple(float(z) for z in c_old + relax * (c_new - c_old))
+        if relax == 1.0:  # exactly P(c_k): c_k + (P(c_k) - c_k) can differ from it in the last bit
+            poly = pred
+        else:
+            n = max(len(pred), len(poly))
+            c_old = np.pad(np.asarray(poly), (0, n - len(poly)))
+            c_new = np.pad(np.asarray(pred), (0, n - len(pred)))
+            poly = tuple(float(z) for z in c_old + relax * (c_new - c_old))
         result = plan(poly)
     return {"x_poly": poly, "plan": result, "iterations": max_iter, "converged": False, "changes_m": changes}
 
