@@ -1,0 +1,325 @@
+r"""Responsibility-Sensitive Safety (RSS): the closed loop's judge (SPEC §17).
+
+Shalev-Shwartz, Shammah, Shashua, *On a Formal Model of Safe and Scalable Self-driving Cars*,
+arXiv:1708.06374 (2017).  Two cars driving in the same direction on a straight road (``x``
+along the road, ``y`` to the left), with bodies, longitudinal speeds ``v`` and lateral speeds.
+
+* **Safe longitudinal distance** (the rear car ``r`` behind the front car ``f``)
+
+  .. math::  d_{lon} = \Big[v_r\rho + \tfrac12 a_{acc}\rho^2 + \frac{(v_r + \rho a_{acc})^2}{2 b_{min}}
+             - \frac{v_f^2}{2 b_{max}}\Big]_+ :
+
+  the rear car accelerates at most ``a_acc`` during its response time ``ρ`` and then brakes at
+  least ``b_min``; the front car brakes at most ``b_max``.
+* **Safe lateral distance** (``u_1, u_2``: each car's lateral speed *toward the other*)
+
+  .. math::  d_{lat} = \mu + \big[o(u_1) + o(u_2)\big]_+, \qquad
+             o(u) = u\rho + \tfrac12\alpha\rho^2 + \frac{\max(u + \rho\alpha, 0)^2}{2\beta} :
+
+  each car moves toward the other with lateral acceleration at most ``α`` during ``ρ`` and
+  then brakes laterally with at least ``β`` until its lateral speed is zero; ``μ`` is the
+  lateral fluctuation margin.  The braking term counts only a speed still *toward* the
+  other after ``ρ`` (the paper writes the square of a speed it assumes non-negative; the
+  reference implementation ``ad-rss`` does the same as here).  ``ad-rss`` adds ``μ`` inside
+  the positive part (a zero distance when both move apart); the paper, and this module, add
+  it outside, so that touching bodies are never laterally safe.  Both agree whenever the
+  bracket is non-negative (``tests/test_rss.py`` checks it against ``ad-rss`` when installed).
+* The distances are the gaps between the bodies along and across the road; a pair is
+  **longitudinally (laterally) safe** when that gap is positive and at least ``d_lon``
+  (``d_lat``).  A time is **dangerous** for the pair when it is neither.
+* **Dangerous threshold (blame) time** ``t_b``: the last non-dangerous time before a run of
+  dangerous times.  A run already dangerous when the pair is first seen has no ``t_b``; it
+  is judged from its first time with both responses required (the strict reading).
+* **Proper response** during ``(t_b, t]``, for the dimensions that were *safe* at ``t_b``
+  (the danger came from the other one):
+
+  - longitudinal: the rear car accelerates at most ``a_acc`` until ``t_b + ρ``, then brakes
+    with at least ``b_min`` until it stands; the front car brakes at most ``b_max``;
+  - lateral: each car's lateral speed toward the other grows at most with ``α`` until
+    ``t_b + ρ``, then falls with at least ``β`` until it is zero, and stays zero (within the
+    fluctuation ``μ/ρ``).
+
+  A step's action is the change of a car's speed over one period, ``(v_k - v_{k-1})/Δt``
+  (what SUMO reports as its acceleration), checked with the tolerance :data:`ACCEL_TOL`.
+* **Blame**: a car is responsible at time ``t`` of a dangerous run when it violated its
+  proper response at some time in ``(t_b, t]``; a contact is the fault of each car
+  responsible at its time (both may be).
+
+The monitor (:mod:`iamp.simulation.monitor`) applies this to every (ego, neighbour) pair of an
+executed episode.  :class:`RssParameters` holds the numbers; its defaults are the reference
+implementation's defaults for vehicles (see :data:`SOURCE`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.core.errors import ScenarioError
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Where the default numbers come from.
+SOURCE = ("formulas: Shalev-Shwartz, Shammah, Shashua, On a Formal Model of Safe and Scalable Self-driving Cars, "
+          "arXiv:1708.06374; values: the default vehicle dynamics of the reference implementation ad-rss as "
+          "integrated in CARLA (LibCarla rss/RssCheck.cpp, GetDefaultVehicleDynamics: accel_max 3.5, brake_min 4, "
+          "brake_max 8 m/s^2, lateral accel_max 0.2, lateral brake_min 0.8 m/s^2, lateral fluctuation margin "
+          "0.1 m, response time 1 s), one response time for every vehicle (SUMO's driver reaction time tau = 1 s)")
+#: Tolerance on a step's acceleration when checking a proper response [m/s²].
+ACCEL_TOL = 0.05
+
+
+@dataclass(frozen=True)
+class RssParameters:
+    """The RSS parameters of the judge (module docstring).
+
+    Parameters
+    ----------
+    response_time_s : float
+        ``ρ`` [s], every vehicle's response time.
+    accel_max : float
+        ``a_acc`` [m/s²], the largest longitudinal acceleration during ``ρ``.
+    brake_min : float
+        ``b_min`` [m/s²], the braking a responding rear car applies at least.
+    brake_max : float
+        ``b_max`` [m/s²], the hardest braking of a front car (at least ``brake_min``).
+    lat_accel_max : float
+        ``α`` [m/s²], the largest lateral acceleration toward the other during ``ρ``.
+    lat_brake_min : float
+        ``β`` [m/s²], the lateral braking a responding car applies at least.
+    lat_margin_m : float
+        ``μ`` [m], the lateral fluctuation margin (non-negative).
+
+    Raises
+    ------
+    iamp.ScenarioError
+        A parameter that is not finite, not positive (``μ``: negative), or ``brake_max < brake_min``.
+    """
+
+    response_time_s: float = 1.0
+    accel_max: float = 3.5
+    brake_min: float = 4.0
+    brake_max: float = 8.0
+    lat_accel_max: float = 0.2
+    lat_brake_min: float = 0.8
+    lat_margin_m: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            v = float(value)
+            if not math.isfinite(v) or v < 0 or (v == 0 and name != "lat_margin_m"):
+                raise ScenarioError(f"must be a positive number (got {value!r})", f"rss.{name}")
+        if self.brake_max < self.brake_min:
+            raise ScenarioError(f"must be at least brake_min = {self.brake_min:g} (got {self.brake_max:g})",
+                                "rss.brake_max")
+
+    def as_dict(self) -> dict[str, Any]:
+        """The parameters and their :data:`SOURCE` (for the manifest and the episode JSON)."""
+        return {**asdict(self), "source": SOURCE}
+
+
+DEFAULT = RssParameters()
+
+
+def safe_longitudinal_distance(v_rear: npt.ArrayLike, v_front: npt.ArrayLike,
+                               p: RssParameters = DEFAULT) -> FloatArray:
+    """RSS's safe longitudinal distance of a rear car behind a front car, same direction.
+
+    Parameters
+    ----------
+    v_rear, v_front : array_like
+        Longitudinal speeds [m/s] (non-negative), broadcast together.
+    p : RssParameters
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[v_r ρ + ½ a_acc ρ² + (v_r + ρ a_acc)²/(2 b_min) − v_f²/(2 b_max)]_+`` [m].
+    """
+    vr = np.maximum(np.asarray(v_rear, dtype=float), 0.0)
+    vf = np.maximum(np.asarray(v_front, dtype=float), 0.0)
+    rho, a = p.response_time_s, p.accel_max
+    d = vr * rho + 0.5 * a * rho**2 + (vr + rho * a) ** 2 / (2 * p.brake_min) - vf**2 / (2 * p.brake_max)
+    return np.asarray(np.maximum(d, 0.0), dtype=float)
+
+
+def lateral_reach(u_toward: npt.ArrayLike, p: RssParameters = DEFAULT) -> FloatArray:
+    """How far a car moves toward the other under the worst lateral response, ``o(u)``.
+
+    Parameters
+    ----------
+    u_toward : array_like
+        Lateral speed toward the other car [m/s] (negative: moving away).
+    p : RssParameters
+
+    Returns
+    -------
+    numpy.ndarray
+        ``u ρ + ½ α ρ² + max(u + ρ α, 0)²/(2 β)`` [m] (negative when it moves away).
+    """
+    u = np.asarray(u_toward, dtype=float)
+    rho, a = p.response_time_s, p.lat_accel_max
+    after = np.maximum(u + rho * a, 0.0)
+    return np.asarray(u * rho + 0.5 * a * rho**2 + after**2 / (2 * p.lat_brake_min), dtype=float)
+
+
+def safe_lateral_distance(u1_toward: npt.ArrayLike, u2_toward: npt.ArrayLike,
+                          p: RssParameters = DEFAULT) -> FloatArray:
+    """RSS's safe lateral distance ``μ + [o(u_1) + o(u_2)]_+`` of two cars side by side.
+
+    Parameters
+    ----------
+    u1_toward, u2_toward : array_like
+        Each car's lateral speed toward the other [m/s].
+    p : RssParameters
+
+    Returns
+    -------
+    numpy.ndarray
+        The distance [m], at least ``μ``.
+    """
+    return np.asarray(p.lat_margin_m + np.maximum(lateral_reach(u1_toward, p) + lateral_reach(u2_toward, p), 0.0),
+                      dtype=float)
+
+
+def body_extents(length: npt.ArrayLike, width: npt.ArrayLike, heading: npt.ArrayLike
+                 ) -> tuple[FloatArray, FloatArray]:
+    """Half extents along ``x`` and ``y`` of a ``length × width`` rectangle turned by ``heading``.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        ``(L/2 |cos ψ| + W/2 |sin ψ|, L/2 |sin ψ| + W/2 |cos ψ|)`` [m].
+    """
+    L, W, psi = (np.asarray(a, dtype=float) for a in (length, width, heading))
+    c, s = np.abs(np.cos(psi)), np.abs(np.sin(psi))
+    return np.asarray(L / 2 * c + W / 2 * s, dtype=float), np.asarray(L / 2 * s + W / 2 * c, dtype=float)
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One vehicle over the logged steps (``nan`` where it was not observed).
+
+    ``x, y`` centre [m]; ``vx, vy`` velocity [m/s]; ``hx, hy`` half extents of its body along
+    ``x`` and ``y`` (:func:`body_extents`) [m].
+    """
+
+    x: FloatArray
+    y: FloatArray
+    vx: FloatArray
+    vy: FloatArray
+    hx: FloatArray
+    hy: FloatArray
+
+
+@dataclass(frozen=True)
+class PairJudgement:
+    """RSS over time for the pair (ego, other); arrays over the logged steps.
+
+    ``dangerous``; ``blame_k`` (the step of the dangerous threshold time of the current run,
+    ``-1`` when the run began at the pair's first common step, ``-2`` when not dangerous);
+    ``response`` (``"longitudinal"``, ``"lateral"`` or ``"both"``, ``""`` when not
+    dangerous); ``ego_responsible`` and ``other_responsible`` (violated the proper response
+    at some step of ``(t_b, t]``); the gaps and safe distances behind it.
+    """
+
+    dangerous: npt.NDArray[np.bool_]
+    blame_k: npt.NDArray[np.int64]
+    response: list[str]
+    ego_responsible: npt.NDArray[np.bool_]
+    other_responsible: npt.NDArray[np.bool_]
+    lon_gap: FloatArray
+    lat_gap: FloatArray
+    d_lon: FloatArray
+    d_lat: FloatArray
+
+
+def _complies(resp: str, k: int, kb: int, dt: float, rear: bool, left: bool, m: Motion, p: RssParameters) -> bool:
+    """Did the car follow its proper response over the period ``(k-1, k]`` of a run with
+    threshold step ``kb`` (``rear``: it is the rear car; ``left``: it is the left car)?"""
+    tau = (k - 1 - kb) * dt  # time since t_b at the start of the period
+    early = tau < p.response_time_s - 1e-9
+    if resp in ("longitudinal", "both"):
+        v0, v1 = float(m.vx[k - 1]), float(m.vx[k])
+        if rear:
+            bound = v0 + (p.accel_max + ACCEL_TOL) * dt if early else max(0.0, v0 - (p.brake_min - ACCEL_TOL) * dt)
+            if v1 > bound + 1e-9:
+                return False
+        elif v1 < max(0.0, v0 - (p.brake_max + ACCEL_TOL) * dt) - 1e-9:
+            return False
+    if resp in ("lateral", "both"):
+        sign = -1.0 if left else 1.0  # toward the other: right (−y) for the left car
+        u0, u1 = sign * float(m.vy[k - 1]), sign * float(m.vy[k])
+        rest = p.lat_margin_m / p.response_time_s  # a lateral speed within μ per ρ is fluctuation
+        step = (p.lat_accel_max + ACCEL_TOL) * dt if early else -(p.lat_brake_min - ACCEL_TOL) * dt
+        if u1 > max(u0 + step, rest) + 1e-9:
+            return False
+    return True
+
+
+def judge_pair(ego: Motion, other: Motion, dt: float, p: RssParameters = DEFAULT) -> PairJudgement:
+    """Dangerous times, threshold times, proper responses and blame of one pair (module docstring).
+
+    Parameters
+    ----------
+    ego, other : Motion
+        The two vehicles over the same steps (``nan`` where ``other`` was not seen).
+    dt : float
+        The period [s].
+    p : RssParameters
+
+    Returns
+    -------
+    PairJudgement
+    """
+    n = ego.x.size
+    dx, dy = other.x - ego.x, other.y - ego.y
+    lon_gap = np.abs(dx) - (ego.hx + other.hx)
+    lat_gap = np.abs(dy) - (ego.hy + other.hy)
+    ego_front = dx < 0
+    v_rear = np.where(ego_front, other.vx, ego.vx)
+    v_front = np.where(ego_front, ego.vx, other.vx)
+    d_lon = safe_longitudinal_distance(np.nan_to_num(v_rear), np.nan_to_num(v_front), p)
+    ego_left = dy < 0
+    u_ego = np.where(ego_left, -ego.vy, ego.vy)  # toward the other
+    u_oth = np.where(ego_left, other.vy, -other.vy)
+    d_lat = safe_lateral_distance(np.nan_to_num(u_ego), np.nan_to_num(u_oth), p)
+    seen = np.isfinite(dx) & np.isfinite(dy) & np.isfinite(other.vx) & np.isfinite(other.vy)
+    with np.errstate(invalid="ignore"):
+        lon_safe = (lon_gap > 0) & (lon_gap >= d_lon)
+        lat_safe = (lat_gap > 0) & (lat_gap >= d_lat)
+    dangerous = seen & ~lon_safe & ~lat_safe
+    blame_k = np.full(n, -2, dtype=np.int64)
+    response = [""] * n
+    ego_resp = np.zeros(n, dtype=bool)
+    oth_resp = np.zeros(n, dtype=bool)
+    k = 0
+    while k < n:
+        if not dangerous[k]:
+            k += 1
+            continue
+        kb = k - 1 if k > 0 and seen[k - 1] else -1
+        if kb >= 0:
+            resp = "both" if (lon_safe[kb] and lat_safe[kb]) else ("longitudinal" if lon_safe[kb] else "lateral")
+        else:
+            resp = "both"
+        ref = max(kb, k)  # the roles (rear/front, left/right) at the threshold time
+        ego_rear, ego_is_left = bool(not ego_front[ref]), bool(ego_left[ref])
+        e_bad = o_bad = False
+        start = k
+        while k < n and dangerous[k]:
+            if k > start or kb >= 0:
+                if k >= 1 and not _complies(resp, k, max(kb, start - 1), dt, ego_rear, ego_is_left, ego, p):
+                    e_bad = True
+                if k >= 1 and np.isfinite(other.vx[k - 1]) and \
+                        not _complies(resp, k, max(kb, start - 1), dt, not ego_rear, not ego_is_left, other, p):
+                    o_bad = True
+            blame_k[k] = kb
+            response[k] = resp
+            ego_resp[k], oth_resp[k] = e_bad, o_bad
+            k += 1
+    return PairJudgement(dangerous, blame_k, response, ego_resp, oth_resp, lon_gap, lat_gap, d_lon, d_lat)
