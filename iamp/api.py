@@ -119,6 +119,10 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
                         raise OptionError(f"{exc.message} ({refusal(name, spec)})", name) from None
             raise OptionError(refusal(name, spec), name)
     values = {**registry.options_of(spec, {"steps": steps, **given}), **options}
+    if problem.limits is not None and not problem.limits.empty and isinstance(values.get("solver"), str):
+        from iamp.planners.qp.options import check_limits_solver
+
+        check_limits_solver(values["solver"])  # kkt cannot impose [limits]: an OptionError naming the others
     result: Plan = spec.make(**values).plan(problem)
     return result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
 

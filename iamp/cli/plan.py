@@ -144,13 +144,19 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from iamp.prediction.resolve import problem_with_leader_model
 
         problem, _ = problem_with_leader_model(scenario, args.leader_model)
+    if problem.limits is not None and not problem.limits.empty and args.planner == "qp":
+        from iamp.planners.qp.options import check_limits_solver
+
+        with _naming_the_flag():  # refused before any planning, whichever constraint (SPEC §14)
+            check_limits_solver(args.solver)
     if args.planner == "qp" and args.constraint != "avoid":  # the avoidance search has a budget, no work limit
         msg = qp_work_message(problem.m, args.steps)
         if msg is not None:
             raise ScenarioError(msg, "--steps")
     try:
-        result = call_with_progress(prepared_plan(args), problem, desc="QP sweep" if args.planner == "qp"
-                                    else "planning", enabled=args)
+        with _naming_the_flag():  # an option the problem refuses (--solver kkt with [limits]): exit 2
+            result = call_with_progress(prepared_plan(args), problem, desc="QP sweep" if args.planner == "qp"
+                                        else "planning", enabled=args)
         result.judge_limits()  # SPEC §14: no verified plan of any planner beyond a given bound
         text = json.dumps(result.to_json(scenario.name, args.steps), allow_nan=False) if args.json else ""
     except SolverError as exc:
@@ -313,6 +319,7 @@ def _print_active(result: Plan, diag: ActiveSetDiagnostics) -> None:
     if result.safety is not None:
         for line in result.safety.lines():
             print(line)
+    _print_limits(result)
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -349,7 +356,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    "(default: the shipped model)")
     p.add_argument("--leader-model", type=leader_model_file, default=None,
                    help="leader model (iamp train --model-kind leader): a history vehicle with another history "
-                        "vehicle ahead in its lane (|dy| < 1.75 m) is predicted following it (issue 23)")
+                        "vehicle ahead in its lane (|dy| < 1.75 m) is predicted following it")
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5)")
     p.add_argument("--force", action="store_true", help="replace the --csv file if it exists")
     p.add_argument("--csv", metavar="FILE", default=None,

@@ -7,7 +7,7 @@ from typing import Any
 
 from iamp.core.errors import OptionError
 
-from .backends import BACKENDS
+from .backends import BACKENDS, SUPPORTS_INEQUALITIES
 from .hold import HOLDS
 
 #: The contact-time searches of the QP planners: every grid node, or refined off the grid.
@@ -27,6 +27,26 @@ def check_steps(steps: object, minimum: int = 1) -> None:
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < minimum:
         need = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
         raise OptionError(f"must be {need} (got {steps!r})", "steps")
+
+
+def check_limits_solver(solver: str) -> None:
+    """Refuse a backend that cannot impose a scenario's ``[limits]`` (inequality rows).
+
+    Parameters
+    ----------
+    solver : str
+        A registered QP backend.
+
+    Raises
+    ------
+    OptionError
+        ``solver`` solves equality-constrained QPs only (``kkt``); the message names the
+        backends that take inequalities (field ``solver``).
+    """
+    if not SUPPORTS_INEQUALITIES.get(solver, True):
+        ok = [name for name, yes in SUPPORTS_INEQUALITIES.items() if yes]
+        raise OptionError(f"QP backend {solver!r} solves equality-constrained QPs only, but the scenario's [limits] "
+                          f"are inequalities; choose from {', '.join(ok)}", "solver")
 
 
 @dataclass(frozen=True)

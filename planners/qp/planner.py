@@ -38,7 +38,7 @@ from .backends import BACKENDS
 from .core import CandidateResult, CandidateSolver, DiscretisedQP
 from .diagnostics import QPDiagnostics
 from .hold import HOLDS, HoldTrajectory, aligned_grid
-from .options import CONTACTS, QPOptions, check_choice
+from .options import CONTACTS, QPOptions, check_choice, check_limits_solver
 from .sweep import Progress, SweepResult, run_sweep
 
 __all__ = ["HOLDS", "CandidateResult", "DiscretisedQP", "HoldTrajectory", "QPPlanner", "SweepResult",
@@ -138,6 +138,7 @@ class QPPlanner:
         if problem.limits is not None and not problem.limits.empty:
             from iamp.planners.qp.bounded import BoundedQP
 
+            check_limits_solver(self.solver)
             return BoundedQP(problem, self.steps, self.hold, self.solver, self.solver_settings,
                              between=self.limits_between)
         return DiscretisedQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
