@@ -1,6 +1,7 @@
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -17,3 +18,28 @@ def run_cli(*args, cwd=None, timeout=600):
 @pytest.fixture
 def cli():
     return run_cli
+
+
+# --- recorded data (issue 29 item 8) ------------------------------------------------------------
+
+#: Environment variable naming the folder of the recorded data (default: ``<repo>/../shared/data``).
+DATA_ENV = "IAMP_DATA"
+REPO = Path(__file__).resolve().parents[1]
+
+
+def data_root() -> Path:
+    """The recorded-data folder: ``$IAMP_DATA`` if set (and not empty), else ``<repo>/../shared/data``."""
+    env = os.environ.get(DATA_ENV, "").strip()
+    return Path(env).expanduser() if env else REPO.parent / "shared" / "data"
+
+
+def data_path(*parts: str) -> Path:
+    """A file or folder of the recorded data (:func:`data_root` joined with ``parts``)."""
+    return data_root().joinpath(*parts)
+
+
+def needs_data(*parts: str) -> pytest.MarkDecorator:
+    """Skip marker for tests that need ``data_path(*parts)``, with the reason (where it was looked for)."""
+    p = data_path(*parts)
+    return pytest.mark.skipif(not p.exists(), reason=f"recorded data absent: {p} (set {DATA_ENV} to the folder that "
+                                                     f"holds {'/'.join(parts)})")

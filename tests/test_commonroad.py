@@ -2,8 +2,8 @@
 solutions judged valid by CommonRoad's checker, and the check's per-check output.
 
 The frame tests need numpy only.  The rest needs the ``[commonroad]`` extra and the shared
-US-101 scenarios (``<repo>/../shared/data/commonroad/US101``); they skip with the reason where
-either is absent.
+US-101 scenarios (``$IAMP_DATA/commonroad/US101``, default ``<repo>/../shared/data``: conftest's
+``data_path``); they skip with the reason where either is absent.
 """
 
 from __future__ import annotations
@@ -16,13 +16,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from iamp.commonroad.frame import RoadFrame
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT.parent / "shared" / "data" / "commonroad" / "US101"
+DATA = data_path("commonroad", "US101")
 HAVE_EXTRA = all(importlib.util.find_spec(m) is not None for m in ("commonroad", "commonroad_dc", "triangle"))
 needs_data = pytest.mark.skipif(not HAVE_EXTRA or not DATA.is_dir(),
                                 reason=("the [commonroad] extra is not installed (pip install 'iamp[commonroad]')"
@@ -275,7 +276,7 @@ def test_predicted_mode_is_the_predictors_pipeline() -> None:
 
 
 HAVE_SUMO = importlib.util.find_spec("libsumo") is not None or importlib.util.find_spec("traci") is not None
-INTERACTIVE = ROOT.parent / "shared" / "data" / "commonroad" / "interactive-US101"
+INTERACTIVE = data_path("commonroad", "interactive-US101")
 
 
 @pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not INTERACTIVE.is_dir(),

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path, needs_data
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -32,8 +33,8 @@ from iamp.prediction.predictor import Predictor
 from iamp.prediction.windows import Windows, baseline_ca, baseline_cv, make_windows, metrics
 
 REPO = Path(__file__).resolve().parents[1]
-US101 = REPO.parent / "shared" / "data" / "ngsim-us101" / "us101_ngsim.csv.gz"
-needs_us101 = pytest.mark.skipif(not US101.is_file(), reason=f"shared data absent: {US101} (a user's clone has none)")
+US101 = data_path("ngsim-us101", "us101_ngsim.csv.gz")
+needs_us101 = needs_data("ngsim-us101", "us101_ngsim.csv.gz")
 
 IDM = CarFollowingLaw("idm", {"a": 1.2, "b": 1.8, "v0": 30.0, "T": 1.3, "s0": 2.0})
 LIN = CarFollowingLaw("linear", {"c_v": 0.4, "c_s": 0.08, "T": 1.2, "s0": 3.0})

@@ -27,7 +27,8 @@ if TYPE_CHECKING:
 
 EXIT_OK, EXIT_BAD_INPUT = 0, 2
 
-__all__ = ["add_parsers", "cmd_evaluate_predictor", "cmd_predict", "cmd_train", "parse_bins", "predict_json"]
+__all__ = ["add_ngsim_options", "add_parsers", "cmd_evaluate_predictor", "cmd_predict", "cmd_train", "parse_bins",
+           "predict_json"]
 
 
 def _error(exc: BaseException) -> int:
@@ -69,6 +70,17 @@ def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
     return edges
 
 
+def add_ngsim_options(parser: argparse.ArgumentParser) -> None:
+    """``--location`` and ``--units`` of every command that reads NGSIM data."""
+    parser.add_argument("--location", default=None,
+                        help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted "
+                             "as dropped")
+    parser.add_argument("--units", default=None, choices=("feet", "metres"),
+                        help="NGSIM only: the unit of lengths, speeds and accelerations in the file (default: "
+                             "detected from vehicle lengths and widths, lane width and speeds; a file whose data "
+                             "cannot tell is refused)")
+
+
 # ---------------------------------------------------------------------------------------
 # iamp train
 # ---------------------------------------------------------------------------------------
@@ -77,16 +89,14 @@ def cmd_train(args: argparse.Namespace) -> int:
     """``iamp train``: fit an MTD model on recorded tracks and write it (atomically)."""
     from iamp.cli.progress import call_with_progress, progress_enabled
     from iamp.core.outputs import check_output  # fail fast: not an input, no silent overwrite, writable
-    from iamp.prediction.loaders.formats import load_with_report
+    from iamp.prediction.loaders.formats import load_with_report, ngsim_options
     from iamp.prediction.predictor import train_from_tracks
 
     check_output(args.out, args.data, getattr(args, "force", False))
     try:
         edges = parse_bins(args.bins, args.bin_width, args.a_max)
-        if args.location is not None and args.format != "ngsim":
-            raise ValueError("--location applies to NGSIM data only")
         tracks, report = load_with_report(args.data, args.format,
-                                          **({"location": args.location} if args.location else {}))
+                                          **ngsim_options(args.format, args.location, args.units))
         for line in report.lines():
             print(line)
         if args.model_kind == "leader" and len(args.data) != 1:
@@ -229,8 +239,8 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
     try:
         with progress_bar(8, "evaluate-predictor", enabled=progress_enabled(args)) as tick:
             res = evaluate_file(args.data, args.format, model=args.model, split=args.split, seed=args.seed,
-                                location=args.location, progress=tick, leader_model=args.leader_model,
-                                interaction=not args.no_interaction)
+                                location=args.location, units=args.units, progress=tick,
+                                leader_model=args.leader_model, interaction=not args.no_interaction)
     except (IampError, ValueError, OSError) as exc:
         return _error(exc)
     if args.markdown is not None:
@@ -326,9 +336,7 @@ def add_parsers(subparsers: Any) -> None:
                     "log-likelihood, the parameter count k = n m (m-1) + (n-1), AIC, BIC and the lag weights.")
     t.add_argument("data", nargs="+", help="data files or directories")
     t.add_argument("--format", required=True, choices=("highd", "ngsim", "sumo"), help="data format")
-    t.add_argument("--location", default=None,
-                   help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
-                        "dropped")
+    add_ngsim_options(t)
     t.add_argument("--out", required=True, help="model file to write (JSON)")
     t.add_argument("--model-kind", choices=("mtd", "leader"), default="mtd",
                    help="mtd: the paper's single-vehicle chain (default); leader: a car-following law calibrated on "
@@ -395,9 +403,7 @@ def add_parsers(subparsers: Any) -> None:
                         "(seeded) or the last 20 %% of the time span")
     e.add_argument("--seed", type=int_in("seed"), default=0,
                    help="seed of the vehicle split and the bootstrap, in [0, 2^31-1] (default 0)")
-    e.add_argument("--location", default=None,
-                   help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted as "
-                        "dropped")
+    add_ngsim_options(e)
     e.add_argument("--leader-model", type=leader_model_file, default=None,
                    help="leader model file (kind 'leader', from iamp train --model-kind leader) to evaluate "
                         "(default: the shipped one; with --split one is calibrated on the training part)")

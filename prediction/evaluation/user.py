@@ -34,7 +34,7 @@ import os
 import numpy as np
 
 from iamp.prediction._typing import FloatArray, IntArray, Progress
-from iamp.prediction.loaders.formats import load_with_report
+from iamp.prediction.loaders.formats import load_with_report, ngsim_options
 from iamp.prediction.mtd.model import MTDModel
 from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks.table import Tracks
@@ -123,7 +123,7 @@ def _ci(x: FloatArray) -> list[float]:
 def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None = None, split: str | None = None,
                   seed: int = 0, resamples: int = BOOTSTRAP_RESAMPLES, location: str | None = None,
                   progress: Progress | None = None, leader_model: str | None = None,
-                  interaction: bool = True) -> UserEvaluation:
+                  interaction: bool = True, units: str | None = None) -> UserEvaluation:
     """Evaluate CV, CA, MTD and the first-order chain on a data file (SPEC §13 JSON).
 
     Parameters
@@ -148,6 +148,9 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
     interaction : bool
         Evaluate the leader-aware predictor and add the ``interaction`` section (module
         docstring of :mod:`~iamp.prediction.evaluation.leader`).
+    units : {"feet", "metres"}, optional
+        NGSIM only: the file's unit (default: detected from the data,
+        :mod:`~iamp.prediction.loaders.units`).
 
     Returns
     -------
@@ -174,9 +177,7 @@ def evaluate_file(data: str | os.PathLike[str], fmt: str, *, model: str | None =
         raise ValueError(f"split must be one of {', '.join(SPLITS)} (got {split!r})")
     if split is not None and (model is not None or leader_model is not None):
         raise ValueError("--model and --split exclude each other (--split trains the model on the file)")
-    if location is not None and fmt != "ngsim":
-        raise ValueError("--location applies to NGSIM data only")
-    tracks, report = load_with_report([data], fmt, **({"location": location} if location is not None else {}))
+    tracks, report = load_with_report([data], fmt, **ngsim_options(fmt, location, units))
     tick()
     test = tracks
     mtd: MTDModel

@@ -35,6 +35,7 @@ import numpy as np
 from iamp.prediction._typing import FloatArray, IntArray, PathLike
 from iamp.prediction.loaders.csv import _integers, _path, read_csv
 from iamp.prediction.loaders.ngsim import FEET
+from iamp.prediction.loaders.units import UNITS
 from iamp.prediction.tracks import TrackDataError, Tracks
 
 __all__ = ["DEFAULT_LENGTH_M", "Leaders", "derive_leaders", "ngsim_leaders"]
@@ -156,7 +157,8 @@ def ngsim_leaders(path: str | os.PathLike[str], tracks: Tracks) -> Leaders:
     if "v_length" in cols:
         r = rows_of(vid, frame)
         ok = r >= 0
-        length[r[ok]] = np.asarray(cols["v_length"], dtype=float)[ok] * FEET
+        factor = UNITS.get(str(tracks.meta.get("units", "feet")), FEET)  # the loader's unit decision
+        length[r[ok]] = np.asarray(cols["v_length"], dtype=float)[ok] * factor
     if "Preceding" not in cols or not np.any(np.asarray(cols["Preceding"]) > 0):
         out = derive_leaders(tracks, length)
         return Leaders(out.leader, length, "derived from lane and position (no Preceding column or all 0)")

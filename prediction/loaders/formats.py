@@ -38,7 +38,7 @@ from .sumo import SUMO_DEFAULT_LENGTH, load_sumo_fcd
 
 __all__ = ["FEET", "FORMATS", "HIGHD_DEFAULT_FRAME_RATE", "NGSIM_FRAME_PERIOD", "NGSIM_TXT_COLUMNS",
            "SUMO_DEFAULT_LENGTH", "LoadReport", "TrackDataError", "load", "load_highd", "load_ngsim",
-           "load_sumo_fcd", "load_with_report"]
+           "load_sumo_fcd", "load_with_report", "ngsim_options"]
 
 #: Formats understood by :func:`load` (the CLI's ``--format``).
 FORMATS = ("highd", "ngsim", "sumo")
@@ -83,6 +83,32 @@ def load(paths: PathLike | Iterable[PathLike], format: str, **kwargs: object) ->
     if any(abs(d - coarse) > 1e-9 * coarse for d in dts):
         tables = [tb if abs(tb.dt - coarse) <= 1e-9 * coarse else tb.resample(coarse) for tb in tables]
     return Tracks.concat(tables)
+
+
+def ngsim_options(fmt: str, location: str | None = None, units: str | None = None) -> dict[str, str]:
+    """The NGSIM loader's options as keyword arguments of :func:`load` (``--location``, ``--units``).
+
+    Parameters
+    ----------
+    fmt : str
+        The format the options go with.
+    location, units : str, optional
+        :func:`~iamp.prediction.loaders.ngsim.load_ngsim`'s ``location`` and ``units``.
+
+    Returns
+    -------
+    dict
+        The options given (``None`` left out).
+
+    Raises
+    ------
+    ValueError
+        An option given for a format other than ``"ngsim"``.
+    """
+    opts = {k: v for k, v in (("location", location), ("units", units)) if v is not None}
+    if opts and str(fmt).strip().lower() != "ngsim":
+        raise ValueError(" and ".join(f"--{k}" for k in opts) + " applies to NGSIM data only")
+    return opts
 
 
 def load_with_report(paths: PathLike | Iterable[PathLike], format: str,

@@ -10,6 +10,9 @@ Accepted files
   :data:`NGSIM_TXT_COLUMNS`.
 
 Conversions: feet → metres (``× 0.3048``: positions, ft/s, ft/s²); time ``Frame_ID × 0.1 s``.
+A file of the same layout in metres is recognised from its data (vehicle lengths and widths, lane
+width, speeds: :mod:`~iamp.prediction.loaders.units`) and read without the factor; where the data
+cannot tell, the file is refused unless ``units="feet"`` or ``"metres"`` is given (``--units``).
 Rows are keyed by ``(Location, Vehicle_ID, Frame_ID)``; ``Global_Time`` is never used (some
 re-extractions leave it at zero, which would make every row of a vehicle look like the same
 instant).  ``Local_Y`` is the **front bumper** (NGSIM's definition); the position of a vehicle
@@ -40,11 +43,12 @@ from iamp.prediction.tracks.table import TrackDataError, Tracks
 from . import plausibility
 from .csv import _integers, _open_text, _path, _segments, duplicate_rows, read_csv
 from .report import LoadReport
+from .units import FOOT_M, detect_units
 
 __all__ = ["FEET", "NGSIM_FRAME_PERIOD", "NGSIM_TXT_COLUMNS", "load_ngsim"]
 
 #: One foot in metres (NGSIM units).
-FEET = 0.3048
+FEET = FOOT_M
 #: NGSIM frame period [s] (10 Hz).
 NGSIM_FRAME_PERIOD = 0.1
 #: Columns of the original headerless ``.txt`` files, in file order.
@@ -61,6 +65,7 @@ _NGSIM = (
     ("Lane_ID", ("Lane_ID",), True),
     ("Local_X", ("Local_X",), False),
     ("v_length", ("v_length", "v_Length"), False),
+    ("v_Width", ("v_Width", "v_width"), False),
     ("Global_Time", ("Global_Time",), False),
     ("Location", ("Location",), False),
 )
@@ -83,7 +88,8 @@ def _first_line(path: Path) -> str:
 def _read_txt(path: Path) -> dict[str, Array]:
     """The headerless whitespace-separated original (18 numeric columns)."""
     want = {name: NGSIM_TXT_COLUMNS.index(name) for name in
-            ("Vehicle_ID", "Frame_ID", "Global_Time", "Local_X", "Local_Y", "v_Length", "v_Vel", "v_Acc", "Lane_ID")}
+            ("Vehicle_ID", "Frame_ID", "Global_Time", "Local_X", "Local_Y", "v_Length", "v_Width", "v_Vel", "v_Acc",
+             "Lane_ID")}
     try:
         with _open_text(path) as fh:
             data = np.loadtxt(fh, usecols=list(want.values()), dtype=np.float64, ndmin=2)
@@ -141,7 +147,7 @@ def _read_whitespace_with_header(path: Path, first: str) -> dict[str, Array]:
     return cols
 
 
-def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) -> Tracks:
+def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None, units: str | None = None) -> Tracks:
     """Load NGSIM trajectory data (CSV with header, or the original headerless ``.txt``).
 
     Parameters
@@ -151,12 +157,21 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
     location : str, optional
         Keep only the rows of this ``Location`` (case-insensitive, e.g. ``"us-101"``); rows of
         other locations are counted as dropped.  Without a ``Location`` column it labels the data.
+    units : {"feet", "metres"}, optional
+        The unit of lengths, speeds and accelerations in the file; default: detected from the data
+        (:func:`~iamp.prediction.loaders.units.detect_units`), the file refused where the data
+        cannot tell.  ``meta["units"]`` and a load-report note say which and why.
 
     Returns
     -------
     Tracks
         Track ids ``0..n−1``; ``meta["source_ids"]`` lists ``[location, vehicle_id, first_frame]``
         per track and ``meta["load_report"]`` the :class:`LoadReport` (see the module docstring).
+
+    Raises
+    ------
+    TrackDataError
+        A file that cannot be read, or whose unit the data do not single out (without ``units``).
     """
     path = _path(csv_path)
     cols, layout = _read(path)
@@ -164,8 +179,7 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
     n = int(cols["Frame_ID"].size)
     report.rows_read = n
     meta: dict[str, Any] = {"format": "ngsim", "source": str(path), "layout": layout,
-                            "units_converted": "feet -> metres (x 0.3048)", "frame_period": NGSIM_FRAME_PERIOD,
-                            "keyed_by": "(Location, Vehicle_ID, Frame_ID)"}
+                            "frame_period": NGSIM_FRAME_PERIOD, "keyed_by": "(Location, Vehicle_ID, Frame_ID)"}
     if n == 0:
         raise TrackDataError("no data rows", source=path)
     # locations as integer codes (the strings are dropped at once: memory on big files)
@@ -190,6 +204,12 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
         loc_code = np.zeros(int(np.sum(keep)), dtype=np.int64)
         locations = np.asarray([want])
         meta["location_filter"] = location
+    decision = detect_units(cols, path, units)
+    factor = decision.factor
+    meta["units"] = decision.units
+    meta["units_converted"] = "feet -> metres (x 0.3048)" if decision.units == "feet" else "none (metres)"
+    report.note(decision.note())
+    cols.pop("v_Width", None)
     if "Global_Time" in cols:
         zeros = int(np.sum(cols.pop("Global_Time") == 0))
         report.note("Global_Time ignored: rows are keyed by Vehicle_ID and Frame_ID"
@@ -243,10 +263,12 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None) ->
     meta["split_at_frame_gaps"] = splits
     meta["load_report"] = report.to_dict()
     report.check()
-    y_lat = vals["Local_X"] * FEET if "Local_X" in vals else None
-    tracks = Tracks(seg, frame * NGSIM_FRAME_PERIOD, centre * FEET, vals["v_Vel"] * FEET, vals["v_Acc"] * FEET, lane,
-                    NGSIM_FRAME_PERIOD, meta, y_lat)
-    return plausibility.apply(tracks, path, "feet (NGSIM), converted to metres", report, lines=file_line)
+    y_lat = vals["Local_X"] * factor if "Local_X" in vals else None
+    tracks = Tracks(seg, frame * NGSIM_FRAME_PERIOD, centre * factor, vals["v_Vel"] * factor, vals["v_Acc"] * factor,
+                    lane, NGSIM_FRAME_PERIOD, meta, y_lat)
+    unit = ("feet (NGSIM), converted to metres" if decision.units == "feet" else "metres (no conversion)") + \
+        f", {decision.how}"
+    return plausibility.apply(tracks, path, unit, report, lines=file_line)
 
 
 def _vehicle_lengths(length: FloatArray | None, vstart: IntArray, n: int) -> FloatArray:

@@ -1,0 +1,176 @@
+"""Issue 29 items 4, 5, 8: the unit of an NGSIM-layout file, leaders without lane numbers, IAMP_DATA.
+
+Item 4: a file in metres was read as feet (every result x 0.3048).  The unit is now read from the
+data (vehicle lengths and widths, lane width, speeds); the ambiguous case is refused with the
+evidence; ``--units`` / ``units=`` says it.
+
+Item 5: with ``Lane_ID = 0`` everywhere the leader-aware predictor took the next vehicle ahead in
+*any* lane as the leader.  Leaders are now found by lateral position where the lane numbers are
+unusable, and a window's leader is accepted only if it stays ahead and in the same lane over the
+history; otherwise the prediction is the fallback's.
+
+Item 8: the recorded data are found through ``IAMP_DATA`` (conftest's ``data_path``).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import DATA_ENV, data_path, data_root, needs_data
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from iamp.prediction.loaders import TrackDataError, load, load_ngsim
+from iamp.prediction.loaders.units import FOOT_M
+
+REPO = Path(__file__).resolve().parents[1]
+HEADER = ("Vehicle_ID,Frame_ID,Total_Frames,Global_Time,Local_X,Local_Y,Global_X,Global_Y,v_length,v_Width,"
+          "v_Class,v_Vel,v_Acc,Lane_ID,Preceding,Following,Space_Headway,Time_Headway")
+
+
+def _traffic_csv(path: Path, *, factor: float, speeds: list[float], length: float, width: float, lane_w: float,
+                 lanes: int, with_length: bool = True, with_width: bool = True, lane_ids: bool = True,
+                 frames: int = 60) -> Path:
+    """Vehicles at constant speed, one per lane in turn, in NGSIM's layout; SI values divided by ``factor``
+    (0.3048: feet, 1: metres)."""
+    lines = [HEADER]
+    for i, v in enumerate(speeds):
+        ln = i % lanes
+        y_lat = (ln + 0.5) * lane_w
+        x0 = 50.0 + 30.0 * i
+        for k in range(frames):
+            front = x0 + v * 0.1 * k
+            lines.append(",".join([
+                str(i + 1), str(k + 1), str(frames), "0", f"{y_lat / factor:.5f}", f"{front / factor:.5f}", "0", "0",
+                f"{(length if with_length else 0.0) / factor:.5f}", f"{(width if with_width else 0.0) / factor:.5f}",
+                "2", f"{v / factor:.5f}", "0", str(ln + 1 if lane_ids else 0), "0", "0", "0", "0"]))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+# ---------------------------------------------------------------------------------------
+# item 4: the unit from the data
+# ---------------------------------------------------------------------------------------
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(speeds=st.lists(st.floats(0.5, 35.0), min_size=1, max_size=4), length=st.floats(3.5, 8.0),
+       width=st.floats(1.6, 2.6), lane_w=st.floats(3.0, 4.0), lanes=st.integers(1, 3),
+       evidence=st.sets(st.sampled_from(["length", "width", "lanes"]), min_size=1))
+def test_unit_is_detected_and_both_units_load_the_same_tracks(tmp_path: Path, speeds: list[float], length: float,
+                                                              width: float, lane_w: float, lanes: int,
+                                                              evidence: set[str]) -> None:
+    """Feet and metres versions of the same traffic load to the same SI tracks, each unit detected, whatever
+    single piece of decisive evidence (lengths, widths, lane width) the file carries."""
+    if "lanes" in evidence and (lanes < 2 or len(speeds) < 2):
+        lanes, speeds = 2, speeds + [10.0]
+    kw = {"speeds": speeds, "length": length, "width": width, "lane_w": lane_w, "lanes": lanes,
+          "with_length": "length" in evidence, "with_width": "width" in evidence, "lane_ids": "lanes" in evidence}
+    ft = load_ngsim(_traffic_csv(tmp_path / "ft.csv", factor=FOOT_M, **kw))
+    m = load_ngsim(_traffic_csv(tmp_path / "m.csv", factor=1.0, **kw))
+    assert ft.meta["units"] == "feet" and m.meta["units"] == "metres"
+    np.testing.assert_allclose(m.x, ft.x, atol=1e-4)
+    np.testing.assert_allclose(m.v, ft.v, atol=1e-4)
+    assert m.y is not None and ft.y is not None
+    np.testing.assert_allclose(m.y, ft.y, atol=1e-4)
+    np.testing.assert_allclose(np.median(m.v), np.median(speeds), rtol=1e-6, atol=1e-4)  # not scaled by 0.3048
+    assert any(n.startswith("units: metres (detected") for n in m.meta["load_report"]["notes"])
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(speeds=st.lists(st.floats(0.5, 13.0), min_size=1, max_size=3), factor=st.sampled_from([FOOT_M, 1.0]))
+def test_without_decisive_evidence_the_file_is_refused_unless_units_are_given(tmp_path: Path, speeds: list[float],
+                                                                             factor: float) -> None:
+    """No lengths, widths or lane ids and speeds plausible in both units: refused with the evidence; with
+    ``units`` the file loads in that unit."""
+    p = _traffic_csv(tmp_path / "a.csv", factor=factor, speeds=speeds, length=4.5, width=1.8, lane_w=3.5, lanes=1,
+                     with_length=False, with_width=False, lane_ids=False)
+    with pytest.raises(TrackDataError, match=r"cannot tell feet from metres: 95th percentile of v_Vel .*--units"):
+        load_ngsim(p)
+    name = "feet" if factor == FOOT_M else "metres"
+    tb = load(p, "ngsim", units=name)
+    assert tb.meta["units"] == name
+    np.testing.assert_allclose(np.sort(np.unique(np.round(tb.v, 3))), np.sort(np.unique(np.round(speeds, 3))),
+                               atol=2e-3)
+
+
+def test_contradicting_evidence_is_refused(tmp_path: Path) -> None:
+    """Lengths in metres but speeds only possible in feet: refused, both named."""
+    p = _traffic_csv(tmp_path / "c.csv", factor=1.0, speeds=[60.0, 62.0], length=4.5, width=1.8, lane_w=3.5,
+                     lanes=1)
+    with pytest.raises(TrackDataError, match="contradicts itself: median v_length 4.5.*95th percentile of v_Vel"):
+        load_ngsim(p)
+
+
+def _iamp(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "iamp", *args], capture_output=True, text=True, timeout=600,
+                          cwd=REPO)
+
+
+def test_cli_reads_metres_like_feet_refuses_the_ambiguous_file_and_takes_units(tmp_path: Path) -> None:
+    """``evaluate-predictor`` gives the same errors for the metres and the feet file (before: x 0.3048);
+    an ambiguous file is exit 2 with one line naming it; ``--units`` reads it; ``--units`` with another
+    format is refused."""
+    kw = {"speeds": [12.0, 14.0, 9.0, 11.0], "length": 4.6, "width": 1.9, "lane_w": 3.6, "lanes": 2,
+          "frames": 120}
+    res = {}
+    for name, f in (("ft", FOOT_M), ("m", 1.0)):
+        p = _traffic_csv(tmp_path / f"{name}.csv", factor=f, **kw)
+        r = _iamp("evaluate-predictor", "--data", str(p), "--format", "ngsim", "--no-interaction", "--json", "-q")
+        assert r.returncode == 0, r.stderr
+        res[name] = json.loads(r.stdout)
+    assert res["m"]["rmse_m"]["cv"] == pytest.approx(res["ft"]["rmse_m"]["cv"], abs=1e-3)
+    amb = _traffic_csv(tmp_path / "amb.csv", factor=1.0, **{**kw, "lanes": 1}, with_length=False, with_width=False,
+                       lane_ids=False)
+    for cmd in (["evaluate-predictor", "--data", str(amb), "--format", "ngsim", "--no-interaction", "--json"],
+                ["train", str(amb), "--format", "ngsim", "--out", str(tmp_path / "m.json")]):
+        r = _iamp(*cmd, "-q")
+        assert r.returncode == 2 and r.stdout == "" and "Traceback" not in r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1
+        assert str(amb) in r.stderr and "--units" in r.stderr and "v_Vel" in r.stderr
+        r = _iamp(*cmd, "-q", "--units", "metres")
+        assert r.returncode == 0, r.stderr
+    r = _iamp("train", str(amb), "--format", "sumo", "--units", "feet", "--out", str(tmp_path / "s.json"))
+    assert r.returncode == 2 and "--units applies to NGSIM data only" in r.stderr
+
+
+@needs_data("ngsim-us101", "us101_ngsim.csv.gz")
+def test_shared_us101_is_detected_as_feet_and_loads_as_before() -> None:
+    """The shared US-101 CSV is in feet (PROVENANCE: converted m -> ft); every piece of evidence says so and the
+    table equals the one read with ``units="feet"``."""
+    path = data_path("ngsim-us101", "us101_ngsim.csv.gz")
+    tb = load_ngsim(path)
+    note = tb.meta["load_report"]["notes"][0]
+    assert tb.meta["units"] == "feet" and note.startswith("units: feet (detected")
+    assert note.count("fits feet of") == 4 and "metres of" not in note
+    given = load_ngsim(path, units="feet")
+    assert np.array_equal(tb.x, given.x) and np.array_equal(tb.v, given.v)
+    assert 13.0 < float(np.median(tb.v)) < 14.5  # 45 ft/s
+
+
+# ---------------------------------------------------------------------------------------
+# item 8: IAMP_DATA
+# ---------------------------------------------------------------------------------------
+
+def test_data_path_follows_iamp_data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(DATA_ENV, str(tmp_path))
+    assert data_root() == tmp_path
+    assert data_path("ngsim-us101", "x.csv") == tmp_path / "ngsim-us101" / "x.csv"
+    mark = needs_data("ngsim-us101", "x.csv")
+    assert mark.args[0] is True and str(tmp_path) in mark.kwargs["reason"] and DATA_ENV in mark.kwargs["reason"]
+    monkeypatch.delenv(DATA_ENV)
+    assert data_root() == REPO.parent / "shared" / "data"
+
+
+def test_no_test_hardcodes_the_shared_data_folder() -> None:
+    """Every test reaches the recorded data through conftest's ``data_path`` (so ``IAMP_DATA`` works)."""
+    pattern = re.compile(r"""["']shared["']\s*/\s*["']data["']|["'][^"'\n]*shared/data""")
+    mine = ("conftest.py", Path(__file__).name)
+    offenders = [p.name for p in sorted((REPO / "tests").glob("*.py"))
+                 if p.name not in mine and pattern.search(p.read_text(encoding="utf-8"))]
+    assert offenders == []
