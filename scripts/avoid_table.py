@@ -59,7 +59,7 @@ def within(p: dict[str, float], lim: PhysicalLimits, tol: float = 1e-6) -> bool:
 
 CONFIGS = (("pmp-active", "PMP, --constraint active", {}),
            ("qp-active", "QP, --constraint active", {"steps": None}),
-           ("qp-avoid", "avoid, continuous", {"steps": None, "time_limit_s": 60.0}),
+           ("qp-avoid", "avoid, continuous", {"steps": None}),
            ("qp-avoid", "avoid, nodes (study)", {"steps": None, "safety": "nodes"}))
 
 

@@ -202,3 +202,62 @@ def test_two_vehicles_no_work_limit():
     assert s["lower_bound"] <= plan.cost * (1 + 1e-12)
     if plan.status == st.LOCAL:
         assert not s["closed"]
+
+
+# --- deterministic budgets (SPEC §17, issue 32 item 2) -------------------------------------------------
+def test_the_search_budget_counts_solves_not_seconds(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A machine where every clock read is 1000 s later (a slow or loaded machine) gives the same
+    status, cost, crossing time and number of QP solves: no wall-clock time decides the search;
+    and a budget of ``k`` solves stops it after exactly ``k`` (``local``), on any machine."""
+    import time as time_mod
+
+    import iamp.planners.avoid.continuous as cont
+
+    prob = binding_problem()
+    ref = ContinuousAvoidPlanner(steps=16).plan(prob)
+    clock = iter(range(0, 10**9, 1000))
+    monkeypatch.setattr(cont, "time", type("SlowClock", (), {"perf_counter": staticmethod(lambda: next(clock))}))
+    slow = ContinuousAvoidPlanner(steps=16).plan(prob)
+    assert (slow.status, slow.cost, slow.info["n_solves"]) == (ref.status, ref.cost, ref.info["n_solves"])
+    assert ref.status == st.OPTIMAL and np.array_equal(slow.contact_times, ref.contact_times)
+    monkeypatch.setattr(cont, "time", time_mod)
+    few = ContinuousAvoidPlanner(steps=16, max_solves=3).plan(prob)
+    assert few.status == st.LOCAL and few.info["avoidance"]["search"]["max_solves"] == 3
+    assert "time_limit_s" not in few.info["avoidance"]["search"]
+
+
+def test_the_removed_wall_clock_budget_is_refused_naming_max_solves() -> None:
+    import iamp
+    from iamp.core.errors import OptionError
+
+    with pytest.raises(OptionError, match="max_solves") as e:
+        iamp.plan(binding_problem(), "qp", constraint="avoid", steps=16, time_limit_s=10.0)
+    assert e.value.field == "time_limit_s"
+    with pytest.raises(OptionError, match="wall-clock"):
+        AvoidQPPlanner(time_limit_s=60.0)
+
+
+def test_no_planner_compares_a_clock_reading() -> None:
+    """Static guard over planners/: no comparison (``<``, ``>``, ...) has a clock reading
+    (``perf_counter``, ``monotonic``, ``time``, ``process_time``) or a variable named like a
+    wall-clock budget as an operand; timings may be measured and reported only."""
+    import ast
+    from pathlib import Path
+
+    import iamp.planners
+
+    root = Path(iamp.planners.__file__).resolve().parent
+    clocks = {"perf_counter", "monotonic", "time", "process_time", "perf_counter_ns", "monotonic_ns"}
+    budget_names = ("time_limit", "deadline", "timeout", "budget_s", "elapsed")
+    bad = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not isinstance(node, ast.Compare) or all(isinstance(op, (ast.Is, ast.IsNot)) for op in node.ops):
+                continue
+            for sub in ast.walk(node):
+                name = (sub.func.attr if isinstance(sub, ast.Call) and isinstance(sub.func, ast.Attribute)
+                        else None)
+                ident = sub.attr if isinstance(sub, ast.Attribute) else sub.id if isinstance(sub, ast.Name) else ""
+                if name in clocks or any(b in ident for b in budget_names):
+                    bad.append(f"{path.relative_to(root)}:{node.lineno}")
+    assert not bad, bad

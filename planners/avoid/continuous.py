@@ -385,10 +385,9 @@ class ContinuousAvoidPlanner:
     hold : {"foh", "zoh"}
     solver : {"osqp", "clarabel"}
     max_solves : int
-        QPs the branch and bound may solve before it stops with ``local``.
-    time_limit_s : float
-        Wall time after which it stops with ``local`` (the budget decides between
-        ``optimal`` and ``local``; it never refuses a problem).
+        QPs the branch and bound may solve before it stops with ``local`` (a count of work, so
+        the same problem gives the same status and plan on any machine, SPEC §17; the budget
+        decides between ``optimal`` and ``local``, it never refuses a problem).
     gap_rel : float
         Relative gap at which a box is closed.
     """
@@ -398,7 +397,6 @@ class ContinuousAvoidPlanner:
     solver: str = "clarabel"
     solver_settings: dict[str, Any] | None = None
     max_solves: int = 2000
-    time_limit_s: float = 60.0
     gap_rel: float = GAP_REL
     #: Solve the search's QPs on one fixed pattern (:meth:`ContinuousAvoidQP.solve_fixed`,
     #: values and bounds updated); the final QP is always re-solved from its own rows
@@ -432,7 +430,6 @@ class ContinuousAvoidPlanner:
         """Branch and bound over crossing-time boxes (module docstring)."""
         tf = qp.tf
         m = len(orders)
-        t_start = time.perf_counter()
         serial = itertools.count()
         heap: list[_Box] = []
         best: Solved | None = None
@@ -454,7 +451,7 @@ class ContinuousAvoidPlanner:
             U = best.cost if best is not None else np.inf
             if box.bound >= U - gap(U):
                 break
-            if qp.n_solves >= self.max_solves or time.perf_counter() - t_start > self.time_limit_s:
+            if qp.n_solves >= self.max_solves:
                 break
             heapq.heappop(heap)
             tau, margin = self._candidate_tau(qp, box)
@@ -552,7 +549,7 @@ class ContinuousAvoidPlanner:
                             "outside the box only)", "n_solves": qp.n_solves, "boxes": out["n_boxes"],
                   "open_boxes": out["open_boxes"], "lower_bound": out["lower_bound"],
                   "upper_bound": out["upper_bound"], "gap_rel_tol": self.gap_rel, "closed": out["closed"],
-                  "max_solves": self.max_solves, "time_limit_s": self.time_limit_s, "failures": len(out["failures"])}
+                  "max_solves": self.max_solves, "failures": len(out["failures"])}
         info["search"] = search
         best: Solved | None = out["best"]
         if best is None:

@@ -48,9 +48,12 @@ class AvoidOptions:
         crossing times); ``"nodes"`` imposes the inequalities at the grid nodes only (SPEC §10 as
         first written, kept for study; a plan that intrudes between nodes is ``unsafe``).
     max_solves : int
-        QPs the continuous-time branch and bound may solve before it stops with ``local``.
-    time_limit_s : float
-        Its wall-time budget (``local`` beyond it; a budget never refuses a problem).
+        QPs the continuous-time branch and bound may solve before it stops with ``local`` (a
+        count of work: the same problem gives the same status and plan on any machine, SPEC §17;
+        a budget never refuses a problem).
+    time_limit_s : None
+        Removed (it was a wall-clock budget, which made the status depend on the machine and its
+        load); any value is refused with :class:`~iamp.core.errors.OptionError` naming ``max_solves``.
     """
 
     steps: int = 100
@@ -63,7 +66,7 @@ class AvoidOptions:
                "Bernstein coefficients (continuous, default) or the inequalities at the nodes only (nodes, kept "
                "for study)", "choices": SAFETY_MODES})
     max_solves: int = 2000
-    time_limit_s: float = 60.0
+    time_limit_s: None = None
 
     def __post_init__(self) -> None:
         check_steps(self.steps)
@@ -73,5 +76,24 @@ class AvoidOptions:
         check_choice(self.safety, SAFETY_MODES, "safety", "safety mode")
         if isinstance(self.max_solves, bool) or not isinstance(self.max_solves, int) or self.max_solves < 1:
             raise OptionError(f"must be a positive integer (got {self.max_solves!r})", "max_solves")
-        if not isinstance(self.time_limit_s, (int, float)) or not self.time_limit_s > 0:
-            raise OptionError(f"must be a positive number of seconds (got {self.time_limit_s!r})", "time_limit_s")
+        refuse_wall_clock_budget(self.time_limit_s)
+
+
+def refuse_wall_clock_budget(time_limit_s: object) -> None:
+    """Refuse the removed wall-clock budget ``time_limit_s`` (any value but ``None``).
+
+    Parameters
+    ----------
+    time_limit_s : object
+        The value given for the removed option.
+
+    Raises
+    ------
+    OptionError
+        When a value is given: budgets count work (SPEC §17), so the option names ``max_solves``.
+    """
+    if time_limit_s is not None:
+        raise OptionError(f"was a wall-clock budget and is removed: a search budget counts work so that the "
+                          f"same problem gives the same status and plan on any machine (SPEC §17); use "
+                          f"max_solves (QP solves of the branch and bound, default 2000) instead "
+                          f"(got {time_limit_s!r})", "time_limit_s")

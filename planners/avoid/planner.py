@@ -71,7 +71,7 @@ from ..qp.options import CONTACTS, check_choice
 from .check import Candidate, FloatArray, crossing_orders
 from .continuous import ContinuousAvoidPlanner
 from .data import AvoidData
-from .options import SAFETY_MODES, AvoidOptions, check_avoid_solver
+from .options import SAFETY_MODES, AvoidOptions, check_avoid_solver, refuse_wall_clock_budget
 from .result import failed_plan, verified_plan
 from .search import Phase, certify_free, pruned_switches, refine_crossings, seed_switches
 from .solve import BoundSolver
@@ -107,6 +107,11 @@ class AvoidQPPlanner:
         One vehicle: skip the switches that monotone relaxations prove no better than the
         best found (exact; see :func:`~iamp.planners.avoid.search.pruned_switches`).
         ``False`` solves every switch.
+    max_solves : int
+        QPs the continuous-time branch and bound may solve before it stops with ``local`` (a count
+        of work, SPEC §17).
+    time_limit_s : None
+        Removed wall-clock budget: any value is refused (:func:`~.options.refuse_wall_clock_budget`).
     """
 
     steps: int = 100
@@ -119,9 +124,10 @@ class AvoidQPPlanner:
     prune: bool = True
     safety: str = "continuous"
     max_solves: int = 2000
-    time_limit_s: float = 60.0
+    time_limit_s: None = None
 
     def __post_init__(self) -> None:
+        refuse_wall_clock_budget(self.time_limit_s)
         check_choice(self.hold, HOLDS, "hold", "hold")
         check_choice(self.contact, CONTACTS, "contact", "contact search")
         check_avoid_solver(self.solver)
@@ -129,8 +135,7 @@ class AvoidQPPlanner:
 
     def _continuous(self) -> ContinuousAvoidPlanner:
         return ContinuousAvoidPlanner(steps=self.steps, hold=self.hold, solver=self.solver,
-                                      solver_settings=self.solver_settings, max_solves=self.max_solves,
-                                      time_limit_s=self.time_limit_s)
+                                      solver_settings=self.solver_settings, max_solves=self.max_solves)
 
     # --- solving one grid ------------------------------------------------------------------
     def _backend(self, data: AvoidData, on: np.ndarray) -> BoundSolver:
@@ -158,8 +163,7 @@ class AvoidQPPlanner:
     def from_options(cls, options: AvoidOptions) -> AvoidQPPlanner:
         """The planner of the registry's validated options (:class:`~iamp.planners.avoid.options.AvoidOptions`)."""
         return cls(steps=options.steps, hold=options.hold, solver=options.solver, contact=options.contact,
-                   solver_settings=options.solver_settings, safety=options.safety, max_solves=options.max_solves,
-                   time_limit_s=options.time_limit_s)
+                   solver_settings=options.solver_settings, safety=options.safety, max_solves=options.max_solves)
 
     def plan(self, problem: Problem, progress: Progress | None = None) -> Plan:
         """Search the crossing times, solve, verify; an infeasible start/end gives an
