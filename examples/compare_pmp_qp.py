@@ -1,4 +1,8 @@
-"""Compare the PMP with the discretised QP on one scenario and read the verdicts.
+"""
+Compare the PMP with the QP
+===========================
+
+Compare the PMP with the discretised QP on one scenario and read the verdicts.
 
 Run: ``python examples/compare_pmp_qp.py``
 """

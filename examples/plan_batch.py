@@ -1,4 +1,8 @@
-"""Plan many one-vehicle lane changes at once (vectorised PMP) and check one against a single plan.
+"""
+Plan many lane changes at once
+==============================
+
+Plan many one-vehicle lane changes at once (vectorised PMP) and check one against a single plan.
 
 Run: ``python examples/plan_batch.py``
 """

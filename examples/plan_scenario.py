@@ -1,4 +1,8 @@
-"""Plan the lane change of a built-in scenario with the PMP and with the QP, through the registry.
+"""
+Plan a scenario with the PMP and the QP
+=======================================
+
+Plan the lane change of a built-in scenario with the PMP and with the QP, through the registry.
 
 Run: ``python examples/plan_scenario.py``
 """

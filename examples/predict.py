@@ -1,4 +1,8 @@
-"""Predict a surrounding vehicle's future from 3 s of observed positions (the shipped MTD model).
+"""
+Predict a vehicle from its history
+==================================
+
+Predict a surrounding vehicle's future from 3 s of observed positions (the shipped MTD model).
 
 Run: ``python examples/predict.py``
 """
