@@ -1,0 +1,250 @@
+"""RSS (simulation/rss.py): the published formulas against hand-computed cases and, when the
+reference implementation ``ad-rss`` is installed, against it on generated situations; the
+dangerous threshold time, proper response and blame on constructed pairs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.core.errors import ScenarioError
+from iamp.simulation.rss import (
+    DEFAULT,
+    Motion,
+    RssParameters,
+    body_extents,
+    judge_pair,
+    lateral_reach,
+    safe_lateral_distance,
+    safe_longitudinal_distance,
+)
+
+# -- hand-computed cases (the paper's formulas, worked by hand) -------------------------------------
+
+
+def test_longitudinal_distance_by_hand():
+    # v_r = 30, v_f = 20, rho = 1, a = 3.5, b_min = 4, b_max = 8:
+    # 30 + 1.75 + 33.5^2/8 - 400/16 = 31.75 + 140.28125 - 25 = 147.03125
+    assert float(safe_longitudinal_distance(30.0, 20.0)) == pytest.approx(147.03125, abs=1e-12)
+    # both standing: only the rear car's acceleration during rho: 1.75 + 3.5^2/8 = 3.28125
+    assert float(safe_longitudinal_distance(0.0, 0.0)) == pytest.approx(3.28125, abs=1e-12)
+    # a fast front car: the positive part is 0
+    assert float(safe_longitudinal_distance(10.0, 30.0)) == 0.0
+
+
+def test_lateral_distance_by_hand():
+    # u1 = 1 toward, u2 = 0.5 toward, alpha 0.2, beta 0.8, rho 1, mu 0.1:
+    # o(1) = 1 + 0.1 + 1.2^2/1.6 = 2.0 ; o(0.5) = 0.5 + 0.1 + 0.7^2/1.6 = 0.90625
+    assert float(lateral_reach(1.0)) == pytest.approx(2.0)
+    assert float(lateral_reach(0.5)) == pytest.approx(0.90625)
+    assert float(safe_lateral_distance(1.0, 0.5)) == pytest.approx(0.1 + 2.90625)
+    # both moving apart fast: only the margin mu remains (touching is never laterally safe)
+    assert float(safe_lateral_distance(-2.0, -1.0)) == pytest.approx(0.1)
+    # standing: each may drift 1/2 alpha rho^2 + (alpha rho)^2 / (2 beta) = 0.1 + 0.025
+    assert float(safe_lateral_distance(0.0, 0.0)) == pytest.approx(0.1 + 0.25)
+
+
+def test_parameters_are_validated_and_state_their_source():
+    with pytest.raises(ScenarioError, match="brake_max"):
+        RssParameters(brake_min=5.0, brake_max=4.0)
+    with pytest.raises(ScenarioError, match="response_time_s"):
+        RssParameters(response_time_s=0.0)
+    with pytest.raises(ScenarioError, match="lat_margin_m"):
+        RssParameters(lat_margin_m=-0.1)
+    d = DEFAULT.as_dict()
+    assert d["response_time_s"] == 1.0 and d["brake_max"] == 8.0 and "arXiv:1708.06374" in d["source"]
+    with pytest.raises(AttributeError):
+        DEFAULT.brake_min = 1.0  # type: ignore[misc]
+
+
+@given(st.floats(0.5, 10), st.floats(0.5, 3), st.floats(-math.pi, math.pi))
+def test_body_extents_of_a_turned_rectangle(L, W, psi):
+    hx, hy = body_extents(L, W, psi)
+    c, s = math.cos(psi), math.sin(psi)
+    corners = [(sx * L / 2 * c - sy * W / 2 * s, sx * L / 2 * s + sy * W / 2 * c) for sx in (-1, 1) for sy in (-1, 1)]
+    assert float(hx) == pytest.approx(max(abs(p[0]) for p in corners), abs=1e-9)
+    assert float(hy) == pytest.approx(max(abs(p[1]) for p in corners), abs=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0, 40), st.floats(0, 40), st.floats(0.1, 2.0), st.floats(0.5, 5), st.floats(1, 6), st.floats(0, 5))
+def test_longitudinal_distance_is_the_stopping_point_difference(vr, vf, rho, a, bmin, extra):
+    """Integrating the worst case (rear: +a for rho, then -b_min to rest; front: -b_max to rest)
+    gives the formula: the rear car's stopping point minus the front car's."""
+    p = RssParameters(response_time_s=rho, accel_max=a, brake_min=bmin, brake_max=bmin + extra)
+    rear = vr * rho + a * rho**2 / 2 + (vr + a * rho) ** 2 / (2 * bmin)
+    front = vf**2 / (2 * (bmin + extra))
+    assert float(safe_longitudinal_distance(vr, vf, p)) == pytest.approx(max(rear - front, 0.0), rel=1e-12, abs=1e-9)
+
+
+# -- the reference implementation -----------------------------------------------------------------
+
+def _adrss():  # type: ignore[no-untyped-def]
+    return pytest.importorskip("ad_rss", reason="ad-rss (the RSS reference implementation) is not installed")
+
+
+def _state(a, v_lon, v_lat, p):  # type: ignore[no-untyped-def]
+    c, w, ph = a.rss.core, a.rss.world, a.physics
+    r = c.RelativeObjectState()
+    r.object_type = w.ObjectType.OtherVehicle
+    v = r.structured_object_state.velocity
+    v.speed_lon_min = v.speed_lon_max = ph.Speed(v_lon)
+    v.speed_lat_min = v.speed_lat_max = ph.Speed(v_lat)
+    r.structured_object_state.is_in_correct_lane = True
+    r.structured_object_state.distance_to_enter_intersection = ph.Distance(1000.0)
+    r.structured_object_state.distance_to_leave_intersection = ph.Distance(1000.0)
+    d = r.dynamics  # ad-rss writes braking as a negative acceleration
+    d.alpha_lon.accel_max = ph.Acceleration(p.accel_max)
+    d.alpha_lon.brake_max = ph.Acceleration(-p.brake_max)
+    d.alpha_lon.brake_min = ph.Acceleration(-p.brake_min)
+    d.alpha_lon.brake_min_correct = ph.Acceleration(-p.brake_min)
+    d.alpha_lat.accel_max = ph.Acceleration(p.lat_accel_max)
+    d.alpha_lat.brake_min = ph.Acceleration(-p.lat_brake_min)
+    d.lateral_fluctuation_margin = ph.Distance(p.lat_margin_m)
+    d.response_time = ph.Duration(p.response_time_s)
+    d.max_speed_on_acceleration = ph.Speed(100.0)
+    u = d.unstructured_settings  # unused by the structured checks but validated
+    u.pedestrian_turning_radius = ph.Distance(2.0)
+    u.drive_away_max_angle = ph.Angle(2.4)
+    u.vehicle_yaw_rate_change = ph.AngularAcceleration(0.3)
+    u.vehicle_min_radius = ph.Distance(3.5)
+    u.vehicle_trajectory_calculation_step = ph.Duration(0.2)
+    for name in dir(u):
+        if name.endswith("_steps"):
+            setattr(u, name, 1)
+    o = r.unstructured_object_state
+    o.yaw, o.yaw_rate, o.steering_angle = ph.Angle(0.0), ph.AngularVelocity(0.0), ph.Angle(0.0)
+    o.dimension.length, o.dimension.width = ph.Distance(4.8), ph.Distance(1.8)
+    o.center_point.x, o.center_point.y = ph.Distance(0.0), ph.Distance(0.0)
+    o.speed_range.minimum, o.speed_range.maximum = ph.Speed(0.0), ph.Speed(50.0)
+    return r
+
+
+def _r(v: float) -> float:
+    """ad-rss refuses values below its resolution (e.g. subnormal speeds): 4 decimals."""
+    return round(v, 4)
+
+
+_params = st.builds(RssParameters, response_time_s=st.floats(0.2, 2.0).map(_r), accel_max=st.floats(0.5, 5.0).map(_r),
+                    brake_min=st.floats(2.0, 5.0).map(_r), brake_max=st.just(8.0),
+                    lat_accel_max=st.floats(0.1, 1.0).map(_r), lat_brake_min=st.floats(0.5, 2.0).map(_r),
+                    lat_margin_m=st.floats(0.0, 0.5, allow_subnormal=False).map(_r))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.floats(0, 45, allow_subnormal=False).map(_r), st.floats(0, 45, allow_subnormal=False).map(_r), _params)
+def test_longitudinal_distance_equals_ad_rss(vr, vf, p):
+    a = _adrss()
+    d = a.physics.Distance(0.0)
+    lead, rear = _state(a, vf, 0.0, p), _state(a, vr, 0.0, p)
+    assert a.rss.structured.calculateSafeLongitudinalDistanceSameDirection(lead, rear, d)
+    assert float(safe_longitudinal_distance(vr, vf, p)) == pytest.approx(d.mDistance, rel=1e-9, abs=1e-6)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.floats(-3, 3, allow_subnormal=False).map(_r), st.floats(-3, 3, allow_subnormal=False).map(_r), _params)
+def test_lateral_distance_equals_ad_rss_where_the_bracket_is_not_negative(u1, u2, p):
+    """ad-rss's left object has its lateral speed positive to the right (toward the right
+    object); its right object positive to the right too (away from the left one).  ad-rss adds
+    mu inside the positive part, the paper outside: equal when the bracket is >= 0."""
+    a = _adrss()
+    d = a.physics.Distance(0.0)
+    assert a.rss.structured.calculateSafeLateralDistance(_state(a, 0.0, u1, p), _state(a, 0.0, -u2, p), d)
+    bracket = float(lateral_reach(u1, p) + lateral_reach(u2, p))
+    ours = float(safe_lateral_distance(u1, u2, p))
+    if bracket >= 0:
+        assert ours == pytest.approx(d.mDistance, rel=1e-9, abs=1e-6)
+    else:
+        assert d.mDistance == pytest.approx(max(0.0, p.lat_margin_m + bracket), abs=1e-6)
+        assert ours == pytest.approx(p.lat_margin_m)
+
+
+# -- dangerous situation, threshold time, proper response, blame ------------------------------------
+
+def _motion(x, y, vx, vy, L=4.8, W=1.8):  # type: ignore[no-untyped-def]
+    x, y, vx, vy = (np.asarray(a, dtype=float) for a in (x, y, vx, vy))
+    hx, hy = body_extents(np.full(x.size, L), np.full(x.size, W), np.zeros(x.size))
+    return Motion(x, y, vx, vy, hx, hy)
+
+
+def _integrate(x0, v0, acc, dt):  # type: ignore[no-untyped-def]
+    v = v0 + np.concatenate([[0.0], np.cumsum(acc[:-1])]) * dt
+    x = x0 + np.concatenate([[0.0], np.cumsum(v[:-1])]) * dt
+    return x, v
+
+
+def test_a_cut_in_is_the_fault_of_the_car_that_keeps_moving_sideways():
+    """The ego changes lanes in front of a follower at the same speed, 12 m bumper to bumper
+    (longitudinally unsafe all along); the danger starts when the lateral distance becomes
+    unsafe, the required response is lateral, the ego keeps moving sideways: the ego is
+    responsible, the follower (no lateral motion) is not."""
+    dt, n = 0.1, 60
+    t = np.arange(n) * dt
+    vy = np.where((t >= 1.0) & (t < 4.0), -1.0, 0.0)  # the ego moves right from y = 3.2 to 0.2
+    y = 3.2 + np.concatenate([[0.0], np.cumsum(vy[:-1])]) * dt
+    ego = _motion(100 + 25 * t, y, np.full(n, 25.0), vy)
+    follower = _motion(100 - 4.8 - 12 + 25 * t, np.zeros(n), np.full(n, 25.0), np.zeros(n))
+    j = judge_pair(ego, follower, dt)
+    assert not j.dangerous[:10].any() and j.dangerous[-1]
+    k0 = int(np.argmax(j.dangerous))
+    assert j.blame_k[k0] == k0 - 1 and j.response[k0] == "lateral"
+    assert j.ego_responsible[-1] and not j.other_responsible.any()
+
+
+def test_a_follower_that_does_not_brake_is_responsible_and_the_braking_ego_is_not():
+    """Same lane; the follower closes in from a safe distance; the ego in front brakes at
+    3 m/s^2 (below b_max): the response is longitudinal, the follower must brake with b_min
+    after rho and does not."""
+    dt, n = 0.1, 80
+    acc_e = np.full(n, -3.0)
+    xe, ve = _integrate(200.0, 25.0, acc_e, dt)
+    xf, vf = _integrate(200.0 - 4.8 - 150.0, 30.0, np.zeros(n), dt)  # d_lon(30, 25) = 133 m: safe at first
+    ego, fol = _motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xf, np.zeros(n), vf, np.zeros(n))
+    j = judge_pair(ego, fol, dt)
+    assert j.dangerous.any()
+    k0 = int(np.argmax(j.dangerous))
+    assert j.response[k0] == "longitudinal" and j.blame_k[k0] == k0 - 1
+    assert not j.ego_responsible.any()
+    assert j.other_responsible[-1] and not j.other_responsible[k0]  # within rho it may still accelerate
+
+
+def test_a_front_car_braking_beyond_b_max_is_responsible_and_a_proper_follower_is_not():
+    dt, n = 0.1, 60
+    acc_f = np.where(np.arange(n) * dt >= 0.5, -4.5, 0.0)  # the follower (ego) brakes with more than b_min
+    xo, vo = _integrate(200.0, 25.0, np.full(n, -9.5), dt)  # the front car brakes beyond b_max = 8
+    vo = np.maximum(vo, 0.0)
+    xe, ve = _integrate(200.0 - 4.8 - 90.0, 25.0, acc_f, dt)
+    ve = np.maximum(ve, 0.0)
+    j = judge_pair(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), vo, np.zeros(n)), dt)
+    assert j.dangerous[2] and j.response[2] == "longitudinal"
+    assert j.other_responsible[j.dangerous].any() and not j.ego_responsible.any()
+    braking_late = np.where(np.arange(n) * dt >= 1.5, -4.5, 0.0)  # starts after rho: the ego is responsible too
+    xe, ve = _integrate(200.0 - 4.8 - 90.0, 25.0, braking_late, dt)
+    j = judge_pair(_motion(xe, np.zeros(n), np.maximum(ve, 0), np.zeros(n)), _motion(xo, np.zeros(n), vo, np.zeros(n)),
+                   dt)
+    assert j.ego_responsible.any() and j.other_responsible.any()
+
+
+def test_a_danger_present_from_the_first_step_has_no_threshold_time_and_both_responses():
+    dt, n = 0.1, 20
+    t = np.arange(n) * dt
+    ego = _motion(100 + 20 * t, np.zeros(n), np.full(n, 20.0), np.zeros(n))
+    lead = _motion(100 + 4.8 + 5 + 20 * t, np.zeros(n), np.full(n, 20.0), np.zeros(n))
+    j = judge_pair(ego, lead, dt)
+    assert j.dangerous.all() and (j.blame_k == -1).all() and set(j.response) == {"both"}
+    assert j.ego_responsible[-1]  # the rear ego does not brake
+    assert not j.other_responsible.any()
+
+
+def test_unseen_steps_are_never_dangerous_and_end_a_run():
+    dt, n = 0.1, 10
+    t = np.arange(n) * dt
+    ego = _motion(100 + 20 * t, np.zeros(n), np.full(n, 20.0), np.zeros(n))
+    x = 100 + 4.8 + 5 + 20 * t
+    x[4] = np.nan
+    j = judge_pair(ego, _motion(x, np.zeros(n), np.full(n, 20.0), np.zeros(n)), dt)
+    assert not j.dangerous[4] and j.dangerous[5] and j.blame_k[5] == -1
