@@ -64,6 +64,8 @@ class Observation:
     lane: np.ndarray
     length: np.ndarray
     width: np.ndarray
+    #: SUMO's heading of each vehicle [rad, counter-clockwise from +x] (for the monitor's oriented bodies).
+    heading: np.ndarray | None = None
 
 
 @dataclass
@@ -187,6 +189,11 @@ class Simulator:
             self._lengths[vid] = size
         return size
 
+    @property
+    def ego_heading(self) -> float:
+        """The ego's heading as SUMO has it now [rad] (for the monitor's oriented bodies)."""
+        return self._heading
+
     def ego(self) -> EgoState:
         """The ego's centre state as SUMO has it (used when SUMO drives)."""
         ls = self._ls
@@ -206,13 +213,13 @@ class Simulator:
         ids = tuple(sorted(k for k in res if k != EGO))
         n = len(ids)
         x, y, v, a = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-        lane, L, W = np.empty(n, dtype=int), np.empty(n), np.empty(n)
+        lane, L, W, H = np.empty(n, dtype=int), np.empty(n), np.empty(n), np.empty(n)
         P, S, A, ANG = ls.VAR_POSITION, ls.VAR_SPEED, ls.VAR_ACCELERATION, ls.VAR_ANGLE
         horizon = self.history_s + 1e-6
         for k, vid in enumerate(ids):
             r = res[vid]
             L[k], W[k] = self._size(vid)
-            psi = math.radians(90.0 - float(r[ANG]))
+            psi = H[k] = math.radians(90.0 - float(r[ANG]))
             fx, fy = r[P]
             x[k] = fx - L[k] / 2 * math.cos(psi)
             y[k] = fy - L[k] / 2 * math.sin(psi)
@@ -228,7 +235,7 @@ class Simulator:
                 hist.popleft()
         for vid in [k for k in self.histories if k not in res]:
             del self.histories[vid]
-        return Observation(self.t, ids, x, y, v, a, lane, L, W)
+        return Observation(self.t, ids, x, y, v, a, lane, L, W, H)
 
     def history(self, vid: str) -> tuple[np.ndarray, np.ndarray]:
         """``(t - now, x)`` of the last ``history_s`` seconds of ``vid`` (may be shorter)."""
