@@ -120,8 +120,8 @@ def test_conversion_of_a_scenario() -> None:
     rect = cr.planning_problem.goal.state_list[0].position
     for c in cr.candidates:
         assert rect.contains_point(cr.frame.to_world(c.s, c.d)[0])
-        lo, hi = cr.goal.speed
-        assert lo <= c.vs <= hi
+        speed = cr.goal.elements[c.element].speed
+        assert speed is not None and speed[0] <= math.hypot(c.vs, c.vd) <= speed[1]
     spacing = np.diff(cr.lanes)
     assert np.all((spacing > 3.0) & (spacing < 4.2)), cr.lanes
     assert cr.road_y[0] < cr.lanes[0] and cr.lanes[-1] < cr.road_y[1]

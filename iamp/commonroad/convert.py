@@ -56,6 +56,7 @@ import numpy.typing as npt
 
 from iamp.commonroad import require
 from iamp.commonroad.frame import RoadFrame
+from iamp.commonroad.goal import Candidate, GoalRegion, read_goal
 from iamp.core.errors import ScenarioError
 from iamp.core.physical import PhysicalLimits
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
@@ -68,8 +69,6 @@ LANE_CHANGE_M = 1.0
 BUFFER_M = 0.15
 #: Heading of the ego relative to the road assumed for the first plan's margins [rad].
 HEADING_GUESS_RAD = 0.06
-#: Margin kept inside the goal's speed interval [m/s].
-SPEED_MARGIN_MPS = 0.3
 #: The road corridor is measured this far before the start and beyond the goal [m].
 EDGE_REACH_M = 15.0
 #: Spacing of the corridor's samples along the road [m].
@@ -126,32 +125,6 @@ class Obstacle:
                                   name=f"obs{self.obstacle_id}")
 
 
-@dataclass(frozen=True)
-class Goal:
-    """The goal region in the road frame."""
-
-    s: float
-    d: float
-    s_half: float
-    d_half: float
-    steps: tuple[int, int]
-    speed: tuple[float, float]
-    orientation: tuple[float, float] | None
-    lanelet_goal: bool
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """A final state and horizon: ``k`` steps, speed ``vs`` [m/s], unconstrained cost ``J0``."""
-
-    steps: int
-    tf: float
-    s: float
-    vs: float
-    d: float
-    cost0: float
-
-
 @dataclass
 class CommonRoadProblem:
     """A CommonRoad planning problem read into iamp's road frame (module docstring)."""
@@ -164,7 +137,7 @@ class CommonRoadProblem:
     frame_fit_residual_m: float
     dt: float
     x0: tuple[float, float, float, float]
-    goal: Goal
+    goal: GoalRegion
     candidates: list[Candidate]
     obstacles: list[Obstacle]
     road_edges: list[Obstacle]
@@ -185,20 +158,21 @@ class CommonRoadProblem:
     def name(self) -> str:
         return str(self.scenario.scenario_id)
 
-    def limits(self, margin_y: float) -> PhysicalLimits:
+    def limits(self, margin_y: float, final_d: float | None = None) -> PhysicalLimits:
         """§14 limits: the type's friction circle and speed range, the road edges less the ego's
-        lateral half extent ``margin_y`` (widened to contain the start and the goal)."""
-        lo = min(self.road_y[0] + margin_y, self.x0[2], self.goal.d)
-        hi = max(self.road_y[1] - margin_y, self.x0[2], self.goal.d)
+        lateral half extent ``margin_y`` (widened to contain the start and the final offset)."""
+        fd = self.x0[2] if final_d is None else final_d
+        lo = min(self.road_y[0] + margin_y, self.x0[2], fd)
+        hi = max(self.road_y[1] - margin_y, self.x0[2], fd)
         return PhysicalLimits(a_total=self.a_max, vx=self.speed_range, y=(lo, hi))
 
     def problem(self, candidate: Candidate, vehicles: list[SurroundingVehicle], margin_y: float) -> Problem:
         """The iamp problem of ``candidate`` with ``vehicles`` (at least one)."""
         s0, vs0, d0, vd0 = self.x0
         ego = EgoBoundary(tf=candidate.tf, x0=s0, y0=d0, vx0=vs0, vy0=vd0, xf=candidate.s, yf=candidate.d,
-                          vxf=candidate.vs, vyf=0.0, source=str(self.path), ego_length=self.ego_length,
+                          vxf=candidate.vs, vyf=candidate.vd, source=str(self.path), ego_length=self.ego_length,
                           ego_width=self.ego_width)
-        return Problem(ego, tuple(vehicles), name=self.name, limits=self.limits(margin_y))
+        return Problem(ego, tuple(vehicles), name=self.name, limits=self.limits(margin_y, candidate.d))
 
 
 def ego_margins(length: float, width: float, heading: float, buffer: float = BUFFER_M) -> tuple[float, float]:
@@ -216,30 +190,12 @@ def unconstrained_cost(T: float, p0: float, v0: float, pf: float, vf: float) -> 
     return 6 * D * D / T**3 - 6 * D * dv / T**2 + 2 * dv * dv / T
 
 
-def final_candidates(x0: tuple[float, float, float, float], goal: Goal, dt: float,
+def final_candidates(x0: tuple[float, float, float, float], goal: GoalRegion, dt: float,
                      elapsed_steps: int = 0) -> list[Candidate]:
-    """Final states and horizons for every time step of the goal's interval still ahead (module
-    docstring, "Goal -> final state"), cheapest unconstrained cost first; ``elapsed_steps`` steps
-    have already passed (the closed loop replans from a later state)."""
-    s0, vs0, d0, vd0 = x0
-    speed = goal.speed
-    vlo, vhi = speed[0] + SPEED_MARGIN_MPS, speed[1] - SPEED_MARGIN_MPS
-    if vlo > vhi:
-        vlo = vhi = 0.5 * (speed[0] + speed[1])
-    candidates: list[Candidate] = []
-    for k in range(max(goal.steps[0], elapsed_steps + 1), goal.steps[1] + 1):
-        T = (k - elapsed_steps) * dt
-        if goal.lanelet_goal:
-            # the unconstrained optimum's end point at the speed interval's nearest speed, on the lanelet
-            vf = min(max(vs0, vlo), vhi)
-            sf = min(max(s0 + 0.5 * (vs0 + vf) * T, goal.s - goal.s_half + 3.0), goal.s + goal.s_half - 3.0)
-        else:
-            sf = goal.s
-            vf = min(max(vs0 + 1.5 * (sf - s0 - vs0 * T) / T, vlo), vhi)
-        j0 = unconstrained_cost(T, s0, vs0, sf, vf) + unconstrained_cost(T, d0, vd0, goal.d, 0.0)
-        candidates.append(Candidate(k - elapsed_steps, T, sf, vf, goal.d, j0))
-    candidates.sort(key=lambda c: c.cost0)
-    return candidates
+    """Final states inside every element of a goal state, for every time step of the goal's
+    windows still ahead, cheapest unconstrained cost first (:meth:`GoalRegion.final_states`);
+    ``elapsed_steps`` steps have already passed (the closed loop replans from a later state)."""
+    return goal.final_states(x0, dt, elapsed_steps)
 
 
 def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_b: float,
@@ -446,26 +402,18 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     vs0, vd0 = (float(v) for v in frame.velocity_to_road(s0, d0, vel0)[0])
 
     # --- goal ---------------------------------------------------------------------------------
-    gstate = pp.goal.state_list[0]
-    steps = (int(gstate.time_step.start), int(gstate.time_step.end))
-    speed = ((float(gstate.velocity.start), float(gstate.velocity.end)) if gstate.has_value("velocity")
-             else (params.longitudinal.v_min, params.longitudinal.v_max))
-    orient = ((float(gstate.orientation.start), float(gstate.orientation.end))
-              if gstate.has_value("orientation") else None)
-    lanelet_goal = bool(pp.goal.lanelets_of_goal_position)
-    if lanelet_goal:
-        ids = pp.goal.lanelets_of_goal_position[0]
-        goal_lanelet = network.find_lanelet_by_id(ids[0])
-        sd = frame.to_road(goal_lanelet.center_vertices)
-        gs_lo, gs_hi = float(sd[:, 0].min()), float(sd[:, 0].max())
-        gd = float(np.median(sd[:, 1]))
-        goal = Goal(0.5 * (gs_lo + gs_hi), gd, 0.5 * (gs_hi - gs_lo), 0.5, steps, speed, orient, True)
-    elif gstate.has_value("position") and hasattr(gstate.position, "center"):
-        rect = gstate.position
-        gs, gd = (float(v) for v in frame.to_road(np.asarray(rect.center, dtype=float))[0])
-        goal = Goal(gs, gd, float(rect.length) / 2, float(rect.width) / 2, steps, speed, orient, False)
-    else:
-        raise ScenarioError("goal position must be a rectangle or a lanelet", "goalState.position", src)
+    own = network.find_lanelet_by_id(hits[0])
+    lane_r = frame.to_road(np.asarray(own.right_vertices, dtype=float))
+    lane_l = frame.to_road(np.asarray(own.left_vertices, dtype=float))
+    ego_lane = tuple(sorted((float(np.interp(s0, *lane_r[np.argsort(lane_r[:, 0])].T)),
+                             float(np.interp(s0, *lane_l[np.argsort(lane_l[:, 0])].T)))))
+    v_range = (max(0.0, float(params.longitudinal.v_min)), float(params.longitudinal.v_max))
+    try:
+        goal = read_goal(pp, network, frame, (ego_lane[0], ego_lane[1]), v_range,
+                         float(params.longitudinal.a_max))
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise ScenarioError(f"unreadable goal region ({exc.__class__.__name__}: {exc})", "goalState", src) from None
+    steps = goal.steps
 
     # --- final-state candidates --------------------------------------------------------------
     candidates = final_candidates((s0, vs0, d0, vd0), goal, dt)
@@ -477,11 +425,12 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     for y in lanes:
         if not merged or y - merged[-1] > 1.5:
             merged.append(y)
-    s_end = max((c.s for c in candidates), default=goal.s)
+    s_end = max((c.s for c in candidates), default=s0 + vs0 * steps[1] * dt)
+    via = min(candidates, key=lambda c: c.cost0) if candidates else None
     road_y, road_edges = _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M,
                                      max(s0, s_end) + EDGE_REACH_M,
                                      np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64),
-                                     ((s0, d0), (goal.s, goal.d)))
+                                     ((s0, d0), (via.s, via.d) if via is not None else (s0 + 1.0, d0)))
 
     # --- recorded vehicles --------------------------------------------------------------------
     obstacles: list[Obstacle] = []
@@ -494,12 +443,11 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
         if not states:
             continue
         t = np.array([st.time_step * dt for st in states])
-        boxes = []
-        for st in states:
-            sd = frame.to_road(_corners(np.asarray(st.position, dtype=float), float(shape.length),
-                                        float(shape.width), float(st.orientation)))
-            boxes.append((sd[:, 0].min(), sd[:, 0].max(), sd[:, 1].min(), sd[:, 1].max()))
-        B = np.array(boxes)
+        corners = np.concatenate([_corners(np.asarray(st.position, dtype=float), float(shape.length),
+                                           float(shape.width), float(st.orientation)) for st in states])
+        sd = frame.to_road(corners).reshape(len(states), 4, 2)  # one projection of every corner
+        B = np.stack([sd[:, :, 0].min(axis=1), sd[:, :, 0].max(axis=1), sd[:, :, 1].min(axis=1),
+                      sd[:, :, 1].max(axis=1)], axis=1)
         centre_s = 0.5 * (B[:, 0] + B[:, 1])
         deg = int(min(3, len(t) - 1))
         coeffs = np.polynomial.polynomial.polyfit(t, centre_s, deg) if deg > 0 else np.array([centre_s[0]])
@@ -516,4 +464,4 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
         obstacles=obstacles, road_edges=road_edges, lanes=merged, road_y=road_y, ego_length=float(params.l),
         ego_width=float(params.w),
         a_max=float(params.longitudinal.a_max),
-        speed_range=(max(0.0, float(params.longitudinal.v_min)), float(params.longitudinal.v_max)), notes=notes)
+        speed_range=v_range, notes=notes)

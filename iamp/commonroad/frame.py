@@ -61,8 +61,14 @@ class RoadFrame:
     u_range: tuple[float, float]
     _table_u: FloatArray = field(init=False, repr=False, compare=False)
     _table_s: FloatArray = field(init=False, repr=False, compare=False)
+    _derivs: tuple[FloatArray, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        c = np.asarray(self.coeffs, dtype=float)
+        derivs = [c]
+        for der in (1, 2, 3):
+            derivs.append(np.polynomial.polynomial.polyder(c, der) if len(c) > der else np.zeros(1))
+        object.__setattr__(self, "_derivs", tuple(derivs))
         lo, hi = self.u_range
         pad = 0.5 * (hi - lo) + 50.0
         u = np.arange(lo - pad, hi + pad + 1.0, 1.0)
@@ -95,10 +101,8 @@ class RoadFrame:
                    (float(u.min()), float(u.max())))
 
     def _f(self, u: npt.ArrayLike, der: int = 0) -> FloatArray:
-        c = np.asarray(self.coeffs)
-        if der:
-            c = np.polynomial.polynomial.polyder(c, der) if len(c) > der else np.zeros(1)
-        return np.asarray(np.polynomial.polynomial.polyval(np.asarray(u, dtype=float), c), dtype=float)
+        return np.asarray(np.polynomial.polynomial.polyval(np.asarray(u, dtype=float), self._derivs[der]),
+                          dtype=float)
 
     def _speed(self, u: npt.ArrayLike) -> FloatArray:
         return np.sqrt(1.0 + self._f(u, 1) ** 2)
@@ -110,10 +114,12 @@ class RoadFrame:
     # --- arc length ---------------------------------------------------------------------------
     def arc_length(self, u: npt.ArrayLike) -> FloatArray:
         """``s(u)``: the table node below ``u`` plus one quadrature of the rest."""
-        uu = np.atleast_1d(np.asarray(u, dtype=float))
+        uu = np.atleast_1d(np.asarray(u, dtype=float)).reshape(-1)
         k = np.clip(np.searchsorted(self._table_u, uu) - 1, 0, len(self._table_u) - 2)
-        out = np.array([self._table_s[j] + self._segment(float(self._table_u[j]), float(x)) for j, x in zip(k, uu)])
-        return out.reshape(np.shape(u))
+        a = self._table_u[k]
+        mid, half = 0.5 * (a + uu), 0.5 * (uu - a)
+        seg = half * np.sum(_GL_W[None, :] * self._speed(mid[:, None] + half[:, None] * _GL_X[None, :]), axis=1)
+        return np.asarray((self._table_s[k] + seg).reshape(np.shape(u)), dtype=float)
 
     def u_of_s(self, s: npt.ArrayLike) -> FloatArray:
         """The inverse of :meth:`arc_length` (Newton from the table's interpolation)."""

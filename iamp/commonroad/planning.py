@@ -25,6 +25,7 @@ unconstrained plan) imposed at once with the PMP.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -38,11 +39,11 @@ from iamp.commonroad.convert import (
     BUFFER_M,
     EDGE_BUFFER_M,
     HEADING_GUESS_RAD,
-    Candidate,
     CommonRoadProblem,
     Obstacle,
     ego_margins,
 )
+from iamp.commonroad.goal import Candidate
 from iamp.core.errors import IampError, ScenarioError
 from iamp.core.plan import Plan, Trajectory
 from iamp.core.problem import SurroundingVehicle
@@ -68,6 +69,12 @@ EDGE_SLACK_M = 0.1
 RELEVANT_S_M = 10.0
 #: Active-set iterations.
 MAX_IMPOSED = 6
+#: Final states tried per problem (:func:`_candidate_order`).
+MAX_CANDIDATES = 8
+#: Calls of the iamp planner per problem, over every final state (a count, never a time).
+MAX_PLANS = 6
+#: QP solves per avoidance-QP call (its branch and bound's ``max_solves``).
+AVOID_MAX_SOLVES = 12
 
 
 class FreeTrajectory:
@@ -146,6 +153,7 @@ class RoadPlanJSON(TypedDict, total=False):
     tf: float | None
     final_state: FinalStateJSON | None
     candidates_tried: int
+    planner_calls: int
     imposed: list[ImposedJSON]
     intrusions: list[IntrusionJSON]
     max_heading_rad: float
@@ -177,6 +185,7 @@ class RoadPlan:
     reason: str | None = None
     max_heading_rad: float = 0.0
     peak_accel_mps2: float = 0.0
+    plans_used: int = 0
 
     @property
     def safe(self) -> bool:
@@ -260,34 +269,62 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
     problem = cr.problem(cand, vehicles, margin_y)
     if planner == "pmp":
         return iamp.plan(problem, "pmp")
+    if constraint == "avoid":
+        return iamp.plan(problem, "qp", constraint=constraint, steps=steps, hold="foh", max_solves=AVOID_MAX_SOLVES)
     return iamp.plan(problem, "qp", constraint=constraint, steps=steps, hold="foh")
 
 
-def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = 8,
-         steps: int = 40) -> RoadPlan:
-    """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring)."""
+def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
+         steps: int = 40, max_plans: int = MAX_PLANS) -> RoadPlan:
+    """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring).
+
+    The search is bounded by counts, never by time: at most ``max_candidates`` final states
+    (:func:`_candidate_order`) and ``max_plans`` calls of the iamp planner over all of them (each
+    avoidance QP at most :data:`AVOID_MAX_SOLVES` QP solves), so the same problem gives the same
+    answer on any machine.  When no final state gives a safe plan, the reason says which part
+    of the goal region was searched; a goal no final state of which the model can reach is
+    refused (status ``unreachable``) naming the goal state's element.
+    """
     if planner not in PLANNERS:
         raise ScenarioError(f"unknown planner {planner!r}; choose from {', '.join(PLANNERS)}", "planner")
     iamp_planner, constraint, active = PLANNERS[planner]
     start = time.perf_counter()
+    if not cr.candidates:
+        bad = cr.goal.unreachable(cr.x0, cr.dt)
+        reason = ("; ".join(bad.values()) if bad else
+                  "no final state verified inside every element of a goal state (" + cr.goal.describe() + ")")
+        return RoadPlan(planner, "unreachable", None, None, None, time.perf_counter() - start,
+                        reason=f"the goal cannot be reached: {reason}")
     best: RoadPlan | None = None
     order = _candidate_order(cr.candidates, max_candidates)
     heading = HEADING_GUESS_RAD
-    for n_tried, cand in enumerate(order, start=1):
+    budget = [max_plans]
+    n_tried = 0
+    for cand in order:
+        if budget[0] <= 0:
+            break
+        n_tried += 1
         for _ in range(2):  # a second pass when the plan turned more than its margins assumed
             sx, sy = ego_margins(cr.ego_length, cr.ego_width, heading)
-            result = _plan_candidate(cr, cand, planner, iamp_planner, constraint, active, sx, sy, steps)
+            result = _plan_candidate(cr, cand, planner, iamp_planner, constraint, active, sx, sy, steps, budget)
             result.candidates_tried = n_tried
-            if result.trajectory is None or result.max_heading_rad <= heading + 1e-9:
+            if result.trajectory is None or result.max_heading_rad <= heading + 1e-9 or budget[0] <= 0:
                 break
             heading = result.max_heading_rad + 0.01
         if result.safe and result.peak_accel_mps2 <= cr.a_max:
             result.solve_time_s = time.perf_counter() - start
+            result.plans_used = max_plans - budget[0]
             return result
         if best is None or _worse(best, result):
             best = result
     assert best is not None
+    steps_tried = sorted({c.steps for c in order[:n_tried]})
+    searched = (f"no safe plan found over the goal region searched: {n_tried} final state(s) at step(s) "
+                f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()}; {max_plans - budget[0]} planner "
+                f"call(s) of {max_plans}")
+    best.reason = searched + (f"; the best: {best.reason}" if best.reason else "")
     best.solve_time_s = time.perf_counter() - start
+    best.plans_used = max_plans - budget[0]
     return best
 
 
@@ -301,21 +338,54 @@ def _worse(a: RoadPlan, b: RoadPlan) -> bool:
 
 
 def _candidate_order(cands: list[Candidate], n: int) -> list[Candidate]:
-    """The cheapest candidates, then the window's ends and middle (the search reaches across the window)."""
+    """At most ``n`` final states spread over the goal region: the cheapest, the cheapest of every
+    other goal state and position piece, then the window's ends and middle (deterministic)."""
     if len(cands) <= n:
         return list(cands)
-    by_time = sorted(cands, key=lambda c: c.steps)
-    picks = cands[: max(1, n - 3)] + [by_time[0], by_time[-1], by_time[len(by_time) // 2]]
     out: list[Candidate] = []
-    for c in picks:
-        if c not in out:
+
+    def add(c: Candidate) -> None:
+        if c not in out and len(out) < n:
             out.append(c)
+
+    add(cands[0])
+    groups: dict[tuple[int, int], Candidate] = {}
+    for c in cands:
+        groups.setdefault((c.element, c.piece), c)
+    by_time = sorted(cands, key=lambda c: (c.steps, c.cost0))
+    spread = [by_time[0], by_time[-1], by_time[len(by_time) // 2]]
+    firsts = sorted(groups.values(), key=lambda c: c.cost0)
+    for c in cands[1: max(1, n - len(spread) - min(len(firsts), 2))]:
+        add(c)
+    for c in firsts[:2] + spread + firsts[2:] + cands:
+        add(c)
     return out
 
 
+def lane_segment(cr: CommonRoadProblem, ob: Obstacle, t_hit: float) -> Obstacle:
+    """The part of a lane changer's record in the lane it occupies at ``t_hit`` (the contiguous
+    run of time steps whose centre is nearest that lane), so that it is imposed with the lateral
+    box of that lane only; any other vehicle unchanged."""
+    if not ob.lane_change or len(cr.lanes) < 2 or ob.t.size < 2:
+        return ob
+    centre = 0.5 * (ob.d_lo + ob.d_hi)
+    lane = np.argmin(np.abs(centre[:, None] - np.asarray(cr.lanes)[None, :]), axis=1)
+    k = int(np.argmin(np.abs(ob.t - t_hit)))
+    same = lane == lane[k]
+    lo = k
+    while lo > 0 and same[lo - 1]:
+        lo -= 1
+    hi = k
+    while hi < same.size - 1 and same[hi + 1]:
+        hi += 1
+    run = slice(lo, hi + 1)
+    return dataclasses.replace(ob, t=ob.t[run], s_lo=ob.s_lo[run], s_hi=ob.s_hi[run], d_lo=ob.d_lo[run],
+                               d_hi=ob.d_hi[run], lane=int(lane[k]))
+
+
 def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: str, constraint: str,
-                    active: bool, sx: float, sy: float, steps: int) -> RoadPlan:
-    free = FreeTrajectory(cand.tf, cr.x0, (cand.s, cand.vs, cand.d, 0.0))
+                    active: bool, sx: float, sy: float, steps: int, budget: list[int]) -> RoadPlan:
+    free = FreeTrajectory(cand.tf, cr.x0, (cand.s, cand.vs, cand.d, cand.vd))
     free_hits = intrusions(cr, free, cand.tf)
     if label == "free" or (active and not free_hits):
         h, peak = _heading_and_peak(free, cand.tf)
@@ -333,23 +403,30 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
         if not vehicles:
             h, peak = _heading_and_peak(free, cand.tf)
             return RoadPlan(label, "optimal", cand, free, free.cost(), 0.0, [], free_hits, None, 0, None, h, peak)
+        budget[0] -= 1
         return _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps)
     vehicles, imposed = [], []
+    keys: set[tuple[int, int]] = set()
     current: RoadPlan | None = None
     hits = free_hits
     for _ in range(MAX_IMPOSED):
+        if budget[0] <= 0:
+            break
         new = None
         for hit in hits:
-            if hit.obstacle.obstacle_id in {i for i, _ in imposed}:
+            seg = lane_segment(cr, hit.obstacle, hit.time_s)
+            if (seg.obstacle_id, seg.lane) in keys:
                 continue
-            corner = corner_for(hit.obstacle, cand, cr.x0, sy, sx)
+            corner = corner_for(seg, cand, cr.x0, sy, sx)
             if corner is not None:
-                new = (hit.obstacle, corner)
+                new = (seg, corner)
                 break
         if new is None:
             break
         vehicles.append(_avoided(new[0], new[1], sx, sy))
         imposed.append((new[0].obstacle_id, new[1]))
+        keys.add((new[0].obstacle_id, new[0].lane))
+        budget[0] -= 1
         current = _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps)
         if current.trajectory is None or current.safe:
             return current
@@ -410,8 +487,8 @@ def describe(p: RoadPlan) -> RoadPlanJSON:
         "planner": p.planner, "status": p.status, "iamp_status": p.iamp_status,
         "cost": None if p.cost is None else float(p.cost), "solve_time_s": float(p.solve_time_s),
         "tf": None if c is None else c.tf, "final_state": None if c is None else
-        {"s": c.s, "vs": c.vs, "d": c.d, "vd": 0.0, "steps": c.steps},
-        "candidates_tried": p.candidates_tried,
+        {"s": c.s, "vs": c.vs, "d": c.d, "vd": c.vd, "steps": c.steps},
+        "candidates_tried": p.candidates_tried, "planner_calls": p.plans_used,
         "imposed": [{"obstacle": i, "corner": k} for i, k in p.imposed],
         "intrusions": [{"obstacle": i.obstacle.obstacle_id, "depth_m": i.depth_m, "t": i.time_s}
                        for i in p.intrusions],
