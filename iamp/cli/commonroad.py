@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from iamp.cli.types import EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVER, positive_float
 
@@ -26,7 +27,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
         seen = predict_obstacles(cr)
     rp = plan(seen, args.planner)
-    out = describe(rp)
+    out: dict[str, Any] = dict(describe(rp))
     out["scenario"] = cr.name
     out["frame_fit_residual_m"] = cr.frame_fit_residual_m
     out["notes"] = seen.notes
@@ -37,13 +38,22 @@ def cmd_plan(args: argparse.Namespace) -> int:
         else:
             sys.stdout.write(f"{cr.name}: {args.planner}: no plan ({rp.reason or rp.status})\n")
         return EXIT_SOLVER
-    solution, drift = build_solution(cr, rp.trajectory, rp.candidate.steps, args.cost_function)
-    out["zoh_drift_m"] = drift
+    solution, drift = build_solution(cr, rp.trajectory, rp.candidate.steps, args.cost_function, args.vehicle_type,
+                                     args.vehicle_model)
+    out["zoh_drift_m" if args.vehicle_model == "PM" else "ks_deviation_m"] = drift
+    out["benchmark_id"] = str(solution.benchmark_id)  # type: ignore[attr-defined]  # commonroad: untyped
     if args.out:
         write_solution(solution, args.out, force=args.force)
         out["solution"] = str(args.out)
-    verdict = check(cr.scenario, cr.planning_problem_set, solution)
+    verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
+    from iamp.commonroad.costs import REPORTED, evaluate
+
+    named = tuple(dict.fromkeys([args.cost_function, *REPORTED]))
+    costs = evaluate(cr, solution, named)
+    verdict.cost = costs[args.cost_function]["total"]
+    verdict.cost_function = args.cost_function
     out["commonroad"] = verdict.to_json()
+    out["costs"] = costs
     if args.json:
         sys.stdout.write(json.dumps(out, indent=1, default=float) + "\n")
     else:
@@ -54,8 +64,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
         imposed = ", ".join(f"{i}:{k}" for i, k in rp.imposed) or "none (no vehicle in the way)"
         sys.stdout.write(f"imposed: {imposed}; peak |u| {rp.peak_accel_mps2:.2f} m/s^2; "
                          f"max heading to road {rp.max_heading_rad:.3f} rad\n")
+        sys.stdout.write(f"benchmark {solution.benchmark_id}: "  # type: ignore[attr-defined]
+                         + ("ZOH drift" if args.vehicle_model == "PM" else "KS tracking deviation")
+                         + f" {drift:.3f} m from the plan\n")
         for line in verdict.lines():
             sys.stdout.write(line + "\n")
+        sys.stdout.write("costs " + ", ".join(
+            f"{cf} {c['total']:.3f}" if c["total"] is not None else f"{cf} - ({c['error']})"
+            for cf, c in costs.items()) + "\n")
         if args.out:
             sys.stdout.write(f"wrote {args.out}\n")
     return EXIT_OK if verdict.valid else EXIT_SOLVER
@@ -75,10 +91,11 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from iamp.commonroad.bench import PREDICT_SUFFIX, bench, summary, write_reports
     from iamp.commonroad.planning import PLANNERS
 
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
+    from iamp.commonroad.bench import PREDICT_SUFFIX
+
     for p in planners:
         if p.removesuffix(PREDICT_SUFFIX) not in PLANNERS:
             sys.stderr.write(f"iamp: error: --planners: unknown planner {p!r}; choose from {', '.join(PLANNERS)}\n")
@@ -87,18 +104,32 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if not folder.is_dir() or not any(folder.glob("*.xml")):
         sys.stderr.write(f"iamp: error: {folder}: not a folder of CommonRoad *.xml scenarios\n")
         return EXIT_BAD_INPUT
-    out = Path(args.out) if args.out else None
+    for peer in args.peer or []:
+        if not (Path(peer) / "peer.json").is_file():
+            sys.stderr.write(f"iamp: error: --peer: {peer}: holds no peer.json (run scripts/commonroad_peer.py "
+                             "first)\n")
+            return EXIT_BAD_INPUT
+    if args.out is None:
+        return _bench_into(args, planners, folder, None)
+    from iamp.core.outputs import guarded_folder  # checked (ours, empty or --force), locked, marked
+
+    with guarded_folder(args.out, "commonroad bench", args.force, inputs=[folder]) as out:
+        return _bench_into(args, planners, folder, out)
+
+
+def _bench_into(args: argparse.Namespace, planners: list[str], folder: Path, out: Path | None) -> int:
+    from iamp.commonroad.bench import bench, peer_rows, summary, write_reports
 
     def progress(text: str) -> None:
         if not args.json:
             sys.stderr.write(f"  {text}\n")
 
-    rows = bench(folder, planners, out, args.timeout, progress)
-    if args.peer:
-        from iamp.commonroad.bench import PEER_LABEL, peer_rows
-
-        rows += peer_rows(folder, args.peer)
-        planners = [*planners, PEER_LABEL]
+    rows = bench(folder, planners, out, args.timeout, progress, cost_function=args.cost_function,
+                 vehicle_model=args.vehicle_model, vehicle_type=args.vehicle_type, force=args.force)
+    for peer in args.peer or []:
+        extra = peer_rows(folder, peer)
+        rows += extra
+        planners += list(dict.fromkeys(r.planner for r in extra))
     command = "iamp commonroad bench " + " ".join(sys.argv[3:]) if len(sys.argv) > 3 else "iamp commonroad bench"
     if out is not None:
         write_reports(rows, planners, out, command)
@@ -108,17 +139,33 @@ def cmd_bench(args: argparse.Namespace) -> int:
                          + "\n")
     else:
         for e in s:
-            sys.stdout.write(f"{e['planner']:8s} valid {e['valid']}/{e['scenarios']} (raw {e['valid_raw']}), "
-                             f"collision {e['collision']}, infeasible {e['infeasible']}, goal missed "
-                             f"{e['goal missed']}, off road {e['off road']}, no plan {e['no plan']}, "
-                             f"timeout {e['timeout']}\n")
+            costs = ", ".join(f"{cf} {v:.2f}" for cf, v in e["median_costs"].items() if v is not None)
+            sys.stdout.write(f"{e['planner']:8s} {e['vehicle_model']} valid {e['valid']}/{e['scenarios']} (raw "
+                             f"{e['valid_raw']}), collision {e['collision']}, infeasible {e['infeasible']}, goal "
+                             f"missed {e['goal missed']}, off road {e['off road']}, no plan {e['no plan']}, "
+                             f"timeout {e['timeout']}" + (f"; median {costs}" if costs else "") + "\n")
     return EXIT_OK
+
+
+def _solution_options(p: argparse.ArgumentParser) -> None:
+    from iamp.commonroad.costs import COST_FUNCTIONS
+    from iamp.commonroad.ks import VEHICLE_TYPES
+    from iamp.commonroad.solution import DEFAULT_COST_FUNCTION, VEHICLE_MODELS
+
+    p.add_argument("--cost-function", default=DEFAULT_COST_FUNCTION, choices=tuple(COST_FUNCTIONS),
+                   help="CommonRoad cost function named in the solution's benchmark ID and computed as the "
+                        f"drivability checker's evaluator defines it (default {DEFAULT_COST_FUNCTION}; WX1, SM1 "
+                        "and TR1 are always reported)")
+    p.add_argument("--vehicle-model", default="PM", choices=VEHICLE_MODELS,
+                   help="PM: point-mass solution; KS: kinematic single-track (steered) solution tracking the "
+                        "plan, feasible by the checker's KS test (default PM)")
+    p.add_argument("--vehicle-type", type=int, default=2, choices=VEHICLE_TYPES,
+                   help="CommonRoad vehicle type: 1 Ford Escort, 2 BMW 320i, 3 VW Vanagon (default 2)")
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``iamp commonroad``."""
     from iamp.commonroad.planning import DEFAULT_PLANNER, PLANNERS
-    from iamp.commonroad.solution import DEFAULT_COST_FUNCTION
 
     cr = sub.add_parser("commonroad", help="CommonRoad scenarios: plan, check a solution, benchmark a folder "
                                            "(needs the [commonroad] extra)")
@@ -130,9 +177,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                         f"the paper's equality on every relevant vehicle; free: no vehicle (default {DEFAULT_PLANNER})")
     p.add_argument("--out", default=None, metavar="SOLUTION.xml", help="write the CommonRoad solution here")
     p.add_argument("--force", action="store_true", help="overwrite --out")
-    p.add_argument("--cost-function", default=DEFAULT_COST_FUNCTION,
-                   choices=("JB1", "SA1", "WX1", "SM1", "SM2", "SM3", "MW1", "TR1", "TR2"),
-                   help=f"cost function named in the solution (default {DEFAULT_COST_FUNCTION})")
+    _solution_options(p)
     p.add_argument("--predict", action="store_true",
                    help="plan with the vehicles predicted by the §7 predictor from their state at t = 0 (the "
                         "checker still judges against the recorded future)")
@@ -151,8 +196,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     b.add_argument("--out", default=None, metavar="DIR", help="bench.md/.tex/.json and the solutions go here")
     b.add_argument("--timeout", type=positive_float, default=120.0, metavar="S",
                    help="per scenario and planner (default 120 s)")
-    b.add_argument("--peer", default=None, metavar="DIR",
-                   help="add the peer commonroad-reactive-planner's rows from DIR (written by "
-                        "scripts/commonroad_peer.py in the peer's own environment)")
+    b.add_argument("--peer", action="append", default=None, metavar="DIR",
+                   help="add a peer planner's rows from DIR (written by scripts/commonroad_peer.py in the peer's own "
+                        "environment); may be repeated")
+    _solution_options(b)
+    b.add_argument("--force", action="store_true",
+                   help="write into an --out folder iamp did not write, or discard its results made with other "
+                        "parameters (otherwise a bench resumes: stored results with the same parameters are kept)")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)

@@ -1,4 +1,6 @@
-r"""A road-frame plan as a CommonRoad solution: point-mass model ``PM``, a named cost function.
+r"""A road-frame plan as a CommonRoad solution: point-mass model ``PM`` (below) or kinematic single
+track ``KS`` (:mod:`iamp.commonroad.ks`), a named cost function; the benchmark ID
+(``KS2:WX1:<scenario>:2020a``) names model, vehicle type, cost function and scenario.
 
 The plan's states at the scenario's time steps :math:`t_k = k\,\Delta t` map to the world by
 :meth:`~iamp.commonroad.frame.RoadFrame.to_world` and
@@ -48,9 +50,42 @@ def world_states(cr: CommonRoadProblem, trajectory: Trajectory, steps: int) -> t
     return Z, V, float(np.max(np.linalg.norm(Z - P, axis=1)))
 
 
+#: The vehicle models a solution can be written in: point mass, kinematic single track.
+VEHICLE_MODELS = ("PM", "KS")
+
+
 def build_solution(cr: CommonRoadProblem, trajectory: Trajectory, steps: int,
-                   cost_function: str = DEFAULT_COST_FUNCTION, vehicle_type: int = 2) -> tuple[object, float]:
-    """The CommonRoad :class:`Solution` (PM trajectory) and the ZOH drift [m]."""
+                   cost_function: str = DEFAULT_COST_FUNCTION, vehicle_type: int = 2,
+                   vehicle_model: str = "PM") -> tuple[object, float]:
+    """The CommonRoad :class:`Solution` of a plan and how far its states are from the plan.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The problem the plan solves.
+    trajectory : Trajectory
+        The road-frame plan.
+    steps : int
+        Number of time steps ``K`` (``K + 1`` states from time step 0).
+    cost_function : str
+        CommonRoad cost function ID named in the benchmark ID (``WX1``, ``SM1``, ``TR1``, ...).
+    vehicle_type : int
+        CommonRoad vehicle type (1-3 for ``KS``).
+    vehicle_model : str
+        ``"PM"`` (the ZOH point mass of the module docstring) or ``"KS"``
+        (:func:`iamp.commonroad.ks.track`).
+
+    Returns
+    -------
+    tuple
+        The solution and the largest distance [m] between its positions and the plan's (the ZOH
+        drift for ``PM``, the tracking deviation for ``KS``).
+
+    Raises
+    ------
+    ScenarioError
+        For an unknown vehicle model or a vehicle type without ``KS`` parameters.
+    """
     require()
     from commonroad.common.solution import (
         CostFunction,
@@ -59,14 +94,29 @@ def build_solution(cr: CommonRoadProblem, trajectory: Trajectory, steps: int,
         VehicleModel,
         VehicleType,
     )
-    from commonroad.scenario.state import PMState
+    from commonroad.scenario.state import KSState, PMState, TraceState
     from commonroad.scenario.trajectory import Trajectory
 
-    Z, V, drift = world_states(cr, trajectory, steps)
-    states = [PMState(time_step=k, position=Z[k].copy(), velocity=float(V[k, 0]), velocity_y=float(V[k, 1]))
-              for k in range(steps + 1)]
+    from iamp.core.errors import ScenarioError
+
+    if vehicle_model not in VEHICLE_MODELS:
+        raise ScenarioError(f"unknown vehicle model {vehicle_model!r} (choose {' or '.join(VEHICLE_MODELS)})",
+                            "--vehicle-model")
+    states: list[TraceState]
+    if vehicle_model == "KS":
+        from iamp.commonroad.ks import track
+
+        ks = track(cr, trajectory, steps, vehicle_type)
+        states = [KSState(time_step=k, position=ks.centre[k].copy(), steering_angle=float(ks.states[k, 2]),
+                          velocity=float(ks.states[k, 3]), orientation=float(ks.states[k, 4]))
+                  for k in range(steps + 1)]
+        drift = ks.deviation_m
+    else:
+        Z, V, drift = world_states(cr, trajectory, steps)
+        states = [PMState(time_step=k, position=Z[k].copy(), velocity=float(V[k, 0]), velocity_y=float(V[k, 1]))
+                  for k in range(steps + 1)]
     pps = PlanningProblemSolution(planning_problem_id=cr.planning_problem.planning_problem_id,
-                                  vehicle_type=VehicleType(vehicle_type), vehicle_model=VehicleModel.PM,
+                                  vehicle_type=VehicleType(vehicle_type), vehicle_model=VehicleModel[vehicle_model],
                                   cost_function=CostFunction[cost_function],
                                   trajectory=Trajectory(initial_time_step=0, state_list=states))
     return Solution(cr.scenario.scenario_id, [pps]), drift

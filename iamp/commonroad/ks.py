@@ -1,0 +1,235 @@
+r"""A road-frame plan as a steered car: the kinematic single-track model ``KS`` of
+``commonroad-vehicle-models`` (vehicle types 1-3), as CommonRoad's feasibility checker tests it.
+
+The ``KS`` state is :math:`x = (p_x, p_y, \delta, v, \psi)` at the **rear axle** (steering angle
+:math:`\delta`, speed :math:`v`, heading :math:`\psi`), the input :math:`u = (\dot\delta, a)`, held
+constant over a time step :math:`\Delta t`:
+
+.. math:: \dot p = v\,(\cos\psi, \sin\psi), \quad \dot\psi = \frac{v}{l}\tan\delta, \quad
+          \dot\delta = u_1, \quad \dot v = u_2, \qquad l = a + b,
+
+with :math:`u_1 \in [\dot\delta_{min}, \dot\delta_{max}]`, :math:`|u_2| \le a_{max}` (above
+:math:`v_{switch}` at most :math:`a_{max} v_{switch}/v`), and the friction circle
+:math:`u_2^2 + (v\dot\psi)^2 \le a_{max}^2`.  A CommonRoad ``KS`` state stores the **centre**
+:math:`p + b(\cos\psi, \sin\psi)`.  The checker (``commonroad_dc.feasibility.feasibility_checker.
+trajectory_feasibility``) reconstructs one input per step by SLSQP from :math:`u = 0` and accepts
+the step when the simulated centre is within 2 cm and the heading within 0.03 rad.
+
+Conversion (:func:`track`):
+
+1. **Flatness.**  The rear axle is the model's flat output.  From the plan's centre path
+   :math:`c(t)` (sampled at :math:`\Delta t / 10`) the heading of the plan's velocity
+   :math:`\theta = \operatorname{atan2}(\dot c)` gives the rear-axle reference
+   :math:`r = c - b(\cos\theta, \sin\theta)`; its velocity gives :math:`\psi_{ref}, v_{ref}`,
+   its curvature :math:`\kappa_{ref}` the steering :math:`\delta_{ref} = \arctan(l\kappa_{ref})`.
+2. **Tracking by forward simulation.**  The ``KS`` model is simulated step by step with the
+   checker's own integrator (``VehicleDynamics.forward_simulation``, ``odeint``) from the
+   planning problem's initial state (the initial steering angle, which the planning problem does
+   not fix, is :math:`\delta_{ref}(0)`), each step's input chosen by a tracking controller and
+   clipped into the model's bounds with a margin (:data:`INPUT_MARGIN`):
+   longitudinal :math:`a = a_{ref} + k_v (v_{ref} - v) - k_s e_s`, lateral (the linearised
+   path error :math:`\ddot e_d \approx v^2(\kappa - \kappa_{ref})` placed at a double pole
+   :math:`-\omega`) :math:`\kappa = \kappa_{ref} - (\omega^2 e_d + 2\omega v \sin e_\psi)/v^2`,
+   the steering rate reaching :math:`\arctan(l\kappa)` at the end of the step.
+
+Every written state is therefore exactly the checker's simulation of an admissible input, so its
+feasibility test accepts it; the price is the tracking error, reported as the largest distance
+between the ``KS`` centre and the plan's centre at the time steps (centimetres on US-101).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from iamp.commonroad import require
+from iamp.commonroad.convert import CommonRoadProblem
+from iamp.core.errors import ScenarioError
+from iamp.core.plan import Trajectory
+
+FloatArray = npt.NDArray[np.float64]
+
+#: The vehicle types of ``commonroad-vehicle-models`` whose ``KS`` parameters CommonRoad's
+#: checker knows (1: Ford Escort, 2: BMW 320i, 3: VW Vanagon).
+VEHICLE_TYPES = (1, 2, 3)
+#: Fraction of each input bound (steering rate, acceleration, friction circle) the controller uses:
+#: the checker rounds inputs to 4 decimals and its minimiser must find the input inside the bounds.
+INPUT_MARGIN = 0.95
+#: Samples of the plan per time step for the flatness reference.
+SUBSTEPS = 10
+#: Tracking gains: speed [1/s], along-track position [1/s^2], lateral pole [rad/s].
+K_V = 2.0
+K_S = 1.0
+OMEGA = 1.2
+#: Speed below which the lateral law uses this speed (its gain grows as 1/v^2) [m/s].
+V_FLOOR = 2.0
+
+
+@dataclass
+class KSTrajectory:
+    """A ``KS`` trajectory at the scenario's time steps.
+
+    Attributes
+    ----------
+    states : ndarray, shape (K+1, 5)
+        Rear-axle states ``(p_x, p_y, delta, v, psi)``.
+    inputs : ndarray, shape (K, 2)
+        ``(steering rate, acceleration)`` held over each step.
+    centre : ndarray, shape (K+1, 2)
+        The centre positions CommonRoad stores.
+    deviation_m : float
+        Largest distance between ``centre`` and the plan's centre at the time steps.
+    vehicle_type : int
+        1, 2 or 3.
+    """
+
+    states: FloatArray
+    inputs: FloatArray
+    centre: FloatArray
+    deviation_m: float
+    vehicle_type: int
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _params(vehicle_type: int) -> object:
+    from commonroad.common.solution import VehicleType
+    from commonroad_dc.feasibility.vehicle_dynamics import VehicleParameterMapping
+
+    if vehicle_type not in VEHICLE_TYPES:
+        raise ScenarioError(f"vehicle type {vehicle_type} has no KS parameters (choose 1, 2 or 3)", "--vehicle-type")
+    return VehicleParameterMapping.from_vehicle_type(VehicleType(vehicle_type))
+
+
+def reference(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, b: float,
+              l_wb: float) -> dict[str, FloatArray]:
+    """The flat-output reference of the module docstring on the grid ``t = j Δt / SUBSTEPS``.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The problem (road frame, ``dt``, initial state).
+    trajectory : Trajectory
+        The road-frame plan.
+    steps : int
+        Number of time steps ``K`` of the solution.
+    b : float
+        Distance from the centre to the rear axle [m].
+    l_wb : float
+        Wheelbase ``a + b`` [m].
+
+    Returns
+    -------
+    dict
+        Arrays ``t``, ``centre`` (n, 2), ``rear`` (n, 2), ``psi``, ``v``, ``kappa``, ``delta``, ``a``.
+    """
+    h = cr.dt / SUBSTEPS
+    t = np.arange(steps * SUBSTEPS + 1) * h
+    X = trajectory.states(t)
+    C = cr.frame.to_world(X[:, 0], X[:, 2])
+    V = cr.frame.velocity_to_world(X[:, 0], X[:, 2], X[:, 1], X[:, 3])
+    speed = np.linalg.norm(V, axis=1)
+    psi0 = float(cr.planning_problem.initial_state.orientation)
+    theta = np.where(speed > 0.1, np.arctan2(V[:, 1], V[:, 0]), psi0)
+    theta = np.unwrap(theta)
+    R = C - b * np.column_stack([np.cos(theta), np.sin(theta)])
+    dR = np.gradient(R, h, axis=0, edge_order=2)
+    ddR = np.gradient(dR, h, axis=0, edge_order=2)
+    v = np.linalg.norm(dR, axis=1)
+    psi = np.unwrap(np.where(v > 0.1, np.arctan2(dR[:, 1], dR[:, 0]), theta))
+    cross = dR[:, 0] * ddR[:, 1] - dR[:, 1] * ddR[:, 0]
+    kappa = np.where(v > 0.1, cross / np.maximum(v, 0.1) ** 3, 0.0)
+    return {"t": t, "centre": C, "rear": R, "psi": psi, "v": v, "kappa": kappa,
+            "delta": np.arctan(l_wb * kappa), "a": np.gradient(v, h, edge_order=2)}
+
+
+def track(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, vehicle_type: int = 2) -> KSTrajectory:
+    """The ``KS`` trajectory that tracks the plan (module docstring).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The problem the plan solves.
+    trajectory : Trajectory
+        The road-frame plan.
+    steps : int
+        Number of time steps ``K``.
+    vehicle_type : int
+        CommonRoad vehicle type 1, 2 or 3.
+
+    Returns
+    -------
+    KSTrajectory
+        States, inputs, centre positions and the largest deviation from the plan.
+
+    Raises
+    ------
+    ScenarioError
+        For a vehicle type without ``KS`` parameters.
+    """
+    require()
+    from commonroad.common.solution import VehicleType
+    from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics
+
+    p = _params(vehicle_type)
+    dyn = VehicleDynamics.KS(VehicleType(vehicle_type))
+    b = float(p.b)  # type: ignore[attr-defined]
+    l_wb = float(p.a + p.b)  # type: ignore[attr-defined]
+    st, lon = p.steering, p.longitudinal  # type: ignore[attr-defined]
+    dd_lo, dd_hi = INPUT_MARGIN * float(st.v_min), INPUT_MARGIN * float(st.v_max)
+    d_lo, d_hi = INPUT_MARGIN * float(st.min), INPUT_MARGIN * float(st.max)
+    a_max = INPUT_MARGIN * float(lon.a_max)
+    ref = reference(cr, trajectory, steps, b, l_wb)
+    dt = cr.dt
+    init = cr.planning_problem.initial_state
+    psi0 = float(init.orientation)
+    c0 = np.asarray(init.position, dtype=float)
+    x = np.array([c0[0] - b * math.cos(psi0), c0[1] - b * math.sin(psi0),
+                  float(np.clip(ref["delta"][0], d_lo, d_hi)), float(init.velocity), psi0])
+    states = [x.copy()]
+    inputs = []
+    for k in range(steps):
+        j, j1 = k * SUBSTEPS, (k + 1) * SUBSTEPS
+        jm = j + SUBSTEPS // 2
+        psi_r = float(ref["psi"][j])
+        tang = np.array([math.cos(psi_r), math.sin(psi_r)])
+        e = x[:2] - ref["rear"][j]
+        e_s = float(e @ tang)
+        e_d = float(e[1] * tang[0] - e[0] * tang[1])
+        e_psi = _wrap(float(x[4]) - psi_r)
+        v = float(x[3])
+        # longitudinal
+        acc = float(ref["a"][jm]) + K_V * (float(ref["v"][jm]) - v) - K_S * e_s
+        pos_limit = a_max * float(lon.v_switch) / v if v > float(lon.v_switch) else a_max
+        # lateral: the curvature wanted at the end of the step
+        ve = max(v, V_FLOOR)
+        kappa = float(ref["kappa"][j1]) - (OMEGA**2 * e_d + 2.0 * OMEGA * ve * math.sin(e_psi)) / ve**2
+        delta_cmd = float(np.clip(math.atan(l_wb * kappa), d_lo, d_hi))
+        ddelta = float(np.clip((delta_cmd - float(x[2])) / dt, dd_lo, dd_hi))
+        # friction circle at the step's start (as the checker tests it): a^2 + (v psi_dot)^2 <= a_max^2
+        lat = v * v * math.tan(float(x[2])) / l_wb
+        room = math.sqrt(max(a_max**2 - lat**2, 0.0))
+        acc = float(np.clip(acc, -min(room, a_max), min(room, pos_limit)))
+        if v + acc * dt < 0.0:  # no reversing: stop at v = 0
+            acc = -v / dt
+        u = np.array([ddelta, acc])
+        nxt = dyn.forward_simulation(x, u, dt, throw=False)
+        if nxt is None:  # cannot happen with the margins above; refuse rather than write it
+            raise ScenarioError(f"the KS tracking input {u.tolist()} at step {k} is outside the model's bounds",
+                                "vehicle_model")
+        x = np.asarray(nxt, dtype=float)
+        inputs.append(u)
+        states.append(x.copy())
+    S = np.array(states)
+    centre = S[:, :2] + b * np.column_stack([np.cos(S[:, 4]), np.sin(S[:, 4])])
+    plan_centre = ref["centre"][::SUBSTEPS]
+    plan_centre = plan_centre.copy()
+    plan_centre[0] = c0
+    dev = float(np.max(np.linalg.norm(centre - plan_centre, axis=1)))
+    return KSTrajectory(states=S, inputs=np.array(inputs).reshape(-1, 2), centre=centre, deviation_m=dev,
+                        vehicle_type=vehicle_type)
