@@ -275,7 +275,8 @@ def cmd_evaluate_predictor(args: argparse.Namespace) -> int:
 def print_interaction(inter: dict[str, Any]) -> None:
     """The ``interaction`` section as text: per subset, RMSE at 5 s with its CI and the change against CV."""
     lm = inter["leader_model"]
-    print(f"leaders: {inter['leader_source']}; {inter['windows_leader_known']} windows with a known leader; "
+    print(f"leaders: {inter['leader_source']}; {inter['windows_leader_known']} windows with a known leader "
+          f"({inter.get('windows_leader_rejected', 0)} named leaders refused: not ahead over the whole history); "
           f"congested: speed < {inter['congested_below_mps']:.2f} m/s ({inter['windows_congested']} windows)")
     print(f"leader model: {lm['law']} " + ", ".join(f"{k}={v:.3g}" for k, v in lm["params"].items())
           + f" ({lm['note']})")

@@ -171,7 +171,8 @@ def interaction_section(data: PathLike, fmt: str, tracks: Tracks, test: Tracks, 
              "leader_known": lw.known, "leader_unknown": ~lw.known}
     section: InteractionSection = {
         "leader_source": leaders.source, "leader_rows_known": leaders.known_fraction,
-        "windows_leader_known": int(np.sum(lw.known)), "leader_future_extended": int(np.sum(lw.future_extended)),
+        "windows_leader_known": int(np.sum(lw.known)), "windows_leader_rejected": int(np.sum(lw.rejected)),
+        "leader_future_extended": int(np.sum(lw.future_extended)),
         "congested_below_mps": CONGESTED_BELOW_MPS, "windows_congested": int(np.sum(cong)),
         "leader_model": {"note": note, **lm.law.to_dict()},
         "oracle": ("leader-oracle: a car-following law along the leader's recorded future, smoothed over past and "

@@ -148,6 +148,7 @@ class InteractionSection(TypedDict):
     leader_source: str
     leader_rows_known: float
     windows_leader_known: int
+    windows_leader_rejected: int
     leader_future_extended: int
     congested_below_mps: float
     windows_congested: int

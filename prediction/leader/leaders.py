@@ -23,6 +23,18 @@ Sources
   vehicles are sorted by ``x`` and each one's leader is the next one ahead (any distance).
   On the US-101 CSV the derived leader equals ``Preceding`` on the rows measured in the
   tests (``tests/test_leader.py``).
+* Derived from lateral and longitudinal position where the lane numbers are unusable
+  (issue 29 item 5): every row's lane unknown (NGSIM's ``Lane_ID = 0``), or lane numbers that
+  do not separate lanes (more than :data:`LANE_MISMATCH_MAX` of the leaders they give are a
+  lane or more to the side, ``|Δy| >=`` :data:`SAME_LANE_TOL_M`; 4 % on US-101 with its lanes,
+  97 % with ``Lane_ID = 0``).  The leader is then the nearest vehicle ahead at the same instant
+  with ``|y_l - y_f| <`` :data:`SAME_LANE_TOL_M` (half a 3.5-m lane: the rule
+  :func:`~iamp.prediction.leader.model.scenario_leaders` applies to a scenario).  Without
+  lateral positions no leader is derived (the source says why): the leader-aware predictor then
+  is its fallback.
+
+Whatever the source, a window's leader is used only if it is ahead over the whole history
+(:func:`~iamp.prediction.leader.windows.leader_windows`).
 """
 
 from __future__ import annotations
@@ -38,10 +50,15 @@ from iamp.prediction.loaders.ngsim import FEET
 from iamp.prediction.loaders.units import UNITS
 from iamp.prediction.tracks import TrackDataError, Tracks
 
-__all__ = ["DEFAULT_LENGTH_M", "Leaders", "derive_leaders", "ngsim_leaders"]
+__all__ = ["DEFAULT_LENGTH_M", "LANE_MISMATCH_MAX", "SAME_LANE_TOL_M", "Leaders", "derive_leaders",
+           "lateral_leaders", "ngsim_leaders"]
 
 #: Length assumed for a vehicle of unknown length [m] (a passenger car).
 DEFAULT_LENGTH_M = 4.5
+#: Two vehicles share a lane when their lateral positions differ by less than this [m] (half a 3.5-m lane).
+SAME_LANE_TOL_M = 1.75
+#: Largest share of lane-number leaders a lane or more to the side for the lane numbers to count as usable.
+LANE_MISMATCH_MAX = 0.25
 
 
 @dataclass(frozen=True)
@@ -83,17 +100,8 @@ def _frame_keys(tracks: Tracks) -> IntArray:
     return out
 
 
-def derive_leaders(tracks: Tracks, length: FloatArray | None = None) -> Leaders:
-    """Leaders from lane and position per instant (module docstring).
-
-    Parameters
-    ----------
-    tracks : Tracks
-        Positions must share one road frame at each instant (true within one NGSIM
-        recording window, one SUMO run, one synthetic platoon).
-    length : array of shape (N,), optional
-        Vehicle length per row (NaN unknown).
-    """
+def _lane_leaders(tracks: Tracks) -> IntArray:
+    """Per row: the next vehicle ahead at the same instant with the same lane number (``-1``: none)."""
     n = len(tracks)
     frame = _frame_keys(tracks)
     order = np.lexsort((tracks.x, tracks.lane, frame))
@@ -103,8 +111,105 @@ def derive_leaders(tracks: Tracks, length: FloatArray | None = None) -> Leaders:
     leader[order[:-1][same]] = tracks.track_id[order[1:][same]]
     # a vehicle cannot lead itself (two rows of one track at one instant do not occur in a valid table)
     leader[leader == tracks.track_id] = -1
+    return leader
+
+
+def lateral_leaders(tracks: Tracks, tol: float = SAME_LANE_TOL_M) -> IntArray:
+    """Per row: the nearest vehicle strictly ahead at the same instant with ``|y_l - y_f| < tol`` (``-1``: none).
+
+    Parameters
+    ----------
+    tracks : Tracks
+        With lateral positions ``y`` in one road frame per instant.
+    tol : float
+        Lateral tolerance [m].
+
+    Returns
+    -------
+    numpy.ndarray of int64, shape (N,)
+        The leader's track id per row.
+
+    Raises
+    ------
+    TrackDataError
+        When ``tracks`` has no lateral positions.
+    """
+    if tracks.y is None:
+        raise TrackDataError("no lateral positions to find lanes by", column="y")
+    frame = _frame_keys(tracks)
+    order = np.lexsort((tracks.x, frame))
+    f, x, y, tid = frame[order], tracks.x[order], tracks.y[order], tracks.track_id[order]
+    n = order.size
+    lead = np.full(n, -1, dtype=np.int64)
+    active = np.arange(n)
+    k = 1
+    while active.size:  # the k-th next vehicle in x at the same instant, until each row has one or none is left
+        j = active + k
+        inside = j < n
+        active, j = active[inside], j[inside]
+        same = f[j] == f[active]
+        active, j = active[same], j[same]
+        hit = (np.abs(y[j] - y[active]) < tol) & (x[j] > x[active]) & (tid[j] != tid[active])
+        lead[active[hit]] = tid[j[hit]]
+        active = active[~hit]
+        k += 1
+    out = np.full(n, -1, dtype=np.int64)
+    out[order] = lead
+    return out
+
+
+def _unusable_lanes(tracks: Tracks, by_lane: IntArray, unknown_lane: int | None) -> str | None:
+    """Why the lane numbers cannot say who follows whom (``None``: they can); module docstring."""
+    if unknown_lane is not None and tracks.lane.size and np.all(tracks.lane == unknown_lane):
+        return f"the lane number is {unknown_lane} (unknown) in every row"
+    if tracks.y is None:
+        return None
+    i = np.flatnonzero(by_lane >= 0)
+    if i.size == 0:
+        return None
+    frame = _frame_keys(tracks)
+    key = tracks.track_id * 100_000_000 + frame
+    order = np.argsort(key, kind="stable")
+    j = order[np.searchsorted(key[order], by_lane[i] * 100_000_000 + frame[i])]
+    share = float(np.mean(np.abs(tracks.y[j] - tracks.y[i]) >= SAME_LANE_TOL_M))
+    if share > LANE_MISMATCH_MAX:
+        return (f"{100 * share:.0f} % of the leaders by lane number are a lane or more to the side "
+                f"(|dy| >= {SAME_LANE_TOL_M:g} m): the lane numbers do not separate lanes")
+    return None
+
+
+def derive_leaders(tracks: Tracks, length: FloatArray | None = None, unknown_lane: int | None = None) -> Leaders:
+    """Leaders from lane (or lateral position) and position per instant (module docstring).
+
+    Parameters
+    ----------
+    tracks : Tracks
+        Positions must share one road frame at each instant (true within one NGSIM
+        recording window, one SUMO run, one synthetic platoon).
+    length : array of shape (N,), optional
+        Vehicle length per row (NaN unknown).
+    unknown_lane : int, optional
+        The lane number that means "unknown" (NGSIM: 0); a table with it in every row has no
+        usable lane numbers.
+
+    Returns
+    -------
+    Leaders
+        ``source`` says how they were found, and why lateral positions were used or no leader was
+        derived.
+    """
+    n = len(tracks)
     lens = np.full(n, np.nan) if length is None else np.asarray(length, dtype=float)
-    return Leaders(leader, lens, "derived from lane and position")
+    by_lane = _lane_leaders(tracks)
+    why = _unusable_lanes(tracks, by_lane, unknown_lane)
+    if why is None:
+        return Leaders(by_lane, lens, "derived from lane and position")
+    if tracks.y is None:
+        return Leaders(np.full(n, -1, dtype=np.int64), lens,
+                       f"none: {why} and there are no lateral positions to find lanes by (the leader-aware "
+                       "predictor is its fallback)")
+    return Leaders(lateral_leaders(tracks), lens,
+                   f"derived from lateral position (|dy| < {SAME_LANE_TOL_M:g} m) and position, since {why}")
 
 
 _SPEC = (
@@ -160,8 +265,8 @@ def ngsim_leaders(path: str | os.PathLike[str], tracks: Tracks) -> Leaders:
         factor = UNITS.get(str(tracks.meta.get("units", "feet")), FEET)  # the loader's unit decision
         length[r[ok]] = np.asarray(cols["v_length"], dtype=float)[ok] * factor
     if "Preceding" not in cols or not np.any(np.asarray(cols["Preceding"]) > 0):
-        out = derive_leaders(tracks, length)
-        return Leaders(out.leader, length, "derived from lane and position (no Preceding column or all 0)")
+        out = derive_leaders(tracks, length, unknown_lane=0)  # NGSIM: Lane_ID 0 = unknown
+        return Leaders(out.leader, length, f"{out.source} (no Preceding column or all 0)")
     prec = _integers(cols["Preceding"], "Preceding", p)
     r = rows_of(vid, frame)
     lr = rows_of(prec, frame)  # the leader's row at the same frame

@@ -42,7 +42,7 @@ from iamp.prediction.leader.car_following import (
     calibrate_trajectories,
     simulate,
 )
-from iamp.prediction.leader.leaders import Leaders
+from iamp.prediction.leader.leaders import SAME_LANE_TOL_M, Leaders
 from iamp.prediction.mtd.model import ModelFileError, ModelJSON, MTDModel
 from iamp.prediction.predictor import Predictor
 from iamp.prediction.tracks import Tracks
@@ -268,6 +268,9 @@ def train_leader_model(tracks: Tracks, leaders: Leaders, law: str = "idm", fallb
         raise ValueError(f"calibration must be 'acceleration' or 'trajectory' (got {calibration!r})")
     if leader not in ("cv", "recorded"):
         raise ValueError(f"leader must be 'cv' or 'recorded' (got {leader!r})")
+    if not np.any(leaders.leader >= 0):
+        raise ValueError(f"no vehicle has a known leader, so no car-following law can be calibrated (leaders: "
+                         f"{leaders.source})")
     d = calibration_rows(tracks, leaders)
     cf = calibrate(law, d["v"], d["s"], d["vl"], d["a"])
     q = float(fallback.settings.get("jerk_psd", DEFAULT_JERK_PSD)) if fallback is not None else DEFAULT_JERK_PSD
@@ -276,7 +279,8 @@ def train_leader_model(tracks: Tracks, leaders: Leaders, law: str = "idm", fallb
         lw = leader_windows(tracks, leaders, win)
         k = lw.known
         if int(np.sum(k)) < 5:
-            raise ValueError(f"too few windows with a known leader to calibrate on trajectories ({int(np.sum(k))})")
+            raise ValueError(f"too few windows with a known leader to calibrate on trajectories ({int(np.sum(k))}; "
+                             f"leaders: {leaders.source})")
         sm = smooth_histories(win.t_hist, win.X_hist[k], q)
         x0, v0 = sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0)
         x_true = np.concatenate([win.X_hist[k][:, -1:], win.X_fut[k]], axis=1)
@@ -394,10 +398,6 @@ class LeaderPredictor:
         xs, _ = simulate(self.model.law, x0[use], v0[use], xl[use], vl[use], off[use], SIM_DT)
         out[use] = np.stack([np.interp(q, t, row) for row in xs])
         return out
-
-
-#: Two vehicles of a scenario share a lane when their lateral positions differ by less than this [m].
-SAME_LANE_TOL_M = 1.75
 
 
 def scenario_leaders(vehicles: Sequence[VehicleSpec]) -> dict[int, int]:
