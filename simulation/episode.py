@@ -130,8 +130,10 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
             log.mode.append(ctl.mode if nxt is not None or ctl.name == "sumo" else "sumo")
             log.plan_time.append(plan_time)
             log.ids.append(obs.ids)
-            log.nb.append(np.stack([obs.x, obs.y, obs.v, obs.a, obs.lane, obs.length, obs.width], axis=1)
-                          if obs.ids else np.zeros((0, 7)))
+            heading = obs.heading if obs.heading is not None else np.zeros(len(obs.ids))
+            log.nb.append(np.stack([obs.x, obs.y, obs.v, obs.a, obs.lane, obs.length, obs.width, heading], axis=1)
+                          if obs.ids else np.zeros((0, 8)))
+            log.ego_heading.append(sim.ego_heading)
             if not mission.alternating and math.isinf(end_at) and hw.lane_of(ego.y) == mission.target_lane \
                     and ctl.mode in ("done", "seek", "sumo"):
                 end_at = t + spec.settle_s

@@ -5,9 +5,10 @@ observed neighbour ``i`` with centre ``(x_i, y_i)``, body ``L_i × W_i``, speed 
 acceleration.  With ``Δx = x_i - x_e``, ``Δy = y_i - y_e`` (bodies axis-aligned; headings
 during a lane change stay below a few degrees):
 
-* **overlap** (a collision, SPEC §9): ``|Δx| < (L_e + L_i)/2`` and ``|Δy| < (W_e + W_i)/2``.
-  ``collisions`` = the number of distinct neighbours the ego collided with, by SUMO's
-  report or by overlap (the union: one crash reported both ways counts once).
+* **overlap** (a collision, SPEC §9, §17): the bodies, rectangles at their headings, overlap
+  (separating-axis test, :func:`separation`); ``collisions`` = the number of distinct neighbours
+  the ego collided with, by SUMO's report or by overlap (the union: one crash reported both
+  ways counts once).  The other measures below use the axis-aligned boxes.
 * **intrusion**: the ego's point inside ``i``'s safety region by more than 1 mm,
   ``|Δx| < L_i/2 + S_x - 10⁻³`` and ``|Δy| < W_i/2 + S_y - 10⁻³``; ``intrusion_s`` = the
   time with at least one intrusion (steps × period).
@@ -42,7 +43,9 @@ class StepLog:
     mode: list[str] = field(default_factory=list)
     plan_time: list[float] = field(default_factory=list)
     ids: list[tuple[str, ...]] = field(default_factory=list)
-    nb: list[np.ndarray] = field(default_factory=list)  # (n, 7): x, y, v, a, lane, length, width
+    nb: list[np.ndarray] = field(default_factory=list)  # (n, 7 or 8): x, y, v, a, lane, length, width[, heading]
+    #: The ego's heading per step [rad] as the simulator has it (empty: from its velocity, :func:`ego_headings`).
+    ego_heading: list[float] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,61 @@ def step_geometry(log: StepLog, ego_size: tuple[float, float]) -> Iterator[StepG
         yield StepGeometry(k, ids, nb, dx, dy, L, W, lat, over, gap, closing)
 
 
+#: Below this speed [m/s] a velocity gives no heading (the last one is kept), as in the simulator.
+HEADING_MIN_SPEED = 0.5
+
+
+def ego_headings(log: StepLog) -> np.ndarray:
+    """The ego's heading per step [rad]: the logged one, else the direction of its velocity
+    (kept while it is slower than :data:`HEADING_MIN_SPEED`)."""
+    if len(log.ego_heading) == len(log.t):
+        return np.asarray(log.ego_heading, dtype=float)
+    out = np.zeros(len(log.t))
+    psi = 0.0
+    for k, (_, vx, _, vy, _, _) in enumerate(log.ego):
+        if math.hypot(vx, vy) >= HEADING_MIN_SPEED:
+            psi = math.atan2(vy, max(vx, 1e-6))
+        out[k] = psi
+    return out
+
+
+def neighbour_headings(nb: np.ndarray) -> np.ndarray:
+    """The neighbours' headings of one step [rad] (column 7 when logged, else 0: along the road)."""
+    return nb[:, 7].astype(float) if nb.shape[1] > 7 else np.zeros(nb.shape[0])
+
+
+def separation(c1: np.ndarray, L1: float, W1: float, psi1: float, c2: np.ndarray, L2: np.ndarray,
+               W2: np.ndarray, psi2: np.ndarray) -> np.ndarray:
+    """Separating-axis test of one rectangle against several: the largest gap between their
+    projections over the four edge normals [m].
+
+    Parameters
+    ----------
+    c1 : numpy.ndarray
+        Centre ``(x, y)`` of the first rectangle; ``L1 × W1`` its body, ``psi1`` its heading.
+    c2 : numpy.ndarray
+        Centres ``(n, 2)`` of the others; ``L2, W2, psi2`` arrays ``(n,)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n,)``: negative where the bodies overlap (by at least that depth on every axis),
+        positive where an axis separates them (a lower bound of their distance).
+    """
+    c2 = np.asarray(c2, dtype=float).reshape(-1, 2)
+    L2, W2, psi2 = (np.asarray(a, dtype=float).reshape(-1) for a in (L2, W2, psi2))
+    d = c2 - np.asarray(c1, dtype=float).reshape(1, 2)
+    a1 = np.array([[math.cos(psi1), math.sin(psi1)], [-math.sin(psi1), math.cos(psi1)]])  # (2 axes, xy)
+    a2 = np.stack([np.stack([np.cos(psi2), np.sin(psi2)], axis=1),
+                   np.stack([-np.sin(psi2), np.cos(psi2)], axis=1)], axis=1)  # (n, 2 axes, xy)
+    axes = np.concatenate([np.broadcast_to(a1, (c2.shape[0], 2, 2)), a2], axis=1)  # (n, 4, 2)
+    r1 = L1 / 2 * np.abs(axes @ a1[0]) + W1 / 2 * np.abs(axes @ a1[1])  # (n, 4)
+    r2 = L2[:, None] / 2 * np.abs(np.einsum("nkx,nx->nk", axes, a2[:, 0])) \
+        + W2[:, None] / 2 * np.abs(np.einsum("nkx,nx->nk", axes, a2[:, 1]))
+    dist = np.abs(np.einsum("nkx,nx->nk", axes, d))
+    return np.asarray(np.max(dist - r1 - r2, axis=1), dtype=float)
+
+
 def percentile_stats(values: list[float]) -> dict[str, float | None]:
     if not values:
         return {"p50": None, "p95": None, "max": None}
@@ -109,8 +167,11 @@ def episode_metrics(log: StepLog, dt: float, ego_size: tuple[float, float], safe
     intr_steps = 0
     min_gap, min_ttc, min_follower_a = math.inf, math.inf, math.inf
     E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
+    psi_e = ego_headings(log)
     for g in step_geometry(log, ego_size):
-        for j in np.flatnonzero(g.over):
+        sep = separation(np.array([E[g.k, 0], E[g.k, 2]]), ego_size[0], ego_size[1], float(psi_e[g.k]),
+                         g.nb[:, :2], g.L, g.W, neighbour_headings(g.nb))
+        for j in np.flatnonzero(sep < 0):  # oriented bodies
             overlapped.add(g.ids[j])
         if np.any((np.abs(g.dx) < g.L / 2 + Sx - 1e-3) & (np.abs(g.dy) < g.W / 2 + Sy - 1e-3)):
             intr_steps += 1

@@ -221,7 +221,9 @@ def test_monitor_contact_is_a_body_overlap_of_positive_area(dx, dy, L, W, Le, We
 def test_monitor_counts_sumo_contacts_once_per_vehicle_and_apart_from_mingap():
     log = _one_step_log((0.0, 0.0), (30.0, 0.0, 4.0, 1.8))
     m = monitor(log, 0.1, (4.8, 1.8), lambda y: 0, 1, 30.0, None, [(0.1, "b", "collision"), (0.2, "b", "x")])
-    assert m["contacts"] == 1 and m["sumo_contacts"] == 1 and m["overlap_contacts"] == 0
+    # SPEC §17: contacts are overlaps of the bodies; SUMO's report without one is listed apart
+    assert m["contacts"] == 0 and m["sumo_contacts"] == 1 and m["overlap_contacts"] == 0
+    assert m["sumo_only_contacts"] == 1 and m["contact_disagreements"] == 1
     assert m["mingap_violations"] == 0 and m["success"] is False
 
 
