@@ -46,6 +46,9 @@ from iamp.simulation.stats import campaign_report, wilson  # noqa: F401 - wilson
 
 COLUMNS = ("mission", "planner", "traffic", "seed", "cooperation", "sublane", "duration_s", "period_s",
            "simulated_s", "distance_to_end_m", "success", "time_to_merge_s", "stopped_at_end", "contacts",
+           "contacts_at_fault", "contacts_not_at_fault", "rss_dangerous_s", "rss_dangerous_lateral_s",
+           "rss_dangerous_longitudinal_s", "rss_dangerous_both_s", "follower_emergency_brakes",
+           "axis_aligned_contacts", "sumo_only_contacts", "monitor_only_contacts", "contact_disagreements",
            "overlap_contacts", "sumo_contacts", "mingap_violations", "min_ttc_s", "ttc_below_1_5_s",
            "new_follower", "follower_max_decel", "ego_peak_accel", "ego_ax_min", "ego_ax_max", "ego_ay_peak",
            "ego_jerk_peak", "limit_violations", "jerk_violations", "ego_lost", "lane_change_done_s", "lane_changes",
@@ -56,10 +59,11 @@ COLUMNS = ("mission", "planner", "traffic", "seed", "cooperation", "sublane", "d
            "max_rss_mb", "ego_in_forecast", "ego_iterations", "ego_converged", "ego_replans")
 Key = tuple[str, str, str, int]
 #: Version of the episode definition (missions, decision layer, metrics); part of the manifest.
-EPISODE_FORMAT = "15.1"
+#: 17.1: contacts by oriented bodies, the RSS judge's columns (SPEC §17).
+EPISODE_FORMAT = "17.1"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
-                "sublane", "ego_in_forecast")
+                "sublane", "ego_in_forecast", "rss")
 
 
 class ManifestMismatch(IampError):
@@ -71,6 +75,8 @@ def flatten(summary: dict[str, Any]) -> dict[str, Any]:
     row = {k: summary.get(k) for k in COLUMNS if k in summary}
     row["ego_ax_min"], row["ego_ax_max"] = summary["ego_ax_range"]
     row["rejected"] = ";".join(f"{k}={v}" for k, v in summary.get("rejected", {}).items())
+    for kind, secs in summary.get("rss_dangerous_by_response_s", {}).items():
+        row[f"rss_dangerous_{kind}_s"] = secs
     row["rms_accel_x"], row["rms_accel_y"] = summary["rms_accel"]
     row["rms_jerk_x"], row["rms_jerk_y"] = summary["rms_jerk"]
     for q in ("p50", "p95", "max"):
@@ -100,7 +106,10 @@ def _key(row: dict[str, Any]) -> Key:
 
 def manifest_of(missions: Iterable[str], planners: Iterable[str], traffics: Iterable[str], seeds: int,
                 episode: dict[str, Any]) -> dict[str, Any]:
-    """The manifest: the episode parameters and the grid."""
+    """The manifest: the episode parameters (with the RSS judge's, SPEC §17) and the grid."""
+    from iamp.simulation.rss import DEFAULT
+
+    episode = {"rss": DEFAULT.as_dict(), **episode}
     return {"episode_format": EPISODE_FORMAT, **{k: episode[k] for k in EPISODE_KEYS if k in episode},
             "missions": list(missions), "planners": list(planners), "traffic": list(traffics), "seeds": int(seeds)}
 
@@ -127,6 +136,12 @@ def check_manifest(out: Path, wanted: dict[str, Any], force: bool) -> dict[str, 
     old, wanted = {**off, **old}, {**off, **wanted}
     diff = [k for k in EPISODE_KEYS if old.get(k) != wanted.get(k)]
     if diff:
+        if not force and old.get("episode_format") != wanted.get("episode_format"):
+            raise ManifestMismatch(f"{path}: the campaign was made by another iamp (episode format "
+                                   f"{old.get('episode_format')!r}, now {wanted.get('episode_format')!r}: "
+                                   f"{', '.join(k for k in diff if k != 'episode_format') or 'the same parameters'}"
+                                   " differ or are new); its episodes are not comparable with new ones - use "
+                                   "another --out, or --force to discard them (--no-run still summarises them)")
         if not force:
             said = ", ".join(f"{k} (was {old.get(k)!r}, now {wanted.get(k)!r})" for k in diff)
             raise ManifestMismatch(f"{path}: the campaign was made with other parameters: {said}; "
@@ -282,7 +297,9 @@ def summarise(rows: list[dict[str, str]], planners: Iterable[str] | None = None)
     return list(campaign_report(rows, names)["cells"])
 
 
-def _pct(k: int, n: int, ci: tuple[float, float]) -> str:
+def _pct(k: int | None, n: int, ci: tuple[float, float] | None) -> str:
+    if k is None or ci is None:
+        return "--"  # not measured (a campaign made before the column existed)
     return f"{k}/{n} [{100 * ci[0]:.0f}, {100 * ci[1]:.0f}]"
 
 
@@ -291,18 +308,24 @@ def _num(v: float | None, fmt: str, scale: float = 1.0) -> str:
 
 
 def latex_table(cells: list[dict[str, Any]]) -> str:
-    """A booktabs table per cell: success and contacts (k/n, Wilson 95 % in %), hard brakes of the
-    new follower, medians of time to merge, follower deceleration, executed peak, plan time."""
-    lines = [r"\begin{tabular}{lllrllllrrrrr}", r"\toprule",
-             r"mission & traffic & planner & $n$ & success & contact & hard brake & limits & $t_{merge}$ [s] & "
+    """A booktabs table per cell: success and contacts (k/n, Wilson 95 % in %), contacts the ego was
+    responsible for and the followers' emergency brakes because of the ego (RSS, SPEC §17), hard
+    brakes of the new follower, medians of the RSS-dangerous time, time to merge, follower
+    deceleration, executed peak, plan time."""
+    lines = [r"\begin{tabular}{lllrlllllrrrrrr}", r"\toprule",
+             r"mission & traffic & planner & $n$ & success & contact & at fault & emergency brake & hard brake & "
+             r"limits & RSS danger [s] & $t_{merge}$ [s] & "
              r"$d_{f}$ [m/s$^2$] & $|a|_{max}$ [m/s$^2$] & constrained & plan $p_{50}$ [ms] \\", r"\midrule"]
     for c in cells:
         n = c["episodes"]
         lines.append(
             f"{c['mission']} & {c['traffic']} & {c['planner']} & {n} & "
             f"{_pct(c['success_episodes'], n, c['success_ci'])} & {_pct(c['contact_episodes'], n, c['contact_ci'])} & "
+            f"{_pct(c.get('contact_at_fault_episodes'), n, c.get('contact_at_fault_ci'))} & "
+            f"{_pct(c.get('emergency_brake_episodes'), n, c.get('emergency_brake_ci'))} & "
             f"{_pct(c['hard_brake_episodes'], n, c['hard_brake_ci'])} & "
             f"{_pct(c['limit_violation_episodes'], n, c['limit_violation_ci'])} & "
+            f"{_num(c.get('rss_dangerous_s_median'), '.1f')} & "
             f"{_num(c['time_to_merge_s_median'], '.1f')} & {_num(c['follower_max_decel_median'], '.1f')} & "
             f"{_num(c['ego_peak_accel_median'], '.1f')} & {c['constrained_plans']}/{c['executed_plans']} & "
             f"{_num(c['plan_time_p50_s_median'], '.2f', 1e3)} \\\\")
@@ -315,7 +338,9 @@ def latex_table(cells: list[dict[str, Any]]) -> str:
 def paired_table(comparisons: list[dict[str, Any]]) -> str:
     """Paired differences (other − reference) over all densities of a mission: rates with the
     McNemar p-value, means with the paired-bootstrap 95 % interval."""
-    def rate(d: dict[str, Any]) -> str:
+    def rate(d: dict[str, Any] | None) -> str:
+        if d is None:
+            return "--"  # not measured in these episodes
         return f"{100 * d['diff']:+.0f} [{100 * d['ci'][0]:+.0f}, {100 * d['ci'][1]:+.0f}] p={d['p']:.2g}"
 
     def cont(d: dict[str, Any], scale: float = 1.0, fmt: str = "+.2f") -> str:
@@ -324,14 +349,16 @@ def paired_table(comparisons: list[dict[str, Any]]) -> str:
         lo, hi = (format(scale * v, fmt) for v in d["ci"])
         return f"{format(scale * d['diff'], fmt)} [{lo}, {hi}]"
 
-    lines = [r"\begin{tabular}{lllrllllll}", r"\toprule",
-             r"mission & planner & vs & pairs & success [pp] & contact [pp] & hard brake [pp] & "
+    lines = [r"\begin{tabular}{lllrllllllll}", r"\toprule",
+             r"mission & planner & vs & pairs & success [pp] & contact [pp] & at fault [pp] & emergency brake [pp] & "
+             r"hard brake [pp] & "
              r"$\Delta d_f$ [m/s$^2$] & $\Delta t_{merge}$ [s] & $\Delta |a|_{max}$ [m/s$^2$] \\", r"\midrule"]
     for c in comparisons:
         if c["traffic"] != "all":
             continue
         lines.append(f"{c['mission']} & {c['planner']} & {c['reference']} & {c['pairs']} & {rate(c['success'])} & "
-                     f"{rate(c['contact'])} & {rate(c['hard_brake'])} & {cont(c['follower_max_decel'])} & "
+                     f"{rate(c['contact'])} & {rate(c.get('contact_at_fault'))} & {rate(c.get('emergency_brake'))} & "
+                     f"{rate(c['hard_brake'])} & {cont(c['follower_max_decel'])} & "
                      f"{cont(c['time_to_merge_s'])} & {cont(c['ego_peak_accel'])} \\\\")
     lines += [r"\bottomrule", r"\end{tabular}"]
     text = "\n".join(lines).replace("_", r"\_")

@@ -136,7 +136,7 @@ def judge_episode(log: StepLog, dt: float, ego_size: tuple[float, float], p: Rss
     return tr, {vid: judge_pair(ego, other_motion(tr, j, dt), dt, p) for j, vid in enumerate(tr.ids)}
 
 
-def _emergency_brakes(tr: Tracks, ego: Motion, lane_of: Callable[[float], int], dt: float
+def _emergency_brakes(tr: Tracks, ego: Motion, lane_of: Callable[[float], int] | None, dt: float
                       ) -> list[dict[str, Any]]:
     """Runs of steps in which a neighbour braked with at least :data:`EMERGENCY_DECEL` while the
     ego was its leader (module docstring)."""
@@ -148,7 +148,8 @@ def _emergency_brakes(tr: Tracks, ego: Motion, lane_of: Callable[[float], int], 
         now: dict[int, dict[str, Any]] = {}
         if hard.size:
             _, hy = body_extents(tr.L[k], tr.W[k], np.nan_to_num(tr.psi[k]))
-            ego_lane, xe, ye = lane_of(float(ego.y[k])), float(ego.x[k]), float(ego.y[k])
+            ego_lane = None if lane_of is None else lane_of(float(ego.y[k]))
+            xe, ye = float(ego.x[k]), float(ego.y[k])
             for i in (int(i) for i in hard):
                 xi, yi, li = float(tr.x[k, i]), float(tr.y[k, i]), float(tr.lane[k, i])
                 if not (xe > xi and (ego_lane == li or abs(ye - yi) < float(ego.hy[k]) + hy[i])):
@@ -168,54 +169,45 @@ def _emergency_brakes(tr: Tracks, ego: Motion, lane_of: Callable[[float], int], 
     return events
 
 
-def _lanes_at(tr: Tracks, j: int, k: int, ego_y: float, lane_of: Callable[[float], int]) -> tuple[int, int | None]:
+def _lanes_at(tr: Tracks, j: int, k: int, ego_y: float, lane_of: Callable[[float], int] | None
+              ) -> tuple[int | None, int | None]:
     lo = tr.lane[k, j]
-    return lane_of(ego_y), (None if not np.isfinite(lo) else int(lo))
+    return (None if lane_of is None else lane_of(ego_y)), (None if not np.isfinite(lo) else int(lo))
 
 
-def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Callable[[float], int],
-            target_lane: int, deadline_s: float, drop_x: float | None,
-            sumo_collisions: Sequence[tuple[float, str, str]], limits: PhysicalLimits = PASSENGER_CAR,
-            lookback_s: float = 5.0, rss: RssParameters = DEFAULT) -> dict[str, Any]:
-    """The §15 and §17 measures of an executed episode (module docstring).
+def responsibility(log: StepLog, dt: float, ego_size: tuple[float, float],
+                   sumo_collisions: Sequence[tuple[float, str, str]],
+                   lane_of: Callable[[float], int] | None = None, rss: RssParameters = DEFAULT) -> dict[str, Any]:
+    """The SPEC §17 measures of an executed episode: oriented contacts, their blame, SUMO's
+    disagreements, RSS-dangerous time, the followers' emergency brakes (module docstring).
 
     Parameters
     ----------
     log : StepLog
-        The executed episode.
+        The executed episode (any frame with ``x`` along the road and ``y`` to the left).
     dt : float
         The period [s].
     ego_size : (float, float)
         The ego's length and width [m].
-    lane_of : callable
-        Global lane index of a lateral position.
-    target_lane : int
-    deadline_s : float
-        The mission's deadline on the episode clock [s].
-    drop_x : float or None
-        Where the ego's lane ends [m] (None: it does not).
     sumo_collisions : sequence of (t, vehicle, type)
-        SUMO's collision reports involving the ego, on the episode clock.
-    limits : PhysicalLimits
-    lookback_s : float
-        How long before the merge the new follower's braking counts [s].
+        SUMO's collision reports involving the ego, on the log's clock.
+    lane_of : callable, optional
+        Lane index of a lateral position, in the numbering of the log's lane column (None: a
+        vehicle is in the ego's path only when their bodies overlap sideways).
     rss : RssParameters
         The judge's parameters (reported under ``rss``).
 
     Returns
     -------
     dict
-        The JSON-ready measures.
+        The JSON-ready measures (``contacts``, ``contacts_at_fault``, ... ``rss``).
     """
-    Le = ego_size[0]
     E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
     T = np.asarray(log.t, dtype=float)
     psi_e = ego_headings(log)
     touched_aa: set[str] = set()
     touched: dict[str, int] = {}  # oriented overlap: first step
     touching: dict[str, set[int]] = {}  # oriented overlap: every step
-    close: set[str] = set()
-    min_ttc, ttc_steps = math.inf, 0
     for g in step_geometry(log, ego_size):
         for j in np.flatnonzero(g.over):
             touched_aa.add(g.ids[j])
@@ -224,15 +216,7 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
         for j in np.flatnonzero(sep < 0):
             touched.setdefault(g.ids[j], g.k)
             touching.setdefault(g.ids[j], set()).add(g.k)
-        for j in np.flatnonzero(g.lat & (sep >= 0) & (g.gap < MIN_GAP_M)):
-            close.add(g.ids[j])
-        ttc = g.ttc()
-        if math.isfinite(ttc):
-            min_ttc = min(min_ttc, ttc)
-            ttc_steps += ttc < TTC_ALARM_S
     contacts = set(touched)
-    close -= contacts
-
     # responsibility (RSS)
     tr, judged = judge_episode(log, dt, ego_size, rss)
     n = len(T)
@@ -290,13 +274,91 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
         if vid in first_report:
             continue
         le, lo = _lanes_at(tr, col[vid], k0, float(E[k0, 2]), lane_of)
-        reason = (f"the bodies overlap across a lane boundary (the ego's centre on lane {le}, the other's on {lo}); "
-                  "SUMO checks pairs on one lane" if le != lo else
-                  f"both on lane {le}; SUMO's positions along the lane did not overlap (the bodies at their "
-                  "headings do)")
+        if le is None or lo is None:
+            reason = "SUMO checks pairs on one lane by their positions along it, not the bodies at their headings"
+        elif le != lo:
+            reason = (f"the bodies overlap across a lane boundary (the ego's centre on lane {le}, the other's on {lo}); "
+                      "SUMO checks pairs on one lane")
+        else:
+            reason = (f"both on lane {le}; SUMO's positions along the lane did not overlap (the bodies at their "
+                      "headings do)")
         monitor_only.append({"vehicle": vid, "t": round(float(T[k0]), 10), "ego_lane": le, "other_lane": lo,
                              "reason": reason})
     brakes = _emergency_brakes(tr, ego_motion(log, ego_size), lane_of, dt)
+
+    return {
+        "contacts": len(contacts),
+        "contacts_at_fault": int(at_fault),
+        "contacts_not_at_fault": len(contacts) - int(at_fault),
+        "contact_list": contact_list,
+        "overlap_contacts": len(touched),
+        "axis_aligned_contacts": len(touched_aa),
+        "sumo_contacts": len(first_report),
+        "sumo_only_contacts": len(sumo_only),
+        "monitor_only_contacts": len(monitor_only),
+        "contact_disagreements": len(sumo_only) + len(monitor_only),
+        "sumo_only": sumo_only,
+        "monitor_only": monitor_only,
+        "rss_dangerous_s": round(float(resp_any.sum()) * dt, 10),
+        "rss_dangerous_by_response_s": {kind: round(float(v.sum()) * dt, 10) for kind, v in by_kind.items()},
+        "follower_emergency_brakes": len(brakes),
+        "follower_emergency_brake_list": brakes,
+        "rss": rss.as_dict(),
+    }
+
+
+def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Callable[[float], int],
+            target_lane: int, deadline_s: float, drop_x: float | None,
+            sumo_collisions: Sequence[tuple[float, str, str]], limits: PhysicalLimits = PASSENGER_CAR,
+            lookback_s: float = 5.0, rss: RssParameters = DEFAULT) -> dict[str, Any]:
+    """The §15 and §17 measures of an executed episode (module docstring).
+
+    Parameters
+    ----------
+    log : StepLog
+        The executed episode.
+    dt : float
+        The period [s].
+    ego_size : (float, float)
+        The ego's length and width [m].
+    lane_of : callable
+        Global lane index of a lateral position.
+    target_lane : int
+    deadline_s : float
+        The mission's deadline on the episode clock [s].
+    drop_x : float or None
+        Where the ego's lane ends [m] (None: it does not).
+    sumo_collisions : sequence of (t, vehicle, type)
+        SUMO's collision reports involving the ego, on the episode clock.
+    limits : PhysicalLimits
+    lookback_s : float
+        How long before the merge the new follower's braking counts [s].
+    rss : RssParameters
+        The judge's parameters (reported under ``rss``).
+
+    Returns
+    -------
+    dict
+        The JSON-ready measures.
+    """
+    Le = ego_size[0]
+    E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
+    T = np.asarray(log.t, dtype=float)
+    psi_e = ego_headings(log)
+    judged = responsibility(log, dt, ego_size, sumo_collisions, lane_of, rss)
+    contacts = {c["vehicle"] for c in judged["contact_list"]}
+    close: set[str] = set()
+    min_ttc, ttc_steps = math.inf, 0
+    for g in step_geometry(log, ego_size):
+        sep = separation(np.array([E[g.k, 0], E[g.k, 2]]), ego_size[0], ego_size[1], float(psi_e[g.k]),
+                         g.nb[:, :2], g.L, g.W, neighbour_headings(g.nb))
+        for j in np.flatnonzero(g.lat & (sep >= 0) & (g.gap < MIN_GAP_M)):
+            close.add(g.ids[j])
+        ttc = g.ttc()
+        if math.isfinite(ttc):
+            min_ttc = min(min_ttc, ttc)
+            ttc_steps += ttc < TTC_ALARM_S
+    close -= contacts
 
     # mission
     lanes = np.array([lane_of(float(y)) for y in E[:, 2]]) if E.size else np.zeros(0, dtype=int)
@@ -338,23 +400,7 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
         "success": bool(in_time and not contacts),
         "time_to_merge_s": None if t_merge is None else round(t_merge, 10),
         "stopped_at_end": stopped,
-        "contacts": len(contacts),
-        "contacts_at_fault": int(at_fault),
-        "contacts_not_at_fault": len(contacts) - int(at_fault),
-        "contact_list": contact_list,
-        "overlap_contacts": len(touched),
-        "axis_aligned_contacts": len(touched_aa),
-        "sumo_contacts": len(first_report),
-        "sumo_only_contacts": len(sumo_only),
-        "monitor_only_contacts": len(monitor_only),
-        "contact_disagreements": len(sumo_only) + len(monitor_only),
-        "sumo_only": sumo_only,
-        "monitor_only": monitor_only,
-        "rss_dangerous_s": round(float(resp_any.sum()) * dt, 10),
-        "rss_dangerous_by_response_s": {kind: round(float(v.sum()) * dt, 10) for kind, v in by_kind.items()},
-        "follower_emergency_brakes": len(brakes),
-        "follower_emergency_brake_list": brakes,
-        "rss": rss.as_dict(),
+        **{k: v for k, v in judged.items()},
         "mingap_violations": len(close),
         "min_ttc_s": _finite(min_ttc),
         "ttc_below_1_5_s": round(ttc_steps * dt, 10),

@@ -97,13 +97,27 @@ EVENTS: dict[str, Any] = {
     "ttc_alarm": lambda r: (_f(r, "ttc_below_1_5_s") or 0) > 0,
     "hard_brake": lambda r: (_f(r, "follower_max_decel") or 0) > HARD_BRAKE,
     "limit_violation": lambda r: (_f(r, "limit_violations") or 0) > 0,
+    # SPEC §17 (the RSS judge): absent in episodes of campaigns made before it
+    "contact_at_fault": lambda r: (_f(r, "contacts_at_fault") or 0) > 0,
+    "emergency_brake": lambda r: (_f(r, "follower_emergency_brakes") or 0) > 0,
+    "rss_dangerous": lambda r: (_f(r, "rss_dangerous_s") or 0) > 0,
 }
+#: Events measured only since a later episode format: the column they need.
+EVENT_COLUMNS = {"contact_at_fault": "contacts_at_fault", "emergency_brake": "follower_emergency_brakes",
+                 "rss_dangerous": "rss_dangerous_s"}
+
+
+def _measured(rows: Sequence[dict[str, Any]], name: str) -> bool:
+    """Whether the rows measure event ``name`` (a campaign made before SPEC §17 has no RSS columns)."""
+    col = EVENT_COLUMNS.get(name)
+    return col is None or any(r.get(col) not in ("", None) for r in rows)
 #: Continuous measures per episode (None where undefined).
 MEASURES: dict[str, Any] = {
     "time_to_merge_s": lambda r: _f(r, "time_to_merge_s") if _b(r, "success") else None,
     "follower_max_decel": lambda r: _f(r, "follower_max_decel"),
     "ego_peak_accel": lambda r: _f(r, "ego_peak_accel"),
     "ego_jerk_peak": lambda r: _f(r, "ego_jerk_peak"),
+    "rss_dangerous_s": lambda r: _f(r, "rss_dangerous_s"),
     "min_ttc_s": lambda r: _f(r, "min_ttc_s"),
     "plan_time_p50_s": lambda r: _f(r, "plan_time_p50_s"),
     "plan_time_max_s": lambda r: _f(r, "plan_time_max_s"),
@@ -119,6 +133,9 @@ def cell_summary(rs: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(rs)
     out: dict[str, Any] = {"episodes": n}
     for name, fn in EVENTS.items():
+        if not _measured(rs, name):
+            out[f"{name}_episodes"], out[f"{name}_rate"], out[f"{name}_ci"] = None, None, None
+            continue
         k = sum(bool(fn(r)) for r in rs)
         out[f"{name}_episodes"] = k
         out[f"{name}_rate"] = k / n if n else None
@@ -128,7 +145,8 @@ def cell_summary(rs: list[dict[str, Any]]) -> dict[str, Any]:
         out[f"{name}_median"] = _median(vals)
         out[f"{name}_max"] = max(vals) if vals else None
     for col in ("plans", "planner_calls", "executed_plans", "constrained_plans", "infeasible_plans", "fallbacks",
-                "aborts", "limit_violations", "contacts"):
+                "aborts", "limit_violations", "contacts", "contacts_at_fault", "contacts_not_at_fault",
+                "follower_emergency_brakes", "contact_disagreements"):
         out[col] = int(sum(_f(r, col) or 0 for r in rs))
     p95 = [v for v in (_f(r, "plan_time_p95_s") for r in rs) if v is not None]
     out["plan_time_p95_s_median"] = _median(p95)
@@ -145,6 +163,9 @@ def paired(ref: dict[tuple[str, int], dict[str, Any]], other: dict[tuple[str, in
     keys = sorted(set(ref) & set(other))
     out: dict[str, Any] = {"pairs": len(keys)}
     for name, fn in EVENTS.items():
+        if not (_measured([ref[k] for k in keys], name) and _measured([other[k] for k in keys], name)):
+            out[name] = None
+            continue
         a = np.array([bool(fn(ref[k])) for k in keys])
         o = np.array([bool(fn(other[k])) for k in keys])
         b, c = int(np.sum(a & ~o)), int(np.sum(~a & o))
