@@ -277,8 +277,8 @@ def responsibility(log: StepLog, dt: float, ego_size: tuple[float, float],
         if le is None or lo is None:
             reason = "SUMO checks pairs on one lane by their positions along it, not the bodies at their headings"
         elif le != lo:
-            reason = (f"the bodies overlap across a lane boundary (the ego's centre on lane {le}, the other's on {lo}); "
-                      "SUMO checks pairs on one lane")
+            reason = (f"the bodies overlap across a lane boundary (the ego's centre on lane {le}, the other's on "
+                      f"{lo}); SUMO checks pairs on one lane")
         else:
             reason = (f"both on lane {le}; SUMO's positions along the lane did not overlap (the bodies at their "
                       "headings do)")
