@@ -289,3 +289,33 @@ def test_lateral_leader_is_the_nearest_vehicle_ahead_within_half_a_lane(data: li
         if ahead and sum(1 for d, _ in ahead if d == min(ahead)[0]) > 1:
             continue  # a tie in x: either is right
         assert got[i] == want
+
+
+def test_a_leader_not_ahead_over_the_history_is_refused_and_the_fallback_predicts() -> None:
+    """A named leader that overlaps the follower during the history (a vehicle alongside, not ahead) is refused
+    (counted in ``rejected``) and the window is the fallback's, bit for bit; one ahead throughout is known."""
+    from iamp.prediction.leader.leaders import Leaders
+    from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
+    from iamp.prediction.leader.windows import leader_windows
+    from iamp.prediction.tracks import Tracks
+    from iamp.prediction.windows import make_windows
+
+    t = 0.1 * np.arange(100)
+    xf = 10.0 * t
+    cols = []
+    for tid, x in ((0, xf), (1, xf + 30.0), (2, xf + 2.0 + 0.5 * t)):  # follower, leader ahead, one alongside
+        cols.append((np.full(t.size, tid), t, x))
+    tid = np.concatenate([c[0] for c in cols])
+    tt = np.concatenate([c[1] for c in cols])
+    xx = np.concatenate([c[2] for c in cols])
+    tb = Tracks(tid, tt, xx, np.full(tt.size, 10.0), np.zeros(tt.size), np.zeros(tt.size, dtype=np.int64), 0.1, {})
+    win = make_windows(tb.select(tb.track_id == 0))
+    lp = LeaderPredictor(default_leader_model())
+    fallback = lp.fallback.predict_batch(win.t_hist, win.X_hist, win.t_fut, 5.0)
+    for leader, known in ((1, True), (2, False)):
+        lead = np.where(tb.track_id == 0, leader, -1).astype(np.int64)
+        lw = leader_windows(tb, Leaders(lead, np.full(tt.size, 4.5), "test"), win)
+        assert bool(lw.known[0]) is known and bool(lw.rejected[0]) is (not known)
+        pred = lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, 5.0, XL_hist=lw.XL_hist, has_leader=lw.known,
+                                offset=lw.offset)
+        assert np.array_equal(pred, fallback) is (not known)
