@@ -65,6 +65,8 @@ HEADING_MARGIN_RAD = 0.01
 LANELET_PIECE_M = 10.0
 #: Largest heading relative to the lane the road-frame planner may end with [rad].
 MAX_REL_HEADING_RAD = 0.5
+#: ... where the goal gives no orientation [rad].
+FREE_REL_HEADING_RAD = 0.2
 #: A goal without position: the ego's lane, this far inside its bounds [m].
 LANE_KEEP_MARGIN_M = 0.5
 
@@ -190,6 +192,21 @@ class GoalRegion:
         out.sort(key=lambda c: (c.cost0, c.steps, c.element, c.piece))
         return out
 
+    def across(self, cand: Candidate, x0: tuple[float, float, float, float], d_range: tuple[float, float],
+               elapsed_steps: int = 0) -> Candidate | None:
+        """The cheapest final state of ``cand``'s goal state, piece and time with the final offset
+        inside ``d_range`` (the search across the goal shape: a final state beside a vehicle or
+        road edge the first choice ends behind), verified; None where the piece has none."""
+        e = self.elements[cand.element]
+        pieces = self._pieces(e, x0, cand.tf)
+        if cand.piece >= len(pieces):
+            return None
+        z = _final_state(self, e, pieces[cand.piece], x0, cand.tf, d_range=d_range)
+        if z is None or self.verify(e, cand.steps + elapsed_steps, z) is not None:
+            return None
+        return Candidate(cand.steps, cand.tf, z[0], z[1], z[2], _cost0(cand.tf, x0, z), z[3], cand.element,
+                         cand.piece)
+
     def _pieces(self, e: GoalElement, x0: tuple[float, float, float, float], T: float) -> list[Piece]:
         if e.pieces is not None:
             return e.pieces
@@ -288,10 +305,18 @@ def solve_small_qp(Q: FloatArray, c: FloatArray, A: FloatArray, b: FloatArray, m
 
 
 def _rows(region: GoalRegion, e: GoalElement, piece: Piece, margin_scale: float,
-          drop: str | None = None) -> tuple[FloatArray, FloatArray]:
-    """The linear rows of the final-state QP in ``z = (s, vs, d, vd)`` (module docstring)."""
+          drop: str | None = None, d_range: tuple[float, float] | None = None) -> tuple[FloatArray, FloatArray]:
+    """The linear rows of the final-state QP in ``z = (s, vs, d, vd)`` (module docstring), with
+    the final offset kept in ``d_range`` when given."""
     rows: list[FloatArray] = []
     rhs: list[float] = []
+    if d_range is not None:
+        if math.isfinite(d_range[0]):
+            rows.append(np.array([0.0, 0.0, -1.0, 0.0]))
+            rhs.append(-d_range[0])
+        if math.isfinite(d_range[1]):
+            rows.append(np.array([0.0, 0.0, 1.0, 0.0]))
+            rhs.append(d_range[1])
     if drop != "position":
         m = POSITION_MARGIN_M * margin_scale
         for a, bb in zip(piece.A, piece.b):
@@ -309,7 +334,7 @@ def _rows(region: GoalRegion, e: GoalElement, piece: Piece, margin_scale: float,
             lo = hi = 0.5 * (lo + hi)
         lo, hi = max(lo, -MAX_REL_HEADING_RAD), min(hi, MAX_REL_HEADING_RAD)
     else:
-        lo, hi = -MAX_REL_HEADING_RAD, MAX_REL_HEADING_RAD
+        lo, hi = -FREE_REL_HEADING_RAD, FREE_REL_HEADING_RAD
     if lo <= hi:
         rows += [np.array([0.0, scale * math.tan(lo), 0.0, -1.0]), np.array([0.0, -scale * math.tan(hi), 0.0, 1.0])]
         rhs += [0.0, 0.0]
@@ -333,13 +358,14 @@ def _rows(region: GoalRegion, e: GoalElement, piece: Piece, margin_scale: float,
 
 
 def _final_state(region: GoalRegion, e: GoalElement, piece: Piece, x0: tuple[float, float, float, float],
-                 T: float, drop: str | None = None) -> tuple[float, float, float, float] | None:
+                 T: float, drop: str | None = None,
+                 d_range: tuple[float, float] | None = None) -> tuple[float, float, float, float] | None:
     """The cheapest final state of goal state ``e`` in ``piece`` at horizon ``T`` (margins halved
-    down to zero where they empty the region), or None."""
+    down to zero where they empty the region; the final offset in ``d_range`` if given), or None."""
     c = np.array([x0[0] + x0[1] * T, x0[1], x0[2] + x0[3] * T, x0[3]])
     Q = _hessian(T)
     for scale in (1.0, 0.5, 0.25, 0.0):
-        A, b = _rows(region, e, piece, scale, drop)
+        A, b = _rows(region, e, piece, scale, drop, d_range)
         z = solve_small_qp(Q, c, A, b)
         if z is not None:
             return (float(z[0]), float(z[1]), float(z[2]), float(z[3]))
