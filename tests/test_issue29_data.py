@@ -113,30 +113,30 @@ def _iamp(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_cli_reads_metres_like_feet_refuses_the_ambiguous_file_and_takes_units(tmp_path: Path) -> None:
-    """``evaluate-predictor`` gives the same errors for the metres and the feet file (before: x 0.3048);
-    an ambiguous file is exit 2 with one line naming it; ``--units`` reads it; ``--units`` with another
-    format is refused."""
+    """``evaluate-predictor`` on the metres file gives the feet file's errors (before: x 0.3048); an ambiguous
+    file is exit 2 with one line naming it and the evidence; ``train --units`` reads it; ``--units`` with
+    another format is refused."""
+    from iamp.prediction.evaluation.user import evaluate_file
+    from iamp.prediction.loaders.formats import ngsim_options
+
     kw = {"speeds": [12.0, 14.0, 9.0, 11.0], "length": 4.6, "width": 1.9, "lane_w": 3.6, "lanes": 2,
           "frames": 120}
-    res = {}
-    for name, f in (("ft", FOOT_M), ("m", 1.0)):
-        p = _traffic_csv(tmp_path / f"{name}.csv", factor=f, **kw)
-        r = _iamp("evaluate-predictor", "--data", str(p), "--format", "ngsim", "--no-interaction", "--json", "-q")
-        assert r.returncode == 0, r.stderr
-        res[name] = json.loads(r.stdout)
-    assert res["m"]["rmse_m"]["cv"] == pytest.approx(res["ft"]["rmse_m"]["cv"], abs=1e-3)
+    feet = evaluate_file(_traffic_csv(tmp_path / "ft.csv", factor=FOOT_M, **kw), "ngsim", interaction=False,
+                         resamples=10)
+    metres = _traffic_csv(tmp_path / "m.csv", factor=1.0, **kw)
+    r = _iamp("evaluate-predictor", "--data", str(metres), "--format", "ngsim", "--no-interaction", "--json", "-q")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["rmse_m"]["cv"] == pytest.approx(feet["rmse_m"]["cv"], abs=1e-3)
     amb = _traffic_csv(tmp_path / "amb.csv", factor=1.0, **{**kw, "lanes": 1}, with_length=False, with_width=False,
                        lane_ids=False)
-    for cmd in (["evaluate-predictor", "--data", str(amb), "--format", "ngsim", "--no-interaction", "--json"],
-                ["train", str(amb), "--format", "ngsim", "--out", str(tmp_path / "m.json")]):
-        r = _iamp(*cmd, "-q")
-        assert r.returncode == 2 and r.stdout == "" and "Traceback" not in r.stderr
-        assert len(r.stderr.strip().splitlines()) == 1
-        assert str(amb) in r.stderr and "--units" in r.stderr and "v_Vel" in r.stderr
-        r = _iamp(*cmd, "-q", "--units", "metres")
-        assert r.returncode == 0, r.stderr
-    r = _iamp("train", str(amb), "--format", "sumo", "--units", "feet", "--out", str(tmp_path / "s.json"))
-    assert r.returncode == 2 and "--units applies to NGSIM data only" in r.stderr
+    r = _iamp("evaluate-predictor", "--data", str(amb), "--format", "ngsim", "--no-interaction", "--json", "-q")
+    assert r.returncode == 2 and r.stdout == "" and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert str(amb) in r.stderr and "--units" in r.stderr and "v_Vel" in r.stderr
+    r = _iamp("train", str(amb), "--format", "ngsim", "--out", str(tmp_path / "m.json"), "--units", "metres")
+    assert r.returncode == 0 and "units: metres (given" in r.stdout, r.stderr
+    with pytest.raises(ValueError, match="--units applies to NGSIM data only"):
+        ngsim_options("sumo", units="feet")
 
 
 @needs_data("ngsim-us101", "us101_ngsim.csv.gz")
