@@ -194,13 +194,14 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
 LOG_COLUMNS = ("t", "vehicle", "x", "y", "vx", "vy", "ax", "ay", "lane", "length", "width", "mode", "plan_time_s")
 
 
-def write_log(result: EpisodeResult, path: str | Path) -> None:
-    """The step log as CSV, one row per vehicle and step (ego first; centres, SI units).
+def write_log(result: EpisodeResult | StepLog, path: str | Path) -> None:
+    """The step log (of an episode, or a :class:`StepLog` as ``iamp simulate --commonroad`` keeps
+    it) as CSV, one row per vehicle and step (ego first; centres, SI units).
 
     Neighbours carry their speed in ``vx`` and SUMO's acceleration in ``ax``; ``vy``/``ay``
     are left empty for them.
     """
-    log = result.log
+    log = result if isinstance(result, StepLog) else result.log
 
     def f(v: float) -> str:
         return "" if not math.isfinite(v) else f"{v:.6g}"

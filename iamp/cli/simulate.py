@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from iamp.cli.types import EXIT_OK, float_in, int_in
+from iamp.cli.types import EXIT_MISSION_FAILED, EXIT_OK, float_in, int_in
 from iamp.simulation.planning import PLANNERS
 
 TRAFFIC = ("light", "medium", "dense", "los-e")
@@ -86,6 +86,21 @@ def _summary_lines_11(s: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _responsibility_lines(s: dict[str, Any]) -> list[str]:
+    """The SPEC §17 lines: RSS blame, SUMO's disagreements, the followers' emergency brakes."""
+    if "contacts_at_fault" not in s:
+        return []
+    by = s.get("rss_dangerous_by_response_s", {})
+    lines = [f"RSS       {s['contacts_at_fault']} contacts at fault, {s['contacts_not_at_fault']} not; "
+             f"{s['rss_dangerous_s']:.1f} s dangerous by the ego (began sideways {by.get('lateral', 0.0):.1f} s, "
+             f"longitudinally {by.get('longitudinal', 0.0):.1f} s, both {by.get('both', 0.0):.1f} s); "
+             f"{s['follower_emergency_brakes']} emergency brakes (>= 8 m/s²) of a vehicle behind the ego"]
+    for c in s.get("sumo_only", []) + s.get("monitor_only", []):
+        who = "SUMO only" if c in s.get("sumo_only", []) else "bodies only"
+        lines.append(f"          contact with {c['vehicle']} at {c['t']:.1f} s reported by {who}: {c['reason']}")
+    return lines
+
+
 def summary_lines(s: dict[str, Any]) -> list[str]:
     """The text summary of an episode (``iamp simulate`` without ``--json``): rounded numbers,
     ``n/a`` with its reason where a metric has no value, no ``None``."""
@@ -107,6 +122,7 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
              f"{quantity(s['min_ttc_s'], 's', missing='n/a (no vehicle closing in)')} "
              f"({s['ttc_below_1_5_s']:.1f} s below 1.5 s); new follower braked "
              f"{quantity(fd, 'm/s²', missing='n/a (no new follower)')}",
+             *_responsibility_lines(s),
              f"executed  peak |a| {s['ego_peak_accel']:.2f} m/s² (a_x {lo:.2f}..{hi:.2f}, "
              f"|a_y| {s['ego_ay_peak']:.2f}); "
              f"{s['limit_violations']} steps beyond the passenger car's limits",
@@ -125,7 +141,59 @@ def summary_lines(s: dict[str, Any]) -> list[str]:
     return lines
 
 
+#: ``simulate`` options of the highway episode and their defaults (``None`` in the parser, so that
+#: an option given with ``--commonroad``, where it has no meaning, can be refused by name).
+HIGHWAY_DEFAULTS: dict[str, object] = {"mission": "merge", "traffic": "medium", "planner": "pmp",
+                                       "cooperation": "default", "duration": 60.0, "period": 0.1}
+#: Flags of the highway episode (off by default).
+HIGHWAY_FLAGS = ("sublane", "deadline", "ego_in_forecast")
+#: Options of ``--commonroad`` only, and their defaults.
+COMMONROAD_DEFAULTS: dict[str, object] = {"road_planner": "avoid", "recording": None}
+
+
+def check_simulate_options(args: argparse.Namespace) -> None:
+    """Refuse an option that does not apply to the kind of episode asked for (issue 29 item 11),
+    then fill in the defaults.
+
+    With ``--commonroad`` the scenario folder sets the traffic, the mission, the period and the
+    length, and the planner is ``--road-planner``: ``--mission``, ``--traffic``, ``--planner``,
+    ``--cooperation``, ``--duration``, ``--period``, ``--sublane``, ``--deadline``,
+    ``--ego-in-forecast`` and ``--figure`` are refused; ``--seed`` (SUMO's seed), ``--log``,
+    ``--force`` and ``--json`` apply.  Without it, ``--road-planner`` and ``--recording`` are
+    refused.
+
+    Raises
+    ------
+    iamp.ScenarioError
+        Naming the first such option.
+    """
+    from iamp.core.errors import ScenarioError
+
+    def flag(dest: str) -> str:
+        return "--" + dest.replace("_", "-")
+
+    if getattr(args, "commonroad", None):
+        for dest in (*HIGHWAY_DEFAULTS, *HIGHWAY_FLAGS):
+            if getattr(args, dest, None) not in (None, False):
+                raise ScenarioError("does not apply with --commonroad (the scenario folder sets the traffic, the "
+                                    "mission, the period and the length; its planner is --road-planner)", flag(dest))
+        if getattr(args, "figure", None):
+            raise ScenarioError("is not drawn for a --commonroad episode (the figure shows the highway missions); "
+                                "use --log for the executed steps", "--figure")
+        for dest, default in COMMONROAD_DEFAULTS.items():
+            if getattr(args, dest, None) is None:
+                setattr(args, dest, default)
+        return
+    for dest in COMMONROAD_DEFAULTS:
+        if getattr(args, dest, None) is not None:
+            raise ScenarioError("applies only with --commonroad FOLDER", flag(dest))
+    for dest, value in HIGHWAY_DEFAULTS.items():
+        if getattr(args, dest, None) is None:
+            setattr(args, dest, value)
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
+    check_simulate_options(args)
     if getattr(args, "commonroad", None):
         return _simulate_commonroad(args)
     from iamp.simulation.episode import EpisodeSpec, run_episode, write_log
@@ -150,16 +218,16 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     s = result.summary
     if args.json:
         print(json.dumps(s, allow_nan=False))
-        return EXIT_OK
-    for line in summary_lines(s):
-        print(line)
-    return EXIT_OK
+    else:
+        for line in summary_lines(s):
+            print(line)
+    return EXIT_OK if s["success"] else EXIT_MISSION_FAILED
 
 
 def _simulate_commonroad(args: argparse.Namespace) -> int:
     """``iamp simulate --commonroad FOLDER`` (SPEC §16): the interactive scenario in closed loop."""
     from iamp.commonroad import require
-    from iamp.commonroad.interactive import simulate
+    from iamp.commonroad.interactive import simulate_with_log
 
     require()
 
@@ -167,10 +235,18 @@ def _simulate_commonroad(args: argparse.Namespace) -> int:
         if not args.json:
             sys.stderr.write(f"  {text}\n")
 
-    r = simulate(args.commonroad, args.road_planner, recording=args.recording, progress=progress)
+    if args.log:
+        check_destinations(args)
+    r, log = simulate_with_log(args.commonroad, args.road_planner, recording=args.recording, progress=progress,
+                               seed=args.seed)
+    if args.log:
+        from iamp.simulation.episode import write_log
+
+        write_log(log, args.log)
+    code = EXIT_OK if r["success"] else EXIT_MISSION_FAILED
     if args.json:
         sys.stdout.write(json.dumps(r, indent=1, default=float) + "\n")
-        return EXIT_OK
+        return code
     ttg = "-" if r["time_to_goal_s"] is None else f"{r['time_to_goal_s']:.1f} s"
     sys.stdout.write(f"{r['scenario']}: {r['status']} (time {ttg}, window {r['goal_window_s'][0]:.1f}-"
                      f"{r['goal_window_s'][1]:.1f} s), collisions {r['collisions']}, min TTC "
@@ -182,7 +258,9 @@ def _simulate_commonroad(args: argparse.Namespace) -> int:
         sys.stdout.write(f"SUMO vs the recording: {d['vehicles_compared']} vehicles, largest position deviation "
                          f"median {d['median_abs_deviation_m']:.1f} m, max {d['max_abs_deviation_m']:.1f} m; "
                          f"lane changes recorded {d['lane_changes_recorded']}, in SUMO {d['lane_changes_sumo']}\n")
-    return EXIT_OK
+    for line in _responsibility_lines(r):
+        sys.stdout.write(line + "\n")
+    return code
 
 
 #: Seconds allowed for the TCP connection to ``--scheduler`` before a campaign starts.
@@ -270,7 +348,9 @@ def _campaign_into(args: argparse.Namespace) -> int:
         for c in report["cells"]:
             lo, hi = c["success_ci"]
             print(f"  {c['mission']:>13} {c['planner']:>10} {c['traffic']:>6}: success {c['success_episodes']}/"
-                  f"{c['episodes']} [{100 * lo:.0f}, {100 * hi:.0f}] %, contacts {c['contact_episodes']}")
+                  f"{c['episodes']} [{100 * lo:.0f}, {100 * hi:.0f}] %, contacts {c['contact_episodes']} "
+                  f"(ego at fault in {c.get('contact_at_fault_episodes', '--')}), emergency brakes because of the "
+                  f"ego in {c.get('emergency_brake_episodes', '--')}")
     return EXIT_OK
 
 
@@ -278,18 +358,25 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     """Register ``iamp simulate`` and ``iamp campaign``."""
     p = sub.add_parser("simulate", help="one closed-loop lane-change episode in SUMO traffic (needs iamp[sim])",
                        description="Run one closed-loop episode: SUMO traffic, the shared predictor, the planner "
-                                   "every period (SPEC §11).")
-    p.add_argument("--mission", choices=MISSIONS, default="merge",
+                                   "every period (SPEC §11, §15); an independent monitor judges it with RSS "
+                                   "(SPEC §17).",
+                       epilog=f"Exit status: 0 the mission succeeded; {EXIT_MISSION_FAILED} it failed (not in the "
+                              "target lane in time, a contact, or with --commonroad the goal missed); 2 bad input.")
+    p.add_argument("--mission", choices=MISSIONS, default=None,
                    help="what the ego must do (SPEC §15; default merge: its lane ends 400 m ahead)")
-    p.add_argument("--traffic", choices=TRAFFIC, default="medium")
-    p.add_argument("--seed", type=int_in("seed"), default=1, help="SUMO and traffic seed in [0, 2^31-1]")
-    p.add_argument("--planner", choices=PLANNERS, default="pmp")
-    p.add_argument("--cooperation", choices=COOPERATION, default="default",
+    p.add_argument("--traffic", choices=TRAFFIC, default=None,
+                   help="traffic density (default medium; los-e: 35 vehicles per km and lane)")
+    p.add_argument("--seed", type=int_in("seed"), default=1,
+                   help="SUMO and traffic seed in [0, 2^31-1] (default 1; with --commonroad SUMO's seed)")
+    p.add_argument("--planner", choices=PLANNERS, default=None,
+                   help="who drives the ego (SPEC §15; default pmp; sumo and mobil are the baselines)")
+    p.add_argument("--cooperation", choices=COOPERATION, default=None,
                    help="SUMO drivers' cooperation (lcCooperative, lcAssertive, lcSpeedGain, "
-                        "sigma; docs/closed-loop.md)")
+                        "sigma; docs/closed-loop.md; default default)")
     p.add_argument("--sublane", action="store_true", help="the sumo planner with SUMO's sublane model SL2015")
-    p.add_argument("--duration", type=float_in("episode_s"), default=60.0, help="episode length [s] (default 60)")
-    p.add_argument("--period", type=float_in("period_s"), default=0.1, help="control period = SUMO step [s]")
+    p.add_argument("--duration", type=float_in("episode_s"), default=None, help="episode length [s] (default 60)")
+    p.add_argument("--period", type=float_in("period_s"), default=None,
+                   help="control period = SUMO step [s] (default 0.1)")
     p.add_argument("--deadline", action="store_true",
                    help="a plan slower than the period is late and falls back (default: use plans however long "
                         "they take, so that the same seed gives the same numbers)")
@@ -302,11 +389,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--figure", default=None, help="write a figure of the episode (.png, .pdf or .svg; an "
                    "existing file only with --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --log / --figure file")
-    p.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §11)")
+    p.add_argument("--json", action="store_true",
+                   help="print exactly one JSON object (SPEC §11, §15, §17); the exit status is 0 when the "
+                        f"mission succeeded, {EXIT_MISSION_FAILED} when it failed")
     p.add_argument("--commonroad", default=None, metavar="FOLDER",
                    help="an interactive CommonRoad scenario folder (*.cr.xml + *.sumo.cfg): the ego from its "
                         "planning problem, closed loop to its goal (SPEC §16; needs iamp[sim,commonroad])")
-    p.add_argument("--road-planner", default="avoid", choices=("avoid", "pmp", "qp", "all-pmp", "free"),
+    p.add_argument("--road-planner", default=None, choices=("avoid", "pmp", "qp", "all-pmp", "free"),
                    help="with --commonroad: the road planner (iamp commonroad plan --planner; default avoid)")
     p.add_argument("--recording", default=None, metavar="SCENARIO.xml",
                    help="with --commonroad: the recorded scenario of the same vehicles, to report how SUMO's "
@@ -315,10 +404,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
 
     c = sub.add_parser("campaign", help="every planner x traffic x seed episode on Dask (needs iamp[sim])",
                        description="Run a campaign of closed-loop episodes on Dask distributed; resumes.")
-    c.add_argument("--missions", type=_csv_choice(MISSIONS), default=["merge"])
-    c.add_argument("--planners", type=_csv_choice(PLANNERS), default=list(PLANNERS))
-    c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=["medium", "dense", "los-e"])
-    c.add_argument("--cooperation", choices=COOPERATION, default="default")
+    c.add_argument("--missions", type=_csv_choice(MISSIONS), default=["merge"],
+                   help=f"comma-separated missions ({', '.join(MISSIONS)}; default merge)")
+    c.add_argument("--planners", type=_csv_choice(PLANNERS), default=list(PLANNERS),
+                   help=f"comma-separated planners (default all: {', '.join(PLANNERS)})")
+    c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=["medium", "dense", "los-e"],
+                   help=f"comma-separated densities ({', '.join(TRAFFIC)}; default medium,dense,los-e)")
+    c.add_argument("--cooperation", choices=COOPERATION, default="default",
+                   help="SUMO drivers' cooperation for every episode (docs/closed-loop.md; default default)")
     c.add_argument("--sublane", action="store_true", help="the sumo planner with SL2015")
     c.add_argument("--reference", choices=PLANNERS, default="pmp",
                    help="the planner every other one is compared with, seed by seed (default pmp)")

@@ -9,6 +9,9 @@ import math
 #: ``--require-safe``; ``EXIT_INTERNAL`` (1) is an unexpected error (a bug: one line, the
 #: traceback with ``--debug``), ``EXIT_INTERRUPTED`` (130) a run stopped by Ctrl-C / SIGTERM.
 EXIT_OK, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_UNSAFE = 0, 2, 3, 4
+#: ``iamp simulate``: the episode ran but its mission failed (SPEC §17: not in the target lane in
+#: time, a contact, or for ``--commonroad`` the goal missed).
+EXIT_MISSION_FAILED = 5
 EXIT_INTERNAL, EXIT_INTERRUPTED = 1, 130
 
 
@@ -101,6 +104,8 @@ OPTION_BOUNDS: dict[str, tuple[float, float]] = {
     "repeats": (1, 10_000),
     "budget_s": (1e-3, 3600.0),
     "snapshots": (1, 50),
+    "fps": (1.0, 60.0),
+    "animation_speed": (0.1, 20.0),
     "order": (1, 20),
     "accel_mps2": (1e-3, 50.0),
     "jerk_psd": (1e-9, 1e6),

@@ -99,6 +99,14 @@ def _box(cr: CommonRoadProblem, centre: ArrayLike, length: float, width: float, 
     return float(sd[:, 0].min()), float(sd[:, 0].max()), float(sd[:, 1].min()), float(sd[:, 1].max())
 
 
+def _road_heading(cr: CommonRoadProblem, centre: ArrayLike, length: float, width: float, heading: float) -> float:
+    """A body's heading relative to the road frame: the direction from its rear to its front in
+    road coordinates (for the monitor's oriented bodies)."""
+    sd = cr.frame.to_road(_corners(np.asarray(centre, dtype=float), length, width, heading))
+    front, rear = sd[:2].mean(axis=0), sd[2:].mean(axis=0)
+    return float(math.atan2(front[1] - rear[1], front[0] - rear[0]))
+
+
 def _observed_obstacle(cr: CommonRoadProblem, oid: int, hist_t: list[float], hist_s: list[float],
                        box: tuple[float, ...], speed: float, t: np.ndarray, predictor: Predictor) -> Obstacle:
     """An obstacle over ``t`` (from now) predicted from its observed history (module doc, step 2)."""
@@ -124,8 +132,26 @@ def _observed_obstacle(cr: CommonRoadProblem, oid: int, hist_t: list[float], his
 
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
              recording: str | Path | None = None,
-             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+             progress: Callable[[str], None] | None = None, seed: int = 1) -> dict[str, Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready).
+
+    The same as :func:`simulate_with_log` without the step log.
+    """
+    return simulate_with_log(folder, planner, replan_s=replan_s, recording=recording, progress=progress,
+                             seed=seed)[0]
+
+
+def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
+                      recording: str | Path | None = None, progress: Callable[[str], None] | None = None,
+                      seed: int = 1) -> tuple[dict[str, Any], Any]:
+    """Run the closed loop of the module docstring; returns the metrics (JSON-ready) and the
+    executed step log (:class:`iamp.simulation.metrics.StepLog`, in the road frame).
+
+    ``seed``: SUMO's ``--seed`` (its drivers' imperfection ``sigma`` draws from it).
+    The metrics include SPEC §17's responsibility measures
+    (:func:`iamp.simulation.monitor.responsibility`, in the road frame: centres and bodies at
+    their headings relative to the road; lane numbers are SUMO's, so a vehicle is in the ego's
+    path only when their bodies overlap sideways).
 
     ``recording``: a CommonRoad scenario holding the recorded trajectories of the same vehicles
     (the interactive ``.cr.xml`` holds only their initial states; for US-101 the benchmark
@@ -164,7 +190,7 @@ def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: fl
     cmd = [sumolib.checkBinary("sumo"), "-c", str(cfg), "--ignore-route-errors", "true",
            "--collision.action", "warn", "--collision.mingap-factor", "0", "--collision.check-junctions", "true",
            "--step-length", str(dt), "--lanechange-output", str(Path(tmp.name) / "lanechange.xml"),
-           "--no-warnings", "true", "--no-step-log", "true", "--verbose", "false", "--seed", "1"]
+           "--no-warnings", "true", "--no-step-log", "true", "--verbose", "false", "--seed", str(int(seed))]
     traci.start(cmd)
     log = StepLog()
     hist: dict[str, tuple[list[float], list[float]]] = {}
@@ -221,7 +247,7 @@ def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: fl
                 boxes[vid], speeds[vid] = b, spd
                 ids.append(vid)
                 rows.append([sc, 0.5 * (b[2] + b[3]), spd, traci.vehicle.getAcceleration(vid),
-                             traci.vehicle.getLaneIndex(vid), vl, vw])
+                             traci.vehicle.getLaneIndex(vid), vl, vw, _road_heading(cr, c, vl, vw, ang)])
                 d_c = 0.5 * (b[2] + b[3])
                 lo_hi = lanes_seen.get(vid, (d_c, d_c))
                 lanes_seen[vid] = (min(lo_hi[0], d_c), max(lo_hi[1], d_c))
@@ -288,21 +314,26 @@ def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: fl
             log.mode.append("plan")
             log.plan_time.append(plan_times[-1] if plan_times else 0.0)
             log.ids.append(tuple(ids))
-            log.nb.append(np.asarray(rows, dtype=float).reshape(-1, 7))
+            log.nb.append(np.asarray(rows, dtype=float).reshape(-1, 8))
     finally:
         traci.close()
         tmp.cleanup()
     metrics = episode_metrics(log, dt, (L, W), (sx, sy), sumo_collisions)
+    from iamp.simulation.monitor import responsibility
+
+    judged = responsibility(log, dt, (L, W), sumo_collisions)
     devs = {i: np.asarray(v) for i, v in dev.items() if v}
     compared = {str(i) for i in devs}
     rec_changes = sum(1 for o in rec_obstacles if o.lane_change and str(o.obstacle_id) in compared)
     sumo_changes = sum(1 for v, (a, b) in lanes_seen.items() if b - a > LANE_CHANGE_M and v in compared)
     return {
-        "scenario": cr.name, "planner": planner, "status": status, "goal_reached": goal_step is not None,
+        "scenario": cr.name, "planner": planner, "seed": int(seed), "status": status,
+        "goal_reached": goal_step is not None,
         "time_to_goal_s": None if goal_step is None else goal_step * dt,
         "goal_window_s": [cr.goal.steps[0] * dt, cr.goal.steps[1] * dt],
         "success": goal_step is not None and metrics["collisions"] == 0,
         **metrics,
+        **{k: v for k, v in judged.items() if k not in ("contacts",)},
         "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
         "infeasible_plans": infeasible, "fallbacks": fallbacks,
         "plan_time_s": {"calls": len(plan_times),
@@ -316,4 +347,4 @@ def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: fl
                                     if devs else None),
             "lane_changes_recorded": rec_changes, "lane_changes_sumo": sumo_changes,
         },
-    }
+    }, log
