@@ -7,9 +7,10 @@ peer's OWN environment (see ``scripts/commonroad_peer.py``):
     /tmp/venv-crpeer/bin/python scripts/commonroad_costs.py SCENARIO_DIR OUT.json SOLUTION.xml...
 
 For every solution it writes the total and the partial (unweighted) costs of ``WX1``, ``SM1`` and
-``TR1`` (an error, with its message, where the evaluator raises), keyed by the solution file's
-name.  ``iamp commonroad costs-crosscheck`` is not needed: ``tests/test_commonroad_bench.py``
-compares iamp's numbers with a JSON written by this script.
+``TR1`` (an error, with its message, where the evaluator raises), keyed by the solution's path
+as given (run it from the bench folder with relative paths: ``reports/commonroad/
+costs-crosscheck.json`` is made so, and ``tests/test_commonroad_bench.py`` compares iamp's costs
+with it).
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ def main() -> int:
                            "partial": {p.value: float(c) for p, c in res.partial_costs.items()}}
             except Exception as exc:  # the evaluator's failure is a result here
                 row[cf] = {"error": f"{exc.__class__.__name__}: {exc}"[:300]}
-        result[Path(name).name] = row
-        sys.stderr.write(f"{Path(name).name}: " + ", ".join(
+        result[name] = row
+        sys.stderr.write(f"{name}: " + ", ".join(
             f"{cf} {row[cf].get('total', 'error')}" for cf in COST_FUNCTIONS) + "\n")  # type: ignore[union-attr]
     out.write_text(json.dumps(result, indent=1) + "\n")
     return 0

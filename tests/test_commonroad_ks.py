@@ -75,7 +75,7 @@ def _checker_accepts(states: list[object], vehicle_type: int) -> bool:
 
 
 @needs_extra
-@settings(max_examples=6, deadline=None)
+@settings(max_examples=4, deadline=None)
 @given(angle=st.floats(-math.pi, math.pi), bend=st.floats(-1.0, 1.0), v0=st.floats(8.0, 30.0),
        a=st.floats(-1.0, 1.0), dy=st.floats(-4.0, 4.0), T=st.floats(3.0, 6.0), vtype=st.sampled_from([1, 2, 3]))
 def test_ks_tracks_a_lane_change_and_the_checker_accepts_every_step(angle: float, bend: float, v0: float, a: float,
@@ -83,7 +83,7 @@ def test_ks_tracks_a_lane_change_and_the_checker_accepts_every_step(angle: float
     """A lane change of up to 4 m in 3-6 s at 8-30 m/s on a road of any heading and gentle bend:
     every KS step is the checker's own simulation (odeint) of an input inside the type's bounds and
     friction circle, the checker's ``trajectory_feasibility`` accepts the whole trajectory, the
-    first state is the planning problem's, and the centre stays within 10 cm of the plan."""
+    first state is the planning problem's, and the centre stays within 5 cm of the plan."""
     from commonroad.common.solution import VehicleType
     from commonroad.scenario.state import KSState
     from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics, VehicleParameterMapping
@@ -102,7 +102,7 @@ def test_ks_tracks_a_lane_change_and_the_checker_accepts_every_step(angle: float
         assert np.allclose(dyn.forward_simulation(ks.states[k], ks.inputs[k], 0.1), ks.states[k + 1], atol=1e-9)
     assert np.allclose(ks.centre[0], cr.planning_problem.initial_state.position, atol=1e-9)
     assert ks.states[0, 3] == v0 and ks.states[0, 4] == pytest.approx(cr.planning_problem.initial_state.orientation)
-    assert ks.deviation_m < 0.10
+    assert ks.deviation_m < 0.05
     states = [KSState(time_step=k, position=ks.centre[k], steering_angle=float(ks.states[k, 2]),
                       velocity=float(ks.states[k, 3]), orientation=float(ks.states[k, 4])) for k in range(steps + 1)]
     assert _checker_accepts(states, vtype)
@@ -118,6 +118,7 @@ def test_unknown_vehicle_type_is_refused() -> None:
 
 
 @needs_data
+@pytest.mark.slow  # 30-40 s each on a loaded 2-core machine; the fast end-to-end KS test is in test_commonroad_bench
 @pytest.mark.parametrize("name", ["USA_US101-17_1_T-1", "USA_US101-24_1_T-1"])
 def test_plan_cli_writes_a_valid_ks_solution(name: str, tmp_path: Path) -> None:
     """``iamp commonroad plan --vehicle-model KS`` on US-101 problems (one with a vehicle imposed,

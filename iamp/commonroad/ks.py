@@ -31,16 +31,20 @@ Conversion (:func:`track`):
    path error :math:`\ddot e_d \approx v^2(\kappa - \kappa_{ref})` placed at a double pole
    :math:`-\omega`) :math:`\kappa = \kappa_{ref} - (\omega^2 e_d + 2\omega v \sin e_\psi)/v^2`,
    the steering rate reaching :math:`\arctan(l\kappa)` at the end of the step.
+3. **Learning passes** (:data:`LEARNING_PASSES`, a fixed count): the reference is shifted along
+   the path by the last pass's along-path error and the simulation repeated; the best pass is
+   kept (on the 17 planned US-101 problems the largest deviation drops from 2-7 cm to 0.3-1.5 cm).
 
 Every written state is therefore exactly the checker's simulation of an admissible input, so its
 feasibility test accepts it; the price is the tracking error, reported as the largest distance
-between the ``KS`` centre and the plan's centre at the time steps (centimetres on US-101).
+between the ``KS`` centre and the plan's centre at the time steps.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -66,6 +70,8 @@ K_S = 1.0
 OMEGA = 1.2
 #: Speed below which the lateral law uses this speed (its gain grows as 1/v^2) [m/s].
 V_FLOOR = 2.0
+#: Tracking passes after the first, each on the reference shifted by the last pass's error.
+LEARNING_PASSES = 2
 
 
 @dataclass
@@ -97,7 +103,7 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def _params(vehicle_type: int) -> object:
+def _params(vehicle_type: int) -> Any:
     from commonroad.common.solution import VehicleType
     from commonroad_dc.feasibility.vehicle_dynamics import VehicleParameterMapping
 
@@ -107,7 +113,7 @@ def _params(vehicle_type: int) -> object:
 
 
 def reference(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, b: float,
-              l_wb: float) -> dict[str, FloatArray]:
+              l_wb: float, shift: FloatArray | None = None) -> dict[str, FloatArray]:
     """The flat-output reference of the module docstring on the grid ``t = j Δt / SUBSTEPS``.
 
     Parameters
@@ -122,6 +128,9 @@ def reference(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, b: floa
         Distance from the centre to the rear axle [m].
     l_wb : float
         Wheelbase ``a + b`` [m].
+    shift : ndarray, shape (n, 2), optional
+        Added to the plan's centre path before the reference is derived (the learning passes of
+        :func:`track`); the returned ``centre`` is the plan's own.
 
     Returns
     -------
@@ -137,7 +146,8 @@ def reference(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, b: floa
     psi0 = float(cr.planning_problem.initial_state.orientation)
     theta = np.where(speed > 0.1, np.arctan2(V[:, 1], V[:, 0]), psi0)
     theta = np.unwrap(theta)
-    R = C - b * np.column_stack([np.cos(theta), np.sin(theta)])
+    Cs = C if shift is None else C + shift
+    R = Cs - b * np.column_stack([np.cos(theta), np.sin(theta)])
     dR = np.gradient(R, h, axis=0, edge_order=2)
     ddR = np.gradient(dR, h, axis=0, edge_order=2)
     v = np.linalg.norm(dR, axis=1)
@@ -148,49 +158,15 @@ def reference(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, b: floa
             "delta": np.arctan(l_wb * kappa), "a": np.gradient(v, h, edge_order=2)}
 
 
-def track(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, vehicle_type: int = 2) -> KSTrajectory:
-    """The ``KS`` trajectory that tracks the plan (module docstring).
-
-    Parameters
-    ----------
-    cr : CommonRoadProblem
-        The problem the plan solves.
-    trajectory : Trajectory
-        The road-frame plan.
-    steps : int
-        Number of time steps ``K``.
-    vehicle_type : int
-        CommonRoad vehicle type 1, 2 or 3.
-
-    Returns
-    -------
-    KSTrajectory
-        States, inputs, centre positions and the largest deviation from the plan.
-
-    Raises
-    ------
-    ScenarioError
-        For a vehicle type without ``KS`` parameters.
-    """
-    require()
-    from commonroad.common.solution import VehicleType
-    from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics
-
-    p = _params(vehicle_type)
-    dyn = VehicleDynamics.KS(VehicleType(vehicle_type))
-    b = float(p.b)  # type: ignore[attr-defined]
-    l_wb = float(p.a + p.b)  # type: ignore[attr-defined]
-    st, lon = p.steering, p.longitudinal  # type: ignore[attr-defined]
+def _simulate(dyn: Any, p: Any, ref: dict[str, FloatArray], x0: FloatArray, steps: int,
+              dt: float) -> tuple[FloatArray, FloatArray]:
+    """One closed-loop pass of the tracking controller (module docstring): states and inputs."""
+    l_wb = float(p.a + p.b)
+    st, lon = p.steering, p.longitudinal
     dd_lo, dd_hi = INPUT_MARGIN * float(st.v_min), INPUT_MARGIN * float(st.v_max)
     d_lo, d_hi = INPUT_MARGIN * float(st.min), INPUT_MARGIN * float(st.max)
     a_max = INPUT_MARGIN * float(lon.a_max)
-    ref = reference(cr, trajectory, steps, b, l_wb)
-    dt = cr.dt
-    init = cr.planning_problem.initial_state
-    psi0 = float(init.orientation)
-    c0 = np.asarray(init.position, dtype=float)
-    x = np.array([c0[0] - b * math.cos(psi0), c0[1] - b * math.sin(psi0),
-                  float(np.clip(ref["delta"][0], d_lo, d_hi)), float(init.velocity), psi0])
+    x = x0.copy()
     states = [x.copy()]
     inputs = []
     for k in range(steps):
@@ -225,11 +201,71 @@ def track(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, vehicle_typ
         x = np.asarray(nxt, dtype=float)
         inputs.append(u)
         states.append(x.copy())
-    S = np.array(states)
-    centre = S[:, :2] + b * np.column_stack([np.cos(S[:, 4]), np.sin(S[:, 4])])
-    plan_centre = ref["centre"][::SUBSTEPS]
-    plan_centre = plan_centre.copy()
-    plan_centre[0] = c0
-    dev = float(np.max(np.linalg.norm(centre - plan_centre, axis=1)))
-    return KSTrajectory(states=S, inputs=np.array(inputs).reshape(-1, 2), centre=centre, deviation_m=dev,
-                        vehicle_type=vehicle_type)
+    return np.array(states), np.array(inputs).reshape(-1, 2)
+
+
+def track(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, vehicle_type: int = 2) -> KSTrajectory:
+    """The ``KS`` trajectory that tracks the plan (module docstring).
+
+    After the first pass, :data:`LEARNING_PASSES` more passes each shift the reference along the
+    path by the previous pass's along-path error at the time steps (iterative learning control:
+    the speed loop's systematic lag is taken out); the pass with the smallest largest deviation
+    is kept.  The
+    number of passes is fixed, so the result is the same on any machine.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The problem the plan solves.
+    trajectory : Trajectory
+        The road-frame plan.
+    steps : int
+        Number of time steps ``K``.
+    vehicle_type : int
+        CommonRoad vehicle type 1, 2 or 3.
+
+    Returns
+    -------
+    KSTrajectory
+        States, inputs, centre positions and the largest deviation from the plan.
+
+    Raises
+    ------
+    ScenarioError
+        For a vehicle type without ``KS`` parameters.
+    """
+    require()
+    from commonroad.common.solution import VehicleType
+    from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics
+
+    p: Any = _params(vehicle_type)
+    dyn = VehicleDynamics.KS(VehicleType(vehicle_type))
+    b = float(p.b)
+    l_wb = float(p.a + p.b)
+    d_max = INPUT_MARGIN * float(p.steering.max)
+    init = cr.planning_problem.initial_state
+    psi0 = float(init.orientation)
+    c0 = np.asarray(init.position, dtype=float)
+    shift = None
+    best: KSTrajectory | None = None
+    for _ in range(1 + LEARNING_PASSES):
+        ref = reference(cr, trajectory, steps, b, l_wb, shift)
+        x0 = np.array([c0[0] - b * math.cos(psi0), c0[1] - b * math.sin(psi0),
+                       float(np.clip(ref["delta"][0], -d_max, d_max)), float(init.velocity), psi0])
+        S, U = _simulate(dyn, p, ref, x0, steps, cr.dt)
+        centre = S[:, :2] + b * np.column_stack([np.cos(S[:, 4]), np.sin(S[:, 4])])
+        plan_centre = ref["centre"][::SUBSTEPS].copy()
+        plan_centre[0] = c0
+        err = centre - plan_centre
+        dev = float(np.max(np.linalg.norm(err, axis=1)))
+        if best is None or dev < best.deviation_m:
+            best = KSTrajectory(states=S, inputs=U, centre=centre, deviation_m=dev, vehicle_type=vehicle_type)
+        # along the path only: the lateral error is the initial heading's (a state the solution must
+        # keep), which a shifted reference cannot take out (the learning diverges laterally)
+        psi = ref["psi"][::SUBSTEPS]
+        along = err[:, 0] * np.cos(psi) + err[:, 1] * np.sin(psi)
+        fine = np.interp(ref["t"], ref["t"][::SUBSTEPS], along)[:, None] * np.column_stack(
+            [np.cos(ref["psi"]), np.sin(ref["psi"])])
+        shift = -fine if shift is None else shift - fine
+    assert best is not None
+    return best
