@@ -19,7 +19,7 @@ import iamp  # noqa: E402
 
 project = "iamp"
 author = "the iamp developers"
-copyright = "2026, the iamp developers"  # noqa: A001
+copyright = "2026, the iamp developers"
 release = iamp.__version__
 version = ".".join(release.split(".")[:2])
 

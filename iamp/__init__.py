@@ -17,6 +17,8 @@ The public API (SPEC §12)::
     iamp.PMPPlanner(compiled=True).plan(prob)     # the PMP planner with its options
     iamp.compare(prob).to_json()                  # an iamp.Comparison; the object of SPEC §5b
     iamp.Predictor.default().predict(history)     # the cubic of SPEC §7
+    iamp.animate_plan(plan, "plan.gif")           # the plan moving among its vehicles (also
+                                                  # animate_episode, animate_commonroad)
 
 Sub-packages (dependencies flow one way): :mod:`iamp.core` (problem, scenario files, plan,
 status, tolerances, errors, atomic output) <- :mod:`iamp.planners`, :mod:`iamp.prediction`
@@ -52,10 +54,13 @@ _LAZY = {"compare": "iamp.api", "load_scenario": "iamp.api", "plan": "iamp.api",
          "SurroundingVehicle": "iamp.core.problem", "History": "iamp.core.scenario",
          "Scenario": "iamp.core.scenario", "PMPPlanner": "iamp.planners.pmp",
          "plan_batch": "iamp.planners.pmp.batch", "Prediction": "iamp.prediction.predictor",
-         "Predictor": "iamp.prediction.predictor", "Comparison": "iamp.comparison.agreement.judge"}
+         "Predictor": "iamp.prediction.predictor", "Comparison": "iamp.comparison.agreement.judge",
+         "animate_plan": "iamp.comparison.figures.animation", "animate_episode": "iamp.comparison.figures.animation",
+         "animate_commonroad": "iamp.comparison.figures.animation"}
 
 if TYPE_CHECKING:
     from iamp.comparison.agreement.judge import Comparison
+    from iamp.comparison.figures.animation import animate_commonroad, animate_episode, animate_plan
 
 
 __all__ = [
@@ -76,6 +81,9 @@ __all__ = [
     "SolverError",
     "SurroundingVehicle",
     "__version__",
+    "animate_commonroad",
+    "animate_episode",
+    "animate_plan",
     "compare",
     "load_scenario",
     "plan",

@@ -1,5 +1,10 @@
 r"""``iamp plot SCENARIO --out FILE.png|.pdf|.svg``: one plan, drawn; and ``plan --csv``.
 
+With ``--animate`` (``--out F.gif|.mp4``) the plan moves among its predicted vehicles; with
+``--episode LOG`` a closed-loop episode moves from its step log, and with ``--commonroad
+SCENARIO.xml --solution SOLUTION.xml`` a CommonRoad solution among the recorded vehicles
+(:mod:`iamp.comparison.figures.animation`).
+
 The figure (:func:`plan_figure`):
 
 * top, **to scale** (equal aspect): the x–y plane with the lanes, every surrounding
@@ -32,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from iamp.cli.types import EXIT_OK, EXIT_SOLVER, int_in
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, float_in, int_in
 from iamp.core.errors import ScenarioError
 from iamp.core.plan import Plan
 
@@ -144,11 +149,11 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
     return fig
 
 
-def _check_out(path: str) -> Path:
+def _check_out(path: str, formats: tuple[str, ...] = FORMATS) -> Path:
     out = Path(path)
     fmt = out.suffix.lstrip(".").lower()
-    if fmt not in FORMATS:
-        raise ScenarioError(f"must end in {', '.join('.' + f for f in FORMATS)} (got {out.name!r})", "--out")
+    if fmt not in formats:
+        raise ScenarioError(f"must end in {', '.join('.' + f for f in formats)} (got {out.name!r})", "--out")
     if out.is_dir():
         raise ScenarioError("is a folder; give a file name", "--out", str(out))
     return out
@@ -159,12 +164,26 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from iamp.cli import plan as plan_cli
     from iamp.cli.progress import call_with_progress
     from iamp.cli.scenarios import load_cli_problem
+    from iamp.comparison.figures.animation import ANIMATION_FORMATS, check_animation_path
     from iamp.comparison.figures.style import save_one
-
-    out = _check_out(args.out)
     from iamp.core.outputs import check_output  # fail fast: not the scenario, existing only with --force, writable
 
-    check_output(out, [args.scenario], getattr(args, "force", False))
+    sources = [name for name, value in (("SCENARIO", args.scenario), ("--episode", args.episode),
+                                        ("--commonroad", args.commonroad)) if value is not None]
+    if len(sources) != 1:
+        raise ScenarioError("give exactly one of SCENARIO, --episode LOG and --commonroad SCENARIO.xml"
+                            + (f" (got {' and '.join(sources)})" if sources else ""), sources[-1] if sources
+                            else "SCENARIO")
+    if (args.commonroad is None) != (args.solution is None):
+        raise ScenarioError("--commonroad and --solution go together", "--solution")
+    moving = args.animate or args.episode is not None or args.commonroad is not None
+    out = _check_out(args.out, ANIMATION_FORMATS if moving else FORMATS)
+    if moving:
+        check_animation_path(out)  # an .mp4 without ffmpeg: refused before the work
+    inputs = [p for p in (args.scenario, args.episode, args.commonroad, args.solution) if p not in (None, "-")]
+    check_output(out, inputs, getattr(args, "force", False))
+    if args.episode is not None or args.commonroad is not None:
+        return _animate_file(args, out)
     if hasattr(plan_cli, "check_options"):
         plan_cli.check_options(args)
     if getattr(args, "constraint", "equality") == "avoid" and not getattr(args, "_constraint_from_plan", False):
@@ -176,9 +195,30 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if not result.ok or result.trajectory is None:
         sys.stderr.write(f"iamp: the plan failed (status {result.status}); nothing to draw, {out} not written\n")
         return EXIT_SOLVER
-    fig = plan_figure(result, title=args.title, snapshots=args.snapshots)
-    save_one(fig, out)
+    if args.animate:
+        from iamp.comparison.figures.animation import animate_plan
+
+        animate_plan(result, out, fps=args.fps, speed=args.speed)
+    else:
+        save_one(plan_figure(result, title=args.title, snapshots=args.snapshots), out)
     print(f"wrote {out} ({plan_label(result)}, status {result.status}, J = {result.cost:.9g} m²/s³)")
+    return EXIT_OK
+
+
+def _animate_file(args: argparse.Namespace, out: Path) -> int:
+    """``--episode LOG`` or ``--commonroad SCENARIO.xml --solution SOLUTION.xml``: animate a file."""
+    from iamp.comparison.figures.animation import animate_commonroad, animate_episode
+
+    for option, value in (("--episode", args.episode), ("--commonroad", args.commonroad),
+                          ("--solution", args.solution)):
+        if value is not None and not Path(value).is_file():
+            raise ScenarioError("no such file", option, str(value))
+    if args.episode is not None:
+        animate_episode(args.episode, out, fps=args.fps, speed=args.speed)
+        print(f"wrote {out} (the episode of {args.episode})")
+    else:
+        animate_commonroad(args.commonroad, args.solution, out, fps=args.fps)
+        print(f"wrote {out} (the solution {args.solution} in {args.commonroad})")
     return EXIT_OK
 
 
@@ -212,8 +252,25 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                                    "plane to scale with every vehicle's safety box at several instants and the "
                                    "contact points, and the speeds, accelerations and jerks against time. "
                                    "SCENARIO is a TOML file, a built-in name, or - for standard input.")
-    p.add_argument("scenario", help="scenario TOML file, built-in name, or - (standard input)")
-    p.add_argument("--out", required=True, metavar="FILE", help="output file: .png, .pdf or .svg (written atomically)")
+    p.add_argument("scenario", nargs="?", default=None,
+                   help="scenario TOML file, built-in name, or - (standard input); omit it with --episode or "
+                        "--commonroad")
+    p.add_argument("--out", required=True, metavar="FILE",
+                   help="output file: .png, .pdf or .svg; with --animate, --episode or --commonroad a .gif or .mp4 "
+                        "(mp4 needs ffmpeg); written atomically")
+    p.add_argument("--animate", action="store_true",
+                   help="an animation of the plan among its predicted vehicles instead of the still figure")
+    p.add_argument("--episode", default=None, metavar="LOG",
+                   help="animate a closed-loop episode from its step log (iamp simulate --log LOG)")
+    p.add_argument("--commonroad", default=None, metavar="SCENARIO.xml",
+                   help="animate a CommonRoad solution (with --solution) among the recorded vehicles, drawn by "
+                        "CommonRoad's renderer (needs the [commonroad] extra)")
+    p.add_argument("--solution", default=None, metavar="SOLUTION.xml",
+                   help="the CommonRoad solution file to animate (iamp commonroad plan --out)")
+    p.add_argument("--fps", type=float_in("fps"), default=12.0,
+                   help="animation frames per second, in [1, 60] (default 12)")
+    p.add_argument("--speed", type=float_in("animation_speed"), default=1.0,
+                   help="animation: simulated seconds per second shown, in [0.1, 20] (default 1)")
     copied = _copy_plan_options(p)
     if "constraint" not in copied:
         p.add_argument("--constraint", choices=("equality", "avoid"), default="equality",
