@@ -199,3 +199,42 @@ def test_orientation_interval_off_the_lane_heading_is_reached(tmp_path: Path) ->
     v = _judge(cr, rp)
     assert v.checks["goal_reached_corrected"]["ok"], v.checks
     assert v.valid, v.checks
+
+
+def _vehicle(s0: float, v: float, y: float, oid: int = 5) -> Any:
+    from iamp.commonroad.convert import Obstacle
+
+    t = np.arange(0.0, 8.01, 0.1)
+    n = t.size
+    return Obstacle(oid, t, s0 + v * t - 2.25, s0 + v * t + 2.25, np.full(n, y - 0.9), np.full(n, y + 0.9), 4.5, 1.8,
+                    (s0, v, 0.0, 0.0), 2.25, 0.0, 1, False)
+
+
+def test_corner_of_a_vehicle_whose_lane_the_ego_crosses() -> None:
+    """The ego starts ahead of and below a vehicle and ends above it (crossing its lane): the
+    corner must join a start half-plane to a different end half-plane (front, then upper);
+    before, the side it started on was taken and the planner refused 'front-lower'."""
+    from iamp.commonroad.goal import Candidate
+    from iamp.commonroad.planning import corner_for
+
+    ob = _vehicle(50.0, 14.0, 3.6)
+    x0 = (60.0, 15.0, 0.0, 0.0)
+    beside_above = Candidate(60, 6.0, 50.0 + 14.0 * 6.0 + 1.0, 15.0, 7.2, 0.0)
+    assert corner_for(ob, beside_above, x0, 1.0, 2.5) == "front-upper"
+    ahead_same_lane = Candidate(60, 6.0, 50.0 + 14.0 * 6.0 + 8.0, 15.0, 3.6, 0.0)
+    assert corner_for(ob, ahead_same_lane, x0, 1.0, 2.5) == "front-lower"
+    inside = Candidate(60, 6.0, 50.0 + 14.0 * 6.0, 15.0, 3.6, 0.0)
+    assert corner_for(ob, inside, x0, 1.0, 2.5) is None
+
+
+def test_final_states_inside_a_vehicle_cost_no_planner_call() -> None:
+    from iamp.commonroad.goal import Candidate
+    from iamp.commonroad.planning import clear_final_states
+
+    ob = _vehicle(50.0, 14.0, 3.6)
+    cr = SimpleNamespace(obstacles=[ob], ego_length=4.5, ego_width=1.8)
+    at = 50.0 + 14.0 * 6.0
+    cands = [Candidate(60, 6.0, at, 15.0, 3.6, 0.0), Candidate(60, 6.0, at + 4.8, 15.0, 3.6, 0.0),
+             Candidate(60, 6.0, at, 15.0, 3.6 + 2.0, 0.0), Candidate(60, 6.0, at + 4.6, 15.0, 3.6, 0.0)]
+    clear = clear_final_states(cr, cands, buffer=0.15)  # type: ignore[arg-type]
+    assert clear == [cands[1], cands[2]]  # 4.8 m ahead and 2.0 m beside clear 4.5 + 0.15 and 1.8 + 0.15 (4.6 m ahead does not)

@@ -195,16 +195,30 @@ class RoadPlan:
         return self.trajectory is not None and not self.intrusions
 
 
+def body_overlap(s: FloatArray, d: FloatArray, heading: FloatArray, s_lo: FloatArray, s_hi: FloatArray,
+                 d_lo: FloatArray, d_hi: FloatArray, half_l: float, half_w: float, buffer: float) -> FloatArray:
+    """How deep the ego's body (centre ``(s, d)``, half extents ``half_l, half_w`` turned by
+    ``heading`` relative to the road) grown by ``buffer`` overlaps each box: the separating-axis
+    overlap, the smallest over the road's two axes and the body's two (> 0: they overlap)."""
+    c, sn = np.cos(heading), np.sin(heading)
+    bs, bd = 0.5 * (s_hi - s_lo), 0.5 * (d_hi - d_lo)
+    ds, dd = s - 0.5 * (s_lo + s_hi), d - 0.5 * (d_lo + d_hi)
+    along_s = half_l * np.abs(c) + half_w * np.abs(sn) + bs + buffer - np.abs(ds)
+    along_d = half_l * np.abs(sn) + half_w * np.abs(c) + bd + buffer - np.abs(dd)
+    body_u = half_l + bs * np.abs(c) + bd * np.abs(sn) + buffer - np.abs(ds * c + dd * sn)
+    body_n = half_w + bs * np.abs(sn) + bd * np.abs(c) + buffer - np.abs(-ds * sn + dd * c)
+    return np.asarray(np.minimum(np.minimum(along_s, along_d), np.minimum(body_u, body_n)), dtype=float)
+
+
 def intrusions(cr: CommonRoadProblem, trajectory: Trajectory, T: float,
                buffer: float = CHECK_BUFFER_M) -> list[Intrusion]:
     """Every recorded vehicle whose box the ego's body enters, deepest first (module doc, step 2).
 
     The body is the ego's rectangle at its heading in the road frame, the box each vehicle's
     recorded box at every recorded step (a road-edge box less :data:`EDGE_SLACK_M`); the depth is
-    the separating-axis overlap (the smallest over the road's two axes and the body's two), so a
-    body turned away from a road edge is not charged with its bounding box's corner."""
+    :func:`body_overlap`, so a body turned away from a road edge is not charged with its
+    bounding box's corner."""
     out = []
-    half_l, half_w = cr.ego_length / 2, cr.ego_width / 2
     for ob in cr.all_obstacles:
         keep = ob.t <= T + 1e-9
         if not keep.any():
@@ -212,22 +226,37 @@ def intrusions(cr: CommonRoadProblem, trajectory: Trajectory, T: float,
         t = ob.t[keep]
         X = trajectory.states(t)
         heading = np.arctan2(X[:, 3], np.maximum(X[:, 1], 1e-6))
-        c, s = np.cos(heading), np.sin(heading)
-        b = -EDGE_SLACK_M if ob.road_edge else buffer
-        bs, bd = 0.5 * (ob.s_hi[keep] - ob.s_lo[keep]), 0.5 * (ob.d_hi[keep] - ob.d_lo[keep])
-        ds = X[:, 0] - 0.5 * (ob.s_lo[keep] + ob.s_hi[keep])
-        dd = X[:, 2] - 0.5 * (ob.d_lo[keep] + ob.d_hi[keep])
-        # overlap along the road's axes (s, d) and the body's (along c,s and across -s,c)
-        along_s = half_l * np.abs(c) + half_w * np.abs(s) + bs + b - np.abs(ds)
-        along_d = half_l * np.abs(s) + half_w * np.abs(c) + bd + b - np.abs(dd)
-        body_u = half_l + bs * np.abs(c) + bd * np.abs(s) + b - np.abs(ds * c + dd * s)
-        body_n = half_w + bs * np.abs(s) + bd * np.abs(c) + b - np.abs(-ds * s + dd * c)
-        depth = np.minimum(np.minimum(along_s, along_d), np.minimum(body_u, body_n))
+        depth = body_overlap(X[:, 0], X[:, 2], heading, ob.s_lo[keep], ob.s_hi[keep], ob.d_lo[keep], ob.d_hi[keep],
+                             cr.ego_length / 2, cr.ego_width / 2, -EDGE_SLACK_M if ob.road_edge else buffer)
         k = int(np.argmax(depth))
         if depth[k] > 0:
             out.append(Intrusion(ob, float(depth[k]), float(t[k])))
     out.sort(key=lambda i: -i.depth_m)
     return out
+
+
+def clear_final_states(cr: CommonRoadProblem, cands: list[Candidate], buffer: float = BUFFER_M) -> list[Candidate]:
+    """The candidates whose final state keeps the ego's body (grown by ``buffer``) off every
+    recorded vehicle at its final time step: one that ends inside a vehicle has no safe plan, so
+    it costs no planner call."""
+    if not cands:
+        return []
+    ok = np.ones(len(cands), dtype=bool)
+    s = np.array([c.s for c in cands])
+    d = np.array([c.d for c in cands])
+    heading = np.arctan2(np.array([c.vd for c in cands]), np.maximum(np.array([c.vs for c in cands]), 1e-6))
+    t_end = np.array([c.tf for c in cands])
+    for ob in cr.obstacles:
+        k = np.searchsorted(ob.t, t_end - 1e-6)
+        there = (k < ob.t.size)
+        there[there] &= np.abs(ob.t[np.minimum(k[there], ob.t.size - 1)] - t_end[there]) < 1e-6
+        if not there.any():
+            continue
+        j = k[there]
+        depth = body_overlap(s[there], d[there], heading[there], ob.s_lo[j], ob.s_hi[j], ob.d_lo[j], ob.d_hi[j],
+                             cr.ego_length / 2, cr.ego_width / 2, buffer)
+        ok[np.flatnonzero(there)[depth > 0]] = False
+    return [c for c, keep in zip(cands, ok) if keep]
 
 
 def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float, float],
@@ -254,17 +283,28 @@ def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float
         if x0[0] <= s_lo - sx_e and beside(candidate.d):
             return f"rear-{edge_side}"
         return None
+    ax, ay = ob.half_length + sx, ob.box_width / 2 + sy
+
+    def planes(t: float, x: float, y: float) -> set[str]:
+        xs = float(np.polynomial.polynomial.polyval(t, ob.cubic))
+        out = {name for name, inside in (("front", x >= xs + ax), ("rear", x <= xs - ax), ("upper", y >= ob.y + ay),
+                                         ("lower", y <= ob.y - ay)) if inside}
+        return out
+
+    start, end = planes(0.0, x0[0], x0[2]), planes(candidate.tf, candidate.s, candidate.d)
+
+    def valid(corner: str) -> bool:
+        lon, lat = corner.split("-")
+        return (lon in start and lat in end) or (lat in start and lon in end)
+
+    # the manoeuvre's own corner first: the side it starts (or ends) beside, ahead or behind at the end
     end_ahead = candidate.s > float(np.polynomial.polynomial.polyval(candidate.tf, ob.cubic))
-    band = ob.box_width / 2 + sy
-    starts_beside = abs(x0[2] - ob.y) >= band
-    ends_beside = abs(candidate.d - ob.y) >= band
-    if starts_beside:
-        side = x0[2] - ob.y
-    elif ends_beside:
-        side = candidate.d - ob.y
-    else:
-        return None
-    return f"{'front' if end_ahead else 'rear'}-{'upper' if side > 0 else 'lower'}"
+    lat = next((p for p in ("upper", "lower") if p in start), next((p for p in ("upper", "lower") if p in end), None))
+    preferred = [f"{'front' if end_ahead else 'rear'}-{lat}"] if lat is not None else []
+    for corner in preferred + ["front-upper", "front-lower", "rear-upper", "rear-lower"]:
+        if valid(corner):
+            return corner
+    return None  # a start or end inside its safety region, or in the same half-plane at both ends
 
 
 def _heading_and_peak(trajectory: Trajectory, T: float) -> tuple[float, float]:
@@ -309,7 +349,8 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
         return RoadPlan(planner, "unreachable", None, None, None, time.perf_counter() - start,
                         reason=f"the goal cannot be reached: {reason}")
     best: RoadPlan | None = None
-    order = _candidate_order(cr.candidates, max_candidates)
+    clear = clear_final_states(cr, cr.candidates)
+    order = _candidate_order(clear or cr.candidates, max_candidates)
     queue = list(order)
     heading = HEADING_GUESS_RAD
     budget = [max_plans]
@@ -340,7 +381,8 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     assert best is not None
     steps_tried = sorted({c.steps for c in tried})
     searched = (f"no safe plan found over the goal region searched: {n_tried} final state(s) at step(s) "
-                f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()}; {max_plans - budget[0]} planner "
+                f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()} ({len(cr.candidates) - len(clear)} of "
+                f"{len(cr.candidates)} final states end inside a vehicle); {max_plans - budget[0]} planner "
                 f"call(s) of {max_plans}")
     best.reason = searched + (f"; the best: {best.reason}" if best.reason else "")
     best.solve_time_s = time.perf_counter() - start
