@@ -24,9 +24,33 @@ from pathlib import Path
 
 import numpy as np
 
-#: The desired speed: "current" (the package's 2024.1 example: keep the current speed) or "goal"
-#: (the middle of the goal's speed interval); ``--desired goal`` on the command line.
+#: The desired speed: "current" (the package's 2024.1 example: keep the current speed), "goal"
+#: (the middle of the goal's speed interval, the older example) or "timed" (fix 4 below: the speed
+#: that reaches the goal's centre at the middle of its time window, kept inside the goal's speed
+#: interval); ``--desired=goal`` on the command line.
 DESIRED = "current"
+#: The peer's label in iamp's bench table.
+LABEL = "reactive-peer"
+#: Fix 5 (``--smooth=F``): the smoothing factor of the reference path's spline (the package's
+#: ``create_coordinate_system`` default is 2.0); ``None`` keeps the default.
+SMOOTH: float | None = None
+
+
+def _coordinate_system(ref_path: np.ndarray) -> object:
+    from commonroad_rp.utility.utils_coordinate_system import create_coordinate_system
+
+
+    if SMOOTH is None:
+        return create_coordinate_system(ref_path)
+    from commonroad_clcs.config import CLCSParams, ProcessingOption, ResamplingOption
+
+    params = CLCSParams(processing_option=ProcessingOption.SPLINE_SMOOTHING)
+    params.spline.degree_spline = 3
+    params.spline.smoothing_factor = SMOOTH
+    params.resampling.option = ResamplingOption.ADAPTIVE
+    params.resampling.min_step = 0.5
+    params.resampling.max_step = 1.0
+    return create_coordinate_system(ref_path, params)
 
 CONFIG = """planning:
   dt: 0.1
@@ -55,6 +79,32 @@ def _extend(path: np.ndarray, length: float) -> np.ndarray:
     return np.vstack([path[0] + k[::-1] * d0, path, path[-1] + k * d1])
 
 
+def _timed_speed(planner: object, goal: object, count: int, dt: float) -> float | None:
+    """Fix 4: the reactive planner keeps a desired speed and knows no goal time; the speed that
+    puts the ego at the goal's centre (arc length on the planner's own reference path) at the
+    middle of the goal's time window, clipped into the goal's speed interval (0.2 m/s inside)."""
+    x0 = planner.x_0  # type: ignore[attr-defined]
+    cosy = planner.coordinate_system  # type: ignore[attr-defined]
+    try:
+        shape = goal.position  # type: ignore[attr-defined]
+        centre = (np.mean([sh.center for sh in shape.shapes], axis=0) if hasattr(shape, "shapes")
+                  else shape.center)
+        s_goal, _ = cosy.convert_to_curvilinear_coords(float(centre[0]), float(centre[1]))
+        s_ego, _ = cosy.convert_to_curvilinear_coords(float(x0.position[0]), float(x0.position[1]))
+    except Exception:
+        return None
+    k_mid = 0.5 * (goal.time_step.start + goal.time_step.end)  # type: ignore[attr-defined]
+    t_rem = (k_mid - count) * dt
+    if t_rem < 0.5:
+        v = float(x0.velocity)
+    else:
+        v = max(0.0, (s_goal - s_ego) / t_rem)
+    if goal.has_value("velocity"):  # type: ignore[attr-defined]
+        lo, hi = goal.velocity.start, goal.velocity.end  # type: ignore[attr-defined]
+        v = min(max(v, lo + 0.2), hi - 0.2) if hi - lo > 0.4 else 0.5 * (lo + hi)
+    return v
+
+
 def run(path: Path, out: Path) -> dict[str, object]:
     from commonroad.common.solution import CommonRoadSolutionWriter
     from commonroad_route_planner.reference_path_planner import ReferencePathPlanner
@@ -62,8 +112,6 @@ def run(path: Path, out: Path) -> dict[str, object]:
     from commonroad_rp.reactive_planner import ReactivePlanner
     from commonroad_rp.utility.config import ReactivePlannerConfiguration
     from commonroad_rp.utility.evaluation import create_full_solution_trajectory, create_planning_problem_solution
-    from commonroad_rp.utility.utils_coordinate_system import create_coordinate_system
-
     with tempfile.TemporaryDirectory() as tmp:
         cfg = Path(tmp) / "config.yaml"
         cfg.write_text(CONFIG)
@@ -82,7 +130,7 @@ def run(path: Path, out: Path) -> dict[str, object]:
     # leave the projection domain (CurvilinearProjectionDomainLongitudinalError); extend it by
     # 100 m straight at both ends before smoothing.
     ref_path = _extend(np.asarray(ref.reference_path, dtype=float), 100.0)
-    planner.set_reference_path(coordinate_system=create_coordinate_system(ref_path))
+    planner.set_reference_path(coordinate_system=_coordinate_system(ref_path))
     planner.record_state_and_input(planner.x_0)
     goal = config.planning_problem.goal.state_list[0]
     k_end = int(goal.time_step.end)
@@ -94,15 +142,25 @@ def run(path: Path, out: Path) -> dict[str, object]:
             status = "goal window passed"
             break
         if count % config.planning.replanning_frequency == 0:
-            if DESIRED == "goal" and goal.has_value("velocity"):
+            timed = _timed_speed(planner, goal, count, config.planning.dt) if DESIRED == "timed" else None
+            if timed is not None:
+                planner.set_desired_velocity(desired_velocity=timed, current_speed=planner.x_0.velocity)
+            elif DESIRED == "goal" and goal.has_value("velocity"):
                 # the goal interval's middle, as the package's older example (run_planner.py 2022)
                 planner.set_desired_velocity(desired_velocity=0.5 * (goal.velocity.start + goal.velocity.end),
                                              current_speed=planner.x_0.velocity)
             else:
                 planner.set_desired_velocity(current_speed=planner.x_0.velocity)
-            optimal = planner.plan()
+            try:
+                optimal = planner.plan()
+            except Exception as exc:  # recorded with the step (the CLCS projection errors)
+                status = f"error at step {count}: {exc.__class__.__name__}: {exc}"
+                break
             if not optimal:
-                status = "no feasible sample"
+                reasons = {k: v for k, v in planner.infeasible_reason_dict.items() if v}
+                status = (f"no feasible sample at step {count} ({planner.infeasible_count_kinematics} of "
+                          f"{planner.total_count_samples} kinematically infeasible {reasons}, "
+                          f"{planner.infeasible_count_collision} colliding)")
                 break
             k = 1
         else:
@@ -113,7 +171,8 @@ def run(path: Path, out: Path) -> dict[str, object]:
                       initial_state_curv=(optimal[1][k], optimal[2][k]),
                       collision_checker=planner.collision_checker, coordinate_system=planner.coordinate_system)
     elapsed = time.perf_counter() - start
-    row: dict[str, object] = {"scenario": path.stem, "status": status, "solve_time_s": elapsed, "desired": DESIRED,
+    row: dict[str, object] = {"scenario": path.stem, "planner": LABEL, "status": status, "solve_time_s": elapsed,
+                              "desired": DESIRED, "smooth": SMOOTH,
                               "steps": len(planner.record_state_list) - 1}
     if status == "goal reached":
         traj = create_full_solution_trajectory(config, planner.record_state_list)
@@ -123,11 +182,13 @@ def run(path: Path, out: Path) -> dict[str, object]:
 
 
 def main() -> int:
-    global DESIRED
-    args = [a for a in sys.argv[1:] if not a.startswith("--desired=")]
+    global DESIRED, SMOOTH
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
     for a in sys.argv[1:]:
         if a.startswith("--desired="):
             DESIRED = a.split("=", 1)[1]
+        elif a.startswith("--smooth="):
+            SMOOTH = float(a.split("=", 1)[1])
     folder, out = Path(args[0]), Path(args[1])
     out.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -135,7 +196,7 @@ def main() -> int:
         try:
             row = run(path, out)
         except Exception as exc:  # a peer failure is a result, recorded with its reason
-            row = {"scenario": path.stem, "status": f"error: {exc.__class__.__name__}: {exc}",
+            row = {"scenario": path.stem, "planner": LABEL, "status": f"error: {exc.__class__.__name__}: {exc}",
                    "trace": traceback.format_exc(limit=3)}
         rows.append(row)
         sys.stderr.write(f"{path.stem}: {row['status']}\n")

@@ -82,6 +82,14 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     scenario, pps, solution = read(args.scenario, args.solution)
     verdict = check(scenario, pps, solution)
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.costs import evaluate
+
+    if verdict.cost_function is not None:
+        cost = evaluate(load(args.scenario), solution, (verdict.cost_function,))[verdict.cost_function]
+        verdict.cost = cost["total"]
+        if cost["error"] is not None:
+            verdict.cost_function += f" (not defined: {cost['error']})"
     if args.json:
         sys.stdout.write(json.dumps(verdict.to_json(), indent=1, default=float) + "\n")
     else:
