@@ -147,6 +147,7 @@ def test_cli_refuses_a_folder_holding_the_users_files(tmp_path: Path) -> None:
 
 
 @needs_data
+@pytest.mark.slow  # 20-60 s on a loaded 2-core machine; the stub tests above are its fast version
 def test_cli_bench_resumes_and_refuses_other_parameters(tmp_path: Path) -> None:
     """End to end on one scenario: a KS bench writes its manifest, row and solution (benchmark ID
     ``KS2:WX1:<scenario>:2020a``) and is valid; the same command again plans nothing (stored);
@@ -167,6 +168,18 @@ def test_cli_bench_resumes_and_refuses_other_parameters(tmp_path: Path) -> None:
     again = subprocess.run([*base, "--vehicle-model", "KS"], capture_output=True, text=True, timeout=600)
     assert again.returncode == 0 and "(stored)" in again.stderr
     assert json.loads((out / "bench.json").read_text())["rows"] == data["rows"]
+    # a peer's folder holding the same solution: judged and scored exactly as iamp's row, labelled by peer.json
+    peer = tmp_path / "peer"
+    peer.mkdir()
+    (peer / f"{name}.solution.xml").write_text((out / "solutions" / "avoid" / f"{name}.solution.xml").read_text())
+    (peer / "peer.json").write_text(json.dumps([{"scenario": name, "planner": "x-peer", "status": "goal reached",
+                                                 "solve_time_s": 1.0}]))
+    withpeer = subprocess.run([*base, "--vehicle-model", "KS", "--peer", str(peer), "--json"], capture_output=True,
+                              text=True, timeout=600)
+    assert withpeer.returncode == 0, withpeer.stderr[-2000:]
+    both = {r["planner"]: r for r in json.loads(withpeer.stdout)["rows"]}
+    assert both["x-peer"]["category"] == "valid" and both["x-peer"]["costs"] == both["avoid"]["costs"]
+    assert both["x-peer"]["benchmark_id"] == both["avoid"]["benchmark_id"]
     pm = subprocess.run([*base, "--vehicle-model", "PM"], capture_output=True, text=True, timeout=600)
     assert pm.returncode == 2 and "vehicle_model" in pm.stderr and "Traceback" not in pm.stderr
     forced = subprocess.run([*base, "--vehicle-model", "PM", "--force"], capture_output=True, text=True, timeout=600)
