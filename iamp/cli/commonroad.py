@@ -20,7 +20,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     if args.out:
         check_output(args.out, inputs=[args.scenario], force=args.force)
-    cr = load(args.scenario)
+    cr = load(args.scenario, args.vehicle_type)  # the type's body and limits in the plan too
     seen = cr
     if args.predict:
         from iamp.commonroad.predicted import predict_obstacles

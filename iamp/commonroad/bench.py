@@ -121,7 +121,7 @@ def run_one(path: Path, planner: str, out_dir: Path | None, timeout_s: float,
     Row
         The verdict, costs and timings.
     """
-    cr = load(path)
+    cr = load(path, vehicle_type)  # the type's body and limits in the plan too
     base = planner.removesuffix(PREDICT_SUFFIX)
     seen = cr if base == planner else predict_obstacles(cr)
     previous = signal.signal(signal.SIGALRM, _alarm)
