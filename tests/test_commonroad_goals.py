@@ -237,4 +237,23 @@ def test_final_states_inside_a_vehicle_cost_no_planner_call() -> None:
     cands = [Candidate(60, 6.0, at, 15.0, 3.6, 0.0), Candidate(60, 6.0, at + 4.8, 15.0, 3.6, 0.0),
              Candidate(60, 6.0, at, 15.0, 3.6 + 2.0, 0.0), Candidate(60, 6.0, at + 4.6, 15.0, 3.6, 0.0)]
     clear = clear_final_states(cr, cands, buffer=0.15)  # type: ignore[arg-type]
-    assert clear == [cands[1], cands[2]]  # 4.8 m ahead and 2.0 m beside clear 4.5 + 0.15 and 1.8 + 0.15 (4.6 m ahead does not)
+    assert clear == [cands[1], cands[2]]  # 4.8 m ahead, 2.0 m beside clear 4.5 + 0.15, 1.8 + 0.15; 4.6 m not
+
+
+@settings(max_examples=100, deadline=None)
+@given(v0=st.floats(0.0, 30.0), T=st.floats(0.5, 12.0), a=st.floats(1.0, 12.0), frac=st.floats(0.0, 1.0),
+       first=st.sampled_from([1.0, -1.0]))
+def test_axis_reachable_is_the_bang_bang_set(v0: float, T: float, a: float, frac: float, first: float) -> None:
+    """Every two-phase bang-bang end state is reachable; past the extreme one (full +a then -a to
+    the same end speed) by 1 cm it is not."""
+    from iamp.commonroad.goal import axis_reachable
+
+    t1 = frac * T
+    v1 = v0 + first * a * t1
+    vf = v1 - first * a * (T - t1)
+    pf = v0 * t1 + 0.5 * first * a * t1**2 + v1 * (T - t1) - 0.5 * first * a * (T - t1) ** 2
+    assert axis_reachable(0.0, v0, pf, vf, T, a)
+    ts = (vf - v0 + a * T) / (2 * a)
+    p_max = v0 * ts + 0.5 * a * ts**2 + (v0 + a * ts) * (T - ts) - 0.5 * a * (T - ts) ** 2
+    assert not axis_reachable(0.0, v0, p_max + 0.01, vf, T, a)
+    assert not axis_reachable(0.0, v0, pf, v0 + a * T + 0.01, T, a)

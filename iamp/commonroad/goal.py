@@ -186,7 +186,7 @@ class GoalRegion:
                     z = _final_state(self, e, piece, x0, T)
                     if z is None:
                         continue
-                    if self.verify(e, k, z) is not None:
+                    if self.verify(e, k, z) is not None or not _within_limits(x0, z, T, self.a_max):
                         continue
                     out.append(Candidate(k - elapsed_steps, T, z[0], z[1], z[2], _cost0(T, x0, z), z[3], e.index, j))
         out.sort(key=lambda c: (c.cost0, c.steps, c.element, c.piece))
@@ -235,6 +235,26 @@ def element_missed(e: GoalElement, k: int, pos: FloatArray, speed: float, headin
     if st is not None and st.has_value("orientation") and not st.orientation.contains(heading):
         return "orientation"
     return None
+
+
+def axis_reachable(p0: float, v0: float, pf: float, vf: float, T: float, a: float) -> bool:
+    r"""Can the double integrator :math:`\ddot p = u`, :math:`|u| \le a`, go from ``(p0, v0)`` to
+    ``(pf, vf)`` in exactly ``T``?  Iff :math:`|v_f - v_0| \le aT` and :math:`p_f` lies between
+    the bang-bang extremes (full ``+a`` then ``-a``, and the reverse, switching where the speed
+    ends at :math:`v_f`).  Per axis this is necessary for the friction circle
+    :math:`|u| \le a` of both axes together."""
+    if abs(vf - v0) > a * T + 1e-9:
+        return False
+    t1 = (vf - v0 + a * T) / (2 * a)  # +a for t1, then -a
+    hi = p0 + v0 * t1 + 0.5 * a * t1**2 + (v0 + a * t1) * (T - t1) - 0.5 * a * (T - t1) ** 2
+    t2 = (v0 - vf + a * T) / (2 * a)  # -a for t2, then +a
+    lo = p0 + v0 * t2 - 0.5 * a * t2**2 + (v0 - a * t2) * (T - t2) + 0.5 * a * (T - t2) ** 2
+    return lo - 1e-9 <= pf <= hi + 1e-9
+
+
+def _within_limits(x0: tuple[float, float, float, float], z: tuple[float, float, float, float], T: float,
+                   a: float) -> bool:
+    return (axis_reachable(x0[0], x0[1], z[0], z[1], T, a) and axis_reachable(x0[2], x0[3], z[2], z[3], T, a))
 
 
 def _wrap(a: float) -> float:
@@ -415,7 +435,14 @@ def _unreachable(region: GoalRegion, e: GoalElement, x0: tuple[float, float, flo
                    for pc in region._pieces(e, x0, probe_T)):
                 return f"{name} admits no final state together with the goal's other elements"
         return "its elements admit no common final state"
-    return None
+    for T in Ts:
+        for pc in region._pieces(e, x0, T):
+            z = _final_state(region, e, pc, x0, T)
+            if z is not None and _within_limits(x0, z, T, a):
+                return None
+    what = "velocity and position" if e.speed is not None else "position"
+    return (f"{what} together are out of reach: the cheapest final state of every time of the window needs more "
+            f"than {a:.2f} m/s^2 on one axis (bang-bang bound)")
 
 
 def _distance_to_piece(pc: Piece, p: FloatArray) -> float:

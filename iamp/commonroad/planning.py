@@ -350,7 +350,8 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
                         reason=f"the goal cannot be reached: {reason}")
     best: RoadPlan | None = None
     clear = clear_final_states(cr, cr.candidates)
-    order = _candidate_order(clear or cr.candidates, max_candidates)
+    gentle = [c for c in clear if _free_peak(cr, c) <= cr.a_max]  # the free plan within the friction circle
+    order = _candidate_order(gentle or clear or cr.candidates, max_candidates)
     queue = list(order)
     heading = HEADING_GUESS_RAD
     budget = [max_plans]
@@ -384,10 +385,19 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
                 f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()} ({len(cr.candidates) - len(clear)} of "
                 f"{len(cr.candidates)} final states end inside a vehicle); {max_plans - budget[0]} planner "
                 f"call(s) of {max_plans}")
-    best.reason = searched + (f"; the best: {best.reason}" if best.reason else "")
+    if best.trajectory is not None and not best.intrusions and best.peak_accel_mps2 > cr.a_max:
+        best.status = "exceeds limits"
+    last = (best.reason or "").replace(": no safe plan exists", ": no safe plan for this final state")
+    best.reason = searched + (f"; the best attempt: {last}" if last else "")
     best.solve_time_s = time.perf_counter() - start
     best.plans_used = max_plans - budget[0]
     return best
+
+
+def _free_peak(cr: CommonRoadProblem, c: Candidate) -> float:
+    """Peak |u| of the free plan to ``c`` (its inputs are linear in t: at t = 0 or t_f)."""
+    U = FreeTrajectory(c.tf, cr.x0, (c.s, c.vs, c.d, c.vd)).inputs([0.0, c.tf])
+    return float(np.max(np.hypot(U[:, 0], U[:, 1])))
 
 
 def _beside(ob: Obstacle, x0: tuple[float, float, float, float], sx: float, sy: float) -> tuple[float, float]:
