@@ -19,17 +19,25 @@ Exit status: 0 success (also without ``pdflatex``: the report is written, the PD
 from __future__ import annotations
 
 import argparse
+import errno
+import glob
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+
+from iamp.core.errors import IampError
 
 EXIT_OK, EXIT_LATEX = 0, 1
 
-__all__ = ["add_parsers", "cmd_reproduce", "compile_pdf"]
+__all__ = ["add_parsers", "cmd_reproduce", "compile_pdf", "remove_stale_staging", "staged_folder"]
 
 
 def compile_pdf(out_dir: str | os.PathLike[str], tex_name: str = "report.tex", runs: int = 2,
@@ -87,19 +95,166 @@ def _stale_pdf_note(out: Path) -> str | None:
 def cmd_reproduce(args: argparse.Namespace) -> int:
     from iamp.core.outputs import guarded_folder  # checked (writable, ours or --force), locked, marked
 
-    with guarded_folder(args.out, "reproduce", getattr(args, "force", False)):
-        return _reproduce_into(args)
+    with guarded_folder(args.out, "reproduce", getattr(args, "force", False)) as out:
+        with staged_folder(out) as stage:
+            return _reproduce_into(args, stage, Path(args.out))
 
 
-def _reproduce_into(args: argparse.Namespace) -> int:
+#: Name of the staging folder beside the output folder ``<name>``: ``.<name>.iamp-staging-XXXXXXXX``.
+STAGING_INFIX = ".iamp-staging-"
+
+
+@contextmanager
+def staged_folder(out: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a staging copy of the folder ``out``; when the block completes, it replaces ``out``.
+
+    The staging folder is a sibling of ``out`` (``.<name>.iamp-staging-XXXXXXXX``, the same file
+    system, so the replacement is a rename) that starts as a copy of ``out`` (what the run does
+    not rewrite — other commands' outputs, an earlier ``report.pdf`` — stays).  When the block
+    exits normally the two folders are exchanged in one atomic ``renameat2(RENAME_EXCHANGE)``
+    (Linux), else by two renames with Ctrl-C and SIGTERM held back between them, and the old
+    contents are deleted.  If the block raises (an error, Ctrl-C: ``KeyboardInterrupt``, SIGTERM
+    under the command line), the staging folder is deleted and ``out`` is untouched.
+
+    The caller holds ``out``'s output lock (:func:`iamp.core.outputs.guarded_folder`): staging
+    folders of ``out`` that a killed run left behind are deleted here.  A symbolic link to a
+    folder stays a link; the folder it points to is replaced.
+
+    Parameters
+    ----------
+    out : path-like
+        An existing folder.
+
+    Yields
+    ------
+    Path
+        The staging folder to write into.
+
+    Raises
+    ------
+    EnvironmentProblem
+        The staging copy cannot be made (a full disk, a read-only parent folder), naming ``out``.
+    """
+    target = Path(os.path.realpath(out))
+    remove_stale_staging(target)
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f".{target.name}{STAGING_INFIX}", dir=str(target.parent)))
+    except OSError as exc:
+        raise _refused(target, exc) from None
+    try:
+        try:
+            shutil.copytree(target, stage, symlinks=True, dirs_exist_ok=True, ignore=_not_copied)
+        except (OSError, shutil.Error) as exc:
+            first = exc.args[0][0] if isinstance(exc, shutil.Error) and exc.args and exc.args[0] else None
+            raise _refused(target, exc if isinstance(exc, OSError) else OSError(errno.EIO, str(first))) from None
+        try:
+            yield stage
+        except IampError as exc:
+            raise _renamed(exc, stage, target) from exc
+        with _signals_held():
+            _exchange(stage, target)
+            shutil.rmtree(stage, ignore_errors=True)  # now the old contents
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)  # the staging copy of a run that did not complete
+
+
+def remove_stale_staging(target: Path) -> list[Path]:
+    """Delete the staging folders of ``target`` that a killed run left (the caller holds its lock)."""
+    removed: list[Path] = []
+    try:
+        siblings = list(target.parent.glob(f".{glob.escape(target.name)}{STAGING_INFIX}*"))
+    except OSError:
+        return removed
+    for p in siblings:
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+            removed.append(p)
+    return removed
+
+
+def _not_copied(folder: str, names: list[str]) -> set[str]:
+    """The lock file and a killed run's temporary files are not copied into the staging folder."""
+    from iamp.core.atomic import TEMPORARY_NAME
+    from iamp.core.outputs import LOCK_NAME
+
+    return {n for n in names if n == LOCK_NAME or TEMPORARY_NAME.match(n)
+            or n.startswith((".pdflatex-", ".campaign-small-"))}
+
+
+def _refused(target: Path, exc: OSError) -> Exception:
+    from iamp.core.atomic import write_refused
+    from iamp.core.errors import EnvironmentProblem
+
+    problem = write_refused(target, exc)
+    return problem if problem is not None else EnvironmentProblem(f"cannot write {target}",
+                                                                  exc.strerror or str(exc), exc.errno)
+
+
+def _renamed(exc: IampError, stage: Path, target: Path) -> IampError:
+    """``exc`` with the staging folder's path replaced by the output folder's (a message names
+    the file the user will look for, not a folder that no longer exists)."""
+    from iamp.core.errors import EnvironmentProblem
+
+    if isinstance(exc, EnvironmentProblem) and str(stage) in exc.what:
+        return EnvironmentProblem(exc.what.replace(str(stage), str(target)), exc.reason, exc.errno)
+    return exc
+
+
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def _exchange(stage: Path, target: Path) -> None:
+    """Swap the folders ``stage`` and ``target`` (afterwards ``stage`` holds the old contents)."""
+    if _renameat2_exchange(stage, target):
+        return
+    aside = Path(tempfile.mkdtemp(prefix=f".{target.name}{STAGING_INFIX}", dir=str(target.parent)))
+    os.rmdir(aside)
+    os.rename(target, aside)
+    try:
+        os.rename(stage, target)
+    except OSError:
+        os.rename(aside, target)
+        raise
+    os.rename(aside, stage)
+
+
+def _renameat2_exchange(a: Path, b: Path) -> bool:
+    """``renameat2(a, b, RENAME_EXCHANGE)``: both names swapped in one step; False where the
+    system cannot (not Linux, an old C library, a file system without it)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    fn.restype = ctypes.c_int
+    return int(fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)) == 0
+
+
+@contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold Ctrl-C and SIGTERM back while the folders are exchanged (delivered afterwards)."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _reproduce_into(args: argparse.Namespace, out: Path, shown: Path) -> int:
+    """The reproduction into ``out`` (the staging folder); messages name ``shown`` (``--out``)."""
     from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.comparison.report.reproduction import reproduce
 
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        from iamp.core.errors import ScenarioError
-
-        raise ScenarioError("exists and is not a folder", "--out", str(out))
     start = time.perf_counter()
     config = None
     if args.select_predictor:
@@ -135,8 +290,10 @@ def _reproduce_into(args: argparse.Namespace) -> int:
     if not ok:
         stale = _stale_pdf_note(out)
         if stale:
-            pdf_msg += f"; {stale}"
-    print(f"reproduction written to {out}/ in {time.perf_counter() - start:.0f} s")
+            pdf_msg += f"; {stale}".replace(str(out), str(shown))
+    elif pdf_msg.startswith("PDF: "):
+        pdf_msg = f"PDF: {shown / 'report.pdf'}"
+    print(f"reproduction written to {shown}/ in {time.perf_counter() - start:.0f} s")
     print(f"  {len(res.get('outputs', []))} files: report.tex, results.json, tables/*.tex, figures/*.pdf|png")
     print(f"  {pdf_msg}")
     for name, q in res.get("qualitative", {}).items():
