@@ -307,7 +307,7 @@ def judge_pair(ego: Motion, other: Motion, dt: float, p: RssParameters = DEFAULT
             resp = "both" if (lon_safe[kb] and lat_safe[kb]) else ("longitudinal" if lon_safe[kb] else "lateral")
         else:
             resp = "both"
-        ref = max(kb, k)  # the roles (rear/front, left/right) at the threshold time
+        ref = kb if kb >= 0 else k  # the roles (rear/front, left/right) at the threshold time
         ego_rear, ego_is_left = bool(not ego_front[ref]), bool(ego_left[ref])
         e_bad = o_bad = False
         start = k
