@@ -55,6 +55,15 @@ numpydoc_validation_checks: set[str] = set()  # tests/test_docstrings.py enforce
 imgmath_image_format = "svg"
 imgmath_font_size = 14
 imgmath_use_preview = True
+# docstrings write some symbols as Unicode (SPEC's notation): map them to LaTeX for pdfTeX
+_UNICODE_MATH = {"Δ": r"\Delta", "δ": r"\delta", "Φ": r"\Phi", "φ": r"\phi", "τ": r"\tau", "ρ": r"\rho",
+                 "μ": r"\mu", "λ": r"\lambda", "Ω": r"\Omega", "α": r"\alpha", "β": r"\beta", "σ": r"\sigma",
+                 "ν": r"\nu", "θ": r"\theta", "ψ": r"\psi", "±": r"\pm", "≤": r"\le", "≥": r"\ge",
+                 "×": r"\times", "·": r"\cdot", "−": "-", "∈": r"\in", "∞": r"\infty", "→": r"\to",
+                 "ᵀ": r"^{\top}", "²": "^{2}", "³": "^{3}", "≈": r"\approx", "∂": r"\partial", "√": r"\sqrt",
+                 "∑": r"\sum", "⁻": "^{-}", "⁺": "^{+}"}
+imgmath_latex_preamble = "\\usepackage{newunicodechar}\n" + "\n".join(
+    f"\\newunicodechar{{{ch}}}{{\\ensuremath{{{tex}}}}}" for ch, tex in _UNICODE_MATH.items())
 
 sphinx_gallery_conf = {
     "examples_dirs": str(ROOT / "examples"),
@@ -81,3 +90,41 @@ html_theme_options = {
 }
 html_show_sourcelink = False
 html_last_updated_fmt = None
+
+
+# --- the animations of docs/animations.md, made by the shipped commands at build time --------------------
+ANIM = Path(__file__).resolve().parent / "_static" / "anim"
+
+
+def _make_animations(app: object) -> None:
+    """Write the three GIFs of ``animations.md`` with ``iamp plot`` (never committed: made here)."""
+    import subprocess
+
+    ANIM.mkdir(parents=True, exist_ok=True)
+    iamp_cmd = [sys.executable, "-m", "iamp"]
+
+    def run(*args: str) -> None:
+        subprocess.run([*iamp_cmd, *args], check=True, capture_output=True, text=True, encoding="utf-8", cwd=ROOT)
+
+    run("plot", "two-vehicle", "--planner", "qp", "--constraint", "avoid", "--animate", "--fps", "8",
+        "--out", str(ANIM / "plan.gif"), "--force")
+    log = ANIM / "episode.csv"
+    episode = subprocess.run([*iamp_cmd, "simulate", "--mission", "merge", "--traffic", "medium", "--seed", "2",
+                              "--planner", "pmp-active", "--log", str(log), "--force", "--json"],
+                             capture_output=True, text=True, encoding="utf-8", cwd=ROOT)
+    if episode.returncode not in (0, 5):  # 5: the mission failed, the log is still an episode
+        raise RuntimeError(f"iamp simulate failed: {episode.stderr.strip()}")
+    run("plot", "--episode", str(log), "--out", str(ANIM / "episode.gif"), "--speed", "3", "--fps", "6",
+        "--force")
+    data = Path(os.environ.get("IAMP_DATA", ROOT.parent / "shared" / "data")) / "commonroad" / "US101"
+    scenario = data / "USA_US101-11_1_T-1.xml"
+    if not scenario.is_file():
+        raise RuntimeError(f"the documentation's CommonRoad animation needs {scenario} (set IAMP_DATA)")
+    solution = ANIM / "solution.xml"
+    run("commonroad", "plan", str(scenario), "--out", str(solution), "--force")
+    run("plot", "--commonroad", str(scenario), "--solution", str(solution), "--out", str(ANIM / "commonroad.gif"),
+        "--fps", "5", "--force")
+
+
+def setup(app: object) -> None:
+    app.connect("builder-inited", _make_animations)  # type: ignore[attr-defined]

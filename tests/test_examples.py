@@ -20,7 +20,9 @@ def _main(name: str):  # type: ignore[no-untyped-def]
 
 
 def test_every_example_is_tested():
-    assert {p.stem for p in EXAMPLES.glob("*.py")} == {"plan_scenario", "compare_pmp_qp", "predict", "plan_batch"}
+    assert {p.stem for p in EXAMPLES.glob("*.py")} == {"plan_scenario", "compare_pmp_qp", "predict", "plan_batch",
+                                                       "plan_bounded", "plan_avoid", "commonroad_problem",
+                                                       "closed_loop_episode"}
 
 
 def test_plan_scenario(capsys):
@@ -71,3 +73,52 @@ def test_plan_batch():
     e = probs[0].ego
     free = transfer_cost(e.x0, e.vx0, e.xf, e.vxf, e.tf) + transfer_cost(e.y0, e.vy0, e.yf, e.vyf, e.tf)
     assert np.all(batch.cost >= free * (1 - 1e-12))
+
+
+def test_plan_bounded():
+    plans = _main("plan_bounded")
+    pmp, qp = plans["pmp"], plans["qp"]
+    assert pmp.status == qp.status == "optimal"
+    lim = pmp.problem.limits
+    assert lim is not None and not lim.empty
+    # independently of the peaks report: sample both plans finely and compare with the bounds
+    t = np.linspace(0.0, pmp.problem.tf, 4001)
+    for p in (pmp, qp):
+        u, X = p.inputs(t), p.states(t)
+        assert lim.ax[0] - 1e-6 <= u[:, 0].min() and u[:, 0].max() <= lim.ax[1] + 1e-6
+        assert lim.ay[0] - 1e-6 <= u[:, 1].min() and u[:, 1].max() <= lim.ay[1] + 1e-6
+        assert np.hypot(u[:, 0], u[:, 1]).max() <= lim.a_total + 1e-6
+        assert lim.vx[0] - 1e-6 <= X[:, 1].min() and X[:, 1].max() <= lim.vx[1] + 1e-6
+    # the continuous optimum is a lower bound of the grid's; FOH on 100 steps is close to it
+    assert pmp.cost <= qp.cost * (1 + 1e-9)
+    assert (qp.cost - pmp.cost) / pmp.cost < 1e-3
+
+
+def test_plan_avoid():
+    plans = _main("plan_avoid")
+    avoid = plans["avoid"]
+    assert avoid.status == "optimal" and avoid.safety.intrusion_free
+    # independently: on a fine grid the ego's centre is never strictly inside a safety region
+    t = np.linspace(0.0, avoid.problem.tf, 20001)
+    X = avoid.states(t)
+    for v in avoid.problem.vehicles:
+        hx, hy = v.length / 2 + v.safety_x, v.width / 2 + v.safety_y
+        inside = (np.abs(X[:, 0] - v.position(t)) < hx - 1e-6) & (np.abs(X[:, 2] - v.y) < hy - 1e-6)
+        assert not inside.any(), v.name
+
+
+def test_commonroad_problem():
+    out = _main("commonroad_problem")
+    if out is None:
+        pytest.skip("needs the [commonroad] extra and the recorded scenarios (IAMP_DATA)")
+    assert out["plan"]["status"] == "optimal"
+    assert out["returncode"] == 0 and "valid (corrected goal)     yes" in out["check"]
+
+
+@pytest.mark.slow
+def test_closed_loop_episode():
+    episode = _main("closed_loop_episode")
+    if episode is None:
+        pytest.skip("needs the [sim] extra")
+    assert episode["contacts"] == 0 and episode["limit_violations"] == 0
+    assert episode["success"] is True
