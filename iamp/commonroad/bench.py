@@ -47,7 +47,7 @@ CATEGORIES = ("valid", "collision", "infeasible", "goal missed", "off road", "no
 #: Version of what a bench row means (planning, solution writing, checks, costs); in the manifest.
 BENCH_FORMAT = "2"
 #: Manifest keys that define a row: a resumed bench must match them.
-MANIFEST_KEYS = ("bench_format", "vehicle_model", "vehicle_type", "cost_function", "timeout_s")
+MANIFEST_KEYS = ("bench_format", "iamp_version", "vehicle_model", "vehicle_type", "cost_function", "timeout_s")
 #: Cost functions every row is scored by (:data:`iamp.commonroad.costs.REPORTED`).
 REPORTED_COSTS = ("WX1", "SM1", "TR1")
 
@@ -85,8 +85,12 @@ class Row:
 
 def params_of(vehicle_model: str = "PM", vehicle_type: int = 2, cost_function: str = DEFAULT_COST_FUNCTION,
               timeout_s: float = 120.0) -> dict[str, object]:
-    """The parameters that define a bench row (:data:`MANIFEST_KEYS`)."""
-    return {"bench_format": BENCH_FORMAT, "vehicle_model": vehicle_model, "vehicle_type": int(vehicle_type),
+    """The parameters that define a bench row (:data:`MANIFEST_KEYS`; another iamp version's rows
+    are not reused)."""
+    from iamp import __version__
+
+    return {"bench_format": BENCH_FORMAT, "iamp_version": str(__version__), "vehicle_model": vehicle_model,
+            "vehicle_type": int(vehicle_type),
             "cost_function": cost_function, "timeout_s": float(timeout_s)}
 
 

@@ -151,22 +151,25 @@ def _lane_signals(cr: CommonRoadProblem, s: _Signals, ego_radius: float) -> None
     s.lat_lane, s.dpsi_lane = np.array(lat), np.array(dpsi)
     road = cr.frame.to_road(s.position)
     s.lon = road[:, 0]
-    ahead = []
-    for k, (se, de) in zip(s.k.astype(int), road):
-        best_d = math.inf
+    # every nearby obstacle centre at every step, projected in one call
+    owner, pts = [], []
+    for i, k in enumerate(s.k.astype(int)):
         for ob in cr.scenario.dynamic_obstacles:
             st = ob.state_at_time(int(k))
             if st is None:
                 continue
             q = np.asarray(st.position, dtype=float)
-            if np.max(np.abs(q - s.position[int(k - s.k[0])])) > 100.0 + 0.5 * float(ob.obstacle_shape.length):
-                continue
-            so, do = cr.frame.to_road(q[None, :])[0]
-            dist = float(so - se)
-            if abs(float(de - do)) < D_LATERAL_M and dist > 0.0:
-                best_d = min(best_d, dist - ego_radius)
-        ahead.append(best_d)
-    s.dist_ahead = np.array(ahead)
+            if np.max(np.abs(q - s.position[i])) <= 100.0 + 0.5 * float(ob.obstacle_shape.length):
+                owner.append(i)
+                pts.append(q)
+    ahead = np.full(len(s.k), math.inf)
+    if pts:
+        obs = cr.frame.to_road(np.array(pts))
+        idx = np.array(owner)
+        dist = obs[:, 0] - road[idx, 0]
+        near = (np.abs(road[idx, 1] - obs[:, 1]) < D_LATERAL_M) & (dist > 0.0)
+        np.minimum.at(ahead, idx[near], dist[near] - ego_radius)
+    s.dist_ahead = ahead
 
 
 def _lon_jerk(lon: FloatArray, dt: float) -> FloatArray:
