@@ -40,13 +40,16 @@ import cvxpy as _cvxpy
 import numpy as np
 
 from iamp.core import status as st
+from iamp.core.errors import OptionError
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners.qp.backends import BACKENDS, get_backend
 from iamp.planners.qp.backends.base import FloatArray
+from iamp.planners.qp.bounded import OSQP_SETTINGS, bounded_kkt, certified_infeasible, check_complementarity, stacked
 from iamp.planners.qp.core import CandidateResult, CandidateSolver, verify
 from iamp.planners.qp.data import QPData
 from iamp.planners.qp.hold import HOLDS, HoldTrajectory, aligned_grid
+from iamp.planners.qp.limits import LimitRows, limit_rows
 from iamp.planners.qp.planner import QPPlanner
 
 cp: Any = _cvxpy  # cvxpy's partial annotations are not what this module checks
@@ -132,6 +135,19 @@ class CvxpyQP:
             cy = self.s[1] @ self.select[i] - self.corner_y[i] == 0
             self.collision.append((cx, cy))
             cons += [cx, cy]
+        self.rows: LimitRows | None = None
+        if problem.limits is not None and not problem.limits.empty:  # SPEC §14: the bounded QP
+            # the rows of iamp.planners.qp.limits on z in QPData's layout (one implementation of the
+            # rows; the dynamics, cost and corners above are this module's own), bounds at the nodes
+            self.rows = limit_rows(self.data, self.data.t_nodes, hold, problem.limits)
+            z = cp.hstack([self.s[0], self.v[0], self.u[0], self.s[1], self.v[1], self.u[1]])
+            self.limit_lo = cp.Parameter(self.rows.n_rows)
+            self.limit_hi = cp.Parameter(self.rows.n_rows)
+            AL = self.rows.A @ z
+            self.limit_cons = (AL <= self.limit_hi, AL >= self.limit_lo)
+            cons += list(self.limit_cons)
+            if solver == "osqp":  # infeasibility certificates accurate enough to verify, as on the native path
+                self.settings = {**cls.default_settings(), **OSQP_SETTINGS, **dict(settings or {})}
         self.cp_problem = cp.Problem(cp.Minimize(cost), cons)
         if not self.cp_problem.is_dpp():  # pragma: no cover - a modelling bug, not user input
             raise RuntimeError("the QP is not DPP")
@@ -149,6 +165,9 @@ class CvxpyQP:
         h = np.diff(t)
         self._t_nodes = t.copy()
         self.data.set_grid(t)
+        if self.rows is not None:
+            self.rows.set_grid(t)
+            self.limit_lo.value, self.limit_hi.value = self.rows.lo, self.rows.hi
         self.h.value = h
         if self.hold == "zoh":
             self.h_sq_a.value = h**2 / 2
@@ -193,7 +212,19 @@ class CvxpyQP:
         for i, (cx, cy) in enumerate(self.collision):
             y[self.data.row_collision + 2 * i] = float(cx.dual_value)
             y[self.data.row_collision + 2 * i + 1] = float(cy.dual_value)
-        return y
+        if self.rows is None:
+            return y
+        upper, lower = self.limit_cons  # y > 0 at the upper bound, < 0 at the lower (QPData's rows first)
+        return np.asarray(np.r_[y, np.asarray(upper.dual_value, dtype=float).ravel()
+                                - np.asarray(lower.dual_value, dtype=float).ravel()], dtype=float)
+
+    def _duals_or_none(self) -> FloatArray | None:
+        """The dual vector of the last solve, or None when cvxpy left a dual unset."""
+        try:
+            y = self.dual_vector()
+        except (TypeError, ValueError):
+            return None
+        return y if np.all(np.isfinite(y)) else None
 
     def solve_nodes(self, nodes: Sequence[int]) -> CandidateResult:
         t0 = time.perf_counter()
@@ -203,7 +234,9 @@ class CvxpyQP:
         try:
             with warnings.catch_warnings():  # cvxpy warns on inaccurate solutions; the status says it
                 warnings.simplefilter("ignore")
-                self.cp_problem.solve(solver=self.cvxpy_name, warm_start=True, **self.settings)
+                # bounded: no warm start (after an infeasible candidate OSQP's iterate is a divergent ray,
+                # from which a feasible neighbour ran out of iterations: measured on the template, N = 20)
+                self.cp_problem.solve(solver=self.cvxpy_name, warm_start=self.rows is None, **self.settings)
             raw = str(self.cp_problem.status)
         except cp.error.SolverError:
             raw = "solver_error"
@@ -218,12 +251,22 @@ class CvxpyQP:
             X = np.stack(val, axis=1)
             U = np.stack([np.asarray(self.u[0].value, dtype=float), np.asarray(self.u[1].value, dtype=float)], axis=1)
             r.z, r.y = self.data.pack(X, U), self.dual_vector()
-            r.kkt = self.data.kkt_residuals(r.z, r.y)
-            r.status, r.checks, r.failed_check = verify(r.kkt, self.tolerance, r.solver_status)
+            if self.rows is None:
+                r.kkt = self.data.kkt_residuals(r.z, r.y)
+                r.status, r.checks, r.failed_check = verify(r.kkt, self.tolerance, r.solver_status)
+            else:
+                r.kkt, comp = bounded_kkt(self.data, self.rows, r.z, r.y)
+                r.status, r.checks, r.failed_check = verify(r.kkt, self.tolerance, r.solver_status)
+                r.status, r.failed_check = check_complementarity(r.checks, r.status, r.failed_check, comp,
+                                                                 self.tolerance)
             if r.ok:
                 r.trajectory = HoldTrajectory(self._t_nodes.copy(), X, U, self.hold)
                 r.cost = r.trajectory.cost()
                 r.multipliers = np.array([[float(cx.dual_value), float(cy.dual_value)] for cx, cy in self.collision])
+        elif self.rows is not None and r.status == st.INFEASIBLE:  # cvxpy's duals hold the Farkas ray
+            A, lo, hi = stacked(self.data, self.rows)
+            r.infeasible_certified, farkas = certified_infeasible(A, lo, hi, self._duals_or_none())
+            r.checks.update(farkas)
         r.wall_time_s = time.perf_counter() - t0
         return r
 
@@ -244,6 +287,9 @@ class CvxpyQPPlanner(QPPlanner):
             raise ValueError(f"solver {self.solver!r} has no cvxpy path; choose from {', '.join(CVXPY_NAMES)}")
 
     def build(self, problem: Problem) -> CandidateSolver:
+        if problem.limits is not None and not problem.limits.empty and self.limits_between != "nodes":
+            raise OptionError("the cvxpy cross-check imposes the vx and y bounds at the grid nodes only; use the "
+                              "native path for limits_between='certified'", "limits_between")
         return CvxpyQP(problem, self.steps, self.hold, self.solver, self.solver_settings)
 
 

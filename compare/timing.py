@@ -323,10 +323,10 @@ def qp_breakdown(problem: Problem, steps: int = 100, hold: str = "foh", solver: 
                         "cvxpy_overhead_s": summarize(np.array(totals) - np.array(own)).to_dict(),
                         "cvxpy_failed": int(fails)}
     if native:
-        from iamp.planners.qp.core import DiscretisedQP
+        from iamp.planners.qp.planner import QPPlanner
 
         t0 = time.perf_counter()
-        nq = DiscretisedQP(problem, steps, hold, solver)
+        nq = QPPlanner(steps=steps, hold=hold, solver=solver).build(problem)  # bounded with problem.limits
         nq.solve_nodes(nodes[0])
         out["native_setup_s"] = time.perf_counter() - t0
         walls: list[float] = []
@@ -343,7 +343,8 @@ def qp_breakdown(problem: Problem, steps: int = 100, hold: str = "foh", solver: 
         out["native_solve_call_s"] = summarize(calls).to_dict()
         out["native_solver_s"] = summarize(own).to_dict()
         out["native_failed"] = int(fails)
-        out["native_info"] = nq.backend.describe()
+        backend = getattr(nq, "backend", None)  # DiscretisedQP and BoundedQP hold their backend
+        out["native_info"] = backend.describe() if backend is not None else {}
     return out
 
 

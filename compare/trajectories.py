@@ -8,7 +8,11 @@ co-states (:class:`~iamp.planners.pmp.solution.PMPSolution`).
 
 from __future__ import annotations
 
+import numpy as np
+from numpy.typing import NDArray
+
 from iamp.core.plan import Plan
+from iamp.planners.pmp.bounded import BoundedSolution
 from iamp.planners.pmp.solution import PMPSolution
 from iamp.planners.qp.hold import HoldTrajectory
 
@@ -29,3 +33,13 @@ def pmp_solution(plan: Plan) -> PMPSolution:
         raise TypeError(f"a {plan.planner} plan with status {plan.status} has no PMP solution "
                         f"(got {type(traj).__name__})")
     return traj
+
+
+def hamiltonian_jump_residuals(plan: Plan) -> NDArray[np.float64]:
+    """The Hamiltonian-jump residual at each contact time of a PMP plan, bounded or not
+    (:class:`~iamp.planners.pmp.solution.PMPSolution` or
+    :class:`~iamp.planners.pmp.bounded.BoundedSolution`; ``TypeError`` for another planner's plan)."""
+    traj = plan.trajectory
+    if isinstance(traj, BoundedSolution):
+        return np.asarray(traj.hamiltonian_jump_residual(), dtype=float)
+    return np.asarray(pmp_solution(plan).hamiltonian_jump_residual(), dtype=float)

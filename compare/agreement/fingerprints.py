@@ -23,7 +23,8 @@ def x_poly_fingerprint(problem: Problem) -> str:
 
 
 def problem_fingerprint(problem: Problem) -> str:
-    """SHA-256 of every number of the problem (ego, geometry, corners, ``x_poly``)."""
+    """SHA-256 of every number of the problem (ego, geometry, corners, ``x_poly``, and the
+    physical limits when the problem has any)."""
     e = problem.ego
     data = {
         "ego": [_hex(getattr(e, k)) for k in ("tf", "x0", "y0", "vx0", "vy0", "xf", "yf", "vxf", "vyf")],
@@ -31,4 +32,7 @@ def problem_fingerprint(problem: Problem) -> str:
                       "geom": [_hex(getattr(v, k)) for k in ("y", "length", "width", "safety_x", "safety_y")]}
                      for v in problem.vehicles],
     }
+    if problem.limits is not None and not problem.limits.empty:  # SPEC §14 (absent: the unbounded hash unchanged)
+        data["limits"] = {k: [_hex(x) for x in v] if isinstance(v, tuple) else _hex(v)
+                          for k, v in problem.limits.given().items()}
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()

@@ -52,7 +52,7 @@ def run_vs_run_gaps(a: Plan, b: Plan, t_nodes: FloatArray) -> RunGaps:
             "jump_gap": float(np.max(np.abs(b.jumps - a.jumps)))}
 
 
-def at_same_contact_times(qp: Plan, pmp_at: PMPSolution, tQ: FloatArray,
+def at_same_contact_times(qp: Plan, pmp_at: PMPSolution | Plan, tQ: FloatArray,
                           t_nodes: FloatArray) -> SameContactTimes:
     """The QP against the PMP re-solved at its contact times ``tQ``.
 
@@ -60,13 +60,14 @@ def at_same_contact_times(qp: Plan, pmp_at: PMPSolution, tQ: FloatArray,
     ----------
     qp : Plan
         The verified QP plan.
-    pmp_at : PMPSolution
+    pmp_at : PMPSolution or Plan
         :func:`iamp.planners.pmp.planner.solve_fixed_times` at ``tQ`` (``cost()``, ``states``,
-        ``inputs``, ``jumps``).
+        ``inputs``, ``jumps``), or the PMP's plan at ``tQ`` (the bounded problem: a plan with a
+        cost and a trajectory).
     tQ : ndarray
         The QP's contact times, as nodes of its grid ``t_nodes``.
     """
-    J_qp, J_at = plan_cost(qp), pmp_at.cost()
+    J_qp, J_at = plan_cost(qp), plan_cost(pmp_at) if isinstance(pmp_at, Plan) else pmp_at.cost()
     X_qp, U_qp = qp.require_trajectory().states(t_nodes), qp.require_trajectory().inputs(t_nodes)
     X_p, U_p = pmp_at.states(t_nodes), pmp_at.inputs(t_nodes)
     return {"reference": "PMP re-solved at the QP's contact times",

@@ -104,9 +104,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from iamp.comparison.timing import QPBreakdown
-from iamp.comparison.trajectories import pmp_solution
+from iamp.comparison.trajectories import hamiltonian_jump_residuals
 from iamp.core.problem import Problem
 
+from .bounded_pair import compare_bounded_pmp_qp
 from .fingerprints import problem_fingerprint, x_poly_fingerprint
 from .pmp_qp import compare_pmp_qp
 from .qp_qp import compare_qp_qp
@@ -133,6 +134,8 @@ class ProblemComparison:
     agreement: list[PairJSON]
     #: ``iamp compare`` adds ``"breakdown"``: :func:`iamp.comparison.timing.qp_breakdown` per configuration
     timing: dict[str, list[QPBreakdown]] = field(default_factory=dict)
+    #: configurations left out, with the reason (ZOH under a jerk bound)
+    skipped: list[str] = field(default_factory=list)
 
     @property
     def all_agree(self) -> bool:
@@ -170,11 +173,15 @@ class ProblemComparison:
         if pmp is not None and pmp.ok:
             out["pmp"] = {
                 "signs": [sign_entry(v, j[0]) for v, j in zip(self.problem.vehicles, pmp.result.jumps)],
-                "hamiltonian_jump_residuals": [float(r) for r in
-                                               pmp_solution(pmp.result).hamiltonian_jump_residual()],
+                "hamiltonian_jump_residuals": [float(r) for r in hamiltonian_jump_residuals(pmp.result)],
             }
+        lim = self.problem.limits
+        if lim is not None and not lim.empty:  # only then: the unbounded JSON is what it was
+            out["limits"] = {k: list(v) if isinstance(v, tuple) else v for k, v in lim.given().items()}
         if self.timing:
             out["timing"] = self.timing
+        if self.skipped:
+            out["skipped"] = list(self.skipped)
         return out
 
 
@@ -182,8 +189,31 @@ class ProblemComparison:
 class Comparison:
     """What :func:`iamp.compare` returns: the comparison of one or more problems.
 
-    ``to_json()`` is the object of ``iamp compare --json`` (``{"scenarios": [...]}``, one entry
-    per problem, :meth:`ProblemComparison.to_json`).
+    For each problem, the PMP and every QP configuration planned the same problem object and
+    every pair was judged by the rules of this module (``agree`` only when every rule passes).
+
+    Attributes
+    ----------
+    scenarios : list of ProblemComparison
+        One entry per problem: its ``runs`` (:class:`~iamp.comparison.agreement.runs.Run`,
+        with the plan and its timing) and its ``agreement`` (one verdict per pair, with the
+        reasons).
+    all_agree : bool
+        Every pair of every problem agrees.
+    any_failed : bool
+        Some run of some problem did not finish with a verified optimum.
+
+    See Also
+    --------
+    iamp.compare : Makes one for a single problem.
+
+    Examples
+    --------
+    >>> import iamp
+    >>> comparison = iamp.compare(iamp.load_scenario("paper-1-poly"), steps=(20,),
+    ...                           solvers=("clarabel",), holds=("foh",), repeats=1)
+    >>> [(p["a"], p["b"], p["verdict"]) for p in comparison.scenarios[0].agreement]
+    [('pmp', 'qp-clarabel-foh-20', 'agree')]
     """
 
     scenarios: list[ProblemComparison]
@@ -199,7 +229,15 @@ class Comparison:
         return any(s.any_failed for s in self.scenarios)
 
     def to_json(self) -> dict[str, Any]:
-        """The ``iamp compare --json`` object."""
+        """The comparison as the object of ``iamp compare --json`` (SPEC §5b).
+
+        Returns
+        -------
+        dict
+            ``{"scenarios": [...]}``, one entry per problem
+            (:meth:`ProblemComparison.to_json`: ``name``, ``m``, the ``x_poly`` and problem
+            fingerprints, ``runs``, ``agreement``, and the PMP's jump ``signs``).
+        """
         return {"scenarios": [s.to_json() for s in self.scenarios]}
 
 
@@ -232,7 +270,17 @@ def compare_problem(problem: Problem, configs: Iterable[QPConfig], name: str | N
     """
     problems = problems or {}
     configs = list(configs)
-    runs = [run_pmp(problems.get("pmp", problem), pmp_repeats or max(20, 10 * repeats), warmup=max(warmup, 1))]
+    skipped: list[str] = []
+    if problem.limits is not None and problem.limits.jerk is not None:  # ZOH's input jumps at every node
+        from iamp.planners.qp.limits import check_hold
+
+        zoh = [c for c in configs if c.hold == "zoh"]
+        if len(zoh) == len(configs) and zoh:
+            check_hold(problem.limits, "zoh")  # the one refusal (ScenarioError naming limits.jerk)
+        configs = [c for c in configs if c.hold != "zoh"]
+        skipped = [f"{c.label}: a jerk bound needs a continuous input (ZOH's jumps at every node)" for c in zoh]
+    runs = [run_pmp(problems.get("pmp", problem), pmp_repeats or max(20, 10 * repeats), warmup=max(warmup, 1),
+                    budget_s=budget_s)]
     if progress is not None:
         progress(1, len(configs) + 1)
     for k, cfg in enumerate(configs):
@@ -241,11 +289,14 @@ def compare_problem(problem: Problem, configs: Iterable[QPConfig], name: str | N
             progress(k + 2, len(configs) + 1)
     pmp = runs[0]
     tables: dict[tuple[int, str], tuple[NDArray[np.int_], NDArray[np.float64]]] = {}
-    agreement = [compare_pmp_qp(problem, pmp, r, tables) for r in runs[1:]]
+    if problem.limits is not None and not problem.limits.empty:  # SPEC §14: the bounded rules B0-B6
+        agreement = [compare_bounded_pmp_qp(problem, pmp, r) for r in runs[1:]]
+    else:
+        agreement = [compare_pmp_qp(problem, pmp, r, tables) for r in runs[1:]]
     if qp_pairs:
         qps = runs[1:]
         for a, b in itertools.combinations(qps, 2):
             ca, cb = a.config, b.config
             if ca is not None and cb is not None and (ca.hold, ca.steps, ca.contact) == (cb.hold, cb.steps, cb.contact):
                 agreement.append(compare_qp_qp(problem, a, b))
-    return ProblemComparison(name or problem.name, problem, runs, agreement)
+    return ProblemComparison(name or problem.name, problem, runs, agreement, skipped=skipped)

@@ -120,6 +120,7 @@ class PairJSON(TypedDict):
     signs: NotRequired[list[SignEntry]]
     zoh_gap: NotRequired[ZohGapJSON]
     continuous: NotRequired[ContinuousJSON]
+    bounded: NotRequired[dict[str, float | str | None]]  # a bounded problem's pair (rule B6)
     verdict_basis: NotRequired[str]
     verdict: NotRequired[str]
     reasons: NotRequired[list[str]]
@@ -137,6 +138,7 @@ class KKTJSON(TypedDict):
     dual_rel: float
     gap_rel: float
     source: str
+    complementarity_rel: NotRequired[float]  # the limit rows of a bounded QP
 
 
 class RunJSON(TypedDict):

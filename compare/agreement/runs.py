@@ -146,9 +146,9 @@ def _measure(fn: Callable[[], Plan], repeats: int, warmup: int,
     return stats, last
 
 
-def run_pmp(problem: Problem, repeats: int = 20, warmup: int = 2) -> Run:
+def run_pmp(problem: Problem, repeats: int = 20, warmup: int = 2, budget_s: float | None = None) -> Run:
     """Plan with the PMP (global contact time), timed (the residual report is computed on a
-    final untimed call)."""
+    final untimed call; ``budget_s`` as for :func:`iamp.comparison.timing.measure`)."""
     timed = registry.make_planner("pmp", diagnostics=False)
     planner = registry.make_planner("pmp")
 
@@ -156,7 +156,7 @@ def run_pmp(problem: Problem, repeats: int = 20, warmup: int = 2) -> Run:
         return timed.plan(problem)
     stats: TimingStats | None
     try:
-        stats, _ = _measure(fn, repeats, warmup)
+        stats, _ = _measure(fn, repeats, warmup, budget_s)
         result = planner.plan(problem)
     except Exception as exc:  # a failed PMP is reported as a status, never a cost
         from iamp.core.errors import SolverError
@@ -217,10 +217,20 @@ def _kkt_of_result(problem: Problem, config: QPConfig, qp: CandidateSolver, resu
     data = QPData(problem, config.steps, config.hold)
     data.set_grid(t_nodes)
     data.selector_update(nodes)
-    k = data.kkt_residuals(r.z, r.y)
-    return {"primal": float(k.primal), "dual": float(k.dual), "gap": float(k.gap), "primal_rel": float(k.primal_rel),
-            "dual_rel": float(k.dual_rel), "gap_rel": float(k.gap_rel),
-            "source": "recomputed from the QP matrices and the returned (x, y)"}
+    comp: float | None = None
+    if problem.limits is not None and not problem.limits.empty:  # the stacked rows [A; A_L] (SPEC §14)
+        from iamp.planners.qp.bounded import bounded_kkt
+        from iamp.planners.qp.limits import limit_rows
+
+        k, comp = bounded_kkt(data, limit_rows(data, t_nodes, config.hold, problem.limits), r.z, r.y)
+    else:
+        k = data.kkt_residuals(r.z, r.y)
+    out: KKTJSON = {"primal": float(k.primal), "dual": float(k.dual), "gap": float(k.gap),
+                    "primal_rel": float(k.primal_rel), "dual_rel": float(k.dual_rel), "gap_rel": float(k.gap_rel),
+                    "source": "recomputed from the QP matrices and the returned (x, y)"}
+    if comp is not None:
+        out["complementarity_rel"] = float(comp)
+    return out
 
 
 # --------------------------------------------------------------------------------------

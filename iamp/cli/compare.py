@@ -144,7 +144,8 @@ def run_compare(args: argparse.Namespace) -> dict[str, Any]:
             if not args.no_breakdown:
                 comp.timing["breakdown"] = [
                     qp_breakdown(problem, N, h, s, repeats=max(5, 4 * args.repeats), native=True)
-                    for N in steps for h in args.holds for s in args.solvers]
+                    for N in steps for h in args.holds for s in args.solvers
+                    if not (h == "zoh" and problem.limits is not None and problem.limits.jerk is not None)]
             tick(1000 * (k + 1), 1000 * len(loaded))
             data = comp.to_json()
             data["source"] = str(scenario.source) if getattr(scenario, "source", None) else None
@@ -190,6 +191,11 @@ def _fmt_g(x: float | None, spec: str = ".3g") -> str:
 def _print_text(out: dict[str, Any], write: Callable[[str], Any]) -> None:
     for sc in out["scenarios"]:
         write(f"scenario {sc['name']} ({sc['m']} vehicle(s)); x_poly sha256 {sc['x_poly_sha256'][:16]}\n")
+        if sc.get("limits"):
+            write("  limits " + ", ".join(f"{k} {v}" for k, v in sc["limits"].items())
+                  + " (the bounded problem: the bounded PMP against the bounded QP, rules B0-B6)\n")
+        for skip in sc.get("skipped", []):
+            write(f"  skipped {skip}\n")
         write(f"  {'run':28s} {'status':10s} {'cost J':>14s}  {'contact times [s]':22s} {'jumps (x, y)':34s} "
               f"{'time median [IQR]':>24s}\n")
         for r in sc["runs"]:

@@ -37,8 +37,9 @@ gives no certificate).
 
 from __future__ import annotations
 
+import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -87,6 +88,62 @@ def complementarity(Az: FloatArray, y: FloatArray, lo: FloatArray, hi: FloatArra
     val = float(np.max(yp * slack_hi + ym * slack_lo, initial=0.0))
     scale = max(1.0, float(np.max(np.abs(y), initial=0.0))) * max(1.0, float(np.max(np.abs(Az), initial=0.0)))
     return val, val / scale
+
+
+def stacked(data: QPData, rows: LimitRows) -> tuple[sp.csc_matrix, FloatArray, FloatArray]:
+    """``[A; A_L]``, ``l = [b; lo]``, ``u = [b; hi]`` of the bounded QP on ``data``'s current values
+    (the module docstring's stacking, in that row order)."""
+    A = sp.vstack([data.A, rows.A], format="csc")
+    return A, np.r_[data.b, rows.lo], np.r_[data.b, rows.hi]
+
+
+def bounded_kkt(data: QPData, rows: LimitRows, z: FloatArray, y: FloatArray) -> tuple[KKTResiduals, float]:
+    """The KKT residuals of ``(z, y)`` on the stacked bounded QP and the relative
+    complementarity of its limit rows (module docstring), recomputed from the matrices.
+
+    Parameters
+    ----------
+    data : QPData
+        The equality rows (with the candidate's selectors set).
+    rows : LimitRows
+        The limit rows on the same grid.
+    z, y : ndarray
+        Primal vector and dual vector in the stacked row order (``y > 0`` at an upper bound).
+
+    Returns
+    -------
+    tuple of (KKTResiduals, float)
+    """
+    A, l, u = stacked(data, rows)
+    k = kkt_residuals(data.P, data.q, A, l, u, z, y)
+    _, rel = complementarity(rows.A @ z, np.asarray(y, dtype=float)[data.n_rows:], rows.lo, rows.hi)
+    return k, rel
+
+
+def check_complementarity(checks: dict[str, Any], status: str, failed: str | None, rel: float,
+                          tolerance: float) -> tuple[str, str | None]:
+    """Add ``kkt_complementarity_rel`` to ``checks``; an ``optimal`` status becomes ``inaccurate``
+    when it fails.  Returns the status and the failed check."""
+    ok = bool(np.isfinite(rel) and rel <= tolerance)
+    checks["kkt_complementarity_rel"] = {"value": float(rel), "tol": tolerance, "ok": ok}
+    if not ok and failed is None:
+        failed = "kkt_complementarity_rel"
+        if status == st.OPTIMAL:
+            status = st.INACCURATE
+    return status, failed
+
+
+def certified_infeasible(A: sp.spmatrix, l: FloatArray, u: FloatArray, dy: FloatArray | None
+                         ) -> tuple[bool, dict[str, dict[str, Any]]]:
+    """Whether ``dy`` (either sign) is a verified Farkas certificate of ``l <= Az <= u``
+    (:data:`FARKAS_STATIONARITY`, :data:`FARKAS_SUPPORT`), with the two checks."""
+    inf = float("inf")
+    pairs = [farkas_residuals(A, l, u, sign * np.asarray(dy, dtype=float)) for sign in (1.0, -1.0)] \
+        if dy is not None else [(inf, inf)]
+    stat, support = min(pairs, key=lambda p: (not (p[0] <= FARKAS_STATIONARITY and p[1] < -FARKAS_SUPPORT), p[1]))
+    ok = stat <= FARKAS_STATIONARITY and support < -FARKAS_SUPPORT
+    return ok, {"farkas_stationarity": {"value": stat, "tol": FARKAS_STATIONARITY, "ok": stat <= FARKAS_STATIONARITY},
+                "farkas_support": {"value": support, "tol": -FARKAS_SUPPORT, "ok": support < -FARKAS_SUPPORT}}
 
 
 def boundary_reason(problem: Problem, limits: PhysicalLimits) -> str | None:
@@ -211,15 +268,8 @@ class BoundedQP(DiscretisedQP):
         times = d.t_nodes[np.asarray(nd, dtype=np.int64)].copy()
         status, checks, failed = verify(kkt, self.tolerance, sol.status)
         if kkt is not None:
-            n_eq = d.n_rows
-            Az = self.rows.A @ sol.z
-            _, rel = complementarity(Az, sol.y[n_eq:], self.rows.lo, self.rows.hi)
-            ok = bool(np.isfinite(rel) and rel <= self.tolerance)
-            checks["kkt_complementarity_rel"] = {"value": float(rel), "tol": self.tolerance, "ok": ok}
-            if not ok and failed is None:
-                failed = "kkt_complementarity_rel"
-                if status == st.OPTIMAL:
-                    status = st.INACCURATE
+            _, rel = complementarity(self.rows.A @ sol.z, sol.y[d.n_rows:], self.rows.lo, self.rows.hi)
+            status, failed = check_complementarity(checks, status, failed, rel, self.tolerance)
         r = CandidateResult.of_solve(nd, status, times, sol, backend_s, kkt, checks, failed)
         if status == st.OPTIMAL:
             self._last = (sol.z, sol.y)
@@ -265,6 +315,91 @@ def free_problem_feasible(problem: Problem, steps: int, hold: str, solver: str) 
     return None
 
 
+def box_screen(problem: Problem) -> Callable[[FloatArray], str | None] | None:
+    r"""A per-candidate certificate of infeasibility that costs no QP solve, or None without a box.
+
+    The returned ``screen(times)`` solves the bounded PMP's fixed-time problem with only the
+    input box ``ax``/``ay`` at the candidate's contact times
+    (:func:`iamp.planners.pmp.bounded.solve_bounded_fixed`, per axis a semi-smooth Newton on
+    the dual) and returns the reason when an axis is infeasible with a positive Farkas margin,
+    else None.  Sound for the QP: every plan of the QP at those (node) times is a plan within
+    the box (module docstring of :func:`infeasible_before_sweep`), so the candidate has none.
+    """
+    limits = problem.limits
+    if limits is None or (limits.ax is None and limits.ay is None):
+        return None
+    from iamp.planners.pmp.bounded import solve_bounded_fixed
+    from iamp.planners.pmp.saturated import AxisInfeasible, AxisNoConvergence
+
+    def screen(times: FloatArray) -> str | None:
+        try:
+            with np.errstate(all="ignore"):
+                solve_bounded_fixed(problem, times)
+        except AxisInfeasible as exc:
+            if exc.margin > 0:  # the Farkas margin (scaled units) of the axis that is infeasible
+                return f"input box infeasible at these contact times (bounded PMP, Farkas margin {exc.margin:.3g})"
+        except (AxisNoConvergence, FloatingPointError, ZeroDivisionError, np.linalg.LinAlgError):
+            pass
+        return None
+
+    return screen
+
+
+#: Axis solves the bounded PMP's certificate over every contact time may spend before the sweep
+#: (:func:`infeasible_before_sweep`); a work budget, never a time.
+PMP_CERTIFICATE_SOLVES = 4000
+
+
+def infeasible_before_sweep(problem: Problem, steps: int, hold: str, solver: str,
+                            max_pmp_solves: int = PMP_CERTIFICATE_SOLVES) -> tuple[str, dict[str, Any]] | None:
+    r"""Certify the whole sweep infeasible before solving any candidate, or return None.
+
+    Three certificates, cheapest first, each valid for *every* grid candidate:
+
+    1. a boundary value outside the ``vx`` or ``y`` bound (no solve);
+    2. the bounded QP without the corner rows is infeasible (one QP solve with a verified
+       Farkas certificate, :func:`free_problem_feasible`): adding rows keeps it infeasible;
+    3. the input box ``ax``/``ay`` admits no plan for *any* contact times in :math:`(0, t_f)^m`
+       (the bounded PMP's certificate, :func:`iamp.planners.pmp.bounded.certify_infeasible`:
+       boxes of contact times, each with a Farkas certificate and a Lipschitz margin, within
+       ``max_pmp_solves`` axis solves).  Every QP candidate's plan would be such a plan: its
+       input lies in the box everywhere (FOH: linear between nodal values in the box; ZOH:
+       constant), and its contact times are grid nodes in :math:`(0, t_f)`.
+
+    Returns ``(reason, certificate)`` with the work spent (``qp_solves``, ``pmp_boxes``), or
+    None when none of them applies (the sweep decides).
+    """
+    limits = problem.limits
+    assert limits is not None
+    why = boundary_reason(problem, limits)
+    if why is not None:
+        return why, {"method": "boundary value outside a bound", "qp_solves": 0, "pmp_boxes": 0}
+    given = ", ".join(limits.given())
+    if free_problem_feasible(problem, steps, hold, solver) is False:
+        return (f"the boundary conditions cannot be joined within the limits ({given}) even without the corner "
+                f"constraints (Farkas certificate, N = {steps}, {hold.upper()})"), \
+            {"method": "the bounded QP without the corners (Farkas)", "qp_solves": 1, "pmp_boxes": 0}
+    if limits.ax is None and limits.ay is None:
+        return None
+    from iamp.planners.pmp.bounded import boundary_feasible, certify_infeasible
+
+    box = boundary_feasible(problem)
+    if box is not None:
+        return box, {"method": "the input box cannot meet the boundary conditions (Farkas, bounded PMP)",
+                     "qp_solves": 1, "pmp_boxes": 0}
+    certified, _, boxes = certify_infeasible(problem, max_solves=max_pmp_solves)
+    if not certified:
+        return None
+    m = problem.m
+    what = "contact time in (0, t_f)" if m == 1 else f"choice of the {m} contact times in (0, t_f)^{m}"
+    n = math.perm(steps - 1, m)
+    return (f"no {what} admits a plan through the corner(s) within the input box ax, ay, so {n} of {n} "
+            f"candidate contact nodes are certified infeasible (Farkas certificates of the bounded PMP over {boxes} "
+            f"{'intervals' if m == 1 else 'boxes'} of contact times, each with a Lipschitz margin) without a "
+            "QP solve"), \
+        {"method": "the bounded PMP's certificate over every contact time", "qp_solves": 1, "pmp_boxes": int(boxes)}
+
+
 def infeasibility_reason(problem: Problem, steps: int, hold: str, solver: str, n_candidates: int,
                          n_certified: int) -> tuple[str, bool]:
     """Why the bounded sweep found no plan: a boundary value outside a bound, the bounds
@@ -292,5 +427,21 @@ def infeasibility_reason(problem: Problem, steps: int, hold: str, solver: str, n
     return f"no contact node admits a plan within the limits ({given}); {cert}", False
 
 
-__all__ = ["FARKAS_STATIONARITY", "FARKAS_SUPPORT", "BoundedQP", "IntArray", "boundary_reason", "complementarity",
-           "free_problem_feasible", "inequality_backends", "infeasibility_reason"]
+__all__ = [
+    "FARKAS_STATIONARITY",
+    "FARKAS_SUPPORT",
+    "PMP_CERTIFICATE_SOLVES",
+    "BoundedQP",
+    "IntArray",
+    "boundary_reason",
+    "bounded_kkt",
+    "box_screen",
+    "certified_infeasible",
+    "check_complementarity",
+    "complementarity",
+    "free_problem_feasible",
+    "inequality_backends",
+    "infeasibility_reason",
+    "infeasible_before_sweep",
+    "stacked",
+]

@@ -155,8 +155,16 @@ class QPPlanner:
         return out
 
     def sweep(self, qp: CandidateSolver, progress: Progress | None = None) -> SweepResult:
-        """Solve one QP per candidate node combination (:func:`iamp.planners.qp.sweep.run_sweep`)."""
-        return run_sweep(qp, progress)
+        """Solve one QP per candidate node combination (:func:`iamp.planners.qp.sweep.run_sweep`);
+        with ``problem.limits``, a candidate whose input box is certified infeasible at its contact
+        times is not solved (:func:`iamp.planners.qp.bounded.box_screen`)."""
+        screen = None
+        lim = qp.problem.limits
+        if lim is not None and not lim.empty:
+            from iamp.planners.qp.bounded import box_screen
+
+            screen = box_screen(qp.problem)
+        return run_sweep(qp, progress, screen)
 
     def _refine(self, qp: CandidateSolver, seed: CandidateResult) -> CandidateResult:
         tf, h = qp.problem.tf, qp.problem.tf / qp.N
@@ -210,6 +218,20 @@ class QPPlanner:
         """Sweep (and optionally refine) the contact times, then report the best QP."""
         start = time.perf_counter()
         qp = qp or self.build(problem)
+        if problem.limits is not None and not problem.limits.empty:  # certified infeasible before any candidate
+            from iamp.planners.qp.bounded import infeasible_before_sweep
+
+            early = infeasible_before_sweep(problem, self.steps, self.hold, self.solver)
+            if early is not None:
+                reason, cert = early
+                n = qp.n_candidates()
+                early_info: dict[str, Any] = {
+                    "path": self.path, "failures": [], "sweep": [], "unpolished": 0,
+                    "candidates": {"total": n, "solved": 0, "failed": {"infeasible": n}, "inaccurate": 0,
+                                   "certified_before_sweep": cert},
+                    "n_solves": qp.n_solves + int(cert["qp_solves"]), "failed_check": "limits",
+                    "reason": reason, "limits_infeasible": reason, **self._limits_info(qp)}
+                return self._plan(problem, None, st.INFEASIBLE, start, early_info)
         sw = self.sweep(qp, progress)
         info: dict[str, Any] = {"path": self.path, "sweep": sw.table, "failures": sw.failures,
                                 "candidates": sw.candidates(),

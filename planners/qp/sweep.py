@@ -96,8 +96,13 @@ def pmp_lower_bound(qp: CandidateSolver, nodes: tuple[int, ...]) -> float:
         return -np.inf
 
 
-def run_sweep(qp: CandidateSolver, progress: Progress | None = None) -> SweepResult:
-    """Solve every candidate on the uniform grid; bound the unverified ones (module doc)."""
+def run_sweep(qp: CandidateSolver, progress: Progress | None = None,
+              screen: Callable[[np.ndarray], str | None] | None = None) -> SweepResult:
+    """Solve every candidate on the uniform grid; bound the unverified ones (module doc).
+
+    ``screen(times)`` (the bounded QP: :func:`iamp.planners.qp.bounded.box_screen`) returns a
+    reason when a candidate is certified infeasible without a QP solve; such a candidate is
+    recorded ``infeasible`` (certified) and not solved."""
     import time
 
     t0 = time.perf_counter()
@@ -111,7 +116,19 @@ def run_sweep(qp: CandidateSolver, progress: Progress | None = None) -> SweepRes
         chunk = list(itertools.islice(todo, SWEEP_CHUNK if many is not None else 1))
         if not chunk:
             break
-        rs = many(chunk) if many is not None else [qp.solve_nodes(chunk[0])]
+        screened: dict[int, CandidateResult] = {}
+        if screen is not None:
+            for j, nodes in enumerate(chunk):
+                times = qp.t_nodes[np.asarray(nodes, dtype=np.int64)].copy()
+                why = screen(times)
+                if why is not None:
+                    screened[j] = CandidateResult(nodes=tuple(int(k) for k in nodes), status=st.INFEASIBLE,
+                                                  solver_status=st.INFEASIBLE, raw_status=why, cost=np.inf,
+                                                  contact_times=times, infeasible_certified=True)
+        todo_now = [c for j, c in enumerate(chunk) if j not in screened]
+        solved = iter((many(todo_now) if many is not None else [qp.solve_nodes(c) for c in todo_now])
+                      if todo_now else [])
+        rs = [screened[j] if j in screened else next(solved) for j in range(len(chunk))]
         for r in rs:
             results.append(r)
             if r.ok and (best is None or r.cost < best.cost):
