@@ -224,3 +224,89 @@ def test_item14_a_killed_runs_staging_folder_is_removed_by_the_next_run(tmp_path
     code, _, err = run_main(["reproduce", "--out", str(out), "--no-pdf", "--quiet"], capsys)
     assert code == 0, err
     assert not stale.exists() and other.exists()
+
+
+def test_item14_the_small_campaigns_workers_ignore_ctrl_c(tmp_path, monkeypatch):
+    """The workers get a preload that ignores SIGINT (a terminal sends it to the whole process group;
+    each worker printed tornado/asyncio tracebacks)."""
+    pytest.importorskip("dask")
+    pytest.importorskip("distributed")
+    import dask
+
+    import iamp.comparison.report.campaign as campaign
+    import iamp.simulation.campaign as sim_campaign
+    import iamp.simulation.network as network
+
+    seen: dict[str, object] = {}
+
+    def fake_run_campaign(*args, **kwargs):  # type: ignore[no-untyped-def]
+        seen["preload"] = list(dask.config.get("distributed.worker.preload", default=[]))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sim_campaign, "run_campaign", fake_run_campaign)
+    monkeypatch.setattr(network, "require_sumo", lambda: None)
+    (tmp_path / "tables").mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        campaign.campaign_section(tmp_path, quick=True)
+    assert campaign.PRELOAD in seen["preload"]  # type: ignore[operator]
+    assert campaign.PRELOAD not in (dask.config.get("distributed.worker.preload", default=[]) or [])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tables"]  # its temporary folder removed
+    # the preload, in a process of its own: SIGINT no longer raises KeyboardInterrupt
+    code = ("import os, signal, time\n"
+            "from iamp.comparison.report.campaign import dask_setup\n"
+            "dask_setup(None)\n"
+            "os.kill(os.getpid(), signal.SIGINT)\n"
+            "time.sleep(0.2)\n"
+            "print('still running')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 0 and proc.stdout == "still running\n", proc.stderr
+
+
+_CAMPAIGN_SECTION = """
+import sys
+from pathlib import Path
+if __name__ == "__main__":
+    from iamp.comparison.report.campaign import campaign_section
+    def progress(done, total):
+        Path(sys.argv[2]).write_text(str(done))
+    try:
+        campaign_section(Path(sys.argv[1]), quick=True, progress=progress)
+    except KeyboardInterrupt:
+        sys.stderr.write("iamp: interrupted\\n")
+        sys.exit(130)
+"""
+
+
+@pytest.mark.slow
+def test_item14_ctrl_c_during_the_real_small_campaign_prints_no_library_traceback(tmp_path):
+    """The real small campaign (SUMO, a Dask cluster of 2 worker processes), SIGINT to the process
+    group while episodes run: one line, no traceback from any library (about a minute)."""
+    pytest.importorskip("distributed")
+    from iamp.core.errors import MissingDependencyError
+    from iamp.simulation.network import require_sumo
+
+    try:
+        require_sumo()
+    except MissingDependencyError as exc:
+        pytest.skip(str(exc))
+    script = tmp_path / "section.py"
+    script.write_text(_CAMPAIGN_SECTION)
+    out, ready = tmp_path / "out", tmp_path / "ready"
+    (out / "tables").mkdir(parents=True)
+    proc = subprocess.Popen([sys.executable, str(script), str(out), str(ready)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=str(tmp_path),
+                            env={**os.environ, "PYTHONPATH": str(ROOT)},
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 120
+        while not ready.exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+        time.sleep(20)  # the cluster is up and the workers are in their episodes
+        os.killpg(proc.pid, signal.SIGINT)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, stderr[-3000:]
+    assert stderr == "iamp: interrupted\n", stderr[-3000:]

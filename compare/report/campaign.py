@@ -18,10 +18,11 @@ for the report only.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import cast
 
@@ -56,8 +57,9 @@ def campaign_section(out: Path, *, quick: bool, progress: Callable[[int, int], N
     out.mkdir(parents=True, exist_ok=True)
     fresh = Path(tempfile.mkdtemp(prefix=".campaign-small-", suffix=".tmp", dir=str(out)))
     try:
-        ran = run_campaign(PLANNERS, ("medium",), seeds, fresh, missions=(MISSION,), workers=2, duration_s=duration,
-                           deadline=False, progress=progress)
+        with _workers_ignore_ctrl_c():
+            ran = run_campaign(PLANNERS, ("medium",), seeds, fresh, missions=(MISSION,), workers=2,
+                               duration_s=duration, deadline=False, progress=progress)
         folder.mkdir(exist_ok=True)
         for name in ("episodes.csv", "manifest.json", "errors.csv"):
             if (fresh / name).is_file():
@@ -73,6 +75,41 @@ def campaign_section(out: Path, *, quick: bool, progress: Callable[[int, int], N
                f"--seeds {seeds} --duration {duration:g} --out {folder.name}")
     return {"available": True, "summary": summary, "ran": cast(CampaignRun, ran), "command": command,
             "table": "tables/campaign-small.tex", "full": full_campaign_shape(out)}
+
+
+#: The Dask preload that :func:`dask_setup` is (this module).
+PRELOAD = __name__
+
+
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c() -> Iterator[None]:
+    """While the block runs, every Dask worker process started in it runs :func:`dask_setup`
+    (a worker preload, handed to the worker processes with the Dask configuration)."""
+    import dask
+
+    preloads = list(dask.config.get("distributed.worker.preload", default=[]) or [])
+    with dask.config.set({"distributed.worker.preload": [*preloads, PRELOAD]}):
+        yield
+
+
+def dask_setup(worker: object) -> None:
+    """Dask worker preload: the worker process ignores SIGINT (issue 29 item 14).
+
+    A terminal's Ctrl-C goes to the whole process group, the campaign's worker processes
+    included; each then printed its own tracebacks (tornado, asyncio) while the reproduction
+    printed ``iamp: interrupted``.  Ignoring it, the workers are stopped by the cluster's
+    shutdown in the main process, which is silent (:func:`iamp.simulation.campaign.run_campaign`).
+
+    Parameters
+    ----------
+    worker : distributed.Worker
+        The worker being started (unused).
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def full_campaign_shape(out: Path) -> FullCampaign | None:
