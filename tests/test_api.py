@@ -134,13 +134,14 @@ def test_predictor_gives_the_cubic_of_a_constant_speed_history():
 
 def _readme_python_example() -> str:
     text = README.read_text(encoding="utf-8")
-    m = re.search(r"## Python\n.*?```python\n(.*?)```", text, re.S)
-    assert m, "README.md has no '## Python' section with a ```python block"
+    m = re.search(r"## In ten lines of Python\n.*?```python\n(.*?)```", text, re.S)
+    assert m, "README.md has no '## In ten lines of Python' section with a ```python block"
     return m.group(1)
 
 
-def test_readme_python_example_runs():
+def test_readme_python_example_runs(tmp_path):
     code = _readme_python_example()
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "optimal" in r.stdout
+    assert (tmp_path / "plan.gif").stat().st_size > 0  # the animation it writes
