@@ -41,16 +41,56 @@ CONSTRAINTS = registry.constraints()
 
 
 def load_scenario(spec: str | Path, model: str | Path | None = None) -> Problem:
-    """A built-in scenario name or a TOML file (SPEC §4) as a plannable :class:`Problem`.
+    r"""Load a built-in scenario or a TOML scenario file (SPEC §4) as a plannable :class:`Problem`.
 
-    Vehicles given by an observed ``history`` are predicted by the shared predictor (the
-    shipped model, or the model file ``model``) and enter as the fitted cubic of SPEC §7;
+    Vehicles given by an observed ``history`` are predicted by the shared predictor
+    (:class:`iamp.Predictor`: the shipped model, or the model file ``model``) and enter as
+    the least-squares cubic of SPEC §7,
+
+    .. math::  x_s(t) = c_0 + c_1 t + c_2 t^2 + c_3 t^3 ;
+
     vehicles given by ``x_poly`` pass through unchanged.
+
+    Parameters
+    ----------
+    spec : str or pathlib.Path
+        The path of a TOML scenario file, or the name of a built-in scenario (``iamp scenarios``
+        lists them: ``"paper-1"``, ``"paper-1-poly"``, ..., ``"two-vehicle"``); an existing
+        file of that name wins over a built-in.
+    model : str or pathlib.Path, optional
+        A predictor model file (JSON, as ``iamp train`` writes it) for the vehicles given by a
+        ``history``; default: the model shipped with the package.
+
+    Returns
+    -------
+    Problem
+        The validated problem: the ego's boundary states and one
+        :class:`SurroundingVehicle` per ``[[vehicles]]`` table, in the file's order.
 
     Raises
     ------
     iamp.ScenarioError
-        The file or a field is invalid (the message names the file and the field).
+        The file cannot be read, is not TOML, or a field is missing, unknown, invalid or beyond
+        the bounds of SPEC §6 (the message names the file, its line and the field).
+    iamp.HistoryError
+        A vehicle's ``history`` cannot be used by the predictor (too short, not strictly
+        increasing, not ending at ``t = 0``); a subclass of :class:`iamp.ScenarioError`.
+    iamp.prediction.mtd.ModelFileError
+        The model file ``model`` cannot be read or is not a valid model (an
+        :class:`iamp.IampError`).
+
+    See Also
+    --------
+    plan : Plan the loaded problem.
+
+    Examples
+    --------
+    >>> import iamp
+    >>> problem = iamp.load_scenario("paper-1-poly")
+    >>> problem.m, problem.tf
+    (1, 5.0)
+    >>> problem.vehicles[0].corner, problem.vehicles[0].x_poly
+    ('front-lower', (-15.0, 18.0, 0.0, 0.0))
     """
     from iamp.prediction.resolve import load_problem
 
@@ -60,11 +100,17 @@ def load_scenario(spec: str | Path, model: str | Path | None = None) -> Problem:
 
 def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, hold: str | None = None,
          steps: int = 100, contact: str | None = None, constraint: str = "equality", **options: Any) -> Plan:
-    """Plan the lane change of ``problem``.
+    r"""Plan the lane change of ``problem``: the minimum-comfort-cost trajectory through every corner.
+
+    Every planner minimises :math:`J = \tfrac12 \int_0^{t_f} (u_x^2 + u_y^2)\,dt` of the planar
+    double integrator between the fixed boundary states, with the ego at the corner of each
+    vehicle's safety box at that vehicle's contact time :math:`t_i` (module docstring).  The
+    plan is judged against ``problem.limits`` (SPEC §14) before it is returned.
 
     Parameters
     ----------
     problem : Problem
+        The problem to plan (:func:`load_scenario`, or built directly).
     planner : str
         A planner family of the registry (:func:`iamp.planners.registry.planners`):
         ``"pmp"`` (default): the indirect method with jump conditions, global contact times.
@@ -94,7 +140,8 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
     -------
     Plan
         A solver failure is a :class:`Plan` with a failure status and no cost, never an
-        exception with a half result.
+        exception with a half result.  ``plan.status`` is ``"optimal"`` only after the plan
+        checked its own residuals; ``plan.states(t)`` and ``plan.inputs(t)`` evaluate it.
 
     Raises
     ------
@@ -102,6 +149,26 @@ def plan(problem: Problem, planner: str = "pmp", *, solver: str | None = None, h
         An option (planner, constraint, solver, hold, contact, steps) that does not exist, has an
         invalid value or does not apply to the chosen planner; the message names the choices.
         It derives from :class:`iamp.ScenarioError` and :class:`iamp.IampError`.
+    iamp.ScenarioError
+        ``problem`` is not an :class:`iamp.Problem`.
+
+    See Also
+    --------
+    PMPPlanner : The PMP planner with its options.
+    compare : Run the PMP and the QP configurations and judge their agreement.
+
+    Examples
+    --------
+    >>> import iamp
+    >>> problem = iamp.load_scenario("paper-1-poly")
+    >>> plan = iamp.plan(problem)
+    >>> plan.status, round(plan.cost, 3)
+    ('optimal', 22.865)
+    >>> plan.contact_times.round(3).tolist()
+    [3.52]
+    >>> qp = iamp.plan(problem, "qp", solver="clarabel", steps=100)
+    >>> qp.status, qp.contact_times.round(3).tolist()
+    ('optimal', [3.5])
     """
     if not isinstance(problem, Problem):
         raise ScenarioError(f"must be an iamp.Problem (got {type(problem).__name__})", "problem")
@@ -141,21 +208,58 @@ def compare(problem: Problem, *, steps: tuple[int, ...] | None = None,
             repeats: int = 3) -> Comparison:
     """Run the PMP and every QP configuration on ``problem`` and judge every pair.
 
-    Returns a :class:`~iamp.comparison.agreement.judge.Comparison` (``.scenarios[0]``: the
-    :class:`~iamp.comparison.agreement.judge.ProblemComparison` with ``runs`` and ``agreement``);
-    its ``to_json()`` is the object of SPEC §5b's ``iamp compare --json`` for this one problem:
-    ``{"scenarios": [{"name", "runs", "agreement", ...}]}``.  In ``agreement`` the headline
-    gaps compare the two runs as they came out; the identity at the QP's own contact times
-    is under ``at_same_contact_times`` (see :mod:`iamp.comparison.agreement.judge` for every rule).
+    Every configuration (each solver with each hold on each grid) plans the **same**
+    :class:`Problem` object; every pair ``(pmp, QP)`` and ``(QP, QP)`` is judged by the rules of
+    :mod:`iamp.comparison.agreement.judge` (same problem, statuses, the QP against its exact
+    reference at its own contact times, KKT residuals recomputed from the matrices, constraint
+    residuals).  In ``agreement`` the headline gaps compare the two runs as they came out; the
+    identity at the QP's own contact times is under ``at_same_contact_times``.
 
     Parameters
     ----------
+    problem : Problem
+        The problem every planner solves.
     steps : tuple of int, optional
-        QP grids (default ``(100,)`` for one vehicle, ``(20,)`` for more: a sweep over
+        QP grids ``N`` (default ``(100,)`` for one vehicle, ``(20,)`` for more: a sweep over
         ``m`` contact times solves ``(N-1)!/(N-1-m)!`` QPs).
-    solvers, holds : tuple of str
+    solvers : tuple of str
+        QP backends (default ``("osqp", "clarabel")``; see :func:`plan`'s ``solver``).
+    holds : tuple of str
+        Input holds (default ``("foh", "zoh")``; see :func:`plan`'s ``hold``).
     repeats : int
         Timed plans per QP configuration.
+
+    Returns
+    -------
+    Comparison
+        ``.scenarios[0]`` is the
+        :class:`~iamp.comparison.agreement.judge.ProblemComparison` with ``runs`` and
+        ``agreement``; ``to_json()`` is the object of SPEC §5b's ``iamp compare --json`` for
+        this one problem, ``{"scenarios": [{"name", "runs", "agreement", ...}]}``.
+
+    Raises
+    ------
+    iamp.ScenarioError
+        ``problem`` is not an :class:`iamp.Problem`, a grid has fewer than ``m + 1`` steps, or
+        every hold is ``"zoh"`` under a jerk bound (``limits.jerk``).
+    iamp.OptionError
+        An unknown solver or hold (the message names the choices).
+
+    See Also
+    --------
+    plan : One planner on one problem.
+
+    Examples
+    --------
+    >>> import iamp
+    >>> problem = iamp.load_scenario("paper-1-poly")
+    >>> comparison = iamp.compare(problem, steps=(20,), solvers=("clarabel",), holds=("foh",), repeats=1)
+    >>> [run.label for run in comparison.scenarios[0].runs]
+    ['pmp', 'qp-clarabel-foh-20']
+    >>> comparison.all_agree
+    True
+    >>> sorted(comparison.to_json()["scenarios"][0])[:4]
+    ['agreement', 'm', 'name', 'pmp']
     """
     from iamp.comparison.agreement.judge import Comparison, compare_problem, default_configs
 

@@ -149,6 +149,10 @@ class Prediction:
         ``{q: positions at t}`` from sampled chain paths (empty unless requested).
     n_samples : int
         Number of sampled paths behind ``quantiles``.
+
+    See Also
+    --------
+    Predictor.predict : What makes one.
     """
 
     x_poly: tuple[float, ...]
@@ -169,13 +173,31 @@ class Prediction:
         object.__setattr__(self, "quantiles", {float(q): readonly_array(v) for q, v in self.quantiles.items()})
 
     def x_fit(self, t: ArrayLike | None = None) -> FloatArray:
-        """The fitted cubic evaluated at ``t`` (default: the prediction times)."""
+        """The fitted cubic :math:`x_s(t) = c_0 + c_1 t + c_2 t^2 + c_3 t^3` evaluated at ``t``.
+
+        Parameters
+        ----------
+        t : array_like of float, optional
+            Times [s] (default: the prediction times :attr:`t`).
+
+        Returns
+        -------
+        numpy.ndarray
+            Positions [m], the shape of ``t``.
+        """
         times = self.t if t is None else np.asarray(t, dtype=float)
         out: FloatArray = np.polynomial.polynomial.polyval(times, self.x_poly)
         return out
 
     def to_dict(self) -> PredictionJSON:
-        """JSON-ready dict (``x_poly``, ``t``, ``x``, ``v``, ``a``, ``model``, ``fit_rmse``)."""
+        """The prediction as a JSON-ready dict (``iamp predict --json``).
+
+        Returns
+        -------
+        dict
+            ``x_poly``, ``t``, ``x``, ``v``, ``a`` (lists of float), ``model``, ``fit_rmse``,
+            and ``quantiles`` (``{"0.1": positions at t, ...}``) when paths were sampled.
+        """
         d: PredictionJSON = {"x_poly": list(self.x_poly), "t": self.t.tolist(), "x": self.x.tolist(),
              "v": self.v.tolist(), "a": self.a.tolist(), "model": self.model, "fit_rmse": self.fit_rmse}
         if self.quantiles:
@@ -232,7 +254,7 @@ def _default_model() -> MTDModel:
 
 
 class Predictor:
-    """Ω: an MTD model of the longitudinal acceleration plus the pipeline above.
+    r"""Ω: an MTD model of the longitudinal acceleration plus the pipeline above.
 
     Parameters
     ----------
@@ -242,6 +264,25 @@ class Predictor:
     name : str
         Reported as :attr:`Prediction.model` (``"builtin"`` for the shipped model, else the
         file path).
+
+    Attributes
+    ----------
+    dt : float
+        The model's time step :math:`\Delta t` [s].
+    min_history_s : float
+        The shortest usable history, :math:`(n + 1)\Delta t` [s] for a model of order ``n``.
+
+    Raises
+    ------
+    iamp.prediction.mtd.ModelFileError
+        The model lacks ``edges``, ``centres`` or ``dt``.
+
+    Examples
+    --------
+    >>> import iamp
+    >>> predictor = iamp.Predictor.default()
+    >>> predictor.name, predictor.min_history_s > 0
+    ('builtin', True)
     """
 
     def __init__(self, model: MTDModel, name: str = "custom"):
@@ -261,12 +302,50 @@ class Predictor:
 
     @classmethod
     def default(cls) -> Predictor:
-        """The predictor with the model shipped in ``prediction/data/mtd_default.json``."""
+        """The predictor with the model shipped in the package (``prediction/data/mtd_default.json``).
+
+        The model is read once per process; :func:`iamp.load_scenario` uses it for every
+        history vehicle unless given another model file.
+
+        Returns
+        -------
+        Predictor
+            A predictor named ``"builtin"``.
+
+        Raises
+        ------
+        iamp.prediction.mtd.ModelFileError
+            The shipped model is missing from the installed package or is not valid.
+
+        Examples
+        --------
+        >>> import iamp
+        >>> predictor = iamp.Predictor.default()
+        >>> predictor.name
+        'builtin'
+        """
         return cls(_default_model(), "builtin")
 
     @classmethod
     def from_file(cls, path: PathLike) -> Predictor:
-        """A predictor with the model in a JSON file (:meth:`MTDModel.save`)."""
+        """A predictor with the model in a JSON file (as ``iamp train`` or :meth:`MTDModel.save` writes it).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The model file.
+
+        Returns
+        -------
+        Predictor
+            A predictor named by the path (:attr:`Prediction.model`).
+
+        Raises
+        ------
+        iamp.prediction.mtd.ModelFileError
+            The file cannot be read, is not JSON, or does not describe a valid model usable for
+            prediction (the message names the file and the key).
+        """
         return cls(MTDModel.load(path), str(path))
 
     # -- what the predictor needs ---------------------------------------------------------
@@ -298,11 +377,27 @@ class Predictor:
         return float(self.model.settings.get("jerk_psd", DEFAULT_JERK_PSD))
 
     def initial_state(self, t_hist: FloatArray, X_hist: FloatArray) -> tuple[FloatArray, FloatArray, IntArray]:
-        """``(x_0, v_0, states)`` of histories sharing the times ``t_hist`` (steps 1–3).
+        r"""The initial state of histories sharing the times ``t_hist`` (steps 1–3 above).
 
-        ``x_0``, ``v_0`` (shape ``(B,)``, ``v_0 >= 0``) are the RTS-smoothed position and speed
-        at ``t = 0``; ``states`` (``(B, n)``, oldest first) the bins of the second differences
-        of the smoothed positions resampled to the model grid.
+        The positions are RTS-smoothed, resampled to the model grid :math:`t_k = k\Delta t`, and their
+        central second differences :math:`a_k = (x_{k+1} - 2x_k + x_{k-1})/\Delta t^2` binned into the
+        chain's states.
+
+        Parameters
+        ----------
+        t_hist : numpy.ndarray, shape (K,)
+            Common history times [s] (strictly increasing, ending at 0).
+        X_hist : numpy.ndarray, shape (B, K)
+            Observed positions [m], one history per row.
+
+        Returns
+        -------
+        x0 : numpy.ndarray, shape (B,)
+            Smoothed position at ``t = 0`` [m].
+        v0 : numpy.ndarray, shape (B,)
+            Smoothed speed at ``t = 0`` [m/s], ``>= 0``.
+        states : numpy.ndarray of int, shape (B, n)
+            The bins of the last ``n`` second differences, oldest first.
         """
         t_hist = np.asarray(t_hist, dtype=float)
         sm = smooth_histories(t_hist, X_hist, self.jerk_psd)
@@ -345,6 +440,22 @@ class Predictor:
             :attr:`min_samples` samples (the error names the history field).
         ValueError
             ``tf`` is not a positive number or a quantile is outside [0, 1].
+
+        Examples
+        --------
+        A vehicle observed for 2 s at 10 Hz, driving at 20 m/s and at ``x = 0`` now:
+
+        >>> import numpy as np
+        >>> import iamp
+        >>> t = np.linspace(-2.0, 0.0, 21)
+        >>> history = iamp.History(t=t, x=20.0 * t)
+        >>> prediction = iamp.Predictor.default().predict(history, tf=5.0)
+        >>> len(prediction.x_poly), round(prediction.x_poly[1], 1)   # the cubic; c1 is the speed
+        (4, 20.0)
+        >>> float(prediction.t[-1]), prediction.model
+        (5.0, 'builtin')
+        >>> float(prediction.x_fit(5.0))                             # x_s(5 s)
+        99.2...
         """
         history.require(min_samples=self.min_samples, min_duration=self.min_history_s)
         M, t = self._horizon(tf)

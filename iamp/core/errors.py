@@ -9,7 +9,20 @@ from __future__ import annotations
 
 
 class IampError(Exception):
-    """Base class of every error iamp raises on purpose."""
+    """Base class of every error iamp raises on purpose.
+
+    Catch it to handle every refusal of the library at once; the command line turns it into
+    one line on stderr and exit status 2 (never a traceback).
+
+    Examples
+    --------
+    >>> import iamp
+    >>> try:
+    ...     iamp.load_scenario("no-such-scenario")
+    ... except iamp.IampError as exc:
+    ...     print(type(exc).__name__)
+    ScenarioError
+    """
 
 
 class ScenarioError(IampError, ValueError):
@@ -22,7 +35,13 @@ class ScenarioError(IampError, ValueError):
     field : str, optional
         The offending field in the SPEC §4 vocabulary, e.g. ``"vehicles[0].length"``.
     source : str, optional
-        The file (or built-in name) the scenario came from.
+        The file (or built-in name) the scenario came from, ``file:line`` when the line is known.
+
+    Examples
+    --------
+    >>> import iamp
+    >>> str(iamp.ScenarioError("must be > 0 (got -1.0)", "ego.tf", "my.toml:3"))
+    "my.toml:3: field 'ego.tf': must be > 0 (got -1.0)"
     """
 
     def __init__(self, message: str, field: str | None = None, source: str | None = None):
@@ -32,6 +51,13 @@ class ScenarioError(IampError, ValueError):
         super().__init__(self.one_line())
 
     def one_line(self) -> str:
+        """The refusal as one line, ``SOURCE: field 'FIELD': MESSAGE``.
+
+        Returns
+        -------
+        str
+            The parts that are known, joined by ``": "`` (the exception's ``str``).
+        """
         parts = []
         if self.source:
             parts.append(str(self.source))
@@ -42,7 +68,12 @@ class ScenarioError(IampError, ValueError):
 
 
 class HistoryError(ScenarioError):
-    """An observed history that the predictor cannot use (SPEC §6)."""
+    """An observed history that the predictor cannot use (SPEC §6).
+
+    Too few samples, times not strictly increasing or not ending at 0, or a span shorter
+    than the predictor needs; ``field`` names the history (``vehicles[i].history.t``).
+    A subclass of :class:`ScenarioError`, with its parameters.
+    """
 
 
 class PredictorRequiredError(ScenarioError):
@@ -55,7 +86,19 @@ class OptionError(ScenarioError):
 
 
 class SolverError(IampError):
-    """A numerical solver failed or reported a non-optimal status."""
+    """A numerical solver failed or reported a non-optimal status.
+
+    The planners turn it into a :class:`~iamp.core.plan.Plan` with a failure status;
+    it reaches the caller only from lower-level functions (e.g. a contact-time search
+    without an interior stationary point).
+
+    Parameters
+    ----------
+    message : str
+        What failed.
+    status : str
+        The plan status it stands for (:mod:`iamp.status`, default ``"solver_error"``).
+    """
 
     def __init__(self, message: str, status: str = "solver_error"):
         self.status = status

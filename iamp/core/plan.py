@@ -47,7 +47,12 @@ class Trajectory(Protocol):
 
 @dataclass(init=False)
 class Plan:
-    """The outcome of one plan.
+    """The outcome of one plan: status, cost, contact times, jumps and the trajectory.
+
+    Every planner (:func:`iamp.plan`, :class:`iamp.PMPPlanner`, the QPs) returns one.  A plan
+    whose status is not a success (:data:`iamp.core.status.SUCCESS`) carries no cost, NaN
+    contact times and jumps, and (usually) no trajectory: a solver failure is a status, never
+    an exception with a half result.
 
     Attributes
     ----------
@@ -81,6 +86,19 @@ class Plan:
         ``diagnostics.as_info()``, the old ``info`` dict's keys and values; kept for one
         release, read :attr:`diagnostics` instead.  ``Plan(..., info={...})`` is still
         accepted (converted with :meth:`Diagnostics.from_info`).
+
+    See Also
+    --------
+    iamp.plan : Plan a problem.
+
+    Examples
+    --------
+    >>> import iamp
+    >>> plan = iamp.plan(iamp.load_scenario("paper-1-poly"))
+    >>> plan.planner, plan.status, plan.ok
+    ('pmp', 'optimal', True)
+    >>> plan.jumps.shape
+    (1, 2)
     """
 
     problem: Problem
@@ -121,13 +139,29 @@ class Plan:
         return MappingProxyType(self.diagnostics.as_info())
 
     def annotate(self, **values: object) -> None:
-        """Set diagnostics fields after the plan is made (a new frozen
-        :class:`~iamp.core.diagnostics.Diagnostics` of the same family)."""
+        """Set diagnostics fields after the plan is made.
+
+        :attr:`diagnostics` is replaced by a new frozen
+        :class:`~iamp.core.diagnostics.Diagnostics` of the same family with ``values`` set.
+
+        Parameters
+        ----------
+        **values
+            Diagnostics fields and their new values (e.g. ``reason="..."``).
+        """
         self.diagnostics = self.diagnostics.updated(**values)
 
     # --- status ------------------------------------------------------------------------
     def is_optimal(self) -> bool:
-        """``True`` when the status is ``"optimal"`` (verified, and globally so)."""
+        """Whether the plan is verified and globally optimal.
+
+        Returns
+        -------
+        bool
+            ``True`` when the status is ``"optimal"`` (every self-check passed and, for the
+            PMP, the contact times are the certified global minimiser); ``False`` for
+            ``"local"`` and every failure.
+        """
         return self.status == OPTIMAL
 
     @property
@@ -137,21 +171,127 @@ class Plan:
 
     # --- the trajectory ----------------------------------------------------------------
     def require_trajectory(self) -> Trajectory:
-        """The trajectory; ``ValueError`` naming the status for a plan without one (a failure)."""
+        """The plan's trajectory, or an error for a plan without one.
+
+        Returns
+        -------
+        Trajectory
+            The planner's own continuous trajectory (``states(t)``, ``inputs(t)``).
+
+        Raises
+        ------
+        ValueError
+            The plan has no trajectory (a failed plan); the message names the planner and the
+            status.
+        """
         if self.trajectory is None:
             raise ValueError(f"this {self.planner} plan has no trajectory (status {self.status})")
         return self.trajectory
 
     def states(self, t: ArrayLike) -> FloatArray:
-        """States ``(s_x, v_x, s_y, v_y)`` at the times ``t`` (any in ``[0, t_f]``), shape ``(n, 4)``."""
+        r"""The ego state :math:`(s_x, v_x, s_y, v_y)` at the times ``t``.
+
+        The state of the planar double integrator :math:`\dot s_x = v_x`, :math:`\dot v_x = u_x`,
+        :math:`\dot s_y = v_y`, :math:`\dot v_y = u_y`, evaluated exactly on the planner's own
+        continuous trajectory (the PMP's piecewise-cubic solution, whose input is linear between
+        the contact times; the QP's exact hold trajectory), not interpolated from samples.
+
+        Parameters
+        ----------
+        t : float or array_like of float
+            Times in ``[0, t_f]`` [s]; a scalar is one time.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 4)
+            Row ``k`` is :math:`(s_x, v_x, s_y, v_y)` at ``t[k]`` [m, m/s, m, m/s];
+            ``n = 1`` for a scalar ``t``.
+
+        Raises
+        ------
+        ValueError
+            The plan has no trajectory (a failed plan).
+
+        See Also
+        --------
+        inputs : The inputs at the same times.
+        sample : The trajectory on a uniform grid, by column.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import iamp
+        >>> problem = iamp.load_scenario("paper-1-poly")
+        >>> plan = iamp.plan(problem)
+        >>> plan.states(2.5).round(2)
+        array([[39.42, 14.67,  0.67,  1.67]])
+        >>> ends = plan.states([0.0, problem.tf])
+        >>> np.allclose(ends, [problem.ego.initial, problem.ego.final])
+        True
+        """
         return np.asarray(self.require_trajectory().states(np.atleast_1d(np.asarray(t, dtype=float))), dtype=float)
 
     def inputs(self, t: ArrayLike) -> FloatArray:
-        """Inputs ``(u_x, u_y)`` at the times ``t``, shape ``(n, 2)``."""
+        r"""The ego input (acceleration) :math:`(u_x, u_y)` at the times ``t``.
+
+        Evaluated on the planner's own continuous trajectory; the PMP's input is linear between
+        contact times and its derivative jumps at each :math:`t_i` by the co-state jump
+        :math:`\Phi_i` (:attr:`jumps`).
+
+        Parameters
+        ----------
+        t : float or array_like of float
+            Times in ``[0, t_f]`` [s]; a scalar is one time.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            Row ``k`` is :math:`(u_x, u_y)` at ``t[k]`` [m/s²].
+
+        Raises
+        ------
+        ValueError
+            The plan has no trajectory (a failed plan).
+
+        Examples
+        --------
+        >>> import iamp
+        >>> plan = iamp.plan(iamp.load_scenario("paper-1-poly"))
+        >>> plan.inputs([0.0, 5.0]).round(3)
+        array([[-5.894,  1.227],
+               [-1.857, -1.744]])
+        """
         return np.asarray(self.require_trajectory().inputs(np.atleast_1d(np.asarray(t, dtype=float))), dtype=float)
 
     def sample(self, steps: int) -> dict[str, FloatArray]:
-        """Trajectory sampled at ``t_k = k·t_f/N``, ``k = 0..N`` (SPEC §5)."""
+        """The trajectory sampled at ``t_k = k·t_f/N``, ``k = 0..N`` (SPEC §5).
+
+        Parameters
+        ----------
+        steps : int
+            ``N``, the number of intervals (``N + 1`` samples).
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            The columns ``t``, ``x``, ``y``, ``vx``, ``vy``, ``ax``, ``ay``
+            (:data:`TRAJECTORY_KEYS`), each of length ``N + 1``.
+
+        Raises
+        ------
+        ValueError
+            The plan has no trajectory (a failed plan).
+
+        Examples
+        --------
+        >>> import iamp
+        >>> plan = iamp.plan(iamp.load_scenario("paper-1-poly"))
+        >>> columns = plan.sample(4)
+        >>> columns["t"].tolist()
+        [0.0, 1.25, 2.5, 3.75, 5.0]
+        >>> columns["x"].round(2).tolist()
+        [0.0, 21.37, 39.42, 59.99, 85.0]
+        """
         t = np.linspace(0.0, self.problem.tf, int(steps) + 1)
         X = self.states(t)
         U = self.inputs(t)
@@ -175,8 +315,17 @@ class Plan:
         of ``problem.limits`` by more than the bound tolerance becomes ``limits_violated`` with
         the reason (the peak, the bound, the violation and where); its cost and trajectory stay,
         so the user sees what an unconstrained planner did.  Idempotent; without limits, or for
-        a plan without a trajectory, nothing changes.  ``remedy`` is appended to the reason
-        (e.g. the option that would impose the bound).  Returns the plan itself.
+        a plan without a trajectory, nothing changes.
+
+        Parameters
+        ----------
+        remedy : str, optional
+            Appended to the reason (e.g. the option that would impose the bound).
+
+        Returns
+        -------
+        Plan
+            The plan itself (changed in place).
         """
         lim = self.problem.limits
         if lim is None or lim.empty or not self.ok or self.peaks is None:
@@ -204,21 +353,78 @@ class Plan:
 
     # --- residuals of the problem's own conditions --------------------------------------
     def corner_residual(self) -> float:
-        """``max |s(t_i) − corner_i(t_i)|`` over vehicles and axes."""
+        r"""How far the plan misses the corners it must pass through.
+
+        .. math::  \max_{i,\ \text{axis}} |s(t_i) - c_i(t_i)|,
+
+        with :math:`c_i(t_i)` the corner of vehicle ``i`` at its contact time
+        (:meth:`Problem.corners`).
+
+        Returns
+        -------
+        float
+            The largest absolute corner miss [m] over vehicles and axes.
+
+        Raises
+        ------
+        ValueError
+            The plan has no trajectory (a failed plan).
+        """
         X = self.states(self.contact_times)
         C = self.problem.corners(self.contact_times)
         return float(np.max(np.abs(X[:, [0, 2]] - C)))
 
     def boundary_residual(self) -> float:
-        """``max |state(0) − x0|, |state(t_f) − x_f|``."""
+        r"""How far the plan misses its fixed boundary states.
+
+        .. math::  \max\big(|x(0) - x_0|_\infty,\ |x(t_f) - x_f|_\infty\big),
+
+        with :math:`x = (s_x, v_x, s_y, v_y)` and :math:`x_0`, :math:`x_f` the problem's
+        ``ego.initial`` and ``ego.final``.
+
+        Returns
+        -------
+        float
+            The largest absolute boundary miss (metres or metres per second).
+
+        Raises
+        ------
+        ValueError
+            The plan has no trajectory (a failed plan).
+        """
         X = self.states(np.array([0.0, self.problem.tf]))
         return float(max(np.max(np.abs(X[0] - self.problem.ego.initial)),
                          np.max(np.abs(X[1] - self.problem.ego.final))))
 
     # --- output --------------------------------------------------------------------------
     def to_json(self, scenario: str | None = None, steps: int | None = None) -> dict[str, Any]:
-        """The SPEC §5 JSON object (``scenario`` defaults to the problem's name, ``steps`` to
-        the QP's ``N`` or 100).  A failed plan has ``cost = null`` and empty arrays."""
+        """The plan as the JSON object of SPEC §5 (and §9, §14).
+
+        Keys: ``scenario``, ``planner``, ``solver``, ``hold``, ``steps``, ``status``, ``cost``,
+        ``contact_times``, ``jumps``, ``solve_time_s``, ``trajectory`` (columns sampled by
+        :meth:`sample`), ``safety``, and ``limits`` when the problem has limits.  A failed plan
+        has ``cost = null`` and empty arrays; its ``failed_check`` and ``reason`` say why.
+
+        Parameters
+        ----------
+        scenario : str, optional
+            The ``scenario`` field (default: the problem's name).
+        steps : int, optional
+            Sampling intervals of ``trajectory`` (default: the QP's ``N``, else 100).
+
+        Returns
+        -------
+        dict
+            A JSON-serialisable object (plain floats, lists and ``None``).
+
+        Examples
+        --------
+        >>> import iamp
+        >>> plan = iamp.plan(iamp.load_scenario("paper-1-poly"))
+        >>> out = plan.to_json(steps=10)
+        >>> out["status"], len(out["trajectory"]["t"])
+        ('optimal', 11)
+        """
         name = self.problem.name if scenario is None else scenario
         n = int(steps if steps is not None else (self.steps or 100))
         # an ``unsafe`` plan (SPEC §14) is a verified trajectory that intrudes: shown with its report

@@ -66,7 +66,46 @@ _EGO_KIND = {"x0": "position", "y0": "position", "xf": "position", "yf": "positi
 
 @dataclass(frozen=True)
 class EgoBoundary:
-    """Horizon and the fixed initial and final ego state (SPEC §4 ``[ego]``)."""
+    """The horizon and the fixed initial and final ego states (SPEC §4 ``[ego]``).
+
+    The ego starts at :math:`x_0 = (x_0, v_{x,0}, y_0, v_{y,0})` at ``t = 0`` and must reach
+    :math:`x_f = (x_f, v_{x,f}, y_f, v_{y,f})` at ``t = t_f`` (:attr:`initial`, :attr:`final`).
+    Every field is validated on construction: finite, ``tf > 0``, the body positive, and
+    within the bounds of :mod:`iamp.core.limits` (SPEC §6).
+
+    Parameters
+    ----------
+    tf : float
+        The horizon :math:`t_f` [s], ``> 0``.
+    x0, y0 : float
+        Initial longitudinal and lateral position [m].
+    vx0 : float
+        Initial longitudinal speed [m/s].
+    xf, yf : float
+        Final longitudinal and lateral position [m].
+    vxf : float
+        Final longitudinal speed [m/s].
+    vy0, vyf : float
+        Initial and final lateral speed [m/s] (default 0).
+    source : str, optional
+        The file the values came from (named by refusals; not compared).
+    ego_length, ego_width : float
+        The ego's body [m] (``[ego] length`` and ``width``; default 4.8 x 1.8), used by the
+        overlap check of SPEC §9.
+
+    Raises
+    ------
+    iamp.ScenarioError
+        A field is not a finite number, ``tf`` or the body is not positive, or a value is
+        beyond its bound (the message names the field, e.g. ``ego.tf``).
+
+    Examples
+    --------
+    >>> from iamp import EgoBoundary
+    >>> ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=85.0, yf=3.75, vxf=20.0)
+    >>> ego.initial.tolist(), ego.final.tolist()
+    ([0.0, 20.0, -2.0, 0.0], [85.0, 20.0, 3.75, 0.0])
+    """
 
     tf: float
     x0: float
@@ -114,10 +153,48 @@ class EgoBoundary:
 
 @dataclass(frozen=True)
 class SurroundingVehicle:
-    """A surrounding vehicle with a known longitudinal trajectory ``x_s(t)``.
+    r"""A surrounding vehicle with a known longitudinal trajectory :math:`x_s(t)`.
 
-    ``x_poly`` holds the coefficients in ascending powers, ``x_s(t) = Σ_k c_k t^k``
-    (SPEC §4); any degree is accepted.
+    The vehicle keeps its lane (``y`` constant) and moves along the polynomial
+    :math:`x_s(t) = \sum_k c_k t^k` (SPEC §4; any degree).  Around it lies the safety box
+    :math:`[x_s(t) \pm (L/2 + S_x)] \times [y_s \pm (W/2 + S_y)]`; the ego passes through the
+    named ``corner`` of that box at its contact time :math:`t_i` (:meth:`corner_x`,
+    :attr:`corner_y`).
+
+    Parameters
+    ----------
+    x_poly : sequence of float
+        The coefficients :math:`c_0, c_1, \dots` of :math:`x_s(t)` in ascending powers [m, m/s, ...].
+    corner : {"front-lower", "front-upper", "rear-lower", "rear-upper"}
+        The corner the ego passes: ``front`` / ``rear`` is the sign of the longitudinal
+        offset, ``upper`` / ``lower`` that of the lateral one.
+    y : float
+        The vehicle's lateral position :math:`y_s` (its lane centre) [m].
+    length, width : float
+        The body :math:`L`, :math:`W` [m], ``> 0``.
+    safety_x, safety_y : float
+        The safety margins :math:`S_x`, :math:`S_y` around the body [m], ``>= 0``.
+    name : str
+        The vehicle's name (``sv1``, ... in a scenario file).
+    field_prefix : str
+        The field refusals name (``vehicles[i]``; not compared).
+    source : str, optional
+        The file the values came from (not compared).
+
+    Raises
+    ------
+    iamp.ScenarioError
+        An unknown corner, a non-finite, non-positive (body) or negative (margin) value, an
+        empty or too long ``x_poly``, or a value beyond its bound (the message names the field,
+        e.g. ``vehicles[0].safety_x``).
+
+    Examples
+    --------
+    >>> from iamp import SurroundingVehicle
+    >>> sv = SurroundingVehicle(x_poly=(-15.0, 18.0), corner="front-lower", y=3.75,
+    ...                         length=4.8, width=1.8, safety_x=5.0, safety_y=0.5)
+    >>> float(sv.offset_x), float(sv.corner_y)
+    (7.4, 2.35)
     """
 
     x_poly: tuple[float, ...]
@@ -190,25 +267,121 @@ class SurroundingVehicle:
         return np.polynomial.Polynomial(self.x_poly)
 
     def position(self, t: npt.ArrayLike) -> npt.NDArray[np.float64]:
-        """``x_s(t)``."""
+        r"""The vehicle's longitudinal position :math:`x_s(t) = \sum_k c_k t^k`.
+
+        Parameters
+        ----------
+        t : float or array_like of float
+            Times [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            :math:`x_s(t)` [m], the shape of ``t``.
+
+        Examples
+        --------
+        >>> import iamp
+        >>> sv = iamp.load_scenario("paper-1-poly").vehicles[0]
+        >>> sv.position([0.0, 1.0, 2.0]).tolist()
+        [-15.0, 3.0, 21.0]
+        """
         return np.asarray(np.polynomial.polynomial.polyval(np.asarray(t, dtype=np.float64), self.x_poly),
                           dtype=np.float64)
 
     def speed(self, t: npt.ArrayLike) -> npt.NDArray[np.float64]:
-        """``ẋ_s(t)``."""
+        r"""The vehicle's longitudinal speed :math:`\dot x_s(t) = \sum_{k \ge 1} k c_k t^{k-1}`.
+
+        Parameters
+        ----------
+        t : float or array_like of float
+            Times [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            :math:`\dot x_s(t)` [m/s], the shape of ``t`` (0 for a constant :math:`x_s`).
+        """
         d = np.polynomial.polynomial.polyder(self.x_poly) if len(self.x_poly) > 1 else [0.0]
         return np.asarray(np.polynomial.polynomial.polyval(np.asarray(t, dtype=np.float64), d), dtype=np.float64)
 
     def corner_x(self, t: npt.ArrayLike) -> npt.NDArray[np.float64]:
-        """Longitudinal coordinate of the corner at time ``t``."""
+        r"""The longitudinal coordinate of the vehicle's corner at the times ``t``.
+
+        .. math::  x_s(t) \pm (L/2 + S_x),
+
+        ``+`` for a ``front`` corner and ``-`` for a ``rear`` one (:attr:`offset_x`).
+
+        Parameters
+        ----------
+        t : float or array_like of float
+            Times [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            The corner's :math:`x` [m], the shape of ``t``.
+
+        Examples
+        --------
+        >>> import iamp
+        >>> sv = iamp.load_scenario("paper-1-poly").vehicles[0]   # front corner, L/2 + S_x = 7.4 m
+        >>> sv.corner_x([0.0, 1.0]).round(6).tolist()
+        [-7.6, 10.4]
+        """
         return self.position(t) + self.offset_x
 
 
 @dataclass(frozen=True)
 class Problem:
-    """One optimal lane change: ego boundary conditions plus ``m >= 1`` vehicles.
+    r"""One optimal lane change: the ego's boundary conditions plus ``m`` surrounding vehicles.
 
-    Validates itself on construction (raises :class:`~iamp.core.errors.ScenarioError`).
+    The problem of SPEC §1: minimise :math:`J = \tfrac12 \int_0^{t_f} (u_x^2 + u_y^2)\,dt` of
+    the planar double integrator from ``ego.initial`` to ``ego.final``, with one interior-point
+    equality per vehicle ``i`` at a free contact time :math:`t_i \in (0, t_f)`,
+
+    .. math::
+
+        s_x(t_i) = x_{s,i}(t_i) \pm (L_i/2 + S_{x,i}), \qquad
+        s_y(t_i) = y_{s,i} \pm (W_i/2 + S_{y,i}).
+
+    Validates itself on construction.  :func:`iamp.load_scenario` builds one from a scenario
+    file; every planner takes one.
+
+    Parameters
+    ----------
+    ego : EgoBoundary
+        The horizon and the fixed initial and final ego states.
+    vehicles : sequence of SurroundingVehicle
+        The surrounding vehicles, one contact time each (``m = len(vehicles)``).
+    name : str
+        The problem's name (reported in the JSON outputs).
+    limits : iamp.core.physical.PhysicalLimits, optional
+        The ego's physical limits (the scenario's ``[limits]`` table, SPEC §14); ``None``: the
+        paper's unbounded problem.
+
+    Attributes
+    ----------
+    m : int
+        The number of vehicles (= the number of contact times).
+    tf : float
+        The horizon :math:`t_f` [s] (``ego.tf``).
+
+    Raises
+    ------
+    iamp.ScenarioError
+        A vehicle that is not a :class:`SurroundingVehicle`, too many vehicles, a polynomial
+        beyond the bounds over ``[0, t_f]``, or ``limits`` of the wrong type.
+
+    Examples
+    --------
+    >>> from iamp import EgoBoundary, Problem, SurroundingVehicle
+    >>> ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=85.0, yf=3.75, vxf=20.0)
+    >>> sv = SurroundingVehicle(x_poly=(-15.0, 18.0), corner="front-lower", y=3.75,
+    ...                         length=4.8, width=1.8, safety_x=5.0, safety_y=0.5)
+    >>> problem = Problem(ego, (sv,), name="mine")
+    >>> problem.m, problem.tf
+    (1, 5.0)
     """
 
     ego: EgoBoundary
@@ -244,26 +417,97 @@ class Problem:
         return self.ego.tf
 
     def corners(self, contact_times: npt.ArrayLike) -> npt.NDArray[np.float64]:
-        """Corner positions ``(m, 2)`` at the given contact times (:func:`iamp.core.contact.corners`)."""
+        r"""The corner positions at the contact times: where the ego must be at each :math:`t_i`.
+
+        Row ``i`` is the corner of vehicle ``i`` at its own contact time,
+
+        .. math::  \big(x_{s,i}(t_i) \pm (L_i/2 + S_{x,i}),\ y_{s,i} \pm (W_i/2 + S_{y,i})\big)
+
+        (:func:`iamp.core.contact.corners`).
+
+        Parameters
+        ----------
+        contact_times : array_like of float, shape (m,)
+            :math:`t_i` in the order of :attr:`vehicles` [s].
+
+        Returns
+        -------
+        numpy.ndarray, shape (m, 2)
+            The corners' :math:`(x, y)` [m].
+
+        Examples
+        --------
+        >>> import iamp
+        >>> problem = iamp.load_scenario("two-vehicle")
+        >>> problem.corners([2.0, 3.0]).round(6).tolist()
+        [[28.4, 2.35], [58.6, -0.6]]
+        """
         return contact.corners(self, contact_times)
 
     def corners_and_speeds(self, contact_times: npt.ArrayLike) -> tuple[npt.NDArray[np.float64],
                                                                         npt.NDArray[np.float64]]:
-        """``(corners(t), [ẋ_s,i(t_i)])``: what a planner's self-check reads of the vehicles at its
-        contact times, in one call (the same numbers as :meth:`corners` and
-        :meth:`SurroundingVehicle.speed`; :func:`iamp.core.contact.corners_and_speeds`)."""
+        r"""The corners and the vehicles' speeds at the contact times, in one call.
+
+        What a planner's self-check reads of the vehicles at its contact times: the same
+        numbers as :meth:`corners` and :meth:`SurroundingVehicle.speed`
+        (:func:`iamp.core.contact.corners_and_speeds`).
+
+        Parameters
+        ----------
+        contact_times : array_like of float, shape (m,)
+            :math:`t_i` in the order of :attr:`vehicles` [s].
+
+        Returns
+        -------
+        corners : numpy.ndarray, shape (m, 2)
+            As :meth:`corners` [m].
+        speeds : numpy.ndarray, shape (m,)
+            :math:`\dot x_{s,i}(t_i)` [m/s].
+        """
         return contact.corners_and_speeds(self, contact_times)
 
     def with_vehicles(self, vehicles: Iterable[SurroundingVehicle]) -> Problem:
-        """The same ego problem with other vehicles."""
+        """The same ego problem with other vehicles.
+
+        Parameters
+        ----------
+        vehicles : iterable of SurroundingVehicle
+            The new vehicles.
+
+        Returns
+        -------
+        Problem
+            A new, validated problem with this problem's ego, name and limits.
+
+        Raises
+        ------
+        iamp.ScenarioError
+            As the constructor (a vehicle of the wrong type, a polynomial beyond the bounds).
+        """
         return Problem(self.ego, tuple(vehicles), self.name, self.limits)
 
     def with_limits(self, limits: PhysicalLimits | None) -> Problem:
-        """The same problem with other physical limits (``None``: unbounded).
+        """The same problem with other physical limits.
 
         Only ``limits`` is validated: the ego and the vehicles are this problem's, validated
         when it was made (the vehicle checks cost about 80 µs a problem, and the bounded
-        planners call this on every plan)."""
+        planners call this on every plan).
+
+        Parameters
+        ----------
+        limits : iamp.core.physical.PhysicalLimits or None
+            The new limits; ``None``: the unbounded problem.
+
+        Returns
+        -------
+        Problem
+            A new problem with this problem's ego, vehicles and name.
+
+        Raises
+        ------
+        iamp.ScenarioError
+            ``limits`` is neither a ``PhysicalLimits`` nor ``None``.
+        """
         if limits is not None and not isinstance(limits, PhysicalLimits):
             raise ScenarioError("must be an iamp.core.physical.PhysicalLimits or None", "limits", self.ego.source)
         new = object.__new__(Problem)

@@ -72,7 +72,42 @@ class Predicted:
 
 @dataclass(frozen=True)
 class History:
-    """An observed longitudinal history before ``t = 0`` (strictly increasing, ends at 0)."""
+    """An observed longitudinal history of a vehicle before ``t = 0`` (SPEC §4 ``history``).
+
+    The samples ``(t_k, x_k)`` a predictor turns into the vehicle's future trajectory
+    (:meth:`iamp.Predictor.predict`).  Validated on construction (SPEC §6): the times are
+    strictly increasing, end at ``t = 0``, start no earlier than the longest accepted span
+    and are at least the shortest accepted step apart; the positions are finite and bounded.
+
+    Parameters
+    ----------
+    t : array_like of float
+        Sample times [s], strictly increasing, the last one 0 (the present).
+    x : array_like of float
+        Longitudinal positions at ``t`` [m], as many as ``t``.
+    field : str
+        The scenario field refusals name (default ``"vehicles[0].history"``).
+    source : str, optional
+        The file the history came from (named by refusals).
+
+    Raises
+    ------
+    iamp.HistoryError
+        Fewer than two samples, ``t`` and ``x`` of different lengths, times not strictly
+        increasing, not ending at 0, too long, too dense or positions beyond the bound
+        (the message names the field, e.g. ``vehicles[0].history.t``).
+    iamp.ScenarioError
+        A value that is not a finite number.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from iamp import History
+    >>> t = np.linspace(-2.0, 0.0, 21)            # 2 s at 10 Hz, ending now
+    >>> history = History(t=t, x=20.0 * t)        # 20 m/s, at x = 0 now
+    >>> history.duration, len(history.t)
+    (2.0, 21)
+    """
 
     t: npt.NDArray[np.float64]
     x: npt.NDArray[np.float64]
@@ -124,7 +159,21 @@ class History:
         return float(self.t[-1] - self.t[0])
 
     def require(self, min_samples: int = 0, min_duration: float = 0.0) -> None:
-        """Raise :class:`HistoryError` if the history is shorter than a predictor needs."""
+        """Check that the history is long enough for a predictor.
+
+        Parameters
+        ----------
+        min_samples : int
+            The fewest samples the predictor needs.
+        min_duration : float
+            The shortest span ``t[-1] - t[0]`` the predictor needs [s].
+
+        Raises
+        ------
+        iamp.HistoryError
+            The history has fewer samples or a shorter span (the message says both numbers
+            and names the field).
+        """
         if len(self.t) < min_samples:
             raise HistoryError(f"is shorter than the predictor needs ({len(self.t)} samples, "
                                f"needs {min_samples})", f"{self.field}.t", self.source)
@@ -160,7 +209,43 @@ class VehicleSpec:
 
 @dataclass(frozen=True)
 class Scenario:
-    """A validated scenario file."""
+    """A validated scenario file (SPEC §4): what a user writes, before prediction.
+
+    Its vehicles are given either by a polynomial ``x_poly`` or by an observed ``history``;
+    :meth:`to_problem` turns it into the :class:`Problem` the planners solve, predicting
+    the history vehicles.  :func:`iamp.load_scenario` does both steps at once; load one with
+    :func:`iamp.core.scenario.load_scenario` (a path or a built-in name) or
+    :func:`iamp.core.scenario.loads_scenario` (TOML text).
+
+    Parameters
+    ----------
+    name : str
+        The scenario's name (the file's ``name``, else the file's stem).
+    description : str
+        The file's ``description`` (may be empty).
+    ego : EgoBoundary
+        The ``[ego]`` table.
+    vehicles : tuple of iamp.core.scenario.VehicleSpec
+        The ``[[vehicles]]`` tables as written: geometry plus ``x_poly`` or ``history``.
+    source : str, optional
+        The file (``builtin:NAME`` for a built-in scenario).
+    text : str, optional
+        The TOML text, so that a refusal can name the line of its field (not compared).
+    limits : iamp.core.physical.PhysicalLimits, optional
+        The ``[limits]`` table (SPEC §14); ``None`` when the file has none (the paper's problem).
+
+    Attributes
+    ----------
+    needs_prediction : bool
+        Whether any vehicle is given by a history (and so needs a predictor).
+
+    Examples
+    --------
+    >>> from iamp.core.scenario import load_scenario
+    >>> scenario = load_scenario("paper-1")
+    >>> scenario.needs_prediction, len(scenario.vehicles[0].history.t)
+    (True, 31)
+    """
 
     name: str
     description: str
@@ -180,18 +265,58 @@ class Scenario:
         return any(v.history is not None for v in self.vehicles)
 
     def locate(self, exc: ScenarioError) -> ScenarioError:
-        """``exc`` with the TOML line of its field added to the source (``file:line``)."""
+        """Add the TOML line of an error's field to its source.
+
+        Parameters
+        ----------
+        exc : iamp.ScenarioError
+            A refusal about a field of this scenario.
+
+        Returns
+        -------
+        iamp.ScenarioError
+            ``exc`` again (same class, message and field) with the source ``file:line`` when
+            the field's line is known, else ``exc`` itself.
+        """
         return with_line(exc, self.text, self.source)
 
     def to_problem(self, predictor: PredictorLike | None = None) -> tuple[Problem, list[Any]]:
         """Turn the scenario into a :class:`Problem`.
 
-        Vehicles with a ``history`` are predicted by ``predictor`` (an object with
-        ``predict(history, tf) -> Prediction`` whose ``x_poly`` is the fitted cubic).  Returns
-        the problem and the list of predictions (``None`` for vehicles given by ``x_poly``).
-        The same polynomial object reaches every planner that solves this problem.
+        Vehicles with a ``history`` are predicted by ``predictor`` over the horizon ``t_f``;
+        vehicles given by ``x_poly`` pass through unchanged.  The same polynomial object
+        reaches every planner that solves this problem.
 
-        Refusals (:class:`ScenarioError`, including the predictor's) name the TOML line.
+        Parameters
+        ----------
+        predictor : object, optional
+            Anything with ``predict(history, tf)`` returning an object whose ``x_poly`` is the
+            vehicle's polynomial (:class:`iamp.Predictor`); may be ``None`` when no vehicle
+            has a history.
+
+        Returns
+        -------
+        problem : Problem
+            The plannable problem.
+        predictions : list
+            One entry per vehicle: the predictor's result, or ``None`` for a vehicle given by
+            ``x_poly``.
+
+        Raises
+        ------
+        iamp.ScenarioError
+            A history vehicle without a predictor, a predictor whose time step does not fit
+            the horizon, or a predicted polynomial beyond the bounds; the predictor's own
+            refusals (:class:`iamp.HistoryError`) pass through.  Every refusal names the TOML
+            line of its field.
+
+        Examples
+        --------
+        >>> import iamp
+        >>> from iamp.core.scenario import load_scenario
+        >>> problem, predictions = load_scenario("paper-1").to_problem(iamp.Predictor.default())
+        >>> problem.m, predictions[0].model
+        (1, 'builtin')
         """
         try:
             return self._to_problem(predictor)
