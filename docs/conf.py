@@ -98,7 +98,9 @@ ANIM = Path(__file__).resolve().parent / "_static" / "anim"
 
 def _make_animations(app: object) -> None:
     """Write the three GIFs of ``animations.md`` with ``iamp plot`` (never committed: made here)."""
+    import shutil
     import subprocess
+    import tempfile
 
     ANIM.mkdir(parents=True, exist_ok=True)
     iamp_cmd = [sys.executable, "-m", "iamp"]
@@ -108,7 +110,8 @@ def _make_animations(app: object) -> None:
 
     run("plot", "two-vehicle", "--planner", "qp", "--constraint", "avoid", "--animate", "--fps", "8",
         "--out", str(ANIM / "plan.gif"), "--force")
-    log = ANIM / "episode.csv"
+    work = Path(tempfile.mkdtemp(prefix="iamp-docs-"))  # the log and the solution: not part of the site
+    log = work / "episode.csv"
     episode = subprocess.run([*iamp_cmd, "simulate", "--mission", "merge", "--traffic", "medium", "--seed", "2",
                               "--planner", "pmp-active", "--log", str(log), "--force", "--json"],
                              capture_output=True, text=True, encoding="utf-8", cwd=ROOT)
@@ -120,10 +123,11 @@ def _make_animations(app: object) -> None:
     scenario = data / "USA_US101-11_1_T-1.xml"
     if not scenario.is_file():
         raise RuntimeError(f"the documentation's CommonRoad animation needs {scenario} (set IAMP_DATA)")
-    solution = ANIM / "solution.xml"
+    solution = work / "solution.xml"
     run("commonroad", "plan", str(scenario), "--out", str(solution), "--force")
     run("plot", "--commonroad", str(scenario), "--solution", str(solution), "--out", str(ANIM / "commonroad.gif"),
         "--fps", "5", "--force")
+    shutil.rmtree(work, ignore_errors=True)
 
 
 def setup(app: object) -> None:
