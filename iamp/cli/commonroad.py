@@ -201,12 +201,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     b.add_argument("--planners", default="avoid,pmp,qp,all-pmp,free",
                    help="comma-separated planners; NAME+predict plans with the predicted vehicles "
                         "(default avoid,pmp,qp,all-pmp,free)")
-    b.add_argument("--out", default=None, metavar="DIR", help="bench.md/.tex/.json and the solutions go here")
+    b.add_argument("--out", default=None, metavar="DIR",
+                   help="bench.md/.tex/.json, the solutions and one resumable result per scenario and planner "
+                        "(rows/, manifest.json) go here; a folder iamp did not write needs --force")
     b.add_argument("--timeout", type=positive_float, default=120.0, metavar="S",
                    help="per scenario and planner (default 120 s)")
     b.add_argument("--peer", action="append", default=None, metavar="DIR",
-                   help="add a peer planner's rows from DIR (written by scripts/commonroad_peer.py in the peer's own "
-                        "environment); may be repeated")
+                   help="add a peer planner's rows from DIR (written by scripts/commonroad_peer.py or "
+                        "scripts/commonroad_peer_idm.py in the peer's own environment); may be repeated")
     _solution_options(b)
     b.add_argument("--force", action="store_true",
                    help="write into an --out folder iamp did not write, or discard its results made with other "
