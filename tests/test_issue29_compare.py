@@ -188,7 +188,6 @@ def test_the_bounded_rules_can_fail() -> None:
     assert pair["checks"]["bounded_lower_bound_rel"]["ok"] is False  # J_QP < J_b(t_Q)
 
 
-@pytest.mark.slow
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 10**6), st.floats(0.6, 1.2))
 def test_generated_bounded_problems_agree_when_both_verify(seed: int, scale: float) -> None:
@@ -245,3 +244,41 @@ def test_the_early_certificate_is_sound(seed: int, scale: float, m: int) -> None
     if early is not None:
         sw = run_sweep(BoundedQP(bounded, N, "foh", "clarabel"))
         assert sw.best is None and all(r.status == "infeasible" for r in sw.results)
+
+
+def test_a_vehicle_alone_out_of_reach_is_infeasible_in_few_solves() -> None:
+    """Tight jerk: the box admits plans (the PMP's certificate does not apply), but the vehicle
+    ahead alone cannot be cleared at any node: 2 (N - 1) solves instead of the joint sweep."""
+    from iamp.planners.qp import QPPlanner
+
+    _, p, _ = load_problem("two-vehicle")
+    N = 50
+    plan = QPPlanner(steps=N).plan(p.with_limits(PhysicalLimits(ax=(-30.0, 30.0), ay=(-6.0, 6.0), jerk=5.0)))
+    d = plan.diagnostics
+    assert plan.status == "infeasible"
+    assert d.n_solves == 2 * (N - 1)  # was 383 solves of the joint sweep (after the box screen)
+    assert "sv2 alone" in (d.reason or "") and f"{(N - 1) * (N - 2)} of {(N - 1) * (N - 2)}" in (d.reason or "")
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 10**6), st.floats(0.4, 1.2), st.sampled_from([None, 6.0, 30.0]))
+def test_the_pruned_sweep_equals_the_full_sweep(seed: int, scale: float, jerk: float | None) -> None:
+    """The screens (box, each vehicle alone) drop only certified-infeasible candidates: the plan
+    is the full sweep's best."""
+    from iamp.planners.qp import QPPlanner
+    from iamp.planners.qp.bounded import BoundedQP
+    from iamp.planners.qp.sweep import run_sweep
+
+    problem = random_problem(seed, m=2)
+    U = PMPPlanner().plan(problem).inputs(np.linspace(0.0, problem.tf, 2001))
+    peak = np.abs(U).max(axis=0)
+    bounded = problem.with_limits(PhysicalLimits(ax=(-scale * peak[0] - 0.1, scale * peak[0] + 0.1),
+                                                 ay=(-scale * peak[1] - 0.1, scale * peak[1] + 0.1), jerk=jerk))
+    N = 8
+    plan = QPPlanner(steps=N).plan(bounded)
+    full = run_sweep(BoundedQP(bounded, N, "foh", "clarabel"))
+    if full.best is None:
+        assert plan.status != "optimal"
+    else:
+        assert plan.status == "optimal" and plan.cost == pytest.approx(full.best.cost, rel=1e-9)
+        assert np.allclose(plan.contact_times, full.best.contact_times)

@@ -345,6 +345,33 @@ def box_screen(problem: Problem) -> Callable[[FloatArray], str | None] | None:
     return screen
 
 
+def single_vehicle_screen(problem: Problem, steps: int, hold: str, solver: str,
+                          settings: Mapping[str, Any] | None = None
+                          ) -> tuple[dict[tuple[int, int], bool], int]:
+    r"""Which contact nodes each vehicle alone cannot take within the limits (``m >= 2``).
+
+    For each vehicle ``i`` and interior node ``k`` the bounded QP with only that vehicle's corner
+    at ``k`` is solved (``m (N - 1)`` solves).  It is a relaxation of every candidate with
+    vehicle ``i`` at node ``k`` (the other corners' rows dropped), so a verified Farkas
+    certificate for it, padded with zeros, certifies all of them.
+
+    Returns ``({(i, k): True}`` for the certified pairs, the number of QP solves``)``.
+    """
+    from iamp.core.problem import Problem as _Problem
+
+    out: dict[tuple[int, int], bool] = {}
+    solves = 0
+    for i, v in enumerate(problem.vehicles):
+        one = _Problem(ego=problem.ego, vehicles=(v,), name=problem.name, limits=problem.limits)
+        qp = BoundedQP(one, steps, hold, solver, settings)
+        for k in range(1, qp.N):
+            r = qp.solve_nodes([k])
+            solves += 1
+            if r.infeasible_certified:
+                out[(i, k)] = True
+    return out, solves
+
+
 #: Axis solves the bounded PMP's certificate over every contact time may spend before the sweep
 #: (:func:`infeasible_before_sweep`); a work budget, never a time.
 PMP_CERTIFICATE_SOLVES = 4000
@@ -443,5 +470,6 @@ __all__ = [
     "inequality_backends",
     "infeasibility_reason",
     "infeasible_before_sweep",
+    "single_vehicle_screen",
     "stacked",
 ]

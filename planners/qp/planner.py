@@ -154,16 +154,27 @@ class QPPlanner:
             out["limits_polygon_sides"] = rows.polygon_sides
         return out
 
-    def sweep(self, qp: CandidateSolver, progress: Progress | None = None) -> SweepResult:
+    def sweep(self, qp: CandidateSolver, progress: Progress | None = None,
+              alone: dict[tuple[int, int], bool] | None = None) -> SweepResult:
         """Solve one QP per candidate node combination (:func:`iamp.planners.qp.sweep.run_sweep`);
         with ``problem.limits``, a candidate whose input box is certified infeasible at its contact
-        times is not solved (:func:`iamp.planners.qp.bounded.box_screen`)."""
-        screen = None
+        times is not solved (:func:`iamp.planners.qp.bounded.box_screen`), nor one with a vehicle
+        at a node in ``alone`` (:func:`iamp.planners.qp.bounded.single_vehicle_screen`)."""
         lim = qp.problem.limits
-        if lim is not None and not lim.empty:
-            from iamp.planners.qp.bounded import box_screen
+        if lim is None or lim.empty:
+            return run_sweep(qp, progress)
+        from iamp.planners.qp.bounded import box_screen
 
-            screen = box_screen(qp.problem)
+        box = box_screen(qp.problem)
+        pairs = alone or {}
+
+        def screen(nodes: tuple[int, ...], times: np.ndarray) -> str | None:
+            for i, k in enumerate(nodes):
+                if (i, k) in pairs:
+                    return (f"vehicle {qp.problem.vehicles[i].name} alone has no plan within the limits with its "
+                            f"contact at node {k} (Farkas)")
+            return box(times) if box is not None else None
+
         return run_sweep(qp, progress, screen)
 
     def _refine(self, qp: CandidateSolver, seed: CandidateResult) -> CandidateResult:
@@ -218,6 +229,8 @@ class QPPlanner:
         """Sweep (and optionally refine) the contact times, then report the best QP."""
         start = time.perf_counter()
         qp = qp or self.build(problem)
+        alone: dict[tuple[int, int], bool] | None = None
+        extra = 0  # QP solves outside qp (the single-vehicle relaxations)
         if problem.limits is not None and not problem.limits.empty:  # certified infeasible before any candidate
             from iamp.planners.qp.bounded import infeasible_before_sweep
 
@@ -232,7 +245,27 @@ class QPPlanner:
                     "n_solves": qp.n_solves + int(cert["qp_solves"]), "failed_check": "limits",
                     "reason": reason, "limits_infeasible": reason, **self._limits_info(qp)}
                 return self._plan(problem, None, st.INFEASIBLE, start, early_info)
-        sw = self.sweep(qp, progress)
+            if problem.m >= 2:  # each vehicle alone first: m (N - 1) solves that prune the joint sweep
+                from iamp.planners.qp.bounded import single_vehicle_screen
+
+                alone, alone_solves = single_vehicle_screen(problem, self.steps, self.hold, self.solver,
+                                                            self.solver_settings)
+                extra = alone_solves
+                for i, v in enumerate(problem.vehicles):
+                    if all((i, k) in alone for k in range(1, self.steps)):
+                        n = qp.n_candidates()
+                        reason = (f"vehicle {v.name} alone admits no contact node within the limits "
+                                  f"({', '.join(problem.limits.given())}): {self.steps - 1} of {self.steps - 1} "
+                                  f"nodes certified infeasible (Farkas), so are {n} of {n} candidate contact nodes")
+                        info_alone: dict[str, Any] = {
+                            "path": self.path, "failures": [], "sweep": [], "unpolished": 0,
+                            "candidates": {"total": n, "solved": 0, "failed": {"infeasible": n}, "inaccurate": 0,
+                                           "certified_before_sweep": {"method": "each vehicle alone (Farkas)",
+                                                                      "qp_solves": alone_solves, "pmp_boxes": 0}},
+                            "n_solves": qp.n_solves + alone_solves, "failed_check": "limits",
+                            "reason": reason, "limits_infeasible": reason, **self._limits_info(qp)}
+                        return self._plan(problem, None, st.INFEASIBLE, start, info_alone)
+        sw = self.sweep(qp, progress, alone)
         info: dict[str, Any] = {"path": self.path, "sweep": sw.table, "failures": sw.failures,
                                 "candidates": sw.candidates(),
                                 "unpolished": sum(r.polished is False for r in sw.results)}
@@ -245,20 +278,21 @@ class QPPlanner:
             reason, whole = infeasibility_reason(problem, self.steps, self.hold, self.solver, len(sw.results),
                                                  n_cert)
             if whole or all(r.solver_status == st.INFEASIBLE for r in sw.results):
-                info.update(n_solves=qp.n_solves, failed_check="limits", reason=reason, limits_infeasible=reason)
+                info.update(n_solves=qp.n_solves + extra, failed_check="limits", reason=reason,
+                            limits_infeasible=reason)
                 return self._plan(problem, None, st.INFEASIBLE, start, info)
             info["reason"] = f"no candidate solved within the limits: {sw.candidates()['failed']}; {reason}"
         if best is None:
             failed = Counter(r.failed_check for r in sw.results if r.failed_check)
             worst = max(sw.results, key=lambda r: r.kkt.worst_rel()[1] if r.kkt is not None else -1.0)
-            info.update(n_solves=qp.n_solves, checks=_checks_of(worst),
+            info.update(n_solves=qp.n_solves + extra, checks=_checks_of(worst),
                         failed_check=failed.most_common(1)[0][0] if failed else "sweep_candidates",
                         why="no candidate of the sweep solved to a verified optimum")
             return self._plan(problem, None, sw.failure_status(), start, info)
         info["grid_best"] = {"contact_times": best.contact_times.tolist(), "cost": best.cost}
         if self.contact == "refine":
             best = self._refine(qp, best)
-        info["n_solves"] = qp.n_solves
+        info["n_solves"] = qp.n_solves + extra
         checks = _checks_of(best)
         checks["sweep_candidates"] = {"value": len(sw.could_beat), "tol": 0, "ok": sw.certified}
         info["checks"] = checks

@@ -97,12 +97,12 @@ def pmp_lower_bound(qp: CandidateSolver, nodes: tuple[int, ...]) -> float:
 
 
 def run_sweep(qp: CandidateSolver, progress: Progress | None = None,
-              screen: Callable[[np.ndarray], str | None] | None = None) -> SweepResult:
+              screen: Callable[[tuple[int, ...], np.ndarray], str | None] | None = None) -> SweepResult:
     """Solve every candidate on the uniform grid; bound the unverified ones (module doc).
 
-    ``screen(times)`` (the bounded QP: :func:`iamp.planners.qp.bounded.box_screen`) returns a
-    reason when a candidate is certified infeasible without a QP solve; such a candidate is
-    recorded ``infeasible`` (certified) and not solved."""
+    ``screen(nodes, times)`` (the bounded QP: :meth:`iamp.planners.qp.planner.QPPlanner.sweep`)
+    returns a reason when a candidate is certified infeasible without a QP solve; such a
+    candidate is recorded ``infeasible`` (certified) and not solved."""
     import time
 
     t0 = time.perf_counter()
@@ -120,7 +120,7 @@ def run_sweep(qp: CandidateSolver, progress: Progress | None = None,
         if screen is not None:
             for j, nodes in enumerate(chunk):
                 times = qp.t_nodes[np.asarray(nodes, dtype=np.int64)].copy()
-                why = screen(times)
+                why = screen(tuple(int(k) for k in nodes), times)
                 if why is not None:
                     screened[j] = CandidateResult(nodes=tuple(int(k) for k in nodes), status=st.INFEASIBLE,
                                                   solver_status=st.INFEASIBLE, raw_status=why, cost=np.inf,
