@@ -282,3 +282,12 @@ def test_the_pruned_sweep_equals_the_full_sweep(seed: int, scale: float, jerk: f
     else:
         assert plan.status == "optimal" and plan.cost == pytest.approx(full.best.cost, rel=1e-9)
         assert np.allclose(plan.contact_times, full.best.contact_times)
+
+
+def test_the_api_compares_a_bounded_problem() -> None:
+    _, p, _ = load_problem("paper-1-poly")
+    comp = iamp.compare(p.with_limits(TEMPLATE_LIMITS), steps=(20,), solvers=("clarabel",), holds=("foh", "zoh"),
+                        repeats=1)
+    assert comp.all_agree and not comp.any_failed
+    js = comp.to_json()["scenarios"][0]
+    assert js["limits"]["ax"] == [-6.0, 3.0] and "pmp" in js and len(js["pmp"]["hamiltonian_jump_residuals"]) == 1
