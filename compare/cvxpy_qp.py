@@ -21,6 +21,13 @@ steps are Parameters too.  cvxpy's ``dual_value`` of ``lhs == rhs`` is the multi
 like the production path: the primal and dual vectors are mapped onto the rows of
 :class:`~iamp.planners.qp.data.QPData` and the KKT residuals recomputed from those matrices.
 
+With ``problem.limits`` (SPEC §14) the limit rows of :func:`iamp.planners.qp.limits.limit_rows`
+(the one implementation of the rows) are added as ``lo <= A_L z <= hi`` on the same variables,
+their duals mapped onto the stacked rows ``[A; A_L]`` (``y > 0`` at the upper bound), and the
+KKT check adds complementarity; an infeasible candidate is certified from cvxpy's duals (the
+Farkas ray, either sign).  The sweep's screens (:meth:`~iamp.planners.qp.planner.QPPlanner.sweep`)
+are the planner's, shared with the native path.
+
 cvxpy status → :mod:`iamp.core.status`: ``optimal`` → OPTIMAL; ``optimal_inaccurate`` →
 INACCURATE; ``infeasible(_inaccurate)`` → INFEASIBLE; ``user_limit`` → MAX_ITER (cvxpy's word
 for a solver's iteration or time limit); ``unbounded(_inaccurate)``, ``solver_error`` and
