@@ -12,7 +12,8 @@ angles reconstructed with its default rear wheelbase) — a path-velocity decomp
 the route planner's lane and only adapts its speed.  Its states (position, velocity,
 orientation, steering angle) are written unchanged as a kinematic single-track ``KS`` solution
 (vehicle type 2, cost function ``WX1``): ``OUT_DIR/<scenario>.solution.xml`` for every scenario
-where the planner says the goal is reached, and ``OUT_DIR/peer.json`` (status, the planner's
+where the planner returns a trajectory (reaching the goal or not: iamp's checker names the
+failure), and ``OUT_DIR/peer.json`` (status, the planner's
 own collision verdict, planning time); ``iamp commonroad bench --peer OUT_DIR`` judges and
 scores them with the same checks and costs as iamp's plans.
 """
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import sys
 import time
 import traceback
@@ -32,6 +34,8 @@ LABEL = "idm-peer"
 #: reference path from the start to the goal's centre by the middle of the goal's time window,
 #: inside the goal's speed interval); ``--desired=goal`` on the command line.
 DESIRED = "default"
+#: ``--headway=S``: the IDM's safe time headway (the package's default: 1.6 s, the IDM paper's).
+HEADWAY: float | None = None
 
 
 def _desired_speed(pp: object, reference: object, dt: float) -> float | None:
@@ -90,6 +94,8 @@ def run(path: Path, out: Path) -> dict[str, object]:
             cfg = IDMConfigFactory.generate_default_config(ignore_static_obstacles)
             if v_des is not None:
                 cfg.v_desired = v_des
+            if HEADWAY is not None:
+                cfg.safe_time_headway = HEADWAY
             return cfg
 
     idm_easy_api.IDMConfigFactory = Factory  # type: ignore[misc]
@@ -102,8 +108,9 @@ def run(path: Path, out: Path) -> dict[str, object]:
                               "status": "goal reached" if reached else "goal not reached",
                               "own_collision_check": bool(collision.collision_detected), "solve_time_s": elapsed,
                               "desired": DESIRED, "v_desired": v_des,
+                              "headway_s": HEADWAY,
                               "steps": len(traj.state_list) - 1}
-    if reached:
+    if traj.state_list:  # written whether or not the planner reached the goal: the checker says which failure
         states = [KSState(time_step=int(s.time_step), position=s.position, velocity=float(s.velocity),
                           orientation=float(s.orientation), steering_angle=float(s.steering_angle or 0.0))
                   for s in traj.state_list]
@@ -117,12 +124,14 @@ def run(path: Path, out: Path) -> dict[str, object]:
 
 
 def main() -> int:
-    global DESIRED
+    global DESIRED, HEADWAY
     logging.disable(logging.WARNING)
-    args = [a for a in sys.argv[1:] if not a.startswith("--desired=")]
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
     for a in sys.argv[1:]:
         if a.startswith("--desired="):
             DESIRED = a.split("=", 1)[1]
+        elif a.startswith("--headway="):
+            HEADWAY = float(a.split("=", 1)[1])
     folder, out = Path(args[0]), Path(args[1])
     out.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -130,8 +139,9 @@ def main() -> int:
         try:
             row = run(path, out)
         except Exception as exc:  # a peer failure is a result, recorded with its reason
-            row = {"scenario": path.stem, "planner": LABEL, "status": f"error: {exc.__class__.__name__}: {exc}"[:300],
-                   "trace": traceback.format_exc(limit=3)}
+            said = re.sub(r"<[^>]* object at 0x[0-9a-f]+>", "the route planner", " ".join(str(exc).split()))
+            row = {"scenario": path.stem, "planner": LABEL, "status": f"error: {exc.__class__.__name__}: {said}"[:300],
+                   "trace": traceback.format_exc()[-1500:]}
         rows.append(row)
         sys.stderr.write(f"{path.stem}: {row['status']}\n")
         (out / "peer.json").write_text(json.dumps(rows, indent=1, default=str) + "\n")
