@@ -51,16 +51,27 @@ from iamp.simulation.decision import (
     EgoNow,
     Gap,
     Neighbour,
+    candidate_gaps,
     check_problem,
     decide,
     end_state,
     judge,
     lane_change_problem,
 )
+from iamp.simulation.failsafe import Obstacle, body_half_extents, feasible_brakes, verify_trajectory
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import FreeTrajectory, PlanFn, Screen, free_plan, make_planner
 from iamp.simulation.simulator import EgoState, Observation, Simulator
+from iamp.simulation.tactical import (
+    TacticalConfig,
+    choose_gap,
+    gap_end,
+    horizons_for,
+    names,
+    rss_regions,
+    seek_accel,
+)
 
 
 @dataclass(frozen=True)
@@ -82,6 +93,21 @@ class ControllerConfig:
     screen: bool = True            # the compiled PMP screens out plans rejected on the limits (planning.screened)
     idm: IDM = field(default_factory=IDM)
     mobil: MOBIL = field(default_factory=MOBIL)
+    #: SPEC §17: iamp drives the ego while it seeks (:mod:`iamp.simulation.tactical`), every plan
+    #: is verified with the ego's body, RSS distances and a fail-safe (:mod:`iamp.simulation.failsafe`),
+    #: the last verified fail-safe runs when no plan verifies, and iamp keeps the wheel after the
+    #: merge (``False``: the loop before issue 30, for comparison).
+    safe: bool = True
+    tactical: TacticalConfig = field(default_factory=TacticalConfig)
+    #: In ``active`` the committed gap is re-planned this often; every period in between the
+    #: kept plan's remainder is re-verified (SPEC §17 mode only).
+    replan_every_s: float = 0.3
+    #: A new plan keeps this much more than ``SafeParams.margin_x`` (a kept plan is re-checked without it) [m].
+    accept_margin_x: float = 1.0
+    #: Gaps planned per seek (the target gap first; SPEC §17 mode only).
+    seek_gaps: int = 2
+    #: Lateral acceleration bound of the lane keeping in ``seek``/``failsafe``/``done`` [m/s²].
+    lane_keep_ay: float = 1.5
 
 
 @dataclass
@@ -104,6 +130,7 @@ class Counters:
     ego_iterations: int = 0     # gaps planned with the follower reacting (--ego-in-forecast)
     ego_converged: int = 0      # of those, converged within ego_tol_m
     ego_replans: int = 0        # planner calls beyond the first per such gap
+    withdrawn: int = 0          # kept plans given up before the body left the origin lane (back to seeking)
 
 
 def imposed(plan: Plan) -> int:
@@ -151,18 +178,25 @@ class Controller:
         self.lat_t0 = 0.0
         self.next_seek = -math.inf
         self.leader_predictor: Any = None
+        self.target_gap: tuple[str | None, str | None] | None = None
+        self.fs_brake: float | None = None   # the deceleration of the last verified fail-safe
+        self.fs_lane: int = self.origin
+        self.prev_y: dict[str, float] = {}
+        self.following = False  # iamp drives the ego in its lane (done / hold) with the tactical IDM
         if self.cfg.ego_in_forecast and self.iamp:
             from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
 
             self.leader_predictor = LeaderPredictor(default_leader_model())
 
     # -- prediction ---------------------------------------------------------------------------
-    def neighbours(self, obs: Observation, ego: EgoState, tf: float) -> list[Neighbour]:
-        """Predicted neighbours in the ego's and the target lane near the ego (batched)."""
+    def neighbours(self, obs: Observation, ego: EgoState, tf: float, all_lanes: bool = False) -> list[Neighbour]:
+        """Predicted neighbours in the ego's and the target lane (every lane with ``all_lanes``)
+        near the ego (batched)."""
         start = time.perf_counter()
         lanes = (self.origin, self.target)
         near = [k for k in range(len(obs.ids))
-                if int(obs.lane[k]) in lanes and abs(obs.x[k] - ego.x) <= self.cfg.decision.relevant_m + 20.0]
+                if (all_lanes or int(obs.lane[k]) in lanes)
+                and abs(obs.x[k] - ego.x) <= self.cfg.decision.relevant_m + (60.0 if all_lanes else 20.0)]
         polys: dict[int, tuple[float, ...]] = {}
         full: list[tuple[int, np.ndarray, np.ndarray]] = []
         need = self.predictor.min_history_s
@@ -191,7 +225,15 @@ class Controller:
                 polys[it[0]] = tuple(float(c) for c in np.linalg.solve(V, vals1[0]))
         self.n.prediction_s += time.perf_counter() - start
         return [Neighbour(obs.ids[k], polys[k], float(obs.y[k]), float(obs.length[k]), float(obs.width[k]),
-                          int(obs.lane[k])) for k in near]
+                          int(obs.lane[k]), self._vy(obs.ids[k], float(obs.y[k]))) for k in near]
+
+    def _vy(self, vid: str, y: float) -> float:
+        """The neighbour's lateral speed from its last observed ``y`` (0 below 0.1 m/s)."""
+        prev = self.prev_y.get(vid)
+        if not self.cfg.safe or prev is None:
+            return 0.0
+        vy = (y - prev) / self.sim.step
+        return vy if abs(vy) >= 0.1 else 0.0
 
     def ego_now(self, ego: EgoState) -> EgoNow:
         return EgoNow(ego.x, ego.vx, ego.y, ego.vy, self.sim.ego_length, self.sim.ego_width)
@@ -260,6 +302,11 @@ class Controller:
     # -- one period -----------------------------------------------------------------------------
     def step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
         """The ego's state for the next step, or ``None`` when SUMO drives it this step."""
+        if self.cfg.safe and self.name != "sumo":
+            try:
+                return self._safe_step(t, obs, ego)
+            finally:
+                self.prev_y = {vid: float(y) for vid, y in zip(obs.ids, obs.y)}
         if self.mode == "done":
             return None
         if self.mode == "hold":
@@ -374,6 +421,234 @@ class Controller:
         return EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt,
                         y=ego.y + ego.vy * dt + ay * dt**2 / 2, vy=ego.vy + ay * dt, ax=ax, ay=ay)
 
+    # -- SPEC §17: safe by construction ----------------------------------------------------------
+    def _obstacles(self, nbs: list[Neighbour]) -> list[Obstacle]:
+        return [Obstacle(n.name, n.poly, n.y, n.length, n.width, n.vy) for n in nbs]
+
+    def _stop(self) -> tuple[float | None, tuple[float, float] | None]:
+        """The origin lane's end as a standing obstacle across its band (merge, onramp)."""
+        drop = self.mission.drop_x
+        if drop is None:
+            return None, None
+        hw = self.sim.highway
+        yc = hw.lane_centre(self.mission.ego_lane)
+        return drop, (yc - hw.lane_width / 2, yc + hw.lane_width / 2)
+
+    def _lane_centre_at(self, y: float) -> float:
+        hw = self.sim.highway
+        return hw.lane_centre(hw.lane_of(y))
+
+    def _verify(self, plan: Plan, obstacles: list[Obstacle], t_from: float = 0.0, accept: bool = False
+                ) -> tuple[str, float | None]:
+        """``("accepted", b)`` when the plan's remainder from ``t_from`` verifies
+        (:func:`~iamp.simulation.failsafe.verify_trajectory`; ``b``: the fail-safe deceleration of
+        the state executed next), else ``("rss:<vehicle>", None)``.  A new plan (``accept``) must
+        keep ``accept_margin_x`` more than a kept plan re-checked (hysteresis: a prediction that
+        moves by less does not undo a plan the moment after it was accepted)."""
+        stop_x, band = self._stop()
+        params = self.cfg.tactical.safe
+        if accept:
+            params = replace(params, margin_x=params.margin_x + self.cfg.accept_margin_x)
+        tf = float(plan.problem.tf)
+        if t_from >= tf - 1e-9:
+            t_from = max(tf - 1e-6, 0.0)
+        v = verify_trajectory(plan.require_trajectory(), t_from, tf, obstacles,
+                              (self.sim.ego_length, self.sim.ego_width), params,
+                              self._lane_centre_at, stop_x, band, self.sim.step)
+        return ("accepted", v.brake_next) if v.ok else (v.reason, None)
+
+    def _in_origin_lane(self, ego: EgoState) -> bool:
+        """The ego's body (at its heading, plus ``margin_y``) is still inside its origin lane's band."""
+        hw = self.sim.highway
+        yc = hw.lane_centre(self.origin)
+        _, hy = body_half_extents(ego.vx, ego.vy, self.sim.ego_length, self.sim.ego_width)
+        return bool(abs(ego.y - yc) + float(hy) + self.cfg.tactical.safe.margin_y < hw.lane_width / 2)
+
+    def _brakes_now(self, ego: EgoState, obstacles: list[Obstacle]) -> float | None:
+        """The smallest fail-safe deceleration safe from the present state (``None``: none is)."""
+        stop_x, band = self._stop()
+        X = np.array([[ego.x, ego.vx, ego.y, ego.vy]])
+        yfs = np.array([self.sim.highway.lane_centre(self.fs_lane)])
+        ok, _ = feasible_brakes(np.zeros(1), X, np.zeros(1), obstacles, (self.sim.ego_length, self.sim.ego_width),
+                                self.cfg.tactical.safe, yfs, stop_x, band)
+        B = np.asarray(self.cfg.tactical.safe.brakes)
+        return float(B[ok[0]][0]) if ok[0].any() else None
+
+    def _move(self, ego: EgoState, ax: float, y_c: float) -> EgoState:
+        """One period of constant input: ``a_x`` (within the car's range, never reversing) and the
+        lane keeping toward ``y_c`` (bounded; at a crawl the lateral speed is only brought to 0: a car
+        does not move sideways without moving forward — the abort's drift of issue 30 item 4)."""
+        dt, cfg = self.sim.step, self.cfg
+        lo, hi = PASSENGER_CAR.ax or (-6.0, 3.0)
+        ax = float(np.clip(ax, lo, hi))
+        if ego.vx + ax * dt < 0.0:
+            ax = -ego.vx / dt
+        lim = cfg.lane_keep_ay
+        if ego.vx < 1.0:
+            ay = float(np.clip(-ego.vy / dt, -lim, lim))
+        else:
+            ay = float(np.clip(-cfg.kp * (ego.y - y_c) - cfg.kd * ego.vy, -lim, lim))
+        return EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt,
+                        y=ego.y + ego.vy * dt + ay * dt**2 / 2, vy=ego.vy + ay * dt, ax=ax, ay=ay)
+
+    def _lane_leader(self, ego: EgoState, nbs: list[Neighbour]) -> Neighbour | None:
+        """The nearest vehicle ahead whose body overlaps the ego's lane band."""
+        hw = self.sim.highway
+        yc = hw.lane_centre(hw.lane_of(ego.y))
+        ahead = [n for n in nbs if n.x(0.0) > ego.x and abs(n.y - yc) < hw.lane_width / 2 + n.width / 2 - 0.2]
+        return min(ahead, key=lambda n: n.x(0.0)) if ahead else None
+
+    def _follow(self, ego: EgoState, nbs: list[Neighbour], target: Gap | None = None) -> EgoState:
+        """The tactical IDM in the ego's lane (the lane's end a standing obstacle while in it)."""
+        hw = self.sim.highway
+        lane = hw.lane_of(ego.y)
+        stop_x = self.mission.drop_x if lane == self.mission.ego_lane else None
+        a = seek_accel(self.ego_now(ego), self._lane_leader(ego, nbs), stop_x, target, hw.speed_limit,
+                       self.cfg.tactical)
+        return self._move(ego, a, hw.lane_centre(lane))
+
+    def _safe_step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
+        """One period of the SPEC §17 loop (module docstring)."""
+        dt, cfg, tac = self.sim.step, self.cfg.decision, self.cfg.tactical
+        nbs = self.neighbours(obs, ego, max(tac.horizons), all_lanes=True)
+        obstacles = self._obstacles(nbs)
+        en = self.ego_now(ego)
+        if self.mode in ("done", "hold"):
+            if self.mode == "hold" and t + 1e-9 >= self.hold_until:
+                self.origin, self.target = self.target, self.origin
+                self.mode, self.next_seek, self.target_gap = "seek", t, None
+            else:
+                return self._follow(ego, nbs)
+        if self.mode == "abort":  # the last verified fail-safe
+            b = self._brakes_now(ego, obstacles)
+            if b is not None:
+                self.fs_brake = b
+            b = self.fs_brake if self.fs_brake is not None else 3.5
+            nxt = self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane))
+            if abs(ego.y - self.sim.highway.lane_centre(self.fs_lane)) < 0.3 and abs(ego.vy) < 0.3:
+                if self.fs_lane == self.target:
+                    self._done(t + dt)
+                else:
+                    self.mode, self.next_seek = "seek", t + dt
+            return nxt
+        if self.name == "mobil":
+            return self._mobil_safe(t, obs, ego, nbs)
+        if self.mode == "seek":
+            target = [n for n in nbs if n.lane == self.target]
+            wide = replace(cfg, max_gaps=10, relevant_m=cfg.relevant_m + 40.0)
+            gaps = candidate_gaps(en, target, wide)
+            drop = self.mission.drop_x
+            x_limit = None if drop is None else drop - self.sim.ego_length
+            chosen = choose_gap(en, gaps, self.target_gap, tac, x_limit)
+            self.target_gap = names(chosen) if chosen is not None else None
+            if t + 1e-9 < self.next_seek:
+                return self._follow(ego, nbs, chosen)
+            self.next_seek = t + self.cfg.seek_every_s
+            order = ([chosen] if chosen is not None else []) + [g for g in candidate_gaps(en, target, wide)
+                                                                 if chosen is None or names(g) != names(chosen)]
+            cur = [n for n in nbs if n.lane == self.origin]
+            verdict, all_v = decide(en, self.y_target(), self.target, self.origin, cur + target, self._plan, cfg,
+                                    verify=lambda p: self._verify(p, obstacles, accept=True)[0],
+                                    ends=lambda g: horizons_for(en, g, cfg, tac), gaps=order[: self.cfg.seek_gaps],
+                                    region=rss_regions(en, tac))
+            for v in all_v:
+                if not v.accepted:
+                    self._reject(v.reason)
+            if not verdict.accepted or verdict.plan is None or verdict.plan.info.get("late"):
+                return self._follow(ego, nbs, chosen)
+            gap = verdict.gap or Gap(None, None)
+            self.committed = names(gap)
+            self.mode, self.plan, self.plan_t0 = "active", verdict.plan, t
+            self.t_end = t + float(verdict.plan.problem.tf)
+            self.next_seek = t + self.cfg.replan_every_s
+            self.fs_brake = self._verify(verdict.plan, obstacles)[1]
+            self.n.accepted_t.append(t)
+        else:
+            assert self.plan is not None
+            tf = self.t_end - t
+            kept = False
+            due = t + 1e-9 >= self.next_seek
+            if tf > self.cfg.min_replan_s and due:
+                self.next_seek = t + self.cfg.replan_every_s
+                by = {n.name: n for n in nbs}
+                gap = Gap(by.get(self.committed[0] or ""), by.get(self.committed[1] or ""))
+                cur = [n for n in nbs if n.lane == self.origin and n.x(0.0) > ego.x
+                       and n.x(0.0) - ego.x <= cfg.relevant_m]
+                lead = min(cur, key=lambda n: n.x(0.0)) if cur else None
+                end = gap_end(en, gap, tf, cfg, tac)
+                reason = "no-safe-end"
+                if end is not None:
+                    dcfg = replace(cfg, horizon_s=tf)
+                    prob = lane_change_problem(en, self.y_target(), gap, lead, dcfg, tf, end, rss_regions(en, tac))
+                    plan = self._plan(prob)
+                    reason = judge(plan, None, dcfg, lambda p: self._verify(p, obstacles)[0])
+                    if reason == "accepted" and not plan.info.get("late"):
+                        self.plan, self.plan_t0, kept = plan, t, True
+                        self.fs_brake = self._verify(plan, obstacles)[1]
+                if not kept:
+                    self._reject(reason)
+                    self.n.fallbacks += 1
+            if not kept:  # the kept plan's remainder, re-verified against the fresh predictions
+                ok, b = self._verify(self.plan, obstacles, t - self.plan_t0)
+                if ok != "accepted" and self._in_origin_lane(ego):
+                    # the body has not reached the target lane: withdraw to seeking (the tactical IDM
+                    # in the lane is the fail-safe there)
+                    self.mode, self.plan, self.next_seek = "seek", None, t + self.cfg.seek_every_s
+                    self.n.withdrawn += 1
+                    return self._follow(ego, nbs)
+                if ok != "accepted":
+                    self.mode, self.plan = "abort", None
+                    self.fs_lane = self.sim.highway.lane_of(ego.y)
+                    self.n.aborts += 1
+                    return self._abort_now(ego, obstacles)
+                self.fs_brake = b if b is not None else self.fs_brake
+        assert self.plan is not None
+        self.n.executed_plans += 1
+        if imposed(self.plan) > 0:
+            self.n.constrained_plans += 1
+        tau = min(t + dt - self.plan_t0, float(self.plan.problem.tf))
+        X = np.asarray(self.plan.require_trajectory().states(np.array([tau])))[0]
+        U = np.asarray(self.plan.require_trajectory().inputs(np.array([max(tau - dt / 2, 0.0)])))[0]
+        nxt = EgoState(x=float(X[0]), vx=float(X[1]), y=float(X[2]), vy=float(X[3]), ax=float(U[0]), ay=float(U[1]))
+        if t + dt >= self.t_end - 1e-9:
+            self._done(t + dt)
+        return nxt
+
+    def _abort_now(self, ego: EgoState, obstacles: list[Obstacle]) -> EgoState:
+        """The first period of the fail-safe: brake in the lane of the ego's centre."""
+        b = self._brakes_now(ego, obstacles)
+        if b is not None:
+            self.fs_brake = b
+        b = self.fs_brake if self.fs_brake is not None else 3.5
+        return self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane))
+
+    def _mobil_safe(self, t: float, obs: Observation, ego: EgoState, nbs: list[Neighbour]) -> EgoState | None:
+        """IDM + MOBIL for a mandatory change (:mod:`iamp.simulation.mobil`): IDM drives the ego in
+        its lane behind its leader and the lane's end (a standing virtual obstacle) while MOBIL
+        is asked every ``seek_every_s``; then the lateral cubic with IDM behind the nearer leader."""
+        if self.mode == "seek":
+            if t + 1e-9 >= self.next_seek:
+                self.next_seek = t + self.cfg.seek_every_s
+                if self._mobil_decide(t, obs, ego):
+                    return self._mobil_step(t, obs, ego)
+            return self._follow_idm(ego, nbs)
+        return self._mobil_step(t, obs, ego)
+
+    def _follow_idm(self, ego: EgoState, nbs: list[Neighbour]) -> EgoState:
+        """Treiber's IDM (:attr:`ControllerConfig.idm`) in the ego's lane, the lane's end a standing
+        obstacle while in it (the MOBIL baseline's longitudinal model)."""
+        hw = self.sim.highway
+        lane = hw.lane_of(ego.y)
+        idm = replace(self.cfg.idm, v0=hw.speed_limit)
+        lead = self._lane_leader(ego, nbs)
+        acc = [idm.accel(ego.vx)]
+        if lead is not None:
+            acc.append(idm.accel(ego.vx, lead.x(0.0) - ego.x - (lead.length + self.sim.ego_length) / 2,
+                                 lead.v(0.0)))
+        if self.mission.drop_x is not None and lane == self.mission.ego_lane:
+            acc.append(idm.accel(ego.vx, self.mission.drop_x - ego.x - self.sim.ego_length / 2, 0.0))
+        return self._move(ego, min(acc), hw.lane_centre(lane))
+
     # -- the baselines ----------------------------------------------------------------------------
     def _cars(self, obs: Observation, ego: EgoState) -> dict[str, Car | None]:
         def nearest(lane: int, ahead: bool) -> Car | None:
@@ -396,22 +671,13 @@ class Controller:
             if t + 1e-9 < self.next_seek:
                 return None
             self.next_seek = t + cfg.seek_every_s
-            start = time.perf_counter()
-            ok, reason = mobil_accepts(idm, cfg.mobil, me, cars["ol"], cars["of"], cars["nl"], cars["nf"],
-                                       mandatory=self.mission.lane_end_m is not None or not self.mission.alternating)
-            self.n.plan_times.append(time.perf_counter() - start)
-            self.n.plans += 1
-            if not ok:
-                self.n.rejected["mobil-" + reason] = self.n.rejected.get("mobil-" + reason, 0) + 1
+            if not self._mobil_decide(t, obs, ego):
                 return None
-            T = cfg.decision.horizon_s
-            self.lateral = FreeTrajectory.of(EgoBoundary(tf=T, x0=0.0, y0=ego.y, vx0=0.0, vy0=ego.vy, xf=0.0,
-                                                         yf=self.y_target(), vxf=0.0, vyf=0.0)).cy
-            self.lat_t0, self.t_end, self.mode = t, t + T, "active"
-            self.n.accepted_t.append(t)
         assert self.lateral is not None
         in_target = self.sim.highway.lane_of(ego.y) == self.target
         leaders = [c for c in ((None if in_target else cars["ol"]), cars["nl"]) if c is not None]
+        if cfg.safe and not in_target and self.mission.drop_x is not None:  # the lane's end: a standing obstacle
+            leaders.append(Car(self.mission.drop_x + self.sim.ego_length / 2, 0.0, self.sim.ego_length))
         acc = min((idm.accel(me.v, c.x - me.x - (c.length + me.length) / 2, c.v) for c in leaders),
                   default=idm.accel(me.v))
         lo, hi = PASSENGER_CAR.ax or (-math.inf, math.inf)
@@ -427,6 +693,28 @@ class Controller:
         if t + dt >= self.t_end - 1e-9:
             self._done(t + dt)
         return nxt
+
+    def _mobil_decide(self, t: float, obs: Observation, ego: EgoState) -> bool:
+        """Ask MOBIL about the adjacent gap; on acceptance start the lateral cubic (mode ``active``)."""
+        cfg = self.cfg
+        idm = replace(cfg.idm, v0=self.sim.highway.speed_limit)
+        cars = self._cars(obs, ego)
+        me = Car(ego.x, ego.vx, self.sim.ego_length)
+        start = time.perf_counter()
+        ok, reason = mobil_accepts(idm, cfg.mobil, me, cars["ol"], cars["of"], cars["nl"], cars["nf"],
+                                   mandatory=self.mission.lane_end_m is not None or not self.mission.alternating,
+                                   lane_end=self.mission.drop_x if cfg.safe else None, biased=cfg.safe)
+        self.n.plan_times.append(time.perf_counter() - start)
+        self.n.plans += 1
+        if not ok:
+            self.n.rejected["mobil-" + reason] = self.n.rejected.get("mobil-" + reason, 0) + 1
+            return False
+        T = cfg.decision.horizon_s
+        self.lateral = FreeTrajectory.of(EgoBoundary(tf=T, x0=0.0, y0=ego.y, vx0=0.0, vy0=ego.vy, xf=0.0,
+                                                     yf=self.y_target(), vxf=0.0, vyf=0.0)).cy
+        self.lat_t0, self.t_end, self.mode = t, t + T, "active"
+        self.n.accepted_t.append(t)
+        return True
 
     def _sumo_step(self, t: float) -> None:
         """The reference: LC2013 (or SL2015) changes lanes when it judges the gap safe."""

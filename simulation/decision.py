@@ -83,6 +83,7 @@ class Neighbour:
     length: float
     width: float
     lane: int
+    vy: float = 0.0  # observed lateral speed (one-step difference), for the body check's sweep
 
     def x(self, t: float) -> float:
         return float(np.polynomial.polynomial.polyval(t, self.poly))
@@ -114,8 +115,10 @@ class DecisionConfig:
     """Parameters of the decision layer (module docstring)."""
 
     horizon_s: float = 5.0
-    safety_x: float = 5.0
-    safety_y: float = 0.5
+    #: The safety region around each neighbour's body contains the ego's body at a heading up to
+    #: 5°: half the ego's length (2.4 m) + 1 m, half its width (0.9 m) + 0.3 m (SPEC §17).
+    safety_x: float = 3.5
+    safety_y: float = 1.2
     headway_s: float = 1.0
     relevant_m: float = 60.0
     max_gaps: int = 3
@@ -177,23 +180,31 @@ def _vehicle(n: Neighbour, corner: str, cfg: DecisionConfig, safety_x: float | N
                               cfg.safety_x if safety_x is None else safety_x, cfg.safety_y, name=n.name)
 
 
+#: ``region(vehicle, role, boundary) -> safety_x``: the length of a constrained vehicle's safety
+#: region (``role`` ``"follower"``, ``"leader"`` or ``"current"``), e.g. RSS-sized
+#: (:func:`iamp.simulation.tactical.rss_regions`); ``None``: ``cfg.safety_x``.
+Region = Callable[[Neighbour, str, EgoBoundary], float]
+
+
 def lane_change_problem(ego: EgoNow, y_target: float, gap: Gap, current_leader: Neighbour | None,
-                        cfg: DecisionConfig, T: float, end: tuple[float, float] | None = None
-                        ) -> Problem | EgoBoundary:
+                        cfg: DecisionConfig, T: float, end: tuple[float, float] | None = None,
+                        region: Region | None = None) -> Problem | EgoBoundary:
     """The problem into ``gap`` over ``T`` with the constraint set of the module docstring
-    (an :class:`EgoBoundary` when no vehicle is left to constrain)."""
+    (an :class:`EgoBoundary` when no vehicle is left to constrain); ``region`` sizes each
+    vehicle's region along ``x`` (:data:`Region`)."""
     d = 1.0 if y_target > ego.y else -1.0
     xf, vxf = end if end is not None else end_state(ego, gap, cfg, T)
     boundary = EgoBoundary(tf=T, x0=ego.x, y0=ego.y, vx0=ego.vx, vy0=ego.vy, xf=xf, yf=y_target, vxf=vxf, vyf=0.0)
     low, up = ("lower", "upper") if d > 0 else ("upper", "lower")
     vehicles: list[SurroundingVehicle] = []
-    for n, corner in ((gap.follower, "front-" + low), (gap.leader, "rear-" + low), (current_leader, "rear-" + up)):
+    for n, corner, role in ((gap.follower, "front-" + low, "follower"), (gap.leader, "rear-" + low, "leader"),
+                            (current_leader, "rear-" + up, "current")):
         if n is None:
             continue
-        sx = None
+        sx = None if region is None else region(n, role, boundary)
         if n is current_leader:
             gap_now = n.x(0.0) - n.length / 2 - ego.x
-            if gap_now < cfg.safety_x:
+            if gap_now < (cfg.safety_x if sx is None else sx):
                 sx = max(gap_now - 0.5, 0.0)
         sv = _vehicle(n, corner, cfg, sx)
         if d * (ego.y - sv.corner_y) < 0:  # not yet passed laterally
@@ -271,14 +282,26 @@ def limit_violations_of(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: 
     return bad
 
 
-def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig) -> str:
-    """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``intrusion:``)."""
+#: ``verify(plan) -> "accepted" | "rss:<vehicle>"``: the body, RSS and fail-safe test of
+#: :mod:`iamp.simulation.failsafe` (it replaces the §9 point check when given).
+Verify = Callable[[Plan], str]
+
+
+def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig, verify: Verify | None = None) -> str:
+    """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``intrusion:``, ``rss:``).
+
+    With ``verify`` the safety test is ``verify(plan)`` (the ego's body, RSS distances and a
+    verified fail-safe, :mod:`iamp.simulation.failsafe`) instead of the §9 report of the ego's
+    centre point against ``check``.
+    """
     if plan.status not in SUCCESS or plan.trajectory is None:
         return f"failed:{plan.status}"
     tf = float(plan.problem.tf)
     bad = limit_violations(plan.trajectory, tf, cfg.limits, cfg.check_dt)
     if bad:
         return "limits:" + ",".join(bad)
+    if verify is not None:
+        return verify(plan)
     if check is not None:
         rep = safety_report(check, plan.trajectory)
         hit = [v.name for v in rep.vehicles if not v.intrusion_free]
@@ -295,37 +318,51 @@ def decide(ego: EgoNow, y_target: float, target_lane: int, origin_lane: int, nei
            planner: Callable[[Problem | EgoBoundary], Plan], cfg: DecisionConfig,
            on_plan: Callable[[Plan, Problem | EgoBoundary], None] | None = None, *,
            react: React | None = None, react_iter: int = 3, react_tol_m: float = 1.0,
-           on_iterate: Callable[[dict[str, Any]], None] | None = None) -> tuple[Verdict, list[Verdict]]:
+           on_iterate: Callable[[dict[str, Any]], None] | None = None,
+           verify: Verify | None = None,
+           ends: Callable[[Gap], list[tuple[float, tuple[float, float]]]] | None = None,
+           gaps: Sequence[Gap] | None = None, region: Region | None = None) -> tuple[Verdict, list[Verdict]]:
     """Try the candidate gaps in order; the first accepted verdict (or the last rejection) and all.
 
     ``planner`` is called once per candidate (without ``react``); ``on_plan`` sees every plan
     (for counting).  With ``react`` a gap with a follower is planned by the iteration of the
     module docstring (at most ``1 + react_iter`` planner calls); ``on_iterate`` receives the
     iteration's record (``iterations``, ``converged``, ``changes_m``, ``plans``).
+
+    ``verify`` replaces the §9 point check (:func:`judge`); ``ends(gap)`` gives the
+    ``(T, (x_f, v_f))`` to plan for a gap, best first (:func:`iamp.simulation.tactical.horizons_for`;
+    a gap without one is not planned, ``Verdict.reason`` ``"no-safe-end"``), instead of
+    ``horizon_s`` and :func:`end_state`; ``gaps`` replaces :func:`candidate_gaps`; ``region``
+    sizes the constrained regions (:func:`lane_change_problem`).
     """
     target = [n for n in neighbours if n.lane == target_lane]
     ahead = [n for n in neighbours if n.lane == origin_lane and n.x(0.0) > ego.x
              and n.x(0.0) - ego.x <= cfg.relevant_m]
     current_leader = min(ahead, key=lambda n: n.x(0.0)) if ahead else None
     verdicts: list[Verdict] = []
-    for gap in candidate_gaps(ego, target, cfg):
-        nbs = neighbours
-        if react is None or gap.follower is None:
-            prob = lane_change_problem(ego, y_target, gap, current_leader, cfg, cfg.horizon_s)
-            plan = planner(prob)
-            if on_plan is not None:
-                on_plan(plan, prob)
-        else:
-            plan, gap, prob, nbs = _iterate(ego, y_target, gap, current_leader, neighbours, planner, cfg, on_plan,
-                                            react, react_iter, react_tol_m, on_iterate)
-        boundary = prob.ego if isinstance(prob, Problem) else prob
-        check = check_problem(boundary, ego, nbs, (origin_lane, target_lane), cfg)
-        v = Verdict(False, "", plan, gap, prob, check)
-        v.reason = judge(plan, check, cfg)
-        v.accepted = v.reason == "accepted"
-        verdicts.append(v)
-        if v.accepted:
-            return v, verdicts
+    for gap in (candidate_gaps(ego, target, cfg) if gaps is None else gaps):
+        options: list[tuple[float, tuple[float, float] | None]] = \
+            [(cfg.horizon_s, None)] if ends is None else list(ends(gap))
+        if not options:
+            verdicts.append(Verdict(False, "no-safe-end", None, gap))
+        for T, end in options:
+            nbs = neighbours
+            if react is None or gap.follower is None:
+                prob = lane_change_problem(ego, y_target, gap, current_leader, cfg, T, end, region)
+                plan = planner(prob)
+                if on_plan is not None:
+                    on_plan(plan, prob)
+            else:
+                plan, gap, prob, nbs = _iterate(ego, y_target, gap, current_leader, neighbours, planner, cfg,
+                                                on_plan, react, react_iter, react_tol_m, on_iterate)
+            boundary = prob.ego if isinstance(prob, Problem) else prob
+            check = None if verify is not None else check_problem(boundary, ego, nbs, (origin_lane, target_lane), cfg)
+            v = Verdict(False, "", plan, gap, prob, check)
+            v.reason = judge(plan, check, cfg, verify)
+            v.accepted = v.reason == "accepted"
+            verdicts.append(v)
+            if v.accepted:
+                return v, verdicts
     return (verdicts[-1] if verdicts else Verdict(False, "no gap")), verdicts
 
 

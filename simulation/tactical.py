@@ -1,0 +1,253 @@
+r"""The tactical layer: drive the ego while it seeks a gap, and choose each plan's horizon and end.
+
+While the ego seeks, iamp (not SUMO) drives it in its lane with IDM (:class:`~iamp.simulation.mobil.IDM`)
+behind the nearer of
+
+* its lane's leader, and
+* the lane's end as a **standing virtual obstacle** (Treiber & Kesting's treatment of a lane
+  drop or an on-ramp's end, *Traffic Flow Dynamics* §14.4),
+
+and adapts its speed toward a **target gap** of the target lane, ahead or behind: with the
+gap's safe interval (below) ``[lo(t), hi(t)]``, its speed ``v_g`` and the aim point ``x_m`` (its
+middle), the gap term is ``a_g = k (v_g + clip(ω (x_m - x), ±w_max) - v)`` (``k = 1`` s⁻¹,
+``ω = 0.5`` s⁻¹, ``w_max = 8`` m/s: a damping ratio of 0.71), clipped to ``[-3, 1.5]`` m/s²;
+the ego's acceleration is the smallest of the IDM terms and ``a_g`` (IDM's free-road term
+toward ``1.1 v_0`` bounds ``a_g`` from above).  The target gap is re-chosen every period (its
+vehicles may change lanes or brake) among the gaps whose safe interval is at least
+``min_width_m`` wide and begins within ``reach_m`` (an open gap past the vehicles in view is no
+gap): the one whose aim point is nearest where the ego meets it after matching its speed at
+``b_match``, ``|x_m - x + w|w|/(2 b_match)|`` with ``w = v_g - v``, a previously targeted gap
+kept unless another is better by more than ``switch_m``.
+
+**The safe interval of a gap at time ``T``** (the end state of a plan lies in it): the ego's
+centre ``x`` with the follower ``f`` at RSS distance behind (``f`` the rear) and the leader
+``l`` at RSS distance ahead (the ego the rear), both with the fail-safe deceleration ``b_plan``
+and :class:`~iamp.simulation.failsafe.SafeParams`' others, plus ``margin_x`` (0.5 m):
+
+.. math::  lo = x_f + \tfrac{L_f + L_e}{2} + d(v_f, v, ρ_o, a_o, b_{min,o}, b) + m_x, \qquad
+           hi = x_l - \tfrac{L_l + L_e}{2} - d(v, v_l, ρ_e, 0, b, b_{max,o}) - m_x .
+
+**Horizon and end state.**  For each ``T`` of ``horizons`` the end speed is the gap's mean
+predicted speed (reachable at ``REACH`` of the ``a_x`` bounds); the end point is the
+constant-acceleration point ``x_0 + (v_0 + v_f)T/2`` clipped into ``[lo + s, hi - s]``
+(``s = min(2, (hi - lo)/2)``).  A ``T`` whose interval is empty is not planned; the others are
+ranked by the peak longitudinal acceleration of the unconstrained cubic to that end state,
+``max(|6e/T² - 2g/T|, |-6e/T² + 4g/T|)`` (``e = x_f - x_0 - v_0 T``, ``g = v_f - v_0``), and
+the ``max_horizons`` best are planned (none whose unconstrained cubic already breaks the
+``a_x`` bounds: a constrained plan, costlier, would be rejected on them).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from iamp.core.problem import EgoBoundary
+from iamp.simulation.decision import REACH, DecisionConfig, EgoNow, Gap, Neighbour
+from iamp.simulation.failsafe import SafeParams, rss_distance
+from iamp.simulation.mobil import IDM
+
+__all__ = ["TacticalConfig", "choose_gap", "gap_end", "horizons_for", "rss_regions", "safe_interval", "seek_accel"]
+
+
+@dataclass(frozen=True)
+class TacticalConfig:
+    """Parameters of the tactical layer (module docstring)."""
+
+    horizons: tuple[float, ...] = (4.0, 5.0, 6.0, 7.0)
+    max_horizons: int = 2
+    b_plan: float = 4.5
+    omega: float = 0.5
+    k_speed: float = 1.0
+    closing_max: float = 8.0
+    #: A gap is planned only when the ego is within ``plan_window_m + window_s |v_g - v|`` of its
+    #: safe interval now [m, s].
+    plan_window_m: float = 5.0
+    window_s: float = 2.0
+    #: The tactical IDM stops this far before the lane's end (room to merge from a standstill) [m].
+    end_room_m: float = 8.0
+    gap_accel: tuple[float, float] = (-3.0, 1.5)
+    aim_s: float = 3.0
+    switch_m: float = 10.0
+    reach_m: float = 60.0
+    #: A gap whose safe interval is narrower than this is not a target [m].
+    min_width_m: float = 2.0
+    open_m: float = 10.0
+    b_match: float = 2.0
+    #: A ``(T, end)`` whose unconstrained cubic needs more than this fraction of the ``a_x``
+    #: bounds is not planned (a constrained plan costs more; it would be rejected on the limits).
+    reach_limits: float = 1.0
+    safe: SafeParams = field(default_factory=SafeParams)
+    idm: IDM = field(default_factory=lambda: IDM(T=1.2, s0=2.0, a_max=1.5, b=2.0))
+
+
+def safe_interval(ego: EgoNow, gap: Gap, v: float, T: float, cfg: TacticalConfig) -> tuple[float, float]:
+    """``[lo, hi]`` of the ego's centre in ``gap`` at ``T`` at speed ``v`` (module docstring)."""
+    p = cfg.safe
+    lo, hi = -np.inf, np.inf
+    if gap.follower is not None:
+        f = gap.follower
+        d = float(rss_distance(f.v(T), v, p.rho_other, p.a_acc_other, p.b_min_other, cfg.b_plan))
+        lo = f.x(T) + (f.length + ego.length) / 2 + d + p.margin_x
+    if gap.leader is not None:
+        ld = gap.leader
+        d = float(rss_distance(v, ld.v(T), p.rho_ego, 0.0, cfg.b_plan, p.b_max_other))
+        hi = ld.x(T) - (ld.length + ego.length) / 2 - d - p.margin_x
+    return lo, hi
+
+
+def gap_speed(ego: EgoNow, gap: Gap, T: float) -> float:
+    speeds = [n.v(T) for n in (gap.follower, gap.leader) if n is not None]
+    return float(np.mean(speeds)) if speeds else ego.vx
+
+
+def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: TacticalConfig
+            ) -> tuple[float, float] | None:
+    """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when it is empty."""
+    vxf = gap_speed(ego, gap, T)
+    ax = dcfg.limits.ax or (-np.inf, np.inf)
+    vxf = float(np.clip(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T))
+    vxf = float(np.clip(vxf, 0.0, dcfg.speed_cap))
+    lo, hi = safe_interval(ego, gap, vxf, T, cfg)
+    if not lo < hi:
+        return None
+    s = min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
+    x = ego.x + (ego.vx + vxf) * T / 2
+    return float(np.clip(x, lo + s, hi - s)), vxf
+
+
+def peak_accel(ego: EgoNow, end: tuple[float, float], T: float) -> float:
+    """The unconstrained cubic's peak ``|a_x|`` to ``end`` over ``T`` (module docstring)."""
+    e = end[0] - ego.x - ego.vx * T
+    g = end[1] - ego.vx
+    return float(max(abs(6 * e / T**2 - 2 * g / T), abs(-6 * e / T**2 + 4 * g / T)))
+
+
+def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfig, t_max: float | None = None
+                 ) -> list[tuple[float, tuple[float, float]]]:
+    """The ``max_horizons`` best ``(T, end)`` for ``gap`` (module docstring); ``t_max`` bounds ``T``.
+    None while the ego is farther than ``plan_window_m + window_s |v_g - v|`` from the gap's
+    safe interval now (the tactical layer brings it there first)."""
+    lo, hi = safe_interval(ego, gap, ego.vx, 0.0, cfg)
+    window = cfg.plan_window_m + cfg.window_s * abs(gap_speed(ego, gap, 0.0) - ego.vx)
+    if not (lo - window <= ego.x <= hi + window):
+        return []
+    out = []
+    for T in cfg.horizons:
+        if t_max is not None and T > t_max + 1e-9:
+            continue
+        end = gap_end(ego, gap, T, dcfg, cfg)
+        if end is None:
+            continue
+        peak = peak_accel(ego, end, T)
+        e = end[0] - ego.x - ego.vx * T
+        g = end[1] - ego.vx
+        a0, a1 = 6 * e / T**2 - 2 * g / T, -6 * e / T**2 + 4 * g / T  # the cubic's a_x at 0 and T
+        ax = dcfg.limits.ax
+        if ax is not None and (min(a0, a1) < cfg.reach_limits * ax[0] or max(a0, a1) > cfg.reach_limits * ax[1]):
+            continue  # even the unconstrained plan breaks the a_x bounds: not planned
+        out.append((peak, T, end))
+    out.sort(key=lambda r: r[0])
+    return [(T, end) for _, T, end in out[: cfg.max_horizons]]
+
+
+def aim_point(ego: EgoNow, gap: Gap, cfg: TacticalConfig) -> tuple[float, float] | None:
+    """``(x_m, v_g)``: where in ``gap`` the ego aims now and the gap's speed; ``None`` when the
+    gap's safe interval is narrower than ``min_width_m`` or its near end lies beyond ``reach_m`` ahead
+    or behind (an open gap past
+    the vehicles in view is not a gap)."""
+    v = gap_speed(ego, gap, 0.0)
+    lo, hi = safe_interval(ego, gap, v, 0.0, cfg)
+    if not hi - lo >= cfg.min_width_m or lo > ego.x + cfg.reach_m or hi < ego.x - cfg.reach_m:
+        return None
+    if np.isfinite(lo) and np.isfinite(hi):
+        return (lo + hi) / 2, v
+    if np.isfinite(lo):
+        return lo + cfg.open_m, v
+    if np.isfinite(hi):
+        return hi - cfg.open_m, v
+    return ego.x, v
+
+
+def choose_gap(ego: EgoNow, gaps: Sequence[Gap], previous: tuple[str | None, str | None] | None,
+               cfg: TacticalConfig, x_limit: float | None = None) -> Gap | None:
+    """The target gap (module docstring): the aim point nearest where the ego would meet it after
+    matching the gap's speed at ``b_match``, with hysteresis."""
+    best: list[tuple[float, Gap]] = []
+    for g in gaps:
+        aim = aim_point(ego, g, cfg)
+        if aim is None:
+            continue
+        xm, v = aim
+        w = v - ego.vx
+        if x_limit is not None and xm + max(v, 0.0) * cfg.aim_s > x_limit:
+            continue
+        cost = abs((xm - ego.x) + w * abs(w) / (2 * cfg.b_match))
+        if previous is not None and names(g) == previous:
+            cost -= cfg.switch_m
+        best.append((cost, g))
+    return min(best, key=lambda r: r[0])[1] if best else None
+
+
+def names(g: Gap) -> tuple[str | None, str | None]:
+    return (g.follower.name if g.follower else None, g.leader.name if g.leader else None)
+
+
+def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, target: Gap | None, v0: float,
+               cfg: TacticalConfig) -> float:
+    """The ego's longitudinal acceleration while it seeks (module docstring), unclipped."""
+    idm = replace(cfg.idm, v0=max(v0, 1.0))
+    acc = [idm.accel(ego.vx)]
+    if leader is not None:
+        gap = leader.x(0.0) - ego.x - (leader.length + ego.length) / 2
+        acc.append(idm.accel(ego.vx, gap, leader.v(0.0)))
+    if stop_x is not None:
+        acc.append(idm.accel(ego.vx, stop_x - cfg.end_room_m - ego.x - ego.length / 2, 0.0))
+    if target is not None:
+        aim = aim_point(ego, target, cfg)
+        if aim is not None:
+            xm, v = aim
+            w_des = float(np.clip(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max))
+            a_g = cfg.k_speed * (v + w_des - ego.vx)
+            acc.append(float(np.clip(a_g, *cfg.gap_accel)))
+            acc[0] = replace(idm, v0=1.1 * idm.v0).accel(ego.vx)
+    return float(min(acc))
+
+
+def rss_regions(ego: EgoNow, cfg: TacticalConfig) -> Callable[[Neighbour, str, EgoBoundary], float]:
+    r"""RSS-sized safety regions for the planners' constraints (:data:`iamp.simulation.decision.Region`).
+
+    The region of a constrained vehicle along ``x`` is half the ego's length plus ``margin_x``
+    plus the RSS distance at the end of the plan (``b_plan`` as the ego's braking; the ego at
+    ``v_{x,f}``, the vehicle at its predicted speed at ``t_f``): for the target lane's follower
+    (the rear), for a leader (the ego the rear; for the current lane's leader at ``t = 0``).
+    With the neighbour's ``safety_y`` (half the ego's width + 0.3 m) the region contains the
+    ego's body at the RSS distance.
+
+    **Why the active set failed when the regions grew** (issue 30 item 3): a region sized
+    without regard to the boundary conditions can contain the plan's end state (or its start):
+    a ``rear-lower`` leader whose region reaches back past ``x_f`` while ``y_f`` lies beyond the
+    corner's ``y`` has no admissible plan at all — the equality cannot place the contact, the
+    active set imposes every corner and still ends ``unsafe``.  So each region is capped by the
+    clearance the boundary leaves, less 0.5 m: the follower's by ``x_f - x_{fol}(t_f) -
+    L_{fol}/2``, a target-lane leader's by ``x_l(t_f) - L_l/2 - x_f``, the current leader's by
+    its bumper gap now (:func:`~iamp.simulation.decision.lane_change_problem`).  What a capped
+    region does not keep, the verification (:mod:`iamp.simulation.failsafe`) rejects.
+    """
+    p = cfg.safe
+
+    def region(n: Neighbour, role: str, b: EgoBoundary) -> float:
+        if role == "follower":
+            d = float(rss_distance(n.v(b.tf), b.vxf, p.rho_other, p.a_acc_other, p.b_min_other, cfg.b_plan))
+            room = b.xf - n.x(b.tf) - n.length / 2 - 0.5
+        elif role == "leader":
+            d = float(rss_distance(b.vxf, n.v(b.tf), p.rho_ego, 0.0, cfg.b_plan, p.b_max_other))
+            room = n.x(b.tf) - n.length / 2 - b.xf - 0.5
+        else:
+            d = float(rss_distance(b.vx0, n.v(0.0), p.rho_ego, 0.0, cfg.b_plan, p.b_max_other))
+            room = np.inf
+        return float(max(min(ego.length / 2 + p.margin_x + d, room), 0.0))
+
+    return region

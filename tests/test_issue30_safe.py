@@ -1,0 +1,224 @@
+"""Issue 30 items 2-4 and 6: the ego's body, RSS distances, the verified fail-safe, the tactical
+layer and the MOBIL baseline of the closed loop (SPEC §17)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.core.free import FreeTrajectory
+from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.safety import safety_report
+from iamp.simulation.decision import EgoNow, Gap, Neighbour
+from iamp.simulation.failsafe import (
+    Obstacle,
+    SafeParams,
+    body_half_extents,
+    feasible_brakes,
+    rss_distance,
+    verify_states,
+    verify_trajectory,
+)
+from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
+from iamp.simulation.tactical import TacticalConfig, horizons_for, rss_regions, seek_accel
+
+W_LANE = 3.75
+
+
+def lane_centre_at(y: float) -> float:
+    return (math.floor(y / W_LANE) + 0.5) * W_LANE
+
+
+def _stop_distance(v: float, rho: float, a_acc: float, b: float) -> tuple[float, float]:
+    """Distance to a standstill: ``rho`` at ``a_acc`` (not below 0 speed), then braking at ``b``."""
+    if v + rho * a_acc < 0:
+        t = v / -a_acc
+        return v * t / 2, 0.0
+    v1 = v + rho * a_acc
+    return v * rho + a_acc * rho**2 / 2 + v1**2 / (2 * b), v1
+
+
+# -- the RSS distance ------------------------------------------------------------------------------
+@settings(max_examples=300, deadline=None)
+@given(st.floats(0, 40), st.floats(0, 40), st.floats(0.05, 1.5), st.floats(0, 3), st.floats(2, 9),
+       st.floats(2, 9), st.floats(0.01, 5))
+def test_rss_distance_is_the_distance_at_which_both_stop_without_touching(v_r, v_f, rho, a_acc, b_min, b_max, slack):
+    """At the RSS distance (plus slack) the rear, reacting after ``rho`` and braking at ``b_min``,
+    stands behind the front braking at ``b_max`` from the same moment; at (distance - slack) with
+    a positive distance it does not (SPEC §17's formula is the tight bound on stopping positions)."""
+    d = float(rss_distance(v_r, v_f, rho, a_acc, b_min, b_max))
+    rear, _ = _stop_distance(v_r, rho, a_acc, b_min)
+    front = v_f**2 / (2 * b_max)
+    assert rear <= d + front + 1e-9  # stops behind the front's stopping point
+    if d > slack:
+        assert rear > (d - slack) + front - 1e-9
+    assert d >= 0.0
+
+
+def test_rss_distance_of_the_issue_example_needs_more_than_the_car_can_brake():
+    """Issue 30: 27.9 m/s at 5.4 m behind a car at 15.1 m/s needs ~15 m/s² to avoid it: the
+    RSS distance (ego braking 6 m/s², the other 5 m/s²) is far larger than 5.4 m."""
+    assert float(rss_distance(27.9, 15.1, 0.2, 0.0, 6.0, 5.0)) > 30.0
+
+
+# -- the body at its heading --------------------------------------------------------------------------
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.6, 40), st.floats(-5, 5), st.floats(3, 6), st.floats(1.5, 2.5))
+def test_body_box_contains_the_rotated_body(vx, vy, length, width):
+    hx, hy = body_half_extents(vx, vy, length, width)
+    psi = math.atan2(vy, vx)
+    c, s = math.cos(psi), math.sin(psi)
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            px = sx * length / 2 * c - sy * width / 2 * s
+            py = sx * length / 2 * s + sy * width / 2 * c
+            assert abs(px) <= float(hx) + 1e-9 and abs(py) <= float(hy) + 1e-9
+
+
+def test_the_centre_point_check_calls_a_grazing_cut_in_safe_the_body_check_does_not():
+    """The 23 cut-ins of issue 30: the §9 check of the ego's centre against a region grown by
+    5 m x 0.5 m accepts the ego beside a car with 0.4 m of body overlap sideways; the body check
+    (sharing the lane while beside it) rejects it."""
+    y_other = 3.75
+    width = 1.8
+    y_ego = y_other - width / 2 - 0.5 - 0.01  # the centre just outside the 0.5 m region
+    # bodies overlap sideways: |dy| < (W_e + W_o)/2
+    assert abs(y_other - y_ego) < width
+    b = EgoBoundary(tf=2.0, x0=0.0, y0=y_ego, vx0=20.0, vy0=0.0, xf=40.0, yf=y_ego, vxf=20.0, vyf=0.0)
+    other = SurroundingVehicle((0.0, 20.0), "front-lower", y_other, 4.6, width, 5.0, 0.5, name="beside")
+    rep = safety_report(Problem(b, (other,)), FreeTrajectory.of(b))
+    assert rep.vehicles[0].intrusion_free  # the old test's verdict
+    tr = FreeTrajectory.of(b)
+    v = verify_trajectory(tr, 0.0, 2.0, [Obstacle("beside", (0.0, 20.0), y_other, 4.6, width)], (4.8, 1.8),
+                          SafeParams(), lane_centre_at)
+    assert not v.ok and v.reason == "rss:beside"
+
+
+def test_a_car_one_lane_over_with_clearance_is_not_shared():
+    X = np.array([[0.0, 20.0, lane_centre_at(0.1), 0.0]])
+    other = Obstacle("next-lane", (0.0, 20.0), lane_centre_at(0.1) + W_LANE, 4.6, 1.8)
+    ok, _ = feasible_brakes(np.zeros(1), X, np.zeros(1), [other], (4.8, 1.8), SafeParams(), X[:, 2])
+    assert ok.all()
+
+
+# -- the fail-safe ----------------------------------------------------------------------------------------
+@settings(max_examples=150, deadline=None)
+@given(st.floats(5, 35), st.floats(0, 35), st.floats(2, 80), st.floats(0, 35), st.floats(2, 80))
+def test_a_feasible_fail_safe_stops_clear_of_leader_and_follower(v, v_lead, gap_lead, v_fol, gap_fol):
+    """Whenever :func:`feasible_brakes` calls a deceleration ``b`` safe, braking at ``b`` after the
+    ego's response time leaves the ego behind the leader braking at its admissible bound and the
+    follower, reacting after its response time and braking at its guaranteed bound, behind the ego
+    — checked by integrating the three stops."""
+    p = SafeParams()
+    L = 4.8
+    y = lane_centre_at(0.1)
+    lead = Obstacle("lead", (L / 2 + gap_lead + 2.3, v_lead), y, 4.6, 1.8)
+    fol = Obstacle("fol", (-(L / 2 + gap_fol + 2.3), v_fol), y, 4.6, 1.8)
+    X = np.array([[0.0, v, y, 0.0]])
+    ok, _ = feasible_brakes(np.zeros(1), X, np.zeros(1), [lead, fol], (L, 1.8), p, X[:, 2])
+    for b, good in zip(p.brakes, ok[0]):
+        if not good:
+            continue
+        ego_stop, _ = _stop_distance(v, p.rho_ego, 0.0, b)
+        lead_stop = L / 2 + gap_lead + v_lead**2 / (2 * p.b_max_other)
+        assert ego_stop + L / 2 <= lead_stop + 1e-6
+        fol_stop, _ = _stop_distance(v_fol, p.rho_other, p.a_acc_other, p.b_min_other)
+        # the ego brakes at b at most: its stop is at least v²/2b ahead
+        assert -(L / 2 + gap_fol) + fol_stop <= v**2 / (2 * b) - L / 2 + 1e-6
+
+
+def test_an_end_state_behind_a_slower_leader_is_not_verified():
+    """The 8 unsafe end states of issue 30: a plan ending 5 m behind a slower car is rejected
+    although its body never overlaps the car's."""
+    y = lane_centre_at(0.1)
+    t = np.linspace(0, 1.0, 21)
+    X = np.stack([27.9 * t, np.full_like(t, 27.9), np.full_like(t, y), np.zeros_like(t)], axis=1)
+    lead_x0 = 27.9 + 4.7 + 5.4 - 15.1
+    v = verify_states(t, X, np.zeros_like(t), [Obstacle("slow", (lead_x0, 15.1), y, 4.6, 1.8)], (4.8, 1.8),
+                      SafeParams(), lane_centre_at)
+    assert not v.ok and v.reason == "rss:slow"
+
+
+def test_the_lane_end_is_a_standing_obstacle_for_the_verification():
+    y = lane_centre_at(0.1)
+    t = np.zeros(1)
+    band = (y - W_LANE / 2, y + W_LANE / 2)
+    near = np.array([[0.0, 25.0, y, 0.0]])  # needs 52 m at 6 m/s²
+    far = np.array([[0.0, 25.0, y, 0.0]])
+    ok_near, why = feasible_brakes(t, near, np.zeros(1), [], (4.8, 1.8), SafeParams(), near[:, 2], 40.0, band)
+    ok_far, _ = feasible_brakes(t, far, np.zeros(1), [], (4.8, 1.8), SafeParams(), far[:, 2], 200.0, band)
+    assert not ok_near.any() and why == ["lane-end"]
+    assert ok_far.any()
+
+
+# -- the tactical layer ------------------------------------------------------------------------------------
+def _nb(name: str, x: float, v: float, lane_y: float) -> Neighbour:
+    return Neighbour(name, (x, v, 0.0, 0.0), lane_y, 4.6, 1.8, 1)
+
+
+def test_seek_accel_stops_the_ego_before_the_lane_end_within_the_car_limits():
+    """IDM with the lane's end as a standing obstacle: from 30 m/s, 300 m before the end, the ego
+    driven by the tactical layer alone stops before it, never braking beyond 6 m/s²."""
+    cfg = TacticalConfig()
+    x, v, dt = 0.0, 30.0, 0.1
+    end = 300.0
+    peak = 0.0
+    for _ in range(1200):
+        a = max(seek_accel(EgoNow(x, v, 0.0, 0.0), None, end, None, 33.3, cfg), -6.0)
+        peak = min(peak, a)
+        if v + a * dt < 0:
+            a = -v / dt
+        x, v = x + v * dt + a * dt**2 / 2, v + a * dt
+    assert x + 2.4 < end and v < 0.5 and peak >= -6.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(8, 30), st.floats(-30, 30), st.floats(15, 60), st.floats(8, 30))
+def test_rss_regions_leave_the_boundary_states_outside_every_region(v0, dx, spacing, v_gap):
+    """The planners' RSS-sized regions are capped by the clearance the end state leaves (why the
+    active set failed when the regions grew: the end state inside a region has no plan)."""
+    ego = EgoNow(0.0, v0, 0.0, 0.0)
+    f = _nb("f", dx - spacing / 2, v_gap, W_LANE)
+    l = _nb("l", dx + spacing / 2, v_gap, W_LANE)
+    cfg = TacticalConfig()
+    from iamp.simulation.decision import DecisionConfig
+
+    for T, end in horizons_for(ego, Gap(f, l), DecisionConfig(), cfg):
+        b = EgoBoundary(tf=T, x0=0.0, y0=0.0, vx0=v0, vy0=0.0, xf=end[0], yf=W_LANE, vxf=end[1], vyf=0.0)
+        region = rss_regions(ego, cfg)
+        assert f.x(T) + f.length / 2 + region(f, "follower", b) < end[0]
+        assert l.x(T) - l.length / 2 - region(l, "leader", b) > end[0]
+
+
+# -- MOBIL for a mandatory change -----------------------------------------------------------------------------
+def test_mobil_mandatory_bias_and_speed_dependent_safe_braking():
+    idm, mobil = IDM(v0=33.3), MOBIL()
+    assert mobil.safe_braking(33.3, 33.3, True) == pytest.approx(4.0)
+    assert mobil.safe_braking(0.0, 33.3, True) == pytest.approx(9.0)  # 17 capped at SUMO's emergency rate
+    assert mobil.safe_braking(0.0, 33.3, False) == pytest.approx(4.0)
+    ego = Car(0.0, 10.0, 4.8)
+    # a target lane moving slower than the ego's lane: no incentive for a discretionary change,
+    # accepted as mandatory (the bias), rejected when the new follower would brake beyond b_safe
+    nl, nf = Car(40.0, 8.0, 4.6), Car(-30.0, 8.0, 4.6)
+    ok, why = mobil_accepts(idm, mobil, ego, Car(60.0, 12.0, 4.6), None, nl, nf, mandatory=False)
+    assert not ok and why == "no-incentive"
+    ok, why = mobil_accepts(idm, mobil, ego, Car(60.0, 12.0, 4.6), None, nl, nf, mandatory=True,
+                            lane_end=200.0, biased=True)
+    assert ok and why == "accepted"
+    close_fast = Car(-8.0, 25.0, 4.6)
+    ok, why = mobil_accepts(idm, mobil, ego, None, None, nl, close_fast, mandatory=True, lane_end=200.0, biased=True)
+    assert not ok and why == "unsafe-follower"
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.floats(0, 40), st.floats(0, 40), st.floats(0.1, 2), st.floats(0.1, 4), st.floats(2, 6), st.floats(0, 4))
+def test_rss_distance_agrees_with_the_judge(v_r, v_f, rho, a_acc, b_min, extra):
+    from iamp.simulation.rss import RssParameters, safe_longitudinal_distance
+
+    p = RssParameters(response_time_s=rho, accel_max=a_acc, brake_min=b_min, brake_max=b_min + extra)
+    assert float(rss_distance(v_r, v_f, rho, a_acc, b_min, b_min + extra)) == pytest.approx(
+        float(safe_longitudinal_distance(v_r, v_f, p)), rel=1e-12, abs=1e-9)
