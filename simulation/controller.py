@@ -47,6 +47,7 @@ from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem
 from iamp.prediction.predictor import Predictor
 from iamp.simulation.decision import (
+    BODY_REGION,
     DecisionConfig,
     EgoNow,
     Gap,
@@ -78,7 +79,8 @@ from iamp.simulation.tactical import (
 class ControllerConfig:
     """Parameters of the controller (see the module docstring)."""
 
-    decision: DecisionConfig = field(default_factory=DecisionConfig)
+    decision: DecisionConfig = field(default_factory=lambda: DecisionConfig(safety_x=BODY_REGION[0],
+                                                                             safety_y=BODY_REGION[1]))
     min_replan_s: float = 0.5
     seek_every_s: float = 0.3
     hold_s: float = 5.0

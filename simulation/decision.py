@@ -115,16 +115,22 @@ class DecisionConfig:
     """Parameters of the decision layer (module docstring)."""
 
     horizon_s: float = 5.0
-    #: The safety region around each neighbour's body contains the ego's body at a heading up to
-    #: 5°: half the ego's length (2.4 m) + 1 m, half its width (0.9 m) + 0.3 m (SPEC §17).
-    safety_x: float = 3.5
-    safety_y: float = 1.2
+    #: SPEC §8's region around each neighbour's body (the closed loop uses :data:`BODY_REGION`).
+    safety_x: float = 5.0
+    safety_y: float = 0.5
     headway_s: float = 1.0
     relevant_m: float = 60.0
     max_gaps: int = 3
     speed_cap: float = 40.0
     check_dt: float = 0.01
     limits: PhysicalLimits = field(default=PASSENGER_CAR)
+
+
+#: ``(safety_x, safety_y)`` of the closed loop (SPEC §17): the region around each neighbour's body
+#: contains the ego's body at a heading up to 5°: half the ego's length (2.4 m) + 1 m, half its
+#: width (0.9 m) + 0.3 m; along ``x`` the RSS-sized regions of
+#: :func:`iamp.simulation.tactical.rss_regions` replace it for the constrained vehicles.
+BODY_REGION = (3.5, 1.2)
 
 
 @dataclass

@@ -222,3 +222,41 @@ def test_rss_distance_agrees_with_the_judge(v_r, v_f, rho, a_acc, b_min, extra):
     p = RssParameters(response_time_s=rho, accel_max=a_acc, brake_min=b_min, brake_max=b_min + extra)
     assert float(rss_distance(v_r, v_f, rho, a_acc, b_min, b_min + extra)) == pytest.approx(
         float(safe_longitudinal_distance(v_r, v_f, p)), rel=1e-12, abs=1e-9)
+
+
+# -- executed motion within the limits ----------------------------------------------------------------------
+def _controller(planner: str = "free"):
+    from types import SimpleNamespace
+
+    from iamp.simulation.controller import Controller
+    from iamp.simulation.missions import mission_of
+    from iamp.simulation.network import Highway
+
+    mission = mission_of("merge")
+    sim = SimpleNamespace(step=0.1, highway=mission.highway(), ego_length=4.8, ego_width=1.8)
+    assert isinstance(sim.highway, Highway)
+    return Controller(planner, sim, predictor=object(), mission=mission)  # type: ignore[arg-type]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0, 40), st.floats(-2, 2), st.floats(-3, 3), st.floats(-20, 20))
+def test_a_period_of_lane_keeping_is_within_the_car_limits_and_does_not_drift_at_a_standstill(vx, vy, dy, ax):
+    """Issue 30 item 4: every tactical / fail-safe period applies a constant input inside
+    ``PASSENGER_CAR``'s ``a_x`` range and ``|a_y| <= 1.5``, never reverses, and below 1 m/s it only
+    brings the lateral speed to 0 (the abort's sideways drift at ``v_x = 0`` is gone)."""
+    from iamp.core.physical import PASSENGER_CAR
+    from iamp.simulation.simulator import EgoState
+
+    ctl = _controller()
+    y_c = ctl.sim.highway.lane_centre(0)
+    ego = EgoState(0.0, vx, y_c + dy, vy)
+    nxt = ctl._move(ego, ax, y_c)
+    lo, hi = PASSENGER_CAR.ax
+    assert lo - 1e-9 <= nxt.ax <= hi + 1e-9 and abs(nxt.ay) <= 1.5 + 1e-9
+    assert nxt.vx >= -1e-9
+    # exact for one step of constant input: the executed second difference is the input
+    assert nxt.x == pytest.approx(ego.x + ego.vx * 0.1 + nxt.ax * 0.005)
+    if vx < 1.0:
+        assert abs(nxt.vy) <= abs(vy) + 1e-12
+        if abs(vy) <= 0.15:  # within one period's lateral bound: stopped at once
+            assert nxt.vy == pytest.approx(0.0, abs=1e-12)
