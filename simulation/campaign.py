@@ -312,7 +312,7 @@ def latex_table(cells: list[dict[str, Any]]) -> str:
     responsible for and the followers' emergency brakes because of the ego (RSS, SPEC §17), hard
     brakes of the new follower, medians of the RSS-dangerous time, time to merge, follower
     deceleration, executed peak, plan time."""
-    lines = [r"\begin{tabular}{lllrlllllrrrrrr}", r"\toprule",
+    lines = [r"\begin{tabular}{lllrllllllrrrrrr}", r"\toprule",
              r"mission & traffic & planner & $n$ & success & contact & at fault & emergency brake & hard brake & "
              r"limits & RSS danger [s] & $t_{merge}$ [s] & "
              r"$d_{f}$ [m/s$^2$] & $|a|_{max}$ [m/s$^2$] & constrained & plan $p_{50}$ [ms] \\", r"\midrule"]

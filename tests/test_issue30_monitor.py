@@ -253,6 +253,10 @@ def test_campaign_rows_carry_the_rss_columns_and_tables_show_them():
     cell = rep["cells"][0]
     assert cell["contact_at_fault_episodes"] == 1 and cell["rss_dangerous_s_median"] == 1.5
     assert "at fault" in latex_table(rep["cells"]) and "1/2 [" in latex_table(rep["cells"])
+    for text in (latex_table(rep["cells"]), paired_table(rep["paired"])):  # every row has the spec's columns
+        lines = text.splitlines()
+        spec = lines[0][len("\\begin{tabular}{"):-1]
+        assert all(line.count("&") + 1 == len(spec) for line in lines if "&" in line)
     assert rep["paired"][0]["contact_at_fault"]["b"] == 1 and "at fault" in paired_table(rep["paired"])
     # rows of a campaign made before SPEC §17: not measured, shown as --
     old = [{k: v for k, v in r.items() if k not in ("contacts_at_fault", "follower_emergency_brakes",
