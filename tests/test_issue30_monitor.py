@@ -210,22 +210,13 @@ def _options(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()):  # ty
             yield " ".join(path), "/".join(action.option_strings) or action.dest, action.help
 
 
-#: Options of other sub-commands still without a help text when this test was written (their
-#: modules were being changed by others): each must lose its entry when it gets one.
-PENDING = {("compare", "--solvers"), ("compare", "--holds"), ("commonroad check", "scenario"),
-           ("commonroad check", "solution"), ("commonroad check", "--json"), ("commonroad bench", "folder"),
-           ("commonroad bench", "--json")}
-
-
 def test_every_option_of_every_subcommand_has_a_help_text_that_names_no_issue():
     from iamp.cli.main import build_parser
 
     rows = list(_options(build_parser()))
     assert any(cmd == "simulate" for cmd, _, _ in rows) and any(cmd == "campaign" for cmd, _, _ in rows)
     missing = {(cmd, opt) for cmd, opt, h in rows if not (h and str(h).strip())}
-    assert not {m for m in missing if m[0] in ("simulate", "campaign")}
-    assert missing <= PENDING, sorted(missing - PENDING)
-    assert PENDING <= missing, f"these have a help text now; remove them from PENDING: {sorted(PENDING - missing)}"
+    assert not missing, sorted(missing)
     assert not [(cmd, opt) for cmd, opt, h in rows if h and "issue" in str(h).lower()]
 
 

@@ -192,12 +192,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=cmd_plan)
     c = csub.add_parser("check", help="CommonRoad's verdict on a solution, every check separately")
-    c.add_argument("scenario")
-    c.add_argument("solution")
-    c.add_argument("--json", action="store_true")
+    c.add_argument("scenario", help="CommonRoad scenario XML the solution is for")
+    c.add_argument("solution", help="CommonRoad solution XML to check (e.g. from iamp commonroad plan --out)")
+    c.add_argument("--json", action="store_true", help="machine-readable output")
     c.set_defaults(func=cmd_check)
     b = csub.add_parser("bench", help="plan every scenario of a folder with each planner and check it")
-    b.add_argument("folder")
+    b.add_argument("folder", help="folder of CommonRoad scenario XML files, each with a planning problem")
     b.add_argument("--planners", default="avoid,pmp,qp,all-pmp,free",
                    help="comma-separated planners; NAME+predict plans with the predicted vehicles "
                         "(default avoid,pmp,qp,all-pmp,free)")
@@ -213,5 +213,5 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     b.add_argument("--force", action="store_true",
                    help="write into an --out folder iamp did not write, or discard its results made with other "
                         "parameters (otherwise a bench resumes: stored results with the same parameters are kept)")
-    b.add_argument("--json", action="store_true")
+    b.add_argument("--json", action="store_true", help="machine-readable output")
     b.set_defaults(func=cmd_bench)

@@ -48,8 +48,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    help="scenario TOML files, built-in names, or - (standard input)")
     c.add_argument("--steps", type=_positive_int, nargs="+", default=None, metavar="N",
                    help="QP grid intervals (several allowed; default 100 for one vehicle, 20 for more)")
-    c.add_argument("--solvers", nargs="+", choices=("osqp", "clarabel"), default=["osqp", "clarabel"])
-    c.add_argument("--holds", nargs="+", choices=("foh", "zoh"), default=["foh", "zoh"])
+    c.add_argument("--solvers", nargs="+", choices=("osqp", "clarabel"), default=["osqp", "clarabel"],
+                   help="QP solvers compared with the PMP (default: osqp clarabel)")
+    c.add_argument("--holds", nargs="+", choices=("foh", "zoh"), default=["foh", "zoh"],
+                   help="input holds of the QP: foh (exact for the continuous optimum) and/or zoh (default: both)")
     c.add_argument("--native", action="store_true", help="also run the native OSQP/Clarabel path")
     c.add_argument("--avoid", action="store_true",
                    help="also run the avoidance QP (SPEC §10) per solver, hold and N, with every run's intrusion "
