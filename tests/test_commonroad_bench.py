@@ -63,7 +63,8 @@ class _Stub:
 
 @needs_extra
 def test_interrupted_bench_resumes_where_it_stopped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Ctrl-C after 3 of 6 results: the 3 are on disk (atomically, with their parameters); the next
+    """Ctrl-C after 3 of 6 results: the 3 (the first planner's) are on disk (atomically, with their
+    parameters); the next
     run computes only the other 3 and returns all 6 in order; a third run computes nothing."""
     from iamp.commonroad import bench as B
 
@@ -73,13 +74,14 @@ def test_interrupted_bench_resumes_where_it_stopped(tmp_path: Path, monkeypatch:
     monkeypatch.setattr(B, "run_one", stub)
     with pytest.raises(KeyboardInterrupt):
         B.bench(tmp_path / "in", ["avoid", "free"], out, vehicle_model="KS")
-    assert sorted(p.stem for p in (out / "rows").rglob("*.json")) == ["S-0", "S-0", "S-1"]
+    assert sorted(str(p.relative_to(out / "rows")) for p in (out / "rows").rglob("*.json")) == [
+        "avoid/S-0.json", "avoid/S-1.json", "avoid/S-2.json"]  # planner by planner
     assert not list(out.rglob("*.tmp"))
     done = list(stub.calls)
     stub2 = _Stub()
     monkeypatch.setattr(B, "run_one", stub2)
     rows = B.bench(tmp_path / "in", ["avoid", "free"], out, vehicle_model="KS")
-    assert [(r.scenario, r.planner) for r in rows] == [(f.stem, p) for f in files for p in ("avoid", "free")]
+    assert [(r.scenario, r.planner) for r in rows] == [(f.stem, p) for p in ("avoid", "free") for f in files]
     assert not set(stub2.calls) & set(done) and len(stub2.calls) == 3
     stub3 = _Stub()
     monkeypatch.setattr(B, "run_one", stub3)

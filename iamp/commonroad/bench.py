@@ -249,7 +249,7 @@ def bench(folder: str | Path, planners: list[str], out_dir: Path | None = None, 
     Returns
     -------
     list of Row
-        In the order scenario, planner.
+        In the order planner, scenario.
 
     Raises
     ------
@@ -262,8 +262,8 @@ def bench(folder: str | Path, planners: list[str], out_dir: Path | None = None, 
     if out_dir is not None:
         prepare_folder(out_dir, params, force)
     rows = []
-    for f in files:
-        for p in planners:
+    for p in planners:  # planner by planner: an interrupted bench leaves whole planners first
+        for f in files:
             stored = load_row(out_dir, p, f.stem, params) if out_dir is not None else None
             if progress is not None:
                 progress(f"{f.name} {p}" + (" (stored)" if stored is not None else ""))
