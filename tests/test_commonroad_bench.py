@@ -64,8 +64,8 @@ class _Stub:
 @needs_extra
 def test_interrupted_bench_resumes_where_it_stopped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Ctrl-C after 3 of 6 results: the 3 (the first planner's) are on disk (atomically, with their
-    parameters); the next
-    run computes only the other 3 and returns all 6 in order; a third run computes nothing."""
+    parameters); the next run computes only the other 3 and returns all 6 in order; a third run
+    computes nothing."""
     from iamp.commonroad import bench as B
 
     files = _scenarios(tmp_path / "in", 3)

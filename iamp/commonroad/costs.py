@@ -274,5 +274,9 @@ def evaluate(cr: CommonRoadProblem, solution: Any, cost_functions: tuple[str, ..
         except ValueError as exc:
             out[cf] = {"total": None, "partial": partial, "error": str(exc)}
             continue
+        bad = [n for n, v in partial.items() if not math.isfinite(v)]
+        if bad:  # e.g. a trajectory that leaves the road: reported, never a NaN in a table
+            out[cf] = {"total": None, "partial": partial, "error": f"partial cost {', '.join(bad)} is not finite"}
+            continue
         out[cf] = {"total": float(sum(w * partial[n] for n, w in spec)), "partial": partial, "error": None}
     return out
