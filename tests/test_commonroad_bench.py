@@ -251,9 +251,11 @@ CROSSCHECK = Path(__file__).resolve().parents[1] / "reports" / "commonroad" / "c
 
 @needs_data
 def test_costs_agree_with_commonroads_evaluator() -> None:
-    """iamp's costs on the bench's committed solutions against the evaluator's numbers on the same
-    files: WX1 and SM1 within 0.1 %, TR1 within 3 % (its lane-relative terms come from another
-    projection, module docstring)."""
+    """iamp's costs on six of the bench's committed KS solutions of the default planner against the
+    evaluator's numbers on the same files: WX1 within 0.01 %, SM1 within 0.2 % (their only
+    lane-relative term, the heading to the lane, is small), TR1's median within 2 % (its lane-centre
+    and distance terms come from another projection; on a lane change up to 19 %, module
+    docstring of iamp.commonroad.costs)."""
     from commonroad.common.solution import CommonRoadSolutionReader
 
     from iamp.commonroad.convert import load
@@ -262,15 +264,13 @@ def test_costs_agree_with_commonroads_evaluator() -> None:
     if not CROSSCHECK.is_file():
         pytest.skip(f"no cross-check file ({CROSSCHECK})")
     ref = json.loads(CROSSCHECK.read_text())
-    checked = 0
-    for rel, row in sorted(ref.items())[:4]:
-        path = CROSSCHECK.parent / rel
-        if not path.is_file():
-            continue
-        sol = CommonRoadSolutionReader.open(str(path))
+    keys = sorted(k for k in ref if k.startswith("solutions/avoid/"))[:6]
+    assert len(keys) == 6
+    tr1 = []
+    for rel in keys:
+        sol = CommonRoadSolutionReader.open(str(CROSSCHECK.parent / rel))
         mine = evaluate(load(DATA / f"{sol.scenario_id}.xml"), sol)
-        for cf, tol in (("WX1", 1e-3), ("SM1", 1e-3), ("TR1", 3e-2)):
-            if "total" in row[cf]:
-                assert mine[cf]["total"] == pytest.approx(row[cf]["total"], rel=tol), (rel, cf)
-                checked += 1
-    assert checked >= 4
+        assert mine["WX1"]["total"] == pytest.approx(ref[rel]["WX1"]["total"], rel=1e-4), rel
+        assert mine["SM1"]["total"] == pytest.approx(ref[rel]["SM1"]["total"], rel=2e-3), rel
+        tr1.append(abs(mine["TR1"]["total"] / ref[rel]["TR1"]["total"] - 1.0))
+    assert sorted(tr1)[len(tr1) // 2] < 0.02
