@@ -35,6 +35,7 @@ from typing import TypedDict
 from iamp.commonroad import require
 from iamp.commonroad.check import CheckJSON, check
 from iamp.commonroad.convert import load
+from iamp.commonroad.costs import REPORTED as REPORTED_COSTS
 from iamp.commonroad.planning import RoadPlanJSON, describe, plan
 from iamp.commonroad.predicted import predict_obstacles
 from iamp.commonroad.solution import DEFAULT_COST_FUNCTION, build_solution, write_solution
@@ -48,8 +49,6 @@ CATEGORIES = ("valid", "collision", "infeasible", "goal missed", "off road", "no
 BENCH_FORMAT = "2"
 #: Manifest keys that define a row: a resumed bench must match them.
 MANIFEST_KEYS = ("bench_format", "iamp_version", "vehicle_model", "vehicle_type", "cost_function", "timeout_s")
-#: Cost functions every row is scored by (:data:`iamp.commonroad.costs.REPORTED`).
-REPORTED_COSTS = ("WX1", "SM1", "TR1")
 
 
 class BenchMismatch(IampError):
