@@ -28,7 +28,8 @@ from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.problem import Problem
 from iamp.core.status import LOCAL, OPTIMAL
 from iamp.planners.examples import paper_problem, random_problem
-from iamp.planners.pmp import PMPPlanner, saturated_compiled
+from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp import compiled as saturated_compiled
 from iamp.planners.pmp.bounded import _Evaluator, _keeps_sign, _polyval, solve_bounded_fixed
 from iamp.planners.pmp.saturated import (
     MAX_NEWTON,
@@ -178,22 +179,22 @@ def _signature(plan: object) -> tuple:  # type: ignore[type-arg]
 
 @pytest.fixture(scope="module")
 def compiled() -> object:
-    if not saturated_compiled.available():
+    if not saturated_compiled.numba_available():
         pytest.skip("numba is not installed")
-    if not saturated_compiled.load():
+    if not saturated_compiled.load_axis():
         pytest.skip(f"numba failed: {saturated_compiled._STATE.get('error')}")
-    saturated_compiled.unload()  # each test switches it on where it compares
+    saturated_compiled.unload_axis()  # each test switches it on where it compares
     return saturated_compiled
 
 
 def _both(problem: Problem, planner: PMPPlanner) -> tuple[tuple, tuple]:  # type: ignore[type-arg]
-    saturated_compiled.unload()
+    saturated_compiled.unload_axis()
     pure = _signature(planner.plan(problem))
-    assert saturated_compiled.load()
+    assert saturated_compiled.load_axis()
     try:
         fast = _signature(planner.plan(problem))
     finally:
-        saturated_compiled.unload()
+        saturated_compiled.unload_axis()
     return pure, fast
 
 

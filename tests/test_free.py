@@ -10,7 +10,6 @@ from hypothesis import strategies as st
 import iamp
 from iamp.core.free import FreeTrajectory, free_plan, min_energy_cubic, transfer_cost
 from iamp.core.problem import EgoBoundary, Problem
-from iamp.planners.pmp.batch import _hermite
 from iamp.planners.pmp.fixed import hermite_cubic
 from iamp.planners.pmp.scale import _hermites, hermite_sigma
 
@@ -40,8 +39,6 @@ def test_every_planner_copy_is_the_shared_cubic_bit_for_bit(s0, v0, sf, vf):
     assert np.array_equal(np.array(hx), ref)
     assert np.array_equal(np.array(hy), np.array(min_energy_cubic(vf, sf, v0, s0)))
     assert np.array_equal(hermite_cubic(s0, v0, sf, vf, 1.0), ref)
-    rows = _hermite(*(np.array([x, x]) for x in (s0, v0, sf, vf)))
-    assert np.array_equal(rows, np.stack([ref, ref]))
 
 
 def test_a_problem_with_zero_vehicles_is_the_free_cubic():

@@ -6,10 +6,8 @@ times an inner loop and divides), in seconds:
 * ``one_vehicle`` — ``PMPPlanner().plan(paper scenario 1, diagnostics=False)``: scaling,
   exact global contact time (Bernstein root isolation), solve and self-check (pure Python);
 * ``two_vehicles`` — the same for ``random_problem(0, m=2)`` including the certified branch
-  and bound: with the numba-compiled search (``PMPPlanner(compiled=True)``, compiled or loaded
-  from numba's cache before the clock starts) where numba is installed, else the pure path;
-  ``two_vehicles_pure`` is always the pure numpy path, ``two_vehicles_search_compiled`` the
-  compiled search alone (no solve, no self-check);
+  and bound (the one search, numpy; ``two_vehicles_pure`` is the same number, kept for readers
+  of earlier JSON: the numba copy of the search was removed in issue 32);
 * ``one_vehicle_bounded`` — ``one_vehicle`` with a passenger car's input box
   (``ax`` [-6, 3], ``ay`` [-2, 2]; active: the unbounded plan reaches 4.7 m/s²), the saturated
   PMP of :mod:`iamp.planners.pmp.bounded` (contact-time grid + Brent polish, self-check;
@@ -17,7 +15,7 @@ times an inner loop and divides), in seconds:
   ``one_vehicle_bounded_certified`` — the default planner, which adds the global certificate
   over the contact times (status ``optimal``);
   ``fixed_t_bounded`` — its fixed-time solve alone (both axes, semi-smooth Newton);
-  the three with the numba-compiled axis solve (:mod:`iamp.planners.pmp.saturated_compiled`,
+  the three with the numba-compiled axis solve (:func:`iamp.planners.pmp.compiled.load_axis`,
   compiled before the clock starts) where numba is installed, else the pure path; the
   ``_pure`` and ``_compiled`` keys keep both (the same numbers, tested);
 * ``fixed_t_closed_form`` — ``solve_one_vehicle`` at a given contact time (closed-form
@@ -53,7 +51,6 @@ def bench_pmp(repeats: int = 7) -> dict[str, float]:
     ``fixed_t_closed_form``, ``batch_plans_per_s`` and, with numba,
     ``compiled_limit_one_vehicle`` and ``compiled_kernel_only``."""
     from iamp.planners.examples import paper_problem, random_problem
-    from iamp.planners.pmp import compiled_search as pmp_compiled_search
     from iamp.planners.pmp.compiled import compiled_kernel, numba_available
     from iamp.planners.pmp.one import one_vehicle_data
     from iamp.planners.pmp.planner import PMPPlanner, plan_batch, solve_one_vehicle
@@ -61,11 +58,10 @@ def bench_pmp(repeats: int = 7) -> dict[str, float]:
     one = paper_problem(1)
     two = random_problem(0, m=2)
     planner = PMPPlanner()
-    pure = PMPPlanner(compiled=False)
     t1 = float(planner.plan(one, diagnostics=False).contact_times[0])
     out = {
         "one_vehicle": _median_per_call(lambda: planner.plan(one, diagnostics=False), repeats, 200),
-        "two_vehicles_pure": _median_per_call(lambda: pure.plan(two, diagnostics=False), repeats, 3),
+        "two_vehicles_pure": _median_per_call(lambda: planner.plan(two, diagnostics=False), repeats, 3),
         "fixed_t_closed_form": _median_per_call(lambda: solve_one_vehicle(one, t1), repeats, 200),
     }
     out["two_vehicles"] = out["two_vehicles_pure"]
@@ -76,17 +72,17 @@ def bench_pmp(repeats: int = 7) -> dict[str, float]:
 
     boxed = one.with_limits(PhysicalLimits(ax=PASSENGER_CAR.ax, ay=PASSENGER_CAR.ay))
     tb = float(planner.plan(boxed, diagnostics=False).contact_times[0])
-    from iamp.planners.pmp import saturated_compiled
+    from iamp.planners.pmp import compiled as pmp_compiled
 
     quick = PMPPlanner(certify_bounded=False)
-    saturated_compiled.unload()  # the pure path first (a no-op unless loaded before)
+    pmp_compiled.unload_axis()  # the pure path first (a no-op unless loaded before)
     out["one_vehicle_bounded_pure"] = _median_per_call(lambda: quick.plan(boxed, diagnostics=False), repeats, 20)
     out["one_vehicle_bounded_certified_pure"] = _median_per_call(lambda: planner.plan(boxed, diagnostics=False),
                                                                  max(1, repeats // 2), 1)
     out["fixed_t_bounded_pure"] = _median_per_call(lambda: solve_bounded_fixed(boxed, [tb]), repeats, 50)
     for key in ("one_vehicle_bounded", "one_vehicle_bounded_certified", "fixed_t_bounded"):
         out[key] = out[f"{key}_pure"]
-    if saturated_compiled.load():  # the numba axis solve, compiled outside the timing
+    if pmp_compiled.load_axis():  # the numba axis solve, compiled outside the timing
         out["one_vehicle_bounded_compiled"] = _median_per_call(lambda: quick.plan(boxed, diagnostics=False),
                                                                repeats, 50)
         out["one_vehicle_bounded_certified_compiled"] = _median_per_call(
@@ -94,11 +90,6 @@ def bench_pmp(repeats: int = 7) -> dict[str, float]:
         out["fixed_t_bounded_compiled"] = _median_per_call(lambda: solve_bounded_fixed(boxed, [tb]), repeats, 200)
         for key in ("one_vehicle_bounded", "one_vehicle_bounded_certified", "fixed_t_bounded"):
             out[key] = out[f"{key}_compiled"]
-    if pmp_compiled_search.load():  # compiled (or loaded from numba's cache) outside the timing
-        fast2 = PMPPlanner(compiled=True)
-        out["two_vehicles_compiled"] = _median_per_call(lambda: fast2.plan(two, diagnostics=False), repeats, 50)
-        out["two_vehicles"] = out["two_vehicles_compiled"]
-        out["two_vehicles_search_compiled"] = _median_per_call(lambda: fast2.search(two), repeats, 50)
     problems = [random_problem(seed, m=1) for seed in range(10_000)]
     out["batch_plans_per_s"] = len(problems) / _median_per_call(lambda: plan_batch(problems), repeats, 1)
     if numba_available():

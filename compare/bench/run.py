@@ -246,12 +246,9 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> PMPNumbers:
     if raw.get("compiled_limit_one_vehicle"):
         out["pmp_to_compiled_limit"] = raw["one_vehicle"] / raw["compiled_limit_one_vehicle"]
     else:
-        notes.append("numba missing (pip install 'iamp[fast]'): no compiled limit, two vehicles on the pure path")
+        notes.append("numba missing (pip install 'iamp[fast]'): no compiled limit")
     if raw.get("one_vehicle_bounded_compiled"):
         out["pmp_bounded_pure_to_compiled"] = raw["one_vehicle_bounded_pure"] / raw["one_vehicle_bounded_compiled"]
-    if raw.get("two_vehicles_compiled"):
-        out["pmp_two_vehicles_pure_to_compiled"] = raw["two_vehicles_pure"] / raw["two_vehicles_compiled"]
-        plan_s["two_vehicles_compiled"] = raw["two_vehicles_compiled"]
     return out
 
 

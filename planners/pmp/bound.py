@@ -296,7 +296,7 @@ def branch_and_bound(vf: ValueFunction, s_best: FloatArray, q_best: float,
             # the next level would overrun the budget (and memory: up to 2^m children a box):
             # no certificate any more; go on with the boxes of least lower bound that fit
             truncated = True
-            order = np.argsort(lb, kind="mergesort")  # stable: the compiled twin picks the same boxes
+            order = np.argsort(lb, kind="mergesort")  # stable: the same boxes on every machine
             take = order[np.cumsum(children[order]) <= max_boxes - evaluated]
             if take.size == 0:
                 return uncertified(c, s_best, q_best)

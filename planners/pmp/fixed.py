@@ -23,7 +23,6 @@ with :math:`K(s,t) = s^2 (t_f-t)^2 (3 t_f t - t_f s - 2 s t) / (6 t_f^3)` for :m
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -197,41 +196,6 @@ def _horner(c: list[float], s: float) -> float:
     return y
 
 
-def _kernel(s: float, t: float) -> float:
-    """:func:`bridge_kernel` on the unit horizon for two floats (the same operations)."""
-    tf = 1.0
-    lo = min(s, t)
-    hi = max(s, t)
-    w = tf - hi
-    return lo * lo * (w * w) * (3 * tf * hi - tf * lo - 2 * lo * hi) / (6 * tf * tf * tf)
-
-
-def quad_at(S: Scaled, sig: list[float]) -> float:
-    """:meth:`ValueFunction.quad_sigma` at one point ``σ`` (scalar code for ``m ≤ 2``, the
-    same floating operations; numpy's solve for ``m ≥ 3``)."""
-    m = len(sig)
-    d = max(S.EX.shape[1], S.EY.shape[1])
-    ex = [_horner(row + [0.0] * (d - len(row)), s) for row, s in zip(S.EX.tolist(), sig)]
-    ey = [_horner(row + [0.0] * (d - len(row)), s) for row, s in zip(S.EY.tolist(), sig)]
-    if m > 2:
-        sa = np.array([sig])
-        return float(quad_from_errors(np.array([ex]), np.array([ey]), sa, S.jbar)[0])
-    try:
-        if m == 1:
-            q = (ex[0] * ex[0] + ey[0] * ey[0]) / _kernel(sig[0], sig[0])
-        else:
-            k11 = _kernel(sig[0], sig[0])
-            k22 = _kernel(sig[1], sig[1])
-            k12 = _kernel(sig[0], sig[1])
-            det = k11 * k22 - k12 * k12
-            q = (0 + (k22 * (ex[0] * ex[0]) - 2 * k12 * ex[0] * ex[1] + k11 * (ex[1] * ex[1]))
-                 + (k22 * (ey[0] * ey[0]) - 2 * k12 * ey[0] * ey[1] + k11 * (ey[1] * ey[1]))) / det
-    except (ZeroDivisionError, OverflowError):
-        return float(quad_from_errors(np.array([ex]), np.array([ey]), np.array([sig]), S.jbar)[0])
-    ok = math.isfinite(q) and q >= -1e-9 * max(1.0, S.jbar)
-    return max(q, 0.0) if ok else math.inf
-
-
 def cubes(xs: list[float]) -> list[float]:
     """``x**3`` for every ``x`` as numpy computes it on arrays (``np.power``; squares are
     ``x*x`` both in numpy and here)."""
@@ -256,11 +220,13 @@ def jump_rows(S: Scaled, sig: list[float]) -> tuple[list[list[float]], list[list
     return M, rhs
 
 
-def system_and_quad(S: Scaled, sig: list[float]) -> tuple[list[list[float]], list[list[float]], float]:
-    """``(M, rhs, q)``: :func:`jump_rows` and :func:`quad_at` at one ``σ``, in one call (what
-    the self-check of :mod:`~iamp.planners.pmp.verify` reads of the fixed-time system)."""
-    M, rhs = jump_rows(S, sig)
-    return M, rhs, quad_at(S, sig)
+def system_and_cost(problem: Problem, S: Scaled, t: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+    """``(M, rhs, J)``: the scaled jump system (:func:`jump_system_sigma` at ``σ = t/T``) and the
+    closed-form cost ``J(t)`` (:class:`ValueFunction`, physical units), in one call (what the
+    self-check of :mod:`~iamp.planners.pmp.verify` reads of the fixed-time problem)."""
+    M, rhs = jump_system_sigma(S, t / S.units.T)
+    J = float(ValueFunction(problem, S)(t[None, :])[0])
+    return M, rhs, J
 
 
 def jump_system_sigma(S: Scaled, sig: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -18,7 +18,7 @@ written out for the three-piece solution:
 (``h_minimisation`` and ``costate_jump`` hold by construction of the scalar formulas and are
 checked by the general path, :func:`iamp.planners.pmp.verify.check_values`, in the tests.)
 The kernel takes and returns plain floats and lists, so numba compiles it unchanged
-(:mod:`iamp.planners.pmp.compiled`).
+(:mod:`iamp.planners.pmp.jit`, :func:`iamp.planners.pmp.compiled.compiled_kernel`).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from operator import attrgetter
 from iamp.core.problem import Problem
 from iamp.core.tolerances import TOLERANCES
 
+from .jit import compilable
 from .search import one_vehicle_sigma
 from .verify import TOLERANCE_OF, Checks, judge_pairs
 
@@ -41,13 +42,42 @@ _INF = math.inf
 CHECK_NAMES = ("linear_system", "corner", "boundary", "hamiltonian_jump", "cost_consistency")
 
 
+@compilable
 def one_vehicle_kernel(ego: Sequence[float], ex: Sequence[float], ey: Sequence[float],
                        cx: Sequence[float], cy: float) -> list[float]:
-    """``[σ, ã_x, ã_y, b̃_x, b̃_y, Φ̃_x, Φ̃_y, J̃, checks...]`` (scaled); ``σ`` is NaN if ``J`` has
-    no interior stationary point.  ``ego`` = scaled ``(x0, vx0, xf, vxf, y0, vy0, yf, vyf)``.
+    r"""The one-vehicle PMP plan in scaled units: the global contact time, the solution and its checks.
+
+    Time is scaled by :math:`t_f` (:math:`\sigma = t/t_f`) and lengths by the problem's size
+    :math:`L` (:func:`one_vehicle_data` makes the arguments).  The contact time is the root of
+    the stationarity polynomial with the least cost (:func:`~iamp.planners.pmp.search.one_vehicle_sigma`);
+    then, per axis, the co-state jump :math:`\tilde\Phi = -\tilde e(\sigma)/\tilde K(\sigma)`,
+    :math:`\tilde K = \sigma^3 (1-\sigma)^3 / 3`, the input :math:`\tilde u = \tilde a + \tilde b\tau`
+    before the contact and :math:`\tilde u - \tilde\Phi(\tau - \sigma)` after it, and the five
+    checks of :data:`CHECK_NAMES`.
 
     (The maxima are written as comparisons, ``if x > m: m = x``: the same values as
-    ``max(m, x)``, NaN included, without a call.)"""
+    ``max(m, x)``, NaN included, without a call.)
+
+    Parameters
+    ----------
+    ego : sequence of float
+        The scaled boundary states ``(x0, vx0, xf, vxf, y0, vy0, yf, vyf)``.
+    ex, ey : sequence of float
+        Ascending coefficients in :math:`\sigma` of :math:`\tilde e_x`, :math:`\tilde e_y`: the
+        corner minus the unconstrained (Hermite) path, per axis.
+    cx : sequence of float
+        Ascending coefficients in :math:`\sigma` of the corner's scaled :math:`x`,
+        :math:`(x_s(\sigma t_f) \pm (L_v/2 + S_x))/L`.
+    cy : float
+        The corner's scaled :math:`y`.
+
+    Returns
+    -------
+    list of float
+        13 values: ``[σ, ã_x, ã_y, b̃_x, b̃_y, Φ̃_x, Φ̃_y, J̃]`` and the five checks of
+        :data:`CHECK_NAMES`; ``σ`` is NaN (and the rest 0) if :math:`J` has no interior
+        stationary point.
+    """
     s, q = one_vehicle_sigma(ex, ey)
     out = [s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     if not s == s:  # NaN: no stationary point

@@ -18,7 +18,8 @@ class PMPOptions:
     max_boxes : int
         Box budget of the branch-and-bound certificate (beyond it the status is ``local``).
     compiled : bool or None
-        The numba path of the ``m >= 2`` search (``None``: only if already loaded).
+        Accepted and ignored (kept for callers of earlier releases): the ``m >= 2`` search has one
+        implementation whatever is installed or loaded (issue 32).
     diagnostics : bool
         Add the physical max-abs residuals to the plan after the clock stops.
     certify_bounded : bool

@@ -72,7 +72,7 @@ from .options import PMPOptions
 from .scale import Scaled, scale_problem
 from .search import global_search, newton_sigma, one_vehicle_sigma
 from .solution import OneVehicleSolution, PMPSolution
-from .verify import judge, lean_checks_and_cost, verify
+from .verify import check_values, judge, verify
 
 FloatArray = npt.NDArray[np.float64]
 #: ``info["search"]["method"]`` of a one-vehicle plan.
@@ -102,7 +102,19 @@ def _newton_on_jump_conditions(problem: Problem, J: ValueFunction, t0: Any) -> t
 
 @dataclass
 class PMPPlanner:
-    """The PMP planner with a global contact-time search.
+    r"""The PMP planner: Pontryagin's minimum principle with a global contact-time search.
+
+    For fixed contact times :math:`t = (t_1, \dots, t_m)` the optimum is the solution of the
+    linear jump system (co-state jumps :math:`\Phi_i` at each :math:`t_i`, input linear between
+    them), with the closed-form value function
+
+    .. math::  J(t) = \bar J + \tfrac12 \sum_{\text{axis}} e(t)^\top K(t)^{-1} e(t)
+
+    (:class:`~iamp.planners.pmp.fixed.ValueFunction`).  The planner finds the global minimiser
+    :math:`t^*` of :math:`J` over :math:`(0, t_f)^m` -- exactly for one vehicle (every root
+    of the stationarity polynomial), by starts, Newton and a certified branch and bound for
+    more -- solves the jump system there, and checks the solution's own conditions (corner,
+    boundary, co-state and Hamiltonian jumps, cost) before calling the plan ``optimal``.
 
     Parameters
     ----------
@@ -114,13 +126,28 @@ class PMPPlanner:
         The one-vehicle kernel (:func:`~iamp.planners.pmp.one.one_vehicle_kernel`, or its
         numba-compiled twin from :func:`iamp.planners.pmp.compiled.compiled_kernel`).
     compiled : bool or None
-        The ``m ≥ 2`` search on the numba path (:mod:`~iamp.planners.pmp.compiled_search`):
-        ``None`` (default) uses it only if it is already loaded in this process (never
-        compiles), ``True`` loads it now (compiles once per machine, then numba's disk cache;
-        pure path if numba is missing), ``False`` never.  Same answers either way.
+        Accepted and ignored (kept for callers of earlier releases): the ``m ≥ 2`` search has
+        one implementation, :func:`~iamp.planners.pmp.search.global_search`, whatever is
+        installed or loaded (issue 32; its numba copy was removed).
+    diagnostics : bool
+        Add the physical max-abs residuals to every plan (``plan.residuals``), after the clock
+        stops.
     certify_bounded : bool
         With an active input box (SPEC §14), one vehicle: certify the bounded contact-time
         search global (status ``optimal``) or say ``local``; ``False`` skips the certificate.
+
+    See Also
+    --------
+    iamp.plan : The same planner through the registry (``planner="pmp"``).
+    iamp.plan_batch : Many one-vehicle problems at once.
+
+    Examples
+    --------
+    >>> import iamp
+    >>> problem = iamp.load_scenario("two-vehicle")
+    >>> plan = iamp.PMPPlanner().plan(problem)
+    >>> plan.status, plan.contact_times.round(3).tolist()
+    ('optimal', [4.217, 2.462])
     """
 
     max_starts: int = 32
@@ -132,27 +159,87 @@ class PMPPlanner:
 
     @classmethod
     def from_options(cls, options: PMPOptions) -> PMPPlanner:
-        """The planner of the registry's validated options (:class:`~iamp.planners.pmp.options.PMPOptions`)."""
+        """The planner of the registry's validated options.
+
+        Parameters
+        ----------
+        options : iamp.planners.pmp.options.PMPOptions
+            The validated options (``max_starts``, ``max_boxes``, ``compiled``,
+            ``diagnostics``, ``certify_bounded``).
+
+        Returns
+        -------
+        PMPPlanner
+            The planner with those options and the default kernel.
+        """
         return cls(max_starts=options.max_starts, max_boxes=options.max_boxes, compiled=options.compiled,
                    diagnostics=options.diagnostics, certify_bounded=options.certify_bounded)
 
     def search(self, problem: Problem, S: Scaled | None = None,
                progress: Callable[[int, int], None] | None = None) -> tuple[FloatArray, float, bool, dict[str, Any]]:
-        """``(σ*, q*, certified, info)`` in scaled units (``J̃ = J̃₀ + q/2``)."""
+        r"""The contact-time search: the global minimiser of :math:`J` over :math:`(0, t_f)^m`.
+
+        In scaled units (time over :math:`t_f`, :math:`\sigma = t/t_f`), :math:`\tilde J(\sigma)
+        = \tilde J_0 + q(\sigma)/2`.  One vehicle: every root of the stationarity polynomial
+        on :math:`(0, 1)`, the one of least :math:`q` (exact, always certified).  More vehicles:
+        Newton from up to ``max_starts`` combinations of one-vehicle stationary points, then a
+        branch and bound over boxes of :math:`(0, 1)^m` that certifies the minimiser global
+        within ``max_boxes`` boxes.
+
+        Parameters
+        ----------
+        problem : Problem
+            The problem.
+        S : iamp.planners.pmp.scale.Scaled, optional
+            Its scaled form (:func:`~iamp.planners.pmp.scale.scale_problem`), if already made.
+        progress : callable, optional
+            Called as ``progress(done, total)`` by the branch and bound (``m >= 2``).
+
+        Returns
+        -------
+        sigma : numpy.ndarray, shape (m,)
+            :math:`\sigma^* = t^*/t_f` (NaN when :math:`J` has no interior stationary point).
+        q : float
+            :math:`q(\sigma^*)`, the scaled cost above :math:`\tilde J_0`.
+        certified : bool
+            Whether :math:`\sigma^*` is certified global (``False``: the box budget ran out;
+            the plan's status is then ``local``).
+        info : dict
+            How it was found: ``method``, and for ``m >= 2`` the ``boxes`` and ``starts`` used.
+        """
         S = scale_problem(problem) if S is None else S
         if problem.m == 1:
             s, q = one_vehicle_sigma(S.EX[0].tolist(), S.EY[0].tolist())
             return np.array([s]), q, True, {"method": ONE_VEHICLE_METHOD}
-        from . import compiled_search as fast
-
-        compiled = fast.use(self.compiled)
-        res = (fast.run(S, self.max_starts, self.max_boxes, progress) if compiled
-               else global_search(ValueFunction(problem, S), self.max_starts, self.max_boxes, progress))
-        return res.sigma, res.q, res.certified, {"method": "starts + Newton + branch and bound", "compiled": compiled,
+        res = global_search(ValueFunction(problem, S), self.max_starts, self.max_boxes, progress)
+        return res.sigma, res.q, res.certified, {"method": "starts + Newton + branch and bound",
                                                  "boxes": res.boxes, "starts": res.starts}
 
     def contact_times(self, problem: Problem) -> FloatArray:
-        """The minimiser ``t*`` of ``J`` over ``(0, t_f)^m`` (SolverError if there is none)."""
+        r"""The contact times :math:`t^*`: the global minimiser of :math:`J` over :math:`(0, t_f)^m`.
+
+        Parameters
+        ----------
+        problem : Problem
+            The problem.
+
+        Returns
+        -------
+        numpy.ndarray, shape (m,)
+            :math:`t^*` [s], in the order of ``problem.vehicles`` (see :meth:`search`).
+
+        Raises
+        ------
+        iamp.SolverError
+            :math:`J` has no interior stationary point (status ``infeasible``: a corner sits on
+            the ego's start or end state).
+
+        Examples
+        --------
+        >>> import iamp
+        >>> iamp.PMPPlanner().contact_times(iamp.load_scenario("paper-1-poly")).round(3)
+        array([3.52])
+        """
         S = scale_problem(problem)
         s, _, _, _ = self.search(problem, S)
         if not np.all(np.isfinite(s)):
@@ -160,7 +247,27 @@ class PMPPlanner:
         return s * S.units.T
 
     def solve(self, problem: Problem, contact_times: Any = None) -> PMPSolution:
-        """Fixed-time solution at ``contact_times`` (default: the global ``t*``)."""
+        """The PMP solution at fixed contact times, without the plan's self-check.
+
+        Parameters
+        ----------
+        problem : Problem
+            The problem.
+        contact_times : array_like of float, shape (m,), optional
+            The contact times [s] (default: the global :math:`t^*`, :meth:`contact_times`).
+
+        Returns
+        -------
+        PMPSolution
+            The solution of the jump system: trajectory, co-state jumps, cost and residuals.
+
+        Raises
+        ------
+        iamp.SolverError
+            No interior contact time (default ``contact_times``), or the jump system is singular.
+        ValueError
+            Contact times of the wrong length or outside ``(0, t_f)``.
+        """
         t = self.contact_times(problem) if contact_times is None else contact_times
         if problem.m == 1:
             return solve_one_vehicle(problem, float(np.asarray(t, dtype=float).reshape(-1)[0]))
@@ -168,13 +275,48 @@ class PMPPlanner:
 
     def plan(self, problem: Problem, contact_times: Any = None, diagnostics: bool | None = None,
              progress: Callable[[int, int], None] | None = None) -> Plan:
-        """Plan and verify; never raises for numerical trouble (returns a failed Plan).
+        """Plan and verify: search the contact times, solve the jump system, check the solution.
 
-        ``solve_time_s`` covers the search, the solve and the self-check.  ``diagnostics``
-        (default: the planner's field) adds the physical max-abs residuals (``plan.residuals``) after the clock stops.
-        ``contact_times`` (optional, validated: ``ValueError`` if outside ``(0, t_f)``) fixes
-        the contact times: the plan is then the fixed-time optimum and the Hamiltonian-jump
-        condition is reported in ``info`` but not required.
+        Never raises for numerical trouble: a failure is a :class:`Plan` with a failure status
+        (``infeasible``, ``numerical_error``, ``inaccurate``) and no cost.  ``solve_time_s``
+        covers the search, the solve and the self-check.  With ``problem.limits`` the
+        unbounded plan is tried first and the saturated PMP used only if it leaves the input
+        box (SPEC §14).
+
+        Parameters
+        ----------
+        problem : Problem
+            The problem.
+        contact_times : array_like of float, shape (m,), optional
+            Fix the contact times [s]: the plan is then the fixed-time optimum, and the
+            Hamiltonian-jump condition is reported in the diagnostics but not required.
+            Default: the global minimiser of :math:`J` (:meth:`contact_times`).
+        diagnostics : bool, optional
+            Add the physical max-abs residuals (``plan.residuals``) after the clock stops
+            (default: the planner's field).
+        progress : callable, optional
+            Called as ``progress(done, total)`` by the branch and bound (``m >= 2``).
+
+        Returns
+        -------
+        Plan
+            ``status`` ``optimal`` (verified, certified global), ``local`` (verified, the box
+            budget ran out) or a failure.
+
+        Raises
+        ------
+        ValueError
+            ``contact_times`` of the wrong length or outside ``(0, t_f)``.
+
+        Examples
+        --------
+        >>> import iamp
+        >>> problem = iamp.load_scenario("paper-1-poly")
+        >>> planner = iamp.PMPPlanner()
+        >>> best = planner.plan(problem)
+        >>> fixed = planner.plan(problem, contact_times=[3.0])      # the fixed-time optimum
+        >>> round(best.cost, 3), round(fixed.cost, 3)
+        (22.865, 25.793)
         """
         if problem.limits is not None and not problem.limits.empty:
             return self._plan_limited(problem, contact_times, diagnostics, progress)
@@ -202,8 +344,7 @@ class PMPPlanner:
             with np.errstate(over="raise", divide="raise", invalid="raise"):
                 z = one_vehicle_z(S, float(sig[0])) if m == 1 else solve_sigma(S, sig)
                 sol = solution_from_sigma(problem, S, sig, z)
-            values, traj_cost = lean_checks_and_cost(sol, S, stationary=not fixed)
-            checks, failed, bad = judge(values)
+            checks, failed, bad = judge(check_values(sol, S, stationary=not fixed))
         except SolverError as exc:
             info["error"] = str(exc)
             return self._failed(problem, NUMERICAL_ERROR, "linear_system", info, start)
@@ -214,7 +355,7 @@ class PMPPlanner:
         info["failed_check"] = failed
         info["certified_global"] = bool(certified)
         status = bad if bad is not None else (OPTIMAL if certified else LOCAL)
-        cost = traj_cost if bad is None else None  # = sol.cost(), computed by the check
+        cost = sol.cost() if bad is None else None
         elapsed = _time.perf_counter() - start
         residuals = None
         if diagnostics:  # after the clock; the plan is made last, with every diagnostic
@@ -288,9 +429,9 @@ class PMPPlanner:
                         diagnostics=PMPDiagnostics(search={"method": ONE_VEHICLE_METHOD}, checks=checks,
                                                    failed_check=failed, certified_global=True, order=order))
         elapsed = _time.perf_counter() - start
-        sol, residuals, hj = OneVehicleSolution.checked_from_kernel(problem, ct, jumps, k, T, L)
+        sol, residuals, hj, ev = OneVehicleSolution.checked_from_kernel(problem, ct, jumps, k, T, L)
         with np.errstate(all="ignore"):
-            checks, failed_all, bad_all = verify(sol, scale_problem(problem), stationary=True, lean=True)
+            checks, failed_all, bad_all = verify(sol, scale_problem(problem), stationary=True, ev=ev)
         if bad_all is not None and status in (OPTIMAL, LOCAL):
             status, cost, failed = bad_all, None, failed_all
         return Plan(problem=problem, planner="pmp", status=status, cost=cost, contact_times=ct, jumps=jumps,

@@ -1,4 +1,4 @@
-r"""Real-root isolation on the unit interval, without eigenvalues (scalar and batched).
+r"""Real-root isolation on the unit interval, without eigenvalues.
 
 The one-vehicle contact time is a root of the stationarity polynomial
 :math:`P(\sigma) = N'(\sigma)\,\sigma(1-\sigma) - 3N(\sigma)(1-2\sigma)` on
@@ -17,8 +17,7 @@ then found by Newton's method safeguarded by bisection inside its bracket.  Ever
 ``(0, 1)`` is found; no companion matrix, no ``np.roots``.
 
 The scalar functions use plain Python lists and loops on purpose: they are also compiled
-unchanged by numba (:mod:`iamp.planners.pmp.compiled`), so both paths run the same
-arithmetic.
+unchanged by numba (:mod:`iamp.planners.pmp.jit`), so both paths run the same arithmetic.
 """
 
 from __future__ import annotations
@@ -26,10 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import numpy as np
-import numpy.typing as npt
-
-FloatArray = npt.NDArray[np.float64]
+from .jit import compilable, compiled_as
 
 #: Narrowest interval subdivided; below it a cluster of roots counts as one (multiple) root.
 MIN_WIDTH = 1e-13
@@ -45,6 +41,26 @@ def bernstein_weights(n: int) -> list[list[float]]:
 _WEIGHTS: dict[int, list[list[float]]] = {}
 
 
+def _to_bernstein_inline(a: Sequence[float]) -> list[float]:
+    """:func:`to_bernstein` as numba compiles it: the weights ``C(j,i)/C(n,i)`` computed in place
+    (binomials as exact integer-valued floats, one correctly rounded division: the values
+    :func:`bernstein_weights` caches), the same sums in the same order."""
+    n = len(a) - 1
+    out = [0.0] * (n + 1)
+    for j in range(n + 1):
+        acc = 0.0
+        for i in range(j + 1):
+            cj = 1.0
+            cn = 1.0
+            for k in range(i):
+                cj = cj * (j - k) / (k + 1)
+                cn = cn * (n - k) / (k + 1)
+            acc += (cj / cn) * a[i]
+        out[j] = acc
+    return out
+
+
+@compiled_as(_to_bernstein_inline)
 def to_bernstein(a: Sequence[float]) -> list[float]:
     """Bernstein coefficients on ``[0, 1]`` of the polynomial with ascending coefficients ``a``
     (``β_j = Σ_{i≤j} w_ji a_i`` summed from ``0.0`` in ascending ``i``; degree 6, that of
@@ -83,6 +99,7 @@ def _to_bernstein6(a: Sequence[float]) -> list[float]:
             0.0 + w60 * a0 + w61 * a1 + w62 * a2 + w63 * a3 + w64 * a4 + w65 * a5 + w66 * a6]
 
 
+@compilable
 def sign_variations(b: Sequence[float]) -> int:
     """Sign changes of the sequence ``b``, zeros skipped (a NaN counts as negative)."""
     v = 0
@@ -99,6 +116,7 @@ def sign_variations(b: Sequence[float]) -> int:
     return v
 
 
+@compilable
 def casteljau_halves(b: Sequence[float]) -> tuple[list[float], list[float]]:
     """Bernstein coefficients of the left and right halves of the interval (de Casteljau)."""
     work = list(b)
@@ -114,6 +132,7 @@ def casteljau_halves(b: Sequence[float]) -> tuple[list[float], list[float]]:
     return left, right
 
 
+@compilable
 def horner2(a: Sequence[float], x: float) -> tuple[float, float]:
     """``(p(x), p'(x))`` for ascending coefficients ``a``."""
     p = 0.0
@@ -124,6 +143,7 @@ def horner2(a: Sequence[float], x: float) -> tuple[float, float]:
     return p, dp
 
 
+@compilable
 def newton_in_bracket(a: Sequence[float], lo: float, hi: float) -> float:
     """The single root of ``a`` in ``(lo, hi)`` (``p(lo)``, ``p(hi)`` of opposite signs):
     Newton's method from the midpoint, falling back to bisection whenever a step leaves
@@ -191,6 +211,7 @@ def newton_in_bracket(a: Sequence[float], lo: float, hi: float) -> float:
     return x
 
 
+@compilable
 def unit_roots(a: Sequence[float]) -> list[float]:
     """Every real root in ``(0, 1)`` of the polynomial with ascending coefficients ``a``,
     sorted (a multiple root is returned once, to about ``MIN_WIDTH``)."""
@@ -241,149 +262,3 @@ def unit_roots(a: Sequence[float]) -> list[float]:
         if 0.0 < r < 1.0 and (len(dedup) == 0 or r - dedup[-1] > 4 * MIN_WIDTH):
             dedup.append(r)
     return dedup
-
-
-# ------------------------------------------------------------------------------------------
-# Batched version (one polynomial per row)
-# ------------------------------------------------------------------------------------------
-
-
-def bernstein_matrix(n: int) -> FloatArray:
-    """``B`` with ``β = a @ B`` for rows of ascending coefficients of degree ``n``."""
-    W = np.zeros((n + 1, n + 1))
-    for j, row in enumerate(bernstein_weights(n)):
-        W[: j + 1, j] = row
-    return W
-
-
-def _variations_rows(beta: FloatArray) -> npt.NDArray[np.int64]:
-    """:func:`sign_variations` of every row (zeros skipped)."""
-    s = np.sign(beta)
-    nz = s != 0
-    idx = np.where(nz, np.arange(beta.shape[1]), 0)
-    prev = np.maximum.accumulate(idx, axis=1)
-    last = np.take_along_axis(s, prev, axis=1)
-    out: npt.NDArray[np.int64] = np.sum(nz[:, 1:] & (s[:, 1:] != last[:, :-1]) & (last[:, :-1] != 0), axis=1)
-    return out
-
-
-def _casteljau_rows(B: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """:func:`casteljau_halves` of every row."""
-    work = B.copy()
-    n = B.shape[1] - 1
-    left = np.empty_like(B)
-    right = np.empty_like(B)
-    left[:, 0] = work[:, 0]
-    right[:, n] = work[:, n]
-    for r in range(1, n + 1):
-        work[:, : n - r + 1] = 0.5 * (work[:, : n - r + 1] + work[:, 1: n - r + 2])
-        left[:, r] = work[:, 0]
-        right[:, n - r] = work[:, n - r]
-    return left, right
-
-
-def batch_unit_roots(Pc: FloatArray) -> FloatArray:
-    """All roots in ``(0, 1)`` of every row of ``Pc`` (ascending coefficients, ``(K, n+1)``).
-
-    The same isolation as :func:`unit_roots`, vectorised over rows and pending intervals
-    (Bernstein variations, de Casteljau halving), then :func:`newton_in_bracket` on every
-    isolating interval at once; rows whose own leading coefficient is zero go through
-    :func:`unit_roots`.  Returns ``(K, n)`` sorted per row, NaN padded.
-    """
-    while Pc.shape[1] > 2 and not np.any(Pc[:, -1]):  # leading zeros shared by every row
-        Pc = Pc[:, :-1]
-    K, n1 = Pc.shape
-    n = n1 - 1
-    out = np.full((K, max(n, 1)), np.nan)
-    full = Pc[:, -1] != 0
-    rows = np.flatnonzero(full)
-    owner = rows.copy()
-    lo = np.zeros(rows.size)
-    hi = np.ones(rows.size)
-    B = Pc[rows] @ bernstein_matrix(n)
-    found_owner, found_lo, found_hi, found_mid = [], [], [], []
-    while owner.size:
-        v = _variations_rows(B)
-        iso = (v == 1) & (B[:, 0] != 0) & (B[:, -1] != 0)
-        found_owner.append(owner[iso])
-        found_lo.append(lo[iso])
-        found_hi.append(hi[iso])
-        found_mid.append(np.zeros(int(iso.sum()), dtype=bool))
-        split = (v >= 1) & ~iso
-        mid = 0.5 * (lo + hi)
-        tiny = split & (hi - lo < MIN_WIDTH)
-        found_owner.append(owner[tiny])
-        found_lo.append(mid[tiny])
-        found_hi.append(mid[tiny])
-        found_mid.append(np.ones(int(tiny.sum()), dtype=bool))
-        split &= ~tiny
-        L, R = _casteljau_rows(B[split])
-        msp = mid[split]
-        pm = np.zeros(msp.size)
-        for k in range(n, -1, -1):
-            pm = pm * msp + Pc[owner[split], k]
-        at_mid = pm == 0.0  # an exact root on the split point
-        found_owner.append(owner[split][at_mid])
-        found_lo.append(mid[split][at_mid])
-        found_hi.append(mid[split][at_mid])
-        found_mid.append(np.ones(int(at_mid.sum()), dtype=bool))
-        owner = np.concatenate([owner[split], owner[split]])
-        lo, hi = np.concatenate([lo[split], mid[split]]), np.concatenate([mid[split], hi[split]])
-        B = np.vstack([L, R])
-    fo = np.concatenate(found_owner)
-    flo, fhi, fmid = np.concatenate(found_lo), np.concatenate(found_hi), np.concatenate(found_mid)
-    roots = np.where(fmid, flo, 0.0)
-    need = ~fmid
-    if np.any(need):
-        roots[need] = _batch_newton(Pc[fo[need]], flo[need], fhi[need])
-    order = np.lexsort((roots, fo))
-    fo, roots = fo[order], roots[order]
-    keep = (roots > 0.0) & (roots < 1.0)
-    same = np.r_[False, (fo[1:] == fo[:-1]) & (roots[1:] - roots[:-1] <= 4 * MIN_WIDTH)]
-    fo, roots = fo[keep & ~same], roots[keep & ~same]
-    start = np.searchsorted(fo, fo, side="left")
-    out[fo, np.arange(fo.size) - start] = roots
-    for r in np.flatnonzero(~full):
-        rr = unit_roots(Pc[r].tolist())
-        out[r, : len(rr)] = rr
-    return out
-
-
-def _batch_newton(A: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
-    """Vectorised :func:`newton_in_bracket` (one bracket and polynomial per row).
-
-    Every row runs exactly the scalar iteration (same operations, element by element); a
-    row leaves the working set as soon as its scalar twin would return, so late iterations
-    only touch the few slow rows."""
-    At = np.ascontiguousarray(A.T)  # (n+1, K): one contiguous row per power
-    n1 = At.shape[0]
-    plo = np.zeros(lo.size)
-    for k in range(n1 - 1, -1, -1):
-        plo = plo * lo + At[k]
-    out = np.where(plo == 0.0, lo, 0.5 * (lo + hi))  # an exact root at the bracket's end
-    idx = np.flatnonzero(plo != 0.0)
-    At, lo, hi, x, pos = At[:, idx], lo[idx], hi[idx], out[idx], plo[idx] > 0.0
-    for _ in range(200):
-        if idx.size == 0:
-            break
-        p = np.zeros(idx.size)
-        dp = np.zeros(idx.size)
-        for k in range(n1 - 1, -1, -1):
-            dp = dp * x + p
-            p = p * x + At[k]
-        same = (p > 0.0) == pos
-        lo = np.where(same, x, lo)
-        hi = np.where(same, hi, x)
-        fin = (p == 0.0) | (hi - lo <= ROOT_XTOL)  # the scalar returns x here
-        with np.errstate(divide="ignore", invalid="ignore"):
-            nx = np.where(dp != 0.0, x - p / dp, lo - 1.0)
-        nx = np.where((lo < nx) & (nx < hi), nx, 0.5 * (lo + hi))
-        stop = fin | (np.abs(nx - x) <= ROOT_XTOL)  # ... or returns nx
-        x = np.where(fin, x, nx)
-        if stop.any():
-            out[idx[stop]] = x[stop]
-            keep = ~stop
-            At, lo, hi, x, pos, idx = At[:, keep], lo[keep], hi[keep], x[keep], pos[keep], idx[keep]
-    if idx.size:  # 200 iterations: the scalar returns its last x
-        out[idx] = x
-    return out

@@ -66,7 +66,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from . import saturated_compiled as _compiled
+from . import compiled as _compiled
 from . import saturated_kernel as _kernel
 
 #: Newton iterations before the dual is declared divergent (an infeasibility candidate).
@@ -246,9 +246,9 @@ def solve_axis_value(times: list[float], T: float, s0: float, v0: float, sf: flo
 def _core(ax: _Axis, lam0: list[float] | None, tol_residual: float
           ) -> tuple[int, int, float, float, float, list[float], list[float], list[float], list[float]]:
     """:func:`~iamp.planners.pmp.saturated_kernel.axis_core` on ``ax``: the compiled twin
-    once :mod:`~iamp.planners.pmp.saturated_compiled` is loaded in the process, else the
+    once :func:`~iamp.planners.pmp.compiled.load_axis` has run in the process, else the
     pure Python one (the same code, the same numbers)."""
-    run = _compiled.core()
+    run = _compiled.axis_core()
     if run is None:
         return _kernel.axis_core(ax.sig, ax.base, ax.d, ax.lo, ax.hi, [] if lam0 is None else lam0,
                                  lam0 is not None, tol_residual, MAX_NEWTON)

@@ -9,8 +9,9 @@ arithmetic of the former method-based code operation for operation, so that
 * the pure path runs it as Python (the default; no object per piece, no ``g(τ)`` list per
   piece end, about 3× fewer interpreter operations than before, the same numbers bit for
   bit), and
-* :mod:`~iamp.planners.pmp.saturated_compiled` compiles the *same code objects* with
-  ``numba.njit`` (no fastmath) for an opt-in compiled path with the same numbers.
+* :func:`iamp.planners.pmp.compiled.load_axis` compiles the *same code objects* with
+  ``numba.njit`` (no fastmath, :mod:`~iamp.planners.pmp.jit`) for an opt-in compiled path with
+  the same numbers.
 
 Nothing here may use Python features numba lacks (no classes, no exceptions, no
 comprehensions with ``zip``, no ``sum``/``max`` over generators).
@@ -21,12 +22,15 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from .jit import compilable
+
 #: Result codes of :func:`axis_core`.
 CONVERGED = 0
 NOT_CONVERGED = 1
 SINGULAR_GRAM = 2
 
 
+@compilable
 def gauss(A: Any, r: Any, n: int) -> tuple[bool, list[float]]:
     """Solve ``A x = r`` (``A`` row-major ``n × n``) by Gaussian elimination with partial
     pivoting (first largest pivot); ``(False, ·)`` if a pivot is exactly zero."""
@@ -66,6 +70,7 @@ def gauss(A: Any, r: Any, n: int) -> tuple[bool, list[float]]:
     return True, x
 
 
+@compilable
 def pieces(sig: Any, base: Any, lam: Any, lo: float, hi: float) -> list[float]:
     """Sub-pieces of ``[0, 1]`` between base points and switching points: flat
     ``[τa, τb, wa, wb, kind, …]`` (kind ``0`` free, ``−1`` lower, ``+1`` upper)."""
@@ -121,6 +126,7 @@ def pieces(sig: Any, base: Any, lam: Any, lo: float, hi: float) -> list[float]:
     return out
 
 
+@compilable
 def evaluate(sig: Any, base: Any, d: Any, lam: Any, lo: float, hi: float, hessian: bool
              ) -> tuple[list[float], float, list[float], list[float]]:
     """``(F, D, G_free, pieces)``: residuals ``∫g u − d̃``, dual value, free Gram matrix
@@ -176,6 +182,7 @@ def evaluate(sig: Any, base: Any, d: Any, lam: Any, lo: float, hi: float, hessia
     return F, D, G, ps
 
 
+@compilable
 def max_abs(x: Any) -> float:
     """``max(abs(v) for v in x)`` (first maximum; ``x`` non-empty)."""
     r: float = abs(x[0])
@@ -186,6 +193,7 @@ def max_abs(x: Any) -> float:
     return r
 
 
+@compilable
 def axis_core(sig: Any, base: Any, d: Any, lo: float, hi: float, lam0: Any, warm: bool, tol_residual: float,
               max_newton: int) -> tuple[int, int, float, float, float, list[float], list[float], list[float],
                                         list[float]]:

@@ -25,7 +25,7 @@ down to ``√ε`` around it.  A start inside a known basin box is not polished a
 :func:`trusted_q` (which solves the jump system) runs only for would-be incumbents.
 If the bound cannot close within its budget the result is only *local*.
 
-The same algorithm compiled by numba: :mod:`iamp.planners.pmp.compiled_search`.
+This is the one implementation of the search (its numba copy was removed, issue 32).
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .fixed import ValueFunction
+from .jit import compilable
 from .scale import Scaled
 from .stationary import stationarity_poly as stationarity_poly
 from .stationary import stationarity_poly_loops as stationarity_poly_loops
@@ -46,6 +47,7 @@ from .stationary import stationary_sigmas as stationary_sigmas
 FloatArray = npt.NDArray[np.float64]
 
 
+@compilable
 def _q_one(ex: Sequence[float], ey: Sequence[float], s: float) -> float:
     """``N(σ)/K̃(σ)`` for one vehicle (scalar Horner)."""
     px = 0.0
@@ -58,6 +60,7 @@ def _q_one(ex: Sequence[float], ey: Sequence[float], s: float) -> float:
     return (px * px + py * py) * 3.0 / (s * s * s * w * w * w)
 
 
+@compilable
 def one_vehicle_sigma(ex: Sequence[float], ey: Sequence[float]) -> tuple[float, float]:
     """``(σ*, q*)``: the global minimiser of ``q = N/K̃`` over ``(0, 1)`` and its value;
     ``(nan, inf)`` if ``J`` has no interior stationary point."""

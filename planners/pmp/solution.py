@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from iamp.core.contact import corners_and_speeds
-from iamp.core.jump_trajectory import JumpTrajectory
+from iamp.core.jump_trajectory import JumpSamples, JumpTrajectory
 from iamp.core.problem import Problem
 
 from .jumps import jump_system
@@ -24,6 +24,19 @@ if TYPE_CHECKING:
     from .scale import Scaled
 
 FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What the checks read of a solution (:meth:`PMPSolution.evaluate`): the corners and the
+    vehicles' speeds at the contact times, the sorted breakpoints ``0, t_i, t_f`` and the
+    trajectory's samples at ``0, t_f``, the contact times, those breakpoints and (dense) 201
+    uniform times, in that order."""
+
+    corners: FloatArray
+    xdot: FloatArray
+    breakpoints: FloatArray
+    samples: JumpSamples
 
 
 @dataclass
@@ -80,27 +93,40 @@ class PMPSolution(JumpTrajectory):
         """``r_i = H⁻(t_i) − H⁺(t_i) − ẋ_s,i(t_i)·Φ_i,x`` (= ``∂J/∂t_i``)."""
         return self.hamiltonian_jump_terms()[0]
 
+    def evaluate(self, dense: bool = False) -> Evaluation:
+        """The problem's corners and speeds at the contact times (one read) and the trajectory
+        at ``0, t_f``, the contact times, the sorted breakpoints ``0, t_i, t_f`` and, with
+        ``dense``, 201 uniform times (one call of
+        :meth:`~iamp.core.jump_trajectory.JumpTrajectory.samples`; every row is computed on its
+        own, so the numbers do not depend on which points are asked together)."""
+        prob = self.problem
+        t = self.contact_times
+        corners, xdot = corners_and_speeds(prob, t)
+        bp = np.sort(np.r_[0.0, t, prob.tf])
+        pts = [np.array([0.0, prob.tf]), t, bp]
+        if dense:
+            pts.append(np.linspace(0.0, prob.tf, 201))
+        return Evaluation(corners, xdot, bp, self.samples(np.concatenate(pts)))
+
     def residuals(self) -> dict[str, float]:
         """Max-abs residual (physical units) of every condition solved; the dimensionless
         checks are :func:`iamp.planners.pmp.verify.verify`."""
         return self.residuals_and_jumps()[0]
 
-    def residuals_and_jumps(self) -> tuple[dict[str, float], FloatArray]:
-        """``(residuals(), hamiltonian_jump_residual())``, reading the problem's corners and
-        speeds at the contact times once and the trajectory once
-        (:meth:`~iamp.core.jump_trajectory.JumpTrajectory.samples`; the same numbers)."""
+    def residuals_and_jumps(self, ev: Evaluation | None = None) -> tuple[dict[str, float], FloatArray]:
+        """``(residuals(), hamiltonian_jump_residual())`` from one :meth:`evaluate` (``dense``;
+        ``ev`` if the caller has it): the problem's corners and speeds read once and the
+        trajectory evaluated once (the same numbers)."""
         prob = self.problem
-        t = self.contact_times
-        m = t.shape[0]
-        corners, xdot = corners_and_speeds(prob, t)
-        ts = np.linspace(0.0, prob.tf, 201)
-        at = self.samples(np.concatenate([np.array([0.0, prob.tf]), t, ts]))
+        ev = self.evaluate(dense=True) if ev is None else ev
+        at, corners, xdot = ev.samples, ev.corners, ev.xdot
+        m = self.contact_times.shape[0]
         hj: FloatArray = at.h_left - at.h_right - xdot * self.jumps[:, 0]
         ends = at.states[:2]
         boundary = max(np.max(np.abs(ends[0] - prob.ego.initial)), np.max(np.abs(ends[1] - prob.ego.final)))
         X = at.states[2:2 + m]
         interior = np.max(np.abs(X[:, [0, 2]] - corners))
-        U, p = at.inputs[2 + m:], at.costates[2 + m:]
+        U, p = at.inputs[4 + 2 * m:], at.costates[4 + 2 * m:]
         h_min = np.max(np.abs(U + p[:, [1, 3]]))
         pl, pr = at.costates_left, at.costates[2:2 + m]
         jump = max(np.max(np.abs(pl[:, [0, 2]] - pr[:, [0, 2]] - self.jumps)),
@@ -175,11 +201,12 @@ class OneVehicleSolution(PMPSolution):
     @classmethod
     def checked_from_kernel(cls, problem: Problem, contact_times: FloatArray, jumps: FloatArray,
                             kernel_out: Sequence[float], T: float, L: float
-                            ) -> tuple[OneVehicleSolution, dict[str, float], FloatArray]:
-        """:meth:`from_kernel` with its :meth:`residuals_and_jumps` (the planner's diagnostics,
-        one call: the solution's arrays are made here)."""
+                            ) -> tuple[OneVehicleSolution, dict[str, float], FloatArray, Evaluation]:
+        """:meth:`from_kernel` with its :meth:`residuals_and_jumps` and the :meth:`evaluate` they
+        read (the planner's diagnostics, one call: the solution's arrays are made here)."""
         sol = cls.from_kernel(problem, contact_times, jumps, kernel_out, T, L)
         _fill(sol)  # here, not on the core's first evaluation of the trajectory
         with np.errstate(all="ignore"):
-            residuals, hj = sol.residuals_and_jumps()
-        return sol, residuals, hj
+            ev = sol.evaluate(dense=True)
+            residuals, hj = sol.residuals_and_jumps(ev)
+        return sol, residuals, hj, ev

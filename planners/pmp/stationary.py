@@ -11,9 +11,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from .jit import compilable
 from .roots import unit_roots
 
 
+@compilable
 def stationarity_poly(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
     """Ascending coefficients of ``P = N'σ(1−σ) − 3N(1−2σ)`` with ``N = ex² + ey²``
     (``ex``, ``ey`` ascending in ``σ``).  The common case (cubic ``x_poly``: four
@@ -46,6 +48,7 @@ def stationarity_poly(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
     return stationarity_poly_loops(ex, ey)
 
 
+@compilable
 def stationarity_poly_loops(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
     """:func:`stationarity_poly` for any number of coefficients (the general loops)."""
     d = max(len(ex), len(ey))
@@ -72,6 +75,7 @@ def stationarity_poly_loops(ex: Sequence[float], ey: Sequence[float]) -> list[fl
     return Pc
 
 
+@compilable
 def stationary_sigmas(ex: Sequence[float], ey: Sequence[float]) -> list[float]:
     """Every zero of ``dJ̃/dσ`` in ``(0, 1)`` for one vehicle (sorted)."""
     return unit_roots(stationarity_poly(ex, ey))
