@@ -11,6 +11,7 @@ machine-dependent numbers (wall times, the run time, versions) are only in ``tim
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -18,6 +19,8 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from iamp.cli.main import main
 from iamp.core.atomic import write_text
@@ -310,3 +313,156 @@ def test_item14_ctrl_c_during_the_real_small_campaign_prints_no_library_tracebac
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130, stderr[-3000:]
     assert stderr == "iamp: interrupted\n", stderr[-3000:]
+
+
+# --- item 15: the same bytes twice; the machine-dependent numbers apart ------------------------------------
+
+
+def _results(times: list[float], load: float) -> dict:  # type: ignore[type-arg]
+    """A results dictionary shaped like ``iamp reproduce``'s, with wall times ``times``."""
+    return {"produced_by": "iamp.comparison.report.reproduce", "config": {"steps_one": 100, "plan_budget_s": 4.0},
+            "versions": {"python": "3.11.7", "numpy": "2.4.6"}, "runtime_s": times[0] * 100,
+            "scenarios": [{"name": "paper-1", "runs": [
+                {"label": "pmp", "cost": 12.38708127134567, "contact_times": [3.4029],
+                 "time_s": {"n": 20, "median": times[1], "q1": times[2], "q3": times[3]}, "solve_time_s": times[4]},
+                {"label": "qp-osqp-foh-100", "cost": 12.387081271345671, "time_s": {"n": 3, "median": times[5]}}],
+                "agreement": [{"a": "pmp", "b": "qp-osqp-foh-100", "cost_rel_gap": 1.1e-05}]}],
+            "timing": {"samples": {"QP osqp": times}, "machine": {"load_average_1min": load}},
+            "bounded": [{"scenario": "paper-1", "planner": "pmp", "status": "optimal", "time_s": times[6]}],
+            "campaign": {"available": True, "ran": {"ran": 18, "seconds": times[7]},
+                         "summary": [{"mission": "merge", "traffic": "medium", "planner": "pmp", "episodes": 3,
+                                      "success_episodes": 2, "plan_time_p50_s_median": times[8],
+                                      "wall_s_median": times[9], "time_to_merge_s_median": 4.25}]},
+            "predictor": {"how": "reused", "seconds": times[10]}}
+
+
+@settings(max_examples=25, deadline=None)
+@given(a=st.lists(st.floats(1e-6, 1e3), min_size=11, max_size=11),
+       b=st.lists(st.floats(1e-6, 1e3), min_size=11, max_size=11), load=st.floats(0, 10))
+def test_item15_results_json_is_the_same_bytes_whatever_the_wall_times(a, b, load):
+    from iamp.comparison.report.machine import canonical_json, split_machine
+
+    kept_a, machine_a = split_machine(_results(a, load))
+    kept_b, _ = split_machine(_results(b, 0.0))
+    assert canonical_json(kept_a) == canonical_json(kept_b)
+    text = canonical_json(kept_a)
+    for key in ('"time_s"', '"solve_time_s"', '"seconds"', '"runtime_s"', '"versions"', '"timing"',
+                '"plan_time_p50_s_median"', '"wall_s_median"'):
+        assert key not in text
+    assert '"time_to_merge_s_median": 4.25' in text  # a simulated time is a result, not a wall time
+    # every wall time is kept, under the path it came from
+    assert machine_a["scenarios/paper-1/runs/pmp/time_s"]["median"] == a[1]
+    assert machine_a["scenarios/paper-1/runs/pmp/solve_time_s"] == a[4]
+    assert machine_a["bounded/paper-1:pmp/time_s"] == a[6]
+    assert machine_a["campaign/summary/merge:medium:pmp/plan_time_p50_s_median"] == a[8]
+    assert machine_a["runtime_s"] == a[0] * 100 and machine_a["versions"]["numpy"] == "2.4.6"
+
+
+def test_item15_canonical_json_is_exact_and_sorted():
+    import json
+
+    from iamp.comparison.report.machine import canonical_json
+
+    x = 12.38708127134567
+    text = canonical_json({"b": x, "a": [x * (1 + 2e-16), -0.0]})
+    assert json.loads(text) == {"a": [x * (1 + 2e-16), 0.0], "b": x}  # the planners' own numbers
+    assert text.index('"a"') < text.index('"b"') and "-0.0" not in text
+    assert canonical_json({"a": float("nan")}) == '{\n "a": null\n}\n'  # a missing number
+
+
+def test_item15_round_off_is_shown_as_a_bound_in_the_agreement_table():
+    from iamp.comparison.report.tables import table_agreement
+    from iamp.comparison.report.tex import tex_sci
+
+    def scen(gap: float) -> list:  # type: ignore[type-arg]
+        same = {"cost_rel_gap": gap, "state_sup_gap": 3 * gap, "jump_gap": -gap,
+                "contact_time_gap_to_grid_optimum": 0.0}
+        return [{"name": "paper-1", "agreement": [{"a": "pmp", "b": "qp-clarabel-foh-100", "verdict": "agree",
+                                                   "at_same_contact_times": same, "cost_rel_gap": 1.1e-5,
+                                                   "contact_time_gap": 4.5e-3}]}]
+
+    # two machines' round-off (issue 29: 1.2e-14 in the committed table, 7.9e-15 in a clone)
+    assert table_agreement(scen(1.2e-14)) == table_agreement(scen(7.9e-15))
+    assert "$<10^{-11}$" in table_agreement(scen(7.9e-15))
+    assert tex_sci(3.2e-9, floor=1e-11) == "$3.2\\times10^{-9}$"  # above the bound: the number
+
+
+def test_item15_figures_are_the_same_bytes_twice_and_carry_no_date_or_version(tmp_path):
+    import matplotlib
+
+    from iamp.comparison.figures.studies import plot_timing, plot_zoh_convergence
+    from iamp.comparison.figures.trajectory import plot_positions
+    from iamp.planners.examples import paper_problem
+    from iamp.planners.pmp.planner import PMPPlanner
+
+    plan = PMPPlanner().plan(paper_problem(1))
+    files = {}
+    for run in ("a", "b"):
+        d = tmp_path / run
+        paths = plot_positions(plan, d / "pos")
+        paths += plot_zoh_convergence({"paper-1": ([0.2, 0.1, 0.05], [0.12, 0.03, 0.0076])}, d / "zoh")
+        paths += plot_timing({"QP clarabel solve, cvxpy": [1e-3, 2e-3, 1.5e-3]}, d / "timing")
+        files[run] = {p.name: p.read_bytes() for p in paths}
+        time.sleep(1.1)  # a date with seconds in it would differ
+    assert files["a"] == files["b"]
+    version = matplotlib.__version__.encode()
+    for name, data in files["a"].items():
+        assert version not in data and b"Matplotlib" not in data, name
+        assert b"CreationDate" not in data, name
+
+
+def test_item15_the_timing_figure_prints_at_the_text_width_without_shrinking(tmp_path):
+    """Issue 29 item 17: Figure 18 was 14 in wide at the text width (17 cm): 8 pt labels printed at ~3.5 pt."""
+    import matplotlib.image as mpimg
+
+    from iamp.comparison.figures.studies import plot_timing
+    from iamp.comparison.figures.style import DPI
+
+    samples = {f"QP {s} solve, {p}, N=100 (1 vehicle)": [1e-3, 2e-3, 1.5e-3] for s in ("clarabel", "osqp")
+               for p in ("cvxpy", "native")}
+    plans = {f"paper-1: {k}": {"n": 3, "median": 0.1, "q1": 0.09, "q3": 0.12, "min": 0.08, "max": 0.13}
+             for k in ("PMP", "clarabel-foh-100", "osqp-foh-100")}
+    png = next(p for p in plot_timing(samples, tmp_path / "timing", whole_plans=plans) if p.suffix == ".png")
+    width_in = mpimg.imread(str(png)).shape[1] / DPI
+    text_width_in = 17.0 / 2.54  # A4 with 2 cm margins
+    assert width_in <= 1.1 * text_width_in  # printed at >= 90 % of its size: 8 pt labels stay >= 7 pt
+
+
+@pytest.mark.skipif(shutil.which("pdflatex") is None, reason="pdflatex is not installed")
+def test_item15_pdflatex_writes_the_same_pdf_twice(tmp_path):
+    from iamp.cli.report import compile_pdf
+
+    (tmp_path / "report.tex").write_text("\\documentclass{article}\\ifdefined\\pdftrailerid\\pdftrailerid{}\\fi"
+                                         "\\begin{document}Same bytes.\\end{document}\n")
+    pdfs = []
+    for _ in range(2):
+        ok, msg = compile_pdf(tmp_path, runs=1)
+        assert ok, msg
+        pdfs.append((tmp_path / "report.pdf").read_bytes())
+        time.sleep(1.1)
+    assert pdfs[0] == pdfs[1]
+
+
+def test_item15_the_campaign_table_has_no_wall_time_column():
+    from iamp.comparison.report.campaign import without_columns
+
+    table = ("\\begin{tabular}{llrr}\n\\toprule\nmission & planner & success & plan $p_{50}$ [ms] \\\\\n\\midrule\n"
+             "merge & pmp & 3/3 & 0.69 \\\\\nmerge & free & 2/3 & 0.11 \\\\\n\\bottomrule\n\\end{tabular}\n")
+    assert without_columns(table, (0, -1)) == ("\\begin{tabular}{lr}\n\\toprule\nplanner & success \\\\\n"
+                                               "\\midrule\npmp & 3/3 \\\\\nfree & 2/3 \\\\\n\\bottomrule\n"
+                                               "\\end{tabular}\n")
+
+
+# --- item 17: what the reader sees ------------------------------------------------------------------------------
+
+
+def test_item17_the_bounded_table_prints_its_words_once_escaped_and_no_negative_zero():
+    from iamp.comparison.bounded import BoundedRow
+    from iamp.comparison.report.bounded import latex_table
+
+    rows = [BoundedRow(scenario="paper-3", planner="avoid", available=True, status="optimal", cost=6.387 - 1e-9,
+                       free_cost=6.387),
+            BoundedRow(scenario="paper-1", planner="pmp", available=True, status="limits_violated")]
+    tex = latex_table(rows)
+    assert "-0.00" not in tex and "+0.00\\,\\%" in tex
+    assert "textbackslash" not in tex and "limits\\_violated" in tex

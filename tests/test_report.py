@@ -72,7 +72,7 @@ def test_progress_is_reported_per_step(quick_report):
 def test_outputs_exist(quick_report):
     out, res, _ = quick_report
     for rel in ("report.tex", "results.json", "tables/scenarios.tex", "tables/results.tex", "tables/metrics.tex",
-                "tables/agreement.tex", "tables/timing.tex", "tables/convergence.tex"):
+                "tables/agreement.tex", "timing/timing.tex", "tables/convergence.tex"):
         assert (out / rel).is_file(), rel
     for rel in res["outputs"]:
         assert (out / rel).is_file(), rel
@@ -85,7 +85,8 @@ def test_figures_are_drawn(quick_report):
              "J-paper-1", "costates-paper-1", "xy-two-vehicle", "pos-two-vehicle", "costates-two-vehicle",
              "zoh-convergence", "timing"]
     for name in names:
-        png, pdf = out / "figures" / f"{name}.png", out / "figures" / f"{name}.pdf"
+        folder = out / ("timing" if name == "timing" else "figures")  # wall times: machine-dependent (issue 29)
+        png, pdf = folder / f"{name}.png", folder / f"{name}.pdf"
         assert png.stat().st_size > 10_000, name
         assert pdf.stat().st_size > 5_000, name
         assert pdf.read_bytes()[:5] == b"%PDF-", name

@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 
 from iamp.comparison.trajectories import pmp_solution
 
-from .style import PALETTE, SAFETY_COLOR, PathLike, planner_style, save_figure
+from .style import PALETTE, SAFETY_COLOR, PathLike, legend_below, planner_style, save_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from iamp.core.plan import Plan
@@ -186,7 +186,7 @@ def plot_costates(pmp_result: Plan, qp_results: Mapping[str, Plan | None], stem:
         ax.set_xlabel("$t$ [s]" if curve is None else "$t$ [s] (zoomed on the contact times)")
         ax.set_ylabel(f"$\\Phi_{{i,{axis_name}}}$, $\\nu_{{i,{axis_name}}}$ [m/s$^3$]")
         ax.grid(True, lw=0.3, alpha=0.5)
-        ax.legend(fontsize=7, loc="best")
+        legend_below(ax, ncol=2, fontsize=7)  # below the axes: the markers sit on top of one another
     fig.suptitle(title or f"{problem.name}: co-states and jumps (PMP) against QP multipliers", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, stem)

@@ -82,10 +82,11 @@ def plot_timing(samples: Mapping[str, Sequence[float]], stem: PathLike, *,
                 title: str | None = None) -> list[Path]:
     """Wall times, log scale, coloured by planner (:func:`planner_style`).
 
-    Left (if ``whole_plans``): whole plans, contact-time search included — the median with
+    Top (if ``whole_plans``): whole plans, contact-time search included — the median with
     its quartiles as a bar, one row per run, from the statistics of the planning step (the
-    same numbers as the timing table). Right: single QP solves at a changed candidate node —
-    box (quartiles, whiskers 5–95 %) with every sample jittered over it.
+    same numbers as the timing table). Bottom: single QP solves at a changed candidate node —
+    box (quartiles, whiskers 5–95 %) with every sample jittered over it.  6 in wide, so
+    that at the report's text width its labels print at about their size.
 
     Parameters
     ----------
@@ -96,10 +97,12 @@ def plot_timing(samples: Mapping[str, Sequence[float]], stem: PathLike, *,
     """
     items = [(k, np.asarray(v, dtype=float)) for k, v in samples.items() if len(v)]
     plans = [(k, st) for k, st in (whole_plans or {}).items() if st and st.get("median")]
-    rows = max(len(items), len(plans), 1)
-    ncols = 2 if plans else 1
-    fig = Figure(figsize=(7.0 * ncols, max(3.0, 0.42 * rows + 1.4)), layout="constrained")
-    axes = [fig.add_subplot(1, ncols, c + 1) for c in range(ncols)]
+    # one panel above the other, 6 in wide: printed at the text width, the labels keep their size
+    heights = [max(1.2, 0.26 * len(plans) + 0.6)] if plans else []
+    heights.append(max(1.2, 0.26 * max(len(items), 1) + 0.6))
+    fig = Figure(figsize=(6.0, sum(heights) + 1.2 * len(heights)), layout="constrained")
+    grid = fig.add_gridspec(len(heights), 1, height_ratios=heights)
+    axes = [fig.add_subplot(grid[r, 0]) for r in range(len(heights))]
     if plans:
         ax = axes[0]
         pos = np.arange(len(plans), 0, -1)
@@ -117,8 +120,8 @@ def plot_timing(samples: Mapping[str, Sequence[float]], stem: PathLike, *,
         ax.set_yticks(pos)
         ax.set_yticklabels([f"{k} (n={st['n']})" for k, st in plans], fontsize=8)
         ax.set_xscale("log")
-        ax.set_xlabel(f"wall time of a whole plan [s] (median; bar: quartiles when n >= {MIN_QUARTILE_SAMPLES}, "
-                      "else ticks: the fastest and slowest plan)", fontsize=9)
+        ax.set_xlabel(f"wall time of a whole plan [s]: median; bar: quartiles (n >= {MIN_QUARTILE_SAMPLES}), "
+                      "else ticks: fastest, slowest", fontsize=8)
         ax.set_title("whole plans, contact-time search included", fontsize=9)
         ax.grid(True, axis="x", which="both", lw=0.3, alpha=0.5)
     ax = axes[-1]
@@ -140,7 +143,7 @@ def plot_timing(samples: Mapping[str, Sequence[float]], stem: PathLike, *,
         ax.set_xscale("log")
     else:
         ax.text(0.5, 0.5, "no timing samples", ha="center", va="center", transform=ax.transAxes)
-    ax.set_xlabel("wall time of one QP solve [s]")
+    ax.set_xlabel("wall time of one QP solve [s]", fontsize=8)
     ax.grid(True, axis="x", which="both", lw=0.3, alpha=0.5)
     ax.set_title("one QP solve at a changed candidate node (box: quartiles, whiskers: 5-95 %)", fontsize=9)
     if title:

@@ -56,6 +56,7 @@ __all__ = [
     "save_figure",
     "save_one",
     "scenario_color",
+    "stable_metadata",
     "tidy_axis",
 ]
 
@@ -132,6 +133,27 @@ def scenario_color(name: str, k: int = 0) -> str:
     return SCENARIO_COLORS.get(name, _SCENARIO_CYCLE[k % len(_SCENARIO_CYCLE)])
 
 
+def stable_metadata(fmt: str) -> dict[str, str | None] | None:
+    """``savefig``'s metadata for a file that is the same bytes on every run and with every
+    matplotlib version: no creation date, no software version (PNG, PDF, SVG); ``None`` for
+    other formats (matplotlib's defaults)."""
+    if fmt == "pdf":
+        return {"CreationDate": None, "Creator": "iamp", "Producer": None}
+    if fmt == "png":
+        return {"Software": None}
+    if fmt == "svg":
+        return {"Date": None, "Creator": "iamp"}
+    return None
+
+
+def _savefig(fig: Figure, path: str, fmt: str) -> None:
+    """``fig.savefig`` with :func:`stable_metadata` (and, for SVG, a fixed hash salt for its ids)."""
+    from matplotlib import rc_context
+
+    with rc_context({"svg.hashsalt": "iamp"}):
+        fig.savefig(path, format=fmt, dpi=DPI, bbox_inches="tight", metadata=stable_metadata(fmt))
+
+
 def save_figure(fig: Figure, stem: PathLike, formats: Sequence[str] = FORMATS) -> list[Path]:
     """Write ``fig`` as ``stem.<fmt>`` for every format, atomically; return the paths."""
     stem = Path(stem)
@@ -140,8 +162,7 @@ def save_figure(fig: Figure, stem: PathLike, formats: Sequence[str] = FORMATS) -
     for fmt in formats:
         path = stem.with_name(f"{stem.name}.{fmt}")
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=fmt, dpi=DPI, bbox_inches="tight",
-                        metadata={"CreationDate": None} if fmt == "pdf" else None)
+            _savefig(fig, tmp, fmt)
         written.append(path)
     return written
 
@@ -152,8 +173,7 @@ def save_one(fig: Figure, path: PathLike) -> Path:
     path = Path(path)
     fmt = path.suffix.lstrip(".").lower()
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format=fmt, dpi=DPI, bbox_inches="tight",
-                    metadata={"CreationDate": None} if fmt == "pdf" else None)
+        _savefig(fig, tmp, fmt)
     return path
 
 

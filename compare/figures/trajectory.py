@@ -231,10 +231,12 @@ def plot_positions(result: Plan, stem: PathLike, *, title: str | None = None, sh
             ax.axhline(c, color=SAFETY_COLOR, ls="--", lw=1.2)
         ax1.plot([ti], [cx], "o", color=SAFETY_COLOR, ms=6, zorder=5)
         ax2.plot([ti], [cy], "o", color=SAFETY_COLOR, ms=6, zorder=5)
+        # on a white box: another contact's dashed lines may run through the label (two vehicles)
+        box = {"fc": "white", "ec": "none", "alpha": 0.85, "pad": 1.0}
         ax1.annotate(f"$t^*_{i + 1}$ = {ti:.3f} s\n$x$ = {cx:.2f} m", (ti, cx), textcoords="offset points",
-                     xytext=(8, -28), fontsize=8, color=SAFETY_COLOR)
+                     xytext=(8, -28), fontsize=8, color=SAFETY_COLOR, bbox=box, zorder=6)
         ax2.annotate(f"$y$ = {cy:.2f} m", (ti, cy), textcoords="offset points", xytext=(8, -14 if i == 0 else 6),
-                     fontsize=8, color=SAFETY_COLOR)
+                     fontsize=8, color=SAFETY_COLOR, bbox=box, zorder=6)
     ax1.set_ylabel("$s_x$ [m]")
     ax2.set_ylabel("$s_y$ [m]")
     ax2.set_xlabel("$t$ [s]")

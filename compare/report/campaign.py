@@ -69,7 +69,8 @@ def campaign_section(out: Path, *, quick: bool, progress: Callable[[int, int], N
     finally:
         shutil.rmtree(fresh, ignore_errors=True)
     summary = summarise(read_rows(folder / "episodes.csv"), PLANNERS)
-    table = latex_table(summary)
+    # one mission, one density (in the caption); the plan times: in the timing table (machine-dependent)
+    table = without_columns(latex_table(summary), (0, 1, -1))
     write_text(out / "tables" / "campaign-small.tex", table)
     command = (f"iamp campaign --missions {MISSION} --planners {','.join(PLANNERS)} --traffic medium "
                f"--seeds {seeds} --duration {duration:g} --out {folder.name}")
@@ -110,6 +111,48 @@ def dask_setup(worker: object) -> None:
 
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def without_columns(table: str, drop: tuple[int, ...]) -> str:
+    """A ``tabular`` (one row per line, cells separated by `` & ``) without the columns ``drop``
+    (indices; negative from the end).  :func:`iamp.simulation.campaign.latex_table` starts with the
+    mission and the density (one each here, said in the caption) and ends on the plan time, a wall
+    time (in the timing table)."""
+    out: list[str] = []
+    spec_at, cells = None, 0
+    for line in table.splitlines():
+        stripped = line.rstrip()
+        if stripped.startswith("\\begin{tabular}{") and stripped.endswith("}"):
+            spec_at = len(out)
+            out.append(stripped[len("\\begin{tabular}{"):-1])
+        elif stripped.endswith("\\\\") and " & " in stripped:
+            row = stripped[:-2].rstrip().split(" & ")
+            gone = {k % len(row) for k in drop}
+            kept = [c for k, c in enumerate(row) if k not in gone]
+            cells = max(cells, len(kept))
+            out.append(" & ".join(kept) + " \\\\")
+        else:
+            out.append(line)
+    if spec_at is not None:  # one column letter per remaining cell
+        spec = out[spec_at]
+        gone = {k % len(spec) for k in drop} if spec else set()
+        spec = "".join(c for k, c in enumerate(spec) if k not in gone)
+        spec = spec[:cells] + "r" * max(cells - len(spec), 0) if cells else spec
+        out[spec_at] = "\\begin{tabular}{" + spec + "}"
+    return "\n".join(out) + ("\n" if table.endswith("\n") else "")
+
+
+def campaign_plan_times(section: CampaignSection) -> list[tuple[str, int, float | None]]:
+    """``(label, episodes, median over the episodes of each episode's median plan time)`` per
+    planner of the small campaign (the timing table's closed-loop rows); empty without it."""
+    if not section.get("available"):
+        return []
+    rows = []
+    for c in section.get("summary", []):
+        label = f"{c.get('mission', MISSION)}, {c.get('traffic', '')}: {c.get('planner', '?')}"
+        median, n = c.get("plan_time_p50_s_median"), c.get("episodes", 0)
+        rows.append((label, int(cast(int, n)), None if median is None else float(cast(float, median))))
+    return rows
 
 
 def full_campaign_shape(out: Path) -> FullCampaign | None:
@@ -158,7 +201,15 @@ def campaign_tex(section: CampaignSection) -> str:
     return (head + "Receding-horizon planning every 0.1\\,s in seeded SUMO traffic (SPEC~\\S15): the ego's "
             "lane ends 400\\,m ahead and it must merge; the paper's PMP, the active-set PMP, the avoidance QP, "
             "the unconstrained ablation, IDM + MOBIL and SUMO's own lane change, medium density, paired seeds "
-            "(too few to tell planners apart), run afresh by the reproduction with: \\texttt{"
-            + str(tex_escape(section["command"])) + "}; " + _provenance(section.get("ran")) + ". "
-            + _full_campaign(section.get("full")) + "\n\n"
-            "\\noindent\\resizebox{\\linewidth}{!}{\\input{" + str(section["table"]) + "}}\n\n")
+            "(too few to tell planners apart); " + _provenance(section.get("ran")) + ". "
+            + _full_campaign(section.get("full")) + " The reproduction runs the small campaign afresh with\n"
+            "\\begin{quote}\\raggedright\\small\\texttt{"
+            + str(tex_escape(section["command"])).replace(",", ",\\allowbreak{}") + "}\n\\end{quote}\n\n"
+            "\\begin{table}[H]\n\\centering\n\\caption{The small campaign (mission \\texttt{" + MISSION + "}, "
+            "medium density): success and contacts (k/n, Wilson "
+            "95\\,\\% interval in \\%), the new follower's hard brakes, executed limit violations, medians of the "
+            "time to merge, the follower's deceleration and the executed peak acceleration, and the plans that were "
+            "constrained. The plan times are in Table~\\ref{tab:timing} (machine-dependent).}\n"
+            "\\label{tab:campaign-small}\n"
+            "{\\setlength{\\tabcolsep}{3pt}\\resizebox{\\linewidth}{!}{\\input{" + str(section["table"])
+            + "}}}\n\\end{table}\n\n")

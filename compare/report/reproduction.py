@@ -34,7 +34,6 @@ metrics and the qualitative comparison are :mod:`iamp.comparison.metrics`, the p
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -48,13 +47,13 @@ from iamp.comparison.bounded import BoundedRow
 from iamp.comparison.figures.studies import PredictionCurves
 from iamp.comparison.metrics import ManoeuvreMetrics, manoeuvre_metrics, qualitative_comparison
 from iamp.core.atomic import write_text as atomic_write_text
-from iamp.core.jsonable import to_jsonable
 from iamp.core.plan import Plan
 from iamp.planners.qp.diagnostics import QPDiagnostics
 
 from .config import ProgressFn, ReproduceConfig
 from .convergence import zoh_convergence
 from .document import build_report_tex
+from .machine import MACHINE_DIR, MACHINE_FILES, MACHINE_README, canonical_json, split_machine
 from .paper import PAPER_TABLE_I, SCENARIOS
 from .predictor import predictor_evaluation
 from .records import ConfigJSON, PredictionJSON, ResultsJSON, ScenarioJSON, ScenarioPlan, ZohConvergence
@@ -67,7 +66,7 @@ from .tables import (
     table_scenarios,
     table_timing,
 )
-from .tex import short_label
+from .tex import short_label, tex_escape
 from .timing import timing_section, versions_used, whole_plan_stats
 
 __all__ = ["ReproduceConfig", "reproduce"]
@@ -141,6 +140,9 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     out = Path(out_dir)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
+    (out / MACHINE_DIR).mkdir(parents=True, exist_ok=True)
+    for old in RETIRED_OUTPUTS:  # an earlier layout's files (the staging folder starts as a copy)
+        (out / old).unlink(missing_ok=True)
     notes: list[str] = []
     scenarios = tuple(scenarios)
     total = 1 + 2 * len(scenarios) + 7
@@ -192,7 +194,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
 
     def fig(key: str, paths: list[Path]) -> None:
         written.extend(paths)
-        figs[key] = f"figures/{Path(paths[-1]).name}"  # the PDF
+        figs[key] = Path(os.path.relpath(paths[-1], out)).as_posix()  # the PDF
 
     for name in scenarios:
         step(f"figures for {name}")
@@ -261,7 +263,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     # 5. timing --------------------------------------------------------------------------
     step("timing (single QP solves at a changed node)")
     timing = timing_section(entries, plans, cfg, progress=step.sub)
-    fig("timing", plot_timing(timing["samples"], out / "figures" / "timing",
+    fig("timing", plot_timing(timing["samples"], out / MACHINE_DIR / "timing",
                               whole_plans=whole_plan_stats(timing, cfg)))
 
     # 6. predictor evaluation --------------------------------------------------------------
@@ -276,7 +278,7 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
         written.append(out / "predictor_eval.json")
 
     # 7. a small closed-loop campaign, only with the [sim] extra (SPEC §11) -------------------
-    from .campaign import campaign_section, campaign_tex
+    from .campaign import campaign_plan_times, campaign_section, campaign_tex
 
     step("closed loop: a small SUMO campaign (needs the [sim] extra)")
     campaign = campaign_section(out, quick=quick, progress=step.sub)
@@ -291,28 +293,50 @@ def reproduce(out_dir: str | os.PathLike[str] = "reports", progress: ProgressFn 
     tdir = out / "tables"
     for key, text in (("scenarios", table_scenarios(entries, rows1)), ("results", table_results(scen_out, cfg)),
                       ("metrics", table_metrics(metrics)), ("agreement", table_agreement(scen_out)),
-                      ("timing", table_timing(timing, scen_out)),
                       ("convergence", table_convergence(conv)), ("safety", safety["table"]),
                       ("bounded", bounded_latex(bounded))):
         written.append(atomic_write_text(tdir / f"{key}.tex", text))
         tables[key] = f"tables/{key}.tex"
+    mdir = out / MACHINE_DIR
+    written.append(atomic_write_text(mdir / "timing.tex",
+                                     table_timing(timing, scen_out, campaign_plan_times(campaign))))
+    tables["timing"] = f"{MACHINE_DIR}/timing.tex"
     cfg_json = cast(ConfigJSON, asdict(cfg))  # ReproduceConfig's fields
     res: ResultsJSON = {"produced_by": "iamp.comparison.report.reproduce", "config": cfg_json, "notes": notes,
            "versions": versions_used(), "scenarios": scen_out, "qualitative": qual, "zoh_convergence": conv,
            "timing": timing, "predictor": predictor, "safety": safety["json"],
            "campaign": {k: v for k, v in campaign.items() if k != "table"},
            "bounded": [r.to_json() for r in bounded]}
-    res["runtime_s"] = time.perf_counter() - start
-    tex = build_report_tex(res, out, figs, tables, entries)
     bounded_tex = ("\\section{The bounded problem}\nThe scenarios under a passenger car's limits (SPEC 14): "
-                   "which become infeasible, what the bounds cost.\n\\input{" + tables["bounded"] + "}\n\n")
-    tex = tex.replace("\\end{document}", safety["section"](figs, tables["safety"]) + campaign_tex(campaign)
-                      + bounded_tex + "\\end{document}", 1)
+                   "which become infeasible, what the bounds cost.\n\\inputhere{" + tables["bounded"] + "}\n\n")
+    tex = build_report_tex(res, out, figs, tables, entries,
+                           extra=safety["section"](figs, tables["safety"]) + campaign_tex(campaign) + bounded_tex)
     written.append(atomic_write_text(out / "report.tex", tex))
-    res["outputs"] = sorted({str(Path(p).relative_to(out)) for p in written} | {"results.json"})
-    atomic_write_text(out / "results.json", json.dumps(to_jsonable(res), indent=1, allow_nan=False) + "\n")
+    written += [mdir / "README.md", mdir / "timing.json", mdir / "environment.tex"]
+    res["outputs"] = sorted({Path(p).relative_to(out).as_posix() for p in written} | {"results.json"})
+    res["runtime_s"] = time.perf_counter() - start
+    kept, machine = split_machine(res)
+    kept["machine_dependent"] = {"file": f"{MACHINE_DIR}/timing.json", "keys_moved_there": sorted(machine),
+                                 "files": list(MACHINE_FILES)}
+    atomic_write_text(out / "results.json", canonical_json(kept))
+    atomic_write_text(mdir / "timing.json", canonical_json({"produced_by": res["produced_by"], "values": machine}))
+    atomic_write_text(mdir / "README.md", MACHINE_README)
+    atomic_write_text(mdir / "environment.tex", environment_tex(res))
     step.finish()
     return res
+
+
+#: Files an earlier version of the reproduction wrote and this one writes elsewhere (removed).
+RETIRED_OUTPUTS = ("tables/timing.tex", "figures/timing.png", "figures/timing.pdf")
+
+
+def environment_tex(res: ResultsJSON) -> str:
+    """The report's sentence on the run time and the versions (``timing/environment.tex``)."""
+    versions = res["versions"]
+    return (f"Generated in {res['runtime_s']:.0f}\\,s by \\texttt{{iamp reproduce}}; "
+            f"Python {tex_escape(versions.get('python') or '?')}, "
+            + ", ".join(f"{tex_escape(k)} {tex_escape(v)}" for k, v in versions.items() if k != "python" and v)
+            + ".\n")
 
 
 def _sweeps(runs: Mapping[str, Plan]) -> dict[str, list[tuple[tuple[int, ...], float]]]:

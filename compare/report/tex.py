@@ -56,13 +56,19 @@ def tex_escape(text: str) -> str:
     return "".join(out).replace("--", "-{}-")  # no en/em dashes from option names
 
 
-def tex_sci(x: float | None, digits: int = 1) -> str:
-    """A number for a table cell: ``$1.2\\times10^{-9}$``, ``0.0312``, ``0`` or ``--``."""
+def tex_sci(x: float | None, digits: int = 1, floor: float | None = None) -> str:
+    """A number for a table cell: ``$1.2\\times10^{-9}$``, ``0.0312``, ``0`` or ``--``.
+
+    With ``floor`` (a power of ten), a magnitude below it is shown as ``$<10^{k}$``: round-off
+    (a gap of ``1e-15`` between two solvers' optima) changes with the machine, the bound does not.
+    """
     if x is None or is_missing(x):
         return "--"
     x = float(x)
     if x == 0:
         return "0"
+    if floor is not None and abs(x) < floor:
+        return f"$<10^{{{round(math.log10(floor))}}}$"
     if 1e-2 <= abs(x) < 1e4:
         return f"{x:.{digits + 2}g}"
     m, e = mantissa_exponent(x, digits)

@@ -45,7 +45,8 @@ def compile_pdf(out_dir: str | os.PathLike[str], tex_name: str = "report.tex", r
     """Compile ``out_dir/tex_name`` with ``pdflatex``; returns ``(ok, message)``.
 
     The auxiliary files go to a temporary folder inside ``out_dir`` (removed afterwards);
-    the PDF replaces ``out_dir/<stem>.pdf`` atomically, and only on success.  Returns
+    the PDF replaces ``out_dir/<stem>.pdf`` atomically, and only on success.  The dates in the
+    PDF are fixed (:func:`reproducible_latex_env`).  Returns
     ``(False, "pdflatex not found ...")`` if ``pdflatex`` is not installed.
     """
     exe = shutil.which("pdflatex")
@@ -61,7 +62,7 @@ def compile_pdf(out_dir: str | os.PathLike[str], tex_name: str = "report.tex", r
                 proc = subprocess.run([exe, "-interaction=nonstopmode", "-halt-on-error",
                                        f"-output-directory={build.name}", tex_name],
                                       cwd=str(out), capture_output=True, text=True, errors="replace",
-                                      timeout=timeout)
+                                      timeout=timeout, env=reproducible_latex_env())
             except subprocess.TimeoutExpired:
                 return False, f"pdflatex timed out after {timeout:g} s"
             if proc.returncode != 0:
@@ -81,6 +82,16 @@ def compile_pdf(out_dir: str | os.PathLike[str], tex_name: str = "report.tex", r
 
 
 LATEX_INSTALL = "apt-get install texlive-latex-recommended texlive-latex-extra lmodern"
+
+
+def reproducible_latex_env() -> dict[str, str]:
+    """The environment for ``pdflatex``: the same PDF bytes from the same input.
+
+    ``SOURCE_DATE_EPOCH`` (the user's, else ``0``) with ``FORCE_SOURCE_DATE=1`` fixes the
+    creation and modification dates pdfTeX writes; ``report.tex`` sets ``\\pdftrailerid{}`` (no
+    random file ID).
+    """
+    return {**os.environ, "SOURCE_DATE_EPOCH": os.environ.get("SOURCE_DATE_EPOCH", "0"), "FORCE_SOURCE_DATE": "1"}
 
 
 def _stale_pdf_note(out: Path) -> str | None:
