@@ -75,6 +75,8 @@ MAX_CANDIDATES = 8
 MAX_PLANS = 6
 #: Grid intervals of the QP planners (24 and 40 give the same plans to 1e-4 in J on US-101, 1.5-4x faster).
 STEPS = 24
+#: Branch-and-bound boxes per PMP call (its ``max_boxes``; beyond it the plan is ``local``).
+PMP_MAX_BOXES = 2_000
 #: QP solves per avoidance-QP call (its branch and bound's ``max_solves``).
 AVOID_MAX_SOLVES = 8
 
@@ -321,7 +323,7 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
 
     problem = cr.problem(cand, vehicles, margin_y)
     if planner == "pmp":
-        return iamp.plan(problem, "pmp")
+        return iamp.plan(problem, "pmp", max_boxes=PMP_MAX_BOXES)
     if constraint == "avoid":
         return iamp.plan(problem, "qp", constraint=constraint, steps=steps, hold="foh", max_solves=AVOID_MAX_SOLVES)
     return iamp.plan(problem, "qp", constraint=constraint, steps=steps, hold="foh")
@@ -483,9 +485,10 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
             if corner is not None:
                 vehicles.append(_avoided(ob, corner, sx, sy))
                 imposed.append((ob.obstacle_id, corner))
-        if not vehicles:
+        if not vehicles or budget[0] <= 0:
             h, peak = _heading_and_peak(free, cand.tf)
-            return RoadPlan(label, "optimal", cand, free, free.cost(), 0.0, [], free_hits, None, 0, None, h, peak)
+            return RoadPlan(label, "optimal" if not free_hits else "unsafe", cand, free, free.cost(), 0.0, [],
+                            free_hits, None, 0, None if not vehicles else "the planner calls are spent", h, peak)
         budget[0] -= 1
         return _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps)
     vehicles, imposed = [], []
