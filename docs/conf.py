@@ -42,7 +42,9 @@ myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
 myst_heading_anchors = 3
 suppress_warnings = ["myst.xref_missing", "myst.header"]
 
-# the API reference: autosummary pages generated from the docstrings of iamp.__all__
+# the API reference: autosummary pages generated from the docstrings of iamp.__all__, every public
+# method in full (docs/_templates/autosummary/class.rst)
+templates_path = ["_templates"]
 autosummary_generate = True
 autodoc_typehints = "none"
 autodoc_member_order = "bysource"
