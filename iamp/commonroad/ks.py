@@ -18,10 +18,13 @@ the step when the simulated centre is within 2 cm and the heading within 0.03 ra
 Conversion (:func:`track`):
 
 1. **Flatness.**  The rear axle is the model's flat output.  From the plan's centre path
-   :math:`c(t)` (sampled at :math:`\Delta t / 10`) the heading of the plan's velocity
-   :math:`\theta = \operatorname{atan2}(\dot c)` gives the rear-axle reference
-   :math:`r = c - b(\cos\theta, \sin\theta)`; its velocity gives :math:`\psi_{ref}, v_{ref}`,
-   its curvature :math:`\kappa_{ref}` the steering :math:`\delta_{ref} = \arctan(l\kappa_{ref})`.
+   :math:`c(t)` (sampled at :math:`\Delta t / 10`, continued at constant velocity beyond its
+   ends) the rear axle :math:`r = c - b(\cos\psi, \sin\psi)` must move along its heading, so
+   :math:`\dot\psi = \dot c \cdot n(\psi) / b` (:math:`n` the left normal; the trailer
+   equation, stable forward in time), integrated (RK4) from the initial orientation; this gives
+   :math:`\psi_{ref}`, :math:`v_{ref} = \dot c \cdot (\cos\psi, \sin\psi)`, the curvature
+   :math:`\kappa_{ref} = \dot\psi / v_{ref}` and the steering
+   :math:`\delta_{ref} = \arctan(l\kappa_{ref})`.
 2. **Tracking by forward simulation.**  The ``KS`` model is simulated step by step with the
    checker's own integrator (``VehicleDynamics.forward_simulation``, ``odeint``) from the
    planning problem's initial state (the initial steering angle, which the planning problem does
@@ -64,6 +67,8 @@ VEHICLE_TYPES = (1, 2, 3)
 INPUT_MARGIN = 0.95
 #: Samples of the plan per time step for the flatness reference.
 SUBSTEPS = 10
+#: Samples the plan is continued by (constant velocity) at both ends for the differences.
+EDGE = 20
 #: Tracking gains: speed [1/s], along-track position [1/s^2], lateral pole [rad/s].
 K_V = 2.0
 K_S = 1.0
@@ -142,20 +147,41 @@ def reference(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, b: floa
     X = trajectory.states(t)
     C = cr.frame.to_world(X[:, 0], X[:, 2])
     V = cr.frame.velocity_to_world(X[:, 0], X[:, 2], X[:, 1], X[:, 3])
-    speed = np.linalg.norm(V, axis=1)
+    n = len(t)
+    # continued at constant velocity for EDGE samples on both sides, so that the differences below
+    # are central at the plan's ends (one-sided ones put spurious curvature there)
+    j = np.arange(1, EDGE + 1)[:, None] * h
+    C = np.vstack([C[0] + V[0] * -j[::-1], C, C[-1] + V[-1] * j])
+    V = np.vstack([np.repeat(V[:1], EDGE, 0), V, np.repeat(V[-1:], EDGE, 0)])
     psi0 = float(cr.planning_problem.initial_state.orientation)
-    theta = np.where(speed > 0.1, np.arctan2(V[:, 1], V[:, 0]), psi0)
-    theta = np.unwrap(theta)
-    Cs = C if shift is None else C + shift
-    R = Cs - b * np.column_stack([np.cos(theta), np.sin(theta)])
-    dR = np.gradient(R, h, axis=0, edge_order=2)
-    ddR = np.gradient(dR, h, axis=0, edge_order=2)
-    v = np.linalg.norm(dR, axis=1)
-    psi = np.unwrap(np.where(v > 0.1, np.arctan2(dR[:, 1], dR[:, 0]), theta))
-    cross = dR[:, 0] * ddR[:, 1] - dR[:, 1] * ddR[:, 0]
-    kappa = np.where(v > 0.1, cross / np.maximum(v, 0.1) ** 3, 0.0)
-    return {"t": t, "centre": C, "rear": R, "psi": psi, "v": v, "kappa": kappa,
-            "delta": np.arctan(l_wb * kappa), "a": np.gradient(v, h, edge_order=2)}
+    Cs = C if shift is None else C + np.pad(shift, ((EDGE, EDGE), (0, 0)), mode="edge")
+    Vs = V if shift is None else V + np.gradient(Cs - C, h, axis=0, edge_order=2)
+    # the rear axle r = c - b (cos psi, sin psi) moves along its heading psi: the component of its
+    # velocity c' - b psi' n(psi) normal to the heading vanishes, psi' = (c' . n(psi)) / b; integrated
+    # (RK4, c' linear between samples) from the initial orientation: a flat output consistent with
+    # the plan's centre and the initial state (the trailer equation; stable forward in time)
+    psi = np.full(len(Cs), psi0)
+
+    def rate(q: float, w: FloatArray) -> float:
+        return float(-w[0] * math.sin(q) + w[1] * math.cos(q)) / b
+
+    for i in range(EDGE, len(Cs) - 1):
+        w0, w1 = Vs[i], Vs[i + 1]
+        wm = 0.5 * (w0 + w1)
+        k1 = rate(psi[i], w0)
+        k2 = rate(psi[i] + 0.5 * h * k1, wm)
+        k3 = rate(psi[i] + 0.5 * h * k2, wm)
+        k4 = rate(psi[i] + h * k3, w1)
+        psi[i + 1] = psi[i] + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    e = np.column_stack([np.cos(psi), np.sin(psi)])
+    R = Cs - b * e
+    v = np.einsum("ij,ij->i", Vs, e)
+    dpsi = (-Vs[:, 0] * np.sin(psi) + Vs[:, 1] * np.cos(psi)) / b
+    kappa = np.where(np.abs(v) > 0.1, dpsi / np.where(np.abs(v) > 0.1, v, 1.0), 0.0)
+    acc = np.gradient(v, h, edge_order=2)
+    inner = slice(EDGE, EDGE + n)
+    return {"t": t, "centre": C[inner], "rear": R[inner], "psi": psi[inner], "v": v[inner],
+            "kappa": kappa[inner], "delta": np.arctan(l_wb * kappa[inner]), "a": acc[inner]}
 
 
 def _simulate(dyn: Any, p: Any, ref: dict[str, FloatArray], x0: FloatArray, steps: int,
