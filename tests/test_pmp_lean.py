@@ -13,20 +13,10 @@ from iamp.planners.examples import random_problem
 from iamp.planners.pmp.fixed import horner_rows, jump_system_sigma
 from iamp.planners.pmp.planner import PMPPlanner
 from iamp.planners.pmp.scale import scale_problem
-from iamp.planners.pmp.search import stationarity_poly, stationarity_poly_loops
 from iamp.planners.pmp.solution import PMPSolution
 from iamp.planners.pmp.verify import check_values, judge
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
-
-
-@given(st.lists(finite, min_size=4, max_size=4), st.lists(finite, min_size=4, max_size=4))
-@settings(max_examples=300, deadline=None)
-def test_stationarity_poly_written_out_is_bit_identical(ex: list[float], ey: list[float]) -> None:
-    got = stationarity_poly(ex, ey)
-    ref = stationarity_poly_loops(ex, ey)  # the general loops (checked against the definition in test_pmp_bound)
-    assert [math.copysign(1.0, v) for v in got] == [math.copysign(1.0, v) for v in ref]
-    assert got == ref
 
 
 def _old_jump_system(S, sig):  # type: ignore[no-untyped-def]

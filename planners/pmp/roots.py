@@ -63,11 +63,8 @@ def _to_bernstein_inline(a: Sequence[float]) -> list[float]:
 @compiled_as(_to_bernstein_inline)
 def to_bernstein(a: Sequence[float]) -> list[float]:
     """Bernstein coefficients on ``[0, 1]`` of the polynomial with ascending coefficients ``a``
-    (``β_j = Σ_{i≤j} w_ji a_i`` summed from ``0.0`` in ascending ``i``; degree 6, that of
-    every cubic ``x_poly``, written out term by term with the same operations)."""
+    (``β_j = Σ_{i≤j} w_ji a_i`` summed from ``0.0`` in ascending ``i``)."""
     n = len(a) - 1
-    if n == 6:
-        return _to_bernstein6(a)
     w = _WEIGHTS.get(n)
     if w is None:
         w = _WEIGHTS[n] = bernstein_weights(n)
@@ -80,23 +77,6 @@ def to_bernstein(a: Sequence[float]) -> list[float]:
             i += 1
         out[j] = acc
     return out
-
-
-_W6 = tuple(w for row in bernstein_weights(6) for w in row)
-
-
-def _to_bernstein6(a: Sequence[float]) -> list[float]:
-    """:func:`to_bernstein` for degree 6, unrolled (the same sums in the same order)."""
-    a0, a1, a2, a3, a4, a5, a6 = a
-    (w00, w10, w11, w20, w21, w22, w30, w31, w32, w33, w40, w41, w42, w43, w44,
-     w50, w51, w52, w53, w54, w55, w60, w61, w62, w63, w64, w65, w66) = _W6
-    return [0.0 + w00 * a0,
-            0.0 + w10 * a0 + w11 * a1,
-            0.0 + w20 * a0 + w21 * a1 + w22 * a2,
-            0.0 + w30 * a0 + w31 * a1 + w32 * a2 + w33 * a3,
-            0.0 + w40 * a0 + w41 * a1 + w42 * a2 + w43 * a3 + w44 * a4,
-            0.0 + w50 * a0 + w51 * a1 + w52 * a2 + w53 * a3 + w54 * a4 + w55 * a5,
-            0.0 + w60 * a0 + w61 * a1 + w62 * a2 + w63 * a3 + w64 * a4 + w65 * a5 + w66 * a6]
 
 
 @compilable

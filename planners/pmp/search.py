@@ -41,7 +41,6 @@ from .fixed import ValueFunction
 from .jit import compilable
 from .scale import Scaled
 from .stationary import stationarity_poly as stationarity_poly
-from .stationary import stationarity_poly_loops as stationarity_poly_loops
 from .stationary import stationary_sigmas as stationary_sigmas
 
 FloatArray = npt.NDArray[np.float64]
