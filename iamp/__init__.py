@@ -14,7 +14,7 @@ The public API (SPEC §12)::
     plan.states(t), plan.inputs(t)                # at any times in [0, tf]
     plan.to_json()                                # the object of SPEC §5 and §9
     iamp.plan_batch([prob1, prob2, ...])          # many one-vehicle plans at once (arrays)
-    iamp.PMPPlanner(compiled=True).plan(prob)     # the PMP planner with its options
+    iamp.PMPPlanner(max_boxes=5000).plan(prob)    # the PMP planner with its options
     iamp.compare(prob).to_json()                  # an iamp.Comparison; the object of SPEC §5b
     iamp.Predictor.default().predict(history)     # the cubic of SPEC §7
     iamp.animate_plan(plan, "plan.gif")           # the plan moving among its vehicles (also
