@@ -466,3 +466,28 @@ def test_item17_the_bounded_table_prints_its_words_once_escaped_and_no_negative_
     tex = latex_table(rows)
     assert "-0.00" not in tex and "+0.00\\,\\%" in tex
     assert "textbackslash" not in tex and "limits\\_violated" in tex
+
+
+def test_item17_the_report_ends_on_conclusions_drawn_from_the_numbers():
+    from iamp.comparison.report.document import conclusions_tex
+
+    same = {"cost_rel_gap": 7.9e-15}
+    res = {"scenarios": [
+        {"name": "paper-1", "metrics": {"inside_safety_box": [[]], "body_overlap": [[]]},
+         "agreement": [{"a": "pmp", "b": "qp-clarabel-foh-100", "verdict": "agree", "at_same_contact_times": same},
+                       {"a": "pmp", "b": "qp-osqp-foh-100", "verdict": "disagree", "at_same_contact_times": same}]},
+        {"name": "paper-2", "metrics": {"inside_safety_box": [[[1.95, 4.06]]], "body_overlap": [[[2.3, 3.6]]]},
+         "agreement": []}],
+        "zoh_convergence": {"paper-1": {"loglog_slope": 2.0021}},
+        "qualitative": {"paper-3": {"paper_claim": "more conservative", "observed_majority": "more aggressive",
+                                    "consistent_with_paper": False}},
+        "bounded": [{"scenario": "paper-1", "planner": "active", "status": "optimal"},
+                    {"scenario": "paper-2", "planner": "pmp", "status": "infeasible"}],
+        "campaign": {"available": True, "summary": [{"planner": "pmp-active", "success_episodes": 2, "episodes": 3}]}}
+    tex = conclusions_tex(res)  # type: ignore[arg-type]
+    assert tex.startswith("\\section{Conclusions}")
+    assert "agree}} in 1 of 2 comparisons" in tex.replace("\\textbf{PMP and the first-order-hold QP agree}", "agree}}")
+    assert "$<10^{-11}$" in tex and "2.00" in tex and "\\textbf{not} consistent" in tex
+    assert "paper-2 (the bodies overlap)" in tex and "paper-1 (the bodies" not in tex
+    assert "1 of 2 scenario--planner pairs find an optimal plan" in tex and "1 is certified infeasible" in tex
+    assert "pmp-active 2/3" in tex

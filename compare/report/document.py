@@ -328,7 +328,8 @@ def conclusions_tex(res: ResultsJSON) -> str:
         items.append(f"\\item \\textbf{{Under a passenger car's limits}} (Table~\\ref{{tab:bounded}}) "
                      f"{len(ok)} of {len(bounded)} scenario--planner pairs find an optimal plan"
                      + (f" ({', '.join(ok)})" if ok else "")
-                     + (f"; {len(inf)} are certified infeasible" if inf else "") + ".")
+                     + (f"; {len(inf)} {'is' if len(inf) == 1 else 'are'} certified infeasible" if inf else "")
+                     + ".")
     camp = res.get("campaign")
     summary = cast("list[dict[str, object]]", camp.get("summary") or []) if camp else []
     if camp and camp.get("available") and summary:
