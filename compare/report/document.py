@@ -264,9 +264,11 @@ def build_report_tex(res: ResultsJSON, out: Path, figs: Mapping[str, str], table
         predictor = res.get("predictor")
         if tables.get("predictor_selection") and predictor is not None and predictor.get("selection_run"):
             L += [f"\\inputhere{{{tables['predictor_selection']}}}"]
-        else:
+        else:  # its table would only say so (issue 29 item 17: an empty table)
             L += ["", "The model-selection grid was not run for this report (\\texttt{iamp evaluate-predictor "
                   "-{}-out DIR} runs it; it takes many minutes): the shipped configuration was evaluated as it is."]
+            if tables.get("predictor_selection"):
+                L.append(f"% {tables['predictor_selection']} is not input: it says only that the selection was not run")
     else:
         L.append("The predictor evaluation was not available for this run (see the notes above).")
     L += [extra, conclusions_tex(res),

@@ -66,8 +66,6 @@ def predictor_evaluation(out: Path, cfg: ReproduceConfig, notes: list[str],
         notes.append(f"predictor evaluation failed ({exc.__class__.__name__}: {str(exc)[:200]}).")
         return None
     notes.append(f"predictor evaluation: {how}.")
-    if not res.get("selection"):  # its table would only say that the selection was not run (issue 29 item 17)
-        (out / "tables" / "predictor_selection.tex").unlink(missing_ok=True)
     return {"how": how, "chosen": res.get("chosen"), "test": res.get("test"),
             "paper_histories": res.get("paper_histories"), "seconds": res.get("seconds"),
             "selection_run": bool(res.get("selection")), "file": "predictor_eval.json"}
