@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from iamp.core.errors import ScenarioError
@@ -248,3 +248,104 @@ def test_unseen_steps_are_never_dangerous_and_end_a_run():
     x[4] = np.nan
     j = judge_pair(ego, _motion(x, np.zeros(n), np.full(n, 20.0), np.zeros(n)), dt)
     assert not j.dangerous[4] and j.dangerous[5] and j.blame_k[5] == -1
+
+
+# -- added by mutation testing (scripts/mutation_score.py simulation/rss.py --seed 3): each test pins a
+#    part of the module docstring that a surviving mutant changed ----------------------------------
+
+@settings(max_examples=60, deadline=None)
+@example(dy=0.5, vy_e=0.8, vy_o=0.0)
+@example(dy=-0.5, vy_e=-0.8, vy_o=0.3)
+@given(st.floats(-4.0, 4.0).filter(lambda v: abs(v) > 1e-6), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5))
+def test_the_safe_lateral_distance_counts_each_car_s_speed_toward_the_other(dy, vy_e, vy_o):
+    """d_lat of a pair is mu + [o(u_ego) + o(u_other)]_+ with u each car's lateral speed *toward
+    the other* (whatever the offset, however small), and it does not depend on which car is the ego."""
+    ego = _motion([0.0], [0.0], [20.0], [vy_e])
+    other = _motion([1.0], [dy], [20.0], [vy_o])
+    s = math.copysign(1.0, dy)  # the other is to the left (+y) of the ego when dy > 0
+    j = judge_pair(ego, other, 0.1)
+    assert float(j.d_lat[0]) == pytest.approx(float(safe_lateral_distance(s * vy_e, -s * vy_o)), abs=1e-12)
+    swapped = judge_pair(other, ego, 0.1)
+    assert float(swapped.d_lat[0]) == pytest.approx(float(j.d_lat[0]), abs=1e-12)
+    assert float(swapped.d_lon[0]) == pytest.approx(float(j.d_lon[0]), abs=1e-12)
+
+
+def test_a_danger_from_the_second_step_judges_the_first_period():
+    """Safe at step 0 (gap 66 m >= d_lon(20, 20) = 65.78125 m), dangerous from step 1 because the
+    front car brakes at 20 m/s^2 > b_max: t_b is step 0 and the period (0, 1] is judged, so the front
+    car is responsible at step 1 already; the rear ego at constant speed (within rho) is not."""
+    dt, n = 0.1, 10
+    assert float(safe_longitudinal_distance(20.0, 20.0)) == pytest.approx(65.78125)
+    xe, ve = _integrate(100.0, 20.0, np.zeros(n), dt)
+    xo, vo = _integrate(100.0 + 4.8 + 66.0, 20.0, np.full(n, -20.0), dt)
+    j = judge_pair(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), np.maximum(vo, 0), np.zeros(n)),
+                   dt)
+    assert not j.dangerous[0] and j.dangerous[1]
+    assert j.blame_k[1] == 0 and j.response[1] == "longitudinal"
+    assert j.other_responsible[1] and not j.ego_responsible.any()
+
+
+def test_a_run_after_an_unseen_step_is_judged_from_its_first_time_and_its_rho_starts_there():
+    """Dangerous throughout, the other unseen at step 14: the run from step 15 has no t_b (strict
+    reading: judged from its first time).  The ego's jump in speed over (14, 15] is not judged; the
+    rear ego may keep its speed during rho = 1 s counted, as for a run from step 0, from the step
+    before the first time (periods with (k - 1 - 14) dt < rho: steps 16..24) and must brake after
+    it: responsible from step 25 on.  (Counted from the step after an unseen one, not from -1: the
+    run at step 25 is 1 s old, not 2.6 s.)"""
+    dt, n = 0.1, 40
+    ve = np.where(np.arange(n) >= 15, 21.0, 20.0)  # +1 m/s over one period (10 m/s^2) into step 15
+    xe = 100.0 + np.concatenate([[0.0], np.cumsum(ve[:-1])]) * dt
+    xo = 100.0 + 4.8 + 5.0 + 20.0 * np.arange(n) * dt
+    xo[14] = np.nan
+    j = judge_pair(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), np.full(n, 20.0), np.zeros(n)),
+                   dt)
+    assert j.dangerous[:14].all() and not j.dangerous[14] and j.dangerous[15:].all()
+    assert (j.blame_k[15:] == -1).all()
+    assert not j.ego_responsible[14:25].any()
+    assert j.ego_responsible[25:].all()
+    assert not j.other_responsible.any()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.one_of(st.floats(0.0, 3.4), st.floats(3.7, 8.0)))
+def test_a_follower_is_responsible_within_rho_exactly_when_it_accelerates_beyond_a_acc(acc):
+    """During rho after t_b the rear car may accelerate with at most a_acc (+ ACCEL_TOL = 3.55 m/s^2):
+    a follower accelerating harder is responsible at the first dangerous step, one within it is not
+    responsible before t_b + rho."""
+    dt, n = 0.1, 80
+    xe, ve = _integrate(200.0, 25.0, np.full(n, -3.0), dt)
+    xf, vf = _integrate(200.0 - 4.8 - 150.0, 30.0, np.full(n, acc), dt)
+    j = judge_pair(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xf, np.zeros(n), vf, np.zeros(n)), dt)
+    k0 = int(np.argmax(j.dangerous))
+    assert j.dangerous[k0] and k0 > 0 and j.response[k0] == "longitudinal"
+    if acc > DEFAULT.accel_max:
+        assert j.other_responsible[k0]
+    else:
+        assert not j.other_responsible[k0:k0 + 10].any()
+    assert not j.ego_responsible.any()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.3, 0.5), st.floats(0.05, 0.2), st.floats(0.8, 1.6), st.sampled_from([-1.0, 1.0]))
+def test_a_car_that_responds_laterally_as_rss_says_is_never_responsible(drift, a, b, side):
+    """Side by side (longitudinally unsafe throughout); the ego drifts toward the other at a constant
+    lateral speed. The other, from t_b on, moves toward the ego with a <= alpha for rho and then
+    brakes with b >= beta to a stop: the ego is responsible, the other never, on either side (the
+    other is the left car when side = +1, the right car when side = -1)."""
+    dt, n = 0.1, 50
+    t = np.arange(n) * dt
+    vy_e = np.full(n, side * drift)
+    y_e = side * drift * t
+    still = _motion(100 + 20 * t, np.full(n, side * 3.5), np.full(n, 20.0), np.zeros(n))
+    ego = _motion(100 + 20 * t, y_e, np.full(n, 20.0), vy_e)
+    k0 = int(np.argmax(judge_pair(ego, still, dt).dangerous))
+    assert k0 > 0
+    tau = (np.arange(n) - (k0 - 1)) * dt  # time since t_b
+    rho = DEFAULT.response_time_s
+    u = np.where(tau <= 0, 0.0, np.where(tau <= rho, a * tau, np.maximum(a * rho - b * (tau - rho), 0.0)))
+    vy_o = -side * u  # toward the ego
+    y_o = side * 3.5 + np.concatenate([[0.0], np.cumsum(vy_o[:-1])]) * dt
+    j = judge_pair(ego, _motion(100 + 20 * t, y_o, np.full(n, 20.0), vy_o), dt)
+    assert int(np.argmax(j.dangerous)) == k0 and j.dangerous[k0:].all() and j.response[k0] == "lateral"
+    assert not j.other_responsible.any()
+    assert j.ego_responsible[-1]
