@@ -145,3 +145,154 @@ def test_a_commonroad_solution_animates(tmp_path: Path) -> None:
                      "--fps", "2"]) == 0
     with Image.open(out) as im:
         assert im.format == "GIF" and im.n_frames >= 2
+
+
+# -- added by mutation testing (scripts/mutation_score.py compare/figures/animation.py --seed 3) -----------
+# Fast: the frames are drawn without encoding a GIF (``_write`` is replaced by a capture).
+
+import math  # noqa: E402
+
+from iamp.comparison.figures import animation as anim_mod  # noqa: E402
+
+
+@settings(max_examples=80, deadline=None)
+@given(duration=st.floats(0.1, 200.0), fps=st.floats(1.0, 60.0), speed=st.floats(0.1, 20.0),
+       cap=st.integers(2, 500))
+def test_frame_times_has_one_frame_per_speed_over_fps_capped(duration: float, fps: float, speed: float,
+                                                             cap: int) -> None:
+    """The count is ceil(duration fps / speed) + 1 (at least 2), thinned to at most ``max_frames``."""
+    ts = frame_times(duration, fps, speed, cap)
+    want = min(max(math.ceil(duration * fps / speed - 1e-9) + 1, 2), cap)
+    assert len(ts) == want
+
+
+@pytest.mark.parametrize("args", [(0.0, 10.0, 1.0, 10), (1.0, 0.0, 1.0, 10), (1.0, 10.0, 0.0, 10),
+                                  (1.0, 10.0, 1.0, 1), (-1.0, 10.0, 1.0, 10), (1.0, -5.0, 1.0, 10)])
+def test_frame_times_refuses_a_non_positive_span_rate_speed_or_cap(args: tuple[float, float, float, int]) -> None:
+    with pytest.raises(ValueError, match="must be > 0"):
+        frame_times(*args)
+
+
+def test_the_output_format_needs_ffmpeg_only_for_mp4(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(anim_mod.shutil, "which", lambda name: None)
+    assert anim_mod.check_animation_path("a/b.GIF") == Path("a/b.GIF")  # a GIF never needs ffmpeg
+    with pytest.raises(iamp.MissingDependencyError, match="ffmpeg"):
+        anim_mod.check_animation_path("b.mp4")
+    with pytest.raises(iamp.ScenarioError, match=r"\.gif, \.mp4"):
+        anim_mod.check_animation_path("b.png")
+    monkeypatch.setattr(anim_mod.shutil, "which", lambda name: "/usr/bin/ffmpeg")
+    assert anim_mod.check_animation_path("b.mp4") == Path("b.mp4")
+
+
+def test_the_log_reader_puts_every_value_at_its_step(tmp_path: Path) -> None:
+    """Rows in any order: the steps are the sorted distinct times; each value lands at its vehicle and
+    step; what a row leaves empty (or a vehicle not seen at a step) is nan."""
+    log = tmp_path / "l.csv"
+    log.write_text("t,vehicle,x,y,vx,vy,lane,length,width\n"
+                   "0.2,ego,4,0.5,20,,,,\n"
+                   "0.0,ego,0,0,20,0.1,,4.5,1.9\n"
+                   "0.1,v7,30,3.5,18,,1,12,2.5\n"
+                   "0.1,ego,2,0.25,20,0.2,,,\n")
+    t, tracks = anim_mod._read_log(log)
+    np.testing.assert_array_equal(t, [0.0, 0.1, 0.2])
+    assert set(tracks) == {"ego", "v7"}
+    np.testing.assert_array_equal(tracks["ego"]["x"], [0.0, 2.0, 4.0])
+    np.testing.assert_array_equal(tracks["ego"]["y"], [0.0, 0.25, 0.5])
+    np.testing.assert_array_equal(tracks["ego"]["vy"], [0.1, 0.2, np.nan])
+    np.testing.assert_array_equal(tracks["ego"]["length"], [4.5, np.nan, np.nan])
+    np.testing.assert_array_equal(tracks["v7"]["x"], [np.nan, 30.0, np.nan])
+    np.testing.assert_array_equal(tracks["v7"]["lane"], [np.nan, 1.0, np.nan])
+    np.testing.assert_array_equal(tracks["v7"]["width"], [np.nan, 2.5, np.nan])
+
+
+def test_the_log_reader_refuses_in_one_line_naming_the_file(tmp_path: Path) -> None:
+    missing = tmp_path / "none.csv"
+    with pytest.raises(iamp.ScenarioError, match=r"cannot be read \(No such file or directory\)") as e:
+        anim_mod._read_log(missing, "--episode")
+    assert str(missing) in str(e.value) and "--episode" in str(e.value)
+    (tmp_path / "cols.csv").write_text("t,vehicle,x,y\n0,ego,0,0\n")
+    with pytest.raises(iamp.ScenarioError, match="needs the columns t, vehicle, vx, x, y"):
+        anim_mod._read_log(tmp_path / "cols.csv")
+    (tmp_path / "empty.csv").write_text("")
+    with pytest.raises(iamp.ScenarioError, match="is not an `iamp simulate --log` file"):
+        anim_mod._read_log(tmp_path / "empty.csv")
+    (tmp_path / "noego.csv").write_text("t,vehicle,x,y,vx\n0,v1,0,0,1\n")
+    with pytest.raises(iamp.ScenarioError, match="has no ego rows"):
+        anim_mod._read_log(tmp_path / "noego.csv")
+
+
+def _captured(monkeypatch: pytest.MonkeyPatch) -> dict[str, object]:
+    got: dict[str, object] = {}
+
+    def capture(fig: object, draw: object, frames: int, path: object, fps: float, dpi: float) -> Path:
+        got.update(fig=fig, draw=draw, frames=frames)
+        return Path(str(path))
+
+    monkeypatch.setattr(anim_mod, "_write", capture)
+    return got
+
+
+def _hlines(ax: matplotlib.axes.Axes) -> tuple[list[float], list[float]]:
+    """(edges, dividers): the y of the solid and of the dashed horizontal lines."""
+    flat = [ln for ln in ax.lines if len(set(ln.get_ydata())) == 1 and ln.get_zorder() == 0]
+    solid = sorted(float(ln.get_ydata()[0]) for ln in flat if ln.get_linestyle() == "-")
+    dashed = sorted(float(ln.get_ydata()[0]) for ln in flat if ln.get_linestyle() != "-")
+    return solid, dashed
+
+
+def test_each_episode_frame_draws_the_log_to_scale(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The episode of ``_write_log`` (lanes centred at -1.875 and 1.875 m; the ego starts in the lower
+    one): lane edges at the centres -/+ half a lane (3.75 m), one divider half-way; a window of
+    ``window_m`` centred on the ego; each vehicle's body at its logged centre with its logged size;
+    the ego with ``ego_size`` (the log has none) and its path up to the frame's step."""
+    log = tmp_path / "ep.csv"
+    _write_log(log)
+    got = _captured(monkeypatch)
+    anim_mod.animate_episode(log, tmp_path / "ep.gif", fps=5.0, speed=1.0, window_m=100.0, ego_size=(5.0, 2.0))
+    assert got["frames"] == len(frame_times(5.0, 5.0, 1.0, 300)) == 26
+    fig, draw = got["fig"], got["draw"]
+    ax = fig.axes[0]  # type: ignore[attr-defined]
+    for j in (0, 13, 25):
+        draw(j)  # type: ignore[operator]
+        k = 2 * j  # frames every 0.2 s, log every 0.1 s
+        t = 0.1 * k
+        xe, ye = 20 * t, -1.875 + 3.75 * min(t / 5, 1)
+        edges, dividers = _hlines(ax)
+        assert edges == pytest.approx([-3.75, 3.75]) and dividers == pytest.approx([0.0])
+        assert ax.get_xlim() == pytest.approx((xe - 50.0, xe + 50.0))
+        (ego,) = _bodies(ax, 4)
+        assert (ego.get_width(), ego.get_height()) == pytest.approx((5.0, 2.0))
+        corners = ego.get_patch_transform().transform([(0, 0), (1, 0), (1, 1), (0, 1)])
+        assert corners.mean(axis=0) == pytest.approx([xe, ye], abs=1e-9)
+        want = {(30 + 18 * t, 1.875, 12.0, 2.4), (-20 + 22 * t, -1.875, 4.5, 1.8)}
+        drawn = {(b.get_x() + b.get_width() / 2, b.get_y() + b.get_height() / 2, b.get_width(), b.get_height())
+                 for b in _bodies(ax, 2)}
+        assert len(drawn) == 2
+        for w, d in zip(sorted(want), sorted(drawn)):
+            assert d == pytest.approx(w)
+        (path,) = [ln for ln in ax.lines if ln.get_zorder() == 3]
+        np.testing.assert_allclose(path.get_xdata(), [20 * 0.1 * i for i in range(k + 1)], atol=1e-9)
+
+
+def test_a_plan_frame_shows_safety_boxes_and_each_contact_from_its_time_on() -> None:
+    """Each vehicle's safety box is x_s(t) -/+ (L/2 + S_x) by y -/+ (W/2 + S_y); the contact star
+    appears at the frame whose time is the contact time, not before."""
+    plan = iamp.plan(iamp.load_scenario("two-vehicle"))
+    tcs = sorted(float(t) for t in plan.contact_times)
+    ts = np.array([0.0, tcs[0] - 1e-6, tcs[0], tcs[1], plan.problem.tf])
+    fig, draw = plan_frames(plan, ts)
+    ax = fig.axes[0]
+    stars = []
+    for k, t in enumerate(ts):
+        draw(k)
+        boxes = _bodies(ax, 1)
+        assert len(boxes) == len(plan.problem.vehicles)
+        for v, box in zip(plan.problem.vehicles, boxes):
+            hx, hy = v.length / 2 + v.safety_x, v.width / 2 + v.safety_y
+            assert (box.get_x(), box.get_y()) == pytest.approx((float(v.position(t)) - hx, v.y - hy))
+            assert (box.get_width(), box.get_height()) == pytest.approx((2 * hx, 2 * hy))
+        stars.append([ln for ln in ax.lines if ln.get_marker() == "*"])
+    assert [len(s) for s in stars] == [0, 0, 1, 2, 2]
+    X = plan.states(np.array(tcs))
+    drawn = sorted((float(s.get_xdata()[0]), float(s.get_ydata()[0])) for s in stars[3])
+    np.testing.assert_allclose(drawn, sorted((float(x[0]), float(x[2])) for x in X), atol=1e-9)
