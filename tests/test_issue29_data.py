@@ -319,3 +319,86 @@ def test_a_leader_not_ahead_over_the_history_is_refused_and_the_fallback_predict
         pred = lp.predict_batch(win.t_hist, win.X_hist, win.t_fut, 5.0, XL_hist=lw.XL_hist, has_leader=lw.known,
                                 offset=lw.offset)
         assert np.array_equal(pred, fallback) is (not known)
+
+
+# ---------------------------------------------------------------------------------------
+# item 4, the unit rule itself (added by mutation testing of prediction/loaders/units.py, seed 3):
+# detect_units on columns, fast
+# ---------------------------------------------------------------------------------------
+
+def _lanes(medians_m: list[float], rows: int = 25, factor: float = 1.0) -> dict[str, np.ndarray]:
+    """Lane ids 1, 2, ... with ``rows`` rows each at the given lateral positions (SI / ``factor``)."""
+    ids = np.repeat(np.arange(1, len(medians_m) + 1, dtype=float), rows)
+    return {"Lane_ID": ids, "Local_X": np.repeat(np.asarray(medians_m) / factor, rows)}
+
+
+@pytest.mark.parametrize(("column", "value"), [("v_length", 2.5), ("v_length", 9.0), ("v_Width", 1.2),
+                                               ("v_Width", 3.0)])
+def test_the_plausible_ranges_are_closed(column: str, value: float) -> None:
+    """A median exactly at an end of its range (in metres) fits metres, and so do speeds of exactly
+    SPEED_MAX_MPS (45 m/s): the ranges include their ends."""
+    from iamp.prediction.loaders.units import detect_units
+
+    d = detect_units({column: np.full(5, value), "v_Vel": np.full(5, 45.0)}, "f.csv", units="metres")
+    assert re.search(r"; fits (feet and )?metres of", d.evidence[0]), d.evidence
+    assert "45 m/s as metres; fits feet and metres of <= 45 m/s" in d.evidence[1]
+    if column == "v_Width":  # the two units' width ranges do not overlap: decisive
+        assert detect_units({column: np.full(5, value), "v_Vel": np.full(5, 45.0)}, "f.csv").units == "metres"
+    for lane_w in (2.5, 5.5):
+        assert detect_units(_lanes([0.0, lane_w]), "f.csv").units == "metres"
+
+
+@settings(max_examples=30, deadline=None)
+@given(length_m=st.floats(2.5 / FOOT_M + 1e-6, 9.0))
+def test_median_lengths_of_8_2_to_9_m_fit_both_units(length_m: float) -> None:
+    """LENGTH_RANGE_M (2.5, 9) m and its image in feet (8.2, 29.5) overlap on 8.2-9: such a median
+    length is plausible as metres and as feet (27-30 ft trucks) and does not decide alone."""
+    from iamp.prediction.loaders.units import detect_units
+
+    with pytest.raises(TrackDataError, match="cannot tell feet from metres: median v_length .*fits feet and metres"):
+        detect_units({"v_length": np.full(5, length_m)}, "f.csv")
+
+
+@settings(max_examples=40, deadline=None)
+@given(p95_si=st.floats(13.8, 45.0), factor=st.sampled_from([FOOT_M, 1.0]))
+def test_fast_speeds_alone_rule_metres_out(p95_si: float, factor: float) -> None:
+    """Speeds whose 95th percentile read as metres exceeds 45 m/s can only be feet; the same speeds
+    read as feet (below 45 m/s in metres) leave both units, and the file is refused."""
+    from iamp.prediction.loaders.units import detect_units
+
+    v = np.full(40, p95_si / FOOT_M)  # in feet: 45.3 .. 147.6 (as metres above 45)
+    assert detect_units({"v_Vel": v}, "f.csv").units == "feet"
+    with pytest.raises(TrackDataError, match="cannot tell feet from metres"):
+        detect_units({"v_Vel": np.full(40, p95_si * 0.99)}, "f.csv")  # <= 45 in metres, slower in feet
+
+
+@settings(max_examples=40, deadline=None)
+@given(lane_w=st.floats(2.6, 5.4), lanes=st.integers(2, 5), factor=st.sampled_from([FOOT_M, 1.0]),
+       offset=st.floats(-20.0, 20.0))
+def test_the_lane_width_is_the_median_gap_of_adjacent_lanes(lane_w: float, lanes: int, factor: float,
+                                                            offset: float) -> None:
+    """Lanes ``lane_w`` apart (at any offset) decide the unit from Lane_ID/Local_X alone; an extra lane
+    at the same Local_X as its neighbour (one zero gap among several) does not hide the others; lanes with
+    fewer than MIN_LANE_ROWS rows are not counted."""
+    from iamp.prediction.loaders.units import MIN_LANE_ROWS, detect_units
+
+    name = "feet" if factor == FOOT_M else "metres"
+    centres = [offset + k * lane_w for k in range(lanes)]
+    d = detect_units(_lanes(centres, factor=factor), "f.csv")
+    assert d.units == name
+    assert f"lane width (median Local_X per Lane_ID) {lane_w / factor:.4g}" in d.evidence[0]
+    if lanes >= 3:  # gaps [w, ..., w, 0]: the median is still w
+        assert detect_units(_lanes([*centres, centres[-1]], factor=factor), "f.csv").units == name
+    few = _lanes(centres, rows=MIN_LANE_ROWS - 1, factor=factor)
+    with pytest.raises(TrackDataError, match="no v_length, v_Width or lane ids"):
+        detect_units(few, "f.csv")
+    assert detect_units(_lanes(centres, rows=MIN_LANE_ROWS, factor=factor), "f.csv").units == name
+
+
+def test_a_given_unit_is_reported_with_the_evidence() -> None:
+    from iamp.prediction.loaders.units import detect_units
+
+    d = detect_units({"v_Width": np.full(5, 1.8)}, "f.csv", units="ft")
+    assert (d.units, d.factor, d.how) == ("feet", FOOT_M, "given")
+    assert d.note().startswith("units: feet (given; the data's evidence: median v_Width 1.8 (")
+    assert detect_units({"v_Width": np.full(5, 1.8)}, "f.csv").note().startswith("units: metres (detected")

@@ -19,8 +19,9 @@ lane width ``Local_X``/``Lane_ID`` median over adjacent lane ids of the  :data:`
 speed ``v_Vel``                   95th percentile of ``|v_Vel|``         at most :data:`SPEED_MAX_MPS`
 ================================  =====================================  ==============================
 
-The ranges of the two units do not overlap for the first three (a value fits one unit or
-neither), so one of them decides; the speed can only rule metres out (a slow recording is
+The ranges of the two units do not overlap for the width and the lane width (a value fits one
+unit or neither), so either decides; nor for the length except a median of 8.2-9 (8.2-9 m or
+27-30 ft: plausible in both, undecided by the length); the speed can only rule metres out (a slow recording is
 plausible in either unit).  The unit is the one plausible under **every** available piece of
 evidence.  If both remain (nothing decisive: no lengths, widths or lane ids, slow speeds) or
 none does (the evidence contradicts itself), the file is refused with the evidence, and the
