@@ -305,7 +305,8 @@ def _reproduce_into(args: argparse.Namespace, out: Path, shown: Path) -> int:
     elif pdf_msg.startswith("PDF: "):
         pdf_msg = f"PDF: {shown / 'report.pdf'}"
     print(f"reproduction written to {shown}/ in {time.perf_counter() - start:.0f} s")
-    print(f"  {len(res.get('outputs', []))} files: report.tex, results.json, tables/*.tex, figures/*.pdf|png")
+    print(f"  {len(res.get('outputs', []))} files: report.tex, results.json, tables/*.tex, figures/*.pdf|png, "
+          "timing/ (the machine-dependent numbers)")
     print(f"  {pdf_msg}")
     for name, q in res.get("qualitative", {}).items():
         print(f"  {name} vs paper-1: paper says {q['paper_claim']}; measured {q['observed_majority']} "
