@@ -49,3 +49,93 @@ def test_the_readme_is_a_front_door() -> None:
     assert command.group(1).strip() in ci
     # no machine's absolute paths
     assert not re.search(r"(/work/|/tmp/|/root/|/home/)", text)
+
+
+# -- added by mutation testing of scripts/readme_results.py (scripts/mutation_score.py, seed 3) ------------
+
+import csv  # noqa: E402
+import json  # noqa: E402
+
+import pytest  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_episode = st.fixed_dictionaries({
+    "planner": st.sampled_from(["pmp", "qp", "idm"]), "mission": st.sampled_from(["merge", "exit"]),
+    "seed": st.integers(1, 3), "success": st.sampled_from(["True", "False"]),
+    "contacts": st.sampled_from(["", "0", "1", "2", "7"]), "limit_violations": st.sampled_from(["", "0", "1", "3"])})
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(_episode, min_size=1, max_size=12))
+def test_the_campaign_table_counts_the_episodes(tmp_path_factory: pytest.TempPathFactory,
+                                                rows: list[dict[str, object]]) -> None:
+    """Per planner: episodes; successes and their share; episodes with at least one contact (an empty
+    field is none) and their share; episodes with at least one executed limit violation."""
+    root = tmp_path_factory.mktemp("camp")
+    path = root / "reports" / "campaign-new" / "episodes.csv"
+    path.parent.mkdir(parents=True)
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    lines = _script().campaign_table(path, root)
+    missions = sorted({str(r["mission"]) for r in rows})
+    seeds = len({r["seed"] for r in rows})
+    assert lines[0] == (f"Closed loop (`reports/campaign-new/episodes.csv`: missions {', '.join(missions)}; {seeds} "
+                        "paired seeds per density):")
+    body = lines[4:]
+    planners = sorted({str(r["planner"]) for r in rows})
+    assert len(body) == len(planners)
+    for planner, line in zip(planners, body):
+        eps = [r for r in rows if r["planner"] == planner]
+        n = len(eps)
+        ok = sum(r["success"] == "True" for r in eps)
+        contact = sum(str(r["contacts"]) not in ("", "0") for r in eps)
+        limits = sum(str(r["limit_violations"]) not in ("", "0") for r in eps)
+        assert line == (f"| {planner} | {n} | {ok} ({100 * ok / n:.1f} %) | {contact} ({100 * contact / n:.1f} %) | "
+                        f"{limits} |")
+
+
+def _results_with_a_scenario_missing(missing: str) -> dict[str, object]:
+    results = json.loads((ROOT / "reports" / "results.json").read_text(encoding="utf-8"))
+    s = results["safety"][0]
+    s["runs"] = [r for r in s["runs"] if not str(r["label"]).startswith(missing)]
+    return results
+
+
+@pytest.mark.parametrize("missing", ["pmp", "qp-clarabel-foh", "qp-avoid-clarabel"])
+def test_a_scenario_without_all_three_runs_is_left_out(missing: str) -> None:
+    results = json.loads((ROOT / "reports" / "results.json").read_text(encoding="utf-8"))
+    full = _script().reproduction_table(results)
+    first = str(results["safety"][0]["name"])
+    lines = _script().reproduction_table(_results_with_a_scenario_missing(missing))
+    assert [ln for ln in full if not ln.startswith(f"| {first} |")] == lines
+    assert len(lines) == len(full) - 1
+
+
+def test_render_refuses_a_readme_without_both_markers() -> None:
+    m = _script()
+    for text in ("no block", f"a {m.BEGIN} b", f"a {m.END} b"):
+        with pytest.raises(SystemExit, match="no <!-- results:begin -->"):
+            m.render(text)
+
+
+def test_check_exits_1_on_a_stale_readme_and_rewriting_fixes_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """``--check``: 0 when the block is what the reports say, 1 (and one line on stderr) when not; without
+    ``--check`` the block is rewritten and the rest of the README kept."""
+    m = _script()
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{m.BEGIN}\nstale\n{m.END}\noutro\n", encoding="utf-8")
+    monkeypatch.setattr(m, "ROOT", tmp_path)  # the README read and written; render reads the reports
+    assert m.main(["--check"]) == 1
+    assert "differs" in capsys.readouterr().err
+    assert m.main([]) == 0
+    text = readme.read_text(encoding="utf-8")
+    assert text == f"intro\n{m.BEGIN}\n{m.block()}\n{m.END}\noutro\n"  # the block from the repository's reports
+    assert m.main(["--check"]) == 0
+    assert readme.read_text(encoding="utf-8") == text
+    with pytest.raises(SystemExit):
+        m.main(["--help"])
+    assert "The README's headline results, computed from what the shipped code wrote" in capsys.readouterr().out
