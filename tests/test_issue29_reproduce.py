@@ -491,3 +491,40 @@ def test_item17_the_report_ends_on_conclusions_drawn_from_the_numbers():
     assert "paper-2 (the bodies overlap)" in tex and "paper-1 (the bodies" not in tex
     assert "1 of 2 scenario--planner pairs find an optimal plan" in tex and "1 is certified infeasible" in tex
     assert "pmp-active 2/3" in tex
+
+
+def test_item14_what_another_command_writes_during_the_run_survives_the_exchange(tmp_path, capsys, monkeypatch):
+    import iamp.comparison.report.reproduction as report
+
+    out = tmp_path / "reports"
+    _old_report(out)
+
+    def fake(out_dir, progress=None, *, status=None, quick=False, config=None):  # type: ignore[no-untyped-def]
+        write_text(Path(out_dir) / "report.tex", "new report\n")
+        # meanwhile another command writes into its own folder inside --out (the real one)
+        write_text(out / "campaign-new" / "README.md", "the published campaign, updated\n")
+        write_text(out / "campaign-new" / "episodes.csv", "seed\n1\n")
+        write_text(out / "report.tex", "someone's edit, overwritten by the reproduction\n")
+        return {"outputs": ["report.tex"], "notes": [], "qualitative": {}}
+
+    monkeypatch.setattr(report, "reproduce", fake)
+    code, _, err = run_main(["reproduce", "--out", str(out), "--no-pdf", "--quiet"], capsys)
+    assert code == 0, err
+    assert (out / "campaign-new" / "README.md").read_text() == "the published campaign, updated\n"
+    assert (out / "campaign-new" / "episodes.csv").read_text() == "seed\n1\n"
+    assert (out / "report.tex").read_text() == "new report\n"  # the reproduction's own output wins
+
+
+def test_item14_a_subfolder_another_run_is_writing_is_refused(tmp_path, capsys, monkeypatch):
+    import iamp.comparison.report.reproduction as report
+    from iamp.core.outputs import output_lock
+
+    out = tmp_path / "reports"
+    before = _old_report(out)
+    monkeypatch.setattr(report, "reproduce", _fake_reproduce(interrupt=False))
+    with output_lock(out / "campaign-new"):  # iamp campaign --out reports/campaign-new, running
+        code, _, err = run_main(["reproduce", "--out", str(out), "--no-pdf", "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "campaign-new" in err and "another iamp run" in err
+    after = _tree(out)
+    after.pop("campaign-new/.iamp-lock", None)
+    assert after == before

@@ -127,8 +127,12 @@ def staged_folder(out: str | os.PathLike[str]) -> Iterator[Path]:
     contents are deleted.  If the block raises (an error, Ctrl-C: ``KeyboardInterrupt``, SIGTERM
     under the command line), the staging folder is deleted and ``out`` is untouched.
 
-    The caller holds ``out``'s output lock (:func:`iamp.core.outputs.guarded_folder`): staging
-    folders of ``out`` that a killed run left behind are deleted here.  A symbolic link to a
+    Files that someone else writes into ``out`` while the block runs (another command's
+    folder inside it) are copied into the staging folder before the exchange, unless the run
+    wrote the same file; a folder inside ``out`` that another iamp run holds locked is refused
+    at the start (exit 2).  The caller holds ``out``'s output lock
+    (:func:`iamp.core.outputs.guarded_folder`): staging folders of ``out`` that a killed run left
+    behind are deleted here.  A symbolic link to a
     folder stays a link; the folder it points to is replaced.
 
     Parameters
@@ -148,6 +152,7 @@ def staged_folder(out: str | os.PathLike[str]) -> Iterator[Path]:
     """
     target = Path(os.path.realpath(out))
     remove_stale_staging(target)
+    _refuse_busy_subfolders(target, Path(out))
     try:
         stage = Path(tempfile.mkdtemp(prefix=f".{target.name}{STAGING_INFIX}", dir=str(target.parent)))
     except OSError as exc:
@@ -158,15 +163,73 @@ def staged_folder(out: str | os.PathLike[str]) -> Iterator[Path]:
         except (OSError, shutil.Error) as exc:
             first = exc.args[0][0] if isinstance(exc, shutil.Error) and exc.args and exc.args[0] else None
             raise _refused(target, exc if isinstance(exc, OSError) else OSError(errno.EIO, str(first))) from None
+        copied = _stats(target)
         try:
             yield stage
         except IampError as exc:
             raise _renamed(exc, stage, target) from exc
         with _signals_held():
+            _take_over_changes(target, stage, copied)
             _exchange(stage, target)
             shutil.rmtree(stage, ignore_errors=True)  # now the old contents
     finally:
         shutil.rmtree(stage, ignore_errors=True)  # the staging copy of a run that did not complete
+
+
+def _stats(folder: Path) -> dict[str, tuple[int, int]]:
+    """``{relative path: (size, mtime_ns)}`` of every file below ``folder`` (links not followed)."""
+    out: dict[str, tuple[int, int]] = {}
+    for root, _, files in os.walk(folder):
+        for name in files:
+            path = Path(root) / name
+            try:
+                st = path.lstat()
+            except OSError:
+                continue
+            out[path.relative_to(folder).as_posix()] = (st.st_size, st.st_mtime_ns)
+    return out
+
+
+def _take_over_changes(target: Path, stage: Path, copied: dict[str, tuple[int, int]]) -> None:
+    """Copy into ``stage`` what someone else wrote into ``target`` while the run went on (another
+    command's files in a subfolder: they must survive the exchange), unless the run wrote that
+    file itself (its own outputs win)."""
+    from iamp.core.outputs import LOCK_NAME
+
+    staged = _stats(stage)
+    for rel, stat in _stats(target).items():
+        if copied.get(rel) == stat or Path(rel).name == LOCK_NAME or STAGING_INFIX in rel:
+            continue
+        if rel in staged and staged[rel] != copied.get(rel):
+            continue  # the reproduction rewrote it
+        dest = stage / rel
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(target / rel, dest, follow_symlinks=False)
+
+
+def _refuse_busy_subfolders(target: Path, shown: Path) -> None:
+    """Refuse (exit 2) when another iamp run holds the lock of a folder inside ``target``
+    (``iamp campaign --out reports/campaign-new``): its files would change under the copy."""
+    import fcntl
+
+    from iamp.core.outputs import LOCK_NAME, OutputError
+
+    for lock in target.rglob(LOCK_NAME):
+        if lock.parent == target:
+            continue
+        try:
+            fd = os.open(lock, os.O_RDONLY)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            fcntl.flock(fd, fcntl.LOCK_UN)
+        except OSError:
+            sub = shown / lock.parent.relative_to(target)
+            raise OutputError(f"holds {sub}, which another iamp run is writing; wait for it to finish",
+                              "--out", str(shown)) from None
+        finally:
+            os.close(fd)
 
 
 def remove_stale_staging(target: Path) -> list[Path]:
