@@ -296,3 +296,35 @@ def test_a_plan_frame_shows_safety_boxes_and_each_contact_from_its_time_on() -> 
     X = plan.states(np.array(tcs))
     drawn = sorted((float(s.get_xdata()[0]), float(s.get_ydata()[0])) for s in stars[3])
     np.testing.assert_allclose(drawn, sorted((float(x[0]), float(x[2])) for x in X), atol=1e-9)
+
+
+@needs_data("commonroad", "US101")
+def test_a_commonroad_frame_shows_the_solution_s_path_up_to_its_step(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """``animate_commonroad`` with its defaults (fps 10 = one frame per 0.1 s step): one frame per
+    solution step; the view is the ego's path widened by 40 m along x and 25 m along y, and the
+    figure has its proportions; frame j draws the path of every state up to its step, inclusive."""
+    pytest.importorskip("commonroad", reason="needs the [commonroad] extra")
+    from commonroad.common.solution import CommonRoadSolutionReader
+
+    scenario = sorted(data_path("commonroad", "US101").glob("*.xml"))[0]
+    solution = tmp_path / "sol.xml"
+    assert cli_main(["commonroad", "plan", str(scenario), "--out", str(solution)]) == 0
+    states = CommonRoadSolutionReader.open(str(solution)).planning_problem_solutions[0].trajectory.state_list
+    steps = [int(s.time_step) for s in states]
+    xy = np.array([s.position for s in states])
+    got = _captured(monkeypatch)
+    anim_mod.animate_commonroad(scenario, solution, tmp_path / "cr.gif")
+    assert got["frames"] == len(steps)  # dt = 0.1 s in these scenarios, fps 10
+    fig, draw = got["fig"], got["draw"]
+    window = (xy[:, 0].min() - 40.0, xy[:, 0].max() + 40.0, xy[:, 1].min() - 25.0, xy[:, 1].max() + 25.0)
+    w, h = fig.get_size_inches()  # type: ignore[attr-defined]
+    assert (w, h) == pytest.approx((10.0, max(3.0, 10.0 * (window[3] - window[2]) / (window[1] - window[0]) + 0.6)))
+    ax = fig.axes[0]  # type: ignore[attr-defined]
+    for j in (0, len(steps) // 2):
+        draw(j)  # type: ignore[operator]
+        assert ax.get_xlim() == pytest.approx(window[:2]) and ax.get_ylim() == pytest.approx(window[2:])
+        (path,) = [ln for ln in ax.lines if ln.get_zorder() == 60]
+        np.testing.assert_allclose(path.get_xdata(), xy[: j + 1, 0])
+        np.testing.assert_allclose(path.get_ydata(), xy[: j + 1, 1])
+        assert steps[j] - steps[0] == j
