@@ -108,6 +108,9 @@ class ControllerConfig:
     accept_margin_x: float = 1.0
     #: Gaps planned per seek (the target gap first; SPEC §17 mode only).
     seek_gaps: int = 2
+    #: ``|v_y| <= max_slip v_x`` in the lane keeping (a heading within ~6°; at a standstill no
+    #: lateral motion: the 53° heading of a fail-safe that stopped while moving sideways).
+    max_slip: float = 0.1
     #: Lateral acceleration bound of the lane keeping in ``seek``/``failsafe``/``done`` [m/s²].
     lane_keep_ay: float = 1.5
 
@@ -487,9 +490,12 @@ class Controller:
             ax = -ego.vx / dt
         lim = cfg.lane_keep_ay
         if ego.vx < 1.0:
-            ay = float(np.clip(-ego.vy / dt, -lim, lim))
+            ay = -ego.vy / dt
         else:
-            ay = float(np.clip(-cfg.kp * (ego.y - y_c) - cfg.kd * ego.vy, -lim, lim))
+            ay = -cfg.kp * (ego.y - y_c) - cfg.kd * ego.vy
+        # a car moves sideways only while it moves forward: |v_y| <= tan(psi_max) v_x after the period
+        cap = self.cfg.max_slip * (ego.vx + ax * dt)
+        ay = float(np.clip(np.clip(ay, (-cap - ego.vy) / dt, (cap - ego.vy) / dt), -lim, lim))
         return EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt,
                         y=ego.y + ego.vy * dt + ay * dt**2 / 2, vy=ego.vy + ay * dt, ax=ax, ay=ay)
 
@@ -527,7 +533,8 @@ class Controller:
                 self.fs_brake = b
             b = self.fs_brake if self.fs_brake is not None else 3.5
             nxt = self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane))
-            if abs(ego.y - self.sim.highway.lane_centre(self.fs_lane)) < 0.3 and abs(ego.vy) < 0.3:
+            centred = abs(ego.y - self.sim.highway.lane_centre(self.fs_lane)) < 0.3 and abs(ego.vy) < 0.3
+            if centred or ego.vx < 0.5:  # back in its lane, or stopped (it cannot move sideways standing)
                 if self.fs_lane == self.target:
                     self._done(t + dt)
                 else:

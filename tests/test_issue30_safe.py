@@ -256,6 +256,8 @@ def test_a_period_of_lane_keeping_is_within_the_car_limits_and_does_not_drift_at
     assert nxt.vx >= -1e-9
     # exact for one step of constant input: the executed second difference is the input
     assert nxt.x == pytest.approx(ego.x + ego.vx * 0.1 + nxt.ax * 0.005)
+    # a car moves sideways only while it moves forward: |v_y| <= 0.1 v_x, or v_y falls at the bound
+    assert abs(nxt.vy) <= 0.1 * nxt.vx + 1e-9 or abs(nxt.vy) == pytest.approx(abs(vy) - 0.15, abs=1e-9)
     if vx < 1.0:
         assert abs(nxt.vy) <= abs(vy) + 1e-12
         if abs(vy) <= 0.15:  # within one period's lateral bound: stopped at once
