@@ -341,11 +341,31 @@ def test_the_plausible_ranges_are_closed(column: str, value: float) -> None:
 
     d = detect_units({column: np.full(5, value), "v_Vel": np.full(5, 45.0)}, "f.csv", units="metres")
     assert re.search(r"; fits (feet and )?metres of", d.evidence[0]), d.evidence
-    assert "45 m/s as metres; fits feet and metres of <= 45 m/s" in d.evidence[1]
+    assert d.evidence[1] == ("95th percentile of v_Vel 45 (13.7 m/s as feet, 45 m/s as metres; fits feet and metres "
+                             "of <= 45 m/s)")
     if column == "v_Width":  # the two units' width ranges do not overlap: decisive
         assert detect_units({column: np.full(5, value), "v_Vel": np.full(5, 45.0)}, "f.csv").units == "metres"
     for lane_w in (2.5, 5.5):
         assert detect_units(_lanes([0.0, lane_w]), "f.csv").units == "metres"
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data(), column=st.sampled_from(["v_length", "v_Width"]), factor=st.sampled_from([FOOT_M, 1.0]))
+def test_a_length_or_a_width_alone_decides_the_unit(data: st.DataObject, column: str, factor: float) -> None:
+    """A median width in WIDTH_RANGE_M, written in feet or in metres, is detected as that unit from that
+    column alone; so is a median length in LENGTH_RANGE_M outside the overlap (a file value of 8.2-9 fits
+    both: as metres below 8.2 m, as feet above 9 ft = 2.74 m)."""
+    from iamp.prediction.loaders.units import LENGTH_RANGE_M, WIDTH_RANGE_M, detect_units
+
+    if column == "v_Width":
+        lo, hi = WIDTH_RANGE_M
+    else:
+        lo, hi = (9.0 * FOOT_M + 1e-3, 9.0) if factor == FOOT_M else (LENGTH_RANGE_M[0], 2.5 / FOOT_M - 1e-3)
+    value_si = data.draw(st.floats(lo, hi))
+    values = np.concatenate([np.full(7, value_si / factor), [0.0, -1.0, np.nan]])  # non-positive rows ignored
+    d = detect_units({column: values}, "f.csv")
+    assert d.units == ("feet" if factor == FOOT_M else "metres")
+    assert d.evidence[0].startswith(f"median {column} {value_si / factor:.4g} (")
 
 
 @settings(max_examples=30, deadline=None)
