@@ -1,211 +1,98 @@
-r"""The avoidance QP's solver adapter: OSQP or Clarabel, set up once, then bound updates only.
+r"""The avoidance QP's solver: a backend of the one registry (:mod:`iamp.planners.qp.backends`).
 
 The problem is :math:`\min \tfrac12 z^\top P z` s.t. equality rows :math:`A_{eq} z = b` and
-one-sided rows :math:`A_{in} z \le u` (:mod:`iamp.planners.avoid.data`); a sweep candidate
-changes ``u`` only.  Multipliers follow OSQP's convention (:math:`Pz + q + A^\top y = 0`,
-``y >= 0`` on a binding upper bound), which is also Clarabel's for the stacked cones
-``Zero(n_eq) × Nonnegative(n_in)`` on :math:`Az + s = (b, u)`, so ``y`` is Clarabel's dual
-vector unchanged.
+one-sided rows :math:`A_{in} z \le u` (:mod:`iamp.planners.avoid.data`), passed to the
+registry's general form ``l <= Az <= u`` with ``l = (b, -inf)``, ``u = (b, u_in)``.  A sweep
+candidate changes ``u`` only (:meth:`BoundSolver.set_upper`), a crossing-time box of the fixed
+pattern the values of ``A`` and ``u`` (:meth:`BoundSolver.set_values`); the backend keeps its
+set-up (OSQP and Clarabel update values on the same symbolic factorisation, PIQP too).
+Multipliers are the registry's (OSQP's convention: :math:`Pz + A^\top y = 0`, ``y >= 0`` on a
+binding upper bound).
 
-* OSQP: ``update(u=…)`` and a warm start from the previous candidate; settings
-  ``eps_abs = 1e-7, eps_rel = 0``, polishing on (the polish solves the KKT system of the
-  guessed active set exactly; without it OSQP is accurate to ``eps_abs`` only and the plan's
-  KKT check reports it ``inaccurate``).
-* Clarabel: ``update(b=…)`` on the set-up solver (its data-update API; no warm start),
-  tolerances 1e-12.
+Settings are each backend's registry defaults, plus :data:`AVOID_SETTINGS` (then the
+caller's ``settings``):
 
-Every other backend comes from the project's QP backend registry
-(:mod:`iamp.planners.qp.backends`; e.g. PIQP) through its general form ``l <= Az <= u`` with
-``update(u=…)``; a backend that solves equality-constrained QPs only (``kkt``) is refused with
-:class:`~iamp.core.errors.OptionError`.  OSQP and Clarabel keep the specialised adapters above
-because a bound update must not rebuild the stacked Clarabel matrix (measured: the generic
-update re-stacks ``A`` on every candidate).
+* OSQP: ``eps_abs = 1e-7`` and ``max_iter = 50_000`` (the registry's equality-QP defaults are
+  1e-5 and 10,000); ``eps_rel = 0``, polishing with ``polish_refine_iter = 10`` and no
+  dual-gap check as in the registry.  The polish solves the KKT system of the guessed active
+  set exactly; without it OSQP is accurate to ``eps_abs`` only and the plan's KKT check
+  reports it ``inaccurate``.  Warm-started from the previous candidate.
+* Clarabel: the registry's tolerances 1e-12, ``max_iter = 200`` (no warm start: interior point).
+* PIQP: the registry's ``eps_abs = 1e-10``, ``eps_rel = 0``.
+
+A backend that solves equality-constrained QPs only (``kkt``) is refused with
+:class:`~iamp.core.errors.OptionError` (:func:`~.options.check_avoid_solver`).
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
-from functools import cache, lru_cache
-from importlib import metadata
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from iamp.core import status as st
-from iamp.core.errors import MissingDependencyError
-
-from ..qp.backends import QPBackend, get_backend
+from ..qp.backends import QPSolution, get_backend
 from .options import check_avoid_solver
 
 FloatArray = NDArray[np.float64]
 
-OSQP_STATUS = {"solved": st.OPTIMAL, "solved inaccurate": st.INACCURATE, "maximum iterations reached": st.MAX_ITER,
-               "run time limit reached": st.TIME_LIMIT, "primal infeasible": st.INFEASIBLE,
-               "primal infeasible inaccurate": st.INFEASIBLE}
-CLARABEL_STATUS = {"Solved": st.OPTIMAL, "AlmostSolved": st.INACCURATE, "PrimalInfeasible": st.INFEASIBLE,
-                   "AlmostPrimalInfeasible": st.INFEASIBLE, "MaxIterations": st.MAX_ITER, "MaxTime": st.TIME_LIMIT,
-                   "NumericalError": st.NUMERICAL_ERROR, "InsufficientProgress": st.NUMERICAL_ERROR}
-
-
-@cache
-def _require(dist: str) -> None:
-    try:
-        metadata.version(dist)
-    except metadata.PackageNotFoundError:
-        raise MissingDependencyError(f"solver {dist!r} needs the package {dist!r}: pip install {dist}") from None
-
-
-@lru_cache(maxsize=1)
-def _osqp_major() -> int:
-    return int((metadata.version("osqp") or "1").split(".")[0])
-
-
-def osqp_settings() -> dict[str, Any]:
-    """OSQP for the avoidance QP (module docstring)."""
-    major = _osqp_major()
-    polish = "polishing" if major >= 1 else "polish"
-    out: dict[str, Any] = {"eps_abs": 1e-7, "eps_rel": 0.0, polish: True, "polish_refine_iter": 10,
-                           "max_iter": 50_000, "verbose": False}
-    if major >= 1:
-        out["check_dualgap"] = False
-    return out
-
-
-def clarabel_settings() -> dict[str, Any]:
-    """Clarabel: gap and feasibility tolerances 1e-12."""
-    return {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10,
-            "max_iter": 200, "verbose": False}
-
-
-@dataclass(frozen=True)
-class Solution:
-    z: FloatArray
-    y: FloatArray
-    status: str
-    raw_status: str
-    iterations: int
-    solve_call_s: float
-    polished: bool | None = None
-
-    @property
-    def finite(self) -> bool:
-        return bool(np.isfinite(self.z).all() and np.isfinite(self.y).all())
+#: What the avoidance QP adds to a backend's registry defaults (module docstring).
+AVOID_SETTINGS: dict[str, dict[str, Any]] = {"osqp": {"eps_abs": 1e-7, "max_iter": 50_000}}
 
 
 class BoundSolver:
-    """One set-up solver for ``½zᵀPz`` s.t. ``A[:n_eq] z = b``, ``A[n_eq:] z <= u[n_eq:]``.
+    """One set-up registry backend for ``½zᵀPz`` s.t. ``A[:n_eq] z = b``, ``A[n_eq:] z <= u_in``.
 
     Parameters
     ----------
     name : str
-        A registered QP backend that accepts inequalities (osqp and clarabel: specialised
-        adapters; others, e.g. piqp: the registry's general form).
-    P : sparse
+        A registered QP backend that accepts inequalities (osqp, clarabel, piqp).
+    P : scipy.sparse matrix
         Upper triangle of the cost Hessian.
-    A : sparse
+    A : scipy.sparse matrix
+        Equality rows, then inequality rows; its pattern (explicit zeros included) is fixed.
     b_eq : ndarray, shape (n_eq,)
     u_in : ndarray
         Initial upper bounds of the inequality rows.
     settings : dict, optional
-        Overrides of the solver's settings.
+        Overrides of the backend's settings (after :data:`AVOID_SETTINGS`).
+
+    Raises
+    ------
+    OptionError
+        For a backend that does not accept inequality rows or an unknown name.
+    MissingDependencyError
+        When the backend's package is not installed.
     """
 
     def __init__(self, name: str, P: sp.spmatrix, A: sp.spmatrix, b_eq: FloatArray, u_in: FloatArray,
                  settings: dict[str, Any] | None = None) -> None:
         check_avoid_solver(name)
         self.name = name
-        self.n_eq = b_eq.size
         self.b_eq = np.asarray(b_eq, dtype=float)
-        P = sp.csc_matrix(P)
-        A = sp.csc_matrix(A)
+        self.n_eq = self.b_eq.size
+        u_in = np.asarray(u_in, dtype=float)
         n = P.shape[0]
-        self._generic: QPBackend | None = None
-        if name not in ("osqp", "clarabel"):  # any other registered backend, in the general form
-            cls = get_backend(name)
-            l = np.r_[self.b_eq, np.full(u_in.size, -np.inf)]
-            self._generic = cls(P, np.zeros(n), A, l, np.r_[self.b_eq, u_in], settings)
-            self.settings = dict(self._generic.settings)
-            return
-        _require(name)
-        if name == "osqp":
-            import osqp
-
-            self.settings = {**osqp_settings(), **(settings or {})}
-            self._s = osqp.OSQP()
-            l = np.r_[self.b_eq, np.full(u_in.size, -np.inf)]
-            self._s.setup(P, np.zeros(n), A, l, np.r_[self.b_eq, u_in], **self.settings)
-        else:
-            import clarabel
-
-            self.settings = {**clarabel_settings(), **(settings or {})}
-            cs = clarabel.DefaultSettings()
-            for k, v in self.settings.items():
-                setattr(cs, k, v)
-            cones = [clarabel.ZeroConeT(int(self.n_eq)), clarabel.NonnegativeConeT(int(u_in.size))]
-            self._s = clarabel.DefaultSolver(P, np.zeros(n), A, np.r_[self.b_eq, u_in], cones, cs)
-            self._update_ok = bool(self._s.is_data_update_allowed())
-            self._rebuild = (P, A, cones, cs)
+        l = np.r_[self.b_eq, np.full(u_in.size, -np.inf)]
+        given = {**AVOID_SETTINGS.get(name, {}), **(settings or {})}
+        self.backend = get_backend(name)(P, np.zeros(n), A, l, np.r_[self.b_eq, u_in], given)
+        self.settings = dict(self.backend.settings)
 
     def set_upper(self, u_in: FloatArray) -> None:
         """New upper bounds of the inequality rows."""
-        if self._generic is not None:
-            self._generic.update(u=np.r_[self.b_eq, u_in])
-        elif self.name == "osqp":
-            self._s.update(u=np.r_[self.b_eq, u_in])
-        elif self._update_ok:
-            self._s.update(b=np.r_[self.b_eq, u_in])
-        else:  # pragma: no cover - a Clarabel without data updates
-            import clarabel
-
-            P, A, cones, cs = self._rebuild
-            self._s = clarabel.DefaultSolver(P, np.zeros(P.shape[0]), A, np.r_[self.b_eq, u_in], cones, cs)
+        self.backend.update(u=np.r_[self.b_eq, u_in])
 
     def set_values(self, A: sp.spmatrix, u_in: FloatArray) -> None:
-        """New values of ``A`` on the pattern it was set up with, and new upper bounds."""
+        """New values of ``A`` on the pattern it was set up with (CSC, sorted), and new upper bounds."""
         A = sp.csc_matrix(A)
-        u = np.r_[self.b_eq, u_in]
-        if self._generic is not None:
-            self._generic.update(Ax=np.array(A.data, dtype=float), u=u)
-        elif self.name == "osqp":
-            self._s.update(Ax=np.array(A.data, dtype=float), u=u)
-        else:
-            import clarabel
-
-            P, _, cones, cs = self._rebuild
-            self._s = clarabel.DefaultSolver(P, np.zeros(P.shape[0]), A, u, cones, cs)
-            self._rebuild = (P, A, cones, cs)
+        A.sort_indices()
+        self.backend.update(Ax=np.array(A.data, dtype=float), u=np.r_[self.b_eq, u_in])
 
     def warm_start(self, z: FloatArray, y: FloatArray) -> None:
-        """OSQP (and any registry backend that warm-starts); Clarabel, an interior-point method, has none."""
-        if self._generic is not None:
-            if np.all(np.isfinite(z)) and np.all(np.isfinite(y)):
-                self._generic.warm_start(z, y)
-        elif self.name == "osqp" and np.all(np.isfinite(z)) and np.all(np.isfinite(y)):
-            self._s.warm_start(x=z, y=y)
+        """Start the next solve from ``(z, y)`` (OSQP; interior-point backends ignore it)."""
+        self.backend.warm_start(z, y)
 
-    def solve(self) -> Solution:
-        if self._generic is not None:
-            g = self._generic.solve()
-            return Solution(g.z, g.y, g.status, g.raw_status, g.iterations, g.solve_call_s, g.polished)
-        t0 = time.perf_counter()
-        if self.name == "osqp":
-            res = self._s.solve(raise_error=False)
-            call = time.perf_counter() - t0
-            raw = str(res.info.status)
-            n = self._s_n()
-            z = np.array(res.x, dtype=float) if res.x is not None else np.full(n, np.nan)
-            y = np.array(res.y, dtype=float) if res.y is not None else np.full(self.n_eq, np.nan)
-            return Solution(z, y, OSQP_STATUS.get(raw.strip().lower(), st.SOLVER_ERROR), raw, int(res.info.iter), call,
-                            int(getattr(res.info, "status_polish", 0)) == 1)
-        sol = self._s.solve()
-        call = time.perf_counter() - t0
-        raw = str(sol.status)
-        return Solution(np.array(sol.x, dtype=float), np.array(sol.z, dtype=float),
-                        CLARABEL_STATUS.get(raw, st.SOLVER_ERROR), raw, int(sol.iterations), call)
-
-    def _s_n(self) -> int:
-        dims = self._s.get_dimensions() if hasattr(self._s, "get_dimensions") else None
-        return int(dims[0]) if dims else 0
+    def solve(self) -> QPSolution:
+        """Solve with the current data (the registry's :class:`~iamp.planners.qp.backends.base.QPSolution`)."""
+        return self.backend.solve()

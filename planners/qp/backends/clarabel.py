@@ -115,14 +115,27 @@ class ClarabelBackend(QPBackend):
         self._eq = np.flatnonzero(eq)
         self._up = np.flatnonzero(~eq & np.isfinite(self.u))
         self._lo = np.flatnonzero(~eq & np.isfinite(self.l))
-        self._pure_eq = self._up.size == 0 and self._lo.size == 0
+        self._pure_eq = bool(eq.all())  # a free row (both sides infinite) is no equality
 
     def _stack(self) -> tuple[sp.csc_matrix, np.ndarray]:
         if self._pure_eq:
             return self.A, self.l.copy()
         A = sp.vstack([self.A[self._eq], self.A[self._up], -self.A[self._lo]], format="csc")
-        b = np.concatenate([self.l[self._eq], self.u[self._up], -self.l[self._lo]])
-        return A, b
+        return A, self._rhs()
+
+    def _rhs(self) -> np.ndarray:
+        """Clarabel's ``b`` of the current bounds (the row split of set-up; no re-stacking of ``A``,
+        so a bound-only update of a sweep costs a vector, not a matrix)."""
+        if self._pure_eq:
+            return self.l.copy()
+        return np.concatenate([self.l[self._eq], self.u[self._up], -self.l[self._lo]])
+
+    def _split_changed(self) -> bool:
+        """Did the bounds change which rows are equalities or which sides are finite?"""
+        eq = self.l == self.u
+        return not (np.array_equal(np.flatnonzero(eq), self._eq)
+                    and np.array_equal(np.flatnonzero(~eq & np.isfinite(self.u)), self._up)
+                    and np.array_equal(np.flatnonzero(~eq & np.isfinite(self.l)), self._lo))
 
     def _build(self) -> None:
         import clarabel
@@ -141,7 +154,7 @@ class ClarabelBackend(QPBackend):
         self._build()
 
     def _push(self, P: bool, A: bool, A_idx: IntArray | None, q: bool, bounds: bool) -> None:
-        if bounds and not np.array_equal(np.flatnonzero(self.l == self.u), self._eq):
+        if bounds and self._split_changed():
             self._build()  # the row split changed
             return
         if not self.data_update:
@@ -159,11 +172,10 @@ class ClarabelBackend(QPBackend):
             if bounds:
                 kw["b"] = self.l.copy()
         else:
-            Ast, b = self._stack()
             if A:
-                kw["A"] = Ast.data.copy()
+                kw["A"] = self._stack()[0].data.copy()
             if bounds:
-                kw["b"] = b
+                kw["b"] = self._rhs()
         if q:
             kw["q"] = self.q.copy()
         if kw:
