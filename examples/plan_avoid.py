@@ -13,23 +13,8 @@ Run: ``python examples/plan_avoid.py``
 
 from __future__ import annotations
 
-import io
-
-import matplotlib.pyplot as plt
-from matplotlib.figure import Figure
-
 import iamp
 from iamp.cli.plot import plan_figure
-
-
-def show(fig: Figure) -> None:
-    """Show a figure made outside pyplot (``iamp plot``'s) in a pyplot window / the gallery."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    buf.seek(0)
-    _, ax = plt.subplots(figsize=(fig.get_figwidth(), fig.get_figheight()))
-    ax.imshow(plt.imread(buf))
-    ax.set_axis_off()
 
 
 def main() -> dict[str, iamp.Plan]:
@@ -43,8 +28,8 @@ def main() -> dict[str, iamp.Plan]:
         deepest = max((v.max_intrusion_m for v in safety.vehicles), default=0.0)
         print(f"{name:9s} {plan.status:8s} J = {plan.cost:.4f}  intrusion-free: {safety.intrusion_free}  "
               f"(deepest intrusion {deepest:.4f} m), bodies collision-free: {safety.collision_free}")
-    fig = plan_figure(plans["avoid"], title="two-vehicle: the avoidance QP (crossing times, no intrusion)")
-    show(fig)
+    # drawn through pyplot, so that the gallery shows it
+    plan_figure(plans["avoid"], title="two-vehicle: the avoidance QP (crossing times, no intrusion)", pyplot=True)
     return plans
 
 

@@ -12,27 +12,13 @@ Run: ``python examples/plan_bounded.py``
 
 from __future__ import annotations
 
-import io
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-import matplotlib.pyplot as plt
-from matplotlib.figure import Figure
-
 import iamp
 from iamp.cli.plot import plan_figure
-
-
-def show(fig: Figure) -> None:
-    """Show a figure made outside pyplot (``iamp plot``'s) in a pyplot window / the gallery."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    buf.seek(0)
-    _, ax = plt.subplots(figsize=(fig.get_figwidth(), fig.get_figheight()))
-    ax.imshow(plt.imread(buf))
-    ax.set_axis_off()
 
 
 def main() -> dict[str, iamp.Plan]:
@@ -47,8 +33,8 @@ def main() -> dict[str, iamp.Plan]:
     for name, plan in plans.items():
         print(f"{name:4s} {plan.status:8s} J = {plan.cost:.6f}")
         print("     peaks:", plan.peaks.line())
-    fig = plan_figure(plans["pmp"], title="the template scenario with its limits: bounded PMP")
-    show(fig)
+    # drawn through pyplot, so that the gallery shows it
+    plan_figure(plans["pmp"], title="the template scenario with its limits: bounded PMP", pyplot=True)
     return plans
 
 

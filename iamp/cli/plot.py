@@ -77,7 +77,7 @@ def _jerk(result: Plan, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     return 0.5 * (tt[1:] + tt[:-1]), np.diff(u, axis=0) / np.diff(tt)[:, None], False
 
 
-def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -> Figure:
+def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6, pyplot: bool = False) -> Figure:
     """The ``iamp plot`` figure of one plan (see the module docstring).
 
     Parameters
@@ -87,6 +87,14 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
     title : str, optional
     snapshots : int
         Number of instants drawn in the x–y plane, evenly spaced over ``[0, t_f]``.
+    pyplot : bool
+        Make the figure through :mod:`matplotlib.pyplot` (so that ``plt.show()`` and the
+        documentation's gallery see it); default: a standalone figure (no GUI state).
+
+    Returns
+    -------
+    Figure
+        The figure.
     """
     from iamp.comparison.figures.style import (
         SAFETY_COLOR,
@@ -106,7 +114,13 @@ def plan_figure(result: Plan, *, title: str | None = None, snapshots: int = 6) -
     xy_height = 0.92 * width * (ymax - ymin) / (xmax - xmin) + 1.3  # to scale, plus the legend
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width, xy_height + 3 * 2.1 + 0.4), layout="constrained")
+    size = (width, xy_height + 3 * 2.1 + 0.4)
+    if pyplot:
+        import matplotlib.pyplot as plt
+
+        fig = plt.figure(figsize=size, layout="constrained")
+    else:
+        fig = Figure(figsize=size, layout="constrained")
     gs = fig.add_gridspec(4, 2, height_ratios=[xy_height, 2.1, 2.1, 2.1])
     ax_xy = fig.add_subplot(gs[0, :])
     draw_xy(ax_xy, result, np.linspace(0.0, tf, max(int(snapshots), 2)), time_labels=True, ego_color=color)
