@@ -240,13 +240,27 @@ def _hlines(ax: matplotlib.axes.Axes) -> tuple[list[float], list[float]]:
     return solid, dashed
 
 
+def _shifted_log(path: Path, dy: float) -> None:
+    """``_write_log``'s episode moved by ``dy`` across the road."""
+    _write_log(path)
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    for r in rows:
+        r["y"] = f"{float(r['y']) + dy!r}"
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
 def test_each_episode_frame_draws_the_log_to_scale(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The episode of ``_write_log`` (lanes centred at -1.875 and 1.875 m; the ego starts in the lower
-    one): lane edges at the centres -/+ half a lane (3.75 m), one divider half-way; a window of
-    ``window_m`` centred on the ego; each vehicle's body at its logged centre with its logged size;
-    the ego with ``ego_size`` (the log has none) and its path up to the frame's step."""
+    """The episode of ``_write_log`` moved 5 m to the left (lanes centred at 3.125 and 6.875 m; the ego
+    starts in the right one): lane edges at the centres -/+ half a lane (3.75 m), one divider half-way;
+    a window of ``window_m`` centred on the ego; each vehicle's body at its logged centre with its
+    logged size; the ego with ``ego_size`` (the log has none) and its path up to the frame's step."""
     log = tmp_path / "ep.csv"
-    _write_log(log)
+    dy = 5.0
+    _shifted_log(log, dy)
     got = _captured(monkeypatch)
     anim_mod.animate_episode(log, tmp_path / "ep.gif", fps=5.0, speed=1.0, window_m=100.0, ego_size=(5.0, 2.0))
     assert got["frames"] == len(frame_times(5.0, 5.0, 1.0, 300)) == 26
@@ -256,15 +270,15 @@ def test_each_episode_frame_draws_the_log_to_scale(tmp_path: Path, monkeypatch: 
         draw(j)  # type: ignore[operator]
         k = 2 * j  # frames every 0.2 s, log every 0.1 s
         t = 0.1 * k
-        xe, ye = 20 * t, -1.875 + 3.75 * min(t / 5, 1)
+        xe, ye = 20 * t, dy - 1.875 + 3.75 * min(t / 5, 1)
         edges, dividers = _hlines(ax)
-        assert edges == pytest.approx([-3.75, 3.75]) and dividers == pytest.approx([0.0])
+        assert edges == pytest.approx([dy - 3.75, dy + 3.75]) and dividers == pytest.approx([dy])
         assert ax.get_xlim() == pytest.approx((xe - 50.0, xe + 50.0))
         (ego,) = _bodies(ax, 4)
         assert (ego.get_width(), ego.get_height()) == pytest.approx((5.0, 2.0))
         corners = ego.get_patch_transform().transform([(0, 0), (1, 0), (1, 1), (0, 1)])
         assert corners.mean(axis=0) == pytest.approx([xe, ye], abs=1e-9)
-        want = {(30 + 18 * t, 1.875, 12.0, 2.4), (-20 + 22 * t, -1.875, 4.5, 1.8)}
+        want = {(30 + 18 * t, dy + 1.875, 12.0, 2.4), (-20 + 22 * t, dy - 1.875, 4.5, 1.8)}
         drawn = {(b.get_x() + b.get_width() / 2, b.get_y() + b.get_height() / 2, b.get_width(), b.get_height())
                  for b in _bodies(ax, 2)}
         assert len(drawn) == 2
