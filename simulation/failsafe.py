@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from iamp.simulation.rss import body_extents
+from iamp.simulation.rss import body_extents, rss_distance
 
 __all__ = [
     "Obstacle",
@@ -57,7 +57,6 @@ __all__ = [
     "Verification",
     "body_half_extents",
     "feasible_brakes",
-    "rss_distance",
     "verify_states",
     "verify_trajectory",
 ]
@@ -100,44 +99,6 @@ class Obstacle:
         x = P.polyval(t, self.poly)
         v = P.polyval(t, P.polyder(self.poly)) if len(self.poly) > 1 else np.zeros_like(t)
         return np.asarray(x, dtype=float), np.maximum(np.asarray(v, dtype=float), 0.0)
-
-
-def rss_distance(v_r: Any, v_f: Any, rho: float, a_acc: Any, b_min: Any, b_max: Any) -> np.ndarray:
-    """SPEC §17's safe longitudinal distance (positive part), elementwise, with the parameters
-    per role and as arrays.
-
-    The judge's :func:`iamp.simulation.rss.safe_longitudinal_distance` is the same formula with
-    one validated :class:`~iamp.simulation.rss.RssParameters` (every vehicle alike, ``b_max ≥
-    b_min``); the verification needs other values per role (the ego's own response time and
-    plan acceleration, a fail-safe deceleration that may exceed the front's admissible braking
-    or fall below the rear's), broadcast over samples and decelerations.  The two agree where
-    both apply (tests/test_issue30_safe.py).
-
-    Parameters
-    ----------
-    v_r, v_f : array_like
-        Speeds of the rear and the front vehicle [m/s] (negative speeds count as 0).
-    rho : float
-        The rear vehicle's response time [s].
-    a_acc : array_like
-        Its largest acceleration during the response time [m/s²].
-    b_min : array_like
-        The braking the rear applies at least after it [m/s², > 0].
-    b_max : array_like
-        The braking the front applies at most [m/s², > 0].
-
-    Returns
-    -------
-    numpy.ndarray
-        ``d ≥ 0`` [m].
-    """
-    vr = np.maximum(np.asarray(v_r, dtype=float), 0.0)
-    vf = np.maximum(np.asarray(v_f, dtype=float), 0.0)
-    a = np.asarray(a_acc, dtype=float)
-    v_rho = np.maximum(vr + rho * a, 0.0)
-    d = vr * rho + 0.5 * a * rho**2 + v_rho**2 / (2.0 * np.asarray(b_min, dtype=float)) \
-        - vf**2 / (2.0 * np.asarray(b_max, dtype=float))
-    return np.asarray(np.maximum(d, 0.0))
 
 
 def body_half_extents(vx: Any, vy: Any, length: float, width: float) -> tuple[np.ndarray, np.ndarray]:

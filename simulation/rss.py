@@ -125,6 +125,43 @@ class RssParameters:
 DEFAULT = RssParameters()
 
 
+def rss_distance(v_r: npt.ArrayLike, v_f: npt.ArrayLike, rho: npt.ArrayLike, a_acc: npt.ArrayLike,
+                 b_min: npt.ArrayLike, b_max: npt.ArrayLike) -> FloatArray:
+    """RSS's safe longitudinal distance with its parameters as plain arguments, elementwise.
+
+    The one implementation of SPEC §17's formula: the judge (:func:`safe_longitudinal_distance`,
+    one :class:`RssParameters` for every vehicle) and the closed loop's verification
+    (:mod:`iamp.simulation.failsafe`, values per role: the ego's own response time, a fail-safe
+    deceleration that may exceed the front's admissible braking) both call it.
+
+    Parameters
+    ----------
+    v_r, v_f : array_like
+        Speeds of the rear and the front vehicle [m/s] (negative speeds count as 0).
+    rho : array_like
+        The rear vehicle's response time [s].
+    a_acc : array_like
+        Its largest acceleration during the response time [m/s²] (a negative value: it brakes
+        already; its speed after the response time is then not below 0).
+    b_min : array_like
+        The braking the rear applies at least after it [m/s², > 0].
+    b_max : array_like
+        The braking the front applies at most [m/s², > 0].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[v_r ρ + ½ a_acc ρ² + max(v_r + ρ a_acc, 0)²/(2 b_min) − v_f²/(2 b_max)]_+`` [m].
+    """
+    vr = np.maximum(np.asarray(v_r, dtype=float), 0.0)
+    vf = np.maximum(np.asarray(v_f, dtype=float), 0.0)
+    rho_, a = np.asarray(rho, dtype=float), np.asarray(a_acc, dtype=float)
+    v_rho = np.maximum(vr + rho_ * a, 0.0)
+    d = vr * rho_ + 0.5 * a * rho_**2 + v_rho**2 / (2.0 * np.asarray(b_min, dtype=float)) \
+        - vf**2 / (2.0 * np.asarray(b_max, dtype=float))
+    return np.asarray(np.maximum(d, 0.0), dtype=float)
+
+
 def safe_longitudinal_distance(v_rear: npt.ArrayLike, v_front: npt.ArrayLike,
                                p: RssParameters = DEFAULT) -> FloatArray:
     """RSS's safe longitudinal distance of a rear car behind a front car, same direction.
@@ -134,17 +171,15 @@ def safe_longitudinal_distance(v_rear: npt.ArrayLike, v_front: npt.ArrayLike,
     v_rear, v_front : array_like
         Longitudinal speeds [m/s] (non-negative), broadcast together.
     p : RssParameters
+        The parameters of every vehicle.
 
     Returns
     -------
     numpy.ndarray
-        ``[v_r ρ + ½ a_acc ρ² + (v_r + ρ a_acc)²/(2 b_min) − v_f²/(2 b_max)]_+`` [m].
+        ``[v_r ρ + ½ a_acc ρ² + (v_r + ρ a_acc)²/(2 b_min) − v_f²/(2 b_max)]_+`` [m]
+        (:func:`rss_distance` with ``p``'s values).
     """
-    vr = np.maximum(np.asarray(v_rear, dtype=float), 0.0)
-    vf = np.maximum(np.asarray(v_front, dtype=float), 0.0)
-    rho, a = p.response_time_s, p.accel_max
-    d = vr * rho + 0.5 * a * rho**2 + (vr + rho * a) ** 2 / (2 * p.brake_min) - vf**2 / (2 * p.brake_max)
-    return np.asarray(np.maximum(d, 0.0), dtype=float)
+    return rss_distance(v_rear, v_front, p.response_time_s, p.accel_max, p.brake_min, p.brake_max)
 
 
 def lateral_reach(u_toward: npt.ArrayLike, p: RssParameters = DEFAULT) -> FloatArray:

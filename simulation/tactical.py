@@ -46,8 +46,9 @@ import numpy as np
 
 from iamp.core.problem import EgoBoundary
 from iamp.simulation.decision import REACH, DecisionConfig, EgoNow, Gap, Neighbour
-from iamp.simulation.failsafe import SafeParams, rss_distance
+from iamp.simulation.failsafe import SafeParams
 from iamp.simulation.mobil import IDM
+from iamp.simulation.rss import rss_distance
 
 __all__ = ["TacticalConfig", "choose_gap", "gap_end", "horizons_for", "rss_regions", "safe_interval", "seek_accel"]
 
