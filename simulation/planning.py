@@ -10,10 +10,10 @@ current-lane leader, each with its paper corner.
 * ``qp`` — the registry's ``qp``: the discretised QP with the same equality constraints
   (SPEC §3), FOH, ``N = QP_STEPS`` intervals over the (shrinking) horizon, contact nodes by the
   grid sweep, the exact KKT backend.
-* ``pmp-active`` — the PMP with SPEC §14's active set (:func:`active_set_plan`): start from the
+* ``pmp-active`` — the registry's ``pmp-active``, the PMP with SPEC §14's active set
+  (:class:`iamp.planners.active_set.ActiveSetPlanner`, the one implementation): start from the
   unconstrained plan, impose the corner of the vehicle whose safety region it enters most
-  deeply, drop a vehicle whose jump has the dragging sign, repeat.  One function, so that the
-  planner's own ``constraint="active"`` (being built on branch ``avoid``) can replace it.
+  deeply, drop a vehicle whose jump has the dragging sign, repeat.
 * ``qp-avoid`` — the registry's ``qp-avoid``: the avoidance QP of SPEC §10/§14, Clarabel, FOH,
   ``N = QP_STEPS``, every vehicle as an inequality.
 
@@ -56,7 +56,7 @@ from iamp.planners import registry
 from iamp.simulation.decision import clearly_beyond_limits
 
 __all__ = ["IAMP_PLANNERS", "PLANNERS", "PMP_BOXES", "QP_STEPS", "SCREENED", "SCREEN_MARGIN", "SIM_OPTIONS",
-           "FreeTrajectory", "PlanFn", "Screen", "active_set_plan", "free_plan", "make_planner", "screened"]
+           "FreeTrajectory", "PlanFn", "Screen", "free_plan", "make_planner", "screened"]
 
 PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
 #: Planners that call an iamp planner through the decision layer.
@@ -198,51 +198,6 @@ def screened(exact: PlanFn, make_fast: Callable[[], PlanFn | None], screen: Scre
     return call
 
 
-def enters(plan: Plan, vehicle: Any, dt: float = 0.05) -> float:
-    """How deep the plan's point enters ``vehicle``'s safety region (0: not at all), sampled."""
-    tf = float(plan.problem.tf)
-    t = np.linspace(0.0, tf, int(tf / dt) + 1)
-    X = np.asarray(plan.require_trajectory().states(t))
-    dx = vehicle.length / 2 + vehicle.safety_x - np.abs(X[:, 0] - vehicle.position(t))
-    dy = vehicle.width / 2 + vehicle.safety_y - np.abs(X[:, 2] - vehicle.y)
-    depth = np.minimum(dx, dy)
-    return float(max(depth.max(), 0.0))
-
-
-def active_set_plan(problem: Problem, fn: PlanFn, name: str) -> Plan:
-    """SPEC §14's active set around the equality planner ``fn`` (see the module docstring).
-
-    Start from the unconstrained plan; while it enters a safety region of a vehicle not yet
-    imposed, impose the one it enters most deeply and re-plan; a vehicle whose jump (the
-    co-state jump ``Φ_x``) comes out with the dragging sign — the ego pulled towards the
-    vehicle instead of pushed away (SPEC §2 identity 2: ``sign(Φ_x) = -s_x`` is the pushing
-    sign) — is dropped and not imposed again.  Stops when no region is entered (``info
-    ["active"]``: the imposed vehicles, ``info["dropped"]``: the dropped ones) or when nothing
-    changes; the decision layer judges the result like any other plan.
-    """
-    chosen: list[Any] = []
-    dropped: list[str] = []
-    plan = free_plan(problem.ego, name)
-    for _ in range(2 * problem.m):
-        if plan.trajectory is None or plan.status not in SUCCESS:
-            break
-        depths = [(enters(plan, v), v) for v in problem.vehicles if v not in chosen and v.name not in dropped]
-        depths = [d for d in depths if d[0] > 1e-3]
-        if not depths:
-            break
-        chosen.append(max(depths, key=lambda d: d[0])[1])
-        plan = fn(problem.with_vehicles(chosen))
-        if plan.status in SUCCESS and plan.jumps is not None and len(plan.jumps) == len(chosen):
-            bad = [v for v, j in zip(chosen, np.asarray(plan.jumps)) if np.isfinite(j[0]) and j[0] * v.sign_x > 1e-9]
-            if bad:
-                for v in bad:
-                    chosen.remove(v)
-                    dropped.append(str(v.name))
-                plan = fn(problem.with_vehicles(chosen)) if chosen else free_plan(problem.ego, name)
-    plan.annotate(active=[str(v.name) for v in chosen], dropped=dropped)
-    return plan
-
-
 def make_planner(name: str, screen: Screen | None = None) -> PlanFn:
     """``plan(problem) -> Plan`` for the iamp planners (:data:`IAMP_PLANNERS`); with ``screen``
     the planners of :data:`SCREENED` go through :func:`screened` (the same decisions, faster)."""
@@ -252,7 +207,4 @@ def make_planner(name: str, screen: Screen | None = None) -> PlanFn:
         raise IampError(f"unknown planner {name!r} (not an iamp planner); choose from {', '.join(IAMP_PLANNERS)}")
     if name in registry.REGISTRY:
         return _registered(name, screen)
-    if name == "pmp-active":  # until the registry has the planner's own active set
-        fn = _registered("pmp")
-        return lambda problem: active_set_plan(problem, fn, "pmp-active")
     raise IampError(f"planner {name!r} is not in the planner registry")  # pragma: no cover

@@ -134,17 +134,21 @@ def test_the_option_off_gives_the_episode_of_before_bit_for_bit(monkeypatch: pyt
     pytest.importorskip("libsumo")
     import iamp.simulation.controller as controller
     import iamp.simulation.decision as decision
+    from iamp.simulation.controller import ControllerConfig
     from iamp.simulation.episode import EpisodeSpec, run_episode
 
+    # the loop of before SPEC §17's verification (ControllerConfig(safe=False)), where ``decide`` was
+    # called without keywords: the option off must leave its episode exactly as it was
+    old_loop = ControllerConfig(safe=False)
     spec = EpisodeSpec(traffic="medium", seed=1, planner="pmp-active", mission="merge", duration_s=10.0)
-    now = run_episode(spec)
+    now = run_episode(spec, config=old_loop)
 
     def never(*a: Any, **k: Any) -> Any:
         raise AssertionError("the iteration ran with the option off")
 
     monkeypatch.setattr(decision, "iterate_with_planner", never)
     monkeypatch.setattr(controller, "decide", _decide_before)
-    before = run_episode(spec)
+    before = run_episode(spec, config=old_loop)
     assert now.summary["ego_in_forecast"] is False
     assert [now.summary[k] for k in NEW_KEYS[1:]] == [0, 0, 0]
     assert now.summary["planner_calls"] > 0  # the episode planned (the comparison is not vacuous)
@@ -177,8 +181,12 @@ def test_the_option_on_plans_each_replan_against_the_controllers_reaction(monkey
 
     monkeypatch.setattr(ego_mod, "follower_poly_for_plan", recording)
     monkeypatch.setattr(Controller, "_plan", plan)
+    from iamp.simulation.controller import ControllerConfig
+
+    # the loop without SPEC §17's verification, which plans within these 10 s (the verified loop
+    # seeks a safe gap first)
     s = run_episode(EpisodeSpec(traffic="medium", seed=1, planner="pmp-active", mission="merge", duration_s=10.0,
-                                ego_in_forecast=True)).summary
+                                ego_in_forecast=True), config=ControllerConfig(safe=False)).summary
     assert s["ego_in_forecast"] is True and s["ego_iterations"] > 0
     replans = 0
     for (kind, out), (kind2, prob) in zip(events, events[1:]):

@@ -164,8 +164,8 @@ def _log(r):
 
 
 def test_a_pmp_merge_is_the_same_with_the_screen_on_and_off(monkeypatch):
-    """10 s of the seed-1 medium merge with ``pmp``: every plan rejected on the limits; the
-    episode (summary minus times, step log) with the screen on must be the one without it.
+    """10 s of the seed-1 medium merge with ``pmp``: the episode (summary minus times, step log)
+    with the screen on must be the one without it.
     The PMP's search has one implementation since issue 32 (its numba copy, the screen's fast
     twin, was removed), so the screen has no fast planner and is never consulted."""
     from iamp.simulation import planning
@@ -186,7 +186,6 @@ def test_a_pmp_merge_is_the_same_with_the_screen_on_and_off(monkeypatch):
     assert len(hits) == n  # with it off the screen is not consulted
     assert _numbers(on.summary) == _numbers(off.summary)
     assert _log(on) == _log(off)
-    assert on.summary["planner_calls"] > 20 and on.summary["rejected"].get("limits", 0) > 10
 
 
 def test_loop_pmps_are_pinned_to_the_pure_search():
