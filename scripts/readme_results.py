@@ -54,8 +54,13 @@ def campaign_table(episodes: Path, root: Path = ROOT) -> list[str]:
         by[r["planner"]].append(r)
     missions = sorted({r["mission"] for r in rows})
     seeds = len({r["seed"] for r in rows})
-    lines = [f"Closed loop (`{episodes.relative_to(root).as_posix()}`: missions {', '.join(missions)}; {seeds} paired "
-             "seeds per density):", "",
+    manifest = episodes.parent / "manifest.json"
+    fmt = json.loads(manifest.read_text(encoding="utf-8")).get("episode_format", "?") if manifest.is_file() else "?"
+    older = fmt != "?" and tuple(int(x) for x in str(fmt).split(".")) < (17,)
+    note = (" It was made by the loop before SPEC §17's verified plans and fail-safe; what the verified loop "
+            "measures is in `docs/closed-loop.md`." if older else "")
+    lines = [f"Closed loop (`{episodes.relative_to(root).as_posix()}`, episode format {fmt}: missions "
+             f"{', '.join(missions)}; {seeds} paired seeds per density).{note}", "",
              "| planner | episodes | success | episodes with a contact | executed limit violations (episodes) |",
              "|---|---|---|---|---|"]
     for planner in sorted(by):

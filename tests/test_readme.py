@@ -82,8 +82,9 @@ def test_the_campaign_table_counts_the_episodes(tmp_path_factory: pytest.TempPat
     lines = _script().campaign_table(path, root)
     missions = sorted({str(r["mission"]) for r in rows})
     seeds = len({r["seed"] for r in rows})
-    assert lines[0] == (f"Closed loop (`reports/campaign-new/episodes.csv`: missions {', '.join(missions)}; {seeds} "
-                        "paired seeds per density):")
+    # no manifest beside the episodes: the format is unknown and no note on it is made
+    assert lines[0] == (f"Closed loop (`reports/campaign-new/episodes.csv`, episode format ?: missions "
+                        f"{', '.join(missions)}; {seeds} paired seeds per density).")
     body = lines[4:]
     planners = sorted({str(r["planner"]) for r in rows})
     assert len(body) == len(planners)
@@ -139,3 +140,19 @@ def test_check_exits_1_on_a_stale_readme_and_rewriting_fixes_it(tmp_path: Path, 
     with pytest.raises(SystemExit):
         m.main(["--help"])
     assert "The README's headline results, computed from what the shipped code wrote" in capsys.readouterr().out
+
+
+def test_a_campaign_of_an_older_loop_says_so(tmp_path: Path) -> None:
+    """The table names the campaign's episode format and says when the loop has changed since (SPEC §17)."""
+    import json
+    import shutil
+
+    folder = tmp_path / "reports" / "campaign-new"
+    shutil.copytree(ROOT / "reports" / "campaign-new", folder)
+    for fmt, older in (("15.1", True), ("17.1", False)):
+        manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+        manifest["episode_format"] = fmt
+        (folder / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
+        head = _script().campaign_table(folder / "episodes.csv", tmp_path)[0]
+        assert f"episode format {fmt}" in head
+        assert ("before SPEC §17's verified plans" in head) == older
