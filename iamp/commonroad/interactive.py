@@ -13,7 +13,9 @@ the ego:
    speed while fewer than ``min_history_s`` have been observed), keeps its lateral box (lane
    kept), and plans to the goal with the road planner of :mod:`iamp.commonroad.planning`
    over the goal's remaining time window (:func:`~iamp.commonroad.convert.final_candidates`).
-   A replan that finds no safe plan within the limits keeps the previous plan (a fallback).
+   A replan that finds no safe plan within the limits keeps the previous plan (a fallback)
+   while its remainder stays clear of the current predictions; otherwise the ego brakes in its
+   lane (:func:`failsafe`).
 3. The episode ends when CommonRoad's goal test (with the point-mass orientation corrected,
    :mod:`iamp.commonroad.check`) passes for the executed state, or when the goal's time window
    has passed.
@@ -57,7 +59,7 @@ from iamp.commonroad.convert import (
     final_candidates,
     load,
 )
-from iamp.commonroad.planning import DEFAULT_PLANNER, plan
+from iamp.commonroad.planning import DEFAULT_PLANNER, intrusions, plan
 from iamp.core.errors import MissingDependencyError, ScenarioError
 from iamp.core.plan import Trajectory
 from iamp.prediction.predictor import Predictor
@@ -130,6 +132,88 @@ def _observed_obstacle(cr: CommonRoadProblem, oid: int, hist_t: list[float], his
                     tuple(float(c) for c in coeffs), half + resid, resid, 0, False)
 
 
+#: Decelerations of the fail-safe, gentlest first [m/s^2] (then 0.9 a_max).
+FAILSAFE_DECEL = (2.0, 4.0, 6.0)
+#: Speeds the fail-safe slows to, as fractions of the current speed, least braking first.
+FAILSAFE_SPEEDS = (0.75, 0.5, 0.25, 0.0)
+#: Horizon over which a fail-safe that keeps moving must stay clear [s] (replans come every 0.5 s).
+FAILSAFE_HORIZON_S = 3.0
+#: Shortest horizon of a fail-safe plan [s].
+FAILSAFE_MIN_S = 1.0
+
+
+class Shifted:
+    """A plan's remainder from ``offset`` on: ``states(t)`` of the plan at ``t + offset``."""
+
+    def __init__(self, trajectory: Trajectory, offset: float) -> None:
+        self.trajectory, self.offset = trajectory, offset
+
+    def states(self, t: ArrayLike) -> np.ndarray:
+        return self.trajectory.states(np.asarray(t, dtype=float) + self.offset)
+
+    def inputs(self, t: ArrayLike) -> np.ndarray:
+        return self.trajectory.inputs(np.asarray(t, dtype=float) + self.offset)
+
+
+class Braking:
+    """Braking in the lane: the speed along the road falls at ``decel`` from ``x0``'s to ``v_end``
+    and stays there; the lateral speed falls linearly to zero over ``t_lat`` (the same
+    trajectory interface as a plan: ``states(t)`` rows ``(s, v_s, d, v_d)``, ``inputs(t)``)."""
+
+    def __init__(self, x0: tuple[float, float, float, float], decel: float, v_end: float, t_lat: float) -> None:
+        self.x0, self.decel, self.v_end, self.t_lat = x0, decel, v_end, max(t_lat, 1e-6)
+        self.t_b = max(0.0, x0[1] - v_end) / decel
+
+    def states(self, t: ArrayLike) -> np.ndarray:
+        s0, v0, d0, vd0 = self.x0
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        tb = np.minimum(tt, self.t_b)
+        s = s0 + v0 * tb - 0.5 * self.decel * tb**2 + self.v_end * (tt - tb)
+        v = v0 - self.decel * tb
+        tl = np.minimum(tt, self.t_lat)
+        d = d0 + vd0 * tl - 0.5 * vd0 / self.t_lat * tl**2
+        vd = vd0 * (1.0 - tl / self.t_lat)
+        return np.stack([s, v, d, vd], axis=1)
+
+    def inputs(self, t: ArrayLike) -> np.ndarray:
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        return np.stack([np.where(tt < self.t_b, -self.decel, 0.0),
+                         np.where(tt < self.t_lat, -self.x0[3] / self.t_lat, 0.0)], axis=1)
+
+
+def failsafe(cr: CommonRoadProblem, a_max: float) -> tuple[Braking, float]:
+    """The fail-safe when no plan keeps clear: braking in the lane (:class:`Braking`, the lateral
+    speed brought to zero over 1 s) at the gentlest of :data:`FAILSAFE_DECEL` and 0.9 ``a_max``,
+    and at that deceleration to the highest of :data:`FAILSAFE_SPEEDS` (fractions of the current
+    speed), whose body stays off every predicted vehicle (over :data:`FAILSAFE_HORIZON_S`, or until
+    it stands), else the hardest braking to a stop.  Returns the plan (from ``cr.x0``, time 0 = now) and its horizon.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The live problem: ``x0`` the ego's state now, ``obstacles`` the predicted vehicles.
+    a_max : float
+        The vehicle type's acceleration limit [m/s^2].
+
+    Returns
+    -------
+    tuple of Braking and float
+        The braking plan and its duration [s] (at least :data:`FAILSAFE_MIN_S`).
+    """
+    v0 = max(cr.x0[1], 0.0)
+    decels = (*[b for b in FAILSAFE_DECEL if b < 0.9 * a_max], 0.9 * a_max)
+    last: tuple[Braking, float] | None = None
+    for b in decels:
+        for frac in FAILSAFE_SPEEDS:
+            plan = Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_MIN_S)
+            T = max(FAILSAFE_MIN_S, plan.t_b) if frac == 0.0 else max(FAILSAFE_HORIZON_S, plan.t_b)
+            last = (plan, T)
+            if not intrusions(cr, plan, T):
+                return plan, T
+    assert last is not None
+    return last
+
+
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
              recording: str | Path | None = None,
              progress: Callable[[str], None] | None = None, seed: int = 1) -> dict[str, Any]:
@@ -198,7 +282,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     dev: dict[int, list[tuple[float, float]]] = {}
     lanes_seen: dict[str, tuple[float, float]] = {}  # lateral range of each vehicle's centre [m]
     plan_times: list[float] = []
-    infeasible = fallbacks = limit_violations = 0
+    infeasible = fallbacks = failsafes = limit_violations = 0
     peak_accel = 0.0
     goal_step: int | None = None
     status = "goal missed"
@@ -281,11 +365,17 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                         traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
                     else:
                         infeasible += 1
-                        if traj is not None:
-                            fallbacks += 1
-                        elif rp.trajectory is not None and rp.candidate is not None:
+                        if traj is not None and traj_T - (now - t_plan) > dt and not intrusions(
+                                live, Shifted(traj, now - t_plan), traj_T - (now - t_plan)):
+                            fallbacks += 1  # the previous plan still keeps clear of every vehicle
+                        elif (traj is None and rp.trajectory is not None and rp.candidate is not None
+                              and not rp.intrusions):
                             traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
                             fallbacks += 1
+                        else:  # fail-safe: brake in the lane, the gentlest braking that keeps clear
+                            fs, fs_T = failsafe(live, cr.a_max)
+                            traj, t_plan, traj_T = fs, now, fs_T
+                            failsafes += 1
                 if progress is not None:
                     progress(f"t = {now:.1f} s, {len(ids)} vehicles, plans {len(plan_times)}")
             if traj is None or now + dt - t_plan > traj_T + 1e-9:
@@ -335,7 +425,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         **metrics,
         **{k: v for k, v in judged.items() if k not in ("contacts",)},
         "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
-        "infeasible_plans": infeasible, "fallbacks": fallbacks,
+        "infeasible_plans": infeasible, "fallbacks": fallbacks, "failsafe_brakes": failsafes,
         "plan_time_s": {"calls": len(plan_times),
                         "median": float(np.median(plan_times)) if plan_times else None,
                         "max": float(np.max(plan_times)) if plan_times else None},
