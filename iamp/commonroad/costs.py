@@ -33,8 +33,11 @@ live in iamp's environment (cvxpy needs ``osqp >= 1``).  Here the lane-relative 
 from the scenario itself: ``O`` and ``LC`` from the centre polyline of the lanelet containing
 the ego with the smallest offset, the longitudinal position and ``D`` from the road frame
 (:class:`~iamp.commonroad.frame.RoadFrame`, arc length and offset).  The two are compared on
-every bench solution by ``scripts/commonroad_costs.py`` run in the peer's environment (see
-``reports/commonroad/``); the result never depends on which packages are importable.
+every bench solution by ``scripts/commonroad_costs.py`` run in the peer's environment (on the
+117 solutions of ``reports/commonroad/``: ``WX1`` to 0.001 %, ``SM1`` to 0.09 %, ``TR1`` median
+0.46 %, up to 19 % on a lane change, where the evaluator keeps measuring the lane-centre offset
+from the old lane while the ego's disk touches it); the result never depends on which packages
+are importable.
 
 As in the evaluator, a point-mass (``PM``) state's ``velocity`` is its *x* component
 :math:`v_x` (so ``A``, ``J``, ``L``, ``V`` of a ``PM`` solution use :math:`v_x`), its heading
