@@ -156,3 +156,17 @@ def test_a_campaign_of_an_older_loop_says_so(tmp_path: Path) -> None:
         head = _script().campaign_table(folder / "episodes.csv", tmp_path)[0]
         assert f"episode format {fmt}" in head
         assert ("before SPEC §17's verified plans" in head) == older
+
+
+@pytest.mark.parametrize(("fmt", "older"), [("16.9", True), ("17", False), ("17.0", False), ("?", False)])
+def test_only_a_format_before_17_is_called_older(tmp_path: Path, fmt: str, older: bool) -> None:
+    """The boundary: format 17 is SPEC §17's loop itself, not older; an unknown format makes no claim."""
+    folder = tmp_path / "reports" / "campaign-new"
+    folder.mkdir(parents=True)
+    (folder / "episodes.csv").write_text("planner,mission,seed,success,contacts,limit_violations\n"
+                                         "pmp,merge,1,True,0,0\n", encoding="utf-8")
+    if fmt != "?":
+        (folder / "manifest.json").write_text(json.dumps({"episode_format": fmt}), encoding="utf-8")
+    head = _script().campaign_table(folder / "episodes.csv", tmp_path)[0]
+    assert f"episode format {fmt}:" in head
+    assert ("before SPEC §17's verified plans" in head) == older
