@@ -32,7 +32,10 @@ def rmse_table_tex(res: EvaluationJSON) -> str:
     test = res["test"]
     q = res.get("jerk_psd")
     keys = [k for k in _ORDER if k in test] + (["mtd-best-overall"] if "mtd-best-overall" in test else [])
-    best = [min(test[k]["rmse"][i] for k in keys) for i in range(len(HORIZONS))]
+    # the best of each column, RMSE per horizon then ADE and FDE, compared as printed (2 decimals)
+    columns = [[test[k]["rmse"][i] for k in keys] for i in range(len(HORIZONS))]
+    columns += [[test[k]["ade"] for k in keys], [test[k]["fde"] for k in keys]]
+    best = [f"{min(col):.2f}" for col in columns]
     labels = dict(_LABELS)
     sel = res.get("selection")
     if "mtd-best-overall" in test and sel and sel.get("best_overall"):
@@ -64,10 +67,10 @@ def rmse_table_tex(res: EvaluationJSON) -> str:
     for key in keys:
         r = test[key]
         cells = []
-        for i, v in enumerate(r["rmse"]):
+        for i, v in enumerate([*r["rmse"], r["ade"], r["fde"]]):
             s = f"{v:.2f}"
-            cells.append(f"\\textbf{{{s}}}" if f"{v:.2f}" == f"{best[i]:.2f}" else s)
-        lines.append(f"{labels.get(key, key)} & " + " & ".join(cells) + f" & {r['ade']:.2f} & {r['fde']:.2f} \\\\")
+            cells.append(f"\\textbf{{{s}}}" if s == best[i] else s)
+        lines.append(f"{labels.get(key, key)} & " + " & ".join(cells) + " \\\\")
     lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}", ""]
     return "\n".join(lines)
 
