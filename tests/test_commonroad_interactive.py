@@ -133,3 +133,24 @@ def test_braking_traffic_is_not_run_into() -> None:
     r = simulate(INTERACTIVE / "USA_US101-2_1_I-1-1")
     assert r["collisions"] == 0 and r["contacts_at_fault"] == 0
     assert r["failsafe_brakes"] >= 1
+
+
+@needs_extra
+def test_predicted_box_spreads_along_the_road_with_time() -> None:
+    """A vehicle observed at a constant 15 m/s: its predicted box keeps its length at t = 0 and
+    grows by SPREAD_MPS * t at both ends (at most SPREAD_MAX_M), so a plan passing close ahead
+    of or behind it keeps room for SUMO's drivers wandering about the predicted speed (in
+    USA_US101-12_2 the ego cut in 0.3 m ahead of vehicle 300, which ran 0.25 m further than
+    predicted over 0.6 s)."""
+    from iamp.commonroad.interactive import SPREAD_MAX_M, SPREAD_MPS, _observed_obstacle
+    from iamp.prediction.predictor import Predictor
+
+    cr = _fixture()
+    hist_t = [0.0, 0.5, 1.0, 1.5]
+    hist_s = [100.0 + 15.0 * t for t in hist_t]
+    t = np.arange(0.0, 10.01, 0.1)
+    ob = _observed_obstacle(cr, 1, hist_t, hist_s, (120.0, 125.0, -1.0, 1.0), 15.0, t, Predictor.default())
+    length = ob.s_hi - ob.s_lo
+    assert length[0] == pytest.approx(5.0)
+    assert np.allclose(length, 5.0 + 2 * np.minimum(SPREAD_MPS * t, SPREAD_MAX_M))
+    assert ob.half_length >= 2.5 + float(np.minimum(SPREAD_MPS * t[-1], SPREAD_MAX_M))  # the planner's box too

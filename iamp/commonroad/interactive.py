@@ -68,6 +68,11 @@ from iamp.prediction.predictor import Predictor
 HISTORY_S = 3.0
 #: Observed vehicles farther than this along the road are ignored [m].
 RANGE_M = 120.0
+#: Growth of a predicted vehicle's box along the road, both ways, with the time ahead [m/s]:
+#: SUMO's drivers (Krauss, sigma 0.5) wander about the predicted speed.
+SPREAD_MPS = 0.5
+#: Largest growth of a predicted box [m].
+SPREAD_MAX_M = 3.0
 
 
 def _files(folder: Path) -> tuple[Path, Path]:
@@ -128,8 +133,9 @@ def _observed_obstacle(cr: CommonRoadProblem, oid: int, hist_t: list[float], his
     coeffs = np.polynomial.polynomial.polyfit(t, centre, deg) if deg > 0 else np.array([centre[0]])
     resid = float(np.max(np.abs(np.polynomial.polynomial.polyval(t, coeffs) - centre)))
     n = t.size
-    return Obstacle(oid, t, centre - half, centre + half, np.full(n, d_lo), np.full(n, d_hi), 2 * half, d_hi - d_lo,
-                    tuple(float(c) for c in coeffs), half + resid, resid, 0, False)
+    grow = np.minimum(SPREAD_MPS * t, SPREAD_MAX_M)  # the prediction's spread along the road
+    return Obstacle(oid, t, centre - half - grow, centre + half + grow, np.full(n, d_lo), np.full(n, d_hi), 2 * half,
+                    d_hi - d_lo, tuple(float(c) for c in coeffs), half + resid + float(grow[-1]), resid, 0, False)
 
 
 #: Decelerations of the fail-safe, gentlest first [m/s^2] (then 0.9 a_max).
