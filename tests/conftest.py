@@ -1,3 +1,4 @@
+import importlib.util
 import os
 import subprocess
 import sys
@@ -43,3 +44,20 @@ def needs_data(*parts: str) -> pytest.MarkDecorator:
     p = data_path(*parts)
     return pytest.mark.skipif(not p.exists(), reason=f"recorded data absent: {p} (set {DATA_ENV} to the folder that "
                                                      f"holds {'/'.join(parts)})")
+
+
+# --- the [commonroad] extra ------------------------------------------------------------------------
+
+#: Whether the [commonroad] extra is installed (commonroad-io, the drivability checker, triangle).
+HAVE_COMMONROAD = all(importlib.util.find_spec(m) is not None for m in ("commonroad", "commonroad_dc", "triangle"))
+#: Skip marker for tests that need the [commonroad] extra.
+needs_commonroad = pytest.mark.skipif(not HAVE_COMMONROAD, reason="the [commonroad] extra is not installed "
+                                                                  "(pip install 'iamp[commonroad]')")
+
+
+def needs_commonroad_data(*parts: str) -> pytest.MarkDecorator:
+    """Skip marker for tests that need the [commonroad] extra and ``data_path(*parts)``, with the reason."""
+    p = data_path(*parts)
+    return pytest.mark.skipif(not HAVE_COMMONROAD or not p.is_dir(),
+                              reason=("the [commonroad] extra is not installed (pip install 'iamp[commonroad]')"
+                                      if not HAVE_COMMONROAD else f"the shared CommonRoad data is absent ({p})"))

@@ -9,7 +9,6 @@ the reason where either is absent.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import subprocess
@@ -18,17 +17,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import data_path
+from conftest import HAVE_COMMONROAD, data_path, needs_commonroad, needs_commonroad_data
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 DATA = data_path("commonroad", "US101")
-HAVE_EXTRA = all(importlib.util.find_spec(m) is not None for m in ("commonroad", "commonroad_dc", "triangle"))
-needs_extra = pytest.mark.skipif(not HAVE_EXTRA, reason="the [commonroad] extra is not installed "
-                                                        "(pip install 'iamp[commonroad]')")
-needs_data = pytest.mark.skipif(not HAVE_EXTRA or not DATA.is_dir(),
-                                reason=("the [commonroad] extra is not installed (pip install 'iamp[commonroad]')"
-                                        if not HAVE_EXTRA else f"the shared CommonRoad data is absent ({DATA})"))
+HAVE_EXTRA = HAVE_COMMONROAD
+needs_extra = needs_commonroad
+needs_data = needs_commonroad_data("commonroad", "US101")
 CLI = [sys.executable, "-W", "ignore", "-m", "iamp", "commonroad", "bench"]
 
 

@@ -9,7 +9,6 @@ shared data; they skip with the reason where either is absent.
 from __future__ import annotations
 
 import copy
-import importlib.util
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -17,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import data_path
+from conftest import HAVE_COMMONROAD, data_path, needs_commonroad, needs_commonroad_data
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -25,12 +24,9 @@ from iamp.commonroad.goal import _hessian, solve_small_qp
 
 FIXTURE = Path(__file__).parent / "fixtures" / "commonroad_goals.xml"
 DATA = data_path("commonroad", "US101")
-HAVE_EXTRA = all(importlib.util.find_spec(m) is not None for m in ("commonroad", "commonroad_dc", "triangle"))
-needs_extra = pytest.mark.skipif(not HAVE_EXTRA, reason="the [commonroad] extra is not installed "
-                                                        "(pip install 'iamp[commonroad]')")
-needs_data = pytest.mark.skipif(not HAVE_EXTRA or not DATA.is_dir(),
-                                reason=("the [commonroad] extra is not installed (pip install 'iamp[commonroad]')"
-                                        if not HAVE_EXTRA else f"the shared CommonRoad data is absent ({DATA})"))
+HAVE_EXTRA = HAVE_COMMONROAD
+needs_extra = needs_commonroad
+needs_data = needs_commonroad_data("commonroad", "US101")
 
 
 def _cost(Q: np.ndarray, c: np.ndarray, z: np.ndarray) -> float:
