@@ -374,6 +374,11 @@ class Controller:
                         self.mode, self.abort_until, self.plan = "abort", t + self.cfg.abort_s, None
                         self.n.aborts += 1
                         return self._brake(ego)
+        return self._execute(t, dt)
+
+    def _execute(self, t: float, dt: float) -> EgoState:
+        """The state the current plan reaches at ``t + dt`` (its input at the period's middle), counted
+        as an executed plan; the mission ends with the plan's last period."""
         assert self.plan is not None
         self.n.executed_plans += 1
         if imposed(self.plan) > 0:
@@ -611,17 +616,7 @@ class Controller:
                     self.n.aborts += 1
                     return self._abort_now(ego, obstacles)
                 self.fs_brake = b if b is not None else self.fs_brake
-        assert self.plan is not None
-        self.n.executed_plans += 1
-        if imposed(self.plan) > 0:
-            self.n.constrained_plans += 1
-        tau = min(t + dt - self.plan_t0, float(self.plan.problem.tf))
-        X = np.asarray(self.plan.require_trajectory().states(np.array([tau])))[0]
-        U = np.asarray(self.plan.require_trajectory().inputs(np.array([max(tau - dt / 2, 0.0)])))[0]
-        nxt = EgoState(x=float(X[0]), vx=float(X[1]), y=float(X[2]), vy=float(X[3]), ax=float(U[0]), ay=float(U[1]))
-        if t + dt >= self.t_end - 1e-9:
-            self._done(t + dt)
-        return nxt
+        return self._execute(t, dt)
 
     def _abort_now(self, ego: EgoState, obstacles: list[Obstacle]) -> EgoState:
         """The first period of the fail-safe: brake in the lane of the ego's centre."""
