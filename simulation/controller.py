@@ -467,6 +467,18 @@ class Controller:
                               self._lane_centre_at, stop_x, band, self.sim.step)
         return ("accepted", v.brake_next) if v.ok else (v.reason, None)
 
+    def _continues(self, plan: Plan, ego: EgoState) -> str:
+        """``"accepted"`` when the re-plan's first executed input (at half a period) is within one
+        period of the jerk bound of the executed acceleration on both axes (SPEC §17: a re-plan
+        continues the executed acceleration), else ``"jerk"`` (the kept plan continues instead)."""
+        jerk = self.cfg.decision.limits.jerk
+        if jerk is None:
+            return "accepted"
+        dt = self.sim.step
+        U = np.asarray(plan.require_trajectory().inputs(np.array([dt / 2])))[0]
+        step = jerk * dt * (1 + 1e-9)
+        return "accepted" if abs(float(U[0]) - ego.ax) <= step and abs(float(U[1]) - ego.ay) <= step else "jerk"
+
     def _in_origin_lane(self, ego: EgoState) -> bool:
         """The ego's body (at its heading, plus ``margin_y``) is still inside its origin lane's band."""
         hw = self.sim.highway
@@ -516,8 +528,13 @@ class Controller:
         hw = self.sim.highway
         lane = hw.lane_of(ego.y)
         stop_x = self.mission.drop_x if lane == self.mission.ego_lane else None
+        lane_speed = None
+        if stop_x is not None and self.mode == "seek":  # the target lane's speed beside the ego
+            beside = [n.v(0.0) for n in nbs
+                      if n.lane == self.target and abs(n.x(0.0) - ego.x) <= self.cfg.tactical.match_m]
+            lane_speed = float(np.mean(beside)) if beside else None
         a = seek_accel(self.ego_now(ego), self._lane_leader(ego, nbs), stop_x, target, hw.speed_limit,
-                       self.cfg.tactical)
+                       self.cfg.tactical, lane_speed)
         return self._move(ego, a, hw.lane_centre(lane))
 
     def _safe_step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
@@ -563,7 +580,8 @@ class Controller:
             cur = [n for n in nbs if n.lane == self.origin]
             verdict, all_v = decide(en, self.y_target(), self.target, self.origin, cur + target, self._plan, cfg,
                                     verify=lambda p: self._verify(p, obstacles, accept=True)[0],
-                                    ends=lambda g: horizons_for(en, g, cfg, tac), gaps=order[: self.cfg.seek_gaps],
+                                    ends=lambda g: horizons_for(en, g, cfg, tac, a0=ego.ax),
+                                    gaps=order[: self.cfg.seek_gaps],
                                     region=rss_regions(en, tac))
             for v in all_v:
                 if not v.accepted:
@@ -589,13 +607,15 @@ class Controller:
                 cur = [n for n in nbs if n.lane == self.origin and n.x(0.0) > ego.x
                        and n.x(0.0) - ego.x <= cfg.relevant_m]
                 lead = min(cur, key=lambda n: n.x(0.0)) if cur else None
-                end = gap_end(en, gap, tf, cfg, tac)
+                end = gap_end(en, gap, tf, cfg, tac, a0=ego.ax)
                 reason = "no-safe-end"
                 if end is not None:
                     dcfg = replace(cfg, horizon_s=tf)
                     prob = lane_change_problem(en, self.y_target(), gap, lead, dcfg, tf, end, rss_regions(en, tac))
                     plan = self._plan(prob)
                     reason = judge(plan, None, dcfg, lambda p: self._verify(p, obstacles)[0])
+                    if reason == "accepted":
+                        reason = self._continues(plan, ego)
                     if reason == "accepted" and not plan.info.get("late"):
                         self.plan, self.plan_t0, kept = plan, t, True
                         self.fs_brake = self._verify(plan, obstacles)[1]

@@ -15,13 +15,18 @@ vehicle at ``v_f`` braking at most ``b_max``:
 .. math::  d = \Big[v_r ρ + \tfrac12 a_{acc} ρ^2 + \frac{(v_r + ρ a_{acc})^2}{2 b_{min}}
                - \frac{v_f^2}{2 b_{max}}\Big]_+ .
 
-* the ego **behind** a vehicle ``j`` (the ego is the rear): ``ρ = ρ_ego``, ``a_acc`` = the
-  plan's own acceleration at ``t`` (positive part), ``b_min = b`` (the fail-safe's braking),
-  ``b_max`` = :attr:`SafeParams.b_max_other`;
-* the ego **ahead of** ``j`` (``j`` is the rear): ``ρ = ρ_other``, ``a_acc = a_acc_other``,
-  ``b_min = b_min_other``, ``b_max = b`` (the ego brakes at most with its fail-safe);
-* one ``b`` must satisfy both at the same ``t`` (a fail-safe that brakes hard for the car
-  ahead must not be too hard for the car behind).
+* **one parameter set** (SPEC §17): the judge's :class:`~iamp.simulation.rss.RssParameters`
+  (:attr:`SafeParams.rss`, by default :data:`iamp.simulation.rss.DEFAULT`) for every vehicle
+  and every role — the ego behind ``j`` needs ``d(v_e, v_j)``, ``j`` behind the ego needs
+  ``d(v_j, v_e)``, each with the judge's ``ρ``, ``a_acc``, ``b_min``, ``b_max`` — so a verified
+  state is never RSS-dangerous for the monitor (:mod:`iamp.simulation.monitor`) and the
+  fail-safe is RSS's proper response (brake with at least ``b_min`` after ``ρ`` as the rear,
+  at most ``b_max`` as the front; the car's 6 m/s² ≤ ``b_max``);
+* **who must keep the distance** (RSS's blame): a vehicle *behind* the ego that already shared
+  its lane at the first sample while the ego does not move toward it sideways is the rear of
+  an existing pair — keeping the distance is its duty, the ego's is not to brake beyond
+  ``b_max`` — so no distance is required from the ego there; a vehicle *ahead* already closer
+  than ``d`` at the first sample (it cut in, or braked) must not come closer than it is now.
 
 **Sharing a lane** is decided on bodies, not centre points: the ego's body at its heading
 ``ψ = atan2(v_y, v_x)`` lies inside the axis-aligned box of half extents
@@ -34,11 +39,10 @@ bodies keep ``margin_y`` sideways unless they keep the RSS distance lengthwise.
 **The lane's end** of a merge is a standing obstacle (``v_f = 0``) for as long as the ego's body
 is in the ending lane: every state of the plan there must be able to stop before it.
 
-Parameters (:class:`SafeParams`): SUMO's drivers in this loop brake in normal driving at most
-their ``decel`` (4.0-5.0 m/s² for cars, 3.5 for trucks; :mod:`iamp.simulation.traffic`), so the
-others' admissible braking as a front vehicle is ``b_max_other = 5``; as a rear vehicle they
-are assumed to brake at least ``b_min_other = 4`` after ``ρ_other = 0.5`` s with
-``a_acc_other = 1`` m/s²; the ego's response time is two control periods (``ρ_ego = 0.2`` s).
+Parameters (:class:`SafeParams`): the RSS numbers are the judge's (above); the lane's end, a
+physical obstacle rather than a road user, is checked with the ego's own response (two
+control periods, ``rho_end = 0.2`` s), the plan's own acceleration and the fail-safe
+decelerations :attr:`SafeParams.brakes`.
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from iamp.simulation.rss import body_extents, rss_distance
+from iamp.simulation.rss import DEFAULT, RssParameters, body_extents, rss_distance, safe_lateral_distance
 
 __all__ = [
     "Obstacle",
@@ -66,11 +70,10 @@ __all__ = [
 class SafeParams:
     """Parameters of the verification (module docstring)."""
 
-    rho_ego: float = 0.2
-    rho_other: float = 0.5
-    a_acc_other: float = 1.0
-    b_min_other: float = 4.0
-    b_max_other: float = 5.0
+    #: The RSS parameters of every vehicle: the judge's (SPEC §17; one set for the loop and the monitor).
+    rss: RssParameters = DEFAULT
+    #: The ego's response to the lane's end (a standing obstacle, not a road user) [s].
+    rho_end: float = 0.2
     #: The fail-safe decelerations tried [m/s²] (the passenger car brakes at most 6).
     brakes: tuple[float, ...] = (1.5, 2.5, 3.5, 4.5, 5.0, 6.0)
     #: Extra bumper-to-bumper distance on top of the RSS distance [m].
@@ -163,33 +166,47 @@ def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequen
     B = np.asarray(params.brakes, dtype=float)[None, :]
     ok = np.ones((t.size, B.size), dtype=bool)
     culprit = [""] * t.size
-    ve = X[:, 1:2]
+    ve, vye = X[:, 1], X[:, 3]
     a_e = np.maximum(ax, 0.0)[:, None]
-    items: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]] = []
+    r = params.rss
     for o in others:
         xo, vo = o.xv(t)
         drift = np.clip(o.vy * t, -params.max_drift, params.max_drift)
         o_lo = o.y - o.width / 2 + np.minimum(drift, 0.0)
         o_hi = o.y + o.width / 2 + np.maximum(drift, 0.0)
-        items.append((o.name, xo, vo, o_lo, o_hi, np.full(t.size, o.length), params.margin_y))
-    if stop_x is not None and stop_band is not None:  # the road's end: no lateral margin beyond its band
-        items.append(("lane-end", np.full(t.size, stop_x), np.zeros(t.size), np.full(t.size, stop_band[0]),
-                      np.full(t.size, stop_band[1]), np.zeros(t.size), 0.0))
-    for name, xo, vo, o_lo, o_hi, lo_len, m_y in items:
-        share = (lo < o_hi + m_y) & (o_lo - m_y < hi)
+        above = o.y >= y  # the other is to the left (+y) of the ego
+        lat_gap = np.where(above, o_lo - hi, lo - o_hi)
+        u_ego = np.where(above, vye, -vye)      # the ego's lateral speed toward the other
+        u_oth = np.where(above, -o.vy, o.vy)    # the other's toward the ego
+        d_lat = safe_lateral_distance(u_ego, u_oth, r)
+        share = lat_gap < np.maximum(d_lat, params.margin_y)
         if not share.any():
             continue
         dx = xo - X[:, 0]
-        gap = (np.abs(dx) - hx - lo_len / 2)[:, None]
-        ahead = (dx > 0)[:, None]
-        d_front = rss_distance(ve, vo[:, None], params.rho_ego, a_e, B, params.b_max_other)
-        d_rear = rss_distance(vo[:, None], ve, params.rho_other, params.a_acc_other, params.b_min_other, B)
-        need = np.where(ahead, d_front, d_rear) + params.margin_x
-        good = (gap >= need) | ~share[:, None]
-        newly = ok.any(axis=1) & ~(ok & good).any(axis=1)
+        gap = np.abs(dx) - hx - o.length / 2
+        ahead = dx > 0
+        d_front = rss_distance(ve, vo, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)
+        d_rear = rss_distance(vo, ve, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)
+        # RSS's blame: the rear of a pair that already shared the lane keeps the distance itself
+        # (unless the ego moves toward it sideways); a leader already too close must not come closer
+        waive_rear = bool(share[0]) & (u_ego <= 0.1)
+        front_now = float(gap[0]) - params.margin_x if share[0] and dx[0] > 0 else np.inf
+        need = np.where(ahead, np.minimum(d_front, max(front_now, 0.0)), np.where(waive_rear, 0.0, d_rear))
+        good = (gap >= need + params.margin_x) | ~share
+        newly = ok.any(axis=1) & ~good
         for k in np.flatnonzero(newly):
-            culprit[k] = name
-        ok &= good
+            culprit[k] = o.name
+        ok &= good[:, None]
+    if stop_x is not None and stop_band is not None:  # the road's end: the ego's own response and braking
+        share = (lo < stop_band[1]) & (stop_band[0] < hi)
+        if share.any():
+            gap = (stop_x - X[:, 0] - hx)[:, None]
+            need = rss_distance(ve[:, None], 0.0, params.rho_end, a_e, B, 1.0) + params.margin_x
+            good = (gap >= need) | ~share[:, None]
+            newly = ok.any(axis=1) & ~(ok & good).any(axis=1)
+            for k in np.flatnonzero(newly):
+                culprit[k] = "lane-end"
+            ok &= good
     return ok, culprit
 
 

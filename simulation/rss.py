@@ -68,7 +68,9 @@ SOURCE = ("formulas: Shalev-Shwartz, Shammah, Shashua, On a Formal Model of Safe
           "arXiv:1708.06374; values: the default vehicle dynamics of the reference implementation ad-rss as "
           "integrated in CARLA (LibCarla rss/RssCheck.cpp, GetDefaultVehicleDynamics: accel_max 3.5, brake_min 4, "
           "brake_max 8 m/s^2, lateral accel_max 0.2, lateral brake_min 0.8 m/s^2, lateral fluctuation margin "
-          "0.1 m, response time 1 s), one response time for every vehicle (SUMO's driver reaction time tau = 1 s)")
+          "0.1 m) except the response time: 0.5 s for every vehicle (ad-rss's 1 s is a human perception-reaction "
+          "time; here every vehicle acts every 0.1 s: SUMO's action step and the ego's control period, so 0.5 s "
+          "is five periods); one set for the judge and the closed loop's verification (simulation/failsafe.py)")
 #: Tolerance on a step's acceleration when checking a proper response [m/s²].
 ACCEL_TOL = 0.05
 
@@ -100,7 +102,7 @@ class RssParameters:
         A parameter that is not finite, not positive (``μ``: negative), or ``brake_max < brake_min``.
     """
 
-    response_time_s: float = 1.0
+    response_time_s: float = 0.5
     accel_max: float = 3.5
     brake_min: float = 4.0
     brake_max: float = 8.0

@@ -48,9 +48,20 @@ from iamp.core.problem import EgoBoundary
 from iamp.simulation.decision import REACH, DecisionConfig, EgoNow, Gap, Neighbour
 from iamp.simulation.failsafe import SafeParams
 from iamp.simulation.mobil import IDM
-from iamp.simulation.rss import rss_distance
+from iamp.simulation.rss import safe_longitudinal_distance
 
-__all__ = ["TacticalConfig", "choose_gap", "gap_end", "horizons_for", "rss_regions", "safe_interval", "seek_accel"]
+__all__ = [
+    "TacticalConfig",
+    "choose_gap",
+    "continuing_end",
+    "gap_end",
+    "horizons_for",
+    "rss_follow_gap",
+    "rss_regions",
+    "safe_interval",
+    "seek_accel",
+    "slot_length",
+]
 
 
 @dataclass(frozen=True)
@@ -77,6 +88,10 @@ class TacticalConfig:
     min_width_m: float = 2.0
     open_m: float = 10.0
     b_match: float = 2.0
+    #: With a lane end ahead the ego drives at most this much faster than the target lane beside it [m/s].
+    match_dv: float = 2.0
+    #: The target lane's speed is the mean of its vehicles within this distance of the ego [m].
+    match_m: float = 40.0
     #: A ``(T, end)`` whose unconstrained cubic needs more than this fraction of the ``a_x``
     #: bounds is not planned (a constrained plan costs more; it would be rejected on the limits).
     reach_limits: float = 1.0
@@ -90,13 +105,33 @@ def safe_interval(ego: EgoNow, gap: Gap, v: float, T: float, cfg: TacticalConfig
     lo, hi = -np.inf, np.inf
     if gap.follower is not None:
         f = gap.follower
-        d = float(rss_distance(f.v(T), v, p.rho_other, p.a_acc_other, p.b_min_other, cfg.b_plan))
+        d = float(safe_longitudinal_distance(f.v(T), v, p.rss))
         lo = f.x(T) + (f.length + ego.length) / 2 + d + p.margin_x
     if gap.leader is not None:
         ld = gap.leader
-        d = float(rss_distance(v, ld.v(T), p.rho_ego, 0.0, cfg.b_plan, p.b_max_other))
+        d = float(safe_longitudinal_distance(v, ld.v(T), p.rss))
         hi = ld.x(T) - (ld.length + ego.length) / 2 - d - p.margin_x
     return lo, hi
+
+
+def slot_length(v_follower: float, v_leader: float, ego_length: float, cfg: TacticalConfig,
+                speeds: np.ndarray | None = None) -> tuple[float, float]:
+    """The shortest bumper-to-bumper gap between a follower at ``v_follower`` and a leader at
+    ``v_leader`` that holds the ego at RSS distance from both (plus ``margin_x`` each), over the
+    ego's speed ``v`` (the best of ``speeds``, default 0..40 m/s every 0.1 m/s):
+    ``min_v L + d(v_f, v) + d(v, v_l) + 2 m_x`` — a gap shorter than this cannot be taken by any
+    plan the verification accepts, whatever the ego's position and speed.
+
+    Returns
+    -------
+    tuple of float
+        ``(length [m], the ego speed that attains it [m/s])``.
+    """
+    p = cfg.safe
+    v = np.linspace(0.0, 40.0, 401) if speeds is None else np.asarray(speeds, dtype=float)
+    need = safe_longitudinal_distance(v_follower, v, p.rss) + safe_longitudinal_distance(v, v_leader, p.rss)
+    k = int(np.argmin(need))
+    return float(ego_length + need[k] + 2 * p.margin_x), float(v[k])
 
 
 def gap_speed(ego: EgoNow, gap: Gap, T: float) -> float:
@@ -104,9 +139,25 @@ def gap_speed(ego: EgoNow, gap: Gap, T: float) -> float:
     return float(np.mean(speeds)) if speeds else ego.vx
 
 
-def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: TacticalConfig
+def continuing_end(ego: EgoNow, a0: float, T: float, vxf: float) -> float:
+    """The end point ``x_f`` at which the unconstrained cubic from the ego's state to
+    ``(x_f, v_{x,f})`` over ``T`` starts with the acceleration ``a0`` (SPEC §17: a re-plan
+    continues the executed acceleration): ``a(0) = 6e/T² - 2g/T`` with ``e = x_f - x_0 - v_0 T``,
+    ``g = v_{x,f} - v_0``, so ``x_f = x_0 + v_0 T + a_0 T²/6 + g T/3``.
+
+    Returns
+    -------
+    float
+        ``x_f`` [m].
+    """
+    return float(ego.x + ego.vx * T + a0 * T**2 / 6 + (vxf - ego.vx) * T / 3)
+
+
+def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: TacticalConfig, a0: float | None = None
             ) -> tuple[float, float] | None:
-    """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when it is empty."""
+    """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when it is empty.
+    With ``a0`` (a re-plan) the end point is :func:`continuing_end`'s (the plan continues the
+    executed acceleration) moved into the interval; without it the constant-acceleration point."""
     vxf = gap_speed(ego, gap, T)
     ax = dcfg.limits.ax or (-np.inf, np.inf)
     vxf = float(np.clip(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T))
@@ -115,7 +166,7 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     if not lo < hi:
         return None
     s = min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
-    x = ego.x + (ego.vx + vxf) * T / 2
+    x = ego.x + (ego.vx + vxf) * T / 2 if a0 is None else continuing_end(ego, a0, T, vxf)
     return float(np.clip(x, lo + s, hi - s)), vxf
 
 
@@ -126,9 +177,10 @@ def peak_accel(ego: EgoNow, end: tuple[float, float], T: float) -> float:
     return float(max(abs(6 * e / T**2 - 2 * g / T), abs(-6 * e / T**2 + 4 * g / T)))
 
 
-def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfig, t_max: float | None = None
-                 ) -> list[tuple[float, tuple[float, float]]]:
-    """The ``max_horizons`` best ``(T, end)`` for ``gap`` (module docstring); ``t_max`` bounds ``T``.
+def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfig, t_max: float | None = None,
+                 a0: float | None = None) -> list[tuple[float, tuple[float, float]]]:
+    """The ``max_horizons`` best ``(T, end)`` for ``gap`` (module docstring); ``t_max`` bounds ``T``;
+    ``a0`` (the executed acceleration) places each end point where the plan continues it (:func:`gap_end`).
     None while the ego is farther than ``plan_window_m + window_s |v_g - v|`` from the gap's
     safe interval now (the tactical layer brings it there first)."""
     lo, hi = safe_interval(ego, gap, ego.vx, 0.0, cfg)
@@ -139,7 +191,7 @@ def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfi
     for T in cfg.horizons:
         if t_max is not None and T > t_max + 1e-9:
             continue
-        end = gap_end(ego, gap, T, dcfg, cfg)
+        end = gap_end(ego, gap, T, dcfg, cfg, a0)
         if end is None:
             continue
         peak = peak_accel(ego, end, T)
@@ -197,15 +249,40 @@ def names(g: Gap) -> tuple[str | None, str | None]:
 
 
 def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, target: Gap | None, v0: float,
-               cfg: TacticalConfig) -> float:
-    """The ego's longitudinal acceleration while it seeks (module docstring), unclipped."""
+               cfg: TacticalConfig, lane_speed: float | None = None) -> float:
+    """The ego's longitudinal acceleration while it seeks (module docstring), unclipped.
+
+    Parameters
+    ----------
+    ego : EgoNow
+    leader : Neighbour or None
+        The vehicle ahead in the ego's lane; the ego keeps at least the RSS distance
+        (:func:`rss_follow_gap`) behind it.
+    stop_x : float or None
+        The lane's end (a standing obstacle ``end_room_m`` before it).
+    target : Gap or None
+        The target gap (the gap term).
+    v0 : float
+        The desired speed (the speed limit).
+    cfg : TacticalConfig
+    lane_speed : float, optional
+        The target lane's speed beside the ego: with a lane end ahead the ego drives at most
+        ``match_dv`` faster (a gap is taken at the target lane's speed).
+
+    Returns
+    -------
+    float
+        The acceleration [m/s²].
+    """
     idm = replace(cfg.idm, v0=max(v0, 1.0))
     acc = [idm.accel(ego.vx)]
     if leader is not None:
         gap = leader.x(0.0) - ego.x - (leader.length + ego.length) / 2
-        acc.append(idm.accel(ego.vx, gap, leader.v(0.0)))
+        acc.append(idm.accel(ego.vx, rss_follow_gap(gap, ego.vx, leader.v(0.0), cfg), leader.v(0.0)))
     if stop_x is not None:
         acc.append(idm.accel(ego.vx, stop_x - cfg.end_room_m - ego.x - ego.length / 2, 0.0))
+        if lane_speed is not None:
+            acc.append(float(np.clip(cfg.k_speed * (lane_speed + cfg.match_dv - ego.vx), *cfg.gap_accel)))
     if target is not None:
         aim = aim_point(ego, target, cfg)
         if aim is not None:
@@ -215,6 +292,21 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
             acc.append(float(np.clip(a_g, *cfg.gap_accel)))
             acc[0] = replace(idm, v0=1.1 * idm.v0).accel(ego.vx)
     return float(min(acc))
+
+
+def rss_follow_gap(gap: float, v: float, v_leader: float, cfg: TacticalConfig) -> float:
+    """The bumper gap IDM sees behind a leader: the real ``gap`` less what the RSS distance
+    (:attr:`SafeParams.rss`, plus ``margin_x``) asks beyond IDM's own ``v T``, so that IDM's
+    equilibrium keeps at least the RSS distance (SPEC §17: the judge's distance while following).
+
+    Returns
+    -------
+    float
+        ``gap - max(0, d_RSS(v, v_l) + margin_x - v T)`` [m].
+    """
+    p = cfg.safe
+    d = float(safe_longitudinal_distance(v, v_leader, p.rss)) + p.margin_x
+    return gap - max(0.0, d - max(v, 0.0) * cfg.idm.T)
 
 
 def rss_regions(ego: EgoNow, cfg: TacticalConfig) -> Callable[[Neighbour, str, EgoBoundary], float]:
@@ -241,13 +333,13 @@ def rss_regions(ego: EgoNow, cfg: TacticalConfig) -> Callable[[Neighbour, str, E
 
     def region(n: Neighbour, role: str, b: EgoBoundary) -> float:
         if role == "follower":
-            d = float(rss_distance(n.v(b.tf), b.vxf, p.rho_other, p.a_acc_other, p.b_min_other, cfg.b_plan))
+            d = float(safe_longitudinal_distance(n.v(b.tf), b.vxf, p.rss))
             room = b.xf - n.x(b.tf) - n.length / 2 - 0.5
         elif role == "leader":
-            d = float(rss_distance(b.vxf, n.v(b.tf), p.rho_ego, 0.0, cfg.b_plan, p.b_max_other))
+            d = float(safe_longitudinal_distance(b.vxf, n.v(b.tf), p.rss))
             room = n.x(b.tf) - n.length / 2 - b.xf - 0.5
         else:
-            d = float(rss_distance(b.vx0, n.v(0.0), p.rho_ego, 0.0, cfg.b_plan, p.b_max_other))
+            d = float(safe_longitudinal_distance(b.vx0, n.v(0.0), p.rss))
             room = np.inf
         return float(max(min(ego.length / 2 + p.margin_x + d, room), 0.0))
 

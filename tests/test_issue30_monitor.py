@@ -127,7 +127,7 @@ def test_a_cut_in_that_touches_the_follower_is_a_contact_at_fault():
     c = m["contact_list"][0]
     assert c["response"] == "lateral" and c["threshold_t"] is not None and not c["other_at_fault"]
     assert m["rss_dangerous_s"] > 0 and m["rss_dangerous_by_response_s"]["lateral"] == m["rss_dangerous_s"]
-    assert m["rss"]["response_time_s"] == 1.0 and "source" in m["rss"]
+    assert m["rss"]["response_time_s"] == 0.5 and "source" in m["rss"]
 
 
 def test_a_follower_running_into_the_ego_is_a_contact_not_at_fault():

@@ -108,27 +108,38 @@ def test_a_car_one_lane_over_with_clearance_is_not_shared():
 # -- the fail-safe ----------------------------------------------------------------------------------------
 @settings(max_examples=150, deadline=None)
 @given(st.floats(5, 35), st.floats(0, 35), st.floats(2, 80), st.floats(0, 35), st.floats(2, 80))
-def test_a_feasible_fail_safe_stops_clear_of_leader_and_follower(v, v_lead, gap_lead, v_fol, gap_fol):
-    """Whenever :func:`feasible_brakes` calls a deceleration ``b`` safe, braking at ``b`` after the
-    ego's response time leaves the ego behind the leader braking at its admissible bound and the
-    follower, reacting after its response time and braking at its guaranteed bound, behind the ego
-    — checked by integrating the three stops."""
+def test_a_verified_state_keeps_the_judges_rss_distances_with_the_blame_of_rss(v, v_lead, gap_lead, v_fol, gap_fol):
+    """One RSS parameter set (SPEC §17): a state :func:`feasible_brakes` calls safe (the leader not
+    already too close at the first sample) lets the ego,
+    responding as RSS's rear with the *judge's* parameters (``ρ`` at ``a_acc``, then ``b_min``),
+    stop behind the leader braking at ``b_max`` — checked by integrating both stops.  A follower
+    already in the ego's lane is the rear of an existing pair (its distance is its duty): it never
+    excludes the state; the same follower one lane over, whose lane the ego's next sample enters,
+    must be at the judge's distance ``d(v_f, v)`` then."""
     p = SafeParams()
+    r = p.rss
     L = 4.8
     y = lane_centre_at(0.1)
     lead = Obstacle("lead", (L / 2 + gap_lead + 2.3, v_lead), y, 4.6, 1.8)
     fol = Obstacle("fol", (-(L / 2 + gap_fol + 2.3), v_fol), y, 4.6, 1.8)
-    X = np.array([[0.0, v, y, 0.0]])
-    ok, _ = feasible_brakes(np.zeros(1), X, np.zeros(1), [lead, fol], (L, 1.8), p, X[:, 2])
-    for b, good in zip(p.brakes, ok[0]):
-        if not good:
-            continue
-        ego_stop, _ = _stop_distance(v, p.rho_ego, 0.0, b)
-        lead_stop = L / 2 + gap_lead + v_lead**2 / (2 * p.b_max_other)
+    # two samples: far behind the leader first (not already too close), then at the gap
+    X = np.array([[-500.0, v, y, 0.0], [0.0, v, y, 0.0]])
+    t = np.array([0.0, 1e-3])
+    ok, _ = feasible_brakes(t, X, np.zeros(2), [lead, fol], (L, 1.8), p, X[:, 2])
+    ok_no_fol, _ = feasible_brakes(t, X, np.zeros(2), [lead], (L, 1.8), p, X[:, 2])
+    assert (ok[1] == ok_no_fol[1]).all()  # the follower in the lane never excludes
+    if ok[1].any():
+        ego_stop, _ = _stop_distance(v, r.response_time_s, r.accel_max, r.brake_min)
+        lead_stop = L / 2 + gap_lead + v_lead**2 / (2 * r.brake_max)
         assert ego_stop + L / 2 <= lead_stop + 1e-6
-        fol_stop, _ = _stop_distance(v_fol, p.rho_other, p.a_acc_other, p.b_min_other)
-        # the ego brakes at b at most: its stop is at least v²/2b ahead
-        assert -(L / 2 + gap_fol) + fol_stop <= v**2 / (2 * b) - L / 2 + 1e-6
+    # the follower one lane over: the ego's second sample is in its lane
+    fol2 = Obstacle("fol", (-(L / 2 + gap_fol + 2.3), v_fol), y + W_LANE, 4.6, 1.8)
+    X2 = np.array([[0.0, v, y, 0.0], [0.0, v, y + W_LANE, 0.0]])
+    ok2, why = feasible_brakes(np.array([0.0, 1e-3]), X2, np.zeros(2), [fol2], (L, 1.8), p, X2[:, 2])
+    need = float(rss_distance(v_fol, v, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)) + p.margin_x
+    assert ok2[1].any() == (gap_fol >= need - 1e-3 or gap_fol >= need)
+    if not ok2[1].any():
+        assert why[1] == "fol"
 
 
 def test_an_end_state_behind_a_slower_leader_is_not_verified():

@@ -24,28 +24,37 @@ from iamp.simulation.rss import (
 )
 
 # -- hand-computed cases (the paper's formulas, worked by hand) -------------------------------------
+#: ad-rss's own defaults (response time 1 s); iamp's DEFAULT differs only in the response time (0.5 s).
+AD_RSS = RssParameters(response_time_s=1.0)
+
+
+def judge_ad(ego: Motion, other: Motion, dt: float) -> object:
+    """The constructed pairs below were timed for ad-rss's 1 s response time."""
+    return judge_pair(ego, other, dt, AD_RSS)
 
 
 def test_longitudinal_distance_by_hand():
     # v_r = 30, v_f = 20, rho = 1, a = 3.5, b_min = 4, b_max = 8:
     # 30 + 1.75 + 33.5^2/8 - 400/16 = 31.75 + 140.28125 - 25 = 147.03125
-    assert float(safe_longitudinal_distance(30.0, 20.0)) == pytest.approx(147.03125, abs=1e-12)
+    assert float(safe_longitudinal_distance(30.0, 20.0, AD_RSS)) == pytest.approx(147.03125, abs=1e-12)
     # both standing: only the rear car's acceleration during rho: 1.75 + 3.5^2/8 = 3.28125
-    assert float(safe_longitudinal_distance(0.0, 0.0)) == pytest.approx(3.28125, abs=1e-12)
+    assert float(safe_longitudinal_distance(0.0, 0.0, AD_RSS)) == pytest.approx(3.28125, abs=1e-12)
     # a fast front car: the positive part is 0
     assert float(safe_longitudinal_distance(10.0, 30.0)) == 0.0
+    # iamp's DEFAULT (rho = 0.5): 15 + 0.4375 + 31.75^2/8 - 25 = 116.4453125
+    assert float(safe_longitudinal_distance(30.0, 20.0)) == pytest.approx(116.4453125, abs=1e-12)
 
 
 def test_lateral_distance_by_hand():
     # u1 = 1 toward, u2 = 0.5 toward, alpha 0.2, beta 0.8, rho 1, mu 0.1:
     # o(1) = 1 + 0.1 + 1.2^2/1.6 = 2.0 ; o(0.5) = 0.5 + 0.1 + 0.7^2/1.6 = 0.90625
-    assert float(lateral_reach(1.0)) == pytest.approx(2.0)
-    assert float(lateral_reach(0.5)) == pytest.approx(0.90625)
-    assert float(safe_lateral_distance(1.0, 0.5)) == pytest.approx(0.1 + 2.90625)
+    assert float(lateral_reach(1.0, AD_RSS)) == pytest.approx(2.0)
+    assert float(lateral_reach(0.5, AD_RSS)) == pytest.approx(0.90625)
+    assert float(safe_lateral_distance(1.0, 0.5, AD_RSS)) == pytest.approx(0.1 + 2.90625)
     # both moving apart fast: only the margin mu remains (touching is never laterally safe)
-    assert float(safe_lateral_distance(-2.0, -1.0)) == pytest.approx(0.1)
+    assert float(safe_lateral_distance(-2.0, -1.0, AD_RSS)) == pytest.approx(0.1)
     # standing: each may drift 1/2 alpha rho^2 + (alpha rho)^2 / (2 beta) = 0.1 + 0.025
-    assert float(safe_lateral_distance(0.0, 0.0)) == pytest.approx(0.1 + 0.25)
+    assert float(safe_lateral_distance(0.0, 0.0, AD_RSS)) == pytest.approx(0.1 + 0.25)
 
 
 def test_parameters_are_validated_and_state_their_source():
@@ -56,7 +65,8 @@ def test_parameters_are_validated_and_state_their_source():
     with pytest.raises(ScenarioError, match="lat_margin_m"):
         RssParameters(lat_margin_m=-0.1)
     d = DEFAULT.as_dict()
-    assert d["response_time_s"] == 1.0 and d["brake_max"] == 8.0 and "arXiv:1708.06374" in d["source"]
+    assert d["response_time_s"] == 0.5 and d["brake_max"] == 8.0 and d["accel_max"] == 3.5
+    assert "arXiv:1708.06374" in d["source"]
     with pytest.raises(AttributeError):
         DEFAULT.brake_min = 1.0  # type: ignore[misc]
 
@@ -188,7 +198,7 @@ def test_a_cut_in_is_the_fault_of_the_car_that_keeps_moving_sideways():
     y = 3.2 + np.concatenate([[0.0], np.cumsum(vy[:-1])]) * dt
     ego = _motion(100 + 25 * t, y, np.full(n, 25.0), vy)
     follower = _motion(100 - 4.8 - 12 + 25 * t, np.zeros(n), np.full(n, 25.0), np.zeros(n))
-    j = judge_pair(ego, follower, dt)
+    j = judge_ad(ego, follower, dt)
     assert not j.dangerous[:10].any() and j.dangerous[-1]
     k0 = int(np.argmax(j.dangerous))
     assert j.blame_k[k0] == k0 - 1 and j.response[k0] == "lateral"
@@ -204,7 +214,7 @@ def test_a_follower_that_does_not_brake_is_responsible_and_the_braking_ego_is_no
     xe, ve = _integrate(200.0, 25.0, acc_e, dt)
     xf, vf = _integrate(200.0 - 4.8 - 150.0, 30.0, np.zeros(n), dt)  # d_lon(30, 25) = 133 m: safe at first
     ego, fol = _motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xf, np.zeros(n), vf, np.zeros(n))
-    j = judge_pair(ego, fol, dt)
+    j = judge_ad(ego, fol, dt)
     assert j.dangerous.any()
     k0 = int(np.argmax(j.dangerous))
     assert j.response[k0] == "longitudinal" and j.blame_k[k0] == k0 - 1
@@ -219,12 +229,12 @@ def test_a_front_car_braking_beyond_b_max_is_responsible_and_a_proper_follower_i
     vo = np.maximum(vo, 0.0)
     xe, ve = _integrate(200.0 - 4.8 - 90.0, 25.0, acc_f, dt)
     ve = np.maximum(ve, 0.0)
-    j = judge_pair(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), vo, np.zeros(n)), dt)
+    j = judge_ad(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), vo, np.zeros(n)), dt)
     assert j.dangerous[2] and j.response[2] == "longitudinal"
     assert j.other_responsible[j.dangerous].any() and not j.ego_responsible.any()
     braking_late = np.where(np.arange(n) * dt >= 1.5, -4.5, 0.0)  # starts after rho: the ego is responsible too
     xe, ve = _integrate(200.0 - 4.8 - 90.0, 25.0, braking_late, dt)
-    j = judge_pair(_motion(xe, np.zeros(n), np.maximum(ve, 0), np.zeros(n)), _motion(xo, np.zeros(n), vo, np.zeros(n)),
+    j = judge_ad(_motion(xe, np.zeros(n), np.maximum(ve, 0), np.zeros(n)), _motion(xo, np.zeros(n), vo, np.zeros(n)),
                    dt)
     assert j.ego_responsible.any() and j.other_responsible.any()
 
@@ -234,7 +244,7 @@ def test_a_danger_present_from_the_first_step_has_no_threshold_time_and_both_res
     t = np.arange(n) * dt
     ego = _motion(100 + 20 * t, np.zeros(n), np.full(n, 20.0), np.zeros(n))
     lead = _motion(100 + 4.8 + 5 + 20 * t, np.zeros(n), np.full(n, 20.0), np.zeros(n))
-    j = judge_pair(ego, lead, dt)
+    j = judge_ad(ego, lead, dt)
     assert j.dangerous.all() and (j.blame_k == -1).all() and set(j.response) == {"both"}
     assert j.ego_responsible[-1]  # the rear ego does not brake
     assert not j.other_responsible.any()
@@ -246,7 +256,7 @@ def test_unseen_steps_are_never_dangerous_and_end_a_run():
     ego = _motion(100 + 20 * t, np.zeros(n), np.full(n, 20.0), np.zeros(n))
     x = 100 + 4.8 + 5 + 20 * t
     x[4] = np.nan
-    j = judge_pair(ego, _motion(x, np.zeros(n), np.full(n, 20.0), np.zeros(n)), dt)
+    j = judge_ad(ego, _motion(x, np.zeros(n), np.full(n, 20.0), np.zeros(n)), dt)
     assert not j.dangerous[4] and j.dangerous[5] and j.blame_k[5] == -1
 
 
@@ -275,10 +285,10 @@ def test_a_danger_from_the_second_step_judges_the_first_period():
     front car brakes at 20 m/s^2 > b_max: t_b is step 0 and the period (0, 1] is judged, so the front
     car is responsible at step 1 already; the rear ego at constant speed (within rho) is not."""
     dt, n = 0.1, 10
-    assert float(safe_longitudinal_distance(20.0, 20.0)) == pytest.approx(65.78125)
+    assert float(safe_longitudinal_distance(20.0, 20.0, AD_RSS)) == pytest.approx(65.78125)
     xe, ve = _integrate(100.0, 20.0, np.zeros(n), dt)
     xo, vo = _integrate(100.0 + 4.8 + 66.0, 20.0, np.full(n, -20.0), dt)
-    j = judge_pair(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), np.maximum(vo, 0), np.zeros(n)),
+    j = judge_ad(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), np.maximum(vo, 0), np.zeros(n)),
                    dt)
     assert not j.dangerous[0] and j.dangerous[1]
     assert j.blame_k[1] == 0 and j.response[1] == "longitudinal"
@@ -297,7 +307,7 @@ def test_a_run_after_an_unseen_step_is_judged_from_its_first_time_and_its_rho_st
     xe = 100.0 + np.concatenate([[0.0], np.cumsum(ve[:-1])]) * dt
     xo = 100.0 + 4.8 + 5.0 + 20.0 * np.arange(n) * dt
     xo[14] = np.nan
-    j = judge_pair(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), np.full(n, 20.0), np.zeros(n)),
+    j = judge_ad(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xo, np.zeros(n), np.full(n, 20.0), np.zeros(n)),
                    dt)
     assert j.dangerous[:14].all() and not j.dangerous[14] and j.dangerous[15:].all()
     assert (j.blame_k[15:] == -1).all()
@@ -315,7 +325,7 @@ def test_a_follower_is_responsible_within_rho_exactly_when_it_accelerates_beyond
     dt, n = 0.1, 80
     xe, ve = _integrate(200.0, 25.0, np.full(n, -3.0), dt)
     xf, vf = _integrate(200.0 - 4.8 - 150.0, 30.0, np.full(n, acc), dt)
-    j = judge_pair(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xf, np.zeros(n), vf, np.zeros(n)), dt)
+    j = judge_ad(_motion(xe, np.zeros(n), ve, np.zeros(n)), _motion(xf, np.zeros(n), vf, np.zeros(n)), dt)
     k0 = int(np.argmax(j.dangerous))
     assert j.dangerous[k0] and k0 > 0 and j.response[k0] == "longitudinal"
     if acc > DEFAULT.accel_max:
