@@ -38,10 +38,15 @@ autonomous), a further check of the switching structure.
 * otherwise a grid over :math:`(0,t_f)^m` (one vehicle: 16 points; two: 8×8) plus the
   unbounded ``t*`` as starts, then a polish on :math:`\partial J/\partial t = r(t)` (Brent's
   root on ``r`` for one vehicle, L-BFGS-B with the exact gradient ``r`` and a damped Newton
-  polish otherwise).  One vehicle: :func:`certify_global_one` covers ``(0, t_f)`` with
-  intervals on which a weak-duality Taylor bound (or a Farkas margin) stays above
-  :math:`J^*(1 - 10^{-9})`; certified, the plan is ``optimal``, otherwise ``local``.  Several
-  vehicles: ``local`` (no certificate).
+  polish otherwise).  One vehicle: an end of Brent's bracket where the box is infeasible is
+  first moved to the edge of the feasible contact times (bisection), since ``J_b`` can fall
+  all the way to that edge; a minimum *at* the edge is not stationary (``r ≠ 0``, pointing out
+  of the feasible set), so the Hamiltonian-jump check is not applied there
+  (``info["search"]["feasibility_edge"]``).  One vehicle: :func:`certify_global_one` covers
+  ``(0, t_f)`` with intervals on which the closed-form unbounded bound
+  :math:`J_b \ge J_u` (vectorised, no solve), a weak-duality Taylor bound or a Farkas margin
+  stays above :math:`J^*(1 - 10^{-9})`; certified, the plan is ``optimal``, otherwise
+  ``local``.  Several vehicles: ``local`` (no certificate).
   Caller-given contact times give the fixed-time optimum, which is unique (strictly convex
   problem): ``optimal``.
 
@@ -78,9 +83,11 @@ from iamp.planners.pmp.saturated import (
     AxisInfeasible,
     AxisNoConvergence,
     AxisSolution,
+    contact_points,
     solve_axis,
     solve_axis_value,
 )
+from iamp.planners.pmp.saturated_kernel import POINT_WIDTH
 
 FloatArray = npt.NDArray[np.float64]
 INF = math.inf
@@ -387,6 +394,7 @@ class _IntervalBound:
         self.der = [float(c) for c in (np.polynomial.polynomial.polyder(np.asarray(veh.x_poly, dtype=float))
                                        if len(veh.x_poly) > 1 else [0.0])]
         self.off = (float(veh.offset_x), float(veh.corner_y))
+        self.flat_data = [float(x) for row in self.axes_data for x in row]
         self.lip_rate = tuple(cd + abs(v0) + max(abs(lo), abs(hi)) * T
                               if math.isfinite(lo) and math.isfinite(hi) else INF
                               for cd, (_, v0, _, _, lo, hi) in zip((cdot_max, 0.0), self.axes_data))
@@ -397,35 +405,112 @@ class _IntervalBound:
         :math:`J_b \\ge B` on the interval, ``("infeasible", margin)`` when a Farkas margin
         covers it, ``("unknown", nan)`` when an axis is infeasible without enough margin or
         its solve stalls."""
+        kind, value, lams, solves, _ = self.many([(a, b, warm)])[0]
+        return kind, value, lams, solves
+
+    def many(self, intervals: list[tuple[float, float, list[list[float] | None]]]
+             ) -> list[tuple[str, float, list[list[float] | None], int, tuple[float, float, float]]]:
+        """:meth:`__call__` on every interval, both axes at every centre in one kernel call
+        (:func:`~iamp.planners.pmp.saturated.contact_points`, warm from each interval's
+        multipliers); each with the terms ``(D, |r|, M)`` of its bound
+        :math:`D - |r|\\rho - \\tfrac12 M\\rho^2`, valid on every sub-interval ``t ± ρ``
+        (``M`` only falls as the interval shrinks)."""
+        if not intervals:
+            return []
         T = self.T
-        t, delta = 0.5 * (a + b), 0.5 * (b - a)
-        # problem.corners and veh.speed, by numpy's polyval recurrence on cached coefficients
-        C = ((_polyval(self.pos, t) + self.off[0], self.off[1]),)
-        cdot = (_polyval(self.der, t), 0.0)
-        dual = slope = M = 0.0
-        lams: list[list[float] | None] = [None, None]
-        solves = 0
-        for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.axes_data):
-            solves += 1
-            try:
-                sol = solve_axis([t], T, s0, v0, sf, vf, [float(C[0][k])], lo, hi, warm[k])
-            except AxisInfeasible as exc:
-                if exc.lam_phys is not None and exc.margin_phys is not None:
-                    rate = delta * abs(exc.lam_phys[0]) * self.lip_rate[k]
-                    if exc.margin_phys > rate * (1 + 1e-9):
-                        return "infeasible", exc.margin_phys - rate, lams, solves
-                return "unknown", math.nan, lams, solves
-            except AxisNoConvergence:
-                return "unknown", math.nan, lams, solves
-            phi = abs(sol.jumps[0])
-            ends = [sol.a + sol.b * x - sol.jumps[0] * (x - t) for x in (a, b)]
-            u_max = min(max(abs(lo), abs(hi)), max(abs(e) for e in ends))
-            dual += sol.dual
-            slope += sol.jumps[0] * (sol.contact_speeds[0] - cdot[k])
-            M += phi * (self.cddot_max[k] + u_max + phi * b)
-            lams[k] = sol.lam
-        # the axes' expansions add up: the slope is r(t) (zero at a stationary t)
-        return "bound", dual - abs(slope) * delta - 0.5 * M * delta * delta, lams, solves
+        centres = [0.5 * (a + b) for a, b, _ in intervals]
+        warm_flat: list[float] = []
+        has: list[float] = []
+        for _, _, warm in intervals:
+            for k in range(2):
+                lam = warm[k]
+                warm_flat += lam if lam is not None else [0.0, 0.0, 0.0]
+                has.append(0.0 if lam is None else 1.0)
+        raw = contact_points(centres, T, self.pos, self.off[0], self.off[1], self.flat_data, warm_flat, has, False)
+        W = POINT_WIDTH
+        out: list[tuple[str, float, list[list[float] | None], int, tuple[float, float, float]]] = []
+        for q, (a, b, warm) in enumerate(intervals):
+            t, delta = centres[q], 0.5 * (b - a)
+            cdot = (_polyval(self.der, t), 0.0)
+            dual = slope = M = 0.0
+            lams: list[list[float] | None] = [None, None]
+            result: tuple[str, float, list[list[float] | None], int] | None = None
+            nan3 = (math.nan, math.nan, math.nan)
+            solves = 0
+            for k, (_, _, _, _, lo, hi) in enumerate(self.axes_data):
+                solves += 1
+                o = (2 * q + k) * W
+                if raw[o] != 0.0:  # not converged: the axis solve itself looks for a Farkas certificate
+                    result = self._not_converged(k, t, delta, warm[k], lams, solves)
+                    break
+                jump, wa, wb, speed = raw[o + 3], raw[o + 4], raw[o + 5], raw[o + 6]
+                phi = abs(jump)
+                ends = [wa + wb * x - jump * (x - t) for x in (a, b)]
+                u_max = min(max(abs(lo), abs(hi)), max(abs(e) for e in ends))
+                dual += raw[o + 1]
+                slope += jump * (speed - cdot[k])
+                M += phi * (self.cddot_max[k] + u_max + phi * b)
+                lams[k] = raw[o + 7:o + 10]
+            if result is None:
+                # the axes' expansions add up: the slope is r(t) (zero at a stationary t)
+                value = dual - abs(slope) * delta - 0.5 * M * delta * delta
+                out.append(("bound", value, lams, solves, (dual, abs(slope), M)))
+            else:
+                out.append((*result, nan3))
+        return out
+
+    def _not_converged(self, k: int, t: float, delta: float, warm: list[float] | None,
+                       lams: list[list[float] | None], solves: int
+                       ) -> tuple[str, float, list[list[float] | None], int]:
+        s0, v0, sf, vf, lo, hi = self.axes_data[k]
+        corner = _polyval(self.pos, t) + self.off[0] if k == 0 else self.off[1]
+        try:
+            solve_axis([t], self.T, s0, v0, sf, vf, [float(corner)], lo, hi, warm)
+        except AxisInfeasible as exc:
+            if exc.lam_phys is not None and exc.margin_phys is not None:
+                rate = delta * abs(exc.lam_phys[0]) * self.lip_rate[k]
+                if exc.margin_phys > rate * (1 + 1e-9):
+                    return "infeasible", exc.margin_phys - rate, lams, solves
+        except AxisNoConvergence:
+            pass
+        return "unknown", math.nan, lams, solves
+
+
+def _certified_radius(dual: float, slope: float, M: float, target: float) -> float:
+    """The largest ``ρ`` (less a relative ``1e-6``) with :math:`D - |r|\\rho - \\tfrac12 M\\rho^2 \\ge`
+    ``target`` (``0`` if none), checked by evaluating the bound at it."""
+    gap = dual - target
+    if not (gap > 0 and math.isfinite(gap) and math.isfinite(slope) and math.isfinite(M)):
+        return 0.0
+    rho = 2 * gap / (slope + math.sqrt(slope * slope + 2 * M * gap)) if slope > 0 or M > 0 else INF
+    rho *= 1 - 1e-6
+    if not math.isfinite(rho) or dual - slope * rho - 0.5 * M * rho * rho < target:
+        return 0.0
+    return rho
+
+
+class _UnboundedBound:
+    """``J_b >= J_u`` on intervals of contact times (one vehicle): the unbounded value
+    function's rigorous box bound (:func:`iamp.planners.pmp.bound.lower_bound`), closed form
+    and vectorised; also ``J_u`` at the centres (where it is above the target, splitting alone
+    may close the interval, without an axis solve)."""
+
+    def __init__(self, problem: Problem):
+        from iamp.planners.pmp.fixed import ValueFunction
+
+        self.vf = ValueFunction(problem.with_limits(None))
+        self.T = float(problem.tf)
+
+    def __call__(self, a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
+        from iamp.planners.pmp.bound import lower_bound
+
+        vf, T = self.vf, self.T
+        c = (0.5 * (a + b) / T)[:, None]
+        r = (0.5 * (b - a) / T)[:, None]
+        with np.errstate(all="ignore"):
+            lb = (vf.scaled.jbar + 0.5 * lower_bound(vf, c, r)) * vf.units.cost
+            centre = (vf.scaled.jbar + 0.5 * vf.quad_sigma(c)) * vf.units.cost
+        return np.where(np.isfinite(lb), lb, -INF), np.where(np.isnan(centre), -INF, centre)
 
 
 def interval_bound(problem: Problem, a: float, b: float) -> tuple[str, float]:
@@ -461,12 +546,19 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     (the slopes add up to ``r(t)``, which vanishes at a stationary contact time).
 
     An axis infeasible at the midpoint covers its interval by the Farkas margin of
-    :func:`certify_infeasible` instead.  ``(0, t_f)`` is covered by intervals whose bound
-    is at least :math:`J_{best}(1 - rel)` (halved otherwise); the certificate fails (``local``)
+    :func:`certify_infeasible` instead.  Before any solve, a whole level of intervals is
+    bounded at once by the unbounded value function, :math:`J_b \ge J_u` (the box only
+    removes inputs), with the rigorous box bound of :func:`iamp.planners.pmp.bound.lower_bound`;
+    where ``J_u`` at the centre is above the target the interval is halved without a solve.
+    ``(0, t_f)`` is covered by intervals whose bound is at least :math:`J_{best}(1 - rel)`;
+    where the Taylor bound fails on an interval, the radius ``ρ`` around its centre on which it
+    holds is certified and the two sides stay open (halved when ``ρ`` is negligible), both
+    axes of every open interval of a level solved in one kernel call
+    (:func:`~iamp.planners.pmp.saturated.contact_points`); the certificate fails (``local``)
     when an axis solve stalls on an interval below ``1e-12 t_f`` or the budget ``max_solves``
     is spent.
 
-    Returns ``{"certified", "intervals", "solves", "lowest_bound"}``.
+    Returns ``{"certified", "intervals", "solves", "lowest_bound", "pruned_by_unbounded"}``.
     """
     rel = TOLERANCES["pmp_global_certificate_rel"] if rel is None else rel
     out: dict[str, Any] = {"certified": False, "intervals": 0, "solves": 0, "lowest_bound": INF}
@@ -475,26 +567,52 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     T = float(problem.tf)
     target = J_best - rel * abs(J_best)
     bound_on = _IntervalBound(problem)
+    unbounded = _UnboundedBound(problem)
     pieces = 64
-    stack: list[tuple[float, float, list[list[float] | None]]] = [
+    level: list[tuple[float, float, list[list[float] | None]]] = [
         (T * k / pieces, T * (k + 1) / pieces, [None, None]) for k in range(pieces)]
-    solves = intervals = 0
+    solves = intervals = pruned = 0
     lowest = INF
-    while stack:
-        a, b, warm = stack.pop()
-        kind, value, lams, used = bound_on(a, b, warm)
-        solves += used
-        if kind == "bound":
-            lowest = min(lowest, value)
-        if kind == "infeasible" or (kind == "bound" and value >= target):
-            intervals += 1
-            continue
-        if solves > max_solves or b - a < 1e-12 * T:
-            out.update(intervals=intervals, solves=solves, lowest_bound=lowest)
-            return out
-        t = 0.5 * (a + b)
-        stack += [(a, t, lams), (t, b, lams)]
-    out.update(certified=True, intervals=intervals, solves=solves, lowest_bound=lowest)
+    use_unbounded = True
+    while level:  # breadth first, one level of halved intervals at a time
+        if use_unbounded:  # the closed-form bound J_b >= J_u on the whole level at once
+            ends = np.array([(a, b) for a, b, _ in level])
+            lb_u, at_centre = unbounded(ends[:, 0], ends[:, 1])
+        else:
+            lb_u = at_centre = np.full(len(level), -INF)
+        use_unbounded = False
+        nxt: list[tuple[float, float, list[list[float] | None]]] = []
+        todo: list[tuple[float, float, list[list[float] | None]]] = []
+        for k, (a, b, warm) in enumerate(level):
+            if lb_u[k] >= target:
+                pruned += 1
+                continue
+            if at_centre[k] >= target and b - a > 1e-6 * T:
+                # J_u is above the target at the centre: halving may close it without a solve
+                use_unbounded = True
+                t = 0.5 * (a + b)
+                nxt += [(a, t, warm), (t, b, warm)]
+                continue
+            todo.append((a, b, warm))
+        for (a, b, _), (kind, value, lams, used, terms) in zip(todo, bound_on.many(todo)):
+            solves += used
+            if kind == "bound":
+                lowest = min(lowest, value)
+            if kind == "infeasible" or (kind == "bound" and value >= target):
+                intervals += 1
+                continue
+            if solves > max_solves or b - a < 1e-12 * T:
+                out.update(intervals=intervals, solves=solves, lowest_bound=lowest, pruned_by_unbounded=pruned)
+                return out
+            t = 0.5 * (a + b)
+            rho = _certified_radius(*terms, target) if kind == "bound" else 0.0
+            if rho > 1e-3 * (b - a):  # t ± ρ is certified: only the two sides stay open
+                intervals += 1
+                nxt += [(a, t - rho, lams), (t + rho, b, lams)]
+            else:
+                nxt += [(a, t, lams), (t, b, lams)]
+        level = nxt
+    out.update(certified=True, intervals=intervals, solves=solves, lowest_bound=lowest, pruned_by_unbounded=pruned)
     return out
 
 
@@ -687,6 +805,7 @@ class _Evaluator:
         self.der = [[float(c) for c in (np.polynomial.polynomial.polyder(np.asarray(v.x_poly, dtype=float))
                                         if len(v.x_poly) > 1 else [0.0])] for v in problem.vehicles]
         self.off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
+        self.flat_data = [float(x) for row in self.data for x in row]
 
     def _nearest(self, times: list[float]) -> list[list[float]] | None:
         best, found = INF, None
@@ -713,6 +832,17 @@ class _Evaluator:
         cdot = [_polyval(self.der[i], times[i]) for i in range(m)]
         corners = ([_polyval(self.pos[i], times[i]) + self.off[i][0] for i in range(m)],
                    [self.off[i][1] for i in range(m)])
+        if m == 1:  # both axes in one kernel call (the same numbers as solve_axis_value)
+            raw = contact_points(times, T, self.pos[0], self.off[0][0], self.off[0][1], self.flat_data,
+                                 warm[0] + warm[1] if warm is not None else [0.0] * 6,
+                                 [1.0, 1.0] if warm is not None else [0.0, 0.0], True)
+            W = POINT_WIDTH
+            if raw[0] != 0.0 or raw[W] != 0.0:
+                return INF, np.full(1, np.nan), None
+            r = np.array([raw[3] * (raw[6] - cdot[0]) + raw[W + 3] * raw[W + 6]])
+            lams1 = [raw[7:10], raw[W + 7:W + 10]]
+            self._remember(times, lams1)
+            return raw[2] + raw[W + 2], r, lams1
         axes: list[tuple[float, list[float], list[float], list[float]]] = []
         for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.data):
             sol = None
@@ -726,10 +856,13 @@ class _Evaluator:
         (cx, jx, vx, lx), (cy, jy, vy, ly) = axes
         r = np.array([jx[i] * (vx[i] - cdot[i]) + jy[i] * vy[i] for i in range(m)])
         lams = [lx, ly]
+        self._remember(times, lams)
+        return cx + cy, r, lams
+
+    def _remember(self, times: list[float], lams: list[list[float]]) -> None:
         self.memory.append((times, lams))
         if len(self.memory) > 64:
             self.memory.pop(0)
-        return cx + cy, r, lams
 
 
 def _polyval(c: list[float], x: float) -> float:
@@ -774,12 +907,13 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
             continue
         vals[i] = ev(np.array([pts[i]]))[0]
         best_J = min(best_J, vals[i])
-    info = {"grid": grid, "pruned_by_unbounded_bound": pruned}
+    info: dict[str, Any] = {"grid": grid, "pruned_by_unbounded_bound": pruned}
     if not any(math.isfinite(v) for v in vals):
         info["evaluations"] = ev.evaluations
         return np.array([np.nan]), info
     order = np.argsort(vals)
     best_t, best_J = pts[int(order[0])], vals[int(order[0])]
+    edge: str | None = None
     for rank, idx in enumerate(order[: min(3, len(order))]):
         i = int(idx)
         # polish the best grid basin, and others only when their grid value is within 5 %
@@ -789,22 +923,54 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
         lo_t = pts[i - 1] if i > 0 else 1e-6 * T
         hi_t = pts[i + 1] if i + 1 < len(pts) else T * (1 - 1e-6)
         r_lo, r_hi = ev(np.array([lo_t]))[1][0], ev(np.array([hi_t]))[1][0]
-        if not (np.isfinite(r_lo) and np.isfinite(r_hi)) or r_lo * r_hi > 0:
+        # an infeasible end of the bracket moves to the edge of the feasible contact times
+        # (bisection): J_b may fall all the way to that edge, where the minimum is not stationary
+        edge_lo = edge_hi = False
+        if not np.isfinite(r_lo) and math.isfinite(vals[i]):
+            lo_t, edge_lo = _feasible_edge(ev, pts[i], lo_t, T), True
+            r_lo = ev(np.array([lo_t]))[1][0]
+        if not np.isfinite(r_hi) and math.isfinite(vals[i]):
+            hi_t, edge_hi = _feasible_edge(ev, pts[i], hi_t, T), True
+            r_hi = ev(np.array([hi_t]))[1][0]
+        if not (np.isfinite(r_lo) and np.isfinite(r_hi)):
             continue
+        cands: list[tuple[float, str | None]] = []
+        if edge_lo and r_lo > 0:  # J_b rises from the lower edge: a minimum at the edge
+            cands.append((lo_t, "lower"))
+        if edge_hi and r_hi < 0:  # J_b falls to the upper edge
+            cands.append((hi_t, "upper"))
+        if r_lo < 0 < r_hi:
 
-        def r_of(x: float) -> float:
-            rr = ev(np.array([x]))[1][0]
-            return float(rr) if np.isfinite(rr) else 0.0
+            def r_of(x: float) -> float:
+                rr = ev(np.array([x]))[1][0]
+                return float(rr) if np.isfinite(rr) else 0.0
 
-        try:
-            root = float(brentq(r_of, lo_t, hi_t, xtol=1e-11 * T, maxiter=200))
-        except (ValueError, RuntimeError):
-            continue
-        J_root = ev(np.array([root]))[0]
-        if J_root < best_J:
-            best_t, best_J = root, J_root
+            try:
+                cands.append((float(brentq(r_of, lo_t, hi_t, xtol=1e-11 * T, maxiter=200)), None))
+            except (ValueError, RuntimeError):
+                pass
+        for cand, side in cands:
+            J_c = ev(np.array([cand]))[0]
+            if J_c < best_J:
+                best_t, best_J, edge = cand, J_c, side
+    if edge is not None:
+        info["feasibility_edge"] = edge
     info["evaluations"] = ev.evaluations
     return np.array([best_t]), info
+
+
+def _feasible_edge(ev: _Evaluator, inside: float, outside: float, T: float) -> float:
+    """The feasible contact time nearest the edge of the feasible set between a feasible
+    ``inside`` and an infeasible ``outside`` (bisection to ``1e-12 t_f``)."""
+    while abs(outside - inside) > 1e-12 * T:
+        mid = 0.5 * (inside + outside)
+        if mid in (inside, outside):
+            break
+        if math.isfinite(ev(np.array([mid]))[0]):
+            inside = mid
+        else:
+            outside = mid
+    return inside
 
 
 def _search_many(ev: _Evaluator, T: float, m: int, starts: list[FloatArray], grid: int
@@ -945,7 +1111,7 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
     try:
         with np.errstate(all="ignore"):
             sol = solve_bounded_fixed(problem, t, ev.warm_for(t))
-            values = check_values(sol, stationary=not fixed)
+            values = check_values(sol, stationary=not fixed and "feasibility_edge" not in search)
     except AxisInfeasible as exc:
         return _failed(problem, INFEASIBLE, "box_infeasible_at_contact_times", info, t0, str(exc))
     except (AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError, OverflowError) as exc:

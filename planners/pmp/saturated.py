@@ -257,6 +257,27 @@ def _core(ax: _Axis, lam0: list[float] | None, tol_residual: float
     return out
 
 
+def contact_points(ts: list[float], T: float, pos: list[float], off_x: float, off_y: float, data: list[float],
+                   warm: list[float], has_warm: list[float], retry_cold: bool, tol_residual: float = 1e-12
+                   ) -> list[float]:
+    """:func:`~iamp.planners.pmp.saturated_kernel.contact_points` (both axes of one vehicle at
+    many contact times in one call): the compiled twin once
+    :func:`~iamp.planners.pmp.compiled.load_axis` has run in the process (compiled from the
+    same source on its first call), else the Python function: the same numbers."""
+    if _compiled.axis_core() is None:
+        return _kernel.contact_points(ts, T, T**2, T**3, pos, off_x, off_y, data, warm, has_warm, retry_cold,
+                                      tol_residual, MAX_NEWTON)
+    import numpy as np
+
+    from . import jit
+
+    run = jit.twin(_kernel.contact_points)
+    arr = [np.asarray(x, dtype=float) for x in (ts, pos, data, warm, has_warm)]
+    out: list[float] = run(arr[0], float(T), float(T**2), float(T**3), arr[1], float(off_x), float(off_y), arr[2],
+                           arr[3], arr[4], bool(retry_cold), float(tol_residual), MAX_NEWTON)
+    return out
+
+
 def _tuples(ps: list[float]) -> list[tuple[float, float, float, float, int]]:
     """The kernel's flat pieces as ``(τa, τb, wa, wb, kind)`` tuples."""
     return [(ps[q], ps[q + 1], ps[q + 2], ps[q + 3], int(ps[q + 4])) for q in range(0, len(ps), 5)]

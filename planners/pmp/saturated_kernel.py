@@ -325,3 +325,85 @@ def axis_core(sig: Any, base: Any, d: Any, lo: float, hi: float, lam0: Any, warm
                 dist = e
         vc[i] = vcum[j]
     return code, it, res, D, cost, lam, F, vc, ps
+
+
+@compilable
+def poly_at(c: Any, x: float) -> float:
+    """``numpy.polynomial.polynomial.polyval(x, c)`` for a float ``x``, operation for operation."""
+    acc: float = c[len(c) - 1] + x * 0
+    for i in range(2, len(c) + 1):
+        acc = c[len(c) - i] + acc * x
+    return acc
+
+
+#: Values per axis and contact time in the output of :func:`contact_points`.
+POINT_WIDTH = 10
+
+
+@compilable
+def contact_points(ts: Any, T: float, T2: float, T3: float, pos: Any, off_x: float, off_y: float, data: Any,
+                   warm: Any, has_warm: Any, retry_cold: bool, tol_residual: float, max_newton: int) -> list[float]:
+    """Both axes of the one-vehicle bounded problem at every contact time of ``ts``.
+
+    ``T2``, ``T3`` are ``T**2``, ``T**3`` as Python computes them; ``data`` holds
+    ``(s0, v0, sf, vf, ℓ, h)`` of x then y; ``pos`` the coefficients of ``x_s`` (ascending),
+    ``off_x``/``off_y`` the corner's offsets; ``warm`` three scaled multipliers per point and axis,
+    used where ``has_warm`` (per point and axis) is non-zero; ``retry_cold``: a warm start that
+    fails is retried from the unbounded optimum.  The scaling is
+    :class:`~iamp.planners.pmp.saturated._Axis`'s and the physical values those of
+    :func:`~iamp.planners.pmp.saturated.solve_axis_value` and ``_axis_solution``, operation for
+    operation.  Returns per point and axis :data:`POINT_WIDTH` values: result code, dual value,
+    cost, jump ``Φ``, ``a``, ``b`` (of ``w = −p_v``), ``v(t)``, the three scaled multipliers.
+    """
+    out = [0.0] * (len(ts) * 2 * POINT_WIDTH)
+    for p in range(len(ts)):
+        t = ts[p]
+        for k in range(2):
+            s0 = data[6 * k]
+            v0 = data[6 * k + 1]
+            sf = data[6 * k + 2]
+            vf = data[6 * k + 3]
+            lo = data[6 * k + 4]
+            hi = data[6 * k + 5]
+            c = poly_at(pos, t) + off_x if k == 0 else off_y
+            d = [c - s0 - v0 * t, sf - s0 - v0 * T, (vf - v0) * T]
+            scale = 1e-300
+            for q in range(3):
+                if abs(d[q]) > scale:
+                    scale = abs(d[q])
+            if math.isfinite(lo) and abs(lo) * T * T > scale:
+                scale = abs(lo) * T * T
+            if math.isfinite(hi) and abs(hi) * T * T > scale:
+                scale = abs(hi) * T * T
+            for q in range(3):
+                d[q] = d[q] / scale
+            los = lo * T * T / scale
+            his = hi * T * T / scale
+            sg = t / T
+            sig = [sg]
+            base = [0.0, sg, 1.0] if 0.0 < sg < 1.0 else [0.0, 1.0]
+            use = has_warm[2 * p + k] != 0.0
+            lam0 = [0.0, 0.0, 0.0]
+            for q in range(3):
+                lam0[q] = warm[6 * p + 3 * k + q]
+            code, _, _, D, cost, lam, _, vc, _ = axis_core(sig, base, d, los, his, lam0, use, tol_residual,
+                                                          max_newton)
+            if code != CONVERGED and use and retry_cold:
+                code, _, _, D, cost, lam, _, vc, _ = axis_core(sig, base, d, los, his, lam0, False, tol_residual,
+                                                              max_newton)
+            o = (2 * p + k) * POINT_WIDTH
+            out[o] = float(code)
+            if code == CONVERGED:
+                lam_ramp = lam[0] * scale / T3
+                lam_lin = lam[1] * scale / T3
+                lam_c = lam[2] * scale / T2
+                out[o + 1] = D * scale * scale / T3
+                out[o + 2] = cost * scale * scale / T3
+                out[o + 3] = -(lam[0] * scale / T3)
+                out[o + 4] = lam_ramp * (sg * T) + lam_lin * T + lam_c
+                out[o + 5] = -lam_ramp - lam_lin
+                out[o + 6] = v0 + vc[0] * scale / T
+            out[o + 7] = lam[0]
+            out[o + 8] = lam[1]
+            out[o + 9] = lam[2]
+    return out
