@@ -495,10 +495,8 @@ class _UnboundedBound:
     and vectorised; also ``J_u`` at the centres (where it is above the target, splitting alone
     may close the interval, without an axis solve)."""
 
-    def __init__(self, problem: Problem):
-        from iamp.planners.pmp.fixed import ValueFunction
-
-        self.vf = ValueFunction(problem.with_limits(None))
+    def __init__(self, problem: Problem, vf: Any = None):
+        self.vf = _unbounded_value(problem) if vf is None else vf
         self.T = float(problem.tf)
 
     def __call__(self, a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -521,8 +519,8 @@ def interval_bound(problem: Problem, a: float, b: float) -> tuple[str, float]:
     return kind, value
 
 
-def certify_global_one(problem: Problem, J_best: float, rel: float | None = None, max_solves: int = 3000
-                       ) -> dict[str, Any]:
+def certify_global_one(problem: Problem, J_best: float, rel: float | None = None, max_solves: int = 3000,
+                       value_function: Any = None) -> dict[str, Any]:
     r"""One vehicle: is ``J_best`` the global minimum of :math:`J_b(t)` over ``(0, t_f)`` to the
     relative accuracy ``rel`` (default ``pmp_global_certificate_rel``)?
 
@@ -567,7 +565,7 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     T = float(problem.tf)
     target = J_best - rel * abs(J_best)
     bound_on = _IntervalBound(problem)
-    unbounded = _UnboundedBound(problem)
+    unbounded = _UnboundedBound(problem, value_function)
     pieces = 64
     level: list[tuple[float, float, list[list[float] | None]]] = [
         (T * k / pieces, T * (k + 1) / pieces, [None, None]) for k in range(pieces)]
@@ -806,6 +804,13 @@ class _Evaluator:
                                         if len(v.x_poly) > 1 else [0.0])] for v in problem.vehicles]
         self.off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
         self.flat_data = [float(x) for row in self.data for x in row]
+        self._vf: Any = None
+
+    def value_function(self) -> Any:
+        """The unbounded value function (made once; the search and the certificate share it)."""
+        if self._vf is None:
+            self._vf = _unbounded_value(self.problem)
+        return self._vf
 
     def _nearest(self, times: list[float]) -> list[list[float]] | None:
         best, found = INF, None
@@ -873,13 +878,20 @@ def _polyval(c: list[float], x: float) -> float:
     return acc
 
 
-def _lower_bound(problem: Problem, t: FloatArray) -> FloatArray:
-    """``J_u(t)`` (the unbounded fixed-time cost, closed form): a lower bound of ``J_b(t)``,
-    since the box only removes inputs.  ``t`` has shape ``(..., m)``."""
+def _unbounded_value(problem: Problem) -> Any:
+    """The unbounded problem's closed-form value function
+    (:class:`~iamp.planners.pmp.fixed.ValueFunction`)."""
     from iamp.planners.pmp.fixed import ValueFunction
 
+    return ValueFunction(problem.with_limits(None))
+
+
+def _lower_bound(problem: Problem, t: FloatArray, vf: Any = None) -> FloatArray:
+    """``J_u(t)`` (the unbounded fixed-time cost, closed form): a lower bound of ``J_b(t)``,
+    since the box only removes inputs.  ``t`` has shape ``(..., m)``; ``vf`` the value
+    function if made already."""
     with np.errstate(all="ignore"):
-        out: FloatArray = ValueFunction(problem.with_limits(None))(t)
+        out: FloatArray = (_unbounded_value(problem) if vf is None else vf)(t)
     return out
 
 
@@ -891,7 +903,7 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
 
     grid_pts = [T * (k + 0.5) / grid for k in range(grid)]
     pts = sorted(set(grid_pts + [s for s in starts if 0 < s < T]))
-    lower = _lower_bound(ev.problem, np.array(pts)[:, None])
+    lower = _lower_bound(ev.problem, np.array(pts)[:, None], ev.value_function())
     vals = [INF] * len(pts)
     best_J = INF
     for s in starts:
@@ -1121,7 +1133,7 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
     certified = bool(fixed)
     if bad is None and not fixed:
         if m == 1 and certify:
-            cert = certify_global_one(problem, sol.cost)
+            cert = certify_global_one(problem, sol.cost, value_function=ev.value_function())
             certified = bool(cert["certified"])
             info["global_certificate"] = {**cert, "rel": TOLERANCES["pmp_global_certificate_rel"],
                                           "method": "dual Taylor bound per interval of contact times, "
