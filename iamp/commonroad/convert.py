@@ -35,8 +35,11 @@ lane (its lanelet with every predecessor and successor, centre line fitted by a 
   by same-direction adjacency, at every arc length; its widest range is the §14 ``y`` limit
   (less the ego's lateral half extent), and where it is narrower (an on-ramp behind a gore
   area that joins the road only further on, a lane that ends) the missing part is a static box
-  the planner avoids with the same corners as a vehicle.  CommonRoad's road-boundary check uses
-  the same lanelet geometry, so a plan that avoids these boxes stays on the road.
+  the planner avoids with the same corners as a vehicle (pieces of at most
+  :data:`EDGE_CHUNK_M` over which the bound varies by at most :data:`EDGE_VARY_M`, so that the
+  boxes follow a narrowing edge).  The lanelets' bounds are densified in the world
+  (:func:`densify`) before they are projected: a straight bound between vertices far apart is
+  curved in the road frame.  CommonRoad's road-boundary check uses the same lanelet geometry.
 * **Margins** (:func:`ego_margins`): the ego's body turned by its heading relative to the
   road :math:`\varphi` has half extents
   :math:`L/2\cos\varphi + W/2\sin\varphi` along and :math:`L/2\sin\varphi + W/2\cos\varphi`
@@ -73,8 +76,12 @@ HEADING_GUESS_RAD = 0.06
 EDGE_REACH_M = 15.0
 #: Spacing of the corridor's samples along the road [m].
 EDGE_STEP_M = 0.5
+#: Spacing of the lanelet bounds' points projected into the road frame [m] (:func:`densify`).
+EDGE_DENSE_M = 0.5
 #: Longest road-edge box along the road [m].
 EDGE_CHUNK_M = 4.0
+#: Largest change of the road's bound within one road-edge box [m].
+EDGE_VARY_M = 0.01
 #: Clearance added to the body's half extents at a road edge (vehicles: BUFFER_M) [m].
 EDGE_BUFFER_M = 0.02
 #: Two lanelets whose bounds stay this close over their common stretch are neighbours [m].
@@ -148,6 +155,9 @@ class CommonRoadProblem:
     a_max: float
     speed_range: tuple[float, float]
     notes: list[str] = field(default_factory=list)
+    #: The road corridor ``(s, d^-(s), d^+(s))`` sampled every :data:`EDGE_STEP_M` (``nan`` off
+    #: the lanelets), whose narrower parts are the ``road_edges`` boxes.
+    corridor: tuple[FloatArray, FloatArray, FloatArray] | None = None
 
     @property
     def all_obstacles(self) -> list[Obstacle]:
@@ -198,9 +208,36 @@ def final_candidates(x0: tuple[float, float, float, float], goal: GoalRegion, dt
     return goal.final_states(x0, dt, elapsed_steps)
 
 
+def densify(polyline: FloatArray, spacing: float) -> FloatArray:
+    """``polyline`` (``(n, 2)``) with points inserted on each segment so that consecutive points
+    are at most ``spacing`` apart (every original vertex kept).
+
+    Parameters
+    ----------
+    polyline : ndarray
+        Vertices, shape ``(n, 2)``.
+    spacing : float
+        Largest distance between consecutive points [m] (> 0).
+
+    Returns
+    -------
+    ndarray
+        The densified polyline, shape ``(m, 2)``, ``m >= n``.
+    """
+    pts = np.asarray(polyline, dtype=float)
+    if pts.shape[0] < 2:
+        return pts
+    out = [pts[:1]]
+    for a, b in zip(pts[:-1], pts[1:]):
+        n = max(1, int(np.ceil(float(np.linalg.norm(b - a)) / spacing)))
+        f = np.arange(1, n + 1)[:, None] / n
+        out.append(a + f * (b - a))
+    return np.concatenate(out)
+
+
 def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_b: float,
                 t: FloatArray, via: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0), (1.0, 0.0)),
-                ) -> tuple[tuple[float, float], list[Obstacle]]:
+                ) -> tuple[tuple[float, float], list[Obstacle], tuple[FloatArray, FloatArray, FloatArray]]:
     r"""The road corridor of the ego's lane: its widest lateral range as §14 ``y`` limits and the
     parts where it is narrower as static boxes to avoid (module docstring, "Road edges").
 
@@ -215,14 +252,18 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
     :math:`(\min_s d^-(s), \max_s d^+(s))`; every run of ``s`` where :math:`d^-(s)` is above
     its minimum (or :math:`d^+(s)` below its maximum) by more than :data:`EDGE_TOL_M` becomes a
     box :math:`[s_1, s_2] \times [\min_s d^- - 3, \max_{run} d^-]` (resp. above), which the planner
-    avoids like a standing vehicle (obstacle ids -1, -2, ...).
+    avoids like a standing vehicle (obstacle ids -1, -2, ...).  The third value is the corridor
+    itself, ``(s, d^-(s), d^+(s))`` at every sample (``nan`` where no lanelet covers ``s``).
     """
     cache: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
 
     def bounds(ll: Any) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         if ll.lanelet_id not in cache:
-            r = frame.to_road(np.asarray(ll.right_vertices, dtype=float))
-            lf = frame.to_road(np.asarray(ll.left_vertices, dtype=float))
+            # densified in the world first: a straight bound between two vertices is curved in the
+            # road frame (the reference turns), so interpolating its projected vertices would
+            # misplace it by up to centimetres where the vertices are far apart
+            r = frame.to_road(densify(np.asarray(ll.right_vertices, dtype=float), EDGE_DENSE_M))
+            lf = frame.to_road(densify(np.asarray(ll.left_vertices, dtype=float), EDGE_DENSE_M))
             ro, lo_ = np.argsort(r[:, 0]), np.argsort(lf[:, 0])
             cache[ll.lanelet_id] = (r[ro, 0], r[ro, 1], lf[lo_, 0], lf[lo_, 1])
         return cache[ll.lanelet_id]
@@ -298,7 +339,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
         lo[i], hi[i] = min(ds), max(ds)
     ok = np.isfinite(lo)
     if not ok.any():
-        return (-1e3, 1e3), []
+        return (-1e3, 1e3), [], (grid, lo, hi)
     y_lo, y_hi = float(np.min(lo[ok])), float(np.max(hi[ok]))
     boxes: list[Obstacle] = []
     n = t.size
@@ -308,9 +349,16 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             continue
         runs = []
         for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1):
-            # pieces of at most EDGE_CHUNK_M, so a box follows a slanted edge within the edge's slope
-            k = max(1, int(np.ceil(run.size * EDGE_STEP_M / EDGE_CHUNK_M)))
-            runs += [r for r in np.array_split(run, k) if r.size]
+            # pieces of at most EDGE_CHUNK_M over which the bound varies by at most EDGE_VARY_M, so
+            # the boxes follow a narrowing edge (the narrowest value of a long piece would shut
+            # out a body that fits beside its wide end)
+            bound = lo if side == "lo" else hi
+            first = 0
+            for j in range(1, run.size + 1):
+                if (j == run.size or (j - first + 1) * EDGE_STEP_M > EDGE_CHUNK_M
+                        or float(np.ptp(bound[run[first:j + 1]])) > EDGE_VARY_M):
+                    runs.append(run[first:j])
+                    first = j
         for run in runs:
             s1, s2 = float(grid[run[0]]) - EDGE_STEP_M, float(grid[run[-1]]) + EDGE_STEP_M
             if side == "lo":
@@ -321,7 +369,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             half = 0.5 * (s2 - s1)
             boxes.append(Obstacle(oid, t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
                                   2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
-    return (y_lo, y_hi), boxes
+    return (y_lo, y_hi), boxes, (grid, lo, hi)
 
 
 def _corners(center: FloatArray, length: float, width: float, orientation: float) -> FloatArray:
@@ -427,7 +475,7 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
             merged.append(y)
     s_end = max((c.s for c in candidates), default=s0 + vs0 * steps[1] * dt)
     via = min(candidates, key=lambda c: c.cost0) if candidates else None
-    road_y, road_edges = _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M,
+    road_y, road_edges, corridor = _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M,
                                      max(s0, s_end) + EDGE_REACH_M,
                                      np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64),
                                      ((s0, d0), (via.s, via.d) if via is not None else (s0 + 1.0, d0)))
@@ -464,4 +512,4 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
         obstacles=obstacles, road_edges=road_edges, lanes=merged, road_y=road_y, ego_length=float(params.l),
         ego_width=float(params.w),
         a_max=float(params.longitudinal.a_max),
-        speed_range=v_range, notes=notes)
+        speed_range=v_range, notes=notes, corridor=corridor)

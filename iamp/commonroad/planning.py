@@ -11,7 +11,10 @@ A recorded scene holds 25-60 vehicles; few are in the ego's way.  The active-set
    (:func:`corner_for`: ``front``/``rear`` by which side of it the ego ends, ``upper``/``lower``
    by the side it is beside at the start or the end) and plan again with the chosen planner
    (the paper's equality by the PMP or the QP, or the avoidance QP of §10);
-4. repeat until no vehicle is intruded (the plan is ``safe``) or nothing more can be imposed.
+4. repeat until no vehicle is intruded (the plan is ``safe``) or nothing more can be imposed;
+5. a plan that is unsafe only at road edges is repaired laterally (:func:`repair_at_edges`: its
+   longitudinal motion kept, its lateral motion one convex QP with the body's corners and sides
+   at its own heading inside the road corridor, beside the vehicles it is beside).
 
 A vehicle the ego neither starts nor ends beside (car following in its lane) has no corner
 (§10's half-plane crossing does not exist); the loop cannot impose it and tries the next final
@@ -64,7 +67,7 @@ CHECK_BUFFER_M = 0.05
 #: Overlap with a road-edge box that the self-check tolerates: the boxes take the narrowest
 #: edge over :data:`~iamp.commonroad.convert.EDGE_CHUNK_M` and the frame's fit error is a few cm,
 #: so a start that CommonRoad's road check accepts can touch them [m].
-EDGE_SLACK_M = 0.1
+EDGE_SLACK_M = 0.02
 #: Longitudinal reach of "relevant" for the all-vehicles equality [m].
 RELEVANT_S_M = 10.0
 #: Active-set iterations.
@@ -79,6 +82,13 @@ STEPS = 24
 PMP_MAX_BOXES = 2_000
 #: QP solves per avoidance-QP call (its branch and bound's ``max_solves``).
 AVOID_MAX_SOLVES = 8
+#: QP solves of the equality QP per problem, over every call (the avoidance QP's most,
+#: ``AVOID_MAX_SOLVES * MAX_PLANS``): its contact-time sweep solves one QP per assignment of
+#: distinct interior grid nodes, ``(N-1)!/(N-1-m)!`` for ``m`` vehicles, so each call's grid is
+#: the finest the solves left allow (:func:`qp_steps`).
+QP_MAX_SOLVES = 48
+#: Coarsest grid of an equality-QP call; a call that the solves left cannot afford is not made.
+QP_MIN_STEPS = 4
 
 
 class FreeTrajectory:
@@ -262,16 +272,17 @@ def clear_final_states(cr: CommonRoadProblem, cands: list[Candidate], buffer: fl
 
 
 def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float, float],
-               sy: float, sx: float = 0.0) -> str | None:
+               sy: float, sx: float = 0.0, edge: tuple[float, float] | None = None) -> str | None:
     """The corner describing the manoeuvre around ``ob`` (module docstring, step 3), or ``None``.
 
     A road-edge box (``ob.road_edge``) is passed on the side of the road (``upper`` for an edge
     below the corridor, ``lower`` above it): ``front-<side>`` when the ego starts beside it (in
     the lateral half-plane, with the edge margins of :func:`_avoided`) and ends ahead of it,
-    ``rear-<side>`` when it starts behind it and ends beside it.
+    ``rear-<side>`` when it starts behind it and ends beside it.  ``edge`` gives the body's
+    margins at a road edge (:func:`edge_margins`); by default ``sx, sy`` less the vehicles' buffer.
     """
     if ob.road_edge:
-        sx_e, sy_e = sx - BUFFER_M + EDGE_BUFFER_M, sy - BUFFER_M + EDGE_BUFFER_M
+        sx_e, sy_e = edge if edge is not None else (sx - BUFFER_M + EDGE_BUFFER_M, sy - BUFFER_M + EDGE_BUFFER_M)
         top, bottom = float(ob.d_hi.max()), float(ob.d_lo.min())
         upper = ob.y < x0[2]  # the box is below the ego: pass above it
         edge_side = "upper" if upper else "lower"
@@ -317,6 +328,41 @@ def _heading_and_peak(trajectory: Trajectory, T: float) -> tuple[float, float]:
             float(np.max(np.hypot(U[:, 0], U[:, 1]))))
 
 
+def qp_steps(m: int, steps: int = STEPS, max_solves: int = QP_MAX_SOLVES) -> int:
+    """Grid intervals of the equality QP with ``m`` imposed vehicles: ``steps``, or fewer so that
+    its sweep over every assignment of distinct interior nodes, ``(N-1)!/(N-1-m)!`` QP solves, stays within
+    ``max_solves`` (a count of solves, never a time; at least 2 intervals).
+
+    Parameters
+    ----------
+    m : int
+        Vehicles (and road-edge boxes) imposed at once.
+    steps : int
+        The grid asked for.
+    max_solves : int
+        The most QP solves of one sweep.
+
+    Returns
+    -------
+    int
+        The largest ``N <= steps`` whose sweep is within ``max_solves`` (``N >= 2``).
+    """
+    n = steps
+    while n > 2 and math.perm(n - 1, max(m, 1)) > max_solves:
+        n -= 1
+    return n
+
+
+def _affords(budget: list[int], iamp_planner: str, constraint: str, m: int, steps: int) -> bool:
+    """Can ``budget`` (calls, equality-QP solves) pay one more call with ``m`` vehicles?"""
+    if budget[0] <= 0:
+        return False
+    if iamp_planner != "qp" or constraint != "equality":
+        return True
+    n = qp_steps(m, steps, budget[1])
+    return n >= QP_MIN_STEPS and math.perm(n - 1, m) <= budget[1]
+
+
 def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[SurroundingVehicle], margin_y: float,
                planner: str, constraint: str, steps: int) -> Plan:
     import iamp
@@ -356,20 +402,37 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     order = _candidate_order(gentle or clear or cr.candidates, max_candidates)
     queue = list(order)
     heading = HEADING_GUESS_RAD
-    budget = [max_plans]
+    edge_heading = abs(math.atan2(cr.x0[3], max(cr.x0[1], 1e-6)))  # the start's, raised when a plan turns more
+    budget = [max_plans, QP_MAX_SOLVES]  # planner calls, equality-QP solves
     n_tried = 0
     tried: list[Candidate] = []
     while queue and n_tried < max_candidates:
         cand = queue.pop(0)  # with the planner calls spent, only the free plans of the rest are tried
         n_tried += 1
         tried.append(cand)
-        for _ in range(2):  # a second pass when the plan turned more than its margins assumed
+        sx, sy = ego_margins(cr.ego_length, cr.ego_width, heading)
+        result = _plan_candidate(cr, cand, planner, iamp_planner, constraint, active, sx, sy, steps, budget,
+                                 edge_margins(cr, edge_heading))
+        # a second pass when the plan turned more than its margins assumed: the vehicles' margins
+        # (any plan passing a vehicle), the road edges' (a plan passing an edge that is not safe)
+        turned = result.max_heading_rad > heading + 1e-9 and any(i >= 0 for i, _ in result.imposed)
+        at_edge = (not result.safe and result.max_heading_rad > edge_heading + 1e-9
+                   and any(i < 0 for i, _ in result.imposed))
+        if (result.trajectory is not None and (turned or at_edge)
+                and _affords(budget, iamp_planner, constraint, 1, steps)):
+            if turned:
+                heading = result.max_heading_rad + 0.01
+            if at_edge:
+                edge_heading = result.max_heading_rad + 0.01
             sx, sy = ego_margins(cr.ego_length, cr.ego_width, heading)
-            result = _plan_candidate(cr, cand, planner, iamp_planner, constraint, active, sx, sy, steps, budget)
-            result.candidates_tried = n_tried
-            if result.trajectory is None or result.max_heading_rad <= heading + 1e-9 or budget[0] <= 0:
-                break
-            heading = result.max_heading_rad + 0.01
+            again = _plan_candidate(cr, cand, planner, iamp_planner, constraint, active, sx, sy, steps, budget,
+                                    edge_margins(cr, edge_heading))
+            if again.safe or not result.safe:  # a second pass that is not safe keeps a safe first
+                result = again
+        if planner != "free" and not result.safe and _edges_only(result) and budget[0] > 0:
+            budget[0] -= 1  # the lateral repair is one (QP) call
+            result = _repaired(cr, cand, result)
+        result.candidates_tried = n_tried
         if result.safe and result.peak_accel_mps2 <= cr.a_max:
             result.solve_time_s = time.perf_counter() - start
             result.plans_used = max_plans - budget[0]
@@ -378,7 +441,8 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             best = result
         if result.blocked is not None:  # end beside it instead: the same time, across the goal shape
             sx, sy = ego_margins(cr.ego_length, cr.ego_width, heading)
-            other = cr.goal.across(cand, cr.x0, _beside(result.blocked, cr.x0, sx, sy))
+            other = cr.goal.across(cand, cr.x0, _beside(result.blocked, cr.x0, sx, sy,
+                                                        edge_margins(cr, edge_heading)))
             if other is not None and all(abs(other.d - c.d) > 1e-3 or other.steps != c.steps for c in tried + queue):
                 queue.insert(0, other)
     assert best is not None
@@ -386,7 +450,8 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     searched = (f"no safe plan found over the goal region searched: {n_tried} final state(s) at step(s) "
                 f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()} ({len(cr.candidates) - len(clear)} of "
                 f"{len(cr.candidates)} final states end inside a vehicle); {max_plans - budget[0]} planner "
-                f"call(s) of {max_plans}")
+                f"call(s) of {max_plans}" + (f", {QP_MAX_SOLVES - budget[1]} QP solve(s) of {QP_MAX_SOLVES}"
+                                              if iamp_planner == "qp" and constraint == "equality" else ""))
     if best.trajectory is not None and not best.intrusions and best.peak_accel_mps2 > cr.a_max:
         best.status = "exceeds limits"
     last = (best.reason or "").replace(": no safe plan exists", ": no safe plan for this final state")
@@ -402,15 +467,53 @@ def _free_peak(cr: CommonRoadProblem, c: Candidate) -> float:
     return float(np.max(np.hypot(U[:, 0], U[:, 1])))
 
 
-def _beside(ob: Obstacle, x0: tuple[float, float, float, float], sx: float, sy: float) -> tuple[float, float]:
+def _beside(ob: Obstacle, x0: tuple[float, float, float, float], sx: float, sy: float,
+            edge: tuple[float, float]) -> tuple[float, float]:
     """Final offsets beside ``ob`` on the side the ego starts (the lateral half-plane of
-    :func:`corner_for`, 1 cm inside it)."""
+    :func:`corner_for`, 1 cm inside it; ``edge`` the margins at a road edge)."""
     if ob.road_edge:
-        sy_e = sy - BUFFER_M + EDGE_BUFFER_M
+        sy_e = edge[1]
         top, bottom = float(ob.d_hi.max()), float(ob.d_lo.min())
         return (top + sy_e + 0.01, math.inf) if ob.y < x0[2] else (-math.inf, bottom - sy_e - 0.01)
     band = ob.box_width / 2 + sy
     return (ob.y + band + 0.01, math.inf) if x0[2] >= ob.y else (-math.inf, ob.y - band - 0.01)
+
+
+def _edges_only(p: RoadPlan) -> bool:
+    """Is ``p`` unsafe only at road edges (every intrusion, and the vehicle without a corner, a
+    road-edge box)?"""
+    if p.trajectory is None or not p.intrusions:
+        return False
+    return all(i.obstacle.road_edge for i in p.intrusions) and (p.blocked is None or p.blocked.road_edge)
+
+
+def _repaired(cr: CommonRoadProblem, cand: Candidate, p: RoadPlan) -> RoadPlan:
+    """``p`` with its lateral motion re-planned inside the road corridor (:func:`repair_at_edges`),
+    if that is safe; else ``p``."""
+    assert p.trajectory is not None
+    fixed = repair_at_edges(cr, p.trajectory, cand)
+    if fixed is None:
+        return p
+    hits = intrusions(cr, fixed, cand.tf)
+    h, peak = _heading_and_peak(fixed, cand.tf)
+    if hits or peak > cr.a_max:
+        return p
+    return RoadPlan(p.planner, "optimal", cand, fixed, fixed.cost(), p.solve_time_s, list(p.imposed), [],
+                    "edge-repair", 0, None, h, peak)
+
+
+def edge_margins(cr: CommonRoadProblem, heading: float) -> tuple[float, float]:
+    """The body's margins ``(S_x, S_y)`` at a road edge: its half extents turned by ``heading``
+    (:func:`~iamp.commonroad.convert.ego_margins`) plus
+    :data:`~iamp.commonroad.convert.EDGE_BUFFER_M`.
+
+    :func:`plan` starts from the start's own heading to the road, not the vehicles' guess
+    :data:`~iamp.commonroad.convert.HEADING_GUESS_RAD` (at 0.06 rad the body is 13.5 cm wider than
+    at 0: a lane beside a narrowing edge that the body fits is shut), and plans again with the
+    plan's largest heading when a plan that passes an edge turned more and is not safe
+    (:func:`intrusions` judges the body at its own heading).
+    """
+    return ego_margins(cr.ego_length, cr.ego_width, heading, EDGE_BUFFER_M)
 
 
 def _worse(a: RoadPlan, b: RoadPlan) -> bool:
@@ -469,7 +572,8 @@ def lane_segment(cr: CommonRoadProblem, ob: Obstacle, t_hit: float) -> Obstacle:
 
 
 def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: str, constraint: str,
-                    active: bool, sx: float, sy: float, steps: int, budget: list[int]) -> RoadPlan:
+                    active: bool, sx: float, sy: float, steps: int, budget: list[int],
+                    edge: tuple[float, float]) -> RoadPlan:
     free = FreeTrajectory(cand.tf, cr.x0, (cand.s, cand.vs, cand.d, cand.vd))
     free_hits = intrusions(cr, free, cand.tf)
     if label == "free" or (active and not free_hits):
@@ -481,41 +585,39 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
         vehicles = []
         imposed = []
         for ob in chosen:
-            corner = corner_for(ob, cand, cr.x0, sy, sx)
+            corner = corner_for(ob, cand, cr.x0, sy, sx, edge)
             if corner is not None:
-                vehicles.append(_avoided(ob, corner, sx, sy))
+                vehicles.append(_avoided(ob, corner, sx, sy, edge))
                 imposed.append((ob.obstacle_id, corner))
-        if not vehicles or budget[0] <= 0:
+        if not vehicles or not _affords(budget, iamp_planner, constraint, len(vehicles), steps):
             h, peak = _heading_and_peak(free, cand.tf)
             return RoadPlan(label, "optimal" if not free_hits else "unsafe", cand, free, free.cost(), 0.0, [],
                             free_hits, None, 0, None if not vehicles else "the planner calls are spent", h, peak)
-        budget[0] -= 1
-        return _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps)
+        return _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps, budget)
     vehicles, imposed = [], []
     keys: set[tuple[int, int]] = set()
     blocked: Obstacle | None = None
     current: RoadPlan | None = None
     hits = free_hits
     for _ in range(MAX_IMPOSED):
-        if budget[0] <= 0:
+        if not _affords(budget, iamp_planner, constraint, len(vehicles) + 1, steps):
             break
         new = None
         for hit in hits:
             seg = lane_segment(cr, hit.obstacle, hit.time_s)
             if (seg.obstacle_id, seg.lane) in keys:
                 continue
-            corner = corner_for(seg, cand, cr.x0, sy, sx)
+            corner = corner_for(seg, cand, cr.x0, sy, sx, edge)
             if corner is not None:
                 new = (seg, corner)
                 break
         if new is None:
             blocked = next((h.obstacle for h in hits if (h.obstacle.obstacle_id, h.obstacle.lane) not in keys), None)
             break
-        vehicles.append(_avoided(new[0], new[1], sx, sy))
+        vehicles.append(_avoided(new[0], new[1], sx, sy, edge))
         imposed.append((new[0].obstacle_id, new[1]))
         keys.add((new[0].obstacle_id, new[0].lane))
-        budget[0] -= 1
-        current = _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps)
+        current = _finish(cr, cand, label, iamp_planner, constraint, vehicles, imposed, margin_y, steps, budget)
         if current.trajectory is None or current.safe:
             return current
         hits = current.intrusions
@@ -530,12 +632,13 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
     return current
 
 
-def _avoided(ob: Obstacle, corner: str, sx: float, sy: float) -> SurroundingVehicle:
+def _avoided(ob: Obstacle, corner: str, sx: float, sy: float, edge: tuple[float, float]) -> SurroundingVehicle:
     """The iamp vehicle of ``ob``: a vehicle with the body margins ``sx, sy`` (which include
-    :data:`~iamp.commonroad.convert.BUFFER_M`), a road edge with only
-    :data:`~iamp.commonroad.convert.EDGE_BUFFER_M` of clearance beyond the body."""
+    :data:`~iamp.commonroad.convert.BUFFER_M`), a road edge with the margins ``edge``
+    (:func:`edge_margins`: only :data:`~iamp.commonroad.convert.EDGE_BUFFER_M` of clearance beyond
+    the body)."""
     if ob.road_edge:
-        return ob.vehicle(corner, sx - BUFFER_M + EDGE_BUFFER_M, sy - BUFFER_M + EDGE_BUFFER_M)
+        return ob.vehicle(corner, *edge)
     return ob.vehicle(corner, sx, sy)
 
 
@@ -557,7 +660,12 @@ def _relevant(cr: CommonRoadProblem, cand: Candidate, free: FreeTrajectory, sy: 
 
 def _finish(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: str, constraint: str,
             vehicles: list[SurroundingVehicle], imposed: list[tuple[int, str]], margin_y: float,
-            steps: int) -> RoadPlan:
+            steps: int, budget: list[int]) -> RoadPlan:
+    """One call of the iamp planner, charged to ``budget`` (calls, equality-QP solves)."""
+    budget[0] -= 1
+    if iamp_planner == "qp" and constraint == "equality":
+        steps = qp_steps(len(vehicles), steps, budget[1])
+        budget[1] -= math.perm(steps - 1, len(vehicles))
     try:
         result = _iamp_plan(cr, cand, vehicles, margin_y, iamp_planner, constraint, steps)
     except IampError as exc:
@@ -590,3 +698,166 @@ def describe(p: RoadPlan) -> RoadPlanJSON:
 
 def heading_deg(rad: float) -> float:
     return math.degrees(rad)
+
+
+#: Largest tangent of the heading to the road a repaired plan may have (19°; the body's corner
+#: bounds of :func:`repair_at_edges` hold for ``|tan φ| <= W/L`` = 0.357).
+REPAIR_MAX_TAN = 0.35
+#: Clearance of the repaired body from the road's bound [m] (the frame's fit is exact to 1 cm
+#: on the lanelets' vertices, the checker's boundary is their triangulation).
+REPAIR_EDGE_BUFFER_M = 0.003
+#: Half width of the window along the road in which a corner's bound is taken (the corner moves
+#: by ``W/2 sin φ`` along the road when the body turns) [m].
+REPAIR_CORNER_M = 0.15
+
+
+class LateralRepair:
+    """A plan whose longitudinal motion is a given trajectory's and whose lateral motion is a
+    zero-order-hold input sequence on the time steps ``dt`` (:func:`repair_at_edges`)."""
+
+    def __init__(self, base: Trajectory, dt: float, d0: float, vd0: float, u: FloatArray):
+        self.base, self.dt = base, dt
+        self.u = np.asarray(u, dtype=float)
+        n = self.u.size
+        self.d = np.empty(n + 1)
+        self.vd = np.empty(n + 1)
+        self.d[0], self.vd[0] = d0, vd0
+        for k in range(n):
+            self.d[k + 1] = self.d[k] + self.vd[k] * dt + 0.5 * self.u[k] * dt * dt
+            self.vd[k + 1] = self.vd[k] + self.u[k] * dt
+
+    def _lateral(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        k = np.clip(np.floor(t / self.dt + 1e-9).astype(int), 0, self.u.size - 1)
+        tau = t - k * self.dt
+        u = self.u[k]
+        return self.d[k] + self.vd[k] * tau + 0.5 * u * tau**2, self.vd[k] + u * tau, u
+
+    def states(self, t: npt.ArrayLike) -> FloatArray:
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        X = np.array(self.base.states(tt), dtype=float)
+        X[:, 2], X[:, 3], _ = self._lateral(tt)
+        return X
+
+    def inputs(self, t: npt.ArrayLike) -> FloatArray:
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        U = np.array(self.base.inputs(tt), dtype=float)
+        U[:, 1] = self._lateral(tt)[2]
+        return U
+
+    def cost(self) -> float:
+        """½∫|u|²: the longitudinal part of the base (4-point Gauss-Legendre on every step), the
+        lateral exactly."""
+        x, w = np.polynomial.legendre.leggauss(4)
+        t = (np.arange(self.u.size)[:, None] + 0.5 * (x[None, :] + 1)) * self.dt
+        us = np.array(self.base.inputs(t.ravel()), dtype=float)[:, 0].reshape(t.shape)
+        return float(0.25 * self.dt * np.sum(w[None, :] * us**2) + 0.5 * np.sum(self.u**2) * self.dt)
+
+
+def _narrowest(grid: FloatArray, bound: FloatArray, a: float, b: float, up: bool) -> float:
+    """The narrowest value of the piecewise-linear ``bound`` over ``[a, b]`` (lowest for an upper
+    bound, highest for a lower one; ``nan`` outside the samples)."""
+    if a < grid[0] or b > grid[-1]:
+        return math.nan
+    inside = bound[(grid > a) & (grid < b)]
+    vals = np.concatenate([np.interp([a, b], grid, bound), inside])
+    return float(np.min(vals)) if up else float(np.max(vals))
+
+
+def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
+                    buffer: float | None = None) -> LateralRepair | None:
+    r"""Keep ``base``'s longitudinal motion and re-plan its lateral motion so that the ego's body,
+    at its own heading, stays inside the road corridor and beside every vehicle it is beside in
+    ``base``: one convex QP on the CommonRoad time steps (the solution's own states).
+
+    With :math:`s_k, \dot s_k` fixed, the heading's tangent :math:`\tan\varphi_k = \dot d_k/\dot s_k`
+    is linear in the lateral state, and so are conservative bounds of the body's sides:
+    a corner of the left side lies at :math:`d + \cos\varphi(\pm\tfrac L2\tan\varphi + \tfrac W2)
+    \le d \pm \tfrac L2 \tan\varphi + \tfrac W2` (for :math:`|\tan\varphi| \le W/L`), a point of
+    the side at arc length :math:`\sigma` at :math:`d + (\sigma - s)\tan\varphi +
+    \tfrac W2 \sec\varphi`, with :math:`\sec\varphi \le 1 + \tfrac{\tau}{2}|\tan\varphi|`
+    for :math:`|\tan\varphi| \le \tau` (:data:`REPAIR_MAX_TAN`).  Every sample of the corridor
+    (``cr.corridor``) the body spans, and each corner against the corridor's narrowest value
+    within 0.3 m of it, gives a row; every recorded vehicle that overlaps the body along the
+    road at a step keeps the body on the side it is on in ``base``.  Inputs: the friction circle
+    less the longitudinal input of the step; the start and the final state are ``base``'s.
+    Minimises :math:`\sum u_k^2`.  Returns ``None`` when the QP is infeasible or fails.
+    """
+    import clarabel
+    from scipy import sparse
+
+    if cr.corridor is None:
+        return None
+    buffer = REPAIR_EDGE_BUFFER_M if buffer is None else buffer
+    dt, K = cr.dt, cand.steps
+    L2, W2 = cr.ego_length / 2, cr.ego_width / 2
+    t = np.arange(K + 1) * dt
+    X = np.array(base.states(t), dtype=float)
+    S, VS = X[:, 0], np.maximum(X[:, 1], 0.1)
+    mid = np.array(base.inputs(np.concatenate([t[:-1], t[:-1] + 0.5 * dt, t[1:]])), dtype=float)[:, 0]
+    us = np.max(np.abs(mid.reshape(3, K)), axis=0)
+    ud_max = np.sqrt(np.maximum(cr.a_max**2 - us**2, 0.0)) * 0.99
+    grid, lo, hi = cr.corridor
+    d0, vd0 = cr.x0[2], cr.x0[3]
+    # the lateral state is affine in the inputs u (zero-order hold on the steps)
+    kk_, jj_ = np.meshgrid(np.arange(K + 1), np.arange(K), indexing="ij")
+    Vm = np.where(jj_ < kk_, dt, 0.0)
+    Dm = np.where(jj_ < kk_, dt * dt * (kk_ - jj_ - 0.5), 0.0)
+    d_free = d0 + t * vd0
+    # W/2 sec φ <= W/2 + sec |tan φ| (the chord of the convex sqrt(1 + x²) over |x| <= REPAIR_MAX_TAN)
+    sec = W2 * (math.sqrt(1.0 + REPAIR_MAX_TAN**2) - 1.0) / REPAIR_MAX_TAN
+    rows: list[tuple[int, float, float, float]] = []  # (k, coefficient of tan φ, bound, +1 upper / -1 lower)
+    for k in range(1, K + 1):
+        for sign, bound in ((1.0, hi), (-1.0, lo)):
+            for corner in (-1.0, 1.0):  # rear, front corners: the narrowest value near them
+                b = _narrowest(grid, bound, S[k] + corner * L2 - REPAIR_CORNER_M, S[k] + corner * L2 + REPAIR_CORNER_M,
+                               sign > 0)
+                if np.isfinite(b):
+                    rows.append((k, corner * L2, b - sign * (W2 + buffer), sign))
+            inside = np.flatnonzero((grid > S[k] - L2 + 0.3) & (grid < S[k] + L2 - 0.3) & np.isfinite(bound))
+            for j in inside:  # the side between them, with the secant's bound
+                for pm in (-1.0, 1.0):
+                    rows.append((k, float(grid[j] - S[k]) + pm * sec * sign, float(bound[j]) - sign * (W2 + buffer),
+                                 sign))
+    # vehicles: stay on the side of each vehicle the base is on, where they overlap along the road
+    reach = L2 + sec
+    for ob in cr.obstacles:
+        idx = np.rint(ob.t / dt).astype(int)
+        for j in np.flatnonzero((idx >= 1) & (idx <= K)):
+            k = int(idx[j])
+            pad = W2 * REPAIR_MAX_TAN + BUFFER_M
+            if S[k] + L2 + pad < ob.s_lo[j] or S[k] - L2 - pad > ob.s_hi[j]:
+                continue
+            if X[k, 2] > 0.5 * (ob.d_lo[j] + ob.d_hi[j]):
+                rows += [(k, pm * reach, float(ob.d_hi[j]) + W2 + CHECK_BUFFER_M, -1.0) for pm in (-1.0, 1.0)]
+            else:
+                rows += [(k, pm * reach, float(ob.d_lo[j]) - W2 - CHECK_BUFFER_M, 1.0) for pm in (-1.0, 1.0)]
+    # rows: sign * (d_k + a tan φ_k) <= sign * c, tan φ_k = vd_k / VS_k; drop those far from binding
+    if rows:
+        R = np.array(rows)
+        k_ = R[:, 0].astype(int)
+        a_, c_, sg = R[:, 1], R[:, 2], R[:, 3]
+        slack = sg * (c_ - (X[k_, 2] + a_ * X[k_, 3] / VS[k_]))
+        keep = slack < 0.5 + L2 * REPAIR_MAX_TAN
+        k_, a_, c_, sg = k_[keep], a_[keep], c_[keep], sg[keep]
+        coef = (a_ / VS[k_])[:, None]
+        A_edge = sg[:, None] * (Dm[k_] + coef * Vm[k_])
+        b_edge = sg * (c_ - d_free[k_] - (a_ / VS[k_]) * vd0)
+    else:
+        A_edge, b_edge = np.zeros((0, K)), np.zeros(0)
+    eye = np.eye(K)
+    A_in = np.vstack([eye, -eye, Vm[1:], -Vm[1:], A_edge])
+    b_in = np.concatenate([ud_max, ud_max, REPAIR_MAX_TAN * VS[1:] - vd0, REPAIR_MAX_TAN * VS[1:] + vd0, b_edge])
+    A_eq = np.vstack([Dm[K], Vm[K]])
+    b_eq = np.array([cand.d - d_free[K], cand.vd - vd0])
+    A = sparse.csc_matrix(np.vstack([A_eq, A_in]))
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    solver = clarabel.DefaultSolver(sparse.csc_matrix(eye), np.zeros(K), A, np.concatenate([b_eq, b_in]),
+                                    [clarabel.ZeroConeT(2), clarabel.NonnegativeConeT(b_in.size)], settings)
+    sol = solver.solve()
+    if str(sol.status) not in ("Solved", "AlmostSolved"):
+        return None
+    u = np.asarray(sol.x, dtype=float)
+    if not np.all(A_in @ u <= b_in + 1e-6):
+        return None
+    return LateralRepair(base, dt, d0, vd0, u)
