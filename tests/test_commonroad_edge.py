@@ -18,8 +18,8 @@ needs_data = needs_commonroad_data("commonroad", "US101")
 
 
 @settings(max_examples=60, deadline=None)
-@given(pts=st.lists(st.tuples(st.integers(-5000, 5000), st.integers(-5000, 5000)).map(lambda p: (p[0] / 100, p[1] / 100)),
-                    min_size=2, max_size=8),
+@given(pts=st.lists(st.tuples(st.integers(-5000, 5000), st.integers(-5000, 5000))
+                    .map(lambda p: (p[0] / 100, p[1] / 100)), min_size=2, max_size=8),
        spacing=st.floats(0.05, 5.0))
 def test_densify_keeps_vertices_and_spacing(pts: list[tuple[float, float]], spacing: float) -> None:
     """Every vertex is kept in order, consecutive points are at most ``spacing`` apart and every
