@@ -62,7 +62,7 @@ from iamp.simulation.decision import (
 from iamp.simulation.failsafe import Obstacle, body_half_extents, feasible_brakes, verify_trajectory
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
-from iamp.simulation.planning import FreeTrajectory, PlanFn, Screen, free_plan, make_planner
+from iamp.simulation.planning import FreeTrajectory, PlanFn, free_plan, make_planner
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
@@ -92,7 +92,6 @@ class ControllerConfig:
     ego_in_forecast: bool = False  # the target-lane follower reacts to the plan (decision.decide's react)
     ego_iter: int = 3              # at most this many re-plans per gap
     ego_tol_m: float = 1.0         # the follower's cubic moved less than this: converged
-    screen: bool = True            # the compiled PMP screens out plans rejected on the limits (planning.screened)
     idm: IDM = field(default_factory=IDM)
     mobil: MOBIL = field(default_factory=MOBIL)
     #: SPEC §17: iamp drives the ego while it seeks (:mod:`iamp.simulation.tactical`), every plan
@@ -162,11 +161,7 @@ class Controller:
         self.cfg = config or ControllerConfig()
         self.mission = mission or mission_of("discretionary")
         self.iamp = planner not in ("sumo", "mobil")
-        dcfg = self.cfg.decision
-        # not with the ego in the forecast: there a rejected plan's trajectory feeds the
-        # follower's next prediction, so a screened plan (equal only to ~1e-9) would change numbers
-        screen = Screen(dcfg.limits, dcfg.check_dt) if self.cfg.screen and not self.cfg.ego_in_forecast else None
-        self.plan_fn: PlanFn | None = make_planner(planner, screen) if self.iamp else None
+        self.plan_fn: PlanFn | None = make_planner(planner) if self.iamp else None
         self.predictor = predictor or Predictor.default()
         self.n = Counters()
         self.mode = "seek"

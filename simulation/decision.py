@@ -251,30 +251,6 @@ def limit_violations(trajectory: Any, tf: float, limits: PhysicalLimits, dt: flo
     return limit_violations_of(U[:, 0], U[:, 1], X[:, 1], limits, tol)
 
 
-def clearly_beyond_limits(trajectory: Any, tf: float, limits: PhysicalLimits, dt: float, margin: float,
-                          jumps: Sequence[float] = (), away_s: float = 1e-6) -> list[str]:
-    r"""The bounds a trajectory breaks by more than ``margin`` at a sample of :func:`limit_violations`
-    farther than ``away_s`` from every time in ``jumps`` (where the input may jump).
-
-    Used to screen a plan (:func:`iamp.simulation.planning.screened`): if a second trajectory
-    differs from this one by less than ``margin - tol`` in ``a_x, a_y, v_x`` at every such
-    sample (``tol`` = :func:`limit_violations`'s ``1e-6``; near a jump the input is not
-    compared, hence the ``jumps``), it breaks the same bound at the same sample, so
-    :func:`limit_violations` of the second trajectory is not empty: ``|a_2 - a_1| < margin -
-    tol`` and ``a_1 > hi + margin`` give ``a_2 > hi + tol``; for ``a_total`` the triangle
-    inequality ``|‖a_2‖ - ‖a_1‖| ≤ ‖a_2 - a_1‖ ≤ √2 max|Δa|`` needs ``√2 max|Δa| < margin - tol``.
-    """
-    t = check_times(tf, dt)
-    if len(jumps):
-        keep = np.min(np.abs(t[:, None] - np.asarray(jumps, dtype=float)[None, :]), axis=1) > away_s
-        t = t[keep]
-    if t.size == 0:
-        return []
-    X = np.asarray(trajectory.states(t))
-    U = np.asarray(trajectory.inputs(t))
-    return limit_violations_of(U[:, 0], U[:, 1], X[:, 1], limits, margin)
-
-
 def limit_violations_of(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: PhysicalLimits,
                         tol: float = 1e-6) -> list[str]:
     """Which of ``ax``, ``ay``, ``a_total``, ``vx`` the samples break."""

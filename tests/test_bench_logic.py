@@ -24,6 +24,28 @@ FAKE_LEADER = {"median": 0.75e-3, "stats": _stats(0.75e-3).to_dict(), "vehicles"
 FAKE_EGO = {"median": 0.23e-3, "stats": _stats(0.23e-3).to_dict()}
 
 
+def limits_row(family, cpu, wall, status, cost=1.0, solver=None):
+    return {"family": family, "problem": "p", "planner": "qp-avoid" if solver else "pmp", "solver": solver,
+            "cpu_s": cpu, "wall_s": wall, "repeats": 3, "status": status, "cost": cost, "n_solves": None,
+            "deterministic": True}
+
+
+def fake_limits():
+    """A ``planning_with_limits`` object with known times, built by the module's own verdicts."""
+    from iamp.comparison.bench import limits
+
+    rows = {"bounded_pmp_one_vehicle_certified": limits_row("bounded_pmp_one_vehicle_certified", 1.5e-3, 4e-3,
+                                                            "optimal"),
+            "bounded_pmp_three_vehicles": limits_row("bounded_pmp_three_vehicles", 30e-3, 60e-3, "infeasible"),
+            "avoid_limits_one_vehicle_osqp": limits_row("avoid_limits_one_vehicle", 4e-3, 4.5e-3, "local",
+                                                        solver="osqp"),
+            "avoid_limits_one_vehicle_clarabel": limits_row("avoid_limits_one_vehicle", 4e-3, 4.5e-3, "optimal",
+                                                            solver="clarabel")}
+    refs = {"pmp_plan": {"cpu_s": 20e-6, "wall_s": 40e-6}, "kkt_solve": {"cpu_s": 100e-6, "wall_s": 100e-6}}
+    return {"steps": 50, "rows": rows, "targets": {k: limits.target_of(r) for k, r in rows.items()},
+            "same_optimum": {}, "references": refs, "ratios": limits.ratios(rows, refs)}
+
+
 @pytest.fixture
 def fake(monkeypatch):
     per = {"osqp": 4e-4, "clarabel": 3e-4, "piqp": 2e-4, "kkt": 1e-4}
@@ -67,6 +89,7 @@ def fake(monkeypatch):
         "iterations_cold": 20, "iterations_warm": 5, "return_status": "Solve_Succeeded", "steps": 100,
         "variables": 605})
     monkeypatch.setattr(bench, "osqp_tuning", lambda problem: [])
+    monkeypatch.setattr(bench, "_limits", lambda quick, notes: fake_limits())
     # the prediction rows too: a real timing against issue 23's 2 ms target made this test depend on
     # the machine's load (it failed once on a loaded host)
     import iamp.comparison.bench.prediction as bench_prediction
@@ -101,7 +124,15 @@ def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     assert t["qp_native_solve_best_iterative_s"]["met"] and out["best_iterative_backend"] == "piqp"
     assert t["qp_native_solve_osqp_s"]["met"]  # 0.4 ms <= 0.5 ms
     assert t["qp_grid_sweep_native_best_s"]["met"] and out["best_native_sweep"] == "kkt"  # 18 ms <= 20 ms
-    assert out["missed"] == ["pmp_plan_two_vehicles_s", "avoid_bounded_plan_fastest_s"]  # 3 ms > 2 ms
+    assert out["missed"] == ["pmp_plan_two_vehicles_s", "avoid_bounded_plan_fastest_s",  # 3 ms > 2 ms
+                             "bounded_pmp_one_vehicle_certified_wall_s",  # 4 ms > 2 ms
+                             "bounded_pmp_three_vehicles_cpu_s", "bounded_pmp_three_vehicles_wall_s",  # > 20 ms
+                             "avoid_limits_one_vehicle_osqp_cpu_s", "avoid_limits_one_vehicle_osqp_wall_s"]  # local
+    assert t["bounded_pmp_one_vehicle_certified_cpu_s"] == {"value": 1.5e-3, "target": 2e-3, "op": "<=", "met": True}
+    assert t["avoid_limits_one_vehicle_clarabel_wall_s"]["met"]  # 4.5 ms <= 5 ms and optimal
+    assert out["ratios"]["bounded_pmp_one_vehicle_certified_cpu_to_pmp_plan"] == pytest.approx(1.5e-3 / 20e-6)
+    assert out["ratios"]["bounded_pmp_one_vehicle_certified_wall_to_pmp_plan"] == pytest.approx(4e-3 / 40e-6)
+    assert out["ratios"]["bounded_pmp_three_vehicles_cpu_to_kkt_solve"] == pytest.approx(30e-3 / 100e-6)
     assert out["ratios"]["avoid_bounded_casadi_ipopt_qp_to_iamp_qp"] == 16.0
     assert sorted(out["missed"]) == sorted(k for k, v in t.items() if not v["met"])
     r = out["ratios"]
@@ -118,5 +149,6 @@ def test_targets_ratios_and_warnings_follow_the_numbers(fake):
     text = format_bench(out)
     assert "CasADi Opti + IPOPT" in text and "MISSED" in text and "two vehicles (compiled search)" in text
     assert "Bounded avoidance" in text and "avoid_bounded_plan_fastest_s" in text
+    assert "Planning with the limits imposed" in text and "bounded_pmp_three_vehicles" in text
     assert r["pmp_two_vehicles_pure_to_compiled"] == 10.0
     assert t["prediction_leader_20_s"] == {"value": 0.75e-3, "target": 2e-3, "op": "<=", "met": True}

@@ -106,6 +106,24 @@ def overtake_problem() -> Problem:
     return Problem(ego, (v,), "overtake", limits=PASSENGER_CAR)
 
 
+def overtake_three_problem() -> Problem:
+    """:func:`overtake_problem` with two more vehicles in the ego's current lane: a slow one ahead
+    (which binds) and a fast one behind; the passenger car's limits (issue 32's three-vehicle
+    avoidance case, as ``scripts/avoid_speed.py`` times it).
+
+    Returns
+    -------
+    Problem
+        Three vehicles, ``limits`` = :data:`~iamp.core.physical.PASSENGER_CAR`.
+    """
+    one = overtake_problem()
+    v2 = SurroundingVehicle(x_poly=(30.0, 10.0), corner="rear-upper", y=-2.0, length=4.8, width=1.8, safety_x=5.0,
+                            safety_y=0.5, name="sv2")
+    v3 = SurroundingVehicle(x_poly=(-20.0, 26.0), corner="front-upper", y=-2.0, length=4.8, width=1.8,
+                            safety_x=5.0, safety_y=0.5, name="sv3")
+    return Problem(one.ego, (one.vehicles[0], v2, v3), "overtake-three", limits=PASSENGER_CAR)
+
+
 def _spec_of(plan: Plan) -> tuple[tuple[int, int, float, float], ...]:
     from iamp.planners.avoid.check import AXIS_NAMES
 

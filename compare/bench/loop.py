@@ -1,13 +1,15 @@
-"""``iamp bench``'s closed-loop numbers (issue 20 item 5): whole SUMO episodes, one process.
+"""``iamp bench``'s closed-loop numbers (issue 32 item 5): whole 60 s SUMO episodes, one process.
 
-The case: the ``merge`` mission, ``medium`` traffic, seed 1, 10 s of mission clock (the ego
-seeks a gap the whole time: every 0.3 s three candidate problems, most rejected on ``a_x``).
-Timed (medians of whole :func:`~iamp.simulation.episode.run_episode` calls, after one warm-up
-that also loads numba's cached search): ``pmp`` with the PMP screen
-(:func:`iamp.simulation.planning.screened`) and without it, ``qp``, ``free``.  The ratio
-``loop_pmp_screen_to_pure`` compares the two ``pmp`` runs taken in this one process; the
-episodes' numbers (summary minus wall/plan times, step log) are compared too
-(``same_numbers``).  Needs ``iamp[sim]`` (SUMO); skipped otherwise.
+The case (:data:`CASE`): the ``merge`` mission, ``dense`` traffic, seed 1, 60 s of mission
+clock, the same episode as ``iamp simulate --mission merge --traffic dense --seed 1 --planner P
+--duration 60``.  Every iamp planner of the loop (:data:`iamp.simulation.planning.IAMP_PLANNERS`)
+plans with the passenger car's limits imposed (SPEC §14, §15).  Timed: the wall time of one whole
+:func:`~iamp.simulation.episode.run_episode` call per planner (``repeats`` of them, median; no
+warm-up: the first episode of the process pays for loading SUMO and the predictor, as a user's
+does), with the episode's own split (``wall_s``: SUMO, prediction, planning), its planner calls
+and its outcome (``success``, ``contacts``).  What the episode plans is deterministic (the same
+seed gives the same episode); only the times vary.  Issue 32's target: a 60 s episode in at
+most :data:`TARGET_EPISODE_S` of wall time for every iamp planner.  Needs ``iamp[sim]`` (SUMO).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typing import Any, TypedDict
 
 from iamp.comparison.timing import StatsJSON, measure
 
-__all__ = ["LoopBench", "LoopCase", "bench_loop"]
+__all__ = ["CASE", "TARGET_EPISODE_S", "LoopBench", "LoopCase", "LoopRow", "bench_loop"]
 
 
 class LoopCase(TypedDict):
@@ -28,57 +30,70 @@ class LoopCase(TypedDict):
     duration_s: float
 
 
+class LoopRow(TypedDict):
+    """One planner's episode: wall time statistics [s], the episode's own split of its last run
+    (``sumo``, ``prediction``, ``planning``, ``total``), planner calls and outcome."""
+
+    episode: StatsJSON
+    wall_s: dict[str, float]
+    planner_calls: int
+    success: bool
+    contacts: int
+    limit_violations: int
+
+
 class LoopBench(TypedDict):
-    """:func:`bench_loop`: each run's statistics [s], their medians, the screen's ratio, whether the two
-    ``pmp`` episodes agree and the planner calls of one episode."""
+    """:func:`bench_loop`: the case, the repeats, one row per planner and their medians."""
 
     case: LoopCase
     repeats: int
-    pmp_screen: StatsJSON
-    pmp_pure: StatsJSON
-    qp: StatsJSON
-    free: StatsJSON
+    planners: dict[str, LoopRow]
     episode_s: dict[str, float]
-    loop_pmp_screen_to_pure: float
-    same_numbers: bool
-    planner_calls: int
+    target_episode_s: float
 
 
 #: The episode timed (module docstring).
-CASE: LoopCase = {"mission": "merge", "traffic": "medium", "seed": 1, "duration_s": 10.0}
-_TIMES = ("plan_time_s", "wall_s", "max_rss_mb")
+CASE: LoopCase = {"mission": "merge", "traffic": "dense", "seed": 1, "duration_s": 60.0}
+#: Issue 32 item 5: a 60 s episode takes at most this much wall time, for every iamp planner.
+TARGET_EPISODE_S = 1.0
 
 
-def _episode(planner: str, screen: bool) -> Any:
-    from iamp.simulation.controller import ControllerConfig
+def _episode(planner: str) -> Any:
     from iamp.simulation.episode import EpisodeSpec, run_episode
 
     spec = EpisodeSpec(planner=planner, mission=str(CASE["mission"]), traffic=str(CASE["traffic"]),
                        seed=int(CASE["seed"]), duration_s=float(CASE["duration_s"]))
-    return run_episode(spec, config=ControllerConfig(screen=screen))
+    return run_episode(spec)
 
 
-def _numbers(result: Any) -> tuple[Any, ...]:
-    log = result.log
-    return ({k: v for k, v in result.summary.items() if k not in _TIMES}, log.t, log.ego, log.mode, log.ids,
-            [a.tolist() for a in log.nb])
+def bench_loop(repeats: int = 1, planners: tuple[str, ...] | None = None) -> LoopBench:
+    """Time whole 60 s episodes per iamp planner (module docstring).
 
+    Parameters
+    ----------
+    repeats : int
+        Episodes per planner (the median is reported).
+    planners : tuple of str, optional
+        The planners (default every iamp planner of the loop).
 
-def bench_loop(repeats: int = 3) -> LoopBench:
-    """Medians of whole 10 s episodes (module docstring)."""
-    stats: dict[str, StatsJSON] = {}
-    runs: dict[str, Any] = {}
-    for name, planner, screen in (("pmp_screen", "pmp", True), ("pmp_pure", "pmp", False), ("qp", "qp", True),
-                                  ("free", "free", True)):
-        def run(p: str = planner, s: bool = screen) -> Any:
-            return _episode(p, s)
+    Returns
+    -------
+    LoopBench
+        The case, one row per planner and ``episode_s`` (planner -> median wall time [s]).
+    """
+    from iamp.simulation.planning import IAMP_PLANNERS
 
-        st, last = measure(run, repeats=repeats, warmup=1)
-        stats[name] = st.to_dict()
-        runs[name] = last
-    return {"case": CASE.copy(), "repeats": repeats, "pmp_screen": stats["pmp_screen"], "pmp_pure": stats["pmp_pure"],
-            "qp": stats["qp"], "free": stats["free"],
-            "episode_s": {k: stats[k]["median"] for k in ("pmp_screen", "pmp_pure", "qp", "free")},
-            "loop_pmp_screen_to_pure": stats["pmp_screen"]["median"] / stats["pmp_pure"]["median"],
-            "same_numbers": _numbers(runs["pmp_screen"]) == _numbers(runs["pmp_pure"]),
-            "planner_calls": int(runs["pmp_pure"].summary["planner_calls"])}
+    rows: dict[str, LoopRow] = {}
+    for name in planners or IAMP_PLANNERS:
+        def run(p: str = name) -> Any:
+            return _episode(p)
+
+        st, last = measure(run, repeats=repeats, warmup=0)
+        assert last is not None  # measure calls run at least once
+        s = last.summary
+        rows[name] = {"episode": st.to_dict(), "wall_s": {k: float(v) for k, v in dict(s["wall_s"]).items()},
+                      "planner_calls": int(s["planner_calls"]), "success": bool(s["success"]),
+                      "contacts": int(s["contacts"]), "limit_violations": int(s["limit_violations"])}
+    return {"case": CASE.copy(), "repeats": repeats, "planners": rows,
+            "episode_s": {k: float(r["episode"]["median"]) for k, r in rows.items()},
+            "target_episode_s": TARGET_EPISODE_S}

@@ -35,9 +35,15 @@ What is measured (one vehicle: ``paper-1-poly``; two: ``two-vehicle``; FOH, ``N 
   (``pmp_plan_s.one_vehicle_bounded``, :mod:`iamp.planners.pmp.bounded`).
 * **Leader-aware prediction** (``prediction_leader_20_s``) — one batched prediction of 20
   neighbours with leaders (:mod:`.prediction`; issue 23's target 2 ms).
-* **Closed loop** (``loop_episode_s``, not with ``--quick``, needs SUMO) — whole 10 s ``merge``
-  episodes (:mod:`.loop`): ``pmp`` with and without the PMP screen (``loop_pmp_screen_to_pure``;
-  ``loop.same_numbers`` says whether the two episodes agree), ``qp``, ``free``.
+* **Planning with the limits imposed** (``planning_with_limits``, issue 32) —
+  :mod:`iamp.comparison.bench.limits`: the certified bounded PMP (one vehicle), the bounded PMP
+  with three vehicles, the continuous-time avoidance with limits (``N = 50``, one and three
+  vehicles, OSQP, Clarabel, PIQP), CPU and wall medians, their targets (``targets``, with
+  ``_cpu`` and ``_wall`` verdicts) and their ratios to the unbounded one-vehicle PMP plan and to
+  one KKT solve of the same run (``ratios``).
+* **Closed loop** (``loop_episode_s``, not with ``--quick``, needs SUMO) — one whole 60 s
+  ``merge`` episode in dense traffic per iamp planner, planned with the car's limits
+  (:mod:`.loop`; target ``loop_episode_<planner>_s`` <= 1 s).
 * **OSQP tuning** (not with ``--quick``) — what each OSQP setting buys on the equality QP:
   verified candidates, polish successes, iterations, recomputed KKT residuals, time.
 """
@@ -65,6 +71,7 @@ from iamp.planners.registry import Planner
 
 from .avoid import AvoidBounded
 from .casadi import CasadiFreeTime
+from .limits import LimitsBench
 from .loop import LoopBench
 from .prediction import LeaderPredictionBench, PredictionBench
 
@@ -159,9 +166,10 @@ class TuningRow(TypedDict):
 
 
 class Target(TypedDict):
-    """A target of :data:`TARGETS`: the measured value against it."""
+    """A target of :data:`TARGETS` (and of the planning-with-limits and loop cases): the measured
+    value against it (``None`` when the case has no time)."""
 
-    value: float
+    value: float | None
     target: float
     op: str
     met: bool
@@ -201,6 +209,7 @@ class BenchJSON(TypedDict):
     prediction_ego_follower_s: float
     loop_episode_s: dict[str, float] | None
     loop: LoopBench | None
+    planning_with_limits: LimitsBench | None
     avoid_bounded: AvoidBounded | NoAvoidBounded
     ratios: dict[str, float | None]
     versions: VersionsJSON
@@ -396,10 +405,18 @@ def _loop(quick: bool, notes: list[str]) -> LoopBench | None:
         return None
     from iamp.comparison.bench.loop import bench_loop
 
-    out = bench_loop(3)
-    if not out["same_numbers"]:
-        notes.append("closed loop: the pmp episode with the screen differs from the one without it")
-    return out
+    return bench_loop(1)
+
+
+def _limits(quick: bool, notes: list[str]) -> LimitsBench | None:
+    """:func:`iamp.comparison.bench.limits.bench_limits` (``None`` and a note if it fails)."""
+    from .limits import bench_limits
+
+    try:
+        return bench_limits(3 if quick else 7, 1.0 if quick else 3.0)
+    except Exception as exc:  # never fail the bench
+        notes.append(f"planning with limits failed: {type(exc).__name__}: {exc}")
+        return None
 
 
 def _busy(stats: dict[str, TimingStats]) -> list[str]:
@@ -450,6 +467,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     tick(4)
     avoid = _avoid(one, reps, notes)
     avoid_bounded = _avoid_bounded(quick, notes)
+    with_limits = _limits(quick, notes)
     tick(5)
     casadi = _casadi(one, quick, notes)
     from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
@@ -491,8 +509,9 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
     if casadi_bounded is not None:
         ratios["casadi_ipopt_bounded_warm_to_pmp_bounded_plan"] = casadi_bounded["warm_s"] / pmp_bounded
         ratios["casadi_ipopt_bounded_cold_to_pmp_bounded_plan"] = casadi_bounded["cold_s"] / pmp_bounded
-    if loop is not None:
-        ratios["loop_pmp_screen_to_pure"] = loop["loop_pmp_screen_to_pure"]
+    for case, rs in (with_limits["ratios"] if with_limits is not None else {}).items():
+        for k, r in rs.items():
+            ratios[f"{case}_{k}"] = r
     avoid_osqp = avoid.get("osqp") if avoid is not None else None
     if avoid_osqp is not None and (avoid_osqp_s := avoid_osqp["median"]):
         ratios["avoid_osqp_sweep_to_equality_osqp_sweep"] = avoid_osqp_s / native["osqp"].median
@@ -513,6 +532,13 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         v = float(fastest)
         t = float(avoid_bounded["target_plan_s"])
         targets["avoid_bounded_plan_fastest_s"] = {"value": v, "target": t, "op": "<=", "met": bool(v <= t)}
+    for case, tg in (with_limits["targets"] if with_limits is not None else {}).items():
+        for clock, val, met in (("cpu", tg["cpu_s"], tg["met_cpu"]), ("wall", tg["wall_s"], tg["met_wall"])):
+            targets[f"{case}_{clock}_s"] = {"value": val, "target": tg["target_s"], "op": "<=", "met": met}
+    if loop is not None:
+        for name, ep in loop["episode_s"].items():
+            targets[f"loop_episode_{name}_s"] = {"value": float(ep), "target": loop["target_episode_s"], "op": "<=",
+                                                 "met": bool(ep <= loop["target_episode_s"])}
     ab_ratios = avoid_bounded.get("ratios") if avoid_bounded is not None else None
     for k, r in (ab_ratios or {}).items():
         ratios[f"avoid_bounded_{k}"] = r
@@ -535,6 +561,7 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "prediction_ego_follower_s": ego_pred["median"],
         "loop_episode_s": None if loop is None else loop["episode_s"],
         "loop": loop,
+        "planning_with_limits": with_limits,
         "avoid_bounded": avoid_bounded if avoid_bounded is not None else NoAvoidBounded(),
         "ratios": ratios,
         "versions": ver,

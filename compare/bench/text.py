@@ -81,18 +81,28 @@ def format_bench(out: BenchJSON) -> str:
                   f"({casb['iterations_warm']} it)",
                   f"    t1 = {casb['contact_time']:.6f} s, J = {casb['cost']:.6f} (discretised; bounded PMP plan "
                   f"{_fmt_s(out['pmp_plan_s'].get('one_vehicle_bounded')).strip()})"]
+    wl = out.get("planning_with_limits")
+    if wl:
+        lines += ["", "  Planning with the limits imposed (issue 32; medians, CPU and wall):",
+                  f"    {'case':42s} {'CPU':>10s} {'wall':>10s}  {'target':>8s}  status"]
+        for k, case in wl["rows"].items():
+            tg = wl["targets"][k]
+            verdict = "met" if tg["met_cpu"] else "MISSED"
+            lines.append(f"    {k:42s} {_fmt_s(case['cpu_s'])} {_fmt_s(case['wall_s'])}  "
+                         f"{_fmt_target(tg['target_s']):>8s}  {case['status'] or case.get('error', 'n/a')} "
+                         f"({verdict} on CPU)")
     loop = out.get("loop")
     if loop:
-        case = loop["case"]
-        lines += ["", f"  Closed loop, whole {case['duration_s']:g} s {case['mission']} episodes ({case['traffic']}, "
-                  f"seed {case['seed']}):"]
-        for k, v in loop["episode_s"].items():
-            lines.append(f"    {k:18s} {_fmt_s(v)}")
-        lines.append(f"    pmp screened / pure: {loop['loop_pmp_screen_to_pure']:.3f}; same numbers: "
-                     f"{'yes' if loop['same_numbers'] else 'NO'}")
+        ep = loop["case"]
+        lines += ["", f"  Closed loop, whole {ep['duration_s']:g} s {ep['mission']} episodes ({ep['traffic']}, "
+                  f"seed {ep['seed']}, with the car's limits):"]
+        for k, row in loop["planners"].items():
+            lines.append(f"    {k:18s} {_fmt_s(row['episode']['median'])}   planning "
+                         f"{_fmt_s(row['wall_s'].get('planning')).strip()}, {row['planner_calls']} planner calls, "
+                         f"{'success' if row['success'] else 'no success'}, {row['contacts']} contacts")
     lines += ["", "targets:"]
     for k, t in out["targets"].items():
-        val = f"{t['value']:8.0f} /s" if k.endswith("per_s") else _fmt_s(t["value"])
+        val = f"{t['value']:8.0f} /s" if k.endswith("per_s") and t["value"] is not None else _fmt_s(t["value"])
         tgt = f"{t['target']:.0f} /s" if k.endswith("per_s") else _fmt_target(t["target"])
         lines.append(f"  {k:38s} {val}   {t['op']} {tgt:8s} {'met' if t['met'] else 'MISSED'}")
     lines += ["", "ratios (same run):"]
