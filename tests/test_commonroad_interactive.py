@@ -154,3 +154,196 @@ def test_predicted_box_spreads_along_the_road_with_time() -> None:
     assert length[0] == pytest.approx(5.0)
     assert np.allclose(length, 5.0 + 2 * np.minimum(SPREAD_MPS * t, SPREAD_MAX_M))
     assert ob.half_length >= 2.5 + float(np.minimum(SPREAD_MPS * t[-1], SPREAD_MAX_M))  # the planner's box too
+
+
+# --- the choice when no safe plan is found (road edges, RSS followers, RSS leaders) -------------
+
+
+def _moving(oid: int, s: float, d: float, v: float, horizon: float = 12.0) -> Any:
+    """A vehicle (5 m x 1.8 m) at ``(s, d)`` now driving on at ``v`` along the road over ``horizon``."""
+    from iamp.commonroad.convert import Obstacle
+
+    t = np.arange(0.0, horizon + 1e-9, 0.1)
+    n = t.size
+    c = s + v * t
+    return Obstacle(oid, t, c - 2.5, c + 2.5, np.full(n, d - 0.9), np.full(n, d + 0.9), 5.0, 1.8,
+                    (s, v, 0.0, 0.0), 2.5, 0.0, 0, False)
+
+
+def _edge() -> Any:
+    """A static road-edge box (negative id)."""
+    from iamp.commonroad.convert import Obstacle
+
+    t = np.arange(0.0, 5.0, 0.1)
+    n = t.size
+    return Obstacle(-3, t, np.full(n, 40.0), np.full(n, 44.0), np.full(n, 2.0), np.full(n, 5.0), 4.0, 3.0,
+                    (42.0, 0.0, 0.0, 0.0), 2.0, 0.0, 0, False)
+
+
+@needs_extra
+def test_choose_takes_a_plan_grazing_a_road_edge_rather_than_braking_deeper_into_it() -> None:
+    """USA_US101-5_1: the plan to the goal entered a road-edge box by 3 cm, the fail-safe braking
+    in the lane ran 1.4 m into the narrowing edge and stood there until the window had passed.
+    A road edge does not move: among the options clear of every vehicle the least edge depth
+    wins; a vehicle intrusion excludes an option; with none clear the fail-safe (last) is taken."""
+    from iamp.commonroad.interactive import choose
+    from iamp.commonroad.planning import Intrusion
+
+    edge, car = _edge(), _moving(5, 100.0, 0.0, 10.0)
+    plan_ = ("new plan", None, 5.0, [Intrusion(edge, 0.03, 1.0)])
+    kept = ("kept", None, 3.0, [Intrusion(edge, 0.5, 1.0)])
+    brake = ("fail-safe", None, 3.0, [Intrusion(edge, 1.4, 2.0)])
+    assert choose([plan_, kept, brake]) == 0
+    hit = ("new plan", None, 5.0, [Intrusion(edge, 0.0, 1.0), Intrusion(car, 0.2, 2.0)])
+    assert choose([hit, kept, brake]) == 1
+    assert choose([hit, ("fail-safe", None, 3.0, [Intrusion(car, 0.1, 1.0)])]) == 1
+    # equal edge depths (to 1 cm): the first, the plan toward the goal
+    assert choose([("new plan", None, 5.0, [Intrusion(edge, 0.104, 1.0)]), ("fail-safe", None, 3.0,
+                                                                           [Intrusion(edge, 0.1, 1.0)])]) == 0
+
+
+@needs_extra
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(v0=st.floats(0.0, 35.0), v_r=st.floats(0.0, 40.0), gap=st.floats(0.5, 150.0))
+def test_a_follower_is_responsible_exactly_when_it_keeps_rss_distance(v0: float, v_r: float, gap: float) -> None:
+    """Property: a vehicle behind the ego in its lane is counted as an RSS follower exactly when
+    the gap between the bodies is at least RSS's safe longitudinal distance with it as the rear
+    car (response 1 s, accel 3.5, brake_min 4, brake_max 8 m/s^2); one beside the ego's lane never."""
+    from iamp.commonroad.interactive import rss_followers
+    from iamp.simulation.rss import DEFAULT
+
+    live = _live(v0, None)
+    s0, _, d0, _ = live.x0
+    behind = _moving(5, s0 - 2.254 - gap - 2.5, d0, v_r)
+    aside = _moving(6, s0 - 2.254 - gap - 2.5, d0 + 3.6, v_r)
+    live = dataclasses.replace(live, obstacles=[behind, aside])
+    rho = DEFAULT.response_time_s
+    v_rho = v_r + rho * DEFAULT.accel_max
+    need = max(0.0, v_r * rho + 0.5 * DEFAULT.accel_max * rho**2 + v_rho**2 / (2 * DEFAULT.brake_min)
+               - v0**2 / (2 * DEFAULT.brake_max))
+    got = rss_followers(live)
+    assert 6 not in got
+    if abs(gap - need) > 1e-6:
+        assert (5 in got) == (gap > need)
+
+
+@needs_extra
+def test_a_plan_braking_ahead_of_an_rss_follower_is_harmless_up_to_brake_max() -> None:
+    """A follower 40 m behind (15 m/s against the ego's 10 m/s; RSS distance 15 + 1.75 + 18.5^2/8
+    - 10^2/16 = 36.5 m) is predicted to run into a plan that stops ahead of it within 4 s; the
+    plan is executable while it brakes
+    at most RSS's brake_max (8 m/s^2) -- the rear car keeps its distance -- not when it brakes harder,
+    and not when the follower is closer than RSS's distance (then the ego is to blame)."""
+    from iamp.commonroad.interactive import Braking, harmless, rss_followers
+    from iamp.commonroad.planning import intrusions
+
+    live = _live(10.0, None)
+    s0, _, d0, _ = live.x0
+    for gap, follows in ((40.0, True), (30.0, False)):
+        car = _moving(5, s0 - 2.254 - gap - 2.5, d0, 15.0)
+        here = dataclasses.replace(live, obstacles=[car])
+        assert (5 in rss_followers(here)) == follows
+        for decel, ok in ((3.0, follows), (9.0, False)):
+            plan_ = Braking((s0, 10.0, d0, 0.0), decel, 0.0, 1.0)
+            hits = intrusions(here, plan_, 4.0)
+            assert [h.obstacle.obstacle_id for h in hits] == [5]  # the prediction runs into the ego
+            assert harmless(("new plan", plan_, 4.0, hits), rss_followers(here)) == ok
+
+
+@needs_extra
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(v0=st.floats(5.0, 35.0), v_f=st.floats(0.0, 30.0), gap=st.floats(3.0, 120.0))
+def test_failsafe_stops_behind_a_leader_that_brakes_within_rss(v0: float, v_f: float, gap: float) -> None:
+    """Property (USA_US101-27_4: the leader braked at 4-5 m/s^2 while predicted to slow gently,
+    and the gentlest braking clear of its prediction ran into it): the fail-safe's deceleration b
+    is the gentlest of FAILSAFE_DECEL and 0.9 a_max whose stop keeps RSS's distance to the vehicle
+    ahead, ``gap >= v0^2/(2b) - v_f^2/(2 * 8)``, unless only the hardest braking is left."""
+    from iamp.commonroad.interactive import FAILSAFE_DECEL, failsafe, rss_stops_behind
+
+    live = _live(v0, None)
+    s0, _, d0, _ = live.x0
+    lead = _moving(5, s0 + 2.254 + gap + 2.5, d0, v_f)
+    live = dataclasses.replace(live, obstacles=[lead])
+    traj, _ = failsafe(live, live.a_max)
+    b = float(traj.decel)
+    decels = [*FAILSAFE_DECEL, 0.9 * live.a_max]
+    ok = [x for x in decels if gap >= v0**2 / (2 * x) - v_f**2 / 16.0 + 1e-9]
+    assert all(rss_stops_behind(live, x) for x in ok)
+    if ok:
+        assert b >= ok[0] - 1e-9
+    else:
+        assert b == pytest.approx(0.9 * live.a_max)
+
+
+def _goal_log(rows: list[list[float]]) -> Any:
+    """A step log over the fixture's second goal state's window (steps 60-70) with ``rows`` as the
+    neighbours (``s, d, v, a, lane, length, width, heading``) at every step."""
+    from iamp.simulation.metrics import StepLog
+
+    log = StepLog()
+    for k in range(60, 71):
+        log.t.append(k * 0.1)
+        log.ego.append((100.0, 13.0, 7.2, 0.0, 0.0, 0.0))
+        log.ids.append(tuple(str(i) for i in range(len(rows))))
+        log.nb.append(np.asarray(rows, dtype=float).reshape(-1, 8))
+    return log
+
+
+@needs_extra
+def test_goal_occupancy_says_when_the_goal_has_no_room() -> None:
+    """The fixture's goal state 1 (s 114-118, d 6.2-8.2, speed 12-18 m/s, steps 60-70): with no
+    vehicle every step is free; a vehicle covering the goal shape leaves no step free (the goal
+    needs a contact); a standing vehicle 6.0 m beyond the ego's front at the goal's rear end leaves
+    room for the body but not RSS's stop from 12 m/s at 0.9 a_max (6.96 m)."""
+    from iamp.commonroad.interactive import goal_occupancy
+
+    cr = _fixture()
+    cr = dataclasses.replace(cr, goal=dataclasses.replace(cr.goal, elements=[cr.goal.elements[1]]))
+    free = goal_occupancy(cr, _goal_log([]))
+    assert free["window_steps_logged"] == 11 and free["free_steps"] == 11 and free["rss_free_steps"] == 11
+    assert free["first_free_s"] == pytest.approx(6.0) and free["last_free_s"] == pytest.approx(7.0)
+    covered = goal_occupancy(cr, _goal_log([[116.0, 7.2, 10.0, 0.0, 2, 40.0, 5.0, 0.0]]))
+    assert covered["free_steps"] == 0 and covered["rss_free_steps"] == 0 and covered["first_free_s"] is None
+    front = 114.0 + 2.254 + 6.0 + 2.5
+    close = goal_occupancy(cr, _goal_log([[front, 7.2, 0.0, 0.0, 2, 5.0, 1.8, 0.0]]))
+    assert close["free_steps"] == 11 and close["rss_free_steps"] == 0
+    far = goal_occupancy(cr, _goal_log([[front + 1.0, 7.2, 0.0, 0.0, 2, 5.0, 1.8, 0.0]]))
+    assert far["rss_free_steps"] == 11
+
+
+@pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not (INTERACTIVE / "USA_US101-5_1_I-1-1").is_dir(),
+                    reason="needs the [commonroad] and [sim] extras and the shared interactive scenarios "
+                           f"({INTERACTIVE})")
+def test_goal_reached_where_braking_in_the_lane_missed_it() -> None:
+    """USA_US101-5_1 (goal: 0-3.1 m/s at s 89-91 m, 9-10 s): the plan grazed a narrowing road
+    edge by 3 cm, the fail-safe braked to a stop 1.4 m deep in that edge box, and a follower
+    (vehicle 554) predicted to run into the ego's slowing plans kept it standing: goal missed.
+    Now the grazing plan is executed, a follower that keeps RSS's distance does not stop the ego,
+    and the ego reaches the goal inside its window without a contact, within its limits and at
+    most 5 cm inside a road-edge box (about 8 s)."""
+    from iamp.commonroad.interactive import simulate
+
+    r = simulate(INTERACTIVE / "USA_US101-5_1_I-1-1")
+    assert r["goal_reached"] and r["status"] == "goal reached"
+    lo, hi = r["goal_window_s"]
+    assert lo - 1e-9 <= r["time_to_goal_s"] <= hi + 1e-9
+    assert r["collisions"] == 0 and r["contacts_at_fault"] == 0 and r["contacts_not_at_fault"] == 0
+    assert r["limit_violations"] == 0 and r["road_edge_depth_m"] <= 0.05
+    assert any(d["action"] == "new plan" for d in r["decisions"])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not (INTERACTIVE / "USA_US101-27_4_I-1-1").is_dir(),
+                    reason="needs the [commonroad] and [sim] extras and the shared interactive scenarios "
+                           f"({INTERACTIVE})")
+def test_a_goal_occupied_by_traffic_is_missed_without_contact() -> None:
+    """USA_US101-27_4: SUMO's traffic stands in the goal region (at least 20 m/s at s 177-181 m,
+    7-8 s) for the whole window, so no plan reaches it without a contact; the ego brakes behind
+    the leader that slows from 12 to 2 m/s and touches nothing (before the RSS stop test it ran into it
+    at 8.0 s)."""
+    from iamp.commonroad.interactive import simulate
+
+    r = simulate(INTERACTIVE / "USA_US101-27_4_I-1-1")
+    assert not r["goal_reached"]
+    assert r["goal_occupancy"]["window_steps_logged"] == 11 and r["goal_occupancy"]["free_steps"] == 0
+    assert r["collisions"] == 0 and r["contacts_at_fault"] == 0

@@ -13,18 +13,31 @@ the ego:
    speed while fewer than ``min_history_s`` have been observed), keeps its lateral box (lane
    kept), and plans to the goal with the road planner of :mod:`iamp.commonroad.planning`
    over the goal's remaining time window (:func:`~iamp.commonroad.convert.final_candidates`).
-   A replan that finds no safe plan within the limits keeps the previous plan (a fallback)
-   while its remainder stays clear of the current predictions; otherwise the ego brakes in its
-   lane (:func:`failsafe`).
+   A replan that finds no safe plan within the limits chooses (:func:`choose`) among the new
+   plan, the previous plan's remainder (a fallback) and the fail-safe braking in the lane
+   (:func:`failsafe`): the first that keeps clear of every predicted vehicle -- a follower that
+   keeps RSS's distance behind the ego is not counted while the option brakes at most RSS's
+   ``brake_max`` (:func:`rss_followers`: the rear car is responsible) -- and, among those, the
+   one that enters the static road-edge boxes least; the fail-safe itself must also, continued
+   to a stop, keep RSS's distance to the vehicle ahead (:func:`rss_stops_behind`).  After a
+   fail-safe brake the ego replans at the next step (not after ``replan_s``), toward the goal's
+   whole remaining window; when no final state of the window can be reached any more it keeps
+   braking safely until the window ends.  The predictions always reach at least
+   :data:`FAILSAFE_HORIZON_S` ahead.  Every choice is counted in time order (``decisions``).
 3. The episode ends when CommonRoad's goal test (with the point-mass orientation corrected,
    :mod:`iamp.commonroad.check`) passes for the executed state, or when the goal's time window
-   has passed.
+   has passed.  :func:`goal_occupancy` then says, from the observed traffic, at which steps of
+   the window the goal region had room for the ego's body (and RSS's stopping distance): a goal
+   with none could not have been reached without a contact.
 
 Metrics (SPEC §15, measured on what was executed, :func:`iamp.simulation.metrics.episode_metrics`
 in the road frame): ``goal_reached`` and ``time_to_goal_s``, collisions (body overlap or SUMO's
 report with ``collision.mingap-factor`` 0), ``min_ttc_s``, ``min_gap_m``, the follower's
 braking, the ego's peak acceleration, ``limit_violations`` (executed steps above the vehicle's
-``a_max``), ``infeasible_plans``, ``fallbacks`` and the planner's time per call.
+``a_max``), ``infeasible_plans``, ``fallbacks``, ``failsafe_brakes``, ``edge_grazing_plans`` (new
+plans executed though they graze a road-edge box), ``out_of_reach_replans``, ``decisions``,
+``road_edge_depth_m`` (the deepest the executed body entered a road-edge box), ``goal_occupancy``
+and the planner's time per call (the only wall-clock number: no decision depends on it).
 
 **How SUMO's traffic differs from the recording** (reported as ``sumo_vs_recording``): SUMO
 starts each recorded vehicle with its recorded lane, position and speed, then drives it with
@@ -59,7 +72,7 @@ from iamp.commonroad.convert import (
     final_candidates,
     load,
 )
-from iamp.commonroad.planning import DEFAULT_PLANNER, intrusions, plan
+from iamp.commonroad.planning import DEFAULT_PLANNER, Intrusion, body_overlap, intrusions, plan
 from iamp.core.errors import MissingDependencyError, ScenarioError
 from iamp.core.plan import Trajectory
 from iamp.prediction.predictor import Predictor
@@ -187,12 +200,141 @@ class Braking:
                          np.where(tt < self.t_lat, -self.x0[3] / self.t_lat, 0.0)], axis=1)
 
 
-def failsafe(cr: CommonRoadProblem, a_max: float) -> tuple[Braking, float]:
+def vehicle_hits(hits: list[Intrusion]) -> list[Intrusion]:
+    """The intrusions into vehicles (the road-edge boxes left out)."""
+    return [h for h in hits if not h.obstacle.road_edge]
+
+
+def edge_depth(hits: list[Intrusion]) -> float:
+    """The deepest intrusion into a road-edge box [m] (0 when none)."""
+    return max((h.depth_m for h in hits if h.obstacle.road_edge), default=0.0)
+
+
+def rss_followers(cr: CommonRoadProblem) -> set[int]:
+    """The vehicles behind the ego in its path that keep RSS's safe distance to it now.
+
+    A vehicle is in the path when its box now overlaps the ego's body across the road grown by
+    RSS's lateral margin ``μ``, and behind when its front is behind the ego's rear.  It keeps RSS's
+    distance when the gap is at least :func:`iamp.simulation.rss.safe_longitudinal_distance` with
+    it as the rear car (its speed the predicted cubic's slope now).  Such a follower is responsible
+    for what follows while the ego, ahead of it, brakes at most RSS's ``brake_max`` (RSS's rule
+    of the rear car), so its predicted box running into the ego's rear is no reason to brake.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The live problem (``x0`` now, ``obstacles`` the predicted vehicles).
+
+    Returns
+    -------
+    set of int
+        Their obstacle ids.
+    """
+    from iamp.simulation.rss import DEFAULT, safe_longitudinal_distance
+
+    s0, v0, d0, _ = cr.x0
+    half_w = 0.5 * cr.ego_width + DEFAULT.lat_margin_m
+    out = set()
+    for ob in cr.obstacles:
+        if ob.road_edge or ob.d_lo[0] >= d0 + half_w or ob.d_hi[0] <= d0 - half_w:
+            continue
+        gap = (s0 - 0.5 * cr.ego_length) - float(ob.s_hi[0])
+        v_r = float(ob.cubic[1]) if len(ob.cubic) > 1 else 0.0
+        if gap > 0 and gap >= float(safe_longitudinal_distance(v_r, v0)):
+            out.add(ob.obstacle_id)
+    return out
+
+
+def harmless(option: tuple[str, Any, float, list[Intrusion]], followers: set[int]) -> bool:
+    """Does the option keep clear of every predicted vehicle but the RSS-keeping followers
+    (:func:`rss_followers`) ahead of which it brakes at most RSS's ``brake_max``?"""
+    from iamp.simulation.rss import DEFAULT
+
+    _, trajectory, T, hits = option
+    rest = [h for h in vehicle_hits(hits) if h.obstacle.obstacle_id not in followers]
+    if rest:
+        return False
+    if not vehicle_hits(hits):
+        return True
+    u = trajectory.inputs(np.linspace(0.0, T, max(2, int(T / 0.05) + 1)))[:, 0]
+    return bool(np.min(u) >= -DEFAULT.brake_max - 1e-9)
+
+
+def choose(options: list[tuple[str, Any, float, list[Intrusion]]], followers: set[int] | None = None) -> int:
+    """Which option the loop executes when the replan found no safe plan (module doc, step 2).
+
+    Every option is ``(name, trajectory, horizon, intrusions)``, in order of preference (the new
+    plan toward the goal, the kept plan, the fail-safe).  Among those that keep clear of every
+    predicted vehicle (but ``followers`` that keep RSS's distance behind the ego, while the option
+    brakes at most RSS's ``brake_max``: :func:`harmless`), the one that enters the road-edge boxes
+    least (to 1 cm; ties: the first) is taken: a road edge does not move, so a plan that grazes it
+    by a few centimetres is no reason to
+    brake (braking in the lane may run deeper into an edge that narrows ahead).  When none keeps
+    clear of the vehicles, the last option (the fail-safe) is taken.
+
+    Parameters
+    ----------
+    options : list of tuple
+        ``(name, trajectory, horizon [s], intrusions)``; the last is the fail-safe.
+    followers : set of int, optional
+        The vehicles of :func:`rss_followers` (none by default).
+
+    Returns
+    -------
+    int
+        The index of the option to execute.
+    """
+    clear = [i for i, o in enumerate(options) if harmless(o, followers or set())]
+    if not clear:
+        return len(options) - 1
+    return min(clear, key=lambda i: (round(edge_depth(options[i][3]), 2), i))
+
+
+def rss_stops_behind(cr: CommonRoadProblem, decel: float) -> bool:
+    """Does braking at ``decel`` to a stop keep RSS's safe longitudinal distance to every vehicle
+    ahead in the ego's path now?
+
+    A vehicle is in the path when its box (now, without the prediction's spread) overlaps the
+    ego's body across the road grown by RSS's lateral margin ``μ``; its speed is its predicted
+    cubic's slope now.  The gap (bumper to bumper) must be at least
+    :func:`iamp.simulation.rss.rss_distance` with the ego already braking (response time 0) at
+    ``decel`` and the vehicle ahead braking at RSS's ``brake_max``: whatever it does within that
+    bound, the ego stops behind it.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The live problem (``x0`` now, ``obstacles`` the predicted vehicles).
+    decel : float
+        The ego's braking [m/s^2, > 0].
+
+    Returns
+    -------
+    bool
+        True when every vehicle ahead in the path is far enough.
+    """
+    from iamp.simulation.rss import DEFAULT, rss_distance
+
+    s0, v0, d0, _ = cr.x0
+    half_w = 0.5 * cr.ego_width + DEFAULT.lat_margin_m
+    for ob in cr.obstacles:
+        if ob.road_edge or ob.s_hi[0] <= s0 or ob.d_lo[0] >= d0 + half_w or ob.d_hi[0] <= d0 - half_w:
+            continue
+        gap = float(ob.s_lo[0]) - (s0 + 0.5 * cr.ego_length)
+        v_f = float(ob.cubic[1]) if len(ob.cubic) > 1 else 0.0
+        if gap < float(rss_distance(v0, v_f, 0.0, 0.0, decel, DEFAULT.brake_max)):
+            return False
+    return True
+
+
+def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = None) -> tuple[Braking, float]:
     """The fail-safe when no plan keeps clear: braking in the lane (:class:`Braking`, the lateral
     speed brought to zero over 1 s) at the gentlest of :data:`FAILSAFE_DECEL` and 0.9 ``a_max``,
     and at that deceleration to the highest of :data:`FAILSAFE_SPEEDS` (fractions of the current
     speed), whose body stays off every predicted vehicle (over :data:`FAILSAFE_HORIZON_S`, or until
-    it stands), else the hardest braking to a stop.  Returns the plan (from ``cr.x0``, time 0 = now) and its horizon.
+    it stands; road edges are not counted: braking in the lane cannot move away from one) and which,
+    continued to a stop, keeps RSS's distance to the vehicle ahead (:func:`rss_stops_behind`), else
+    the hardest braking to a stop.  Returns the plan (from ``cr.x0``, time 0 = now) and its horizon.
 
     Parameters
     ----------
@@ -200,6 +342,8 @@ def failsafe(cr: CommonRoadProblem, a_max: float) -> tuple[Braking, float]:
         The live problem: ``x0`` the ego's state now, ``obstacles`` the predicted vehicles.
     a_max : float
         The vehicle type's acceleration limit [m/s^2].
+    followers : set of int, optional
+        Vehicles behind whose predicted boxes do not count (:func:`rss_followers`, :func:`harmless`).
 
     Returns
     -------
@@ -214,10 +358,102 @@ def failsafe(cr: CommonRoadProblem, a_max: float) -> tuple[Braking, float]:
             plan = Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_MIN_S)
             T = max(FAILSAFE_MIN_S, plan.t_b) if frac == 0.0 else max(FAILSAFE_HORIZON_S, plan.t_b)
             last = (plan, T)
-            if not intrusions(cr, plan, T):
+            option = ("fail-safe", plan, T, intrusions(cr, plan, T))
+            if rss_stops_behind(cr, b) and harmless(option, followers or set()):
                 return plan, T
     assert last is not None
     return last
+
+
+#: The ego's braking in :func:`goal_occupancy`'s RSS test, as a fraction of ``a_max`` (the fail-safe's hardest).
+STOP_DECEL_FRACTION = 0.9
+#: Grid of the goal positions tested by :func:`goal_occupancy` [m].
+GOAL_GRID_M = 0.25
+
+
+def goal_occupancy(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
+    """Could the ego have stood in the goal region without touching a vehicle, step by step?
+
+    For every logged time step inside the goal's time window, every position of a goal state's
+    position pieces (a grid of :data:`GOAL_GRID_M`) is tested: the ego's body there, parallel to
+    the road, against the body of every vehicle the ego observed at that step (SUMO's positions,
+    bodies at their headings, no buffer).  A step is *free* when at least one goal position keeps
+    the body off every vehicle.  When no step of the window is free, reaching the goal in this
+    traffic means a contact, whatever the plan.  A free position is also *RSS-free* when every
+    vehicle ahead of it in its path (bodies overlapping across the road with RSS's margin ``μ``)
+    is far enough that the ego, there at the goal state's lowest speed and braking at
+    :data:`STOP_DECEL_FRACTION` ``a_max``, stops behind it whatever it does within RSS's
+    ``brake_max`` (:func:`iamp.simulation.rss.rss_distance`, no response time): a goal reached
+    with no RSS-free position is reached on a course that can end in a contact just after.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The scene (its goal region and road frame).
+    log : iamp.simulation.metrics.StepLog
+        The executed episode (neighbour rows ``s, d, v, a, lane, length, width, heading``).
+
+    Returns
+    -------
+    dict
+        ``window_steps_logged`` (steps of the window the episode logged), ``free_steps`` and
+        ``first_free_s`` / ``last_free_s`` (the times of the first and last free step, or None),
+        ``rss_free_steps``.
+    """
+    from iamp.simulation.rss import DEFAULT, body_extents, rss_distance
+
+    pts_all = []
+    for e in cr.goal.elements:
+        for pc in e.pieces or []:
+            cs, cd = pc.centre
+            ss, dd = np.meshgrid(np.arange(cs - 40.0, cs + 40.0, GOAL_GRID_M),
+                                 np.arange(cd - 8.0, cd + 8.0, GOAL_GRID_M))
+            P = np.stack([ss.ravel(), dd.ravel()], axis=1)
+            inside = np.all(P @ pc.A.T <= pc.b + 1e-9, axis=1)
+            pts_all.append((e.steps, P[inside], 0.0 if e.speed is None else max(e.speed[0], 0.0)))
+    logged = free = rss_free = 0
+    first = last = None
+    for i, t in enumerate(log.t):
+        k = int(round(t / cr.dt))
+        here = [(P, v) for steps, P, v in pts_all if steps[0] <= k <= steps[1] and P.size]
+        if not here:
+            continue
+        P = np.concatenate([h[0] for h in here])
+        v_goal = np.concatenate([np.full(len(h[0]), h[1]) for h in here])
+        logged += 1
+        ok = np.ones(len(P), dtype=bool)
+        stops = np.ones(len(P), dtype=bool)
+        nb = np.asarray(log.nb[i], dtype=float).reshape(-1, 8)
+        for row in nb:
+            hx, hy = body_extents(row[5], row[6], row[7])
+            depth = body_overlap(P[:, 0], P[:, 1], np.zeros(len(P)), row[0] - hx, row[0] + hx, row[1] - hy,
+                                 row[1] + hy, cr.ego_length / 2, cr.ego_width / 2, 0.0)
+            ok &= depth <= 0
+            ahead = (np.abs(row[1] - P[:, 1]) < hy + cr.ego_width / 2 + DEFAULT.lat_margin_m) & (row[0] > P[:, 0])
+            gap = row[0] - hx - (P[:, 0] + cr.ego_length / 2)
+            need = rss_distance(v_goal, row[2], 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max, DEFAULT.brake_max)
+            stops &= ~ahead | (gap >= need)
+        if ok.any():
+            free += 1
+            first = t if first is None else first
+            last = t
+        rss_free += bool((ok & stops).any())
+    return {"window_steps_logged": logged, "free_steps": free, "first_free_s": first, "last_free_s": last,
+            "rss_free_steps": rss_free}
+
+
+def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
+    """The deepest the executed body entered a road-edge box of the scene (no buffer) [m]."""
+    if not log.t or not cr.road_edges:
+        return 0.0
+    E = np.asarray(log.ego, dtype=float)
+    heading = np.arctan2(E[:, 3], np.maximum(E[:, 1], 1e-6))
+    worst = 0.0
+    for ob in cr.road_edges:
+        depth = body_overlap(E[:, 0], E[:, 2], heading, ob.s_lo[:1], ob.s_hi[:1], ob.d_lo[:1], ob.d_hi[:1],
+                             cr.ego_length / 2, cr.ego_width / 2, 0.0)
+        worst = max(worst, float(np.max(depth)))
+    return worst
 
 
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
@@ -288,7 +524,9 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     dev: dict[int, list[tuple[float, float]]] = {}
     lanes_seen: dict[str, tuple[float, float]] = {}  # lateral range of each vehicle's centre [m]
     plan_times: list[float] = []
-    infeasible = fallbacks = failsafes = limit_violations = 0
+    infeasible = fallbacks = failsafes = limit_violations = out_of_reach = edge_plans = 0
+    decisions: list[dict[str, Any]] = []
+    next_replan = 0
     peak_accel = 0.0
     goal_step: int | None = None
     status = "goal missed"
@@ -310,7 +548,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         traci.vehicle.setSpeedMode("ego", 0)
         traci.vehicle.setLaneChangeMode("ego", 0)
         x = cr.x0
-        traj: Trajectory | None = None
+        traj: Trajectory | Braking | Shifted | None = None
         t_plan = traj_T = 0.0
         for k in range(k_end + 1):
             now = k * dt
@@ -357,34 +595,60 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     goal_step, status = k, "goal reached"
                     break
             # -- plan -----------------------------------------------------------------------------
-            if k % replan_steps == 0 and k < k_end:
-                horizon = np.arange(0, k_end - k + 1) * dt
+            if k >= next_replan and k < k_end:
+                # the predictions reach past the window's end: a kept or fail-safe plan is checked
+                # over FAILSAFE_HORIZON_S even when the window closes sooner
+                horizon = np.arange(0, max(k_end - k, math.ceil(FAILSAFE_HORIZON_S / dt - 1e-9)) + 1) * dt
                 obstacles = [_observed_obstacle(cr, int(v) if v.isdigit() else 10**6 + i, *hist[v], boxes[v],
                                                 speeds[v], horizon, predictor) for i, v in enumerate(ids)]
                 cands = final_candidates(x, cr.goal, dt, elapsed_steps=k)
+                live = dataclasses.replace(cr, x0=x, candidates=cands, obstacles=obstacles)
+                rp = None
                 if cands:
-                    live = dataclasses.replace(cr, x0=x, candidates=cands, obstacles=obstacles)
                     start = time.perf_counter()
                     rp = plan(live, planner, max_candidates=4)
                     plan_times.append(time.perf_counter() - start)
-                    if rp.candidate is not None and rp.safe and rp.peak_accel_mps2 <= cr.a_max:
-                        traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
-                    else:
-                        infeasible += 1
-                        if traj is not None and traj_T - (now - t_plan) > dt and not intrusions(
-                                live, Shifted(traj, now - t_plan), traj_T - (now - t_plan)):
-                            fallbacks += 1  # the previous plan still keeps clear of every vehicle
-                        elif (traj is None and rp.trajectory is not None and rp.candidate is not None
-                              and not rp.intrusions):
-                            traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
-                            fallbacks += 1
-                        else:  # fail-safe: brake in the lane, the gentlest braking that keeps clear
-                            fs, fs_T = failsafe(live, cr.a_max)
-                            traj, t_plan, traj_T = fs, now, fs_T
-                            failsafes += 1
+                action = "plan"
+                if rp is not None and rp.candidate is not None and rp.safe and rp.peak_accel_mps2 <= cr.a_max:
+                    traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
+                else:
+                    infeasible += rp is not None
+                    out_of_reach += rp is None
+                    options: list[tuple[str, Any, float, list[Intrusion]]] = []
+                    if (rp is not None and rp.trajectory is not None and rp.candidate is not None
+                            and rp.peak_accel_mps2 <= cr.a_max):
+                        options.append(("new plan", rp.trajectory, rp.candidate.tf, rp.intrusions))
+                    rest = traj_T - (now - t_plan)
+                    if isinstance(traj, Braking):  # it runs on past its horizon: checked over the fail-safe's
+                        rest = max(rest, FAILSAFE_HORIZON_S)
+                    if traj is not None and rest > dt:
+                        kept = Shifted(traj, now - t_plan)
+                        options.append(("kept", kept, rest, intrusions(live, kept, rest)))
+                    followers = rss_followers(live)
+                    fs, fs_T = failsafe(live, cr.a_max, followers)
+                    options.append(("fail-safe", fs, fs_T, intrusions(live, fs, fs_T)))
+                    action, chosen, chosen_T, hits = options[choose(options, followers)]
+                    if action == "new plan":
+                        traj, t_plan, traj_T = chosen, now, chosen_T
+                        edge_plans += 1
+                    elif action == "kept":
+                        fallbacks += 1  # the previous plan still keeps clear of every vehicle
+                    else:  # fail-safe: brake in the lane, the gentlest braking that keeps clear
+                        traj, t_plan, traj_T = fs, now, fs_T
+                        failsafes += 1
+                    decisions.append({
+                        "t": round(now, 3), "action": action,
+                        "why": "goal out of reach" if rp is None else (rp.status if rp.trajectory is None or
+                                                                       rp.peak_accel_mps2 > cr.a_max else
+                                                                       "in the way of the new plan"),
+                        "vehicles": sorted({h.obstacle.obstacle_id for h in vehicle_hits(rp.intrusions)})
+                        if rp is not None else [],
+                        "road_edge_depth_m": round(edge_depth(hits), 3)})
+                # after a fail-safe brake, replan at the next step (the window does not wait)
+                next_replan = k + (1 if action == "fail-safe" else replan_steps)
                 if progress is not None:
-                    progress(f"t = {now:.1f} s, {len(ids)} vehicles, plans {len(plan_times)}")
-            if traj is None or now + dt - t_plan > traj_T + 1e-9:
+                    progress(f"t = {now:.1f} s, {len(ids)} vehicles, plans {len(plan_times)}, {action}")
+            if traj is None or (not isinstance(traj, Braking) and now + dt - t_plan > traj_T + 1e-9):
                 status = "no plan"
                 break
             # -- execute one step -------------------------------------------------------------------
@@ -432,6 +696,8 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         **{k: v for k, v in judged.items() if k not in ("contacts",)},
         "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
         "infeasible_plans": infeasible, "fallbacks": fallbacks, "failsafe_brakes": failsafes,
+        "edge_grazing_plans": edge_plans, "out_of_reach_replans": out_of_reach, "decisions": decisions,
+        "road_edge_depth_m": road_edge_depth(cr, log), "goal_occupancy": goal_occupancy(cr, log),
         "plan_time_s": {"calls": len(plan_times),
                         "median": float(np.median(plan_times)) if plan_times else None,
                         "max": float(np.max(plan_times)) if plan_times else None},
