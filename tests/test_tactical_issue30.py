@@ -160,3 +160,31 @@ def test_no_ego_speed_fits_a_gap_shorter_than_the_slot_length(v_f, v_l, v):
     lead = Neighbour("l", (4.6 / 2 + bumper + 4.6 / 2, v_l), 0.0, 4.6, 1.8, 1)
     lo, hi = safe_interval(EgoNow(0.0, v, 0.0, 0.0, L), Gap(fol, lead), v, 0.0, cfg)
     assert hi - lo <= -0.2 + 0.05  # empty by the 0.2 m, less the 0.1 m/s grid's slack near the minimum
+
+
+def test_in_a_closed_loop_every_replan_taken_continues_the_executed_acceleration():
+    """SUMO merge (LOS E, seed 1, ``free``, 25 s; it merges at about 20 s): at every period in which
+    a re-plan replaced the executed plan, the executed input changed by at most one period of the
+    jerk bound on both axes (before issue 30's second pass up to 0.6 m/s² in this episode)."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    jumps: list[tuple[float, float]] = []
+    step = Controller._safe_step
+
+    def recording(self: Controller, t: float, obs: object, ego: EgoState) -> EgoState | None:
+        mode, plan = self.mode, self.plan
+        nxt = step(self, t, obs, ego)  # type: ignore[arg-type]
+        if mode == "active" and self.mode == "active" and self.plan is not plan and nxt is not None:
+            jumps.append((nxt.ax - ego.ax, nxt.ay - ego.ay))
+        return nxt
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(Controller, "_safe_step", recording)
+    try:
+        res = run_episode(EpisodeSpec(traffic="los-e", seed=1, planner="free", mission="merge", duration_s=25.0))
+    finally:
+        mp.undo()
+    jerk = ControllerConfig().decision.limits.jerk
+    assert jerk is not None and len(jumps) >= 5 and res.summary["time_to_merge_s"] is not None
+    assert max(max(abs(a), abs(b)) for a, b in jumps) <= jerk * 0.1 + 1e-9
