@@ -7,6 +7,9 @@
   boundary speeds, cubic vehicle trajectories, one to four vehicles.
 * :func:`two_minima_problem` — one vehicle whose ``J(t)`` has two local minima, the global
   one *not* the one nearest the middle of the horizon.
+* :func:`overtake_problem` and :func:`overtake_three_problem` — the bounded avoidance plans of
+  ``iamp bench`` (one vehicle that the free optimum would cut; three vehicles), under the
+  passenger car's limits.
 """
 
 from __future__ import annotations
@@ -93,3 +96,23 @@ def two_minima_problem() -> Problem:
 
 
 TWO_MINIMA_POLY = (-14.12, 32.86, -3.57, 0.35)
+
+
+def overtake_problem(limits: bool = True) -> Problem:
+    """The ego overtakes a vehicle in the target lane whose safety box the free optimum would cut
+    (the avoidance rows bind), under the passenger car's limits (its lateral bound binds too)."""
+    from iamp.core.physical import PASSENGER_CAR
+
+    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=118.0, yf=3.75, vxf=24.0)
+    v = SurroundingVehicle(x_poly=(5.0, 20.0), corner="front-lower", y=3.75, name="sv1", **DEFAULT_GEOMETRY)
+    return Problem(ego, (v,), "overtake", limits=PASSENGER_CAR if limits else None)
+
+
+def overtake_three_problem(limits: bool = True) -> Problem:
+    """:func:`overtake_problem` with two more vehicles in the current lane: a slow one ahead
+    (``rear-upper``; it binds: the ego must leave the lane earlier) and a fast one behind
+    (``front-upper``)."""
+    one = overtake_problem(limits)
+    v2 = SurroundingVehicle(x_poly=(30.0, 10.0), corner="rear-upper", y=-2.0, name="sv2", **DEFAULT_GEOMETRY)
+    v3 = SurroundingVehicle(x_poly=(-20.0, 26.0), corner="front-upper", y=-2.0, name="sv3", **DEFAULT_GEOMETRY)
+    return Problem(one.ego, (one.vehicles[0], v2, v3), "overtake-three", limits=one.limits)

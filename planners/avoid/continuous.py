@@ -9,7 +9,7 @@ constraint is imposed by rows
 
 * first half-plane on every Bernstein coefficient of the pieces (and sub-piece) of
   :math:`[0, \tau_i]`, second on those of :math:`[\tau_i, t_f]` — the piece containing
-  :math:`\tau_i` split at :math:`\tau_i` (:meth:`ContinuousAvoidQP.spec_rows`).
+  :math:`\tau_i` split at :math:`\tau_i` (:meth:`ContinuousAvoidQP.rows`).
 
 A feasible point of these rows is safe for every ``t`` (the polynomial lies in the convex hull
 of its coefficients), so the crossing cannot cut the corner between nodes.  The rows are
@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import NDArray
 
 from iamp.core import status as st
 from iamp.core.plan import Plan
@@ -63,7 +64,7 @@ from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, k
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
-from iamp.planners.avoid.solve import BoundSolver
+from iamp.planners.avoid.solve import RowGeneration
 from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.hold import HoldTrajectory
 
@@ -76,38 +77,52 @@ GAP_REL = 1e-4
 #: round-off) stays feasible; far below the 1 mm intrusion tolerance of SPEC §9.
 ROW_TOL_M = 1e-9
 
-#: Backends whose search runs on the fixed pattern (:meth:`ContinuousAvoidQP.solve_fixed`).
-#: Measured on the ``avoid_bounded`` bench plan (N = 50), before/after back to back at load
-#: 10.6-11.6: PIQP 3.62 s -> 2.00 s, OSQP 52.0 s -> 47.8 s (a warm start from the previous box
-#: made OSQP far slower: 293 s for 41 QPs, so none).  Clarabel was slower when the padded pattern
-#: was rebuilt per box (5.8 s against 3.9 s); through the registry backend it is updated in place
-#: (values and ``b``, one symbolic factorisation): same plan, CPU 1.71 s -> 1.42 s at N = 50
-#: (261 -> 262 solves, cost equal to 6e-16 relative) and 3.26 s -> 2.84 s at N = 100 (load ~7).
-FIXED_PATTERN_SOLVERS = ("piqp", "osqp", "clarabel")
-
 #: Per vehicle ``(first, second, a, b)``: first half-plane on ``[0, a]``, second on ``[b, t_f]``.
 Spec = tuple[tuple[int, int, float, float], ...]
 
 
 @dataclass
 class Solved:
-    """One solved QP of the search."""
+    """One solved QP of the search: its solution on the rows of its ``spec``.
+
+    ``y`` holds the multipliers of the rows of :attr:`A` (equality rows, then the spec's imposed
+    rows in the order of :meth:`ContinuousAvoidQP.rows`: every vehicle's Bernstein blocks, then
+    the limit rows); :attr:`A` and :attr:`u` are built when asked for."""
 
     spec: Spec
     status: str
     cost: float
     z: FloatArray
     y: FloatArray
-    A: sp.csc_matrix
-    u: FloatArray
     iterations: int
+    qp: ContinuousAvoidQP = field(repr=False)
+    solves: int = 1
+
+    @property
+    def A(self) -> sp.csc_matrix:
+        """``[A_eq; imposed rows]`` of :attr:`spec` (CSC)."""
+        A_in, _, _ = self.qp.spec_rows(self.spec)
+        return sp.csc_matrix(sp.vstack([self.qp.A_eq, A_in]))
+
+    @property
+    def u(self) -> FloatArray:
+        """``[b_eq; bounds of the imposed rows]``."""
+        _, u_in, _ = self.qp.spec_rows(self.spec)
+        return np.asarray(np.r_[self.qp.data.b_eq, u_in], dtype=float)
 
 
 class ContinuousAvoidQP:
-    """The data of the continuous-time avoidance QP on the uniform grid of ``steps`` pieces."""
+    """The data of the continuous-time avoidance QP on the uniform grid of ``steps`` pieces.
+
+    Its inequality rows have one fixed layout (:meth:`rows`): for every vehicle ``i``, half-plane
+    ``a`` and piece ``k`` a block of ``d + 1`` Bernstein rows on the piece's four node columns
+    (row ``((2i + a) N + k)(d + 1) + j``), then the limit rows ``[A_lim; -A_lim] z <= [hi; -lo]``.
+    A crossing-time spec sets the values and bounds of the blocks it imposes (a full piece, or
+    the sub-piece of a piece split at a box's end) and leaves the others out; the QP is solved by
+    row generation on those rows (:class:`~iamp.planners.avoid.solve.RowGeneration`)."""
 
     def __init__(self, problem: Problem, steps: int, hold: str, solver: str,
-                 settings: dict[str, Any] | None = None) -> None:
+                 settings: dict[str, Any] | None = None, row_generation: bool = True) -> None:
         self.problem, self.hold, self.solver, self.settings = problem, hold, solver, settings
         self.N = int(steps)
         self.tf = problem.tf
@@ -117,7 +132,6 @@ class ContinuousAvoidQP:
         self.A_eq = sp.csr_matrix(d.A[: d.n_eq])
         self.degree = max([3] + [len(v.x_poly) - 1 for v in problem.vehicles])
         self.M_full = piece_matrix(self.h, 0.0, 1.0, self.degree)
-        self._full: dict[tuple[int, int], tuple[sp.csr_matrix, FloatArray]] = {}
         self.limit_rows: Any = None
         A_lim, u_lim = sp.csr_matrix((0, d.n)), np.zeros(0)
         if problem.limits is not None:
@@ -128,22 +142,40 @@ class ContinuousAvoidQP:
             lr = self.limit_rows
             A_lim = sp.csr_matrix(sp.vstack([lr.A, -lr.A]))
             u_lim = np.r_[lr.hi, -lr.lo]
+        A_lim.sort_indices()
         self.A_lim, self.u_lim = A_lim, u_lim
         self.n_solves = 0
+        self._layout()
+        self._rows_solver = RowGeneration(solver, self.data.P, self.A_eq, self.data.b_eq, settings,
+                                          every_row=not row_generation)
 
     # --- rows ----------------------------------------------------------------------------
-    def _piece_rows(self, i: int, a: int, k: int, lam0: float, lam1: float, M: FloatArray
-                    ) -> tuple[list[int], list[int], list[float], FloatArray]:
-        d, hp = self.data, self.data.planes[i][a]
-        cols = [int(d.idx_s(a, k)), int(d.idx_v(a, k)), int(d.idx_s(a, k + 1)), int(d.idx_v(a, k + 1))]
-        n = M.shape[0]
-        r = np.repeat(np.arange(n), 4)
-        c = np.tile(cols, n)
-        vals = hp.sigma * M.ravel()
-        t0 = float(d.t_nodes[k])
-        ta, tb = t0 + lam0 * self.h, t0 + lam1 * self.h
-        rhs = self._rhs(hp, ta, tb)
-        return list(r), list(c), list(vals), rhs
+    def _layout(self) -> None:
+        """The fixed CSR structure of every inequality row (class docstring) and the values of
+        the full pieces' blocks."""
+        d = self.data
+        n = self.degree + 1
+        m = len(self.problem.vehicles)
+        k = np.arange(self.N)
+        blocks = []
+        for _ in range(m):
+            for a in (0, 1):
+                cs = np.stack([d.idx_s(a, k), d.idx_v(a, k), d.idx_s(a, k + 1), d.idx_v(a, k + 1)], axis=1)
+                blocks.append(np.repeat(cs, n, axis=0))  # (N n, 4): piece k's n rows
+        self.n_b = m * 2 * self.N * n
+        cols = np.concatenate(blocks).ravel() if blocks else np.zeros(0, dtype=np.int64)
+        self._indptr = np.r_[np.arange(0, 4 * self.n_b + 1, 4), 4 * self.n_b + self.A_lim.indptr[1:]].astype(np.int64)
+        self._indices = np.r_[cols, self.A_lim.indices].astype(np.int64)
+        self._lim_data = np.asarray(self.A_lim.data, dtype=float)
+        #: per vehicle and half-plane: σ M (row values of a full piece) and every full piece's bounds
+        self._full_vals: dict[tuple[int, int], FloatArray] = {}
+        self._full_rhs: dict[tuple[int, int], FloatArray] = {}
+        for i in range(m):
+            for a in (0, 1):
+                hp = self.data.planes[i][a]
+                self._full_vals[(i, a)] = hp.sigma * self.M_full.ravel()
+                self._full_rhs[(i, a)] = np.concatenate(
+                    [self._rhs(hp, float(d.t_nodes[kk]), float(d.t_nodes[kk]) + self.h) for kk in range(self.N)])
 
     def _rhs(self, hp: HalfPlane, ta: float, tb: float) -> FloatArray:
         v = hp.vehicle
@@ -155,29 +187,10 @@ class ContinuousAvoidQP:
             half = v.width / 2 + v.safety_y
         return np.asarray(hp.sigma * beta - half + ROW_TOL_M, dtype=float)
 
-    def _full_rows(self, i: int, a: int) -> tuple[sp.csr_matrix, FloatArray]:
-        """Every piece's rows of vehicle ``i``'s half-plane ``a`` (piece ``k``: rows
-        ``k(d+1) .. (k+1)(d+1) - 1``)."""
-        key = (i, a)
-        if key not in self._full:
-            rows: list[int] = []
-            cols: list[int] = []
-            vals: list[float] = []
-            rhs: list[FloatArray] = []
-            n = self.degree + 1
-            for k in range(self.N):
-                r, c, v, b = self._piece_rows(i, a, k, 0.0, 1.0, self.M_full)
-                rows += [x + k * n for x in r]
-                cols += c
-                vals += v
-                rhs.append(b)
-            A = sp.csr_matrix((vals, (rows, cols)), shape=(self.N * n, self.data.n))
-            self._full[key] = (A, np.concatenate(rhs))
-        return self._full[key]
-
     def segment_pieces(self, ta: float, tb: float) -> list[tuple[int, float, float]]:
         """The pieces ``(k, λ0, λ1)`` of ``[ta, tb]`` (local coordinates ``λ ∈ [0, 1]`` of piece
-        ``k``; at most one sub-interval per piece), as :meth:`segment_rows` imposes them."""
+        ``k``; at most one sub-interval per piece); a point ``ta = tb`` inside ``(0, t_f)`` gives
+        its piece's point (the state's own row)."""
         d = self.data
         if tb < ta or tb <= 0.0 or ta >= self.tf:
             return []
@@ -197,165 +210,68 @@ class ContinuousAvoidQP:
             out.append((kb, 0.0, lam[1]))
         return out
 
-    def segment_rows(self, i: int, a: int, ta: float, tb: float) -> tuple[sp.csr_matrix, FloatArray]:
-        """Rows keeping vehicle ``i``'s half-plane ``a`` on ``[ta, tb]`` (empty when ``tb <= ta``
-        but a point ``ta = tb`` inside ``(0, t_f)`` gives the state's own row)."""
+    def rows(self, spec: Spec) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+        """Every inequality row of ``spec`` in the fixed layout (class docstring): the CSR values
+        (``indptr``/``indices`` of the layout), the bounds, and which rows the spec imposes
+        (per vehicle ``(first, second, a, b)``: ``first`` on ``[0, a]``, ``second`` on ``[b, t_f]``;
+        the limit rows always)."""
         n = self.degree + 1
-        d = self.data
-        if tb < ta or tb <= 0.0 or ta >= self.tf:
-            return sp.csr_matrix((0, d.n)), np.zeros(0)
-        ka = min(int(np.floor(ta / self.h)), self.N - 1)
-        kb = min(int(np.ceil(tb / self.h)) - 1, self.N - 1)
-        kb = max(kb, ka)
-        lam = [(ta - d.t_nodes[ka]) / self.h, (tb - d.t_nodes[kb]) / self.h]
-        full_lo = ka + (1 if lam[0] > 1e-12 else 0)
-        full_hi = kb - (1 if lam[1] < 1 - 1e-12 else 0)
-        blocks: list[sp.csr_matrix] = []
-        rhs: list[FloatArray] = []
-
-        def partial(k: int, l0: float, l1: float) -> None:
-            M = piece_matrix(self.h, l0, l1, self.degree)
-            r, c, v, b = self._piece_rows(i, a, k, l0, l1, M)
-            blocks.append(sp.csr_matrix((v, (r, c)), shape=(n, d.n)))
-            rhs.append(b)
-
-        if ka == kb and full_lo > full_hi:
-            partial(ka, float(lam[0]), float(lam[1]))
-        else:
-            if full_lo > ka:
-                partial(ka, float(lam[0]), 1.0)
-            if full_hi >= full_lo:
-                A, b = self._full_rows(i, a)
-                blocks.append(A[full_lo * n:(full_hi + 1) * n])
-                rhs.append(b[full_lo * n:(full_hi + 1) * n])
-            if full_hi < kb:
-                partial(kb, 0.0, float(lam[1]))
-        if not blocks:
-            return sp.csr_matrix((0, d.n)), np.zeros(0)
-        return sp.csr_matrix(sp.vstack(blocks)), np.concatenate(rhs)
-
-    def spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, list[tuple[int, int, int]]]:
-        """The Bernstein rows of ``spec`` and, per block, ``(vehicle, half-plane, rows)``."""
-        blocks, rhs, owner = [], [], []
-        for i, (first, second, a, b) in enumerate(spec):
-            for plane, (ta, tb) in ((first, (0.0, a)), (second, (b, self.tf))):
-                if (plane == first and a <= 0.0) or (plane == second and b >= self.tf):
-                    continue
-                A, u = self.segment_rows(i, plane, ta, tb)
-                if A.shape[0]:
-                    blocks.append(A)
-                    rhs.append(u)
-                    owner.append((i, plane, A.shape[0]))
-        if not blocks:
-            return sp.csr_matrix((0, self.data.n)), np.zeros(0), owner
-        return sp.csr_matrix(sp.vstack(blocks)), np.concatenate(rhs), owner
-
-    # --- solving ---------------------------------------------------------------------------
-    def solve(self, spec: Spec) -> Solved:
-        """The QP with the rows of ``spec`` (plus the limit rows)."""
-        self.n_solves += 1
-        A_in, u_in, _ = self.spec_rows(spec)
-        d = self.data
-        A_in = sp.vstack([A_in, self.A_lim])
-        u_in = np.r_[u_in, self.u_lim]
-        if A_in.shape[0] == 0:  # one always-true row keeps the cone non-empty
-            A_in = sp.csr_matrix((1, d.n))
-            u_in = np.ones(1)
-        A = sp.csc_matrix(sp.vstack([self.A_eq, A_in]))
-        solver = BoundSolver(self.solver, d.P, A, d.b_eq, u_in, self.settings)
-        sol = solver.solve()
-        ok = sol.status == st.OPTIMAL and sol.finite
-        cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (d.P.diagonal() * sol.z)) if ok else np.inf
-        status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
-        return Solved(spec, status, cost, sol.z, sol.y, A, np.r_[d.b_eq, u_in], sol.iterations)
-
-    # --- the fixed pattern: one QP structure for every crossing-time box ---------------------
-    def _fixed_pattern(self) -> None:
-        r"""Build ``A`` once: equality rows, then for every vehicle ``i``, half-plane ``a`` and
-        piece ``k`` a block of ``d + 1`` Bernstein rows on the piece's four node columns, then
-        the limit rows.  A box (``spec``) changes only the block values and bounds: a piece (or
-        sub-piece) the spec imposes gets its Bernstein matrix and right-hand side, any other
-        block the zero row with bound ``1`` (``0 \le 1``: always true, no effect on the
-        optimum).  The feasible set is the one of :meth:`spec_rows`, row for row."""
-        d = self.data
-        n = self.degree + 1
-        m = len(self.problem.vehicles)
-        rows, cols = [], []
-        for i in range(m):
-            for a in (0, 1):
-                for k in range(self.N):
-                    base = ((i * 2 + a) * self.N + k) * n
-                    cs = [int(d.idx_s(a, k)), int(d.idx_v(a, k)), int(d.idx_s(a, k + 1)), int(d.idx_v(a, k + 1))]
-                    rows.append(base + np.repeat(np.arange(n), 4))
-                    cols.append(np.tile(cs, n))
-        n_b = m * 2 * self.N * n
-        r = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
-        c = np.concatenate(cols) if cols else np.zeros(0, dtype=int)
-        eq = sp.coo_matrix(self.A_eq)
-        lim = sp.coo_matrix(self.A_lim)
-        n_eq = self.A_eq.shape[0]
-        R = np.r_[eq.row, n_eq + r, n_eq + n_b + lim.row]
-        C = np.r_[eq.col, c, lim.col]
-        tag = np.arange(1, R.size + 1, dtype=float)  # position of each entry in the CSC data
-        A = sp.csc_matrix((tag, (R, C)), shape=(n_eq + n_b + lim.shape[0], d.n))
-        A.sort_indices()
-        assert A.nnz == R.size, "the fixed pattern has one entry per (row, column)"
-        order = A.data.astype(np.int64) - 1  # CSC entry j holds the value given at position order[j]
-        self._fx_vals = np.r_[eq.data, np.zeros(r.size), lim.data]
-        self._fx_pos = order  # A.data = values[order]
-        self._fx_A = A
-        self._fx_nb = n_b
-        self._fx_solver: BoundSolver | None = None
-
-    def fixed_data(self, spec: Spec) -> tuple[FloatArray, FloatArray]:
-        """``A.data`` (CSC order of the fixed pattern) and the inequality bounds of ``spec``."""
-        if not hasattr(self, "_fx_A"):
-            self._fixed_pattern()
-        n = self.degree + 1
-        vals = self._fx_vals.copy()
-        u_b = np.ones(self._fx_nb)
+        vals = np.zeros(4 * self.n_b)
+        rhs = np.ones(self.n_b)
+        on = np.zeros(self.n_b + self.u_lim.size, dtype=bool)
+        on[self.n_b:] = True
         for i, (first, second, a, b) in enumerate(spec):
             for plane, (ta, tb) in ((first, (0.0, a)), (second, (b, self.tf))):
                 if (plane == first and a <= 0.0) or (plane == second and b >= self.tf):
                     continue
                 hp = self.data.planes[i][plane]
+                base = (i * 2 + plane) * self.N * n
                 pieces = self.segment_pieces(ta, tb)
                 full = [k for k, l0, l1 in pieces if l0 == 0.0 and l1 == 1.0]
-                if full:  # contiguous: one slice of the cached full-piece rows
+                if full:  # contiguous
                     k0, k1 = full[0], full[-1] + 1
-                    _, rhs_f = self._full_rows(i, plane)
-                    base = (i * 2 + plane) * self.N * n
-                    e0 = self.A_eq.nnz + base * 4
-                    vals[e0 + k0 * 4 * n:e0 + k1 * 4 * n] = np.tile(hp.sigma * self.M_full.ravel(), k1 - k0)
-                    u_b[base + k0 * n:base + k1 * n] = rhs_f[k0 * n:k1 * n]
+                    r0, r1 = base + k0 * n, base + k1 * n
+                    vals[4 * r0:4 * r1] = np.tile(self._full_vals[(i, plane)], k1 - k0)
+                    rhs[r0:r1] = self._full_rhs[(i, plane)][k0 * n:k1 * n]
+                    on[r0:r1] = True
                 for k, l0, l1 in pieces:
                     if l0 == 0.0 and l1 == 1.0:
                         continue
-                    M = piece_matrix(self.h, l0, l1, self.degree)
-                    base = ((i * 2 + plane) * self.N + k) * n
-                    e0 = self.A_eq.nnz + base * 4
-                    vals[e0:e0 + 4 * n] = hp.sigma * M.ravel()
+                    r0 = base + k * n
+                    vals[4 * r0:4 * (r0 + n)] = hp.sigma * piece_matrix(self.h, l0, l1, self.degree).ravel()
                     t0 = float(self.data.t_nodes[k])
-                    u_b[base:base + n] = self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h)
-        return vals[self._fx_pos], np.r_[u_b, self.u_lim]
+                    rhs[r0:r0 + n] = self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h)
+                    on[r0:r0 + n] = True
+        return np.r_[vals, self._lim_data], np.r_[rhs, self.u_lim], on
 
-    def solve_fixed(self, spec: Spec) -> Solved:
-        """The QP of :meth:`solve` on the fixed pattern: the solver is set up once and each box
-        only updates its values and bounds (same feasible set, so the same optimum)."""
-        self.n_solves += 1
-        Ax, u_in = self.fixed_data(spec)
+    def _csr(self, vals: FloatArray, rows: NDArray[np.int64]) -> sp.csr_matrix:
+        """The rows ``rows`` of the layout with values ``vals`` (a CSR gather, no search)."""
+        start, stop = self._indptr[rows], self._indptr[rows + 1]
+        lens = stop - start
+        ptr = np.r_[0, np.cumsum(lens)].astype(np.int64)
+        take = np.repeat(start - ptr[:-1], lens) + np.arange(ptr[-1])
+        return sp.csr_matrix((vals[take], self._indices[take], ptr), shape=(rows.size, self.data.n))
+
+    def spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
+        """The imposed rows of ``spec`` (CSR, in layout order), their bounds and their layout row
+        numbers (:meth:`rows`)."""
+        vals, rhs, on = self.rows(spec)
+        idx = np.flatnonzero(on)
+        return self._csr(vals, idx), rhs[idx], idx
+
+    # --- solving ---------------------------------------------------------------------------
+    def solve(self, spec: Spec, reference: FloatArray | None = None) -> Solved:
+        """The QP with the rows of ``spec`` (plus the limit rows), solved by row generation from
+        the rows that ``reference`` (a nearby solution) nearly binds
+        (:class:`~iamp.planners.avoid.solve.RowGeneration`; every backend solve counts)."""
+        A_in, u_in, ids = self.spec_rows(spec)
         d = self.data
-        A = self._fx_A
-        A.data[:] = Ax
-        if self._fx_solver is None:
-            self._fx_solver = BoundSolver(self.solver, d.P, A, d.b_eq, u_in, self.settings)
-        else:
-            self._fx_solver.set_values(A, u_in)
-        sol = self._fx_solver.solve()
+        sol = self._rows_solver.solve(A_in, u_in, ids, reference)
+        self.n_solves += sol.solves
         ok = sol.status == st.OPTIMAL and sol.finite
         cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (d.P.diagonal() * sol.z)) if ok else np.inf
         status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
-        return Solved(spec, status, cost, sol.z, sol.y, A.copy(), np.r_[d.b_eq, u_in], sol.iterations)
+        return Solved(spec, status, cost, sol.z, sol.y, sol.iterations, self, sol.solves)
 
     def trajectory(self, z: FloatArray) -> HoldTrajectory:
         X, U = self.data.unpack(z)
@@ -400,15 +316,12 @@ class ContinuousAvoidPlanner:
     solver_settings: dict[str, Any] | None = None
     max_solves: int = 2000
     gap_rel: float = GAP_REL
-    #: Solve the search's QPs on one fixed pattern (:meth:`ContinuousAvoidQP.solve_fixed`,
-    #: values and bounds updated); the final QP is always re-solved from its own rows
-    #: (:meth:`ContinuousAvoidQP.solve`) before it is checked.  ``False``: every QP rebuilt.
-    fixed_pattern: bool = True
+    #: Solve each QP by row generation (:class:`~iamp.planners.avoid.solve.RowGeneration`, exact);
+    #: ``False``: every QP on all its rows at once (for study and tests).
+    row_generation: bool = True
 
-    def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec) -> Solved:
-        if self.fixed_pattern and self.solver in FIXED_PATTERN_SOLVERS:
-            return qp.solve_fixed(spec)
-        return qp.solve(spec)
+    def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None) -> Solved:
+        return qp.solve(spec, None if reference is None else reference.z)
 
     def _candidate_tau(self, qp: ContinuousAvoidQP, box: _Box) -> tuple[FloatArray, FloatArray]:
         """Per vehicle, the ``τ`` in its box where the relaxed optimum best keeps the first
@@ -457,7 +370,7 @@ class ContinuousAvoidPlanner:
                 break
             heapq.heappop(heap)
             tau, margin = self._candidate_tau(qp, box)
-            cand = self._qp_solve(qp, _spec(box.orders, tau, tau))
+            cand = self._qp_solve(qp, _spec(box.orders, tau, tau), box.relaxed)
             if cand.status == st.OPTIMAL:
                 if best is None or cand.cost < best.cost:
                     best, best_tau = cand, tau.copy()
@@ -478,7 +391,7 @@ class ContinuousAvoidPlanner:
             for lo_i, hi_i in ((box.lo[i], mid), (mid, box.hi[i])):
                 lo, hi = box.lo.copy(), box.hi.copy()
                 lo[i], hi[i] = lo_i, hi_i
-                rel = self._qp_solve(qp, _spec(box.orders, lo, hi))
+                rel = self._qp_solve(qp, _spec(box.orders, lo, hi), box.relaxed)
                 n_boxes += 1
                 if rel.status == st.OPTIMAL:
                     if rel.cost < U - gap(U):
@@ -492,11 +405,6 @@ class ContinuousAvoidPlanner:
         if best is not None and best.cost > min(closed_bound, heap[0].bound if heap else np.inf) + 1e-12 * max(
                 1.0, best.cost):
             best, best_tau = self._polish(qp, best, best_tau)
-        if best is not None and self.fixed_pattern and self.solver in FIXED_PATTERN_SOLVERS:
-            # the search's QP had padded rows: the plan is the QP of its own rows, solved again
-            again = qp.solve(best.spec)
-            if again.status == st.OPTIMAL:
-                best = again
         U = best.cost if best is not None else np.inf
         open_bound = heap[0].bound if heap else np.inf
         lower = min(U, open_bound, closed_bound)
@@ -518,7 +426,7 @@ class ContinuousAvoidPlanner:
         def f(x: float, i: int) -> float:
             t = tau.copy()
             t[i] = x
-            r = self._qp_solve(qp, _spec(orders, t, t))
+            r = self._qp_solve(qp, _spec(orders, t, t), found["sol"])
             if r.status == st.OPTIMAL and r.cost < found["sol"].cost:
                 found["sol"] = r
             return r.cost if r.status == st.OPTIMAL else float(np.inf)
@@ -544,7 +452,7 @@ class ContinuousAvoidPlanner:
         if reason is not None:
             return failed_plan(problem, st.INFEASIBLE, reason, start, **common,
                                info={"safety_mode": "continuous"})
-        qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings)
+        qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings, self.row_generation)
         out = self.search(qp, orders)
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": qp.n_solves}
         search = {"method": "branch and bound over crossing-time boxes (relaxation: each box's half-planes "
@@ -571,7 +479,8 @@ class ContinuousAvoidPlanner:
         common: dict[str, Any] = {"solver": self.solver, "hold": self.hold, "steps": int(self.steps)}
         if reason is not None:
             return failed_plan(problem, st.INFEASIBLE, reason, start, **common)
-        qp = ContinuousAvoidQP(problem, int(self.steps), self.hold, self.solver, self.solver_settings)
+        qp = ContinuousAvoidQP(problem, int(self.steps), self.hold, self.solver, self.solver_settings,
+                               self.row_generation)
         tau = np.asarray(taus, dtype=float)
         sol = qp.solve(_spec([o[0] for o in orders], tau, tau))
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": 1,
@@ -584,24 +493,26 @@ class ContinuousAvoidPlanner:
                   orders: list[list[tuple[int, int]]], closed: bool, info: dict[str, Any], start: float) -> Plan:
         d = qp.data
         n_eq = d.n_eq
-        l = np.r_[d.b_eq, np.full(sol.A.shape[0] - n_eq, -np.inf)]
-        kkt = kkt_conditions(d.P, d.q, sol.A, l, sol.u, sol.z, sol.y, n_eq)
+        A_in, u_in, layout = qp.spec_rows(sol.spec)
+        A = sp.csc_matrix(sp.vstack([qp.A_eq, A_in]))
+        u = np.r_[d.b_eq, u_in]
+        l = np.r_[d.b_eq, np.full(A_in.shape[0], -np.inf)]
+        kkt = kkt_conditions(d.P, d.q, A, l, u, sol.z, sol.y, n_eq)
         limit = tol(BACKENDS[self.solver].tolerance_key)
         failed = [k for k, v in kkt.items() if v > limit]
         traj = qp.trajectory(sol.z)
         cost = traj.cost()
-        _, _, owner = qp.spec_rows(sol.spec)
-        slack = sol.u[n_eq:] - (sol.A @ sol.z)[n_eq:]
+        slack = u_in - A_in @ sol.z
         y_in = sol.y[n_eq:]
         jumps = np.zeros((problem.m, 2))
         vehicles: list[dict[str, Any]] = []
-        pos = 0
         binding: dict[tuple[int, int], int] = {}
-        for i, plane, n in owner:
-            hp = d.planes[i][plane]
-            jumps[i, plane] += float(hp.sigma * np.sum(y_in[pos:pos + n]))
-            binding[(i, plane)] = binding.get((i, plane), 0) + int(np.sum(slack[pos:pos + n] <= ACTIVE_SLACK_M))
-            pos += n
+        block = layout // (qp.N * (qp.degree + 1))  # 2 i + a of a Bernstein row; limit rows beyond
+        for i in range(problem.m):
+            for plane in (0, 1):
+                rows = block == 2 * i + plane
+                jumps[i, plane] = float(d.planes[i][plane].sigma * np.sum(y_in[rows]))
+                binding[(i, plane)] = int(np.sum(slack[rows] <= ACTIVE_SLACK_M))
         for i, (v, (f, s, _, _)) in enumerate(zip(problem.vehicles, sol.spec)):
             planes = d.planes[i]
             vehicles.append({"name": v.name, "first": AXIS_NAMES[f], "second": AXIS_NAMES[s],

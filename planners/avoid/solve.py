@@ -26,11 +26,14 @@ A backend that solves equality-constrained QPs only (``kkt``) is refused with
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
+
+from iamp.core import status as st
 
 from ..qp.backends import QPSolution, get_backend
 from .options import check_avoid_solver
@@ -96,3 +99,160 @@ class BoundSolver:
     def solve(self) -> QPSolution:
         """Solve with the current data (the registry's :class:`~iamp.planners.qp.backends.base.QPSolution`)."""
         return self.backend.solve()
+
+
+#: A row outside the working set joins it when the solution violates it by more than this (in the
+#: row's unit: metres for the Bernstein rows, the limit's unit for a limit row); far below every
+#: tolerance of the plan's checks (the Bernstein rows already carry 1e-9 m of slack).
+GENERATION_TOL = 1e-9
+#: A row joins the first working set when the reference solution keeps it by less than this.
+SEED_SLACK = 1e-3
+#: Per backend: does a row that bound (slack below :data:`SEED_SLACK`) at any solution join every
+#: later working set?  Measured on the ``avoid_bounded`` bench plan (N = 50, 167 boxes; CPU s of
+#: the whole plan, pool on / off): PIQP 0.39 / 0.47 s, Clarabel 0.64 / 0.83 s (273 / 322
+#: solves: fewer rounds, and the same working set reuses its set-up backend), OSQP 1.48 / 0.79 s
+#: (ADMM takes 675 iterations a solve on the pool's ~50 rows, 149 on the ~9 rows of the
+#: reference alone).
+POOL = {"osqp": False, "clarabel": True, "piqp": True}
+
+
+@dataclass(frozen=True)
+class RowsSolution:
+    """What :func:`solve_working_set` returns: the QP's solution on **all** its rows.
+
+    Attributes
+    ----------
+    status : str
+        The backend's status of the last solve (``optimal`` only when that solve's optimum keeps
+        every row, so it is the optimum of the whole QP).
+    z : ndarray
+    y : ndarray
+        Multipliers of every row (equality rows, then every inequality row; zero for a row
+        outside the final working set), OSQP's sign convention.
+    iterations : int
+        Backend iterations over every solve.
+    solves : int
+        Backend solves (one per round of row generation).
+    working : ndarray of int
+        The inequality rows of the final working set.
+    finite : bool
+    """
+
+    status: str
+    z: FloatArray
+    y: FloatArray
+    iterations: int
+    solves: int
+    working: NDArray[np.int64]
+    finite: bool
+
+
+class RowGeneration:
+    r"""``min ½zᵀPz`` s.t. ``A_eq z = b_eq``, ``A_in z <= u_in`` by row generation (exact).
+
+    Most inequality rows of the avoidance QP never bind (at the optimum of the ``avoid_bounded``
+    bench plan 7 of 1,526 rows have slack below 1e-3).  :meth:`solve` solves the QP on the
+    equality rows and a *working set* of inequality rows; every row the solution violates by more
+    than :data:`GENERATION_TOL` joins the set and the QP is solved again.  Each round is a
+    relaxation of the whole QP, so its optimum is a lower bound; the last one keeps every row, so
+    it is feasible, hence the optimum of the whole QP (the same optimum: the QP is strictly
+    convex in the inputs, which determine the states).  A relaxation that is infeasible makes
+    the whole QP infeasible; one the backend does not solve (neither optimal nor infeasible) is
+    followed by one solve on every row.  The set only grows, so the rounds end.
+
+    The first working set of a solve holds the rows (named by their ``ids``, the caller's fixed
+    numbering) that joined any earlier working set of this object, and those that a
+    ``reference`` solution (a parent box's) keeps by less than :data:`SEED_SLACK` or violates.
+    A working set seen before reuses its set-up backend (values and bounds updated on the same
+    pattern, :meth:`BoundSolver.set_values`).
+
+    Parameters
+    ----------
+    name : str
+        A registered backend that accepts inequality rows.
+    P : scipy.sparse matrix
+        Upper triangle of the cost Hessian.
+    A_eq, b_eq
+        Equality rows.
+    settings : dict, optional
+        Overrides of the backend's settings (after :data:`AVOID_SETTINGS`).
+    every_row : bool
+        Solve every QP on all its rows at once (no generation; for study and tests).
+
+    Raises
+    ------
+    OptionError
+        For a backend that does not accept inequality rows or an unknown name.
+    """
+
+    #: Set-up backends kept (the most recently used).
+    CACHE = 8
+
+    def __init__(self, name: str, P: sp.spmatrix, A_eq: sp.spmatrix, b_eq: FloatArray,
+                 settings: dict[str, Any] | None = None, every_row: bool = False) -> None:
+        check_avoid_solver(name)
+        self.name, self.P, self.settings, self.every_row = name, P, settings, every_row
+        self.A_eq = sp.csr_matrix(A_eq)
+        self.b_eq = np.asarray(b_eq, dtype=float)
+        self.pool = np.zeros(0, dtype=bool)
+        self._solvers: dict[bytes, BoundSolver] = {}
+
+    def _backend(self, key: bytes, A: sp.csc_matrix, u: FloatArray) -> BoundSolver:
+        solver = self._solvers.pop(key, None)
+        if solver is not None and solver.backend.A.nnz == A.nnz:
+            solver.set_values(A, u)
+        else:
+            solver = BoundSolver(self.name, self.P, A, self.b_eq, u, self.settings)
+        self._solvers[key] = solver  # most recent last
+        if len(self._solvers) > self.CACHE:
+            del self._solvers[next(iter(self._solvers))]
+        return solver
+
+    def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, ids: NDArray[np.int64],
+              reference: FloatArray | None = None) -> RowsSolution:
+        """Solve with the inequality rows ``A_in z <= u_in`` (their fixed numbers ``ids``).
+
+        Returns
+        -------
+        RowsSolution
+            ``y`` holds a multiplier for every row of ``[A_eq; A_in]``.
+        """
+        A_in = sp.csr_matrix(A_in)
+        u_in = np.asarray(u_in, dtype=float)
+        ids = np.asarray(ids, dtype=np.int64)
+        n_eq, n_in, n = self.A_eq.shape[0], A_in.shape[0], self.P.shape[0]
+        if ids.size and ids.max() >= self.pool.size:
+            self.pool = np.r_[self.pool, np.zeros(int(ids.max()) + 1 - self.pool.size, dtype=bool)]
+        work = np.ones(n_in, dtype=bool) if self.every_row else self.pool[ids].copy()
+        if reference is not None and n_in:
+            work |= A_in @ reference - u_in > -SEED_SLACK
+        solves = iterations = 0
+        while True:
+            rows = np.flatnonzero(work)
+            if rows.size:
+                A = sp.csc_matrix(sp.vstack([self.A_eq, A_in[rows]]))
+                u = u_in[rows]
+            else:  # one always-true row keeps the cone non-empty
+                A = sp.csc_matrix(sp.vstack([self.A_eq, sp.csr_matrix((1, n))]))
+                u = np.ones(1)
+            sol = self._backend(ids[rows].tobytes(), A, u).solve()
+            solves += 1
+            iterations += sol.iterations
+            if sol.status not in (st.OPTIMAL, st.INFEASIBLE) and not work.all():
+                # a relaxation the backend did not solve (Clarabel's "almost solved" on a nearly
+                # infeasible working set): the whole QP at once, as without generation
+                work[:] = True
+                continue
+            if sol.status != st.OPTIMAL or not sol.finite:
+                return RowsSolution(sol.status, sol.z, np.zeros(n_eq + n_in), iterations, solves, rows, sol.finite)
+            r = A_in @ sol.z - u_in
+            new = (r > GENERATION_TOL) & ~work
+            if not new.any():
+                break
+            work |= new
+        if POOL.get(self.name, True):
+            self.pool[ids[r > -SEED_SLACK]] = True
+        y = np.zeros(n_eq + n_in)
+        y[:n_eq] = sol.y[:n_eq]
+        y[n_eq + rows] = sol.y[n_eq:n_eq + rows.size]
+        return RowsSolution(sol.status, sol.z, y, iterations, solves, rows, True)

@@ -142,6 +142,14 @@ class ClarabelBackend(QPBackend):
 
         self._split()
         A, b = self._stack()
+        if not self._pure_eq:
+            # where each entry of the stacked matrix comes from in ``A.data`` (and its sign): a value
+            # update gathers them instead of stacking slices of ``A`` again
+            tag = sp.csc_matrix((np.arange(1.0, self.A.nnz + 1.0), self.A.indices, self.A.indptr), shape=self.A.shape)
+            T = sp.vstack([tag[self._eq], tag[self._up], -tag[self._lo]], format="csc")
+            self._perm = np.abs(T.data).astype(np.int64) - 1
+            self._sign = np.sign(T.data)
+            A = sp.csc_matrix((self.A.data[self._perm] * self._sign, T.indices, T.indptr), shape=T.shape)
         cones = []
         if self._eq.size:
             cones.append(clarabel.ZeroConeT(int(self._eq.size)))
@@ -173,7 +181,7 @@ class ClarabelBackend(QPBackend):
                 kw["b"] = self.l.copy()
         else:
             if A:
-                kw["A"] = self._stack()[0].data.copy()
+                kw["A"] = self.A.data[self._perm] * self._sign
             if bounds:
                 kw["b"] = self._rhs()
         if q:

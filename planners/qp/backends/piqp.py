@@ -110,15 +110,23 @@ class PIQPBackend(QPBackend):
                               np.ndarray | None]:
         if self._ineq.size == 0:
             return self.A, self.l.copy(), None, None, None
-        Aeq = sp.csc_matrix(self.A[self._eq])
-        G = sp.csc_matrix(self.A[self._ineq])
-        return Aeq, self.l[self._eq].copy(), G, self.l[self._ineq].copy(), self.u[self._ineq].copy()
+        # the split's matrices keep their pattern: a value update copies the entries of each part
+        # (in CSC order a subset of rows keeps the order of ``A.data``) instead of slicing ``A`` again
+        self._Aeq.data[:] = self.A.data[self._eq_entries]
+        self._G.data[:] = self.A.data[~self._eq_entries]
+        return self._Aeq, self.l[self._eq].copy(), self._G, self.l[self._ineq].copy(), self.u[self._ineq].copy()
 
     def _build(self) -> None:
         import piqp
 
         eq = self.l == self.u
         self._eq, self._ineq = np.flatnonzero(eq), np.flatnonzero(~eq)
+        if self._ineq.size:
+            self._Aeq = sp.csc_matrix(self.A[self._eq])
+            self._G = sp.csc_matrix(self.A[self._ineq])
+            self._eq_entries = eq[self.A.indices]
+            if self._Aeq.nnz + self._G.nnz != self.A.nnz:  # pragma: no cover - row slicing keeps every entry
+                raise AssertionError("the row split lost entries of A")
         self.solver = piqp.SparseSolver()
         settings = self._apply_settings(self._ineq.size == 0, equality_settings())  # the one-step settings
         for k, v in settings.items():
