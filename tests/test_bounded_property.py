@@ -124,3 +124,26 @@ def test_a_minimum_next_to_the_edge_of_the_feasible_contact_times_is_found_and_c
     assert pmp.status == stc.OPTIMAL and pmp.cost is not None
     assert abs(float(pmp.contact_times[0]) - 5.7106) < 2e-3
     check_against_the_qp(problem)
+
+
+def test_a_minimum_at_the_edge_of_the_feasible_contact_times_is_planned_there() -> None:
+    """Found by the slow property test's domain (hypothesis, a random run): ``J_b`` rises from
+    the lower edge of the feasible contact times (infeasible before 1.32812 s, ``r = +0.81``
+    there), so the minimum is *at* the edge and not stationary.  It used to end ``inaccurate``
+    (Brent's bracket met the edge, where ``r`` loses its digits and changes sign: the
+    Hamiltonian-jump check failed).  Now the slope is read just inside the edge, the plan is
+    made ``1e-10 t_f`` inside it, the stationarity check is not applied there
+    (``feasibility_edge``), and cost and contact time agree with the bounded QP.  The global
+    certificate does not close at such an edge within its budget (the Farkas margins of the
+    infeasible side vanish at the edge), so this test skips it: ``local``."""
+    ego = EgoBoundary(tf=4.03474331919433, x0=0.0, y0=0.0, vx0=23.369565323506087, xf=100.94031355330122,
+                      yf=-3.5605651349647482, vxf=23.036231990172755, vy0=0.0, vyf=-0.011844761331778364)
+    veh = SurroundingVehicle(x_poly=(4.199502686445335, 23.36956532351609, 0.0, 0.01), corner="rear-lower", y=0.0,
+                             length=4.8, width=1.8, safety_x=0.5, safety_y=0.5)
+    problem = Problem(ego, (veh,), "edge", PhysicalLimits(ax=(-4.4480495052821105, 1.5), ay=(-3.0, 3.0)))
+    pmp = PMPPlanner(certify_bounded=False).plan(problem)
+    assert pmp.status == stc.LOCAL and pmp.cost is not None, (pmp.status, pmp.info.get("failed_check"))
+    assert pmp.info["search"]["feasibility_edge"] == "lower"
+    assert abs(float(pmp.contact_times[0]) - 1.3281212) < 1e-6
+    qp = plan(problem, "qp", solver="clarabel", steps=QP_STEPS, contact="refine")
+    assert qp.cost is not None and qp.cost * (1 - BELOW_REL) <= pmp.cost <= qp.cost * (1 + ABOVE_REL)

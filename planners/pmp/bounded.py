@@ -95,6 +95,15 @@ INF = math.inf
 #: Grid points of the one-vehicle contact-time search (the starts of Brent's polish).
 GRID_ONE = 16
 
+#: How far inside the edge of the feasible contact times (over ``t_f``) the search reads the
+#: slope ``r`` (at the edge the dual multipliers grow without bound).
+EDGE_PROBE = 1e-6
+
+#: A minimum at that edge is planned this far inside (over ``t_f``): at the edge itself the
+#: multipliers' size turns the residual of F = 0 into a duality gap above its tolerance; the
+#: cost this adds, ``|r| EDGE_BACKOFF t_f``, is far below the certificate's ``1e-9``.
+EDGE_BACKOFF = 1e-10
+
 #: The tolerance entry of each check of :func:`check_values`.
 BOUNDED_TOLERANCE_OF = {
     "boundary": "pmp_bounded_residual",
@@ -936,21 +945,24 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
         hi_t = pts[i + 1] if i + 1 < len(pts) else T * (1 - 1e-6)
         r_lo, r_hi = ev(np.array([lo_t]))[1][0], ev(np.array([hi_t]))[1][0]
         # an infeasible end of the bracket moves to the edge of the feasible contact times
-        # (bisection): J_b may fall all the way to that edge, where the minimum is not stationary
-        edge_lo = edge_hi = False
+        # (bisection): J_b may fall all the way to that edge, where the minimum is not
+        # stationary.  At the edge itself the dual multipliers grow without bound and r loses
+        # its digits, so the slope there is read EDGE_PROBE t_f inside, where the bracket starts.
+        cands: list[tuple[float, str | None]] = []
         if not np.isfinite(r_lo) and math.isfinite(vals[i]):
-            lo_t, edge_lo = _feasible_edge(ev, pts[i], lo_t, T), True
+            edge_t = _feasible_edge(ev, pts[i], lo_t, T)
+            lo_t = min(edge_t + EDGE_PROBE * T, 0.5 * (edge_t + pts[i]))
             r_lo = ev(np.array([lo_t]))[1][0]
+            if r_lo > 0:  # J_b rises from the lower edge: a minimum at the edge
+                cands.append((edge_t + EDGE_BACKOFF * T, "lower"))
         if not np.isfinite(r_hi) and math.isfinite(vals[i]):
-            hi_t, edge_hi = _feasible_edge(ev, pts[i], hi_t, T), True
+            edge_t = _feasible_edge(ev, pts[i], hi_t, T)
+            hi_t = max(edge_t - EDGE_PROBE * T, 0.5 * (edge_t + pts[i]))
             r_hi = ev(np.array([hi_t]))[1][0]
+            if r_hi < 0:  # J_b falls to the upper edge
+                cands.append((edge_t - EDGE_BACKOFF * T, "upper"))
         if not (np.isfinite(r_lo) and np.isfinite(r_hi)):
             continue
-        cands: list[tuple[float, str | None]] = []
-        if edge_lo and r_lo > 0:  # J_b rises from the lower edge: a minimum at the edge
-            cands.append((lo_t, "lower"))
-        if edge_hi and r_hi < 0:  # J_b falls to the upper edge
-            cands.append((hi_t, "upper"))
         if r_lo < 0 < r_hi:
 
             def r_of(x: float) -> float:
@@ -1130,6 +1142,19 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         info["error"] = f"{type(exc).__name__}: {exc}"
         return _failed(problem, NUMERICAL_ERROR, "dual_newton", info, t0, str(exc))
     checks, failed, bad = judge(values)
+    if bad is not None:
+        # the warm start can end on multipliers that meet F = 0 less well than a cold start
+        # (near the edge of the feasible contact times they are large): one cold solve
+        try:
+            with np.errstate(all="ignore"):
+                cold = solve_bounded_fixed(problem, t)
+                cold_values = check_values(cold, stationary=not fixed and "feasibility_edge" not in search)
+            cold_judged = judge(cold_values)
+            if cold_judged[2] is None:
+                sol, values, (checks, failed, bad) = cold, cold_values, cold_judged
+        except (AxisInfeasible, AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError,
+                OverflowError):
+            pass
     certified = bool(fixed)
     if bad is None and not fixed:
         if m == 1 and certify:
