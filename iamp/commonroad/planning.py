@@ -78,8 +78,11 @@ MAX_CANDIDATES = 8
 MAX_PLANS = 6
 #: Grid intervals of the QP planners (24 and 40 give the same plans to 1e-4 in J on US-101, 1.5-4x faster).
 STEPS = 24
-#: Branch-and-bound boxes per PMP call (its ``max_boxes``; beyond it the plan is ``local``).
+#: Branch-and-bound boxes of the PMP per problem, over every call (each call's ``max_boxes`` is
+#: what is left; beyond it the plan is ``local``).
 PMP_MAX_BOXES = 2_000
+#: Fewest boxes a PMP call is made with; a call that the boxes left cannot afford is not made.
+PMP_MIN_BOXES = 64
 #: QP solves per avoidance-QP call (its branch and bound's ``max_solves``).
 AVOID_MAX_SOLVES = 8
 #: QP solves of the equality QP per problem, over every call (the avoidance QP's most,
@@ -354,9 +357,11 @@ def qp_steps(m: int, steps: int = STEPS, max_solves: int = QP_MAX_SOLVES) -> int
 
 
 def _affords(budget: list[int], iamp_planner: str, constraint: str, m: int, steps: int) -> bool:
-    """Can ``budget`` (calls, equality-QP solves) pay one more call with ``m`` vehicles?"""
+    """Can ``budget`` (calls, equality-QP solves, PMP boxes) pay one more call with ``m`` vehicles?"""
     if budget[0] <= 0:
         return False
+    if iamp_planner == "pmp":
+        return budget[2] >= PMP_MIN_BOXES
     if iamp_planner != "qp" or constraint != "equality":
         return True
     n = qp_steps(m, steps, budget[1])
@@ -364,12 +369,12 @@ def _affords(budget: list[int], iamp_planner: str, constraint: str, m: int, step
 
 
 def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[SurroundingVehicle], margin_y: float,
-               planner: str, constraint: str, steps: int) -> Plan:
+               planner: str, constraint: str, steps: int, max_boxes: int = PMP_MAX_BOXES) -> Plan:
     import iamp
 
     problem = cr.problem(cand, vehicles, margin_y)
     if planner == "pmp":
-        return iamp.plan(problem, "pmp", max_boxes=PMP_MAX_BOXES)
+        return iamp.plan(problem, "pmp", max_boxes=max_boxes)
     if constraint == "avoid":
         return iamp.plan(problem, "qp", constraint=constraint, steps=steps, hold="foh", max_solves=AVOID_MAX_SOLVES)
     return iamp.plan(problem, "qp", constraint=constraint, steps=steps, hold="foh")
@@ -403,7 +408,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     queue = list(order)
     heading = HEADING_GUESS_RAD
     edge_heading = abs(math.atan2(cr.x0[3], max(cr.x0[1], 1e-6)))  # the start's, raised when a plan turns more
-    budget = [max_plans, QP_MAX_SOLVES]  # planner calls, equality-QP solves
+    budget = [max_plans, QP_MAX_SOLVES, PMP_MAX_BOXES]  # planner calls, equality-QP solves, PMP boxes
     n_tried = 0
     tried: list[Candidate] = []
     while queue and n_tried < max_candidates:
@@ -661,15 +666,22 @@ def _relevant(cr: CommonRoadProblem, cand: Candidate, free: FreeTrajectory, sy: 
 def _finish(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: str, constraint: str,
             vehicles: list[SurroundingVehicle], imposed: list[tuple[int, str]], margin_y: float,
             steps: int, budget: list[int]) -> RoadPlan:
-    """One call of the iamp planner, charged to ``budget`` (calls, equality-QP solves)."""
+    """One call of the iamp planner, charged to ``budget`` (calls, equality-QP solves, PMP boxes)."""
     budget[0] -= 1
     if iamp_planner == "qp" and constraint == "equality":
         steps = qp_steps(len(vehicles), steps, budget[1])
         budget[1] -= math.perm(steps - 1, len(vehicles))
+    boxes = min(PMP_MAX_BOXES, budget[2])
     try:
-        result = _iamp_plan(cr, cand, vehicles, margin_y, iamp_planner, constraint, steps)
+        result = _iamp_plan(cr, cand, vehicles, margin_y, iamp_planner, constraint, steps, boxes)
     except IampError as exc:
+        if iamp_planner == "pmp":
+            budget[2] -= boxes
         return RoadPlan(label, "refused", cand, None, None, 0.0, list(imposed), [], None, 0, str(exc))
+    if iamp_planner == "pmp":
+        search = getattr(result.diagnostics, "search", None)
+        used = search.get("boxes") if isinstance(search, dict) else None
+        budget[2] -= int(used) if isinstance(used, (int, np.integer)) else boxes
     if not result.ok:
         return RoadPlan(label, result.status, cand, None, None, result.solve_time_s, list(imposed), [],
                         result.status, 0, str(result.info.get("reason") or result.status))
