@@ -147,6 +147,18 @@ class RowsSolution:
     finite: bool
 
 
+def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -> sp.csc_matrix:
+    """``[top; A[rows]]`` as CSC, every stored entry kept (explicit zeros too, so that the same
+    rows always give the same pattern), gathered from the CSR arrays."""
+    start, stop = A.indptr[rows], A.indptr[rows + 1]
+    lens = stop - start
+    take = np.repeat(start - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(int(lens.sum()))
+    indptr = np.r_[top.indptr, top.indptr[-1] + np.cumsum(lens)]
+    M = sp.csr_matrix((np.r_[top.data, A.data[take]], np.r_[top.indices, A.indices[take]], indptr),
+                      shape=(top.shape[0] + rows.size, top.shape[1]))
+    return M.tocsc()
+
+
 class RowGeneration:
     r"""``min ½zᵀPz`` s.t. ``A_eq z = b_eq``, ``A_in z <= u_in`` by row generation (exact).
 
@@ -230,7 +242,7 @@ class RowGeneration:
         while True:
             rows = np.flatnonzero(work)
             if rows.size:
-                A = sp.csc_matrix(sp.vstack([self.A_eq, A_in[rows]]))
+                A = _stack_rows(self.A_eq, A_in, rows)
                 u = u_in[rows]
             else:  # one always-true row keeps the cone non-empty
                 A = sp.csc_matrix(sp.vstack([self.A_eq, sp.csr_matrix((1, n))]))
