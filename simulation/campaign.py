@@ -60,10 +60,11 @@ COLUMNS = ("mission", "planner", "traffic", "seed", "cooperation", "sublane", "d
 Key = tuple[str, str, str, int]
 #: Version of the episode definition (missions, decision layer, metrics); part of the manifest.
 #: 17.1: contacts by oriented bodies, the RSS judge's columns (SPEC §17).
-EPISODE_FORMAT = "17.1"
+#: 17.2: courteous target-lane followers open a gap for the signalling ego (the manifest's ``courtesy``).
+EPISODE_FORMAT = "17.2"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
-                "sublane", "ego_in_forecast", "rss")
+                "sublane", "ego_in_forecast", "rss", "courtesy")
 
 
 class ManifestMismatch(IampError):
@@ -107,9 +108,13 @@ def _key(row: dict[str, Any]) -> Key:
 def manifest_of(missions: Iterable[str], planners: Iterable[str], traffics: Iterable[str], seeds: int,
                 episode: dict[str, Any]) -> dict[str, Any]:
     """The manifest: the episode parameters (with the RSS judge's, SPEC §17) and the grid."""
+    from dataclasses import asdict
+
+    from iamp.simulation.missions import courtesy_of
     from iamp.simulation.rss import DEFAULT
 
-    episode = {"rss": DEFAULT.as_dict(), **episode}
+    courtesy = courtesy_of(str(episode.get("cooperation", "default")))
+    episode = {"rss": DEFAULT.as_dict(), "courtesy": None if courtesy is None else asdict(courtesy), **episode}
     return {"episode_format": EPISODE_FORMAT, **{k: episode[k] for k in EPISODE_KEYS if k in episode},
             "missions": list(missions), "planners": list(planners), "traffic": list(traffics), "seeds": int(seeds)}
 

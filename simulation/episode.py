@@ -24,7 +24,7 @@ from iamp.core.atomic import atomic_open
 from iamp.core.errors import ScenarioError
 from iamp.simulation.controller import Controller, ControllerConfig
 from iamp.simulation.metrics import StepLog, episode_metrics, percentile_stats
-from iamp.simulation.missions import EGO_DEPART_M, cooperation_of, mission_of
+from iamp.simulation.missions import EGO_DEPART_M, cooperation_of, courtesy_of, mission_of
 from iamp.simulation.monitor import monitor
 from iamp.simulation.planning import PLANNERS
 from iamp.simulation.simulator import EgoState, Simulator
@@ -89,7 +89,7 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
     hw = mission.highway()
     sim = Simulator(spec.traffic, spec.seed, step=spec.period_s, highway=hw, ego_lane=mission.ego_lane,
                     ego_pos=EGO_DEPART_M, empty_lanes=(0,) if mission.ramp else (),
-                    cooperation=cooperation_of(spec.cooperation),
+                    cooperation=cooperation_of(spec.cooperation), courtesy=courtesy_of(spec.cooperation),
                     truck=(mission.truck_ahead_m, mission.truck_speed) if mission.truck else None,
                     sublane=spec.sublane)
     sumo_s = 0.0
@@ -124,6 +124,8 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
                     break
             n_plans = len(ctl.n.plan_times)
             nxt = ctl.step(t, obs, ego)
+            wants = ctl.mode not in ("done", "hold") and hw.lane_of(ego.y) != ctl.target
+            sim.signal(ctl.target if wants else None, obs, ego)  # indicator; a courteous follower yields
             plan_time = ctl.n.plan_times[-1] if len(ctl.n.plan_times) > n_plans else math.nan
             log.t.append(t)
             log.ego.append((ego.x, ego.vx, ego.y, ego.vy, ego.ax, ego.ay))

@@ -39,6 +39,12 @@ level        ``lcCooperative``  ``lcAssertive``  ``lcSpeedGain``  ``sigma`` (Kra
 (``lcCooperative`` is LC2013's willingness to change lanes or adapt speed for others who must
 change; ``lcAssertive`` how small a gap a driver accepts for itself; ``sigma`` the Krauss
 driver's imperfection.)
+
+**Courteous followers** (:data:`COURTESY`): with ``default`` and ``high`` cooperation the
+target-lane vehicle nearest behind the signalling ego opens a gap for it
+(:class:`iamp.simulation.simulator.Courtesy`: RSS's distance behind the ego, braking at most
+2 m/s²), for every planner that drives the ego, the baselines included; with ``low``
+(``lcCooperative = 0``) nobody yields.
 """
 
 from __future__ import annotations
@@ -47,6 +53,7 @@ from dataclasses import dataclass
 
 from iamp.core.errors import ScenarioError
 from iamp.simulation.network import Highway
+from iamp.simulation.simulator import Courtesy
 
 #: Where the ego departs (front bumper, SUMO's ``departPos``) [m].
 EGO_DEPART_M = 400.0
@@ -112,6 +119,22 @@ COOPERATION: dict[str, dict[str, float]] = {
     "default": {},
     "high": {"lcCooperative": 1.0, "lcAssertive": 0.7, "lcSpeedGain": 0.5, "sigma": 0.2},
 }
+
+
+#: ``--cooperation`` levels: the courteous follower (module docstring; ``None``: nobody yields).
+COURTESY: dict[str, Courtesy | None] = {"low": None, "default": Courtesy(), "high": Courtesy()}
+
+
+def courtesy_of(name: str) -> Courtesy | None:
+    """The courtesy of the target-lane followers at cooperation level ``name`` (:data:`COURTESY`).
+
+    Raises
+    ------
+    ScenarioError
+        An unknown level.
+    """
+    cooperation_of(name)
+    return COURTESY[name]
 
 
 def mission_of(name: str) -> Mission:

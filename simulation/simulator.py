@@ -16,6 +16,14 @@ The ego is the SUMO vehicle ``"ego"``.  Two modes:
   ``setSpeed`` with ``speedMode 0`` (no SUMO check overrides the plan).  SUMO's drivers react
   to it: a follower whose lane the ego enters brakes, a leader does not yield.
 
+**Courteous followers** (:class:`Courtesy`, :meth:`Simulator.signal`): while the ego wants to
+change lanes its indicator is on, and the target-lane vehicle nearest behind its centre (within
+``range_m``) — if the drivers are cooperative (``--cooperation`` not ``low``) — opens a gap to it with
+SUMO's gap control (``vehicle.openGap`` with the ego as reference vehicle): its desired time and
+space headway grow to what RSS asks behind the ego at its speed, braking for it at most
+``max_decel``.  Only that follower, only while the indicator is on; the loop's verification does
+not know of it (it keeps RSS's worst case: the follower may not yield).
+
 SUMO's position is the front bumper; everything here is converted to vehicle **centres**
 (``centre = front - L/2·(cos ψ, sin ψ)``).  Collisions are reported, not resolved
 (``--collision.action warn``, ``--collision.check-junctions``): no teleport removes a
@@ -35,6 +43,8 @@ from typing import Any
 import numpy as np
 
 from iamp.simulation.network import Highway, build_network, require_sumo
+from iamp.simulation.rss import DEFAULT as RSS_DEFAULT
+from iamp.simulation.rss import RssParameters, safe_longitudinal_distance
 from iamp.simulation.traffic import routes_xml
 
 EGO = "ego"
@@ -43,6 +53,48 @@ TRUCK = "truck_lead"
 LC_NONE, LC_REQUEST_SAFE = 0, 512
 #: speedMode: all SUMO checks / none (iamp sets the speed).
 SPEED_CHECKED, SPEED_UNCHECKED = 31, 0
+#: SUMO's signal bits (TraCI vehicle signalling): right and left indicator.
+BLINKER_RIGHT, BLINKER_LEFT = 1, 2
+
+
+@dataclass(frozen=True)
+class Courtesy:
+    """A cooperative target-lane follower opens a gap for the signalling ego (zipper merge).
+
+    The follower's gap control (SUMO ``vehicle.openGap``, reference vehicle the ego) raises its
+    desired time headway to ``max(τ, (d + m)/v)`` and its space headway to ``d + m``, with ``d``
+    the RSS safe distance (:func:`iamp.simulation.rss.safe_longitudinal_distance`, ``rss``) of
+    the follower at its speed ``v`` behind the ego at the same speed and ``m = margin_m``, both at
+    the request; SUMO changes the headways at ``change_rate`` per second and brakes for them at
+    most ``max_decel``, and keeps them ``duration_s`` after they are attained.
+
+    Parameters
+    ----------
+    max_decel : float
+        The largest deceleration the gap control may use [m/s²]: 2 m/s², the comfortable
+        deceleration ``b`` of Treiber's highway IDM (:class:`iamp.simulation.mobil.IDM`).
+    change_rate : float
+        SUMO's ``changeRate`` [1/s] (1 reaches the new headway within 1 s).
+    duration_s : float
+        How long the headway is kept once attained [s] (ended earlier when the indicator goes off).
+    range_m : float
+        Only a follower whose centre is at most this far behind the ego's centre is asked [m].
+    rss : RssParameters
+    margin_m : float
+        Added to the RSS distance [m] (the verification's ``margin_x``).
+    """
+
+    max_decel: float = 2.0
+    change_rate: float = 0.5
+    duration_s: float = 10.0
+    range_m: float = 60.0
+    rss: RssParameters = RSS_DEFAULT
+    margin_m: float = 0.5
+
+    def headways(self, v: float, tau: float) -> tuple[float, float]:
+        """``(time headway [s], space headway [m])`` asked of a follower at ``v`` whose own is ``tau``."""
+        space = float(safe_longitudinal_distance(max(v, 0.0), max(v, 0.0), self.rss)) + self.margin_m
+        return max(tau, space / v if v > 0.1 else tau), space
 
 
 #: Below this speed [m/s] the commanded velocity does not set the ego's heading (it keeps the last
@@ -118,6 +170,12 @@ class Simulator:
     cooperation: dict[str, float] = field(default_factory=dict)
     truck: tuple[float, float] | None = None
     sublane: bool = False
+    #: Courteous target-lane followers (None: drivers do not yield, ``--cooperation low``).
+    courtesy: Courtesy | None = None
+    #: Every courtesy request ``(t, follower, time headway, space headway, max_decel)`` (for the record).
+    courtesy_log: list[tuple[float, str, float, float, float]] = field(default_factory=list)
+    _yielding: str | None = None
+    _signals: int = 0
     _lengths: dict[str, tuple[float, float]] = field(default_factory=dict)
     _tmp: Any = None
     _ls: Any = None
@@ -275,6 +333,42 @@ class Simulator:
         ls.vehicle.setLaneChangeMode(EGO, LC_REQUEST_SAFE)
         _, _, first = self.highway.edge_at(self.ego().x)
         ls.vehicle.changeLane(EGO, max(int(lane), first), float(duration))
+
+    def signal(self, target_lane: int | None, obs: Observation, ego: EgoState) -> str | None:
+        """The ego's indicator toward ``target_lane`` (``None``: off) and the courtesy it asks
+        (:class:`Courtesy`): the target-lane vehicle nearest behind the ego's centre within
+        ``range_m`` opens a gap while the indicator is on; a follower no longer asked (the
+        indicator off, or another follower nearest) gets its own headways back.
+
+        Returns
+        -------
+        str or None
+            The follower yielding now.
+        """
+        ls = self._ls
+        lane = self.highway.lane_of(ego.y)
+        bits = 0 if target_lane is None or target_lane == lane else \
+            (BLINKER_LEFT if target_lane > lane else BLINKER_RIGHT)
+        if bits or self._signals:  # SUMO resets a vehicle's signals every step: set them every step
+            ls.vehicle.setSignals(EGO, bits if bits else -1)  # -1: SUMO's own signals again
+            self._signals = bits
+        want: str | None = None
+        if bits and self.courtesy is not None:
+            behind = [(ego.x - float(x), vid) for vid, x, ln in zip(obs.ids, obs.x, obs.lane)
+                      if int(ln) == target_lane and 0.0 <= ego.x - float(x) <= self.courtesy.range_m]
+            want = min(behind)[1] if behind else None
+        if want != self._yielding:
+            if self._yielding is not None and self._yielding in ls.vehicle.getIDList():
+                ls.vehicle.deactivateGapControl(self._yielding)
+            if want is not None:
+                c = self.courtesy
+                assert c is not None
+                k = obs.ids.index(want)
+                tau, space = c.headways(float(obs.v[k]), float(ls.vehicle.getTau(want)))
+                ls.vehicle.openGap(want, tau, space, c.duration_s, c.change_rate, c.max_decel, EGO)
+                self.courtesy_log.append((self.t, want, tau, space, c.max_decel))
+            self._yielding = want
+        return want
 
     def ego_lane_index(self) -> int:
         """The ego's global lane index (from its centre's ``y``)."""

@@ -268,6 +268,6 @@ def test_resuming_a_campaign_of_an_older_episode_format_refuses_naming_it(tmp_pa
     old["episode_format"] = "15.1"
     (tmp_path / "manifest.json").write_text(json.dumps(old))
     (tmp_path / "episodes.csv").write_text("mission,planner,traffic,seed\nmerge,pmp,dense,1\n")
-    with pytest.raises(ManifestMismatch, match=r"episode format '15.1', now '17.1'.*rss.*--force"):
+    with pytest.raises(ManifestMismatch, match=rf"episode format '15.1', now '{EPISODE_FORMAT}'.*rss.*--force"):
         check_manifest(tmp_path, wanted, force=False)
     assert check_manifest(tmp_path, wanted, force=True) == wanted and not (tmp_path / "episodes.csv").exists()
