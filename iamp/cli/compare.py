@@ -80,8 +80,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     b = sub.add_parser("bench", help="speed numbers against the project's targets",
                        description="One run: medians of the PMP plan and batch API, every QP backend per "
                                    "candidate (osqp, clarabel, piqp, the exact kkt), FOH grid sweeps (native and "
-                                   "through cvxpy), the avoidance-QP sweep, OSQP settings; targets, ratios, machine, "
-                                   "library versions, and a warning when the spread says the machine was busy.")
+                                   "through cvxpy), the avoidance-QP sweep, OSQP settings, planning with the car's "
+                                   "limits (bounded PMP, avoidance with limits at N = 50, one and three vehicles; CPU "
+                                   "and wall time) and, without --quick, one 60 s closed-loop episode per iamp "
+                                   "planner; targets, ratios, machine, library versions, and a warning when the "
+                                   "spread says the machine was busy. python scripts/bench_table.py writes "
+                                   "docs/bench.md and the README's table from the JSON.")
     b.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     b.add_argument("--quick", action="store_true", help="fewer repeats")
     add_quiet_flag(b)
