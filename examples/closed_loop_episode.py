@@ -5,9 +5,12 @@ One closed-loop episode in SUMO traffic
 ``iamp simulate`` puts the planner in a car on a SUMO highway: every control period the ego
 observes the last 3 s of its neighbours, the predictor turns each history into a cubic, the
 decision layer picks a gap, the planner plans the lane change and the first period of the plan
-is executed; an independent monitor judges what was executed. Here: a merge (the ego's lane
+is executed only when it and its fail-safe keep RSS's safe distances (SPEC §17); an independent
+monitor judges what was executed with the same RSS parameters. Here: a merge (the ego's lane
 ends) in medium traffic with ``pmp-active``, the paper's PMP with the equality imposed only where
-it is a real constraint. Needs the ``[sim]`` extra (SUMO wheels); without it, it says so and stops.
+it is a real constraint. While the ego signals, the target-lane driver behind it opens a gap (a
+courteous SUMO driver, braking at most 2 m/s² for it; the verification does not count on it).
+Needs the ``[sim]`` extra (SUMO wheels); without it, it says so and stops.
 
 Run: ``python examples/closed_loop_episode.py``
 """
@@ -39,7 +42,8 @@ def main() -> dict[str, object] | None:
         if run.returncode == 2:
             raise RuntimeError(run.stderr.strip())
         episode = json.loads(run.stdout)
-        for key in ("success", "time_to_merge_s", "contacts", "min_ttc_s", "limit_violations", "plans"):
+        for key in ("success", "time_to_merge_s", "contacts", "contacts_at_fault", "rss_dangerous_s",
+                    "follower_emergency_brakes", "follower_max_decel", "min_ttc_s", "limit_violations", "plans"):
             print(f"{key:18s} {episode.get(key)}")
         gif = Path(tmp) / "episode.gif"
         subprocess.run([sys.executable, "-m", "iamp", "plot", "--episode", str(log), "--out", str(gif), "--speed",

@@ -121,4 +121,9 @@ def test_closed_loop_episode():
     if episode is None:
         pytest.skip("needs the [sim] extra")
     assert episode["contacts"] == 0 and episode["limit_violations"] == 0
-    assert episode["success"] is True
+    # the judge uses the verification's own RSS set (SPEC §17): the ego never breaks its proper
+    # response, so no dangerous time and no contact is blamed on it, and no follower brakes hard for it
+    assert episode["rss_dangerous_s"] == 0.0 and episode["contacts_at_fault"] == 0
+    assert episode["follower_emergency_brakes"] == 0
+    # it merges (a courteous follower opens the gap) before its lane ends and within the deadline
+    assert episode["success"] is True and 0.0 < episode["time_to_merge_s"] <= 40.0
