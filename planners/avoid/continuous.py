@@ -167,13 +167,17 @@ class ContinuousAvoidQP:
         self._indptr = np.r_[np.arange(0, 4 * self.n_b + 1, 4), 4 * self.n_b + self.A_lim.indptr[1:]].astype(np.int64)
         self._indices = np.r_[cols, self.A_lim.indices].astype(np.int64)
         self._lim_data = np.asarray(self.A_lim.data, dtype=float)
-        #: per vehicle and half-plane: σ M (row values of a full piece) and every full piece's bounds
+        #: per vehicle and half-plane: σ M (row values of a full piece) of every piece, every full
+        #: piece's bounds
         self._full_vals: dict[tuple[int, int], FloatArray] = {}
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
+        #: the values, bounds and imposed rows of a spec that imposes no Bernstein row
+        self._empty = (np.r_[np.zeros(4 * self.n_b), self._lim_data], np.r_[np.ones(self.n_b), self.u_lim],
+                       np.r_[np.zeros(self.n_b, dtype=bool), np.ones(self.u_lim.size, dtype=bool)])
         for i in range(m):
             for a in (0, 1):
                 hp = self.data.planes[i][a]
-                self._full_vals[(i, a)] = hp.sigma * self.M_full.ravel()
+                self._full_vals[(i, a)] = np.tile(hp.sigma * self.M_full.ravel(), self.N)
                 self._full_rhs[(i, a)] = np.concatenate(
                     [self._rhs(hp, float(d.t_nodes[kk]), float(d.t_nodes[kk]) + self.h) for kk in range(self.N)])
 
@@ -216,10 +220,7 @@ class ContinuousAvoidQP:
         (per vehicle ``(first, second, a, b)``: ``first`` on ``[0, a]``, ``second`` on ``[b, t_f]``;
         the limit rows always)."""
         n = self.degree + 1
-        vals = np.zeros(4 * self.n_b)
-        rhs = np.ones(self.n_b)
-        on = np.zeros(self.n_b + self.u_lim.size, dtype=bool)
-        on[self.n_b:] = True
+        vals, rhs, on = (x.copy() for x in self._empty)
         for i, (first, second, a, b) in enumerate(spec):
             for plane, (ta, tb) in ((first, (0.0, a)), (second, (b, self.tf))):
                 if (plane == first and a <= 0.0) or (plane == second and b >= self.tf):
@@ -231,7 +232,7 @@ class ContinuousAvoidQP:
                 if full:  # contiguous
                     k0, k1 = full[0], full[-1] + 1
                     r0, r1 = base + k0 * n, base + k1 * n
-                    vals[4 * r0:4 * r1] = np.tile(self._full_vals[(i, plane)], k1 - k0)
+                    vals[4 * r0:4 * r1] = self._full_vals[(i, plane)][4 * k0 * n:4 * k1 * n]
                     rhs[r0:r1] = self._full_rhs[(i, plane)][k0 * n:k1 * n]
                     on[r0:r1] = True
                 for k, l0, l1 in pieces:
@@ -242,7 +243,7 @@ class ContinuousAvoidQP:
                     t0 = float(self.data.t_nodes[k])
                     rhs[r0:r0 + n] = self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h)
                     on[r0:r0 + n] = True
-        return np.r_[vals, self._lim_data], np.r_[rhs, self.u_lim], on
+        return vals, rhs, on
 
     def _csr(self, vals: FloatArray, rows: NDArray[np.int64]) -> sp.csr_matrix:
         """The rows ``rows`` of the layout with values ``vals`` (a CSR gather, no search)."""
