@@ -57,18 +57,20 @@ NOTES: dict[str, str] = {
         "at s 233.4-235.5 m in lane 3 at 11.9-12.9 s; the ego is in that lane from 7 s, and SUMO's vehicle 55 "
         "ahead of it slows from 12 to 2.3 m/s (its centre at s 224.8 m at 12.4 s, 8.6 m short of the goal "
         "region). The region itself stays free (11 of 11 steps), but reaching it at 13.5 m/s means passing 55 "
-        "through lane 2 (vehicles 48, 42, 33, 31 at 0-8 m/s) or lane 4 (57) within 4 s; every plan from 8.0 s "
+        "through lane 2 (vehicles 48, 42, 33, 31 at 0-8 m/s) or lane 4 (57) within 4 s; every plan from 8.5 s "
         "on runs into 55 or 51, and the ego brakes behind 55 (min gap 3.0 m). Before the fail-safe braking was "
         "added the ego reached the goal with a contact."),
     "USA_US101-23_1_I-1-1": (
         "**the goal is free for 0.4 s of its window and the ego is 1 s late.** Three lanes over (s 265-267 m, "
         "13.6-19.6 m/s, 13.0-14.0 s). From 2.0 to 7.8 s every plan across lanes 1-3 runs into one of vehicles "
-        "75, 79, 83, 91, 96 or the avoidance QP is infeasible, and the ego brakes to 9.4 m/s (10 fail-safe "
-        "brakes, 7 kept plans); it crosses the lanes from 8 s on. Vehicle 96 cuts into the goal lane ahead of "
-        "it braking from 20 to 9 m/s and stands in the goal region from 13.4 s (`goal_occupancy`: 4 of 11 "
-        "steps free, 13.0-13.3 s); at 13.0-13.3 s the ego is at s 249-253 m, 12-16 m short, and then brakes "
-        "behind 96 (gap 0.48 m, no contact). Before the fail-safe braking was added it reached the goal with "
-        "a contact."),
+        "75, 79, 83, 91, 96 or the avoidance QP is infeasible (4 fail-safe brakes, 7 kept plans): the ego slows "
+        "from 16.6 to 12.9 m/s and is back in its own lane at 7.8 s (d 0.2 m); it crosses the three lanes from "
+        "8 s on at 16.2 m/s. Vehicle 96 cuts into the goal lane ahead of it braking from 20 to 9 m/s and "
+        "stands in the goal region from 13.4 s (`goal_occupancy`: 4 of 11 steps free, 13.0-13.3 s); at "
+        "13.0-13.3 s the ego is at s 249-254 m, 12-16 m short, and then brakes behind 96 (gap 0.48 m, no "
+        "contact). Before the fail-safe braking was added it reached the goal with a contact. (The planner "
+        "crossing several lanes of traffic is `iamp/commonroad/planning.py`'s active set, one vehicle imposed "
+        "at a time.)"),
     "USA_US101-24_2_I-1-1": (
         "goal reached; **one SUMO-only collision report, no contact**: at 10.2 s SUMO reports a side collision "
         "with vehicle 31 while the bodies are 0.78 m apart. SUMO's check is lane-based (positions along its "
