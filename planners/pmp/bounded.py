@@ -88,6 +88,7 @@ from iamp.planners.pmp.saturated import (
     solve_axis_value,
 )
 from iamp.planners.pmp.saturated_kernel import POINT_WIDTH
+from iamp.planners.pmp.verify import HJUMP_FLOOR
 
 FloatArray = npt.NDArray[np.float64]
 INF = math.inf
@@ -677,7 +678,7 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
     vals.update(boundary=bnd, corner=cor, saturation_law=sat, switching=sw, box=box, hamiltonian_constant=hcon)
     if stationary and len(t):
         r, size = sol.hamiltonian_jump_terms()
-        vals["hamiltonian_jump"] = float(np.max(np.abs(r) / np.maximum(size, 1e-300)))
+        vals["hamiltonian_jump"] = float(np.max(np.abs(r) / np.maximum(size, HJUMP_FLOOR * hscale)))
     cost = sol.cost
     dual = sum(ax.dual for ax in sol.axes)
     vals["duality_gap"] = abs(cost - dual) / max(cost, 1e-300)

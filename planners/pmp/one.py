@@ -11,7 +11,9 @@ written out for the three-piece solution:
   position, final speed);
 * ``corner`` and ``boundary`` — the corner and the final state reached by the solution;
 * ``hamiltonian_jump`` — :math:`r = \tilde\Phi_x(\tilde v_x - \dot{\tilde x}_s) + \tilde\Phi_y\tilde v_y`
-  over :math:`|\tilde\Phi_x|(|\tilde v_x|+|\dot{\tilde x}_s|) + |\tilde\Phi_y||\tilde v_y|`;
+  over :math:`|\tilde\Phi_x|(|\tilde v_x|+|\dot{\tilde x}_s|) + |\tilde\Phi_y||\tilde v_y|`, floored at
+  :data:`~iamp.planners.pmp.verify.HJUMP_FLOOR` (the corner on the unconstrained path: jumps of
+  rounding size);
 * ``cost_consistency`` — :math:`\tilde J_0 + N/(2\tilde K)` against
   :math:`\tfrac12\int|\tilde u|^2` of the piecewise-linear input.
 
@@ -32,7 +34,7 @@ from iamp.core.tolerances import TOLERANCES
 
 from .jit import compilable
 from .search import one_vehicle_sigma
-from .verify import TOLERANCE_OF, Checks, judge_pairs
+from .verify import HJUMP_FLOOR, TOLERANCE_OF, Checks, judge_pairs
 
 _EGO_FIELDS = attrgetter("tf", "x0", "vx0", "xf", "vxf", "y0", "vy0", "yf", "vyf")
 _INF = math.inf
@@ -173,7 +175,7 @@ def one_vehicle_kernel(ego: Sequence[float], ex: Sequence[float], ey: Sequence[f
     out[8] = lin / max(den, 1e-300)
     out[9] = corner
     out[10] = bound
-    out[11] = abs(rj) / max(size, 1e-300)
+    out[11] = abs(rj) / max(size, HJUMP_FLOOR)
     out[12] = abs(J_closed - J_traj) / max(abs(J_traj), 1e-300)
     return out
 

@@ -13,8 +13,12 @@ dimensionless with the units of :mod:`iamp.planners.pmp.scale` (time ``T = t_f``
 * ``h_minimisation`` — :math:`|u+p_{2,4}|\,T^2/L` at ``0, t_i, t_f`` (``pmp_scaled_residual``);
 * ``costate_jump`` — :math:`|p^-_{1,3}-p^+_{1,3}-\Phi|\,T^3/L` and
   :math:`|p^-_{2,4}-p^+_{2,4}|\,T^2/L` (``pmp_scaled_residual``);
-* ``hamiltonian_jump`` — :math:`|H^- - H^+ - \dot x_s\Phi_x|` over the size of its terms
-  (``pmp_hjump_rel``; free contact times only);
+* ``hamiltonian_jump`` — :math:`|H^- - H^+ - \dot x_s\Phi_x|` over the size of its terms,
+  :math:`|\Phi_x|(|v_x|+|\dot x_s|)+|\Phi_y||v_y|`, floored at :data:`HJUMP_FLOOR` units of
+  :math:`H` (``pmp_hjump_rel``; free contact times only).  The floor matters when the corner
+  lies on (or within rounding of) the unconstrained path: the jumps vanish, the condition
+  reduces to the continuity of :math:`H`, and the residual is held to the absolute scaled
+  ``pmp_scaled_residual`` like the other conditions instead of being divided by rounding noise;
 * ``cost_consistency`` — :math:`|J(t) - \tfrac12\int|u|^2|/J`, closed form against the
   trajectory (``pmp_cost_consistency_rel``).
 
@@ -40,6 +44,11 @@ from .solution import Evaluation, PMPSolution
 FloatArray = npt.NDArray[np.float64]
 Checks = dict[str, dict[str, float | bool]]
 _INF = math.inf
+
+#: The floor, in units of the Hamiltonian (:attr:`~iamp.planners.pmp.scale.Units.ham`), of the
+#: size the Hamiltonian-jump residual is divided by: with jumps this small the check is
+#: ``|r|/H_unit <= pmp_scaled_residual`` (the relative tolerance times this floor).
+HJUMP_FLOOR = TOLERANCES["pmp_scaled_residual"] / TOLERANCES["pmp_hjump_rel"]
 
 #: The entry of :data:`iamp.core.tolerances.TOLERANCES` each check is compared with.
 TOLERANCE_OF = _TOLS = {
@@ -93,7 +102,7 @@ def check_values(sol: PMPSolution, S: Scaled | None = None, stationary: bool = T
             jumps = sol.jumps
             r = at.h_left - at.h_right - xdot * jumps[:, 0]
             size = np.abs(jumps[:, 0]) * (np.abs(X[:, 1]) + np.abs(xdot)) + np.abs(jumps[:, 1]) * np.abs(X[:, 3])
-            out["hamiltonian_jump"] = float(np.max(np.abs(r) / np.maximum(size, 1e-300 * u.ham)))
+            out["hamiltonian_jump"] = float(np.max(np.abs(r) / np.maximum(size, HJUMP_FLOOR * u.ham)))
         U = at.inputs[2 + m:4 + 2 * m]
         h = np.diff(bp)[:, None]
         J_traj = float(0.5 * np.sum(h / 3 * (U[:-1] ** 2 + U[:-1] * U[1:] + U[1:] ** 2)))  # = sol.cost()
