@@ -93,9 +93,9 @@ predictions reach at least 3 s ahead, also near the window's end. Before (`inter
 (24_2); 5_1 braked to a stop 1.4 m deep in a narrowing road-edge box (its plan grazed that edge by
 3 cm) and a follower predicted to run into it kept it standing. Now 5_1 reaches its goal.
 
-Another SUMO seed (`--seed 2`: SUMO's drivers' imperfection draws differently), run on the 15 scenes
+Another SUMO seed (`--seed 2`: SUMO's drivers' imperfection draws differently), run on the 14 scenes
 that made any choice without a safe plan above (11_3, 23_1, 23_2, 24_1, 24_2, 26_2, 27_3, 27_4, 2_1,
-2_2, 5_1, 5_2, 9_1, 9_4) and 12_2: the same 11 reach their goal, the same 4 miss it (27_4 and 2_1 again
+2_2, 5_1, 5_2, 9_1, 9_4) and on 12_2: the same 11 reach their goal, the same 4 miss it (27_4 and 2_1 again
 with the goal occupied for the whole window), 0 contacts in all 15 and no SUMO-only report.
 
 Same command, same episode: no decision depends on the clock; two runs of 5_1 gave byte-identical
