@@ -183,7 +183,9 @@ def start_points(S: Scaled, max_starts: int = 32) -> list[FloatArray]:
 
 def global_search(vf: ValueFunction, max_starts: int = 32, max_boxes: int = 200_000,
                   progress: Callable[[int, int], None] | None = None) -> SearchResult:
-    """The global minimiser of ``J̃`` over ``(0, 1)^m`` (module docstring)."""
+    """The global minimiser of ``J̃`` over ``(0, 1)^m`` (module docstring).  ``max_boxes = 0``
+    skips the branch and bound: the best polished start, not certified (a start for the
+    bounded search, :meth:`~iamp.planners.pmp.planner.PMPPlanner._plan_limited`)."""
     from .basin import Basin, add_basin, in_basins
     from .bound import branch_and_bound
 
@@ -206,9 +208,12 @@ def global_search(vf: ValueFunction, max_starts: int = 32, max_boxes: int = 200_
         if in_basins(basins, starts[int(k)], np.zeros(S.m)):
             continue  # Newton would return to that basin's minimiser
         s, q = polish(starts[int(k)])
-        add_basin(vf, basins, s)
+        if max_boxes:  # the basins serve the certificate
+            add_basin(vf, basins, s)
         if q < best_q:
             best_s, best_q = s, q
 
+    if max_boxes == 0:
+        return SearchResult(np.asarray(best_s, dtype=float), best_q, False, 0, len(order))
     bb = branch_and_bound(vf, best_s, best_q, polish, max_boxes=max_boxes, progress=progress, basins=basins)
     return SearchResult(bb.sigma, bb.q, bb.certified, bb.boxes, len(order))
