@@ -162,3 +162,39 @@ def test_the_campaign_manifest_records_the_courtesy():
     assert default["courtesy"]["max_decel"] == 2.0
     assert default["courtesy"]["rss"]["response_time_s"] == DEFAULT.response_time_s
     assert low["courtesy"] is None
+
+
+def _onramp(monkeypatch: pytest.MonkeyPatch, courtesy: bool) -> tuple[dict[str, Any], list[tuple[Any, ...]]]:
+    """Onramp, dense, seed 1, ``free``, 20 s in SUMO; the courtesy requests made."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation import missions
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    if not courtesy:
+        monkeypatch.setitem(missions.COURTESY, "default", None)
+    requests: list[tuple[Any, ...]] = []
+    close = Simulator.close
+
+    def spy(self: Simulator) -> None:
+        requests.extend(self.courtesy_log)
+        close(self)
+
+    monkeypatch.setattr(Simulator, "close", spy)
+    r = run_episode(EpisodeSpec(mission="onramp", traffic="dense", seed=1, planner="free", duration_s=20.0))
+    return r.summary, requests
+
+
+def test_in_sumo_the_yielding_follower_lets_the_ramp_ego_merge_safely(monkeypatch):
+    """Onramp dense seed 1: the target lane flows at ~16 m/s with gaps RSS's distances (33 m a side)
+    do not fit; a courteous follower opens one and the ego merges with no RSS-dangerous time."""
+    s, requests = _onramp(monkeypatch, courtesy=True)
+    assert requests and all(r[4] <= 2.0 for r in requests)
+    assert len({r[1] for r in requests}) == len(requests)  # one request per follower
+    assert s["success"] is True and s["rss_dangerous_s"] == 0.0 and s["contacts"] == 0
+    assert s["follower_emergency_brakes"] == 0
+
+
+def test_in_sumo_without_courtesy_the_same_ramp_ego_stops_at_the_end(monkeypatch):
+    s, requests = _onramp(monkeypatch, courtesy=False)
+    assert requests == []
+    assert s["success"] is False and s["stopped_at_end"] is True and s["rss_dangerous_s"] == 0.0
