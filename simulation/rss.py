@@ -298,6 +298,27 @@ def _complies(resp: str, k: int, kb: int, dt: float, rear: bool, left: bool, m: 
     return True
 
 
+def _ego_left(dy: np.ndarray) -> np.ndarray:
+    """Whether the ego is the left car (larger ``y``) of the pair, from ``dy = y_other - y_ego``.
+
+    Where the two centres are level (``dy == 0``, e.g. both on one lane's centre) left and right
+    are undefined and a sideways move either way opens the gap; the roles there are those of
+    the nearest later step where the two differ (the side they separate to), else of the
+    nearest earlier one, else the ego is taken as the right car.  Without this a level pair
+    made the ego "the right car" and its move to the left counted as moving toward the other.
+    """
+    side = np.sign(np.nan_to_num(dy, nan=0.0))
+    idx = np.arange(side.size)
+    nz = side != 0
+    nxt = np.where(nz, idx, side.size)
+    nxt = np.minimum.accumulate(nxt[::-1])[::-1]  # index of the next nonzero (size: none)
+    prv = np.maximum.accumulate(np.where(nz, idx, -1))  # index of the previous nonzero (-1: none)
+    filled = np.where(nz, side, np.where(nxt < side.size, side[np.minimum(nxt, side.size - 1)],
+                                         np.where(prv >= 0, side[np.maximum(prv, 0)], 0.0)))
+    out: np.ndarray = filled < 0
+    return out
+
+
 def judge_pair(ego: Motion, other: Motion, dt: float, p: RssParameters = DEFAULT) -> PairJudgement:
     """Dangerous times, threshold times, proper responses and blame of one pair (module docstring).
 
@@ -321,7 +342,7 @@ def judge_pair(ego: Motion, other: Motion, dt: float, p: RssParameters = DEFAULT
     v_rear = np.where(ego_front, other.vx, ego.vx)
     v_front = np.where(ego_front, ego.vx, other.vx)
     d_lon = safe_longitudinal_distance(np.nan_to_num(v_rear), np.nan_to_num(v_front), p)
-    ego_left = dy < 0
+    ego_left = _ego_left(dy)
     u_ego = np.where(ego_left, -ego.vy, ego.vy)  # toward the other
     u_oth = np.where(ego_left, other.vy, -other.vy)
     d_lat = safe_lateral_distance(np.nan_to_num(u_ego), np.nan_to_num(u_oth), p)

@@ -250,6 +250,28 @@ def test_a_danger_present_from_the_first_step_has_no_threshold_time_and_both_res
     assert not j.other_responsible.any()
 
 
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_level_pair_takes_the_side_it_separates_to(side: float) -> None:
+    """Ego and a too-close follower on one lane's centre (``dy == 0``: left and right undefined);
+    the ego, which keeps its speed (a proper front car), moves sideways to either side: it moves
+    *away* from the follower, so it is not responsible (before, a level pair made the ego the
+    right car and a move to the left counted as moving toward the other).  The follower, which
+    does not brake, is."""
+    dt, n = 0.1, 40
+    t = np.arange(n) * dt
+    vy = np.where(t >= 0.5, side * 1.0, 0.0)
+    y = np.concatenate([[0.0], np.cumsum(vy[:-1])]) * dt
+    ego = _motion(100 + 20 * t, y, np.full(n, 20.0), vy)
+    fol = _motion(100 - 4.8 - 8 + 20 * t, np.zeros(n), np.full(n, 20.0), np.zeros(n))
+    j = judge_ad(ego, fol, dt)
+    assert j.dangerous[0] and set(r for r in j.response if r) == {"both"}
+    assert not j.ego_responsible.any()
+    assert j.other_responsible.any()
+    swapped = judge_ad(fol, ego, dt)  # the same pair from the follower's side: the same blame
+    assert np.array_equal(swapped.other_responsible, j.ego_responsible)
+    assert np.array_equal(swapped.ego_responsible, j.other_responsible)
+
+
 def test_unseen_steps_are_never_dangerous_and_end_a_run():
     dt, n = 0.1, 10
     t = np.arange(n) * dt
