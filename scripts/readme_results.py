@@ -6,8 +6,9 @@ Usage::
     python scripts/readme_results.py --check    # exit 1 if README.md differs from what the files say
 
 The block between ``<!-- results:begin -->`` and ``<!-- results:end -->`` is generated from
-``reports/results.json`` (written by ``iamp reproduce``) and ``reports/campaign-new/episodes.csv``
-(written by ``iamp campaign``); nothing in it is typed by hand. ``tests/test_readme.py`` fails
+``reports/results.json`` (written by ``iamp reproduce``) and the closed-loop campaigns' ``episodes.csv``
+(written by ``iamp campaign``: ``reports/campaign-safe`` and ``reports/campaign-safe-low``, SPEC §17's
+loop, where present, else ``reports/campaign-new``); nothing in it is typed by hand. ``tests/test_readme.py`` fails
 when the README and these files disagree.
 """
 
@@ -74,6 +75,57 @@ def campaign_table(episodes: Path, root: Path = ROOT) -> list[str]:
     return lines
 
 
+#: The campaigns of SPEC §17's loop shown in the README, in this order (each a folder under reports/).
+SAFE_CAMPAIGNS = ("campaign-safe", "campaign-safe-low")
+#: A new follower braking harder than this is "hard braking" (issue 30; SUMO's default ``decel``).
+HARD_BRAKE = 4.5
+
+
+def _num(value: str) -> float:
+    return float(value) if value not in ("", "nan") else 0.0
+
+
+def safety_table(campaigns: list[Path], root: Path = ROOT) -> list[str]:
+    """Closed loop of SPEC §17, per campaign (cooperation) and planner, with RSS's responsibility
+    columns: contacts split by blame, the new follower's emergency (>= 8 m/s²) and hard
+    (> :data:`HARD_BRAKE` m/s²) braking, the time in a dangerous situation the ego is responsible
+    for, and executed limit violations."""
+    lines: list[str] = []
+    for episodes in campaigns:
+        rows = list(csv.DictReader(episodes.open(newline="", encoding="utf-8")))
+        manifest = episodes.parent / "manifest.json"
+        meta = json.loads(manifest.read_text(encoding="utf-8")) if manifest.is_file() else {}
+        fmt, coop = meta.get("episode_format", "?"), meta.get("cooperation", "?")
+        rho = (meta.get("rss") or {}).get("response_time_s", "?")
+        missions = sorted({r["mission"] for r in rows})
+        traffic = sorted({r["traffic"] for r in rows})
+        seeds = len({r["seed"] for r in rows})
+        lines += [f"Closed loop with verified plans (`{episodes.relative_to(root).as_posix()}`, episode format {fmt}; "
+                  f"missions {', '.join(missions)}; traffic {', '.join(traffic)}; cooperation {coop}; {seeds} paired "
+                  f"seeds; RSS judge with response time {rho} s):", "",
+                  "| planner | episodes | success | contacts at fault | contacts not at fault | follower emergency "
+                  f"brakes | new follower braking > {HARD_BRAKE:g} m/s² (episodes) | RSS-dangerous time at fault [s] | "
+                  "executed limit violations (episodes) |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        by: dict[str, list[dict[str, str]]] = defaultdict(list)
+        for r in rows:
+            by[r["planner"]].append(r)
+        for planner in sorted(by):
+            eps = by[planner]
+            n = len(eps)
+            ok = sum(r["success"] == "True" for r in eps)
+            fault = sum(int(_num(r["contacts_at_fault"])) for r in eps)
+            other = sum(int(_num(r["contacts_not_at_fault"])) for r in eps)
+            emergency = sum(int(_num(r["follower_emergency_brakes"])) for r in eps)
+            hard = sum(_num(r["follower_max_decel"]) > HARD_BRAKE + 1e-6 for r in eps)
+            danger = sum(_num(r["rss_dangerous_s"]) for r in eps)
+            limits = sum(_num(r["limit_violations"]) > 0 for r in eps)
+            lines.append(f"| {planner} | {n} | {ok} ({100 * ok / n:.1f} %) | {fault} | {other} | {emergency} | "
+                         f"{hard} | {danger:.1f} | {limits} |")
+        lines.append("")
+    return lines[:-1]
+
+
 def block(root: Path = ROOT) -> str:
     """The generated Markdown between the markers."""
     results = json.loads((root / "reports" / "results.json").read_text(encoding="utf-8"))
@@ -81,8 +133,12 @@ def block(root: Path = ROOT) -> str:
            "episodes.csv: do not edit by hand -->", "",
            "The paper's scenarios (`iamp reproduce`; `reports/results.json`):", ""]
     out += reproduction_table(results)
+    safe = [root / "reports" / c / "episodes.csv" for c in SAFE_CAMPAIGNS]
+    safe = [p for p in safe if p.is_file()]
     episodes = root / "reports" / "campaign-new" / "episodes.csv"
-    if episodes.is_file():
+    if safe:
+        out += [""] + safety_table(safe, root)
+    elif episodes.is_file():
         out += [""] + campaign_table(episodes, root)
     return "\n".join(out)
 

@@ -170,3 +170,71 @@ def test_only_a_format_before_17_is_called_older(tmp_path: Path, fmt: str, older
     head = _script().campaign_table(folder / "episodes.csv", tmp_path)[0]
     assert f"episode format {fmt}:" in head
     assert ("before SPEC §17's verified plans" in head) == older
+
+
+_safe_episode = st.fixed_dictionaries({
+    "planner": st.sampled_from(["free", "pmp-active", "sumo"]), "mission": st.sampled_from(["merge", "onramp"]),
+    "traffic": st.sampled_from(["dense", "los-e"]), "seed": st.integers(1, 3),
+    "success": st.sampled_from(["True", "False"]),
+    "contacts_at_fault": st.sampled_from(["", "0", "1", "2"]), "contacts_not_at_fault": st.sampled_from(["", "0", "3"]),
+    "follower_emergency_brakes": st.sampled_from(["", "0", "1"]),
+    "follower_max_decel": st.sampled_from(["", "nan", "2.0", "4.5", "4.51", "4.6", "9.0"]),
+    "rss_dangerous_s": st.sampled_from(["", "0.0", "0.1", "2.5"]), "limit_violations": st.sampled_from(["", "0", "2"])})
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.lists(_safe_episode, min_size=1, max_size=12))
+def test_the_safety_table_sums_the_responsibility_columns(tmp_path_factory: pytest.TempPathFactory,
+                                                          rows: list[dict[str, object]]) -> None:
+    """SPEC §17's table, per planner: successes, contacts at fault and not (summed), the follower's
+    emergency brakes (summed), episodes whose new follower braked harder than 4.5 m/s² (4.5 itself is
+    SUMO's normal hard braking, not counted), the RSS-dangerous time at fault (summed) and episodes
+    with an executed limit violation; an empty or nan field is none."""
+    root = tmp_path_factory.mktemp("safe")
+    path = root / "reports" / "campaign-safe" / "episodes.csv"
+    path.parent.mkdir(parents=True)
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    (path.parent / "manifest.json").write_text(json.dumps({"episode_format": "17.2", "cooperation": "low",
+                                                           "rss": {"response_time_s": 0.5}}), encoding="utf-8")
+    lines = _script().safety_table([path], root)
+    assert "episode format 17.2" in lines[0] and "cooperation low" in lines[0] and "response time 0.5 s" in lines[0]
+
+    def num(v: object) -> float:
+        return float(str(v)) if str(v) not in ("", "nan") else 0.0
+
+    planners = sorted({str(r["planner"]) for r in rows})
+    body = lines[4:]
+    assert len(body) == len(planners)
+    for planner, line in zip(planners, body):
+        eps = [r for r in rows if r["planner"] == planner]
+        n, ok = len(eps), sum(r["success"] == "True" for r in eps)
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        assert cells[0] == planner and cells[1] == str(n) and cells[2] == f"{ok} ({100 * ok / n:.1f} %)"
+        assert int(cells[3]) == sum(int(num(r["contacts_at_fault"])) for r in eps)
+        assert int(cells[4]) == sum(int(num(r["contacts_not_at_fault"])) for r in eps)
+        assert int(cells[5]) == sum(int(num(r["follower_emergency_brakes"])) for r in eps)
+        assert int(cells[6]) == sum(num(r["follower_max_decel"]) > 4.5 + 1e-6 for r in eps)
+        assert float(cells[7]) == pytest.approx(sum(num(r["rss_dangerous_s"]) for r in eps), abs=0.05)
+        assert int(cells[8]) == sum(num(r["limit_violations"]) > 0 for r in eps)
+
+
+def test_the_readme_shows_the_safe_campaigns_where_present(tmp_path: Path) -> None:
+    """With reports/campaign-safe present the block shows SPEC §17's table, not the older campaign's."""
+    import shutil
+
+    (tmp_path / "reports").mkdir()
+    shutil.copy(ROOT / "reports" / "results.json", tmp_path / "reports" / "results.json")
+    shutil.copytree(ROOT / "reports" / "campaign-new", tmp_path / "reports" / "campaign-new")
+    assert "Closed loop (`reports/campaign-new/episodes.csv`" in _script().block(tmp_path)
+    safe = tmp_path / "reports" / "campaign-safe"
+    safe.mkdir()
+    (safe / "episodes.csv").write_text(
+        "planner,mission,traffic,seed,success,contacts_at_fault,contacts_not_at_fault,follower_emergency_brakes,"
+        "follower_max_decel,rss_dangerous_s,limit_violations\nfree,merge,dense,1,True,0,0,0,2.0,0.0,0\n",
+        encoding="utf-8")
+    text = _script().block(tmp_path)
+    assert "Closed loop with verified plans (`reports/campaign-safe/episodes.csv`" in text
+    assert "campaign-new" not in text
