@@ -66,6 +66,17 @@ _episode = st.fixed_dictionaries({
     "contacts": st.sampled_from(["", "0", "1", "2", "7"]), "limit_violations": st.sampled_from(["", "0", "1", "3"])})
 
 
+def _episodes_csv(root: Path, campaign: str, rows: list[dict[str, object]]) -> Path:
+    """``rows`` written as ``root/reports/<campaign>/episodes.csv``."""
+    path = root / "reports" / campaign / "episodes.csv"
+    path.parent.mkdir(parents=True)
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    return path
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.lists(_episode, min_size=1, max_size=12))
 def test_the_campaign_table_counts_the_episodes(tmp_path_factory: pytest.TempPathFactory,
@@ -73,12 +84,7 @@ def test_the_campaign_table_counts_the_episodes(tmp_path_factory: pytest.TempPat
     """Per planner: episodes; successes and their share; episodes with at least one contact (an empty
     field is none) and their share; episodes with at least one executed limit violation."""
     root = tmp_path_factory.mktemp("camp")
-    path = root / "reports" / "campaign-new" / "episodes.csv"
-    path.parent.mkdir(parents=True)
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    path = _episodes_csv(root, "campaign-new", rows)
     lines = _script().campaign_table(path, root)
     missions = sorted({str(r["mission"]) for r in rows})
     seeds = len({r["seed"] for r in rows})
@@ -191,12 +197,7 @@ def test_the_safety_table_sums_the_responsibility_columns(tmp_path_factory: pyte
     SUMO's normal hard braking, not counted), the RSS-dangerous time at fault (summed) and episodes
     with an executed limit violation; an empty or nan field is none."""
     root = tmp_path_factory.mktemp("safe")
-    path = root / "reports" / "campaign-safe" / "episodes.csv"
-    path.parent.mkdir(parents=True)
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    path = _episodes_csv(root, "campaign-safe", rows)
     (path.parent / "manifest.json").write_text(json.dumps({"episode_format": "17.2", "cooperation": "low",
                                                            "rss": {"response_time_s": 0.5}}), encoding="utf-8")
     lines = _script().safety_table([path], root)
