@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from iamp.core.physical import PASSENGER_CAR
@@ -56,7 +57,13 @@ def test_a_verified_loop_plan_is_within_the_limits(name):
     assert limit_violations(unbounded.require_trajectory(), float(free.tf), PASSENGER_CAR) != []
     plan = planning.make_planner(name)(free.with_limits(PASSENGER_CAR))
     assert plan.problem.limits == PASSENGER_CAR
-    if plan.status in SUCCESS:
+    if name == "pmp":
+        # the PMP imposes the input box exactly; the jerk it can only check (SPEC §14): 5.8 > 5 m/s³ here
+        assert plan.status == "limits_violated" and "jerk" in str(plan.diagnostics.reason)
+        U = plan.require_trajectory().inputs(np.linspace(0.0, float(free.tf), 501))
+        assert U[:, 0].max() <= PASSENGER_CAR.ax[1] + 1e-9 and U[:, 0].min() >= PASSENGER_CAR.ax[0] - 1e-9
+    else:
+        assert plan.status in SUCCESS
         assert limit_violations(plan.require_trajectory(), float(free.tf), PASSENGER_CAR) == []
 
 
@@ -120,3 +127,26 @@ def test_a_short_episode_plans_and_executes_within_the_limits(name):
 @pytest.mark.parametrize("name", ["qp", "qp-avoid"])
 def test_a_short_qp_episode_plans_and_executes_within_the_limits(name):
     _assert_within_limits(*_episode_with_calls(name, 8.0))
+
+
+def _fingerprint(plan, tf):
+    tr = plan.trajectory
+    inputs = None if tr is None else np.asarray(tr.inputs(np.linspace(0.0, tf, 7))).tolist()
+    return repr((str(plan.status), plan.cost, np.asarray(plan.contact_times).tolist(), inputs))
+
+
+@pytest.mark.parametrize("name", planning.COMPILED_AXIS)
+def test_the_loop_compiles_the_axis_solve_and_plans_as_the_python_path(name):
+    """The loop's bounded PMP family runs the compiled axis solve (numba, when installed): the same
+    plans bit for bit as the Python path (status, cost, contact times, inputs)."""
+    from iamp.planners.pmp import compiled, jit
+
+    problems = [paper_problem(1).with_limits(PASSENGER_CAR), random_problem(3, m=2).with_limits(PASSENGER_CAR),
+                random_problem(6, m=2).with_limits(PASSENGER_CAR)]
+    compiled.unload_axis()
+    opts = {k: v for k, v in planning.SIM_OPTIONS[name].items() if k in registry.REGISTRY[name].option_names()}
+    python = registry.make_planner(name, **opts)
+    want = [_fingerprint(python.plan(p), float(p.tf)) for p in problems]
+    fn = planning.make_planner(name)
+    assert ("axis" in compiled._STATE) == jit.available()
+    assert [_fingerprint(fn(p), float(p.tf)) for p in problems] == want
