@@ -56,7 +56,7 @@ def markdown(report: dict[str, Any]) -> str:
         planners = list(dict.fromkeys(c["planner"] for c in cells))
         out += [f"\n**{m}**\n",
                 "| planner | n | success | contact |" + extra_head + " new follower brakes > 4.5 m/s² | "
-                "executed limit violation | t_merge [s] | follower decel [m/s²] | executed peak |a| [m/s²] | "
+                "executed limit violation | t_merge [s] | follower decel [m/s²] | executed peak ‖a‖ [m/s²] | "
                 "constrained / executed plans | infeasible plans | fallbacks | plan p50 [ms] |",
                 "|---|---|---|---|" + "---|" * (3 if rss else 0) + "---|---|---|---|---|---|---|---|---|"]
         for p in planners:
