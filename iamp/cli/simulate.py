@@ -372,7 +372,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    help="who drives the ego (SPEC §15; default pmp; sumo and mobil are the baselines)")
     p.add_argument("--cooperation", choices=COOPERATION, default=None,
                    help="SUMO drivers' cooperation (lcCooperative, lcAssertive, lcSpeedGain, "
-                        "sigma; docs/closed-loop.md; default default)")
+                        "sigma) and whether the target-lane follower the signalling ego asks opens a gap "
+                        "(SPEC §17's courtesy; none under low); docs/closed-loop.md; default default")
     p.add_argument("--sublane", action="store_true", help="the sumo planner with SUMO's sublane model SL2015")
     p.add_argument("--duration", type=float_in("episode_s"), default=None, help="episode length [s] (default 60)")
     p.add_argument("--period", type=float_in("period_s"), default=None,
@@ -411,7 +412,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     c.add_argument("--traffic", type=_csv_choice(TRAFFIC), default=["medium", "dense", "los-e"],
                    help=f"comma-separated densities ({', '.join(TRAFFIC)}; default medium,dense,los-e)")
     c.add_argument("--cooperation", choices=COOPERATION, default="default",
-                   help="SUMO drivers' cooperation for every episode (docs/closed-loop.md; default default)")
+                   help="SUMO drivers' cooperation for every episode, with SPEC §17's courteous followers "
+                        "except under low (docs/closed-loop.md; default default)")
     c.add_argument("--sublane", action="store_true", help="the sumo planner with SL2015")
     c.add_argument("--reference", choices=PLANNERS, default="pmp",
                    help="the planner every other one is compared with, seed by seed (default pmp)")
