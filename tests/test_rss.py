@@ -53,6 +53,8 @@ def test_lateral_distance_by_hand():
     assert float(safe_lateral_distance(1.0, 0.5, AD_RSS)) == pytest.approx(0.1 + 2.90625)
     # both moving apart fast: only the margin mu remains (touching is never laterally safe)
     assert float(safe_lateral_distance(-2.0, -1.0, AD_RSS)) == pytest.approx(0.1)
+    # moving away slower than alpha rho brings back: the reach is u rho + 1/2 alpha rho^2, nothing after it
+    assert float(lateral_reach(-0.5, AD_RSS)) == pytest.approx(-0.5 + 0.1)
     # standing: each may drift 1/2 alpha rho^2 + (alpha rho)^2 / (2 beta) = 0.1 + 0.025
     assert float(safe_lateral_distance(0.0, 0.0, AD_RSS)) == pytest.approx(0.1 + 0.25)
 
@@ -340,6 +342,7 @@ def test_a_run_after_an_unseen_step_is_judged_from_its_first_time_and_its_rho_st
 
 @settings(max_examples=40, deadline=None)
 @given(st.one_of(st.floats(0.0, 3.4), st.floats(3.7, 8.0)))
+@example(3.5)  # exactly a_acc: allowed (the tolerance is on the allowed side)
 def test_a_follower_is_responsible_within_rho_exactly_when_it_accelerates_beyond_a_acc(acc):
     """During rho after t_b the rear car may accelerate with at most a_acc (+ ACCEL_TOL = 3.55 m/s^2):
     a follower accelerating harder is responsible at the first dangerous step, one within it is not
@@ -359,6 +362,7 @@ def test_a_follower_is_responsible_within_rho_exactly_when_it_accelerates_beyond
 
 @settings(max_examples=30, deadline=None)
 @given(st.floats(0.3, 0.5), st.floats(0.05, 0.2), st.floats(0.8, 1.6), st.sampled_from([-1.0, 1.0]))
+@example(0.4, 0.2, 0.8, 1.0)  # exactly alpha, then exactly beta: a proper response (tolerance on the allowed side)
 def test_a_car_that_responds_laterally_as_rss_says_is_never_responsible(drift, a, b, side):
     """Side by side (longitudinally unsafe throughout); the ego drifts toward the other at a constant
     lateral speed. The other, from t_b on, moves toward the ego with a <= alpha for rho and then
