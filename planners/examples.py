@@ -10,6 +10,7 @@
 * :func:`overtake_problem` and :func:`overtake_three_problem` — the bounded avoidance plans of
   ``iamp bench`` (one vehicle that the free optimum would cut; three vehicles), under the
   passenger car's limits.
+* :func:`boxed_problem` — a problem with an input box at a fraction of its unbounded plan's peaks.
 """
 
 from __future__ import annotations
@@ -116,3 +117,38 @@ def overtake_three_problem(limits: bool = True) -> Problem:
     v2 = SurroundingVehicle(x_poly=(30.0, 10.0), corner="rear-upper", y=-2.0, name="sv2", **DEFAULT_GEOMETRY)
     v3 = SurroundingVehicle(x_poly=(-20.0, 26.0), corner="front-upper", y=-2.0, name="sv3", **DEFAULT_GEOMETRY)
     return Problem(one.ego, (one.vehicles[0], v2, v3), "overtake-three", limits=one.limits)
+
+
+def boxed_problem(problem: Problem, frac: float) -> Problem:
+    """``problem`` with a symmetric input box at ``frac`` of its unbounded PMP plan's peaks.
+
+    ``a_x, a_y ∈ [-frac·max|u_x|, frac·max|u_x|] × [-frac·max|u_y|, frac·max|u_y|]``, the peaks
+    read on 401 points of the certified unbounded plan: with ``frac < 1`` the box is active and,
+    close to 1, a plan within it exists (the bounded PMP's several-vehicle cases of ``iamp bench``
+    and its tests).
+
+    Parameters
+    ----------
+    problem : Problem
+        Without limits; its unbounded PMP plan must be ``optimal``.
+    frac : float
+        Fraction of the peaks, in ``(0, 1]`` for an active box.
+
+    Returns
+    -------
+    Problem
+        The same problem with ``PhysicalLimits(ax=..., ay=...)``.
+
+    Raises
+    ------
+    ValueError
+        The unbounded plan is not ``optimal``.
+    """
+    from iamp.core.physical import PhysicalLimits
+    from iamp.planners.pmp import PMPPlanner
+
+    base = PMPPlanner().plan(problem, diagnostics=False)
+    if base.status != "optimal":
+        raise ValueError(f"{problem.name}: the unbounded PMP plan is {base.status}, not optimal")
+    mx, my = np.abs(base.require_trajectory().inputs(np.linspace(0.0, problem.tf, 401))).max(axis=0)
+    return problem.with_limits(PhysicalLimits(ax=(-frac * mx, frac * mx), ay=(-frac * my, frac * my)))

@@ -31,7 +31,8 @@ DOC = Path("docs/bench.md")
 #: The case families in the order of the table, with a reader's name.
 FAMILIES = {
     "bounded_pmp_one_vehicle_certified": "bounded PMP, one vehicle, certified global",
-    "bounded_pmp_three_vehicles": "bounded PMP, three vehicles (`local` allowed)",
+    "bounded_pmp_three_vehicles": "bounded PMP, three vehicles, a box no plan keeps (certified `infeasible`)",
+    "bounded_pmp_three_vehicles_feasible": "bounded PMP, three vehicles, box at 85 % of the peaks (`local` allowed)",
     "avoid_limits_one_vehicle": "avoidance with limits, N = 50, one vehicle, certified",
     "avoid_limits_three_vehicles": "avoidance with limits, N = 50, three vehicles",
 }

@@ -14,21 +14,17 @@ import pytest
 
 import iamp.planners.pmp.bound as bound_module
 from iamp.core import status as stc
-from iamp.core.physical import PhysicalLimits
 from iamp.core.problem import Problem
-from iamp.planners.examples import random_problem
+from iamp.planners.examples import boxed_problem, random_problem
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.pmp.bounded import plan_bounded
 
 
 def boxed(problem: Problem, frac: float) -> tuple[Problem, np.ndarray]:
-    """The problem with a symmetric input box at ``frac`` of the unbounded plan's peaks, and
-    the certified unbounded contact times."""
+    """:func:`~iamp.planners.examples.boxed_problem` and the certified unbounded contact times."""
     base = PMPPlanner().plan(problem, diagnostics=False)
     assert base.status == stc.OPTIMAL
-    mx, my = np.abs(base.trajectory.inputs(np.linspace(0.0, problem.tf, 401))).max(axis=0)
-    return problem.with_limits(PhysicalLimits(ax=(-frac * mx, frac * mx), ay=(-frac * my, frac * my))), \
-        base.contact_times
+    return boxed_problem(problem, frac), base.contact_times
 
 
 def count_bb(monkeypatch: pytest.MonkeyPatch) -> list[int]:

@@ -8,6 +8,9 @@ Four cases, each planned by the registry's planner exactly as ``iamp plan`` does
 * ``bounded_pmp_three_vehicles`` — the PMP on :func:`iamp.planners.examples.random_problem`
   ``(0, m=3)`` with the same box (``local`` allowed; on this problem the certified answer is
   ``infeasible``: no contact times admit a plan within the box, which the planner must prove);
+* ``bounded_pmp_three_vehicles_feasible`` — the PMP on ``random_problem(15, m=3)`` with a box at
+  85 % of its unbounded plan's peaks (:func:`iamp.planners.examples.boxed_problem`: active, and a
+  plan within it exists; ``local`` allowed);
 * ``avoid_limits_one_vehicle_<backend>`` — the continuous-time avoidance of SPEC §14 (FOH,
   ``N = 50``, ``--safety continuous``) on :func:`~iamp.comparison.bench.avoid.overtake_problem`
   under :data:`~iamp.core.physical.PASSENGER_CAR`, per backend (OSQP, Clarabel, PIQP; status
@@ -54,6 +57,7 @@ SOLVERS = ("osqp", "clarabel", "piqp")
 TARGETS_S: dict[str, float] = {
     "bounded_pmp_one_vehicle_certified": 2e-3,
     "bounded_pmp_three_vehicles": 20e-3,
+    "bounded_pmp_three_vehicles_feasible": 20e-3,
     "avoid_limits_one_vehicle": 5e-3,
     "avoid_limits_three_vehicles": 50e-3,
 }
@@ -61,6 +65,7 @@ TARGETS_S: dict[str, float] = {
 ALLOWED: dict[str, tuple[str, ...]] = {
     "bounded_pmp_one_vehicle_certified": ("optimal",),
     "bounded_pmp_three_vehicles": ("optimal", "local", "infeasible"),
+    "bounded_pmp_three_vehicles_feasible": ("optimal", "local"),
     "avoid_limits_one_vehicle": ("optimal",),
     "avoid_limits_three_vehicles": ("optimal",),
 }
@@ -112,10 +117,11 @@ class LimitsBench(TypedDict):
 
 def bounded_pmp_problems() -> dict[str, Problem]:
     """The two bounded PMP problems (module docstring), by case name."""
-    from iamp.planners.examples import paper_problem, random_problem
+    from iamp.planners.examples import boxed_problem, paper_problem, random_problem
 
     return {"bounded_pmp_one_vehicle_certified": paper_problem(1).with_limits(BOX),
-            "bounded_pmp_three_vehicles": random_problem(0, m=3).with_limits(BOX)}
+            "bounded_pmp_three_vehicles": random_problem(0, m=3).with_limits(BOX),
+            "bounded_pmp_three_vehicles_feasible": boxed_problem(random_problem(15, m=3), 0.85)}
 
 
 def _timed(fn: Callable[[], Plan], repeats: int, budget_s: float) -> tuple[list[float], list[float], list[Plan]]:
@@ -193,7 +199,7 @@ def target_of(row: LimitsRow) -> LimitsTarget:
 
 
 def bench_limits(repeats: int = 7, budget_s: float = 3.0, solvers: tuple[str, ...] = SOLVERS) -> LimitsBench:
-    """Time the four cases (module docstring).
+    """Time the cases (module docstring).
 
     Parameters
     ----------
