@@ -274,6 +274,27 @@ def test_a_level_pair_takes_the_side_it_separates_to(side: float) -> None:
     assert np.array_equal(swapped.ego_responsible, j.other_responsible)
 
 
+def test_a_car_accelerating_sideways_beyond_alpha_within_rho_is_responsible() -> None:
+    """Side by side (longitudinally unsafe throughout); the ego drifts toward the other at 0.4 m/s.
+    From t_b on the other moves toward the ego with 3 alpha (0.6 m/s^2, above alpha = 0.2 plus the
+    tolerance) during rho: it is responsible within rho; with alpha itself it is not (the previous
+    test's case)."""
+    dt, n = 0.1, 50
+    t = np.arange(n) * dt
+    ego = _motion(100 + 20 * t, 0.4 * t, np.full(n, 20.0), np.full(n, 0.4))
+    still = _motion(100 + 20 * t, np.full(n, 3.5), np.full(n, 20.0), np.zeros(n))
+    k0 = int(np.argmax(judge_pair(ego, still, dt).dangerous))
+    assert k0 > 0
+    tau = (np.arange(n) - (k0 - 1)) * dt
+    rho = DEFAULT.response_time_s
+    u = np.where(tau <= 0, 0.0, np.where(tau <= rho, 3 * DEFAULT.lat_accel_max * tau, 3 * DEFAULT.lat_accel_max * rho))
+    vy_o = -u  # toward the ego (the other is the left car)
+    y_o = 3.5 + np.concatenate([[0.0], np.cumsum(vy_o[:-1])]) * dt
+    j = judge_pair(ego, _motion(100 + 20 * t, y_o, np.full(n, 20.0), vy_o), dt)
+    k_rho = k0 + int(round(rho / dt))
+    assert j.other_responsible[k0 + 1:k_rho].any()
+
+
 def test_unseen_steps_are_never_dangerous_and_end_a_run():
     dt, n = 0.1, 10
     t = np.arange(n) * dt
