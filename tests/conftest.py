@@ -61,3 +61,12 @@ def needs_commonroad_data(*parts: str) -> pytest.MarkDecorator:
     return pytest.mark.skipif(not HAVE_COMMONROAD or not p.is_dir(),
                               reason=("the [commonroad] extra is not installed (pip install 'iamp[commonroad]')"
                                       if not HAVE_COMMONROAD else f"the shared CommonRoad data is absent ({p})"))
+
+
+def load_script(name: str):  # type: ignore[no-untyped-def]
+    """The module ``scripts/<name>.py`` (the scripts are not a package), loaded afresh."""
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).resolve().parents[1] / "scripts" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
