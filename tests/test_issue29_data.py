@@ -368,6 +368,18 @@ def test_a_length_or_a_width_alone_decides_the_unit(data: st.DataObject, column:
     assert d.evidence[0].startswith(f"median {column} {value_si / factor:.4g} (")
 
 
+@pytest.mark.parametrize("factor", [FOOT_M, 1.0])
+@pytest.mark.parametrize("end", [0, 1])
+def test_a_width_at_either_end_of_its_range_decides_the_unit(factor: float, end: int) -> None:
+    """The ends of WIDTH_RANGE_M belong to it in both units: 3 m written in feet (9.8425) converts back to
+    3.0000000000000004 m, which the round-off allowance keeps inside (hypothesis found it refused)."""
+    from iamp.prediction.loaders.units import WIDTH_RANGE_M, detect_units
+
+    value = WIDTH_RANGE_M[end] / factor
+    d = detect_units({"v_Width": np.full(7, value)}, "f.csv")
+    assert d.units == ("feet" if factor == FOOT_M else "metres")
+
+
 @settings(max_examples=30, deadline=None)
 @given(length_m=st.floats(2.5 / FOOT_M + 1e-6, 9.0))
 def test_median_lengths_of_8_2_to_9_m_fit_both_units(length_m: float) -> None:

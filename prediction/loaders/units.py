@@ -137,8 +137,13 @@ def _lane_width(lane: Array | None, lateral: Array | None) -> float | None:
     return float(np.median(diffs))
 
 
+#: Relative round-off allowed at a range's ends: a value written in feet and converted back lands
+#: a few ulps outside (3 m -> 9.8425 ft -> 3.0000000000000004 m).
+_ROUND_OFF = 1e-12
+
+
 def _fits(value: float, lo: float, hi: float) -> set[str]:
-    return {u for u, f in UNITS.items() if lo <= value * f <= hi}
+    return {u for u, f in UNITS.items() if lo * (1 - _ROUND_OFF) <= value * f <= hi * (1 + _ROUND_OFF)}
 
 
 def _phrase(name: str, value: float, fits: set[str], lo: float, hi: float) -> str:
