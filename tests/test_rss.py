@@ -295,6 +295,33 @@ def test_a_car_accelerating_sideways_beyond_alpha_within_rho_is_responsible() ->
     assert j.other_responsible[k0 + 1:k_rho].any()
 
 
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_car_already_moving_sideways_may_accelerate_with_alpha_then_must_brake_with_beta(side: float) -> None:
+    """Side by side (longitudinally unsafe throughout); the other already moves toward the ego at 0.3 m/s
+    (above the fluctuation speed mu/rho = 0.2 m/s). From t_b on it accelerates toward the ego with exactly
+    alpha for rho, then brakes with exactly beta to a stop: a proper lateral response (the tolerance lies on
+    the allowed side), never responsible; braking only with beta / 2 after rho is not."""
+    dt, n = 0.1, 60
+    t = np.arange(n) * dt
+    ego = _motion(100 + 20 * t, np.zeros(n), np.full(n, 20.0), np.zeros(n))
+
+    def other(u: np.ndarray) -> Motion:
+        vy = -side * u  # toward the ego
+        y = side * 2.6 + np.concatenate([[0.0], np.cumsum(vy[:-1])]) * dt
+        return _motion(100 + 20 * t, y, np.full(n, 20.0), vy)
+
+    k0 = int(np.argmax(judge_pair(ego, other(np.full(n, 0.3)), dt).dangerous))
+    assert k0 > 0
+    tau = (np.arange(n) - (k0 - 1)) * dt
+    rho, a, b = DEFAULT.response_time_s, DEFAULT.lat_accel_max, DEFAULT.lat_brake_min
+    for brake, responsible in ((b, False), (b / 2, True)):
+        u = np.where(tau <= 0, 0.3, np.where(tau <= rho, 0.3 + a * tau,
+                                              np.maximum(0.3 + a * rho - brake * (tau - rho), 0.0)))
+        j = judge_pair(ego, other(u), dt)
+        assert int(np.argmax(j.dangerous)) == k0
+        assert bool(j.other_responsible.any()) == responsible
+
+
 def test_unseen_steps_are_never_dangerous_and_end_a_run():
     dt, n = 0.1, 10
     t = np.arange(n) * dt
