@@ -190,7 +190,7 @@ def document(after: Mapping[str, Any], before: Mapping[str, Any] | None) -> str:
            "(met only with an allowed status: `optimal` where the case says certified) and the ratios to "
            "the unbounded one-vehicle PMP plan and to one KKT solve measured in the same run. The problems: "
            "`paper-1` and `random_problem(0, m=3)` with the passenger car's input box (bounded PMP), the "
-           "overtake of `iamp.comparison.bench.avoid.overtake_problem` and its three-vehicle version "
+           "overtake of `iamp.planners.examples.overtake_problem` and its three-vehicle version "
            "`overtake_three_problem` under the passenger car's limits (avoidance, FOH, "
            "`--safety continuous`).", ""]
     out += targets_table(after, before) + ["", same_optimum_line(after), ""] + references_table(after)

@@ -34,10 +34,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from iamp.comparison.timing import StatsJSON, measure
-from iamp.core.physical import PASSENGER_CAR
 from iamp.core.plan import Plan
-from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
+from iamp.planners.examples import overtake_problem
 
 STEPS = 50
 SOLVERS = ("osqp", "clarabel", "piqp")
@@ -96,32 +95,6 @@ class AvoidBounded(TypedDict):
     qp_fastest_s: NotRequired[float]
     casadi_ipopt: NotRequired[CasadiQP | PeerError | None]
     ratios: NotRequired[dict[str, float]]
-
-
-def overtake_problem() -> Problem:
-    """One vehicle in the target lane, overtaken; the passenger car's limits."""
-    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=118.0, yf=3.75, vxf=24.0)
-    v = SurroundingVehicle(x_poly=(5.0, 20.0), corner="front-lower", y=3.75, length=4.8, width=1.8,
-                           safety_x=5.0, safety_y=0.5, name="sv1")
-    return Problem(ego, (v,), "overtake", limits=PASSENGER_CAR)
-
-
-def overtake_three_problem() -> Problem:
-    """:func:`overtake_problem` with two more vehicles in the ego's current lane: a slow one ahead
-    (which binds) and a fast one behind; the passenger car's limits (issue 32's three-vehicle
-    avoidance case, as ``scripts/avoid_speed.py`` times it).
-
-    Returns
-    -------
-    Problem
-        Three vehicles, ``limits`` = :data:`~iamp.core.physical.PASSENGER_CAR`.
-    """
-    one = overtake_problem()
-    v2 = SurroundingVehicle(x_poly=(30.0, 10.0), corner="rear-upper", y=-2.0, length=4.8, width=1.8, safety_x=5.0,
-                            safety_y=0.5, name="sv2")
-    v3 = SurroundingVehicle(x_poly=(-20.0, 26.0), corner="front-upper", y=-2.0, length=4.8, width=1.8,
-                            safety_x=5.0, safety_y=0.5, name="sv3")
-    return Problem(one.ego, (one.vehicles[0], v2, v3), "overtake-three", limits=PASSENGER_CAR)
 
 
 def _spec_of(plan: Plan) -> tuple[tuple[int, int, float, float], ...]:

@@ -12,11 +12,11 @@ Four cases, each planned by the registry's planner exactly as ``iamp plan`` does
   85 % of its unbounded plan's peaks (:func:`iamp.planners.examples.boxed_problem`: active, and a
   plan within it exists; ``local`` allowed);
 * ``avoid_limits_one_vehicle_<backend>`` — the continuous-time avoidance of SPEC §14 (FOH,
-  ``N = 50``, ``--safety continuous``) on :func:`~iamp.comparison.bench.avoid.overtake_problem`
+  ``N = 50``, ``--safety continuous``) on :func:`~iamp.planners.examples.overtake_problem`
   under :data:`~iamp.core.physical.PASSENGER_CAR`, per backend (OSQP, Clarabel, PIQP; status
   ``optimal`` required);
 * ``avoid_limits_three_vehicles_<backend>`` — the same on
-  :func:`~iamp.comparison.bench.avoid.overtake_three_problem` (``optimal`` required).
+  :func:`~iamp.planners.examples.overtake_three_problem` (``optimal`` required).
 
 Each case is planned ``repeats`` times after one warm-up (fewer once the samples exceed
 ``budget_s``; a single call slower than the budget is the one sample), and every call records
@@ -45,8 +45,7 @@ from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.planners import registry
-
-from .avoid import overtake_problem, overtake_three_problem
+from iamp.planners.examples import overtake_problem, overtake_three_problem
 
 __all__ = ["ALLOWED", "SOLVERS", "STEPS", "TARGETS_S", "LimitsBench", "LimitsRow", "LimitsTarget",
            "bench_limits", "bounded_pmp_problems", "references", "target_of"]
