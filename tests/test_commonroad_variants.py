@@ -1,0 +1,98 @@
+"""Goal variants of the US-101 problems (``scripts/commonroad_variants.py``) and the planner's
+failures they revealed (issue 33).
+
+Every test needs the ``[commonroad]`` extra and the shared US-101 data; each skips with the
+reason where either is absent.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import data_path, load_script, needs_commonroad_data
+
+DATA = data_path("commonroad", "US101")
+needs_data = needs_commonroad_data("commonroad", "US101")
+
+
+def _one_source(tmp_path: Path, name: str) -> Path:
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / name).symlink_to(DATA / name)
+    return src
+
+
+@needs_data
+def test_variants_write_the_goals_they_say(tmp_path: Path) -> None:
+    """One shared problem, five kinds: every file's benchmark ID is its source's with the kind's
+    configuration ID, its goal states are those ``variants.json`` lists, and each kind's goal is
+    what the script's docstring says (measured against the lane heading and the source's goal);
+    the scene and the start are the source's.  Refused without ``--force``, byte-identical with it."""
+    import warnings
+
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    mod = load_script("commonroad_variants")
+    src = _one_source(tmp_path, "USA_US101-5_1_T-1.xml")
+    out = tmp_path / "out"
+    kinds = "orient,lanes,multi,window,speed"
+    assert mod.main([str(src), str(out), "--kinds", kinds]) == 0
+    listing = json.loads((out / "variants.json").read_text())
+    by_kind = {e["kind"]: e for e in listing["variants"]}
+    assert sorted(by_kind) == sorted(kinds.split(","))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scenario0, pps0 = CommonRoadFileReader(str(DATA / "USA_US101-5_1_T-1.xml")).open()
+    pp0 = next(iter(pps0.planning_problem_dict.values()))
+    g0 = mod.describe_goal_state(pp0.goal.state_list[0])
+    files: dict[str, Any] = {}
+    for kind, e in by_kind.items():
+        assert e["file"] == f"USA_US101-5_{100 + mod.KIND_CODES[kind]}_T-1.xml"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scenario, pps = CommonRoadFileReader(str(out / e["file"])).open()
+        assert str(scenario.scenario_id) == e["benchmark_id"] == e["file"][:-4]
+        pp = next(iter(pps.planning_problem_dict.values()))
+        assert [mod.describe_goal_state(s) for s in pp.goal.state_list] == e["goal_states"]
+        assert len(scenario.dynamic_obstacles) == len(scenario0.dynamic_obstacles)
+        assert np.allclose(pp.initial_state.position, pp0.initial_state.position)
+        files[kind] = e["goal_states"]
+    # the lane heading at the goal's centre from the lanelet's centre line (independent of the script)
+    net = scenario0.lanelet_network
+    centre = np.array(g0["position"]["center"])
+    cv = net.find_lanelet_by_id(net.find_lanelet_by_position([centre])[0][0]).center_vertices
+    j = min(int(np.argmin(np.linalg.norm(cv - centre, axis=1))), len(cv) - 2)
+    theta = math.atan2(cv[j + 1, 1] - cv[j, 1], cv[j + 1, 0] - cv[j, 0])
+    lo, hi = files["orient"][0]["orientation"]  # index 0, seed 0: sigma = +1, left of the lane
+    assert lo == pytest.approx(theta + 0.025, abs=1e-4) and hi == pytest.approx(theta + 0.2, abs=1e-4)
+    moved = np.array(files["lanes"][0]["position"]["center"]) - centre
+    assert np.linalg.norm(moved) == pytest.approx(7.4, abs=1e-3)  # two lanes of 3.7 m
+    assert abs(moved @ np.array([math.cos(theta), math.sin(theta)])) < 1e-3  # across the lane, not along
+    a, b = files["multi"]
+    assert a["velocity"] == [40.0, 45.0] and a["position"] == g0["position"]
+    assert b["time_step"] == [g0["time_step"][0] + 5, g0["time_step"][1] + 5]
+    assert np.linalg.norm(np.array(b["position"]["center"]) - centre) == pytest.approx(3.7, abs=1e-3)
+    w = files["window"][0]["time_step"]
+    assert w[1] == w[0] + 1 and g0["time_step"][0] <= w[0] and w[1] <= g0["time_step"][1]
+    v = files["speed"][0]["velocity"]
+    assert v[1] - v[0] == pytest.approx(3.0, abs=2e-3)
+    # nothing overwritten without --force; the same command writes the same bytes
+    before = {p.name: p.read_bytes() for p in out.glob("*.xml")}
+    assert mod.main([str(src), str(out), "--kinds", kinds]) == 2
+    assert mod.main([str(src), str(out), "--kinds", kinds, "--force"]) == 0
+    assert {p.name: p.read_bytes() for p in out.glob("*.xml")} == before
+
+
+@needs_data
+def test_variants_refuse_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    mod = load_script("commonroad_variants")
+    assert mod.main([str(tmp_path / "none"), str(tmp_path / "out")]) == 2
+    assert "holds no *.xml scenario" in capsys.readouterr().err
+    src = _one_source(tmp_path, "USA_US101-5_1_T-1.xml")
+    assert mod.main([str(src), str(tmp_path / "out"), "--kinds", "sideways"]) == 2
+    assert "unknown kind(s) sideways" in capsys.readouterr().err
