@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import data_path, load_script, needs_commonroad_data
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 DATA = data_path("commonroad", "US101")
 needs_data = needs_commonroad_data("commonroad", "US101")
@@ -96,3 +98,81 @@ def test_variants_refuse_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture
     src = _one_source(tmp_path, "USA_US101-5_1_T-1.xml")
     assert mod.main([str(src), str(tmp_path / "out"), "--kinds", "sideways"]) == 2
     assert "unknown kind(s) sideways" in capsys.readouterr().err
+
+
+# --- failures the variants revealed -----------------------------------------------------------------
+
+
+@settings(max_examples=200, deadline=None)
+@given(half_length=st.floats(1.5, 3.0), half_width=st.floats(0.6, 1.1), tau=st.floats(0.05, 0.6),
+       frac=st.floats(-1.0, 1.0), front=st.sampled_from([1.0, -1.0]))
+def test_corner_excess_bounds_the_turned_corner(half_length: float, half_width: float, tau: float, frac: float,
+                                                front: float) -> None:
+    """A corner of the body turned by φ, |tan φ| <= τ, lies at most :func:`corner_excess` beyond
+    the repair's linear row ``d + c L/2 tan φ + W/2``; the excess is 0 for τ <= W/L and attained
+    at tan φ = τ (so it is the least such constant)."""
+    from iamp.commonroad.planning import corner_excess
+
+    phi = math.atan(frac * tau)
+    true = front * half_length * math.sin(phi) + half_width * math.cos(phi)
+    row = front * half_length * math.tan(phi) + half_width
+    ex = corner_excess(half_length, half_width, tau)
+    assert true <= row + ex + 1e-12
+    if tau <= half_width / half_length:
+        assert ex == 0.0
+    top = math.atan(tau)
+    worst = -half_length * math.sin(top) + half_width * math.cos(top) - (-half_length * tau + half_width)
+    assert ex == pytest.approx(max(0.0, worst), abs=1e-12)
+
+
+def test_a_plan_past_only_its_lateral_bound_is_judged_not_dropped() -> None:
+    """The avoidance QP imposes the lateral bound at its nodes; between them the plan passes it
+    by millimetres (start moving toward the bound at 1 m/s, bound 5 cm away: 3.75 mm), and the
+    plan is ``limits_violated``.  Only such a plan (every exceeded bound ``y``) is handed to the
+    body check against the road edges; an optimal or infeasible one is not."""
+    import iamp
+    from iamp.commonroad.planning import only_lateral_bound_exceeded
+    from iamp.core.physical import PhysicalLimits
+    from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+
+    ego = EgoBoundary(tf=4.0, x0=0.0, y0=0.0, vx0=10.0, vy0=1.0, xf=40.0, yf=-3.0, vxf=10.0, vyf=0.0)
+    behind = SurroundingVehicle(x_poly=(-100.0, 10.0), corner="front-upper", y=-3.0, length=4.5, width=1.8,
+                                safety_x=2.5, safety_y=1.0)
+
+    def run(hi: float) -> Any:
+        problem = Problem(ego, (behind,), name="t", limits=PhysicalLimits(a_total=11.5, vx=(0.0, 50.0), y=(-5.0, hi)))
+        return iamp.plan(problem, "qp", constraint="avoid", steps=24, hold="foh", max_solves=8)
+
+    past = run(0.05)
+    assert past.status == "limits_violated" and past.trajectory is not None
+    assert [p.name for p in past.peaks.exceeded] == ["y"]
+    assert only_lateral_bound_exceeded(past)
+    assert not only_lateral_bound_exceeded(run(1.0))  # within every bound
+    assert not only_lateral_bound_exceeded(run(0.0))  # infeasible: no trajectory
+
+
+@needs_data
+def test_lane_crossing_at_low_speed_from_a_road_edge_is_repaired(tmp_path: Path) -> None:
+    """US101-5 with its goal two lanes to the right (the ``lanes`` variant, seed 1): the ego starts
+    5 mm from the left edge and must cross two lanes at under 3.14 m/s between vehicles 472 and
+    457, turning 0.48 rad.  The plan that passes both grazes the start's edge by 2 cm; the lateral
+    repair bounded |tan φ| by 0.35 everywhere and was infeasible, and the second pass's deeper
+    plan replaced the first.  Now the repair lets each step turn as the plan does (with the corner
+    bound's excess) and the plan is valid by CommonRoad's checker."""
+    from iamp.commonroad.check import check
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan
+    from iamp.commonroad.solution import build_solution
+
+    mod = load_script("commonroad_variants")
+    out = tmp_path / "v"
+    assert mod.main([str(_one_source(tmp_path, "USA_US101-5_1_T-1.xml")), str(out), "--seed", "1",
+                     "--kinds", "lanes"]) == 0
+    cr = load(out / "USA_US101-5_202_T-1.xml")
+    assert cr.goal.d < cr.x0[2] - 7.0  # two lanes to the right
+    rp = plan(cr)
+    assert rp.safe and rp.iamp_status == "edge-repair", rp.reason
+    assert rp.max_heading_rad > 0.4
+    solution, _ = build_solution(cr, rp.trajectory, rp.candidate.steps)
+    verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
+    assert verdict.valid, verdict.checks

@@ -409,6 +409,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     heading = HEADING_GUESS_RAD
     edge_heading = abs(math.atan2(cr.x0[3], max(cr.x0[1], 1e-6)))  # the start's, raised when a plan turns more
     budget = [max_plans, QP_MAX_SOLVES, PMP_MAX_BOXES]  # planner calls, equality-QP solves, PMP boxes
+    repairs = MAX_REPAIRS
     n_tried = 0
     tried: list[Candidate] = []
     while queue and n_tried < max_candidates:
@@ -432,10 +433,11 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             sx, sy = ego_margins(cr.ego_length, cr.ego_width, heading)
             again = _plan_candidate(cr, cand, planner, iamp_planner, constraint, active, sx, sy, steps, budget,
                                     edge_margins(cr, edge_heading))
-            if again.safe or not result.safe:  # a second pass that is not safe keeps a safe first
+            # a second pass replaces a safe first only if safe, an unsafe one only if not worse
+            if again.safe or (not result.safe and not _worse(again, result)):
                 result = again
-        if planner != "free" and not result.safe and _edges_only(result) and budget[0] > 0:
-            budget[0] -= 1  # the lateral repair is one (QP) call
+        if planner != "free" and not result.safe and _edges_only(result) and repairs > 0:
+            repairs -= 1  # the lateral repair: one convex QP, counted apart from the planner calls
             result = _repaired(cr, cand, result)
         result.candidates_tried = n_tried
         if result.safe and result.peak_accel_mps2 <= cr.a_max:
@@ -604,8 +606,10 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
     blocked: Obstacle | None = None
     current: RoadPlan | None = None
     hits = free_hits
+    spent = False
     for _ in range(MAX_IMPOSED):
         if not _affords(budget, iamp_planner, constraint, len(vehicles) + 1, steps):
+            spent = True
             break
         new = None
         for hit in hits:
@@ -628,8 +632,9 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
         hits = current.intrusions
     if current is None:
         h, peak = _heading_and_peak(free, cand.tf)
-        out = RoadPlan(label, "unsafe", cand, free, free.cost(), 0.0, [], free_hits, None, 0,
-                       "a vehicle in the way has no corner (the ego starts and ends in its lane)", h, peak)
+        why = ("the planner calls are spent" if spent else
+               "a vehicle in the way has no corner (the ego starts and ends in its lane)")
+        out = RoadPlan(label, "unsafe", cand, free, free.cost(), 0.0, [], free_hits, None, 0, why, h, peak)
         out.blocked = blocked
         return out
     current.status = "unsafe"
@@ -682,13 +687,43 @@ def _finish(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_planner: st
         search = getattr(result.diagnostics, "search", None)
         used = search.get("boxes") if isinstance(search, dict) else None
         budget[2] -= int(used) if isinstance(used, (int, np.integer)) else boxes
-    if not result.ok:
+    if not result.ok and not only_lateral_bound_exceeded(result):
         return RoadPlan(label, result.status, cand, None, None, result.solve_time_s, list(imposed), [],
                         result.status, 0, str(result.info.get("reason") or result.status))
     h, peak = _heading_and_peak(result, cand.tf)
     hits = intrusions(cr, result, cand.tf)
     return RoadPlan(label, "optimal" if not hits else "unsafe", cand, result, result.cost, result.solve_time_s,
                     list(imposed), hits, result.status, 0, None, h, peak)
+
+
+def only_lateral_bound_exceeded(result: Plan) -> bool:
+    """Is ``result`` a plan with a trajectory that exceeds only its lateral bound ``y``?
+
+    The bound ``y`` of :meth:`~iamp.commonroad.convert.CommonRoadProblem.limits` stands in for the
+    road edges (their narrowest offsets less the body's half width); the QP planners impose it at
+    their grid nodes, and between nodes the plan may pass it by a fraction of a millimetre
+    (US101-5's two-goal-state variant: 0.56 mm).  The body check (:func:`intrusions`) judges the
+    plan against the road-edge boxes at the body's own heading, so such a plan is judged there
+    (and repaired at the edges if needed, :func:`repair_at_edges`), not thrown away.
+
+    Parameters
+    ----------
+    result : iamp.core.plan.Plan
+        A plan of the iamp planner.
+
+    Returns
+    -------
+    bool
+        ``True`` when its status is ``limits_violated``, it has a cost and a trajectory, and every
+        exceeded bound is ``y``.
+    """
+    from iamp.core.status import LIMITS_VIOLATED
+
+    if result.status != LIMITS_VIOLATED or result.cost is None or result.trajectory is None:
+        return False
+    peaks = result.peaks
+    exceeded = [] if peaks is None else peaks.exceeded
+    return bool(exceeded) and all(p.name == "y" for p in exceeded)
 
 
 def describe(p: RoadPlan) -> RoadPlanJSON:
@@ -713,8 +748,15 @@ def heading_deg(rad: float) -> float:
 
 
 #: Largest tangent of the heading to the road a repaired plan may have (19°; the body's corner
-#: bounds of :func:`repair_at_edges` hold for ``|tan φ| <= W/L`` = 0.357).
+#: bounds of :func:`repair_at_edges` hold exactly for ``|tan φ| <= W/L`` = 0.357), unless the
+#: plan repaired turns more (:func:`repair_tan_bound`).
 REPAIR_MAX_TAN = 0.35
+#: The repaired plan may turn this much more (in tan φ) than the plan it repairs.
+REPAIR_TAN_SLACK = 0.02
+#: Never more than the goal's largest heading to the lane (tan 0.5 rad).
+REPAIR_TAN_CAP = math.tan(0.5)
+#: Lateral repairs per problem (:func:`plan`; a count of convex QPs, apart from the planner calls).
+MAX_REPAIRS = 2
 #: Clearance of the repaired body from the road's bound [m] (the frame's fit is exact to 1 cm
 #: on the lanelets' vertices, the checker's boundary is their triangulation).
 REPAIR_EDGE_BUFFER_M = 0.003
@@ -765,6 +807,49 @@ class LateralRepair:
         return float(0.25 * self.dt * np.sum(w[None, :] * us**2) + 0.5 * np.sum(self.u**2) * self.dt)
 
 
+def repair_tan_bound(base_tan_max: float) -> float:
+    """The bound ``τ`` on ``|tan φ|`` of a repaired plan whose base turns to ``base_tan_max``:
+    :data:`REPAIR_MAX_TAN`, or the base's own plus :data:`REPAIR_TAN_SLACK` where it turns more
+    (a plan that crosses lanes at low speed), at most :data:`REPAIR_TAN_CAP`.
+
+    Parameters
+    ----------
+    base_tan_max : float
+        Largest ``|ḋ/ṡ|`` of the plan repaired on the time steps.
+
+    Returns
+    -------
+    float
+    """
+    return float(min(REPAIR_TAN_CAP, max(REPAIR_MAX_TAN, base_tan_max + REPAIR_TAN_SLACK)))
+
+
+def corner_excess(half_length: float, half_width: float, tau: float) -> float:
+    r"""How far a corner of the body can lie beyond the linear bound of :func:`repair_at_edges`.
+
+    A corner of the left side lies at :math:`d + c\,\tfrac L2 \sin\varphi + \tfrac W2\cos\varphi`
+    (:math:`c = \pm 1`, front or rear); the QP's row bounds it by :math:`d + c\,\tfrac L2\tan\varphi +
+    \tfrac W2`.  The difference is at most
+    :math:`\tfrac L2(\tan\varphi - \sin\varphi) - \tfrac W2(1 - \cos\varphi) =
+    (1 - \cos\varphi)(\tfrac L2\tan\varphi - \tfrac W2)` at :math:`\varphi = |\varphi|`: at most 0
+    for :math:`\tan\varphi \le W/L`, and increasing beyond, so over :math:`|\tan\varphi| \le \tau`
+    its largest value is at :math:`\tan\varphi = \tau`.
+
+    Parameters
+    ----------
+    half_length, half_width : float
+        The body's half extents [m].
+    tau : float
+        Bound on ``|tan φ|``.
+
+    Returns
+    -------
+    float
+        The excess [m] (>= 0), added to the corner rows' clearance.
+    """
+    return max(0.0, (1.0 - 1.0 / math.sqrt(1.0 + tau * tau)) * (half_length * tau - half_width))
+
+
 def _narrowest(grid: FloatArray, bound: FloatArray, a: float, b: float, up: bool) -> float:
     """The narrowest value of the piecewise-linear ``bound`` over ``[a, b]`` (lowest for an upper
     bound, highest for a lower one; ``nan`` outside the samples)."""
@@ -784,10 +869,13 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
     With :math:`s_k, \dot s_k` fixed, the heading's tangent :math:`\tan\varphi_k = \dot d_k/\dot s_k`
     is linear in the lateral state, and so are conservative bounds of the body's sides:
     a corner of the left side lies at :math:`d + \cos\varphi(\pm\tfrac L2\tan\varphi + \tfrac W2)
-    \le d \pm \tfrac L2 \tan\varphi + \tfrac W2` (for :math:`|\tan\varphi| \le W/L`), a point of
-    the side at arc length :math:`\sigma` at :math:`d + (\sigma - s)\tan\varphi +
-    \tfrac W2 \sec\varphi`, with :math:`\sec\varphi \le 1 + \tfrac{\tau}{2}|\tan\varphi|`
-    for :math:`|\tan\varphi| \le \tau` (:data:`REPAIR_MAX_TAN`).  Every sample of the corridor
+    \le d \pm \tfrac L2 \tan\varphi + \tfrac W2` (for :math:`|\tan\varphi| \le W/L`; beyond, plus
+    :func:`corner_excess`), a point of the side at arc length :math:`\sigma` at
+    :math:`d + (\sigma - s)\tan\varphi + \tfrac W2 \sec\varphi`, with :math:`\tfrac W2\sec\varphi`
+    below the chord of :math:`\tfrac W2\sqrt{1 + x^2}` over :math:`|x| \le \tau_k`.  The bound
+    :math:`|\tan\varphi_k| \le \tau_k` is :data:`REPAIR_MAX_TAN`, or the base's own heading at
+    step ``k`` plus :data:`REPAIR_TAN_SLACK` where it turns more (:func:`repair_tan_bound`: a
+    plan that crosses lanes at low speed near an edge it starts at).  Every sample of the corridor
     (``cr.corridor``) the body spans, and each corner against the corridor's narrowest value
     within 0.3 m of it, gives a row; every recorded vehicle that overlaps the body along the
     road at a step keeps the body on the side it is on in ``base``.  Inputs: the friction circle
@@ -810,13 +898,16 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
     ud_max = np.sqrt(np.maximum(cr.a_max**2 - us**2, 0.0)) * 0.99
     grid, lo, hi = cr.corridor
     d0, vd0 = cr.x0[2], cr.x0[3]
+    # per step: the bound on |tan φ| (the base's own where it turns more than REPAIR_MAX_TAN) and what it costs
+    tau = np.array([repair_tan_bound(float(x)) for x in np.abs(X[:, 3]) / VS])
+    excess = np.array([corner_excess(L2, W2, float(x)) for x in tau])
     # the lateral state is affine in the inputs u (zero-order hold on the steps)
     kk_, jj_ = np.meshgrid(np.arange(K + 1), np.arange(K), indexing="ij")
     Vm = np.where(jj_ < kk_, dt, 0.0)
     Dm = np.where(jj_ < kk_, dt * dt * (kk_ - jj_ - 0.5), 0.0)
     d_free = d0 + t * vd0
     # W/2 sec φ <= W/2 + sec |tan φ| (the chord of the convex sqrt(1 + x²) over |x| <= REPAIR_MAX_TAN)
-    sec = W2 * (math.sqrt(1.0 + REPAIR_MAX_TAN**2) - 1.0) / REPAIR_MAX_TAN
+    sec = W2 * (np.sqrt(1.0 + tau**2) - 1.0) / tau
     rows: list[tuple[int, float, float, float]] = []  # (k, coefficient of tan φ, bound, +1 upper / -1 lower)
     for k in range(1, K + 1):
         for sign, bound in ((1.0, hi), (-1.0, lo)):
@@ -824,32 +915,32 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
                 b = _narrowest(grid, bound, S[k] + corner * L2 - REPAIR_CORNER_M, S[k] + corner * L2 + REPAIR_CORNER_M,
                                sign > 0)
                 if np.isfinite(b):
-                    rows.append((k, corner * L2, b - sign * (W2 + buffer), sign))
+                    rows.append((k, corner * L2, b - sign * (W2 + buffer + excess[k]), sign))
             inside = np.flatnonzero((grid > S[k] - L2 + 0.3) & (grid < S[k] + L2 - 0.3) & np.isfinite(bound))
             for j in inside:  # the side between them, with the secant's bound
                 for pm in (-1.0, 1.0):
-                    rows.append((k, float(grid[j] - S[k]) + pm * sec * sign, float(bound[j]) - sign * (W2 + buffer),
-                                 sign))
+                    rows.append((k, float(grid[j] - S[k]) + pm * float(sec[k]) * sign,
+                                 float(bound[j]) - sign * (W2 + buffer), sign))
     # vehicles: stay on the side of each vehicle the base is on, where they overlap along the road
     reach = L2 + sec
     for ob in cr.obstacles:
         idx = np.rint(ob.t / dt).astype(int)
         for j in np.flatnonzero((idx >= 1) & (idx <= K)):
             k = int(idx[j])
-            pad = W2 * REPAIR_MAX_TAN + BUFFER_M
+            pad = W2 * float(tau[k]) + BUFFER_M
             if S[k] + L2 + pad < ob.s_lo[j] or S[k] - L2 - pad > ob.s_hi[j]:
                 continue
             if X[k, 2] > 0.5 * (ob.d_lo[j] + ob.d_hi[j]):
-                rows += [(k, pm * reach, float(ob.d_hi[j]) + W2 + CHECK_BUFFER_M, -1.0) for pm in (-1.0, 1.0)]
+                rows += [(k, pm * float(reach[k]), float(ob.d_hi[j]) + W2 + CHECK_BUFFER_M, -1.0) for pm in (-1.0, 1.0)]
             else:
-                rows += [(k, pm * reach, float(ob.d_lo[j]) - W2 - CHECK_BUFFER_M, 1.0) for pm in (-1.0, 1.0)]
+                rows += [(k, pm * float(reach[k]), float(ob.d_lo[j]) - W2 - CHECK_BUFFER_M, 1.0) for pm in (-1.0, 1.0)]
     # rows: sign * (d_k + a tan φ_k) <= sign * c, tan φ_k = vd_k / VS_k; drop those far from binding
     if rows:
         R = np.array(rows)
         k_ = R[:, 0].astype(int)
         a_, c_, sg = R[:, 1], R[:, 2], R[:, 3]
         slack = sg * (c_ - (X[k_, 2] + a_ * X[k_, 3] / VS[k_]))
-        keep = slack < 0.5 + L2 * REPAIR_MAX_TAN
+        keep = slack < 0.5 + L2 * tau[k_]
         k_, a_, c_, sg = k_[keep], a_[keep], c_[keep], sg[keep]
         coef = (a_ / VS[k_])[:, None]
         A_edge = sg[:, None] * (Dm[k_] + coef * Vm[k_])
@@ -858,7 +949,7 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
         A_edge, b_edge = np.zeros((0, K)), np.zeros(0)
     eye = np.eye(K)
     A_in = np.vstack([eye, -eye, Vm[1:], -Vm[1:], A_edge])
-    b_in = np.concatenate([ud_max, ud_max, REPAIR_MAX_TAN * VS[1:] - vd0, REPAIR_MAX_TAN * VS[1:] + vd0, b_edge])
+    b_in = np.concatenate([ud_max, ud_max, tau[1:] * VS[1:] - vd0, tau[1:] * VS[1:] + vd0, b_edge])
     A_eq = np.vstack([Dm[K], Vm[K]])
     b_eq = np.array([cand.d - d_free[K], cand.vd - vd0])
     A = sparse.csc_matrix(np.vstack([A_eq, A_in]))
