@@ -61,7 +61,9 @@ Key = tuple[str, str, str, int]
 #: Version of the episode definition (missions, decision layer, metrics); part of the manifest.
 #: 17.1: contacts by oriented bodies, the RSS judge's columns (SPEC §17).
 #: 17.2: courteous target-lane followers open a gap for the signalling ego (the manifest's ``courtesy``).
-EPISODE_FORMAT = "17.2"
+#: 17.3: the tactical layer's lane end as a braking bound, end speeds searched within the gap, courteous
+#: followers asked within their RSS distance behind the ego plus 60.5 m (issue 30, the on-ramp).
+EPISODE_FORMAT = "17.3"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

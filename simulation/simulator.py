@@ -18,7 +18,8 @@ The ego is the SUMO vehicle ``"ego"``.  Two modes:
 
 **Courteous followers** (:class:`Courtesy`, :meth:`Simulator.signal`): while the ego wants to
 change lanes its indicator is on, and the target-lane vehicle nearest behind its centre (within
-``range_m``) — if the drivers are cooperative (``--cooperation`` not ``low``) — opens a gap to it with
+:meth:`Courtesy.reach`: the RSS distance it must keep behind the ego plus 60.5 m) — if the
+drivers are cooperative (``--cooperation`` not ``low``) — opens a gap to it with
 SUMO's gap control (``vehicle.openGap`` with the ego as reference vehicle): its desired time and
 space headway grow to what RSS asks behind the ego at its speed, braking for it at most
 ``max_decel``.  Only that follower, only while the indicator is on; the loop's verification does
@@ -78,7 +79,8 @@ class Courtesy:
     duration_s : float
         How long the headway is kept once attained [s] (ended earlier when the indicator goes off).
     range_m : float
-        Only a follower whose centre is at most this far behind the ego's centre is asked [m].
+        A follower is asked while its centre is at most its RSS distance behind the ego plus
+        ``margin_m`` and this behind the ego's centre (:meth:`reach`) [m].
     rss : RssParameters
     margin_m : float
         Added to the RSS distance [m] (the verification's ``margin_x``).
@@ -90,6 +92,15 @@ class Courtesy:
     range_m: float = 60.0
     rss: RssParameters = RSS_DEFAULT
     margin_m: float = 0.5
+
+    def reach(self, v: float, v_ego: float) -> float:
+        """How far behind the ego's centre a follower at ``v`` is asked when the ego drives at ``v_ego``
+        [m]: the RSS distance ``d(v, v_ego)`` it will have to keep behind the ego (``rss``) plus
+        ``margin_m`` and ``range_m`` — a driver the merge will concern, seen in time to open the gap
+        at ``max_decel``. (With ``range_m`` alone, 60 m, a follower 117 m behind at 31.8 m/s, which
+        RSS keeps 130 m behind an ego at 18.9 m/s, was asked only 60 m behind, too late: the
+        on-ramp in medium traffic, seeds 1, 2, 12, 25, 27, 30, 34, 40.)"""
+        return float(safe_longitudinal_distance(max(v, 0.0), max(v_ego, 0.0), self.rss)) + self.margin_m + self.range_m
 
     def headways(self, v: float, tau: float) -> tuple[float, float]:
         """``(time headway [s], space headway [m])`` asked of a follower at ``v`` whose own is ``tau``."""
@@ -337,7 +348,7 @@ class Simulator:
     def signal(self, target_lane: int | None, obs: Observation, ego: EgoState) -> str | None:
         """The ego's indicator toward ``target_lane`` (``None``: off) and the courtesy it asks
         (:class:`Courtesy`): the target-lane vehicle nearest behind the ego's centre within
-        ``range_m`` opens a gap while the indicator is on; a follower no longer asked (the
+        :meth:`Courtesy.reach` opens a gap while the indicator is on; a follower no longer asked (the
         indicator off, or another follower nearest) gets its own headways back.
 
         Returns
@@ -354,8 +365,9 @@ class Simulator:
             self._signals = bits
         want: str | None = None
         if bits and self.courtesy is not None:
-            behind = [(ego.x - float(x), vid) for vid, x, ln in zip(obs.ids, obs.x, obs.lane)
-                      if int(ln) == target_lane and 0.0 <= ego.x - float(x) <= self.courtesy.range_m]
+            asked = self.courtesy
+            behind = [(ego.x - float(x), vid) for vid, x, v, ln in zip(obs.ids, obs.x, obs.v, obs.lane)
+                      if int(ln) == target_lane and 0.0 <= ego.x - float(x) <= asked.reach(float(v), ego.vx)]
             want = min(behind)[1] if behind else None
         if want != self._yielding:
             if self._yielding is not None and self._yielding in ls.vehicle.getIDList():

@@ -1,11 +1,12 @@
 r"""The tactical layer: drive the ego while it seeks a gap, and choose each plan's horizon and end.
 
 While the ego seeks, iamp (not SUMO) drives it in its lane with IDM (:class:`~iamp.simulation.mobil.IDM`)
-behind the nearer of
+behind its lane's leader (at the RSS distance, :func:`rss_follow_gap`), bounded by
 
-* its lane's leader, and
-* the lane's end as a **standing virtual obstacle** (Treiber & Kesting's treatment of a lane
-  drop or an on-ramp's end, *Traffic Flow Dynamics* §14.4),
+* the lane's end as a **braking bound** (:func:`lane_end_accel`: drive on while a stop before it
+  at ``b_end`` = 3 m/s² remains possible, then brake smoothly to a stop ``end_room_m`` before it;
+  Treiber & Kesting's standing virtual obstacle, *Traffic Flow Dynamics* §14.4, which the
+  ``mobil`` baseline keeps, brakes from about 300 m at 30 m/s, longer than an on-ramp),
 
 and adapts its speed toward a **target gap** of the target lane, ahead or behind: with the
 gap's safe interval (below) ``[lo(t), hi(t)]``, its speed ``v_g`` and the aim point ``x_m`` (its
@@ -28,7 +29,8 @@ and :class:`~iamp.simulation.failsafe.SafeParams`' others, plus ``margin_x`` (0.
            hi = x_l - \tfrac{L_l + L_e}{2} - d(v, v_l, ρ_e, 0, b, b_{max,o}) - m_x .
 
 **Horizon and end state.**  For each ``T`` of ``horizons`` the end speed is the gap's mean
-predicted speed (reachable at ``REACH`` of the ``a_x`` bounds); the end point is the
+predicted speed when its end is reachable, else the reachable speed (at ``REACH`` of the ``a_x``
+bounds, every ``speed_step``) whose end needs the least peak acceleration (:func:`gap_end`); the end point is the
 constant-acceleration point ``x_0 + (v_0 + v_f)T/2`` clipped into ``[lo + s, hi - s]``
 (``s = min(2, (hi - lo)/2)``).  A ``T`` whose interval is empty is not planned; the others are
 ranked by the peak longitudinal acceleration of the unconstrained cubic to that end state,
@@ -56,6 +58,7 @@ __all__ = [
     "continuing_end",
     "gap_end",
     "horizons_for",
+    "lane_end_accel",
     "rss_follow_gap",
     "rss_regions",
     "safe_interval",
@@ -78,8 +81,13 @@ class TacticalConfig:
     #: safe interval now [m, s].
     plan_window_m: float = 5.0
     window_s: float = 2.0
-    #: The tactical IDM stops this far before the lane's end (room to merge from a standstill) [m].
+    #: The ego stops this far before the lane's end (room to merge from a standstill) [m].
     end_room_m: float = 8.0
+    #: The lane's end: the ego keeps the deceleration that stops it ``end_room_m`` before the end,
+    #: ``v²/(2s)``, at most ``b_end``; it starts braking when that exceeds ``end_onset`` of ``b_end``
+    #: (:func:`lane_end_accel`) [m/s², 1].
+    b_end: float = 3.0
+    end_onset: float = 0.7
     gap_accel: tuple[float, float] = (-3.0, 1.5)
     aim_s: float = 3.0
     switch_m: float = 10.0
@@ -95,6 +103,8 @@ class TacticalConfig:
     #: A ``(T, end)`` whose unconstrained cubic needs more than this fraction of the ``a_x``
     #: bounds is not planned (a constrained plan costs more; it would be rejected on the limits).
     reach_limits: float = 1.0
+    #: The end speeds :func:`gap_end` tries when the gap's mean speed is out of reach [m/s].
+    speed_step: float = 0.5
     safe: SafeParams = field(default_factory=SafeParams)
     idm: IDM = field(default_factory=lambda: IDM(T=1.2, s0=2.0, a_max=1.5, b=2.0))
 
@@ -155,19 +165,42 @@ def continuing_end(ego: EgoNow, a0: float, T: float, vxf: float) -> float:
 
 def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: TacticalConfig, a0: float | None = None
             ) -> tuple[float, float] | None:
-    """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when it is empty.
-    With ``a0`` (a re-plan) the end point is :func:`continuing_end`'s (the plan continues the
-    executed acceleration) moved into the interval; without it the constant-acceleration point."""
-    vxf = gap_speed(ego, gap, T)
+    """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when no reachable end
+    speed leaves it non-empty.
+
+    The end speed is the gap's mean predicted speed (:func:`gap_speed`) when its end point is
+    reachable (the unconstrained cubic within ``reach_limits`` of the ``a_x`` bounds); otherwise
+    the speed, every ``speed_step`` m/s across what ``REACH`` of the bounds reaches in ``T``,
+    whose end point needs the smallest peak acceleration (:func:`peak_accel`): behind a fast
+    leader that pulls away and ahead of a yielding follower the gap's mean is not where the ego
+    can be. With ``a0`` (a re-plan) the end point is :func:`continuing_end`'s (the plan continues
+    the executed acceleration) moved into the interval; without it the constant-acceleration
+    point."""
     ax = dcfg.limits.ax or (-np.inf, np.inf)
-    vxf = float(np.clip(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T))
-    vxf = float(np.clip(vxf, 0.0, dcfg.speed_cap))
-    lo, hi = safe_interval(ego, gap, vxf, T, cfg)
-    if not lo < hi:
-        return None
-    s = min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
-    x = ego.x + (ego.vx + vxf) * T / 2 if a0 is None else continuing_end(ego, a0, T, vxf)
-    return float(np.clip(x, lo + s, hi - s)), vxf
+    v_lo = float(np.clip(ego.vx + REACH * ax[0] * T, 0.0, dcfg.speed_cap))
+    v_hi = float(np.clip(ego.vx + REACH * ax[1] * T, 0.0, dcfg.speed_cap))
+
+    def end_at(vxf: float) -> tuple[float, float] | None:
+        lo, hi = safe_interval(ego, gap, vxf, T, cfg)
+        if not lo < hi:
+            return None
+        s = min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
+        x = ego.x + (ego.vx + vxf) * T / 2 if a0 is None else continuing_end(ego, a0, T, vxf)
+        return float(np.clip(x, lo + s, hi - s)), vxf
+
+    def reachable(end: tuple[float, float]) -> bool:
+        e, g = end[0] - ego.x - ego.vx * T, end[1] - ego.vx
+        a_0, a_1 = 6 * e / T**2 - 2 * g / T, -6 * e / T**2 + 4 * g / T
+        return min(a_0, a_1) >= cfg.reach_limits * ax[0] and max(a_0, a_1) <= cfg.reach_limits * ax[1]
+
+    first = end_at(float(np.clip(gap_speed(ego, gap, T), v_lo, v_hi)))
+    if first is not None and reachable(first):
+        return first
+    n = max(2, int(np.ceil((v_hi - v_lo) / cfg.speed_step)) + 1)
+    ends = [e for e in (end_at(float(v)) for v in np.linspace(v_lo, v_hi, n)) if e is not None]
+    if not ends:
+        return first
+    return min(ends, key=lambda e: peak_accel(ego, e, T))
 
 
 def peak_accel(ego: EgoNow, end: tuple[float, float], T: float) -> float:
@@ -280,7 +313,7 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
         gap = leader.x(0.0) - ego.x - (leader.length + ego.length) / 2
         acc.append(idm.accel(ego.vx, rss_follow_gap(gap, ego.vx, leader.v(0.0), cfg), leader.v(0.0)))
     if stop_x is not None:
-        acc.append(idm.accel(ego.vx, stop_x - cfg.end_room_m - ego.x - ego.length / 2, 0.0))
+        acc.append(lane_end_accel(ego.vx, stop_x - cfg.end_room_m - ego.x - ego.length / 2, cfg))
         if lane_speed is not None:
             acc.append(float(np.clip(cfg.k_speed * (lane_speed + cfg.match_dv - ego.vx), *cfg.gap_accel)))
     if target is not None:
@@ -292,6 +325,46 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
             acc.append(float(np.clip(a_g, *cfg.gap_accel)))
             acc[0] = replace(idm, v0=1.1 * idm.v0).accel(ego.vx)
     return float(min(acc))
+
+
+def lane_end_accel(v: float, s: float, cfg: TacticalConfig) -> float:
+    r"""The lane's end as a braking bound: the ego drives on while it can still stop ``s`` ahead
+    at ``b_end``, then brakes to a stop there.
+
+    With ``b = v²/(2s)`` the constant deceleration that stops the ego in ``s`` and ``r = b/b_end``:
+
+    .. math::  a = \begin{cases} a_{max}\,(1 - r/r_0) & r < r_0 \\
+                                 -b\,\frac{r - r_0}{1 - r_0} & r_0 \le r < 1 \\
+                                 -b & r \ge 1 \end{cases}
+
+    (``r_0`` = ``end_onset``, ``a_max`` the tactical IDM's), continuous in the state. Under it
+    ``r`` grows to 1 and stays there (``dr/dt = (v/s)\,r\,(1 - q)`` with ``a = -b q``, ``q < 1``),
+    so the ego stops at the point with a deceleration that rises smoothly to ``b_end``. IDM's
+    standing obstacle (Treiber & Kesting §14.4, the ``mobil`` baseline's) brakes from
+    ``s* = s_0 + vT + v²/(2\sqrt{a b})``, about 300 m at 30 m/s: on a 250 m on-ramp the ego never
+    reached the main lane's speed.
+
+    Parameters
+    ----------
+    v : float
+        The ego's speed [m/s].
+    s : float
+        The distance to the stopping point [m].
+    cfg : TacticalConfig
+
+    Returns
+    -------
+    float
+        The acceleration [m/s²].
+    """
+    v = max(v, 0.0)
+    if s <= 0.0:
+        return -v * v / 2e-3 if v > 0.0 else 0.0
+    b = v * v / (2.0 * s)
+    r = b / cfg.b_end
+    if r < cfg.end_onset:
+        return cfg.idm.a_max * (1.0 - r / cfg.end_onset)
+    return -b * min(1.0, (r - cfg.end_onset) / (1.0 - cfg.end_onset))
 
 
 def rss_follow_gap(gap: float, v: float, v_leader: float, cfg: TacticalConfig) -> float:

@@ -126,22 +126,27 @@ def test_an_unknown_level_is_a_scenario_error():
         courtesy_of("polite")
 
 
-def test_nobody_behind_within_range_nobody_asked():
-    sim, obs, ego, v = _world([("ahead", 520.0, 1, 15.0), ("far", 500.0 - 61.0, 1, 15.0)], Courtesy(range_m=60.0))
+def test_nobody_behind_within_reach_nobody_asked():
+    """The reach is the follower's RSS distance behind the ego plus 60.5 m: at 15 m/s both, 1 m
+    beyond it nobody is asked, 1 m inside it the follower is."""
+    reach = Courtesy().reach(15.0, 15.0)
+    sim, obs, ego, v = _world([("ahead", 520.0, 1, 15.0), ("far", 500.0 - reach - 1.0, 1, 15.0)], Courtesy())
     assert sim.signal(1, obs, ego) is None and _opened(v) == []
+    sim, obs, ego, v = _world([("ahead", 520.0, 1, 15.0), ("far", 500.0 - reach + 1.0, 1, 15.0)], Courtesy())
+    assert sim.signal(1, obs, ego) == "far"
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(st.lists(st.tuples(st.floats(380.0, 620.0), st.integers(0, 2), st.floats(0.0, 35.0)), max_size=8),
        st.floats(0.0, 4.0))
 def test_the_request_goes_to_the_nearest_target_lane_vehicle_behind(cars, tau):
-    """Property: exactly the nearest target-lane vehicle within ``range_m`` behind the ego's centre is
+    """Property: exactly the nearest target-lane vehicle within its reach behind the ego's centre is
     asked, with a deceleration within the bound and headways not below its own or RSS's distance."""
     named = [(f"v{k}", x, lane, v) for k, (x, lane, v) in enumerate(cars)]
     c = Courtesy()
     sim, obs, ego, veh = _world(named, c, tau)
     got = sim.signal(1, obs, ego)
-    behind = [(ego.x - x, n) for n, x, lane, _ in named if lane == 1 and 0.0 <= ego.x - x <= c.range_m]
+    behind = [(ego.x - x, n) for n, x, lane, w in named if lane == 1 and 0.0 <= ego.x - x <= c.reach(w, ego.vx)]
     want = min(behind)[1] if behind else None
     assert got == want
     opened = _opened(veh)

@@ -1,0 +1,147 @@
+"""Issue 30, the on-ramp in medium traffic (31/40 before): the lane's end as a braking bound, end
+speeds searched when the gap's mean is out of reach, and courteous followers asked as far back as
+RSS makes them keep their distance (SPEC §17; docs/closed-loop.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.simulation.controller import ControllerConfig
+from iamp.simulation.decision import EgoNow, Gap, Neighbour
+from iamp.simulation.rss import DEFAULT, safe_longitudinal_distance
+from iamp.simulation.simulator import Courtesy
+from iamp.simulation.tactical import TacticalConfig, gap_end, horizons_for, lane_end_accel, peak_accel, safe_interval
+
+W_LANE = 3.75
+
+
+def _drive(v: float, s: float, cfg: TacticalConfig, dt: float = 0.05) -> tuple[float, float, float, float]:
+    """The ego under the lane-end term alone: (stop position, the largest deceleration, the largest
+    change of acceleration per second, the speed when ``r`` first reached 1)."""
+    x, a_prev, peak, jerk = 0.0, None, 0.0, 0.0
+    for _ in range(20000):
+        a = min(lane_end_accel(v, s - x, cfg), cfg.idm.a_max)
+        if a_prev is not None:
+            jerk = max(jerk, abs(a - a_prev) / dt)
+        a_prev = a
+        peak = min(peak, a)
+        if v + a * dt <= 0.0:
+            x += v * v / (2 * max(-a, 1e-9)) if a < 0 else 0.0
+            return x, -peak, jerk, v
+        x, v = x + v * dt + a * dt * dt / 2, v + a * dt
+    raise AssertionError("did not stop")
+
+
+@settings(max_examples=80, deadline=None, derandomize=True)
+@given(st.floats(1.0, 35.0), st.floats(0.0, 1.0))
+def test_the_lane_end_bound_stops_the_ego_at_the_point_braking_at_most_b_end(v, extra):
+    """From any speed with room to stop at ``b_end`` (``s ≥ v²/(2 b_end)``, up to 3x that) the ego
+    stops before the point, never braking harder than ``b_end`` (up to the step's round-off); from
+    6 m/s up, starting before the onset, its acceleration changes by less than the car's jerk bound
+    (5 m/s³; the term is continuous in the state: only crawling up to a point a few metres ahead
+    asks for more)."""
+    cfg = TacticalConfig()
+    s = v * v / (2 * cfg.b_end) * (1.0 + 2.0 * extra) + 0.05
+    x, brake, _, _ = _drive(v, s, cfg)
+    assert x <= s + 0.05
+    assert brake <= cfg.b_end * 1.02
+    if v >= 6.0:
+        _, _, jerk, _ = _drive(v, v * v / (2 * cfg.b_end * cfg.end_onset) * (1.0 + 2.0 * extra), cfg)
+        assert jerk <= 5.0
+
+
+def test_the_lane_end_bound_is_continuous_at_its_onset_and_at_b_end():
+    cfg = TacticalConfig()
+    v = 25.0
+    for r in (cfg.end_onset, 1.0):
+        s = v * v / (2 * cfg.b_end * r)
+        below, above = lane_end_accel(v, s * (1 + 1e-7), cfg), lane_end_accel(v, s * (1 - 1e-7), cfg)
+        assert abs(below - above) < 1e-5
+    assert lane_end_accel(v, v * v / (2 * cfg.b_end), cfg) == pytest.approx(-cfg.b_end)
+    assert lane_end_accel(v, 1e5, cfg) == pytest.approx(cfg.idm.a_max, rel=1e-2)  # far away: no brake
+
+
+def test_the_ego_is_faster_on_a_250_m_ramp_than_behind_idms_standing_obstacle():
+    """Why the bound replaced IDM's standing obstacle: from 17.6 m/s, 230 m before the stopping
+    point (the on-ramp's first seek, seed 30), with the free-road IDM term alone besides it, the
+    ego passes 100 m before the point 2.5 m/s faster and stops at the point itself; behind IDM's
+    obstacle (``s*`` ≈ 300 m at 30 m/s) it never exceeds 20.1 m/s."""
+    cfg = TacticalConfig()
+
+    def run(term):  # type: ignore[no-untyped-def]
+        x, v, top, at100 = 0.0, 17.6, 0.0, None
+        for _ in range(600):
+            a = min(term(v, 230.0 - x), cfg.idm.accel(v))
+            x, v = x + v * 0.1 + a * 0.005, max(v + a * 0.1, 0.0)
+            top = max(top, v)
+            if at100 is None and x >= 130.0:
+                at100 = v
+        return top, at100, x
+
+    top, at100, x = run(lambda v, s: lane_end_accel(v, s, cfg))
+    idm_top, idm_at100, _ = run(lambda v, s: cfg.idm.accel(v, s, 0.0))
+    assert idm_top < 20.1 and top > idm_top + 1.0
+    assert at100 > idm_at100 + 2.5
+    assert x == pytest.approx(230.0, abs=0.5)
+
+
+def _nb(name: str, x: float, v: float) -> Neighbour:
+    return Neighbour(name, (x, v, 0.0, 0.0), W_LANE, 4.6, 1.8, 1)
+
+
+def test_an_end_behind_a_fast_leader_ahead_of_a_yielding_follower_is_found():
+    """The on-ramp (seed 30 at 8 s): the ego at 17.7 m/s between a follower 86 m behind at its
+    speed and a leader 57 m ahead at 31.3 m/s. The gap's mean speed (24.5 m/s) is not reachable
+    within the bounds in 4-7 s; an end at a lower speed is, inside the safe interval."""
+    ego = EgoNow(0.0, 17.7, 0.0, 0.0)
+    gap = Gap(_nb("f", -86.0, 17.6), _nb("l", 57.0, 31.3))
+    dcfg, tac = ControllerConfig().decision, TacticalConfig()
+    ends = horizons_for(ego, gap, dcfg, tac)
+    assert ends, "no end state although the ego is inside the gap's safe interval"
+    ax = dcfg.limits.ax
+    assert ax is not None
+    for T, end in ends:
+        lo, hi = safe_interval(ego, gap, end[1], T, tac)
+        assert lo <= end[0] <= hi
+        assert peak_accel(ego, end, T) <= max(-ax[0], ax[1]) + 1e-9
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.floats(5.0, 30.0), st.floats(-120.0, -20.0), st.floats(0.0, 15.0), st.floats(20.0, 120.0),
+       st.floats(0.0, 15.0), st.sampled_from([4.0, 5.0, 6.0, 7.0]))
+def test_gap_end_returns_the_mean_speed_end_when_reachable_else_the_least_peak(v, xf, dvf, xl, dvl, T):
+    """Property: ``gap_end`` keeps the gap's mean speed whenever its end is reachable (the behaviour
+    the rest of the campaign relies on), and otherwise no speed of its grid gives a smaller peak."""
+    ego = EgoNow(0.0, v, 0.0, 0.0)
+    gap = Gap(_nb("f", xf, v + dvf), _nb("l", xl, v + dvl))
+    dcfg, tac = ControllerConfig().decision, TacticalConfig()
+    end = gap_end(ego, gap, T, dcfg, tac)
+    if end is None:
+        return
+    lo, hi = safe_interval(ego, gap, end[1], T, tac)
+    assert lo < end[0] < hi
+    ax = dcfg.limits.ax
+    assert ax is not None
+    peak = peak_accel(ego, end, T)
+    for w in np.arange(0.0, 40.0, 0.25):
+        lo_w, hi_w = safe_interval(ego, gap, float(w), T, tac)
+        if lo_w < hi_w and abs(w - end[1]) > 1e-9:
+            s = min(2.0, (hi_w - lo_w) / 2)
+            x = float(np.clip(ego.x + (v + w) * T / 2, lo_w + s, hi_w - s))
+            if peak > max(-ax[0], ax[1]) and v + 0.8 * ax[0] * T <= w <= v + 0.8 * ax[1] * T:
+                assert peak_accel(ego, (x, float(w)), T) >= peak - 0.6 * T  # the grid's resolution
+
+
+def test_a_courteous_follower_is_asked_as_far_back_as_rss_makes_it_keep_its_distance():
+    """The on-ramp (seed 30, 1 s): a follower 117 m behind at 31.8 m/s, the ego at 18.9 m/s. RSS
+    asks it to stay 130 m behind the ego once the ego is in its lane: it is asked (60 m was the
+    limit before, so it yielded only 60 m behind, too late for any RSS-safe slot)."""
+    c = Courtesy()
+    d = float(safe_longitudinal_distance(31.8, 18.9, DEFAULT))
+    assert c.reach(31.8, 18.9) >= d + c.margin_m
+    assert c.reach(31.8, 18.9) >= 117.0
+    assert c.reach(0.0, 30.0) == pytest.approx(c.margin_m + c.range_m)  # a standing car: no RSS distance
+    assert c.reach(10.0, 10.0) == pytest.approx(float(safe_longitudinal_distance(10.0, 10.0, DEFAULT)) + 60.5)
