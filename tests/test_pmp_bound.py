@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 from iamp.planners.examples import random_problem
-from iamp.planners.pmp.bound import branch_and_bound, lower_bound, poly2_range, poly_range, taylor_shift
+from iamp.planners.pmp.bound import branch_and_bound, lower_bound, taylor_shift
 from iamp.planners.pmp.fixed import ValueFunction
 from iamp.planners.pmp.search import newton_sigma, start_points
+from iamp.planners.pmp.search_kernels import DK_ABOVE, DK_BELOW, kern, kern_ds, shift_range, shift_range2
 
 
 def test_taylor_shift_and_ranges_are_exact_and_enclosing():
@@ -20,19 +21,33 @@ def test_taylor_shift_and_ranges_are_exact_and_enclosing():
     direct = np.array([np.polynomial.polynomial.polyval(c[k] + h[k], C[k]) for k in range(50)])
     shifted = np.array([np.polynomial.polynomial.polyval(h[k], A[k]) for k in range(50)])
     assert np.allclose(direct, shifted, atol=1e-12)
-    lo, hi = poly_range(C, c, r)
+    ranges = [shift_range(C[k], c[k:k + 1], r[k:k + 1]) for k in range(50)]
+    lo, hi = np.array([x[0][0] for x in ranges]), np.array([x[1][0] for x in ranges])
     assert np.all(lo <= direct + 1e-12) and np.all(direct <= hi + 1e-12)
     # bivariate: s^2 t - 3 s t^2 + 1
     A2 = np.zeros((4, 4))
     A2[2, 1], A2[1, 2], A2[0, 0] = 1.0, -3.0, 1.0
     cs, ct, rs, rt = rng.uniform(0, 1, 30), rng.uniform(0, 1, 30), np.full(30, 0.05), np.full(30, 0.1)
-    lo2, hi2 = poly2_range(A2, cs, ct, rs, rt)
+    lo2, hi2 = shift_range2(A2, cs, ct, rs, rt)
     for k in range(30):
         s = cs[k] + rs[k] * rng.uniform(-1, 1, 40)
         t = ct[k] + rt[k] * rng.uniform(-1, 1, 40)
         v = s**2 * t - 3 * s * t**2 + 1
         assert np.all(lo2[k] <= v + 1e-12) and np.all(v <= hi2[k] + 1e-12)
-    assert np.allclose(poly2_range(A2, cs, ct, 0 * rs, 0 * rt)[0], cs**2 * ct - 3 * cs * ct**2 + 1)
+    assert np.allclose(shift_range2(A2, cs, ct, 0 * rs, 0 * rt)[0], cs**2 * ct - 3 * cs * ct**2 + 1)
+
+
+def test_the_kernel_derivative_coefficients_are_the_derivative_of_the_kernel():
+    """``DK_BELOW``/``DK_ABOVE`` (the bivariate ``∂K/∂s`` the Fenchel bound ranges over) and
+    ``kern_ds`` against a central difference of ``kern`` on both sides of the diagonal."""
+    rng = np.random.default_rng(3)
+    s, t = rng.uniform(0.02, 0.98, 200), rng.uniform(0.02, 0.98, 200)
+    s, t = s[np.abs(s - t) > 1e-3], t[np.abs(s - t) > 1e-3]
+    h = 1e-6
+    fd = (kern(s + h, t) - kern(s - h, t)) / (2 * h)
+    poly = np.array([sum((DK_BELOW if a <= b else DK_ABOVE)[i, j] * a**i * b**j for i in range(4) for j in range(4))
+                     for a, b in zip(s, t)])
+    assert np.allclose(poly, fd, atol=1e-8) and np.allclose(kern_ds(s, t), fd, atol=1e-8)
 
 
 @pytest.mark.parametrize("m,seed", [(2, 0), (2, 5), (3, 1)])

@@ -11,7 +11,8 @@ q_{\text{axis}}(\sigma)` with :math:`q = e^\top K^{-1} e`.  Three lower bounds o
    :math:`g_w(\sigma) \ge g_w(c) - \sum_i r_i \max_B |\partial_i g_w|`, where
    :math:`\partial_i g_w = 2w_i e_i' - 2w_i\sum_{j\ne i} w_j\,\partial_1K(\sigma_i,\sigma_j) -
    w_i^2\, dK_{ii}/d\sigma` is bounded by exact Taylor expansions of each polynomial at the
-   centre (:func:`poly_range`; both pieces of ``K`` where the box straddles the diagonal).
+   centre (:func:`~iamp.planners.pmp.search_kernels.shift_range`; both pieces of ``K`` where the
+   box straddles the diagonal).
    Because ``∇g_w(c) = ∇q(c)``, the bound is exact to second order near a minimum.
 2. **One vehicle.**  :math:`q \ge (e_{x,i}^2 + e_{y,i}^2)/K_{ii}` (``w`` = unit vector), with
    :math:`\min_B e^2` from the Taylor range and :math:`\max_B K_{ii}` exact (unimodal).  This
@@ -47,7 +48,8 @@ import numpy.typing as npt
 
 from iamp.core.tolerances import TOLERANCES
 
-from .fixed import bridge_kernel
+from . import search_kernels as sk
+from .search_kernels import speed_variance_max as speed_variance_max
 from .taylor import taylor_shift as taylor_shift
 
 if TYPE_CHECKING:
@@ -57,152 +59,14 @@ if TYPE_CHECKING:
 FloatArray = npt.NDArray[np.float64]
 
 
-def _poly2(terms: dict[tuple[int, int], float]) -> FloatArray:
-    A = np.zeros((4, 4))
-    for (a, b), v in terms.items():
-        A[a, b] += v
-    return A
-
-
-def _mul2(p: dict[tuple[int, int], float], q: dict[tuple[int, int], float]) -> dict[tuple[int, int], float]:
-    out: dict[tuple[int, int], float] = {}
-    for (a1, b1), v1 in p.items():
-        for (a2, b2), v2 in q.items():
-            out[(a1 + a2, b1 + b2)] = out.get((a1 + a2, b1 + b2), 0.0) + v1 * v2
-    return out
-
-
-# ∂K(s,t)/∂s on each side of the diagonal (t_f = 1), as coefficients of s^a t^b
-_DK_BELOW = _poly2(_mul2({(0, 0): 0.5, (0, 1): -1.0, (0, 2): 0.5}, {(1, 1): 2.0, (2, 0): -1.0, (2, 1): -2.0}))
-_DK_ABOVE = _poly2(_mul2({(0, 2): 0.5}, {(0, 0): 1.0, (1, 0): -4.0, (2, 0): 3.0, (1, 1): 2.0, (2, 1): -2.0}))
-# d K(σ,σ)/dσ = σ²(1−σ)²(1−2σ)
-_DKDIAG = np.array([0.0, 0.0, 1.0, -4.0, 5.0, -2.0])
-
-
-def poly_range(C: FloatArray, c: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Rigorous ``(lo, hi)`` of each row polynomial on ``[c − r, c + r]``:
-    ``p(c) ∓ Σ_{k≥1} |p^{(k)}(c)/k!| r^k`` (exact Taylor expansion)."""
-    A = taylor_shift(C, c)
-    k = np.arange(A.shape[-1])
-    dev = np.sum(np.abs(A[..., 1:]) * r[..., None] ** k[1:], axis=-1)
-    return A[..., 0] - dev, A[..., 0] + dev
-
-
-def poly2_range(A2: FloatArray, cs: FloatArray, ct: FloatArray, rs: FloatArray,
-                rt: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """:func:`poly_range` for one bivariate polynomial (``A2[a, b]`` of ``s^a t^b``) over
-    boxes ``[cs ± rs] × [ct ± rt]`` (arrays of one shape)."""
-    n = cs.shape
-    B = np.broadcast_to(A2, n + A2.shape).copy()
-    # shift in s: for each t-power b
-    Bs = np.moveaxis(B, -2, -1)  # (..., b, a)
-    Bs = taylor_shift(Bs, np.broadcast_to(cs[..., None], n + (A2.shape[1],)))
-    B = np.moveaxis(Bs, -1, -2)  # (..., a, b)
-    B = taylor_shift(B, np.broadcast_to(ct[..., None], n + (A2.shape[0],)))
-    pa = rs[..., None, None] ** np.arange(A2.shape[0])[:, None]
-    pb = rt[..., None, None] ** np.arange(A2.shape[1])[None, :]
-    W = np.abs(B) * pa * pb
-    dev = np.sum(W, axis=(-1, -2)) - W[..., 0, 0]
-    return B[..., 0, 0] - dev, B[..., 0, 0] + dev
-
-
-def _min_sq(lo: FloatArray, hi: FloatArray) -> FloatArray:
-    out: FloatArray = np.where((lo <= 0) & (hi >= 0), 0.0, np.minimum(lo * lo, hi * hi))
-    return out
-
-
-def speed_variance_max(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``max Var v(σ) = x(1 − 3x)``, ``x = σ(1 − σ)``, over ``σ ∈ [a, b]`` (exact: ``x`` is
-    unimodal in ``σ`` with its peak at ``1/2``, ``x(1 − 3x)`` peaks at ``x = 1/6``)."""
-    xa, xb = a * (1 - a), b * (1 - b)
-    pk = np.clip(0.5, a, b)
-    x = np.clip(1.0 / 6.0, np.minimum(xa, xb), pk * (1 - pk))
-    out: FloatArray = x * (1 - 3 * x)
-    return out
-
-
 def lower_bound(vf: ValueFunction, c: FloatArray, r: FloatArray) -> FloatArray:
-    """A rigorous lower bound of ``q(σ) = Σ_axis eᵀK⁻¹e`` on each box ``c ± r`` (``(n, m)``)."""
-    n, m = c.shape
-    lo, hi = c - r, c + r
-    E = (vf._EX, vf._EY)
-    D = (vf._DEX, vf._DEY)
-    # ranges of e_i on each box, per axis: (n, m)
-    rng = [poly_range(np.broadcast_to(C, (n,) + C.shape), c, r) for C in E]
-    # 2. one vehicle
-    peak = np.clip(0.5, lo, hi)
-    kmax = peak**3 * (1 - peak) ** 3 / 3
-    with np.errstate(divide="ignore", invalid="ignore"):
-        single = (_min_sq(*rng[0]) + _min_sq(*rng[1])) / kmax
-    single = np.where(np.isnan(single), 0.0, single)
-    best = np.max(single, axis=1)
-    # 3. pairs near the diagonal
-    for i in range(m):
-        for j in range(i + 1, m):
-            num = sum(_min_sq(rg[0][:, i] - rg[1][:, j], rg[1][:, i] - rg[0][:, j]) for rg in rng)
-            dist = np.maximum(np.abs(hi[:, i] - lo[:, j]), np.abs(hi[:, j] - lo[:, i]))
-            vmax = speed_variance_max(np.minimum(lo[:, i], lo[:, j]), np.maximum(hi[:, i], hi[:, j]))
-            with np.errstate(divide="ignore", invalid="ignore"):
-                pb = num / (dist**2 * vmax)
-            best = np.maximum(best, np.where(np.isnan(pb), 0.0, pb))
-    # 1. Fenchel + mean value
-    K = bridge_kernel(c[:, :, None], c[:, None, :], 1.0)
-    ridge = 1e-13 * np.max(np.abs(np.diagonal(K, axis1=1, axis2=2)), axis=1) + 1e-300
-    Kr = K + ridge[:, None, None] * np.eye(m)
-    dkd = poly_range(np.broadcast_to(_DKDIAG, (n, m, _DKDIAG.size)), c, r)
-    cross: dict[tuple[int, int], tuple[FloatArray, FloatArray]] = {}
-    for i in range(m):
-        for j in range(m):
-            if i == j:
-                continue
-            parts = []
-            if np.any(lo[:, i] < hi[:, j]):
-                parts.append(poly2_range(_DK_BELOW, c[:, i], c[:, j], r[:, i], r[:, j]))
-            if np.any(hi[:, i] > lo[:, j]):
-                parts.append(poly2_range(_DK_ABOVE, c[:, i], c[:, j], r[:, i], r[:, j]))
-            below_only = hi[:, i] <= lo[:, j]
-            above_only = lo[:, i] >= hi[:, j]
-            if len(parts) == 2:
-                bl, ab = parts
-                plo = np.where(below_only, bl[0], np.where(above_only, ab[0], np.minimum(bl[0], ab[0])))
-                phi = np.where(below_only, bl[1], np.where(above_only, ab[1], np.maximum(bl[1], ab[1])))
-            else:
-                plo, phi = parts[0]
-            cross[(i, j)] = (plo, phi)
-    # the gradients of the two axes cancel at a minimum: sum their intervals before the slack
-    g0 = np.zeros(n)
-    Glo = np.zeros((n, m))
-    Ghi = np.zeros((n, m))
-    for C, DC in zip(E, D):
-        e = np.stack([np.polynomial.polynomial.polyval(c[:, i], C[i]) for i in range(m)], axis=1)
-        try:
-            w = np.linalg.solve(Kr, e[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            w = np.zeros((n, m))
-        w = np.where(np.isfinite(w), w, 0.0)
-        g0 += 2 * np.sum(w * e, axis=1) - np.einsum("ni,nij,nj->n", w, K, w)
-        de_lo, de_hi = poly_range(np.broadcast_to(DC, (n,) + DC.shape), c, r)
-        for i in range(m):
-            glo, ghi = _scale(2 * w[:, i], de_lo[:, i], de_hi[:, i])
-            dlo, dhi = _scale(-w[:, i] ** 2, dkd[0][:, i], dkd[1][:, i])
-            glo, ghi = glo + dlo, ghi + dhi
-            for j in range(m):
-                if j != i:
-                    xlo, xhi = _scale(-2 * w[:, i] * w[:, j], *cross[(i, j)])
-                    glo, ghi = glo + xlo, ghi + xhi
-            Glo[:, i] += glo
-            Ghi[:, i] += ghi
-    slack = np.sum(r * np.maximum(np.abs(Glo), np.abs(Ghi)), axis=1)
-    fench = np.maximum(g0 - slack, 0.0)
-    fench = np.where(np.isfinite(fench), fench, 0.0)
-    out: FloatArray = np.maximum(best, fench)
+    """A rigorous lower bound of ``q(σ) = Σ_axis eᵀK⁻¹e`` on each box ``c ± r`` (``(n, m)``):
+    the three bounds of the module docstring (:func:`iamp.planners.pmp.search_kernels.lower_bound`)."""
+    c = np.ascontiguousarray(c, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    with np.errstate(all="ignore"):
+        out: FloatArray = sk.TWINS.get("lower_bound", sk.lower_bound)(vf._EX, vf._EY, vf._DEX, vf._DEY, c, r)
     return out
-
-
-def _scale(k: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Interval ``k·[lo, hi]``."""
-    a, b = k * lo, k * hi
-    return np.minimum(a, b), np.maximum(a, b)
 
 
 def _cut(r: FloatArray) -> npt.NDArray[np.bool_]:

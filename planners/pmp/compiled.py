@@ -8,7 +8,10 @@ calls by default, bit for bit:
   :func:`iamp.planners.pmp.one.one_vehicle_kernel`, for ``PMPPlanner(kernel=compiled_kernel())``;
 * :func:`load_axis` — the saturated axis solve
   :func:`iamp.planners.pmp.saturated_kernel.axis_core`, which
-  :mod:`~iamp.planners.pmp.saturated` then calls in this process (:func:`axis_core`).
+  :mod:`~iamp.planners.pmp.saturated` then calls in this process (:func:`axis_core`);
+* :func:`load_search` — the kernels of the ``m ≥ 2`` contact-time search
+  (:mod:`iamp.planners.pmp.search_kernels`: value function, gradient, Newton, box bounds),
+  which the search then calls in this process.
 
 Nothing is compiled on import, and no planner triggers it: the first compile in a process
 takes seconds (``import numba`` alone 0.2-0.4 s) against tens of microseconds per plan in
@@ -99,3 +102,59 @@ def _build_axis() -> Callable[..., Any]:
                         float(tol_residual), int(max_newton))
 
     return run
+
+
+#: the kernels of :mod:`~iamp.planners.pmp.search_kernels` that the search looks up in
+#: :data:`~iamp.planners.pmp.search_kernels.TWINS`
+SEARCH_KERNELS = ("quad", "gradient", "newton", "lower_bound", "expansion", "basin_radius", "box_bound")
+
+
+def load_search() -> bool:
+    """Compile the ``m ≥ 2`` search kernels and use them in this process; ``False`` if numba
+    is missing or fails (the reason in ``_STATE["error"]``).  Idempotent.  The compiled
+    kernels return the same numbers as the Python ones, bit for bit (tested)."""
+    from . import search_kernels as sk
+
+    if sk.TWINS:
+        return True
+    if not jit.available():
+        return False
+    if "search_built" not in _STATE:
+        try:
+            twins = {name: jit.twin(getattr(sk, name)) for name in SEARCH_KERNELS}
+            _warm_up_search(twins)
+        except Exception as exc:  # a broken numba install: the Python path stays
+            _STATE["error"] = f"{type(exc).__name__}: {exc}"
+            return False
+        _STATE["search_built"] = twins
+    sk.TWINS.update(_STATE["search_built"])
+    return True
+
+
+def unload_search() -> None:
+    """Back to the Python search kernels in this process (a later :func:`load_search` reuses
+    the compiled code)."""
+    from . import search_kernels as sk
+
+    sk.TWINS.clear()
+
+
+def _warm_up_search(twins: dict[str, Any]) -> None:
+    """Compile for the argument types the search passes (two and three vehicles)."""
+    from iamp.planners.examples import random_problem
+
+    from .basin import degree
+    from .fixed import ValueFunction
+
+    for m in (2, 3):
+        vf = ValueFunction(random_problem(0, m=m))
+        E = (vf._EX, vf._EY, vf._DEX, vf._DEY)
+        pts = np.full((3, m), 0.5) + np.arange(m) * 0.1
+        twins["quad"](vf._EX, vf._EY, pts)
+        twins["gradient"](*E, pts)
+        twins["newton"](*E, np.ascontiguousarray(pts[0]), 3)
+        twins["lower_bound"](*E, pts, np.full((3, m), 0.05))
+        c, _ = twins["expansion"](*E, np.ascontiguousarray(pts[0]), degree(vf))
+        twins["basin_radius"](c, m, degree(vf), 0.1, 1e-9)
+        if m == 2:
+            twins["box_bound"](c, np.ascontiguousarray(pts[0]), pts, np.full((3, m), 0.05), degree(vf))

@@ -32,6 +32,7 @@ from iamp.core.errors import SolverError
 from iamp.core.free import min_energy_cubic
 from iamp.core.problem import Problem
 
+from . import search_kernels as sk
 from .jumps import jump_system as jump_system
 from .scale import Scaled, scale_problem
 from .solution import PMPSolution
@@ -87,39 +88,6 @@ def _deriv_rows(C: FloatArray) -> FloatArray:
     return np.pad(C[:, 1:] * k[1:], ((0, 0), (0, 1)))
 
 
-def quad_from_errors(ex: FloatArray, ey: FloatArray, sig: FloatArray, jbar: float) -> FloatArray:
-    """``q = Σ_axis ẽᵀ K̃⁻¹ ẽ`` from the errors at ``σ`` (:meth:`ValueFunction.quad_sigma`)."""
-    m = sig.shape[-1]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        if m == 1:
-            k = bridge_kernel(sig[..., 0], sig[..., 0], 1.0)
-            q: FloatArray = (ex[..., 0] ** 2 + ey[..., 0] ** 2) / k
-        elif m == 2:
-            k11 = bridge_kernel(sig[..., 0], sig[..., 0], 1.0)
-            k22 = bridge_kernel(sig[..., 1], sig[..., 1], 1.0)
-            k12 = bridge_kernel(sig[..., 0], sig[..., 1], 1.0)
-            det = k11 * k22 - k12**2
-            q = sum((k22 * e[..., 0] ** 2 - 2 * k12 * e[..., 0] * e[..., 1] + k11 * e[..., 1] ** 2)
-                    for e in (ex, ey)) / det
-        else:
-            K = bridge_kernel(sig[..., :, None], sig[..., None, :], 1.0)
-            E = np.stack([ex, ey], axis=-1)
-            flat_K = K.reshape(-1, m, m)
-            flat_E = E.reshape(-1, m, 2)
-            try:
-                qf = np.sum(flat_E * np.linalg.solve(flat_K, flat_E), axis=(-1, -2))
-            except np.linalg.LinAlgError:
-                qf = np.full(flat_K.shape[0], np.inf)
-                for n in range(flat_K.shape[0]):
-                    try:
-                        qf[n] = np.sum(flat_E[n] * np.linalg.solve(flat_K[n], flat_E[n]))
-                    except np.linalg.LinAlgError:
-                        qf[n] = np.inf
-            q = qf.reshape(sig.shape[:-1])
-    ok = np.isfinite(q) & (q >= -1e-9 * max(1.0, jbar))
-    return np.where(ok, np.maximum(q, 0.0), np.inf)
-
-
 class ValueFunction:
     r"""The fixed-contact-time optimal cost :math:`J(t)` of a problem, in closed form.
 
@@ -135,10 +103,10 @@ class ValueFunction:
         self.units = S.units
         self.j_bar = S.jbar * S.units.cost
         d = max(S.EX.shape[1], S.EY.shape[1])
-        self._EX = np.pad(S.EX, ((0, 0), (0, d - S.EX.shape[1])))
-        self._EY = np.pad(S.EY, ((0, 0), (0, d - S.EY.shape[1])))
-        self._DEX = _deriv_rows(self._EX)
-        self._DEY = _deriv_rows(self._EY)
+        self._EX = np.ascontiguousarray(np.pad(S.EX, ((0, 0), (0, d - S.EX.shape[1]))), dtype=np.float64)
+        self._EY = np.ascontiguousarray(np.pad(S.EY, ((0, 0), (0, d - S.EY.shape[1]))), dtype=np.float64)
+        self._DEX = np.ascontiguousarray(_deriv_rows(self._EX), dtype=np.float64)
+        self._DEY = np.ascontiguousarray(_deriv_rows(self._EY), dtype=np.float64)
 
     # --- scaled core ----------------------------------------------------------------------
     def errors_sigma(self, sig: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -146,24 +114,25 @@ class ValueFunction:
         return horner_rows(self._EX, sig), horner_rows(self._EY, sig)
 
     def quad_sigma(self, sig: FloatArray) -> FloatArray:
-        """``q(σ) = Σ_axis ẽᵀ K̃⁻¹ ẽ`` with the unit-horizon kernel; ``inf`` if degenerate."""
-        ex, ey = self.errors_sigma(sig)
-        return quad_from_errors(ex, ey, sig, self.scaled.jbar)
+        """``q(σ) = Σ_axis ẽᵀ K̃⁻¹ ẽ`` with the unit-horizon kernel; ``inf`` if degenerate
+        (:func:`iamp.planners.pmp.search_kernels.quad`)."""
+        sig = np.asarray(sig, dtype=float)
+        m = sig.shape[-1]
+        flat = np.ascontiguousarray(sig.reshape(-1, m))
+        with np.errstate(all="ignore"):
+            q: FloatArray = sk.TWINS.get("quad", sk.quad)(self._EX, self._EY, flat)
+        return q.reshape(sig.shape[:-1])
 
     def gradient_sigma(self, sig: FloatArray) -> FloatArray:
         r"""Scaled :math:`\nabla_\sigma \tilde J`: with ``μ = K̃⁻¹ẽ`` per axis,
-        ``∂J̃/∂σ_i = Σ_axis μ_i ẽ_i' − μ_i Σ_{j≠i} ∂₁K̃(σ_i,σ_j) μ_j − ½ μ_i² dK̃_ii/dσ``."""
+        ``∂J̃/∂σ_i = Σ_axis μ_i ẽ_i' − μ_i Σ_{j≠i} ∂₁K̃(σ_i,σ_j) μ_j − ½ μ_i² dK̃_ii/dσ``
+        (:func:`iamp.planners.pmp.search_kernels.gradient`; NaN where ``K̃`` is singular)."""
+        sig = np.asarray(sig, dtype=float)
         m = sig.shape[-1]
-        K = bridge_kernel(sig[..., :, None], sig[..., None, :], 1.0)
-        dK = bridge_kernel_ds(sig[..., :, None], sig[..., None, :], 1.0)
-        diag = bridge_variance_dt(sig, 1.0)
-        g = np.zeros(sig.shape)
-        off = np.where(np.eye(m, dtype=bool), 0.0, dK)
-        for C, D in ((self._EX, self._DEX), (self._EY, self._DEY)):
-            e, de = horner_rows(C, sig), horner_rows(D, sig)
-            mu = np.linalg.solve(K, e[..., None])[..., 0]
-            g += mu * de - mu * np.einsum("...ij,...j->...i", off, mu) - 0.5 * mu**2 * diag
-        return g
+        flat = np.ascontiguousarray(sig.reshape(-1, m))
+        with np.errstate(all="ignore"):
+            g: FloatArray = sk.TWINS.get("gradient", sk.gradient)(self._EX, self._EY, self._DEX, self._DEY, flat)
+        return g.reshape(sig.shape)
 
     # --- physical interface ------------------------------------------------------------------
     def errors(self, t: ArrayLike) -> tuple[FloatArray, FloatArray]:

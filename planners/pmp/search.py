@@ -37,6 +37,7 @@ from itertools import permutations, product
 import numpy as np
 import numpy.typing as npt
 
+from . import search_kernels as sk
 from .fixed import ValueFunction
 from .jit import compilable
 from .scale import Scaled
@@ -74,50 +75,11 @@ def one_vehicle_sigma(ex: Sequence[float], ey: Sequence[float]) -> tuple[float, 
 def newton_sigma(vf: ValueFunction, s0: FloatArray, max_iter: int = 60) -> tuple[FloatArray, float]:
     """Damped Newton on ``∇J̃(σ) = 0`` from ``s0`` with backtracking on ``J̃`` (stays a descent
     method, inside ``(0, 1)``); the Hessian is the central difference of the closed-form
-    gradient.  Returns ``(σ, q(σ))``."""
-    lo, hi = 1e-12, 1.0 - 1e-12
-    s = np.clip(np.array(s0, dtype=float), lo, hi)
-    q = float(vf.quad_sigma(s[None, :])[0])
-    m = s.size
-    h = 1e-6
-    stencil = np.concatenate([np.eye(m), -np.eye(m)]) * h
-    for _ in range(max_iter):
-        pts = np.vstack([s[None, :], s[None, :] + stencil])
-        with np.errstate(all="ignore"):
-            try:
-                G = vf.gradient_sigma(pts)
-            except np.linalg.LinAlgError:
-                break
-        g = G[0]
-        if not np.all(np.isfinite(G)) or not np.isfinite(q):
-            break
-        Hs = (G[1:m + 1] - G[m + 1:]).T / (2 * h)
-        Hs = 0.5 * (Hs + Hs.T)
-        step = None
-        if np.all(np.isfinite(Hs)) and np.linalg.eigvalsh(Hs)[0] > 0:
-            step = -np.linalg.solve(Hs, g)
-        if step is None:
-            gmax = float(np.max(np.abs(g)))
-            if gmax == 0.0:
-                break
-            step = -g / gmax * 0.02
-        alpha = 1.0
-        accepted = False
-        smax = float(np.max(np.abs(step)))
-        while alpha > 1e-10 and alpha * smax >= 1e-15:  # below that nothing moves
-            sn = np.clip(s + alpha * step, lo, hi)
-            qn = float(vf.quad_sigma(sn[None, :])[0])
-            if qn <= q + 1e-15 * max(1.0, abs(q)):
-                accepted = True
-                break
-            alpha *= 0.5
-        if not accepted:
-            break
-        moved = float(np.max(np.abs(sn - s)))
-        s, q = sn, qn
-        if moved < 1e-15:
-            break
-    return s, q
+    gradient (:func:`iamp.planners.pmp.search_kernels.newton`).  Returns ``(σ, q(σ))``."""
+    s0 = np.ascontiguousarray(s0, dtype=np.float64).reshape(-1)
+    with np.errstate(all="ignore"):
+        s, q = sk.TWINS.get("newton", sk.newton)(vf._EX, vf._EY, vf._DEX, vf._DEY, s0, int(max_iter))
+    return np.asarray(s, dtype=np.float64), float(q)
 
 
 def trusted_q(vf: ValueFunction, s: FloatArray) -> float:
