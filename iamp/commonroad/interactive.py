@@ -22,8 +22,12 @@ the ego:
    to a stop, keep RSS's distance to the vehicle ahead (:func:`rss_stops_behind`).  After a
    fail-safe brake the ego replans at the next step (not after ``replan_s``), toward the goal's
    whole remaining window; when no final state of the window can be reached any more it keeps
-   braking safely until the window ends.  The predictions always reach at least
-   :data:`FAILSAFE_HORIZON_S` ahead.  Every choice is counted in time order (``decisions``).
+   braking safely until the window ends.  A goal several lanes over is approached one lane at a
+   time, and a lane change toward the goal's lane is also offered before a kept plan or the
+   fail-safe (:mod:`iamp.commonroad.tactical`: into a gap with RSS's stopping distance ahead and
+   a comfortable braking gap behind, finished while it still holds; ``lane_changes``).  The
+   predictions always reach at least :data:`FAILSAFE_HORIZON_S` ahead.  Every choice is counted
+   in time order (``decisions``).
 3. The episode ends when CommonRoad's goal test (with the point-mass orientation corrected,
    :mod:`iamp.commonroad.check`) passes for the executed state, or when the goal's time window
    has passed.  :func:`goal_occupancy` then says, from the observed traffic, at which steps of
@@ -73,6 +77,7 @@ from iamp.commonroad.convert import (
     load,
 )
 from iamp.commonroad.planning import DEFAULT_PLANNER, Intrusion, body_overlap, intrusions, plan
+from iamp.commonroad.tactical import EARLY_MIN_S, LaneMap, lane_change, still_holds
 from iamp.core.errors import MissingDependencyError, ScenarioError
 from iamp.core.plan import Trajectory
 from iamp.prediction.predictor import Predictor
@@ -458,22 +463,25 @@ def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
 
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
              recording: str | Path | None = None,
-             progress: Callable[[str], None] | None = None, seed: int = 1) -> dict[str, Any]:
+             progress: Callable[[str], None] | None = None, seed: int = 1, tactical: bool = True) -> dict[str, Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready).
 
     The same as :func:`simulate_with_log` without the step log.
     """
     return simulate_with_log(folder, planner, replan_s=replan_s, recording=recording, progress=progress,
-                             seed=seed)[0]
+                             seed=seed, tactical=tactical)[0]
 
 
 def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
                       recording: str | Path | None = None, progress: Callable[[str], None] | None = None,
-                      seed: int = 1) -> tuple[dict[str, Any], Any]:
+                      seed: int = 1, tactical: bool = True) -> tuple[dict[str, Any], Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready) and the
     executed step log (:class:`iamp.simulation.metrics.StepLog`, in the road frame).
 
     ``seed``: SUMO's ``--seed`` (its drivers' imperfection ``sigma`` draws from it).
+    ``tactical``: when the replan toward the goal finds no safe plan, also offer a safe lane
+    change one lane toward the goal's lane (:func:`iamp.commonroad.tactical.lane_change`,
+    executed before a kept plan or the fail-safe; counted in ``lane_changes``).
     The metrics include SPEC §17's responsibility measures
     (:func:`iamp.simulation.monitor.responsibility`, in the road frame: centres and bodies at
     their headings relative to the road; lane numbers are SUMO's, so a vehicle is in the ego's
@@ -524,7 +532,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     dev: dict[int, list[tuple[float, float]]] = {}
     lanes_seen: dict[str, tuple[float, float]] = {}  # lateral range of each vehicle's centre [m]
     plan_times: list[float] = []
-    infeasible = fallbacks = failsafes = limit_violations = out_of_reach = edge_plans = 0
+    infeasible = fallbacks = failsafes = limit_violations = out_of_reach = edge_plans = lane_changes = 0
     decisions: list[dict[str, Any]] = []
     next_replan = 0
     peak_accel = 0.0
@@ -550,6 +558,8 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         x = cr.x0
         traj: Trajectory | Braking | Shifted | None = None
         t_plan = traj_T = 0.0
+        changing = False  # the plan executed is a lane change of iamp.commonroad.tactical
+        lane_map = LaneMap(cr)
         for k in range(k_end + 1):
             now = k * dt
             # -- observe ------------------------------------------------------------------------
@@ -604,12 +614,32 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                 cands = final_candidates(x, cr.goal, dt, elapsed_steps=k)
                 live = dataclasses.replace(cr, x0=x, candidates=cands, obstacles=obstacles)
                 rp = None
-                if cands:
+                early = None  # a goal two or more lanes over: toward its lane first, one lane at a time
+                # a lane change under way is finished while it keeps clear of every predicted vehicle
+                rest_lc = traj_T - (now - t_plan)
+                keep_lc = (changing and traj is not None and rest_lc > dt
+                           and still_holds(live, Shifted(traj, now - t_plan), rest_lc))
+                if keep_lc:
+                    cands = []
+                if (cands and tactical and cands[0].tf >= EARLY_MIN_S
+                        and lane_map.toward(x[0], x[2], cands[0].s, cands[0].d)[0] >= 2):
+                    start = time.perf_counter()
+                    early = lane_change(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
+                    plan_times.append(time.perf_counter() - start)
+                if cands and early is None:
                     start = time.perf_counter()
                     rp = plan(live, planner, max_candidates=4)
                     plan_times.append(time.perf_counter() - start)
                 action = "plan"
-                if rp is not None and rp.candidate is not None and rp.safe and rp.peak_accel_mps2 <= cr.a_max:
+                if keep_lc:
+                    action = "lane change"
+                elif early is not None and early.candidate is not None:
+                    traj, t_plan, traj_T = early.trajectory, now, early.candidate.tf
+                    lane_changes += 1
+                    action = "lane change"
+                    decisions.append({"t": round(now, 3), "action": action, "why": "goal two or more lanes over",
+                                      "vehicles": [], "road_edge_depth_m": 0.0})
+                elif rp is not None and rp.candidate is not None and rp.safe and rp.peak_accel_mps2 <= cr.a_max:
                     traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
                 else:
                     infeasible += rp is not None
@@ -618,10 +648,16 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     if (rp is not None and rp.trajectory is not None and rp.candidate is not None
                             and rp.peak_accel_mps2 <= cr.a_max):
                         options.append(("new plan", rp.trajectory, rp.candidate.tf, rp.intrusions))
+                    if rp is not None and tactical:  # one lane toward the goal's (iamp.commonroad.tactical)
+                        start = time.perf_counter()
+                        tac = lane_change(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
+                        plan_times.append(time.perf_counter() - start)
+                        if tac is not None and tac.trajectory is not None and tac.candidate is not None:
+                            options.append(("lane change", tac.trajectory, tac.candidate.tf, tac.intrusions))
                     rest = traj_T - (now - t_plan)
                     if isinstance(traj, Braking):  # it runs on past its horizon: checked over the fail-safe's
                         rest = max(rest, FAILSAFE_HORIZON_S)
-                    if traj is not None and rest > dt:
+                    if traj is not None and rest > dt and not changing:  # a lane change that fails is given up
                         kept = Shifted(traj, now - t_plan)
                         options.append(("kept", kept, rest, intrusions(live, kept, rest)))
                     followers = rss_followers(live)
@@ -631,6 +667,9 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     if action == "new plan":
                         traj, t_plan, traj_T = chosen, now, chosen_T
                         edge_plans += 1
+                    elif action == "lane change":
+                        traj, t_plan, traj_T = chosen, now, chosen_T
+                        lane_changes += 1
                     elif action == "kept":
                         fallbacks += 1  # the previous plan still keeps clear of every vehicle
                     else:  # fail-safe: brake in the lane, the gentlest braking that keeps clear
@@ -644,6 +683,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                         "vehicles": sorted({h.obstacle.obstacle_id for h in vehicle_hits(rp.intrusions)})
                         if rp is not None else [],
                         "road_edge_depth_m": round(edge_depth(hits), 3)})
+                changing = action == "lane change"
                 # after a fail-safe brake, replan at the next step (the window does not wait)
                 next_replan = k + (1 if action == "fail-safe" else replan_steps)
                 if progress is not None:
@@ -696,7 +736,8 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         **{k: v for k, v in judged.items() if k not in ("contacts",)},
         "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
         "infeasible_plans": infeasible, "fallbacks": fallbacks, "failsafe_brakes": failsafes,
-        "edge_grazing_plans": edge_plans, "out_of_reach_replans": out_of_reach, "decisions": decisions,
+        "edge_grazing_plans": edge_plans, "out_of_reach_replans": out_of_reach, "lane_changes": lane_changes,
+        "decisions": decisions,
         "road_edge_depth_m": road_edge_depth(cr, log), "goal_occupancy": goal_occupancy(cr, log),
         "plan_time_s": {"calls": len(plan_times),
                         "median": float(np.median(plan_times)) if plan_times else None,

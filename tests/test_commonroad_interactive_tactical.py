@@ -1,0 +1,193 @@
+"""The tactical layer of the CommonRoad closed loop (:mod:`iamp.commonroad.tactical`): a lane
+change one lane at a time toward the goal's lane, into a gap that leaves RSS's stopping distance
+ahead and a comfortable braking gap behind.
+
+The generated scenario ``tests/fixtures/commonroad_goals.xml`` has three parallel lanes (centres
+at d = 0, 3.6 and 7.2 m); its ego starts in the first at 15 m/s and one of its goal states lies
+in the third (d 6.4 m, 6-7 s).  Needs the ``[commonroad]`` extra only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+FIXTURE = Path(__file__).parent / "fixtures" / "commonroad_goals.xml"
+HAVE_EXTRA = all(importlib.util.find_spec(m) is not None for m in ("commonroad", "commonroad_dc", "triangle"))
+pytestmark = pytest.mark.skipif(not HAVE_EXTRA, reason="the [commonroad] extra is not installed "
+                                                       "(pip install 'iamp[commonroad]')")
+
+_CR: Any = None
+
+
+def _fixture() -> Any:
+    global _CR
+    if _CR is None:
+        from iamp.commonroad.convert import load
+
+        _CR = load(FIXTURE)
+    return _CR
+
+
+def _moving(oid: int, s: float, d: float, v: float, horizon: float = 8.0) -> Any:
+    """A vehicle (4.5 m x 1.8 m) at ``(s, d)`` now, driving at ``v`` along the road."""
+    from iamp.commonroad.convert import Obstacle
+
+    t = np.arange(0.0, horizon + 1e-9, 0.1)
+    n = t.size
+    c = s + v * t
+    return Obstacle(oid, t, c - 2.25, c + 2.25, np.full(n, d - 0.9), np.full(n, d + 0.9), 4.5, 1.8,
+                    (s, v, 0.0, 0.0), 2.25, 0.0, 0, False)
+
+
+def _live(obstacles: list[Any]) -> Any:
+    cr = _fixture()
+    return dataclasses.replace(cr, obstacles=obstacles, road_edges=[])
+
+
+def _goal(cr: Any) -> Any:
+    """The fixture's final state in the third lane (goal state 1)."""
+    return next(c for c in cr.candidates if c.d > 5.0)
+
+
+def test_lane_map_counts_the_lanes_to_the_goal() -> None:
+    """The goal (d 6.4 m) is two lanes to the left of the ego's lane (d 0); the next lane toward
+    it is the middle lanelet, whose centre is 3.6 m over all along."""
+    from iamp.commonroad.tactical import LaneMap
+
+    cr = _fixture()
+    lanes = LaneMap(cr)
+    g = _goal(cr)
+    n, nxt = lanes.toward(cr.x0[0], cr.x0[2], g.s, g.d)
+    assert n == 2 and nxt == 101
+    assert lanes.centre(101, 150.0) == pytest.approx(3.6, abs=1e-3)
+    assert lanes.toward(g.s, 7.2, g.s, g.d) == (0, None)  # in the goal's lane: nothing to change
+
+
+def test_follower_gap_is_the_comfortable_braking_distance() -> None:
+    """Equal speeds: half a second of the speed plus the margin; a faster rear car also needs its
+    response time's closing and its braking at RSS's brake_min down to the ego's speed."""
+    from iamp.commonroad.tactical import GAP_MARGIN_M, follower_gap
+    from iamp.simulation.rss import DEFAULT
+
+    assert follower_gap(20.0, 20.0) == pytest.approx(10.0 + GAP_MARGIN_M)
+    assert follower_gap(20.0, 25.0) == pytest.approx(10.0 + GAP_MARGIN_M)
+    closing = 10.0
+    brake = closing * DEFAULT.response_time_s + closing**2 / (2 * DEFAULT.brake_min)
+    assert follower_gap(30.0, 20.0) == pytest.approx(max(brake, 15.0) + GAP_MARGIN_M)
+
+
+def test_free_road_lane_change_ends_in_the_next_lane_parallel_to_it() -> None:
+    """Nothing around: the lane change ends at the middle lane's centre, parallel to the road,
+    within the friction circle, after one of the tactical horizons."""
+    from iamp.commonroad.tactical import HORIZONS_S, lane_change
+
+    live = _live([])
+    g = _goal(live)
+    rp = lane_change(live, "avoid", g.d, 0.0, g.s, g.tf)
+    assert rp is not None and rp.safe and rp.candidate is not None
+    assert rp.candidate.d == pytest.approx(3.6, abs=1e-3) and rp.candidate.vd == 0.0
+    assert any(abs(rp.candidate.tf - T) < 1e-9 for T in HORIZONS_S)
+    end = rp.trajectory.states([rp.candidate.tf])[0]
+    assert end[2] == pytest.approx(3.6, abs=1e-3) and end[3] == pytest.approx(0.0, abs=1e-6)
+    assert rp.peak_accel_mps2 <= live.a_max
+
+
+def test_no_lane_change_into_a_wall_of_vehicles() -> None:
+    """The middle lane holds a column of cars 6 m apart (1.5 m bumper to bumper) at the ego's
+    speed: no gap, so no lane change (the loop brakes or keeps its plan instead)."""
+    from iamp.commonroad.tactical import lane_change
+
+    cr = _fixture()
+    wall = [_moving(10 + i, cr.x0[0] + 6.0 * i, 3.6, cr.x0[1]) for i in range(-12, 13)]
+    live = _live(wall)
+    g = _goal(live)
+    assert lane_change(live, "avoid", g.d, 0.0, g.s, g.tf) is None
+
+
+def test_lane_change_fits_behind_a_car_driving_beside_the_ego() -> None:
+    """A car beside the ego in the middle lane at its speed: the constant-speed lane change would
+    end inside it, so the lane change ends in a gap (behind or ahead of it) that keeps RSS's
+    stopping distance to it, or behind it the comfortable follower gap."""
+    from iamp.commonroad.planning import intrusions
+    from iamp.commonroad.tactical import lane_change, rss_clear_at
+
+    cr = _fixture()
+    beside = _moving(11, cr.x0[0], 3.6, cr.x0[1])
+    live = _live([beside])
+    g = _goal(live)
+    rp = lane_change(live, "avoid", g.d, 0.0, g.s, g.tf)
+    assert rp is not None and rp.candidate is not None
+    T = rp.candidate.tf
+    s_end = rp.trajectory.states([T])[0, 0]
+    c_end = cr.x0[0] + cr.x0[1] * T
+    assert abs(s_end - c_end) >= 4.5  # not level with it
+    assert not intrusions(live, rp.trajectory, T)
+    assert rss_clear_at(live, rp.candidate.s, rp.candidate.vs, rp.candidate.d, T)
+
+
+@settings(max_examples=12, deadline=None)
+@given(st.lists(st.tuples(st.floats(-40.0, 40.0), st.floats(8.0, 22.0)), min_size=1, max_size=4))
+def test_an_accepted_lane_change_keeps_clear_and_leaves_rss_room(cars: list[tuple[float, float]]) -> None:
+    """Whatever the middle lane's traffic, a lane change the layer accepts keeps the body off every
+    predicted vehicle over its horizon (checked again here), ends in the middle lane, and at its
+    end every car ahead in that lane is at least RSS's stopping distance away (ego braking at
+    0.9 a_max, the car at brake_max) and every car behind at least the follower gap."""
+    from iamp.commonroad.planning import intrusions
+    from iamp.commonroad.tactical import STOP_DECEL_FRACTION, follower_gap, lane_change
+    from iamp.simulation.rss import DEFAULT, rss_distance
+
+    cr = _fixture()
+    obs = [_moving(20 + i, cr.x0[0] + ds, 3.6, v) for i, (ds, v) in enumerate(cars)]
+    live = _live(obs)
+    g = _goal(live)
+    rp = lane_change(live, "avoid", g.d, 0.0, g.s, g.tf)
+    if rp is None:
+        return
+    T = rp.candidate.tf
+    assert not intrusions(live, rp.trajectory, T)
+    s, v, d, vd = rp.trajectory.states([T])[0]
+    assert d == pytest.approx(3.6, abs=1e-3) and vd == pytest.approx(0.0, abs=1e-6)
+    for ds, vo in cars:
+        c = cr.x0[0] + ds + vo * T
+        if c > s:
+            gap = c - 2.25 - (s + 0.5 * cr.ego_length)
+            assert gap >= float(rss_distance(v, vo, 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max, DEFAULT.brake_max)) - 1e-6
+        else:
+            gap = (s - 0.5 * cr.ego_length) - (c + 2.25)
+            assert gap >= follower_gap(vo, v) - 1e-6
+
+
+def test_a_lane_change_under_way_is_given_up_when_the_car_ahead_slows() -> None:
+    """USA_US101-2_1: the ego, at 18.7 m/s, changed into a lane whose car ahead (518) then braked
+    from 14 to 8 m/s; finishing the lane change (its remainder still clear of the predicted boxes)
+    ran into 518 at 9.1 s, the ego at fault.  A lane change is kept only while it also keeps RSS's
+    stopping distance to the car ahead along the way and at its end: a car at 5 m/s ahead in the
+    new lane, half that distance from the lane change's end, touches no predicted box yet ends
+    it; at 1.5 times that distance it is kept."""
+    from iamp.commonroad.planning import intrusions
+    from iamp.commonroad.tactical import STOP_DECEL_FRACTION, lane_change, still_holds
+    from iamp.simulation.rss import DEFAULT, rss_distance
+
+    cr = _fixture()
+    live = _live([])
+    g = _goal(live)
+    rp = lane_change(live, "avoid", g.d, 0.0, g.s, g.tf)
+    assert rp is not None and rp.candidate is not None
+    T = rp.candidate.tf
+    assert still_holds(live, rp.trajectory, T)
+    s_e, v_e = (float(x) for x in rp.trajectory.states([T])[0, :2])
+    need = float(rss_distance(v_e, 5.0, 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max, DEFAULT.brake_max))
+    assert need > 2.0
+    for factor, holds in ((0.5, False), (1.5, True)):
+        rear_at_T = s_e + 0.5 * cr.ego_length + factor * need
+        car = _live([_moving(30, rear_at_T + 2.25 - 5.0 * T, 3.6, 5.0)])
+        assert not [h for h in intrusions(car, rp.trajectory, T) if not h.obstacle.road_edge]
+        assert still_holds(car, rp.trajectory, T) is holds
