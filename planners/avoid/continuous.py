@@ -63,6 +63,7 @@ from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
+from iamp.planners.avoid.dual import DualBounds, DualPolynomial, piece_of
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
 from iamp.planners.avoid.solve import RowGeneration
 from iamp.planners.qp.backends import BACKENDS
@@ -145,6 +146,8 @@ class ContinuousAvoidQP:
         A_lim.sort_indices()
         self.A_lim, self.u_lim = A_lim, u_lim
         self.n_solves = 0
+        #: the search's solved specs (:meth:`ContinuousAvoidPlanner._qp_solve`)
+        self.solved: dict[Spec, Solved] = {}
         self._layout()
         self._rows_solver = RowGeneration(solver, self.data.P, self.A_eq, self.data.b_eq, settings,
                                           every_row=not row_generation)
@@ -286,7 +289,12 @@ class _Box:
     orders: tuple[tuple[int, int], ...] = field(compare=False)
     lo: FloatArray = field(compare=False)
     hi: FloatArray = field(compare=False)
+    #: the solution nearest the box: its own relaxation (``own_relaxation``) or its parent's
+    #: candidate (row generation starts from its nearly binding rows)
     relaxed: Solved = field(compare=False)
+    own_relaxation: bool = field(default=True, compare=False)
+    #: dual polynomials of the box's ancestors' candidates (each valid on every sub-box)
+    duals: tuple[DualPolynomial, ...] = field(default=(), compare=False)
 
 
 def _spec(orders: Sequence[tuple[int, int]], a: Sequence[float] | FloatArray, b: Sequence[float] | FloatArray) -> Spec:
@@ -320,9 +328,15 @@ class ContinuousAvoidPlanner:
     #: Solve each QP by row generation (:class:`~iamp.planners.avoid.solve.RowGeneration`, exact);
     #: ``False``: every QP on all its rows at once (for study and tests).
     row_generation: bool = True
+    #: Dual polynomials a box keeps from its ancestors' candidates (the most recent).
+    DUALS_KEPT = 4
 
     def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None) -> Solved:
-        return qp.solve(spec, None if reference is None else reference.z)
+        """``qp.solve(spec)``, each spec solved once per plan (a box's candidate is often its
+        parent's)."""
+        if spec not in qp.solved:
+            qp.solved[spec] = qp.solve(spec, None if reference is None else reference.z)
+        return qp.solved[spec]
 
     def _candidate_tau(self, qp: ContinuousAvoidQP, box: _Box) -> tuple[FloatArray, FloatArray]:
         """Per vehicle, the ``τ`` in its box where the relaxed optimum best keeps the first
@@ -342,6 +356,31 @@ class ContinuousAvoidPlanner:
             worst[i] = float(np.max(score))
         return out, worst
 
+    def _probe(self, box: _Box, tau: FloatArray) -> FloatArray:
+        """``tau`` with each vehicle that a dual polynomial of the box covers moved to where the
+        box's dual bound (the largest of its polynomials) is lowest, on a product grid."""
+        polys = [dp for dp in box.duals if dp.vehicles]
+        if not polys:
+            return tau
+        vs = sorted({v for dp in polys for v in dp.vehicles})
+        n = {1: 9, 2: 5}.get(len(vs), 3)
+        grids = np.meshgrid(*[np.linspace(box.lo[v], box.hi[v], n) for v in vs], indexing="ij")
+        pts = np.tile(tau, (grids[0].size, 1))
+        for c, v in enumerate(vs):
+            pts[:, v] = grids[c].ravel()
+        vals = np.max([dp.evaluate(pts) for dp in polys], axis=0)
+        return np.asarray(pts[int(np.argmin(vals))], dtype=float)
+
+    def _split_point(self, qp: ContinuousAvoidQP, lo: float, hi: float) -> float:
+        """Where a box's interval is split: the grid node nearest its midpoint strictly inside it
+        (the children then lie in fewer pieces), else the midpoint."""
+        mid = 0.5 * (lo + hi)
+        eps = 1e-9 * qp.h
+        k = np.arange(int(np.floor(lo / qp.h)) + 1, int(np.ceil(hi / qp.h)))
+        nodes = qp.data.t_nodes[k[(k > 0) & (k < qp.N)]] if k.size else np.zeros(0)
+        nodes = nodes[(nodes > lo + eps) & (nodes < hi - eps)]
+        return float(nodes[np.argmin(np.abs(nodes - mid))]) if nodes.size else mid
+
     def search(self, qp: ContinuousAvoidQP, orders: list[list[tuple[int, int]]]) -> dict[str, Any]:
         """Branch and bound over crossing-time boxes (module docstring)."""
         tf = qp.tf
@@ -352,6 +391,7 @@ class ContinuousAvoidPlanner:
         best_tau = np.full(m, np.nan)
         n_boxes = 0
         closed_bound = np.inf  # the smallest bound of a box closed to the gap
+        dual = DualBounds(qp)
         free = self._qp_solve(qp, _spec([o[0] for o in orders], np.zeros(m), np.full(m, tf)))
         for combo in itertools.product(*orders):
             if free.status == st.OPTIMAL:
@@ -371,38 +411,64 @@ class ContinuousAvoidPlanner:
                 break
             heapq.heappop(heap)
             tau, margin = self._candidate_tau(qp, box)
+            if not box.own_relaxation:
+                tau = self._probe(box, tau)
             cand = self._qp_solve(qp, _spec(box.orders, tau, tau), box.relaxed)
+            bound, duals, mass = box.bound, box.duals, np.zeros(m)
             if cand.status == st.OPTIMAL:
                 if best is None or cand.cost < best.cost:
                     best, best_tau = cand, tau.copy()
+                dp = dual.polynomial(cand, box.lo, box.hi)
+                bound, mass = max(bound, dp.lower_bound(box.lo, box.hi)), dp.mass
+                if dp.vehicles:
+                    duals = (duals + (dp,))[-self.DUALS_KEPT:]
             elif cand.status != st.INFEASIBLE:
                 failures.append(cand.status)
             U = best.cost if best is not None else np.inf
-            if cand.status == st.OPTIMAL and cand.cost - box.bound <= gap(cand.cost):
-                closed_bound = min(closed_bound, box.bound)
-                continue  # the box is closed: its bound is attained to the gap
-            # branch on the vehicle whose constraint the relaxed optimum breaks most (a vehicle
-            # it keeps gains nothing from a split); the widest box when none is broken
+            if bound >= U - gap(U):
+                closed_bound = min(closed_bound, bound)
+                continue  # the box is closed: no crossing in it is cheaper than U by more than the gap
+            # branch on the vehicle whose constraint the relaxed optimum breaks most (a vehicle it
+            # keeps gains nothing from a split); else the widest vehicle that binds at the candidate;
+            # else the widest box
             widths = box.hi - box.lo
-            broken = (margin < 0) & (widths > 1e-9 * tf)
-            i = int(np.argmin(np.where(broken, margin, np.inf))) if broken.any() else int(np.argmax(widths))
-            if widths[i] <= 1e-9 * tf:
+            wide = widths > 1e-9 * tf
+            broken = (margin < 0) & wide & box.own_relaxation
+            binds = (mass > 0) & wide
+            if broken.any():
+                i = int(np.argmin(np.where(broken, margin, np.inf)))
+            elif binds.any():
+                i = int(np.argmax(np.where(binds, widths, -np.inf)))
+            else:
+                i = int(np.argmax(widths))
+            if not wide[i]:
                 continue  # a point: its bound is J(τ) itself
-            mid = 0.5 * (box.lo[i] + box.hi[i])
-            for lo_i, hi_i in ((box.lo[i], mid), (mid, box.hi[i])):
+            cut = self._split_point(qp, float(box.lo[i]), float(box.hi[i]))
+            ref = cand if cand.status == st.OPTIMAL else box.relaxed
+            for lo_i, hi_i in ((box.lo[i], cut), (cut, box.hi[i])):
                 lo, hi = box.lo.copy(), box.hi.copy()
                 lo[i], hi[i] = lo_i, hi_i
-                rel = self._qp_solve(qp, _spec(box.orders, lo, hi), box.relaxed)
+                child = max([bound] + [dp.lower_bound(lo, hi) for dp in duals])
                 n_boxes += 1
+                if child >= U - gap(U):
+                    closed_bound = min(closed_bound, child)
+                    continue
+                if cand.status == st.OPTIMAL and piece_of(float(lo_i), float(hi_i), qp.h, qp.N) is not None:
+                    # within one piece: the candidates' dual polynomials bound it (no relaxation;
+                    # a box whose candidate is infeasible is bounded, or pruned, by its relaxation)
+                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, duals))
+                    continue
+                rel = self._qp_solve(qp, _spec(box.orders, lo, hi), box.relaxed)
                 if rel.status == st.OPTIMAL:
-                    if rel.cost < U - gap(U):
-                        heapq.heappush(heap, _Box(max(rel.cost, box.bound), next(serial), box.orders, lo, hi, rel))
+                    child = max(child, rel.cost)
+                    if child < U - gap(U):
+                        heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, rel, True, duals))
                     else:
-                        closed_bound = min(closed_bound, max(rel.cost, box.bound))
+                        closed_bound = min(closed_bound, child)
                 elif rel.status != st.INFEASIBLE:
                     failures.append(rel.status)
                     # an unsolved relaxation cannot prune: keep the box with its parent's bound
-                    heapq.heappush(heap, _Box(box.bound, next(serial), box.orders, lo, hi, box.relaxed))
+                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, duals))
         if best is not None and best.cost > min(closed_bound, heap[0].bound if heap else np.inf) + 1e-12 * max(
                 1.0, best.cost):
             best, best_tau = self._polish(qp, best, best_tau)

@@ -1,0 +1,250 @@
+r"""Lower bounds of the continuous-time avoidance QP over crossing-time boxes by weak duality.
+
+For a crossing time :math:`\tau` the QP (:class:`~iamp.planners.avoid.continuous.ContinuousAvoidQP`)
+is :math:`J(\tau) = \min \tfrac12 z^\top P z` s.t. :math:`Ez = e`, :math:`G(\tau) z \le h(\tau)`.
+For **any** :math:`y \ge 0` on rows that every :math:`J(\tau)`, :math:`\tau` in a box, imposes (or
+implies), weak duality gives
+
+.. math::  J(\tau) \;\ge\; g(y; \tau) = \min_{Ez = e}\; \tfrac12 z^\top P z + y^\top (G(\tau) z - h(\tau)),
+
+a bound that holds whatever solver produced :math:`y` and however accurate it is.  The inner
+minimum is one solve with the fixed KKT matrix :math:`\begin{pmatrix}P & E^\top\\ E & 0\end{pmatrix}`
+(factored once per grid, :class:`DualBounds`).
+
+Where a vehicle's box lies within one grid piece ``k`` (:math:`\tau_i = t_k + \lambda_i h`), the
+rows that depend on :math:`\tau_i` are the Bernstein rows of the two sub-pieces
+:math:`[0, \lambda_i]` (first half-plane) and :math:`[\lambda_i, 1]` (second) of piece ``k``;
+their values and bounds are polynomials of degree at most ``d`` in :math:`\lambda_i`
+(:func:`~iamp.planners.avoid.bernstein.piece_matrix`, :func:`~iamp.planners.avoid.bernstein.poly_bernstein`),
+so the minimiser is polynomial in :math:`\lambda` and :math:`g(y; \tau)` is a polynomial of
+degree at most ``2d`` in each :math:`\lambda_i` (:class:`DualPolynomial`).  Its minimum over a
+box is bounded below by the smallest of its tensor Bernstein coefficients on the box
+(:meth:`DualPolynomial.lower_bound`), a bound that is exact to second order in the box's width.
+
+The multipliers :math:`y` are those of a solved candidate :math:`J(\tau_c)`, :math:`\tau_c` in the
+box, kept on the rows that stay valid over the whole box:
+
+* a vehicle whose box lies in one piece ``k`` (*polynomial*): the first half-plane's rows on the
+  pieces before ``k``, the second's after ``k`` (unchanged), and both sub-pieces of ``k`` with
+  the candidate's multipliers per Bernstein index (their rows then move with :math:`\lambda_i`);
+* a vehicle whose box spans several pieces (*fixed*): the first half-plane's rows on pieces
+  that end before the box, the second's on pieces that start after it;
+* the physical-limit rows (never depend on :math:`\tau`).
+
+Every other row's multiplier is set to zero, which keeps :math:`y` dual feasible.  At
+:math:`\tau = \tau_c` (all vehicles polynomial) the bound equals the candidate's dual value, which
+is :math:`J(\tau_c)` at the solver's optimum: the bound is tight there and falls off
+quadratically, where the relaxation of :mod:`iamp.planners.avoid.continuous` (rows dropped
+inside the box) falls off linearly in the box's width.  A round-off margin
+(:data:`ROUND_OFF_REL`) is subtracted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from .bernstein import piece_matrix, power_to_bernstein, reparametrise
+
+if TYPE_CHECKING:
+    from .continuous import ContinuousAvoidQP, Solved
+
+FloatArray = NDArray[np.float64]
+
+__all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "piece_of"]
+
+#: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
+#: point (one sparse LU solve and a Bernstein transform); far below the search's gap (1e-4).
+ROUND_OFF_REL = 1e-9
+
+
+def piece_of(lo: float, hi: float, h: float, N: int) -> int | None:
+    """The grid piece ``k`` with ``[lo, hi] ⊂ [k h, (k + 1) h]`` (to round-off), or ``None``."""
+    k = min(max(int(np.floor(lo / h + 1e-9)), 0), N - 1)
+    return k if hi <= (k + 1) * h * (1 + 1e-12) + 1e-12 else None
+
+
+def _fit(values: FloatArray, degree: int) -> FloatArray:
+    """Power coefficients (axis 0) of the polynomials of ``degree`` sampled at ``λ_j = j/degree``."""
+    lam = np.linspace(0.0, 1.0, degree + 1)
+    V = np.vander(lam, degree + 1, increasing=True)
+    shape = values.shape
+    return np.asarray(np.linalg.solve(V, values.reshape(degree + 1, -1)).reshape(shape), dtype=float)
+
+
+@dataclass(frozen=True)
+class DualPolynomial:
+    r"""``g(y; τ)`` of one dual vector over a box: a tensor polynomial in the ``λ_i`` of its
+    polynomial vehicles (:mod:`module docstring <iamp.planners.avoid.dual>`).
+
+    Attributes
+    ----------
+    vehicles : tuple of int
+        The polynomial vehicles (one tensor axis each, in this order).
+    pieces : tuple of int
+        Their grid pieces ``k``: ``τ_i = t_k + λ_i h``.
+    coef : ndarray
+        Power coefficients, shape ``(2d + 1,) * len(vehicles)``.
+    h : float
+        The grid step.
+    mass : ndarray, shape (m,)
+        Per vehicle, the sum of the candidate's multipliers on that vehicle's rows (zero: the
+        vehicle does not bind at the candidate).
+    """
+
+    vehicles: tuple[int, ...]
+    pieces: tuple[int, ...]
+    coef: FloatArray
+    h: float
+    mass: FloatArray
+
+    def _lam(self, lo: FloatArray, hi: FloatArray) -> list[tuple[float, float]]:
+        out = []
+        for i, k in zip(self.vehicles, self.pieces):
+            a = min(max((lo[i] - k * self.h) / self.h, 0.0), 1.0)
+            b = min(max((hi[i] - k * self.h) / self.h, a), 1.0)
+            out.append((a, b))
+        return out
+
+    def lower_bound(self, lo: FloatArray, hi: FloatArray) -> float:
+        """A lower bound of ``g`` (hence of every ``J(τ)``) over the box ``lo <= τ <= hi`` (a
+        sub-box of the box the polynomial was built for): its smallest tensor Bernstein coefficient
+        on the box, less the round-off margin."""
+        T = self.coef
+        deg = T.shape[0] - 1 if T.ndim else 0
+        B0 = power_to_bernstein(deg) if T.ndim else None
+        for axis, (a, b) in enumerate(self._lam(lo, hi)):
+            assert B0 is not None
+            B = B0 @ reparametrise(deg, a, b - a)
+            T = np.moveaxis(np.tensordot(B, T, axes=([1], [axis])), 0, axis)
+        m = float(np.min(T))
+        return m - ROUND_OFF_REL * max(1.0, abs(m))
+
+    def evaluate(self, taus: FloatArray) -> FloatArray:
+        """``g`` at the crossing times ``taus`` (shape ``(n, m)``; every polynomial vehicle's
+        time in its piece)."""
+        taus = np.atleast_2d(taus)
+        vals = np.broadcast_to(self.coef, (taus.shape[0],) + self.coef.shape).copy()
+        for i, k in zip(self.vehicles, self.pieces):
+            lam = (taus[:, i] - k * self.h) / self.h
+            V = np.vander(lam, vals.shape[1], increasing=True)
+            vals = np.einsum("nj,nj...->n...", V, vals)
+        return np.asarray(vals, dtype=float).reshape(taus.shape[0])
+
+
+class DualBounds:
+    """The factored KKT matrix of one grid and :meth:`polynomial`, the bound of a solved candidate.
+
+    Parameters
+    ----------
+    qp : ContinuousAvoidQP
+        The grid's QP (its rows' fixed layout, :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.rows`).
+    """
+
+    def __init__(self, qp: ContinuousAvoidQP) -> None:
+        self.qp = qp
+        d = qp.data
+        P = sp.csc_matrix(d.P)
+        self.P = sp.csc_matrix(P + sp.triu(P, 1).T)
+        K = sp.bmat([[self.P, qp.A_eq.T], [qp.A_eq, None]], format="csc")
+        self.lu = spla.splu(K)
+        self.nb = qp.degree + 1
+        D = qp.degree
+        # σ-free values of the split piece's rows: M(0, λ) (first half-plane), M(λ, 1) (second)
+        lam = np.linspace(0.0, 1.0, D + 1)
+        self.M_pre = _fit(np.array([piece_matrix(qp.h, 0.0, float(x), D) for x in lam]), D)
+        self.M_post = _fit(np.array([piece_matrix(qp.h, float(x), 1.0, D) for x in lam]), D)
+        self._rhs: dict[tuple[int, int, int, bool], FloatArray] = {}
+
+    def _rhs_poly(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
+        """Power coefficients in ``λ`` (shape ``(d + 1, d + 1)``) of the bounds of vehicle ``i``'s
+        half-plane ``plane`` on ``[t_k, t_k + λh]`` (``pre``) or ``[t_k + λh, t_{k+1}]``."""
+        key = (i, plane, k, pre)
+        if key not in self._rhs:
+            qp = self.qp
+            hp = qp.data.planes[i][plane]
+            tk = k * qp.h
+            lam = np.linspace(0.0, 1.0, qp.degree + 1)
+            vals = np.array([qp._rhs(hp, tk, tk + x * qp.h) if pre else qp._rhs(hp, tk + x * qp.h, tk + qp.h)
+                             for x in lam])
+            self._rhs[key] = _fit(vals, qp.degree)
+        return self._rhs[key]
+
+    def polynomial(self, sol: Solved, lo: FloatArray, hi: FloatArray) -> DualPolynomial:
+        """The dual bound ``g(y; τ)`` over the box ``[lo, hi]`` of the solved candidate ``sol``
+        (its crossing times in the box), as a polynomial (module docstring).
+
+        Parameters
+        ----------
+        sol : Solved
+            An optimal candidate ``J(τ_c)`` (its ``spec`` has ``a = b = τ_c``).
+        lo, hi : ndarray, shape (m,)
+            The box.
+
+        Returns
+        -------
+        DualPolynomial
+        """
+        qp, d = self.qp, self.qp.data
+        N, nb, h, D = qp.N, self.nb, qp.h, qp.degree
+        A_in, u_in, ids = qp.spec_rows(sol.spec)
+        y = np.maximum(sol.y[d.n_eq:], 0.0)
+        bern = ids < qp.n_b
+        blk = np.where(bern, ids // (N * nb), -1)
+        veh, plane = blk // 2, blk % 2
+        piece, j = (ids // nb) % N, ids % nb
+        keep = ~bern  # the limit rows
+        poly_vehicles: list[int] = []
+        pieces: list[int] = []
+        tol = 1e-9 * h
+        for i, (f, s, _, _) in enumerate(sol.spec):
+            mine = bern & (veh == i)
+            k = piece_of(float(lo[i]), float(hi[i]), h, N)
+            if k is not None:
+                poly_vehicles.append(i)
+                pieces.append(k)
+                keep |= mine & (((plane == f) & (piece < k)) | ((plane == s) & (piece > k)))
+            else:
+                keep |= mine & (plane == f) & ((piece + 1) * h <= lo[i] + tol)
+                keep |= mine & (plane == s) & (piece * h >= hi[i] - tol)
+        q = len(poly_vehicles)
+        C = 1 + q * D  # basis: 1, then λ_i^p (p = 1..D) per polynomial vehicle
+        R = np.zeros((d.n + d.n_eq, C))
+        R[:d.n, 0] = -(A_in[keep].T @ y[keep])
+        R[d.n:, 0] = d.b_eq
+        hc = np.zeros(C)
+        hc[0] = float(y[keep] @ u_in[keep])
+        for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
+            f, s = sol.spec[i][0], sol.spec[i][1]
+            for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
+                rows = bern & (veh == i) & (plane == pl) & (piece == k)
+                yj = np.zeros(nb)
+                yj[j[rows]] = y[rows]
+                if not yj.any():
+                    continue
+                sigma = d.planes[i][pl].sigma
+                cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
+                rhs = self._rhs_poly(i, pl, k, pre)
+                for p in range(D + 1):
+                    c = 0 if p == 0 else 1 + v * D + p - 1
+                    R[cols, c] -= sigma * (yj @ M[p])
+                    hc[c] += float(yj @ rhs[p])
+        X = self.lu.solve(R)
+        Z, nu = X[:d.n], X[d.n:]
+        G = Z.T @ (self.P @ Z)
+        lin = nu.T @ d.b_eq + hc
+        exps = np.zeros((C, q), dtype=np.int64)
+        for v in range(q):
+            exps[1 + v * D:1 + (v + 1) * D, v] = np.arange(1, D + 1)
+        coef = np.zeros((2 * D + 1,) * q)
+        for a in range(C):  # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ
+            coef[tuple(exps[a])] -= lin[a]
+            for b in range(C):
+                coef[tuple(exps[a] + exps[b])] -= 0.5 * G[a, b]
+        mass = np.array([float(np.sum(y[bern & (veh == i)])) for i in range(len(sol.spec))])
+        return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, mass)

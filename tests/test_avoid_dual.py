@@ -1,0 +1,108 @@
+"""Issue 32 item 3: the weak-duality bound of the continuous-time avoidance QP over crossing-time
+boxes (:mod:`iamp.planners.avoid.dual`).
+
+* It is a lower bound: on generated problems (hypothesis) and boxes, inside one grid piece or
+  across several, the polynomial's Bernstein bound never exceeds ``J(τ)`` solved at sampled
+  crossing times in the box, nor the polynomial itself there.
+* It is tight at the candidate: ``g(y(τ_c); τ_c) = J(τ_c)``, and second order: on a box of
+  width ``w`` around the optimum it falls below ``J`` by ``O(w²)`` (halving ``w`` divides the
+  loss by about four), far less than the relaxation of the search (rows dropped in the box).
+* The branch and bound built on it is global: against a dense scan of fixed crossing times.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st_h
+
+from iamp.core import status as st
+from iamp.core.errors import ScenarioError
+from iamp.core.physical import PASSENGER_CAR
+from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.planners.avoid.continuous import ContinuousAvoidPlanner, ContinuousAvoidQP
+from iamp.planners.avoid.dual import DualBounds, piece_of
+from iamp.planners.examples import overtake_problem
+
+
+def problem(x0v: float, speed: float, xf: float, vxf: float, limits: bool) -> Problem:
+    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=xf, yf=3.75, vxf=vxf)
+    v = SurroundingVehicle(x_poly=(x0v, speed), corner="front-lower", y=3.75, length=4.8, width=1.8,
+                           safety_x=5.0, safety_y=0.5, name="sv1")
+    return Problem(ego, (v,), "binding", limits=PASSENGER_CAR if limits else None)
+
+
+def spec(order: tuple[int, int], t: float) -> tuple[tuple[int, int, float, float], ...]:
+    return ((order[0], order[1], float(t), float(t)),)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
+@given(st_h.floats(-5.0, 12.0), st_h.floats(15.0, 24.0), st_h.floats(100.0, 125.0), st_h.floats(20.0, 26.0),
+       st_h.booleans(), st_h.sampled_from(["foh", "zoh"]), st_h.integers(6, 20), st_h.floats(0.05, 0.95),
+       st_h.floats(0.0, 1.0), st_h.floats(0.0, 1.0), st_h.floats(0.0, 3.0))
+def test_the_dual_bound_is_below_every_crossing_in_its_box(x0v, speed, xf, vxf, limits, hold, steps, where, a, b,
+                                                           pieces):
+    prob = problem(x0v, speed, xf, vxf, limits)
+    try:
+        qp = ContinuousAvoidQP(prob, steps, hold, "clarabel")
+    except ScenarioError:
+        assume(False)
+    h = qp.h
+    k = min(int(where * steps), steps - 1)
+    lo = (k + min(a, b) * pieces) * h if pieces >= 1 else (k + min(a, b)) * h
+    hi = (k + max(a, b) * pieces) * h if pieces >= 1 else (k + max(a, b)) * h
+    lo, hi = max(0.0, lo), min(prob.tf, max(hi, lo))
+    assume(hi - lo > 1e-6)
+    bounds = DualBounds(qp)
+    order = (1, 0)  # the ego starts below the vehicle's lane (H_y) and ends ahead of it (H_x)
+    taus = np.linspace(lo, hi, 7)
+    solved = [qp.solve(spec(order, t)) for t in taus]
+    feasible = [s for s in solved if s.status == st.OPTIMAL]
+    assume(feasible)
+    box_lo, box_hi = np.array([lo]), np.array([hi])
+    for cand in feasible[:: max(1, len(feasible) // 3)]:
+        dp = bounds.polynomial(cand, box_lo, box_hi)
+        if piece_of(lo, hi, h, steps) is not None:
+            assert dp.vehicles == (0,)
+            c_tau = cand.spec[0][2]
+            # tight at the candidate (its own dual value), to the backend's accuracy
+            assert float(dp.evaluate(np.array([[c_tau]]))[0]) == pytest.approx(cand.cost, rel=1e-6, abs=1e-6)
+        lb = dp.lower_bound(box_lo, box_hi)
+        for t, s in zip(taus, solved):
+            if s.status == st.OPTIMAL:
+                assert lb <= s.cost + 1e-9 * max(1.0, s.cost), (t, lb, s.cost)
+                assert float(dp.evaluate(np.array([[t]]))[0]) <= s.cost + 1e-7 * max(1.0, s.cost)
+
+
+def test_the_bound_is_second_order_in_the_box_width():
+    prob = overtake_problem()
+    qp = ContinuousAvoidQP(prob, 50, "foh", "clarabel")
+    plan = ContinuousAvoidPlanner(steps=50).plan(prob)
+    tau = float(plan.info["avoidance"]["vehicles"][0]["crossing_time"])
+    best = qp.solve(spec((1, 0), tau))
+    bounds = DualBounds(qp)
+    loss = []
+    widths = (0.08, 0.04, 0.02)
+    for w in widths:  # boxes around the optimum inside its piece [3.7, 3.8]
+        lo, hi = np.array([tau - 0.1 * w]), np.array([tau + 0.9 * w])
+        assert piece_of(lo[0], hi[0], qp.h, qp.N) is not None
+        loss.append(best.cost - bounds.polynomial(best, lo, hi).lower_bound(lo, hi))
+    assert all(x > 0 for x in loss)
+    assert 3.0 < loss[0] / loss[1] < 5.0 and 3.0 < loss[1] / loss[2] < 5.0, loss
+    # the relaxation (rows dropped inside the box) loses far more on the same boxes
+    rel = [best.cost - qp.solve(((1, 0, tau - 0.1 * w, tau + 0.9 * w),)).cost for w in widths]
+    assert all(r > 10 * x for r, x in zip(rel, loss)), (rel, loss)
+
+
+@pytest.mark.parametrize("hold, limits", [("foh", True), ("zoh", False)])
+def test_the_search_is_global_against_a_dense_scan(hold, limits):
+    prob = problem(5.0, 20.0, 118.0, 24.0, limits)
+    planner = ContinuousAvoidPlanner(steps=20, hold=hold)
+    plan = planner.plan(prob)
+    assert plan.status == st.OPTIMAL
+    scan = [planner.plan_at_times(prob, [t]) for t in np.linspace(0.025, 4.975, 199)]
+    costs = [p.cost for p in scan if p.cost is not None]
+    assert plan.cost <= min(costs) * (1 + 1e-9)
+    s = plan.info["search"]
+    assert s["closed"] and s["lower_bound"] <= plan.cost and plan.cost - s["lower_bound"] <= 1e-4 * plan.cost
