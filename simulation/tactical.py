@@ -290,7 +290,9 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
     ego : EgoNow
     leader : Neighbour or None
         The vehicle ahead in the ego's lane; the ego keeps at least the RSS distance
-        (:func:`rss_follow_gap`) behind it.
+        (:func:`rss_follow_gap`) behind it, and closer than that distance (a situation handed
+        over, a cut-in, a leader braking beyond its prediction) it brakes at RSS's ``brake_min``,
+        the rear car's proper response.
     stop_x : float or None
         The lane's end (a standing obstacle ``end_room_m`` before it).
     target : Gap or None
@@ -312,6 +314,8 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
     if leader is not None:
         gap = leader.x(0.0) - ego.x - (leader.length + ego.length) / 2
         acc.append(idm.accel(ego.vx, rss_follow_gap(gap, ego.vx, leader.v(0.0), cfg), leader.v(0.0)))
+        if gap < float(safe_longitudinal_distance(ego.vx, leader.v(0.0), cfg.safe.rss)):
+            acc.append(-cfg.safe.rss.brake_min)  # RSS's proper response of the rear car
     if stop_x is not None:
         acc.append(lane_end_accel(ego.vx, stop_x - cfg.end_room_m - ego.x - ego.length / 2, cfg))
         if lane_speed is not None:

@@ -4,6 +4,8 @@ RSS makes them keep their distance (SPEC §17; docs/closed-loop.md)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -13,7 +15,16 @@ from iamp.simulation.controller import ControllerConfig
 from iamp.simulation.decision import EgoNow, Gap, Neighbour
 from iamp.simulation.rss import DEFAULT, safe_longitudinal_distance
 from iamp.simulation.simulator import Courtesy
-from iamp.simulation.tactical import TacticalConfig, gap_end, horizons_for, lane_end_accel, peak_accel, safe_interval
+from iamp.simulation.tactical import (
+    TacticalConfig,
+    gap_end,
+    horizons_for,
+    lane_end_accel,
+    peak_accel,
+    rss_follow_gap,
+    safe_interval,
+    seek_accel,
+)
 
 W_LANE = 3.75
 
@@ -145,3 +156,25 @@ def test_a_courteous_follower_is_asked_as_far_back_as_rss_makes_it_keep_its_dist
     assert c.reach(31.8, 18.9) >= 117.0
     assert c.reach(0.0, 30.0) == pytest.approx(c.margin_m + c.range_m)  # a standing car: no RSS distance
     assert c.reach(10.0, 10.0) == pytest.approx(float(safe_longitudinal_distance(10.0, 10.0, DEFAULT)) + 60.5)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.floats(5.0, 35.0), st.floats(0.0, 35.0), st.floats(0.05, 0.95))
+def test_closer_than_rss_behind_its_leader_the_ego_brakes_at_brake_min(v, v_l, frac):
+    """RSS's proper response of the rear car (the judge blames an ego that does not brake at
+    ``brake_min`` once the longitudinal distance is unsafe, e.g. a situation handed over by SUMO:
+    slow-leader, medium, seed 33 had 4.3 s at fault): closer than the RSS distance the tactical
+    layer brakes at least at ``brake_min``; at the distance itself it follows IDM."""
+    cfg = TacticalConfig()
+    d = float(safe_longitudinal_distance(v, v_l, cfg.safe.rss))
+    ego = EgoNow(0.0, v, 0.0, 0.0)
+    half = (4.6 + ego.length) / 2
+    if d <= 0.0:
+        return
+    near = Neighbour("l", (half + frac * d, v_l, 0.0, 0.0), 0.0, 4.6, 1.8, 0)
+    assert seek_accel(ego, near, None, None, 33.0, cfg) <= -cfg.safe.rss.brake_min
+    far = Neighbour("l", (half + d + 1e-6, v_l, 0.0, 0.0), 0.0, 4.6, 1.8, 0)
+    g = far.x(0.0) - ego.x - half  # the gap as the tactical layer computes it (round-off included)
+    idm = replace(cfg.idm, v0=33.0)
+    idm_only = idm.accel(v, rss_follow_gap(g, v, v_l, cfg), v_l)
+    assert seek_accel(ego, far, None, None, 33.0, cfg) == pytest.approx(min(idm_only, idm.accel(v)), rel=1e-9)
