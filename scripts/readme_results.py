@@ -85,11 +85,13 @@ def _num(value: str) -> float:
     return float(value) if value not in ("", "nan") else 0.0
 
 
-def safety_table(campaigns: list[Path], root: Path = ROOT) -> list[str]:
+def safety_table(campaigns: list[Path], root: Path = ROOT, sublane: Path | None = None) -> list[str]:
     """Closed loop of SPEC §17, per campaign (cooperation) and planner, with RSS's responsibility
     columns: contacts split by blame, the new follower's emergency (>= 8 m/s²) and hard
     (> :data:`HARD_BRAKE` m/s²) braking, the time in a dangerous situation the ego is responsible
-    for, and executed limit violations."""
+    for, and executed limit violations. ``sublane``: the ``episodes.csv`` of the ``sumo`` baseline
+    with SL2015 (``iamp campaign --sublane``), a row ``sumo (SL2015)`` of the default-cooperation
+    table over the episodes of the same missions, densities and seeds."""
     lines: list[str] = []
     for episodes in campaigns:
         rows = list(csv.DictReader(episodes.open(newline="", encoding="utf-8")))
@@ -110,6 +112,11 @@ def safety_table(campaigns: list[Path], root: Path = ROOT) -> list[str]:
         by: dict[str, list[dict[str, str]]] = defaultdict(list)
         for r in rows:
             by[r["planner"]].append(r)
+        if sublane is not None and coop == "default":
+            grid = {(r["mission"], r["traffic"], r["seed"]) for r in rows}
+            for r in csv.DictReader(sublane.open(newline="", encoding="utf-8")):
+                if (r["mission"], r["traffic"], r["seed"]) in grid:
+                    by["sumo (SL2015)"].append(r)
         for planner in sorted(by):
             eps = by[planner]
             n = len(eps)
@@ -136,8 +143,9 @@ def block(root: Path = ROOT) -> str:
     safe = [root / "reports" / c / "episodes.csv" for c in SAFE_CAMPAIGNS]
     safe = [p for p in safe if p.is_file()]
     episodes = root / "reports" / "campaign-new" / "episodes.csv"
+    sublane = root / "reports" / "campaign-sl2015" / "episodes.csv"
     if safe:
-        out += [""] + safety_table(safe, root)
+        out += [""] + safety_table(safe, root, sublane if sublane.is_file() else None)
     elif episodes.is_file():
         out += [""] + campaign_table(episodes, root)
     return "\n".join(out)

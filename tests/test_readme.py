@@ -236,3 +236,21 @@ def test_the_readme_shows_the_safe_campaigns_where_present(tmp_path: Path) -> No
     text = _script().block(tmp_path)
     assert "Closed loop with verified plans (`reports/campaign-safe/episodes.csv`" in text
     assert "campaign-new" not in text
+
+
+def test_the_sl2015_baseline_is_a_row_over_the_same_grid(tmp_path: Path) -> None:
+    """``reports/campaign-sl2015`` adds a row ``sumo (SL2015)`` to the default-cooperation table, over
+    the episodes whose (mission, traffic, seed) the campaign has; none to a low-cooperation table."""
+    base = {"mission": "merge", "traffic": "dense", "success": "True", "contacts_at_fault": "0",
+            "contacts_not_at_fault": "0", "follower_emergency_brakes": "0", "follower_max_decel": "",
+            "rss_dangerous_s": "0", "limit_violations": "0"}
+    path = _episodes_csv(tmp_path, "campaign-safe", [{**base, "planner": "free", "seed": 1}])
+    sl = _episodes_csv(tmp_path, "campaign-sl2015", [{**base, "planner": "sumo", "seed": 1, "success": "False"},
+                                                     {**base, "planner": "sumo", "seed": 2}])
+    for coop, want in (("default", True), ("low", False)):
+        (path.parent / "manifest.json").write_text(json.dumps({"cooperation": coop}), encoding="utf-8")
+        lines = _script().safety_table([path], tmp_path, sl)
+        rows = [ln for ln in lines if ln.startswith("| sumo (SL2015) |")]
+        assert bool(rows) is want
+        if want:
+            assert rows[0].startswith("| sumo (SL2015) | 1 | 0 (0.0 %) |")

@@ -1,0 +1,153 @@
+"""The closed-loop campaign's tables in docs/closed-loop.md, computed from what ``iamp campaign`` wrote.
+
+Usage::
+
+    python scripts/campaign_tables.py            # rewrite the block between the markers
+    python scripts/campaign_tables.py --check    # exit 1 if docs/closed-loop.md differs from the files
+
+The block between ``<!-- campaign-tables:begin -->`` and ``<!-- campaign-tables:end -->`` holds
+
+* per mission and density, per planner: successes, contacts the ego is responsible for, new
+  followers braking at SUMO's emergency rate and harder than 4.5 m/s² (``reports/campaign-safe``,
+  ``reports/campaign-safe-low``, ``reports/campaign-sl2015``: SPEC §17's loop);
+* before and after (issue 30): the same seeds of ``reports/campaign-new`` (episode format 15.1, the
+  loop the issue measured) against ``reports/campaign-safe``, per mission, density and planner.
+
+Nothing in it is typed by hand; ``tests/test_campaign_tables.py`` fails when the page and the files
+disagree.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BEGIN, END = "<!-- campaign-tables:begin -->", "<!-- campaign-tables:end -->"
+PAGE = Path("docs") / "closed-loop.md"
+#: SUMO's emergency deceleration of its passenger cars (``emergencyDecel`` 9 m/s²; the issue counted
+#: ≥ 8.9 m/s² from the logged accelerations) and the "hard braking" threshold (SUMO's ``decel``).
+EMERGENCY, HARD = 8.9, 4.5
+PLANNERS = ("pmp-active", "qp-avoid", "free", "mobil", "sumo")
+Rows = list[dict[str, str]]
+
+
+def _num(value: str) -> float:
+    return float(value) if value not in ("", "nan", "None") else 0.0
+
+
+def read(path: Path) -> Rows:
+    """The rows of an ``episodes.csv`` (empty when the file is absent)."""
+    if not path.is_file():
+        return []
+    with path.open(newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+def counts(rows: Rows) -> tuple[int, int, int, int, int]:
+    """``(episodes, successes, at-fault contacts, emergency-braking followers, hard-braking followers)``.
+
+    Contacts at fault are ``contacts_at_fault`` where the monitor judged blame (format 17), else every
+    contact (format 15 had no judge); a follower counts once per episode."""
+    n = len(rows)
+    ok = sum(r["success"] == "True" for r in rows)
+    fault = sum(int(_num(r["contacts_at_fault"] if "contacts_at_fault" in r else r["contacts"])) for r in rows)
+    emergency = sum(_num(r["follower_max_decel"]) >= EMERGENCY for r in rows)
+    hard = sum(_num(r["follower_max_decel"]) > HARD + 1e-6 for r in rows)
+    return n, ok, fault, emergency, hard
+
+
+def _cell(rows: Rows) -> str:
+    if not rows:
+        return "–"
+    n, ok, fault, emergency, hard = counts(rows)
+    return f"{ok}/{n}; {fault}; {emergency}; {hard}"
+
+
+def mission_table(campaigns: list[tuple[str, Rows]]) -> list[str]:
+    """Per (campaign, mission, density) and planner: ``success/episodes; at-fault contacts; emergency; hard``."""
+    planners = [p for p in PLANNERS if any(r["planner"] == p for _, rows in campaigns for r in rows)]
+    extra = any(label for label, _ in campaigns)
+    head = "| mission, traffic | " + " | ".join(f"`{p}`" for p in planners) + (" | `sumo` SL2015 |" if extra else " |")
+    out = [head, "|---|" + "---|" * (len(planners) + (1 if extra else 0))]
+    by: dict[tuple[str, str, str], dict[str, Rows]] = defaultdict(lambda: defaultdict(list))
+    for label, rows in campaigns:
+        for r in rows:
+            coop = r.get("cooperation", "default")
+            key = (r["mission"], r["traffic"], coop)
+            by[key]["sl2015" if label else r["planner"]].append(r)
+    for (mission, traffic, coop) in sorted(by, key=lambda k: (k[2] != "default", k[0], k[1])):
+        cells = by[(mission, traffic, coop)]
+        name = f"{mission}, {traffic}" + ("" if coop == "default" else f", cooperation {coop}")
+        row = [_cell(cells.get(p, [])) for p in planners] + ([_cell(cells.get("sl2015", []))] if extra else [])
+        out.append(f"| {name} | " + " | ".join(row) + " |")
+    return out
+
+
+def before_after(before: Rows, after: Rows, missions: tuple[str, ...] = ("merge", "onramp")) -> list[str]:
+    """Per mission, density and planner, the same seeds before and after: ``success; contacts
+    (before: all, after: at fault); emergency-braking followers; hard-braking followers``."""
+    seeds = {r["seed"] for r in after}
+    keep = [r for r in before if r["seed"] in seeds]
+    out = ["| mission, traffic, planner | before | after |", "|---|---|---|"]
+    for mission in missions:
+        for traffic in sorted({r["traffic"] for r in after if r["mission"] == mission}):
+            for p in PLANNERS:
+                a = [r for r in after if (r["mission"], r["traffic"], r["planner"]) == (mission, traffic, p)]
+                b = [r for r in keep if (r["mission"], r["traffic"], r["planner"]) == (mission, traffic, p)]
+                if a:
+                    out.append(f"| {mission}, {traffic}, `{p}` | {_cell(b)} | {_cell(a)} |")
+    return out
+
+
+def block(root: Path = ROOT) -> str:
+    """The generated Markdown between the markers."""
+    rep = root / "reports"
+    safe, low, sl = (read(rep / c / "episodes.csv") for c in ("campaign-safe", "campaign-safe-low", "campaign-sl2015"))
+    seeds = len({r["seed"] for r in safe})
+    out = ["<!-- generated by `python scripts/campaign_tables.py` from the campaigns' episodes.csv: "
+           "do not edit by hand -->", "",
+           f"Per mission and density ({seeds} paired seeds; each cell: successes/episodes; contacts the ego is "
+           f"responsible for; new followers braking at ≥ {EMERGENCY:g} m/s²; new followers braking harder than "
+           f"{HARD:g} m/s²; `reports/campaign-safe`, `reports/campaign-safe-low`, `reports/campaign-sl2015`):", ""]
+    out += mission_table([("", safe), ("", low)] + ([("SL2015", sl)] if sl else []))
+    before = read(rep / "campaign-new" / "episodes.csv")
+    if before and safe:
+        out += ["", f"Before and after on the same {seeds} seeds (before: `reports/campaign-new`, episode format "
+                "15.1, the loop the issue measured, whose contacts had no judge: every contact counted; after: "
+                "`reports/campaign-safe`):", ""]
+        out += before_after(before, safe)
+    return "\n".join(out)
+
+
+def render(page: str, root: Path = ROOT) -> str:
+    """``page`` with its block replaced by :func:`block`."""
+    head, sep, rest = page.partition(BEGIN)
+    if not sep or END not in rest:
+        raise SystemExit(f"{PAGE} has no {BEGIN} ... {END} block")
+    _, _, tail = rest.partition(END)
+    return f"{head}{BEGIN}\n{block(root)}\n{END}{tail}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true", help=f"exit 1 if {PAGE} is not what the files say")
+    args = parser.parse_args(argv)
+    path = ROOT / PAGE
+    old = path.read_text(encoding="utf-8")
+    new = render(old)
+    if args.check:
+        if new != old:
+            print(f"{PAGE}'s campaign tables differ from the reports: run python scripts/campaign_tables.py",
+                  file=sys.stderr)
+            return 1
+        return 0
+    path.write_text(new, encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
