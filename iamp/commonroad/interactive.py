@@ -23,8 +23,8 @@ the ego:
    fail-safe brake the ego replans at the next step (not after ``replan_s``), toward the goal's
    whole remaining window; when no final state of the window can be reached any more it keeps
    braking safely until the window ends.  A goal several lanes over is approached one lane at a
-   time, and a lane change toward the goal's lane is also offered before a kept plan or the
-   fail-safe (:mod:`iamp.commonroad.tactical`: into a gap with RSS's stopping distance ahead and
+   time, and a lane change toward the goal's lane is also offered where the fail-safe would
+   otherwise brake (:mod:`iamp.commonroad.tactical`: into a gap with RSS's stopping distance ahead and
    a comfortable braking gap behind, finished while it still holds; ``lane_changes``).  The
    predictions always reach at least :data:`FAILSAFE_HORIZON_S` ahead.  Every choice is counted
    in time order (``decisions``).
@@ -648,12 +648,6 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     if (rp is not None and rp.trajectory is not None and rp.candidate is not None
                             and rp.peak_accel_mps2 <= cr.a_max):
                         options.append(("new plan", rp.trajectory, rp.candidate.tf, rp.intrusions))
-                    if rp is not None and tactical:  # one lane toward the goal's (iamp.commonroad.tactical)
-                        start = time.perf_counter()
-                        tac = lane_change(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
-                        plan_times.append(time.perf_counter() - start)
-                        if tac is not None and tac.trajectory is not None and tac.candidate is not None:
-                            options.append(("lane change", tac.trajectory, tac.candidate.tf, tac.intrusions))
                     rest = traj_T - (now - t_plan)
                     if isinstance(traj, Braking):  # it runs on past its horizon: checked over the fail-safe's
                         rest = max(rest, FAILSAFE_HORIZON_S)
@@ -661,6 +655,13 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                         kept = Shifted(traj, now - t_plan)
                         options.append(("kept", kept, rest, intrusions(live, kept, rest)))
                     followers = rss_followers(live)
+                    if rp is not None and tactical and not any(harmless(o, followers) for o in options):
+                        # instead of a new fail-safe brake: one lane toward the goal's (iamp.commonroad.tactical)
+                        start = time.perf_counter()
+                        tac = lane_change(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
+                        plan_times.append(time.perf_counter() - start)
+                        if tac is not None and tac.trajectory is not None and tac.candidate is not None:
+                            options.append(("lane change", tac.trajectory, tac.candidate.tf, tac.intrusions))
                     fs, fs_T = failsafe(live, cr.a_max, followers)
                     options.append(("fail-safe", fs, fs_T, intrusions(live, fs, fs_T)))
                     action, chosen, chosen_T, hits = options[choose(options, followers)]

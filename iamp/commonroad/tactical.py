@@ -25,8 +25,9 @@ The loop (:func:`iamp.commonroad.interactive.simulate_with_log`) uses it twice:
 * **early**: a goal two or more lanes over (:class:`LaneMap`) whose cheapest final state is at
   least :data:`EARLY_MIN_S` ahead is approached one lane at a time before its plan is tried
   (the plan across several lanes of traffic is the one the active set fails at);
-* **instead of braking**: when the replan toward the goal finds no safe plan, an accepted lane
-  change comes before the previous plan's remainder and the fail-safe.
+* **instead of braking**: when the replan toward the goal finds no safe plan and neither that plan
+  nor the previous plan's remainder keeps clear, an accepted lane change comes before a new
+  fail-safe brake.
 
 A lane change under way is finished without replanning while it still holds under the newest
 predictions (:func:`still_holds`: clear of the predicted boxes, RSS's stopping distance to the
