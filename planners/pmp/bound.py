@@ -76,18 +76,11 @@ def _cut(r: FloatArray) -> npt.NDArray[np.bool_]:
 
 
 def _split(c: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Halve every box along each side at least half as long as its longest one."""
-    m = c.shape[1]
-    cut = _cut(r)
-    rn = np.where(cut, 0.5 * r, r)
-    cs, rs = [], []
-    for signs in np.ndindex(*([2] * m)):
-        sg = np.array(signs, dtype=float) * 2 - 1
-        child = c + np.where(cut, sg * rn, 0.0)
-        keep = np.all(cut | (sg > 0), axis=1)  # a side that is not cut yields one child, not two
-        cs.append(child[keep])
-        rs.append(rn[keep])
-    return np.vstack(cs), np.vstack(rs)
+    """Halve every box along each side at least half as long as its longest one
+    (:func:`iamp.planners.pmp.search_kernels.split`)."""
+    run = sk.TWINS.get("split", sk.split)
+    cs, rs = run(np.ascontiguousarray(c, dtype=np.float64), np.ascontiguousarray(r, dtype=np.float64))
+    return cs, rs
 
 
 @dataclass

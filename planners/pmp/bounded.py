@@ -309,10 +309,76 @@ def boundary_feasible(problem: Problem) -> str | None:
     return None
 
 
-def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, FloatArray | None, int]:
+@dataclass(frozen=True)
+class InfeasibilityCertificate:
+    """Outcome of :func:`infeasibility_certificate`.
+
+    Attributes
+    ----------
+    certified : bool
+        The box is infeasible for every choice of contact times.
+    feasible_t : numpy.ndarray or None
+        Contact times [s] where both axes are feasible (the search stops there), else ``None``.
+    boxes : int
+        Boxes (intervals for one vehicle) covered by a Farkas certificate.
+    solves : int
+        Axis solves spent (the work budget counts these).
+    vehicle : int or None
+        Certified by the vehicle of this index alone (the projection argument), ``None`` when
+        the certificate is over all the vehicles' contact times.
+    """
+
+    certified: bool
+    feasible_t: FloatArray | None
+    boxes: int
+    solves: int
+    vehicle: int | None = None
+
+
+#: a single vehicle's share of the budget of :func:`infeasibility_certificate` (``m ≥ 2``):
+#: ``max_solves // (PROJECTION_SHARE · m)`` each
+PROJECTION_SHARE = 4
+
+
+def infeasibility_certificate(problem: Problem, max_solves: int = 4000) -> InfeasibilityCertificate:
     r"""Is the box infeasible for *every* choice of contact times in ``(0, t_f)^m``?
 
-    Returns ``(certified, feasible_t, boxes)``.  ``(0, t_f)^m`` is covered by boxes (32
+    **Projection** (``m ≥ 2``, tried first).  A plan for all ``m`` vehicles meets each
+    vehicle's corner at that vehicle's contact time with ``u`` in the box, so it is also a plan
+    for the problem with that vehicle alone.  If one vehicle alone is certified infeasible at
+    every contact time in ``(0, t_f)`` (the one-vehicle cover below, on 32 intervals), the
+    whole problem is infeasible.  Each vehicle, in order, gets the budget
+    ``max_solves // (PROJECTION_SHARE · m)``; the full cover gets what is left.  (A cover stops
+    refining once its budget is spent; its initial boxes are always solved, so a cover may
+    end up to two solves per initial box above its budget.)
+
+    **Cover** (:func:`_cover_infeasible`): boxes of contact times, each with a Farkas certificate
+    and a Lipschitz margin.
+    """
+    m = problem.m
+    used = 0
+    if m >= 2:
+        share = max_solves // (PROJECTION_SHARE * m)
+        for i, veh in enumerate(problem.vehicles):
+            alone = _cover_infeasible(problem.with_vehicles([veh]), share)
+            used += alone.solves
+            if alone.certified:
+                return InfeasibilityCertificate(True, None, alone.boxes, used, i)
+    full = _cover_infeasible(problem, max_solves - used)
+    return InfeasibilityCertificate(full.certified, full.feasible_t, full.boxes, used + full.solves)
+
+
+def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, FloatArray | None, int]:
+    """``(certified, feasible_t, boxes)`` of :func:`infeasibility_certificate` (the projection
+    on single vehicles first, then the cover of :func:`_cover_infeasible`)."""
+    cert = infeasibility_certificate(problem, max_solves)
+    return cert.certified, cert.feasible_t, cert.boxes
+
+
+def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertificate:
+    r"""Is the box infeasible for *every* choice of contact times in ``(0, t_f)^m``?
+
+    ``(0, t_f)^m`` is covered by boxes (32
     intervals for one vehicle, an 8×8 grid for two, 4 per axis beyond); at the centre ``t`` of
     each, an axis whose fixed-time problem is infeasible gives a Farkas certificate
     :math:`\lambda` with margin :math:`M(t) = \lambda^\top d(t) - \sigma_t(\lambda) > 0`
@@ -375,16 +441,16 @@ def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, 
             # both axes feasible at t?
             try:
                 solve_bounded_fixed(problem, t)
-                return False, t, boxes
+                return InfeasibilityCertificate(False, t, boxes, solves)
             except (AxisInfeasible, AxisNoConvergence):
                 pass
         if solves > max_solves or float(np.max(b - a)) < 1e-9 * T:
-            return False, None, boxes
+            return InfeasibilityCertificate(False, None, boxes, solves)
         i = int(np.argmax(b - a))
         mid_b, mid_a = b.copy(), a.copy()
         mid_b[i] = mid_a[i] = t[i]
         stack += [(a, mid_b), (mid_a, b)]
-    return True, None, boxes
+    return InfeasibilityCertificate(True, None, boxes, solves)
 
 
 class _IntervalBound:
@@ -1114,14 +1180,20 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         search["method"] = "grid (8 per axis for m <= 2) + unbounded t* + L-BFGS-B with the exact gradient r"
     info["search"] = search
     if not fixed and not np.all(np.isfinite(t)):
-        certified, t_feasible, intervals = certify_infeasible(problem)
+        proof = infeasibility_certificate(problem)
+        certified, t_feasible, intervals = proof.certified, proof.feasible_t, proof.boxes
         search["infeasibility_intervals"] = intervals
+        search["infeasibility_solves"] = proof.solves
+        if proof.vehicle is not None:
+            search["infeasibility_vehicle"] = proof.vehicle
         if certified:
             what = "contact time in (0, t_f)" if m == 1 else f"choice of the {m} contact times in (0, t_f)^{m}"
+            how = (f"{intervals} {'intervals' if m == 1 or proof.vehicle is not None else 'boxes'}"
+                   + ("" if proof.vehicle is None else f" of vehicle {proof.vehicle}'s contact time, which alone "
+                      "admits no plan"))
             return _failed(problem, INFEASIBLE, "box_infeasible_at_every_contact_time", info, t0,
-                           f"no {what} admits a plan within the input box (certified: {intervals} "
-                           f"{'intervals' if m == 1 else 'boxes'}, each with a Farkas certificate and a "
-                           "Lipschitz margin)")
+                           f"no {what} admits a plan within the input box (certified: {how}, each with a "
+                           "Farkas certificate and a Lipschitz margin)")
         if t_feasible is not None:
             if m == 1:
                 t, more = _search_one(ev, T, [float(t_feasible[0])], GRID_ONE)

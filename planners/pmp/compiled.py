@@ -106,13 +106,16 @@ def _build_axis() -> Callable[..., Any]:
 
 #: the kernels of :mod:`~iamp.planners.pmp.search_kernels` that the search looks up in
 #: :data:`~iamp.planners.pmp.search_kernels.TWINS`
-SEARCH_KERNELS = ("quad", "gradient", "newton", "lower_bound", "expansion", "basin_radius", "box_bound")
+SEARCH_KERNELS = ("quad", "gradient", "newton", "lower_bound", "expansion", "basin_radius", "box_bound",
+                  "split")
 
 
 def load_search() -> bool:
     """Compile the ``m ≥ 2`` search kernels and use them in this process; ``False`` if numba
     is missing or fails (the reason in ``_STATE["error"]``).  Idempotent.  The compiled
-    kernels return the same numbers as the Python ones, bit for bit (tested)."""
+    kernels return the same numbers as the Python ones, bit for bit (tested).  The first
+    compile on a machine takes about a minute; numba keeps the machine code on disk
+    (``cache=True``), so later processes load it in seconds."""
     from . import search_kernels as sk
 
     if sk.TWINS:
@@ -121,7 +124,8 @@ def load_search() -> bool:
         return False
     if "search_built" not in _STATE:
         try:
-            twins = {name: jit.twin(getattr(sk, name)) for name in SEARCH_KERNELS}
+            # cached on disk: every compilable function they call is in search_kernels.py
+            twins = {name: jit.twin(getattr(sk, name), cache=True) for name in SEARCH_KERNELS}
             _warm_up_search(twins)
         except Exception as exc:  # a broken numba install: the Python path stays
             _STATE["error"] = f"{type(exc).__name__}: {exc}"
@@ -154,6 +158,7 @@ def _warm_up_search(twins: dict[str, Any]) -> None:
         twins["gradient"](*E, pts)
         twins["newton"](*E, np.ascontiguousarray(pts[0]), 3)
         twins["lower_bound"](*E, pts, np.full((3, m), 0.05))
+        twins["split"](pts, np.full((3, m), 0.05))
         c, _ = twins["expansion"](*E, np.ascontiguousarray(pts[0]), degree(vf))
         twins["basin_radius"](c, m, degree(vf), 0.1, 1e-9)
         if m == 2:

@@ -71,13 +71,19 @@ def available() -> bool:
     return importlib.util.find_spec("numba") is not None
 
 
-def twin(fn: Callable[..., Any]) -> Any:
+def twin(fn: Callable[..., Any], cache: bool = False) -> Any:
     """The numba-compiled twin of the compilable ``fn`` (cached; compiled on its first call).
 
     Parameters
     ----------
     fn : callable
         A function marked with :func:`compilable` or :func:`compiled_as`.
+    cache : bool
+        Let numba keep the machine code on disk (beside the source, or in its user cache
+        directory) for later processes.  Only for a set of functions that call nothing
+        compilable outside their own source file: numba invalidates a cached function when
+        its own file changes, not when a callee's file does.  The compilable functions it
+        calls get the same flag.
 
     Returns
     -------
@@ -98,7 +104,7 @@ def twin(fn: Callable[..., Any]) -> Any:
     for name in src.__code__.co_names:  # the globals the code reads
         value = src.__globals__.get(name)
         if isinstance(value, types.FunctionType) and value in _SOURCE:
-            env[name] = twin(value)
-    out = numba.njit(cache=False)(types.FunctionType(src.__code__, env, src.__name__, src.__defaults__))
+            env[name] = twin(value, cache)
+    out = numba.njit(cache=cache)(types.FunctionType(src.__code__, env, src.__name__, src.__defaults__))
     _TWINS[fn] = out
     return out

@@ -418,12 +418,17 @@ def lower_bound(EX: Any, EY: Any, DEX: Any, DEY: Any, c: Any, r: Any) -> Any:
         for j in range(m):
             if i == j:
                 continue
-            blo, bhi = shift_range2(DK_BELOW, cT[i], cT[j], rT[i], rT[j])
-            alo, ahi = shift_range2(DK_ABOVE, cT[i], cT[j], rT[i], rT[j])
             below_only = hiT[i] <= loT[j]
             above_only = loT[i] >= hiT[j]
-            xlo[i, j] = np.where(below_only, blo, np.where(above_only, alo, np.where(blo < alo, blo, alo)))
-            xhi[i, j] = np.where(below_only, bhi, np.where(above_only, ahi, vmax(bhi, ahi)))
+            if np.all(below_only):  # one piece of K for every box: range that one only
+                xlo[i, j], xhi[i, j] = shift_range2(DK_BELOW, cT[i], cT[j], rT[i], rT[j])
+            elif np.all(above_only):
+                xlo[i, j], xhi[i, j] = shift_range2(DK_ABOVE, cT[i], cT[j], rT[i], rT[j])
+            else:
+                blo, bhi = shift_range2(DK_BELOW, cT[i], cT[j], rT[i], rT[j])
+                alo, ahi = shift_range2(DK_ABOVE, cT[i], cT[j], rT[i], rT[j])
+                xlo[i, j] = np.where(below_only, blo, np.where(above_only, alo, np.where(blo < alo, blo, alo)))
+                xhi[i, j] = np.where(below_only, bhi, np.where(above_only, ahi, vmax(bhi, ahi)))
     g0 = np.zeros(n)
     Glo = np.zeros((m, n))
     Ghi = np.zeros((m, n))
@@ -460,6 +465,43 @@ def lower_bound(EX: Any, EY: Any, DEX: Any, DEY: Any, c: Any, r: Any) -> Any:
     fench = g0 - slack
     fench = np.where(np.isfinite(fench) & (fench > 0.0), fench, 0.0)
     return vmax(best, fench)
+
+
+@compilable
+def split(c: Any, r: Any) -> Any:
+    """Halve every box ``c ± r`` (rows) along each side at least half as long as its longest
+    one: the children in the order of the sign patterns (``−`` before ``+``, the first
+    vehicle slowest), each pattern's children in the order of their parents; a side that is
+    not cut yields one child, not two."""
+    n, m = c.shape
+    rmax = r[:, 0].copy()
+    for i in range(1, m):
+        rmax = np.where(r[:, i] > rmax, r[:, i], rmax)
+    cut = np.empty((n, m), dtype=np.bool_)
+    rn = np.empty((n, m))
+    count = np.ones(n, dtype=np.int64)
+    for i in range(m):
+        cut[:, i] = r[:, i] >= 0.5 * rmax
+        rn[:, i] = np.where(cut[:, i], 0.5 * r[:, i], r[:, i])
+        count = count * np.where(cut[:, i], 2, 1)
+    total = int(np.sum(count))
+    cs = np.empty((total, m))
+    rs = np.empty((total, m))
+    pos = 0
+    for combo in range(2 ** m):
+        keep = np.ones(n, dtype=np.bool_)
+        child = np.empty((n, m))
+        for i in range(m):
+            up = (combo >> (m - 1 - i)) & 1
+            sg = 1.0 if up else -1.0
+            child[:, i] = c[:, i] + np.where(cut[:, i], sg * rn[:, i], 0.0)
+            if not up:
+                keep = keep & cut[:, i]
+        k = int(np.sum(keep))
+        cs[pos:pos + k] = child[keep]
+        rs[pos:pos + k] = rn[keep]
+        pos += k
+    return cs, rs
 
 
 # --- basin boxes (:mod:`iamp.planners.pmp.basin`) --------------------------------------------
@@ -723,6 +765,23 @@ def excess(Ck: Any, rho: float) -> Any:
 
 
 @compilable
+def col_sums(W: Any, m: int, D: int) -> Any:
+    """``Σ_f W[f]`` over the ``(D+1)^m`` flat coefficients (rows of ``W``), one variable at a
+    time (the first first), each in ascending order: a fixed order of the additions."""
+    X = np.ascontiguousarray(W)
+    rest = W.shape[0]
+    k = W.shape[1]
+    for _ in range(m):
+        rest = rest // (D + 1)
+        X3 = X.reshape(D + 1, rest, k)
+        acc = X3[0].copy()
+        for j in range(1, D + 1):
+            acc = acc + X3[j]
+        X = acc
+    return X.reshape(k)
+
+
+@compilable
 def box_bound(coeffs: Any, s: Any, c: Any, r: Any, D: int) -> Any:
     r"""A lower bound of ``q`` on each box ``c ± r`` (rows) from a basin's minorant (flat
     ``coeffs`` at the centre ``s``; ``m ≤ 2``) on the boxes whose times keep the centre's
@@ -740,9 +799,10 @@ def box_bound(coeffs: Any, s: Any, c: Any, r: Any, D: int) -> Any:
     if k == 0:
         return out
     N = coeffs.shape[0]
-    A = np.empty((k, N))
-    for b in range(k):
-        A[b] = coeffs
+    # the coefficients of every box, boxes last: A[f, b]
+    A = np.empty((N, k))
+    for f in range(N):
+        A[f] = coeffs[f]
     rr = np.empty((m, k))
     for a in range(m):
         h = np.empty(k)
@@ -751,21 +811,23 @@ def box_bound(coeffs: Any, s: Any, c: Any, r: Any, D: int) -> Any:
             rr[a, b] = r[idx[b], a]
         post = stride(m, D, a)
         pre = N // (post * (D + 1))
-        A4 = A.reshape(k, pre, D + 1, post)
-        hh = h.reshape(k, 1, 1)
+        hrep = np.empty(post * k)
+        for p in range(post):
+            hrep[p * k:(p + 1) * k] = h
+        A3 = A.reshape(pre, D + 1, post * k)
         for i in range(D):
             for j in range(D - 1, i - 1, -1):
-                A4[:, :, j, :] = A4[:, :, j, :] + hh * A4[:, :, j + 1, :]
-    c0 = A[:, 0].copy()
+                A3[:, j, :] = A3[:, j, :] + hrep * A3[:, j + 1, :]
+    c0 = A[0].copy()
     g = np.empty((m, k))
     for i in range(m):
-        g[i] = A[:, stride(m, D, i)]
+        g[i] = A[stride(m, D, i)]
     if m == 1:
-        lam = A[:, 2].copy()
+        lam = A[2].copy()
     else:
-        a11 = A[:, 2 * stride(m, D, 0)]
-        a22 = A[:, 2 * stride(m, D, 1)]
-        a12 = 0.5 * A[:, stride(m, D, 0) + stride(m, D, 1)]
+        a11 = A[2 * stride(m, D, 0)]
+        a22 = A[2 * stride(m, D, 1)]
+        a12 = 0.5 * A[stride(m, D, 0) + stride(m, D, 1)]
         half = 0.5 * (a11 - a22)
         lam = 0.5 * (a11 + a22) - np.sqrt(half * half + a12 * a12)
     pos = lam > 0.0
@@ -779,25 +841,26 @@ def box_bound(coeffs: Any, s: Any, c: Any, r: Any, D: int) -> Any:
         lin = lin + np.abs(g[i]) * rr[i]
         sq = sq + rr[i] * rr[i]
     quad = np.where(pos, quad, -lin + np.where(lam < 0.0, lam, 0.0) * sq)
-    # powers r_i^a per box, and the remainder / rounding sums in flat order
+    # |c'_α| r^α per coefficient and box, summed in a fixed order (col_sums)
     pw = np.empty((m, D + 1, k))
     for i in range(m):
         pw[i, 0] = 1.0
         for a in range(1, D + 1):
             pw[i, a] = pw[i, a - 1] * rr[i]
     deg = degrees(m, D)
-    rem = np.zeros(k)
-    tot = np.zeros(k)
+    W = np.abs(A)
+    Wr = np.empty((N, k))
     for f in range(N):
-        p = np.ones(k)
-        x = f
-        for i in range(m - 1, -1, -1):
-            p = p * pw[i, x % (D + 1)]
-            x = x // (D + 1)
-        term = np.abs(A[:, f]) * p
-        tot = tot + term
+        p = pw[m - 1, f % (D + 1)]
+        if m == 2:
+            p = p * pw[0, f // (D + 1)]
+        W[f] = W[f] * p
         if deg[f] >= 3:
-            rem = rem + term
+            Wr[f] = W[f]
+        else:
+            Wr[f] = 0.0
+    tot = col_sums(W, m, D)
+    rem = col_sums(Wr, m, D)
     rnd = EPS64 * tot + ROUNDING_REL * np.abs(c0)
     val = c0 + quad - rem - rnd
     for b in range(k):
