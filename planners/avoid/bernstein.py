@@ -30,6 +30,7 @@ in the node variables.
 
 from __future__ import annotations
 
+from functools import lru_cache
 from math import comb
 
 import numpy as np
@@ -52,22 +53,39 @@ def reparametrise(degree: int, lam0: float, width: float) -> FloatArray:
 
     :math:`c'_j = \sum_{i \ge j} \binom{i}{j} \lambda_0^{i-j} w^j c_i`.
     """
+    binom, lag = _binomials(degree)
+    return np.asarray(binom * np.float64(lam0) ** lag * (np.float64(width) ** np.arange(degree + 1))[:, None],
+                      dtype=float)
+
+
+@lru_cache(maxsize=16)
+def _binomials(degree: int) -> tuple[FloatArray, FloatArray]:
+    """``C[j, i] = binom(i, j)`` (zero below the diagonal's other side) and ``max(i - j, 0)``."""
     n = degree + 1
-    T = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i + 1):
-            T[j, i] = comb(i, j) * lam0 ** (i - j) * width**j
-    return T
+    i = np.arange(n)
+    binom = np.array([[comb(int(c), int(r)) if r <= c else 0 for c in i] for r in i], dtype=float)
+    lag = np.maximum(i[None, :] - i[:, None], 0).astype(float)
+    binom.flags.writeable = False
+    lag.flags.writeable = False
+    return binom, lag
 
 
 def power_to_bernstein(degree: int) -> FloatArray:
     r"""``B`` with ``b = B c``: Bernstein coefficients on :math:`[0, 1]` of degree ``degree``
     from ascending power coefficients, :math:`b_r = \sum_{j \le r} \binom{r}{j}/\binom{d}{j}\, c_j`."""
+    return _power_to_bernstein(degree).copy()
+
+
+@lru_cache(maxsize=16)
+def _power_to_bernstein(degree: int) -> FloatArray:
+    """:func:`power_to_bernstein`, computed once per degree (read-only: callers get a copy or
+    use it in products only)."""
     n = degree + 1
     B = np.zeros((n, n))
     for r in range(n):
         for j in range(r + 1):
             B[r, j] = comb(r, j) / comb(degree, j)
+    B.flags.writeable = False
     return B
 
 
@@ -80,7 +98,7 @@ def piece_matrix(h: float, lam0: float, lam1: float, degree: int = 3) -> FloatAr
     H = HERMITE * np.array([1.0, h, 1.0, h])  # columns act on (s_k, v_k, s_{k+1}, v_{k+1})
     Hd = np.zeros((degree + 1, 4))
     Hd[:4] = H
-    return np.asarray(power_to_bernstein(degree) @ reparametrise(degree, lam0, lam1 - lam0) @ Hd, dtype=float)
+    return np.asarray(_power_to_bernstein(degree) @ reparametrise(degree, lam0, lam1 - lam0) @ Hd, dtype=float)
 
 
 def poly_bernstein(coeffs: FloatArray, ta: float, tb: float, degree: int) -> FloatArray:
@@ -88,4 +106,4 @@ def poly_bernstein(coeffs: FloatArray, ta: float, tb: float, degree: int) -> Flo
     :math:`p(t) = \sum_k c_k t^k` (``len(coeffs) <= degree + 1``)."""
     c = np.zeros(degree + 1)
     c[: len(coeffs)] = coeffs
-    return np.asarray(power_to_bernstein(degree) @ reparametrise(degree, ta, tb - ta) @ c, dtype=float)
+    return np.asarray(_power_to_bernstein(degree) @ reparametrise(degree, ta, tb - ta) @ c, dtype=float)

@@ -330,6 +330,8 @@ class ContinuousAvoidPlanner:
     row_generation: bool = True
     #: Dual polynomials a box keeps from its ancestors' candidates (the most recent).
     DUALS_KEPT = 4
+    #: Solves of the final secant search per vehicle (:meth:`_polish`).
+    POLISH_STEPS = 8
 
     def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None) -> Solved:
         """``qp.solve(spec)``, each spec solved once per plan (a box's candidate is often its
@@ -471,7 +473,7 @@ class ContinuousAvoidPlanner:
                     heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, duals))
         if best is not None and best.cost > min(closed_bound, heap[0].bound if heap else np.inf) + 1e-12 * max(
                 1.0, best.cost):
-            best, best_tau = self._polish(qp, best, best_tau)
+            best, best_tau = self._polish(qp, dual, best, best_tau)
         U = best.cost if best is not None else np.inf
         open_bound = heap[0].bound if heap else np.inf
         lower = min(U, open_bound, closed_bound)
@@ -480,31 +482,42 @@ class ContinuousAvoidPlanner:
                 "closed": bool(closed and best is not None), "n_boxes": n_boxes, "open_boxes": len(heap),
                 "failures": failures, "free": free}
 
-    def _polish(self, qp: ContinuousAvoidQP, best: Solved, tau: FloatArray) -> tuple[Solved, FloatArray]:
-        """Per vehicle, a bounded scalar search of ``J(τ_i)`` within one grid step of the best
-        ``τ`` (the others fixed); it only lowers the upper bound, so the search's certificate
-        stands."""
-        from scipy import optimize
-
+    def _polish(self, qp: ContinuousAvoidQP, dual: DualBounds, best: Solved, tau: FloatArray
+                ) -> tuple[Solved, FloatArray]:
+        """Per vehicle, a secant search for a zero of ``∂J/∂τ_i`` within one grid step of the
+        best ``τ`` (the others fixed), the slope of each solved candidate read off its dual
+        polynomial (:meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`); at most
+        :attr:`POLISH_STEPS` solves per vehicle, none for a vehicle whose rows do not bind.  It only
+        lowers the upper bound, so the search's certificate stands."""
         orders = [(f, s) for f, s, _, _ in best.spec]
         tau = tau.copy()
-        found = {"sol": best}
-
-        def f(x: float, i: int) -> float:
-            t = tau.copy()
-            t[i] = x
-            r = self._qp_solve(qp, _spec(orders, t, t), found["sol"])
-            if r.status == st.OPTIMAL and r.cost < found["sol"].cost:
-                found["sol"] = r
-            return r.cost if r.status == st.OPTIMAL else float(np.inf)
-
         for i in range(len(tau)):
-            lo, hi = max(0.0, tau[i] - qp.h), min(qp.tf, tau[i] + qp.h)
-            with np.errstate(invalid="ignore"):  # inf at a failed trial: Brent falls back to golden section
-                optimize.minimize_scalar(f, bounds=(lo, hi), args=(i,), method="bounded",
-                                         options={"xatol": 1e-9 * qp.tf, "maxiter": 40})
-            tau[i] = found["sol"].spec[i][2]
-        return found["sol"], np.array([sp_[2] for sp_ in found["sol"].spec])
+            lo_i, hi_i = max(0.0, tau[i] - qp.h), min(qp.tf, tau[i] + qp.h)
+            t, sol = tau.copy(), best
+            prev: tuple[float, float] | None = None
+            for _ in range(self.POLISH_STEPS):
+                k = min(int(np.floor(t[i] / qp.h)), qp.N - 1)
+                lo, hi = t.copy(), t.copy()
+                lo[i], hi[i] = k * qp.h, (k + 1) * qp.h
+                slope = dual.polynomial(sol, lo, hi).slope(t, i)
+                if prev is None:
+                    step = -np.sign(slope) * 1e-3 * qp.h  # a first probe, then secant steps
+                else:
+                    ds = slope - prev[1]
+                    step = -slope * (t[i] - prev[0]) / ds if ds != 0.0 else 0.0
+                prev = (float(t[i]), slope)
+                x = float(np.clip(t[i] + step, lo_i, hi_i))
+                if not abs(x - t[i]) > 1e-9 * qp.tf:
+                    break
+                nxt = t.copy()
+                nxt[i] = x
+                r = self._qp_solve(qp, _spec(orders, nxt, nxt), sol)
+                if r.status != st.OPTIMAL:
+                    break
+                t, sol = nxt, r
+                if r.cost < best.cost:
+                    best, tau = r, nxt.copy()
+        return best, tau
 
     def plan(self, problem: Problem) -> Plan:
         """Search the crossing times, solve, verify (module docstring)."""

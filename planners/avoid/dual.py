@@ -49,7 +49,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from .bernstein import piece_matrix, power_to_bernstein, reparametrise
+from .bernstein import _power_to_bernstein, piece_matrix, reparametrise
 
 if TYPE_CHECKING:
     from .continuous import ContinuousAvoidQP, Solved
@@ -117,7 +117,7 @@ class DualPolynomial:
         on the box, less the round-off margin."""
         T = self.coef
         deg = T.shape[0] - 1 if T.ndim else 0
-        B0 = power_to_bernstein(deg) if T.ndim else None
+        B0 = _power_to_bernstein(deg) if T.ndim else None
         for axis, (a, b) in enumerate(self._lam(lo, hi)):
             assert B0 is not None
             B = B0 @ reparametrise(deg, a, b - a)
@@ -128,8 +128,23 @@ class DualPolynomial:
     def evaluate(self, taus: FloatArray) -> FloatArray:
         """``g`` at the crossing times ``taus`` (shape ``(n, m)``; every polynomial vehicle's
         time in its piece)."""
+        return self._values(self.coef, taus)
+
+    def slope(self, tau: FloatArray, vehicle: int) -> float:
+        """``∂g/∂τ_vehicle`` at ``tau`` (zero for a vehicle that is not polynomial).  Where
+        ``J`` is differentiable at the candidate's ``τ_c`` this is ``∂J/∂τ`` there: ``g <= J``
+        touches ``J`` at ``τ_c``."""
+        if vehicle not in self.vehicles:
+            return 0.0
+        axis = self.vehicles.index(vehicle)
+        der = np.polynomial.polynomial.polyder(self.coef, axis=axis) / self.h
+        pad = [(0, 0)] * der.ndim
+        pad[axis] = (0, 1)
+        return float(self._values(np.pad(der, pad), np.asarray(tau, dtype=float)[None, :])[0])
+
+    def _values(self, coef: FloatArray, taus: FloatArray) -> FloatArray:
         taus = np.atleast_2d(taus)
-        vals = np.broadcast_to(self.coef, (taus.shape[0],) + self.coef.shape).copy()
+        vals = np.broadcast_to(coef, (taus.shape[0],) + coef.shape).copy()
         for i, k in zip(self.vehicles, self.pieces):
             lam = (taus[:, i] - k * self.h) / self.h
             V = np.vander(lam, vals.shape[1], increasing=True)
