@@ -106,3 +106,25 @@ def test_the_search_is_global_against_a_dense_scan(hold, limits):
     assert plan.cost <= min(costs) * (1 + 1e-9)
     s = plan.info["search"]
     assert s["closed"] and s["lower_bound"] <= plan.cost and plan.cost - s["lower_bound"] <= 1e-4 * plan.cost
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
+@given(st_h.floats(-5.0, 12.0), st_h.floats(15.0, 24.0), st_h.floats(100.0, 125.0), st_h.floats(20.0, 26.0),
+       st_h.booleans())
+def test_generated_problems_the_certified_optimum_is_no_worse_than_any_scanned_crossing(x0v, speed, xf, vxf, limits):
+    """Generated one-vehicle problems: an ``optimal`` plan of the branch and bound costs no more
+    than the fixed-crossing-time QP at any of 120 scanned crossing times (an independent search),
+    and its reported bounds bracket it within the gap."""
+    prob = problem(x0v, speed, xf, vxf, limits)
+    planner = ContinuousAvoidPlanner(steps=12, solver="piqp")
+    try:
+        plan = planner.plan(prob)
+    except ScenarioError:
+        assume(False)
+    assume(plan.status == st.OPTIMAL)
+    scan = [planner.plan_at_times(prob, [t]) for t in np.linspace(0.02, 4.98, 120)]
+    costs = [p.cost for p in scan if p.cost is not None]
+    if costs:
+        assert plan.cost <= min(costs) * (1 + 1e-9) + 1e-12
+    s = plan.info["search"]
+    assert s["lower_bound"] <= plan.cost * (1 + 1e-12) and plan.cost - s["lower_bound"] <= 1e-4 * max(1.0, plan.cost)
