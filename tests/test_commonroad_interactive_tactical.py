@@ -16,11 +16,14 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import data_path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 FIXTURE = Path(__file__).parent / "fixtures" / "commonroad_goals.xml"
 HAVE_EXTRA = all(importlib.util.find_spec(m) is not None for m in ("commonroad", "commonroad_dc", "triangle"))
+HAVE_SUMO = importlib.util.find_spec("libsumo") is not None or importlib.util.find_spec("traci") is not None
+INTERACTIVE = data_path("commonroad", "interactive-US101")
 pytestmark = pytest.mark.skipif(not HAVE_EXTRA, reason="the [commonroad] extra is not installed "
                                                        "(pip install 'iamp[commonroad]')")
 
@@ -191,3 +194,19 @@ def test_a_lane_change_under_way_is_given_up_when_the_car_ahead_slows() -> None:
         car = _live([_moving(30, rear_at_T + 2.25 - 5.0 * T, 3.6, 5.0)])
         assert not [h for h in intrusions(car, rp.trajectory, T) if not h.obstacle.road_edge]
         assert still_holds(car, rp.trajectory, T) is holds
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HAVE_SUMO or not (INTERACTIVE / "USA_US101-9_1_I-1-1").is_dir(),
+                    reason="needs the [sim] extra (SUMO) and the shared interactive scenarios "
+                           f"({INTERACTIVE})")
+def test_a_kept_plan_toward_the_goal_comes_before_a_lane_change() -> None:
+    """USA_US101-9_1 (goal 7-8 s): at 2.6 and 3.1 s the replan finds no safe plan and the previous
+    plan's remainder keeps clear; a lane change offered before it (a first version of the layer)
+    moved the ego out of reach of the goal (missed, 5 of 11 window steps free).  A lane change
+    replaces only a new fail-safe brake: the ego keeps its plan and reaches the goal, no contact."""
+    from iamp.commonroad.interactive import simulate
+
+    r = simulate(INTERACTIVE / "USA_US101-9_1_I-1-1")
+    assert r["goal_reached"] and r["collisions"] == 0 and r["contacts_at_fault"] == 0
+    assert r["lane_changes"] == 0 and any(d["action"] == "kept" for d in r["decisions"])
