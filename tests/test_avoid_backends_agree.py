@@ -36,13 +36,12 @@ PROBLEMS = {  # the multipliers say which vehicles bind (N = 12)
     "one": overtake_problem,                               # sv1 binds
     "one-121-fast-end": lambda: one(121.0, 25.0, 6.0),     # sv1 binds
     "one-122-free": lambda: one(122.0, 24.0, 2.0),         # the free optimum keeps sv1's box: certified at once
-    "three": overtake_three_problem,                       # sv1 and sv2 bind (~1,400 solves each: slow)
+    "three": overtake_three_problem,                       # sv1 and sv2 bind (92-139 solves; ~1,400 before)
     "three-31": lambda: three(31.0),                       # sv1 binds, sv2 touches
 }
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n == "three" else n
-                                  for n in sorted(PROBLEMS)])
+@pytest.mark.parametrize("name", sorted(PROBLEMS))
 def test_backends_reach_the_same_certified_optimum(name):
     prob = PROBLEMS[name]()
     plans = {s: ContinuousAvoidPlanner(steps=12, solver=s).plan(prob) for s in SOLVERS}

@@ -19,19 +19,31 @@ grows (the certificate is exact as the pieces shrink).
 
 Crossing-time search: branch and bound over boxes
 -------------------------------------------------
-For fixed :math:`\tau` the problem is a convex QP with optimal cost :math:`J(\tau)`.  For a box
-:math:`\tau_i \in [a_i, b_i]` (and an order per vehicle) the *relaxation* imposes the first
-half-plane on :math:`[0, a_i]` and the second on :math:`[b_i, t_f]` only; every
-:math:`\tau` in the box satisfies those rows, so its optimum is a lower bound
-:math:`R(\text{box}) \le \min_{\tau \in \text{box}} J(\tau)`, and it tends to :math:`J(\tau)`
-as the box shrinks to :math:`\tau`.  The search keeps the boxes in a heap by bound; it pops
-the lowest, evaluates :math:`J` at the crossing its relaxed optimum suggests (an upper bound
-``U``), and splits the box at its widest vehicle's midpoint unless
-:math:`U - R \le` the gap tolerance.  It stops when every remaining box has
-:math:`R \ge U - \text{gap}` (``closed``: the best :math:`\tau` is the global minimiser over
-all crossing times, to the gap :data:`GAP_REL`) or after ``max_solves`` QPs (``local``, with
-the remaining bound reported).  No work limit refuses a problem: the budget only decides
-between ``optimal`` and ``local``.
+For fixed :math:`\tau` the problem is a convex QP with optimal cost :math:`J(\tau)`.  The
+search keeps boxes :math:`\tau_i \in [a_i, b_i]` (and an order per vehicle) in a heap by their
+lower bound; it pops the lowest, evaluates :math:`J` at one crossing in it (an upper bound
+``U``), raises the box's bound, and splits it (at the grid node nearest the midpoint while the
+interval spans several pieces, else at the midpoint) unless its bound is within the gap of
+``U``.  Two lower bounds:
+
+* the *relaxation* (a box spanning several grid pieces for the split vehicle, or whose
+  candidate is infeasible): the first half-plane on :math:`[0, a_i]` and the second on
+  :math:`[b_i, t_f]` only; every :math:`\tau` in the box satisfies those rows, so its optimum
+  is :math:`R(\text{box}) \le \min_{\text{box}} J`, and it suggests the candidate crossing
+  (a max-min of margins);
+* the *dual polynomial* of every solved candidate (:mod:`iamp.planners.avoid.dual`): weak
+  duality with the candidate's multipliers, as a polynomial in the crossing times of the
+  vehicles whose interval lies in one piece, bounded by its Bernstein coefficients; it equals
+  :math:`J` at the candidate and falls off quadratically (the relaxation: linearly), and it
+  holds on every sub-box, so a box inside one piece needs no relaxation solve (its candidate is
+  where its polynomials' largest value is lowest).
+
+The search stops when every remaining box has bound :math:`\ge U - \text{gap}` (``closed``: the
+best :math:`\tau` is the global minimiser over all crossing times, to the gap :data:`GAP_REL`)
+or after ``max_solves`` QPs (``local``, with the remaining bound reported); then a secant
+search on :math:`\partial J/\partial \tau_i` (each candidate's slope read off its dual
+polynomial) polishes the best crossing within one grid step.  No work limit refuses a problem:
+the budget only decides between ``optimal`` and ``local``.
 
 Verification
 ------------
@@ -535,8 +547,9 @@ class ContinuousAvoidPlanner:
         qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings, self.row_generation)
         out = self.search(qp, orders)
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": qp.n_solves}
-        search = {"method": "branch and bound over crossing-time boxes (relaxation: each box's half-planes "
-                            "outside the box only)", "n_solves": qp.n_solves, "boxes": out["n_boxes"],
+        search = {"method": "branch and bound over crossing-time boxes (bounds: each box's half-planes outside "
+                            "the box only; weak duality with each candidate's multipliers)",
+                  "n_solves": qp.n_solves, "boxes": out["n_boxes"],
                   "open_boxes": out["open_boxes"], "lower_bound": out["lower_bound"],
                   "upper_bound": out["upper_bound"], "gap_rel_tol": self.gap_rel, "closed": out["closed"],
                   "max_solves": self.max_solves, "failures": len(out["failures"])}
