@@ -176,3 +176,72 @@ def test_lane_crossing_at_low_speed_from_a_road_edge_is_repaired(tmp_path: Path)
     solution, _ = build_solution(cr, rp.trajectory, rp.candidate.steps)
     verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
     assert verdict.valid, verdict.checks
+
+
+def test_window_refits_each_vehicle_on_its_window() -> None:
+    """A vehicle braking hard at t = 2 s: its cubic over 0-4 s misses the record by more than
+    over either half, so the half length imposed on each stage's window is shorter; the clock
+    starts at the window's start and a lane change finished before it leaves a one-lane box."""
+    from iamp.commonroad.convert import CommonRoadProblem, Obstacle, fit_motion
+    from iamp.commonroad.planning import window
+
+    t = np.round(np.arange(0.0, 4.01, 0.1), 10)
+    centre = np.where(t < 2.0, 20.0 * t, 40.0 + 5.0 * (t - 2.0))
+    lat = np.where(t < 1.0, 0.0, 3.6)
+    cubic, resid, half = fit_motion(t, centre - 2.25, centre + 2.25)
+    ob = Obstacle(7, t, centre - 2.25, centre + 2.25, lat - 0.9, lat + 0.9, 4.5, 1.8, cubic, half, resid, 0, True)
+    cr = CommonRoadProblem(Path("none.xml"), None, None, None, None, 0.0, 0.1,  # type: ignore[arg-type]
+                           (0.0, 20.0, 0.0, 0.0), None, [], [ob], [], [0.0, 3.6], (-2.0, 6.0), 4.5, 1.8, 11.5,
+                           (0.0, 50.0))
+    late = window(cr, 2.0, 4.0, (40.0, 5.0, 3.6, 0.0))
+    early = window(cr, 0.0, 2.0, (0.0, 20.0, 0.0, 0.0))
+    (a,), (b,) = early.obstacles, late.obstacles
+    assert b.t[0] == pytest.approx(0.0) and b.t[-1] == pytest.approx(2.0)
+    assert late.x0 == (40.0, 5.0, 3.6, 0.0)
+    assert a.fit_residual_m < resid and b.fit_residual_m < 1e-9  # a straight line on the late window
+    assert b.half_length == pytest.approx(2.25) and a.half_length < half
+    assert np.polynomial.polynomial.polyval(0.0, b.cubic) == pytest.approx(40.0)
+    assert b.box_width == pytest.approx(1.8) and ob.box_width == pytest.approx(5.4)
+
+
+def test_via_trajectory_joins_two_plans_at_the_waypoint() -> None:
+    """States and inputs are the first plan's up to t_m and the second's (on its own clock)
+    after; the position and speed are continuous at t_m when the second starts where the first
+    ends."""
+    from iamp.commonroad.planning import FreeTrajectory, ViaTrajectory
+
+    w = (60.0, 14.0, 3.0, 0.0)
+    first = FreeTrajectory(4.0, (0.0, 15.0, 0.0, 0.0), w)
+    second = FreeTrajectory(3.0, w, (105.0, 15.0, 3.5, 0.0))
+    via = ViaTrajectory(first, second, 4.0, first.cost() + second.cost())
+    X = via.states([0.0, 2.0, 4.0, 4.0 + 1e-9, 7.0])
+    assert np.allclose(X[0], [0.0, 15.0, 0.0, 0.0]) and np.allclose(X[-1], [105.0, 15.0, 3.5, 0.0])
+    assert np.allclose(X[2], X[3], atol=1e-6) and np.allclose(X[2], w)
+    assert np.allclose(via.inputs([2.0, 5.0]), np.vstack([first.inputs(2.0), second.inputs(1.0)]))
+    assert via.cost() == pytest.approx(first.cost() + second.cost())
+
+
+@needs_data
+def test_a_vehicle_passed_behind_then_beside_is_planned_in_two_stages(tmp_path: Path) -> None:
+    """US101-28 with its goal two lanes to the left (the ``lanes`` variant): the ego starts ahead
+    of and below vehicle 435 and must end beside it (above) behind 436, which runs beside 435 one
+    lane up with too small a gap to cross in front of 435.  It must fall behind 435 (lower ->
+    rear) and then move up beside it (rear -> upper): two crossings of one vehicle, which one
+    corner cannot impose; every final state failed (`no crossing time gives a feasible QP`) and
+    the plan collided.  Through a waypoint behind 435 at the middle step, each stage has one
+    corner per vehicle, and the joined plan is valid by CommonRoad's checker."""
+    from iamp.commonroad.check import check
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan
+    from iamp.commonroad.solution import build_solution
+
+    mod = load_script("commonroad_variants")
+    out = tmp_path / "v"
+    assert mod.main([str(_one_source(tmp_path, "USA_US101-28_1_T-1.xml")), str(out), "--kinds", "lanes"]) == 0
+    cr = load(out / "USA_US101-28_102_T-1.xml")
+    rp = plan(cr)
+    assert rp.safe and rp.iamp_status == "via", rp.reason
+    assert (435, "rear-lower") in rp.imposed and (435, "rear-upper") in rp.imposed
+    solution, _ = build_solution(cr, rp.trajectory, rp.candidate.steps)
+    verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
+    assert verdict.valid, verdict.checks

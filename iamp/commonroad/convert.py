@@ -185,6 +185,30 @@ class CommonRoadProblem:
         return Problem(ego, tuple(vehicles), name=self.name, limits=self.limits(margin_y, candidate.d))
 
 
+def fit_motion(t: FloatArray, s_lo: FloatArray, s_hi: FloatArray) -> tuple[tuple[float, ...], float, float]:
+    """A recorded vehicle's motion along the road as iamp imposes it (module docstring): the
+    least-squares cubic in ``t`` of its box's centre, the fit's largest residual, and the half
+    length that covers every recorded box (the largest half extent plus that residual).
+
+    Parameters
+    ----------
+    t : ndarray
+        Times of the samples [s] (a cubic needs four; fewer give a lower degree).
+    s_lo, s_hi : ndarray
+        The box's rear and front along the road at those times [m].
+
+    Returns
+    -------
+    (tuple of float, float, float)
+        The coefficients in ascending powers of ``t``, the residual [m], the half length [m].
+    """
+    centre = 0.5 * (s_lo + s_hi)
+    deg = int(min(3, len(t) - 1))
+    coeffs = np.polynomial.polynomial.polyfit(t, centre, deg) if deg > 0 else np.array([centre[0]])
+    resid = float(np.max(np.abs(np.polynomial.polynomial.polyval(t, coeffs) - centre)))
+    return tuple(float(c) for c in coeffs), resid, float(np.max(0.5 * (s_hi - s_lo))) + resid
+
+
 def ego_margins(length: float, width: float, heading: float, buffer: float = BUFFER_M) -> tuple[float, float]:
     r"""Safety distances ``(S_x, S_y)`` covering the ego's body turned by ``heading`` [rad]
     relative to the road: :math:`L/2\cos\varphi + W/2\sin\varphi` and
@@ -496,15 +520,11 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
         sd = frame.to_road(corners).reshape(len(states), 4, 2)  # one projection of every corner
         B = np.stack([sd[:, :, 0].min(axis=1), sd[:, :, 0].max(axis=1), sd[:, :, 1].min(axis=1),
                       sd[:, :, 1].max(axis=1)], axis=1)
-        centre_s = 0.5 * (B[:, 0] + B[:, 1])
-        deg = int(min(3, len(t) - 1))
-        coeffs = np.polynomial.polynomial.polyfit(t, centre_s, deg) if deg > 0 else np.array([centre_s[0]])
-        resid = float(np.max(np.abs(np.polynomial.polynomial.polyval(t, coeffs) - centre_s)))
-        half = float(np.max(0.5 * (B[:, 1] - B[:, 0]))) + resid
+        coeffs, resid, half = fit_motion(t, B[:, 0], B[:, 1])
         centre_d = 0.5 * (B[:, 2] + B[:, 3])
         lane = int(np.argmin([abs(float(np.mean(centre_d)) - y) for y in merged])) if merged else 0
         obstacles.append(Obstacle(int(obs.obstacle_id), t, B[:, 0], B[:, 1], B[:, 2], B[:, 3],
-                                  float(shape.length), float(shape.width), tuple(float(c) for c in coeffs), half,
+                                  float(shape.length), float(shape.width), coeffs, half,
                                   resid, lane, bool(np.ptp(centre_d) > LANE_CHANGE_M)))
     return CommonRoadProblem(
         path=p, scenario=scenario, planning_problem_set=pps, planning_problem=pp, frame=frame,

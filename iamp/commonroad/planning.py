@@ -453,6 +453,13 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             if other is not None and all(abs(other.d - c.d) > 1e-3 or other.steps != c.steps for c in tried + queue):
                 queue.insert(0, other)
     assert best is not None
+    if active and planner != "free" and best.candidate is not None:
+        via = _via(cr, best, planner, iamp_planner, constraint, steps, heading, edge_heading)
+        if via is not None:
+            via.candidates_tried = n_tried
+            via.solve_time_s = time.perf_counter() - start
+            via.plans_used = max_plans - budget[0] + via.plans_used
+            return via
     steps_tried = sorted({c.steps for c in tried})
     searched = (f"no safe plan found over the goal region searched: {n_tried} final state(s) at step(s) "
                 f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()} ({len(cr.candidates) - len(clear)} of "
@@ -466,6 +473,172 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     best.solve_time_s = time.perf_counter() - start
     best.plans_used = max_plans - budget[0]
     return best
+
+
+#: Planner calls of the two-stage search (:func:`_via`), apart from :data:`MAX_PLANS`.
+VIA_MAX_PLANS = 16
+#: Extra gap kept between the ego and the vehicle at a waypoint behind or ahead of it [m].
+VIA_GAP_M = 0.1
+
+
+class ViaTrajectory:
+    """Two plans joined at a waypoint: ``first`` on ``[0, t_m]``, ``second`` (its own clock) after."""
+
+    def __init__(self, first: Trajectory, second: Trajectory, t_m: float, cost: float):
+        self.first, self.second, self.t_m, self._cost = first, second, t_m, cost
+
+    def _split(self, t: npt.ArrayLike) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        return tt, tt <= self.t_m
+
+    def states(self, t: npt.ArrayLike) -> FloatArray:
+        tt, early = self._split(t)
+        out = np.empty((tt.size, 4))
+        if early.any():
+            out[early] = np.asarray(self.first.states(tt[early]), dtype=float)
+        if (~early).any():
+            out[~early] = np.asarray(self.second.states(tt[~early] - self.t_m), dtype=float)
+        return out
+
+    def inputs(self, t: npt.ArrayLike) -> FloatArray:
+        tt, early = self._split(t)
+        out = np.empty((tt.size, 2))
+        if early.any():
+            out[early] = np.asarray(self.first.inputs(tt[early]), dtype=float)
+        if (~early).any():
+            out[~early] = np.asarray(self.second.inputs(tt[~early] - self.t_m), dtype=float)
+        return out
+
+    def cost(self) -> float:
+        """½∫|u|² of both plans (their own costs, summed)."""
+        return self._cost
+
+
+def window(cr: CommonRoadProblem, t_from: float, t_to: float,
+           x_from: tuple[float, float, float, float]) -> CommonRoadProblem:
+    """``cr`` on ``[t_from, t_to]`` with its clock starting at ``t_from`` from the state ``x_from``:
+    every recorded box of that window, each vehicle's motion fitted again on it
+    (:func:`~iamp.commonroad.convert.fit_motion`: a shorter window, a smaller residual, a shorter
+    imposed box) and its lateral extent the one it has there (a lane changer that has finished its
+    change is one lane wide)."""
+    from iamp.commonroad.convert import fit_motion
+
+    def cut(ob: Obstacle) -> Obstacle | None:
+        keep = (ob.t >= t_from - 1e-9) & (ob.t <= t_to + 1e-9)
+        if not keep.any():
+            return None
+        t = ob.t[keep] - t_from
+        cubic, resid, half = (ob.cubic, ob.fit_residual_m, ob.half_length) if ob.road_edge else fit_motion(
+            t, ob.s_lo[keep], ob.s_hi[keep])
+        return dataclasses.replace(ob, t=t, s_lo=ob.s_lo[keep], s_hi=ob.s_hi[keep], d_lo=ob.d_lo[keep],
+                                   d_hi=ob.d_hi[keep], cubic=cubic, half_length=half, fit_residual_m=resid)
+
+    obstacles = [o for o in (cut(ob) for ob in cr.obstacles) if o is not None]
+    edges = [o for o in (cut(ob) for ob in cr.road_edges) if o is not None]
+    return dataclasses.replace(cr, x0=x_from, obstacles=obstacles, road_edges=edges, candidates=[])
+
+
+def _waypoints(cr: CommonRoadProblem, ob: Obstacle, cand: Candidate, sx: float,
+               sy: float) -> list[tuple[int, tuple[float, float, float, float]]]:
+    """Waypoints around ``ob`` at the middle time step: behind and ahead of it in its lane, beside
+    it in the lanes either side, at its speed; those inside the road, clear of every vehicle and
+    reachable in both stages, cheapest unconstrained two-stage cost first."""
+    from iamp.commonroad.convert import fit_motion, unconstrained_cost
+    from iamp.commonroad.goal import axis_reachable
+
+    k_m = int(round(cand.steps / 2))
+    t_m = k_m * cr.dt
+    j = int(np.argmin(np.abs(ob.t - t_m)))
+    if ob.t.size < 2 or abs(ob.t[j] - t_m) > 1e-6:
+        return []
+    xs = 0.5 * float(ob.s_lo[j] + ob.s_hi[j])
+    yv = 0.5 * float(ob.d_lo[j] + ob.d_hi[j])
+    # the gap the corners of both stages see: each stage's fitted motion and half length at t_m
+    gap = 0.0
+    vs = 0.0
+    for part, at in ((ob.t <= t_m + 1e-9, t_m), (ob.t >= t_m - 1e-9, 0.0)):
+        tt = ob.t[part] - (0.0 if at else t_m)
+        cubic, _, half = fit_motion(tt, ob.s_lo[part], ob.s_hi[part])
+        gap = max(gap, half + abs(float(np.polynomial.polynomial.polyval(at, cubic)) - xs))
+        if not at:
+            vs = float(np.polynomial.polynomial.polyval(0.0, np.polynomial.polynomial.polyder(cubic))) if len(
+                cubic) > 1 else 0.0
+    gap += sx + VIA_GAP_M
+    above = [ln for ln in cr.lanes if ln > yv + 2.0]
+    below = [ln for ln in cr.lanes if ln < yv - 2.0]
+    points = [(xs - gap, yv), (xs + gap, yv)]
+    if above:
+        points.append((xs, min(above)))
+    if below:
+        points.append((xs, max(below)))
+    out = []
+    T1, T2 = t_m, cand.tf - t_m
+    for s_m, d_m in points:
+        w = (s_m, max(vs, 0.0), d_m, 0.0)
+        if not (cr.road_y[0] + sy <= d_m <= cr.road_y[1] - sy):
+            continue
+        if not clear_final_states(cr, [Candidate(k_m, t_m, w[0], w[1], w[2], 0.0, 0.0)]):
+            continue
+        ok = all(axis_reachable(p0, v0, pf, vf, T, cr.a_max) for (p0, v0, pf, vf, T) in (
+            (cr.x0[0], cr.x0[1], w[0], w[1], T1), (cr.x0[2], cr.x0[3], w[2], w[3], T1),
+            (w[0], w[1], cand.s, cand.vs, T2), (w[2], w[3], cand.d, cand.vd, T2)))
+        if not ok:
+            continue
+        cost = (unconstrained_cost(T1, cr.x0[0], cr.x0[1], w[0], w[1])
+                + unconstrained_cost(T1, cr.x0[2], cr.x0[3], w[2], w[3])
+                + unconstrained_cost(T2, w[0], w[1], cand.s, cand.vs)
+                + unconstrained_cost(T2, w[2], w[3], cand.d, cand.vd))
+        out.append((cost, k_m, w))
+    out.sort(key=lambda e: e[0])
+    return [(k, w) for _, k, w in out]
+
+
+def _via(cr: CommonRoadProblem, best: RoadPlan, planner: str, iamp_planner: str, constraint: str, steps: int,
+         heading: float, edge_heading: float) -> RoadPlan | None:
+    """The two-stage search: where no final state gave a safe plan, pass the vehicle in the way
+    through a waypoint around it (:func:`_waypoints`), each stage planned by the active set
+    (the corner model allows one crossing per vehicle and stage, so a vehicle the ego must pass
+    behind and then beside, or overtake in its lane, is two crossings), with at most
+    :data:`VIA_MAX_PLANS` planner calls; the joined plan is judged by the body check."""
+    cand = best.candidate
+    assert cand is not None
+    by_id = {ob.obstacle_id: ob for ob in cr.obstacles}
+    seen: list[int] = []
+    for ob in ([best.blocked] if best.blocked is not None else []) + [i.obstacle for i in best.intrusions] + [
+            by_id[i] for i, _ in best.imposed if i in by_id]:
+        if not ob.road_edge and ob.obstacle_id not in seen:
+            seen.append(ob.obstacle_id)
+    budget = [VIA_MAX_PLANS, QP_MAX_SOLVES, PMP_MAX_BOXES]
+    sx, sy = ego_margins(cr.ego_length, cr.ego_width, heading)
+    edge = edge_margins(cr, edge_heading)
+    for oid in seen[:2]:
+        for k_m, w in _waypoints(cr, by_id[oid], cand, sx, sy):
+            if budget[0] < 2:
+                return None
+            t_m = k_m * cr.dt
+            first_c = Candidate(k_m, t_m, w[0], w[1], w[2], 0.0, w[3])
+            first = _plan_candidate(window(cr, 0.0, t_m, cr.x0), first_c, planner, iamp_planner, constraint, True, sx,
+                                    sy, steps, budget, edge)
+            if not first.safe or first.trajectory is None:
+                continue
+            later = window(cr, t_m, cand.tf, w)
+            second_c = Candidate(cand.steps - k_m, cand.tf - t_m, cand.s, cand.vs, cand.d, 0.0, cand.vd,
+                                 cand.element, cand.piece)
+            second = _plan_candidate(later, second_c, planner, iamp_planner, constraint, True, sx, sy, steps, budget,
+                                     edge)
+            if not second.safe or second.trajectory is None:
+                continue
+            joined = ViaTrajectory(first.trajectory, second.trajectory, t_m,
+                                   float(first.cost or 0.0) + float(second.cost or 0.0))
+            hits = intrusions(cr, joined, cand.tf)
+            h, peak = _heading_and_peak(joined, cand.tf)
+            if hits or peak > cr.a_max:
+                continue
+            out = RoadPlan(planner, "optimal", cand, joined, joined.cost(), 0.0, first.imposed + second.imposed, [],
+                           "via", 0, None, h, peak)
+            out.plans_used = VIA_MAX_PLANS - budget[0]
+            return out
+    return None
 
 
 def _free_peak(cr: CommonRoadProblem, c: Candidate) -> float:
