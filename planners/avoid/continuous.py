@@ -22,9 +22,8 @@ Crossing-time search: branch and bound over boxes
 For fixed :math:`\tau` the problem is a convex QP with optimal cost :math:`J(\tau)`.  The
 search keeps boxes :math:`\tau_i \in [a_i, b_i]` (and an order per vehicle) in a heap by their
 lower bound; it pops the lowest, evaluates :math:`J` at one crossing in it (an upper bound
-``U``), raises the box's bound, and splits it (at the grid node nearest the midpoint while the
-interval spans several pieces, else at the midpoint) unless its bound is within the gap of
-``U``.  Two lower bounds:
+``U``), raises the box's bound, and splits it at the midpoint of one vehicle's interval unless
+its bound is within the gap of ``U``.  Two lower bounds:
 
 * the *relaxation* (a box spanning several grid pieces for the split vehicle, or whose
   candidate is infeasible): the first half-plane on :math:`[0, a_i]` and the second on
@@ -344,6 +343,9 @@ class ContinuousAvoidPlanner:
     DUALS_KEPT = 4
     #: Solves of the final secant search per vehicle (:meth:`_polish`).
     POLISH_STEPS = 8
+    #: Passes over the vehicles of the final secant search when there are several (each vehicle's
+    #: best crossing moves with the others').
+    POLISH_PASSES = 3
 
     def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None) -> Solved:
         """``qp.solve(spec)``, each spec solved once per plan (a box's candidate is often its
@@ -384,16 +386,6 @@ class ContinuousAvoidPlanner:
             pts[:, v] = grids[c].ravel()
         vals = np.max([dp.evaluate(pts) for dp in polys], axis=0)
         return np.asarray(pts[int(np.argmin(vals))], dtype=float)
-
-    def _split_point(self, qp: ContinuousAvoidQP, lo: float, hi: float) -> float:
-        """Where a box's interval is split: the grid node nearest its midpoint strictly inside it
-        (the children then lie in fewer pieces), else the midpoint."""
-        mid = 0.5 * (lo + hi)
-        eps = 1e-9 * qp.h
-        k = np.arange(int(np.floor(lo / qp.h)) + 1, int(np.ceil(hi / qp.h)))
-        nodes = qp.data.t_nodes[k[(k > 0) & (k < qp.N)]] if k.size else np.zeros(0)
-        nodes = nodes[(nodes > lo + eps) & (nodes < hi - eps)]
-        return float(nodes[np.argmin(np.abs(nodes - mid))]) if nodes.size else mid
 
     def search(self, qp: ContinuousAvoidQP, orders: list[list[tuple[int, int]]]) -> dict[str, Any]:
         """Branch and bound over crossing-time boxes (module docstring)."""
@@ -457,7 +449,7 @@ class ContinuousAvoidPlanner:
                 i = int(np.argmax(widths))
             if not wide[i]:
                 continue  # a point: its bound is J(τ) itself
-            cut = self._split_point(qp, float(box.lo[i]), float(box.hi[i]))
+            cut = 0.5 * (box.lo[i] + box.hi[i])
             ref = cand if cand.status == st.OPTIMAL else box.relaxed
             for lo_i, hi_i in ((box.lo[i], cut), (cut, box.hi[i])):
                 lo, hi = box.lo.copy(), box.hi.copy()
@@ -497,13 +489,14 @@ class ContinuousAvoidPlanner:
     def _polish(self, qp: ContinuousAvoidQP, dual: DualBounds, best: Solved, tau: FloatArray
                 ) -> tuple[Solved, FloatArray]:
         """Per vehicle, a secant search for a zero of ``∂J/∂τ_i`` within one grid step of the
-        best ``τ`` (the others fixed), the slope of each solved candidate read off its dual
-        polynomial (:meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`); at most
-        :attr:`POLISH_STEPS` solves per vehicle, none for a vehicle whose rows do not bind.  It only
+        best ``τ`` (the others fixed; :attr:`POLISH_PASSES` passes over the vehicles), the slope of
+        each solved candidate read off its dual polynomial
+        (:meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`); at most :attr:`POLISH_STEPS`
+        solves per vehicle and pass, none for a vehicle whose rows do not bind.  It only
         lowers the upper bound, so the search's certificate stands."""
         orders = [(f, s) for f, s, _, _ in best.spec]
         tau = tau.copy()
-        for i in range(len(tau)):
+        for i in [v for _ in range(self.POLISH_PASSES if len(tau) > 1 else 1) for v in range(len(tau))]:
             lo_i, hi_i = max(0.0, tau[i] - qp.h), min(qp.tf, tau[i] + qp.h)
             t, sol = tau.copy(), best
             prev: tuple[float, float] | None = None
