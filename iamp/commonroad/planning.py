@@ -386,8 +386,9 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
 
     The search is bounded by counts, never by time: at most ``max_candidates`` final states
     (:func:`_candidate_order`) and ``max_plans`` calls of the iamp planner over all of them (each
-    avoidance QP at most :data:`AVOID_MAX_SOLVES` QP solves), so the same problem gives the same
-    answer on any machine.  When no final state gives a safe plan, the reason says which part
+    avoidance QP at most :data:`AVOID_MAX_SOLVES` QP solves), then, where none gave a safe plan,
+    the two-stage search (:func:`_via`, :data:`VIA_MAX_PLANS` calls of its own; none when
+    ``max_plans`` is 0), so the same problem gives the same answer on any machine.  When no final state gives a safe plan, the reason says which part
     of the goal region was searched; a goal no final state of which the model can reach is
     refused (status ``unreachable``) naming the goal state's element.
     """
@@ -453,7 +454,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             if other is not None and all(abs(other.d - c.d) > 1e-3 or other.steps != c.steps for c in tried + queue):
                 queue.insert(0, other)
     assert best is not None
-    if active and planner != "free" and best.candidate is not None:
+    if active and planner != "free" and best.candidate is not None and max_plans > 0:
         via = _via(cr, best, planner, iamp_planner, constraint, steps, heading, edge_heading)
         if via is not None:
             via.candidates_tried = n_tried
