@@ -525,7 +525,7 @@ class _IntervalBound:
                 u_max = min(max(abs(lo), abs(hi)), max(abs(e) for e in ends))
                 dual += raw[o + 1]
                 slope += jump * (speed - cdot[k])
-                M += phi * (self.cddot_max[k] + u_max + phi * b)
+                M += phi * (self.cddot_max[k] + u_max + phi * _free_measure(wa, wb, lo, hi, t, delta, phi, b))
                 lams[k] = raw[o + 7:o + 10]
             if result is None:
                 # the axes' expansions add up: the slope is r(t) (zero at a stationary t)
@@ -550,6 +550,30 @@ class _IntervalBound:
         except AxisNoConvergence:
             pass
         return "unknown", math.nan, lams, solves
+
+
+def _free_measure(wa: float, wb: float, lo: float, hi: float, t: float, delta: float, phi: float,
+                  b: float) -> float:
+    r"""A bound of the time, within ``[0, t']``, where ``u_λ(·; t')`` is not saturated, for every
+    ``t'`` with :math:`|t' - t| \le \delta` (``t' \le b``): the term of ``M``
+    (:func:`certify_global_one`) that was ``t' \le b``.
+
+    Before ``min(t, t')`` the law is :math:`w(\tau; t') = w_a + w_b\tau \pm \Phi(t' - t)`, so it
+    is free only where :math:`w_a + w_b\tau \in (\ell - |\Phi|\delta, h + |\Phi|\delta)`, a
+    sub-interval of ``[0, t]`` whose length is exact for a line; at most ``δ`` more lies between
+    ``t`` and ``t'``.  Widened by a relative ``1e-9`` (rounding) and never above ``b``."""
+    lo_w = lo - phi * delta
+    hi_w = hi + phi * delta
+    if not (math.isfinite(lo_w) and math.isfinite(hi_w) and math.isfinite(wa) and math.isfinite(wb)):
+        return b
+    if wb == 0.0:
+        inside = t if lo_w < wa < hi_w else 0.0
+    else:
+        e1, e2 = (lo_w - wa) / wb, (hi_w - wa) / wb
+        t1, t2 = (e1, e2) if e1 < e2 else (e2, e1)
+        inside = max(0.0, min(t, t2) - max(0.0, t1))
+    bound = inside * (1.0 + 1e-9) + 1e-9 * b + delta
+    return min(b, bound)
 
 
 def _certified_radius(dual: float, slope: float, M: float, target: float) -> float:
