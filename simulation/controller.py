@@ -74,6 +74,8 @@ from iamp.simulation.tactical import (
     seek_accel,
 )
 
+#: The share of the jerk bound the tactical layer's inputs use (:meth:`Controller._move`).
+JERK_SHARE = 0.9
 
 @dataclass(frozen=True)
 class ControllerConfig:
@@ -491,13 +493,22 @@ class Controller:
         B = np.asarray(self.cfg.tactical.safe.brakes)
         return float(B[ok[0]][0]) if ok[0].any() else None
 
-    def _move(self, ego: EgoState, ax: float, y_c: float) -> EgoState:
+    def _move(self, ego: EgoState, ax: float, y_c: float, urgent: bool = False) -> EgoState:
         """One period of constant input: ``a_x`` (within the car's range, never reversing) and the
         lane keeping toward ``y_c`` (bounded; at a crawl the lateral speed is only brought to 0: a car
-        does not move sideways without moving forward — the abort's drift of issue 30 item 4)."""
+        does not move sideways without moving forward — the abort's drift of issue 30 item 4).
+
+        Both inputs change by at most one period of the jerk bound (SPEC §14's ``jerk``, issue 30
+        item 4: the tactical layer's terms switch, e.g. the gap term at its -3 m/s² clip or IDM
+        taking over after a plan at +1.5 m/s²), except that an ``urgent`` brake (a fail-safe,
+        RSS's proper response) is applied at once; releasing it is rate-limited too. :data:`JERK_SHARE` of the bound leaves room for the 0.1 mm
+        resolution of the positions the monitor differentiates twice (±0.4 m/s³)."""
         dt, cfg = self.sim.step, self.cfg
         lo, hi = PASSENGER_CAR.ax or (-6.0, 3.0)
         ax = float(np.clip(ax, lo, hi))
+        jerk = cfg.decision.limits.jerk
+        step = JERK_SHARE * jerk * dt if jerk is not None else np.inf
+        ax = float(np.clip(ax, ego.ax - (np.inf if urgent else step), ego.ax + step))
         if ego.vx + ax * dt < 0.0:
             ax = -ego.vx / dt
         lim = cfg.lane_keep_ay
@@ -505,6 +516,7 @@ class Controller:
             ay = -ego.vy / dt
         else:
             ay = -cfg.kp * (ego.y - y_c) - cfg.kd * ego.vy
+        ay = float(np.clip(ay, ego.ay - step, ego.ay + step))
         # a car moves sideways only while it moves forward: |v_y| <= tan(psi_max) v_x after the period
         cap = self.cfg.max_slip * (ego.vx + ax * dt)
         ay = float(np.clip(np.clip(ay, (-cap - ego.vy) / dt, (cap - ego.vy) / dt), -lim, lim))
@@ -530,7 +542,8 @@ class Controller:
             lane_speed = float(np.mean(beside)) if beside else None
         a = seek_accel(self.ego_now(ego), self._lane_leader(ego, nbs), stop_x, target, hw.speed_limit,
                        self.cfg.tactical, lane_speed)
-        return self._move(ego, a, hw.lane_centre(lane))
+        urgent = a <= -self.cfg.tactical.safe.rss.brake_min  # RSS's proper response (or harder)
+        return self._move(ego, a, hw.lane_centre(lane), urgent)
 
     def _safe_step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
         """One period of the SPEC §17 loop (module docstring)."""
@@ -549,7 +562,7 @@ class Controller:
             if b is not None:
                 self.fs_brake = b
             b = self.fs_brake if self.fs_brake is not None else 3.5
-            nxt = self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane))
+            nxt = self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane), urgent=True)
             centred = abs(ego.y - self.sim.highway.lane_centre(self.fs_lane)) < 0.3 and abs(ego.vy) < 0.3
             if centred or ego.vx < 0.5:  # back in its lane, or stopped (it cannot move sideways standing)
                 if self.fs_lane == self.target:
@@ -639,7 +652,7 @@ class Controller:
         if b is not None:
             self.fs_brake = b
         b = self.fs_brake if self.fs_brake is not None else 3.5
-        return self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane))
+        return self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane), urgent=True)
 
     def _mobil_safe(self, t: float, obs: Observation, ego: EgoState, nbs: list[Neighbour]) -> EgoState | None:
         """IDM + MOBIL for a mandatory change (:mod:`iamp.simulation.mobil`): IDM drives the ego in

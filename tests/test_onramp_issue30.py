@@ -178,3 +178,29 @@ def test_closer_than_rss_behind_its_leader_the_ego_brakes_at_brake_min(v, v_l, f
     idm = replace(cfg.idm, v0=33.0)
     idm_only = idm.accel(v, rss_follow_gap(g, v, v_l, cfg), v_l)
     assert seek_accel(ego, far, None, None, 33.0, cfg) == pytest.approx(min(idm_only, idm.accel(v)), rel=1e-9)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.floats(-6.0, 3.0), st.floats(-6.0, 3.0), st.floats(2.0, 30.0), st.floats(-2.0, 2.0), st.booleans())
+def test_executed_inputs_change_within_the_jerk_bound_except_an_urgent_brake(a_prev, a_cmd, v, ay_prev, urgent):
+    """Issue 30 item 4: the tactical layer's input changes by at most ``JERK_SHARE · jerk · dt`` per
+    period on both axes; an urgent brake (fail-safe, RSS's proper response) is applied at once, and
+    releasing it is rate-limited like any change."""
+    from types import SimpleNamespace
+
+    from iamp.simulation.controller import JERK_SHARE, Controller
+    from iamp.simulation.simulator import EgoState
+
+    ctl = Controller.__new__(Controller)
+    ctl.cfg = ControllerConfig()
+    ctl.sim = SimpleNamespace(step=0.1)  # type: ignore[assignment]
+    jerk = ctl.cfg.decision.limits.jerk
+    assert jerk is not None
+    step = JERK_SHARE * jerk * 0.1
+    ego = EgoState(0.0, v, -1.0, 0.0, ax=a_prev, ay=ay_prev)
+    nxt = ctl._move(ego, a_cmd, 0.0, urgent)
+    if urgent and a_cmd < a_prev:
+        assert nxt.ax == pytest.approx(a_cmd)
+    else:
+        assert abs(nxt.ax - a_prev) <= step + 1e-12
+    assert abs(nxt.ay - ay_prev) <= step + 1e-12 or abs(nxt.vy) <= ctl.cfg.max_slip * (v + nxt.ax * 0.1) + 1e-12
