@@ -343,9 +343,6 @@ class ContinuousAvoidPlanner:
     DUALS_KEPT = 4
     #: Solves of the final secant search per vehicle (:meth:`_polish`).
     POLISH_STEPS = 8
-    #: Passes over the vehicles of the final secant search when there are several (each vehicle's
-    #: best crossing moves with the others').
-    POLISH_PASSES = 3
 
     def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None) -> Solved:
         """``qp.solve(spec)``, each spec solved once per plan (a box's candidate is often its
@@ -489,29 +486,31 @@ class ContinuousAvoidPlanner:
     def _polish(self, qp: ContinuousAvoidQP, dual: DualBounds, best: Solved, tau: FloatArray
                 ) -> tuple[Solved, FloatArray]:
         """Per vehicle, a secant search for a zero of ``∂J/∂τ_i`` within one grid step of the
-        best ``τ`` (the others fixed; :attr:`POLISH_PASSES` passes over the vehicles), the slope of
-        each solved candidate read off its dual polynomial
-        (:meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`); at most :attr:`POLISH_STEPS`
-        solves per vehicle and pass, none for a vehicle whose rows do not bind.  It only
-        lowers the upper bound, so the search's certificate stands."""
+        best ``τ`` (the others fixed), the slope of each solved candidate read off its dual
+        polynomial (:meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`); at most
+        :attr:`POLISH_STEPS` solves per vehicle, none for a vehicle whose rows do not bind.  With
+        several vehicles, then a quasi-Newton (BFGS) search on the joint gradient from those
+        curvatures (the crossings of binding vehicles move together).  It only lowers the upper
+        bound, so the search's certificate stands."""
         orders = [(f, s) for f, s, _, _ in best.spec]
         tau = tau.copy()
-        for i in [v for _ in range(self.POLISH_PASSES if len(tau) > 1 else 1) for v in range(len(tau))]:
-            lo_i, hi_i = max(0.0, tau[i] - qp.h), min(qp.tf, tau[i] + qp.h)
+        start = tau.copy()
+        lo_all, hi_all = np.maximum(0.0, start - qp.h), np.minimum(qp.tf, start + qp.h)
+        curvature = np.zeros(tau.size)
+        for i in range(len(tau)):
             t, sol = tau.copy(), best
             prev: tuple[float, float] | None = None
             for _ in range(self.POLISH_STEPS):
-                k = min(int(np.floor(t[i] / qp.h)), qp.N - 1)
-                lo, hi = t.copy(), t.copy()
-                lo[i], hi[i] = k * qp.h, (k + 1) * qp.h
-                slope = dual.polynomial(sol, lo, hi).slope(t, i)
+                slope = self._gradient(qp, dual, sol, t)[i]
                 if prev is None:
                     step = -np.sign(slope) * 1e-3 * qp.h  # a first probe, then secant steps
                 else:
                     ds = slope - prev[1]
                     step = -slope * (t[i] - prev[0]) / ds if ds != 0.0 else 0.0
+                    if t[i] != prev[0]:
+                        curvature[i] = ds / (t[i] - prev[0])
                 prev = (float(t[i]), slope)
-                x = float(np.clip(t[i] + step, lo_i, hi_i))
+                x = float(np.clip(t[i] + step, lo_all[i], hi_all[i]))
                 if not abs(x - t[i]) > 1e-9 * qp.tf:
                     break
                 nxt = t.copy()
@@ -522,7 +521,34 @@ class ContinuousAvoidPlanner:
                 t, sol = nxt, r
                 if r.cost < best.cost:
                     best, tau = r, nxt.copy()
+        active = curvature > 0
+        if active.sum() < 2:
+            return best, tau
+        H = np.diag(np.where(active, 1.0 / np.where(active, curvature, 1.0), 0.0))  # inverse Hessian
+        g = self._gradient(qp, dual, best, tau) * active
+        for _ in range(self.POLISH_STEPS):
+            trial = np.clip(tau - H @ g, lo_all, hi_all)
+            if not np.max(np.abs(trial - tau)) > 1e-9 * qp.tf:
+                break
+            r = self._qp_solve(qp, _spec(orders, trial, trial), best)
+            if r.status != st.OPTIMAL:
+                break
+            g_new = self._gradient(qp, dual, r, trial) * active
+            sv, yv = trial - tau, g_new - g
+            if sv @ yv > 0:  # BFGS update of the inverse Hessian
+                rho = 1.0 / float(sv @ yv)
+                V = np.eye(tau.size) - rho * np.outer(sv, yv)
+                H = V @ H @ V.T + rho * np.outer(sv, sv)
+            if r.cost < best.cost:
+                best, tau, g = r, trial, g_new
         return best, tau
+
+    def _gradient(self, qp: ContinuousAvoidQP, dual: DualBounds, sol: Solved, tau: FloatArray) -> FloatArray:
+        """``∂J/∂τ`` at the candidate ``sol`` (crossing times ``tau``), from its dual polynomial on
+        the pieces containing ``tau`` (:meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`)."""
+        k = np.minimum(np.floor(tau / qp.h), qp.N - 1)
+        dp = dual.polynomial(sol, k * qp.h, (k + 1) * qp.h)
+        return np.array([dp.slope(tau, i) for i in range(tau.size)])
 
     def plan(self, problem: Problem) -> Plan:
         """Search the crossing times, solve, verify (module docstring)."""
