@@ -501,8 +501,9 @@ class Controller:
         Both inputs change by at most one period of the jerk bound (SPEC §14's ``jerk``, issue 30
         item 4: the tactical layer's terms switch, e.g. the gap term at its -3 m/s² clip or IDM
         taking over after a plan at +1.5 m/s²), except that an ``urgent`` brake (a fail-safe,
-        RSS's proper response) is applied at once; releasing it is rate-limited too. :data:`JERK_SHARE` of the bound leaves room for the 0.1 mm
-        resolution of the positions the monitor differentiates twice (±0.4 m/s³)."""
+        RSS's proper response) is applied at once; releasing it is rate-limited too.
+        :data:`JERK_SHARE` of the bound leaves room for the 0.1 mm resolution of the positions the
+        monitor differentiates twice (±0.4 m/s³)."""
         dt, cfg = self.sim.step, self.cfg
         lo, hi = PASSENGER_CAR.ax or (-6.0, 3.0)
         ax = float(np.clip(ax, lo, hi))
