@@ -87,6 +87,25 @@ def mission_table(campaigns: list[tuple[str, Rows]]) -> list[str]:
     return out
 
 
+def failure_kinds(campaigns: list[tuple[str, Rows]]) -> list[str]:
+    """Per campaign (cooperation) and planner, the episodes that failed, by kind: a contact; stopped
+    at the lane's end (``stopped_at_end``); the ego's front past the lane's end still in its lane or
+    the deadline reached while moving (the rest)."""
+    out = ["| campaign, planner | failed | with a contact | stopped at the lane's end | other (deadline, past the "
+           "end) |", "|---|---|---|---|---|"]
+    for label, rows in campaigns:
+        by: dict[str, Rows] = defaultdict(list)
+        for r in rows:
+            by[r["planner"]].append(r)
+        for p in [q for q in PLANNERS if q in by]:
+            failed = [r for r in by[p] if r["success"] != "True"]
+            contact = [r for r in failed if _num(r["contacts"]) > 0]
+            stopped = [r for r in failed if r not in contact and r["stopped_at_end"] == "True"]
+            out.append(f"| {label}, `{p}` | {len(failed)}/{len(by[p])} | {len(contact)} | {len(stopped)} | "
+                       f"{len(failed) - len(contact) - len(stopped)} |")
+    return out
+
+
 def before_after(before: Rows, after: Rows, missions: tuple[str, ...] = ("merge", "onramp")) -> list[str]:
     """Per mission, density and planner, the same seeds before and after: ``success; contacts
     (before: all, after: at fault); emergency-braking followers; hard-braking followers``."""
@@ -114,6 +133,8 @@ def block(root: Path = ROOT) -> str:
            f"responsible for; new followers braking at ≥ {EMERGENCY:g} m/s²; new followers braking harder than "
            f"{HARD:g} m/s²; `reports/campaign-safe`, `reports/campaign-safe-low`, `reports/campaign-sl2015`):", ""]
     out += mission_table([("", safe), ("", low)] + ([("SL2015", sl)] if sl else []))
+    out += ["", "Failed episodes by kind:", ""]
+    out += failure_kinds([("default", safe), ("cooperation low", low)] + ([("SL2015", sl)] if sl else []))
     before = read(rep / "campaign-new" / "episodes.csv")
     if before and safe:
         out += ["", f"Before and after on the same {seeds} seeds (before: `reports/campaign-new`, episode format "

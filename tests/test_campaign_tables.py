@@ -52,3 +52,13 @@ def test_the_mission_table_keeps_cooperation_levels_apart() -> None:
     lines = s.mission_table([("", [_row()]), ("", [_row(cooperation="low", success="False")])])
     assert lines[2] == "| merge, dense | 1/1; 0; 0; 0 |"
     assert lines[3] == "| merge, dense, cooperation low | 0/1; 0; 0; 0 |"
+
+
+def test_failures_are_split_by_kind() -> None:
+    s = _script()
+    rows = [_row(success="False", contacts="1", stopped_at_end="True"),
+            _row(success="False", contacts="0", stopped_at_end="True"),
+            _row(success="False", contacts="0", stopped_at_end="False"),
+            _row(success="True", contacts="0", stopped_at_end="False")]
+    lines = s.failure_kinds([("default", rows)])
+    assert lines[2] == "| default, `free` | 3/4 | 1 | 1 | 1 |"
