@@ -84,8 +84,10 @@ def horner_rows(C: FloatArray, t: FloatArray) -> FloatArray:
 
 
 def _deriv_rows(C: FloatArray) -> FloatArray:
-    k = np.arange(C.shape[1])
-    return np.pad(C[:, 1:] * k[1:], ((0, 0), (0, 1)))
+    """Ascending coefficients of each row's derivative, padded to the same width."""
+    out = np.zeros(C.shape)
+    out[:, :-1] = C[:, 1:] * np.arange(1, C.shape[1])
+    return out
 
 
 class ValueFunction:
@@ -103,10 +105,13 @@ class ValueFunction:
         self.units = S.units
         self.j_bar = S.jbar * S.units.cost
         d = max(S.EX.shape[1], S.EY.shape[1])
-        self._EX = np.ascontiguousarray(np.pad(S.EX, ((0, 0), (0, d - S.EX.shape[1]))), dtype=np.float64)
-        self._EY = np.ascontiguousarray(np.pad(S.EY, ((0, 0), (0, d - S.EY.shape[1]))), dtype=np.float64)
-        self._DEX = np.ascontiguousarray(_deriv_rows(self._EX), dtype=np.float64)
-        self._DEY = np.ascontiguousarray(_deriv_rows(self._EY), dtype=np.float64)
+        m = S.EX.shape[0]
+        self._EX = np.zeros((m, d))
+        self._EX[:, :S.EX.shape[1]] = S.EX
+        self._EY = np.zeros((m, d))
+        self._EY[:, :S.EY.shape[1]] = S.EY
+        self._DEX = _deriv_rows(self._EX)
+        self._DEY = _deriv_rows(self._EY)
 
     # --- scaled core ----------------------------------------------------------------------
     def errors_sigma(self, sig: FloatArray) -> tuple[FloatArray, FloatArray]:
