@@ -1,6 +1,6 @@
-"""Opt-in numba path of the two scalar kernels (``pip install iamp[fast]``).
+"""Opt-in numba path of the PMP's kernels (``pip install iamp[fast]``).
 
-Both are compiled from their one source by :func:`iamp.planners.pmp.jit.twin` (the same code
+Each is compiled from its one source by :func:`iamp.planners.pmp.jit.twin` (the same code
 objects, no fastmath), so they return the same numbers as the Python functions the planner
 calls by default, bit for bit:
 
@@ -15,8 +15,9 @@ calls by default, bit for bit:
 
 Nothing is compiled on import, and no planner triggers it: the first compile in a process
 takes seconds (``import numba`` alone 0.2-0.4 s) against tens of microseconds per plan in
-Python, so it pays only for many plans in one process (``iamp bench`` loads both before its
-clock starts).  Whether it is loaded changes the time, never a number.
+Python, so it pays only for many plans in one process (``iamp bench`` loads the compiled
+paths before its clock starts; the search kernels are also kept in numba's on-disk cache).
+Whether they are loaded changes the time, never a number.
 """
 
 from __future__ import annotations

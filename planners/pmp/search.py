@@ -25,7 +25,10 @@ down to ``√ε`` around it.  A start inside a known basin box is not polished a
 :func:`trusted_q` (which solves the jump system) runs only for would-be incumbents.
 If the bound cannot close within its budget the result is only *local*.
 
-This is the one implementation of the search (its numba copy was removed, issue 32).
+This is the one implementation of the search (its numba copy was removed, issue 32); its
+kernels (value function, gradient, Newton, box bounds, basin boxes, split) are written once in
+:mod:`iamp.planners.pmp.search_kernels`, run as Python, or compiled from the same code by
+:func:`iamp.planners.pmp.compiled.load_search` with the same numbers bit for bit.
 """
 
 from __future__ import annotations
