@@ -85,6 +85,28 @@ def _num(value: str) -> float:
     return float(value) if value not in ("", "nan") else 0.0
 
 
+def command(meta: dict[str, object], folder: Path, root: Path, seeds: int) -> str:
+    """The ``iamp campaign`` command that makes (or resumes) ``folder`` from its manifest, in backquotes."""
+    def joined(key: str) -> str:
+        value = meta.get(key) or []
+        return ",".join(str(v) for v in value) if isinstance(value, list) else str(value)
+
+    parts = ["iamp campaign", f"--missions {joined('missions')}", f"--planners {joined('planners')}",
+             f"--traffic {joined('traffic')}"]
+    if meta.get("cooperation", "default") != "default":
+        parts.append(f"--cooperation {meta['cooperation']}")
+    if meta.get("sublane"):
+        parts.append("--sublane")
+    parts.append(f"--seeds {seeds}")
+    summary = folder / "summary.json"
+    if summary.is_file():
+        reference = json.loads(summary.read_text(encoding="utf-8")).get("reference")
+        if reference:
+            parts.append(f"--reference {reference}")
+    parts.append(f"--out {folder.relative_to(root).as_posix()}")
+    return "`" + " ".join(parts) + "`"
+
+
 def safety_table(campaigns: list[Path], root: Path = ROOT, sublane: Path | None = None) -> list[str]:
     """Closed loop of SPEC §17, per campaign (cooperation) and planner, with RSS's responsibility
     columns: contacts split by blame, the new follower's emergency (>= 8 m/s²) and hard
@@ -104,7 +126,7 @@ def safety_table(campaigns: list[Path], root: Path = ROOT, sublane: Path | None 
         seeds = len({r["seed"] for r in rows})
         lines += [f"Closed loop with verified plans (`{episodes.relative_to(root).as_posix()}`, episode format {fmt}; "
                   f"missions {', '.join(missions)}; traffic {', '.join(traffic)}; cooperation {coop}; {seeds} paired "
-                  f"seeds; RSS judge with response time {rho} s):", "",
+                  f"seeds; RSS judge with response time {rho} s; {command(meta, episodes.parent, root, seeds)}):", "",
                   "| planner | episodes | success | contacts at fault | contacts not at fault | follower emergency "
                   f"brakes | new follower braking > {HARD_BRAKE:g} m/s² (episodes) | RSS-dangerous time at fault [s] | "
                   "executed limit violations (episodes) |",

@@ -254,3 +254,15 @@ def test_the_sl2015_baseline_is_a_row_over_the_same_grid(tmp_path: Path) -> None
         assert bool(rows) is want
         if want:
             assert rows[0].startswith("| sumo (SL2015) | 1 | 0 (0.0 %) |")
+
+
+def test_the_table_states_the_command_that_makes_the_campaign(tmp_path: Path) -> None:
+    """From the manifest (and the summary's reference): the grid, the cooperation, SL2015 and the folder."""
+    folder = tmp_path / "reports" / "campaign-x"
+    folder.mkdir(parents=True)
+    (folder / "summary.json").write_text(json.dumps({"reference": "free"}), encoding="utf-8")
+    meta = {"missions": ["merge", "onramp"], "planners": ["free", "sumo"], "traffic": ["los-e"], "cooperation": "low",
+            "sublane": True}
+    assert _script().command(meta, folder, tmp_path, 7) == (
+        "`iamp campaign --missions merge,onramp --planners free,sumo --traffic los-e --cooperation low --sublane "
+        "--seeds 7 --reference free --out reports/campaign-x`")
