@@ -109,6 +109,12 @@ class Solved:
     iterations: int
     qp: ContinuousAvoidQP = field(repr=False)
     solves: int = 1
+    #: the spec's imposed rows, their bounds and layout numbers (:meth:`ContinuousAvoidQP.spec_rows`)
+    rows: tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]] | None = field(default=None, repr=False)
+
+    def spec_rows(self) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
+        """:meth:`ContinuousAvoidQP.spec_rows` of :attr:`spec` (kept from the solve)."""
+        return self.rows if self.rows is not None else self.qp.spec_rows(self.spec)
 
     @property
     def A(self) -> sp.csc_matrix:
@@ -286,7 +292,7 @@ class ContinuousAvoidQP:
         ok = sol.status == st.OPTIMAL and sol.finite
         cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (d.P.diagonal() * sol.z)) if ok else np.inf
         status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
-        return Solved(spec, status, cost, sol.z, sol.y, sol.iterations, self, sol.solves)
+        return Solved(spec, status, cost, sol.z, sol.y, sol.iterations, self, sol.solves, (A_in, u_in, ids))
 
     def trajectory(self, z: FloatArray) -> HoldTrajectory:
         X, U = self.data.unpack(z)

@@ -207,7 +207,7 @@ class DualBounds:
         """
         qp, d = self.qp, self.qp.data
         N, nb, h, D = qp.N, self.nb, qp.h, qp.degree
-        A_in, u_in, ids = qp.spec_rows(sol.spec)
+        A_in, u_in, ids = sol.spec_rows()
         y = np.maximum(sol.y[d.n_eq:], 0.0)
         bern = ids < qp.n_b
         blk = np.where(bern, ids // (N * nb), -1)
@@ -230,10 +230,11 @@ class DualBounds:
         q = len(poly_vehicles)
         C = 1 + q * D  # basis: 1, then λ_i^p (p = 1..D) per polynomial vehicle
         R = np.zeros((d.n + d.n_eq, C))
-        R[:d.n, 0] = -(A_in[keep].T @ y[keep])
+        y_keep = np.where(keep, y, 0.0)
+        R[:d.n, 0] = -(A_in.T @ y_keep)
         R[d.n:, 0] = d.b_eq
         hc = np.zeros(C)
-        hc[0] = float(y[keep] @ u_in[keep])
+        hc[0] = float(y_keep @ u_in)
         for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
             f, s = sol.spec[i][0], sol.spec[i][1]
             for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
@@ -257,9 +258,13 @@ class DualBounds:
         for v in range(q):
             exps[1 + v * D:1 + (v + 1) * D, v] = np.arange(1, D + 1)
         coef = np.zeros((2 * D + 1,) * q)
-        for a in range(C):  # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ
-            coef[tuple(exps[a])] -= lin[a]
-            for b in range(C):
-                coef[tuple(exps[a] + exps[b])] -= 0.5 * G[a, b]
+        # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ: each product of two basis
+        # monomials adds to the coefficient of their product
+        if q == 0:
+            coef = np.array(-lin[0] - 0.5 * G[0, 0])
+        else:
+            np.add.at(coef, tuple(exps.T), -lin)
+            pairs = (exps[:, None, :] + exps[None, :, :]).reshape(C * C, q)
+            np.add.at(coef, tuple(pairs.T), -0.5 * G.ravel())
         mass = np.array([float(np.sum(y[bern & (veh == i)])) for i in range(len(sol.spec))])
         return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, mass)
