@@ -349,6 +349,9 @@ class ContinuousAvoidPlanner:
     DUALS_KEPT = 4
     #: Solves of the final secant search per vehicle (:meth:`_polish`).
     POLISH_STEPS = 8
+    #: With several vehicles, the coordinate secant's steps per vehicle before the joint BFGS
+    #: search (enough for its curvature).
+    POLISH_PROBES = 3
 
     def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None) -> Solved:
         """``qp.solve(spec)``, each spec solved once per plan (a box's candidate is often its
@@ -495,9 +498,9 @@ class ContinuousAvoidPlanner:
         best ``τ`` (the others fixed), the slope of each solved candidate read off its dual
         polynomial (:meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`); at most
         :attr:`POLISH_STEPS` solves per vehicle, none for a vehicle whose rows do not bind.  With
-        several vehicles, then a quasi-Newton (BFGS) search on the joint gradient from those
-        curvatures (the crossings of binding vehicles move together).  It only lowers the upper
-        bound, so the search's certificate stands."""
+        several vehicles (:attr:`POLISH_PROBES` secant steps each), then a quasi-Newton (BFGS)
+        search on the joint gradient from those curvatures (the crossings of binding vehicles
+        move together).  It only lowers the upper bound, so the search's certificate stands."""
         orders = [(f, s) for f, s, _, _ in best.spec]
         tau = tau.copy()
         start = tau.copy()
@@ -506,7 +509,7 @@ class ContinuousAvoidPlanner:
         for i in range(len(tau)):
             t, sol = tau.copy(), best
             prev: tuple[float, float] | None = None
-            for _ in range(self.POLISH_STEPS):
+            for _ in range(self.POLISH_STEPS if len(tau) == 1 else self.POLISH_PROBES):
                 slope = self._gradient(qp, dual, sol, t)[i]
                 if prev is None:
                     step = -np.sign(slope) * 1e-3 * qp.h  # a first probe, then secant steps
