@@ -134,13 +134,8 @@ def backward(L: Any, z: Any) -> Any:
 def kmatrix(sT: Any) -> Any:
     """``K̃(σ_i, σ_j)`` for the columns of ``sT`` (``(m, n)``) as ``(m, m, n)``."""
     m = sT.shape[0]
-    K = np.empty((m, m, sT.shape[1]))
-    for i in range(m):
-        K[i, i] = kern(sT[i], sT[i])
-        for j in range(i + 1, m):
-            K[i, j] = kern(sT[i], sT[j])
-            K[j, i] = K[i, j]
-    return K
+    n = sT.shape[1]
+    return kern(sT.reshape(m, 1, n), sT.reshape(1, m, n))
 
 
 @compilable
@@ -177,6 +172,7 @@ def gradient(EX: Any, EY: Any, DEX: Any, DEY: Any, sig: Any) -> Any:
     sT = np.ascontiguousarray(sig.T)
     m, n = sT.shape
     L, ok = chol(kmatrix(sT))
+    dK = kern_ds(sT.reshape(m, 1, n), sT.reshape(1, m, n))  # dK[i, j] = ∂₁K̃(σ_i, σ_j)
     g = np.zeros((m, n))
     for a in range(2):
         C = EX if a == 0 else EY
@@ -190,7 +186,7 @@ def gradient(EX: Any, EY: Any, DEX: Any, DEY: Any, sig: Any) -> Any:
             cross = np.zeros(n)
             for j in range(m):
                 if j != i:
-                    cross = cross + kern_ds(si, sT[j]) * mu[j]
+                    cross = cross + dK[i, j] * mu[j]
             g[i] = g[i] + (mu[i] * de - mu[i] * cross - 0.5 * (mu[i] * mu[i]) * diag)
     g = np.where(ok, g, np.nan)
     return np.ascontiguousarray(g.T)
