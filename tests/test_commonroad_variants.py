@@ -245,3 +245,30 @@ def test_a_vehicle_passed_behind_then_beside_is_planned_in_two_stages(tmp_path: 
     solution, _ = build_solution(cr, rp.trajectory, rp.candidate.steps)
     verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
     assert verdict.valid, verdict.checks
+
+
+@needs_data
+def test_steered_final_heading_stays_inside_the_goal_orientation(tmp_path: Path) -> None:
+    """US101-3 with its goal two lanes over (the ``lanes`` variant): the plan ends turning
+    toward the goal's lane; the steered (``KS``) car's heading, the rear axle's, lags the plan's
+    direction of travel by its centre's slip angle, and with 0.01 rad of margin it ended 0.0008
+    rad outside the orientation interval (``goal missed``).  Its final state is now inside every
+    element of the goal by the checker's own test, and the solution is valid."""
+    from iamp.commonroad.check import check
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan
+    from iamp.commonroad.solution import build_solution
+
+    mod = load_script("commonroad_variants")
+    out = tmp_path / "v"
+    assert mod.main([str(_one_source(tmp_path, "USA_US101-3_1_T-1.xml")), str(out), "--kinds", "lanes"]) == 0
+    cr = load(out / "USA_US101-3_102_T-1.xml")
+    rp = plan(cr)
+    assert rp.safe, rp.reason
+    solution, _ = build_solution(cr, rp.trajectory, rp.candidate.steps, vehicle_model="KS")
+    final = solution.planning_problem_solutions[0].trajectory.state_list[-1]
+    goal = cr.planning_problem.goal.state_list[rp.candidate.element]
+    assert goal.orientation.contains(final.orientation), (final.orientation, goal.orientation)
+    assert goal.position.contains_point(np.asarray(final.position))
+    verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
+    assert verdict.valid, verdict.checks

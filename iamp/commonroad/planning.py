@@ -388,9 +388,10 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     (:func:`_candidate_order`) and ``max_plans`` calls of the iamp planner over all of them (each
     avoidance QP at most :data:`AVOID_MAX_SOLVES` QP solves), then, where none gave a safe plan,
     the two-stage search (:func:`_via`, :data:`VIA_MAX_PLANS` calls of its own; none when
-    ``max_plans`` is 0), so the same problem gives the same answer on any machine.  When no final state gives a safe plan, the reason says which part
-    of the goal region was searched; a goal no final state of which the model can reach is
-    refused (status ``unreachable``) naming the goal state's element.
+    ``max_plans`` is 0), so the same problem gives the same answer on any machine.  When no
+    final state gives a safe plan, the reason says which part of the goal region was searched; a
+    goal no final state of which the model can reach is refused (status ``unreachable``) naming
+    the goal state's element.
     """
     if planner not in PLANNERS:
         raise ScenarioError(f"unknown planner {planner!r}; choose from {', '.join(PLANNERS)}", "planner")
@@ -477,7 +478,9 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
 
 
 #: Planner calls of the two-stage search (:func:`_via`), apart from :data:`MAX_PLANS`.
-VIA_MAX_PLANS = 16
+VIA_MAX_PLANS = 24
+#: Waypoint steps of the two-stage search, as fractions of the horizon, in the order tried.
+VIA_FRACTIONS = (0.5, 0.3, 0.7)
 #: Extra gap kept between the ego and the vehicle at a waypoint behind or ahead of it [m].
 VIA_GAP_M = 0.1
 
@@ -541,13 +544,24 @@ def window(cr: CommonRoadProblem, t_from: float, t_to: float,
 
 def _waypoints(cr: CommonRoadProblem, ob: Obstacle, cand: Candidate, sx: float,
                sy: float) -> list[tuple[int, tuple[float, float, float, float]]]:
-    """Waypoints around ``ob`` at the middle time step: behind and ahead of it in its lane, beside
-    it in the lanes either side, at its speed; those inside the road, clear of every vehicle and
-    reachable in both stages, cheapest unconstrained two-stage cost first."""
+    """Waypoints around ``ob`` at the steps :data:`VIA_FRACTIONS` of the horizon (the middle
+    first): behind and ahead of it in its lane, beside it in the lanes either side, at its speed;
+    those inside the road, clear of every vehicle and reachable in both stages; by step in that
+    order and, at each, cheapest unconstrained two-stage cost first."""
+    out = []
+    for frac in VIA_FRACTIONS:
+        k_m = int(round(cand.steps * frac))
+        if 0 < k_m < cand.steps:
+            out += _waypoints_at(cr, ob, cand, sx, sy, k_m)
+    return out
+
+
+def _waypoints_at(cr: CommonRoadProblem, ob: Obstacle, cand: Candidate, sx: float, sy: float,
+                  k_m: int) -> list[tuple[int, tuple[float, float, float, float]]]:
+    """The waypoints of :func:`_waypoints` at step ``k_m``."""
     from iamp.commonroad.convert import fit_motion, unconstrained_cost
     from iamp.commonroad.goal import axis_reachable
 
-    k_m = int(round(cand.steps / 2))
     t_m = k_m * cr.dt
     j = int(np.argmin(np.abs(ob.t - t_m)))
     if ob.t.size < 2 or abs(ob.t[j] - t_m) > 1e-6:
