@@ -146,13 +146,21 @@ def unload_search() -> None:
 
 def _warm_up_search(twins: dict[str, Any]) -> None:
     """Compile for the argument types the search passes (two and three vehicles)."""
-    from iamp.planners.examples import random_problem
+    from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 
     from .basin import degree
     from .fixed import ValueFunction
 
+    # a lane change with two and three vehicles (any will do: only the argument types matter;
+    # not iamp.planners.examples, which imports this package)
+    ego = EgoBoundary(tf=5.0, x0=0.0, y0=0.0, vx0=20.0, xf=100.0, yf=3.75, vxf=20.0)
+    vehicles = tuple(SurroundingVehicle(x_poly=(x0, v, 0.0, 0.0), corner=corner, y=y, length=4.8, width=1.8,
+                                        safety_x=5.0, safety_y=0.5, name=f"sv{k}")
+                     for k, (x0, v, corner, y) in enumerate(((-20.0, 19.0, "front-lower", 3.75),
+                                                             (35.0, 15.0, "rear-upper", 0.0),
+                                                             (60.0, 18.0, "rear-lower", 3.75)), start=1))
     for m in (2, 3):
-        vf = ValueFunction(random_problem(0, m=m))
+        vf = ValueFunction(Problem(ego, vehicles[:m], f"warm-up-m{m}"))
         E = (vf._EX, vf._EY, vf._DEX, vf._DEY)
         pts = np.full((3, m), 0.5) + np.arange(m) * 0.1
         twins["quad"](vf._EX, vf._EY, pts)
