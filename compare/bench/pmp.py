@@ -6,8 +6,11 @@ times an inner loop and divides), in seconds:
 * ``one_vehicle`` — ``PMPPlanner().plan(paper scenario 1, diagnostics=False)``: scaling,
   exact global contact time (Bernstein root isolation), solve and self-check (pure Python);
 * ``two_vehicles`` — the same for ``random_problem(0, m=2)`` including the certified branch
-  and bound (the one search, numpy; ``two_vehicles_pure`` is the same number, kept for readers
-  of earlier JSON: the numba copy of the search was removed in issue 32);
+  and bound: ``two_vehicles_pure`` with the search's kernels run as Python,
+  ``two_vehicles_compiled`` with the same kernels compiled by numba
+  (:func:`iamp.planners.pmp.compiled.load_search`, compiled before the clock starts; the same
+  plans bit for bit, tests/test_pmp_search_kernels.py), and ``two_vehicles`` the compiled one
+  where numba is installed, else the Python one;
 * ``one_vehicle_bounded`` — ``one_vehicle`` with a passenger car's input box
   (``ax`` [-6, 3], ``ay`` [-2, 2]; active: the unbounded plan reaches 4.7 m/s²), the saturated
   PMP of :mod:`iamp.planners.pmp.bounded` (contact-time grid + Brent polish, self-check;
@@ -90,6 +93,10 @@ def bench_pmp(repeats: int = 7) -> dict[str, float]:
         out["fixed_t_bounded_compiled"] = _median_per_call(lambda: solve_bounded_fixed(boxed, [tb]), repeats, 200)
         for key in ("one_vehicle_bounded", "one_vehicle_bounded_certified", "fixed_t_bounded"):
             out[key] = out[f"{key}_compiled"]
+    if pmp_compiled.load_search():  # the m >= 2 search kernels compiled from the same source (issue 32)
+        out["two_vehicles_compiled"] = _median_per_call(lambda: planner.plan(two, diagnostics=False), repeats, 3)
+        out["two_vehicles"] = out["two_vehicles_compiled"]
+        pmp_compiled.unload_search()
     problems = [random_problem(seed, m=1) for seed in range(10_000)]
     out["batch_plans_per_s"] = len(problems) / _median_per_call(lambda: plan_batch(problems), repeats, 1)
     if numba_available():

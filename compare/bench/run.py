@@ -247,7 +247,7 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> PMPNumbers:
         "two_vehicles_pure": raw["two_vehicles_pure"], "one_vehicle_bounded": raw["one_vehicle_bounded"],
         "one_vehicle_bounded_certified": raw["one_vehicle_bounded_certified"],
         "fixed_t_bounded": raw["fixed_t_bounded"],
-        **{k: raw[k] for k in ("one_vehicle_bounded_pure", "one_vehicle_bounded_compiled",
+        **{k: raw[k] for k in ("two_vehicles_compiled", "one_vehicle_bounded_pure", "one_vehicle_bounded_compiled",
                                "one_vehicle_bounded_certified_pure",
                                "one_vehicle_bounded_certified_compiled") if k in raw}}
     out: PMPNumbers = {"source": "iamp.comparison.bench.pmp.bench_pmp", "bench_pmp": raw,
@@ -258,6 +258,8 @@ def _pmp_numbers(quick: bool, notes: list[str]) -> PMPNumbers:
         notes.append("numba missing (pip install 'iamp[fast]'): no compiled limit")
     if raw.get("one_vehicle_bounded_compiled"):
         out["pmp_bounded_pure_to_compiled"] = raw["one_vehicle_bounded_pure"] / raw["one_vehicle_bounded_compiled"]
+    if raw.get("two_vehicles_compiled"):
+        out["pmp_two_vehicles_pure_to_compiled"] = raw["two_vehicles_pure"] / raw["two_vehicles_compiled"]
     return out
 
 
