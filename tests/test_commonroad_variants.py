@@ -245,6 +245,11 @@ def test_a_vehicle_passed_behind_then_beside_is_planned_in_two_stages(tmp_path: 
     solution, _ = build_solution(cr, rp.trajectory, rp.candidate.steps)
     verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
     assert verdict.valid, verdict.checks
+    # steered: the plan's turn asks for more lateral acceleration than the friction circle leaves;
+    # the tracking keeps its curvature inside it (before, no admissible input at step 44: refused)
+    steered, _ = build_solution(cr, rp.trajectory, rp.candidate.steps, vehicle_model="KS")
+    verdict = check(cr.scenario, cr.planning_problem_set, steered, cost=False)
+    assert verdict.valid, verdict.checks
 
 
 @needs_data
@@ -272,3 +277,27 @@ def test_steered_final_heading_stays_inside_the_goal_orientation(tmp_path: Path)
     assert goal.position.contains_point(np.asarray(final.position))
     verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
     assert verdict.valid, verdict.checks
+
+
+@pytest.mark.skipif(not (Path(__file__).parent / "fixtures" / "commonroad_goals.xml").is_file(),
+                    reason="fixture absent")
+def test_bench_row_survives_a_solution_that_cannot_be_written(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plan whose solution cannot be written (a KS conversion without an admissible input
+    raised and stopped the whole bench after 34 of 51 variants) is its own row, ``no plan``,
+    with the reason; the bench goes on."""
+    from conftest import HAVE_COMMONROAD
+
+    if not HAVE_COMMONROAD:
+        pytest.skip("the [commonroad] extra is not installed")
+    from iamp.commonroad import bench
+    from iamp.core.errors import ScenarioError
+
+    def refuse(*args: Any, **kwargs: Any) -> Any:
+        raise ScenarioError("the KS tracking input [-0.3, 0.0] at step 44 is outside the model's bounds",
+                            "vehicle_model")
+
+    monkeypatch.setattr(bench, "build_solution", refuse)
+    row = bench.run_one(Path(__file__).parent / "fixtures" / "commonroad_goals.xml", "avoid", None, 120.0,
+                        vehicle_model="KS")
+    assert row.category == "no plan" and row.benchmark_id is None
+    assert "no KS solution" in str(row.plan.get("reason")) and "step 44" in str(row.plan.get("reason"))

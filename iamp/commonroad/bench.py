@@ -143,8 +143,12 @@ def run_one(path: Path, planner: str, out_dir: Path | None, timeout_s: float,
               vehicle_model=vehicle_model)
     if rp.trajectory is None or rp.candidate is None:
         return row
-    solution, drift = build_solution(cr, rp.trajectory, rp.candidate.steps, cost_function, vehicle_type,
-                                     vehicle_model)
+    try:
+        solution, drift = build_solution(cr, rp.trajectory, rp.candidate.steps, cost_function, vehicle_type,
+                                         vehicle_model)
+    except IampError as exc:  # e.g. a KS conversion that finds no admissible input: this row, not the bench
+        row.plan["reason"] = f"no {vehicle_model} solution: {exc}"
+        return row
     row.plan["zoh_drift_m"] = drift
     row.benchmark_id = str(solution.benchmark_id)  # type: ignore[attr-defined]
     if out_dir is not None:

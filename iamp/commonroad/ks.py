@@ -213,6 +213,10 @@ def _simulate(dyn: Any, p: Any, ref: dict[str, FloatArray], x0: FloatArray, step
         # lateral: the curvature wanted at the end of the step
         ve = max(v, V_FLOOR)
         kappa = float(ref["kappa"][j1]) - (OMEGA**2 * e_d + 2.0 * OMEGA * ve * math.sin(e_psi)) / ve**2
+        # within the friction circle at the next step's start (its speed at most v + a_max dt): a
+        # steering angle whose lateral acceleration alone exceeds a_max leaves no admissible input
+        v_next = max(v + a_max * dt, 0.1)
+        kappa = float(np.clip(kappa, -a_max / v_next**2, a_max / v_next**2))
         delta_cmd = float(np.clip(math.atan(l_wb * kappa), d_lo, d_hi))
         ddelta = float(np.clip((delta_cmd - float(x[2])) / dt, dd_lo, dd_hi))
         # friction circle at the step's start (as the checker tests it): a^2 + (v psi_dot)^2 <= a_max^2
