@@ -19,6 +19,7 @@ import csv
 import json
 import sys
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -173,30 +174,39 @@ def block(root: Path = ROOT) -> str:
     return "\n".join(out)
 
 
+def replace_block(text: str, begin: str, end: str, body: str, where: str) -> str:
+    """``text`` with what lies between the markers ``begin`` and ``end`` replaced by ``body``."""
+    head, sep, rest = text.partition(begin)
+    if not sep or end not in rest:
+        raise SystemExit(f"{where} has no {begin} ... {end} block")
+    _, _, tail = rest.partition(end)
+    return f"{head}{begin}\n{body}\n{end}{tail}"
+
+
+def update(path: Path, render_fn: Callable[[str], str], check: bool, script: str) -> int:
+    """Rewrite ``path`` with ``render_fn`` (``check``: exit status 1 when it would change, nothing written)."""
+    old = path.read_text(encoding="utf-8")
+    new = render_fn(old)
+    if check:
+        if new != old:
+            print(f"{path.name}'s generated block differs from the reports: run python scripts/{script}",
+                  file=sys.stderr)
+            return 1
+        return 0
+    path.write_text(new, encoding="utf-8")
+    return 0
+
+
 def render(readme: str, root: Path = ROOT) -> str:
     """``readme`` with its results block replaced by :func:`block`."""
-    head, sep, rest = readme.partition(BEGIN)
-    if not sep or END not in rest:
-        raise SystemExit(f"README.md has no {BEGIN} ... {END} block")
-    _, _, tail = rest.partition(END)
-    return f"{head}{BEGIN}\n{block(root)}\n{END}{tail}"
+    return replace_block(readme, BEGIN, END, block(root), "README.md")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--check", action="store_true", help="exit 1 if README.md is not what the files say")
     args = parser.parse_args(argv)
-    path = ROOT / "README.md"
-    old = path.read_text(encoding="utf-8")
-    new = render(old)
-    if args.check:
-        if new != old:
-            print("README.md's results block differs from the reports: run python scripts/readme_results.py",
-                  file=sys.stderr)
-            return 1
-        return 0
-    path.write_text(new, encoding="utf-8")
-    return 0
+    return update(ROOT / "README.md", render, args.check, "readme_results.py")
 
 
 if __name__ == "__main__":
