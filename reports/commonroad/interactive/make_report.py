@@ -73,18 +73,21 @@ NOTES: dict[str, str] = {
         "predictor, fitted to 3 s of observed history, does not, so whether a contact-free course existed "
         "with hindsight is not decided here."),
     "USA_US101-23_1_I-1-1": (
-        "**the goal is free for 0.4 s of its window, only ahead of a car that stops in it.** Three lanes over"
-        " (s 265-267 m, 13.6-19.6 m/s, 13.0-14.0 s). The ego changes lane at 0.0 s and 3.0 s (the goal is "
-        "three, then two lanes over) and is in lane 3, next to the goal's, from 5.0 s, but 5.8 m behind "
-        "vehicle 91 (15.4 m/s) and with 96 beside it in the goal lane (3.3 m behind, 17.3 m/s): the goal plan"
-        " is infeasible or runs into 91 (1 fail-safe brake, 6 kept plans, 5.0-7.6 s; the ego at 10.3 m/s), "
-        "and 96 passes it. 96 then brakes from 19.8 m/s (11 s) to 12.5 m/s (13 s) in the goal lane and stands"
-        " in the goal region from 13.4 s (`goal_occupancy`: 4 of 11 steps free, 13.0-13.3 s, each only ahead "
-        "of 96); at 13.0 s the ego is at s 245.3 m, 20 m short, 96 12.4 m ahead of it, and it brakes (min gap"
-        " 1.0 m, no contact). Reaching the goal needed the ego ahead of 96 in lane 4 by about 13 s: entering "
-        "lane 4 in the 18 m gap between 96 and 83 at about 5 s, i.e. passing 91 first -- a manoeuvre across "
-        "two lanes of moving traffic that the tactical layer (one lane at a time, RSS distances) did not "
-        "find."),
+        "**the goal is free for 0.4 s of its window, only ahead of a car that stops in it; on this code "
+        "the ego ends touching that car, at fault.** Three lanes over (s 265-267 m, 13.6-19.6 m/s, "
+        "13.0-14.0 s). The ego changes lane at 0.0 s and 3.0 s (the goal is three, then two lanes over), "
+        "at 5.0 s (vehicles 91, 96 in the way of the goal plan) and again at 6.5 s (91 in the way). Vehicle "
+        "96 brakes from 19.8 m/s (11 s) to 12.5 m/s (13 s) in the goal lane and stands in the goal region "
+        "from 13.4 s (`goal_occupancy`: 4 of 11 steps free, 13.0-13.3 s, each only ahead of 96). From 13.5 s "
+        "every new plan is in 96's way or out of reach and the ego brakes (fail-safe); at 14.0 s, the last "
+        "step, its body overlaps 96's by 0.49 m and RSS holds the ego responsible (`contact_list`: "
+        "response lateral, threshold 6.8 s, not reported by SUMO). The run of 5bd6315 (before the "
+        "offline planner's two-stage search, its heading margin and the avoidance's new bound) made three "
+        "lane changes and ended 1.0 m from 96 without contact; which of those changes makes the fourth "
+        "lane change and the contact was not analysed. Reaching the goal needed the ego ahead of 96 in "
+        "lane 4 by about 13 s: entering lane 4 in the 18 m gap between 96 and 83 at about 5 s, i.e. passing "
+        "91 first -- a manoeuvre across two lanes of moving traffic that the tactical layer (one lane at a "
+        "time, RSS distances) did not find."),
     "USA_US101-24_2_I-1-1": (
         "goal reached; **one SUMO-only collision report, no contact**: at 10.2 s SUMO reports a side "
         "collision with vehicle 31 while the bodies are 0.78 m apart. SUMO's check is lane-based (positions "
@@ -115,7 +118,8 @@ to the goal or in a gap behind or ahead of a car of that lane) is accepted when 
 plan keeps clear of every predicted vehicle, RSS's stopping distance to the car ahead holds every
 0.5 s along it and at its end, and the car behind has room to slow to the ego's speed at 4 m/s^2
 after 0.5 s; one under way is finished only while that still holds under the newest predictions.
-Before (report of cccb5d7, the same command): goal reached 53 of 57, 0 contacts. Lane changes were
+Before (report of cccb5d7, the same command): goal reached 53 of 57, 0 contacts; the report of
+5bd6315 (this tactical layer, before the last planner changes): 53 of 57, 0 contacts. Lane changes were
 started in three of the four scenes that miss their goal (2_1, 23_1, 24_1) and in none that reaches
 it; they brought 23_1's ego into the lane next to the goal's by 5 s (it was back in its own lane at
 7.8 s before) but not ahead of the car that then stops in the goal region. A first version that
