@@ -210,3 +210,23 @@ def test_a_kept_plan_toward_the_goal_comes_before_a_lane_change() -> None:
     r = simulate(INTERACTIVE / "USA_US101-9_1_I-1-1")
     assert r["goal_reached"] and r["collisions"] == 0 and r["contacts_at_fault"] == 0
     assert r["lane_changes"] == 0 and any(d["action"] == "kept" for d in r["decisions"])
+
+
+def test_a_lane_change_is_never_a_two_stage_plan(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A lane change is one plan into the next lane: the offline planner's two-stage search through a
+    waypoint around a vehicle is not tried for it (taken as a lane change at 6.5 s it made 23_1's ego
+    end against the car standing in its goal region, at fault)."""
+    import iamp.commonroad.tactical as tactical
+
+    calls: list[dict[str, Any]] = []
+    real = tactical.plan
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        calls.append(kwargs)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(tactical, "plan", spy)
+    live = _live([])
+    g = _goal(live)
+    assert tactical.lane_change(live, "avoid", g.d, 0.0, g.s, g.tf) is not None
+    assert calls and all(c.get("via") is False for c in calls)

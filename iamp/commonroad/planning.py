@@ -381,14 +381,14 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
 
 
 def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
-         steps: int = STEPS, max_plans: int = MAX_PLANS) -> RoadPlan:
+         steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True) -> RoadPlan:
     """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring).
 
     The search is bounded by counts, never by time: at most ``max_candidates`` final states
     (:func:`_candidate_order`) and ``max_plans`` calls of the iamp planner over all of them (each
     avoidance QP at most :data:`AVOID_MAX_SOLVES` QP solves), then, where none gave a safe plan,
     the two-stage search (:func:`_via`, :data:`VIA_MAX_PLANS` calls of its own; none when
-    ``max_plans`` is 0), so the same problem gives the same answer on any machine.  When no
+    ``max_plans`` is 0 or ``via`` is false), so the same problem gives the same answer on any machine.  When no
     final state gives a safe plan, the reason says which part of the goal region was searched; a
     goal no final state of which the model can reach is refused (status ``unreachable``) naming
     the goal state's element.
@@ -455,13 +455,13 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             if other is not None and all(abs(other.d - c.d) > 1e-3 or other.steps != c.steps for c in tried + queue):
                 queue.insert(0, other)
     assert best is not None
-    if active and planner != "free" and best.candidate is not None and max_plans > 0:
-        via = _via(cr, best, planner, iamp_planner, constraint, steps, heading, edge_heading)
-        if via is not None:
-            via.candidates_tried = n_tried
-            via.solve_time_s = time.perf_counter() - start
-            via.plans_used = max_plans - budget[0] + via.plans_used
-            return via
+    if via and active and planner != "free" and best.candidate is not None and max_plans > 0:
+        staged = _via(cr, best, planner, iamp_planner, constraint, steps, heading, edge_heading)
+        if staged is not None:
+            staged.candidates_tried = n_tried
+            staged.solve_time_s = time.perf_counter() - start
+            staged.plans_used = max_plans - budget[0] + staged.plans_used
+            return staged
     steps_tried = sorted({c.steps for c in tried})
     searched = (f"no safe plan found over the goal region searched: {n_tried} final state(s) at step(s) "
                 f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()} ({len(cr.candidates) - len(clear)} of "

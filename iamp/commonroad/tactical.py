@@ -338,7 +338,9 @@ def lane_change(cr: CommonRoadProblem, planner: str, goal_d: float, now: float =
     if not cands:
         return None
     cands = cands[:MAX_WAYPOINTS]
-    rp = plan(dataclasses.replace(cr, candidates=cands), planner, max_candidates=MAX_WAYPOINTS)
+    # a lane change is one plan to the next lane, not a two-stage plan around a vehicle (via=False: a
+    # waypoint plan taken as a lane change at 6.5 s made 23_1's ego end against the car in its goal)
+    rp = plan(dataclasses.replace(cr, candidates=cands), planner, max_candidates=MAX_WAYPOINTS, via=False)
     if rp.safe and rp.candidate in cands and rp.trajectory is not None and rp.peak_accel_mps2 <= cr.a_max \
             and stops_behind_along(cr, rp.trajectory, rp.candidate.tf):
         return rp
