@@ -73,21 +73,18 @@ NOTES: dict[str, str] = {
         "predictor, fitted to 3 s of observed history, does not, so whether a contact-free course existed "
         "with hindsight is not decided here."),
     "USA_US101-23_1_I-1-1": (
-        "**the goal is free for 0.4 s of its window, only ahead of a car that stops in it; on this code "
-        "the ego ends touching that car, at fault.** Three lanes over (s 265-267 m, 13.6-19.6 m/s, "
-        "13.0-14.0 s). The ego changes lane at 0.0 s and 3.0 s (the goal is three, then two lanes over), "
-        "at 5.0 s (vehicles 91, 96 in the way of the goal plan) and again at 6.5 s (91 in the way). Vehicle "
-        "96 brakes from 19.8 m/s (11 s) to 12.5 m/s (13 s) in the goal lane and stands in the goal region "
-        "from 13.4 s (`goal_occupancy`: 4 of 11 steps free, 13.0-13.3 s, each only ahead of 96). From 13.5 s "
-        "every new plan is in 96's way or out of reach and the ego brakes (fail-safe); at 14.0 s, the last "
-        "step, its body overlaps 96's by 0.49 m and RSS holds the ego responsible (`contact_list`: "
-        "response lateral, threshold 6.8 s, not reported by SUMO). The run of 5bd6315 (before the "
-        "offline planner's two-stage search, its heading margin and the avoidance's new bound) made three "
-        "lane changes and ended 1.0 m from 96 without contact; which of those changes makes the fourth "
-        "lane change and the contact was not analysed. Reaching the goal needed the ego ahead of 96 in "
-        "lane 4 by about 13 s: entering lane 4 in the 18 m gap between 96 and 83 at about 5 s, i.e. passing "
-        "91 first -- a manoeuvre across two lanes of moving traffic that the tactical layer (one lane at a "
-        "time, RSS distances) did not find."),
+        "**the goal is free for 0.4 s of its window, only ahead of a car that stops in it.** Three lanes over"
+        " (s 265-267 m, 13.6-19.6 m/s, 13.0-14.0 s). The ego changes lane at 0.0 s and 3.0 s (the goal is "
+        "three, then two lanes over) and again at 7.3 s; vehicle 96 brakes from 19.8 m/s (11 s) to 12.5 m/s "
+        "(13 s) in the goal lane and stands in the goal region from 13.4 s (`goal_occupancy`: 4 of 11 steps "
+        "free, 13.0-13.3 s, each only ahead of 96); the ego brakes behind it (fail-safe from 13.3 s, min gap "
+        "0.91 m, no contact). A run of ebba735's parent (4e11bff) ended against 96 at 14.0 s, at fault: the "
+        "tactical layer had taken the offline planner's two-stage plan around a vehicle (waypoints at 30 and "
+        "70 % of the horizon, 0342443) as a fourth lane change at 6.5 s; a lane change is now one plan into "
+        "the next lane (`plan(via=False)`, tests/test_commonroad_interactive_tactical.py). Reaching the goal "
+        "needed the ego ahead of 96 in lane 4 by about 13 s: entering lane 4 in the 18 m gap between 96 and "
+        "83 at about 5 s, i.e. passing 91 first -- a manoeuvre across two lanes of moving traffic that the "
+        "tactical layer (one lane at a time, RSS distances) did not find."),
     "USA_US101-24_2_I-1-1": (
         "goal reached; **one SUMO-only collision report, no contact**: at 10.2 s SUMO reports a side "
         "collision with vehicle 31 while the bodies are 0.78 m apart. SUMO's check is lane-based (positions "
