@@ -78,7 +78,7 @@ NOTES: dict[str, str] = {
         "three, then two lanes over) and again at 7.3 s; vehicle 96 brakes from 19.8 m/s (11 s) to 12.5 m/s "
         "(13 s) in the goal lane and stands in the goal region from 13.4 s (`goal_occupancy`: 4 of 11 steps "
         "free, 13.0-13.3 s, each only ahead of 96); the ego brakes behind it (fail-safe from 13.3 s, min gap "
-        "0.91 m, no contact). A run of ebba735's parent (4e11bff) ended against 96 at 14.0 s, at fault: the "
+        "0.91 m, no contact). A run on 4e11bff (before ebba735) ended against 96 at 14.0 s, at fault: the "
         "tactical layer had taken the offline planner's two-stage plan around a vehicle (waypoints at 30 and "
         "70 % of the horizon, 0342443) as a fourth lane change at 6.5 s; a lane change is now one plan into "
         "the next lane (`plan(via=False)`, tests/test_commonroad_interactive_tactical.py). Reaching the goal "
