@@ -515,9 +515,9 @@ class Controller:
         lim = cfg.lane_keep_ay
         if ego.vx < 1.0:
             ay = -ego.vy / dt
-        else:
+        else:  # lane keeping, rate-limited like a_x (at a crawl the lateral speed is stopped at once)
             ay = -cfg.kp * (ego.y - y_c) - cfg.kd * ego.vy
-        ay = float(np.clip(ay, ego.ay - step, ego.ay + step))
+            ay = float(np.clip(ay, ego.ay - step, ego.ay + step))
         # a car moves sideways only while it moves forward: |v_y| <= tan(psi_max) v_x after the period
         cap = self.cfg.max_slip * (ego.vx + ax * dt)
         ay = float(np.clip(np.clip(ay, (-cap - ego.vy) / dt, (cap - ego.vy) / dt), -lim, lim))
