@@ -204,3 +204,54 @@ def test_executed_inputs_change_within_the_jerk_bound_except_an_urgent_brake(a_p
     else:
         assert abs(nxt.ax - a_prev) <= step + 1e-12
     assert abs(nxt.ay - ay_prev) <= step + 1e-12 or abs(nxt.vy) <= ctl.cfg.max_slip * (v + nxt.ax * 0.1) + 1e-12
+
+
+def test_rss_regions_are_the_rss_distance_capped_by_the_room_the_boundary_leaves() -> None:
+    """Exact values (mutation testing found them untested): a follower's region is
+    ``L_e/2 + m_x + d(v_f(T), v_xf)``, capped at ``x_f - x_f(T) - L_f/2 - 0.5``; a target-lane
+    leader's ``L_e/2 + m_x + d(v_xf, v_l(T))``, capped at ``x_l(T) - L_l/2 - x_f - 0.5``; never negative."""
+    from iamp.core.problem import EgoBoundary
+    from iamp.simulation.tactical import rss_regions
+
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    region = rss_regions(ego, cfg)
+    b = EgoBoundary(tf=5.0, x0=0.0, y0=0.0, vx0=20.0, vy0=0.0, xf=100.0, yf=W_LANE, vxf=20.0, vyf=0.0)
+    half = ego.length / 2 + cfg.safe.margin_x
+    far_f, far_l = _nb("f", -500.0, 20.0), _nb("l", 700.0, 20.0)  # x(5) = -400, 800: room is ample
+    assert region(far_f, "follower", b) == pytest.approx(half + float(safe_longitudinal_distance(20.0, 20.0, DEFAULT)))
+    assert region(far_l, "leader", b) == pytest.approx(half + float(safe_longitudinal_distance(20.0, 20.0, DEFAULT)))
+    near_f, near_l = _nb("f", -30.0, 20.0), _nb("l", 30.0, 20.0)  # x(5) = 70, 130
+    assert region(near_f, "follower", b) == pytest.approx(100.0 - 70.0 - 4.6 / 2 - 0.5)
+    assert region(near_l, "leader", b) == pytest.approx(130.0 - 4.6 / 2 - 100.0 - 0.5)
+    inside = _nb("l", 0.0, 20.0)  # x(5) = 100: the end state inside its body: no room at all
+    assert region(inside, "leader", b) == 0.0
+
+
+def test_horizons_for_respects_t_max_and_the_plan_window() -> None:
+    """``t_max`` bounds the horizons (exactly: 5 s allowed at ``t_max = 5``, 6 s not); a gap whose
+    safe interval is farther than ``plan_window_m + window_s |v_g - v|`` from the ego now is not
+    planned (the tactical layer brings the ego there first)."""
+    dcfg, tac = ControllerConfig().decision, TacticalConfig()
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    wide = Gap(_nb("f", -200.0, 20.0), _nb("l", 200.0, 20.0))
+    all_T = {T for T, _ in horizons_for(ego, wide, dcfg, replace(tac, max_horizons=4))}
+    assert all_T == set(tac.horizons)
+    capped = {T for T, _ in horizons_for(ego, wide, dcfg, replace(tac, max_horizons=4), t_max=5.0)}
+    assert capped == {T for T in tac.horizons if T <= 5.0}
+    # a gap whose safe interval starts 50 m ahead at the ego's speed: window 5 m -> not planned
+    lo_now = safe_interval(ego, wide, 20.0, 0.0, tac)[0]
+    ahead = Gap(_nb("f", -200.0 + 50.0 - lo_now, 20.0), None)
+    assert horizons_for(ego, ahead, dcfg, tac) == []
+    just = Gap(_nb("f", -200.0 + 4.0 - lo_now, 20.0), None)  # 4 m ahead: inside the 5 m window
+    assert horizons_for(ego, just, dcfg, tac) != []
+
+
+def test_gap_end_keeps_the_gap_speed_when_its_end_is_reachable() -> None:
+    """A gap at the ego's speed, the ego in its middle: the end speed is the gap's mean, the end point
+    the constant-speed one (no grid search replaces a reachable mean)."""
+    dcfg, tac = ControllerConfig().decision, TacticalConfig()
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    gap = Gap(_nb("f", -150.0, 18.0), _nb("l", 150.0, 22.0))
+    end = gap_end(ego, gap, 5.0, dcfg, tac)
+    assert end == (pytest.approx(100.0), pytest.approx(20.0))
