@@ -10,33 +10,16 @@ in the third (d 6.4 m, 6-7 s).  Needs the ``[commonroad]`` extra only.
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from conftest import data_path
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_commonroad_interactive import HAVE_EXTRA, HAVE_SUMO, INTERACTIVE, _fixture  # the shared fixture
 
-FIXTURE = Path(__file__).parent / "fixtures" / "commonroad_goals.xml"
-HAVE_EXTRA = all(importlib.util.find_spec(m) is not None for m in ("commonroad", "commonroad_dc", "triangle"))
-HAVE_SUMO = importlib.util.find_spec("libsumo") is not None or importlib.util.find_spec("traci") is not None
-INTERACTIVE = data_path("commonroad", "interactive-US101")
 pytestmark = pytest.mark.skipif(not HAVE_EXTRA, reason="the [commonroad] extra is not installed "
                                                        "(pip install 'iamp[commonroad]')")
-
-_CR: Any = None
-
-
-def _fixture() -> Any:
-    global _CR
-    if _CR is None:
-        from iamp.commonroad.convert import load
-
-        _CR = load(FIXTURE)
-    return _CR
 
 
 def _moving(oid: int, s: float, d: float, v: float, horizon: float = 8.0) -> Any:
