@@ -491,27 +491,22 @@ class ViaTrajectory:
     def __init__(self, first: Trajectory, second: Trajectory, t_m: float, cost: float):
         self.first, self.second, self.t_m, self._cost = first, second, t_m, cost
 
-    def _split(self, t: npt.ArrayLike) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    def _joined(self, t: npt.ArrayLike, name: str, width: int) -> FloatArray:
+        """``first.<name>`` up to ``t_m``, ``second.<name>`` on its own clock after."""
         tt = np.atleast_1d(np.asarray(t, dtype=float))
-        return tt, tt <= self.t_m
+        early = tt <= self.t_m
+        out = np.empty((tt.size, width))
+        if early.any():
+            out[early] = np.asarray(getattr(self.first, name)(tt[early]), dtype=float)
+        if (~early).any():
+            out[~early] = np.asarray(getattr(self.second, name)(tt[~early] - self.t_m), dtype=float)
+        return out
 
     def states(self, t: npt.ArrayLike) -> FloatArray:
-        tt, early = self._split(t)
-        out = np.empty((tt.size, 4))
-        if early.any():
-            out[early] = np.asarray(self.first.states(tt[early]), dtype=float)
-        if (~early).any():
-            out[~early] = np.asarray(self.second.states(tt[~early] - self.t_m), dtype=float)
-        return out
+        return self._joined(t, "states", 4)
 
     def inputs(self, t: npt.ArrayLike) -> FloatArray:
-        tt, early = self._split(t)
-        out = np.empty((tt.size, 2))
-        if early.any():
-            out[early] = np.asarray(self.first.inputs(tt[early]), dtype=float)
-        if (~early).any():
-            out[~early] = np.asarray(self.second.inputs(tt[~early] - self.t_m), dtype=float)
-        return out
+        return self._joined(t, "inputs", 2)
 
     def cost(self) -> float:
         """½∫|u|² of both plans (their own costs, summed)."""
