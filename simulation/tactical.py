@@ -56,6 +56,7 @@ __all__ = [
     "TacticalConfig",
     "choose_gap",
     "continuing_end",
+    "end_accels",
     "gap_end",
     "horizons_for",
     "lane_end_accel",
@@ -64,6 +65,7 @@ __all__ = [
     "safe_interval",
     "seek_accel",
     "slot_length",
+    "within_reach",
 ]
 
 
@@ -188,13 +190,8 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
         x = ego.x + (ego.vx + vxf) * T / 2 if a0 is None else continuing_end(ego, a0, T, vxf)
         return float(np.clip(x, lo + s, hi - s)), vxf
 
-    def reachable(end: tuple[float, float]) -> bool:
-        e, g = end[0] - ego.x - ego.vx * T, end[1] - ego.vx
-        a_0, a_1 = 6 * e / T**2 - 2 * g / T, -6 * e / T**2 + 4 * g / T
-        return min(a_0, a_1) >= cfg.reach_limits * ax[0] and max(a_0, a_1) <= cfg.reach_limits * ax[1]
-
     first = end_at(float(np.clip(gap_speed(ego, gap, T), v_lo, v_hi)))
-    if first is not None and reachable(first):
+    if first is not None and within_reach(ego, first, T, dcfg, cfg):
         return first
     n = max(2, int(np.ceil((v_hi - v_lo) / cfg.speed_step)) + 1)
     ends = [e for e in (end_at(float(v)) for v in np.linspace(v_lo, v_hi, n)) if e is not None]
@@ -203,11 +200,27 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     return min(ends, key=lambda e: peak_accel(ego, e, T))
 
 
-def peak_accel(ego: EgoNow, end: tuple[float, float], T: float) -> float:
-    """The unconstrained cubic's peak ``|a_x|`` to ``end`` over ``T`` (module docstring)."""
+def end_accels(ego: EgoNow, end: tuple[float, float], T: float) -> tuple[float, float]:
+    """The unconstrained cubic's ``a_x`` at ``0`` and ``T`` to ``end`` (module docstring):
+    ``6e/T² - 2g/T`` and ``-6e/T² + 4g/T``, ``e = x_f - x_0 - v_0 T``, ``g = v_f - v_0``."""
     e = end[0] - ego.x - ego.vx * T
     g = end[1] - ego.vx
-    return float(max(abs(6 * e / T**2 - 2 * g / T), abs(-6 * e / T**2 + 4 * g / T)))
+    return 6 * e / T**2 - 2 * g / T, -6 * e / T**2 + 4 * g / T
+
+
+def peak_accel(ego: EgoNow, end: tuple[float, float], T: float) -> float:
+    """The unconstrained cubic's peak ``|a_x|`` to ``end`` over ``T`` (module docstring)."""
+    return float(max(abs(a) for a in end_accels(ego, end, T)))
+
+
+def within_reach(ego: EgoNow, end: tuple[float, float], T: float, dcfg: DecisionConfig, cfg: TacticalConfig) -> bool:
+    """The unconstrained cubic to ``end`` keeps ``reach_limits`` of the ``a_x`` bounds (a constrained
+    plan costs more; one that breaks them would be rejected on the limits)."""
+    ax = dcfg.limits.ax
+    if ax is None:
+        return True
+    a_0, a_1 = end_accels(ego, end, T)
+    return min(a_0, a_1) >= cfg.reach_limits * ax[0] and max(a_0, a_1) <= cfg.reach_limits * ax[1]
 
 
 def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfig, t_max: float | None = None,
@@ -227,14 +240,9 @@ def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfi
         end = gap_end(ego, gap, T, dcfg, cfg, a0)
         if end is None:
             continue
-        peak = peak_accel(ego, end, T)
-        e = end[0] - ego.x - ego.vx * T
-        g = end[1] - ego.vx
-        a0, a1 = 6 * e / T**2 - 2 * g / T, -6 * e / T**2 + 4 * g / T  # the cubic's a_x at 0 and T
-        ax = dcfg.limits.ax
-        if ax is not None and (min(a0, a1) < cfg.reach_limits * ax[0] or max(a0, a1) > cfg.reach_limits * ax[1]):
+        if not within_reach(ego, end, T, dcfg, cfg):
             continue  # even the unconstrained plan breaks the a_x bounds: not planned
-        out.append((peak, T, end))
+        out.append((peak_accel(ego, end, T), T, end))
     out.sort(key=lambda r: r[0])
     return [(T, end) for _, T, end in out[: cfg.max_horizons]]
 

@@ -255,3 +255,17 @@ def test_gap_end_keeps_the_gap_speed_when_its_end_is_reachable() -> None:
     gap = Gap(_nb("f", -150.0, 18.0), _nb("l", 150.0, 22.0))
     end = gap_end(ego, gap, 5.0, dcfg, tac)
     assert end == (pytest.approx(100.0), pytest.approx(20.0))
+
+
+@settings(max_examples=80, deadline=None, derandomize=True)
+@given(st.floats(5.0, 30.0), st.floats(-60.0, -15.0), st.floats(15.0, 80.0), st.floats(-2.0, 2.0),
+       st.floats(-2.0, 1.5))
+def test_every_horizon_continues_the_executed_acceleration(v, xf, xl, dv, a0):
+    """Each ``(T, end)`` of :func:`horizons_for` is :func:`gap_end`'s with the executed ``a0`` (the
+    loop once overwrote ``a0`` with the previous horizon's cubic start, which differs where that end
+    was clipped into the safe interval)."""
+    dcfg, tac = ControllerConfig().decision, replace(TacticalConfig(), max_horizons=4)
+    ego = EgoNow(0.0, v, 0.0, 0.0)
+    gap = Gap(_nb("f", xf, v + dv), _nb("l", xl, v - dv))
+    for T, end in horizons_for(ego, gap, dcfg, tac, a0=a0):
+        assert end == gap_end(ego, gap, T, dcfg, tac, a0=a0)
