@@ -92,7 +92,7 @@ def load_axis() -> bool:
 def _build_axis() -> Callable[..., Any]:
     from .saturated_kernel import axis_core as pure
 
-    compiled = jit.twin(pure)
+    compiled = jit.twin(pure, cache=True)  # saturated_kernel.py calls nothing outside itself
     empty = np.empty(0)
 
     def run(sig: list[float], base: list[float], d: list[float], lo: float, hi: float, lam0: list[float] | None,
