@@ -1,0 +1,186 @@
+"""The tactical layer's gap choice and end-state search, value by value (SPEC §17, issue 30 item 3).
+
+Mutation testing of ``simulation/tactical.py`` left these untested: which gap ``choose_gap``
+returns and how it weighs distance against speed matching (``b_match``), where it aims in an
+open gap (``open_m``) and how far it looks (``reach_m``), the end-speed grid of ``gap_end``,
+the cubic's end accelerations and the reach test on both bounds, and the plan window's
+``|v_g - v|``.  Each test states the formula of the module docstring it checks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.simulation.controller import ControllerConfig
+from iamp.simulation.decision import REACH, EgoNow, Gap, Neighbour
+from iamp.simulation.tactical import (
+    TacticalConfig,
+    aim_point,
+    choose_gap,
+    end_accels,
+    gap_end,
+    horizons_for,
+    peak_accel,
+    safe_interval,
+    within_reach,
+)
+
+W_LANE = 3.75
+
+
+def _nb(name: str, x: float, v: float) -> Neighbour:
+    return Neighbour(name, (x, v, 0.0, 0.0), W_LANE, 4.6, 1.8, 1)
+
+
+def test_an_open_gap_is_aimed_open_m_past_its_one_end_and_only_within_reach_m() -> None:
+    """A gap with a follower only: the aim point is ``lo + open_m`` (10 m past the end of the
+    follower's safe distance); with a leader only ``hi - open_m``; a gap whose near end lies more
+    than ``reach_m`` (60 m) ahead or behind is no target."""
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    behind = Gap(_nb("f", -40.0, 20.0), None)
+    lo, hi = safe_interval(ego, behind, 20.0, 0.0, cfg)
+    assert np.isfinite(lo) and hi == np.inf
+    assert aim_point(ego, behind, cfg) == (pytest.approx(lo + 10.0), pytest.approx(20.0))
+    ahead = Gap(None, _nb("l", 40.0, 20.0))
+    lo, hi = safe_interval(ego, ahead, 20.0, 0.0, cfg)
+    assert aim_point(ego, ahead, cfg) == (pytest.approx(hi - 10.0), pytest.approx(20.0))
+    # the follower placed so that lo is 59 m / 61 m ahead of the ego
+    lo0 = safe_interval(ego, Gap(_nb("f", 0.0, 20.0), None), 20.0, 0.0, cfg)[0]
+    assert aim_point(ego, Gap(_nb("f", 59.0 - lo0, 20.0), None), cfg) is not None
+    assert aim_point(ego, Gap(_nb("f", 61.0 - lo0, 20.0), None), cfg) is None
+    hi0 = safe_interval(ego, Gap(None, _nb("l", 0.0, 20.0)), 20.0, 0.0, cfg)[1]
+    assert aim_point(ego, Gap(None, _nb("l", -59.0 - hi0, 20.0)), cfg) is not None
+    assert aim_point(ego, Gap(None, _nb("l", -61.0 - hi0, 20.0)), cfg) is None
+    # no vehicle at all: the ego's own position
+    assert aim_point(ego, Gap(None, None), cfg) == (0.0, 20.0)
+
+
+def test_choose_gap_returns_the_gap_nearest_after_matching_its_speed_at_b_match() -> None:
+    """The cost of a gap is ``|x_m - x + w|w|/(2 b_match)|`` with ``w = v_g - v``: a gap 30 m
+    ahead moving 8 m/s slower than the ego is met after ``8·8/(2·2) = 16`` m of braking, at
+    14 m; one 20 m behind at the ego's speed costs 20 m — the slower gap ahead is chosen although
+    it is farther.  With ``b_match = 8`` the braking costs 4 m (26 m) and the gap behind wins."""
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+
+    def gap_aimed_at(x_m: float, v: float, tag: str) -> Gap:
+        # a gap of two cars 160 m apart around x_m, both at v: its aim point is the middle of its safe interval
+        g = Gap(_nb(tag + "f", x_m - 80.0, v), _nb(tag + "l", x_m + 80.0, v))
+        aim = aim_point(ego, g, cfg)
+        assert aim is not None
+        return Gap(_nb(tag + "f", 2 * x_m - aim[0] - 80.0, v), _nb(tag + "l", 2 * x_m - aim[0] + 80.0, v))
+
+    slow_ahead = gap_aimed_at(30.0, 12.0, "a")
+    same_behind = gap_aimed_at(-20.0, 20.0, "b")
+    assert aim_point(ego, slow_ahead, cfg)[0] == pytest.approx(30.0)  # type: ignore[index]
+    assert aim_point(ego, same_behind, cfg)[0] == pytest.approx(-20.0)  # type: ignore[index]
+    assert choose_gap(ego, [same_behind, slow_ahead], None, cfg) is slow_ahead
+    assert choose_gap(ego, [slow_ahead, same_behind], None, cfg) is slow_ahead
+    assert choose_gap(ego, [slow_ahead, same_behind], None, replace(cfg, b_match=8.0)) is same_behind
+    # hysteresis: the previous target is kept unless another is better by more than switch_m (10 m)
+    assert choose_gap(ego, [slow_ahead, same_behind], ("bf", "bl"), cfg) is same_behind
+    assert choose_gap(ego, [slow_ahead, same_behind], ("bf", "bl"), replace(cfg, switch_m=5.0)) is slow_ahead
+    assert choose_gap(ego, [], None, cfg) is None
+
+
+def test_choose_gap_skips_a_gap_whose_aim_lies_past_the_limit() -> None:
+    """With ``x_limit`` (the lane's end) a gap is a target only if ``x_m + v_g·aim_s`` stays before it."""
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    g = Gap(_nb("f", -80.0, 20.0), _nb("l", 80.0, 20.0))
+    x_m = aim_point(ego, g, cfg)[0]  # type: ignore[index]
+    reach = x_m + 20.0 * cfg.aim_s
+    assert choose_gap(ego, [g], None, cfg, x_limit=reach + 0.01) is g
+    assert choose_gap(ego, [g], None, cfg, x_limit=reach - 0.01) is None
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.floats(0.0, 35.0), st.floats(-60.0, 60.0), st.floats(-15.0, 15.0), st.sampled_from([4.0, 5.0, 6.0, 7.0]))
+def test_end_accels_are_the_cubics_accelerations_at_both_ends(v0, dx, dv, T):
+    """``end_accels`` = ``(a(0), a(T))`` of the cubic ``x(t)`` with ``x(0) = x_0``, ``ẋ(0) = v_0``,
+    ``x(T) = x_f``, ``ẋ(T) = v_f`` (solved here as a 4×4 linear system), and ``peak_accel`` the
+    larger magnitude."""
+    ego = EgoNow(3.0, v0, 0.0, 0.0)
+    xf, vf = 3.0 + v0 * T + dx, max(v0 + dv, 0.0)
+    A = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [1, T, T**2, T**3], [0, 1, 2 * T, 3 * T**2]], dtype=float)
+    c = np.linalg.solve(A, [3.0, v0, xf, vf])
+    a0, aT = 2 * c[2], 2 * c[2] + 6 * c[3] * T
+    got = end_accels(ego, (xf, vf), T)
+    assert got == (pytest.approx(a0, abs=1e-9), pytest.approx(aT, abs=1e-9))
+    assert peak_accel(ego, (xf, vf), T) == pytest.approx(max(abs(a0), abs(aT)), abs=1e-9)
+
+
+def test_within_reach_tests_each_end_against_its_own_bound() -> None:
+    """Bounds ``a_x ∈ [-6, 3]``: a cubic that starts at +4 and ends at -2 breaks the upper bound
+    (although both magnitudes are below 6); one that starts at -5 and ends at +1 keeps both."""
+    dcfg, cfg = ControllerConfig().decision, TacticalConfig()
+    assert dcfg.limits.ax == (-6.0, 3.0)
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    T = 5.0
+
+    def end_for(a0: float, aT: float) -> tuple[float, float]:
+        # a(0) = 6e/T² - 2g/T, a(T) = -6e/T² + 4g/T  ->  g = (a0 + aT) T / 2, e = (a0 T² + 2 g T) / 6
+        g = (a0 + aT) * T / 2
+        e = (a0 * T**2 + 2 * g * T) / 6
+        return ego.x + ego.vx * T + e, ego.vx + g
+
+    up = end_for(4.0, -2.0)
+    assert end_accels(ego, up, T) == (pytest.approx(4.0), pytest.approx(-2.0))
+    assert not within_reach(ego, up, T, dcfg, cfg)
+    assert not within_reach(ego, end_for(-2.0, 4.0), T, dcfg, cfg)
+    assert within_reach(ego, end_for(-5.0, 1.0), T, dcfg, cfg)
+    assert within_reach(ego, end_for(2.9, -5.9), T, dcfg, cfg)
+    assert not within_reach(ego, end_for(-6.1, 0.0), T, dcfg, cfg)
+    # reach_limits scales both bounds
+    assert not within_reach(ego, end_for(-5.0, 1.0), T, dcfg, replace(cfg, reach_limits=0.8))
+
+
+def test_the_plan_window_grows_with_the_speed_difference_either_way() -> None:
+    """The window is ``plan_window_m + window_s·|v_g - v|``: a gap 10 m/s slower than the ego whose
+    safe interval begins 20 m ahead is within 5 + 2·10 = 25 m and planned, as is one 10 m/s
+    faster; at the ego's speed (5 m) neither position is."""
+    dcfg, cfg = ControllerConfig().decision, TacticalConfig()
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    for v_g in (10.0, 30.0, 20.0):
+        lo0 = safe_interval(ego, Gap(_nb("f", 0.0, v_g), None), ego.vx, 0.0, cfg)[0]
+        gap = Gap(_nb("f", 20.0 - lo0, v_g), None)
+        assert safe_interval(ego, gap, ego.vx, 0.0, cfg)[0] == pytest.approx(20.0)
+        planned = horizons_for(ego, gap, dcfg, replace(cfg, reach_limits=10.0)) != []
+        assert planned is (v_g != 20.0)
+
+
+def test_the_end_speed_grid_steps_by_speed_step_across_the_reachable_speeds() -> None:
+    """When the gap's mean speed is out of reach, ``gap_end`` tries ``ceil((v_hi - v_lo)/step) + 1``
+    speeds evenly from ``v_lo = max(v + REACH·a_min·T, 0)`` to ``v_hi = v + REACH·a_max·T``: with
+    ``T = 5``, ``v = 13.6`` that is 53 speeds from 0 to 25.6 m/s, and the end returned is the grid
+    point with the least peak acceleration (checked against every grid point here; a leader 79 m
+    ahead at 5.7 m/s, a follower 22 m behind at 13.1 m/s)."""
+    dcfg, cfg = ControllerConfig().decision, TacticalConfig()
+    ego = EgoNow(0.0, 13.6, 0.0, 0.0)
+    T = 5.0
+    gap = Gap(_nb("f", -22.0, 13.1), _nb("l", 79.0, 5.7))
+    v_lo, v_hi = max(13.6 + REACH * -6.0 * T, 0.0), 13.6 + REACH * 3.0 * T
+    assert v_hi == pytest.approx(25.6)
+    n = int(np.ceil((v_hi - v_lo) / cfg.speed_step)) + 1
+    assert n == 53
+    grid = np.linspace(v_lo, v_hi, n)
+    end = gap_end(ego, gap, T, dcfg, cfg)
+    assert end is not None
+    mean = float(np.mean([13.1, 5.7]))
+    assert abs(end[1] - mean) > 0.1, "the mean speed's end was reachable: the grid was not searched"
+    assert np.min(np.abs(grid - end[1])) < 1e-12, "the end speed is not on the grid"
+    best = np.inf
+    for w in grid:
+        lo, hi = safe_interval(ego, gap, float(w), T, cfg)
+        if lo < hi:
+            s = min(2.0, (hi - lo) / 2)
+            x = float(np.clip(ego.x + (ego.vx + w) * T / 2, lo + s, hi - s))
+            best = min(best, peak_accel(ego, (x, float(w)), T))
+    assert peak_accel(ego, end, T) == pytest.approx(best, abs=1e-12)
+    assert v_lo + 1e-9 < end[1] < v_hi - 1e-9  # an interior grid point (every grid holds both bounds)
