@@ -311,6 +311,32 @@ def test_goal_occupancy_says_when_the_goal_has_no_room() -> None:
     assert far["rss_free_steps"] == 11
 
 
+@needs_extra
+def test_a_goal_occupied_for_its_whole_window_says_so_and_by_whom() -> None:
+    """A vehicle covering the goal shape at every step of the window, ahead of the ego (at s 100)
+    all the while: the window is occupied whole, by that vehicle, always ahead of the ego, and the
+    episode's reason says so; one step free, or the occupant behind the ego once, and it does not."""
+    from iamp.commonroad.interactive import goal_occupancy, miss_reason
+
+    cr = _fixture()
+    cr = dataclasses.replace(cr, goal=dataclasses.replace(cr.goal, elements=[cr.goal.elements[1]]))
+    cover = [116.0, 7.2, 10.0, 0.0, 2, 40.0, 5.0, 0.0]
+    occ = goal_occupancy(cr, _goal_log([cover]))
+    assert occ["occupied_whole_window"] and occ["occupants"] == ["0"] and occ["occupants_always_ahead"]
+    reason = miss_reason(occ)
+    assert reason is not None and "whole window" in reason and "0" in reason and "ahead of the ego" in reason
+    assert miss_reason(goal_occupancy(cr, _goal_log([]))) is None
+    gap = _goal_log([cover])
+    gap.nb[5] = np.asarray([[40.0, 7.2, 10.0, 0.0, 2, 5.0, 1.8, 0.0]])  # step 65: the car is behind, the goal free
+    occ = goal_occupancy(cr, gap)
+    assert not occ["occupied_whole_window"] and miss_reason(occ) is None
+    behind_once = _goal_log([cover])
+    behind_once.ego[0] = (120.0, 13.0, 7.2, 0.0, 0.0, 0.0)  # the ego's centre ahead of the occupant's once
+    occ = goal_occupancy(cr, behind_once)
+    assert occ["occupied_whole_window"] and not occ["occupants_always_ahead"]
+    assert "no course of the ego" not in (miss_reason(occ) or "")
+
+
 @pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not (INTERACTIVE / "USA_US101-5_1_I-1-1").is_dir(),
                     reason="needs the [commonroad] and [sim] extras and the shared interactive scenarios "
                            f"({INTERACTIVE})")
@@ -346,4 +372,6 @@ def test_a_goal_occupied_by_traffic_is_missed_without_contact() -> None:
     r = simulate(INTERACTIVE / "USA_US101-27_4_I-1-1")
     assert not r["goal_reached"]
     assert r["goal_occupancy"]["window_steps_logged"] == 11 and r["goal_occupancy"]["free_steps"] == 0
+    assert r["goal_occupancy"]["occupied_whole_window"] and r["goal_occupancy"]["occupants_always_ahead"]
+    assert "whole window" in r["goal_missed_reason"]
     assert r["collisions"] == 0 and r["contacts_at_fault"] == 0

@@ -213,3 +213,147 @@ def test_a_lane_change_is_never_a_two_stage_plan(monkeypatch: pytest.MonkeyPatch
     g = _goal(live)
     assert tactical.lane_change(live, "avoid", g.d, 0.0, g.s, g.tf) is not None
     assert calls and all(c.get("via") is False for c in calls)
+
+
+def _goal_lane_gap_ahead(cr: Any) -> list[Any]:
+    """The goal's lane (d 7.2) holds a column of cars at 15 m/s (the ego's speed) from 30 m behind
+    the ego to 12 m ahead of it, 6 m apart (1.5 m bumper to bumper), and one more 60 m ahead: the
+    only gap is ahead of the column; the middle lane is empty."""
+    s0 = cr.x0[0]
+    return [_moving(40 + i, s0 + 6.0 * i, 7.2, 15.0, 12.0) for i in range(-5, 3)] + [_moving(60, s0 + 60.0, 7.2, 15.0,
+                                                                                             12.0)]
+
+
+def test_one_lane_at_a_time_ends_where_the_goal_lane_is_out_of_reach_a_sequence_does_not() -> None:
+    """The cheapest lane change into the middle lane keeps the ego level with the column in the
+    goal's lane; from its end no lane change into the goal's lane is accepted (the gap ahead of the
+    column is 26 m ahead, out of reach within a_max in 3 s).  Planned together -- the gap first,
+    then the two lane changes toward it -- the ego speeds up in the middle lane and ends in the gap,
+    every lane change within a_max and RSS-clear at its end (the column's last car behind at least
+    the follower gap, the car 60 m ahead at least RSS's stopping distance), the body off every
+    predicted vehicle all along."""
+    from iamp.commonroad.planning import intrusions
+    from iamp.commonroad.tactical import STOP_DECEL_FRACTION, advanced, follower_gap, lane_change, sequence
+    from iamp.simulation.rss import DEFAULT, rss_distance
+
+    cr = _fixture()
+    cars = _goal_lane_gap_ahead(cr)
+    live = _live(cars)
+    g = _goal(live)
+    one = lane_change(live, "avoid", g.d, 0.0, g.s, g.tf)
+    assert one is not None and one.candidate is not None and one.candidate.d == pytest.approx(3.6, abs=1e-3)
+    T1 = one.candidate.tf
+    assert one.trajectory is not None
+    s1, v1, d1, vd1 = (float(v) for v in one.trajectory.states([T1])[0])
+    x1 = (s1, v1, d1, vd1)
+    assert lane_change(advanced(live, x1, T1), "avoid", g.d, T1, g.s, g.tf) is None
+    seq = sequence(live, "avoid", g.d, 0.0, g.s, g.tf)
+    assert seq is not None and len(seq.parts) == 2
+    T = seq.horizon
+    assert not intrusions(live, seq, T)
+    t = np.linspace(0.0, T, 121)
+    U = seq.inputs(t)
+    assert float(np.max(np.hypot(U[:, 0], U[:, 1]))) <= live.a_max + 1e-9
+    for te, lane_d in zip(seq.ends, (3.6, 7.2)):
+        s, v, d, vd = seq.states([te])[0]
+        assert d == pytest.approx(lane_d, abs=1e-3) and vd == pytest.approx(0.0, abs=1e-6)
+        for ob in cars:
+            c = ob.cubic[0] + ob.cubic[1] * te
+            if abs(ob.d_lo[0] + 0.9 - d) > 1.0:
+                continue
+            if c > s:
+                gap = c - 2.25 - (s + 0.5 * cr.ego_length)
+                assert gap >= float(rss_distance(v, 15.0, 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max,
+                                                 DEFAULT.brake_max)) - 1e-6
+            else:
+                assert (s - 0.5 * cr.ego_length) - (c + 2.25) >= follower_gap(15.0, v) - 1e-6
+    s_end = seq.states([T])[0, 0]
+    assert s_end > cr.x0[0] + 15.0 * T + 12.0  # ahead of the column
+
+
+def test_advanced_is_the_prediction_seen_later() -> None:
+    """The problem advanced by T: the ego at the given state, each vehicle's box at time 0 its box
+    at T, its cubic the old one shifted by T."""
+    from iamp.commonroad.tactical import advanced
+
+    live = _live([_moving(7, 50.0, 3.6, 12.0)])
+    x = (80.0, 14.0, 3.6, 0.0)
+    later = advanced(live, x, 2.0)
+    ob, ob0 = later.obstacles[0], live.obstacles[0]
+    assert later.x0 == x and not later.candidates
+    assert ob.t[0] == 0.0 and ob.s_lo[0] == pytest.approx(ob0.s_lo[20]) and ob.t.size == ob0.t.size - 20
+    for tau in (0.0, 1.3, 4.0):
+        assert np.polyval(ob.cubic[::-1], tau) == pytest.approx(np.polyval(ob0.cubic[::-1], tau + 2.0))
+
+
+def test_stages_join_their_parts() -> None:
+    """A sequence's states are each part's from its start, and the parts meet end to start."""
+    from iamp.commonroad.planning import FreeTrajectory
+    from iamp.commonroad.tactical import Stages
+
+    a = FreeTrajectory(2.0, (0.0, 10.0, 0.0, 0.0), (22.0, 12.0, 3.6, 0.0))
+    b = FreeTrajectory(3.0, (22.0, 12.0, 3.6, 0.0), (60.0, 13.0, 7.2, 0.0))
+    st_ = Stages([(0.0, a, 2.0), (2.0, b, 3.0)])
+    assert st_.horizon == 5.0 and st_.ends == [2.0, 5.0]
+    np.testing.assert_allclose(st_.states([1.0, 2.0, 4.0]), np.vstack([a.states([1.0]), b.states([0.0]),
+                                                                       b.states([2.0])]))
+    np.testing.assert_allclose(a.states([2.0]), b.states([0.0]), atol=1e-9)
+    np.testing.assert_allclose(st_.inputs([0.5, 3.0]), np.vstack([a.inputs([0.5]), b.inputs([1.0])]))
+
+
+def test_a_sequence_under_way_is_given_up_when_a_car_cuts_into_its_middle_lane() -> None:
+    """A sequence whose final state still holds is given up when a car now stands in the middle
+    lane just ahead of where its first lane change ends (RSS-clear at every lane change's end, not
+    only the last)."""
+    from iamp.commonroad.tactical import sequence, still_holds
+
+    cr = _fixture()
+    live = _live(_goal_lane_gap_ahead(cr))
+    g = _goal(live)
+    seq = sequence(live, "avoid", g.d, 0.0, g.s, g.tf)
+    assert seq is not None
+    T1, T = seq.ends[0], seq.horizon
+    assert still_holds(live, seq, T, [T1])
+    s1, v1 = (float(x) for x in seq.states([T1])[0, :2])
+    # a car in the middle lane, 2 m beyond the ego's front at T1 at the ego's speed then minus 6 m/s:
+    # not in the way before T1 at its predicted speed, but inside RSS's stopping distance at T1
+    v_c = v1 - 6.0
+    c_T1 = s1 + 0.5 * cr.ego_length + 2.0 + 2.25
+    cut = _live([*_goal_lane_gap_ahead(cr), _moving(90, c_T1 - v_c * T1, 3.6, v_c, 12.0)])
+    assert not still_holds(cut, seq, T, [T1])
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.lists(st.tuples(st.floats(-40.0, 40.0), st.floats(8.0, 22.0), st.sampled_from([3.6, 7.2])),
+                min_size=1, max_size=5))
+def test_an_accepted_sequence_keeps_clear_and_leaves_rss_room(cars: list[tuple[float, float, float]]) -> None:
+    """Whatever the traffic in the middle lane and the goal's lane, a sequence the layer accepts keeps
+    the body off every predicted vehicle, stays within a_max, and at each lane change's end every
+    car ahead in that lane is at least RSS's stopping distance away and every car behind at least
+    the follower gap."""
+    from iamp.commonroad.planning import intrusions
+    from iamp.commonroad.tactical import STOP_DECEL_FRACTION, follower_gap, sequence
+    from iamp.simulation.rss import DEFAULT, rss_distance
+
+    cr = _fixture()
+    live = _live([_moving(20 + i, cr.x0[0] + ds, d, v, 12.0) for i, (ds, v, d) in enumerate(cars)])
+    g = _goal(live)
+    seq = sequence(live, "avoid", g.d, 0.0, g.s, g.tf)
+    if seq is None:
+        return
+    assert not [h for h in intrusions(live, seq, seq.horizon) if not h.obstacle.road_edge]
+    U = seq.inputs(np.linspace(0.0, seq.horizon, 121))
+    assert float(np.max(np.hypot(U[:, 0], U[:, 1]))) <= live.a_max + 1e-9
+    for te, lane_d in zip(seq.ends, (3.6, 7.2)):
+        s, v, d, _ = seq.states([te])[0]
+        assert d == pytest.approx(lane_d, abs=1e-3)
+        for ds, vo, dc in cars:
+            if dc != lane_d:
+                continue
+            c = cr.x0[0] + ds + vo * te
+            if c > s:
+                gap = c - 2.25 - (s + 0.5 * cr.ego_length)
+                assert gap >= float(rss_distance(v, vo, 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max,
+                                                 DEFAULT.brake_max)) - 1e-6
+            else:
+                assert (s - 0.5 * cr.ego_length) - (c + 2.25) >= follower_gap(vo, v) - 1e-6

@@ -22,7 +22,8 @@ the ego:
    to a stop, keep RSS's distance to the vehicle ahead (:func:`rss_stops_behind`).  After a
    fail-safe brake the ego replans at the next step (not after ``replan_s``), toward the goal's
    whole remaining window; when no final state of the window can be reached any more it keeps
-   braking safely until the window ends.  A goal several lanes over is approached one lane at a
+   braking safely until the window ends.  A goal several lanes over is approached by lane
+   changes planned together into a gap of its lane (``lane_change_sequences``), else one lane at a
    time, and a lane change toward the goal's lane is also offered where the fail-safe would
    otherwise brake (:mod:`iamp.commonroad.tactical`: into a gap with RSS's stopping distance ahead and
    a comfortable braking gap behind, finished while it still holds; ``lane_changes``).  The
@@ -77,7 +78,7 @@ from iamp.commonroad.convert import (
     load,
 )
 from iamp.commonroad.planning import DEFAULT_PLANNER, Intrusion, body_overlap, intrusions, plan
-from iamp.commonroad.tactical import EARLY_MIN_S, LaneMap, lane_change, still_holds
+from iamp.commonroad.tactical import EARLY_MIN_S, LaneMap, Stages, lane_change, sequence, still_holds
 from iamp.core.errors import MissingDependencyError, ScenarioError
 from iamp.core.plan import Trajectory
 from iamp.prediction.predictor import Predictor
@@ -403,7 +404,11 @@ def goal_occupancy(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
     dict
         ``window_steps_logged`` (steps of the window the episode logged), ``free_steps`` and
         ``first_free_s`` / ``last_free_s`` (the times of the first and last free step, or None),
-        ``rss_free_steps``.
+        ``rss_free_steps``; ``occupied_whole_window`` (every step of the window logged and none
+        free), ``occupants`` (the vehicles on a goal position at the steps without a free one) and
+        ``occupants_always_ahead`` (the window occupied whole and each occupant's centre ahead of
+        the ego's at every step it was observed: the ego never drove in front of it, so SUMO's car
+        following never had it react to the ego; :func:`miss_reason` words it).
     """
     from iamp.simulation.rss import DEFAULT, body_extents, rss_distance
 
@@ -418,6 +423,7 @@ def goal_occupancy(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
             pts_all.append((e.steps, P[inside], 0.0 if e.speed is None else max(e.speed[0], 0.0)))
     logged = free = rss_free = 0
     first = last = None
+    occupants: set[str] = set()
     for i, t in enumerate(log.t):
         k = int(round(t / cr.dt))
         here = [(P, v) for steps, P, v in pts_all if steps[0] <= k <= steps[1] and P.size]
@@ -429,11 +435,14 @@ def goal_occupancy(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
         ok = np.ones(len(P), dtype=bool)
         stops = np.ones(len(P), dtype=bool)
         nb = np.asarray(log.nb[i], dtype=float).reshape(-1, 8)
-        for row in nb:
+        on_goal = []
+        for vid, row in zip(log.ids[i], nb):
             hx, hy = body_extents(row[5], row[6], row[7])
             depth = body_overlap(P[:, 0], P[:, 1], np.zeros(len(P)), row[0] - hx, row[0] + hx, row[1] - hy,
                                  row[1] + hy, cr.ego_length / 2, cr.ego_width / 2, 0.0)
             ok &= depth <= 0
+            if bool(np.any(depth > 0)):
+                on_goal.append(str(vid))
             ahead = (np.abs(row[1] - P[:, 1]) < hy + cr.ego_width / 2 + DEFAULT.lat_margin_m) & (row[0] > P[:, 0])
             gap = row[0] - hx - (P[:, 0] + cr.ego_length / 2)
             need = rss_distance(v_goal, row[2], 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max, DEFAULT.brake_max)
@@ -442,9 +451,43 @@ def goal_occupancy(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
             free += 1
             first = t if first is None else first
             last = t
+        else:
+            occupants.update(on_goal)
         rss_free += bool((ok & stops).any())
+    window = cr.goal.steps[1] - cr.goal.steps[0] + 1
+    whole = logged >= window and free == 0
+    ahead = whole and all(
+        float(log.nb[i][list(log.ids[i]).index(vid)][0]) > float(log.ego[i][0])
+        for vid in occupants for i in range(len(log.t)) if vid in log.ids[i])
     return {"window_steps_logged": logged, "free_steps": free, "first_free_s": first, "last_free_s": last,
-            "rss_free_steps": rss_free}
+            "rss_free_steps": rss_free, "occupied_whole_window": whole, "occupants": sorted(occupants),
+            "occupants_always_ahead": ahead}
+
+
+def miss_reason(occupancy: dict[str, Any]) -> str | None:
+    """Why the goal could not be reached whatever the plan, from :func:`goal_occupancy` (None when
+    the goal region had room for the ego's body at some step of its window, or the window was not
+    logged whole).
+
+    Parameters
+    ----------
+    occupancy : dict
+        The result of :func:`goal_occupancy`.
+
+    Returns
+    -------
+    str or None
+        The reason in words.
+    """
+    if not occupancy.get("occupied_whole_window"):
+        return None
+    who = ", ".join(occupancy.get("occupants", [])) or "observed vehicles"
+    text = (f"the goal region was occupied for its whole window (vehicles {who}): at no step of the window did "
+            "any goal position keep the ego's body off every observed vehicle")
+    if occupancy.get("occupants_always_ahead"):
+        text += ("; each of them was ahead of the ego all episode, so the ego never drove in front of them "
+                 "and no course of the ego could have freed the region")
+    return text
 
 
 def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
@@ -533,6 +576,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     lanes_seen: dict[str, tuple[float, float]] = {}  # lateral range of each vehicle's centre [m]
     plan_times: list[float] = []
     infeasible = fallbacks = failsafes = limit_violations = out_of_reach = edge_plans = lane_changes = 0
+    sequences = 0  # lane changes of them planned together toward a goal two or more lanes over
     decisions: list[dict[str, Any]] = []
     next_replan = 0
     peak_accel = 0.0
@@ -556,7 +600,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         traci.vehicle.setSpeedMode("ego", 0)
         traci.vehicle.setLaneChangeMode("ego", 0)
         x = cr.x0
-        traj: Trajectory | Braking | Shifted | None = None
+        traj: Trajectory | Braking | Shifted | Stages | None = None
         t_plan = traj_T = 0.0
         changing = False  # the plan executed is a lane change of iamp.commonroad.tactical
         lane_map = LaneMap(cr)
@@ -614,17 +658,28 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                 cands = final_candidates(x, cr.goal, dt, elapsed_steps=k)
                 live = dataclasses.replace(cr, x0=x, candidates=cands, obstacles=obstacles)
                 rp = None
-                early = None  # a goal two or more lanes over: toward its lane first, one lane at a time
+                # a goal two or more lanes over: toward its lane first, the lane changes into a gap of
+                # its lane planned together (sequence), else one lane at a time (lane_change)
+                early: tuple[Any, float, str] | None = None
                 # a lane change under way is finished while it keeps clear of every predicted vehicle
                 rest_lc = traj_T - (now - t_plan)
                 keep_lc = (changing and traj is not None and rest_lc > dt
-                           and still_holds(live, Shifted(traj, now - t_plan), rest_lc))
+                           and still_holds(live, Shifted(traj, now - t_plan), rest_lc,
+                                           [e - (now - t_plan) for e in traj.ends if dt < e - (now - t_plan) < rest_lc]
+                                           if isinstance(traj, Stages) else ()))
                 if keep_lc:
                     cands = []
-                if (cands and tactical and cands[0].tf >= EARLY_MIN_S
-                        and lane_map.toward(x[0], x[2], cands[0].s, cands[0].d)[0] >= 2):
+                n_lanes = lane_map.toward(x[0], x[2], cands[0].s, cands[0].d)[0] if cands else 0
+                if cands and tactical and cands[0].tf >= EARLY_MIN_S and n_lanes >= 2:
                     start = time.perf_counter()
-                    early = lane_change(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
+                    seq = sequence(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
+                    if seq is not None:
+                        early = (seq, seq.horizon, f"goal {n_lanes} lanes over: {len(seq.parts)} lane changes "
+                                                   "into a gap of its lane")
+                    else:
+                        one = lane_change(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
+                        if one is not None and one.candidate is not None:
+                            early = (one.trajectory, one.candidate.tf, "goal two or more lanes over")
                     plan_times.append(time.perf_counter() - start)
                 if cands and early is None:
                     start = time.perf_counter()
@@ -633,11 +688,13 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                 action = "plan"
                 if keep_lc:
                     action = "lane change"
-                elif early is not None and early.candidate is not None:
-                    traj, t_plan, traj_T = early.trajectory, now, early.candidate.tf
+                elif early is not None:
+                    traj, traj_T, why = early
+                    t_plan = now
                     lane_changes += 1
+                    sequences += isinstance(traj, Stages)
                     action = "lane change"
-                    decisions.append({"t": round(now, 3), "action": action, "why": "goal two or more lanes over",
+                    decisions.append({"t": round(now, 3), "action": action, "why": why,
                                       "vehicles": [], "road_edge_depth_m": 0.0})
                 elif rp is not None and rp.candidate is not None and rp.safe and rp.peak_accel_mps2 <= cr.a_max:
                     traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
@@ -720,6 +777,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         traci.close()
         tmp.cleanup()
     metrics = episode_metrics(log, dt, (L, W), (sx, sy), sumo_collisions)
+    occupancy = goal_occupancy(cr, log)
     from iamp.simulation.monitor import responsibility
 
     judged = responsibility(log, dt, (L, W), sumo_collisions)
@@ -738,8 +796,10 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
         "infeasible_plans": infeasible, "fallbacks": fallbacks, "failsafe_brakes": failsafes,
         "edge_grazing_plans": edge_plans, "out_of_reach_replans": out_of_reach, "lane_changes": lane_changes,
+        "lane_change_sequences": sequences,
         "decisions": decisions,
-        "road_edge_depth_m": road_edge_depth(cr, log), "goal_occupancy": goal_occupancy(cr, log),
+        "road_edge_depth_m": road_edge_depth(cr, log), "goal_occupancy": occupancy,
+        "goal_missed_reason": None if goal_step is not None else miss_reason(occupancy),
         "plan_time_s": {"calls": len(plan_times),
                         "median": float(np.median(plan_times)) if plan_times else None,
                         "max": float(np.max(plan_times)) if plan_times else None},

@@ -20,10 +20,18 @@ traffic there (:func:`waypoints`).  Each such final state is planned with the sa
   traffic, so a cut-in accepted here can leave RSS's distance to the new follower unmet for a
   while, which the loop's judge measures).
 
+A goal two or more lanes over is first tried as **lane changes planned together**
+(:func:`sequence`): the final state in a gap of the goal's lane is chosen first, then one lane
+change per lane toward it along the minimum-energy motion along the road, each ending RSS-clear in
+the lane it enters and each planned and accepted as a single lane change is (:class:`Stages`; the
+predictions advanced to each lane change's start by :func:`advanced`).  One lane at a time can
+end level with a column of cars in the goal's lane, from where its gap is out of reach.
+
 The loop (:func:`iamp.commonroad.interactive.simulate_with_log`) uses it twice:
 
 * **early**: a goal two or more lanes over (:class:`LaneMap`) whose cheapest final state is at
-  least :data:`EARLY_MIN_S` ahead is approached one lane at a time before its plan is tried
+  least :data:`EARLY_MIN_S` ahead is approached by a :func:`sequence`, else one lane at a time,
+  before its plan is tried
   (the plan across several lanes of traffic is the one the active set fails at);
 * **instead of braking**: when the replan toward the goal finds no safe plan and neither that plan
   nor the previous plan's remainder keeps clear, an accepted lane change comes before a new
@@ -148,6 +156,21 @@ class LaneMap:
         nxt = ll.adj_left if n > 0 else ll.adj_right
         return abs(n), None if nxt is None else int(nxt)
 
+    def path(self, s: float, d: float, goal_s: float, goal_d: float) -> list[int]:
+        """The lanelets side by side at ``s`` from the one next to the ego's (at ``(s, d)``) to the
+        goal's lane, in order (empty when the ego is in the goal's lane or the lanes are not found)."""
+        n, cur = self.toward(s, d, goal_s, goal_d)
+        ego = self.at(s, d)
+        if cur is None or ego is None:
+            return []
+        attr = "adj_left" if self.net.find_lanelet_by_id(ego).adj_left == cur else "adj_right"
+        out: list[int] = []
+        while cur is not None and len(out) < n:
+            out.append(cur)
+            nb = getattr(self.net.find_lanelet_by_id(cur), attr)
+            cur = None if nb is None else int(nb)
+        return out if len(out) == n else []
+
 
 def waypoints(cr: CommonRoadProblem, goal_d: float, now: float = 0.0, goal_s: float | None = None,
               goal_t: float | None = None, lanes: LaneMap | None = None) -> list[Candidate]:
@@ -187,37 +210,26 @@ def waypoints(cr: CommonRoadProblem, goal_d: float, now: float = 0.0, goal_s: fl
     list of Candidate
         The final states (``steps``/``tf`` from now, ``cost0`` their unconstrained cost).
     """
-    from iamp.simulation.rss import DEFAULT, rss_distance
-
     s0, v0, d0, vd0 = cr.x0
     lanes = LaneMap(cr) if lanes is None else lanes
     _, nxt = lanes.toward(s0, d0, s0 if goal_s is None else goal_s, goal_d)
     if nxt is None:
         return []
-    d_now = lanes.centre(nxt, s0)
-    if d_now is None:
+    neighbours = lane_vehicles(cr, lanes, nxt, NEIGHBOUR_RANGE_M)
+    if neighbours is None:
         return []
-    neighbours = [ob for ob in cr.obstacles if not ob.road_edge and ob.d_lo[0] < d_now < ob.d_hi[0]
-                  and abs(0.5 * (ob.s_lo[0] + ob.s_hi[0]) - s0) < NEIGHBOUR_RANGE_M]
     speeds = [v0]
     want = v0
     if goal_s is not None and goal_t is not None and goal_t > now + 1e-6:
         want = (goal_s - s0) / (goal_t - now)
         speeds.append(want)
     lo, hi = cr.speed_range
-    half_l = 0.5 * cr.ego_length
     out = []
     for T in HORIZONS_S:
         steps = int(round(T / cr.dt))
         tf = steps * cr.dt
         finals = [(s0 + 0.5 * (v0 + v) * tf, v) for v in (min(max(v, lo), hi) for v in speeds)]
-        for ob in neighbours:
-            i = int(np.argmin(np.abs(ob.t - tf)))
-            v_o = min(max(_speed(ob, float(ob.t[i])), lo), hi)
-            behind = float(rss_distance(v_o, v_o, 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max, DEFAULT.brake_max))
-            ahead = follower_gap(v_o, v_o)
-            finals.append((float(ob.s_lo[i]) - half_l - behind - GAP_MARGIN_M, v_o))
-            finals.append((float(ob.s_hi[i]) + half_l + ahead + GAP_MARGIN_M, v_o))
+        finals += gap_states(cr, neighbours, tf)
         for s_f, v in finals:
             d_f = lanes.centre(nxt, s_f)
             if d_f is None:
@@ -229,6 +241,38 @@ def waypoints(cr: CommonRoadProblem, goal_d: float, now: float = 0.0, goal_s: fl
             out.append(Candidate(steps, tf, round(s_f, 6), round(v, 6), d_f, cost))
     out.sort(key=lambda c: (round(abs(c.vs - want), 1), c.cost0, c.tf, c.s))
     return list(dict.fromkeys(out))
+
+
+def lane_vehicles(cr: CommonRoadProblem, lanes: LaneMap, lid: int, reach: float) -> list[Obstacle] | None:
+    """The predicted vehicles in lanelet ``lid``'s lane now (their box now spans the lane's centre
+    at the ego's position) within ``reach`` along the road of the ego (None: the lane does not
+    reach the ego's position)."""
+    s0 = cr.x0[0]
+    d_now = lanes.centre(lid, s0)
+    if d_now is None:
+        return None
+    return [ob for ob in cr.obstacles if not ob.road_edge and ob.d_lo[0] < d_now < ob.d_hi[0]
+            and abs(0.5 * (ob.s_lo[0] + ob.s_hi[0]) - s0) < reach]
+
+
+def gap_states(cr: CommonRoadProblem, vehicles: list[Obstacle], tf: float) -> list[tuple[float, float]]:
+    """The positions along the road and speeds of the final states in the gaps next to
+    ``vehicles`` at ``tf`` (:func:`waypoints`): behind each at RSS's stopping distance and ahead of
+    each at :func:`follower_gap`, at its predicted speed then (clipped to the type's speed range),
+    plus :data:`GAP_MARGIN_M`."""
+    from iamp.simulation.rss import DEFAULT, rss_distance
+
+    lo, hi = cr.speed_range
+    half_l = 0.5 * cr.ego_length
+    out = []
+    for ob in vehicles:
+        i = int(np.argmin(np.abs(ob.t - tf)))
+        v_o = min(max(_speed(ob, float(ob.t[i])), lo), hi)
+        behind = float(rss_distance(v_o, v_o, 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max, DEFAULT.brake_max))
+        ahead = follower_gap(v_o, v_o)
+        out.append((float(ob.s_lo[i]) - half_l - behind - GAP_MARGIN_M, v_o))
+        out.append((float(ob.s_hi[i]) + half_l + ahead + GAP_MARGIN_M, v_o))
+    return out
 
 
 def _speed(ob: Obstacle, t: float) -> float:
@@ -373,7 +417,7 @@ def stops_behind_along(cr: CommonRoadProblem, trajectory: Any, T: float) -> bool
     return True
 
 
-def still_holds(cr: CommonRoadProblem, trajectory: Any, T: float) -> bool:
+def still_holds(cr: CommonRoadProblem, trajectory: Any, T: float, checkpoints: Any = ()) -> bool:
     """Is a lane change under way still acceptable under the newest predictions?  Its remainder
     (``trajectory`` from now, horizon ``T``) keeps the body off every predicted vehicle
     (:func:`iamp.commonroad.planning.intrusions`, road edges aside), keeps RSS's stopping distance
@@ -388,6 +432,9 @@ def still_holds(cr: CommonRoadProblem, trajectory: Any, T: float) -> bool:
         The remainder of the lane change (``states(t)`` from now).
     T : float
         The time it has left [s].
+    checkpoints : sequence of float
+        Earlier times [s, from now] at which it must also be RSS-clear (the ends of the lane
+        changes still ahead in a :class:`Stages` sequence).
 
     Returns
     -------
@@ -396,5 +443,190 @@ def still_holds(cr: CommonRoadProblem, trajectory: Any, T: float) -> bool:
     """
     if any(not h.obstacle.road_edge for h in intrusions(cr, trajectory, T)):
         return False
-    s, v, d, _ = (float(x) for x in trajectory.states(np.array([T]))[0])
-    return stops_behind_along(cr, trajectory, T) and rss_clear_at(cr, s, v, d, T)
+    for tau in (*checkpoints, T):
+        s, v, d, _ = (float(x) for x in trajectory.states(np.array([tau]))[0])
+        if not rss_clear_at(cr, s, v, d, float(tau)):
+            return False
+    return stops_behind_along(cr, trajectory, T)
+
+
+#: Lane changes one :func:`sequence` plans at most (the goal's lane at most this many lanes over).
+MAX_STAGES = 3
+#: Road-planner calls one :func:`sequence` search may make (a count: the same answer on any machine).
+SEQUENCE_PLANS = 12
+#: Vehicles of the goal's lane this far along the road from the ego lend their gaps to a sequence [m].
+GOAL_LANE_RANGE_M = 60.0
+
+
+def advanced(cr: CommonRoadProblem, x: tuple[float, float, float, float], T: float) -> CommonRoadProblem:
+    """The live problem seen ``T`` later with the ego at ``x``: every predicted vehicle's samples
+    from the step nearest ``T`` on, timed from then, with its cubic re-expanded about ``T`` (road
+    edges do not move); no final states.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The live problem (predictions from now).
+    x : tuple of float
+        The ego's state ``(s, v_s, d, v_d)`` at ``T``.
+    T : float
+        The time from now [s].
+
+    Returns
+    -------
+    CommonRoadProblem
+        The problem from ``T`` on.
+    """
+    shift = np.polynomial.Polynomial([T, 1.0])
+    obs = []
+    for ob in cr.obstacles:
+        i = int(np.argmin(np.abs(ob.t - T)))
+        coef = np.polynomial.Polynomial(ob.cubic)(shift).coef
+        cubic = tuple(float(c) for c in np.pad(coef, (0, max(0, len(ob.cubic) - len(coef))))[:len(ob.cubic)])
+        obs.append(dataclasses.replace(ob, t=ob.t[i:] - ob.t[i], s_lo=ob.s_lo[i:], s_hi=ob.s_hi[i:],
+                                       d_lo=ob.d_lo[i:], d_hi=ob.d_hi[i:], cubic=cubic))
+    return dataclasses.replace(cr, x0=x, obstacles=obs, candidates=[])
+
+
+class Stages:
+    """Plans one after another: ``parts`` rows ``(start, trajectory, horizon)`` (start from now,
+    each trajectory timed from its start), the same interface as a plan (``states(t)`` rows
+    ``(s, v_s, d, v_d)``, ``inputs(t)``); the last part runs on past its horizon.
+
+    Parameters
+    ----------
+    parts : list of tuple
+        ``(start [s], trajectory, horizon [s])`` in time order, each starting where the one before ends.
+    """
+
+    def __init__(self, parts: list[tuple[float, Any, float]]) -> None:
+        self.parts = parts
+        self.starts = np.array([p[0] for p in parts])
+
+    @property
+    def horizon(self) -> float:
+        """The end of the last part [s]."""
+        return float(self.parts[-1][0] + self.parts[-1][2])
+
+    @property
+    def ends(self) -> list[float]:
+        """The times the parts end [s]."""
+        return [float(p[0] + p[2]) for p in self.parts]
+
+    def _eval(self, t: Any, what: str, width: int) -> np.ndarray:
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        k = np.clip(np.searchsorted(self.starts, tt, side="right") - 1, 0, len(self.parts) - 1)
+        out = np.empty((tt.size, width))
+        for j in np.unique(k):
+            m = k == j
+            start, trajectory, _ = self.parts[int(j)]
+            out[m] = getattr(trajectory, what)(tt[m] - start)
+        return out
+
+    def states(self, t: Any) -> np.ndarray:
+        return self._eval(t, "states", 4)
+
+    def inputs(self, t: Any) -> np.ndarray:
+        return self._eval(t, "inputs", 2)
+
+
+def sequence(cr: CommonRoadProblem, planner: str, goal_d: float, now: float = 0.0, goal_s: float | None = None,
+             goal_t: float | None = None, lanes: LaneMap | None = None) -> Stages | None:
+    r"""Lane changes into the goal's lane two or more lanes over, planned together: the gap in the
+    goal's lane first, then the lane changes that reach it in time.
+
+    The final state is in the goal's lane (:meth:`LaneMap.path`) after one horizon of
+    :data:`HORIZONS_S` per lane (every combination whose end the predictions reach): at the ego's
+    speed or the speed that reaches ``goal_s`` at ``goal_t`` (constant acceleration), or in a gap
+    behind or ahead of one of the goal lane's vehicles within :data:`GOAL_LANE_RANGE_M`
+    (:func:`gap_states`).  The motion along the road to it is the minimum-energy cubic over the
+    whole sequence; each lane change ends where that cubic is at the end of its horizon, at the
+    centre of its lane, parallel to the road.  A sequence is tried (cheapest first, as
+    :func:`waypoints` orders) only when its speeds lie in the type's range, each lane change's
+    free plan lies inside the friction circle and the ego is RSS-clear at every lane change's end
+    in the lane it enters (:func:`rss_clear_at`, the vehicles ahead and behind).  Each lane change
+    is then planned from the previous one's end with the road planner (predictions advanced by
+    :func:`advanced`; one final state, no two-stage plan) and accepted as :func:`lane_change`
+    accepts one: safe, within ``a_max``, RSS's stopping distance ahead kept along it
+    (:func:`stops_behind_along`).  At most :data:`SEQUENCE_PLANS` planner calls in all.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The live problem (``x0`` now, ``obstacles`` the predicted vehicles over time from now).
+    planner : str
+        The road planner (a key of :data:`iamp.commonroad.planning.PLANNERS`).
+    goal_d, now, goal_s, goal_t : float
+        As for :func:`waypoints`.
+    lanes : LaneMap, optional
+        The scene's lanes (built from ``cr`` when not given).
+
+    Returns
+    -------
+    Stages or None
+        The accepted lane changes from now, or None when the goal's lane is fewer than two or more
+        than :data:`MAX_STAGES` lanes over or no sequence is accepted.
+    """
+    import itertools
+
+    s0, v0, d0, _ = cr.x0
+    lanes = LaneMap(cr) if lanes is None else lanes
+    path = lanes.path(s0, d0, s0 if goal_s is None else goal_s, goal_d)
+    if not 2 <= len(path) <= MAX_STAGES:
+        return None
+    vehicles = lane_vehicles(cr, lanes, path[-1], GOAL_LANE_RANGE_M)
+    if vehicles is None:
+        return None
+    reach = min((float(ob.t[-1]) for ob in cr.obstacles), default=math.inf)
+    want = v0
+    speeds = [v0]
+    if goal_s is not None and goal_t is not None and goal_t > now + 1e-6:
+        want = (goal_s - s0) / (goal_t - now)
+        speeds.append(want)
+    lo, hi = cr.speed_range
+    trials = []
+    for Ts in itertools.product(HORIZONS_S, repeat=len(path)):
+        steps = np.cumsum([int(round(T / cr.dt)) for T in Ts])
+        ends = steps * cr.dt
+        tf = float(ends[-1])
+        if tf > reach + 1e-9:
+            continue
+        finals = [(s0 + 0.5 * (v0 + v) * tf, v) for v in (min(max(v, lo), hi) for v in speeds)]
+        for s_f, v_f in finals + gap_states(cr, vehicles, tf):
+            X = FreeTrajectory(tf, cr.x0, (s_f, v_f, d0, 0.0)).states(ends)
+            if float(X[:, 1].min()) < lo - 1e-9 or float(X[:, 1].max()) > hi + 1e-9:
+                continue
+            stages, prev, t_prev, cost = [], cr.x0, 0.0, 0.0
+            for lid, k, te, (s, v) in zip(path, steps, ends, X[:, :2]):
+                d = lanes.centre(lid, float(s))
+                if d is None or not rss_clear_at(cr, float(s), float(v), d, float(te)):
+                    break
+                end = (float(s), float(v), d, 0.0)
+                free = FreeTrajectory(float(te) - t_prev, prev, end)
+                U = free.inputs(np.linspace(0.0, float(te) - t_prev, 13))
+                if float(np.max(np.hypot(U[:, 0], U[:, 1]))) > cr.a_max:
+                    break
+                c0 = free.cost()
+                stages.append((int(k), float(te), end, c0))
+                prev, t_prev, cost = end, float(te), cost + c0
+            else:
+                trials.append((round(abs(v_f - want), 1), cost, tf, round(s_f, 6), stages))
+    trials.sort(key=lambda tr: tr[:4])
+    calls = 0
+    for *_, stages in trials:
+        parts: list[tuple[float, Any, float]] = []
+        live, k_prev, t_prev = cr, 0, 0.0
+        for k, te, (s, v, d, vd), c0 in stages:
+            if calls >= SEQUENCE_PLANS:
+                return None
+            cand = Candidate(k - k_prev, te - t_prev, s, v, d, c0)
+            rp = plan(dataclasses.replace(live, candidates=[cand]), planner, max_candidates=1, via=False)
+            calls += 1
+            if not (rp.safe and rp.candidate == cand and rp.trajectory is not None
+                    and rp.peak_accel_mps2 <= cr.a_max and stops_behind_along(live, rp.trajectory, cand.tf)):
+                break
+            parts.append((t_prev, rp.trajectory, cand.tf))
+            live, k_prev, t_prev = advanced(cr, (s, v, d, vd), te), k, te
+        else:
+            return Stages(parts)
+    return None
