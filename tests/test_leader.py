@@ -99,20 +99,6 @@ def test_simulation_keeps_order_and_nonnegative_speed(seed: int, law: CarFollowi
     assert np.all(gap_ok)
 
 
-def test_numba_kernel_equals_numpy_path() -> None:
-    pytest.importorskip("numba")
-    rng = np.random.default_rng(0)
-    xl = 30 + np.cumsum(rng.uniform(0, 2, (18, 51)), axis=1)
-    vl = rng.uniform(0, 20, (18, 51))
-    x0, v0 = rng.uniform(-40, 0, 18), rng.uniform(0, 25, 18)
-    xa, va = simulate(IDM, x0, v0, xl, vl, np.full(18, 4.5), 0.1)
-    xb, vb = np.zeros((18, 51)), np.zeros((18, 51))
-    xb[:, 0], vb[:, 0] = x0, v0
-    cf._simulate_idm(IDM.params, xb, vb, xl, vl, np.full(18, 4.5), 0.1)
-    # bit for bit: which path runs depends on whether numba is installed (SPEC §17 determinism)
-    assert np.array_equal(xa, xb) and np.array_equal(va, vb)
-
-
 # ---------------------------------------------------------------------------------------
 # predictor: fallback, plan as leader, iteration
 # ---------------------------------------------------------------------------------------

@@ -1,9 +1,10 @@
 """Leader-aware prediction: who follows whom, car-following laws (IDM, linear) and the predictor.
 
 :mod:`.leaders` finds each vehicle's leader (NGSIM ``Preceding`` or same lane and nearest ahead),
-:mod:`.car_following` holds the laws, their calibration and simulation (:mod:`.kernel` the numba
-twin), :mod:`.model` the saved model and :class:`~.model.LeaderPredictor` (MTD fallback where no
-leader is known), :mod:`.ego` the follower's forecast with the ego's plan as its leader.
+:mod:`.car_following` holds the laws, their calibration and simulation (:mod:`.kernel` IDM's
+forward simulation, written once: compiled by numba when importable, run as Python otherwise, the
+same numbers), :mod:`.model` the saved model and :class:`~.model.LeaderPredictor` (MTD fallback
+where no leader is known), :mod:`.ego` the follower's forecast with the ego's plan as its leader.
 """
 
 from __future__ import annotations

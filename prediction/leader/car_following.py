@@ -36,11 +36,13 @@ rear minus :data:`MIN_GAP_M`:
 .. math::
 
     v_{k+1} = \max(v_k + \dot v_k\,dt,\ 0), \qquad x_{k+1} = x_k + \tfrac12 (v_k + v_{k+1})\,dt .
+
+IDM's simulation is :func:`iamp.prediction.leader.kernel.idm_forward`, one function run compiled
+by numba when it is importable and as Python otherwise (the same numbers bit for bit).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TypedDict
 
@@ -48,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from iamp.prediction._typing import FloatArray
+from iamp.prediction.leader.kernel import compiled, idm_forward
 
 __all__ = ["ACC_HALF_WINDOW_S", "A_MAX", "B_MAX", "LAWS", "MAX_GAP_M", "MIN_GAP_M", "CarFollowingLaw",
            "accel", "calibrate", "calibrate_trajectories", "idm_equilibrium_gap", "linear_equilibrium_gap", "simulate"]
@@ -225,13 +228,18 @@ def simulate(law: CarFollowingLaw, x0: ArrayLike, v0: ArrayLike, xl: FloatArray,
     v[:, 0] = np.maximum(np.broadcast_to(np.asarray(v0, dtype=float), (B,)), 0.0)
     off = np.broadcast_to(np.asarray(offset, dtype=float), (B,))
     if law.name == "idm":
-        kernel = _kernel()
-        if kernel is not None:
-            p = law.params
-            kernel(p["a"], p["b"], p["v0"], p["T"], p["s0"], x, v, np.ascontiguousarray(xl), np.ascontiguousarray(vl),
-                   np.ascontiguousarray(off), float(dt), A_MAX, B_MAX, MIN_GAP_M)
-        else:
-            _simulate_idm(law.params, x, v, xl, vl, off, dt)
+        p = law.params
+        args = (p["a"], p["b"], p["v0"], p["T"], p["s0"])
+        run = compiled()
+        if run is not None:
+            xf, vf = x.reshape(-1), v.reshape(-1)  # views: written in place
+            run(*args, xf, vf, np.ascontiguousarray(xl).reshape(-1), np.ascontiguousarray(vl).reshape(-1),
+                np.ascontiguousarray(off), B, M1, float(dt), A_MAX, B_MAX, MIN_GAP_M)
+        else:  # the same function as Python, on lists of floats: the same numbers
+            xs, vs = x.reshape(-1).tolist(), v.reshape(-1).tolist()
+            idm_forward(*args, xs, vs, xl.reshape(-1).tolist(), vl.reshape(-1).tolist(), off.tolist(), B, M1,
+                        float(dt), A_MAX, B_MAX, MIN_GAP_M)
+            x, v = np.array(xs).reshape(B, M1), np.array(vs).reshape(B, M1)
         return x, v
     for k in range(M1 - 1):
         s = xl[:, k] - x[:, k] - off
@@ -283,48 +291,3 @@ def calibrate_trajectories(start: CarFollowingLaw, x0: FloatArray, v0: FloatArra
            "trajectory_rms_m": float(np.sqrt(np.mean(r1 * r1))),
            "criterion": "least squares on positions over the windows (start: least squares on accelerations)"}
     return CarFollowingLaw(law.name, law.params, fit)
-
-
-def _simulate_idm(p: dict[str, float], x: FloatArray, v: FloatArray, xl: FloatArray, vl: FloatArray,
-                  off: FloatArray, dt: float) -> None:
-    """:func:`simulate` for IDM, in place, with the law inlined (the same arithmetic, fewer temporaries)."""
-    a_, T, s0 = p["a"], p["T"], p["s0"]
-    inv_v0 = 1.0 / p["v0"]
-    c = 1.0 / (2.0 * np.sqrt(p["a"] * p["b"]))
-    xlo = xl - off[:, None]  # leader rear minus the follower's half length
-    for k in range(xl.shape[1] - 1):
-        vk = v[:, k]
-        s = np.maximum(xlo[:, k] - x[:, k], 0.1)
-        star = np.maximum(vk * (T + c * (vk - vl[:, k])), 0.0)
-        star += s0
-        star /= s
-        r = vk * inv_v0
-        r *= r
-        acc = a_ * (1.0 - r * r - star * star)
-        np.clip(acc, -B_MAX, A_MAX, out=acc)
-        acc *= dt
-        acc += vk
-        vn = np.maximum(acc, 0.0)
-        xn = x[:, k] + 0.5 * dt * (vk + vn)
-        cap = xlo[:, k + 1] - MIN_GAP_M
-        over = xn > cap
-        if over.any():
-            xn = np.where(over, np.maximum(cap, x[:, k]), xn)
-            vn = np.where(over, np.minimum(vn, np.maximum(vl[:, k + 1], 0.0)), vn)
-        x[:, k + 1] = xn
-        v[:, k + 1] = vn
-
-
-_KERNEL: list[Callable[..., None] | None] = []
-
-
-def _kernel() -> Callable[..., None] | None:
-    """The numba kernel of :mod:`.kernel`, or ``None`` without numba (cached)."""
-    if not _KERNEL:
-        try:
-            from iamp.prediction.leader.kernel import simulate_idm_kernel
-
-            _KERNEL.append(simulate_idm_kernel)
-        except ImportError:
-            _KERNEL.append(None)
-    return _KERNEL[0]
