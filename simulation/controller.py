@@ -214,8 +214,10 @@ class Controller:
         q = _cheb(tf)
         for items in groups.values():
             t_h = items[0][1]
-            same = [it for it in items if np.allclose(it[1], t_h, atol=1e-6)]
-            rest = [it for it in items if it not in same]
+            # np.allclose(t, t_h, atol=1e-6) per history, for the group in one call (the same test)
+            close = np.isclose(np.stack([it[1] for it in items]), t_h, atol=1e-6).all(axis=1)
+            same = [it for it, ok in zip(items, close) if ok]
+            rest = [it for it, ok in zip(items, close) if not ok]
             X = np.stack([it[2] for it in same])
             vals = self.predictor.predict_batch(t_h, X, q, tf, cubic=True)
             V = np.vander(q, 4, increasing=True)

@@ -86,10 +86,49 @@ class Neighbour:
     vy: float = 0.0  # observed lateral speed (one-step difference), for the body check's sweep
 
     def x(self, t: float) -> float:
-        return float(np.polynomial.polynomial.polyval(t, self.poly))
+        return poly_value(self.poly, t)
 
     def v(self, t: float) -> float:
-        return float(np.polynomial.polynomial.polyval(t, np.polynomial.polynomial.polyder(self.poly)))
+        return poly_value(poly_derivative(self.poly), t)
+
+
+def poly_derivative(poly: Sequence[float]) -> tuple[float, ...]:
+    """The coefficients of ``d/dt Σ poly[k] t^k``: ``k poly[k]`` for ``k >= 1`` (``(0.0,)`` for a
+    constant), the same floats as ``numpy.polynomial.polynomial.polyder``.
+
+    Parameters
+    ----------
+    poly : sequence of float
+        Coefficients, lowest power first (at least one).
+
+    Returns
+    -------
+    tuple of float
+    """
+    if len(poly) < 2:
+        return (float(poly[0]) * 0,)
+    return tuple(k * float(poly[k]) for k in range(1, len(poly)))
+
+
+def poly_value(poly: Sequence[float], t: float) -> float:
+    """``Σ poly[k] t^k`` at a scalar ``t`` by Horner's rule in the order of
+    ``numpy.polynomial.polynomial.polyval`` (the same float, bit for bit, without its per-call
+    array overhead: the loop evaluates neighbours' cubics thousands of times per episode).
+
+    Parameters
+    ----------
+    poly : sequence of float
+        Coefficients, lowest power first (at least one).
+    t : float
+
+    Returns
+    -------
+    float
+    """
+    acc = float(poly[-1]) + t * 0
+    for k in range(len(poly) - 2, -1, -1):
+        acc = float(poly[k]) + acc * t
+    return float(acc)
 
 
 @dataclass(frozen=True)

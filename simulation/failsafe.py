@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from iamp.simulation.decision import poly_derivative
 from iamp.simulation.rss import DEFAULT, RssParameters, body_extents, rss_distance, safe_lateral_distance
 
 __all__ = [
@@ -100,7 +101,7 @@ class Obstacle:
     def xv(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         P = np.polynomial.polynomial
         x = P.polyval(t, self.poly)
-        v = P.polyval(t, P.polyder(self.poly)) if len(self.poly) > 1 else np.zeros_like(t)
+        v = P.polyval(t, poly_derivative(self.poly)) if len(self.poly) > 1 else np.zeros_like(t)
         return np.asarray(x, dtype=float), np.maximum(np.asarray(v, dtype=float), 0.0)
 
 
