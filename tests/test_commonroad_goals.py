@@ -253,3 +253,130 @@ def test_axis_reachable_is_the_bang_bang_set(v0: float, T: float, a: float, frac
     p_max = v0 * ts + 0.5 * a * ts**2 + (v0 + a * ts) * (T - ts) - 0.5 * a * (T - ts) ** 2
     assert not axis_reachable(0.0, v0, p_max + 0.01, vf, T, a)
     assert not axis_reachable(0.0, v0, pf, v0 + a * T + 0.01, T, a)
+
+
+# --- final states that can be valid: clear of every vehicle and on the road ------------------------------------
+
+
+def _straight_region(s_lo: float, s_hi: float, d_lo: float, d_hi: float, speed: tuple[float, float] | None,
+                     steps: tuple[int, int] = (50, 54), a_max: float = 11.5) -> Any:
+    """A goal region on a straight road along x (no world test: every element is a road-frame row)."""
+    from iamp.commonroad.frame import RoadFrame
+    from iamp.commonroad.goal import GoalElement, GoalRegion, _box_piece
+
+    frame = RoadFrame.fit(np.stack([np.linspace(-50.0, 400.0, 60), np.zeros(60)], axis=1), degree=3)
+    piece = _box_piece(frame, s_lo, s_hi, d_lo, d_hi)
+    return GoalRegion([GoalElement(0, steps, speed, None, [piece])], frame, (-1.8, 1.8), (0.0, 50.0), a_max)
+
+
+def _road(obstacles: list[Any]) -> Any:
+    return SimpleNamespace(obstacles=obstacles, road_edges=[], road_y=(-1.8, 9.0), corridor=None, ego_length=4.5,
+                           ego_width=1.8)
+
+
+def _inside_piece(region: Any, c: Any) -> bool:
+    pc = region.elements[c.element].pieces[c.piece]
+    return bool(np.all(pc.A @ np.array([c.s, c.d]) <= pc.b + 1e-6))
+
+
+def _clear_of(cr: Any, c: Any, buffer: float = 0.15) -> bool:
+    from iamp.commonroad.planning import body_overlap
+
+    heading = math.atan2(c.vd, c.vs)
+    for ob in cr.obstacles:
+        k = int(np.argmin(np.abs(ob.t - c.tf)))
+        if abs(ob.t[k] - c.tf) < 1e-6 and body_overlap(np.array([c.s]), np.array([c.d]), np.array([heading]),
+                                                       ob.s_lo[k:k + 1], ob.s_hi[k:k + 1], ob.d_lo[k:k + 1],
+                                                       ob.d_hi[k:k + 1], 2.25, 0.9, buffer)[0] > 0:
+            return False
+    lo, hi = cr.road_y
+    return bool(c.d - 0.9 - 2.25 * abs(math.sin(heading)) >= lo and c.d + 0.9 + 2.25 * abs(math.sin(heading)) <= hi)
+
+
+def test_the_cheapest_goal_pose_inside_a_vehicle_gives_way_to_a_clear_one() -> None:
+    """The goal: 40 m along two lanes (d in [0, 7.2]) at steps 50-54; the ego coasts at 15 m/s
+    in the lower lane, so the cheapest pose of every step (s = 75-81, d = 0.2) lies where a
+    vehicle drives at the same speed.  Before, every final state offered was that pose (all
+    inside the vehicle: no planner call could be valid); now each step offers the cheapest pose
+    clear of it (beside it in the other lane, or ahead of or behind it), inside the goal."""
+    from iamp.commonroad.goal import clear_goal_states
+    from iamp.commonroad.planning import clear_final_states, final_state_clearance
+
+    region = _straight_region(60.0, 100.0, 0.0, 7.2, (10.0, 20.0))
+    x0 = (0.0, 15.0, 0.0, 0.0)
+    cr = _road([_vehicle(0.0, 15.0, 0.0)])
+    old = region.final_states(x0, 0.1)
+    assert old and clear_final_states(cr, old) == []  # every cheapest pose ends inside the vehicle
+    found = clear_goal_states(region, x0, 0.1, final_state_clearance(cr))  # type: ignore[arg-type]
+    assert [c.goal_step for c in found.candidates] and not found.blocked and not found.exhausted
+    assert sorted(c.goal_step for c in found.candidates) == [50, 51, 52, 53, 54]
+    for c in found.candidates:
+        assert _clear_of(cr, c) and _inside_piece(region, c)
+        assert region.verify(region.elements[0], c.goal_step, (c.s, c.vs, c.d, c.vd)) is None
+        assert 10.0 <= math.hypot(c.vs, c.vd) <= 20.0
+        cheapest = next(o for o in old if o.goal_step == c.goal_step)
+        assert c.cost0 >= cheapest.cost0 - 1e-9  # never cheaper than the unconstrained optimum
+    assert [c.cost0 for c in found.candidates] == sorted(c.cost0 for c in found.candidates)
+
+
+def test_a_goal_covered_by_vehicles_at_every_step_names_its_position() -> None:
+    """A goal one car long inside a lane that a truck covers at every step of the window: no
+    pose is clear, the search is complete, and the sentence names the goal state's position,
+    the window and the vehicle (the claim holds over the whole goal region)."""
+    from iamp.commonroad.convert import Obstacle
+    from iamp.commonroad.goal import clear_goal_states
+    from iamp.commonroad.planning import final_state_clearance
+
+    region = _straight_region(76.0, 80.0, -0.5, 0.5, (10.0, 20.0))
+    t = np.arange(0.0, 8.01, 0.1)
+    n = t.size
+    truck = Obstacle(42, t, 15.0 * t - 6.0, 15.0 * t + 6.0, np.full(n, -0.9), np.full(n, 0.9), 12.0, 1.8,
+                     (0.0, 15.0, 0.0, 0.0), 6.0, 0.0, 1, False)  # 12 m long: covers the goal at steps 50-54
+    cr = _road([truck])
+    found = clear_goal_states(region, (0.0, 15.0, 0.0, 0.0), 0.1, final_state_clearance(cr))  # type: ignore[arg-type]
+    assert found.candidates == [] and not found.exhausted
+    why = found.blocked[0]
+    assert why.startswith("goal state 0: position: at every time_step 50-54") and "vehicle 42" in why, why
+
+
+@settings(max_examples=40, deadline=None)
+@given(s_lo=st.floats(55.0, 90.0), length=st.floats(3.0, 30.0), d_lo=st.floats(-1.5, 3.0), width=st.floats(0.5, 5.0),
+       speed_lo=st.floats(8.0, 18.0), cars=st.lists(st.tuples(st.floats(-10.0, 20.0), st.floats(10.0, 20.0),
+                                                               st.floats(-1.0, 7.0)), max_size=3))
+def test_every_offered_final_state_is_inside_every_element_and_clear(s_lo: float, length: float, d_lo: float,
+                                                                      width: float, speed_lo: float,
+                                                                      cars: list[tuple[float, float, float]]) -> None:
+    """Whatever the goal box, speed interval and vehicles: every final state the search offers
+    lies inside the goal's position piece, speed interval and window, keeps the body (grown by
+    the planner's buffer) off every vehicle at its step and on the road; and where a pose on a
+    grid of the goal (at the lane's heading, clear by the search's own margins) exists at a
+    step, the search finds one at that step (or says its budget ran out)."""
+    from iamp.commonroad.convert import ego_margins
+    from iamp.commonroad.goal import CLEAR_BAND_RAD, POSITION_MARGIN_M, clear_goal_states
+    from iamp.commonroad.planning import final_state_clearance
+
+    region = _straight_region(s_lo, s_lo + length, d_lo, d_lo + width, (speed_lo, speed_lo + 6.0), a_max=40.0)
+    cr = _road([_vehicle(s, v, y, oid=i + 1) for i, (s, v, y) in enumerate(cars)])
+    x0 = (0.0, 15.0, 0.0, 0.0)
+    found = clear_goal_states(region, x0, 0.1, final_state_clearance(cr))  # type: ignore[arg-type]
+    for c in found.candidates:
+        assert _inside_piece(region, c) and _clear_of(cr, c)
+        assert region.verify(region.elements[0], c.goal_step, (c.s, c.vs, c.d, c.vd)) is None
+        assert speed_lo <= math.hypot(c.vs, c.vd) <= speed_lo + 6.0
+    if found.exhausted:
+        return
+    sx, sy = ego_margins(4.5, 1.8, CLEAR_BAND_RAD)
+    m = POSITION_MARGIN_M
+    for k in range(50, 55):
+        t = k * 0.1
+        grid = [(s, d) for s in np.linspace(s_lo + m, s_lo + length - m, 25)
+                for d in np.linspace(d_lo + m, d_lo + width - m, 9)]
+
+        def free(s: float, d: float, t: float = t) -> bool:
+            if d - sy < -1.8 + 0.02 - 0.15 or d + sy > 9.0 - 0.02 + 0.15:
+                return False
+            return all(s >= sv + v * t + 2.25 + sx or s <= sv + v * t - 2.25 - sx or d >= y + 0.9 + sy
+                       or d <= y - 0.9 - sy for sv, v, y in cars)
+
+        if width > 2 * m and length > 2 * m and any(free(s, d) for s, d in grid):
+            assert any(c.goal_step == k for c in found.candidates), (k, found.blocked)

@@ -43,8 +43,11 @@ final state (the element whose removal makes the QP feasible is named).
 
 from __future__ import annotations
 
+import dataclasses
+import heapq
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -78,8 +81,8 @@ LANE_KEEP_MARGIN_M = 0.5
 @dataclass(frozen=True)
 class Candidate:
     """A final state and horizon: ``k`` steps, ``(s, vs, d, vd)`` in the road frame, the
-    unconstrained cost ``cost0`` (:math:`J_0`), the goal state ``element`` it lies in and the
-    region piece ``piece`` of that state."""
+    unconstrained cost ``cost0`` (:math:`J_0`), the goal state ``element`` it lies in, the
+    region piece ``piece`` of that state and the goal's time step ``goal_step``."""
 
     steps: int
     tf: float
@@ -90,6 +93,9 @@ class Candidate:
     vd: float = 0.0
     element: int = 0
     piece: int = 0
+    #: The goal's own time step the state is for (``-1``: not a goal final state, e.g. a waypoint);
+    #: ``goal_step - steps`` steps had passed when it was made.
+    goal_step: int = -1
 
 
 @dataclass(frozen=True)
@@ -192,7 +198,8 @@ class GoalRegion:
                         continue
                     if self.verify(e, k, z) is not None or not _within_limits(x0, z, T, self.a_max):
                         continue
-                    out.append(Candidate(k - elapsed_steps, T, z[0], z[1], z[2], _cost0(T, x0, z), z[3], e.index, j))
+                    out.append(Candidate(k - elapsed_steps, T, z[0], z[1], z[2], _cost0(T, x0, z), z[3], e.index, j,
+                                         k))
         out.sort(key=lambda c: (c.cost0, c.steps, c.element, c.piece))
         return out
 
@@ -209,7 +216,7 @@ class GoalRegion:
         if z is None or self.verify(e, cand.steps + elapsed_steps, z) is not None:
             return None
         return Candidate(cand.steps, cand.tf, z[0], z[1], z[2], _cost0(cand.tf, x0, z), z[3], cand.element,
-                         cand.piece)
+                         cand.piece, cand.goal_step)
 
     def _pieces(self, e: GoalElement, x0: tuple[float, float, float, float], T: float) -> list[Piece]:
         if e.pieces is not None:
@@ -225,6 +232,237 @@ class GoalRegion:
         pos = self.frame.to_world(z[0], z[2]).reshape(-1)
         vel = self.frame.velocity_to_world(z[0], z[2], z[1], z[3]).reshape(-1)
         return element_missed(e, k, pos, float(np.hypot(vel[0], vel[1])), float(math.atan2(vel[1], vel[0])))
+
+
+@dataclass(frozen=True)
+class Blocked:
+    """Why a final state cannot be valid, as the clearance test of :func:`clear_goal_states`
+    reports it: the names of what the body enters (``"vehicle 477"``, ``"road edge"``) and the
+    ways around the deepest of them, each one linear row ``a @ z <= b`` in ``z = (s, vs, d, vd)``
+    (ahead of it, behind it, beside it), valid for a heading within the band it was asked for."""
+
+    names: tuple[str, ...]
+    options: tuple[tuple[FloatArray, float], ...]
+
+
+#: The clearance test: ``(T, z, band) -> None`` when the final state ``z`` at horizon ``T`` keeps
+#: the body clear and on the road, else what blocks it (:class:`Blocked`), its rows valid for a
+#: heading relative to the road within ``±band``.
+ClearanceTest = Callable[[float, tuple[float, float, float, float], float], "Blocked | None"]
+
+
+@dataclass
+class ClearSearch:
+    """The answer of :func:`clear_goal_states`: the cheapest clear final state of
+    every goal state, time step and piece that has one (cheapest first), the QP solves spent,
+    whether a budget cut the search short (``exhausted``: then a goal state without a clear
+    state is not claimed to have none), and for every goal state without any, the sentence that
+    says why (its element named)."""
+
+    candidates: list[Candidate]
+    solves: int
+    exhausted: bool
+    blocked: dict[int, str]
+    roots: int = 0
+    roots_clear: int = 0
+
+
+#: QP solves of the clearance search over the whole goal region (a count, never a time).
+CLEAR_MAX_SOLVES = 1500
+#: Branch-and-bound nodes expanded per goal state, time step, piece and margin.
+CLEAR_MAX_NODES = 40
+#: The heading band the search's rows assume around the heading nearest the lane's [rad]
+#: (the planner's own margins assume :data:`~iamp.commonroad.convert.HEADING_GUESS_RAD`).
+CLEAR_BAND_RAD = 0.06
+#: The narrow band tried where the first finds none (a goal at a narrowing road edge) [rad].
+CLEAR_NARROW_BAND_RAD = 0.005
+#: Margin scales tried in turn for a goal state none of whose poses is clear at the full margins.
+CLEAR_SCALES = (1.0, 0.5, 0.25, 0.0)
+
+
+def _position_feasible(A: FloatArray, b: FloatArray) -> bool:
+    """Is the polygon of the rows that involve only ``(s, d)`` non-empty?  (Clipping; the rows on
+    the speeds are feasible by construction, so an infeasible QP is known without solving it.)"""
+    pos = (A[:, 1] == 0.0) & (A[:, 3] == 0.0)
+    poly = [(-1e6, -1e6), (1e6, -1e6), (1e6, 1e6), (-1e6, 1e6)]
+    for a, bb in zip(A[pos], b[pos]):
+        a_s, a_d = float(a[0]), float(a[2])
+        out: list[tuple[float, float]] = []
+        for i in range(len(poly)):
+            p, q = poly[i], poly[(i + 1) % len(poly)]
+            fp, fq = a_s * p[0] + a_d * p[1] - bb, a_s * q[0] + a_d * q[1] - bb
+            if fp <= 1e-9:
+                out.append(p)
+            if (fp < -1e-9 < fq) or (fq < -1e-9 < fp):
+                r = fp / (fp - fq)
+                out.append((p[0] + r * (q[0] - p[0]), p[1] + r * (q[1] - p[1])))
+        poly = out
+        if len(poly) == 0:
+            return False
+    return True
+
+
+def _search_piece(region: GoalRegion, e: GoalElement, k: int, j: int, piece: Piece,
+                  x0: tuple[float, float, float, float], T: float, scale: float, elapsed: int, root: FloatArray,
+                  clear: ClearanceTest, budget: list[int], names: set[str]) -> tuple[Candidate | None, bool]:
+    r"""The cheapest final state of goal state ``e`` at step ``k`` in ``piece`` (margins at
+    ``scale``) that the clearance test accepts, by best-first branch and bound from ``root``, the
+    QP's minimiser: where a node is blocked, one child per way around the deepest obstacle (its
+    row added, the heading within a band around the heading nearest the lane's: first
+    :data:`CLEAR_BAND_RAD` wide, then, where that finds none, :data:`CLEAR_NARROW_BAND_RAD`, whose
+    body margins are narrower); a child's cost bounds its subtree's, so the first accepted node
+    popped is the cheapest accepted one (up to the band's body margins).  ``budget[0]`` counts
+    QP solves; the names of everything met go into ``names``.  Returns the state (or None) and
+    whether the search was complete (neither :data:`CLEAR_MAX_NODES` nor the budget cut it
+    short)."""
+    lo, hi = _cone(e, piece, scale)
+    phi = 0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi))
+    complete = True
+    for band in (max(CLEAR_BAND_RAD, phi + 0.02), phi + CLEAR_NARROW_BAND_RAD):
+        got, done = _branch_and_bound(region, e, k, j, piece, x0, T, scale, elapsed, root, clear, budget, names, band)
+        complete &= done
+        if got is not None:
+            return got, True
+        if budget[0] <= 0:
+            return None, False
+    return None, complete
+
+
+def _branch_and_bound(region: GoalRegion, e: GoalElement, k: int, j: int, piece: Piece,
+                      x0: tuple[float, float, float, float], T: float, scale: float, elapsed: int, root: FloatArray,
+                      clear: ClearanceTest, budget: list[int], names: set[str],
+                      band: float) -> tuple[Candidate | None, bool]:
+    """:func:`_search_piece` with the heading within ``±band`` below the root."""
+    c = np.array([x0[0] + x0[1] * T, x0[1], x0[2] + x0[3] * T, x0[3]])
+    Q = _hessian(T)
+    Ab, bb = _rows(region, e, piece, scale, heading_cap=band)
+    seq = itertools.count()
+    heap: list[tuple[float, int, tuple[tuple[float, ...], ...], FloatArray]] = [
+        (_cost0(T, x0, _tuple(root)), next(seq), (), root)]
+    seen: set[tuple[tuple[float, ...], ...]] = set()
+    nodes = 0
+    while heap and nodes < CLEAR_MAX_NODES:
+        _, _, extra, z = heapq.heappop(heap)
+        nodes += 1
+        zt = _tuple(z)
+        blk = clear(T, zt, band)
+        if blk is None:
+            missed = region.verify(e, k, zt)
+            if missed is None and _within_limits(x0, zt, T, region.a_max):
+                return Candidate(k - elapsed, T, zt[0], zt[1], zt[2], _cost0(T, x0, zt), zt[3], e.index, j, k), True
+            names.add(f"a state missing the goal's {missed}" if missed else "a state beyond the acceleration limit")
+            continue
+        names.update(blk.names)
+        for a, rhs in blk.options:
+            key = tuple(sorted(extra + ((*(float(v) for v in a), float(rhs)),)))
+            if key in seen:
+                continue
+            seen.add(key)
+            A = np.vstack([Ab, np.array([r[:4] for r in key])])
+            b = np.concatenate([bb, [r[4] for r in key]])
+            if not _position_feasible(A, b):
+                continue
+            if budget[0] <= 0:
+                return None, False
+            budget[0] -= 1
+            z2 = solve_small_qp(Q, c, A, b)
+            if z2 is not None:
+                heapq.heappush(heap, (_cost0(T, x0, _tuple(z2)), next(seq), key, z2))
+    return None, not heap
+
+
+def _tuple(z: FloatArray) -> tuple[float, float, float, float]:
+    return (float(z[0]), float(z[1]), float(z[2]), float(z[3]))
+
+
+def clear_goal_states(region: GoalRegion, x0: tuple[float, float, float, float], dt: float, clear: ClearanceTest,
+                       elapsed_steps: int = 0, max_solves: int = CLEAR_MAX_SOLVES) -> ClearSearch:
+    r"""Final states that can be valid: inside every element of a goal state **and** accepted
+    by ``clear`` (the body off every obstacle and on the road at that step), the cheapest of every
+    goal state, time step and piece, cheapest :math:`J_0` first.
+
+    Every goal state, time step of its window and piece of its position is searched by
+    :func:`_search_piece` (in the order of its unconstrained optimum's cost, so a budget that
+    runs out leaves the dearest); a goal state none of whose poses is accepted at the full
+    margins is searched again at the smaller :data:`CLEAR_SCALES`.  A goal state with none at
+    all is reported with its element named: its **position** at every step of its window
+    (what blocks it), or the budget spent before the search could say.
+
+    Parameters
+    ----------
+    region : GoalRegion
+    x0 : (float, float, float, float)
+        The start ``(s, vs, d, vd)`` in the road frame.
+    dt : float
+        The scenario's time step [s].
+    clear : callable
+        The clearance test (:data:`ClearanceTest`).
+    elapsed_steps : int
+        Steps already passed (the closed loop).
+    max_solves : int
+        QP solves over the whole search.
+
+    Returns
+    -------
+    ClearSearch
+    """
+    bad = region.unreachable(x0, dt, elapsed_steps)
+    budget = [max_solves]
+    out: list[Candidate] = []
+    blocked: dict[int, str] = {}
+    roots = roots_clear = 0
+    incomplete = False
+    for e in region.elements:
+        if e.index in bad:
+            continue
+        ks = list(range(max(e.steps[0], elapsed_steps + 1), e.steps[1] + 1))
+        names: set[str] = set()
+        found: list[Candidate] = []
+        complete = True
+        for scale in CLEAR_SCALES:
+            jobs = []
+            for k in ks:
+                T = (k - elapsed_steps) * dt
+                for j, piece in enumerate(region._pieces(e, x0, T)):
+                    if budget[0] <= 0:
+                        complete = False
+                        break
+                    budget[0] -= 1
+                    A, b = _rows(region, e, piece, scale)
+                    z = solve_small_qp(_hessian(T), np.array([x0[0] + x0[1] * T, x0[1], x0[2] + x0[3] * T, x0[3]]),
+                                       A, b)
+                    if z is not None:
+                        jobs.append((_cost0(T, x0, _tuple(z)), k, j, piece, T, z))
+            jobs.sort(key=lambda t: (t[0], t[1], t[2]))
+            for cost, k, j, piece, T, z in jobs:
+                got, done = _search_piece(region, e, k, j, piece, x0, T, scale, elapsed_steps, z, clear, budget,
+                                          names)
+                complete &= done
+                if scale == CLEAR_SCALES[0]:
+                    roots += 1
+                    roots_clear += int(got is not None and got.cost0 <= cost + 1e-9)
+                if got is not None:
+                    found.append(got)
+            if found or budget[0] <= 0:
+                break
+        out += found
+        if not found:
+            if not complete:
+                blocked[e.index] = (f"{e.label}: the search for a final state clear of the vehicles and on the road "
+                                    f"reached its budget ({max_solves} QP solves, {CLEAR_MAX_NODES} nodes per step "
+                                    "and piece) before covering the goal region")
+                incomplete = True
+            else:
+                what = ", ".join(sorted(names, key=_name_key)) or "nothing it could pass"
+                blocked[e.index] = (f"{e.label}: position: at every time_step {ks[0]}-{ks[-1]} of its window every "
+                                    f"pose of the goal's position inside its velocity and orientation meets {what}")
+    out.sort(key=lambda c: (c.cost0, c.steps, c.element, c.piece))
+    return ClearSearch(out, max_solves - budget[0], budget[0] <= 0 or incomplete, blocked, roots, roots_clear)
+
+
+def _name_key(name: str) -> tuple[int, str]:
+    tail = name.rsplit(" ", 1)[-1]
+    return (int(tail), name) if tail.lstrip("-").isdigit() else (10**9, name)
 
 
 def element_missed(e: GoalElement, k: int, pos: FloatArray, speed: float, heading: float) -> str | None:
@@ -328,10 +566,28 @@ def solve_small_qp(Q: FloatArray, c: FloatArray, A: FloatArray, b: FloatArray, m
     return None
 
 
+def _cone(e: GoalElement, piece: Piece, margin_scale: float) -> tuple[float, float]:
+    """The interval of the final heading relative to the lane at the piece's centre [rad]
+    (module docstring: the goal's orientation less its margin, or the free one); empty when
+    ``lo > hi``."""
+    if e.orientation is None:
+        return -FREE_REL_HEADING_RAD, FREE_REL_HEADING_RAD
+    lo = _wrap(e.orientation[0] - piece.lane_heading)
+    hi = lo + (e.orientation[1] - e.orientation[0])
+    mh = HEADING_MARGIN_RAD * margin_scale
+    if hi - lo > 2 * mh:
+        lo, hi = lo + mh, hi - mh
+    else:
+        lo = hi = 0.5 * (lo + hi)
+    return max(lo, -MAX_REL_HEADING_RAD), min(hi, MAX_REL_HEADING_RAD)
+
+
 def _rows(region: GoalRegion, e: GoalElement, piece: Piece, margin_scale: float,
-          drop: str | None = None, d_range: tuple[float, float] | None = None) -> tuple[FloatArray, FloatArray]:
+          drop: str | None = None, d_range: tuple[float, float] | None = None,
+          heading_cap: float | None = None) -> tuple[FloatArray, FloatArray]:
     """The linear rows of the final-state QP in ``z = (s, vs, d, vd)`` (module docstring), with
-    the final offset kept in ``d_range`` when given."""
+    the final offset kept in ``d_range`` when given and the heading relative to the lane within
+    ``±heading_cap`` when given."""
     rows: list[FloatArray] = []
     rhs: list[float] = []
     if d_range is not None:
@@ -348,17 +604,9 @@ def _rows(region: GoalRegion, e: GoalElement, piece: Piece, margin_scale: float,
             rhs.append(float(bb) - m * float(np.hypot(a[0], a[1])))
     scale = 1.0 - piece.curvature * piece.centre[1]
     # the heading cone (relative to the lane at the piece's centre)
-    if e.orientation is not None and drop != "orientation":
-        lo = _wrap(e.orientation[0] - piece.lane_heading)
-        hi = lo + (e.orientation[1] - e.orientation[0])
-        mh = HEADING_MARGIN_RAD * margin_scale
-        if hi - lo > 2 * mh:
-            lo, hi = lo + mh, hi - mh
-        else:
-            lo = hi = 0.5 * (lo + hi)
-        lo, hi = max(lo, -MAX_REL_HEADING_RAD), min(hi, MAX_REL_HEADING_RAD)
-    else:
-        lo, hi = -FREE_REL_HEADING_RAD, FREE_REL_HEADING_RAD
+    lo, hi = _cone(e if drop != "orientation" else dataclasses.replace(e, orientation=None), piece, margin_scale)
+    if heading_cap is not None:
+        lo, hi = max(lo, -heading_cap), min(hi, heading_cap)
     if lo <= hi:
         rows += [np.array([0.0, scale * math.tan(lo), 0.0, -1.0]), np.array([0.0, -scale * math.tan(hi), 0.0, 1.0])]
         rhs += [0.0, 0.0]

@@ -46,7 +46,7 @@ from iamp.commonroad.convert import (
     Obstacle,
     ego_margins,
 )
-from iamp.commonroad.goal import Candidate
+from iamp.commonroad.goal import CLEAR_MAX_SOLVES, Blocked, Candidate, ClearanceTest, ClearSearch, clear_goal_states
 from iamp.core.errors import IampError, ScenarioError
 from iamp.core.plan import Plan, Trajectory
 from iamp.core.problem import SurroundingVehicle
@@ -68,6 +68,8 @@ CHECK_BUFFER_M = 0.05
 #: edge over :data:`~iamp.commonroad.convert.EDGE_CHUNK_M` and the frame's fit error is a few cm,
 #: so a start that CommonRoad's road check accepts can touch them [m].
 EDGE_SLACK_M = 0.02
+#: Clearance of a final state's body from the road corridor's edge (:func:`final_state_clearance`) [m].
+FINAL_EDGE_BUFFER_M = 0.01
 #: Longitudinal reach of "relevant" for the all-vehicles equality [m].
 RELEVANT_S_M = 10.0
 #: Active-set iterations.
@@ -274,6 +276,131 @@ def clear_final_states(cr: CommonRoadProblem, cands: list[Candidate], buffer: fl
     return [c for c, keep in zip(cands, ok) if keep]
 
 
+def final_state_clearance(cr: CommonRoadProblem, buffer: float = BUFFER_M,
+                          edge_buffer: float = FINAL_EDGE_BUFFER_M) -> ClearanceTest:
+    r"""The clearance test of the final-state search (:func:`~iamp.commonroad.goal.clear_final_states`):
+    a final state ``z = (s, vs, d, vd)`` at horizon ``T`` is accepted when the ego's body at its
+    heading :math:`\operatorname{atan2}(\dot d, \dot s)`, grown by ``buffer``, enters no recorded
+    vehicle's box at that time step (:func:`body_overlap`, as :func:`clear_final_states`), enters
+    the road-edge boxes and the road's widest bounds ``cr.road_y`` no deeper than the self-check
+    tolerates (:func:`intrusions`, :data:`EDGE_SLACK_M`) and, grown by ``edge_buffer``, stays
+    inside the road corridor (``cr.corridor``: every sample :math:`s_j` the body spans between
+    :math:`d^-(s_j)` and :math:`d^+(s_j)`, a sample off every lanelet excluded).  Otherwise it
+    names what the body enters and the ways around the deepest of them: ahead of it
+    (:math:`s \ge s^+ + S_x`), behind it, above (:math:`d \ge d^+ + S_y`) or below it, with
+    :math:`S_x, S_y` the body's margins at the band's heading (:func:`~iamp.commonroad.convert.ego_margins`);
+    a corridor sample is a box of zero length below :math:`d^-(s_j)` (or above :math:`d^+(s_j)`).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    buffer : float
+        Clearance from the vehicles [m] (the planner's :data:`~iamp.commonroad.convert.BUFFER_M`).
+    edge_buffer : float
+        Clearance from the road's edge [m].
+
+    Returns
+    -------
+    callable
+        ``(T, z, band) -> None | Blocked``.
+    """
+    L2, W2 = cr.ego_length / 2, cr.ego_width / 2
+    big = 1e3
+    y_lo, y_hi = cr.road_y
+    static = [(-1e5, 1e5, y_lo - big, y_lo), (-1e5, 1e5, y_hi, y_hi + big)]
+    static += [(float(ob.s_lo[0]), float(ob.s_hi[0]), float(ob.d_lo[0]), float(ob.d_hi[0])) for ob in cr.road_edges]
+    road = np.array(static, dtype=float)
+    samples: list[tuple[float, float, float, float, int]] = []  # the corridor's samples, boxes of zero length
+    if cr.corridor is not None:
+        for s_j, lo_j, hi_j in zip(*cr.corridor):
+            if np.isfinite(lo_j) and np.isfinite(hi_j):  # below the road (kind 0), above it (1)
+                samples += [(float(s_j), float(s_j), float(lo_j) - big, float(lo_j), 0),
+                            (float(s_j), float(s_j), float(hi_j), float(hi_j) + big, 1)]
+            else:  # off every lanelet (2)
+                samples.append((float(s_j), float(s_j), -big, big, 2))
+    corridor = np.array(samples, dtype=float).reshape(-1, 5)
+
+    def ways(box: tuple[float, float, float, float], buf: float, band: float) -> tuple[tuple[FloatArray, float], ...]:
+        s_lo, s_hi, d_lo, d_hi = box
+        sx, sy = ego_margins(cr.ego_length, cr.ego_width, band, buf)
+        out = [(np.array([-1.0, 0.0, 0.0, 0.0]), -(s_hi + sx)), (np.array([1.0, 0.0, 0.0, 0.0]), s_lo - sx)]
+        if d_hi < big / 2:
+            out.append((np.array([0.0, 0.0, -1.0, 0.0]), -(d_hi + sy)))
+        if d_lo > -big / 2:
+            out.append((np.array([0.0, 0.0, 1.0, 0.0]), d_lo - sy))
+        return tuple(out)
+
+    def depth_of(B: FloatArray, z: tuple[float, float, float, float], heading: float) -> FloatArray:
+        n = len(B)
+        return body_overlap(np.full(n, z[0]), np.full(n, z[2]), np.full(n, heading), B[:, 0], B[:, 1], B[:, 2],
+                            B[:, 3], L2, W2, 0.0)
+
+    def test(T: float, z: tuple[float, float, float, float], band: float) -> Blocked | None:
+        heading = math.atan2(z[3], max(z[1], 1e-6))
+        # the road-edge boxes as the self-check judges them (intrusions: less EDGE_SLACK_M)
+        boxes, buffers, names = [road], [np.full(len(road), -EDGE_SLACK_M)], ["the road's edge"] * len(road)
+        for ob in cr.obstacles:
+            k = _step_at(ob, T)
+            if k is not None:
+                boxes.append(np.array([[ob.s_lo[k], ob.s_hi[k], ob.d_lo[k], ob.d_hi[k]]]))
+                buffers.append(np.array([buffer]))
+                names.append(f"vehicle {ob.obstacle_id}")
+        B, buf = np.concatenate(boxes), np.concatenate(buffers)
+        depth = depth_of(B, z, heading) + buf
+        if np.any(depth > 0):
+            i = int(np.argmax(depth))
+            hit = sorted({names[j] for j in np.flatnonzero(depth > 0)})
+            return Blocked(tuple(hit), ways((B[i, 0], B[i, 1], B[i, 2], B[i, 3]), float(buf[i]), band))
+        near = corridor[np.abs(corridor[:, 0] - z[0]) <= L2 + W2 + 1.0]
+        if near.size == 0:
+            return None
+        off = near[depth_of(near, z, heading) + edge_buffer > 0]
+        if off.size == 0:
+            return None
+        # the samples the body leaves the road at, of the deepest one's kind, as one box
+        d_off = depth_of(off, z, heading)
+        kind = off[int(np.argmax(d_off)), 4]
+        same = off[off[:, 4] == kind]
+        s_a, s_b = float(same[:, 0].min()), float(same[:, 1].max())
+        box = ((s_a, s_b, -big, float(same[:, 3].max())) if kind == 0 else
+               (s_a, s_b, float(same[:, 2].min()), big) if kind == 1 else (s_a, s_b, -big, big))
+        return Blocked(("the road's edge",), ways(box, edge_buffer, band))
+
+    return test
+
+
+def _step_at(ob: Obstacle, T: float) -> int | None:
+    """The index of ``ob``'s recorded step at time ``T``, or None where it has none."""
+    k = int(np.searchsorted(ob.t, T - 1e-6))
+    return k if k < ob.t.size and abs(float(ob.t[k]) - T) < 1e-6 else None
+
+
+def _elapsed(cr: CommonRoadProblem) -> int:
+    """Steps already passed when ``cr``'s final states were made (0 unless replanned)."""
+    c = cr.candidates[0]
+    return c.goal_step - c.steps
+
+
+def search_final_states(cr: CommonRoadProblem, max_solves: int = CLEAR_MAX_SOLVES) -> ClearSearch | None:
+    """The final states of ``cr``'s goal that can be valid (:func:`~iamp.commonroad.goal.clear_goal_states`
+    with :func:`final_state_clearance`), or None when ``cr.candidates`` are not the goal's final
+    states (waypoints of the tactical layer: they are judged as given, by :func:`clear_final_states`).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    max_solves : int
+        QP solves of the search (a count, never a time).
+
+    Returns
+    -------
+    ClearSearch or None
+    """
+    if not cr.candidates or any(c.goal_step < 0 for c in cr.candidates):
+        return None
+    return clear_goal_states(cr.goal, cr.x0, cr.dt, final_state_clearance(cr), _elapsed(cr), max_solves)
+
+
 def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float, float],
                sy: float, sx: float = 0.0, edge: tuple[float, float] | None = None) -> str | None:
     """The corner describing the manoeuvre around ``ob`` (module docstring, step 3), or ``None``.
@@ -404,7 +531,8 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
         return RoadPlan(planner, "unreachable", None, None, None, time.perf_counter() - start,
                         reason=f"the goal cannot be reached: {reason}")
     best: RoadPlan | None = None
-    clear = clear_final_states(cr, cr.candidates)
+    search = search_final_states(cr)
+    clear = search.candidates if search is not None else clear_final_states(cr, cr.candidates)
     gentle = [c for c in clear if _free_peak(cr, c) <= cr.a_max]  # the free plan within the friction circle
     order = _candidate_order(gentle or clear or cr.candidates, max_candidates)
     queue = list(order)
@@ -463,11 +591,22 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             staged.plans_used = max_plans - budget[0] + staged.plans_used
             return staged
     steps_tried = sorted({c.steps for c in tried})
+    if search is None:
+        ends = f"{len(cr.candidates) - len(clear)} of {len(cr.candidates)} final states end inside a vehicle"
+    else:
+        ends = (f"{search.roots - search.roots_clear} of the {search.roots} cheapest final states of its steps and "
+                f"pieces end inside a vehicle or off the road; {len(clear)} clear found in {search.solves} QP "
+                "solve(s)" + (", the search's budget spent" if search.exhausted else ""))
     searched = (f"no safe plan found over the goal region searched: {n_tried} final state(s) at step(s) "
-                f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()} ({len(cr.candidates) - len(clear)} of "
-                f"{len(cr.candidates)} final states end inside a vehicle); {max_plans - budget[0]} planner "
+                f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()} ({ends}); {max_plans - budget[0]} planner "
                 f"call(s) of {max_plans}" + (f", {QP_MAX_SOLVES - budget[1]} QP solve(s) of {QP_MAX_SOLVES}"
                                               if iamp_planner == "qp" and constraint == "equality" else ""))
+    if search is not None and not clear:
+        bad = {**cr.goal.unreachable(cr.x0, cr.dt, _elapsed(cr)), **search.blocked}
+        if len(bad) == len(cr.goal.elements) and not search.exhausted:
+            searched = ("no valid final state exists: " + "; ".join(bad[i] for i in sorted(bad))
+                        + f" (the body grown by {BUFFER_M} m from the vehicles, {EDGE_BUFFER_M} m from the road's "
+                        "edge); " + searched)
     if best.trajectory is not None and not best.intrusions and best.peak_accel_mps2 > cr.a_max:
         best.status = "exceeds limits"
     last = (best.reason or "").replace(": no safe plan exists", ": no safe plan for this final state")
