@@ -354,20 +354,21 @@ def _branch_and_bound(region: GoalRegion, e: GoalElement, k: int, j: int, piece:
             continue
         names.update(blk.names)
         for a, rhs in blk.options:
-            key = tuple(sorted(extra + ((*(float(v) for v in a), float(rhs)),)))
+            rows = extra + ((*(float(v) for v in a), float(rhs)),)  # the parent's rows, then the new one
+            key = tuple(sorted(rows))
             if key in seen:
                 continue
             seen.add(key)
-            A = np.vstack([Ab, np.array([r[:4] for r in key])])
-            b = np.concatenate([bb, [r[4] for r in key]])
+            A = np.vstack([Ab, np.array([r[:4] for r in rows])])
+            b = np.concatenate([bb, [r[4] for r in rows]])
             if not _position_feasible(A, b):
                 continue
             if budget[0] <= 0:
                 return None, False
             budget[0] -= 1
-            z2 = solve_small_qp(Q, c, A, b)
+            z2 = solve_small_qp(Q, c, A, b, first=_active_guesses(A[:-1], b[:-1], z, len(b) - 1))
             if z2 is not None:
-                heapq.heappush(heap, (_cost0(T, x0, _tuple(z2)), next(seq), key, z2))
+                heapq.heappush(heap, (_cost0(T, x0, _tuple(z2)), next(seq), rows, z2))
     return None, not heap
 
 
@@ -376,7 +377,8 @@ def _tuple(z: FloatArray) -> tuple[float, float, float, float]:
 
 
 def clear_goal_states(region: GoalRegion, x0: tuple[float, float, float, float], dt: float, clear: ClearanceTest,
-                       elapsed_steps: int = 0, max_solves: int = CLEAR_MAX_SOLVES) -> ClearSearch:
+                       elapsed_steps: int = 0, max_solves: int = CLEAR_MAX_SOLVES,
+                       known: list[Candidate] | None = None) -> ClearSearch:
     r"""Final states that can be valid: inside every element of a goal state **and** accepted
     by ``clear`` (the body off every obstacle and on the road at that step), the cheapest of every
     goal state, time step and piece, cheapest :math:`J_0` first.
@@ -401,6 +403,9 @@ def clear_goal_states(region: GoalRegion, x0: tuple[float, float, float, float],
         Steps already passed (the closed loop).
     max_solves : int
         QP solves over the whole search.
+    known : list of Candidate, optional
+        The goal's final states already made (:meth:`GoalRegion.final_states` with the same
+        ``elapsed_steps``): one the test accepts is its step and piece's answer without a solve.
 
     Returns
     -------
@@ -412,6 +417,7 @@ def clear_goal_states(region: GoalRegion, x0: tuple[float, float, float, float],
     blocked: dict[int, str] = {}
     roots = roots_clear = 0
     incomplete = False
+    given = {(c.element, c.goal_step, c.piece): c for c in known or [] if c.goal_step - c.steps == elapsed_steps}
     for e in region.elements:
         if e.index in bad:
             continue
@@ -424,6 +430,12 @@ def clear_goal_states(region: GoalRegion, x0: tuple[float, float, float, float],
             for k in ks:
                 T = (k - elapsed_steps) * dt
                 for j, piece in enumerate(region._pieces(e, x0, T)):
+                    ready = given.get((e.index, k, j)) if scale == CLEAR_SCALES[0] else None
+                    if ready is not None and clear(T, (ready.s, ready.vs, ready.d, ready.vd), CLEAR_BAND_RAD) is None:
+                        found.append(ready)  # the cheapest pose of its step and piece is clear: the answer
+                        roots += 1
+                        roots_clear += 1
+                        continue
                     if budget[0] <= 0:
                         complete = False
                         break
@@ -520,7 +532,7 @@ def _hessian(T: float) -> FloatArray:
 
 
 def solve_small_qp(Q: FloatArray, c: FloatArray, A: FloatArray, b: FloatArray, max_active: int = 4,
-                   tol: float = 1e-9) -> FloatArray | None:
+                   tol: float = 1e-9, first: tuple[tuple[int, ...], ...] = ()) -> FloatArray | None:
     r"""Minimise :math:`\tfrac12 (z - c)^\top Q (z - c)` subject to :math:`A z \le b` exactly
     (``Q`` positive definite): every active set of at most ``max_active`` rows, smallest first;
     the first KKT point that is primal and dual feasible is the optimum (a strictly convex QP
@@ -538,6 +550,9 @@ def solve_small_qp(Q: FloatArray, c: FloatArray, A: FloatArray, b: FloatArray, m
         Largest active set tried (``n`` suffices when the rows are in general position).
     tol : float
         Feasibility tolerance.
+    first : tuple of tuple of int
+        Active sets to try before the enumeration (a guess, e.g. a similar QP's active rows);
+        the answer does not depend on them, only the number of linear solves.
 
     Returns
     -------
@@ -548,22 +563,35 @@ def solve_small_qp(Q: FloatArray, c: FloatArray, A: FloatArray, b: FloatArray, m
     if m == 0 or np.all(A @ c <= b + tol):
         return c.copy()
     r = b - A @ c  # rows in y = z - c: A y <= r
-    for size in range(1, min(max_active, n, m) + 1):
-        for W in itertools.combinations(range(m), size):
-            Aw = A[list(W)]
-            K = np.zeros((n + size, n + size))
-            K[:n, :n] = Q
-            K[:n, n:] = Aw.T
-            K[n:, :n] = Aw
-            rhs = np.concatenate([np.zeros(n), r[list(W)]])
-            try:
-                sol = np.linalg.solve(K, rhs)
-            except np.linalg.LinAlgError:
-                continue
-            y, lam = sol[:n], sol[n:]
-            if np.all(lam >= -tol) and np.all(A @ y <= r + tol * (1 + np.abs(r))):
-                return np.asarray(c + y, dtype=float)
+    guesses = (tuple(W) for W in first if 0 < len(W) <= min(max_active, n) and all(0 <= i < m for i in W))
+    every = (W for size in range(1, min(max_active, n, m) + 1) for W in itertools.combinations(range(m), size))
+    for W in itertools.chain(guesses, every):
+        Aw = A[list(W)]
+        size = len(W)
+        K = np.zeros((n + size, n + size))
+        K[:n, :n] = Q
+        K[:n, n:] = Aw.T
+        K[n:, :n] = Aw
+        rhs = np.concatenate([np.zeros(n), r[list(W)]])
+        try:
+            sol = np.linalg.solve(K, rhs)
+        except np.linalg.LinAlgError:
+            continue
+        y, lam = sol[:n], sol[n:]
+        if np.all(lam >= -tol) and np.all(A @ y <= r + tol * (1 + np.abs(r))):
+            return np.asarray(c + y, dtype=float)
     return None
+
+
+def _active_guesses(A: FloatArray, b: FloatArray, z: FloatArray, new: int) -> tuple[tuple[int, ...], ...]:
+    """Likely active sets of a QP whose row ``new`` was added to rows ``A z <= b`` at whose
+    minimiser ``z`` the active rows are known: those rows with ``new``, then subsets of them."""
+    act = [int(i) for i in np.flatnonzero(np.abs(A @ z - b) <= 1e-7 * (1 + np.abs(b))) if i != new][:4]
+    out: list[tuple[int, ...]] = []
+    for size in range(len(act), -1, -1):
+        for sub in itertools.combinations(act, size):
+            out.append((*sub, new))
+    return tuple(out)
 
 
 def _cone(e: GoalElement, piece: Piece, margin_scale: float) -> tuple[float, float]:

@@ -335,17 +335,26 @@ def final_state_clearance(cr: CommonRoadProblem, buffer: float = BUFFER_M,
         return body_overlap(np.full(n, z[0]), np.full(n, z[2]), np.full(n, heading), B[:, 0], B[:, 1], B[:, 2],
                             B[:, 3], L2, W2, 0.0)
 
+    at: dict[float, tuple[FloatArray, FloatArray, list[str]]] = {}
+
+    def occupied(T: float) -> tuple[FloatArray, FloatArray, list[str]]:
+        """Every box at time ``T`` with its buffer and name (the road-edge boxes as the self-check
+        judges them, :func:`intrusions`: less :data:`EDGE_SLACK_M`)."""
+        key = round(T, 6)
+        if key not in at:
+            boxes, buffers, names = [road], [np.full(len(road), -EDGE_SLACK_M)], ["the road's edge"] * len(road)
+            for ob in cr.obstacles:
+                k = _step_at(ob, T)
+                if k is not None:
+                    boxes.append(np.array([[ob.s_lo[k], ob.s_hi[k], ob.d_lo[k], ob.d_hi[k]]]))
+                    buffers.append(np.array([buffer]))
+                    names.append(f"vehicle {ob.obstacle_id}")
+            at[key] = (np.concatenate(boxes), np.concatenate(buffers), names)
+        return at[key]
+
     def test(T: float, z: tuple[float, float, float, float], band: float) -> Blocked | None:
         heading = math.atan2(z[3], max(z[1], 1e-6))
-        # the road-edge boxes as the self-check judges them (intrusions: less EDGE_SLACK_M)
-        boxes, buffers, names = [road], [np.full(len(road), -EDGE_SLACK_M)], ["the road's edge"] * len(road)
-        for ob in cr.obstacles:
-            k = _step_at(ob, T)
-            if k is not None:
-                boxes.append(np.array([[ob.s_lo[k], ob.s_hi[k], ob.d_lo[k], ob.d_hi[k]]]))
-                buffers.append(np.array([buffer]))
-                names.append(f"vehicle {ob.obstacle_id}")
-        B, buf = np.concatenate(boxes), np.concatenate(buffers)
+        B, buf, names = occupied(T)
         depth = depth_of(B, z, heading) + buf
         if np.any(depth > 0):
             i = int(np.argmax(depth))
@@ -398,7 +407,8 @@ def search_final_states(cr: CommonRoadProblem, max_solves: int = CLEAR_MAX_SOLVE
     """
     if not cr.candidates or any(c.goal_step < 0 for c in cr.candidates):
         return None
-    return clear_goal_states(cr.goal, cr.x0, cr.dt, final_state_clearance(cr), _elapsed(cr), max_solves)
+    return clear_goal_states(cr.goal, cr.x0, cr.dt, final_state_clearance(cr), _elapsed(cr), max_solves,
+                             known=cr.candidates)
 
 
 def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float, float],
