@@ -380,3 +380,36 @@ def test_every_offered_final_state_is_inside_every_element_and_clear(s_lo: float
 
         if width > 2 * m and length > 2 * m and any(free(s, d) for s, d in grid):
             assert any(c.goal_step == k for c in found.candidates), (k, found.blocked)
+
+
+@needs_extra
+def test_plan_says_no_valid_final_state_exists_naming_the_position(tmp_path: Path) -> None:
+    """The fixture with one goal state in the middle lane, 3 m long, at steps 64-66, where
+    vehicle 10 drives (s = 24 + 15 t: its body covers the goal and the ego's margins at each of
+    those steps).  No pose of the goal is clear at any step; the planner's reason says so over the
+    whole goal region, naming the goal state's position and the vehicle (before, it said only
+    that the final states it tried gave no safe plan)."""
+    import sys
+
+    from commonroad.common.util import Interval
+    from commonroad.geometry.shape import Rectangle
+    from commonroad.planning.goal import GoalRegion as CrGoal
+    from commonroad.scenario.state import CustomState
+
+    sys.path.insert(0, str(FIXTURE.parent))
+    from commonroad_goals import HEADING, LANE_W, build, world
+
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan
+
+    scenario, pps = build()
+    pp = next(iter(pps.planning_problem_dict.values()))
+    pp.goal = CrGoal([CustomState(time_step=Interval(64, 66), velocity=Interval(12.0, 18.0),
+                                  position=Rectangle(3.0, 2.0, world(121.5, 1.5 * LANE_W), HEADING))])
+    cr = load(_write(scenario, pps, tmp_path / "covered.xml"))
+    assert cr.candidates  # the goal alone is reachable
+    rp = plan(cr)
+    assert not rp.safe
+    reason = rp.reason or ""
+    assert reason.startswith("no valid final state exists: goal state 0: position: at every time_step 64-66"), reason
+    assert "vehicle 10" in reason, reason

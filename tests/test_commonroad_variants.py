@@ -301,3 +301,28 @@ def test_bench_row_survives_a_solution_that_cannot_be_written(monkeypatch: pytes
                         vehicle_model="KS")
     assert row.category == "no plan" and row.benchmark_id is None
     assert "no KS solution" in str(row.plan.get("reason")) and "step 44" in str(row.plan.get("reason"))
+
+
+@needs_data
+def test_final_states_of_a_goal_a_vehicle_drives_through_are_searched_for_clear_ones(tmp_path: Path) -> None:
+    """US101-6 with the ``combo`` goal of seed 1 (one lane over, turned left, steps 70-74):
+    vehicle 397 drives through the goal, and the cheapest pose of every step ends inside it
+    (before, all five final states offered to the planner did).  The search offers a pose clear
+    of every vehicle and on the road, inside every goal element, and the planner is then asked
+    only for those; every pose it offers passes CommonRoad's own element tests."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import clear_final_states, final_state_clearance, search_final_states
+
+    mod = load_script("commonroad_variants")
+    out = tmp_path / "v"
+    assert mod.main([str(_one_source(tmp_path, "USA_US101-6_1_T-1.xml")), str(out), "--seed", "1",
+                     "--kinds", "combo"]) == 0
+    cr = load(out / "USA_US101-6_207_T-1.xml")
+    assert cr.candidates and clear_final_states(cr, cr.candidates) == []
+    found = search_final_states(cr)
+    assert found is not None and found.candidates and not found.exhausted
+    test = final_state_clearance(cr)
+    for c in found.candidates:
+        assert test(c.tf, (c.s, c.vs, c.d, c.vd), 0.06) is None
+        assert cr.goal.verify(cr.goal.elements[c.element], c.goal_step, (c.s, c.vs, c.d, c.vd)) is None
+    assert clear_final_states(cr, found.candidates) == found.candidates
