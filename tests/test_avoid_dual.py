@@ -21,6 +21,7 @@ from iamp.core import status as st
 from iamp.core.errors import ScenarioError
 from iamp.core.physical import PASSENGER_CAR
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.tolerances import tol
 from iamp.planners.avoid.continuous import ContinuousAvoidPlanner, ContinuousAvoidQP
 from iamp.planners.avoid.dual import DualBounds, piece_of
 from iamp.planners.examples import overtake_problem
@@ -108,23 +109,86 @@ def test_the_search_is_global_against_a_dense_scan(hold, limits):
     assert s["closed"] and s["lower_bound"] <= plan.cost and plan.cost - s["lower_bound"] <= 1e-4 * plan.cost
 
 
+def fine_reference(prob: Problem, steps: int) -> float:
+    """An independent minimum of ``J(τ)`` over every crossing time: the fixed-crossing-time QP
+    (no branch and bound, no dual bound) on 120 scanned crossing times, then a bounded Brent
+    search within one scan step on each side of the best scanned time."""
+    from scipy.optimize import minimize_scalar
+
+    planner = ContinuousAvoidPlanner(steps=steps, solver="clarabel")
+
+    def J(t: float) -> float:
+        p = planner.plan_at_times(prob, [t])
+        return p.cost if p.cost is not None else np.inf
+
+    ts = np.linspace(0.02, 4.98, 120)
+    costs = np.array([J(float(t)) for t in ts])
+    if not np.isfinite(costs).any():
+        return np.inf
+    k = int(np.argmin(costs))
+    lo, hi = float(ts[max(k - 1, 0)]), float(ts[min(k + 1, ts.size - 1)])
+    res = minimize_scalar(J, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7})
+    return float(min(costs[k], res.fun))
+
+
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(st_h.floats(-5.0, 12.0), st_h.floats(15.0, 24.0), st_h.floats(100.0, 125.0), st_h.floats(20.0, 26.0),
        st_h.booleans())
 def test_generated_problems_the_certified_optimum_is_no_worse_than_any_scanned_crossing(x0v, speed, xf, vxf, limits):
-    """Generated one-vehicle problems: an ``optimal`` plan of the branch and bound costs no more
-    than the fixed-crossing-time QP at any of 120 scanned crossing times (an independent search),
-    and its reported bounds bracket it within the gap."""
+    """Generated one-vehicle problems: OSQP, Clarabel and PIQP reach the same status, and an
+    ``optimal`` plan of the branch and bound costs no more than an independent fine reference
+    (:func:`fine_reference`: a scan of fixed crossing times refined by Brent), the same cost on
+    every backend (to OSQP's comparison tolerance), its reported bounds bracketing it within the
+    gap."""
     prob = problem(x0v, speed, xf, vxf, limits)
-    planner = ContinuousAvoidPlanner(steps=12, solver="piqp")
-    try:
-        plan = planner.plan(prob)
-    except ScenarioError:
-        assume(False)
-    assume(plan.status == st.OPTIMAL)
-    scan = [planner.plan_at_times(prob, [t]) for t in np.linspace(0.02, 4.98, 120)]
-    costs = [p.cost for p in scan if p.cost is not None]
-    if costs:
-        assert plan.cost <= min(costs) * (1 + 1e-9) + 1e-12
-    s = plan.info["search"]
-    assert s["lower_bound"] <= plan.cost * (1 + 1e-12) and plan.cost - s["lower_bound"] <= 1e-4 * max(1.0, plan.cost)
+    plans = {}
+    for solver in ("osqp", "clarabel", "piqp"):
+        try:
+            plans[solver] = ContinuousAvoidPlanner(steps=12, solver=solver).plan(prob)
+        except ScenarioError:
+            assume(False)
+    assert len({p.status for p in plans.values()}) == 1, {k: p.status for k, p in plans.items()}
+    assume(plans["piqp"].status == st.OPTIMAL)
+    ref = fine_reference(prob, 12)
+    costs = [p.cost for p in plans.values()]
+    assert max(costs) - min(costs) <= tol("cmp_cost_rel_osqp") * max(costs)
+    for plan in plans.values():
+        assert plan.cost <= ref * (1 + 1e-9) + 1e-12
+        s = plan.info["search"]
+        assert s["lower_bound"] <= plan.cost * (1 + 1e-12)
+        assert plan.cost - s["lower_bound"] <= 1e-4 * max(1.0, plan.cost)
+
+
+@pytest.mark.parametrize("solver", ["piqp", "clarabel"])
+def test_every_stored_polynomial_bounds_j_on_its_whole_region(solver):
+    """The search's store (:class:`~iamp.planners.avoid.dual.DualStore`) bounds a box by every
+    candidate's polynomial whose region holds it, not only its ancestors'; a vehicle with no
+    multiplier counts as valid for any crossing time.  Three vehicles: at crossing times drawn
+    in each stored polynomial's region, ``J(τ)`` is never below it."""
+    from iamp.planners.avoid.continuous import _spec
+    from iamp.planners.avoid.dual import DualStore
+    from iamp.planners.examples import overtake_three_problem
+
+    prob = overtake_three_problem()
+    qp = ContinuousAvoidQP(prob, 20, "foh", solver)
+    store = DualStore(DualBounds(qp))
+    orders = [(1, 0), (0, 1), (0, 1)]
+    rng = np.random.default_rng(3)
+    centres = [(3.71, 1.86, 3.6), (3.66, 1.9, 4.4)]
+    for c in centres:
+        sol = qp.solve(_spec(orders, c, c))
+        assert sol.status == st.OPTIMAL
+        store.piece(sol)
+    checked = 0
+    for o, lo, hi, dp in zip(store._orders, store._lo, store._hi, store._polys):
+        a, b = np.maximum(lo, 1e-3), np.minimum(hi, qp.tf - 1e-3)
+        for _ in range(4):
+            t = a + (b - a) * rng.random(3)
+            assert store.valid(tuple(o), t, t)
+            sol = qp.solve(_spec(o, t, t))
+            if sol.status != st.OPTIMAL:
+                continue
+            assert float(dp.evaluate(t[None, :])[0]) <= sol.cost * (1 + 1e-9) + 1e-9, (t, sol.cost)
+            assert dp.lower_bound(t, t) <= sol.cost * (1 + 1e-9) + 1e-9
+            checked += 1
+    assert checked >= 4

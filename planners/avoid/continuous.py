@@ -35,7 +35,16 @@ its bound is within the gap of ``U``.  Two lower bounds:
   vehicles whose interval lies in one piece, bounded by its Bernstein coefficients; it equals
   :math:`J` at the candidate and falls off quadratically (the relaxation: linearly), and it
   holds on every sub-box, so a box inside one piece needs no relaxation solve (its candidate is
-  where its polynomials' largest value is lowest).
+  where its polynomials' largest value is lowest).  Every candidate's *piece polynomial* (over
+  the grid pieces of its crossing times) is kept in one store for the whole search
+  (:class:`~iamp.planners.avoid.dual.DualStore`) and bounds every box inside those pieces —
+  for a vehicle without multipliers, any box — not only the candidate's own descendants; where
+  those polynomials keep a box above ``U - gap`` at every probe, it is split without a QP
+  (their Bernstein bound tightens as the box shrinks).
+
+A box that spans several grid pieces for the split vehicle is cut at the grid node nearest its
+midpoint (within one piece: at the midpoint), so that boxes near the optimum soon lie within one
+piece, where the polynomials bound them without relaxation solves.
 
 The search stops when every remaining box has bound :math:`\ge U - \text{gap}` (``closed``: the
 best :math:`\tau` is the global minimiser over all crossing times, to the gap :data:`GAP_REL`)
@@ -74,7 +83,7 @@ from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
-from iamp.planners.avoid.dual import DualBounds, DualPolynomial, piece_of
+from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, piece_of
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
 from iamp.planners.avoid.solve import RowGeneration
 from iamp.planners.qp.backends import BACKENDS
@@ -310,7 +319,8 @@ class _Box:
     #: candidate (row generation starts from its nearly binding rows)
     relaxed: Solved = field(compare=False)
     own_relaxation: bool = field(default=True, compare=False)
-    #: dual polynomials of the box's ancestors' candidates (each valid on every sub-box)
+    #: dual polynomials of the box's ancestors' candidates (each valid on every sub-box; the
+    #: piece polynomials of every candidate are in the search's :class:`DualStore`)
     duals: tuple[DualPolynomial, ...] = field(default=(), compare=False)
 
 
@@ -352,6 +362,11 @@ class ContinuousAvoidPlanner:
     #: With several vehicles, the coordinate secant's steps per vehicle before the joint BFGS
     #: search (enough for its curvature).
     POLISH_PROBES = 3
+    #: A secant step whose predicted decrease ``½|∂J/∂τ · Δτ|`` is below this (relative to
+    #: ``max(1, J)``) is not taken (the backends solve each QP to about 1e-10).
+    POLISH_TOL_REL = 1e-11
+    #: Starts of the final secant search (:meth:`_polish_starts`).
+    POLISH_STARTS = 3
 
     def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None) -> Solved:
         """``qp.solve(spec)``, each spec solved once per plan (a box's candidate is often its
@@ -378,20 +393,35 @@ class ContinuousAvoidPlanner:
             worst[i] = float(np.max(score))
         return out, worst
 
-    def _probe(self, box: _Box, tau: FloatArray) -> FloatArray:
-        """``tau`` with each vehicle that a dual polynomial of the box covers moved to where the
-        box's dual bound (the largest of its polynomials) is lowest, on a product grid."""
-        polys = [dp for dp in box.duals if dp.vehicles]
+    def _probe(self, box: _Box, tau: FloatArray, polys: Sequence[DualPolynomial]) -> tuple[FloatArray, float]:
+        """``tau`` with each vehicle that a polynomial of ``polys`` (valid on the box) depends on
+        moved to where their largest value, the box's dual bound, is lowest on a product grid,
+        and that value (``-inf`` without such a polynomial)."""
+        polys = [dp for dp in polys if dp.vehicles]
         if not polys:
-            return tau
-        vs = sorted({v for dp in polys for v in dp.vehicles})
+            return tau, -np.inf
+        # a vehicle without multipliers in a polynomial leaves it constant: only the others move
+        vs = sorted({v for dp in polys for v in dp.vehicles if box.hi[v] > box.lo[v] and dp.mass[v] > 0})
         n = {1: 9, 2: 5}.get(len(vs), 3)
         grids = np.meshgrid(*[np.linspace(box.lo[v], box.hi[v], n) for v in vs], indexing="ij")
-        pts = np.tile(tau, (grids[0].size, 1))
+        pts = np.tile(tau, (grids[0].size if vs else 1, 1))
         for c, v in enumerate(vs):
             pts[:, v] = grids[c].ravel()
         vals = np.max([dp.evaluate(pts) for dp in polys], axis=0)
-        return np.asarray(pts[int(np.argmin(vals))], dtype=float)
+        at = int(np.argmin(vals))
+        return np.asarray(pts[at], dtype=float), float(vals[at])
+
+    def _cut(self, qp: ContinuousAvoidQP, lo: float, hi: float) -> float:
+        """Where a box's interval ``[lo, hi]`` of one vehicle is split: at the midpoint within one
+        grid piece, else at the grid node nearest the midpoint (so that boxes soon lie within one
+        piece, where the candidates' dual polynomials bound them without a QP)."""
+        mid = 0.5 * (lo + hi)
+        if piece_of(lo, hi, qp.h, qp.N) is not None:
+            return mid
+        k_lo, k_hi = int(np.ceil(lo / qp.h + 1e-9)), int(np.floor(hi / qp.h - 1e-9))
+        if k_lo > k_hi:  # pragma: no cover - a box over two pieces has an interior node
+            return mid
+        return float(min(max(int(round(mid / qp.h)), k_lo), k_hi) * qp.h)
 
     def search(self, qp: ContinuousAvoidQP, orders: list[list[tuple[int, int]]]) -> dict[str, Any]:
         """Branch and bound over crossing-time boxes (module docstring)."""
@@ -404,6 +434,7 @@ class ContinuousAvoidPlanner:
         n_boxes = 0
         closed_bound = np.inf  # the smallest bound of a box closed to the gap
         dual = DualBounds(qp)
+        store = DualStore(dual)
         free = self._qp_solve(qp, _spec([o[0] for o in orders], np.zeros(m), np.full(m, tf)))
         for combo in itertools.product(*orders):
             if free.status == st.OPTIMAL:
@@ -414,6 +445,11 @@ class ContinuousAvoidPlanner:
         def gap(u: float) -> float:
             return self.gap_rel * max(1.0, abs(u))
 
+        def bound_of(orders_: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray,
+                     duals: Sequence[DualPolynomial]) -> tuple[float, list[DualPolynomial]]:
+            polys = store.valid(orders_, lo, hi) + list(duals)
+            return max([dp.lower_bound(lo, hi) for dp in polys], default=-np.inf), polys
+
         while heap:
             box = heap[0]
             U = best.cost if best is not None else np.inf
@@ -422,20 +458,44 @@ class ContinuousAvoidPlanner:
             if qp.n_solves >= self.max_solves:
                 break
             heapq.heappop(heap)
-            tau, margin = self._candidate_tau(qp, box)
-            if not box.own_relaxation:
-                tau = self._probe(box, tau)
-            cand = self._qp_solve(qp, _spec(box.orders, tau, tau), box.relaxed)
-            bound, duals, mass = box.bound, box.duals, np.zeros(m)
-            if cand.status == st.OPTIMAL:
-                if best is None or cand.cost < best.cost:
-                    best, best_tau = cand, tau.copy()
-                dp = dual.polynomial(cand, box.lo, box.hi)
-                bound, mass = max(bound, dp.lower_bound(box.lo, box.hi)), dp.mass
-                if dp.vehicles:
-                    duals = (duals + (dp,))[-self.DUALS_KEPT:]
-            elif cand.status != st.INFEASIBLE:
-                failures.append(cand.status)
+            # the candidates solved since the box was pushed may bound it now
+            poly_bound, polys = bound_of(box.orders, box.lo, box.hi, box.duals)
+            bound = max(box.bound, poly_bound)
+            if bound >= U - gap(U):
+                closed_bound = min(closed_bound, bound)
+                continue
+            widths = box.hi - box.lo
+            wide = widths > 1e-9 * tf
+            covered = {v for dp in polys for v in dp.vehicles if dp.mass[v] > 0}
+            if box.own_relaxation or not all(v in covered for v in np.flatnonzero(wide)):
+                tau, margin = self._candidate_tau(qp, box)
+            else:  # the probe of the box's polynomials moves every vehicle: no relaxed margin needed
+                tau, margin = 0.5 * (box.lo + box.hi), np.zeros(m)
+            mass = np.zeros(m)
+            cand: Solved | None = None
+            probe, low = self._probe(box, tau, polys)
+            if low >= U - gap(U) and wide.any() and np.max(widths) > 1e-6 * qp.h:
+                # the polynomials keep the box above U - gap at every probe: only their Bernstein
+                # bound is loose, and splitting tightens it without a QP
+                mass = np.max([dp.mass for dp in polys], axis=0)
+            else:
+                if not box.own_relaxation or low > -np.inf:
+                    tau = probe
+                cand = self._qp_solve(qp, _spec(box.orders, tau, tau), box.relaxed)
+                if cand.status == st.OPTIMAL:
+                    if best is None or cand.cost < best.cost:
+                        best, best_tau = cand, tau.copy()
+                    piece = store.piece(cand)
+                    same = all(piece_of(float(a), float(b), qp.h, qp.N) == piece_of(float(t), float(t), qp.h, qp.N)
+                               for a, b, t in zip(box.lo, box.hi, tau))
+                    dp = piece if same else dual.polynomial(cand, box.lo, box.hi)
+                    bound, mass = max(bound, dp.lower_bound(box.lo, box.hi)), dp.mass
+                    if dp.vehicles:
+                        box.duals = (box.duals + (dp,))[-self.DUALS_KEPT:]
+                    poly_bound, polys = bound_of(box.orders, box.lo, box.hi, box.duals)
+                    bound = max(bound, poly_bound)
+                elif cand.status != st.INFEASIBLE:
+                    failures.append(cand.status)
             U = best.cost if best is not None else np.inf
             if bound >= U - gap(U):
                 closed_bound = min(closed_bound, bound)
@@ -443,8 +503,6 @@ class ContinuousAvoidPlanner:
             # branch on the vehicle whose constraint the relaxed optimum breaks most (a vehicle it
             # keeps gains nothing from a split); else the widest vehicle that binds at the candidate;
             # else the widest box
-            widths = box.hi - box.lo
-            wide = widths > 1e-9 * tf
             broken = (margin < 0) & wide & box.own_relaxation
             binds = (mass > 0) & wide
             if broken.any():
@@ -455,35 +513,39 @@ class ContinuousAvoidPlanner:
                 i = int(np.argmax(widths))
             if not wide[i]:
                 continue  # a point: its bound is J(τ) itself
-            cut = 0.5 * (box.lo[i] + box.hi[i])
-            ref = cand if cand.status == st.OPTIMAL else box.relaxed
-            for lo_i, hi_i in ((box.lo[i], cut), (cut, box.hi[i])):
+            cuts = [self._cut(qp, float(box.lo[i]), float(box.hi[i]))]
+            solved = cand is not None and cand.status == st.OPTIMAL
+            ref = cand if cand is not None and solved else box.relaxed
+            edges = [float(box.lo[i])] + cuts + [float(box.hi[i])]
+            for lo_i, hi_i in zip(edges[:-1], edges[1:]):
                 lo, hi = box.lo.copy(), box.hi.copy()
                 lo[i], hi[i] = lo_i, hi_i
-                child = max([bound] + [dp.lower_bound(lo, hi) for dp in duals])
+                child_poly, _ = bound_of(box.orders, lo, hi, box.duals)
+                child = max(bound, child_poly)
                 n_boxes += 1
                 if child >= U - gap(U):
                     closed_bound = min(closed_bound, child)
                     continue
-                if cand.status == st.OPTIMAL and piece_of(float(lo_i), float(hi_i), qp.h, qp.N) is not None:
-                    # within one piece: the candidates' dual polynomials bound it (no relaxation;
-                    # a box whose candidate is infeasible is bounded, or pruned, by its relaxation)
-                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, duals))
+                if (cand is None or solved) and piece_of(lo_i, hi_i, qp.h, qp.N) is not None:
+                    # within one piece: its candidate's dual polynomial will bound it (no
+                    # relaxation; a box whose candidate is infeasible is bounded, or pruned, by
+                    # its relaxation)
+                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals))
                     continue
                 rel = self._qp_solve(qp, _spec(box.orders, lo, hi), box.relaxed)
                 if rel.status == st.OPTIMAL:
                     child = max(child, rel.cost)
                     if child < U - gap(U):
-                        heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, rel, True, duals))
+                        heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, rel, True, box.duals))
                     else:
                         closed_bound = min(closed_bound, child)
                 elif rel.status != st.INFEASIBLE:
                     failures.append(rel.status)
                     # an unsolved relaxation cannot prune: keep the box with its parent's bound
-                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, duals))
+                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals))
         if best is not None and best.cost > min(closed_bound, heap[0].bound if heap else np.inf) + 1e-12 * max(
                 1.0, best.cost):
-            best, best_tau = self._polish(qp, dual, best, best_tau)
+            best, best_tau = self._polish_starts(qp, store, best, best_tau, gap(best.cost))
         U = best.cost if best is not None else np.inf
         open_bound = heap[0].bound if heap else np.inf
         lower = min(U, open_bound, closed_bound)
@@ -492,7 +554,7 @@ class ContinuousAvoidPlanner:
                 "closed": bool(closed and best is not None), "n_boxes": n_boxes, "open_boxes": len(heap),
                 "failures": failures, "free": free}
 
-    def _polish(self, qp: ContinuousAvoidQP, dual: DualBounds, best: Solved, tau: FloatArray
+    def _polish(self, qp: ContinuousAvoidQP, store: DualStore, best: Solved, tau: FloatArray
                 ) -> tuple[Solved, FloatArray]:
         """Per vehicle, a secant search for a zero of ``∂J/∂τ_i`` within one grid step of the
         best ``τ`` (the others fixed), the slope of each solved candidate read off its dual
@@ -510,7 +572,7 @@ class ContinuousAvoidPlanner:
             t, sol = tau.copy(), best
             prev: tuple[float, float] | None = None
             for _ in range(self.POLISH_STEPS if len(tau) == 1 else self.POLISH_PROBES):
-                slope = self._gradient(qp, dual, sol, t)[i]
+                slope = self._gradient(store, sol, t)[i]
                 if prev is None:
                     step = -np.sign(slope) * 1e-3 * qp.h  # a first probe, then secant steps
                 else:
@@ -518,6 +580,8 @@ class ContinuousAvoidPlanner:
                     step = -slope * (t[i] - prev[0]) / ds if ds != 0.0 else 0.0
                     if t[i] != prev[0]:
                         curvature[i] = ds / (t[i] - prev[0])
+                    if curvature[i] > 0 and 0.5 * abs(slope * step) <= self.POLISH_TOL_REL * max(1.0, abs(best.cost)):
+                        break  # the secant model's decrease is below the QPs' own accuracy
                 prev = (float(t[i]), slope)
                 x = float(np.clip(t[i] + step, lo_all[i], hi_all[i]))
                 if not abs(x - t[i]) > 1e-9 * qp.tf:
@@ -534,7 +598,7 @@ class ContinuousAvoidPlanner:
         if active.sum() < 2:
             return best, tau
         H = np.diag(np.where(active, 1.0 / np.where(active, curvature, 1.0), 0.0))  # inverse Hessian
-        g = self._gradient(qp, dual, best, tau) * active
+        g = self._gradient(store, best, tau) * active
         for _ in range(self.POLISH_STEPS):
             trial = np.clip(tau - H @ g, lo_all, hi_all)
             if not np.max(np.abs(trial - tau)) > 1e-9 * qp.tf:
@@ -542,7 +606,7 @@ class ContinuousAvoidPlanner:
             r = self._qp_solve(qp, _spec(orders, trial, trial), best)
             if r.status != st.OPTIMAL:
                 break
-            g_new = self._gradient(qp, dual, r, trial) * active
+            g_new = self._gradient(store, r, trial) * active
             sv, yv = trial - tau, g_new - g
             if sv @ yv > 0:  # BFGS update of the inverse Hessian
                 rho = 1.0 / float(sv @ yv)
@@ -552,11 +616,34 @@ class ContinuousAvoidPlanner:
                 best, tau, g = r, trial, g_new
         return best, tau
 
-    def _gradient(self, qp: ContinuousAvoidQP, dual: DualBounds, sol: Solved, tau: FloatArray) -> FloatArray:
-        """``∂J/∂τ`` at the candidate ``sol`` (crossing times ``tau``), from its dual polynomial on
-        the pieces containing ``tau`` (:meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`)."""
-        k = np.minimum(np.floor(tau / qp.h), qp.N - 1)
-        dp = dual.polynomial(sol, k * qp.h, (k + 1) * qp.h)
+    def _polish_starts(self, qp: ContinuousAvoidQP, store: DualStore, best: Solved, tau: FloatArray,
+                       within: float) -> tuple[Solved, FloatArray]:
+        """:meth:`_polish` from the best candidate and from the best candidate of each other
+        combination of grid pieces (and orders) whose cost is within ``within`` of it (at most
+        :attr:`POLISH_STARTS` starts): the search closes to its gap, and a crossing within the
+        gap may lie in another piece than the incumbent's, where the secant search from the
+        incumbent cannot reach; the lowest result is kept."""
+        starts: dict[tuple[object, ...], Solved] = {}
+        for spec, sol in qp.solved.items():
+            if sol.status != st.OPTIMAL or sol.cost > best.cost + within or any(a != b for _, _, a, b in spec):
+                continue
+            key = tuple((f, s, piece_of(a, a, qp.h, qp.N)) for f, s, a, _ in spec)
+            if key not in starts or sol.cost < starts[key].cost:
+                starts[key] = sol
+        ranked = sorted(starts.values(), key=lambda r: r.cost)[:self.POLISH_STARTS]
+        out, out_tau = self._polish(qp, store, best, tau)
+        for sol in ranked:
+            if sol.spec == best.spec:
+                continue
+            r, t = self._polish(qp, store, sol, np.array([a for _, _, a, _ in sol.spec], dtype=float))
+            if r.cost < out.cost:
+                out, out_tau = r, t
+        return out, out_tau
+
+    def _gradient(self, store: DualStore, sol: Solved, tau: FloatArray) -> FloatArray:
+        """``∂J/∂τ`` at the candidate ``sol`` (crossing times ``tau``), from its piece polynomial
+        (:meth:`~iamp.planners.avoid.dual.DualStore.piece`, :meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`)."""
+        dp = store.piece(sol)
         return np.array([dp.slope(tau, i) for i in range(tau.size)])
 
     def plan(self, problem: Problem) -> Plan:

@@ -56,7 +56,7 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "piece_of"]
+__all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "DualStore", "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
 #: point (one sparse LU solve and a Bernstein transform); far below the search's gap (1e-4).
@@ -268,3 +268,62 @@ class DualBounds:
             np.add.at(coef, tuple(pairs.T), -0.5 * G.ravel())
         mass = np.array([float(np.sum(y[bern & (veh == i)])) for i in range(len(sol.spec))])
         return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, mass)
+
+
+class DualStore:
+    r"""Every solved candidate's *piece polynomial*, each with the region of crossing times where
+    it bounds :math:`J` (shared by every box of one search).
+
+    The piece polynomial of a candidate at :math:`\tau_c` is :meth:`DualBounds.polynomial` over
+    the grid pieces containing :math:`\tau_c` (every vehicle polynomial): it bounds
+    :math:`J(\tau)` for every :math:`\tau` with each binding vehicle ``i`` (a positive multiplier
+    on its rows) in its piece and in the candidate's order, whatever the box that asked for it.
+    A vehicle with no multiplier on its rows drops out of the dual function, so the bound holds
+    for every crossing time and order of that vehicle.  A box takes the largest bound of the
+    polynomials whose region contains it (:meth:`valid`), not only its ancestors'.
+
+    Parameters
+    ----------
+    dual : DualBounds
+        The grid's factored KKT matrix.
+    """
+
+    def __init__(self, dual: DualBounds) -> None:
+        self.dual = dual
+        qp = dual.qp
+        self.h, self.N, self.tf = qp.h, qp.N, qp.tf
+        self._by_spec: dict[object, DualPolynomial] = {}
+        self._orders: list[tuple[tuple[int, int], ...]] = []
+        self._binds: list[NDArray[np.bool_]] = []
+        self._lo: list[FloatArray] = []
+        self._hi: list[FloatArray] = []
+        self._polys: list[DualPolynomial] = []
+
+    def piece(self, sol: Solved) -> DualPolynomial:
+        """The piece polynomial of the optimal candidate ``sol`` (computed once per spec; its
+        ``spec`` has ``a = b = τ_c``), added to the store."""
+        if sol.spec in self._by_spec:
+            return self._by_spec[sol.spec]
+        tau = np.array([a for _, _, a, _ in sol.spec], dtype=float)
+        k = np.array([piece_of(float(t), float(t), self.h, self.N) for t in tau], dtype=float)
+        lo, hi = k * self.h, (k + 1) * self.h
+        dp = self.dual.polynomial(sol, lo, hi)
+        binds = dp.mass > 0
+        self._by_spec[sol.spec] = dp
+        self._orders.append(tuple((int(f), int(s)) for f, s, _, _ in sol.spec))
+        self._binds.append(binds)
+        slack = 1e-12 * self.tf
+        self._lo.append(np.where(binds, lo - slack, -np.inf))
+        self._hi.append(np.where(binds, hi + slack, np.inf))
+        self._polys.append(dp)
+        return dp
+
+    def valid(self, orders: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray) -> list[DualPolynomial]:
+        """The stored polynomials that bound every crossing in the box ``[lo, hi]`` with
+        ``orders`` (each binding vehicle in its polynomial's piece and order)."""
+        out = []
+        for o, binds, a, b, dp in zip(self._orders, self._binds, self._lo, self._hi, self._polys):
+            if np.all(lo >= a) and np.all(hi <= b) and all(
+                    o[i] == orders[i] for i in np.flatnonzero(binds)):
+                out.append(dp)
+        return out
