@@ -22,9 +22,9 @@ the ego:
    to a stop, keep RSS's distance to the vehicle ahead (:func:`rss_stops_behind`).  After a
    fail-safe brake the ego replans at the next step (not after ``replan_s``), toward the goal's
    whole remaining window; when no final state of the window can be reached any more it keeps
-   braking safely until the window ends.  A goal several lanes over is approached by lane
-   changes planned together into a gap of its lane (``lane_change_sequences``), else one lane at a
-   time, and a lane change toward the goal's lane is also offered where the fail-safe would
+   braking safely until the window ends.  A goal several lanes over is approached one lane at a
+   time (with ``sequences``: first by lane changes planned together into a gap of its lane,
+   ``lane_change_sequences``), and a lane change toward the goal's lane is also offered where the fail-safe would
    otherwise brake (:mod:`iamp.commonroad.tactical`: into a gap with RSS's stopping distance ahead and
    a comfortable braking gap behind, finished while it still holds; ``lane_changes``).  The
    predictions always reach at least :data:`FAILSAFE_HORIZON_S` ahead.  Every choice is counted
@@ -506,18 +506,19 @@ def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
 
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
              recording: str | Path | None = None,
-             progress: Callable[[str], None] | None = None, seed: int = 1, tactical: bool = True) -> dict[str, Any]:
+             progress: Callable[[str], None] | None = None, seed: int = 1, tactical: bool = True,
+             sequences: bool = False) -> dict[str, Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready).
 
     The same as :func:`simulate_with_log` without the step log.
     """
     return simulate_with_log(folder, planner, replan_s=replan_s, recording=recording, progress=progress,
-                             seed=seed, tactical=tactical)[0]
+                             seed=seed, tactical=tactical, sequences=sequences)[0]
 
 
 def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
                       recording: str | Path | None = None, progress: Callable[[str], None] | None = None,
-                      seed: int = 1, tactical: bool = True) -> tuple[dict[str, Any], Any]:
+                      seed: int = 1, tactical: bool = True, sequences: bool = False) -> tuple[dict[str, Any], Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready) and the
     executed step log (:class:`iamp.simulation.metrics.StepLog`, in the road frame).
 
@@ -525,6 +526,11 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     ``tactical``: when the replan toward the goal finds no safe plan, also offer a safe lane
     change one lane toward the goal's lane (:func:`iamp.commonroad.tactical.lane_change`,
     executed before a kept plan or the fail-safe; counted in ``lane_changes``).
+    ``sequences``: approach a goal two or more lanes over first by lane changes planned together
+    (:func:`iamp.commonroad.tactical.sequence`, counted in ``lane_change_sequences``); off by
+    default: on the 57 US-101 scenes (seed 1) it changed only 2_1, 23_1 and 24_1 and reached none of
+    their goals, and with SUMO seed 2 it brought 23_1's ego beside vehicle 96, against which the
+    one-lane change that followed made a contact at fault (9.8 s).
     The metrics include SPEC §17's responsibility measures
     (:func:`iamp.simulation.monitor.responsibility`, in the road frame: centres and bodies at
     their headings relative to the road; lane numbers are SUMO's, so a vehicle is in the ego's
@@ -576,7 +582,8 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     lanes_seen: dict[str, tuple[float, float]] = {}  # lateral range of each vehicle's centre [m]
     plan_times: list[float] = []
     infeasible = fallbacks = failsafes = limit_violations = out_of_reach = edge_plans = lane_changes = 0
-    sequences = 0  # lane changes of them planned together toward a goal two or more lanes over
+    sequences_on = bool(sequences)
+    n_sequences = 0  # lane changes of them planned together toward a goal two or more lanes over
     decisions: list[dict[str, Any]] = []
     next_replan = 0
     peak_accel = 0.0
@@ -672,7 +679,8 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                 n_lanes = lane_map.toward(x[0], x[2], cands[0].s, cands[0].d)[0] if cands else 0
                 if cands and tactical and cands[0].tf >= EARLY_MIN_S and n_lanes >= 2:
                     start = time.perf_counter()
-                    seq = sequence(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
+                    seq = (sequence(live, planner, cands[0].d, now, cands[0].s, now + cands[0].tf, lane_map)
+                           if sequences_on else None)
                     if seq is not None:
                         early = (seq, seq.horizon, f"goal {n_lanes} lanes over: {len(seq.parts)} lane changes "
                                                    "into a gap of its lane")
@@ -692,7 +700,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     traj, traj_T, why = early
                     t_plan = now
                     lane_changes += 1
-                    sequences += isinstance(traj, Stages)
+                    n_sequences += isinstance(traj, Stages)
                     action = "lane change"
                     decisions.append({"t": round(now, 3), "action": action, "why": why,
                                       "vehicles": [], "road_edge_depth_m": 0.0})
@@ -796,7 +804,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
         "infeasible_plans": infeasible, "fallbacks": fallbacks, "failsafe_brakes": failsafes,
         "edge_grazing_plans": edge_plans, "out_of_reach_replans": out_of_reach, "lane_changes": lane_changes,
-        "lane_change_sequences": sequences,
+        "lane_change_sequences": n_sequences,
         "decisions": decisions,
         "road_edge_depth_m": road_edge_depth(cr, log), "goal_occupancy": occupancy,
         "goal_missed_reason": None if goal_step is not None else miss_reason(occupancy),

@@ -30,8 +30,9 @@ end level with a column of cars in the goal's lane, from where its gap is out of
 The loop (:func:`iamp.commonroad.interactive.simulate_with_log`) uses it twice:
 
 * **early**: a goal two or more lanes over (:class:`LaneMap`) whose cheapest final state is at
-  least :data:`EARLY_MIN_S` ahead is approached by a :func:`sequence`, else one lane at a time,
-  before its plan is tried
+  least :data:`EARLY_MIN_S` ahead is approached one lane at a time (with the loop's
+  ``sequences``: by a :func:`sequence` first; off by default, see
+  :func:`~iamp.commonroad.interactive.simulate_with_log`) before its plan is tried
   (the plan across several lanes of traffic is the one the active set fails at);
 * **instead of braking**: when the replan toward the goal finds no safe plan and neither that plan
   nor the previous plan's remainder keeps clear, an accepted lane change comes before a new
