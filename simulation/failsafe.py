@@ -171,7 +171,6 @@ def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequen
     a_e = np.maximum(ax, 0.0)[:, None]
     r = params.rss
     for o in others:
-        xo, vo = o.xv(t)
         drift = np.clip(o.vy * t, -params.max_drift, params.max_drift)
         o_lo = o.y - o.width / 2 + np.minimum(drift, 0.0)
         o_hi = o.y + o.width / 2 + np.maximum(drift, 0.0)
@@ -183,6 +182,7 @@ def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequen
         share = lat_gap < np.maximum(d_lat, params.margin_y)
         if not share.any():
             continue
+        xo, vo = o.xv(t)  # only for a vehicle that shares the ego's lane at some sample
         dx = xo - X[:, 0]
         gap = np.abs(dx) - hx - o.length / 2
         ahead = dx > 0
