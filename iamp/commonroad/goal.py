@@ -33,6 +33,19 @@ A margin that empties a small region is halved down to zero.  Each final state i
 **verified in the world** against the goal state by CommonRoad's own element tests (position
 ``contains_point``, the intervals' ``contains``); one that fails is dropped.
 
+**Final states that can be valid** (:func:`clear_goal_states`).  The minimiser above may end
+with the body inside a vehicle or off the road, while other poses of the same goal are clear.
+For every goal state, time step and piece the planner is offered instead the cheapest pose
+that a clearance test accepts (the body off every recorded vehicle at that step and on the
+road, :func:`~iamp.commonroad.planning.final_state_clearance`): a best-first branch and bound
+whose children add one way around the deepest obstacle met (ahead of it, behind it, above or
+below it: one linear row with the body's margins at a heading band around the heading nearest
+the lane's) to the same QP, every child's cost bounding its subtree's.  The QP solves are
+counted (:data:`CLEAR_MAX_SOLVES`, :data:`CLEAR_MAX_NODES`); the same problem gives the same
+states on any machine.  A goal state none of whose poses is accepted at any step, the search
+complete, is out of reach by its **position** over its whole window, and the sentence names
+what blocks it.
+
 **Refusals.**  A goal state the model cannot reach names its element
 (:func:`GoalRegion.unreachable`): a time window already over, a speed interval outside the
 vehicle's speed range or beyond :math:`a_{max} T` of the initial speed at every time of the

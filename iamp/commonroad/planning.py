@@ -18,8 +18,11 @@ A recorded scene holds 25-60 vehicles; few are in the ego's way.  The active-set
 
 A vehicle the ego neither starts nor ends beside (car following in its lane) has no corner
 (§10's half-plane crossing does not exist); the loop cannot impose it and tries the next final
-state.  Final states are the candidates of :mod:`iamp.commonroad.convert` in order of the
-unconstrained cost; the first safe plan is taken (``max_candidates`` bounds the search).
+state.  Final states are the goal's final states that can be valid, in order of the
+unconstrained cost: for every goal state, time step and piece, the cheapest pose inside every
+goal element whose body is clear of every recorded vehicle at that step and on the road
+(:func:`search_final_states`, :func:`final_state_clearance`); the first safe plan is taken
+(``max_candidates`` bounds the search).
 
 ``planner="all-pmp"`` is the paper's method without the active set: every *relevant* vehicle
 (its recorded box within the ego's lateral corridor and within :data:`RELEVANT_S_M` of the
