@@ -326,3 +326,29 @@ def test_final_states_of_a_goal_a_vehicle_drives_through_are_searched_for_clear_
         assert test(c.tf, (c.s, c.vs, c.d, c.vd), 0.06) is None
         assert cr.goal.verify(cr.goal.elements[c.element], c.goal_step, (c.s, c.vs, c.d, c.vd)) is None
     assert clear_final_states(cr, found.candidates) == found.candidates
+
+
+@needs_data
+def test_a_goal_where_the_road_narrows_gets_a_final_state_on_the_road(tmp_path: Path) -> None:
+    """US101-9 with the ``lanes3`` goal of seed 1: the goal lies where the road narrows, and
+    its poses 0.2 m inside the goal put the body over the road's edge (before: off road; with
+    the goal's edge itself, 1.5 mm of ZOH drift left the goal).  The search shrinks the margins
+    and narrows the heading band until the body fits 1 cm inside the goal; the plan is valid
+    by CommonRoad's checker."""
+    from iamp.commonroad.check import check
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan, search_final_states
+    from iamp.commonroad.solution import build_solution
+
+    mod = load_script("commonroad_variants")
+    out = tmp_path / "v"
+    assert mod.main([str(_one_source(tmp_path, "USA_US101-9_1_T-1.xml")), str(out), "--seed", "1",
+                     "--kinds", "lanes3"]) == 0
+    cr = load(out / "USA_US101-9_204_T-1.xml")
+    found = search_final_states(cr)
+    assert found is not None and found.candidates and found.roots_clear == 0  # no cheapest pose fits
+    rp = plan(cr)
+    assert rp.safe and rp.candidate is not None, rp.reason
+    solution, _ = build_solution(cr, rp.trajectory, rp.candidate.steps)
+    verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
+    assert verdict.valid, verdict.checks
