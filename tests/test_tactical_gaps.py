@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from iamp.simulation.controller import ControllerConfig
 from iamp.simulation.decision import REACH, EgoNow, Gap, Neighbour
+from iamp.simulation.rss import safe_longitudinal_distance
 from iamp.simulation.tactical import (
     TacticalConfig,
     aim_point,
@@ -184,3 +185,45 @@ def test_the_end_speed_grid_steps_by_speed_step_across_the_reachable_speeds() ->
             best = min(best, peak_accel(ego, (x, float(w)), T))
     assert peak_accel(ego, end, T) == pytest.approx(best, abs=1e-12)
     assert v_lo + 1e-9 < end[1] < v_hi - 1e-9  # an interior grid point (every grid holds both bounds)
+
+
+def test_choose_gap_measures_from_the_ego_wherever_it_is() -> None:
+    """The same two gaps and the same ego shifted 500 m along the road: the same choice (the cost
+    is ``|x_m - x + w|w|/(2 b_match)|``, relative to the ego's position)."""
+    cfg = TacticalConfig()
+    for x0 in (0.0, 500.0):
+        ego = EgoNow(x0, 20.0, 0.0, 0.0)
+        slow_ahead = Gap(_nb("af", x0 - 50.0, 12.0), _nb("al", x0 + 110.0, 12.0))
+        same_behind = Gap(_nb("bf", x0 - 100.0, 20.0), _nb("bl", x0 + 60.0, 20.0))
+        aim_a = aim_point(ego, slow_ahead, cfg)
+        aim_b = aim_point(ego, same_behind, cfg)
+        assert aim_a is not None and aim_b is not None
+        cost_a = abs(aim_a[0] - x0 - 8.0 * 8.0 / (2 * cfg.b_match))
+        cost_b = abs(aim_b[0] - x0)
+        want = slow_ahead if cost_a < cost_b else same_behind
+        assert abs(cost_a - cost_b) > 1.0
+        assert choose_gap(ego, [slow_ahead, same_behind], None, cfg) is want
+
+
+def test_rss_following_leaves_the_gap_when_time_headway_already_covers_rss() -> None:
+    """``rss_follow_gap = gap - max(0, d_RSS + m_x - v T)``: behind a much faster leader RSS needs no
+    distance (``d_RSS = 0``), ``m_x = 0.5`` m is less than ``v T``, so IDM sees the true gap; behind a
+    leader at its own speed it sees the gap shortened by exactly ``d_RSS + m_x - v T``."""
+    from iamp.simulation.tactical import rss_follow_gap
+
+    cfg = TacticalConfig()
+    assert rss_follow_gap(30.0, 20.0, 40.0, cfg) == 30.0
+    d = float(safe_longitudinal_distance(20.0, 20.0, cfg.safe.rss)) + cfg.safe.margin_x
+    assert d > 20.0 * cfg.idm.T
+    assert rss_follow_gap(30.0, 20.0, 20.0, cfg) == pytest.approx(30.0 - (d - 20.0 * cfg.idm.T))
+
+
+def test_the_desired_speed_is_at_least_1_m_s() -> None:
+    """Free road: ``seek_accel`` is IDM's free term with ``v0 = max(v0, 1)``, ``a_max (1 - (v/v0)^4)``;
+    a desired speed of 0.2 m/s at 0.5 m/s gives ``1.5 (1 - 0.5^4)``, not a division by a tiny ``v0``."""
+    from iamp.simulation.tactical import seek_accel
+
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, 0.5, 0.0, 0.0)
+    assert seek_accel(ego, None, None, None, 0.2, cfg) == pytest.approx(cfg.idm.a_max * (1 - 0.5**4))
+    assert seek_accel(ego, None, None, None, 10.0, cfg) == pytest.approx(cfg.idm.a_max * (1 - 0.05**4))
