@@ -227,3 +227,19 @@ def test_the_desired_speed_is_at_least_1_m_s() -> None:
     ego = EgoNow(0.0, 0.5, 0.0, 0.0)
     assert seek_accel(ego, None, None, None, 0.2, cfg) == pytest.approx(cfg.idm.a_max * (1 - 0.5**4))
     assert seek_accel(ego, None, None, None, 10.0, cfg) == pytest.approx(cfg.idm.a_max * (1 - 0.05**4))
+
+
+@pytest.mark.parametrize("x0", [0.0, 250.0])
+def test_the_lane_end_bound_counts_from_the_ego_s_front_end_room_m_before_the_end(x0: float) -> None:
+    """With the lane ending at ``stop_x`` the braking bound is :func:`lane_end_accel` at the distance
+    ``stop_x - end_room_m - x - L_e/2`` (from the ego's front to ``end_room_m`` before the end): at
+    15 m/s and 40 m of that distance it brakes, and the bound is what ``seek_accel`` returns."""
+    from iamp.simulation.tactical import lane_end_accel, seek_accel
+
+    cfg = TacticalConfig()
+    ego = EgoNow(x0, 15.0, 0.0, 0.0)
+    stop_x = x0 + 40.0 + cfg.end_room_m + ego.length / 2
+    want = lane_end_accel(15.0, 40.0, cfg)
+    assert want < 0.0
+    assert seek_accel(ego, None, stop_x, None, 30.0, cfg) == pytest.approx(want, abs=1e-12)
+    assert lane_end_accel(15.0, 39.0, cfg) < want  # the distance matters at this speed
