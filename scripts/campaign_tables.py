@@ -27,12 +27,14 @@ from collections import defaultdict
 from pathlib import Path
 from types import ModuleType
 
+from iamp.simulation.stats import HARD_BRAKE, is_hard_brake
+
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = "<!-- campaign-tables:begin -->", "<!-- campaign-tables:end -->"
 PAGE = Path("docs") / "closed-loop.md"
 #: SUMO's emergency deceleration of its passenger cars (``emergencyDecel`` 9 m/s²; the issue counted
 #: ≥ 8.9 m/s² from the logged accelerations) and the "hard braking" threshold (SUMO's ``decel``).
-EMERGENCY, HARD = 8.9, 4.5
+EMERGENCY, HARD = 8.9, HARD_BRAKE
 PLANNERS = ("pmp-active", "qp-avoid", "free", "mobil", "sumo")
 Rows = list[dict[str, str]]
 
@@ -58,7 +60,7 @@ def counts(rows: Rows) -> tuple[int, int, int, int, int]:
     ok = sum(r["success"] == "True" for r in rows)
     fault = sum(int(_num(r["contacts_at_fault"] if "contacts_at_fault" in r else r["contacts"])) for r in rows)
     emergency = sum(_num(r["follower_max_decel"]) >= EMERGENCY for r in rows)
-    hard = sum(_num(r["follower_max_decel"]) > HARD + 1e-6 for r in rows)
+    hard = sum(is_hard_brake(_num(r["follower_max_decel"])) for r in rows)
     return n, ok, fault, emergency, hard
 
 

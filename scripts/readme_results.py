@@ -22,6 +22,8 @@ from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
 
+from iamp.simulation.stats import HARD_BRAKE, is_hard_brake
+
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
 
@@ -78,8 +80,6 @@ def campaign_table(episodes: Path, root: Path = ROOT) -> list[str]:
 
 #: The campaigns of SPEC §17's loop shown in the README, in this order (each a folder under reports/).
 SAFE_CAMPAIGNS = ("campaign-safe", "campaign-safe-low")
-#: A new follower braking harder than this is "hard braking" (issue 30; SUMO's default ``decel``).
-HARD_BRAKE = 4.5
 
 
 def _num(value: str) -> float:
@@ -147,7 +147,7 @@ def safety_table(campaigns: list[Path], root: Path = ROOT, sublane: Path | None 
             fault = sum(int(_num(r["contacts_at_fault"])) for r in eps)
             other = sum(int(_num(r["contacts_not_at_fault"])) for r in eps)
             emergency = sum(int(_num(r["follower_emergency_brakes"])) for r in eps)
-            hard = sum(_num(r["follower_max_decel"]) > HARD_BRAKE + 1e-6 for r in eps)
+            hard = sum(is_hard_brake(_num(r["follower_max_decel"])) for r in eps)
             danger = sum(_num(r["rss_dangerous_s"]) for r in eps)
             limits = sum(_num(r["limit_violations"]) > 0 for r in eps)
             lines.append(f"| {planner} | {n} | {ok} ({100 * ok / n:.1f} %) | {fault} | {other} | {emergency} | "

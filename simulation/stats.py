@@ -31,6 +31,15 @@ import numpy as np
 #: A new follower braking harder than this [m/s²] (the average driver's ``decel``; beyond it
 #: SUMO's drivers brake in emergency) is a hard brake.
 HARD_BRAKE = 4.5
+#: SUMO reports a follower braking at exactly its ``decel`` as 4.5 ± 3e-14 m/s²; within this
+#: tolerance it does not brake harder (one definition for the campaign's summary and the scripts' tables).
+HARD_BRAKE_TOL = 1e-6
+
+
+def is_hard_brake(decel: float | None) -> bool:
+    """Whether a new follower's largest deceleration ``decel`` [m/s²] exceeds :data:`HARD_BRAKE`
+    (beyond :data:`HARD_BRAKE_TOL`); ``None`` (no new follower) is not."""
+    return decel is not None and decel > HARD_BRAKE + HARD_BRAKE_TOL
 BOOTSTRAP = 2000
 MISSION_ORDER = ("merge", "onramp", "slow-leader", "discretionary")
 TRAFFIC_ORDER = ("light", "medium", "dense", "los-e")
@@ -95,7 +104,7 @@ EVENTS: dict[str, Any] = {
     "stopped_at_end": lambda r: _b(r, "stopped_at_end"),
     "mingap": lambda r: (_f(r, "mingap_violations") or 0) > 0,
     "ttc_alarm": lambda r: (_f(r, "ttc_below_1_5_s") or 0) > 0,
-    "hard_brake": lambda r: (_f(r, "follower_max_decel") or 0) > HARD_BRAKE,
+    "hard_brake": lambda r: is_hard_brake(_f(r, "follower_max_decel")),
     "limit_violation": lambda r: (_f(r, "limit_violations") or 0) > 0,
     # SPEC §17 (the RSS judge): absent in episodes of campaigns made before it
     "contact_at_fault": lambda r: (_f(r, "contacts_at_fault") or 0) > 0,

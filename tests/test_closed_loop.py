@@ -632,3 +632,13 @@ def test_campaign_rate_figure_accepts_wilson_ends_rounded_past_the_rate(tmp_path
         cell[f"{key}_ci"] = [0.6, 1.0 - 1e-16]
     paths = campaign_figures([cell], [], tmp_path)
     assert paths and all(p.exists() and p.stat().st_size > 0 for p in paths)
+
+
+def test_a_follower_braking_at_its_decel_up_to_rounding_is_not_a_hard_brake():
+    """SUMO reports a follower braking at exactly its ``decel`` as 4.5 ± 3e-14 m/s²: not harder
+    (the campaign's summary and the README's and docs' tables share :func:`is_hard_brake`)."""
+    from iamp.simulation.stats import cell_summary, is_hard_brake
+
+    assert not is_hard_brake(4.500000000000028) and not is_hard_brake(None) and is_hard_brake(4.51)
+    rows = [_row(1, True, 4.500000000000028), _row(2, True, 4.5 + 2e-6)]
+    assert cell_summary(rows)["hard_brake_episodes"] == 1
