@@ -691,7 +691,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     plan_times.append(time.perf_counter() - start)
                 if cands and early is None:
                     start = time.perf_counter()
-                    rp = plan(live, planner, max_candidates=4)
+                    rp = plan(live, planner, max_candidates=4, search=False)
                     plan_times.append(time.perf_counter() - start)
                 action = "plan"
                 if keep_lc:

@@ -521,8 +521,14 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
 
 
 def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
-         steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True) -> RoadPlan:
+         steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True, search: bool = True) -> RoadPlan:
     """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring).
+
+    With ``search`` (the default) the final states are the goal region's clear poses
+    (:func:`search_final_states`); without it ``cr.candidates`` as given, those clear of the
+    vehicles first (:func:`clear_final_states`) -- the interactive loop's choice (its verification
+    was measured with those; with the searched ones it ran into a car in one scene, see
+    ``docs/commonroad.md``).
 
     The search is bounded by counts, never by time: at most ``max_candidates`` final states
     (:func:`_candidate_order`) and ``max_plans`` calls of the iamp planner over all of them (each
@@ -544,8 +550,8 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
         return RoadPlan(planner, "unreachable", None, None, None, time.perf_counter() - start,
                         reason=f"the goal cannot be reached: {reason}")
     best: RoadPlan | None = None
-    search = search_final_states(cr)
-    clear = search.candidates if search is not None else clear_final_states(cr, cr.candidates)
+    found = search_final_states(cr) if search else None
+    clear = found.candidates if found is not None else clear_final_states(cr, cr.candidates)
     gentle = [c for c in clear if _free_peak(cr, c) <= cr.a_max]  # the free plan within the friction circle
     order = _candidate_order(gentle or clear or cr.candidates, max_candidates)
     queue = list(order)
@@ -604,19 +610,19 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             staged.plans_used = max_plans - budget[0] + staged.plans_used
             return staged
     steps_tried = sorted({c.steps for c in tried})
-    if search is None:
+    if found is None:
         ends = f"{len(cr.candidates) - len(clear)} of {len(cr.candidates)} final states end inside a vehicle"
     else:
-        ends = (f"{search.roots - search.roots_clear} of the {search.roots} cheapest final states of its steps and "
-                f"pieces end inside a vehicle or off the road; {len(clear)} clear found in {search.solves} QP "
-                "solve(s)" + (", the search's budget spent" if search.exhausted else ""))
+        ends = (f"{found.roots - found.roots_clear} of the {found.roots} cheapest final states of its steps and "
+                f"pieces end inside a vehicle or off the road; {len(clear)} clear found in {found.solves} QP "
+                "solve(s)" + (", the search's budget spent" if found.exhausted else ""))
     searched = (f"no safe plan found over the goal region searched: {n_tried} final state(s) at step(s) "
                 f"{', '.join(map(str, steps_tried))} of {cr.goal.describe()} ({ends}); {max_plans - budget[0]} planner "
                 f"call(s) of {max_plans}" + (f", {QP_MAX_SOLVES - budget[1]} QP solve(s) of {QP_MAX_SOLVES}"
                                               if iamp_planner == "qp" and constraint == "equality" else ""))
-    if search is not None and not clear:
-        bad = {**cr.goal.unreachable(cr.x0, cr.dt, _elapsed(cr)), **search.blocked}
-        if len(bad) == len(cr.goal.elements) and not search.exhausted:
+    if found is not None and not clear:
+        bad = {**cr.goal.unreachable(cr.x0, cr.dt, _elapsed(cr)), **found.blocked}
+        if len(bad) == len(cr.goal.elements) and not found.exhausted:
             searched = ("no valid final state exists: " + "; ".join(bad[i] for i in sorted(bad))
                         + f" (the body grown by {BUFFER_M} m from the vehicles, {EDGE_BUFFER_M} m from the road's "
                         "edge); " + searched)
