@@ -188,7 +188,7 @@ def test_the_bounded_rules_can_fail() -> None:
     assert pair["checks"]["bounded_lower_bound_rel"]["ok"] is False  # J_QP < J_b(t_Q)
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(st.integers(0, 10**6), st.floats(0.6, 1.2))
 def test_generated_bounded_problems_agree_when_both_verify(seed: int, scale: float) -> None:
     """Property: whenever the bounded PMP is certified optimal and a QP is optimal, the pair agrees;
@@ -204,6 +204,17 @@ def test_generated_bounded_problems_agree_when_both_verify(seed: int, scale: flo
         if pmp.status == "optimal" and qp.status == "optimal":
             assert a["verdict"] == "agree", a["reasons"]
         assert not (pmp.status == "infeasible" and qp.status == "optimal") or a["verdict"] == "disagree"
+
+
+@pytest.mark.xfail(strict=True, reason="known disagreement (issue 32, open): random_problem(229) with limits at "
+                   "0.609 of the unbounded PMP's inputs: the pair's bounded_foh_excess_rel is 0.00163 against "
+                   "1e-09 (the FOH QP above 0.25 of the ZOH leading term); found by the property above on a "
+                   "random run, 2026-11-28")
+def test_bounded_pmp_and_foh_qp_disagree_on_random_problem_229_known() -> None:
+    """The counterexample the random property found, kept visible until the bounded PMP (or the
+    tolerance's ZOH-term bound) is fixed for it."""
+    inner = test_generated_bounded_problems_agree_when_both_verify.hypothesis.inner_test  # type: ignore[attr-defined]
+    inner(229, 0.609375)
 
 
 # --- item 10: certified infeasible before the sweep, counted in solves ---------------------------
