@@ -45,10 +45,12 @@ from pathlib import Path
 
 import numpy as np
 
+from iamp.core.physical import PASSENGER_CAR
+from iamp.simulation.controller import JERK_SHARE
+
 KINDS = ("sumo", "hand-over", "urgent brake", "mode switch", "plan", "tactical")
-DT = 0.1
-JERK = 5.0
-STEP = 0.9 * JERK * DT  # Controller._move's rate limit per period (JERK_SHARE 0.9)
+DT = 0.1  # the closed loop's period [s]
+JERK = float(PASSENGER_CAR.jerk or 5.0)  # the car's jerk bound, the monitor's [m/s³]
 
 
 def classify(modes: list[str], ax_cmd: np.ndarray, x: np.ndarray, y: np.ndarray, dt: float = DT,
@@ -83,7 +85,7 @@ def classify(modes: list[str], ax_cmd: np.ndarray, x: np.ndarray, y: np.ndarray,
             kind = "sumo"
         elif "sumo" in ms:
             kind = "hand-over"
-        elif "abort" in ms or (drops.size and drops.min() < -STEP - 1e-9):
+        elif "abort" in ms or (drops.size and drops.min() < -JERK_SHARE * jerk * dt - 1e-9):  # beyond _move's rate
             kind = "urgent brake"
         elif len(ms) > 1:
             kind = "mode switch"
