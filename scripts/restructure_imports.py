@@ -31,7 +31,6 @@ MOVES: dict[str, str] = {
     "iamp.planners.pmp_bound": "iamp.planners.pmp.bound",
     "iamp.planners.pmp_compiled": "iamp.planners.pmp.compiled",
     "iamp.planners.pmp_compiled_kernels": "iamp.planners.pmp.compiled_kernels",
-    "iamp.planners.pmp_compiled_search": "iamp.planners.pmp.compiled_search",
     "iamp.planners.pmp_fixed": "iamp.planners.pmp.fixed",
     "iamp.planners.pmp_one": "iamp.planners.pmp.one",
     "iamp.planners.pmp_roots": "iamp.planners.pmp.roots",
