@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 import iamp
 from iamp.core.physical import PhysicalLimits
+from iamp.core.problem import Problem
 from iamp.planners.examples import random_problem
 from iamp.planners.pmp import PMPPlanner
 from iamp.prediction.resolve import load_problem
@@ -206,15 +207,61 @@ def test_generated_bounded_problems_agree_when_both_verify(seed: int, scale: flo
         assert not (pmp.status == "infeasible" and qp.status == "optimal") or a["verdict"] == "disagree"
 
 
-@pytest.mark.xfail(strict=True, reason="known disagreement (issue 32, open): random_problem(229) with limits at "
-                   "0.609 of the unbounded PMP's inputs: the pair's bounded_foh_excess_rel is 0.00163 against "
-                   "1e-09 (the FOH QP above 0.25 of the ZOH leading term); found by the property above on a "
-                   "random run, 2026-11-28")
-def test_bounded_pmp_and_foh_qp_disagree_on_random_problem_229_known() -> None:
-    """The counterexample the random property found, kept visible until the bounded PMP (or the
-    tolerance's ZOH-term bound) is fixed for it."""
-    inner = test_generated_bounded_problems_agree_when_both_verify.hypothesis.inner_test  # type: ignore[attr-defined]
-    inner(229, 0.609375)
+def _problem_229() -> Problem:
+    """``random_problem(229)`` with limits at 0.609375 of its unbounded inputs, exactly as
+    :func:`test_generated_bounded_problems_agree_when_both_verify` makes them."""
+    problem = random_problem(229)
+    U = PMPPlanner().plan(problem).inputs(np.linspace(0.0, problem.tf, 2001))
+    s = 0.609375
+    return problem.with_limits(PhysicalLimits(
+        ax=(s * min(-0.5, float(U[:, 0].min())), s * max(0.5, float(U[:, 0].max()))),
+        ay=(s * min(-0.5, float(U[:, 1].min())), s * max(0.5, float(U[:, 1].max())))))
+
+
+@pytest.mark.xfail(strict=True, reason="known (issue 32, open): rule B6's ZOH bracket [0.8, 1.25] x the leading "
+                   "h^2 term is not a bound either: random_problem(229) at 0.609 of its inputs, ZOH N = 24, ratio "
+                   "1.2535 (random_problem(980978) at 0.627: 1.377); the unbounded bracket's 1/(1 - rho) has no "
+                   "bounded analogue yet. The bounded PMP is right (the FOH test below)")
+def test_bounded_pmp_and_zoh_qp_disagree_on_random_problem_229_known() -> None:
+    comp = _compare(_problem_229(), steps=24, solvers=("clarabel",), holds=("zoh",))
+    assert [a["verdict"] for a in comp.agreement] == ["agree"], [a["reasons"] for a in comp.agreement]
+
+
+def test_bounded_pmp_and_foh_qp_agree_on_random_problem_229() -> None:
+    """The counterexample the random property found (2026-11-28): ``random_problem(229)`` with
+    limits at 0.609 of its inputs.  The bounded PMP was right (certified optimal; the FOH QP at
+    its contact time converges to its cost from above as N grows); rule B6 measured the FOH
+    excess against 0.25 of the ZOH leading term, which is not a bound: the excess at N = 24 is
+    0.35 of it (seven switching times, slope jumps up to ~20 m/s³).  B6 now bounds it by the
+    switching kinks' own leading term K_h (bounded_pair.foh_kink_term); it failed before."""
+    from iamp.comparison.agreement.bounded_pair import foh_kink_term, input_slope_energy
+    from iamp.planners.qp.bounded import BoundedQP
+
+    bounded = _problem_229()
+    comp = _compare(bounded, steps=24, solvers=("clarabel",), holds=("foh",))
+    best = comp.run("pmp").result
+    assert [a["verdict"] for a in comp.agreement] == ["agree"], [a["reasons"] for a in comp.agreement]
+    # (failed before: bounded_foh_excess_rel 0.00163 against 1e-9)
+    problem = random_problem(229)
+    assert best.status == "optimal" and best.diagnostics.certified_global
+    t_star = float(best.contact_times[0])
+    excess = []
+    for N in (24, 96, 384):  # the FOH QP at t* (a grid through it): above J_b(t*), converging to it
+        r = BoundedQP(bounded, N, "foh", "clarabel").solve_times([t_star])
+        assert r.status == "optimal" and r.cost is not None
+        excess.append(r.cost - float(best.cost))
+    assert 0 <= excess[2] < 2e-4 < excess[1] < excess[0] / 20 and excess[0] > 0.1  # 0.52, 1.0e-2, 8.9e-5
+    # the QP's own contact time at N = 24: the excess is far above 0.25 of the ZOH term, within K_h
+    N = 24
+    qp = BoundedQP(bounded, N, "foh", "clarabel")
+    t_q = float(np.linspace(0.0, problem.tf, N + 1)[7])
+    r = qp.solve_times([t_q])
+    at = PMPPlanner().plan(bounded, contact_times=[t_q])
+    assert r.cost is not None and at.cost is not None
+    ex = r.cost - at.cost
+    h = problem.tf / N
+    assert ex > 0.25 * h * h / 24 * input_slope_energy(at)  # the old rule's bound is exceeded
+    assert 0 < ex <= 2.0 * foh_kink_term(at, np.linspace(0.0, problem.tf, N + 1))
 
 
 # --- item 10: certified infeasible before the sweep, counted in solves ---------------------------
