@@ -69,6 +69,21 @@ def unload_axis() -> None:
     _STATE.pop("axis", None)
 
 
+#: the kernels of :mod:`~iamp.planners.pmp.search_kernels` the bounded PMP's certificate calls
+#: (its closed-form bound :math:`J_b \ge J_u` over intervals), compiled with the axis solve
+BOUNDED_SEARCH_KERNELS = ("quad", "lower_bound")
+
+
+def bounded_search_kernel(name: str) -> Callable[..., Any] | None:
+    """The compiled twin of the search kernel ``name`` (one of :data:`BOUNDED_SEARCH_KERNELS`)
+    once :func:`load_axis` has run in this process, else ``None`` (the caller runs the Python
+    function or :func:`load_search`'s twin: the same numbers)."""
+    if "axis" not in _STATE:
+        return None
+    twins: dict[str, Callable[..., Any]] | None = _STATE.get("bounded_search")
+    return None if twins is None else twins.get(name)
+
+
 def load_axis() -> bool:
     """Compile the axis solve and use it in this process; ``False`` if numba is missing or
     fails (the reason in ``_STATE["error"]``).  Idempotent."""
@@ -82,11 +97,25 @@ def load_axis() -> bool:
     try:
         run = _build_axis()
         run([0.5], [0.0, 0.5, 1.0], [0.1, 0.2, 0.0], -1.0, 1.0, None, 1e-12, 60)
+        _STATE["bounded_search"] = _build_bounded_search()
     except Exception as exc:  # a broken numba install: the Python path stays
         _STATE["error"] = f"{type(exc).__name__}: {exc}"
         return False
     _STATE["axis"] = _STATE["axis_built"] = run
     return True
+
+
+def _build_bounded_search() -> dict[str, Callable[..., Any]]:
+    """:data:`BOUNDED_SEARCH_KERNELS` compiled (kept in numba's disk cache, as by
+    :func:`load_search`) and called once for the one-vehicle argument types."""
+    from . import search_kernels as sk
+
+    twins = {name: jit.twin(getattr(sk, name), cache=True) for name in BOUNDED_SEARCH_KERNELS}
+    row = np.array([[0.1, 0.2, 0.3, 0.0]])
+    pts = np.array([[0.5], [0.25]])
+    twins["quad"](row, row, pts)
+    twins["lower_bound"](row, row, row, row, pts, np.full((2, 1), 0.05))
+    return twins
 
 
 def _build_axis() -> Callable[..., Any]:
