@@ -40,6 +40,7 @@ contains constant acceleration and the initialisation is unbiased).
 from __future__ import annotations
 
 import collections
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,18 +83,42 @@ def noise_sigma(t: FloatArray, Z: FloatArray, floor: float = NOISE_FLOOR_M) -> F
     K = t.size
     if K < 4:
         return np.full(Z.shape[0], float(floor))
+    C = _third_differences(t.tobytes(), K)
+    D = np.zeros((Z.shape[0], K - 3))
+    for i in range(4):
+        D = D + C[:, i] * Z[:, i:K - 3 + i]
+    sig: FloatArray = 1.4826 * _row_median(np.abs(D))
+    return np.maximum(sig, float(floor))
+
+
+@functools.lru_cache(maxsize=64)
+def _third_differences(t_bytes: bytes, K: int) -> FloatArray:
+    """The normalised weights ``c_i / |c|`` of the third divided differences of the samples ``t``
+    (``(K - 3, 4)``; they depend on the sample times only, so one computation serves every history)."""
+    t = np.frombuffer(t_bytes, dtype=np.float64, count=K)
     T = np.stack([t[i:K - 3 + i] for i in range(4)], axis=1)  # (K-3, 4)
     C = np.ones_like(T)
     for i in range(4):
         for j in range(4):
             if i != j:
                 C[:, i] = C[:, i] / (T[:, i] - T[:, j])
-    C = C / np.linalg.norm(C, axis=1, keepdims=True)
-    D = np.zeros((Z.shape[0], K - 3))
-    for i in range(4):
-        D = D + C[:, i] * Z[:, i:K - 3 + i]
-    sig: FloatArray = 1.4826 * np.median(np.abs(D), axis=1)
-    return np.maximum(sig, float(floor))
+    out: FloatArray = C / np.linalg.norm(C, axis=1, keepdims=True)
+    out.setflags(write=False)
+    return out
+
+
+def _row_median(A: FloatArray) -> FloatArray:
+    """``np.median(A, axis=1)`` bit for bit (the middle element, or the mean ``(a + b) / 2`` of the
+    two middle ones, of each row: what numpy's median computes after its partition) without its
+    generic machinery; rows with a NaN go through ``np.median``."""
+    n = A.shape[1]
+    if n == 0 or not np.isfinite(A).all():
+        return np.asarray(np.median(A, axis=1), dtype=float)
+    h = n // 2
+    if n % 2:
+        return np.partition(A, h, axis=1)[:, h].copy()
+    P = np.partition(A, (h - 1, h), axis=1)
+    return np.asarray((P[:, h - 1] + P[:, h]) / 2, dtype=float)
 
 
 def _transition(h: float, q: float) -> tuple[FloatArray, FloatArray]:
@@ -148,10 +173,13 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
         s = _rts(t, Z, float(jerk_psd), sig)
         return SmoothedHistory(s.x, s.v, s.a, sig)
     out = np.empty((3, B, K))
-    levels, inverse = np.unique(sig, return_inverse=True)
     key = t.tobytes()
-    for j, level in enumerate(levels):
-        rows = inverse == j
+    if np.isnan(sig).any():  # np.unique groups the NaNs; == cannot
+        levels, inverse = np.unique(sig, return_inverse=True)
+        groups = [(float(level), inverse == j) for j, level in enumerate(levels)]
+    else:  # np.unique's levels, in its order, without its sort of the whole array
+        groups = [(level, sig == level) for level in sorted(set(sig.tolist()))]
+    for level, rows in groups:
         M = _operator(key, K, float(level), float(jerk_psd))  # (3, K, K)
         out[:, rows] = np.einsum("bj,cjk->cbk", Z[rows], M)
     return SmoothedHistory(out[0], out[1], out[2], sig)

@@ -214,8 +214,10 @@ class Controller:
         q = _cheb(tf)
         for items in groups.values():
             t_h = items[0][1]
-            # np.allclose(t, t_h, atol=1e-6) per history, for the group in one call (the same test)
-            close = np.isclose(np.stack([it[1] for it in items]), t_h, atol=1e-6).all(axis=1)
+            # np.allclose(t, t_h, atol=1e-6) per history, for the group in one call (the same test);
+            # histories of one length are the same observation times, equal exactly: no tolerance needed
+            T = np.stack([it[1] for it in items])
+            close = np.ones(len(items), dtype=bool) if (T == t_h).all() else np.isclose(T, t_h, atol=1e-6).all(axis=1)
             same = [it for it, ok in zip(items, close) if ok]
             rest = [it for it, ok in zip(items, close) if not ok]
             X = np.stack([it[2] for it in same])

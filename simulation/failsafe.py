@@ -130,6 +130,24 @@ class Verification:
     brake_next: float | None   # ... at the sample one control period later (the state executed next)
 
 
+
+def _positions_speeds(polys: Sequence[tuple[float, ...]], t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, max(v, 0))`` of each polynomial (a row each) at ``t``: :meth:`Obstacle.xv` for many at once,
+    by Horner's rule in ``numpy.polynomial.polynomial.polyval``'s order (the same floats; shorter
+    polynomials padded with leading zeros, which leave every step's value unchanged)."""
+    n = max(len(p) for p in polys)
+    C = np.array([tuple(p) + (0.0,) * (n - len(p)) for p in polys], dtype=float)
+    Dv = np.array([poly_derivative(p) + (0.0,) * (n - len(p)) for p in polys], dtype=float)[:, :max(n - 1, 1)]
+
+    def horner(c: np.ndarray) -> np.ndarray:
+        acc = c[:, -1:] + t * 0
+        for i in range(2, c.shape[1] + 1):
+            acc = c[:, -i:c.shape[1] - i + 1] + acc * t
+        return np.asarray(acc, dtype=float)
+
+    return horner(C), np.maximum(horner(Dv), 0.0)
+
+
 def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequence[Obstacle],
                     size: tuple[float, float], params: SafeParams, y_failsafe: np.ndarray,
                     stop_x: float | None = None, stop_band: tuple[float, float] | None = None,
@@ -170,34 +188,40 @@ def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequen
     ve, vye = X[:, 1], X[:, 3]
     a_e = np.maximum(ax, 0.0)[:, None]
     r = params.rss
-    for o in others:
-        drift = np.clip(o.vy * t, -params.max_drift, params.max_drift)
-        o_lo = o.y - o.width / 2 + np.minimum(drift, 0.0)
-        o_hi = o.y + o.width / 2 + np.maximum(drift, 0.0)
-        above = o.y >= y  # the other is to the left (+y) of the ego
+    if others:  # every other road user at once: rows are vehicles, columns samples (elementwise as one by one)
+        oy = np.array([o.y for o in others])[:, None]
+        ovy = np.array([o.vy for o in others])[:, None]
+        half_w = np.array([o.width / 2 for o in others])[:, None]
+        drift = np.clip(ovy * t, -params.max_drift, params.max_drift)
+        o_lo = (oy - half_w) + np.minimum(drift, 0.0)
+        o_hi = (oy + half_w) + np.maximum(drift, 0.0)
+        above = oy >= y  # the other is to the left (+y) of the ego
         lat_gap = np.where(above, o_lo - hi, lo - o_hi)
         u_ego = np.where(above, vye, -vye)      # the ego's lateral speed toward the other
-        u_oth = np.where(above, -o.vy, o.vy)    # the other's toward the ego
+        u_oth = np.where(above, -ovy, ovy)      # the other's toward the ego
         d_lat = safe_lateral_distance(u_ego, u_oth, r)
         share = lat_gap < np.maximum(d_lat, params.margin_y)
-        if not share.any():
-            continue
-        xo, vo = o.xv(t)  # only for a vehicle that shares the ego's lane at some sample
-        dx = xo - X[:, 0]
-        gap = np.abs(dx) - hx - o.length / 2
-        ahead = dx > 0
-        d_front = rss_distance(ve, vo, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)
-        d_rear = rss_distance(vo, ve, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)
-        # RSS's blame: the rear of a pair that already shared the lane keeps the distance itself
-        # (unless the ego moves toward it sideways); a leader already too close must not come closer
-        waive_rear = bool(share[0]) & (u_ego <= 0.1)
-        front_now = float(gap[0]) - params.margin_x if share[0] and dx[0] > 0 else np.inf
-        need = np.where(ahead, np.minimum(d_front, max(front_now, 0.0)), np.where(waive_rear, 0.0, d_rear))
-        good = (gap >= need + params.margin_x) | ~share
-        newly = ok.any(axis=1) & ~good
-        for k in np.flatnonzero(newly):
-            culprit[k] = o.name
-        ok &= good[:, None]
+        rows = np.flatnonzero(share.any(axis=1))  # only vehicles that share the ego's lane at some sample
+        if rows.size:
+            share, u_ego = share[rows], u_ego[rows]
+            sel = [others[int(i)] for i in rows]
+            xo, vo = _positions_speeds([o.poly for o in sel], t)
+            dx = xo - X[:, 0]
+            gap = np.abs(dx) - hx - np.array([o.length / 2 for o in sel])[:, None]
+            ahead = dx > 0
+            d_front = rss_distance(ve, vo, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)
+            d_rear = rss_distance(vo, ve, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)
+            # RSS's blame: the rear of a pair that already shared the lane keeps the distance itself
+            # (unless the ego moves toward it sideways); a leader already too close must not come closer
+            waive_rear = share[:, :1] & (u_ego <= 0.1)
+            front_now = np.where(share[:, 0] & (dx[:, 0] > 0), gap[:, 0] - params.margin_x, np.inf)
+            need = np.where(ahead, np.minimum(d_front, np.maximum(front_now, 0.0)[:, None]),
+                            np.where(waive_rear, 0.0, d_rear))
+            bad = ~((gap >= need + params.margin_x) | ~share)
+            first = np.argmax(bad, axis=0)  # the first vehicle (in the given order) that excludes every b
+            for k in np.flatnonzero(bad.any(axis=0)):
+                culprit[k] = sel[first[k]].name
+            ok &= ~bad.any(axis=0)[:, None]
     if stop_x is not None and stop_band is not None:  # the road's end: the ego's own response and braking
         share = (lo < stop_band[1]) & (stop_band[0] < hi)
         if share.any():

@@ -127,6 +127,17 @@ class RssParameters:
 DEFAULT = RssParameters()
 
 
+
+def _rss_scalar(v_r: float, v_f: float, rho: float, a_acc: float, b_min: float, b_max: float) -> float:
+    """:func:`rss_distance` of six floats (the tactical layer asks thousands of times per episode):
+    the same IEEE operations in the same order as the array expression on 0-d inputs, where
+    ``np.maximum`` returns numpy scalars whose ``**2`` is C ``pow`` while the 0-d ``rho**2`` is ``rho*rho``."""
+    vr, vf = max(v_r, 0.0), max(v_f, 0.0)
+    v_rho = max(vr + rho * a_acc, 0.0)
+    d = vr * rho + 0.5 * a_acc * (rho * rho) + v_rho**2 / (2.0 * b_min) - vf**2 / (2.0 * b_max)
+    return max(d, 0.0)
+
+
 def rss_distance(v_r: npt.ArrayLike, v_f: npt.ArrayLike, rho: npt.ArrayLike, a_acc: npt.ArrayLike,
                  b_min: npt.ArrayLike, b_max: npt.ArrayLike) -> FloatArray:
     """RSS's safe longitudinal distance with its parameters as plain arguments, elementwise.
@@ -155,6 +166,9 @@ def rss_distance(v_r: npt.ArrayLike, v_f: npt.ArrayLike, rho: npt.ArrayLike, a_a
     numpy.ndarray
         ``[v_r ρ + ½ a_acc ρ² + max(v_r + ρ a_acc, 0)²/(2 b_min) − v_f²/(2 b_max)]_+`` [m].
     """
+    if all(isinstance(z, float) for z in (v_r, v_f, rho, a_acc, b_min, b_max)):
+        return np.asarray(_rss_scalar(float(v_r), float(v_f), float(rho), float(a_acc),  # type: ignore[arg-type]
+                                      float(b_min), float(b_max)), dtype=float)  # type: ignore[arg-type]
     vr = np.maximum(np.asarray(v_r, dtype=float), 0.0)
     vf = np.maximum(np.asarray(v_f, dtype=float), 0.0)
     rho_, a = np.asarray(rho, dtype=float), np.asarray(a_acc, dtype=float)

@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 import tempfile
-from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -143,6 +142,45 @@ class EgoState:
     ay: float = 0.0
 
 
+class TrackBuffer:
+    """One vehicle's observed ``(t, x)`` samples, oldest first, in two growing arrays (the kept
+    window is ``t[lo:hi]``, ``x[lo:hi]``; the arrays are compacted when full).
+
+    The same samples as a queue of pairs, without building arrays from Python lists every
+    period (:meth:`Simulator.history`).
+    """
+
+    __slots__ = ("hi", "lo", "t", "x")
+
+    def __init__(self, capacity: int = 64) -> None:
+        self.t = np.empty(capacity)
+        self.x = np.empty(capacity)
+        self.lo = 0
+        self.hi = 0
+
+    def __len__(self) -> int:
+        return self.hi - self.lo
+
+    def record(self, t: float, x: float, oldest: float) -> None:
+        """Append the sample ``(t, x)``, replacing the last one when it is not older than ``t - 1e-9``
+        (observed twice in a step), and drop the samples before ``oldest``."""
+        if self.hi > self.lo and self.t[self.hi - 1] >= t - 1e-9:
+            self.hi -= 1
+        if self.hi == self.t.size:
+            n = self.hi - self.lo
+            if 2 * n > self.t.size:  # more than half full after compaction: grow
+                self.t = np.concatenate([self.t, np.empty(self.t.size)])
+                self.x = np.concatenate([self.x, np.empty(self.x.size)])
+            self.t[:n] = self.t[self.lo:self.hi].copy()
+            self.x[:n] = self.x[self.lo:self.hi].copy()
+            self.lo, self.hi = 0, n
+        self.t[self.hi] = t
+        self.x[self.hi] = x
+        self.hi += 1
+        while self.hi > self.lo and self.t[self.lo] < oldest:
+            self.lo += 1
+
+
 @dataclass
 class Simulator:
     """One SUMO episode.
@@ -173,7 +211,8 @@ class Simulator:
     history_s: float = 3.0
     lanechange_duration: float = 3.0
     t: float = 0.0
-    histories: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
+    #: Each observed vehicle's kept history (:class:`TrackBuffer`: times and centre ``x``).
+    histories: dict[str, TrackBuffer] = field(default_factory=dict)
     collisions: list[tuple[float, str, str]] = field(default_factory=list)
     ego_length: float = 4.8
     ego_width: float = 1.8
@@ -280,37 +319,43 @@ class Simulator:
         ls = self._ls
         res = ls.vehicle.getContextSubscriptionResults(EGO) or {}
         ids = tuple(sorted(k for k in res if k != EGO))
-        n = len(ids)
-        x, y, v, a = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-        lane, L, W, H = np.empty(n, dtype=int), np.empty(n), np.empty(n), np.empty(n)
         P, S, A, ANG = ls.VAR_POSITION, ls.VAR_SPEED, ls.VAR_ACCELERATION, ls.VAR_ANGLE
-        horizon = self.history_s + 1e-6
-        for k, vid in enumerate(ids):
+        oldest = self.t - (self.history_s + 1e-6)
+        cos, sin, radians, lane_of = math.cos, math.sin, math.radians, self.highway.lane_of
+        x, y, v, a, lane, L, W, H = [], [], [], [], [], [], [], []
+        for vid in ids:  # Python floats: the same IEEE operations as on array elements
             r = res[vid]
-            L[k], W[k] = self._size(vid)
-            psi = H[k] = math.radians(90.0 - float(r[ANG]))
+            length, width = self._size(vid)
+            psi = radians(90.0 - float(r[ANG]))
             fx, fy = r[P]
-            x[k] = fx - L[k] / 2 * math.cos(psi)
-            y[k] = fy - L[k] / 2 * math.sin(psi)
-            v[k], a[k] = r[S], r[A]
-            lane[k] = self.highway.lane_of(float(y[k]))  # global index (edges downstream of a drop have fewer)
+            xk = fx - length / 2 * cos(psi)
+            yk = fy - length / 2 * sin(psi)
+            x.append(xk)
+            y.append(yk)
+            v.append(r[S])
+            a.append(r[A])
+            lane.append(lane_of(float(yk)))  # global index (edges downstream of a drop have fewer)
+            L.append(length)
+            W.append(width)
+            H.append(psi)
             hist = self.histories.get(vid)
             if hist is None:
-                hist = self.histories[vid] = deque()
-            if hist and hist[-1][0] >= self.t - 1e-9:
-                hist.pop()
-            hist.append((self.t, float(x[k])))
-            while hist and hist[0][0] < self.t - horizon:
-                hist.popleft()
+                hist = self.histories[vid] = TrackBuffer()
+            hist.record(self.t, float(xk), oldest)
         for vid in [k for k in self.histories if k not in res]:
             del self.histories[vid]
-        return Observation(self.t, ids, x, y, v, a, lane, L, W, H)
+        f = np.float64
+        return Observation(self.t, ids, np.array(x, dtype=f), np.array(y, dtype=f), np.array(v, dtype=f),
+                           np.array(a, dtype=f), np.array(lane, dtype=int), np.array(L, dtype=f),
+                           np.array(W, dtype=f), np.array(H, dtype=f))
 
     def history(self, vid: str) -> tuple[np.ndarray, np.ndarray]:
         """``(t - now, x)`` of the last ``history_s`` seconds of ``vid`` (may be shorter)."""
-        h = self.histories.get(vid, ())
-        t = np.array([s[0] for s in h]) - self.t
-        x = np.array([s[1] for s in h])
+        h = self.histories.get(vid)
+        if h is None:
+            return np.array([]) - self.t, np.array([])
+        t = h.t[h.lo:h.hi] - self.t
+        x = h.x[h.lo:h.hi].copy()
         if t.size:
             t = np.round(t, 9)
             t[-1] = 0.0

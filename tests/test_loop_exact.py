@@ -1,0 +1,114 @@
+"""The closed loop's speed-ups compute the same numbers as the code they replace (issue 32 item 5).
+
+Each faster path is checked against an independent statement of what it must equal: the kept
+history against a queue of pairs, the row median against ``numpy.median``, the fail-safe check
+of many vehicles against the same check one vehicle at a time.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.prediction.initial_state import _row_median, noise_sigma, smooth_histories
+from iamp.simulation.failsafe import Obstacle, SafeParams, feasible_brakes
+from iamp.simulation.simulator import TrackBuffer
+
+finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(steps=st.lists(st.tuples(st.sampled_from([0.0, 0.1, 0.1, 0.1, 0.25, 1.0]), finite), min_size=1, max_size=150),
+       horizon=st.sampled_from([0.35, 1.0, 3.0]))
+def test_track_buffer_keeps_what_a_queue_of_pairs_keeps(steps, horizon):
+    """Appending (replacing a sample of the same time) and dropping the old ones as a deque does."""
+    ref: deque[tuple[float, float]] = deque()
+    buf = TrackBuffer(capacity=4)
+    now = 0.0
+    for dt, x in steps:
+        now += dt
+        if ref and ref[-1][0] >= now - 1e-9:
+            ref.pop()
+        ref.append((now, x))
+        while ref and ref[0][0] < now - horizon:
+            ref.popleft()
+        buf.record(now, x, now - horizon)
+        assert len(buf) == len(ref)
+        assert buf.t[buf.lo:buf.hi].tolist() == [p[0] for p in ref]
+        assert buf.x[buf.lo:buf.hi].tolist() == [p[1] for p in ref]
+
+
+@settings(max_examples=80, deadline=None)
+@given(rows=st.integers(1, 6), n=st.integers(1, 40), seed=st.integers(0, 2**31 - 1), ties=st.booleans())
+def test_row_median_is_numpy_median_bit_for_bit(rows, n, seed, ties):
+    A = np.abs(np.random.default_rng(seed).standard_normal((rows, n)))
+    if ties:
+        A = np.round(A, 1)
+    assert _row_median(A).tobytes() == np.median(A, axis=1).tobytes()
+    A[0, 0] = np.nan  # a NaN row: numpy's answer (NaN) too
+    assert np.array_equal(_row_median(A), np.median(A, axis=1), equal_nan=True)
+
+
+def test_noise_sigma_of_white_noise_and_of_a_quadratic():
+    """The robust scale recovers the noise of white noise on a quadratic (module docstring) and the floor
+    for a noise-free quadratic; the smoother's noise levels are its two-digit rounding."""
+    t = np.round(np.arange(-30, 1) * 0.1, 9)
+    rng = np.random.default_rng(3)
+    clean = 20.0 * t + 0.4 * t**2
+    noisy = clean + 0.05 * rng.standard_normal((200, t.size))
+    sig = noise_sigma(t, noisy)
+    assert abs(float(np.median(sig)) - 0.05) < 0.01
+    assert noise_sigma(t, clean[None, :])[0] == 1e-3
+    sm = smooth_histories(t, noisy[:5])
+    assert sm.sigma.tolist() == [float(f"{s:.2g}") for s in sig[:5]]
+
+
+vehicle = st.tuples(st.floats(-60, 60), st.floats(0, 35), st.floats(-2, 2), st.floats(-9.0, -1.0),
+                    st.floats(-1.5, 1.5), st.floats(4.0, 12.0))
+
+
+@settings(max_examples=60, deadline=None)
+@given(vehicles=st.lists(vehicle, min_size=1, max_size=6), ego_v=st.floats(0, 35), ego_y=st.floats(-9.0, -1.0),
+       ego_vy=st.floats(-1.5, 1.5), ax=st.floats(-6, 3))
+def test_feasible_brakes_of_many_is_the_intersection_of_each_alone(vehicles, ego_v, ego_y, ego_vy, ax):
+    """A deceleration is safe against several vehicles iff it is safe against each one alone; the
+    culprit of a sample is the first vehicle (in the given order) that alone excludes every one."""
+    t = np.linspace(0.0, 3.0, 31)
+    X = np.stack([ego_v * t, np.full_like(t, ego_v), ego_y + ego_vy * t, np.full_like(t, ego_vy)], axis=1)
+    axs = np.full_like(t, ax)
+    yfs = np.full_like(t, -5.625)
+    params = SafeParams()
+    others = [Obstacle(f"v{i}", (x0, v, acc / 2, 0.0), y, length, 1.8, vy)
+              for i, (x0, v, acc, y, vy, length) in enumerate(vehicles)]
+    ok, culprit = feasible_brakes(t, X, axs, others, (4.8, 1.8), params, yfs)
+    alone = [feasible_brakes(t, X, axs, [o], (4.8, 1.8), params, yfs) for o in others]
+    expect = np.logical_and.reduce([a[0] for a in alone])
+    assert np.array_equal(ok, expect)
+    for k in range(t.size):
+        first = next((o.name for o, a in zip(others, alone) if not a[0][k].any()), "")
+        assert culprit[k] == first
+    # one vehicle: the pair alone, the lateral and longitudinal RSS tests of the module docstring
+    for ok1, _ in alone:
+        assert ok1.shape == (t.size, len(params.brakes))
+        assert (ok1.all(axis=1) | ~ok1.any(axis=1)).all()  # without a lane end every b or none
+
+
+@settings(max_examples=300, deadline=None)
+@given(v_r=st.floats(-5, 45), v_f=st.floats(-5, 45), rho=st.sampled_from([0.2, 0.5, 1.0, 0.37]), a_acc=st.floats(-8, 4),
+       b_min=st.floats(0.5, 8), b_max=st.floats(0.5, 9))
+def test_rss_distance_of_floats_is_its_array_expression_bit_for_bit(v_r, v_f, rho, a_acc, b_min, b_max):
+    """The scalar path of :func:`rss_distance` gives the bytes of the array expression on 0-d arrays."""
+    from iamp.simulation.rss import rss_distance
+
+    fast = rss_distance(v_r, v_f, rho, a_acc, b_min, b_max)
+    arrays = rss_distance(*(np.asarray(z) for z in (v_r, v_f, rho, a_acc, b_min, b_max)))
+    assert fast.shape == arrays.shape == ()
+    assert fast.tobytes() == arrays.tobytes()
+    vr = max(v_r, 0.0)
+    expect = (vr * rho + 0.5 * a_acc * rho**2 + max(vr + rho * a_acc, 0.0) ** 2 / (2 * b_min)
+              - max(v_f, 0.0) ** 2 / (2 * b_max))
+    assert float(fast) == pytest.approx(max(expect, 0.0), rel=1e-12, abs=1e-9)
