@@ -1166,11 +1166,13 @@ def _newton_polish(ev: _Evaluator, x: FloatArray, J: float, T: float, iterations
         if slope >= 0:
             d, slope = -r, -float(r @ r)
         alpha, moved = 1.0, False
-        # near the minimum the decrease Newton predicts falls below the rounding of J_b (its
-        # dual value, ~1e-13 relative): there a step that halves r without raising J_b beyond
-        # that rounding is taken (random_problem(815853, m=3) under a box at 0.98 of its peaks
-        # ended inaccurate at |r| 1e-3, the full step gives 3e-9 and +1.7e-9 of J_b = 9776)
-        noise = 1e-12 * max(1.0, abs(Jx))
+        # near the minimum the decrease Newton predicts falls below the noise of J_b (its dual
+        # value, converged to |F| <= 1e-12 in scaled units: the same t from two warm starts
+        # differs by ~2e-12 relative): there a step that halves r without raising J_b beyond
+        # 1e-10 relative is taken (random_problem(815853, m=3) under a box at 0.98 of its peaks
+        # ended inaccurate at |r| 1e-3, the full step gives 3e-9 and +1.7e-9 of J_b = 9776;
+        # (589819, m=3) at 0.82: |r| 3e-3 -> 1e-8, +3.1e-9 of J_b = 2520)
+        noise = 1e-10 * max(1.0, abs(Jx))
         r_max = float(np.max(np.abs(r)))
         for _k in range(30):
             if alpha * float(np.max(np.abs(d))) < 1e-12 * T:

@@ -119,10 +119,19 @@ def _build_bounded_search() -> dict[str, Callable[..., Any]]:
 
 
 def _build_axis() -> Callable[..., Any]:
+    from . import saturated_kernel as sk
     from .saturated_kernel import axis_core as pure
 
     compiled = jit.twin(pure, cache=True)  # saturated_kernel.py calls nothing outside itself
     empty = np.empty(0)
+    # the kernel's other entry points, compiled now rather than inside a first plan
+    one = np.array([0.5])
+    base = np.array([0.0, 0.5, 1.0])
+    jit.twin(sk.farkas_margin, cache=True)(one, base, np.array([0.1, 0.2, 0.0]), -1.0, 1.0,
+                                           np.array([1.0, 0.0, 0.0]))
+    jit.twin(sk.contact_points, cache=True)(one, 1.0, 1.0, 1.0, np.array([0.0, 1.0]), 0.0, 0.0,
+                                            np.array([0.0, 1.0, 1.0, 1.0, -1.0, 1.0] * 2), np.zeros(6),
+                                            np.zeros(2), False, 1e-12, 60)
 
     def run(sig: list[float], base: list[float], d: list[float], lo: float, hi: float, lam0: list[float] | None,
             tol_residual: float, max_newton: int) -> Any:

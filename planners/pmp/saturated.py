@@ -165,28 +165,9 @@ class _Axis:
         return self.lo if w < self.lo else (self.hi if w > self.hi else w)
 
     def support(self, lam: list[float]) -> float:
-        """``σ(λ) = ∫ max(h̃ w, ℓ̃ w) dτ`` (exact; ``inf`` when an infinite bound meets a nonzero w)."""
-        total = 0.0
-        wv = [sum(lk * gk for lk, gk in zip(lam, self.g(tau))) for tau in self.base]
-        for j in range(len(self.base) - 1):
-            ta, tb, wa, wb = self.base[j], self.base[j + 1], wv[j], wv[j + 1]
-            cuts = [ta, tb]
-            if wa * wb < 0:
-                cuts.insert(1, ta + (tb - ta) * (-wa) / (wb - wa))
-            for k in range(len(cuts) - 1):
-                a, b = cuts[k], cuts[k + 1]
-                fa = wa + (wb - wa) * (a - ta) / (tb - ta)
-                fb = wa + (wb - wa) * (b - ta) / (tb - ta)
-                mean = 0.5 * (fa + fb) * (b - a)
-                if mean > 0:
-                    if not math.isfinite(self.hi):
-                        return math.inf
-                    total += self.hi * mean
-                elif mean < 0:
-                    if not math.isfinite(self.lo):
-                        return math.inf
-                    total += self.lo * mean
-        return total
+        """``σ(λ) = ∫ max(h̃ w, ℓ̃ w) dτ`` (exact; ``inf`` when an infinite bound meets a nonzero w;
+        :func:`~iamp.planners.pmp.saturated_kernel.support`)."""
+        return float(_kernel.support(self.sig, self.base, lam, self.lo, self.hi))
 
 
 def solve_axis(times: list[float], T: float, s0: float, v0: float, sf: float, vf: float,
@@ -278,6 +259,23 @@ def contact_points(ts: list[float], T: float, pos: list[float], off_x: float, of
     return out
 
 
+def _farkas_margin(ax: _Axis, cand: list[float]) -> tuple[float, float]:
+    """:func:`~iamp.planners.pmp.saturated_kernel.farkas_margin` on ``ax``: compiled once
+    :func:`~iamp.planners.pmp.compiled.load_axis` has run in the process, else the Python
+    function (the same numbers)."""
+    if _compiled.axis_core() is None:
+        norm, margin = _kernel.farkas_margin(ax.sig, ax.base, ax.d, ax.lo, ax.hi, cand)
+        return norm, margin
+    import numpy as np
+
+    from . import jit
+
+    out: tuple[float, float] = jit.twin(_kernel.farkas_margin)(
+        np.asarray(ax.sig, dtype=float), np.asarray(ax.base, dtype=float), np.asarray(ax.d, dtype=float),
+        float(ax.lo), float(ax.hi), np.asarray(cand, dtype=float))
+    return out
+
+
 def _tuples(ps: list[float]) -> list[tuple[float, float, float, float, int]]:
     """The kernel's flat pieces as ``(τa, τb, wa, wb, kind)`` tuples."""
     return [(ps[q], ps[q + 1], ps[q + 2], ps[q + 3], int(ps[q + 4])) for q in range(0, len(ps), 5)]
@@ -286,11 +284,10 @@ def _tuples(ps: list[float]) -> list[tuple[float, float, float, float, int]]:
 def _raise_infeasible_or_stall(ax: _Axis, lam: list[float], F: list[float], res: float) -> None:
     """Check a Farkas certificate along the divergent multipliers (and along ``−F``)."""
     for cand in (lam, [-x for x in F]):
-        norm = math.sqrt(sum(x * x for x in cand))
+        norm, margin = _farkas_margin(ax, cand)
         if not norm > 0 or not math.isfinite(norm):
             continue
         direc = [x / norm for x in cand]
-        margin = sum(x * y for x, y in zip(direc, ax.d)) - ax.support(direc)
         if margin > 1e-9:
             T, ell = ax.T, ax.ell
             lam_phys = [x * ell / T**3 for x in direc[:-1]] + [direc[-1] * ell / T**2]

@@ -328,6 +328,77 @@ def axis_core(sig: Any, base: Any, d: Any, lo: float, hi: float, lam0: Any, warm
 
 
 @compilable
+def farkas_margin(sig: Any, base: Any, d: Any, lo: float, hi: float, cand: Any) -> tuple[float, float]:
+    """``(‖c‖, λ̂ᵀd̃ − σ(λ̂))`` for ``λ̂ = c/‖c‖`` (``margin`` NaN when ``‖c‖`` is zero or not
+    finite): the Farkas test of :func:`~iamp.planners.pmp.saturated._raise_infeasible_or_stall`,
+    with ``σ`` the exact support function of ``_Axis.support``, operation for operation."""
+    n = len(cand)
+    sq = 0.0
+    for k in range(n):
+        sq += cand[k] * cand[k]
+    norm = math.sqrt(sq)
+    if not norm > 0 or not math.isfinite(norm):
+        return norm, math.nan
+    direc = [0.0] * n
+    for k in range(n):
+        direc[k] = cand[k] / norm
+    lin = 0.0
+    for k in range(n):
+        lin += direc[k] * d[k]
+    return norm, lin - support(sig, base, direc, lo, hi)
+
+
+@compilable
+def support(sig: Any, base: Any, lam: Any, lo: float, hi: float) -> float:
+    """``σ(λ) = ∫ max(h̃ w, ℓ̃ w) dτ`` (exact; ``inf`` when an infinite bound meets a nonzero
+    ``w``): ``w`` is linear between the base points, cut where it changes sign."""
+    m = len(sig)
+    nb = len(base)
+    wv = [0.0] * nb
+    for j in range(nb):
+        tau = base[j]
+        acc = 0.0
+        for i in range(m):
+            gi = sig[i] - tau
+            if gi < 0.0:
+                gi = 0.0
+            acc += lam[i] * gi
+        acc += lam[m] * (1.0 - tau)
+        acc += lam[m + 1] * 1.0
+        wv[j] = acc
+    total = 0.0
+    cuts = [0.0, 0.0, 0.0]
+    for j in range(nb - 1):
+        ta = base[j]
+        tb = base[j + 1]
+        wa = wv[j]
+        wb = wv[j + 1]
+        cuts[0] = ta
+        nc = 2
+        if wa * wb < 0:
+            cuts[1] = ta + (tb - ta) * (-wa) / (wb - wa)
+            cuts[2] = tb
+            nc = 3
+        else:
+            cuts[1] = tb
+        for k in range(nc - 1):
+            a = cuts[k]
+            b = cuts[k + 1]
+            fa = wa + (wb - wa) * (a - ta) / (tb - ta)
+            fb = wa + (wb - wa) * (b - ta) / (tb - ta)
+            mean = 0.5 * (fa + fb) * (b - a)
+            if mean > 0:
+                if not math.isfinite(hi):
+                    return math.inf
+                total += hi * mean
+            elif mean < 0:
+                if not math.isfinite(lo):
+                    return math.inf
+                total += lo * mean
+    return total
+
+
+@compilable
 def poly_at(c: Any, x: float) -> float:
     """``numpy.polynomial.polynomial.polyval(x, c)`` for a float ``x``, operation for operation."""
     acc: float = c[len(c) - 1] + x * 0
