@@ -43,13 +43,22 @@ PROBLEMS = {  # the multipliers say which vehicles bind (N = 12)
 
 @pytest.mark.parametrize("name", sorted(PROBLEMS))
 def test_backends_reach_the_same_certified_optimum(name):
+    """With the exact node solver (default) every backend solves the final QP again and agrees
+    (``backend_check``); with ``node_solver="backend"`` each backend solves every QP of the search
+    itself and reaches the same optimum."""
     prob = PROBLEMS[name]()
     plans = {s: ContinuousAvoidPlanner(steps=12, solver=s).plan(prob) for s in SOLVERS}
+    plans.update({f"{s}-alone": ContinuousAvoidPlanner(steps=12, solver=s, node_solver="backend").plan(prob)
+                  for s in SOLVERS})
     for s, plan in plans.items():
         assert plan.status == st.OPTIMAL, (s, plan.status, plan.info.get("failed_check"))
         assert plan.info["search"]["closed"]
         assert max(plan.info["kkt"].values()) <= plan.info["kkt_tol"]
         assert plan.safety.intrusion_free
+        if not s.endswith("-alone"):
+            check = plan.info["backend_check"]
+            assert check["agrees"] and check["status"] == st.OPTIMAL
+            assert max(check["kkt"].values()) <= plan.info["kkt_tol"]
     ref = plans["clarabel"]
     X0, U0 = np.asarray(ref.trajectory.X), np.asarray(ref.trajectory.U)
     scale = max(1.0, float(np.abs(X0).max()), float(np.abs(U0).max()))

@@ -85,9 +85,11 @@ from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, piece_of
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
-from iamp.planners.avoid.solve import RowGeneration
+from iamp.planners.avoid.schur import CUTOFF, SchurActiveSet
+from iamp.planners.avoid.solve import RowGeneration, RowsSolution
 from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.hold import HoldTrajectory
+from iamp.planners.qp.options import check_choice
 
 __all__ = ["GAP_REL", "ROW_TOL_M", "ContinuousAvoidPlanner", "ContinuousAvoidQP", "Spec"]
 
@@ -97,6 +99,11 @@ GAP_REL = 1e-4
 #: Added to every Bernstein row's bound [m]: a start or end on a half-plane's boundary (to
 #: round-off) stays feasible; far below the 1 mm intrusion tolerance of SPEC §9.
 ROW_TOL_M = 1e-9
+
+#: The solvers of the search's QPs: the exact dual active set on the grid's factored KKT matrix
+#: (:class:`~iamp.planners.avoid.schur.SchurActiveSet`; the backend then solves the final QP,
+#: whose KKT conditions the plan checks), or the backend for every QP (for study and tests).
+NODE_SOLVERS = ("schur", "backend")
 
 #: Per vehicle ``(first, second, a, b)``: first half-plane on ``[0, a]``, second on ``[b, t_f]``.
 Spec = tuple[tuple[int, int, float, float], ...]
@@ -125,6 +132,12 @@ class Solved:
         """:meth:`ContinuousAvoidQP.spec_rows` of :attr:`spec` (kept from the solve)."""
         return self.rows if self.rows is not None else self.qp.spec_rows(self.spec)
 
+    def active(self) -> NDArray[np.int64]:
+        """The layout numbers of the rows with a positive multiplier (the warm start of a nearby
+        QP's node solve)."""
+        _, _, ids = self.spec_rows()
+        return np.asarray(ids[self.y[self.qp.data.n_eq:] > 0], dtype=np.int64)
+
     @property
     def A(self) -> sp.csc_matrix:
         """``[A_eq; imposed rows]`` of :attr:`spec` (CSC)."""
@@ -149,7 +162,8 @@ class ContinuousAvoidQP:
     row generation on those rows (:class:`~iamp.planners.avoid.solve.RowGeneration`)."""
 
     def __init__(self, problem: Problem, steps: int, hold: str, solver: str,
-                 settings: dict[str, Any] | None = None, row_generation: bool = True) -> None:
+                 settings: dict[str, Any] | None = None, row_generation: bool = True,
+                 node_solver: str = "schur") -> None:
         self.problem, self.hold, self.solver, self.settings = problem, hold, solver, settings
         self.N = int(steps)
         self.tf = problem.tf
@@ -177,6 +191,13 @@ class ContinuousAvoidQP:
         self._layout()
         self._rows_solver = RowGeneration(solver, self.data.P, self.A_eq, self.data.b_eq, settings,
                                           every_row=not row_generation)
+        check_choice(node_solver, NODE_SOLVERS, "node_solver", "node solver")
+        self.node_solver = node_solver
+        #: the exact node solver of the search (``node_solver="schur"``; its factored KKT matrix
+        #: is shared with :class:`~iamp.planners.avoid.dual.DualBounds`)
+        self.schur = SchurActiveSet(self.data.P, self.A_eq, self.data.b_eq) if node_solver == "schur" else None
+        #: backend solves among :attr:`n_solves`
+        self.n_backend_solves = 0
 
     # --- rows ----------------------------------------------------------------------------
     def _layout(self) -> None:
@@ -290,18 +311,55 @@ class ContinuousAvoidQP:
         return self._csr(vals, idx), rhs[idx], idx
 
     # --- solving ---------------------------------------------------------------------------
-    def solve(self, spec: Spec, reference: FloatArray | None = None) -> Solved:
-        """The QP with the rows of ``spec`` (plus the limit rows), solved by row generation from
-        the rows that ``reference`` (a nearby solution) nearly binds
-        (:class:`~iamp.planners.avoid.solve.RowGeneration`; every backend solve counts)."""
+    def solve(self, spec: Spec, reference: FloatArray | None = None, active: NDArray[np.int64] | None = None,
+              cutoff: float | None = None) -> Solved:
+        """The QP with the rows of ``spec`` (plus the limit rows).
+
+        With the node solver (:attr:`schur`): the exact dual active set, warm-started from the rows
+        ``active`` (layout numbers: a nearby solution's binding rows); a solve it does not finish
+        (``numerical_error`` or its step budget) and every solve without it goes to the backend,
+        by row generation from the rows that ``reference`` (a nearby solution) nearly binds
+        (:class:`~iamp.planners.avoid.solve.RowGeneration`).  Every solve counts in
+        :attr:`n_solves` (the backend's also in :attr:`n_backend_solves`).  With ``cutoff``, the
+        node solver may stop as soon as its lower bound of the QP's optimum reaches it: status
+        :data:`CUTOFF`, ``cost`` that bound (no solution)."""
         A_in, u_in, ids = self.spec_rows(spec)
+        sol = None
+        if self.schur is not None:
+            start = None if active is None else np.flatnonzero(np.isin(ids, active))
+            sol = self.schur.solve(A_in, u_in, start, cutoff)
+            self.n_solves += 1
+            if sol.status == CUTOFF:
+                return Solved(spec, CUTOFF, float(sol.bound), sol.z, sol.y, sol.iterations, self, 1,
+                              (A_in, u_in, ids))
+            if sol.status not in (st.OPTIMAL, st.INFEASIBLE):
+                sol = None  # not solved (ill-conditioned or its step budget): the backend solves it
+        if sol is None:
+            sol = self._rows_solver.solve(A_in, u_in, ids, reference)
+            self.n_solves += sol.solves
+            self.n_backend_solves += sol.solves
+        return self._solved(spec, sol, (A_in, u_in, ids))
+
+    def backend_solve(self, sol: Solved) -> Solved:
+        """The QP of ``sol`` solved again by the plan's backend (OSQP, Clarabel or PIQP), by row
+        generation from the rows with a positive multiplier in ``sol`` (the independent check of
+        a node solver's optimum, :meth:`ContinuousAvoidPlanner._verified`)."""
+        A_in, u_in, ids = sol.spec_rows()
         d = self.data
-        sol = self._rows_solver.solve(A_in, u_in, ids, reference)
-        self.n_solves += sol.solves
+        binding = np.flatnonzero(sol.y[d.n_eq:] > 0)
+        r = self._rows_solver.solve(A_in, u_in, ids, None, binding)
+        self.n_solves += r.solves
+        self.n_backend_solves += r.solves
+        return self._solved(sol.spec, r, (A_in, u_in, ids))
+
+    def _solved(self, spec: Spec, sol: RowsSolution,
+                rows: tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]) -> Solved:
+        """:class:`Solved` of a solver's answer; cost :math:`J = \\tfrac12 z^\\top P z`."""
+        d = self.data
         ok = sol.status == st.OPTIMAL and sol.finite
         cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (d.P.diagonal() * sol.z)) if ok else np.inf
         status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
-        return Solved(spec, status, cost, sol.z, sol.y, sol.iterations, self, sol.solves, (A_in, u_in, ids))
+        return Solved(spec, status, cost, sol.z, sol.y, sol.iterations, self, sol.solves, rows)
 
     def trajectory(self, z: FloatArray) -> HoldTrajectory:
         X, U = self.data.unpack(z)
@@ -355,6 +413,10 @@ class ContinuousAvoidPlanner:
     #: Solve each QP by row generation (:class:`~iamp.planners.avoid.solve.RowGeneration`, exact);
     #: ``False``: every QP on all its rows at once (for study and tests).
     row_generation: bool = True
+    #: The solver of the search's QPs (:data:`NODE_SOLVERS`): ``"schur"``, the exact dual active
+    #: set on the grid's factored KKT matrix, then the final QP by the backend (``solver``);
+    #: ``"backend"``: every QP by the backend.
+    node_solver: str = "schur"
     #: Dual polynomials a box keeps from its ancestors' candidates (the most recent).
     DUALS_KEPT = 4
     #: Solves of the final secant search per vehicle (:meth:`_polish`).
@@ -368,11 +430,14 @@ class ContinuousAvoidPlanner:
     #: Starts of the final secant search (:meth:`_polish_starts`).
     POLISH_STARTS = 3
 
-    def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None) -> Solved:
+    def _qp_solve(self, qp: ContinuousAvoidQP, spec: Spec, reference: Solved | None = None,
+                  cutoff: float | None = None) -> Solved:
         """``qp.solve(spec)``, each spec solved once per plan (a box's candidate is often its
-        parent's)."""
+        parent's); ``cutoff``: see :meth:`ContinuousAvoidQP.solve` (a stored :data:`CUTOFF`
+        result holds for any lower cutoff: the search's ``U`` only decreases)."""
         if spec not in qp.solved:
-            qp.solved[spec] = qp.solve(spec, None if reference is None else reference.z)
+            qp.solved[spec] = qp.solve(spec, None if reference is None else reference.z,
+                                       None if reference is None else reference.active(), cutoff)
         return qp.solved[spec]
 
     def _candidate_tau(self, qp: ContinuousAvoidQP, box: _Box) -> tuple[FloatArray, FloatArray]:
@@ -532,8 +597,10 @@ class ContinuousAvoidPlanner:
                     # its relaxation)
                     heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals))
                     continue
-                rel = self._qp_solve(qp, _spec(box.orders, lo, hi), box.relaxed)
-                if rel.status == st.OPTIMAL:
+                rel = self._qp_solve(qp, _spec(box.orders, lo, hi), box.relaxed, cutoff=U - gap(U))
+                if rel.status == CUTOFF:  # its bound passed U - gap before its optimum: closed
+                    closed_bound = min(closed_bound, max(child, rel.cost))
+                elif rel.status == st.OPTIMAL:
                     child = max(child, rel.cost)
                     if child < U - gap(U):
                         heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, rel, True, box.duals))
@@ -659,7 +726,8 @@ class ContinuousAvoidPlanner:
         if reason is not None:
             return failed_plan(problem, st.INFEASIBLE, reason, start, **common,
                                info={"safety_mode": "continuous"})
-        qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings, self.row_generation)
+        qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings, self.row_generation,
+                               self.node_solver)
         out = self.search(qp, orders)
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": qp.n_solves}
         search = {"method": "branch and bound over crossing-time boxes (bounds: each box's half-planes outside "
@@ -688,7 +756,7 @@ class ContinuousAvoidPlanner:
         if reason is not None:
             return failed_plan(problem, st.INFEASIBLE, reason, start, **common)
         qp = ContinuousAvoidQP(problem, int(self.steps), self.hold, self.solver, self.solver_settings,
-                               self.row_generation)
+                               self.row_generation, self.node_solver)
         tau = np.asarray(taus, dtype=float)
         sol = qp.solve(_spec([o[0] for o in orders], tau, tau))
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": 1,
@@ -706,8 +774,29 @@ class ContinuousAvoidPlanner:
         u = np.r_[d.b_eq, u_in]
         l = np.r_[d.b_eq, np.full(A_in.shape[0], -np.inf)]
         kkt = kkt_conditions(d.P, d.q, A, l, u, sol.z, sol.y, n_eq)
-        limit = tol(BACKENDS[self.solver].tolerance_key)
+        key = BACKENDS[self.solver].tolerance_key
+        limit = tol(key)
         failed = [k for k, v in kkt.items() if v > limit]
+        if qp.schur is not None:
+            # the backend solves the final QP independently: its optimum must pass the same KKT
+            # check and cost what the node solver's does, to the backend's comparison tolerance
+            other = qp.backend_solve(sol)
+            check: dict[str, Any] = {"status": other.status, "cost": float(other.cost)}
+            ok = other.status == st.OPTIMAL
+            if ok:
+                other_kkt = kkt_conditions(d.P, d.q, A, l, u, other.z, other.y, n_eq)
+                cost_tol = tol(key.replace("kkt", "cost"))
+                ok = (max(other_kkt.values()) <= limit
+                      and abs(other.cost - sol.cost) <= cost_tol * max(1.0, abs(sol.cost)))
+                check.update(kkt=other_kkt, cost_tol_rel=cost_tol)
+            check["agrees"] = bool(ok)
+            info["backend_check"] = check
+            if not ok:
+                failed.append("backend_check")
+        info["n_solves"] = qp.n_solves
+        if isinstance(info.get("search"), dict) and "n_solves" in info["search"]:
+            info["search"]["n_solves"] = qp.n_solves
+        info["node_solver"] = {"name": qp.node_solver, "backend_solves": qp.n_backend_solves}
         traj = qp.trajectory(sol.z)
         cost = traj.cost()
         slack = u_in - A_in @ sol.z

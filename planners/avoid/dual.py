@@ -50,6 +50,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .bernstein import _power_to_bernstein, piece_matrix, reparametrise
+from .schur import kkt_matrix
 
 if TYPE_CHECKING:
     from .continuous import ContinuousAvoidQP, Solved
@@ -166,8 +167,8 @@ class DualBounds:
         d = qp.data
         P = sp.csc_matrix(d.P)
         self.P = sp.csc_matrix(P + sp.triu(P, 1).T)
-        K = sp.bmat([[self.P, qp.A_eq.T], [qp.A_eq, None]], format="csc")
-        self.lu = spla.splu(K)
+        # the node solver's factorisation of the same matrix when it has one
+        self.lu = qp.schur.lu if qp.schur is not None else spla.splu(kkt_matrix(d.P, qp.A_eq))
         self.nb = qp.degree + 1
         D = qp.degree
         # σ-free values of the split piece's rows: M(0, λ) (first half-plane), M(λ, 1) (second)

@@ -18,7 +18,9 @@ caller's ``settings``):
   set exactly; without it OSQP is accurate to ``eps_abs`` only and the plan's KKT check
   reports it ``inaccurate``.  Warm-started from the previous candidate.
 * Clarabel: the registry's tolerances 1e-12, ``max_iter = 200`` (no warm start: interior point).
-* PIQP: the registry's ``eps_abs = 1e-10``, ``eps_rel = 0``.
+* PIQP: ``eps_abs = 1e-12`` (the registry's 1e-10 leaves the optimal cost about 6e-9 relative
+  off on some avoidance QPs, beyond the 1e-9 comparison tolerance its KKT check shares with
+  Clarabel), ``eps_rel = 0`` as in the registry.
 
 A backend that solves equality-constrained QPs only (``kkt``) is refused with
 :class:`~iamp.core.errors.OptionError` (:func:`~.options.check_avoid_solver`).
@@ -41,7 +43,8 @@ from .options import check_avoid_solver
 FloatArray = NDArray[np.float64]
 
 #: What the avoidance QP adds to a backend's registry defaults (module docstring).
-AVOID_SETTINGS: dict[str, dict[str, Any]] = {"osqp": {"eps_abs": 1e-7, "max_iter": 50_000}}
+AVOID_SETTINGS: dict[str, dict[str, Any]] = {"osqp": {"eps_abs": 1e-7, "max_iter": 50_000},
+                                             "piqp": {"eps_abs": 1e-12}}
 
 
 class BoundSolver:
@@ -136,6 +139,7 @@ class RowsSolution:
     working : ndarray of int
         The inequality rows of the final working set.
     finite : bool
+    bound : float
     """
 
     status: str
@@ -145,6 +149,9 @@ class RowsSolution:
     solves: int
     working: NDArray[np.int64]
     finite: bool
+    #: a lower bound of the QP's optimum (the node solver's dual value when it stopped at a
+    #: cutoff; otherwise the optimal cost or ``nan``)
+    bound: float = float("nan")
 
 
 def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -> sp.csc_matrix:
@@ -221,8 +228,9 @@ class RowGeneration:
         return solver
 
     def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, ids: NDArray[np.int64],
-              reference: FloatArray | None = None) -> RowsSolution:
-        """Solve with the inequality rows ``A_in z <= u_in`` (their fixed numbers ``ids``).
+              reference: FloatArray | None = None, start: NDArray[np.int64] | None = None) -> RowsSolution:
+        """Solve with the inequality rows ``A_in z <= u_in`` (their fixed numbers ``ids``); the
+        first working set also holds the rows ``start`` (indices into ``A_in``).
 
         Returns
         -------
@@ -238,6 +246,8 @@ class RowGeneration:
         work = np.ones(n_in, dtype=bool) if self.every_row else self.pool[ids].copy()
         if reference is not None and n_in:
             work |= A_in @ reference - u_in > -SEED_SLACK
+        if start is not None:
+            work[start] = True
         solves = iterations = 0
         while True:
             rows = np.flatnonzero(work)

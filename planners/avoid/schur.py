@@ -1,0 +1,360 @@
+r"""The avoidance QP's own exact node solver: a dual active-set method on one factored KKT matrix.
+
+Every QP of the crossing-time search (:mod:`iamp.planners.avoid.continuous`) has the same
+cost and equality rows — the dynamics and boundary rows of one grid — and differs only in a
+few hundred one-sided rows ``G z <= u`` (Bernstein rows of the half-planes, the limit rows), of
+which a handful bind.  With
+
+.. math::  K = \begin{pmatrix} P & E^\top \\ E & 0 \end{pmatrix}, \qquad
+           K \begin{pmatrix} z_0 \\ \nu_0 \end{pmatrix} = \begin{pmatrix} 0 \\ b \end{pmatrix},
+           \qquad K \begin{pmatrix} w_r \\ \cdot \end{pmatrix} = \begin{pmatrix} g_r \\ 0 \end{pmatrix},
+
+factored once per grid (sparse LU; ``K`` is nonsingular: the inputs determine the states and
+:math:`P` is positive definite on the inputs), the optimum with the rows ``W`` held as
+equalities is :math:`z = z_0 - \sum_{r \in W} \lambda_r w_r` with
+:math:`S \lambda = G_W z_0 - u_W`, :math:`S = G_W [w_r]` (a small dense Schur complement).
+
+:class:`SchurActiveSet` is the dual active-set method of Goldfarb and Idnani on these
+quantities: it starts from a dual-feasible point (the equality optimum ``z_0``, or a warm start
+from a nearby solution's binding rows held as equalities, every negative multiplier dropped), adds the most
+violated row, steps along the primal-dual direction until that row binds or a multiplier of
+the working set reaches zero (that row leaves), and stops when no row is violated by more than
+:data:`~iamp.planners.avoid.solve.GENERATION_TOL`.  Each step keeps the multipliers
+nonnegative, so the result satisfies the KKT conditions of the whole QP: stationarity and the
+equality rows to the LU's round-off, every row feasible to the tolerance, complementarity
+exactly (a row outside ``W`` has zero multiplier, a row in ``W`` holds with equality).  A row
+that is linearly dependent on the working set takes a pure dual step; if no multiplier blocks
+it, the QP is infeasible (the step is a dual ray).  The only solves per QP are one ``w_r`` per
+row that was never in a working set before on this grid (cached by its values), and one
+final ``K`` solve for the equality multipliers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from iamp.core import status as st
+
+from .solve import GENERATION_TOL, RowsSolution
+
+FloatArray = NDArray[np.float64]
+
+__all__ = ["CHECK_TOL", "CUTOFF", "DEPENDENT_REL", "INFEASIBLE_REL", "SchurActiveSet", "kkt_matrix"]
+
+#: A row whose Schur complement on the working set is below this times ``g_r·w_r`` is treated as
+#: linearly dependent on the working set (a pure dual step).
+DEPENDENT_REL = 1e-9
+#: ... and is declared to prove the QP infeasible (no multiplier of the working set blocks the
+#: dual step) only when its Schur complement is below this; between the two the solve stops
+#: with ``numerical_error`` (and the search solves that QP by the backend).
+INFEASIBLE_REL = 1e-13
+
+
+#: The status of a solve stopped at its cutoff (:meth:`SchurActiveSet.solve`): the QP's optimum
+#: is at least the reported ``bound`` (internal to the search, never a plan's status).
+CUTOFF = "cutoff"
+
+#: The largest KKT residual (:meth:`SchurActiveSet.residual`) of a solution reported ``optimal``;
+#: beyond it the solve reports ``numerical_error`` (and the search solves that QP by the backend).
+CHECK_TOL = 1e-7
+
+
+def kkt_matrix(P: sp.spmatrix, A_eq: sp.spmatrix) -> sp.csc_matrix:
+    """``[[P, E^T], [E, 0]]`` with ``P`` given as its upper triangle (CSC)."""
+    P = sp.csc_matrix(P)
+    full = sp.csc_matrix(P + sp.triu(P, 1).T)
+    return sp.csc_matrix(sp.bmat([[full, sp.csr_matrix(A_eq).T], [A_eq, None]], format="csc"))
+
+
+class SchurActiveSet:
+    r"""``min ½zᵀPz`` s.t. ``E z = b``, ``G z <= u`` by the dual active-set method (module docstring).
+
+    Parameters
+    ----------
+    P : scipy.sparse matrix
+        Upper triangle of the cost Hessian.
+    A_eq : scipy.sparse matrix
+        The equality rows ``E``.
+    b_eq : ndarray
+        Their right-hand side ``b``.
+    max_iter : int
+        Active-set steps per solve before it stops with ``max_iter_reached`` (a count of work).
+
+    Attributes
+    ----------
+    lu : scipy.sparse.linalg.SuperLU
+        The factored KKT matrix (shared with :class:`~iamp.planners.avoid.dual.DualBounds`).
+    columns : int
+        Columns of ``K⁻¹`` computed so far (one sparse triangular solve each).
+    """
+
+    def __init__(self, P: sp.spmatrix, A_eq: sp.spmatrix, b_eq: FloatArray, max_iter: int = 200) -> None:
+        self.P = sp.csc_matrix(P)
+        self.n = self.P.shape[0]
+        self.b_eq = np.asarray(b_eq, dtype=float)
+        self.n_eq = self.b_eq.size
+        self.A_eq = sp.csr_matrix(A_eq)
+        self.A_eq_T = sp.csr_matrix(self.A_eq.T)
+        self.P_full = sp.csr_matrix(self.P + sp.triu(self.P, 1).T)
+        self.lu = spla.splu(kkt_matrix(self.P, A_eq))
+        self.max_iter = int(max_iter)
+        x0 = self.lu.solve(np.r_[np.zeros(self.n), self.b_eq])
+        self.z0 = np.asarray(x0[:self.n], dtype=float)
+        self._m: dict[int, FloatArray] = {}
+        self._w: dict[bytes, FloatArray] = {}
+        self.columns = 0
+
+    def column(self, cols: NDArray[np.int64], vals: FloatArray) -> FloatArray:
+        """``w_r``: the primal part of ``K⁻¹ [g_r; 0]`` for the row with entries ``vals`` in
+        columns ``cols``, from the columns of ``K⁻¹`` it touches (each solved once per grid)."""
+        key = cols.tobytes() + vals.tobytes()
+        w = self._w.get(key)
+        if w is not None:
+            return w
+        missing = [int(c) for c in cols if int(c) not in self._m]
+        if missing:
+            R = np.zeros((self.n + self.n_eq, len(missing)))
+            R[missing, np.arange(len(missing))] = 1.0
+            X = np.asarray(self.lu.solve(R), dtype=float).reshape(self.n + self.n_eq, len(missing))
+            for a, c in enumerate(missing):
+                self._m[c] = X[:self.n, a].copy()
+            self.columns += len(missing)
+        w = np.asarray(vals @ np.stack([self._m[int(c)] for c in cols]), dtype=float)
+        self._w[key] = w
+        return w
+
+    def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, start: NDArray[np.int64] | None = None,
+              cutoff: float | None = None) -> RowsSolution:
+        """Solve with the inequality rows ``A_in z <= u_in``.
+
+        Parameters
+        ----------
+        A_in : scipy.sparse.csr_matrix
+            The inequality rows ``G``.
+        u_in : ndarray
+            Their bounds ``u``.
+        start : ndarray of int, optional
+            Rows of ``A_in`` that start the working set (warm start: a nearby solution's binding
+            rows); without them the method starts from the equality optimum.
+        cutoff : float, optional
+            Stop with status :data:`CUTOFF` once the cost of the working set's optimum — a lower
+            bound of the QP's optimum: it minimises the cost over the working rows alone, with
+            nonnegative multipliers — reaches ``cutoff`` (an infeasible QP's bound grows without
+            limit, so it stops there too).
+
+        Returns
+        -------
+        RowsSolution
+            ``status`` ``optimal``, ``infeasible``, ``max_iter_reached`` or ``numerical_error``
+            (a solution whose KKT residual exceeds :data:`CHECK_TOL`); ``y`` holds the
+            equality rows' multipliers, then one per row of ``A_in`` (OSQP's convention
+            ``Pz + Aᵀy = 0``); ``solves`` is 1.
+        """
+        A_in = sp.csr_matrix(A_in)
+        u = np.asarray(u_in, dtype=float)
+        n_in = u.size
+        ws = _Working(self, A_in, u)
+        if start is not None and start.size:
+            ws.warm(start)
+        status = st.OPTIMAL
+        iterations = 0
+        while True:
+            if cutoff is not None:
+                bound = 0.5 * float(ws.z @ (self.P_full @ ws.z))
+                if bound >= cutoff:
+                    return RowsSolution(CUTOFF, ws.z, np.zeros(self.n_eq + n_in), iterations, 1,
+                                        np.asarray(ws.rows, dtype=np.int64), True, bound)
+            viol = A_in @ ws.z - u
+            if ws.k:
+                viol[ws.rows] = -np.inf
+            p = int(np.argmax(viol)) if n_in else -1
+            if p < 0 or viol[p] <= GENERATION_TOL:
+                break
+            status, steps = ws.add(p, self.max_iter - iterations)
+            iterations += steps
+            if status != st.OPTIMAL:
+                break
+        if status != st.OPTIMAL:
+            return RowsSolution(status, ws.z, np.zeros(self.n_eq + n_in), iterations, 1,
+                                np.asarray(ws.rows, dtype=np.int64), bool(np.all(np.isfinite(ws.z))))
+        # the equality multipliers (and z) from one K solve: P z + Eᵀν = -G_Wᵀλ, E z = b
+        Gt_lam = ws.lam @ ws.G if ws.k else np.zeros(self.n)
+        rhs = np.r_[-Gt_lam, self.b_eq]
+        x = self.lu.solve(rhs)
+        z = np.asarray(x[:self.n], dtype=float)
+        y = np.zeros(self.n_eq + n_in)
+        y[:self.n_eq] = x[self.n:]
+        if ws.k:
+            y[self.n_eq + np.asarray(ws.rows, dtype=np.int64)] = ws.lam
+        finite = bool(np.all(np.isfinite(z)) and np.all(np.isfinite(y)))
+        if not finite or self.residual(A_in, u, z, y, Gt_lam) > CHECK_TOL:
+            status = st.NUMERICAL_ERROR  # e.g. a nearly dependent row of an infeasible QP
+        return RowsSolution(status, z, y, iterations, 1, np.asarray(sorted(ws.rows), dtype=np.int64), finite)
+
+    def residual(self, A_in: sp.csr_matrix, u: FloatArray, z: FloatArray, y: FloatArray,
+                 Gt: FloatArray | None = None) -> float:
+        """The largest KKT residual of ``(z, y)``, recomputed from the data: the equality rows'
+        and the inequality rows' violations (absolute, metres or the limit's unit), a negative
+        multiplier, and stationarity ``Pz + Eᵀν + Gᵀλ`` relative to its largest term (``Gt``:
+        ``Gᵀλ`` when known)."""
+        lam = y[self.n_eq:]
+        primal = max(float(np.max(np.abs(self.A_eq @ z - self.b_eq), initial=0.0)),
+                     float(np.max(A_in @ z - u, initial=0.0)))
+        Pz = self.P_full @ z
+        At = self.A_eq_T @ y[:self.n_eq]
+        if Gt is None:
+            Gt = np.asarray(sp.csr_matrix(A_in).T @ lam, dtype=float)
+        scale = max(1.0, float(np.max(np.abs(Pz))), float(np.max(np.abs(At))), float(np.max(np.abs(Gt), initial=0.0)))
+        dual = float(np.max(np.abs(Pz + At + Gt))) / scale
+        return max(primal, dual, float(-np.min(lam, initial=0.0)))
+
+
+class _Working:
+    """The working set of one solve: its rows (dense ``G``), their ``w_r`` (rows of ``Wt``),
+    ``S = G Wtᵀ``, the multipliers and ``z = z0 - Wtᵀ λ`` (the optimum with the rows as
+    equalities); arrays of fixed capacity, the first :attr:`k` rows in use."""
+
+    def __init__(self, solver: SchurActiveSet, A_in: sp.csr_matrix, u: FloatArray) -> None:
+        self.solver, self.u = solver, u
+        self.indptr, self.indices, self.data = A_in.indptr, A_in.indices, np.asarray(A_in.data, dtype=float)
+        n = solver.n
+        self.k = 0
+        self.rows: list[int] = []
+        self.cap = 16
+        self._G = np.zeros((self.cap, n))
+        self._W = np.zeros((self.cap, n))
+        self._S = np.zeros((self.cap, self.cap))
+        self.lam = np.zeros(0)
+        self.z = solver.z0.copy()
+
+    @property
+    def G(self) -> FloatArray:
+        return self._G[:self.k]
+
+    @property
+    def Wt(self) -> FloatArray:
+        return self._W[:self.k]
+
+    @property
+    def S(self) -> FloatArray:
+        return self._S[:self.k, :self.k]
+
+    def _dense(self, r: int) -> tuple[FloatArray, FloatArray]:
+        """Row ``r`` of ``G`` (dense) and its ``w_r``."""
+        s, e = self.indptr[r], self.indptr[r + 1]
+        cols, vals = self.indices[s:e], self.data[s:e]
+        g = np.zeros(self.solver.n)
+        g[cols] = vals
+        return g, self.solver.column(cols, vals)
+
+    def _push(self, r: int, g: FloatArray, w: FloatArray, lam_r: float) -> None:
+        k = self.k
+        if k == self.cap:
+            self.cap *= 2
+            G, W, S = self._G, self._W, self._S
+            self._G = np.zeros((self.cap, G.shape[1]))
+            self._W = np.zeros((self.cap, W.shape[1]))
+            self._S = np.zeros((self.cap, self.cap))
+            self._G[:k], self._W[:k], self._S[:k, :k] = G, W, S
+        col = self._G[:k] @ w
+        self._S[:k, k] = col
+        self._S[k, :k] = col
+        self._S[k, k] = g @ w
+        self._G[k] = g
+        self._W[k] = w
+        self.k = k + 1
+        self.rows.append(r)
+        self.lam = np.r_[self.lam, lam_r]
+
+    def _pop(self, j: int) -> None:
+        k = self.k
+        del self.rows[j]
+        self._G[j:k - 1] = self._G[j + 1:k]
+        self._W[j:k - 1] = self._W[j + 1:k]
+        self._S[j:k - 1, :k] = self._S[j + 1:k, :k]
+        self._S[:k, j:k - 1] = self._S[:k, j + 1:k]
+        self.k = k - 1
+        self.lam = np.delete(self.lam, j)
+
+    def _exact(self) -> None:
+        """``λ`` and ``z`` of the optimum with the working rows as equalities (no drift)."""
+        z0 = self.solver.z0
+        if self.k:
+            rhs = self.G @ z0 - self.u[self.rows]
+            self.lam = np.asarray(np.linalg.solve(self.S, rhs), dtype=float)
+            self.z = z0 - self.lam @ self.Wt
+        else:
+            self.lam = np.zeros(0)
+            self.z = z0.copy()
+
+    def _dual_feasible(self) -> None:
+        """Drop the most negative multiplier until the working set's optimum has ``λ >= 0``."""
+        self._exact()
+        while self.k and np.min(self.lam) < 0:
+            self._pop(int(np.argmin(self.lam)))
+            self._exact()
+
+    def warm(self, seed: NDArray[np.int64]) -> None:
+        """A dual-feasible start from the rows ``seed`` held as equalities (each joins when it is
+        independent of the rows before it); then negative multipliers leave."""
+        for r in seed:
+            r = int(r)
+            g, w = self._dense(r)
+            gw = float(g @ w)
+            if not gw > 0.0:  # a combination of the equality rows
+                continue
+            if self.k:
+                col = self.G @ w
+                if gw - float(col @ np.linalg.solve(self.S, col)) <= 1e-6 * gw:
+                    continue
+            self._push(r, g, w, 0.0)
+        self._dual_feasible()
+
+    def add(self, p: int, budget: int) -> tuple[str, int]:
+        """Goldfarb–Idnani steps until row ``p`` binds (module docstring); the status and steps."""
+        g, wp = self._dense(p)
+        gwp = float(g @ wp)
+        lam_p = 0.0
+        steps = 0
+        z0 = self.solver.z0
+        while steps < budget:
+            steps += 1
+            j = -1
+            t2 = np.inf
+            if self.k:
+                col = self.G @ wp
+                dlam = -np.linalg.solve(self.S, col)
+                curv = gwp + float(col @ dlam)
+                neg = dlam < 0
+                if neg.any():
+                    ratios = np.full(self.k, np.inf)
+                    ratios[neg] = self.lam[neg] / -dlam[neg]
+                    j = int(np.argmin(ratios))
+                    t2 = float(ratios[j])
+            else:
+                dlam = np.zeros(0)
+                curv = gwp
+            if not curv > DEPENDENT_REL * gwp:  # dependent on the working set: a dual step only
+                if j < 0:
+                    return (st.INFEASIBLE if not curv > INFEASIBLE_REL * gwp else st.NUMERICAL_ERROR), steps
+                t = t2
+            else:
+                t1 = (float(g @ self.z) - self.u[p]) / curv
+                if t1 <= t2:
+                    self.lam = self.lam + t1 * dlam
+                    self._push(p, g, wp, lam_p + t1)
+                    self._exact()
+                    if self.k and np.min(self.lam) < 0:  # round-off only: the steps keep λ >= 0
+                        self._dual_feasible()
+                        if p not in self.rows:  # the row left again: ill-conditioned, stop
+                            return st.NUMERICAL_ERROR, steps
+                    return st.OPTIMAL, steps
+                t = t2
+            self.lam = self.lam + t * dlam
+            lam_p += t
+            self._pop(j)
+            self.z = z0 - (self.lam @ self.Wt if self.k else 0.0) - lam_p * wp
+        return st.MAX_ITER, steps
