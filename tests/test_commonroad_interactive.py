@@ -275,6 +275,105 @@ def test_failsafe_stops_behind_a_leader_that_brakes_within_rss(v0: float, v_f: f
         assert b == pytest.approx(0.9 * live.a_max)
 
 
+@needs_extra
+def test_a_stop_is_checked_standing_on_and_not_braked_into_a_car_closing_in_from_behind() -> None:
+    """USA_US101-5_2 (searched final states, seed 1): the fail-safe braking to a stop was checked
+    only until it stood (1.0-1.5 s), so stopping in front of vehicle 554, closing in from behind at
+    9-12 m/s, counted as clear; standing, every option met 554 and the loop braked at 0.9 a_max
+    (10.35 m/s^2, beyond RSS's brake_max: the ego to blame) and 554 ran into it.  Ego at 4 m/s, a
+    car 15 m behind at 10 m/s: a stop at 4 m/s^2 stands at s0 + 2 m after 1 s, clear of it then
+    (it is 8 m behind) but not 2 s later.  Every braking is now checked over FAILSAFE_HORIZON_S
+    (standing on), none keeps clear, and the fail-safe is the gentlest braking clear of all but the
+    car behind (2 m/s^2 to 3/4 of the speed), not a stop and never beyond brake_max."""
+    from iamp.commonroad.interactive import FAILSAFE_HORIZON_S, failsafe, harmless, rear_vehicles, rss_followers
+    from iamp.commonroad.planning import intrusions
+
+    live = _live(4.0, None)
+    s0, _, d0, _ = live.x0
+    live = dataclasses.replace(live, obstacles=[_moving(5, s0 - 2.254 - 15.0 - 2.5, d0, 10.0)])
+    followers, rear = rss_followers(live), rear_vehicles(live)
+    assert followers == set() and rear == {5}
+    traj, T = failsafe(live, live.a_max, followers, rear)
+    assert T >= FAILSAFE_HORIZON_S
+    assert float(traj.decel) == pytest.approx(2.0) and float(traj.v_end) == pytest.approx(3.0)
+    hits = intrusions(live, traj, T)
+    assert [h.obstacle.obstacle_id for h in hits] == [5] and harmless(("fail-safe", traj, T, hits), followers | rear)
+    # the stop the old check took: clear until it stands, run into standing on
+    from iamp.commonroad.interactive import Braking
+
+    stop = Braking(live.x0, 4.0, 0.0, 1.0)
+    assert not intrusions(live, stop, 1.0) and intrusions(live, stop, FAILSAFE_HORIZON_S)
+
+
+@needs_extra
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(v0=st.floats(0.0, 30.0), v_r=st.floats(0.0, 35.0), gap=st.floats(0.5, 80.0))
+def test_failsafe_never_brakes_beyond_brake_max_for_a_car_behind_only(v0: float, v_r: float, gap: float) -> None:
+    """Property: with a single vehicle, behind the ego in its lane (nothing ahead), the fail-safe
+    brakes at most RSS's brake_max (harder braking makes the front car RSS's culprit and brings
+    the rear car sooner), is checked over at least FAILSAFE_HORIZON_S, and keeps clear of it over
+    that horizon whenever some braking of the fail-safe's list does."""
+    from iamp.commonroad.interactive import (
+        FAILSAFE_DECEL,
+        FAILSAFE_HORIZON_S,
+        FAILSAFE_SPEEDS,
+        Braking,
+        failsafe,
+        rear_vehicles,
+        rss_followers,
+    )
+    from iamp.commonroad.planning import intrusions
+    from iamp.simulation.rss import DEFAULT
+
+    live = _live(v0, None)
+    s0, _, d0, _ = live.x0
+    live = dataclasses.replace(live, obstacles=[_moving(5, s0 - 2.254 - gap - 2.5, d0, v_r)])
+    traj, T = failsafe(live, live.a_max, rss_followers(live), rear_vehicles(live))
+    assert T >= FAILSAFE_HORIZON_S - 1e-9
+    assert float(traj.decel) <= DEFAULT.brake_max + 1e-9
+    some_clear = any(not intrusions(live, b, max(FAILSAFE_HORIZON_S, b.t_b))
+                     for b in (Braking(live.x0, a, f * v0, 1.0) for a in (*FAILSAFE_DECEL, 0.9 * live.a_max)
+                               for f in FAILSAFE_SPEEDS))
+    if some_clear and 5 not in rss_followers(live):
+        assert not intrusions(live, traj, T)
+
+
+@needs_extra
+def test_choose_takes_an_option_met_only_from_behind_over_braking_harder() -> None:
+    """When every option meets a predicted vehicle, an option met only by vehicles behind the ego
+    in its path (``rear``) and braking at most brake_max comes before the fail-safe (the last); one
+    that meets a vehicle ahead, or brakes harder, does not."""
+    from iamp.commonroad.interactive import Braking, choose
+    from iamp.commonroad.planning import Intrusion
+
+    behind, ahead = _moving(5, 0.0, 0.0, 10.0), _moving(6, 100.0, 0.0, 10.0)
+    x0 = (50.0, 10.0, 0.0, 0.0)
+    plan_ = ("new plan", Braking(x0, 1.0, 9.0, 1.0), 5.0, [Intrusion(behind, 0.5, 3.0)])
+    hard = ("new plan", Braking(x0, 9.0, 0.0, 1.0), 5.0, [Intrusion(behind, 0.5, 3.0)])
+    front = ("new plan", Braking(x0, 1.0, 9.0, 1.0), 5.0, [Intrusion(ahead, 0.5, 3.0)])
+    brake = ("fail-safe", Braking(x0, 10.35, 0.0, 1.0), 3.0, [Intrusion(behind, 1.0, 2.0)])
+    assert choose([plan_, brake]) == 1  # without the rear vehicles: the last
+    assert choose([plan_, brake], set(), {5}) == 0
+    assert choose([hard, brake], set(), {5}) == 1
+    assert choose([front, brake], set(), {5}) == 1
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not (INTERACTIVE / "USA_US101-5_2_I-1-1").is_dir(),
+                    reason="needs the [commonroad] and [sim] extras and the shared interactive scenarios "
+                           f"({INTERACTIVE})")
+def test_searched_final_states_do_not_stop_the_ego_in_front_of_a_closing_car() -> None:
+    """USA_US101-5_2 with the final-state search (seed 1): before, the loop braked to a stop in front
+    of vehicle 554 (a stop checked only until it stood), then at 10.35 m/s^2, and 554 ran into the
+    standing ego at 6.6 s (at fault by RSS: braking beyond brake_max).  Now the goal is reached
+    with no contact and no braking beyond brake_max."""
+    from iamp.commonroad.interactive import simulate
+
+    r = simulate(INTERACTIVE / "USA_US101-5_2_I-1-1", search=True)
+    assert r["goal_reached"]
+    assert r["collisions"] == 0 and r["contacts_at_fault"] == 0 and r["contacts_not_at_fault"] == 0
+
+
 def _goal_log(rows: list[list[float]]) -> Any:
     """A step log over the fixture's second goal state's window (steps 60-70) with ``rows`` as the
     neighbours (``s, d, v, a, lane, length, width, heading``) at every step."""
@@ -335,6 +434,33 @@ def test_a_goal_occupied_for_its_whole_window_says_so_and_by_whom() -> None:
     occ = goal_occupancy(cr, behind_once)
     assert occ["occupied_whole_window"] and not occ["occupants_always_ahead"]
     assert "no course of the ego" not in (miss_reason(occ) or "")
+
+
+@needs_extra
+def test_a_free_sliver_narrower_than_the_grid_is_found_and_judged() -> None:
+    """USA_US101-27_4 (seed 1): between vehicle 345 behind and 340 standing ahead the goal had
+    room for the ego's centre on a 0.13 m sliver at 7.0-7.4 s, which the 0.25 m grid missed (it
+    reported the window occupied whole).  Here a car behind ends at 114.05 - 2.254 m and a car
+    ahead begins at 114.10 + 2.254 m: the ego's centre fits only on s in [114.05, 114.10], between
+    grid points.  Every step is free; standing, the car ahead is 0-0.05 m from the ego's front at
+    the goal's lowest 12 m/s, so no position is clear after (the reason says a contact follows);
+    driving at 12 m/s itself, every step is."""
+    from iamp.commonroad.interactive import GOAL_GRID_M, goal_occupancy, miss_reason
+
+    cr = _fixture()
+    cr = dataclasses.replace(cr, goal=dataclasses.replace(cr.goal, elements=[cr.goal.elements[1]]))
+    half = 0.5 * cr.ego_length
+    assert 0.05 < GOAL_GRID_M
+    rear = [114.05 - half - 2.5, 7.2, 10.0, 0.0, 2, 5.0, 1.8, 0.0]
+    for v_ahead, clear in ((0.0, 0), (12.0, 11)):
+        ahead = [114.10 + half + 2.5, 7.2, v_ahead, 0.0, 2, 5.0, 1.8, 0.0]
+        occ = goal_occupancy(cr, _goal_log([rear, ahead]))
+        assert occ["free_steps"] == 11 and not occ["occupied_whole_window"]
+        assert occ["clear_after_steps"] == clear and occ["rss_free_steps"] == clear
+        assert occ["blocked_whole_window"] == (clear == 0)
+        reason = miss_reason(occ)
+        assert (reason is not None and "contact just after" in reason and "1" in occ["blockers"]) == (clear == 0)
+        assert [r[0] for r in occ["vehicles"][0][1]] == ["0", "1"]
 
 
 @pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not (INTERACTIVE / "USA_US101-5_1_I-1-1").is_dir(),

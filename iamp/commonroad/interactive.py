@@ -216,6 +216,24 @@ def edge_depth(hits: list[Intrusion]) -> float:
     return max((h.depth_m for h in hits if h.obstacle.road_edge), default=0.0)
 
 
+def _behind(cr: CommonRoadProblem) -> list[tuple[Obstacle, float]]:
+    """The vehicles behind the ego in its path now and their gaps: a vehicle is in the path when
+    its box now overlaps the ego's body across the road grown by RSS's lateral margin ``μ``, and
+    behind when its front is behind the ego's rear (gap > 0, bumper to bumper)."""
+    from iamp.simulation.rss import DEFAULT
+
+    s0, _, d0, _ = cr.x0
+    half_w = 0.5 * cr.ego_width + DEFAULT.lat_margin_m
+    out = []
+    for ob in cr.obstacles:
+        if ob.road_edge or ob.d_lo[0] >= d0 + half_w or ob.d_hi[0] <= d0 - half_w:
+            continue
+        gap = (s0 - 0.5 * cr.ego_length) - float(ob.s_hi[0])
+        if gap > 0:
+            out.append((ob, gap))
+    return out
+
+
 def rss_followers(cr: CommonRoadProblem) -> set[int]:
     """The vehicles behind the ego in its path that keep RSS's safe distance to it now.
 
@@ -236,19 +254,34 @@ def rss_followers(cr: CommonRoadProblem) -> set[int]:
     set of int
         Their obstacle ids.
     """
-    from iamp.simulation.rss import DEFAULT, safe_longitudinal_distance
+    from iamp.simulation.rss import safe_longitudinal_distance
 
-    s0, v0, d0, _ = cr.x0
-    half_w = 0.5 * cr.ego_width + DEFAULT.lat_margin_m
-    out = set()
-    for ob in cr.obstacles:
-        if ob.road_edge or ob.d_lo[0] >= d0 + half_w or ob.d_hi[0] <= d0 - half_w:
-            continue
-        gap = (s0 - 0.5 * cr.ego_length) - float(ob.s_hi[0])
-        v_r = float(ob.cubic[1]) if len(ob.cubic) > 1 else 0.0
-        if gap > 0 and gap >= float(safe_longitudinal_distance(v_r, v0)):
-            out.add(ob.obstacle_id)
-    return out
+    v0 = cr.x0[1]
+    return {ob.obstacle_id for ob, gap in _behind(cr)
+            if gap >= float(safe_longitudinal_distance(float(ob.cubic[1]) if len(ob.cubic) > 1 else 0.0, v0))}
+
+
+def rear_vehicles(cr: CommonRoadProblem) -> set[int]:
+    """The vehicles behind the ego in its path now, whatever their gap (those of
+    :func:`rss_followers` and those closing in nearer than RSS's distance).
+
+    When no option keeps clear of the predictions but these (:func:`choose`, :func:`failsafe`),
+    braking harder than RSS's ``brake_max`` in front of them is RSS's improper response of the
+    front car, and braking at all brings the car closing in from behind sooner: USA_US101-5_2
+    (searched final states, seed 1) braked to a stop at 4 then 10.35 m/s^2 in front of vehicle
+    554 closing in at 9-12 m/s, which ran into the standing ego (a contact RSS blames on both).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The live problem (``x0`` now, ``obstacles`` the predicted vehicles).
+
+    Returns
+    -------
+    set of int
+        Their obstacle ids.
+    """
+    return {ob.obstacle_id for ob, _ in _behind(cr)}
 
 
 def harmless(option: tuple[str, Any, float, list[Intrusion]], followers: set[int]) -> bool:
@@ -266,7 +299,8 @@ def harmless(option: tuple[str, Any, float, list[Intrusion]], followers: set[int
     return bool(np.min(u) >= -DEFAULT.brake_max - 1e-9)
 
 
-def choose(options: list[tuple[str, Any, float, list[Intrusion]]], followers: set[int] | None = None) -> int:
+def choose(options: list[tuple[str, Any, float, list[Intrusion]]], followers: set[int] | None = None,
+           rear: set[int] | None = None) -> int:
     """Which option the loop executes when the replan found no safe plan (module doc, step 2).
 
     Every option is ``(name, trajectory, horizon, intrusions)``, in order of preference (the new
@@ -276,7 +310,10 @@ def choose(options: list[tuple[str, Any, float, list[Intrusion]]], followers: se
     least (to 1 cm; ties: the first) is taken: a road edge does not move, so a plan that grazes it
     by a few centimetres is no reason to
     brake (braking in the lane may run deeper into an edge that narrows ahead).  When none keeps
-    clear of the vehicles, the last option (the fail-safe) is taken.
+    clear of the vehicles, the same choice is made among the options that keep clear of every
+    vehicle but those ``rear`` (behind the ego in its path now, :func:`rear_vehicles`) while braking
+    at most ``brake_max``: the rear car is responsible for what follows, and braking more only
+    brings it closer; when none does either, the last option (the fail-safe) is taken.
 
     Parameters
     ----------
@@ -284,6 +321,8 @@ def choose(options: list[tuple[str, Any, float, list[Intrusion]]], followers: se
         ``(name, trajectory, horizon [s], intrusions)``; the last is the fail-safe.
     followers : set of int, optional
         The vehicles of :func:`rss_followers` (none by default).
+    rear : set of int, optional
+        The vehicles of :func:`rear_vehicles` (none by default).
 
     Returns
     -------
@@ -291,6 +330,8 @@ def choose(options: list[tuple[str, Any, float, list[Intrusion]]], followers: se
         The index of the option to execute.
     """
     clear = [i for i, o in enumerate(options) if harmless(o, followers or set())]
+    if not clear and rear:
+        clear = [i for i, o in enumerate(options) if harmless(o, (followers or set()) | rear)]
     if not clear:
         return len(options) - 1
     return min(clear, key=lambda i: (round(edge_depth(options[i][3]), 2), i))
@@ -333,14 +374,19 @@ def rss_stops_behind(cr: CommonRoadProblem, decel: float) -> bool:
     return True
 
 
-def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = None) -> tuple[Braking, float]:
+def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = None,
+             rear: set[int] | None = None) -> tuple[Braking, float]:
     """The fail-safe when no plan keeps clear: braking in the lane (:class:`Braking`, the lateral
     speed brought to zero over 1 s) at the gentlest of :data:`FAILSAFE_DECEL` and 0.9 ``a_max``,
     and at that deceleration to the highest of :data:`FAILSAFE_SPEEDS` (fractions of the current
-    speed), whose body stays off every predicted vehicle (over :data:`FAILSAFE_HORIZON_S`, or until
-    it stands; road edges are not counted: braking in the lane cannot move away from one) and which,
-    continued to a stop, keeps RSS's distance to the vehicle ahead (:func:`rss_stops_behind`), else
-    the hardest braking to a stop.  Returns the plan (from ``cr.x0``, time 0 = now) and its horizon.
+    speed), whose body stays off every predicted vehicle over :data:`FAILSAFE_HORIZON_S` (or until
+    it stands, if later; a braking to a stop is checked standing on to that horizon: a stop is
+    not the end of what is executed, and a car closing in from behind reaches a standing ego
+    after it; road edges are not counted: braking in the lane cannot move away from one) and which,
+    continued to a stop, keeps RSS's distance to the vehicle ahead (:func:`rss_stops_behind`);
+    else the gentlest such braking that keeps clear of every vehicle but those ``rear`` while
+    braking at most RSS's ``brake_max`` (:func:`choose`); else the hardest braking to a stop.
+    Returns the plan (from ``cr.x0``, time 0 = now) and the horizon it was checked over.
 
     Parameters
     ----------
@@ -350,47 +396,89 @@ def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = N
         The vehicle type's acceleration limit [m/s^2].
     followers : set of int, optional
         Vehicles behind whose predicted boxes do not count (:func:`rss_followers`, :func:`harmless`).
+    rear : set of int, optional
+        The vehicles behind the ego in its path (:func:`rear_vehicles`), for the second choice.
 
     Returns
     -------
     tuple of Braking and float
-        The braking plan and its duration [s] (at least :data:`FAILSAFE_MIN_S`).
+        The braking plan and its checked horizon [s] (at least :data:`FAILSAFE_HORIZON_S`).
     """
     v0 = max(cr.x0[1], 0.0)
     decels = (*[b for b in FAILSAFE_DECEL if b < 0.9 * a_max], 0.9 * a_max)
     last: tuple[Braking, float] | None = None
+    second: tuple[Braking, float] | None = None
+    excused = (followers or set()) | (rear or set())
     for b in decels:
         for frac in FAILSAFE_SPEEDS:
             plan = Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_MIN_S)
-            T = max(FAILSAFE_MIN_S, plan.t_b) if frac == 0.0 else max(FAILSAFE_HORIZON_S, plan.t_b)
+            T = max(FAILSAFE_HORIZON_S, plan.t_b)
             last = (plan, T)
             option = ("fail-safe", plan, T, intrusions(cr, plan, T))
-            if rss_stops_behind(cr, b) and harmless(option, followers or set()):
+            if not rss_stops_behind(cr, b):
+                continue
+            if harmless(option, followers or set()):
                 return plan, T
+            if second is None and rear and harmless(option, excused):
+                second = (plan, T)
+    if second is not None:
+        return second
     assert last is not None
     return last
 
 
 #: The ego's braking in :func:`goal_occupancy`'s RSS test, as a fraction of ``a_max`` (the fail-safe's hardest).
 STOP_DECEL_FRACTION = 0.9
-#: Grid of the goal positions tested by :func:`goal_occupancy` [m].
+#: Grid of the goal positions tested by :func:`goal_occupancy` [m] (with the positions where the
+#: ego's body just touches an observed vehicle, so a free sliver narrower than the grid is found).
 GOAL_GRID_M = 0.25
+#: How far from a goal position piece's centre the vehicles :func:`goal_occupancy` lists for each
+#: window step lie at most, along and across the road [m].
+GOAL_NEAR_M = (40.0, 8.0)
+
+
+def _goal_positions(A: np.ndarray, b: np.ndarray, grid: np.ndarray, rows: np.ndarray, half_l: float,
+                    half_w: float) -> np.ndarray:
+    """The ego positions :func:`goal_occupancy` tests in one position piece (``A z <= b``) at one
+    step: the grid points inside it and the points where the ego's body (parallel to the road)
+    just touches one of the vehicles ``rows`` ahead, behind or beside, crossed with the grid's
+    and the other touch points' coordinates (a free sliver between two vehicles, or between a
+    vehicle and the piece's edge, narrower than the grid is found)."""
+    from iamp.simulation.rss import body_extents
+
+    eps = 1e-3
+    ss, dd = [np.unique(grid[:, 0])], [np.unique(grid[:, 1])]
+    if rows.size:
+        hx, hy = body_extents(rows[:, 5], rows[:, 6], rows[:, 7])
+        ss += [rows[:, 0] - hx - half_l - eps, rows[:, 0] + hx + half_l + eps]
+        dd += [rows[:, 1] - hy - half_w - eps, rows[:, 1] + hy + half_w + eps]
+    S, D = np.meshgrid(np.concatenate(ss), np.concatenate(dd))
+    P = np.stack([S.ravel(), D.ravel()], axis=1)
+    P = P[np.all(P @ A.T <= b + 1e-9, axis=1)]
+    return np.unique(np.concatenate([grid, P]), axis=0) if P.size else grid
 
 
 def goal_occupancy(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
     """Could the ego have stood in the goal region without touching a vehicle, step by step?
 
-    For every logged time step inside the goal's time window, every position of a goal state's
-    position pieces (a grid of :data:`GOAL_GRID_M`) is tested: the ego's body there, parallel to
-    the road, against the body of every vehicle the ego observed at that step (SUMO's positions,
-    bodies at their headings, no buffer).  A step is *free* when at least one goal position keeps
-    the body off every vehicle.  When no step of the window is free, reaching the goal in this
-    traffic means a contact, whatever the plan.  A free position is also *RSS-free* when every
-    vehicle ahead of it in its path (bodies overlapping across the road with RSS's margin ``μ``)
-    is far enough that the ego, there at the goal state's lowest speed and braking at
-    :data:`STOP_DECEL_FRACTION` ``a_max``, stops behind it whatever it does within RSS's
-    ``brake_max`` (:func:`iamp.simulation.rss.rss_distance`, no response time): a goal reached
-    with no RSS-free position is reached on a course that can end in a contact just after.
+    For every logged time step inside the goal's time window, the ego's reference point (its
+    centre, which CommonRoad's goal test places inside the goal's shape) is tried at the positions
+    of a goal state's position pieces (a grid of :data:`GOAL_GRID_M` and the positions where the
+    body just touches a vehicle, :func:`_goal_positions`): the ego's body there, parallel to the
+    road, against the body of every vehicle the ego observed at that step (SUMO's positions,
+    bodies at their headings as their bounding boxes in the road frame, no buffer).  A step is
+    *free* when at least one goal position keeps the body off every vehicle.  When no step of the
+    window is free, reaching the goal in this traffic means a contact, whatever the plan.
+
+    A free position is *clear after* when the ego, there at the goal state's lowest speed, can
+    avoid every vehicle ahead of it in its path (bodies overlapping across the road) at all:
+    braking at ``a_max`` while that vehicle accelerates from its observed speed at RSS's
+    ``accel_max`` (the kindest it can do), the gap ``g`` must not close,
+    ``g >= max(v - v_f, 0)^2 / (2 (a_max + accel_max))`` (a lateral escape is not counted).  A goal
+    reached with no such position is reached on a course that ends in a contact just after.  It is
+    also *RSS-free* when every such gap is at least the distance in which the ego, braking at
+    :data:`STOP_DECEL_FRACTION` ``a_max``, stops behind the vehicle whatever it does within RSS's
+    ``brake_max`` (:func:`iamp.simulation.rss.rss_distance`, no response time).
 
     Parameters
     ----------
@@ -404,15 +492,21 @@ def goal_occupancy(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
     dict
         ``window_steps_logged`` (steps of the window the episode logged), ``free_steps`` and
         ``first_free_s`` / ``last_free_s`` (the times of the first and last free step, or None),
-        ``rss_free_steps``; ``occupied_whole_window`` (every step of the window logged and none
-        free), ``occupants`` (the vehicles on a goal position at the steps without a free one) and
-        ``occupants_always_ahead`` (the window occupied whole and each occupant's centre ahead of
-        the ego's at every step it was observed: the ego never drove in front of it, so SUMO's car
-        following never had it react to the ego; :func:`miss_reason` words it).
+        ``clear_after_steps``, ``rss_free_steps``; ``occupied_whole_window`` (every step of the
+        window logged and none free), ``occupants`` (the vehicles on a goal position at the steps
+        without a free one), ``occupants_always_ahead`` (the window occupied whole and each
+        occupant's centre ahead of the ego's at every step it was observed: the ego never drove in
+        front of it, so SUMO's car following never had it react to the ego; :func:`miss_reason`
+        words it), ``blocked_whole_window`` (every step logged and none clear after),
+        ``blockers`` (the vehicles on a goal position or, ahead of a free one, too close to avoid, at
+        the steps without a position clear after) and ``blockers_always_ahead``; ``vehicles``:
+        per logged window step ``[t, [[id, s, d, v, length, width, heading], ...]]`` for the
+        vehicles within :data:`GOAL_NEAR_M` of a position piece's centre, so the verdict can be
+        recomputed from the episode alone.
     """
     from iamp.simulation.rss import DEFAULT, body_extents, rss_distance
 
-    pts_all = []
+    pieces = []
     for e in cr.goal.elements:
         for pc in e.pieces or []:
             cs, cd = pc.centre
@@ -420,54 +514,81 @@ def goal_occupancy(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
                                  np.arange(cd - 8.0, cd + 8.0, GOAL_GRID_M))
             P = np.stack([ss.ravel(), dd.ravel()], axis=1)
             inside = np.all(P @ pc.A.T <= pc.b + 1e-9, axis=1)
-            pts_all.append((e.steps, P[inside], 0.0 if e.speed is None else max(e.speed[0], 0.0)))
-    logged = free = rss_free = 0
+            pieces.append((e.steps, pc, P[inside], 0.0 if e.speed is None else max(e.speed[0], 0.0)))
+    logged = free = rss_free = clear_after = 0
     first = last = None
     occupants: set[str] = set()
+    blockers: set[str] = set()
+    near_rows: list[list[Any]] = []
+    half_l, half_w = 0.5 * cr.ego_length, 0.5 * cr.ego_width
     for i, t in enumerate(log.t):
         k = int(round(t / cr.dt))
-        here = [(P, v) for steps, P, v in pts_all if steps[0] <= k <= steps[1] and P.size]
+        here = [(pc, P, v) for steps, pc, P, v in pieces if steps[0] <= k <= steps[1] and P.size]
         if not here:
             continue
-        P = np.concatenate([h[0] for h in here])
-        v_goal = np.concatenate([np.full(len(h[0]), h[1]) for h in here])
+        nb = np.asarray(log.nb[i], dtype=float).reshape(-1, 8)
+        ids = list(log.ids[i])
+        near = np.zeros(len(nb), dtype=bool)
+        for pc, _, _ in here:
+            near |= ((np.abs(nb[:, 0] - pc.centre[0]) <= GOAL_NEAR_M[0])
+                     & (np.abs(nb[:, 1] - pc.centre[1]) <= GOAL_NEAR_M[1]))
+        near_rows.append([round(float(t), 3), [[str(ids[j]), *(round(float(x), 4) for x in nb[j, [0, 1, 2, 5, 6, 7]])]
+                                               for j in np.flatnonzero(near)]])
+        tested = [(_goal_positions(pc.A, pc.b, P, nb[near], half_l, half_w), v) for pc, P, v in here]
+        P = np.concatenate([h[0] for h in tested])
+        v_goal = np.concatenate([np.full(len(h[0]), h[1]) for h in tested])
         logged += 1
         ok = np.ones(len(P), dtype=bool)
         stops = np.ones(len(P), dtype=bool)
-        nb = np.asarray(log.nb[i], dtype=float).reshape(-1, 8)
-        on_goal = []
-        for vid, row in zip(log.ids[i], nb):
+        avoids = np.ones(len(P), dtype=bool)
+        on_goal, too_close = [], []
+        for vid, row in zip(ids, nb):
             hx, hy = body_extents(row[5], row[6], row[7])
             depth = body_overlap(P[:, 0], P[:, 1], np.zeros(len(P)), row[0] - hx, row[0] + hx, row[1] - hy,
-                                 row[1] + hy, cr.ego_length / 2, cr.ego_width / 2, 0.0)
+                                 row[1] + hy, half_l, half_w, 0.0)
             ok &= depth <= 0
             if bool(np.any(depth > 0)):
                 on_goal.append(str(vid))
-            ahead = (np.abs(row[1] - P[:, 1]) < hy + cr.ego_width / 2 + DEFAULT.lat_margin_m) & (row[0] > P[:, 0])
-            gap = row[0] - hx - (P[:, 0] + cr.ego_length / 2)
+            ahead = (np.abs(row[1] - P[:, 1]) < hy + half_w + DEFAULT.lat_margin_m) & (row[0] > P[:, 0])
+            in_path = (np.abs(row[1] - P[:, 1]) < hy + half_w) & (row[0] > P[:, 0])
+            gap = row[0] - hx - (P[:, 0] + half_l)
             need = rss_distance(v_goal, row[2], 0.0, 0.0, STOP_DECEL_FRACTION * cr.a_max, DEFAULT.brake_max)
             stops &= ~ahead | (gap >= need)
+            closing = np.maximum(v_goal - row[2], 0.0)
+            unavoidable = in_path & (gap < closing**2 / (2.0 * (cr.a_max + DEFAULT.accel_max)))
+            avoids &= ~unavoidable
+            if bool(np.any(unavoidable & (depth <= 0))):
+                too_close.append(str(vid))
         if ok.any():
             free += 1
             first = t if first is None else first
             last = t
         else:
             occupants.update(on_goal)
+        if (ok & avoids).any():
+            clear_after += 1
+        else:
+            blockers.update(on_goal if not ok.any() else too_close)
         rss_free += bool((ok & stops).any())
     window = cr.goal.steps[1] - cr.goal.steps[0] + 1
+
+    def always_ahead(who: set[str]) -> bool:
+        return all(float(log.nb[i][list(log.ids[i]).index(vid)][0]) > float(log.ego[i][0])
+                   for vid in who for i in range(len(log.t)) if vid in log.ids[i])
+
     whole = logged >= window and free == 0
-    ahead = whole and all(
-        float(log.nb[i][list(log.ids[i]).index(vid)][0]) > float(log.ego[i][0])
-        for vid in occupants for i in range(len(log.t)) if vid in log.ids[i])
+    blocked = logged >= window and clear_after == 0
     return {"window_steps_logged": logged, "free_steps": free, "first_free_s": first, "last_free_s": last,
-            "rss_free_steps": rss_free, "occupied_whole_window": whole, "occupants": sorted(occupants),
-            "occupants_always_ahead": ahead}
+            "clear_after_steps": clear_after, "rss_free_steps": rss_free, "occupied_whole_window": whole,
+            "occupants": sorted(occupants), "occupants_always_ahead": whole and always_ahead(occupants),
+            "blocked_whole_window": blocked, "blockers": sorted(blockers),
+            "blockers_always_ahead": blocked and always_ahead(blockers), "vehicles": near_rows}
 
 
 def miss_reason(occupancy: dict[str, Any]) -> str | None:
     """Why the goal could not be reached whatever the plan, from :func:`goal_occupancy` (None when
-    the goal region had room for the ego's body at some step of its window, or the window was not
-    logged whole).
+    some step of the goal's window had a goal position clear of every vehicle from which a contact
+    could still be avoided, or the window was not logged whole).
 
     Parameters
     ----------
@@ -479,15 +600,21 @@ def miss_reason(occupancy: dict[str, Any]) -> str | None:
     str or None
         The reason in words.
     """
-    if not occupancy.get("occupied_whole_window"):
-        return None
-    who = ", ".join(occupancy.get("occupants", [])) or "observed vehicles"
-    text = (f"the goal region was occupied for its whole window (vehicles {who}): at no step of the window did "
-            "any goal position keep the ego's body off every observed vehicle")
-    if occupancy.get("occupants_always_ahead"):
-        text += ("; each of them was ahead of the ego all episode, so the ego never drove in front of them "
-                 "and no course of the ego could have freed the region")
-    return text
+    never = ("; each of them was ahead of the ego all episode, so the ego never drove in front of them "
+             "and no course of the ego could have freed the region")
+    if occupancy.get("occupied_whole_window"):
+        who = ", ".join(occupancy.get("occupants", [])) or "observed vehicles"
+        text = (f"the goal region was occupied for its whole window (vehicles {who}): at no step of the window did "
+                "any goal position keep the ego's body off every observed vehicle")
+        return text + (never if occupancy.get("occupants_always_ahead") else "")
+    if occupancy.get("blocked_whole_window"):
+        who = ", ".join(occupancy.get("blockers", [])) or "observed vehicles"
+        text = (f"the goal region had room for the ego's body at {occupancy.get('free_steps')} step(s) of its window "
+                f"only where, at the goal's lowest speed, the ego could not have avoided the vehicle ahead (vehicles "
+                f"{who}) even braking at a_max with that vehicle accelerating at RSS's accel_max: reaching the goal "
+                "meant a contact just after")
+        return text + (never if occupancy.get("blockers_always_ahead") else "")
+    return None
 
 
 def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
@@ -507,18 +634,19 @@ def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
              recording: str | Path | None = None,
              progress: Callable[[str], None] | None = None, seed: int = 1, tactical: bool = True,
-             sequences: bool = False) -> dict[str, Any]:
+             sequences: bool = False, search: bool = False) -> dict[str, Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready).
 
     The same as :func:`simulate_with_log` without the step log.
     """
     return simulate_with_log(folder, planner, replan_s=replan_s, recording=recording, progress=progress,
-                             seed=seed, tactical=tactical, sequences=sequences)[0]
+                             seed=seed, tactical=tactical, sequences=sequences, search=search)[0]
 
 
 def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
                       recording: str | Path | None = None, progress: Callable[[str], None] | None = None,
-                      seed: int = 1, tactical: bool = True, sequences: bool = False) -> tuple[dict[str, Any], Any]:
+                      seed: int = 1, tactical: bool = True, sequences: bool = False,
+                      search: bool = False) -> tuple[dict[str, Any], Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready) and the
     executed step log (:class:`iamp.simulation.metrics.StepLog`, in the road frame).
 
@@ -691,7 +819,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     plan_times.append(time.perf_counter() - start)
                 if cands and early is None:
                     start = time.perf_counter()
-                    rp = plan(live, planner, max_candidates=4, search=False)
+                    rp = plan(live, planner, max_candidates=4, search=search)
                     plan_times.append(time.perf_counter() - start)
                 action = "plan"
                 if keep_lc:
@@ -719,7 +847,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     if traj is not None and rest > dt and not changing:  # a lane change that fails is given up
                         kept = Shifted(traj, now - t_plan)
                         options.append(("kept", kept, rest, intrusions(live, kept, rest)))
-                    followers = rss_followers(live)
+                    followers, rear = rss_followers(live), rear_vehicles(live)
                     if rp is not None and tactical and not any(harmless(o, followers) for o in options):
                         # instead of a new fail-safe brake: one lane toward the goal's (iamp.commonroad.tactical)
                         start = time.perf_counter()
@@ -727,9 +855,9 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                         plan_times.append(time.perf_counter() - start)
                         if tac is not None and tac.trajectory is not None and tac.candidate is not None:
                             options.append(("lane change", tac.trajectory, tac.candidate.tf, tac.intrusions))
-                    fs, fs_T = failsafe(live, cr.a_max, followers)
+                    fs, fs_T = failsafe(live, cr.a_max, followers, rear)
                     options.append(("fail-safe", fs, fs_T, intrusions(live, fs, fs_T)))
-                    action, chosen, chosen_T, hits = options[choose(options, followers)]
+                    action, chosen, chosen_T, hits = options[choose(options, followers, rear)]
                     if action == "new plan":
                         traj, t_plan, traj_T = chosen, now, chosen_T
                         edge_plans += 1
