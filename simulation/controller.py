@@ -465,7 +465,7 @@ class Controller:
             t_from = max(tf - 1e-6, 0.0)
         v = verify_trajectory(plan.require_trajectory(), t_from, tf, obstacles,
                               (self.sim.ego_length, self.sim.ego_width), params,
-                              self._lane_centre_at, stop_x, band, self.sim.step)
+                              self._lane_centre_at, stop_x, band, self.sim.step, self.sim.highway.lane_centres_of)
         return ("accepted", v.brake_next) if v.ok else (v.reason, None)
 
     def _continues(self, plan: Plan, ego: EgoState) -> str:

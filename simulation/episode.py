@@ -23,7 +23,7 @@ import numpy as np
 from iamp.core.atomic import atomic_open
 from iamp.core.errors import ScenarioError
 from iamp.simulation.controller import Controller, ControllerConfig
-from iamp.simulation.metrics import StepLog, episode_metrics, percentile_stats
+from iamp.simulation.metrics import StepLog, episode_geometry, episode_metrics, percentile_stats
 from iamp.simulation.missions import EGO_DEPART_M, cooperation_of, courtesy_of, mission_of
 from iamp.simulation.monitor import monitor
 from iamp.simulation.planning import PLANNERS
@@ -155,11 +155,13 @@ def run_episode(spec: EpisodeSpec, *, config: ControllerConfig | None = None) ->
                 driven = False
             sim.advance()
             sumo_s += time.perf_counter() - t_s
+        geometry = episode_geometry(log, (sim.ego_length, sim.ego_width))  # once for both
         metrics = episode_metrics(log, spec.period_s, (sim.ego_length, sim.ego_width),
                                   (cfg.decision.safety_x, cfg.decision.safety_y),
-                                  [(c[0] - t0, c[1], c[2]) for c in sim.collisions])
+                                  [(c[0] - t0, c[1], c[2]) for c in sim.collisions], geometry)
         measured = monitor(log, spec.period_s, (sim.ego_length, sim.ego_width), hw.lane_of, mission.target_lane,
-                           mission.deadline_s, mission.drop_x, [(c[0] - t0, c[1], c[2]) for c in sim.collisions])
+                           mission.deadline_s, mission.drop_x, [(c[0] - t0, c[1], c[2]) for c in sim.collisions],
+                           geometry=geometry)
     finally:
         sim.close()
     assert ctl is not None

@@ -238,15 +238,20 @@ def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequen
 def verify_states(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequence[Obstacle],
                   size: tuple[float, float], params: SafeParams, lane_centre_at: Callable[[float], float],
                   stop_x: float | None = None, stop_band: tuple[float, float] | None = None,
-                  period: float = 0.1) -> Verification:
+                  period: float = 0.1, lane_centres: Callable[[np.ndarray], np.ndarray] | None = None
+                  ) -> Verification:
     """Verify sampled ego states (:func:`feasible_brakes` at every sample; module docstring).
+
+    ``lane_centres``, when given, is ``lane_centre_at`` of a whole array at once (the same floats;
+    e.g. :meth:`iamp.simulation.network.Highway.lane_centres_of`).
 
     Returns
     -------
     Verification
         ``ok`` iff some fail-safe deceleration is safe at every sample.
     """
-    yfs = np.array([lane_centre_at(float(v)) for v in X[:, 2]])
+    yfs = (np.array([lane_centre_at(float(v)) for v in X[:, 2]]) if lane_centres is None
+           else np.asarray(lane_centres(X[:, 2]), dtype=float))
     ok, culprit = feasible_brakes(t, X, ax, others, size, params, yfs, stop_x, stop_band)
     any_ok = ok.any(axis=1)
     B = np.asarray(params.brakes)
@@ -266,7 +271,8 @@ def verify_states(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequence
 def verify_trajectory(trajectory: Any, t_from: float, t_to: float, others: Sequence[Obstacle],
                       size: tuple[float, float], params: SafeParams, lane_centre_at: Callable[[float], float],
                       stop_x: float | None = None, stop_band: tuple[float, float] | None = None,
-                      period: float = 0.1) -> Verification:
+                      period: float = 0.1, lane_centres: Callable[[np.ndarray], np.ndarray] | None = None
+                      ) -> Verification:
     """:func:`verify_states` on a plan's trajectory over ``[t_from, t_to]`` (plan time); the
     others' predictions start at ``t_from`` (they were made now).
 
@@ -278,4 +284,5 @@ def verify_trajectory(trajectory: Any, t_from: float, t_to: float, others: Seque
     tp = np.linspace(t_from, t_to, n)
     X = np.asarray(trajectory.states(tp), dtype=float)
     U = np.asarray(trajectory.inputs(tp), dtype=float)
-    return verify_states(tp - t_from, X, U[:, 0], others, size, params, lane_centre_at, stop_x, stop_band, period)
+    return verify_states(tp - t_from, X, U[:, 0], others, size, params, lane_centre_at, stop_x, stop_band, period,
+                         lane_centres)

@@ -148,6 +148,30 @@ def separation(c1: np.ndarray, L1: float, W1: float, psi1: float, c2: np.ndarray
     return np.asarray(np.max(dist - r1 - r2, axis=1), dtype=float)
 
 
+
+def episode_geometry(log: StepLog, ego_size: tuple[float, float]) -> list[tuple[StepGeometry, np.ndarray]]:
+    """Every :class:`StepGeometry` of :func:`step_geometry` with the oriented bodies' :func:`separation`
+    of that step, computed once for :func:`episode_metrics` and :func:`iamp.simulation.monitor.monitor`
+    (which pass it around instead of each recomputing it).
+
+    Parameters
+    ----------
+    log : StepLog
+    ego_size : (float, float)
+        The ego's length and width [m].
+
+    Returns
+    -------
+    list of (StepGeometry, numpy.ndarray)
+        Per step with a neighbour, in order: its geometry and the separation of each neighbour [m].
+    """
+    E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
+    psi_e = ego_headings(log)
+    return [(g, separation(np.array([E[g.k, 0], E[g.k, 2]]), ego_size[0], ego_size[1], float(psi_e[g.k]),
+                           g.nb[:, :2], g.L, g.W, neighbour_headings(g.nb)))
+            for g in step_geometry(log, ego_size)]
+
+
 def percentile_stats(values: list[float]) -> dict[str, float | None]:
     if not values:
         return {"p50": None, "p95": None, "max": None}
@@ -160,17 +184,16 @@ def _rms(a: np.ndarray) -> float:
 
 
 def episode_metrics(log: StepLog, dt: float, ego_size: tuple[float, float], safety: tuple[float, float],
-                    sumo_collisions: list[tuple[float, str, str]]) -> dict[str, Any]:
-    """The safety and comfort numbers of SPEC §11 (plus a few more) from a step log."""
+                    sumo_collisions: list[tuple[float, str, str]],
+                    geometry: list[tuple[StepGeometry, np.ndarray]] | None = None) -> dict[str, Any]:
+    """The safety and comfort numbers of SPEC §11 (plus a few more) from a step log (``geometry``:
+    :func:`episode_geometry` of the log when the caller has it)."""
     Sx, Sy = safety
     overlapped: set[str] = set()
     intr_steps = 0
     min_gap, min_ttc, min_follower_a = math.inf, math.inf, math.inf
     E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
-    psi_e = ego_headings(log)
-    for g in step_geometry(log, ego_size):
-        sep = separation(np.array([E[g.k, 0], E[g.k, 2]]), ego_size[0], ego_size[1], float(psi_e[g.k]),
-                         g.nb[:, :2], g.L, g.W, neighbour_headings(g.nb))
+    for g, sep in (episode_geometry(log, ego_size) if geometry is None else geometry):
         for j in np.flatnonzero(sep < 0):  # oriented bodies
             overlapped.add(g.ids[j])
         if np.any((np.abs(g.dx) < g.L / 2 + Sx - 1e-3) & (np.abs(g.dy) < g.W / 2 + Sy - 1e-3)):

@@ -55,7 +55,14 @@ import numpy as np
 
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.simulation.decision import limit_violations_of
-from iamp.simulation.metrics import StepLog, ego_headings, neighbour_headings, separation, step_geometry
+from iamp.simulation.metrics import (
+    StepGeometry,
+    StepLog,
+    ego_headings,
+    episode_geometry,
+    neighbour_headings,
+    separation,
+)
 from iamp.simulation.rss import DEFAULT, Motion, PairJudgement, RssParameters, body_extents, judge_pair
 
 #: SUMO's minGap of the ego and the average driver [m].
@@ -177,7 +184,8 @@ def _lanes_at(tr: Tracks, j: int, k: int, ego_y: float, lane_of: Callable[[float
 
 def responsibility(log: StepLog, dt: float, ego_size: tuple[float, float],
                    sumo_collisions: Sequence[tuple[float, str, str]],
-                   lane_of: Callable[[float], int] | None = None, rss: RssParameters = DEFAULT) -> dict[str, Any]:
+                   lane_of: Callable[[float], int] | None = None, rss: RssParameters = DEFAULT,
+                   geometry: list[tuple[StepGeometry, np.ndarray]] | None = None) -> dict[str, Any]:
     """The SPEC §17 measures of an executed episode: oriented contacts, their blame, SUMO's
     disagreements, RSS-dangerous time, the followers' emergency brakes (module docstring).
 
@@ -196,6 +204,8 @@ def responsibility(log: StepLog, dt: float, ego_size: tuple[float, float],
         vehicle is in the ego's path only when their bodies overlap sideways).
     rss : RssParameters
         The judge's parameters (reported under ``rss``).
+    geometry : list, optional
+        :func:`iamp.simulation.metrics.episode_geometry` of the log (computed when omitted).
 
     Returns
     -------
@@ -208,11 +218,9 @@ def responsibility(log: StepLog, dt: float, ego_size: tuple[float, float],
     touched_aa: set[str] = set()
     touched: dict[str, int] = {}  # oriented overlap: first step
     touching: dict[str, set[int]] = {}  # oriented overlap: every step
-    for g in step_geometry(log, ego_size):
+    for g, sep in (episode_geometry(log, ego_size) if geometry is None else geometry):
         for j in np.flatnonzero(g.over):
             touched_aa.add(g.ids[j])
-        sep = separation(np.array([E[g.k, 0], E[g.k, 2]]), ego_size[0], ego_size[1], float(psi_e[g.k]),
-                         g.nb[:, :2], g.L, g.W, neighbour_headings(g.nb))
         for j in np.flatnonzero(sep < 0):
             touched.setdefault(g.ids[j], g.k)
             touching.setdefault(g.ids[j], set()).add(g.k)
@@ -310,7 +318,8 @@ def responsibility(log: StepLog, dt: float, ego_size: tuple[float, float],
 def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Callable[[float], int],
             target_lane: int, deadline_s: float, drop_x: float | None,
             sumo_collisions: Sequence[tuple[float, str, str]], limits: PhysicalLimits = PASSENGER_CAR,
-            lookback_s: float = 5.0, rss: RssParameters = DEFAULT) -> dict[str, Any]:
+            lookback_s: float = 5.0, rss: RssParameters = DEFAULT,
+            geometry: list[tuple[StepGeometry, np.ndarray]] | None = None) -> dict[str, Any]:
     """The §15 and §17 measures of an executed episode (module docstring).
 
     Parameters
@@ -335,6 +344,8 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
         How long before the merge the new follower's braking counts [s].
     rss : RssParameters
         The judge's parameters (reported under ``rss``).
+    geometry : list, optional
+        :func:`iamp.simulation.metrics.episode_geometry` of the log (computed when omitted).
 
     Returns
     -------
@@ -344,14 +355,12 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
     Le = ego_size[0]
     E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
     T = np.asarray(log.t, dtype=float)
-    psi_e = ego_headings(log)
-    judged = responsibility(log, dt, ego_size, sumo_collisions, lane_of, rss)
+    geometry = episode_geometry(log, ego_size) if geometry is None else geometry
+    judged = responsibility(log, dt, ego_size, sumo_collisions, lane_of, rss, geometry)
     contacts = {c["vehicle"] for c in judged["contact_list"]}
     close: set[str] = set()
     min_ttc, ttc_steps = math.inf, 0
-    for g in step_geometry(log, ego_size):
-        sep = separation(np.array([E[g.k, 0], E[g.k, 2]]), ego_size[0], ego_size[1], float(psi_e[g.k]),
-                         g.nb[:, :2], g.L, g.W, neighbour_headings(g.nb))
+    for g, sep in geometry:
         for j in np.flatnonzero(g.lat & (sep >= 0) & (g.gap < MIN_GAP_M)):
             close.add(g.ids[j])
         ttc = g.ttc()

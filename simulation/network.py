@@ -28,6 +28,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from iamp.core.errors import IampError, MissingDependencyError
 
 INSTALL_HINT = "pip install 'iamp[sim]'"
@@ -141,6 +143,24 @@ class Highway:
         """Index of the lane whose band contains ``y`` (clipped to the road)."""
         k = int(self.lanes - 1 - (-y) // self.lane_width)
         return min(max(k, 0), self.lanes - 1)
+
+    def lane_centres_of(self, y: np.ndarray) -> np.ndarray:
+        """``lane_centre(lane_of(y))`` of every element of ``y`` (finite), as one array operation: numpy's
+        floor division and truncation are Python's, so the floats are the same.
+
+        Parameters
+        ----------
+        y : numpy.ndarray
+            Lateral positions [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            The centre of each position's lane [m], the shape of ``y``.
+        """
+        k = (self.lanes - 1 - np.floor_divide(-np.asarray(y, dtype=float), self.lane_width)).astype(np.int64)
+        lane = np.minimum(np.maximum(k, 0), self.lanes - 1)
+        return np.asarray(-(self.lanes - lane - 0.5) * self.lane_width, dtype=float)
 
     def key(self) -> str:
         text = (f"{self.length:.3f}|{self.lanes}|{self.lane_width:.3f}|{self.speed_limit:.3f}|{self.edge}|"

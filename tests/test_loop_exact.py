@@ -112,3 +112,51 @@ def test_rss_distance_of_floats_is_its_array_expression_bit_for_bit(v_r, v_f, rh
     expect = (vr * rho + 0.5 * a_acc * rho**2 + max(vr + rho * a_acc, 0.0) ** 2 / (2 * b_min)
               - max(v_f, 0.0) ** 2 / (2 * b_max))
     assert float(fast) == pytest.approx(max(expect, 0.0), rel=1e-12, abs=1e-9)
+
+
+@settings(max_examples=200, deadline=None)
+@given(ys=st.lists(st.floats(-20.0, 5.0), min_size=1, max_size=50), lanes=st.integers(1, 5),
+       width=st.sampled_from([3.0, 3.2, 3.5, 3.75]))
+def test_lane_centres_of_is_lane_centre_of_lane_of_bit_for_bit(ys, lanes, width):
+    """The vectorised lane centres (the verification's fail-safe lane per sample) equal the scalar ones,
+    boundaries included (a multiple of the lane width and its neighbouring floats)."""
+    from iamp.simulation.network import Highway
+
+    hw = Highway(lanes=lanes, lane_width=width)
+    edges = [-k * width for k in range(lanes + 2)]
+    y = np.array(ys + edges + [float(np.nextafter(e, 1.0)) for e in edges] + [-0.0])
+    got = hw.lane_centres_of(y)
+    expect = np.array([hw.lane_centre(hw.lane_of(float(v))) for v in y])
+    assert got.tobytes() == expect.tobytes()
+    assert np.all(np.abs(got - np.clip(y, -lanes * width + width / 2, -width / 2)) <= width / 2 + 1e-12)
+
+
+def test_monitor_with_the_shared_geometry_equals_the_monitor_without_it():
+    """run_episode computes the oriented separations once (metrics.episode_geometry) for the metrics and
+    the monitor; both give what they give when they compute them themselves."""
+    from iamp.simulation.metrics import StepLog, episode_geometry, episode_metrics
+    from iamp.simulation.monitor import monitor
+
+    dt = 0.1
+    log = StepLog()
+    for k in range(60):
+        t = k * dt
+        log.t.append(t)
+        log.ego.append((20.0 * t, 20.0, -5.625 + min(t, 3.0) * 1.25, 1.25 if t < 3 else 0.0, 0.0, 0.0))
+        log.ids.append(("a", "b"))
+        log.nb.append(np.array([[20.0 * t + 8.0 - 0.5 * t, -1.875, 19.5, 0.0, 1, 4.6, 1.8, 0.0],
+                                [20.0 * t - 9.0 + 0.8 * t, -1.875, 20.8, 0.0, 1, 4.6, 1.8, 0.02]]))
+        log.mode.append("active")
+        log.plan_time.append(float("nan"))
+        log.ego_heading.append(0.06 if t < 3 else 0.0)
+
+    def lane(y: float) -> int:
+        return 0 if y < -3.75 else 1
+
+    geo = episode_geometry(log, (4.8, 1.8))
+    assert len(geo) == 60 and all(sep.shape == (2,) for _, sep in geo)
+    shared = episode_metrics(log, dt, (4.8, 1.8), (3.5, 1.2), [], geo)
+    assert shared == episode_metrics(log, dt, (4.8, 1.8), (3.5, 1.2), [])
+    with_geo = monitor(log, dt, (4.8, 1.8), lane, 1, 30.0, None, [], geometry=geo)
+    assert with_geo == monitor(log, dt, (4.8, 1.8), lane, 1, 30.0, None, [])
+    assert min(float(sep.min()) for _, sep in geo) < 0.0 and with_geo["contacts"] == 1  # the follower is touched
