@@ -127,6 +127,13 @@ class Solved:
     solves: int = 1
     #: the spec's imposed rows, their bounds and layout numbers (:meth:`ContinuousAvoidQP.spec_rows`)
     rows: tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]] | None = field(default=None, repr=False)
+    _traj: HoldTrajectory | None = field(default=None, repr=False)
+
+    def trajectory(self) -> HoldTrajectory:
+        """The trajectory of :attr:`z` (built once)."""
+        if self._traj is None:
+            self._traj = self.qp.trajectory(self.z)
+        return self._traj
 
     def spec_rows(self) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
         """:meth:`ContinuousAvoidQP.spec_rows` of :attr:`spec` (kept from the solve)."""
@@ -220,6 +227,7 @@ class ContinuousAvoidQP:
         #: per vehicle and half-plane: σ M (row values of a full piece) of every piece, every full
         #: piece's bounds
         self._full_vals: dict[tuple[int, int], FloatArray] = {}
+        self._splits: dict[tuple[int, int, int, float, float], tuple[FloatArray, FloatArray]] = {}
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
         #: the values, bounds and imposed rows of a spec that imposes no Bernstein row
         self._empty = (np.r_[np.zeros(4 * self.n_b), self._lim_data], np.r_[np.ones(self.n_b), self.u_lim],
@@ -240,6 +248,20 @@ class ContinuousAvoidQP:
             beta = np.full(self.degree + 1, float(v.y))
             half = v.width / 2 + v.safety_y
         return np.asarray(hp.sigma * beta - half + ROW_TOL_M, dtype=float)
+
+    def _split(self, i: int, plane: int, k: int, l0: float, l1: float) -> tuple[FloatArray, FloatArray]:
+        """The row values (``σ M``, raveled) and bounds of vehicle ``i``'s half-plane ``plane`` on
+        the sub-piece ``[λ0, λ1]`` of piece ``k`` (computed once per plan: a box's ends recur in
+        its children, candidates and relaxations)."""
+        key = (i, plane, k, l0, l1)
+        out = self._splits.get(key)
+        if out is None:
+            hp = self.data.planes[i][plane]
+            t0 = float(self.data.t_nodes[k])
+            out = (hp.sigma * piece_matrix(self.h, l0, l1, self.degree).ravel(),
+                   self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h))
+            self._splits[key] = out
+        return out
 
     def segment_pieces(self, ta: float, tb: float) -> list[tuple[int, float, float]]:
         """The pieces ``(k, λ0, λ1)`` of ``[ta, tb]`` (local coordinates ``λ ∈ [0, 1]`` of piece
@@ -275,7 +297,6 @@ class ContinuousAvoidQP:
             for plane, (ta, tb) in ((first, (0.0, a)), (second, (b, self.tf))):
                 if (plane == first and a <= 0.0) or (plane == second and b >= self.tf):
                     continue
-                hp = self.data.planes[i][plane]
                 base = (i * 2 + plane) * self.N * n
                 pieces = self.segment_pieces(ta, tb)
                 full = [k for k, l0, l1 in pieces if l0 == 0.0 and l1 == 1.0]
@@ -289,9 +310,9 @@ class ContinuousAvoidQP:
                     if l0 == 0.0 and l1 == 1.0:
                         continue
                     r0 = base + k * n
-                    vals[4 * r0:4 * (r0 + n)] = hp.sigma * piece_matrix(self.h, l0, l1, self.degree).ravel()
-                    t0 = float(self.data.t_nodes[k])
-                    rhs[r0:r0 + n] = self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h)
+                    v, c = self._split(i, plane, k, l0, l1)
+                    vals[4 * r0:4 * (r0 + n)] = v
+                    rhs[r0:r0 + n] = c
                     on[r0:r0 + n] = True
         return vals, rhs, on
 
@@ -444,12 +465,13 @@ class ContinuousAvoidPlanner:
         """Per vehicle, the ``τ`` in its box where the relaxed optimum best keeps the first
         half-plane before and the second after (a max-min of margins on 33 samples), and that
         margin (negative: the relaxed optimum breaks vehicle ``i``'s constraint in the box)."""
-        traj = qp.trajectory(box.relaxed.z)
+        traj = box.relaxed.trajectory()
         out = np.empty(len(box.orders))
         worst = np.empty(len(box.orders))
-        for i, ((f, s), a, b) in enumerate(zip(box.orders, box.lo, box.hi)):
-            t = np.linspace(a, b, 33)
-            X = traj.states(t)
+        T = np.linspace(box.lo, box.hi, 33, axis=1)  # (m, 33): every vehicle's samples at once
+        XT = traj.states(T.ravel()).reshape(T.shape[0], 33, -1)
+        for i, (f, s) in enumerate(box.orders):
+            t, X = T[i], XT[i]
             planes = qp.data.planes[i]
             mf = planes[f].margin(t, X[:, 2 * f])
             ms = planes[s].margin(t, X[:, 2 * s])

@@ -41,7 +41,7 @@ inside the box) falls off linearly in the box's width.  A round-off margin
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -103,6 +103,8 @@ class DualPolynomial:
     coef: FloatArray
     h: float
     mass: FloatArray
+    #: :meth:`lower_bound` per box (its local intervals ``(λ_a, λ_b)``), computed once
+    _bounds: dict[tuple[tuple[float, float], ...], float] = field(default_factory=dict, compare=False, repr=False)
 
     def _lam(self, lo: FloatArray, hi: FloatArray) -> list[tuple[float, float]]:
         out = []
@@ -116,15 +118,21 @@ class DualPolynomial:
         """A lower bound of ``g`` (hence of every ``J(τ)``) over the box ``lo <= τ <= hi`` (a
         sub-box of the box the polynomial was built for): its smallest tensor Bernstein coefficient
         on the box, less the round-off margin."""
+        key = tuple(self._lam(lo, hi))
+        out = self._bounds.get(key)
+        if out is not None:
+            return out
         T = self.coef
         deg = T.shape[0] - 1 if T.ndim else 0
         B0 = _power_to_bernstein(deg) if T.ndim else None
-        for axis, (a, b) in enumerate(self._lam(lo, hi)):
+        for axis, (a, b) in enumerate(key):
             assert B0 is not None
             B = B0 @ reparametrise(deg, a, b - a)
             T = np.moveaxis(np.tensordot(B, T, axes=([1], [axis])), 0, axis)
         m = float(np.min(T))
-        return m - ROUND_OFF_REL * max(1.0, abs(m))
+        out = m - ROUND_OFF_REL * max(1.0, abs(m))
+        self._bounds[key] = out
+        return out
 
     def evaluate(self, taus: FloatArray) -> FloatArray:
         """``g`` at the crossing times ``taus`` (shape ``(n, m)``; every polynomial vehicle's
@@ -208,8 +216,10 @@ class DualBounds:
         """
         qp, d = self.qp, self.qp.data
         N, nb, h, D = qp.N, self.nb, qp.h, qp.degree
-        A_in, u_in, ids = sol.spec_rows()
-        y = np.maximum(sol.y[d.n_eq:], 0.0)
+        A_in, u_in, ids_all = sol.spec_rows()
+        y_all = sol.y[d.n_eq:]
+        nz = np.flatnonzero(y_all > 0)  # only rows with a positive multiplier enter g
+        y, ids = y_all[nz], ids_all[nz]
         bern = ids < qp.n_b
         blk = np.where(bern, ids // (N * nb), -1)
         veh, plane = blk // 2, blk % 2
@@ -231,26 +241,29 @@ class DualBounds:
         q = len(poly_vehicles)
         C = 1 + q * D  # basis: 1, then λ_i^p (p = 1..D) per polynomial vehicle
         R = np.zeros((d.n + d.n_eq, C))
-        y_keep = np.where(keep, y, 0.0)
-        R[:d.n, 0] = -(A_in.T @ y_keep)
+        # -A_keepᵀ y_keep from the CSR arrays of the kept rows
+        rows_k, y_k = nz[keep], y[keep]
+        start, lens = A_in.indptr[rows_k], np.diff(A_in.indptr)[rows_k]
+        take = np.repeat(start - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(int(lens.sum()))
+        R[:d.n, 0] = -np.bincount(A_in.indices[take], weights=A_in.data[take] * np.repeat(y_k, lens),
+                                  minlength=d.n)
         R[d.n:, 0] = d.b_eq
         hc = np.zeros(C)
-        hc[0] = float(y_keep @ u_in)
+        hc[0] = float(y_k @ u_in[rows_k])
         for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
             f, s = sol.spec[i][0], sol.spec[i][1]
             for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
                 rows = bern & (veh == i) & (plane == pl) & (piece == k)
+                if not rows.any():
+                    continue
                 yj = np.zeros(nb)
                 yj[j[rows]] = y[rows]
-                if not yj.any():
-                    continue
                 sigma = d.planes[i][pl].sigma
                 cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
                 rhs = self._rhs_poly(i, pl, k, pre)
-                for p in range(D + 1):
-                    c = 0 if p == 0 else 1 + v * D + p - 1
-                    R[cols, c] -= sigma * (yj @ M[p])
-                    hc[c] += float(yj @ rhs[p])
+                cs = np.r_[0, 1 + v * D + np.arange(D)]  # the basis columns of λ_i^0..λ_i^D
+                R[np.ix_(cols, cs)] -= sigma * (yj @ M).T
+                hc[cs] += rhs @ yj
         X = self.lu.solve(R)
         Z, nu = X[:d.n], X[d.n:]
         G = Z.T @ (self.P @ Z)
@@ -267,7 +280,7 @@ class DualBounds:
             np.add.at(coef, tuple(exps.T), -lin)
             pairs = (exps[:, None, :] + exps[None, :, :]).reshape(C * C, q)
             np.add.at(coef, tuple(pairs.T), -0.5 * G.ravel())
-        mass = np.array([float(np.sum(y[bern & (veh == i)])) for i in range(len(sol.spec))])
+        mass = np.bincount(veh[bern], weights=y[bern], minlength=len(sol.spec)).astype(float)
         return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, mass)
 
 

@@ -57,6 +57,11 @@ INFEASIBLE_REL = 1e-13
 #: is at least the reported ``bound`` (internal to the search, never a plan's status).
 CUTOFF = "cutoff"
 
+#: A warm start whose working rows' Schur complement is not positive definite, or whose squared
+#: Cholesky pivots spread by more than this factor (a lower bound of its condition number), is
+#: dropped (the solve starts from the equality optimum).
+WARM_COND = 1e10
+
 #: The largest KKT residual (:meth:`SchurActiveSet.residual`) of a solution reported ``optimal``;
 #: beyond it the solve reports ``numerical_error`` (and the search solves that QP by the backend).
 CHECK_TOL = 1e-7
@@ -153,7 +158,7 @@ class SchurActiveSet:
             equality rows' multipliers, then one per row of ``A_in`` (OSQP's convention
             ``Pz + Aᵀy = 0``); ``solves`` is 1.
         """
-        A_in = sp.csr_matrix(A_in)
+        A_in = A_in if isinstance(A_in, sp.csr_matrix) else sp.csr_matrix(A_in)
         u = np.asarray(u_in, dtype=float)
         n_in = u.size
         ws = _Working(self, A_in, u)
@@ -298,20 +303,23 @@ class _Working:
             self._exact()
 
     def warm(self, seed: NDArray[np.int64]) -> None:
-        """A dual-feasible start from the rows ``seed`` held as equalities (each joins when it is
-        independent of the rows before it); then negative multipliers leave."""
+        """A dual-feasible start from the rows ``seed`` held as equalities, then negative
+        multipliers leave; when they are not independent (``S`` singular or ill-conditioned), the
+        start is the equality optimum instead."""
         for r in seed:
-            r = int(r)
-            g, w = self._dense(r)
-            gw = float(g @ w)
-            if not gw > 0.0:  # a combination of the equality rows
-                continue
-            if self.k:
-                col = self.G @ w
-                if gw - float(col @ np.linalg.solve(self.S, col)) <= 1e-6 * gw:
-                    continue
-            self._push(r, g, w, 0.0)
-        self._dual_feasible()
+            g, w = self._dense(int(r))
+            self._push(int(r), g, w, 0.0)
+        try:
+            if self.k:  # Cholesky's pivots bound the condition number from below
+                piv = np.diag(np.linalg.cholesky(self.S)) ** 2
+                if not float(np.min(piv)) * WARM_COND > float(np.max(piv)):
+                    raise np.linalg.LinAlgError("ill-conditioned start")
+            self._dual_feasible()
+        except np.linalg.LinAlgError:
+            self.k = 0
+            self.rows = []
+            self.lam = np.zeros(0)
+            self.z = self.solver.z0.copy()
 
     def add(self, p: int, budget: int) -> tuple[str, int]:
         """Goldfarb–Idnani steps until row ``p`` binds (module docstring); the status and steps."""
