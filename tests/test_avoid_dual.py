@@ -194,3 +194,32 @@ def test_every_stored_polynomial_bounds_j_on_its_whole_region(solver):
             assert dp.lower_bound(t, t) <= sol.cost * (1 + 1e-9) + 1e-9
             checked += 1
     assert checked >= 4
+
+
+@pytest.mark.parametrize("three", [False, True])
+def test_the_envelope_gradient_is_the_piece_polynomials_slope(three):
+    """:meth:`DualBounds.gradient` (the envelope theorem on the split piece's rows, used by the
+    final secant search) equals the slope of the candidate's piece polynomial at its crossing
+    times, and a central difference of ``J`` where ``J`` is smooth."""
+    from iamp.planners.avoid.continuous import _spec
+    from iamp.planners.avoid.dual import DualStore
+    from iamp.planners.examples import overtake_three_problem
+
+    prob = overtake_three_problem() if three else overtake_problem()
+    qp = ContinuousAvoidQP(prob, 30, "foh", "clarabel")
+    store = DualStore(DualBounds(qp))
+    orders = [(1, 0), (0, 1), (0, 1)][:prob.m]
+    centres = ([3.71, 1.86, 3.6], [3.66, 1.9, 4.4]) if three else ([3.71], [3.55])
+    for c in centres:
+        tau = np.array(c)
+        sol = qp.solve(_spec(orders, tau, tau))
+        assert sol.status == st.OPTIMAL
+        grad = store.dual.gradient(sol)
+        dp = store.piece(sol)
+        slope = np.array([dp.slope(tau, i) for i in range(prob.m)])
+        np.testing.assert_allclose(grad, slope, rtol=1e-9, atol=1e-9)
+        for i in np.flatnonzero(np.abs(grad) > 1e-6):
+            e = np.zeros(prob.m)
+            e[i] = 1e-5
+            up, down = qp.solve(_spec(orders, tau + e, tau + e)), qp.solve(_spec(orders, tau - e, tau - e))
+            assert grad[i] == pytest.approx((up.cost - down.cost) / 2e-5, rel=1e-3, abs=1e-6)

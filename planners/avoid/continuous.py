@@ -730,10 +730,10 @@ class ContinuousAvoidPlanner:
         return out, out_tau
 
     def _gradient(self, store: DualStore, sol: Solved, tau: FloatArray) -> FloatArray:
-        """``∂J/∂τ`` at the candidate ``sol`` (crossing times ``tau``), from its piece polynomial
-        (:meth:`~iamp.planners.avoid.dual.DualStore.piece`, :meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`)."""
-        dp = store.piece(sol)
-        return np.array([dp.slope(tau, i) for i in range(tau.size)])
+        """``∂J/∂τ`` at the candidate ``sol`` (crossing times ``tau``): the slope of its piece
+        polynomial at ``tau``, by the envelope theorem (:meth:`~iamp.planners.avoid.dual.DualBounds.gradient`;
+        ``tests/test_avoid_dual.py`` checks it against :meth:`~iamp.planners.avoid.dual.DualPolynomial.slope`)."""
+        return store.dual.gradient(sol)
 
     def plan(self, problem: Problem) -> Plan:
         """Search the crossing times, solve, verify (module docstring)."""

@@ -199,6 +199,47 @@ class DualBounds:
             self._rhs[key] = _fit(vals, qp.degree)
         return self._rhs[key]
 
+    def gradient(self, sol: Solved) -> FloatArray:
+        r"""``∂J/∂τ`` at the candidate ``sol`` (its ``spec`` has ``a = b = τ_c``), by the envelope
+        theorem: only the rows of the piece split at :math:`\tau_i` depend on :math:`\tau_i`, so
+        :math:`\partial J/\partial\tau_i = \sum_r y_r\, \partial_{\tau_i}(a_r(\tau) z - u_r(\tau))`
+        with the candidate's ``z`` and multipliers ``y`` — the slope of its piece polynomial at
+        :math:`\tau_c` (:meth:`DualPolynomial.slope`) without building it.
+
+        Returns
+        -------
+        ndarray, shape (m,)
+        """
+        qp, d = self.qp, self.qp.data
+        N, nb, h, D = qp.N, self.nb, qp.h, qp.degree
+        _, _, ids_all = sol.spec_rows()
+        y_all = sol.y[d.n_eq:]
+        nz = np.flatnonzero(y_all > 0)
+        y, ids = y_all[nz], ids_all[nz]
+        bern = ids < qp.n_b
+        blk = np.where(bern, ids // (N * nb), -1)
+        veh, plane = blk // 2, blk % 2
+        piece, j = (ids // nb) % N, ids % nb
+        out = np.zeros(len(sol.spec))
+        dpow = np.arange(1, D + 1)
+        for i, (f, s, a, _) in enumerate(sol.spec):
+            k = piece_of(float(a), float(a), h, N)
+            assert k is not None
+            lam = (float(a) - k * h) / h
+            basis = dpow * lam ** (dpow - 1)  # d/dλ of λ^p, p = 1..D
+            for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
+                rows = bern & (veh == i) & (plane == pl) & (piece == k)
+                if not rows.any():
+                    continue
+                yj = np.zeros(nb)
+                yj[j[rows]] = y[rows]
+                sigma = d.planes[i][pl].sigma
+                cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
+                dM = np.tensordot(basis, M[1:], axes=(0, 0))  # (nb, 4)
+                drhs = basis @ self._rhs_poly(i, pl, k, pre)[1:]  # (nb,)
+                out[i] += float(yj @ (sigma * (dM @ sol.z[cols]) - drhs)) / h
+        return out
+
     def polynomial(self, sol: Solved, lo: FloatArray, hi: FloatArray) -> DualPolynomial:
         """The dual bound ``g(y; τ)`` over the box ``[lo, hi]`` of the solved candidate ``sol``
         (its crossing times in the box), as a polynomial (module docstring).
@@ -312,6 +353,7 @@ class DualStore:
         self._lo: list[FloatArray] = []
         self._hi: list[FloatArray] = []
         self._polys: list[DualPolynomial] = []
+        self._arrays: tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.int64]] | None = None
 
     def piece(self, sol: Solved) -> DualPolynomial:
         """The piece polynomial of the optimal candidate ``sol`` (computed once per spec; its
@@ -335,9 +377,12 @@ class DualStore:
     def valid(self, orders: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray) -> list[DualPolynomial]:
         """The stored polynomials that bound every crossing in the box ``[lo, hi]`` with
         ``orders`` (each binding vehicle in its polynomial's piece and order)."""
-        out = []
-        for o, binds, a, b, dp in zip(self._orders, self._binds, self._lo, self._hi, self._polys):
-            if np.all(lo >= a) and np.all(hi <= b) and all(
-                    o[i] == orders[i] for i in np.flatnonzero(binds)):
-                out.append(dp)
-        return out
+        if not self._polys:
+            return []
+        if self._arrays is None or self._arrays[0].shape[0] != len(self._polys):
+            self._arrays = (np.array(self._lo), np.array(self._hi), np.array(self._binds),
+                            np.array(self._orders, dtype=np.int64))
+        LO, HI, B, O = self._arrays
+        same = np.all(O == np.asarray(orders, dtype=np.int64)[None], axis=2)
+        ok = np.all(lo >= LO, axis=1) & np.all(hi <= HI, axis=1) & np.all(same | ~B, axis=1)
+        return [self._polys[int(c)] for c in np.flatnonzero(ok)]
