@@ -118,3 +118,28 @@ def test_the_node_solver_plan_equals_the_backend_only_plan():
     assert fast.cost == pytest.approx(slow.cost, rel=1e-9)
     assert fast.info["node_solver"]["backend_solves"] == 1
     assert slow.info["node_solver"]["backend_solves"] == slow.info["n_solves"]
+
+
+@settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
+@given(st_h.floats(20.0, 40.0), st_h.floats(6.0, 14.0), st_h.floats(-30.0, -10.0), st_h.booleans())
+def test_generated_three_vehicle_plans_equal_the_backend_only_search(x2, v2, x3, limits):
+    """Generated three-vehicle problems (the slow vehicle ahead and the fast one behind moved):
+    the search on the node solver and the search with every QP by Clarabel reach the same
+    status and cost, and each plan's lower bound brackets the other's cost within the gap."""
+    import dataclasses
+
+    base = overtake_three_problem(limits)
+    vs = list(base.vehicles)
+    vs[1] = dataclasses.replace(vs[1], x_poly=(x2, v2))
+    vs[2] = dataclasses.replace(vs[2], x_poly=(x3, 26.0))
+    prob = base.with_vehicles(vs)
+    try:
+        fast = ContinuousAvoidPlanner(steps=12).plan(prob)
+        slow = ContinuousAvoidPlanner(steps=12, node_solver="backend").plan(prob)
+    except ScenarioError:
+        assume(False)
+    assert fast.status == slow.status, (fast.status, slow.status)
+    assume(fast.status == st.OPTIMAL)
+    assert fast.cost == pytest.approx(slow.cost, rel=1e-8)
+    for a, b in ((fast, slow), (slow, fast)):
+        assert a.info["search"]["lower_bound"] <= b.cost * (1 + 1e-8)
