@@ -224,14 +224,15 @@ class Controller:
             vals = self.predictor.predict_batch(t_h, X, q, tf, cubic=True)
             V = np.vander(q, 4, increasing=True)
             C = np.linalg.solve(V, vals.T)  # (4, B)
-            for j, it in enumerate(same):
-                polys[it[0]] = tuple(float(c) for c in C[:, j])
+            for it, row in zip(same, C.T.tolist()):  # Python floats, as float() of each
+                polys[it[0]] = tuple(row)
             for it in rest:  # pragma: no cover - histories with other sample times
                 vals1 = self.predictor.predict_batch(it[1], it[2][None, :], q, tf, cubic=True)
                 polys[it[0]] = tuple(float(c) for c in np.linalg.solve(V, vals1[0]))
         self.n.prediction_s += time.perf_counter() - start
-        return [Neighbour(obs.ids[k], polys[k], float(obs.y[k]), float(obs.length[k]), float(obs.width[k]),
-                          int(obs.lane[k]), self._vy(obs.ids[k], float(obs.y[k]))) for k in near]
+        y, length, width, lane = obs.y.tolist(), obs.length.tolist(), obs.width.tolist(), obs.lane.tolist()
+        return [Neighbour(obs.ids[k], polys[k], y[k], length[k], width[k], lane[k], self._vy(obs.ids[k], y[k]))
+                for k in near]
 
     def _vy(self, vid: str, y: float) -> float:
         """The neighbour's lateral speed from its last observed ``y`` (0 below 0.1 m/s)."""

@@ -178,6 +178,27 @@ def rss_distance(v_r: npt.ArrayLike, v_f: npt.ArrayLike, rho: npt.ArrayLike, a_a
     return np.asarray(np.maximum(d, 0.0), dtype=float)
 
 
+def safe_longitudinal_float(v_rear: float, v_front: float, p: RssParameters = DEFAULT) -> float:
+    """``float(safe_longitudinal_distance(v_rear, v_front, p))`` of two speeds (the same float; the
+    tactical layer's many scalar questions skip the array wrapping).
+
+    Parameters
+    ----------
+    v_rear, v_front : float
+        Longitudinal speeds [m/s].
+    p : RssParameters
+
+    Returns
+    -------
+    float
+        The RSS distance [m].
+    """
+    args = (v_rear, v_front, p.response_time_s, p.accel_max, p.brake_min, p.brake_max)
+    if all(isinstance(z, float) for z in args):
+        return _rss_scalar(*(float(z) for z in args))
+    return float(rss_distance(*args))
+
+
 def safe_longitudinal_distance(v_rear: npt.ArrayLike, v_front: npt.ArrayLike,
                                p: RssParameters = DEFAULT) -> FloatArray:
     """RSS's safe longitudinal distance of a rear car behind a front car, same direction.

@@ -50,7 +50,7 @@ from iamp.core.problem import EgoBoundary
 from iamp.simulation.decision import REACH, DecisionConfig, EgoNow, Gap, Neighbour
 from iamp.simulation.failsafe import SafeParams
 from iamp.simulation.mobil import IDM
-from iamp.simulation.rss import safe_longitudinal_distance
+from iamp.simulation.rss import safe_longitudinal_distance, safe_longitudinal_float
 
 __all__ = [
     "TacticalConfig",
@@ -117,11 +117,11 @@ def safe_interval(ego: EgoNow, gap: Gap, v: float, T: float, cfg: TacticalConfig
     lo, hi = -np.inf, np.inf
     if gap.follower is not None:
         f = gap.follower
-        d = float(safe_longitudinal_distance(f.v(T), v, p.rss))
+        d = safe_longitudinal_float(f.v(T), v, p.rss)
         lo = f.x(T) + (f.length + ego.length) / 2 + d + p.margin_x
     if gap.leader is not None:
         ld = gap.leader
-        d = float(safe_longitudinal_distance(v, ld.v(T), p.rss))
+        d = safe_longitudinal_float(v, ld.v(T), p.rss)
         hi = ld.x(T) - (ld.length + ego.length) / 2 - d - p.margin_x
     return lo, hi
 
@@ -147,8 +147,13 @@ def slot_length(v_follower: float, v_leader: float, ego_length: float, cfg: Tact
 
 
 def gap_speed(ego: EgoNow, gap: Gap, T: float) -> float:
+    """The mean predicted speed of the gap's vehicles at ``T`` (the ego's speed for an empty gap)."""
     speeds = [n.v(T) for n in (gap.follower, gap.leader) if n is not None]
-    return float(np.mean(speeds)) if speeds else ego.vx
+    if not speeds:
+        return ego.vx
+    if all(s != 0 for s in speeds):  # np.mean's float without the array (its sum starts at +0: zeros differ)
+        return float(speeds[0]) if len(speeds) == 1 else float((speeds[0] + speeds[1]) / 2)
+    return float(np.mean(speeds))
 
 
 def continuing_end(ego: EgoNow, a0: float, T: float, vxf: float) -> float:
@@ -322,7 +327,7 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
     if leader is not None:
         gap = leader.x(0.0) - ego.x - (leader.length + ego.length) / 2
         acc.append(idm.accel(ego.vx, rss_follow_gap(gap, ego.vx, leader.v(0.0), cfg), leader.v(0.0)))
-        if gap < float(safe_longitudinal_distance(ego.vx, leader.v(0.0), cfg.safe.rss)):
+        if gap < safe_longitudinal_float(ego.vx, leader.v(0.0), cfg.safe.rss):
             acc.append(-cfg.safe.rss.brake_min)  # RSS's proper response of the rear car
     if stop_x is not None:
         acc.append(lane_end_accel(ego.vx, stop_x - cfg.end_room_m - ego.x - ego.length / 2, cfg))
@@ -390,7 +395,7 @@ def rss_follow_gap(gap: float, v: float, v_leader: float, cfg: TacticalConfig) -
         ``gap - max(0, d_RSS(v, v_l) + margin_x - v T)`` [m].
     """
     p = cfg.safe
-    d = float(safe_longitudinal_distance(v, v_leader, p.rss)) + p.margin_x
+    d = safe_longitudinal_float(v, v_leader, p.rss) + p.margin_x
     return gap - max(0.0, d - max(v, 0.0) * cfg.idm.T)
 
 
@@ -418,13 +423,13 @@ def rss_regions(ego: EgoNow, cfg: TacticalConfig) -> Callable[[Neighbour, str, E
 
     def region(n: Neighbour, role: str, b: EgoBoundary) -> float:
         if role == "follower":
-            d = float(safe_longitudinal_distance(n.v(b.tf), b.vxf, p.rss))
+            d = safe_longitudinal_float(n.v(b.tf), b.vxf, p.rss)
             room = b.xf - n.x(b.tf) - n.length / 2 - 0.5
         elif role == "leader":
-            d = float(safe_longitudinal_distance(b.vxf, n.v(b.tf), p.rss))
+            d = safe_longitudinal_float(b.vxf, n.v(b.tf), p.rss)
             room = n.x(b.tf) - n.length / 2 - b.xf - 0.5
         else:
-            d = float(safe_longitudinal_distance(b.vx0, n.v(0.0), p.rss))
+            d = safe_longitudinal_float(b.vx0, n.v(0.0), p.rss)
             room = np.inf
         return float(max(min(ego.length / 2 + p.margin_x + d, room), 0.0))
 

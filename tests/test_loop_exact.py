@@ -160,3 +160,32 @@ def test_monitor_with_the_shared_geometry_equals_the_monitor_without_it():
     with_geo = monitor(log, dt, (4.8, 1.8), lane, 1, 30.0, None, [], geometry=geo)
     assert with_geo == monitor(log, dt, (4.8, 1.8), lane, 1, 30.0, None, [])
     assert min(float(sep.min()) for _, sep in geo) < 0.0 and with_geo["contacts"] == 1  # the follower is touched
+
+
+@settings(max_examples=200, deadline=None)
+@given(v_r=st.one_of(st.floats(-5, 45), st.integers(0, 40), st.sampled_from([0.0, -0.0])),
+       v_f=st.one_of(st.floats(-5, 45), st.integers(0, 40)), brake_min=st.sampled_from([4.0, 4, 3.3]))
+def test_safe_longitudinal_float_is_the_float_of_the_array_function(v_r, v_f, brake_min):
+    from iamp.simulation.rss import RssParameters, safe_longitudinal_distance, safe_longitudinal_float
+
+    p = RssParameters(brake_min=brake_min)
+    got = safe_longitudinal_float(v_r, v_f, p)
+    assert isinstance(got, float)
+    assert np.float64(got).tobytes() == np.float64(float(safe_longitudinal_distance(v_r, v_f, p))).tobytes()
+
+
+@settings(max_examples=300, deadline=None)
+@given(speeds=st.lists(st.one_of(st.floats(-40, 40), st.sampled_from([0.0, -0.0, 5e-324])), min_size=0, max_size=2),
+       ego_v=st.floats(0, 40))
+def test_gap_speed_is_numpy_mean_bit_for_bit(speeds, ego_v):
+    """The gap's speed (the tactical layer's aim and end speeds) is np.mean of the predicted speeds, signed
+    zeros included (numpy's sum starts at +0)."""
+    from iamp.simulation.decision import EgoNow, Gap, Neighbour
+    from iamp.simulation.tactical import gap_speed
+
+    cars = [Neighbour(f"v{i}", (10.0 * i, v, 0.0, 0.0), -1.875, 4.6, 1.8, 1) for i, v in enumerate(speeds)]
+    gap = Gap(cars[0] if cars else None, cars[1] if len(cars) > 1 else None)
+    ego = EgoNow(0.0, ego_v, -5.625, 0.0, 4.8, 1.8)
+    got = gap_speed(ego, gap, 0.0)
+    expect = float(np.mean([n.v(0.0) for n in cars])) if cars else ego_v
+    assert np.float64(got).tobytes() == np.float64(expect).tobytes()
