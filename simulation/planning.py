@@ -21,9 +21,11 @@ current-lane leader, each with its paper corner.
 * ``mobil`` and ``sumo`` — no iamp planner (:mod:`iamp.simulation.mobil`, SUMO's LC2013).
 
 Every problem carries :data:`~iamp.core.physical.PASSENGER_CAR` as ``Problem.limits``
-(:mod:`iamp.simulation.decision`), and every planner plans **with** them (issue 32 item 5: no
+(:mod:`iamp.simulation.decision`), and every registry planner plans **with** them (issue 32 item 5: no
 planner is handed the problem without its limits; the decision layer's own check of the plan's
-peaks stays, as an independent test).
+peaks stays, as an independent test).  ``free`` and a problem with no vehicle left are the
+unconstrained cubic below: the tactical layer plans only ends whose cubic keeps the ``a_x`` bounds
+(:func:`iamp.simulation.tactical.within_reach`), the decision layer rejects one beyond the others.
 
 With no vehicle left to constrain (every constraint met or no neighbour), every iamp planner
 returns the unconstrained optimum, a cubic per axis (:class:`iamp.core.free.FreeTrajectory`): with
