@@ -84,10 +84,11 @@ from iamp.planners.pmp.saturated import (
     AxisNoConvergence,
     AxisSolution,
     contact_points,
+    interval_terms,
     solve_axis,
     solve_axis_value,
 )
-from iamp.planners.pmp.saturated_kernel import POINT_WIDTH
+from iamp.planners.pmp.saturated_kernel import INTERVAL_WIDTH, POINT_WIDTH, free_measure
 from iamp.planners.pmp.verify import HJUMP_FLOOR
 
 FloatArray = npt.NDArray[np.float64]
@@ -412,6 +413,8 @@ def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertifi
     stack: deque[tuple[FloatArray, FloatArray]] = deque()  # breadth first: a feasible region shows early
     for idx in np.ndindex(*([per_axis] * m)):
         stack.append((np.array([edges[j] for j in idx]), np.array([edges[j + 1] for j in idx])))
+    if m == 1:
+        return _cover_one(problem, max_solves, edges, lip)
     solves = boxes = 0
     while stack:
         a, b = stack.popleft()
@@ -450,6 +453,57 @@ def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertifi
         mid_b, mid_a = b.copy(), a.copy()
         mid_b[i] = mid_a[i] = t[i]
         stack += [(a, mid_b), (mid_a, b)]
+    return InfeasibilityCertificate(True, None, boxes, solves)
+
+
+def _cover_one(problem: Problem, max_solves: int, edges: list[float], lip: list[list[float]]
+               ) -> InfeasibilityCertificate:
+    """:func:`_cover_infeasible` for one vehicle, one breadth-first level of intervals at a
+    time: both axes at every centre of a level in one kernel call
+    (:func:`~iamp.planners.pmp.saturated.contact_points`, cold starts, with the Farkas test of
+    :func:`~iamp.planners.pmp.saturated.solve_axis` where an axis does not converge), then the
+    intervals read in order with the decisions, counters and budget of the general loop (an
+    axis counts as a solve where that loop solves it: the second axis of an interval the first
+    covers is solved in the same call but not counted).  The same numbers as the general loop:
+    a feasible interval is one whose two axes converge."""
+    veh, ego = problem.vehicles[0], problem.ego
+    T = float(problem.tf)
+    (lx, hx), (ly, hy) = input_box(problem)
+    data = [float(x) for x in (ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx, ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy)]
+    pos = [float(c) for c in np.asarray(veh.x_poly, dtype=float)]
+    off_x, off_y = float(veh.offset_x), float(veh.corner_y)
+    level = [(edges[j], edges[j + 1]) for j in range(len(edges) - 1)]
+    W = POINT_WIDTH
+    solves = boxes = 0
+    while level:
+        centres = [float(0.5 * (np.float64(a) + np.float64(b))) for a, b in level]
+        raw = contact_points(centres, T, pos, off_x, off_y, data, [0.0] * (6 * len(level)), [0.0] * (2 * len(level)),
+                             False)
+        nxt: list[tuple[float, float]] = []
+        for q, (a, b) in enumerate(level):
+            t = centres[q]
+            half = float(0.5 * (np.float64(b) - np.float64(a)))
+            covered = converged = False
+            both = True
+            for k in range(2):
+                solves += 1
+                o = (2 * q + k) * W
+                converged = raw[o] == 0.0
+                both = both and converged
+                if not converged and raw[o + 1] == 1.0:  # a Farkas certificate
+                    rate = 0 + half * abs(raw[o + 3]) * lip[k][0]
+                    if raw[o + 2] > rate * (1 + 1e-9):
+                        covered = True
+                        break
+            if covered:
+                boxes += 1
+                continue
+            if both:  # both axes feasible at t
+                return InfeasibilityCertificate(False, np.array([t]), boxes, solves)
+            if solves > max_solves or b - a < 1e-9 * T:
+                return InfeasibilityCertificate(False, None, boxes, solves)
+            nxt += [(a, t), (t, b)]
+        level = nxt
     return InfeasibilityCertificate(True, None, boxes, solves)
 
 
@@ -493,45 +547,29 @@ class _IntervalBound:
         (``M`` only falls as the interval shrinks)."""
         if not intervals:
             return []
-        T = self.T
-        centres = [0.5 * (a + b) for a, b, _ in intervals]
         warm_flat: list[float] = []
         has: list[float] = []
-        for _, _, warm in intervals:
+        ab: list[float] = []
+        for a, b, warm in intervals:
+            ab += [a, b]
             for k in range(2):
                 lam = warm[k]
                 warm_flat += lam if lam is not None else [0.0, 0.0, 0.0]
                 has.append(0.0 if lam is None else 1.0)
-        raw = contact_points(centres, T, self.pos, self.off[0], self.off[1], self.flat_data, warm_flat, has, False)
-        W = POINT_WIDTH
+        raw = interval_terms(ab, self.T, self.pos, self.der, self.off[0], self.off[1], self.flat_data, warm_flat, has,
+                             self.cddot_max[0])
+        W = INTERVAL_WIDTH
         out: list[tuple[str, float, list[list[float] | None], int, tuple[float, float, float]]] = []
+        nan3 = (math.nan, math.nan, math.nan)
         for q, (a, b, warm) in enumerate(intervals):
-            t, delta = centres[q], 0.5 * (b - a)
-            cdot = (_polyval(self.der, t), 0.0)
-            dual = slope = M = 0.0
-            lams: list[list[float] | None] = [None, None]
-            result: tuple[str, float, list[list[float] | None], int] | None = None
-            nan3 = (math.nan, math.nan, math.nan)
-            solves = 0
-            for k, (_, _, _, _, lo, hi) in enumerate(self.axes_data):
-                solves += 1
-                o = (2 * q + k) * W
-                if raw[o] != 0.0:  # not converged: the axis solve itself looks for a Farkas certificate
-                    result = self._not_converged(k, t, delta, warm[k], lams, solves)
-                    break
-                jump, wa, wb, speed = raw[o + 3], raw[o + 4], raw[o + 5], raw[o + 6]
-                phi = abs(jump)
-                ends = [wa + wb * x - jump * (x - t) for x in (a, b)]
-                u_max = min(max(abs(lo), abs(hi)), max(abs(e) for e in ends))
-                dual += raw[o + 1]
-                slope += jump * (speed - cdot[k])
-                M += phi * (self.cddot_max[k] + u_max + phi * _free_measure(wa, wb, lo, hi, t, delta, phi, b))
-                lams[k] = raw[o + 7:o + 10]
-            if result is None:
-                # the axes' expansions add up: the slope is r(t) (zero at a stationary t)
-                value = dual - abs(slope) * delta - 0.5 * M * delta * delta
-                out.append(("bound", value, lams, solves, (dual, abs(slope), M)))
-            else:
+            o = q * W
+            bad = int(raw[o])
+            lams: list[list[float] | None] = [raw[o + 5:o + 8] if bad != 0 else None,
+                                              raw[o + 8:o + 11] if bad < 0 else None]
+            if bad < 0:
+                out.append(("bound", raw[o + 1], lams, 2, (raw[o + 2], raw[o + 3], raw[o + 4])))
+            else:  # not converged: the axis solve itself looks for a Farkas certificate
+                result = self._not_converged(bad, 0.5 * (a + b), 0.5 * (b - a), warm[bad], lams, bad + 1)
                 out.append((*result, nan3))
         return out
 
@@ -552,28 +590,8 @@ class _IntervalBound:
         return "unknown", math.nan, lams, solves
 
 
-def _free_measure(wa: float, wb: float, lo: float, hi: float, t: float, delta: float, phi: float,
-                  b: float) -> float:
-    r"""A bound of the time, within ``[0, t']``, where ``u_λ(·; t')`` is not saturated, for every
-    ``t'`` with :math:`|t' - t| \le \delta` (``t' \le b``): the term of ``M``
-    (:func:`certify_global_one`) that was ``t' \le b``.
-
-    Before ``min(t, t')`` the law is :math:`w(\tau; t') = w_a + w_b\tau \pm \Phi(t' - t)`, so it
-    is free only where :math:`w_a + w_b\tau \in (\ell - |\Phi|\delta, h + |\Phi|\delta)`, a
-    sub-interval of ``[0, t]`` whose length is exact for a line; at most ``δ`` more lies between
-    ``t`` and ``t'``.  Widened by a relative ``1e-9`` (rounding) and never above ``b``."""
-    lo_w = lo - phi * delta
-    hi_w = hi + phi * delta
-    if not (math.isfinite(lo_w) and math.isfinite(hi_w) and math.isfinite(wa) and math.isfinite(wb)):
-        return b
-    if wb == 0.0:
-        inside = t if lo_w < wa < hi_w else 0.0
-    else:
-        e1, e2 = (lo_w - wa) / wb, (hi_w - wa) / wb
-        t1, t2 = (e1, e2) if e1 < e2 else (e2, e1)
-        inside = max(0.0, min(t, t2) - max(0.0, t1))
-    bound = inside * (1.0 + 1e-9) + 1e-9 * b + delta
-    return min(b, bound)
+#: the free-time term of ``M`` (one implementation, in the kernel); kept under its former name
+_free_measure = free_measure
 
 
 def _certified_radius(dual: float, slope: float, M: float, target: float) -> float:
@@ -697,7 +715,8 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
                 nxt += [(a, t, warm), (t, b, warm)]
                 continue
             todo.append((a, b, warm))
-        for (a, b, _), (kind, value, lams, used, terms) in zip(todo, bound_on.many(todo)):
+        results = bound_on.many(todo)
+        for (a, b, _), (kind, value, lams, used, terms) in zip(todo, results):
             solves += used
             if kind == "bound":
                 lowest = min(lowest, value)

@@ -259,6 +259,27 @@ def contact_points(ts: list[float], T: float, pos: list[float], off_x: float, of
     return out
 
 
+def interval_terms(ab: list[float], T: float, pos: list[float], der: list[float], off_x: float, off_y: float,
+                   data: list[float], warm: list[float], has_warm: list[float], cddot_x: float,
+                   tol_residual: float = 1e-12) -> list[float]:
+    """:func:`~iamp.planners.pmp.saturated_kernel.interval_terms` (the global certificate's
+    bound terms on many intervals of one vehicle's contact time): the compiled twin once
+    :func:`~iamp.planners.pmp.compiled.load_axis` has run in the process, else the Python
+    function: the same numbers."""
+    if _compiled.axis_core() is None:
+        return _kernel.interval_terms(ab, T, T**2, T**3, pos, der, off_x, off_y, data, warm, has_warm, cddot_x,
+                                      tol_residual, MAX_NEWTON)
+    import numpy as np
+
+    from . import jit
+
+    run = jit.twin(_kernel.interval_terms)
+    arr = [np.asarray(x, dtype=float) for x in (ab, pos, der, data, warm, has_warm)]
+    out: list[float] = run(arr[0], float(T), float(T**2), float(T**3), arr[1], arr[2], float(off_x), float(off_y),
+                           arr[3], arr[4], arr[5], float(cddot_x), float(tol_residual), MAX_NEWTON)
+    return out
+
+
 def _farkas_margin(ax: _Axis, cand: list[float]) -> tuple[float, float]:
     """:func:`~iamp.planners.pmp.saturated_kernel.farkas_margin` on ``ax``: compiled once
     :func:`~iamp.planners.pmp.compiled.load_axis` has run in the process, else the Python

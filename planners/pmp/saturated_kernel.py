@@ -425,6 +425,10 @@ def contact_points(ts: Any, T: float, T2: float, T3: float, pos: Any, off_x: flo
     :func:`~iamp.planners.pmp.saturated.solve_axis_value` and ``_axis_solution``, operation for
     operation.  Returns per point and axis :data:`POINT_WIDTH` values: result code, dual value,
     cost, jump ``Φ``, ``a``, ``b`` (of ``w = −p_v``), ``v(t)``, the three scaled multipliers.
+    Where the code is :data:`NOT_CONVERGED`, the second to fourth values are instead the
+    Farkas test of :func:`~iamp.planners.pmp.saturated.solve_axis` (``1`` when a certificate
+    was found, its margin and its ramp multiplier in physical units, as ``AxisInfeasible``'s
+    ``margin_phys`` and ``lam_phys[0]``), zeros where none was.
     """
     out = [0.0] * (len(ts) * 2 * POINT_WIDTH)
     for p in range(len(ts)):
@@ -457,13 +461,27 @@ def contact_points(ts: Any, T: float, T2: float, T3: float, pos: Any, off_x: flo
             lam0 = [0.0, 0.0, 0.0]
             for q in range(3):
                 lam0[q] = warm[6 * p + 3 * k + q]
-            code, _, _, D, cost, lam, _, vc, _ = axis_core(sig, base, d, los, his, lam0, use, tol_residual,
+            code, _, _, D, cost, lam, F, vc, _ = axis_core(sig, base, d, los, his, lam0, use, tol_residual,
                                                           max_newton)
             if code != CONVERGED and use and retry_cold:
-                code, _, _, D, cost, lam, _, vc, _ = axis_core(sig, base, d, los, his, lam0, False, tol_residual,
+                code, _, _, D, cost, lam, F, vc, _ = axis_core(sig, base, d, los, his, lam0, False, tol_residual,
                                                               max_newton)
             o = (2 * p + k) * POINT_WIDTH
             out[o] = float(code)
+            if code == NOT_CONVERGED:
+                # the Farkas test of saturated._raise_infeasible_or_stall: along lam, then along -F
+                for c_k in range(2):
+                    cand = [0.0] * 3
+                    for q in range(3):
+                        cand[q] = lam[q] if c_k == 0 else -F[q]
+                    norm, margin = farkas_margin(sig, base, d, los, his, cand)
+                    if not norm > 0 or not math.isfinite(norm):
+                        continue
+                    if margin > 1e-9:
+                        out[o + 1] = 1.0
+                        out[o + 2] = margin * scale * scale / T3
+                        out[o + 3] = cand[0] / norm * scale / T3
+                        break
             if code == CONVERGED:
                 lam_ramp = lam[0] * scale / T3
                 lam_lin = lam[1] * scale / T3
@@ -477,4 +495,99 @@ def contact_points(ts: Any, T: float, T2: float, T3: float, pos: Any, off_x: flo
             out[o + 7] = lam[0]
             out[o + 8] = lam[1]
             out[o + 9] = lam[2]
+    return out
+
+
+@compilable
+def free_measure(wa: float, wb: float, lo: float, hi: float, t: float, delta: float, phi: float, b: float) -> float:
+    r"""A bound of the time, within ``[0, t']``, where ``u_λ(·; t')`` is not saturated, for every
+    ``t'`` with :math:`|t' - t| \le \delta` (``t' \le b``): a term of the certificate's ``M``
+    (:func:`iamp.planners.pmp.bounded.certify_global_one`).
+
+    Before ``min(t, t')`` the law is :math:`w(\tau; t') = w_a + w_b\tau \pm \Phi(t' - t)`, so it
+    is free only where :math:`w_a + w_b\tau \in (\ell - |\Phi|\delta, h + |\Phi|\delta)`, a
+    sub-interval of ``[0, t]`` whose length is exact for a line; at most ``δ`` more lies between
+    ``t`` and ``t'``.  Widened by a relative ``1e-9`` (rounding) and never above ``b``."""
+    lo_w = lo - phi * delta
+    hi_w = hi + phi * delta
+    if not (math.isfinite(lo_w) and math.isfinite(hi_w) and math.isfinite(wa) and math.isfinite(wb)):
+        return b
+    if wb == 0.0:
+        inside = t if lo_w < wa < hi_w else 0.0
+    else:
+        e1 = (lo_w - wa) / wb
+        e2 = (hi_w - wa) / wb
+        t1 = e1 if e1 < e2 else e2
+        t2 = e2 if e1 < e2 else e1
+        # max(0.0, min(t, t2) - max(0.0, t1)), each as Python's min/max picks
+        upper = t2 if t2 < t else t
+        lower = t1 if t1 > 0.0 else 0.0
+        inside = upper - lower
+        if not inside > 0.0:
+            inside = 0.0
+    bound = inside * (1.0 + 1e-9) + 1e-9 * b + delta
+    return bound if bound < b else b
+
+
+#: Values per interval in the output of :func:`interval_terms`.
+INTERVAL_WIDTH = 11
+
+
+@compilable
+def interval_terms(ab: Any, T: float, T2: float, T3: float, pos: Any, der: Any, off_x: float, off_y: float,
+                   data: Any, warm: Any, has_warm: Any, cddot_x: float, tol_residual: float,
+                   max_newton: int) -> list[float]:
+    r"""The certificate's bound terms on every interval ``[a, b]`` of ``ab`` (flat ``a, b, …``):
+    both axes at the centre ``t`` in one :func:`contact_points` call (warm as there, no cold
+    retry), then per interval :data:`INTERVAL_WIDTH` values: the first axis that did not
+    converge (``-1`` if none; the others are then left zero), the bound
+    :math:`D - |r|\delta - 	frac12 M\delta^2`, ``D``, ``|r|``, ``M``, the three scaled
+    multipliers of x and of y (those of the axes before a failing one)."""
+    n = len(ab) // 2
+    ts = [0.0] * n
+    for q in range(n):
+        ts[q] = 0.5 * (ab[2 * q] + ab[2 * q + 1])
+    raw = contact_points(ts, T, T2, T3, pos, off_x, off_y, data, warm, has_warm, False, tol_residual, max_newton)
+    W = POINT_WIDTH
+    out = [0.0] * (n * INTERVAL_WIDTH)
+    for q in range(n):
+        a = ab[2 * q]
+        b = ab[2 * q + 1]
+        t = ts[q]
+        delta = 0.5 * (b - a)
+        c0 = poly_at(der, t)
+        dual = 0.0
+        slope = 0.0
+        M = 0.0
+        bad = -1
+        r = q * INTERVAL_WIDTH
+        for k in range(2):
+            o = (2 * q + k) * W
+            if raw[o] != 0.0:
+                bad = k
+                break
+            lo = data[6 * k + 4]
+            hi = data[6 * k + 5]
+            jump = raw[o + 3]
+            wa = raw[o + 4]
+            wb = raw[o + 5]
+            speed = raw[o + 6]
+            phi = abs(jump)
+            e0 = abs(wa + wb * a - jump * (a - t))
+            e1 = abs(wa + wb * b - jump * (b - t))
+            e_max = e1 if e1 > e0 else e0
+            box = abs(hi) if abs(hi) > abs(lo) else abs(lo)
+            u_max = e_max if e_max < box else box
+            dual += raw[o + 1]
+            slope += jump * (speed - (c0 if k == 0 else 0.0))
+            M += phi * ((cddot_x if k == 0 else 0.0) + u_max + phi * free_measure(wa, wb, lo, hi, t, delta, phi, b))
+            out[r + 5 + 3 * k] = raw[o + 7]
+            out[r + 6 + 3 * k] = raw[o + 8]
+            out[r + 7 + 3 * k] = raw[o + 9]
+        out[r] = float(bad)
+        if bad < 0:
+            out[r + 1] = dual - abs(slope) * delta - 0.5 * M * delta * delta
+            out[r + 2] = dual
+            out[r + 3] = abs(slope)
+            out[r + 4] = M
     return out
