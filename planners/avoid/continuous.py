@@ -320,7 +320,7 @@ class ContinuousAvoidQP:
         """The rows ``rows`` of the layout with values ``vals`` (a CSR gather, no search)."""
         start, stop = self._indptr[rows], self._indptr[rows + 1]
         lens = stop - start
-        ptr = np.r_[0, np.cumsum(lens)].astype(np.int64)
+        ptr = np.concatenate(([0], np.cumsum(lens))).astype(np.int64)
         take = np.repeat(start - ptr[:-1], lens) + np.arange(ptr[-1])
         return sp.csr_matrix((vals[take], self._indices[take], ptr), shape=(rows.size, self.data.n))
 

@@ -285,7 +285,7 @@ class DualBounds:
         # -A_keepᵀ y_keep from the CSR arrays of the kept rows
         rows_k, y_k = nz[keep], y[keep]
         start, lens = A_in.indptr[rows_k], np.diff(A_in.indptr)[rows_k]
-        take = np.repeat(start - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(int(lens.sum()))
+        take = np.repeat(start - np.concatenate(([0], np.cumsum(lens)[:-1])), lens) + np.arange(int(lens.sum()))
         R[:d.n, 0] = -np.bincount(A_in.indices[take], weights=A_in.data[take] * np.repeat(y_k, lens),
                                   minlength=d.n)
         R[d.n:, 0] = d.b_eq

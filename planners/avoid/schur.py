@@ -194,7 +194,7 @@ class SchurActiveSet:
                                 np.asarray(ws.rows, dtype=np.int64), bool(np.all(np.isfinite(ws.z))))
         # the equality multipliers (and z) from one K solve: P z + Eᵀν = -G_Wᵀλ, E z = b
         Gt_lam = ws.lam @ ws.G if ws.k else np.zeros(self.n)
-        rhs = np.r_[-Gt_lam, self.b_eq]
+        rhs = np.concatenate([-Gt_lam, self.b_eq])
         x = self.lu.solve(rhs)
         z = np.asarray(x[:self.n], dtype=float)
         y = np.zeros(self.n_eq + n_in)
@@ -279,7 +279,7 @@ class _Working:
         self._W[k] = w
         self.k = k + 1
         self.rows.append(r)
-        self.lam = np.r_[self.lam, lam_r]
+        self.lam = np.append(self.lam, lam_r)
 
     def _pop(self, j: int) -> None:
         k = self.k
