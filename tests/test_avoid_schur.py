@@ -107,6 +107,9 @@ def test_the_plan_is_the_same_on_every_backend_and_each_backend_agrees():
         assert check["agrees"] and check["status"] == st.OPTIMAL
         assert abs(check["cost"] - plan.cost) <= check["cost_tol_rel"] * plan.cost
         assert plan.info["node_solver"]["backend_solves"] >= 1
+        # the JSON's avoidance object carries both (SPEC §14)
+        assert plan.info["avoidance"]["backend_check"] == check
+        assert plan.info["avoidance"]["node_solver"]["name"] == "schur"
 
 
 def test_the_node_solver_plan_equals_the_backend_only_plan():

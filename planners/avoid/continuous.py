@@ -803,7 +803,8 @@ class ContinuousAvoidPlanner:
             # the backend solves the final QP independently: its optimum must pass the same KKT
             # check and cost what the node solver's does, to the backend's comparison tolerance
             other = qp.backend_solve(sol)
-            check: dict[str, Any] = {"status": other.status, "cost": float(other.cost)}
+            check: dict[str, Any] = {"status": other.status,
+                                     "cost": float(other.cost) if np.isfinite(other.cost) else None}
             ok = other.status == st.OPTIMAL
             if ok:
                 other_kkt = kkt_conditions(d.P, d.q, A, l, u, other.z, other.y, n_eq)
@@ -863,7 +864,9 @@ class ContinuousAvoidPlanner:
         info["avoidance"] = {"constraint": "avoid", "safety": "continuous", "search": info["search"],
                              "complete_sweep": bool(closed), "n_solves": info["n_solves"], "vehicles": vehicles,
                              "max_intrusion_m": float(intrusion), "kkt": kkt, "kkt_tol": limit,
-                             "failed_checks": failed}
+                             "failed_checks": failed, "node_solver": info["node_solver"]}
+        if "backend_check" in info:
+            info["avoidance"]["backend_check"] = info["backend_check"]
         plan.diagnostics = AvoidDiagnostics.from_info(info)
         plan.solve_time_s = time.perf_counter() - start
         return plan

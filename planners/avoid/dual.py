@@ -50,7 +50,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .bernstein import _power_to_bernstein, piece_matrix, reparametrise
-from .schur import kkt_matrix
+from .schur import full_hessian, kkt_matrix
 
 if TYPE_CHECKING:
     from .continuous import ContinuousAvoidQP, Solved
@@ -173,10 +173,9 @@ class DualBounds:
     def __init__(self, qp: ContinuousAvoidQP) -> None:
         self.qp = qp
         d = qp.data
-        P = sp.csc_matrix(d.P)
-        self.P = sp.csc_matrix(P + sp.triu(P, 1).T)
-        # the node solver's factorisation of the same matrix when it has one
-        self.lu = qp.schur.lu if qp.schur is not None else spla.splu(kkt_matrix(d.P, qp.A_eq))
+        # the node solver's symmetric P and factorisation of the same matrix when it has one
+        self.P = sp.csc_matrix(qp.schur.P_full) if qp.schur is not None else full_hessian(d.P)
+        self.lu = qp.schur.lu if qp.schur is not None else spla.splu(kkt_matrix(d.P, qp.A_eq, self.P))
         self.nb = qp.degree + 1
         D = qp.degree
         # σ-free values of the split piece's rows: M(0, λ) (first half-plane), M(λ, 1) (second)

@@ -42,7 +42,7 @@ from .solve import GENERATION_TOL, RowsSolution
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["CHECK_TOL", "CUTOFF", "DEPENDENT_REL", "INFEASIBLE_REL", "SchurActiveSet", "kkt_matrix"]
+__all__ = ["CHECK_TOL", "CUTOFF", "DEPENDENT_REL", "INFEASIBLE_REL", "SchurActiveSet", "full_hessian", "kkt_matrix"]
 
 #: A row whose Schur complement on the working set is below this times ``g_r·w_r`` is treated as
 #: linearly dependent on the working set (a pure dual step).
@@ -70,10 +70,16 @@ WARM_COND = 1e10
 CHECK_TOL = 1e-7
 
 
-def kkt_matrix(P: sp.spmatrix, A_eq: sp.spmatrix) -> sp.csc_matrix:
-    """``[[P, E^T], [E, 0]]`` with ``P`` given as its upper triangle (CSC)."""
+def full_hessian(P: sp.spmatrix) -> sp.csc_matrix:
+    """The symmetric ``P`` from its upper triangle."""
     P = sp.csc_matrix(P)
-    full = sp.csc_matrix(P + sp.triu(P, 1).T)
+    return sp.csc_matrix(P + sp.triu(P, 1).T)
+
+
+def kkt_matrix(P: sp.spmatrix, A_eq: sp.spmatrix, full: sp.spmatrix | None = None) -> sp.csc_matrix:
+    """``[[P, E^T], [E, 0]]`` with ``P`` given as its upper triangle (``full``: the symmetric
+    ``P`` when already built)."""
+    full = full_hessian(P) if full is None else full
     return sp.csc_matrix(sp.bmat([[full, sp.csr_matrix(A_eq).T], [A_eq, None]], format="csc"))
 
 
@@ -106,8 +112,9 @@ class SchurActiveSet:
         self.n_eq = self.b_eq.size
         self.A_eq = sp.csr_matrix(A_eq)
         self.A_eq_T = sp.csr_matrix(self.A_eq.T)
-        self.P_full = sp.csr_matrix(self.P + sp.triu(self.P, 1).T)
-        self.lu = spla.splu(kkt_matrix(self.P, A_eq))
+        full = full_hessian(self.P)
+        self.P_full = sp.csr_matrix(full)
+        self.lu = spla.splu(kkt_matrix(self.P, A_eq, full))
         self.max_iter = int(max_iter)
         x0 = self.lu.solve(np.r_[np.zeros(self.n), self.b_eq])
         self.z0 = np.asarray(x0[:self.n], dtype=float)
