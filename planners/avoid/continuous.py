@@ -83,7 +83,7 @@ from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
-from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, piece_of
+from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, lower_bounds, piece_of
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
 from iamp.planners.avoid.schur import CUTOFF, SchurActiveSet
 from iamp.planners.avoid.solve import RowGeneration, RowsSolution
@@ -535,7 +535,7 @@ class ContinuousAvoidPlanner:
         def bound_of(orders_: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray,
                      duals: Sequence[DualPolynomial]) -> tuple[float, list[DualPolynomial]]:
             polys = store.valid(orders_, lo, hi) + list(duals)
-            return max([dp.lower_bound(lo, hi) for dp in polys], default=-np.inf), polys
+            return max(lower_bounds(polys, lo, hi), default=-np.inf), polys
 
         while heap:
             box = heap[0]

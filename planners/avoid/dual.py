@@ -42,6 +42,7 @@ inside the box) falls off linearly in the box's width.  A round-off margin
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -57,7 +58,7 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "DualStore", "piece_of"]
+__all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "DualStore", "lower_bounds", "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
 #: point (one sparse LU solve and a Bernstein transform); far below the search's gap (1e-4).
@@ -117,22 +118,8 @@ class DualPolynomial:
     def lower_bound(self, lo: FloatArray, hi: FloatArray) -> float:
         """A lower bound of ``g`` (hence of every ``J(τ)``) over the box ``lo <= τ <= hi`` (a
         sub-box of the box the polynomial was built for): its smallest tensor Bernstein coefficient
-        on the box, less the round-off margin."""
-        key = tuple(self._lam(lo, hi))
-        out = self._bounds.get(key)
-        if out is not None:
-            return out
-        T = self.coef
-        deg = T.shape[0] - 1 if T.ndim else 0
-        B0 = _power_to_bernstein(deg) if T.ndim else None
-        for axis, (a, b) in enumerate(key):
-            assert B0 is not None
-            B = B0 @ reparametrise(deg, a, b - a)
-            T = np.moveaxis(np.tensordot(B, T, axes=([1], [axis])), 0, axis)
-        m = float(np.min(T))
-        out = m - ROUND_OFF_REL * max(1.0, abs(m))
-        self._bounds[key] = out
-        return out
+        on the box, less the round-off margin (:func:`lower_bounds`)."""
+        return lower_bounds([self], lo, hi)[0]
 
     def evaluate(self, taus: FloatArray) -> FloatArray:
         """``g`` at the crossing times ``taus`` (shape ``(n, m)``; every polynomial vehicle's
@@ -159,6 +146,43 @@ class DualPolynomial:
             V = np.vander(lam, vals.shape[1], increasing=True)
             vals = np.einsum("nj,nj...->n...", V, vals)
         return np.asarray(vals, dtype=float).reshape(taus.shape[0])
+
+
+@lru_cache(maxsize=4096)
+def _bernstein_on(degree: int, a: float, b: float) -> FloatArray:
+    """Bernstein coefficients on ``[a, b]`` from power coefficients on ``[0, 1]`` (read-only)."""
+    B = np.asarray(_power_to_bernstein(degree) @ reparametrise(degree, a, b - a), dtype=float)
+    B.flags.writeable = False
+    return B
+
+
+def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) -> list[float]:
+    """:meth:`DualPolynomial.lower_bound` of every polynomial of ``polys`` over the box
+    ``[lo, hi]``: the tensor Bernstein transform of the polynomials not yet bounded on it done
+    for all of them at once (one contraction per axis), each result kept on its polynomial."""
+    out: list[float] = [0.0] * len(polys)
+    todo: dict[tuple[int, ...], list[tuple[int, DualPolynomial, tuple[tuple[float, float], ...]]]] = {}
+    for c, dp in enumerate(polys):
+        key = tuple(dp._lam(lo, hi))
+        v = dp._bounds.get(key)
+        if v is None:
+            todo.setdefault(dp.coef.shape, []).append((c, dp, key))
+        else:
+            out[c] = v
+    for shape, items in todo.items():
+        T = np.stack([dp.coef for _, dp, _ in items])  # (P, n, ..., n)
+        if len(shape):
+            deg = shape[0] - 1
+            for axis in range(len(shape)):
+                B = np.stack([_bernstein_on(deg, *key[axis]) for _, _, key in items])  # (P, n, n)
+                # T'[p, .., r, ..] = Σ_i B[p, r, i] T[p, .., i, ..] on this axis
+                T = np.moveaxis(np.einsum("p...i,pri->p...r", np.moveaxis(T, axis + 1, -1), B), -1, axis + 1)
+        mins = T.reshape(len(items), -1).min(axis=1)
+        for (c, dp, key), m in zip(items, mins):
+            v = float(m) - ROUND_OFF_REL * max(1.0, abs(float(m)))
+            dp._bounds[key] = v
+            out[c] = v
+    return out
 
 
 class DualBounds:
