@@ -202,8 +202,7 @@ class Controller:
         polys: dict[int, tuple[float, ...]] = {}
         full: list[tuple[int, np.ndarray, np.ndarray]] = []
         need = self.predictor.min_history_s
-        for k in near:
-            t, x = self.sim.history(obs.ids[k])
+        for k, (t, x) in zip(near, self.sim.histories_of([obs.ids[k] for k in near])):
             if t.size >= 3 and -t[0] + 1e-9 >= need:
                 full.append((k, t, x))
             else:
@@ -215,9 +214,11 @@ class Controller:
         for items in groups.values():
             t_h = items[0][1]
             # np.allclose(t, t_h, atol=1e-6) per history, for the group in one call (the same test);
-            # histories of one length are the same observation times, equal exactly: no tolerance needed
-            T = np.stack([it[1] for it in items])
-            close = np.ones(len(items), dtype=bool) if (T == t_h).all() else np.isclose(T, t_h, atol=1e-6).all(axis=1)
+            # histories of one length are the same observation times: one shared array (histories_of)
+            if all(it[1] is t_h for it in items):
+                close = np.ones(len(items), dtype=bool)
+            else:
+                close = np.isclose(np.stack([it[1] for it in items]), t_h, atol=1e-6).all(axis=1)
             same = [it for it, ok in zip(items, close) if ok]
             rest = [it for it, ok in zip(items, close) if not ok]
             X = np.stack([it[2] for it in same])

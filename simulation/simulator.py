@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -360,6 +361,40 @@ class Simulator:
             t = np.round(t, 9)
             t[-1] = 0.0
         return t, x
+
+    def histories_of(self, vids: Sequence[str]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`history` of each of ``vids``, computing the times once per distinct window: vehicles
+        observed at the same steps share one read-only time array (the same object), and the positions
+        are read-only views of the kept samples.
+
+        Parameters
+        ----------
+        vids : sequence of str
+
+        Returns
+        -------
+        list of (numpy.ndarray, numpy.ndarray)
+            ``(t - now, x)`` per vehicle, equal to :meth:`history`'s.
+        """
+        times: dict[bytes, np.ndarray] = {}
+        out = []
+        for vid in vids:
+            h = self.histories.get(vid)
+            if h is None or h.hi == h.lo:
+                t, x = self.history(vid)
+            else:
+                raw = h.t[h.lo:h.hi]
+                key = raw.tobytes()
+                t = times.get(key)  # type: ignore[assignment]
+                if t is None:
+                    t = np.round(raw - self.t, 9)
+                    t[-1] = 0.0
+                    t.setflags(write=False)
+                    times[key] = t
+                x = h.x[h.lo:h.hi]
+                x.setflags(write=False)
+            out.append((t, x))
+        return out
 
     # -- ego control -------------------------------------------------------------------------
     def command(self, state: EgoState) -> None:

@@ -189,3 +189,29 @@ def test_gap_speed_is_numpy_mean_bit_for_bit(speeds, ego_v):
     got = gap_speed(ego, gap, 0.0)
     expect = float(np.mean([n.v(0.0) for n in cars])) if cars else ego_v
     assert np.float64(got).tobytes() == np.float64(expect).tobytes()
+
+
+@settings(max_examples=40, deadline=None)
+@given(entries=st.lists(st.tuples(st.integers(0, 3), st.integers(0, 40), finite), min_size=1, max_size=60))
+def test_histories_of_is_history_of_each_and_shares_equal_times(entries):
+    """Simulator.histories_of gives every vehicle's history as Simulator.history does; vehicles observed at the
+    same steps share one (read-only) time array."""
+    from iamp.simulation.simulator import Simulator
+
+    sim = Simulator("medium", 1)
+    seen: dict[str, int] = {}
+    for step, (vid, start, x) in enumerate(entries):
+        name = f"v{vid}"
+        seen.setdefault(name, start)
+        sim.t = round(0.1 * (step + 1), 10)
+        for other, first in seen.items():  # every vehicle seen so far is observed at this step
+            if step >= first % 5:
+                sim.histories.setdefault(other, TrackBuffer()).record(sim.t, x + len(other), sim.t - 3.0)
+    ids = [*sorted(seen), "absent"]
+    got = sim.histories_of(ids)
+    for vid, (t, x) in zip(ids, got):
+        t_ref, x_ref = sim.history(vid)
+        assert t.tobytes() == t_ref.tobytes() and x.tobytes() == x_ref.tobytes()
+    for (t1, _), (t2, _) in zip(got, got[1:]):
+        if t1.size and t1.tobytes() == t2.tobytes():
+            assert t1 is t2 and not t1.flags.writeable
