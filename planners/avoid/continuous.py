@@ -83,7 +83,7 @@ from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
-from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, lower_bounds, piece_of
+from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, fit_polynomial, lower_bounds, piece_of
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
 from iamp.planners.avoid.schur import CUTOFF, SchurActiveSet
 from iamp.planners.avoid.solve import RowGeneration, RowsSolution
@@ -228,6 +228,8 @@ class ContinuousAvoidQP:
         #: piece's bounds
         self._full_vals: dict[tuple[int, int], FloatArray] = {}
         self._splits: dict[tuple[int, int, int, float, float], tuple[FloatArray, FloatArray]] = {}
+        self._split_polys: tuple[FloatArray, FloatArray] | None = None
+        self._rhs_polys: dict[tuple[int, int, int, bool], FloatArray] = {}
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
         #: the values, bounds and imposed rows of a spec that imposes no Bernstein row
         self._empty = (np.r_[np.zeros(4 * self.n_b), self._lim_data], np.r_[np.ones(self.n_b), self.u_lim],
@@ -249,17 +251,52 @@ class ContinuousAvoidQP:
             half = v.width / 2 + v.safety_y
         return np.asarray(hp.sigma * beta - half + ROW_TOL_M, dtype=float)
 
+    def split_polynomials(self) -> tuple[FloatArray, FloatArray]:
+        """Power coefficients in ``λ`` (axis 0, shape ``(d + 1, d + 1, 4)``) of the σ-free row
+        values of a piece's sub-pieces ``[0, λ]`` and ``[λ, 1]`` (:func:`~iamp.planners.avoid.bernstein.piece_matrix`
+        is a polynomial of degree ``d`` in either end: fitted exactly on ``d + 1`` points, once)."""
+        if self._split_polys is None:
+            D = self.degree
+            lam = np.linspace(0.0, 1.0, D + 1)
+            self._split_polys = (fit_polynomial(np.array([piece_matrix(self.h, 0.0, float(x), D) for x in lam]), D),
+                                 fit_polynomial(np.array([piece_matrix(self.h, float(x), 1.0, D) for x in lam]), D))
+        return self._split_polys
+
+    def rhs_polynomial(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
+        """Power coefficients in ``λ`` (shape ``(d + 1, d + 1)``) of the bounds of vehicle ``i``'s
+        half-plane ``plane`` on ``[t_k, t_k + λh]`` (``pre``) or ``[t_k + λh, t_{k+1}]`` (a
+        polynomial of degree ``d`` in ``λ``; fitted once per piece)."""
+        key = (i, plane, k, pre)
+        out = self._rhs_polys.get(key)
+        if out is None:
+            hp = self.data.planes[i][plane]
+            tk = float(self.data.t_nodes[k])
+            lam = np.linspace(0.0, 1.0, self.degree + 1)
+            vals = np.array([self._rhs(hp, tk, tk + x * self.h) if pre else self._rhs(hp, tk + x * self.h, tk + self.h)
+                             for x in lam])
+            out = self._rhs_polys[key] = fit_polynomial(vals, self.degree)
+        return out
+
     def _split(self, i: int, plane: int, k: int, l0: float, l1: float) -> tuple[FloatArray, FloatArray]:
         """The row values (``σ M``, raveled) and bounds of vehicle ``i``'s half-plane ``plane`` on
-        the sub-piece ``[λ0, λ1]`` of piece ``k`` (computed once per plan: a box's ends recur in
-        its children, candidates and relaxations)."""
+        the sub-piece ``[λ0, λ1]`` of piece ``k``: from :meth:`split_polynomials` and
+        :meth:`rhs_polynomial` for ``[0, λ]`` and ``[λ, 1]`` (the only sub-pieces a spec imposes),
+        directly otherwise; kept per plan (a box's ends recur in its children, candidates and
+        relaxations)."""
         key = (i, plane, k, l0, l1)
         out = self._splits.get(key)
         if out is None:
             hp = self.data.planes[i][plane]
-            t0 = float(self.data.t_nodes[k])
-            out = (hp.sigma * piece_matrix(self.h, l0, l1, self.degree).ravel(),
-                   self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h))
+            if l0 == 0.0 or l1 == 1.0:
+                pre = l0 == 0.0
+                x = l1 if pre else l0
+                pw = x ** np.arange(self.degree + 1)
+                M = self.split_polynomials()[0 if pre else 1]
+                out = (hp.sigma * (pw @ M.reshape(M.shape[0], -1)), pw @ self.rhs_polynomial(i, plane, k, pre))
+            else:
+                t0 = float(self.data.t_nodes[k])
+                out = (hp.sigma * piece_matrix(self.h, l0, l1, self.degree).ravel(),
+                       self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h))
             self._splits[key] = out
         return out
 

@@ -50,7 +50,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from .bernstein import _power_to_bernstein, piece_matrix, reparametrise
+from .bernstein import _power_to_bernstein, reparametrise
 from .schur import full_hessian, kkt_matrix
 
 if TYPE_CHECKING:
@@ -58,7 +58,8 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "DualStore", "lower_bounds", "piece_of"]
+__all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "DualStore", "fit_polynomial", "lower_bounds",
+           "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
 #: point (one sparse LU solve and a Bernstein transform); far below the search's gap (1e-4).
@@ -71,7 +72,7 @@ def piece_of(lo: float, hi: float, h: float, N: int) -> int | None:
     return k if hi <= (k + 1) * h * (1 + 1e-12) + 1e-12 else None
 
 
-def _fit(values: FloatArray, degree: int) -> FloatArray:
+def fit_polynomial(values: FloatArray, degree: int) -> FloatArray:
     """Power coefficients (axis 0) of the polynomials of ``degree`` sampled at ``λ_j = j/degree``."""
     lam = np.linspace(0.0, 1.0, degree + 1)
     V = np.vander(lam, degree + 1, increasing=True)
@@ -201,26 +202,13 @@ class DualBounds:
         self.P = sp.csc_matrix(qp.schur.P_full) if qp.schur is not None else full_hessian(d.P)
         self.lu = qp.schur.lu if qp.schur is not None else spla.splu(kkt_matrix(d.P, qp.A_eq, self.P))
         self.nb = qp.degree + 1
-        D = qp.degree
-        # σ-free values of the split piece's rows: M(0, λ) (first half-plane), M(λ, 1) (second)
-        lam = np.linspace(0.0, 1.0, D + 1)
-        self.M_pre = _fit(np.array([piece_matrix(qp.h, 0.0, float(x), D) for x in lam]), D)
-        self.M_post = _fit(np.array([piece_matrix(qp.h, float(x), 1.0, D) for x in lam]), D)
-        self._rhs: dict[tuple[int, int, int, bool], FloatArray] = {}
+        # σ-free values of the split piece's rows as polynomials in λ: M(0, λ) (first half-plane),
+        # M(λ, 1) (second), and their bounds (:meth:`ContinuousAvoidQP.split_polynomials`)
+        self.M_pre, self.M_post = qp.split_polynomials()
 
     def _rhs_poly(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
-        """Power coefficients in ``λ`` (shape ``(d + 1, d + 1)``) of the bounds of vehicle ``i``'s
-        half-plane ``plane`` on ``[t_k, t_k + λh]`` (``pre``) or ``[t_k + λh, t_{k+1}]``."""
-        key = (i, plane, k, pre)
-        if key not in self._rhs:
-            qp = self.qp
-            hp = qp.data.planes[i][plane]
-            tk = k * qp.h
-            lam = np.linspace(0.0, 1.0, qp.degree + 1)
-            vals = np.array([qp._rhs(hp, tk, tk + x * qp.h) if pre else qp._rhs(hp, tk + x * qp.h, tk + qp.h)
-                             for x in lam])
-            self._rhs[key] = _fit(vals, qp.degree)
-        return self._rhs[key]
+        """:meth:`ContinuousAvoidQP.rhs_polynomial`."""
+        return self.qp.rhs_polynomial(i, plane, k, pre)
 
     def gradient(self, sol: Solved) -> FloatArray:
         r"""``∂J/∂τ`` at the candidate ``sol`` (its ``spec`` has ``a = b = τ_c``), by the envelope
