@@ -24,9 +24,16 @@ nonnegative, so the result satisfies the KKT conditions of the whole QP: station
 equality rows to the LU's round-off, every row feasible to the tolerance, complementarity
 exactly (a row outside ``W`` has zero multiplier, a row in ``W`` holds with equality).  A row
 that is linearly dependent on the working set takes a pure dual step; if no multiplier blocks
-it, the QP is infeasible (the step is a dual ray).  The only solves per QP are one ``w_r`` per
-row that was never in a working set before on this grid (cached by its values), and one
-final ``K`` solve for the equality multipliers.
+it, the QP is infeasible (the step is a dual ray; declared only for a clearly dependent row,
+:data:`INFEASIBLE_REL`).  The sparse solves are one column of ``K⁻¹`` per node variable a row
+touches, once per grid (``w_r`` is their combination), and one final ``K`` solve per QP for the
+equality multipliers.
+
+Every returned optimum is checked against its KKT residuals recomputed from the data
+(:meth:`SchurActiveSet.residual`, :data:`CHECK_TOL`); a solve that fails the check, meets an
+ill-conditioned step or exhausts its step budget (``max_iter``, a count of work) reports so, and
+the search solves that QP by the backend instead.  With a ``cutoff`` the solve may stop early:
+the cost of every working set's optimum is a lower bound of the QP's optimum and only grows.
 """
 
 from __future__ import annotations
