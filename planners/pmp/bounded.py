@@ -938,6 +938,13 @@ class _Evaluator:
 
     def _nearest(self, times: list[float]) -> list[list[float]] | None:
         best, found = INF, None
+        if len(times) == 1:  # the same distances, without a generator per entry
+            x = times[0]
+            for tm, lams in self.memory:
+                d = abs(tm[0] - x)
+                if d < best:
+                    best, found = d, lams
+            return found
         for tm, lams in self.memory:
             d = max(abs(a - b) for a, b in zip(tm, times))
             if d < best:
@@ -952,26 +959,30 @@ class _Evaluator:
     def __call__(self, t: FloatArray) -> tuple[float, FloatArray, list[list[float]] | None]:
         T = self.T
         t = np.asarray(t, dtype=float)
-        if np.any(t <= 0) or np.any(t >= T) or (len(t) > 1 and np.min(np.diff(np.sort(t))) <= 1e-9 * T):
-            return INF, np.full(len(t), np.nan), None
         times = t.tolist()
-        warm = self._nearest(times)
-        self.evaluations += 1
         m = len(times)
-        cdot = [_polyval(self.der[i], times[i]) for i in range(m)]
-        corners = ([_polyval(self.pos[i], times[i]) + self.off[i][0] for i in range(m)],
-                   [self.off[i][1] for i in range(m)])
         if m == 1:  # both axes in one kernel call (the same numbers as solve_axis_value)
+            if times[0] <= 0 or times[0] >= T:
+                return INF, np.full(1, np.nan), None
+            warm1 = self._nearest(times)
+            self.evaluations += 1
             raw = contact_points(times, T, self.pos[0], self.off[0][0], self.off[0][1], self.flat_data,
-                                 warm[0] + warm[1] if warm is not None else [0.0] * 6,
-                                 [1.0, 1.0] if warm is not None else [0.0, 0.0], True)
+                                 warm1[0] + warm1[1] if warm1 is not None else [0.0] * 6,
+                                 [1.0, 1.0] if warm1 is not None else [0.0, 0.0], True)
             W = POINT_WIDTH
             if raw[0] != 0.0 or raw[W] != 0.0:
                 return INF, np.full(1, np.nan), None
-            r = np.array([raw[3] * (raw[6] - cdot[0]) + raw[W + 3] * raw[W + 6]])
+            r = np.array([raw[3] * (raw[6] - _polyval(self.der[0], times[0])) + raw[W + 3] * raw[W + 6]])
             lams1 = [raw[7:10], raw[W + 7:W + 10]]
             self._remember(times, lams1)
             return raw[2] + raw[W + 2], r, lams1
+        if np.any(t <= 0) or np.any(t >= T) or np.min(np.diff(np.sort(t))) <= 1e-9 * T:
+            return INF, np.full(len(t), np.nan), None
+        warm = self._nearest(times)
+        self.evaluations += 1
+        cdot = [_polyval(self.der[i], times[i]) for i in range(m)]
+        corners = ([_polyval(self.pos[i], times[i]) + self.off[i][0] for i in range(m)],
+                   [self.off[i][1] for i in range(m)])
         axes: list[tuple[float, list[float], list[float], list[float]]] = []
         for k, (s0, v0, sf, vf, lo, hi) in enumerate(self.data):
             sol = None
