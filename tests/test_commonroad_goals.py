@@ -419,10 +419,22 @@ def test_plan_says_no_valid_final_state_exists_naming_the_position(tmp_path: Pat
     assert "vehicle 10" in reason, reason
 
 
-@pytest.mark.xfail(strict=True, reason="known gap of the final-state search (issue 33, open): with a car at the "
-                   "goal's start the search offers no pose at step 54 where the test's grid finds a clear one "
-                   "(found by the property above on a random run, 2026-11-28)")
-def test_the_search_misses_a_clear_pose_at_the_last_step_known_gap() -> None:
-    """The counterexample the random property found, kept visible until the search is complete there."""
+def test_a_pose_exactly_at_a_vehicles_margin_is_found_at_the_last_step() -> None:
+    """The counterexample the random property found (2026-11-28): a goal 3 m long, a car at its
+    start.  At step 54 the only clear poses lie beside the car, and the QP's answer with the row
+    "above it" put the body exactly at its margin (heading at the band's edge), which the body
+    check's rounding called an overlap; the search then added the same row again and again until
+    its 40 nodes were spent, offering nothing at step 54 where the grid finds a clear pose.  Now
+    every way around lies 1 µm beyond the margin and a row the node already has is not re-added:
+    step 54 is offered, beside the car, in a handful of solves."""
+    from iamp.commonroad.goal import clear_goal_states
+    from iamp.commonroad.planning import final_state_clearance
+
     inner = test_every_offered_final_state_is_inside_every_element_and_clear.hypothesis.inner_test  # type: ignore[attr-defined]
     inner(s_lo=55.0, length=3.0, d_lo=0.0, width=3.0, speed_lo=8.0, cars=[(0.0, 10.0, 0.0)])
+    region = _straight_region(55.0, 58.0, 0.0, 3.0, (8.0, 14.0), a_max=40.0)
+    cr = _road([_vehicle(0.0, 10.0, 0.0, oid=1)])
+    found = clear_goal_states(region, (0.0, 15.0, 0.0, 0.0), 0.1, final_state_clearance(cr))  # type: ignore[arg-type]
+    last = [c for c in found.candidates if c.goal_step == 54]
+    assert len(last) == 1 and last[0].d > 0.9 + 1.18 and _clear_of(cr, last[0]), last
+    assert not found.exhausted and found.solves <= 10, found.solves  # before: 85 solves, step 54 missing

@@ -370,7 +370,10 @@ def _branch_and_bound(region: GoalRegion, e: GoalElement, k: int, j: int, piece:
             continue
         names.update(blk.names)
         for a, rhs in blk.options:
-            rows = extra + ((*(float(v) for v in a), float(rhs)),)  # the parent's rows, then the new one
+            row = (*(float(v) for v in a), float(rhs))
+            if row in extra:  # a way the node already takes: solving again gives the same node
+                continue
+            rows = extra + (row,)  # the parent's rows, then the new one
             key = tuple(sorted(rows))
             if key in seen:
                 continue
@@ -624,6 +627,30 @@ def _cone(e: GoalElement, piece: Piece, margin_scale: float) -> tuple[float, flo
     else:
         lo = hi = 0.5 * (lo + hi)
     return max(lo, -MAX_REL_HEADING_RAD), min(hi, MAX_REL_HEADING_RAD)
+
+
+def goal_rows(region: GoalRegion, cand: Candidate, x0: tuple[float, float, float, float],
+              margin_scale: float = 1.0) -> tuple[FloatArray, FloatArray]:
+    """The linear rows ``A z <= b`` of the final state ``z = (s, vs, d, vd)`` of ``cand``'s goal
+    state, position piece and horizon (position, speed and heading cone with the margins at
+    ``margin_scale``): the region a planner may move ``cand``'s final state in.
+
+    Parameters
+    ----------
+    region : GoalRegion
+    cand : Candidate
+    x0 : (float, float, float, float)
+        The start (a goal without a position: the piece along the ego's lane depends on it).
+    margin_scale : float
+        Scale of :data:`POSITION_MARGIN_M`, :data:`SPEED_MARGIN_MPS`, :data:`HEADING_MARGIN_RAD`.
+
+    Returns
+    -------
+    (A, b) : ((m, 4) array, (m,) array)
+    """
+    e = region.elements[cand.element]
+    piece = region._pieces(e, x0, cand.tf)[cand.piece]
+    return _rows(region, e, piece, margin_scale)
 
 
 def _rows(region: GoalRegion, e: GoalElement, piece: Piece, margin_scale: float,

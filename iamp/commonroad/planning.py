@@ -35,6 +35,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from typing import TypedDict
 
 import numpy as np
@@ -73,6 +74,11 @@ CHECK_BUFFER_M = 0.05
 EDGE_SLACK_M = 0.02
 #: Clearance of a final state's body from the road corridor's edge (:func:`final_state_clearance`) [m].
 FINAL_EDGE_BUFFER_M = 0.01
+#: How far beyond the body's margin a way around an obstacle puts the final state
+#: (:func:`final_state_clearance`): a pose exactly at the margin touches it, and the body check's
+#: rounding may call that an overlap (the search then re-added the same row until its node
+#: budget ran out) [m].
+WAY_PUSH_M = 1e-6
 #: Longitudinal reach of "relevant" for the all-vehicles equality [m].
 RELEVANT_S_M = 10.0
 #: Active-set iterations.
@@ -325,7 +331,7 @@ def final_state_clearance(cr: CommonRoadProblem, buffer: float = BUFFER_M,
 
     def ways(box: tuple[float, float, float, float], buf: float, band: float) -> tuple[tuple[FloatArray, float], ...]:
         s_lo, s_hi, d_lo, d_hi = box
-        sx, sy = ego_margins(cr.ego_length, cr.ego_width, band, buf)
+        sx, sy = ego_margins(cr.ego_length, cr.ego_width, band, buf + WAY_PUSH_M)
         out = [(np.array([-1.0, 0.0, 0.0, 0.0]), -(s_hi + sx)), (np.array([1.0, 0.0, 0.0, 0.0]), s_lo - sx)]
         if d_hi < big / 2:
             out.append((np.array([0.0, 0.0, -1.0, 0.0]), -(d_hi + sy)))
@@ -521,7 +527,8 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
 
 
 def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
-         steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True, search: bool = True) -> RoadPlan:
+         steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True, search: bool = True,
+         corridor: bool = True) -> RoadPlan:
     """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring).
 
     With ``search`` (the default) the final states are the goal region's clear poses
@@ -609,6 +616,13 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             staged.solve_time_s = time.perf_counter() - start
             staged.plans_used = max_plans - budget[0] + staged.plans_used
             return staged
+    if corridor and planner != "free" and best.candidate is not None and max_plans > 0:
+        wide = plan_corridor(cr, best, planner, heading, others=tried + clear)
+        if wide is not None:
+            wide.candidates_tried = n_tried
+            wide.solve_time_s = time.perf_counter() - start
+            wide.plans_used = max_plans - budget[0]
+            return wide
     steps_tried = sorted({c.steps for c in tried})
     if found is None:
         ends = f"{len(cr.candidates) - len(clear)} of {len(cr.candidates)} final states end inside a vehicle"
@@ -808,6 +822,520 @@ def _via(cr: CommonRoadProblem, best: RoadPlan, planner: str, iamp_planner: str,
             return out
     return None
 
+
+#: QP solves of the corridor planner per problem (:func:`plan_corridor`; a count, never a time).
+CORRIDOR_MAX_SOLVES = 30
+#: Final states the corridor planner tries (``best``'s, then the goal's clear ones in order).
+CORRIDOR_FINAL_STATES = 4
+#: Convex passes per guess of the corridor planner (each re-centred on the last pass's plan).
+CORRIDOR_PASSES = 4
+#: A pass whose plan is not this much less deep in the vehicles than the last ends its guess.
+CORRIDOR_PROGRESS = 0.8
+#: How far the corridor plan's position may move from its guess at each step, per pass [m]
+#: (the road corridor's narrowest bound is taken over this reach).
+CORRIDOR_REACH_M = 6.0
+#: Least bound on ``|tan φ|`` the corridor plan's steps get (the guess's own plus
+#: :data:`CORRIDOR_TAN_SLACK` where it turns more), at most :data:`REPAIR_TAN_CAP`.
+CORRIDOR_MIN_TAN = 0.1
+CORRIDOR_TAN_SLACK = 0.05
+#: The final step's bound on ``|tan φ|`` beyond the guess's own, with the final state free in the goal.
+CORRIDOR_END_TAN_SLACK = 0.01
+#: Share of the friction circle the corridor plan's inputs use: the world's accelerations differ
+#: from the road frame's by the frame's curvature terms (a plan at 0.999 of it was infeasible by
+#: CommonRoad's PM test on the US-101 bend of ``USA_US101-6``).
+CORRIDOR_ACCEL_SHARE = 0.98
+#: Cost of a metre of a side row's slack in the corridor QP (the rows are soft so that a pass
+#: whose sides the guess chose badly still moves toward a plan whose sides are consistent; the
+#: plan is accepted only by the body check).
+CORRIDOR_SLACK_WEIGHT = 1e3
+#: Cost of a metre of the road's slack (nearly hard: only a start at the road's edge needs it).
+CORRIDOR_ROAD_SLACK_WEIGHT = 1e5
+#: A box farther than this from the guess (beyond the body's margins) at a step gives no row [m].
+CORRIDOR_NEAR_M = 8.0
+
+
+class StepTrajectory:
+    """A plan whose inputs are held constant on each time step ``dt`` (zero-order hold on both
+    axes, the point-mass model CommonRoad's ``PM`` checker integrates), from ``x0``."""
+
+    def __init__(self, x0: tuple[float, float, float, float], dt: float, u: FloatArray):
+        self.dt = dt
+        self.u = np.asarray(u, dtype=float).reshape(-1, 2)
+        n = self.u.shape[0]
+        self.p = np.empty((n + 1, 2))
+        self.v = np.empty((n + 1, 2))
+        self.p[0], self.v[0] = (x0[0], x0[2]), (x0[1], x0[3])
+        for k in range(n):
+            self.p[k + 1] = self.p[k] + self.v[k] * dt + 0.5 * self.u[k] * dt * dt
+            self.v[k + 1] = self.v[k] + self.u[k] * dt
+
+    def _at(self, t: npt.ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
+        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        k = np.clip(np.floor(tt / self.dt + 1e-9).astype(int), 0, self.u.shape[0] - 1)
+        tau = (tt - k * self.dt)[:, None]
+        u = self.u[k]
+        return self.p[k] + self.v[k] * tau + 0.5 * u * tau**2, self.v[k] + u * tau, u
+
+    def states(self, t: npt.ArrayLike) -> FloatArray:
+        p, v, _ = self._at(t)
+        return np.stack([p[:, 0], v[:, 0], p[:, 1], v[:, 1]], axis=1)
+
+    def inputs(self, t: npt.ArrayLike) -> FloatArray:
+        return self._at(t)[2]
+
+    def cost(self) -> float:
+        """½∫|u|² exactly (the inputs are constant on each step)."""
+        return float(0.5 * np.sum(self.u**2) * self.dt)
+
+
+def _step_guess(guess: Trajectory, K: int, dt: float) -> FloatArray:
+    """``guess``'s states on the time steps ``0..K``, shape ``(K+1, 4)``."""
+    return np.asarray(guess.states(np.arange(K + 1) * dt), dtype=float)
+
+
+def corridor_sides(cr: CommonRoadProblem, G: FloatArray, sx: FloatArray, sy: FloatArray,
+                   last: int | None = None) -> list[tuple[int, int, float, float]]:
+    r"""The side of every recorded vehicle's box the corridor plan keeps the ego's body on, at
+    every time step ``k = 1..last`` (``K - 1`` by default) where the box lies within
+    :data:`CORRIDOR_NEAR_M` of the guess ``G`` (beyond the body's margins): the side on which the
+    guess is farthest outside it (least deep inside it where it intrudes) -- ahead
+    (:math:`s_k \ge s^+ + S_{x,k}`), behind, above (:math:`d_k \ge d^+ + S_{y,k}`) or below.
+    Each vehicle enters at the steps it has a recorded box near the ego, with the box of that
+    step: a lane changer occupies each lane over the steps it is in it, and a vehicle in a lane
+    the ego crosses is met where it is.  (The road-edge boxes are the road's bounds of
+    :func:`corridor_qp`; by default the final step is left to the final-state search, whose
+    state is clear.)
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    G : (K+1, 4) array
+        The guess's states on the time steps.
+    sx, sy : (K+1,) arrays
+        The body's margins at each step (along the road; across it without the heading's share,
+        which :func:`corridor_qp` adds in its rows).
+    last : int, optional
+        The last step given rows.
+
+    Returns
+    -------
+    list of (k, axis, sign, bound)
+        Rows ``sign * x_k[axis] <= sign * bound``... written as ``sign * (x - bound) >= 0``:
+        axis 0 is ``s``, 2 is ``d``; ``sign = +1`` keeps the ego at or above ``bound``.
+    """
+    K = G.shape[0] - 1
+    last = K - 1 if last is None else last
+    rows: list[tuple[int, int, float, float]] = []
+    ks = np.arange(1, last + 1)
+    s, d = G[ks, 0], G[ks, 2]
+    vehicles = [o for o in cr.all_obstacles if not o.road_edge]
+    B = _step_boxes(SimpleNamespace(obstacles=vehicles, dt=cr.dt), K)[:, ks, :]  # type: ignore[arg-type]
+    bounds = np.stack([B[1] + sx[ks, None], B[0] - sx[ks, None], B[3] + sy[ks, None], B[2] - sy[ks, None]])
+    sep = np.stack([s[:, None] - bounds[0], bounds[1] - s[:, None], d[:, None] - bounds[2], bounds[3] - d[:, None]])
+    sep = np.where(np.isnan(sep), -np.inf, sep)
+    side = np.argmax(sep, axis=0)  # 0 ahead, 1 behind, 2 above, 3 below
+    best = np.max(sep, axis=0)
+    near = np.isfinite(best) & (best <= CORRIDOR_NEAR_M) & ~np.isnan(B[0])
+    axes, signs = (0, 0, 2, 2), (1.0, -1.0, 1.0, -1.0)
+    for i in range(len(vehicles)):
+        for r in np.flatnonzero(near[:, i]):
+            c = int(side[r, i])
+            rows.append((int(ks[r]), axes[c], signs[c], float(bounds[c, r, i])))
+    return rows
+
+
+def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
+                goal_rows: tuple[FloatArray, FloatArray] | None = None) -> StepTrajectory | None:
+    r"""One convex pass of the corridor planner: the minimum-energy zero-order-hold plan on the
+    time steps from ``cr.x0`` to ``cand`` that keeps, at every step, the body on the side of every
+    box :func:`corridor_sides` chose from the guess ``G``, inside the road corridor's narrowest
+    bounds over its reach, its heading within a bound and its inputs in the friction circle.
+
+    The states are affine in the inputs :math:`u_k = (u_{s,k}, u_{d,k})`; minimises
+    :math:`\tfrac12\sum_k |u_k|^2 \Delta t` subject to: the final state ``cand`` exactly;
+    :math:`|(u_{s,k},\ u_{d,k} + \kappa \dot s_k^2)| \le` :data:`CORRIDOR_ACCEL_SHARE` :math:`a_{max}`
+    (a second-order cone per step: the world's acceleration on a bend, :math:`\kappa` and
+    :math:`\dot s_k` the guess's); :math:`|\dot d_k| \le \tau_k \dot s_k`
+    with :math:`\tau_k` the guess's own :math:`|\tan\varphi|` plus :data:`CORRIDOR_TAN_SLACK`, at
+    least :data:`CORRIDOR_MIN_TAN`, at most :data:`REPAIR_TAN_CAP` (so the body's extents along
+    and across the road are at most :math:`S_{x,k}, S_{y,k}` of
+    :func:`~iamp.commonroad.convert.ego_margins` at :math:`\arctan\tau_k`); the speed along the
+    road within the problem's range; :math:`|s_k - G_{k,s}| \le` :data:`CORRIDOR_REACH_M` and
+    :math:`d^-_k + S^e_{y,k} \le d_k \le d^+_k - S^e_{y,k}` with :math:`d^\pm_k` the corridor's
+    narrowest over the body's reach (``cr.road_y`` where it has none).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    cand : Candidate
+        The final state (its step count ``cand.steps``).
+    G : (K+1, 4) array
+        The guess on the time steps.
+    goal_rows : (A, b), optional
+        Rows ``A z <= b`` of the goal state's final state ``z = (s, vs, d, vd)``
+        (:func:`~iamp.commonroad.goal.goal_rows`): the final state is then free inside them, with
+        the final step's own rows, instead of ``cand``'s state.
+
+    Returns
+    -------
+    StepTrajectory or None
+        None when the QP is infeasible or fails.
+    """
+    import clarabel
+    from scipy import sparse
+
+    K, dt = cand.steps, cr.dt
+    if K < 2:
+        return None
+    L, W = cr.ego_length, cr.ego_width
+    vs_g = np.maximum(G[:, 1], 0.5)
+    tau = np.clip(np.abs(G[:, 3]) / vs_g + CORRIDOR_TAN_SLACK, CORRIDOR_MIN_TAN, REPAIR_TAN_CAP)
+    tau[0] = max(tau[0], abs(cr.x0[3]) / max(cr.x0[1], 0.5))
+    # the final heading is the goal's (or cand's): the band about the guess's own, not the least bound
+    tau[K] = abs(G[K, 3]) / vs_g[K] + (CORRIDOR_END_TAN_SLACK if goal_rows is not None else 0.0)
+    phi = np.arctan(tau)
+    sx = np.array([ego_margins(L, W, float(min(p, math.atan(W / L))), BUFFER_M)[0] for p in phi])
+    # across the road the body reaches L/2 sin φ + W/2 cos φ <= W/2 + L/2 |tan φ|, tan φ = vd / vs
+    # with vs the guess's (re-centred every pass): W/2 and the buffer here, the heading term in the rows
+    sy = np.full(K + 1, W / 2 + BUFFER_M)
+    edge_sy = np.full(K + 1, W / 2 + REPAIR_EDGE_BUFFER_M)
+    lever = L / 2 / vs_g
+    # points along the body's side (rear corner to front corner) and how far a corner can lie beyond
+    # the linear bound d + o tan φ + W/2 at the step's heading bound
+    offsets = np.linspace(-L / 2, L / 2, 5)
+    edges = np.array([(float(ob.s_lo[0]), float(ob.s_hi[0]), float(ob.d_lo[0]), float(ob.d_hi[0]))
+                      for ob in cr.road_edges], dtype=float).reshape(-1, 4)
+    excess = np.array([corner_excess(L / 2, W / 2, float(x)) + W / 2 * (math.sqrt(1.0 + x * x) - 1.0)
+                       for x in tau])
+    # how far a step's position may move from the guess's: both leave x0 within the friction circle
+    move = np.minimum(CORRIDOR_REACH_M, cr.a_max * (np.arange(K + 1) * dt) ** 2 + 0.05)
+    # variables: the states X_k = (s, vs, d, vd) of steps 0..K, then the inputs U_k = (us, ud) of steps 0..K-1
+    last = K - 1 if goal_rows is None else K
+    sides = corridor_sides(cr, G, sx, sy, last)
+    nx = 4 * (K + 1)
+    n_u = nx + 2 * K
+    n_road = n_u + len(sides)  # the road's slacks: two per step (its upper, its lower bound)
+    n = n_road + 2 * last  # the states, the inputs, one slack per side row, the road's
+    eq_r: list[int] = []
+    eq_c: list[int] = []
+    eq_v: list[float] = []
+    eq_b: list[float] = []
+
+    def eq(cols: list[tuple[int, float]], rhs: float) -> None:
+        r = len(eq_b)
+        for c, v in cols:
+            eq_r.append(r)
+            eq_c.append(c)
+            eq_v.append(v)
+        eq_b.append(rhs)
+
+    for i, x in enumerate(cr.x0):
+        eq([(i, 1.0)], float(x))
+    if goal_rows is None:
+        for i, x in enumerate((cand.s, cand.vs, cand.d, cand.vd)):
+            eq([(4 * K + i, 1.0)], float(x))
+    for k in range(K):
+        for axis in (0, 1):  # p' = p + v dt + u dt²/2, v' = v + u dt
+            p, v, u = 4 * k + 2 * axis, 4 * k + 2 * axis + 1, nx + 2 * k + axis
+            eq([(p + 4, 1.0), (p, -1.0), (v, -dt), (u, -0.5 * dt * dt)], 0.0)
+            eq([(v + 4, 1.0), (v, -1.0), (u, -dt)], 0.0)
+    in_r: list[int] = []
+    in_c: list[int] = []
+    in_v: list[float] = []
+    in_b: list[float] = []
+
+    def le(cols: list[tuple[int, float]], rhs: float) -> None:  # sum v x_c <= rhs
+        r = len(in_b)
+        for c, v in cols:
+            in_r.append(r)
+            in_c.append(c)
+            in_v.append(v)
+        in_b.append(rhs)
+
+    v_lo, v_hi = cr.speed_range
+    y_lo, y_hi = cr.road_y
+    grid = lo = hi = None
+    if cr.corridor is not None:
+        grid, lo, hi = cr.corridor
+    if goal_rows is not None:
+        for a, rhs in zip(*goal_rows):
+            le([(4 * K + i, float(a[i])) for i in range(4) if a[i] != 0.0], float(rhs))
+    for k in range(1, last + 1):
+        s_, vs_, d_, vd_ = 4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3
+        le([(vd_, 1.0), (vs_, -float(tau[k]))], 0.0)  # the heading bound
+        le([(vd_, -1.0), (vs_, -float(tau[k]))], 0.0)
+        le([(vs_, -1.0)], -max(v_lo, 0.1))
+        le([(vs_, 1.0)], v_hi)
+        le([(s_, 1.0)], float(G[k, 0] + move[k]))  # the reach about the guess
+        le([(s_, -1.0)], -float(G[k, 0] - move[k]))
+        # the body's sides at points along it (its corners included) below the road's bound near
+        # each point: d + o tan φ + W/2 (+ the corner's excess beyond the linear bound) per side
+        up, down = n_road + 2 * k - 2, n_road + 2 * k - 1  # soft: a start at the edge touches it
+        half = max(float(move[k]) + 0.15, 0.6)
+        for o in offsets:
+            a, b_ = G[k, 0] + o - half, G[k, 0] + o + half
+            h_b, l_b = y_hi, y_lo
+            if grid is not None and lo is not None and hi is not None:
+                h, lw = _narrowest(grid, hi, a, b_, True), _narrowest(grid, lo, a, b_, False)
+                h_b = min(h_b, h) if np.isfinite(h) else h_b
+                l_b = max(l_b, lw) if np.isfinite(lw) else l_b
+            near = edges[(edges[:, 0] <= b_) & (edges[:, 1] >= a)]
+            # the road-edge boxes (each beyond one side of the road): the road's bound where they lie
+            below = near[near[:, 2] + near[:, 3] < y_lo + y_hi]
+            above = near[near[:, 2] + near[:, 3] >= y_lo + y_hi]
+            h_b = min(h_b, float(above[:, 2].min())) if above.size else h_b
+            l_b = max(l_b, float(below[:, 3].max())) if below.size else l_b
+            lean = o / float(vs_g[k])
+            le([(d_, 1.0), (vd_, lean), (up, -1.0)], float(h_b - edge_sy[k] - excess[k]))
+            le([(d_, -1.0), (vd_, -lean), (down, -1.0)], -float(l_b + edge_sy[k] + excess[k]))
+        le([(up, -1.0)], 0.0)
+        le([(down, -1.0)], 0.0)
+    # the vehicles (and road-edge boxes) on their chosen sides, sign * x + slack >= sign * bound
+    for i, (k, axis, sign, bound) in enumerate(sides):
+        if axis == 2:  # sign * d - L/2 |vd| / vs + slack >= sign * bound
+            for pm in (-1.0, 1.0):
+                le([(4 * k + 2, -sign), (4 * k + 3, pm * float(lever[k])), (n_u + i, -1.0)], -sign * bound)
+        else:
+            le([(4 * k + axis, -sign), (n_u + i, -1.0)], -sign * bound)
+        le([(n_u + i, -1.0)], 0.0)
+    # the friction circle: (a_max, us_k, ud_k) in the second-order cone
+    so_r: list[int] = []
+    so_c: list[int] = []
+    so_v: list[float] = []
+    b_soc = np.zeros(3 * K)
+    # in the world the acceleration across the road gains the curvature's κ vs² (at the guess)
+    bend = np.asarray(cr.frame.curvature(G[:K, 0]), dtype=float) * G[:K, 1] ** 2
+    for k in range(K):
+        b_soc[3 * k] = CORRIDOR_ACCEL_SHARE * cr.a_max
+        b_soc[3 * k + 2] = float(bend[k])
+        so_r += [3 * k + 1, 3 * k + 2]
+        so_c += [nx + 2 * k, nx + 2 * k + 1]
+        so_v += [-1.0, -1.0]
+    m_eq, m_in = len(eq_b), len(in_b)
+    A = sparse.coo_matrix((eq_v + in_v + so_v, (eq_r + [m_eq + r for r in in_r] + [m_eq + m_in + r for r in so_r],
+                                                 eq_c + in_c + so_c)), shape=(m_eq + m_in + 3 * K, n)).tocsc()
+    b = np.concatenate([eq_b, in_b, b_soc])
+    cones = [clarabel.ZeroConeT(m_eq), clarabel.NonnegativeConeT(m_in)] + [clarabel.SecondOrderConeT(3)] * K
+    q_diag = np.concatenate([np.zeros(nx), np.full(2 * K, dt), np.zeros(n - n_u)])
+    q_lin = np.concatenate([np.zeros(n_u), np.full(n_road - n_u, CORRIDOR_SLACK_WEIGHT),
+                            np.full(n - n_road, CORRIDOR_ROAD_SLACK_WEIGHT)])
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    solver = clarabel.DefaultSolver(sparse.diags(q_diag).tocsc(), q_lin, A, b, cones, settings)
+    sol = solver.solve()
+    if str(sol.status) not in ("Solved", "AlmostSolved"):
+        return None
+    found = np.asarray(sol.x, dtype=float)
+    A_in = A[m_eq:m_eq + m_in]
+    if not np.all(A_in @ found <= np.asarray(in_b) + 1e-6):
+        return None
+    return StepTrajectory(cr.x0, dt, found[nx:n_u])
+
+
+def _smoothstep(t: FloatArray, t0: float, t1: float) -> tuple[FloatArray, FloatArray]:
+    """The cubic step from 0 at ``t0`` to 1 at ``t1`` and its time derivative."""
+    if t1 <= t0:
+        return (t >= t1).astype(float), np.zeros_like(t)
+    x = np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+    return x * x * (3 - 2 * x), 6 * x * (1 - x) / (t1 - t0)
+
+
+#: Fractions of the horizon at which a lane schedule of the corridor planner's guesses arrives
+#: in its intermediate lane and leaves it (:func:`_schedule_guesses`).
+CORRIDOR_ARRIVE = (0.25, 0.45)
+CORRIDOR_LEAVE = (0.6, 0.8)
+#: Guesses of the lane schedules the corridor planner solves at most (the least intruding).
+CORRIDOR_SCHEDULES = 4
+
+
+def _step_boxes(cr: CommonRoadProblem, K: int) -> FloatArray:
+    """Every vehicle's recorded box at the time steps ``0..K``: shape ``(4, K+1, m)`` (``s_lo,
+    s_hi, d_lo, d_hi``; NaN where it has no record at a step)."""
+    out = np.full((4, K + 1, len(cr.obstacles)), np.nan)
+    for i, ob in enumerate(cr.obstacles):
+        idx = np.rint(ob.t / cr.dt).astype(int)
+        ok = (idx >= 0) & (idx <= K) & (np.abs(ob.t / cr.dt - idx) < 1e-6)
+        for a, arr in enumerate((ob.s_lo, ob.s_hi, ob.d_lo, ob.d_hi)):
+            out[a, idx[ok], i] = arr[ok]
+    return out
+
+
+def _box_depth(cr: CommonRoadProblem, G: FloatArray, boxes: FloatArray) -> float:
+    """How deep a guess on the time steps goes into the vehicles: for every vehicle, the deepest
+    overlap over the steps of the body's box along the road (at heading 0, grown by
+    :data:`CHECK_BUFFER_M`) with its recorded box, summed (a ranking, not a check)."""
+    s, d = G[:, 0:1], G[:, 2:3]
+    L2, W2 = cr.ego_length / 2 + CHECK_BUFFER_M, cr.ego_width / 2 + CHECK_BUFFER_M
+    ov_s = np.minimum(s + L2, boxes[1]) - np.maximum(s - L2, boxes[0])
+    ov_d = np.minimum(d + W2, boxes[3]) - np.maximum(d - W2, boxes[2])
+    depth = np.nan_to_num(np.minimum(ov_s, ov_d), nan=0.0)
+    return float(np.sum(np.maximum(np.max(depth, axis=0), 0.0)))
+
+
+def _schedule_guesses(cr: CommonRoadProblem, cand: Candidate) -> list[FloatArray]:
+    """Guesses on the time steps for :func:`plan_corridor` that pass through one lane on the way:
+    the longitudinal motion the free cubic to ``cand``'s final state or to the farthest-ahead and
+    farthest-behind point of its goal rows (an overtaking plan ends as far ahead of the vehicle it
+    passes as the goal lets it), the lateral motion a smooth change from the start's offset to a
+    lane's centre arriving at one of :data:`CORRIDOR_ARRIVE` of the horizon and from it to the
+    final offset leaving at one of :data:`CORRIDOR_LEAVE`; every lane of ``cr.lanes`` on the road.
+    Ranked by how deep the body check finds them in the vehicles (:func:`intrusions`), then by
+    their free cost; the :data:`CORRIDOR_SCHEDULES` least intruding."""
+    from iamp.commonroad.goal import goal_rows, solve_small_qp
+
+    K, T = cand.steps, cand.tf
+    t: FloatArray = np.arange(K + 1, dtype=np.float64) * cr.dt
+    ends = [(cand.s, cand.vs)]
+    if cand.goal_step >= 0:
+        A, b = goal_rows(cr.goal, cand, cr.x0)
+        for push in (60.0, -60.0):
+            z = solve_small_qp(np.eye(4), np.array([cand.s + push, cand.vs, cand.d, cand.vd]), A, b)
+            if z is not None and abs(float(z[0]) - cand.s) > 0.2:
+                ends.append((float(z[0]) - 0.1 * np.sign(push), float(z[1])))
+    lon = [FreeTrajectory(T, cr.x0, (s_e, v_e, cand.d, cand.vd)).states(t)[:, :2] for s_e, v_e in ends]
+    sy = ego_margins(cr.ego_length, cr.ego_width, HEADING_GUESS_RAD, 0.0)[1]
+    lanes = [ln for ln in cr.lanes if cr.road_y[0] + sy <= ln <= cr.road_y[1] - sy]
+    boxes = _step_boxes(cr, K)
+    scored: list[tuple[float, float, int, FloatArray]] = []
+    n = 0
+    for S in lon:
+        for ln in lanes:
+            for fa in CORRIDOR_ARRIVE:
+                for fl in CORRIDOR_LEAVE:
+                    a1, va1 = _smoothstep(t, 0.0, fa * T)
+                    a2, va2 = _smoothstep(t, fl * T, T)
+                    d = cr.x0[2] + (ln - cr.x0[2]) * a1 + (cand.d - ln) * a2
+                    vd = (ln - cr.x0[2]) * va1 + (cand.d - ln) * va2
+                    G = np.column_stack([S[:, 0], S[:, 1], d, vd])
+                    energy = float(np.sum(np.diff(G[:, 1]) ** 2 + np.diff(G[:, 3]) ** 2))
+                    scored.append((_box_depth(cr, G, boxes), energy, n, G))
+                    n += 1
+    scored.sort(key=lambda e: (e[0], e[1], e[2]))
+    return [G for _, _, _, G in scored[:CORRIDOR_SCHEDULES]]
+
+
+def _corridor_guesses(cr: CommonRoadProblem, best: RoadPlan, cand: Candidate, heading: float) -> list[FloatArray]:
+    """The guesses of the corridor planner for ``cand`` on the time steps: ``best``'s plan, the
+    free cubics joined at each waypoint around the vehicles in its way (:func:`_waypoints`), then
+    the lane schedules (:func:`_schedule_guesses`)."""
+    K = cand.steps
+    out: list[FloatArray] = []
+    if best.trajectory is not None:
+        out.append(_step_guess(best.trajectory, K, cr.dt))
+    by_id = {ob.obstacle_id: ob for ob in cr.obstacles}
+    seen: list[int] = []
+    for ob in ([best.blocked] if best.blocked is not None else []) + [i.obstacle for i in best.intrusions]:
+        if not ob.road_edge and ob.obstacle_id not in seen:
+            seen.append(ob.obstacle_id)
+    sx, sy = ego_margins(cr.ego_length, cr.ego_width, heading)
+    for oid in seen[:2]:
+        for k_m, w in _waypoints(cr, by_id[oid], cand, sx, sy):
+            t_m = k_m * cr.dt
+            first = FreeTrajectory(t_m, cr.x0, w)
+            second = FreeTrajectory(cand.tf - t_m, w, (cand.s, cand.vs, cand.d, cand.vd))
+            out.append(_step_guess(ViaTrajectory(first, second, t_m, 0.0), K, cr.dt))
+    return out + _schedule_guesses(cr, cand)
+
+def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: float = HEADING_GUESS_RAD,
+                  max_solves: int = CORRIDOR_MAX_SOLVES, others: list[Candidate] | None = None) -> RoadPlan | None:
+    """The corridor planner: where the active set and the two-stage search found no safe plan,
+    plan the whole horizon on the time steps with every recorded box on a side chosen from a
+    guess (:func:`corridor_qp`), re-centred on its own plan for up to :data:`CORRIDOR_PASSES`
+    passes, the final state free inside the goal state's rows at its step and piece
+    (:func:`~iamp.commonroad.goal.goal_rows`; a final state the search found clear may touch a
+    vehicle's margin that an overtaking plan cannot reach, one farther ahead in the goal can be);
+    guesses from :func:`_corridor_guesses`, for ``best``'s final state and then ``others``.  A
+    plan is accepted when its final state passes the goal's own test
+    (:meth:`~iamp.commonroad.goal.GoalRegion.verify`), the body check (:func:`intrusions`) finds
+    it safe and the solution written from it accelerates within the friction circle in the world
+    (:func:`_world_peak`).  Guesses are tried best's own plan first, then least intruding first
+    (:func:`_box_depth`); a guess's passes stop when one is not :data:`CORRIDOR_PROGRESS` less
+    deep than the last; a guess or pass met before is not solved again.  At most ``max_solves``
+    QP solves (a count, never a time).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    best : RoadPlan
+        The best attempt (its final state's step and piece are tried first).
+    planner : str
+        The label of the plan returned.
+    heading : float
+        The heading the vehicles' margins of the waypoints assume [rad].
+    max_solves : int
+        QP solves over every final state, guess and pass.
+    others : list of Candidate, optional
+        Further final states tried (other steps or pieces of the goal).
+
+    Returns
+    -------
+    RoadPlan or None
+        A safe plan (``iamp_status`` ``"corridor"``), or None.
+    """
+    from iamp.commonroad.goal import goal_rows
+
+    first = best.candidate
+    if first is None:
+        return None
+    cands = [first]
+    for c in others or []:
+        if len(cands) < CORRIDOR_FINAL_STATES and all((c.steps, c.element, c.piece) != (o.steps, o.element, o.piece)
+                                                      for o in cands):
+            cands.append(c)
+    elapsed = _elapsed(cr) if cr.candidates else 0
+    # every final state's guesses, then round robin: the first guess of each, the second of each, ...
+    jobs: list[tuple[float, int, Candidate, FloatArray]] = []
+    for cand in cands:
+        if cand.steps < 2:
+            continue
+        start = best if cand is first else dataclasses.replace(best, trajectory=None, candidate=cand, blocked=None,
+                                                                intrusions=[])
+        boxes = _step_boxes(cr, cand.steps)
+        for G in _corridor_guesses(cr, start, cand, heading):
+            jobs.append((-1.0 if not jobs else _box_depth(cr, G, boxes), len(jobs), cand, G))
+    jobs.sort(key=lambda j: (j[0], j[1]))  # best's own plan first, then the least intruding guesses
+    solves = 0
+    seen: set[bytes] = set()  # the guesses and passes already solved (to the centimetre)
+    for _, _, cand, G in jobs:
+        rows = goal_rows(cr.goal, cand, cr.x0) if cand.goal_step >= 0 else None
+        e = cr.goal.elements[cand.element]
+        depth = math.inf
+        for _ in range(CORRIDOR_PASSES):
+            key = np.round(G, 2).tobytes()
+            if key in seen:
+                break
+            seen.add(key)
+            if solves >= max_solves:
+                return None
+            solves += 1
+            got = corridor_qp(cr, cand, G, rows)
+            if got is None:
+                break
+            z = got.states([cand.tf])[0]
+            end = dataclasses.replace(cand, s=float(z[0]), vs=float(z[1]), d=float(z[2]), vd=float(z[3]))
+            hits = intrusions(cr, got, cand.tf)
+            h, peak = _heading_and_peak(got, cand.tf)
+            if (not hits and _world_peak(cr, got, cand.steps) <= cr.a_max
+                    and (rows is None or cr.goal.verify(e, cand.steps + elapsed, _tuple4(z)) is None)):
+                return RoadPlan(planner, "optimal", end, got, got.cost(), 0.0, [], [], "corridor", 0, None, h, peak)
+            now = sum(i.depth_m for i in hits)
+            if now > CORRIDOR_PROGRESS * depth:  # the passes no longer get it out of the vehicles
+                break
+            depth = now
+            G = _step_guess(got, cand.steps, cr.dt)
+    return None
+
+def _world_peak(cr: CommonRoadProblem, trajectory: Trajectory, steps: int) -> float:
+    """The largest acceleration of the solution written from ``trajectory`` (the world velocities
+    at the steps, differenced: what CommonRoad's ``PM`` test integrates) [m/s²]."""
+    from iamp.commonroad.solution import world_states
+
+    _, V, _ = world_states(cr, trajectory, steps)
+    return float(np.max(np.linalg.norm(np.diff(V, axis=0), axis=1))) / cr.dt
+
+
+def _tuple4(z: FloatArray) -> tuple[float, float, float, float]:
+    return (float(z[0]), float(z[1]), float(z[2]), float(z[3]))
 
 def _free_peak(cr: CommonRoadProblem, c: Candidate) -> float:
     """Peak |u| of the free plan to ``c`` (its inputs are linear in t: at t = 0 or t_f)."""
