@@ -15,12 +15,13 @@ the grid), so its cost is an upper bound of the bounded optimum wherever it conv
   the QP and, where the QP is ``optimal``, within ``2e-3`` below it (the grid's error; a
   ``local`` QP's refined contact time may lie in a worse basin: random_problem(34389) at 0.85,
   QP 3.5020 at N = 60, 3.45578 at N = 120, the PMP 3.45578); the FOH QP through the PMP's
-  contact time is at or above it and within ``2e-3``; the PMP ``infeasible`` (certified over
-  every contact time) ⇒ the QP finds no plan.
+  contact time (``N = 240``: at ``N = 60`` a tight box's switching times cost the grid 0.5 %,
+  random_problem(8333) at 0.63) is at or above it and within ``2e-3``; the PMP ``infeasible``
+  (certified over every contact time) ⇒ the QP finds no plan.
 * three vehicles (``N = 8``, the QP's own sweep over the ``7·6·5`` node triples): the QP finds a
   plan ⇒ the PMP is not ``infeasible``; a PMP that says ``optimal`` is at most ``1e-6`` above the
   QP; a ``local`` PMP (no certificate over several contact times) is checked at its own contact
-  times, where the fixed-time problem is convex: the FOH QP through them (``N = 96``) is at or
+  times, where the fixed-time problem is convex: the FOH QP through them (``N = 240``) is at or
   above the PMP and within ``2e-3`` of it.
 """
 
@@ -85,7 +86,7 @@ def check(seed: int, m: int, scale: float) -> str:
             if qp.status == stc.OPTIMAL:  # a `local` QP's refined contact time may sit in a worse basin
                 assert pmp.cost >= qp.cost * (1 - BELOW_REL), (*where, pmp.cost, qp.cost)
         if pmp.status == stc.OPTIMAL:
-            _at_its_contact_times(problem, pmp.contact_times, pmp.cost, 60, where)
+            _at_its_contact_times(problem, pmp.contact_times, pmp.cost, 240, where)
     else:
         qp = plan(problem, "qp", solver="clarabel", steps=8)
         if qp.status in (stc.OPTIMAL, stc.LOCAL):
@@ -94,7 +95,7 @@ def check(seed: int, m: int, scale: float) -> str:
                 assert pmp.cost is not None and pmp.cost <= qp.cost * (1 + ABOVE_REL) + ABOVE_REL, (
                     *where, pmp.cost, qp.cost)
         if pmp.status == stc.LOCAL:
-            _at_its_contact_times(problem, pmp.contact_times, pmp.cost, 96, where)
+            _at_its_contact_times(problem, pmp.contact_times, pmp.cost, 240, where)
     if pmp.status == stc.INFEASIBLE:
         assert qp.status not in (stc.OPTIMAL, stc.LOCAL), (*where, qp.status, qp.cost)
     return f"{pmp.status}/{qp.status}"
@@ -156,5 +157,7 @@ def test_three_vehicles_polish_to_stationarity(seed: int, scale: float) -> None:
                    "and the certificate spends its 3000 solves on Farkas intervals beyond the edge whose margin "
                    "vanishes there")
 def test_a_minimum_at_the_edge_is_certified_known() -> None:
-    """1 of the 300 problems of the property's first local run (2026-11-28)."""
+    """The one class of failure left in 1200 generated problems (2026-11-28): 5 of about 850
+    one-vehicle problems (421188 at 0.98, 816845 at 0.93, 161397 at 0.87, 608074 at 0.70,
+    901663 at 0.85), each ``local`` at an upper feasibility edge with the QP's cost."""
     assert check(421188, 1, 0.9802351504609911) == "optimal/local"
