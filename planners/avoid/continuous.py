@@ -58,8 +58,16 @@ Verification
 ``optimal`` only when the KKT conditions of the final QP, recomputed from the data
 (:func:`~iamp.planners.avoid.check.kkt_conditions`), pass ``cmp_kkt_rel_<solver>``, the search
 closed, and the plan's own SPEC §9 report (exact roots) is intrusion-free.  Physical limits
-(``problem.limits``, :mod:`iamp.planners.qp.limits`) are imposed at every node as two
-one-sided rows each, inside the same KKT check.
+(``problem.limits``, :mod:`iamp.planners.qp.limits`) are imposed as two one-sided rows each,
+inside the same KKT check, and hold in continuous time (``limits_between="certified"``, the
+default): the input bounds (``a_x``, ``a_y``, the friction polygon, jerk) are exact at the nodes
+because the input is piecewise linear (FOH) or constant (ZOH); the speed ``v_x`` (quadratic per
+FOH piece) and ``s_y`` (cubic) are bounded by their inner Bernstein coefficients per piece, rows
+linear in ``z`` built by :func:`~iamp.planners.qp.limits.limit_rows` (the one builder, shared by
+the node solver, the dual bound and every backend; independent of the crossing times).  They are
+sufficient, not necessary: ``optimal`` is the optimum of this tightened QP, an upper bound of the
+optimum with the limits imposed exactly between the nodes (``limits_between="nodes"``, for study
+and tests: the bounds at the nodes only).
 """
 
 from __future__ import annotations
@@ -170,7 +178,7 @@ class ContinuousAvoidQP:
 
     def __init__(self, problem: Problem, steps: int, hold: str, solver: str,
                  settings: dict[str, Any] | None = None, row_generation: bool = True,
-                 node_solver: str = "schur") -> None:
+                 node_solver: str = "schur", limits_between: str = "certified") -> None:
         self.problem, self.hold, self.solver, self.settings = problem, hold, solver, settings
         self.N = int(steps)
         self.tf = problem.tf
@@ -186,7 +194,7 @@ class ContinuousAvoidQP:
             from iamp.planners.qp.limits import check_hold, limit_rows
 
             check_hold(problem.limits, hold)
-            self.limit_rows = limit_rows(d, d.t_nodes, hold, problem.limits)
+            self.limit_rows = limit_rows(d, d.t_nodes, hold, problem.limits, between=limits_between)
             lr = self.limit_rows
             A_lim = sp.csr_matrix(sp.vstack([lr.A, -lr.A]))
             u_lim = np.r_[lr.hi, -lr.lo]
@@ -475,6 +483,10 @@ class ContinuousAvoidPlanner:
     #: set on the grid's factored KKT matrix, then the final QP by the backend (``solver``);
     #: ``"backend"``: every QP by the backend.
     node_solver: str = "schur"
+    #: Where the speed and ``y`` limits hold (:data:`iamp.planners.qp.limits.BETWEEN`):
+    #: ``"certified"`` (default) for every ``t`` by the Bernstein rows of each piece (module
+    #: docstring); ``"nodes"`` at the grid nodes only (for study and tests).
+    limits_between: str = "certified"
     #: Dual polynomials a box keeps from its ancestors' candidates (the most recent).
     DUALS_KEPT = 4
     #: Solves of the final secant search per vehicle (:meth:`_polish`).
@@ -789,7 +801,7 @@ class ContinuousAvoidPlanner:
             return failed_plan(problem, st.INFEASIBLE, reason, start, **common,
                                info={"safety_mode": "continuous"})
         qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings, self.row_generation,
-                               self.node_solver)
+                               self.node_solver, self.limits_between)
         out = self.search(qp, orders)
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": qp.n_solves}
         search = {"method": "branch and bound over crossing-time boxes (bounds: each box's half-planes outside "
@@ -818,7 +830,7 @@ class ContinuousAvoidPlanner:
         if reason is not None:
             return failed_plan(problem, st.INFEASIBLE, reason, start, **common)
         qp = ContinuousAvoidQP(problem, int(self.steps), self.hold, self.solver, self.solver_settings,
-                               self.row_generation, self.node_solver)
+                               self.row_generation, self.node_solver, self.limits_between)
         tau = np.asarray(taus, dtype=float)
         sol = qp.solve(_spec([o[0] for o in orders], tau, tau))
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": 1,
@@ -883,6 +895,7 @@ class ContinuousAvoidPlanner:
                              "multiplier_sums": [float(jumps[i, 0]), float(jumps[i, 1])]})
         if qp.limit_rows is not None:
             info["limit_rows"] = qp.limit_rows.describe()
+            info["limits_between"] = qp.limit_rows.between
         if failed:
             status = st.INACCURATE
         else:
