@@ -99,21 +99,25 @@ def test_no_lane_change_into_a_wall_of_vehicles() -> None:
 
 
 def test_lane_change_fits_behind_a_car_driving_beside_the_ego() -> None:
-    """A car beside the ego in the middle lane at its speed: the constant-speed lane change would
-    end inside it, so the lane change ends in a gap (behind or ahead of it) that keeps RSS's
-    stopping distance to it, or behind it the comfortable follower gap."""
+    """A car beside the ego in the middle lane at its speed: no lane change starts toward it
+    (:func:`~iamp.commonroad.tactical.beside`, USA_US101-23_1 seed 2); once it is 2 m ahead of the
+    ego's front, the constant-speed lane change would end against its rear, so the lane change ends
+    in a gap (behind or ahead of it) that keeps RSS's stopping distance to it, or behind it the
+    comfortable follower gap."""
     from iamp.commonroad.planning import intrusions
     from iamp.commonroad.tactical import lane_change, rss_clear_at
 
     cr = _fixture()
-    beside = _moving(11, cr.x0[0], 3.6, cr.x0[1])
-    live = _live([beside])
-    g = _goal(live)
+    g = _goal(_live([]))
+    level = _live([_moving(11, cr.x0[0], 3.6, cr.x0[1])])
+    assert lane_change(level, "avoid", g.d, 0.0, g.s, g.tf) is None
+    ahead = _moving(11, cr.x0[0] + 0.5 * cr.ego_length + 2.0 + 2.25, 3.6, cr.x0[1])
+    live = _live([ahead])
     rp = lane_change(live, "avoid", g.d, 0.0, g.s, g.tf)
     assert rp is not None and rp.candidate is not None
     T = rp.candidate.tf
     s_end = rp.trajectory.states([T])[0, 0]
-    c_end = cr.x0[0] + cr.x0[1] * T
+    c_end = float(ahead.cubic[0]) + cr.x0[1] * T
     assert abs(s_end - c_end) >= 4.5  # not level with it
     assert not intrusions(live, rp.trajectory, T)
     assert rss_clear_at(live, rp.candidate.s, rp.candidate.vs, rp.candidate.d, T)
@@ -357,3 +361,27 @@ def test_an_accepted_sequence_keeps_clear_and_leaves_rss_room(cars: list[tuple[f
                                                  DEFAULT.brake_max)) - 1e-6
             else:
                 assert (s - 0.5 * cr.ego_length) - (c + 2.25) >= follower_gap(vo, v) - 1e-6
+
+
+def test_no_lane_change_starts_beside_a_car_of_the_lane_it_enters() -> None:
+    """USA_US101-23_1 (seed 2, lane-change sequences): at 9.3 s the ego moved toward lane 4 with
+    vehicle 96 there beside it, 1.8 m ahead centre to centre and 6 m/s faster, counting on it to
+    pull ahead; 96 braked briefly and the ego's front corner touched its rear at 9.8 s (the ego at
+    fault: a lateral move toward a car it overlapped along the road).  A free lane change into the
+    second lane is refused while a car of that lane is beside the ego now, though the car (at
+    25 m/s against the ego's 15) is out of the plan's way after half a second; 12 m ahead it is
+    accepted (RSS needs no distance behind a faster car)."""
+    from iamp.commonroad.planning import intrusions
+    from iamp.commonroad.tactical import beside, lane_change, stops_behind_along
+
+    live = _live([])
+    s0, v0, d0, _ = live.x0
+    rp = lane_change(live, "avoid", 3.6, 0.0)
+    assert rp is not None and rp.candidate is not None
+    T = rp.candidate.tf
+    for ahead, ok in ((1.8, False), (12.0, True)):
+        car = _live([_moving(40, s0 + ahead, 3.6, v0 + 10.0)])
+        assert not [h for h in intrusions(car, rp.trajectory, T) if not h.obstacle.road_edge]
+        assert beside(car, s0, 3.6, 0.0) is not ok and not beside(car, s0, d0, 0.0)
+        assert stops_behind_along(car, rp.trajectory, T) is ok
+        assert (lane_change(car, "avoid", 3.6, 0.0) is not None) is ok

@@ -658,7 +658,13 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     (:func:`iamp.commonroad.tactical.sequence`, counted in ``lane_change_sequences``); off by
     default: on the 57 US-101 scenes (seed 1) it changed only 2_1, 23_1 and 24_1 and reached none of
     their goals, and with SUMO seed 2 it brought 23_1's ego beside vehicle 96, against which the
-    one-lane change that followed made a contact at fault (9.8 s).
+    one-lane change that followed made a contact at fault (9.8 s); since a lane change no longer
+    starts beside a car of the lane it enters (:func:`iamp.commonroad.tactical.beside`) those three
+    scenes with seeds 1 and 2 have no contact with it either, and still miss their goals.
+    ``search``: plan toward the goal with the road planner's final-state search
+    (:func:`iamp.commonroad.planning.plan`'s ``search``); off by default: over the 57 scenes it
+    reached the same 53 goals (seed 1) without contact, but with seed 2 USA_US101-24_2 ended in a
+    contact (not at fault) with vehicle 31, a standing car SUMO turned toward the ego's lane.
     The metrics include SPEC §17's responsibility measures
     (:func:`iamp.simulation.monitor.responsibility`, in the road frame: centres and bodies at
     their headings relative to the road; lane numbers are SUMO's, so a vehicle is in the ego's

@@ -12,6 +12,9 @@ traffic there (:func:`waypoints`).  Each such final state is planned with the sa
 
 * it keeps clear of every predicted vehicle over its horizon (the planner's own test, ``safe``),
   within the friction circle, and
+* no vehicle of the lane it enters is beside the ego when it starts (:func:`beside`), and RSS's
+  stopping distance to the vehicles ahead holds every :data:`CHECK_EVERY_S` along it, where the
+  ego is and in the lane it enters (:func:`stops_behind_along`), and
 * its final state is one from which RSS holds in the new lane (:func:`rss_clear_at`): braking
   at ``STOP_DECEL_FRACTION a_max`` stops the ego behind the vehicle ahead whatever that one does
   within RSS's ``brake_max``, and the vehicle behind has room to slow to the ego's speed with a
@@ -392,10 +395,49 @@ def lane_change(cr: CommonRoadProblem, planner: str, goal_d: float, now: float =
     return None
 
 
-def stops_behind_along(cr: CommonRoadProblem, trajectory: Any, T: float) -> bool:
+def beside(cr: CommonRoadProblem, s: float, d: float, T: float) -> bool:
+    """Is a predicted vehicle beside the ego's body at ``(s, d)`` at time ``T``: its box (the
+    nearest time step) overlapping the body along the road and across it grown by RSS's lateral
+    margin ``μ``?
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+        The live problem (``obstacles`` over time from now).
+    s, d : float
+        The body's centre in the road frame [m].
+    T : float
+        The time from now [s].
+
+    Returns
+    -------
+    bool
+        True when some vehicle is.
+    """
+    from iamp.simulation.rss import DEFAULT
+
+    half_w = 0.5 * cr.ego_width + DEFAULT.lat_margin_m
+    half_l = 0.5 * cr.ego_length
+    for ob in cr.obstacles:
+        if ob.road_edge:
+            continue
+        i = int(np.argmin(np.abs(ob.t - T)))
+        if (ob.d_lo[i] < d + half_w and ob.d_hi[i] > d - half_w
+                and ob.s_lo[i] < s + half_l and ob.s_hi[i] > s - half_l):
+            return True
+    return False
+
+
+def stops_behind_along(cr: CommonRoadProblem, trajectory: Any, T: float, ends: Any = ()) -> bool:
     """Does the ego, along a plan, keep RSS's stopping distance to every vehicle ahead in its path
-    (:func:`rss_clear_at` with ``behind=False``) every :data:`CHECK_EVERY_S` up to ``T``?  A lane
-    change toward a car that brakes harder than predicted must be given up before it closes in.
+    (:func:`rss_clear_at` with ``behind=False``) every :data:`CHECK_EVERY_S` up to ``T``, both
+    where it is then and in the lane it is entering (the body at the lateral offset of the next
+    of ``ends`` and ``T``), with no vehicle of that lane beside it now (:func:`beside`)?  A lane
+    change toward a car that brakes harder than predicted must be given up before it closes in,
+    and one may not start beside a car of the lane it enters, counting on that car to pull ahead
+    in time (USA_US101-23_1, seed 2, lane-change sequences: at 9.3 s the ego moved toward lane 4
+    with vehicle 96 there 1.8 m ahead centre to centre, faster; 96 braked briefly and the ego's
+    front corner touched its rear at 9.8 s, the ego at fault by RSS's lateral rule).
 
     Parameters
     ----------
@@ -405,15 +447,26 @@ def stops_behind_along(cr: CommonRoadProblem, trajectory: Any, T: float) -> bool
         The plan (``states(t)`` rows ``(s, v_s, d, v_d)`` from now).
     T : float
         Its horizon [s].
+    ends : sequence of float
+        Earlier times [s, from now] at which it reaches a lane's centre (the ends of the lane
+        changes of a :class:`Stages` sequence before its last).
 
     Returns
     -------
     bool
         True when it does at every tested time.
     """
-    for tau in np.arange(CHECK_EVERY_S, T + 1e-9, CHECK_EVERY_S):
+    marks = sorted({*(float(e) for e in ends if 0.0 < e < T), float(T)})
+    lane_d = [float(x) for x in trajectory.states(np.array(marks))[:, 2]]
+    s0, d0 = (float(x) for x in trajectory.states(np.array([0.0]))[0][[0, 2]])
+    if abs(lane_d[0] - d0) > 0.5 * cr.ego_width and beside(cr, s0, lane_d[0], 0.0):
+        return False
+    for tau in np.arange(0.0, T + 1e-9, CHECK_EVERY_S):
         s, v, d, _ = (float(x) for x in trajectory.states(np.array([tau]))[0])
-        if not rss_clear_at(cr, s, v, d, float(tau), behind=False):
+        entering = lane_d[min(int(np.searchsorted(marks, tau - 1e-9)), len(marks) - 1)]
+        if tau > 0 and not rss_clear_at(cr, s, v, d, float(tau), behind=False):
+            return False
+        if not rss_clear_at(cr, s, v, entering, float(tau), behind=False):
             return False
     return True
 
@@ -448,7 +501,7 @@ def still_holds(cr: CommonRoadProblem, trajectory: Any, T: float, checkpoints: A
         s, v, d, _ = (float(x) for x in trajectory.states(np.array([tau]))[0])
         if not rss_clear_at(cr, s, v, d, float(tau)):
             return False
-    return stops_behind_along(cr, trajectory, T)
+    return stops_behind_along(cr, trajectory, T, checkpoints)
 
 
 #: Lane changes one :func:`sequence` plans at most (the goal's lane at most this many lanes over).
