@@ -157,7 +157,9 @@ def test_three_vehicles_polish_to_stationarity(seed: int, scale: float) -> None:
                    "and the certificate spends its 3000 solves on Farkas intervals beyond the edge whose margin "
                    "vanishes there")
 def test_a_minimum_at_the_edge_is_certified_known() -> None:
-    """The one class of failure left in 1200 generated problems (2026-11-28): 5 of about 850
+    """The one class of failure left in 1400 generated problems (2026-11-28): 6 of 1003
     one-vehicle problems (421188 at 0.98, 816845 at 0.93, 161397 at 0.87, 608074 at 0.70,
-    901663 at 0.85), each ``local`` at an upper feasibility edge with the QP's cost."""
+    901663 at 0.85, 985552 at 0.84), each ``local`` at a feasibility edge with the QP's cost.
+    Beyond the edge the dual Newton method stalls within ~1e-7 t_f (no divergent direction, so
+    no Farkas certificate), while the Taylor bound at the minimum reaches ~1.6e-8 t_f."""
     assert check(421188, 1, 0.9802351504609911) == "optimal/local"
