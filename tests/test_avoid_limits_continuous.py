@@ -119,3 +119,54 @@ def test_nodes_only_overshoots(upper):
     assert overshoot(nodes, prob.limits.vx) > 1e-4
     assert overshoot(cert, prob.limits.vx) <= TOL
     assert cert.cost > nodes.cost
+
+
+def lateral_problem(tf: float, vy0: float, margin: float) -> Problem:
+    """The ego starts moving towards the upper edge of the ``y`` range (``v_{y,0} > 0``) and must
+    end ``margin`` below it: the lateral cubic overshoots between nodes unless held."""
+    ego = EgoBoundary(tf=tf, x0=0.0, y0=1.0, vx0=20.0, xf=20.0 * tf, yf=3.75, vxf=20.0, vy0=vy0)
+    v = SurroundingVehicle(x_poly=(-60.0, 12.0), corner="front-lower", y=3.75, length=4.8, width=1.8,
+                           safety_x=5.0, safety_y=0.5, name="sv1")
+    return Problem(ego, (v,), "y-bound",
+                   limits=PhysicalLimits(ax=(-6.0, 4.0), ay=(-4.0, 4.0), y=(0.5, 3.75 + margin)))
+
+
+def lateral_extremes(plan) -> tuple[float, float]:
+    """``s_y``'s minimum and maximum: nodes, every piece's stationary points (roots of the
+    piece's quadratic ``v_y``, exact) and 2001 samples."""
+    tr = plan.trajectory
+    t, X, U = np.asarray(tr.t_nodes), np.asarray(tr.X), np.asarray(tr.U)
+    times = [np.linspace(0.0, float(t[-1]), 2001)]
+    for k in range(t.size - 1):
+        h = t[k + 1] - t[k]
+        roots = np.roots([(U[k + 1, 1] - U[k, 1]) / (2 * h), U[k, 1], X[k, 3]])
+        roots = roots[np.isreal(roots)].real
+        times.append(t[k] + roots[(roots > 0) & (roots < h)])
+    y = np.r_[X[:, 2], np.asarray(plan.states(np.concatenate(times)))[:, 2]]
+    return float(y.min()), float(y.max())
+
+
+@settings(max_examples=6, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(tf=st_h.floats(3.0, 6.0), vy0=st_h.floats(2.0, 4.0), margin=st_h.floats(0.0, 0.25),
+       steps=st_h.integers(6, 12))
+def test_optimal_plan_keeps_y_range_in_continuous_time(tf, vy0, margin, steps):
+    """The ``y`` range holds for every ``t`` too (cubic per FOH piece, two certified rows)."""
+    prob = lateral_problem(tf, vy0, margin)
+    lo, hi = prob.limits.y
+    plan = ContinuousAvoidPlanner(steps=steps).plan(prob)
+    if plan.status == st.OPTIMAL:
+        ymin, ymax = lateral_extremes(plan)
+        assert max(lo - ymin, ymax - hi) <= TOL, (ymin, ymax)
+        assert plan.info["limit_rows"].get("y_between") == 2 * steps
+
+
+def test_nodes_only_crosses_the_y_bound():
+    """The witness for ``y``: node-only rows let the cubic cross the edge between nodes."""
+    prob = lateral_problem(5.0, 3.0, 0.1)
+    hi = prob.limits.y[1]
+    nodes = ContinuousAvoidPlanner(steps=8, limits_between="nodes").plan(prob)
+    cert = ContinuousAvoidPlanner(steps=8).plan(prob)
+    assert nodes.status == st.OPTIMAL and cert.status == st.OPTIMAL
+    assert lateral_extremes(nodes)[1] - hi > 1e-4
+    assert lateral_extremes(cert)[1] - hi <= TOL
+    assert cert.cost > nodes.cost
