@@ -170,3 +170,30 @@ def test_nodes_only_crosses_the_y_bound():
     assert lateral_extremes(nodes)[1] - hi > 1e-4
     assert lateral_extremes(cert)[1] - hi <= TOL
     assert cert.cost > nodes.cost
+
+
+def test_loop_case_infeasible_on_the_coarse_grid_says_so():
+    """A problem of the closed loop (merge, LOS E, seed 4: the ego brakes to 2 m/s over 3.2 m
+    behind a stopping queue, passenger car's limits): on 12 pieces the node-only plan leaves the
+    speed range between nodes (the loop rejected it, ``limits:vx``); with the certified rows the
+    12-piece problem is ``infeasible`` and its reason says on which grid and with which rows (a
+    speed kept >= 0 at 40 points per piece is infeasible too, so here it is not the rows'
+    conservatism); 16 pieces plan within the range."""
+    from iamp.core.physical import PASSENGER_CAR
+
+    ego = EgoBoundary(tf=7.0, x0=681.4544784691064, y0=-9.375001814294114, vx0=4.7669342889060475,
+                      xf=684.6884264913502, yf=-5.625, vxf=2.0624984395531927, vy0=2.1958012846751507e-06)
+    v80 = SurroundingVehicle(x_poly=(664.8367203657294, 1.781235437229206, -0.04686212814886611,
+                                     0.0011645854313450173), corner="front-lower", y=-5.62, length=4.8, width=1.8,
+                             safety_x=4.879849541359546, safety_y=1.2, name="v80")
+    v78 = SurroundingVehicle(x_poly=(686.4921866718731, 3.313512913229905, -0.04686212814887602,
+                                     0.001164585431346577), corner="rear-lower", y=-5.62, length=4.6, width=1.8,
+                             safety_x=5.685567996086142, safety_y=1.2, name="v78")
+    prob = Problem(ego, (v80, v78), "loop-los-e-4", limits=PASSENGER_CAR)
+    nodes = ContinuousAvoidPlanner(steps=12, max_solves=100, limits_between="nodes").plan(prob)
+    assert nodes.status == st.OPTIMAL and overshoot(nodes, PASSENGER_CAR.vx) > 1e-2
+    coarse = ContinuousAvoidPlanner(steps=12, max_solves=100).plan(prob)
+    assert coarse.status == st.INFEASIBLE
+    assert "on this grid of 12 pieces, the vx bound certified between the nodes" in coarse.info["reason"]
+    fine = ContinuousAvoidPlanner(steps=16, max_solves=100).plan(prob)
+    assert fine.status == st.OPTIMAL and overshoot(fine, PASSENGER_CAR.vx) <= TOL

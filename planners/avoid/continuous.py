@@ -817,6 +817,12 @@ class ContinuousAvoidPlanner:
             if free.status == st.INFEASIBLE or not out["failures"]:
                 why = ("no trajectory satisfies the boundary conditions and the bounds" if free.status == st.INFEASIBLE
                        else "no crossing time gives a feasible QP")
+                certified = [k for k in ("vx_between", "y_between")
+                             if qp.limit_rows is not None and k in qp.limit_rows.describe()]
+                if certified and free.status == st.INFEASIBLE:
+                    # the Bernstein rows are sufficient, not necessary: say what was proved
+                    why += (f" on this grid of {N} pieces, the {' and '.join(k.split('_')[0] for k in certified)} "
+                            f"bound certified between the nodes (Bernstein rows: sufficient, not necessary)")
                 return failed_plan(problem, st.INFEASIBLE, why, start, **common, info=info)
             return failed_plan(problem, out["failures"][0], "no crossing-time candidate solved", start, **common,
                                info=info)
