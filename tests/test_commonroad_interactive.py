@@ -463,6 +463,95 @@ def test_a_free_sliver_narrower_than_the_grid_is_found_and_judged() -> None:
         assert [r[0] for r in occ["vehicles"][0][1]] == ["0", "1"]
 
 
+REPORT = Path(__file__).resolve().parents[1] / "reports" / "commonroad" / "interactive"
+
+
+def _free_and_clear(cr: Any, rows: list[list[Any]], v_goal: float) -> tuple[float, float]:
+    """Independently of :func:`goal_occupancy`: the longest s-interval of ego centre positions in
+    the goal's position pieces (lines of constant d through every lateral boundary) that keeps the
+    ego's body, parallel to the road, off every vehicle of ``rows`` (``id, s, d, v, length, width,
+    heading``; bodies as their road-frame bounding boxes) -- and the longest that also leaves room
+    to avoid the vehicle ahead (braking at a_max while it accelerates at 3.5 m/s^2)."""
+    from iamp.simulation.rss import body_extents
+
+    L2, W2 = 0.5 * cr.ego_length, 0.5 * cr.ego_width
+    best_free = best_clear = -1.0
+    for e in cr.goal.elements:
+        for pc in e.pieces or []:
+            ds = [pc.centre[1] + x for x in np.linspace(-4.0, 4.0, 801)]
+            for r in rows:
+                hy = float(body_extents(r[4], r[5], r[6])[1])
+                ds += [r[2] - hy - W2 - 1e-6, r[2] - hy - W2 + 1e-6, r[2] + hy + W2 - 1e-6, r[2] + hy + W2 + 1e-6]
+            for d in ds:
+                lo, hi = -np.inf, np.inf
+                ok = True
+                for a, bb in zip(pc.A, pc.b):
+                    if abs(a[0]) < 1e-12:
+                        ok &= a[1] * d <= bb + 1e-9
+                    elif a[0] > 0:
+                        hi = min(hi, (bb - a[1] * d) / a[0])
+                    else:
+                        lo = max(lo, (bb - a[1] * d) / a[0])
+                if not ok or lo > hi:
+                    continue
+                for want_clear in (False, True):
+                    cuts = []
+                    for r in rows:
+                        hx, hy = (float(x) for x in body_extents(r[4], r[5], r[6]))
+                        if abs(d - r[2]) < hy + W2:
+                            need = max(v_goal - r[3], 0.0) ** 2 / (2 * (cr.a_max + 3.5)) if want_clear else 0.0
+                            cuts.append((r[1] - hx - L2 - need, r[1] + hx + L2))
+                    longest, at = -1.0, lo
+                    for a0, a1 in sorted(cuts) + [(hi, hi)]:
+                        if a0 > at:
+                            longest = max(longest, min(a0, hi) - at)
+                        at = max(at, a1)
+                    if want_clear:
+                        best_clear = max(best_clear, longest)
+                    else:
+                        best_free = max(best_free, longest)
+    return best_free, best_clear
+
+
+@needs_extra
+@pytest.mark.parametrize("scene", ["USA_US101-2_1_I-1-1", "USA_US101-27_4_I-1-1"])
+def test_the_reports_unreachable_goals_recomputed_from_the_episode(scene: str) -> None:
+    """The two scenes of the report whose goals no course could reach without a contact (goals
+    asking for 18.9 and 20.25 m/s at least), recomputed from the vehicles the episode lists at each
+    window step and the goal's shape: 2_1 (vehicles 502 and 515 in the goal's lane, the gap between
+    them shorter than the ego) has no free centre position at any step; 27_4 has free ones at 7.0-7.4 s
+    only on a sliver shorter than 0.2 m between 345 and the standing 340, from which the ego at
+    20.25 m/s cannot avoid 340; at no step of either window is a position clear after."""
+    import json
+
+    from iamp.commonroad.convert import load
+
+    folder = INTERACTIVE / scene
+    if not folder.is_dir():
+        pytest.skip(f"needs the shared interactive scenarios ({INTERACTIVE})")
+    ep = json.loads((REPORT / f"{scene}.json").read_text())
+    if ep["goal_reached"]:
+        pytest.fail(f"{scene} reached its goal in the report: this test's claim is stale")
+    cr = load(next(folder.glob("*.cr.xml")))
+    occ = ep["goal_occupancy"]
+    assert occ["window_steps_logged"] == len(occ["vehicles"]) == 11
+    speed = cr.goal.elements[0].speed
+    assert speed is not None
+    v_goal = speed[0]
+    free_steps = 0
+    for _t, rows in occ["vehicles"]:
+        longest_free, longest_clear = _free_and_clear(cr, rows, v_goal)
+        assert longest_clear < 0
+        free_steps += longest_free >= 0
+        assert longest_free < 0.2
+    assert free_steps == occ["free_steps"] and occ["clear_after_steps"] == 0 and occ["blocked_whole_window"]
+    assert "contact" in ep["goal_missed_reason"] or "occupied" in ep["goal_missed_reason"]
+    if scene.startswith("USA_US101-2_1"):
+        assert free_steps == 0 and occ["occupied_whole_window"]
+    else:
+        assert free_steps == 5
+
+
 @pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not (INTERACTIVE / "USA_US101-5_1_I-1-1").is_dir(),
                     reason="needs the [commonroad] and [sim] extras and the shared interactive scenarios "
                            f"({INTERACTIVE})")
