@@ -191,12 +191,15 @@ def test_a_kept_plan_toward_the_goal_comes_before_a_lane_change() -> None:
     """USA_US101-9_1 (goal 7-8 s): at 2.6 and 3.1 s the replan finds no safe plan and the previous
     plan's remainder keeps clear; a lane change offered before it (a first version of the layer)
     moved the ego out of reach of the goal (missed, 5 of 11 window steps free).  A lane change
-    replaces only a new fail-safe brake: the ego keeps its plan and reaches the goal, no contact."""
+    replaces only a new fail-safe brake: the ego keeps its plan and reaches the goal, no contact.
+    (Since the road planner of a522a9a every replan of this scene finds a safe plan, so no choice is
+    made at all -- the report of a522a9a lists none either; the scene still must not change lanes.)"""
     from iamp.commonroad.interactive import simulate
 
     r = simulate(INTERACTIVE / "USA_US101-9_1_I-1-1")
     assert r["goal_reached"] and r["collisions"] == 0 and r["contacts_at_fault"] == 0
-    assert r["lane_changes"] == 0 and any(d["action"] == "kept" for d in r["decisions"])
+    assert r["lane_changes"] == 0
+    assert all(d["action"] != "lane change" for d in r["decisions"])
 
 
 def test_a_lane_change_is_never_a_two_stage_plan(monkeypatch: pytest.MonkeyPatch) -> None:
