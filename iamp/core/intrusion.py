@@ -116,34 +116,42 @@ def vehicle_sets(v: Any, traj: PiecewiseTrajectory, breaks: FloatArray, C: Float
         B[:, 0] -= c
         return B
 
-    def cuts_of(polys: list[FloatArray]) -> FloatArray:
-        rows, sig = roots_in_unit_interval(np.concatenate([pad_coeffs(p, n2) for p in polys]))
-        return cut_times(breaks, rows % P, sig)
+    # every polynomial whose roots are cut points, in groups of P rows (one per piece), found at once
+    ddX, ddY = poly_deriv(dX), poly_deriv(dY)
+    groups: list[FloatArray] = []
+    with_intrusion = Ax > d and Ay > d
+    if with_intrusion:  # intrusion: |dx| < Ax − δ and |dy| < Ay − δ
+        groups += [shift(dX, Ax - d), shift(dX, -(Ax - d)), shift(dY, Ay - d), shift(dY, -(Ay - d))]
+    first_overlap = len(groups)  # overlap of the bodies: |dx| < Bx and |dy| < By
+    groups += [shift(dX, Bx), shift(dX, -Bx), shift(dY, By), shift(dY, -By)]
+    first_extreme = len(groups)  # extremes: candidates where depth / distance can attain a max / min
+    groups += [dX, dY, ddX, ddY, shift(dX, Ax), shift(dX, -Ax), shift(dY, Ay), shift(dY, -Ay)]
+    for sx in (1.0, -1.0):
+        for sy in (1.0, -1.0):
+            # depth crossing: Ax − sx dx = Ay − sy dy
+            groups.append(shift(sy * dY - sx * dX, Ay - Ax))
+            # stationary points of (dx − sx Ax)² + (dy − sy Ay)²
+            groups.append(poly_mul(shift(dX, sx * Ax), ddX) + pad_coeffs(poly_mul(shift(dY, sy * Ay), ddY),
+                                                                          2 * degree))
+    rows, sig = roots_in_unit_interval(np.concatenate([pad_coeffs(p, n2) for p in groups]))
+    group = rows // P
 
-    # intrusion: |dx| < Ax − δ and |dy| < Ay − δ
-    if Ax > d and Ay > d:
-        cuts = cuts_of([shift(dX, Ax - d), shift(dX, -(Ax - d)), shift(dY, Ay - d), shift(dY, -(Ay - d))])
+    def cuts_of(lo: int, hi: int) -> FloatArray:
+        sel = (group >= lo) & (group < hi)
+        return cut_times(breaks, rows[sel] % P, sig[sel])
+
+    if with_intrusion:
+        cuts = cuts_of(0, first_overlap)
         mid = 0.5 * (cuts[:-1] + cuts[1:])
         mx, my = _offsets(v, traj, mid)
         intrusion = _runs(cuts, depth(mx, my, Ax, Ay) > d)
     else:
         intrusion = ()
-    # overlap of the bodies: |dx| < Bx and |dy| < By
-    cuts = cuts_of([shift(dX, Bx), shift(dX, -Bx), shift(dY, By), shift(dY, -By)])
+    cuts = cuts_of(first_overlap, first_extreme)
     mid = 0.5 * (cuts[:-1] + cuts[1:])
     mx, my = _offsets(v, traj, mid)
     overlap = _runs(cuts, (np.abs(mx) < Bx) & (np.abs(my) < By))
-    # extremes: candidates where depth / distance can attain a max / min
-    ddX, ddY = poly_deriv(dX), poly_deriv(dY)
-    polys = [dX, dY, ddX, ddY, shift(dX, Ax), shift(dX, -Ax), shift(dY, Ay), shift(dY, -Ay)]
-    for sx in (1.0, -1.0):
-        for sy in (1.0, -1.0):
-            # depth crossing: Ax − sx dx = Ay − sy dy
-            polys.append(shift(sy * dY - sx * dX, Ay - Ax))
-            # stationary points of (dx − sx Ax)² + (dy − sy Ay)²
-            polys.append(poly_mul(shift(dX, sx * Ax), ddX) + pad_coeffs(poly_mul(shift(dY, sy * Ay), ddY),
-                                                                         2 * degree))
-    cand = cuts_of(polys)
+    cand = cuts_of(first_extreme, len(groups))
     cx, cy = _offsets(v, traj, cand)
     max_depth = max(0.0, float(np.max(depth(cx, cy, Ax, Ay))))
     min_clear = float(np.min(distance(cx, cy, Ax, Ay)))

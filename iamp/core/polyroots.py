@@ -9,6 +9,8 @@ p(\sigma)/p'(\sigma)` that are kept only where they lower :math:`|p|`.
 
 from __future__ import annotations
 
+from math import comb
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -43,9 +45,12 @@ def roots_in_unit_interval(C: FloatArray, imag_tol: float = 1e-6) -> tuple[NDArr
     """
     C = np.asarray(C, dtype=float)
     D1 = C.shape[1]
-    scale = np.max(np.abs(C), axis=1)
-    big = np.abs(C) > 1e-12 * scale[:, None]
+    absC = np.abs(C)
+    scale = np.max(absC, axis=1) if D1 else np.zeros(C.shape[0])
+    big = absC > 1e-12 * scale[:, None]
     deg = np.where(big.any(axis=1), D1 - 1 - np.argmax(big[:, ::-1], axis=1), 0)
+    # rows that provably have no eigenvalue in the accepted window are not sent to eigvals
+    deg = np.where(_no_root_near_unit_interval(C, absC, scale, deg, imag_tol), 0, deg)
     rows_out: list[NDArray[np.intp]] = []
     roots_out: list[FloatArray] = []
     for d in np.unique(deg):
@@ -80,6 +85,56 @@ def roots_in_unit_interval(C: FloatArray, imag_tol: float = 1e-6) -> tuple[NDArr
             better = np.abs(polyval_rows(Cr, xn)) < np.abs(f)
             x = np.where(better & np.isfinite(xn), xn, x)
     return rows, x
+
+
+def _bernstein_matrix(n: int) -> FloatArray:
+    """``M`` with ``C @ M`` the Bernstein coefficients on ``[0, 1]`` of ascending ``C`` of degree ``n``:
+    :math:`b_j = \\sum_{k \\le j} \\binom{j}{k} / \\binom{n}{k}\\, c_k`."""
+    M = _BERNSTEIN.get(n)
+    if M is None:
+        M = np.zeros((n + 1, n + 1))
+        for j in range(n + 1):
+            for k in range(j + 1):
+                M[k, j] = comb(j, k) / comb(n, k)
+        _BERNSTEIN[n] = M
+    return M
+
+
+_BERNSTEIN: dict[int, FloatArray] = {}
+#: Bound on the coefficient backward error of the companion-matrix eigenvalues, relative to the
+#: monic polynomial's :math:`(1 + \max_k |a_k|)^2` (LAPACK's balanced QR is backward stable to a
+#: small multiple of the unit round-off, 1.1e-16; this is about 10^7 times that).
+_BACKWARD_REL = 1e-8
+
+
+def _no_root_near_unit_interval(C: FloatArray, absC: FloatArray, scale: FloatArray, deg: NDArray[np.intp],
+                                imag_tol: float) -> NDArray[np.bool_]:
+    r"""Rows for which no computed eigenvalue can fall in the window :func:`roots_in_unit_interval`
+    accepts (:math:`|\mathrm{Im}\,z| \le` ``imag_tol``, :math:`\mathrm{Re}\,z \in [-10^{-9}, 1 + 10^{-9}]`).
+
+    The computed eigenvalues of row :math:`p` (degree :math:`d`, leading coefficient :math:`\ell`)
+    are exact roots of :math:`p/\ell + \delta a` with :math:`|\delta a_k| \le \epsilon_b (1 + \max_k
+    |a_k|)^2` (:data:`_BACKWARD_REL`), and of :math:`p` without its coefficients below
+    :math:`10^{-12} \max_k |c_k|`; at such a root :math:`z` in the window, :math:`|p(z)| \le T`, with
+    :math:`T` the sum of these perturbations on :math:`|z| \le 1.01` plus :math:`|z - x| \sum_k k |c_k|`
+    (:math:`x` the nearest point of :math:`[0, 1]`) and the round-off of the Bernstein
+    coefficients.  When every Bernstein coefficient on :math:`[0, 1]` exceeds :math:`T` (or every one is
+    below :math:`-T`), :math:`|p| > T` on the whole window, so the row has no root there.
+    """
+    K, D1 = C.shape
+    if K == 0 or D1 < 2:
+        return np.zeros(K, dtype=bool)
+    b = C @ _bernstein_matrix(D1 - 1)
+    lead = np.abs(C[np.arange(K), deg])
+    sent = (deg > 0) & (lead > 0)  # the rows roots_in_unit_interval sends to the eigenvalues
+    amax = scale / np.where(sent, lead, 1.0)  # >= max_k |a_k| of the monic polynomial
+    with np.errstate(over="ignore", invalid="ignore"):
+        T = (_BACKWARD_REL * 1.01 * (deg + 1) * lead * (1.0 + amax) ** 2
+             + 1.01 * (imag_tol + 1e-9) * (absC @ np.arange(D1))
+             + 1e-12 * absC.sum(axis=1) + 1.1e-12 * D1 * scale)
+        out = (b.min(axis=1) > T) | (b.max(axis=1) < -T)
+    no_root: NDArray[np.bool_] = out & sent & np.isfinite(T)
+    return no_root
 
 
 def poly_mul(A: FloatArray, B: FloatArray) -> FloatArray:
