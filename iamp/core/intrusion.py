@@ -26,6 +26,7 @@ exact to about 1e-9 s.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -34,7 +35,7 @@ from numpy.typing import NDArray
 from iamp.core.polyroots import pad_coeffs, poly_deriv, poly_mul, roots_in_unit_interval
 from iamp.core.trajectory_pieces import PiecewiseTrajectory, cut_times, shifted_poly
 
-__all__ = ["INTRUSION_TOL_M", "Interval", "VehicleSets", "depth", "distance", "vehicle_sets"]
+__all__ = ["INTRUSION_TOL_M", "Interval", "VehicleSets", "depth", "distance", "vehicle_sets", "vehicles_sets"]
 
 FloatArray = NDArray[np.float64]
 Interval = tuple[float, float]
@@ -98,61 +99,110 @@ def vehicle_sets(v: Any, traj: PiecewiseTrajectory, breaks: FloatArray, C: Float
         (:func:`iamp.core.trajectory_pieces.taylor_pieces`, shape ``(P, 2, 4)``).
     Le, We : float
         The ego body.
+
+    Returns
+    -------
+    VehicleSets
     """
-    a, h = breaks[:-1], np.diff(breaks)
-    P = a.size
-    degree = max(3, len(v.x_poly) - 1)
-    xs = shifted_poly(v.x_poly, a, h, degree)
-    dX = pad_coeffs(C[:, 0, :], degree + 1) - xs
-    dY = pad_coeffs(C[:, 1, :], degree + 1)
-    dY[:, 0] -= v.y
-    Ax, Ay = v.length / 2 + v.safety_x, v.width / 2 + v.safety_y
-    Bx, By = (Le + v.length) / 2, (We + v.width) / 2
-    d = INTRUSION_TOL_M
-    n2 = 2 * degree + 1
+    return vehicles_sets([v], traj, breaks, C, Le, We)[0]
 
-    def shift(A: FloatArray, c: float) -> FloatArray:
-        B = A.copy()
-        B[:, 0] -= c
-        return B
 
-    # every polynomial whose roots are cut points, in groups of P rows (one per piece), found at once
-    ddX, ddY = poly_deriv(dX), poly_deriv(dY)
-    groups: list[FloatArray] = []
-    with_intrusion = Ax > d and Ay > d
-    if with_intrusion:  # intrusion: |dx| < Ax − δ and |dy| < Ay − δ
-        groups += [shift(dX, Ax - d), shift(dX, -(Ax - d)), shift(dY, Ay - d), shift(dY, -(Ay - d))]
-    first_overlap = len(groups)  # overlap of the bodies: |dx| < Bx and |dy| < By
-    groups += [shift(dX, Bx), shift(dX, -Bx), shift(dY, By), shift(dY, -By)]
-    first_extreme = len(groups)  # extremes: candidates where depth / distance can attain a max / min
-    groups += [dX, dY, ddX, ddY, shift(dX, Ax), shift(dX, -Ax), shift(dY, Ay), shift(dY, -Ay)]
-    for sx in (1.0, -1.0):
-        for sy in (1.0, -1.0):
-            # depth crossing: Ax − sx dx = Ay − sy dy
-            groups.append(shift(sy * dY - sx * dX, Ay - Ax))
-            # stationary points of (dx − sx Ax)² + (dy − sy Ay)²
-            groups.append(poly_mul(shift(dX, sx * Ax), ddX) + pad_coeffs(poly_mul(shift(dY, sy * Ay), ddY),
-                                                                          2 * degree))
-    rows, sig = roots_in_unit_interval(np.concatenate([pad_coeffs(p, n2) for p in groups]))
-    group = rows // P
+def vehicles_sets(vehicles: Sequence[Any], traj: PiecewiseTrajectory, breaks: FloatArray, C: FloatArray,
+                  Le: float, We: float) -> list[VehicleSets]:
+    """:func:`vehicle_sets` of every vehicle, the roots of all their cut polynomials found together
+    (one :func:`~iamp.core.polyroots.roots_in_unit_interval` call per polynomial degree; the roots
+    of a row do not depend on the other rows, so the numbers are those of one vehicle at a time).
 
-    def cuts_of(lo: int, hi: int) -> FloatArray:
-        sel = (group >= lo) & (group < hi)
-        return cut_times(breaks, rows[sel] % P, sig[sel])
+    Parameters
+    ----------
+    vehicles : sequence of SurroundingVehicle
+    traj, breaks, C, Le, We
+        As for :func:`vehicle_sets`.
 
-    if with_intrusion:
-        cuts = cuts_of(0, first_overlap)
+    Returns
+    -------
+    list of VehicleSets
+        One per vehicle, in order.
+    """
+    P = breaks.size - 1
+    cuts = [_CutPolynomials(v, breaks, C, Le, We) for v in vehicles]
+    roots: list[tuple[NDArray[np.intp], FloatArray]] = [(np.zeros(0, dtype=np.intp), np.zeros(0))] * len(cuts)
+    for n2 in sorted({c.n2 for c in cuts}):
+        which = [k for k, c in enumerate(cuts) if c.n2 == n2]
+        stacks = [cuts[k].rows for k in which]
+        rows, sig = roots_in_unit_interval(np.concatenate(stacks))
+        start = 0
+        for k, st in zip(which, stacks):
+            sel = (rows >= start) & (rows < start + st.shape[0])
+            roots[k] = (rows[sel] - start, sig[sel])
+            start += st.shape[0]
+    return [c.sets(traj, breaks, P, *r) for c, r in zip(cuts, roots)]
+
+
+class _CutPolynomials:
+    """Vehicle ``v``'s polynomials whose roots are cut points: groups of ``P`` rows (one per piece)."""
+
+    def __init__(self, v: Any, breaks: FloatArray, C: FloatArray, Le: float, We: float) -> None:
+        a, h = breaks[:-1], np.diff(breaks)
+        degree = max(3, len(v.x_poly) - 1)
+        xs = shifted_poly(v.x_poly, a, h, degree)
+        dX = pad_coeffs(C[:, 0, :], degree + 1) - xs
+        dY = pad_coeffs(C[:, 1, :], degree + 1)
+        dY[:, 0] -= v.y
+        Ax, Ay = v.length / 2 + v.safety_x, v.width / 2 + v.safety_y
+        Bx, By = (Le + v.length) / 2, (We + v.width) / 2
+        d = INTRUSION_TOL_M
+        self.v, self.Ax, self.Ay, self.Bx, self.By = v, Ax, Ay, Bx, By
+        self.n2 = n2 = 2 * degree + 1
+
+        def shift(A: FloatArray, c: float) -> FloatArray:
+            B = A.copy()
+            B[:, 0] -= c
+            return B
+
+        ddX, ddY = poly_deriv(dX), poly_deriv(dY)
+        groups: list[FloatArray] = []
+        self.with_intrusion = Ax > d and Ay > d
+        if self.with_intrusion:  # intrusion: |dx| < Ax − δ and |dy| < Ay − δ
+            groups += [shift(dX, Ax - d), shift(dX, -(Ax - d)), shift(dY, Ay - d), shift(dY, -(Ay - d))]
+        self.first_overlap = len(groups)  # overlap of the bodies: |dx| < Bx and |dy| < By
+        groups += [shift(dX, Bx), shift(dX, -Bx), shift(dY, By), shift(dY, -By)]
+        self.first_extreme = len(groups)  # extremes: candidates where depth / distance can attain a max / min
+        groups += [dX, dY, ddX, ddY, shift(dX, Ax), shift(dX, -Ax), shift(dY, Ay), shift(dY, -Ay)]
+        for sx in (1.0, -1.0):
+            for sy in (1.0, -1.0):
+                # depth crossing: Ax − sx dx = Ay − sy dy
+                groups.append(shift(sy * dY - sx * dX, Ay - Ax))
+                # stationary points of (dx − sx Ax)² + (dy − sy Ay)²
+                groups.append(poly_mul(shift(dX, sx * Ax), ddX) + pad_coeffs(poly_mul(shift(dY, sy * Ay), ddY),
+                                                                              2 * degree))
+        self.n_groups = len(groups)
+        self.rows = np.concatenate([pad_coeffs(p, n2) for p in groups])
+
+    def sets(self, traj: PiecewiseTrajectory, breaks: FloatArray, P: int, rows: NDArray[np.intp],
+             sig: FloatArray) -> VehicleSets:
+        """The sets from the roots ``sig`` of rows ``rows`` of :attr:`rows`."""
+        v, Ax, Ay, Bx, By, d = self.v, self.Ax, self.Ay, self.Bx, self.By, INTRUSION_TOL_M
+        group = rows // P
+
+        def cuts_of(lo: int, hi: int) -> FloatArray:
+            sel = (group >= lo) & (group < hi)
+            return cut_times(breaks, rows[sel] % P, sig[sel])
+
+        if self.with_intrusion:
+            cuts = cuts_of(0, self.first_overlap)
+            mid = 0.5 * (cuts[:-1] + cuts[1:])
+            mx, my = _offsets(v, traj, mid)
+            intrusion = _runs(cuts, depth(mx, my, Ax, Ay) > d)
+        else:
+            intrusion = ()
+        cuts = cuts_of(self.first_overlap, self.first_extreme)
         mid = 0.5 * (cuts[:-1] + cuts[1:])
         mx, my = _offsets(v, traj, mid)
-        intrusion = _runs(cuts, depth(mx, my, Ax, Ay) > d)
-    else:
-        intrusion = ()
-    cuts = cuts_of(first_overlap, first_extreme)
-    mid = 0.5 * (cuts[:-1] + cuts[1:])
-    mx, my = _offsets(v, traj, mid)
-    overlap = _runs(cuts, (np.abs(mx) < Bx) & (np.abs(my) < By))
-    cand = cuts_of(first_extreme, len(groups))
-    cx, cy = _offsets(v, traj, cand)
-    max_depth = max(0.0, float(np.max(depth(cx, cy, Ax, Ay))))
-    min_clear = float(np.min(distance(cx, cy, Ax, Ay)))
-    return VehicleSets(intrusion=intrusion, max_intrusion_m=max_depth, overlap=overlap, min_clearance_m=min_clear)
+        overlap = _runs(cuts, (np.abs(mx) < Bx) & (np.abs(my) < By))
+        cand = cuts_of(self.first_extreme, self.n_groups)
+        cx, cy = _offsets(v, traj, cand)
+        max_depth = max(0.0, float(np.max(depth(cx, cy, Ax, Ay))))
+        min_clear = float(np.min(distance(cx, cy, Ax, Ay)))
+        return VehicleSets(intrusion=intrusion, max_intrusion_m=max_depth, overlap=overlap,
+                           min_clearance_m=min_clear)

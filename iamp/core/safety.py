@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from iamp.core.intrusion import INTRUSION_TOL_M, Interval, vehicle_sets
+from iamp.core.intrusion import INTRUSION_TOL_M, Interval, vehicles_sets
 from iamp.core.trajectory_pieces import FALLBACK_PIECE_S, breakpoints, taylor_pieces
 
 __all__ = ["DEFAULT_EGO_LENGTH_M", "DEFAULT_EGO_WIDTH_M", "INTRUSION_TOL_M", "SAFETY_TOLERANCE_M", "SafetyReport",
@@ -190,6 +190,7 @@ def safety_report(problem: Any, trajectory: Any, ego_length: float | None = None
         breaks = np.linspace(0.0, tf, n + 1)
         C, _ = taylor_pieces(trajectory, breaks)
     assert breaks is not None and C is not None
-    out = [VehicleSafety(str(v.name), *vehicle_sets(v, trajectory, breaks, C, Le, We)) for v in problem.vehicles]
+    sets = vehicles_sets(problem.vehicles, trajectory, breaks, C, Le, We)
+    out = [VehicleSafety(str(v.name), *vs) for v, vs in zip(problem.vehicles, sets)]
     return SafetyReport(tuple(out), Le, We, exact)
 
