@@ -169,13 +169,15 @@ class _CutPolynomials:
         groups += [shift(dX, Bx), shift(dX, -Bx), shift(dY, By), shift(dY, -By)]
         self.first_extreme = len(groups)  # extremes: candidates where depth / distance can attain a max / min
         groups += [dX, dY, ddX, ddY, shift(dX, Ax), shift(dX, -Ax), shift(dY, Ay), shift(dY, -Ay)]
+        # the products (dx − sx Ax) dx' and (dy − sy Ay) dy', each computed once
+        px = {sx: poly_mul(shift(dX, sx * Ax), ddX) for sx in (1.0, -1.0)}
+        py = {sy: pad_coeffs(poly_mul(shift(dY, sy * Ay), ddY), 2 * degree) for sy in (1.0, -1.0)}
         for sx in (1.0, -1.0):
             for sy in (1.0, -1.0):
                 # depth crossing: Ax − sx dx = Ay − sy dy
                 groups.append(shift(sy * dY - sx * dX, Ay - Ax))
                 # stationary points of (dx − sx Ax)² + (dy − sy Ay)²
-                groups.append(poly_mul(shift(dX, sx * Ax), ddX) + pad_coeffs(poly_mul(shift(dY, sy * Ay), ddY),
-                                                                              2 * degree))
+                groups.append(px[sx] + py[sy])
         self.n_groups = len(groups)
         self.rows = np.concatenate([pad_coeffs(p, n2) for p in groups])
 
