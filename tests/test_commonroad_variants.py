@@ -126,10 +126,10 @@ def test_corner_excess_bounds_the_turned_corner(half_length: float, half_width: 
 
 
 def test_a_plan_past_only_its_lateral_bound_is_judged_not_dropped() -> None:
-    """The avoidance QP imposes the lateral bound at its nodes; between them the plan passes it
-    by millimetres (start moving toward the bound at 1 m/s, bound 5 cm away: 3.75 mm), and the
-    plan is ``limits_violated``.  Only such a plan (every exceeded bound ``y``) is handed to the
-    body check against the road edges; an optimal or infeasible one is not."""
+    """The avoidance QP with ``limits_between="nodes"`` imposes the lateral bound at its nodes
+    only; between them the plan passes it by millimetres (start moving toward the bound at 1 m/s,
+    bound 5 cm away: 3.75 mm), and the plan is ``limits_violated``.  Only such a plan (every
+    exceeded bound ``y``) is handed to the body check against the road edges; an optimal or infeasible one is not."""
     import iamp
     from iamp.commonroad.planning import only_lateral_bound_exceeded
     from iamp.core.physical import PhysicalLimits
@@ -141,7 +141,8 @@ def test_a_plan_past_only_its_lateral_bound_is_judged_not_dropped() -> None:
 
     def run(hi: float) -> Any:
         problem = Problem(ego, (behind,), name="t", limits=PhysicalLimits(a_total=11.5, vx=(0.0, 50.0), y=(-5.0, hi)))
-        return iamp.plan(problem, "qp", constraint="avoid", steps=24, hold="foh", max_solves=8)
+        return iamp.plan(problem, "qp", constraint="avoid", steps=24, hold="foh", max_solves=8,
+                         limits_between="nodes")
 
     past = run(0.05)
     assert past.status == "limits_violated" and past.trajectory is not None

@@ -9,7 +9,7 @@ from iamp.core.errors import OptionError
 
 from ..qp.backends import BACKENDS, SUPPORTS_INEQUALITIES
 from ..qp.hold import HOLDS
-from ..qp.options import CONTACTS, check_choice, check_steps
+from ..qp.options import CONTACTS, LIMITS_BETWEEN, check_choice, check_steps
 
 #: ``--safety`` of the avoidance QP (SPEC §14): certified in continuous time, or at the nodes only.
 SAFETY_MODES = ("continuous", "nodes")
@@ -54,6 +54,12 @@ class AvoidOptions:
     time_limit_s : None
         Removed (it was a wall-clock budget, which made the status depend on the machine and its
         load); any value is refused with :class:`~iamp.core.errors.OptionError` naming ``max_solves``.
+    limits_between : {"certified", "nodes"}
+        The car's limits (SPEC §14) between the grid nodes: ``"certified"`` (default) adds each
+        piece's inner Bernstein coefficients as rows, so the speed and lateral bounds hold for
+        every ``t`` (sufficient, slightly tighter than the exact bound); ``"nodes"`` imposes them at
+        the nodes only (kept for study; a plan that passes a bound between nodes is
+        ``limits_violated``).
     """
 
     steps: int = 100
@@ -67,6 +73,10 @@ class AvoidOptions:
                "for study)", "choices": SAFETY_MODES})
     max_solves: int = 2000
     time_limit_s: None = None
+    limits_between: str = field(default="certified", metadata={
+        "cli": "avoidance QP only: the car's limits between the grid nodes certified by each piece's Bernstein "
+               "coefficients (certified, default) or imposed at the nodes only (nodes, kept for study)",
+        "choices": LIMITS_BETWEEN})
 
     def __post_init__(self) -> None:
         check_steps(self.steps)
@@ -74,6 +84,7 @@ class AvoidOptions:
         check_avoid_solver(self.solver)
         check_choice(self.contact, CONTACTS, "contact", "contact search")
         check_choice(self.safety, SAFETY_MODES, "safety", "safety mode")
+        check_choice(self.limits_between, LIMITS_BETWEEN, "limits_between", "limits_between")
         if isinstance(self.max_solves, bool) or not isinstance(self.max_solves, int) or self.max_solves < 1:
             raise OptionError(f"must be a positive integer (got {self.max_solves!r})", "max_solves")
         refuse_wall_clock_budget(self.time_limit_s)

@@ -112,6 +112,9 @@ class AvoidQPPlanner:
         of work, SPEC §17).
     time_limit_s : None
         Removed wall-clock budget: any value is refused (:func:`~.options.refuse_wall_clock_budget`).
+    limits_between : {"certified", "nodes"}
+        The car's limits between the grid nodes, continuous-time safety only
+        (:class:`~iamp.planners.avoid.options.AvoidOptions`).
     """
 
     steps: int = 100
@@ -125,6 +128,7 @@ class AvoidQPPlanner:
     safety: str = "continuous"
     max_solves: int = 2000
     time_limit_s: None = None
+    limits_between: str = "certified"
 
     def __post_init__(self) -> None:
         refuse_wall_clock_budget(self.time_limit_s)
@@ -135,7 +139,8 @@ class AvoidQPPlanner:
 
     def _continuous(self) -> ContinuousAvoidPlanner:
         return ContinuousAvoidPlanner(steps=self.steps, hold=self.hold, solver=self.solver,
-                                      solver_settings=self.solver_settings, max_solves=self.max_solves)
+                                      solver_settings=self.solver_settings, max_solves=self.max_solves,
+                                      limits_between=self.limits_between)
 
     # --- solving one grid ------------------------------------------------------------------
     def _backend(self, data: AvoidData, on: np.ndarray) -> BoundSolver:
@@ -163,7 +168,8 @@ class AvoidQPPlanner:
     def from_options(cls, options: AvoidOptions) -> AvoidQPPlanner:
         """The planner of the registry's validated options (:class:`~iamp.planners.avoid.options.AvoidOptions`)."""
         return cls(steps=options.steps, hold=options.hold, solver=options.solver, contact=options.contact,
-                   solver_settings=options.solver_settings, safety=options.safety, max_solves=options.max_solves)
+                   solver_settings=options.solver_settings, safety=options.safety, max_solves=options.max_solves,
+                   limits_between=options.limits_between)
 
     def plan(self, problem: Problem, progress: Progress | None = None) -> Plan:
         """Search the crossing times, solve, verify; an infeasible start/end gives an

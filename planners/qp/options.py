@@ -83,7 +83,8 @@ class QPOptions:
     limits_between: str = field(default="nodes", metadata={
         "cli": "with a [limits] table: the speed and y bounds at the grid nodes (nodes; the exact violation "
                "between nodes is reported, a plan beyond a bound is limits_violated) or certified between the "
-               "nodes too (Bernstein rows)", "choices": LIMITS_BETWEEN})
+               "nodes too (Bernstein rows); the avoidance QP (--constraint avoid) certifies by default",
+        "choices": LIMITS_BETWEEN})
 
     def __post_init__(self) -> None:
         check_steps(self.steps)
