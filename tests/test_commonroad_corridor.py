@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 from conftest import needs_commonroad
+from hypothesis import given
+from hypothesis import strategies as st
 
 FIXTURE = Path(__file__).parent / "fixtures" / "commonroad_goals.py"
 
@@ -105,8 +107,8 @@ def test_the_corridor_moves_a_final_state_at_the_cars_margin_into_the_goal(tmp_p
     assert _judge(cr, rp).valid
     pinned = planning.corridor_qp
 
-    def at_the_search_pose(cr_: Any, cand: Any, G: Any, rows: Any = None) -> Any:
-        return pinned(cr_, cand, G, None)
+    def at_the_search_pose(cr_: Any, cand: Any, G: Any, rows: Any = None, engine: Any = None) -> Any:
+        return pinned(cr_, cand, G, None, engine)
 
     planning.corridor_qp = at_the_search_pose  # type: ignore[assignment]
     try:
@@ -161,3 +163,52 @@ def test_a_step_plan_is_the_point_mass_model() -> None:
         assert np.allclose(tr.states([0.1 * (k + 1)])[0], x)
         assert np.allclose(tr.inputs([0.1 * k + 0.03, 0.1 * k + 0.07]), u[k])
     assert math.isclose(tr.cost(), 0.5 * float(np.sum(u**2)) * 0.1)
+
+
+@needs_commonroad
+def test_a_corridor_plan_for_a_steered_car_keeps_its_engine_limit(tmp_path: Path) -> None:
+    """The KS model accelerates at most :math:`a_{max} v_{switch}/v` above :math:`v_{switch}`.
+    From 10 to 30 m/s in the overtaking fixture's 6.2 s on an empty road, the point-mass corridor
+    plan (constant 3.2 m/s²) exceeds that limit at speed; with the vehicle type's limit
+    (``engine``) it accelerates early, while slow, and stays within the rows' share of it at
+    every step (the world speed at both ends of the step), reaching the same final state."""
+    import dataclasses
+
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import CORRIDOR_ENGINE_SHARE, corridor_qp, ks_engine
+
+    cr = dataclasses.replace(load(_overtake(tmp_path, ego_v=10.0)), obstacles=[])
+    c0 = cr.candidates[0]
+    K, T = c0.steps, c0.steps * cr.dt
+    s0, vs0, d0, _ = cr.x0
+    vf = 30.0
+    cand = dataclasses.replace(c0, s=s0 + 0.5 * (vs0 + vf) * T, vs=vf, d=d0, vd=0.0)
+    t = np.arange(K + 1) * cr.dt
+    acc = (vf - vs0) / T
+    G = np.stack([s0 + vs0 * t + 0.5 * acc * t**2, vs0 + acc * t, np.full_like(t, d0), np.zeros_like(t)], axis=1)
+    a_max, v_switch = ks_engine(2)
+
+    def worst(engine: tuple[float, float] | None) -> float:
+        tr = corridor_qp(cr, cand, G, None, engine)
+        assert tr is not None
+        assert np.allclose(tr.p[-1], (cand.s, cand.d), atol=1e-4) and np.allclose(tr.v[-1], (vf, 0.0), atol=1e-4)
+        speed = np.hypot(tr.v[:, 0], tr.v[:, 1])
+        v = np.maximum(speed[:-1], speed[1:])
+        along = (tr.u * tr.v[:-1]).sum(axis=1) / speed[:-1]  # the acceleration along the world velocity
+        return float(np.max(np.maximum(tr.u[:, 0], along) / np.minimum(a_max, a_max * v_switch / v)))
+
+    assert worst(None) > 1.1  # the point mass accelerates beyond the engine at speed
+    assert worst((a_max, v_switch)) <= CORRIDOR_ENGINE_SHARE + 1e-6
+
+
+@given(st.floats(1.0, 20.0), st.floats(0.5, 30.0), st.floats(0.1, 80.0), st.floats(0.01, 80.0))
+def test_an_engine_tangent_never_allows_more_than_the_engine(a_max: float, v_switch: float, v0: float,
+                                                             v: float) -> None:
+    """The row :math:`a + c v \\le e` lies below :math:`a_{max} v_{switch}/v` at every speed
+    (a tangent of a convex function) and touches it at :math:`v_0` (at least :math:`v_{switch}`)."""
+    from iamp.commonroad.planning import engine_tangent
+
+    c, e = engine_tangent(a_max, v_switch, v0)
+    assert e - c * v <= a_max * v_switch / v * (1 + 1e-12)
+    t0 = max(v0, v_switch)
+    assert math.isclose(e - c * t0, a_max * v_switch / t0, rel_tol=1e-12)

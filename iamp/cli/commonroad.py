@@ -14,7 +14,7 @@ from iamp.cli.types import EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVER, positive_float
 def cmd_plan(args: argparse.Namespace) -> int:
     from iamp.commonroad.check import check
     from iamp.commonroad.convert import load
-    from iamp.commonroad.planning import describe, plan
+    from iamp.commonroad.planning import describe, ks_engine, plan
     from iamp.commonroad.solution import build_solution, write_solution
     from iamp.core.outputs import check_output
 
@@ -26,7 +26,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from iamp.commonroad.predicted import predict_obstacles
 
         seen = predict_obstacles(cr)
-    rp = plan(seen, args.planner)
+    rp = plan(seen, args.planner, engine=ks_engine(args.vehicle_type) if args.vehicle_model == "KS" else None)
     out: dict[str, Any] = dict(describe(rp))
     out["scenario"] = cr.name
     out["frame_fit_residual_m"] = cr.frame_fit_residual_m

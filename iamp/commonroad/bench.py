@@ -36,7 +36,7 @@ from iamp.commonroad import require
 from iamp.commonroad.check import CheckJSON, check
 from iamp.commonroad.convert import load
 from iamp.commonroad.costs import REPORTED as REPORTED_COSTS
-from iamp.commonroad.planning import RoadPlanJSON, describe, plan
+from iamp.commonroad.planning import RoadPlanJSON, describe, ks_engine, plan
 from iamp.commonroad.predicted import predict_obstacles
 from iamp.commonroad.solution import DEFAULT_COST_FUNCTION, build_solution, write_solution
 from iamp.core.atomic import write_text
@@ -131,7 +131,7 @@ def run_one(path: Path, planner: str, out_dir: Path | None, timeout_s: float,
     signal.setitimer(signal.ITIMER_REAL, timeout_s)
     start = time.perf_counter()
     try:
-        rp = plan(seen, base)
+        rp = plan(seen, base, engine=ks_engine(vehicle_type) if vehicle_model == "KS" else None)
         rp.planner = planner
     except _Timeout:
         return Row(cr.name, planner, "timeout", solve_time_s=time.perf_counter() - start,

@@ -528,8 +528,12 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
 
 def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
          steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True, search: bool = True,
-         corridor: bool = True) -> RoadPlan:
+         corridor: bool = True, engine: tuple[float, float] | None = None) -> RoadPlan:
     """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring).
+
+    ``engine`` (the steered model's longitudinal limit ``(a_max, v_switch)``, :func:`ks_engine`)
+    bounds the corridor planner's acceleration along the road (:func:`corridor_qp`); None for a
+    point-mass solution.
 
     With ``search`` (the default) the final states are the goal region's clear poses
     (:func:`search_final_states`); without it ``cr.candidates`` as given, those clear of the
@@ -617,7 +621,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             staged.plans_used = max_plans - budget[0] + staged.plans_used
             return staged
     if corridor and planner != "free" and best.candidate is not None and max_plans > 0:
-        wide = plan_corridor(cr, best, planner, heading, others=tried + clear)
+        wide = plan_corridor(cr, best, planner, heading, others=tried + clear, engine=engine)
         if wide is not None:
             wide.candidates_tried = n_tried
             wide.solve_time_s = time.perf_counter() - start
@@ -852,6 +856,61 @@ CORRIDOR_SLACK_WEIGHT = 1e3
 CORRIDOR_ROAD_SLACK_WEIGHT = 1e5
 #: A box farther than this from the guess (beyond the body's margins) at a step gives no row [m].
 CORRIDOR_NEAR_M = 8.0
+#: Share of the steered model's engine limit and friction circle the corridor plan uses
+#: (:func:`corridor_qp`): below the KS tracker's own input margin
+#: (:data:`iamp.commonroad.ks.INPUT_MARGIN`), leaving its feedback room.
+CORRIDOR_ENGINE_SHARE = 0.9
+
+
+def ks_engine(vehicle_type: int = 2) -> tuple[float, float]:
+    """The ``KS`` model's longitudinal limit of a CommonRoad vehicle type: ``(a_max, v_switch)``
+    (above ``v_switch`` the acceleration is at most ``a_max v_switch / v``), from the parameters
+    :mod:`iamp.commonroad.ks` tracks with.
+
+    Parameters
+    ----------
+    vehicle_type : int
+        CommonRoad vehicle type (1, 2 or 3).
+
+    Returns
+    -------
+    tuple of float
+        ``a_max`` [m/s²] and ``v_switch`` [m/s].
+
+    Raises
+    ------
+    iamp.ScenarioError
+        A vehicle type without ``KS`` parameters.
+    """
+    from iamp.commonroad.ks import _params
+
+    lon = _params(vehicle_type).longitudinal
+    return float(lon.a_max), float(lon.v_switch)
+
+
+def engine_tangent(a_max: float, v_switch: float, v0: float) -> tuple[float, float]:
+    r"""A linear row :math:`a + c\,v \le e` that implies the engine limit
+    :math:`a \le a_{max} v_{switch} / v` at every speed :math:`v > 0`: the tangent of the convex
+    :math:`f(v) = a_{max} v_{switch}/v` at :math:`v_0` (at least :math:`v_{switch}`),
+    :math:`f(v_0) + f'(v_0)(v - v_0) = a_{max} v_{switch}(2/v_0 - v/v_0^2)`, lies below
+    :math:`f` at every speed (sufficient, never optimistic; exact at :math:`v_0`).  With the row
+    :math:`a \le a_{max}` it implies :math:`a \le \min(a_{max}, f(v))` (the set under
+    :math:`f` is not convex, so one tangent per row, not their maximum).
+
+    Parameters
+    ----------
+    a_max, v_switch : float
+        The limit [m/s²] and the speed above which it falls [m/s].
+    v0 : float
+        The speed the tangent touches at [m/s] (raised to ``v_switch``).
+
+    Returns
+    -------
+    (c, e) : tuple of float
+        The row's speed coefficient and right-hand side.
+    """
+    v0 = max(float(v0), float(v_switch))
+    return a_max * v_switch / v0**2, 2.0 * a_max * v_switch / v0
 
 
 class StepTrajectory:
@@ -945,7 +1004,8 @@ def corridor_sides(cr: CommonRoadProblem, G: FloatArray, sx: FloatArray, sy: Flo
 
 
 def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
-                goal_rows: tuple[FloatArray, FloatArray] | None = None) -> StepTrajectory | None:
+                goal_rows: tuple[FloatArray, FloatArray] | None = None,
+                engine: tuple[float, float] | None = None) -> StepTrajectory | None:
     r"""One convex pass of the corridor planner: the minimum-energy zero-order-hold plan on the
     time steps from ``cr.x0`` to ``cand`` that keeps, at every step, the body on the side of every
     box :func:`corridor_sides` chose from the guess ``G``, inside the road corridor's narrowest
@@ -975,6 +1035,18 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
         Rows ``A z <= b`` of the goal state's final state ``z = (s, vs, d, vd)``
         (:func:`~iamp.commonroad.goal.goal_rows`): the final state is then free inside them, with
         the final step's own rows, instead of ``cand``'s state.
+    engine : (a_max, v_switch), optional
+        The steered model's longitudinal limit (:func:`ks_engine`): the acceleration along the
+        world speed's direction, at most :math:`u_{s,k} + \tau_k |u_{d,k}|` (the across-road share
+        :math:`|\dot d|/v \le \tau_k`), is kept below :data:`CORRIDOR_ENGINE_SHARE` of
+        :math:`a_{max}` and of the limit's tangent at the guess's world speed
+        (:func:`engine_tangent`) at the step's both end speeds, each speed taken as an upper bound
+        on the world speed, :math:`v \le \dot s\,(1 + |\kappa|(|d| + R))\sqrt{1 + \tau_k^2}`
+        (:math:`\kappa` at the guess, :math:`R` its reach; the tangent falls with the speed):
+        linear, and sufficient at any speed since a tangent lies below the convex limit (nearly
+        exact near the guess's speed, which each pass re-centres); the friction circle's
+        radius is then the same share of :math:`a_{max}`.  None (a point-mass solution): no such
+        rows, the radius :data:`CORRIDOR_ACCEL_SHARE` of ``cr.a_max``.
 
     Returns
     -------
@@ -1090,6 +1162,18 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
             le([(d_, -1.0), (vd_, -lean), (down, -1.0)], -float(l_b + edge_sy[k] + excess[k]))
         le([(up, -1.0)], 0.0)
         le([(down, -1.0)], 0.0)
+    if engine is not None:  # the steered model's engine: us + tau |ud| <= share * a_max and the tangent at g vs
+        kap = np.abs(np.asarray(cr.frame.curvature(G[:, 0]), dtype=float))
+        grow = (1.0 + kap * (np.abs(G[:, 2]) + CORRIDOR_REACH_M)) * np.sqrt(1.0 + tau**2)
+        for k in range(K):
+            us_, ud_ = nx + 2 * k, nx + 2 * k + 1
+            g, t_k = float(max(grow[k], grow[k + 1])), float(max(tau[k], tau[k + 1]))
+            for pm in (-1.0, 1.0):
+                le([(us_, 1.0), (ud_, pm * t_k)], CORRIDOR_ENGINE_SHARE * engine[0])
+                for j in (k, k + 1):  # the tangent at the guess's world speed (re-centred each pass)
+                    c, e = engine_tangent(engine[0], engine[1], g * float(G[j, 1]))
+                    le([(us_, 1.0), (ud_, pm * t_k), (4 * j + 1, CORRIDOR_ENGINE_SHARE * c * g)],
+                       CORRIDOR_ENGINE_SHARE * e)
     # the vehicles (and road-edge boxes) on their chosen sides, sign * x + slack >= sign * bound
     for i, (k, axis, sign, bound) in enumerate(sides):
         if axis == 2:  # sign * d - L/2 |vd| / vs + slack >= sign * bound
@@ -1105,8 +1189,10 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
     b_soc = np.zeros(3 * K)
     # in the world the acceleration across the road gains the curvature's κ vs² (at the guess)
     bend = np.asarray(cr.frame.curvature(G[:K, 0]), dtype=float) * G[:K, 1] ** 2
+    # the steered model's friction circle leaves its tracker's feedback room (CORRIDOR_ENGINE_SHARE)
+    circle = CORRIDOR_ACCEL_SHARE * cr.a_max if engine is None else CORRIDOR_ENGINE_SHARE * min(cr.a_max, engine[0])
     for k in range(K):
-        b_soc[3 * k] = CORRIDOR_ACCEL_SHARE * cr.a_max
+        b_soc[3 * k] = circle
         b_soc[3 * k + 2] = float(bend[k])
         so_r += [3 * k + 1, 3 * k + 2]
         so_c += [nx + 2 * k, nx + 2 * k + 1]
@@ -1237,7 +1323,8 @@ def _corridor_guesses(cr: CommonRoadProblem, best: RoadPlan, cand: Candidate, he
     return out + _schedule_guesses(cr, cand)
 
 def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: float = HEADING_GUESS_RAD,
-                  max_solves: int = CORRIDOR_MAX_SOLVES, others: list[Candidate] | None = None) -> RoadPlan | None:
+                  max_solves: int = CORRIDOR_MAX_SOLVES, others: list[Candidate] | None = None,
+                  engine: tuple[float, float] | None = None) -> RoadPlan | None:
     """The corridor planner: where the active set and the two-stage search found no safe plan,
     plan the whole horizon on the time steps with every recorded box on a side chosen from a
     guess (:func:`corridor_qp`), re-centred on its own plan for up to :data:`CORRIDOR_PASSES`
@@ -1266,6 +1353,8 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
         QP solves over every final state, guess and pass.
     others : list of Candidate, optional
         Further final states tried (other steps or pieces of the goal).
+    engine : (a_max, v_switch), optional
+        The steered model's longitudinal limit (:func:`corridor_qp`); None for a point mass.
 
     Returns
     -------
@@ -1308,7 +1397,7 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
             if solves >= max_solves:
                 return None
             solves += 1
-            got = corridor_qp(cr, cand, G, rows)
+            got = corridor_qp(cr, cand, G, rows, engine)
             if got is None:
                 break
             z = got.states([cand.tf])[0]
