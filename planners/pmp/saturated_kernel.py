@@ -71,9 +71,9 @@ def gauss(A: Any, r: Any, n: int) -> tuple[bool, list[float]]:
 
 
 @compilable
-def pieces(sig: Any, base: Any, lam: Any, lo: float, hi: float) -> list[float]:
-    """Sub-pieces of ``[0, 1]`` between base points and switching points: flat
-    ``[τa, τb, wa, wb, kind, …]`` (kind ``0`` free, ``−1`` lower, ``+1`` upper)."""
+def base_values(sig: Any, base: Any, lam: Any) -> list[float]:
+    """``w(τ_j) = Σ_i λ_i (σ_i − τ_j)_+ + λ_m (1 − τ_j) + λ_{m+1}`` at every base point ``τ_j``
+    (the multiplier's linear function of :func:`pieces` and :func:`support`)."""
     m = len(sig)
     nb = len(base)
     wv = [0.0] * nb
@@ -88,6 +88,15 @@ def pieces(sig: Any, base: Any, lam: Any, lo: float, hi: float) -> list[float]:
         acc += lam[m] * (1.0 - tau)
         acc += lam[m + 1] * 1.0
         wv[j] = acc
+    return wv
+
+
+@compilable
+def pieces(sig: Any, base: Any, lam: Any, lo: float, hi: float) -> list[float]:
+    """Sub-pieces of ``[0, 1]`` between base points and switching points: flat
+    ``[τa, τb, wa, wb, kind, …]`` (kind ``0`` free, ``−1`` lower, ``+1`` upper)."""
+    wv = base_values(sig, base, lam)
+    nb = len(base)
     out: list[float] = []
     cuts = [0.0, 0.0, 0.0, 0.0]
     for j in range(nb - 1):
@@ -352,20 +361,8 @@ def farkas_margin(sig: Any, base: Any, d: Any, lo: float, hi: float, cand: Any) 
 def support(sig: Any, base: Any, lam: Any, lo: float, hi: float) -> float:
     """``σ(λ) = ∫ max(h̃ w, ℓ̃ w) dτ`` (exact; ``inf`` when an infinite bound meets a nonzero
     ``w``): ``w`` is linear between the base points, cut where it changes sign."""
-    m = len(sig)
+    wv = base_values(sig, base, lam)
     nb = len(base)
-    wv = [0.0] * nb
-    for j in range(nb):
-        tau = base[j]
-        acc = 0.0
-        for i in range(m):
-            gi = sig[i] - tau
-            if gi < 0.0:
-                gi = 0.0
-            acc += lam[i] * gi
-        acc += lam[m] * (1.0 - tau)
-        acc += lam[m + 1] * 1.0
-        wv[j] = acc
     total = 0.0
     cuts = [0.0, 0.0, 0.0]
     for j in range(nb - 1):
