@@ -9,7 +9,7 @@ constraint is imposed by rows
 
 * first half-plane on every Bernstein coefficient of the pieces (and sub-piece) of
   :math:`[0, \tau_i]`, second on those of :math:`[\tau_i, t_f]` — the piece containing
-  :math:`\tau_i` split at :math:`\tau_i` (:meth:`ContinuousAvoidQP.rows`).
+  :math:`\tau_i` split at :math:`\tau_i` (:meth:`ContinuousAvoidQP.spec_rows`).
 
 A feasible point of these rows is safe for every ``t`` (the polynomial lies in the convex hull
 of its coefficients), so the crossing cannot cut the corner between nodes.  The rows are
@@ -122,7 +122,7 @@ class Solved:
     """One solved QP of the search: its solution on the rows of its ``spec``.
 
     ``y`` holds the multipliers of the rows of :attr:`A` (equality rows, then the spec's imposed
-    rows in the order of :meth:`ContinuousAvoidQP.rows`: every vehicle's Bernstein blocks, then
+    rows in the order of :meth:`ContinuousAvoidQP.spec_rows`: every vehicle's Bernstein blocks, then
     the limit rows); :attr:`A` and :attr:`u` are built when asked for."""
 
     spec: Spec
@@ -169,7 +169,7 @@ class Solved:
 class ContinuousAvoidQP:
     """The data of the continuous-time avoidance QP on the uniform grid of ``steps`` pieces.
 
-    Its inequality rows have one fixed layout (:meth:`rows`): for every vehicle ``i``, half-plane
+    Its inequality rows have one fixed layout (:meth:`spec_rows`): for every vehicle ``i``, half-plane
     ``a`` and piece ``k`` a block of ``d + 1`` Bernstein rows on the piece's four node columns
     (row ``((2i + a) N + k)(d + 1) + j``), then the limit rows ``[A_lim; -A_lim] z <= [hi; -lo]``.
     A crossing-time spec sets the values and bounds of the blocks it imposes (a full piece, or
@@ -228,10 +228,12 @@ class ContinuousAvoidQP:
                 cs = np.stack([d.idx_s(a, k), d.idx_v(a, k), d.idx_s(a, k + 1), d.idx_v(a, k + 1)], axis=1)
                 blocks.append(np.repeat(cs, n, axis=0))  # (N n, 4): piece k's n rows
         self.n_b = m * 2 * self.N * n
-        cols = np.concatenate(blocks).ravel() if blocks else np.zeros(0, dtype=np.int64)
-        self._indptr = np.r_[np.arange(0, 4 * self.n_b + 1, 4), 4 * self.n_b + self.A_lim.indptr[1:]].astype(np.int64)
-        self._indices = np.r_[cols, self.A_lim.indices].astype(np.int64)
+        #: the four node columns of every Bernstein row of the layout, shape ``(n_b, 4)``
+        self._bern_cols = (np.concatenate(blocks) if blocks else np.zeros((0, 4))).astype(np.int64)
         self._lim_data = np.asarray(self.A_lim.data, dtype=float)
+        self._lim_indices = np.asarray(self.A_lim.indices, dtype=np.int64)
+        self._lim_indptr = np.asarray(self.A_lim.indptr, dtype=np.int64)
+        self._lim_ids = self.n_b + np.arange(self.u_lim.size, dtype=np.int64)
         #: per vehicle and half-plane: σ M (row values of a full piece) of every piece, every full
         #: piece's bounds
         self._full_vals: dict[tuple[int, int], FloatArray] = {}
@@ -239,9 +241,6 @@ class ContinuousAvoidQP:
         self._split_polys: tuple[FloatArray, FloatArray] | None = None
         self._rhs_polys: dict[tuple[int, int, int, bool], FloatArray] = {}
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
-        #: the values, bounds and imposed rows of a spec that imposes no Bernstein row
-        self._empty = (np.r_[np.zeros(4 * self.n_b), self._lim_data], np.r_[np.ones(self.n_b), self.u_lim],
-                       np.r_[np.zeros(self.n_b, dtype=bool), np.ones(self.u_lim.size, dtype=bool)])
         for i in range(m):
             for a in (0, 1):
                 hp = self.data.planes[i][a]
@@ -331,13 +330,12 @@ class ContinuousAvoidQP:
             out.append((kb, 0.0, lam[1]))
         return out
 
-    def rows(self, spec: Spec) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
-        """Every inequality row of ``spec`` in the fixed layout (class docstring): the CSR values
-        (``indptr``/``indices`` of the layout), the bounds, and which rows the spec imposes
-        (per vehicle ``(first, second, a, b)``: ``first`` on ``[0, a]``, ``second`` on ``[b, t_f]``;
-        the limit rows always)."""
+    def bernstein_rows(self, spec: Spec) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+        """The Bernstein rows that ``spec`` imposes (per vehicle ``(first, second, a, b)``:
+        ``first`` on ``[0, a]``, ``second`` on ``[b, t_f]``), in layout order (class docstring):
+        their values (four per row, on the columns of the layout), bounds and layout numbers."""
         n = self.degree + 1
-        vals, rhs, on = (x.copy() for x in self._empty)
+        chunks: list[tuple[int, FloatArray, FloatArray]] = []  # (first layout row, values, bounds)
         for i, (first, second, a, b) in enumerate(spec):
             for plane, (ta, tb) in ((first, (0.0, a)), (second, (b, self.tf))):
                 if (plane == first and a <= 0.0) or (plane == second and b >= self.tf):
@@ -347,34 +345,29 @@ class ContinuousAvoidQP:
                 full = [k for k, l0, l1 in pieces if l0 == 0.0 and l1 == 1.0]
                 if full:  # contiguous
                     k0, k1 = full[0], full[-1] + 1
-                    r0, r1 = base + k0 * n, base + k1 * n
-                    vals[4 * r0:4 * r1] = self._full_vals[(i, plane)][4 * k0 * n:4 * k1 * n]
-                    rhs[r0:r1] = self._full_rhs[(i, plane)][k0 * n:k1 * n]
-                    on[r0:r1] = True
+                    chunks.append((base + k0 * n, self._full_vals[(i, plane)][4 * k0 * n:4 * k1 * n],
+                                   self._full_rhs[(i, plane)][k0 * n:k1 * n]))
                 for k, l0, l1 in pieces:
-                    if l0 == 0.0 and l1 == 1.0:
-                        continue
-                    r0 = base + k * n
-                    v, c = self._split(i, plane, k, l0, l1)
-                    vals[4 * r0:4 * (r0 + n)] = v
-                    rhs[r0:r0 + n] = c
-                    on[r0:r0 + n] = True
-        return vals, rhs, on
-
-    def _csr(self, vals: FloatArray, rows: NDArray[np.int64]) -> sp.csr_matrix:
-        """The rows ``rows`` of the layout with values ``vals`` (a CSR gather, no search)."""
-        start, stop = self._indptr[rows], self._indptr[rows + 1]
-        lens = stop - start
-        ptr = np.concatenate(([0], np.cumsum(lens))).astype(np.int64)
-        take = np.repeat(start - ptr[:-1], lens) + np.arange(ptr[-1])
-        return sp.csr_matrix((vals[take], self._indices[take], ptr), shape=(rows.size, self.data.n))
+                    if not (l0 == 0.0 and l1 == 1.0):
+                        v, c = self._split(i, plane, k, l0, l1)
+                        chunks.append((base + k * n, v, c))
+        if not chunks:
+            return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
+        chunks.sort(key=lambda c: c[0])
+        ids = np.concatenate([np.arange(r0, r0 + c.size, dtype=np.int64) for r0, _, c in chunks])
+        return (np.concatenate([v for _, v, _ in chunks]), np.concatenate([c for _, _, c in chunks]), ids)
 
     def spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
-        """The imposed rows of ``spec`` (CSR, in layout order), their bounds and their layout row
-        numbers (:meth:`rows`)."""
-        vals, rhs, on = self.rows(spec)
-        idx = np.flatnonzero(on)
-        return self._csr(vals, idx), rhs[idx], idx
+        """The imposed rows of ``spec`` (CSR, in layout order): its Bernstein rows
+        (:meth:`bernstein_rows`), then every limit row; their bounds and their layout row
+        numbers."""
+        vals, rhs, ids = self.bernstein_rows(spec)
+        nb = ids.size
+        A = sp.csr_matrix((np.concatenate((vals, self._lim_data)),
+                           np.concatenate((self._bern_cols[ids].ravel(), self._lim_indices)),
+                           np.concatenate((np.arange(0, 4 * nb + 1, 4), 4 * nb + self._lim_indptr[1:]))),
+                          shape=(nb + self.u_lim.size, self.data.n))
+        return A, np.concatenate((rhs, self.u_lim)), np.concatenate((ids, self._lim_ids))
 
     # --- solving ---------------------------------------------------------------------------
     def solve(self, spec: Spec, reference: FloatArray | None = None, active: NDArray[np.int64] | None = None,

@@ -192,7 +192,7 @@ class DualBounds:
     Parameters
     ----------
     qp : ContinuousAvoidQP
-        The grid's QP (its rows' fixed layout, :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.rows`).
+        The grid's QP (its rows' fixed layout, :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.spec_rows`).
     """
 
     def __init__(self, qp: ContinuousAvoidQP) -> None:
