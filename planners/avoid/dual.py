@@ -41,6 +41,7 @@ inside the box) falls off linearly in the box's width.  A round-off margin
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import TYPE_CHECKING
@@ -78,6 +79,24 @@ def fit_polynomial(values: FloatArray, degree: int) -> FloatArray:
     V = np.vander(lam, degree + 1, increasing=True)
     shape = values.shape
     return np.asarray(np.linalg.solve(V, values.reshape(degree + 1, -1)).reshape(shape), dtype=float)
+
+
+@dataclass(frozen=True)
+class _Binding:
+    """The rows of a solved candidate with a positive multiplier (:meth:`DualBounds._binding`):
+    the candidate's imposed rows and bounds, the positions ``nz`` of the binding rows among them,
+    their multipliers, and per row whether it is a Bernstein row, its vehicle, half-plane, piece
+    and Bernstein index (from its layout number)."""
+
+    A_in: sp.csr_matrix
+    u_in: FloatArray
+    nz: NDArray[np.int64]
+    y: FloatArray
+    bern: NDArray[np.bool_]
+    veh: NDArray[np.int64]
+    plane: NDArray[np.int64]
+    piece: NDArray[np.int64]
+    j: NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -210,6 +229,38 @@ class DualBounds:
         """:meth:`ContinuousAvoidQP.rhs_polynomial`."""
         return self.qp.rhs_polynomial(i, plane, k, pre)
 
+    def _binding(self, sol: Solved) -> _Binding:
+        """The rows of ``sol`` with a positive multiplier, decoded from their layout numbers."""
+        qp = self.qp
+        N, nb = qp.N, self.nb
+        A_in, u_in, ids_all = sol.spec_rows()
+        y_all = sol.y[qp.data.n_eq:]
+        nz = np.flatnonzero(y_all > 0)  # only rows with a positive multiplier enter g
+        ids = ids_all[nz]
+        bern = ids < qp.n_b
+        blk = np.where(bern, ids // (N * nb), -1)
+        return _Binding(A_in, u_in, nz, y_all[nz], bern, blk // 2, blk % 2, (ids // nb) % N, ids % nb)
+
+    def _split_blocks(self, sol: Solved, b: _Binding, i: int, k: int
+                      ) -> Iterator[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64]]]:
+        """Vehicle ``i``'s two half-planes on piece ``k``, split at its crossing time (first on
+        ``[0, λ]``, second on ``[λ, 1]``): per half-plane with a binding row there, ``(M, yj, rhs,
+        σ, cols)`` — the σ-free row values as polynomials in ``λ``
+        (:meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.split_polynomials`), the
+        multipliers per Bernstein index, the bounds as polynomials in ``λ``
+        (:meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.rhs_polynomial`), the sign and
+        the piece's four node columns (the one loop of :meth:`gradient` and :meth:`polynomial`)."""
+        d = self.qp.data
+        f, s = sol.spec[i][0], sol.spec[i][1]
+        for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
+            rows = b.bern & (b.veh == i) & (b.plane == pl) & (b.piece == k)
+            if not rows.any():
+                continue
+            yj = np.zeros(self.nb)
+            yj[b.j[rows]] = b.y[rows]
+            cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
+            yield M, yj, self._rhs_poly(i, pl, k, pre), d.planes[i][pl].sigma, cols
+
     def gradient(self, sol: Solved) -> FloatArray:
         r"""``∂J/∂τ`` at the candidate ``sol`` (its ``spec`` has ``a = b = τ_c``), by the envelope
         theorem: only the rows of the piece split at :math:`\tau_i` depend on :math:`\tau_i`, so
@@ -221,33 +272,19 @@ class DualBounds:
         -------
         ndarray, shape (m,)
         """
-        qp, d = self.qp, self.qp.data
-        N, nb, h, D = qp.N, self.nb, qp.h, qp.degree
-        _, _, ids_all = sol.spec_rows()
-        y_all = sol.y[d.n_eq:]
-        nz = np.flatnonzero(y_all > 0)
-        y, ids = y_all[nz], ids_all[nz]
-        bern = ids < qp.n_b
-        blk = np.where(bern, ids // (N * nb), -1)
-        veh, plane = blk // 2, blk % 2
-        piece, j = (ids // nb) % N, ids % nb
+        qp = self.qp
+        N, h, D = qp.N, qp.h, qp.degree
+        b = self._binding(sol)
         out = np.zeros(len(sol.spec))
         dpow = np.arange(1, D + 1)
-        for i, (f, s, a, _) in enumerate(sol.spec):
+        for i, (_, _, a, _) in enumerate(sol.spec):
             k = piece_of(float(a), float(a), h, N)
             assert k is not None
             lam = (float(a) - k * h) / h
             basis = dpow * lam ** (dpow - 1)  # d/dλ of λ^p, p = 1..D
-            for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
-                rows = bern & (veh == i) & (plane == pl) & (piece == k)
-                if not rows.any():
-                    continue
-                yj = np.zeros(nb)
-                yj[j[rows]] = y[rows]
-                sigma = d.planes[i][pl].sigma
-                cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
+            for M, yj, rhs, sigma, cols in self._split_blocks(sol, b, i, k):
                 dM = np.tensordot(basis, M[1:], axes=(0, 0))  # (nb, 4)
-                drhs = basis @ self._rhs_poly(i, pl, k, pre)[1:]  # (nb,)
+                drhs = basis @ rhs[1:]  # (nb,)
                 out[i] += float(yj @ (sigma * (dM @ sol.z[cols]) - drhs)) / h
         return out
 
@@ -267,15 +304,9 @@ class DualBounds:
         DualPolynomial
         """
         qp, d = self.qp, self.qp.data
-        N, nb, h, D = qp.N, self.nb, qp.h, qp.degree
-        A_in, u_in, ids_all = sol.spec_rows()
-        y_all = sol.y[d.n_eq:]
-        nz = np.flatnonzero(y_all > 0)  # only rows with a positive multiplier enter g
-        y, ids = y_all[nz], ids_all[nz]
-        bern = ids < qp.n_b
-        blk = np.where(bern, ids // (N * nb), -1)
-        veh, plane = blk // 2, blk % 2
-        piece, j = (ids // nb) % N, ids % nb
+        N, h, D = qp.N, qp.h, qp.degree
+        b = self._binding(sol)
+        A_in, u_in, nz, y, bern, veh, plane, piece = b.A_in, b.u_in, b.nz, b.y, b.bern, b.veh, b.plane, b.piece
         keep = ~bern  # the limit rows
         poly_vehicles: list[int] = []
         pieces: list[int] = []
@@ -303,17 +334,8 @@ class DualBounds:
         hc = np.zeros(C)
         hc[0] = float(y_k @ u_in[rows_k])
         for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
-            f, s = sol.spec[i][0], sol.spec[i][1]
-            for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
-                rows = bern & (veh == i) & (plane == pl) & (piece == k)
-                if not rows.any():
-                    continue
-                yj = np.zeros(nb)
-                yj[j[rows]] = y[rows]
-                sigma = d.planes[i][pl].sigma
-                cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
-                rhs = self._rhs_poly(i, pl, k, pre)
-                cs = np.r_[0, 1 + v * D + np.arange(D)]  # the basis columns of λ_i^0..λ_i^D
+            cs = np.r_[0, 1 + v * D + np.arange(D)]  # the basis columns of λ_i^0..λ_i^D
+            for M, yj, rhs, sigma, cols in self._split_blocks(sol, b, i, k):
                 R[np.ix_(cols, cs)] -= sigma * (yj @ M).T
                 hc[cs] += rhs @ yj
         X = self.lu.solve(R)
