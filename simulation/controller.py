@@ -62,7 +62,7 @@ from iamp.simulation.decision import (
 from iamp.simulation.failsafe import Obstacle, body_half_extents, feasible_brakes, verify_trajectory
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
-from iamp.simulation.planning import FreeTrajectory, PlanFn, free_plan, make_planner
+from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
@@ -161,6 +161,8 @@ class Controller:
         self.name = planner
         self.sim = sim
         self.cfg = config or ControllerConfig()
+        if planner in EQUALITY_PLANNERS and not self.cfg.decision.equality:  # the corners in the way only
+            self.cfg = replace(self.cfg, decision=replace(self.cfg.decision, equality=True))
         self.mission = mission or mission_of("discretionary")
         self.iamp = planner not in ("sumo", "mobil")
         self.plan_fn: PlanFn | None = make_planner(planner) if self.iamp else None

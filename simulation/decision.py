@@ -40,6 +40,9 @@ lane's leader ``c`` → ``rear-upper``; safety region ``S_x × S_y`` (SPEC §8: 
 around each body.  A vehicle whose corner the ego has already passed laterally is met and
 left out.  If the ego already stands closer than ``S_x`` behind ``c`` (a queue), ``c``'s
 region is shrunk to the present gap less 0.5 m so that a plan is judged on not closing in.
+For a planner that imposes every vehicle as the paper's equality (``cfg.equality``: ``pmp``,
+``qp``) the problem keeps only the corners in the way (:func:`corners_in_the_way`): the vehicles
+whose region the unconstrained cubic enters, one per side, the deepest.
 
 The ego in the forecast (optional)
 ----------------------------------
@@ -60,10 +63,11 @@ from typing import Any
 
 import numpy as np
 
+from iamp.core.free import FreeTrajectory
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.plan import Plan
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
-from iamp.core.safety import safety_report
+from iamp.core.safety import SAFETY_TOLERANCE_M, safety_report
 from iamp.core.status import SUCCESS
 from iamp.prediction.leader.ego import iterate_with_planner
 
@@ -163,6 +167,10 @@ class DecisionConfig:
     speed_cap: float = 40.0
     check_dt: float = 0.01
     limits: PhysicalLimits = field(default=PASSENGER_CAR)
+    #: The planner imposes every vehicle of its problem as the paper's corner *equality* (``pmp``,
+    #: ``qp``; the registry's ``constraint == "equality"``): the problem carries only the corners in
+    #: the way (:func:`corners_in_the_way`).
+    equality: bool = False
 
 
 #: ``(safety_x, safety_y)`` of the closed loop (SPEC §17): the region around each neighbour's body
@@ -254,7 +262,61 @@ def lane_change_problem(ego: EgoNow, y_target: float, gap: Gap, current_leader: 
         sv = _vehicle(n, corner, cfg, sx)
         if d * (ego.y - sv.corner_y) < 0:  # not yet passed laterally
             vehicles.append(sv)
-    return Problem(boundary, tuple(vehicles), "lane-change", cfg.limits) if vehicles else boundary
+    if not vehicles:
+        return boundary
+    prob = Problem(boundary, tuple(vehicles), "lane-change", cfg.limits)
+    return corners_in_the_way(prob) if cfg.equality else prob
+
+
+def corners_in_the_way(problem: Problem, tolerance_m: float = SAFETY_TOLERANCE_M) -> Problem | EgoBoundary:
+    r"""The problem for a planner that imposes each vehicle as the paper's corner **equality**:
+    only the corners in the way.
+
+    The equality makes the ego *pass through* the corner (SPEC §1). Two kinds of corner make it
+    ask the impossible of a car:
+
+    * a corner the unconstrained plan (the minimum-energy cubic to the same end state) stays clear
+      of: the equality drags the ego back to it (SPEC §2 identity 4, the dragging sign) -- in the
+      loop typically a target-lane follower already far behind, reached only by braking beyond the
+      ``a_x`` bounds or by reversing, so with the car's limits no contact time admits a plan
+      (merge, dense, seed 1: 53 of 62 follower-only problems ``infeasible``);
+    * two corners on the same side of the ego's lateral path (a gap's follower ``front-lower`` and
+      leader ``rear-lower``, both at the target lane's edge less ``S_y``): a lateral motion crosses
+      that line once, so it would have to be at two places at once (exactly so when their ``y``
+      agree); only a lateral wiggle through the line three times meets both, which the ``a_y``
+      bounds forbid (merge, dense, seed 1: 292 of 311 problems, all ``infeasible``).
+
+    So a vehicle is kept only if the cubic enters its safety region deeper than ``tolerance_m``
+    (the §9 report, exact), and of the vehicles kept on one side (``lower``/``upper``) only the one
+    entered deepest. The others are left to the decision layer's test of the plan (the §9 report or
+    the body, RSS and fail-safe verification), as a vehicle already passed laterally is.
+
+    Parameters
+    ----------
+    problem : Problem
+        The lane-change problem with every constrained vehicle.
+    tolerance_m : float
+        Depth up to which entering a region is a touch (:data:`~iamp.core.safety.SAFETY_TOLERANCE_M`).
+
+    Returns
+    -------
+    Problem or EgoBoundary
+        The problem with the vehicles in the way (same order), or its boundary when none is.
+    """
+    rep = safety_report(problem, FreeTrajectory.of(problem.ego))
+    best: dict[str, tuple[float, int]] = {}
+    for k, (v, s) in enumerate(zip(problem.vehicles, rep.vehicles)):
+        if not s.unsafe_beyond(tolerance_m):
+            continue
+        side = v.corner.split("-")[1]
+        if side not in best or s.max_intrusion_m > best[side][0]:
+            best[side] = (s.max_intrusion_m, k)
+    keep = sorted(k for _, k in best.values())
+    if not keep:
+        return problem.ego
+    if len(keep) == problem.m:
+        return problem
+    return problem.with_vehicles(problem.vehicles[k] for k in keep)
 
 
 def check_problem(boundary: EgoBoundary, ego: EgoNow, neighbours: Sequence[Neighbour], lanes: Sequence[int],

@@ -5,7 +5,8 @@ Every iamp planner receives the same problem from the decision layer
 current-lane leader, each with its paper corner.
 
 * ``pmp`` — the registry's ``pmp`` (:class:`iamp.planners.pmp.planner.PMPPlanner`), the paper's
-  equality on **every** vehicle of the problem (global contact times; the branch-and-bound box
+  equality on **every** vehicle of the problem (the decision layer poses the equality planners only
+  the corners in the way, :func:`iamp.simulation.decision.corners_in_the_way`) (global contact times; the branch-and-bound box
   budget is :data:`PMP_BOXES`); with the limits, the saturated PMP of SPEC §14 (input box
   imposed, the other bounds checked on the plan: ``limits_violated`` if one fails).
 * ``qp`` — the registry's ``qp``: the discretised QP with the same equality constraints
@@ -52,12 +53,17 @@ from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.planners import registry
 
-__all__ = ["COMPILED_AXIS", "IAMP_PLANNERS", "PLANNERS", "PMP_BOXES", "QP_SOLVER", "QP_STEPS", "SIM_OPTIONS",
-           "FreeTrajectory", "PlanFn", "free_plan", "make_planner"]
+__all__ = ["COMPILED_AXIS", "EQUALITY_PLANNERS", "IAMP_PLANNERS", "PLANNERS", "PMP_BOXES", "QP_SOLVER", "QP_STEPS",
+           "SIM_OPTIONS", "FreeTrajectory", "PlanFn", "free_plan", "make_planner"]
 
 PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free", "mobil", "sumo")
 #: Planners that call an iamp planner through the decision layer.
 IAMP_PLANNERS = ("pmp", "qp", "pmp-active", "qp-avoid", "free")
+#: Planners that impose every vehicle of their problem as the paper's corner equality (the registry's
+#: ``constraint == "equality"``): the decision layer poses them only the corners in the way
+#: (:func:`iamp.simulation.decision.corners_in_the_way`).
+EQUALITY_PLANNERS = tuple(p for p in IAMP_PLANNERS if p in registry.REGISTRY
+                          and registry.REGISTRY[p].constraint == "equality")
 QP_STEPS = 12
 #: The equality QP's backend in the loop: the limits' rows are inequalities, which the direct
 #: ``kkt`` backend cannot take (:func:`iamp.planners.qp.options.check_limits_solver`).
