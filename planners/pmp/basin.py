@@ -82,7 +82,7 @@ class Basin:
         if c.shape[1] > BOX_BOUND_MAX_M:
             return np.full(c.shape[0], -np.inf)
         with np.errstate(all="ignore"):
-            run = sk.TWINS.get("box_bound", sk.box_bound)
+            run = sk.kernel("box_bound")
             out: FloatArray = run(self.coeffs, self.centre, np.ascontiguousarray(c, dtype=np.float64),
                                   np.ascontiguousarray(r, dtype=np.float64), self.degree)
         return out
@@ -101,7 +101,7 @@ def expansion(vf: ValueFunction, s: FloatArray) -> FloatArray:
     s = np.ascontiguousarray(s, dtype=np.float64)
     D = degree(vf)
     with np.errstate(all="ignore"):
-        c, ok = sk.TWINS.get("expansion", sk.expansion)(vf._EX, vf._EY, vf._DEX, vf._DEY, s, D)
+        c, ok = sk.kernel("expansion")(vf._EX, vf._EY, vf._DEX, vf._DEY, s, D)
     out: FloatArray = np.asarray(c, dtype=np.float64).reshape((D + 1,) * s.size)
     return out if ok else np.full_like(out, np.nan)
 
@@ -123,7 +123,7 @@ def basin_box(vf: ValueFunction, s: FloatArray, delta: float) -> Basin | None:
         return None
     D = degree(vf)
     with np.errstate(all="ignore"):
-        rho, lower = sk.TWINS.get("basin_radius", sk.basin_radius)(c, m, D, gap, float(delta))
+        rho, lower = sk.kernel("basin_radius")(c, m, D, gap, float(delta))
     if not rho > 0:
         return None
     return Basin(s.copy(), float(rho), float(lower), c, D)

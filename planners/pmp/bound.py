@@ -65,7 +65,7 @@ def lower_bound(vf: ValueFunction, c: FloatArray, r: FloatArray) -> FloatArray:
     c = np.ascontiguousarray(c, dtype=np.float64)
     r = np.ascontiguousarray(r, dtype=np.float64)
     with np.errstate(all="ignore"):
-        out: FloatArray = sk.TWINS.get("lower_bound", sk.lower_bound)(vf._EX, vf._EY, vf._DEX, vf._DEY, c, r)
+        out: FloatArray = sk.kernel("lower_bound")(vf._EX, vf._EY, vf._DEX, vf._DEY, c, r)
     return out
 
 
@@ -78,7 +78,7 @@ def _cut(r: FloatArray) -> npt.NDArray[np.bool_]:
 def _split(c: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Halve every box along each side at least half as long as its longest one
     (:func:`iamp.planners.pmp.search_kernels.split`)."""
-    run = sk.TWINS.get("split", sk.split)
+    run = sk.kernel("split")
     cs, rs = run(np.ascontiguousarray(c, dtype=np.float64), np.ascontiguousarray(r, dtype=np.float64))
     return cs, rs
 

@@ -618,7 +618,6 @@ class _UnboundedBound:
         self.T = float(problem.tf)
 
     def __call__(self, a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
-        from iamp.planners.pmp import compiled as _compiled
         from iamp.planners.pmp import search_kernels as sk
 
         vf, T = self.vf, self.T
@@ -626,8 +625,8 @@ class _UnboundedBound:
         r = np.ascontiguousarray((0.5 * (b - a) / T)[:, None])
         # the kernels of bound.lower_bound and ValueFunction.quad_sigma, compiled with the axis
         # solve when it is (compiled.load_axis), else as those call them: the same numbers
-        bound = _compiled.bounded_search_kernel("lower_bound") or sk.TWINS.get("lower_bound", sk.lower_bound)
-        quad = _compiled.bounded_search_kernel("quad") or sk.TWINS.get("quad", sk.quad)
+        bound = sk.kernel("lower_bound")
+        quad = sk.kernel("quad")
         with np.errstate(all="ignore"):
             lb = (vf.scaled.jbar + 0.5 * bound(vf._EX, vf._EY, vf._DEX, vf._DEY, c, r)) * vf.units.cost
             centre = (vf.scaled.jbar + 0.5 * quad(vf._EX, vf._EY, c)) * vf.units.cost
@@ -749,8 +748,8 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
     ego = prob.ego
     (lx, hx), (ly, hy) = input_box(prob)
     C = prob.corners(t).reshape(-1, 2)
-    ends = sol.states(np.array([0.0, T]))
-    X = sol.states(t)
+    ends_and_t = sol.states(np.r_[0.0, T, t])  # one evaluation (element by element, the same numbers)
+    ends, X = ends_and_t[:2], ends_and_t[2:]
     vals: dict[str, float] = {}
     bnd = cor = sat = sw = box = hcon = 0.0
     for k, (lo, hi) in enumerate(((lx, hx), (ly, hy))):
@@ -768,7 +767,7 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
         kn = np.asarray(ax.knots)
         mids = 0.5 * (kn[1:] + kn[:-1])
         pts = np.r_[kn, mids]
-        u = sol.inputs(pts)[:, k]
+        u = sol._axis_eval(k, pts)[2]
         w = sol.w(k, pts)
         sat = max(sat, float(np.max(np.abs(u - np.clip(w, lo, hi)))) / ua)
         for theta, value, _, _ in ax.switching:
@@ -780,11 +779,12 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
     allk = np.asarray(sol.knots())
     pts_h: list[FloatArray] = []
     left_h: list[FloatArray] = []
+    sizes = [0]
     for j in range(len(bp) - 1):
         inner = allk[(allk > bp[j]) & (allk < bp[j + 1])]
         pts_h += [bp[j:j + 1], inner, bp[j + 1:j + 2]]
         left_h += [np.zeros(1 + len(inner), dtype=bool), np.ones(1, dtype=bool)]
-    sizes = np.cumsum([0] + [2 + len(allk[(allk > bp[j]) & (allk < bp[j + 1])]) for j in range(len(bp) - 1)])
+        sizes.append(sizes[-1] + 2 + len(inner))
     H_all = sol._hamiltonian(np.concatenate(pts_h), np.concatenate(left_h))
     Hs = [H_all[sizes[j]:sizes[j + 1]] for j in range(len(bp) - 1)]
     hscale = max(1e-300, max(float(np.max(np.abs(h))) for h in Hs), sol.cost / T)

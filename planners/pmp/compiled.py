@@ -64,35 +64,45 @@ def axis_core() -> Callable[..., Any] | None:
 
 
 def unload_axis() -> None:
-    """Back to the Python axis solve in this process (a later :func:`load_axis` reuses the
-    compiled code)."""
+    """Back to the Python axis solve (and the Python search kernels of
+    :data:`BOUNDED_SEARCH_KERNELS`, unless :func:`load_search` has them) in this process (a
+    later :func:`load_axis` reuses the compiled code)."""
+    from . import search_kernels as sk
+
     _STATE.pop("axis", None)
+    sk.AXIS_TWINS.clear()
 
 
-#: the kernels of :mod:`~iamp.planners.pmp.search_kernels` the bounded PMP's certificate calls
-#: (its closed-form bound :math:`J_b \ge J_u` over intervals), compiled with the axis solve
-BOUNDED_SEARCH_KERNELS = ("quad", "lower_bound")
+#: the kernels of :mod:`~iamp.planners.pmp.search_kernels` the bounded PMP calls, compiled with
+#: the axis solve: the certificate's closed-form bound :math:`J_b \ge J_u` over intervals
+#: (``quad``, ``lower_bound``) and, for ``m ≥ 2``, the Newton polish of the unbounded starts
+#: (``newton``; ``gradient`` for the value function's gradient).  While loaded they are in
+#: :data:`~iamp.planners.pmp.search_kernels.AXIS_TWINS` (:func:`~iamp.planners.pmp.search_kernels.kernel`).
+BOUNDED_SEARCH_KERNELS = ("quad", "lower_bound", "gradient", "newton")
 
 
 def bounded_search_kernel(name: str) -> Callable[..., Any] | None:
     """The compiled twin of the search kernel ``name`` (one of :data:`BOUNDED_SEARCH_KERNELS`)
     once :func:`load_axis` has run in this process, else ``None`` (the caller runs the Python
     function or :func:`load_search`'s twin: the same numbers)."""
-    if "axis" not in _STATE:
-        return None
-    twins: dict[str, Callable[..., Any]] | None = _STATE.get("bounded_search")
-    return None if twins is None else twins.get(name)
+    from . import search_kernels as sk
+
+    out: Callable[..., Any] | None = sk.AXIS_TWINS.get(name)
+    return out
 
 
 def load_axis() -> bool:
     """Compile the axis solve and use it in this process; ``False`` if numba is missing or
     fails (the reason in ``_STATE["error"]``).  Idempotent."""
+    from . import search_kernels as sk
+
     if "axis" in _STATE:
         return True
     if not jit.available():
         return False
     if "axis_built" in _STATE:
         _STATE["axis"] = _STATE["axis_built"]
+        sk.AXIS_TWINS.update(_STATE["bounded_search"])
         return True
     try:
         run = _build_axis()
@@ -102,6 +112,7 @@ def load_axis() -> bool:
         _STATE["error"] = f"{type(exc).__name__}: {exc}"
         return False
     _STATE["axis"] = _STATE["axis_built"] = run
+    sk.AXIS_TWINS.update(_STATE["bounded_search"])
     return True
 
 
@@ -115,6 +126,8 @@ def _build_bounded_search() -> dict[str, Callable[..., Any]]:
     pts = np.array([[0.5], [0.25]])
     twins["quad"](row, row, pts)
     twins["lower_bound"](row, row, row, row, pts, np.full((2, 1), 0.05))
+    twins["gradient"](row, row, row, row, pts)
+    twins["newton"](row, row, row, row, np.array([0.5]), 3)
     return twins
 
 

@@ -125,7 +125,7 @@ class ValueFunction:
         m = sig.shape[-1]
         flat = np.ascontiguousarray(sig.reshape(-1, m))
         with np.errstate(all="ignore"):
-            q: FloatArray = sk.TWINS.get("quad", sk.quad)(self._EX, self._EY, flat)
+            q: FloatArray = sk.kernel("quad")(self._EX, self._EY, flat)
         return q.reshape(sig.shape[:-1])
 
     def gradient_sigma(self, sig: FloatArray) -> FloatArray:
@@ -136,7 +136,7 @@ class ValueFunction:
         m = sig.shape[-1]
         flat = np.ascontiguousarray(sig.reshape(-1, m))
         with np.errstate(all="ignore"):
-            g: FloatArray = sk.TWINS.get("gradient", sk.gradient)(self._EX, self._EY, self._DEX, self._DEY, flat)
+            g: FloatArray = sk.kernel("gradient")(self._EX, self._EY, self._DEX, self._DEY, flat)
         return g.reshape(sig.shape)
 
     # --- physical interface ------------------------------------------------------------------

@@ -81,7 +81,7 @@ def newton_sigma(vf: ValueFunction, s0: FloatArray, max_iter: int = 60) -> tuple
     gradient (:func:`iamp.planners.pmp.search_kernels.newton`).  Returns ``(σ, q(σ))``."""
     s0 = np.ascontiguousarray(s0, dtype=np.float64).reshape(-1)
     with np.errstate(all="ignore"):
-        s, q = sk.TWINS.get("newton", sk.newton)(vf._EX, vf._EY, vf._DEX, vf._DEY, s0, int(max_iter))
+        s, q = sk.kernel("newton")(vf._EX, vf._EY, vf._DEX, vf._DEY, s0, int(max_iter))
     return np.asarray(s, dtype=np.float64), float(q)
 
 

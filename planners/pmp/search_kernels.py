@@ -34,8 +34,33 @@ import numpy as np
 from .jit import compilable
 
 #: the compiled twins by name once :func:`iamp.planners.pmp.compiled.load_search` has run in
-#: this process; callers take ``TWINS.get(name, function)`` (the same numbers either way)
+#: this process; callers take :func:`kernel` (the same numbers either way)
 TWINS: dict[str, Any] = {}
+#: the twins :func:`iamp.planners.pmp.compiled.load_axis` compiles for the bounded PMP
+#: (:data:`iamp.planners.pmp.compiled.BOUNDED_SEARCH_KERNELS`), while it is loaded
+AXIS_TWINS: dict[str, Any] = {}
+
+
+def kernel(name: str) -> Any:
+    """The kernel ``name`` of this module as this process runs it: the twin of
+    :func:`~iamp.planners.pmp.compiled.load_search`, else that of
+    :func:`~iamp.planners.pmp.compiled.load_axis`, else the Python function (the same
+    numbers, bit for bit, whichever runs).
+
+    Parameters
+    ----------
+    name : str
+        A kernel function of this module.
+
+    Returns
+    -------
+    callable
+        The function to call.
+    """
+    run = TWINS.get(name)
+    if run is None:
+        run = AXIS_TWINS.get(name)
+    return run if run is not None else globals()[name]
 
 
 #: ``∂K(s,t)/∂s`` below the diagonal (``s ≤ t``), coefficients ``A[a, b]`` of ``s^a t^b``
