@@ -229,15 +229,19 @@ class ContinuousAvoidQP:
                 blocks.append(np.repeat(cs, n, axis=0))  # (N n, 4): piece k's n rows
         self.n_b = m * 2 * self.N * n
         #: the four node columns of every Bernstein row of the layout, shape ``(n_b, 4)``
-        self._bern_cols = (np.concatenate(blocks) if blocks else np.zeros((0, 4))).astype(np.int64)
+        #: (int32 like scipy's own index arrays: no conversion when a spec's CSR matrix is built)
+        self._bern_cols = (np.concatenate(blocks) if blocks else np.zeros((0, 4))).astype(np.int32)
         self._lim_data = np.asarray(self.A_lim.data, dtype=float)
-        self._lim_indices = np.asarray(self.A_lim.indices, dtype=np.int64)
-        self._lim_indptr = np.asarray(self.A_lim.indptr, dtype=np.int64)
+        self._lim_indices = np.asarray(self.A_lim.indices, dtype=np.int32)
+        self._lim_indptr = np.asarray(self.A_lim.indptr, dtype=np.int32)
+        #: whether a layout row is in a set (:meth:`solve`'s warm start), reset after each use
+        self._mark = np.zeros(self.n_b + self.u_lim.size, dtype=bool)
         self._lim_ids = self.n_b + np.arange(self.u_lim.size, dtype=np.int64)
         #: per vehicle and half-plane: σ M (row values of a full piece) of every piece, every full
         #: piece's bounds
         self._full_vals: dict[tuple[int, int], FloatArray] = {}
         self._splits: dict[tuple[int, int, int, float, float], tuple[FloatArray, FloatArray]] = {}
+        self._segments: dict[tuple[int, int, float, float], tuple[FloatArray, FloatArray, NDArray[np.int64]]] = {}
         self._split_polys: tuple[FloatArray, FloatArray] | None = None
         self._rhs_polys: dict[tuple[int, int, int, bool], FloatArray] = {}
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
@@ -330,32 +334,52 @@ class ContinuousAvoidQP:
             out.append((kb, 0.0, lam[1]))
         return out
 
+    def _segment(self, i: int, plane: int, ta: float, tb: float) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+        """Vehicle ``i``'s half-plane ``plane`` imposed on ``[ta, tb]``: the values (four per row),
+        bounds and layout numbers of its Bernstein rows, in layout order (kept per plan: a box's
+        ends recur in its children, candidates and relaxations)."""
+        key = (i, plane, ta, tb)
+        out = self._segments.get(key)
+        if out is None:
+            n = self.degree + 1
+            base = (i * 2 + plane) * self.N * n
+            vals: list[FloatArray] = []
+            rhs: list[FloatArray] = []
+            starts: list[int] = []
+            pieces = self.segment_pieces(ta, tb)
+            full = [k for k, l0, l1 in pieces if l0 == 0.0 and l1 == 1.0]
+            for k, l0, l1 in pieces:
+                if not (l0 == 0.0 and l1 == 1.0):
+                    v, c = self._split(i, plane, k, l0, l1)
+                elif k == full[0]:  # the full pieces are contiguous: one block
+                    k1 = full[-1] + 1
+                    v, c = self._full_vals[(i, plane)][4 * k * n:4 * k1 * n], self._full_rhs[(i, plane)][k * n:k1 * n]
+                else:
+                    continue
+                vals.append(v)
+                rhs.append(c)
+                starts.append(base + k * n)
+            ids = np.concatenate([np.arange(r0, r0 + c.size, dtype=np.int64) for r0, c in zip(starts, rhs)]) \
+                if rhs else np.zeros(0, dtype=np.int64)
+            out = self._segments[key] = (np.concatenate(vals) if vals else np.zeros(0),
+                                         np.concatenate(rhs) if rhs else np.zeros(0), ids)
+        return out
+
     def bernstein_rows(self, spec: Spec) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
         """The Bernstein rows that ``spec`` imposes (per vehicle ``(first, second, a, b)``:
         ``first`` on ``[0, a]``, ``second`` on ``[b, t_f]``), in layout order (class docstring):
         their values (four per row, on the columns of the layout), bounds and layout numbers."""
-        n = self.degree + 1
-        chunks: list[tuple[int, FloatArray, FloatArray]] = []  # (first layout row, values, bounds)
+        parts = []
         for i, (first, second, a, b) in enumerate(spec):
-            for plane, (ta, tb) in ((first, (0.0, a)), (second, (b, self.tf))):
-                if (plane == first and a <= 0.0) or (plane == second and b >= self.tf):
-                    continue
-                base = (i * 2 + plane) * self.N * n
-                pieces = self.segment_pieces(ta, tb)
-                full = [k for k, l0, l1 in pieces if l0 == 0.0 and l1 == 1.0]
-                if full:  # contiguous
-                    k0, k1 = full[0], full[-1] + 1
-                    chunks.append((base + k0 * n, self._full_vals[(i, plane)][4 * k0 * n:4 * k1 * n],
-                                   self._full_rhs[(i, plane)][k0 * n:k1 * n]))
-                for k, l0, l1 in pieces:
-                    if not (l0 == 0.0 and l1 == 1.0):
-                        v, c = self._split(i, plane, k, l0, l1)
-                        chunks.append((base + k * n, v, c))
-        if not chunks:
+            segs = [(first, 0.0, a)] if a > 0.0 else []
+            if b < self.tf:
+                segs.append((second, b, self.tf))
+            for plane, ta, tb in sorted(segs):  # layout order: half-plane 0, then 1
+                parts.append(self._segment(i, plane, ta, tb))
+        if not parts:
             return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
-        chunks.sort(key=lambda c: c[0])
-        ids = np.concatenate([np.arange(r0, r0 + c.size, dtype=np.int64) for r0, _, c in chunks])
-        return (np.concatenate([v for _, v, _ in chunks]), np.concatenate([c for _, _, c in chunks]), ids)
+        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+                np.concatenate([p[2] for p in parts]))
 
     def spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
         """The imposed rows of ``spec`` (CSR, in layout order): its Bernstein rows
@@ -363,9 +387,9 @@ class ContinuousAvoidQP:
         numbers."""
         vals, rhs, ids = self.bernstein_rows(spec)
         nb = ids.size
+        ptr = np.concatenate((np.arange(0, 4 * nb + 1, 4, dtype=np.int32), 4 * nb + self._lim_indptr[1:]))
         A = sp.csr_matrix((np.concatenate((vals, self._lim_data)),
-                           np.concatenate((self._bern_cols[ids].ravel(), self._lim_indices)),
-                           np.concatenate((np.arange(0, 4 * nb + 1, 4), 4 * nb + self._lim_indptr[1:]))),
+                           np.concatenate((self._bern_cols[ids].ravel(), self._lim_indices)), ptr),
                           shape=(nb + self.u_lim.size, self.data.n))
         return A, np.concatenate((rhs, self.u_lim)), np.concatenate((ids, self._lim_ids))
 
@@ -385,7 +409,11 @@ class ContinuousAvoidQP:
         A_in, u_in, ids = self.spec_rows(spec)
         sol = None
         if self.schur is not None:
-            start = None if active is None else np.flatnonzero(np.isin(ids, active))
+            start = None
+            if active is not None:  # the positions of the rows ``active`` among ``ids``
+                self._mark[active] = True
+                start = np.flatnonzero(self._mark[ids])
+                self._mark[active] = False
             sol = self.schur.solve(A_in, u_in, start, cutoff)
             self.n_solves += 1
             if sol.status == CUTOFF:

@@ -123,9 +123,14 @@ class SchurActiveSet:
         self.P_full = sp.csr_matrix(full)
         self.lu = spla.splu(kkt_matrix(self.P, A_eq, full))
         self.max_iter = int(max_iter)
-        x0 = self.lu.solve(np.r_[np.zeros(self.n), self.b_eq])
-        self.z0 = np.asarray(x0[:self.n], dtype=float)
-        self._m: dict[int, FloatArray] = {}
+        x0 = np.asarray(self.lu.solve(np.r_[np.zeros(self.n), self.b_eq]), dtype=float)
+        #: the equality optimum and its multipliers (the final solve of a QP whose working set
+        #: stays empty: the same solve with the same right-hand side)
+        self._x0 = x0
+        self.z0 = x0[:self.n].copy()
+        #: row ``c``: the primal part of column ``c`` of ``K⁻¹`` once solved (:attr:`_have`)
+        self._Kinv = np.zeros((self.n, self.n))
+        self._have = np.zeros(self.n, dtype=bool)
         self._w: dict[bytes, FloatArray] = {}
         self.columns = 0
 
@@ -136,19 +141,20 @@ class SchurActiveSet:
         w = self._w.get(key)
         if w is not None:
             return w
-        if any(int(c) not in self._m for c in cols):
+        if not self._have[cols].all():
             # one batch with the columns next to them in z's layout (the nodes beside a piece: the
             # rows of the pieces near a crossing are asked for next); SuperLU's multi-column
             # solve costs a few µs per column up to ~50 columns
-            near = {int(c) + j for c in cols for j in range(-PREFETCH, PREFETCH + 1)}
-            missing = sorted(c for c in near if 0 <= c < self.n and c not in self._m)
-            R = np.zeros((self.n + self.n_eq, len(missing)))
-            R[missing, np.arange(len(missing))] = 1.0
-            X = np.asarray(self.lu.solve(R), dtype=float).reshape(self.n + self.n_eq, len(missing))
-            for a, c in enumerate(missing):
-                self._m[c] = X[:self.n, a].copy()
-            self.columns += len(missing)
-        w = np.asarray(vals @ np.stack([self._m[int(c)] for c in cols]), dtype=float)
+            near = (cols[:, None] + np.arange(-PREFETCH, PREFETCH + 1)).ravel()
+            near = near[(near >= 0) & (near < self.n)]
+            missing = np.unique(near[~self._have[near]])
+            R = np.zeros((self.n + self.n_eq, missing.size))
+            R[missing, np.arange(missing.size)] = 1.0
+            X = np.asarray(self.lu.solve(R), dtype=float).reshape(self.n + self.n_eq, missing.size)
+            self._Kinv[missing] = X[:self.n].T
+            self._have[missing] = True
+            self.columns += int(missing.size)
+        w = np.asarray(vals @ self._Kinv[cols], dtype=float)
         self._w[key] = w
         return w
 
@@ -208,9 +214,8 @@ class SchurActiveSet:
                                 np.asarray(ws.rows, dtype=np.int64), bool(np.all(np.isfinite(ws.z))))
         # the equality multipliers (and z) from one K solve: P z + Eᵀν = -G_Wᵀλ, E z = b
         Gt_lam = ws.lam @ ws.G if ws.k else np.zeros(self.n)
-        rhs = np.concatenate([-Gt_lam, self.b_eq])
-        x = self.lu.solve(rhs)
-        z = np.asarray(x[:self.n], dtype=float)
+        x = self.lu.solve(np.concatenate([-Gt_lam, self.b_eq])) if ws.k else self._x0
+        z = np.array(x[:self.n], dtype=float)  # a copy: x may be the stored equality optimum
         y = np.zeros(self.n_eq + n_in)
         y[:self.n_eq] = x[self.n:]
         if ws.k:
