@@ -592,3 +592,25 @@ def test_a_goal_occupied_by_traffic_is_missed_without_contact() -> None:
     assert occ["blocked_whole_window"] and occ["blockers_always_ahead"] and "340" in occ["blockers"]
     assert "contact just after" in r["goal_missed_reason"]
     assert r["collisions"] == 0 and r["contacts_at_fault"] == 0
+
+
+@needs_extra
+@pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not (INTERACTIVE / "USA_US101-14_2_I-1-1").is_dir(),
+                    reason="needs the [commonroad] and [sim] extras and the shared interactive scenarios "
+                           f"({INTERACTIVE})")
+def test_the_log_pairs_the_ego_with_the_vehicles_observed_at_the_same_instant() -> None:
+    """Every logged step holds the ego's state at the instant the other vehicles were observed:
+    the log's times are the steps from 0 and its first step is the planning problem's initial
+    state.  The log had paired the ego's state after each step (from 0.1 s) with the vehicles
+    observed before it, one step (0.1 s, 1.7 m at 17 m/s) behind: the monitor then measured a
+    contact at fault of USA_US101-23_1 (seed 2, the planner of 1562b61) with vehicle 91 at 7.6 s
+    where the bodies, taken at the same instant, never overlapped.  About 10 s."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.interactive import _files, simulate_with_log
+
+    folder = INTERACTIVE / "USA_US101-14_2_I-1-1"
+    cr = load(_files(folder)[0])
+    r, log = simulate_with_log(folder)
+    assert np.allclose(log.t, np.arange(len(log.t)) * cr.dt)
+    assert np.allclose(log.ego[0][:4], cr.x0)
+    assert r["goal_reached"] and log.t[-1] == pytest.approx(r["time_to_goal_s"])
