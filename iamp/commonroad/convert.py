@@ -86,8 +86,12 @@ EDGE_VARY_M = 0.01
 EDGE_BUFFER_M = 0.02
 #: Two lanelets whose bounds stay this close over their common stretch are neighbours [m].
 EDGE_JOIN_M = 0.1
-#: A corridor narrower than the widest by more than this becomes a road-edge box [m].
+#: A corridor narrower than the widest by more than this becomes a road-edge box [m]; a gap
+#: wider than this between the lanelets of the corridor at one ``s`` is a hole in the road.
 EDGE_TOL_M = 0.05
+#: Largest change of a hole's bounds within one of its boxes [m] (each box covers the hole's
+#: extreme bounds over its length, so it takes up to this much of the lanes beside it).
+HOLE_VARY_M = 0.03
 #: Vehicles considered relevant: lateral distance of their box to the ego's corridor [m].
 CORRIDOR_M = 2.5
 
@@ -109,6 +113,9 @@ class Obstacle:
     fit_residual_m: float
     lane: int
     lane_change: bool
+    #: A road-edge box between two parts of the road (a gore area between lanes that part):
+    #: passed on either side, not only the road's.
+    hole: bool = False
 
     @property
     def road_edge(self) -> bool:
@@ -321,6 +328,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
     grid = np.arange(s_a, s_b + EDGE_STEP_M, EDGE_STEP_M)
     lo = np.full(grid.size, np.nan)
     hi = np.full(grid.size, np.nan)
+    gaps: list[list[tuple[float, float]]] = [[] for _ in grid]
     forward = []
     for ll in network.lanelets:
         c = frame.to_road(np.asarray(ll.center_vertices, dtype=float))[:, 0]
@@ -359,8 +367,13 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
                 if nb.lanelet_id not in group and at(nb, float(s)) is not None and shares_bound(cur, nb):
                     group[nb.lanelet_id] = nb
                     todo.append(nb)
-        ds = [v for ll in group.values() for v in (at(ll, float(s)) or ())]
-        lo[i], hi[i] = min(ds), max(ds)
+        spans = sorted((min(b), max(b)) for b in (at(ll, float(s)) for ll in group.values()) if b is not None)
+        lo[i], hi[i] = spans[0][0], max(b for _, b in spans)
+        top = spans[0][1]
+        for a, b in spans[1:]:  # a gap between the group's lanelets: outside CommonRoad's road too
+            if a > top + EDGE_TOL_M:
+                gaps[i].append((top, a))
+            top = max(top, b)
     ok = np.isfinite(lo)
     if not ok.any():
         return (-1e3, 1e3), [], (grid, lo, hi)
@@ -393,7 +406,46 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             half = 0.5 * (s2 - s1)
             boxes.append(Obstacle(oid, t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
                                   2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
+    for run_s, run_lo, run_hi in _hole_runs(grid, gaps):
+        s1, s2 = float(run_s[0]) - EDGE_STEP_M, float(run_s[-1]) + EDGE_STEP_M
+        d1, d2 = float(np.min(run_lo)), float(np.max(run_hi))
+        half = 0.5 * (s2 - s1)
+        boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
+                              2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False, True))
     return (y_lo, y_hi), boxes, (grid, lo, hi)
+
+
+def _hole_runs(grid: FloatArray, gaps: list[list[tuple[float, float]]]) -> list[tuple[FloatArray, FloatArray,
+                                                                                        FloatArray]]:
+    """The holes of the corridor (gaps between its lanelets at each sample of ``grid``) as pieces:
+    a gap continues the piece of the last sample's gap it overlaps; a piece ends after
+    :data:`EDGE_CHUNK_M` or where either bound has changed by more than :data:`HOLE_VARY_M`.
+    Each piece is ``(s, lower bounds, upper bounds)`` at its samples."""
+    done: list[tuple[list[float], list[float], list[float]]] = []
+    open_: list[tuple[list[float], list[float], list[float]]] = []
+    for i, here in enumerate(gaps):
+        nxt: list[tuple[list[float], list[float], list[float]]] = []
+        for a, b in here:
+            run = next((r for r in open_ if r[1][-1] <= b and a <= r[2][-1] and r not in nxt), None)
+            if run is not None and ((len(run[0]) + 1) * EDGE_STEP_M > EDGE_CHUNK_M
+                                    or max(run[2] + [b]) - min(run[2] + [b]) > HOLE_VARY_M
+                                    or max(run[1] + [a]) - min(run[1] + [a]) > HOLE_VARY_M):
+                open_.remove(run)
+                done.append(run)
+                # the next piece starts where this one ended, so that together they cover the hole
+                run = ([run[0][-1]], [run[1][-1]], [run[2][-1]])
+            if run is None:
+                run = ([], [], [])
+            elif run in open_:
+                open_.remove(run)
+            run[0].append(float(grid[i]))
+            run[1].append(a)
+            run[2].append(b)
+            nxt.append(run)
+        done += open_
+        open_ = nxt
+    done += open_
+    return [(np.array(r[0]), np.array(r[1]), np.array(r[2])) for r in done]
 
 
 def _corners(center: FloatArray, length: float, width: float, orientation: float) -> FloatArray:

@@ -36,7 +36,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
-from typing import TypedDict
+from typing import Any, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -433,17 +433,19 @@ def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float
     if ob.road_edge:
         sx_e, sy_e = edge if edge is not None else (sx - BUFFER_M + EDGE_BUFFER_M, sy - BUFFER_M + EDGE_BUFFER_M)
         top, bottom = float(ob.d_hi.max()), float(ob.d_lo.min())
-        upper = ob.y < x0[2]  # the box is below the ego: pass above it
-        edge_side = "upper" if upper else "lower"
-
-        def beside(d: float) -> bool:
-            return d >= top + sy_e if upper else d <= bottom - sy_e
-
         s_lo, s_hi = float(ob.s_lo.min()), float(ob.s_hi.max())
-        if beside(x0[2]) and candidate.s >= s_hi + sx_e:
-            return f"front-{edge_side}"
-        if x0[0] <= s_lo - sx_e and beside(candidate.d):
-            return f"rear-{edge_side}"
+        # the box is below the ego: pass above it; a hole in the road (ob.hole) on either side
+        sides = (ob.y < x0[2],) + ((ob.y >= x0[2],) if ob.hole else ())
+        for upper in sides:
+            edge_side = "upper" if upper else "lower"
+
+            def beside(d: float, above: bool) -> bool:
+                return d >= top + sy_e if above else d <= bottom - sy_e
+
+            if beside(x0[2], upper) and candidate.s >= s_hi + sx_e:
+                return f"front-{edge_side}"
+            if x0[0] <= s_lo - sx_e and beside(candidate.d, upper):
+                return f"rear-{edge_side}"
         return None
     ax, ay = ob.half_length + sx, ob.box_width / 2 + sy
 
@@ -987,7 +989,7 @@ def corridor_sides(cr: CommonRoadProblem, G: FloatArray, sx: FloatArray, sy: Flo
     rows: list[tuple[int, int, float, float]] = []
     ks = np.arange(1, last + 1)
     s, d = G[ks, 0], G[ks, 2]
-    vehicles = [o for o in cr.all_obstacles if not o.road_edge]
+    vehicles = [o for o in cr.all_obstacles if not o.road_edge or o.hole]  # a hole is passed on a side too
     B = _step_boxes(SimpleNamespace(obstacles=vehicles, dt=cr.dt), K)[:, ks, :]  # type: ignore[arg-type]
     bounds = np.stack([B[1] + sx[ks, None], B[0] - sx[ks, None], B[3] + sy[ks, None], B[2] - sy[ks, None]])
     sep = np.stack([s[:, None] - bounds[0], bounds[1] - s[:, None], d[:, None] - bounds[2], bounds[3] - d[:, None]])
@@ -1001,6 +1003,35 @@ def corridor_sides(cr: CommonRoadProblem, G: FloatArray, sx: FloatArray, sy: Flo
             c = int(side[r, i])
             rows.append((int(ks[r]), axes[c], signs[c], float(bounds[c, r, i])))
     return rows
+
+
+class SparseRows:
+    """Linear rows ``sum_c v_c x_c (op) rhs`` gathered one at a time as a sparse matrix's triplets
+    (:func:`corridor_qp`'s equality rows and its inequality rows are two of these)."""
+
+    def __init__(self) -> None:
+        self.r: list[int] = []
+        self.c: list[int] = []
+        self.v: list[float] = []
+        self.rhs: list[float] = []
+
+    def __len__(self) -> int:
+        return len(self.rhs)
+
+    def add(self, cols: list[tuple[int, float]], rhs: float) -> None:
+        """Append the row with coefficients ``cols`` (column, value) and right-hand side ``rhs``."""
+        r = len(self.rhs)
+        for c, v in cols:
+            self.r.append(r)
+            self.c.append(c)
+            self.v.append(v)
+        self.rhs.append(rhs)
+
+    def matrix(self, n: int) -> Any:
+        """The rows as a ``len(self) x n`` sparse matrix."""
+        from scipy import sparse
+
+        return sparse.coo_matrix((self.v, (self.r, self.c)), shape=(len(self.rhs), n))
 
 
 def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
@@ -1076,7 +1107,7 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
     # the linear bound d + o tan φ + W/2 at the step's heading bound
     offsets = np.linspace(-L / 2, L / 2, 5)
     edges = np.array([(float(ob.s_lo[0]), float(ob.s_hi[0]), float(ob.d_lo[0]), float(ob.d_hi[0]))
-                      for ob in cr.road_edges], dtype=float).reshape(-1, 4)
+                      for ob in cr.road_edges if not ob.hole], dtype=float).reshape(-1, 4)
     excess = np.array([corner_excess(L / 2, W / 2, float(x)) + W / 2 * (math.sqrt(1.0 + x * x) - 1.0)
                        for x in tau])
     # how far a step's position may move from the guess's: both leave x0 within the friction circle
@@ -1088,19 +1119,8 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
     n_u = nx + 2 * K
     n_road = n_u + len(sides)  # the road's slacks: two per step (its upper, its lower bound)
     n = n_road + 2 * last  # the states, the inputs, one slack per side row, the road's
-    eq_r: list[int] = []
-    eq_c: list[int] = []
-    eq_v: list[float] = []
-    eq_b: list[float] = []
-
-    def eq(cols: list[tuple[int, float]], rhs: float) -> None:
-        r = len(eq_b)
-        for c, v in cols:
-            eq_r.append(r)
-            eq_c.append(c)
-            eq_v.append(v)
-        eq_b.append(rhs)
-
+    eqs, les = SparseRows(), SparseRows()  # sum v x_c == rhs, sum v x_c <= rhs
+    eq, le = eqs.add, les.add
     for i, x in enumerate(cr.x0):
         eq([(i, 1.0)], float(x))
     if goal_rows is None:
@@ -1111,19 +1131,6 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
             p, v, u = 4 * k + 2 * axis, 4 * k + 2 * axis + 1, nx + 2 * k + axis
             eq([(p + 4, 1.0), (p, -1.0), (v, -dt), (u, -0.5 * dt * dt)], 0.0)
             eq([(v + 4, 1.0), (v, -1.0), (u, -dt)], 0.0)
-    in_r: list[int] = []
-    in_c: list[int] = []
-    in_v: list[float] = []
-    in_b: list[float] = []
-
-    def le(cols: list[tuple[int, float]], rhs: float) -> None:  # sum v x_c <= rhs
-        r = len(in_b)
-        for c, v in cols:
-            in_r.append(r)
-            in_c.append(c)
-            in_v.append(v)
-        in_b.append(rhs)
-
     v_lo, v_hi = cr.speed_range
     y_lo, y_hi = cr.road_y
     grid = lo = hi = None
@@ -1197,10 +1204,10 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
         so_r += [3 * k + 1, 3 * k + 2]
         so_c += [nx + 2 * k, nx + 2 * k + 1]
         so_v += [-1.0, -1.0]
-    m_eq, m_in = len(eq_b), len(in_b)
-    A = sparse.coo_matrix((eq_v + in_v + so_v, (eq_r + [m_eq + r for r in in_r] + [m_eq + m_in + r for r in so_r],
-                                                 eq_c + in_c + so_c)), shape=(m_eq + m_in + 3 * K, n)).tocsc()
-    b = np.concatenate([eq_b, in_b, b_soc])
+    m_eq, m_in = len(eqs), len(les)
+    A = sparse.vstack([eqs.matrix(n), les.matrix(n),
+                       sparse.coo_matrix((so_v, (so_r, so_c)), shape=(3 * K, n))]).tocsc()
+    b = np.concatenate([eqs.rhs, les.rhs, b_soc])
     cones = [clarabel.ZeroConeT(m_eq), clarabel.NonnegativeConeT(m_in)] + [clarabel.SecondOrderConeT(3)] * K
     q_diag = np.concatenate([np.zeros(nx), np.full(2 * K, dt), np.zeros(n - n_u)])
     q_lin = np.concatenate([np.zeros(n_u), np.full(n_road - n_u, CORRIDOR_SLACK_WEIGHT),
@@ -1213,7 +1220,7 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
         return None
     found = np.asarray(sol.x, dtype=float)
     A_in = A[m_eq:m_eq + m_in]
-    if not np.all(A_in @ found <= np.asarray(in_b) + 1e-6):
+    if not np.all(A_in @ found <= np.asarray(les.rhs) + 1e-6):
         return None
     return StepTrajectory(cr.x0, dt, found[nx:n_u])
 
@@ -1881,7 +1888,7 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
                                  float(bound[j]) - sign * (W2 + buffer), sign))
     # vehicles: stay on the side of each vehicle the base is on, where they overlap along the road
     reach = L2 + sec
-    for ob in cr.obstacles:
+    for ob in [*cr.obstacles, *(o for o in cr.road_edges if o.hole)]:
         idx = np.rint(ob.t / dt).astype(int)
         for j in np.flatnonzero((idx >= 1) & (idx <= K)):
             k = int(idx[j])
