@@ -47,15 +47,18 @@ HERMITE = np.array([[1.0, 0.0, 0.0, 0.0],
                     [2.0, 1.0, -2.0, 1.0]])
 
 
-def reparametrise(degree: int, lam0: float, width: float) -> FloatArray:
+def reparametrise(degree: int, lam0: float | FloatArray, width: float | FloatArray) -> FloatArray:
     r"""The matrix ``T`` with ``c' = T c``: power coefficients in :math:`\rho` of
     :math:`p(\lambda_0 + w\rho)` from those of :math:`p(\sigma)` (ascending, ``degree + 1``).
 
-    :math:`c'_j = \sum_{i \ge j} \binom{i}{j} \lambda_0^{i-j} w^j c_i`.
+    :math:`c'_j = \sum_{i \ge j} \binom{i}{j} \lambda_0^{i-j} w^j c_i`.  Arrays ``lam0`` and
+    ``width`` (broadcast together) give one matrix per entry, shape ``(..., degree + 1, degree + 1)``:
+    each the same operations as for a scalar.
     """
     binom, lag = _binomials(degree)
-    return np.asarray(binom * np.float64(lam0) ** lag * (np.float64(width) ** np.arange(degree + 1))[:, None],
-                      dtype=float)
+    lam0, width = np.asarray(lam0, dtype=float), np.asarray(width, dtype=float)
+    return np.asarray(binom * lam0[..., None, None] ** lag
+                      * (width[..., None] ** np.arange(degree + 1))[..., :, None], dtype=float)
 
 
 @lru_cache(maxsize=16)
@@ -101,9 +104,10 @@ def piece_matrix(h: float, lam0: float, lam1: float, degree: int = 3) -> FloatAr
     return np.asarray(_power_to_bernstein(degree) @ reparametrise(degree, lam0, lam1 - lam0) @ Hd, dtype=float)
 
 
-def poly_bernstein(coeffs: FloatArray, ta: float, tb: float, degree: int) -> FloatArray:
+def poly_bernstein(coeffs: FloatArray, ta: float | FloatArray, tb: float | FloatArray, degree: int) -> FloatArray:
     r"""Bernstein coefficients (degree ``degree``) on :math:`t \in [t_a, t_b]` of
-    :math:`p(t) = \sum_k c_k t^k` (``len(coeffs) <= degree + 1``)."""
+    :math:`p(t) = \sum_k c_k t^k` (``len(coeffs) <= degree + 1``); arrays ``ta``, ``tb`` give
+    the coefficients on every interval, shape ``(..., degree + 1)``."""
     c = np.zeros(degree + 1)
     c[: len(coeffs)] = coeffs
     return np.asarray(_power_to_bernstein(degree) @ reparametrise(degree, ta, tb - ta) @ c, dtype=float)

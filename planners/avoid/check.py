@@ -103,11 +103,12 @@ def crossing_orders(problem: Problem) -> tuple[list[list[tuple[int, int]]], str 
 
 
 def kkt_conditions(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
-                   z: FloatArray, y: FloatArray, n_eq: int) -> dict[str, float]:
+                   z: FloatArray, y: FloatArray, n_eq: int, lower: sp.spmatrix | None = None) -> dict[str, float]:
     """The four relative KKT residuals of the module docstring (rows ``>= n_eq`` are the
-    one-sided inequalities ``a_i z <= u_i``)."""
+    one-sided inequalities ``a_i z <= u_i``); ``P`` is the upper triangle of the cost Hessian and
+    ``lower``, when the caller keeps it, its strict lower part ``triu(P, 1).T``."""
     Pu = sp.csc_matrix(P)
-    Pz = Pu @ z + sp.triu(Pu, 1).T @ z
+    Pz = Pu @ z + (sp.triu(Pu, 1).T if lower is None else lower) @ z
     Az = A @ z
     Aty = A.T @ y
     stat = float(np.max(np.abs(Pz + q + Aty)))

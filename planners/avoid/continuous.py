@@ -249,16 +249,18 @@ class ContinuousAvoidQP:
             for a in (0, 1):
                 hp = self.data.planes[i][a]
                 self._full_vals[(i, a)] = np.tile(hp.sigma * self.M_full.ravel(), self.N)
-                self._full_rhs[(i, a)] = np.concatenate(
-                    [self._rhs(hp, float(d.t_nodes[kk]), float(d.t_nodes[kk]) + self.h) for kk in range(self.N)])
+                t0 = d.t_nodes[:-1]
+                self._full_rhs[(i, a)] = self._rhs(hp, t0, t0 + self.h).ravel()
 
-    def _rhs(self, hp: HalfPlane, ta: float, tb: float) -> FloatArray:
+    def _rhs(self, hp: HalfPlane, ta: float | FloatArray, tb: float | FloatArray) -> FloatArray:
+        """The bounds of half-plane ``hp``'s Bernstein rows on ``[ta, tb]`` (arrays: on every
+        interval, shape ``(..., d + 1)``)."""
         v = hp.vehicle
         if hp.axis == "x":
             beta = poly_bernstein(np.asarray(v.x_poly, dtype=float), ta, tb, self.degree)
             half = v.length / 2 + v.safety_x
         else:
-            beta = np.full(self.degree + 1, float(v.y))
+            beta = np.full(np.shape(ta) + (self.degree + 1,), float(v.y))
             half = v.width / 2 + v.safety_y
         return np.asarray(hp.sigma * beta - half + ROW_TOL_M, dtype=float)
 
@@ -870,11 +872,12 @@ class ContinuousAvoidPlanner:
                   orders: list[list[tuple[int, int]]], closed: bool, info: dict[str, Any], start: float) -> Plan:
         d = qp.data
         n_eq = d.n_eq
-        A_in, u_in, layout = qp.spec_rows(sol.spec)
+        A_in, u_in, layout = sol.spec_rows()
         A = sp.csc_matrix(sp.vstack([qp.A_eq, A_in]))
         u = np.r_[d.b_eq, u_in]
         l = np.r_[d.b_eq, np.full(A_in.shape[0], -np.inf)]
-        kkt = kkt_conditions(d.P, d.q, A, l, u, sol.z, sol.y, n_eq)
+        lower = sp.triu(sp.csc_matrix(d.P), 1).T  # both KKT checks below
+        kkt = kkt_conditions(d.P, d.q, A, l, u, sol.z, sol.y, n_eq, lower)
         key = BACKENDS[self.solver].tolerance_key
         limit = tol(key)
         failed = [k for k, v in kkt.items() if v > limit]
@@ -886,7 +889,7 @@ class ContinuousAvoidPlanner:
                                      "cost": float(other.cost) if np.isfinite(other.cost) else None}
             ok = other.status == st.OPTIMAL
             if ok:
-                other_kkt = kkt_conditions(d.P, d.q, A, l, u, other.z, other.y, n_eq)
+                other_kkt = kkt_conditions(d.P, d.q, A, l, u, other.z, other.y, n_eq, lower)
                 cost_tol = tol(key.replace("kkt", "cost"))
                 ok = (max(other_kkt.values()) <= limit
                       and abs(other.cost - sol.cost) <= cost_tol * max(1.0, abs(sol.cost)))

@@ -224,6 +224,25 @@ class DualBounds:
         # σ-free values of the split piece's rows as polynomials in λ: M(0, λ) (first half-plane),
         # M(λ, 1) (second), and their bounds (:meth:`ContinuousAvoidQP.split_polynomials`)
         self.M_pre, self.M_post = qp.split_polynomials()
+        D, m = qp.degree, len(qp.problem.vehicles)
+        #: per polynomial vehicle ``v``: the basis columns of ``λ_v^0..λ_v^d`` (:meth:`polynomial`)
+        self._basis_columns = [np.concatenate(([0], 1 + v * D + np.arange(D))) for v in range(m)]
+        self._exps: dict[int, tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]] = {}
+
+    def _exponents(self, q: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
+        """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..d``)
+        and of the products of two basis monomials, as index tuples into the coefficient tensor
+        (built once per ``q``)."""
+        out = self._exps.get(q)
+        if out is None:
+            D = self.qp.degree
+            C = 1 + q * D
+            exps = np.zeros((C, q), dtype=np.int64)
+            for v in range(q):
+                exps[1 + v * D:1 + (v + 1) * D, v] = np.arange(1, D + 1)
+            pairs = (exps[:, None, :] + exps[None, :, :]).reshape(C * C, q)
+            out = self._exps[q] = (tuple(exps.T), tuple(pairs.T))
+        return out
 
     def _rhs_poly(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
         """:meth:`ContinuousAvoidQP.rhs_polynomial`."""
@@ -333,8 +352,9 @@ class DualBounds:
         R[d.n:, 0] = d.b_eq
         hc = np.zeros(C)
         hc[0] = float(y_k @ u_in[rows_k])
+        exps, pairs = self._exponents(q)
         for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
-            cs = np.r_[0, 1 + v * D + np.arange(D)]  # the basis columns of λ_i^0..λ_i^D
+            cs = self._basis_columns[v]  # the basis columns of λ_i^0..λ_i^D
             for M, yj, rhs, sigma, cols in self._split_blocks(sol, b, i, k):
                 R[np.ix_(cols, cs)] -= sigma * (yj @ M).T
                 hc[cs] += rhs @ yj
@@ -342,18 +362,14 @@ class DualBounds:
         Z, nu = X[:d.n], X[d.n:]
         G = Z.T @ (self.P @ Z)
         lin = nu.T @ d.b_eq + hc
-        exps = np.zeros((C, q), dtype=np.int64)
-        for v in range(q):
-            exps[1 + v * D:1 + (v + 1) * D, v] = np.arange(1, D + 1)
         coef = np.zeros((2 * D + 1,) * q)
         # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ: each product of two basis
         # monomials adds to the coefficient of their product
         if q == 0:
             coef = np.array(-lin[0] - 0.5 * G[0, 0])
         else:
-            np.add.at(coef, tuple(exps.T), -lin)
-            pairs = (exps[:, None, :] + exps[None, :, :]).reshape(C * C, q)
-            np.add.at(coef, tuple(pairs.T), -0.5 * G.ravel())
+            np.add.at(coef, exps, -lin)
+            np.add.at(coef, pairs, -0.5 * G.ravel())
         mass = np.bincount(veh[bern], weights=y[bern], minlength=len(sol.spec)).astype(float)
         return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, mass)
 
