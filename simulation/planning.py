@@ -6,8 +6,8 @@ current-lane leader, each with its paper corner.
 
 * ``pmp`` — the registry's ``pmp`` (:class:`iamp.planners.pmp.planner.PMPPlanner`), the paper's
   equality on **every** vehicle of the problem (the decision layer poses the equality planners only
-  the corners in the way, :func:`iamp.simulation.decision.corners_in_the_way`) (global contact times; the branch-and-bound box
-  budget is :data:`PMP_BOXES`); with the limits, the saturated PMP of SPEC §14 (input box
+  the corners in the way, :func:`iamp.simulation.decision.corners_in_the_way`; global contact times;
+  the branch-and-bound box budget is :data:`PMP_BOXES`); with the limits, the saturated PMP of SPEC §14 (input box
   imposed, the other bounds checked on the plan: ``limits_violated`` if one fails).
 * ``qp`` — the registry's ``qp``: the discretised QP with the same equality constraints
   (SPEC §3), FOH, ``N = QP_STEPS`` intervals over the (shrinking) horizon, contact nodes by the
@@ -104,13 +104,15 @@ def _safe(fn: PlanFn, name: str) -> PlanFn:
     return call
 
 
-#: Planners whose plans with limits run the bounded PMP's axis solve (``pmp``, its active set, and
-#: the equality QP's infeasibility certificate): the loop compiles that solve once per process
-#: (:func:`iamp.planners.pmp.compiled.load_axis`; the same source as the Python path, equal to it
-#: bit for bit — tests/test_pmp_jit.py; on 90 loop problems of a merge in dense traffic the three
-#: planners' statuses, costs, contact times and inputs were identical, CPU 28.7 -> 16.5 s (pmp) and
-#: 26.8 -> 9.9 s (qp)).  Without numba the Python path runs: the same plans.
-COMPILED_AXIS = ("pmp", "pmp-active", "qp")
+#: Planners whose plans with limits run the bounded PMP's axis solve often enough that the loop
+#: compiles that solve once per process (:func:`iamp.planners.pmp.compiled.load_axis`; the same
+#: source as the Python path, equal to it bit for bit — tests/test_pmp_jit.py; without numba the
+#: Python path runs: the same plans).  Only the active set: its infeasibility certificates take
+#: thousands of axis solves (merge, dense, seed 1: one of 5,490 solves, 0.6 s CPU compiled).  ``pmp``
+#: and ``qp``, posed only the corners in the way, plan one vehicle a few times per episode (16 calls
+#: there: 0.23 s compiled, about as much in Python), while loading the compiled solve costs about
+#: 1 s CPU per process with numba's cache warm and 14-25 s when the cache is stale.
+COMPILED_AXIS = ("pmp-active",)
 
 
 def _registered(name: str) -> PlanFn:
