@@ -555,7 +555,7 @@ def interval_terms(ab: Any, T: float, T2: float, T3: float, pos: Any, der: Any, 
         c0 = poly_at(der, t)
         dual = 0.0
         slope = 0.0
-        M = 0.0
+        curv = 0.0
         bad = -1
         r = q * INTERVAL_WIDTH
         for k in range(2):
@@ -570,18 +570,21 @@ def interval_terms(ab: Any, T: float, T2: float, T3: float, pos: Any, der: Any, 
             wb = raw[o + 5]
             speed = raw[o + 6]
             phi = abs(jump)
-            e0 = abs(wa + wb * a - jump * (a - t))
-            e1 = abs(wa + wb * b - jump * (b - t))
-            e_max = e1 if e1 > e0 else e0
-            box = abs(hi) if abs(hi) > abs(lo) else abs(lo)
-            u_max = e_max if e_max < box else box
+            # u_λ(t'; t') = clip(w_a + w_b t' − Φ (t' − t)): monotone in t', so Φ u_λ is least at an end
+            u0 = wa + wb * a - jump * (a - t)
+            u1 = wa + wb * b - jump * (b - t)
+            u0 = lo if u0 < lo else (hi if u0 > hi else u0)
+            u1 = lo if u1 < lo else (hi if u1 > hi else u1)
+            pu = jump * u0 if jump * u0 < jump * u1 else jump * u1
             dual += raw[o + 1]
             slope += jump * (speed - (c0 if k == 0 else 0.0))
-            M += phi * ((cddot_x if k == 0 else 0.0) + u_max + phi * free_measure(wa, wb, lo, hi, t, delta, phi, b))
+            # ∂²D/∂t'² = −Φ c̈ + Φ u_λ(t'; t') − Φ² μ_free ≥ this axis' term (certify_global_one)
+            curv += pu - phi * ((cddot_x if k == 0 else 0.0) + phi * free_measure(wa, wb, lo, hi, t, delta, phi, b))
             out[r + 5 + 3 * k] = raw[o + 7]
             out[r + 6 + 3 * k] = raw[o + 8]
             out[r + 7 + 3 * k] = raw[o + 9]
         out[r] = float(bad)
+        M = -curv if curv < 0.0 else 0.0
         if bad < 0:
             out[r + 1] = dual - abs(slope) * delta - 0.5 * M * delta * delta
             out[r + 2] = dual
