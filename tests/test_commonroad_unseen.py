@@ -124,3 +124,92 @@ def test_hole_runs_cover_every_gap_sample() -> None:
         assert (len(rs) - 1) * EDGE_STEP_M <= EDGE_CHUNK_M
         assert not (rlo.min() < 5.0 < rhi.max()), "two separate gaps in one piece"
     assert math.isclose(min(r[0][0] for r in runs), 5.0)
+
+
+def _rect(c: Any, length: float, width: float, th: float) -> Any:
+    u = np.array([math.cos(th), math.sin(th)])
+    n = np.array([-u[1], u[0]])
+    return np.array([np.asarray(c) + a * length / 2 * u + b * width / 2 * n for a, b in ((1, 1), (1, -1), (-1, -1),
+                                                                                          (-1, 1))])
+
+
+def _overlap(P: Any, Q: Any) -> bool:
+    """Two convex polygons intersect (separating axes; touching counts)."""
+    for poly in (P, Q):
+        for i in range(len(poly)):
+            e = poly[(i + 1) % len(poly)] - poly[i]
+            ax = np.array([-e[1], e[0]])
+            a, b = P @ ax, Q @ ax
+            if a.max() < b.min() or b.max() < a.min():
+                return False
+    return True
+
+
+def no_pose_is_clear(path: Path, length: float = 4.508, width: float = 1.61, dth: float = 0.002) -> list[int]:
+    """An exact proof, independent of iamp, that every pose of the goal region meets a recorded
+    vehicle: for every goal state, time step ``k`` of its window and heading in its orientation
+    interval (cut into pieces of ``dth``), one vehicle's rectangle at ``k`` meets the ego's body
+    (``length x width``, BMW 320i) at each of the four corners of the goal rectangle.  For a
+    fixed heading the centres whose body meets a convex vehicle form a convex set (the vehicle
+    plus the body's reflection), so the four corners in it put the whole rectangle in it; over a
+    heading piece the body turned anywhere in it contains the middle heading's body shrunk by
+    ``r dth / 2`` (``r`` the body's half diagonal: a point turns at most that far).  Returns the
+    time steps not proved (empty: no valid solution exists)."""
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scenario, pps = CommonRoadFileReader(str(path)).open()
+    pp = next(iter(pps.planning_problem_dict.values()))
+    r = math.hypot(length / 2, width / 2)
+    open_steps = []
+    for g in pp.goal.state_list:
+        corners = np.asarray(g.position.vertices[:4])
+        o = g.orientation
+        edges = np.linspace(o.start, o.end, max(1, math.ceil((o.end - o.start) / dth)) + 1)
+        for k in range(int(g.time_step.start), int(g.time_step.end) + 1):
+            cars = [np.asarray(oc.shape.vertices[:4]) for oc in (ob.occupancy_at_time(k) for ob in scenario.obstacles)
+                    if oc is not None and hasattr(oc.shape, "vertices")
+                    and np.min(np.hypot(*(np.asarray(oc.shape.vertices[:4]) - corners.mean(axis=0)).T)) < 10.0]
+            for a, b in zip(edges[:-1], edges[1:]):
+                er = r * 0.5 * (b - a)
+                bodies = [_rect(c, length - 2 * er, width - 2 * er, 0.5 * (a + b)) for c in corners]
+                if not any(all(_overlap(body, car) for body in bodies) for car in cars):
+                    open_steps.append(k)
+                    break
+    return open_steps
+
+
+#: Seed-7 ``combo`` variants (the seed-11 ``combo`` of US101-5, 5_1207, has the same goal as 5_807):
+#: a five-step window, a heading turned toward the lane the ego came from, a slow speed.
+GOAL_5_807 = [{"time_step": [95, 99], "velocity": [0.0, 3.1402], "orientation": [-0.9181, -0.7681],
+               "position": {"center": [29.9549, -36.4075], "length": 2.2773, "width": 1.7518,
+                            "orientation": -0.76804}}]
+GOAL_12_807 = [{"time_step": [71, 75], "velocity": [12.2309, 18.2309], "orientation": [-0.7296, -0.5796],
+                "position": {"center": [72.1817, -64.554], "length": 2.1283, "width": 1.6371,
+                             "orientation": -0.72962}}]
+
+
+@needs_data
+def test_a_goal_every_pose_of_which_meets_a_vehicle_is_refused_and_that_is_proved(tmp_path: Path) -> None:
+    """5_807 / 5_1207 (vehicle 477 stands on the goal rectangle at every step of its window) and
+    12_807 (vehicle 319 drives through it): iamp says no valid final state exists, naming the
+    vehicle, and the exact proof above (commonroad-io's own shapes, no iamp code) confirms it
+    over the whole goal region: no solution of these problems is valid, by any planner."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan
+
+    for source, name, goal, vehicle in (("USA_US101-5_1_T-1.xml", "USA_US101-5_807_T-1", GOAL_5_807, 477),
+                                        ("USA_US101-12_1_T-1.xml", "USA_US101-12_807_T-1", GOAL_12_807, 319)):
+        path = with_goal(tmp_path, source, name, goal)
+        assert no_pose_is_clear(path) == [], name
+        rp = plan(load(path))
+        assert not rp.safe
+        assert "no valid final state exists" in str(rp.reason) and f"vehicle {vehicle}" in str(rp.reason), rp.reason
+
+
+@needs_data
+def test_the_proof_does_not_prove_a_goal_with_a_clear_pose(tmp_path: Path) -> None:
+    """The proof is not vacuous: on the shared problem US101-5 (valid plans exist) it leaves the
+    steps with a clear pose open."""
+    assert no_pose_is_clear(DATA / "USA_US101-5_1_T-1.xml") != []
