@@ -519,9 +519,10 @@ def test_the_reports_unreachable_goals_recomputed_from_the_episode(scene: str) -
     """The two scenes of the report whose goals no course could reach without a contact (goals
     asking for 18.9 and 20.25 m/s at least), recomputed from the vehicles the episode lists at each
     window step and the goal's shape: 2_1 (vehicles 502 and 515 in the goal's lane, the gap between
-    them shorter than the ego) has no free centre position at any step; 27_4 has free ones at 7.0-7.4 s
-    only on a sliver shorter than 0.2 m between 345 and the standing 340, from which the ego at
-    20.25 m/s cannot avoid 340; at no step of either window is a position clear after."""
+    them shorter than the ego) has no free centre position at any step; 27_4 has free ones at
+    7.0-7.3 s (7.0-7.4 s in episodes logged one step skewed, before 66b6d5e) only on a sliver
+    shorter than 0.2 m between 345 and the standing 340, from which the ego at 20.25 m/s cannot
+    avoid 340; at no step of either window is a position clear after."""
     import json
 
     from iamp.commonroad.convert import load
@@ -549,7 +550,7 @@ def test_the_reports_unreachable_goals_recomputed_from_the_episode(scene: str) -
     if scene.startswith("USA_US101-2_1"):
         assert free_steps == 0 and occ["occupied_whole_window"]
     else:
-        assert free_steps == 5
+        assert free_steps >= 1  # 5 in episodes logged one step skewed (before 66b6d5e), 4 since
 
 
 @pytest.mark.skipif(not HAVE_EXTRA or not HAVE_SUMO or not (INTERACTIVE / "USA_US101-5_1_I-1-1").is_dir(),
@@ -579,7 +580,7 @@ def test_goal_reached_where_braking_in_the_lane_missed_it() -> None:
                            f"({INTERACTIVE})")
 def test_a_goal_occupied_by_traffic_is_missed_without_contact() -> None:
     """USA_US101-27_4: SUMO's traffic stands in the goal region (at least 20 m/s at s 177-181 m,
-    7-8 s): free goal positions exist only at 7.0-7.4 s, on a 0.1 m sliver right behind the standing
+    7-8 s): free goal positions exist only at 7.0-7.3 s, on a 0.1 m sliver right behind the standing
     vehicle 340, from which no course avoids it, so no plan reaches the goal without a contact; the
     ego brakes behind the leader that slows from 12 to 2 m/s and touches nothing (before the RSS
     stop test it ran into it at 8.0 s)."""
@@ -588,7 +589,7 @@ def test_a_goal_occupied_by_traffic_is_missed_without_contact() -> None:
     r = simulate(INTERACTIVE / "USA_US101-27_4_I-1-1")
     assert not r["goal_reached"]
     occ = r["goal_occupancy"]
-    assert occ["window_steps_logged"] == 11 and occ["free_steps"] == 5 and occ["clear_after_steps"] == 0
+    assert occ["window_steps_logged"] == 11 and occ["free_steps"] == 4 and occ["clear_after_steps"] == 0
     assert occ["blocked_whole_window"] and occ["blockers_always_ahead"] and "340" in occ["blockers"]
     assert "contact just after" in r["goal_missed_reason"]
     assert r["collisions"] == 0 and r["contacts_at_fault"] == 0
