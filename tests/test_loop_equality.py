@@ -118,13 +118,3 @@ def test_corners_in_the_way_are_the_entered_regions_one_per_side_the_deepest(x_f
     assert kept == [n for n in ("f", "l", "c") if n in expect]
     if not kept:
         assert posed == ego
-
-
-@pytest.mark.slow
-def test_qp_merges_in_the_dense_merge():
-    """The equality QP, posed the corners in the way, merges where it stopped at the lane's end."""
-    pytest.importorskip("libsumo")
-    from iamp.simulation.episode import EpisodeSpec, run_episode
-
-    s = run_episode(EpisodeSpec(planner="qp", mission="merge", traffic="dense", seed=1, duration_s=60.0)).summary
-    assert s["success"] and s["contacts_at_fault"] == 0 and s["infeasible_plans"] == 0 and s["limit_violations"] == 0
