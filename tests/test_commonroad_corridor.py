@@ -186,7 +186,7 @@ def test_a_corridor_plan_for_a_steered_car_keeps_its_engine_limit(tmp_path: Path
     t = np.arange(K + 1) * cr.dt
     acc = (vf - vs0) / T
     G = np.stack([s0 + vs0 * t + 0.5 * acc * t**2, vs0 + acc * t, np.full_like(t, d0), np.zeros_like(t)], axis=1)
-    a_max, v_switch = ks_engine(2)
+    a_max, v_switch = ks_engine(2)[:2]
 
     def worst(engine: tuple[float, float] | None) -> float:
         tr = corridor_qp(cr, cand, G, None, engine)

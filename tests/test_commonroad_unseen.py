@@ -213,3 +213,41 @@ def test_the_proof_does_not_prove_a_goal_with_a_clear_pose(tmp_path: Path) -> No
     """The proof is not vacuous: on the shared problem US101-5 (valid plans exist) it leaves the
     steps with a clear pose open."""
     assert no_pose_is_clear(DATA / "USA_US101-5_1_T-1.xml") != []
+
+
+#: USA_US101-21_204_T-1 (seed 1, ``lanes3``): three lanes to the left at 13-19 m/s in 7-8 s.
+GOAL_21_204 = [{"time_step": [70, 80], "velocity": [13.2397, 19.2397], "orientation": [-0.8059, -0.6313],
+                "position": {"center": [87.5981, -66.8174], "length": 2.5238, "width": 1.9414,
+                             "orientation": -0.72844}}]
+
+
+@needs_data
+def test_a_steered_corridor_plan_keeps_the_steering_rate(tmp_path: Path) -> None:
+    """21_204 under ``KS``: the corridor plan crosses three lanes at 13-16 m/s.  Without the
+    steering rate's rows its lateral acceleration swung by up to 4.0 times what the steering rate
+    allows per step (the KS tracker followed it 0.75 m off and missed the goal); with them every
+    step's change of lateral acceleration (the bend's included) is within
+    ``CORRIDOR_STEER_SHARE`` of :math:`\\dot\\delta_{max} v^2 \\Delta t / l` at the plan's own
+    speed (the rows bound :math:`v^2` by its tangent), and the steered solution is valid by
+    CommonRoad's checker."""
+    from iamp.commonroad.check import check
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import CORRIDOR_STEER_SHARE, ks_engine, plan
+    from iamp.commonroad.solution import build_solution
+
+    cr = load(with_goal(tmp_path, "USA_US101-21_1_T-1.xml", "USA_US101-21_204_T-1", GOAL_21_204))
+    engine = ks_engine(2)
+    rp = plan(cr, engine=engine)
+    assert rp.safe and rp.iamp_status == "corridor", rp.reason
+    tr = rp.trajectory
+    K = rp.candidate.steps
+    t = np.arange(K) * cr.dt
+    u = np.asarray(tr.inputs(t + 0.5 * cr.dt), dtype=float)
+    x = np.asarray(tr.states(np.arange(K + 1) * cr.dt), dtype=float)
+    lat = u[:, 1] + np.asarray(cr.frame.curvature(x[:K, 0]), dtype=float) * x[:K, 1] ** 2
+    bound = engine[2] * np.minimum(x[1:K, 1], x[:K - 1, 1]) ** 2 * cr.dt / engine[3]
+    assert np.max(np.abs(np.diff(lat)) / bound) <= CORRIDOR_STEER_SHARE + 1e-6
+    solution, dev = build_solution(cr, tr, K, vehicle_model="KS")
+    verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
+    assert verdict.valid, verdict.checks
+    assert dev < 0.3

@@ -530,7 +530,7 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
 
 def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
          steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True, search: bool = True,
-         corridor: bool = True, engine: tuple[float, float] | None = None) -> RoadPlan:
+         corridor: bool = True, engine: tuple[float, ...] | None = None) -> RoadPlan:
     """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring).
 
     ``engine`` (the steered model's longitudinal limit ``(a_max, v_switch)``, :func:`ks_engine`)
@@ -862,12 +862,17 @@ CORRIDOR_NEAR_M = 8.0
 #: (:func:`corridor_qp`): below the KS tracker's own input margin
 #: (:data:`iamp.commonroad.ks.INPUT_MARGIN`), leaving its feedback room.
 CORRIDOR_ENGINE_SHARE = 0.9
+#: Share of the steered model's steering rate the corridor plan's change of lateral
+#: acceleration uses (:func:`corridor_qp`): the rest covers the terms the row neglects (the
+#: speed's change, the heading) and the tracker's feedback.
+CORRIDOR_STEER_SHARE = 0.5
 
 
-def ks_engine(vehicle_type: int = 2) -> tuple[float, float]:
-    """The ``KS`` model's longitudinal limit of a CommonRoad vehicle type: ``(a_max, v_switch)``
-    (above ``v_switch`` the acceleration is at most ``a_max v_switch / v``), from the parameters
-    :mod:`iamp.commonroad.ks` tracks with.
+def ks_engine(vehicle_type: int = 2) -> tuple[float, float, float, float, float]:
+    """The ``KS`` model's limits of a CommonRoad vehicle type that the corridor plan keeps
+    (:func:`corridor_qp`): ``(a_max, v_switch, steering_rate_max, wheelbase, b)`` (above
+    ``v_switch`` the acceleration is at most ``a_max v_switch / v``; the steering angle turns at
+    most ``steering_rate_max``), from the parameters :mod:`iamp.commonroad.ks` tracks with.
 
     Parameters
     ----------
@@ -877,7 +882,8 @@ def ks_engine(vehicle_type: int = 2) -> tuple[float, float]:
     Returns
     -------
     tuple of float
-        ``a_max`` [m/s²] and ``v_switch`` [m/s].
+        ``a_max`` [m/s²], ``v_switch`` [m/s], the steering rate's bound [rad/s], the
+        wheelbase ``a + b`` [m] and the distance ``b`` from the centre to the rear axle [m].
 
     Raises
     ------
@@ -886,8 +892,9 @@ def ks_engine(vehicle_type: int = 2) -> tuple[float, float]:
     """
     from iamp.commonroad.ks import _params
 
-    lon = _params(vehicle_type).longitudinal
-    return float(lon.a_max), float(lon.v_switch)
+    p = _params(vehicle_type)
+    lon = p.longitudinal
+    return float(lon.a_max), float(lon.v_switch), float(p.steering.v_max), float(p.a + p.b), float(p.b)
 
 
 def engine_tangent(a_max: float, v_switch: float, v0: float) -> tuple[float, float]:
@@ -1036,7 +1043,7 @@ class SparseRows:
 
 def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
                 goal_rows: tuple[FloatArray, FloatArray] | None = None,
-                engine: tuple[float, float] | None = None) -> StepTrajectory | None:
+                engine: tuple[float, ...] | None = None) -> StepTrajectory | None:
     r"""One convex pass of the corridor planner: the minimum-energy zero-order-hold plan on the
     time steps from ``cr.x0`` to ``cand`` that keeps, at every step, the body on the side of every
     box :func:`corridor_sides` chose from the guess ``G``, inside the road corridor's narrowest
@@ -1076,8 +1083,18 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
         (:math:`\kappa` at the guess, :math:`R` its reach; the tangent falls with the speed):
         linear, and sufficient at any speed since a tangent lies below the convex limit (nearly
         exact near the guess's speed, which each pass re-centres); the friction circle's
-        radius is then the same share of :math:`a_{max}`.  None (a point-mass solution): no such
-        rows, the radius :data:`CORRIDOR_ACCEL_SHARE` of ``cr.a_max``.
+        radius is then the same share of :math:`a_{max}`.  With a steering-rate bound
+        :math:`\dot\delta_{max}` and wheelbase :math:`l` (``engine[2:4]``, :func:`ks_engine`): the
+        steered car's curvature :math:`\kappa = \tan\delta / l` changes at least as fast as
+        :math:`\dot\delta / l` allows, so its lateral acceleration :math:`v^2\kappa` by at most
+        about :math:`v^2\dot\delta_{max}/l` per second; the rows
+        :math:`|(u_{d,k+1} + b_{k+1}) - (u_{d,k} + b_k)| \le`
+        :data:`CORRIDOR_STEER_SHARE` :math:`\dot\delta_{max} v^2 \Delta t / l` (:math:`b_k`
+        the bend's :math:`\kappa_{road}\dot s^2`), with :math:`v^2` replaced by its tangent at the
+        guess's speed :math:`2 v_g \dot s_j - v_g^2 \le \dot s_j^2` at each of the three speeds
+        :math:`j = k, k+1, k+2` the two steps span (linear, and sufficient at any speed), keep
+        the plan's lateral jerk within it.  None
+        (a point-mass solution): no such rows, the radius :data:`CORRIDOR_ACCEL_SHARE` of ``cr.a_max``.
 
     Returns
     -------
@@ -1095,7 +1112,10 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
     tau = np.clip(np.abs(G[:, 3]) / vs_g + CORRIDOR_TAN_SLACK, CORRIDOR_MIN_TAN, REPAIR_TAN_CAP)
     tau[0] = max(tau[0], abs(cr.x0[3]) / max(cr.x0[1], 0.5))
     # the final heading is the goal's (or cand's): the band about the guess's own, not the least bound
-    tau[K] = abs(G[K, 3]) / vs_g[K] + (CORRIDOR_END_TAN_SLACK if goal_rows is not None else 0.0)
+    # (at least cand's own: a guess that ends straight, as the lane schedules do, would shut out a
+    # goal whose orientation interval lies off the lane's heading)
+    tau[K] = max(abs(G[K, 3]) / vs_g[K], abs(cand.vd) / max(cand.vs, 0.5)) + (
+        CORRIDOR_END_TAN_SLACK if goal_rows is not None else 0.0)
     phi = np.arctan(tau)
     sx = np.array([ego_margins(L, W, float(min(p, math.atan(W / L))), BUFFER_M)[0] for p in phi])
     # across the road the body reaches L/2 sin φ + W/2 cos φ <= W/2 + L/2 |tan φ|, tan φ = vd / vs
@@ -1181,6 +1201,27 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
                     c, e = engine_tangent(engine[0], engine[1], g * float(G[j, 1]))
                     le([(us_, 1.0), (ud_, pm * t_k), (4 * j + 1, CORRIDOR_ENGINE_SHARE * c * g)],
                        CORRIDOR_ENGINE_SHARE * e)
+    if engine is not None and len(engine) >= 4:  # the steering rate: the lateral jerk's bound
+        bend_k = np.asarray(cr.frame.curvature(G[:K, 0]), dtype=float) * G[:K, 1] ** 2
+        rate = CORRIDOR_STEER_SHARE * engine[2] * dt / engine[3]
+        for k in range(K - 1):
+            db = float(bend_k[k + 1] - bend_k[k])
+            for j in (k, k + 1, k + 2):  # v² >= its tangent at the guess's speed: 2 v_g v - v_g², at each end speed
+                v_g = float(max(G[j, 1], 0.5))
+                le([(nx + 2 * k + 3, 1.0), (nx + 2 * k + 1, -1.0), (4 * j + 1, -2.0 * rate * v_g)],
+                   -rate * v_g**2 - db)
+                le([(nx + 2 * k + 3, -1.0), (nx + 2 * k + 1, 1.0), (4 * j + 1, -2.0 * rate * v_g)],
+                   -rate * v_g**2 + db)
+        if goal_rows is not None and len(engine) >= 5:
+            # the goal's heading rows (a_v vs + a_d vd <= r) for the rear axle's heading too: it
+            # leaves the centre's direction of travel by the slip angle, tan ψ ~ (vd - b vs κ) / vs
+            # with κ ~ (u_d + bend) / vs² on the last step (the guess's vs)
+            v_f = float(max(G[K, 1], 0.5))
+            for a, rhs in zip(*goal_rows):
+                if a[0] == 0.0 and a[2] == 0.0 and a[3] != 0.0:
+                    lean = -float(a[3]) * engine[4] / v_f
+                    le([(4 * K + 1, float(a[1])), (4 * K + 3, float(a[3])), (nx + 2 * (K - 1) + 1, lean)],
+                       float(rhs) - lean * float(bend_k[K - 1]))
     # the vehicles (and road-edge boxes) on their chosen sides, sign * x + slack >= sign * bound
     for i, (k, axis, sign, bound) in enumerate(sides):
         if axis == 2:  # sign * d - L/2 |vd| / vs + slack >= sign * bound
@@ -1331,7 +1372,7 @@ def _corridor_guesses(cr: CommonRoadProblem, best: RoadPlan, cand: Candidate, he
 
 def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: float = HEADING_GUESS_RAD,
                   max_solves: int = CORRIDOR_MAX_SOLVES, others: list[Candidate] | None = None,
-                  engine: tuple[float, float] | None = None) -> RoadPlan | None:
+                  engine: tuple[float, ...] | None = None) -> RoadPlan | None:
     """The corridor planner: where the active set and the two-stage search found no safe plan,
     plan the whole horizon on the time steps with every recorded box on a side chosen from a
     guess (:func:`corridor_qp`), re-centred on its own plan for up to :data:`CORRIDOR_PASSES`
