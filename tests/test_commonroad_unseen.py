@@ -251,3 +251,33 @@ def test_a_steered_corridor_plan_keeps_the_steering_rate(tmp_path: Path) -> None
     verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
     assert verdict.valid, verdict.checks
     assert dev < 0.3
+
+
+#: USA_US101-9_1201_T-1 (seed 11, ``orient``): a heading 0.025-0.2 rad left of the lane's.
+GOAL_9_1201 = [{"time_step": [70, 80], "velocity": [11.8956, 17.8956], "orientation": [-0.6944, -0.5194],
+                "position": {"center": [80.1021, -66.544], "length": 2.1859, "width": 1.6814,
+                             "orientation": -0.71978}}]
+
+
+@needs_data
+def test_a_guess_that_ends_straight_does_not_shut_out_an_off_lane_heading(tmp_path: Path) -> None:
+    """The corridor QP bounds each step's heading near its guess's; the lane schedules end
+    straight (``vd = 0``), and the last step's band was the guess's own plus 0.01 rad, so a goal
+    whose heading interval lies 0.025-0.2 rad off the lane's made every such pass infeasible.
+    The band now includes the final state's own heading: feasible, ending inside the goal."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.goal import goal_rows
+    from iamp.commonroad.planning import FreeTrajectory, _step_guess, corridor_qp, search_final_states
+
+    cr = load(with_goal(tmp_path, "USA_US101-9_1_T-1.xml", "USA_US101-9_1201_T-1", GOAL_9_1201))
+    search = search_final_states(cr)
+    assert search is not None
+    cand = search.candidates[0]
+    assert cand.vd / cand.vs > 0.02  # the final state turns off the lane
+    G = _step_guess(FreeTrajectory(cand.tf, cr.x0, (cand.s, cand.vs, cand.d, cand.vd)), cand.steps, cr.dt)
+    G[-1, 3] = 0.0  # a guess that ends straight
+    rows = goal_rows(cr.goal, cand, cr.x0)
+    got = corridor_qp(cr, cand, G, rows)
+    assert got is not None
+    z = got.states([cand.tf])[0]
+    assert np.all(rows[0] @ z <= rows[1] + 1e-6)
