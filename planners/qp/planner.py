@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -80,6 +80,21 @@ def refine_certificate(problem: Problem, best: CandidateResult, hold: str) -> di
         out["reason"] = (f"the refined contact times lie in another basin: J = {best.cost:.9g} > the certified "
                          f"global J* = {pmp.cost:.9g} (PMP, t* = {', '.join(f'{t:.6g}' for t in pmp.contact_times)})")
     return out
+
+
+def _memo(screen: Callable[[np.ndarray], str | None] | None) -> Callable[[np.ndarray], str | None] | None:
+    """``screen`` that answers each contact-time vector once (the witness's nodes recur in the sweep)."""
+    if screen is None:
+        return None
+    seen: dict[tuple[float, ...], str | None] = {}
+
+    def once(times: np.ndarray) -> str | None:
+        key = tuple(float(t) for t in times)
+        if key not in seen:
+            seen[key] = screen(times)
+        return seen[key]
+
+    return once
 
 
 def _checks_of(r: CandidateResult) -> dict[str, dict[str, Any]]:
@@ -155,17 +170,22 @@ class QPPlanner:
         return out
 
     def sweep(self, qp: CandidateSolver, progress: Progress | None = None,
-              alone: dict[tuple[int, int], bool] | None = None) -> SweepResult:
+              alone: dict[tuple[int, int], bool] | None = None,
+              box: Callable[[np.ndarray], str | None] | None = None,
+              known: dict[tuple[int, ...], CandidateResult] | None = None) -> SweepResult:
         """Solve one QP per candidate node combination (:func:`iamp.planners.qp.sweep.run_sweep`);
         with ``problem.limits``, a candidate whose input box is certified infeasible at its contact
-        times is not solved (:func:`iamp.planners.qp.bounded.box_screen`), nor one with a vehicle
-        at a node in ``alone`` (:func:`iamp.planners.qp.bounded.single_vehicle_screen`)."""
+        times is not solved (``box``, by default :func:`iamp.planners.qp.bounded.box_screen`), nor
+        one with a vehicle at a node in ``alone`` (:func:`iamp.planners.qp.bounded.single_vehicle_screen`);
+        the candidates in ``known`` (already solved on ``qp``'s uniform grid: the witness of
+        :meth:`_witness`) are not solved again."""
         lim = qp.problem.limits
         if lim is None or lim.empty:
-            return run_sweep(qp, progress)
+            return run_sweep(qp, progress, known=known)
         from iamp.planners.qp.bounded import box_screen
 
-        box = box_screen(qp.problem)
+        if box is None:
+            box = box_screen(qp.problem)
         pairs = alone or {}
 
         def screen(nodes: tuple[int, ...], times: np.ndarray) -> str | None:
@@ -175,7 +195,22 @@ class QPPlanner:
                             f"contact at node {k} (Farkas)")
             return box(times) if box is not None else None
 
-        return run_sweep(qp, progress, screen)
+        return run_sweep(qp, progress, screen, known=known)
+
+    def _witness(self, qp: CandidateSolver, box: Callable[[np.ndarray], str | None] | None
+                 ) -> CandidateResult | None:
+        """One vehicle with limits: the candidate node nearest the middle of the grid that the box
+        screen does not certify infeasible, solved on ``qp`` (one solve, counted), or None when the
+        screen certifies every node.  A verified (``ok``) witness proves that the bounded problem
+        has a plan at a grid node, so no certificate of infeasibility before the sweep
+        (:func:`~iamp.planners.qp.bounded.infeasible_before_sweep`) can hold: :meth:`plan` skips
+        it and the sweep reuses the witness."""
+        N = qp.N
+        qp.set_uniform_grid()
+        for k in sorted(range(1, N), key=lambda k: (abs(2 * k - N), k)):
+            if box is None or box(qp.t_nodes[np.array([k])].copy()) is None:
+                return qp.solve_nodes([k])
+        return None
 
     def _refine(self, qp: CandidateSolver, seed: CandidateResult) -> CandidateResult:
         tf, h = qp.problem.tf, qp.problem.tf / qp.N
@@ -231,10 +266,19 @@ class QPPlanner:
         qp = qp or self.build(problem)
         alone: dict[tuple[int, int], bool] | None = None
         extra = 0  # QP solves outside qp (the single-vehicle relaxations)
+        box: Callable[[np.ndarray], str | None] | None = None
+        known: dict[tuple[int, ...], CandidateResult] = {}
+        witness: CandidateResult | None = None
         if problem.limits is not None and not problem.limits.empty:  # certified infeasible before any candidate
-            from iamp.planners.qp.bounded import infeasible_before_sweep
+            from iamp.planners.qp.bounded import boundary_reason, box_screen, infeasible_before_sweep
 
-            early = infeasible_before_sweep(problem, self.steps, self.hold, self.solver)
+            box = _memo(box_screen(problem))
+            witness = self._witness(qp, box) if problem.m == 1 and boundary_reason(problem, problem.limits) is None \
+                else None
+            if witness is not None:
+                known[witness.nodes] = witness
+            early = None if witness is not None and witness.ok else \
+                infeasible_before_sweep(problem, self.steps, self.hold, self.solver)
             if early is not None:
                 reason, cert = early
                 n = qp.n_candidates()
@@ -265,9 +309,13 @@ class QPPlanner:
                             "n_solves": qp.n_solves + alone_solves, "failed_check": "limits",
                             "reason": reason, "limits_infeasible": reason, **self._limits_info(qp)}
                         return self._plan(problem, None, st.INFEASIBLE, start, info_alone)
-        sw = self.sweep(qp, progress, alone)
+        sw = self.sweep(qp, progress, alone, box, known)
+        cands = sw.candidates()
+        if witness is not None:  # one vehicle with limits (:meth:`_witness`)
+            cands["witness"] = {"nodes": list(witness.nodes), "verified": bool(witness.ok),
+                                "certificate_skipped": bool(witness.ok)}
         info: dict[str, Any] = {"path": self.path, "sweep": sw.table, "failures": sw.failures,
-                                "candidates": sw.candidates(),
+                                "candidates": cands,
                                 "unpolished": sum(r.polished is False for r in sw.results)}
         info.update(self._limits_info(qp))
         best = sw.best

@@ -97,12 +97,15 @@ def pmp_lower_bound(qp: CandidateSolver, nodes: tuple[int, ...]) -> float:
 
 
 def run_sweep(qp: CandidateSolver, progress: Progress | None = None,
-              screen: Callable[[tuple[int, ...], np.ndarray], str | None] | None = None) -> SweepResult:
+              screen: Callable[[tuple[int, ...], np.ndarray], str | None] | None = None,
+              known: dict[tuple[int, ...], CandidateResult] | None = None) -> SweepResult:
     """Solve every candidate on the uniform grid; bound the unverified ones (module doc).
 
     ``screen(nodes, times)`` (the bounded QP: :meth:`iamp.planners.qp.planner.QPPlanner.sweep`)
     returns a reason when a candidate is certified infeasible without a QP solve; such a
-    candidate is recorded ``infeasible`` (certified) and not solved."""
+    candidate is recorded ``infeasible`` (certified) and not solved.  ``known`` maps candidates
+    already solved on ``qp``'s uniform grid to their results, which are used as they are (not
+    solved again)."""
     import time
 
     t0 = time.perf_counter()
@@ -117,8 +120,13 @@ def run_sweep(qp: CandidateSolver, progress: Progress | None = None,
         if not chunk:
             break
         screened: dict[int, CandidateResult] = {}
+        for j, nodes in enumerate(chunk):
+            if known and tuple(int(k) for k in nodes) in known:
+                screened[j] = known[tuple(int(k) for k in nodes)]
         if screen is not None:
             for j, nodes in enumerate(chunk):
+                if j in screened:
+                    continue
                 times = qp.t_nodes[np.asarray(nodes, dtype=np.int64)].copy()
                 why = screen(tuple(int(k) for k in nodes), times)
                 if why is not None:
