@@ -65,6 +65,7 @@ from iamp.prediction.kinematics import (
     cubic_fit,
     history_grid,
     integrate_nodes,
+    integrate_positions,
     local_quadratic,
     second_differences,
 )
@@ -213,7 +214,7 @@ class Prediction:
 def _grid_operator(t_bytes: bytes, K: int, dt: float, n: int) -> FloatArray:
     """``R`` with ``R @ x`` = the positions linearly resampled to the last ``n + 2`` grid nodes
     (dense, ``(n + 2) × K``; kept as the reference of :func:`_grid_weights`, which the predictor uses)."""
-    idx, w = _grid_weights(t_bytes, K, dt, n)
+    idx, _, w, _ = _grid_weights(t_bytes, K, dt, n)
     R = np.zeros((idx.size, K))
     rows = np.arange(idx.size)
     R[rows, idx] += 1.0 - w
@@ -223,9 +224,10 @@ def _grid_operator(t_bytes: bytes, K: int, dt: float, n: int) -> FloatArray:
 
 
 @functools.lru_cache(maxsize=256)
-def _grid_weights(t_bytes: bytes, K: int, dt: float, n: int) -> tuple[IntArray, FloatArray]:
-    """``(i, w)``: grid node ``r`` is ``(1 - w_r) x[i_r] + w_r x[i_r + 1]`` (linear interpolation at the
-    last ``n + 2`` grid nodes, as ``np.interp``); O(n log K) instead of a ``K × K`` identity."""
+def _grid_weights(t_bytes: bytes, K: int, dt: float, n: int) -> tuple[IntArray, IntArray, FloatArray, FloatArray]:
+    """``(i, j, w, 1 - w)``: grid node ``r`` is ``(1 - w_r) x[i_r] + w_r x[j_r]``, ``j = min(i + 1, K - 1)``
+    (linear interpolation at the last ``n + 2`` grid nodes, as ``np.interp``); O(n log K) instead of a
+    ``K × K`` identity, computed once per sample times."""
     t = np.frombuffer(t_bytes, dtype=np.float64, count=K)
     tg, _ = history_grid(t, t, dt)
     tg = np.clip(tg[-(n + 2):], t[0], t[-1])
@@ -233,9 +235,10 @@ def _grid_weights(t_bytes: bytes, K: int, dt: float, n: int) -> tuple[IntArray, 
     nxt = np.minimum(idx + 1, K - 1)
     span = t[nxt] - t[idx]
     w = np.where(span > 0, (tg - t[idx]) / np.where(span > 0, span, 1.0), 0.0)
-    idx.setflags(write=False)
-    w.setflags(write=False)
-    return idx, w
+    w1 = 1.0 - w
+    for a in (idx, nxt, w, w1):
+        a.setflags(write=False)
+    return idx, nxt, w, w1
 
 
 @functools.lru_cache(maxsize=1)
@@ -295,6 +298,7 @@ class Predictor:
         self.name = str(name)
         self.dt = float(model.dt)
         self._fit_cache: dict[tuple[int, float], tuple[FloatArray, FloatArray]] = {}
+        self._horizons: dict[float, tuple[int, FloatArray, FloatArray]] = {}
 
     def __repr__(self) -> str:
         return (f"Predictor(model={self.name!r}, order={self.model.order}, states={self.model.n_states}, "
@@ -361,15 +365,29 @@ class Predictor:
 
     # -- prediction ------------------------------------------------------------------------
     def _horizon(self, tf: object) -> tuple[int, FloatArray]:
+        M, t, _ = self._horizon_grid(tf)
+        return M, t
+
+    def _horizon_grid(self, tf: object) -> tuple[int, FloatArray, FloatArray]:
+        """``(M, t, V)``: the nodes ``M``, the prediction times ``t`` and the cubic's Vandermonde matrix
+        at ``t`` of the horizon ``tf`` (read-only; computed once per horizon)."""
         if isinstance(tf, bool) or not isinstance(tf, (int, float, np.integer, np.floating)):
             raise ValueError(f"tf must be a number (got {tf!r})")
         horizon = float(tf)
         if not (math.isfinite(horizon) and horizon > 0):
             raise ValueError(f"tf must be positive and finite (got {horizon})")
-        M = max(int(math.ceil(horizon / self.dt - 1e-9)), 1)
-        t = np.asarray(self.dt * np.arange(M + 1), dtype=np.float64)
-        t[-1] = horizon
-        return M, t
+        cached = self._horizons.get(horizon)
+        if cached is None:
+            M = max(int(math.ceil(horizon / self.dt - 1e-9)), 1)
+            t = np.asarray(self.dt * np.arange(M + 1), dtype=np.float64)
+            t[-1] = horizon
+            V = np.vander(t, 4, increasing=True)
+            t.setflags(write=False)
+            V.setflags(write=False)
+            if len(self._horizons) > 64:
+                self._horizons.clear()
+            cached = self._horizons[horizon] = (M, t, V)
+        return cached
 
     @property
     def jerk_psd(self) -> float:
@@ -401,8 +419,8 @@ class Predictor:
         """
         t_hist = np.asarray(t_hist, dtype=float)
         sm = smooth_histories(t_hist, X_hist, self.jerk_psd)
-        idx, w = _grid_weights(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
-        resampled = sm.x[:, idx] * (1.0 - w) + sm.x[:, np.minimum(idx + 1, t_hist.size - 1)] * w
+        idx, nxt, w, w1 = _grid_weights(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
+        resampled = sm.x[:, idx] * w1 + sm.x[:, nxt] * w
         states = self.model.states(second_differences(resampled, self.dt))
         return sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0), states
 
@@ -519,7 +537,7 @@ class Predictor:
         if (t_hist[-1] - t_hist[0]) + 1e-9 < self.min_history_s:
             raise ValueError(f"histories of {t_hist[-1] - t_hist[0]:g} s are shorter than the "
                              f"{self.min_history_s:g} s the model needs")
-        M, t = self._horizon(tf)
+        M, t, V = self._horizon_grid(tf)
         # the node probabilities take B (M+1) m floats: histories go in chunks of at most
         # BATCH_BYTES (a model with the smallest legal dt has M = 5000 nodes over 5 s)
         rows = max(1, BATCH_BYTES // (8 * (M + 1) * (self.model.n_states + 4)))
@@ -530,9 +548,8 @@ class Predictor:
         _, abar = self._node_accelerations(states, M)
         q = np.asarray(query, dtype=float)
         if not cubic:
-            return integrate_nodes(x0, v0, abar, self.dt, q)[0]
-        x, _ = integrate_nodes(x0, v0, abar, self.dt, t)
-        V = np.vander(t, 4, increasing=True)
+            return integrate_positions(x0, v0, abar, self.dt, q)
+        x = integrate_positions(x0, v0, abar, self.dt, t)
         C, *_ = np.linalg.lstsq(V, x.T, rcond=None)
         out: FloatArray = np.polynomial.polynomial.polyval(q, C)
         return out

@@ -71,7 +71,7 @@ def propagate(model: MTDModel, init: ArrayLike, steps: int) -> FloatArray:
     return out
 
 def propagate_batch(model: MTDModel, init_states: IntArray, steps: int) -> FloatArray:
-    """Vectorised :meth:`propagate` for many one-hot pasts.
+    r"""Vectorised :meth:`propagate` for many one-hot pasts.
 
     Parameters
     ----------
@@ -82,22 +82,45 @@ def propagate_batch(model: MTDModel, init_states: IntArray, steps: int) -> Float
     Returns
     -------
     numpy.ndarray, shape (B, steps, m)
+
+    Notes
+    -----
+    Every step is ``\hat x_t = ((x_{t-1} W_1^T + x_{t-2} W_2^T) + …) + x_{t-n} W_n^T`` with
+    ``W_i = λ_i Q_i``, rows ``(B, m)``: the ``n`` products of one step go to BLAS in one stacked
+    ``matmul`` (one ``(B, m) × (m, m)`` product per lag, as separate products would) and are summed
+    in the order of the lags by one reduction along the outer axis.  The distributions are kept
+    newest first in one buffer, so the ``n`` lags of a step are one contiguous window of it.
     """
     S = np.asarray(init_states, dtype=np.int64)
     B = S.shape[0]
     n, m = model.order, model.n_states
-    W = model.Q * model.lam[:, None, None]
-    # hist[i] : (B, m) distribution at t-1-i ; Q_i x  ->  x @ Q_i^T
-    hist = [np.eye(m)[S[:, -1 - i]] for i in range(n)]
-    out = np.empty((B, int(steps), m))
-    WT = np.transpose(W, (0, 2, 1))
-    for s in range(int(steps)):
-        x = hist[0] @ WT[0]
-        for i in range(1, n):
-            x = x + hist[i] @ WT[i]
-        out[:, s] = x
-        hist = [x] + hist[:-1]
+    steps = int(steps)
+    WT = _lag_operators(model)
+    L = n + steps
+    # Z[L - 1 - τ] is \hat x at time τ: τ < n the given past (one-hot, oldest first), τ = n + s step s;
+    # the lags of step s (newest first: t-1, t-2, …, t-n) are the window Z[L - n - s : L - s]
+    Z = np.empty((L, B, m))
+    Z[L - n:] = np.eye(m)[S[:, :-n - 1:-1].T]
+    P = np.empty((n, B, m))
+    for s in range(steps):
+        a = L - n - s
+        np.matmul(Z[a:a + n], WT, out=P)
+        np.add.reduce(P, axis=0, out=Z[a - 1])
+    out: FloatArray = np.ascontiguousarray(Z[:L - n][::-1].transpose(1, 0, 2))
     return out
+
+
+def _lag_operators(model: MTDModel) -> FloatArray:
+    """``W_i^T = (λ_i Q_i)^T`` as the transposed view of ``Q * λ`` (the operands of
+    :func:`propagate_batch`; read-only, computed once per model)."""
+    WT: FloatArray | None = model.__dict__.get("_lag_operators_T")
+    if WT is None:
+        W = model.Q * model.lam[:, None, None]
+        W.setflags(write=False)
+        WT = np.transpose(W, (0, 2, 1))
+        model.__dict__["_lag_operators_T"] = WT
+    return WT
+
 
 def sample(model: MTDModel, init: ArrayLike, steps: int, n_samples: int, rng: Seed = None) -> IntArray:
     """Draw state paths from the chain.
