@@ -99,7 +99,7 @@ from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.hold import HoldTrajectory
 from iamp.planners.qp.options import check_choice
 
-__all__ = ["GAP_REL", "ROW_TOL_M", "ContinuousAvoidPlanner", "ContinuousAvoidQP", "Spec"]
+__all__ = ["GAP_REL", "ROW_TOL_M", "ContinuousAvoidPlanner", "ContinuousAvoidQP", "GridShare", "Spec"]
 
 #: The branch and bound closes when no box's bound is below the best cost by more than this
 #: (relative to ``max(1, J)``).
@@ -115,6 +115,36 @@ NODE_SOLVERS = ("schur", "backend")
 
 #: Per vehicle ``(first, second, a, b)``: first half-plane on ``[0, a]``, second on ``[b, t_f]``.
 Spec = tuple[tuple[int, int, float, float], ...]
+
+
+class GridShare:
+    """What the plans of one planner keep for the next (:class:`ContinuousAvoidQP`'s ``shared``):
+    per grid, the factored node solver (:class:`~iamp.planners.avoid.schur.SchurActiveSet`, with
+    the columns of ``K⁻¹`` solved so far) and the limit rows, which depend on the grid, the hold and
+    the limits only.  The closed loop plans the same few horizons every period; its planner
+    factors each grid once.  At most :attr:`SIZE` grids, the least recently used dropped.  Every
+    use is checked against the plan's own data (the same matrices bit for bit), so a plan is the
+    same with or without it."""
+
+    SIZE = 8
+
+    def __init__(self) -> None:
+        self._items: dict[tuple[Any, ...], Any] = {}
+
+    def get(self, key: tuple[Any, ...]) -> Any:
+        """The value kept under ``key`` (now the most recent), or None."""
+        out = self._items.pop(key, None)
+        if out is not None:
+            self._items[key] = out
+        return out
+
+    def put(self, key: tuple[Any, ...], value: Any) -> None:
+        """Keep ``value`` under ``key``; beyond :attr:`SIZE` values per kind, drop the oldest."""
+        self._items.pop(key, None)
+        self._items[key] = value
+        same = [k for k in self._items if k[0] == key[0]]
+        for k in same[:max(0, len(same) - self.SIZE)]:
+            del self._items[k]
 
 
 @dataclass
@@ -178,7 +208,8 @@ class ContinuousAvoidQP:
 
     def __init__(self, problem: Problem, steps: int, hold: str, solver: str,
                  settings: dict[str, Any] | None = None, row_generation: bool = True,
-                 node_solver: str = "schur", limits_between: str = "certified") -> None:
+                 node_solver: str = "schur", limits_between: str = "certified",
+                 shared: GridShare | None = None) -> None:
         self.problem, self.hold, self.solver, self.settings = problem, hold, solver, settings
         self.N = int(steps)
         self.tf = problem.tf
@@ -194,7 +225,12 @@ class ContinuousAvoidQP:
             from iamp.planners.qp.limits import check_hold, limit_rows
 
             check_hold(problem.limits, hold)
-            self.limit_rows = limit_rows(d, d.t_nodes, hold, problem.limits, between=limits_between)
+            key = ("limits", self.N, hold, d.t_nodes.tobytes(), repr(problem.limits), limits_between)
+            self.limit_rows = shared.get(key) if shared is not None else None
+            if self.limit_rows is None:
+                self.limit_rows = limit_rows(d, d.t_nodes, hold, problem.limits, between=limits_between)
+                if shared is not None:
+                    shared.put(key, self.limit_rows)
             lr = self.limit_rows
             A_lim = sp.csr_matrix(sp.vstack([lr.A, -lr.A]))
             u_lim = np.r_[lr.hi, -lr.lo]
@@ -210,9 +246,23 @@ class ContinuousAvoidQP:
         self.node_solver = node_solver
         #: the exact node solver of the search (``node_solver="schur"``; its factored KKT matrix
         #: is shared with :class:`~iamp.planners.avoid.dual.DualBounds`)
-        self.schur = SchurActiveSet(self.data.P, self.A_eq, self.data.b_eq) if node_solver == "schur" else None
+        self.schur = self._schur(shared) if node_solver == "schur" else None
         #: backend solves among :attr:`n_solves`
         self.n_backend_solves = 0
+
+    def _schur(self, shared: GridShare | None) -> SchurActiveSet:
+        """The node solver of this grid: from ``shared`` when a plan before factored the same
+        ``P`` and ``A_eq`` (bit for bit, :meth:`~iamp.planners.avoid.schur.SchurActiveSet.same_matrix`),
+        with this problem's right-hand side; else factored here (and kept in ``shared``)."""
+        d = self.data
+        key = ("schur", self.N, self.hold, d.t_nodes.tobytes())
+        known = shared.get(key) if shared is not None else None
+        if isinstance(known, SchurActiveSet) and known.same_matrix(d.P, self.A_eq):
+            return known.with_rhs(d.b_eq)
+        out = SchurActiveSet(d.P, self.A_eq, d.b_eq)
+        if shared is not None:
+            shared.put(key, out)
+        return out
 
     # --- rows ----------------------------------------------------------------------------
     def _layout(self) -> None:
@@ -510,6 +560,9 @@ class ContinuousAvoidPlanner:
     #: ``"certified"`` (default) for every ``t`` by the Bernstein rows of each piece (module
     #: docstring); ``"nodes"`` at the grid nodes only (for study and tests).
     limits_between: str = "certified"
+    #: What the plans of this planner share per grid (:class:`GridShare`; None: each plan builds
+    #: its own).  The same plans with or without it.
+    shared: GridShare | None = field(default=None, repr=False, compare=False)
     #: Dual polynomials a box keeps from its ancestors' candidates (the most recent).
     DUALS_KEPT = 4
     #: Solves of the final secant search per vehicle (:meth:`_polish`).
@@ -592,14 +645,19 @@ class ContinuousAvoidPlanner:
         best_tau = np.full(m, np.nan)
         n_boxes = 0
         closed_bound = np.inf  # the smallest bound of a box closed to the gap
-        dual = DualBounds(qp)
-        store = DualStore(dual)
         free = self._qp_solve(qp, _spec([o[0] for o in orders], np.zeros(m), np.full(m, tf)))
         for combo in itertools.product(*orders):
             if free.status == st.OPTIMAL:
                 heapq.heappush(heap, _Box(free.cost, next(serial), tuple(combo), np.zeros(m), np.full(m, tf), free))
                 n_boxes += 1
         failures: list[str] = [] if free.status in (st.OPTIMAL, st.INFEASIBLE) else [free.status]
+        shortcut = self._free_certified(qp, heap[0]) if heap else None
+        if shortcut is not None:
+            return {"best": shortcut[0], "tau": shortcut[1], "lower_bound": float(min(free.cost, shortcut[0].cost)),
+                    "upper_bound": float(shortcut[0].cost), "closed": True, "n_boxes": n_boxes,
+                    "open_boxes": len(heap) - 1, "failures": failures, "free": free, "free_certified": True}
+        dual = DualBounds(qp)
+        store = DualStore(dual)
 
         def gap(u: float) -> float:
             return self.gap_rel * max(1.0, abs(u))
@@ -716,7 +774,26 @@ class ContinuousAvoidPlanner:
         closed = not heap or open_bound >= U - gap(U)
         return {"best": best, "tau": best_tau, "lower_bound": float(lower), "upper_bound": float(U),
                 "closed": bool(closed and best is not None), "n_boxes": n_boxes, "open_boxes": len(heap),
-                "failures": failures, "free": free}
+                "failures": failures, "free": free, "free_certified": False}
+
+    def _free_certified(self, qp: ContinuousAvoidQP, box: _Box) -> tuple[Solved, FloatArray] | None:
+        """The search's first step, when it certifies the relaxed optimum (``box``: the first root
+        box, the relaxation of every crossing time): the candidate at the crossing times where the
+        relaxed optimum best keeps its half-planes (:meth:`_candidate_tau`), solved warm from the
+        relaxation as the search solves it; if it costs no more than the relaxation (to round-off,
+        ``1e-12`` relative), the relaxation's optimum keeps every Bernstein and limit row of that
+        candidate, so it is the global optimum over every crossing time (lower bound attained: the
+        search would close every box at once and not polish).  Returns that candidate and its
+        crossing times, else None (the search goes on; the candidate stays solved in
+        :attr:`ContinuousAvoidQP.solved`)."""
+        free = box.relaxed
+        tau, margin = self._candidate_tau(qp, box)
+        if free.status != st.OPTIMAL or np.any(margin < 0):
+            return None  # the relaxed optimum breaks a vehicle's half-planes at every crossing time
+        cand = self._qp_solve(qp, _spec(box.orders, tau, tau), free)
+        if cand.status == st.OPTIMAL and cand.cost <= free.cost + 1e-12 * max(1.0, abs(free.cost)):
+            return cand, tau
+        return None
 
     def _polish(self, qp: ContinuousAvoidQP, store: DualStore, best: Solved, tau: FloatArray
                 ) -> tuple[Solved, FloatArray]:
@@ -824,7 +901,7 @@ class ContinuousAvoidPlanner:
             return failed_plan(problem, st.INFEASIBLE, reason, start, **common,
                                info={"safety_mode": "continuous"})
         qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings, self.row_generation,
-                               self.node_solver, self.limits_between)
+                               self.node_solver, self.limits_between, self.shared)
         out = self.search(qp, orders)
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": qp.n_solves}
         search = {"method": "branch and bound over crossing-time boxes (bounds: each box's half-planes outside "
@@ -832,7 +909,8 @@ class ContinuousAvoidPlanner:
                   "n_solves": qp.n_solves, "boxes": out["n_boxes"],
                   "open_boxes": out["open_boxes"], "lower_bound": out["lower_bound"],
                   "upper_bound": out["upper_bound"], "gap_rel_tol": self.gap_rel, "closed": out["closed"],
-                  "max_solves": self.max_solves, "failures": len(out["failures"])}
+                  "max_solves": self.max_solves, "failures": len(out["failures"]),
+                  "free_certified": bool(out["free_certified"])}
         info["search"] = search
         best: Solved | None = out["best"]
         if best is None:
@@ -859,7 +937,7 @@ class ContinuousAvoidPlanner:
         if reason is not None:
             return failed_plan(problem, st.INFEASIBLE, reason, start, **common)
         qp = ContinuousAvoidQP(problem, int(self.steps), self.hold, self.solver, self.solver_settings,
-                               self.row_generation, self.node_solver, self.limits_between)
+                               self.row_generation, self.node_solver, self.limits_between, self.shared)
         tau = np.asarray(taus, dtype=float)
         sol = qp.solve(_spec([o[0] for o in orders], tau, tau))
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": 1,

@@ -56,7 +56,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -69,7 +69,7 @@ from iamp.planners.qp.planner import HOLDS, aligned_grid
 
 from ..qp.options import CONTACTS, check_choice
 from .check import Candidate, FloatArray, crossing_orders
-from .continuous import ContinuousAvoidPlanner
+from .continuous import ContinuousAvoidPlanner, GridShare
 from .data import AvoidData
 from .options import SAFETY_MODES, AvoidOptions, check_avoid_solver, refuse_wall_clock_budget
 from .result import failed_plan, verified_plan
@@ -129,6 +129,9 @@ class AvoidQPPlanner:
     max_solves: int = 2000
     time_limit_s: None = None
     limits_between: str = "certified"
+    #: the continuous-time plans' per-grid factorisations, kept across this planner's plans
+    #: (:class:`~iamp.planners.avoid.continuous.GridShare`: the same plans, each grid factored once)
+    _shared: GridShare = field(default_factory=GridShare, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         refuse_wall_clock_budget(self.time_limit_s)
@@ -140,7 +143,7 @@ class AvoidQPPlanner:
     def _continuous(self) -> ContinuousAvoidPlanner:
         return ContinuousAvoidPlanner(steps=self.steps, hold=self.hold, solver=self.solver,
                                       solver_settings=self.solver_settings, max_solves=self.max_solves,
-                                      limits_between=self.limits_between)
+                                      limits_between=self.limits_between, shared=self._shared)
 
     # --- solving one grid ------------------------------------------------------------------
     def _backend(self, data: AvoidData, on: np.ndarray) -> BoundSolver:

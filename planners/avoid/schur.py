@@ -38,6 +38,8 @@ the cost of every working set's optimum is a lower bound of the QP's optimum and
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -133,6 +135,29 @@ class SchurActiveSet:
         self._have = np.zeros(self.n, dtype=bool)
         self._w: dict[bytes, FloatArray] = {}
         self.columns = 0
+
+    def same_matrix(self, P: sp.spmatrix, A_eq: sp.spmatrix) -> bool:
+        """Whether ``P`` (upper triangle) and ``A_eq`` are, bit for bit, the matrices this solver
+        factored (then :meth:`with_rhs` may serve them)."""
+        def same(a: sp.spmatrix, b: sp.spmatrix) -> bool:
+            return (a.shape == b.shape and np.array_equal(a.indptr, b.indptr)
+                    and np.array_equal(a.indices, b.indices) and np.array_equal(a.data, b.data))
+
+        return same(self.P, sp.csc_matrix(P)) and same(self.A_eq, sp.csr_matrix(A_eq))
+
+    def with_rhs(self, b_eq: FloatArray) -> SchurActiveSet:
+        """The solver of the same ``P`` and ``E`` with the right-hand side ``b_eq``: it shares this
+        one's factored KKT matrix and its solved columns of ``K⁻¹`` (which depend on ``P`` and
+        ``E`` only; a column is the same bit for bit whichever batch solved it), so the plans of
+        one grid factor it once (the closed loop plans the same horizon many times)."""
+        out = copy.copy(self)
+        out.b_eq = np.asarray(b_eq, dtype=float)
+        if out.b_eq.shape != self.b_eq.shape:
+            raise ValueError(f"b_eq has {out.b_eq.size} rows, the factored matrix {self.n_eq}")
+        out._x0 = np.asarray(self.lu.solve(np.r_[np.zeros(self.n), out.b_eq]), dtype=float)
+        out.z0 = out._x0[:self.n].copy()
+        out.columns = 0
+        return out
 
     def column(self, cols: NDArray[np.int64], vals: FloatArray) -> FloatArray:
         """``w_r``: the primal part of ``K⁻¹ [g_r; 0]`` for the row with entries ``vals`` in

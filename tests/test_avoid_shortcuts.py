@@ -1,0 +1,114 @@
+"""Issue 32 item 5: certified shortcuts of the continuous-time avoidance QP in the closed loop.
+
+* The relaxed optimum certified at once (:meth:`ContinuousAvoidPlanner._free_certified`): when
+  the candidate at the relaxation's best crossing times costs no more than the relaxation, the
+  plan is returned without the box search, and it is the plan of the full search bit for bit
+  (generated problems, the vehicles from in the way to far away); it is taken whenever the ego's
+  unconstrained optimum clears every vehicle by far.
+* The per-grid factorisation shared across one planner's plans
+  (:class:`~iamp.planners.avoid.continuous.GridShare`): a planner that plans a sequence of
+  problems gives, plan by plan, the plans of fresh planners bit for bit, and factors each grid's
+  KKT matrix once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st_h
+
+from iamp.core.errors import ScenarioError
+from iamp.core.physical import PASSENGER_CAR
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+from iamp.planners.avoid import continuous as cont
+from iamp.planners.avoid.planner import AvoidQPPlanner
+from iamp.planners.examples import random_problem
+
+N = 12
+
+
+def _loop_planner() -> AvoidQPPlanner:
+    """The closed loop's ``qp-avoid`` (:data:`iamp.simulation.planning.SIM_OPTIONS`)."""
+    return AvoidQPPlanner(steps=N, hold="foh", solver="clarabel", safety="continuous", max_solves=100)
+
+
+def _moved(seed: int, m: int, shift: float, limits: bool) -> Problem:
+    """``random_problem(seed, m)`` with every vehicle moved ``shift`` m along x (away from the ego
+    when large: vehicle 1 behind, the others ahead)."""
+    p = random_problem(seed, m=m)
+    vs = tuple(replace(v, x_poly=(v.x_poly[0] + (-shift if i == 0 else shift),) + tuple(v.x_poly[1:]))
+               for i, v in enumerate(p.vehicles))
+    out = Problem(ego=p.ego, vehicles=vs, name=p.name)
+    return out.with_limits(PASSENGER_CAR) if limits else out
+
+
+def _same(a: Plan, b: Plan) -> None:
+    assert a.status == b.status
+    assert a.cost == b.cost  # bit for bit
+    assert np.array_equal(a.contact_times, b.contact_times, equal_nan=True)
+    if a.trajectory is not None:
+        assert b.trajectory is not None
+        t = np.linspace(0.0, a.problem.tf, 41)
+        assert np.array_equal(np.asarray(a.trajectory.states(t)), np.asarray(b.trajectory.states(t)))
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st_h.integers(0, 10**6), st_h.integers(1, 2), st_h.sampled_from([-12.0, -8.0, -4.0, 0.0, 15.0, 300.0]),
+       st_h.booleans())
+def test_the_free_shortcut_gives_the_plan_of_the_full_search(seed: int, m: int, shift: float, limits: bool) -> None:
+    # negative shifts move the vehicles into the ego's way (the plans bind); far ones leave it free
+    problem = _moved(seed, m, shift, limits)
+    try:
+        plan = _loop_planner().plan(problem)
+    except ScenarioError:  # moved so far that the corner no longer describes the manoeuvre
+        assume(False)
+        raise
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(cont.ContinuousAvoidPlanner, "_free_certified", lambda self, qp, box: None)
+        full = _loop_planner().plan(problem)
+    _same(plan, full)
+    search = plan.info.get("search", {})
+    if search.get("free_certified"):
+        assert plan.status == "optimal" and search["closed"]
+        assert full.info["search"]["closed"]
+        assert search["n_solves"] == full.info["search"]["n_solves"]  # the same QPs, without the boxes' work
+
+
+@pytest.mark.parametrize("m", [1, 2])
+@pytest.mark.parametrize("limits", [False, True])
+def test_the_free_shortcut_is_taken_when_every_vehicle_is_far(m: int, limits: bool) -> None:
+    for seed in range(4):
+        plan = _loop_planner().plan(_moved(seed, m, 400.0, limits))
+        assert plan.status == "optimal"
+        assert plan.info["search"]["free_certified"] is True
+        assert plan.info["search"]["lower_bound"] == pytest.approx(plan.cost, rel=1e-12)
+
+
+def test_one_planner_factors_each_grid_once_and_plans_as_fresh_planners(monkeypatch: pytest.MonkeyPatch) -> None:
+    import iamp.planners.avoid.schur as schur
+
+    calls = {"n": 0}
+    splu = schur.spla.splu
+
+    def counted(*args: object, **kwargs: object) -> object:
+        calls["n"] += 1
+        return splu(*args, **kwargs)
+
+    problems = [_moved(seed, m, shift, True) for seed, m, shift in
+                [(1, 2, 0.0), (2, 1, 15.0), (3, 2, 300.0), (4, 1, 0.0), (5, 2, 40.0)]]
+    # the same horizon twice: the loop replans one grid (tf) every period
+    problems += [Problem(ego=replace(p.ego, tf=problems[0].tf), vehicles=p.vehicles, name=p.name,
+                         limits=p.limits) for p in problems[1:3]]
+    fresh = [_loop_planner().plan(p) for p in problems]
+    monkeypatch.setattr(schur.spla, "splu", counted)
+    one = _loop_planner()
+    shared = [one.plan(p) for p in problems]
+    for a, b in zip(shared, fresh):
+        _same(a, b)
+    grids = len({p.tf for p in problems})
+    assert grids < len(problems)
+    assert calls["n"] == grids  # one factorisation per grid (was one per plan)
