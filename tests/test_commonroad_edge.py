@@ -67,7 +67,7 @@ def _straight_problem(narrow_at: float, drop: float, speed: float) -> Any:
     hi = 1.0 - drop * np.clip((grid - narrow_at) / 4.0, 0.0, 1.0)
     lo = np.full(grid.size, -5.0)
     cr = SimpleNamespace(corridor=(grid, lo, hi), dt=0.1, ego_length=4.508, ego_width=1.61,
-                         x0=(0.0, speed, 0.1, 0.0), a_max=11.5, obstacles=[])
+                         x0=(0.0, speed, 0.1, 0.0), a_max=11.5, obstacles=[], road_edges=[])
     T = 6.0
     cand = Candidate(s=speed * T, vs=speed, d=-0.5, vd=0.0, tf=T, steps=60, cost0=0.0, element=0, piece=0)
     return cr, cand

@@ -281,3 +281,44 @@ def test_a_guess_that_ends_straight_does_not_shut_out_an_off_lane_heading(tmp_pa
     assert got is not None
     z = got.states([cand.tf])[0]
     assert np.all(rows[0] @ z <= rows[1] + 1e-6)
+
+
+#: USA_US101-5_207_T-1 (seed 1, ``combo``): one lane to the right from a start 0.3 mm inside the
+#: upper road edge, where the edge narrows by 19 cm within 4 m.
+GOAL_5_207 = [{"time_step": [90, 94], "velocity": [0.0, 3.1402], "orientation": [-0.9181, -0.7681],
+               "position": {"center": [29.9549, -36.4075], "length": 2.2773, "width": 1.7518,
+                            "orientation": -0.76804}}]
+
+
+@needs_data
+def test_the_body_check_judges_road_edges_by_commonroads_road(tmp_path: Path) -> None:
+    """The road-edge boxes take the narrowest bound over up to 4 m, so the body check tolerated
+    2 cm of overlap with them; at 5_207's start, turning away from the edge lifts the rear corner
+    1-2 cm beyond CommonRoad's road while staying within that tolerance, and the plan was taken
+    and judged off road.  Now a road-edge box counts exactly where CommonRoad's own road-boundary
+    check finds the body off the road: the corridor's first pass from the free guess is off road
+    by the checker at some steps, and the body check reports a road edge at exactly those steps
+    (never at a step the checker finds on the road)."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.goal import goal_rows
+    from iamp.commonroad.planning import (
+        FreeTrajectory,
+        _step_guess,
+        corridor_qp,
+        intrusions,
+        off_road_steps,
+        search_final_states,
+    )
+
+    cr = load(with_goal(tmp_path, "USA_US101-5_1_T-1.xml", "USA_US101-5_207_T-1", GOAL_5_207))
+    search = search_final_states(cr)
+    assert search is not None
+    cand = search.candidates[0]
+    G = _step_guess(FreeTrajectory(cand.tf, cr.x0, (cand.s, cand.vs, cand.d, cand.vd)), cand.steps, cr.dt)
+    got = corridor_qp(cr, cand, G, goal_rows(cr.goal, cand, cr.x0))
+    assert got is not None
+    off = off_road_steps(cr, got, cand.steps)
+    assert off.any() and not off[0]
+    edges = [i for i in intrusions(cr, got, cand.tf) if i.obstacle.road_edge]
+    assert edges
+    assert all(off[int(round(i.time_s / cr.dt))] for i in edges)

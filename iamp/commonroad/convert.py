@@ -165,6 +165,9 @@ class CommonRoadProblem:
     #: The road corridor ``(s, d^-(s), d^+(s))`` sampled every :data:`EDGE_STEP_M` (``nan`` off
     #: the lanelets), whose narrower parts are the ``road_edges`` boxes.
     corridor: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    #: CommonRoad's own road-boundary collision checker of the scenario (built on first use by
+    #: :func:`iamp.commonroad.planning.off_road_steps`).
+    road_checker: Any = field(default=None, repr=False, compare=False)
 
     @property
     def all_obstacles(self) -> list[Obstacle]:

@@ -45,6 +45,7 @@ from iamp.commonroad.check import VerdictJSON
 from iamp.commonroad.convert import (
     BUFFER_M,
     EDGE_BUFFER_M,
+    EDGE_STEP_M,
     HEADING_GUESS_RAD,
     CommonRoadProblem,
     Obstacle,
@@ -236,15 +237,53 @@ def body_overlap(s: FloatArray, d: FloatArray, heading: FloatArray, s_lo: FloatA
     return np.asarray(np.minimum(np.minimum(along_s, along_d), np.minimum(body_u, body_n)), dtype=float)
 
 
+def off_road_steps(cr: CommonRoadProblem, trajectory: Trajectory, steps: int) -> npt.NDArray[np.bool_]:
+    """At which time steps ``0..steps`` the body of the solution written from ``trajectory`` (its
+    zero-order-hold world states, :func:`~iamp.commonroad.solution.world_states`, the body at the
+    heading of its velocity) collides with the road boundary, by CommonRoad's own road-boundary
+    checker (the lanelets' triangulation the solution checker builds; built once per problem).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    trajectory : Trajectory
+        A road-frame plan.
+    steps : int
+        The last time step.
+
+    Returns
+    -------
+    ndarray of bool, shape (steps + 1,)
+    """
+    import importlib
+
+    from commonroad_dc.feasibility import solution_checker
+
+    from iamp.commonroad.solution import world_states
+
+    pycrcc = importlib.import_module("commonroad_dc.pycrcc")  # (its type stub does not parse)
+
+    if cr.road_checker is None:
+        cr.road_checker = solution_checker._construct_boundary_checker(cr.scenario)
+    P, V, _ = world_states(cr, trajectory, steps)
+    L2, W2 = cr.ego_length / 2, cr.ego_width / 2
+    return np.array([bool(cr.road_checker.collide(pycrcc.RectOBB(L2, W2, math.atan2(v[1], v[0]), p[0], p[1])))
+                     for p, v in zip(P, V)], dtype=bool)
+
+
 def intrusions(cr: CommonRoadProblem, trajectory: Trajectory, T: float,
                buffer: float = CHECK_BUFFER_M) -> list[Intrusion]:
     """Every recorded vehicle whose box the ego's body enters, deepest first (module doc, step 2).
 
     The body is the ego's rectangle at its heading in the road frame, the box each vehicle's
-    recorded box at every recorded step (a road-edge box less :data:`EDGE_SLACK_M`); the depth is
-    :func:`body_overlap`, so a body turned away from a road edge is not charged with its
-    bounding box's corner."""
+    recorded box at every recorded step; the depth is :func:`body_overlap`, so a body turned
+    away from a road edge is not charged with its bounding box's corner.  A road-edge box
+    (grown by :data:`EDGE_SLACK_M`: the corridor's bounds are within a centimetre or two of
+    CommonRoad's) counts only at the steps where CommonRoad's own road-boundary check finds the
+    body off the road (:func:`off_road_steps`): the boxes cover the narrowest bound over up to
+    :data:`~iamp.commonroad.convert.EDGE_CHUNK_M` and overstate an edge that narrows steeply."""
     out = []
+    off: npt.NDArray[np.bool_] | None = None
     for ob in cr.all_obstacles:
         keep = ob.t <= T + 1e-9
         if not keep.any():
@@ -253,7 +292,12 @@ def intrusions(cr: CommonRoadProblem, trajectory: Trajectory, T: float,
         X = trajectory.states(t)
         heading = np.arctan2(X[:, 3], np.maximum(X[:, 1], 1e-6))
         depth = body_overlap(X[:, 0], X[:, 2], heading, ob.s_lo[keep], ob.s_hi[keep], ob.d_lo[keep], ob.d_hi[keep],
-                             cr.ego_length / 2, cr.ego_width / 2, -EDGE_SLACK_M if ob.road_edge else buffer)
+                             cr.ego_length / 2, cr.ego_width / 2, EDGE_SLACK_M if ob.road_edge else buffer)
+        if ob.road_edge and np.any(depth > 0):
+            if off is None:
+                off = off_road_steps(cr, trajectory, int(round(T / cr.dt)))
+            step = np.clip(np.rint(t / cr.dt).astype(int), 0, off.size - 1)
+            depth = np.where(off[step], depth, -np.inf)
         k = int(np.argmax(depth))
         if depth[k] > 0:
             out.append(Intrusion(ob, float(depth[k]), float(t[k])))
@@ -862,6 +906,9 @@ CORRIDOR_NEAR_M = 8.0
 #: (:func:`corridor_qp`): below the KS tracker's own input margin
 #: (:data:`iamp.commonroad.ks.INPUT_MARGIN`), leaving its feedback room.
 CORRIDOR_ENGINE_SHARE = 0.9
+#: How far a point of the body's side can lie along the road from the step's position plus its
+#: offset (the body turned by its heading: ``W/2 sin φ`` and ``L/2 (1 - cos φ)``) [m].
+CORRIDOR_CORNER_M = 0.15
 #: Share of the steered model's steering rate the corridor plan's change of lateral
 #: acceleration uses (:func:`corridor_qp`): the rest covers the terms the row neglects (the
 #: speed's change, the heading) and the tracker's feedback.
@@ -1132,6 +1179,12 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
                        for x in tau])
     # how far a step's position may move from the guess's: both leave x0 within the friction circle
     move = np.minimum(CORRIDOR_REACH_M, cr.a_max * (np.arange(K + 1) * dt) ** 2 + 0.05)
+    # where a step's position can be: within move of the guess, and within the friction circle
+    # from the start's coasting (|u_s| <= a_max): the road's bounds are taken over this reach
+    t_steps = np.arange(K + 1) * dt
+    coast = cr.x0[0] + cr.x0[1] * t_steps
+    s_min = np.maximum(G[:, 0] - move, coast - 0.5 * cr.a_max * t_steps**2)
+    s_max = np.minimum(G[:, 0] + move, coast + 0.5 * cr.a_max * t_steps**2)
     # variables: the states X_k = (s, vs, d, vd) of steps 0..K, then the inputs U_k = (us, ud) of steps 0..K-1
     last = K - 1 if goal_rows is None else K
     sides = corridor_sides(cr, G, sx, sy, last)
@@ -1170,9 +1223,19 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
         # the body's sides at points along it (its corners included) below the road's bound near
         # each point: d + o tan φ + W/2 (+ the corner's excess beyond the linear bound) per side
         up, down = n_road + 2 * k - 2, n_road + 2 * k - 1  # soft: a start at the edge touches it
-        half = max(float(move[k]) + 0.15, 0.6)
         for o in offsets:
-            a, b_ = G[k, 0] + o - half, G[k, 0] + o + half
+            # the point's reach along the road: its step's (about the guess and from the start
+            # within the friction circle), and CORRIDOR_CORNER_M for the corner's own shift
+            a, b_ = s_min[k] + o - CORRIDOR_CORNER_M, s_max[k] + o + CORRIDOR_CORNER_M
+            lean = o / float(vs_g[k])
+            if grid is not None and lo is not None and hi is not None:
+                lines = _edge_line(grid, hi, a, b_, True), _edge_line(grid, lo, a, b_, False)
+                if all(np.isfinite(v) for ln in lines for v in ln):  # the road's bounds as lines in s
+                    for (v0, m), sg, slack in zip(lines, (1.0, -1.0), (up, down)):
+                        # sg (d + lean vd) <= sg (v0 + m (s + o - a)) - |m| CORRIDOR_CORNER_M - margins
+                        le([(d_, sg), (vd_, sg * lean), (s_, -sg * m), (slack, -1.0)],
+                           sg * (v0 + m * (o - a)) - abs(m) * CORRIDOR_CORNER_M - edge_sy[k] - excess[k])
+                    continue
             h_b, l_b = y_hi, y_lo
             if grid is not None and lo is not None and hi is not None:
                 h, lw = _narrowest(grid, hi, a, b_, True), _narrowest(grid, lo, a, b_, False)
@@ -1184,7 +1247,6 @@ def corridor_qp(cr: CommonRoadProblem, cand: Candidate, G: FloatArray,
             above = near[near[:, 2] + near[:, 3] >= y_lo + y_hi]
             h_b = min(h_b, float(above[:, 2].min())) if above.size else h_b
             l_b = max(l_b, float(below[:, 3].max())) if below.size else l_b
-            lean = o / float(vs_g[k])
             le([(d_, 1.0), (vd_, lean), (up, -1.0)], float(h_b - edge_sy[k] - excess[k]))
             le([(d_, -1.0), (vd_, -lean), (down, -1.0)], -float(l_b + edge_sy[k] + excess[k]))
         le([(up, -1.0)], 0.0)
@@ -1854,6 +1916,24 @@ def corner_excess(half_length: float, half_width: float, tau: float) -> float:
         The excess [m] (>= 0), added to the corner rows' clearance.
     """
     return max(0.0, (1.0 - 1.0 / math.sqrt(1.0 + tau * tau)) * (half_length * tau - half_width))
+
+
+def _edge_line(grid: FloatArray, bound: FloatArray, a: float, b: float, up: bool) -> tuple[float, float]:
+    """A line :math:`v_0 + m (s - a)` below the piecewise-linear upper ``bound`` over ``[a, b]``
+    (above it for a lower bound, ``up`` false): the chord between its values at ``a`` and ``b``,
+    moved by the farthest sample between them beyond it (exact where the bound is straight).
+    Returns ``(v_0, m)``, ``nan`` outside the samples or where a sample is off every lanelet."""
+    if a < grid[0] or b > grid[-1] or b <= a:
+        return math.nan, math.nan
+    sel = (grid >= a - 1e-9 - EDGE_STEP_M) & (grid <= b + 1e-9 + EDGE_STEP_M)
+    if not np.all(np.isfinite(bound[sel])):
+        return math.nan, math.nan
+    va, vb = np.interp([a, b], grid, bound)
+    m = float((vb - va) / (b - a))
+    inside = (grid > a) & (grid < b)
+    gap = float(va) + m * (grid[inside] - a) - bound[inside]
+    shift = float(np.max(gap, initial=0.0)) if up else float(np.min(gap, initial=0.0))
+    return float(va) - shift, m
 
 
 def _narrowest(grid: FloatArray, bound: FloatArray, a: float, b: float, up: bool) -> float:
