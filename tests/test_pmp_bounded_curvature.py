@@ -1,16 +1,17 @@
 """The one-vehicle certificate's Taylor bound is a bound on the function it expands (issue 32).
 
 :func:`iamp.planners.pmp.bounded.certify_global_one` bounds, on an interval ``|t' − t| ≤ δ``
-of contact times, the dual function at the centre's fixed multipliers,
-:math:`D(\\bar\\lambda; t') \\ge D(t) - |r|\\,|t'-t| - \\tfrac12 M (t'-t)^2`, with ``M`` a bound
-of :math:`-\\partial^2_{t'}D = \\Phi\\ddot c - \\Phi u_\\lambda(t'; t') + \\Phi^2\\mu_{free}`
-(one-sided: the term :math:`\\Phi u_\\lambda` counts with its sign).  Weak duality then gives
-:math:`J_b \\ge D`.  The test in ``test_pmp_bounded.py`` checks the end result against
-:math:`J_b`, which lies far above ``D`` away from the centre, so it cannot see a wrong
-curvature term; this one computes :math:`D(\\bar\\lambda; t')` itself by dense quadrature
-(independent of the kernel: ``ψ(w) = ½u² − wu``, ``u = clip(w)``, exact Simpson per linear piece)
-and checks the expansion at 41 contact times of the interval and the curvature bound ``M``
-against second differences of ``D``.
+of contact times, the dual function along a multiplier path from the centre's optimum,
+:math:`f(t') = D(\\bar\\lambda + (t'-t)\\mu_3e_3; t') \\ge D(t) - |r|\\,|t'-t| - \\tfrac12 M (t'-t)^2`,
+with ``M`` a bound of :math:`-f''` (one-sided: the term :math:`\\Phi u_\\lambda` counts with its
+sign; the free-set term split at ``t'`` by the path).  Weak duality then gives
+:math:`J_b \\ge f`.  The test in ``test_pmp_bounded.py`` checks the end result against
+:math:`J_b`, which lies far above ``f`` away from the centre, so it cannot see a wrong
+curvature term; this one computes ``f(t')`` itself (independent of the kernel:
+``ψ(w) = ½u² − wu``, ``u = clip(w)``, exact Simpson per linear piece) and checks the expansion
+at 41 contact times of the interval and the curvature bound ``M`` against second differences
+of ``f`` (it fails for ``|Φu|`` in place of ``Φu``, for the largest instead of the least
+``Φu``, for a free-set term without its ``(1 − θ)²`` side, or half the other side's).
 """
 
 from __future__ import annotations
@@ -64,7 +65,8 @@ def test_the_taylor_bound_is_below_the_fixed_multiplier_dual(problem: Problem, c
                          ib.cddot_max[0])
     assume(raw[0] < 0)  # both axes converged
     _, dual, slope, M = raw[1:5]
-    assert INTERVAL_WIDTH >= 5
+    assert INTERVAL_WIDTH == 13
+    mu3 = raw[11:13]  # the rate of the terminal-speed multiplier along the path, per axis
     t = 0.5 * (a + b)
     pts = contact_points([t], T, ib.pos, ib.off[0], ib.off[1], ib.flat_data, [0.0] * 6, [0.0, 0.0], False)
     ego = problem.ego
@@ -83,7 +85,7 @@ def test_the_taylor_bound_is_below_the_fixed_multiplier_dual(problem: Problem, c
         for q, tp in enumerate(taus):
             c = float(veh.position(tp)) + veh.offset_x if k == 0 else veh.corner_y
             d = (c - s0 - v0 * tp, sf - s0 - v0 * T, vf - v0)
-            total[q] += _dual((lam1, lam2, lam3), float(tp), T, d, lo, hi)
+            total[q] += _dual((lam1, lam2, lam3 + (tp - t) * mu3[k]), float(tp), T, d, lo, hi)
     scale = max(1.0, abs(dual))
     # the reference reproduces D and |r| at the centre (the multipliers and the data are read right)
     assert abs(total[-2] - dual) <= 1e-9 * scale, (total[-2], dual)

@@ -97,10 +97,10 @@ INF = math.inf
 #: Grid points of the one-vehicle contact-time search (the starts of Brent's polish).
 GRID_ONE = 16
 #: Ratio of the distances from ``t_best`` of the ends of the graded intervals that start the
-#: one-vehicle certificate around its minimum (:func:`certify_global_one`): 1.6 had the fewest
-#: axis solves of 1.4-3 on paper-1 and 8 boxed random problems with 3-6 kernel calls each
-#: (without grading: about 10 calls each).
-CERT_GRADE = 1.6
+#: one-vehicle certificate around its minimum (:func:`certify_global_one`): of 1.6, 2, 2.4, 3,
+#: 2 had the fewest axis solves on paper-1 (66; 72 without grading, in 9 kernel calls
+#: instead of 3) and on it with 8 boxed random problems (622 in 43 calls; 644 in 82 without).
+CERT_GRADE = 2.0
 
 #: How far inside the edge of the feasible contact times (over ``t_f``) the search reads the
 #: slope ``r`` (at the edge the dual multipliers grow without bound).
@@ -167,6 +167,14 @@ class BoundedSolution:
             self._slopes.append((U[1:] - U[:-1]) / np.where(h > 0, h, 1.0))
         self._jumps_arr = [np.asarray(ax.jumps) for ax in self.axes]
         self._hjump: tuple[FloatArray, FloatArray] | None = None
+        self._ends_contacts: FloatArray | None = None
+
+    def ends_and_contacts(self) -> FloatArray:
+        """:meth:`states` at ``0``, ``t_f`` and the contact times (rows in that order), evaluated
+        once: the self-check and the Hamiltonian-jump terms both read them."""
+        if self._ends_contacts is None:
+            self._ends_contacts = self.states(np.concatenate(([0.0, float(self.problem.tf)], self.contact_times)))
+        return self._ends_contacts
 
     @property
     def jumps(self) -> FloatArray:
@@ -238,10 +246,13 @@ class BoundedSolution:
         """:meth:`hamiltonian` with the side per point (``left``: a boolean per ``t``)."""
         _, vx, ux = self._axis_eval(0, t)
         _, vy, uy = self._axis_eval(1, t)
-        U = np.stack([ux, uy], axis=1)
-        p = self._costates(t, left)
-        out: FloatArray = (0.5 * np.sum(U**2, axis=1) + p[:, 0] * vx + p[:, 1] * U[:, 0]
-                           + p[:, 2] * vy + p[:, 3] * U[:, 1])
+        d = t[:, None] - self.contact_times[None, :]
+        step = np.where(np.asarray(left)[:, None], d > 0, d >= 0).astype(float)
+        # the columns of _costates, without stacking them (the same operations)
+        p1 = self.axes[0].b - step @ self._jumps_arr[0]
+        p3 = self.axes[1].b - step @ self._jumps_arr[1]
+        out: FloatArray = (0.5 * (ux**2 + uy**2) + p1 * vx + (-self.w(0, t)) * ux
+                           + p3 * vy + (-self.w(1, t)) * uy)
         return out
 
     def hamiltonian_jump_terms(self) -> tuple[FloatArray, FloatArray]:
@@ -255,9 +266,9 @@ class BoundedSolution:
         t = self.contact_times
         m = len(t)
         xdot = np.array([float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, t)])
-        X = self.states(t)
+        X = self.ends_and_contacts()[2:]
         J = self.jumps
-        H = self._hamiltonian(np.r_[t, t], np.r_[np.ones(m, dtype=bool), np.zeros(m, dtype=bool)])
+        H = self._hamiltonian(np.concatenate((t, t)), np.concatenate((np.ones(m, dtype=bool), np.zeros(m, dtype=bool))))
         r: FloatArray = H[:m] - H[m:] - xdot * J[:, 0]
         size = np.abs(J[:, 0]) * (np.abs(X[:, 1]) + np.abs(xdot)) + np.abs(J[:, 1]) * np.abs(X[:, 3])
         return r, size
@@ -674,7 +685,11 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     time in :math:`[0, t']` where :math:`u_\lambda` is free.  ``M`` is minus the sum of these
     lower bounds over the axes, or ``0`` where that sum is positive (the term
     :math:`\Phi u_\lambda` counted with its sign; before issue 32 it was :math:`|\Phi|\max|u_\lambda|`:
-    116 -> 104 axis solves on the bench's paper-1 problem).  Hence on :math:`|t'-t| \le \delta`
+    116 -> 104 axis solves on the bench's paper-1 problem).  The kernel sharpens this further by
+    following a multiplier path :math:`\bar\lambda + (t'-t)\mu_3 e_3` instead of fixed
+    multipliers (weak duality holds for any), which splits the free-set term at ``t'``
+    (:func:`~iamp.planners.pmp.saturated_kernel.interval_terms`; ``M`` 195 -> 34 at paper-1's
+    minimum, 104 -> 72 solves).  Hence on :math:`|t'-t| \le \delta`
 
     .. math::  J_b(t') \ge \sum_{\text{axis}} D(\bar\lambda; t) - \Big|\sum_{\text{axis}}\partial_{t'}D\Big|\,\delta
                - \tfrac12\sum_{\text{axis}}M\,\delta^2
@@ -803,7 +818,7 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
     ego = prob.ego
     (lx, hx), (ly, hy) = input_box(prob)
     C = prob.corners(t).reshape(-1, 2)
-    ends_and_t = sol.states(np.r_[0.0, T, t])  # one evaluation (element by element, the same numbers)
+    ends_and_t = sol.ends_and_contacts()
     ends, X = ends_and_t[:2], ends_and_t[2:]
     vals: dict[str, float] = {}
     bnd = cor = sat = sw = box = hcon = 0.0
@@ -821,7 +836,7 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
             cor = max(cor, float(np.max(np.abs(X[:, 2 * k] - C[:, k]))) / L)
         kn = np.asarray(ax.knots)
         mids = 0.5 * (kn[1:] + kn[:-1])
-        pts = np.r_[kn, mids]
+        pts = np.concatenate((kn, mids))
         u = sol._axis_eval(k, pts)[2]
         w = sol.w(k, pts)
         sat = max(sat, float(np.max(np.abs(u - np.clip(w, lo, hi)))) / ua)
@@ -830,7 +845,7 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
         box = max(box, float(np.max(np.maximum(np.asarray(ax.u) - hi, lo - np.asarray(ax.u)), initial=0.0)) / ua)
     # H constant between contact times (one-sided values at every knot of the interval),
     # every interval's values in one evaluation
-    bp = np.r_[0.0, np.sort(t), T]
+    bp = np.concatenate(([0.0], np.sort(t), [T]))
     allk = np.asarray(sol.knots())
     pts_h: list[FloatArray] = []
     left_h: list[FloatArray] = []
@@ -986,6 +1001,10 @@ class _Evaluator:
         self.off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
         self.flat_data = [float(x) for row in self.data for x in row]
         self._vf: Any = None
+        # contact times evaluated with a finite J_b: asked again (the search's brackets and
+        # Brent's ends repeat its grid points), the result is returned without a solve.  The
+        # same numbers: a warm start from the converged multipliers takes no Newton step
+        self._done: dict[tuple[float, ...], tuple[float, FloatArray, list[list[float]]]] = {}
 
     def value_function(self) -> Any:
         """The unbounded value function (made once; the search and the certificate share it)."""
@@ -1014,9 +1033,19 @@ class _Evaluator:
         return None if found is None else list(found)
 
     def __call__(self, t: FloatArray) -> tuple[float, FloatArray, list[list[float]] | None]:
-        T = self.T
         t = np.asarray(t, dtype=float)
         times = t.tolist()
+        done = self._done.get(tuple(times))
+        if done is not None:
+            self._remember(times, done[2])  # the memory of warm starts as if solved again
+            return done[0], done[1].copy(), done[2]
+        J, r, lams = self._solve(t, times)
+        if lams is not None and math.isfinite(J):
+            self._done[tuple(times)] = (J, r.copy(), lams)
+        return J, r, lams
+
+    def _solve(self, t: FloatArray, times: list[float]) -> tuple[float, FloatArray, list[list[float]] | None]:
+        T = self.T
         m = len(times)
         if m == 1:  # both axes in one kernel call (the same numbers as solve_axis_value)
             if times[0] <= 0 or times[0] >= T:

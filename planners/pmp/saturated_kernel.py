@@ -405,7 +405,7 @@ def poly_at(c: Any, x: float) -> float:
 
 
 #: Values per axis and contact time in the output of :func:`contact_points`.
-POINT_WIDTH = 10
+POINT_WIDTH = 11
 
 
 @compilable
@@ -421,7 +421,8 @@ def contact_points(ts: Any, T: float, T2: float, T3: float, pos: Any, off_x: flo
     :class:`~iamp.planners.pmp.saturated._Axis`'s and the physical values those of
     :func:`~iamp.planners.pmp.saturated.solve_axis_value` and ``_axis_solution``, operation for
     operation.  Returns per point and axis :data:`POINT_WIDTH` values: result code, dual value,
-    cost, jump ``Φ``, ``a``, ``b`` (of ``w = −p_v``), ``v(t)``, the three scaled multipliers.
+    cost, jump ``Φ``, ``a``, ``b`` (of ``w = −p_v``), ``v(t)``, the three scaled multipliers,
+    and ``|∫u − (v_f − v_0)|`` (the terminal speed residual of the multipliers' law, physical).
     Where the code is :data:`NOT_CONVERGED`, the second to fourth values are instead the
     Farkas test of :func:`~iamp.planners.pmp.saturated.solve_axis` (``1`` when a certificate
     was found, its margin and its ramp multiplier in physical units, as ``AxisInfeasible``'s
@@ -489,6 +490,7 @@ def contact_points(ts: Any, T: float, T2: float, T3: float, pos: Any, off_x: flo
                 out[o + 4] = lam_ramp * (sg * T) + lam_lin * T + lam_c
                 out[o + 5] = -lam_ramp - lam_lin
                 out[o + 6] = v0 + vc[0] * scale / T
+                out[o + 10] = abs(F[2]) * scale / T
             out[o + 7] = lam[0]
             out[o + 8] = lam[1]
             out[o + 9] = lam[2]
@@ -527,7 +529,7 @@ def free_measure(wa: float, wb: float, lo: float, hi: float, t: float, delta: fl
 
 
 #: Values per interval in the output of :func:`interval_terms`.
-INTERVAL_WIDTH = 11
+INTERVAL_WIDTH = 13
 
 
 @compilable
@@ -538,8 +540,19 @@ def interval_terms(ab: Any, T: float, T2: float, T3: float, pos: Any, der: Any, 
     both axes at the centre ``t`` in one :func:`contact_points` call (warm as there, no cold
     retry), then per interval :data:`INTERVAL_WIDTH` values: the first axis that did not
     converge (``-1`` if none; the others are then left zero), the bound
-    :math:`D - |r|\delta - 	frac12 M\delta^2`, ``D``, ``|r|``, ``M``, the three scaled
-    multipliers of x and of y (those of the axes before a failing one)."""
+    :math:`D - |r|\delta - \tfrac12 M\delta^2`, ``D``, ``|r|``, ``M``, the three scaled
+    multipliers of x and of y (those of the axes before a failing one), and per axis the rate
+    ``μ₃`` (physical) of the multiplier path the bound follows.
+
+    The bound is that of :math:`f(t') = D(\bar\lambda + (t'-t)\,\mu_3 e_3;\ t')` (weak duality
+    holds for every multiplier, so :math:`J_b(t') \ge f(t')`): moving the multiplier of the
+    terminal speed by :math:`\mu_3 = \theta\Phi` as the ramp moves shifts the law on both sides
+    of the contact time, and the curvature's free-set term
+    :math:`\Phi^2|F\cap[0,t']|` becomes
+    :math:`\Phi^2\big((1-\theta)^2|F\cap[0,t']| + \theta^2|F\cap[t',T]|\big)`, least at
+    :math:`\theta = \bar\mu_L/(\bar\mu_L + \bar\mu_R)` (:func:`free_measure` on each side;
+    ``θ = 0`` is the fixed-multiplier bound).  The slope adds :math:`|\mu_3|` times the terminal
+    speed residual of :func:`contact_points`."""
     n = len(ab) // 2
     ts = [0.0] * n
     for q in range(n):
@@ -555,6 +568,7 @@ def interval_terms(ab: Any, T: float, T2: float, T3: float, pos: Any, der: Any, 
         c0 = poly_at(der, t)
         dual = 0.0
         slope = 0.0
+        slack = 0.0
         curv = 0.0
         bad = -1
         r = q * INTERVAL_WIDTH
@@ -570,24 +584,37 @@ def interval_terms(ab: Any, T: float, T2: float, T3: float, pos: Any, der: Any, 
             wb = raw[o + 5]
             speed = raw[o + 6]
             phi = abs(jump)
-            # u_λ(t'; t') = clip(w_a + w_b t' − Φ (t' − t)): monotone in t', so Φ u_λ is least at an end
-            u0 = wa + wb * a - jump * (a - t)
-            u1 = wa + wb * b - jump * (b - t)
+            # the free time before and after t' (the law moves by at most |Φ| |t' − t| on each
+            # side for any θ in [0, 1]); the side after t' mirrored (τ → T − τ) onto the form of
+            # free_measure, with the post-contact line w_a + Φ t + (w_b − Φ) τ
+            mu_l = free_measure(wa, wb, lo, hi, t, delta, phi, b)
+            mu_r = free_measure(wa + jump * t + (wb - jump) * T, jump - wb, lo, hi, T - t, delta, phi, T - a)
+            theta = mu_l / (mu_l + mu_r) if mu_l + mu_r > 0.0 else 0.0
+            mu3 = theta * jump
+            # u_λ(t'; t') = clip(w_a + w_b t' − Φ (t' − t) + μ₃ (t' − t)): monotone in t', so Φ u_λ
+            # is least at an end
+            u0 = wa + wb * a - jump * (a - t) + mu3 * (a - t)
+            u1 = wa + wb * b - jump * (b - t) + mu3 * (b - t)
             u0 = lo if u0 < lo else (hi if u0 > hi else u0)
             u1 = lo if u1 < lo else (hi if u1 > hi else u1)
             pu = jump * u0 if jump * u0 < jump * u1 else jump * u1
             dual += raw[o + 1]
             slope += jump * (speed - (c0 if k == 0 else 0.0))
-            # ∂²D/∂t'² = −Φ c̈ + Φ u_λ(t'; t') − Φ² μ_free ≥ this axis' term (certify_global_one)
-            curv += pu - phi * ((cddot_x if k == 0 else 0.0) + phi * free_measure(wa, wb, lo, hi, t, delta, phi, b))
+            slack += abs(mu3) * raw[o + 10]
+            # f'' = −Φ c̈ + Φ u_λ(t'; t') − Φ² ((1 − θ)² |F ∩ [0, t']| + θ² |F ∩ [t', T]|) ≥ this
+            # axis' term (certify_global_one)
+            curv += pu - phi * ((cddot_x if k == 0 else 0.0)
+                                + phi * ((1.0 - theta) * (1.0 - theta) * mu_l + theta * theta * mu_r))
+            out[r + 11 + k] = mu3
             out[r + 5 + 3 * k] = raw[o + 7]
             out[r + 6 + 3 * k] = raw[o + 8]
             out[r + 7 + 3 * k] = raw[o + 9]
         out[r] = float(bad)
         M = -curv if curv < 0.0 else 0.0
         if bad < 0:
-            out[r + 1] = dual - abs(slope) * delta - 0.5 * M * delta * delta
+            rate = abs(slope) + slack
+            out[r + 1] = dual - rate * delta - 0.5 * M * delta * delta
             out[r + 2] = dual
-            out[r + 3] = abs(slope)
+            out[r + 3] = rate
             out[r + 4] = M
     return out
