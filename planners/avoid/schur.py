@@ -74,6 +74,11 @@ PREFETCH = 3
 #: dropped (the solve starts from the equality optimum).
 WARM_COND = 1e10
 
+#: Rows' ``w_r`` (:meth:`SchurActiveSet.column`) kept across the plans that share one solver
+#: (:meth:`SchurActiveSet.with_rhs`) before they are dropped (memory, not numbers: a dropped one is
+#: recomputed from the same columns, bit for bit).
+W_KEPT = 20000
+
 #: The largest KKT residual (:meth:`SchurActiveSet.residual`) of a solution reported ``optimal``;
 #: beyond it the solve reports ``numerical_error`` (and the search solves that QP by the backend).
 CHECK_TOL = 1e-7
@@ -150,6 +155,8 @@ class SchurActiveSet:
         one's factored KKT matrix and its solved columns of ``K⁻¹`` (which depend on ``P`` and
         ``E`` only; a column is the same bit for bit whichever batch solved it), so the plans of
         one grid factor it once (the closed loop plans the same horizon many times)."""
+        if len(self._w) > W_KEPT:  # the rows' columns of earlier plans: recomputed alike when asked again
+            self._w.clear()
         out = copy.copy(self)
         out.b_eq = np.asarray(b_eq, dtype=float)
         if out.b_eq.shape != self.b_eq.shape:
