@@ -211,6 +211,13 @@ class BoundedSolution:
         sy, vy, _ = self._axis_eval(1, t)
         return np.stack([sx, vx, sy, vy], axis=1)
 
+    def states_inputs(self, t: Any) -> tuple[FloatArray, FloatArray]:
+        """:meth:`states` and :meth:`inputs` at ``t`` from one evaluation per axis (the same numbers)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        sx, vx, ux = self._axis_eval(0, t)
+        sy, vy, uy = self._axis_eval(1, t)
+        return np.stack([sx, vx, sy, vy], axis=1), np.stack([ux, uy], axis=1)
+
     def inputs(self, t: Any) -> FloatArray:
         """``(u_x, u_y)`` at ``t`` → ``(len(t), 2)``."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
@@ -541,8 +548,7 @@ class _IntervalBound:
         self.cddot_max = (sum(abs(c) * T**k for k, c in enumerate(d2)), 0.0)
         self.axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
         self.pos = [float(c) for c in np.asarray(veh.x_poly, dtype=float)]
-        self.der = [float(c) for c in (np.polynomial.polynomial.polyder(np.asarray(veh.x_poly, dtype=float))
-                                       if len(veh.x_poly) > 1 else [0.0])]
+        self.der = _derivative(self.pos)
         self.off = (float(veh.offset_x), float(veh.corner_y))
         self.flat_data = [float(x) for row in self.axes_data for x in row]
         self.lip_rate = tuple(cd + abs(v0) + max(abs(lo), abs(hi)) * T
@@ -895,8 +901,12 @@ def exact_peaks(trajectory: Any, tf: float, knots: list[float]) -> dict[str, Any
     (a quadratic per piece); jerk is ``|Δu/Δt|`` per piece.
     """
     kn = np.unique(np.clip(np.r_[0.0, np.asarray(knots, dtype=float), tf], 0.0, tf))
-    U = np.asarray(trajectory.inputs(kn))
-    X = np.asarray(trajectory.states(kn))
+    both = getattr(trajectory, "states_inputs", None)
+    if both is not None:  # a BoundedSolution: one evaluation per axis
+        X, U = both(kn)
+    else:
+        U = np.asarray(trajectory.inputs(kn))
+        X = np.asarray(trajectory.states(kn))
     h = np.diff(kn)
     ok = h > 0
     du = np.diff(U, axis=0)[ok] / h[ok][:, None]
@@ -996,8 +1006,7 @@ class _Evaluator:
         # x_s, ẋ_s as float coefficients: :func:`_polyval` repeats numpy's polyval, so the
         # corners and speeds are those of ``problem.corners`` and ``vehicle.speed`` exactly
         self.pos = [[float(c) for c in np.asarray(v.x_poly, dtype=float)] for v in problem.vehicles]
-        self.der = [[float(c) for c in (np.polynomial.polynomial.polyder(np.asarray(v.x_poly, dtype=float))
-                                        if len(v.x_poly) > 1 else [0.0])] for v in problem.vehicles]
+        self.der = [_derivative(pos) for pos in self.pos]
         self.off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
         self.flat_data = [float(x) for row in self.data for x in row]
         self._vf: Any = None
@@ -1089,6 +1098,12 @@ class _Evaluator:
         self.memory.append((times, lams))
         if len(self.memory) > 64:
             self.memory.pop(0)
+
+
+def _derivative(c: list[float]) -> list[float]:
+    """The coefficients of the derivative of the polynomial ``c`` (ascending), as
+    ``numpy.polynomial.polynomial.polyder`` computes them (``j·c_j``); ``[0.0]`` for a constant."""
+    return [j * c[j] for j in range(1, len(c))] if len(c) > 1 else [0.0]
 
 
 def _polyval(c: list[float], x: float) -> float:
