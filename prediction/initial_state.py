@@ -166,7 +166,9 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
     if not jerk_psd > 0:
         raise ValueError(f"jerk_psd must be positive (got {jerk_psd})")
     if sigma is None:
-        sig = np.asarray([float(f"{s:.2g}") for s in noise_sigma(t, Z)])
+        raw = noise_sigma(t, Z).tolist()
+        rounded = {s: float(f"{s:.2g}") for s in set(raw)}  # (σ >= 0: no signed zeros to tell apart)
+        sig = np.asarray([rounded[s] for s in raw])
     else:
         sig = np.broadcast_to(np.asarray(sigma, dtype=float), (B,)).copy()
     if K > OPERATOR_MAX_K:  # linear: the recursions on the data, O(B·K) time and memory

@@ -14,6 +14,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from iamp.prediction.initial_state import noise_sigma, smooth_histories
 from iamp.prediction.kinematics import integrate_nodes, integrate_positions
 from iamp.prediction.mtd import MTDModel
 from iamp.prediction.predictor import Predictor
@@ -207,3 +208,19 @@ def test_predict_batch_is_the_previous_pipeline_bit_for_bit(B, K, tf, seed, cubi
     q = tf / 2 * (1 - np.cos((2 * k + 1) * np.pi / 8)) if cubic else np.linspace(0.0, tf, 11)
     new = P.predict_batch(t, X, q, tf, cubic=cubic)
     assert _same(new, _predict_batch_reference(P, t, X, q, tf, cubic))
+
+
+@settings(max_examples=60, deadline=None)
+@given(B=st.integers(1, 30), K=st.integers(4, 31), seed=st.integers(0, 2**32 - 1),
+       noise=st.sampled_from([0.0, 1e-4, 0.003, 0.05]), nan_row=st.booleans())
+def test_smoother_noise_levels_are_each_rounded_to_two_digits(B, K, seed, noise, nan_row):
+    """The noise levels (rounded once per distinct value) are each history's level rounded to two
+    significant digits, repeated levels and NaN histories included."""
+    rng = np.random.default_rng(seed)
+    t = _T_HIST[-K:]
+    X = rng.uniform(0.0, 30.0, (B, 1)) * t + noise * rng.standard_normal((B, K))
+    X[rng.random(B) < 0.3] = X[0]
+    if nan_row:
+        X[-1, K // 2] = np.nan
+    ref = [float(f"{s:.2g}") for s in noise_sigma(t, X)]
+    assert smooth_histories(t, X).sigma.tobytes() == np.asarray(ref).tobytes()
