@@ -97,7 +97,8 @@ __all__ = [
 #: Package-data file of the shipped model (``prediction/data/``).
 DEFAULT_MODEL_FILE = "mtd_default.json"
 #: Bytes of node probabilities :meth:`Predictor.predict_batch` holds at once (histories are
-#: predicted in chunks below it: memory bounded whatever the model's ``dt``).
+#: predicted in chunks below it: memory bounded whatever the model's ``dt``; the propagation's
+#: buffer and its time-ordered copy hold up to twice this for a moment).
 BATCH_BYTES = 64 << 20
 
 
