@@ -112,3 +112,81 @@ def test_one_planner_factors_each_grid_once_and_plans_as_fresh_planners(monkeypa
     grids = len({p.tf for p in problems})
     assert grids < len(problems)
     assert calls["n"] == grids  # one factorisation per grid (was one per plan)
+
+
+def _scan_leave_time(traj, plane, tf: float) -> float:  # type: ignore[no-untyped-def]
+    """The former ``leave_time``: the whole 1 ms scan, then the root on its last bracket."""
+    from scipy import optimize
+
+    t = np.linspace(0.0, tf, max(2, int(np.ceil(tf / 1e-3)) + 1))
+    axis = 0 if plane.axis == "x" else 2
+
+    def margin(x: np.ndarray) -> np.ndarray:
+        return np.asarray(plane.margin(x, traj.states(x)[:, axis]), dtype=float)
+
+    inside = np.flatnonzero(margin(t) >= -1e-12)
+    if inside.size == 0:
+        return 0.0
+    k = int(inside[-1])
+    if k == t.size - 1:
+        return float(tf)
+    return float(optimize.brentq(lambda x: float(margin(np.array([x]))[0]) + 1e-12, float(t[k]), float(t[k + 1]),
+                                 xtol=1e-13))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st_h.integers(0, 10**6), st_h.sampled_from(["foh", "zoh"]), st_h.integers(4, 16),
+       st_h.floats(-20.0, 20.0), st_h.sampled_from(["front-lower", "front-upper", "rear-lower", "rear-upper"]))
+def test_leave_time_from_exact_roots_is_the_scans(seed: int, hold: str, n: int, dx: float, corner: str) -> None:
+    """On held trajectories (random nodal states and inputs) against every half-plane of a
+    vehicle moved along the ego's path: the same number as the full 1 ms scan, bit for bit."""
+    from iamp.planners.avoid.check import leave_time
+    from iamp.planners.avoid.data import HalfPlane
+    from iamp.planners.qp.hold import HoldTrajectory
+
+    rng = np.random.default_rng(seed)
+    p = random_problem(seed, m=1)
+    tf = p.tf
+    t_nodes = np.linspace(0.0, tf, n + 1)
+    U = rng.normal(0.0, 2.0, (n + 1 if hold == "foh" else n, 2))
+    X = np.zeros((n + 1, 4))
+    X[0] = [p.ego.x0, p.ego.vx0, p.ego.y0, p.ego.vy0]
+    h = tf / n
+    for k in range(n):  # the exact integration of the hold
+        u0 = U[k]
+        du = (U[k + 1] - U[k]) / h if hold == "foh" else np.zeros(2)
+        s, v = X[k, [0, 2]], X[k, [1, 3]]
+        X[k + 1, [0, 2]] = s + v * h + u0 * h**2 / 2 + du * h**3 / 6
+        X[k + 1, [1, 3]] = v + u0 * h + du * h**2 / 2
+    traj = HoldTrajectory(t_nodes, X, U, hold)
+    v = p.vehicles[0]
+    v = replace(v, corner=corner, x_poly=(v.x_poly[0] + dx,) + tuple(v.x_poly[1:]),
+                y=float(X[n // 2, 2]) + rng.uniform(-3.0, 3.0))
+    for axis in ("x", "y"):
+        plane = HalfPlane(v, axis)
+        assert leave_time(traj, plane, tf) == _scan_leave_time(traj, plane, tf)
+
+
+def test_leave_time_takes_the_exact_bracket_on_avoidance_plans() -> None:
+    """On the avoidance plans of generated problems the bracket comes from the roots (no scan)."""
+    from iamp.planners.avoid import check
+    from iamp.planners.avoid.data import HalfPlane
+
+    taken = 0
+    for seed in range(6):
+        problem = _moved(seed, 2, -4.0 if seed % 2 else 0.0, bool(seed % 3))
+        plan = _loop_planner().plan(problem)
+        if plan.trajectory is None:
+            continue
+        for v in problem.vehicles:
+            for axis in ("x", "y"):
+                plane = HalfPlane(v, axis)
+                t = np.linspace(0.0, problem.tf, max(2, int(np.ceil(problem.tf / 1e-3)) + 1))
+                col = 0 if axis == "x" else 2
+                traj = plan.trajectory
+                k = check._scan_bracket(traj, plane, t,
+                                        lambda x, pl=plane, tr=traj, c=col: pl.margin(x, tr.states(x)[:, c]))
+                taken += k is not None
+                assert check.leave_time(plan.trajectory, plane, problem.tf) == \
+                    _scan_leave_time(plan.trajectory, plane, problem.tf)
+    assert taken >= 12

@@ -128,17 +128,26 @@ def kkt_conditions(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray,
 
 def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
     r"""The last instant the trajectory is in ``plane``: :math:`\sup\{t : c(t) - \sigma s(t) \ge 0\}`
-    (1 ms scan, then a root to 1e-12 s); ``tf`` when it ends inside, 0 when it never is."""
+    (1 ms scan, then a root to 1e-12 s); ``tf`` when it ends inside, 0 when it never is.
+
+    A held trajectory (:class:`~iamp.planners.qp.hold.HoldTrajectory`) finds the scan's bracket
+    from the exact roots of its margin, a polynomial per piece (:func:`_scan_bracket`), and checks
+    it at the bracket's two scan points; the root is then solved on that bracket as after the scan
+    (the same number, without evaluating the 1 ms scan), and any other case scans."""
     t = np.linspace(0.0, tf, max(2, int(np.ceil(tf / 1e-3)) + 1))
     axis = 0 if plane.axis == "x" else 2
 
     def margin(x: FloatArray) -> FloatArray:
         return np.asarray(plane.margin(x, traj.states(x)[:, axis]), dtype=float)
 
-    inside = np.flatnonzero(margin(t) >= -1e-12)
-    if inside.size == 0:
+    k = _scan_bracket(traj, plane, t, margin)
+    if k is None:
+        inside = np.flatnonzero(margin(t) >= -1e-12)
+        if inside.size == 0:
+            return 0.0
+        k = int(inside[-1])
+    elif k < 0:
         return 0.0
-    k = int(inside[-1])
     if k == t.size - 1:
         return float(tf)
 
@@ -146,3 +155,54 @@ def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
         return float(margin(np.array([x]))[0]) + 1e-12
 
     return float(optimize.brentq(g, float(t[k]), float(t[k + 1]), xtol=1e-13))
+
+
+def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any) -> int | None:
+    r"""The last index of the scan ``t`` whose margin is ``>= -1e-12`` (``-1``: none), from the
+    exact roots of the margin of a held trajectory, or None (the caller scans).
+
+    On each piece of the hold the margin :math:`c(t) - \sigma s(t)` is a polynomial (the
+    position a cubic of FOH, a quadratic of ZOH; ``c`` the vehicle's polynomial or a constant);
+    its last root ``t*`` with the 1e-12 m tolerance (:func:`iamp.core.polyroots.roots_in_unit_interval`)
+    names the scan's interval ``[t_k, t_{k+1}]`` holding it, which is accepted only when the
+    margin evaluated as the scan does is inside at ``t_k`` and outside at ``t_{k+1}`` and at
+    ``t_f``; past ``t*`` the margin keeps the sign it has at ``t_f``."""
+    from iamp.core.polyroots import roots_in_unit_interval
+    from iamp.core.trajectory_pieces import shifted_poly
+
+    nodes, X, U = (getattr(traj, name, None) for name in ("t_nodes", "X", "U"))
+    hold = getattr(traj, "hold", None)
+    if nodes is None or X is None or U is None or hold not in ("foh", "zoh"):
+        return None
+    end = margin(t[-1:])[0]
+    if end >= -1e-12:
+        return int(t.size - 1)
+    nodes = np.asarray(nodes, dtype=float)
+    h = np.diff(nodes)
+    a = 0 if plane.axis == "x" else 1
+    s0, v0 = X[:-1, 2 * a], X[:-1, 2 * a + 1]
+    u0 = U[:h.size, a]
+    du = (U[1:, a] - U[:-1, a]) / h if hold == "foh" else np.zeros(h.size)
+    S = np.stack([s0, v0 * h, u0 * h**2 / 2, du * h**3 / 6], axis=1)  # s(t_k + σ h) in σ
+    v = plane.vehicle
+    if plane.axis == "x":
+        xs = shifted_poly(v.x_poly, nodes[:-1], h, max(3, len(v.x_poly) - 1))
+        half = v.length / 2 + v.safety_x
+        c = -xs if plane.sigma < 0 else xs
+        c[:, 0] += -half
+    else:
+        c = np.zeros((h.size, 4))
+        c[:, 0] = -(v.y + v.width / 2 + v.safety_y) if plane.sigma < 0 else v.y - (v.width / 2 + v.safety_y)
+    M = np.zeros((h.size, max(c.shape[1], 4)))
+    M[:, :c.shape[1]] += c
+    M[:, :4] -= plane.sigma * S
+    M[:, 0] += 1e-12
+    rows, sig = roots_in_unit_interval(M)
+    if rows.size == 0:
+        return -1 if margin(t[:1])[0] < -1e-12 else None
+    last = float(np.max(nodes[:-1][rows] + np.clip(sig, 0.0, 1.0) * h[rows]))
+    k = int(np.clip(np.searchsorted(t, last, side="right") - 1, 0, t.size - 2))
+    pair = margin(t[k:k + 2])
+    if pair[0] >= -1e-12 and pair[1] < -1e-12:
+        return k
+    return None
