@@ -254,10 +254,19 @@ class BoundedQP(DiscretisedQP):
         sol = b.solve()
         backend_s = time.perf_counter() - tb
         self.n_solves += 1
-        kkt = kkt_residuals(d.P, d.q, self.A, l, u, sol.z, sol.y) if sol.finite else None
+        kkt = kkt_residuals(d.P, d.q, self.A, l, u, sol.z, sol.y, lower=self._lower()) if sol.finite else None
         r = self._bounded_result(tuple(int(k) for k in nodes), sol, kkt, backend_s, l, u)
         r.wall_time_s = time.perf_counter() - t0
         return r
+
+    def _lower(self) -> sp.spmatrix:
+        """``triu(P, 1)ᵀ`` of the current grid's ``P`` (built again only when ``P``'s values changed)."""
+        P = sp.csc_matrix(self.data.P)
+        kept = getattr(self, "_lower_of", None)
+        if kept is None or kept[0].shape != P.data.shape or not np.array_equal(kept[0], P.data) \
+                or not np.array_equal(kept[1], P.indices) or not np.array_equal(kept[2], P.indptr):
+            kept = self._lower_of = (P.data.copy(), P.indices.copy(), P.indptr.copy(), sp.triu(P, 1).T)
+        return kept[3]
 
     def solve_many(self, candidates: Sequence[Sequence[int]]) -> list[CandidateResult]:
         return [self.solve_nodes(c) for c in candidates]

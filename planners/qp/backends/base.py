@@ -80,19 +80,21 @@ class KKTResiduals:
 
 
 def kkt_residuals(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
-                  z: FloatArray, y: FloatArray, *, symmetric: bool = False) -> KKTResiduals:
+                  z: FloatArray, y: FloatArray, *, symmetric: bool = False,
+                  lower: sp.spmatrix | None = None) -> KKTResiduals:
     """KKT residuals of ``(z, y)`` for ``min ½zᵀPz + qᵀz`` s.t. ``l ≤ Az ≤ u``.
 
     ``P`` holds the upper triangle only (the symmetric matrix ``P + triu(P, 1)ᵀ`` is used)
-    unless ``symmetric=True`` says it is already the whole matrix.  A multiplier pushing
-    against an infinite bound makes the gap infinite.
+    unless ``symmetric=True`` says it is already the whole matrix; ``lower``, when the caller
+    keeps it, is ``triu(P, 1)ᵀ`` of this ``P`` (the same numbers, not built again).  A multiplier
+    pushing against an infinite bound makes the gap infinite.
     """
     z, y = np.asarray(z, dtype=float), np.asarray(y, dtype=float)
     if symmetric:
         Pz = P @ z
     else:
         Pu = sp.csc_matrix(P)
-        Pz = Pu @ z + sp.triu(Pu, 1).T @ z
+        Pz = Pu @ z + (sp.triu(Pu, 1).T if lower is None else lower) @ z
     Az, Aty = A @ z, A.T @ y
     rp = float(np.max(np.abs(Az - np.clip(Az, l, u)), initial=0.0))
     rd = float(np.max(np.abs(Pz + q + Aty), initial=0.0))
