@@ -322,3 +322,22 @@ def test_the_body_check_judges_road_edges_by_commonroads_road(tmp_path: Path) ->
     edges = [i for i in intrusions(cr, got, cand.tf) if i.obstacle.road_edge]
     assert edges
     assert all(off[int(round(i.time_s / cr.dt))] for i in edges)
+
+
+@needs_data
+def test_a_corridor_plan_off_only_the_road_is_repaired_laterally(tmp_path: Path) -> None:
+    """5_207 (one lane over from a start 0.3 mm inside an edge that narrows): the corridor QP's
+    road rows take the body's lean at the guess's speed and brake the plan toward a crawl, whose
+    heading then carries a corner off CommonRoad's road at 0.3-0.8 s; every pass was refused.
+    A pass off only the road now has its lateral motion re-planned at the body's own heading
+    (``repair_at_edges``, as the active set's plans are): the plan is the corridor's, on the
+    road by CommonRoad's own check, and valid."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import off_road_steps, plan
+
+    cr = load(with_goal(tmp_path, "USA_US101-5_1_T-1.xml", "USA_US101-5_207_T-1", GOAL_5_207))
+    rp = plan(cr)
+    assert rp.safe and rp.iamp_status == "corridor", rp.reason
+    assert not off_road_steps(cr, rp.trajectory, rp.candidate.steps).any()
+    verdict = _valid(cr, rp)
+    assert verdict.valid, verdict.checks

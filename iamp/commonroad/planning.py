@@ -1445,7 +1445,9 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
     plan is accepted when its final state passes the goal's own test
     (:meth:`~iamp.commonroad.goal.GoalRegion.verify`), the body check (:func:`intrusions`) finds
     it safe and the solution written from it accelerates within the friction circle in the world
-    (:func:`_world_peak`).  Guesses are tried best's own plan first, then least intruding first
+    (:func:`_world_peak`); a pass whose body leaves only the road is re-planned laterally at the
+    body's own heading (:func:`repair_at_edges`, counted as a solve) and accepted on the same
+    terms.  Guesses are tried best's own plan first, then least intruding first
     (:func:`_box_depth`); a guess's passes stop when one is not :data:`CORRIDOR_PROGRESS` less
     deep than the last; a guess or pass met before is not solved again.  At most ``max_solves``
     QP solves (a count, never a time).
@@ -1514,9 +1516,20 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
             end = dataclasses.replace(cand, s=float(z[0]), vs=float(z[1]), d=float(z[2]), vd=float(z[3]))
             hits = intrusions(cr, got, cand.tf)
             h, peak = _heading_and_peak(got, cand.tf)
-            if (not hits and _world_peak(cr, got, cand.steps) <= cr.a_max
-                    and (rows is None or cr.goal.verify(e, cand.steps + elapsed, _tuple4(z)) is None)):
+            in_goal = rows is None or cr.goal.verify(e, cand.steps + elapsed, _tuple4(z)) is None
+            if not hits and _world_peak(cr, got, cand.steps) <= cr.a_max and in_goal:
                 return RoadPlan(planner, "optimal", end, got, got.cost(), 0.0, [], [], "corridor", 0, None, h, peak)
+            if hits and in_goal and all(i.obstacle.road_edge for i in hits) and solves < max_solves:
+                # off the road only: its lateral motion re-planned inside the corridor at the
+                # body's own heading (the corridor QP's rows linearise the heading at the guess's
+                # speed and are conservative near an edge that narrows; the repair is neither)
+                solves += 1
+                fixed = repair_at_edges(cr, got, end)
+                if (fixed is not None and not intrusions(cr, fixed, cand.tf)
+                        and _world_peak(cr, fixed, cand.steps) <= cr.a_max):
+                    h, peak = _heading_and_peak(fixed, cand.tf)
+                    return RoadPlan(planner, "optimal", end, fixed, fixed.cost(), 0.0, [], [], "corridor", 0, None,
+                                    h, peak)
             now = sum(i.depth_m for i in hits)
             if now > CORRIDOR_PROGRESS * depth:  # the passes no longer get it out of the vehicles
                 break
