@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from conftest import data_path, needs_commonroad_data
 
 DATA = data_path("commonroad", "US101")
@@ -324,18 +325,27 @@ def test_the_body_check_judges_road_edges_by_commonroads_road(tmp_path: Path) ->
     assert all(off[int(round(i.time_s / cr.dt))] for i in edges)
 
 
+#: USA_US101-5_204_T-1 (seed 1, ``lanes3``; seed 11's 5_1204 is the same goal): three lanes to the
+#: left at under 3.14 m/s, vehicles 462, 464 and 476 passing the ego in the goal lane.
+GOAL_5_204 = [{"time_step": [90, 100], "velocity": [0.0, 3.1402], "orientation": [-0.764, -0.5895],
+               "position": {"center": [24.8131, -41.7294], "length": 2.2773, "width": 1.7518,
+                            "orientation": -0.76804}}]
+
+
 @needs_data
-def test_a_corridor_plan_off_only_the_road_is_repaired_laterally(tmp_path: Path) -> None:
-    """5_207 (one lane over from a start 0.3 mm inside an edge that narrows): the corridor QP's
-    road rows take the body's lean at the guess's speed and brake the plan toward a crawl, whose
-    heading then carries a corner off CommonRoad's road at 0.3-0.8 s; every pass was refused.
-    A pass off only the road now has its lateral motion re-planned at the body's own heading
-    (``repair_at_edges``, as the active set's plans are): the plan is the corridor's, on the
-    road by CommonRoad's own check, and valid."""
+@pytest.mark.parametrize("name, goal", [("USA_US101-5_207_T-1", GOAL_5_207), ("USA_US101-5_204_T-1", GOAL_5_204)])
+def test_a_corridor_plan_off_only_the_road_is_repaired_laterally(tmp_path: Path, name: str,
+                                                                 goal: list[dict[str, Any]]) -> None:
+    """5_207 (one lane over from a start 0.3 mm inside an edge that narrows) and 5_204 (three
+    lanes over from it): the corridor QP's road rows take the body's lean at the guess's speed
+    and brake the plan toward a crawl, whose heading then carries a corner off CommonRoad's road
+    at 0.3-0.8 s; every pass was refused.  A pass off only the road now has its lateral motion
+    re-planned at the body's own heading (``repair_at_edges``, as the active set's plans are):
+    the plan is the corridor's, on the road by CommonRoad's own check, and valid."""
     from iamp.commonroad.convert import load
     from iamp.commonroad.planning import off_road_steps, plan
 
-    cr = load(with_goal(tmp_path, "USA_US101-5_1_T-1.xml", "USA_US101-5_207_T-1", GOAL_5_207))
+    cr = load(with_goal(tmp_path, "USA_US101-5_1_T-1.xml", name, goal))
     rp = plan(cr)
     assert rp.safe and rp.iamp_status == "corridor", rp.reason
     assert not off_road_steps(cr, rp.trajectory, rp.candidate.steps).any()
