@@ -442,19 +442,25 @@ def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertifi
         stack.append((np.array([edges[j] for j in idx]), np.array([edges[j + 1] for j in idx])))
     if m == 1:
         return _cover_one(problem, max_solves, edges, lip)
+    # the corners as problem.corners gives them (_polyval repeats numpy's polyval), without
+    # an array per box
+    pos = [[float(c) for c in np.asarray(v.x_poly, dtype=float)] for v in problem.vehicles]
+    off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
     solves = boxes = 0
     while stack:
         a, b = stack.popleft()
         t = 0.5 * (a + b)
         half = 0.5 * (b - a)
         times = [float(x) for x in t]
-        C = problem.corners(t)
+        C = ([_polyval(pos[i], times[i]) + off[i][0] for i in range(m)], [off[i][1] for i in range(m)])
         covered = False
         if len(set(times)) == m:
+            converged = 0
             for k, (s0, v0, sf, vf, lo, hi) in enumerate(axes_data):
                 solves += 1
                 try:
-                    solve_axis(times, T, s0, v0, sf, vf, [float(c) for c in C[:, k]], lo, hi)
+                    solve_axis(times, T, s0, v0, sf, vf, C[k], lo, hi)
+                    converged += 1
                 except AxisInfeasible as exc:
                     if exc.lam_phys is None or exc.margin_phys is None:
                         continue
@@ -468,12 +474,14 @@ def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertifi
             if covered:
                 boxes += 1
                 continue
-            # both axes feasible at t?
-            try:
-                solve_bounded_fixed(problem, t)
-                return InfeasibilityCertificate(False, t, boxes, solves)
-            except (AxisInfeasible, AxisNoConvergence):
-                pass
+            # both axes feasible at t?  solve_bounded_fixed solves the same axes from the same
+            # start (the same numbers), so it can succeed only where both converged just now
+            if converged == len(axes_data):
+                try:
+                    solve_bounded_fixed(problem, t)
+                    return InfeasibilityCertificate(False, t, boxes, solves)
+                except (AxisInfeasible, AxisNoConvergence):
+                    pass
         if solves > max_solves or float(np.max(b - a)) < 1e-9 * T:
             return InfeasibilityCertificate(False, None, boxes, solves)
         i = int(np.argmax(b - a))
