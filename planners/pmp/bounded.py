@@ -936,8 +936,13 @@ def exact_peaks(trajectory: Any, tf: float, knots: list[float]) -> dict[str, Any
         for r in np.atleast_1d(roots):
             if np.isreal(r) and 0 < float(np.real(r)) < b - a:
                 extra_y.append(a + float(np.real(r)))
-    VX = np.r_[X[:, 1], np.asarray(trajectory.states(np.asarray(extra_vx)))[:, 1] if extra_vx else []]
-    Y = np.r_[X[:, 2], np.asarray(trajectory.states(np.asarray(extra_y)))[:, 2] if extra_y else []]
+    if both is not None:  # the extra points of v_x and s_y in one evaluation (elementwise in t)
+        extra = trajectory.states(np.asarray(extra_vx + extra_y)) if extra_vx or extra_y else X[:0]
+        VX = np.concatenate((X[:, 1], extra[:len(extra_vx), 1]))
+        Y = np.concatenate((X[:, 2], extra[len(extra_vx):, 2]))
+    else:
+        VX = np.r_[X[:, 1], np.asarray(trajectory.states(np.asarray(extra_vx)))[:, 1] if extra_vx else []]
+        Y = np.r_[X[:, 2], np.asarray(trajectory.states(np.asarray(extra_y)))[:, 2] if extra_y else []]
     return {
         "ax": [float(U[:, 0].min()), float(U[:, 0].max())],
         "ay": [float(U[:, 1].min()), float(U[:, 1].max())],
@@ -1440,9 +1445,9 @@ def apply_state_limits(plan: Plan) -> Plan:
         return plan
     peaks = exact_peaks(plan.trajectory, float(plan.problem.tf), plan_knots(plan))
     report = limits_report(plan.problem, peaks)
-    plan.annotate(limits=report, peaks=peaks)
     bad = [name for name, r in report.items() if not r["ok"]]
     if bad:
+        plan.annotate(limits=report, peaks=peaks)
         plan.annotate(limits_violated=bad)
         # the project's one verdict (Plan.judge_limits: core peaks, the same exact pieces via
         # BoundedSolution.breakpoints) names the bound; this report is the PMP's own check
@@ -1451,9 +1456,10 @@ def apply_state_limits(plan: Plan) -> Plan:
             plan.annotate(reason="the plan exceeds " + ", ".join(
                 f"{n} (peak {_fmt_bound(report[n]['peak'])}, bound {_fmt_bound(report[n]['bound'])})" for n in bad))
             plan.status = LIMITS_VIOLATED
-    else:
-        plan.annotate(limits_note=("every given bound holds on this plan, so it is "
-                                   f"{plan.status} for the bounded problem too"))
+        return plan
+    # one copy of the diagnostics (the same fields, in the same order, as two annotate calls)
+    plan.annotate(limits=report, peaks=peaks, limits_note=("every given bound holds on this plan, so it is "
+                                                           f"{plan.status} for the bounded problem too"))
     return plan
 
 
