@@ -137,19 +137,38 @@ class ClarabelBackend(QPBackend):
                     and np.array_equal(np.flatnonzero(~eq & np.isfinite(self.u)), self._up)
                     and np.array_equal(np.flatnonzero(~eq & np.isfinite(self.l)), self._lo))
 
+    def _stacked(self) -> tuple[sp.csc_matrix, np.ndarray]:
+        """Clarabel's ``A`` and ``b`` of the current row split (:meth:`_split`); besides a pure
+        equality problem, also where each entry of the stacked matrix comes from in ``A.data``
+        and its sign (``_perm``, ``_sign``): a value update gathers them instead of stacking
+        slices of ``A`` again.
+
+        When the split keeps every row in place (the equalities first, then upper sides only,
+        as the avoidance QP's rows are), the stacked pattern is ``A``'s own: it is taken without
+        slicing (the same arrays as the slices' stack, ``tests/test_clarabel_stack.py``)."""
+        if self._pure_eq:
+            return self._stack()
+        A = self.A
+        m = A.shape[0]
+        if (self._lo.size == 0 and self._eq.size + self._up.size == m and A.has_canonical_format
+                and np.array_equal(np.concatenate([self._eq, self._up]), np.arange(m))):
+            self._perm = np.arange(A.nnz, dtype=np.int64)
+            self._sign = np.ones(A.nnz)
+            indices, indptr, shape = A.indices.copy(), A.indptr.copy(), A.shape
+        else:
+            tag = sp.csc_matrix((np.arange(1.0, A.nnz + 1.0), A.indices, A.indptr), shape=A.shape)
+            T = sp.vstack([tag[self._eq], tag[self._up], -tag[self._lo]], format="csc")
+            self._perm = np.abs(T.data).astype(np.int64) - 1
+            self._sign = np.sign(T.data)
+            indices, indptr, shape = T.indices, T.indptr, T.shape
+        out = sp.csc_matrix((A.data[self._perm] * self._sign, indices, indptr), shape=shape)
+        return out, self._rhs()
+
     def _build(self) -> None:
         import clarabel
 
         self._split()
-        A, b = self._stack()
-        if not self._pure_eq:
-            # where each entry of the stacked matrix comes from in ``A.data`` (and its sign): a value
-            # update gathers them instead of stacking slices of ``A`` again
-            tag = sp.csc_matrix((np.arange(1.0, self.A.nnz + 1.0), self.A.indices, self.A.indptr), shape=self.A.shape)
-            T = sp.vstack([tag[self._eq], tag[self._up], -tag[self._lo]], format="csc")
-            self._perm = np.abs(T.data).astype(np.int64) - 1
-            self._sign = np.sign(T.data)
-            A = sp.csc_matrix((self.A.data[self._perm] * self._sign, T.indices, T.indptr), shape=T.shape)
+        A, b = self._stacked()
         cones = []
         if self._eq.size:
             cones.append(clarabel.ZeroConeT(int(self._eq.size)))
