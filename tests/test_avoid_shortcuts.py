@@ -190,3 +190,40 @@ def test_leave_time_takes_the_exact_bracket_on_avoidance_plans() -> None:
                 assert check.leave_time(plan.trajectory, plane, problem.tf) == \
                     _scan_leave_time(plan.trajectory, plane, problem.tf)
     assert taken >= 12
+
+
+def _same_sparse(a: object, b: object) -> None:
+    import scipy.sparse as sp
+
+    a, b = sp.csr_matrix(a), sp.csr_matrix(b)
+    assert a.shape == b.shape
+    assert np.array_equal(a.indptr, b.indptr) and np.array_equal(a.indices, b.indices)
+    assert np.array_equal(a.data, b.data)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st_h.integers(0, 10**6), st_h.integers(1, 2), st_h.sampled_from([0.0, 15.0, 300.0]))
+def test_what_a_grid_keeps_is_what_each_plan_would_build(seed: int, m: int, shift: float) -> None:
+    # the KKT checks' triu(P, 1)^T and the stacked limit rows [A_lim; -A_lim], [hi; -lo], kept per
+    # grid by the planner (GridShare), are those a plan builds from its own data
+    import scipy.sparse as sp
+
+    from iamp.planners.qp.limits import limit_rows
+
+    shared = cont.GridShare()
+    first = _moved(seed, m, shift, True)
+    again = _moved(seed + 1, m, shift, True)
+    again = Problem(ego=replace(again.ego, tf=first.tf), vehicles=again.vehicles, name=again.name,
+                    limits=again.limits)
+    for p in (first, again):
+        try:
+            qp = cont.ContinuousAvoidQP(p, N, "foh", "clarabel", shared=shared)
+        except ScenarioError:
+            assume(False)
+            raise
+        d = qp.data
+        assert qp.schur is not None
+        _same_sparse(qp.schur.P_lower, sp.triu(sp.csc_matrix(d.P), 1).T)
+        lr = limit_rows(d, d.t_nodes, "foh", p.limits, between="certified")
+        _same_sparse(qp.A_lim, sp.vstack([lr.A, -lr.A]))
+        assert np.array_equal(qp.u_lim, np.r_[lr.hi, -lr.lo])

@@ -52,8 +52,10 @@ class HoldTrajectory:
 
     def _locate(self, t: ArrayLike) -> tuple[FloatArray, IntArray, FloatArray, FloatArray]:
         tt = np.atleast_1d(np.asarray(t, dtype=float))
-        k = np.clip(np.searchsorted(self.t_nodes, tt, side="right") - 1, 0, len(self.t_nodes) - 2).astype(np.int64)
-        return tt, k, tt - self.t_nodes[k], np.diff(self.t_nodes)[k]
+        nodes = np.asarray(self.t_nodes, dtype=float)
+        k = np.clip(np.searchsorted(nodes, tt, side="right") - 1, 0, len(nodes) - 2).astype(np.int64)
+        # the widths of the located pieces only (np.diff(nodes)[k]: the same subtraction)
+        return tt, k, tt - nodes[k], nodes[k + 1] - nodes[k]
 
     def inputs(self, t: ArrayLike) -> FloatArray:
         """``(u_x, u_y)`` at the times ``t``, shape ``(len(t), 2)``."""
@@ -65,18 +67,23 @@ class HoldTrajectory:
     def states(self, t: ArrayLike) -> FloatArray:
         """``(s_x, v_x, s_y, v_y)`` at the times ``t``, shape ``(len(t), 4)``."""
         _, k, dt, h = self._locate(t)
-        s0 = self.X[k][:, [0, 2]]
-        v0 = self.X[k][:, [1, 3]]
+        Xk = self.X[k]
+        s0 = Xk[:, [0, 2]]
+        v0 = Xk[:, [1, 3]]
         d = dt[:, None]
         if self.hold == "zoh":
             u = self.U[k]
             v = v0 + u * d
             s = s0 + v0 * d + u * d**2 / 2
         else:
-            u0, du = self.U[k], (self.U[k + 1] - self.U[k]) / h[:, None]
+            u0 = self.U[k]
+            du = (self.U[k + 1] - u0) / h[:, None]
             v = v0 + u0 * d + du * d**2 / 2
             s = s0 + v0 * d + u0 * d**2 / 2 + du * d**3 / 6
-        return np.stack([s[:, 0], v[:, 0], s[:, 1], v[:, 1]], axis=1)
+        out = np.empty((k.size, 4), dtype=np.result_type(s, v))
+        out[:, 0::2] = s
+        out[:, 1::2] = v
+        return out
 
     def cost(self) -> float:
         """``J = ½∫|u|²`` of the held input, exactly."""

@@ -226,14 +226,16 @@ class ContinuousAvoidQP:
 
             check_hold(problem.limits, hold)
             key = ("limits", self.N, hold, d.t_nodes.tobytes(), repr(problem.limits), limits_between)
-            self.limit_rows = shared.get(key) if shared is not None else None
-            if self.limit_rows is None:
-                self.limit_rows = limit_rows(d, d.t_nodes, hold, problem.limits, between=limits_between)
+            kept = shared.get(key) if shared is not None else None
+            if kept is None:
+                lr = limit_rows(d, d.t_nodes, hold, problem.limits, between=limits_between)
+                # the stacked rows depend on the limit rows only: kept with them
+                A_lim = sp.csr_matrix(sp.vstack([lr.A, -lr.A]))
+                A_lim.sort_indices()
+                kept = (lr, A_lim, np.r_[lr.hi, -lr.lo])
                 if shared is not None:
-                    shared.put(key, self.limit_rows)
-            lr = self.limit_rows
-            A_lim = sp.csr_matrix(sp.vstack([lr.A, -lr.A]))
-            u_lim = np.r_[lr.hi, -lr.lo]
+                    shared.put(key, kept)
+            self.limit_rows, A_lim, u_lim = kept
         A_lim.sort_indices()
         self.A_lim, self.u_lim = A_lim, u_lim
         self.n_solves = 0
@@ -954,7 +956,9 @@ class ContinuousAvoidPlanner:
         A = sp.csc_matrix(sp.vstack([qp.A_eq, A_in]))
         u = np.r_[d.b_eq, u_in]
         l = np.r_[d.b_eq, np.full(A_in.shape[0], -np.inf)]
-        lower = sp.triu(sp.csc_matrix(d.P), 1).T  # both KKT checks below
+        # both KKT checks below; the node solver's copy was built from this P (or checked
+        # against it bit for bit, :meth:`ContinuousAvoidQP._schur`)
+        lower = qp.schur.P_lower if qp.schur is not None else sp.triu(sp.csc_matrix(d.P), 1).T
         kkt = kkt_conditions(d.P, d.q, A, l, u, sol.z, sol.y, n_eq, lower)
         key = BACKENDS[self.solver].tolerance_key
         limit = tol(key)

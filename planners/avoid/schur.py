@@ -128,6 +128,9 @@ class SchurActiveSet:
         self.A_eq_T = sp.csr_matrix(self.A_eq.T)
         full = full_hessian(self.P)
         self.P_full = sp.csr_matrix(full)
+        #: ``triu(P, 1)ᵀ``, the strict lower part of ``P`` the final KKT checks use
+        #: (:func:`~iamp.planners.avoid.check.kkt_conditions`; shared by the plans of one grid)
+        self.P_lower = sp.triu(self.P, 1).T
         self.lu = spla.splu(kkt_matrix(self.P, A_eq, full))
         self.max_iter = int(max_iter)
         x0 = np.asarray(self.lu.solve(np.r_[np.zeros(self.n), self.b_eq]), dtype=float)
