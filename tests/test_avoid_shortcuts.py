@@ -204,10 +204,11 @@ def _same_sparse(a: object, b: object) -> None:
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st_h.integers(0, 10**6), st_h.integers(1, 2), st_h.sampled_from([0.0, 15.0, 300.0]))
 def test_what_a_grid_keeps_is_what_each_plan_would_build(seed: int, m: int, shift: float) -> None:
-    # the KKT checks' triu(P, 1)^T and the stacked limit rows [A_lim; -A_lim], [hi; -lo], kept per
-    # grid by the planner (GridShare), are those a plan builds from its own data
+    # the QP's A and P, the KKT checks' triu(P, 1)^T and the stacked limit rows [A_lim; -A_lim],
+    # [hi; -lo], kept per grid by the planner (GridShare), are those a plan builds from its own data
     import scipy.sparse as sp
 
+    from iamp.planners.avoid.data import AvoidData
     from iamp.planners.qp.limits import limit_rows
 
     shared = cont.GridShare()
@@ -222,6 +223,10 @@ def test_what_a_grid_keeps_is_what_each_plan_would_build(seed: int, m: int, shif
             assume(False)
             raise
         d = qp.data
+        own = AvoidData(p, d.t_nodes, "foh")  # built by this plan alone
+        _same_sparse(d.A, own.A)
+        _same_sparse(d.P, own.P)
+        assert np.array_equal(d.b_eq, own.b_eq) and np.array_equal(d.c_on, own.c_on) and d.relax == own.relax
         assert qp.schur is not None
         _same_sparse(qp.schur.P_lower, sp.triu(sp.csc_matrix(d.P), 1).T)
         lr = limit_rows(d, d.t_nodes, "foh", p.limits, between="certified")

@@ -214,7 +214,7 @@ class ContinuousAvoidQP:
         self.N = int(steps)
         self.tf = problem.tf
         self.h = self.tf / self.N
-        self.data = AvoidData(problem, np.linspace(0.0, self.tf, self.N + 1), hold)
+        self.data = AvoidData(problem, np.linspace(0.0, self.tf, self.N + 1), hold, shared=shared)
         d = self.data
         self.A_eq = sp.csr_matrix(d.A[: d.n_eq])
         self.degree = max([3] + [len(v.x_poly) - 1 for v in problem.vehicles])

@@ -102,9 +102,14 @@ class AvoidData(StateIndex):
     t_nodes : ndarray, shape (N+1,)
         The grid (uniform for the sweep, aligned with the crossing times for ``refine``).
     hold : {"foh", "zoh"}
+    with_limits : bool
+        Append the physical limits' rows to ``A``.
+    shared : GridShare, optional
+        Where the plans of one planner keep ``A`` and ``P`` per grid (without ``with_limits``).
     """
 
-    def __init__(self, problem: Problem, t_nodes: FloatArray, hold: str, with_limits: bool = False) -> None:
+    def __init__(self, problem: Problem, t_nodes: FloatArray, hold: str, with_limits: bool = False,
+                 shared: Any = None) -> None:
         self.problem, self.hold = problem, hold
         self.t_nodes = np.asarray(t_nodes, dtype=float)
         N = self.N = self.t_nodes.size - 1
@@ -118,6 +123,57 @@ class AvoidData(StateIndex):
         self.interior = np.arange(1, N)
         ni = N - 1
         self.n_rows = self.n_eq + 2 * m * ni
+        alpha, gamma = (h**2 / 3, h / 2) if foh else (h**2 / 2, h)
+        b_eq = np.zeros(self.n_eq)
+        ego = problem.ego
+        ends = ((ego.x0, ego.vx0, ego.xf, ego.vxf), (ego.y0, ego.vy0, ego.yf, ego.vyf))
+        self.planes = [(HalfPlane(v, "x"), HalfPlane(v, "y")) for v in problem.vehicles]
+        c_on = np.zeros(2 * m * ni)
+        for i, pair in enumerate(self.planes):
+            for a, hp in enumerate(pair):
+                c_on[self.row(i, a, self.interior) - self.n_eq] = hp.bound(self.t_nodes[self.interior])
+        for axi, (s0, v0, sf, vf) in enumerate(ends):
+            b_eq[axi * (2 * N + 4) + 2 * N + np.arange(4)] = (s0, v0, sf, vf)
+        # A (equality rows, then the vehicles' rows) and P depend on the grid, the hold and the
+        # half-planes' signs only: a planner's plans on one grid share them (``shared``, a
+        # :class:`~iamp.planners.avoid.continuous.GridShare`; the same arrays as built here)
+        key = ("matrices", N, hold, self.t_nodes.tobytes(),
+               tuple(hp.sigma for pair in self.planes for hp in pair))
+        kept = shared.get(key) if shared is not None and not with_limits else None
+        if kept is None:
+            self.A, self.P = self._matrices(h, alpha, gamma, foh)
+            if shared is not None and not with_limits:
+                shared.put(key, (self.A, self.P))
+        else:
+            self.A, self.P = kept
+        #: physical limits (``with_limits``): rows ``[A_lim; -A_lim] z <= [hi; -lo]`` after the
+        #: vehicles' rows, always imposed (:meth:`bounds`)
+        self.limit_rows: Any = None
+        self.n_limit_rows = 0
+        if with_limits and problem.limits is not None:
+            from iamp.planners.qp.limits import check_hold, limit_rows
+
+            check_hold(problem.limits, hold)
+            self.limit_rows = lr = limit_rows(self, self.t_nodes, hold, problem.limits)
+            self.A = sp.csc_matrix(sp.vstack([self.A, lr.A, -lr.A]))
+            self.A.sort_indices()
+            c_on = np.r_[c_on, lr.hi, -lr.lo]
+            self.n_limit_rows = 2 * lr.A.shape[0]
+            self.n_rows += self.n_limit_rows
+        self.q = np.zeros(self.n)
+        self.b_eq = b_eq
+        self.c_on = c_on
+        span = max(abs(ego.x0), abs(ego.xf), abs(ego.y0), abs(ego.yf), 1.0)
+        scale = max([span] + [float(np.max(np.abs(c_on), initial=0.0))])
+        #: Added to a relaxed row's bound: ten times any position scale in the problem.
+        self.relax = 10.0 * scale + 1e3
+
+    def _matrices(self, h: FloatArray, alpha: FloatArray, gamma: FloatArray,
+                  foh: bool) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+        """``A`` (the equality rows, then the vehicles' rows at the interior nodes) and ``P``
+        (upper triangle), both CSC with sorted indices."""
+        N = self.N
+        k = np.arange(N)
         rows: list[IntArray] = []
         cols: list[IntArray] = []
         vals: list[FloatArray] = []
@@ -128,12 +184,7 @@ class AvoidData(StateIndex):
             cols.append(c.ravel())
             vals.append(np.broadcast_to(np.asarray(v, dtype=float), r.shape).ravel())
 
-        k = np.arange(N)
-        alpha, gamma = (h**2 / 3, h / 2) if foh else (h**2 / 2, h)
-        b_eq = np.zeros(self.n_eq)
-        ego = problem.ego
-        ends = ((ego.x0, ego.vx0, ego.xf, ego.vxf), (ego.y0, ego.vy0, ego.yf, ego.vyf))
-        for axi, (s0, v0, sf, vf) in enumerate(ends):
+        for axi in range(2):
             r0 = axi * (2 * N + 4)
             rp, rv = r0 + k, r0 + N + k
             add(rp, self.idx_s(axi, k + 1), 1.0)
@@ -148,31 +199,13 @@ class AvoidData(StateIndex):
                 add(rv, self.idx_u(axi, k + 1), -h / 2)
             rb = r0 + 2 * N + np.arange(4)
             add(rb, np.array([self.idx_s(axi, 0), self.idx_v(axi, 0), self.idx_s(axi, N), self.idx_v(axi, N)]), 1.0)
-            b_eq[rb] = (s0, v0, sf, vf)
         # inequality rows: vehicle i, axis a, interior node j -> row n_eq + (2 i + a) ni + (j - 1)
-        self.planes = [(HalfPlane(v, "x"), HalfPlane(v, "y")) for v in problem.vehicles]
-        c_on = np.zeros(2 * m * ni)
         for i, pair in enumerate(self.planes):
             for a, hp in enumerate(pair):
-                r = self.row(i, a, self.interior)
-                add(r, self.idx_s(a, self.interior), hp.sigma)
-                c_on[r - self.n_eq] = hp.bound(self.t_nodes[self.interior])
-        self.A = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                               shape=(self.n_rows, self.n))
-        #: physical limits (``with_limits``): rows ``[A_lim; -A_lim] z <= [hi; -lo]`` after the
-        #: vehicles' rows, always imposed (:meth:`bounds`)
-        self.limit_rows: Any = None
-        self.n_limit_rows = 0
-        if with_limits and problem.limits is not None:
-            from iamp.planners.qp.limits import check_hold, limit_rows
-
-            check_hold(problem.limits, hold)
-            self.limit_rows = lr = limit_rows(self, self.t_nodes, hold, problem.limits)
-            self.A = sp.csc_matrix(sp.vstack([self.A, lr.A, -lr.A]))
-            c_on = np.r_[c_on, lr.hi, -lr.lo]
-            self.n_limit_rows = 2 * lr.A.shape[0]
-            self.n_rows += self.n_limit_rows
-        self.A.sort_indices()
+                add(self.row(i, a, self.interior), self.idx_s(a, self.interior), hp.sigma)
+        A = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(self.n_eq + 2 * len(self.planes) * (N - 1), self.n))
+        A.sort_indices()
         # P (upper triangle), 1/2 z'Pz = J
         pr: list[IntArray] = []
         pc: list[IntArray] = []
@@ -190,15 +223,9 @@ class AvoidData(StateIndex):
                 pr.append(u)
                 pc.append(u)
                 pv.append(h.copy())
-        self.P = sp.csc_matrix((np.concatenate(pv), (np.concatenate(pr), np.concatenate(pc))), shape=(self.n, self.n))
-        self.P.sort_indices()
-        self.q = np.zeros(self.n)
-        self.b_eq = b_eq
-        self.c_on = c_on
-        span = max(abs(ego.x0), abs(ego.xf), abs(ego.y0), abs(ego.yf), 1.0)
-        scale = max([span] + [float(np.max(np.abs(c_on), initial=0.0))])
-        #: Added to a relaxed row's bound: ten times any position scale in the problem.
-        self.relax = 10.0 * scale + 1e3
+        P = sp.csc_matrix((np.concatenate(pv), (np.concatenate(pr), np.concatenate(pc))), shape=(self.n, self.n))
+        P.sort_indices()
+        return A, P
 
     # --- indices (idx_s, idx_v, idx_u from StateIndex) ------------------------------------
     def row(self, vehicle: int, axis: int, node: IntArray | int) -> IntArray:
