@@ -13,7 +13,7 @@ import numpy as np
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.planners.examples import random_problem
 from iamp.planners.pmp import PMPPlanner
-from iamp.planners.pmp.bounded import BoundedSolution, exact_peaks
+from iamp.planners.pmp.bounded import BoundedSolution, check_values, exact_peaks, solve_bounded_fixed
 
 
 class _Separate:
@@ -54,3 +54,21 @@ def test_the_peaks_are_those_of_the_long_way() -> None:
         U = sol.inputs(kn)
         extra += int(np.any(U[:-1, 0] * U[1:, 0] < 0))
     assert extra > 0
+
+
+def test_the_hamiltonian_jump_terms_of_the_self_check_are_the_long_ways() -> None:
+    """One vehicle: check_values evaluates H at the contact time with its other H values; the
+    terms (r, size) are those of a separate evaluation with ẋ_s from Vehicle.speed, bit for bit."""
+    for sol in _bounded_solutions():
+        fresh = solve_bounded_fixed(sol.problem, sol.contact_times, [ax.lam for ax in sol.axes])
+        check_values(fresh)
+        r, size = fresh.hamiltonian_jump_terms()
+        t = fresh.contact_times
+        veh = sol.problem.vehicles[0]
+        xdot = np.array([float(veh.speed(t[0]))])
+        H = fresh._hamiltonian(np.concatenate((t, t)), np.array([True, False]))
+        X = fresh.states(t)
+        J = fresh.jumps
+        r_ref = H[:1] - H[1:] - xdot * J[:, 0]
+        size_ref = np.abs(J[:, 0]) * (np.abs(X[:, 1]) + np.abs(xdot)) + np.abs(J[:, 1]) * np.abs(X[:, 3])
+        assert r.tobytes() == r_ref.tobytes() and size.tobytes() == size_ref.tobytes()

@@ -269,13 +269,19 @@ class BoundedSolution:
             self._hjump = self._hamiltonian_jump_terms()
         return self._hjump[0].copy(), self._hjump[1].copy()
 
-    def _hamiltonian_jump_terms(self) -> tuple[FloatArray, FloatArray]:
+    def _hamiltonian_jump_terms(self, H: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+        """``(r, size)`` of :meth:`hamiltonian_jump_terms`; ``H``: :meth:`_hamiltonian` at the
+        contact times, left then right limits, when the caller evaluated it already."""
         t = self.contact_times
         m = len(t)
-        xdot = np.array([float(v.speed(ti)) for v, ti in zip(self.problem.vehicles, t)])
+        # ẋ_s(t_i) as Vehicle.speed gives it (_polyval repeats numpy's polyval on polyder's j·c_j)
+        xdot = np.array([_polyval(_derivative([float(c) for c in np.asarray(v.x_poly, dtype=float)]), float(ti))
+                         for v, ti in zip(self.problem.vehicles, t)])
         X = self.ends_and_contacts()[2:]
         J = self.jumps
-        H = self._hamiltonian(np.concatenate((t, t)), np.concatenate((np.ones(m, dtype=bool), np.zeros(m, dtype=bool))))
+        if H is None:
+            H = self._hamiltonian(np.concatenate((t, t)),
+                                  np.concatenate((np.ones(m, dtype=bool), np.zeros(m, dtype=bool))))
         r: FloatArray = H[:m] - H[m:] - xdot * J[:, 0]
         size = np.abs(J[:, 0]) * (np.abs(X[:, 1]) + np.abs(xdot)) + np.abs(J[:, 1]) * np.abs(X[:, 3])
         return r, size
@@ -869,7 +875,16 @@ def check_values(sol: BoundedSolution, stationary: bool = True) -> dict[str, flo
         pts_h += [bp[j:j + 1], inner, bp[j + 1:j + 2]]
         left_h += [np.zeros(1 + len(inner), dtype=bool), np.ones(1, dtype=bool)]
         sizes.append(sizes[-1] + 2 + len(inner))
+    # one vehicle: the Hamiltonian-jump terms' two values at the contact time in the same
+    # evaluation (a row of step @ jumps is one product, whatever the batch: the same numbers)
+    jump_too = stationary and len(t) == 1 and sol._hjump is None
+    if jump_too:
+        pts_h.append(np.concatenate((t, t)))
+        left_h.append(np.array([True, False]))
     H_all = sol._hamiltonian(np.concatenate(pts_h), np.concatenate(left_h))
+    if jump_too:
+        sol._hjump = sol._hamiltonian_jump_terms(H_all[-2:])
+        H_all = H_all[:-2]
     Hs = [H_all[sizes[j]:sizes[j + 1]] for j in range(len(bp) - 1)]
     hscale = max(1e-300, max(float(np.max(np.abs(h))) for h in Hs), sol.cost / T)
     hcon = max(float(np.max(h) - np.min(h)) for h in Hs) / hscale
