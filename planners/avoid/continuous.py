@@ -120,8 +120,10 @@ Spec = tuple[tuple[int, int, float, float], ...]
 class GridShare:
     """What the plans of one planner keep for the next (:class:`ContinuousAvoidQP`'s ``shared``):
     per grid, the factored node solver (:class:`~iamp.planners.avoid.schur.SchurActiveSet`, with
-    the columns of ``K⁻¹`` solved so far) and the limit rows, which depend on the grid, the hold and
-    the limits only.  The closed loop plans the same few horizons every period; its planner
+    the columns of ``K⁻¹`` solved so far, and ``triu(P, 1)ᵀ`` of the final KKT checks), the QP's
+    ``A`` and ``P`` (:class:`~iamp.planners.avoid.data.AvoidData`; they depend on the grid, the
+    hold and the half-planes' signs only) and the limit rows with their stack
+    ``[A_lim; -A_lim]``, which depend on the grid, the hold and the limits only.  The closed loop plans the same few horizons every period; its planner
     factors each grid once.  At most :attr:`SIZE` grids, the least recently used dropped.  Every
     use is checked against the plan's own data (the same matrices bit for bit), so a plan is the
     same with or without it."""
