@@ -123,10 +123,12 @@ class GridShare:
     the columns of ``K⁻¹`` solved so far, and ``triu(P, 1)ᵀ`` of the final KKT checks), the QP's
     ``A`` and ``P`` (:class:`~iamp.planners.avoid.data.AvoidData`; they depend on the grid, the
     hold and the half-planes' signs only) and the limit rows with their stack
-    ``[A_lim; -A_lim]``, which depend on the grid, the hold and the limits only.  The closed loop plans the same few horizons every period; its planner
-    factors each grid once.  At most :attr:`SIZE` grids, the least recently used dropped.  Every
-    use is checked against the plan's own data (the same matrices bit for bit), so a plan is the
-    same with or without it."""
+    ``[A_lim; -A_lim]``, which depend on the grid, the hold and the limits only.  The closed
+    loop plans the same few horizons every period; its planner factors each grid once.  At most
+    :attr:`SIZE` grids per kind, the least recently used dropped.  The node solver's reuse is
+    checked against the plan's own ``P`` and ``A_eq`` (bit for bit); the other values are kept
+    under everything they are built from (the grid's bytes, the hold, the signs or the limits),
+    so a plan is the same with or without it."""
 
     SIZE = 8
 
