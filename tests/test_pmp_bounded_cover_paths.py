@@ -5,7 +5,9 @@
 * reads the corners from the vehicles' coefficients with ``_polyval`` (numpy's ``polyval``
   operation for operation) instead of an array from ``problem.corners`` per box, and
 * tries :func:`~iamp.planners.pmp.bounded.solve_bounded_fixed` at a centre only where both axis
-  solves just converged (it solves the same axes from the same start, so elsewhere it raises).
+  solves just converged (it solves the same axes from the same start, so elsewhere it raises);
+* solves both axes of every box of a level in one kernel call
+  (:func:`~iamp.planners.pmp.saturated_kernel.cover_points`, compiled or not: the same numbers).
 
 The long way below is the loop as it was before; the certificate (verdict, feasible contact
 times, boxes, solves) must be the same, field for field.
@@ -16,11 +18,14 @@ from __future__ import annotations
 from collections import deque
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.planners.examples import random_problem
+from iamp.planners.pmp import compiled, jit
+from iamp.planners.pmp import saturated_kernel as sk
 from iamp.planners.pmp.bounded import (
     InfeasibilityCertificate,
     _cover_infeasible,
@@ -28,7 +33,7 @@ from iamp.planners.pmp.bounded import (
     input_box,
     solve_bounded_fixed,
 )
-from iamp.planners.pmp.saturated import AxisInfeasible, AxisNoConvergence, solve_axis
+from iamp.planners.pmp.saturated import MAX_NEWTON, AxisInfeasible, AxisNoConvergence, solve_axis
 
 
 def _long_way(problem, max_solves: int) -> InfeasibilityCertificate:  # type: ignore[no-untyped-def]
@@ -126,3 +131,43 @@ def test_the_corners_are_problem_corners_bit_for_bit(seed: int, m: int, u: list[
         pos = [float(c) for c in np.asarray(v.x_poly, dtype=float)]
         assert (_polyval(pos, float(t[i])) + float(v.offset_x)).hex() == float(ref[i, 0]).hex()
         assert float(v.corner_y).hex() == float(ref[i, 1]).hex()
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 400), m=st.sampled_from([2, 3]), scale=st.sampled_from([0.2, 0.5, 1.0, 10.0]),
+       u=st.lists(st.floats(0.0, 1.0), min_size=12, max_size=12))
+def test_cover_points_compiled_is_the_python_source(seed: int, m: int, scale: float, u: list[float]) -> None:
+    """The kernel's numba twin gives the Python function's numbers bit for bit (four choices of
+    contact times per example, a repeated one among them)."""
+    if not jit.available():
+        pytest.skip("numba is not installed")
+    box = PhysicalLimits(ax=(PASSENGER_CAR.ax[0] * scale, PASSENGER_CAR.ax[1] * scale),
+                         ay=(PASSENGER_CAR.ay[0] * scale, PASSENGER_CAR.ay[1] * scale))
+    problem = random_problem(seed, m=m).with_limits(box)
+    T = float(problem.tf)
+    (lx, hx), (ly, hy) = input_box(problem)
+    ego = problem.ego
+    data = [float(x) for x in (ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx, ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy)]
+    times: list[float] = []
+    corners: list[float] = []
+    for p in range(4):
+        t = [T * x for x in u[3 * p:3 * p + m]]
+        C = problem.corners(np.asarray(t))
+        times += t
+        corners += [float(c) for c in C[:, 0]] + [float(c) for c in C[:, 1]]
+    ref = sk.cover_points(times, corners, m, T, T**2, T**3, data, 1e-12, MAX_NEWTON)
+    got = jit.twin(sk.cover_points)(np.asarray(times), np.asarray(corners), m, T, T**2, T**3, np.asarray(data),
+                                    1e-12, MAX_NEWTON)
+    assert [float(x).hex() for x in got] == [float(x).hex() for x in ref]
+
+
+def test_the_compiled_cover_equals_the_long_way() -> None:
+    """With the compiled axis solve loaded (as ``iamp bench`` and the closed loop have it)."""
+    if not compiled.load_axis():
+        pytest.skip("numba is not installed")
+    for seed in range(4):
+        for scale in (0.2, 10.0):
+            box = PhysicalLimits(ax=(PASSENGER_CAR.ax[0] * scale, PASSENGER_CAR.ax[1] * scale),
+                                 ay=(PASSENGER_CAR.ay[0] * scale, PASSENGER_CAR.ay[1] * scale))
+            problem = random_problem(seed, m=2).with_limits(box)
+            assert _same(_cover_infeasible(problem, 200), _long_way(problem, 200))

@@ -84,6 +84,7 @@ from iamp.planners.pmp.saturated import (
     AxisNoConvergence,
     AxisSolution,
     contact_points,
+    cover_points,
     interval_terms,
     solve_axis,
     solve_axis_value,
@@ -449,51 +450,65 @@ def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertifi
     if m == 1:
         return _cover_one(problem, max_solves, edges, lip)
     # the corners as problem.corners gives them (_polyval repeats numpy's polyval), without
-    # an array per box
+    # an array per box; both axes of every box of a level solved in one kernel call
+    # (:func:`~iamp.planners.pmp.saturated.cover_points`: solve_axis's numbers and Farkas test),
+    # the boxes then read in order with the decisions, counters and budget of one box at a time
     pos = [[float(c) for c in np.asarray(v.x_poly, dtype=float)] for v in problem.vehicles]
     off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
+    data = [float(x) for row in axes_data for x in row]
+    width = m + 3
     solves = boxes = 0
-    while stack:
-        a, b = stack.popleft()
-        t = 0.5 * (a + b)
-        half = 0.5 * (b - a)
-        times = [float(x) for x in t]
-        C = ([_polyval(pos[i], times[i]) + off[i][0] for i in range(m)], [off[i][1] for i in range(m)])
-        covered = False
-        if len(set(times)) == m:
-            converged = 0
-            for k, (s0, v0, sf, vf, lo, hi) in enumerate(axes_data):
-                solves += 1
-                try:
-                    solve_axis(times, T, s0, v0, sf, vf, C[k], lo, hi)
-                    converged += 1
-                except AxisInfeasible as exc:
-                    if exc.lam_phys is None or exc.margin_phys is None:
-                        continue
-                    rate = sum(half[i] * abs(exc.lam_phys[i]) * lip[k][i] for i in range(m))
-                    if exc.margin_phys > rate * (1 + 1e-9):
-                        covered = True
-                        break
+    level = list(stack)
+    while level:
+        centres = []
+        flat_t: list[float] = []
+        flat_c: list[float] = []
+        for a, b in level:
+            t = 0.5 * (a + b)
+            times = [float(x) for x in t]
+            distinct = len(set(times)) == m
+            centres.append((t, distinct))
+            if distinct:
+                flat_t += times
+                flat_c += [_polyval(pos[i], times[i]) + off[i][0] for i in range(m)]
+                flat_c += [off[i][1] for i in range(m)]
+        raw = cover_points(flat_t, flat_c, m, T, data) if flat_t else []
+        nxt: list[tuple[FloatArray, FloatArray]] = []
+        p = 0
+        for (a, b), (t, distinct) in zip(level, centres):
+            if distinct:
+                half = 0.5 * (b - a)
+                covered = False
+                converged = 0
+                for k in range(2):
+                    solves += 1
+                    o = (2 * p + k) * width
+                    if raw[o] == 0.0:
+                        converged += 1
+                    elif raw[o] == 1.0:  # AxisInfeasible with its certificate
+                        rate = sum(half[i] * abs(raw[o + 2 + i]) * lip[k][i] for i in range(m))
+                        if raw[o + 1] > rate * (1 + 1e-9):
+                            covered = True
+                            break
+                p += 1
+                if covered:
+                    boxes += 1
                     continue
-                except AxisNoConvergence:
-                    continue
-            if covered:
-                boxes += 1
-                continue
-            # both axes feasible at t?  solve_bounded_fixed solves the same axes from the same
-            # start (the same numbers), so it can succeed only where both converged just now
-            if converged == len(axes_data):
-                try:
-                    solve_bounded_fixed(problem, t)
-                    return InfeasibilityCertificate(False, t, boxes, solves)
-                except (AxisInfeasible, AxisNoConvergence):
-                    pass
-        if solves > max_solves or float(np.max(b - a)) < 1e-9 * T:
-            return InfeasibilityCertificate(False, None, boxes, solves)
-        i = int(np.argmax(b - a))
-        mid_b, mid_a = b.copy(), a.copy()
-        mid_b[i] = mid_a[i] = t[i]
-        stack += [(a, mid_b), (mid_a, b)]
+                # both axes feasible at t?  solve_bounded_fixed solves the same axes from the
+                # same start (the same numbers), so it can succeed only where both converged
+                if converged == 2:
+                    try:
+                        solve_bounded_fixed(problem, t)
+                        return InfeasibilityCertificate(False, t, boxes, solves)
+                    except (AxisInfeasible, AxisNoConvergence):
+                        pass
+            if solves > max_solves or float(np.max(b - a)) < 1e-9 * T:
+                return InfeasibilityCertificate(False, None, boxes, solves)
+            i_max = int(np.argmax(b - a))
+            mid_b, mid_a = b.copy(), a.copy()
+            mid_b[i_max] = mid_a[i_max] = t[i_max]
+            nxt += [(a, mid_b), (mid_a, b)]
+        level = nxt
     return InfeasibilityCertificate(True, None, boxes, solves)
 
 

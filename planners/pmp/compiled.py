@@ -145,6 +145,8 @@ def _build_axis() -> Callable[..., Any]:
     jit.twin(sk.contact_points, cache=True)(one, 1.0, 1.0, 1.0, np.array([0.0, 1.0]), 0.0, 0.0,
                                             np.array([0.0, 1.0, 1.0, 1.0, -1.0, 1.0] * 2), np.zeros(6),
                                             np.zeros(2), False, 1e-12, 60)
+    jit.twin(sk.cover_points, cache=True)(np.array([0.4, 0.6]), np.array([0.0, 0.1, 0.5, 0.5]), 2, 1.0, 1.0, 1.0,
+                                          np.array([0.0, 1.0, 1.0, 1.0, -1.0, 1.0] * 2), 1e-12, 60)
     jit.twin(sk.interval_terms, cache=True)(np.array([0.4, 0.6]), 1.0, 1.0, 1.0, np.array([0.0, 1.0]),
                                             np.array([1.0]), 0.0, 0.0, np.array([0.0, 1.0, 1.0, 1.0, -1.0, 1.0] * 2),
                                             np.zeros(6), np.zeros(2), 0.0, 1e-12, 60)

@@ -280,6 +280,24 @@ def interval_terms(ab: list[float], T: float, pos: list[float], der: list[float]
     return out
 
 
+def cover_points(times: list[float], corners: list[float], m: int, T: float, data: list[float],
+                 tol_residual: float = 1e-12) -> list[float]:
+    """:func:`~iamp.planners.pmp.saturated_kernel.cover_points` (both axes, cold, with the Farkas
+    test, at many choices of ``m`` contact times): the compiled twin once
+    :func:`~iamp.planners.pmp.compiled.load_axis` has run in the process, else the Python
+    function: the same numbers."""
+    if _compiled.axis_core() is None:
+        return _kernel.cover_points(times, corners, m, T, T**2, T**3, data, tol_residual, MAX_NEWTON)
+    import numpy as np
+
+    from . import jit
+
+    run = jit.twin(_kernel.cover_points)
+    out: list[float] = run(np.asarray(times, dtype=float), np.asarray(corners, dtype=float), int(m), float(T),
+                           float(T**2), float(T**3), np.asarray(data, dtype=float), float(tol_residual), MAX_NEWTON)
+    return out
+
+
 def _farkas_margin(ax: _Axis, cand: list[float]) -> tuple[float, float]:
     """:func:`~iamp.planners.pmp.saturated_kernel.farkas_margin` on ``ax``: compiled once
     :func:`~iamp.planners.pmp.compiled.load_axis` has run in the process, else the Python

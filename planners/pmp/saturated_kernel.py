@@ -618,3 +618,89 @@ def interval_terms(ab: Any, T: float, T2: float, T3: float, pos: Any, der: Any, 
             out[r + 3] = rate
             out[r + 4] = M
     return out
+
+
+@compilable
+def cover_points(times: Any, corners: Any, m: int, T: float, T2: float, T3: float, data: Any,
+                 tol_residual: float, max_newton: int) -> list[float]:
+    """Both axes at many choices of ``m`` contact times, cold, with the Farkas test: what the
+    several-vehicle cover of :func:`iamp.planners.pmp.bounded._cover_infeasible` asks of
+    :func:`~iamp.planners.pmp.saturated.solve_axis` per box centre, operation for operation
+    (``_Axis``'s scaling, ``axis_core`` from the unbounded optimum, then
+    ``_raise_infeasible_or_stall``'s test along ``λ`` and along ``−F``).
+
+    ``times`` holds ``m`` contact times per point (distinct within a point), ``corners`` the
+    ``m`` corner positions of x then the ``m`` of y per point, ``data`` ``(s0, v0, sf, vf, ℓ, h)``
+    of x then y, ``T2``, ``T3`` ``T**2``, ``T**3`` as Python computes them.  Returns per point and
+    axis ``m + 3`` values: ``0`` converged, ``1`` a Farkas certificate (then its physical margin
+    and the physical multipliers of the ``m`` ramps follow, as ``AxisInfeasible``'s
+    ``margin_phys`` and ``lam_phys[:m]``), ``2`` neither (a stall or a singular system)."""
+    n = len(times) // m
+    width = m + 2
+    out = [0.0] * (n * 2 * (m + 3))
+    for p in range(n):
+        for k in range(2):
+            s0 = data[6 * k]
+            v0 = data[6 * k + 1]
+            sf = data[6 * k + 2]
+            vf = data[6 * k + 3]
+            lo = data[6 * k + 4]
+            hi = data[6 * k + 5]
+            d = [0.0] * width
+            for i in range(m):
+                d[i] = corners[(2 * p + k) * m + i] - s0 - v0 * times[p * m + i]
+            d[m] = sf - s0 - v0 * T
+            d[m + 1] = (vf - v0) * T
+            scale = 1e-300
+            for q in range(width):
+                if abs(d[q]) > scale:
+                    scale = abs(d[q])
+            if math.isfinite(lo) and abs(lo) * T * T > scale:
+                scale = abs(lo) * T * T
+            if math.isfinite(hi) and abs(hi) * T * T > scale:
+                scale = abs(hi) * T * T
+            for q in range(width):
+                d[q] = d[q] / scale
+            los = lo * T * T / scale
+            his = hi * T * T / scale
+            sig = [0.0] * m
+            for i in range(m):
+                sig[i] = times[p * m + i] / T
+            # sorted(set([0.0, 1.0] + [s for s in sig if 0 < s < 1]))
+            inner = [0.0] * 0
+            for i in range(m):
+                s = sig[i]
+                if 0.0 < s < 1.0:
+                    seen = False
+                    for x in inner:
+                        if x == s:
+                            seen = True
+                    if not seen:
+                        inner.append(s)
+            inner.sort()
+            base = [0.0] * (len(inner) + 2)
+            for i in range(len(inner)):
+                base[i + 1] = inner[i]
+            base[len(inner) + 1] = 1.0
+            lam0 = [0.0] * width
+            code, _, _, _, _, lam, F, _, _ = axis_core(sig, base, d, los, his, lam0, False, tol_residual, max_newton)
+            o = (2 * p + k) * (m + 3)
+            if code == CONVERGED:
+                continue
+            out[o] = 2.0
+            if code == SINGULAR_GRAM:
+                continue
+            for c_k in range(2):
+                cand = [0.0] * width
+                for q in range(width):
+                    cand[q] = lam[q] if c_k == 0 else -F[q]
+                norm, margin = farkas_margin(sig, base, d, los, his, cand)
+                if not norm > 0 or not math.isfinite(norm):
+                    continue
+                if margin > 1e-9:
+                    out[o] = 1.0
+                    out[o + 1] = margin * scale * scale / T3
+                    for i in range(m):
+                        out[o + 2 + i] = cand[i] / norm * scale / T3
+                    break
+    return out
