@@ -409,6 +409,36 @@ POINT_WIDTH = 11
 
 
 @compilable
+def axis_scale(d: Any, lo: float, hi: float, T: float) -> float:
+    """The scale of one axis' system (:class:`~iamp.planners.pmp.saturated._Axis`'s, operation for
+    operation): the largest of ``|d_q|`` (at least ``1e-300``) and the finite ``|ℓ| T²``, ``|h| T²``.
+
+    Parameters
+    ----------
+    d : list of float
+        The right-hand sides (corner offsets, terminal position and speed terms) [m].
+    lo, hi : float
+        The axis' input bounds (``±inf`` where unbounded) [m/s²].
+    T : float
+        The horizon [s].
+
+    Returns
+    -------
+    float
+        The scale [m].
+    """
+    scale = 1e-300
+    for q in range(len(d)):
+        if abs(d[q]) > scale:
+            scale = abs(d[q])
+    if math.isfinite(lo) and abs(lo) * T * T > scale:
+        scale = abs(lo) * T * T
+    if math.isfinite(hi) and abs(hi) * T * T > scale:
+        scale = abs(hi) * T * T
+    return scale
+
+
+@compilable
 def contact_points(ts: Any, T: float, T2: float, T3: float, pos: Any, off_x: float, off_y: float, data: Any,
                    warm: Any, has_warm: Any, retry_cold: bool, tol_residual: float, max_newton: int) -> list[float]:
     """Both axes of the one-vehicle bounded problem at every contact time of ``ts``.
@@ -440,14 +470,7 @@ def contact_points(ts: Any, T: float, T2: float, T3: float, pos: Any, off_x: flo
             hi = data[6 * k + 5]
             c = poly_at(pos, t) + off_x if k == 0 else off_y
             d = [c - s0 - v0 * t, sf - s0 - v0 * T, (vf - v0) * T]
-            scale = 1e-300
-            for q in range(3):
-                if abs(d[q]) > scale:
-                    scale = abs(d[q])
-            if math.isfinite(lo) and abs(lo) * T * T > scale:
-                scale = abs(lo) * T * T
-            if math.isfinite(hi) and abs(hi) * T * T > scale:
-                scale = abs(hi) * T * T
+            scale = axis_scale(d, lo, hi, T)
             for q in range(3):
                 d[q] = d[q] / scale
             los = lo * T * T / scale
@@ -651,14 +674,7 @@ def cover_points(times: Any, corners: Any, m: int, T: float, T2: float, T3: floa
                 d[i] = corners[(2 * p + k) * m + i] - s0 - v0 * times[p * m + i]
             d[m] = sf - s0 - v0 * T
             d[m + 1] = (vf - v0) * T
-            scale = 1e-300
-            for q in range(width):
-                if abs(d[q]) > scale:
-                    scale = abs(d[q])
-            if math.isfinite(lo) and abs(lo) * T * T > scale:
-                scale = abs(lo) * T * T
-            if math.isfinite(hi) and abs(hi) * T * T > scale:
-                scale = abs(hi) * T * T
+            scale = axis_scale(d, lo, hi, T)
             for q in range(width):
                 d[q] = d[q] / scale
             los = lo * T * T / scale
