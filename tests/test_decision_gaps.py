@@ -102,3 +102,27 @@ def test_ranking_is_by_distance_to_the_room(xs: list[float], vs: list[float], eg
     got = [distance(g.follower, g.leader) for g in candidate_gaps(ego, cars, c)]
     assert got == sorted(got)
     assert len(got) == len(bounds) - 1
+
+
+def test_the_checked_vehicles_are_the_nearest_in_the_lanes_within_reach() -> None:
+    """``check_problem``: the neighbours of the given lanes within ``relevant_m`` (60 m) of the
+    ego, nearest first; a car ahead in the ego's own lane closer than ``safety_x`` gets the region
+    it leaves (its gap less 0.5 m): the ego is already there."""
+    from iamp.core.problem import EgoBoundary
+    from iamp.simulation.decision import check_problem
+
+    ego = EgoNow(100.0, 20.0, 0.0, 0.0, length=EGO_L)
+    boundary = EgoBoundary(tf=5.0, x0=100.0, y0=0.0, vx0=20.0, xf=200.0, yf=0.0, vxf=20.0)
+
+    def at(name: str, x: float, lane: int, y: float) -> Neighbour:
+        return Neighbour(name, (x, 20.0), y=y, length=4.8, width=1.8, lane=lane)
+
+    near_ahead = at("ahead", 106.0, 0, 0.0)  # own lane: rear 3.6 m ahead of the ego's centre
+    cars = [at("far", 170.0, 0, 0.0), at("back", 50.0, 0, 0.0), at("side", 130.0, 1, 3.5),
+            near_ahead, at("other-lane", 101.0, 2, 7.0)]
+    problem = check_problem(boundary, ego, cars, [0, 1], cfg())
+    assert problem is not None
+    assert [v.name for v in problem.vehicles] == ["ahead", "side", "back"]
+    assert problem.vehicles[0].safety_x == pytest.approx(106.0 - 2.4 - 100.0 - 0.5, abs=1e-12)
+    assert problem.vehicles[1].safety_x == 5.0 and problem.vehicles[2].safety_x == 5.0
+    assert check_problem(boundary, ego, [at("far", 170.0, 0, 0.0)], [0, 1], cfg()) is None
