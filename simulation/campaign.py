@@ -188,6 +188,44 @@ def _append(path: Path, columns: tuple[str, ...], row: dict[str, Any]) -> None:
     write_text(path, buf.getvalue())
 
 
+def sort_episodes(path: Path, missions: Iterable[str], planners: Iterable[str], traffics: Iterable[str]) -> None:
+    """Rewrite ``path`` (``episodes.csv``) atomically with its rows in the grid's order: seed, then
+    mission, traffic and planner in the order given (values outside them last, by name).
+
+    Episodes are appended as they finish, which depends on the workers; sorting once the
+    campaign has finished makes the file the same for the same command on any machine.  The rows
+    are rewritten as read (the same strings under the same header), so a file already in order
+    keeps its bytes.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The campaign's ``episodes.csv`` (nothing happens when it does not exist).
+    missions, planners, traffics : iterable of str
+        The grid's order.
+    """
+    if not path.is_file():
+        return
+    old = path.read_text(encoding="utf-8")
+    header = next(csv.reader(io.StringIO(old)), None)
+    if header is None:
+        return
+    order = [list(missions), list(planners), list(traffics)]
+
+    def rank(row: dict[str, str]) -> tuple[Any, ...]:
+        m, p, t, s = _key(row)
+        pos = [o.index(v) if v in o else len(o) for o, v in zip(order, (m, p, t))]
+        return (s, pos[0], m, pos[2], t, pos[1], p)
+
+    rows = sorted(csv.DictReader(io.StringIO(old)), key=rank)
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=header, restval="", lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    if buf.getvalue() != old:
+        write_text(path, buf.getvalue())
+
+
 @contextlib.contextmanager
 def _quiet_dask(quiet: bool) -> Iterator[None]:
     """While an interrupted campaign shuts its cluster down, Dask's own loggers and warnings
@@ -282,6 +320,7 @@ def run_campaign(planners: Iterable[str], traffics: Iterable[str], seeds: int, o
             n_done += 1
             if progress:
                 progress(n_done, total)
+        sort_episodes(episodes, missions, planners, traffics)
     except BaseException:  # Ctrl-C, SIGTERM (as an exception under the CLI), a failure
         interrupted = True
         raise
