@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from iamp.core.physical import PhysicalLimits
@@ -44,14 +44,18 @@ def _certificate_first(problem: Problem) -> tuple[str, float | None]:
     return ("optimal", sw.best.cost) if sw.best is not None else ("none", None)
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 10**6), st.floats(0.3, 1.2))
+@example(760, 1.0)  # the sweep's best plan dips to v_x = -0.022 between nodes: limits_violated either way
 def test_the_witness_gives_the_plan_of_the_certificate_first_order(seed: int, scale: float) -> None:
     problem = _bounded(seed, scale)
     plan = QPPlanner(steps=N, solver="clarabel").plan(problem)
     status, cost = _certificate_first(problem)
     if status == "optimal":
-        assert plan.status == "optimal" and plan.cost is not None and cost is not None
+        # the same plan as the certificate-first sweep's best; the planner's final check of the limits
+        # between the grid nodes (node-only rows here) then gives it the same verdict in either order
+        assert plan.status in ("optimal", "limits_violated") and plan.cost is not None and cost is not None
+        assert plan.status == "optimal" or "between the grid nodes" in str(plan.diagnostics.reason)
         assert plan.cost == pytest.approx(cost, rel=1e-12, abs=1e-12)
         w = plan.diagnostics.candidates["witness"]  # type: ignore[index]
         assert w["verified"] == w["certificate_skipped"]
