@@ -171,7 +171,8 @@ def test_two_vehicles_with_an_active_box_agree() -> None:
     assert comp.all_agree, [a["reasons"] for a in comp.agreement]
     assert all("rule B5 is not applied" in a["notes"][0] for a in comp.agreement if a["a"] == "pmp")
     zoh = [a for a in comp.agreement if a["b"].endswith("zoh-10") and a["a"] == "pmp"]
-    assert all(0.8 <= a["bounded"]["ratio_to_leading"] <= 1.25 for a in zoh)  # type: ignore[typeddict-item]
+    assert zoh and all(a["checks"]["bounded_zoh_excess_rel"]["ok"] for a in zoh)  # rule B6's bracket applied
+    assert all(0 <= a["bounded"]["excess"] <= a["bounded"]["zoh_upper_excess"] for a in zoh)  # type: ignore[typeddict-item]
 
 
 def test_the_bounded_rules_can_fail() -> None:
@@ -218,13 +219,19 @@ def _problem_229() -> Problem:
         ay=(s * min(-0.5, float(U[:, 1].min())), s * max(0.5, float(U[:, 1].max())))))
 
 
-@pytest.mark.xfail(strict=True, reason="known (issue 32, open): rule B6's ZOH bracket [0.8, 1.25] x the leading "
-                   "h^2 term is not a bound either: random_problem(229) at 0.609 of its inputs, ZOH N = 24, ratio "
-                   "1.2535 (random_problem(980978) at 0.627: 1.377); the unbounded bracket's 1/(1 - rho) has no "
-                   "bounded analogue yet. The bounded PMP is right (the FOH test below)")
-def test_bounded_pmp_and_zoh_qp_disagree_on_random_problem_229_known() -> None:
+def test_bounded_pmp_and_zoh_qp_agree_on_random_problem_229() -> None:
+    """The ZOH counterexample to the former rule B6 (issue 32): ``random_problem(229)`` at
+    0.609375 of its inputs, ZOH N = 24.  The excess over the bounded PMP at the QP's contact
+    time is 1.2535 x the unbounded leading term (the former bracket [0.8, 1.25] failed:
+    strict xfail until 2026-11-29); it lies in the derived bracket [0, D] of a plan of the QP
+    built from the PMP's input (bounded_pair.zoh_upper_plan), with D / excess = 1.019."""
     comp = _compare(_problem_229(), steps=24, solvers=("clarabel",), holds=("zoh",))
     assert [a["verdict"] for a in comp.agreement] == ["agree"], [a["reasons"] for a in comp.agreement]
+    a = comp.agreement[0]
+    b = a["bounded"]  # type: ignore[typeddict-item]
+    assert 1.25 < b["ratio_to_leading"] < 1.26  # the former bracket's upper end is exceeded
+    assert b["zoh_upper_reason"] is None and a["checks"]["bounded_zoh_excess_rel"]["ok"]
+    assert 0 < b["excess"] <= b["zoh_upper_excess"] < 1.03 * b["excess"]  # 0 <= excess <= D, D/excess = 1.019
 
 
 def test_bounded_pmp_and_foh_qp_agree_on_random_problem_229() -> None:

@@ -1,0 +1,208 @@
+r"""Rule B6 for ZOH (issue 32): the bounded PMP / ZOH QP pair is judged by a derived two-sided
+bracket, :math:`J_b(t_Q) \le J_{QP} \le J_b(t_Q) + D`, where :math:`D = J_{up} - E(u_b)` and
+:math:`J_{up}` is the cost of a plan of the ZOH QP built from the bounded PMP's input
+(:func:`iamp.comparison.agreement.bounded_pair.zoh_upper_plan`; the derivation is in that
+module's docstring).  The former bracket ``[0.8, 1.25] x (h²/24)∫|u̇_b|²`` was fitted and failed
+on ``random_problem(229)`` at 0.609 of its inputs (ratio 1.2535)."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+
+from iamp.comparison.agreement import bounded_pair
+from iamp.comparison.agreement.bounded_pair import (
+    _box_min_norm,
+    box_violation,
+    compare_bounded_pmp_qp,
+    zoh_upper_plan,
+)
+from iamp.comparison.agreement.judge import compare_problem, default_configs
+from iamp.comparison.agreement.runs import QPConfig, Run, run_pmp, run_qp
+from iamp.core.physical import PhysicalLimits
+from iamp.core.plan import Plan
+from iamp.core.problem import Problem
+from iamp.planners.examples import random_problem
+from iamp.planners.pmp import PMPPlanner
+from iamp.planners.qp.backends import get_backend
+from iamp.planners.qp.bounded import BoundedQP
+
+
+def _bounded(seed: int, frac: float) -> Problem:
+    """``random_problem(seed)`` with the input box at ``frac`` of its unbounded PMP's inputs
+    (at least ±0.5), as in tests/test_issue29_compare.py."""
+    problem = random_problem(seed)
+    U = PMPPlanner().plan(problem).inputs(np.linspace(0.0, problem.tf, 2001))
+    return problem.with_limits(PhysicalLimits(
+        ax=(frac * min(-0.5, float(U[:, 0].min())), frac * max(0.5, float(U[:, 0].max()))),
+        ay=(frac * min(-0.5, float(U[:, 1].min())), frac * max(0.5, float(U[:, 1].max())))))
+
+
+def _pair(problem: Problem, N: int) -> tuple[Run, Run]:
+    pmp = run_pmp(problem, repeats=1, warmup=0)
+    qp = run_qp(problem, QPConfig(solver="clarabel", hold="zoh", steps=N), repeats=1, warmup=0, budget_s=0.0)
+    return pmp, qp
+
+
+# --- the construction -----------------------------------------------------------------------------
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10**6), st.integers(6, 30), st.integers(1, 4))
+def test_box_min_norm_is_the_optimum_of_its_qp(seed: int, n: int, k: int) -> None:
+    """The dual semismooth Newton returns the minimiser of ``½Σh w²`` s.t. ``G w = r``, box —
+    the same cost as Clarabel on the same QP, feasible to 1e-12."""
+    rng = np.random.default_rng(seed)
+    G = rng.normal(size=(k, n))
+    h = rng.uniform(0.1, 1.0, n)
+    a, b = -rng.uniform(0.0, 1.0, n), rng.uniform(0.0, 1.0, n)
+    a[rng.random(n) < 0.2] = 0.0  # saturated entries: inward moves only
+    r = G @ rng.uniform(a, b)  # feasible by construction
+    w, _, ok = _box_min_norm(G, r, h, a, b, 1e-12)
+    assert ok and np.all(w >= a) and np.all(w <= b)
+    assert np.max(np.abs(G @ w - r)) <= 1e-12
+    A = sp.vstack([sp.csc_matrix(G), sp.identity(n, format="csc")], format="csc")
+    ref = get_backend("clarabel")(sp.diags(h, format="csc"), np.zeros(n), A, np.r_[r, a], np.r_[r, b]).solve()
+    assert 0.5 * float(h @ w**2) == pytest.approx(0.5 * float(h @ ref.z**2), rel=1e-7, abs=1e-10)
+
+
+def test_the_built_plan_is_a_plan_of_the_qp_above_its_optimum() -> None:
+    """random_problem(229) at 0.609375, ZOH N = 24, contact at the QP's node 7: the plan built
+    from the bounded PMP's input meets the QP's equalities (1e-12), its limit rows, and costs
+    at least the QP's optimum at that node; the PMP's cost is its input's energy."""
+    problem, N = _bounded(229, 0.609375), 24
+    t = np.linspace(0.0, problem.tf, N + 1)
+    qp = BoundedQP(problem, N, "zoh", "clarabel")
+    sweep = [qp.solve_nodes([n]) for n in range(1, N)]
+    best = min((r for r in sweep if r.cost is not None), key=lambda r: float(r.cost))  # type: ignore[arg-type]
+    (n,) = best.nodes
+    at = PMPPlanner().plan(problem, contact_times=[t[n]])
+    assert at.cost is not None and best.cost is not None
+    up = zoh_upper_plan(problem, at, t, [n])
+    assert up.reason is None and up.equality_residual_rel < 1e-12 and up.limit_violation_rel == 0.0
+    assert up.energy == pytest.approx(at.cost, rel=1e-12)
+    # the states: exact ZOH integration reaches the end state and the corner at t_n
+    ego = problem.ego
+    assert np.allclose(up.X[-1], [ego.xf, ego.vxf, ego.yf, ego.vyf], rtol=0, atol=1e-9)
+    v = problem.vehicles[0]
+    assert np.allclose(up.X[n, [0, 2]], [float(np.asarray(v.corner_x(t[n]))), float(v.corner_y)], atol=1e-9)
+    excess = float(best.cost) - float(at.cost)
+    assert 0.0 < excess <= up.excess < 1.03 * excess  # the bracket and its tightness (D / excess = 1.019)
+    assert box_violation(problem, at) <= 1e-12  # rounding of the knots only
+
+
+# --- the property: the rule never rejects a right pair --------------------------------------------
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 10**6), st.floats(0.4, 1.0), st.sampled_from([12, 24, 48]))
+@example(229, 0.609375, 24)  # the former bracket's counterexample (ratio 1.2535)
+@example(980978, 0.627, 24)  # ratio 1.377 under the former bracket
+@example(27559, 0.723, 48)  # ratio 2.08 under the former bracket
+def test_a_certified_pmp_and_an_optimal_zoh_qp_agree(seed: int, frac: float, N: int) -> None:
+    _bracket_property(seed, frac, N)
+
+
+@pytest.mark.slow
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 10**6), st.floats(0.4, 1.0), st.sampled_from([12, 24, 48]))
+def test_a_certified_pmp_and_an_optimal_zoh_qp_agree_many(seed: int, frac: float, N: int) -> None:
+    _bracket_property(seed, frac, N)
+
+
+def _bracket_property(seed: int, frac: float, N: int) -> None:
+    """Whenever the bounded PMP is certified optimal and the ZOH QP is optimal, the pair agrees,
+    and rule B6's bracket holds: 0 <= J_QP - J_b(t_Q) <= D (or a note says why the upper side
+    could not be built)."""
+    comp = compare_problem(_bounded(seed, frac), default_configs(steps=(N,), solvers=("clarabel",), holds=("zoh",)),
+                           repeats=1, pmp_repeats=1, warmup=0, budget_s=0.0)
+    pmp = comp.run("pmp").result
+    (pair,) = comp.agreement
+    qp = comp.run(pair["b"]).result
+    if not (pmp.status == "optimal" and pmp.diagnostics.certified_global and qp.status == "optimal"):
+        return
+    assert pair["verdict"] == "agree", pair["reasons"]
+    b = pair["bounded"]  # type: ignore[typeddict-item]
+    if b["zoh_upper_reason"] is None:
+        assert pair["checks"]["bounded_zoh_excess_rel"]["ok"]
+        assert b["excess"] >= -1e-9 * b["pmp_at_contact_times_cost"]
+        assert b["excess"] <= b["zoh_upper_excess"] + 1e-9 * b["pmp_at_contact_times_cost"]
+    else:
+        assert any("upper side is not applied" in note for note in pair["notes"])
+
+
+# --- the rule catches a wrong PMP -----------------------------------------------------------------
+
+def _with_cost(plan: Plan, factor: float) -> Plan:
+    wrong = copy.copy(plan)
+    wrong.cost = float(plan.cost) * factor  # type: ignore[arg-type]
+    return wrong
+
+
+@pytest.mark.parametrize("factor", [1 - 1e-2, 1 + 1e-2])
+def test_a_wrong_pmp_cost_is_caught(factor: float) -> None:
+    """The PMP run's cost 1 % off its plan's energy: B5' fails (the pair compared costs that are
+    not its plans')."""
+    pmp, qp = _pair(_bounded(229, 0.609375), 24)
+    assert compare_bounded_pmp_qp(pmp.result.problem, pmp, qp)["verdict"] == "agree"
+    wrong = copy.copy(pmp)
+    wrong.result = _with_cost(pmp.result, factor)
+    pair = compare_bounded_pmp_qp(pmp.result.problem, wrong, qp)
+    assert pair["verdict"] == "disagree"
+    assert pair["checks"]["pmp_cost_is_input_energy"]["ok"] is False
+
+
+class _WrongAtContactTimes:
+    """A PMP whose fixed-contact-time plans report ``factor`` x their cost, or plan with the box
+    widened by ``widen`` (its plans leave the problem's box)."""
+
+    factor, widen = 1.0, 1.0
+
+    def plan(self, problem: Problem, contact_times: object = None) -> Plan:
+        if self.widen != 1.0 and problem.limits is not None:
+            lim = problem.limits
+            wide = PhysicalLimits(ax=tuple(self.widen * x for x in lim.ax),  # type: ignore[arg-type, union-attr]
+                                  ay=tuple(self.widen * x for x in lim.ay))  # type: ignore[arg-type, union-attr]
+            return PMPPlanner().plan(problem.with_limits(wide), contact_times=contact_times)
+        return _with_cost(PMPPlanner().plan(problem, contact_times=contact_times), self.factor)
+
+
+@pytest.mark.parametrize(("factor", "N", "caught_by"), [
+    (1 - 1e-2, 24, "bounded_zoh_excess_rel"),  # too low: J_QP > J_b + D (the upper side)
+    (1 - 1e-2, 48, "bounded_zoh_excess_rel"),
+    (1 + 1e-2, 48, "bounded_lower_bound_rel"),  # too high: J_b > J_QP (excess 0.4 % at N = 48)
+])
+def test_the_bracket_catches_a_wrong_cost_at_the_contact_times(monkeypatch: pytest.MonkeyPatch, factor: float,
+                                                                N: int, caught_by: str) -> None:
+    """The bounded PMP re-solved at the QP's contact times reports its cost 1 % off: the bracket
+    itself fails (besides B5').  Its resolution is D on the low side (D - excess = 4e-4 of J at
+    N = 24) and the excess on the high side (2 % of J at N = 24, 0.4 % at N = 48), so a 1 %
+    overstatement is caught from N = 48 on by the bracket (and at every N by B5')."""
+    problem = _bounded(229, 0.609375)
+    pmp, qp = _pair(problem, N)
+    wrong = _WrongAtContactTimes()
+    wrong.factor = factor
+    monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
+    pair = compare_bounded_pmp_qp(problem, pmp, qp)
+    assert pair["verdict"] == "disagree"
+    assert pair["checks"][caught_by]["ok"] is False
+    assert pair["checks"]["pmp_at_contact_times_cost_is_input_energy"]["ok"] is False
+
+
+def test_a_pmp_plan_outside_the_box_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A re-solve that did not impose the box (widened 10 %): cheaper, its cost its input's
+    energy, so B4, B5' and the bracket's upper side (a plan of the QP exists) all pass; the
+    premise check on its input catches it."""
+    problem = _bounded(229, 0.609375)
+    pmp, qp = _pair(problem, 24)
+    wrong = _WrongAtContactTimes()
+    wrong.widen = 1.1
+    monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
+    pair = compare_bounded_pmp_qp(problem, pmp, qp)
+    assert pair["verdict"] == "disagree"
+    assert pair["checks"]["pmp_at_contact_times_box_violation_rel"]["ok"] is False
+    assert pair["checks"]["bounded_lower_bound_rel"]["ok"] and pair["checks"]["bounded_zoh_excess_rel"]["ok"]
