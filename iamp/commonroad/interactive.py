@@ -11,7 +11,8 @@ the ego:
    vehicle type), turns each one's observed longitudinal history (at most the last 3 s, in the
    road frame of :mod:`iamp.commonroad.convert`) into a cubic with the §7 predictor (constant
    speed while fewer than ``min_history_s`` have been observed), keeps its lateral box (lane
-   kept), and plans to the goal with the road planner of :mod:`iamp.commonroad.planning`
+   kept; a vehicle observed at most :data:`STANDING_MPS` fast may turn its nose in, its box
+   grows across the road by :data:`TURN_IN_MPS` per second, at most :data:`TURN_IN_MAX_M`), and plans to the goal with the road planner of :mod:`iamp.commonroad.planning`
    over the goal's remaining time window (:func:`~iamp.commonroad.convert.final_candidates`).
    A replan that finds no safe plan within the limits chooses (:func:`choose`) among the new
    plan, the previous plan's remainder (a fallback) and the fail-safe braking in the lane
@@ -92,6 +93,17 @@ RANGE_M = 120.0
 SPREAD_MPS = 0.5
 #: Largest growth of a predicted box [m].
 SPREAD_MAX_M = 3.0
+#: A vehicle observed at most this fast is "standing" for :data:`TURN_IN_MPS` [m/s].
+STANDING_MPS = 2.0
+#: Growth of a standing vehicle's box across the road, both sides, with the time ahead [m/s]:
+#: SUMO's lane-change model turns a standing car's nose toward the next lane (USA_US101-24_2 with
+#: seed 2: vehicle 31, 0 m/s, turned from -0.04 to -0.16 rad in 2.5 s while the ego passed it at
+#: 18 m/s 0.16 m away, and the contact followed); the ego passes such a car with this margin
+#: (:data:`TURN_IN_MAX_M` after 1 s) or does not pass it.
+TURN_IN_MPS = 0.5
+#: Largest growth of a standing vehicle's box across the road [m] (a 5 m car turning its nose by
+#: a further 0.2 rad).
+TURN_IN_MAX_M = 1.0
 
 
 def _files(folder: Path) -> tuple[Path, Path]:
@@ -153,7 +165,9 @@ def _observed_obstacle(cr: CommonRoadProblem, oid: int, hist_t: list[float], his
     resid = float(np.max(np.abs(np.polynomial.polynomial.polyval(t, coeffs) - centre)))
     n = t.size
     grow = np.minimum(SPREAD_MPS * t, SPREAD_MAX_M)  # the prediction's spread along the road
-    return Obstacle(oid, t, centre - half - grow, centre + half + grow, np.full(n, d_lo), np.full(n, d_hi), 2 * half,
+    # a standing vehicle may turn its nose toward either neighbouring lane (TURN_IN_MPS)
+    side = np.minimum(TURN_IN_MPS * t, TURN_IN_MAX_M) if speed <= STANDING_MPS else np.zeros(n)
+    return Obstacle(oid, t, centre - half - grow, centre + half + grow, d_lo - side, d_hi + side, 2 * half,
                     d_hi - d_lo, tuple(float(c) for c in coeffs), half + resid + float(grow[-1]), resid, 0, False)
 
 
