@@ -35,6 +35,7 @@ less than the predictor needs is extrapolated at constant speed.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -148,9 +149,16 @@ def imposed(plan: Plan) -> int:
     return int(getattr(plan.problem, "m", 0))
 
 
-def _cheb(tf: float) -> np.ndarray:
+@functools.lru_cache(maxsize=64)
+def _cheb(tf: float) -> tuple[np.ndarray, np.ndarray]:
+    """The four Chebyshev points of ``[0, tf]`` at which a cubic is read back, and their Vandermonde
+    matrix (read-only; once per horizon: the safe loop asks for one horizon every period)."""
     k = np.arange(4)
-    return tf / 2 * (1 - np.cos((2 * k + 1) * np.pi / 8))
+    q = tf / 2 * (1 - np.cos((2 * k + 1) * np.pi / 8))
+    V = np.vander(q, 4, increasing=True)
+    q.setflags(write=False)
+    V.setflags(write=False)
+    return q, V
 
 
 class Controller:
@@ -198,21 +206,22 @@ class Controller:
         near the ego (batched)."""
         start = time.perf_counter()
         lanes = (self.origin, self.target)
-        near = [k for k in range(len(obs.ids))
-                if (all_lanes or int(obs.lane[k]) in lanes)
-                and abs(obs.x[k] - ego.x) <= self.cfg.decision.relevant_m + (60.0 if all_lanes else 20.0)]
+        xs, ln = obs.x.tolist(), obs.lane.tolist()  # Python floats: the same comparisons
+        reach = self.cfg.decision.relevant_m + (60.0 if all_lanes else 20.0)
+        ex = ego.x
+        near = [k for k in range(len(obs.ids)) if (all_lanes or ln[k] in lanes) and abs(xs[k] - ex) <= reach]
         polys: dict[int, tuple[float, ...]] = {}
         full: list[tuple[int, np.ndarray, np.ndarray]] = []
         need = self.predictor.min_history_s
         for k, (t, x) in zip(near, self.sim.histories_of([obs.ids[k] for k in near])):
-            if t.size >= 3 and -t[0] + 1e-9 >= need:
+            if t.size >= 3 and -float(t[0]) + 1e-9 >= need:
                 full.append((k, t, x))
             else:
                 polys[k] = (float(obs.x[k]), float(obs.v[k]), 0.0, 0.0)
         groups: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
         for item in full:
             groups.setdefault(item[1].size, []).append(item)
-        q = _cheb(tf)
+        q, V = _cheb(float(tf))
         for items in groups.values():
             t_h = items[0][1]
             # np.allclose(t, t_h, atol=1e-6) per history, for the group in one call (the same test);
@@ -225,7 +234,6 @@ class Controller:
             rest = [it for it, ok in zip(items, close) if not ok]
             X = np.stack([it[2] for it in same])
             vals = self.predictor.predict_batch(t_h, X, q, tf, cubic=True)
-            V = np.vander(q, 4, increasing=True)
             C = np.linalg.solve(V, vals.T)  # (4, B)
             for it, row in zip(same, C.T.tolist()):  # Python floats, as float() of each
                 polys[it[0]] = tuple(row)

@@ -323,32 +323,29 @@ class Simulator:
         P, S, A, ANG = ls.VAR_POSITION, ls.VAR_SPEED, ls.VAR_ACCELERATION, ls.VAR_ANGLE
         oldest = self.t - (self.history_s + 1e-6)
         cos, sin, radians, lane_of = math.cos, math.sin, math.radians, self.highway.lane_of
-        x, y, v, a, lane, L, W, H = [], [], [], [], [], [], [], []
+        sizes, histories, t = self._lengths, self.histories, self.t
+        rows: list[tuple[float, float, float, float, float, float, float]] = []
+        lanes: list[int] = []
         for vid in ids:  # Python floats: the same IEEE operations as on array elements
             r = res[vid]
-            length, width = self._size(vid)
+            size = sizes.get(vid)
+            length, width = size if size is not None else self._size(vid)
             psi = radians(90.0 - float(r[ANG]))
             fx, fy = r[P]
             xk = fx - length / 2 * cos(psi)
             yk = fy - length / 2 * sin(psi)
-            x.append(xk)
-            y.append(yk)
-            v.append(r[S])
-            a.append(r[A])
-            lane.append(lane_of(float(yk)))  # global index (edges downstream of a drop have fewer)
-            L.append(length)
-            W.append(width)
-            H.append(psi)
-            hist = self.histories.get(vid)
+            rows.append((xk, yk, r[S], r[A], length, width, psi))
+            lanes.append(lane_of(float(yk)))  # global index (edges downstream of a drop have fewer)
+            hist = histories.get(vid)
             if hist is None:
-                hist = self.histories[vid] = TrackBuffer()
-            hist.record(self.t, float(xk), oldest)
-        for vid in [k for k in self.histories if k not in res]:
-            del self.histories[vid]
-        f = np.float64
-        return Observation(self.t, ids, np.array(x, dtype=f), np.array(y, dtype=f), np.array(v, dtype=f),
-                           np.array(a, dtype=f), np.array(lane, dtype=int), np.array(L, dtype=f),
-                           np.array(W, dtype=f), np.array(H, dtype=f))
+                hist = histories[vid] = TrackBuffer()
+            hist.record(t, float(xk), oldest)
+        if len(histories) > len(ids):
+            for vid in [k for k in histories if k not in res]:
+                del histories[vid]
+        cols = np.array(rows, dtype=np.float64).reshape(len(rows), 7).T.copy()  # one row per quantity
+        x, y, v, a, L, W, H = cols
+        return Observation(self.t, ids, x, y, v, a, np.array(lanes, dtype=int), L, W, H)
 
     def history(self, vid: str) -> tuple[np.ndarray, np.ndarray]:
         """``(t - now, x)`` of the last ``history_s`` seconds of ``vid`` (may be shorter)."""
