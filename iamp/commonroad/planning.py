@@ -36,7 +36,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
-from typing import Any, TypedDict
+from typing import Any, NamedTuple, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -255,20 +255,41 @@ def off_road_steps(cr: CommonRoadProblem, trajectory: Trajectory, steps: int) ->
     -------
     ndarray of bool, shape (steps + 1,)
     """
+    from iamp.commonroad.solution import world_states
+
+    P, V, _ = world_states(cr, trajectory, steps)
+    return off_road_poses(cr, P, np.arctan2(V[:, 1], V[:, 0]))
+
+
+def off_road_poses(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray,
+                   grow: float = 0.0) -> npt.NDArray[np.bool_]:
+    """Which of the ego's bodies (centres ``(n, 2)`` in the world, world headings ``(n,)``, each
+    half extent grown by ``grow``) collide with CommonRoad's road boundary (its own checker, the
+    one the solution checker builds; built once per problem).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    centre : ndarray, shape (n, 2)
+    heading : ndarray, shape (n,)
+    grow : float
+        Added to both half extents [m] (0: the checker's body).
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
     import importlib
 
     from commonroad_dc.feasibility import solution_checker
-
-    from iamp.commonroad.solution import world_states
 
     pycrcc = importlib.import_module("commonroad_dc.pycrcc")  # (its type stub does not parse)
 
     if cr.road_checker is None:
         cr.road_checker = solution_checker._construct_boundary_checker(cr.scenario)
-    P, V, _ = world_states(cr, trajectory, steps)
-    L2, W2 = cr.ego_length / 2, cr.ego_width / 2
-    return np.array([bool(cr.road_checker.collide(pycrcc.RectOBB(L2, W2, math.atan2(v[1], v[0]), p[0], p[1])))
-                     for p, v in zip(P, V)], dtype=bool)
+    L2, W2 = cr.ego_length / 2 + grow, cr.ego_width / 2 + grow
+    return np.array([bool(cr.road_checker.collide(pycrcc.RectOBB(L2, W2, float(h), float(p[0]), float(p[1]))))
+                     for p, h in zip(np.asarray(centre, dtype=float), np.asarray(heading, dtype=float))], dtype=bool)
 
 
 def intrusions(cr: CommonRoadProblem, trajectory: Trajectory, T: float,
@@ -647,6 +668,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             result = _repaired(cr, cand, result)
         result.candidates_tried = n_tried
         if result.safe and result.peak_accel_mps2 <= cr.a_max:
+            result = steer_at_edges(cr, result, engine)
             result.solve_time_s = time.perf_counter() - start
             result.plans_used = max_plans - budget[0]
             return result
@@ -662,6 +684,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     if via and active and planner != "free" and best.candidate is not None and max_plans > 0:
         staged = _via(cr, best, planner, iamp_planner, constraint, steps, heading, edge_heading)
         if staged is not None:
+            staged = steer_at_edges(cr, staged, engine)
             staged.candidates_tried = n_tried
             staged.solve_time_s = time.perf_counter() - start
             staged.plans_used = max_plans - budget[0] + staged.plans_used
@@ -669,6 +692,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     if corridor and planner != "free" and best.candidate is not None and max_plans > 0:
         wide = plan_corridor(cr, best, planner, heading, others=tried + clear, engine=engine)
         if wide is not None:
+            wide = steer_at_edges(cr, wide, engine)
             wide.candidates_tried = n_tried
             wide.solve_time_s = time.perf_counter() - start
             wide.plans_used = max_plans - budget[0]
@@ -915,11 +939,25 @@ CORRIDOR_CORNER_M = 0.15
 CORRIDOR_STEER_SHARE = 0.5
 
 
-def ks_engine(vehicle_type: int = 2) -> tuple[float, float, float, float, float]:
+class KSEngine(NamedTuple):
+    """The ``KS`` limits of a vehicle type the plan keeps (:func:`ks_engine`); a tuple, indexed as
+    ``(a_max, v_switch, steering_rate_max, wheelbase, b, vehicle_type)``."""
+
+    a_max: float
+    v_switch: float
+    steering_rate_max: float
+    wheelbase: float
+    b: float
+    vehicle_type: int
+
+
+def ks_engine(vehicle_type: int = 2) -> KSEngine:
     """The ``KS`` model's limits of a CommonRoad vehicle type that the corridor plan keeps
     (:func:`corridor_qp`): ``(a_max, v_switch, steering_rate_max, wheelbase, b)`` (above
     ``v_switch`` the acceleration is at most ``a_max v_switch / v``; the steering angle turns at
-    most ``steering_rate_max``), from the parameters :mod:`iamp.commonroad.ks` tracks with.
+    most ``steering_rate_max``), from the parameters :mod:`iamp.commonroad.ks` tracks with, and
+    the vehicle type itself (with it :func:`plan` checks the steered car at the road's edges,
+    :func:`steer_at_edges`).
 
     Parameters
     ----------
@@ -928,9 +966,10 @@ def ks_engine(vehicle_type: int = 2) -> tuple[float, float, float, float, float]
 
     Returns
     -------
-    tuple of float
+    KSEngine
         ``a_max`` [m/s²], ``v_switch`` [m/s], the steering rate's bound [rad/s], the
-        wheelbase ``a + b`` [m] and the distance ``b`` from the centre to the rear axle [m].
+        wheelbase ``a + b`` [m], the distance ``b`` from the centre to the rear axle [m] and the
+        vehicle type.
 
     Raises
     ------
@@ -941,7 +980,8 @@ def ks_engine(vehicle_type: int = 2) -> tuple[float, float, float, float, float]
 
     p = _params(vehicle_type)
     lon = p.longitudinal
-    return float(lon.a_max), float(lon.v_switch), float(p.steering.v_max), float(p.a + p.b), float(p.b)
+    return KSEngine(float(lon.a_max), float(lon.v_switch), float(p.steering.v_max), float(p.a + p.b), float(p.b),
+                    int(vehicle_type))
 
 
 def engine_tangent(a_max: float, v_switch: float, v0: float) -> tuple[float, float]:
@@ -1960,7 +2000,7 @@ def _narrowest(grid: FloatArray, bound: FloatArray, a: float, b: float, up: bool
 
 
 def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
-                    buffer: float | None = None) -> LateralRepair | None:
+                    buffer: float | FloatArray | None = None) -> LateralRepair | None:
     r"""Keep ``base``'s longitudinal motion and re-plan its lateral motion so that the ego's body,
     at its own heading, stays inside the road corridor and beside every vehicle it is beside in
     ``base``: one convex QP on the CommonRoad time steps (the solution's own states).
@@ -1980,14 +2020,16 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
     road at a step keeps the body on the side it is on in ``base``.  Inputs: the friction circle
     less the longitudinal input of the step; the start and the final state are ``base``'s.
     Minimises :math:`\sum u_k^2`.  Returns ``None`` when the QP is infeasible or fails.
+    ``buffer`` is the body's clearance from the road's bound, one value or one per time step
+    ``0..K`` (default :data:`REPAIR_EDGE_BUFFER_M`).
     """
     import clarabel
     from scipy import sparse
 
     if cr.corridor is None:
         return None
-    buffer = REPAIR_EDGE_BUFFER_M if buffer is None else buffer
     dt, K = cr.dt, cand.steps
+    buf = np.broadcast_to(np.asarray(REPAIR_EDGE_BUFFER_M if buffer is None else buffer, dtype=float), (K + 1,))
     L2, W2 = cr.ego_length / 2, cr.ego_width / 2
     t = np.arange(K + 1) * dt
     X = np.array(base.states(t), dtype=float)
@@ -2014,12 +2056,12 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
                 b = _narrowest(grid, bound, S[k] + corner * L2 - REPAIR_CORNER_M, S[k] + corner * L2 + REPAIR_CORNER_M,
                                sign > 0)
                 if np.isfinite(b):
-                    rows.append((k, corner * L2, b - sign * (W2 + buffer + excess[k]), sign))
+                    rows.append((k, corner * L2, b - sign * (W2 + buf[k] + excess[k]), sign))
             inside = np.flatnonzero((grid > S[k] - L2 + 0.3) & (grid < S[k] + L2 - 0.3) & np.isfinite(bound))
             for j in inside:  # the side between them, with the secant's bound
                 for pm in (-1.0, 1.0):
                     rows.append((k, float(grid[j] - S[k]) + pm * float(sec[k]) * sign,
-                                 float(bound[j]) - sign * (W2 + buffer), sign))
+                                 float(bound[j]) - sign * (W2 + buf[k]), sign))
     # vehicles: stay on the side of each vehicle the base is on, where they overlap along the road
     reach = L2 + sec
     for ob in [*cr.obstacles, *(o for o in cr.road_edges if o.hole)]:
@@ -2063,3 +2105,115 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
     if not np.all(A_in @ u <= b_in + 1e-6):
         return None
     return LateralRepair(base, dt, d0, vd0, u)
+
+
+
+#: Passes of the steered car's edge repair (:func:`steer_at_edges`; a count, not a time).
+STEER_PASSES = 3
+#: Clearance from CommonRoad's road boundary the steered body is given where it had less [m].
+STEER_CLEAR_M = 0.005
+#: Bisection steps of :func:`road_clearance` (its resolution: 0.25 m / 2^12 = 0.06 mm).
+CLEARANCE_ITERATIONS = 12
+
+
+def road_clearance(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray,
+                   lo: float = -0.2, hi: float = 0.05) -> FloatArray:
+    """How far each body (world centres and headings, as :func:`off_road_poses`) is inside
+    CommonRoad's road: the largest growth ``g`` of both half extents in ``[lo, hi]`` at which the
+    body is still on the road, by bisection (:data:`CLEARANCE_ITERATIONS` steps, the lower end
+    returned; negative: the body leaves the road by about ``-g``; ``lo`` where even the body
+    shrunk by ``-lo`` leaves it, ``hi`` where the body grown by ``hi`` is on it).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    centre : ndarray, shape (n, 2)
+    heading : ndarray, shape (n,)
+    lo, hi : float
+        The interval searched [m].
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    C = np.asarray(centre, dtype=float)
+    H = np.asarray(heading, dtype=float)
+    out = np.empty(len(C))
+    for j in range(len(C)):
+        a, b = lo, hi
+        if off_road_poses(cr, C[j:j + 1], H[j:j + 1], a)[0]:
+            out[j] = a
+            continue
+        if not off_road_poses(cr, C[j:j + 1], H[j:j + 1], b)[0]:
+            out[j] = b
+            continue
+        for _ in range(CLEARANCE_ITERATIONS):
+            m = 0.5 * (a + b)
+            if off_road_poses(cr, C[j:j + 1], H[j:j + 1], m)[0]:
+                b = m
+            else:
+                a = m
+        out[j] = a
+    return out
+
+
+def steer_at_edges(cr: CommonRoadProblem, p: RoadPlan, engine: tuple[float, ...] | None) -> RoadPlan:
+    """A safe plan whose steered (``KS``) solution leaves CommonRoad's road, repaired laterally so
+    that it does not.
+
+    The ``KS`` solution follows the plan within millimetres, but its body is turned to the rear
+    axle's heading, which lags the plan's direction of travel where the plan turns (US101-5: the
+    plan clears the road's edge by 12 mm at 0.5 s and 3-5 mm later, the steered body, turned
+    6 mrad less, leaves it by 5 mm at 0.5-0.7 s).  When the tracked solution
+    (:func:`iamp.commonroad.ks.track`, the one written) is off the road at some step, the plan's
+    lateral motion is re-planned (:func:`repair_at_edges`) with the body's clearance from the
+    road raised, at each step where the steered body is less than :data:`STEER_CLEAR_M` inside
+    the road (:func:`road_clearance`), by what it lacks (kept between passes: an iterative
+    learning of the margin); the result is tracked again and taken when the steered body is on
+    the road by CommonRoad's own check, the plan clear of every vehicle (:func:`intrusions`) and
+    within the friction circle.  At most :data:`STEER_PASSES` passes (a count); otherwise ``p``
+    is returned unchanged.
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    p : RoadPlan
+        A plan of :func:`plan`.
+    engine : KSEngine or None
+        :func:`ks_engine`'s tuple (its ``vehicle_type`` names the steered model); ``None`` or a
+        tuple without it (a point-mass solution): ``p`` unchanged.
+
+    Returns
+    -------
+    RoadPlan
+        ``p``, or the repaired plan (``iamp_status`` ``steered-edge-repair``).
+    """
+    vehicle_type = getattr(engine, "vehicle_type", None)
+    if vehicle_type is None or not p.safe or p.candidate is None or p.trajectory is None:
+        return p
+    from iamp.commonroad.ks import track
+
+    cand, base = p.candidate, p.trajectory
+    K = cand.steps
+    ks = track(cr, base, K, int(vehicle_type))
+    if not off_road_poses(cr, ks.centre, ks.states[:, 4]).any():
+        return p
+    margin = np.zeros(K + 1)
+    for _ in range(STEER_PASSES):
+        near = off_road_poses(cr, ks.centre, ks.states[:, 4], STEER_CLEAR_M)
+        near[0] = False  # the initial state is the problem's
+        if not near.any():
+            return p
+        idx = np.flatnonzero(near)
+        margin[idx] += STEER_CLEAR_M - road_clearance(cr, ks.centre[idx], ks.states[idx, 4])
+        fixed = repair_at_edges(cr, base, cand, REPAIR_EDGE_BUFFER_M + margin)
+        if fixed is None:
+            return p
+        h, peak = _heading_and_peak(fixed, cand.tf)
+        if intrusions(cr, fixed, cand.tf) or peak > cr.a_max:
+            return p
+        ks = track(cr, fixed, K, int(vehicle_type))
+        if not off_road_poses(cr, ks.centre, ks.states[:, 4]).any():
+            return RoadPlan(p.planner, "optimal", cand, fixed, fixed.cost(), p.solve_time_s, list(p.imposed), [],
+                            "steered-edge-repair", 0, None, h, peak)
+    return p

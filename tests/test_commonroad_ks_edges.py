@@ -1,0 +1,101 @@
+"""The steered car at the road's edge (issue 33): a plan whose ``KS`` solution leaves CommonRoad's
+road is repaired laterally with the margin the steered body lacks
+(:func:`iamp.commonroad.planning.steer_at_edges`), judged by CommonRoad's own road check.
+
+Every test needs the ``[commonroad]`` extra and the shared US-101 data; each skips with the reason
+where either is absent.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+from conftest import data_path, needs_commonroad_data
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+DATA = data_path("commonroad", "US101")
+needs_data = needs_commonroad_data("commonroad", "US101")
+
+
+def _ks_verdict(cr, rp):  # type: ignore[no-untyped-def]
+    from iamp.commonroad.check import check
+    from iamp.commonroad.solution import build_solution
+
+    solution, dev = build_solution(cr, rp.trajectory, rp.candidate.steps, vehicle_model="KS")
+    return check(cr.scenario, cr.planning_problem_set, solution, cost=False), dev
+
+
+@needs_data
+def test_the_steered_car_on_us101_5_stays_on_the_road() -> None:
+    """US101-5 (the shared set's one ``KS`` failure): the ego starts 5 mm from a left edge that
+    narrows.  The point-mass plan clears CommonRoad's road; the steered car follows it 5 mm off,
+    its body turned to the rear axle's heading (6 mrad behind the plan's direction of travel), and
+    leaves the road at 0.5-0.7 s.  Without the vehicle type (a plain engine tuple, as before) the
+    ``KS`` solution is off road; with it the plan is repaired at the steered body's margins and
+    the ``KS`` solution is valid by CommonRoad's checker."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.ks import track
+    from iamp.commonroad.planning import ks_engine, off_road_poses, plan
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cr = load(DATA / "USA_US101-5_1_T-1.xml")
+    engine = ks_engine(2)
+    before = plan(cr, engine=tuple(engine[:5]))
+    assert before.safe
+    verdict, _ = _ks_verdict(cr, before)
+    assert not verdict.valid and not verdict.checks["road_boundary"]["ok"]
+    after = plan(cr, engine=engine)
+    assert after.safe and after.iamp_status == "steered-edge-repair", after.iamp_status
+    ks = track(cr, after.trajectory, after.candidate.steps, 2)
+    assert not off_road_poses(cr, ks.centre, ks.states[:, 4]).any()
+    verdict, dev = _ks_verdict(cr, after)
+    assert verdict.valid, verdict.checks
+    assert dev < 0.02
+    # the point-mass solution of the repaired plan is valid too (the repair keeps every vehicle's side)
+    pm = plan(cr)
+    assert pm.iamp_status != "steered-edge-repair"
+
+
+@needs_data
+@settings(max_examples=15, deadline=None)
+@given(x=st.floats(-3.0, 3.0), y=st.floats(-3.0, 3.0), th=st.floats(-0.3, 0.3))
+def test_road_clearance_is_the_growth_at_which_the_body_leaves_the_road(x: float, y: float, th: float) -> None:
+    """:func:`~iamp.commonroad.planning.road_clearance` near US101-5's narrowing left edge (the
+    ego's start moved by up to 3 m, turned by up to 0.3 rad): the body grown by the returned value
+    is on CommonRoad's road and grown by the bisection's resolution more it is off (or the value
+    is an end of the interval searched, with the same meaning there)."""
+    from iamp.commonroad.planning import CLEARANCE_ITERATIONS, off_road_poses, road_clearance
+
+    cr = _us101_5()
+    init = cr.planning_problem.initial_state
+    c = np.asarray(init.position, dtype=float)[None, :] + np.array([[x, y]])
+    h = np.array([float(init.orientation) + th])
+    lo, hi = -0.2, 0.05
+    g = float(road_clearance(cr, c, h, lo, hi)[0])
+    step = (hi - lo) / 2**CLEARANCE_ITERATIONS
+    if g > lo:
+        assert not off_road_poses(cr, c, h, g)[0]
+    else:
+        assert off_road_poses(cr, c, h, lo)[0]
+    if g < hi:
+        assert off_road_poses(cr, c, h, g + step + 1e-9)[0]
+    else:
+        assert not off_road_poses(cr, c, h, hi)[0]
+    assert math.isfinite(g)
+
+
+_CACHE: dict[str, object] = {}
+
+
+def _us101_5():  # type: ignore[no-untyped-def]
+    from iamp.commonroad.convert import load
+
+    if "cr" not in _CACHE:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _CACHE["cr"] = load(DATA / "USA_US101-5_1_T-1.xml")
+    return _CACHE["cr"]
