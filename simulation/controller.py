@@ -600,7 +600,7 @@ class Controller:
             if t + 1e-9 < self.next_seek:
                 return self._follow(ego, nbs, chosen)
             self.next_seek = t + self.cfg.seek_every_s
-            order = ([chosen] if chosen is not None else []) + [g for g in candidate_gaps(en, target, wide)
+            order = ([chosen] if chosen is not None else []) + [g for g in gaps  # candidate_gaps(en, target, wide)
                                                                  if chosen is None or names(g) != names(chosen)]
             cur = [n for n in nbs if n.lane == self.origin]
             verdict, all_v = decide(en, self.y_target(), self.target, self.origin, cur + target, self._plan, cfg,

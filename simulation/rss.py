@@ -193,10 +193,11 @@ def safe_longitudinal_float(v_rear: float, v_front: float, p: RssParameters = DE
     float
         The RSS distance [m].
     """
-    args = (v_rear, v_front, p.response_time_s, p.accel_max, p.brake_min, p.brake_max)
-    if all(isinstance(z, float) for z in args):
-        return _rss_scalar(*(float(z) for z in args))
-    return float(rss_distance(*args))
+    rho, a_acc, b_min, b_max = p.response_time_s, p.accel_max, p.brake_min, p.brake_max
+    if isinstance(v_rear, float) and isinstance(v_front, float) and isinstance(rho, float) \
+            and isinstance(a_acc, float) and isinstance(b_min, float) and isinstance(b_max, float):
+        return _rss_scalar(float(v_rear), float(v_front), float(rho), float(a_acc), float(b_min), float(b_max))
+    return float(rss_distance(v_rear, v_front, rho, a_acc, b_min, b_max))
 
 
 def safe_longitudinal_distance(v_rear: npt.ArrayLike, v_front: npt.ArrayLike,
