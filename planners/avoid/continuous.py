@@ -93,8 +93,8 @@ from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, fit_polynomial, lower_bounds, piece_of
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
-from iamp.planners.avoid.schur import CUTOFF, SchurActiveSet
-from iamp.planners.avoid.solve import RowGeneration, RowsSolution
+from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, SchurActiveSet
+from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration, RowsSolution
 from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.hold import HoldTrajectory
 from iamp.planners.qp.options import check_choice
@@ -255,6 +255,9 @@ class ContinuousAvoidQP:
         self.schur = self._schur(shared) if node_solver == "schur" else None
         #: backend solves among :attr:`n_solves`
         self.n_backend_solves = 0
+        #: relaxations whose optimum was their parent's, proved without a solve (:meth:`inherit`;
+        #: not in :attr:`n_solves`)
+        self.n_inherited = 0
 
     def _schur(self, shared: GridShare | None) -> SchurActiveSet:
         """The node solver of this grid: from ``shared`` when a plan before factored the same
@@ -484,6 +487,46 @@ class ContinuousAvoidQP:
             self.n_solves += sol.solves
             self.n_backend_solves += sol.solves
         return self._solved(spec, sol, (A_in, u_in, ids))
+
+    def inherit(self, spec: Spec, parent: Solved) -> Solved | None:
+        r"""The optimum of ``spec`` without a solve, when it is ``parent``'s: ``parent`` is the
+        optimum of a relaxation of ``spec`` (every row it imposes is one of ``spec``'s, e.g. the
+        relaxation of a box that contains ``spec``'s box); if its ``z`` keeps every row of
+        ``spec`` (to :data:`~iamp.planners.avoid.solve.GENERATION_TOL`, the node solver's own
+        stopping test) and each row with a positive multiplier is also a row of ``spec`` with the
+        same values and bound, then ``(z, y)`` (those multipliers, zero on the other rows) satisfies
+        ``spec``'s KKT conditions — checked again from the data
+        (:meth:`~iamp.planners.avoid.schur.SchurActiveSet.residual`,
+        :data:`~iamp.planners.avoid.schur.CHECK_TOL`) — so it is ``spec``'s unique optimum (strictly
+        convex in the inputs), the cost a lower bound attained.  Returns None otherwise (then solve
+        it).  Counted in :attr:`n_inherited`, not in :attr:`n_solves`."""
+        if self.schur is None or parent.status != st.OPTIMAL:
+            return None
+        A_in, u_in, ids = self.spec_rows(spec)
+        z = parent.z
+        if A_in.shape[0] and float(np.max(A_in @ z - u_in)) > GENERATION_TOL:
+            return None
+        n_eq = self.data.n_eq
+        pA, pu, pids = parent.spec_rows()
+        y_p = parent.y[n_eq:]
+        y = np.zeros(n_eq + ids.size)
+        y[:n_eq] = parent.y[:n_eq]
+        bind = np.flatnonzero(y_p > 0)
+        if bind.size:
+            at = np.searchsorted(ids, pids[bind])  # the layout numbers ascend in both
+            if np.any(at >= ids.size) or np.any(ids[np.minimum(at, ids.size - 1)] != pids[bind]):
+                return None
+            for r, c in zip(bind, at):
+                a, b = pA.indptr[r], pA.indptr[r + 1]
+                e, f = A_in.indptr[c], A_in.indptr[c + 1]
+                if (pu[r] != u_in[c] or not np.array_equal(pA.indices[a:b], A_in.indices[e:f])
+                        or not np.array_equal(pA.data[a:b], A_in.data[e:f])):
+                    return None
+            y[n_eq + at] = y_p[bind]
+        if self.schur.residual(A_in, u_in, z, y) > CHECK_TOL:
+            return None
+        self.n_inherited += 1
+        return Solved(spec, st.OPTIMAL, parent.cost, z, y, 0, self, 0, (A_in, u_in, ids))
 
     def backend_solve(self, sol: Solved) -> Solved:
         """The QP of ``sol`` solved again by the plan's backend (OSQP, Clarabel or PIQP), by row
@@ -768,7 +811,13 @@ class ContinuousAvoidPlanner:
                     # its relaxation)
                     heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals))
                     continue
-                rel = self._qp_solve(qp, _spec(box.orders, lo, hi), box.relaxed, cutoff=U - gap(U))
+                rel_spec = _spec(box.orders, lo, hi)
+                # the parent's relaxed optimum, when it keeps the child's rows, is the child's
+                inherited = qp.inherit(rel_spec, box.relaxed) \
+                    if box.own_relaxation and rel_spec not in qp.solved else None
+                if inherited is not None:
+                    qp.solved[rel_spec] = inherited
+                rel = self._qp_solve(qp, rel_spec, box.relaxed, cutoff=U - gap(U))
                 if rel.status == CUTOFF:  # its bound passed U - gap before its optimum: closed
                     closed_bound = min(closed_bound, max(child, rel.cost))
                 elif rel.status == st.OPTIMAL:
@@ -926,7 +975,8 @@ class ContinuousAvoidPlanner:
                   "open_boxes": out["open_boxes"], "lower_bound": out["lower_bound"],
                   "upper_bound": out["upper_bound"], "gap_rel_tol": self.gap_rel, "closed": out["closed"],
                   "max_solves": self.max_solves, "failures": len(out["failures"]),
-                  "free_certified": bool(out["free_certified"])}
+                  "free_certified": bool(out["free_certified"]),
+                  "inherited_relaxations": qp.n_inherited}
         info["search"] = search
         best: Solved | None = out["best"]
         if best is None:
