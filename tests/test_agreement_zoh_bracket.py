@@ -158,11 +158,14 @@ def test_a_wrong_pmp_cost_is_caught(factor: float) -> None:
 
 class _WrongAtContactTimes:
     """A PMP whose fixed-contact-time plans report ``factor`` x their cost, or plan with the box
-    widened by ``widen`` (its plans leave the problem's box)."""
+    widened by ``widen`` (its plans leave the problem's box), or at contact times later by
+    ``shift`` (its plans miss the corner at the times asked)."""
 
-    factor, widen = 1.0, 1.0
+    factor, widen, shift = 1.0, 1.0, 0.0
 
     def plan(self, problem: Problem, contact_times: object = None) -> Plan:
+        if self.shift:
+            return PMPPlanner().plan(problem, contact_times=np.asarray(contact_times) + self.shift)
         if self.widen != 1.0 and problem.limits is not None:
             lim = problem.limits
             wide = PhysicalLimits(ax=tuple(self.widen * x for x in lim.ax),  # type: ignore[arg-type, union-attr]
@@ -206,3 +209,17 @@ def test_a_pmp_plan_outside_the_box_is_caught(monkeypatch: pytest.MonkeyPatch) -
     assert pair["verdict"] == "disagree"
     assert pair["checks"]["pmp_at_contact_times_box_violation_rel"]["ok"] is False
     assert pair["checks"]["bounded_lower_bound_rel"]["ok"] and pair["checks"]["bounded_zoh_excess_rel"]["ok"]
+
+
+def test_a_pmp_plan_missing_the_corner_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A re-solve whose plan passes the corner a quarter step late (a plan of another problem):
+    its miss of the corner at the QP's contact time is caught."""
+    problem = _bounded(229, 0.609375)
+    pmp, qp = _pair(problem, 24)
+    wrong = _WrongAtContactTimes()
+    wrong.shift = 0.25 * problem.tf / 24
+    monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
+    pair = compare_bounded_pmp_qp(problem, pmp, qp)
+    assert pair["verdict"] == "disagree"
+    assert pair["checks"]["pmp_at_contact_times_residual_rel"]["ok"] is False
+    assert pair["checks"]["pmp_at_contact_times_box_violation_rel"]["ok"]

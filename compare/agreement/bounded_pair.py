@@ -26,8 +26,11 @@ B4. *Lower bound at the same contact times* (rigorous): every plan of the QP at 
     :math:`J_{QP} \ge J_b(t_Q)`, the bounded PMP re-solved at ``t_Q`` (unique: a strictly convex
     problem), within ``cmp_cost_rel_*``.  A QP plan where the bounded PMP finds the box
     infeasible at ``t_Q`` fails this rule.  Its premise, that the re-solve's plan lies in the
-    box, is checked exactly (the input is linear between its knots:
-    ``pmp_at_contact_times_box_violation_rel``, :func:`box_violation`).
+    box, through the corners at ``t_Q`` and between the boundary states, is checked (exactly:
+    the input is linear between its knots, :func:`box_violation`, and the states are
+    integrated exactly; ``pmp_at_contact_times_box_violation_rel``,
+    ``pmp_at_contact_times_residual_rel``).  With B5' it makes the PMP's claim
+    :math:`J_b(t_Q)` the energy of a plan of the continuous problem, hence at least its optimum.
 
 B5. *The PMP's global claim*: an ``optimal`` bounded PMP is certified global over the contact
     times, so :math:`J_b(t_Q) \ge J_b^*` within ``cmp_cost_rel_*`` (a ``local`` PMP: a note).
@@ -510,9 +513,16 @@ def compare_bounded_pmp_qp(problem: Problem, pmp: Run, qp: Run) -> PairJSON:
         return checks.finish(out)
     J_qp, J_at, J_star = plan_cost(q_res), float(at.cost), plan_cost(p_res)
     out["at_same_contact_times"] = at_same_contact_times(q_res, at, tQ, t_nodes)
-    # B4's premise: the re-solve's plan is a plan within the box (exact: its input is linear between its knots)
+    # B4's premise: the re-solve's plan is a plan of the continuous problem at t_Q: in the box (exact: its input is
+    # linear between its knots), through the corners at t_Q and from x_0 to x_f (its states are exact)
     checks.check("pmp_at_contact_times_box_violation_rel", box_violation(problem, at), tol("limits_bound_rel"),
                  why="the bounded PMP's input at the QP's contact times leaves the input box")
+    ends = at.states(np.array([0.0, float(problem.tf)]))
+    miss = max(float(np.max(np.abs(at.states(tQ)[:, [0, 2]] - problem.corners(tQ)))),
+               float(np.max(np.abs(ends[0] - np.asarray(problem.ego.initial)))),
+               float(np.max(np.abs(ends[1] - np.asarray(problem.ego.final)))))
+    checks.check("pmp_at_contact_times_residual_rel", miss / bscale, tol("pmp_condition_residual"),
+                 why="the bounded PMP's plan at the QP's contact times misses a corner or a boundary state")
     # B4: the QP's plan is a plan within the box at t_Q
     checks.check("bounded_lower_bound_rel", (J_at - J_qp) / abs(J_at), ctol,
                  why="the QP's cost is below the bounded PMP's at the same contact times: the QP did not "
