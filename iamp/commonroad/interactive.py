@@ -12,7 +12,8 @@ the ego:
    road frame of :mod:`iamp.commonroad.convert`) into a cubic with the §7 predictor (constant
    speed while fewer than ``min_history_s`` have been observed), keeps its lateral box (lane
    kept; a vehicle observed at most :data:`STANDING_MPS` fast may turn its nose in, its box
-   grows across the road by :data:`TURN_IN_MPS` per second, at most :data:`TURN_IN_MAX_M`), and plans to the goal with the road planner of :mod:`iamp.commonroad.planning`
+   grows across the road by :data:`TURN_IN_MPS` per second, at most :data:`TURN_IN_MAX_M`), and
+   plans to the goal with the road planner of :mod:`iamp.commonroad.planning`
    over the goal's remaining time window (:func:`~iamp.commonroad.convert.final_candidates`).
    A replan that finds no safe plan within the limits chooses (:func:`choose`) among the new
    plan, the previous plan's remainder (a fallback) and the fail-safe braking in the lane
