@@ -223,3 +223,24 @@ def test_a_pmp_plan_missing_the_corner_is_caught(monkeypatch: pytest.MonkeyPatch
     assert pair["verdict"] == "disagree"
     assert pair["checks"]["pmp_at_contact_times_residual_rel"]["ok"] is False
     assert pair["checks"]["pmp_at_contact_times_box_violation_rel"]["ok"]
+
+
+def test_without_a_plan_of_the_qp_the_upper_side_is_a_note() -> None:
+    """``a_total`` at the input box's farthest corner: the friction circle holds the whole box,
+    so every plan in the box keeps it (the PMP's too), but the QP imposes the inscribed 16-gon
+    (apothem 0.981), which the plan built from the PMP's input leaves where it rides the box's
+    corner (at 167.6°, 1.2° from a vertex of the 16-gon, by 0.38 %): that plan is no plan of
+    the QP, so the upper side is not applied (a note names the row); the lower side is."""
+    base = _bounded(229, 0.609375)
+    lim = base.limits
+    assert lim is not None and lim.ax is not None and lim.ay is not None
+    radius = max(float(np.hypot(x, y)) for x in lim.ax for y in lim.ay)
+    problem = base.with_limits(PhysicalLimits(ax=lim.ax, ay=lim.ay, a_total=radius))
+    pmp, qp = _pair(problem, 24)
+    assert pmp.result.status == "optimal" and qp.result.status == "optimal"
+    pair = compare_bounded_pmp_qp(problem, pmp, qp)
+    reason = pair["bounded"]["zoh_upper_reason"]  # type: ignore[typeddict-item]
+    assert isinstance(reason, str) and "a_total" in reason
+    assert "bounded_zoh_excess_rel" not in pair["checks"]
+    assert any("upper side is not applied" in note for note in pair["notes"])
+    assert pair["verdict"] == "agree" and pair["checks"]["bounded_lower_bound_rel"]["ok"]
