@@ -37,8 +37,8 @@ B5. *The PMP's global claim*: an ``optimal`` bounded PMP is certified global ove
 
 B5'. *The PMP's cost is its plan's*: :math:`J^*` equals :math:`E(u^*) = \tfrac12\int_0^{t_f}|u^*|^2`
     of its own input (exact: the input is linear between its knots, :func:`input_energy`),
-    within ``cmp_cost_rel_*``; the rules compare costs, so the cost compared must be the
-    plan's.
+    within ``cmp_cost_rel_*``, and so does the re-solve's :math:`J_b(t_Q)`; the rules compare
+    costs, so the cost compared must be the plan's.
 
 B6. *Discretisation excess* :math:`\Delta = J_{QP} - J_b(t_Q) \ge 0` (B4 is its lower side).
     ZOH: an a-posteriori two-sided bracket, derived below, not fitted:
