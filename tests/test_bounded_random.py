@@ -11,8 +11,7 @@ the nodes are in it everywhere; the contact time is a node or, with ``contact = 
 the grid), so its cost is an upper bound of the bounded optimum wherever it converges:
 
 * one vehicle (``N = 60``, ``contact = "refine"``, every contact time searched): the QP
-  converges ⇒ the PMP is ``optimal`` (certified global) — or, the known class left open
-  (:func:`at_an_edge_known`), ``local`` at an edge of the feasible contact times — at most ``1e-6`` (relative) above
+  converges ⇒ the PMP is ``optimal`` (certified global), at most ``1e-6`` (relative) above
   the QP and, where the QP is ``optimal``, within ``2e-3`` below it (the grid's error; a
   ``local`` QP's refined contact time may lie in a worse basin: random_problem(34389) at 0.85,
   QP 3.5020 at N = 60, 3.45578 at N = 120, the PMP 3.45578); the FOH QP through the PMP's
@@ -38,7 +37,6 @@ from hypothesis import strategies as st
 from iamp.api import plan
 from iamp.core import status as stc
 from iamp.core.physical import PhysicalLimits
-from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.planners.examples import random_problem
 from iamp.planners.pmp import PMPPlanner
@@ -72,16 +70,6 @@ def _at_its_contact_times(problem: Problem, t: object, cost: float | None, steps
         assert cost * (1 - 1e-9) <= at.cost <= cost * (1 + BELOW_REL), (*where, cost, at.cost)
 
 
-def at_an_edge_known(pmp: Plan) -> bool:
-    """The one known class of one-vehicle failure (issue 32, open; the strict xfail
-    :func:`test_a_minimum_at_the_edge_is_certified_known`): a ``local`` plan whose search ended
-    at an edge of the feasible contact times (``search.feasibility_edge``), where the global
-    certificate does not close.  Such a plan must still have the QP's cost (:func:`check`'s
-    bounds) and be the convex optimum at its own contact time; only the *claim* is missing."""
-    search = pmp.info.get("search") or {}
-    return pmp.status == stc.LOCAL and search.get("feasibility_edge") in ("lower", "upper")
-
-
 def check(seed: int, m: int, scale: float) -> str:
     """The module docstring's implications; returns ``"<pmp status>/<qp status>"``."""
     problem = boxed(seed, m, scale)
@@ -94,11 +82,11 @@ def check(seed: int, m: int, scale: float) -> str:
         qp = plan(problem, "qp", solver="clarabel", steps=60, contact="refine")
         if qp.status in (stc.OPTIMAL, stc.LOCAL):
             assert qp.cost is not None and pmp.cost is not None, (*where, qp.cost)
-            assert pmp.status == stc.OPTIMAL or at_an_edge_known(pmp), (*where, qp.cost)
+            assert pmp.status == stc.OPTIMAL, (*where, qp.cost)
             assert pmp.cost <= qp.cost * (1 + ABOVE_REL) + ABOVE_REL, (*where, pmp.cost, qp.cost)
             if qp.status == stc.OPTIMAL:  # a `local` QP's refined contact time may sit in a worse basin
                 assert pmp.cost >= qp.cost * (1 - BELOW_REL), (*where, pmp.cost, qp.cost)
-        if pmp.status == stc.OPTIMAL or at_an_edge_known(pmp):
+        if pmp.status == stc.OPTIMAL:
             _at_its_contact_times(problem, pmp.contact_times, pmp.cost, 240, where)
     else:
         qp = plan(problem, "qp", solver="clarabel", steps=8)
@@ -163,16 +151,13 @@ def test_three_vehicles_polish_to_stationarity(seed: int, scale: float) -> None:
     assert pmp.diagnostics.checks["hamiltonian_jump"]["ok"]
 
 
-@pytest.mark.slow  # the certificate's 3000 solves: ~8 s CPU
-@pytest.mark.xfail(strict=True, reason="known (issue 32, open): the global certificate does not close at the edge of "
-                   "the feasible contact times (SPEC §14): random_problem(421188) at 0.98 of its peaks, J_b falls to "
-                   "the edge at t = 2.00079 s; the plan is right (QP N = 60 refine: 17.38096 vs 17.38077) but local, "
-                   "and the certificate spends its 3000 solves on Farkas intervals beyond the edge whose margin "
-                   "vanishes there")
-def test_a_minimum_at_the_edge_is_certified_known() -> None:
+def test_a_minimum_at_the_edge_is_certified() -> None:
     """The one class of failure left in 1400 generated problems (2026-11-28): 6 of 1003
     one-vehicle problems (421188 at 0.98, 816845 at 0.93, 161397 at 0.87, 608074 at 0.70,
-    901663 at 0.85, 985552 at 0.84), each ``local`` at a feasibility edge with the QP's cost.
-    Beyond the edge the dual Newton method stalls within ~1e-7 t_f (no divergent direction, so
-    no Farkas certificate), while the Taylor bound at the minimum reaches ~1.6e-8 t_f."""
+    901663 at 0.85, 985552 at 0.84; and 520797 at 0.734), each ``local`` at a feasibility edge with
+    the QP's cost: beyond the edge the dual Newton method stalled within ~1e-7 t_f (no divergent
+    direction, so no Farkas certificate) while the Taylor bound at the minimum reached ~1.6e-8
+    t_f.  Now the contact times beyond the edge are certified infeasible by a Farkas margin
+    maximised over the multipliers (:mod:`iamp.planners.pmp.reach`), and a stationary minimum
+    just inside the edge is found (tests/test_pmp_bounded_edge.py covers all seven)."""
     assert check(421188, 1, 0.9802351504609911) == "optimal/local"

@@ -112,6 +112,11 @@ EDGE_PROBE = 1e-6
 #: cost this adds, ``|r| EDGE_BACKOFF t_f``, is far below the certificate's ``1e-9``.
 EDGE_BACKOFF = 1e-10
 
+#: Half-width (over ``t_f``) of the interval whose Taylor bound :func:`certify_global_one` takes
+#: at an edge of the feasible contact times beside a stationary minimum (the bound's radius
+#: there is about ``1e-9 t_f``; ``M`` only falls as the interval shrinks).
+EDGE_TAYLOR = 1e-8
+
 #: The tolerance entry of each check of :func:`check_values`.
 BOUNDED_TOLERANCE_OF = {
     "boundary": "pmp_bounded_residual",
@@ -698,7 +703,8 @@ def interval_bound(problem: Problem, a: float, b: float) -> tuple[str, float]:
 
 def certify_global_one(problem: Problem, J_best: float, rel: float | None = None, max_solves: int = 3000,
                        value_function: Any = None, t_best: float | None = None,
-                       warm_best: list[list[float] | None] | None = None) -> dict[str, Any]:
+                       warm_best: list[list[float] | None] | None = None, edge: tuple[str, float] | None = None,
+                       warm_edge: list[list[float] | None] | None = None) -> dict[str, Any]:
     r"""One vehicle: is ``J_best`` the global minimum of :math:`J_b(t)` over ``(0, t_f)`` to the
     relative accuracy ``rel`` (default ``pmp_global_certificate_rel``)?
 
@@ -798,6 +804,24 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
                         graded.append((lo_, hi_, lams))
                         x = y
                 level = level[:k_best] + graded + level[k_best + 1:]
+            if edge is not None and edge[0] in ("lower", "upper") and 0.0 < edge[1] < T:
+                edge_side, t_edge = edge
+                rho_e, warm_e = rho, warm_best or [None, None]
+                if t_edge != t_best:  # an edge beside a stationary minimum: the Taylor interval there
+                    h_e = min(EDGE_TAYLOR * T, t_edge, T - t_edge)
+                    warm_e = warm_edge or [None, None]
+                    kind, value, warm_e, used, terms = bound_on.many([(t_edge - h_e, t_edge + h_e, warm_e)])[0]
+                    solves += used
+                    rho_e = min(_certified_radius(*terms, target), h_e) if kind == "bound" else 0.0
+                if rho_e > 0:
+                    covered = _cover_beyond_edge(bound_on, t_edge, rho_e, edge_side, warm_e)
+                    if covered is not None:
+                        out["edge_cover"] = covered
+                        lo_e, hi_e = min(covered["from"], t_edge - rho_e), max(covered["to"], t_edge + rho_e)
+                        intervals += 1
+                        level = [piece for a, b, w in level for piece in (
+                            [(a, b, w)] if b <= lo_e or a >= hi_e else
+                            [(a, lo_e, w)] * (a < lo_e) + [(hi_e, b, w)] * (b > hi_e))]
     use_unbounded = True
     while level:  # breadth first, one level of halved intervals at a time
         if use_unbounded:  # the closed-form bound J_b >= J_u on the whole level at once
@@ -840,6 +864,41 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
         level = nxt
     out.update(certified=True, intervals=intervals, solves=solves, lowest_bound=lowest, pruned_by_unbounded=pruned)
     return out
+
+
+def _stationary(search: dict[str, Any], fixed: bool) -> bool:
+    """Whether the self-check applies the Hamiltonian-jump condition ``r = 0``: not at given
+    contact times, not at an edge of the feasible ones (the minimum is not stationary there)."""
+    return not fixed and "feasibility_edge" not in search
+
+
+def _edge_of(search: dict[str, Any], t_best: float) -> tuple[str, float] | None:
+    """``(side, time)`` of the certificate's edge cover: the plan's own contact time when the
+    minimum is at the edge (``feasibility_edge``), the last feasible time when it is beside it."""
+    edge = search.get("edge")
+    if edge is None:
+        return None
+    return (edge["side"], t_best if search.get("feasibility_edge") else float(edge["t"]))
+
+
+def _cover_beyond_edge(bound_on: _IntervalBound, t_best: float, rho: float, edge: str,
+                       warm: list[list[float] | None]) -> dict[str, Any] | None:
+    """The contact times beyond an edge of the feasible ones, from ``t_best ± ρ`` (the end of
+    the Taylor interval around a minimum at the edge) outward, certified infeasible by
+    :func:`~iamp.planners.pmp.reach.cover_edge` (a Farkas margin maximised over the
+    multipliers, with a bound of its slope on each step); ``None`` when nothing is."""
+    from iamp.planners.pmp.reach import AxisReach, cover_edge
+
+    T = bound_on.T
+    side = 1.0 if edge == "upper" else -1.0
+    axes = [AxisReach(T, bound_on.axes_data[k], bound_on.pos, bound_on.der, bound_on.off[k], k == 0,
+                      bound_on.cddot_max[0], t_best) for k in range(2)]
+    start = (t_best + side * rho) / T
+    reached, axis, steps = cover_edge(axes, warm, start, side)
+    if axis < 0:
+        return None
+    lo_e, hi_e = sorted((start * T, reached * T))
+    return {"from": lo_e, "to": hi_e, "axis": "xy"[axis], "steps": steps}
 
 
 # ------------------------------------------------------------------------------------------
@@ -1174,6 +1233,56 @@ def _lower_bound(problem: Problem, t: FloatArray, vf: Any = None) -> FloatArray:
     return out
 
 
+def _r_at(ev: _Evaluator, x: float) -> float:
+    """``r(x)`` for Brent's method (``0`` where no plan: the bracket's ends are feasible)."""
+    rr = ev(np.array([x]))[1][0]
+    return float(rr) if np.isfinite(rr) else 0.0
+
+
+def _edge_candidate(ev: _Evaluator, T: float, edge_t: float, probe: float, side: str
+                    ) -> tuple[float, str | None, tuple[str, float] | None, bool]:
+    """The candidate of :func:`_search_one` where ``J_b`` falls from ``probe`` towards the edge
+    ``edge_t`` (the last feasible time) on ``side``: ``(t, feasibility_edge, (side, edge_t),
+    stationary_within_ulp)``.  The minimum is at the edge (planned :data:`EDGE_BACKOFF` inside),
+    unless ``r`` turns again just inside it: then a stationary minimum lies between the probe and
+    the edge (random_problem(608074) at 0.70: ``1.5e-7 t_f`` inside, ``4e-8`` below the edge's
+    ``J_b``), found by Brent's method on ``r``.  So close to the edge ``r`` can be steep enough to
+    change sign between adjacent floats (random_problem(161397) at 0.87: ``r t_f/J_b`` from
+    ``-5e-4`` to ``5e-4`` within four ulps of ``t``): bisection on its sign down to adjacent
+    floats, the one with the smaller ``|r|``; ``r``'s zero is then within one ulp of it."""
+    from scipy.optimize import brentq
+
+    sign = 1.0 if side == "upper" else -1.0
+    at = edge_t - sign * EDGE_BACKOFF * T
+    r_at = ev(np.array([at]))[1][0]
+    if np.isfinite(r_at) and sign * r_at > 0:
+        try:
+            root = float(brentq(lambda x: _r_at(ev, x), min(probe, at), max(probe, at), xtol=1e-11 * T,
+                                maxiter=200))
+        except (ValueError, RuntimeError):
+            root = math.nan
+        if math.isfinite(root):
+            a, b = root - 4e-11 * T, root + 4e-11 * T
+            ra, rb = _r_at(ev, a), _r_at(ev, b)
+            ulp = ra * rb < 0
+            while ulp:
+                mid = 0.5 * (a + b)
+                if not a < mid < b:
+                    break
+                rm = _r_at(ev, mid)
+                if rm == 0.0:
+                    a = b = mid
+                    break
+                if (rm < 0) == (ra < 0):
+                    a, ra = mid, rm
+                else:
+                    b, rb = mid, rm
+            if ulp:
+                root = a if abs(ra) <= abs(rb) else b
+            return root, None, (side, edge_t), ulp
+    return at, side, (side, edge_t), False
+
+
 def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tuple[FloatArray, dict[str, Any]]:
     """One vehicle: ``J_b`` at the unbounded ``t*``, then at the grid points whose lower bound
     ``J_u(t)`` is below the best ``J_b`` so far (the others cannot win), then Brent's root of
@@ -1205,6 +1314,8 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
     order = np.argsort(vals)
     best_t, best_J = pts[int(order[0])], vals[int(order[0])]
     edge: str | None = None
+    edge_at: tuple[str, float] | None = None  # (side, the last feasible time) of an edge beside the minimum
+    within_ulp = False
     for rank, idx in enumerate(order[: min(3, len(order))]):
         i = int(idx)
         # polish the best grid basin, and others only when their grid value is within 5 %
@@ -1218,37 +1329,40 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
         # (bisection): J_b may fall all the way to that edge, where the minimum is not
         # stationary.  At the edge itself the dual multipliers grow without bound and r loses
         # its digits, so the slope there is read EDGE_PROBE t_f inside, where the bracket starts.
-        cands: list[tuple[float, str | None]] = []
+        cands: list[tuple[float, str | None, tuple[str, float] | None, bool]] = []
+
+        def r_of(x: float) -> float:
+            return _r_at(ev, x)
+
         if not np.isfinite(r_lo) and math.isfinite(vals[i]):
             edge_t = _feasible_edge(ev, pts[i], lo_t, T)
             lo_t = min(edge_t + EDGE_PROBE * T, 0.5 * (edge_t + pts[i]))
             r_lo = ev(np.array([lo_t]))[1][0]
             if r_lo > 0:  # J_b rises from the lower edge: a minimum at the edge
-                cands.append((edge_t + EDGE_BACKOFF * T, "lower"))
+                cands.append(_edge_candidate(ev, T, edge_t, lo_t, "lower"))
         if not np.isfinite(r_hi) and math.isfinite(vals[i]):
             edge_t = _feasible_edge(ev, pts[i], hi_t, T)
             hi_t = max(edge_t - EDGE_PROBE * T, 0.5 * (edge_t + pts[i]))
             r_hi = ev(np.array([hi_t]))[1][0]
             if r_hi < 0:  # J_b falls to the upper edge
-                cands.append((edge_t - EDGE_BACKOFF * T, "upper"))
+                cands.append(_edge_candidate(ev, T, edge_t, hi_t, "upper"))
         if not (np.isfinite(r_lo) and np.isfinite(r_hi)):
             continue
         if r_lo < 0 < r_hi:
-
-            def r_of(x: float) -> float:
-                rr = ev(np.array([x]))[1][0]
-                return float(rr) if np.isfinite(rr) else 0.0
-
             try:
-                cands.append((float(brentq(r_of, lo_t, hi_t, xtol=1e-11 * T, maxiter=200)), None))
+                cands.append((float(brentq(r_of, lo_t, hi_t, xtol=1e-11 * T, maxiter=200)), None, None, False))
             except (ValueError, RuntimeError):
                 pass
-        for cand, side in cands:
+        for cand, side, near, ulp in cands:
             J_c = ev(np.array([cand]))[0]
             if J_c < best_J:
-                best_t, best_J, edge = cand, J_c, side
+                best_t, best_J, edge, edge_at, within_ulp = cand, J_c, side, near, ulp
     if edge is not None:
         info["feasibility_edge"] = edge
+    if edge_at is not None:
+        info["edge"] = {"side": edge_at[0], "t": edge_at[1]}
+    if within_ulp:
+        info["stationary_within_ulp"] = True
     info["evaluations"] = ev.evaluations
     return np.array([best_t]), info
 
@@ -1420,7 +1534,7 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
     try:
         with np.errstate(all="ignore"):
             sol = solve_bounded_fixed(problem, t, ev.warm_for(t))
-            values = check_values(sol, stationary=not fixed and "feasibility_edge" not in search)
+            values = check_values(sol, stationary=_stationary(search, fixed))
     except AxisInfeasible as exc:
         return _failed(problem, INFEASIBLE, "box_infeasible_at_contact_times", info, t0, str(exc))
     except (AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError, OverflowError) as exc:
@@ -1433,18 +1547,28 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         try:
             with np.errstate(all="ignore"):
                 cold = solve_bounded_fixed(problem, t)
-                cold_values = check_values(cold, stationary=not fixed and "feasibility_edge" not in search)
+                cold_values = check_values(cold, stationary=_stationary(search, fixed))
             cold_judged = judge(cold_values)
             if cold_judged[2] is None:
                 sol, values, (checks, failed, bad) = cold, cold_values, cold_judged
         except (AxisInfeasible, AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError,
                 OverflowError):
             pass
+    if failed == "hamiltonian_jump" and search.get("stationary_within_ulp"):
+        # r changes sign between adjacent float contact times (beside an edge, _edge_candidate):
+        # no float time is nearer r = 0, so the condition is not applied; the claim rests on
+        # the global certificate (``local`` without it)
+        values = {k: v for k, v in values.items() if k != "hamiltonian_jump"}
+        checks, failed, bad = judge(values)
+        search["hamiltonian_jump_not_applied"] = "r changes sign within one ulp of the contact time"
     certified = bool(fixed)
     if bad is None and not fixed:
         if m == 1 and certify:
             cert = certify_global_one(problem, sol.cost, value_function=ev.value_function(),
-                                      t_best=float(sol.contact_times[0]), warm_best=[sol.axes[0].lam, sol.axes[1].lam])
+                                      t_best=float(sol.contact_times[0]), warm_best=[sol.axes[0].lam, sol.axes[1].lam],
+                                      edge=_edge_of(search, float(sol.contact_times[0])),
+                                      warm_edge=ev.warm_for(np.array([search["edge"]["t"]])) if "edge" in search
+                                      else None)
             certified = bool(cert["certified"])
             info["global_certificate"] = {**cert, "rel": TOLERANCES["pmp_global_certificate_rel"],
                                           "method": "dual Taylor bound per interval of contact times, "
