@@ -99,3 +99,34 @@ def _us101_5():  # type: ignore[no-untyped-def]
             warnings.simplefilter("ignore")
             _CACHE["cr"] = load(DATA / "USA_US101-5_1_T-1.xml")
     return _CACHE["cr"]
+
+
+#: USA_US101-6_204_T-1 (seed 1, ``lanes3``): three lanes over at 18-24 m/s, heading in [-0.759, -0.585].
+GOAL_6_204 = [{"time_step": [70, 80], "velocity": [18.2385, 24.2385], "orientation": [-0.7594, -0.5849],
+               "position": {"center": [101.9631, -98.245], "length": 2.2446, "width": 1.7266,
+                            "orientation": -0.65965}}]
+
+
+@needs_data
+def test_a_plan_whose_steered_car_misses_the_goal_heading_is_not_taken(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """6_204 as ``KS``: the active set's plan ends turning at 20 m/s with its direction of travel
+    inside the goal's heading interval, but the steered car's heading (the rear axle's) lags it by
+    the slip angle (23 mrad) and ends 4 mrad outside: goal missed.  Now a plan whose tracked
+    solution misses the goal by CommonRoad's own test is not taken while another final state or
+    the corridor planner (whose goal rows hold for the rear axle's heading) gives one that
+    reaches it: valid by CommonRoad's checker."""
+    from test_commonroad_unseen import with_goal
+
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import ks_engine, plan
+
+    cr = load(with_goal(tmp_path, "USA_US101-6_1_T-1.xml", "USA_US101-6_204_T-1", GOAL_6_204))
+    engine = ks_engine(2)
+    before = plan(cr, engine=tuple(engine[:5]))
+    assert before.safe and before.steered_goal is None
+    verdict, _ = _ks_verdict(cr, before)
+    assert not verdict.valid and not verdict.checks["goal_reached"]["ok"]
+    after = plan(cr, engine=engine)
+    assert after.safe and after.steered_goal is True
+    verdict, _ = _ks_verdict(cr, after)
+    assert verdict.valid, verdict.checks

@@ -216,6 +216,9 @@ class RoadPlan:
     peak_accel_mps2: float = 0.0
     plans_used: int = 0
     blocked: Obstacle | None = None  # an intruded vehicle without a corner for this final state
+    #: For a steered solution (:func:`steer_at_edges`): does the tracked ``KS`` solution reach the
+    #: goal by CommonRoad's test (``None``: not tracked)?
+    steered_goal: bool | None = None
 
     @property
     def safe(self) -> bool:
@@ -639,6 +642,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     repairs = MAX_REPAIRS
     n_tried = 0
     tried: list[Candidate] = []
+    steered_miss: RoadPlan | None = None  # a safe plan whose steered solution misses the goal
     while queue and n_tried < max_candidates:
         cand = queue.pop(0)  # with the planner calls spent, only the free plans of the rest are tried
         n_tried += 1
@@ -671,7 +675,13 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             result = steer_at_edges(cr, result, engine)
             result.solve_time_s = time.perf_counter() - start
             result.plans_used = max_plans - budget[0]
-            return result
+            if result.steered_goal is not False:
+                return result
+            # the steered car misses the goal (its heading, the rear axle's, lags the plan's
+            # direction of travel by the slip angle): the next final state, the corridor's
+            # rear-axle heading rows, else this plan
+            steered_miss = steered_miss or result
+            continue
         if best is None or _worse(best, result):
             best = result
         if result.blocked is not None:  # end beside it instead: the same time, across the goal shape
@@ -680,7 +690,9 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
                                                         edge_margins(cr, edge_heading)))
             if other is not None and all(abs(other.d - c.d) > 1e-3 or other.steps != c.steps for c in tried + queue):
                 queue.insert(0, other)
-    assert best is not None
+    if best is None:
+        assert steered_miss is not None
+        best = steered_miss
     if via and active and planner != "free" and best.candidate is not None and max_plans > 0:
         staged = _via(cr, best, planner, iamp_planner, constraint, steps, heading, edge_heading)
         if staged is not None:
@@ -688,7 +700,9 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             staged.candidates_tried = n_tried
             staged.solve_time_s = time.perf_counter() - start
             staged.plans_used = max_plans - budget[0] + staged.plans_used
-            return staged
+            if staged.steered_goal is not False:
+                return staged
+            steered_miss = steered_miss or staged
     if corridor and planner != "free" and best.candidate is not None and max_plans > 0:
         wide = plan_corridor(cr, best, planner, heading, others=tried + clear, engine=engine)
         if wide is not None:
@@ -696,7 +710,12 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             wide.candidates_tried = n_tried
             wide.solve_time_s = time.perf_counter() - start
             wide.plans_used = max_plans - budget[0]
-            return wide
+            if wide.steered_goal is not False or steered_miss is None:
+                return wide
+    if steered_miss is not None:
+        steered_miss.solve_time_s = time.perf_counter() - start
+        steered_miss.plans_used = max_plans - budget[0]
+        return steered_miss
     steps_tried = sorted({c.steps for c in tried})
     if found is None:
         ends = f"{len(cr.candidates) - len(clear)} of {len(cr.candidates)} final states end inside a vehicle"
@@ -2108,12 +2127,76 @@ def repair_at_edges(cr: CommonRoadProblem, base: Trajectory, cand: Candidate,
 
 
 
+
 #: Passes of the steered car's edge repair (:func:`steer_at_edges`; a count, not a time).
 STEER_PASSES = 3
 #: Clearance from CommonRoad's road boundary the steered body is given where it had less [m].
 STEER_CLEAR_M = 0.005
 #: Bisection steps of :func:`road_clearance` (its resolution: 0.25 m / 2^12 = 0.06 mm).
 CLEARANCE_ITERATIONS = 12
+#: A body farther than this from the corridor's widest bounds and from every road-edge box is on
+#: CommonRoad's road without asking its checker (they are within 2 cm of its road) [m].
+NEAR_EDGE_M = 0.1
+
+
+def near_road_edges(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray,
+                    near: float = NEAR_EDGE_M) -> npt.NDArray[np.bool_]:
+    """Which bodies (world centres and headings) come within ``near`` of the road's edge in the
+    road frame: of the corridor's widest bounds ``cr.road_y``, of a road-edge box (a narrower
+    part or a hole, :func:`body_overlap`), or beyond the corridor's ends.  Only those need
+    CommonRoad's road check (:func:`off_road_poses`, whose checker costs 0.4 s to build).
+
+    Parameters
+    ----------
+    cr : CommonRoadProblem
+    centre : ndarray, shape (n, 2)
+    heading : ndarray, shape (n,)
+    near : float
+        The distance [m].
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    sd = np.asarray(cr.frame.to_road(np.asarray(centre, dtype=float)), dtype=float)
+    s, d = sd[:, 0], sd[:, 1]
+    phi = (np.asarray(heading, dtype=float) - np.asarray(cr.frame.heading(s), dtype=float) + math.pi) % (
+        2 * math.pi) - math.pi
+    L2, W2 = cr.ego_length / 2, cr.ego_width / 2
+    across = L2 * np.abs(np.sin(phi)) + W2 * np.abs(np.cos(phi))
+    lo, hi = cr.road_y
+    out = (d + across > hi - near) | (d - across < lo + near)
+    if cr.corridor is not None:
+        grid = cr.corridor[0]
+        out |= (s - L2 - near < grid[0]) | (s + L2 + near > grid[-1])
+    for ob in cr.road_edges:
+        one = np.ones_like(s)
+        out |= body_overlap(s, d, phi, float(ob.s_lo.min()) * one, float(ob.s_hi.max()) * one,
+                            float(ob.d_lo.min()) * one, float(ob.d_hi.max()) * one, L2, W2, near) > 0
+    return np.asarray(out, dtype=bool)
+
+
+def steered_off_road(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray,
+                     grow: float = 0.0) -> npt.NDArray[np.bool_]:
+    """:func:`off_road_poses`, asked only for the bodies :func:`near_road_edges` (with ``grow``
+    added to its distance); the others are on the road."""
+    C, H = np.asarray(centre, dtype=float), np.asarray(heading, dtype=float)
+    near = near_road_edges(cr, C, H, NEAR_EDGE_M + max(grow, 0.0))
+    out = np.zeros(len(C), dtype=bool)
+    if near.any():
+        out[near] = off_road_poses(cr, C[near], H[near], grow)
+    return out
+
+
+def steered_reaches_goal(cr: CommonRoadProblem, ks: Any) -> bool:
+    """Does the tracked ``KS`` solution (:class:`iamp.commonroad.ks.KSTrajectory`) reach the goal
+    by CommonRoad's own goal test (commonroad-io's, as the checker runs it on ``KS`` states)?"""
+    from commonroad.scenario.trajectory import Trajectory as CRTrajectory
+
+    from iamp.commonroad.solution import ks_states
+
+    ok, _ = cr.planning_problem.goal_reached(CRTrajectory(initial_time_step=0, state_list=ks_states(ks)))
+    return bool(ok)
 
 
 def road_clearance(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray,
@@ -2186,7 +2269,8 @@ def steer_at_edges(cr: CommonRoadProblem, p: RoadPlan, engine: tuple[float, ...]
     Returns
     -------
     RoadPlan
-        ``p``, or the repaired plan (``iamp_status`` ``steered-edge-repair``).
+        ``p``, or the repaired plan (``iamp_status`` ``steered-edge-repair``), with
+        ``steered_goal`` set: whether the tracked solution reaches the goal (CommonRoad's test).
     """
     vehicle_type = getattr(engine, "vehicle_type", None)
     if vehicle_type is None or not p.safe or p.candidate is None or p.trajectory is None:
@@ -2196,11 +2280,12 @@ def steer_at_edges(cr: CommonRoadProblem, p: RoadPlan, engine: tuple[float, ...]
     cand, base = p.candidate, p.trajectory
     K = cand.steps
     ks = track(cr, base, K, int(vehicle_type))
-    if not off_road_poses(cr, ks.centre, ks.states[:, 4]).any():
+    p.steered_goal = steered_reaches_goal(cr, ks)
+    if not steered_off_road(cr, ks.centre, ks.states[:, 4]).any():
         return p
     margin = np.zeros(K + 1)
     for _ in range(STEER_PASSES):
-        near = off_road_poses(cr, ks.centre, ks.states[:, 4], STEER_CLEAR_M)
+        near = steered_off_road(cr, ks.centre, ks.states[:, 4], STEER_CLEAR_M)
         near[0] = False  # the initial state is the problem's
         if not near.any():
             return p
@@ -2213,7 +2298,7 @@ def steer_at_edges(cr: CommonRoadProblem, p: RoadPlan, engine: tuple[float, ...]
         if intrusions(cr, fixed, cand.tf) or peak > cr.a_max:
             return p
         ks = track(cr, fixed, K, int(vehicle_type))
-        if not off_road_poses(cr, ks.centre, ks.states[:, 4]).any():
+        if not steered_off_road(cr, ks.centre, ks.states[:, 4]).any():
             return RoadPlan(p.planner, "optimal", cand, fixed, fixed.cost(), p.solve_time_s, list(p.imposed), [],
-                            "steered-edge-repair", 0, None, h, peak)
+                            "steered-edge-repair", 0, None, h, peak, steered_goal=steered_reaches_goal(cr, ks))
     return p

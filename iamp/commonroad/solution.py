@@ -19,6 +19,7 @@ the plan's velocity error inside a step (millimetres per step; the largest drift
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -27,6 +28,11 @@ from iamp.commonroad import require
 from iamp.commonroad.convert import CommonRoadProblem
 from iamp.core.atomic import write_text
 from iamp.core.plan import Trajectory
+
+if TYPE_CHECKING:
+    from commonroad.scenario.state import KSState
+
+    from iamp.commonroad.ks import KSTrajectory
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -48,6 +54,25 @@ def world_states(cr: CommonRoadProblem, trajectory: Trajectory, steps: int) -> t
     for k in range(steps):
         Z[k + 1] = Z[k] + V[k] * cr.dt + 0.5 * U[k] * cr.dt**2
     return Z, V, float(np.max(np.linalg.norm(Z - P, axis=1)))
+
+
+def ks_states(ks: KSTrajectory) -> list[KSState]:
+    """The CommonRoad ``KSState`` of every time step of a tracked ``KS`` trajectory (the centre's
+    position, steering angle, speed, the rear axle's heading), as a solution stores them.
+
+    Parameters
+    ----------
+    ks : iamp.commonroad.ks.KSTrajectory
+
+    Returns
+    -------
+    list of commonroad.scenario.state.KSState
+    """
+    from commonroad.scenario.state import KSState
+
+    return [KSState(time_step=k, position=ks.centre[k].copy(), steering_angle=float(ks.states[k, 2]),
+                    velocity=float(ks.states[k, 3]), orientation=float(ks.states[k, 4]))
+            for k in range(len(ks.states))]
 
 
 #: The vehicle models a solution can be written in: point mass, kinematic single track.
@@ -94,7 +119,7 @@ def build_solution(cr: CommonRoadProblem, trajectory: Trajectory, steps: int,
         VehicleModel,
         VehicleType,
     )
-    from commonroad.scenario.state import KSState, PMState, TraceState
+    from commonroad.scenario.state import PMState, TraceState
     from commonroad.scenario.trajectory import Trajectory
 
     from iamp.core.errors import ScenarioError
@@ -107,9 +132,7 @@ def build_solution(cr: CommonRoadProblem, trajectory: Trajectory, steps: int,
         from iamp.commonroad.ks import track
 
         ks = track(cr, trajectory, steps, vehicle_type)
-        states = [KSState(time_step=k, position=ks.centre[k].copy(), steering_angle=float(ks.states[k, 2]),
-                          velocity=float(ks.states[k, 3]), orientation=float(ks.states[k, 4]))
-                  for k in range(steps + 1)]
+        states = list(ks_states(ks))
         drift = ks.deviation_m
     else:
         Z, V, drift = world_states(cr, trajectory, steps)
