@@ -339,6 +339,8 @@ def boundary_feasible(problem: Problem) -> str | None:
     (lx, hx), (ly, hy) = input_box(problem)
     for name, (s0, v0, sf, vf, lo, hi) in (("x", (ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx)),
                                            ("y", (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))):
+        if solve_axis_value([], float(problem.tf), s0, v0, sf, vf, [], lo, hi) is not None:
+            continue  # converged (the same solve, without building its AxisSolution)
         try:
             solve_axis([], float(problem.tf), s0, v0, sf, vf, [], lo, hi)
         except AxisInfeasible as exc:
