@@ -42,7 +42,11 @@ autonomous), a further check of the switching structure.
   first moved to the edge of the feasible contact times (bisection), since ``J_b`` can fall
   all the way to that edge; a minimum *at* the edge is not stationary (``r ≠ 0``, pointing out
   of the feasible set), so the Hamiltonian-jump check is not applied there
-  (``info["search"]["feasibility_edge"]``).  One vehicle: :func:`certify_global_one` covers
+  (``info["search"]["feasibility_edge"]``); if ``r`` turns again just inside the edge, the
+  stationary minimum there is found instead (:func:`_edge_candidate`).  Beyond such an edge
+  (``info["search"]["edge"]``) the certificate uses :mod:`~iamp.planners.pmp.reach` (a Farkas
+  margin maximised over the multipliers, where the dual Newton method stalls).
+  One vehicle: :func:`certify_global_one` covers
   ``(0, t_f)`` with intervals on which the closed-form unbounded bound
   :math:`J_b \ge J_u` (vectorised, no solve), a weak-duality Taylor bound or a Farkas margin
   stays above :math:`J^*(1 - 10^{-9})`; certified, the plan is ``optimal``, otherwise
@@ -756,9 +760,15 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     axes of every open interval of a level solved in one kernel call
     (:func:`~iamp.planners.pmp.saturated.contact_points`); the certificate fails (``local``)
     when an axis solve stalls on an interval below ``1e-12 t_f`` or the budget ``max_solves``
-    is spent.
+    is spent.  Given an ``edge`` ``(side, t)`` of the feasible contact times beside the minimum
+    (``t = t_best`` when the minimum is at it; else a Taylor interval at ``t``, half-width
+    :data:`EDGE_TAYLOR`, from the multipliers ``warm_edge``), the contact times beyond it are
+    certified infeasible from the end of that Taylor interval outward by
+    :func:`~iamp.planners.pmp.reach.cover_edge` (``out["edge_cover"]``) and taken out of the
+    levels: near the edge the dual Newton method stalls without a Farkas direction.
 
-    Returns ``{"certified", "intervals", "solves", "lowest_bound", "pruned_by_unbounded"}``.
+    Returns ``{"certified", "intervals", "solves", "lowest_bound", "pruned_by_unbounded"}`` (and
+    ``"edge_cover"``: ``from``, ``to``, ``axis``, ``steps``, when one was certified).
     """
     rel = TOLERANCES["pmp_global_certificate_rel"] if rel is None else rel
     out: dict[str, Any] = {"certified": False, "intervals": 0, "solves": 0, "lowest_bound": INF}
