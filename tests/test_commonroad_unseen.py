@@ -186,6 +186,10 @@ def no_pose_is_clear(path: Path, length: float = 4.508, width: float = 1.61, dth
 GOAL_5_807 = [{"time_step": [95, 99], "velocity": [0.0, 3.1402], "orientation": [-0.9181, -0.7681],
                "position": {"center": [29.9549, -36.4075], "length": 2.2773, "width": 1.7518,
                             "orientation": -0.76804}}]
+#: Seed 19's ``combo`` of US101-12 (12_2007): the same goal with the window one step earlier.
+GOAL_12_2007 = [{"time_step": [70, 74], "velocity": [12.2309, 18.2309], "orientation": [-0.7296, -0.5796],
+                 "position": {"center": [72.1817, -64.554], "length": 2.1283, "width": 1.6371,
+                              "orientation": -0.72962}}]
 GOAL_12_807 = [{"time_step": [71, 75], "velocity": [12.2309, 18.2309], "orientation": [-0.7296, -0.5796],
                 "position": {"center": [72.1817, -64.554], "length": 2.1283, "width": 1.6371,
                              "orientation": -0.72962}}]
@@ -193,15 +197,16 @@ GOAL_12_807 = [{"time_step": [71, 75], "velocity": [12.2309, 18.2309], "orientat
 
 @needs_data
 def test_a_goal_every_pose_of_which_meets_a_vehicle_is_refused_and_that_is_proved(tmp_path: Path) -> None:
-    """5_807 / 5_1207 (vehicle 477 stands on the goal rectangle at every step of its window) and
-    12_807 (vehicle 319 drives through it): iamp says no valid final state exists, naming the
+    """5_807 / 5_1207 (vehicle 477 stands on the goal rectangle at every step of its window),
+    12_807 and seed 19's 12_2007 (vehicle 319 drives through it): iamp says no valid final state exists, naming the
     vehicle, and the exact proof above (commonroad-io's own shapes, no iamp code) confirms it
     over the whole goal region: no solution of these problems is valid, by any planner."""
     from iamp.commonroad.convert import load
     from iamp.commonroad.planning import plan
 
     for source, name, goal, vehicle in (("USA_US101-5_1_T-1.xml", "USA_US101-5_807_T-1", GOAL_5_807, 477),
-                                        ("USA_US101-12_1_T-1.xml", "USA_US101-12_807_T-1", GOAL_12_807, 319)):
+                                        ("USA_US101-12_1_T-1.xml", "USA_US101-12_807_T-1", GOAL_12_807, 319),
+                                        ("USA_US101-12_1_T-1.xml", "USA_US101-12_2007_T-1", GOAL_12_2007, 319)):
         path = with_goal(tmp_path, source, name, goal)
         assert no_pose_is_clear(path) == [], name
         rp = plan(load(path))
