@@ -224,14 +224,15 @@ def test_bounded_pmp_and_zoh_qp_agree_on_random_problem_229() -> None:
     0.609375 of its inputs, ZOH N = 24.  The excess over the bounded PMP at the QP's contact
     time is 1.2535 x the unbounded leading term (the former bracket [0.8, 1.25] failed:
     strict xfail until 2026-11-29); it lies in the derived bracket [0, D] of a plan of the QP
-    built from the PMP's input (bounded_pair.zoh_upper_plan), with D / excess = 1.019."""
+    built from the PMP's input (bounded_pair.zoh_upper_plan), with D / excess = 1.009 (1.019
+    before the saturated averages were pinned in the correction)."""
     comp = _compare(_problem_229(), steps=24, solvers=("clarabel",), holds=("zoh",))
     assert [a["verdict"] for a in comp.agreement] == ["agree"], [a["reasons"] for a in comp.agreement]
     a = comp.agreement[0]
     b = a["bounded"]  # type: ignore[typeddict-item]
     assert 1.25 < b["ratio_to_leading"] < 1.26  # the former bracket's upper end is exceeded
     assert b["zoh_upper_reason"] is None and a["checks"]["bounded_zoh_excess_rel"]["ok"]
-    assert 0 < b["excess"] <= b["zoh_upper_excess"] < 1.03 * b["excess"]  # 0 <= excess <= D, D/excess = 1.019
+    assert 0 < b["excess"] <= b["zoh_upper_excess"] < 1.03 * b["excess"]  # 0 <= excess <= D, D/excess = 1.009
 
 
 def test_bounded_pmp_and_foh_qp_agree_on_random_problem_229() -> None:
@@ -239,8 +240,10 @@ def test_bounded_pmp_and_foh_qp_agree_on_random_problem_229() -> None:
     limits at 0.609 of its inputs.  The bounded PMP was right (certified optimal; the FOH QP at
     its contact time converges to its cost from above as N grows); rule B6 measured the FOH
     excess against 0.25 of the ZOH leading term, which is not a bound: the excess at N = 24 is
-    0.35 of it (seven switching times, slope jumps up to ~20 m/s³).  B6 now bounds it by the
-    switching kinks' own leading term K_h (bounded_pair.foh_kink_term); it failed before."""
+    0.35 of it (seven switching times, slope jumps up to ~20 m/s³).  B6 then estimated it by
+    2 x the switching kinks' leading term K_h (bounded_pair.foh_kink_term); since 2026-11-29 it
+    is the derived bracket 0 <= excess <= D of a plan of the FOH QP built from the PMP's input
+    (bounded_pair.upper_plan, D / excess = 1.014).  It failed before."""
     from iamp.comparison.agreement.bounded_pair import foh_kink_term, input_slope_energy
     from iamp.planners.qp.bounded import BoundedQP
 
@@ -249,6 +252,9 @@ def test_bounded_pmp_and_foh_qp_agree_on_random_problem_229() -> None:
     best = comp.run("pmp").result
     assert [a["verdict"] for a in comp.agreement] == ["agree"], [a["reasons"] for a in comp.agreement]
     # (failed before: bounded_foh_excess_rel 0.00163 against 1e-9)
+    b = comp.agreement[0]["bounded"]  # type: ignore[typeddict-item]
+    assert b["foh_upper_reason"] is None and comp.agreement[0]["checks"]["bounded_foh_excess_rel"]["ok"]
+    assert 0 < b["excess"] <= b["foh_upper_excess"] < 1.02 * b["excess"]
     problem = random_problem(229)
     assert best.status == "optimal" and best.diagnostics.certified_global
     t_star = float(best.contact_times[0])
@@ -268,7 +274,7 @@ def test_bounded_pmp_and_foh_qp_agree_on_random_problem_229() -> None:
     ex = r.cost - at.cost
     h = problem.tf / N
     assert ex > 0.25 * h * h / 24 * input_slope_energy(at)  # the old rule's bound is exceeded
-    assert 0 < ex <= 2.0 * foh_kink_term(at, np.linspace(0.0, problem.tf, N + 1))
+    assert 0 < ex <= 2.0 * foh_kink_term(at, np.linspace(0.0, problem.tf, N + 1))  # the former rule's estimate
 
 
 # --- item 10: certified infeasible before the sweep, counted in solves ---------------------------
