@@ -1,0 +1,78 @@
+"""The predictor keeps the node accelerations of each distinct past (issue 32 item 5) and gives the
+same numbers as propagating every batch afresh.
+
+:meth:`iamp.prediction.predictor.Predictor._node_means` propagates a past (its ``n`` integer
+states) once and reuses the row.  That is exact because, for two or more histories, the chain's
+BLAS products compute each row by itself: a row's numbers do not depend on the other rows, their
+number or its place among them (the premise is tested here, so a BLAS that breaks it fails this
+file rather than changing episodes).  One history alone takes other BLAS paths (it differs in the
+last bits) and keeps its own.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import iamp.prediction.predictor as predictor_module
+from iamp.prediction.predictor import Predictor
+
+MODEL = Predictor.default().model
+N_STATES, ORDER = MODEL.n_states, MODEL.order
+
+
+def _fresh() -> Predictor:
+    return Predictor(MODEL, "fresh")
+
+
+pasts = st.lists(st.lists(st.integers(0, N_STATES - 1), min_size=ORDER, max_size=ORDER), min_size=1, max_size=40)
+
+
+@settings(max_examples=60, deadline=None)
+@given(first=pasts, second=pasts, M=st.sampled_from([1, 2, 13, 25, 40, 41]))
+def test_kept_rows_are_a_fresh_propagation_bit_for_bit(first: list[list[int]], second: list[list[int]], M: int
+                                                       ) -> None:
+    p = _fresh()
+    for batch in (first, second, first + second, second[:1]):
+        S = np.array(batch, dtype=np.int64)
+        kept = p._node_means(S, M)
+        fresh = _fresh()._node_accelerations(S, M)[1]
+        assert kept.shape == fresh.shape == (len(batch), M + 1)
+        assert kept.tobytes() == fresh.tobytes()
+
+
+@settings(max_examples=40, deadline=None)
+@given(rows=pasts.filter(lambda r: len(r) >= 2), data=st.data())
+def test_a_rows_numbers_do_not_depend_on_the_other_rows_of_a_batch(rows: list[list[int]], data: st.DataObject) -> None:
+    """The premise: in a batch of two or more, each row of the propagation is its own."""
+    S = np.array(rows, dtype=np.int64)
+    M = data.draw(st.sampled_from([1, 25, 40]))
+    full = _fresh()._node_accelerations(S, M)[1]
+    pick = data.draw(st.lists(st.integers(0, len(rows) - 1), min_size=2, max_size=len(rows) + 3))
+    other = _fresh()._node_accelerations(S[pick], M)[1]
+    assert other.tobytes() == full[pick].tobytes()
+
+
+def test_the_store_is_bounded_and_recomputes_the_same(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(predictor_module, "ABAR_CACHE_ROWS", 5)
+    rng = np.random.default_rng(0)
+    p = _fresh()
+    for _ in range(20):
+        S = rng.integers(0, N_STATES, (int(rng.integers(2, 5)), ORDER))
+        assert p._node_means(S, 25).tobytes() == _fresh()._node_accelerations(S, 25)[1].tobytes()
+        assert sum(len(d) for d in p._abar_rows.values()) <= 5
+
+
+def test_predict_batch_of_a_predictor_with_kept_rows_is_a_fresh_ones() -> None:
+    rng = np.random.default_rng(1)
+    t = np.round(np.arange(-30, 1) * 0.1, 9)
+    p = _fresh()
+    for k in range(6):  # the loop's pattern: the same vehicles a period later, mostly the same bins
+        X = 300.0 + k * 2.5 + 25.0 * t + rng.normal(0, 0.02, (9, t.size))
+        q = np.array([0.1, 2.0, 5.5, 8.0])
+        for cubic in (False, True):
+            assert p.predict_batch(t, X, q, 8.0, cubic=cubic).tobytes() == \
+                _fresh().predict_batch(t, X, q, 8.0, cubic=cubic).tobytes()
+    assert sum(len(d) for d in p._abar_rows.values()) > 0
