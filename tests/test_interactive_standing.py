@@ -76,9 +76,9 @@ def test_a_plan_passing_close_beside_a_standing_car_is_not_clear(d_ego: float, p
                     reason="needs the [commonroad] extra, SUMO and "
                            f"{data_path('commonroad', 'interactive-US101', 'USA_US101-24_2_I-1-1')}")
 def test_24_2_seed_2_passes_the_standing_car_with_room() -> None:
-    """USA_US101-24_2, SUMO seed 2 (about 60 s): before, the ego passed vehicle 31 at 18 m/s with
-    0.16 m to spare and touched it at 10.3 s as SUMO turned 31's nose in; now it passes with the
-    growth's margin, reaches the goal and touches nothing."""
+    """USA_US101-24_2, SUMO seed 2 (about 60 s): before, the ego passed vehicle 31 at 18 m/s, its
+    body 0.07-0.08 m into 31's turned body at 10.0-10.6 s (the contact, not at fault); now it
+    passes 0.69-0.80 m from it, reaches the goal and touches nothing."""
     from iamp.commonroad.interactive import simulate_with_log
 
     r, log = simulate_with_log(INTERACTIVE / "USA_US101-24_2_I-1-1", seed=2)
