@@ -185,3 +185,22 @@ def test_what_the_edge_cover_claims_is_infeasible(seed: int, scale: float) -> No
         corner = (B._polyval(ib.pos, float(t)) + ib.off[0]) if k == 0 else ib.off[1]
         reach = reachable(T, s0, v0, sf, vf, lo, hi, float(t))
         assert reach is None or not reach[0] <= corner <= reach[1], (t, reach, corner)
+
+
+def test_a_feasible_island_the_search_missed_is_found_by_the_certificate() -> None:
+    """random_problem(303480) at 0.72: the feasible contact times are [0.50, 0.62] t_f, where the
+    search's minimum is (2.10288, ``local``: the certificate did not close), and an island
+    [0.6742, 0.6797] t_f between two grid points, where J_b falls to 1.98079 (the bounded QP,
+    N = 60 refined, misses it too: 2.1031).  The certificate meets a centre whose dual value is
+    below J_best, the search restarts there, and the island's minimum is certified."""
+    problem = boxed(303480, 1, 0.7209343105544178)
+    assert problem is not None
+    plan = PMPPlanner().plan(problem)
+    assert plan.status == stc.OPTIMAL
+    assert plan.cost is not None and plan.cost < 2.1028790611568575 * 0.95
+    assert "restarted_from_certificate" in plan.info["search"]
+    # independently: J_b on a scan of the island is nowhere below the plan
+    T = float(problem.tf)
+    ev = B._Evaluator(problem)
+    scan = [ev(np.array([s * T]))[0] for s in np.linspace(0.6740, 0.6800, 61)]
+    assert sum(np.isfinite(scan)) > 40 and plan.cost <= min(scan) * (1 + 1e-9)

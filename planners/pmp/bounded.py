@@ -121,6 +121,15 @@ EDGE_BACKOFF = 1e-10
 #: there is about ``1e-9 t_f``; ``M`` only falls as the interval shrinks).
 EDGE_TAYLOR = 1e-8
 
+#: :func:`certify_global_one` tries :mod:`~iamp.planners.pmp.reach` on an interval left open by
+#: the axis solve (a stall, or a Farkas margin below its Lipschitz rate) once halving has
+#: narrowed it below this (over ``t_f``); wider ones are halved as before (most close so).
+REACH_BELOW = 1e-4
+
+#: :func:`certify_global_one` stops where the dual value at an interval's centre (``J_b`` there)
+#: is below ``J_best`` by this much (relative): the search missed a better contact time.
+BETTER_REL = 1e-6
+
 #: The tolerance entry of each check of :func:`check_values`.
 BOUNDED_TOLERANCE_OF = {
     "boundary": "pmp_bounded_residual",
@@ -765,7 +774,12 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     :data:`EDGE_TAYLOR`, from the multipliers ``warm_edge``), the contact times beyond it are
     certified infeasible from the end of that Taylor interval outward by
     :func:`~iamp.planners.pmp.reach.cover_edge` (``out["edge_cover"]``) and taken out of the
-    levels: near the edge the dual Newton method stalls without a Farkas direction.
+    levels: near the edge the dual Newton method stalls without a Farkas direction.  An interval
+    the axis solve leaves open (``"unknown"``) once narrower than :data:`REACH_BELOW` ``t_f`` is
+    tried the same way (:func:`~iamp.planners.pmp.reach.cover_interval`; ``out["reach_steps"]``,
+    counted in ``solves``).  A centre whose dual value (``J_b`` there) is below ``J_best`` by
+    :data:`BETTER_REL` ends the certificate with ``out["better_t"]``: the search missed it
+    (:func:`plan_bounded` restarts from it).
 
     Returns ``{"certified", "intervals", "solves", "lowest_bound", "pruned_by_unbounded"}`` (and
     ``"edge_cover"``: ``from``, ``to``, ``axis``, ``steps``, when one was certified).
@@ -835,6 +849,7 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
                             [(a, b, w)] if b <= lo_e or a >= hi_e else
                             [(a, lo_e, w)] * (a < lo_e) + [(hi_e, b, w)] * (b > hi_e))]
     use_unbounded = True
+    reach_steps = 0
     while level:  # breadth first, one level of halved intervals at a time
         if use_unbounded:  # the closed-form bound J_b >= J_u on the whole level at once
             ends = np.array([(a, b) for a, b, _ in level])
@@ -860,9 +875,27 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
             solves += used
             if kind == "bound":
                 lowest = min(lowest, value)
+                if terms[0] < J_best - BETTER_REL * abs(J_best):
+                    # the dual value at the centre is J_b there (converged): a contact time
+                    # better than J_best, which the search missed (a feasible island narrower
+                    # than its grid, random_problem(303480) at 0.72): not global; plan from it
+                    out.update(intervals=intervals, solves=solves, lowest_bound=lowest, pruned_by_unbounded=pruned,
+                               better_t=0.5 * (a + b), better_J=terms[0])
+                    return out
             if kind == "infeasible" or (kind == "bound" and value >= target):
                 intervals += 1
                 continue
+            if kind == "unknown" and REACH_BELOW * T > b - a > 1e-9 * T:
+                # the centre's axis solve stalled or its Farkas margin was too small on an
+                # interval that halving has narrowed (near an edge of the feasible contact
+                # times): the margin maximised over the multipliers
+                lo_r, hi_r, used = _reach_part(bound_on, a, b)
+                reach_steps += used
+                solves += used
+                if lo_r <= hi_r:
+                    intervals += 1
+                    nxt += [(a, lo_r, lams)] * (lo_r > a) + [(hi_r, b, lams)] * (hi_r < b)
+                    continue
             if solves > max_solves or b - a < 1e-12 * T:
                 out.update(intervals=intervals, solves=solves, lowest_bound=lowest, pruned_by_unbounded=pruned)
                 return out
@@ -875,6 +908,8 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
                 nxt += [(a, t, lams), (t, b, lams)]
         level = nxt
     out.update(certified=True, intervals=intervals, solves=solves, lowest_bound=lowest, pruned_by_unbounded=pruned)
+    if reach_steps:
+        out["reach_steps"] = reach_steps
     return out
 
 
@@ -882,6 +917,22 @@ def _stationary(search: dict[str, Any], fixed: bool) -> bool:
     """Whether the self-check applies the Hamiltonian-jump condition ``r = 0``: not at given
     contact times, not at an edge of the feasible ones (the minimum is not stationary there)."""
     return not fixed and "feasibility_edge" not in search
+
+
+def _reach_part(bound_on: _IntervalBound, a: float, b: float) -> tuple[float, float, int]:
+    """:func:`~iamp.planners.pmp.reach.cover_interval` on ``[a, b]`` (physical times):
+    ``(lo, hi, steps)`` with ``[lo, hi]`` certified infeasible (``lo > hi``: nothing)."""
+    from iamp.planners.pmp.reach import AxisReach, cover_interval
+
+    T = bound_on.T
+    c = 0.5 * (a + b)
+    axes = [AxisReach(T, bound_on.axes_data[k], bound_on.pos, bound_on.der, bound_on.off[k], k == 0,
+                      bound_on.cddot_max[0], c) for k in range(2)]
+    lo, hi, steps = cover_interval(axes, a / T, b / T)
+    if lo > hi:
+        return INF, -INF, steps
+    lo_t, hi_t = _inside(lo * T, hi * T, T)
+    return (a if lo <= a / T else lo_t), (b if hi >= b / T else hi_t), steps
 
 
 def _edge_of(search: dict[str, Any], t_best: float) -> tuple[str, float] | None:
@@ -899,18 +950,26 @@ def _cover_beyond_edge(bound_on: _IntervalBound, t_best: float, rho: float, edge
     the Taylor interval around a minimum at the edge) outward, certified infeasible by
     :func:`~iamp.planners.pmp.reach.cover_edge` (a Farkas margin maximised over the
     multipliers, with a bound of its slope on each step); ``None`` when nothing is."""
-    from iamp.planners.pmp.reach import AxisReach, cover_edge
+    from iamp.planners.pmp.reach import AxisReach, edge_cover
 
     T = bound_on.T
     side = 1.0 if edge == "upper" else -1.0
     axes = [AxisReach(T, bound_on.axes_data[k], bound_on.pos, bound_on.der, bound_on.off[k], k == 0,
                       bound_on.cddot_max[0], t_best) for k in range(2)]
-    start = (t_best + side * rho) / T
-    reached, axis, steps = cover_edge(axes, warm, start, side)
+    # start 1e-13 t_f inside the Taylor interval (the two meet whatever σ·T rounds to)
+    start = (t_best + side * max(rho - 1e-13 * T, 0.0)) / T
+    reached, axis, steps = edge_cover(axes, start, side, warm)
     if axis < 0:
         return None
-    lo_e, hi_e = sorted((start * T, reached * T))
+    lo_e, hi_e = _inside(start * T, reached * T, T)
     return {"from": lo_e, "to": hi_e, "axis": "xy"[axis], "steps": steps}
+
+
+def _inside(p: float, q: float, T: float) -> tuple[float, float]:
+    """``[min, max]`` of two times of a cover, shrunk by ``1e-14 t_f`` at an end inside
+    ``(0, t_f)`` (the cover certifies ``σ·T`` as rounded; the rest stays to bisect)."""
+    lo, hi = min(p, q), max(p, q)
+    return (lo + 1e-14 * T if 0.0 < lo else lo), (hi - 1e-14 * T if hi < T else hi)
 
 
 # ------------------------------------------------------------------------------------------
@@ -1490,7 +1549,7 @@ def _newton_polish(ev: _Evaluator, x: FloatArray, J: float, T: float, iterations
 
 
 def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times: Any = None,
-                 start: float | None = None, certify: bool = True) -> Plan:
+                 start: float | None = None, certify: bool = True, retries: int = 2) -> Plan:
     """The bounded PMP plan (module docstring): fixed ``contact_times`` or a search from
     ``start_times`` (the unbounded ``t*``).  With ``certify`` (one vehicle, free contact time)
     :func:`certify_global_one` decides ``optimal`` (certified global) or ``local``.  Never
@@ -1581,6 +1640,13 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
                                       edge=_edge_of(search, float(sol.contact_times[0])),
                                       warm_edge=ev.warm_for(np.array([search["edge"]["t"]])) if "edge" in search
                                       else None)
+            if "better_t" in cert and retries > 0:
+                # the certificate found a better contact time: the search again, started there
+                again = plan_bounded(problem, np.array([cert["better_t"]]), None, t0, certify, retries - 1)
+                again.annotate(search={**(getattr(again.diagnostics, "search", None) or {}),
+                                       "restarted_from_certificate": {"t": cert["better_t"], "J": cert["better_J"],
+                                                                      "J_before": sol.cost}})
+                return again
             certified = bool(cert["certified"])
             info["global_certificate"] = {**cert, "rel": TOLERANCES["pmp_global_certificate_rel"],
                                           "method": "dual Taylor bound per interval of contact times, "

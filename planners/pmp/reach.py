@@ -250,81 +250,104 @@ class AxisReach:
         return D * (1.0 + 1e-9)
 
 
-def edge_cover(axis: AxisReach, eps: float, x: list[float], start: float, side: float, max_steps: int = 200
-               ) -> tuple[float, int]:
+def _step(axis: AxisReach, eps: float, x: list[float], s: float, side: float, end: float
+          ) -> tuple[float, list[float]]:
+    """The longest ``δ`` (halving from ``|end − s|``) with ``[s, s + side·δ]`` certified by one
+    axis and sign at ``s`` (module docstring's bound), ``0`` if none; and the multipliers."""
+    m, x, rate, floor = axis.margin(s, eps, x)
+    if not m > floor:
+        return 0.0, x
+    rate *= side  # side · ∂m/∂σ
+    delta = abs(end - s)
+    while delta > 1e-12 and not m + delta * (rate - axis.drift(s, eps, x, delta)) > floor:
+        delta *= 0.5
+    return (delta if delta > 1e-12 else 0.0), x
+
+
+def edge_cover(axes: list[AxisReach], start: float, side: float, warm: list[Any] | None = None,
+               max_steps: int = 200, limit: float | None = None) -> tuple[float, int, int]:
     """Contact times (over ``T``) from ``start`` towards ``side`` (``+1`` up to ``1``, ``−1``
-    down to ``0``) at which no input in the box meets the axis' corner (module docstring).
+    down to ``0``) at which no input in the box meets some axis' corner (module docstring):
+    each step the longest ``δ`` certified by the axis and sign of the step before, or, where
+    that falls below half its last step (its margin nears zero, perhaps where the other axis'
+    corner goes out of reach), by the best of all four.
 
     Parameters
     ----------
-    axis : AxisReach
-        The axis.
-    eps : float
-        ``λ_1`` (``±1``).
-    x : list of float
-        Start of ``(λ2, λ3)`` for :func:`farkas_direction`.
+    axes : list of AxisReach
+        The axes (those with an infinite or empty box are skipped).
     start : float
-        The first contact time over ``T``; the cover starts only where ``m > 0`` there.
+        The first contact time over ``T``; the cover starts only where some ``m > 0`` there.
     side : float
         ``+1`` or ``−1``.
+    warm : list, optional
+        Per axis scaled multipliers ``(λ1, λ2, λ3)`` or ``None`` (their ``λ2`` over ``|λ1|``
+        starts the bracket of :func:`farkas_direction`).
     max_steps : int
-        Steps (each one :func:`farkas_direction`) before giving up.
+        Margins evaluated (each one :func:`farkas_direction`) before giving up.
+    limit : float, optional
+        Where to stop (over ``T``; default the end of ``(0, 1)`` on ``side``).
 
     Returns
     -------
     tuple
-        ``(reached, steps)``: every ``σ`` between ``start`` and ``reached`` is certified
-        infeasible (``reached == start`` when nothing was).
+        ``(reached, axis, steps)``: every ``σ`` between ``start`` and ``reached`` is certified
+        infeasible (``reached == start`` and ``axis == −1`` when nothing was; ``axis`` is the
+        first step's).
     """
-    end = 1.0 if side > 0 else 0.0
-    s, steps = start, 0
-    if not (axis.lo < axis.hi and math.isfinite(axis.lo) and math.isfinite(axis.hi)):
-        return start, 0
+    end = (1.0 if side > 0 else 0.0) if limit is None else limit
+    combos = [(k, eps) for k, ax in enumerate(axes) if ax.lo < ax.hi and math.isfinite(ax.lo)
+              and math.isfinite(ax.hi) for eps in (1.0, -1.0)]
+    xs: dict[tuple[int, float], list[float]] = {}
+    for k, eps in combos:
+        lam = warm[k] if warm is not None and k < len(warm) else None
+        ok = lam is not None and len(lam) == 3 and lam[0] != 0.0 and math.isfinite(lam[0])
+        xs[(k, eps)] = [lam[1] / abs(lam[0]), lam[2] / abs(lam[0])] if ok and lam is not None else [0.0, 0.0]
+    s, steps, first = start, 0, -1
+    cur: tuple[int, float] | None = None
+    prev = math.inf
     while steps < max_steps and s != end:
-        steps += 1
-        m, x, rate, floor = axis.margin(s, eps, x)
-        if not m > floor:
+        best, best_c = 0.0, cur
+        for c in ([cur] if cur is not None else []) + [c for c in combos if c != cur]:
+            if steps >= max_steps:
+                break
+            steps += 1
+            delta, xs[c] = _step(axes[c[0]], c[1], xs[c], s, side, end)
+            if delta > best:
+                best, best_c = delta, c
+            if c == cur and delta >= 0.5 * prev:
+                break
+        if not best > 0.0 or best_c is None:
             break
-        rate *= side  # side · ∂m/∂σ
-        delta = abs(end - s)
-        while delta > 1e-12 and not m + delta * (rate - axis.drift(s, eps, x, delta)) > floor:
-            delta *= 0.5
-        if not delta > 1e-12:
-            break
-        s = end if delta >= abs(end - s) else s + side * delta
-    return s, steps
+        if first < 0:
+            first = best_c[0]
+        cur, prev = best_c, best
+        s = end if best >= abs(end - s) else s + side * best
+    return s, first, steps
 
 
-def cover_edge(axes: list[AxisReach], warm: list[Any], start: float, side: float) -> tuple[float, int, int]:
-    """:func:`edge_cover` for the axis and sign whose ``m`` is positive at ``start``:
-    ``(reached, axis, steps)`` (``reached == start`` when neither axis' corner is out of reach).
-    ``warm`` holds per axis the scaled multipliers of the solve nearest the edge (their
-    ``λ2`` over ``|λ1|`` starts the bracket of :func:`farkas_direction`), or ``None``.
+def cover_interval(axes: list[AxisReach], a: float, b: float, max_steps: int = 60) -> tuple[float, float, int]:
+    """The part of ``[a, b]`` (over ``T``) around its centre certified infeasible: if the centre
+    is, :func:`edge_cover` from it towards both ends.  Returns ``(lo, hi, steps)``: ``[lo, hi]``
+    is certified (``lo > hi`` when nothing is).
 
     Parameters
     ----------
     axes : list of AxisReach
         The two axes.
-    warm : list
-        Per axis, scaled multipliers ``(λ1, λ2, λ3)`` or ``None``.
-    start : float
-        The first contact time over ``T``.
-    side : float
-        ``+1`` (towards ``T``) or ``−1`` (towards ``0``).
+    a, b : float
+        The interval (over ``T``).
+    max_steps : int
+        Margins evaluated per direction.
 
     Returns
     -------
     tuple
-        ``(reached, axis, steps)``; ``axis`` is ``−1`` when nothing was certified.
+        ``(lo, hi, steps)``.
     """
-    best = (start, -1, 0)
-    for k, axis in enumerate(axes):
-        lam = warm[k] if k < len(warm) else None
-        for eps in (1.0, -1.0):
-            x = [0.0, 0.0]
-            if lam is not None and len(lam) == 3 and lam[0] != 0.0 and math.isfinite(lam[0]):
-                x = [lam[1] / abs(lam[0]), lam[2] / abs(lam[0])]
-            reached, steps = edge_cover(axis, eps, x, start, side)
-            if abs(reached - start) > abs(best[0] - start):
-                best = (reached, k, steps)
-    return best
+    c = 0.5 * (a + b)
+    hi, k, up = edge_cover(axes, c, 1.0, None, max_steps, b)
+    if k < 0:
+        return 1.0, 0.0, up
+    lo, _, down = edge_cover(axes, c, -1.0, None, max_steps, a)
+    return lo, hi, up + down
