@@ -713,6 +713,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             if wide.steered_goal is not False or steered_miss is None:
                 return wide
     if steered_miss is not None:
+        steered_miss.candidates_tried = n_tried
         steered_miss.solve_time_s = time.perf_counter() - start
         steered_miss.plans_used = max_plans - budget[0]
         return steered_miss
