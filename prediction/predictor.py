@@ -435,6 +435,20 @@ class Predictor:
         probs = self.model.propagate_batch(np.atleast_2d(states), M + 1)
         return probs, probs @ self.centres
 
+    def _rows_are_their_own(self) -> bool:
+        """Whether batches of two or more pasts propagate each row by itself here: rows of a batch of
+        nine (fixed seed) equal in sub-batches of other sizes, orders, places and with a repeated
+        row (checked once per predictor; :meth:`_node_means` keeps rows only if so)."""
+        own = self.__dict__.get("_own_rows")
+        if own is None:
+            rng = np.random.default_rng(0)
+            S = rng.integers(0, self.model.n_states, (9, self.model.order)).astype(np.int64)
+            full = self._node_accelerations(S, 8)[1]
+            picks = ([3, 1], [5, 5], list(range(2, 9)), list(range(8, -1, -1)), [0, 4, 4, 7])
+            own = all(np.array_equal(self._node_accelerations(S[p], 8)[1], full[p]) for p in picks)
+            self.__dict__["_own_rows"] = own
+        return bool(own)
+
     def _node_means(self, states: np.ndarray, M: int) -> FloatArray:
         """The ``ā_k`` of :meth:`_node_accelerations` alone, ``(B, M + 1)``, the same numbers, each
         distinct past propagated once per predictor.
@@ -448,9 +462,11 @@ class Predictor:
         kept yet are propagated together (two at least: a lone one with itself).  One history alone
         takes other BLAS paths, which differ in the last bits: it is propagated as before, not kept.
         Emptied when it holds :data:`ABAR_CACHE_ROWS` rows (a row recomputed is the same numbers).
+        Where this process's BLAS is seen to break the premise (:meth:`_rows_are_their_own`) nothing
+        is kept: the numbers would otherwise depend on what the process predicted before.
         """
         S = np.ascontiguousarray(np.atleast_2d(states), dtype=np.int64)
-        if S.shape[0] < 2:
+        if S.shape[0] < 2 or not self._rows_are_their_own():
             return np.asarray(self._node_accelerations(S, M)[1], dtype=np.float64)
         kept = self._abar_rows.setdefault(M, {})
         keys = [row.tobytes() for row in S]

@@ -76,3 +76,12 @@ def test_predict_batch_of_a_predictor_with_kept_rows_is_a_fresh_ones() -> None:
             assert p.predict_batch(t, X, q, 8.0, cubic=cubic).tobytes() == \
                 _fresh().predict_batch(t, X, q, 8.0, cubic=cubic).tobytes()
     assert sum(len(d) for d in p._abar_rows.values()) > 0
+
+
+def test_nothing_is_kept_where_blas_breaks_the_premise(monkeypatch: pytest.MonkeyPatch) -> None:
+    p = _fresh()
+    assert p._rows_are_their_own()  # this machine's BLAS (the premise test above)
+    monkeypatch.setattr(Predictor, "_rows_are_their_own", lambda self: False)
+    S = np.array([[6, 6, 6, 6], [6, 7, 6, 5], [6, 6, 6, 6]], dtype=np.int64)
+    assert p._node_means(S, 25).tobytes() == _fresh()._node_accelerations(S, 25)[1].tobytes()
+    assert p._abar_rows == {}
