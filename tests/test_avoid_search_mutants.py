@@ -1,0 +1,130 @@
+"""Gaps found by mutation testing of the continuous-time avoidance search (``planners/avoid/continuous.py``).
+
+Each test asserts the mathematics that a surviving mutant broke without any other test noticing:
+
+* the Bernstein rows of a spec are, for any plan that keeps the dynamics, exactly the Bernstein
+  coefficients of the continuous margin ``c(t) − σ s(t)`` (+ ``ROW_TOL_M``) on each piece of the
+  imposed intervals, and those pieces tile the intervals ``[0, a]`` and ``[b, t_f]`` exactly — an
+  independent evaluation of the cubic from the hold's trajectory, not from the row builder;
+* the QP's solve counters count solves (a fresh QP's count is its solve's own);
+* the plan's summary reports the search's solve count and the solve time in milliseconds.
+
+(``scripts/mutation_score.py planners/avoid/continuous.py``; the report of the session lists the
+mutants and which test kills each.)
+"""
+
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st_h
+
+from iamp.core import status as st
+from iamp.core.physical import PASSENGER_CAR
+from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.planners.avoid.check import crossing_orders
+from iamp.planners.avoid.continuous import ROW_TOL_M, ContinuousAvoidPlanner, ContinuousAvoidQP, summary_lines
+from iamp.planners.examples import overtake_problem, overtake_three_problem
+
+
+def _overtake(xf: float, gap: float, speed: float, limits: bool) -> Problem:
+    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=xf, yf=3.75, vxf=24.0)
+    v = SurroundingVehicle(x_poly=(xf - gap - 5.0 * speed, speed), corner="front-lower", y=3.75, length=4.8,
+                           width=1.8, safety_x=5.0, safety_y=0.5, name="sv1")
+    p = Problem(ego, (v,), "generated overtake")
+    return p.with_limits(PASSENGER_CAR) if limits else p
+
+
+def _check_rows(problem: Problem, steps: int, fracs: list[tuple[int, float, float]]) -> None:
+    """Every Bernstein row block of the spec given by ``fracs`` (per vehicle: order index, then
+    ``a``, ``b`` as fractions of ``t_f``), evaluated at the relaxed optimum ``z``, against the margin
+    of the hold's trajectory; and the blocks' intervals tile ``[0, a]`` and ``[b, t_f]``."""
+    orders, reason = crossing_orders(problem)
+    assert reason is None
+    qp = ContinuousAvoidQP(problem, steps, "foh", "clarabel")
+    tf, N, h = problem.tf, steps, problem.tf / steps
+    free = qp.solve(tuple((o[0][0], o[0][1], 0.0, tf) for o in orders))
+    assert free.status == st.OPTIMAL
+    spec = []
+    for o, (c, fa, fb) in zip(orders, fracs):
+        f, s = o[c % len(o)]
+        a, b = sorted((fa * tf, fb * tf))
+        spec.append((f, s, float(a), float(b)))
+    A, u, ids = qp.spec_rows(tuple(spec))
+    nb = ids.size - qp.u_lim.size
+    assert nb >= 0 and np.array_equal(ids[nb:], np.sort(ids[nb:]))
+    r = u[:nb] - A[:nb] @ free.z  # >= 0 row by row: the row holds at z
+    traj = qp.trajectory(free.z)
+    d = qp.degree
+    n = d + 1
+    assert nb % n == 0
+    tiles: dict[tuple[int, int], list[tuple[float, float]]] = {}
+    x = np.linspace(0.0, 1.0, 9)
+    for g in range(nb // n):
+        gid = ids[g * n:(g + 1) * n]
+        assert np.array_equal(gid, gid[0] + np.arange(n))  # one piece's d + 1 coefficients
+        block, rest = divmod(int(gid[0]), N * n)
+        i, plane = divmod(block, 2)
+        k = rest // n
+        f, s, a, b = spec[i]
+        assert plane in (f, s)
+        ta, tb = (0.0, a) if plane == f else (b, tf)
+        t0, t1 = max(ta, k * h), min(tb, (k + 1) * h)
+        assert t0 <= t1
+        tiles.setdefault((i, plane), []).append((t0, t1))
+        t = t0 + x * (t1 - t0)
+        bern = sum(r[g * n + j] * comb(d, j) * x ** j * (1 - x) ** (d - j) for j in range(n))
+        margin = qp.data.planes[i][plane].margin(t, traj.states(t)[:, 2 * plane]) + ROW_TOL_M
+        assert np.max(np.abs(bern - margin)) <= 1e-9 * max(1.0, float(np.max(np.abs(margin))))
+    for i, (f, s, a, b) in enumerate(spec):
+        for plane, ta, tb in ((f, 0.0, a), (s, b, tf)):
+            got = sorted(tiles.get((i, plane), []))
+            if tb - ta <= 1e-12 * tf:  # an empty interval imposes at most its point
+                assert all(t1 - t0 <= 1e-12 * tf for t0, t1 in got)
+                continue
+            assert got, (i, plane, ta, tb)
+            assert got[0][0] == ta and got[-1][1] == tb
+            assert all(p[1] == q[0] for p, q in zip(got[:-1], got[1:])), got  # no piece missing, none twice
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st_h.floats(105.0, 130.0), st_h.floats(7.5, 25.0), st_h.floats(14.0, 22.0), st_h.booleans(),
+       st_h.sampled_from([7, 10, 13]), st_h.integers(0, 1), st_h.floats(0.0, 1.0), st_h.floats(0.0, 1.0),
+       st_h.booleans())
+def test_bernstein_rows_are_the_margins_coefficients_on_tiling_pieces(xf: float, gap: float, speed: float,
+                                                                      limits: bool, steps: int, c: int, fa: float,
+                                                                      fb: float, point: bool) -> None:
+    """One vehicle, any spec (a candidate when ``point``: ``a = b``), any grid."""
+    _check_rows(_overtake(xf, gap, speed, limits), steps, [(c, fa, fa if point else fb)])
+
+
+def test_bernstein_rows_of_three_vehicles_on_and_between_nodes() -> None:
+    """Three vehicles; ends on nodes, between nodes, at 0 and at ``t_f``."""
+    problem = overtake_three_problem()
+    for fr in ([(0, 0.3, 0.3), (0, 0.25, 0.61), (1, 0.0, 1.0)], [(1, 0.1, 0.9), (0, 0.5, 0.5), (0, 0.33, 0.77)],
+               [(0, 1.0, 1.0), (1, 0.0, 0.0), (0, 0.2, 0.2)]):
+        _check_rows(problem, 10, fr)
+
+
+def test_a_fresh_qp_counts_its_solves() -> None:
+    """``n_solves`` starts at zero and counts each solve's own QPs (no inherited one)."""
+    problem = overtake_problem()
+    orders, _ = crossing_orders(problem)
+    qp = ContinuousAvoidQP(problem, 10, "foh", "clarabel")
+    assert qp.n_solves == qp.n_backend_solves == qp.n_inherited == 0
+    sol = qp.solve(((orders[0][0][0], orders[0][0][1], 0.0, problem.tf),))  # the relaxation of every crossing
+    assert sol.status == st.OPTIMAL and sol.solves >= 1
+    assert qp.n_solves == sol.solves
+    back = qp.backend_solve(sol)
+    assert qp.n_solves == sol.solves + back.solves and qp.n_backend_solves >= back.solves >= 1
+
+
+def test_the_summary_reports_the_solves_and_the_time_in_milliseconds() -> None:
+    plan = ContinuousAvoidPlanner(steps=10).plan(overtake_problem())
+    assert plan.status == st.OPTIMAL
+    lines = summary_lines(plan)
+    n = plan.info["n_solves"]
+    assert isinstance(n, int) and n > 0
+    assert any(f"{plan.solve_time_s * 1000.0:.3f} ms ({n} QPs;" in line for line in lines), lines
