@@ -303,8 +303,6 @@ class Predictor:
         self.dt = float(model.dt)
         self._fit_cache: dict[tuple[int, float], tuple[FloatArray, FloatArray]] = {}
         self._horizons: dict[float, tuple[int, FloatArray, FloatArray]] = {}
-        #: :meth:`_node_means`' rows: ``M`` -> (a past's states as bytes -> its ``ā_0..ā_M``).
-        self._abar_rows: dict[int, dict[bytes, FloatArray]] = {}
 
     def __repr__(self) -> str:
         return (f"Predictor(model={self.name!r}, order={self.model.order}, states={self.model.n_states}, "
@@ -435,23 +433,32 @@ class Predictor:
         probs = self.model.propagate_batch(np.atleast_2d(states), M + 1)
         return probs, probs @ self.centres
 
+    @property
+    def _abar_rows(self) -> dict[int, dict[bytes, FloatArray]]:
+        """:meth:`_node_means`' rows, ``M`` -> (a past's states as bytes -> its ``ā_0..ā_M``), kept with
+        the model: every predictor of the model (the closed loop makes one per episode) shares them."""
+        store: dict[int, dict[bytes, FloatArray]] | None = self.model.__dict__.get("_abar_rows")
+        if store is None:
+            store = self.model.__dict__["_abar_rows"] = {}
+        return store
+
     def _rows_are_their_own(self) -> bool:
         """Whether batches of two or more pasts propagate each row by itself here: rows of a batch of
         nine (fixed seed) equal in sub-batches of other sizes, orders, places and with a repeated
-        row (checked once per predictor; :meth:`_node_means` keeps rows only if so)."""
-        own = self.__dict__.get("_own_rows")
+        row (checked once per model; :meth:`_node_means` keeps rows only if so)."""
+        own = self.model.__dict__.get("_own_rows")
         if own is None:
             rng = np.random.default_rng(0)
             S = rng.integers(0, self.model.n_states, (9, self.model.order)).astype(np.int64)
             full = self._node_accelerations(S, 8)[1]
             picks = ([3, 1], [5, 5], list(range(2, 9)), list(range(8, -1, -1)), [0, 4, 4, 7])
             own = all(np.array_equal(self._node_accelerations(S[p], 8)[1], full[p]) for p in picks)
-            self.__dict__["_own_rows"] = own
+            self.model.__dict__["_own_rows"] = own
         return bool(own)
 
     def _node_means(self, states: np.ndarray, M: int) -> FloatArray:
         """The ``ā_k`` of :meth:`_node_accelerations` alone, ``(B, M + 1)``, the same numbers, each
-        distinct past propagated once per predictor.
+        distinct past propagated once per model (in a process).
 
         The chain's propagation depends on a history's ``n`` integer states alone, and they repeat:
         from period to period of the closed loop (a vehicle cruising keeps its bins) and between

@@ -17,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import iamp.prediction.predictor as predictor_module
+from iamp.prediction.mtd import MTDModel
 from iamp.prediction.predictor import Predictor
 
 MODEL = Predictor.default().model
@@ -24,7 +25,8 @@ N_STATES, ORDER = MODEL.n_states, MODEL.order
 
 
 def _fresh() -> Predictor:
-    return Predictor(MODEL, "fresh")
+    """A predictor whose model keeps no rows yet (the rows are kept with the model)."""
+    return Predictor(MTDModel.from_dict(MODEL.to_dict()), "fresh")
 
 
 pasts = st.lists(st.lists(st.integers(0, N_STATES - 1), min_size=ORDER, max_size=ORDER), min_size=1, max_size=40)
@@ -76,6 +78,7 @@ def test_predict_batch_of_a_predictor_with_kept_rows_is_a_fresh_ones() -> None:
             assert p.predict_batch(t, X, q, 8.0, cubic=cubic).tobytes() == \
                 _fresh().predict_batch(t, X, q, 8.0, cubic=cubic).tobytes()
     assert sum(len(d) for d in p._abar_rows.values()) > 0
+    assert Predictor(p.model, "another")._abar_rows is p._abar_rows  # one store per model
 
 
 def test_nothing_is_kept_where_blas_breaks_the_premise(monkeypatch: pytest.MonkeyPatch) -> None:
