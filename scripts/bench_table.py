@@ -101,15 +101,23 @@ def loop_table(after: Mapping[str, Any], before: Mapping[str, Any] | None) -> li
     if not loop:
         return ["The closed-loop episodes were not measured in this run (`--quick` or no SUMO)."]
     prior = ((before or {}).get("loop") or {}).get("planners") or {}
-    lines = ["| planner | episode (wall) | of which planning | planner calls | success | contacts | target | met | "
-             "before: episode (planning) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    warmup = int(loop.get("warmup", 0))
+    lines = []
+    if warmup:
+        lines += [f"Each planner's episodes are timed after {warmup} untimed warm-up episode(s) of the same planner "
+                  "in the same process (a campaign's workers run many episodes each); the warm-up's own wall time "
+                  "is the column *first episode*: it also loads libsumo, the predictor's model and the planner's "
+                  "modules.", ""]
+    lines += ["| planner | episode (wall) | of which planning | first episode (wall) | planner calls | success | "
+              "contacts | target | met | before: episode (planning) |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     target = loop["target_episode_s"]
     for name, row in loop["planners"].items():
         old = prior.get(name)
         was = f"{fmt_s(old['episode']['median'])} ({fmt_s(old['wall_s'].get('planning'))})" if old else "n/a"
         med = row["episode"]["median"]
-        lines.append(f"| {name} | {fmt_s(med)} | {fmt_s(row['wall_s'].get('planning'))} | {row['planner_calls']} | "
+        lines.append(f"| {name} | {fmt_s(med)} | {fmt_s(row['wall_s'].get('planning'))} | "
+                     f"{fmt_s(row.get('first_episode_s'))} | {row['planner_calls']} | "
                      f"{'yes' if row['success'] else 'no'} | {row['contacts']} | {fmt_s(target)} | "
                      f"{_yes(med <= target)} | {was} |")
     return lines

@@ -142,8 +142,21 @@ def test_the_tables_have_one_row_per_case_and_planner() -> None:
     assert by_backend["osqp"][6:8] == ["**met**", "missed"]  # 4.44 ms <= 5 ms on CPU, 11.1 ms wall
     assert by_backend["clarabel"][6:8] == ["missed", "missed"]  # local: not certified
     assert by_backend["piqp"][2] == "ModuleNotFoundError: piqp" and by_backend["piqp"][3] == "n/a"
-    assert [r[7] for r in loop[1:]] == ["missed", "missed"]  # 76.2 s and 3.37 s > 1 s
+    assert [r[8] for r in loop[1:]] == ["missed", "missed"]  # 76.2 s and 3.37 s > 1 s
+    assert [r[3] for r in loop[1:]] == ["n/a", "n/a"]  # no warm-up in this run: no first episode
     assert "n/a" in targets[1][-1]  # no before run: the column says so
+
+
+def test_the_warm_up_episode_is_said_and_shown() -> None:
+    """A run with a warm-up says so above the loop table and shows the warm-up's own wall time."""
+    after = copy.deepcopy(fake_run())
+    after["loop"]["warmup"] = 1
+    for i, row in enumerate(after["loop"]["planners"].values()):
+        row["first_episode_s"] = 2.5 + i
+    text = bt.document(after, None)
+    assert "after 1 untimed warm-up episode" in text
+    loop = _tables(text)[2]
+    assert [r[3] for r in loop[1:]] == ["2.5 s", "3.5 s"]
 
 
 def test_a_changed_number_changes_the_table() -> None:
