@@ -130,3 +130,23 @@ def test_a_plan_whose_steered_car_misses_the_goal_heading_is_not_taken(tmp_path)
     assert after.safe and after.steered_goal is True
     verdict, _ = _ks_verdict(cr, after)
     assert verdict.valid, verdict.checks
+
+
+@needs_data
+@settings(max_examples=40, deadline=None)
+@given(along=st.floats(-40.0, 40.0), across=st.floats(-12.0, 12.0), th=st.floats(-0.4, 0.4))
+def test_every_body_off_the_road_is_near_an_edge(along: float, across: float, th: float) -> None:
+    """:func:`~iamp.commonroad.planning.near_road_edges` decides which steered bodies need
+    CommonRoad's road check; a body it calls far from every edge must be on the road by that
+    check (bodies placed along and across US101-5's road, which narrows, turned by up to 0.4 rad)."""
+    from iamp.commonroad.planning import near_road_edges, off_road_poses
+
+    cr = _us101_5()
+    init = cr.planning_problem.initial_state
+    psi = float(init.orientation)
+    u = np.array([math.cos(psi), math.sin(psi)])
+    n = np.array([-u[1], u[0]])
+    c = (np.asarray(init.position, dtype=float) + along * u + across * n)[None, :]
+    h = np.array([psi + th])
+    if off_road_poses(cr, c, h)[0]:
+        assert near_road_edges(cr, c, h)[0]
