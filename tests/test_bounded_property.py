@@ -133,9 +133,11 @@ def test_a_minimum_at_the_edge_of_the_feasible_contact_times_is_planned_there() 
     (Brent's bracket met the edge, where ``r`` loses its digits and changes sign: the
     Hamiltonian-jump check failed).  Now the slope is read just inside the edge, the plan is
     made ``1e-10 t_f`` inside it, the stationarity check is not applied there
-    (``feasibility_edge``), and cost and contact time agree with the bounded QP.  The global
-    certificate does not close at such an edge within its budget (the Farkas margins of the
-    infeasible side vanish at the edge), so this test skips it: ``local``."""
+    (``feasibility_edge``), and cost and contact time agree with the bounded QP.  Without the
+    global certificate the plan is ``local``; with it (the contact times beyond the edge
+    certified infeasible by :mod:`iamp.planners.pmp.reach`'s Farkas margin, issue 32 item 4)
+    the same plan is ``optimal`` (it was ``local``: the dual Newton method's margins vanish at
+    the edge)."""
     ego = EgoBoundary(tf=4.03474331919433, x0=0.0, y0=0.0, vx0=23.369565323506087, xf=100.94031355330122,
                       yf=-3.5605651349647482, vxf=23.036231990172755, vy0=0.0, vyf=-0.011844761331778364)
     veh = SurroundingVehicle(x_poly=(4.199502686445335, 23.36956532351609, 0.0, 0.01), corner="rear-lower", y=0.0,
@@ -147,3 +149,6 @@ def test_a_minimum_at_the_edge_of_the_feasible_contact_times_is_planned_there() 
     assert abs(float(pmp.contact_times[0]) - 1.3281212) < 1e-6
     qp = plan(problem, "qp", solver="clarabel", steps=QP_STEPS, contact="refine")
     assert qp.cost is not None and qp.cost * (1 - BELOW_REL) <= pmp.cost <= qp.cost * (1 + ABOVE_REL)
+    certified = PMPPlanner().plan(problem)
+    assert certified.status == stc.OPTIMAL and certified.diagnostics.certified_global
+    assert certified.cost == pmp.cost and certified.contact_times[0] == pmp.contact_times[0]
