@@ -1,0 +1,102 @@
+"""The bounded PMP with several vehicles beside an edge of the feasible contact times (issue 32 item 4).
+
+Found by tests/test_bounded_random.py: ``random_problem(864097, m=3)`` with the box at 0.744 of
+its unbounded plan's peaks ended ``inaccurate`` (Hamiltonian-jump check 0.016 against 1e-7):
+L-BFGS-B and the Newton polish stopped ``7e-7 t_f`` below the upper edge of ``t_0``'s feasible
+times (their central differences, ``1e-6 t_f`` wide, cross it) with ``J_b`` still falling
+along ``t_2``.  :func:`~iamp.planners.pmp.bounded._edge_polish` holds ``t_0`` at the edge (here
+``J_b`` turns ``5e-8 t_f`` inside it: Brent's root of ``r_0``) while the Newton polish moves
+the others; the plan is a stationary local minimum, checked against the bounded FOH QP through
+its contact times and against ``J_b`` at feasible contact times around it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from test_bounded_random import boxed, check
+
+from iamp.core import status as stc
+from iamp.core.physical import PhysicalLimits
+from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.tolerances import TOLERANCES
+from iamp.planners.pmp import PMPPlanner
+from iamp.planners.pmp import bounded as B
+
+SEED, SCALE = 864097, 0.7439556619624459
+
+
+def test_three_vehicles_beside_an_edge_are_a_verified_local_minimum() -> None:
+    """``local`` (was ``inaccurate``), stationary in every contact time, ``t_0`` held at the upper
+    edge of its feasible times (``t_0 + EDGE_PROBE t_f`` admits no plan), the FOH QP through the
+    contact times at or above the cost and within 2e-3 (:func:`check`), and no feasible contact
+    times within ``1e-7 .. 1e-3 t_f`` of the plan's have a lower ``J_b``."""
+    assert check(SEED, 3, SCALE).startswith("local/")
+    problem = boxed(SEED, 3, SCALE)
+    assert problem is not None
+    pmp = PMPPlanner().plan(problem)
+    assert pmp.status == stc.LOCAL and pmp.cost is not None
+    checks = pmp.diagnostics.checks
+    assert checks is not None and checks["hamiltonian_jump"]["ok"]
+    search = pmp.info["search"]
+    assert search["edge_polish"]["held"] == [{"vehicle": 0, "side": "upper"}]
+    assert "feasibility_edges" not in search  # stationary: the jump condition applied to all three
+    T = float(problem.tf)
+    t = np.array(pmp.contact_times, dtype=float)
+    ev = B._Evaluator(problem)
+    J0 = ev(t)[0]
+    assert abs(J0 - pmp.cost) <= 1e-9 * pmp.cost
+    beyond = t.copy()
+    beyond[0] += B.EDGE_PROBE * T
+    assert not math.isfinite(ev(beyond)[0])
+    rng = np.random.default_rng(0)
+    feasible = 0
+    for h in (1e-7, 1e-5, 1e-3):
+        for _ in range(12):
+            d = rng.normal(size=3)
+            J = ev(t + h * T * d / np.linalg.norm(d))[0]
+            if math.isfinite(J):
+                feasible += 1
+                assert J >= J0 - 1e-9 * J0, (h, J, J0)
+    assert feasible >= 12
+
+
+def test_the_edge_is_skipped_only_where_the_slope_points_out() -> None:
+    """The jump condition is dropped only for a time at an edge whose slope points out of the
+    feasible set: on 864097, ``t_0`` moved to its edge has ``r_0 > 0`` (``J_b`` rises towards the
+    upper edge), so :func:`_kkt_at_edges` refuses it; and dropping ``t_0`` does not hide the
+    other times' residual at the point where the search used to stop (``r_2 = -1.1``)."""
+    problem = boxed(SEED, 3, SCALE)
+    assert problem is not None
+    T = float(problem.tf)
+    ev = B._Evaluator(problem)
+    stopped = np.array([5.93277429, 0.93588727, 3.14842788])  # the search's end before the edge polish
+    assert math.isfinite(ev(stopped)[0])
+    seated = B._seat_at_edge(ev, stopped, 0, 1.0, T)
+    assert seated is not None
+    sol = B.solve_bounded_fixed(problem, seated, ev.warm_for(seated))
+    assert sol.hamiltonian_jump_residual()[0] > 0
+    assert not B._kkt_at_edges(ev, sol, {0: 1.0}, T)
+    at_stop = B.solve_bounded_fixed(problem, stopped, ev.warm_for(stopped))
+    tol = TOLERANCES["pmp_hjump_rel"]
+    assert B.check_values(at_stop, at_edge=[0])["hamiltonian_jump"] > tol
+    assert B.check_values(at_stop, at_edge=[0, 1, 2])["hamiltonian_jump"] == 0.0
+
+
+def test_a_minimum_at_an_edge_meets_the_kkt_sign() -> None:
+    """A minimum *at* an edge (tests/test_bounded_property.py: ``J_b`` rises from the lower edge of
+    the feasible contact times, ``r = +0.81``): :func:`_kkt_at_edges` accepts it as a lower edge and
+    refuses it as an upper one."""
+    ego = EgoBoundary(tf=4.03474331919433, x0=0.0, y0=0.0, vx0=23.369565323506087, xf=100.94031355330122,
+                      yf=-3.5605651349647482, vxf=23.036231990172755, vy0=0.0, vyf=-0.011844761331778364)
+    veh = SurroundingVehicle(x_poly=(4.199502686445335, 23.36956532351609, 0.0, 0.01), corner="rear-lower", y=0.0,
+                             length=4.8, width=1.8, safety_x=0.5, safety_y=0.5)
+    problem = Problem(ego, (veh,), "edge", PhysicalLimits(ax=(-4.4480495052821105, 1.5), ay=(-3.0, 3.0)))
+    pmp = PMPPlanner(certify_bounded=False).plan(problem)
+    assert pmp.info["search"]["feasibility_edge"] == "lower"
+    ev = B._Evaluator(problem)
+    sol = B.solve_bounded_fixed(problem, np.array(pmp.contact_times), None)
+    T = float(problem.tf)
+    assert B._kkt_at_edges(ev, sol, {0: -1.0}, T)
+    assert not B._kkt_at_edges(ev, sol, {0: 1.0}, T)
