@@ -50,7 +50,11 @@ autonomous), a further check of the switching structure.
   ``(0, t_f)`` with intervals on which the closed-form unbounded bound
   :math:`J_b \ge J_u` (vectorised, no solve), a weak-duality Taylor bound or a Farkas margin
   stays above :math:`J^*(1 - 10^{-9})`; certified, the plan is ``optimal``, otherwise
-  ``local``.  Several vehicles: ``local`` (no certificate).
+  ``local``.  Several vehicles: ``local`` (no certificate); where the polish ends
+  non-stationary next to an edge of the feasible contact times, :func:`_edge_polish` holds the
+  time whose descent leaves the set at its edge (or at the stationary point just inside it) and
+  polishes the others; a time left at the edge is excused from the Hamiltonian-jump check only
+  with the KKT sign (:func:`_kkt_at_edges`; ``info["search"]["feasibility_edges"]``).
   Caller-given contact times give the fixed-time optimum, which is unique (strictly convex
   problem): ``optimal``.
 
