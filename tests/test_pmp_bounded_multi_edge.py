@@ -100,3 +100,18 @@ def test_a_minimum_at_an_edge_meets_the_kkt_sign() -> None:
     T = float(problem.tf)
     assert B._kkt_at_edges(ev, sol, {0: -1.0}, T)
     assert not B._kkt_at_edges(ev, sol, {0: 1.0}, T)
+
+
+def test_three_vehicles_with_an_infeasible_unbounded_start_find_a_plan() -> None:
+    """Found by test_bounded_random (2026-11-29): random_problem(498873, m=3) under a box at 0.833
+    of its peaks was ``infeasible`` (not certified: the certificate's 4000 solves closed nothing;
+    the search had evaluated only the unbounded ``t*``) while the FOH QP at ``N = 8`` plans at
+    654.78.  Now the contact times feasible for each vehicle alone give a product grid with
+    feasible points (:func:`_feasible_start`): ``local``, and the FOH QP through its contact
+    times agrees (:func:`check`)."""
+    assert check(498873, 3, 0.8334472240975609).startswith("local/")
+    problem = boxed(498873, 3, 0.8334472240975609)
+    assert problem is not None
+    pmp = PMPPlanner().plan(problem)
+    assert pmp.status == stc.LOCAL and pmp.cost is not None and pmp.cost <= 654.7827711418674
+    assert pmp.info["search"]["feasible_start"]["feasible"] > 0

@@ -1674,6 +1674,37 @@ def _kkt_at_edges(ev: _Evaluator, sol: BoundedSolution, edges: dict[int, float],
     return True
 
 
+def _feasible_start(ev: _Evaluator, search: dict[str, Any], grid: int = 64, per_axis: int = 8
+                    ) -> FloatArray | None:
+    """Three or more vehicles, where the unbounded ``t*`` admits no plan and infeasibility is not
+    certified: the contact times that admit a plan with each vehicle alone (a necessary
+    condition: every vehicle only removes plans) among ``grid`` points of ``(0, t_f)``, then
+    ``J_b`` on the product of ``per_axis`` of each vehicle's, evenly spread; the cheapest feasible
+    point (``None``: none).  Recorded in ``search["feasible_start"]`` (``alone``: each vehicle's
+    count of feasible grid points; ``points``, ``feasible``: the product's).
+
+    Found by test_bounded_random: random_problem(498873, m=3) under a box at 0.833 of its peaks
+    was ``infeasible`` (not certified: 4000 solves closed nothing) while the FOH QP at ``N = 8``
+    plans at 654.78; 6 of the 512 product points admit a plan (a uniform grid of 8 per axis: none)."""
+    problem = ev.problem
+    T = ev.T
+    g = T * (np.arange(grid) + 0.5) / grid
+    picks: list[FloatArray] = []
+    alone_counts: list[int] = []
+    for v in problem.vehicles:
+        alone = _Evaluator(Problem(problem.ego, (v,), problem.name, problem.limits))
+        ok = np.array([x for x in g if math.isfinite(alone(np.array([x]))[0])])
+        alone_counts.append(len(ok))
+        if len(ok) == 0:
+            search["feasible_start"] = {"alone": alone_counts, "points": 0, "feasible": 0}
+            return None
+        picks.append(ok[np.unique(np.linspace(0, len(ok) - 1, min(per_axis, len(ok))).round().astype(int))])
+    mesh = np.stack(np.meshgrid(*picks, indexing="ij"), axis=-1).reshape(-1, len(picks))
+    found = [(J, k) for k, J in enumerate(ev(c)[0] for c in mesh) if math.isfinite(J)]
+    search["feasible_start"] = {"alone": alone_counts, "points": len(mesh), "feasible": len(found)}
+    return mesh[min(found)[1]] if found else None
+
+
 def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times: Any = None,
                  start: float | None = None, certify: bool = True, retries: int = 2) -> Plan:
     """The bounded PMP plan (module docstring): fixed ``contact_times`` or a search from
@@ -1717,6 +1748,8 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
             return _failed(problem, INFEASIBLE, "box_infeasible_at_every_contact_time", info, t0,
                            f"no {what} admits a plan within the input box (certified: {how}, each with a "
                            "Farkas certificate and a Lipschitz margin)")
+        if t_feasible is None and m > 2:
+            t_feasible = _feasible_start(ev, search)
         if t_feasible is not None:
             if m == 1:
                 t, more = _search_one(ev, T, [float(t_feasible[0])], GRID_ONE)
