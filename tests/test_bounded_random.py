@@ -149,7 +149,8 @@ def test_three_vehicles_polish_to_stationarity(seed: int, scale: float) -> None:
     problem = boxed(seed, 3, scale)
     assert problem is not None
     pmp = PMPPlanner().plan(problem)
-    assert pmp.diagnostics.checks["hamiltonian_jump"]["ok"]
+    checks = pmp.diagnostics.checks
+    assert checks is not None and checks["hamiltonian_jump"]["ok"]
 
 
 def test_a_minimum_at_the_edge_is_certified() -> None:
