@@ -92,7 +92,7 @@ def test_the_built_plan_is_a_plan_of_the_qp_above_its_optimum() -> None:
     v = problem.vehicles[0]
     assert np.allclose(up.X[n, [0, 2]], [float(np.asarray(v.corner_x(t[n]))), float(v.corner_y)], atol=1e-9)
     excess = float(best.cost) - float(at.cost)
-    assert 0.0 < excess <= up.excess < 1.03 * excess  # the bracket and its tightness (D / excess = 1.009 with the pinned correction)
+    assert 0.0 < excess <= up.excess < 1.03 * excess  # the bracket and its tightness (D / excess = 1.009, pinned)
     assert box_violation(problem, at) <= 1e-12  # rounding of the knots only
 
 
