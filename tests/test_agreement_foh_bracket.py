@@ -13,6 +13,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from bounded_bracket import bounded, bracket_property, run_pair, with_cost
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -24,8 +25,7 @@ from iamp.comparison.agreement.bounded_pair import (
     hold_moments,
     upper_plan,
 )
-from iamp.comparison.agreement.judge import compare_problem, default_configs
-from iamp.comparison.agreement.runs import QPConfig, Run, run_pmp, run_qp
+from iamp.comparison.agreement.runs import Run
 from iamp.core.physical import PhysicalLimits
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
@@ -36,28 +36,12 @@ from iamp.planners.qp.bounded import BoundedQP
 from iamp.planners.qp.data import QPData
 
 
-def _bounded(seed: int, frac: float) -> Problem:
-    """``random_problem(seed)`` with the input box at ``frac`` of its unbounded PMP's inputs
-    (at least ±0.5), as in tests/test_issue29_compare.py and tests/test_agreement_zoh_bracket.py."""
-    problem = random_problem(seed)
-    U = PMPPlanner().plan(problem).inputs(np.linspace(0.0, problem.tf, 2001))
-    return problem.with_limits(PhysicalLimits(
-        ax=(frac * min(-0.5, float(U[:, 0].min())), frac * max(0.5, float(U[:, 0].max()))),
-        ay=(frac * min(-0.5, float(U[:, 1].min())), frac * max(0.5, float(U[:, 1].max())))))
-
-
-def _pair(problem: Problem, N: int) -> tuple[Run, Run]:
-    pmp = run_pmp(problem, repeats=1, warmup=0)
-    qp = run_qp(problem, QPConfig(solver="clarabel", hold="foh", steps=N), repeats=1, warmup=0, budget_s=0.0)
-    return pmp, qp
-
-
 @pytest.fixture(scope="module")
 def pair_229() -> Iterator[dict[int, tuple[Problem, Run, Run]]]:
     """``random_problem(229)`` at 0.609375 of its inputs and its FOH pairs at N = 24 and 48
     (computed once)."""
-    problem = _bounded(229, 0.609375)
-    yield {N: (problem, *_pair(problem, N)) for N in (24, 48)}
+    problem = bounded(229, 0.609375)
+    yield {N: (problem, *run_pair(problem, N, "foh")) for N in (24, 48)}
 
 
 # --- the construction -----------------------------------------------------------------------------
@@ -94,7 +78,7 @@ def test_the_built_plan_is_a_plan_of_the_qp_above_its_optimum() -> None:
     from the bounded PMP's nodal inputs meets the QP's equalities (1e-12) and its limit rows,
     costs at least the QP's optimum at that node, and D is close to the switching kinks'
     leading term K_h (the module docstring's expansion)."""
-    problem, N = _bounded(229, 0.609375), 24
+    problem, N = bounded(229, 0.609375), 24
     t = np.linspace(0.0, problem.tf, N + 1)
     qp = BoundedQP(problem, N, "foh", "clarabel")
     sweep = [qp.solve_nodes([n]) for n in range(1, N)]
@@ -124,12 +108,12 @@ def test_without_a_plan_of_the_qp_the_upper_side_is_a_note() -> None:
     QP imposes the inscribed 16-gon, which the plan built from the PMP's input leaves at node 0
     by 0.38 %: no plan of the QP, so the upper side is a note naming the row — and it must be:
     the excess there (0.655) is above that plan's D (0.552)."""
-    base = _bounded(229, 0.609375)
+    base = bounded(229, 0.609375)
     lim = base.limits
     assert lim is not None and lim.ax is not None and lim.ay is not None
     radius = max(float(np.hypot(x, y)) for x in lim.ax for y in lim.ay)
     problem = base.with_limits(PhysicalLimits(ax=lim.ax, ay=lim.ay, a_total=radius))
-    pmp, qp = _pair(problem, 24)
+    pmp, qp = run_pair(problem, 24, "foh")
     assert pmp.result.status == "optimal" and qp.result.status == "optimal"
     pair = compare_bounded_pmp_qp(problem, pmp, qp)
     b = pair["bounded"]  # type: ignore[typeddict-item]
@@ -147,45 +131,17 @@ def test_without_a_plan_of_the_qp_the_upper_side_is_a_note() -> None:
 @example(229, 0.609375, 24)  # the former FOH rule's counterexample (0.25 x the h² term)
 @example(869025, 0.737, 24)  # D / excess = 6.2: the loosest bracket measured
 def test_a_certified_pmp_and_an_optimal_foh_qp_agree(seed: int, frac: float, N: int) -> None:
-    _bracket_property(seed, frac, N)
+    bracket_property(seed, frac, N, "foh")
 
 
 @pytest.mark.slow
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 10**6), st.floats(0.4, 1.0), st.sampled_from([12, 24, 48]))
 def test_a_certified_pmp_and_an_optimal_foh_qp_agree_many(seed: int, frac: float, N: int) -> None:
-    _bracket_property(seed, frac, N)
-
-
-def _bracket_property(seed: int, frac: float, N: int) -> None:
-    """Whenever the bounded PMP is certified optimal and the FOH QP is optimal, the pair agrees,
-    and rule B6's bracket holds: 0 <= J_QP - J_b(t_Q) <= D (or a note says why the upper side
-    could not be built)."""
-    comp = compare_problem(_bounded(seed, frac), default_configs(steps=(N,), solvers=("clarabel",), holds=("foh",)),
-                           repeats=1, pmp_repeats=1, warmup=0, budget_s=0.0)
-    pmp = comp.run("pmp").result
-    (pair,) = comp.agreement
-    qp = comp.run(pair["b"]).result
-    if not (pmp.status == "optimal" and pmp.diagnostics.certified_global and qp.status == "optimal"):
-        return
-    assert pair["verdict"] == "agree", pair["reasons"]
-    b = pair["bounded"]  # type: ignore[typeddict-item]
-    J = b["pmp_at_contact_times_cost"]
-    assert b["excess"] >= -1e-9 * J
-    if b["foh_upper_reason"] is None:
-        assert pair["checks"]["bounded_foh_excess_rel"]["ok"]
-        assert b["excess"] <= b["foh_upper_excess"] + 1e-9 * J
-    else:
-        assert any("upper side is not applied" in note for note in pair["notes"])
+    bracket_property(seed, frac, N, "foh")
 
 
 # --- the rule catches a wrong PMP or a QP above its optimum --------------------------------------
-
-def _with_cost(plan: Plan, factor: float) -> Plan:
-    wrong = copy.copy(plan)
-    wrong.cost = float(plan.cost) * factor  # type: ignore[arg-type]
-    return wrong
-
 
 @pytest.mark.parametrize("factor", [1 - 1e-2, 1 + 1e-2])
 def test_a_wrong_pmp_cost_is_caught(pair_229: dict[int, tuple[Problem, Run, Run]], factor: float) -> None:
@@ -193,7 +149,7 @@ def test_a_wrong_pmp_cost_is_caught(pair_229: dict[int, tuple[Problem, Run, Run]
     problem, pmp, qp = pair_229[24]
     assert compare_bounded_pmp_qp(problem, pmp, qp)["verdict"] == "agree"
     wrong = copy.copy(pmp)
-    wrong.result = _with_cost(pmp.result, factor)
+    wrong.result = with_cost(pmp.result, factor)
     pair = compare_bounded_pmp_qp(problem, wrong, qp)
     assert pair["verdict"] == "disagree"
     assert pair["checks"]["pmp_cost_is_input_energy"]["ok"] is False
@@ -213,7 +169,7 @@ class _WrongAtContactTimes:
             wide = PhysicalLimits(ax=tuple(self.widen * x for x in lim.ax),  # type: ignore[arg-type, union-attr]
                                   ay=tuple(self.widen * x for x in lim.ay))  # type: ignore[arg-type, union-attr]
             return PMPPlanner().plan(problem.with_limits(wide), contact_times=contact_times)
-        return _with_cost(PMPPlanner().plan(problem, contact_times=contact_times), self.factor)
+        return with_cost(PMPPlanner().plan(problem, contact_times=contact_times), self.factor)
 
 
 @pytest.mark.parametrize(("factor", "N", "caught_by"), [
@@ -249,7 +205,7 @@ def test_a_qp_above_its_optimum_is_caught(pair_229: dict[int, tuple[Problem, Run
     excess of 0.64) let it pass."""
     problem, pmp, qp = pair_229[24]
     wrong = copy.copy(qp)
-    wrong.result = _with_cost(qp.result, 1 + 1e-3)
+    wrong.result = with_cost(qp.result, 1 + 1e-3)
     pair = compare_bounded_pmp_qp(problem, pmp, wrong)
     assert pair["verdict"] == "disagree"
     assert pair["checks"]["bounded_foh_excess_rel"]["ok"] is False

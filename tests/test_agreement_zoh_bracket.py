@@ -12,6 +12,7 @@ import copy
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from bounded_bracket import bounded, bracket_property, run_pair, with_cost
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -22,32 +23,12 @@ from iamp.comparison.agreement.bounded_pair import (
     compare_bounded_pmp_qp,
     zoh_upper_plan,
 )
-from iamp.comparison.agreement.judge import compare_problem, default_configs
-from iamp.comparison.agreement.runs import QPConfig, Run, run_pmp, run_qp
 from iamp.core.physical import PhysicalLimits
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
-from iamp.planners.examples import random_problem
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.qp.backends import get_backend
 from iamp.planners.qp.bounded import BoundedQP
-
-
-def _bounded(seed: int, frac: float) -> Problem:
-    """``random_problem(seed)`` with the input box at ``frac`` of its unbounded PMP's inputs
-    (at least ±0.5), as in tests/test_issue29_compare.py."""
-    problem = random_problem(seed)
-    U = PMPPlanner().plan(problem).inputs(np.linspace(0.0, problem.tf, 2001))
-    return problem.with_limits(PhysicalLimits(
-        ax=(frac * min(-0.5, float(U[:, 0].min())), frac * max(0.5, float(U[:, 0].max()))),
-        ay=(frac * min(-0.5, float(U[:, 1].min())), frac * max(0.5, float(U[:, 1].max())))))
-
-
-def _pair(problem: Problem, N: int) -> tuple[Run, Run]:
-    pmp = run_pmp(problem, repeats=1, warmup=0)
-    qp = run_qp(problem, QPConfig(solver="clarabel", hold="zoh", steps=N), repeats=1, warmup=0, budget_s=0.0)
-    return pmp, qp
-
 
 # --- the construction -----------------------------------------------------------------------------
 
@@ -75,7 +56,7 @@ def test_the_built_plan_is_a_plan_of_the_qp_above_its_optimum() -> None:
     """random_problem(229) at 0.609375, ZOH N = 24, contact at the QP's node 7: the plan built
     from the bounded PMP's input meets the QP's equalities (1e-12), its limit rows, and costs
     at least the QP's optimum at that node; the PMP's cost is its input's energy."""
-    problem, N = _bounded(229, 0.609375), 24
+    problem, N = bounded(229, 0.609375), 24
     t = np.linspace(0.0, problem.tf, N + 1)
     qp = BoundedQP(problem, N, "zoh", "clarabel")
     sweep = [qp.solve_nodes([n]) for n in range(1, N)]
@@ -104,53 +85,26 @@ def test_the_built_plan_is_a_plan_of_the_qp_above_its_optimum() -> None:
 @example(980978, 0.627, 24)  # ratio 1.377 under the former bracket
 @example(27559, 0.723, 48)  # ratio 2.08 under the former bracket
 def test_a_certified_pmp_and_an_optimal_zoh_qp_agree(seed: int, frac: float, N: int) -> None:
-    _bracket_property(seed, frac, N)
+    bracket_property(seed, frac, N, "zoh")
 
 
 @pytest.mark.slow
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 10**6), st.floats(0.4, 1.0), st.sampled_from([12, 24, 48]))
 def test_a_certified_pmp_and_an_optimal_zoh_qp_agree_many(seed: int, frac: float, N: int) -> None:
-    _bracket_property(seed, frac, N)
-
-
-def _bracket_property(seed: int, frac: float, N: int) -> None:
-    """Whenever the bounded PMP is certified optimal and the ZOH QP is optimal, the pair agrees,
-    and rule B6's bracket holds: 0 <= J_QP - J_b(t_Q) <= D (or a note says why the upper side
-    could not be built)."""
-    comp = compare_problem(_bounded(seed, frac), default_configs(steps=(N,), solvers=("clarabel",), holds=("zoh",)),
-                           repeats=1, pmp_repeats=1, warmup=0, budget_s=0.0)
-    pmp = comp.run("pmp").result
-    (pair,) = comp.agreement
-    qp = comp.run(pair["b"]).result
-    if not (pmp.status == "optimal" and pmp.diagnostics.certified_global and qp.status == "optimal"):
-        return
-    assert pair["verdict"] == "agree", pair["reasons"]
-    b = pair["bounded"]  # type: ignore[typeddict-item]
-    if b["zoh_upper_reason"] is None:
-        assert pair["checks"]["bounded_zoh_excess_rel"]["ok"]
-        assert b["excess"] >= -1e-9 * b["pmp_at_contact_times_cost"]
-        assert b["excess"] <= b["zoh_upper_excess"] + 1e-9 * b["pmp_at_contact_times_cost"]
-    else:
-        assert any("upper side is not applied" in note for note in pair["notes"])
+    bracket_property(seed, frac, N, "zoh")
 
 
 # --- the rule catches a wrong PMP -----------------------------------------------------------------
-
-def _with_cost(plan: Plan, factor: float) -> Plan:
-    wrong = copy.copy(plan)
-    wrong.cost = float(plan.cost) * factor  # type: ignore[arg-type]
-    return wrong
-
 
 @pytest.mark.parametrize("factor", [1 - 1e-2, 1 + 1e-2])
 def test_a_wrong_pmp_cost_is_caught(factor: float) -> None:
     """The PMP run's cost 1 % off its plan's energy: B5' fails (the pair compared costs that are
     not its plans')."""
-    pmp, qp = _pair(_bounded(229, 0.609375), 24)
+    pmp, qp = run_pair(bounded(229, 0.609375), 24, "zoh")
     assert compare_bounded_pmp_qp(pmp.result.problem, pmp, qp)["verdict"] == "agree"
     wrong = copy.copy(pmp)
-    wrong.result = _with_cost(pmp.result, factor)
+    wrong.result = with_cost(pmp.result, factor)
     pair = compare_bounded_pmp_qp(pmp.result.problem, wrong, qp)
     assert pair["verdict"] == "disagree"
     assert pair["checks"]["pmp_cost_is_input_energy"]["ok"] is False
@@ -171,7 +125,7 @@ class _WrongAtContactTimes:
             wide = PhysicalLimits(ax=tuple(self.widen * x for x in lim.ax),  # type: ignore[arg-type, union-attr]
                                   ay=tuple(self.widen * x for x in lim.ay))  # type: ignore[arg-type, union-attr]
             return PMPPlanner().plan(problem.with_limits(wide), contact_times=contact_times)
-        return _with_cost(PMPPlanner().plan(problem, contact_times=contact_times), self.factor)
+        return with_cost(PMPPlanner().plan(problem, contact_times=contact_times), self.factor)
 
 
 @pytest.mark.parametrize(("factor", "N", "caught_by"), [
@@ -185,8 +139,8 @@ def test_the_bracket_catches_a_wrong_cost_at_the_contact_times(monkeypatch: pyte
     itself fails (besides B5').  Its resolution is D on the low side (D - excess = 4e-4 of J at
     N = 24) and the excess on the high side (2 % of J at N = 24, 0.4 % at N = 48), so a 1 %
     overstatement is caught from N = 48 on by the bracket (and at every N by B5')."""
-    problem = _bounded(229, 0.609375)
-    pmp, qp = _pair(problem, N)
+    problem = bounded(229, 0.609375)
+    pmp, qp = run_pair(problem, N, "zoh")
     wrong = _WrongAtContactTimes()
     wrong.factor = factor
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
@@ -200,8 +154,8 @@ def test_a_pmp_plan_outside_the_box_is_caught(monkeypatch: pytest.MonkeyPatch) -
     """A re-solve that did not impose the box (widened 10 %): cheaper, its cost its input's
     energy, so B4, B5' and the bracket's upper side (a plan of the QP exists) all pass; the
     premise check on its input catches it."""
-    problem = _bounded(229, 0.609375)
-    pmp, qp = _pair(problem, 24)
+    problem = bounded(229, 0.609375)
+    pmp, qp = run_pair(problem, 24, "zoh")
     wrong = _WrongAtContactTimes()
     wrong.widen = 1.1
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
@@ -214,8 +168,8 @@ def test_a_pmp_plan_outside_the_box_is_caught(monkeypatch: pytest.MonkeyPatch) -
 def test_a_pmp_plan_missing_the_corner_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
     """A re-solve whose plan passes the corner a quarter step late (a plan of another problem):
     its miss of the corner at the QP's contact time is caught."""
-    problem = _bounded(229, 0.609375)
-    pmp, qp = _pair(problem, 24)
+    problem = bounded(229, 0.609375)
+    pmp, qp = run_pair(problem, 24, "zoh")
     wrong = _WrongAtContactTimes()
     wrong.shift = 0.25 * problem.tf / 24
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
@@ -231,12 +185,12 @@ def test_without_a_plan_of_the_qp_the_upper_side_is_a_note() -> None:
     (apothem 0.981), which the plan built from the PMP's input leaves where it rides the box's
     corner (at 167.6°, 1.2° from a vertex of the 16-gon, by 0.38 %): that plan is no plan of
     the QP, so the upper side is not applied (a note names the row); the lower side is."""
-    base = _bounded(229, 0.609375)
+    base = bounded(229, 0.609375)
     lim = base.limits
     assert lim is not None and lim.ax is not None and lim.ay is not None
     radius = max(float(np.hypot(x, y)) for x in lim.ax for y in lim.ay)
     problem = base.with_limits(PhysicalLimits(ax=lim.ax, ay=lim.ay, a_total=radius))
-    pmp, qp = _pair(problem, 24)
+    pmp, qp = run_pair(problem, 24, "zoh")
     assert pmp.result.status == "optimal" and qp.result.status == "optimal"
     pair = compare_bounded_pmp_qp(problem, pmp, qp)
     reason = pair["bounded"]["zoh_upper_reason"]  # type: ignore[typeddict-item]
