@@ -744,16 +744,6 @@ class ContinuousAvoidPlanner:
                 # the polynomials keep the box above U - gap at every probe: only their Bernstein
                 # bound is loose, and splitting tightens it without a QP
                 mass = np.max([dp.mass for dp in polys], axis=0)
-            elif (best is not None and box.own_relaxation and bool(np.any(margin < 0))
-                  and all(piece_of(float(a), float(b), qp.h, qp.N) is None for a, b in zip(box.lo, box.hi))):
-                # every vehicle's interval spans several pieces: a candidate's dual bound here keeps
-                # only the rows outside the box (the relaxation's dual function), so it is no more
-                # than the box's relaxed bound; and the relaxed optimum breaks a vehicle's
-                # half-planes at every sampled crossing in the box, so a candidate is unlikely to
-                # attain that bound and close the box.  With an incumbent, no candidate here (the
-                # bounds are the same; only an upper bound is not tried): the box is split on its
-                # most broken vehicle (below)
-                pass
             else:
                 if not box.own_relaxation or low > -np.inf:
                     tau = probe
