@@ -356,3 +356,39 @@ def test_a_corridor_plan_off_only_the_road_is_repaired_laterally(tmp_path: Path,
     assert not off_road_steps(cr, rp.trajectory, rp.candidate.steps).any()
     verdict = _valid(cr, rp)
     assert verdict.valid, verdict.checks
+
+
+#: USA_US101-5_1803_T-1 (``multi``; seeds 19 and 23 write the same goal as 5_2003 and 5_2403): a
+#: goal state out of reach by speed and a slow one in the lane vehicle 477 drives through until
+#: its record ends at step 100.
+GOAL_5_X03 = [{"time_step": [90, 100], "velocity": [40.0, 45.0], "orientation": [-0.764, -0.5895],
+               "position": {"center": [32.5258, -33.7466], "length": 2.2773, "width": 1.7518,
+                            "orientation": -0.76804}},
+              {"time_step": [95, 105], "velocity": [0.0, 3.1402], "orientation": [-0.764, -0.5895],
+               "position": {"center": [29.9549, -36.4075], "length": 2.2773, "width": 1.7518,
+                            "orientation": -0.76804}}]
+
+
+@needs_data
+def test_a_goal_a_vehicle_leaves_only_at_the_end_is_entered_from_beside_it(tmp_path: Path) -> None:
+    """5_x03: vehicle 477 drives through the slow goal state's rectangle until its record ends at
+    step 100, and no vehicle is recorded at steps 101-105.  Every final state iamp tried (steps
+    101-105, at the goal's edge nearest the ego, s = 101.18 m in the road frame) needs the ego
+    where 477 is at step 100: from behind 477's rear at step 100 (s = 99.33 m, so the ego's centre
+    at most 97.08 m) the goal is 4.1 m away, and at most 3.0 m can be covered in 0.5 s ending at
+    3.14 m/s with 11.5 m/s^2.  A valid plan enters the goal from 477's other side: it holds its
+    lane, slips to the lane boundary beyond the goal's lane after 457 and 472 have passed and
+    before 477 arrives, and moves into the goal in the window's last 0.5 s.  Before, the plan
+    collided with 477; now the corridor planner's late lane schedule (:data:`CORRIDOR_LATE`) and
+    the window's last step among its final states give a plan valid by CommonRoad's checker."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan
+
+    path = with_goal(tmp_path, "USA_US101-5_1_T-1.xml", "USA_US101-5_1803_T-1", GOAL_5_X03)
+    cr = load(path)
+    assert max(int(round(float(ob.t[-1]) / cr.dt)) for ob in cr.obstacles if not ob.road_edge) <= 100
+    rp = plan(cr)
+    assert rp.safe and rp.iamp_status == "corridor", rp.reason
+    assert rp.candidate is not None and rp.candidate.goal_step == 105
+    verdict = _valid(cr, rp)
+    assert verdict.valid, verdict.checks

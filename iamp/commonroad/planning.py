@@ -1402,6 +1402,14 @@ CORRIDOR_ARRIVE = (0.25, 0.45)
 CORRIDOR_LEAVE = (0.6, 0.8)
 #: Guesses of the lane schedules the corridor planner solves at most (the least intruding).
 CORRIDOR_SCHEDULES = 4
+#: The late schedules (:func:`_schedule_guesses`): the start's lane held until this fraction of
+#: the horizon, then a lane boundary reached at the second and left at the third, for a goal a
+#: vehicle passes through until the window's last steps (entered from beside it at the end).
+CORRIDOR_LATE = (0.65, 0.85, 0.92)
+#: Late schedules solved at most (the least intruding), besides :data:`CORRIDOR_SCHEDULES`.
+CORRIDOR_LATE_SCHEDULES = 2
+#: QP solves of the late schedules, after the corridor planner's ``max_solves``.
+CORRIDOR_LATE_SOLVES = 10
 
 
 def _step_boxes(cr: CommonRoadProblem, K: int) -> FloatArray:
@@ -1428,7 +1436,7 @@ def _box_depth(cr: CommonRoadProblem, G: FloatArray, boxes: FloatArray) -> float
     return float(np.sum(np.maximum(np.max(depth, axis=0), 0.0)))
 
 
-def _schedule_guesses(cr: CommonRoadProblem, cand: Candidate) -> list[FloatArray]:
+def _schedule_guesses(cr: CommonRoadProblem, cand: Candidate, late: bool = False) -> list[FloatArray]:
     """Guesses on the time steps for :func:`plan_corridor` that pass through one lane on the way:
     the longitudinal motion the free cubic to ``cand``'s final state or to the farthest-ahead and
     farthest-behind point of its goal rows (an overtaking plan ends as far ahead of the vehicle it
@@ -1436,7 +1444,11 @@ def _schedule_guesses(cr: CommonRoadProblem, cand: Candidate) -> list[FloatArray
     lane's centre arriving at one of :data:`CORRIDOR_ARRIVE` of the horizon and from it to the
     final offset leaving at one of :data:`CORRIDOR_LEAVE`; every lane of ``cr.lanes`` on the road.
     Ranked by how deep the body check finds them in the vehicles (:func:`intrusions`), then by
-    their free cost; the :data:`CORRIDOR_SCHEDULES` least intruding."""
+    their free cost; the :data:`CORRIDOR_SCHEDULES` least intruding.  With ``late``, instead the
+    late schedules: the start's nearest lane held, a boundary between two lanes reached between
+    the fractions :data:`CORRIDOR_LATE` of the horizon and left for the final offset at the last
+    (a goal a vehicle drives through until the window's end is entered from beside it), the
+    :data:`CORRIDOR_LATE_SCHEDULES` least intruding."""
     from iamp.commonroad.goal import goal_rows, solve_small_qp
 
     K, T = cand.steps, cand.tf
@@ -1454,7 +1466,7 @@ def _schedule_guesses(cr: CommonRoadProblem, cand: Candidate) -> list[FloatArray
     boxes = _step_boxes(cr, K)
     scored: list[tuple[float, float, int, FloatArray]] = []
     n = 0
-    for S in lon:
+    for S in lon if not late else []:
         for ln in lanes:
             for fa in CORRIDOR_ARRIVE:
                 for fl in CORRIDOR_LEAVE:
@@ -1467,7 +1479,26 @@ def _schedule_guesses(cr: CommonRoadProblem, cand: Candidate) -> list[FloatArray
                     scored.append((_box_depth(cr, G, boxes), energy, n, G))
                     n += 1
     scored.sort(key=lambda e: (e[0], e[1], e[2]))
-    return [G for _, _, _, G in scored[:CORRIDOR_SCHEDULES]]
+    # late: hold the start's lane, slip to a lane boundary (beside the goal's lane) near the end
+    # and into the goal in the last steps
+    home = min(lanes, key=lambda ln: abs(ln - cr.x0[2])) if lanes else cr.x0[2]
+    tail: list[tuple[float, float, int, FloatArray]] = []
+    a0, va0 = _smoothstep(t, 0.0, 0.3 * T)
+    a1, va1 = _smoothstep(t, CORRIDOR_LATE[0] * T, CORRIDOR_LATE[1] * T)
+    a2, va2 = _smoothstep(t, CORRIDOR_LATE[2] * T, T)
+    bounds = [0.5 * (a + b) for a, b in zip(sorted(cr.lanes)[:-1], sorted(cr.lanes)[1:])]
+    for S in lon if late else []:
+        for mid in bounds:
+            if not cr.road_y[0] + sy <= mid <= cr.road_y[1] - sy:
+                continue
+            d = cr.x0[2] + (home - cr.x0[2]) * a0 + (mid - home) * a1 + (cand.d - mid) * a2
+            vd = (home - cr.x0[2]) * va0 + (mid - home) * va1 + (cand.d - mid) * va2
+            G = np.column_stack([S[:, 0], S[:, 1], d, vd])
+            energy = float(np.sum(np.diff(G[:, 1]) ** 2 + np.diff(G[:, 3]) ** 2))
+            tail.append((_box_depth(cr, G, boxes), energy, n, G))
+            n += 1
+    tail.sort(key=lambda e: (e[0], e[1], e[2]))
+    return [G for _, _, _, G in scored[:CORRIDOR_SCHEDULES] + tail[:CORRIDOR_LATE_SCHEDULES]]
 
 
 def _corridor_guesses(cr: CommonRoadProblem, best: RoadPlan, cand: Candidate, heading: float) -> list[FloatArray]:
@@ -1501,7 +1532,10 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
     passes, the final state free inside the goal state's rows at its step and piece
     (:func:`~iamp.commonroad.goal.goal_rows`; a final state the search found clear may touch a
     vehicle's margin that an overtaking plan cannot reach, one farther ahead in the goal can be);
-    guesses from :func:`_corridor_guesses`, for ``best``'s final state and then ``others``.  A
+    guesses from :func:`_corridor_guesses`, for ``best``'s final state and then ``others`` (up to
+    :data:`CORRIDOR_FINAL_STATES` in all), and last the late lane schedules
+    (:func:`_schedule_guesses`) to the last step of ``best``'s goal window where one of
+    ``others`` has it.  A
     plan is accepted when its final state passes the goal's own test
     (:meth:`~iamp.commonroad.goal.GoalRegion.verify`), the body check (:func:`intrusions`) finds
     it safe and the solution written from it accelerates within the friction circle in the world
@@ -1510,7 +1544,8 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
     terms.  Guesses are tried best's own plan first, then least intruding first
     (:func:`_box_depth`); a guess's passes stop when one is not :data:`CORRIDOR_PROGRESS` less
     deep than the last; a guess or pass met before is not solved again.  At most ``max_solves``
-    QP solves (a count, never a time).
+    QP solves (a count, never a time), and :data:`CORRIDOR_LATE_SOLVES` more for the late
+    schedules.
 
     Parameters
     ----------
@@ -1543,6 +1578,10 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
         if len(cands) < CORRIDOR_FINAL_STATES and all((c.steps, c.element, c.piece) != (o.steps, o.element, o.piece)
                                                       for o in cands):
             cands.append(c)
+    # the last step of the first's goal window (a vehicle leaving the goal late leaves room only
+    # there), where another final state has it: its late schedules, after every other guess
+    last = [c for c in others or [] if c.element == first.element and c.goal_step > first.goal_step]
+    end_state = max(last, key=lambda c: (c.goal_step, -c.cost0)) if last else None
     elapsed = _elapsed(cr) if cr.candidates else 0
     # every final state's guesses, then round robin: the first guess of each, the second of each, ...
     jobs: list[tuple[float, int, Candidate, FloatArray]] = []
@@ -1555,9 +1594,16 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
         for G in _corridor_guesses(cr, start, cand, heading):
             jobs.append((-1.0 if not jobs else _box_depth(cr, G, boxes), len(jobs), cand, G))
     jobs.sort(key=lambda j: (j[0], j[1]))  # best's own plan first, then the least intruding guesses
+    if end_state is not None and end_state.steps >= 2:
+        n_first = len(jobs)
+        jobs += [(0.0, len(jobs), end_state, G) for G in _schedule_guesses(cr, end_state, late=True)]
+    else:
+        n_first = len(jobs)
     solves = 0
     seen: set[bytes] = set()  # the guesses and passes already solved (to the centimetre)
-    for _, _, cand, G in jobs:
+    for j_index, (_, _, cand, G) in enumerate(jobs):
+        if j_index == n_first:  # the late schedules: a budget of their own
+            max_solves = solves + CORRIDOR_LATE_SOLVES
         rows = goal_rows(cr.goal, cand, cr.x0) if cand.goal_step >= 0 else None
         e = cr.goal.elements[cand.element]
         depth = math.inf
@@ -1567,7 +1613,7 @@ def plan_corridor(cr: CommonRoadProblem, best: RoadPlan, planner: str, heading: 
                 break
             seen.add(key)
             if solves >= max_solves:
-                return None
+                break
             solves += 1
             got = corridor_qp(cr, cand, G, rows, engine)
             if got is None:
