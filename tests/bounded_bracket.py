@@ -61,3 +61,21 @@ def bracket_property(seed: int, frac: float, N: int, hold: str) -> None:
         assert b["excess"] <= b[f"{hold}_upper_excess"] + 1e-9 * J
     else:
         assert any("upper side is not applied" in note for note in judged["notes"])
+
+
+class WrongAtContactTimes:
+    """A PMP whose fixed-contact-time plans report ``factor`` x their cost, or plan with the box
+    widened by ``widen`` (its plans leave the problem's box), or at contact times later by
+    ``shift`` (its plans miss the corner at the times asked)."""
+
+    factor, widen, shift = 1.0, 1.0, 0.0
+
+    def plan(self, problem: Problem, contact_times: object = None) -> Plan:
+        if self.shift:
+            return PMPPlanner().plan(problem, contact_times=np.asarray(contact_times) + self.shift)
+        if self.widen != 1.0 and problem.limits is not None:
+            lim = problem.limits
+            wide = PhysicalLimits(ax=tuple(self.widen * x for x in lim.ax),  # type: ignore[arg-type, union-attr]
+                                  ay=tuple(self.widen * x for x in lim.ay))  # type: ignore[arg-type, union-attr]
+            return PMPPlanner().plan(problem.with_limits(wide), contact_times=contact_times)
+        return with_cost(PMPPlanner().plan(problem, contact_times=contact_times), self.factor)

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from bounded_bracket import bounded, bracket_property, run_pair, with_cost
+from bounded_bracket import WrongAtContactTimes, bounded, bracket_property, run_pair, with_cost
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -27,7 +27,6 @@ from iamp.comparison.agreement.bounded_pair import (
 )
 from iamp.comparison.agreement.runs import Run
 from iamp.core.physical import PhysicalLimits
-from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.tolerances import TOLERANCES
 from iamp.planners.examples import random_problem
@@ -155,23 +154,6 @@ def test_a_wrong_pmp_cost_is_caught(pair_229: dict[int, tuple[Problem, Run, Run]
     assert pair["checks"]["pmp_cost_is_input_energy"]["ok"] is False
 
 
-class _WrongAtContactTimes:
-    """A PMP whose fixed-contact-time plans report ``factor`` x their cost, or plan with the box
-    widened by ``widen``, or at contact times later by ``shift``."""
-
-    factor, widen, shift = 1.0, 1.0, 0.0
-
-    def plan(self, problem: Problem, contact_times: object = None) -> Plan:
-        if self.shift:
-            return PMPPlanner().plan(problem, contact_times=np.asarray(contact_times) + self.shift)
-        if self.widen != 1.0 and problem.limits is not None:
-            lim = problem.limits
-            wide = PhysicalLimits(ax=tuple(self.widen * x for x in lim.ax),  # type: ignore[arg-type, union-attr]
-                                  ay=tuple(self.widen * x for x in lim.ay))  # type: ignore[arg-type, union-attr]
-            return PMPPlanner().plan(problem.with_limits(wide), contact_times=contact_times)
-        return with_cost(PMPPlanner().plan(problem, contact_times=contact_times), self.factor)
-
-
 @pytest.mark.parametrize(("factor", "N", "caught_by"), [
     (1 - 1e-2, 24, "bounded_foh_excess_rel"),  # too low: J_QP > J_b + D (the upper side)
     (1 - 1e-2, 48, "bounded_foh_excess_rel"),
@@ -187,7 +169,7 @@ def test_the_bracket_catches_a_wrong_cost_at_the_contact_times(
     N = 24) and the excess on the high side (5.7e-3 of J at N = 24, 8.5e-4 at N = 48); the
     former rule's low side was 2 K_h - excess (3.1e-3 of J), so 0.1 % too low passed it."""
     problem, pmp, qp = pair_229[N]
-    wrong = _WrongAtContactTimes()
+    wrong = WrongAtContactTimes()
     wrong.factor = factor
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
     pair = compare_bounded_pmp_qp(problem, pmp, qp)
@@ -218,7 +200,7 @@ def test_a_pmp_plan_outside_the_box_is_caught(monkeypatch: pytest.MonkeyPatch,
     """A re-solve that did not impose the box (widened 10 %): cheaper, its cost its input's
     energy, so B4 and B5' pass; the premise check on its input catches it."""
     problem, pmp, qp = pair_229[24]
-    wrong = _WrongAtContactTimes()
+    wrong = WrongAtContactTimes()
     wrong.widen = 1.1
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
     pair = compare_bounded_pmp_qp(problem, pmp, qp)
@@ -232,7 +214,7 @@ def test_a_pmp_plan_missing_the_corner_is_caught(monkeypatch: pytest.MonkeyPatch
     """A re-solve whose plan passes the corner a quarter step late: caught by its miss of the
     corner at the QP's contact time."""
     problem, pmp, qp = pair_229[24]
-    wrong = _WrongAtContactTimes()
+    wrong = WrongAtContactTimes()
     wrong.shift = 0.25 * problem.tf / 24
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
     pair = compare_bounded_pmp_qp(problem, pmp, qp)

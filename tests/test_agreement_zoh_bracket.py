@@ -12,7 +12,7 @@ import copy
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from bounded_bracket import bounded, bracket_property, run_pair, with_cost
+from bounded_bracket import WrongAtContactTimes, bounded, bracket_property, run_pair, with_cost
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -24,8 +24,6 @@ from iamp.comparison.agreement.bounded_pair import (
     zoh_upper_plan,
 )
 from iamp.core.physical import PhysicalLimits
-from iamp.core.plan import Plan
-from iamp.core.problem import Problem
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.qp.backends import get_backend
 from iamp.planners.qp.bounded import BoundedQP
@@ -110,24 +108,6 @@ def test_a_wrong_pmp_cost_is_caught(factor: float) -> None:
     assert pair["checks"]["pmp_cost_is_input_energy"]["ok"] is False
 
 
-class _WrongAtContactTimes:
-    """A PMP whose fixed-contact-time plans report ``factor`` x their cost, or plan with the box
-    widened by ``widen`` (its plans leave the problem's box), or at contact times later by
-    ``shift`` (its plans miss the corner at the times asked)."""
-
-    factor, widen, shift = 1.0, 1.0, 0.0
-
-    def plan(self, problem: Problem, contact_times: object = None) -> Plan:
-        if self.shift:
-            return PMPPlanner().plan(problem, contact_times=np.asarray(contact_times) + self.shift)
-        if self.widen != 1.0 and problem.limits is not None:
-            lim = problem.limits
-            wide = PhysicalLimits(ax=tuple(self.widen * x for x in lim.ax),  # type: ignore[arg-type, union-attr]
-                                  ay=tuple(self.widen * x for x in lim.ay))  # type: ignore[arg-type, union-attr]
-            return PMPPlanner().plan(problem.with_limits(wide), contact_times=contact_times)
-        return with_cost(PMPPlanner().plan(problem, contact_times=contact_times), self.factor)
-
-
 @pytest.mark.parametrize(("factor", "N", "caught_by"), [
     (1 - 1e-2, 24, "bounded_zoh_excess_rel"),  # too low: J_QP > J_b + D (the upper side)
     (1 - 1e-2, 48, "bounded_zoh_excess_rel"),
@@ -141,7 +121,7 @@ def test_the_bracket_catches_a_wrong_cost_at_the_contact_times(monkeypatch: pyte
     overstatement is caught from N = 48 on by the bracket (and at every N by B5')."""
     problem = bounded(229, 0.609375)
     pmp, qp = run_pair(problem, N, "zoh")
-    wrong = _WrongAtContactTimes()
+    wrong = WrongAtContactTimes()
     wrong.factor = factor
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
     pair = compare_bounded_pmp_qp(problem, pmp, qp)
@@ -156,7 +136,7 @@ def test_a_pmp_plan_outside_the_box_is_caught(monkeypatch: pytest.MonkeyPatch) -
     premise check on its input catches it."""
     problem = bounded(229, 0.609375)
     pmp, qp = run_pair(problem, 24, "zoh")
-    wrong = _WrongAtContactTimes()
+    wrong = WrongAtContactTimes()
     wrong.widen = 1.1
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
     pair = compare_bounded_pmp_qp(problem, pmp, qp)
@@ -170,7 +150,7 @@ def test_a_pmp_plan_missing_the_corner_is_caught(monkeypatch: pytest.MonkeyPatch
     its miss of the corner at the QP's contact time is caught."""
     problem = bounded(229, 0.609375)
     pmp, qp = run_pair(problem, 24, "zoh")
-    wrong = _WrongAtContactTimes()
+    wrong = WrongAtContactTimes()
     wrong.shift = 0.25 * problem.tf / 24
     monkeypatch.setattr(bounded_pair, "PMPPlanner", lambda: wrong)
     pair = compare_bounded_pmp_qp(problem, pmp, qp)

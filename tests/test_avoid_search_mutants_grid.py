@@ -17,25 +17,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from avoid_overtakes import generated_overtake as _overtake
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st_h
 
 from iamp.core import status as st
 from iamp.core.errors import ScenarioError
-from iamp.core.physical import PASSENGER_CAR
-from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.problem import Problem
 from iamp.planners.avoid.check import Candidate, crossing_orders
 from iamp.planners.avoid.data import AvoidData
 from iamp.planners.avoid.planner import AvoidQPPlanner
 from iamp.planners.avoid.search import Phase, pruned_switches, seed_switches
-
-
-def _overtake(xf: float, gap: float, speed: float, limits: bool) -> Problem:
-    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=xf, yf=3.75, vxf=24.0)
-    v = SurroundingVehicle(x_poly=(xf - gap - 5.0 * speed, speed), corner="front-lower", y=3.75, length=4.8,
-                           width=1.8, safety_x=5.0, safety_y=0.5, name="sv1")
-    p = Problem(ego, (v,), "generated overtake")
-    return p.with_limits(PASSENGER_CAR) if limits else p
 
 
 class _Recorder:

@@ -12,24 +12,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from avoid_overtakes import generated_overtake as _overtake
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st_h
 
 from iamp.core import status as st
-from iamp.core.physical import PASSENGER_CAR
-from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.problem import Problem
 from iamp.planners.avoid import continuous as cont
 from iamp.planners.avoid.check import crossing_orders, kkt_conditions
 from iamp.planners.avoid.continuous import ContinuousAvoidPlanner, ContinuousAvoidQP
 from iamp.planners.examples import overtake_problem, overtake_three_problem
-
-
-def _overtake(xf: float, gap: float, speed: float, limits: bool) -> Problem:
-    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=xf, yf=3.75, vxf=24.0)
-    v = SurroundingVehicle(x_poly=(xf - gap - 5.0 * speed, speed), corner="front-lower", y=3.75, length=4.8,
-                           width=1.8, safety_x=5.0, safety_y=0.5, name="sv1")
-    p = Problem(ego, (v,), "generated overtake")
-    return p.with_limits(PASSENGER_CAR) if limits else p
 
 
 def _searched(problem: Problem, steps: int) -> ContinuousAvoidQP:
