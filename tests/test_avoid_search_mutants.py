@@ -254,3 +254,23 @@ def test_the_search_work_on_the_overtakes_is_the_documented_work(three: bool, so
     assert full.info["search"]["inherited_relaxations"] == 0
     assert full.info["n_solves"] == solves + inherited
     assert full.cost == plan.cost and np.array_equal(full.contact_times, plan.contact_times)
+
+
+def test_the_grid_share_keeps_the_most_recent_values_of_each_kind() -> None:
+    """:class:`GridShare` keeps at most ``SIZE`` values per kind (the key's first item), dropping
+    the least recently used of that kind only; a ``get`` makes a value the most recent.  (The
+    mutation test of continuous.py found the per-kind grouping untested.)"""
+    from iamp.planners.avoid.continuous import GridShare
+
+    share = GridShare()
+    n = GridShare.SIZE
+    for i in range(3):
+        share.put(("limits", i), f"l{i}")
+    for i in range(n + 3):
+        share.put(("schur", i), f"s{i}")
+        if i == n - 1:  # eight kept, none dropped yet
+            assert share.get(("schur", 2)) == "s2"  # used again: now the most recent
+    kept = [i for i in range(n + 3) if share.get(("schur", i)) is not None]
+    assert len(kept) == n
+    assert 2 in kept and 0 not in kept and 1 not in kept and 3 not in kept  # the oldest unused ones left
+    assert [share.get(("limits", i)) for i in range(3)] == ["l0", "l1", "l2"]  # another kind is untouched
