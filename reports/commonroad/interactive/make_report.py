@@ -184,7 +184,8 @@ SUMO's lane-change model turns a standing car's nose toward the next lane; every
 keeps clear of that box; `tests/test_interactive_standing.py`), and the planner's steered-solution
 and road-edge changes of issue 33 (CHANGELOG). Seed 1: 53 of 57, 0 contacts, 25 fail-safe brakes
 (23 before: 26_2 1 -> 3, its goal still reached at 8.0 s, min gap 0.65 -> 1.27 m; 24_1 4 -> 5,
-still missed; 5_1 reaches its goal at 9.3 s, 9.0 s on 55f31e4 with the same outcomes elsewhere). SUMO seeds 2 and 3 on 24_2, 23_1, 24_1, 2_1 and 27_4 (e3587ab with this change's
+still missed; 5_1 reaches its goal at 9.3 s, 9.0 s on 55f31e4 with the same outcomes elsewhere).
+SUMO seeds 2 and 3 on 24_2, 23_1, 24_1, 2_1 and 27_4 (e3587ab with this change's
 `interactive.py`): 0 contacts in all 10 episodes; 24_2 reaches its goal at 12.9 s with both seeds,
 passing vehicle 31 0.69-0.80 m from its turned body (with seed 2 it had touched it, not at fault);
 23_1 reaches its goal at 13.0 s (seed 2) and 13.8 s (seed 3); 24_1, 2_1 and 27_4 miss (2_1's goal
