@@ -305,7 +305,12 @@ def test_item14_ctrl_c_during_the_real_small_campaign_prints_no_library_tracebac
         deadline = time.monotonic() + 120
         while not ready.exists() and time.monotonic() < deadline and proc.poll() is None:
             time.sleep(0.1)
-        time.sleep(20)  # the cluster is up and the workers are in their episodes
+        # the workers are in their episodes once one has finished: interrupt then (a fixed sleep of
+        # 20 s outlived the whole campaign once the loop got faster)
+        while time.monotonic() < deadline and proc.poll() is None and not (
+                ready.exists() and ready.read_text().strip() not in ("", "0")):
+            time.sleep(0.05)
+        assert proc.poll() is None, "the campaign ended before it could be interrupted"
         os.killpg(proc.pid, signal.SIGINT)
         _, stderr = proc.communicate(timeout=120)
     finally:
