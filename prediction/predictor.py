@@ -70,6 +70,7 @@ from iamp.prediction.kinematics import (
     second_differences,
 )
 from iamp.prediction.mtd import ModelFileError, MTDModel, readonly_array
+from iamp.prediction.mtd.chain import expected_value
 from iamp.prediction.training import (
     STATE_DEFINITION,
     bin_centres,
@@ -431,7 +432,7 @@ class Predictor:
     def _node_accelerations(self, states: np.ndarray, M: int) -> tuple[np.ndarray, np.ndarray]:
         """``(\\hat x_k, ā_k)`` for ``k = 0..M`` from the last ``n`` states (batch)."""
         probs = self.model.propagate_batch(np.atleast_2d(states), M + 1)
-        return probs, probs @ self.centres
+        return probs, expected_value(probs, self.centres)
 
     @property
     def _abar_rows(self) -> dict[int, dict[bytes, FloatArray]]:
@@ -442,47 +443,27 @@ class Predictor:
             store = self.model.__dict__["_abar_rows"] = {}
         return store
 
-    def _rows_are_their_own(self) -> bool:
-        """Whether batches of two or more pasts propagate each row by itself here: rows of a batch of
-        nine (fixed seed) equal in sub-batches of other sizes, orders, places and with a repeated
-        row (checked once per model; :meth:`_node_means` keeps rows only if so)."""
-        own = self.model.__dict__.get("_own_rows")
-        if own is None:
-            rng = np.random.default_rng(0)
-            S = rng.integers(0, self.model.n_states, (9, self.model.order)).astype(np.int64)
-            full = self._node_accelerations(S, 8)[1]
-            picks = ([3, 1], [5, 5], list(range(2, 9)), list(range(8, -1, -1)), [0, 4, 4, 7])
-            own = all(np.array_equal(self._node_accelerations(S[p], 8)[1], full[p]) for p in picks)
-            self.model.__dict__["_own_rows"] = own
-        return bool(own)
-
     def _node_means(self, states: np.ndarray, M: int) -> FloatArray:
         """The ``ā_k`` of :meth:`_node_accelerations` alone, ``(B, M + 1)``, the same numbers, each
         distinct past propagated once per model (in a process).
 
         The chain's propagation depends on a history's ``n`` integer states alone, and they repeat:
         from period to period of the closed loop (a vehicle cruising keeps its bins) and between
-        vehicles (about 93 % of the rows of a 60 s dense episode were seen before).  For two or more
-        histories the propagation's products go to BLAS as matrix products, which compute each row
-        by itself (the numbers of a row do not depend on the other rows, their number or its place
-        among them; tested), so a kept row is the row a fresh batch would give, and the rows not
-        kept yet are propagated together (two at least: a lone one with itself).  One history alone
-        takes other BLAS paths, which differ in the last bits: it is propagated as before, not kept.
+        vehicles (about 93 % of the rows of a 60 s dense episode were seen before).  The propagation
+        adds every entry's products one after another in a fixed order without BLAS
+        (:func:`iamp.prediction.mtd.chain.propagate_batch`), so a row's numbers do not depend on the
+        other rows of its batch: a kept row is the row a fresh batch would give, on any machine.
         Emptied when it holds :data:`ABAR_CACHE_ROWS` rows (a row recomputed is the same numbers).
-        Where this process's BLAS is seen to break the premise (:meth:`_rows_are_their_own`) nothing
-        is kept: the numbers would otherwise depend on what the process predicted before.
         """
         S = np.ascontiguousarray(np.atleast_2d(states), dtype=np.int64)
-        if S.shape[0] < 2 or not self._rows_are_their_own():
-            return np.asarray(self._node_accelerations(S, M)[1], dtype=np.float64)
         kept = self._abar_rows.setdefault(M, {})
         keys = [row.tobytes() for row in S]
-        new = [k for k in dict.fromkeys(keys) if k not in kept]
+        new = list(k for k in dict.fromkeys(keys) if k not in kept)
         if new:
             if sum(len(d) for d in self._abar_rows.values()) + len(new) > ABAR_CACHE_ROWS:
                 for d in self._abar_rows.values():
                     d.clear()
-            batch = np.frombuffer(b"".join(new * 2 if len(new) == 1 else new), dtype=np.int64)
+            batch = np.frombuffer(b"".join(new), dtype=np.int64)
             _, abar = self._node_accelerations(batch.reshape(-1, S.shape[1]), M)
             for k, row in zip(new, abar):
                 row.setflags(write=False)

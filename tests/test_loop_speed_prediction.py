@@ -2,11 +2,10 @@
 same numbers as propagating every batch afresh.
 
 :meth:`iamp.prediction.predictor.Predictor._node_means` propagates a past (its ``n`` integer
-states) once and reuses the row.  That is exact because, for two or more histories, the chain's
-BLAS products compute each row by itself: a row's numbers do not depend on the other rows, their
-number or its place among them (the premise is tested here, so a BLAS that breaks it fails this
-file rather than changing episodes).  One history alone takes other BLAS paths (it differs in the
-last bits) and keeps its own.
+states) once and reuses the row.  That is exact because the chain's propagation adds each entry's
+products one after another without BLAS: a row's numbers do not depend on the other rows, their
+number or its place among them, nor on the machine (checked here against plain Python floats,
+whose additions in the same order give the same bits by IEEE 754).
 """
 
 from __future__ import annotations
@@ -81,10 +80,48 @@ def test_predict_batch_of_a_predictor_with_kept_rows_is_a_fresh_ones() -> None:
     assert Predictor(p.model, "another")._abar_rows is p._abar_rows  # one store per model
 
 
-def test_nothing_is_kept_where_blas_breaks_the_premise(monkeypatch: pytest.MonkeyPatch) -> None:
-    p = _fresh()
-    assert p._rows_are_their_own()  # this machine's BLAS (the premise test above)
-    monkeypatch.setattr(Predictor, "_rows_are_their_own", lambda self: False)
-    S = np.array([[6, 6, 6, 6], [6, 7, 6, 5], [6, 6, 6, 6]], dtype=np.int64)
-    assert p._node_means(S, 25).tobytes() == _fresh()._node_accelerations(S, 25)[1].tobytes()
-    assert p._abar_rows == {}
+def _python_propagation(S: list[int], steps: int) -> list[list[float]]:
+    """The MTD propagation of one past in plain Python floats: every entry ``Σ_i Σ_k W_i[j,k]·x_{t-i}[k]``
+    summed lag by lag, state by state (an independent reference: no numpy arithmetic)."""
+    m, n = N_STATES, ORDER
+    W = [[[float(MODEL.lam[i]) * float(MODEL.Q[i][j][k]) for k in range(m)] for j in range(m)] for i in range(n)]
+    hist = [[1.0 if k == s else 0.0 for k in range(m)] for s in S[::-1][:n]]  # newest first
+    out = []
+    for _ in range(steps):
+        x = []
+        for j in range(m):
+            acc = 0.0
+            for i in range(n):
+                for k in range(m):
+                    acc += W[i][j][k] * hist[i][k]
+            x.append(acc)
+        out.append(x)
+        hist = [x] + hist[:-1]
+    return out
+
+
+@settings(max_examples=25, deadline=None)
+@given(rows=pasts, M=st.sampled_from([1, 3, 12]))
+def test_every_entry_is_the_plain_python_sum_bit_for_bit(rows: list[list[int]], M: int) -> None:
+    """Each row of a batch, and its expected acceleration, equal plain Python's sums in the same order:
+    the numbers cannot depend on the batch, on BLAS or on the CPU."""
+    probs, abar = _fresh()._node_accelerations(np.array(rows, dtype=np.int64), M)
+    c = [float(v) for v in MODEL.centres]
+    for b, past in enumerate(rows[:4]):
+        ref = _python_propagation(past, M + 1)
+        assert probs[b].tolist() == ref
+        means = []
+        for x in ref:
+            acc = x[0] * c[0]
+            for k in range(1, N_STATES):
+                acc = acc + x[k] * c[k]
+            means.append(acc)
+        assert abar[b].tolist() == means
+
+
+def test_propagate_of_one_past_is_the_batchs_row() -> None:
+    S = np.array([[6, 6, 6, 6], [6, 7, 6, 5], [3, 9, 12, 0]], dtype=np.int64)
+    batch = MODEL.propagate_batch(S, 30)
+    for b in range(3):
+        assert MODEL.propagate(S[b], 30).tobytes() == batch[b].tobytes()
+    assert np.allclose(batch.sum(axis=2), 1.0, atol=1e-12)  # distributions stay distributions

@@ -23,7 +23,7 @@ from iamp.prediction._typing import FloatArray, IntArray, Seed
 if TYPE_CHECKING:
     from .model import MTDModel
 
-__all__ = ["propagate", "propagate_batch", "sample"]
+__all__ = ["expected_value", "propagate", "propagate_batch", "sample"]
 
 
 def _initial_distributions(model: MTDModel, init: ArrayLike) -> FloatArray:
@@ -56,19 +56,17 @@ def propagate(model: MTDModel, init: ArrayLike, steps: int) -> FloatArray:
     -------
     numpy.ndarray, shape (steps, m)
         Row ``s`` is ``\hat x`` at ``s + 1`` steps after the last given state.
+
+    Notes
+    -----
+    The arithmetic is :func:`propagate_batch`'s (one implementation): the same numbers, bit for bit.
     """
     D = _initial_distributions(model, init)
     n = model.order
-    hist = [D[-1 - i] for i in range(n)]  # hist[i] = \hat x_{t-1-i}
-    out = np.empty((int(steps), model.n_states))
-    W = model.Q * model.lam[:, None, None]
-    for s in range(int(steps)):
-        x = W[0] @ hist[0]
-        for i in range(1, n):
-            x = x + W[i] @ hist[i]
-        out[s] = x
-        hist = [x] + hist[:-1]
+    past = D[-1:-n - 1:-1][:, None, :]  # (n, 1, m), newest first
+    out: FloatArray = _propagate(model, past, int(steps))[0]
     return out
+
 
 def propagate_batch(model: MTDModel, init_states: IntArray, steps: int) -> FloatArray:
     r"""Vectorised :meth:`propagate` for many one-hot pasts.
@@ -85,41 +83,63 @@ def propagate_batch(model: MTDModel, init_states: IntArray, steps: int) -> Float
 
     Notes
     -----
-    Every step is ``\hat x_t = ((x_{t-1} W_1^T + x_{t-2} W_2^T) + …) + x_{t-n} W_n^T`` with
-    ``W_i = λ_i Q_i``, rows ``(B, m)``: the ``n`` products of one step go to BLAS in one stacked
-    ``matmul`` (one ``(B, m) × (m, m)`` product per lag, as separate products would) and are summed
-    in the order of the lags by one reduction along the outer axis.  The distributions are kept
-    newest first in one buffer, so the ``n`` lags of a step are one contiguous window of it.
+    Every entry is one sequential sum, in a fixed order,
+
+    .. math::
+
+        \hat x_t[j] = \Big(\big((W_1[j,0]\,x_{t-1}[0] + W_1[j,1]\,x_{t-1}[1]) + …\big)
+                      + W_2[j,0]\,x_{t-2}[0] + …\Big) + … + W_n[j,m-1]\,x_{t-n}[m-1]
+
+    with ``W_i = λ_i Q_i``: the ``n·m`` products of a step are formed elementwise and added one after
+    another by one reduction along the outer axis of a C-contiguous buffer.  No BLAS product is used,
+    so a row's numbers do not depend on the other rows of the batch, on their number, on the machine's
+    BLAS or on its CPU (:meth:`iamp.prediction.predictor.Predictor._node_means` keeps rows on that
+    ground; ``tests/test_loop_speed_prediction.py`` checks every entry against plain Python floats).
     """
     S = np.asarray(init_states, dtype=np.int64)
-    B = S.shape[0]
-    n, m = model.order, model.n_states
-    steps = int(steps)
-    WT = _lag_operators(model)
+    n = model.order
+    past = np.eye(model.n_states)[S[:, :-n - 1:-1].T]  # (n, B, m), newest first
+    return _propagate(model, past, int(steps))
+
+
+def _propagate(model: MTDModel, past: FloatArray, steps: int) -> FloatArray:
+    """The propagation of :func:`propagate_batch` from ``past`` ``(n, B, m)``, newest first."""
+    n, B, m = past.shape
+    W = _lag_operators(model)  # (n, m, m): W[i, j, k] = λ_i Q_i[j, k]
     L = n + steps
-    # Z[L - 1 - τ] is \hat x at time τ: τ < n the given past (one-hot, oldest first), τ = n + s step s;
-    # the lags of step s (newest first: t-1, t-2, …, t-n) are the window Z[L - n - s : L - s]
+    # Z[L - 1 - τ] is \hat x at time τ: τ < n the given past, τ = n + s step s; the lags of step s
+    # (newest first: t-1, t-2, …, t-n) are the window Z[L - n - s : L - s]
     Z = np.empty((L, B, m))
-    Z[L - n:] = np.eye(m)[S[:, :-n - 1:-1].T]
-    P = np.empty((n, B, m))
+    Z[L - n:] = past
+    P = np.empty((n, m, B, m))  # P[i, k, b, j] = x_{t-1-i}[b, k] · W_i[j, k]
+    Wk = W.transpose(0, 2, 1)[:, :, None, :]  # (n, m, 1, m): [i, k, ., j] = W_i[j, k]
+    flat = P.reshape(n * m, B, m)
     for s in range(steps):
         a = L - n - s
-        np.matmul(Z[a:a + n], WT, out=P)
-        np.add.reduce(P, axis=0, out=Z[a - 1])
+        np.multiply(Z[a:a + n].transpose(0, 2, 1)[:, :, :, None], Wk, out=P)
+        np.add.reduce(flat, axis=0, out=Z[a - 1])
     out: FloatArray = np.ascontiguousarray(Z[:L - n][::-1].transpose(1, 0, 2))
     return out
 
 
+def expected_value(probs: FloatArray, values: FloatArray) -> FloatArray:
+    """``Σ_k probs[..., k] · values[k]``, added in the order of ``k`` (no BLAS: the same numbers for a
+    row whatever else is in the batch, on any machine)."""
+    acc: FloatArray = probs[..., 0] * values[0]
+    for k in range(1, probs.shape[-1]):
+        acc = acc + probs[..., k] * values[k]
+    return acc
+
+
 def _lag_operators(model: MTDModel) -> FloatArray:
-    """``W_i^T = (λ_i Q_i)^T`` as the transposed view of ``Q * λ`` (the operands of
-    :func:`propagate_batch`; read-only, computed once per model)."""
-    WT: FloatArray | None = model.__dict__.get("_lag_operators_T")
-    if WT is None:
+    """``W_i = λ_i Q_i``, ``(n, m, m)`` (the operands of :func:`propagate_batch`; read-only, computed once
+    per model)."""
+    W: FloatArray | None = model.__dict__.get("_lag_operators")
+    if W is None:
         W = model.Q * model.lam[:, None, None]
         W.setflags(write=False)
-        WT = np.transpose(W, (0, 2, 1))
-        model.__dict__["_lag_operators_T"] = WT
-    return WT
+        model.__dict__["_lag_operators"] = W
+    return W
 
 
 def sample(model: MTDModel, init: ArrayLike, steps: int, n_samples: int, rng: Seed = None) -> IntArray:
