@@ -151,6 +151,15 @@ class GridShare:
             del self._items[k]
 
 
+def _stacked(top: sp.csr_matrix, below: sp.csr_matrix) -> sp.csc_matrix:
+    """``[top; below]`` (both CSR) as CSC, every stored entry kept: ``sp.vstack`` of the two,
+    converted, entry for entry, from their CSR arrays without its general checks."""
+    indptr = np.concatenate((top.indptr, top.indptr[-1] + below.indptr[1:]))
+    M = sp.csr_matrix((np.concatenate((top.data, below.data)), np.concatenate((top.indices, below.indices)), indptr),
+                      shape=(top.shape[0] + below.shape[0], top.shape[1]))
+    return M.tocsc()
+
+
 @dataclass
 class Solved:
     """One solved QP of the search: its solution on the rows of its ``spec``.
@@ -191,7 +200,7 @@ class Solved:
     def A(self) -> sp.csc_matrix:
         """``[A_eq; imposed rows]`` of :attr:`spec` (CSC)."""
         A_in, _, _ = self.qp.spec_rows(self.spec)
-        return sp.csc_matrix(sp.vstack([self.qp.A_eq, A_in]))
+        return _stacked(self.qp.A_eq, A_in)
 
     @property
     def u(self) -> FloatArray:
@@ -221,6 +230,7 @@ class ContinuousAvoidQP:
         self.data = AvoidData(problem, np.linspace(0.0, self.tf, self.N + 1), hold, shared=shared)
         d = self.data
         self.A_eq = sp.csr_matrix(d.A[: d.n_eq])
+        self._P_diag = d.P.diagonal()
         self.degree = max([3] + [len(v.x_poly) - 1 for v in problem.vehicles])
         self.M_full = piece_matrix(self.h, 0.0, 1.0, self.degree)
         self.limit_rows: Any = None
@@ -301,6 +311,7 @@ class ContinuousAvoidQP:
         self._full_vals: dict[tuple[int, int], FloatArray] = {}
         self._splits: dict[tuple[int, int, int, float, float], tuple[FloatArray, FloatArray]] = {}
         self._segments: dict[tuple[int, int, float, float], tuple[FloatArray, FloatArray, NDArray[np.int64]]] = {}
+        self._spec_rows: dict[Spec, tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]] = {}
         self._split_polys: tuple[FloatArray, FloatArray] | None = None
         self._rhs_polys: dict[tuple[int, int, int, bool], FloatArray] = {}
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
@@ -445,7 +456,14 @@ class ContinuousAvoidQP:
     def spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
         """The imposed rows of ``spec`` (CSR, in layout order): its Bernstein rows
         (:meth:`bernstein_rows`), then every limit row; their bounds and their layout row
-        numbers."""
+        numbers (built once per spec and plan: a relaxation that :meth:`inherit` cannot prove is
+        then solved on the same rows; read-only)."""
+        out = self._spec_rows.get(spec)
+        if out is None:
+            out = self._spec_rows[spec] = self._build_spec_rows(spec)
+        return out
+
+    def _build_spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
         vals, rhs, ids = self.bernstein_rows(spec)
         nb = ids.size
         ptr = np.concatenate((np.arange(0, 4 * nb + 1, 4, dtype=np.int32), 4 * nb + self._lim_indptr[1:]))
@@ -545,7 +563,7 @@ class ContinuousAvoidQP:
         """:class:`Solved` of a solver's answer; cost :math:`J = \\tfrac12 z^\\top P z`."""
         d = self.data
         ok = sol.status == st.OPTIMAL and sol.finite
-        cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (d.P.diagonal() * sol.z)) if ok else np.inf
+        cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (self._P_diag * sol.z)) if ok else np.inf
         status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
         return Solved(spec, status, cost, sol.z, sol.y, sol.iterations, self, sol.solves, rows)
 
@@ -1007,7 +1025,7 @@ class ContinuousAvoidPlanner:
         d = qp.data
         n_eq = d.n_eq
         A_in, u_in, layout = sol.spec_rows()
-        A = sp.csc_matrix(sp.vstack([qp.A_eq, A_in]))
+        A = _stacked(qp.A_eq, A_in)
         u = np.r_[d.b_eq, u_in]
         l = np.r_[d.b_eq, np.full(A_in.shape[0], -np.inf)]
         # both KKT checks below; the node solver's copy was built from this P (or checked

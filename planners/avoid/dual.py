@@ -228,6 +228,7 @@ class DualBounds:
         #: per polynomial vehicle ``v``: the basis columns of ``λ_v^0..λ_v^d`` (:meth:`polynomial`)
         self._basis_columns = [np.concatenate(([0], 1 + v * D + np.arange(D))) for v in range(m)]
         self._exps: dict[int, tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]] = {}
+        self._bindings: dict[int, tuple[Solved, _Binding]] = {}
 
     def _exponents(self, q: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
         """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..d``)
@@ -249,7 +250,16 @@ class DualBounds:
         return self.qp.rhs_polynomial(i, plane, k, pre)
 
     def _binding(self, sol: Solved) -> _Binding:
-        """The rows of ``sol`` with a positive multiplier, decoded from their layout numbers."""
+        """The rows of ``sol`` with a positive multiplier, decoded from their layout numbers (once
+        per solution: its piece polynomial, a box's polynomial and its gradient read the same)."""
+        kept = self._bindings.get(id(sol))
+        if kept is not None and kept[0] is sol:
+            return kept[1]
+        out = self._decode(sol)
+        self._bindings[id(sol)] = (sol, out)
+        return out
+
+    def _decode(self, sol: Solved) -> _Binding:
         qp = self.qp
         N, nb = qp.N, self.nb
         A_in, u_in, ids_all = sol.spec_rows()

@@ -237,7 +237,7 @@ class SchurActiveSet:
             viol = A_in @ ws.z - u
             if ws.k:
                 viol[ws.rows] = -np.inf
-            p = int(np.argmax(viol)) if n_in else -1
+            p = int(viol.argmax()) if n_in else -1
             if p < 0 or viol[p] <= GENERATION_TOL:
                 break
             status, steps = ws.add(p, self.max_iter - iterations)
@@ -246,7 +246,7 @@ class SchurActiveSet:
                 break
         if status != st.OPTIMAL:
             return RowsSolution(status, ws.z, np.zeros(self.n_eq + n_in), iterations, 1,
-                                np.asarray(ws.rows, dtype=np.int64), bool(np.all(np.isfinite(ws.z))))
+                                np.asarray(ws.rows, dtype=np.int64), bool(np.isfinite(ws.z).all()))
         # the equality multipliers (and z) from one K solve: P z + Eᵀν = -G_Wᵀλ, E z = b
         Gt_lam = ws.lam @ ws.G if ws.k else np.zeros(self.n)
         x = self.lu.solve(np.concatenate([-Gt_lam, self.b_eq])) if ws.k else self._x0
@@ -255,7 +255,7 @@ class SchurActiveSet:
         y[:self.n_eq] = x[self.n:]
         if ws.k:
             y[self.n_eq + np.asarray(ws.rows, dtype=np.int64)] = ws.lam
-        finite = bool(np.all(np.isfinite(z)) and np.all(np.isfinite(y)))
+        finite = bool(np.isfinite(z).all() and np.isfinite(y).all())
         if not finite or self.residual(A_in, u, z, y, Gt_lam) > CHECK_TOL:
             status = st.NUMERICAL_ERROR  # e.g. a nearly dependent row of an infeasible QP
         return RowsSolution(status, z, y, iterations, 1, np.asarray(sorted(ws.rows), dtype=np.int64), finite)
@@ -267,15 +267,15 @@ class SchurActiveSet:
         multiplier, and stationarity ``Pz + Eᵀν + Gᵀλ`` relative to its largest term (``Gt``:
         ``Gᵀλ`` when known)."""
         lam = y[self.n_eq:]
-        primal = max(float(np.max(np.abs(self.A_eq @ z - self.b_eq), initial=0.0)),
-                     float(np.max(A_in @ z - u, initial=0.0)))
+        primal = max(float(np.abs(self.A_eq @ z - self.b_eq).max(initial=0.0)),
+                     float((A_in @ z - u).max(initial=0.0)))
         Pz = self.P_full @ z
         At = self.A_eq_T @ y[:self.n_eq]
         if Gt is None:
             Gt = np.asarray(sp.csr_matrix(A_in).T @ lam, dtype=float)
-        scale = max(1.0, float(np.max(np.abs(Pz))), float(np.max(np.abs(At))), float(np.max(np.abs(Gt), initial=0.0)))
-        dual = float(np.max(np.abs(Pz + At + Gt))) / scale
-        return max(primal, dual, float(-np.min(lam, initial=0.0)))
+        scale = max(1.0, float(np.abs(Pz).max()), float(np.abs(At).max()), float(np.abs(Gt).max(initial=0.0)))
+        dual = float(np.abs(Pz + At + Gt).max()) / scale
+        return max(primal, dual, float(-lam.min(initial=0.0)))
 
 
 class _Working:
@@ -333,7 +333,7 @@ class _Working:
         self._W[k] = w
         self.k = k + 1
         self.rows.append(r)
-        self.lam = np.append(self.lam, lam_r)
+        self.lam = np.concatenate((self.lam, (lam_r,)))
 
     def _pop(self, j: int) -> None:
         k = self.k
@@ -343,7 +343,7 @@ class _Working:
         self._S[j:k - 1, :k] = self._S[j + 1:k, :k]
         self._S[:k, j:k - 1] = self._S[:k, j + 1:k]
         self.k = k - 1
-        self.lam = np.delete(self.lam, j)
+        self.lam = np.concatenate((self.lam[:j], self.lam[j + 1:]))
 
     def _exact(self) -> None:
         """``λ`` and ``z`` of the optimum with the working rows as equalities (no drift)."""
@@ -359,8 +359,8 @@ class _Working:
     def _dual_feasible(self) -> None:
         """Drop the most negative multiplier until the working set's optimum has ``λ >= 0``."""
         self._exact()
-        while self.k and np.min(self.lam) < 0:
-            self._pop(int(np.argmin(self.lam)))
+        while self.k and self.lam.min() < 0:
+            self._pop(int(self.lam.argmin()))
             self._exact()
 
     def warm(self, seed: NDArray[np.int64]) -> None:
@@ -373,7 +373,7 @@ class _Working:
         try:
             if self.k:  # Cholesky's pivots bound the condition number from below
                 piv = np.diag(np.linalg.cholesky(self.S)) ** 2
-                if not float(np.min(piv)) * WARM_COND > float(np.max(piv)):
+                if not float(piv.min()) * WARM_COND > float(piv.max()):
                     raise np.linalg.LinAlgError("ill-conditioned start")
             self._dual_feasible()
         except np.linalg.LinAlgError:
@@ -401,7 +401,7 @@ class _Working:
                 if neg.any():
                     ratios = np.full(self.k, np.inf)
                     ratios[neg] = self.lam[neg] / -dlam[neg]
-                    j = int(np.argmin(ratios))
+                    j = int(ratios.argmin())
                     t2 = float(ratios[j])
             else:
                 dlam = np.zeros(0)
@@ -416,7 +416,7 @@ class _Working:
                     self.lam = self.lam + t1 * dlam
                     self._push(p, g, wp, lam_p + t1)
                     self._exact()
-                    if self.k and np.min(self.lam) < 0:  # round-off only: the steps keep λ >= 0
+                    if self.k and self.lam.min() < 0:  # round-off only: the steps keep λ >= 0
                         self._dual_feasible()
                         if p not in self.rows:  # the row left again: ill-conditioned, stop
                             return st.NUMERICAL_ERROR, steps
