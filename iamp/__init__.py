@@ -27,7 +27,10 @@ status, tolerances, errors, atomic output) <- :mod:`iamp.planners`, :mod:`iamp.p
 
 from typing import TYPE_CHECKING, Any
 
-from iamp import status
+from iamp import (
+    _blas,  # noqa: F401  (first: one BLAS kernel on every x86-64 machine, before numpy loads)
+    status,
+)
 from iamp._version import __version__
 from iamp.core.errors import (
     HistoryError,

@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 from hypothesis import settings as hypothesis_settings
 
+import iamp._blas  # noqa: F401  (first: the BLAS kernel iamp pins, before anything loads numpy)
+
 # Generated examples are drawn from a fixed seed (derandomize), so the suite gives the same verdict
 # on every run and machine; IAMP_HYPOTHESIS=explore draws fresh examples each run (to look for new
 # counterexamples, which then become @example cases).
