@@ -96,7 +96,7 @@ def references_table(after: Mapping[str, Any]) -> list[str]:
 
 
 def loop_table(after: Mapping[str, Any], before: Mapping[str, Any] | None) -> list[str]:
-    """The 60 s closed-loop episode per iamp planner (wall time)."""
+    """The 60 s closed-loop episode per iamp planner (wall and CPU time)."""
     loop = after.get("loop")
     if not loop:
         return ["The closed-loop episodes were not measured in this run (`--quick` or no SUMO)."]
@@ -108,15 +108,20 @@ def loop_table(after: Mapping[str, Any], before: Mapping[str, Any] | None) -> li
                   "in the same process (a campaign's workers run many episodes each); the warm-up's own wall time "
                   "is the column *first episode*: it also loads libsumo, the predictor's model and the planner's "
                   "modules.", ""]
-    lines += ["| planner | episode (wall) | of which planning | first episode (wall) | planner calls | success | "
-              "contacts | target | met | before: episode (planning) |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+    repeats = int(loop.get("repeats", 1))
+    if repeats > 1:
+        lines += [f"Each episode figure is the median of {repeats} timed episodes of this run (wall clock, and the "
+                  "process's CPU time); *of which planning* is the median run's own.", ""]
+    lines += ["| planner | episode (wall) | episode (CPU) | of which planning | first episode (wall) | planner calls | "
+              "success | contacts | target | met | before: episode (planning) |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
     target = loop["target_episode_s"]
     for name, row in loop["planners"].items():
         old = prior.get(name)
         was = f"{fmt_s(old['episode']['median'])} ({fmt_s(old['wall_s'].get('planning'))})" if old else "n/a"
         med = row["episode"]["median"]
-        lines.append(f"| {name} | {fmt_s(med)} | {fmt_s(row['wall_s'].get('planning'))} | "
+        cpu = (row.get("cpu") or {}).get("median")
+        lines.append(f"| {name} | {fmt_s(med)} | {fmt_s(cpu)} | {fmt_s(row['wall_s'].get('planning'))} | "
                      f"{fmt_s(row.get('first_episode_s'))} | {row['planner_calls']} | "
                      f"{'yes' if row['success'] else 'no'} | {row['contacts']} | {fmt_s(target)} | "
                      f"{_yes(med <= target)} | {was} |")

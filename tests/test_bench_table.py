@@ -142,8 +142,9 @@ def test_the_tables_have_one_row_per_case_and_planner() -> None:
     assert by_backend["osqp"][6:8] == ["**met**", "missed"]  # 4.44 ms <= 5 ms on CPU, 11.1 ms wall
     assert by_backend["clarabel"][6:8] == ["missed", "missed"]  # local: not certified
     assert by_backend["piqp"][2] == "ModuleNotFoundError: piqp" and by_backend["piqp"][3] == "n/a"
-    assert [r[8] for r in loop[1:]] == ["missed", "missed"]  # 76.2 s and 3.37 s > 1 s
-    assert [r[3] for r in loop[1:]] == ["n/a", "n/a"]  # no warm-up in this run: no first episode
+    assert [r[9] for r in loop[1:]] == ["missed", "missed"]  # 76.2 s and 3.37 s > 1 s
+    assert [r[4] for r in loop[1:]] == ["n/a", "n/a"]  # no warm-up in this run: no first episode
+    assert [r[2] for r in loop[1:]] == ["n/a", "n/a"]  # no CPU time in this run's JSON
     assert "n/a" in targets[1][-1]  # no before run: the column says so
 
 
@@ -156,7 +157,19 @@ def test_the_warm_up_episode_is_said_and_shown() -> None:
     text = bt.document(after, None)
     assert "after 1 untimed warm-up episode" in text
     loop = _tables(text)[2]
-    assert [r[3] for r in loop[1:]] == ["2.5 s", "3.5 s"]
+    assert [r[4] for r in loop[1:]] == ["2.5 s", "3.5 s"]
+
+
+def test_the_episode_cpu_time_and_repeats_are_shown() -> None:
+    """With repeats and CPU time in the JSON, the table shows the CPU medians and says what a figure is."""
+    after = copy.deepcopy(fake_run())
+    after["loop"]["repeats"] = 3
+    for i, row in enumerate(after["loop"]["planners"].values()):
+        row["cpu"] = {"median": 0.25 + i, "n": 3}
+    text = bt.document(after, None)
+    assert "median of 3 timed episodes" in text
+    loop = _tables(text)[2]
+    assert [r[2] for r in loop[1:]] == ["250 ms", "1.25 s"]
 
 
 def test_a_changed_number_changes_the_table() -> None:

@@ -3,26 +3,35 @@
 The case (:data:`CASE`): the ``merge`` mission, ``dense`` traffic, seed 1, 60 s of mission
 clock, the same episode as ``iamp simulate --mission merge --traffic dense --seed 1 --planner P
 --duration 60``.  Every iamp planner of the loop (:data:`iamp.simulation.planning.IAMP_PLANNERS`)
-plans with the passenger car's limits imposed (SPEC §14, §15).  Timed: the wall time of one whole
-:func:`~iamp.simulation.episode.run_episode` call per planner (``repeats`` of them, median) after
-:data:`WARMUP` untimed episode of the same planner (``warmup`` in the JSON), with the episode's own
-split (``wall_s``: SUMO, prediction, planning), its planner calls and its outcome (``success``,
-``contacts``).  The warm-up episode's own wall time is reported too (``first_episode_s``): the
-first episode of a process also pays for loading SUMO (``libsumo``), the predictor's model and the
-planner's modules, once per process — a campaign's workers run many episodes each, a single
-``iamp simulate`` pays it once.  What the episode plans is deterministic (the same
-seed gives the same episode); only the times vary.  Issue 32's target: a 60 s episode in at
-most :data:`TARGET_EPISODE_S` of wall time for every iamp planner.  Needs ``iamp[sim]`` (SUMO).
+plans with the passenger car's limits imposed (SPEC §14, §15).  Timed: the wall time
+(:func:`time.perf_counter`) and the process CPU time (:func:`time.process_time`) of each whole
+:func:`~iamp.simulation.episode.run_episode` call, ``repeats`` of them per planner (:data:`REPEATS`
+in ``iamp bench``; medians reported), after :data:`WARMUP` untimed episode of the same planner
+(``warmup`` in the JSON).  Beside them: the episode's own split of its median run (``wall_s``:
+SUMO, prediction, planning), its planner calls, its simulated time and its outcome (``success``,
+``contacts``) — counts that do not depend on the machine — and ``same_episode``: every run of the
+planner (the warm-up included) planned the same calls and ended the same way.  The warm-up
+episode's own wall time is reported too (``first_episode_s``): the first episode of a process also
+pays for loading SUMO (``libsumo``), the predictor's model and the planner's modules, once per
+process — a campaign's workers run many episodes each, a single ``iamp simulate`` pays it once.
+What the episode plans is deterministic (the same seed gives the same episode); only the times
+vary.  Issue 32's target: a 60 s episode in at most :data:`TARGET_EPISODE_S` of wall time for every
+iamp planner.  Needs ``iamp[sim]`` (SUMO).
+
+Only the loop's cases, without the rest of ``iamp bench``: ``iamp bench --loop [--planner P ...]
+[--repeats N] [--json]``.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from typing import Any, TypedDict
 
-from iamp.comparison.timing import StatsJSON, measure
+from iamp.comparison.timing import StatsJSON, summarize
 
-__all__ = ["CASE", "TARGET_EPISODE_S", "WARMUP", "LoopBench", "LoopCase", "LoopRow", "bench_loop"]
+__all__ = ["CASE", "REPEATS", "TARGET_EPISODE_S", "WARMUP", "LoopBench", "LoopCase", "LoopRow", "bench_loop",
+           "format_loop"]
 
 
 class LoopCase(TypedDict):
@@ -35,13 +44,16 @@ class LoopCase(TypedDict):
 
 
 class LoopRow(TypedDict):
-    """One planner's episode: wall time statistics [s], the episode's own split of its last run
-    (``sumo``, ``prediction``, ``planning``, ``total``), planner calls and outcome."""
+    """One planner's episodes: wall and CPU time statistics [s], the episode's own split of its
+    median run (``sumo``, ``prediction``, ``planning``, ``total``; wall), its counts and outcome."""
 
     episode: StatsJSON
+    cpu: StatsJSON
     first_episode_s: float
     wall_s: dict[str, float]
     planner_calls: int
+    simulated_s: float
+    same_episode: bool
     success: bool
     contacts: int
     limit_violations: int
@@ -49,13 +61,14 @@ class LoopRow(TypedDict):
 
 class LoopBench(TypedDict):
     """:func:`bench_loop`: the case, the repeats, the untimed episodes before them, one row per planner
-    and their medians."""
+    and their medians (wall, ``episode_s``; CPU, ``episode_cpu_s``)."""
 
     case: LoopCase
     repeats: int
     warmup: int
     planners: dict[str, LoopRow]
     episode_s: dict[str, float]
+    episode_cpu_s: dict[str, float]
     target_episode_s: float
 
 
@@ -65,6 +78,12 @@ CASE: LoopCase = {"mission": "merge", "traffic": "dense", "seed": 1, "duration_s
 TARGET_EPISODE_S = 1.0
 #: Untimed episodes of each planner before the timed ones (their wall time: ``first_episode_s``).
 WARMUP = 1
+#: Timed episodes per planner in ``iamp bench`` (the medians are reported).
+REPEATS = 3
+#: The summary's keys that must agree between runs of one planner (``same_episode``): what it
+#: planned and how the episode ended, not how long it took.
+SAME = ("planner_calls", "plans", "executed_plans", "simulated_s", "success", "contacts", "lane_change_done_s",
+        "rejected", "fallbacks", "aborts")
 
 
 def _episode(planner: str) -> Any:
@@ -75,42 +94,75 @@ def _episode(planner: str) -> Any:
     return run_episode(spec)
 
 
-def bench_loop(repeats: int = 1, planners: tuple[str, ...] | None = None) -> LoopBench:
+def _row(planner: str, repeats: int) -> LoopRow:
+    """:data:`WARMUP` untimed episodes of ``planner``, then ``repeats`` timed ones (wall and CPU each)."""
+    first = 0.0
+    summaries: list[dict[str, Any]] = []
+    for _ in range(WARMUP):
+        t0 = time.perf_counter()
+        summaries.append(_episode(planner).summary)
+        first = time.perf_counter() - t0
+    walls: list[float] = []
+    cpus: list[float] = []
+    timed: list[dict[str, Any]] = []
+    for _ in range(repeats):
+        w0, c0 = time.perf_counter(), time.process_time()
+        s = _episode(planner).summary
+        cpus.append(time.process_time() - c0)
+        walls.append(time.perf_counter() - w0)
+        timed.append(s)
+    summaries += timed
+    mid = sorted(range(repeats), key=lambda k: walls[k])[(repeats - 1) // 2]  # the median run (lower of two)
+    s = timed[mid]
+    episode, cpu = summarize(walls, WARMUP).to_dict(), summarize(cpus, WARMUP).to_dict()
+    same = all({k: o.get(k) for k in SAME} == {k: s.get(k) for k in SAME} for o in summaries)
+    return {"episode": episode, "cpu": cpu, "first_episode_s": first,
+            "wall_s": {k: float(v) for k, v in dict(s["wall_s"]).items()},
+            "planner_calls": int(s["planner_calls"]), "simulated_s": float(s["simulated_s"]),
+            "same_episode": bool(same), "success": bool(s["success"]),
+            "contacts": int(s["contacts"]), "limit_violations": int(s["limit_violations"])}
+
+
+def bench_loop(repeats: int = REPEATS, planners: Sequence[str] | None = None) -> LoopBench:
     """Time whole 60 s episodes per iamp planner (module docstring).
 
     Parameters
     ----------
     repeats : int
-        Timed episodes per planner (the median is reported), after :data:`WARMUP` untimed ones.
-    planners : tuple of str, optional
+        Timed episodes per planner (the medians are reported), after :data:`WARMUP` untimed ones.
+    planners : sequence of str, optional
         The planners (default every iamp planner of the loop).
 
     Returns
     -------
     LoopBench
-        The case, one row per planner and ``episode_s`` (planner -> median wall time [s]).
+        The case, one row per planner, ``episode_s`` (planner -> median wall time [s]) and
+        ``episode_cpu_s`` (planner -> median CPU time [s]).
     """
     from iamp.simulation.planning import IAMP_PLANNERS
 
-    rows: dict[str, LoopRow] = {}
-    for name in planners or IAMP_PLANNERS:
-        def run(p: str = name) -> Any:
-            return _episode(p)
-
-        first = 0.0
-        for _ in range(WARMUP):  # timed here: measure() does not report its warm-up calls
-            t0 = time.perf_counter()
-            run()
-            first = time.perf_counter() - t0
-        st, last = measure(run, repeats=repeats, warmup=0)
-        assert last is not None  # measure calls run at least once
-        s = last.summary
-        episode = st.to_dict()
-        episode["warmup"] = WARMUP  # the untimed episodes run here, before measure()
-        rows[name] = {"episode": episode, "first_episode_s": first,
-                      "wall_s": {k: float(v) for k, v in dict(s["wall_s"]).items()},
-                      "planner_calls": int(s["planner_calls"]), "success": bool(s["success"]),
-                      "contacts": int(s["contacts"]), "limit_violations": int(s["limit_violations"])}
+    if repeats < 1:
+        raise ValueError("repeats must be >= 1")
+    rows = {name: _row(name, repeats) for name in (planners or IAMP_PLANNERS)}
     return {"case": CASE.copy(), "repeats": repeats, "warmup": WARMUP, "planners": rows,
             "episode_s": {k: float(r["episode"]["median"]) for k, r in rows.items()},
+            "episode_cpu_s": {k: float(r["cpu"]["median"]) for k, r in rows.items()},
             "target_episode_s": TARGET_EPISODE_S}
+
+
+def format_loop(bench: LoopBench) -> str:
+    """:func:`bench_loop`'s numbers as text, a line per planner (``iamp bench --loop``)."""
+    case = bench["case"]
+    lines = [f"Closed loop, whole {case['duration_s']:g} s {case['mission']} episodes ({case['traffic']}, seed "
+             f"{case['seed']}, with the car's limits): medians of {bench['repeats']} timed episodes after "
+             f"{bench['warmup']} untimed one(s) per planner"]
+    for name, row in bench["planners"].items():
+        w = row["wall_s"]
+        met = "met" if row["episode"]["median"] <= bench["target_episode_s"] else "MISSED"
+        lines.append(f"  {name:11s} wall {row['episode']['median']:.3f} s (IQR {row['episode']['iqr']:.3f})  "
+                     f"CPU {row['cpu']['median']:.3f} s (IQR {row['cpu']['iqr']:.3f})  first "
+                     f"{row['first_episode_s']:.3f} s  split: SUMO {w['sumo']:.3f}, prediction "
+                     f"{w['prediction']:.3f}, planning {w['planning']:.3f} s  {row['planner_calls']} planner calls"
+                     f"{'' if row['same_episode'] else ' (RUNS DIFFER)'}  target "
+                     f"{bench['target_episode_s']:g} s {met}")
+    return "\n".join(lines)

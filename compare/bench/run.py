@@ -72,7 +72,7 @@ from iamp.planners.registry import Planner
 from .avoid import AvoidBounded
 from .casadi import CasadiFreeTime
 from .limits import LimitsBench
-from .loop import LoopBench
+from .loop import REPEATS, LoopBench
 from .prediction import LeaderPredictionBench, PredictionBench
 
 #: IQR/median above which a measurement is flagged as taken on a busy machine.
@@ -407,7 +407,7 @@ def _loop(quick: bool, notes: list[str]) -> LoopBench | None:
         return None
     from iamp.comparison.bench.loop import bench_loop
 
-    return bench_loop(1)
+    return bench_loop(REPEATS)
 
 
 def _limits(quick: bool, notes: list[str]) -> LimitsBench | None:

@@ -97,7 +97,8 @@ def format_bench(out: BenchJSON) -> str:
         lines += ["", f"  Closed loop, whole {ep['duration_s']:g} s {ep['mission']} episodes ({ep['traffic']}, "
                   f"seed {ep['seed']}, with the car's limits):"]
         for k, row in loop["planners"].items():
-            lines.append(f"    {k:18s} {_fmt_s(row['episode']['median'])}   planning "
+            cpu = (row.get("cpu") or {}).get("median")
+            lines.append(f"    {k:18s} {_fmt_s(row['episode']['median'])} ({_fmt_s(cpu).strip()} CPU)   planning "
                          f"{_fmt_s(row['wall_s'].get('planning')).strip()}, {row['planner_calls']} planner calls, "
                          f"{'success' if row['success'] else 'no success'}, {row['contacts']} contacts")
     lines += ["", "targets:"]

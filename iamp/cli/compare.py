@@ -82,12 +82,19 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                                    "candidate (osqp, clarabel, piqp, the exact kkt), FOH grid sweeps (native and "
                                    "through cvxpy), the avoidance-QP sweep, OSQP settings, planning with the car's "
                                    "limits (bounded PMP, avoidance with limits at N = 50, one and three vehicles; CPU "
-                                   "and wall time) and, without --quick, one 60 s closed-loop episode per iamp "
-                                   "planner; targets, ratios, machine, library versions, and a warning when the "
-                                   "spread says the machine was busy. python scripts/bench_table.py writes "
+                                   "and wall time) and, without --quick, 60 s closed-loop episodes per iamp "
+                                   "planner (medians of 3; --loop: only those); targets, ratios, machine, library "
+                                   "versions, and a warning when the spread says the machine was busy. python "
+                                   "scripts/bench_table.py writes "
                                    "docs/bench.md and the README's table from the JSON.")
     b.add_argument("--json", action="store_true", help="print exactly one JSON object (SPEC §5b)")
     b.add_argument("--quick", action="store_true", help="fewer repeats")
+    b.add_argument("--loop", action="store_true",
+                   help="only the closed-loop episodes (needs iamp[sim]); with --json the loop object alone")
+    b.add_argument("--planner", action="append", metavar="PLANNER",
+                   help="with --loop: this iamp planner's episodes only (repeatable; default every one)")
+    b.add_argument("--repeats", type=_positive_int, default=None,
+                   help="with --loop: timed episodes per planner (default 3; medians reported)")
     add_quiet_flag(b)
     b.set_defaults(func=cmd_bench)
 
@@ -324,6 +331,22 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.comparison.bench.run import run_bench
     from iamp.comparison.bench.text import format_bench
+
+    if not args.loop and (args.planner or args.repeats is not None):
+        raise ScenarioError("only with --loop", "--planner" if args.planner else "--repeats")
+    if args.loop:
+        from iamp.comparison.bench.loop import REPEATS, bench_loop, format_loop
+        from iamp.simulation.network import require_sumo
+        from iamp.simulation.planning import IAMP_PLANNERS
+
+        unknown = [p for p in args.planner or () if p not in IAMP_PLANNERS]
+        if unknown:
+            raise ScenarioError(f"not an iamp planner of the loop: {', '.join(unknown)} (choose from "
+                                f"{', '.join(IAMP_PLANNERS)})", "--planner")
+        require_sumo()
+        loop = bench_loop(args.repeats or REPEATS, tuple(args.planner) if args.planner else None)
+        sys.stdout.write((json.dumps(to_jsonable(loop), allow_nan=False) if args.json else format_loop(loop)) + "\n")
+        return EXIT_OK
 
     with progress_bar(7, "bench", enabled=progress_enabled(args)) as tick:
         out = run_bench(quick=args.quick, progress=tick)
