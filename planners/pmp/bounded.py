@@ -75,6 +75,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+from bisect import bisect_right
 from collections import deque
 from dataclasses import dataclass
 from typing import Any
@@ -188,6 +189,7 @@ class BoundedSolution:
         for kn, U, _, _ in self._arr:
             h = kn[1:] - kn[:-1]
             self._slopes.append((U[1:] - U[:-1]) / np.where(h > 0, h, 1.0))
+        self._slopes_l = [sl.tolist() for sl in self._slopes]
         self._jumps_arr = [np.asarray(ax.jumps) for ax in self.axes]
         self._hjump: tuple[FloatArray, FloatArray] | None = None
         self._ends_contacts: FloatArray | None = None
@@ -226,6 +228,19 @@ class BoundedSolution:
         vv = V[j] + ua * d + slope * d * d / 2
         ss = S[j] + V[j] * d + ua * d * d / 2 + slope * d**3 / 6
         return ss, vv, u
+
+    def _axis_at(self, k: int, t: float) -> tuple[float, float, float]:
+        """:meth:`_axis_eval` at one time, on Python floats (the same operations in the same
+        order; no array is made: :func:`exact_peaks` asks a few points of a small plan)."""
+        ax = self.axes[k]
+        kn, U, sl = ax.knots, ax.u, self._slopes_l[k]
+        S, V = self._sv[k]
+        j = min(max(bisect_right(kn, t) - 1, 0), len(kn) - 2)
+        d = t - kn[j]
+        slope = sl[j]
+        ua = U[j]
+        return (S[j] + V[j] * d + ua * d * d / 2 + slope * d**3 / 6, V[j] + ua * d + slope * d * d / 2,
+                ua + slope * d)
 
     def states(self, t: Any) -> FloatArray:
         """``(s_x, v_x, s_y, v_y)`` at ``t`` → ``(len(t), 4)``."""
@@ -982,67 +997,69 @@ def _inside(p: float, q: float, T: float) -> tuple[float, float]:
 def check_values(sol: BoundedSolution, stationary: bool = True, at_edge: Any = ()) -> dict[str, float]:
     """The dimensionless value of every condition (module docstring); with ``stationary`` the
     Hamiltonian jump over the contact times not listed in ``at_edge`` (indices of times at an
-    edge of the feasible ones, where the minimum is not stationary)."""
+    edge of the feasible ones, where the minimum is not stationary).
+
+    Evaluated point by point on Python floats (a plan has a few knots): ``u``, ``v`` from the
+    knots (:meth:`BoundedSolution._axis_at`), ``w = −p_v`` and ``p_s`` from ``a, b, Φ`` and the
+    contact times (independent of the knots), so the checks compare the two representations."""
     prob = sol.problem
     T = float(prob.tf)
     t = sol.contact_times
+    tl = t.tolist()
     ego = prob.ego
     (lx, hx), (ly, hy) = input_box(prob)
-    C = prob.corners(t).reshape(-1, 2)
-    ends_and_t = sol.ends_and_contacts()
+    C = prob.corners(t).reshape(-1, 2).tolist()
+    ends_and_t = sol.ends_and_contacts().tolist()
     ends, X = ends_and_t[:2], ends_and_t[2:]
     vals: dict[str, float] = {}
-    bnd = cor = sat = sw = box = hcon = 0.0
+    bnd = cor = sat = sw = box = 0.0
+    coef = [(ax.a, ax.b, list(zip(tl, ax.jumps))) for ax in sol.axes]
+
+    def w_at(k: int, x: float) -> float:
+        a, b, tj = coef[k]
+        return a + b * x - sum(jump * max(x - ti, 0.0) for ti, jump in tj)
+
     for k, (lo, hi) in enumerate(((lx, hx), (ly, hy))):
         ax = sol.axes[k]
         init = (ego.x0, ego.vx0) if k == 0 else (ego.y0, ego.vy0)
         fin = (ego.xf, ego.vxf) if k == 0 else (ego.yf, ego.vyf)
         L = max([1e-300, abs(fin[0] - init[0]), abs(fin[1] - init[1]) * T, abs(init[1]) * T]
-                + [abs(c - init[0]) for c in C[:, k]] + [abs(b) * T * T for b in (lo, hi) if math.isfinite(b)])
+                + [abs(c[k] - init[0]) for c in C] + [abs(b) * T * T for b in (lo, hi) if math.isfinite(b)])
         ua = L / (T * T)
-        for e, ref in ((ends[0, 2 * k], init[0]), (ends[0, 2 * k + 1] * T, init[1] * T),
-                       (ends[1, 2 * k], fin[0]), (ends[1, 2 * k + 1] * T, fin[1] * T)):
+        for e, ref in ((ends[0][2 * k], init[0]), (ends[0][2 * k + 1] * T, init[1] * T),
+                       (ends[1][2 * k], fin[0]), (ends[1][2 * k + 1] * T, fin[1] * T)):
             bnd = max(bnd, abs(e - ref) / L)
-        if len(t):
-            cor = max(cor, float(np.max(np.abs(X[:, 2 * k] - C[:, k]))) / L)
-        kn = np.asarray(ax.knots)
-        mids = 0.5 * (kn[1:] + kn[:-1])
-        pts = np.concatenate((kn, mids))
-        u = sol._axis_eval(k, pts)[2]
-        w = sol.w(k, pts)
-        sat = max(sat, float(np.max(np.abs(u - np.clip(w, lo, hi)))) / ua)
+        for x, c in zip(X, C):
+            cor = max(cor, abs(x[2 * k] - c[k]) / L)
+        # u at the knots (the knots' values) and at the piece midpoints (linear between them)
+        kn, U, slopes = ax.knots, ax.u, sol._slopes_l[k]
+        for x, u in [*zip(kn, U), *((0.5 * (kn[q + 1] + kn[q]), U[q] + slopes[q] * (0.5 * (kn[q + 1] + kn[q]) - kn[q]))
+                                    for q in range(len(kn) - 1))]:
+            sat = max(sat, abs(u - min(max(w_at(k, x), lo), hi)) / ua)
         for theta, value, _, _ in ax.switching:
-            sw = max(sw, abs(float(sol.w(k, np.array([theta]))[0]) - value) / ua)
-        box = max(box, float(np.max(np.maximum(np.asarray(ax.u) - hi, lo - np.asarray(ax.u)), initial=0.0)) / ua)
-    # H constant between contact times (one-sided values at every knot of the interval),
-    # every interval's values in one evaluation
-    bp = np.concatenate(([0.0], np.sort(t), [T]))
-    allk = np.asarray(sol.knots())
-    pts_h: list[FloatArray] = []
-    left_h: list[FloatArray] = []
-    sizes = [0]
-    for j in range(len(bp) - 1):
-        inner = allk[(allk > bp[j]) & (allk < bp[j + 1])]
-        pts_h += [bp[j:j + 1], inner, bp[j + 1:j + 2]]
-        left_h += [np.zeros(1 + len(inner), dtype=bool), np.ones(1, dtype=bool)]
-        sizes.append(sizes[-1] + 2 + len(inner))
-    # one vehicle: the Hamiltonian-jump terms' two values at the contact time in the same
-    # evaluation (a row of step @ jumps is one product, whatever the batch: the same numbers)
-    jump_too = stationary and len(t) == 1 and sol._hjump is None
-    if jump_too:
-        pts_h.append(np.concatenate((t, t)))
-        left_h.append(np.array([True, False]))
-    H_all = sol._hamiltonian(np.concatenate(pts_h), np.concatenate(left_h))
-    if jump_too:
-        sol._hjump = sol._hamiltonian_jump_terms(H_all[-2:])
-        H_all = H_all[:-2]
-    Hs = [H_all[sizes[j]:sizes[j + 1]] for j in range(len(bp) - 1)]
-    hscale = max(1e-300, max(float(np.max(np.abs(h))) for h in Hs), sol.cost / T)
-    hcon = max(float(np.max(h) - np.min(h)) for h in Hs) / hscale
+            sw = max(sw, abs(w_at(k, theta) - value) / ua)
+        box = max(box, max((max(u - hi, lo - u) for u in ax.u), default=0.0) / ua)
+
+    def H_at(x: float, left: bool) -> float:
+        _, vx, ux = sol._axis_at(0, x)
+        _, vy, uy = sol._axis_at(1, x)
+        p = [b - sum(jump for ti, jump in tj if (x - ti > 0 if left else x - ti >= 0)) for _, b, tj in coef]
+        return 0.5 * (ux**2 + uy**2) + p[0] * vx + (-w_at(0, x)) * ux + p[1] * vy + (-w_at(1, x)) * uy
+
+    # H constant between contact times (one-sided values at every knot of the interval)
+    bp = [0.0, *sorted(tl), T]
+    allk = sol.knots()
+    Hs = [[H_at(bp[j], False), *(H_at(x, False) for x in allk if bp[j] < x < bp[j + 1]), H_at(bp[j + 1], True)]
+          for j in range(len(bp) - 1)]
+    if stationary and len(tl) == 1 and sol._hjump is None:
+        # one vehicle: the Hamiltonian-jump terms from the two one-sided values at the contact time
+        sol._hjump = sol._hamiltonian_jump_terms(np.array([H_at(tl[0], True), H_at(tl[0], False)]))
+    hscale = max(1e-300, max(abs(h) for hs in Hs for h in hs), sol.cost / T)
+    hcon = max(max(hs) - min(hs) for hs in Hs) / hscale
     vals.update(boundary=bnd, corner=cor, saturation_law=sat, switching=sw, box=box, hamiltonian_constant=hcon)
-    if stationary and len(t):
+    if stationary and len(tl):
         r, size = sol.hamiltonian_jump_terms()
-        keep = np.ones(len(t), dtype=bool)
+        keep = np.ones(len(tl), dtype=bool)
         keep[list(at_edge)] = False
         vals["hamiltonian_jump"] = float(np.max(np.abs(r[keep]) / np.maximum(size[keep], HJUMP_FLOOR * hscale),
                                                 initial=0.0))
@@ -1075,51 +1092,74 @@ def exact_peaks(trajectory: Any, tf: float, knots: list[float]) -> dict[str, Any
 
     ``u`` (per axis) and ``|u|`` peak at knots (``|u|²`` is convex on each piece); ``v_x``
     at knots or where ``u_x = 0`` inside a piece; ``s_y`` at knots or where ``v_y = 0``
-    (a quadratic per piece); jerk is ``|Δu/Δt|`` per piece.
+    (a quadratic per piece, its real roots in closed form: :func:`_quadratic_roots`); jerk is
+    ``|Δu/Δt|`` per piece.  A :class:`BoundedSolution` is evaluated point by point on Python
+    floats (:meth:`BoundedSolution._axis_at`: a plan has a few knots, and arrays of a few
+    entries cost more than the arithmetic); any other trajectory through its ``states`` and
+    ``inputs``.
     """
-    kn = np.unique(np.clip(np.r_[0.0, np.asarray(knots, dtype=float), tf], 0.0, tf))
-    both = getattr(trajectory, "states_inputs", None)
-    if both is not None:  # a BoundedSolution: one evaluation per axis
-        X, U = both(kn)
+    kn_l = sorted({min(max(float(x), 0.0), tf) for x in (0.0, *knots, tf)})
+    if isinstance(trajectory, BoundedSolution):
+        def at(t: float) -> tuple[list[float], list[float]]:
+            sx, vx, ux = trajectory._axis_at(0, t)
+            sy, vy, uy = trajectory._axis_at(1, t)
+            return [sx, vx, sy, vy], [ux, uy]
+
+        rows = [at(t) for t in kn_l]
+        X_l, U_l = [r[0] for r in rows], [r[1] for r in rows]
     else:
-        U = np.asarray(trajectory.inputs(kn))
-        X = np.asarray(trajectory.states(kn))
-    h = np.diff(kn)
-    ok = h > 0
-    du = np.diff(U, axis=0)[ok] / h[ok][:, None]
+        U_l = np.asarray(trajectory.inputs(np.asarray(kn_l))).tolist()
+        X_l = np.asarray(trajectory.states(np.asarray(kn_l))).tolist()
+    jerk = 0.0
     extra_vx: list[float] = []
     extra_y: list[float] = []
-    # the per-piece scalars as Python floats (the same IEEE operations as on numpy scalars)
-    kn_l, U_l, X_l = kn.tolist(), U.tolist(), X.tolist()
-    for j in np.nonzero(ok)[0].tolist():
+    for j in range(len(kn_l) - 1):
         a, b = kn_l[j], kn_l[j + 1]
+        h = b - a
+        if not h > 0:
+            continue
         ux0, ux1 = U_l[j][0], U_l[j + 1][0]
+        jerk = max(jerk, abs((ux1 - ux0) / h), abs((U_l[j + 1][1] - U_l[j][1]) / h))
         if ux0 * ux1 < 0:
             extra_vx.append(a + (b - a) * ux0 / (ux0 - ux1))
         # v_y(a + d) = vy + uy d + c d²/2 with c the slope of u_y
         vy, uy = X_l[j][3], U_l[j][1]
         c = (U_l[j + 1][1] - uy) / (b - a)
         if _keeps_sign(vy, uy, c, b - a):
-            continue  # v_y has no root in the piece: s_y is monotone there (no np.roots call)
-        roots = np.roots([c / 2, uy, vy]) if abs(c) > 0 else (np.array([-vy / uy]) if uy != 0 else np.array([]))
-        for r in np.atleast_1d(roots):
-            if np.isreal(r) and 0 < float(np.real(r)) < b - a:
-                extra_y.append(a + float(np.real(r)))
-    if both is not None:  # the extra points of v_x and s_y in one evaluation (elementwise in t)
-        extra = trajectory.states(np.asarray(extra_vx + extra_y)) if extra_vx or extra_y else X[:0]
-        VX = np.concatenate((X[:, 1], extra[:len(extra_vx), 1]))
-        Y = np.concatenate((X[:, 2], extra[len(extra_vx):, 2]))
+            continue  # v_y has no root in the piece: s_y is monotone there
+        extra_y += [a + r for r in _quadratic_roots(c / 2, uy, vy) if 0 < r < b - a]
+    VX = [x[1] for x in X_l]
+    Y = [x[2] for x in X_l]
+    if isinstance(trajectory, BoundedSolution):
+        VX += [trajectory._axis_at(0, t)[1] for t in extra_vx]
+        Y += [trajectory._axis_at(1, t)[0] for t in extra_y]
     else:
-        VX = np.r_[X[:, 1], np.asarray(trajectory.states(np.asarray(extra_vx)))[:, 1] if extra_vx else []]
-        Y = np.r_[X[:, 2], np.asarray(trajectory.states(np.asarray(extra_y)))[:, 2] if extra_y else []]
+        if extra_vx:
+            VX += np.asarray(trajectory.states(np.asarray(extra_vx)))[:, 1].tolist()
+        if extra_y:
+            Y += np.asarray(trajectory.states(np.asarray(extra_y)))[:, 2].tolist()
+    UX = [u[0] for u in U_l]
+    UY = [u[1] for u in U_l]
     return {
-        "ax": [float(U[:, 0].min()), float(U[:, 0].max())],
-        "ay": [float(U[:, 1].min()), float(U[:, 1].max())],
-        "a_total": float(np.max(np.hypot(U[:, 0], U[:, 1]))),
-        "vx": [float(VX.min()), float(VX.max())],
-        "y": [float(Y.min()), float(Y.max())],
-        "jerk": float(np.max(np.abs(du))) if du.size else 0.0,
+        "ax": [min(UX), max(UX)],
+        "ay": [min(UY), max(UY)],
+        "a_total": max(math.hypot(ux, uy) for ux, uy in zip(UX, UY)),
+        "vx": [min(VX), max(VX)],
+        "y": [min(Y), max(Y)],
+        "jerk": jerk,
     }
+
+
+def _quadratic_roots(A: float, B: float, C: float) -> list[float]:
+    """The real roots of ``A d² + B d + C`` (``A = 0``: of ``B d + C``; none when constant), by
+    the cancellation-free formula ``q = −(B + sign(B)√(B² − 4AC))/2``, ``d = q/A, C/q``."""
+    if A == 0.0:
+        return [-C / B] if B != 0.0 else []
+    disc = B * B - 4.0 * A * C
+    if not disc >= 0.0:
+        return []
+    q = -0.5 * (B + math.copysign(math.sqrt(disc), B))
+    return [q / A] + ([C / q] if q != 0.0 else [])
 
 
 def _keeps_sign(v0: float, u0: float, c: float, h: float) -> bool:
@@ -1846,25 +1886,30 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
     info["bounded"].update(switching_times=sol.switching_times(),
                            newton_iterations=[ax.iterations for ax in sol.axes])
     status = bad if bad is not None else (OPTIMAL if certified else LOCAL)
+    info["hamiltonian_jump_residuals"] = sol.hamiltonian_jump_residual()
     plan = Plan(problem=problem, planner="pmp", status=status, cost=sol.cost if bad is None else None,
                 contact_times=sol.contact_times.copy(), jumps=sol.jumps, trajectory=sol,
                 solve_time_s=_time.perf_counter() - t0, diagnostics=BoundedPMPDiagnostics.from_info(info))
     plan.residuals = {k: float(v) for k, v in values.items()}
-    plan.annotate(hamiltonian_jump_residuals=sol.hamiltonian_jump_residual())
     return plan
 
 
-def apply_state_limits(plan: Plan) -> Plan:
+def apply_state_limits(plan: Plan, **before: Any) -> Plan:
     """Check every given bound on the plan with exact peaks (``info["limits"]``); a verified
     plan that violates one becomes ``limits_violated`` (the input box of the PMP is imposed,
-    so only ``vx``, ``y``, ``a_total``, ``jerk`` can fail on a bounded plan)."""
+    so only ``vx``, ``y``, ``a_total``, ``jerk`` can fail on a bounded plan).  ``before``:
+    diagnostics the caller adds first (the same fields, in the same order, as its own
+    :meth:`~iamp.core.plan.Plan.annotate` call before this one; one copy of the diagnostics
+    instead of two)."""
     if plan.trajectory is None or plan.status not in (OPTIMAL, LOCAL):
+        if before:
+            plan.annotate(**before)
         return plan
     peaks = exact_peaks(plan.trajectory, float(plan.problem.tf), plan_knots(plan))
     report = limits_report(plan.problem, peaks)
     bad = [name for name, r in report.items() if not r["ok"]]
     if bad:
-        plan.annotate(limits=report, peaks=peaks)
+        plan.annotate(**before, limits=report, peaks=peaks)
         plan.annotate(limits_violated=bad)
         # the project's one verdict (Plan.judge_limits: core peaks, the same exact pieces via
         # BoundedSolution.breakpoints) names the bound; this report is the PMP's own check
@@ -1875,7 +1920,7 @@ def apply_state_limits(plan: Plan) -> Plan:
             plan.status = LIMITS_VIOLATED
         return plan
     # one copy of the diagnostics (the same fields, in the same order, as two annotate calls)
-    plan.annotate(limits=report, peaks=peaks, limits_note=("every given bound holds on this plan, so it is "
+    plan.annotate(**before, limits=report, peaks=peaks, limits_note=("every given bound holds on this plan, so it is "
                                                            f"{plan.status} for the bounded problem too"))
     return plan
 

@@ -404,18 +404,17 @@ class PMPPlanner:
             base = self.plan(free, contact_times, diagnostics, progress)
         base.problem = problem
         if base.status not in (OPTIMAL, LOCAL) or box_respected(base):
-            base.annotate(bounded={"box_active": False,
-                                   "note": "the unbounded plan respects the input box, so it solves "
-                                           "the bounded problem too"} if base.trajectory is not None else {})
-            return apply_state_limits(base)
+            return apply_state_limits(base, bounded={"box_active": False,
+                                                     "note": "the unbounded plan respects the input box, so it "
+                                                             "solves the bounded problem too"}
+                                      if base.trajectory is not None else {})
         # no vehicle: the fixed-time problem with no contact time (strictly convex, unique)
         fixed = contact_times if problem.m else np.empty(0)
         plan = plan_bounded(problem, base.contact_times, fixed, start, certify=self.certify_bounded)
         bounded = getattr(plan.diagnostics, "bounded", None)
-        plan.annotate(bounded={**(bounded or {}), "box_active": True},
-                      unbounded={"status": base.status, "cost": base.cost,
-                                 "contact_times": [float(x) for x in base.contact_times]})
-        return apply_state_limits(plan)
+        return apply_state_limits(plan, bounded={**(bounded or {}), "box_active": True},
+                                  unbounded={"status": base.status, "cost": base.cost,
+                                             "contact_times": [float(x) for x in base.contact_times]})
 
     def _plan_one(self, problem: Problem, start: float, diagnostics: bool) -> Plan:
         """One vehicle: :func:`~iamp.planners.pmp.one.solve_one` (scalar code, the data, the
