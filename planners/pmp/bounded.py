@@ -641,15 +641,10 @@ class _IntervalBound:
         (``M`` only falls as the interval shrinks)."""
         if not intervals:
             return []
-        warm_flat: list[float] = []
-        has: list[float] = []
-        ab: list[float] = []
-        for a, b, warm in intervals:
-            ab += [a, b]
-            for k in range(2):
-                lam = warm[k]
-                warm_flat += lam if lam is not None else [0.0, 0.0, 0.0]
-                has.append(0.0 if lam is None else 1.0)
+        zeros = [0.0, 0.0, 0.0]
+        ab = [x for a, b, _ in intervals for x in (a, b)]
+        warm_flat = [x for _, _, warm in intervals for lam in warm for x in (zeros if lam is None else lam)]
+        has = [0.0 if lam is None else 1.0 for _, _, warm in intervals for lam in warm]
         raw = interval_terms(ab, self.T, self.pos, self.der, self.off[0], self.off[1], self.flat_data, warm_flat, has,
                              self.cddot_max[0])
         W = INTERVAL_WIDTH
@@ -1755,9 +1750,16 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
     m = problem.m
     T = float(problem.tf)
     info: dict[str, Any] = {"bounded": {"method": "saturated co-state law, semi-smooth Newton on the dual"}}
-    reason = boundary_feasible(problem)
-    if reason is not None:
-        return _failed(problem, INFEASIBLE, "boundary_out_of_reach", info, t0, reason)
+    # the boundary conditions alone out of reach (a Farkas certificate per axis): asked only
+    # once no contact time has given a plan (a plan at any contact time meets them too)
+    boundary_info = {"bounded": dict(info["bounded"])}
+
+    def out_of_reach() -> Plan | None:
+        reason = boundary_feasible(problem)
+        if reason is None:
+            return None
+        return _failed(problem, INFEASIBLE, "boundary_out_of_reach", boundary_info, t0, reason)
+
     ev = _Evaluator(problem)
     fixed = contact_times is not None
     if fixed:
@@ -1774,6 +1776,9 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         search["method"] = "grid (8 per axis for m <= 2) + unbounded t* + L-BFGS-B with the exact gradient r"
     info["search"] = search
     if not fixed and not np.all(np.isfinite(t)):
+        unreachable = out_of_reach()
+        if unreachable is not None:
+            return unreachable
         proof = infeasibility_certificate(problem)
         certified, t_feasible, intervals = proof.certified, proof.feasible_t, proof.boxes
         search["infeasibility_intervals"] = intervals
@@ -1806,10 +1811,10 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
             sol = solve_bounded_fixed(problem, t, ev.warm_for(t))
             values = check_values(sol, stationary=_stationary(search, fixed))
     except AxisInfeasible as exc:
-        return _failed(problem, INFEASIBLE, "box_infeasible_at_contact_times", info, t0, str(exc))
+        return out_of_reach() or _failed(problem, INFEASIBLE, "box_infeasible_at_contact_times", info, t0, str(exc))
     except (AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError, OverflowError) as exc:
         info["error"] = f"{type(exc).__name__}: {exc}"
-        return _failed(problem, NUMERICAL_ERROR, "dual_newton", info, t0, str(exc))
+        return out_of_reach() or _failed(problem, NUMERICAL_ERROR, "dual_newton", info, t0, str(exc))
     checks, failed, bad = judge(values)
     if bad is not None:
         # the warm start can end on multipliers that meet F = 0 less well than a cold start
