@@ -39,6 +39,7 @@ the cost of every working set's optimum is a lower bound of the QP's optimum and
 from __future__ import annotations
 
 import copy
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -46,7 +47,9 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from iamp.core import status as st
+from iamp.planners.pmp import jit
 
+from . import schur_kernel as kernel
 from .solve import GENERATION_TOL, RowsSolution
 
 FloatArray = NDArray[np.float64]
@@ -82,6 +85,30 @@ W_KEPT = 20000
 #: The largest KKT residual (:meth:`SchurActiveSet.residual`) of a solution reported ``optimal``;
 #: beyond it the solve reports ``numerical_error`` (and the search solves that QP by the backend).
 CHECK_TOL = 1e-7
+
+
+#: The node solver's statuses by :mod:`~iamp.planners.avoid.schur_kernel`'s codes.
+_STATUS = {kernel.OPTIMAL: st.OPTIMAL, kernel.INFEASIBLE: st.INFEASIBLE, kernel.NUMERICAL_ERROR: st.NUMERICAL_ERROR,
+           kernel.MAX_ITER: st.MAX_ITER, kernel.CUTOFF: CUTOFF}
+#: Run the kernel as Python (numba absent): the same numbers, bit for bit, more slowly.
+_PYTHON = not jit.available()
+_TWINS: dict[str, Any] = {}
+
+
+def _kernel() -> Any:
+    """:func:`~iamp.planners.avoid.schur_kernel.active_set`, compiled by numba when available."""
+    if _PYTHON:
+        return kernel.active_set
+    if "active_set" not in _TWINS:
+        _TWINS["active_set"] = jit.twin(kernel.active_set, cache=True)
+    return _TWINS["active_set"]
+
+
+def _transpose() -> Any:
+    """:func:`~iamp.planners.avoid.schur_kernel.row_transpose_dot`, compiled."""
+    if "transpose" not in _TWINS:
+        _TWINS["transpose"] = jit.twin(kernel.row_transpose_dot, cache=True)
+    return _TWINS["transpose"]
 
 
 def full_hessian(P: sp.spmatrix) -> sp.csc_matrix:
@@ -128,6 +155,9 @@ class SchurActiveSet:
         self.A_eq_T = sp.csr_matrix(self.A_eq.T)
         full = full_hessian(self.P)
         self.P_full = sp.csr_matrix(full)
+        self._Pp = np.asarray(self.P_full.indptr, dtype=np.int64)
+        self._Pi = np.asarray(self.P_full.indices, dtype=np.int64)
+        self._Px = np.asarray(self.P_full.data, dtype=float)
         #: ``triu(P, 1)ᵀ``, the strict lower part of ``P`` the final KKT checks use
         #: (:func:`~iamp.planners.avoid.check.kkt_conditions`; shared by the plans of one grid)
         self.P_lower = sp.triu(self.P, 1).T
@@ -223,42 +253,58 @@ class SchurActiveSet:
         A_in = A_in if isinstance(A_in, sp.csr_matrix) else sp.csr_matrix(A_in)
         u = np.asarray(u_in, dtype=float)
         n_in = u.size
-        ws = _Working(self, A_in, u)
-        if start is not None and start.size:
-            ws.warm(start)
-        status = st.OPTIMAL
-        iterations = 0
+        indptr = np.asarray(A_in.indptr, dtype=np.int64)
+        indices = np.asarray(A_in.indices, dtype=np.int64)
+        data = np.asarray(A_in.data, dtype=float)
+        self._columns(indices)
+        seed = np.zeros(0, dtype=np.int64) if start is None else np.asarray(start, dtype=np.int64)
+        z = np.empty(self.n)
+        out = np.zeros(1)
+        cap = min(max(32, 2 * seed.size), n_in, self.n) + 1
         while True:
-            if cutoff is not None:
-                bound = 0.5 * float(ws.z @ (self.P_full @ ws.z))
-                if bound >= cutoff:
-                    return RowsSolution(CUTOFF, ws.z, np.zeros(self.n_eq + n_in), iterations, 1,
-                                        np.asarray(ws.rows, dtype=np.int64), True, bound)
-            viol = A_in @ ws.z - u
-            if ws.k:
-                viol[ws.rows] = -np.inf
-            p = int(viol.argmax()) if n_in else -1
-            if p < 0 or viol[p] <= GENERATION_TOL:
+            lam = np.zeros(cap)
+            rows = np.zeros(cap, dtype=np.int64)
+            code, k, iterations = _kernel()(
+                self.z0, self._Kinv, indptr, indices, data, u, seed, cutoff is not None,
+                float(cutoff) if cutoff is not None else 0.0, self._Pp, self._Pi, self._Px, self.max_iter,
+                GENERATION_TOL, DEPENDENT_REL, INFEASIBLE_REL, WARM_COND, cap, z, lam, rows, out)
+            if code != kernel.CAPACITY:
                 break
-            status, steps = ws.add(p, self.max_iter - iterations)
-            iterations += steps
-            if status != st.OPTIMAL:
-                break
+            cap = min(2 * cap, n_in + 1)  # the same steps again, with room for more rows
+        status = _STATUS[code]
+        rows, lam = rows[:k], lam[:k]
+        if status == CUTOFF:
+            return RowsSolution(CUTOFF, z, np.zeros(self.n_eq + n_in), iterations, 1, rows, True, float(out[0]))
         if status != st.OPTIMAL:
-            return RowsSolution(status, ws.z, np.zeros(self.n_eq + n_in), iterations, 1,
-                                np.asarray(ws.rows, dtype=np.int64), bool(np.isfinite(ws.z).all()))
+            return RowsSolution(status, z, np.zeros(self.n_eq + n_in), iterations, 1, rows,
+                                bool(np.isfinite(z).all()))
         # the equality multipliers (and z) from one K solve: P z + Eᵀν = -G_Wᵀλ, E z = b
-        Gt_lam = ws.lam @ ws.G if ws.k else np.zeros(self.n)
-        x = self.lu.solve(np.concatenate([-Gt_lam, self.b_eq])) if ws.k else self._x0
+        Gt_lam = np.zeros(self.n)
+        if k:
+            kernel.row_transpose_dot(indptr, indices, data, rows, lam, k, Gt_lam) if _PYTHON else \
+                _transpose()(indptr, indices, data, rows, lam, k, Gt_lam)
+        x = self.lu.solve(np.concatenate([-Gt_lam, self.b_eq])) if k else self._x0
         z = np.array(x[:self.n], dtype=float)  # a copy: x may be the stored equality optimum
         y = np.zeros(self.n_eq + n_in)
         y[:self.n_eq] = x[self.n:]
-        if ws.k:
-            y[self.n_eq + np.asarray(ws.rows, dtype=np.int64)] = ws.lam
+        if k:
+            y[self.n_eq + rows] = lam
         finite = bool(np.isfinite(z).all() and np.isfinite(y).all())
         if not finite or self.residual(A_in, u, z, y, Gt_lam) > CHECK_TOL:
             status = st.NUMERICAL_ERROR  # e.g. a nearly dependent row of an infeasible QP
-        return RowsSolution(status, z, y, iterations, 1, np.asarray(sorted(ws.rows), dtype=np.int64), finite)
+        return RowsSolution(status, z, y, iterations, 1, np.sort(rows), finite)
+
+    def _columns(self, cols: NDArray[np.int64]) -> None:
+        """Solve the columns of ``K⁻¹`` among ``cols`` not solved yet (one batch; each column is
+        the same bit for bit whichever batch solved it)."""
+        missing = np.unique(cols[~self._have[cols]])
+        if missing.size:
+            R = np.zeros((self.n + self.n_eq, missing.size))
+            R[missing, np.arange(missing.size)] = 1.0
+            X = np.asarray(self.lu.solve(R), dtype=float).reshape(self.n + self.n_eq, missing.size)
+            self._Kinv[missing] = X[:self.n].T
+            self._have[missing] = True
+            self.columns += int(missing.size)
 
     def residual(self, A_in: sp.csr_matrix, u: FloatArray, z: FloatArray, y: FloatArray,
                  Gt: FloatArray | None = None) -> float:
@@ -276,154 +322,3 @@ class SchurActiveSet:
         scale = max(1.0, float(np.abs(Pz).max()), float(np.abs(At).max()), float(np.abs(Gt).max(initial=0.0)))
         dual = float(np.abs(Pz + At + Gt).max()) / scale
         return max(primal, dual, float(-lam.min(initial=0.0)))
-
-
-class _Working:
-    """The working set of one solve: its rows (dense ``G``), their ``w_r`` (rows of ``Wt``),
-    ``S = G Wtᵀ``, the multipliers and ``z = z0 - Wtᵀ λ`` (the optimum with the rows as
-    equalities); arrays of fixed capacity, the first :attr:`k` rows in use."""
-
-    def __init__(self, solver: SchurActiveSet, A_in: sp.csr_matrix, u: FloatArray) -> None:
-        self.solver, self.u = solver, u
-        self.indptr, self.indices, self.data = A_in.indptr, A_in.indices, np.asarray(A_in.data, dtype=float)
-        n = solver.n
-        self.k = 0
-        self.rows: list[int] = []
-        self.cap = 16
-        self._G = np.zeros((self.cap, n))
-        self._W = np.zeros((self.cap, n))
-        self._S = np.zeros((self.cap, self.cap))
-        self.lam = np.zeros(0)
-        self.z = solver.z0.copy()
-
-    @property
-    def G(self) -> FloatArray:
-        return self._G[:self.k]
-
-    @property
-    def Wt(self) -> FloatArray:
-        return self._W[:self.k]
-
-    @property
-    def S(self) -> FloatArray:
-        return self._S[:self.k, :self.k]
-
-    def _dense(self, r: int) -> tuple[FloatArray, FloatArray]:
-        """Row ``r`` of ``G`` (dense) and its ``w_r``."""
-        s, e = self.indptr[r], self.indptr[r + 1]
-        cols, vals = self.indices[s:e], self.data[s:e]
-        g = np.zeros(self.solver.n)
-        g[cols] = vals
-        return g, self.solver.column(cols, vals)
-
-    def _push(self, r: int, g: FloatArray, w: FloatArray, lam_r: float) -> None:
-        k = self.k
-        if k == self.cap:
-            self.cap *= 2
-            G, W, S = self._G, self._W, self._S
-            self._G = np.zeros((self.cap, G.shape[1]))
-            self._W = np.zeros((self.cap, W.shape[1]))
-            self._S = np.zeros((self.cap, self.cap))
-            self._G[:k], self._W[:k], self._S[:k, :k] = G, W, S
-        col = self._G[:k] @ w
-        self._S[:k, k] = col
-        self._S[k, :k] = col
-        self._S[k, k] = g @ w
-        self._G[k] = g
-        self._W[k] = w
-        self.k = k + 1
-        self.rows.append(r)
-        self.lam = np.concatenate((self.lam, (lam_r,)))
-
-    def _pop(self, j: int) -> None:
-        k = self.k
-        del self.rows[j]
-        self._G[j:k - 1] = self._G[j + 1:k]
-        self._W[j:k - 1] = self._W[j + 1:k]
-        self._S[j:k - 1, :k] = self._S[j + 1:k, :k]
-        self._S[:k, j:k - 1] = self._S[:k, j + 1:k]
-        self.k = k - 1
-        self.lam = np.concatenate((self.lam[:j], self.lam[j + 1:]))
-
-    def _exact(self) -> None:
-        """``λ`` and ``z`` of the optimum with the working rows as equalities (no drift)."""
-        z0 = self.solver.z0
-        if self.k:
-            rhs = self.G @ z0 - self.u[self.rows]
-            self.lam = np.asarray(np.linalg.solve(self.S, rhs), dtype=float)
-            self.z = z0 - self.lam @ self.Wt
-        else:
-            self.lam = np.zeros(0)
-            self.z = z0.copy()
-
-    def _dual_feasible(self) -> None:
-        """Drop the most negative multiplier until the working set's optimum has ``λ >= 0``."""
-        self._exact()
-        while self.k and self.lam.min() < 0:
-            self._pop(int(self.lam.argmin()))
-            self._exact()
-
-    def warm(self, seed: NDArray[np.int64]) -> None:
-        """A dual-feasible start from the rows ``seed`` held as equalities, then negative
-        multipliers leave; when they are not independent (``S`` singular or ill-conditioned), the
-        start is the equality optimum instead."""
-        for r in seed:
-            g, w = self._dense(int(r))
-            self._push(int(r), g, w, 0.0)
-        try:
-            if self.k:  # Cholesky's pivots bound the condition number from below
-                piv = np.diag(np.linalg.cholesky(self.S)) ** 2
-                if not float(piv.min()) * WARM_COND > float(piv.max()):
-                    raise np.linalg.LinAlgError("ill-conditioned start")
-            self._dual_feasible()
-        except np.linalg.LinAlgError:
-            self.k = 0
-            self.rows = []
-            self.lam = np.zeros(0)
-            self.z = self.solver.z0.copy()
-
-    def add(self, p: int, budget: int) -> tuple[str, int]:
-        """Goldfarb–Idnani steps until row ``p`` binds (module docstring); the status and steps."""
-        g, wp = self._dense(p)
-        gwp = float(g @ wp)
-        lam_p = 0.0
-        steps = 0
-        z0 = self.solver.z0
-        while steps < budget:
-            steps += 1
-            j = -1
-            t2 = np.inf
-            if self.k:
-                col = self.G @ wp
-                dlam = -np.linalg.solve(self.S, col)
-                curv = gwp + float(col @ dlam)
-                neg = dlam < 0
-                if neg.any():
-                    ratios = np.full(self.k, np.inf)
-                    ratios[neg] = self.lam[neg] / -dlam[neg]
-                    j = int(ratios.argmin())
-                    t2 = float(ratios[j])
-            else:
-                dlam = np.zeros(0)
-                curv = gwp
-            if not curv > DEPENDENT_REL * gwp:  # dependent on the working set: a dual step only
-                if j < 0:
-                    return (st.INFEASIBLE if not curv > INFEASIBLE_REL * gwp else st.NUMERICAL_ERROR), steps
-                t = t2
-            else:
-                t1 = (float(g @ self.z) - self.u[p]) / curv
-                if t1 <= t2:
-                    self.lam = self.lam + t1 * dlam
-                    self._push(p, g, wp, lam_p + t1)
-                    self._exact()
-                    if self.k and self.lam.min() < 0:  # round-off only: the steps keep λ >= 0
-                        self._dual_feasible()
-                        if p not in self.rows:  # the row left again: ill-conditioned, stop
-                            return st.NUMERICAL_ERROR, steps
-                    return st.OPTIMAL, steps
-                t = t2
-            self.lam = self.lam + t * dlam
-            lam_p += t
-            self._pop(j)
-            self.z = z0 - (self.lam @ self.Wt if self.k else 0.0) - lam_p * wp
-        return st.MAX_ITER, steps

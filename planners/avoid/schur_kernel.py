@@ -1,0 +1,356 @@
+r"""The dual active-set loop of :class:`~iamp.planners.avoid.schur.SchurActiveSet`, written once.
+
+Plain Python over numpy arrays and scalars (loops, no BLAS or LAPACK): every sum runs in one
+fixed order, so the numbers do not depend on the machine's BLAS kernel.  :func:`active_set` is
+marked :func:`~iamp.planners.pmp.jit.compilable`: where numba is installed the node solver runs
+its twin (the same code compiled, no fastmath: the same IEEE operations in the same order, the
+same numbers bit for bit; ``tests/test_avoid_schur_kernel.py`` compares the two), else this
+Python function itself.
+
+The method (Goldfarb and Idnani, :mod:`iamp.planners.avoid.schur`): the working set's rows
+``g_r`` (sparse, from the CSR arrays of the QP's rows ``G z <= u``), their ``w_r`` (the primal
+part of ``K⁻¹ [g_r; 0]``, the combination of the grid's columns of ``K⁻¹`` that ``g_r``
+touches), ``S = [g_r · w_s]`` and the multipliers ``λ``; the optimum with the working rows held as
+equalities is ``z = z0 - Σ λ_r w_r`` with ``S λ = G_W z0 - u_W`` (Gaussian elimination with
+partial pivoting; a warm start's ``S`` is first checked by its Cholesky factor).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from iamp.planners.pmp.jit import compilable
+
+#: Status codes of :func:`active_set`.
+OPTIMAL, INFEASIBLE, NUMERICAL_ERROR, MAX_ITER, CUTOFF = 0, 1, 2, 3, 4
+#: :func:`active_set` needs a larger ``cap`` (run it again with more: the same steps until then).
+CAPACITY = 5
+
+
+@compilable
+def _row_dot(indptr, indices, data, r, x):  # type: ignore[no-untyped-def]
+    """``g_r · x``."""
+    s = 0.0
+    for j in range(indptr[r], indptr[r + 1]):
+        s += data[j] * x[indices[j]]
+    return s
+
+
+@compilable
+def _row_w(indptr, indices, data, r, Kinv, out):  # type: ignore[no-untyped-def]
+    """``out = w_r = Σ_j g_rj K⁻¹[c_j]`` (entries in the row's stored order)."""
+    n = out.shape[0]
+    for i in range(n):
+        out[i] = 0.0
+    for j in range(indptr[r], indptr[r + 1]):
+        c = indices[j]
+        v = data[j]
+        for i in range(n):
+            out[i] += v * Kinv[c, i]
+
+
+@compilable
+def _cholesky(S, k, L):  # type: ignore[no-untyped-def]
+    """``L Lᵀ = S[:k, :k]`` into ``L``; False when a pivot is not positive."""
+    for j in range(k):
+        d = S[j, j]
+        for p in range(j):
+            d -= L[j, p] * L[j, p]
+        if not d > 0.0:
+            return False
+        L[j, j] = math.sqrt(d)
+        for i in range(j + 1, k):
+            s = S[i, j]
+            for p in range(j):
+                s -= L[i, p] * L[j, p]
+            L[i, j] = s / L[j, j]
+    return True
+
+
+@compilable
+def _solve(S, k, b, x, M):  # type: ignore[no-untyped-def]
+    """``x = S[:k, :k]⁻¹ b`` by Gaussian elimination with partial pivoting (``M``: work space);
+    False when a pivot is zero (``S`` singular)."""
+    for i in range(k):
+        for j in range(k):
+            M[i, j] = S[i, j]
+        x[i] = b[i]
+    for c in range(k):
+        p = c
+        for r in range(c + 1, k):
+            if abs(M[r, c]) > abs(M[p, c]):
+                p = r
+        if M[p, c] == 0.0:
+            return False
+        if p != c:
+            for j in range(k):
+                t = M[c, j]
+                M[c, j] = M[p, j]
+                M[p, j] = t
+            t = x[c]
+            x[c] = x[p]
+            x[p] = t
+        for r in range(c + 1, k):
+            f = M[r, c] / M[c, c]
+            for j in range(c + 1, k):
+                M[r, j] -= f * M[c, j]
+            x[r] -= f * x[c]
+    for i in range(k - 1, -1, -1):
+        s = x[i]
+        for j in range(i + 1, k):
+            s -= M[i, j] * x[j]
+        x[i] = s / M[i, i]
+    return True
+
+
+@compilable
+def _set_z(z0, W, lam, k, z):  # type: ignore[no-untyped-def]
+    """``z = z0 - Σ_r λ_r w_r`` (rows in working-set order)."""
+    n = z0.shape[0]
+    for i in range(n):
+        z[i] = z0[i]
+    for r in range(k):
+        lr = lam[r]
+        for i in range(n):
+            z[i] -= lr * W[r, i]
+
+
+@compilable
+def _exact(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):  # type: ignore[no-untyped-def]
+    """``λ`` and ``z`` of the optimum with the working rows as equalities; False when ``S`` is
+    singular."""
+    if k == 0:
+        for i in range(z0.shape[0]):
+            z[i] = z0[i]
+        return True
+    for r in range(k):
+        rhs[r] = _row_dot(indptr, indices, data, rows[r], z0) - u[rows[r]]
+    if not _solve(S, k, rhs, lam, L):
+        return False
+    _set_z(z0, W, lam, k, z)
+    return True
+
+
+@compilable
+def _pop(rows, W, S, lam, k, j):  # type: ignore[no-untyped-def]
+    """Drop the working set's ``j``-th row (the others keep their order); the new size."""
+    n = W.shape[1]
+    for r in range(j, k - 1):
+        rows[r] = rows[r + 1]
+        lam[r] = lam[r + 1]
+        for i in range(n):
+            W[r, i] = W[r + 1, i]
+        for c in range(k):
+            S[r, c] = S[r + 1, c]
+    for c in range(j, k - 1):
+        for r in range(k - 1):
+            S[r, c] = S[r, c + 1]
+    return k - 1
+
+
+@compilable
+def _push(indptr, indices, data, rows, W, S, lam, k, r, w, lam_r):  # type: ignore[no-untyped-def]
+    """Append row ``r`` with ``w_r = w`` and multiplier ``lam_r``; the new size."""
+    n = W.shape[1]
+    for i in range(n):
+        W[k, i] = w[i]
+    for c in range(k):
+        s = _row_dot(indptr, indices, data, rows[c], w)
+        S[c, k] = s
+        S[k, c] = s
+    S[k, k] = _row_dot(indptr, indices, data, r, w)
+    rows[k] = r
+    lam[k] = lam_r
+    return k + 1
+
+
+@compilable
+def _dual_feasible(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):  # type: ignore[no-untyped-def]
+    """Drop the most negative multiplier until ``λ >= 0``; the new size, or -1 when ``S`` is
+    singular."""
+    if not _exact(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):
+        return -1
+    while k > 0:
+        j = 0
+        for r in range(1, k):
+            if lam[r] < lam[j]:
+                j = r
+        if not lam[j] < 0.0:
+            break
+        k = _pop(rows, W, S, lam, k, j)
+        if not _exact(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):
+            return -1
+    return k
+
+
+@compilable
+def active_set(z0, Kinv, indptr, indices, data, u, start, use_cutoff, cutoff, Pp, Pi, Px, max_iter,  # type: ignore[no-untyped-def]
+               gen_tol, dependent_rel, infeasible_rel, warm_cond, cap, z, lam, rows, out):
+    """The dual active-set method (module docstring) on the rows ``(indptr, indices, data) z <= u``.
+
+    ``z0``: the equality optimum; ``Kinv[c]``: the primal part of column ``c`` of ``K⁻¹`` (every
+    column a row touches); ``start``: rows that start the working set (warm start; dropped when
+    their ``S`` is not positive definite or its squared Cholesky pivots spread beyond
+    ``warm_cond``); with ``use_cutoff``, stop once the working set's cost ``½ zᵀPz`` (``P`` the
+    symmetric CSR ``Pp, Pi, Px``) reaches ``cutoff``.  ``cap``: the working set's largest size.
+    Writes ``z``, the working rows ``rows[:k]`` and their multipliers ``lam[:k]``; returns
+    ``(status, k, iterations)`` and, in ``out[0]``, the cutoff's bound.
+    """
+    n = z0.shape[0]
+    m = u.shape[0]
+    W = np.zeros((cap, n))
+    S = np.zeros((cap, cap))
+    L = np.zeros((cap, cap))
+    rhs = np.zeros(cap)
+    dlam = np.zeros(cap)
+    col = np.zeros(cap)
+    w = np.zeros(n)
+    wp = np.zeros(n)
+    inw = np.zeros(m, dtype=np.bool_)
+    k = 0
+    for i in range(n):
+        z[i] = z0[i]
+    # warm start
+    if start.shape[0] > cap:
+        return CAPACITY, 0, 0
+    for s in range(start.shape[0]):
+        r = start[s]
+        _row_w(indptr, indices, data, r, Kinv, w)
+        k = _push(indptr, indices, data, rows, W, S, lam, k, r, w, 0.0)
+    if k > 0:
+        ok = _cholesky(S, k, L)
+        if ok:
+            lo = L[0, 0] * L[0, 0]
+            hi = lo
+            for r in range(1, k):
+                v = L[r, r] * L[r, r]
+                if v < lo:
+                    lo = v
+                if v > hi:
+                    hi = v
+            ok = lo * warm_cond > hi
+        if ok:
+            k2 = _dual_feasible(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z)
+            ok = k2 >= 0
+            k = k2
+        if not ok:
+            k = 0
+            for i in range(n):
+                z[i] = z0[i]
+    status = OPTIMAL
+    iterations = 0
+    while True:
+        if use_cutoff:
+            bound = 0.0
+            for i in range(n):
+                s = 0.0
+                for j in range(Pp[i], Pp[i + 1]):
+                    s += Px[j] * z[Pi[j]]
+                bound += z[i] * s
+            bound = 0.5 * bound
+            if bound >= cutoff:
+                out[0] = bound
+                return CUTOFF, k, iterations
+        for r in range(k):
+            inw[rows[r]] = True
+        p = -1
+        best = 0.0
+        for r in range(m):
+            if inw[r]:
+                continue
+            v = _row_dot(indptr, indices, data, r, z) - u[r]
+            if p < 0 or v > best:
+                p = r
+                best = v
+        for r in range(k):
+            inw[rows[r]] = False
+        if p < 0 or best <= gen_tol:
+            break
+        if k == cap:
+            return CAPACITY, k, iterations
+        # Goldfarb-Idnani steps until row p binds
+        _row_w(indptr, indices, data, p, Kinv, wp)
+        gwp = _row_dot(indptr, indices, data, p, wp)
+        lam_p = 0.0
+        steps = 0
+        done = False
+        budget = max_iter - iterations
+        while steps < budget:
+            steps += 1
+            j = -1
+            t2 = math.inf
+            curv = gwp
+            if k > 0:
+                for r in range(k):
+                    col[r] = _row_dot(indptr, indices, data, rows[r], wp)
+                if not _solve(S, k, col, dlam, L):
+                    iterations += steps
+                    return NUMERICAL_ERROR, k, iterations
+                for r in range(k):
+                    dlam[r] = -dlam[r]
+                for r in range(k):
+                    curv += col[r] * dlam[r]
+                for r in range(k):
+                    if dlam[r] < 0.0:
+                        ratio = lam[r] / -dlam[r]
+                        if j < 0 or ratio < t2:
+                            j = r
+                            t2 = ratio
+            if not curv > dependent_rel * gwp:  # dependent on the working set: a dual step only
+                if j < 0:
+                    iterations += steps
+                    return (INFEASIBLE if not curv > infeasible_rel * gwp else NUMERICAL_ERROR), k, iterations
+                t = t2
+            else:
+                t1 = (_row_dot(indptr, indices, data, p, z) - u[p]) / curv
+                if t1 <= t2:
+                    for r in range(k):
+                        lam[r] = lam[r] + t1 * dlam[r]
+                    k = _push(indptr, indices, data, rows, W, S, lam, k, p, wp, lam_p + t1)
+                    if not _exact(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):
+                        iterations += steps
+                        return NUMERICAL_ERROR, k, iterations
+                    neg = False
+                    for r in range(k):
+                        if lam[r] < 0.0:
+                            neg = True
+                    if neg:  # round-off only: the steps keep λ >= 0
+                        k = _dual_feasible(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z)
+                        if k < 0:
+                            iterations += steps
+                            return NUMERICAL_ERROR, 0, iterations
+                        there = False
+                        for r in range(k):
+                            if rows[r] == p:
+                                there = True
+                        if not there:  # the row left again: ill-conditioned, stop
+                            iterations += steps
+                            return NUMERICAL_ERROR, k, iterations
+                    done = True
+                    break
+                t = t2
+            for r in range(k):
+                lam[r] = lam[r] + t * dlam[r]
+            lam_p += t
+            k = _pop(rows, W, S, lam, k, j)
+            _set_z(z0, W, lam, k, z)
+            for i in range(n):
+                z[i] -= lam_p * wp[i]
+        iterations += steps
+        if not done:
+            return MAX_ITER, k, iterations
+    return status, k, iterations
+
+
+@compilable
+def row_transpose_dot(indptr, indices, data, rows, lam, k, out):  # type: ignore[no-untyped-def]
+    """``out = G_Wᵀ λ`` (rows in working-set order, entries in stored order)."""
+    for i in range(out.shape[0]):
+        out[i] = 0.0
+    for r in range(k):
+        lr = lam[r]
+        row = rows[r]
+        for j in range(indptr[row], indptr[row + 1]):
+            out[indices[j]] += lr * data[j]

@@ -1,0 +1,119 @@
+"""The node solver's kernel (``planners/avoid/schur_kernel.py``), written once.
+
+* Its Python function and its numba twin give the same numbers bit for bit on the QPs of a
+  search (cold, warm-started, with a cutoff), so no plan depends on whether numba is installed.
+* Its small dense algebra (Cholesky factor and solve) against numpy's, and its optimum against
+  the KKT conditions recomputed from the data and an independent backend solve of the same QP.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from iamp.planners.avoid import schur_kernel as kernel
+from iamp.planners.avoid.check import crossing_orders
+from iamp.planners.avoid.continuous import ContinuousAvoidPlanner, ContinuousAvoidQP
+from iamp.planners.avoid.schur import CHECK_TOL, DEPENDENT_REL, INFEASIBLE_REL, WARM_COND
+from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration
+from iamp.planners.examples import overtake_problem, overtake_three_problem
+from iamp.planners.pmp import jit
+
+
+def _args(qp: ContinuousAvoidQP, spec, start=None, cutoff=None):  # type: ignore[no-untyped-def]
+    s = qp.schur
+    assert s is not None
+    A, u, _ = qp.spec_rows(spec)
+    indptr, indices = np.asarray(A.indptr, dtype=np.int64), np.asarray(A.indices, dtype=np.int64)
+    s._columns(indices)
+    seed = np.zeros(0, dtype=np.int64) if start is None else np.asarray(start, dtype=np.int64)
+    cap = min(u.size, s.n) + 1
+    return (s.z0, s._Kinv, indptr, indices, np.asarray(A.data, dtype=float), u, seed, cutoff is not None,
+            0.0 if cutoff is None else float(cutoff), s._Pp, s._Pi, s._Px, s.max_iter, GENERATION_TOL,
+            DEPENDENT_REL, INFEASIBLE_REL, WARM_COND, cap, np.empty(s.n), np.zeros(cap),
+            np.zeros(cap, dtype=np.int64), np.zeros(1))
+
+
+def _specs(m: int):  # type: ignore[no-untyped-def]
+    prob = overtake_problem() if m == 1 else overtake_three_problem()
+    qp = ContinuousAvoidQP(prob, 20, "foh", "clarabel")
+    tf = prob.tf
+    orders, _ = crossing_orders(prob)
+    first = [o[0] for o in orders]
+    best = ContinuousAvoidPlanner(steps=20).plan(prob).contact_times  # the search's crossings
+    taus = [np.asarray(best, dtype=float), np.full(m, 0.74 * tf), np.linspace(0.3, 0.8, m) * tf]
+    specs = [tuple((f, s, float(t), float(t)) for (f, s), t in zip(first, tau)) for tau in taus]
+    specs.append(tuple((f, s, 0.5 * tf, 0.9 * tf) for f, s in first))  # a relaxation
+    return qp, specs
+
+
+@pytest.mark.skipif(not jit.available(), reason="numba is not installed")
+@pytest.mark.parametrize("m", [1, 3])
+def test_the_compiled_kernel_is_the_python_function_bit_for_bit(m: int) -> None:
+    qp, specs = _specs(m)
+    compiled = jit.twin(kernel.active_set, cache=True)
+    first = qp.solve(specs[0])
+    runs = 0
+    for spec in specs:
+        _, _, ids = qp.spec_rows(spec)
+        # cold, warm from the first candidate's binding rows, and with a cutoff below its cost
+        warm = np.flatnonzero(np.isin(ids, first.active()))
+        for start, cutoff in ((None, None), (warm, None), (None, 0.5 * first.cost)):
+            a, b = _args(qp, spec, start, cutoff), _args(qp, spec, start, cutoff)
+            ra, rb = kernel.active_set(*a), compiled(*b)
+            assert tuple(int(x) for x in ra) == tuple(int(x) for x in rb)
+            for x, y in zip(a[-4:], b[-4:]):  # z, lam, rows, out
+                assert np.array_equal(x, y), (spec, start, cutoff)
+            runs += 1
+    assert runs == 3 * len(specs)
+
+
+def test_cholesky_and_the_small_solve_against_numpy() -> None:
+    rng = np.random.default_rng(3)
+    for k in (1, 2, 5, 9):
+        B = rng.standard_normal((k, k + 3))
+        S = np.zeros((12, 12))
+        S[:k, :k] = B @ B.T + 1e-3 * np.eye(k)
+        L = np.zeros((12, 12))
+        assert kernel._cholesky(S, k, L)
+        assert np.allclose(L[:k, :k], np.linalg.cholesky(S[:k, :k]), rtol=1e-12, atol=1e-12)
+        b = np.r_[rng.standard_normal(k), np.zeros(12 - k)]
+        x = np.zeros(12)
+        assert kernel._solve(S, k, b, x, np.zeros((12, 12)))
+        assert np.allclose(S[:k, :k] @ x[:k], b[:k], rtol=1e-10, atol=1e-10)
+        P = rng.standard_normal((k, k))  # not symmetric: partial pivoting
+        S2 = np.zeros((12, 12))
+        S2[:k, :k] = P
+        assert kernel._solve(S2, k, b, x, np.zeros((12, 12)))
+        assert np.allclose(P @ x[:k], b[:k], rtol=1e-8, atol=1e-8)
+    S = np.array([[1.0, 2.0], [2.0, 1.0]])  # indefinite
+    assert not kernel._cholesky(S, 2, np.zeros((2, 2)))
+    assert not kernel._solve(np.ones((2, 2)), 2, np.ones(2), np.zeros(2), np.zeros((2, 2)))  # singular
+
+
+@pytest.mark.parametrize("m", [1, 3])
+def test_the_node_solvers_optimum_is_the_backends_and_meets_the_kkt_conditions(m: int) -> None:
+    qp, specs = _specs(m)
+    s = qp.schur
+    assert s is not None
+    solved = 0
+    for spec in specs:
+        A, u, ids = qp.spec_rows(spec)
+        sol = s.solve(A, u)
+        ref = RowGeneration("clarabel", qp.data.P, qp.A_eq, qp.data.b_eq, every_row=True).solve(A, u, ids)
+        if sol.status == "numerical_error":  # a nearly dependent row: the search asks the backend
+            assert ref.status == "infeasible"
+            continue
+        assert sol.status == ref.status  # an infeasible crossing for both, or the same optimum
+        if sol.status != "optimal":
+            continue
+        solved += 1
+        assert s.residual(A, u, sol.z, sol.y) <= CHECK_TOL
+        P = sp.csr_matrix(s.P_full)
+        cost, ref_cost = 0.5 * sol.z @ (P @ sol.z), 0.5 * ref.z @ (P @ ref.z)
+        assert cost == pytest.approx(ref_cost, rel=1e-7, abs=1e-9)
+        assert np.max(A @ sol.z - u) <= GENERATION_TOL
+        lam = sol.y[qp.data.n_eq:]
+        assert lam.min() >= 0.0 and np.all(lam[(u - A @ sol.z) > 1e-6] == 0.0)
+    assert solved >= 1
