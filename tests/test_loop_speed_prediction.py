@@ -125,3 +125,20 @@ def test_propagate_of_one_past_is_the_batchs_row() -> None:
     for b in range(3):
         assert MODEL.propagate(S[b], 30).tobytes() == batch[b].tobytes()
     assert np.allclose(batch.sum(axis=2), 1.0, atol=1e-12)  # distributions stay distributions
+
+
+def test_propagate_reads_the_last_n_states_of_a_longer_past_or_its_distributions() -> None:
+    rng = np.random.default_rng(3)
+    for T in (ORDER, ORDER + 1, ORDER + 5):
+        past = rng.integers(0, N_STATES, T)
+        want = MODEL.propagate(past[-ORDER:], 12)
+        assert MODEL.propagate(past, 12).tobytes() == want.tobytes()
+        assert MODEL.propagate(np.eye(N_STATES)[past], 12).tobytes() == want.tobytes()
+        assert MODEL.propagate_batch(past[None, :], 12)[0].tobytes() == want.tobytes()
+    for bad in ([0] * (ORDER - 1), [N_STATES] + [0] * (ORDER - 1), [-1] + [0] * (ORDER - 1)):
+        with pytest.raises(ValueError):
+            MODEL.propagate(bad, 3)
+    with pytest.raises(ValueError):
+        MODEL.propagate(np.eye(N_STATES)[: ORDER - 1], 3)  # fewer distributions than the order
+    with pytest.raises(ValueError):
+        MODEL.propagate(np.ones((ORDER, N_STATES + 1)) / (N_STATES + 1), 3)  # the wrong number of states
