@@ -18,6 +18,7 @@ partial pivoting; a warm start's ``S`` is first checked by its Cholesky factor).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -30,7 +31,7 @@ CAPACITY = 5
 
 
 @compilable
-def _row_dot(indptr, indices, data, r, x):  # type: ignore[no-untyped-def]
+def _row_dot(indptr: Any, indices: Any, data: Any, r: int, x: Any) -> float:
     """``g_r · x``."""
     s = 0.0
     for j in range(indptr[r], indptr[r + 1]):
@@ -39,7 +40,7 @@ def _row_dot(indptr, indices, data, r, x):  # type: ignore[no-untyped-def]
 
 
 @compilable
-def _row_w(indptr, indices, data, r, Kinv, out):  # type: ignore[no-untyped-def]
+def _row_w(indptr: Any, indices: Any, data: Any, r: int, Kinv: Any, out: Any) -> None:
     """``out = w_r = Σ_j g_rj K⁻¹[c_j]`` (entries in the row's stored order)."""
     n = out.shape[0]
     for i in range(n):
@@ -52,7 +53,7 @@ def _row_w(indptr, indices, data, r, Kinv, out):  # type: ignore[no-untyped-def]
 
 
 @compilable
-def _cholesky(S, k, L):  # type: ignore[no-untyped-def]
+def _cholesky(S: Any, k: int, L: Any) -> bool:
     """``L Lᵀ = S[:k, :k]`` into ``L``; False when a pivot is not positive."""
     for j in range(k):
         d = S[j, j]
@@ -70,7 +71,7 @@ def _cholesky(S, k, L):  # type: ignore[no-untyped-def]
 
 
 @compilable
-def _solve(S, k, b, x, M):  # type: ignore[no-untyped-def]
+def _solve(S: Any, k: int, b: Any, x: Any, M: Any) -> bool:
     """``x = S[:k, :k]⁻¹ b`` by Gaussian elimination with partial pivoting (``M``: work space);
     False when a pivot is zero (``S`` singular)."""
     for i in range(k):
@@ -106,7 +107,7 @@ def _solve(S, k, b, x, M):  # type: ignore[no-untyped-def]
 
 
 @compilable
-def _set_z(z0, W, lam, k, z):  # type: ignore[no-untyped-def]
+def _set_z(z0: Any, W: Any, lam: Any, k: int, z: Any) -> None:
     """``z = z0 - Σ_r λ_r w_r`` (rows in working-set order)."""
     n = z0.shape[0]
     for i in range(n):
@@ -118,7 +119,8 @@ def _set_z(z0, W, lam, k, z):  # type: ignore[no-untyped-def]
 
 
 @compilable
-def _exact(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):  # type: ignore[no-untyped-def]
+def _exact(z0: Any, u: Any, indptr: Any, indices: Any, data: Any, rows: Any, W: Any, S: Any, L: Any, lam: Any,
+           k: int, rhs: Any, z: Any) -> bool:
     """``λ`` and ``z`` of the optimum with the working rows as equalities; False when ``S`` is
     singular."""
     if k == 0:
@@ -134,7 +136,7 @@ def _exact(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):  # type
 
 
 @compilable
-def _pop(rows, W, S, lam, k, j):  # type: ignore[no-untyped-def]
+def _pop(rows: Any, W: Any, S: Any, lam: Any, k: int, j: int) -> int:
     """Drop the working set's ``j``-th row (the others keep their order); the new size."""
     n = W.shape[1]
     for r in range(j, k - 1):
@@ -151,7 +153,8 @@ def _pop(rows, W, S, lam, k, j):  # type: ignore[no-untyped-def]
 
 
 @compilable
-def _push(indptr, indices, data, rows, W, S, lam, k, r, w, lam_r):  # type: ignore[no-untyped-def]
+def _push(indptr: Any, indices: Any, data: Any, rows: Any, W: Any, S: Any, lam: Any, k: int, r: int, w: Any,
+          lam_r: float) -> int:
     """Append row ``r`` with ``w_r = w`` and multiplier ``lam_r``; the new size."""
     n = W.shape[1]
     for i in range(n):
@@ -167,7 +170,8 @@ def _push(indptr, indices, data, rows, W, S, lam, k, r, w, lam_r):  # type: igno
 
 
 @compilable
-def _dual_feasible(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):  # type: ignore[no-untyped-def]
+def _dual_feasible(z0: Any, u: Any, indptr: Any, indices: Any, data: Any, rows: Any, W: Any, S: Any, L: Any,
+                   lam: Any, k: int, rhs: Any, z: Any) -> int:
     """Drop the most negative multiplier until ``λ >= 0``; the new size, or -1 when ``S`` is
     singular."""
     if not _exact(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):
@@ -186,8 +190,10 @@ def _dual_feasible(z0, u, indptr, indices, data, rows, W, S, L, lam, k, rhs, z):
 
 
 @compilable
-def active_set(z0, Kinv, indptr, indices, data, u, start, use_cutoff, cutoff, Pp, Pi, Px, max_iter,  # type: ignore[no-untyped-def]
-               gen_tol, dependent_rel, infeasible_rel, warm_cond, cap, z, lam, rows, out):
+def active_set(z0: Any, Kinv: Any, indptr: Any, indices: Any, data: Any, u: Any, start: Any, use_cutoff: bool,
+               cutoff: float, Pp: Any, Pi: Any, Px: Any, max_iter: int, gen_tol: float, dependent_rel: float,
+               infeasible_rel: float, warm_cond: float, cap: int, z: Any, lam: Any, rows: Any,
+               out: Any) -> tuple[int, int, int]:
     """The dual active-set method (module docstring) on the rows ``(indptr, indices, data) z <= u``.
 
     ``z0``: the equality optimum; ``Kinv[c]``: the primal part of column ``c`` of ``K⁻¹`` (every
@@ -215,8 +221,8 @@ def active_set(z0, Kinv, indptr, indices, data, u, start, use_cutoff, cutoff, Pp
     # warm start
     if start.shape[0] > cap:
         return CAPACITY, 0, 0
-    for s in range(start.shape[0]):
-        r = start[s]
+    for q in range(start.shape[0]):
+        r = start[q]
         _row_w(indptr, indices, data, r, Kinv, w)
         k = _push(indptr, indices, data, rows, W, S, lam, k, r, w, 0.0)
     if k > 0:
@@ -245,10 +251,10 @@ def active_set(z0, Kinv, indptr, indices, data, u, start, use_cutoff, cutoff, Pp
         if use_cutoff:
             bound = 0.0
             for i in range(n):
-                s = 0.0
+                acc = 0.0
                 for j in range(Pp[i], Pp[i + 1]):
-                    s += Px[j] * z[Pi[j]]
-                bound += z[i] * s
+                    acc += Px[j] * z[Pi[j]]
+                bound += z[i] * acc
             bound = 0.5 * bound
             if bound >= cutoff:
                 out[0] = bound
@@ -345,7 +351,7 @@ def active_set(z0, Kinv, indptr, indices, data, u, start, use_cutoff, cutoff, Pp
 
 
 @compilable
-def row_transpose_dot(indptr, indices, data, rows, lam, k, out):  # type: ignore[no-untyped-def]
+def row_transpose_dot(indptr: Any, indices: Any, data: Any, rows: Any, lam: Any, k: int, out: Any) -> None:
     """``out = G_Wᵀ λ`` (rows in working-set order, entries in stored order)."""
     for i in range(out.shape[0]):
         out[i] = 0.0
