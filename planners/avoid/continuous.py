@@ -387,9 +387,20 @@ class ContinuousAvoidQP:
         """The pieces ``(k, λ0, λ1)`` of ``[ta, tb]`` (local coordinates ``λ ∈ [0, 1]`` of piece
         ``k``; at most one sub-interval per piece); a point ``ta = tb`` inside ``(0, t_f)`` gives
         its piece's point (the state's own row)."""
+        parts = self._segment_parts(ta, tb)
+        if parts is None:
+            return []
+        head, full_lo, full_hi, tail = parts
+        return ([head] if head is not None else []) + [(k, 0.0, 1.0) for k in range(full_lo, full_hi + 1)] \
+            + ([tail] if tail is not None else [])
+
+    def _segment_parts(self, ta: float, tb: float) -> tuple[tuple[int, float, float] | None, int, int,
+                                                            tuple[int, float, float] | None] | None:
+        """:meth:`segment_pieces` as its first sub-piece (or None), the range ``full_lo..full_hi``
+        of its full pieces and its last sub-piece (or None); None for an empty interval."""
         d = self.data
         if tb < ta or tb <= 0.0 or ta >= self.tf:
-            return []
+            return None
         ka = min(int(np.floor(ta / self.h)), self.N - 1)
         kb = min(int(np.ceil(tb / self.h)) - 1, self.N - 1)
         kb = max(kb, ka)
@@ -397,14 +408,9 @@ class ContinuousAvoidQP:
         full_lo = ka + (1 if lam[0] > 1e-12 else 0)
         full_hi = kb - (1 if lam[1] < 1 - 1e-12 else 0)
         if ka == kb and full_lo > full_hi:
-            return [(ka, lam[0], lam[1])]
-        out: list[tuple[int, float, float]] = []
-        if full_lo > ka:
-            out.append((ka, lam[0], 1.0))
-        out += [(k, 0.0, 1.0) for k in range(full_lo, full_hi + 1)]
-        if full_hi < kb:
-            out.append((kb, 0.0, lam[1]))
-        return out
+            return (ka, lam[0], lam[1]), 0, -1, None
+        return ((ka, lam[0], 1.0) if full_lo > ka else None, full_lo, full_hi,
+                (kb, 0.0, lam[1]) if full_hi < kb else None)
 
     def _segment(self, i: int, plane: int, ta: float, tb: float) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
         """Vehicle ``i``'s half-plane ``plane`` imposed on ``[ta, tb]``: the values (four per row),
@@ -418,19 +424,23 @@ class ContinuousAvoidQP:
             vals: list[FloatArray] = []
             rhs: list[FloatArray] = []
             starts: list[int] = []
-            pieces = self.segment_pieces(ta, tb)
-            full = [k for k, l0, l1 in pieces if l0 == 0.0 and l1 == 1.0]
-            for k, l0, l1 in pieces:
-                if not (l0 == 0.0 and l1 == 1.0):
-                    v, c = self._split(i, plane, k, l0, l1)
-                elif k == full[0]:  # the full pieces are contiguous: one block
-                    k1 = full[-1] + 1
-                    v, c = self._full_vals[(i, plane)][4 * k * n:4 * k1 * n], self._full_rhs[(i, plane)][k * n:k1 * n]
-                else:
-                    continue
-                vals.append(v)
-                rhs.append(c)
-                starts.append(base + k * n)
+            parts = self._segment_parts(ta, tb)
+            if parts is not None:
+                head, full_lo, full_hi, tail = parts
+                full_vals, full_rhs = self._full_vals[(i, plane)], self._full_rhs[(i, plane)]
+                # the first sub-piece, the full pieces (contiguous: one block), the last sub-piece
+                for k, k1, sub in ((head[0], head[0] + 1, head) if head is not None else (0, 0, None),
+                                   (full_lo, full_hi + 1, None), (tail[0], tail[0] + 1, tail) if tail is not None
+                                   else (0, 0, None)):
+                    if k1 <= k:
+                        continue
+                    if sub is None:
+                        v, c = full_vals[4 * k * n:4 * k1 * n], full_rhs[k * n:k1 * n]
+                    else:
+                        v, c = self._split(i, plane, k, sub[1], sub[2])
+                    vals.append(v)
+                    rhs.append(c)
+                    starts.append(base + k * n)
             ids = np.concatenate([np.arange(r0, r0 + c.size, dtype=np.int64) for r0, c in zip(starts, rhs)]) \
                 if rhs else np.zeros(0, dtype=np.int64)
             out = self._segments[key] = (np.concatenate(vals) if vals else np.zeros(0),
