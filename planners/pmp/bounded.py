@@ -867,9 +867,10 @@ def certify_global_one(problem: Problem, J_best: float, rel: float | None = None
     while level:  # breadth first, one level of halved intervals at a time
         if use_unbounded:  # the closed-form bound J_b >= J_u on the whole level at once
             ends = np.array([(a, b) for a, b, _ in level])
-            lb_u, at_centre = unbounded(ends[:, 0], ends[:, 1])
+            lb_arr, centre_arr = unbounded(ends[:, 0], ends[:, 1])
+            lb_u, at_centre = lb_arr.tolist(), centre_arr.tolist()
         else:
-            lb_u = at_centre = np.full(len(level), -INF)
+            lb_u = at_centre = [-INF] * len(level)
         use_unbounded = False
         nxt: list[tuple[float, float, list[list[float] | None]]] = []
         todo: list[tuple[float, float, list[list[float] | None]]] = []
@@ -1012,7 +1013,11 @@ def check_values(sol: BoundedSolution, stationary: bool = True, at_edge: Any = (
 
     def w_at(k: int, x: float) -> float:
         a, b, tj = coef[k]
-        return a + b * x - sum(jump * max(x - ti, 0.0) for ti, jump in tj)
+        ramps = 0.0
+        for ti, jump in tj:
+            if x > ti:
+                ramps += jump * (x - ti)
+        return a + b * x - ramps
 
     for k, (lo, hi) in enumerate(((lx, hx), (ly, hy))):
         ax = sol.axes[k]
@@ -1030,16 +1035,29 @@ def check_values(sol: BoundedSolution, stationary: bool = True, at_edge: Any = (
         kn, U, slopes = ax.knots, ax.u, sol._slopes_l[k]
         for x, u in [*zip(kn, U), *((0.5 * (kn[q + 1] + kn[q]), U[q] + slopes[q] * (0.5 * (kn[q + 1] + kn[q]) - kn[q]))
                                     for q in range(len(kn) - 1))]:
-            sat = max(sat, abs(u - min(max(w_at(k, x), lo), hi)) / ua)
+            w = w_at(k, x)
+            e = abs(u - (lo if w < lo else (hi if w > hi else w))) / ua
+            if e > sat or e != e:
+                sat = e
         for theta, value, _, _ in ax.switching:
-            sw = max(sw, abs(w_at(k, theta) - value) / ua)
+            e = abs(w_at(k, theta) - value) / ua
+            if e > sw or e != e:
+                sw = e
         box = max(box, max((max(u - hi, lo - u) for u in ax.u), default=0.0) / ua)
+
+    def p_at(k: int, x: float, left: bool) -> float:
+        _, b, tj = coef[k]
+        steps = 0.0
+        for ti, jump in tj:
+            if (x - ti > 0) if left else (x - ti >= 0):
+                steps += jump
+        return b - steps
 
     def H_at(x: float, left: bool) -> float:
         _, vx, ux = sol._axis_at(0, x)
         _, vy, uy = sol._axis_at(1, x)
-        p = [b - sum(jump for ti, jump in tj if (x - ti > 0 if left else x - ti >= 0)) for _, b, tj in coef]
-        return 0.5 * (ux**2 + uy**2) + p[0] * vx + (-w_at(0, x)) * ux + p[1] * vy + (-w_at(1, x)) * uy
+        return (0.5 * (ux**2 + uy**2) + p_at(0, x, left) * vx + (-w_at(0, x)) * ux + p_at(1, x, left) * vy
+                + (-w_at(1, x)) * uy)
 
     # H constant between contact times (one-sided values at every knot of the interval)
     bp = [0.0, *sorted(tl), T]
@@ -1047,17 +1065,23 @@ def check_values(sol: BoundedSolution, stationary: bool = True, at_edge: Any = (
     Hs = [[H_at(bp[j], False), *(H_at(x, False) for x in allk if bp[j] < x < bp[j + 1]), H_at(bp[j + 1], True)]
           for j in range(len(bp) - 1)]
     if stationary and len(tl) == 1 and sol._hjump is None:
-        # one vehicle: the Hamiltonian-jump terms from the two one-sided values at the contact time
-        sol._hjump = sol._hamiltonian_jump_terms(np.array([H_at(tl[0], True), H_at(tl[0], False)]))
+        # one vehicle: the Hamiltonian-jump terms from the two one-sided values at the contact
+        # time (the end of the first interval and the start of the second: the same evaluations)
+        sol._hjump = sol._hamiltonian_jump_terms(np.array([Hs[0][-1], Hs[1][0]]))
     hscale = max(1e-300, max(abs(h) for hs in Hs for h in hs), sol.cost / T)
     hcon = max(max(hs) - min(hs) for hs in Hs) / hscale
     vals.update(boundary=bnd, corner=cor, saturation_law=sat, switching=sw, box=box, hamiltonian_constant=hcon)
     if stationary and len(tl):
         r, size = sol.hamiltonian_jump_terms()
-        keep = np.ones(len(tl), dtype=bool)
-        keep[list(at_edge)] = False
-        vals["hamiltonian_jump"] = float(np.max(np.abs(r[keep]) / np.maximum(size[keep], HJUMP_FLOOR * hscale),
-                                                initial=0.0))
+        edge = {int(i) % len(tl) for i in at_edge}
+        floor = HJUMP_FLOOR * hscale
+        hj = 0.0
+        for i, (ri, si) in enumerate(zip(r.tolist(), size.tolist())):
+            if i not in edge:
+                e = abs(ri) / (si if si > floor or si != si else floor)
+                if e > hj or e != e:
+                    hj = e
+        vals["hamiltonian_jump"] = hj
     cost = sol.cost
     dual = sum(ax.dual for ax in sol.axes)
     vals["duality_gap"] = abs(cost - dual) / max(cost, 1e-300)
