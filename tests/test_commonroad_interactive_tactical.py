@@ -196,7 +196,7 @@ def test_a_kept_plan_toward_the_goal_comes_before_a_lane_change() -> None:
     made at all -- the report of a522a9a lists none either; the scene still must not change lanes.)"""
     from iamp.commonroad.interactive import simulate
 
-    r = simulate(INTERACTIVE / "USA_US101-9_1_I-1-1")
+    r = simulate(INTERACTIVE / "USA_US101-9_1_I-1-1", tactical=True)
     assert r["goal_reached"] and r["collisions"] == 0 and r["contacts_at_fault"] == 0
     assert r["lane_changes"] == 0
     assert all(d["action"] != "lane change" for d in r["decisions"])

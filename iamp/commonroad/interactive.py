@@ -24,12 +24,15 @@ the ego:
    to a stop, keep RSS's distance to the vehicle ahead (:func:`rss_stops_behind`).  After a
    fail-safe brake the ego replans at the next step (not after ``replan_s``), toward the goal's
    whole remaining window; when no final state of the window can be reached any more it keeps
-   braking safely until the window ends.  A goal several lanes over is approached one lane at a
-   time (with ``sequences``: first by lane changes planned together into a gap of its lane,
-   ``lane_change_sequences``), and a lane change toward the goal's lane is also offered where the fail-safe would
-   otherwise brake (:mod:`iamp.commonroad.tactical`: into a gap with RSS's stopping distance ahead and
-   a comfortable braking gap behind, finished while it still holds; ``lane_changes``).  The
-   predictions always reach at least :data:`FAILSAFE_HORIZON_S` ahead.  Every choice is counted
+   braking safely until the window ends.  The fail-safe that only lets the lateral speed fall
+   to zero may instead bring the ego back to its lane's centre (``lane_d``: a car SUMO inserts
+   beside a lateral move).  With ``tactical`` (off by default) a goal several lanes over is
+   approached one lane at a time (with ``sequences``: first by lane changes planned together
+   into a gap of its lane, ``lane_change_sequences``), and a lane change toward the goal's lane is
+   also offered where the fail-safe would otherwise brake (:mod:`iamp.commonroad.tactical`: into a
+   gap with RSS's stopping distance ahead and a comfortable braking gap behind, finished while it
+   still holds; ``lane_changes``).  The predictions always reach at least
+   :data:`FAILSAFE_HORIZON_S` ahead.  Every choice is counted
    in time order (``decisions``).
 3. The episode ends when CommonRoad's goal test (with the point-mass orientation corrected,
    :mod:`iamp.commonroad.check`) passes for the executed state, or when the goal's time window
@@ -198,11 +201,20 @@ class Shifted:
 class Braking:
     """Braking in the lane: the speed along the road falls at ``decel`` from ``x0``'s to ``v_end``
     and stays there; the lateral speed falls linearly to zero over ``t_lat`` (the same
-    trajectory interface as a plan: ``states(t)`` rows ``(s, v_s, d, v_d)``, ``inputs(t)``)."""
+    trajectory interface as a plan: ``states(t)`` rows ``(s, v_s, d, v_d)``, ``inputs(t)``).
 
-    def __init__(self, x0: tuple[float, float, float, float], decel: float, v_end: float, t_lat: float) -> None:
-        self.x0, self.decel, self.v_end, self.t_lat = x0, decel, v_end, max(t_lat, 1e-6)
+    With ``d_end``, the lateral motion instead ends at rest at ``d_end`` after ``t_lat`` (the cubic
+    from ``x0``'s offset and lateral speed: back to a lane's centre when a car appears beside a
+    lane change, :func:`failsafe`)."""
+
+    def __init__(self, x0: tuple[float, float, float, float], decel: float, v_end: float, t_lat: float,
+                 d_end: float | None = None) -> None:
+        self.x0, self.decel, self.v_end, self.t_lat, self.d_end = x0, decel, v_end, max(t_lat, 1e-6), d_end
         self.t_b = max(0.0, x0[1] - v_end) / decel
+        T, d0, vd0 = self.t_lat, x0[2], x0[3]
+        # with d_end: the cubic d0 + vd0 t + c2 t^2 + c3 t^3 with d(T) = d_end, d'(T) = 0
+        self.c2 = 0.0 if d_end is None else (3.0 * (d_end - d0) - 2.0 * vd0 * T) / T**2
+        self.c3 = 0.0 if d_end is None else (-2.0 * (d_end - d0) + vd0 * T) / T**3
 
     def states(self, t: ArrayLike) -> np.ndarray:
         s0, v0, d0, vd0 = self.x0
@@ -211,14 +223,19 @@ class Braking:
         s = s0 + v0 * tb - 0.5 * self.decel * tb**2 + self.v_end * (tt - tb)
         v = v0 - self.decel * tb
         tl = np.minimum(tt, self.t_lat)
-        d = d0 + vd0 * tl - 0.5 * vd0 / self.t_lat * tl**2
-        vd = vd0 * (1.0 - tl / self.t_lat)
+        if self.d_end is None:
+            d = d0 + vd0 * tl - 0.5 * vd0 / self.t_lat * tl**2
+            vd = vd0 * (1.0 - tl / self.t_lat)
+        else:
+            d = d0 + vd0 * tl + self.c2 * tl**2 + self.c3 * tl**3
+            vd = np.where(tt < self.t_lat, vd0 + 2.0 * self.c2 * tl + 3.0 * self.c3 * tl**2, 0.0)
         return np.stack([s, v, d, vd], axis=1)
 
     def inputs(self, t: ArrayLike) -> np.ndarray:
         tt = np.atleast_1d(np.asarray(t, dtype=float))
+        lat = (-self.x0[3] / self.t_lat if self.d_end is None else 2.0 * self.c2 + 6.0 * self.c3 * tt)
         return np.stack([np.where(tt < self.t_b, -self.decel, 0.0),
-                         np.where(tt < self.t_lat, -self.x0[3] / self.t_lat, 0.0)], axis=1)
+                         np.where(tt < self.t_lat, lat, 0.0)], axis=1)
 
 
 def vehicle_hits(hits: list[Intrusion]) -> list[Intrusion]:
@@ -390,7 +407,7 @@ def rss_stops_behind(cr: CommonRoadProblem, decel: float) -> bool:
 
 
 def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = None,
-             rear: set[int] | None = None) -> tuple[Braking, float]:
+             rear: set[int] | None = None, lane_d: float | None = None) -> tuple[Braking, float]:
     """The fail-safe when no plan keeps clear: braking in the lane (:class:`Braking`, the lateral
     speed brought to zero over 1 s) at the gentlest of :data:`FAILSAFE_DECEL` and 0.9 ``a_max``,
     and at that deceleration to the highest of :data:`FAILSAFE_SPEEDS` (fractions of the current
@@ -413,6 +430,11 @@ def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = N
         Vehicles behind whose predicted boxes do not count (:func:`rss_followers`, :func:`harmless`).
     rear : set of int, optional
         The vehicles behind the ego in its path (:func:`rear_vehicles`), for the second choice.
+    lane_d : float, optional
+        The centre of the lane the ego's centre is in: where a braking whose lateral speed merely
+        falls to zero is not clear, the same braking that brings the ego back to rest at that
+        centre over :data:`FAILSAFE_RETURN_S` is tried next (a car SUMO inserted beside a lane
+        change under way: USA_US101-23_1, vehicle 75 at 3.3 s, 0.5 m beside the ego's body).
 
     Returns
     -------
@@ -426,21 +448,33 @@ def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = N
     excused = (followers or set()) | (rear or set())
     for b in decels:
         for frac in FAILSAFE_SPEEDS:
-            plan = Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_MIN_S)
-            T = max(FAILSAFE_HORIZON_S, plan.t_b)
-            last = (plan, T)
-            option = ("fail-safe", plan, T, intrusions(cr, plan, T))
-            if not rss_stops_behind(cr, b):
-                continue
-            if harmless(option, followers or set()):
-                return plan, T
-            if second is None and rear and harmless(option, excused):
-                second = (plan, T)
+            plans = [Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_MIN_S)]
+            if lane_d is not None and abs(cr.x0[2] - lane_d) > FAILSAFE_RETURN_M:
+                plans.append(Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_RETURN_S, lane_d))
+            for brake in plans:
+                T = max(FAILSAFE_HORIZON_S, brake.t_b)
+                if brake.d_end is None:
+                    last = (brake, T)
+                option = ("fail-safe", brake, T, intrusions(cr, brake, T))
+                if not rss_stops_behind(cr, b):
+                    continue
+                if brake.d_end is not None and float(np.max(np.hypot(*brake.inputs(
+                        np.linspace(0.0, brake.t_lat * (1.0 - 1e-9), 16)).T))) > a_max + 1e-9:
+                    continue  # the return to the lane's centre leaves the friction circle
+                if harmless(option, followers or set()):
+                    return brake, T
+                if second is None and rear and harmless(option, excused):
+                    second = (brake, T)
     if second is not None:
         return second
     assert last is not None
     return last
 
+
+#: The time over which a fail-safe brings the ego back to its lane's centre (:func:`failsafe`'s ``lane_d``) [s].
+FAILSAFE_RETURN_S = 1.5
+#: A fail-safe returns to the lane's centre only when the ego is farther from it than this [m].
+FAILSAFE_RETURN_M = 0.3
 
 #: The ego's braking in :func:`goal_occupancy`'s RSS test, as a fraction of ``a_max`` (the fail-safe's hardest).
 STOP_DECEL_FRACTION = 0.9
@@ -648,7 +682,7 @@ def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
 
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
              recording: str | Path | None = None,
-             progress: Callable[[str], None] | None = None, seed: int = 1, tactical: bool = True,
+             progress: Callable[[str], None] | None = None, seed: int = 1, tactical: bool = False,
              sequences: bool = False, search: bool = False) -> dict[str, Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready).
 
@@ -660,15 +694,21 @@ def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: fl
 
 def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
                       recording: str | Path | None = None, progress: Callable[[str], None] | None = None,
-                      seed: int = 1, tactical: bool = True, sequences: bool = False,
+                      seed: int = 1, tactical: bool = False, sequences: bool = False,
                       search: bool = False) -> tuple[dict[str, Any], Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready) and the
     executed step log (:class:`iamp.simulation.metrics.StepLog`, in the road frame).
 
     ``seed``: SUMO's ``--seed`` (its drivers' imperfection ``sigma`` draws from it).
-    ``tactical``: when the replan toward the goal finds no safe plan, also offer a safe lane
-    change one lane toward the goal's lane (:func:`iamp.commonroad.tactical.lane_change`,
-    executed before a kept plan or the fail-safe; counted in ``lane_changes``).
+    ``tactical``: approach a goal two or more lanes over (at least ``EARLY_MIN_S`` ahead) one lane
+    at a time before its own plan is tried, and when the replan toward the goal finds no safe plan,
+    also offer a safe lane change one lane toward the goal's lane
+    (:func:`iamp.commonroad.tactical.lane_change`, executed before a kept plan or the fail-safe;
+    counted in ``lane_changes``); off by default: on the 57 US-101 scenes (seed 1) it changed only
+    2_1, 23_1 and 24_1 and reached none of their goals, and in USA_US101-23_1 (seed 1) its lane
+    change at 3.0 s fell in behind vehicle 91 while 96 went on to the goal region ahead of the ego;
+    without it the road planner's own plans pass 91 and 96 at up to 21 m/s and reach the goal at
+    13.2 s without contact (seed 2: 13.7 s).
     ``sequences``: approach a goal two or more lanes over first by lane changes planned together
     (:func:`iamp.commonroad.tactical.sequence`, counted in ``lane_change_sequences``); off by
     default: on the 57 US-101 scenes (seed 1) it changed only 2_1, 23_1 and 24_1 and reached none of
@@ -890,7 +930,9 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                         plan_times.append(time.perf_counter() - start)
                         if tac is not None and tac.trajectory is not None and tac.candidate is not None:
                             options.append(("lane change", tac.trajectory, tac.candidate.tf, tac.intrusions))
-                    fs, fs_T = failsafe(live, cr.a_max, followers, rear)
+                    lid = lane_map.at(x[0], x[2])
+                    fs, fs_T = failsafe(live, cr.a_max, followers, rear,
+                                        None if lid is None else lane_map.centre(lid, x[0]))
                     options.append(("fail-safe", fs, fs_T, intrusions(live, fs, fs_T)))
                     action, chosen, chosen_T, hits = options[choose(options, followers, rear)]
                     if action == "new plan":
