@@ -117,3 +117,31 @@ def test_the_node_solvers_optimum_is_the_backends_and_meets_the_kkt_conditions(m
         lam = sol.y[qp.data.n_eq:]
         assert lam.min() >= 0.0 and np.all(lam[(u - A @ sol.z) > 1e-6] == 0.0)
     assert solved >= 1
+
+
+def test_the_kkt_residual_is_the_sparse_matrix_formula() -> None:
+    """The node solver's KKT residual (a kernel over the CSR arrays) against the same formula with
+    scipy's sparse products, on every solution of a three-vehicle search: equal (the same sums in
+    the same order), and large for a perturbed solution."""
+    prob = overtake_three_problem()
+    qp = ContinuousAvoidQP(prob, 20, "foh", "clarabel")
+    ContinuousAvoidPlanner(steps=20).search(qp, crossing_orders(prob)[0])
+    s = qp.schur
+    assert s is not None
+    checked = 0
+    for sol in qp.solved.values():
+        if sol.status != "optimal":
+            continue
+        A, u, _ = sol.spec_rows()
+        z, y = sol.z, sol.y
+        lam = y[s.n_eq:]
+        Pz, At = s.P_full @ z, s.A_eq_T @ y[:s.n_eq]
+        Gt = sp.csr_matrix(A).T @ lam
+        primal = max(float(np.abs(s.A_eq @ z - s.b_eq).max(initial=0.0)), float((A @ z - u).max(initial=0.0)))
+        scale = max(1.0, float(np.abs(Pz).max()), float(np.abs(At).max()), float(np.abs(Gt).max(initial=0.0)))
+        ref = max(primal, float(np.abs(Pz + At + Gt).max()) / scale, float(-lam.min(initial=0.0)))
+        assert s.residual(A, u, z, y) == ref
+        assert ref <= CHECK_TOL
+        assert s.residual(A, u, z + 1e-3, y) > 1e-4  # off the equality rows
+        checked += 1
+    assert checked >= 3

@@ -95,20 +95,15 @@ _PYTHON = not jit.available()
 _TWINS: dict[str, Any] = {}
 
 
-def _kernel() -> Any:
-    """:func:`~iamp.planners.avoid.schur_kernel.active_set`, compiled by numba when available."""
+def _run(name: str) -> Any:
+    """The kernel ``name`` of :mod:`~iamp.planners.avoid.schur_kernel`, compiled by numba when
+    available (else the Python function itself: the same numbers)."""
+    fn = getattr(kernel, name)
     if _PYTHON:
-        return kernel.active_set
-    if "active_set" not in _TWINS:
-        _TWINS["active_set"] = jit.twin(kernel.active_set, cache=True)
-    return _TWINS["active_set"]
-
-
-def _transpose() -> Any:
-    """:func:`~iamp.planners.avoid.schur_kernel.row_transpose_dot`, compiled."""
-    if "transpose" not in _TWINS:
-        _TWINS["transpose"] = jit.twin(kernel.row_transpose_dot, cache=True)
-    return _TWINS["transpose"]
+        return fn
+    if name not in _TWINS:
+        _TWINS[name] = jit.twin(fn, cache=True)
+    return _TWINS[name]
 
 
 def full_hessian(P: sp.spmatrix) -> sp.csc_matrix:
@@ -158,6 +153,11 @@ class SchurActiveSet:
         self._Pp = np.asarray(self.P_full.indptr, dtype=np.int64)
         self._Pi = np.asarray(self.P_full.indices, dtype=np.int64)
         self._Px = np.asarray(self.P_full.data, dtype=float)
+        #: CSR arrays of ``E`` and ``Eᵀ`` (:meth:`residual`)
+        self._csr = (np.asarray(self.A_eq.indptr, dtype=np.int64), np.asarray(self.A_eq.indices, dtype=np.int64),
+                     np.asarray(self.A_eq.data, dtype=float))
+        self._csr_T = (np.asarray(self.A_eq_T.indptr, dtype=np.int64),
+                       np.asarray(self.A_eq_T.indices, dtype=np.int64), np.asarray(self.A_eq_T.data, dtype=float))
         #: ``triu(P, 1)ᵀ``, the strict lower part of ``P`` the final KKT checks use
         #: (:func:`~iamp.planners.avoid.check.kkt_conditions`; shared by the plans of one grid)
         self.P_lower = sp.triu(self.P, 1).T
@@ -264,7 +264,7 @@ class SchurActiveSet:
         while True:
             lam = np.zeros(cap)
             rows = np.zeros(cap, dtype=np.int64)
-            code, k, iterations = _kernel()(
+            code, k, iterations = _run("active_set")(
                 self.z0, self._Kinv, indptr, indices, data, u, seed, cutoff is not None,
                 float(cutoff) if cutoff is not None else 0.0, self._Pp, self._Pi, self._Px, self.max_iter,
                 GENERATION_TOL, DEPENDENT_REL, INFEASIBLE_REL, WARM_COND, cap, z, lam, rows, out)
@@ -281,8 +281,7 @@ class SchurActiveSet:
         # the equality multipliers (and z) from one K solve: P z + Eᵀν = -G_Wᵀλ, E z = b
         Gt_lam = np.zeros(self.n)
         if k:
-            kernel.row_transpose_dot(indptr, indices, data, rows, lam, k, Gt_lam) if _PYTHON else \
-                _transpose()(indptr, indices, data, rows, lam, k, Gt_lam)
+            _run("row_transpose_dot")(indptr, indices, data, rows, lam, k, Gt_lam)
         x = self.lu.solve(np.concatenate([-Gt_lam, self.b_eq])) if k else self._x0
         z = np.array(x[:self.n], dtype=float)  # a copy: x may be the stored equality optimum
         y = np.zeros(self.n_eq + n_in)
@@ -297,6 +296,8 @@ class SchurActiveSet:
     def _columns(self, cols: NDArray[np.int64]) -> None:
         """Solve the columns of ``K⁻¹`` among ``cols`` not solved yet (one batch; each column is
         the same bit for bit whichever batch solved it)."""
+        if self._have[cols].all():
+            return
         missing = np.unique(cols[~self._have[cols]])
         if missing.size:
             R = np.zeros((self.n + self.n_eq, missing.size))
@@ -312,13 +313,15 @@ class SchurActiveSet:
         and the inequality rows' violations (absolute, metres or the limit's unit), a negative
         multiplier, and stationarity ``Pz + Eᵀν + Gᵀλ`` relative to its largest term (``Gt``:
         ``Gᵀλ`` when known)."""
-        lam = y[self.n_eq:]
-        primal = max(float(np.abs(self.A_eq @ z - self.b_eq).max(initial=0.0)),
-                     float((A_in @ z - u).max(initial=0.0)))
-        Pz = self.P_full @ z
-        At = self.A_eq_T @ y[:self.n_eq]
+        A_in = A_in if isinstance(A_in, sp.csr_matrix) else sp.csr_matrix(A_in)
+        Gp, Gi = np.asarray(A_in.indptr, dtype=np.int64), np.asarray(A_in.indices, dtype=np.int64)
+        Gx = np.asarray(A_in.data, dtype=float)
+        y = np.asarray(y, dtype=float)
         if Gt is None:
-            Gt = np.asarray(sp.csr_matrix(A_in).T @ lam, dtype=float)
-        scale = max(1.0, float(np.abs(Pz).max()), float(np.abs(At).max()), float(np.abs(Gt).max(initial=0.0)))
-        dual = float(np.abs(Pz + At + Gt).max()) / scale
-        return max(primal, dual, float(-lam.min(initial=0.0)))
+            Gt = np.zeros(self.n)
+            lam = y[self.n_eq:]
+            rows = np.arange(lam.size, dtype=np.int64)
+            _run("row_transpose_dot")(Gp, Gi, Gx, rows, lam, lam.size, Gt)
+        return float(_run("kkt_residual")(*self._csr, self.b_eq, *self._csr_T, self._Pp, self._Pi, self._Px,
+                                          Gp, Gi, Gx, np.asarray(u, dtype=float), np.asarray(z, dtype=float), y,
+                                          np.asarray(Gt, dtype=float), self.n_eq, np.empty(self.n)))

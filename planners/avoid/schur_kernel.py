@@ -360,3 +360,58 @@ def row_transpose_dot(indptr: Any, indices: Any, data: Any, rows: Any, lam: Any,
         row = rows[r]
         for j in range(indptr[row], indptr[row + 1]):
             out[indices[j]] += lr * data[j]
+
+
+@compilable
+def _abs_max_rows(indptr: Any, indices: Any, data: Any, x: Any, off: Any, sign: float) -> float:
+    """``max_r |g_r · x - off_r|`` (``sign`` 1) or ``max(0, max_r (g_r · x - off_r))`` (``sign``
+    0); NaN gives ``inf``."""
+    best = 0.0
+    for r in range(indptr.shape[0] - 1):
+        v = _row_dot(indptr, indices, data, r, x) - off[r]
+        if sign > 0.0:
+            v = abs(v)
+        if not v == v:
+            return math.inf
+        if v > best:
+            best = v
+    return best
+
+
+@compilable
+def kkt_residual(Ep: Any, Ei: Any, Ex: Any, b: Any, ETp: Any, ETi: Any, ETx: Any, Pp: Any, Pi: Any, Px: Any,
+                 Gp: Any, Gi: Any, Gx: Any, u: Any, z: Any, y: Any, Gt: Any, n_eq: int, work: Any) -> float:
+    """:meth:`~iamp.planners.avoid.schur.SchurActiveSet.residual`: the largest of the equality
+    rows' violation ``|E z - b|``, the inequality rows' ``G z - u``, a negative multiplier and the
+    stationarity ``|P z + Eᵀν + Gᵀλ|`` relative to its largest term (``Gt = Gᵀλ``; ``E``, ``Eᵀ``,
+    ``P`` (symmetric) and ``G`` as CSR arrays; ``work``: space for ``n`` numbers); NaN gives
+    ``inf``."""
+    primal = _abs_max_rows(Ep, Ei, Ex, z, b, 1.0)
+    v = _abs_max_rows(Gp, Gi, Gx, z, u, 0.0)
+    if v > primal:
+        primal = v
+    n = z.shape[0]
+    scale = 1.0
+    for i in range(n):  # P z + Eᵀν, row by row
+        pz = _row_dot(Pp, Pi, Px, i, z)
+        at = 0.0
+        for j in range(ETp[i], ETp[i + 1]):
+            at += ETx[j] * y[ETi[j]]
+        work[i] = pz + at + Gt[i]
+        for t in (abs(pz), abs(at), abs(Gt[i])):
+            if not t == t:
+                return math.inf
+            if t > scale:
+                scale = t
+    dual = 0.0
+    for i in range(n):
+        if abs(work[i]) > dual:
+            dual = abs(work[i])
+    dual = dual / scale
+    out = primal if primal > dual else dual
+    for r in range(n_eq, y.shape[0]):
+        if -y[r] > out:
+            out = -y[r]
+        if not y[r] == y[r]:
+            return math.inf
+    return out
