@@ -229,6 +229,8 @@ class DualBounds:
         self._basis_columns = [np.concatenate(([0], 1 + v * D + np.arange(D))) for v in range(m)]
         self._exps: dict[int, tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]] = {}
         self._bindings: dict[int, tuple[Solved, _Binding]] = {}
+        #: the four node columns of piece ``k`` of half-plane axis ``pl`` (:meth:`_split_blocks`)
+        self._cols: dict[tuple[int, int], NDArray[np.int64]] = {}
 
     def _exponents(self, q: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
         """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..d``)
@@ -287,7 +289,10 @@ class DualBounds:
                 continue
             yj = np.zeros(self.nb)
             yj[b.j[rows]] = b.y[rows]
-            cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
+            cols = self._cols.get((pl, k))
+            if cols is None:
+                cols = self._cols[(pl, k)] = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1),
+                                                       d.idx_v(pl, k + 1)])
             yield M, yj, self._rhs_poly(i, pl, k, pre), d.planes[i][pl].sigma, cols
 
     def gradient(self, sol: Solved) -> FloatArray:
@@ -413,6 +418,7 @@ class DualStore:
         self._hi: list[FloatArray] = []
         self._polys: list[DualPolynomial] = []
         self._arrays: tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.int64]] | None = None
+        self._order_arrays: dict[tuple[tuple[int, int], ...], NDArray[np.int64]] = {}
 
     def piece(self, sol: Solved) -> DualPolynomial:
         """The piece polynomial of the optimal candidate ``sol`` (computed once per spec; its
@@ -442,6 +448,9 @@ class DualStore:
             self._arrays = (np.array(self._lo), np.array(self._hi), np.array(self._binds),
                             np.array(self._orders, dtype=np.int64))
         LO, HI, B, O = self._arrays
-        same = np.all(O == np.asarray(orders, dtype=np.int64)[None], axis=2)
-        ok = np.all(lo >= LO, axis=1) & np.all(hi <= HI, axis=1) & np.all(same | ~B, axis=1)
-        return [self._polys[int(c)] for c in np.flatnonzero(ok)]
+        want = self._order_arrays.get(orders)
+        if want is None:
+            want = self._order_arrays[orders] = np.asarray(orders, dtype=np.int64)[None]
+        same = (O == want).all(axis=2)
+        ok = (lo >= LO).all(axis=1) & (hi <= HI).all(axis=1) & (same | ~B).all(axis=1)
+        return [self._polys[int(c)] for c in ok.nonzero()[0]]
