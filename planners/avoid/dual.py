@@ -231,6 +231,8 @@ class DualBounds:
         self._bindings: dict[int, tuple[Solved, _Binding]] = {}
         #: the four node columns of piece ``k`` of half-plane axis ``pl`` (:meth:`_split_blocks`)
         self._cols: dict[tuple[int, int], NDArray[np.int64]] = {}
+        self._ix: dict[tuple[bytes, int], tuple[NDArray[np.int64], ...]] = {}
+        self._flats: dict[int, NDArray[np.int64]] = {}
 
     def _exponents(self, q: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
         """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..d``)
@@ -245,6 +247,15 @@ class DualBounds:
                 exps[1 + v * D:1 + (v + 1) * D, v] = np.arange(1, D + 1)
             pairs = (exps[:, None, :] + exps[None, :, :]).reshape(C * C, q)
             out = self._exps[q] = (tuple(exps.T), tuple(pairs.T))
+        return out
+
+    def _flat(self, q: int, shape: tuple[int, ...], exps: tuple[NDArray[np.int64], ...],
+              pairs: tuple[NDArray[np.int64], ...]) -> NDArray[np.int64]:
+        """The flat positions in the coefficient tensor of ``exps``, then ``pairs`` (once per ``q``)."""
+        out = self._flats.get(q)
+        if out is None:
+            out = self._flats[q] = np.concatenate((np.ravel_multi_index(exps, shape),
+                                                   np.ravel_multi_index(pairs, shape)))
         return out
 
     def _rhs_poly(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
@@ -360,7 +371,8 @@ class DualBounds:
         R = np.zeros((d.n + d.n_eq, C))
         # -A_keepᵀ y_keep from the CSR arrays of the kept rows
         rows_k, y_k = nz[keep], y[keep]
-        start, lens = A_in.indptr[rows_k], np.diff(A_in.indptr)[rows_k]
+        start = A_in.indptr[rows_k]
+        lens = A_in.indptr[rows_k + 1] - start
         take = np.repeat(start - np.concatenate(([0], np.cumsum(lens)[:-1])), lens) + np.arange(int(lens.sum()))
         R[:d.n, 0] = -np.bincount(A_in.indices[take], weights=A_in.data[take] * np.repeat(y_k, lens),
                                   minlength=d.n)
@@ -371,7 +383,10 @@ class DualBounds:
         for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
             cs = self._basis_columns[v]  # the basis columns of λ_i^0..λ_i^D
             for M, yj, rhs, sigma, cols in self._split_blocks(sol, b, i, k):
-                R[np.ix_(cols, cs)] -= sigma * (yj @ M).T
+                ix = self._ix.get((cols.tobytes(), v))
+                if ix is None:
+                    ix = self._ix[(cols.tobytes(), v)] = np.ix_(cols, cs)
+                R[ix] -= sigma * (yj @ M).T
                 hc[cs] += rhs @ yj
         X = self.lu.solve(R)
         Z, nu = X[:d.n], X[d.n:]
@@ -383,8 +398,11 @@ class DualBounds:
         if q == 0:
             coef = np.array(-lin[0] - 0.5 * G[0, 0])
         else:
-            np.add.at(coef, exps, -lin)
-            np.add.at(coef, pairs, -0.5 * G.ravel())
+            # the sums of np.add.at over exps, then pairs, in the same order: each entry starts
+            # at 0.0 and adds its terms one by one
+            flat = self._flat(q, coef.shape, exps, pairs)
+            coef = np.bincount(flat, weights=np.concatenate((-lin, -0.5 * G.ravel())),
+                               minlength=coef.size).reshape(coef.shape)
         mass = np.bincount(veh[bern], weights=y[bern], minlength=len(sol.spec)).astype(float)
         return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, mass)
 
