@@ -270,6 +270,11 @@ def track(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, vehicle_typ
     from commonroad.common.solution import VehicleType
     from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics
 
+    # a plan that is a steered solution already (iamp.commonroad.ks_refine.SteeredTrajectory)
+    steered = getattr(trajectory, "steered", None)
+    if (isinstance(steered, KSTrajectory) and steered.vehicle_type == vehicle_type
+            and len(steered.states) == steps + 1):
+        return steered
     p: Any = _params(vehicle_type)
     dyn = VehicleDynamics.KS(VehicleType(vehicle_type))
     b = float(p.b)

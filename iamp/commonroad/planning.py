@@ -219,6 +219,8 @@ class RoadPlan:
     #: For a steered solution (:func:`steer_at_edges`): does the tracked ``KS`` solution reach the
     #: goal by CommonRoad's test (``None``: not tracked)?
     steered_goal: bool | None = None
+    #: The tracked ``KS`` solution :attr:`steered_goal` was judged on (``None``: not tracked).
+    steered: Any = field(default=None, repr=False)
 
     @property
     def safe(self) -> bool:
@@ -599,6 +601,86 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
 def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
          steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True, search: bool = True,
          corridor: bool = True, engine: tuple[float, ...] | None = None) -> RoadPlan:
+    """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring,
+    :func:`_plan_road`).
+
+    With a steered model (``engine`` a :class:`KSEngine`): where the steered solution tracked from
+    the plan is not valid by iamp's own tests (the plan unsafe, or the tracked car missing the
+    goal or entering a vehicle's box, :func:`steered_valid`), the ``KS`` inputs are optimised
+    directly (:func:`iamp.commonroad.ks_refine.refine`), from the tracked solution of this plan
+    and then of the point-mass pipeline's plan (``engine=None``); the first accepted is returned
+    (``iamp_status`` ``steered-refined``, its trajectory a
+    :class:`~iamp.commonroad.ks_refine.SteeredTrajectory`).  Plans whose steered solution passes
+    are returned unchanged.
+    """
+    kw: dict[str, Any] = {"max_candidates": max_candidates, "steps": steps, "max_plans": max_plans, "via": via,
+                          "search": search, "corridor": corridor}
+    rp = _plan_road(cr, planner, engine=engine, **kw)
+    vehicle_type = getattr(engine, "vehicle_type", None)
+    if vehicle_type is None or planner == "free" or steered_valid(cr, rp, int(vehicle_type)):
+        return rp
+    from iamp.commonroad.ks import track
+    from iamp.commonroad.ks_refine import SteeredTrajectory, refine
+
+    start = time.perf_counter()
+    starts = [rp] if rp.trajectory is not None and rp.candidate is not None else []
+    pm = _plan_road(cr, planner, engine=None, **kw)
+    if pm.safe and pm.candidate is not None:
+        starts.append(pm)
+    for p in starts:
+        assert p.trajectory is not None and p.candidate is not None
+        ks = refine(cr, track(cr, p.trajectory, p.candidate.steps, int(vehicle_type)), p.candidate)
+        if ks is None:
+            continue
+        assert engine is not None
+        traj = SteeredTrajectory(cr, ks, float(engine[3]), float(engine[4]))
+        h, peak = _heading_and_peak(traj, p.candidate.tf)
+        return RoadPlan(rp.planner, "optimal", p.candidate, traj, traj.cost(),
+                        rp.solve_time_s + time.perf_counter() - start, list(p.imposed), [], "steered-refined",
+                        rp.candidates_tried, None, h, peak, rp.plans_used, steered_goal=True, steered=ks)
+    rp.solve_time_s += time.perf_counter() - start
+    return rp
+
+
+def steered_valid(cr: CommonRoadProblem, rp: RoadPlan, vehicle_type: int) -> bool:
+    """Is the steered (``KS``) solution tracked from ``rp`` valid by iamp's own tests: the plan
+    safe, its tracked solution reaching the goal (:attr:`RoadPlan.steered_goal`) and the tracked
+    body clear of every recorded vehicle's box (:func:`body_overlap`, :data:`CHECK_BUFFER_M`)?"""
+    if not rp.safe or rp.candidate is None or rp.trajectory is None or rp.steered_goal is False:
+        return False
+    from iamp.commonroad.ks import KSTrajectory, track
+
+    ks = rp.steered
+    if not (isinstance(ks, KSTrajectory) and ks.vehicle_type == vehicle_type
+            and len(ks.states) == rp.candidate.steps + 1):
+        ks = track(cr, rp.trajectory, rp.candidate.steps, vehicle_type)
+    if rp.steered_goal is None and not steered_reaches_goal(cr, ks):
+        return False
+    return steered_clear(cr, ks.centre, ks.states[:, 4])
+
+
+def steered_clear(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray) -> bool:
+    """Is the steered body (world centres and headings at the time steps ``0..K``) clear of every
+    recorded vehicle's box at the steps ``1..K`` (:func:`body_overlap`, grown by
+    :data:`CHECK_BUFFER_M`)?"""
+    sd = np.asarray(cr.frame.to_road(np.asarray(centre, dtype=float)), dtype=float)
+    phi = (np.asarray(heading, dtype=float) - np.asarray(cr.frame.heading(sd[:, 0]), dtype=float)
+           + math.pi) % (2 * math.pi) - math.pi
+    K = len(sd) - 1
+    for ob in cr.obstacles:
+        idx = np.rint(ob.t / cr.dt).astype(int)
+        ok = (idx >= 1) & (idx <= K)
+        if ok.any():
+            j = idx[ok]
+            if np.any(body_overlap(sd[j, 0], sd[j, 1], phi[j], ob.s_lo[ok], ob.s_hi[ok], ob.d_lo[ok], ob.d_hi[ok],
+                                   cr.ego_length / 2, cr.ego_width / 2, CHECK_BUFFER_M) > 0):
+                return False
+    return True
+
+
+def _plan_road(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
+               steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True, search: bool = True,
+               corridor: bool = True, engine: tuple[float, ...] | None = None) -> RoadPlan:
     """Plan ``cr`` with ``planner`` (a key of :data:`PLANNERS`; module docstring).
 
     ``engine`` (the steered model's longitudinal limit ``(a_max, v_switch)``, :func:`ks_engine`)
@@ -2328,6 +2410,7 @@ def steer_at_edges(cr: CommonRoadProblem, p: RoadPlan, engine: tuple[float, ...]
     K = cand.steps
     ks = track(cr, base, K, int(vehicle_type))
     p.steered_goal = steered_reaches_goal(cr, ks)
+    p.steered = ks
     if not steered_off_road(cr, ks.centre, ks.states[:, 4]).any():
         return p
     margin = np.zeros(K + 1)
@@ -2347,5 +2430,6 @@ def steer_at_edges(cr: CommonRoadProblem, p: RoadPlan, engine: tuple[float, ...]
         ks = track(cr, fixed, K, int(vehicle_type))
         if not steered_off_road(cr, ks.centre, ks.states[:, 4]).any():
             return RoadPlan(p.planner, "optimal", cand, fixed, fixed.cost(), p.solve_time_s, list(p.imposed), [],
-                            "steered-edge-repair", 0, None, h, peak, steered_goal=steered_reaches_goal(cr, ks))
+                            "steered-edge-repair", 0, None, h, peak, steered_goal=steered_reaches_goal(cr, ks),
+                            steered=ks)
     return p
