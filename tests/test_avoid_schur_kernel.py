@@ -145,3 +145,29 @@ def test_the_kkt_residual_is_the_sparse_matrix_formula() -> None:
         assert s.residual(A, u, z + 1e-3, y) > 1e-4  # off the equality rows
         checked += 1
     assert checked >= 3
+
+
+_PLAN = """
+import sys
+import iamp.planners.pmp.jit as jit
+if sys.argv[1] == "python":
+    jit.available = lambda: False  # as without numba installed
+from iamp.planners.avoid import AvoidQPPlanner, schur
+from iamp.planners.examples import overtake_three_problem
+assert schur._PYTHON == (sys.argv[1] == "python")
+p = AvoidQPPlanner(steps=20, solver="clarabel").plan(overtake_three_problem())
+print(p.status, repr(p.cost), [repr(float(t)) for t in p.contact_times], p.info["n_solves"])
+"""
+
+
+@pytest.mark.skipif(not jit.available(), reason="numba is not installed")
+def test_a_plan_is_the_same_with_and_without_numba() -> None:
+    """The whole three-vehicle plan (status, cost, crossing times, solves) in a process that runs
+    the node solver as Python and in one that runs its numba twin: identical."""
+    import subprocess
+    import sys
+
+    out = [subprocess.run([sys.executable, "-c", _PLAN, mode], capture_output=True, text=True, check=True,
+                          timeout=600).stdout for mode in ("python", "numba")]
+    assert out[0] == out[1]
+    assert out[0].startswith("optimal")
