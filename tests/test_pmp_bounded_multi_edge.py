@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from test_bounded_random import boxed, check
 
 from iamp.core import status as stc
@@ -115,3 +116,18 @@ def test_three_vehicles_with_an_infeasible_unbounded_start_find_a_plan() -> None
     pmp = PMPPlanner().plan(problem)
     assert pmp.status == stc.LOCAL and pmp.cost is not None and pmp.cost <= 654.7827711418674
     assert pmp.info["search"]["feasible_start"]["feasible"] > 0
+
+
+@pytest.mark.xfail(strict=True, reason="issue 32 item 4, open: r_i turns within float steps of an edge")
+def test_three_vehicles_whose_feasible_times_are_a_sliver_end_verified() -> None:
+    """Found by 400 generated three-vehicle problems with the box at 0.55-0.90 of the peaks
+    (2026-11-29; also 148435 at 0.7157 and 539214 at 0.7162): ``inaccurate`` (Hamiltonian-jump
+    check 0.99).  The contact times admit plans (``J_b`` is finite at the plan's and the edge
+    polish reaches ``J_b`` 2551 from 3016 with ``t_1`` held at its upper edge, where ``r_1`` turns
+    from -5e3 to +2e7 within the last float steps), but no verified plan is made; the FOH QP
+    sweep finds no plan at ``N`` = 8, 12, 16 (the feasible set is a sliver)."""
+    problem = boxed(217970, 3, 0.7252116774550526)
+    assert problem is not None
+    pmp = PMPPlanner().plan(problem)
+    assert math.isfinite(B._Evaluator(problem)(np.array(pmp.contact_times, dtype=float))[0])
+    assert pmp.status in (stc.OPTIMAL, stc.LOCAL), pmp.info.get("failed_check")
