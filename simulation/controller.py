@@ -566,14 +566,14 @@ class Controller:
         """One period of the SPEC §17 loop (module docstring)."""
         dt, cfg, tac = self.sim.step, self.cfg.decision, self.cfg.tactical
         nbs = self.neighbours(obs, ego, max(tac.horizons), all_lanes=True)
-        obstacles = self._obstacles(nbs)
-        en = self.ego_now(ego)
         if self.mode in ("done", "hold"):
             if self.mode == "hold" and t + 1e-9 >= self.hold_until:
                 self.origin, self.target = self.target, self.origin
                 self.mode, self.next_seek, self.target_gap = "seek", t, None
             else:
                 return self._follow(ego, nbs)
+        obstacles = self._obstacles(nbs)  # the verification's road users (not needed to follow in lane)
+        en = self.ego_now(ego)
         if self.mode == "abort":  # the last verified fail-safe
             b = self._brakes_now(ego, obstacles)
             if b is not None:

@@ -105,15 +105,16 @@ def tracks_of(log: StepLog) -> Tracks:
     ids = tuple(dict.fromkeys(v for step in log.ids for v in step))
     col = {v: j for j, v in enumerate(ids)}
     n, m = len(log.t), len(ids)
-    arr = {name: np.full((n, m), np.nan) for name in ("x", "y", "v", "a", "lane", "L", "W", "psi")}
-    for k, (step, nb) in enumerate(zip(log.ids, log.nb)):
-        if not step:
-            continue
-        js = [col[v] for v in step]
-        for c, name in enumerate(("x", "y", "v", "a", "lane", "L", "W")):
-            arr[name][k, js] = nb[:, c]
-        arr["psi"][k, js] = neighbour_headings(nb)
-    return Tracks(ids, **arr)
+    # one (quantity, step, vehicle) array filled by one scatter of every logged row (a step lists a
+    # vehicle once): each quantity a C-contiguous (n, m) slice, as one array per quantity was
+    A = np.full((8, n, m), np.nan)
+    steps = [k for k, step in enumerate(log.ids[:n]) if step]
+    if steps:
+        ks = np.concatenate([np.full(len(log.ids[k]), k) for k in steps])
+        js = np.array([col[v] for k in steps for v in log.ids[k]])
+        A[:7, ks, js] = np.concatenate([np.asarray(log.nb[k])[:, :7] for k in steps]).T
+        A[7, ks, js] = np.concatenate([neighbour_headings(np.asarray(log.nb[k])) for k in steps])
+    return Tracks(ids, *A)
 
 
 def ego_motion(log: StepLog, ego_size: tuple[float, float]) -> Motion:
@@ -149,9 +150,10 @@ def _emergency_brakes(tr: Tracks, ego: Motion, lane_of: Callable[[float], int] |
     ego was its leader (module docstring)."""
     events: list[dict[str, Any]] = []
     open_: dict[int, dict[str, Any]] = {}  # vehicle -> its running event
+    with np.errstate(invalid="ignore"):
+        braking = tr.a <= -EMERGENCY_DECEL  # (steps, vehicles); nan (not observed) is not braking
     for k in range(tr.x.shape[0]):
-        with np.errstate(invalid="ignore"):
-            hard = np.flatnonzero(tr.a[k] <= -EMERGENCY_DECEL)
+        hard = np.flatnonzero(braking[k])
         now: dict[int, dict[str, Any]] = {}
         if hard.size:
             _, hy = body_extents(tr.L[k], tr.W[k], np.nan_to_num(tr.psi[k]))

@@ -144,9 +144,26 @@ class Highway:
         k = int(self.lanes - 1 - (-y) // self.lane_width)
         return min(max(k, 0), self.lanes - 1)
 
+    def lanes_of(self, y: np.ndarray) -> np.ndarray:
+        """:meth:`lane_of` of every element of ``y`` (finite), as one array operation: numpy's floor
+        division and truncation are Python's, so the indices are the same.
+
+        Parameters
+        ----------
+        y : numpy.ndarray
+            Lateral positions [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            The lane index of each position (``int``), the shape of ``y``.
+        """
+        k = (self.lanes - 1 - np.floor_divide(-np.asarray(y, dtype=float), self.lane_width)).astype(np.int64)
+        return np.asarray(np.minimum(np.maximum(k, 0), self.lanes - 1), dtype=int)
+
     def lane_centres_of(self, y: np.ndarray) -> np.ndarray:
-        """``lane_centre(lane_of(y))`` of every element of ``y`` (finite), as one array operation: numpy's
-        floor division and truncation are Python's, so the floats are the same.
+        """``lane_centre(lane_of(y))`` of every element of ``y`` (finite), as one array operation
+        (:meth:`lanes_of`; the same floats).
 
         Parameters
         ----------
@@ -158,8 +175,7 @@ class Highway:
         numpy.ndarray
             The centre of each position's lane [m], the shape of ``y``.
         """
-        k = (self.lanes - 1 - np.floor_divide(-np.asarray(y, dtype=float), self.lane_width)).astype(np.int64)
-        lane = np.minimum(np.maximum(k, 0), self.lanes - 1)
+        lane = self.lanes_of(y)
         return np.asarray(-(self.lanes - lane - 0.5) * self.lane_width, dtype=float)
 
     def key(self) -> str:

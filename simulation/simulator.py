@@ -165,21 +165,23 @@ class TrackBuffer:
     def record(self, t: float, x: float, oldest: float) -> None:
         """Append the sample ``(t, x)``, replacing the last one when it is not older than ``t - 1e-9``
         (observed twice in a step), and drop the samples before ``oldest``."""
-        if self.hi > self.lo and self.t[self.hi - 1] >= t - 1e-9:
-            self.hi -= 1
-        if self.hi == self.t.size:
-            n = self.hi - self.lo
-            if 2 * n > self.t.size:  # more than half full after compaction: grow
-                self.t = np.concatenate([self.t, np.empty(self.t.size)])
+        lo, hi, tt = self.lo, self.hi, self.t
+        if hi > lo and tt[hi - 1] >= t - 1e-9:
+            hi -= 1
+        if hi == tt.size:
+            n = hi - lo
+            if 2 * n > tt.size:  # more than half full after compaction: grow
+                self.t = np.concatenate([tt, np.empty(tt.size)])
                 self.x = np.concatenate([self.x, np.empty(self.x.size)])
-            self.t[:n] = self.t[self.lo:self.hi].copy()
-            self.x[:n] = self.x[self.lo:self.hi].copy()
-            self.lo, self.hi = 0, n
-        self.t[self.hi] = t
-        self.x[self.hi] = x
-        self.hi += 1
-        while self.hi > self.lo and self.t[self.lo] < oldest:
-            self.lo += 1
+            self.t[:n] = tt[lo:hi].copy()
+            self.x[:n] = self.x[lo:hi].copy()
+            lo, hi, tt = 0, n, self.t
+        tt[hi] = t
+        self.x[hi] = x
+        hi += 1
+        while hi > lo and tt[lo] < oldest:
+            lo += 1
+        self.lo, self.hi = lo, hi
 
 
 @dataclass
@@ -322,10 +324,9 @@ class Simulator:
         ids = tuple(sorted(k for k in res if k != EGO))
         P, S, A, ANG = ls.VAR_POSITION, ls.VAR_SPEED, ls.VAR_ACCELERATION, ls.VAR_ANGLE
         oldest = self.t - (self.history_s + 1e-6)
-        cos, sin, radians, lane_of = math.cos, math.sin, math.radians, self.highway.lane_of
+        cos, sin, radians = math.cos, math.sin, math.radians
         sizes, histories, t = self._lengths, self.histories, self.t
         rows: list[tuple[float, float, float, float, float, float, float]] = []
-        lanes: list[int] = []
         for vid in ids:  # Python floats: the same IEEE operations as on array elements
             r = res[vid]
             size = sizes.get(vid)
@@ -335,7 +336,6 @@ class Simulator:
             xk = fx - length / 2 * cos(psi)
             yk = fy - length / 2 * sin(psi)
             rows.append((xk, yk, r[S], r[A], length, width, psi))
-            lanes.append(lane_of(float(yk)))  # global index (edges downstream of a drop have fewer)
             hist = histories.get(vid)
             if hist is None:
                 hist = histories[vid] = TrackBuffer()
@@ -345,7 +345,8 @@ class Simulator:
                 del histories[vid]
         cols = np.array(rows, dtype=np.float64).reshape(len(rows), 7).T.copy()  # one row per quantity
         x, y, v, a, L, W, H = cols
-        return Observation(self.t, ids, x, y, v, a, np.array(lanes, dtype=int), L, W, H)
+        # global lane indices (edges downstream of a drop have fewer): Highway.lane_of of each y at once
+        return Observation(self.t, ids, x, y, v, a, self.highway.lanes_of(y), L, W, H)
 
     def history(self, vid: str) -> tuple[np.ndarray, np.ndarray]:
         """``(t - now, x)`` of the last ``history_s`` seconds of ``vid`` (may be shorter)."""

@@ -118,7 +118,7 @@ def test_rss_distance_of_floats_is_its_array_expression_bit_for_bit(v_r, v_f, rh
 @given(ys=st.lists(st.floats(-20.0, 5.0), min_size=1, max_size=50), lanes=st.integers(1, 5),
        width=st.sampled_from([3.0, 3.2, 3.5, 3.75]))
 def test_lane_centres_of_is_lane_centre_of_lane_of_bit_for_bit(ys, lanes, width):
-    """The vectorised lane centres (the verification's fail-safe lane per sample) equal the scalar ones,
+    """The vectorised lane indices and centres (the verification's fail-safe lane per sample) equal the scalar ones,
     boundaries included (a multiple of the lane width and its neighbouring floats)."""
     from iamp.simulation.network import Highway
 
@@ -128,6 +128,8 @@ def test_lane_centres_of_is_lane_centre_of_lane_of_bit_for_bit(ys, lanes, width)
     got = hw.lane_centres_of(y)
     expect = np.array([hw.lane_centre(hw.lane_of(float(v))) for v in y])
     assert got.tobytes() == expect.tobytes()
+    lanes_of = hw.lanes_of(y)  # the observation's lane column (Simulator.observe)
+    assert lanes_of.dtype == np.array([1]).dtype and lanes_of.tolist() == [hw.lane_of(float(v)) for v in y]
     assert np.all(np.abs(got - np.clip(y, -lanes * width + width / 2, -width / 2)) <= width / 2 + 1e-12)
 
 
@@ -215,3 +217,38 @@ def test_histories_of_is_history_of_each_and_shares_equal_times(entries):
     for (t1, _), (t2, _) in zip(got, got[1:]):
         if t1.size and t1.tobytes() == t2.tobytes():
             assert t1 is t2 and not t1.flags.writeable
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data(), n=st.integers(0, 12), pool=st.integers(1, 6), headed=st.booleans())
+def test_tracks_of_puts_each_logged_row_where_a_step_by_step_copy_does(data, n, pool, headed):
+    """The monitor's tracks (one scatter of every logged row) equal each step's rows copied one vehicle at a
+    time; unobserved (step, vehicle) cells stay nan; no heading column gives heading 0."""
+    from iamp.simulation.metrics import StepLog
+    from iamp.simulation.monitor import tracks_of
+
+    names = [f"v{i}" for i in range(pool)]
+    log = StepLog()
+    for k in range(n):
+        ids = tuple(data.draw(st.lists(st.sampled_from(names), unique=True, max_size=pool)))
+        log.t.append(0.1 * k)
+        log.ids.append(ids)
+        cols = 8 if headed else 7
+        log.nb.append(np.array(data.draw(st.lists(st.lists(finite, min_size=cols, max_size=cols),
+                                                  min_size=len(ids), max_size=len(ids))), dtype=float)
+                      .reshape(len(ids), cols))
+    tr = tracks_of(log)
+    seen = list(dict.fromkeys(v for ids in log.ids for v in ids))
+    assert list(tr.ids) == seen
+    names7 = ("x", "y", "v", "a", "lane", "L", "W")
+    for q in names7 + ("psi",):
+        assert getattr(tr, q).shape == (n, len(seen))
+    for k, (ids, nb) in enumerate(zip(log.ids, log.nb)):
+        for j, vid in enumerate(seen):
+            if vid in ids:
+                row = nb[ids.index(vid)]
+                for c, q in enumerate(names7):
+                    assert getattr(tr, q)[k, j] == row[c]
+                assert tr.psi[k, j] == (row[7] if headed else 0.0)
+            else:
+                assert all(np.isnan(getattr(tr, q)[k, j]) for q in names7 + ("psi",))
