@@ -78,6 +78,7 @@ import time as _time
 from bisect import bisect_right
 from collections import deque
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -181,24 +182,39 @@ class BoundedSolution:
                 s.append(s[-1] + h * v[-1] + h * h * (ua / 3 + ub / 6))
                 v.append(v[-1] + h / 2 * (ua + ub))
             self._sv.append((s, v))
-        # the same data as arrays, made once (every evaluation below indexes them)
-        self._arr = [(np.asarray(ax.knots), np.asarray(ax.u), np.asarray(s), np.asarray(v))
-                     for ax, (s, v) in zip(self.axes, self._sv)]
-        # the slope of u on every piece (what _axis_eval divided per point: the same numbers)
-        self._slopes = []
-        for kn, U, _, _ in self._arr:
-            h = kn[1:] - kn[:-1]
-            self._slopes.append((U[1:] - U[:-1]) / np.where(h > 0, h, 1.0))
-        self._slopes_l = [sl.tolist() for sl in self._slopes]
-        self._jumps_arr = [np.asarray(ax.jumps) for ax in self.axes]
+        # the slope of u on every piece (what _axis_eval divides per point: the same numbers)
+        self._slopes_l = [[(ax.u[j + 1] - ax.u[j]) / (h if h > 0 else 1.0)
+                           for j, h in enumerate(ax.knots[q + 1] - ax.knots[q] for q in range(len(ax.knots) - 1))]
+                          for ax in self.axes]
         self._hjump: tuple[FloatArray, FloatArray] | None = None
         self._ends_contacts: FloatArray | None = None
 
+    @cached_property
+    def _arr(self) -> list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
+        """The knots, ``u``, ``s``, ``v`` per axis as arrays (made on the first evaluation at many
+        times: the plan itself reads the knots on floats)."""
+        return [(np.asarray(ax.knots), np.asarray(ax.u), np.asarray(s), np.asarray(v))
+                for ax, (s, v) in zip(self.axes, self._sv)]
+
+    @cached_property
+    def _slopes(self) -> list[FloatArray]:
+        return [np.asarray(sl, dtype=float) for sl in self._slopes_l]
+
+    @cached_property
+    def _jumps_arr(self) -> list[FloatArray]:
+        return [np.asarray(ax.jumps) for ax in self.axes]
+
     def ends_and_contacts(self) -> FloatArray:
         """:meth:`states` at ``0``, ``t_f`` and the contact times (rows in that order), evaluated
-        once: the self-check and the Hamiltonian-jump terms both read them."""
+        once on floats (:meth:`_axis_at`): the self-check and the Hamiltonian-jump terms both read
+        them."""
         if self._ends_contacts is None:
-            self._ends_contacts = self.states(np.concatenate(([0.0, float(self.problem.tf)], self.contact_times)))
+            rows = []
+            for x in (0.0, float(self.problem.tf), *self.contact_times.tolist()):
+                sx, vx, _ = self._axis_at(0, x)
+                sy, vy, _ = self._axis_at(1, x)
+                rows.append((sx, vx, sy, vy))
+            self._ends_contacts = np.array(rows, dtype=float).reshape(-1, 4)
         return self._ends_contacts
 
     @property
