@@ -401,8 +401,8 @@ class DualBounds:
             # the sums of np.add.at over exps, then pairs, in the same order: each entry starts
             # at 0.0 and adds its terms one by one
             flat = self._flat(q, coef.shape, exps, pairs)
-            coef = np.bincount(flat, weights=np.concatenate((-lin, -0.5 * G.ravel())),
-                               minlength=coef.size).reshape(coef.shape)
+            coef = np.asarray(np.bincount(flat, weights=np.concatenate((-lin, -0.5 * G.ravel())),
+                                          minlength=coef.size), dtype=float).reshape(coef.shape)
         mass = np.bincount(veh[bern], weights=y[bern], minlength=len(sol.spec)).astype(float)
         return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, mass)
 
