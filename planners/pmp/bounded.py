@@ -1354,6 +1354,18 @@ class _Evaluator:
             self._done[tuple(times)] = (J, r.copy(), lams)
         return J, r, lams
 
+    def r_one(self, x: float) -> float:
+        """One vehicle: ``r`` at the contact time ``x`` (a float), as :meth:`__call__` gives it
+        (the same cache and warm starts), without the arrays of a call."""
+        done = self._done.get((x,))
+        if done is not None:
+            self._remember([x], done[2])
+            return float(done[1][0])
+        J, r, lams = self._solve(np.empty(0), [x])
+        if lams is not None and math.isfinite(J):
+            self._done[(x,)] = (J, r.copy(), lams)
+        return float(r[0])
+
     def _solve(self, t: FloatArray, times: list[float]) -> tuple[float, FloatArray, list[list[float]] | None]:
         T = self.T
         m = len(times)
@@ -1434,8 +1446,8 @@ def _lower_bound(problem: Problem, t: FloatArray, vf: Any = None) -> FloatArray:
 
 def _r_at(ev: _Evaluator, x: float) -> float:
     """``r(x)`` for Brent's method (``0`` where no plan: the bracket's ends are feasible)."""
-    rr = ev(np.array([x]))[1][0]
-    return float(rr) if np.isfinite(rr) else 0.0
+    rr = ev.r_one(float(x))
+    return rr if math.isfinite(rr) else 0.0
 
 
 def _edge_candidate(ev: _Evaluator, T: float, edge_t: float, probe: float, side: str

@@ -67,6 +67,7 @@ import math
 from dataclasses import dataclass, field
 
 from . import compiled as _compiled
+from . import jit
 from . import saturated_kernel as _kernel
 
 #: Newton iterations before the dual is declared divergent (an infeasibility candidate).
@@ -250,8 +251,6 @@ def contact_points(ts: list[float], T: float, pos: list[float], off_x: float, of
                                       tol_residual, MAX_NEWTON)
     import numpy as np
 
-    from . import jit
-
     run = jit.twin(_kernel.contact_points)
     arr = [np.asarray(x, dtype=float) for x in (ts, pos, data, warm, has_warm)]
     out: list[float] = run(arr[0], float(T), float(T**2), float(T**3), arr[1], float(off_x), float(off_y), arr[2],
@@ -271,8 +270,6 @@ def interval_terms(ab: list[float], T: float, pos: list[float], der: list[float]
                                       tol_residual, MAX_NEWTON)
     import numpy as np
 
-    from . import jit
-
     run = jit.twin(_kernel.interval_terms)
     arr = [np.asarray(x, dtype=float) for x in (ab, pos, der, data, warm, has_warm)]
     out: list[float] = run(arr[0], float(T), float(T**2), float(T**3), arr[1], arr[2], float(off_x), float(off_y),
@@ -290,8 +287,6 @@ def cover_points(times: list[float], corners: list[float], m: int, T: float, dat
         return _kernel.cover_points(times, corners, m, T, T**2, T**3, data, tol_residual, MAX_NEWTON)
     import numpy as np
 
-    from . import jit
-
     run = jit.twin(_kernel.cover_points)
     out: list[float] = run(np.asarray(times, dtype=float), np.asarray(corners, dtype=float), int(m), float(T),
                            float(T**2), float(T**3), np.asarray(data, dtype=float), float(tol_residual), MAX_NEWTON)
@@ -306,8 +301,6 @@ def _farkas_margin(ax: _Axis, cand: list[float]) -> tuple[float, float]:
         norm, margin = _kernel.farkas_margin(ax.sig, ax.base, ax.d, ax.lo, ax.hi, cand)
         return norm, margin
     import numpy as np
-
-    from . import jit
 
     out: tuple[float, float] = jit.twin(_kernel.farkas_margin)(
         np.asarray(ax.sig, dtype=float), np.asarray(ax.base, dtype=float), np.asarray(ax.d, dtype=float),
