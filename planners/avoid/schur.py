@@ -34,6 +34,10 @@ Every returned optimum is checked against its KKT residuals recomputed from the 
 ill-conditioned step or exhausts its step budget (``max_iter``, a count of work) reports so, and
 the search solves that QP by the backend instead.  With a ``cutoff`` the solve may stop early:
 the cost of every working set's optimum is a lower bound of the QP's optimum and only grows.
+
+The loop and the residual are written once, in :mod:`~iamp.planners.avoid.schur_kernel` (plain
+loops over the rows' CSR arrays, no BLAS), and run compiled by numba where it is installed, as
+Python otherwise: the same numbers either way.
 """
 
 from __future__ import annotations
@@ -69,18 +73,10 @@ INFEASIBLE_REL = 1e-13
 #: is at least the reported ``bound`` (internal to the search, never a plan's status).
 CUTOFF = "cutoff"
 
-#: A missing column of ``K⁻¹`` is solved with its neighbours within this many places in ``z``.
-PREFETCH = 3
-
 #: A warm start whose working rows' Schur complement is not positive definite, or whose squared
 #: Cholesky pivots spread by more than this factor (a lower bound of its condition number), is
 #: dropped (the solve starts from the equality optimum).
 WARM_COND = 1e10
-
-#: Rows' ``w_r`` (:meth:`SchurActiveSet.column`) kept across the plans that share one solver
-#: (:meth:`SchurActiveSet.with_rhs`) before they are dropped (memory, not numbers: a dropped one is
-#: recomputed from the same columns, bit for bit).
-W_KEPT = 20000
 
 #: The largest KKT residual (:meth:`SchurActiveSet.residual`) of a solution reported ``optimal``;
 #: beyond it the solve reports ``numerical_error`` (and the search solves that QP by the backend).
@@ -171,7 +167,6 @@ class SchurActiveSet:
         #: row ``c``: the primal part of column ``c`` of ``K⁻¹`` once solved (:attr:`_have`)
         self._Kinv = np.zeros((self.n, self.n))
         self._have = np.zeros(self.n, dtype=bool)
-        self._w: dict[bytes, FloatArray] = {}
         self.columns = 0
 
     def same_matrix(self, P: sp.spmatrix, A_eq: sp.spmatrix) -> bool:
@@ -188,8 +183,6 @@ class SchurActiveSet:
         one's factored KKT matrix and its solved columns of ``K⁻¹`` (which depend on ``P`` and
         ``E`` only; a column is the same bit for bit whichever batch solved it), so the plans of
         one grid factor it once (the closed loop plans the same horizon many times)."""
-        if len(self._w) > W_KEPT:  # the rows' columns of earlier plans: recomputed alike when asked again
-            self._w.clear()
         out = copy.copy(self)
         out.b_eq = np.asarray(b_eq, dtype=float)
         if out.b_eq.shape != self.b_eq.shape:
@@ -198,30 +191,6 @@ class SchurActiveSet:
         out.z0 = out._x0[:self.n].copy()
         out.columns = 0
         return out
-
-    def column(self, cols: NDArray[np.int64], vals: FloatArray) -> FloatArray:
-        """``w_r``: the primal part of ``K⁻¹ [g_r; 0]`` for the row with entries ``vals`` in
-        columns ``cols``, from the columns of ``K⁻¹`` it touches (each solved once per grid)."""
-        key = cols.tobytes() + vals.tobytes()
-        w = self._w.get(key)
-        if w is not None:
-            return w
-        if not self._have[cols].all():
-            # one batch with the columns next to them in z's layout (the nodes beside a piece: the
-            # rows of the pieces near a crossing are asked for next); SuperLU's multi-column
-            # solve costs a few µs per column up to ~50 columns
-            near = (cols[:, None] + np.arange(-PREFETCH, PREFETCH + 1)).ravel()
-            near = near[(near >= 0) & (near < self.n)]
-            missing = np.unique(near[~self._have[near]])
-            R = np.zeros((self.n + self.n_eq, missing.size))
-            R[missing, np.arange(missing.size)] = 1.0
-            X = np.asarray(self.lu.solve(R), dtype=float).reshape(self.n + self.n_eq, missing.size)
-            self._Kinv[missing] = X[:self.n].T
-            self._have[missing] = True
-            self.columns += int(missing.size)
-        w = np.asarray(vals @ self._Kinv[cols], dtype=float)
-        self._w[key] = w
-        return w
 
     def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, start: NDArray[np.int64] | None = None,
               cutoff: float | None = None) -> RowsSolution:
