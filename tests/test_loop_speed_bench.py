@@ -86,3 +86,41 @@ def test_bench_loop_command_line(capsys: pytest.CaptureFixture[str], monkeypatch
     assert len(out) == 2 and out[1].split()[0] == "free"
     assert main(["bench", "--planner", "free"]) != 0
     assert main(["bench", "--loop", "--planner", "mobil"]) != 0
+
+
+def test_every_timed_episode_computes_its_own_predictions(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Nothing the warm-up computed is reused by the timed episodes: each propagates as many pasts
+    through the prediction model as the warm-up did (without the bench's forget_kept_data, the
+    predictor's kept node accelerations would spare a repeated episode nearly every propagation)."""
+    pytest.importorskip("libsumo")
+    from iamp.comparison.bench import loop
+    from iamp.prediction.mtd.model import MTDModel
+    from iamp.simulation.episode import run_episode
+
+    rows = {"n": 0}
+    per_episode: list[int] = []
+    original = MTDModel.propagate_batch
+
+    def counting(self: MTDModel, init_states: object, steps: int) -> object:
+        rows["n"] += len(init_states)  # type: ignore[arg-type]
+        return original(self, init_states, steps)  # type: ignore[arg-type]
+
+    def episode(spec: object, **kw: object) -> object:
+        rows["n"] = 0
+        r = run_episode(spec, **kw)  # type: ignore[arg-type]
+        per_episode.append(rows["n"])
+        return r
+
+    monkeypatch.setattr(MTDModel, "propagate_batch", counting)
+    monkeypatch.setattr("iamp.simulation.episode.run_episode", episode)
+    monkeypatch.setitem(loop.CASE, "duration_s", 3.0)
+    loop.bench_loop(2, ("free",))
+    assert len(per_episode) == 3 and per_episode[0] > 0
+    assert per_episode[1] == per_episode[2] == per_episode[0]
+    # the check is not vacuous: the same episode again without forgetting propagates (nearly) nothing
+    from iamp.comparison.bench.loop import _episode
+
+    loop.forget_kept_data()
+    _episode("free")
+    _episode("free")
+    assert per_episode[-1] < per_episode[0] // 2
