@@ -12,8 +12,46 @@ B1. *Status*.  Both verified (PMP ``optimal`` or ``local``, QP ``optimal``): rul
     ``infeasible``: **agree** — the PMP certifies that no contact time admits a plan within the
     box and the QP that no grid candidate does (every QP plan is a plan within the box, so the
     first implies the second).  A QP plan where the PMP certifies the box infeasible is a
-    contradiction (**disagree**).  Any other status (``limits_violated``: the PMP's plan exceeds
-    a bound it cannot impose; a solver failure): **disagree**, with the status as the reason.
+    contradiction (**disagree**).
+
+    A verified PMP plan (``optimal`` or ``local``) beside a QP ``infeasible`` is decided from the
+    data (:func:`grid_plan_from_pmp`).  The QP's grid is a restriction of the continuous problem
+    (contact times on nodes, every bound at every node; every QP plan is a continuous plan, B4),
+    so it can have no plan where the continuous problem has one: a property of the grid, not a
+    contradiction.  Over the contact-node candidates nearest the PMP's contact times (per
+    vehicle the interior nodes by distance, the ``2^m`` bracketing ones first, at most
+    :data:`B1_MAX_CANDIDATES`: every node of a one-vehicle grid up to ``N = 65``) the bounded
+    PMP is re-solved with its contacts at the node times, and :func:`upper_plan` (rule B6's
+    construction) builds a plan of the QP from it and checks it against the QP's rows: the
+    equalities (boundary, dynamics, corners) to ``cmp_residual_rel_*``, every limit row at every
+    node to ``limits_bound_rel``.
+
+    (a) Such a plan exists: the QP's ``infeasible`` is wrong, **disagree**; the reason
+        (``qp_infeasible_not_contradicted``) names the QP's claim, the contact nodes and the
+        plan's residuals and cost.
+    (b) None exists: the pair is **not comparable** — no optimum is compared.  The verdict set is
+        ``agree`` / ``disagree`` (SPEC §5b shows no other value and ``iamp compare`` counts every
+        verdict but ``agree`` as a disagreement), so the verdict is ``agree`` in the sense of the
+        both-``infeasible`` case: the two claims are consistent.  ``verdict_basis`` begins
+        ``not comparable (rule B1)``; ``notes`` give the QP's reason, the PMP's plan, and per
+        candidate why it holds no plan: the bounded PMP certifies the input box infeasible at its
+        node times (Farkas; then no QP plan has its contacts there), two vehicles share a node
+        where their corners differ (the ego's position there is one point), or the built plan
+        violates a row — the largest violation, its row and node (when the correction in the box
+        does not close the equalities, the input bound that the correction without the box leaves
+        furthest).  When every candidate of the grid is certified to hold no plan the QP's claim
+        is *proved*; otherwise it is *not contradicted* (the construction is sufficient, not
+        necessary).  ``grid_feasibility`` in the JSON holds the counts, the worst violation and
+        whether it is proved.  Measured (``random_problem`` 12, 40, 53, 73, 84 with the box at
+        0.6 of their inputs, feasible contact times in an interval of about 0.3 s;
+        ZOH and FOH, ``N`` = 4–32): the Clarabel QP is ``infeasible`` with every node certified
+        (Farkas) where the PMP is ``optimal`` (``local`` for 84); e.g. 12 at ZOH ``N = 12``:
+        one node (``t = 2.28`` s) admits a plan in the box, whose plan of the grid needs ``ax``
+        3.2 % beyond its bound at node 4; at ``N = 16`` the QP is ``optimal``.  Until 2026-11-29
+        such pairs were **disagree**.
+
+    Any other status (``limits_violated``: the PMP's plan exceeds a bound it cannot impose; a
+    solver failure): **disagree**, with the status as the reason.
 
 B2. *KKT* of the QP, recomputed from the stacked matrices ``[A; A_L]`` and the returned
     ``(z, y)``: primal, dual, gap and the limit rows' complementarity below ``cmp_kkt_rel_*``.
@@ -161,6 +199,7 @@ The headline gaps (``cost_rel_gap`` etc.) and ``at_same_contact_times`` are thos
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -178,13 +217,14 @@ from iamp.planners.qp.data import QPData
 from iamp.planners.qp.limits import limit_rows
 
 from .gaps import at_same_contact_times, run_vs_run_gaps
-from .records import PairJSON
+from .records import GridFeasibilityJSON, PairJSON
 from .runs import Run
 from .signs import sign_entry
 from .verdict import Checks, plan_cost, same_problem, solver_tol
 
-__all__ = ["UPPER_MAX_ITERATIONS", "UpperPlan", "ZohUpper", "box_violation", "compare_bounded_pmp_qp",
-           "foh_kink_term", "foh_upper_plan", "hold_moments", "input_energy", "input_slope_energy", "upper_plan",
+__all__ = ["B1_MAX_CANDIDATES", "UPPER_MAX_ITERATIONS", "GridCandidate", "GridSearch", "UpperPlan", "ZohUpper",
+           "box_violation", "candidate_nodes", "compare_bounded_pmp_qp", "foh_kink_term", "foh_upper_plan",
+           "grid_plan_from_pmp", "hold_moments", "input_energy", "input_slope_energy", "upper_plan",
            "zoh_upper_plan"]
 
 #: Newton steps of the dual of the box-constrained minimum-norm correction (rule B6), per axis and attempt.
@@ -288,6 +328,12 @@ class UpperPlan:
         ``False`` when it had to move some of them inward (the fallback).
     reason : str or None
         Why the plan is not a plan of the QP (None when it is).
+    worst_row, worst_node : str or None, int or None
+        The QP's row the plan violates most and its node (the limit rows; when the correction
+        in the box does not close the equalities, the input bound that the correction without
+        the box leaves furthest; ZOH: the interval's left node), None when none is violated.
+    worst_violation_rel : float
+        That violation relative to ``max(1, |bound|)`` (0 when none).
     """
 
     hold: str
@@ -300,6 +346,9 @@ class UpperPlan:
     iterations: int
     pinned: bool
     reason: str | None
+    worst_row: str | None = None
+    worst_node: int | None = None
+    worst_violation_rel: float = 0.0
 
     @property
     def excess(self) -> float:
@@ -475,6 +524,7 @@ def upper_plan(problem: Problem, plan: Plan, t_nodes: npt.NDArray[np.float64], n
     U = np.empty_like(ubar)
     X = np.empty((N + 1, 4))
     iterations, converged, pinned = 0, True, True
+    unboxed: tuple[float, str, int] | None = None  # (violation, row, node) of the correction without the box
     for ax, (lo, hi) in enumerate(input_box(problem)):
         s0, v0, sf, vf = ends[ax]
         g = np.r_[vf - v0, sf - s0 - v0 * t[-1], corners[ax] - s0 - v0 * t[nd]]
@@ -491,6 +541,15 @@ def upper_plan(problem: Problem, plan: Plan, t_nodes: npt.NDArray[np.float64], n
             w, its, ok = _box_min_norm(G, g - G @ u0, weight, a, b, 1e-12 * scale)
             iterations += its
         converged &= ok
+        if not ok:  # how far the grid is from holding the plan: the correction without the box leaves it
+            inf = np.full_like(a, np.inf)
+            wf, its, _ = _box_min_norm(G, g - G @ u0, weight, -inf, inf, 1e-12 * scale)
+            iterations += its
+            uf = u0 + wf
+            over = np.maximum((lo - uf) / max(1.0, abs(lo)), (uf - hi) / max(1.0, abs(hi)))
+            k = int(np.argmax(over))
+            if unboxed is None or float(over[k]) > unboxed[0]:
+                unboxed = (max(0.0, float(over[k])), ("ax", "ay")[ax], k)
         u = np.clip(u0 + w, lo, hi)
         U[:, ax] = u
         X[:, 2 * ax] = s0 + v0 * t + S @ u
@@ -499,6 +558,9 @@ def upper_plan(problem: Problem, plan: Plan, t_nodes: npt.NDArray[np.float64], n
     eq = float(np.max(np.abs(data.A @ z - data.b))) / max(1.0, float(np.max(np.abs(data.b))))
     viol = 0.0
     reason: str | None = None
+    worst_row: str | None = None
+    worst_node: int | None = None
+    worst_viol = 0.0
     if problem.limits is not None and not problem.limits.empty:
         rows = limit_rows(data, t, hold, problem.limits)
         if rows.n_rows:
@@ -506,14 +568,20 @@ def upper_plan(problem: Problem, plan: Plan, t_nodes: npt.NDArray[np.float64], n
             viol = float(np.max(rel))
             if viol > tol("limits_bound_rel"):
                 worst = int(np.argmax(rel))
-                reason = (f"the plan built from the PMP's input violates the QP's {rows.kind[worst]} row at node "
-                          f"{int(rows.node[worst])} by {viol:.3g} (relative)")
+                worst_row, worst_node, worst_viol = str(rows.kind[worst]), int(rows.node[worst]), viol
+                reason = (f"the plan built from the PMP's input violates the QP's {worst_row} row at node "
+                          f"{worst_node} by {viol:.3g} (relative)")
     if not converged:
         reason = (f"the minimum-norm correction in the box did not close the equalities in "
-                  f"{UPPER_MAX_ITERATIONS} dual steps per axis")
+                  f"{UPPER_MAX_ITERATIONS} dual steps per axis (relative residual {eq:.3g})")
+        if unboxed is not None and unboxed[0] > worst_viol:
+            worst_viol, worst_row, worst_node = unboxed
+            reason += (f"; without the box the correction leaves the QP's {worst_row} row at node {worst_node} by "
+                       f"{worst_viol:.3g} (relative)")
     cost = float(0.5 * np.einsum("ia,ij,ja->", U, Mass, U))
     return UpperPlan(hold=hold, cost=cost, energy=input_energy(plan), X=X, U=U, equality_residual_rel=eq,
-                     limit_violation_rel=viol, iterations=iterations, pinned=pinned, reason=reason)
+                     limit_violation_rel=viol, iterations=iterations, pinned=pinned, reason=reason,
+                     worst_row=worst_row, worst_node=worst_node, worst_violation_rel=worst_viol)
 
 
 def zoh_upper_plan(problem: Problem, plan: Plan, t_nodes: npt.NDArray[np.float64], nodes: Sequence[int]
@@ -569,6 +637,258 @@ def foh_kink_term(plan: Plan, t_nodes: npt.NDArray[np.float64]) -> float:
     return total
 
 
+#: Contact-node candidates rule B1 examines when the QP says ``infeasible`` beside a verified bounded
+#: PMP plan, nearest the PMP's contact times first: a budget of work (per candidate one fixed-time
+#: bounded PMP solve and at most one :func:`upper_plan`), never a time.  With one vehicle it covers
+#: every interior node of grids up to ``N = 65``.
+B1_MAX_CANDIDATES = 64
+
+
+@dataclass
+class GridCandidate:
+    """One candidate of rule B1 (:func:`grid_plan_from_pmp`).
+
+    Attributes
+    ----------
+    nodes : tuple of int
+        The contact node of each vehicle.
+    status : str
+        The bounded PMP's status with its contacts at those nodes' times (``infeasible`` also
+        when two vehicles share a node where their corners differ; the PMP is not solved then).
+    reason : str or None
+        Why no plan of the QP was built here (the bounded PMP's reason, the shared node, or the
+        built plan's violated row); None when :attr:`upper` is a plan of the QP.
+    upper : UpperPlan or None
+        The plan of the QP built from the bounded PMP's plan there (:func:`upper_plan`).
+    """
+
+    nodes: tuple[int, ...]
+    status: str
+    reason: str | None
+    upper: UpperPlan | None
+
+    @property
+    def is_plan(self) -> bool:
+        """The built plan meets every row of the QP (its equalities and its limit rows)."""
+        return self.reason is None and self.upper is not None
+
+
+@dataclass
+class GridSearch:
+    """Rule B1's search for a plan of the QP's grid built from a bounded PMP plan.
+
+    Attributes
+    ----------
+    t_nodes : numpy.ndarray
+        The QP's grid.
+    hold : {"zoh", "foh"}
+    total : int
+        Contact-node candidates of the grid, ``(N - 1)^m``.
+    candidates : list of GridCandidate
+        Those examined, in order (nearest the PMP's contact times first; the search stops at
+        the first plan of the QP).
+    """
+
+    t_nodes: npt.NDArray[np.float64]
+    hold: str
+    total: int
+    candidates: list[GridCandidate]
+
+    @property
+    def plan(self) -> GridCandidate | None:
+        """The candidate whose built plan is a plan of the QP, if any."""
+        return next((c for c in self.candidates if c.is_plan), None)
+
+    @property
+    def certified_no_plan(self) -> int:
+        """Candidates certified to hold no plan of the QP: the bounded PMP certifies the input box
+        infeasible at the node times (Farkas), or two vehicles share a node with distinct corners."""
+        return sum(c.status == st.INFEASIBLE for c in self.candidates)
+
+    @property
+    def violating(self) -> list[GridCandidate]:
+        """Candidates whose built plan violates a row of the QP."""
+        return [c for c in self.candidates if c.upper is not None and not c.is_plan]
+
+    @property
+    def proved_infeasible(self) -> bool:
+        """Every candidate of the grid examined and certified to hold no plan: no plan of the QP
+        exists (each is a plan in the box with its contacts at the nodes, rule B4)."""
+        return len(self.candidates) == self.total and self.certified_no_plan == self.total
+
+    @property
+    def worst(self) -> GridCandidate | None:
+        """The violating candidate whose built plan is furthest from a plan of the QP."""
+        bad = self.violating
+        return max(bad, key=lambda c: (c.upper.worst_violation_rel, c.upper.equality_residual_rel)  # type: ignore[union-attr]
+                   ) if bad else None
+
+    def to_json(self) -> GridFeasibilityJSON:
+        """The search as the pair's ``grid_feasibility`` (SPEC §14)."""
+        w, p = self.worst, self.plan
+        wu = w.upper if w is not None else None
+        pu = p.upper if p is not None else None
+        return {"steps": int(self.t_nodes.size - 1), "hold": self.hold, "candidates": int(self.total),
+                "examined": len(self.candidates), "certified_no_plan": int(self.certified_no_plan),
+                "violating": len(self.violating),
+                "undecided": len(self.candidates) - self.certified_no_plan - len(self.violating) - (p is not None),
+                "proved_infeasible": self.proved_infeasible,
+                "worst_candidate": None if w is None else list(w.nodes),
+                "worst_row": None if wu is None else wu.worst_row,
+                "worst_node": None if wu is None else wu.worst_node,
+                "worst_violation_rel": None if wu is None else float(wu.worst_violation_rel),
+                "worst_equality_residual_rel": None if wu is None else float(wu.equality_residual_rel),
+                "plan_nodes": None if p is None else list(p.nodes),
+                "plan_cost": None if pu is None else float(pu.cost),
+                "plan_equality_residual_rel": None if pu is None else float(pu.equality_residual_rel),
+                "plan_limit_violation_rel": None if pu is None else float(pu.limit_violation_rel)}
+
+
+def candidate_nodes(t_nodes: npt.NDArray[np.float64], times: Sequence[float], limit: int) -> list[tuple[int, ...]]:
+    """Up to ``limit`` contact-node candidates of the grid ``t_nodes`` (one interior node per
+    vehicle), nearest ``times`` first: per vehicle the interior nodes ranked by their distance to
+    its time (ties: the earlier node), the candidates ordered by their largest rank, then the sum
+    of the ranks, then the ranks.  The first ``2^m`` are the nodes bracketing ``times``."""
+    t = np.asarray(t_nodes, dtype=float)
+    interior = np.arange(1, t.size - 1)
+    m = len(times)
+    if m == 0 or interior.size == 0 or limit < 1:
+        return []
+    ranked = [interior[np.argsort(np.abs(t[interior] - float(ti)), kind="stable")] for ti in times]
+    k = 1
+    while k < interior.size and k**m < limit:
+        k += 1
+    ranks = sorted(itertools.product(range(k), repeat=m), key=lambda r: (max(r), sum(r), r))[:limit]
+    return [tuple(int(ranked[i][r]) for i, r in enumerate(rank)) for rank in ranks]
+
+
+def _shared_node_clash(problem: Problem, t: npt.NDArray[np.float64], nodes: Sequence[int]) -> str | None:
+    """Why two vehicles sharing a contact node admit no plan: the ego's position at a node is
+    one point, and their corners there differ (None when no node is shared or they coincide)."""
+    pts = problem.corners(t[list(nodes)])
+    scale = max(1.0, float(np.max(np.abs(pts))))
+    for i, j in itertools.combinations(range(len(nodes)), 2):
+        gap = float(np.max(np.abs(pts[i] - pts[j])))
+        if nodes[i] == nodes[j] and gap > 1e-9 * scale:
+            return (f"vehicles {i} and {j} share node {nodes[i]}, where their corners differ by {gap:.3g} m: "
+                    "no position meets both")
+    return None
+
+
+def grid_plan_from_pmp(problem: Problem, plan: Plan, steps: int, hold: str, residual_rel: float,
+                       max_candidates: int = B1_MAX_CANDIDATES) -> GridSearch:
+    r"""Rule B1: look for a plan of the bounded QP's grid built from a bounded PMP plan.
+
+    For each candidate of :func:`candidate_nodes` (nearest the plan's contact times first) the
+    bounded PMP is re-solved with its contacts at the node times; where it certifies the input
+    box infeasible there, no plan of the QP has its contacts at those nodes (every plan of the
+    QP is a plan in the box with its contacts at its nodes, rule B4); where it has a plan,
+    :func:`upper_plan` builds a plan of the QP from it and checks it against the QP's equality
+    rows (to ``residual_rel``) and limit rows (to ``limits_bound_rel``).  The search stops at the
+    first plan of the QP.
+
+    Parameters
+    ----------
+    problem : Problem
+        With ``problem.limits``.
+    plan : Plan
+        A verified bounded PMP plan of ``problem``.
+    steps : int
+        The QP's ``N``; its grid is :class:`~iamp.planners.qp.data.QPData`'s (uniform).
+    hold : {"zoh", "foh"}
+    residual_rel : float
+        The QP solver's ``cmp_residual_rel_*`` (its equality rows).
+    max_candidates : int
+        The budget of candidates (:data:`B1_MAX_CANDIDATES`).
+
+    Returns
+    -------
+    GridSearch
+    """
+    t = np.asarray(QPData(problem, steps, hold).t_nodes, dtype=float)
+    out = GridSearch(t_nodes=t, hold=hold, total=max(0, steps - 1) ** problem.m, candidates=[])
+    for nodes in candidate_nodes(t, [float(x) for x in plan.contact_times], max_candidates):
+        clash = _shared_node_clash(problem, t, nodes)
+        if clash is not None:
+            out.candidates.append(GridCandidate(nodes, st.INFEASIBLE, clash, None))
+            continue
+        at = PMPPlanner().plan(problem, contact_times=t[list(nodes)])
+        if at.trajectory is None or at.cost is None:
+            out.candidates.append(GridCandidate(nodes, at.status, f"the bounded PMP at the node times is {at.status}"
+                                                f" ({at.diagnostics.reason})", None))
+            continue
+        up = upper_plan(problem, at, t, nodes, hold)
+        reason = up.reason
+        if reason is None and not up.equality_residual_rel <= residual_rel:
+            reason = (f"the plan built from the PMP's input misses the QP's equality rows by "
+                      f"{up.equality_residual_rel:.3g} (relative)")
+        out.candidates.append(GridCandidate(nodes, at.status, reason, up))
+        if reason is None:
+            break
+    return out
+
+
+def _qp_infeasible(problem: Problem, pmp: Run, qp: Run, checks: Checks, out: PairJSON) -> PairJSON:
+    """Rule B1 when the bounded PMP has a verified plan and the QP says ``infeasible``."""
+    cfg = qp.config
+    assert cfg is not None
+    p_res, q_res = pmp.result, qp.result
+    search = grid_plan_from_pmp(problem, p_res, cfg.steps, cfg.hold, solver_tol("residual_rel", cfg.solver))
+    out["grid_feasibility"] = search.to_json()
+    t = search.t_nodes
+    grid = f"N = {cfg.steps}, {cfg.hold.upper()}"
+    claim = f"{qp.label} reports infeasible ({q_res.diagnostics.reason})"
+    found = search.plan
+    if found is not None and found.upper is not None:
+        up = found.upper
+        checks.check("qp_infeasible_not_contradicted", None, None, ok=False,
+                     why=f"{claim}, but a plan of its grid ({grid}) exists: contact nodes {list(found.nodes)} "
+                         f"(t = {[round(float(x), 9) for x in t[list(found.nodes)]]}), built from the bounded "
+                         f"PMP's plan re-solved at those times, meets the QP's equality rows to "
+                         f"{up.equality_residual_rel:.3g} and its limit rows to {up.limit_violation_rel:.3g} "
+                         f"(relative), cost {up.cost:.9g}")
+        out["verdict_basis"] = ("the QP's infeasible against a plan of its grid built from the bounded PMP's plan "
+                                "(rule B1)")
+        return checks.finish(out)
+    checks.check("qp_infeasible_not_contradicted", None, None, ok=True)
+    times = [round(float(x), 9) for x in p_res.contact_times]
+    checks.notes.append(f"{qp.label}: {q_res.diagnostics.reason}")
+    checks.notes.append(f"the bounded PMP's plan (status {p_res.status}, cost {plan_cost(p_res):.9g}, contact times "
+                        f"{times}) is a plan of the continuous problem; the QP's grid ({grid}) holds no plan built "
+                        "from it: a property of the grid, not a contradiction, and no optimum is compared")
+    n_box, bad = search.certified_no_plan, search.violating
+    examined = f"{len(search.candidates)} of {search.total} contact-node candidates (nearest t* first)"
+    if search.proved_infeasible:
+        proof = (f"every one of the {search.total} contact-node candidates is certified to hold no plan (the bounded "
+                 "PMP's Farkas certificate of the input box at the node times, or two vehicles on one node with "
+                 "distinct corners), so the grid has no plan: the QP's infeasible is proved")
+    else:
+        proof = (f"examined {examined}: {n_box} certified to hold no plan (the input box infeasible at the node "
+                 "times by the bounded PMP's Farkas certificate, or two vehicles on one node with distinct corners), "
+                 f"{len(bad)} whose plan built from the bounded PMP's plan violates a row of "
+                 f"the QP, {len(search.candidates) - n_box - len(bad)} undecided; the QP's infeasible is not "
+                 "contradicted (not proved: the construction is sufficient, not necessary"
+                 + (", and candidates beyond the budget were not examined)" if len(search.candidates) < search.total
+                    else ")"))
+    checks.notes.append(proof)
+    w = search.worst
+    if w is not None and w.upper is not None:
+        wu = w.upper
+        where = (f"the QP's {wu.worst_row} row at node {wu.worst_node} by {wu.worst_violation_rel:.3g} (relative)"
+                 if wu.worst_row is not None else
+                 f"the QP's equality rows by {wu.equality_residual_rel:.3g} (relative)")
+        checks.notes.append(f"largest violation of a plan built from the bounded PMP's plan: contact nodes "
+                            f"{list(w.nodes)} (t = {[round(float(x), 9) for x in t[list(w.nodes)]]}), {where}")
+    if cfg.contact != "grid":
+        checks.notes.append(f"the grid examined is the uniform grid of N = {cfg.steps} (the {cfg.contact} search "
+                            "starts from it)")
+    how = "proved" if search.proved_infeasible else "not contradicted"
+    out["verdict_basis"] = (f"not comparable (rule B1): the bounded PMP has a plan of the continuous problem and the "
+                            f"QP's grid ({grid}) holds no plan built from it ({how}); the verdict says the two claims "
+                            "are consistent, not that the optima agree")
+    return checks.finish(out)
+
+
 def _verified(plan: Plan) -> bool:
     return plan.status in (st.OPTIMAL, st.LOCAL) and plan.cost is not None and plan.trajectory is not None
 
@@ -605,6 +925,8 @@ def compare_bounded_pmp_qp(problem: Problem, pmp: Run, qp: Run) -> PairJSON:
         checks.fail(f"{qp.label} found a plan within the limits where the PMP certifies the input box infeasible "
                     f"({p_res.diagnostics.reason})")
         return checks.finish(out)
+    if _verified(p_res) and q_res.status == st.INFEASIBLE and cfg is not None:
+        return _qp_infeasible(problem, pmp, qp, checks, out)
     failed_before = len(checks.reasons)  # rule B0's reason does not stop the numeric rules
     if not _verified(p_res):
         checks.fail(f"pmp status {p_res.status}" + (f" ({p_res.diagnostics.reason})" if p_res.diagnostics.reason

@@ -18,6 +18,7 @@ __all__ = [
     "KKTJSON",
     "CheckJSON",
     "ContinuousJSON",
+    "GridFeasibilityJSON",
     "PairJSON",
     "RunGaps",
     "RunJSON",
@@ -100,6 +101,30 @@ class ZohReference(TypedDict):
     rho: float
 
 
+class GridFeasibilityJSON(TypedDict):
+    """Rule B1 of a bounded pair whose QP says ``infeasible`` beside a verified bounded PMP plan:
+    the search for a plan of the QP's grid built from the PMP's plan
+    (:func:`~.bounded_pair.grid_plan_from_pmp`)."""
+
+    steps: int
+    hold: str
+    candidates: int  # contact-node candidates of the grid, (N - 1)^m
+    examined: int  # nearest the PMP's contact times first, at most B1_MAX_CANDIDATES
+    certified_no_plan: int  # the input box infeasible at the node times (Farkas), or a shared node, distinct corners
+    violating: int  # the plan built there violates a row of the QP
+    undecided: int  # the bounded PMP at the node times failed otherwise
+    proved_infeasible: bool  # every candidate examined and certified to hold no plan: the QP's claim is proved
+    worst_candidate: list[int] | None
+    worst_row: str | None
+    worst_node: int | None
+    worst_violation_rel: float | None
+    worst_equality_residual_rel: float | None
+    plan_nodes: list[int] | None  # a plan of the grid (the QP's infeasible contradicted)
+    plan_cost: float | None
+    plan_equality_residual_rel: float | None
+    plan_limit_violation_rel: float | None
+
+
 class PairJSON(TypedDict):
     """One entry of SPEC §5b's ``agreement``: the verdict on a pair of runs ``a``, ``b``.
 
@@ -121,6 +146,7 @@ class PairJSON(TypedDict):
     zoh_gap: NotRequired[ZohGapJSON]
     continuous: NotRequired[ContinuousJSON]
     bounded: NotRequired[dict[str, float | str | None]]  # a bounded problem's pair (rule B6)
+    grid_feasibility: NotRequired[GridFeasibilityJSON]  # a bounded pair, the QP infeasible (rule B1)
     verdict_basis: NotRequired[str]
     verdict: NotRequired[str]
     reasons: NotRequired[list[str]]
