@@ -29,6 +29,12 @@ GOAL_5_X04 = [{"time_step": [90, 100], "velocity": [0.0, 3.1402], "orientation":
                "position": {"center": [24.8131, -41.7294], "length": 2.2773, "width": 1.7518,
                             "orientation": -0.76804}}]
 
+#: USA_US101-12_1804_T-1 (``lanes3``, the same in seeds 17/19/23): three lanes to the left at
+#: 12-18 m/s, past vehicle 363 in the goal's lane.
+GOAL_12_X04 = [{"time_step": [70, 80], "velocity": [12.2309, 18.2309], "orientation": [-0.8014, -0.6269],
+                "position": {"center": [77.1144, -59.0378], "length": 2.1283, "width": 1.6371,
+                             "orientation": -0.72962}}]
+
 
 def _verdict(cr: Any, rp: Any) -> Any:
     from iamp.commonroad.check import check
@@ -88,24 +94,30 @@ def test_the_road_frame_model_is_the_checkers_simulation() -> None:
 
 
 @needs_data
-@pytest.mark.parametrize("name, goal", [
-    ("USA_US101-5_1802_T-1", GOAL_5_X02),
-    pytest.param("USA_US101-5_1804_T-1", GOAL_5_X04, marks=pytest.mark.slow),  # 20-30 s on a loaded machine
+@pytest.mark.parametrize("source, name, goal", [
+    ("USA_US101-5_1_T-1.xml", "USA_US101-5_1802_T-1", GOAL_5_X02),
+    pytest.param("USA_US101-5_1_T-1.xml", "USA_US101-5_1804_T-1", GOAL_5_X04,
+                 marks=pytest.mark.slow),  # 20-30 s on a loaded machine
+    pytest.param("USA_US101-12_1_T-1.xml", "USA_US101-12_1804_T-1", GOAL_12_X04, marks=pytest.mark.slow),
 ])
-def test_a_low_speed_lane_change_that_must_end_straight_is_steered_on_the_model(tmp_path: Path, name: str,
-                                                                                goal: Any) -> None:
+def test_a_lane_change_the_tracked_car_cannot_follow_is_steered_on_the_model(tmp_path: Path, source: str, name: str,
+                                                                             goal: Any) -> None:
     """5_x02 / 5_x04 as ``KS``: two or three lanes to the right, ending at most 3.14 m/s with the
     heading within [-0.01, 0.165] rad of the lane's.  The plan tracked by the ``KS`` model ends
     turned 0.1-0.26 rad to the right (the plan straightens in under a second at 3-7 m/s; the
     steering angle turns at most 0.4 rad/s): goal missed, or the steered-rate corridor plan
     meets a vehicle.  Now the ``KS`` inputs are optimised directly from the tracked solution:
-    valid by CommonRoad's checker (its own ``KS`` feasibility test included)."""
+    valid by CommonRoad's checker (its own ``KS`` feasibility test included).  12_x04: three
+    lanes to the left at 12-18 m/s, cutting in ahead of vehicle 363 at the window's start; the
+    point-mass plan swerves 0.34 rad off the lane in its last second and the tracked car, 1.1 m
+    off it, meets 363; optimised from that plan cut to an earlier final step of the window it is
+    valid."""
     from test_commonroad_unseen import with_goal
 
     from iamp.commonroad.convert import load
     from iamp.commonroad.planning import _plan_road, ks_engine, plan
 
-    cr = load(with_goal(tmp_path, "USA_US101-5_1_T-1.xml", name, goal))
+    cr = load(with_goal(tmp_path, source, name, goal))
     engine = ks_engine(2)
     before = _plan_road(cr, engine=engine)
     assert before.trajectory is not None

@@ -61,8 +61,12 @@ W_HARD = 10.0
 W_PULL = 0.02
 #: A vehicle's box farther along the road than this from the starting body at a step is left out.
 NEAR_S_M = 15.0
-#: Evaluations of the residuals and their Jacobian (``least_squares``'s ``max_nfev``).
+#: Evaluations of the residuals and their Jacobian per optimisation (``least_squares``'s ``max_nfev``).
 MAX_EVALUATIONS = 150
+#: Final steps tried for each starting solution, relative to its own (inside the goal's window).
+STEP_OFFSETS = (0, -4, 4, -2, 2)
+#: Evaluations of every optimisation of one problem together (a count, never a time).
+PROBLEM_EVALUATIONS = 600
 #: Forward-difference step of the Jacobian.
 FD_STEP = 1e-5
 
@@ -240,8 +244,23 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def retimed(start: KSTrajectory, steps: int) -> KSTrajectory:
+    """``start`` cut to ``steps`` steps, or continued to them with zero inputs (its last state
+    held: only the inputs, the initial steering angle and the centres' rough whereabouts are used
+    by :func:`refine`)."""
+    K = len(start.inputs)
+    if steps <= K:
+        return KSTrajectory(start.states[:steps + 1], start.inputs[:steps], start.centre[:steps + 1],
+                            start.deviation_m, start.vehicle_type)
+    extra = steps - K
+    return KSTrajectory(np.vstack([start.states, np.repeat(start.states[-1:], extra, 0)]),
+                        np.vstack([start.inputs, np.zeros((extra, 2))]),
+                        np.vstack([start.centre, np.repeat(start.centre[-1:], extra, 0)]),
+                        start.deviation_m, start.vehicle_type)
+
+
 def refine(cr: CommonRoadProblem, start: KSTrajectory, cand: Candidate,
-           max_evaluations: int = MAX_EVALUATIONS) -> KSTrajectory | None:
+           max_evaluations: int = MAX_EVALUATIONS) -> tuple[KSTrajectory | None, int]:
     """The ``KS`` solution of the module docstring, optimised from ``start`` (a tracked solution
     over ``cand.steps`` steps ending in ``cand``'s goal state), or None when the optimum is not
     accepted (a vehicle, the road or the goal not met by the checker's own simulation).
@@ -258,12 +277,13 @@ def refine(cr: CommonRoadProblem, start: KSTrajectory, cand: Candidate,
 
     Returns
     -------
-    KSTrajectory or None
+    (KSTrajectory or None, int)
+        The solution and the evaluations spent.
     """
     from scipy.optimize import least_squares
 
-    if cand.steps < 2 or cand.element >= len(cr.goal.elements):
-        return None
+    if cand.steps < 2 or cand.element >= len(cr.goal.elements) or max_evaluations < 1:
+        return None, 0
     p = _params(start.vehicle_type)
     m = _Model(cr, cand, p, start)
     n = m.z0.size
@@ -281,7 +301,7 @@ def refine(cr: CommonRoadProblem, start: KSTrajectory, cand: Candidate,
     # lsmr: matrix-vector products only (a dense SVD per iteration spins every BLAS thread)
     sol = least_squares(fun, m.z0, jac=jac, bounds=(m.lo, m.hi), method="trf", tr_solver="lsmr",
                         max_nfev=max_evaluations)
-    return _accept(cr, cand, m, np.clip(sol.x, m.lo, m.hi), start)
+    return _accept(cr, cand, m, np.clip(sol.x, m.lo, m.hi), start), int(sol.nfev)
 
 
 def _accept(cr: CommonRoadProblem, cand: Candidate, m: _Model, z: FloatArray,

@@ -608,7 +608,10 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     the plan is not valid by iamp's own tests (the plan unsafe, or the tracked car missing the
     goal or entering a vehicle's box, :func:`steered_valid`), the ``KS`` inputs are optimised
     directly (:func:`iamp.commonroad.ks_refine.refine`), from the tracked solution of this plan
-    and then of the point-mass pipeline's plan (``engine=None``); the first accepted is returned
+    and then of the point-mass pipeline's plan (``engine=None``), each cut or continued to its
+    own final step and then to the steps :data:`~iamp.commonroad.ks_refine.STEP_OFFSETS` away
+    inside the goal's window, within
+    :data:`~iamp.commonroad.ks_refine.PROBLEM_EVALUATIONS` evaluations; the first accepted is returned
     (``iamp_status`` ``steered-refined``, its trajectory a
     :class:`~iamp.commonroad.ks_refine.SteeredTrajectory`).  Plans whose steered solution passes
     are returned unchanged.
@@ -620,24 +623,41 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     if vehicle_type is None or planner == "free" or steered_valid(cr, rp, int(vehicle_type)):
         return rp
     from iamp.commonroad.ks import track
-    from iamp.commonroad.ks_refine import SteeredTrajectory, refine
+    from iamp.commonroad.ks_refine import (
+        MAX_EVALUATIONS,
+        PROBLEM_EVALUATIONS,
+        STEP_OFFSETS,
+        SteeredTrajectory,
+        refine,
+        retimed,
+    )
 
     start = time.perf_counter()
     starts = [rp] if rp.trajectory is not None and rp.candidate is not None else []
     pm = _plan_road(cr, planner, engine=None, **kw)
     if pm.safe and pm.candidate is not None:
         starts.append(pm)
+    left = PROBLEM_EVALUATIONS
     for p in starts:
         assert p.trajectory is not None and p.candidate is not None
-        ks = refine(cr, track(cr, p.trajectory, p.candidate.steps, int(vehicle_type)), p.candidate)
-        if ks is None:
-            continue
-        assert engine is not None
-        traj = SteeredTrajectory(cr, ks, float(engine[3]), float(engine[4]))
-        h, peak = _heading_and_peak(traj, p.candidate.tf)
-        return RoadPlan(rp.planner, "optimal", p.candidate, traj, traj.cost(),
-                        rp.solve_time_s + time.perf_counter() - start, list(p.imposed), [], "steered-refined",
-                        rp.candidates_tried, None, h, peak, rp.plans_used, steered_goal=True, steered=ks)
+        cand = p.candidate
+        tracked = track(cr, p.trajectory, cand.steps, int(vehicle_type))
+        lo, hi = cr.goal.elements[cand.element].steps if cand.goal_step >= 0 else (cand.steps, cand.steps)
+        for off in STEP_OFFSETS:  # the starting solution's own final step, then earlier and later ones
+            if not (lo <= cand.goal_step + off <= hi and cand.steps + off >= 2 and left > 0):
+                continue
+            c = dataclasses.replace(cand, steps=cand.steps + off, tf=(cand.steps + off) * cr.dt,
+                                    goal_step=cand.goal_step + off)
+            ks, used = refine(cr, retimed(tracked, c.steps), c, min(MAX_EVALUATIONS, left))
+            left -= used
+            if ks is None:
+                continue
+            assert engine is not None
+            traj = SteeredTrajectory(cr, ks, float(engine[3]), float(engine[4]))
+            h, peak = _heading_and_peak(traj, c.tf)
+            return RoadPlan(rp.planner, "optimal", c, traj, traj.cost(),
+                            rp.solve_time_s + time.perf_counter() - start, list(p.imposed), [], "steered-refined",
+                            rp.candidates_tried, None, h, peak, rp.plans_used, steered_goal=True, steered=ks)
     rp.solve_time_s += time.perf_counter() - start
     return rp
 
