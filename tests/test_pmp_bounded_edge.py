@@ -204,3 +204,17 @@ def test_a_feasible_island_the_search_missed_is_found_by_the_certificate() -> No
     ev = B._Evaluator(problem)
     scan = [ev(np.array([s * T]))[0] for s in np.linspace(0.6740, 0.6800, 61)]
     assert sum(np.isfinite(scan)) > 40 and plan.cost <= min(scan) * (1 + 1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 32 item 4, open: the dual's noise beside a lower feasibility edge")
+def test_a_minimum_at_a_lower_edge_with_the_dual_below_the_plan_is_certified() -> None:
+    """Found by test_bounded_random's many-example property with fresh draws (2026-11-29; the same
+    at cb0240f): random_problem(166) at 0.8872 is ``local`` at 2.144495982774 with its minimum at
+    the lower edge of the feasible contact times (``t ≈ 0.5640373267 t_f``), while the bounded QP
+    (N = 60, refined contact time) converges; the certificate stops with 2126 solves: just above
+    the edge the dual values at interval centres are 2.1444959784, 2e-9 (relative) below the plan,
+    above the ``BETTER_REL`` restart and below the ``1e-9`` target, and the intervals at the edge
+    itself stay ``unknown`` (684 of them, down to ``1.4e-12 t_f``)."""
+    problem = boxed(166, 1, 0.8872161667849776)
+    assert problem is not None
+    assert PMPPlanner().plan(problem).status == stc.OPTIMAL
