@@ -433,10 +433,10 @@ def _compile_kernels(notes: list[str]) -> None:
     otherwise be that case's one sample).  Without numba a note says that the kernel runs as plain
     Python and how to install it."""
     from iamp.planners.avoid.planner import AvoidQPPlanner
+    from iamp.planners.examples import overtake_problem
     from iamp.planners.pmp import jit
 
     from .avoid import STEPS as AVOID_STEPS
-    from .avoid import overtake_problem
 
     if not jit.available():
         notes.append("numba is not installed: the compiled kernels run as plain Python "
