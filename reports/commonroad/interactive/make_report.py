@@ -51,10 +51,11 @@ NOTES: dict[str, str] = {
         "episode lists near the goal). Both were 23-101 m ahead of the ego along the"
         " road for the whole episode, so the ego was never their leader (SUMO's car following reacts to the "
         "car ahead): no course of the ego would have cleared the region, and arriving later or slower does "
-        "not help (the window ends at 10.4 s, 502 is still in it). The ego changes one lane toward the goal "
-        "at 0.0 s and into the goal lane from 6.0 s; a lane change toward 518, which braked from 14 to 8 m/s,"
-        " is given up at 7.0 s when it no longer holds under the newest predictions, and the ego brakes (4 "
-        "fail-safe brakes, min gap 7.3 m, no contact; finishing that lane change had run into 518, "
+        "not help (the window ends at 10.4 s, 502 is still in it). From 6.0 s no replan finds a safe plan "
+        "(vehicle 518 in the way, braking from 14 to 8 m/s); the ego keeps its plan while it stays clear and "
+        "brakes (8 fail-safe brakes, min gap 11.4 m, no contact). With the tactical layer (the reports up to "
+        "3b8b614) it changed lanes at 0.0 and 6.0 s and gave up a lane change toward 518 at 7.0 s (4 fail-safe "
+        "brakes, min gap 7.3 m; finishing that lane change had run into 518, "
         "`test_a_lane_change_under_way_is_given_up_when_the_car_ahead_slows`)."),
     "USA_US101-27_4_I-1-1": (
         "**the goal could only be reached on a course ending in a contact.** It asks for at least 20.25 m/s at "
@@ -67,36 +68,32 @@ NOTES: dict[str, str] = {
         "`test_the_reports_unreachable_goals_recomputed_from_the_episode`); from 7.5 s 345 covers the rest. "
         "340 and 345 were ahead of the ego all episode (never following it). The ego brakes behind 345 "
         "at 0.9 a_max as RSS's stop test requires (leader braking at 4-5 m/s^2 while predicted to slow "
-        "gently), min gap 8.7 m; without that test the gentlest braking clear of the prediction ran into 345 "
+        "gently), min gap 9.2 m (8.7 m on 3b8b614); without that test the gentlest braking clear of the "
+        "prediction ran into 345 "
         "at 8.0 s (`test_failsafe_stops_behind_a_leader_that_brakes_within_rss`)."),
     "USA_US101-24_1_I-1-1": (
-        "**the goal lies beyond a row of braking cars across four lanes.** The goal asks for 13.5-19.5 m/s at"
-        " s 233.4-235.5 m in lane 3 at 11.9-12.9 s. The ego changes one lane toward it at 0.0 s and two more "
-        "times from 8.5 s; from 8 s SUMO's vehicles 42 (lane 2), 55 (lane 3, the goal's), 57 (lane 4) and 49 "
-        "(lane 5) drive side by side 9-22 m ahead of it (at 10.0 s: +12.0, +11.5, +10.9, +13.5 m, 5.5-7.8 "
-        "m/s) and slow to 1-4 m/s by 13 s, 51 stands at s 232 m between lanes 2 and 3; the ego brakes behind "
-        "55 (min gap 4.5 m, no contact). The region itself stays free (11 of 11 steps), but reaching it means"
-        " passing that row, which leaves no lane free after 8 s. Passing 55 before it slowed (it drove "
-        "14.6-16.3 m/s until 6 s, 21-25 m ahead of the ego, with 57 in lane 4 7-12 m ahead of the ego and 42 "
-        "in lane 2 beside 55) would have needed the ego to know at 4 s that the whole row would stop; the "
-        "predictor, fitted to 3 s of observed history, does not, so whether a contact-free course existed "
-        "with hindsight is not decided here."),
+        "**the goal lies beyond a row of cars across four lanes that stops short of it; not proved out of "
+        "reach.** The goal asks for 13.5-19.5 m/s at s 233.4-235.5 m in the lane at d 7.2 m (two lanes left "
+        "of the ego's) at 11.9-12.9 s. The ego's plans toward it move it left at 14-15 m/s behind vehicle 55 "
+        "(goal lane); from 6 s SUMO's vehicles 42 (d 3.7), 55 (d 7.2), 57 (d 10.5) and 49 (d 13.8) slow side "
+        "by side (at 10.0 s: s 217.1, 216.6, 216.1, 218.7 m, 5.3-7.7 m/s; at 12.0 s 2.2-6.0 m/s), ahead of them "
+        "51 stands half across the line between d 3.7 and 7.2 (d 4.7-5.4, 0.7 m/s at s 232 m at 12 s) and 31 "
+        "stands at s 244.8 m from 8 s; the ego brakes behind 55 (fail-safe from 8.5 s, min gap 4.2 m, no "
+        "contact). The region stays free (11 of 11 steps, all clear after), and only the ego's own lane (d 0) "
+        "is empty, so reaching the goal means passing the row in that lane and then crossing the lane at "
+        "d 3.7 ahead of 42 and behind 51 -- a gap of 7.1 m bumper to bumper at 10.0 s, 4.9 m at 11.0 s "
+        "(the ego is 4.5 m long) -- into the goal lane ahead of 55, at 13.5 m/s or more by the goal. Before 6 s "
+        "the row drove 14-17 m/s and the predictor (3 s of history) shows no stop. Given the vehicles "
+        "exactly as SUMO drove them in this episode (its step log), iamp's offline road planner from the "
+        "initial state (final-state search on or off) finds no safe plan (its best meets 55, 1.5 m deep; the "
+        "same with seed 2's episode), while on 23_1's episode with the tactical layer, which missed its "
+        "goal, it finds one. The planner is not complete and SUMO reacts to the ego, so "
+        "this is no proof; seeds 1 and 2 miss it without contact (the tactical layer also missed it)."),
     "USA_US101-23_1_I-1-1": (
-        "**the goal is free for 0.4 s of its window, only ahead of a car that stops in it.** Three lanes over"
-        " (s 265-267 m, 13.6-19.6 m/s, 13.0-14.0 s). The ego changes lane at 0.0 s and 3.0 s (the goal is "
-        "three, then two lanes over) and again at 7.3 s; vehicle 96 brakes from 19.8 m/s (11 s) to 12.5 m/s "
-        "(13 s) in the goal lane and stands in the goal region from 13.4 s (`goal_occupancy`: 4 of 11 steps "
-        "free, 13.0-13.3 s, each only ahead of 96); the ego brakes behind it (fail-safe from 13.1 s, min gap "
-        "1.0 m, no contact). The ego lost the race for the gap ahead of 96 early: at 3.1 s it was 3.6 m ahead "
-        "of 96 (two lanes over, 16.7 m/s), but its one-lane change into lane 3 ended behind 91 (15 m/s) at "
-        "13.9 m/s, and it drove 11-14 m/s behind 91 until 7.5 s while 96 went on at 16-18 m/s. "
-        "A run on 4e11bff (before ebba735) ended against 96 at 14.0 s, at fault: the "
-        "tactical layer had taken the offline planner's two-stage plan around a vehicle (waypoints at 30 and "
-        "70 % of the horizon, 0342443) as a fourth lane change at 6.5 s; a lane change is now one plan into "
-        "the next lane (`plan(via=False)`, tests/test_commonroad_interactive_tactical.py). Reaching the goal "
-        "needed the ego ahead of 96 in lane 4 by about 13 s: entering lane 4 in the 18 m gap between 96 and "
-        "83 at about 5 s, i.e. passing 91 first -- a manoeuvre across two lanes of moving traffic that the "
-        "tactical layer (one lane at a time, RSS distances) did not find."),
+        "reaches its goal since 660d611 (the tactical layer off by default): at 13.2 s, 18 m ahead of "
+        "vehicle 96, which stands in the goal region from 13.4 s. With the layer (the reports up to 3b8b614) "
+        "its lane change at 3.0 s ended behind vehicle 91 at 14 m/s while 96 went on at 16-18 m/s, and the "
+        "ego braked behind 96 (goal missed, no contact)."),
 }
 
 
@@ -110,7 +107,8 @@ those the one entering the static road-edge boxes least. The fail-safe brakes at
 distance to the vehicle ahead. After a fail-safe brake the ego replans at the next step toward the
 goal's whole remaining window; the predictions reach at least 3 s ahead.
 
-**Lane by lane (the change measured here, `iamp/commonroad/tactical.py`, column `lane changes`)**: a
+**Lane by lane (`iamp/commonroad/tactical.py`, column `lane changes`; off by default since
+660d611, below)**: a
 goal two or more lanes over whose cheapest final state is at least 6 s ahead is approached one lane
 at a time (lanes followed along the lanelet network) before its plan is tried, and where the loop
 would otherwise start a new fail-safe brake a lane change one lane toward the goal's lane is offered
@@ -196,6 +194,30 @@ sequence accepted falls in behind, and 96 stops in the goal from 13.4 s) and 24_
 the goal lane slows to 2.3 m/s by 12 s and stands just short of the goal while 57 and 42 slow
 alongside in the other lanes); neither is proved impossible.
 
+**This report (session of 2026-11-29, eighth; main 2fcb3a1: the change of 660d611 and the planner
+commits since 3b8b614)**: the tactical layer is **off by default** (`simulate(..., tactical=True)`
+turns it on; column `lane changes` 0 everywhere) and the fail-safe, where no braking that only stops
+the lateral motion keeps clear, tries the same braking returning the ego to rest at its lane's
+centre over 1.5 s within a_max (`Braking(..., d_end=)`, `failsafe(..., lane_d=)`;
+`tests/test_interactive_failsafe_return.py`). **USA_US101-23_1 now reaches its goal** (13.2 s; SUMO
+seed 2: 13.7 s; seed 3: 13.8 s, measured before the planner commits; 0 contacts;
+`tests/test_interactive_lanes.py`): without the layer's lane change at 3.0 s, which had ended behind
+vehicle 91 at 14 m/s, the road planner's own plans pass 91 and 96 at up to 21 m/s and arrive 18 m
+ahead of 96 before it stops in the goal region. A variant that kept the layer but tried the goal's
+plan before each early lane change missed 23_1 and, in it, SUMO inserted vehicle 75 at 3.3 s 0.24 m
+ahead of the ego's front and 0.5 m beside its body in the lane it was changing into; every braking
+of the old fail-safe drifted on into 75 (a contact at fault at 3.6 s); with the return to the lane's
+centre the same run had no contact. 2_1, 24_1 (seeds 1 and 2) and 27_4 miss, without contact; 2_1
+and 27_4 as proved before (recomputed from these episodes by
+`test_the_reports_unreachable_goals_recomputed_from_the_episode`), 24_1 not proved (below). Seed 1
+here: **54 of 57**, 0 contacts, 25 fail-safe brakes; against the report of 3b8b614 only 23_1
+(reached), 24_1 and 2_1 (no lane changes; 2_1 8 fail-safe brakes instead of 4, min gap 11.4 m) and
+5_1 (goal at 9.0 s instead of 9.3 s: the planner commits, the same 9.0 s with 2fcb3a1's planners and
+3b8b614's loop) differ. **SUMO seed 2 on all 57 scenes** (the same code, the command above with
+`--seed 2`): **54 of 57** (23_1 at 13.7 s; 2_1, 24_1, 27_4 miss, 2_1 with its goal occupied for the
+whole window, 27_4 with no free step clear after), 0 contacts, no SUMO-only report, 24 fail-safe
+brakes.
+
 Same command, same episode: no decision depends on the clock (the planners' budgets are counts)."""
 
 
@@ -260,7 +282,8 @@ def main(out: Path) -> None:
         "",
         "Columns: time to goal vs the goal's window; contacts at fault / not at fault / SUMO-only reports; "
         "fail-safe brakes (braking in the lane chosen over the new and the kept plan); lane changes = lane changes "
-        "of the tactical layer started (`iamp/commonroad/tactical.py`); `free` = steps of the "
+        "of the tactical layer started (`iamp/commonroad/tactical.py`, off by default since 660d611); "
+        "`free` = steps of the "
         "goal window at which the goal region had room for the ego's body among the observed vehicles "
         "(`goal_occupancy`, given where the goal was missed: 0 means no plan could have reached the goal "
         "without a contact) / of which also `clear after` (from a free position at the goal's lowest speed the ego "
