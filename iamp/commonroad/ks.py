@@ -243,7 +243,9 @@ def track(cr: CommonRoadProblem, trajectory: Trajectory, steps: int, vehicle_typ
     path by the previous pass's along-path error at the time steps (iterative learning control:
     the speed loop's systematic lag is taken out); the pass with the smallest largest deviation
     is kept.  The
-    number of passes is fixed, so the result is the same on any machine.
+    number of passes is fixed, so the result is the same on any machine.  A plan that is a
+    steered solution already (:class:`iamp.commonroad.ks_refine.SteeredTrajectory`, the inputs
+    optimised on the model) is that solution.
 
     Parameters
     ----------
