@@ -30,9 +30,10 @@ from iamp.core import status as stc
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.pmp import bounded as B
 from iamp.planners.pmp.reach import AxisReach, _terms
+from iamp.planners.qp.bounded import BoundedQP
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_bounded_random import boxed
+from test_bounded_random import boxed, check
 
 N_GRID = 300
 
@@ -206,15 +207,39 @@ def test_a_feasible_island_the_search_missed_is_found_by_the_certificate() -> No
     assert sum(np.isfinite(scan)) > 40 and plan.cost <= min(scan) * (1 + 1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 32 item 4, open: the dual's noise beside a lower feasibility edge")
-def test_a_minimum_at_a_lower_edge_with_the_dual_below_the_plan_is_certified() -> None:
+def test_a_minimum_at_a_lower_edge_past_a_stalled_solve_is_certified() -> None:
     """Found by test_bounded_random's many-example property with fresh draws (2026-11-29; the same
-    at cb0240f): random_problem(166) at 0.8872 is ``local`` at 2.144495982774 with its minimum at
-    the lower edge of the feasible contact times (``t ≈ 0.5640373267 t_f``), while the bounded QP
-    (N = 60, refined contact time) converges; the certificate stops with 2126 solves: just above
-    the edge the dual values at interval centres are 2.1444959784, 2e-9 (relative) below the plan,
-    above the ``BETTER_REL`` restart and below the ``1e-9`` target, and the intervals at the edge
-    itself stay ``unknown`` (684 of them, down to ``1.4e-12 t_f``)."""
-    problem = boxed(166, 1, 0.8872161667849776)
+    at cb0240f): random_problem(166) at 0.8872 was ``local`` at 2.144495982774.  The x-axis solve
+    stalls (no plan, no Farkas certificate) at a feasible contact time ``5.6e-13 t_f`` below the
+    plan's, where the search's bisection stopped as at the lower edge of the feasible times; the
+    edge is ``9.3e-10 t_f`` lower, with ``J_b`` ``2.5e-9`` (relative) lower there, so the
+    certificate's dual values rightly stayed below the plan (by less than ``BETTER_REL``) and it
+    never closed.  The search now looks past a bisected edge
+    (:data:`~iamp.planners.pmp.bounded.EDGE_BEYOND`): ``optimal`` at the true edge.  Checked
+    against the bounded FOH QP (N = 60, refined contact time, ``local`` at 2.16495, 0.9 % above;
+    N = 240 through the plan's contact time: :func:`test_bounded_random.check`), the FOH QP at
+    N = 240 through contact times across
+    the feasible ones (a restriction: never below the minimum), and a fine scan of ``J_b`` from
+    beyond the edge."""
+    scale = 0.8872161667849776
+    assert check(166, 1, scale) in (f"{stc.OPTIMAL}/{stc.OPTIMAL}", f"{stc.OPTIMAL}/{stc.LOCAL}")
+    problem = boxed(166, 1, scale)
     assert problem is not None
-    assert PMPPlanner().plan(problem).status == stc.OPTIMAL
+    plan = PMPPlanner().plan(problem)
+    assert plan.status == stc.OPTIMAL and plan.cost is not None
+    assert plan.info["search"].get("feasibility_edge") == "lower"
+    T, t = float(problem.tf), float(plan.contact_times[0])
+    qp = BoundedQP(problem, 240, "foh", "clarabel")
+    sweep = [qp.solve_times(np.array([x])) for x in [*(np.linspace(0.01, 0.99, 50) * T),
+                                                     *(t + np.geomspace(1e-7, 3e-2, 25) * T)]]
+    costs = [r.cost for r in sweep if r.status == stc.OPTIMAL and r.cost is not None]
+    assert len(costs) >= 15 and min(costs) >= plan.cost * (1 - 1e-9)
+    at = qp.solve_times(np.array([t]))
+    assert at.status == stc.OPTIMAL and at.cost is not None
+    assert plan.cost * (1 - 1e-9) <= at.cost <= plan.cost * (1 + 1e-7)
+    ev = B._Evaluator(problem)
+    scan = [ev(np.array([t + k * 1e-10 * T]))[0] for k in range(-30, 61)]
+    # the scan starts beyond the edge and crosses the former plan's contact time (+9.3e-10 t_f)
+    assert not np.isfinite(scan[0]) and sum(np.isfinite(scan)) > 55
+    assert plan.cost <= min(scan) * (1 + 1e-9)
+    assert plan.cost < 2.144495982773867 * (1 - 1e-9)  # below the former local plan

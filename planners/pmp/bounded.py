@@ -132,6 +132,10 @@ EDGE_TAYLOR = 1e-8
 #: narrowed it below this (over ``t_f``); wider ones are halved as before (most close so).
 REACH_BELOW = 1e-4
 
+#: Distances (over ``t_f``) past a feasibility edge found by bisection at which the one-vehicle
+#: search looks for feasible times beyond an axis solve's stall (:func:`_feasible_edge`).
+EDGE_BEYOND = (1e-11, 1e-10, 1e-9, 1e-8)
+
 #: :func:`certify_global_one` stops where the dual value at an interval's centre (``J_b`` there)
 #: is below ``J_best`` by this much (relative): the search missed a better contact time.
 BETTER_REL = 1e-6
@@ -1366,6 +1370,12 @@ class _Evaluator:
             self._done[(x,)] = (J, r.copy(), lams)
         return float(r[0])
 
+    def known_r(self, x: float) -> float:
+        """One vehicle: :meth:`r_one` without touching the warm starts' memory when ``x`` was
+        evaluated already (a bisected edge; its multipliers are the latest remembered)."""
+        done = self._done.get((x,))
+        return float(done[1][0]) if done is not None else self.r_one(x)
+
     def _solve(self, t: FloatArray, times: list[float]) -> tuple[float, FloatArray, list[list[float]] | None]:
         T = self.T
         m = len(times)
@@ -1582,7 +1592,34 @@ def _feasible_edge(ev: _Evaluator, inside: float, outside: float, T: float, poin
                    i: int = 0) -> float:
     """The feasible contact time nearest the edge of the feasible set between a feasible
     ``inside`` and an infeasible ``outside`` (bisection to ``1e-12 t_f``); with ``point`` (several
-    vehicles), of contact time ``i`` with the others at ``point``'s."""
+    vehicles), of contact time ``i`` with the others at ``point``'s.
+
+    One vehicle: an axis solve can stall (no plan, no Farkas certificate) at a feasible time
+    next to the edge, and bisection then stops at a false edge.  Where ``J_b`` falls towards the
+    edge found (a minimum may be at it; ``r`` read at that time, which beside a false edge keeps
+    its digits; at a true one it may not, and the tries are wasted), the times
+    :data:`EDGE_BEYOND` ``t_f`` past it are tried (an infeasible try leaves no warm start
+    behind); a feasible one restarts the bisection from it, at most 8 times (random_problem(166) at
+    0.8872: a stall ``5.6e-13 t_f`` past the plan's contact time, the edge ``9.3e-10 t_f``
+    further, ``J_b`` there ``2.5e-9`` (relative) lower)."""
+    if point is None:
+        far = outside
+        for _ in range(8):
+            edge = _bisect_edge(ev, inside, far, T, None, 0)
+            step = math.copysign(1.0, far - edge)
+            if not ev.known_r(edge) * step < 0:  # J_b does not fall towards the edge: no minimum there
+                return edge
+            beyond = [edge + step * d * T for d in EDGE_BEYOND if abs(d * T) < abs(far - edge)]
+            inside = next((x for x in beyond if math.isfinite(ev(np.array([x]))[0])), edge)
+            if inside == edge:
+                return edge
+        return inside
+    return _bisect_edge(ev, inside, outside, T, point, i)
+
+
+def _bisect_edge(ev: _Evaluator, inside: float, outside: float, T: float, point: FloatArray | None,
+                 i: int) -> float:
+    """The bisection of :func:`_feasible_edge` (a stalled solve counts as infeasible)."""
     while abs(outside - inside) > 1e-12 * T:
         mid = 0.5 * (inside + outside)
         if mid in (inside, outside):
