@@ -118,16 +118,54 @@ def test_three_vehicles_with_an_infeasible_unbounded_start_find_a_plan() -> None
     assert pmp.info["search"]["feasible_start"]["feasible"] > 0
 
 
-@pytest.mark.xfail(strict=True, reason="issue 32 item 4, open: r_i turns within float steps of an edge")
-def test_three_vehicles_whose_feasible_times_are_a_sliver_end_verified() -> None:
+def test_a_time_held_at_an_edge_is_released_once_j_b_falls_away_from_it() -> None:
     """Found by 400 generated three-vehicle problems with the box at 0.55-0.90 of the peaks
-    (2026-11-29; also 148435 at 0.7157 and 539214 at 0.7162): ``inaccurate`` (Hamiltonian-jump
-    check 0.99).  The contact times admit plans (``J_b`` is finite at the plan's and the edge
-    polish reaches ``J_b`` 2551 from 3016 with ``t_1`` held at its upper edge, where ``r_1`` turns
-    from -5e3 to +2e7 within the last float steps), but no verified plan is made; the FOH QP
-    sweep finds no plan at ``N`` = 8, 12, 16 (the feasible set is a sliver)."""
-    problem = boxed(217970, 3, 0.7252116774550526)
+    (2026-11-29): random_problem(217970, m=3) at 0.7252 was ``inaccurate`` (Hamiltonian-jump check
+    0.99).  At the search's end ``J_b`` fell along ``t_1`` towards its upper edge (``r_1 = -5e3``),
+    so the edge polish held ``t_1`` there; once the polish had moved ``t_2`` (3.64 -> 3.19),
+    ``J_b`` rose towards that edge instead (``r_1`` from ``+2e3`` at ``1e-3 t_f`` inside to
+    ``+1.5e7`` at ``1e-10 t_f``), but ``t_1`` stayed held at 2551.05.  A held time whose slope
+    points into the feasible set, at the edge and ``EDGE_PROBE t_f`` inside, is now released
+    and the Newton polish moves every time: ``local`` at 2489.03, stationary.  The FOH QP at N = 8
+    has no plan (the feasible times are a sliver); at N = 240 through the plan's contact times it
+    does, at or above the cost and within 2e-3, and no feasible contact times ``1e-5 .. 1e-3 t_f``
+    from the plan's have a lower ``J_b``."""
+    from iamp.planners.qp.bounded import BoundedQP
+
+    seed, scale = 217970, 0.7252116774550526
+    assert check(seed, 3, scale).startswith("local/")
+    problem = boxed(seed, 3, scale)
     assert problem is not None
     pmp = PMPPlanner().plan(problem)
-    assert math.isfinite(B._Evaluator(problem)(np.array(pmp.contact_times, dtype=float))[0])
+    assert pmp.status == stc.LOCAL and pmp.cost is not None, pmp.info.get("failed_check")
+    assert pmp.info["checks"]["hamiltonian_jump"]["ok"]
+    assert pmp.cost < 2551.0538401148037 * (1 - 1e-3)  # below the former held stop
+    t = np.array(pmp.contact_times, dtype=float)
+    at = BoundedQP(problem, 240, "foh", "clarabel").solve_times(t)
+    assert at.status == stc.OPTIMAL and at.cost is not None
+    assert pmp.cost * (1 - 1e-9) <= at.cost <= pmp.cost * (1 + 2e-3)
+    T = float(problem.tf)
+    ev = B._Evaluator(problem)
+    feasible = 0
+    for i in range(3):
+        for d in (-1e-3, -1e-4, -1e-5, 1e-5, 1e-4, 1e-3):
+            z = t.copy()
+            z[i] += d * T
+            J = ev(z)[0]
+            feasible += math.isfinite(J)
+            assert not J < pmp.cost * (1 - 1e-9), (i, d, J)
+    assert feasible >= 9
+
+
+@pytest.mark.xfail(strict=True, reason="issue 32 item 4, open: no contact time within EDGE_PROBE of an edge")
+def test_three_vehicles_whose_search_ends_non_stationary_away_from_edges_end_verified() -> None:
+    """Of the 400 generated three-vehicle problems (box at 0.55-0.90 of the peaks) that ended
+    ``inaccurate``: random_problem(148435, m=3) at 0.7157 (and 539214 at 0.7162) still do
+    (Hamiltonian-jump check 0.54; ``r`` = (4334, -210, -29) at the search's end): no contact time
+    has an edge within ``EDGE_PROBE t_f`` along its descent, so the edge polish does not apply;
+    and ``J_b`` rises by 6.8e-4 ``EDGE_PROBE t_f`` below ``t_0`` although ``r_0 = +4334`` predicts a
+    fall of 0.03 there (a kink of ``J_b`` in ``t_0``, or ``r_0`` without its digits)."""
+    problem = boxed(148435, 3, 0.7157)
+    assert problem is not None
+    pmp = PMPPlanner().plan(problem)
     assert pmp.status in (stc.OPTIMAL, stc.LOCAL), pmp.info.get("failed_check")

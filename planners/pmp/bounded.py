@@ -1764,7 +1764,12 @@ def _edge_polish(ev: _Evaluator, x: FloatArray, T: float, rounds: int = 10
     (``J_b`` rises again just inside the edge), Brent's method finds its root between the edge
     and the probe, as :func:`_edge_candidate` for one vehicle.  Either way the time is held
     while :func:`_newton_polish` moves the others (its central differences, ``1e-6 t_f`` wide,
-    would cross the edge).  Ends when a round changes nothing, after ``rounds`` at most.
+    would cross the edge).  A held time whose ``r_i`` points into the feasible set at the edge
+    and ``EDGE_PROBE t_f`` inside, once the polish has moved anything, is released (``J_b`` now
+    falls away from that edge: random_problem(217970, m=3) at 0.7252, ``t_1`` held at its upper
+    edge at 2551.05 with ``r_1 = +1.5e7``, ``local`` at 2489.03 when released); when none is held
+    any more, the Newton polish moves every time and the result is returned with no edge.
+    Ends when a round changes nothing, after ``rounds`` at most.
     Returns ``(x, at_edge, held)``, each ``{i: side}`` (``side`` ``+1`` upper, ``-1`` lower):
     the times at an edge and all those held near one; ``None`` when no contact time is near an edge.
 
@@ -1778,6 +1783,7 @@ def _edge_polish(ev: _Evaluator, x: FloatArray, T: float, rounds: int = 10
     x = np.array(x, dtype=float)
     held: dict[int, float] = {}
     at_edge: dict[int, float] = {}
+    start = x.copy()
     for _ in range(rounds):
         before = x.copy()
         J, r, _ = ev(x)
@@ -1801,7 +1807,10 @@ def _edge_polish(ev: _Evaluator, x: FloatArray, T: float, rounds: int = 10
             inner = seated.copy()
             inner[i] = seated[i] - side * EDGE_PROBE * T
             if not ev(inner)[1][i] * side < 0:
-                x = seated if ev(seated)[0] < ev(x)[0] else x
+                if ev(seated)[0] < ev(x)[0]:
+                    x = seated
+                elif not np.array_equal(x, start):
+                    held.pop(i, None)  # J_b falls away from the edge now: the time is free again
                 continue
 
             def r_i(y: float, i: int = i, base: FloatArray = seated) -> float:
@@ -1817,7 +1826,10 @@ def _edge_polish(ev: _Evaluator, x: FloatArray, T: float, rounds: int = 10
             except (ValueError, RuntimeError):
                 x = seated
         if not held:
-            return None
+            if np.array_equal(x, start):
+                return None
+            x, _ = _newton_polish(ev, x, ev(x)[0], T)
+            return x, at_edge, held
         free = np.array([i not in held for i in range(m)])
         x, _ = _newton_polish(ev, x, ev(x)[0], T, free=free)
         if np.array_equal(x, before):
