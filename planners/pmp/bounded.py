@@ -1764,7 +1764,11 @@ def _edge_polish(ev: _Evaluator, x: FloatArray, T: float, rounds: int = 10
     (``J_b`` rises again just inside the edge), Brent's method finds its root between the edge
     and the probe, as :func:`_edge_candidate` for one vehicle.  Either way the time is held
     while :func:`_newton_polish` moves the others (its central differences, ``1e-6 t_f`` wide,
-    would cross the edge).  A held time whose ``r_i`` points into the feasible set at the edge
+    would cross the edge).  A time not held whose descent meets no edge is tried at an edge on
+    the other side too (``J_b`` rising towards it; ``r_i`` may turn just inside:
+    random_problem(148435, m=3) at 0.7157, ``t_0`` within ``1e-8 t_f`` of its upper edge, ``r_0``
+    turning ``1e-7 .. 1e-6 t_f`` inside; ``local`` at 1551.93, was ``inaccurate``).  A held time
+    whose ``r_i`` points into the feasible set at the edge
     and ``EDGE_PROBE t_f`` inside, once the polish has moved anything, is released (``J_b`` now
     falls away from that edge: random_problem(217970, m=3) at 0.7252, ``t_1`` held at its upper
     edge at 2551.05 with ``r_1 = +1.5e7``, ``local`` at 2489.03 when released); when none is held
@@ -1794,6 +1798,9 @@ def _edge_polish(ev: _Evaluator, x: FloatArray, T: float, rounds: int = 10
                 continue
             side = held.get(i, -math.copysign(1.0, float(r[i])))
             seated = _seat_at_edge(ev, x, i, side, T)
+            if seated is None and i not in held:  # at an edge J_b rises towards: r_i may turn inside
+                side = -side
+                seated = _seat_at_edge(ev, x, i, side, T)
             if seated is None:
                 held.pop(i, None)
                 at_edge.pop(i, None)
