@@ -8,12 +8,12 @@ decisions compare such numbers with thresholds, can take another course.  On one
 ``K=Haswell``, 12.7 s with ``K=SkylakeX`` and 34.9 s with ``K=Prescott``.
 
 :func:`pin` asks OpenBLAS for the ``Haswell`` kernels (AVX2 and FMA, which x86-64 CPUs have had
-since 2013; its generic kernels where the CPU lacks them) and Intel MKL for its
-conditional numerical reproducibility (``MKL_CBWR=COMPATIBLE``).  It only takes effect before
-numpy is first imported (OpenBLAS reads the setting when it loads): ``iamp``'s command line always
-does so; a program that imports numpy before iamp keeps its machine's kernels.  A value the user
-set is kept.  Importing this module (``iamp`` does so first) calls it.  Other processors (ARM)
-and other BLAS libraries are left alone.
+since 2013; its generic kernels where the CPU lacks them) and Intel MKL for its conditional
+numerical reproducibility (``MKL_CBWR=COMPATIBLE``), each with one thread. It only takes effect
+before numpy is first imported (OpenBLAS reads the setting when it loads): ``iamp``'s command line
+always does so; a program that imports numpy before iamp keeps its machine's kernels. A value the
+user set is kept. Importing this module (``iamp`` does so first) calls it. Other processors (ARM)
+and other BLAS libraries keep their kernels.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import os
 import platform
 import sys
 
-__all__ = ["KERNEL", "pin", "pinned_kernel"]
+__all__ = ["KERNEL", "THREADS", "pin", "pinned_kernel"]
 
 #: The OpenBLAS kernels iamp asks for on an x86-64 CPU with AVX2 and FMA.
 KERNEL = "Haswell"
@@ -49,10 +49,19 @@ def pinned_kernel() -> str | None:
     return KERNEL if {"avx2", "fma"} <= _cpu_flags() else FALLBACK
 
 
+#: BLAS threads: one.  iamp's matrices are small, and OpenBLAS's second thread only spun: it doubled
+#: the CPU time of an avoidance plan (13 ms of wall, 25 ms of CPU) at the same wall time, and a
+#: campaign's worker processes already use the cores.
+THREADS = "1"
+
+
 def pin() -> None:
-    """Set ``OPENBLAS_CORETYPE`` (and ``MKL_CBWR``) unless numpy is loaded or the user set them."""
+    """Set ``OPENBLAS_CORETYPE`` (and ``MKL_CBWR``) and one BLAS thread (``OPENBLAS_NUM_THREADS``,
+    ``MKL_NUM_THREADS``) unless numpy is loaded or the user set them."""
     if "numpy" in sys.modules:
         return
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", THREADS)
+    os.environ.setdefault("MKL_NUM_THREADS", THREADS)
     kernel = pinned_kernel()
     if kernel is not None:
         os.environ.setdefault("OPENBLAS_CORETYPE", kernel)

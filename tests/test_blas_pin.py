@@ -67,3 +67,13 @@ def test_pin_changes_nothing_once_numpy_is_loaded(monkeypatch: pytest.MonkeyPatc
     monkeypatch.delenv("OPENBLAS_CORETYPE", raising=False)
     _blas.pin()
     assert "OPENBLAS_CORETYPE" not in os.environ
+
+
+def test_one_blas_thread_unless_the_user_chose() -> None:
+    code = "import os, iamp, numpy; print(os.environ.get('OPENBLAS_NUM_THREADS'))"
+    clean = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    run = [sys.executable, "-c", code]
+    assert subprocess.run(run, capture_output=True, text=True, env=clean, check=True).stdout.strip() == "1"
+    chosen = subprocess.run(run, capture_output=True, text=True, env={**clean, "OPENBLAS_NUM_THREADS": "2"},
+                            check=True).stdout.strip()
+    assert chosen == "2"
