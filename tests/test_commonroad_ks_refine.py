@@ -57,7 +57,7 @@ def test_the_road_frame_model_is_the_checkers_simulation() -> None:
     from iamp.commonroad.goal import Candidate
     from iamp.commonroad.ks import _params, track
     from iamp.commonroad.ks_refine import _Model
-    from iamp.commonroad.planning import FreeTrajectory
+    from iamp.commonroad.planning import FreeTrajectory, refine_checks
 
     cr = load(DATA / "USA_US101-5_1_T-1.xml")
     K = 60
@@ -66,7 +66,7 @@ def test_the_road_frame_model_is_the_checkers_simulation() -> None:
     start = track(cr, free, K, 2)
     cand = Candidate(steps=K, tf=K * cr.dt, s=x0[0] + 50.0, vs=x0[1], d=x0[2] - 3.0, cost0=0.0)
     p = _params(2)
-    m = _Model(cr, cand, p, start)
+    m = _Model(cr, cand, p, start, refine_checks())
     t = np.arange(K) * cr.dt
     u = 0.02 * np.sin(2 * math.pi * t / (K * cr.dt))  # steering rate [rad/s]
     a = 2.0 * np.cos(2 * math.pi * t / (K * cr.dt))  # acceleration [m/s^2]

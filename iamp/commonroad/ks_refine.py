@@ -35,6 +35,8 @@ when that solution clears every vehicle (the body check's buffer), stays on Comm
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -71,6 +73,20 @@ PROBLEM_EVALUATIONS = 600
 FD_STEP = 1e-5
 
 
+@dataclass(frozen=True)
+class Checks:
+    """iamp's own tests of a steered solution, handed in by :mod:`iamp.commonroad.planning` (which
+    calls :func:`refine`; this module does not import it, so the two form no import cycle):
+    ``step_boxes`` (the vehicles' boxes per step), ``body_overlap`` (a body's depth in a box),
+    ``clear``, ``off_road`` and ``reaches_goal`` (a solution's verdicts)."""
+
+    step_boxes: Callable[..., Any]
+    body_overlap: Callable[..., Any]
+    clear: Callable[..., Any]
+    off_road: Callable[..., Any]
+    reaches_goal: Callable[..., Any]
+
+
 class SteeredTrajectory:
     """A road-frame plan that is a ``KS`` solution: the centre of ``ks`` in the road frame
     (linear between the time steps); :func:`iamp.commonroad.ks.track` returns ``ks`` itself."""
@@ -104,9 +120,8 @@ class SteeredTrajectory:
 class _Model:
     """The batched Frenet ``KS`` simulation and the residuals of :func:`refine`."""
 
-    def __init__(self, cr: CommonRoadProblem, cand: Candidate, p: Any, start: KSTrajectory) -> None:
-        from iamp.commonroad.planning import _step_boxes
-
+    def __init__(self, cr: CommonRoadProblem, cand: Candidate, p: Any, start: KSTrajectory, checks: Checks) -> None:
+        self.checks = checks
         self.cr, self.K, self.dt = cr, cand.steps, cr.dt
         self.l = float(p.a + p.b)
         self.b = float(p.b)
@@ -132,7 +147,7 @@ class _Model:
         self.z0 = np.concatenate([[start.states[0, 2]], start.inputs[:, 0], start.inputs[:, 1]])
         self.z0 = np.clip(self.z0, self.lo, self.hi)
         # the vehicles near the starting solution at each step
-        boxes = _step_boxes(cr, self.K)  # (4, K+1, m)
+        boxes = self.checks.step_boxes(cr, self.K)  # (4, K+1, m)
         c0 = np.asarray(cr.frame.to_road(start.centre), dtype=float)
         near = np.abs(0.5 * (boxes[0] + boxes[1]) - c0[:, 0:1]) < NEAR_S_M
         near[0] = False
@@ -175,8 +190,7 @@ class _Model:
 
     def residuals(self, Z: FloatArray) -> FloatArray:
         """The residual vectors ``(n, R)`` of the rows of ``Z`` (module docstring)."""
-        from iamp.commonroad.planning import body_overlap
-
+        body_overlap = self.checks.body_overlap
         X = self.simulate(Z)
         cr, K = self.cr, self.K
         s, d, ph, v, de = (X[..., i] for i in range(5))
@@ -259,7 +273,7 @@ def retimed(start: KSTrajectory, steps: int) -> KSTrajectory:
                         start.deviation_m, start.vehicle_type)
 
 
-def refine(cr: CommonRoadProblem, start: KSTrajectory, cand: Candidate,
+def refine(cr: CommonRoadProblem, start: KSTrajectory, cand: Candidate, checks: Checks,
            max_evaluations: int = MAX_EVALUATIONS) -> tuple[KSTrajectory | None, int]:
     """The ``KS`` solution of the module docstring, optimised from ``start`` (a tracked solution
     over ``cand.steps`` steps ending in ``cand``'s goal state), or None when the optimum is not
@@ -272,6 +286,8 @@ def refine(cr: CommonRoadProblem, start: KSTrajectory, cand: Candidate,
         The starting solution (:func:`iamp.commonroad.ks.track` of a plan).
     cand : Candidate
         The final state whose goal element and piece the solution must reach at its last step.
+    checks : Checks
+        iamp's tests of a steered solution (:func:`iamp.commonroad.planning.refine_checks`).
     max_evaluations : int
         Evaluations of the residuals (with their Jacobian) at most.
 
@@ -285,7 +301,7 @@ def refine(cr: CommonRoadProblem, start: KSTrajectory, cand: Candidate,
     if cand.steps < 2 or cand.element >= len(cr.goal.elements) or max_evaluations < 1:
         return None, 0
     p = _params(start.vehicle_type)
-    m = _Model(cr, cand, p, start)
+    m = _Model(cr, cand, p, start, checks)
     n = m.z0.size
 
     def fun(z: FloatArray) -> FloatArray:
@@ -310,8 +326,6 @@ def _accept(cr: CommonRoadProblem, cand: Candidate, m: _Model, z: FloatArray,
     and reaches the goal (module docstring)."""
     from commonroad.common.solution import VehicleType
     from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics
-
-    from iamp.commonroad.planning import steered_clear, steered_off_road, steered_reaches_goal
 
     K = m.K
     dyn = VehicleDynamics.KS(VehicleType(start.vehicle_type))
@@ -339,10 +353,10 @@ def _accept(cr: CommonRoadProblem, cand: Candidate, m: _Model, z: FloatArray,
     ks = KSTrajectory(states=S, inputs=U, centre=centre,
                       deviation_m=float(np.max(np.linalg.norm(centre - start.centre, axis=1))),
                       vehicle_type=start.vehicle_type)
-    if not steered_clear(cr, centre, S[:, 4]):
+    if not m.checks.clear(cr, centre, S[:, 4]):
         return None
-    if steered_off_road(cr, centre, S[:, 4])[1:].any():
+    if m.checks.off_road(cr, centre, S[:, 4])[1:].any():
         return None
-    if not steered_reaches_goal(cr, ks):
+    if not m.checks.reaches_goal(cr, ks):
         return None
     return ks

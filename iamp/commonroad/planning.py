@@ -598,6 +598,14 @@ def _iamp_plan(cr: CommonRoadProblem, cand: Candidate, vehicles: list[Surroundin
     return iamp.plan(problem, "qp", constraint=constraint, steps=steps, hold="foh")
 
 
+def refine_checks() -> Any:
+    """iamp's tests of a steered solution for :func:`iamp.commonroad.ks_refine.refine` (the vehicles'
+    boxes per step, the body's overlap, clear of the vehicles, on the road, the goal reached)."""
+    from iamp.commonroad.ks_refine import Checks
+
+    return Checks(_step_boxes, body_overlap, steered_clear, steered_off_road, steered_reaches_goal)
+
+
 def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
          steps: int = STEPS, max_plans: int = MAX_PLANS, via: bool = True, search: bool = True,
          corridor: bool = True, engine: tuple[float, ...] | None = None) -> RoadPlan:
@@ -648,7 +656,7 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
                 continue
             c = dataclasses.replace(cand, steps=cand.steps + off, tf=(cand.steps + off) * cr.dt,
                                     goal_step=cand.goal_step + off)
-            ks, used = refine(cr, retimed(tracked, c.steps), c, min(MAX_EVALUATIONS, left))
+            ks, used = refine(cr, retimed(tracked, c.steps), c, refine_checks(), min(MAX_EVALUATIONS, left))
             left -= used
             if ks is None:
                 continue
