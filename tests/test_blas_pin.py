@@ -4,8 +4,10 @@ the same numbers whatever CPU it runs on, and a kernel the user chose is kept.""
 from __future__ import annotations
 
 import os
+import platform
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -52,12 +54,12 @@ def test_a_kernel_the_user_chose_is_kept() -> None:
 
 
 def test_the_kernel_follows_the_cpu_flags(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(_blas.platform, "machine", lambda: "x86_64")
+    monkeypatch.setattr(platform, "machine", lambda: "x86_64")
     monkeypatch.setattr(_blas, "_cpu_flags", lambda: {"sse3", "avx", "avx2", "fma"})
     assert _blas.pinned_kernel() == "Haswell"
     monkeypatch.setattr(_blas, "_cpu_flags", lambda: {"sse3", "avx", "avx2"})  # no FMA
     assert _blas.pinned_kernel() == "Prescott"
-    monkeypatch.setattr(_blas.platform, "machine", lambda: "aarch64")
+    monkeypatch.setattr(platform, "machine", lambda: "aarch64")
     assert _blas.pinned_kernel() is None
 
 
@@ -77,3 +79,16 @@ def test_one_blas_thread_unless_the_user_chose() -> None:
     chosen = subprocess.run(run, capture_output=True, text=True, env={**clean, "OPENBLAS_NUM_THREADS": "2"},
                             check=True).stdout.strip()
     assert chosen == "2"
+
+
+def test_the_flags_are_read_from_cpuinfo_and_avx2_with_fma_is_enough(monkeypatch: pytest.MonkeyPatch,
+                                                                      tmp_path: Path) -> None:
+    fake = tmp_path / "cpuinfo"
+    fake.write_text("processor\t: 0\nmodel name\t: x: y\nflags\t\t: fpu sse3 avx2 fma\nbugs\t\t: none\n",
+                    encoding="ascii")
+    real_open = open
+    monkeypatch.setattr(_blas, "open", lambda path, *a, **k: real_open(fake, *a, **k), raising=False)
+    assert _blas._cpu_flags() == {"fpu", "sse3", "avx2", "fma"}
+    monkeypatch.setattr(platform, "machine", lambda: "x86_64")
+    monkeypatch.setattr(_blas, "_cpu_flags", lambda: {"avx2", "fma"})  # exactly the two: enough
+    assert _blas.pinned_kernel() == "Haswell"
