@@ -48,6 +48,18 @@ class _Recorder:
         return float(r.cost) if r.status == st.OPTIMAL else np.inf
 
 
+def _case(xf: float, gap: float, speed: float, limits: bool) -> tuple[Problem, list[list[tuple[int, int]]]]:
+    """The generated overtake and its crossing orders (a draw without them is discarded)."""
+    try:
+        problem = _overtake(xf, gap, speed, limits)
+        orders, reason = crossing_orders(problem)
+    except ScenarioError:
+        assume(False)
+        raise
+    assume(reason is None)
+    return problem, orders
+
+
 CASES = given(st_h.floats(105.0, 130.0), st_h.floats(7.5, 25.0), st_h.floats(14.0, 22.0), st_h.booleans(),
               st_h.sampled_from([8, 12, 17]))
 
@@ -56,13 +68,7 @@ CASES = given(st_h.floats(105.0, 130.0), st_h.floats(7.5, 25.0), st_h.floats(14.
 @CASES
 def test_seed_switches_surround_the_free_optimums_crossing(xf: float, gap: float, speed: float, limits: bool,
                                                            steps: int) -> None:
-    try:
-        problem = _overtake(xf, gap, speed, limits)
-        orders, reason = crossing_orders(problem)
-    except ScenarioError:
-        assume(False)
-        raise
-    assume(reason is None)
+    problem, orders = _case(xf, gap, speed, limits)
     solve = _Recorder(problem, steps)
     first = orders[0][0][0]
     seeds = seed_switches(solve.data, solve, first)
@@ -83,13 +89,7 @@ def test_seed_switches_surround_the_free_optimums_crossing(xf: float, gap: float
 @CASES
 def test_pruned_switches_are_exactly_those_both_relaxations_allow(xf: float, gap: float, speed: float, limits: bool,
                                                                   steps: int) -> None:
-    try:
-        problem = _overtake(xf, gap, speed, limits)
-        orders, reason = crossing_orders(problem)
-    except ScenarioError:
-        assume(False)
-        raise
-    assume(reason is None)
+    problem, orders = _case(xf, gap, speed, limits)
     N = steps
     solve = _Recorder(problem, N)
     first, second = orders[0][0]

@@ -126,6 +126,16 @@ def test_a_minimum_next_to_the_edge_of_the_feasible_contact_times_is_found_and_c
     check_against_the_qp(problem)
 
 
+def at_the_edge_problem() -> Problem:
+    """One vehicle whose ``J_b`` rises from the lower edge of the feasible contact times (``r = +0.81``
+    there): the minimum is at the edge."""
+    ego = EgoBoundary(tf=4.03474331919433, x0=0.0, y0=0.0, vx0=23.369565323506087, xf=100.94031355330122,
+                      yf=-3.5605651349647482, vxf=23.036231990172755, vy0=0.0, vyf=-0.011844761331778364)
+    veh = SurroundingVehicle(x_poly=(4.199502686445335, 23.36956532351609, 0.0, 0.01), corner="rear-lower", y=0.0,
+                             length=4.8, width=1.8, safety_x=0.5, safety_y=0.5)
+    return Problem(ego, (veh,), "edge", PhysicalLimits(ax=(-4.4480495052821105, 1.5), ay=(-3.0, 3.0)))
+
+
 def test_a_minimum_at_the_edge_of_the_feasible_contact_times_is_planned_there() -> None:
     """Found by the slow property test's domain (hypothesis, a random run): ``J_b`` rises from
     the lower edge of the feasible contact times (infeasible before 1.32812 s, ``r = +0.81``
@@ -138,11 +148,7 @@ def test_a_minimum_at_the_edge_of_the_feasible_contact_times_is_planned_there() 
     certified infeasible by :mod:`iamp.planners.pmp.reach`'s Farkas margin, issue 32 item 4)
     the same plan is ``optimal`` (it was ``local``: the dual Newton method's margins vanish at
     the edge)."""
-    ego = EgoBoundary(tf=4.03474331919433, x0=0.0, y0=0.0, vx0=23.369565323506087, xf=100.94031355330122,
-                      yf=-3.5605651349647482, vxf=23.036231990172755, vy0=0.0, vyf=-0.011844761331778364)
-    veh = SurroundingVehicle(x_poly=(4.199502686445335, 23.36956532351609, 0.0, 0.01), corner="rear-lower", y=0.0,
-                             length=4.8, width=1.8, safety_x=0.5, safety_y=0.5)
-    problem = Problem(ego, (veh,), "edge", PhysicalLimits(ax=(-4.4480495052821105, 1.5), ay=(-3.0, 3.0)))
+    problem = at_the_edge_problem()
     pmp = PMPPlanner(certify_bounded=False).plan(problem)
     assert pmp.status == stc.LOCAL and pmp.cost is not None, (pmp.status, pmp.info.get("failed_check"))
     assert pmp.info["search"]["feasibility_edge"] == "lower"

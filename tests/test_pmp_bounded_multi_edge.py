@@ -16,12 +16,12 @@ import math
 
 import numpy as np
 import pytest
+from test_bounded_property import at_the_edge_problem
 from test_bounded_random import boxed, check
 
 from iamp.core import status as stc
-from iamp.core.physical import PhysicalLimits
 from iamp.core.plan import Plan
-from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
+from iamp.core.problem import Problem
 from iamp.core.tolerances import TOLERANCES
 from iamp.planners.pmp import PMPPlanner
 from iamp.planners.pmp import bounded as B
@@ -90,11 +90,7 @@ def test_a_minimum_at_an_edge_meets_the_kkt_sign() -> None:
     """A minimum *at* an edge (tests/test_bounded_property.py: ``J_b`` rises from the lower edge of
     the feasible contact times, ``r = +0.81``): :func:`_kkt_at_edges` accepts it as a lower edge and
     refuses it as an upper one."""
-    ego = EgoBoundary(tf=4.03474331919433, x0=0.0, y0=0.0, vx0=23.369565323506087, xf=100.94031355330122,
-                      yf=-3.5605651349647482, vxf=23.036231990172755, vy0=0.0, vyf=-0.011844761331778364)
-    veh = SurroundingVehicle(x_poly=(4.199502686445335, 23.36956532351609, 0.0, 0.01), corner="rear-lower", y=0.0,
-                             length=4.8, width=1.8, safety_x=0.5, safety_y=0.5)
-    problem = Problem(ego, (veh,), "edge", PhysicalLimits(ax=(-4.4480495052821105, 1.5), ay=(-3.0, 3.0)))
+    problem = at_the_edge_problem()
     pmp = PMPPlanner(certify_bounded=False).plan(problem)
     assert pmp.info["search"]["feasibility_edge"] == "lower"
     ev = B._Evaluator(problem)
