@@ -458,7 +458,7 @@ class Predictor:
         S = np.ascontiguousarray(np.atleast_2d(states), dtype=np.int64)
         kept = self._abar_rows.setdefault(M, {})
         keys = [row.tobytes() for row in S]
-        new = list(k for k in dict.fromkeys(keys) if k not in kept)
+        new = [k for k in dict.fromkeys(keys) if k not in kept]
         if new:
             if sum(len(d) for d in self._abar_rows.values()) + len(new) > ABAR_CACHE_ROWS:
                 for d in self._abar_rows.values():
