@@ -443,6 +443,11 @@ class Predictor:
             store = self.model.__dict__["_abar_rows"] = {}
         return store
 
+    def forget_kept_rows(self) -> None:
+        """Empty the node accelerations kept per past for this predictor's model
+        (:meth:`_node_means`): later predictions compute them again, the same numbers."""
+        self.model.__dict__.pop("_abar_rows", None)
+
     def _node_means(self, states: np.ndarray, M: int) -> FloatArray:
         """The ``ā_k`` of :meth:`_node_accelerations` alone, ``(B, M + 1)``, the same numbers, each
         distinct past propagated once per model (in a process).

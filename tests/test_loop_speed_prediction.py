@@ -78,6 +78,8 @@ def test_predict_batch_of_a_predictor_with_kept_rows_is_a_fresh_ones() -> None:
                 _fresh().predict_batch(t, X, q, 8.0, cubic=cubic).tobytes()
     assert sum(len(d) for d in p._abar_rows.values()) > 0
     assert Predictor(p.model, "another")._abar_rows is p._abar_rows  # one store per model
+    Predictor(p.model, "another").forget_kept_rows()
+    assert sum(len(d) for d in p._abar_rows.values()) == 0
 
 
 def _python_propagation(S: list[int], steps: int) -> list[list[float]]:

@@ -106,7 +106,7 @@ def forget_kept_data() -> None:
     prediction it needs (the same numbers: a kept row is the row a fresh batch gives)."""
     from iamp.prediction.predictor import Predictor
 
-    Predictor.default().model.__dict__.pop("_abar_rows", None)
+    Predictor.default().forget_kept_rows()
 
 
 def _row(planner: str, repeats: int) -> LoopRow:
