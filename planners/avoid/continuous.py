@@ -563,7 +563,9 @@ class ContinuousAvoidQP:
         A_in, u_in, ids = sol.spec_rows()
         d = self.data
         binding = np.flatnonzero(sol.y[d.n_eq:] > 0)
-        r = self._rows_solver.solve(A_in, u_in, ids, None, binding)
+        # OSQP starts from the node solver's point (the interior-point backends from their own):
+        # where ADMM starts, not what it accepts — the KKT check below is on the backend's answer
+        r = self._rows_solver.solve(A_in, u_in, ids, None, binding, (sol.z, sol.y))
         self.n_solves += r.solves
         self.n_backend_solves += r.solves
         return self._solved(sol.spec, r, (A_in, u_in, ids))

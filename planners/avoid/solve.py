@@ -228,9 +228,13 @@ class RowGeneration:
         return solver
 
     def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, ids: NDArray[np.int64],
-              reference: FloatArray | None = None, start: NDArray[np.int64] | None = None) -> RowsSolution:
+              reference: FloatArray | None = None, start: NDArray[np.int64] | None = None,
+              warm: tuple[FloatArray, FloatArray] | None = None) -> RowsSolution:
         """Solve with the inequality rows ``A_in z <= u_in`` (their fixed numbers ``ids``); the
-        first working set also holds the rows ``start`` (indices into ``A_in``).
+        first working set also holds the rows ``start`` (indices into ``A_in``).  ``warm``: a
+        point ``(z, y)`` (``y`` on the rows of ``[A_eq; A_in]``) each backend solve starts from
+        (its ``y`` on that solve's working rows; OSQP only, the interior-point backends ignore
+        it): where to start, not what is accepted (the rounds end as without it).
 
         Returns
         -------
@@ -257,7 +261,11 @@ class RowGeneration:
             else:  # one always-true row keeps the cone non-empty
                 A = sp.csc_matrix(sp.vstack([self.A_eq, sp.csr_matrix((1, n))]))
                 u = np.ones(1)
-            sol = self._backend(ids[rows].tobytes(), A, u).solve()
+            solver = self._backend(ids[rows].tobytes(), A, u)
+            if warm is not None and solver.backend.warm_starts:
+                solver.warm_start(warm[0], np.concatenate((warm[1][:n_eq], warm[1][n_eq + rows])) if rows.size
+                                  else np.concatenate((warm[1][:n_eq], np.zeros(1))))
+            sol = solver.solve()
             solves += 1
             iterations += sol.iterations
             if sol.status not in (st.OPTIMAL, st.INFEASIBLE) and not work.all():
