@@ -216,7 +216,7 @@ def test_what_a_grid_keeps_is_what_each_plan_would_build(seed: int, m: int, shif
     again = _moved(seed + 1, m, shift, True)
     again = Problem(ego=replace(again.ego, tf=first.tf), vehicles=again.vehicles, name=again.name,
                     limits=again.limits)
-    for p in (first, again):
+    for p in (first, again, first):  # first again: its half-planes' bounds are then the kept ones
         try:
             qp = cont.ContinuousAvoidQP(p, N, "foh", "clarabel", shared=shared)
         except ScenarioError:
@@ -232,3 +232,15 @@ def test_what_a_grid_keeps_is_what_each_plan_would_build(seed: int, m: int, shif
         lr = limit_rows(d, d.t_nodes, "foh", p.limits, between="certified")
         _same_sparse(qp.A_lim, sp.vstack([lr.A, -lr.A]))
         assert np.array_equal(qp.u_lim, np.r_[lr.hi, -lr.lo])
+        # the layout (equality rows, node columns, full pieces' values, split polynomials) and the
+        # half-planes' bounds (full pieces, the polynomials of split pieces) are a fresh QP's
+        alone = cont.ContinuousAvoidQP(p, N, "foh", "clarabel")
+        _same_sparse(qp.A_eq, sp.csr_matrix(d.A[:d.n_eq]))
+        assert np.array_equal(qp._bern_cols, alone._bern_cols)
+        for key, vals in alone._full_vals.items():
+            assert np.array_equal(qp._full_vals[key], vals)
+            assert np.array_equal(qp._full_rhs[key], alone._full_rhs[key])
+            for k, pre in ((0, True), (N // 2, False), (N - 1, True)):
+                assert np.array_equal(qp.rhs_polynomial(*key, k, pre), alone.rhs_polynomial(*key, k, pre))
+        for a, b in zip(qp.split_polynomials(), alone.split_polynomials()):
+            assert np.array_equal(a, b)

@@ -74,6 +74,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -123,7 +124,9 @@ class GridShare:
     the columns of ``K⁻¹`` solved so far, and ``triu(P, 1)ᵀ`` of the final KKT checks), the QP's
     ``A`` and ``P`` (:class:`~iamp.planners.avoid.data.AvoidData`; they depend on the grid, the
     hold and the half-planes' signs only) and the limit rows with their stack
-    ``[A_lim; -A_lim]``, which depend on the grid, the hold and the limits only.  The closed
+    ``[A_lim; -A_lim]``, which depend on the grid, the hold and the limits only; the rows' layout
+    (:class:`_GridLayout`: grid, hold, degree, half-plane signs) and each half-plane's row bounds
+    (full pieces, and the polynomials of split pieces: grid, degree and the half-plane).  The closed
     loop plans the same few horizons every period; its planner factors each grid once.  At most
     :attr:`SIZE` grids per kind, the least recently used dropped.  The node solver's reuse is
     checked against the plan's own ``P`` and ``A_eq`` (bit for bit); the other values are kept
@@ -149,6 +152,31 @@ class GridShare:
         same = [k for k in self._items if k[0] == key[0]]
         for k in same[:max(0, len(same) - self.SIZE)]:
             del self._items[k]
+
+
+class _GridLayout:
+    """What :class:`ContinuousAvoidQP` builds from its grid, hold, Bernstein degree and half-plane
+    signs only (kept in :class:`GridShare` under all of them, so the plans of one grid build it
+    once): the equality rows ``A_eq`` (CSR), ``P``'s diagonal, the full piece's Bernstein matrix
+    ``M_full``, the node columns of every Bernstein row of the layout, per vehicle and half-plane
+    the row values ``σ M_full`` of every piece, and :meth:`ContinuousAvoidQP.split_polynomials`
+    (filled on first use).  Read-only once built."""
+
+    def __init__(self, d: AvoidData, h: float, degree: int) -> None:
+        self.A_eq = sp.csr_matrix(d.A[: d.n_eq])
+        self.P_diag = d.P.diagonal()
+        self.M_full = piece_matrix(h, 0.0, 1.0, degree)
+        n, N = degree + 1, d.N
+        k = np.arange(N)
+        blocks = []
+        for _ in d.planes:
+            for a in (0, 1):
+                cs = np.stack([d.idx_s(a, k), d.idx_v(a, k), d.idx_s(a, k + 1), d.idx_v(a, k + 1)], axis=1)
+                blocks.append(np.repeat(cs, n, axis=0))  # (N n, 4): piece k's n rows
+        self.bern_cols = (np.concatenate(blocks) if blocks else np.zeros((0, 4))).astype(np.int32)
+        self.full_vals = {(i, a): np.tile(hp.sigma * self.M_full.ravel(), N)
+                          for i, pair in enumerate(d.planes) for a, hp in enumerate(pair)}
+        self.split_polys: tuple[FloatArray, FloatArray] | None = None
 
 
 def _stacked(top: sp.csr_matrix, below: sp.csr_matrix) -> sp.csc_matrix:
@@ -229,10 +257,20 @@ class ContinuousAvoidQP:
         self.h = self.tf / self.N
         self.data = AvoidData(problem, np.linspace(0.0, self.tf, self.N + 1), hold, shared=shared)
         d = self.data
-        self.A_eq = sp.csr_matrix(d.A[: d.n_eq])
-        self._P_diag = d.P.diagonal()
         self.degree = max([3] + [len(v.x_poly) - 1 for v in problem.vehicles])
-        self.M_full = piece_matrix(self.h, 0.0, 1.0, self.degree)
+        # what depends on the grid, the hold, the degree and the half-planes' signs only: kept
+        # for the next plans (:class:`_GridLayout`)
+        key = ("layout", self.N, hold, d.t_nodes.tobytes(), self.degree,
+               tuple(hp.sigma for pair in d.planes for hp in pair))
+        grid = shared.get(key) if shared is not None else None
+        if grid is None:
+            grid = _GridLayout(d, self.h, self.degree)
+            if shared is not None:
+                shared.put(key, grid)
+        self._grid: _GridLayout = grid
+        self._shared = shared
+        self._t_nodes: list[float] = d.t_nodes.tolist()
+        self.A_eq, self._P_diag, self.M_full = grid.A_eq, grid.P_diag, grid.M_full
         self.limit_rows: Any = None
         A_lim, u_lim = sp.csr_matrix((0, d.n)), np.zeros(0)
         if problem.limits is not None:
@@ -290,16 +328,10 @@ class ContinuousAvoidQP:
         d = self.data
         n = self.degree + 1
         m = len(self.problem.vehicles)
-        k = np.arange(self.N)
-        blocks = []
-        for _ in range(m):
-            for a in (0, 1):
-                cs = np.stack([d.idx_s(a, k), d.idx_v(a, k), d.idx_s(a, k + 1), d.idx_v(a, k + 1)], axis=1)
-                blocks.append(np.repeat(cs, n, axis=0))  # (N n, 4): piece k's n rows
         self.n_b = m * 2 * self.N * n
         #: the four node columns of every Bernstein row of the layout, shape ``(n_b, 4)``
         #: (int32 like scipy's own index arrays: no conversion when a spec's CSR matrix is built)
-        self._bern_cols = (np.concatenate(blocks) if blocks else np.zeros((0, 4))).astype(np.int32)
+        self._bern_cols = self._grid.bern_cols
         self._lim_data = np.asarray(self.A_lim.data, dtype=float)
         self._lim_indices = np.asarray(self.A_lim.indices, dtype=np.int32)
         self._lim_indptr = np.asarray(self.A_lim.indptr, dtype=np.int32)
@@ -308,19 +340,29 @@ class ContinuousAvoidQP:
         self._lim_ids = self.n_b + np.arange(self.u_lim.size, dtype=np.int64)
         #: per vehicle and half-plane: σ M (row values of a full piece) of every piece, every full
         #: piece's bounds
-        self._full_vals: dict[tuple[int, int], FloatArray] = {}
+        self._full_vals: dict[tuple[int, int], FloatArray] = self._grid.full_vals
         self._splits: dict[tuple[int, int, int, float, float], tuple[FloatArray, FloatArray]] = {}
         self._segments: dict[tuple[int, int, float, float], tuple[FloatArray, FloatArray, NDArray[np.int64]]] = {}
         self._spec_rows: dict[Spec, tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]] = {}
-        self._split_polys: tuple[FloatArray, FloatArray] | None = None
-        self._rhs_polys: dict[tuple[int, int, int, bool], FloatArray] = {}
+        #: per vehicle and half-plane: the bounds of its rows on every full piece, and its
+        #: :meth:`rhs_polynomial` per ``(k, pre)`` — they depend on the grid, the degree and the
+        #: half-plane (its vehicle's motion, size and corner) only, so the plans of one planner keep
+        #: them (``shared``, under all of these; the same arrays as computed here)
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
+        self._rhs_polys: dict[tuple[int, int], dict[tuple[int, bool], FloatArray]] = {}
         for i in range(m):
             for a in (0, 1):
                 hp = self.data.planes[i][a]
-                self._full_vals[(i, a)] = np.tile(hp.sigma * self.M_full.ravel(), self.N)
-                t0 = d.t_nodes[:-1]
-                self._full_rhs[(i, a)] = self._rhs(hp, t0, t0 + self.h).ravel()
+                v = hp.vehicle
+                key = ("rhs", self.N, d.t_nodes.tobytes(), self.degree, hp.axis,
+                       repr((tuple(v.x_poly), v.y, v.length, v.width, v.safety_x, v.safety_y, v.corner)))
+                kept = self._shared.get(key) if self._shared is not None else None
+                if kept is None:
+                    t0 = d.t_nodes[:-1]
+                    kept = (self._rhs(hp, t0, t0 + self.h).ravel(), {})
+                    if self._shared is not None:
+                        self._shared.put(key, kept)
+                self._full_rhs[(i, a)], self._rhs_polys[(i, a)] = kept
 
     def _rhs(self, hp: HalfPlane, ta: float | FloatArray, tb: float | FloatArray) -> FloatArray:
         """The bounds of half-plane ``hp``'s Bernstein rows on ``[ta, tb]`` (arrays: on every
@@ -338,26 +380,27 @@ class ContinuousAvoidQP:
         """Power coefficients in ``λ`` (axis 0, shape ``(d + 1, d + 1, 4)``) of the σ-free row
         values of a piece's sub-pieces ``[0, λ]`` and ``[λ, 1]`` (:func:`~iamp.planners.avoid.bernstein.piece_matrix`
         is a polynomial of degree ``d`` in either end: fitted exactly on ``d + 1`` points, once)."""
-        if self._split_polys is None:
+        grid = self._grid
+        if grid.split_polys is None:
             D = self.degree
             lam = np.linspace(0.0, 1.0, D + 1)
-            self._split_polys = (fit_polynomial(np.array([piece_matrix(self.h, 0.0, float(x), D) for x in lam]), D),
-                                 fit_polynomial(np.array([piece_matrix(self.h, float(x), 1.0, D) for x in lam]), D))
-        return self._split_polys
+            grid.split_polys = (fit_polynomial(np.array([piece_matrix(self.h, 0.0, float(x), D) for x in lam]), D),
+                                fit_polynomial(np.array([piece_matrix(self.h, float(x), 1.0, D) for x in lam]), D))
+        return grid.split_polys
 
     def rhs_polynomial(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
         """Power coefficients in ``λ`` (shape ``(d + 1, d + 1)``) of the bounds of vehicle ``i``'s
         half-plane ``plane`` on ``[t_k, t_k + λh]`` (``pre``) or ``[t_k + λh, t_{k+1}]`` (a
         polynomial of degree ``d`` in ``λ``; fitted once per piece)."""
-        key = (i, plane, k, pre)
-        out = self._rhs_polys.get(key)
+        kept = self._rhs_polys[(i, plane)]
+        out = kept.get((k, pre))
         if out is None:
             hp = self.data.planes[i][plane]
             tk = float(self.data.t_nodes[k])
             lam = np.linspace(0.0, 1.0, self.degree + 1)
             vals = np.array([self._rhs(hp, tk, tk + x * self.h) if pre else self._rhs(hp, tk + x * self.h, tk + self.h)
                              for x in lam])
-            out = self._rhs_polys[key] = fit_polynomial(vals, self.degree)
+            out = kept[(k, pre)] = fit_polynomial(vals, self.degree)
         return out
 
     def _split(self, i: int, plane: int, k: int, l0: float, l1: float) -> tuple[FloatArray, FloatArray]:
@@ -398,13 +441,14 @@ class ContinuousAvoidQP:
                                                             tuple[int, float, float] | None] | None:
         """:meth:`segment_pieces` as its first sub-piece (or None), the range ``full_lo..full_hi``
         of its full pieces and its last sub-piece (or None); None for an empty interval."""
-        d = self.data
         if tb < ta or tb <= 0.0 or ta >= self.tf:
             return None
-        ka = min(int(np.floor(ta / self.h)), self.N - 1)
-        kb = min(int(np.ceil(tb / self.h)) - 1, self.N - 1)
+        # Python floats: the same IEEE operations as on numpy's scalars, without their overhead
+        t_nodes = self._t_nodes
+        ka = min(math.floor(ta / self.h), self.N - 1)
+        kb = min(math.ceil(tb / self.h) - 1, self.N - 1)
         kb = max(kb, ka)
-        lam = [float((ta - d.t_nodes[ka]) / self.h), float((tb - d.t_nodes[kb]) / self.h)]
+        lam = [(ta - t_nodes[ka]) / self.h, (tb - t_nodes[kb]) / self.h]
         full_lo = ka + (1 if lam[0] > 1e-12 else 0)
         full_hi = kb - (1 if lam[1] < 1 - 1e-12 else 0)
         if ka == kb and full_lo > full_hi:
@@ -441,7 +485,8 @@ class ContinuousAvoidQP:
                     vals.append(v)
                     rhs.append(c)
                     starts.append(base + k * n)
-            ids = np.concatenate([np.arange(r0, r0 + c.size, dtype=np.int64) for r0, c in zip(starts, rhs)]) \
+            # the sub-pieces and full pieces are consecutive pieces: consecutive layout rows
+            ids = np.arange(starts[0], starts[0] + sum(c.size for c in rhs), dtype=np.int64) \
                 if rhs else np.zeros(0, dtype=np.int64)
             out = self._segments[key] = (np.concatenate(vals) if vals else np.zeros(0),
                                          np.concatenate(rhs) if rhs else np.zeros(0), ids)

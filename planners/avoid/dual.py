@@ -218,7 +218,7 @@ class DualBounds:
         self.qp = qp
         d = qp.data
         # the node solver's symmetric P and factorisation of the same matrix when it has one
-        self.P = sp.csc_matrix(qp.schur.P_full) if qp.schur is not None else full_hessian(d.P)
+        self.P = qp.schur.P_full_csc if qp.schur is not None else full_hessian(d.P)
         self.lu = qp.schur.lu if qp.schur is not None else spla.splu(kkt_matrix(d.P, qp.A_eq, self.P))
         self.nb = qp.degree + 1
         # σ-free values of the split piece's rows as polynomials in λ: M(0, λ) (first half-plane),

@@ -146,6 +146,8 @@ class SchurActiveSet:
         self.A_eq_T = sp.csr_matrix(self.A_eq.T)
         full = full_hessian(self.P)
         self.P_full = sp.csr_matrix(full)
+        #: the symmetric ``P`` as CSC (:class:`~iamp.planners.avoid.dual.DualBounds`' products)
+        self.P_full_csc = sp.csc_matrix(full)
         self._Pp = np.asarray(self.P_full.indptr, dtype=np.int64)
         self._Pi = np.asarray(self.P_full.indices, dtype=np.int64)
         self._Px = np.asarray(self.P_full.data, dtype=float)
