@@ -242,5 +242,8 @@ def test_what_a_grid_keeps_is_what_each_plan_would_build(seed: int, m: int, shif
             assert np.array_equal(qp._full_rhs[key], alone._full_rhs[key])
             for k, pre in ((0, True), (N // 2, False), (N - 1, True)):
                 assert np.array_equal(qp.rhs_polynomial(*key, k, pre), alone.rhs_polynomial(*key, k, pre))
+            for ta, tb in ((0.0, 0.37 * p.tf), (0.37 * p.tf, p.tf), (0.2 * p.tf, 0.2 * p.tf), (0.0, 0.5 * p.tf)):
+                for a, b in zip(qp._segment(*key, ta, tb), alone._segment(*key, ta, tb)):
+                    assert np.array_equal(a, b)
         for a, b in zip(qp.split_polynomials(), alone.split_polynomials()):
             assert np.array_equal(a, b)

@@ -179,6 +179,31 @@ class _GridLayout:
         self.split_polys: tuple[FloatArray, FloatArray] | None = None
 
 
+class _PlaneRows:
+    """One half-plane's Bernstein rows on one grid (:class:`ContinuousAvoidQP`; kept in
+    :class:`GridShare` under the grid, the degree and the half-plane, so the plans of one planner
+    compute each once): the bounds on every full piece, the polynomials of split pieces
+    (:meth:`~ContinuousAvoidQP.rhs_polynomial`, per ``(k, pre)``), the values and bounds of
+    sub-pieces (:meth:`~ContinuousAvoidQP._split`, per ``(k, λ0, λ1)``) and of segments
+    (:meth:`~ContinuousAvoidQP._segment`, per ``(vehicle, t_a, t_b)``: the layout numbers depend on
+    the vehicle's index).  Each value is a function of its key alone (read-only once kept); beyond
+    :attr:`LIMIT` entries a kind is emptied and computed again."""
+
+    LIMIT = 4096
+
+    def __init__(self, full_rhs: FloatArray) -> None:
+        self.full_rhs = full_rhs
+        self.polys: dict[tuple[int, bool], FloatArray] = {}
+        self.splits: dict[tuple[int, float, float], tuple[FloatArray, FloatArray]] = {}
+        self.segments: dict[tuple[int, float, float], tuple[FloatArray, FloatArray, NDArray[np.int64]]] = {}
+
+    def keep(self, kind: dict[Any, Any], key: Any, value: Any) -> None:
+        """``kind[key] = value``, after emptying ``kind`` when it holds :attr:`LIMIT` entries."""
+        if len(kind) >= self.LIMIT:
+            kind.clear()
+        kind[key] = value
+
+
 def _stacked(top: sp.csr_matrix, below: sp.csr_matrix) -> sp.csc_matrix:
     """``[top; below]`` (both CSR) as CSC, every stored entry kept: ``sp.vstack`` of the two,
     converted, entry for entry, from their CSR arrays without its general checks."""
@@ -341,15 +366,13 @@ class ContinuousAvoidQP:
         #: per vehicle and half-plane: σ M (row values of a full piece) of every piece, every full
         #: piece's bounds
         self._full_vals: dict[tuple[int, int], FloatArray] = self._grid.full_vals
-        self._splits: dict[tuple[int, int, int, float, float], tuple[FloatArray, FloatArray]] = {}
-        self._segments: dict[tuple[int, int, float, float], tuple[FloatArray, FloatArray, NDArray[np.int64]]] = {}
         self._spec_rows: dict[Spec, tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]] = {}
-        #: per vehicle and half-plane: the bounds of its rows on every full piece, and its
-        #: :meth:`rhs_polynomial` per ``(k, pre)`` — they depend on the grid, the degree and the
-        #: half-plane (its vehicle's motion, size and corner) only, so the plans of one planner keep
-        #: them (``shared``, under all of these; the same arrays as computed here)
+        #: per vehicle and half-plane, its rows' values and bounds (:class:`_PlaneRows`): they depend
+        #: on the grid, the degree and the half-plane (its vehicle's motion, size and corner) only,
+        #: so the plans of one planner keep them (``shared``, under all of these; the same arrays as
+        #: computed here)
+        self._planes: dict[tuple[int, int], _PlaneRows] = {}
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
-        self._rhs_polys: dict[tuple[int, int], dict[tuple[int, bool], FloatArray]] = {}
         for i in range(m):
             for a in (0, 1):
                 hp = self.data.planes[i][a]
@@ -357,12 +380,13 @@ class ContinuousAvoidQP:
                 key = ("rhs", self.N, d.t_nodes.tobytes(), self.degree, hp.axis,
                        repr((tuple(v.x_poly), v.y, v.length, v.width, v.safety_x, v.safety_y, v.corner)))
                 kept = self._shared.get(key) if self._shared is not None else None
-                if kept is None:
+                if not isinstance(kept, _PlaneRows):
                     t0 = d.t_nodes[:-1]
-                    kept = (self._rhs(hp, t0, t0 + self.h).ravel(), {})
+                    kept = _PlaneRows(self._rhs(hp, t0, t0 + self.h).ravel())
                     if self._shared is not None:
                         self._shared.put(key, kept)
-                self._full_rhs[(i, a)], self._rhs_polys[(i, a)] = kept
+                self._planes[(i, a)] = kept
+                self._full_rhs[(i, a)] = kept.full_rhs
 
     def _rhs(self, hp: HalfPlane, ta: float | FloatArray, tb: float | FloatArray) -> FloatArray:
         """The bounds of half-plane ``hp``'s Bernstein rows on ``[ta, tb]`` (arrays: on every
@@ -392,7 +416,7 @@ class ContinuousAvoidQP:
         """Power coefficients in ``λ`` (shape ``(d + 1, d + 1)``) of the bounds of vehicle ``i``'s
         half-plane ``plane`` on ``[t_k, t_k + λh]`` (``pre``) or ``[t_k + λh, t_{k+1}]`` (a
         polynomial of degree ``d`` in ``λ``; fitted once per piece)."""
-        kept = self._rhs_polys[(i, plane)]
+        kept = self._planes[(i, plane)].polys
         out = kept.get((k, pre))
         if out is None:
             hp = self.data.planes[i][plane]
@@ -407,10 +431,11 @@ class ContinuousAvoidQP:
         """The row values (``σ M``, raveled) and bounds of vehicle ``i``'s half-plane ``plane`` on
         the sub-piece ``[λ0, λ1]`` of piece ``k``: from :meth:`split_polynomials` and
         :meth:`rhs_polynomial` for ``[0, λ]`` and ``[λ, 1]`` (the only sub-pieces a spec imposes),
-        directly otherwise; kept per plan (a box's ends recur in its children, candidates and
-        relaxations)."""
-        key = (i, plane, k, l0, l1)
-        out = self._splits.get(key)
+        directly otherwise; kept with the half-plane (:class:`_PlaneRows`: a box's ends recur in
+        its children, candidates and relaxations)."""
+        kept = self._planes[(i, plane)]
+        key = (k, l0, l1)
+        out = kept.splits.get(key)
         if out is None:
             hp = self.data.planes[i][plane]
             if l0 == 0.0 or l1 == 1.0:
@@ -423,7 +448,7 @@ class ContinuousAvoidQP:
                 t0 = float(self.data.t_nodes[k])
                 out = (hp.sigma * piece_matrix(self.h, l0, l1, self.degree).ravel(),
                        self._rhs(hp, t0 + l0 * self.h, t0 + l1 * self.h))
-            self._splits[key] = out
+            kept.keep(kept.splits, key, out)
         return out
 
     def segment_pieces(self, ta: float, tb: float) -> list[tuple[int, float, float]]:
@@ -458,10 +483,11 @@ class ContinuousAvoidQP:
 
     def _segment(self, i: int, plane: int, ta: float, tb: float) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
         """Vehicle ``i``'s half-plane ``plane`` imposed on ``[ta, tb]``: the values (four per row),
-        bounds and layout numbers of its Bernstein rows, in layout order (kept per plan: a box's
-        ends recur in its children, candidates and relaxations)."""
-        key = (i, plane, ta, tb)
-        out = self._segments.get(key)
+        bounds and layout numbers of its Bernstein rows, in layout order (kept with the half-plane,
+        :class:`_PlaneRows`: a box's ends recur in its children, candidates and relaxations)."""
+        kept = self._planes[(i, plane)]
+        key = (i, ta, tb)
+        out = kept.segments.get(key)
         if out is None:
             n = self.degree + 1
             base = (i * 2 + plane) * self.N * n
@@ -488,8 +514,8 @@ class ContinuousAvoidQP:
             # the sub-pieces and full pieces are consecutive pieces: consecutive layout rows
             ids = np.arange(starts[0], starts[0] + sum(c.size for c in rhs), dtype=np.int64) \
                 if rhs else np.zeros(0, dtype=np.int64)
-            out = self._segments[key] = (np.concatenate(vals) if vals else np.zeros(0),
-                                         np.concatenate(rhs) if rhs else np.zeros(0), ids)
+            out = (np.concatenate(vals) if vals else np.zeros(0), np.concatenate(rhs) if rhs else np.zeros(0), ids)
+            kept.keep(kept.segments, key, out)
         return out
 
     def bernstein_rows(self, spec: Spec) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:

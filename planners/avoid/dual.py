@@ -52,7 +52,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .bernstein import _power_to_bernstein, reparametrise
-from .schur import full_hessian, kkt_matrix
+from .schur import _run, full_hessian, kkt_matrix
 
 if TYPE_CHECKING:
     from .continuous import ContinuousAvoidQP, Solved
@@ -97,6 +97,10 @@ class _Binding:
     plane: NDArray[np.int64]
     piece: NDArray[np.int64]
     j: NDArray[np.int64]
+    #: ``A_in``'s CSR arrays (int64 indices, as the node solver's kernels take them)
+    indptr: NDArray[np.int64]
+    indices: NDArray[np.int64]
+    data: FloatArray
 
 
 @dataclass(frozen=True)
@@ -281,7 +285,9 @@ class DualBounds:
         ids = ids_all[nz]
         bern = ids < qp.n_b
         blk = np.where(bern, ids // (N * nb), -1)
-        return _Binding(A_in, u_in, nz, y_all[nz], bern, blk // 2, blk % 2, (ids // nb) % N, ids % nb)
+        return _Binding(A_in, u_in, nz, y_all[nz], bern, blk // 2, blk % 2, (ids // nb) % N, ids % nb,
+                        np.asarray(A_in.indptr, dtype=np.int64), np.asarray(A_in.indices, dtype=np.int64),
+                        np.asarray(A_in.data, dtype=float))
 
     def _split_blocks(self, sol: Solved, b: _Binding, i: int, k: int
                       ) -> Iterator[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64]]]:
@@ -351,7 +357,7 @@ class DualBounds:
         qp, d = self.qp, self.qp.data
         N, h, D = qp.N, qp.h, qp.degree
         b = self._binding(sol)
-        A_in, u_in, nz, y, bern, veh, plane, piece = b.A_in, b.u_in, b.nz, b.y, b.bern, b.veh, b.plane, b.piece
+        u_in, nz, y, bern, veh, plane, piece = b.u_in, b.nz, b.y, b.bern, b.veh, b.plane, b.piece
         keep = ~bern  # the limit rows
         poly_vehicles: list[int] = []
         pieces: list[int] = []
@@ -369,13 +375,12 @@ class DualBounds:
         q = len(poly_vehicles)
         C = 1 + q * D  # basis: 1, then λ_i^p (p = 1..D) per polynomial vehicle
         R = np.zeros((d.n + d.n_eq, C))
-        # -A_keepᵀ y_keep from the CSR arrays of the kept rows
+        # -A_keepᵀ y_keep from the CSR arrays of the kept rows (the node solver's kernel: from 0.0,
+        # the rows in order, each row's entries in stored order)
         rows_k, y_k = nz[keep], y[keep]
-        start = A_in.indptr[rows_k]
-        lens = A_in.indptr[rows_k + 1] - start
-        take = np.repeat(start - np.concatenate(([0], np.cumsum(lens)[:-1])), lens) + np.arange(int(lens.sum()))
-        R[:d.n, 0] = -np.bincount(A_in.indices[take], weights=A_in.data[take] * np.repeat(y_k, lens),
-                                  minlength=d.n)
+        Aty = np.empty(d.n)
+        _run("row_transpose_dot")(b.indptr, b.indices, b.data, rows_k, y_k, rows_k.size, Aty)
+        R[:d.n, 0] = -Aty
         R[d.n:, 0] = d.b_eq
         hc = np.zeros(C)
         hc[0] = float(y_k @ u_in[rows_k])
