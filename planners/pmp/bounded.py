@@ -1844,6 +1844,56 @@ def _edge_polish(ev: _Evaluator, x: FloatArray, T: float, rounds: int = 10
     return x, at_edge, held
 
 
+#: Half-widths (over ``t_f``) of the brackets in which :func:`_stationary_brackets` looks for the
+#: sign change of ``r_i`` at a time held just inside an edge; the smallest is above the reach of
+#: the noise of ``r_i`` there (random_problem(539214, m=3) at 0.7162: ``r_1`` differs by 2 between
+#: warm and cold solves at one time, while it moves ``2.3e11 t_f`` per unit of time).
+STATIONARY_BRACKET = (1e-11, 1e-10, 1e-9)
+
+
+def _stationary_brackets(ev: _Evaluator, sol: BoundedSolution, times: list[int], T: float
+                         ) -> dict[int, dict[str, float]] | None:
+    r"""Held times whose Hamiltonian-jump residual fails its check only by the precision of ``r``:
+    ``{i: {"delta": δ, "r_minus": r_i(t_i − δ t_f), "r_plus": r_i(t_i + δ t_f), "cost_bound": …}}``
+    for each ``i`` of ``times`` whose own residual exceeds ``pmp_hjump_rel``, or ``None`` when one
+    of them has no such bracket.
+
+    Just inside an edge of the feasible contact times the multipliers are large and
+    :math:`r_i = H^- - H^+ - \dot x_{s,i}\Phi_{i,x}` is a difference of large terms: its
+    rounding (warm against cold solves of the same times) can exceed the check's tolerance at
+    every float time near its zero.  Then the claim is made by the sign of ``r_i`` instead: with
+    the other times fixed, :math:`r_i(t_i-\delta) < 0 < r_i(t_i+\delta)` for the first ``δ`` of
+    :data:`STATIONARY_BRACKET` (``t_f`` units) where it holds, so by continuity of
+    :math:`r_i = \partial J_b/\partial t_i` (the fixed-time problem is strictly convex, its
+    solution and ``J_b`` smooth in ``t`` where feasible) a zero ``t_i^*`` of ``r_i`` lies within
+    ``δ t_f`` of ``t_i``, and ``J_b`` rises through it (a minimum along ``t_i``).  With ``r_i``
+    monotone across the bracket, :math:`|J_b(t) - J_b(t^*)| \le \delta t_f\max|r_i(t_i\pm\delta)|`
+    (``cost_bound``), which must be within ``pmp_bounded_gap_rel`` of ``J_b``: the plan is then
+    the stationary one to the precision its cost is checked to."""
+    r, size = sol.hamiltonian_jump_terms()
+    t = np.array(sol.contact_times, dtype=float)
+    hscale = max(1e-300, sol.cost / T)
+    tol = TOLERANCES["pmp_hjump_rel"]
+    out: dict[int, dict[str, float]] = {}
+    for i in times:
+        si = float(size[i])
+        if abs(float(r[i])) <= tol * (si if si > HJUMP_FLOOR * hscale else HJUMP_FLOOR * hscale):
+            continue
+        for delta in STATIONARY_BRACKET:
+            lo, hi = t.copy(), t.copy()
+            lo[i] -= delta * T
+            hi[i] += delta * T
+            r_lo, r_hi = float(ev(lo)[1][i]), float(ev(hi)[1][i])
+            if r_lo < 0 < r_hi:
+                bound = delta * T * max(-r_lo, r_hi)
+                if bound <= TOLERANCES["pmp_bounded_gap_rel"] * sol.cost:
+                    out[i] = {"delta": delta, "r_minus": r_lo, "r_plus": r_hi, "cost_bound": bound}
+                break
+        if i not in out:
+            return None
+    return out
+
+
 def _kkt_at_edges(ev: _Evaluator, sol: BoundedSolution, edges: dict[int, float], T: float) -> bool:
     """Whether each contact time ``i`` of ``edges`` is at an edge of the feasible contact times
     with ``J_b`` falling out of the set (KKT with the edge an active bound): the slope
@@ -1998,11 +2048,23 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
                     sol_e = solve_bounded_fixed(problem, t_e, ev.warm_for(t_e))
                     values_e = check_values(sol_e, stationary=True, at_edge=sorted(edges))
                 judged_e = judge(values_e)
+                brackets: dict[int, dict[str, float]] | None = None
+                if judged_e[1] == "hamiltonian_jump":
+                    # a time held where r_i turns just inside its edge: stationary by r_i's sign
+                    brackets = _stationary_brackets(ev, sol_e, [i for i in sorted(held) if i not in edges], T)
+                    if brackets:
+                        with np.errstate(all="ignore"):
+                            values_e = check_values(sol_e, stationary=True, at_edge=sorted({*edges, *brackets}))
+                        judged_e = judge(values_e)
                 if judged_e[2] is None and _kkt_at_edges(ev, sol_e, edges, T):
                     t, sol, values, (checks, failed, bad) = t_e, sol_e, values_e, judged_e
                     r_e = sol_e.hamiltonian_jump_residual()
                     search["edge_polish"] = {"held": [{"vehicle": i, "side": "upper" if side > 0 else "lower"}
                                                       for i, side in sorted(held.items())]}
+                    if brackets:
+                        search["edge_polish"]["stationary_by_sign"] = [
+                            {"vehicle": i, "t": float(sol_e.contact_times[i]), **b}
+                            for i, b in sorted(brackets.items())]
                     if edges:
                         search["feasibility_edges"] = [
                             {"vehicle": i, "side": "upper" if edges[i] > 0 else "lower",
