@@ -88,13 +88,14 @@ from iamp.core import status as st
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
+from iamp.planners.avoid import search_kernel
 from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, fit_polynomial, lower_bounds, piece_of
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
-from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, SchurActiveSet
+from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, SchurActiveSet, _run
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration, RowsSolution
 from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.hold import HoldTrajectory
@@ -372,6 +373,7 @@ class ContinuousAvoidQP:
         #: so the plans of one planner keep them (``shared``, under all of these; the same arrays as
         #: computed here)
         self._planes: dict[tuple[int, int], _PlaneRows] = {}
+        self._plane_arrays: tuple[FloatArray, FloatArray, FloatArray, FloatArray, NDArray[np.int64]] | None = None
         self._full_rhs: dict[tuple[int, int], FloatArray] = {}
         for i in range(m):
             for a in (0, 1):
@@ -387,6 +389,25 @@ class ContinuousAvoidQP:
                         self._shared.put(key, kept)
                 self._planes[(i, a)] = kept
                 self._full_rhs[(i, a)] = kept.full_rhs
+
+    def plane_arrays(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, NDArray[np.int64]]:
+        """The half-planes as :func:`~iamp.planners.avoid.search_kernel.plane_margin` takes them:
+        per vehicle and half-plane ``σ`` and the half size plus safety margin (``L/2 + S_x``,
+        ``W/2 + S_y``), per vehicle its ``y`` and its ``x_s`` coefficients (rows padded with zeros;
+        their number), built once."""
+        if self._plane_arrays is None:
+            vs = self.problem.vehicles
+            m = len(vs)
+            sigma = np.array([[hp.sigma for hp in pair] for pair in self.data.planes], dtype=float).reshape(m, 2)
+            half = np.array([[v.length / 2 + v.safety_x, v.width / 2 + v.safety_y] for v in vs],
+                            dtype=float).reshape(m, 2)
+            lateral = np.array([float(v.y) for v in vs], dtype=float)
+            plen = np.array([len(v.x_poly) for v in vs], dtype=np.int64)
+            polys = np.zeros((m, int(plen.max(initial=1))))
+            for i, v in enumerate(vs):
+                polys[i, :len(v.x_poly)] = np.asarray(v.x_poly, dtype=float)
+            self._plane_arrays = (sigma, half, lateral, polys, plen)
+        return self._plane_arrays
 
     def _rhs(self, hp: HalfPlane, ta: float | FloatArray, tb: float | FloatArray) -> FloatArray:
         """The bounds of half-plane ``hp``'s Bernstein rows on ``[ta, tb]`` (arrays: on every
@@ -739,20 +760,18 @@ class ContinuousAvoidPlanner:
     def _candidate_tau(self, qp: ContinuousAvoidQP, box: _Box) -> tuple[FloatArray, FloatArray]:
         """Per vehicle, the ``τ`` in its box where the relaxed optimum best keeps the first
         half-plane before and the second after (a max-min of margins on 33 samples), and that
-        margin (negative: the relaxed optimum breaks vehicle ``i``'s constraint in the box)."""
-        traj = box.relaxed.trajectory()
-        out = np.empty(len(box.orders))
-        worst = np.empty(len(box.orders))
-        T = np.linspace(box.lo, box.hi, 33, axis=1)  # (m, 33): every vehicle's samples at once
-        XT = traj.states(T.ravel()).reshape(T.shape[0], 33, -1)
-        for i, (f, s) in enumerate(box.orders):
-            t, X = T[i], XT[i]
-            planes = qp.data.planes[i]
-            mf = planes[f].margin(t, X[:, 2 * f])
-            ms = planes[s].margin(t, X[:, 2 * s])
-            score = np.minimum(np.minimum.accumulate(mf), np.minimum.accumulate(ms[::-1])[::-1])
-            out[i] = t[int(np.argmax(score))]
-            worst[i] = float(np.max(score))
+        margin (negative: the relaxed optimum breaks vehicle ``i``'s constraint in the box):
+        :func:`~iamp.planners.avoid.search_kernel.candidate_tau` on the relaxed optimum's ``z``."""
+        m = len(box.orders)
+        out = np.empty(m)
+        worst = np.empty(m)
+        sigma, half, lateral, polys, plen = qp.plane_arrays()
+        d = qp.data
+        _run("candidate_tau", search_kernel)(
+            np.asarray(box.relaxed.z, dtype=float), d.t_nodes, d.N, d.block, qp.hold == "foh",
+            np.asarray(box.lo, dtype=float), np.asarray(box.hi, dtype=float),
+            np.asarray(box.orders, dtype=np.int64).reshape(m, 2), sigma, half, lateral, polys, plen,
+            np.empty((m, 33)), np.empty(33), np.empty(33), out, worst)
         return out, worst
 
     def _probe(self, box: _Box, tau: FloatArray, polys: Sequence[DualPolynomial]) -> tuple[FloatArray, float]:

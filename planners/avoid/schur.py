@@ -88,18 +88,21 @@ _STATUS = {kernel.OPTIMAL: st.OPTIMAL, kernel.INFEASIBLE: st.INFEASIBLE, kernel.
            kernel.MAX_ITER: st.MAX_ITER, kernel.CUTOFF: CUTOFF}
 #: Run the kernel as Python (numba absent): the same numbers, bit for bit, more slowly.
 _PYTHON = not jit.available()
-_TWINS: dict[str, Any] = {}
+_TWINS: dict[tuple[str, str], Any] = {}
 
 
-def _run(name: str) -> Any:
-    """The kernel ``name`` of :mod:`~iamp.planners.avoid.schur_kernel`, compiled by numba when
-    available (else the Python function itself: the same numbers)."""
-    fn = getattr(kernel, name)
+def _run(name: str, module: Any = kernel) -> Any:
+    """The kernel ``name`` of ``module`` (:mod:`~iamp.planners.avoid.schur_kernel`, or
+    :mod:`~iamp.planners.avoid.search_kernel`: modules whose compilable functions call none outside
+    their own file), compiled by numba when available (else the Python function itself: the same
+    numbers)."""
+    fn = getattr(module, name)
     if _PYTHON:
         return fn
-    if name not in _TWINS:
-        _TWINS[name] = jit.twin(fn, cache=True)
-    return _TWINS[name]
+    key = (module.__name__, name)
+    if key not in _TWINS:
+        _TWINS[key] = jit.twin(fn, cache=True)
+    return _TWINS[key]
 
 
 def full_hessian(P: sp.spmatrix) -> sp.csc_matrix:

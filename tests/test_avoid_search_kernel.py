@@ -1,0 +1,103 @@
+"""The crossing-time search's kernels (``planners/avoid/search_kernel.py``), written once.
+
+* The Python functions and their numba twins give the same numbers bit for bit (so no plan
+  depends on whether numba is installed).
+* The held position against :class:`~iamp.core.hold_trajectory.HoldTrajectory` (FOH and ZOH), the
+  margins against :class:`~iamp.planners.avoid.data.HalfPlane`, and the candidate crossing times
+  against the max-min of those margins computed with numpy (an independent reference).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from iamp.planners.avoid import search_kernel as kernel
+from iamp.planners.avoid.check import crossing_orders
+from iamp.planners.avoid.continuous import ContinuousAvoidQP, _spec
+from iamp.planners.examples import overtake_problem, overtake_three_problem
+from iamp.planners.pmp import jit
+
+
+def _relaxed(m: int, steps: int, hold: str):  # type: ignore[no-untyped-def]
+    """A QP and the optimum of its relaxation over the middle of the horizon (a box's ``relaxed``)."""
+    prob = overtake_problem() if m == 1 else overtake_three_problem()
+    if hold == "zoh":
+        prob = prob.with_limits(None)
+    qp = ContinuousAvoidQP(prob, steps, hold, "clarabel")
+    orders, _ = crossing_orders(prob)
+    first = [o[0] for o in orders]
+    sol = qp.solve(_spec(first, np.full(m, 0.3 * prob.tf), np.full(m, 0.8 * prob.tf)))
+    assert sol.status == "optimal"
+    return qp, first, sol
+
+
+def _boxes(m: int, tf: float):  # type: ignore[no-untyped-def]
+    rng = np.random.default_rng(5)
+    out = [(np.zeros(m), np.full(m, tf)), (np.full(m, 0.37 * tf), np.full(m, 0.37 * tf))]  # a zero-width box
+    for _ in range(6):
+        a, b = np.sort(rng.uniform(0.0, tf, (2, m)), axis=0)
+        out.append((a, b))
+    lo, hi = out[-1]
+    hi = hi.copy()
+    hi[0] = lo[0]  # one vehicle's interval a point, the others wide
+    out.append((lo, hi))
+    return out
+
+
+def _call(fn, qp, first, z, lo, hi):  # type: ignore[no-untyped-def]
+    m = len(first)
+    d = qp.data
+    out, worst, T = np.empty(m), np.empty(m), np.empty((m, 33))
+    fn(np.asarray(z, dtype=float), d.t_nodes, d.N, d.block, qp.hold == "foh", np.asarray(lo, dtype=float),
+       np.asarray(hi, dtype=float), np.asarray(first, dtype=np.int64).reshape(m, 2), *qp.plane_arrays(), T,
+       np.empty(33), np.empty(33), out, worst)
+    return out, worst, T
+
+
+@pytest.mark.skipif(not jit.available(), reason="numba is not installed")
+@pytest.mark.parametrize("m,hold", [(1, "foh"), (3, "foh"), (1, "zoh")])
+def test_the_compiled_kernel_is_the_python_function_bit_for_bit(m: int, hold: str) -> None:
+    qp, first, sol = _relaxed(m, 20, hold)
+    compiled = jit.twin(kernel.candidate_tau, cache=True)
+    for lo, hi in _boxes(m, qp.tf):
+        a, b = _call(kernel.candidate_tau, qp, first, sol.z, lo, hi), _call(compiled, qp, first, sol.z, lo, hi)
+        for x, y in zip(a, b):
+            assert np.array_equal(x, y)
+
+
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_held_position_and_margins_against_the_trajectory_and_the_half_planes(hold: str) -> None:
+    qp, _, sol = _relaxed(3, 20, hold)
+    traj = qp.trajectory(sol.z)
+    d = qp.data
+    arrays = qp.plane_arrays()
+    t = np.r_[np.linspace(0.0, qp.tf, 97), d.t_nodes, qp.tf]
+    X = traj.states(t)
+    for axis in (0, 1):
+        s = np.array([kernel.held_position(sol.z, d.t_nodes, d.N, d.block, hold == "foh", axis, float(x)) for x in t])
+        assert np.allclose(s, X[:, 2 * axis], rtol=1e-13, atol=1e-12)
+        for i, planes in enumerate(d.planes):
+            want = planes[axis].margin(t, X[:, 2 * axis])
+            got = np.array([kernel.plane_margin(i, axis, float(x), float(y), *arrays) for x, y in zip(t, s)])
+            assert np.allclose(got, want, rtol=1e-13, atol=1e-11)
+
+
+@pytest.mark.parametrize("m", [1, 3])
+def test_candidate_times_are_the_max_min_of_the_margins(m: int) -> None:
+    qp, first, sol = _relaxed(m, 20, "foh")
+    traj = qp.trajectory(sol.z)
+    for lo, hi in _boxes(m, qp.tf):
+        out, worst, T = _call(kernel.candidate_tau, qp, first, sol.z, lo, hi)
+        ref_T = np.linspace(lo, hi, 33, axis=1)
+        assert np.allclose(T, ref_T, rtol=0.0, atol=1e-12 * qp.tf) and np.array_equal(T[:, -1], hi)
+        for i, (f, s) in enumerate(first):
+            t = ref_T[i]
+            X = traj.states(t)
+            planes = qp.data.planes[i]
+            mf, ms = planes[f].margin(t, X[:, 2 * f]), planes[s].margin(t, X[:, 2 * s])
+            score = np.array([min(mf[:j + 1].min(), ms[j:].min()) for j in range(t.size)])
+            assert worst[i] == pytest.approx(score.max(), rel=1e-12, abs=1e-10)
+            # the chosen sample scores the maximum (to round-off)
+            j = int(np.flatnonzero(T[i] == out[i])[0])
+            assert score[j] >= score.max() - 1e-10
