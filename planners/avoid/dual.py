@@ -101,6 +101,10 @@ class _Binding:
     indptr: NDArray[np.int64]
     indices: NDArray[np.int64]
     data: FloatArray
+    #: :meth:`DualBounds._split_blocks` per ``(vehicle, piece)``, each block with its terms of
+    #: :meth:`DualBounds.polynomial` (``σ (y_j M)ᵀ``, ``rhs · y_j``), computed once per solution
+    blocks: dict[tuple[int, int], list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64],
+                                             FloatArray, FloatArray]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -290,14 +294,25 @@ class DualBounds:
                         np.asarray(A_in.data, dtype=float))
 
     def _split_blocks(self, sol: Solved, b: _Binding, i: int, k: int
-                      ) -> Iterator[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64]]]:
+                      ) -> list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64], FloatArray,
+                                      FloatArray]]:
+        """:meth:`_blocks` of ``(i, k)``, computed once per solution (kept on its binding ``b``)."""
+        out = b.blocks.get((i, k))
+        if out is None:
+            out = b.blocks[(i, k)] = [(M, yj, rhs, sigma, cols, sigma * (yj @ M).T, rhs @ yj)
+                                      for M, yj, rhs, sigma, cols in self._blocks(sol, b, i, k)]
+        return out
+
+    def _blocks(self, sol: Solved, b: _Binding, i: int, k: int
+                ) -> Iterator[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64]]]:
         """Vehicle ``i``'s two half-planes on piece ``k``, split at its crossing time (first on
         ``[0, λ]``, second on ``[λ, 1]``): per half-plane with a binding row there, ``(M, yj, rhs,
         σ, cols)`` — the σ-free row values as polynomials in ``λ``
         (:meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.split_polynomials`), the
         multipliers per Bernstein index, the bounds as polynomials in ``λ``
         (:meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.rhs_polynomial`), the sign and
-        the piece's four node columns (the one loop of :meth:`gradient` and :meth:`polynomial`)."""
+        the piece's four node columns (the one loop of :meth:`gradient` and :meth:`polynomial`,
+        through :meth:`_split_blocks`)."""
         d = self.qp.data
         f, s = sol.spec[i][0], sol.spec[i][1]
         for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
@@ -333,7 +348,7 @@ class DualBounds:
             assert k is not None
             lam = (float(a) - k * h) / h
             basis = dpow * lam ** (dpow - 1)  # d/dλ of λ^p, p = 1..D
-            for M, yj, rhs, sigma, cols in self._split_blocks(sol, b, i, k):
+            for M, yj, rhs, sigma, cols, _, _ in self._split_blocks(sol, b, i, k):
                 dM = np.tensordot(basis, M[1:], axes=(0, 0))  # (nb, 4)
                 drhs = basis @ rhs[1:]  # (nb,)
                 out[i] += float(yj @ (sigma * (dM @ sol.z[cols]) - drhs)) / h
@@ -387,12 +402,12 @@ class DualBounds:
         exps, pairs = self._exponents(q)
         for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
             cs = self._basis_columns[v]  # the basis columns of λ_i^0..λ_i^D
-            for M, yj, rhs, sigma, cols in self._split_blocks(sol, b, i, k):
+            for _, _, _, _, cols, yM, ry in self._split_blocks(sol, b, i, k):
                 ix = self._ix.get((cols.tobytes(), v))
                 if ix is None:
                     ix = self._ix[(cols.tobytes(), v)] = np.ix_(cols, cs)
-                R[ix] -= sigma * (yj @ M).T
-                hc[cs] += rhs @ yj
+                R[ix] -= yM  # σ (y_j M)ᵀ
+                hc[cs] += ry  # rhs · y_j
         X = self.lu.solve(R)
         Z, nu = X[:d.n], X[d.n:]
         G = Z.T @ (self.P @ Z)
