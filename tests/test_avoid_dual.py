@@ -223,3 +223,36 @@ def test_the_envelope_gradient_is_the_piece_polynomials_slope(three):
             e[i] = 1e-5
             up, down = qp.solve(_spec(orders, tau + e, tau + e)), qp.solve(_spec(orders, tau - e, tau - e))
             assert grad[i] == pytest.approx((up.cost - down.cost) / 2e-5, rel=1e-3, abs=1e-6)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
+@given(st_h.floats(-5.0, 12.0), st_h.floats(15.0, 24.0), st_h.booleans(), st_h.sampled_from(["foh", "zoh"]),
+       st_h.integers(6, 30), st_h.floats(0.05, 0.95), st_h.floats(0.0, 3.0))
+def test_the_polynomial_from_the_node_solvers_columns_is_the_direct_solves(x0v, speed, limits, hold, steps, where,
+                                                                           pieces):
+    # K^-1 R from the columns of K^-1 the node solver keeps (and the equality optimum) is the
+    # sparse LU solve of the same system (the backend node solver's route): same coefficients
+    # to round-off
+    prob = problem(x0v, speed, 118.0, 24.0, limits and hold == "foh")
+    try:
+        qp = ContinuousAvoidQP(prob, steps, hold, "clarabel")
+    except ScenarioError:
+        assume(False)
+    assert qp.schur is not None
+    h = qp.h
+    t = min(max(where * prob.tf, 1e-3), prob.tf - 1e-3)
+    sol = qp.solve(spec((1, 0), t))
+    assume(sol.status == st.OPTIMAL)
+    k = piece_of(t, t, h, steps)
+    assert k is not None
+    lo, hi = np.array([max(0.0, (k - pieces) * h)]), np.array([min(prob.tf, (k + 1 + pieces) * h)])
+    for box in ((np.array([k * h]), np.array([(k + 1) * h])), (lo, hi)):
+        kept = DualBounds(qp).polynomial(sol, *box)
+        schur, qp.schur = qp.schur, None
+        try:
+            direct = DualBounds(qp).polynomial(sol, *box)
+        finally:
+            qp.schur = schur
+        assert kept.vehicles == direct.vehicles and kept.pieces == direct.pieces
+        scale = max(1.0, float(np.abs(direct.coef).max()))
+        assert np.abs(kept.coef - direct.coef).max() <= 1e-11 * scale

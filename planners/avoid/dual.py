@@ -9,7 +9,8 @@ implies), weak duality gives
 
 a bound that holds whatever solver produced :math:`y` and however accurate it is.  The inner
 minimum is one solve with the fixed KKT matrix :math:`\begin{pmatrix}P & E^\top\\ E & 0\end{pmatrix}`
-(factored once per grid, :class:`DualBounds`).
+(factored once per grid, :class:`DualBounds`; with the node solver, from the columns of
+:math:`K^{-1}` it keeps and its equality optimum, the same system).
 
 Where a vehicle's box lies within one grid piece ``k`` (:math:`\tau_i = t_k + \lambda_i h`), the
 rows that depend on :math:`\tau_i` are the Bernstein rows of the two sub-pieces
@@ -63,7 +64,8 @@ __all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "DualStore", "fit_po
            "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
-#: point (one sparse LU solve and a Bernstein transform); far below the search's gap (1e-4).
+#: point (one sparse LU solve, or a sum of columns of ``K⁻¹``, and a Bernstein transform); far
+#: below the search's gap (1e-4).
 ROUND_OFF_REL = 1e-9
 
 
@@ -408,10 +410,24 @@ class DualBounds:
                     ix = self._ix[(cols.tobytes(), v)] = np.ix_(cols, cs)
                 R[ix] -= yM  # σ (y_j M)ᵀ
                 hc[cs] += ry  # rhs · y_j
-        X = self.lu.solve(R)
-        Z, nu = X[:d.n], X[d.n:]
+        schur = qp.schur
+        if schur is None:
+            X = self.lu.solve(R)
+            Z, nu = X[:d.n], X[d.n:]
+            lin = nu.T @ d.b_eq + hc
+        else:
+            # K⁻¹R from the node solver's columns of K⁻¹ (K symmetric): R's primal rows are zero
+            # but on the kept rows' columns and the split pieces' node columns, its dual rows are
+            # b (column 0), and K⁻¹[0; b] = (z0, ν0) is the equality optimum; νᵀb by symmetry:
+            # (K⁻¹r)_ν · b = r · K⁻¹[0; b] = r_z · z0 + r_ν · ν0
+            Rp = R[:d.n]
+            touched = np.flatnonzero(Rp.any(axis=1))
+            schur._columns(touched)
+            Z = schur._Kinv[touched].T @ Rp[touched]
+            Z[:, 0] += schur.z0
+            lin = schur.z0 @ Rp + hc
+            lin[0] += float(d.b_eq @ schur._x0[d.n:])
         G = Z.T @ (self.P @ Z)
-        lin = nu.T @ d.b_eq + hc
         coef = np.zeros((2 * D + 1,) * q)
         # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ: each product of two basis
         # monomials adds to the coefficient of their product
