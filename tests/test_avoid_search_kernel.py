@@ -101,3 +101,24 @@ def test_candidate_times_are_the_max_min_of_the_margins(m: int) -> None:
             # the chosen sample scores the maximum (to round-off)
             j = int(np.flatnonzero(T[i] == out[i])[0])
             assert score[j] >= score.max() - 1e-10
+
+
+def test_valid_polys_is_the_box_containment_and_order_test() -> None:
+    rng = np.random.default_rng(11)
+    fns = [kernel.valid_polys] + ([jit.twin(kernel.valid_polys, cache=True)] if jit.available() else [])
+    for m in (1, 2, 3):
+        P = 40
+        LO = np.where(rng.random((P, m)) < 0.3, -np.inf, rng.uniform(0.0, 3.0, (P, m)))
+        HI = np.where(rng.random((P, m)) < 0.3, np.inf, LO + rng.uniform(0.0, 3.0, (P, m)))
+        B = rng.random((P, m)) < 0.6
+        O = rng.integers(0, 2, (P, m, 2))
+        for _ in range(30):
+            lo = rng.uniform(0.0, 3.0, m)
+            hi = lo + rng.uniform(0.0, 1.0, m)
+            want = rng.integers(0, 2, (m, 2))
+            same = (O == want[None]).all(axis=2)
+            ref = np.flatnonzero((lo >= LO).all(axis=1) & (hi <= HI).all(axis=1) & (same | ~B).all(axis=1))
+            for fn in fns:
+                out = np.empty(P, dtype=np.int64)
+                n = fn(LO, HI, B, O, want, lo, hi, out)
+                assert np.array_equal(out[:n], ref)

@@ -52,6 +52,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
+from . import search_kernel
 from .bernstein import _power_to_bernstein, reparametrise
 from .schur import _run, full_hessian, kkt_matrix
 
@@ -504,7 +505,8 @@ class DualStore:
         LO, HI, B, O = self._arrays
         want = self._order_arrays.get(orders)
         if want is None:
-            want = self._order_arrays[orders] = np.asarray(orders, dtype=np.int64)[None]
-        same = (O == want).all(axis=2)
-        ok = (lo >= LO).all(axis=1) & (hi <= HI).all(axis=1) & (same | ~B).all(axis=1)
-        return [self._polys[int(c)] for c in ok.nonzero()[0]]
+            want = self._order_arrays[orders] = np.asarray(orders, dtype=np.int64).reshape(-1, 2)
+        out = np.empty(LO.shape[0], dtype=np.int64)
+        n = _run("valid_polys", search_kernel)(LO, HI, B, O, want, np.asarray(lo, dtype=float),
+                                               np.asarray(hi, dtype=float), out)
+        return [self._polys[int(c)] for c in out[:n]]

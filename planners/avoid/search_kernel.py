@@ -9,7 +9,9 @@ for bit; ``tests/test_avoid_search_kernel.py`` compares the two), else this Pyth
 
 * :func:`candidate_tau` — a box's candidate crossing times (a max-min of the relaxed optimum's
   half-plane margins on samples of the box,
-  :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidPlanner._candidate_tau`).
+  :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidPlanner._candidate_tau`);
+* :func:`valid_polys` — the stored dual polynomials that bound a box
+  (:meth:`~iamp.planners.avoid.dual.DualStore.valid`).
 """
 
 from __future__ import annotations
@@ -123,3 +125,25 @@ def candidate_tau(z: Any, t_nodes: Any, N: int, block: int, foh: bool, lo: Any, 
                 best_score = score
         out[i] = T[i, best]
         worst[i] = best_score
+
+
+@compilable
+def valid_polys(LO: Any, HI: Any, B: Any, O: Any, want: Any, lo: Any, hi: Any, out: Any) -> int:
+    """The polynomials ``p`` (their numbers into ``out``, ascending; returns how many) whose region
+    holds the box ``[lo, hi]`` with the orders ``want`` (shape ``(m, 2)``): for every vehicle ``i``,
+    ``LO[p, i] <= lo[i]`` and ``hi[i] <= HI[p, i]``, and, where the polynomial binds the vehicle
+    (``B[p, i]``), the same orders ``O[p, i] == want[i]``."""
+    n = 0
+    for p in range(LO.shape[0]):
+        ok = True
+        for i in range(LO.shape[1]):
+            if not (lo[i] >= LO[p, i] and hi[i] <= HI[p, i]):
+                ok = False
+                break
+            if B[p, i] and (O[p, i, 0] != want[i, 0] or O[p, i, 1] != want[i, 1]):
+                ok = False
+                break
+        if ok:
+            out[n] = p
+            n += 1
+    return n
