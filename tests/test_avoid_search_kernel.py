@@ -122,3 +122,50 @@ def test_valid_polys_is_the_box_containment_and_order_test() -> None:
                 out = np.empty(P, dtype=np.int64)
                 n = fn(LO, HI, B, O, want, lo, hi, out)
                 assert np.array_equal(out[:n], ref)
+
+
+def test_polys_max_is_the_largest_tensor_polynomial_value() -> None:
+    # against the sum over every multi-index of c_j prod_a lam_a^j_a (numpy), polynomials of zero
+    # to three axes on vehicles of a three-vehicle problem, their crossing times in their pieces
+    from iamp.planners.avoid.dual import DualPolynomial, polys_values
+
+    rng = np.random.default_rng(4)
+    h, n = 0.1, 7
+    fns = [kernel.polys_max] + ([jit.twin(kernel.polys_max, cache=True)] if jit.available() else [])
+    for _ in range(20):
+        polys = []
+        for _ in range(int(rng.integers(1, 5))):
+            q = int(rng.integers(0, 4))
+            vehicles = tuple(sorted(rng.choice(3, q, replace=False).tolist()))
+            polys.append(DualPolynomial(vehicles, tuple(int(k) for k in rng.integers(0, 40, q)),
+                                        rng.standard_normal((n,) * q), h, np.ones(3)))
+        taus = rng.uniform(0.0, 4.0, (6, 3))
+        for dp in polys:  # every polynomial vehicle's time in its piece
+            for v, k in zip(dp.vehicles, dp.pieces):
+                taus[:, v] = (k + rng.uniform(0.0, 1.0, 6)) * h
+        # a polynomial whose vehicle's times a later one overwrote is evaluated off its piece:
+        # still a polynomial, the reference holds there too
+        ref = np.full(taus.shape[0], -np.inf)
+        for dp in polys:
+            lam = [(taus[:, v] - k * h) / h for v, k in zip(dp.vehicles, dp.pieces)]
+            val = np.zeros(taus.shape[0])
+            for j in np.ndindex(*dp.coef.shape):
+                term = np.full(taus.shape[0], dp.coef[j])
+                for a, e in enumerate(j):
+                    term = term * lam[a] ** e
+                val = val + term
+            ref = np.maximum(ref, val)
+        got = polys_values(polys, taus)
+        assert np.allclose(got, ref, rtol=1e-12, atol=1e-10)
+        for fn in fns:  # the twin: the same numbers bit for bit
+            qs = np.array([dp.coef.ndim for dp in polys], dtype=np.int64)
+            V = np.zeros((len(polys), 3), dtype=np.int64)
+            K = np.zeros((len(polys), 3), dtype=np.int64)
+            for p, dp in enumerate(polys):
+                V[p, :len(dp.vehicles)], K[p, :len(dp.pieces)] = dp.vehicles, dp.pieces
+            sizes = np.array([dp.coef.size for dp in polys])
+            starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
+            flat = np.concatenate([dp.coef.ravel() for dp in polys])
+            out = np.empty(taus.shape[0])
+            fn(flat, starts, qs, V, K, n, h, taus, out, np.empty(3), np.empty(n ** 3))
+            assert np.array_equal(out, got)

@@ -93,7 +93,15 @@ from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
 from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
-from iamp.planners.avoid.dual import DualBounds, DualPolynomial, DualStore, fit_polynomial, lower_bounds, piece_of
+from iamp.planners.avoid.dual import (
+    DualBounds,
+    DualPolynomial,
+    DualStore,
+    fit_polynomial,
+    lower_bounds,
+    piece_of,
+    polys_values,
+)
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
 from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, SchurActiveSet, _run
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration, RowsSolution
@@ -788,7 +796,7 @@ class ContinuousAvoidPlanner:
         pts = np.tile(tau, (grids[0].size if vs else 1, 1))
         for c, v in enumerate(vs):
             pts[:, v] = grids[c].ravel()
-        vals = np.max([dp.evaluate(pts) for dp in polys], axis=0)
+        vals = polys_values(polys, pts)
         at = int(np.argmin(vals))
         return np.asarray(pts[at], dtype=float), float(vals[at])
 

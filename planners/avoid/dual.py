@@ -170,13 +170,30 @@ class DualPolynomial:
         return float(self._values(np.pad(der, pad), np.asarray(tau, dtype=float)[None, :])[0])
 
     def _values(self, coef: FloatArray, taus: FloatArray) -> FloatArray:
-        taus = np.atleast_2d(taus)
-        vals = np.broadcast_to(coef, (taus.shape[0],) + coef.shape).copy()
-        for i, k in zip(self.vehicles, self.pieces):
-            lam = (taus[:, i] - k * self.h) / self.h
-            V = np.vander(lam, vals.shape[1], increasing=True)
-            vals = np.einsum("nj,nj...->n...", V, vals)
-        return np.asarray(vals, dtype=float).reshape(taus.shape[0])
+        return polys_values([self], np.atleast_2d(np.asarray(taus, dtype=float)), [coef])
+
+
+def polys_values(polys: list[DualPolynomial], taus: FloatArray, coefs: list[FloatArray] | None = None) -> FloatArray:
+    """At each row of ``taus`` (crossing times, shape ``(T, m)``; every polynomial vehicle's time in
+    its piece), the largest value of the polynomials ``polys`` (``coefs``: their coefficients in
+    place of ``coef``, e.g. a derivative's): :func:`~iamp.planners.avoid.search_kernel.polys_max`,
+    the one evaluation of these polynomials."""
+    coefs = [dp.coef for dp in polys] if coefs is None else coefs
+    qs = np.array([c.ndim for c in coefs], dtype=np.int64)
+    n = max((int(c.shape[0]) for c in coefs if c.ndim), default=1)
+    width = max(1, int(qs.max(initial=0)))
+    vehicles = np.zeros((len(polys), width), dtype=np.int64)
+    pieces = np.zeros((len(polys), width), dtype=np.int64)
+    for p, dp in enumerate(polys):
+        vehicles[p, :len(dp.vehicles)] = dp.vehicles
+        pieces[p, :len(dp.pieces)] = dp.pieces
+    sizes = np.array([c.size for c in coefs], dtype=np.int64)
+    starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
+    flat = np.concatenate([np.asarray(c, dtype=float).ravel() for c in coefs])
+    out = np.empty(taus.shape[0])
+    _run("polys_max", search_kernel)(flat, starts, qs, vehicles, pieces, n, float(polys[0].h), taus, out,
+                                     np.empty(width), np.empty(int(sizes.max())))
+    return out
 
 
 @lru_cache(maxsize=4096)

@@ -11,7 +11,9 @@ for bit; ``tests/test_avoid_search_kernel.py`` compares the two), else this Pyth
   half-plane margins on samples of the box,
   :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidPlanner._candidate_tau`);
 * :func:`valid_polys` — the stored dual polynomials that bound a box
-  (:meth:`~iamp.planners.avoid.dual.DualStore.valid`).
+  (:meth:`~iamp.planners.avoid.dual.DualStore.valid`);
+* :func:`polys_max` — the largest of several dual polynomials at each of several crossing
+  times (:meth:`~iamp.planners.avoid.dual.DualPolynomial.evaluate`, the search's probe).
 """
 
 from __future__ import annotations
@@ -147,3 +149,46 @@ def valid_polys(LO: Any, HI: Any, B: Any, O: Any, want: Any, lo: Any, hi: Any, o
             out[n] = p
             n += 1
     return n
+
+
+@compilable
+def tensor_polyval(coef: Any, start: int, q: int, n: int, lam: Any, work: Any) -> float:
+    """The tensor polynomial with power coefficients ``coef[start:start + n**q]`` (C order, shape
+    ``(n,) * q``) at ``λ = lam[:q]``: Horner's rule along the last axis for every index of the
+    others, then along the one before, ... (``work``: space for ``n**q`` numbers)."""
+    size = 1
+    for _ in range(q):
+        size *= n
+    for t in range(size):
+        work[t] = coef[start + t]
+    for a in range(q - 1, -1, -1):
+        x = lam[a]
+        size = size // n
+        for r in range(size):
+            acc = work[r * n + n - 1]
+            for j in range(n - 2, -1, -1):
+                acc = acc * x + work[r * n + j]
+            work[r] = acc
+    return work[0]
+
+
+@compilable
+def polys_max(coef: Any, starts: Any, qs: Any, vehicles: Any, pieces: Any, n: int, h: float, taus: Any,
+              out: Any, lam: Any, work: Any) -> None:
+    """``out[t]`` the largest over the polynomials ``p`` of :func:`tensor_polyval` at the crossing
+    times ``taus[t]`` (shape ``(T, m)``): polynomial ``p`` has ``qs[p]`` axes, the vehicles
+    ``vehicles[p, :qs[p]]`` in the pieces ``pieces[p, :qs[p]]``, its coefficients from
+    ``coef[starts[p]]``, and ``λ_a = (τ_v - k h) / h`` on its axis ``a`` (``lam``, ``work``:
+    space)."""
+    for t in range(taus.shape[0]):
+        best = 0.0
+        for p in range(starts.shape[0]):
+            q = qs[p]
+            for a in range(q):
+                lam[a] = (taus[t, vehicles[p, a]] - pieces[p, a] * h) / h
+            v = tensor_polyval(coef, starts[p], q, n, lam, work)
+            if p == 0 or v > best or not v == v:
+                best = v
+            if not best == best:
+                break
+        out[t] = best
