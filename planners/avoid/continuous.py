@@ -241,6 +241,7 @@ class Solved:
     #: the spec's imposed rows, their bounds and layout numbers (:meth:`ContinuousAvoidQP.spec_rows`)
     rows: tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]] | None = field(default=None, repr=False)
     _traj: HoldTrajectory | None = field(default=None, repr=False)
+    _active: NDArray[np.int64] | None = field(default=None, repr=False)
 
     def trajectory(self) -> HoldTrajectory:
         """The trajectory of :attr:`z` (built once)."""
@@ -254,9 +255,11 @@ class Solved:
 
     def active(self) -> NDArray[np.int64]:
         """The layout numbers of the rows with a positive multiplier (the warm start of a nearby
-        QP's node solve)."""
-        _, _, ids = self.spec_rows()
-        return np.asarray(ids[self.y[self.qp.data.n_eq:] > 0], dtype=np.int64)
+        QP's node solve; computed once: the incumbent warm-starts many solves; read-only)."""
+        if self._active is None:
+            _, _, ids = self.spec_rows()
+            self._active = np.asarray(ids[self.y[self.qp.data.n_eq:] > 0], dtype=np.int64)
+        return self._active
 
     @property
     def A(self) -> sp.csc_matrix:
