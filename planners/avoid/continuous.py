@@ -103,7 +103,7 @@ from iamp.planners.avoid.dual import (
     polys_values,
 )
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
-from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, SchurActiveSet, _run
+from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, CsrArrays, SchurActiveSet, _run, csr_arrays
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration, RowsSolution
 from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.hold import HoldTrajectory
@@ -379,6 +379,7 @@ class ContinuousAvoidQP:
         #: piece's bounds
         self._full_vals: dict[tuple[int, int], FloatArray] = self._grid.full_vals
         self._spec_rows: dict[Spec, tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]] = {}
+        self._csr64: dict[int, tuple[sp.csr_matrix, CsrArrays]] = {}
         #: per vehicle and half-plane, its rows' values and bounds (:class:`_PlaneRows`): they depend
         #: on the grid, the degree and the half-plane (its vehicle's motion, size and corner) only,
         #: so the plans of one planner keep them (``shared``, under all of these; the same arrays as
@@ -576,6 +577,14 @@ class ContinuousAvoidQP:
             out = self._spec_rows[spec] = self._build_spec_rows(spec)
         return out
 
+    def csr_arrays(self, A: sp.csr_matrix) -> CsrArrays:
+        """:func:`~iamp.planners.avoid.schur.csr_arrays` of a spec's rows (:meth:`spec_rows`; kept
+        per plan with the matrix: its node solve, KKT residuals and dual bounds read them)."""
+        kept = self._csr64.get(id(A))
+        if kept is None or kept[0] is not A:
+            kept = self._csr64[id(A)] = (A, csr_arrays(A))
+        return kept[1]
+
     def _build_spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
         vals, rhs, ids = self.bernstein_rows(spec)
         nb = ids.size
@@ -606,7 +615,7 @@ class ContinuousAvoidQP:
                 self._mark[active] = True
                 start = np.flatnonzero(self._mark[ids])
                 self._mark[active] = False
-            sol = self.schur.solve(A_in, u_in, start, cutoff)
+            sol = self.schur.solve(A_in, u_in, start, cutoff, self.csr_arrays(A_in))
             self.n_solves += 1
             if sol.status == CUTOFF:
                 return Solved(spec, CUTOFF, float(sol.bound), sol.z, sol.y, sol.iterations, self, 1,
@@ -654,7 +663,7 @@ class ContinuousAvoidQP:
                         or not np.array_equal(pA.data[a:b], A_in.data[e:f])):
                     return None
             y[n_eq + at] = y_p[bind]
-        if self.schur.residual(A_in, u_in, z, y) > CHECK_TOL:
+        if self.schur.residual(A_in, u_in, z, y, None, self.csr_arrays(A_in)) > CHECK_TOL:
             return None
         self.n_inherited += 1
         return Solved(spec, st.OPTIMAL, parent.cost, z, y, 0, self, 0, (A_in, u_in, ids))

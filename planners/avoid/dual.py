@@ -310,8 +310,7 @@ class DualBounds:
         bern = ids < qp.n_b
         blk = np.where(bern, ids // (N * nb), -1)
         return _Binding(A_in, u_in, nz, y_all[nz], bern, blk // 2, blk % 2, (ids // nb) % N, ids % nb,
-                        np.asarray(A_in.indptr, dtype=np.int64), np.asarray(A_in.indices, dtype=np.int64),
-                        np.asarray(A_in.data, dtype=float))
+                        *qp.csr_arrays(A_in))
 
     def _split_blocks(self, sol: Solved, b: _Binding, i: int, k: int
                       ) -> list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64], FloatArray,

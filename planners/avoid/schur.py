@@ -105,6 +105,17 @@ def _run(name: str, module: Any = kernel) -> Any:
     return _TWINS[key]
 
 
+#: A CSR matrix's ``indptr`` and ``indices`` (int64) and ``data`` (float), as the kernels take them.
+CsrArrays = tuple[NDArray[np.int64], NDArray[np.int64], FloatArray]
+
+
+def csr_arrays(A: sp.spmatrix) -> CsrArrays:
+    """``A``'s CSR arrays as the kernels take them (:data:`CsrArrays`)."""
+    A = A if isinstance(A, sp.csr_matrix) else sp.csr_matrix(A)
+    return (np.asarray(A.indptr, dtype=np.int64), np.asarray(A.indices, dtype=np.int64),
+            np.asarray(A.data, dtype=float))
+
+
 def full_hessian(P: sp.spmatrix) -> sp.csc_matrix:
     """The symmetric ``P`` from its upper triangle."""
     P = sp.csc_matrix(P)
@@ -198,7 +209,7 @@ class SchurActiveSet:
         return out
 
     def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, start: NDArray[np.int64] | None = None,
-              cutoff: float | None = None) -> RowsSolution:
+              cutoff: float | None = None, arrays: CsrArrays | None = None) -> RowsSolution:
         """Solve with the inequality rows ``A_in z <= u_in``.
 
         Parameters
@@ -215,6 +226,9 @@ class SchurActiveSet:
             bound of the QP's optimum: it minimises the cost over the working rows alone, with
             nonnegative multipliers — reaches ``cutoff`` (an infeasible QP's bound grows without
             limit, so it stops there too).
+        arrays : tuple, optional
+            ``A_in``'s CSR arrays as the kernels take them (:func:`csr_arrays`), when the caller
+            keeps them.
 
         Returns
         -------
@@ -224,12 +238,9 @@ class SchurActiveSet:
             equality rows' multipliers, then one per row of ``A_in`` (OSQP's convention
             ``Pz + Aᵀy = 0``); ``solves`` is 1.
         """
-        A_in = A_in if isinstance(A_in, sp.csr_matrix) else sp.csr_matrix(A_in)
         u = np.asarray(u_in, dtype=float)
         n_in = u.size
-        indptr = np.asarray(A_in.indptr, dtype=np.int64)
-        indices = np.asarray(A_in.indices, dtype=np.int64)
-        data = np.asarray(A_in.data, dtype=float)
+        indptr, indices, data = csr_arrays(A_in) if arrays is None else arrays
         self._columns(indices)
         seed = np.zeros(0, dtype=np.int64) if start is None else np.asarray(start, dtype=np.int64)
         z = np.empty(self.n)
@@ -263,7 +274,7 @@ class SchurActiveSet:
         if k:
             y[self.n_eq + rows] = lam
         finite = bool(np.isfinite(z).all() and np.isfinite(y).all())
-        if not finite or self.residual(A_in, u, z, y, Gt_lam) > CHECK_TOL:
+        if not finite or self.residual(A_in, u, z, y, Gt_lam, (indptr, indices, data)) > CHECK_TOL:
             status = st.NUMERICAL_ERROR  # e.g. a nearly dependent row of an infeasible QP
         return RowsSolution(status, z, y, iterations, 1, np.sort(rows), finite)
 
@@ -282,14 +293,12 @@ class SchurActiveSet:
             self.columns += int(missing.size)
 
     def residual(self, A_in: sp.csr_matrix, u: FloatArray, z: FloatArray, y: FloatArray,
-                 Gt: FloatArray | None = None) -> float:
+                 Gt: FloatArray | None = None, arrays: CsrArrays | None = None) -> float:
         """The largest KKT residual of ``(z, y)``, recomputed from the data: the equality rows'
         and the inequality rows' violations (absolute, metres or the limit's unit), a negative
         multiplier, and stationarity ``Pz + Eᵀν + Gᵀλ`` relative to its largest term (``Gt``:
-        ``Gᵀλ`` when known)."""
-        A_in = A_in if isinstance(A_in, sp.csr_matrix) else sp.csr_matrix(A_in)
-        Gp, Gi = np.asarray(A_in.indptr, dtype=np.int64), np.asarray(A_in.indices, dtype=np.int64)
-        Gx = np.asarray(A_in.data, dtype=float)
+        ``Gᵀλ`` when known; ``arrays``: ``A_in``'s :func:`csr_arrays` when known)."""
+        Gp, Gi, Gx = csr_arrays(A_in) if arrays is None else arrays
         y = np.asarray(y, dtype=float)
         if Gt is None:
             Gt = np.zeros(self.n)
