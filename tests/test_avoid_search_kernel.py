@@ -169,3 +169,43 @@ def test_polys_max_is_the_largest_tensor_polynomial_value() -> None:
             out = np.empty(taus.shape[0])
             fn(flat, starts, qs, V, K, n, h, taus, out, np.empty(3), np.empty(n ** 3))
             assert np.array_equal(out, got)
+
+
+def test_bernstein_min_is_the_smallest_tensor_bernstein_coefficient() -> None:
+    # against the tensor Bernstein transform by numpy (one einsum per axis) and against the
+    # polynomial's minimum on a dense grid of the box (which the smallest coefficient bounds)
+    from iamp.planners.avoid.dual import _bernstein_on
+
+    rng = np.random.default_rng(8)
+    n = 7
+    fns = [kernel.bernstein_min] + ([jit.twin(kernel.bernstein_min, cache=True)] if jit.available() else [])
+    for q in (0, 1, 2, 3):
+        P = 5
+        coef = rng.standard_normal((P,) + (n,) * q)
+        ab = np.sort(rng.uniform(0.0, 1.0, (P, max(q, 1), 2)), axis=2)
+        B = np.zeros((P, max(q, 1), n, n))
+        for p in range(P):
+            for a in range(q):
+                B[p, a] = _bernstein_on(n - 1, float(ab[p, a, 0]), float(ab[p, a, 1]))
+        ref = coef.copy()
+        for a in range(q):
+            ref = np.moveaxis(np.einsum("p...i,pri->p...r", np.moveaxis(ref, a + 1, -1), B[:, a]), -1, a + 1)
+        want = ref.reshape(P, -1).min(axis=1)
+        outs = []
+        for fn in fns:
+            out = np.empty(P)
+            fn(coef.reshape(P, -1), q, n, B, out, np.empty(n ** q), np.empty(n ** q))
+            outs.append(out)
+            assert np.allclose(out, want, rtol=1e-12, atol=1e-12)
+        for out in outs[1:]:
+            assert np.array_equal(out, outs[0])
+        if q in (1, 2):  # the smallest coefficient bounds the polynomial on its box
+            g = [np.linspace(ab[0, a, 0], ab[0, a, 1], 25) for a in range(q)]
+            mesh = np.meshgrid(*g, indexing="ij")
+            val = np.zeros(mesh[0].shape)
+            for j in np.ndindex(*coef.shape[1:]):
+                term = np.full(mesh[0].shape, coef[(0,) + j])
+                for a, e in enumerate(j):
+                    term = term * mesh[a] ** e
+                val = val + term
+            assert outs[0][0] <= val.min() + 1e-12

@@ -207,7 +207,8 @@ def _bernstein_on(degree: int, a: float, b: float) -> FloatArray:
 def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) -> list[float]:
     """:meth:`DualPolynomial.lower_bound` of every polynomial of ``polys`` over the box
     ``[lo, hi]``: the tensor Bernstein transform of the polynomials not yet bounded on it done
-    for all of them at once (one contraction per axis), each result kept on its polynomial."""
+    for all of them at once (:func:`~iamp.planners.avoid.search_kernel.bernstein_min`), each
+    result kept on its polynomial."""
     out: list[float] = [0.0] * len(polys)
     todo: dict[tuple[int, ...], list[tuple[int, DualPolynomial, tuple[tuple[float, float], ...]]]] = {}
     for c, dp in enumerate(polys):
@@ -218,14 +219,16 @@ def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) ->
         else:
             out[c] = v
     for shape, items in todo.items():
-        T = np.stack([dp.coef for _, dp, _ in items])  # (P, n, ..., n)
-        if len(shape):
-            deg = shape[0] - 1
-            for axis in range(len(shape)):
-                B = np.stack([_bernstein_on(deg, *key[axis]) for _, _, key in items])  # (P, n, n)
-                # T'[p, .., r, ..] = Σ_i B[p, r, i] T[p, .., i, ..] on this axis
-                T = np.moveaxis(np.einsum("p...i,pri->p...r", np.moveaxis(T, axis + 1, -1), B), -1, axis + 1)
-        mins = T.reshape(len(items), -1).min(axis=1)
+        q = len(shape)
+        n = shape[0] if q else 1
+        T = np.stack([dp.coef.reshape(-1) for _, dp, _ in items])  # (P, n**q)
+        # per polynomial and axis the Bernstein matrix of its interval on that axis
+        B = np.zeros((len(items), max(q, 1), n, n))
+        for p, (_, _, key) in enumerate(items):
+            for axis in range(q):
+                B[p, axis] = _bernstein_on(n - 1, *key[axis])
+        mins = np.empty(len(items))
+        _run("bernstein_min", search_kernel)(T, q, n, B, mins, np.empty(T.shape[1]), np.empty(T.shape[1]))
         for (c, dp, key), m in zip(items, mins):
             v = float(m) - ROUND_OFF_REL * max(1.0, abs(float(m)))
             dp._bounds[key] = v

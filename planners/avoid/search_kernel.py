@@ -13,7 +13,9 @@ for bit; ``tests/test_avoid_search_kernel.py`` compares the two), else this Pyth
 * :func:`valid_polys` — the stored dual polynomials that bound a box
   (:meth:`~iamp.planners.avoid.dual.DualStore.valid`);
 * :func:`polys_max` — the largest of several dual polynomials at each of several crossing
-  times (:meth:`~iamp.planners.avoid.dual.DualPolynomial.evaluate`, the search's probe).
+  times (:meth:`~iamp.planners.avoid.dual.DualPolynomial.evaluate`, the search's probe);
+* :func:`bernstein_min` — the smallest tensor Bernstein coefficient of each of several dual
+  polynomials on a box (:func:`~iamp.planners.avoid.dual.lower_bounds`).
 """
 
 from __future__ import annotations
@@ -192,3 +194,38 @@ def polys_max(coef: Any, starts: Any, qs: Any, vehicles: Any, pieces: Any, n: in
             if not best == best:
                 break
         out[t] = best
+
+
+@compilable
+def bernstein_min(coef: Any, q: int, n: int, B: Any, out: Any, work: Any, spare: Any) -> None:
+    """Per polynomial ``p`` (``coef[p]``: its power coefficients, C order, shape ``(n,) * q``),
+    ``out[p]`` the smallest of its tensor Bernstein coefficients: along axis ``a`` (first to last)
+    ``T'[.., r, ..] = Σ_i B[p, a, r, i] T[.., i, ..]`` (the sum over ``i`` ascending), then the
+    minimum over every entry (``work``, ``spare``: space for ``n**q`` numbers each)."""
+    size = 1
+    for _ in range(q):
+        size *= n
+    for p in range(coef.shape[0]):
+        for t in range(size):
+            work[t] = coef[p, t]
+        cur = work
+        nxt = spare
+        pre = 1
+        for a in range(q):
+            post = size // (pre * n)
+            for u in range(pre):
+                for w in range(post):
+                    for r in range(n):
+                        acc = 0.0
+                        for i in range(n):
+                            acc += B[p, a, r, i] * cur[(u * n + i) * post + w]
+                        nxt[(u * n + r) * post + w] = acc
+            tmp = cur
+            cur = nxt
+            nxt = tmp
+            pre *= n
+        m = cur[0]
+        for t in range(1, size):
+            if cur[t] < m:
+                m = cur[t]
+        out[p] = m
