@@ -392,3 +392,71 @@ def test_a_goal_a_vehicle_leaves_only_at_the_end_is_entered_from_beside_it(tmp_p
     assert rp.candidate is not None and rp.candidate.goal_step == 105
     verdict = _valid(cr, rp)
     assert verdict.valid, verdict.checks
+
+
+#: A steered (``KS``, vehicle type 2) state at step 95 of 5_x03 -- rear axle ``(x, y, δ, v, ψ)``
+#: in world coordinates -- and ten steps of inputs ``(steering rate, acceleration)`` that end in
+#: the slow goal state at step 105 (found by a local search over the last ten steps with the state
+#: at step 95 free; issue 33).
+KS_TAIL_5_X03_X95 = [23.828427, -32.032646, 0.16379, 5.183088, -0.927346]
+KS_TAIL_5_X03_U = [[0.030957, -0.279018], [-0.000236, -0.440221], [0.012079, -0.532208], [0.062464, -0.570385],
+                   [0.105025, 2.139271], [0.083666, 6.763338], [-0.020715, -3.407837], [-0.246388, -7.108061],
+                   [-0.353637, -8.793525], [-0.25031, -8.702236]]
+
+
+@needs_data
+def test_the_last_second_of_5_x03_is_no_obstacle_to_a_steered_solution(tmp_path: Path) -> None:
+    """5_x03 as ``KS`` is not proved impossible by its end: a steered car at 5.2 m/s at step 95,
+    0.9 m behind vehicle 477's rear and turned 0.17 rad to the right of the lane, passes below
+    477's rear corner (477's record ends at step 100), turns back left and stops inside the slow
+    goal state at step 105 at 3.09 m/s within its heading interval.  Checked independently of
+    iamp: the checker's own ``KS`` integrator (``VehicleDynamics.forward_simulation``, which
+    raises on an input or state outside the model's limits), the body's rectangle against every
+    recorded vehicle's occupancy at steps 95-105 and against the union of the lanelets (shapely, grown by 1 mm),
+    and CommonRoad's goal test at step 105.  What is not found is a steered solution from the
+    planning problem's start to such a state (the ``KS`` refinement's local search from iamp's
+    tracked plans ends 0.004-0.02 short in its residuals; ``docs/commonroad.md``)."""
+    from commonroad.common.file_reader import CommonRoadFileReader
+    from commonroad.common.solution import VehicleType
+    from commonroad.scenario.state import CustomState
+    from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics, VehicleParameterMapping
+    from shapely.geometry import Polygon
+    from shapely.ops import unary_union
+
+    path = with_goal(tmp_path, "USA_US101-5_1_T-1.xml", "USA_US101-5_1803_T-1", GOAL_5_X03)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scenario, pps = CommonRoadFileReader(str(path)).open()
+    pp = next(iter(pps.planning_problem_dict.values()))
+    p = VehicleParameterMapping.from_vehicle_type(VehicleType(2))
+    dyn = VehicleDynamics.KS(VehicleType(2))
+    dt = float(scenario.dt)
+    x = np.array(KS_TAIL_5_X03_X95, dtype=float)
+    states = [x]
+    for u in KS_TAIL_5_X03_U:
+        x = np.asarray(dyn.forward_simulation(x, np.array(u, dtype=float), dt, throw=True), dtype=float)
+        states.append(x)
+    # the lanelets' union, grown by 1 mm to close the micrometre slivers where neighbours meet
+    road = unary_union([lt.polygon.shapely_object for lt in scenario.lanelet_network.lanelets]).buffer(1e-3)
+    L2, W2, b = float(p.l) / 2, float(p.w) / 2, float(p.b)
+    gap_477 = math.inf
+    for k, (px, py, _delta, _v, psi) in enumerate(states, start=95):
+        c, s = math.cos(psi), math.sin(psi)
+        cx, cy = px + b * c, py + b * s
+        body = Polygon([(cx + ox * c - oy * s, cy + ox * s + oy * c)
+                        for ox, oy in ((L2, W2), (-L2, W2), (-L2, -W2), (L2, -W2))])
+        assert road.contains(body), k
+        for ob in scenario.dynamic_obstacles:
+            occ = ob.occupancy_at_time(k)
+            if occ is None:
+                continue
+            if ob.obstacle_id == 477:
+                gap_477 = min(gap_477, body.distance(occ.shape.shapely_object))
+            assert not body.intersects(occ.shape.shapely_object), (k, ob.obstacle_id)
+    assert gap_477 < 0.5  # the body passes 477 close by (its record ends at step 100)
+    px, py, _delta, v, psi = states[-1]
+    final = CustomState(position=np.array([px + b * math.cos(psi), py + b * math.sin(psi)]), velocity=float(v),
+                        orientation=float(psi), time_step=105)
+    assert pp.goal.is_reached(final)
+    assert not pp.goal.is_reached(CustomState(position=final.position, velocity=float(v),
+                                              orientation=float(psi), time_step=106))
