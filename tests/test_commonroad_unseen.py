@@ -407,9 +407,10 @@ KS_TAIL_5_X03_U = [[0.030957, -0.279018], [-0.000236, -0.440221], [0.012079, -0.
 @needs_data
 def test_the_last_second_of_5_x03_is_no_obstacle_to_a_steered_solution(tmp_path: Path) -> None:
     """5_x03 as ``KS`` is not proved impossible by its end: a steered car at 5.2 m/s at step 95,
-    0.9 m behind vehicle 477's rear and turned 0.17 rad to the right of the lane, passes below
-    477's rear corner (477's record ends at step 100), turns back left and stops inside the slow
-    goal state at step 105 at 3.09 m/s within its heading interval.  Checked independently of
+    beside vehicle 477's rear and level with its lower edge (road frame: centre s = 94.21 m,
+    d = -5.00 m, turned 0.17 rad to the right of the lane), falls behind 477 (at step 100 its
+    centre is 2.57 m behind 477's rear, where 477's record ends), turns back left, rises 0.45 m
+    and is inside the slow goal state at step 105 at 3.09 m/s within its heading interval.  Checked independently of
     iamp: the checker's own ``KS`` integrator (``VehicleDynamics.forward_simulation``, which
     raises on an input or state outside the model's limits), the body's rectangle against every
     recorded vehicle's occupancy at steps 95-105 and against the union of the lanelets (shapely, grown by 1 mm),
