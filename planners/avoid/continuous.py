@@ -297,13 +297,13 @@ class ContinuousAvoidQP:
         self.degree = max([3] + [len(v.x_poly) - 1 for v in problem.vehicles])
         # what depends on the grid, the hold, the degree and the half-planes' signs only: kept
         # for the next plans (:class:`_GridLayout`)
-        key = ("layout", self.N, hold, d.t_nodes.tobytes(), self.degree,
-               tuple(hp.sigma for pair in d.planes for hp in pair))
-        grid = shared.get(key) if shared is not None else None
+        layout_key = ("layout", self.N, hold, d.t_nodes.tobytes(), self.degree,
+                      tuple(hp.sigma for pair in d.planes for hp in pair))
+        grid = shared.get(layout_key) if shared is not None else None
         if grid is None:
             grid = _GridLayout(d, self.h, self.degree)
             if shared is not None:
-                shared.put(key, grid)
+                shared.put(layout_key, grid)
         self._grid: _GridLayout = grid
         self._shared = shared
         self._t_nodes: list[float] = d.t_nodes.tolist()
@@ -391,14 +391,14 @@ class ContinuousAvoidQP:
             for a in (0, 1):
                 hp = self.data.planes[i][a]
                 v = hp.vehicle
-                key = ("rhs", self.N, d.t_nodes.tobytes(), self.degree, hp.axis,
-                       repr((tuple(v.x_poly), v.y, v.length, v.width, v.safety_x, v.safety_y, v.corner)))
-                kept = self._shared.get(key) if self._shared is not None else None
+                plane_key = ("rhs", self.N, d.t_nodes.tobytes(), self.degree, hp.axis,
+                             repr((tuple(v.x_poly), v.y, v.length, v.width, v.safety_x, v.safety_y, v.corner)))
+                kept = self._shared.get(plane_key) if self._shared is not None else None
                 if not isinstance(kept, _PlaneRows):
                     t0 = d.t_nodes[:-1]
                     kept = _PlaneRows(self._rhs(hp, t0, t0 + self.h).ravel())
                     if self._shared is not None:
-                        self._shared.put(key, kept)
+                        self._shared.put(plane_key, kept)
                 self._planes[(i, a)] = kept
                 self._full_rhs[(i, a)] = kept.full_rhs
 

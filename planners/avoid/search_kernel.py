@@ -47,15 +47,15 @@ def held_position(z: Any, t_nodes: Any, N: int, block: int, foh: bool, axis: int
         k = 0
     if k > N - 1:
         k = N - 1
-    d = t - t_nodes[k]
+    d: float = t - t_nodes[k]
     base = axis * block
-    s0 = z[base + k]
-    v0 = z[base + N + 1 + k]
-    u0 = z[base + 2 * (N + 1) + k]
+    s0: float = z[base + k]
+    v0: float = z[base + N + 1 + k]
+    u0: float = z[base + 2 * (N + 1) + k]
     if not foh:
         return s0 + v0 * d + u0 * (d * d) / 2
-    h = t_nodes[k + 1] - t_nodes[k]
-    du = (z[base + 2 * (N + 1) + k + 1] - u0) / h
+    h: float = t_nodes[k + 1] - t_nodes[k]
+    du: float = (z[base + 2 * (N + 1) + k + 1] - u0) / h
     return s0 + v0 * d + u0 * (d * d) / 2 + du * (d * d * d) / 6
 
 
@@ -67,13 +67,13 @@ def plane_margin(i: int, plane: int, t: float, s: float, sigma: Any, half: Any, 
     ``half[i, plane]`` the half size plus safety margin, ``lateral[i]`` the vehicle's ``y``,
     ``polys[i, :plen[i]]`` its ``x_s`` coefficients, evaluated by Horner's rule from the highest
     as numpy's ``polyval``)."""
-    sg = sigma[i, plane]
+    sg: float = sigma[i, plane]
     if plane == 0:
         n = plen[i]
         c0 = polys[i, n - 1] + t * 0.0
         for j in range(2, n + 1):
             c0 = polys[i, n - j] + c0 * t
-        bound = -(c0 + half[i, 0]) if sg < 0 else c0 - half[i, 0]
+        bound: float = -(c0 + half[i, 0]) if sg < 0 else c0 - half[i, 0]
     else:
         bound = -(lateral[i] + half[i, 1]) if sg < 0 else lateral[i] - half[i, 1]
     return bound - sg * s
@@ -171,7 +171,8 @@ def tensor_polyval(coef: Any, start: int, q: int, n: int, lam: Any, work: Any) -
             for j in range(n - 2, -1, -1):
                 acc = acc * x + work[r * n + j]
             work[r] = acc
-    return work[0]
+    out: float = work[0]
+    return out
 
 
 @compilable
