@@ -247,3 +247,14 @@ def test_what_a_grid_keeps_is_what_each_plan_would_build(seed: int, m: int, shif
                     assert np.array_equal(a, b)
         for a, b in zip(qp.split_polynomials(), alone.split_polynomials()):
             assert np.array_equal(a, b)
+
+
+def test_a_half_planes_kept_rows_are_bounded() -> None:
+    # _PlaneRows keeps at most LIMIT entries per kind: the next one empties the kind first (each
+    # value is a function of its key, so a plan computes it again and gets the same)
+    rows = cont._PlaneRows(np.zeros(4))
+    for k in range(cont._PlaneRows.LIMIT):
+        rows.keep(rows.segments, (0, float(k), 1.0), (np.zeros(1), np.zeros(1), np.zeros(1, dtype=np.int64)))
+    assert len(rows.segments) == cont._PlaneRows.LIMIT
+    rows.keep(rows.segments, (0, -1.0, 1.0), (np.ones(1), np.ones(1), np.ones(1, dtype=np.int64)))
+    assert list(rows.segments) == [(0, -1.0, 1.0)] and not rows.splits
