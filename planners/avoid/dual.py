@@ -42,7 +42,7 @@ inside the box) falls off linearly in the box's width.  A round-off margin
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import TYPE_CHECKING
@@ -138,7 +138,9 @@ class DualPolynomial:
     #: :meth:`lower_bound` per box (its local intervals ``(λ_a, λ_b)``), computed once
     _bounds: dict[tuple[tuple[float, float], ...], float] = field(default_factory=dict, compare=False, repr=False)
 
-    def _lam(self, lo: FloatArray, hi: FloatArray) -> list[tuple[float, float]]:
+    def _lam(self, lo: Sequence[float] | FloatArray, hi: Sequence[float] | FloatArray) -> list[tuple[float, float]]:
+        """Per polynomial vehicle, the box's interval in its piece's local coordinate (clipped to
+        ``[0, 1]``); ``lo``, ``hi`` as Python floats are fastest (the same IEEE operations)."""
         out = []
         for i, k in zip(self.vehicles, self.pieces):
             a = min(max((lo[i] - k * self.h) / self.h, 0.0), 1.0)
@@ -211,8 +213,9 @@ def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) ->
     result kept on its polynomial."""
     out: list[float] = [0.0] * len(polys)
     todo: dict[tuple[int, ...], list[tuple[int, DualPolynomial, tuple[tuple[float, float], ...]]]] = {}
+    lo_l, hi_l = np.asarray(lo, dtype=float).tolist(), np.asarray(hi, dtype=float).tolist()
     for c, dp in enumerate(polys):
-        key = tuple(dp._lam(lo, hi))
+        key = tuple(dp._lam(lo_l, hi_l))
         v = dp._bounds.get(key)
         if v is None:
             todo.setdefault(dp.coef.shape, []).append((c, dp, key))
@@ -441,7 +444,7 @@ class DualBounds:
             # b (column 0), and K⁻¹[0; b] = (z0, ν0) is the equality optimum; νᵀb by symmetry:
             # (K⁻¹r)_ν · b = r · K⁻¹[0; b] = r_z · z0 + r_ν · ν0
             Rp = R[:d.n]
-            touched = np.flatnonzero(Rp.any(axis=1))
+            touched = np.flatnonzero(np.abs(Rp) @ np.ones(C))  # the rows with an entry
             schur._columns(touched)
             Z = schur._Kinv[touched].T @ Rp[touched]
             Z[:, 0] += schur.z0
