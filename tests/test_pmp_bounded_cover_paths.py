@@ -28,7 +28,9 @@ from iamp.planners.pmp import compiled, jit
 from iamp.planners.pmp import saturated_kernel as sk
 from iamp.planners.pmp.bounded import (
     InfeasibilityCertificate,
+    _box_rate,
     _cover_infeasible,
+    _derivative,
     _polyval,
     input_box,
     solve_bounded_fixed,
@@ -40,12 +42,7 @@ def _long_way(problem, max_solves: int) -> InfeasibilityCertificate:  # type: ig
     m, ego, T = problem.m, problem.ego, float(problem.tf)
     (lx, hx), (ly, hy) = input_box(problem)
     axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
-    cdot_max = []
-    for veh in problem.vehicles:
-        deriv = [k * c for k, c in enumerate(veh.x_poly)][1:]
-        cdot_max.append(sum(abs(c) * T**k for k, c in enumerate(deriv)))
-    lip = [[((cdot_max[i] if k == 0 else 0.0) + abs(v0) + max(abs(lo), abs(hi)) * T) for i in range(m)]
-           for k, (_, v0, _, _, lo, hi) in enumerate(axes_data)]
+    ders = [_derivative([float(c) for c in np.asarray(v.x_poly, dtype=float)]) for v in problem.vehicles]
     per_axis = 8 if m == 2 else 4
     edges = [T * j / per_axis for j in range(per_axis + 1)]
     stack = deque((np.array([edges[j] for j in idx]), np.array([edges[j + 1] for j in idx]))
@@ -66,7 +63,9 @@ def _long_way(problem, max_solves: int) -> InfeasibilityCertificate:  # type: ig
                 except AxisInfeasible as exc:
                     if exc.lam_phys is None or exc.margin_phys is None:
                         continue
-                    rate = sum(half[i] * abs(exc.lam_phys[i]) * lip[k][i] for i in range(m))
+                    rate = sum(half[i] * abs(exc.lam_phys[i])
+                               * _box_rate(ders[i] if k == 0 else [0.0], axes_data[k], float(a[i]), float(b[i]))
+                               for i in range(m))
                     if exc.margin_phys > rate * (1 + 1e-9):
                         covered = True
                         break

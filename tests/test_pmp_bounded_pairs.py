@@ -6,7 +6,8 @@ generated problems, ``random_problem(seed, m=3)`` with the box at 0.40-1.20 of t
 peaks; the FOH QP at ``N = 8`` found no plan on any of them).  A plan for the three vehicles is a
 plan for any two of them at their contact times, so a pair certified infeasible over
 ``(0, t_f)²`` certifies the whole problem (:func:`~iamp.planners.pmp.bounded.infeasibility_certificate`,
-``pair_solves``): 20 of those 31 are now certified.
+``pair_solves``): 20 of those 31 were then certified (the pairs' covers since prune the full cover
+too: tests/test_pmp_bounded_projected.py).
 
 Checked against independent references: the FOH QP (a restriction of the continuous problem:
 inputs in the box at the nodes are in it everywhere) finds no plan for the certified pair at

@@ -436,17 +436,20 @@ class InfeasibilityCertificate:
 #: ``max_solves // (PROJECTION_SHARE · m)`` each
 PROJECTION_SHARE = 4
 
-#: The budgets (axis solves) of the rounds of the projection on pairs of vehicles
-#: (:func:`infeasibility_certificate` with ``pair_solves``, ``m ≥ 3``): each pair still open (not
-#: certified, no feasible centre found) is covered again from the start with the next budget.
-PAIR_ROUNDS = (1000, 4000, 16000)
+#: The axis solves of each pair's cover in the projection on pairs (:func:`infeasibility_certificate`
+#: with ``pair_solves``, ``m ≥ 3``): one pass per pair, which goes on past centres where both axes
+#: are feasible (those boxes stay open) so that its certified boxes can prune the full cover.
+PAIR_TREE_SOLVES = 6000
 
-#: The axis solves :func:`plan_bounded` gives the projection on pairs (``m ≥ 3``, after the
-#: single vehicles): on 31 generated three-vehicle problems that the single-vehicle projection and
-#: the 4000-solve cover left uncertified (and the FOH QP at ``N = 8`` found infeasible) it
-#: certified 20, with at most 32 059 solves (0.55 s with the compiled axis solve); the
-#: 3-dimensional cover with 8000 solves certified none of them.
-PAIR_SOLVES = 40000
+#: The axis solves :func:`plan_bounded` gives :func:`pair_projection` (``m ≥ 3``, once the single
+#: vehicles, the 4000-solve cover and the product of each vehicle's feasible times have neither
+#: certified nor found a plan).  Of 23 generated three-vehicle problems that ended ``infeasible``
+#: uncertified (``random_problem(seed, m=3)``, box at 0.40-1.20 of the peaks, 246 drawn by
+#: ``numpy.random.default_rng(1)``; the FOH QP at ``N = 8`` without a plan on all): 8 are now
+#: certified by a pair, 2 by a single vehicle (the box rate of :func:`_box_rate`), 9 have a plan
+#: (the pruned cover meets feasible contact times; the FOH QP at ``N = 240`` through the plan's
+#: contact times agrees), 4 stay uncertified (one has a plan the cover meets after 97 000 solves).
+PAIR_SOLVES = 30000
 
 
 def infeasibility_certificate(problem: Problem, max_solves: int = 4000,
@@ -464,11 +467,16 @@ def infeasibility_certificate(problem: Problem, max_solves: int = 4000,
 
     **Pairs** (``m ≥ 3`` and ``pair_solves > 0``, after the single vehicles).  The same argument
     for two vehicles: a plan for all ``m`` is a plan for the problem with vehicles ``i`` and
-    ``j`` alone, at their contact times, so if that problem is certified infeasible at every
-    ``(t_i, t_j)`` in ``(0, t_f)²`` (the two-vehicle cover), so is the whole.  In rounds of
-    :data:`PAIR_ROUNDS` solves per pair, a pair dropped once its cover finds a centre where
-    both axes are feasible (it cannot be certified then), until one is certified or
-    ``pair_solves`` are spent (these solves are counted apart from ``max_solves``).
+    ``j`` alone, at their contact times.  So the full problem is infeasible on every box of
+    contact times whose projection :math:`[a_i, b_i]\times[a_j, b_j]` lies in the union of the
+    boxes that pair's cover certified (:func:`_tree_covers`); if a pair's cover certifies all of
+    ``(0, t_f)²``, the whole problem is infeasible.  Tried once the full cover below has
+    neither certified nor found a feasible centre within ``max_solves``: each pair's cover gets
+    :data:`PAIR_TREE_SOLVES` (while ``pair_solves`` last) and goes on past feasible centres
+    (those boxes stay open); then the full cover again, pruned by every pair's certified boxes,
+    gets the rest of ``pair_solves`` and stops at the first centre where both axes are feasible
+    (``feasible_t``: contact times with a plan, where the search starts again).  These solves
+    are counted apart from ``max_solves``.
 
     **Cover** (:func:`_cover_infeasible`): boxes of contact times, each with a Farkas certificate
     and a Lipschitz margin.
@@ -482,28 +490,83 @@ def infeasibility_certificate(problem: Problem, max_solves: int = 4000,
             used += alone.solves
             if alone.certified:
                 return InfeasibilityCertificate(True, None, alone.boxes, used, i)
-    if m >= 3 and pair_solves > 0:
-        pairs = [(i, j) for i in range(m) for j in range(i + 1, m)]
-        spent = 0
-        for budget in PAIR_ROUNDS:
-            still = []
-            for i, j in pairs:
-                if spent >= pair_solves:
-                    break
-                two = _cover_infeasible(problem.with_vehicles([problem.vehicles[i], problem.vehicles[j]]),
-                                        min(budget, pair_solves - spent))
-                spent += two.solves
-                if two.certified:
-                    return InfeasibilityCertificate(True, None, two.boxes, used + spent, pair=(i, j))
-                if two.feasible_t is None:
-                    still.append((i, j))
-            pairs = still
-            if not pairs or spent >= pair_solves:
-                break
-        used += spent
-        max_solves += spent
     full = _cover_infeasible(problem, max_solves - used)
-    return InfeasibilityCertificate(full.certified, full.feasible_t, full.boxes, used + full.solves)
+    used += full.solves
+    if full.certified or full.feasible_t is not None or m < 3 or pair_solves <= 0:
+        return InfeasibilityCertificate(full.certified, full.feasible_t, full.boxes, used)
+    pairs = pair_projection(problem, pair_solves)
+    return InfeasibilityCertificate(pairs.certified, pairs.feasible_t, pairs.boxes, used + pairs.solves,
+                                    pair=pairs.pair)
+
+
+def pair_projection(problem: Problem, pair_solves: int) -> InfeasibilityCertificate:
+    """The projection on pairs of vehicles and the full cover it prunes (``m ≥ 3``; the second
+    part of :func:`infeasibility_certificate`), within about ``pair_solves`` axis solves."""
+    m = problem.m
+    T = float(problem.tf)
+    trees: list[tuple[int, int, dict[tuple[float, ...], tuple[Any, ...]]]] = []
+    spent = 0
+    for i in range(m):
+        for j in range(i + 1, m):
+            if spent >= pair_solves:
+                break
+            tree: dict[tuple[float, ...], tuple[Any, ...]] = {}
+            two = _cover_infeasible(problem.with_vehicles([problem.vehicles[i], problem.vehicles[j]]),
+                                    min(PAIR_TREE_SOLVES, pair_solves - spent), tree)
+            spent += two.solves
+            if two.certified:
+                return InfeasibilityCertificate(True, None, two.boxes, spent, pair=(i, j))
+            trees.append((i, j, tree))
+    edges = [T * k / 8 for k in range(9)]  # the two-vehicle cover's first grid
+    seen: dict[tuple[float, ...], bool] = {}
+
+    def prune(a: FloatArray, b: FloatArray) -> bool:
+        for i, j, tree in trees:
+            key = (i, j, float(a[i]), float(a[j]), float(b[i]), float(b[j]))
+            hit = seen.get(key)
+            if hit is None:
+                hit = seen[key] = _tree_covers(tree, edges, (key[2], key[3]), (key[4], key[5]))
+            if hit:
+                return True
+        return False
+
+    full = _cover_infeasible(problem, pair_solves - spent, prune=prune)
+    return InfeasibilityCertificate(full.certified, full.feasible_t, full.boxes, spent + full.solves)
+
+
+def _tree_covers(tree: dict[tuple[float, ...], tuple[Any, ...]], edges: list[float], pa: tuple[float, float],
+                 pb: tuple[float, float]) -> bool:
+    """Whether the boxes a two-vehicle cover certified (its ``tree``: each box's corners ``(a, b)``
+    to ``("c",)`` certified, ``("s", i, mid)`` halved at ``mid`` along ``i``, ``("o",)`` open;
+    absent: not reached) contain the rectangle ``[pa, pb]``: the rectangle is cut along the cover's
+    first grid (``edges`` per axis) and its halvings, each piece needing a certified box."""
+    stack: list[tuple[tuple[float, float], tuple[float, float], tuple[float, float], tuple[float, float]]] = []
+    for k0 in range(len(edges) - 1):
+        if not (edges[k0] < pb[0] and edges[k0 + 1] > pa[0]):
+            continue
+        for k1 in range(len(edges) - 1):
+            if not (edges[k1] < pb[1] and edges[k1 + 1] > pa[1]):
+                continue
+            a, b = (edges[k0], edges[k1]), (edges[k0 + 1], edges[k1 + 1])
+            stack.append((a, b, (max(pa[0], a[0]), max(pa[1], a[1])), (min(pb[0], b[0]), min(pb[1], b[1]))))
+    while stack:
+        a, b, qa, qb = stack.pop()
+        node = tree.get((*a, *b))
+        if node is None or node[0] == "o":
+            return False
+        if node[0] == "c":
+            continue
+        _, k, mid = node
+        lo_b = (mid, b[1]) if k == 0 else (b[0], mid)
+        hi_a = (mid, a[1]) if k == 0 else (a[0], mid)
+        if qb[k] <= mid:
+            stack.append((a, lo_b, qa, qb))
+        elif qa[k] >= mid:
+            stack.append((hi_a, b, qa, qb))
+        else:
+            stack.append((a, lo_b, qa, (mid, qb[1]) if k == 0 else (qb[0], mid)))
+            stack.append((hi_a, b, (mid, qa[1]) if k == 0 else (qa[0], mid), qb))
+    return True
 
 
 def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, FloatArray | None, int]:
@@ -513,7 +576,8 @@ def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, 
     return cert.certified, cert.feasible_t, cert.boxes
 
 
-def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertificate:
+def _cover_infeasible(problem: Problem, max_solves: int, tree: dict[tuple[float, ...], tuple[Any, ...]] | None = None,
+                      prune: Any = None) -> InfeasibilityCertificate:
     r"""Is the box infeasible for *every* choice of contact times in ``(0, t_f)^m``?
 
     ``(0, t_f)^m`` is covered by boxes (32
@@ -523,46 +587,56 @@ def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertifi
     (physical units).  Moving contact time ``i`` changes only its ramp :math:`(t_i-\tau)_+`
     and :math:`d_i(t_i) = c_i(t_i) - s_0 - v_0 t_i`, so with the same :math:`\lambda`
 
-    .. math::  |M(t') - M(t)| \le \sum_i |t_i'-t_i|\,|\lambda_i|\,\big(\max|\dot c_i| + |v_0|
-               + \max(|\ell|, |h|)\,t_f\big),
+    .. math::  |M(t') - M(t)| \le \sum_i |t_i'-t_i|\,|\lambda_i|\,L_i,\qquad
+               L_i = \max_{\tau\in[a_i,b_i]}\ \max_{q\in\{\ell,h\}}|\dot c_i(\tau) - v_0 - q\,\tau|
 
-    (:math:`|\partial\sigma/\partial t_i| \le \max(|\ell|,|h|)|\lambda_i| t_f`); a box of
-    half-widths ``δ_i`` with :math:`M(t) > \sum_i δ_i|\lambda_i|L_i` is infeasible throughout,
-    otherwise it is halved along its longest side.  A centre where both axes are feasible ends
-    the search (``feasible_t``); so does the budget ``max_solves`` (``certified`` False).
+    over the box :math:`\prod_i[a_i, b_i]` (:func:`_box_rate`): moving ``t_i`` alone by ``s``
+    changes :math:`\lambda^\top d` by :math:`\lambda_i\int(\dot c_i - v_0)` over the path, and
+    :math:`\sigma = \int\max(hw, \ell w)` by :math:`\lambda_i\int q(\tau)\Delta(\tau)\,d\tau`
+    with :math:`\Delta = (t_i+s-\tau)_+ - (t_i-\tau)_+` of one sign and the difference quotient
+    ``q`` of ``max(h·, ℓ·)`` in :math:`[\ell, h]`; :math:`\int\Delta = \int_{t_i}^{t_i+s}\tau'\,d\tau'`,
+    so the change is :math:`\lambda_i\int_{t_i}^{t_i+s}(\dot c_i(\tau') - v_0 - Q\tau')\,d\tau'`
+    for some :math:`Q\in[\ell, h]`, whose size the maximum over ``q ∈ {ℓ, h}`` bounds (linear in
+    ``q``); the times are moved one after the other.  (It was the larger, box-independent
+    :math:`\max|\dot c_i| + |v_0| + \max(|\ell|,|h|)\,t_f`.)  A box of half-widths ``δ_i`` with
+    :math:`M(t) > \sum_i δ_i|\lambda_i|L_i` is infeasible throughout, otherwise it is halved
+    along its longest side.  A centre where both axes are feasible ends the search
+    (``feasible_t``); so does the budget ``max_solves`` (``certified`` False).
+
+    ``m ≥ 2`` only: with ``tree`` (a dict, filled in) every box reached is recorded (see
+    :func:`_tree_covers`) and a box with a feasible centre stays open while the others go on
+    (``feasible_t`` the first such centre, ``certified`` False); ``prune(a, b)`` True counts a box
+    as infeasible without a solve (a projection certified, :func:`infeasibility_certificate`).
     """
     m = problem.m
     ego = problem.ego
     T = float(problem.tf)
     (lx, hx), (ly, hy) = input_box(problem)
     axes_data = ((ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx), (ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy))
-    cdot_max = []
-    for veh in problem.vehicles:
-        deriv = [k * c for k, c in enumerate(veh.x_poly)][1:]
-        cdot_max.append(sum(abs(c) * T**k for k, c in enumerate(deriv)))
-    lip = []
-    for k, (_, v0, _, _, lo, hi) in enumerate(axes_data):
-        finite = math.isfinite(lo) and math.isfinite(hi)
-        lip.append([((cdot_max[i] if k == 0 else 0.0) + abs(v0) + max(abs(lo), abs(hi)) * T) if finite else INF
-                    for i in range(m)])
     per_axis = 32 if m == 1 else 8 if m == 2 else 4
     edges = [T * j / per_axis for j in range(per_axis + 1)]
     stack: deque[tuple[FloatArray, FloatArray]] = deque()  # breadth first: a feasible region shows early
     for idx in np.ndindex(*([per_axis] * m)):
         stack.append((np.array([edges[j] for j in idx]), np.array([edges[j + 1] for j in idx])))
     if m == 1:
-        return _cover_one(problem, max_solves, edges, lip)
+        return _cover_one(problem, max_solves, edges)
     # the corners as problem.corners gives them (_polyval repeats numpy's polyval), without
     # an array per box; both axes of every box of a level solved in one kernel call
     # (:func:`~iamp.planners.pmp.saturated.cover_points`: solve_axis's numbers and Farkas test),
     # the boxes then read in order with the decisions, counters and budget of one box at a time
     pos = [[float(c) for c in np.asarray(v.x_poly, dtype=float)] for v in problem.vehicles]
+    ders = [_derivative(c) for c in pos]
     off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
     data = [float(x) for row in axes_data for x in row]
     width = m + 3
     solves = boxes = 0
     level = list(stack)
+    feasible_t: FloatArray | None = None
     while level:
+        if prune is not None:
+            kept = [(a, b) for a, b in level if not prune(a, b)]
+            boxes += len(level) - len(kept)
+            level = kept
         centres = []
         flat_t: list[float] = []
         flat_c: list[float] = []
@@ -589,34 +663,69 @@ def _cover_infeasible(problem: Problem, max_solves: int) -> InfeasibilityCertifi
                     if raw[o] == 0.0:
                         converged += 1
                     elif raw[o] == 1.0:  # AxisInfeasible with its certificate
-                        rate = sum(half[i] * abs(raw[o + 2 + i]) * lip[k][i] for i in range(m))
+                        rate = sum(half[i] * abs(raw[o + 2 + i]) * _box_rate(ders[i] if k == 0 else [0.0],
+                                                                             axes_data[k], float(a[i]), float(b[i]))
+                                   for i in range(m))
                         if raw[o + 1] > rate * (1 + 1e-9):
                             covered = True
                             break
                 p += 1
                 if covered:
                     boxes += 1
+                    if tree is not None:
+                        tree[(*a.tolist(), *b.tolist())] = ("c",)
                     continue
                 # both axes feasible at t?  solve_bounded_fixed solves the same axes from the
                 # same start (the same numbers), so it can succeed only where both converged
                 if converged == 2:
                     try:
                         solve_bounded_fixed(problem, t)
-                        return InfeasibilityCertificate(False, t, boxes, solves)
+                        if tree is None:
+                            return InfeasibilityCertificate(False, t, boxes, solves)
+                        feasible_t = t if feasible_t is None else feasible_t
+                        tree[(*a.tolist(), *b.tolist())] = ("o",)
+                        continue
                     except (AxisInfeasible, AxisNoConvergence):
                         pass
             if solves > max_solves or float(np.max(b - a)) < 1e-9 * T:
-                return InfeasibilityCertificate(False, None, boxes, solves)
+                return InfeasibilityCertificate(False, feasible_t, boxes, solves)
             i_max = int(np.argmax(b - a))
+            if tree is not None:
+                tree[(*a.tolist(), *b.tolist())] = ("s", i_max, float(t[i_max]))
             mid_b, mid_a = b.copy(), a.copy()
             mid_b[i_max] = mid_a[i_max] = t[i_max]
             nxt += [(a, mid_b), (mid_a, b)]
         level = nxt
-    return InfeasibilityCertificate(True, None, boxes, solves)
+    return InfeasibilityCertificate(feasible_t is None, feasible_t, boxes, solves)
 
 
-def _cover_one(problem: Problem, max_solves: int, edges: list[float], lip: list[list[float]]
-               ) -> InfeasibilityCertificate:
+def _box_rate(der: list[float], axis: tuple[float, ...], a: float, b: float) -> float:
+    r"""``L_i`` of :func:`_cover_infeasible` on the contact times ``[a, b]``: the largest
+    :math:`|\dot c(\tau) - v_0 - q\tau|` over ``τ ∈ [a, b]`` and ``q ∈ {ℓ, h}`` (``der``: the
+    coefficients of :math:`\dot c`, ascending, at most quadratic; ``[0.0]`` for ``y``, whose corner
+    does not move; ``axis``: ``(s0, v0, sf, vf, ℓ, h)``), from the ends and the vertex inside;
+    widened by a relative ``1e-12`` (rounding), ``inf`` for an unbounded side.  (A corner of higher
+    degree than cubic: the coefficients' bound of ``|ċ|`` on ``[0, b]``, ``b ≥ 0``.)"""
+    v0, lo, hi = axis[1], axis[4], axis[5]
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return INF
+    if len(der) > 3:  # a corner of higher degree: |ċ| by its coefficients, |q τ| by the box's end
+        return (sum(abs(x) * b**k for k, x in enumerate(der)) + abs(v0) + max(abs(lo), abs(hi)) * b) * (1 + 1e-12)
+    c = [*der, 0.0, 0.0, 0.0][:3]
+    best = 0.0
+    for q in (lo, hi):
+        f0, f1, f2 = c[0] - v0, c[1] - q, c[2]
+        pts = [a, b]
+        if f2 != 0.0 and a < -f1 / (2 * f2) < b:
+            pts.append(-f1 / (2 * f2))
+        for x in pts:
+            v = abs(f0 + (f1 + f2 * x) * x)
+            if v > best:
+                best = v
+    return best * (1 + 1e-12)
+
+
+def _cover_one(problem: Problem, max_solves: int, edges: list[float]) -> InfeasibilityCertificate:
     """:func:`_cover_infeasible` for one vehicle, one breadth-first level of intervals at a
     time: both axes at every centre of a level in one kernel call
     (:func:`~iamp.planners.pmp.saturated.contact_points`, cold starts, with the Farkas test of
@@ -630,6 +739,8 @@ def _cover_one(problem: Problem, max_solves: int, edges: list[float], lip: list[
     (lx, hx), (ly, hy) = input_box(problem)
     data = [float(x) for x in (ego.x0, ego.vx0, ego.xf, ego.vxf, lx, hx, ego.y0, ego.vy0, ego.yf, ego.vyf, ly, hy)]
     pos = [float(c) for c in np.asarray(veh.x_poly, dtype=float)]
+    der = _derivative(pos)
+    axes = (tuple(data[:6]), tuple(data[6:]))
     off_x, off_y = float(veh.offset_x), float(veh.corner_y)
     level = [(edges[j], edges[j + 1]) for j in range(len(edges) - 1)]
     W = POINT_WIDTH
@@ -650,7 +761,7 @@ def _cover_one(problem: Problem, max_solves: int, edges: list[float], lip: list[
                 converged = raw[o] == 0.0
                 both = both and converged
                 if not converged and raw[o + 1] == 1.0:  # a Farkas certificate
-                    rate = 0 + half * abs(raw[o + 3]) * lip[k][0]
+                    rate = 0 + half * abs(raw[o + 3]) * _box_rate(der if k == 0 else [0.0], axes[k], a, b)
                     if raw[o + 2] > rate * (1 + 1e-9):
                         covered = True
                         break
@@ -1981,10 +2092,19 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         unreachable = out_of_reach()
         if unreachable is not None:
             return unreachable
-        proof = infeasibility_certificate(problem, pair_solves=PAIR_SOLVES)
+        proof = infeasibility_certificate(problem)
+        solves = proof.solves
+        if not proof.certified and proof.feasible_t is None and m > 2:
+            # the contact times feasible for each vehicle alone first (cheap), then the pairs
+            t_start = _feasible_start(ev, search)
+            if t_start is not None:
+                proof = InfeasibilityCertificate(False, t_start, proof.boxes, solves)
+            else:
+                proof = pair_projection(problem, PAIR_SOLVES)
+                solves += proof.solves
         certified, t_feasible, intervals = proof.certified, proof.feasible_t, proof.boxes
         search["infeasibility_intervals"] = intervals
-        search["infeasibility_solves"] = proof.solves
+        search["infeasibility_solves"] = solves
         if proof.vehicle is not None:
             search["infeasibility_vehicle"] = proof.vehicle
         if proof.pair is not None:
@@ -1999,8 +2119,6 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
             return _failed(problem, INFEASIBLE, "box_infeasible_at_every_contact_time", info, t0,
                            f"no {what} admits a plan within the input box (certified: {how}, each with a "
                            "Farkas certificate and a Lipschitz margin)")
-        if t_feasible is None and m > 2:
-            t_feasible = _feasible_start(ev, search)
         if t_feasible is not None:
             if m == 1:
                 t, more = _search_one(ev, T, [float(t_feasible[0])], GRID_ONE)
