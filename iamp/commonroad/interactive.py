@@ -6,7 +6,9 @@ of the other vehicles).  SUMO drives the other vehicles (they react to the ego);
 the ego:
 
 1. The ego is inserted at the planning problem's initial state (position, heading, speed) and
-   moved by iamp every SUMO step (``moveToXY``, SUMO's speed and lane-change logic off).
+   moved by iamp every SUMO step (``moveToXY``, SUMO's speed and lane-change logic off).  SUMO
+   gets the routes with an edge repeated right after itself collapsed (:func:`repaired_routes`):
+   it refuses such a route and would stop the vehicle at the end of that edge for good.
 2. Every ``replan_s`` the ego observes every vehicle (SUMO's positions, the body from SUMO's
    vehicle type), turns each one's observed longitudinal history (at most the last 3 s, in the
    road frame of :mod:`iamp.commonroad.convert`) into a cubic with the §7 predictor (constant
@@ -120,6 +122,47 @@ def _files(folder: Path) -> tuple[Path, Path]:
     if not cfgs:
         raise ScenarioError("holds no SUMO configuration (*.sumo.cfg)", "--commonroad", str(folder))
     return crs[0], cfgs[0]
+
+
+def repaired_routes(cfg: Path, out_dir: Path) -> tuple[list[Path], int]:
+    """The route files of the SUMO configuration ``cfg``, each route with an edge repeated right
+    after itself collapsed to one (``edges="92 92 29"`` -> ``"92 29"``), and how many routes
+    changed; a file with no such route is returned as it is, a changed one is written to
+    ``out_dir``.
+
+    The converter of the interactive US-101 scenes lists an edge twice where two of a vehicle's
+    lanelets lie on the same SUMO edge.  SUMO refuses such a route (there is no connection from an
+    edge to itself); with ``--ignore-route-errors`` it drives the vehicle to the end of the
+    repeated edge and stops it there for the rest of the run (``time-to-teleport`` -1): in
+    USA_US101-24_1 vehicles 31 and 44 (``92 92 29``) stand at the end of edge 92 (lane position
+    212.3 of 212.34 m) from 8 s on, 10 m past the goal, and the cars behind them stop in a row
+    across four lanes, where the recorded drivers drove on.
+    """
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(cfg).getroot()
+    files = [cfg.parent / f.strip() for el in root.iter("route-files") for f in el.get("value", "").split(",")
+             if f.strip()]
+    out: list[Path] = []
+    changed = 0
+    for f in files:
+        tree = ET.parse(f)
+        n = 0
+        for el in tree.getroot().iter():
+            edges = el.get("edges")
+            if edges is None:
+                continue
+            e = edges.split()
+            kept = [a for i, a in enumerate(e) if i == 0 or a != e[i - 1]]
+            if kept != e:
+                el.set("edges", " ".join(kept))
+                n += 1
+        if n:
+            f = out_dir / f.name
+            tree.write(f, encoding="utf-8", xml_declaration=True)
+        changed += n
+        out.append(f)
+    return out, changed
 
 
 def _sumo() -> tuple[ModuleType, ModuleType]:
@@ -683,19 +726,20 @@ def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
              recording: str | Path | None = None,
              progress: Callable[[str], None] | None = None, seed: int = 1, tactical: bool = False,
-             sequences: bool = False, search: bool = False) -> dict[str, Any]:
+             sequences: bool = False, search: bool = False, repair_routes: bool = True) -> dict[str, Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready).
 
     The same as :func:`simulate_with_log` without the step log.
     """
     return simulate_with_log(folder, planner, replan_s=replan_s, recording=recording, progress=progress,
-                             seed=seed, tactical=tactical, sequences=sequences, search=search)[0]
+                             seed=seed, tactical=tactical, sequences=sequences, search=search,
+                             repair_routes=repair_routes)[0]
 
 
 def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
                       recording: str | Path | None = None, progress: Callable[[str], None] | None = None,
                       seed: int = 1, tactical: bool = False, sequences: bool = False,
-                      search: bool = False) -> tuple[dict[str, Any], Any]:
+                      search: bool = False, repair_routes: bool = True) -> tuple[dict[str, Any], Any]:
     """Run the closed loop of the module docstring; returns the metrics (JSON-ready) and the
     executed step log (:class:`iamp.simulation.metrics.StepLog`, in the road frame).
 
@@ -720,6 +764,10 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     (:func:`iamp.commonroad.planning.plan`'s ``search``); off by default: over the 57 scenes it
     reached the same 53 goals (seed 1) without contact, but with seed 2 USA_US101-24_2 ended in a
     contact (not at fault) with vehicle 31, a standing car SUMO turned toward the ego's lane.
+    ``repair_routes``: give SUMO the routes with an edge repeated right after itself collapsed
+    (:func:`repaired_routes`; counted in ``sumo_routes_repaired``); on by default: SUMO refuses
+    such a route and stops the vehicle at the end of the repeated edge for the rest of the run
+    (USA_US101-24_1: a row of standing and stopping cars across four lanes just past the goal).
     The metrics include SPEC §17's responsibility measures
     (:func:`iamp.simulation.monitor.responsibility`, in the road frame: centres and bodies at
     their headings relative to the road; lane numbers are SUMO's, so a vehicle is in the ego's
@@ -763,6 +811,11 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
            "--collision.action", "warn", "--collision.mingap-factor", "0", "--collision.check-junctions", "true",
            "--step-length", str(dt), "--lanechange-output", str(Path(tmp.name) / "lanechange.xml"),
            "--no-warnings", "true", "--no-step-log", "true", "--verbose", "false", "--seed", str(int(seed))]
+    routes_repaired = 0
+    if repair_routes:
+        route_files, routes_repaired = repaired_routes(cfg, Path(tmp.name))
+        if routes_repaired:
+            cmd += ["--route-files", ",".join(str(f.resolve()) for f in route_files)]
     traci.start(cmd)
     log = StepLog()
     hist: dict[str, tuple[list[float], list[float]]] = {}
@@ -1005,7 +1058,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
         "infeasible_plans": infeasible, "fallbacks": fallbacks, "failsafe_brakes": failsafes,
         "edge_grazing_plans": edge_plans, "out_of_reach_replans": out_of_reach, "lane_changes": lane_changes,
-        "lane_change_sequences": n_sequences,
+        "lane_change_sequences": n_sequences, "sumo_routes_repaired": routes_repaired,
         "decisions": decisions,
         "road_edge_depth_m": road_edge_depth(cr, log), "goal_occupancy": occupancy,
         "goal_missed_reason": None if goal_step is not None else miss_reason(occupancy),
