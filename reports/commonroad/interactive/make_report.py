@@ -98,6 +98,27 @@ NOTES: dict[str, str] = {
 
 
 PROSE = """\
+**This report (issue 33): SUMO gets the routes repaired** (`repaired_routes` in
+`iamp/commonroad/interactive.py`; `sumo_routes_repaired` in each JSON). 42 of the 58
+folders hold routes that repeat an edge (`edges="92 92 29"`: two of a vehicle's lanelets on one SUMO
+edge); SUMO refuses them and, with `--ignore-route-errors`, had stopped those vehicles at the end of
+the repeated edge for the rest of the run (`time-to-teleport` -1). In 24_1 vehicle 31 stood at the
+end of edge 92 from 8 s, 10 m past the goal, and 33, 42, 44, 49, 51, 55, 57 stopped or crawled behind
+it in a row across four lanes; the ego, behind 55 in the goal's lane, ended the window at s 216 m,
+17 m short of the goal. The loop now gives SUMO a copy with each run of one edge collapsed
+(`92 92 29` -> `92 29`), so those vehicles drive on as the recorded ones did
+(`tests/test_interactive_routes.py`). **Goal reached in 57 of 57 with SUMO seed 1 and 57 of 57 with
+seed 2, 0 contacts, no SUMO-only report** (seed 2: the command above with `--seed 2`, not copied
+here): 2_1, 24_1 and 27_4 reach their goals (seed 1: 10.4, 11.9, 7.7 s; seed 2: 10.4, 12.4,
+7.7 s). Against the report of 2fcb3a1 (the routes as shipped), the 15 scenes without a repaired
+route and 8 of the 42 with one are identical field by field but the plan times; of the other 34,
+besides those three, 23_1 arrives at 13.9 s (was 13.2 s; seed 2 13.1 s, was 13.7 s) and 26_1 at 7.0 s
+(was 7.1 s, now with 1 fail-safe brake and a peak acceleration of 11.27 of a_max 11.5 m/s^2), and
+24_2's deepest road-edge intrusion is 0.53 m (was 0 m); fail-safe brakes 25 -> 4 (seed 2: 24 -> 7),
+kept plans 27 -> 5. The notes on 2_1, 24_1 and 27_4 in the earlier reports (and the tests
+recomputing 2_1's and 27_4's verdicts, now from fresh episodes with `repair_routes=False`) describe
+the traffic with the routes as shipped.
+
 **What the loop does when a replan finds no safe plan**: it chooses among the new plan toward the
 goal, the previous plan's remainder and the fail-safe braking in the lane; it takes the first that
 keeps clear of every predicted vehicle -- a follower that keeps RSS's distance behind the ego does
@@ -194,7 +215,8 @@ sequence accepted falls in behind, and 96 stops in the goal from 13.4 s) and 24_
 the goal lane slows to 2.3 m/s by 12 s and stands just short of the goal while 57 and 42 slow
 alongside in the other lanes); neither is proved impossible.
 
-**This report (session of 2026-11-29, eighth; main 2fcb3a1: the change of 660d611 and the planner
+**The report before (session of 2026-11-29, eighth; main 2fcb3a1, the routes as shipped: the
+change of 660d611 and the planner
 commits since 3b8b614)**: the tactical layer is **off by default** (`simulate(..., tactical=True)`
 turns it on; column `lane changes` 0 everywhere) and the fail-safe, where no braking that only stops
 the lateral motion keeps clear, tries the same braking returning the ego to rest at its lane's
