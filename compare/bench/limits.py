@@ -19,7 +19,10 @@ Four cases, each planned by the registry's planner exactly as ``iamp plan`` does
   :func:`~iamp.planners.examples.overtake_three_problem` (``optimal`` required).
 
 Each case is planned ``repeats`` times after one warm-up (fewer once the samples exceed
-``budget_s``; a single call slower than the budget is the one sample), and every call records
+``budget_s``; a single call slower than the budget is the one sample) by one planner, as the
+closed loop plans; before each avoidance plan the planner forgets the half-planes' rows it kept
+(``forget_vehicles``: they depend on the vehicles' motion, which moves between a loop's plans),
+so a sample times a new problem on a known grid, not a repeat.  Every call records
 its wall time (:func:`time.perf_counter`) and its process CPU time (:func:`time.process_time`):
 the machines here are shared by several jobs, so the wall time depends on their load and the
 CPU time much less.  Reported: both medians, the status, the cost and (avoidance) the number of
@@ -39,12 +42,13 @@ import statistics
 import time
 from collections.abc import Callable
 from functools import partial
-from typing import NotRequired, TypedDict
+from typing import NotRequired, TypedDict, cast
 
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
 from iamp.planners import registry
+from iamp.planners.avoid.planner import AvoidQPPlanner
 from iamp.planners.examples import overtake_problem, overtake_three_problem
 
 __all__ = ["ALLOWED", "SOLVERS", "STEPS", "TARGETS_S", "LimitsBench", "LimitsRow", "LimitsTarget",
@@ -123,9 +127,13 @@ def bounded_pmp_problems() -> dict[str, Problem]:
             "bounded_pmp_three_vehicles_feasible": boxed_problem(random_problem(15, m=3), 0.85)}
 
 
-def _timed(fn: Callable[[], Plan], repeats: int, budget_s: float) -> tuple[list[float], list[float], list[Plan]]:
+def _timed(fn: Callable[[], Plan], repeats: int, budget_s: float,
+           before: Callable[[], object] | None = None) -> tuple[list[float], list[float], list[Plan]]:
     """Wall and CPU time of each call after one warm-up (skipped when it alone exceeds the budget:
-    it is then the one sample), stopping once the wall times exceed ``budget_s``."""
+    it is then the one sample), stopping once the wall times exceed ``budget_s``; ``before`` is
+    called untimed ahead of every call (the avoidance: forget the half-planes' rows)."""
+    if before is not None:
+        before()
     w0, c0 = time.perf_counter(), time.process_time()
     first = fn()
     w, c = time.perf_counter() - w0, time.process_time() - c0
@@ -135,6 +143,8 @@ def _timed(fn: Callable[[], Plan], repeats: int, budget_s: float) -> tuple[list[
     cpus: list[float] = []
     plans: list[Plan] = []
     for _ in range(max(1, repeats)):
+        if before is not None:
+            before()
         w0, c0 = time.perf_counter(), time.process_time()
         plans.append(fn())
         walls.append(time.perf_counter() - w0)
@@ -145,12 +155,12 @@ def _timed(fn: Callable[[], Plan], repeats: int, budget_s: float) -> tuple[list[
 
 
 def _row(family: str, problem: Problem, planner: str, solver: str | None, fn: Callable[[], Plan], repeats: int,
-         budget_s: float) -> LimitsRow:
+         budget_s: float, before: Callable[[], object] | None = None) -> LimitsRow:
     row: LimitsRow = {"family": family, "problem": problem.name, "planner": planner, "solver": solver,
                       "cpu_s": None, "wall_s": None, "repeats": 0, "status": None, "cost": None, "n_solves": None,
                       "deterministic": True}
     try:
-        walls, cpus, plans = _timed(fn, repeats, budget_s)
+        walls, cpus, plans = _timed(fn, repeats, budget_s, before)
     except Exception as exc:  # report, never fail the bench
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
@@ -230,7 +240,8 @@ def bench_limits(repeats: int = 7, budget_s: float = 3.0, solvers: tuple[str, ..
                                       "n_solves": None, "deterministic": True,
                                       "error": f"{type(exc).__name__}: {exc}"}
                 continue
-            rows[f"{fam}_{s}"] = _row(fam, prob, "qp-avoid", s, partial(planner.plan, prob), repeats, budget_s)
+            rows[f"{fam}_{s}"] = _row(fam, prob, "qp-avoid", s, partial(planner.plan, prob), repeats, budget_s,
+                                      before=cast(AvoidQPPlanner, planner).forget_vehicles)
     same = {fam: _same_optimum([r for r in rows.values() if r["family"] == fam])
             for fam in ("avoid_limits_one_vehicle", "avoid_limits_three_vehicles")}
     refs = references(repeats)

@@ -154,6 +154,14 @@ class GridShare:
             self._items[key] = out
         return out
 
+    def forget(self, kind: str) -> int:
+        """Drop every value kept under a key of ``kind`` (its first element, e.g. ``"rhs"``: the
+        half-planes' rows, which depend on the vehicles' motion); the number dropped."""
+        gone = [k for k in self._items if k[0] == kind]
+        for k in gone:
+            del self._items[k]
+        return len(gone)
+
     def put(self, key: tuple[Any, ...], value: Any) -> None:
         """Keep ``value`` under ``key``; beyond :attr:`SIZE` values per kind, drop the oldest."""
         self._items.pop(key, None)

@@ -140,6 +140,13 @@ class AvoidQPPlanner:
         check_avoid_solver(self.solver)
         check_choice(self.safety, SAFETY_MODES, "safety", "safety mode")
 
+    def forget_vehicles(self) -> int:
+        """Forget the half-planes' rows kept from earlier plans (they depend on the vehicles'
+        motion, so a closed loop's next plan, whose predictions moved, cannot reuse them; the
+        per-grid factorisations stay): what ``iamp bench`` does before each timed plan, so that
+        it times a new problem on the loop's grid, not a repeat.  The number of entries dropped."""
+        return self._shared.forget("rhs")
+
     def _continuous(self) -> ContinuousAvoidPlanner:
         return ContinuousAvoidPlanner(steps=self.steps, hold=self.hold, solver=self.solver,
                                       solver_settings=self.solver_settings, max_solves=self.max_solves,
