@@ -193,12 +193,33 @@ def test_simulate_commonroad_refuses_an_option_it_would_ignore(option, tmp_path,
     assert code == 2 and option[0] in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
-@pytest.mark.parametrize("option", [["--road-planner", "pmp"], ["--recording", "r.xml"]])
+@pytest.mark.parametrize("option", [["--road-planner", "pmp"], ["--recording", "r.xml"], ["--routes", "as-shipped"]])
 def test_commonroad_options_are_refused_without_commonroad(option, capsys):
     from iamp.cli.main import main
 
     assert main(["simulate", *option]) == 2
     assert option[0] in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("option", "repair"), [([], True), (["--routes", "repaired"], True),
+                                               (["--routes", "as-shipped"], False)])
+def test_simulate_commonroad_routes_flag_reaches_the_loop(option, repair, tmp_path, monkeypatch):
+    """``--routes`` chooses whether SUMO gets the scene's routes repaired (the default) or as shipped."""
+    pytest.importorskip("commonroad")
+    import iamp.commonroad
+    import iamp.commonroad.interactive as interactive
+    from iamp.cli.main import main
+
+    seen: dict[str, object] = {}
+
+    def fake(folder, planner, **kw):  # type: ignore[no-untyped-def]
+        seen.update(kw)
+        return {"success": True}, None
+
+    monkeypatch.setattr(interactive, "simulate_with_log", fake)
+    monkeypatch.setattr(iamp.commonroad, "require", lambda *a, **k: None)
+    main(["simulate", "--commonroad", str(tmp_path), "--json", *option])
+    assert seen.get("repair_routes") is repair
 
 
 def _options(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()):  # type: ignore[no-untyped-def]

@@ -148,7 +148,7 @@ HIGHWAY_DEFAULTS: dict[str, object] = {"mission": "merge", "traffic": "medium", 
 #: Flags of the highway episode (off by default).
 HIGHWAY_FLAGS = ("sublane", "deadline", "ego_in_forecast")
 #: Options of ``--commonroad`` only, and their defaults.
-COMMONROAD_DEFAULTS: dict[str, object] = {"road_planner": "avoid", "recording": None}
+COMMONROAD_DEFAULTS: dict[str, object] = {"road_planner": "avoid", "recording": None, "routes": "repaired"}
 
 
 def check_simulate_options(args: argparse.Namespace) -> None:
@@ -238,7 +238,7 @@ def _simulate_commonroad(args: argparse.Namespace) -> int:
     if args.log:
         check_destinations(args)
     r, log = simulate_with_log(args.commonroad, args.road_planner, recording=args.recording, progress=progress,
-                               seed=args.seed)
+                               seed=args.seed, repair_routes=args.routes == "repaired")
     if args.log:
         from iamp.simulation.episode import write_log
 
@@ -401,6 +401,10 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--recording", default=None, metavar="SCENARIO.xml",
                    help="with --commonroad: the recorded scenario of the same vehicles, to report how SUMO's "
                         "traffic differs from it")
+    p.add_argument("--routes", default=None, choices=("repaired", "as-shipped"),
+                   help="with --commonroad: SUMO's routes with an edge repeated right after itself collapsed "
+                        "(default repaired: SUMO refuses such routes and, told to ignore the error, stops those "
+                        "vehicles at the repeated edge's end for good), or the scene's files as shipped")
     p.set_defaults(func=cmd_simulate)
 
     c = sub.add_parser("campaign", help="every planner x traffic x seed episode on Dask (needs iamp[sim])",
