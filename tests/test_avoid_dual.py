@@ -197,6 +197,50 @@ def test_every_stored_polynomial_bounds_j_on_its_whole_region(solver):
 
 
 @pytest.mark.parametrize("three", [False, True])
+def test_the_stores_polynomials_are_built_when_asked_for_and_are_the_eager_ones(three):
+    """The search stores every optimal candidate with its region (:meth:`DualStore.add`, from its
+    multipliers' sums per vehicle) and builds its piece polynomial only when a box or the search
+    asks for it: each one built is, bit for bit, :meth:`DualBounds.polynomial` of the same
+    candidate on its pieces built at once in a fresh store, the regions are those of the
+    polynomials' own ``mass``, and three vehicles leave some never built."""
+    from iamp.planners.avoid.check import crossing_orders
+    from iamp.planners.avoid.dual import DualStore
+    from iamp.planners.examples import overtake_three_problem
+
+    prob = overtake_three_problem() if three else overtake_problem()
+    qp = ContinuousAvoidQP(prob, 50, "foh", "clarabel")
+    planner = ContinuousAvoidPlanner(steps=50)
+    stores: list[DualStore] = []
+    init = DualStore.__init__
+
+    def keep(self, dual):  # type: ignore[no-untyped-def]
+        init(self, dual)
+        stores.append(self)
+
+    DualStore.__init__ = keep  # type: ignore[method-assign]
+    try:
+        planner.search(qp, crossing_orders(prob)[0])
+    finally:
+        DualStore.__init__ = init  # type: ignore[method-assign]
+    store = stores[0]
+    assert len(store._polys) >= 5
+    unbuilt = sum(p is None for p in store._polys)
+    assert unbuilt >= (1 if three else 0)
+    fresh = DualStore(DualBounds(qp))
+    for at, (sol, lo, hi) in enumerate(store._sources):
+        ref = fresh.piece(sol)
+        assert np.array_equal(store.dual.mass(sol), ref.mass)
+        assert np.array_equal(store._binds[at], ref.mass > 0)
+        k = np.array([piece_of(float(a), float(a), qp.h, qp.N) for _, _, a, _ in sol.spec], dtype=float)
+        assert np.array_equal(lo, k * qp.h) and np.array_equal(hi, (k + 1) * qp.h)
+        built = store._polys[at]
+        if built is not None:
+            assert built.vehicles == ref.vehicles and built.pieces == ref.pieces
+            assert np.array_equal(built.coef, ref.coef) and np.array_equal(built.mass, ref.mass)
+        assert np.array_equal(store._poly(at).coef, ref.coef)  # built now if it was not
+
+
+@pytest.mark.parametrize("three", [False, True])
 def test_the_envelope_gradient_is_the_piece_polynomials_slope(three):
     """:meth:`DualBounds.gradient` (the envelope theorem on the split piece's rows, used by the
     final secant search) equals the slope of the candidate's piece polynomial at its crossing

@@ -903,10 +903,11 @@ class ContinuousAvoidPlanner:
                 if cand.status == st.OPTIMAL:
                     if best is None or cand.cost < best.cost:
                         best, best_tau = cand, tau.copy()
-                    piece = store.piece(cand)
                     same = all(piece_of(float(a), float(b), qp.h, qp.N) == piece_of(float(t), float(t), qp.h, qp.N)
                                for a, b, t in zip(box.lo, box.hi, tau))
-                    dp = piece if same else dual.polynomial(cand, box.lo, box.hi)
+                    # the candidate's piece polynomial joins the store (built when first needed)
+                    store.add(cand)
+                    dp = store.piece(cand) if same else dual.polynomial(cand, box.lo, box.hi)
                     bound, mass = max(bound, dp.lower_bound(box.lo, box.hi)), dp.mass
                     if dp.vehicles:
                         box.duals = (box.duals + (dp,))[-self.DUALS_KEPT:]

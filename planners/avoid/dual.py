@@ -462,8 +462,13 @@ class DualBounds:
             flat = self._flat(q, coef.shape, exps, pairs)
             coef = np.asarray(np.bincount(flat, weights=np.concatenate((-lin, -0.5 * G.ravel())),
                                           minlength=coef.size), dtype=float).reshape(coef.shape)
-        mass = np.bincount(veh[bern], weights=y[bern], minlength=len(sol.spec)).astype(float)
-        return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, mass)
+        return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, self.mass(sol))
+
+    def mass(self, sol: Solved) -> FloatArray:
+        """Per vehicle, the sum of ``sol``'s multipliers on its Bernstein rows (:attr:`DualPolynomial.mass`
+        of every polynomial of ``sol``, without building one)."""
+        b = self._binding(sol)
+        return np.bincount(b.veh[b.bern], weights=b.y[b.bern], minlength=len(sol.spec)).astype(float)
 
 
 class DualStore:
@@ -476,7 +481,10 @@ class DualStore:
     on its rows) in its piece and in the candidate's order, whatever the box that asked for it.
     A vehicle with no multiplier on its rows drops out of the dual function, so the bound holds
     for every crossing time and order of that vehicle.  A box takes the largest bound of the
-    polynomials whose region contains it (:meth:`valid`), not only its ancestors'.
+    polynomials whose region contains it (:meth:`valid`), not only its ancestors'.  A candidate
+    enters the store with its region (:meth:`add`: its multipliers' sums per vehicle say which
+    vehicles bind); its polynomial is built the first time a box or the search asks for it (the
+    same function of the same solution: the same coefficients whenever it is built).
 
     Parameters
     ----------
@@ -488,33 +496,52 @@ class DualStore:
         self.dual = dual
         qp = dual.qp
         self.h, self.N, self.tf = qp.h, qp.N, qp.tf
-        self._by_spec: dict[object, DualPolynomial] = {}
+        #: per stored spec, its position in the lists below
+        self._by_spec: dict[object, int] = {}
         self._orders: list[tuple[tuple[int, int], ...]] = []
         self._binds: list[NDArray[np.bool_]] = []
         self._lo: list[FloatArray] = []
         self._hi: list[FloatArray] = []
-        self._polys: list[DualPolynomial] = []
+        #: the piece polynomials, None until first asked for (:meth:`_poly`)
+        self._polys: list[DualPolynomial | None] = []
+        #: what builds each one: the candidate and its pieces' bounds
+        self._sources: list[tuple[Solved, FloatArray, FloatArray]] = []
         self._arrays: tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.int64]] | None = None
         self._order_arrays: dict[tuple[tuple[int, int], ...], NDArray[np.int64]] = {}
 
-    def piece(self, sol: Solved) -> DualPolynomial:
-        """The piece polynomial of the optimal candidate ``sol`` (computed once per spec; its
-        ``spec`` has ``a = b = τ_c``), added to the store."""
-        if sol.spec in self._by_spec:
-            return self._by_spec[sol.spec]
+    def add(self, sol: Solved) -> int:
+        """Store the optimal candidate ``sol`` (its ``spec`` has ``a = b = τ_c``; once per spec)
+        with the region where its piece polynomial bounds ``J``; returns its position.  The
+        polynomial itself is built when first asked for (:meth:`piece`, :meth:`valid`)."""
+        at = self._by_spec.get(sol.spec)
+        if at is not None:
+            return at
         tau = np.array([a for _, _, a, _ in sol.spec], dtype=float)
         k = np.array([piece_of(float(t), float(t), self.h, self.N) for t in tau], dtype=float)
         lo, hi = k * self.h, (k + 1) * self.h
-        dp = self.dual.polynomial(sol, lo, hi)
-        binds = dp.mass > 0
-        self._by_spec[sol.spec] = dp
+        binds = self.dual.mass(sol) > 0
+        at = self._by_spec[sol.spec] = len(self._polys)
         self._orders.append(tuple((int(f), int(s)) for f, s, _, _ in sol.spec))
         self._binds.append(binds)
         slack = 1e-12 * self.tf
         self._lo.append(np.where(binds, lo - slack, -np.inf))
         self._hi.append(np.where(binds, hi + slack, np.inf))
-        self._polys.append(dp)
+        self._polys.append(None)
+        self._sources.append((sol, lo, hi))
+        return at
+
+    def _poly(self, at: int) -> DualPolynomial:
+        """The piece polynomial stored at ``at``, built on first use."""
+        dp = self._polys[at]
+        if dp is None:
+            sol, lo, hi = self._sources[at]
+            dp = self._polys[at] = self.dual.polynomial(sol, lo, hi)
         return dp
+
+    def piece(self, sol: Solved) -> DualPolynomial:
+        """The piece polynomial of the optimal candidate ``sol`` (computed once per spec; its
+        ``spec`` has ``a = b = τ_c``), added to the store (:meth:`add`)."""
+        return self._poly(self.add(sol))
 
     def valid(self, orders: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray) -> list[DualPolynomial]:
         """The stored polynomials that bound every crossing in the box ``[lo, hi]`` with
@@ -531,4 +558,4 @@ class DualStore:
         out = np.empty(LO.shape[0], dtype=np.int64)
         n = _run("valid_polys", search_kernel)(LO, HI, B, O, want, np.asarray(lo, dtype=float),
                                                np.asarray(hi, dtype=float), out)
-        return [self._polys[int(c)] for c in out[:n]]
+        return [self._poly(int(c)) for c in out[:n]]
