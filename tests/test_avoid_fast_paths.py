@@ -10,12 +10,15 @@
   unit columns, and a QP in which no row binds returns the equality optimum and multipliers of
   a fresh KKT solve.
 * :func:`~iamp.planners.avoid.check.kkt_conditions` with the caller's strict lower triangle
-  returns the same residuals as without it.
+  returns the same residuals as without it; one :class:`~iamp.planners.avoid.check.KKTCheck`
+  checking two points gives each point's fresh residuals bit for bit, and they are the formula
+  of the module docstring written out on dense arrays.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from hypothesis import HealthCheck, given, settings
@@ -24,7 +27,7 @@ from hypothesis import strategies as st_h
 from iamp.core import status as st
 from iamp.planners.avoid import schur_kernel
 from iamp.planners.avoid.bernstein import poly_bernstein
-from iamp.planners.avoid.check import kkt_conditions
+from iamp.planners.avoid.check import KKTCheck, kkt_conditions
 from iamp.planners.avoid.continuous import ContinuousAvoidQP, _spec
 from iamp.planners.avoid.schur import SchurActiveSet, kkt_matrix
 from iamp.planners.examples import overtake_problem, overtake_three_problem
@@ -136,3 +139,33 @@ def test_kkt_conditions_with_the_callers_lower_triangle_are_the_same_numbers():
     lower = sp.triu(sp.csc_matrix(d.P), 1).T
     assert kkt_conditions(d.P, d.q, A, l, u, sol.z, sol.y, d.n_eq, lower) == kkt_conditions(
         d.P, d.q, A, l, u, sol.z, sol.y, d.n_eq)
+
+
+def test_one_kkt_check_of_two_points_is_each_points_own_and_the_dense_formula():
+    qp = ContinuousAvoidQP(overtake_three_problem(), 20, "foh", "piqp")
+    d = qp.data
+    sol = qp.solve(_spec([(1, 0), (0, 1), (0, 1)], [3.7, 1.9, 3.6], [3.7, 1.9, 3.6]))
+    assert sol.status == st.OPTIMAL
+    A_in, u_in, _ = sol.spec_rows()
+    A = sp.csc_matrix(sp.vstack([qp.A_eq, A_in]))
+    l, u = np.r_[d.b_eq, np.full(u_in.size, -np.inf)], np.r_[d.b_eq, u_in]
+    rng = np.random.default_rng(5)
+    off = sol.y - 1e-3 * (np.arange(sol.y.size) >= d.n_eq)  # negative multipliers on the free rows
+    points = [(sol.z, sol.y), (sol.z + 1e-3 * rng.standard_normal(sol.z.size), off)]
+    check = KKTCheck(d.P, d.q, A, l, u, d.n_eq)
+    Pf = sp.csc_matrix(d.P).toarray()
+    Pf = Pf + np.triu(Pf, 1).T
+    Ad = A.toarray()
+    for z, y in points:
+        got = check(z, y)
+        assert got == KKTCheck(d.P, d.q, A, l, u, d.n_eq)(z, y) == kkt_conditions(d.P, d.q, A, l, u, z, y, d.n_eq)
+        Pz, Az, Aty = Pf @ z, Ad @ z, Ad.T @ y
+        bound = np.abs(np.r_[l[np.isfinite(l)], u[np.isfinite(u)]]).max()
+        slack = np.maximum(u[d.n_eq:] - Az[d.n_eq:], 0.0)
+        ref = {"kkt_stationarity_rel": np.abs(Pz + d.q + Aty).max() / max(1.0, np.abs(Pz).max(), np.abs(Aty).max()),
+               "kkt_primal_rel": np.abs(Az - np.clip(Az, l, u)).max() / max(1.0, np.abs(Az).max(), bound),
+               "kkt_dual_sign_rel": max(0.0, (-y[d.n_eq:]).max()) / max(1.0, np.abs(y).max()),
+               "kkt_complementarity_rel": (np.abs(y[d.n_eq:]) * slack).max() / max(1.0, abs(z @ Pz))}
+        for k, v in ref.items():
+            assert got[k] == pytest.approx(v, rel=1e-9, abs=1e-15), k
+    assert check(*points[1])["kkt_dual_sign_rel"] > 0.0  # the second point is no optimum

@@ -106,24 +106,43 @@ def kkt_conditions(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray,
                    z: FloatArray, y: FloatArray, n_eq: int, lower: sp.spmatrix | None = None) -> dict[str, float]:
     """The four relative KKT residuals of the module docstring (rows ``>= n_eq`` are the
     one-sided inequalities ``a_i z <= u_i``); ``P`` is the upper triangle of the cost Hessian and
-    ``lower``, when the caller keeps it, its strict lower part ``triu(P, 1).T``."""
-    Pu = sp.csc_matrix(P)
-    Pz = Pu @ z + (sp.triu(Pu, 1).T if lower is None else lower) @ z
-    Az = A @ z
-    Aty = A.T @ y
-    stat = float(np.max(np.abs(Pz + q + Aty)))
-    stat_scale = max(1.0, float(np.max(np.abs(Pz))), float(np.max(np.abs(Aty))))
-    primal = float(np.max(np.abs(Az - np.clip(Az, l, u))))
-    finite = np.r_[np.abs(l[np.isfinite(l)]), np.abs(u[np.isfinite(u)])]
-    primal_scale = max(1.0, float(np.max(np.abs(Az))), float(np.max(finite, initial=0.0)))
-    yi = y[n_eq:]
-    slack = u[n_eq:] - Az[n_eq:]
-    sign = float(np.max(np.maximum(-yi, 0.0), initial=0.0))
-    compl = float(np.max(np.abs(yi) * np.maximum(slack, 0.0), initial=0.0))
-    zPz = float(z @ Pz)
-    return {"kkt_stationarity_rel": stat / stat_scale, "kkt_primal_rel": primal / primal_scale,
-            "kkt_dual_sign_rel": sign / max(1.0, float(np.max(np.abs(y)))),
-            "kkt_complementarity_rel": compl / max(1.0, abs(zPz))}
+    ``lower``, when the caller keeps it, its strict lower part ``triu(P, 1).T``
+    (:class:`KKTCheck` of the one point)."""
+    return KKTCheck(P, q, A, l, u, n_eq, lower)(z, y)
+
+
+class KKTCheck:
+    """:func:`kkt_conditions` of any point ``(z, y)`` of one QP: what depends on the QP alone
+    (``P``'s two triangles, ``Aᵀ``, the largest finite bound) is set up once, so checking a second
+    point (the backend's answer to the same QP) repeats none of it; the same numbers."""
+
+    def __init__(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray, n_eq: int,
+                 lower: sp.spmatrix | None = None) -> None:
+        self.Pu = sp.csc_matrix(P)
+        self.lower = sp.triu(self.Pu, 1).T if lower is None else lower
+        self.A, self.AT = A, A.T
+        self.q, self.l, self.u, self.n_eq = q, l, u, n_eq
+        finite = np.r_[np.abs(l[np.isfinite(l)]), np.abs(u[np.isfinite(u)])]
+        self.bound_max = float(np.max(finite, initial=0.0))
+
+    def __call__(self, z: FloatArray, y: FloatArray) -> dict[str, float]:
+        """The four relative KKT residuals at ``(z, y)``."""
+        l, u, n_eq = self.l, self.u, self.n_eq
+        Pz = self.Pu @ z + self.lower @ z
+        Az = self.A @ z
+        Aty = self.AT @ y
+        stat = float(np.max(np.abs(Pz + self.q + Aty)))
+        stat_scale = max(1.0, float(np.max(np.abs(Pz))), float(np.max(np.abs(Aty))))
+        primal = float(np.max(np.abs(Az - np.clip(Az, l, u))))
+        primal_scale = max(1.0, float(np.max(np.abs(Az))), self.bound_max)
+        yi = y[n_eq:]
+        slack = u[n_eq:] - Az[n_eq:]
+        sign = float(np.max(np.maximum(-yi, 0.0), initial=0.0))
+        compl = float(np.max(np.abs(yi) * np.maximum(slack, 0.0), initial=0.0))
+        zPz = float(z @ Pz)
+        return {"kkt_stationarity_rel": stat / stat_scale, "kkt_primal_rel": primal / primal_scale,
+                "kkt_dual_sign_rel": sign / max(1.0, float(np.max(np.abs(y)))),
+                "kkt_complementarity_rel": compl / max(1.0, abs(zPz))}
 
 
 def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:

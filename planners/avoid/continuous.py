@@ -90,7 +90,7 @@ from iamp.core.problem import Problem
 from iamp.core.tolerances import tol
 from iamp.planners.avoid import search_kernel
 from iamp.planners.avoid.bernstein import piece_matrix, poly_bernstein
-from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, crossing_orders, kkt_conditions, leave_time
+from iamp.planners.avoid.check import AXIS_NAMES, FloatArray, KKTCheck, crossing_orders, leave_time
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.diagnostics import AvoidDiagnostics
 from iamp.planners.avoid.dual import (
@@ -318,7 +318,8 @@ class ContinuousAvoidQP:
         self._t_nodes: list[float] = d.t_nodes.tolist()
         self.A_eq, self._P_diag, self.M_full = grid.A_eq, grid.P_diag, grid.M_full
         self.limit_rows: Any = None
-        A_lim, u_lim = sp.csr_matrix((0, d.n)), np.zeros(0)
+        A_lim: sp.csr_matrix | None = None
+        u_lim = np.zeros(0)
         if problem.limits is not None:
             from iamp.planners.qp.limits import check_hold, limit_rows
 
@@ -334,6 +335,8 @@ class ContinuousAvoidQP:
                 if shared is not None:
                     shared.put(key, kept)
             self.limit_rows, A_lim, u_lim = kept
+        if A_lim is None:  # no limit rows
+            A_lim = sp.csr_matrix((0, d.n))
         A_lim.sort_indices()
         self.A_lim, self.u_lim = A_lim, u_lim
         self.n_solves = 0
@@ -1163,7 +1166,8 @@ class ContinuousAvoidPlanner:
         # both KKT checks below; the node solver's copy was built from this P (or checked
         # against it bit for bit, :meth:`ContinuousAvoidQP._schur`)
         lower = qp.schur.P_lower if qp.schur is not None else sp.triu(sp.csc_matrix(d.P), 1).T
-        kkt = kkt_conditions(d.P, d.q, A, l, u, sol.z, sol.y, n_eq, lower)
+        check_kkt = KKTCheck(d.P, d.q, A, l, u, n_eq, lower)  # the node solver's point, then the backend's
+        kkt = check_kkt(sol.z, sol.y)
         key = BACKENDS[self.solver].tolerance_key
         limit = tol(key)
         failed = [k for k, v in kkt.items() if v > limit]
@@ -1175,7 +1179,7 @@ class ContinuousAvoidPlanner:
                                      "cost": float(other.cost) if np.isfinite(other.cost) else None}
             ok = other.status == st.OPTIMAL
             if ok:
-                other_kkt = kkt_conditions(d.P, d.q, A, l, u, other.z, other.y, n_eq, lower)
+                other_kkt = check_kkt(other.z, other.y)
                 cost_tol = tol(key.replace("kkt", "cost"))
                 ok = (max(other_kkt.values()) <= limit
                       and abs(other.cost - sol.cost) <= cost_tol * max(1.0, abs(sol.cost)))
