@@ -9,10 +9,11 @@ at ``N = 8`` without a plan on every one).  Now:
   ``max|ċ_i| + |v_0| + max(|ℓ|, |h|) t_f`` over all of them), so boxes close sooner: two of the
   23 are certified by a single vehicle;
 * the pairs' covers go on past feasible centres and prune the full cover
-  (:func:`~iamp.planners.pmp.bounded.pair_projection`): 8 certified by a pair, and the pruned
-  full cover meets feasible contact times on 9 — those problems have plans (the FOH QP at
-  ``N = 240`` through the plan's contact times agrees), the PMP was wrong to say ``infeasible``;
-* 4 stay uncertified (a budget of 34 000 solves).
+  (:func:`~iamp.planners.pmp.bounded.pair_projection`; a pair whose cover met no feasible
+  centre resumed once): 9 certified by a pair, and the pruned full cover meets feasible contact
+  times on 9 — those problems have plans (the FOH QP at ``N = 240`` through the plan's contact
+  times agrees), the PMP was wrong to say ``infeasible``;
+* 3 stay uncertified (a budget of 34 000 solves; 758025 at 0.595 has a plan too).
 
 References: the rate is checked against the Farkas margin recomputed by quadrature at moved
 contact times with the same multipliers; certified boxes against solves at points inside them;
@@ -28,6 +29,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 from test_bounded_random import boxed, check
+from test_pmp_bounded_multi_edge import _a_verified_local_minimum
 
 from iamp.api import plan
 from iamp.comparison.bench.limits import bounded_pmp_problems
@@ -136,6 +138,36 @@ def test_three_vehicles_said_infeasible_have_a_plan() -> None:
     assert math.isfinite(B._Evaluator(problem)(proof.feasible_t)[0])
 
 
+def test_a_plan_found_in_a_sliver_is_stationary_by_the_sign_of_r() -> None:
+    """random_problem(58781, m=3) at 0.659 (drawn by ``default_rng(2)``) was ``infeasible``
+    uncertified; the pruned cover meets feasible contact times, and the edge polish holds ``t_0``
+    at its upper edge (``J_b`` falls out of the set) while ``t_1`` is polished to ``|r_1|`` 2e-5,
+    the rounding of ``r_1`` there (its terms 3.96): stationary by the sign of ``r_1`` (negative
+    ``1e-11 t_f`` before, positive after, both beyond that rounding).  ``local`` at 1977.2755;
+    the FOH QP through its contact times +1.5e-7 at ``N = 480``, +3.3e-8 at ``N = 960`` (Clarabel
+    ``inaccurate`` at 240), no lower ``J_b`` at feasible neighbours along the axes."""
+    seed, scale = 58781, 0.6585968705314464
+    problem = boxed(seed, 3, scale)
+    assert problem is not None
+    pmp = PMPPlanner().plan(problem)
+    assert pmp.status == stc.LOCAL and pmp.cost is not None, pmp.info.get("failed_check")
+    search = pmp.info["search"]
+    assert [e["vehicle"] for e in search["feasibility_edges"]] == [0]
+    (by_sign,) = search["edge_polish"]["stationary_by_sign"]
+    assert by_sign["vehicle"] == 1
+    T = float(problem.tf)
+    t = np.array(pmp.contact_times, dtype=float)
+    signs = []
+    for d in (-by_sign["delta"], by_sign["delta"]):  # the plan's own residual, solved cold
+        z = t.copy()
+        z[1] += d * T
+        signs.append(float(B.solve_bounded_fixed(problem, z).hamiltonian_jump_residual()[1]))
+    assert signs[0] < 0 < signs[1], signs
+    gaps = _a_verified_local_minimum(problem, pmp, (-1e-3, -1e-5, -1e-7, 1e-7, 1e-5, 1e-3), 10,
+                                     qp_steps=(480, 960), qp_within=2e-4)
+    assert gaps[1] < gaps[0]
+
+
 def test_a_pair_cover_certifies_only_infeasible_boxes() -> None:
     """random_problem(311071, m=3) at 0.606 (was ``infeasible`` uncertified) is now certified by
     vehicles 0 and 2.  Every box the pair's cover certified admits no plan at sampled contact
@@ -193,3 +225,41 @@ def test_the_pairs_certify_nothing_where_the_bench_has_a_plan() -> None:
     problem = bounded_pmp_problems()["bounded_pmp_three_vehicles_feasible"]
     proof = B.pair_projection(problem, B.PAIR_SOLVES)
     assert not proof.certified
+
+
+def test_a_stopped_cover_resumes_where_it_stopped() -> None:
+    """A pair's cover stopped by its budget leaves boxes undecided (:func:`_frontier`); they and
+    the boxes it decided (certified or open) tile ``(0, t_f)²`` without overlap (areas sum to
+    ``t_f²``, no undecided box meets a decided one's interior), and covering them finishes the
+    cover: random_problem(903871, m=3) at 0.610, vehicles 0 and 2, certified in two runs of 6000
+    solves (one of 6000 does not close), while every certified box admits no plan at sampled
+    contact times inside it."""
+    problem = boxed(903871, 3, 0.6098506723534796)
+    assert problem is not None
+    pair = problem.with_vehicles([problem.vehicles[0], problem.vehicles[2]])
+    T = float(problem.tf)
+    tree: dict[tuple[float, ...], tuple[object, ...]] = {}
+    first = B._cover_infeasible(pair, 6000, tree)
+    assert not first.certified and first.feasible_t is None
+    edges = [T * j / 8 for j in range(9)]
+    grid = [(np.array([edges[i], edges[j]]), np.array([edges[i + 1], edges[j + 1]]))
+            for i in range(8) for j in range(8)]
+    undecided = B._frontier(tree, grid)
+    decided = [(np.array(k[:2]), np.array(k[2:])) for k, v in tree.items() if v[0] in ("c", "o")]
+    area = sum(float(np.prod(b - a)) for a, b in undecided + decided)
+    assert abs(area - T * T) <= 1e-12 * T * T
+    rng = np.random.default_rng(2)
+    for a, b in [undecided[int(i)] for i in rng.choice(len(undecided), size=30, replace=False)]:
+        centre = 0.5 * (a + b)
+        assert not any(np.all(p < centre) and np.all(centre < q) for p, q in decided)
+    second = B._cover_infeasible(pair, 6000, tree)
+    assert second.certified
+    for key in [k for k, v in tree.items() if v[0] == "c"][::97]:
+        a, b = np.array(key[:2]), np.array(key[2:])
+        t = a + (b - a) * rng.uniform(size=2)
+        if abs(t[0] - t[1]) > 1e-9 * T:
+            try:
+                B.solve_bounded_fixed(pair, t)
+                raise AssertionError(f"a plan at {t} in the certified box {key}")
+            except B.AxisInfeasible:
+                pass

@@ -441,14 +441,22 @@ PROJECTION_SHARE = 4
 #: are feasible (those boxes stay open) so that its certified boxes can prune the full cover.
 PAIR_TREE_SOLVES = 6000
 
+#: :func:`pair_projection` resumes a pair's cover that met no feasible centre (it may close) by
+#: another :data:`PAIR_TREE_SOLVES` while this many solves stay for the pruned full cover.
+PAIR_KEEP_SOLVES = 6000
+
 #: The axis solves :func:`plan_bounded` gives :func:`pair_projection` (``m ≥ 3``, once the single
 #: vehicles, the 4000-solve cover and the product of each vehicle's feasible times have neither
 #: certified nor found a plan).  Of 23 generated three-vehicle problems that ended ``infeasible``
 #: uncertified (``random_problem(seed, m=3)``, box at 0.40-1.20 of the peaks, 246 drawn by
-#: ``numpy.random.default_rng(1)``; the FOH QP at ``N = 8`` without a plan on all): 8 are now
+#: ``numpy.random.default_rng(1)``; the FOH QP at ``N = 8`` without a plan on all): 9 are now
 #: certified by a pair, 2 by a single vehicle (the box rate of :func:`_box_rate`), 9 have a plan
 #: (the pruned cover meets feasible contact times; the FOH QP at ``N = 240`` through the plan's
-#: contact times agrees), 4 stay uncertified (one has a plan the cover meets after 97 000 solves).
+#: contact times agrees), 3 stay uncertified (758025 at 0.595 has a plan, which a cover pruned by
+#: pairs of 30 000 solves each meets after 97 000 solves; the FOH QP at ``N = 240`` confirms it).
+#: Of 24 more (200 drawn by ``default_rng(2)``): 17 certified, 4 plans, 3 uncertified.  With
+#: 20 000 instead, of the 47: 2 plans and 5 certificates fewer, the slowest 0.70 s instead of
+#: 0.79 s CPU (compiled axis solve).
 PAIR_SOLVES = 30000
 
 
@@ -473,7 +481,9 @@ def infeasibility_certificate(problem: Problem, max_solves: int = 4000,
     ``(0, t_f)²``, the whole problem is infeasible.  Tried once the full cover below has
     neither certified nor found a feasible centre within ``max_solves``: each pair's cover gets
     :data:`PAIR_TREE_SOLVES` (while ``pair_solves`` last) and goes on past feasible centres
-    (those boxes stay open); then the full cover again, pruned by every pair's certified boxes,
+    (those boxes stay open); a pair's cover that met no feasible centre is resumed once with as
+    many more while :data:`PAIR_KEEP_SOLVES` remain; then the full cover again, pruned by every
+    pair's certified boxes,
     gets the rest of ``pair_solves`` and stops at the first centre where both axes are feasible
     (``feasible_t``: contact times with a plan, where the search starts again).  These solves
     are counted apart from ``max_solves``.
@@ -505,6 +515,7 @@ def pair_projection(problem: Problem, pair_solves: int) -> InfeasibilityCertific
     m = problem.m
     T = float(problem.tf)
     trees: list[tuple[int, int, dict[tuple[float, ...], tuple[Any, ...]]]] = []
+    closed: list[tuple[int, int, dict[tuple[float, ...], tuple[Any, ...]]]] = []
     spent = 0
     for i in range(m):
         for j in range(i + 1, m):
@@ -517,6 +528,16 @@ def pair_projection(problem: Problem, pair_solves: int) -> InfeasibilityCertific
             if two.certified:
                 return InfeasibilityCertificate(True, None, two.boxes, spent, pair=(i, j))
             trees.append((i, j, tree))
+            if two.feasible_t is None:
+                closed.append((i, j, tree))
+    for i, j, tree in closed:  # no feasible centre met: the cover goes on where it stopped
+        budget = min(PAIR_TREE_SOLVES, pair_solves - spent - PAIR_KEEP_SOLVES)
+        if budget <= 0:
+            break
+        two = _cover_infeasible(problem.with_vehicles([problem.vehicles[i], problem.vehicles[j]]), budget, tree)
+        spent += two.solves
+        if two.certified:
+            return InfeasibilityCertificate(True, None, two.boxes, spent, pair=(i, j))
     edges = [T * k / 8 for k in range(9)]  # the two-vehicle cover's first grid
     seen: dict[tuple[float, ...], bool] = {}
 
@@ -569,6 +590,26 @@ def _tree_covers(tree: dict[tuple[float, ...], tuple[Any, ...]], edges: list[flo
     return True
 
 
+def _frontier(tree: dict[tuple[float, ...], tuple[Any, ...]], first: list[tuple[FloatArray, FloatArray]]
+              ) -> list[tuple[FloatArray, FloatArray]]:
+    """The boxes a cover recorded in ``tree`` left undecided: those of its first grid ``first``
+    never reached, then each halved box's halves not recorded, in the cover's order.  They and
+    the recorded boxes partition the contact times, so covering them finishes the cover."""
+    out = [(a, b) for a, b in first if (*a.tolist(), *b.tolist()) not in tree]
+    n = len(first[0][0]) if first else 0
+    for key, node in tree.items():
+        if node[0] != "s":
+            continue
+        _, i, mid = node
+        a, b = np.array(key[:n]), np.array(key[n:])
+        lo_b, hi_a = b.copy(), a.copy()
+        lo_b[i] = hi_a[i] = mid
+        for child in ((a, lo_b), (hi_a, b)):
+            if (*child[0].tolist(), *child[1].tolist()) not in tree:
+                out.append(child)
+    return out
+
+
 def certify_infeasible(problem: Problem, max_solves: int = 4000) -> tuple[bool, FloatArray | None, int]:
     """``(certified, feasible_t, boxes)`` of :func:`infeasibility_certificate` (the projection
     on single vehicles first, then the cover of :func:`_cover_infeasible`)."""
@@ -605,8 +646,10 @@ def _cover_infeasible(problem: Problem, max_solves: int, tree: dict[tuple[float,
 
     ``m ≥ 2`` only: with ``tree`` (a dict, filled in) every box reached is recorded (see
     :func:`_tree_covers`) and a box with a feasible centre stays open while the others go on
-    (``feasible_t`` the first such centre, ``certified`` False); ``prune(a, b)`` True counts a box
-    as infeasible without a solve (a projection certified, :func:`infeasibility_certificate`).
+    (``feasible_t`` the first such centre, ``certified`` False); a ``tree`` that is not empty is
+    resumed from the boxes it left undecided (:func:`_frontier`; ``boxes`` and ``solves`` then
+    count this run only, ``certified`` whether all of them closed); ``prune(a, b)`` True counts a
+    box as infeasible without a solve (a projection certified, :func:`infeasibility_certificate`).
     """
     m = problem.m
     ego = problem.ego
@@ -618,6 +661,8 @@ def _cover_infeasible(problem: Problem, max_solves: int, tree: dict[tuple[float,
     stack: deque[tuple[FloatArray, FloatArray]] = deque()  # breadth first: a feasible region shows early
     for idx in np.ndindex(*([per_axis] * m)):
         stack.append((np.array([edges[j] for j in idx]), np.array([edges[j + 1] for j in idx])))
+    if tree:  # resumed: the boxes the earlier run left undecided, in its order
+        stack = deque(_frontier(tree, list(stack)))
     if m == 1:
         return _cover_one(problem, max_solves, edges)
     # the corners as problem.corners gives them (_polyval repeats numpy's polyval), without
@@ -626,6 +671,7 @@ def _cover_infeasible(problem: Problem, max_solves: int, tree: dict[tuple[float,
     # the boxes then read in order with the decisions, counters and budget of one box at a time
     pos = [[float(c) for c in np.asarray(v.x_poly, dtype=float)] for v in problem.vehicles]
     ders = [_derivative(c) for c in pos]
+    rates: dict[tuple[int, int, float, float], float] = {}
     off = [(float(v.offset_x), float(v.corner_y)) for v in problem.vehicles]
     data = [float(x) for row in axes_data for x in row]
     width = m + 3
@@ -663,9 +709,13 @@ def _cover_infeasible(problem: Problem, max_solves: int, tree: dict[tuple[float,
                     if raw[o] == 0.0:
                         converged += 1
                     elif raw[o] == 1.0:  # AxisInfeasible with its certificate
-                        rate = sum(half[i] * abs(raw[o + 2 + i]) * _box_rate(ders[i] if k == 0 else [0.0],
-                                                                             axes_data[k], float(a[i]), float(b[i]))
-                                   for i in range(m))
+                        rate = 0.0
+                        for i in range(m):
+                            key = (k, i, float(a[i]), float(b[i]))
+                            L = rates.get(key)
+                            if L is None:  # boxes share their sides: each side's rate once
+                                L = rates[key] = _box_rate(ders[i] if k == 0 else [0.0], axes_data[k], key[2], key[3])
+                            rate += half[i] * abs(raw[o + 2 + i]) * L
                         if raw[o + 1] > rate * (1 + 1e-9):
                             covered = True
                             break
@@ -1956,7 +2006,7 @@ def _edge_polish(ev: _Evaluator, x: FloatArray, T: float, rounds: int = 10
 
 
 #: Half-widths (over ``t_f``) of the brackets in which :func:`_stationary_brackets` looks for the
-#: sign change of ``r_i`` at a time held just inside an edge; the smallest is above the reach of
+#: sign change of ``r_i`` at a time beside an edge; the smallest is above the reach of
 #: the noise of ``r_i`` there (random_problem(539214, m=3) at 0.7162: ``r_1`` differs by 2 between
 #: warm and cold solves at one time, while it moves ``2.3e11 t_f`` per unit of time).
 STATIONARY_BRACKET = (1e-11, 1e-10, 1e-9)
@@ -1964,7 +2014,7 @@ STATIONARY_BRACKET = (1e-11, 1e-10, 1e-9)
 
 def _stationary_brackets(ev: _Evaluator, sol: BoundedSolution, times: list[int], T: float
                          ) -> dict[int, dict[str, float]] | None:
-    r"""Held times whose Hamiltonian-jump residual fails its check only by the precision of ``r``:
+    r"""Times whose Hamiltonian-jump residual fails its check only by the precision of ``r``:
     ``{i: {"delta": δ, "r_minus": r_i(t_i − δ t_f), "r_plus": r_i(t_i + δ t_f), "cost_bound": …}}``
     for each ``i`` of ``times`` whose own residual exceeds ``pmp_hjump_rel``, or ``None`` when one
     of them has no such bracket.
@@ -1973,8 +2023,9 @@ def _stationary_brackets(ev: _Evaluator, sol: BoundedSolution, times: list[int],
     :math:`r_i = H^- - H^+ - \dot x_{s,i}\Phi_{i,x}` is a difference of large terms: its
     rounding (warm against cold solves of the same times) can exceed the check's tolerance at
     every float time near its zero.  Then the claim is made by the sign of ``r_i`` instead: with
-    the other times fixed, :math:`r_i(t_i-\delta) < 0 < r_i(t_i+\delta)` for the first ``δ`` of
-    :data:`STATIONARY_BRACKET` (``t_f`` units) where it holds, so by continuity of
+    the other times fixed, :math:`r_i(t_i-\delta) < 0 < r_i(t_i+\delta)`, both larger than
+    :math:`|r_i(t_i)|` (the size of ``r_i``'s rounding there: the signs are read beyond it), for
+    the first ``δ`` of :data:`STATIONARY_BRACKET` (``t_f`` units) where it holds, so by continuity of
     :math:`r_i = \partial J_b/\partial t_i` (the fixed-time problem is strictly convex, its
     solution and ``J_b`` smooth in ``t`` where feasible) a zero ``t_i^*`` of ``r_i`` lies within
     ``δ t_f`` of ``t_i``, and ``J_b`` rises through it (a minimum along ``t_i``).  With ``r_i``
@@ -1995,7 +2046,7 @@ def _stationary_brackets(ev: _Evaluator, sol: BoundedSolution, times: list[int],
             lo[i] -= delta * T
             hi[i] += delta * T
             r_lo, r_hi = float(ev(lo)[1][i]), float(ev(hi)[1][i])
-            if r_lo < 0 < r_hi:
+            if r_lo < 0 < r_hi and min(-r_lo, r_hi) > abs(float(r[i])):
                 bound = delta * T * max(-r_lo, r_hi)
                 if bound <= TOLERANCES["pmp_bounded_gap_rel"] * sol.cost:
                     out[i] = {"delta": delta, "r_minus": r_lo, "r_plus": r_hi, "cost_bound": bound}
@@ -2168,8 +2219,10 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
                 judged_e = judge(values_e)
                 brackets: dict[int, dict[str, float]] | None = None
                 if judged_e[1] == "hamiltonian_jump":
-                    # a time held where r_i turns just inside its edge: stationary by r_i's sign
-                    brackets = _stationary_brackets(ev, sol_e, [i for i in sorted(held) if i not in edges], T)
+                    # beside an edge r_i may have too few digits for the check (held where it turns
+                    # just inside its edge, or polished next to a time held there): stationary by
+                    # r_i's sign
+                    brackets = _stationary_brackets(ev, sol_e, [i for i in range(m) if i not in edges], T)
                     if brackets:
                         with np.errstate(all="ignore"):
                             values_e = check_values(sol_e, stationary=True, at_edge=sorted({*edges, *brackets}))
