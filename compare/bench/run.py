@@ -427,23 +427,18 @@ def _busy(stats: dict[str, TimingStats]) -> list[str]:
 
 
 def _compile_kernels(notes: list[str]) -> None:
-    """Plan the avoidance's overtake once, untimed, before any measurement: numba compiles the node
-    solver's kernel (about 7 s of CPU on a machine whose numba cache is empty) or loads it from its
-    cache, so no timed call includes a compile (a first call slower than a case's budget would
-    otherwise be that case's one sample).  Without numba a note says that the kernel runs as plain
-    Python and how to install it."""
-    from iamp.planners.avoid.planner import AvoidQPPlanner
-    from iamp.planners.examples import overtake_problem
-    from iamp.planners.pmp import jit
+    """Make the compiled kernels ready before any measurement (:func:`iamp.planners.kernels.warm_kernels`,
+    untimed): numba compiles them (about 7 s of CPU on a machine whose numba cache is empty) or loads
+    them from its cache, so no timed call includes a compile (a first call slower than a case's
+    budget would otherwise be that case's one sample).  Without numba a note says that the kernels
+    run as plain Python and how to install it."""
+    from iamp.planners.kernels import warm_kernels
 
-    from .avoid import STEPS as AVOID_STEPS
-
-    if not jit.available():
+    t0 = time.process_time()
+    if not warm_kernels():
         notes.append("numba is not installed: the compiled kernels run as plain Python "
                      "(pip install 'iamp[fast]')")
         return
-    t0 = time.process_time()
-    AvoidQPPlanner(steps=AVOID_STEPS, hold="foh", solver="clarabel").plan(overtake_problem())
     notes.append(f"compiled kernels ready before timing ({time.process_time() - t0:.1f} s CPU: numba's compile "
                  f"or its cache)")
 

@@ -265,6 +265,9 @@ def bench(folder: str | Path, planners: list[str], out_dir: Path | None = None, 
     if out_dir is not None:
         prepare_folder(out_dir, params, force)
     rows = []
+    from iamp.planners.kernels import warm_kernels
+
+    warm_kernels()  # untimed: no row's solve time carries numba's compile of a kernel
     for p in planners:  # planner by planner: an interrupted bench leaves whole planners first
         for f in files:
             stored = load_row(out_dir, p, f.stem, params) if out_dir is not None else None
