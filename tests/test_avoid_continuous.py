@@ -100,9 +100,10 @@ def test_no_optimal_continuous_plan_intrudes_and_costs_are_bounded(x0v, speed, x
     if c.status == st.INFEASIBLE:
         if "inside" in c.info["reason"]:
             return
-        # the Bernstein rows are sufficient, not necessary: a coarse grid may certify no crossing
-        # (found: x0v=11, speed=15.9375, xf=98.25, vxf=18, FOH, N = 16; optimal at N = 32); a
-        # finer grid then plans safely or is infeasible too, never an intruding plan
+        # the Bernstein rows are sufficient, not necessary: a coarse grid may certify no crossing;
+        # a finer grid then plans safely or is infeasible too, never an intruding plan (the case
+        # once found here, x0v=11, speed=15.9375, xf=98.25, vxf=18, FOH, N = 16, was the search
+        # dropping boxes without an incumbent; optimal since, tests/test_avoid_reference.py)
         assert c.info["reason"] == "no crossing time gives a feasible QP"
         fine = ContinuousAvoidPlanner(steps=64, hold=hold, max_solves=600).plan(prob)
         assert fine.status in (st.OPTIMAL, st.LOCAL, st.INFEASIBLE)

@@ -861,7 +861,10 @@ class ContinuousAvoidPlanner:
         store = DualStore(dual)
 
         def gap(u: float) -> float:
-            return self.gap_rel * max(1.0, abs(u))
+            # no incumbent (u = inf): no gap, so that U - gap(U) is inf, not inf - inf = nan (a
+            # relaxation compared with nan closed every box of a search whose first candidates
+            # were infeasible: "infeasible" where a crossing time was feasible)
+            return self.gap_rel * max(1.0, abs(u)) if np.isfinite(u) else 0.0
 
         def bound_of(orders_: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray,
                      duals: Sequence[DualPolynomial]) -> tuple[float, list[DualPolynomial]]:
@@ -960,7 +963,7 @@ class ContinuousAvoidPlanner:
                     if box.own_relaxation and rel_spec not in qp.solved else None
                 if inherited is not None:
                     qp.solved[rel_spec] = inherited
-                rel = self._qp_solve(qp, rel_spec, box.relaxed, cutoff=U - gap(U))
+                rel = self._qp_solve(qp, rel_spec, box.relaxed, cutoff=U - gap(U) if np.isfinite(U) else None)
                 if rel.status == CUTOFF:  # its bound passed U - gap before its optimum: closed
                     closed_bound = min(closed_bound, max(child, rel.cost))
                 elif rel.status == st.OPTIMAL:
