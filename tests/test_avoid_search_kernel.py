@@ -83,12 +83,17 @@ def test_held_position_and_margins_against_the_trajectory_and_the_half_planes(ho
             assert np.allclose(got, want, rtol=1e-13, atol=1e-11)
 
 
-@pytest.mark.parametrize("m", [1, 3])
-def test_candidate_times_are_the_max_min_of_the_margins(m: int) -> None:
+@pytest.mark.parametrize("m,rough", [(1, False), (3, False), (1, True), (3, True)])
+def test_candidate_times_are_the_max_min_of_the_margins(m: int, rough: bool) -> None:
+    """``rough``: a random point instead of the relaxed optimum, whose margins go up and down
+    along the box (the running minima must then reach back to the box's first and last samples)."""
     qp, first, sol = _relaxed(m, 20, "foh")
-    traj = qp.trajectory(sol.z)
+    z = np.asarray(sol.z, dtype=float)
+    if rough:
+        z = z + np.random.default_rng(11).normal(0.0, 3.0, z.size)
+    traj = qp.trajectory(z)
     for lo, hi in _boxes(m, qp.tf):
-        out, worst, T = _call(kernel.candidate_tau, qp, first, sol.z, lo, hi)
+        out, worst, T = _call(kernel.candidate_tau, qp, first, z, lo, hi)
         ref_T = np.linspace(lo, hi, 33, axis=1)
         assert np.allclose(T, ref_T, rtol=0.0, atol=1e-12 * qp.tf) and np.array_equal(T[:, -1], hi)
         for i, (f, s) in enumerate(first):
