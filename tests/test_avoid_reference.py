@@ -193,3 +193,38 @@ def test_generated_plans_agree_with_the_independent_reference(i: int) -> None:
     except ScenarioError:
         pytest.skip("the corner does not describe this draw's manoeuvre")
     check_against_reference(problem, N, hold)
+
+
+# (4) what the sweep found and this change does not fix (strict xfails: they fail loudly once fixed)
+def _binding(xf: float, vxf: float, x0v: float, speed: float) -> Problem:
+    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=xf, yf=3.75, vxf=vxf)
+    v = SurroundingVehicle(x_poly=(x0v, speed), corner="front-lower", y=3.75, length=4.8, width=1.8,
+                           safety_x=5.0, safety_y=0.5, name="sv1")
+    return Problem(ego, (v,), "binding")
+
+
+@pytest.mark.xfail(strict=True, reason="the search depends on the backend where the node solver gives up: on this "
+                   "narrow window (J ~ 273) the node solver stops with numerical_error on 35 near-infeasible QPs "
+                   "and hands them to the backend; Clarabel proves them infeasible, PIQP stops at its iteration "
+                   "limit on ~650 of them (the search keeps those boxes, spends its 2000 solves and returns no "
+                   "plan) and OSQP's inaccurate answers steer its search to a cost 4.7e-6 relative lower")
+def test_backends_agree_where_the_node_solver_hands_qps_to_the_backend() -> None:
+    problem = _binding(98.25, 18.0, 11.0, 15.9375)
+    plans = {s: _plan(problem, 16, "foh", s).plan(problem) for s in SOLVERS}
+    assert {p.status for p in plans.values()} == {st.OPTIMAL}, {s: p.status for s, p in plans.items()}
+    costs = [p.cost for p in plans.values()]
+    assert max(costs) - min(costs) <= 1e-6 * min(costs), costs
+
+
+@pytest.mark.xfail(strict=True, reason="PIQP's re-solve of the final QP passes the KKT check (complementarity "
+                   "7.3e-10 <= 1e-9) but costs 1.55e-9 relative more than the node solver's optimum, beyond "
+                   "cmp_cost_rel_clarabel = 1e-9, so the plan is inaccurate where Clarabel and OSQP are optimal "
+                   "(the cost tolerance is tighter than what the KKT tolerance implies)")
+def test_piqp_backend_check_agrees_on_a_two_vehicle_zoh_plan() -> None:
+    base = ex.overtake_three_problem(False)
+    ego = dataclasses.replace(base.ego, tf=5.7938562718577655, xf=118.54172148057933, vxf=20.607151079932784)
+    sv2 = dataclasses.replace(base.vehicles[1], x_poly=(30.678300872659484, 13.396569739432994))
+    sv1 = dataclasses.replace(base.vehicles[0], x_poly=(12.358546887888627, 17.33915842666866, -0.12583986503353872))
+    problem = Problem(ego, (sv2, sv1), "two-zoh")
+    plans = {s: _plan(problem, 50, "zoh", s).plan(problem) for s in SOLVERS}
+    assert {p.status for p in plans.values()} == {st.OPTIMAL}, {s: p.status for s, p in plans.items()}
