@@ -36,7 +36,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
-from typing import Any, NamedTuple, TypedDict
+from typing import TYPE_CHECKING, Any, NamedTuple, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -55,6 +55,9 @@ from iamp.commonroad.goal import CLEAR_MAX_SOLVES, Blocked, Candidate, Clearance
 from iamp.core.errors import IampError, ScenarioError
 from iamp.core.plan import Plan, Trajectory
 from iamp.core.problem import SurroundingVehicle
+
+if TYPE_CHECKING:
+    from iamp.commonroad.ks import KSTrajectory
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -621,7 +624,9 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
     inside the goal's window, within
     :data:`~iamp.commonroad.ks_refine.PROBLEM_EVALUATIONS` evaluations; the first accepted is returned
     (``iamp_status`` ``steered-refined``, its trajectory a
-    :class:`~iamp.commonroad.ks_refine.SteeredTrajectory`).  Plans whose steered solution passes
+    :class:`~iamp.commonroad.ks_refine.SteeredTrajectory`).  When none is accepted, the vehicle
+    the first plan's steered solution meets is passed behind it (:func:`plan_behind`, its own
+    budgets of QP solves and evaluations; the same status).  Plans whose steered solution passes
     are returned unchanged.
     """
     kw: dict[str, Any] = {"max_candidates": max_candidates, "steps": steps, "max_plans": max_plans, "via": via,
@@ -666,6 +671,15 @@ def plan(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidate
             return RoadPlan(rp.planner, "optimal", c, traj, traj.cost(),
                             rp.solve_time_s + time.perf_counter() - start, list(p.imposed), [], "steered-refined",
                             rp.candidates_tried, None, h, peak, rp.plans_used, steered_goal=True, steered=ks)
+    if starts and isinstance(engine, KSEngine):  # the vehicle met passed in the other order: behind it
+        p = starts[0]
+        ks, end, _, _ = plan_behind(cr, p, engine)
+        if ks is not None and end is not None:
+            traj = SteeredTrajectory(cr, ks, float(engine[3]), float(engine[4]))
+            h, peak = _heading_and_peak(traj, end.tf)
+            return RoadPlan(rp.planner, "optimal", end, traj, traj.cost(),
+                            rp.solve_time_s + time.perf_counter() - start, [], [], "steered-refined",
+                            rp.candidates_tried, None, h, peak, rp.plans_used, steered_goal=True, steered=ks)
     rp.solve_time_s += time.perf_counter() - start
     return rp
 
@@ -704,6 +718,154 @@ def steered_clear(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray
                                    cr.ego_length / 2, cr.ego_width / 2, CHECK_BUFFER_M) > 0):
                 return False
     return True
+
+
+#: Lateral schedules of the guesses that pass a vehicle behind it (:func:`behind_guesses`): the
+#: start's lane held until the first fraction of the horizon, a lane boundary reached at the
+#: second, where the ego is :data:`BEHIND_GAP_M` behind the vehicle at its speed.
+BEHIND_SCHEDULES = ((0.8, 0.9), (0.75, 0.88), (0.8, 0.92))
+#: The fraction of the horizon at which a behind guess leaves the boundary for its final offset.
+BEHIND_LEAVE = 0.95
+#: Gap kept behind the vehicle at a behind guess's waypoint, beyond the body's margin [m].
+BEHIND_GAP_M = 0.3
+#: Corridor passes per behind guess.
+BEHIND_PASSES = 2
+#: Corridor QP solves of every behind guess together (a count, never a time).
+BEHIND_SOLVES = 8
+#: Evaluations of the ``KS`` refinements from the behind plans together (a count, never a time).
+BEHIND_EVALUATIONS = 300
+
+
+def steered_meets(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray) -> list[tuple[int, Obstacle]]:
+    """The recorded vehicles the steered body (world centres and headings at the steps ``0..K``)
+    meets at the steps ``1..K`` (:func:`body_overlap` grown by :data:`CHECK_BUFFER_M`, as
+    :func:`steered_clear`), each with the first step it meets it, earliest first."""
+    sd = np.asarray(cr.frame.to_road(np.asarray(centre, dtype=float)), dtype=float)
+    phi = (np.asarray(heading, dtype=float) - np.asarray(cr.frame.heading(sd[:, 0]), dtype=float)
+           + math.pi) % (2 * math.pi) - math.pi
+    K = len(sd) - 1
+    out: list[tuple[int, Obstacle]] = []
+    for ob in cr.obstacles:
+        idx = np.rint(ob.t / cr.dt).astype(int)
+        ok = (idx >= 1) & (idx <= K)
+        if ok.any():
+            j = idx[ok]
+            depth = body_overlap(sd[j, 0], sd[j, 1], phi[j], ob.s_lo[ok], ob.s_hi[ok], ob.d_lo[ok], ob.d_hi[ok],
+                                 cr.ego_length / 2, cr.ego_width / 2, CHECK_BUFFER_M)
+            if np.any(depth > 0):
+                out.append((int(j[np.argmax(depth > 0)]), ob))
+    out.sort(key=lambda e: e[0])
+    return out
+
+
+def behind_guesses(cr: CommonRoadProblem, cand: Candidate, ob: Obstacle) -> list[FloatArray]:
+    """Guesses on the time steps for :func:`corridor_qp` that let ``ob`` pass and cross its lane
+    behind it: laterally the start's nearest lane held (reached by 0.3 of the horizon) until the
+    first fraction of a :data:`BEHIND_SCHEDULES` pair, a boundary between two lanes reached at
+    the step nearest the second (the waypoint step) and left for ``cand``'s offset from
+    :data:`BEHIND_LEAVE` of the horizon; along the road the free cubics joined at the waypoint
+    step, :data:`BEHIND_GAP_M` behind ``ob``'s rear (beyond the body's margin) at ``ob``'s speed
+    there (the lateral speed of the guess is left to the QP, which starts from ``cr.x0``).  Every schedule and
+    boundary inside the road where ``ob`` is recorded around that step, least intruding first
+    (:func:`_box_depth`)."""
+    K, T = cand.steps, cand.tf
+    t: FloatArray = np.arange(K + 1, dtype=np.float64) * cr.dt
+    sx, sy = ego_margins(cr.ego_length, cr.ego_width, HEADING_GUESS_RAD)
+    lanes = sorted(cr.lanes)
+    home = min(lanes, key=lambda ln: abs(ln - cr.x0[2])) if lanes else cr.x0[2]
+    bounds = [m for m in (0.5 * (a + b) for a, b in zip(lanes[:-1], lanes[1:]))
+              if cr.road_y[0] + sy <= m <= cr.road_y[1] - sy]
+    rec = {int(k): i for i, k in enumerate(np.rint(ob.t / cr.dt).astype(int))}
+    boxes = _step_boxes(cr, K)
+    scored: list[tuple[float, int, FloatArray]] = []
+    a0, va0 = _smoothstep(t, 0.0, 0.3 * T)
+    a2, va2 = _smoothstep(t, BEHIND_LEAVE * T, T)
+    for f1, f2 in BEHIND_SCHEDULES:
+        kw = int(round(f2 * K))
+        if not (0 < kw < K and kw - 1 in rec and kw in rec and kw + 1 in rec):
+            continue
+        s_w = float(ob.s_lo[rec[kw]]) - sx - BEHIND_GAP_M
+        v_w = max(float(ob.s_lo[rec[kw + 1]] - ob.s_lo[rec[kw - 1]]) / (2 * cr.dt), 0.0)
+        a1, va1 = _smoothstep(t, f1 * T, kw * cr.dt)  # on the boundary at the waypoint
+        for mid in bounds:
+            w = (s_w, v_w, mid, 0.0)
+            lon = ViaTrajectory(FreeTrajectory(kw * cr.dt, cr.x0, w),
+                                FreeTrajectory(T - kw * cr.dt, w, (cand.s, cand.vs, cand.d, cand.vd)), kw * cr.dt, 0.0)
+            S = _step_guess(lon, K, cr.dt)
+            d = cr.x0[2] + (home - cr.x0[2]) * a0 + (mid - home) * a1 + (cand.d - mid) * a2
+            vd = (home - cr.x0[2]) * va0 + (mid - home) * va1 + (cand.d - mid) * va2
+            G = np.column_stack([S[:, 0], S[:, 1], d, vd])
+            scored.append((_box_depth(cr, G, boxes), len(scored), G))
+    scored.sort(key=lambda e: (e[0], e[1]))
+    return [G for _, _, G in scored]
+
+
+def plan_behind(cr: CommonRoadProblem, p: RoadPlan,
+                engine: KSEngine) -> tuple[KSTrajectory | None, Candidate | None, int, int]:
+    """A steered solution that passes the vehicle the steered solution of ``p`` meets first on its
+    other side in time -- behind it -- where it meets it beside or ahead of it (its centre not
+    behind the vehicle's rear): corridor plans (:func:`corridor_qp`, the steered limits
+    ``engine``, the final state free inside the goal rows of ``p``'s goal state at the last step
+    of its window that a final state of ``cr.candidates`` has, else at ``p``'s own step) from
+    :func:`behind_guesses`, :data:`BEHIND_PASSES` passes each, re-centred; a plan clear of every
+    vehicle by the body check (road edges left to the refinement) is tracked
+    (:func:`iamp.commonroad.ks.track`) and its ``KS`` inputs optimised
+    (:func:`iamp.commonroad.ks_refine.refine`, accepted only by the checker's own simulation,
+    vehicles, road and goal).  At most :data:`BEHIND_SOLVES` QP solves and
+    :data:`BEHIND_EVALUATIONS` evaluations.
+
+    Returns
+    -------
+    (KSTrajectory or None, Candidate or None, int, int)
+        The accepted solution and its final state, the QP solves and the evaluations spent.
+    """
+    from iamp.commonroad.goal import goal_rows
+    from iamp.commonroad.ks import KSTrajectory, track
+    from iamp.commonroad.ks_refine import MAX_EVALUATIONS, refine, retimed
+
+    cand = p.candidate
+    if p.trajectory is None or cand is None or cand.goal_step < 0 or cand.steps < 2:
+        return None, None, 0, 0
+    vehicle_type = int(engine.vehicle_type)
+    tracked = p.steered
+    if not (isinstance(tracked, KSTrajectory) and tracked.vehicle_type == vehicle_type
+            and len(tracked.states) == cand.steps + 1):
+        tracked = track(cr, p.trajectory, cand.steps, vehicle_type)
+    met = steered_meets(cr, tracked.centre, tracked.states[:, 4])
+    if not met:
+        return None, None, 0, 0
+    k, ob = met[0]
+    i = int(np.argmin(np.abs(ob.t - k * cr.dt)))
+    s_k = float(cr.frame.to_road(tracked.centre[k:k + 1])[0, 0])
+    if s_k < float(ob.s_lo[i]):  # already behind it: not the other order
+        return None, None, 0, 0
+    # the last step of the goal window (the vehicle leaves room in the goal latest), where a
+    # final state of the same goal state has it
+    late = [c for c in cr.candidates if c.element == cand.element and c.goal_step > cand.goal_step]
+    if late:
+        cand = max(late, key=lambda c: (c.goal_step, -c.cost0))
+    rows = goal_rows(cr.goal, cand, cr.x0)
+    solves = used = 0
+    for G in behind_guesses(cr, cand, ob):
+        for _ in range(BEHIND_PASSES):
+            if solves >= BEHIND_SOLVES:
+                return None, None, solves, used
+            solves += 1
+            got = corridor_qp(cr, cand, G, rows, engine)
+            if got is None:
+                break
+            G = _step_guess(got, cand.steps, cr.dt)
+            if any(not h.obstacle.road_edge for h in intrusions(cr, got, cand.tf)):
+                continue
+            if used >= BEHIND_EVALUATIONS:
+                return None, None, solves, used
+            ks, n = refine(cr, retimed(track(cr, got, cand.steps, vehicle_type), cand.steps), cand,
+                           refine_checks(), min(MAX_EVALUATIONS, BEHIND_EVALUATIONS - used))
+            used += n
+            if ks is not None:
+                return ks, cand, solves, used
+            break
+    return None, None, solves, used
 
 
 def _plan_road(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_candidates: int = MAX_CANDIDATES,
