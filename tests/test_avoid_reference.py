@@ -183,7 +183,7 @@ def _generated(i: int) -> tuple[Problem, int, str]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("i", range(40))
+@pytest.mark.parametrize("i", [i for i in range(40) if i != 39])  # 39: its own xfail below (1 min a plan)
 def test_generated_plans_agree_with_the_independent_reference(i: int) -> None:
     from iamp.core.errors import ScenarioError
 
@@ -228,3 +228,16 @@ def test_piqp_backend_check_agrees_on_a_two_vehicle_zoh_plan() -> None:
     problem = Problem(ego, (sv2, sv1), "two-zoh")
     plans = {s: _plan(problem, 50, "zoh", s).plan(problem) for s in SOLVERS}
     assert {p.status for p in plans.values()} == {st.OPTIMAL}, {s: p.status for s, p in plans.items()}
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="boxes bounded by the dual polynomials alone are split without a QP and "
+                   "without a budget: generated problem 39 (three vehicles, ZOH, N = 50) pops 446,689 boxes for "
+                   "212 QP solves (~1 min CPU), the bounds of boxes narrowed to 1e-5 s hovering just below "
+                   "U - gap; the plan itself is optimal and agrees with the reference")
+def test_the_search_splits_boxes_in_proportion_to_its_solves() -> None:
+    problem, N, hold = _generated(39)
+    plan = _plan(problem, N, hold, "clarabel").plan(problem)
+    assert plan.status == st.OPTIMAL
+    s = plan.info["search"]
+    assert s["boxes"] <= 50 * s["n_solves"], (s["boxes"], s["n_solves"])
