@@ -51,6 +51,10 @@ class AvoidOptions:
         QPs the continuous-time branch and bound may solve before it stops with ``local`` (a
         count of work: the same problem gives the same status and plan on any machine, SPEC §17;
         a budget never refuses a problem).
+    max_boxes : int
+        Crossing-time boxes the branch and bound may create before it stops with ``local``
+        (a count of work, as ``max_solves``; boxes bounded by the dual polynomials alone are
+        split without a QP).
     time_limit_s : None
         Removed (it was a wall-clock budget, which made the status depend on the machine and its
         load); any value is refused with :class:`~iamp.core.errors.OptionError` naming ``max_solves``.
@@ -72,6 +76,7 @@ class AvoidOptions:
                "Bernstein coefficients (continuous, default) or the inequalities at the nodes only (nodes, kept "
                "for study)", "choices": SAFETY_MODES})
     max_solves: int = 2000
+    max_boxes: int = 20000
     time_limit_s: None = None
     limits_between: str = field(default="certified", metadata={
         "cli": "avoidance QP only: the car's limits between the grid nodes certified by each piece's Bernstein "
@@ -87,6 +92,8 @@ class AvoidOptions:
         check_choice(self.limits_between, LIMITS_BETWEEN, "limits_between", "limits_between")
         if isinstance(self.max_solves, bool) or not isinstance(self.max_solves, int) or self.max_solves < 1:
             raise OptionError(f"must be a positive integer (got {self.max_solves!r})", "max_solves")
+        if isinstance(self.max_boxes, bool) or not isinstance(self.max_boxes, int) or self.max_boxes < 1:
+            raise OptionError(f"must be a positive integer (got {self.max_boxes!r})", "max_boxes")
         refuse_wall_clock_budget(self.time_limit_s)
 
 

@@ -110,6 +110,9 @@ class AvoidQPPlanner:
     max_solves : int
         QPs the continuous-time branch and bound may solve before it stops with ``local`` (a count
         of work, SPEC §17).
+    max_boxes : int
+        Crossing-time boxes the branch and bound may create before it stops with ``local`` (a
+        count of work, SPEC §17).
     time_limit_s : None
         Removed wall-clock budget: any value is refused (:func:`~.options.refuse_wall_clock_budget`).
     limits_between : {"certified", "nodes"}
@@ -127,6 +130,7 @@ class AvoidQPPlanner:
     prune: bool = True
     safety: str = "continuous"
     max_solves: int = 2000
+    max_boxes: int = 20000
     time_limit_s: None = None
     limits_between: str = "certified"
     #: the continuous-time plans' per-grid factorisations, kept across this planner's plans
@@ -150,7 +154,8 @@ class AvoidQPPlanner:
     def _continuous(self) -> ContinuousAvoidPlanner:
         return ContinuousAvoidPlanner(steps=self.steps, hold=self.hold, solver=self.solver,
                                       solver_settings=self.solver_settings, max_solves=self.max_solves,
-                                      limits_between=self.limits_between, shared=self._shared)
+                                      max_boxes=self.max_boxes, limits_between=self.limits_between,
+                                      shared=self._shared)
 
     # --- solving one grid ------------------------------------------------------------------
     def _backend(self, data: AvoidData, on: np.ndarray) -> BoundSolver:
@@ -179,7 +184,7 @@ class AvoidQPPlanner:
         """The planner of the registry's validated options (:class:`~iamp.planners.avoid.options.AvoidOptions`)."""
         return cls(steps=options.steps, hold=options.hold, solver=options.solver, contact=options.contact,
                    solver_settings=options.solver_settings, safety=options.safety, max_solves=options.max_solves,
-                   limits_between=options.limits_between)
+                   max_boxes=options.max_boxes, limits_between=options.limits_between)
 
     def plan(self, problem: Problem, progress: Progress | None = None) -> Plan:
         """Search the crossing times, solve, verify; an infeasible start/end gives an
