@@ -54,10 +54,12 @@ class Ref:
         off = a * self.na
         return off + {"s": 0, "v": n1, "u": 2 * n1}[kind] + k
 
-    def row(self, a: int, what: str, t: float) -> np.ndarray:
-        """Coefficients of s_a(t) or v_a(t) (what = 's'|'v') in z."""
+    def row(self, a: int, what: str, t: float, k: int | None = None) -> np.ndarray:
+        """Coefficients of s_a(t) or v_a(t) (what = 's'|'v') in z, on piece ``k`` (default: the
+        piece holding ``t``)."""
         N, h = self.N, self.h
-        k = min(int(np.floor(t / h)), N - 1)
+        if k is None:
+            k = min(int(np.floor(t / h)), N - 1)
         r = t - k * h
         out = np.zeros(self.nz)
         if what == "s":
@@ -150,26 +152,8 @@ class Ref:
         self.soc = soc
 
     def _end_row(self, a, what, k):
-        # row at the end of the last piece (t = T exactly, piece N-1)
-        h = self.h
-        out = np.zeros(self.nz)
-        r = h
-        if what == "s":
-            out[self.idx(a, "s", k)] = 1.0
-            out[self.idx(a, "v", k)] = r
-            if self.hold == "foh":
-                out[self.idx(a, "u", k)] += r**2 / 2 - r**3 / (6 * h)
-                out[self.idx(a, "u", k + 1)] += r**3 / (6 * h)
-            else:
-                out[self.idx(a, "u", k)] += r**2 / 2
-        else:
-            out[self.idx(a, "v", k)] = 1.0
-            if self.hold == "foh":
-                out[self.idx(a, "u", k)] += r - r**2 / (2 * h)
-                out[self.idx(a, "u", k + 1)] += r**2 / (2 * h)
-            else:
-                out[self.idx(a, "u", k)] += r
-        return out
+        # row at the end of piece k (t = (k + 1) h: the last piece's end is t = T exactly)
+        return self.row(a, what, (k + 1) * self.h, k)
 
     def safety_rows(self, orders, taus, margin: float = 0.0, box=None):
         """Rows sigma*s(t) <= c(t) - margin.  ``box``: per vehicle (lo, hi) to relax over a box

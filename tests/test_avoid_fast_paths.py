@@ -128,7 +128,8 @@ def test_the_node_solvers_columns_are_the_lu_solves_and_a_slack_qp_returns_the_e
     assert np.array_equal(again.z, z0[:d.n])
 
 
-def test_kkt_conditions_with_the_callers_lower_triangle_are_the_same_numbers():
+def _three_vehicle_optimum():  # type: ignore[no-untyped-def]
+    """A three-vehicle candidate's optimum (PIQP, FOH, N = 20) with its rows ``A`` and bounds ``l, u``."""
     qp = ContinuousAvoidQP(overtake_three_problem(), 20, "foh", "piqp")
     d = qp.data
     sol = qp.solve(_spec([(1, 0), (0, 1), (0, 1)], [3.7, 1.9, 3.6], [3.7, 1.9, 3.6]))
@@ -136,19 +137,18 @@ def test_kkt_conditions_with_the_callers_lower_triangle_are_the_same_numbers():
     A_in, u_in, _ = sol.spec_rows()
     A = sp.csc_matrix(sp.vstack([qp.A_eq, A_in]))
     l, u = np.r_[d.b_eq, np.full(u_in.size, -np.inf)], np.r_[d.b_eq, u_in]
+    return qp, d, sol, A, l, u
+
+
+def test_kkt_conditions_with_the_callers_lower_triangle_are_the_same_numbers():
+    _, d, sol, A, l, u = _three_vehicle_optimum()
     lower = sp.triu(sp.csc_matrix(d.P), 1).T
     assert kkt_conditions(d.P, d.q, A, l, u, sol.z, sol.y, d.n_eq, lower) == kkt_conditions(
         d.P, d.q, A, l, u, sol.z, sol.y, d.n_eq)
 
 
 def test_one_kkt_check_of_two_points_is_each_points_own_and_the_dense_formula():
-    qp = ContinuousAvoidQP(overtake_three_problem(), 20, "foh", "piqp")
-    d = qp.data
-    sol = qp.solve(_spec([(1, 0), (0, 1), (0, 1)], [3.7, 1.9, 3.6], [3.7, 1.9, 3.6]))
-    assert sol.status == st.OPTIMAL
-    A_in, u_in, _ = sol.spec_rows()
-    A = sp.csc_matrix(sp.vstack([qp.A_eq, A_in]))
-    l, u = np.r_[d.b_eq, np.full(u_in.size, -np.inf)], np.r_[d.b_eq, u_in]
+    _, d, sol, A, l, u = _three_vehicle_optimum()
     rng = np.random.default_rng(5)
     off = sol.y - 1e-3 * (np.arange(sol.y.size) >= d.n_eq)  # negative multipliers on the free rows
     points = [(sol.z, sol.y), (sol.z + 1e-3 * rng.standard_normal(sol.z.size), off)]

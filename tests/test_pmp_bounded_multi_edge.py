@@ -193,6 +193,31 @@ def test_a_time_at_an_edge_j_b_rises_towards_is_held_where_r_turns() -> None:
     _a_verified_local_minimum(problem, pmp, (-1e-3, -1e-4, -1e-5, -1e-6, 1e-6, 1e-5, 1e-4, 1e-3), 12)
 
 
+
+def stationary_by_sign_at_the_edge(seed: int, scale: float):  # type: ignore[no-untyped-def]
+    """The bounded PMP on ``boxed(seed, 3, scale)``: ``local``, ``t_0`` held at its feasibility
+    edge and ``t_1`` stationary by the sign of ``r_1`` (``search.edge_polish.stationary_by_sign``);
+    the signs of the plan's own residual ``r_1``, solved cold at the bracket's ends, are checked
+    here (negative before, positive after).  Returns the problem, the plan, the bracket and the
+    two residuals."""
+    problem = boxed(seed, 3, scale)
+    assert problem is not None
+    pmp = PMPPlanner().plan(problem)
+    assert pmp.status == stc.LOCAL and pmp.cost is not None, pmp.info.get("failed_check")
+    search = pmp.info["search"]
+    assert [e["vehicle"] for e in search["feasibility_edges"]] == [0]
+    (by_sign,) = search["edge_polish"]["stationary_by_sign"]
+    assert by_sign["vehicle"] == 1
+    T = float(problem.tf)
+    t = np.array(pmp.contact_times, dtype=float)
+    signs = []
+    for d in (-by_sign["delta"], by_sign["delta"]):  # the plan's own residual, solved cold
+        z = t.copy()
+        z[1] += d * T
+        signs.append(float(B.solve_bounded_fixed(problem, z).hamiltonian_jump_residual()[1]))
+    assert signs[0] < 0 < signs[1], signs
+    return problem, pmp, by_sign, signs
+
 def test_a_time_held_where_r_turns_is_stationary_by_the_sign_of_r() -> None:
     """random_problem(539214, m=3) at 0.7162, found with 217970 and 148435, ended ``inaccurate``
     (Hamiltonian-jump check 0.99, then 1.5e-3 after the edge polish).  Its feasible contact
@@ -211,23 +236,10 @@ def test_a_time_held_where_r_turns_is_stationary_by_the_sign_of_r() -> None:
     along the axes or in random directions ``1e-8 .. 1e-3 t_f`` away have a lower ``J_b``."""
     seed, scale = 539214, 0.7162
     assert check(seed, 3, scale).startswith("local/")
-    problem = boxed(seed, 3, scale)
-    assert problem is not None
-    pmp = PMPPlanner().plan(problem)
-    assert pmp.status == stc.LOCAL and pmp.cost is not None, pmp.info.get("failed_check")
+    problem, pmp, by_sign, signs = stationary_by_sign_at_the_edge(seed, scale)
     assert pmp.info["checks"]["hamiltonian_jump"]["ok"]
-    search = pmp.info["search"]
-    assert [e["vehicle"] for e in search["feasibility_edges"]] == [0]
-    (by_sign,) = search["edge_polish"]["stationary_by_sign"]
-    assert by_sign["vehicle"] == 1
     T = float(problem.tf)
     t = np.array(pmp.contact_times, dtype=float)
-    signs = []
-    for d in (-by_sign["delta"], by_sign["delta"]):
-        z = t.copy()
-        z[1] += d * T
-        signs.append(float(B.solve_bounded_fixed(problem, z).hamiltonian_jump_residual()[1]))
-    assert signs[0] < 0 < signs[1], signs
     assert by_sign["delta"] * T * max(abs(x) for x in signs) <= 1e-9 * pmp.cost
     beyond = t.copy()
     beyond[0] += B.EDGE_PROBE * T

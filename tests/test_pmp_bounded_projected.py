@@ -29,7 +29,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 from test_bounded_random import boxed, check
-from test_pmp_bounded_multi_edge import _a_verified_local_minimum
+from test_pmp_bounded_multi_edge import _a_verified_local_minimum, stationary_by_sign_at_the_edge
 
 from iamp.api import plan
 from iamp.comparison.bench.limits import bounded_pmp_problems
@@ -147,22 +147,7 @@ def test_a_plan_found_in_a_sliver_is_stationary_by_the_sign_of_r() -> None:
     the FOH QP through its contact times +1.5e-7 at ``N = 480``, +3.3e-8 at ``N = 960`` (Clarabel
     ``inaccurate`` at 240), no lower ``J_b`` at feasible neighbours along the axes."""
     seed, scale = 58781, 0.6585968705314464
-    problem = boxed(seed, 3, scale)
-    assert problem is not None
-    pmp = PMPPlanner().plan(problem)
-    assert pmp.status == stc.LOCAL and pmp.cost is not None, pmp.info.get("failed_check")
-    search = pmp.info["search"]
-    assert [e["vehicle"] for e in search["feasibility_edges"]] == [0]
-    (by_sign,) = search["edge_polish"]["stationary_by_sign"]
-    assert by_sign["vehicle"] == 1
-    T = float(problem.tf)
-    t = np.array(pmp.contact_times, dtype=float)
-    signs = []
-    for d in (-by_sign["delta"], by_sign["delta"]):  # the plan's own residual, solved cold
-        z = t.copy()
-        z[1] += d * T
-        signs.append(float(B.solve_bounded_fixed(problem, z).hamiltonian_jump_residual()[1]))
-    assert signs[0] < 0 < signs[1], signs
+    problem, pmp, _, _ = stationary_by_sign_at_the_edge(seed, scale)
     gaps = _a_verified_local_minimum(problem, pmp, (-1e-3, -1e-5, -1e-7, 1e-7, 1e-5, 1e-3), 10,
                                      qp_steps=(480, 960), qp_within=2e-4)
     assert gaps[1] < gaps[0]
