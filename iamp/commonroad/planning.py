@@ -704,20 +704,8 @@ def steered_valid(cr: CommonRoadProblem, rp: RoadPlan, vehicle_type: int) -> boo
 def steered_clear(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray) -> bool:
     """Is the steered body (world centres and headings at the time steps ``0..K``) clear of every
     recorded vehicle's box at the steps ``1..K`` (:func:`body_overlap`, grown by
-    :data:`CHECK_BUFFER_M`)?"""
-    sd = np.asarray(cr.frame.to_road(np.asarray(centre, dtype=float)), dtype=float)
-    phi = (np.asarray(heading, dtype=float) - np.asarray(cr.frame.heading(sd[:, 0]), dtype=float)
-           + math.pi) % (2 * math.pi) - math.pi
-    K = len(sd) - 1
-    for ob in cr.obstacles:
-        idx = np.rint(ob.t / cr.dt).astype(int)
-        ok = (idx >= 1) & (idx <= K)
-        if ok.any():
-            j = idx[ok]
-            if np.any(body_overlap(sd[j, 0], sd[j, 1], phi[j], ob.s_lo[ok], ob.s_hi[ok], ob.d_lo[ok], ob.d_hi[ok],
-                                   cr.ego_length / 2, cr.ego_width / 2, CHECK_BUFFER_M) > 0):
-                return False
-    return True
+    :data:`CHECK_BUFFER_M`)?  :func:`steered_meets` stopped at the first vehicle met."""
+    return not steered_meets(cr, centre, heading, first=True)
 
 
 #: Lateral schedules of the guesses that pass a vehicle behind it (:func:`behind_guesses`): the
@@ -736,10 +724,12 @@ BEHIND_SOLVES = 8
 BEHIND_EVALUATIONS = 300
 
 
-def steered_meets(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray) -> list[tuple[int, Obstacle]]:
+def steered_meets(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray,
+                  first: bool = False) -> list[tuple[int, Obstacle]]:
     """The recorded vehicles the steered body (world centres and headings at the steps ``0..K``)
-    meets at the steps ``1..K`` (:func:`body_overlap` grown by :data:`CHECK_BUFFER_M`, as
-    :func:`steered_clear`), each with the first step it meets it, earliest first."""
+    meets at the steps ``1..K`` (:func:`body_overlap` grown by :data:`CHECK_BUFFER_M`), each with
+    the first step it meets it, earliest first; with ``first``, only the first vehicle found (in
+    the scenario's order: :func:`steered_clear`)."""
     sd = np.asarray(cr.frame.to_road(np.asarray(centre, dtype=float)), dtype=float)
     phi = (np.asarray(heading, dtype=float) - np.asarray(cr.frame.heading(sd[:, 0]), dtype=float)
            + math.pi) % (2 * math.pi) - math.pi
@@ -754,6 +744,8 @@ def steered_meets(cr: CommonRoadProblem, centre: FloatArray, heading: FloatArray
                                  cr.ego_length / 2, cr.ego_width / 2, CHECK_BUFFER_M)
             if np.any(depth > 0):
                 out.append((int(j[np.argmax(depth > 0)]), ob))
+                if first:
+                    return out
     out.sort(key=lambda e: e[0])
     return out
 
