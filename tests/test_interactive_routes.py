@@ -130,3 +130,21 @@ def test_24_1_reaches_its_goal_once_the_refused_routes_are_repaired(seed: int) -
     assert lo - 1e-9 <= r["time_to_goal_s"] <= hi + 1e-9
     assert r["collisions"] == 0 and r["contacts_at_fault"] == 0 and r["contacts_not_at_fault"] == 0
     assert r["sumo_collisions"] == 0 and r["limit_violations"] == 0 and r["ego_peak_accel"] <= r["a_max"]
+
+
+@needs_scene
+@pytest.mark.parametrize("repair", [True, False])
+def test_a_route_file_that_is_not_xml_is_a_scenario_error_naming_it(tmp_path: Path, repair: bool) -> None:
+    """A scene folder whose route file is broken: one :class:`~iamp.core.errors.ScenarioError`
+    naming the file (the CLI's exit 2), whether iamp reads the routes (``repair``) or SUMO does."""
+    import shutil
+
+    from iamp.commonroad.interactive import simulate
+    from iamp.core.errors import ScenarioError
+
+    scene = tmp_path / SCENE.name
+    shutil.copytree(SCENE, scene)
+    broken = next(scene.glob("*.pedestrians.rou.xml"))
+    broken.write_text("<routes><vehicle", encoding="utf-8")
+    with pytest.raises(ScenarioError, match="pedestrians.rou.xml"):
+        simulate(scene, repair_routes=repair)

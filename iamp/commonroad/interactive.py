@@ -140,13 +140,20 @@ def repaired_routes(cfg: Path, out_dir: Path) -> tuple[list[Path], int]:
     """
     import xml.etree.ElementTree as ET
 
-    root = ET.parse(cfg).getroot()
+    def parsed(path: Path) -> ET.ElementTree[ET.Element[str]]:
+        try:
+            return ET.parse(path)
+        except (OSError, ET.ParseError) as exc:
+            raise ScenarioError(f"cannot be read as SUMO XML ({type(exc).__name__}: {exc})", "--commonroad",
+                                str(path)) from None
+
+    root = parsed(cfg).getroot()
     files = [cfg.parent / f.strip() for el in root.iter("route-files") for f in el.get("value", "").split(",")
              if f.strip()]
     out: list[Path] = []
     changed = 0
     for f in files:
-        tree = ET.parse(f)
+        tree = parsed(f)
         n = 0
         for el in tree.getroot().iter():
             edges = el.get("edges")
@@ -816,7 +823,11 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         route_files, routes_repaired = repaired_routes(cfg, Path(tmp.name))
         if routes_repaired:
             cmd += ["--route-files", ",".join(str(f.resolve()) for f in route_files)]
-    traci.start(cmd)
+    try:
+        traci.start(cmd)
+    except Exception as exc:  # SUMO refused the scene's files (its message names the file and line)
+        raise ScenarioError(f"SUMO cannot load this scene ({type(exc).__name__}: {exc})", "--commonroad",
+                            str(cfg)) from None
     log = StepLog()
     hist: dict[str, tuple[list[float], list[float]]] = {}
     sumo_collisions: list[tuple[float, str, str]] = []
