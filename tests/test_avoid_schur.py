@@ -146,3 +146,58 @@ def test_generated_three_vehicle_plans_equal_the_backend_only_search(x2, v2, x3,
     assert fast.cost == pytest.approx(slow.cost, rel=1e-8)
     for a, b in ((fast, slow), (slow, fast)):
         assert a.info["search"]["lower_bound"] <= b.cost * (1 + 1e-8)
+
+
+def test_the_node_solver_proves_the_near_infeasible_qps_of_a_narrow_window_infeasible() -> None:
+    """The narrow window of ``tests/test_avoid_reference.py`` (N = 16, FOH, J ~ 273): many
+    candidates of its search ask for a sub-piece at ``t_f`` whose Bernstein rows the final state
+    fixes (``w_r = 0``, so the Goldfarb-Idnani curvature is round-off) and violates by 4e-9 m to
+    5 cm.  Every QP the node solver calls infeasible carries a certificate ``δy`` (``>= 0`` on the
+    inequality rows) checked here independently of its LU: the combination ``g = A_inᵀ δy_in``
+    is in the row space of the equality rows ``E`` (least squares, residual at round-off), so
+    ``g · z`` is the same for every ``z`` with ``E z = b`` (evaluated at numpy's least-squares
+    solution), and it exceeds ``u · δy_in`` by more than the row tolerance (1e-9 m) times the
+    weight: no point keeps the rows to that tolerance.  Where that excess is above 1e-6 m,
+    beyond the backends' own tolerances, Clarabel on every row of the QP says infeasible too
+    (below it the backends disagree: OSQP returns ``optimal`` up to 5e-8 m, PIQP stops at its
+    iteration limit up to 5e-5 m, Clarabel stops with ``numerical_error`` at 1.1e-8 m: why the
+    search depended on the backend when the node solver handed these QPs over).  None of the
+    search's QPs goes to the backend (the one backend solve is the final check)."""
+    from iamp.planners.avoid.solve import GENERATION_TOL
+
+    problem = one_vehicle(11.0, 15.9375, 98.25, 18.0, False)
+    seen: list[tuple[sp.csr_matrix, np.ndarray, object]] = []
+    solve = SchurActiveSet.solve
+
+    def spy(self, A_in, u_in, *args, **kw):  # type: ignore[no-untyped-def]
+        r = solve(self, A_in, u_in, *args, **kw)
+        seen.append((sp.csr_matrix(A_in), np.asarray(u_in, dtype=float), r))
+        return r
+
+    SchurActiveSet.solve = spy  # type: ignore[method-assign]
+    try:
+        plan = ContinuousAvoidPlanner(steps=16, hold="foh", solver="clarabel").plan(problem)
+    finally:
+        SchurActiveSet.solve = solve  # type: ignore[method-assign]
+    assert plan.status == st.OPTIMAL and plan.info["node_solver"]["backend_solves"] == 1
+    qp = ContinuousAvoidQP(problem, 16, "foh", "clarabel")
+    d = qp.data
+    E = qp.A_eq.toarray()
+    z_any = np.linalg.lstsq(E, d.b_eq, rcond=None)[0]
+    assert np.abs(E @ z_any - d.b_eq).max() <= 1e-10 * max(1.0, np.abs(d.b_eq).max())
+    infeasible = [(A, u, r) for A, u, r in seen if r.status == st.INFEASIBLE]  # type: ignore[attr-defined]
+    assert len(infeasible) >= 30
+    checked = 0
+    for A_in, u, r in infeasible:
+        dy_in = r.certificate[d.n_eq:]  # type: ignore[attr-defined]
+        assert np.all(dy_in >= 0) and dy_in.sum() > 0
+        g = A_in.T @ dy_in
+        mu = np.linalg.lstsq(E.T, g, rcond=None)[0]
+        assert np.abs(E.T @ mu - g).max() <= 1e-12 * np.abs(g).max()
+        excess = (float(g @ z_any) - float(u @ dy_in)) / dy_in.sum()
+        assert excess > GENERATION_TOL
+        if excess > 1e-6:
+            ref = RowGeneration("clarabel", d.P, qp.A_eq, d.b_eq, every_row=True).solve(A_in, u, np.arange(u.size))
+            assert ref.status == st.INFEASIBLE
+            checked += 1
+    assert checked >= 20

@@ -15,7 +15,7 @@ import scipy.sparse as sp
 from iamp.planners.avoid import schur_kernel as kernel
 from iamp.planners.avoid.check import crossing_orders
 from iamp.planners.avoid.continuous import ContinuousAvoidPlanner, ContinuousAvoidQP
-from iamp.planners.avoid.schur import CHECK_TOL, DEPENDENT_REL, INFEASIBLE_REL, WARM_COND
+from iamp.planners.avoid.schur import CHECK_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration
 from iamp.planners.examples import overtake_problem, overtake_three_problem
 from iamp.planners.pmp import jit
@@ -29,9 +29,9 @@ def _args(qp: ContinuousAvoidQP, spec, start=None, cutoff=None):  # type: ignore
     s._columns(indices)
     seed = np.zeros(0, dtype=np.int64) if start is None else np.asarray(start, dtype=np.int64)
     cap = min(u.size, s.n) + 1
-    return (s.z0, s._Kinv, indptr, indices, np.asarray(A.data, dtype=float), u, seed, cutoff is not None,
-            0.0 if cutoff is None else float(cutoff), s._Pp, s._Pi, s._Px, s.max_iter, GENERATION_TOL,
-            DEPENDENT_REL, INFEASIBLE_REL, WARM_COND, cap, np.empty(s.n), np.zeros(cap),
+    return (s.z0, s._Kinv, s._colnorm, indptr, indices, np.asarray(A.data, dtype=float), u, seed,
+            cutoff is not None, 0.0 if cutoff is None else float(cutoff), s._Pp, s._Pi, s._Px, s.max_iter,
+            GENERATION_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND, cap, np.empty(s.n), np.zeros(cap),
             np.zeros(cap, dtype=np.int64), np.zeros(1))
 
 

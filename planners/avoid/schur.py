@@ -24,8 +24,18 @@ nonnegative, so the result satisfies the KKT conditions of the whole QP: station
 equality rows to the LU's round-off, every row feasible to the tolerance, complementarity
 exactly (a row outside ``W`` has zero multiplier, a row in ``W`` holds with equality).  A row
 that is linearly dependent on the working set takes a pure dual step; if no multiplier blocks
-it, the QP is infeasible (the step is a dual ray; declared only for a clearly dependent row,
-:data:`INFEASIBLE_REL`).  The sparse solves are one column of ``K⁻¹`` per node variable a row
+it, the QP is infeasible: the step is a dual ray, a Farkas certificate ``δy`` (the row, the
+working rows' weights and, from one ``K`` solve, the equality rows'), which
+:meth:`SchurActiveSet.certificate` checks from the data before the solve says ``infeasible``:
+an identity to round-off (:data:`FARKAS_ROUNDOFF`) whose rows are violated on every point of
+``E z = b`` by more than the node solver's own row tolerance
+(:data:`~iamp.planners.avoid.solve.GENERATION_TOL`), so no point the solver would accept exists;
+else ``numerical_error``.  A row whose value the equality rows fix (it touches only node
+variables they determine, e.g. the Bernstein coefficients of a sub-piece at ``t_f``, which the
+final position and speed fix) has ``w_r = 0``: its curvature is round-off and the relative
+dependence test meaningless, so it is recognised by the size of ``g_r · w_r`` against the terms
+that cancel in it (:data:`FIXED_REL`) and, violated, is such a certificate alone.  The sparse
+solves are one column of ``K⁻¹`` per node variable a row
 touches, once per grid (``w_r`` is their combination), and one final ``K`` solve per QP for the
 equality multipliers.
 
@@ -53,20 +63,24 @@ from numpy.typing import NDArray
 from iamp.core import status as st
 from iamp.planners.pmp import jit
 
+from ..qp.backends.base import farkas_residuals
 from . import schur_kernel as kernel
 from .solve import GENERATION_TOL, RowsSolution
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["CHECK_TOL", "CUTOFF", "DEPENDENT_REL", "INFEASIBLE_REL", "SchurActiveSet", "full_hessian", "kkt_matrix"]
+__all__ = ["CHECK_TOL", "CUTOFF", "DEPENDENT_REL", "FIXED_REL", "SchurActiveSet", "full_hessian", "kkt_matrix"]
 
 #: A row whose Schur complement on the working set is below this times ``g_r·w_r`` is treated as
-#: linearly dependent on the working set (a pure dual step).
+#: linearly dependent on the working set (a pure dual step; when no multiplier of the working set
+#: blocks it, the step is a candidate Farkas certificate, verified before ``infeasible`` is said).
 DEPENDENT_REL = 1e-9
-#: ... and is declared to prove the QP infeasible (no multiplier of the working set blocks the
-#: dual step) only when its Schur complement is below this; between the two the solve stops
-#: with ``numerical_error`` (and the search solves that QP by the backend).
-INFEASIBLE_REL = 1e-13
+#: A row whose ``g_r·w_r`` is below this times ``|g_r|_1 Σ_j |g_rj| ‖K⁻¹ e_{c_j}‖_∞`` (the size of
+#: the terms that cancel in ``w_r``) has its value fixed by the equality rows (``w_r`` is
+#: round-off).  Measured on the narrow window of ``tests/test_avoid_reference.py`` (N = 16, FOH):
+#: such rows ~1e-34, every other row of its 63 QPs above 1e-4; a misjudged row only yields a
+#: certificate that fails its check (then ``numerical_error``, as before).
+FIXED_REL = 1e-12
 
 
 #: The status of a solve stopped at its cutoff (:meth:`SchurActiveSet.solve`): the QP's optimum
@@ -77,6 +91,13 @@ CUTOFF = "cutoff"
 #: Cholesky pivots spread by more than this factor (a lower bound of its condition number), is
 #: dropped (the solve starts from the equality optimum).
 WARM_COND = 1e10
+
+#: A Farkas certificate of the node solver (:meth:`SchurActiveSet.certificate`) is an identity up
+#: to the round-off of one solve with ``K``: its ``‖Aᵀδy‖∞ / ‖A‖max`` (``δy`` at unit max-norm,
+#: :func:`~iamp.planners.qp.backends.base.farkas_residuals`) must be below this (measured: 1e-18 to
+#: 1.1e-16 on the 129 certificates of the narrow window of ``tests/test_avoid_reference.py``; a
+#: backend's certificate is accepted at 1e-7, :data:`~iamp.planners.qp.bounded.FARKAS_STATIONARITY`).
+FARKAS_ROUNDOFF = 1e-12
 
 #: The largest KKT residual (:meth:`SchurActiveSet.residual`) of a solution reported ``optimal``;
 #: beyond it the solve reports ``numerical_error`` (and the search solves that QP by the backend).
@@ -182,6 +203,9 @@ class SchurActiveSet:
         self.z0 = x0[:self.n].copy()
         #: row ``c``: the primal part of column ``c`` of ``K⁻¹`` once solved (:attr:`_have`)
         self._Kinv = np.zeros((self.n, self.n))
+        #: ``‖K⁻¹ e_c‖_∞`` of every solved column ``c`` (primal and dual parts: the size of the
+        #: terms that cancel in ``w_r`` of a row the equality rows fix, :data:`FIXED_REL`)
+        self._colnorm = np.zeros(self.n)
         self._have = np.zeros(self.n, dtype=bool)
         self.columns = 0
 
@@ -250,9 +274,9 @@ class SchurActiveSet:
             lam = np.zeros(cap)
             rows = np.zeros(cap, dtype=np.int64)
             code, k, iterations = _run("active_set")(
-                self.z0, self._Kinv, indptr, indices, data, u, seed, cutoff is not None,
+                self.z0, self._Kinv, self._colnorm, indptr, indices, data, u, seed, cutoff is not None,
                 float(cutoff) if cutoff is not None else 0.0, self._Pp, self._Pi, self._Px, self.max_iter,
-                GENERATION_TOL, DEPENDENT_REL, INFEASIBLE_REL, WARM_COND, cap, z, lam, rows, out)
+                GENERATION_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND, cap, z, lam, rows, out)
             if code != kernel.CAPACITY:
                 break
             cap = min(2 * cap, n_in + 1)  # the same steps again, with room for more rows
@@ -260,9 +284,13 @@ class SchurActiveSet:
         rows, lam = rows[:k], lam[:k]
         if status == CUTOFF:
             return RowsSolution(CUTOFF, z, np.zeros(self.n_eq + n_in), iterations, 1, rows, True, float(out[0]))
+        if status == st.INFEASIBLE:  # a candidate certificate: infeasible only once verified
+            cert = self.certificate(A_in, u, (indptr, indices, data), rows, lam)
+            return RowsSolution(st.INFEASIBLE if cert is not None else st.NUMERICAL_ERROR, z,
+                                np.zeros(self.n_eq + n_in), iterations, 1, rows, bool(np.isfinite(z).all()),
+                                certificate=cert)
         if status != st.OPTIMAL:
-            return RowsSolution(status, z, np.zeros(self.n_eq + n_in), iterations, 1, rows,
-                                bool(np.isfinite(z).all()))
+            return self._unsolved(status, A_in, u, (indptr, indices, data), z, rows, lam, iterations)
         # the equality multipliers (and z) from one K solve: P z + Eᵀν = -G_Wᵀλ, E z = b
         Gt_lam = np.zeros(self.n)
         if k:
@@ -275,8 +303,55 @@ class SchurActiveSet:
             y[self.n_eq + rows] = lam
         finite = bool(np.isfinite(z).all() and np.isfinite(y).all())
         if not finite or self.residual(A_in, u, z, y, Gt_lam, (indptr, indices, data)) > CHECK_TOL:
-            status = st.NUMERICAL_ERROR  # e.g. a nearly dependent row of an infeasible QP
+            # e.g. a nearly dependent row of an infeasible QP
+            return self._unsolved(st.NUMERICAL_ERROR, A_in, u, (indptr, indices, data), z, rows, lam, iterations)
         return RowsSolution(status, z, y, iterations, 1, np.sort(rows), finite)
+
+    def _unsolved(self, status: str, A_in: sp.csr_matrix, u: FloatArray, arrays: CsrArrays, z: FloatArray,
+                  rows: NDArray[np.int64], lam: FloatArray, iterations: int) -> RowsSolution:
+        """A solve the kernel did not finish (``status``), or whose optimum failed its residual
+        check: ``infeasible`` when the working rows' multipliers, in their direction, are a Farkas
+        certificate (:meth:`certificate`) — the dual of an infeasible QP is unbounded, and the
+        dual active-set steps grow the multipliers along a dual ray until the Schur complement is
+        singular (measured: multipliers ~1e15, ``cond S`` 4.5e16, a certificate at round-off
+        proving a violation of 0.24 m) — else ``status``."""
+        n_in = u.size
+        cert = None
+        if rows.size and np.isfinite(lam).all() and lam.min() >= 0.0 and lam.max() > 0.0:
+            cert = self.certificate(A_in, u, arrays, rows, lam / lam.max())
+        return RowsSolution(st.INFEASIBLE if cert is not None else status, z, np.zeros(self.n_eq + n_in), iterations,
+                            1, rows, bool(np.isfinite(z).all()), certificate=cert)
+
+    def certificate(self, A_in: sp.csr_matrix, u: FloatArray, arrays: CsrArrays, rows: NDArray[np.int64],
+                    weights: FloatArray) -> FloatArray | None:
+        r"""The Farkas certificate of the kernel's infeasibility verdict, verified, or None.
+
+        ``weights >= 0`` of the inequality rows ``rows`` combine into :math:`g = \sum_r \delta\lambda_r
+        g_r`, which the kernel found in the span of the equality rows ``E``; one solve with the factored
+        ``K`` gives :math:`K (w, \mu) = (g, 0)`, so :math:`E^\top \mu = g - P w` (``w`` round-off),
+        and ``δy = (-μ, δλ)`` on ``[E; A_in]`` (the convention of ``y``).  On every ``z`` with
+        ``E z = b``, :math:`\sum_r \delta\lambda_r (g_r z - u_r) = b^\top\mu - u^\top\delta\lambda
+        + (Pw)^\top z`; accepted when the last term is round-off — :math:`\|A^\top\delta y\|_\infty
+        / \|A\|_{\max}` at unit ``‖δy‖∞`` (:func:`~iamp.planners.qp.backends.base.farkas_residuals`)
+        at most :data:`FARKAS_ROUNDOFF` — and the rows' least violation there, that sum over
+        :math:`\sum_r \delta\lambda_r`, exceeds :data:`~iamp.planners.avoid.solve.GENERATION_TOL`,
+        the tolerance to which the node solver (and row generation) accepts a row as kept: no point
+        it would accept exists.  (A backend's certificate is accepted with a looser identity, 1e-7,
+        and a support relative to the largest bound, :func:`~iamp.planners.qp.bounded.certified_infeasible`.)"""
+        Gp, Gi, Gx = arrays
+        n_in = u.size
+        Gt = np.zeros(self.n)
+        _run("row_transpose_dot")(Gp, Gi, Gx, rows, weights, rows.size, Gt)
+        x = np.asarray(self.lu.solve(np.concatenate([Gt, np.zeros(self.n_eq)])), dtype=float)
+        dy = np.zeros(self.n_eq + n_in)
+        dy[:self.n_eq] = -x[self.n:]
+        dy[self.n_eq + rows] = weights
+        A = sp.vstack([self.A_eq, sp.csr_matrix(A_in)], format="csc")
+        stat, _ = farkas_residuals(A, np.r_[self.b_eq, np.full(n_in, -np.inf)], np.r_[self.b_eq, u], dy)
+        # the least violation of the rows on {E z = b}: Σ δλ_r (g_r z - u_r) = bᵀμ - uᵀδλ there
+        violation = float(self.b_eq @ x[self.n:] - u[rows] @ weights) / float(np.sum(weights))
+        ok = stat <= FARKAS_ROUNDOFF and violation > GENERATION_TOL
+        return dy if ok else None
 
     def _columns(self, cols: NDArray[np.int64]) -> None:
         """Solve the columns of ``K⁻¹`` among ``cols`` not solved yet (one batch; each column is
@@ -289,6 +364,7 @@ class SchurActiveSet:
             R[missing, np.arange(missing.size)] = 1.0
             X = np.asarray(self.lu.solve(R), dtype=float).reshape(self.n + self.n_eq, missing.size)
             self._Kinv[missing] = X[:self.n].T
+            self._colnorm[missing] = np.max(np.abs(X), axis=0)
             self._have[missing] = True
             self.columns += int(missing.size)
 

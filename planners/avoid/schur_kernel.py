@@ -190,9 +190,9 @@ def _dual_feasible(z0: Any, u: Any, indptr: Any, indices: Any, data: Any, rows: 
 
 
 @compilable
-def active_set(z0: Any, Kinv: Any, indptr: Any, indices: Any, data: Any, u: Any, start: Any, use_cutoff: bool,
-               cutoff: float, Pp: Any, Pi: Any, Px: Any, max_iter: int, gen_tol: float, dependent_rel: float,
-               infeasible_rel: float, warm_cond: float, cap: int, z: Any, lam: Any, rows: Any,
+def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data: Any, u: Any, start: Any,
+               use_cutoff: bool, cutoff: float, Pp: Any, Pi: Any, Px: Any, max_iter: int, gen_tol: float,
+               dependent_rel: float, fixed_rel: float, warm_cond: float, cap: int, z: Any, lam: Any, rows: Any,
                out: Any) -> tuple[int, int, int]:
     """The dual active-set method (module docstring) on the rows ``(indptr, indices, data) z <= u``.
 
@@ -203,6 +203,19 @@ def active_set(z0: Any, Kinv: Any, indptr: Any, indices: Any, data: Any, u: Any,
     symmetric CSR ``Pp, Pi, Px``) reaches ``cutoff``.  ``cap``: the working set's largest size.
     Writes ``z``, the working rows ``rows[:k]`` and their multipliers ``lam[:k]``; returns
     ``(status, k, iterations)`` and, in ``out[0]``, the cutoff's bound.
+
+    ``INFEASIBLE`` is a *candidate* Farkas certificate for the caller to verify
+    (:meth:`~iamp.planners.avoid.schur.SchurActiveSet.solve`): ``rows[:k]`` and ``lam[:k] >= 0``
+    are the weights ``δλ`` of inequality rows whose combination ``Σ δλ_r g_r`` lies in the span of
+    the equality rows while ``Σ δλ_r (g_r · z - u_r) > 0``.  Two cases: the violated row ``p``
+    alone, when its value is fixed by the equality rows — ``w_p`` is round-off:
+    ``g_p · w_p <= fixed_rel |g_p|_1 Σ_j |g_pj| colnorm[c_j]``, ``colnorm[c]`` the largest entry
+    of column ``c`` of ``K⁻¹`` (primal and dual parts), the size of the terms that cancel in
+    ``w_p`` — where the relative test below is meaningless (``g_p · w_p`` and the curvature are
+    both round-off); or ``p`` (weight 1) with the working rows (weights ``-S⁻¹ G_W w_p``, all
+    ``>= 0``), when ``p`` is dependent on the working set (curvature ``<= dependent_rel
+    g_p · w_p``) and no working multiplier blocks the dual step (Goldfarb and Idnani's
+    infeasibility test).
     """
     n = z0.shape[0]
     m = u.shape[0]
@@ -279,6 +292,15 @@ def active_set(z0: Any, Kinv: Any, indptr: Any, indices: Any, data: Any, u: Any,
         # Goldfarb-Idnani steps until row p binds
         _row_w(indptr, indices, data, p, Kinv, wp)
         gwp = _row_dot(indptr, indices, data, p, wp)
+        g1 = 0.0
+        terms = 0.0
+        for j in range(indptr[p], indptr[p + 1]):
+            g1 += abs(data[j])
+            terms += abs(data[j]) * colnorm[indices[j]]
+        if not gwp > fixed_rel * g1 * terms:  # g_p z is fixed by the equality rows, and violated
+            rows[0] = p
+            lam[0] = 1.0
+            return INFEASIBLE, 1, iterations
         lam_p = 0.0
         steps = 0
         done = False
@@ -305,9 +327,13 @@ def active_set(z0: Any, Kinv: Any, indptr: Any, indices: Any, data: Any, u: Any,
                             j = r
                             t2 = ratio
             if not curv > dependent_rel * gwp:  # dependent on the working set: a dual step only
-                if j < 0:
+                if j < 0:  # unblocked: the candidate certificate (docstring)
                     iterations += steps
-                    return (INFEASIBLE if not curv > infeasible_rel * gwp else NUMERICAL_ERROR), k, iterations
+                    for r in range(k):
+                        lam[r] = dlam[r]
+                    rows[k] = p
+                    lam[k] = 1.0
+                    return INFEASIBLE, k + 1, iterations
                 t = t2
             else:
                 t1 = (_row_dot(indptr, indices, data, p, z) - u[p]) / curv

@@ -152,6 +152,9 @@ class RowsSolution:
     #: a lower bound of the QP's optimum (the node solver's dual value when it stopped at a
     #: cutoff; otherwise the optimal cost or ``nan``)
     bound: float = float("nan")
+    #: with status ``infeasible``: a verified Farkas certificate ``δy`` on the rows of
+    #: ``[A_eq; A_in]`` (the node solver's, :meth:`~iamp.planners.avoid.schur.SchurActiveSet.certificate`)
+    certificate: FloatArray | None = None
 
 
 def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -> sp.csc_matrix:
