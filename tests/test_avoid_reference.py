@@ -195,7 +195,8 @@ def test_generated_plans_agree_with_the_independent_reference(i: int) -> None:
     check_against_reference(problem, N, hold)
 
 
-# (4) what the sweep found and this change does not fix (strict xfails: they fail loudly once fixed)
+# (4) what the sweep found: the two tests below once were strict xfails (the backend decided the
+# plan); what is not fixed stays a strict xfail (it fails loudly once fixed)
 def _binding(xf: float, vxf: float, x0v: float, speed: float) -> Problem:
     ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=xf, yf=3.75, vxf=vxf)
     v = SurroundingVehicle(x_poly=(x0v, speed), corner="front-lower", y=3.75, length=4.8, width=1.8,
@@ -203,24 +204,36 @@ def _binding(xf: float, vxf: float, x0v: float, speed: float) -> Problem:
     return Problem(ego, (v,), "binding")
 
 
-@pytest.mark.xfail(strict=True, reason="the search depends on the backend where the node solver gives up: on this "
-                   "narrow window (J ~ 273) the node solver stops with numerical_error on 35 near-infeasible QPs "
-                   "and hands them to the backend; Clarabel proves them infeasible, PIQP stops at its iteration "
-                   "limit on ~650 of them (the search keeps those boxes, spends its 2000 solves and returns no "
-                   "plan) and OSQP's inaccurate answers steer its search to a cost 4.7e-6 relative lower")
 def test_backends_agree_where_the_node_solver_hands_qps_to_the_backend() -> None:
+    """A narrow window (J ~ 273, N = 16, FOH): the node solver stopped with ``numerical_error``
+    on 35 near-infeasible QPs (a sub-piece at ``t_f`` whose rows the final state fixes, violated
+    by 4e-9 m to 5 cm: the Goldfarb-Idnani curvature of such a row is round-off) and handed them to
+    the backend, which decided the search (Clarabel: infeasible; PIQP: its iteration limit, then
+    2000 solves and no plan; OSQP: ``optimal`` within its 1e-7 tolerance, a cost 4.7e-6 lower).
+    Now the node solver proves them infeasible itself (a verified Farkas certificate,
+    ``tests/test_avoid_schur.py``), no QP of the search goes to a backend, and the three plans
+    are the same plan.  (Not checked against the reference's scan (b): the rows that the final
+    state fixes keep every crossing before the last piece infeasible on this coarse grid, J ~ 273
+    where the sampled reference costs 26 at t = 4 s; the Bernstein rows are sufficient, not
+    necessary.)"""
     problem = _binding(98.25, 18.0, 11.0, 15.9375)
     plans = {s: _plan(problem, 16, "foh", s).plan(problem) for s in SOLVERS}
     assert {p.status for p in plans.values()} == {st.OPTIMAL}, {s: p.status for s, p in plans.items()}
     costs = [p.cost for p in plans.values()]
     assert max(costs) - min(costs) <= 1e-6 * min(costs), costs
+    for p in plans.values():
+        assert p.info["node_solver"]["backend_solves"] == 1  # the final check only
+        assert _same(p, plans["clarabel"])
 
 
-@pytest.mark.xfail(strict=True, reason="PIQP's re-solve of the final QP passes the KKT check (complementarity "
-                   "7.3e-10 <= 1e-9) but costs 1.55e-9 relative more than the node solver's optimum, beyond "
-                   "cmp_cost_rel_clarabel = 1e-9, so the plan is inaccurate where Clarabel and OSQP are optimal "
-                   "(the cost tolerance is tighter than what the KKT tolerance implies)")
 def test_piqp_backend_check_agrees_on_a_two_vehicle_zoh_plan() -> None:
+    """PIQP's re-solve of the final QP (the backend check) passed the KKT check (largest
+    complementarity product 7.3e-10 relative) but cost 1.55e-9 relative more than the node
+    solver's optimum, beyond ``cmp_cost_rel_clarabel`` (1e-9): the interior point's cost exceeds the
+    optimum by its duality gap ``Σ y_i s_i`` (2.0e-8; PIQP stops at ``eps_duality_gap_abs`` 1e-8),
+    the sum of products each of which passes.  The check now refines each backend's answer on the
+    rows it holds active (:func:`iamp.planners.qp.backends.polish.polish`) and compares that,
+    KKT-checked, point: every backend agrees and the plans are the same."""
     base = ex.overtake_three_problem(False)
     ego = dataclasses.replace(base.ego, tf=5.7938562718577655, xf=118.54172148057933, vxf=20.607151079932784)
     sv2 = dataclasses.replace(base.vehicles[1], x_poly=(30.678300872659484, 13.396569739432994))
@@ -228,6 +241,12 @@ def test_piqp_backend_check_agrees_on_a_two_vehicle_zoh_plan() -> None:
     problem = Problem(ego, (sv2, sv1), "two-zoh")
     plans = {s: _plan(problem, 50, "zoh", s).plan(problem) for s in SOLVERS}
     assert {p.status for p in plans.values()} == {st.OPTIMAL}, {s: p.status for s, p in plans.items()}
+    for p in plans.values():
+        # each backend's answer refined on the rows it holds active is the node solver's optimum
+        check = p.info["backend_check"]
+        assert check["agrees"] and check["polished"]
+        assert abs(check["cost"] - p.cost) <= 1e-12 * p.cost
+        assert _same(p, plans["clarabel"])
 
 
 @pytest.mark.slow
