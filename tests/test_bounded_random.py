@@ -18,11 +18,19 @@ the grid), so its cost is an upper bound of the bounded optimum wherever it conv
   contact time (``N = 240``: at ``N = 60`` a tight box's switching times cost the grid 0.5 %,
   random_problem(8333) at 0.63) is at or above it and within ``2e-3``; the PMP ``infeasible``
   (certified over every contact time) ⇒ the QP finds no plan.
-* three vehicles (``N = 8``, the QP's own sweep over the ``7·6·5`` node triples): the QP finds a
-  plan ⇒ the PMP is not ``infeasible``; a PMP that says ``optimal`` is at most ``1e-6`` above the
-  QP; a ``local`` PMP (no certificate over several contact times) is checked at its own contact
-  times, where the fixed-time problem is convex: the FOH QP through them (``N = 240``) is at or
-  above the PMP and within ``2e-3`` of it.
+* three vehicles (``N = 8``, the QP's own sweep over the ``7·6·5`` node triples; two vehicles:
+  ``N = 16``): the QP finds a plan ⇒ the PMP is not ``infeasible`` and at most ``1e-6`` above the
+  QP (``optimal`` or ``local``: the search's starts must reach a basin as cheap as the QP's
+  sweep); a ``local`` PMP (no certificate over several contact times) is checked at its own
+  contact times, where the fixed-time problem is convex: the FOH QP through them (``N = 240``,
+  refined to ``N = 960`` where close switching times cost the grid more) is at or above the PMP
+  and within ``2e-3`` of it.
+
+**Second domain** (scripts/bounded_sweep.py's, 2026-11-29): the box on ``a_x`` alone or on ``a_y``
+alone, ``scale`` ∈ [0.3, 1.3], one, two or three vehicles; the same implications.  Open there: two
+or three vehicles whose minimum lies on a curved edge of the feasible contact times (the search
+ends ``inaccurate`` at the Hamiltonian-jump check; 7 of ~1100 drawn with m ≥ 2, all under a tight
+box on one input): accepted by :func:`check` without a claim.
 """
 
 from __future__ import annotations
@@ -42,19 +50,24 @@ from iamp.planners.examples import random_problem
 from iamp.planners.pmp import PMPPlanner
 
 ABOVE_REL = 1e-6  #: the QP's own tolerance: the PMP may be above a QP plan by this much only
+QP_STEPS = {2: 16, 3: 8}  #: the QP's node sweep for several vehicles (every node pair / triple)
 BELOW_REL = 2e-3  #: the FOH grid's error (one vehicle, N = 60, refined contact time)
 
 
-def boxed(seed: int, m: int, scale: float) -> Problem | None:
-    """The domain's problem (``None`` when the unbounded plan fails: nothing to scale)."""
+def boxed(seed: int, m: int, scale: float, axes: str = "both") -> Problem | None:
+    """The domain's problem (``None`` when the unbounded plan fails: nothing to scale); ``axes``
+    ``"ax"`` or ``"ay"`` bounds that input alone."""
     problem = random_problem(seed, m=m)
     free = PMPPlanner().plan(problem)
     if free.status not in (stc.OPTIMAL, stc.LOCAL):
         return None
     U = free.inputs(np.linspace(0.0, problem.tf, 2001))
-    return problem.with_limits(PhysicalLimits(
-        ax=(scale * min(-0.5, float(U[:, 0].min())), scale * max(0.5, float(U[:, 0].max()))),
-        ay=(scale * min(-0.5, float(U[:, 1].min())), scale * max(0.5, float(U[:, 1].max())))))
+
+    def side(k: int) -> tuple[float, float]:
+        return scale * min(-0.5, float(U[:, k].min())), scale * max(0.5, float(U[:, k].max()))
+
+    return problem.with_limits(PhysicalLimits(ax=side(0) if axes in ("both", "ax") else None,
+                                              ay=side(1) if axes in ("both", "ay") else None))
 
 
 def _at_its_contact_times(problem: Problem, t: object, cost: float | None, steps: int, where: tuple[object, ...]
@@ -65,18 +78,30 @@ def _at_its_contact_times(problem: Problem, t: object, cost: float | None, steps
 
     assert cost is not None
     at = BoundedQP(problem, steps, "foh", "clarabel").solve_times(np.asarray(t, dtype=float))
+    if at.status == stc.OPTIMAL and at.cost is not None and at.cost > cost * (1 + BELOW_REL):
+        # switching times close together cost the grid more (random_problem(179726) at 0.669:
+        # +9.7e-3 at N = 240, +3.3e-5 at N = 960, +8.3e-6 at N = 1920): refined, it must approach
+        finer = BoundedQP(problem, 4 * steps, "foh", "clarabel").solve_times(np.asarray(t, dtype=float))
+        assert finer.status == stc.OPTIMAL and finer.cost is not None and finer.cost < at.cost, (
+            *where, cost, at.cost, finer.status)
+        at = finer
     if at.status == stc.OPTIMAL:
         assert at.cost is not None
         assert cost * (1 - 1e-9) <= at.cost <= cost * (1 + BELOW_REL), (*where, cost, at.cost)
 
 
-def check(seed: int, m: int, scale: float) -> str:
+def check(seed: int, m: int, scale: float, axes: str = "both") -> str:
     """The module docstring's implications; returns ``"<pmp status>/<qp status>"``."""
-    problem = boxed(seed, m, scale)
+    problem = boxed(seed, m, scale, axes)
     if problem is None:
         return "unbounded plan failed"
     pmp = PMPPlanner().plan(problem)
-    where = (seed, m, scale, pmp.status, pmp.info.get("failed_check"), pmp.info.get("reason"))
+    where = (seed, m, scale, axes, pmp.status, pmp.info.get("failed_check"), pmp.info.get("reason"))
+    if m >= 2 and axes != "both" and pmp.status == stc.INACCURATE and pmp.info.get("failed_check") == (
+            "hamiltonian_jump"):
+        # open (the module docstring): a minimum on a curved edge of the feasible contact times
+        qp = plan(problem, "qp", solver="clarabel", steps=QP_STEPS[m])
+        return f"{pmp.status}/{qp.status}"
     assert pmp.status in (stc.OPTIMAL, stc.LOCAL, stc.INFEASIBLE), where
     if m == 1:
         qp = plan(problem, "qp", solver="clarabel", steps=60, contact="refine")
@@ -89,12 +114,11 @@ def check(seed: int, m: int, scale: float) -> str:
         if pmp.status == stc.OPTIMAL:
             _at_its_contact_times(problem, pmp.contact_times, pmp.cost, 240, where)
     else:
-        qp = plan(problem, "qp", solver="clarabel", steps=8)
+        qp = plan(problem, "qp", solver="clarabel", steps=QP_STEPS[m])
         if qp.status in (stc.OPTIMAL, stc.LOCAL):
             assert qp.cost is not None and pmp.status != stc.INFEASIBLE, (*where, qp.cost)
-            if pmp.status == stc.OPTIMAL:
-                assert pmp.cost is not None and pmp.cost <= qp.cost * (1 + ABOVE_REL) + ABOVE_REL, (
-                    *where, pmp.cost, qp.cost)
+            assert pmp.cost is not None and pmp.cost <= qp.cost * (1 + ABOVE_REL) + ABOVE_REL, (
+                *where, pmp.cost, qp.cost)
         if pmp.status == stc.LOCAL:
             _at_its_contact_times(problem, pmp.contact_times, pmp.cost, 240, where)
     if pmp.status == stc.INFEASIBLE:
@@ -120,6 +144,25 @@ def test_bounded_pmp_agrees_with_the_bounded_qp_on_random_problems(seed: int, m:
 @given(*CASES)
 def test_bounded_pmp_agrees_with_the_bounded_qp_on_random_problems_many(seed: int, m: int, scale: float) -> None:
     check(seed, m, scale)
+
+
+#: Boxes on one input alone, two vehicles too, scales 0.3-1.3 (scripts/bounded_sweep.py's domain)
+ONE_INPUT = (st.integers(0, 10**6), st.sampled_from([1, 2, 2, 3]), st.floats(0.3, 1.3), st.sampled_from(["ax", "ay"]))
+
+
+@FAST
+@given(*ONE_INPUT)
+def test_bounded_pmp_agrees_with_the_bounded_qp_with_one_input_boxed(seed: int, m: int, scale: float,
+                                                                     axes: str) -> None:
+    check(seed, m, scale, axes)
+
+
+@pytest.mark.slow
+@SLOW
+@given(*ONE_INPUT)
+def test_bounded_pmp_agrees_with_the_bounded_qp_with_one_input_boxed_many(seed: int, m: int, scale: float,
+                                                                          axes: str) -> None:
+    check(seed, m, scale, axes)
 
 
 def test_the_check_can_fail() -> None:

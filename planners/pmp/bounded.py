@@ -107,6 +107,15 @@ INF = math.inf
 
 #: Grid points of the one-vehicle contact-time search (the starts of Brent's polish).
 GRID_ONE = 16
+
+#: Points per axis of the grid over ``(0, t_f)^m`` whose lower bound prunes the further starts of
+#: the search with ``m`` = 2, 3, ≥ 4 vehicles (:func:`_pruned_grid`).  On 22 generated
+#: three-vehicle problems that ended in a costlier basin or ``inaccurate`` (scripts/bounded_sweep.py,
+#: default_rng 7, 8, 10), 8 per axis moved 14 of them to a plan below the FOH QP's sweep, 12 and 16
+#: per axis 17 (the same ones; the order of the contact times leaves many minima under a tight
+#: ``a_y`` box, so a finer grid is lower on some and higher on others); two vehicles (default_rng
+#: 9): 16, 24, 42 per axis moved 0, 3, 2 of 4.  The lower bound on 1728 points costs ~0.17 ms.
+GRID_MANY = (24, 12, 6)
 #: Ratio of the distances from ``t_best`` of the ends of the graded intervals that start the
 #: one-vehicle certificate around its minimum (:func:`certify_global_one`): of 1.6, 2, 2.4, 3,
 #: 2 had the fewest axis solves on paper-1 (66; 72 without grading, in 9 kernel calls
@@ -139,6 +148,14 @@ EDGE_BEYOND = (1e-11, 1e-10, 1e-9, 1e-8)
 #: :func:`certify_global_one` stops where the dual value at an interval's centre (``J_b`` there)
 #: is below ``J_best`` by this much (relative): the search missed a better contact time.
 BETTER_REL = 1e-6
+
+#: One vehicle: a root of ``r`` (or an edge candidate) polished in a bracket replaces the best
+#: start or grid point also where its ``J_b`` is above that point's by at most this (relative):
+#: the rounding of ``J_b``.  random_problem(817765) with the box at 0.9985 of its peaks: the
+#: unbounded ``t*`` lies 8.7e-8 s from the root (``J_b`` 1.2e-13 above it in exact arithmetic),
+#: but its ``J_b`` came out 7e-13 (relative) below the root's, so the plan stayed at ``t*``
+#: (``r`` = -2.7e-6) and ended ``inaccurate`` (Hamiltonian jump 5.4e-7 against 1e-7).
+STATIONARY_TIE_REL = 1e-10
 
 #: The tolerance entry of each check of :func:`check_values`.
 BOUNDED_TOLERANCE_OF = {
@@ -486,7 +503,9 @@ def infeasibility_certificate(problem: Problem, max_solves: int = 4000,
     pair's certified boxes,
     gets the rest of ``pair_solves`` and stops at the first centre where both axes are feasible
     (``feasible_t``: contact times with a plan, where the search starts again).  These solves
-    are counted apart from ``max_solves``.
+    are counted apart from ``max_solves``.  Two vehicles are their own pair: the full cover gets
+    ``pair_solves`` more (random_problem(579407, m=2) with a box on ``a_x`` alone at 0.624 of its
+    peaks: uncertified at 4000 solves, certified with 17 972).
 
     **Cover** (:func:`_cover_infeasible`): boxes of contact times, each with a Farkas certificate
     and a Lipschitz margin.
@@ -500,7 +519,7 @@ def infeasibility_certificate(problem: Problem, max_solves: int = 4000,
             used += alone.solves
             if alone.certified:
                 return InfeasibilityCertificate(True, None, alone.boxes, used, i)
-    full = _cover_infeasible(problem, max_solves - used)
+    full = _cover_infeasible(problem, max_solves - used + (pair_solves if m == 2 else 0))
     used += full.solves
     if full.certified or full.feasible_t is not None or m < 3 or pair_solves <= 0:
         return InfeasibilityCertificate(full.certified, full.feasible_t, full.boxes, used)
@@ -1698,6 +1717,7 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
     edge: str | None = None
     edge_at: tuple[str, float] | None = None  # (side, the last feasible time) of an edge beside the minimum
     within_ulp = False
+    polished = False  # best_t a root of r or an edge candidate, not a start or grid point
     for rank, idx in enumerate(order[: min(3, len(order))]):
         i = int(idx)
         # polish the best grid basin, and others only when their grid value is within 5 %
@@ -1737,8 +1757,9 @@ def _search_one(ev: _Evaluator, T: float, starts: list[float], grid: int) -> tup
                 pass
         for cand, side, near, ulp in cands:
             J_c = ev(np.array([cand]))[0]
-            if J_c < best_J:
+            if J_c < best_J or (not polished and J_c <= best_J + STATIONARY_TIE_REL * abs(best_J)):
                 best_t, best_J, edge, edge_at, within_ulp = cand, J_c, side, near, ulp
+                polished = True
     if edge is not None:
         info["feasibility_edge"] = edge
     if edge_at is not None:
@@ -1804,11 +1825,16 @@ def _search_many(ev: _Evaluator, T: float, m: int, starts: list[FloatArray], gri
     cands = [np.asarray(s, dtype=float) for s in starts]
     if m <= 2:
         g = T * (np.arange(grid) + 0.5) / grid
-        mesh = np.stack(np.meshgrid(*([g] * m), indexing="ij"), axis=-1).reshape(-1, m)
-        cands += list(mesh)
+        cands += list(np.stack(np.meshgrid(*([g] * m), indexing="ij"), axis=-1).reshape(-1, m))
     vals = [ev(c)[0] for c in cands]
+    info: dict[str, Any] = {"grid": grid}
+    if any(math.isfinite(v) for v in vals):
+        per = GRID_MANY[min(m, 4) - 2]
+        g = T * (np.arange(per) + 0.5) / per
+        mesh = np.stack(np.meshgrid(*([g] * m), indexing="ij"), axis=-1).reshape(-1, m)
+        info["grid_points"] = _pruned_grid(ev, mesh, cands, vals)
     if not any(math.isfinite(v) for v in vals):
-        return np.full(m, np.nan), {"grid": grid, "evaluations": ev.evaluations}
+        return np.full(m, np.nan), {**info, "evaluations": ev.evaluations}
     order = np.argsort(vals)
     best, best_J = cands[int(order[0])], vals[int(order[0])]
     eps = 1e-6 * T
@@ -1830,7 +1856,37 @@ def _search_many(ev: _Evaluator, T: float, m: int, starts: list[FloatArray], gri
     # L-BFGS-B stops where its line search leaves the feasible set of contact times (a narrow
     # one under a tight box); a damped Newton method on r finishes the polish of the best
     best, best_J = _newton_polish(ev, best, best_J, T)
-    return best, {"grid": grid, "evaluations": ev.evaluations}
+    return best, {**info, "evaluations": ev.evaluations}
+
+
+def _pruned_grid(ev: _Evaluator, mesh: FloatArray, cands: list[FloatArray], vals: list[float]) -> int:
+    """Several vehicles, once a start has a plan: the grid's points whose lower bound
+    ``J_u`` (the unbounded fixed-time cost, closed form) is below the best ``J_b`` found, in
+    ascending ``J_u`` until it reaches that best (the rest cannot start cheaper), appended to
+    ``cands``/``vals``; returns how many were evaluated.
+
+    Found by scripts/bounded_sweep.py (2026-11-29): under a tight box on ``a_y`` alone the search
+    from the unbounded ``t*`` (or the feasible contact times the infeasibility cover met) ended
+    ``local`` in a basin of another order of the contact times, up to 6x the cost of the FOH QP's
+    sweep at ``N = 8`` (random_problem(979596, m=3) at 0.531: 15318.5 against 2539.8), or
+    ``inaccurate`` there; with two vehicles the 8 × 8 grid's best three missed it too
+    (random_problem(735598, m=2) at 0.542: 124.73 against the FOH QP's 43.02 at ``N = 16``).
+    ``J_b`` costs ~50 µs a point compiled; with an incumbent few of the :data:`GRID_MANY` points
+    have ``J_u`` below it (none on ``iamp bench``'s feasible case)."""
+    finite = [v for v in vals if math.isfinite(v)]
+    best = min(finite) if finite else INF
+    lower = _lower_bound(ev.problem, mesh, ev.value_function())
+    count = 0
+    for k in np.argsort(lower, kind="stable"):
+        if not lower[k] < best:
+            break
+        J = ev(mesh[k])[0]
+        count += 1
+        cands.append(mesh[k])
+        vals.append(J)
+        if J < best:
+            best = J
+    return count
 
 
 def _newton_polish(ev: _Evaluator, x: FloatArray, J: float, T: float, iterations: int = 25,
@@ -2137,13 +2193,14 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         starts_m = [np.asarray(start_times, dtype=float)] if start_times is not None and np.all(
             np.isfinite(start_times)) else []
         t, search = _search_many(ev, T, m, starts_m, 8)
-        search["method"] = "grid (8 per axis for m <= 2) + unbounded t* + L-BFGS-B with the exact gradient r"
+        search["method"] = ("grid (8 per axis for m <= 2) + unbounded t* + a finer grid pruned by J_u "
+                            "+ L-BFGS-B with the exact gradient r")
     info["search"] = search
     if not fixed and not np.all(np.isfinite(t)):
         unreachable = out_of_reach()
         if unreachable is not None:
             return unreachable
-        proof = infeasibility_certificate(problem)
+        proof = infeasibility_certificate(problem, pair_solves=PAIR_SOLVES if m == 2 else 0)
         solves = proof.solves
         if not proof.certified and proof.feasible_t is None and m > 2:
             # the contact times feasible for each vehicle alone first (cheap), then the pairs
