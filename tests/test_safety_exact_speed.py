@@ -1,6 +1,6 @@
 """The safety report's fast path (issue 32 item 3) returns the numbers of the full computation, bit
 for bit: rows whose Bernstein coefficients prove no root near ``[0, 1]`` are not sent to the
-companion-matrix eigenvalues (:func:`iamp.core.polyroots._no_root_near_unit_interval`), and every
+companion-matrix eigenvalues (:func:`iamp.core.polyroots_kernel.root_degrees`), and every
 vehicle's cut polynomials are solved in one call.  The full computation is the same code with the
 filter disabled; the dense (1e-5 s) comparison of the reports is ``tests/test_safety.py``."""
 
@@ -18,7 +18,13 @@ from iamp.planners.qp.planner import HoldTrajectory
 
 
 def _unfiltered(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(pr, "_no_root_near_unit_interval", lambda C, *a: np.zeros(C.shape[0], dtype=bool))
+    monkeypatch.setattr(pr, "_SKIP_FAR", False)
+
+
+def _skipped(C: np.ndarray) -> np.ndarray:
+    """Whether the filter skips each row: a positive degree that the filter sets to 0."""
+    C = np.ascontiguousarray(C, dtype=float)
+    return (pr._degrees(C, 1e-6) == 0) & (pr._degrees(C, 1e-6, skip_far=False) > 0)
 
 
 def _hex_roots(C: np.ndarray) -> list[tuple[int, str]]:
@@ -75,11 +81,7 @@ def test_filtered_roots_equal_the_full_eigenvalue_roots_bit_for_bit(seed, degree
         full = _hex_roots(C)
     assert fast == full
     # and what the filter skips has no root found by the full computation
-    absC = np.abs(C)
-    scale = absC.max(axis=1)
-    big = absC > 1e-12 * scale[:, None]
-    deg = np.where(big.any(axis=1), C.shape[1] - 1 - np.argmax(big[:, ::-1], axis=1), 0)
-    skipped = np.flatnonzero(pr._no_root_near_unit_interval(C, absC, scale, deg, 1e-6))
+    skipped = np.flatnonzero(_skipped(C))
     assert not set(skipped) & {r for r, _ in full}
 
 
@@ -89,10 +91,8 @@ def test_the_filter_skips_polynomials_far_from_zero_and_keeps_roots():
                   [-0.25, 0.0, 1.0, 0.0],      # root at 0.5
                   [1e-7, 0.0, 0.0, 0.0],       # a constant: never sent
                   [0.25, -1.0, 1.0, 0.0]])     # double root at 0.5
-    absC = np.abs(C)
-    scale = absC.max(axis=1)
-    deg = np.array([3, 3, 2, 0, 2])
-    assert pr._no_root_near_unit_interval(C, absC, scale, deg, 1e-6).tolist() == [True, True, False, False, False]
+    assert pr._degrees(C, 1e-6, skip_far=False).tolist() == [3, 3, 2, 0, 2]
+    assert _skipped(C).tolist() == [True, True, False, False, False]
 
 
 def _hold_problem(seed: int, m: int) -> tuple[Problem, HoldTrajectory]:
@@ -135,16 +135,16 @@ def test_fast_report_equals_the_full_computation_bit_for_bit(seed, monkeypatch):
 
 def test_most_rows_of_an_avoidance_report_skip_the_eigenvalues():
     calls: list[tuple[int, int]] = []
-    orig = pr._no_root_near_unit_interval
+    orig = pr._degrees
 
     def count(C, *a):
         out = orig(C, *a)
-        calls.append((C.shape[0], int(out.sum())))
+        calls.append((C.shape[0], int(np.sum((out == 0) & (orig(C, a[0], False) > 0)))))
         return out
 
     problem, traj = _hold_problem(1, m=3)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(pr, "_no_root_near_unit_interval", count)
+        mp.setattr(pr, "_degrees", count)
         safety_report(problem, traj)
     assert len(calls) == 1  # one root-finding call for the three vehicles
     rows, skipped = map(sum, zip(*calls))

@@ -139,6 +139,13 @@ def vehicles_sets(vehicles: Sequence[Any], traj: PiecewiseTrajectory, breaks: Fl
     return [c.sets(traj, breaks, P, *r) for c, r in zip(cuts, roots)]
 
 
+def _shifted(A: FloatArray, c: float) -> FloatArray:
+    """``A`` with ``c`` subtracted from its σ⁰ coefficient."""
+    B = A.copy()
+    B[:, 0] -= c
+    return B
+
+
 class _CutPolynomials:
     """Vehicle ``v``'s polynomials whose roots are cut points: groups of ``P`` rows (one per piece)."""
 
@@ -155,31 +162,48 @@ class _CutPolynomials:
         self.v, self.Ax, self.Ay, self.Bx, self.By = v, Ax, Ay, Bx, By
         self.n2 = n2 = 2 * degree + 1
 
-        def shift(A: FloatArray, c: float) -> FloatArray:
-            B = A.copy()
-            B[:, 0] -= c
-            return B
-
         ddX, ddY = poly_deriv(dX), poly_deriv(dY)
-        groups: list[FloatArray] = []
+        # per group of P rows, in order: its polynomial (dX, dY, dX', dY' or one of the eight
+        # below) and the constant subtracted from its σ⁰ coefficient
+        base: list[int] = []
+        const: list[float] = []
         self.with_intrusion = Ax > d and Ay > d
         if self.with_intrusion:  # intrusion: |dx| < Ax − δ and |dy| < Ay − δ
-            groups += [shift(dX, Ax - d), shift(dX, -(Ax - d)), shift(dY, Ay - d), shift(dY, -(Ay - d))]
-        self.first_overlap = len(groups)  # overlap of the bodies: |dx| < Bx and |dy| < By
-        groups += [shift(dX, Bx), shift(dX, -Bx), shift(dY, By), shift(dY, -By)]
-        self.first_extreme = len(groups)  # extremes: candidates where depth / distance can attain a max / min
-        groups += [dX, dY, ddX, ddY, shift(dX, Ax), shift(dX, -Ax), shift(dY, Ay), shift(dY, -Ay)]
-        # the products (dx − sx Ax) dx' and (dy − sy Ay) dy', each computed once
-        px = {sx: poly_mul(shift(dX, sx * Ax), ddX) for sx in (1.0, -1.0)}
-        py = {sy: pad_coeffs(poly_mul(shift(dY, sy * Ay), ddY), 2 * degree) for sy in (1.0, -1.0)}
+            base += [0, 0, 1, 1]
+            const += [Ax - d, -(Ax - d), Ay - d, -(Ay - d)]
+        self.first_overlap = len(base)  # overlap of the bodies: |dx| < Bx and |dy| < By
+        base += [0, 0, 1, 1]
+        const += [Bx, -Bx, By, -By]
+        self.first_extreme = len(base)  # extremes: candidates where depth / distance can attain a max / min
+        base += [0, 1, 2, 3, 0, 0, 1, 1]
+        const += [0.0, 0.0, 0.0, 0.0, Ax, -Ax, Ay, -Ay]
+        polys = [dX, dY, ddX, ddY]
+        # the products (dx − sx Ax) dx' and (dy − sy Ay) dy', each computed once (one row-wise
+        # product of the four stacked: each row's numbers are those of its own product)
+        P = dX.shape[0]
+        prods = poly_mul(np.concatenate([_shifted(dX, Ax), _shifted(dX, -Ax), _shifted(dY, Ay), _shifted(dY, -Ay)]),
+                         np.concatenate([ddX, ddX, ddY, ddY]))
+        px = {1.0: prods[:P], -1.0: prods[P:2 * P]}
+        py = {1.0: prods[2 * P:3 * P], -1.0: prods[3 * P:]}
         for sx in (1.0, -1.0):
             for sy in (1.0, -1.0):
                 # depth crossing: Ax − sx dx = Ay − sy dy
-                groups.append(shift(sy * dY - sx * dX, Ay - Ax))
+                base.append(len(polys))
+                const.append(Ay - Ax)
+                polys.append(sy * dY - sx * dX)
                 # stationary points of (dx − sx Ax)² + (dy − sy Ay)²
-                groups.append(px[sx] + py[sy])
-        self.n_groups = len(groups)
-        self.rows = np.concatenate([pad_coeffs(p, n2) for p in groups])
+                base.append(len(polys))
+                const.append(0.0)
+                polys.append(px[sx] + py[sy])
+        self.n_groups = len(base)
+        # every group's polynomial written into its rows (zero-padded to n2 columns), then its
+        # constant subtracted (subtracting 0.0 changes no bit)
+        padded = np.zeros((len(polys), P, n2))
+        for k, A in enumerate(polys):
+            padded[k, :, :A.shape[1]] = A
+        rows = padded[base]
+        rows[:, :, 0] -= np.asarray(const)[:, None]
+        self.rows = rows.reshape(self.n_groups * P, n2)
 
     def sets(self, traj: PiecewiseTrajectory, breaks: FloatArray, P: int, rows: NDArray[np.intp],
              sig: FloatArray) -> VehicleSets:

@@ -1,0 +1,112 @@
+"""One source for the scalar kernels, run as Python or compiled by numba (opt-in).
+
+A kernel function is written once, in plain Python over floats and lists (no classes, no
+exceptions, nothing numba lacks), and marked :func:`compilable`.  The planner calls the
+Python function itself.  :func:`twin` compiles the *same code object* with ``numba.njit`` (no
+fastmath, so the same IEEE operations in the same order): every global of the function that
+names another compilable function is replaced by that function's twin, recursively.  So the
+compiled and the Python path give the same numbers bit for bit (tested in a subprocess with
+and without ``NUMBA_DISABLE_JIT``), and no result depends on whether numba is installed or
+loaded.  A function numba cannot compile as written (a dict cache) names a stand-in with
+:func:`compiled_as`: the same sums in the same order, without the cache.
+
+Nothing here imports numba until :func:`twin` is called.  It lives in the core, the lowest layer, so
+that the core's kernels (:mod:`iamp.core.polyroots_kernel`) compile through it as the planners'
+do (they import it as :mod:`iamp.planners.pmp.jit`).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import types
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+#: pure function -> the source numba compiles for it (itself, or its stand-in)
+_SOURCE: dict[Callable[..., Any], types.FunctionType] = {}
+_TWINS: dict[Callable[..., Any], Any] = {}
+
+
+def compilable(fn: F) -> F:
+    """Mark ``fn`` as a kernel function numba may compile; returns ``fn`` unchanged.
+
+    Parameters
+    ----------
+    fn : callable
+        A plain Python function over floats, ints and lists.
+
+    Returns
+    -------
+    callable
+        ``fn`` itself.
+    """
+    assert isinstance(fn, types.FunctionType)
+    _SOURCE[fn] = fn
+    return fn
+
+
+def compiled_as(stand_in: Callable[..., Any]) -> Callable[[F], F]:
+    """Mark a function whose compiled twin is built from ``stand_in`` (the same arithmetic
+    without what numba lacks, e.g. a dict cache).
+
+    Parameters
+    ----------
+    stand_in : callable
+        A plain Python function with the same signature and the same operations.
+
+    Returns
+    -------
+    callable
+        A decorator returning the marked function unchanged.
+    """
+    def mark(fn: F) -> F:
+        assert isinstance(stand_in, types.FunctionType)
+        _SOURCE[fn] = stand_in
+        return fn
+    return mark
+
+
+def available() -> bool:
+    """Whether numba can be imported (without importing it)."""
+    return importlib.util.find_spec("numba") is not None
+
+
+def twin(fn: Callable[..., Any], cache: bool = False) -> Any:
+    """The numba-compiled twin of the compilable ``fn`` (cached; compiled on its first call).
+
+    Parameters
+    ----------
+    fn : callable
+        A function marked with :func:`compilable` or :func:`compiled_as`.
+    cache : bool
+        Let numba keep the machine code on disk (beside the source, or in its user cache
+        directory) for later processes.  Only for a set of functions that call nothing
+        compilable outside their own source file: numba invalidates a cached function when
+        its own file changes, not when a callee's file does.  The compilable functions it
+        calls get the same flag.
+
+    Returns
+    -------
+    numba dispatcher
+        The same code with its compilable globals replaced by their twins.
+
+    Raises
+    ------
+    ImportError
+        numba is not installed.
+    """
+    if fn in _TWINS:
+        return _TWINS[fn]
+    import numba
+
+    src = _SOURCE[fn]
+    env = dict(src.__globals__)
+    for name in src.__code__.co_names:  # the globals the code reads
+        value = src.__globals__.get(name)
+        if isinstance(value, types.FunctionType) and value in _SOURCE:
+            env[name] = twin(value, cache)
+    out = numba.njit(cache=cache)(types.FunctionType(src.__code__, env, src.__name__, src.__defaults__))
+    _TWINS[fn] = out
+    return out
