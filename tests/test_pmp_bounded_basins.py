@@ -87,3 +87,21 @@ def test_one_vehicle_takes_the_root_over_a_start_equal_within_rounding() -> None
     assert qp.cost is not None and pmp.cost <= qp.cost * (1 + 1e-9)
     at = _foh_through(problem, pmp.contact_times)
     assert at is not None and pmp.cost * (1 - 1e-9) <= at <= pmp.cost * (1 + GRID_REL)
+
+
+def test_a_start_the_checks_do_not_verify_falls_back_to_the_search_without_the_finer_grid() -> None:
+    """random_problem(369004, m=2) under an ``a_y`` box at 0.373 of its peaks: the finer grid's
+    start leads to contact times on a curved edge of the feasible set, where the search ends
+    non-stationary (``inaccurate``); the search without it is ``local`` at 2579.171, below the FOH
+    QP's sweep at N = 16 (2595.263), and that plan is returned with the unverified point named."""
+    problem = boxed(369004, 2, 0.3732189968128187, "ay")
+    assert problem is not None
+    pmp = PMPPlanner().plan(problem)
+    assert pmp.status == stc.LOCAL and pmp.cost is not None, (pmp.status, pmp.info.get("failed_check"))
+    search = pmp.info["search"]
+    assert "finer_grid_unverified" in search and search["finer_grid_unverified"]["failed_check"] == "hamiltonian_jump"
+    qp = plan(problem, "qp", solver="clarabel", steps=16)
+    assert qp.status in (stc.OPTIMAL, stc.LOCAL) and qp.cost is not None
+    assert pmp.cost <= qp.cost * (1 + 1e-6)
+    at = _foh_through(problem, pmp.contact_times)
+    assert at is not None and pmp.cost * (1 - 1e-9) <= at <= pmp.cost * (1 + GRID_REL)
