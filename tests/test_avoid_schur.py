@@ -201,3 +201,59 @@ def test_the_node_solver_proves_the_near_infeasible_qps_of_a_narrow_window_infea
             assert ref.status == st.INFEASIBLE
             checked += 1
     assert checked >= 20
+
+
+def test_three_vehicle_infeasible_qps_are_decided_by_the_node_solver() -> None:
+    """A three-vehicle overtake with the passenger car's limits (draw 458 of
+    ``scripts/avoid_reference_sweep.py``, FOH, N = 50): 10 QPs of its search ended with the working
+    set's Schur complement singular (multipliers ~1e15, 50 working rows) or with a candidate
+    certificate whose identity carried 1e-12..1e-10 of round-off, and went to the backend, each
+    backend's search taking its own solve count.  Now every infeasible verdict of the node solver
+    is a certificate checked here from the data (``Aᵀδy`` against ``A``'s scale, support below
+    zero: the backends' certificate test or the exact one), the three backends' searches are the
+    same (the same solves, the same plan) and at most one QP goes to a backend."""
+    from iamp.planners.avoid.solve import GENERATION_TOL
+
+    ego = EgoBoundary(tf=5.0, x0=0.0, y0=-2.0, vx0=20.0, xf=114.80863877498898, yf=3.75, vxf=21.2311563774265)
+    vs = (SurroundingVehicle(x_poly=(6.437440644775162, 20.830015231522303, -0.28469252051745525),
+                             corner="front-lower", y=3.75, length=4.8, width=1.8, safety_x=5.0, safety_y=0.5,
+                             name="sv1"),
+          SurroundingVehicle(x_poly=(24.45324221096018, 10.0), corner="rear-upper", y=-2.0, length=4.8,
+                             width=1.8, safety_x=5.0, safety_y=0.5, name="sv2"),
+          SurroundingVehicle(x_poly=(-20.0, 26.0), corner="front-upper", y=-2.0, length=4.8, width=1.8,
+                             safety_x=5.0, safety_y=0.5, name="sv3"))
+    problem = Problem(ego, vs, "draw-458", limits=PASSENGER_CAR)
+    seen: list[tuple[sp.csr_matrix, np.ndarray, object]] = []
+    solve = SchurActiveSet.solve
+
+    def spy(self, A_in, u_in, *args, **kw):  # type: ignore[no-untyped-def]
+        r = solve(self, A_in, u_in, *args, **kw)
+        seen.append((sp.csr_matrix(A_in), np.asarray(u_in, dtype=float), r))
+        return r
+
+    plans = {}
+    SchurActiveSet.solve = spy  # type: ignore[method-assign]
+    try:
+        for s in ("clarabel", "osqp", "piqp"):
+            plans[s] = ContinuousAvoidPlanner(steps=50, hold="foh", solver=s).plan(problem)
+    finally:
+        SchurActiveSet.solve = solve  # type: ignore[method-assign]
+    ref = plans["clarabel"]
+    assert ref.status == st.OPTIMAL and ref.info["node_solver"]["backend_solves"] <= 5
+    for p in plans.values():
+        assert p.status == ref.status and p.cost == ref.cost and p.info["n_solves"] == ref.info["n_solves"]
+    qp = ContinuousAvoidQP(problem, 50, "foh", "clarabel")
+    d = qp.data
+    infeasible = [(A, u, r) for A, u, r in seen if r.status == st.INFEASIBLE]  # type: ignore[attr-defined]
+    assert len(infeasible) >= 3 * 25
+    for A_in, u, r in infeasible:
+        dy = r.certificate  # type: ignore[attr-defined]
+        dy_in = dy[d.n_eq:]
+        assert np.all(dy_in >= 0) and dy_in.sum() > 0
+        A = sp.vstack([qp.A_eq, A_in]).tocsr()
+        scale = np.abs(dy).max()
+        stat = np.abs(A.T @ dy).max() / (abs(A).max() * scale)
+        support = float(d.b_eq @ dy[:d.n_eq] + u @ dy_in)
+        exact = stat <= 1e-12 and support < -GENERATION_TOL * dy_in.sum()
+        backend = stat <= 1e-7 and support / scale < -1e-9 * max(1.0, np.abs(np.r_[d.b_eq, u]).max())
+        assert exact or backend, (stat, support)
