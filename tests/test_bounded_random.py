@@ -29,8 +29,8 @@ the grid), so its cost is an upper bound of the bounded optimum wherever it conv
 **Second domain** (scripts/bounded_sweep.py's, 2026-11-29): the box on ``a_x`` alone or on ``a_y``
 alone, ``scale`` ∈ [0.3, 1.3], one, two or three vehicles; the same implications.  Open there: two
 or three vehicles whose minimum lies on a curved edge of the feasible contact times (the search
-ends ``inaccurate`` at the Hamiltonian-jump check; 7 of ~1100 drawn with m ≥ 2, all under a tight
-box on one input): accepted by :func:`check` without a claim.
+ends ``inaccurate`` at the Hamiltonian-jump check; 10 of 1500 drawn, all under a box on one
+input, docs/bounded-pmp.md): accepted by :func:`check` without a claim.
 """
 
 from __future__ import annotations

@@ -109,13 +109,13 @@ INF = math.inf
 GRID_ONE = 16
 
 #: Points per axis of the grid over ``(0, t_f)^m`` whose lower bound prunes the further starts of
-#: the search with ``m`` = 2, 3, ≥ 4 vehicles (:func:`_pruned_grid`).  On 22 generated
+#: the search with ``m`` = 2, 3, ≥ 4 vehicles (:func:`_pruned_grid`).  Of 38 generated
 #: three-vehicle problems that ended in a costlier basin or ``inaccurate`` (scripts/bounded_sweep.py,
-#: default_rng 7, 8, 10), 8 per axis moved 14 of them to a plan below the FOH QP's sweep, 12 and 16
-#: per axis 17 (the same ones; the order of the contact times leaves many minima under a tight
-#: ``a_y`` box, so a finer grid is lower on some and higher on others); two vehicles (default_rng
-#: 9): 16, 24, 42 per axis moved 0, 3, 2 of 4.  The lower bound on 1728 points costs ~0.17 ms.
-GRID_MANY = (24, 12, 6)
+#: default_rng 7, 8, 10), 8, 10, 12 per axis brought 27, 29, 28 to a verified plan at or below the
+#: FOH QP's sweep (the order of the contact times leaves many minima under a tight ``a_y`` box, so
+#: a finer grid is lower on some and higher on others); two vehicles (default_rng 9): 16, 24, 42
+#: per axis moved 0, 3, 2 of 4.  The lower bound costs ~0.1 µs a point (0.1 ms for 10³).
+GRID_MANY = (24, 10, 6)
 #: Ratio of the distances from ``t_best`` of the ends of the graded intervals that start the
 #: one-vehicle certificate around its minimum (:func:`certify_global_one`): of 1.6, 2, 2.4, 3,
 #: 2 had the fewest axis solves on paper-1 (66; 72 without grading, in 9 kernel calls
