@@ -44,7 +44,8 @@ def test_the_compiled_kernels_are_the_python_functions_bit_for_bit(degree: int) 
         M = pr._bernstein_matrix(C.shape[1] - 1)
         for skip in (True, False):
             py, nb = np.empty(C.shape[0], dtype=np.int64), np.empty(C.shape[0], dtype=np.int64)
-            kernel.root_degrees(C, M, 1e-6, skip, py)
+            with np.errstate(over="ignore", invalid="ignore"):
+                kernel.root_degrees(C, M, 1e-6, skip, py)
             jit.twin(kernel.root_degrees, cache=True)(C, M, 1e-6, skip, nb)
             assert py.tolist() == nb.tolist()
         # eigenvalue-like inputs in and around the window, on every row
@@ -53,11 +54,11 @@ def test_the_compiled_kernels_are_the_python_functions_bit_for_bit(degree: int) 
         re = rng.uniform(-0.2, 1.2, 500)
         re[::7] = rng.choice([0.0, -0.0, 1.0, -1e-9, 1 + 1e-9, -2e-9], 500)[::7]
         im = rng.choice([0.0, 1e-7, -1e-6, 2e-6], 500)
-        out = [(np.empty(500, dtype=np.int64), np.empty(500)) for _ in range(2)]
-        n_py = kernel.polish_roots(C, rows, re, im, 1e-6, *out[0])
-        n_nb = jit.twin(kernel.polish_roots, cache=True)(C, rows, re, im, 1e-6, *out[1])
-        assert n_py == n_nb
-        assert _hex(out[0][0][:n_py], out[0][1][:n_py]) == _hex(out[1][0][:n_nb], out[1][1][:n_nb])
+        with np.errstate(invalid="ignore"):
+            py_out = kernel.polish_roots(C, rows, re, im, 1e-6)
+        nb_out = jit.twin(kernel.polish_roots, cache=True)(C, rows, re, im, 1e-6)
+        assert py_out[0].tolist() == nb_out[0].tolist()
+        assert _hex(*py_out) == _hex(*nb_out)
 
 
 @needs_numba

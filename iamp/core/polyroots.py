@@ -29,10 +29,8 @@ FloatArray = NDArray[np.float64]
 
 
 def polyval_rows(C: FloatArray, x: FloatArray) -> FloatArray:
-    """:math:`p_r(x_r)` for every row ``r`` (Horner)."""
-    out = np.zeros_like(x)
-    for k in range(C.shape[1] - 1, -1, -1):
-        out = out * x + C[:, k]
+    """:math:`p_r(x_r)` for every row ``r`` (Horner; :func:`iamp.core.polyroots_kernel.horner`)."""
+    out: FloatArray = _kernel.horner(np.asarray(C, dtype=float), np.asarray(x, dtype=float))
     return out
 
 
@@ -84,11 +82,10 @@ def roots_in_unit_interval(C: FloatArray, imag_tol: float = 1e-6) -> tuple[NDArr
         eig.append(r.ravel())
     rr = np.concatenate(rows_in).astype(np.int64)
     z = np.concatenate(eig)
-    out_rows = np.empty(rr.size, dtype=np.int64)
-    out_x = np.empty(rr.size)
-    n = kernel("polish_roots")(C, rr, np.ascontiguousarray(z.real), np.ascontiguousarray(z.imag), float(imag_tol),
-                               out_rows, out_x)
-    return out_rows[:n].astype(np.intp), out_x[:n]
+    with np.errstate(invalid="ignore"):  # NaN coefficients (kept, as numpy's eigenvalues give them)
+        rows, x = kernel("polish_roots")(C, rr, np.ascontiguousarray(z.real), np.ascontiguousarray(z.imag),
+                                         float(imag_tol))
+    return rows.astype(np.intp), x
 
 
 def _degrees(C: FloatArray, imag_tol: float, skip_far: bool = True) -> NDArray[np.int64]:
@@ -96,7 +93,8 @@ def _degrees(C: FloatArray, imag_tol: float, skip_far: bool = True) -> NDArray[n
     a row whose Bernstein coefficients prove no eigenvalue in the accepted window
     (:func:`~iamp.core.polyroots_kernel.root_degrees`); ``C`` C-contiguous floats with >= 2 columns."""
     deg = np.empty(C.shape[0], dtype=np.int64)
-    kernel("root_degrees")(C, _bernstein_matrix(C.shape[1] - 1), float(imag_tol), bool(skip_far), deg)
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflowing bound keeps its row
+        kernel("root_degrees")(C, _bernstein_matrix(C.shape[1] - 1), float(imag_tol), bool(skip_far), deg)
     return deg
 
 

@@ -1,6 +1,7 @@
 r"""Kernels of :func:`iamp.core.polyroots.roots_in_unit_interval`, written once.
 
-Plain Python over numpy arrays and scalars (loops, no BLAS or SIMD library calls), run compiled by
+Python over numpy arrays, column by column over all rows at once (elementwise operations and
+comparisons only: no sums of a library, no BLAS), run compiled by
 numba where it is installed (:func:`iamp.core.polyroots.kernel`: the same code compiled by
 :func:`iamp.core.jit.twin`, no fastmath, so the same IEEE operations in the same order)
 and as this Python itself otherwise; ``tests/test_polyroots_kernel.py`` compares the two bit for bit.
@@ -17,6 +18,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from iamp.core.jit import compilable
 
 #: Bound on the coefficient backward error of the companion-matrix eigenvalues, relative to the
@@ -28,22 +31,22 @@ BACKWARD_REL = 1e-11
 
 
 @compilable
-def horner(C: Any, r: int, n: int, x: float) -> float:
-    r""":math:`\sum_{k < n} C_{r,k} x^k` by Horner's rule from the highest power, starting at 0
-    (:func:`iamp.core.polyroots.polyval_rows`' operations)."""
-    out = 0.0
-    for k in range(n - 1, -1, -1):
-        out = out * x + C[r, k]
+def horner(C: Any, x: Any) -> Any:
+    r""":math:`p_r(x_r)` of every row ``r`` of ``C`` by Horner's rule from the highest power, starting at 0
+    (:func:`iamp.core.polyroots.polyval_rows`)."""
+    out = np.zeros(x.size)
+    for k in range(C.shape[1] - 1, -1, -1):
+        out = out * x + C[:, k]
     return out
 
 
 @compilable
-def horner_deriv(C: Any, r: int, n: int, x: float) -> float:
-    r"""The derivative of row ``r`` (``n`` coefficients) at ``x``: Horner's rule on
-    :math:`(k + 1) C_{r,k+1}`, as :func:`iamp.core.polyroots.poly_deriv` then ``polyval_rows``."""
-    out = 0.0
-    for k in range(n - 2, -1, -1):
-        out = out * x + C[r, k + 1] * (k + 1.0)
+def horner_deriv(C: Any, x: Any) -> Any:
+    r"""The derivative of every row of ``C`` at ``x``: Horner's rule on :math:`(k + 1) C_{r,k+1}`, the
+    numbers of :func:`iamp.core.polyroots.poly_deriv` then :func:`horner`."""
+    out = np.zeros(x.size)
+    for k in range(C.shape[1] - 2, -1, -1):
+        out = out * x + C[:, k + 1] * (k + 1.0)
     return out
 
 
@@ -51,10 +54,10 @@ def horner_deriv(C: Any, r: int, n: int, x: float) -> float:
 def root_degrees(C: Any, M: Any, imag_tol: float, skip_far: bool, deg: Any) -> None:
     r"""``deg[r]``: the degree of row ``r`` of the ascending coefficients ``C`` (the highest
     ``k`` with :math:`|c_k| > 10^{-12} \max_j |c_j|`, 0 when none), or, with ``skip_far``, 0 when the
-    row provably has no eigenvalue in the window: every Bernstein coefficient on :math:`[0, 1]` (``C[r] @ M``, ``M`` the
-    matrix of :func:`iamp.core.polyroots._bernstein_matrix`) beyond :math:`T` with one sign, the
-    bound on :math:`|p|` at any eigenvalue the solver could return in the accepted window
-    (:func:`iamp.core.polyroots.roots_in_unit_interval`: :math:`|\mathrm{Im}\,z| \le` ``imag_tol``,
+    row provably has no eigenvalue in the window: every Bernstein coefficient on :math:`[0, 1]`
+    (``C[r] @ M``, ``M`` the matrix of :func:`iamp.core.polyroots._bernstein_matrix`) beyond :math:`T`
+    with one sign, the bound on :math:`|p|` at any eigenvalue the solver could return in the accepted
+    window (:func:`iamp.core.polyroots.roots_in_unit_interval`: :math:`|\mathrm{Im}\,z| \le` ``imag_tol``,
     :math:`\mathrm{Re}\,z \in [-10^{-9}, 1 + 10^{-9}]`).
 
     The computed eigenvalues of row :math:`p` (degree :math:`d`, leading coefficient :math:`\ell`)
@@ -65,74 +68,65 @@ def root_degrees(C: Any, M: Any, imag_tol: float, skip_far: bool, deg: Any) -> N
     (:math:`x` the nearest point of :math:`[0, 1]`) and the round-off of the Bernstein
     coefficients (in any order of summation).  When every Bernstein coefficient on :math:`[0, 1]`
     exceeds :math:`T` (or every one is below :math:`-T`), :math:`|p| > T` on the whole window, so
-    the row has no root there; a row whose :math:`T` is not finite is kept."""
+    the row has no root there; a row whose :math:`T` is not finite is kept.  Column by column over
+    all rows at once (array operations, fast as Python too); overflow gives an infinite :math:`T`."""
     K, D1 = C.shape
-    for r in range(K):
-        scale = abs(C[r, 0])
-        for k in range(1, D1):
-            a = abs(C[r, k])
-            if a > scale or a != a:  # the largest, NaN when one is (numpy's max)
-                scale = a
-        d = 0
-        for k in range(D1 - 1, -1, -1):
-            if abs(C[r, k]) > 1e-12 * scale:
-                d = k
-                break
-        lead = abs(C[r, d])
-        if skip_far and D1 >= 2 and d > 0 and lead > 0:
-            amax = scale / lead  # >= max_k |a_k| of the monic polynomial
-            s0 = 0.0
-            s1 = 0.0
-            for k in range(D1):
-                s0 += abs(C[r, k])
-                s1 += k * abs(C[r, k])
-            T = (BACKWARD_REL * 1.01 * (d + 1) * lead * ((1.0 + amax) * (1.0 + amax))
-                 + 1.01 * (imag_tol + 1e-9) * s1 + 1e-12 * s0 + 1.1e-12 * D1 * scale)
-            if T - T == 0.0:  # finite
-                above = True
-                below = True
-                for j in range(D1):
-                    b = 0.0
-                    for k in range(j + 1):
-                        b += C[r, k] * M[k, j]
-                    if not b > T:
-                        above = False
-                    if not b < -T:
-                        below = False
-                if above or below:
-                    d = 0
-        deg[r] = d
+    absC = np.abs(C)
+    scale = absC[:, 0].copy()
+    for k in range(1, D1):
+        col = absC[:, k]
+        scale = np.where((col > scale) | (col != col), col, scale)  # the largest, NaN when one is
+    d = np.zeros(K, dtype=np.int64)
+    found = np.zeros(K, dtype=np.bool_)
+    for k in range(D1 - 1, -1, -1):
+        big = (absC[:, k] > 1e-12 * scale) & np.logical_not(found)
+        d = np.where(big, k, d)
+        found = found | big
+    if not skip_far or D1 < 2:
+        deg[:] = d
+        return
+    lead = np.zeros(K)
+    s0 = np.zeros(K)
+    s1 = np.zeros(K)
+    for k in range(D1):
+        lead = np.where(d == k, absC[:, k], lead)
+        s0 = s0 + absC[:, k]
+        s1 = s1 + k * absC[:, k]
+    sent = (d > 0) & (lead > 0)  # the rows sent to the eigenvalues
+    amax = scale / np.where(sent, lead, 1.0)  # >= max_k |a_k| of the monic polynomial
+    T = (BACKWARD_REL * 1.01 * (d + 1) * lead * ((1.0 + amax) * (1.0 + amax))
+         + 1.01 * (imag_tol + 1e-9) * s1 + 1e-12 * s0 + 1.1e-12 * D1 * scale)
+    above = np.ones(K, dtype=np.bool_)
+    below = np.ones(K, dtype=np.bool_)
+    for j in range(D1):
+        b = np.zeros(K)
+        for k in range(j + 1):
+            b = b + C[:, k] * M[k, j]
+        above = above & (b > T)
+        below = below & (b < -T)
+    skip = (above | below) & sent & np.isfinite(T)
+    deg[:] = np.where(skip, 0, d)
 
 
 @compilable
-def polish_roots(C: Any, rows: Any, re: Any, im: Any, imag_tol: float, out_rows: Any, out_x: Any) -> int:
+def polish_roots(C: Any, rows: Any, re: Any, im: Any, imag_tol: float) -> Any:
     r"""The eigenvalues ``re + i im`` of rows ``rows`` of ``C`` with :math:`|\mathrm{Im}| \le`
-    ``imag_tol`` and :math:`\mathrm{Re} \in [-10^{-9}, 1 + 10^{-9}]`, in order: their real parts
-    clipped to :math:`[0, 1]`, then three Newton steps :math:`x \leftarrow \mathrm{clip}(x - p/p')`
-    (no step where :math:`p' = 0`), each kept only where it is not NaN and lowers :math:`|p|`.
-    Writes ``out_rows[:n]``, ``out_x[:n]`` and returns ``n``."""
-    D1 = C.shape[1]
-    n = 0
-    for j in range(rows.size):
-        if abs(im[j]) <= imag_tol and re[j] >= -1e-9 and re[j] <= 1 + 1e-9:
-            r = rows[j]
-            x = re[j]
-            if x < 0.0:  # numpy's clip: -0.0 stays, NaN stays
-                x = 0.0
-            elif x > 1.0:
-                x = 1.0
-            for _ in range(3):
-                f = horner(C, r, D1, x)
-                fp = horner_deriv(C, r, D1, x)
-                step = f / fp if fp != 0 else 0.0
-                xn = x - step
-                if xn < 0.0:
-                    xn = 0.0
-                elif xn > 1.0:
-                    xn = 1.0
-                if xn == xn and abs(horner(C, r, D1, xn)) < abs(f):
-                    x = xn
-            out_rows[n] = r
-            out_x[n] = x
-            n += 1
-    return n
+    ``imag_tol`` and :math:`\mathrm{Re} \in [-10^{-9}, 1 + 10^{-9}]`, in order: their rows and their
+    real parts clipped to :math:`[0, 1]`, then three Newton steps :math:`x \leftarrow \mathrm{clip}(x
+    - p/p')` (no step where :math:`p' = 0`), each kept only where it is not NaN and lowers :math:`|p|`
+    (numpy's clip: NaN and -0.0 stay)."""
+    keep = np.flatnonzero((np.abs(im) <= imag_tol) & (re >= -1e-9) & (re <= 1 + 1e-9))
+    r = rows[keep]
+    Cr = C[r]
+    x = re[keep]
+    x = np.where(x < 0.0, 0.0, np.where(x > 1.0, 1.0, x))
+    for _ in range(3):
+        f = horner(Cr, x)
+        fp = horner_deriv(Cr, x)
+        nz = fp != 0
+        step = np.where(nz, f / np.where(nz, fp, 1.0), 0.0)
+        xn = x - step
+        xn = np.where(xn < 0.0, 0.0, np.where(xn > 1.0, 1.0, xn))
+        better = np.abs(horner(Cr, xn)) < np.abs(f)
+        x = np.where(better & np.isfinite(xn), xn, x)
+    return r, x
