@@ -21,7 +21,8 @@ and measures it twice:
   from a lower layer into a higher one (``core`` < ``planners`` | ``prediction`` < ``simulation`` <
   ``comparison`` < ``commonroad`` < ``api`` < ``cli`` < ``iamp``), protocol callbacks included;
   the caller is the nearest iamp frame below the callee (calls made for iamp by numpy, scipy or
-  the standard library count as made by the iamp frame that called them).
+  the standard library count as made by the iamp frame that called them).  A kernel (a function
+  marked ``@compilable``, :mod:`iamp.core.jit`) counts as such a frame: compiled, it runs none.
 
 The CLI is run once untraced before the traced run (``--cold``: not), so that the walk shows the
 plan, not the imports (a module body executing at import time is a call too).  Python properties
@@ -142,14 +143,25 @@ def _hands_up_plan(frame: Any, value: Any) -> bool:
     return back is None or not back.f_globals.get("__name__", "").startswith("iamp.planners.")
 
 
+def _kernel_codes() -> frozenset[Any]:
+    """The code objects of every function marked ``@compilable`` (:mod:`iamp.core.jit`) so far."""
+    from iamp.core import jit
+
+    return frozenset(fn.__code__ for fn in jit._SOURCE)
+
+
 @contextmanager
 def traced(stack: StackWalk, stops: StopWalk) -> Iterator[None]:
     """Feed both metrics from ``sys.setprofile`` while the block runs."""
 
+    kernels = _kernel_codes()
+
     def prof(frame: Any, event: str, arg: Any) -> None:
         if event == "call":
             name = frame.f_globals.get("__name__", "")
-            module = name if name.startswith("iamp.") else None
+            # a compilable kernel is a leaf like numpy's: compiled by numba it runs no Python
+            # frame, so the walk is the same whether or not the compiled path is loaded
+            module = name if name.startswith("iamp.") and frame.f_code not in kernels else None
             stack.call(module, frame.f_code.co_name)
             stops.call(module)
         elif event == "return":

@@ -114,6 +114,18 @@ def test_the_one_vehicle_pmp_walk_goes_down_without_returning(scenario: str) -> 
     assert "iamp.planners.pmp.planner" == stack.entered[0] and "iamp.core.plan" in stack.entered
 
 
+def test_the_walk_is_the_same_with_the_compiled_kernels_loaded() -> None:
+    """A kernel is a leaf of the walk (``scripts/walk.py``), so the walk does not depend on whether
+    an earlier call in the process loaded the compiled kernels (it did, before: run alone this
+    file's walks met ``search_kernels`` again and again, after the suite's warm-up they did not)."""
+    from iamp.planners.kernels import warm_kernels
+
+    before = walk_planner("paper-1")[0]
+    warm_kernels()
+    after = walk_planner("paper-1")[0]
+    assert (before.entered, before.returns, before.upward) == (after.entered, after.returns, after.upward)
+
+
 @pytest.mark.parametrize(("scenario", "planner"), [(s, "pmp") for s in (*ONE_VEHICLE, "two-vehicle")]
                          + [("paper-1", "qp"), ("paper-1-poly", "qp")])
 def test_the_command_line_walk_calls_nothing_upward(scenario: str, planner: str) -> None:
