@@ -93,3 +93,99 @@ def test_a_wrong_active_set_fails_the_kkt_check() -> None:
     assert out is not None
     r = kkt_residuals(P, q, A, l, u, out.z, out.y)
     assert r.primal_rel > 1e-6
+
+
+def two_sided_qp(seed: int, n: int = 10, m_eq: int = 2, m_in: int = 12):  # type: ignore[no-untyped-def]
+    """Rows ``l <= a_i z <= u``, each cutting the unconstrained optimum from the side of a point
+    ``z0`` that keeps them all (feasible by construction): a row with ``a_i (z0 - z_free) > 0``
+    has its lower bound between the two, the others their upper bound."""
+    rng = np.random.default_rng(100 + seed)
+    M = rng.standard_normal((n, n))
+    P = M.T @ M + 0.1 * np.eye(n)
+    q = rng.standard_normal(n) * 3.0
+    A = rng.standard_normal((m_eq + m_in, n))
+    z_free = np.linalg.solve(P, -q)
+    z0 = z_free + rng.standard_normal(n)
+    b = A[:m_eq] @ z0
+    at, step = A[m_eq:] @ z_free, A[m_eq:] @ (z0 - z_free)
+    mid = at + rng.uniform(0.3, 0.7, m_in) * step
+    l_in = np.where(step > 0, mid, mid - 10.0)
+    u_in = np.where(step > 0, mid + 10.0, mid)
+    return (sp.triu(sp.csc_matrix(P)).tocsc(), q, sp.csc_matrix(A), np.r_[b, l_in], np.r_[b, u_in], m_eq)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_rows_at_their_lower_bound_are_held_there(seed: int) -> None:
+    """Two-sided rows: a row is held at ``l`` when ``-y`` exceeds its slack ``a z - l``, at ``u``
+    when ``y`` exceeds ``u - a z`` (the reference's active set, each at the bound it binds)."""
+    P, q, A, l, u, m_eq = two_sided_qp(seed)
+    ref = get_backend("clarabel")(P, q, A, l, u).solve()
+    assert ref.status == st.OPTIMAL
+    rows, bounds = active_rows(A, l, u, ref.z, ref.y)
+    Az = A @ ref.z
+    at_l = np.flatnonzero((np.arange(l.size) >= m_eq) & (np.abs(Az - l) <= 1e-7) & (ref.y < -1e-7))
+    at_u = np.flatnonzero((np.arange(l.size) >= m_eq) & (np.abs(Az - u) <= 1e-7) & (ref.y > 1e-7))
+    assert at_l.size and at_u.size  # the draw exercises both sides
+    assert set(at_l) | set(at_u) | set(range(m_eq)) == set(rows.tolist())
+    held = dict(zip(rows.tolist(), bounds.tolist()))
+    assert all(held[r] == l[r] for r in at_l) and all(held[r] == u[r] for r in at_u)
+    loose = get_backend("piqp")(P, q, A, l, u, {"eps_abs": 1e-6, "eps_duality_gap_abs": 1e-5,
+                                                 "eps_duality_gap_rel": 1e-6}).solve()
+    out = polish(P, q, A, l, u, loose.z, loose.y)
+    assert out is not None and out.status == st.OPTIMAL
+    assert out.raw_status == "polished" and out.iterations == 1
+    r = kkt_residuals(P, q, A, l, u, out.z, out.y)
+    assert max(r.primal_rel, r.dual_rel, r.gap_rel) <= 1e-12, r
+    assert cost(P, q, out.z) == pytest.approx(cost(P, q, ref.z), rel=1e-12, abs=1e-12)
+    # multipliers only on the held rows, with the sign of their side
+    off = np.setdiff1d(np.arange(l.size), rows)
+    assert np.all(out.y[off] == 0.0)
+    assert np.all(out.y[at_l] < 0) and np.all(out.y[at_u] > 0)
+
+
+@pytest.mark.parametrize("side", ["upper", "lower"])
+def test_of_identical_rows_the_tighter_bound_is_held_wherever_it_comes(side: str) -> None:
+    """The tighter of two identical rows on one side is held (the smaller ``u``, the larger ``l``),
+    whether it comes first or second; a row equal to an active one but on the other side is not
+    merged with it."""
+    P, q, A, l, u, m_eq = two_sided_qp(1)
+    ref = get_backend("clarabel")(P, q, A, l, u).solve()
+    rows, _ = active_rows(A, l, u, ref.z, ref.y)
+    sign = 1.0 if side == "upper" else -1.0
+    r0 = next(int(r) for r in rows if r >= m_eq and sign * ref.y[r] > 0)
+    for looser_first in (True, False):
+        shift = sign * 1e-3  # the copy is looser: u + 1e-3 (upper), l - 1e-3 (lower)
+        lc, uc = (l[r0], u[r0] + shift) if side == "upper" else (l[r0] + shift, u[r0])
+        if looser_first:  # the looser copy in place of r0, the tight row appended
+            A2 = sp.vstack([A, A[r0]]).tocsc()
+            l2, u2 = np.r_[l, l[r0]], np.r_[u, u[r0]]
+            l2[r0], u2[r0] = lc, uc
+            tight, loose = A.shape[0], r0
+        else:
+            A2 = sp.vstack([A, A[r0]]).tocsc()
+            l2, u2 = np.r_[l, lc], np.r_[u, uc]
+            tight, loose = r0, A.shape[0]
+        z = ref.z
+        y2 = np.r_[ref.y, 0.0]
+        # both copies look active: multipliers above their slacks
+        y2[tight] = y2[loose] = 0.5 * ref.y[r0] + sign * 2e-3
+        kept, bounds = active_rows(A2, l2, u2, z, y2)
+        assert tight in kept and loose not in kept, (side, looser_first, kept)
+        assert bounds[list(kept).index(tight)] == (u[r0] if side == "upper" else l[r0])
+
+
+def test_no_polish_from_a_point_that_is_not_finite_or_a_singular_active_set() -> None:
+    P, q, A, l, u = random_qp(2)
+    ref = get_backend("clarabel")(P, q, A, l, u).solve()
+    for bad_z in (True, False):
+        z = ref.z.copy()
+        y = ref.y.copy()
+        (z if bad_z else y)[0] = np.nan
+        assert polish(P, q, A, l, u, z, y) is None
+    # an active row twice, the copy scaled (not identical: both held): the KKT matrix is singular
+    rows, _ = active_rows(A, l, u, ref.z, ref.y)
+    r0 = next(int(r) for r in rows if l[r] != u[r])
+    A2 = sp.vstack([A, 2.0 * A[r0]]).tocsc()
+    l2, u2 = np.r_[l, -np.inf], np.r_[u, 2.0 * u[r0]]
+    y2 = np.r_[ref.y, ref.y[r0]]
+    assert polish(P, q, A2, l2, u2, ref.z, y2) is None
