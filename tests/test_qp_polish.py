@@ -189,3 +189,23 @@ def test_no_polish_from_a_point_that_is_not_finite_or_a_singular_active_set() ->
     l2, u2 = np.r_[l, -np.inf], np.r_[u, 2.0 * u[r0]]
     y2 = np.r_[ref.y, ref.y[r0]]
     assert polish(P, q, A2, l2, u2, ref.z, y2) is None
+
+
+def test_a_violated_row_without_a_multiplier_is_not_held() -> None:
+    """An iterate that violates a row a little (ADMM's, to its tolerance) but gives it no
+    multiplier does not name it active: its slack is negative, so ``0 > slack`` alone would."""
+    P, q, A, l, u, m_eq = two_sided_qp(0)
+    ref = get_backend("clarabel")(P, q, A, l, u).solve()
+    rows, _ = active_rows(A, l, u, ref.z, ref.y)
+    Az = A @ ref.z
+    free_rows = [r for r in range(m_eq, l.size) if r not in set(rows.tolist())]
+    assert len(free_rows) >= 2
+    l2, u2 = l.copy(), u.copy()
+    up, lo = free_rows[0], free_rows[1]
+    u2[up] = Az[up] - 1e-7  # violated from above
+    l2[lo] = Az[lo] + 1e-7  # violated from below
+    y = ref.y.copy()
+    y[[up, lo]] = 0.0
+    kept, _ = active_rows(A, l2, u2, ref.z, y)
+    assert up not in kept and lo not in kept
+    assert np.array_equal(kept, rows)
