@@ -11,6 +11,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -59,6 +62,24 @@ def check_against_every_row(qp: ContinuousAvoidQP, spec: tuple, start: np.ndarra
                              ours.z, ours.y, d.n_eq)
         assert max(kkt.values()) <= 1e-9, kkt
     return str(ours.status)
+
+
+@contextmanager
+def node_solves() -> Iterator[list[tuple[sp.csr_matrix, np.ndarray, object]]]:
+    """Every QP the node solver solves inside the block: its rows, bounds and result."""
+    seen: list[tuple[sp.csr_matrix, np.ndarray, object]] = []
+    solve = SchurActiveSet.solve
+
+    def spy(self, A_in, u_in, *args, **kw):  # type: ignore[no-untyped-def]
+        r = solve(self, A_in, u_in, *args, **kw)
+        seen.append((sp.csr_matrix(A_in), np.asarray(u_in, dtype=float), r))
+        return r
+
+    SchurActiveSet.solve = spy  # type: ignore[method-assign]
+    try:
+        yield seen
+    finally:
+        SchurActiveSet.solve = solve  # type: ignore[method-assign]
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
@@ -166,19 +187,8 @@ def test_the_node_solver_proves_the_near_infeasible_qps_of_a_narrow_window_infea
     from iamp.planners.avoid.solve import GENERATION_TOL
 
     problem = one_vehicle(11.0, 15.9375, 98.25, 18.0, False)
-    seen: list[tuple[sp.csr_matrix, np.ndarray, object]] = []
-    solve = SchurActiveSet.solve
-
-    def spy(self, A_in, u_in, *args, **kw):  # type: ignore[no-untyped-def]
-        r = solve(self, A_in, u_in, *args, **kw)
-        seen.append((sp.csr_matrix(A_in), np.asarray(u_in, dtype=float), r))
-        return r
-
-    SchurActiveSet.solve = spy  # type: ignore[method-assign]
-    try:
+    with node_solves() as seen:
         plan = ContinuousAvoidPlanner(steps=16, hold="foh", solver="clarabel").plan(problem)
-    finally:
-        SchurActiveSet.solve = solve  # type: ignore[method-assign]
     assert plan.status == st.OPTIMAL and plan.info["node_solver"]["backend_solves"] == 1
     qp = ContinuousAvoidQP(problem, 16, "foh", "clarabel")
     d = qp.data
@@ -223,21 +233,10 @@ def test_three_vehicle_infeasible_qps_are_decided_by_the_node_solver() -> None:
           SurroundingVehicle(x_poly=(-20.0, 26.0), corner="front-upper", y=-2.0, length=4.8, width=1.8,
                              safety_x=5.0, safety_y=0.5, name="sv3"))
     problem = Problem(ego, vs, "draw-458", limits=PASSENGER_CAR)
-    seen: list[tuple[sp.csr_matrix, np.ndarray, object]] = []
-    solve = SchurActiveSet.solve
-
-    def spy(self, A_in, u_in, *args, **kw):  # type: ignore[no-untyped-def]
-        r = solve(self, A_in, u_in, *args, **kw)
-        seen.append((sp.csr_matrix(A_in), np.asarray(u_in, dtype=float), r))
-        return r
-
     plans = {}
-    SchurActiveSet.solve = spy  # type: ignore[method-assign]
-    try:
+    with node_solves() as seen:
         for s in ("clarabel", "osqp", "piqp"):
             plans[s] = ContinuousAvoidPlanner(steps=50, hold="foh", solver=s).plan(problem)
-    finally:
-        SchurActiveSet.solve = solve  # type: ignore[method-assign]
     ref = plans["clarabel"]
     assert ref.status == st.OPTIMAL and ref.info["node_solver"]["backend_solves"] <= 5
     for p in plans.values():
