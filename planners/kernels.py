@@ -22,7 +22,8 @@ def warm_kernels() -> bool:
     the closed loop also uses) and plans the avoidance's overtake once
     (:func:`iamp.planners.examples.overtake_problem`, ``N = 50``, FOH, with the passenger car's
     limits), which reaches the node solver's and the search's kernels and, through the plan's safety
-    report, the root finder's (:mod:`iamp.core.polyroots_kernel`).  Nothing is kept that
+    report, the root finder's (:mod:`iamp.core.polyroots_kernel`, switched to its compiled twins by
+    :func:`iamp.core.polyroots.load`; without it every plan's safety report runs them as Python).  Nothing is kept that
     changes a later plan: the compiled and the Python path give the same numbers.
 
     Returns
@@ -31,6 +32,7 @@ def warm_kernels() -> bool:
         Whether numba is installed and the kernels are compiled (``False``: they run as plain
         Python; ``pip install 'iamp[fast]'`` brings numba).
     """
+    from iamp.core import polyroots
     from iamp.planners.avoid.planner import AvoidQPPlanner
     from iamp.planners.examples import overtake_problem
     from iamp.planners.pmp import compiled, jit
@@ -38,5 +40,6 @@ def warm_kernels() -> bool:
     if not jit.available():
         return False
     ok = compiled.load_axis()
+    polyroots.load()
     AvoidQPPlanner(steps=50, hold="foh", solver="clarabel").plan(overtake_problem())
     return ok

@@ -26,10 +26,6 @@ from iamp.core.safety import safety_report
 needs_numba = pytest.mark.skipif(not jit.available(), reason="numba is not installed")
 
 
-def _python(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(pr, "_PYTHON", True)
-
-
 def _hex(rows: np.ndarray, sig: np.ndarray) -> list[tuple[int, str]]:
     return [(int(r), float(s).hex()) for r, s in zip(rows, sig)]
 
@@ -86,10 +82,11 @@ def test_roots_reports_and_leave_times_are_the_same_with_and_without_numba() -> 
                             for v in problem.vehicles for a in ("x", "y")])
         return out
 
-    compiled = outputs()
     with pytest.MonkeyPatch.context() as mp:
-        _python(mp)
-        assert outputs() == compiled
+        mp.setattr(pr, "_PYTHON", True)
+        python = outputs()
+        assert pr.load() and not pr._PYTHON  # the compiled twins from here on
+        assert outputs() == python
 
 
 def _from_roots(roots: list[float], extra: list[complex], scale: float) -> np.ndarray:

@@ -101,15 +101,27 @@ def _degrees(C: FloatArray, imag_tol: float, skip_far: bool = True) -> NDArray[n
 #: Skip the rows whose Bernstein coefficients prove no root in the window (``False``: every row
 #: of positive degree goes to the eigenvalues, the full computation the tests compare with).
 _SKIP_FAR = True
-#: Run the kernels as Python (numba absent): the same numbers, bit for bit, more slowly.
-_PYTHON = not jit.available()
+#: Run the kernels as Python: the same numbers, bit for bit, more slowly (the default: every plan's
+#: safety report reaches these kernels, and an everyday ``iamp plan`` must not import numba,
+#: ``tests/test_issue22.py``); :func:`load` switches to the compiled twins where numba is installed.
+_PYTHON = True
 _TWINS: dict[str, Any] = {}
 
 
+def load() -> bool:
+    """Use the numba-compiled kernels in this process from now on (opt-in, as the PMP's
+    :func:`~iamp.planners.pmp.compiled.load_axis`; :func:`iamp.planners.kernels.warm_kernels`
+    calls it).  Returns whether they are compiled (``False``: numba is not installed, the kernels
+    stay Python).  The numbers are the same either way."""
+    global _PYTHON
+    _PYTHON = not jit.available()
+    return not _PYTHON
+
+
 def kernel(name: str) -> Any:
-    """The kernel ``name`` of :mod:`iamp.core.polyroots_kernel`, compiled by numba when it is
-    installed (:func:`iamp.core.jit.twin`, cached on disk), else the Python function itself: the
-    same numbers."""
+    """The kernel ``name`` of :mod:`iamp.core.polyroots_kernel`: compiled by numba once
+    :func:`load` was called and numba is installed (:func:`iamp.core.jit.twin`, cached on disk),
+    else the Python function itself: the same numbers."""
     fn = getattr(_kernel, name)
     if _PYTHON:
         return fn
