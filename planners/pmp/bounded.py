@@ -1824,15 +1824,11 @@ def _search_many(ev: _Evaluator, T: float, m: int, starts: list[FloatArray], gri
 
     cands = [np.asarray(s, dtype=float) for s in starts]
     if m <= 2:
-        g = T * (np.arange(grid) + 0.5) / grid
-        cands += list(np.stack(np.meshgrid(*([g] * m), indexing="ij"), axis=-1).reshape(-1, m))
+        cands += list(_mesh(T, grid, m))
     vals = [ev(c)[0] for c in cands]
     info: dict[str, Any] = {"grid": grid}
     if finer and any(math.isfinite(v) for v in vals):
-        per = GRID_MANY[min(m, 4) - 2]
-        g = T * (np.arange(per) + 0.5) / per
-        mesh = np.stack(np.meshgrid(*([g] * m), indexing="ij"), axis=-1).reshape(-1, m)
-        info["grid_points"] = _pruned_grid(ev, mesh, cands, vals)
+        info["grid_points"] = _pruned_grid(ev, _mesh(T, GRID_MANY[min(m, 4) - 2], m), cands, vals)
     if not any(math.isfinite(v) for v in vals):
         return np.full(m, np.nan), {**info, "evaluations": ev.evaluations}
     order = np.argsort(vals)
@@ -1857,6 +1853,12 @@ def _search_many(ev: _Evaluator, T: float, m: int, starts: list[FloatArray], gri
     # one under a tight box); a damped Newton method on r finishes the polish of the best
     best, best_J = _newton_polish(ev, best, best_J, T)
     return best, {**info, "evaluations": ev.evaluations}
+
+
+def _mesh(T: float, per: int, m: int) -> FloatArray:
+    """The midpoints of ``per`` equal cells per axis of ``(0, T)^m``, one row per point."""
+    g = T * (np.arange(per) + 0.5) / per
+    return np.stack(np.meshgrid(*([g] * m), indexing="ij"), axis=-1).reshape(-1, m)
 
 
 def _pruned_grid(ev: _Evaluator, mesh: FloatArray, cands: list[FloatArray], vals: list[float]) -> int:

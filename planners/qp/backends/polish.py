@@ -74,8 +74,9 @@ def polish(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: Floa
     l, u = np.asarray(l, dtype=float), np.asarray(u, dtype=float)
     if not (np.isfinite(z).all() and np.isfinite(y).all()):
         return None
+    A = sp.csr_matrix(A)
     rows, bound = active_rows(A, l, u, z, y)
-    A_act = sp.csc_matrix(sp.csr_matrix(A)[rows])
+    A_act = sp.csc_matrix(A[rows])
     sol = KKTBackend(P, q, A_act, bound, bound).solve()
     if sol.status != st.OPTIMAL or not sol.finite:
         return None
