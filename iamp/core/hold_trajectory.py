@@ -53,33 +53,38 @@ class HoldTrajectory:
     def _locate(self, t: ArrayLike) -> tuple[FloatArray, IntArray, FloatArray, FloatArray]:
         tt = np.atleast_1d(np.asarray(t, dtype=float))
         nodes = np.asarray(self.t_nodes, dtype=float)
-        k = np.clip(np.searchsorted(nodes, tt, side="right") - 1, 0, len(nodes) - 2).astype(np.int64)
+        # clip to [0, N - 1] (np.clip's numbers, without its wrapper's overhead)
+        k = np.minimum(np.maximum(np.searchsorted(nodes, tt, side="right") - 1, 0), len(nodes) - 2)
+        k = k.astype(np.int64, copy=False)
         # the widths of the located pieces only (np.diff(nodes)[k]: the same subtraction)
-        return tt, k, tt - nodes[k], nodes[k + 1] - nodes[k]
+        nk = nodes[k]
+        return tt, k, tt - nk, nodes[k + 1] - nk
 
     def inputs(self, t: ArrayLike) -> FloatArray:
         """``(u_x, u_y)`` at the times ``t``, shape ``(len(t), 2)``."""
         _, k, dt, h = self._locate(t)
         if self.hold == "zoh":
             return np.asarray(self.U[k], dtype=float)
-        return np.asarray(self.U[k] + (self.U[k + 1] - self.U[k]) * (dt / h)[:, None], dtype=float)
+        u0 = self.U[k]
+        return np.asarray(u0 + (self.U[k + 1] - u0) * (dt / h)[:, None], dtype=float)
 
     def states(self, t: ArrayLike) -> FloatArray:
         """``(s_x, v_x, s_y, v_y)`` at the times ``t``, shape ``(len(t), 4)``."""
         _, k, dt, h = self._locate(t)
         Xk = self.X[k]
-        s0 = Xk[:, [0, 2]]
-        v0 = Xk[:, [1, 3]]
+        s0 = Xk[:, 0::2]  # (s_x, s_y): the columns [0, 2] (a view, the same numbers)
+        v0 = Xk[:, 1::2]
         d = dt[:, None]
+        d2 = d**2
         if self.hold == "zoh":
             u = self.U[k]
             v = v0 + u * d
-            s = s0 + v0 * d + u * d**2 / 2
+            s = s0 + v0 * d + u * d2 / 2
         else:
             u0 = self.U[k]
             du = (self.U[k + 1] - u0) / h[:, None]
-            v = v0 + u0 * d + du * d**2 / 2
-            s = s0 + v0 * d + u0 * d**2 / 2 + du * d**3 / 6
+            v = v0 + u0 * d + du * d2 / 2
+            s = s0 + v0 * d + u0 * d2 / 2 + du * d**3 / 6
         out = np.empty((k.size, 4), dtype=np.result_type(s, v))
         out[:, 0::2] = s
         out[:, 1::2] = v

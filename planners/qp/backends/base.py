@@ -37,6 +37,7 @@ relative versions divide by the largest magnitude among each expression's terms 
 from __future__ import annotations
 
 import abc
+import copy
 import functools
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
@@ -190,6 +191,22 @@ class QPSolution:
         return bool(np.isfinite(self.z).all() and np.isfinite(self.y).all())
 
 
+def csc_copy(M: sp.spmatrix) -> sp.csc_matrix:
+    """``M`` as a CSC float matrix of its own, indices sorted: ``sp.csc_matrix(M, dtype=float,
+    copy=True)`` then ``sort_indices()``.  A ``csc_matrix`` of floats (what the planners pass) has its
+    three arrays copied directly, without scipy's conversion and format checks of a matrix that
+    is already one (about 3 µs instead of 13 µs): the same arrays either way."""
+    if type(M) is sp.csc_matrix and M.dtype == np.float64:
+        out = copy.copy(M)
+        out.data, out.indices, out.indptr = M.data.copy(), M.indices.copy(), M.indptr.copy()
+        for flag in ("_has_sorted_indices", "_has_canonical_format"):  # found again, as for a new matrix
+            out.__dict__.pop(flag, None)
+    else:
+        out = sp.csc_matrix(M, dtype=float, copy=True)
+    out.sort_indices()
+    return out
+
+
 @functools.cache
 def dist_version(name: str) -> str | None:
     """Installed version of the distribution ``name`` (``None`` if absent).
@@ -234,10 +251,8 @@ class QPBackend(abc.ABC):
     def __init__(self, P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray,
                  settings: Mapping[str, Any] | None = None) -> None:
         self.require()
-        self.P = sp.csc_matrix(P, dtype=float, copy=True)
-        self.A = sp.csc_matrix(A, dtype=float, copy=True)
-        self.P.sort_indices()
-        self.A.sort_indices()
+        self.P = csc_copy(P)
+        self.A = csc_copy(A)
         self.q = np.array(q, dtype=float)
         self.l = np.array(l, dtype=float)
         self.u = np.array(u, dtype=float)

@@ -47,9 +47,9 @@ def active_rows(A: sp.spmatrix, l: FloatArray, u: FloatArray, z: FloatArray, y: 
     rows = np.flatnonzero(eq | upper | lower)
     bound = np.where(lower, l, u)[rows]
     keep: dict[tuple[bytes, bytes, int], int] = {}
-    for pos, r in enumerate(rows):
-        if eq[r]:
-            continue
+    held = eq[rows]
+    for pos in np.flatnonzero(~held).tolist():  # the inequality rows held (the equalities all are)
+        r = int(rows[pos])
         a, b = A.indptr[r], A.indptr[r + 1]
         side = 1 if upper[r] else -1
         key = (A.indices[a:b].tobytes(), A.data[a:b].tobytes(), side)
@@ -58,7 +58,8 @@ def active_rows(A: sp.spmatrix, l: FloatArray, u: FloatArray, z: FloatArray, y: 
             keep[key] = pos
         elif side * bound[pos] < side * bound[old]:  # the tighter bound of two identical rows
             keep[key] = pos
-    chosen = np.array(sorted([p for p, r in enumerate(rows) if eq[r]] + list(keep.values())), dtype=np.int64)
+    chosen = np.sort(np.concatenate((np.flatnonzero(held), np.fromiter(keep.values(), dtype=np.int64,
+                                                                        count=len(keep))))).astype(np.int64)
     return rows[chosen], bound[chosen]
 
 
