@@ -209,3 +209,58 @@ def test_a_violated_row_without_a_multiplier_is_not_held() -> None:
     kept, _ = active_rows(A, l2, u2, ref.z, y)
     assert up not in kept and lo not in kept
     assert np.array_equal(kept, rows)
+
+
+def _active_rows_by_csr(A: sp.spmatrix, l: np.ndarray, u: np.ndarray, z: np.ndarray, y: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """The rule of the module docstring, row by row on CSR arrays (the reference)."""
+    R = sp.csr_matrix(A)
+    Az = R @ z
+    rows, bounds, seen = [], [], {}
+    for r in range(R.shape[0]):
+        if l[r] == u[r]:
+            rows.append(r)
+            bounds.append(u[r])
+            continue
+        side = 1 if (y[r] > 0 and y[r] > u[r] - Az[r]) else -1 if (y[r] < 0 and -y[r] > Az[r] - l[r]) else 0
+        if side == 0:
+            continue
+        b = u[r] if side > 0 else l[r]
+        a, e = R.indptr[r], R.indptr[r + 1]
+        key = (tuple(R.indices[a:e]), tuple(R.data[a:e]), side)
+        if key not in seen:
+            seen[key] = len(rows)
+            rows.append(r)
+            bounds.append(b)
+        elif side * b < side * bounds[seen[key]]:
+            rows[seen[key]], bounds[seen[key]] = r, b
+    order = np.argsort(rows)
+    return np.asarray(rows, dtype=np.int64)[order], np.asarray(bounds)[order]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_active_rows_and_their_matrix_from_the_csc_arrays_are_those_of_the_csr_rows(seed: int) -> None:
+    """``active_rows`` reads ``A``'s CSC arrays and the polish gathers the held rows from them: the
+    same rows, bounds (duplicate rows, explicit zeros, equalities) and ``A[rows]`` arrays as the
+    CSR reference, and the product ``Az`` the same bits as the CSR product."""
+    from iamp.planners.qp.backends.polish import _rows_of
+
+    rng = np.random.default_rng(seed)
+    m, n = int(rng.integers(4, 40)), int(rng.integers(3, 30))
+    R = sp.random(m, n, density=0.3, random_state=rng, format="csr")
+    R = sp.csr_matrix(R[rng.integers(0, m, size=m)])  # repeated rows
+    R.data[rng.random(R.nnz) < 0.2] = 0.0  # explicit zeros
+    A = R.tocsc()
+    z, y = rng.normal(size=n), rng.normal(size=m)
+    Az = R @ z
+    assert np.array_equal(A @ z, Az)
+    n_eq = int(rng.integers(0, m))
+    u = np.r_[Az[:n_eq], Az[n_eq:] + np.where(rng.random(m - n_eq) < 0.5, 0.0, rng.random(m - n_eq))]
+    l = np.r_[Az[:n_eq], np.where(rng.random(m - n_eq) < 0.5, -np.inf, Az[n_eq:] - rng.random(m - n_eq))]
+    rows, bounds = active_rows(A, l, u, z, y)
+    rows_ref, bounds_ref = _active_rows_by_csr(A, l, u, z, y)
+    assert np.array_equal(rows, rows_ref) and np.array_equal(bounds, bounds_ref)
+    sub, ref = _rows_of(A, rows), sp.csc_matrix(R[rows])
+    assert sub.shape == ref.shape
+    for name in ("data", "indices", "indptr"):
+        assert np.array_equal(getattr(sub, name), getattr(ref, name))

@@ -34,11 +34,20 @@ from iamp.core import status as st
 from .base import FloatArray, QPSolution
 
 
+def _csc(A: sp.spmatrix) -> sp.csc_matrix:
+    """``A`` as CSC (itself when it is one: the avoidance passes its stacked rows so)."""
+    return A if type(A) is sp.csc_matrix else sp.csc_matrix(A)
+
+
 def active_rows(A: sp.spmatrix, l: FloatArray, u: FloatArray, z: FloatArray, y: FloatArray
                 ) -> tuple[np.ndarray, FloatArray]:
     """The rows ``(z, y)`` holds active (module docstring) and the bound each is held at; of rows
-    with the same pattern, values and side only the one with the tighter bound."""
-    A = sp.csr_matrix(A)
+    with the same pattern, values and side only the one with the tighter bound.
+
+    Read from ``A``'s CSC arrays (no conversion to CSR): ``Az`` sums each row's products in the
+    order of its columns, as a CSR product does; a held inequality row's pattern and values are
+    its entries in column order."""
+    A = _csc(A)
     Az = A @ z
     eq = l == u
     with np.errstate(invalid="ignore"):
@@ -46,21 +55,41 @@ def active_rows(A: sp.spmatrix, l: FloatArray, u: FloatArray, z: FloatArray, y: 
         lower = ~eq & (y < 0) & (-y > Az - l)
     rows = np.flatnonzero(eq | upper | lower)
     bound = np.where(lower, l, u)[rows]
-    keep: dict[tuple[bytes, bytes, int], int] = {}
     held = eq[rows]
-    for pos in np.flatnonzero(~held).tolist():  # the inequality rows held (the equalities all are)
-        r = int(rows[pos])
-        a, b = A.indptr[r], A.indptr[r + 1]
-        side = 1 if upper[r] else -1
-        key = (A.indices[a:b].tobytes(), A.data[a:b].tobytes(), side)
-        old = keep.get(key)
-        if old is None:
-            keep[key] = pos
-        elif side * bound[pos] < side * bound[old]:  # the tighter bound of two identical rows
-            keep[key] = pos
+    ineq = np.flatnonzero(~held)  # the inequality rows held (the equalities all are)
+    keep: dict[tuple[bytes, bytes, int], int] = {}
+    if ineq.size:
+        at = np.full(A.shape[0], -1, dtype=np.int64)
+        at[rows[ineq]] = np.arange(ineq.size)
+        which = at[A.indices]
+        ent = np.flatnonzero(which >= 0)  # their entries, column by column
+        col = np.searchsorted(A.indptr, ent, side="right") - 1
+        order = np.argsort(which[ent], kind="stable")  # row by row, each in column order
+        ent, col = ent[order], col[order]
+        cut = np.searchsorted(which[ent], np.arange(ineq.size + 1))
+        for j, pos in enumerate(ineq.tolist()):
+            a, b = cut[j], cut[j + 1]
+            side = 1 if upper[rows[pos]] else -1
+            key = (col[a:b].tobytes(), A.data[ent[a:b]].tobytes(), side)
+            old = keep.get(key)
+            if old is None:
+                keep[key] = pos
+            elif side * bound[pos] < side * bound[old]:  # the tighter bound of two identical rows
+                keep[key] = pos
     chosen = np.sort(np.concatenate((np.flatnonzero(held), np.fromiter(keep.values(), dtype=np.int64,
                                                                         count=len(keep))))).astype(np.int64)
     return rows[chosen], bound[chosen]
+
+
+def _rows_of(A: sp.csc_matrix, rows: np.ndarray) -> sp.csc_matrix:
+    """``A[rows]`` (``rows`` increasing) as CSC, every stored entry kept: the arrays of
+    ``sp.csc_matrix(A.tocsr()[rows])`` gathered from ``A``'s own."""
+    at = np.full(A.shape[0], -1, dtype=np.int64)
+    at[rows] = np.arange(rows.size)
+    new = at[A.indices]
+    kept = new >= 0
+    indptr = np.concatenate(([0], np.cumsum(kept)))[A.indptr].astype(A.indptr.dtype)
+    return sp.csc_matrix((A.data[kept], new[kept].astype(A.indices.dtype), indptr), shape=(rows.size, A.shape[1]))
 
 
 def polish(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray, z: FloatArray,
@@ -75,9 +104,9 @@ def polish(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: Floa
     l, u = np.asarray(l, dtype=float), np.asarray(u, dtype=float)
     if not (np.isfinite(z).all() and np.isfinite(y).all()):
         return None
-    A = sp.csr_matrix(A)
+    A = _csc(A)
     rows, bound = active_rows(A, l, u, z, y)
-    A_act = sp.csc_matrix(A[rows])
+    A_act = _rows_of(A, rows)
     sol = KKTBackend(P, q, A_act, bound, bound).solve()
     if sol.status != st.OPTIMAL or not sol.finite:
         return None
