@@ -43,6 +43,9 @@ class HoldTrajectory:
     U : ndarray, shape (N, 2) for ZOH, (N+1, 2) for FOH
         Nodal inputs ``(u_x, u_y)``.
     hold : {"foh", "zoh"}
+
+    The arrays are not changed after construction: :meth:`states` keeps per-piece rows computed
+    from them on its first call.
     """
 
     t_nodes: FloatArray
@@ -68,27 +71,47 @@ class HoldTrajectory:
         u0 = self.U[k]
         return np.asarray(u0 + (self.U[k + 1] - u0) * (dt / h)[:, None], dtype=float)
 
+    def _piece_rows(self) -> tuple[FloatArray, FloatArray]:
+        """Per piece ``k`` (computed once per trajectory; its arrays are never changed in place):
+        ``G1[k] = (v_x, u_x, v_y, u_y)`` at ``t_k``, the factors of ``δ`` in the state's columns,
+        and ``G2[k]``, those of ``δ²/2``: FOH ``(u_x, u̇_x, u_y, u̇_y)``, ZOH ``(u_x, u_y)`` (the
+        position's only), with ``u̇ = (u_{k+1} − u_k)/h_k`` (the same subtraction and division per
+        piece as for the located pieces alone)."""
+        rows = self.__dict__.get("_rows")
+        if rows is None:
+            nodes = np.asarray(self.t_nodes, dtype=float)
+            n = nodes.size - 1
+            U = self.U
+            G1 = np.empty((n, 4), dtype=np.result_type(self.X, U))
+            G1[:, 0::2] = self.X[:n, 1::2]
+            G1[:, 1::2] = U[:n]
+            if self.hold == "zoh":
+                G2 = np.asarray(U[:n])
+            else:
+                G2 = np.empty((n, 4), dtype=G1.dtype)
+                G2[:, 0::2] = U[:n]
+                G2[:, 1::2] = (U[1:n + 1] - U[:n]) / (nodes[1:] - nodes[:-1])[:, None]
+            rows = self.__dict__["_rows"] = (G1, G2)
+        return rows  # type: ignore[no-any-return]
+
     def states(self, t: ArrayLike) -> FloatArray:
-        """``(s_x, v_x, s_y, v_y)`` at the times ``t``, shape ``(len(t), 4)``."""
-        _, k, dt, h = self._locate(t)
-        Xk = self.X[k]
-        s0 = Xk[:, 0::2]  # (s_x, s_y): the columns [0, 2] (a view, the same numbers)
-        v0 = Xk[:, 1::2]
+        """``(s_x, v_x, s_y, v_y)`` at the times ``t``, shape ``(len(t), 4)``.
+
+        With ``δ = t − t_k``: ZOH ``v = v_k + u_k δ``, ``s = s_k + v_k δ + u_k δ²/2``; FOH
+        ``v = v_k + u_k δ + u̇ δ²/2``, ``s = s_k + v_k δ + u_k δ²/2 + u̇ δ³/6``, each sum from the
+        left, its terms computed for the four columns at once (:meth:`_piece_rows`)."""
+        _, k, dt, _ = self._locate(t)
+        G1, G2 = self._piece_rows()
         d = dt[:, None]
         d2 = d**2
+        out = self.X[k] + G1[k] * d  # (s + v δ, v + u δ)
         if self.hold == "zoh":
-            u = self.U[k]
-            v = v0 + u * d
-            s = s0 + v0 * d + u * d2 / 2
+            out[:, 0::2] += G2[k] * d2 / 2
         else:
-            u0 = self.U[k]
-            du = (self.U[k + 1] - u0) / h[:, None]
-            v = v0 + u0 * d + du * d2 / 2
-            s = s0 + v0 * d + u0 * d2 / 2 + du * d**3 / 6
-        out = np.empty((k.size, 4), dtype=np.result_type(s, v))
-        out[:, 0::2] = s
-        out[:, 1::2] = v
-        return out
+            g2 = G2[k]
+            out += g2 * d2 / 2  # (u δ²/2, u̇ δ²/2)
+            out[:, 0::2] += g2[:, 1::2] * d**3 / 6
+        return np.asarray(out, dtype=float) if out.dtype != np.float64 else out
 
     def cost(self) -> float:
         """``J = ½∫|u|²`` of the held input, exactly."""

@@ -159,14 +159,20 @@ class RowsSolution:
 
 def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -> sp.csc_matrix:
     """``[top; A[rows]]`` as CSC, every stored entry kept (explicit zeros too, so that the same
-    rows always give the same pattern), gathered from the CSR arrays."""
+    rows always give the same pattern), gathered from the CSR arrays: the arrays of
+    ``sp.csr_matrix((data, indices, indptr)).tocsc()``, each column's entries in the order of their
+    rows (a stable sort by column of the row-major entries), without building the CSR matrix."""
     start, stop = A.indptr[rows], A.indptr[rows + 1]
     lens = stop - start
     take = np.repeat(start - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(int(lens.sum()))
-    indptr = np.r_[top.indptr, top.indptr[-1] + np.cumsum(lens)]
-    M = sp.csr_matrix((np.r_[top.data, A.data[take]], np.r_[top.indices, A.indices[take]], indptr),
-                      shape=(top.shape[0] + rows.size, top.shape[1]))
-    return M.tocsc()
+    m, n = top.shape[0] + rows.size, top.shape[1]
+    cols = np.concatenate((top.indices, A.indices[take]))
+    data = np.concatenate((top.data, A.data[take]))
+    row_of = np.repeat(np.arange(m), np.concatenate((np.diff(top.indptr), lens)))
+    order = np.argsort(cols, kind="stable")
+    idx = np.promote_types(top.indices.dtype, A.indices.dtype)
+    indptr = np.concatenate(([0], np.cumsum(np.bincount(cols, minlength=n))))
+    return sp.csc_matrix((data[order], row_of[order].astype(idx), indptr.astype(idx)), shape=(m, n))
 
 
 class RowGeneration:
