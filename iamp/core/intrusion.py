@@ -177,30 +177,29 @@ class _CutPolynomials:
         self.first_extreme = len(base)  # extremes: candidates where depth / distance can attain a max / min
         base += [0, 1, 2, 3, 0, 0, 1, 1]
         const += [0.0, 0.0, 0.0, 0.0, Ax, -Ax, Ay, -Ay]
-        polys = [dX, dY, ddX, ddY]
         # the products (dx − sx Ax) dx' and (dy − sy Ay) dy', each computed once (one row-wise
         # product of the four stacked: each row's numbers are those of its own product)
-        P = dX.shape[0]
+        P, D = dX.shape
         prods = poly_mul(np.concatenate([_shifted(dX, Ax), _shifted(dX, -Ax), _shifted(dY, Ay), _shifted(dY, -Ay)]),
-                         np.concatenate([ddX, ddX, ddY, ddY]))
-        px = {1.0: prods[:P], -1.0: prods[P:2 * P]}
-        py = {1.0: prods[2 * P:3 * P], -1.0: prods[3 * P:]}
-        for sx in (1.0, -1.0):
-            for sy in (1.0, -1.0):
-                # depth crossing: Ax − sx dx = Ay − sy dy
-                base.append(len(polys))
-                const.append(Ay - Ax)
-                polys.append(sy * dY - sx * dX)
-                # stationary points of (dx − sx Ax)² + (dy − sy Ay)²
-                base.append(len(polys))
-                const.append(0.0)
-                polys.append(px[sx] + py[sy])
+                         np.concatenate([ddX, ddX, ddY, ddY])).reshape(4, P, -1)
+        # per sign pair (sx, sy) = (1, 1), (1, −1), (−1, 1), (−1, −1): the depth crossing
+        # Ax − sx dx = Ay − sy dy and the stationary points of (dx − sx Ax)² + (dy − sy Ay)²
+        sx = np.array([1.0, 1.0, -1.0, -1.0])[:, None, None]
+        sy = np.array([1.0, -1.0, 1.0, -1.0])[:, None, None]
+        cross = sy * dY - sx * dX
+        stationary = prods[[0, 0, 1, 1]] + prods[[2, 3, 2, 3]]
+        # the polynomials, zero-padded to n2 columns: dX, dY, dX', dY', then per sign pair its
+        # crossing and its stationary points
+        padded = np.zeros((12, P, n2))
+        padded[0, :, :D], padded[1, :, :D] = dX, dY
+        padded[2, :, :D - 1], padded[3, :, :D - 1] = ddX, ddY
+        padded[4::2, :, :D] = cross
+        padded[5::2, :, :stationary.shape[2]] = stationary
+        base += [4, 5, 6, 7, 8, 9, 10, 11]
+        const += [Ay - Ax, 0.0] * 4
         self.n_groups = len(base)
-        # every group's polynomial written into its rows (zero-padded to n2 columns), then its
-        # constant subtracted (subtracting 0.0 changes no bit)
-        padded = np.zeros((len(polys), P, n2))
-        for k, A in enumerate(polys):
-            padded[k, :, :A.shape[1]] = A
+        # every group's polynomial written into its rows, then its constant subtracted
+        # (subtracting 0.0 changes no bit)
         rows = padded[base]
         rows[:, :, 0] -= np.asarray(const)[:, None]
         self.rows = rows.reshape(self.n_groups * P, n2)
