@@ -111,7 +111,7 @@ class HoldTrajectory:
             g2 = G2[k]
             out += g2 * d2 / 2  # (u δ²/2, u̇ δ²/2)
             out[:, 0::2] += g2[:, 1::2] * d**3 / 6
-        return np.asarray(out, dtype=float) if out.dtype != np.float64 else out
+        return out
 
     def cost(self) -> float:
         """``J = ½∫|u|²`` of the held input, exactly."""
