@@ -306,3 +306,31 @@ def test_bad_nodes_steps_and_holds_are_rejected():
     for bad in ([0], [10], [3, 4]):
         with pytest.raises(ValueError):
             q.solve_nodes(bad)
+
+
+@pytest.mark.parametrize("form", ["csc", "csc_unsorted", "csr", "dense", "csc_int"])
+def test_csc_copy_is_scipys_copy_with_sorted_indices_and_owns_its_arrays(form: str) -> None:
+    """:func:`~iamp.planners.qp.backends.base.csc_copy` (how every backend takes ``P`` and ``A``):
+    the arrays of ``sp.csc_matrix(M, dtype=float, copy=True)`` after ``sort_indices()`` for any
+    input, and none shared with the caller's matrix (a backend's value update writes into them)."""
+    from iamp.planners.qp.backends.base import csc_copy
+
+    rng = np.random.default_rng(3)
+    M = sp.random(9, 7, density=0.4, random_state=rng, format="csc")
+    M.data[::3] = 0.0  # explicit zeros are kept
+    if form == "csc_unsorted":
+        M = sp.csc_matrix((M.data[::-1].copy(), M.indices[::-1].copy(), M.indptr.copy()), shape=M.shape)
+        order = np.argsort(np.repeat(np.arange(M.shape[1]), np.diff(M.indptr)), kind="stable")
+        M = sp.csc_matrix((M.data[order], M.indices[order], M.indptr), shape=M.shape)
+        assert not M.has_sorted_indices
+    as_int = sp.csc_matrix((np.round(M.data * 10).astype(np.int64), M.indices, M.indptr), shape=M.shape)
+    given = {"csc": M, "csc_unsorted": M, "csr": M.tocsr(), "dense": M.toarray(), "csc_int": as_int}[form]
+    ref = sp.csc_matrix(given, dtype=float, copy=True)
+    ref.sort_indices()
+    out = csc_copy(given)
+    assert type(out) is sp.csc_matrix and out.shape == ref.shape and out.has_sorted_indices
+    for name in ("data", "indices", "indptr"):
+        a, b = getattr(out, name), getattr(ref, name)
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+        if sp.issparse(given):
+            assert not np.shares_memory(a, getattr(given, name))

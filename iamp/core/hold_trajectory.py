@@ -92,7 +92,7 @@ class HoldTrajectory:
                 G2[:, 0::2] = U[:n]
                 G2[:, 1::2] = (U[1:n + 1] - U[:n]) / (nodes[1:] - nodes[:-1])[:, None]
             rows = self.__dict__["_rows"] = (G1, G2)
-        return rows  # type: ignore[no-any-return]
+        return rows
 
     def states(self, t: ArrayLike) -> FloatArray:
         """``(s_x, v_x, s_y, v_y)`` at the times ``t``, shape ``(len(t), 4)``.
