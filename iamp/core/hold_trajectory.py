@@ -53,21 +53,21 @@ class HoldTrajectory:
     U: FloatArray
     hold: str
 
-    def _locate(self, t: ArrayLike) -> tuple[FloatArray, IntArray, FloatArray, FloatArray]:
+    def _locate(self, t: ArrayLike) -> tuple[IntArray, FloatArray]:
+        """Each time's piece ``k`` (the last node ``<= t``, clipped to ``0..N-1``: the count of the
+        interior nodes ``<= t``) and its offset ``t − t_k``."""
         tt = np.atleast_1d(np.asarray(t, dtype=float))
         nodes = np.asarray(self.t_nodes, dtype=float)
-        # clip to [0, N - 1] (np.clip's numbers, without its wrapper's overhead)
-        k = np.minimum(np.maximum(np.searchsorted(nodes, tt, side="right") - 1, 0), len(nodes) - 2)
-        k = k.astype(np.int64, copy=False)
-        # the widths of the located pieces only (np.diff(nodes)[k]: the same subtraction)
-        nk = nodes[k]
-        return tt, k, tt - nk, nodes[k + 1] - nk
+        k = np.searchsorted(nodes[1:-1], tt, side="right").astype(np.int64, copy=False)
+        return k, tt - nodes[k]
 
     def inputs(self, t: ArrayLike) -> FloatArray:
         """``(u_x, u_y)`` at the times ``t``, shape ``(len(t), 2)``."""
-        _, k, dt, h = self._locate(t)
+        k, dt = self._locate(t)
         if self.hold == "zoh":
             return np.asarray(self.U[k], dtype=float)
+        nodes = np.asarray(self.t_nodes, dtype=float)
+        h = nodes[k + 1] - nodes[k]  # the widths of the located pieces (np.diff(nodes)[k]: the same subtraction)
         u0 = self.U[k]
         return np.asarray(u0 + (self.U[k + 1] - u0) * (dt / h)[:, None], dtype=float)
 
@@ -100,7 +100,7 @@ class HoldTrajectory:
         With ``δ = t − t_k``: ZOH ``v = v_k + u_k δ``, ``s = s_k + v_k δ + u_k δ²/2``; FOH
         ``v = v_k + u_k δ + u̇ δ²/2``, ``s = s_k + v_k δ + u_k δ²/2 + u̇ δ³/6``, each sum from the
         left, its terms computed for the four columns at once (:meth:`_piece_rows`)."""
-        _, k, dt, _ = self._locate(t)
+        k, dt = self._locate(t)
         G1, G2 = self._piece_rows()
         d = dt[:, None]
         d2 = d**2
