@@ -157,6 +157,19 @@ BETTER_REL = 1e-6
 #: (``r`` = -2.7e-6) and ended ``inaccurate`` (Hamiltonian jump 5.4e-7 against 1e-7).
 STATIONARY_TIE_REL = 1e-10
 
+#: Axis-pair solves of the thin-valley polish (:func:`_valley_polish`) from one start: several
+#: vehicles where the search, the edge polish and the search without the finer grid all end
+#: ``inaccurate``.  Of 10 such problems of scripts/bounded_sweep.py (default_rng 7-10), the polish
+#: brought 6 to a verified plan within 6500 solves (the slowest) from the edge polish's times.
+VALLEY_SOLVES = 8000
+
+#: Newton iterations of :func:`_valley_polish` from one start.
+VALLEY_ITERATIONS = 80
+
+#: Cycles of :func:`_valley_sweep` before a step of :func:`_valley_polish` (its first two, and
+#: after a step that did not halve ``max|r|``).
+VALLEY_CYCLES = 3
+
 #: The tolerance entry of each check of :func:`check_values`.
 BOUNDED_TOLERANCE_OF = {
     "boundary": "pmp_bounded_residual",
@@ -1959,6 +1972,199 @@ def _newton_polish(ev: _Evaluator, x: FloatArray, J: float, T: float, iterations
     return x, Jx
 
 
+def _fd_width(ev: _Evaluator, x: FloatArray, i: int, T: float) -> float | None:
+    """The central-difference width for ``r`` along contact time ``i`` at ``x``: ``1e-6 t_f``,
+    quartered until ``x ± width`` both admit a plan (``None`` below ``1e-23 t_f``)."""
+    h = 1e-6 * T
+    for _ in range(30):
+        e = np.zeros(len(x))
+        e[i] = h
+        if math.isfinite(ev(x + e)[0]) and math.isfinite(ev(x - e)[0]):
+            return h
+        h *= 0.25
+    return None
+
+
+def _root_along(ev: _Evaluator, x: FloatArray, i: int, T: float) -> FloatArray | None:
+    """``x`` with contact time ``i`` at a zero of ``r_i`` (the others fixed), bracketed inside the
+    feasible contact times: steps from ``x`` down ``J_b`` (``1e-9 t_f``, growing 4×) until ``r_i``
+    changes sign, bisecting towards the last feasible time where a step leaves the feasible set,
+    then Brent's method; ``None`` when ``r_i`` keeps its sign up to the edge (``J_b`` falls out of
+    the set along ``t_i``: no zero to seat it at) or the bracket fails."""
+    from scipy.optimize import brentq
+
+    ri = float(ev(x)[1][i])
+    if ri == 0.0:
+        return x
+    side = -math.copysign(1.0, ri)
+    step, a = 1e-9 * T, float(x[i])
+    b: float | None = None
+    while b is None:
+        y = np.array(x, dtype=float)
+        y[i] = a + side * step
+        if not 0.0 < y[i] < T:
+            return None
+        Jy, ry, _ = ev(y)
+        if math.isfinite(Jy):
+            if float(ry[i]) * ri <= 0.0:
+                b = float(y[i])
+            else:
+                a, step = float(y[i]), 4.0 * step
+            continue
+        lo, hi = a, float(y[i])
+        while b is None:
+            mid = 0.5 * (lo + hi)
+            if mid in (lo, hi):
+                return None
+            y[i] = mid
+            Jm, rm, _ = ev(y)
+            if not math.isfinite(Jm):
+                hi = mid
+            elif float(rm[i]) * ri > 0.0:
+                lo = mid
+            else:
+                a, b = lo, mid
+
+    def r_i(v: float) -> float:
+        z = np.array(x, dtype=float)
+        z[i] = v
+        return float(ev(z)[1][i])
+
+    try:
+        root = float(brentq(r_i, min(a, b), max(a, b), xtol=1e-15 * T, maxiter=200))
+    except (ValueError, RuntimeError):
+        return None
+    out = np.array(x, dtype=float)
+    out[i] = root
+    return out
+
+
+def _valley_sweep(ev: _Evaluator, x: FloatArray, T: float, held: dict[int, float]) -> FloatArray:
+    """One cycle of :func:`_valley_polish`'s sweeps: each contact time in turn (the others fixed) at
+    the zero of its ``r_i`` inside the feasible set (:func:`_root_along`), or, where ``r_i`` keeps
+    its sign up to the edge (``J_b`` falls out of the set), seated at that edge
+    (:func:`_seat_at_edge`; recorded in ``held`` with its side); then a line search along the
+    cycle's displacement (doubling while ``J_b`` falls: the valley's direction)."""
+    J = ev(x)[0]
+    before = x.copy()
+    for i in range(len(x)):
+        z = _root_along(ev, x, i, T)
+        if z is None:
+            ri = float(ev(x)[1][i])
+            side = -math.copysign(1.0, ri)
+            z = _seat_at_edge(ev, x, i, side, T) if ri != 0.0 else None
+            if z is not None and float(ev(z)[1][i]) * side < 0:
+                held[i] = side
+            else:
+                z = None
+        else:
+            held.pop(i, None)
+        if z is not None and ev(z)[0] <= J + 1e-10 * abs(J):
+            x, J = z, ev(z)[0]
+    step = x - before
+    if held or not np.any(step):
+        return x
+    beta = 1.0
+    for _ in range(30):
+        y = x + beta * step
+        Jy = ev(y)[0]
+        if not (math.isfinite(Jy) and Jy < J):
+            break
+        x, J = y, Jy
+        beta *= 2.0
+    return x
+
+
+def _valley_polish(ev: _Evaluator, x: FloatArray, T: float, verified: Any,
+                   solves: int = VALLEY_SOLVES, iterations: int = VALLEY_ITERATIONS
+                   ) -> tuple[FloatArray, dict[int, float], Any] | None:
+    r"""Several vehicles: a stationary point of ``J_b`` in a thin curved valley of the feasible
+    contact times, where :func:`_newton_polish` and :func:`_edge_polish` stall.
+    ``verified(t, held)`` judges a candidate (the full self-check at ``t``, the times of ``held``
+    at an edge: a result, or ``None`` when a check fails); returns ``(t, held, result)`` for the
+    first candidate it accepts, ``None`` when none within ``solves`` axis-pair solves or
+    ``iterations`` steps.
+
+    Under a tight box on one input the feasible contact times can be a band ``1e-6 .. 1e-4 t_f``
+    wide along some times, whose edges move with the other times, with ``J_b`` rising steeply
+    towards them (``r_i`` from ``-10^5`` to ``+10^5`` across the band: a slice through it has a
+    zero of ``r_i``).  The curvatures across and along the band differ by up to ``10^7``: central
+    differences ``1e-6 t_f`` wide cross its edges (:func:`_newton_polish` then falls back to
+    steepest descent and stops), and the Hessian's errors across the band swamp the curvature
+    along it.  Here each step (1) on the first two steps and after a step that did not halve
+    ``max|r|``: :data:`VALLEY_CYCLES` cycles of :func:`_valley_sweep` (every time at the zero of
+    its own ``r_i`` inside the band, the valley's floor, or held at an edge ``J_b`` falls out
+    through; a line search along each cycle's displacement), (2) a Newton step on the times not
+    held, with the Hessian by central differences of ``r`` ``1e-6 t_f`` wide, or 1/100 of the
+    width the feasible set allows across the band (:func:`_fd_width`), its eigenvalues replaced
+    by their moduli (floored at ``1e-10`` of the largest), backtracking as :func:`_newton_polish`
+    does.  The self-check judges the point once ``max|r| t_f`` over the times not held is below
+    ``1e-6 J_b``; nothing is claimed from the iteration itself.
+
+    Found by scripts/bounded_sweep.py (2026-11-29): 10 problems ``inaccurate`` (Hamiltonian jump
+    0.26 .. 1.0), e.g. random_problem(320117, m=3) under an ``a_y`` box at 0.5535 (the FOH QP's
+    sweep at ``N = 8`` plans at 17226.0): ``local`` at 12538.09 with every check passing."""
+    m = len(x)
+    start = ev.evaluations
+    x = np.array(x, dtype=float)
+    J, r, _ = ev(x)
+    if not (math.isfinite(J) and np.all(np.isfinite(r))):
+        return None
+    held: dict[int, float] = {}
+    poor = True
+    for it in range(iterations):
+        if it < 2 or poor:
+            for _ in range(VALLEY_CYCLES):
+                x = _valley_sweep(ev, x, T, held)
+            J, r, _ = ev(x)
+        free = [i for i in range(m) if i not in held]
+        if not free or ev.evaluations - start > solves:
+            return None
+        rf = r[free]
+        r_before = float(np.max(np.abs(rf)))
+        k = len(free)
+        H = np.empty((k, k))
+        for j, i in enumerate(free):
+            h = _fd_width(ev, x, i, T)
+            if h is None:
+                return None
+            if h < 1e-6 * T:  # across the band: well inside its edges
+                h *= 0.01
+            e = np.zeros(m)
+            e[i] = h
+            H[:, j] = (ev(x + e)[1][free] - ev(x - e)[1][free]) / (2 * h)
+        H = 0.5 * (H + H.T)
+        if not np.all(np.isfinite(H)):
+            return None
+        w, V = np.linalg.eigh(H)
+        w = np.maximum(np.abs(w), 1e-10 * float(np.max(np.abs(w))))
+        if not np.all(w > 0):
+            return None
+        d = np.zeros(m)
+        d[free] = -(V @ ((V.T @ rf) / w))
+        slope = float(rf @ d[free])
+        noise = 1e-10 * max(1.0, abs(J))
+        alpha, moved = 1.0, False
+        for _k in range(50):
+            xn = x + alpha * d
+            Jn, rn, _ = ev(xn)
+            if math.isfinite(Jn) and (Jn <= J + 1e-4 * alpha * slope or (
+                    Jn <= J + noise and float(np.max(np.abs(rn[free]))) <= 0.5 * r_before)):
+                x, J, r, moved = xn, Jn, rn, True
+                break
+            alpha *= 0.5
+        if not moved:
+            return None
+        poor = float(np.max(np.abs(r[free]))) > 0.5 * r_before
+        if float(np.max(np.abs(r[free]))) * T <= 1e-6 * max(1.0, abs(J)):
+            result = verified(x, dict(held))
+            if result is not None:
+                return x, dict(held), result
+        if ev.evaluations - start > solves:
+            return None
+    return None
+
+
 def _seat_at_edge(ev: _Evaluator, x: FloatArray, i: int, side: float, T: float) -> FloatArray | None:
     """``x`` with contact time ``i`` moved to the edge of the feasible contact times on ``side``
     (``+1`` later, ``-1`` earlier; the others fixed), planned :data:`EDGE_BACKOFF` ``t_f`` inside
@@ -2163,7 +2369,8 @@ def _feasible_start(ev: _Evaluator, search: dict[str, Any], grid: int = 64, per_
 
 
 def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times: Any = None,
-                 start: float | None = None, certify: bool = True, retries: int = 2, finer: bool = True) -> Plan:
+                 start: float | None = None, certify: bool = True, retries: int = 2, finer: bool = True,
+                 valley: bool = True) -> Plan:
     """The bounded PMP plan (module docstring): fixed ``contact_times`` or a search from
     ``start_times`` (the unbounded ``t*``).  With ``certify`` (one vehicle, free contact time)
     :func:`certify_global_one` decides ``optimal`` (certified global) or ``local``.  Never
@@ -2263,6 +2470,7 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         except (AxisInfeasible, AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError, ZeroDivisionError,
                 OverflowError):
             pass
+    valley_starts = [t]
     if failed == "hamiltonian_jump" and m > 1 and not fixed:
         # several vehicles: the minimum may sit at an edge of the feasible contact times, where
         # r_i ≠ 0 for the times at the edge: the polish keeps those at their edge and moves the
@@ -2271,6 +2479,7 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         polished = _edge_polish(ev, t, T)
         if polished is not None and not np.array_equal(polished[0], t):
             t_e, edges, held = polished
+            valley_starts.insert(0, t_e)
             try:
                 with np.errstate(all="ignore"):
                     sol_e = solve_bounded_fixed(problem, t_e, ev.warm_for(t_e))
@@ -2314,11 +2523,46 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         # the finer grid's start led to a minimum the checks do not verify (on a curved edge of
         # the feasible contact times): the search without it, whose plan may pass them
         # (random_problem(369004, m=2) under an a_y box at 0.373: `local` 2579.171 without it)
-        again = plan_bounded(problem, start_times, None, t0, certify, retries, finer=False)
+        again = plan_bounded(problem, start_times, None, t0, certify, retries, finer=False, valley=False)
         if again.status in (OPTIMAL, LOCAL):
             again.annotate(search={**(getattr(again.diagnostics, "search", None) or {}),
                                    "finer_grid_unverified": {"t": [float(x) for x in t], "failed_check": failed}})
             return again
+    if failed == "hamiltonian_jump" and m > 1 and not fixed and valley:
+        # still unverified: a thin curved valley of feasible contact times (_valley_polish), from
+        # the edge polish's times, then the search's; the plan is taken only if every check passes
+
+        def verified(x: FloatArray, held: dict[int, float]
+                     ) -> tuple[BoundedSolution, dict[str, float], Any] | None:
+            for warm in (ev.warm_for(x), None):
+                try:
+                    with np.errstate(all="ignore"):
+                        s_v = solve_bounded_fixed(problem, x, warm)
+                        v_v = check_values(s_v, stationary=True, at_edge=sorted(held))
+                except (AxisInfeasible, AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError,
+                        ZeroDivisionError, OverflowError):
+                    continue
+                j_v = judge(v_v)
+                if j_v[2] is None and _kkt_at_edges(ev, s_v, held, T):
+                    return s_v, v_v, j_v
+            return None
+
+        for k, x0 in enumerate(valley_starts):
+            before = ev.evaluations
+            found = _valley_polish(ev, x0, T, verified)
+            if found is not None:
+                t, edges_v, (sol, values, (checks, failed, bad)) = found
+                search["valley_polish"] = {"start": "edge polish" if k < len(valley_starts) - 1 else "search",
+                                           "from": [float(v) for v in x0], "solves": ev.evaluations - before}
+                search.pop("edge_polish", None)
+                search.pop("feasibility_edges", None)
+                if edges_v:
+                    r_v = sol.hamiltonian_jump_residual()
+                    search["feasibility_edges"] = [
+                        {"vehicle": i, "side": "upper" if edges_v[i] > 0 else "lower",
+                         "t": float(sol.contact_times[i]), "slope": float(r_v[i])} for i in sorted(edges_v)]
+                search["evaluations"] = ev.evaluations
+                break
     certified = bool(fixed)
     if bad is None and not fixed:
         if m == 1 and certify:
