@@ -72,13 +72,38 @@ class KKTStructure:
     block_max: int
 
 
+def _pattern(rows: IntArray, cols: IntArray, nk: int) -> sp.csr_matrix:
+    """``sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(nk, nk))``: each distinct entry once,
+    its value the number of times it is given, in row-major order (its canonical CSR arrays)."""
+    keys, counts = np.unique(rows * nk + cols, return_counts=True)
+    idx = np.int32 if max(nk, keys.size) < np.iinfo(np.int32).max else np.int64
+    indptr = np.concatenate(([0], np.cumsum(np.bincount(keys // nk, minlength=nk)))).astype(idx)
+    return sp.csr_matrix((counts.astype(float), (keys % nk).astype(idx), indptr), shape=(nk, nk))
+
+
+def _component(pattern: sp.csr_matrix, nodes: IntArray) -> sp.csr_matrix:
+    """``pattern[nodes][:, nodes]`` of a connected component ``nodes`` (increasing) of the
+    symmetric, canonical ``pattern``: its rows' entries all lie in the component, so the submatrix
+    is those rows with their columns renumbered (an increasing map: each row stays sorted), the
+    arrays scipy's indexing gives, without its search of every row for the kept columns."""
+    at = np.full(pattern.shape[0], -1, dtype=np.int64)
+    at[nodes] = np.arange(nodes.size)
+    start, stop = pattern.indptr[nodes], pattern.indptr[nodes + 1]
+    lens = stop - start
+    take = np.repeat(start - np.concatenate(([0], np.cumsum(lens)[:-1])), lens) + np.arange(int(lens.sum()))
+    idx = pattern.indices.dtype
+    indptr = np.concatenate(([0], np.cumsum(lens))).astype(idx)
+    return sp.csr_matrix((pattern.data[take], at[pattern.indices[take]].astype(idx), indptr),
+                         shape=(nodes.size, nodes.size))
+
+
 def _blocks(pattern: sp.csr_matrix, nk: int) -> tuple[IntArray, IntArray, int]:
     """``perm`` (blocks one after another, each in RCM order), ``starts``, number of blocks."""
     ncomp, label = connected_components(pattern, directed=False)
     parts, starts = [], [0]
     for c in range(ncomp):
         nodes = np.flatnonzero(label == c)
-        sub = sp.csr_matrix(pattern[nodes][:, nodes])
+        sub = _component(pattern, nodes)
         order = np.asarray(reverse_cuthill_mckee(sub, symmetric_mode=True), dtype=np.int64)
         parts.append(nodes[order])
         starts.append(starts[-1] + nodes.size)
@@ -101,7 +126,7 @@ def _analyse(P: sp.csc_matrix, A: sp.csc_matrix, border_row_nnz: int) -> KKTStru
     p_rows = P.indices.astype(np.int64)
     pr = np.concatenate([p_rows, p_cols, kr, kc, np.arange(nk)])
     pc = np.concatenate([p_cols, p_rows, kc, kr, np.arange(nk)])
-    pattern = sp.csr_matrix((np.ones(pr.size), (pr, pc)), shape=(nk, nk))
+    pattern = _pattern(pr, pc, nk)
     perm, starts, ncomp = _blocks(pattern, nk)
     inv = np.empty(nk, dtype=np.int64)
     inv[perm] = np.arange(nk)
