@@ -153,14 +153,16 @@ def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
     A held trajectory (:class:`~iamp.planners.qp.hold.HoldTrajectory`) finds the scan's bracket
     from the exact roots of its margin, a polynomial per piece (:func:`_scan_bracket`), and checks
     it at the bracket's two scan points; the root is then solved on that bracket as after the scan
-    (the same number, without evaluating the 1 ms scan), and any other case scans."""
+    (the same number, without evaluating the 1 ms scan; Brent's method takes the margins at the
+    bracket's ends from that check, the numbers it would compute), and any other case scans."""
     t = np.linspace(0.0, tf, max(2, int(np.ceil(tf / 1e-3)) + 1))
     axis = 0 if plane.axis == "x" else 2
 
     def margin(x: FloatArray) -> FloatArray:
         return np.asarray(plane.margin(x, traj.states(x)[:, axis]), dtype=float)
 
-    k = _scan_bracket(traj, plane, t, margin)
+    seen: dict[float, float] = {}
+    k = _scan_bracket(traj, plane, t, margin, seen)
     if k is None:
         inside = np.flatnonzero(margin(t) >= -1e-12)
         if inside.size == 0:
@@ -172,12 +174,14 @@ def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
         return float(tf)
 
     def g(x: float) -> float:  # the same 1e-12 m tolerance as the scan: a sign change is bracketed
-        return float(margin(np.array([x]))[0]) + 1e-12
+        m = seen.get(x)  # the bracket's ends, evaluated by _scan_bracket (brentq's first two calls)
+        return float(margin(np.array([x]))[0] if m is None else m) + 1e-12
 
     return float(optimize.brentq(g, float(t[k]), float(t[k + 1]), xtol=1e-13))
 
 
-def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any) -> int | None:
+def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any,
+                  seen: dict[float, float] | None = None) -> int | None:
     r"""The last index of the scan ``t`` whose margin is ``>= -1e-12`` (``-1``: none), from the
     exact roots of the margin of a held trajectory, or None (the caller scans).
 
@@ -224,5 +228,7 @@ def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any) -> in
     k = int(np.clip(np.searchsorted(t, last, side="right") - 1, 0, t.size - 2))
     pair = margin(t[k:k + 2])
     if pair[0] >= -1e-12 and pair[1] < -1e-12:
+        if seen is not None:  # a held trajectory's margin at a time is the same evaluated alone
+            seen.update({float(t[k]): float(pair[0]), float(t[k + 1]): float(pair[1])})
         return k
     return None
