@@ -271,7 +271,7 @@ def densify(polyline: FloatArray, spacing: float) -> FloatArray:
 
 def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_b: float,
                 t: FloatArray, via: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0), (1.0, 0.0)),
-                ) -> tuple[tuple[float, float], list[Obstacle], tuple[FloatArray, FloatArray, FloatArray]]:
+                ) -> tuple[tuple[float, float], list[Obstacle], tuple[FloatArray, FloatArray, FloatArray], float]:
     r"""The road corridor of the ego's lane: its widest lateral range as §14 ``y`` limits and the
     parts where it is narrower as static boxes to avoid (module docstring, "Road edges").
 
@@ -288,6 +288,9 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
     box :math:`[s_1, s_2] \times [\min_s d^- - 3, \max_{run} d^-]` (resp. above), which the planner
     avoids like a standing vehicle (obstacle ids -1, -2, ...).  The third value is the corridor
     itself, ``(s, d^-(s), d^+(s))`` at every sample (``nan`` where no lanelet covers ``s``).
+    Where the mapped road ends before ``s_b`` (no lanelet of the corridor beyond it), the end is
+    one more box, across the road from there on; the fourth value is where it starts (``inf``
+    where the road reaches ``s_b``).
     """
     cache: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
 
@@ -345,12 +348,16 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
                 return ll
         return None
 
-    for i, s in enumerate(grid):
-        # seeds: the ego's own lane and the lanelet under the straight line from the start to the
-        # goal (where the road splits, the goal's branch is part of the corridor too)
+    def seeds(s: float) -> tuple[Any, Any]:
+        """The corridor's seeds at ``s``: the ego's own lane (else the line's lanelet) and the
+        lanelet under the straight line from the start to the goal (where the road splits, the
+        goal's branch is part of the corridor too); ``own`` None where neither covers ``s``."""
         d_line = float(np.interp(s, [via[0][0], via[1][0]], [via[0][1], via[1][1]]))
-        line = containing(float(s), d_line)
-        own = next((ll for ll in chain if at(ll, float(s)) is not None), None) or line
+        line = containing(s, d_line)
+        return next((ll for ll in chain if at(ll, s) is not None), None) or line, line
+
+    for i, s in enumerate(grid):
+        own, line = seeds(float(s))
         if own is None:
             continue
         group, todo = {own.lanelet_id: own}, [own]
@@ -379,7 +386,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             top = max(top, b)
     ok = np.isfinite(lo)
     if not ok.any():
-        return (-1e3, 1e3), [], (grid, lo, hi)
+        return (-1e3, 1e3), [], (grid, lo, hi), math.inf
     y_lo, y_hi = float(np.min(lo[ok])), float(np.max(hi[ok]))
     boxes: list[Obstacle] = []
     n = t.size
@@ -409,13 +416,32 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             half = 0.5 * (s2 - s1)
             boxes.append(Obstacle(oid, t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
                                   2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
+    last = int(np.flatnonzero(ok)[-1])
+    road_end = math.inf
+    if last < grid.size - 1:
+        # the mapped road ends ahead (no lanelet of the corridor beyond): CommonRoad's road ends
+        # there too, so the end is a box across the road, its start found to 1e-6 m by bisection
+        # between the last sample on the road and the first off it
+        a_s, b_s = float(grid[last]), float(grid[last + 1])
+        while b_s - a_s > 1e-6:
+            mid = 0.5 * (a_s + b_s)
+            if seeds(mid)[0] is not None:
+                a_s = mid
+            else:
+                b_s = mid
+        road_end = s1 = a_s
+        s2 = float(grid[-1]) + EDGE_REACH_M
+        d1, d2 = y_lo - 3.0, y_hi + 3.0
+        half = 0.5 * (s2 - s1)
+        boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
+                              2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
     for run_s, run_lo, run_hi in _hole_runs(grid, gaps):
         s1, s2 = float(run_s[0]) - EDGE_STEP_M, float(run_s[-1]) + EDGE_STEP_M
         d1, d2 = float(np.min(run_lo)), float(np.max(run_hi))
         half = 0.5 * (s2 - s1)
         boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
                               2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False, True))
-    return (y_lo, y_hi), boxes, (grid, lo, hi)
+    return (y_lo, y_hi), boxes, (grid, lo, hi), road_end
 
 
 def _hole_runs(grid: FloatArray, gaps: list[list[tuple[float, float]]]) -> list[tuple[FloatArray, FloatArray,
@@ -456,6 +482,14 @@ def _corners(center: FloatArray, length: float, width: float, orientation: float
     half = np.array([[length / 2, width / 2], [length / 2, -width / 2], [-length / 2, width / 2],
                      [-length / 2, -width / 2]])
     return np.asarray(center + half @ np.array([[c, s], [-s, c]]), dtype=float)
+
+
+def _lane_end(frame: RoadFrame, chain: list[Any]) -> float:
+    """Where the chain of lanelets ``chain`` (:func:`_chain`) ends along the road: the nearer of
+    its last lanelet's bounds' ends in ``frame`` [m]."""
+    last = chain[-1]
+    return min(float(np.max(frame.to_road(np.asarray(v, dtype=float))[:, 0]))
+               for v in (last.right_vertices, last.left_vertices))
 
 
 def _chain(network: Any, start_id: int) -> list[Any]:
@@ -541,6 +575,10 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     except (AttributeError, TypeError, ValueError) as exc:
         raise ScenarioError(f"unreadable goal region ({exc.__class__.__name__}: {exc})", "goalState", src) from None
     steps = goal.steps
+    if any(e.pieces is None for e in goal.elements):
+        # a goal state without a position ends in the ego's lane on the mapped road: the body's
+        # centre half a body and its buffer before the end of the lane's chain of lanelets
+        goal.s_max = _lane_end(frame, chain) - float(params.l) / 2 - BUFFER_M
 
     # --- final-state candidates --------------------------------------------------------------
     candidates = final_candidates((s0, vs0, d0, vd0), goal, dt)
@@ -552,12 +590,15 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     for y in lanes:
         if not merged or y - merged[-1] > 1.5:
             merged.append(y)
-    s_end = max((c.s for c in candidates), default=s0 + vs0 * steps[1] * dt)
-    via = min(candidates, key=lambda c: c.cost0) if candidates else None
-    road_y, road_edges, corridor = _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M,
-                                     max(s0, s_end) + EDGE_REACH_M,
-                                     np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64),
-                                     ((s0, d0), (via.s, via.d) if via is not None else (s0 + 1.0, d0)))
+    def corridor_of(cands: list[Candidate]) -> tuple[tuple[float, float], list[Obstacle],
+                                                     tuple[FloatArray, FloatArray, FloatArray], float]:
+        s_end = max((c.s for c in cands), default=s0 + vs0 * steps[1] * dt)
+        via = min(cands, key=lambda c: c.cost0) if cands else None
+        return _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M, max(s0, s_end) + EDGE_REACH_M,
+                           np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64),
+                           ((s0, d0), (via.s, via.d) if via is not None else (s0 + 1.0, d0)))
+
+    road_y, road_edges, corridor, _ = corridor_of(candidates)
 
     # --- recorded vehicles --------------------------------------------------------------------
     obstacles: list[Obstacle] = []

@@ -17,7 +17,11 @@ over the goal's elements written as linear constraints in the road frame:
 
 * **position**: :math:`(s_f, d_f)` inside each convex piece of the goal's shape mapped to the road
   frame (a rectangle's corners; a lanelet cut into pieces of at most :data:`LANELET_PIECE_M` along
-  the road between its two bounds), every edge moved inwards by :data:`POSITION_MARGIN_M`;
+  the road between its two bounds), every edge moved inwards by :data:`POSITION_MARGIN_M`; a goal
+  state without a position (a time step only: 27 of 47 US-101 problems outside the shared set)
+  keeps the ego's lane, anywhere along it **on the mapped road**: :math:`s_f \le`
+  :attr:`GoalRegion.s_max`, half a body and its buffer before the end of the lane's chain of
+  lanelets (a body beyond it is off CommonRoad's road);
 * **velocity**: :math:`(1 - \kappa d_c)\dot s_f` inside the speed interval less
   :data:`SPEED_MARGIN_MPS` (the upper end also less the speed the heading adds);
 * **orientation**: with :math:`\theta` the lane's heading at the piece's centre, the heading in
@@ -50,8 +54,9 @@ what blocks it.
 (:func:`GoalRegion.unreachable`): a time window already over, a speed interval outside the
 vehicle's speed range or beyond :math:`a_{max} T` of the initial speed at every time of the
 window, an orientation across or against the road, a position beyond
-:math:`a_{max} T^2/2` of the coasting point at every time, or elements that admit no common
-final state (the element whose removal makes the QP feasible is named).
+:math:`a_{max} T^2/2` of the coasting point at every time, a mapped road that ends within a body of
+the start (a goal state without a position), or elements that admit no common final state (the
+element whose removal makes the QP feasible is named).
 """
 
 from __future__ import annotations
@@ -150,6 +155,11 @@ class GoalRegion:
     ego_lane: tuple[float, float]
     v_range: tuple[float, float]
     a_max: float
+    #: The largest arc length [m] of the body's centre at a final state of a goal state without a
+    #: position: where the mapped road ends ahead (:func:`~iamp.commonroad.convert.load`, the
+    #: corridor's end less half the body and its buffer), a body beyond it is off CommonRoad's
+    #: road; ``inf`` where the road reaches beyond every final state.
+    s_max: float = math.inf
 
     # --- the window over every goal state (the closed loop's end, the CLI's text) --------------
     @property
@@ -234,9 +244,11 @@ class GoalRegion:
     def _pieces(self, e: GoalElement, x0: tuple[float, float, float, float], T: float) -> list[Piece]:
         if e.pieces is not None:
             return e.pieces
-        # no position: the ego's lane, anywhere along it
+        # no position: the ego's lane, anywhere along it on the mapped road
         lo, hi = self.ego_lane
-        s_lo, s_hi = x0[0] - 1.0, x0[0] + (self.v_range[1] + 1.0) * T
+        s_lo, s_hi = x0[0] - 1.0, min(x0[0] + (self.v_range[1] + 1.0) * T, self.s_max)
+        if not s_hi > s_lo:  # the road ends within a body of the start: no final state on it
+            return []
         return [_box_piece(self.frame, s_lo, s_hi, lo + LANE_KEEP_MARGIN_M - POSITION_MARGIN_M,
                            hi - LANE_KEEP_MARGIN_M + POSITION_MARGIN_M)]
 
@@ -750,6 +762,9 @@ def _unreachable(region: GoalRegion, e: GoalElement, x0: tuple[float, float, flo
         if need > a:
             return (f"position is out of reach: the nearest point of the goal shape needs {need:.2f} m/s^2 "
                     f"(limit {a:.2f}) at every time of the window")
+    if e.pieces is None and not region._pieces(e, x0, Ts[-1]):
+        return (f"no position, and the mapped road ends ahead: the body's centre must stay before "
+                f"s = {region.s_max:.2f} m, the start is at s = {x0[0]:.2f} m")
     # a common final state of every element (in some piece, at some time)?
     probe_T = Ts[len(Ts) // 2]
     if all(_final_state(region, e, pc, x0, probe_T) is None for pc in region._pieces(e, x0, probe_T)):

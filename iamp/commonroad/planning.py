@@ -489,8 +489,64 @@ def search_final_states(cr: CommonRoadProblem, max_solves: int = CLEAR_MAX_SOLVE
     """
     if not cr.candidates or any(c.goal_step < 0 for c in cr.candidates):
         return None
-    return clear_goal_states(cr.goal, cr.x0, cr.dt, final_state_clearance(cr), _elapsed(cr), max_solves,
-                             known=cr.candidates)
+    test = final_state_clearance(cr)
+    found = clear_goal_states(cr.goal, cr.x0, cr.dt, test, _elapsed(cr), max_solves, known=cr.candidates)
+    follow = follow_states(cr, test, max_solves - found.solves)
+    if not follow.candidates:
+        return found
+    seen = {(c.element, c.goal_step, round(c.s, 3), round(c.d, 3)) for c in found.candidates}
+    extra = [c for c in follow.candidates if (c.element, c.goal_step, round(c.s, 3), round(c.d, 3)) not in seen]
+    return dataclasses.replace(found, candidates=sorted(found.candidates + extra,
+                                                        key=lambda c: (c.cost0, c.steps, c.element, c.piece)),
+                               solves=found.solves + follow.solves)
+
+
+#: Vehicles ahead in the ego's lane at the start, nearest first, behind each of which a goal state
+#: without a position gets a final state of its own (:func:`follow_states`).
+FOLLOW_VEHICLES = 3
+
+
+def follow_states(cr: CommonRoadProblem, test: ClearanceTest, max_solves: int) -> ClearSearch:
+    """Final states that keep the ego's lane behind a vehicle ahead, for the goal states without
+    a position (their final state is anywhere in the ego's lane).
+
+    The cheapest clear final state of such a goal state (:func:`~iamp.commonroad.goal.clear_goal_states`)
+    may lie beyond vehicles ahead in the lane that the ego cannot pass inside it (dense traffic: the
+    ego's lane is the goal); a driver follows them.  For each of the :data:`FOLLOW_VEHICLES` nearest
+    vehicles ahead in the ego's lane at the start (their box at ``t = 0`` across the lane's bounds
+    ``cr.goal.ego_lane``, ahead of the ego's centre), at the last step of the goal state's window
+    where that vehicle is recorded: the cheapest final state that ``test`` accepts with the body's
+    centre half a body, :data:`~iamp.commonroad.convert.BUFFER_M` and :data:`WAY_PUSH_M` behind the
+    vehicle's rear (the goal region's ``s_max`` lowered to there).  ``max_solves`` QP solves in all.
+    """
+    region = cr.goal
+    lo, hi = region.ego_lane
+    s0 = cr.x0[0]
+    ahead = [ob for ob in cr.obstacles
+             if ob.t.size and ob.t[0] <= 1e-9 and ob.s_lo[0] > s0 and ob.d_hi[0] > lo and ob.d_lo[0] < hi]
+    ahead.sort(key=lambda ob: float(ob.s_lo[0]))
+    elapsed = _elapsed(cr)
+    out: list[Candidate] = []
+    solves = 0
+    exhausted = False
+    for e in region.elements:
+        if e.pieces is not None:
+            continue
+        for ob in ahead[:FOLLOW_VEHICLES]:
+            ks = [k for k in range(max(e.steps[0], elapsed + 1), e.steps[1] + 1)
+                  if _step_at(ob, (k - elapsed) * cr.dt) is not None]
+            if not ks or solves >= max_solves:
+                exhausted |= bool(ks)
+                continue
+            k = ks[-1]
+            rear = float(ob.s_lo[_step_at(ob, (k - elapsed) * cr.dt)])
+            sub = dataclasses.replace(region, elements=[dataclasses.replace(e, steps=(k, k))],
+                                      s_max=min(region.s_max, rear - cr.ego_length / 2 - BUFFER_M - WAY_PUSH_M))
+            got = clear_goal_states(sub, cr.x0, cr.dt, test, elapsed, max_solves - solves)
+            solves += got.solves
+            exhausted |= got.exhausted
+            out += got.candidates
+    return ClearSearch(out, solves, exhausted, {})
 
 
 def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float, float],
