@@ -2039,15 +2039,19 @@ def _root_along(ev: _Evaluator, x: FloatArray, i: int, T: float) -> FloatArray |
     return out
 
 
-def _valley_sweep(ev: _Evaluator, x: FloatArray, T: float, held: dict[int, float]) -> FloatArray:
+def _valley_sweep(ev: _Evaluator, x: FloatArray, T: float, held: dict[int, float], keep: Any = ()
+                  ) -> FloatArray:
     """One cycle of :func:`_valley_polish`'s sweeps: each contact time in turn (the others fixed) at
     the zero of its ``r_i`` inside the feasible set (:func:`_root_along`), or, where ``r_i`` keeps
     its sign up to the edge (``J_b`` falls out of the set), seated at that edge
     (:func:`_seat_at_edge`; recorded in ``held`` with its side); then a line search along the
-    cycle's displacement (doubling while ``J_b`` falls: the valley's direction)."""
+    cycle's displacement (doubling while ``J_b`` falls: the valley's direction).  The times in
+    ``keep`` stay where they are."""
     J = ev(x)[0]
     before = x.copy()
     for i in range(len(x)):
+        if i in keep:
+            continue
         z = _root_along(ev, x, i, T)
         if z is None:
             ri = float(ev(x)[1][i])
@@ -2099,7 +2103,9 @@ def _valley_polish(ev: _Evaluator, x: FloatArray, T: float, verified: Any,
     width the feasible set allows across the band (:func:`_fd_width`), its eigenvalues replaced
     by their moduli (floored at ``1e-10`` of the largest), backtracking as :func:`_newton_polish`
     does.  The self-check judges the point once ``max|r| t_f`` over the times not held is below
-    ``1e-6 J_b``; nothing is claimed from the iteration itself.
+    ``1e-6 J_b``, and where the steps end (a stall, the budget: that point, then the one the sweeps
+    reach from it, then that one with the time of the largest ``|r_i|`` held at an edge ``J_b``
+    falls out through, the others swept again); nothing is claimed from the iteration itself.
 
     Found by scripts/bounded_sweep.py (2026-11-29): 10 problems ``inaccurate`` (Hamiltonian jump
     0.26 .. 1.0), e.g. random_problem(320117, m=3) under an ``a_y`` box at 0.5535 (the FOH QP's
@@ -2111,6 +2117,37 @@ def _valley_polish(ev: _Evaluator, x: FloatArray, T: float, verified: Any,
     if not (math.isfinite(J) and np.all(np.isfinite(r))):
         return None
     held: dict[int, float] = {}
+
+    def last_try() -> tuple[FloatArray, dict[int, float], Any] | None:
+        # where the steps end (a stall, the budget): the self-check judges the point reached,
+        # then the point the sweeps reach from it (a time whose r_i turns within 1e-11 t_f of its
+        # edge, where a Newton step's differences cannot follow it, seated at its zero)
+        y = x
+        for _ in range(2):
+            result = verified(y, dict(held))
+            if result is not None:
+                return y, dict(held), result
+            for _ in range(VALLEY_CYCLES):
+                y = _valley_sweep(ev, y, T, held)
+        # the time with the largest |r_i| held at an edge J_b falls out through (EDGE_BACKOFF
+        # inside it; its zero, if any, within the rounding of r_i there), the others swept again
+        ry = ev(y)[1]
+        free = [i for i in range(m) if i not in held and math.isfinite(ry[i])]
+        if not free:
+            return None
+        i = max(free, key=lambda k: abs(float(ry[k])))
+        for side in (1.0, -1.0):
+            z = _seat_at_edge(ev, y, i, side, T)
+            if z is None or not float(ev(z)[1][i]) * side < 0:
+                continue
+            held_z = {**held, i: side}
+            for _ in range(VALLEY_CYCLES):
+                z = _valley_sweep(ev, z, T, held_z, keep=(i,))
+            result = verified(z, dict(held_z))
+            if result is not None:
+                return z, held_z, result
+        return None
+
     poor = True
     for it in range(iterations):
         if it < 2 or poor:
@@ -2119,7 +2156,7 @@ def _valley_polish(ev: _Evaluator, x: FloatArray, T: float, verified: Any,
             J, r, _ = ev(x)
         free = [i for i in range(m) if i not in held]
         if not free or ev.evaluations - start > solves:
-            return None
+            return last_try()
         rf = r[free]
         r_before = float(np.max(np.abs(rf)))
         k = len(free)
@@ -2127,7 +2164,7 @@ def _valley_polish(ev: _Evaluator, x: FloatArray, T: float, verified: Any,
         for j, i in enumerate(free):
             h = _fd_width(ev, x, i, T)
             if h is None:
-                return None
+                return last_try()
             if h < 1e-6 * T:  # across the band: well inside its edges
                 h *= 0.01
             e = np.zeros(m)
@@ -2135,11 +2172,11 @@ def _valley_polish(ev: _Evaluator, x: FloatArray, T: float, verified: Any,
             H[:, j] = (ev(x + e)[1][free] - ev(x - e)[1][free]) / (2 * h)
         H = 0.5 * (H + H.T)
         if not np.all(np.isfinite(H)):
-            return None
+            return last_try()
         w, V = np.linalg.eigh(H)
         w = np.maximum(np.abs(w), 1e-10 * float(np.max(np.abs(w))))
         if not np.all(w > 0):
-            return None
+            return last_try()
         d = np.zeros(m)
         d[free] = -(V @ ((V.T @ rf) / w))
         slope = float(rf @ d[free])
@@ -2154,15 +2191,15 @@ def _valley_polish(ev: _Evaluator, x: FloatArray, T: float, verified: Any,
                 break
             alpha *= 0.5
         if not moved:
-            return None
+            return last_try()
         poor = float(np.max(np.abs(r[free]))) > 0.5 * r_before
         if float(np.max(np.abs(r[free]))) * T <= 1e-6 * max(1.0, abs(J)):
             result = verified(x, dict(held))
             if result is not None:
                 return x, dict(held), result
         if ev.evaluations - start > solves:
-            return None
-    return None
+            break
+    return last_try()
 
 
 def _seat_at_edge(ev: _Evaluator, x: FloatArray, i: int, side: float, T: float) -> FloatArray | None:
@@ -2532,6 +2569,8 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
         # still unverified: a thin curved valley of feasible contact times (_valley_polish), from
         # the edge polish's times, then the search's; the plan is taken only if every check passes
 
+        by_sign: list[dict[str, float]] = []
+
         def verified(x: FloatArray, held: dict[int, float]
                      ) -> tuple[BoundedSolution, dict[str, float], Any] | None:
             for warm in (ev.warm_for(x), None):
@@ -2543,7 +2582,20 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
                         ZeroDivisionError, OverflowError):
                     continue
                 j_v = judge(v_v)
+                if j_v[1] == "hamiltonian_jump":
+                    # a time whose r_i has too few digits beside an edge: stationary by its sign
+                    # (_stationary_brackets, as after the edge polish)
+                    brackets = _stationary_brackets(ev, s_v, [i for i in range(m) if i not in held], T)
+                    if brackets:
+                        with np.errstate(all="ignore"):
+                            v_v = check_values(s_v, stationary=True, at_edge=sorted({*held, *brackets}))
+                        j_v = judge(v_v)
+                        if j_v[2] is None and _kkt_at_edges(ev, s_v, held, T):
+                            by_sign[:] = [{"vehicle": i, "t": float(s_v.contact_times[i]), **b}
+                                          for i, b in sorted(brackets.items())]
+                            return s_v, v_v, j_v
                 if j_v[2] is None and _kkt_at_edges(ev, s_v, held, T):
+                    by_sign.clear()
                     return s_v, v_v, j_v
             return None
 
@@ -2561,6 +2613,8 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
                     search["feasibility_edges"] = [
                         {"vehicle": i, "side": "upper" if edges_v[i] > 0 else "lower",
                          "t": float(sol.contact_times[i]), "slope": float(r_v[i])} for i in sorted(edges_v)]
+                if by_sign:
+                    search["valley_polish"]["stationary_by_sign"] = by_sign
                 search["evaluations"] = ev.evaluations
                 break
     certified = bool(fixed)
