@@ -154,14 +154,14 @@ class ClarabelBackend(QPBackend):
                 and np.array_equal(np.concatenate([self._eq, self._up]), np.arange(m))):
             self._perm = np.arange(A.nnz, dtype=np.int64)
             self._sign = np.ones(A.nnz)
-            indices, indptr, shape = A.indices.copy(), A.indptr.copy(), A.shape
-        else:
-            tag = sp.csc_matrix((np.arange(1.0, A.nnz + 1.0), A.indices, A.indptr), shape=A.shape)
-            T = sp.vstack([tag[self._eq], tag[self._up], -tag[self._lo]], format="csc")
-            self._perm = np.abs(T.data).astype(np.int64) - 1
-            self._sign = np.sign(T.data)
-            indices, indptr, shape = T.indices, T.indptr, T.shape
-        out = sp.csc_matrix((A.data[self._perm] * self._sign, indices, indptr), shape=shape)
+            # A itself, as a pure equality problem passes it (Clarabel copies what it is given):
+            # the stack's arrays, A.data[perm] * 1.0 being A.data
+            return A, self._rhs()
+        tag = sp.csc_matrix((np.arange(1.0, A.nnz + 1.0), A.indices, A.indptr), shape=A.shape)
+        T = sp.vstack([tag[self._eq], tag[self._up], -tag[self._lo]], format="csc")
+        self._perm = np.abs(T.data).astype(np.int64) - 1
+        self._sign = np.sign(T.data)
+        out = sp.csc_matrix((A.data[self._perm] * self._sign, T.indices, T.indptr), shape=T.shape)
         return out, self._rhs()
 
     def _build(self) -> None:
