@@ -334,3 +334,21 @@ def test_csc_copy_is_scipys_copy_with_sorted_indices_and_owns_its_arrays(form: s
         assert a.dtype == b.dtype and np.array_equal(a, b)
         if sp.issparse(given):
             assert not np.shares_memory(a, getattr(given, name))
+
+
+@pytest.mark.parametrize("seed", range(25))
+def test_csc_rows_is_scipys_row_indexing(seed: int) -> None:
+    """:func:`~iamp.planners.qp.backends.base.csc_rows` (the polish's active rows, PIQP's row split):
+    the arrays of ``sp.csc_matrix(A[rows])`` for increasing ``rows``, explicit zeros kept."""
+    from iamp.planners.qp.backends.base import csc_rows
+
+    rng = np.random.default_rng(seed)
+    m, n = int(rng.integers(1, 40)), int(rng.integers(1, 30))
+    A = sp.random(m, n, density=0.3, random_state=rng, format="csc")
+    A.data[rng.random(A.nnz) < 0.2] = 0.0
+    rows = np.sort(rng.choice(m, size=int(rng.integers(0, m + 1)), replace=False))
+    got, ref = csc_rows(A, rows), sp.csc_matrix(A[rows])
+    assert got.shape == ref.shape
+    for name in ("data", "indices", "indptr"):
+        assert getattr(got, name).dtype == getattr(ref, name).dtype
+        assert np.array_equal(getattr(got, name), getattr(ref, name))

@@ -243,7 +243,7 @@ def test_active_rows_and_their_matrix_from_the_csc_arrays_are_those_of_the_csr_r
     """``active_rows`` reads ``A``'s CSC arrays and the polish gathers the held rows from them: the
     same rows, bounds (duplicate rows, explicit zeros, equalities) and ``A[rows]`` arrays as the
     CSR reference, and the product ``Az`` the same bits as the CSR product."""
-    from iamp.planners.qp.backends.polish import _rows_of
+    from iamp.planners.qp.backends.base import csc_rows
 
     rng = np.random.default_rng(seed)
     m, n = int(rng.integers(4, 40)), int(rng.integers(3, 30))
@@ -260,7 +260,7 @@ def test_active_rows_and_their_matrix_from_the_csc_arrays_are_those_of_the_csr_r
     rows, bounds = active_rows(A, l, u, z, y)
     rows_ref, bounds_ref = _active_rows_by_csr(A, l, u, z, y)
     assert np.array_equal(rows, rows_ref) and np.array_equal(bounds, bounds_ref)
-    sub, ref = _rows_of(A, rows), sp.csc_matrix(R[rows])
+    sub, ref = csc_rows(A, rows), sp.csc_matrix(R[rows])
     assert sub.shape == ref.shape
     for name in ("data", "indices", "indptr"):
         assert np.array_equal(getattr(sub, name), getattr(ref, name))

@@ -65,7 +65,7 @@ import scipy.sparse as sp
 
 from iamp.core import status as st
 
-from .base import IntArray, QPBackend, QPSolution
+from .base import IntArray, QPBackend, QPSolution, csc_rows
 
 PIQP_STATUS: dict[str, str] = {
     "PIQP_SOLVED": st.OPTIMAL,
@@ -122,8 +122,8 @@ class PIQPBackend(QPBackend):
         eq = self.l == self.u
         self._eq, self._ineq = np.flatnonzero(eq), np.flatnonzero(~eq)
         if self._ineq.size:
-            self._Aeq = sp.csc_matrix(self.A[self._eq])
-            self._G = sp.csc_matrix(self.A[self._ineq])
+            self._Aeq = csc_rows(self.A, self._eq)  # the arrays of sp.csc_matrix(self.A[self._eq])
+            self._G = csc_rows(self.A, self._ineq)
             self._eq_entries = eq[self.A.indices]
             if self._Aeq.nnz + self._G.nnz != self.A.nnz:  # pragma: no cover - row slicing keeps every entry
                 raise AssertionError("the row split lost entries of A")

@@ -31,7 +31,7 @@ import scipy.sparse as sp
 
 from iamp.core import status as st
 
-from .base import FloatArray, QPSolution
+from .base import FloatArray, QPSolution, csc_rows
 
 
 def _csc(A: sp.spmatrix) -> sp.csc_matrix:
@@ -81,17 +81,6 @@ def active_rows(A: sp.spmatrix, l: FloatArray, u: FloatArray, z: FloatArray, y: 
     return rows[chosen], bound[chosen]
 
 
-def _rows_of(A: sp.csc_matrix, rows: np.ndarray) -> sp.csc_matrix:
-    """``A[rows]`` (``rows`` increasing) as CSC, every stored entry kept: the arrays of
-    ``sp.csc_matrix(A.tocsr()[rows])`` gathered from ``A``'s own."""
-    at = np.full(A.shape[0], -1, dtype=np.int64)
-    at[rows] = np.arange(rows.size)
-    new = at[A.indices]
-    kept = new >= 0
-    indptr = np.concatenate(([0], np.cumsum(kept)))[A.indptr].astype(A.indptr.dtype)
-    return sp.csc_matrix((A.data[kept], new[kept].astype(A.indices.dtype), indptr), shape=(rows.size, A.shape[1]))
-
-
 def polish(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: FloatArray, z: FloatArray,
            y: FloatArray) -> QPSolution | None:
     """``(z, y)`` refined on its active set (module docstring): the optimum of the QP with those
@@ -106,7 +95,7 @@ def polish(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray, u: Floa
         return None
     A = _csc(A)
     rows, bound = active_rows(A, l, u, z, y)
-    A_act = _rows_of(A, rows)
+    A_act = csc_rows(A, rows)
     sol = KKTBackend(P, q, A_act, bound, bound).solve()
     if sol.status != st.OPTIMAL or not sol.finite:
         return None
