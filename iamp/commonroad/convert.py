@@ -477,6 +477,61 @@ def _hole_runs(grid: FloatArray, gaps: list[list[tuple[float, float]]]) -> list[
     return [(np.array(r[0]), np.array(r[1]), np.array(r[2])) for r in done]
 
 
+def _obstacle_boxes(frame: RoadFrame, obs: Any, dt: float, k_max: int, src: str) -> tuple[FloatArray, FloatArray]:
+    """A dynamic obstacle's box in the road frame at each of its time steps ``0..k_max``: times
+    ``(n,)`` and boxes ``(n, 4)`` = ``(s_lo, s_hi, d_lo, d_hi)``, the extremes of its body's
+    corners (a recorded trajectory: its rectangle at each state) or of its occupancy's vertices,
+    every edge densified to :data:`EDGE_DENSE_M` first (a set-based prediction, as the ``S``
+    benchmark problems give: CommonRoad's checker tests the ego against each step's set, so the
+    box covers the whole set).
+
+    Raises
+    ------
+    iamp.ScenarioError
+        A prediction of another kind, or an occupancy of a shape without vertices.
+    """
+    from commonroad.prediction.prediction import SetBasedPrediction, TrajectoryPrediction
+
+    shape = obs.obstacle_shape
+    pred = obs.prediction
+    init = obs.initial_state
+    rects: list[tuple[int, FloatArray]] = []
+    if 0 <= init.time_step <= k_max:
+        rects.append((int(init.time_step), _corners(np.asarray(init.position, dtype=float), float(shape.length),
+                                                      float(shape.width), float(init.orientation))))
+    if isinstance(pred, TrajectoryPrediction):
+        rects += [(int(st.time_step), _corners(np.asarray(st.position, dtype=float), float(shape.length),
+                                               float(shape.width), float(st.orientation)))
+                  for st in pred.trajectory.state_list if 0 <= st.time_step <= k_max]
+    elif isinstance(pred, SetBasedPrediction):
+        for occ in pred.occupancy_set:
+            k = int(occ.time_step)
+            if not 0 <= k <= k_max:
+                continue
+            parts = occ.shape.shapes if hasattr(occ.shape, "shapes") else [occ.shape]
+            if not all(hasattr(part, "vertices") for part in parts):
+                raise ScenarioError(f"obstacle {obs.obstacle_id}: an occupancy at time step {k} is a "
+                                    f"{type(occ.shape).__name__} without vertices", "prediction", src)
+            rects.append((k, np.concatenate([densify(_closed(np.asarray(part.vertices, dtype=float)), EDGE_DENSE_M)
+                                             for part in parts])))
+    elif pred is not None:
+        raise ScenarioError(f"obstacle {obs.obstacle_id}: a {type(pred).__name__} is not supported "
+                            "(a trajectory or a set-based prediction is)", "prediction", src)
+    if not rects:
+        return np.zeros(0), np.zeros((0, 4))
+    rects.sort(key=lambda r: r[0])
+    sizes = [len(r[1]) for r in rects]
+    sd = frame.to_road(np.concatenate([r[1] for r in rects]))  # one projection of every point
+    cuts = np.cumsum(sizes)[:-1]
+    B = np.array([[p[:, 0].min(), p[:, 0].max(), p[:, 1].min(), p[:, 1].max()] for p in np.split(sd, cuts)])
+    return np.array([k * dt for k, _ in rects]), B
+
+
+def _closed(vertices: FloatArray) -> FloatArray:
+    """A polygon's vertices with the first repeated at the end (unless it already is)."""
+    return vertices if np.array_equal(vertices[0], vertices[-1]) else np.vstack([vertices, vertices[:1]])
+
+
 def _corners(center: FloatArray, length: float, width: float, orientation: float) -> FloatArray:
     c, s = math.cos(orientation), math.sin(orientation)
     half = np.array([[length / 2, width / 2], [length / 2, -width / 2], [-length / 2, width / 2],
@@ -606,16 +661,9 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
         shape = obs.obstacle_shape
         if not hasattr(shape, "length"):
             continue
-        states = [obs.initial_state] + list(obs.prediction.trajectory.state_list if obs.prediction else [])
-        states = [st for st in states if 0 <= st.time_step <= k_max]
-        if not states:
+        t, B = _obstacle_boxes(frame, obs, dt, k_max, src)
+        if t.size == 0:
             continue
-        t = np.array([st.time_step * dt for st in states])
-        corners = np.concatenate([_corners(np.asarray(st.position, dtype=float), float(shape.length),
-                                           float(shape.width), float(st.orientation)) for st in states])
-        sd = frame.to_road(corners).reshape(len(states), 4, 2)  # one projection of every corner
-        B = np.stack([sd[:, :, 0].min(axis=1), sd[:, :, 0].max(axis=1), sd[:, :, 1].min(axis=1),
-                      sd[:, :, 1].max(axis=1)], axis=1)
         coeffs, resid, half = fit_motion(t, B[:, 0], B[:, 1])
         centre_d = 0.5 * (B[:, 2] + B[:, 3])
         lane = int(np.argmin([abs(float(np.mean(centre_d)) - y) for y in merged])) if merged else 0
