@@ -159,8 +159,9 @@ STATIONARY_TIE_REL = 1e-10
 
 #: Axis-pair solves of the thin-valley polish (:func:`_valley_polish`) from one start: several
 #: vehicles where the search, the edge polish and the search without the finer grid all end
-#: ``inaccurate``.  Of 10 such problems of scripts/bounded_sweep.py (default_rng 7-10), the polish
-#: brought 6 to a verified plan within 6500 solves (the slowest) from the edge polish's times.
+#: ``inaccurate``.  The 10 such problems of scripts/bounded_sweep.py (default_rng 7-10) verify
+#: after 365-8226 solves from the start that verified (the budget is checked once per step, and
+#: the judging where the steps end sweeps once more).
 VALLEY_SOLVES = 8000
 
 #: Newton iterations of :func:`_valley_polish` from one start.
