@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st_h
 
 from iamp.planners.avoid import search_kernel as kernel
 from iamp.planners.avoid.check import crossing_orders
@@ -214,3 +216,50 @@ def test_bernstein_min_is_the_smallest_tensor_bernstein_coefficient() -> None:
                     term = term * mesh[a] ** e
                 val = val + term
             assert outs[0][0] <= val.min() + 1e-12
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st_h.integers(0, 10_000), st_h.integers(1, 40), st_h.floats(-1.0, 6.0))
+def test_the_screened_maximum_bound_is_the_maximum_of_every_bound(seed: int, count: int, scale: float) -> None:
+    """:func:`~iamp.planners.avoid.dual.max_lower_bound` bounds only the polynomials whose value at
+    the box's centre can reach the best bound so far: its answer is ``max(lower_bounds(...))``
+    bit for bit, over polynomials of zero to three vehicles whose coefficients span many orders
+    of magnitude (cancellation), on boxes inside and across their pieces; a polynomial's kept
+    bounds are at most :data:`~iamp.planners.avoid.dual.BOUNDS_KEPT`."""
+    from iamp.planners.avoid.dual import BOUNDS_KEPT, DualPolynomial, lower_bounds, max_lower_bound
+
+    rng = np.random.default_rng(seed)
+    h, n = 0.1, 7
+    polys = []
+    for _ in range(count):
+        q = int(rng.integers(0, 4))
+        vehicles = tuple(sorted(rng.choice(3, q, replace=False).tolist()))
+        coef = rng.standard_normal((n,) * q) * 10.0 ** rng.uniform(-2.0, scale, (n,) * q)
+        polys.append(DualPolynomial(vehicles, tuple(int(k) for k in rng.integers(0, 4, q)), coef, h, np.ones(3)))
+    for _ in range(3):
+        lo = rng.uniform(0.0, 0.35, 3)
+        hi = lo + rng.uniform(0.0, 0.08, 3) * rng.integers(0, 2, 3)
+        fresh = [DualPolynomial(p.vehicles, p.pieces, p.coef, p.h, p.mass) for p in polys]  # empty caches
+        assert max_lower_bound(polys, lo, hi) == max(lower_bounds(fresh, lo, hi))
+    assert max_lower_bound([], lo, hi) == -np.inf
+    dp = polys[0]
+    for k in range(BOUNDS_KEPT + 5):  # many boxes: the kept bounds stay few, each the same again
+        box = (np.full(3, 0.001 * k), np.full(3, 0.001 * k + 0.05))
+        first = lower_bounds([dp], *box)[0]
+        assert len(dp._bounds) <= BOUNDS_KEPT
+        assert lower_bounds([dp], *box)[0] == first
+
+
+def test_the_screened_maximum_reaches_a_flat_polynomial_behind_spiky_ones() -> None:
+    """Ten polynomials peak at the box's centre and fall far below it at its ends (their bound is
+    low although their centre value is the highest); a constant below those peaks has the best
+    bound: it must be bounded although it ranks eleventh at the centre."""
+    from iamp.planners.avoid.dual import ROUND_OFF_REL, DualPolynomial, max_lower_bound
+
+    h = 0.1
+    spike = np.zeros(7)
+    spike[:3] = (10.0 - 250.0, 1000.0, -1000.0)  # 10 - 1000 (λ - 1/2)²
+    polys = [DualPolynomial((0,), (2,), spike * (1.0 + 0.01 * j), h, np.ones(1)) for j in range(10)]
+    polys.append(DualPolynomial((), (), np.array(1.0), h, np.ones(1)))
+    got = max_lower_bound(polys, np.array([0.2]), np.array([0.3]))
+    assert got == 1.0 - ROUND_OFF_REL

@@ -98,7 +98,7 @@ from iamp.planners.avoid.dual import (
     DualPolynomial,
     DualStore,
     fit_polynomial,
-    lower_bounds,
+    max_lower_bound,
     piece_of,
     polys_values,
 )
@@ -893,7 +893,7 @@ class ContinuousAvoidPlanner:
         def bound_of(orders_: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray,
                      duals: Sequence[DualPolynomial]) -> tuple[float, list[DualPolynomial]]:
             polys = store.valid(orders_, lo, hi) + list(duals)
-            return max(lower_bounds(polys, lo, hi), default=-np.inf), polys
+            return max_lower_bound(polys, lo, hi), polys
 
         while heap:
             box = heap[0]

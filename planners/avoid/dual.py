@@ -62,7 +62,7 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 
 __all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "DualStore", "fit_polynomial", "lower_bounds",
-           "piece_of"]
+           "max_lower_bound", "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
 #: point (one sparse LU solve, or a sum of columns of ``K⁻¹``, and a Bernstein transform); far
@@ -135,7 +135,9 @@ class DualPolynomial:
     coef: FloatArray
     h: float
     mass: FloatArray
-    #: :meth:`lower_bound` per box (its local intervals ``(λ_a, λ_b)``), computed once
+    #: :meth:`lower_bound` per box (its local intervals ``(λ_a, λ_b)``), computed once; at most
+    #: :data:`BOUNDS_KEPT` (then emptied: a value is a function of its key, the same when computed
+    #: again)
     _bounds: dict[tuple[tuple[float, float], ...], float] = field(default_factory=dict, compare=False, repr=False)
 
     def _lam(self, lo: Sequence[float] | FloatArray, hi: Sequence[float] | FloatArray) -> list[tuple[float, float]]:
@@ -206,6 +208,13 @@ def _bernstein_on(degree: int, a: float, b: float) -> FloatArray:
     return B
 
 
+#: Boxes whose bound a dual polynomial keeps (:attr:`DualPolynomial._bounds`): a box is bounded
+#: again when popped, after its candidate and for its children, so a few recent ones serve; kept
+#: for every box, a three-vehicle ZOH search of 2000 QPs (``scripts/avoid_reference_sweep.py``'s
+#: draw 3147) held ~40 million bounds, about 6 GB.
+BOUNDS_KEPT = 64
+
+
 def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) -> list[float]:
     """:meth:`DualPolynomial.lower_bound` of every polynomial of ``polys`` over the box
     ``[lo, hi]``: the tensor Bernstein transform of the polynomials not yet bounded on it done
@@ -234,9 +243,63 @@ def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) ->
         _run("bernstein_min", search_kernel)(T, q, n, B, mins, np.empty(T.shape[1]), np.empty(T.shape[1]))
         for (c, dp, key), m in zip(items, mins):
             v = float(m) - ROUND_OFF_REL * max(1.0, abs(float(m)))
+            if len(dp._bounds) >= BOUNDS_KEPT:
+                dp._bounds.clear()
             dp._bounds[key] = v
             out[c] = v
     return out
+
+
+#: Polynomials bounded first by :func:`max_lower_bound` (those with the highest values at the
+#: box's centre), before the rest are screened against their bound.
+MAX_BOUND_FIRST = 8
+
+
+def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) -> float:
+    r"""``max(lower_bounds(polys, lo, hi))`` (``-inf`` without polynomials), bounding only the
+    polynomials that can reach it.
+
+    A polynomial's bound on the box (its smallest Bernstein coefficient, less the round-off margin)
+    is at most its value anywhere in the box, e.g. at the centre.  The
+    :data:`MAX_BOUND_FIRST` polynomials with the highest centre values are bounded first; of
+    the rest only those whose centre value, raised by a bound on its evaluation's round-off
+    (:math:`10^{-12}\sum|c|`, the coefficients' magnitudes at :math:`|\lambda| \le 1`), exceeds the
+    best bound so far are bounded too.  The result is the maximum over all of them, the same
+    number: a polynomial left out cannot exceed it.  (A box of a long search is covered by
+    hundreds of stored polynomials, whose bounds had made the search quadratic in its QPs.)
+    """
+    if len(polys) <= MAX_BOUND_FIRST:
+        return max(lower_bounds(polys, lo, hi), default=-np.inf)
+    lo_a, hi_a = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    est = np.empty(len(polys))
+    groups: dict[tuple[int, ...], list[int]] = {}
+    for c, dp in enumerate(polys):
+        groups.setdefault(dp.coef.shape, []).append(c)
+    for shape, idx in groups.items():
+        q = len(shape)
+        C = np.stack([polys[c].coef for c in idx])  # (P,) + shape
+        reach = 1e-12 * np.abs(C.reshape(len(idx), -1)).sum(axis=1)
+        if q == 0:
+            est[idx] = C + reach
+            continue
+        n = shape[0]
+        V = np.array([polys[c].vehicles for c in idx], dtype=np.int64)
+        K = np.array([polys[c].pieces for c in idx], dtype=float)
+        h = polys[idx[0]].h
+        a = np.clip((lo_a[V] - K * h) / h, 0.0, 1.0)
+        b = np.minimum(np.maximum((hi_a[V] - K * h) / h, a), 1.0)
+        powers = (0.5 * (a + b))[..., None] ** np.arange(n)  # (P, q, n)
+        val = C
+        for axis in range(q - 1, -1, -1):  # contract the last axis with that vehicle's powers
+            val = np.einsum("p...i,pi->p...", val, powers[:, axis])
+        est[idx] = val + reach
+    order = np.argsort(-est, kind="stable")
+    first = [polys[c] for c in order[:MAX_BOUND_FIRST]]
+    best = max(lower_bounds(first, lo, hi))
+    rest = [polys[c] for c in order[MAX_BOUND_FIRST:] if est[c] > best]
+    if rest:
+        best = max(best, max(lower_bounds(rest, lo, hi)))
+    return float(best)
 
 
 class DualBounds:
