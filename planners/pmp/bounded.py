@@ -77,6 +77,7 @@ import math
 import time as _time
 from bisect import bisect_right
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -1956,28 +1957,39 @@ def _newton_polish(ev: _Evaluator, x: FloatArray, J: float, T: float, iterations
             df, slope = -rf, -float(rf @ rf)
         d = np.zeros(m)
         d[idx] = df
-        alpha, moved = 1.0, False
         # near the minimum the decrease Newton predicts falls below the noise of J_b (its dual
         # value, converged to |F| <= 1e-12 in scaled units: the same t from two warm starts
         # differs by ~2e-12 relative): there a step that halves r without raising J_b beyond
         # 1e-10 relative is taken (random_problem(815853, m=3) under a box at 0.98 of its peaks
         # ended inaccurate at |r| 1e-3, the full step gives 3e-9 and +1.7e-9 of J_b = 9776;
         # (589819, m=3) at 0.82: |r| 3e-3 -> 1e-8, +3.1e-9 of J_b = 2520)
-        noise = 1e-10 * max(1.0, abs(Jx))
-        r_max = float(np.max(np.abs(rf)))
-        for _k in range(30):
-            if alpha * float(np.max(np.abs(d))) < 1e-12 * T:
-                break
-            xn = x + alpha * d
-            Jn, rn, _ = ev(xn)
-            if math.isfinite(Jn) and (Jn <= Jx + 1e-4 * alpha * slope or (
-                    Jn <= Jx + noise and float(np.max(np.abs(rn[idx]))) <= 0.5 * r_max)):
-                x, Jx, r, moved = xn, Jn, rn, True
-                break
-            alpha *= 0.5
+        x, Jx, r, moved = _backtrack(ev, x, d, Jx, r, slope, idx, 30, 1e-12 * T)
         if not moved:
             break
     return x, Jx
+
+
+def _backtrack(ev: _Evaluator, x: FloatArray, d: FloatArray, J: float, r: FloatArray, slope: float,
+               idx: Sequence[int], tries: int, min_step: float = 0.0) -> tuple[FloatArray, float, FloatArray, bool]:
+    """A backtracking step along ``d`` from ``x`` (``J``, ``r`` its values, ``slope`` the
+    derivative of ``J`` along ``d``): halving the step from 1 at most ``tries`` times (or until
+    ``alpha max|d| < min_step``), the first ``x + alpha d`` whose ``J_b`` decreases by Armijo's
+    rule (1e-4 of the slope), or rises by at most ``J_b``'s noise (1e-10 relative) while the
+    largest ``|r_i|`` over ``idx`` halves.  Returns the point, ``J_b``, ``r`` and whether it moved
+    (else ``x``, ``J``, ``r`` as given)."""
+    noise = 1e-10 * max(1.0, abs(J))
+    r_ref = float(np.max(np.abs(r[list(idx)])))
+    alpha = 1.0
+    for _ in range(tries):
+        if alpha * float(np.max(np.abs(d))) < min_step:
+            break
+        xn = x + alpha * d
+        Jn, rn, _ = ev(xn)
+        if math.isfinite(Jn) and (Jn <= J + 1e-4 * alpha * slope or (
+                Jn <= J + noise and float(np.max(np.abs(rn[list(idx)]))) <= 0.5 * r_ref)):
+            return xn, Jn, rn, True
+        alpha *= 0.5
+    return x, J, r, False
 
 
 def _fd_width(ev: _Evaluator, x: FloatArray, i: int, T: float) -> float | None:
@@ -2188,16 +2200,7 @@ def _valley_polish(ev: _Evaluator, x: FloatArray, T: float, verified: Any,
         d = np.zeros(m)
         d[free] = -(V @ ((V.T @ rf) / w))
         slope = float(rf @ d[free])
-        noise = 1e-10 * max(1.0, abs(J))
-        alpha, moved = 1.0, False
-        for _k in range(50):
-            xn = x + alpha * d
-            Jn, rn, _ = ev(xn)
-            if math.isfinite(Jn) and (Jn <= J + 1e-4 * alpha * slope or (
-                    Jn <= J + noise and float(np.max(np.abs(rn[free]))) <= 0.5 * r_before)):
-                x, J, r, moved = xn, Jn, rn, True
-                break
-            alpha *= 0.5
+        x, J, r, moved = _backtrack(ev, x, d, J, r, slope, free, 50)
         if not moved:
             return last_try()
         poor = float(np.max(np.abs(r[free]))) > 0.5 * r_before
@@ -2516,6 +2519,24 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
                 OverflowError):
             pass
     valley_starts = [t]
+
+    def judged_at(sol_x: BoundedSolution, held: Any) -> tuple[dict[str, float], Any, dict[int, dict[str, float]]]:
+        """The checks of ``sol_x`` with the times ``held`` at their edges (no jump condition there);
+        where the jump condition fails, a time beside an edge whose ``r_i`` has too few digits for
+        it is stationary by its sign (:func:`_stationary_brackets`, those times added to the held
+        ones): the values, their verdict and those brackets."""
+        with np.errstate(all="ignore"):
+            v_x = check_values(sol_x, stationary=True, at_edge=sorted(held))
+        j_x = judge(v_x)
+        brackets: dict[int, dict[str, float]] = {}
+        if j_x[1] == "hamiltonian_jump":
+            brackets = _stationary_brackets(ev, sol_x, [i for i in range(m) if i not in held], T) or {}
+            if brackets:
+                with np.errstate(all="ignore"):
+                    v_x = check_values(sol_x, stationary=True, at_edge=sorted({*held, *brackets}))
+                j_x = judge(v_x)
+        return v_x, j_x, brackets
+
     if failed == "hamiltonian_jump" and m > 1 and not fixed:
         # several vehicles: the minimum may sit at an edge of the feasible contact times, where
         # r_i ≠ 0 for the times at the edge: the polish keeps those at their edge and moves the
@@ -2528,18 +2549,9 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
             try:
                 with np.errstate(all="ignore"):
                     sol_e = solve_bounded_fixed(problem, t_e, ev.warm_for(t_e))
-                    values_e = check_values(sol_e, stationary=True, at_edge=sorted(edges))
-                judged_e = judge(values_e)
-                brackets: dict[int, dict[str, float]] | None = None
-                if judged_e[1] == "hamiltonian_jump":
-                    # beside an edge r_i may have too few digits for the check (held where it turns
-                    # just inside its edge, or polished next to a time held there): stationary by
-                    # r_i's sign
-                    brackets = _stationary_brackets(ev, sol_e, [i for i in range(m) if i not in edges], T)
-                    if brackets:
-                        with np.errstate(all="ignore"):
-                            values_e = check_values(sol_e, stationary=True, at_edge=sorted({*edges, *brackets}))
-                        judged_e = judge(values_e)
+                # beside an edge r_i may have too few digits for the check (held where it turns
+                # just inside its edge, or polished next to a time held there): stationary by r_i's sign
+                values_e, judged_e, brackets = judged_at(sol_e, edges)
                 if judged_e[2] is None and _kkt_at_edges(ev, sol_e, edges, T):
                     t, sol, values, (checks, failed, bad) = t_e, sol_e, values_e, judged_e
                     r_e = sol_e.hamiltonian_jump_residual()
@@ -2585,25 +2597,14 @@ def plan_bounded(problem: Problem, start_times: FloatArray | None, contact_times
                 try:
                     with np.errstate(all="ignore"):
                         s_v = solve_bounded_fixed(problem, x, warm)
-                        v_v = check_values(s_v, stationary=True, at_edge=sorted(held))
+                    # a time whose r_i has too few digits beside an edge: stationary by its sign
+                    v_v, j_v, brackets = judged_at(s_v, held)
                 except (AxisInfeasible, AxisNoConvergence, np.linalg.LinAlgError, FloatingPointError,
                         ZeroDivisionError, OverflowError):
                     continue
-                j_v = judge(v_v)
-                if j_v[1] == "hamiltonian_jump":
-                    # a time whose r_i has too few digits beside an edge: stationary by its sign
-                    # (_stationary_brackets, as after the edge polish)
-                    brackets = _stationary_brackets(ev, s_v, [i for i in range(m) if i not in held], T)
-                    if brackets:
-                        with np.errstate(all="ignore"):
-                            v_v = check_values(s_v, stationary=True, at_edge=sorted({*held, *brackets}))
-                        j_v = judge(v_v)
-                        if j_v[2] is None and _kkt_at_edges(ev, s_v, held, T):
-                            by_sign[:] = [{"vehicle": i, "t": float(s_v.contact_times[i]), **b}
-                                          for i, b in sorted(brackets.items())]
-                            return s_v, v_v, j_v
                 if j_v[2] is None and _kkt_at_edges(ev, s_v, held, T):
-                    by_sign.clear()
+                    by_sign[:] = [{"vehicle": i, "t": float(s_v.contact_times[i]), **b}
+                                  for i, b in sorted(brackets.items())]
                     return s_v, v_v, j_v
             return None
 
