@@ -1970,7 +1970,8 @@ def _newton_polish(ev: _Evaluator, x: FloatArray, J: float, T: float, iterations
 
 
 def _backtrack(ev: _Evaluator, x: FloatArray, d: FloatArray, J: float, r: FloatArray, slope: float,
-               idx: Sequence[int], tries: int, min_step: float = 0.0) -> tuple[FloatArray, float, FloatArray, bool]:
+               idx: Sequence[int] | npt.NDArray[np.integer[Any]], tries: int, min_step: float = 0.0
+               ) -> tuple[FloatArray, float, FloatArray, bool]:
     """A backtracking step along ``d`` from ``x`` (``J``, ``r`` its values, ``slope`` the
     derivative of ``J`` along ``d``): halving the step from 1 at most ``tries`` times (or until
     ``alpha max|d| < min_step``), the first ``x + alpha d`` whose ``J_b`` decreases by Armijo's
