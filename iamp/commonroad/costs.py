@@ -156,8 +156,12 @@ def _lane_signals(cr: CommonRoadProblem, s: _Signals, ego_radius: float) -> None
     s.lon = road[:, 0]
     # every nearby obstacle centre at every step, projected in one call
     owner, pts = [], []
+    from commonroad.prediction.prediction import SetBasedPrediction
+
     for i, k in enumerate(s.k.astype(int)):
         for ob in cr.scenario.dynamic_obstacles:
+            if int(k) != ob.initial_state.time_step and isinstance(ob.prediction, SetBasedPrediction):
+                continue  # a set, not a state (commonroad-io returns None for it, with a warning)
             st = ob.state_at_time(int(k))
             if st is None:
                 continue
