@@ -150,9 +150,9 @@ def test_a_slower_vehicle_ahead_in_the_lane_gets_a_final_state_behind_it(tmp_pat
     lead = next(ob for ob in cr.obstacles if ob.obstacle_id == 1)
     rear = float(lead.s_lo[int(np.searchsorted(lead.t, 8.0 - 1e-6))])
     test = final_state_clearance(cr)
-    got = follow_states(cr, test, 200)
-    assert len(got.candidates) == 1 and 0 < got.solves <= 200
-    c = got.candidates[0]
+    got, solves = follow_states(cr, test, 200)
+    assert len(got) == 1 and 0 < solves <= 200
+    c = got[0]
     assert c.goal_step == 80 and c.s + cr.ego_length / 2 + BUFFER_M <= rear + 1e-9
     assert test(c.tf, (c.s, c.vs, c.d, c.vd), 0.06) is None
     found = search_final_states(cr)

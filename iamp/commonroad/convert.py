@@ -271,7 +271,7 @@ def densify(polyline: FloatArray, spacing: float) -> FloatArray:
 
 def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_b: float,
                 t: FloatArray, via: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0), (1.0, 0.0)),
-                ) -> tuple[tuple[float, float], list[Obstacle], tuple[FloatArray, FloatArray, FloatArray], float]:
+                ) -> tuple[tuple[float, float], list[Obstacle], tuple[FloatArray, FloatArray, FloatArray]]:
     r"""The road corridor of the ego's lane: its widest lateral range as §14 ``y`` limits and the
     parts where it is narrower as static boxes to avoid (module docstring, "Road edges").
 
@@ -289,8 +289,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
     avoids like a standing vehicle (obstacle ids -1, -2, ...).  The third value is the corridor
     itself, ``(s, d^-(s), d^+(s))`` at every sample (``nan`` where no lanelet covers ``s``).
     Where the mapped road ends before ``s_b`` (no lanelet of the corridor beyond it), the end is
-    one more box, across the road from there on; the fourth value is where it starts (``inf``
-    where the road reaches ``s_b``).
+    one more box, across the road from there on.
     """
     cache: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
 
@@ -386,7 +385,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             top = max(top, b)
     ok = np.isfinite(lo)
     if not ok.any():
-        return (-1e3, 1e3), [], (grid, lo, hi), math.inf
+        return (-1e3, 1e3), [], (grid, lo, hi)
     y_lo, y_hi = float(np.min(lo[ok])), float(np.max(hi[ok]))
     boxes: list[Obstacle] = []
     n = t.size
@@ -417,7 +416,6 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             boxes.append(Obstacle(oid, t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
                                   2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
     last = int(np.flatnonzero(ok)[-1])
-    road_end = math.inf
     if last < grid.size - 1:
         # the mapped road ends ahead (no lanelet of the corridor beyond): CommonRoad's road ends
         # there too, so the end is a box across the road, its start found to 1e-6 m by bisection
@@ -429,8 +427,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
                 a_s = mid
             else:
                 b_s = mid
-        road_end = s1 = a_s
-        s2 = float(grid[-1]) + EDGE_REACH_M
+        s1, s2 = a_s, float(grid[-1]) + EDGE_REACH_M
         d1, d2 = y_lo - 3.0, y_hi + 3.0
         half = 0.5 * (s2 - s1)
         boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
@@ -441,7 +438,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
         half = 0.5 * (s2 - s1)
         boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
                               2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False, True))
-    return (y_lo, y_hi), boxes, (grid, lo, hi), road_end
+    return (y_lo, y_hi), boxes, (grid, lo, hi)
 
 
 def _hole_runs(grid: FloatArray, gaps: list[list[tuple[float, float]]]) -> list[tuple[FloatArray, FloatArray,
@@ -645,15 +642,12 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     for y in lanes:
         if not merged or y - merged[-1] > 1.5:
             merged.append(y)
-    def corridor_of(cands: list[Candidate]) -> tuple[tuple[float, float], list[Obstacle],
-                                                     tuple[FloatArray, FloatArray, FloatArray], float]:
-        s_end = max((c.s for c in cands), default=s0 + vs0 * steps[1] * dt)
-        via = min(cands, key=lambda c: c.cost0) if cands else None
-        return _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M, max(s0, s_end) + EDGE_REACH_M,
-                           np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64),
-                           ((s0, d0), (via.s, via.d) if via is not None else (s0 + 1.0, d0)))
-
-    road_y, road_edges, corridor, _ = corridor_of(candidates)
+    s_end = max((c.s for c in candidates), default=s0 + vs0 * steps[1] * dt)
+    via = min(candidates, key=lambda c: c.cost0) if candidates else None
+    road_y, road_edges, corridor = _road_edges(frame, network, chain, min(s0, s_end) - EDGE_REACH_M,
+                                               max(s0, s_end) + EDGE_REACH_M,
+                                               np.asarray(dt * np.arange(steps[1] + 1), dtype=np.float64),
+                                               ((s0, d0), (via.s, via.d) if via is not None else (s0 + 1.0, d0)))
 
     # --- recorded vehicles --------------------------------------------------------------------
     obstacles: list[Obstacle] = []

@@ -491,14 +491,14 @@ def search_final_states(cr: CommonRoadProblem, max_solves: int = CLEAR_MAX_SOLVE
         return None
     test = final_state_clearance(cr)
     found = clear_goal_states(cr.goal, cr.x0, cr.dt, test, _elapsed(cr), max_solves, known=cr.candidates)
-    follow = follow_states(cr, test, max_solves - found.solves)
-    if not follow.candidates:
+    follow, solves = follow_states(cr, test, max_solves - found.solves)
+    if not follow:
         return found
     seen = {(c.element, c.goal_step, round(c.s, 3), round(c.d, 3)) for c in found.candidates}
-    extra = [c for c in follow.candidates if (c.element, c.goal_step, round(c.s, 3), round(c.d, 3)) not in seen]
+    extra = [c for c in follow if (c.element, c.goal_step, round(c.s, 3), round(c.d, 3)) not in seen]
     return dataclasses.replace(found, candidates=sorted(found.candidates + extra,
                                                         key=lambda c: (c.cost0, c.steps, c.element, c.piece)),
-                               solves=found.solves + follow.solves)
+                               solves=found.solves + solves)
 
 
 #: Vehicles ahead in the ego's lane at the start, nearest first, behind each of which a goal state
@@ -506,7 +506,7 @@ def search_final_states(cr: CommonRoadProblem, max_solves: int = CLEAR_MAX_SOLVE
 FOLLOW_VEHICLES = 3
 
 
-def follow_states(cr: CommonRoadProblem, test: ClearanceTest, max_solves: int) -> ClearSearch:
+def follow_states(cr: CommonRoadProblem, test: ClearanceTest, max_solves: int) -> tuple[list[Candidate], int]:
     """Final states that keep the ego's lane behind a vehicle ahead, for the goal states without
     a position (their final state is anywhere in the ego's lane).
 
@@ -517,7 +517,8 @@ def follow_states(cr: CommonRoadProblem, test: ClearanceTest, max_solves: int) -
     ``cr.goal.ego_lane``, ahead of the ego's centre), at the last step of the goal state's window
     where that vehicle is recorded: the cheapest final state that ``test`` accepts with the body's
     centre half a body, :data:`~iamp.commonroad.convert.BUFFER_M` and :data:`WAY_PUSH_M` behind the
-    vehicle's rear (the goal region's ``s_max`` lowered to there).  ``max_solves`` QP solves in all.
+    vehicle's rear (the goal region's ``s_max`` lowered to there).  ``max_solves`` QP solves in all;
+    returns the final states and the solves spent.
     """
     region = cr.goal
     lo, hi = region.ego_lane
@@ -528,7 +529,6 @@ def follow_states(cr: CommonRoadProblem, test: ClearanceTest, max_solves: int) -
     elapsed = _elapsed(cr)
     out: list[Candidate] = []
     solves = 0
-    exhausted = False
     for e in region.elements:
         if e.pieces is not None:
             continue
@@ -536,7 +536,6 @@ def follow_states(cr: CommonRoadProblem, test: ClearanceTest, max_solves: int) -
             ks = [k for k in range(max(e.steps[0], elapsed + 1), e.steps[1] + 1)
                   if _step_at(ob, (k - elapsed) * cr.dt) is not None]
             if not ks or solves >= max_solves:
-                exhausted |= bool(ks)
                 continue
             k = ks[-1]
             rear = float(ob.s_lo[_step_at(ob, (k - elapsed) * cr.dt)])
@@ -544,9 +543,8 @@ def follow_states(cr: CommonRoadProblem, test: ClearanceTest, max_solves: int) -
                                       s_max=min(region.s_max, rear - cr.ego_length / 2 - BUFFER_M - WAY_PUSH_M))
             got = clear_goal_states(sub, cr.x0, cr.dt, test, elapsed, max_solves - solves)
             solves += got.solves
-            exhausted |= got.exhausted
             out += got.candidates
-    return ClearSearch(out, solves, exhausted, {})
+    return out, solves
 
 
 def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float, float],

@@ -1979,7 +1979,8 @@ def _backtrack(ev: _Evaluator, x: FloatArray, d: FloatArray, J: float, r: FloatA
     largest ``|r_i|`` over ``idx`` halves.  Returns the point, ``J_b``, ``r`` and whether it moved
     (else ``x``, ``J``, ``r`` as given)."""
     noise = 1e-10 * max(1.0, abs(J))
-    r_ref = float(np.max(np.abs(r[list(idx)])))
+    ix = list(idx)
+    r_ref = float(np.max(np.abs(r[ix])))
     alpha = 1.0
     for _ in range(tries):
         if alpha * float(np.max(np.abs(d))) < min_step:
@@ -1987,7 +1988,7 @@ def _backtrack(ev: _Evaluator, x: FloatArray, d: FloatArray, J: float, r: FloatA
         xn = x + alpha * d
         Jn, rn, _ = ev(xn)
         if math.isfinite(Jn) and (Jn <= J + 1e-4 * alpha * slope or (
-                Jn <= J + noise and float(np.max(np.abs(rn[list(idx)]))) <= 0.5 * r_ref)):
+                Jn <= J + noise and float(np.max(np.abs(rn[ix]))) <= 0.5 * r_ref)):
             return xn, Jn, rn, True
         alpha *= 0.5
     return x, J, r, False
@@ -2084,8 +2085,9 @@ def _valley_sweep(ev: _Evaluator, x: FloatArray, T: float, held: dict[int, float
                 z = None
         else:
             held.pop(i, None)
-        if z is not None and ev(z)[0] <= J + 1e-10 * abs(J):
-            x, J = z, ev(z)[0]
+        Jz = ev(z)[0] if z is not None else math.inf
+        if z is not None and Jz <= J + 1e-10 * abs(J):
+            x, J = z, Jz
     step = x - before
     if held or not np.any(step):
         return x
