@@ -59,18 +59,11 @@ def active_rows(A: sp.spmatrix, l: FloatArray, u: FloatArray, z: FloatArray, y: 
     ineq = np.flatnonzero(~held)  # the inequality rows held (the equalities all are)
     keep: dict[tuple[bytes, bytes, int], int] = {}
     if ineq.size:
-        at = np.full(A.shape[0], -1, dtype=np.int64)
-        at[rows[ineq]] = np.arange(ineq.size)
-        which = at[A.indices]
-        ent = np.flatnonzero(which >= 0)  # their entries, column by column
-        col = np.searchsorted(A.indptr, ent, side="right") - 1
-        order = np.argsort(which[ent], kind="stable")  # row by row, each in column order
-        ent, col = ent[order], col[order]
-        cut = np.searchsorted(which[ent], np.arange(ineq.size + 1))
+        R = csc_rows(A, rows[ineq]).tocsr()  # those rows, each row's entries in column order
         for j, pos in enumerate(ineq.tolist()):
-            a, b = cut[j], cut[j + 1]
+            a, b = R.indptr[j], R.indptr[j + 1]
             side = 1 if upper[rows[pos]] else -1
-            key = (col[a:b].tobytes(), A.data[ent[a:b]].tobytes(), side)
+            key = (R.indices[a:b].tobytes(), R.data[a:b].tobytes(), side)
             old = keep.get(key)
             if old is None:
                 keep[key] = pos
