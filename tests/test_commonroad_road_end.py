@@ -175,3 +175,28 @@ def test_a_road_that_ends_at_the_start_is_refused_naming_it(tmp_path: Path) -> N
     rp = plan(cr)
     assert rp.status == "unreachable" and rp.trajectory is None and rp.plans_used == 0
     assert "the mapped road ends ahead" in (rp.reason or "")
+
+
+@pytest.mark.parametrize("d_off,off", [(-1.5, True), (-0.9, False), (1.8, False), (8.1, False), (8.5, True)])
+def test_the_executed_body_off_the_road_is_judged_by_commonroads_boundary(tmp_path: Path, d_off: float,
+                                                                          off: bool) -> None:
+    """The closed loop's road verdict (:func:`iamp.commonroad.interactive.off_road`) on an executed
+    log: the body at its lane's centre is on the road; moved to ``d_off`` for steps 20-30 it is off
+    the road by CommonRoad's own checker at exactly those steps when it reaches past an edge (the
+    road frame's ``d = 0`` is the right lane's centre: the edges lie at -1.8 and 9.0 m; the body's
+    half width is 0.805 m), and nowhere when it stays within them by 5 cm or more."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.interactive import off_road
+    from iamp.simulation.metrics import StepLog
+
+    cr = load(_scene(tmp_path / "road.xml", 300.0, 3, 15.0, 80))
+    assert cr.ego_width / 2 == pytest.approx(0.805)
+    assert (d_off - cr.ego_width / 2 < -1.8 or d_off + cr.ego_width / 2 > 9.0) == off
+    log = StepLog()
+    off_at = range(20, 31)
+    for k in range(60):
+        log.t.append(0.1 * k)
+        log.ego.append((30.0 + 1.5 * k, 15.0, d_off if k in off_at else 0.0, 0.0, 0.0, 0.0))
+    out = off_road(cr, log)
+    assert out == ({"off_road_steps": len(off_at), "off_road_times_s": pytest.approx([2.0, 3.0])} if off
+                   else {"off_road_steps": 0, "off_road_times_s": None})

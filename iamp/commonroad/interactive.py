@@ -84,7 +84,7 @@ from iamp.commonroad.convert import (
     final_candidates,
     load,
 )
-from iamp.commonroad.planning import DEFAULT_PLANNER, Intrusion, body_overlap, intrusions, plan
+from iamp.commonroad.planning import DEFAULT_PLANNER, Intrusion, body_overlap, intrusions, off_road_poses, plan
 from iamp.commonroad.tactical import EARLY_MIN_S, LaneMap, Stages, lane_change, sequence, still_holds
 from iamp.core.errors import MissingDependencyError, ScenarioError
 from iamp.core.plan import Trajectory
@@ -717,7 +717,11 @@ def miss_reason(occupancy: dict[str, Any]) -> str | None:
 
 
 def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
-    """The deepest the executed body entered a road-edge box of the scene (no buffer) [m]."""
+    """The deepest the executed body entered a road-edge box of the scene (no buffer) [m].
+
+    The boxes cover the narrowest bound over up to :data:`~iamp.commonroad.convert.EDGE_CHUNK_M`
+    of road, so they overstate an edge that narrows steeply (a ramp's taper): a positive depth is
+    not by itself off the road; :func:`off_road` is CommonRoad's own verdict."""
     if not log.t or not cr.road_edges:
         return 0.0
     E = np.asarray(log.ego, dtype=float)
@@ -728,6 +732,30 @@ def road_edge_depth(cr: CommonRoadProblem, log: Any) -> float:
                              cr.ego_length / 2, cr.ego_width / 2, 0.0)
         worst = max(worst, float(np.max(depth)))
     return worst
+
+
+def off_road(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
+    """CommonRoad's road-boundary verdict on the executed bodies (the independent judge of the
+    road edges, where :func:`road_edge_depth` measures iamp's own boxes): the executed steps whose
+    body -- the ego's rectangle at the executed centre, in the world, at the heading of its
+    executed velocity -- collides with the road boundary that the solution checker builds from the
+    lanelets (:func:`~iamp.commonroad.planning.off_road_poses`).
+
+    Returns
+    -------
+    dict
+        ``off_road_steps`` (how many executed steps) and ``off_road_times_s`` (the first and last
+        such time, or None).
+    """
+    if not log.t:
+        return {"off_road_steps": 0, "off_road_times_s": None}
+    E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
+    P = np.atleast_2d(cr.frame.to_world(E[:, 0], E[:, 2]))
+    V = np.atleast_2d(cr.frame.velocity_to_world(E[:, 0], E[:, 2], E[:, 1], E[:, 3]))
+    off = off_road_poses(cr, P, np.arctan2(V[:, 1], V[:, 0]))
+    t = np.asarray(log.t, dtype=float)
+    return {"off_road_steps": int(off.sum()),
+            "off_road_times_s": [float(t[off][0]), float(t[off][-1])] if off.any() else None}
 
 
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
@@ -1071,7 +1099,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         "edge_grazing_plans": edge_plans, "out_of_reach_replans": out_of_reach, "lane_changes": lane_changes,
         "lane_change_sequences": n_sequences, "sumo_routes_repaired": routes_repaired,
         "decisions": decisions,
-        "road_edge_depth_m": road_edge_depth(cr, log), "goal_occupancy": occupancy,
+        "road_edge_depth_m": road_edge_depth(cr, log), **off_road(cr, log), "goal_occupancy": occupancy,
         "goal_missed_reason": None if goal_step is not None else miss_reason(occupancy),
         "plan_time_s": {"calls": len(plan_times),
                         "median": float(np.median(plan_times)) if plan_times else None,
