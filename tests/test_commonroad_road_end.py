@@ -200,3 +200,35 @@ def test_the_executed_body_off_the_road_is_judged_by_commonroads_boundary(tmp_pa
     out = off_road(cr, log)
     assert out == ({"off_road_steps": len(off_at), "off_road_times_s": pytest.approx([2.0, 3.0])} if off
                    else {"off_road_steps": 0, "off_road_times_s": None})
+
+
+def test_a_replan_is_judged_where_it_starts_not_at_the_problems_start(tmp_path: Path) -> None:
+    """:func:`iamp.commonroad.solution.world_states` of the closed loop's replans (``cr.x0`` the
+    ego's state then): the written positions start at the replan's own mapped start (they started
+    at the planning problem's initial position, shifting every body the loop checked against the
+    road boundary back by the distance driven: USA_US101-21_1 drove 5-20 mm off the road at
+    1.8-2.0 s on plans judged on the road 20 m behind); the offline plan still starts exactly
+    at the initial position; the road verdicts of the replan's bodies are those of its own
+    states, and a replan straight off the right edge is found off the road."""
+    import dataclasses
+
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import FreeTrajectory, off_road_poses, off_road_steps
+    from iamp.commonroad.solution import world_states
+
+    cr = load(_scene(tmp_path / "road.xml", 300.0, 3, 15.0, 80))
+    s0, vs0, d0, _ = cr.x0
+    T, K = 4.0, 40
+    offline = FreeTrajectory(T, cr.x0, (s0 + vs0 * T, vs0, d0, 0.0))
+    P, _, drift = world_states(cr, offline, K)
+    assert np.array_equal(P[0], np.asarray(cr.planning_problem.initial_state.position, dtype=float)) and drift < 1e-3
+    for d_end, off in ((d0, False), (d0 - 2.5, True)):
+        live = dataclasses.replace(cr, x0=(s0 + 60.0, vs0, d0, 0.0))
+        replan = FreeTrajectory(T, live.x0, (s0 + 60.0 + vs0 * T, vs0, d_end, 0.0))
+        P, V, drift = world_states(live, replan, K)
+        X = replan.states(np.arange(K + 1) * cr.dt)
+        exact = cr.frame.to_world(X[:, 0], X[:, 2])
+        assert np.linalg.norm(P[0] - exact[0]) < 1e-9 and drift < 0.02
+        verdict = off_road_steps(live, replan, K)
+        assert np.array_equal(verdict, off_road_poses(cr, exact, np.arctan2(V[:, 1], V[:, 0])))
+        assert bool(verdict.any()) == off

@@ -40,14 +40,27 @@ FloatArray = npt.NDArray[np.float64]
 DEFAULT_COST_FUNCTION = "WX1"
 
 
+#: A plan's mapped start within this of the planning problem's initial position starts there
+#: exactly (the road frame's round trip is far finer) [m].
+START_SNAP_M = 0.01
+
+
 def world_states(cr: CommonRoadProblem, trajectory: Trajectory, steps: int) -> tuple[FloatArray, FloatArray, float]:
     """Positions ``(K+1, 2)`` and velocities ``(K+1, 2)`` of the ZOH trajectory, and the largest
-    distance between its positions and the plan's mapped positions [m]."""
+    distance between its positions and the plan's mapped positions [m].
+
+    The integration starts at the plan's own first state: the planning problem's initial
+    position itself when the plan starts there (within :data:`START_SNAP_M`, the solution's
+    first state), else its mapped position (a replan of the closed loop, whose ``cr.x0`` is the
+    ego's state then: the problem's initial position would shift every later body by the
+    distance driven since)."""
     t = np.arange(steps + 1) * cr.dt
     X = trajectory.states(t)
     P = cr.frame.to_world(X[:, 0], X[:, 2])
     V = cr.frame.velocity_to_world(X[:, 0], X[:, 2], X[:, 1], X[:, 3])
-    P[0] = np.asarray(cr.planning_problem.initial_state.position, dtype=float)
+    p_init = np.asarray(cr.planning_problem.initial_state.position, dtype=float)
+    if float(np.linalg.norm(P[0] - p_init)) <= START_SNAP_M:
+        P[0] = p_init
     U = np.diff(V, axis=0) / cr.dt
     Z = np.empty_like(P)
     Z[0] = P[0]
