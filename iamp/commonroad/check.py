@@ -21,6 +21,11 @@ check (it raises); this module runs every check separately and records each verd
   goal as position, speed :math:`|v|`, orientation :math:`\operatorname{atan2}(v_y, v_x)` and
   time step, so nothing else changes.
 
+A ``PM`` solution that starts at rest gets a ``note``: its first state has no heading (CommonRoad
+reads ``atan2(0, 0) = 0``), so ``starts_at_initial_state`` and the body at step 0 are judged at
+heading 0 rather than the initial state's; the verdicts stay CommonRoad's, and the ``KS`` model,
+which carries the heading, is not affected.
+
 ``valid`` is every check passing with the corrected goal test; ``valid_commonroad_raw`` is
 ``valid_solution``'s own answer (``False`` whenever the defect bites), both reported.
 """
@@ -58,6 +63,7 @@ class VerdictJSON(TypedDict):
     cost: float | None
     cost_function: str | None
     orientation_defect: str
+    notes: list[str]
 
 
 @dataclass
@@ -68,6 +74,8 @@ class Verdict:
     colliding_obstacles: list[int] = field(default_factory=list)
     cost: float | None = None
     cost_function: str | None = None
+    #: What the verdicts cannot say by themselves (a ``PM`` start at rest).
+    notes: list[str] = field(default_factory=list)
 
     @property
     def valid(self) -> bool:
@@ -103,7 +111,8 @@ class Verdict:
                 "checks": self.checks, "colliding_obstacles": self.colliding_obstacles,
                 "cost": self.cost, "cost_function": self.cost_function,
                 "orientation_defect": "commonroad-io 2024.3 reads a PM goal state's orientation as atan2(v_y, |v|); "
-                                      "goal_reached_corrected uses atan2(v_y, v_x)"}
+                                      "goal_reached_corrected uses atan2(v_y, v_x)",
+                "notes": list(self.notes)}
 
     def lines(self) -> list[str]:
         out = []
@@ -116,6 +125,7 @@ class Verdict:
         out.append(f"{'valid_solution (raw)':26s} {'yes' if self.valid_commonroad_raw else 'no'}"
                    + ("  (the PM orientation defect: see goal_reached_corrected)"
                       if self.valid and not self.valid_commonroad_raw else ""))
+        out += [f"{'note':26s} {n}" for n in self.notes]
         if self.cost is not None:
             out.append(f"{'cost ' + str(self.cost_function):26s} {self.cost:.4f}")
         elif self.cost_function is not None:
@@ -157,6 +167,25 @@ def _corrected_goal(pp: Any, trajectory: Any) -> tuple[bool, int | None]:
     return False, None
 
 
+#: A ``PM`` first state slower than this has no heading worth the name [m/s].
+REST_MPS = 1e-3
+
+
+def _pm_rest_note(pp: Any, pp_sol: Any) -> str | None:
+    """The note of a ``PM`` solution starting at rest with a heading CommonRoad cannot read (module
+    docstring), else None."""
+    if pp_sol.vehicle_model.name != "PM" or not pp_sol.trajectory.state_list:
+        return None
+    first = pp_sol.trajectory.state_list[0]
+    speed = math.hypot(float(getattr(first, "velocity", 0.0)), float(getattr(first, "velocity_y", 0.0)))
+    heading = float(getattr(pp.initial_state, "orientation", 0.0))
+    if speed >= REST_MPS or abs(math.remainder(heading, 2 * math.pi)) < 1e-3:
+        return None
+    return (f"the ego starts at rest: CommonRoad reads a PM state at zero speed with heading atan2(0, 0) = 0, "
+            f"not the initial state's {heading:.4f} rad, so starts_at_initial_state and the body at step 0 are "
+            "judged turned (the KS model carries the heading: --vehicle-model KS)")
+
+
 def check(scenario: Any, pps: Any, solution: Any, cost: bool = True) -> Verdict:
     """Run every check of the module docstring on ``solution``."""
     require()
@@ -178,6 +207,9 @@ def check(scenario: Any, pps: Any, solution: Any, cost: bool = True) -> Verdict:
         v.checks[name] = {"ok": bool(ok), "detail": detail}
 
     run("starts_at_initial_state", lambda: (sc.starts_at_correct_state(solution, pps), ""))
+    note = _pm_rest_note(pp, pp_sol)
+    if note is not None:
+        v.notes.append(note)
 
     def feas() -> tuple[bool, str]:
         res = sc.solution_feasible(solution, scenario.dt, pps)

@@ -999,14 +999,14 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     action = "lane change"
                     decisions.append({"t": round(now, 3), "action": action, "why": why,
                                       "vehicles": [], "road_edge_depth_m": 0.0})
-                elif rp is not None and rp.candidate is not None and rp.safe and rp.peak_accel_mps2 <= cr.a_max:
+                elif rp is not None and rp.candidate is not None and rp.safe and rp.within_limits(live):
                     traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
                 else:
                     infeasible += rp is not None
                     out_of_reach += rp is None
                     options: list[tuple[str, Any, float, list[Intrusion]]] = []
                     if (rp is not None and rp.trajectory is not None and rp.candidate is not None
-                            and rp.peak_accel_mps2 <= cr.a_max):
+                            and rp.within_limits(live)):
                         options.append(("new plan", rp.trajectory, rp.candidate.tf, rp.intrusions))
                     rest = traj_T - (now - t_plan)
                     if isinstance(traj, Braking):  # it runs on past its horizon: checked over the fail-safe's
@@ -1040,9 +1040,9 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                         failsafes += 1
                     decisions.append({
                         "t": round(now, 3), "action": action,
-                        "why": "goal out of reach" if rp is None else (rp.status if rp.trajectory is None or
-                                                                       rp.peak_accel_mps2 > cr.a_max else
-                                                                       "in the way of the new plan"),
+                        "why": "goal out of reach" if rp is None else (rp.status if rp.trajectory is None else
+                                                                       "exceeds limits" if not rp.within_limits(live)
+                                                                       else "in the way of the new plan"),
                         "vehicles": sorted({h.obstacle.obstacle_id for h in vehicle_hits(rp.intrusions)})
                         if rp is not None else [],
                         "road_edge_depth_m": round(edge_depth(hits), 3)})

@@ -70,6 +70,11 @@ PLANNERS: dict[str, tuple[str, str, bool]] = {
     "free": ("", "", False),
 }
 DEFAULT_PLANNER = "avoid"
+#: Points of a plan's horizon at which its heading, peak acceleration and lowest speed are read.
+LIMIT_SAMPLES = 401
+#: How far below the lowest speed of the vehicle type a plan's speed along the road may dip (the
+#: round-off of a final state at rest, about 1e-16) [m/s].
+SPEED_TOL_MPS = 1e-6
 #: Buffer of the body check (the planners' margins carry the larger convert.BUFFER_M) [m].
 CHECK_BUFFER_M = 0.05
 #: Overlap with a road-edge box that the self-check tolerates: the boxes take the narrowest
@@ -228,6 +233,30 @@ class RoadPlan:
     @property
     def safe(self) -> bool:
         return self.trajectory is not None and not self.intrusions
+
+    def within_limits(self, cr: CommonRoadProblem) -> bool:
+        """A plan within the vehicle's limits (:meth:`limit_breach` finds none)."""
+        return self.trajectory is not None and self.candidate is not None and self.limit_breach(cr) is None
+
+    def limit_breach(self, cr: CommonRoadProblem) -> str | None:
+        """How the plan leaves the vehicle's limits, in words (None: it does not): the peak
+        acceleration above ``a_max``, or the speed along the road below the type's lowest (0: no
+        reversing; widened to the start's and the final state's own speeds, which the plan must
+        meet) by more than :data:`SPEED_TOL_MPS`, on :data:`LIMIT_SAMPLES` points of its horizon.
+        A cubic whose final state lies behind the start reaches it by reversing, which CommonRoad's
+        ``PM`` model accepts with the body turned around (its heading is its velocity's); no car
+        on a road does that."""
+        if self.trajectory is None or self.candidate is None:
+            return None
+        if self.peak_accel_mps2 > cr.a_max:
+            return f"its peak acceleration {self.peak_accel_mps2:.2f} m/s^2 exceeds a_max {cr.a_max:.2f} m/s^2"
+        floor = min(cr.speed_range[0], cr.x0[1], self.candidate.vs)
+        low = min_speed(self.trajectory, self.candidate.tf)
+        if low < floor - SPEED_TOL_MPS:
+            lowest = round(floor, 2) + 0.0  # no "-0.00" for a final state at rest read as -1e-16
+            return (f"its speed along the road falls to {low:.2f} m/s, below the lowest {lowest:.2f} m/s "
+                    "(it would reverse)")
+        return None
 
 
 def body_overlap(s: FloatArray, d: FloatArray, heading: FloatArray, s_lo: FloatArray, s_hi: FloatArray,
@@ -598,8 +627,13 @@ def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float
     return None  # a start or end inside its safety region, or in the same half-plane at both ends
 
 
+def min_speed(trajectory: Trajectory, T: float) -> float:
+    """The lowest speed along the road of ``trajectory`` on ``[0, T]`` (:data:`LIMIT_SAMPLES` points) [m/s]."""
+    return float(np.min(trajectory.states(np.linspace(0.0, T, LIMIT_SAMPLES))[:, 1]))
+
+
 def _heading_and_peak(trajectory: Trajectory, T: float) -> tuple[float, float]:
-    t = np.linspace(0.0, T, 401)
+    t = np.linspace(0.0, T, LIMIT_SAMPLES)
     X = trajectory.states(t)
     U = trajectory.inputs(t)
     return (float(np.max(np.abs(np.arctan2(X[:, 3], np.maximum(X[:, 1], 1e-6))))),
@@ -989,7 +1023,7 @@ def _plan_road(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_can
             repairs -= 1  # the lateral repair: one convex QP, counted apart from the planner calls
             result = _repaired(cr, cand, result)
         result.candidates_tried = n_tried
-        if result.safe and result.peak_accel_mps2 <= cr.a_max:
+        if result.safe and result.within_limits(cr):
             result = steer_at_edges(cr, result, engine)
             result.solve_time_s = time.perf_counter() - start
             result.plans_used = max_plans - budget[0]
@@ -1052,8 +1086,10 @@ def _plan_road(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_can
             searched = ("no valid final state exists: " + "; ".join(bad[i] for i in sorted(bad))
                         + f" (the body grown by {BUFFER_M} m from the vehicles, {EDGE_BUFFER_M} m from the road's "
                         "edge); " + searched)
-    if best.trajectory is not None and not best.intrusions and best.peak_accel_mps2 > cr.a_max:
+    breach = best.limit_breach(cr)
+    if best.trajectory is not None and not best.intrusions and breach is not None:
         best.status = "exceeds limits"
+        best.reason = best.reason or breach
     last = (best.reason or "").replace(": no safe plan exists", ": no safe plan for this final state")
     best.reason = searched + (f"; the best attempt: {last}" if last else "")
     best.solve_time_s = time.perf_counter() - start

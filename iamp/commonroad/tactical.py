@@ -389,7 +389,7 @@ def lane_change(cr: CommonRoadProblem, planner: str, goal_d: float, now: float =
     # a lane change is one plan to the next lane, not a two-stage plan around a vehicle (via=False: a
     # waypoint plan taken as a lane change at 6.5 s made 23_1's ego end against the car in its goal)
     rp = plan(dataclasses.replace(cr, candidates=cands), planner, max_candidates=MAX_WAYPOINTS, via=False)
-    if rp.safe and rp.candidate in cands and rp.trajectory is not None and rp.peak_accel_mps2 <= cr.a_max \
+    if rp.safe and rp.candidate in cands and rp.within_limits(cr) \
             and stops_behind_along(cr, rp.trajectory, rp.candidate.tf):
         return rp
     return None
@@ -677,7 +677,7 @@ def sequence(cr: CommonRoadProblem, planner: str, goal_d: float, now: float = 0.
             rp = plan(dataclasses.replace(live, candidates=[cand]), planner, max_candidates=1, via=False)
             calls += 1
             if not (rp.safe and rp.candidate == cand and rp.trajectory is not None
-                    and rp.peak_accel_mps2 <= cr.a_max and stops_behind_along(live, rp.trajectory, cand.tf)):
+                    and rp.within_limits(live) and stops_behind_along(live, rp.trajectory, cand.tf)):
                 break
             parts.append((t_prev, rp.trajectory, cand.tf))
             live, k_prev, t_prev = advanced(cr, (s, v, d, vd), te), k, te

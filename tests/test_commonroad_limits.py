@@ -1,0 +1,169 @@
+"""The CommonRoad road planner's limits: a plan that reverses is not within them, and a point-mass
+start at rest is noted.
+
+Found on the public urban NGSIM problems (Peachtree, Lankershim; ``github.com/seungju-k1m/CommonRoad``):
+USA_Peach-4_8's goal lies 36 m behind the ego, which starts at rest; the unconstrained cubic
+reaches it by reversing at up to 10 m/s, no vehicle's box was entered in the road frame (the
+body's heading there is read from ``max(v_s, 1e-6)``), and the plan was reported ``optimal``
+while CommonRoad's checker, whose ``PM`` body points along the velocity, found a collision.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from conftest import needs_commonroad
+from hypothesis import given, settings
+from hypothesis import strategies as hs
+
+from iamp.commonroad.goal import Candidate
+from iamp.commonroad.planning import LIMIT_SAMPLES, SPEED_TOL_MPS, FreeTrajectory, RoadPlan, _heading_and_peak
+
+HEADING = 0.3
+LANE_W = 3.6
+
+
+def _cubic_min_speed(T: float, x0: tuple[float, ...], xf: tuple[float, ...]) -> float:
+    """The exact lowest speed along the road of the free cubic: its velocity is quadratic in t."""
+    D, dv = xf[0] - x0[0] - x0[1] * T, xf[1] - x0[1]
+    a, b = (3 * D - dv * T) / T**2, (dv * T - 2 * D) / T**3
+    ts = [0.0, T] + ([-a / (3 * b)] if b != 0.0 and 0.0 < -a / (3 * b) < T else [])
+    return min(x0[1] + 2 * a * t + 3 * b * t * t for t in ts)
+
+
+@settings(max_examples=300, deadline=None)
+@given(T=hs.floats(1.0, 10.0), v0=hs.floats(0.0, 30.0), vf=hs.floats(0.0, 30.0), ds=hs.floats(-60.0, 300.0),
+       a_max=hs.floats(2.0, 12.0))
+def test_limit_breach_is_a_reversal_or_a_peak_above_a_max(T: float, v0: float, vf: float, ds: float,
+                                                         a_max: float) -> None:
+    """Over generated free cubics (start and final speed at least the type's lowest, 0): the
+    plan breaches its limits exactly when its peak acceleration exceeds ``a_max`` or its exact
+    lowest speed along the road (the quadratic's minimum) falls below 0 by more than the
+    tolerance, up to what :data:`LIMIT_SAMPLES` points can resolve."""
+    x0, xf = (10.0, v0, 0.0, 0.0), (10.0 + ds, vf, 0.5, 0.0)
+    traj = FreeTrajectory(T, x0, xf)
+    _, peak = _heading_and_peak(traj, T)
+    cand = Candidate(steps=int(round(T / 0.1)), tf=T, s=xf[0], vs=vf, d=xf[2], cost0=0.0)
+    rp = RoadPlan("free", "optimal", cand, traj, traj.cost(), 0.0, peak_accel_mps2=peak)
+    cr = SimpleNamespace(a_max=a_max, speed_range=(0.0, 50.0), x0=x0)
+    breach = rp.limit_breach(cr)  # type: ignore[arg-type]
+    low = _cubic_min_speed(T, x0, xf)
+    # sampling finds the minimum to within half the velocity's second derivative (6 b) times the
+    # half spacing squared
+    D, dv = xf[0] - x0[0] - v0 * T, vf - v0
+    resolution = 0.5 * abs(6 * (dv * T - 2 * D) / T**3) * (0.5 * T / (LIMIT_SAMPLES - 1)) ** 2
+    if peak > a_max:
+        assert breach is not None and "peak acceleration" in breach
+    elif low < -SPEED_TOL_MPS - resolution - 1e-9:
+        assert breach is not None and "reverse" in breach
+    elif low >= -SPEED_TOL_MPS:
+        assert breach is None
+    assert rp.within_limits(cr) == (breach is None)  # type: ignore[arg-type]
+
+
+def test_a_final_state_at_rest_within_round_off_of_zero_is_within_limits() -> None:
+    """A final state at rest read as -1e-16 m/s (USA_Peach-4_8's candidate) does not make every
+    plan to it a reversal; a start and final speed below the type's lowest widen it."""
+    T = 4.0
+    for vf in (-1e-16, 0.0):
+        traj = FreeTrajectory(T, (0.0, 8.0, 0.0, 0.0), (16.0, vf, 0.0, 0.0))  # brakes to rest, never below
+        cand = Candidate(steps=40, tf=T, s=16.0, vs=vf, d=0.0, cost0=0.0)
+        rp = RoadPlan("free", "optimal", cand, traj, traj.cost(), 0.0, peak_accel_mps2=_heading_and_peak(traj, T)[1])
+        cr = SimpleNamespace(a_max=11.5, speed_range=(0.0, 50.0), x0=(0.0, 8.0, 0.0, 0.0))
+        assert rp.limit_breach(cr) is None  # type: ignore[arg-type]
+    traj = FreeTrajectory(T, (0.0, -0.5, 0.0, 0.0), (10.0, 5.0, 0.0, 0.0))
+    cand = Candidate(steps=40, tf=T, s=10.0, vs=5.0, d=0.0, cost0=0.0)
+    rp = RoadPlan("free", "optimal", cand, traj, traj.cost(), 0.0, peak_accel_mps2=_heading_and_peak(traj, T)[1])
+    cr = SimpleNamespace(a_max=11.5, speed_range=(0.0, 50.0), x0=(0.0, -0.5, 0.0, 0.0))
+    assert rp.limit_breach(cr) is None  # type: ignore[arg-type]
+
+
+def test_a_pm_start_at_rest_with_a_heading_is_noted_and_nothing_else() -> None:
+    """The note of :func:`iamp.commonroad.check._pm_rest_note`: a ``PM`` first state at rest with a
+    heading away from 0; not a moving start, not a start heading 0, not a ``KS`` solution."""
+    from iamp.commonroad.check import REST_MPS, _pm_rest_note
+
+    def sol(model: str, vx: float, vy: float) -> SimpleNamespace:
+        return SimpleNamespace(vehicle_model=SimpleNamespace(name=model),
+                               trajectory=SimpleNamespace(state_list=[SimpleNamespace(velocity=vx, velocity_y=vy)]))
+
+    def pp(heading: float) -> SimpleNamespace:
+        return SimpleNamespace(initial_state=SimpleNamespace(orientation=heading))
+
+    note = _pm_rest_note(pp(-1.6264), sol("PM", 0.0, 0.0))
+    assert note is not None and "-1.6264" in note and "KS" in note
+    assert _pm_rest_note(pp(-1.6264), sol("PM", 0.0, 2 * REST_MPS)) is None
+    assert _pm_rest_note(pp(-1.6264), sol("KS", 0.0, 0.0)) is None
+    assert _pm_rest_note(pp(2 * math.pi), sol("PM", 0.0, 0.0)) is None
+    assert _pm_rest_note(pp(0.0), sol("PM", 0.0, 0.0)) is None
+
+
+def _world(s: float, d: float) -> np.ndarray:
+    c, sn = math.cos(HEADING), math.sin(HEADING)
+    d = d + 0.5 * (s / 100.0) ** 2  # a gentle bend (see tests/test_commonroad_road_end.py)
+    return np.array([s * c - d * sn, s * sn + d * c])
+
+
+def _scene(path: Path, s_goal: float, step: int) -> Path:
+    """Two lanes of 200 m, the ego at rest at ``s = 60`` in the right lane, heading along the road;
+    the goal a 6 m by 3 m rectangle at ``s_goal`` in the same lane at time step ``step``; no vehicle."""
+    from commonroad.common.file_writer import CommonRoadFileWriter, OverwriteExistingFile
+    from commonroad.common.util import Interval
+    from commonroad.geometry.shape import Rectangle
+    from commonroad.planning.goal import GoalRegion
+    from commonroad.planning.planning_problem import PlanningProblem, PlanningProblemSet
+    from commonroad.scenario.lanelet import Lanelet, LaneletNetwork
+    from commonroad.scenario.scenario import Scenario, ScenarioID
+    from commonroad.scenario.state import CustomState, InitialState
+
+    s = np.linspace(0.0, 200.0, 21)
+    lanelets = []
+    for i in range(2):
+        right = np.array([_world(x, i * LANE_W) for x in s])
+        left = np.array([_world(x, (i + 1) * LANE_W) for x in s])
+        lanelets.append(Lanelet(left, 0.5 * (right + left), right, 100 + i,
+                                adjacent_left=101 if i == 0 else None, adjacent_left_same_direction=(i == 0) or None,
+                                adjacent_right=100 if i == 1 else None, adjacent_right_same_direction=(i == 1) or None))
+    scenario = Scenario(0.1, ScenarioID(country_id="ZAM", map_name="IampLimits", map_id=1))
+    scenario.add_objects(LaneletNetwork.create_from_lanelet_list(lanelets))
+    ego0 = InitialState(time_step=0, position=_world(60.0, 0.5 * LANE_W), orientation=HEADING, velocity=0.0,
+                        yaw_rate=0.0, slip_angle=0.0)
+    slope = 2 * 0.5 * s_goal / 100.0 / 100.0  # the bend's slope at the goal
+    goal = CustomState(time_step=Interval(step, step),
+                       position=Rectangle(6.0, 3.0, _world(s_goal, 0.5 * LANE_W), HEADING + math.atan(slope)))
+    pp = PlanningProblem(1, ego0, GoalRegion([goal]))
+    CommonRoadFileWriter(scenario, PlanningProblemSet([pp]), "iamp tests", "", "", set()).write_to_file(
+        str(path), OverwriteExistingFile.ALWAYS)
+    return path
+
+
+@needs_commonroad
+@pytest.mark.parametrize("s_goal,forward", [(30.0, False), (25.0, False), (95.0, True)])
+def test_a_goal_behind_a_start_at_rest_is_not_reached_by_reversing(tmp_path: Path, s_goal: float,
+                                                                  forward: bool) -> None:
+    """From rest, a goal behind the ego is reachable only by reversing: every planner's answer
+    says its limits are exceeded (never ``optimal``), naming the reversal; a goal ahead is planned
+    within them and valid by CommonRoad's checker."""
+    from iamp.commonroad.check import check
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import min_speed, plan
+    from iamp.commonroad.solution import build_solution
+
+    cr = load(_scene(tmp_path / "limits.xml", s_goal, 50))
+    for planner in ("avoid", "pmp", "free"):
+        rp = plan(cr, planner)
+        assert rp.trajectory is not None and rp.candidate is not None
+        if forward:
+            assert rp.status == "optimal" and rp.within_limits(cr)
+            assert min_speed(rp.trajectory, rp.candidate.tf) >= -SPEED_TOL_MPS
+            sol, _ = build_solution(cr, rp.trajectory, rp.candidate.steps)
+            v = check(cr.scenario, cr.planning_problem_set, sol, cost=False)
+            assert v.checks["kinematically_feasible"]["ok"] and v.checks["road_boundary"]["ok"]
+        else:
+            assert rp.status == "exceeds limits" and not rp.within_limits(cr)
+            assert min_speed(rp.trajectory, rp.candidate.tf) < -1.0
+            assert rp.reason is not None and "reverse" in rp.reason
