@@ -18,7 +18,7 @@ the same job directly and never touches the working tree:
 Usage::
 
     python scripts/mutation_score.py compare/agreement.py --tests tests/test_compare.py \
-        --sample 40 --seed 1 [--timeout 300] [-k EXPR]
+        --sample 40 --seed 1 [--timeout 300] [-k EXPR] [--lines A-B]
 
 The copy is run with ``python -m pytest`` from its root, so ``import iamp`` resolves to the
 copy (the current directory precedes the editable install on ``sys.path``).
@@ -121,12 +121,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=300.0)
     ap.add_argument("-k", default=None, help="pytest -k expression")
+    ap.add_argument("--lines", default=None, metavar="A-B",
+                    help="mutate only the points on lines A..B of FILE (e.g. the function a change touched)")
     args = ap.parse_args(argv)
     root = Path(subprocess.run(["git", "rev-parse", "--show-toplevel"], capture_output=True, text=True,
                                check=True).stdout.strip())
     source = subprocess.run(["git", "show", f"HEAD:{args.file}"], cwd=root, capture_output=True, text=True,
                             check=True).stdout
     points = _points(ast.parse(source))
+    if args.lines:
+        a, b = (int(x) for x in args.lines.split("-"))
+        points = [p for p in points if a <= p.line <= b]
     rng = random.Random(args.seed)
     chosen = rng.sample(points, min(args.sample, len(points)))
     lines = source.splitlines()
