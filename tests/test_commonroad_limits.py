@@ -10,6 +10,7 @@ while CommonRoad's checker, whose ``PM`` body points along the velocity, found a
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -167,3 +168,36 @@ def test_a_goal_behind_a_start_at_rest_is_not_reached_by_reversing(tmp_path: Pat
             assert rp.status == "exceeds limits" and not rp.within_limits(cr)
             assert min_speed(rp.trajectory, rp.candidate.tf) < -1.0
             assert rp.reason is not None and "reverse" in rp.reason
+
+
+class _Constant:
+    """A stub plan moving along the road at the constant speed ``v``."""
+
+    def __init__(self, v: float) -> None:
+        self.v = v
+
+    def states(self, t: object) -> np.ndarray:
+        n = np.atleast_1d(np.asarray(t, dtype=float)).size
+        return np.tile([0.0, self.v, 0.0, 0.0], (n, 1))
+
+
+def test_limit_breach_at_its_edges() -> None:
+    """The breach's edges: a peak exactly at ``a_max`` and a speed exactly the tolerance below the
+    lowest are within the limits, just beyond either is not; no trajectory, no breach and not
+    within; a final state at rest read as -1e-16 m/s is reported against the lowest speed 0.00,
+    not -0.00."""
+    cand = Candidate(steps=40, tf=4.0, s=10.0, vs=0.0, d=0.0, cost0=0.0)
+    cr = SimpleNamespace(a_max=6.0, speed_range=(0.0, 50.0), x0=(0.0, 0.0, 0.0, 0.0))
+
+    def rp(v: float, peak: float, c: Candidate = cand) -> RoadPlan:
+        return RoadPlan("free", "optimal", c, _Constant(v), 0.0, 0.0, peak_accel_mps2=peak)  # type: ignore[arg-type]
+
+    assert rp(-SPEED_TOL_MPS, 6.0).limit_breach(cr) is None  # type: ignore[arg-type]
+    assert rp(-SPEED_TOL_MPS, 6.0).within_limits(cr)  # type: ignore[arg-type]
+    assert "peak acceleration" in (rp(0.0, np.nextafter(6.0, 7.0)).limit_breach(cr) or "")  # type: ignore[arg-type]
+    assert "reverse" in (rp(np.nextafter(-SPEED_TOL_MPS, -1.0), 6.0).limit_breach(cr) or "")  # type: ignore[arg-type]
+    none = RoadPlan("free", "unsafe", cand, None, None, 0.0)
+    assert none.limit_breach(cr) is None and not none.within_limits(cr)  # type: ignore[arg-type]
+    at_rest = dataclasses.replace(cand, vs=-1e-16)
+    msg = rp(-2.0, 1.0, at_rest).limit_breach(cr)  # type: ignore[arg-type]
+    assert msg is not None and "below the lowest 0.00 m/s" in msg and "-0.00" not in msg
