@@ -201,3 +201,6 @@ def test_limit_breach_at_its_edges() -> None:
     at_rest = dataclasses.replace(cand, vs=-1e-16)
     msg = rp(-2.0, 1.0, at_rest).limit_breach(cr)  # type: ignore[arg-type]
     assert msg is not None and "below the lowest 0.00 m/s" in msg and "-0.00" not in msg
+    slow_start = SimpleNamespace(a_max=6.0, speed_range=(0.0, 50.0), x0=(0.0, -0.5, 0.0, 0.0))
+    msg = rp(-2.0, 1.0).limit_breach(slow_start)  # type: ignore[arg-type]
+    assert msg is not None and "falls to -2.00 m/s, below the lowest -0.50 m/s" in msg
