@@ -222,9 +222,9 @@ def test_a_replan_is_judged_where_it_starts_not_at_the_problems_start(tmp_path: 
     offline = FreeTrajectory(T, cr.x0, (s0 + vs0 * T, vs0, d0, 0.0))
     P, _, drift = world_states(cr, offline, K)
     assert np.array_equal(P[0], np.asarray(cr.planning_problem.initial_state.position, dtype=float)) and drift < 1e-3
-    for d_end, off in ((d0, False), (d0 - 2.5, True)):
-        live = dataclasses.replace(cr, x0=(s0 + 60.0, vs0, d0, 0.0))
-        replan = FreeTrajectory(T, live.x0, (s0 + 60.0 + vs0 * T, vs0, d_end, 0.0))
+    for ahead, d_end, off in ((60.0, d0, False), (60.0, d0 - 2.5, True), (0.05, d0, False)):
+        live = dataclasses.replace(cr, x0=(s0 + ahead, vs0, d0, 0.0))
+        replan = FreeTrajectory(T, live.x0, (s0 + ahead + vs0 * T, vs0, d_end, 0.0))
         P, V, drift = world_states(live, replan, K)
         X = replan.states(np.arange(K + 1) * cr.dt)
         exact = cr.frame.to_world(X[:, 0], X[:, 2])
