@@ -204,3 +204,42 @@ def test_limit_breach_at_its_edges() -> None:
     slow_start = SimpleNamespace(a_max=6.0, speed_range=(0.0, 50.0), x0=(0.0, -0.5, 0.0, 0.0))
     msg = rp(-2.0, 1.0).limit_breach(slow_start)  # type: ignore[arg-type]
     assert msg is not None and "falls to -2.00 m/s, below the lowest -0.50 m/s" in msg
+
+
+@needs_commonroad
+def test_the_free_baseline_entering_a_vehicle_is_unsafe_and_says_where(tmp_path: Path) -> None:
+    """The free baseline (no vehicle imposed) is the optimum of the problem without vehicles; as a
+    road plan through a vehicle it is ``unsafe`` (it was reported ``optimal``, and the text said
+    'no vehicle in the way', on USA_US101-10_3 while CommonRoad's checker found a collision), and
+    ``iamp commonroad plan`` names the vehicle it enters."""
+    import subprocess
+    import sys
+
+    from commonroad.common.file_reader import CommonRoadFileReader
+    from commonroad.common.file_writer import CommonRoadFileWriter, OverwriteExistingFile
+    from commonroad.geometry.shape import Rectangle
+    from commonroad.prediction.prediction import TrajectoryPrediction
+    from commonroad.scenario.obstacle import DynamicObstacle, ObstacleType
+    from commonroad.scenario.state import CustomState, InitialState
+    from commonroad.scenario.trajectory import Trajectory
+
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan
+
+    path = _scene(tmp_path / "ahead.xml", 95.0, 50)
+    scenario, pps = CommonRoadFileReader(str(path)).open()
+    shape = Rectangle(4.5, 1.8)
+    at = _world(80.0, 0.5 * LANE_W)  # standing in the ego's lane between it and the goal
+    states = [CustomState(time_step=k, position=at, orientation=HEADING, velocity=0.0) for k in range(1, 61)]
+    scenario.add_objects(DynamicObstacle(7, ObstacleType.CAR, shape,
+                                         InitialState(time_step=0, position=at, orientation=HEADING, velocity=0.0,
+                                                      yaw_rate=0.0, slip_angle=0.0, acceleration=0.0),
+                                         TrajectoryPrediction(Trajectory(1, states), shape)))
+    CommonRoadFileWriter(scenario, pps, "iamp tests", "", "", set()).write_to_file(str(path),
+                                                                                  OverwriteExistingFile.ALWAYS)
+    rp = plan(load(path), "free")
+    assert rp.status == "unsafe" and not rp.safe and [i.obstacle.obstacle_id for i in rp.intrusions] == [7]
+    out = subprocess.run([sys.executable, "-m", "iamp", "commonroad", "plan", str(path), "--planner", "free",
+                          "--out", str(tmp_path / "sol")], capture_output=True, text=True, timeout=300)
+    assert "status unsafe" in out.stdout and "enters: vehicle 7" in out.stdout
+    assert "no vehicle in the way" not in out.stdout

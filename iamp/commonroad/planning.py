@@ -2125,8 +2125,11 @@ def _plan_candidate(cr: CommonRoadProblem, cand: Candidate, label: str, iamp_pla
     free = FreeTrajectory(cand.tf, cr.x0, (cand.s, cand.vs, cand.d, cand.vd))
     free_hits = intrusions(cr, free, cand.tf)
     if label == "free" or (active and not free_hits):
+        # the free baseline is the optimum of the problem without vehicles: as a road plan it is
+        # unsafe where it enters one (its intrusions say which)
         h, peak = _heading_and_peak(free, cand.tf)
-        return RoadPlan(label, "optimal", cand, free, free.cost(), 0.0, [], free_hits, None, 0, None, h, peak)
+        return RoadPlan(label, "unsafe" if free_hits else "optimal", cand, free, free.cost(), 0.0, [], free_hits,
+                        None, 0, None, h, peak)
     margin_y = ego_margins(cr.ego_length, cr.ego_width, HEADING_GUESS_RAD, 0.0)[1]
     if not active:
         chosen = _relevant(cr, cand, free, sy)
