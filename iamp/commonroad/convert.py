@@ -524,6 +524,62 @@ def _obstacle_boxes(frame: RoadFrame, obs: Any, dt: float, k_max: int, src: str)
     return np.array([k * dt for k, _ in rects]), B
 
 
+#: Vertices of the polygon circumscribing a circular body (its occupancy's box in the road frame).
+CIRCLE_VERTICES = 24
+
+
+def _shape_points(shape: Any, what: str, src: str) -> FloatArray:
+    """The world points whose road-frame extremes bound ``shape`` (an occupancy's, already placed):
+    a polygon's or rectangle's edges densified to :data:`EDGE_DENSE_M`, a circle's circumscribed
+    polygon (:data:`CIRCLE_VERTICES`), a shape group's parts together.
+
+    Raises
+    ------
+    iamp.ScenarioError
+        A shape of another kind.
+    """
+    parts = shape.shapes if hasattr(shape, "shapes") else [shape]
+    out = []
+    for part in parts:
+        if hasattr(part, "vertices"):
+            out.append(densify(_closed(np.asarray(part.vertices, dtype=float)), EDGE_DENSE_M))
+        elif hasattr(part, "radius") and hasattr(part, "center"):
+            a = np.linspace(0.0, 2 * math.pi, CIRCLE_VERTICES + 1)
+            r = float(part.radius) / math.cos(math.pi / CIRCLE_VERTICES)  # the polygon contains the circle
+            ring = np.asarray(part.center, dtype=float) + r * np.column_stack([np.cos(a), np.sin(a)])
+            out.append(densify(ring, EDGE_DENSE_M))
+        else:
+            raise ScenarioError(f"{what}: a {type(part).__name__} shape is not supported (a rectangle, polygon, "
+                                "circle or a group of them is)", "obstacleShape", src)
+    return np.concatenate(out)
+
+
+def _occupancy_boxes(frame: RoadFrame, obs: Any, dt: float, k_max: int, src: str) -> tuple[FloatArray, FloatArray]:
+    """A static obstacle's box, or that of a dynamic obstacle whose body is not a rectangle, in
+    the road frame at each time step ``0..k_max`` it occupies (CommonRoad's own
+    ``occupancy_at_time``): times ``(n,)`` and boxes ``(n, 4)`` = ``(s_lo, s_hi, d_lo, d_hi)``, the
+    extremes of the occupancy's points (:func:`_shape_points`); a static obstacle's box is the
+    same at every step."""
+    what = f"obstacle {obs.obstacle_id}"
+    steps: list[int] = []
+    boxes: list[list[float]] = []
+    static = not hasattr(obs, "prediction")
+    for k in range(k_max + 1):
+        if static and boxes:
+            steps.append(k)
+            boxes.append(boxes[0])
+            continue
+        occ = obs.occupancy_at_time(k)
+        if occ is None:
+            continue
+        sd = frame.to_road(_shape_points(occ.shape, what, src))
+        steps.append(k)
+        boxes.append([float(sd[:, 0].min()), float(sd[:, 0].max()), float(sd[:, 1].min()), float(sd[:, 1].max())])
+    if not boxes:
+        return np.zeros(0), np.zeros((0, 4))
+    return np.array(steps, dtype=float) * dt, np.array(boxes)
+
+
 def _closed(vertices: FloatArray) -> FloatArray:
     """A polygon's vertices with the first repeated at the end (unless it already is)."""
     return vertices if np.array_equal(vertices[0], vertices[-1]) else np.vstack([vertices, vertices[:1]])
@@ -651,19 +707,22 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
 
     # --- recorded vehicles --------------------------------------------------------------------
     obstacles: list[Obstacle] = []
-    for obs in scenario.dynamic_obstacles:
+    for obs in [*scenario.dynamic_obstacles, *scenario.static_obstacles]:
         shape = obs.obstacle_shape
-        if not hasattr(shape, "length"):
-            continue
-        t, B = _obstacle_boxes(frame, obs, dt, k_max, src)
+        if hasattr(shape, "length") and hasattr(obs, "prediction"):  # a rectangle that moves
+            t, B = _obstacle_boxes(frame, obs, dt, k_max, src)
+            length, width = float(shape.length), float(shape.width)
+        else:  # a static obstacle, or a body of another shape: its occupancy at every step
+            t, B = _occupancy_boxes(frame, obs, dt, k_max, src)
+            length = float(np.max(B[:, 1] - B[:, 0])) if t.size else 0.0
+            width = float(np.max(B[:, 3] - B[:, 2])) if t.size else 0.0
         if t.size == 0:
             continue
         coeffs, resid, half = fit_motion(t, B[:, 0], B[:, 1])
         centre_d = 0.5 * (B[:, 2] + B[:, 3])
         lane = int(np.argmin([abs(float(np.mean(centre_d)) - y) for y in merged])) if merged else 0
         obstacles.append(Obstacle(int(obs.obstacle_id), t, B[:, 0], B[:, 1], B[:, 2], B[:, 3],
-                                  float(shape.length), float(shape.width), coeffs, half,
-                                  resid, lane, bool(np.ptp(centre_d) > LANE_CHANGE_M)))
+                                  length, width, coeffs, half, resid, lane, bool(np.ptp(centre_d) > LANE_CHANGE_M)))
     return CommonRoadProblem(
         path=p, scenario=scenario, planning_problem_set=pps, planning_problem=pp, frame=frame,
         frame_fit_residual_m=fit_res, dt=dt, x0=(s0, vs0, d0, vd0), goal=goal, candidates=candidates,
