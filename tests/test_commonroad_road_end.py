@@ -36,7 +36,7 @@ def _world(s: float, d: float) -> np.ndarray:
 
 
 def _scene(path: Path, length: float, lanes: int, v0: float, step: int,
-           vehicles: tuple[tuple[int, float, float, float, float], ...] = ()) -> Path:
+           vehicles: tuple[tuple[int, float, float, float, float], ...] = (), ego_s: float = 20.0) -> Path:
     """Write the scene: ``lanes`` lanes of ``length`` m, the ego at ``s = 20`` in the right lane at
     ``v0``, the goal the time step ``step`` only; ``vehicles`` ``(id, lane, s0, v0, a)`` move along
     their lane's centre at constant acceleration ``a`` (stopping at zero speed)."""
@@ -76,7 +76,7 @@ def _scene(path: Path, length: float, lanes: int, v0: float, step: int,
                             velocity=u0, yaw_rate=0.0, slip_angle=0.0, acceleration=a)
         scenario.add_objects(DynamicObstacle(oid, ObstacleType.CAR, shape, init,
                                              TrajectoryPrediction(Trajectory(1, states), shape)))
-    ego0 = InitialState(time_step=0, position=_world(20.0, 0.5 * LANE_W), orientation=HEADING, velocity=v0,
+    ego0 = InitialState(time_step=0, position=_world(ego_s, 0.5 * LANE_W), orientation=HEADING, velocity=v0,
                         yaw_rate=0.0, slip_angle=0.0)
     pp = PlanningProblem(1, ego0, GoalRegion([CustomState(time_step=Interval(step, step))]))
     CommonRoadFileWriter(scenario, PlanningProblemSet([pp]), "iamp tests", "", "", set()).write_to_file(
@@ -232,3 +232,26 @@ def test_a_replan_is_judged_where_it_starts_not_at_the_problems_start(tmp_path: 
         verdict = off_road_steps(live, replan, K)
         assert np.array_equal(verdict, off_road_poses(cr, exact, np.arctan2(V[:, 1], V[:, 0])))
         assert bool(verdict.any()) == off
+
+
+@pytest.mark.parametrize("ego_s,off", [(1.0, True), (2.3, False)])
+def test_a_body_behind_the_roads_start_is_off_road_by_both_checks(tmp_path: Path, ego_s: float, off: bool) -> None:
+    """The ego at 5 m/s with its centre ``ego_s`` after the mapped road's start (the public
+    hand-crafted ZAM_Ramp-1_1 starts with half its body behind it): where the body hangs over the
+    start, the start is a road-edge box across the road, iamp's self-check names it at t = 0 and
+    the plan is ``unsafe``, as CommonRoad's road-boundary check fails (it was ``optimal``); a body
+    just on the road (rear 4 cm after the start) meets no box."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.planning import plan
+
+    cr = load(_scene(tmp_path / "start.xml", 200.0, 2, 5.0, 60, ego_s=ego_s))
+    assert (ego_s - cr.ego_length / 2 < 0.0) == off
+    rp = plan(cr)
+    assert rp.trajectory is not None and rp.candidate is not None
+    v = _judge(cr, rp.trajectory, rp.candidate.steps)
+    if off:
+        assert rp.status == "unsafe" and rp.intrusions and rp.intrusions[0].obstacle.road_edge
+        assert rp.intrusions[0].time_s == 0.0
+        assert not v.checks["road_boundary"]["ok"]
+    else:
+        assert rp.status == "optimal" and not rp.intrusions and v.valid, v.checks

@@ -289,7 +289,8 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
     avoids like a standing vehicle (obstacle ids -1, -2, ...).  The third value is the corridor
     itself, ``(s, d^-(s), d^+(s))`` at every sample (``nan`` where no lanelet covers ``s``).
     Where the mapped road ends before ``s_b`` (no lanelet of the corridor beyond it), the end is
-    one more box, across the road from there on.
+    one more box, across the road from there on; where it begins after ``s_a`` (the ego starts
+    near its beginning), its start likewise, across the road up to there.
     """
     cache: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
 
@@ -415,6 +416,22 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             half = 0.5 * (s2 - s1)
             boxes.append(Obstacle(oid, t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
                                   2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
+    first = int(np.flatnonzero(ok)[0])
+    if first > 0:
+        # the mapped road begins within the corridor (the ego starts near its beginning): the
+        # road's start is a box across it too, as its end (below)
+        a_s, b_s = float(grid[first - 1]), float(grid[first])
+        while b_s - a_s > 1e-6:
+            mid = 0.5 * (a_s + b_s)
+            if seeds(mid)[0] is not None:
+                b_s = mid
+            else:
+                a_s = mid
+        s1, s2 = float(grid[0]) - EDGE_REACH_M, b_s
+        d1, d2 = y_lo - 3.0, y_hi + 3.0
+        half = 0.5 * (s2 - s1)
+        boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
+                              2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
     last = int(np.flatnonzero(ok)[-1])
     if last < grid.size - 1:
         # the mapped road ends ahead (no lanelet of the corridor beyond): CommonRoad's road ends
