@@ -85,3 +85,27 @@ def test_an_obstacle_that_does_not_move_or_is_not_a_rectangle_is_avoided(tmp_pat
             assert v.checks["collision"]["ok"], (planner, v.colliding_obstacles)
         else:
             assert rp.status == "unsafe" and any(i.obstacle.obstacle_id == 9 for i in rp.intrusions)
+
+
+@pytest.mark.parametrize("d_end,off", [(0.0, False), (-2.6, True)])
+def test_road_checked_takes_commonroads_road_boundary_verdict(tmp_path: Path, d_end: float, off: bool) -> None:
+    """:func:`iamp.commonroad.planning.road_checked`, which every plan passes before it is taken
+    (the public hand-crafted DEU_Muc-2_1's plan was called ``optimal`` while CommonRoad found the
+    body off the road at 0.6-1.5 s, where no road-edge box was entered: two lanelets the corridor
+    joins): a plan ending with its centre 2.6 m right of its lane's centre (the right edge 1.8 m
+    away) gets exactly the steps CommonRoad's checker finds off the road as ``off_road_s``, is
+    ``unsafe`` and not ``safe``; a plan in its lane is untouched."""
+    from iamp.commonroad.convert import load
+    from iamp.commonroad.goal import Candidate
+    from iamp.commonroad.planning import FreeTrajectory, RoadPlan, describe, off_road_steps, road_checked
+
+    cr = load(_scene(tmp_path / "scene.xml", 95.0, 50))
+    s0, _, d0, _ = cr.x0
+    T = 5.0
+    cand = Candidate(steps=50, tf=T, s=s0 + 30.0, vs=2.0, d=d0 + d_end, cost0=0.0)
+    traj = FreeTrajectory(T, cr.x0, (cand.s, cand.vs, cand.d, 0.0))
+    rp = RoadPlan("avoid", "optimal", cand, traj, traj.cost(), 0.0)
+    expected = np.flatnonzero(off_road_steps(cr, traj, 50)) * cr.dt
+    assert road_checked(cr, rp) == (not off) == rp.safe
+    assert bool(expected.size) == off and np.allclose(rp.off_road_s, expected)
+    assert rp.status == ("unsafe" if off else "optimal") and describe(rp)["off_road_s"] == rp.off_road_s

@@ -62,14 +62,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
                          f"tf = {c.tf:.1f} s (goal window {cr.goal.steps[0] * cr.dt:.1f}-"
                          f"{cr.goal.steps[1] * cr.dt:.1f} s), solve {rp.solve_time_s:.2f} s\n")
         imposed = ", ".join(f"{i}:{k}" for i, k in rp.imposed) or (
-            "none (no vehicle in the way)" if not rp.intrusions else "none")
+            "none (no vehicle in the way)" if rp.safe else "none")
         sys.stdout.write(f"imposed: {imposed}; peak |u| {rp.peak_accel_mps2:.2f} m/s^2; "
                          f"max heading to road {rp.max_heading_rad:.3f} rad\n")
-        if rp.intrusions:
-            sys.stdout.write("enters: " + ", ".join(
-                f"{'road edge' if i.obstacle.road_edge else 'vehicle ' + str(i.obstacle.obstacle_id)} "
-                f"{i.depth_m:.2f} m at {i.time_s:.1f} s" for i in rp.intrusions[:5])
-                + (f" (+{len(rp.intrusions) - 5} more)" if len(rp.intrusions) > 5 else "") + "\n")
+        entered = [f"{'road edge' if i.obstacle.road_edge else 'vehicle ' + str(i.obstacle.obstacle_id)} "
+                   f"{i.depth_m:.2f} m at {i.time_s:.1f} s" for i in rp.intrusions]
+        if rp.off_road_s:
+            entered.append(f"CommonRoad's road boundary at {rp.off_road_s[0]:.1f}-{rp.off_road_s[-1]:.1f} s")
+        if entered:
+            sys.stdout.write("enters: " + ", ".join(entered[:5])
+                             + (f" (+{len(entered) - 5} more)" if len(entered) > 5 else "") + "\n")
         sys.stdout.write(f"benchmark {solution.benchmark_id}: "  # type: ignore[attr-defined]
                          + ("ZOH drift" if args.vehicle_model == "PM" else "KS tracking deviation")
                          + f" {drift:.3f} m from the plan\n")

@@ -186,6 +186,20 @@ def _pm_rest_note(pp: Any, pp_sol: Any) -> str | None:
             "judged turned (the KS model carries the heading: --vehicle-model KS)")
 
 
+def _wrapped_heading_note(pp: Any, pp_sol: Any) -> str | None:
+    """The note of a ``PM`` solution whose problem gives the initial heading outside
+    ``(-π, π]`` (CommonRoad compares the number, not the direction: a ``PM`` state's heading
+    ``atan2(v_y, v_x)`` is the same direction written inside), else None."""
+    if pp_sol.vehicle_model.name != "PM":
+        return None
+    heading = float(getattr(pp.initial_state, "orientation", 0.0))
+    inside = math.remainder(heading, 2 * math.pi)
+    if abs(inside - heading) < 1e-9 or (abs(inside + math.pi) < 1e-12 and abs(heading - math.pi) < 1e-9):
+        return None
+    return (f"the initial state's heading {heading:.4f} rad lies outside (-pi, pi]: a PM solution states the same "
+            f"direction as {inside:.4f} rad, and starts_at_initial_state compares the numbers")
+
+
 def check(scenario: Any, pps: Any, solution: Any, cost: bool = True) -> Verdict:
     """Run every check of the module docstring on ``solution``."""
     require()
@@ -208,6 +222,9 @@ def check(scenario: Any, pps: Any, solution: Any, cost: bool = True) -> Verdict:
 
     run("starts_at_initial_state", lambda: (sc.starts_at_correct_state(solution, pps), ""))
     note = _pm_rest_note(pp, pp_sol)
+    if note is not None:
+        v.notes.append(note)
+    note = _wrapped_heading_note(pp, pp_sol)
     if note is not None:
         v.notes.append(note)
 

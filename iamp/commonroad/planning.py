@@ -193,6 +193,7 @@ class RoadPlanJSON(TypedDict, total=False):
     planner_calls: int
     imposed: list[ImposedJSON]
     intrusions: list[IntrusionJSON]
+    off_road_s: list[float]
     max_heading_rad: float
     peak_accel_mps2: float
     reason: str | None
@@ -229,10 +230,14 @@ class RoadPlan:
     steered_goal: bool | None = None
     #: The tracked ``KS`` solution :attr:`steered_goal` was judged on (``None``: not tracked).
     steered: Any = field(default=None, repr=False)
+    #: The times [s] at which CommonRoad's own road-boundary checker finds the body of the
+    #: solution written from this plan off the road (:func:`road_checked`; empty: not found, or
+    #: not checked).
+    off_road_s: list[float] = field(default_factory=list)
 
     @property
     def safe(self) -> bool:
-        return self.trajectory is not None and not self.intrusions
+        return self.trajectory is not None and not self.intrusions and not self.off_road_s
 
     def within_limits(self, cr: CommonRoadProblem) -> bool:
         """A plan within the vehicle's limits (:meth:`limit_breach` finds none)."""
@@ -625,6 +630,25 @@ def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float
         if valid(corner):
             return corner
     return None  # a start or end inside its safety region, or in the same half-plane at both ends
+
+
+def road_checked(cr: CommonRoadProblem, rp: RoadPlan) -> bool:
+    """Does CommonRoad's own road-boundary checker find the body of the solution written from
+    ``rp`` on the road at every step (:func:`off_road_steps`)?  The road-edge boxes count only
+    where it finds the body off the road, but it can find it off where no box is entered (two
+    lanelets a few centimetres apart, which the corridor joins and its triangulation does not:
+    the public hand-crafted DEU_Muc-2_1's plan was called ``optimal`` off the road at 0.6-1.5 s).
+    Where it does, the times go to :attr:`RoadPlan.off_road_s` and the plan is ``unsafe``."""
+    if rp.trajectory is None or rp.candidate is None:
+        return False
+    off = off_road_steps(cr, rp.trajectory, rp.candidate.steps)
+    if off.any():
+        rp.off_road_s = [float(k * cr.dt) for k in np.flatnonzero(off)]
+        rp.status = "unsafe"
+        rp.reason = rp.reason or (f"CommonRoad's road boundary: the body is off the road at "
+                                  f"{rp.off_road_s[0]:.1f}-{rp.off_road_s[-1]:.1f} s")
+        return False
+    return True
 
 
 def min_speed(trajectory: Trajectory, T: float) -> float:
@@ -1023,7 +1047,7 @@ def _plan_road(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_can
             repairs -= 1  # the lateral repair: one convex QP, counted apart from the planner calls
             result = _repaired(cr, cand, result)
         result.candidates_tried = n_tried
-        if result.safe and result.within_limits(cr):
+        if result.safe and result.within_limits(cr) and road_checked(cr, result):
             result = steer_at_edges(cr, result, engine)
             result.solve_time_s = time.perf_counter() - start
             result.plans_used = max_plans - budget[0]
@@ -1047,7 +1071,7 @@ def _plan_road(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_can
         best = steered_miss
     if via and active and planner != "free" and best.candidate is not None and max_plans > 0:
         staged = _via(cr, best, planner, iamp_planner, constraint, steps, heading, edge_heading)
-        if staged is not None:
+        if staged is not None and road_checked(cr, staged):
             staged = steer_at_edges(cr, staged, engine)
             staged.candidates_tried = n_tried
             staged.solve_time_s = time.perf_counter() - start
@@ -1057,7 +1081,7 @@ def _plan_road(cr: CommonRoadProblem, planner: str = DEFAULT_PLANNER, *, max_can
             steered_miss = steered_miss or staged
     if corridor and planner != "free" and best.candidate is not None and max_plans > 0:
         wide = plan_corridor(cr, best, planner, heading, others=tried + clear, engine=engine)
-        if wide is not None:
+        if wide is not None and road_checked(cr, wide):
             wide = steer_at_edges(cr, wide, engine)
             wide.candidates_tried = n_tried
             wide.solve_time_s = time.perf_counter() - start
@@ -2282,6 +2306,7 @@ def describe(p: RoadPlan) -> RoadPlanJSON:
         "imposed": [{"obstacle": i, "corner": k} for i, k in p.imposed],
         "intrusions": [{"obstacle": i.obstacle.obstacle_id, "depth_m": i.depth_m, "t": i.time_s}
                        for i in p.intrusions],
+        "off_road_s": list(p.off_road_s),
         "max_heading_rad": p.max_heading_rad, "peak_accel_mps2": p.peak_accel_mps2,
         "reason": p.reason,
     }
