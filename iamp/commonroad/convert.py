@@ -390,6 +390,24 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
     y_lo, y_hi = float(np.min(lo[ok])), float(np.max(hi[ok]))
     boxes: list[Obstacle] = []
     n = t.size
+
+    def add_box(s1: float, s2: float, d1: float, d2: float, hole: bool = False) -> None:
+        """A static road-edge box ``[s1, s2] x [d1, d2]`` at every step (ids -1, -2, ...)."""
+        half = 0.5 * (s2 - s1)
+        boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
+                              2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False, hole))
+
+    def on_road_end(on: float, off: float) -> float:
+        """Where the mapped road begins or ends between a sample ``on`` it and one ``off`` it: the
+        last point found on it, by bisection to 1e-6 m."""
+        while abs(off - on) > 1e-6:
+            mid = 0.5 * (on + off)
+            if seeds(mid)[0] is not None:
+                on = mid
+            else:
+                off = mid
+        return on
+
     for side, narrow in (("lo", ok & (lo > y_lo + EDGE_TOL_M)), ("hi", ok & (hi < y_hi - EDGE_TOL_M))):
         idx = np.flatnonzero(narrow)
         if idx.size == 0:
@@ -412,49 +430,21 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
                 d1, d2 = y_lo - 3.0, float(np.max(lo[run]))
             else:
                 d1, d2 = float(np.min(hi[run])), y_hi + 3.0
-            oid = -(len(boxes) + 1)
-            half = 0.5 * (s2 - s1)
-            boxes.append(Obstacle(oid, t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
-                                  2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
-    first = int(np.flatnonzero(ok)[0])
+            add_box(s1, s2, d1, d2)
+    first, last = (int(i) for i in np.flatnonzero(ok)[[0, -1]])
     if first > 0:
         # the mapped road begins within the corridor (the ego starts near its beginning): the
         # road's start is a box across it too, as its end (below)
-        a_s, b_s = float(grid[first - 1]), float(grid[first])
-        while b_s - a_s > 1e-6:
-            mid = 0.5 * (a_s + b_s)
-            if seeds(mid)[0] is not None:
-                b_s = mid
-            else:
-                a_s = mid
-        s1, s2 = float(grid[0]) - EDGE_REACH_M, b_s
-        d1, d2 = y_lo - 3.0, y_hi + 3.0
-        half = 0.5 * (s2 - s1)
-        boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
-                              2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
-    last = int(np.flatnonzero(ok)[-1])
+        add_box(float(grid[0]) - EDGE_REACH_M, on_road_end(float(grid[first]), float(grid[first - 1])),
+                y_lo - 3.0, y_hi + 3.0)
     if last < grid.size - 1:
         # the mapped road ends ahead (no lanelet of the corridor beyond): CommonRoad's road ends
-        # there too, so the end is a box across the road, its start found to 1e-6 m by bisection
-        # between the last sample on the road and the first off it
-        a_s, b_s = float(grid[last]), float(grid[last + 1])
-        while b_s - a_s > 1e-6:
-            mid = 0.5 * (a_s + b_s)
-            if seeds(mid)[0] is not None:
-                a_s = mid
-            else:
-                b_s = mid
-        s1, s2 = a_s, float(grid[-1]) + EDGE_REACH_M
-        d1, d2 = y_lo - 3.0, y_hi + 3.0
-        half = 0.5 * (s2 - s1)
-        boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
-                              2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False))
+        # there too, so the end is a box across the road from the last point on it
+        add_box(on_road_end(float(grid[last]), float(grid[last + 1])), float(grid[-1]) + EDGE_REACH_M,
+                y_lo - 3.0, y_hi + 3.0)
     for run_s, run_lo, run_hi in _hole_runs(grid, gaps):
-        s1, s2 = float(run_s[0]) - EDGE_STEP_M, float(run_s[-1]) + EDGE_STEP_M
-        d1, d2 = float(np.min(run_lo)), float(np.max(run_hi))
-        half = 0.5 * (s2 - s1)
-        boxes.append(Obstacle(-(len(boxes) + 1), t, np.full(n, s1), np.full(n, s2), np.full(n, d1), np.full(n, d2),
-                              2 * half, d2 - d1, (0.5 * (s1 + s2), 0.0, 0.0, 0.0), half, 0.0, -1, False, True))
+        add_box(float(run_s[0]) - EDGE_STEP_M, float(run_s[-1]) + EDGE_STEP_M, float(np.min(run_lo)),
+                float(np.max(run_hi)), hole=True)
     return (y_lo, y_hi), boxes, (grid, lo, hi)
 
 
