@@ -70,10 +70,17 @@ def test_an_obstacle_that_does_not_move_or_is_not_a_rectangle_is_avoided(tmp_pat
     cr = load(_add(_scene(tmp_path / "scene.xml", 95.0, 50), kind, 80.0, 0))
     ob = {o.obstacle_id: o for o in cr.obstacles}[9]
     assert ob.t.size == 51 and np.allclose(ob.t, np.arange(51) * cr.dt)
-    half = {"static": (2.25, 0.95), "polygon": (3.0, 1.2), "circle": (1.0 / math.cos(math.pi / 24),) * 2}[kind]
-    s_c = float(cr.frame.to_road(_world(80.0, 0.5 * LANE_W).reshape(1, 2))[0, 0])
-    assert np.allclose(ob.s_lo, s_c - half[0], atol=0.06) and np.allclose(ob.s_hi, s_c + half[0], atol=0.06)
-    assert np.allclose(ob.d_hi - ob.d_lo, 2 * half[1], atol=0.06)
+    centre = cr.frame.to_road(_world(80.0, 0.5 * LANE_W).reshape(1, 2))[0]
+    if kind == "circle":  # the box of the circumscribed 24-gon: it holds the circle, and little more
+        for lo_, hi_, c in ((ob.s_lo, ob.s_hi, centre[0]), (ob.d_lo, ob.d_hi, centre[1])):
+            assert np.all(c - lo_ >= 1.0 - 2e-3) and np.all(hi_ - c >= 1.0 - 2e-3)
+            assert np.all(c - lo_ <= 1.0 / math.cos(math.pi / 24) + 2e-3)
+            assert np.all(hi_ - c <= 1.0 / math.cos(math.pi / 24) + 2e-3)
+    else:
+        half = {"static": (2.25, 0.95), "polygon": (3.0, 1.2)}[kind]
+        assert np.allclose(ob.s_lo, centre[0] - half[0], atol=0.06)
+        assert np.allclose(ob.s_hi, centre[0] + half[0], atol=0.06)
+        assert np.allclose(ob.d_hi - ob.d_lo, 2 * half[1], atol=0.06)
     free = plan(cr, "free")
     assert free.status == "unsafe" and [i.obstacle.obstacle_id for i in free.intrusions] == [9]
     for planner in ("avoid", "pmp"):
@@ -109,3 +116,8 @@ def test_road_checked_takes_commonroads_road_boundary_verdict(tmp_path: Path, d_
     assert road_checked(cr, rp) == (not off) == rp.safe
     assert bool(expected.size) == off and np.allclose(rp.off_road_s, expected)
     assert rp.status == ("unsafe" if off else "optimal") and describe(rp)["off_road_s"] == rp.off_road_s
+    if off:
+        assert rp.reason == (f"CommonRoad's road boundary: the body is off the road at {expected[0]:.1f}-"
+                             f"{expected[-1]:.1f} s")
+    none = RoadPlan("avoid", "refused", cand, None, None, 0.0)
+    assert not road_checked(cr, none) and none.off_road_s == [] and none.status == "refused"
