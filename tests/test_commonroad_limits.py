@@ -83,10 +83,12 @@ def test_a_final_state_at_rest_within_round_off_of_zero_is_within_limits() -> No
     assert rp.limit_breach(cr) is None  # type: ignore[arg-type]
 
 
-def test_a_pm_start_at_rest_with_a_heading_is_noted_and_nothing_else() -> None:
-    """The note of :func:`iamp.commonroad.check._pm_rest_note`: a ``PM`` first state at rest with a
-    heading away from 0; not a moving start, not a start heading 0, not a ``KS`` solution."""
-    from iamp.commonroad.check import REST_MPS, _pm_rest_note
+def test_a_pm_start_at_rest_or_a_heading_outside_pi_is_noted_and_nothing_else() -> None:
+    """The notes of :func:`iamp.commonroad.check._pm_notes`: a ``PM`` first state at rest with a
+    heading away from 0, and an initial heading outside (-pi, pi] (DEU_Muc-2_x: -3.351 rad, which
+    CommonRoad compares with the ``PM`` state's 2.932 as numbers); not a moving start with a heading
+    inside, not a start heading 0, not a ``KS`` solution."""
+    from iamp.commonroad.check import REST_MPS, _pm_notes
 
     def sol(model: str, vx: float, vy: float) -> SimpleNamespace:
         return SimpleNamespace(vehicle_model=SimpleNamespace(name=model),
@@ -95,12 +97,17 @@ def test_a_pm_start_at_rest_with_a_heading_is_noted_and_nothing_else() -> None:
     def pp(heading: float) -> SimpleNamespace:
         return SimpleNamespace(initial_state=SimpleNamespace(orientation=heading))
 
-    note = _pm_rest_note(pp(-1.6264), sol("PM", 0.0, 0.0))
-    assert note is not None and "-1.6264" in note and "KS" in note
-    assert _pm_rest_note(pp(-1.6264), sol("PM", 0.0, 2 * REST_MPS)) is None
-    assert _pm_rest_note(pp(-1.6264), sol("KS", 0.0, 0.0)) is None
-    assert _pm_rest_note(pp(2 * math.pi), sol("PM", 0.0, 0.0)) is None
-    assert _pm_rest_note(pp(0.0), sol("PM", 0.0, 0.0)) is None
+    notes = _pm_notes(pp(-1.6264), sol("PM", 0.0, 0.0))
+    assert len(notes) == 1 and "at rest" in notes[0] and "-1.6264" in notes[0] and "KS" in notes[0]
+    assert _pm_notes(pp(-1.6264), sol("PM", 0.0, 2 * REST_MPS)) == []
+    assert _pm_notes(pp(-1.6264), sol("KS", 0.0, 0.0)) == []
+    assert _pm_notes(pp(-3.351), sol("KS", 5.0, 0.0)) == []
+    assert _pm_notes(pp(0.0), sol("PM", 0.0, 0.0)) == []
+    assert _pm_notes(pp(math.pi), sol("PM", -5.0, 0.0)) == []
+    wrapped = _pm_notes(pp(-3.351), sol("PM", -5.0, 1.0))
+    assert len(wrapped) == 1 and "-3.3510 rad lies outside (-pi, pi]" in wrapped[0] and "2.9322" in wrapped[0]
+    full_turn = _pm_notes(pp(2 * math.pi), sol("PM", 0.0, 0.0))  # at rest, heading 0 written as 2 pi
+    assert len(full_turn) == 1 and "outside (-pi, pi]" in full_turn[0] and "0.0000" in full_turn[0]
 
 
 def _world(s: float, d: float) -> np.ndarray:

@@ -171,33 +171,26 @@ def _corrected_goal(pp: Any, trajectory: Any) -> tuple[bool, int | None]:
 REST_MPS = 1e-3
 
 
-def _pm_rest_note(pp: Any, pp_sol: Any) -> str | None:
-    """The note of a ``PM`` solution starting at rest with a heading CommonRoad cannot read (module
-    docstring), else None."""
+def _pm_notes(pp: Any, pp_sol: Any) -> list[str]:
+    """The notes of a ``PM`` solution whose first state CommonRoad cannot compare with the initial
+    state's heading (module docstring): a start at rest (its heading read as ``atan2(0, 0) = 0``),
+    and an initial heading outside ``(-π, π]`` (the number compared, not the direction: a ``PM``
+    state's heading ``atan2(v_y, v_x)`` is the same direction written inside)."""
     if pp_sol.vehicle_model.name != "PM" or not pp_sol.trajectory.state_list:
-        return None
+        return []
     first = pp_sol.trajectory.state_list[0]
     speed = math.hypot(float(getattr(first, "velocity", 0.0)), float(getattr(first, "velocity_y", 0.0)))
     heading = float(getattr(pp.initial_state, "orientation", 0.0))
-    if speed >= REST_MPS or abs(math.remainder(heading, 2 * math.pi)) < 1e-3:
-        return None
-    return (f"the ego starts at rest: CommonRoad reads a PM state at zero speed with heading atan2(0, 0) = 0, "
-            f"not the initial state's {heading:.4f} rad, so starts_at_initial_state and the body at step 0 are "
-            "judged turned (the KS model carries the heading: --vehicle-model KS)")
-
-
-def _wrapped_heading_note(pp: Any, pp_sol: Any) -> str | None:
-    """The note of a ``PM`` solution whose problem gives the initial heading outside
-    ``(-π, π]`` (CommonRoad compares the number, not the direction: a ``PM`` state's heading
-    ``atan2(v_y, v_x)`` is the same direction written inside), else None."""
-    if pp_sol.vehicle_model.name != "PM":
-        return None
-    heading = float(getattr(pp.initial_state, "orientation", 0.0))
     inside = math.remainder(heading, 2 * math.pi)
-    if abs(inside - heading) < 1e-9 or (abs(inside + math.pi) < 1e-12 and abs(heading - math.pi) < 1e-9):
-        return None
-    return (f"the initial state's heading {heading:.4f} rad lies outside (-pi, pi]: a PM solution states the same "
-            f"direction as {inside:.4f} rad, and starts_at_initial_state compares the numbers")
+    out = []
+    if speed < REST_MPS and abs(inside) >= 1e-3:
+        out.append(f"the ego starts at rest: CommonRoad reads a PM state at zero speed with heading atan2(0, 0) = 0, "
+                   f"not the initial state's {heading:.4f} rad, so starts_at_initial_state and the body at step 0 "
+                   "are judged turned (the KS model carries the heading: --vehicle-model KS)")
+    if abs(inside - heading) >= 1e-9 and not (abs(inside + math.pi) < 1e-12 and abs(heading - math.pi) < 1e-9):
+        out.append(f"the initial state's heading {heading:.4f} rad lies outside (-pi, pi]: a PM solution states the "
+                   f"same direction as {inside:.4f} rad, and starts_at_initial_state compares the numbers")
+    return out
 
 
 def check(scenario: Any, pps: Any, solution: Any, cost: bool = True) -> Verdict:
@@ -221,12 +214,7 @@ def check(scenario: Any, pps: Any, solution: Any, cost: bool = True) -> Verdict:
         v.checks[name] = {"ok": bool(ok), "detail": detail}
 
     run("starts_at_initial_state", lambda: (sc.starts_at_correct_state(solution, pps), ""))
-    note = _pm_rest_note(pp, pp_sol)
-    if note is not None:
-        v.notes.append(note)
-    note = _wrapped_heading_note(pp, pp_sol)
-    if note is not None:
-        v.notes.append(note)
+    v.notes += _pm_notes(pp, pp_sol)
 
     def feas() -> tuple[bool, str]:
         res = sc.solution_feasible(solution, scenario.dt, pps)

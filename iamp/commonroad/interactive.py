@@ -989,6 +989,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     rp = plan(live, planner, max_candidates=4, search=search)
                     plan_times.append(time.perf_counter() - start)
                 action = "plan"
+                within = rp is not None and rp.within_limits(live)  # read once: three choices below use it
                 if keep_lc:
                     action = "lane change"
                 elif early is not None:
@@ -999,14 +1000,13 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     action = "lane change"
                     decisions.append({"t": round(now, 3), "action": action, "why": why,
                                       "vehicles": [], "road_edge_depth_m": 0.0})
-                elif rp is not None and rp.candidate is not None and rp.safe and rp.within_limits(live):
+                elif rp is not None and rp.candidate is not None and rp.safe and within:
                     traj, t_plan, traj_T = rp.trajectory, now, rp.candidate.tf
                 else:
                     infeasible += rp is not None
                     out_of_reach += rp is None
                     options: list[tuple[str, Any, float, list[Intrusion]]] = []
-                    if (rp is not None and rp.trajectory is not None and rp.candidate is not None
-                            and rp.within_limits(live)):
+                    if rp is not None and rp.trajectory is not None and rp.candidate is not None and within:
                         options.append(("new plan", rp.trajectory, rp.candidate.tf, rp.intrusions))
                     rest = traj_T - (now - t_plan)
                     if isinstance(traj, Braking):  # it runs on past its horizon: checked over the fail-safe's
@@ -1041,7 +1041,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                     decisions.append({
                         "t": round(now, 3), "action": action,
                         "why": "goal out of reach" if rp is None else (rp.status if rp.trajectory is None else
-                                                                       "exceeds limits" if not rp.within_limits(live)
+                                                                       "exceeds limits" if not within
                                                                        else "in the way of the new plan"),
                         "vehicles": sorted({h.obstacle.obstacle_id for h in vehicle_hits(rp.intrusions)})
                         if rp is not None else [],

@@ -635,9 +635,10 @@ def corner_for(ob: Obstacle, candidate: Candidate, x0: tuple[float, float, float
 def road_checked(cr: CommonRoadProblem, rp: RoadPlan) -> bool:
     """Does CommonRoad's own road-boundary checker find the body of the solution written from
     ``rp`` on the road at every step (:func:`off_road_steps`)?  The road-edge boxes count only
-    where it finds the body off the road, but it can find it off where no box is entered (two
-    lanelets a few centimetres apart, which the corridor joins and its triangulation does not:
-    the public hand-crafted DEU_Muc-2_1's plan was called ``optimal`` off the road at 0.6-1.5 s).
+    where it finds the body off the road, but it can find it off where no box is entered: the
+    public hand-crafted DEU_Muc-2_1's corridor holds its two lanelets (no adjacency given, bounds
+    shared), whose plan was called ``optimal`` while the checker finds its body off the road at
+    0.6-1.5 s (which part of the map its boundary draws there was not identified).
     Where it does, the times go to :attr:`RoadPlan.off_road_s` and the plan is ``unsafe``."""
     if rp.trajectory is None or rp.candidate is None:
         return False
