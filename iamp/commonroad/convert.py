@@ -599,6 +599,70 @@ def _corners(center: FloatArray, length: float, width: float, orientation: float
     return np.asarray(center + half @ np.array([[c, s], [-s, c]]), dtype=float)
 
 
+#: The road frame's path is fitted to the whole chain of the ego's lanelets where it stays within
+#: this of the chain's centre line (every shared US-101 scene: at most 0.44 m, the NGSIM centre
+#: lines' own wobble) [m]; else it is fitted again near the ego (:func:`road_frame`).
+FRAME_TOL_M = 1.0
+#: The centre line fitted near the ego: from this far behind it ... [m]
+FRAME_BEHIND_M = 50.0
+#: ... to this far beyond what it can reach by the goal's last step at the vehicle's top speed [m].
+FRAME_AHEAD_M = 50.0
+#: Spacing of the centre line's points fitted near the ego [m].
+FRAME_DENSE_M = 1.0
+#: Degree of the road frame's path (:meth:`~iamp.commonroad.frame.RoadFrame.fit`).
+FRAME_DEGREE = 5
+
+
+def road_frame(centre: FloatArray, start: FloatArray, reach: float) -> tuple[RoadFrame, float, str | None]:
+    """The road frame of the ego's lane: its path fitted to the centre line ``centre`` of the
+    chain of lanelets (:func:`_chain`), and where that fit leaves the centre line by more than
+    :data:`FRAME_TOL_M` (a chain kilometres long, or a ramp's curve followed by a straight road:
+    DEU_A9-1_2 left 44 m), fitted again to the stretch that matters -- from
+    :data:`FRAME_BEHIND_M` behind the ego's ``start`` to ``reach`` (how far the ego can drive by the
+    goal's last step) plus :data:`FRAME_AHEAD_M` ahead, the centre line densified to
+    :data:`FRAME_DENSE_M` -- when that fits it better.
+
+    Parameters
+    ----------
+    centre : ndarray, shape (n, 2)
+        The chain's centre line (world, in driving order).
+    start : ndarray, shape (2,)
+        The ego's initial position (world).
+    reach : float
+        The farthest the ego can drive within the planning problem [m].
+
+    Returns
+    -------
+    frame : RoadFrame
+    residual : float
+        The largest distance of the fitted centre-line points from the frame's path [m].
+    note : str or None
+        What was fitted, when it is not the whole chain or leaves more than :data:`FRAME_TOL_M`.
+    """
+    frame = RoadFrame.fit(centre, degree=FRAME_DEGREE)
+    res = float(np.max(np.abs(frame.to_road(centre)[:, 1])))
+    if res <= FRAME_TOL_M:
+        return frame, res, None
+    dense = densify(np.asarray(centre, dtype=float), FRAME_DENSE_M)
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))]
+    a0 = float(arc[int(np.argmin(np.linalg.norm(dense - np.asarray(start, dtype=float), axis=1)))])
+    window = (arc >= a0 - FRAME_BEHIND_M) & (arc <= a0 + max(reach, 0.0) + FRAME_AHEAD_M)
+    near = dense[window]
+    if len(near) > FRAME_DEGREE:
+        whole_near = float(np.max(np.abs(frame.to_road(near)[:, 1])))
+        local = RoadFrame.fit(near, degree=FRAME_DEGREE)
+        local_res = float(np.max(np.abs(local.to_road(near)[:, 1])))
+        if local_res < whole_near:
+            note = (f"road frame fitted to the ego's lane from {FRAME_BEHIND_M:.0f} m behind it to "
+                    f"{a0 + max(reach, 0.0) + FRAME_AHEAD_M - a0:.0f} m ahead (the fit to its whole chain of "
+                    f"lanelets left {res:.2f} m); it leaves the lane's centre line by up to {local_res:.2f} m")
+            if local_res > FRAME_TOL_M:
+                note += f", more than {FRAME_TOL_M:g} m: the lanes are not straight in it, the plan approximate"
+            return local, local_res, note
+    return frame, res, (f"the road frame leaves the lane's centre line by up to {res:.2f} m, more than "
+                        f"{FRAME_TOL_M:g} m: the lanes are not straight in it, the plan approximate")
+
+
 def _lane_end(frame: RoadFrame, chain: list[Any]) -> float:
     """Where the chain of lanelets ``chain`` (:func:`_chain`) ends along the road: the nearer of
     its last lanelet's bounds' ends in ``frame`` [m]."""
@@ -667,8 +731,10 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     centre = np.concatenate([ll.center_vertices for ll in chain])
     keep = np.r_[True, np.linalg.norm(np.diff(centre, axis=0), axis=1) > 1e-6]
     centre = centre[keep]
-    frame = RoadFrame.fit(centre, degree=5)
-    fit_res = float(np.max(np.abs(frame.to_road(centre)[:, 1])))
+    last_step = max((int(getattr(g.time_step, "end", g.time_step)) for g in pp.goal.state_list), default=0)
+    frame, fit_res, frame_note = road_frame(centre, pos0, float(params.longitudinal.v_max) * last_step * dt)
+    if frame_note is not None:
+        notes.append(frame_note)
 
     # --- ego initial state --------------------------------------------------------------------
     s0, d0 = (float(v) for v in frame.to_road(pos0)[0])
