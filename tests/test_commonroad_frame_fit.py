@@ -135,3 +135,33 @@ def test_the_lane_is_kept_on_a_road_after_a_ramp(tmp_path: Path) -> None:
     sol, _ = build_solution(cr, rp.trajectory, rp.candidate.steps)
     verdict = check(cr.scenario, cr.planning_problem_set, sol, cost=False)
     assert verdict.valid, verdict
+
+
+@pytest.mark.parametrize(("goal", "collisions", "off_road", "success"),
+                         [(True, 0, 0, True), (True, 0, 5, False), (True, 1, 0, False), (False, 0, 0, False)])
+def test_an_episode_with_a_body_off_the_road_is_no_success(goal: bool, collisions: int, off_road: int,
+                                                           success: bool) -> None:
+    """DEU_A9-1_2 (public interactive scene) reached its goal with five executed steps off
+    CommonRoad's road and was called a success: the rule now needs every executed body on it."""
+    from iamp.commonroad.interactive import succeeded
+
+    assert succeeded(goal, collisions, off_road) is success
+
+
+def test_the_text_names_the_steps_off_the_road_and_the_exit_is_5(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("commonroad")
+    import iamp.commonroad
+    import iamp.commonroad.interactive as interactive
+    from iamp.cli.main import main
+
+    record = {"scenario": "S", "status": "goal reached", "time_to_goal_s": 4.0, "goal_window_s": [4.0, 4.0],
+              "collisions": 0, "min_ttc_s": 6.8, "ego_peak_accel": 6.0, "infeasible_plans": 8, "fallbacks": 0,
+              "plan_time_s": {"median": 0.3}, "sumo_vs_recording": None, "off_road_steps": 5,
+              "off_road_times_s": [3.0, 3.4], "success": interactive.succeeded(True, 0, 5)}
+    monkeypatch.setattr(interactive, "simulate_with_log", lambda folder, planner, **kw: (record, None))
+    monkeypatch.setattr(iamp.commonroad, "require", lambda *a, **k: None)
+    monkeypatch.setattr("iamp.cli.simulate._responsibility_lines", lambda r: [])
+    assert main(["simulate", "--commonroad", str(tmp_path)]) == 5
+    out = capsys.readouterr().out
+    assert "off road  5 executed steps at 3.0-3.4 s" in out

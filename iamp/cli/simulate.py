@@ -253,6 +253,10 @@ def _simulate_commonroad(args: argparse.Namespace) -> int:
                      f"{r['min_ttc_s'] if r['min_ttc_s'] is None else round(r['min_ttc_s'], 2)} s, peak |u| "
                      f"{r['ego_peak_accel']:.2f} m/s^2, infeasible plans {r['infeasible_plans']}, fallbacks "
                      f"{r['fallbacks']}, plan time median {r['plan_time_s']['median'] or 0:.3f} s\n")
+    if r["off_road_steps"]:
+        a, b = r["off_road_times_s"]
+        sys.stdout.write(f"off road  {r['off_road_steps']} executed steps at {a:.1f}-{b:.1f} s: the body collides with "
+                         "the road boundary of CommonRoad's solution checker (the mission failed)\n")
     d = r["sumo_vs_recording"]
     if d is not None and d["vehicles_compared"]:
         sys.stdout.write(f"SUMO vs the recording: {d['vehicles_compared']} vehicles, largest position deviation "
@@ -361,7 +365,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                                    "every period (SPEC §11, §15); an independent monitor judges it with RSS "
                                    "(SPEC §17).",
                        epilog=f"Exit status: 0 the mission succeeded; {EXIT_MISSION_FAILED} it failed (not in the "
-                              "target lane in time, a contact, or with --commonroad the goal missed); 2 bad input.")
+                              "target lane in time, a contact, or with --commonroad the goal missed or an executed body "
+                              "off CommonRoad's road); 2 bad input.")
     p.add_argument("--mission", choices=MISSIONS, default=None,
                    help="what the ego must do (SPEC §15; default merge: its lane ends 400 m ahead)")
     p.add_argument("--traffic", choices=TRAFFIC, default=None,

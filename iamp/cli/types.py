@@ -10,7 +10,7 @@ import math
 #: traceback with ``--debug``), ``EXIT_INTERRUPTED`` (130) a run stopped by Ctrl-C / SIGTERM.
 EXIT_OK, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_UNSAFE = 0, 2, 3, 4
 #: ``iamp simulate``: the episode ran but its mission failed (SPEC §17: not in the target lane in
-#: time, a contact, or for ``--commonroad`` the goal missed).
+#: time, a contact, or for ``--commonroad`` the goal missed or an executed body off the road).
 EXIT_MISSION_FAILED = 5
 EXIT_INTERNAL, EXIT_INTERRUPTED = 1, 130
 

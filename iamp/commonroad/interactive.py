@@ -758,6 +758,13 @@ def off_road(cr: CommonRoadProblem, log: Any) -> dict[str, Any]:
             "off_road_times_s": [float(t[off][0]), float(t[off][-1])] if off.any() else None}
 
 
+def succeeded(goal_reached: bool, collisions: int, off_road_steps: int) -> bool:
+    """An interactive episode's ``success``: the goal reached, no contact, and no executed body off
+    CommonRoad's road (:func:`off_road`: its solution checker rejects a solution with one; DEU_A9-1_2,
+    a public scene, reached its goal with five steps off the road and had been called a success)."""
+    return bool(goal_reached) and collisions == 0 and off_road_steps == 0
+
+
 def simulate(folder: str | Path, planner: str = DEFAULT_PLANNER, *, replan_s: float = 0.5,
              recording: str | Path | None = None,
              progress: Callable[[str], None] | None = None, seed: int = 1, tactical: bool = False,
@@ -1082,6 +1089,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
     from iamp.simulation.monitor import responsibility
 
     judged = responsibility(log, dt, (L, W), sumo_collisions)
+    road = off_road(cr, log)
     devs = {i: np.asarray(v) for i, v in dev.items() if v}
     compared = {str(i) for i in devs}
     rec_changes = sum(1 for o in rec_obstacles if o.lane_change and str(o.obstacle_id) in compared)
@@ -1091,7 +1099,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         "goal_reached": goal_step is not None,
         "time_to_goal_s": None if goal_step is None else goal_step * dt,
         "goal_window_s": [cr.goal.steps[0] * dt, cr.goal.steps[1] * dt],
-        "success": goal_step is not None and metrics["collisions"] == 0,
+        "success": succeeded(goal_step is not None, int(metrics["collisions"]), int(road["off_road_steps"])),
         **metrics,
         **{k: v for k, v in judged.items() if k not in ("contacts",)},
         "ego_peak_accel": peak_accel, "a_max": cr.a_max, "limit_violations": int(limit_violations),
@@ -1099,7 +1107,7 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         "edge_grazing_plans": edge_plans, "out_of_reach_replans": out_of_reach, "lane_changes": lane_changes,
         "lane_change_sequences": n_sequences, "sumo_routes_repaired": routes_repaired,
         "decisions": decisions,
-        "road_edge_depth_m": road_edge_depth(cr, log), **off_road(cr, log), "goal_occupancy": occupancy,
+        "road_edge_depth_m": road_edge_depth(cr, log), **road, "goal_occupancy": occupancy,
         "goal_missed_reason": None if goal_step is not None else miss_reason(occupancy),
         "plan_time_s": {"calls": len(plan_times),
                         "median": float(np.median(plan_times)) if plan_times else None,
