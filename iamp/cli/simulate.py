@@ -365,8 +365,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                                    "every period (SPEC §11, §15); an independent monitor judges it with RSS "
                                    "(SPEC §17).",
                        epilog=f"Exit status: 0 the mission succeeded; {EXIT_MISSION_FAILED} it failed (not in the "
-                              "target lane in time, a contact, or with --commonroad the goal missed or an executed body "
-                              "off CommonRoad's road); 2 bad input.")
+                              "target lane in time, a contact, or with --commonroad the goal missed or an executed "
+                              "body off CommonRoad's road); 2 bad input.")
     p.add_argument("--mission", choices=MISSIONS, default=None,
                    help="what the ego must do (SPEC §15; default merge: its lane ends 400 m ahead)")
     p.add_argument("--traffic", choices=TRAFFIC, default=None,

@@ -92,6 +92,9 @@ EDGE_TOL_M = 0.05
 #: Largest change of a hole's bounds within one of its boxes [m] (each box covers the hole's
 #: extreme bounds over its length, so it takes up to this much of the lanes beside it).
 HOLE_VARY_M = 0.03
+#: Half the width of the box along a bound two lanelets of the corridor share without being
+#: adjacent in the map (CommonRoad's road boundary runs along it) [m].
+BARRIER_HALF_M = 0.05
 #: Vehicles considered relevant: lateral distance of their box to the ego's corridor [m].
 CORRIDOR_M = 2.5
 
@@ -278,10 +281,16 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
     At every arc length ``s`` (step :data:`EDGE_STEP_M`) the corridor grows from two seeds, the
     ego's lane (the lanelet of ``chain`` covering ``s``) and the lanelet under the straight line
     from the start ``via[0]`` to the goal ``via[1]`` (where the road splits, the goal's branch),
-    by every lanelet reachable by same-direction adjacency (``adj_left``/``adj_right``) or sharing
-    a bound (within :data:`EDGE_JOIN_M` over their whole common stretch: converted NGSIM maps miss
-    some adjacency references); :math:`[d^-(s), d^+(s)]` = the extreme bounds of those lanelets at
-    ``s``.  A lanelet that touches the road only at its end (an on-ramp behind a gore area) is not
+    each by every lanelet reachable from it by same-direction adjacency (``adj_left``/``adj_right``);
+    :math:`[d^-(s), d^+(s)]` = the extreme bounds of those lanelets at ``s``.  A lanelet beside them
+    that shares a bound (within :data:`EDGE_JOIN_M`) but is not adjacent in the map is not part of
+    it, unless the two bounds are the same points: CommonRoad's solution checker draws its road
+    boundary along such a bound (probed on DEU_A9-1_2, DEU_Muc-2_1 and the shared US-101 maps: a
+    small body on it collides with the boundary at 7-20 of 20 points; on a bound between adjacent
+    lanelets, or one given by the same vertices, at none); where two lanelets of the corridor
+    share one (the goal's branch beside the ego's section), a box :data:`BARRIER_HALF_M` either
+    side of it is a hole in the corridor (a line not to cross).
+    A lanelet that touches the road only at its end (an on-ramp behind a gore area) is not
     part of it.  The limits are
     :math:`(\min_s d^-(s), \max_s d^+(s))`; every run of ``s`` where :math:`d^-(s)` is above
     its minimum (or :math:`d^+(s)` below its maximum) by more than :data:`EDGE_TOL_M` becomes a
@@ -331,6 +340,20 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             shared[key] = ok
         return shared[key]
 
+    def adjacent(a: Any, b: Any) -> bool:
+        """Does the map make ``a`` and ``b`` neighbours (same direction)?"""
+        return bool((a.adj_left == b.lanelet_id and a.adj_left_same_direction)
+                    or (a.adj_right == b.lanelet_id and a.adj_right_same_direction)
+                    or (b.adj_left == a.lanelet_id and b.adj_left_same_direction)
+                    or (b.adj_right == a.lanelet_id and b.adj_right_same_direction))
+
+    def same_bound(a: Any, b: Any) -> bool:
+        """Do ``a`` and ``b`` share a bound vertex for vertex (the same points)?  The checker's road
+        has no line there; two bounds within EDGE_JOIN_M through other points leave slivers between
+        the lanelets' polygons, which it draws as boundary where the map gives no adjacency."""
+        return bool(np.array_equal(a.left_vertices, b.right_vertices) or np.array_equal(a.right_vertices,
+                                                                                         b.left_vertices))
+
     grid = np.arange(s_a, s_b + EDGE_STEP_M, EDGE_STEP_M)
     lo = np.full(grid.size, np.nan)
     hi = np.full(grid.size, np.nan)
@@ -356,27 +379,47 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
         line = containing(s, d_line)
         return next((ll for ll in chain if at(ll, s) is not None), None) or line, line
 
-    for i, s in enumerate(grid):
-        own, line = seeds(float(s))
-        if own is None:
-            continue
-        group, todo = {own.lanelet_id: own}, [own]
-        if line is not None and line.lanelet_id not in group:
-            group[line.lanelet_id] = line
-            todo.append(line)
+    def section(seed: Any, s: float) -> dict[int, Any]:
+        """``seed`` and every lanelet at ``s`` reachable from it by same-direction adjacency: one
+        section of CommonRoad's road (its solution checker draws a boundary along a bound shared
+        by two lanelets the map does not make adjacent)."""
+        group, todo = {seed.lanelet_id: seed}, [seed]
         while todo:
             cur = todo.pop()
             for nid, same in ((cur.adj_left, cur.adj_left_same_direction),
                               (cur.adj_right, cur.adj_right_same_direction)):
                 if nid is not None and same and nid not in group:
                     nb = network.find_lanelet_by_id(nid)
-                    if at(nb, float(s)) is not None:
+                    if at(nb, s) is not None:
                         group[nid] = nb
                         todo.append(nb)
-            for nb in network.lanelets:  # a neighbour the map does not reference (shared bound)
-                if nb.lanelet_id not in group and at(nb, float(s)) is not None and shares_bound(cur, nb):
+            for nb in network.lanelets:  # the same bound, vertex for vertex: no line on the road
+                if nb.lanelet_id not in group and at(nb, s) is not None and same_bound(cur, nb):
                     group[nb.lanelet_id] = nb
                     todo.append(nb)
+        return group
+
+    for i, s in enumerate(grid):
+        own, line = seeds(float(s))
+        if own is None:
+            continue
+        group = section(own, float(s))
+        if line is not None and line.lanelet_id not in group:
+            group.update(section(line, float(s)))
+        # two lanelets of the corridor sharing a bound without adjacency (the goal's branch beside
+        # the ego's section, or two lanelets each adjacent to others): the checker's boundary runs
+        # along it, a line the body may not cross
+        barriers: list[float] = []
+        members = sorted(group.values(), key=lambda ll: ll.lanelet_id)
+        for ia, a_ll in enumerate(members):
+            for b_ll in members[ia + 1:]:
+                if adjacent(a_ll, b_ll) or same_bound(a_ll, b_ll):
+                    continue
+                ba, bb = at(a_ll, float(s)), at(b_ll, float(s))
+                if ba is not None and bb is not None:
+                    gap, mid = min((abs(x - y), 0.5 * (x + y)) for x in ba for y in bb)
+                    if gap < EDGE_JOIN_M:  # side by side here (a gore where they part: up to its tip)
+                        barriers.append(mid)
         spans = sorted((min(b), max(b)) for b in (at(ll, float(s)) for ll in group.values()) if b is not None)
         lo[i], hi[i] = spans[0][0], max(b for _, b in spans)
         top = spans[0][1]
@@ -384,6 +427,8 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             if a > top + EDGE_TOL_M:
                 gaps[i].append((top, a))
             top = max(top, b)
+        gaps[i] += [(d - BARRIER_HALF_M, d + BARRIER_HALF_M) for d in barriers]
+        gaps[i].sort()
     ok = np.isfinite(lo)
     if not ok.any():
         return (-1e3, 1e3), [], (grid, lo, hi)
