@@ -127,6 +127,11 @@ def test_the_lane_is_kept_on_a_road_after_a_ramp(tmp_path: Path) -> None:
 
     cr = load(_scene(tmp_path / "ramp.xml"))
     assert any("fitted to the ego's lane" in n for n in cr.notes)
+    # the chain's end, 2 km ahead, lies beyond the frame's path: the road does not end for the goal
+    # (measured on the extrapolated path it was put at s = 670 m)
+    assert cr.goal.s_max == float("inf")
+    # the corridor: the three lanes (about -2 to 9 m), no map point from beyond the frame's reach
+    assert -3.0 < cr.road_y[0] < 0.0 and 8.0 < cr.road_y[1] < 10.0
     rp = plan(cr)
     assert rp.status == "optimal" and rp.trajectory is not None and rp.candidate is not None
     X = rp.trajectory.states(np.array([rp.candidate.tf]))[0]

@@ -84,7 +84,7 @@ EDGE_CHUNK_M = 4.0
 EDGE_VARY_M = 0.01
 #: Clearance added to the body's half extents at a road edge (vehicles: BUFFER_M) [m].
 EDGE_BUFFER_M = 0.02
-#: Two lanelets whose bounds stay this close over their common stretch are neighbours [m].
+#: Two lanelets of the corridor whose bounds are this close at an ``s`` lie side by side there [m].
 EDGE_JOIN_M = 0.1
 #: A corridor narrower than the widest by more than this becomes a road-edge box [m]; a gap
 #: wider than this between the lanelets of the corridor at one ``s`` is a hole in the road.
@@ -308,37 +308,28 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
             # densified in the world first: a straight bound between two vertices is curved in the
             # road frame (the reference turns), so interpolating its projected vertices would
             # misplace it by up to centimetres where the vertices are far apart
-            r = frame.to_road(densify(np.asarray(ll.right_vertices, dtype=float), EDGE_DENSE_M))
-            lf = frame.to_road(densify(np.asarray(ll.left_vertices, dtype=float), EDGE_DENSE_M))
+            r = mapped(densify(np.asarray(ll.right_vertices, dtype=float), EDGE_DENSE_M))
+            lf = mapped(densify(np.asarray(ll.left_vertices, dtype=float), EDGE_DENSE_M))
             ro, lo_ = np.argsort(r[:, 0]), np.argsort(lf[:, 0])
             cache[ll.lanelet_id] = (r[ro, 0], r[ro, 1], lf[lo_, 0], lf[lo_, 1])
         return cache[ll.lanelet_id]
 
+    def mapped(points: FloatArray) -> FloatArray:
+        """``points`` in the road frame, less those whose projection does not map back to them
+        (to :data:`FRAME_ROUND_TRIP_M`): far beyond a frame fitted near the ego
+        (:func:`road_frame`) its path is extrapolated and the projection of a point kilometres
+        away is not unique (DEU_A9-1_2: a lanelet's end 2 km ahead at s = 50 km, d = 50 km)."""
+        sd = frame.to_road(points)
+        back = frame.to_world(sd[:, 0], sd[:, 1])
+        return np.asarray(sd[np.linalg.norm(back - points, axis=1) <= FRAME_ROUND_TRIP_M], dtype=float)
+
     def at(ll: Any, s: float) -> tuple[float, float] | None:
         rs, rd, ls, ld = bounds(ll)
+        if rs.size < 2 or ls.size < 2:
+            return None
         if not (rs[0] - 1e-6 <= s <= rs[-1] + 1e-6 and ls[0] - 1e-6 <= s <= ls[-1] + 1e-6):
             return None
         return float(np.interp(s, rs, rd)), float(np.interp(s, ls, ld))
-
-    shared: dict[tuple[int, int], bool] = {}
-
-    def shares_bound(a: Any, b: Any) -> bool:
-        """Do ``a`` and ``b`` run side by side with a common bound (within EDGE_JOIN_M) over their
-        whole common stretch?  (An on-ramp touches the road only at its merge point: no.)"""
-        key = (a.lanelet_id, b.lanelet_id)
-        if key not in shared:
-            ra, la = bounds(a)[0:2], bounds(a)[2:4]
-            rb, lb = bounds(b)[0:2], bounds(b)[2:4]
-            lo_s = max(ra[0][0], rb[0][0])
-            hi_s = min(ra[0][-1], rb[0][-1])
-            ok = hi_s - lo_s > 2.0
-            if ok:
-                q = np.linspace(lo_s, hi_s, 25)
-                gap = np.minimum(np.abs(np.interp(q, *la) - np.interp(q, *rb)),
-                                 np.abs(np.interp(q, *ra) - np.interp(q, *lb)))
-                ok = bool(np.all(gap < EDGE_JOIN_M))
-            shared[key] = ok
-        return shared[key]
 
     def adjacent(a: Any, b: Any) -> bool:
         """Does the map make ``a`` and ``b`` neighbours (same direction)?"""
@@ -360,8 +351,8 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
     gaps: list[list[tuple[float, float]]] = [[] for _ in grid]
     forward = []
     for ll in network.lanelets:
-        c = frame.to_road(np.asarray(ll.center_vertices, dtype=float))[:, 0]
-        if c[-1] > c[0]:
+        c = mapped(np.asarray(ll.center_vertices, dtype=float))[:, 0]
+        if c.size >= 2 and c[-1] > c[0]:
             forward.append(ll)
 
     def containing(s: float, d: float) -> Any:
@@ -654,6 +645,8 @@ FRAME_BEHIND_M = 50.0
 FRAME_AHEAD_M = 50.0
 #: Spacing of the centre line's points fitted near the ego [m].
 FRAME_DENSE_M = 1.0
+#: A point whose road-frame coordinates map back to within this of it is in the frame's reach [m].
+FRAME_ROUND_TRIP_M = 0.01
 #: Degree of the road frame's path (:meth:`~iamp.commonroad.frame.RoadFrame.fit`).
 FRAME_DEGREE = 5
 
@@ -710,10 +703,22 @@ def road_frame(centre: FloatArray, start: FloatArray, reach: float) -> tuple[Roa
 
 def _lane_end(frame: RoadFrame, chain: list[Any]) -> float:
     """Where the chain of lanelets ``chain`` (:func:`_chain`) ends along the road: the nearer of
-    its last lanelet's bounds' ends in ``frame`` [m]."""
+    its last lanelet's bounds' ends in ``frame`` [m]; ``inf`` where an end lies beyond the frame's
+    path (projected past the end of the centre line it was fitted to, where the path is
+    extrapolated, or not mapping back to itself, :data:`FRAME_ROUND_TRIP_M`: a frame fitted near the
+    ego, the chain going on kilometres beyond it)."""
     last = chain[-1]
-    return min(float(np.max(frame.to_road(np.asarray(v, dtype=float))[:, 0]))
-               for v in (last.right_vertices, last.left_vertices))
+    ends = []
+    for v in (last.right_vertices, last.left_vertices):
+        P = np.asarray(v, dtype=float)
+        sd = frame.to_road(P)
+        k = int(np.argmax(sd[:, 0]))
+        back = frame.to_world(sd[k:k + 1, 0], sd[k:k + 1, 1])[0]
+        if (float(frame.u_of_s(sd[k, 0])) > frame.u_range[1] + 1.0
+                or float(np.linalg.norm(back - P[k])) > FRAME_ROUND_TRIP_M):
+            return math.inf
+        ends.append(float(sd[k, 0]))
+    return min(ends)
 
 
 def _chain(network: Any, start_id: int) -> list[Any]:
