@@ -45,8 +45,11 @@ from iamp.core.errors import IampError
 #: A planner label ending in this plans with the predicted vehicles (``avoid+predict``).
 PREDICT_SUFFIX = "+predict"
 CATEGORIES = ("valid", "collision", "infeasible", "goal missed", "off road", "no plan", "timeout")
-#: Version of what a bench row means (planning, solution writing, checks, costs); in the manifest.
-BENCH_FORMAT = "2"
+#: Version of what a bench row means (planning, solution writing, checks, costs); in the manifest,
+#: so that a bench resumed into a folder of older rows refuses them (raised with every change of
+#: what a row holds).  3: the road frame fitted near the ego, the corridor by adjacency (rows of
+#: format 2 may hold plans of the corridor before).
+BENCH_FORMAT = "3"
 #: Manifest keys that define a row: a resumed bench must match them.
 MANIFEST_KEYS = ("bench_format", "iamp_version", "vehicle_model", "vehicle_type", "cost_function", "timeout_s")
 
