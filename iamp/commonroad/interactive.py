@@ -249,36 +249,25 @@ class Shifted:
 
 
 class Braking:
-    r"""Braking in the lane: the speed along the road falls at ``decel`` from ``x0``'s to ``v_end``
-    and stays there; the lateral speed relative to the lane falls linearly to zero over ``t_lat``
-    (the same trajectory interface as a plan: ``states(t)`` rows ``(s, v_s, d, v_d)``, ``inputs(t)``).
+    """Braking in the lane: the speed along the road falls at ``decel`` from ``x0``'s to ``v_end``
+    and stays there; the lateral speed falls linearly to zero over ``t_lat`` (the same
+    trajectory interface as a plan: ``states(t)`` rows ``(s, v_s, d, v_d)``, ``inputs(t)``).
 
-    With ``d_end``, the lateral motion instead ends at rest relative to the lane at ``d_end`` (the
-    lane's centre at the start) after ``t_lat`` (the cubic from ``x0``'s offset and lateral speed:
-    back to a lane's centre when a car appears beside a lane change, :func:`failsafe`).
-
-    ``slope`` is the lane's direction in the road frame, :math:`\mathrm{d}d/\mathrm{d}s` of its
-    centre at the start (0 where the frame follows the lane): the motion is relative to the line
-    :math:`d = d_0 + m (s - s_0)`, so that the braking keeps the lane's direction where the frame's
-    path is only approximately along the lane (a frame fitted near the ego on a curved road,
-    :func:`~iamp.commonroad.convert.road_frame`; DEU_Muc-3_1 drove 47 steps off the road braking
-    along the frame).  With ``slope`` 0 the same numbers as without it."""
+    With ``d_end``, the lateral motion instead ends at rest at ``d_end`` after ``t_lat`` (the cubic
+    from ``x0``'s offset and lateral speed: back to a lane's centre when a car appears beside a
+    lane change, :func:`failsafe`)."""
 
     def __init__(self, x0: tuple[float, float, float, float], decel: float, v_end: float, t_lat: float,
-                 d_end: float | None = None, slope: float = 0.0) -> None:
+                 d_end: float | None = None) -> None:
         self.x0, self.decel, self.v_end, self.t_lat, self.d_end = x0, decel, v_end, max(t_lat, 1e-6), d_end
-        self.slope = float(slope)
         self.t_b = max(0.0, x0[1] - v_end) / decel
-        T, d0 = self.t_lat, x0[2]
-        vd0 = x0[3] - self.slope * x0[1]  # relative to the lane's line
-        self.vd_rel = vd0
+        T, d0, vd0 = self.t_lat, x0[2], x0[3]
         # with d_end: the cubic d0 + vd0 t + c2 t^2 + c3 t^3 with d(T) = d_end, d'(T) = 0
         self.c2 = 0.0 if d_end is None else (3.0 * (d_end - d0) - 2.0 * vd0 * T) / T**2
         self.c3 = 0.0 if d_end is None else (-2.0 * (d_end - d0) + vd0 * T) / T**3
 
     def states(self, t: ArrayLike) -> np.ndarray:
-        s0, v0, d0, _ = self.x0
-        vd0 = self.vd_rel
+        s0, v0, d0, vd0 = self.x0
         tt = np.atleast_1d(np.asarray(t, dtype=float))
         tb = np.minimum(tt, self.t_b)
         s = s0 + v0 * tb - 0.5 * self.decel * tb**2 + self.v_end * (tt - tb)
@@ -290,19 +279,13 @@ class Braking:
         else:
             d = d0 + vd0 * tl + self.c2 * tl**2 + self.c3 * tl**3
             vd = np.where(tt < self.t_lat, vd0 + 2.0 * self.c2 * tl + 3.0 * self.c3 * tl**2, 0.0)
-        if self.slope != 0.0:  # along the lane's line
-            d = d + self.slope * (s - s0)
-            vd = vd + self.slope * v
         return np.stack([s, v, d, vd], axis=1)
 
     def inputs(self, t: ArrayLike) -> np.ndarray:
         tt = np.atleast_1d(np.asarray(t, dtype=float))
-        lat = (-self.vd_rel / self.t_lat if self.d_end is None else 2.0 * self.c2 + 6.0 * self.c3 * tt)
-        along = np.where(tt < self.t_b, -self.decel, 0.0)
-        lateral = np.where(tt < self.t_lat, lat, 0.0)
-        if self.slope != 0.0:
-            lateral = lateral + self.slope * along
-        return np.stack([along, lateral], axis=1)
+        lat = (-self.x0[3] / self.t_lat if self.d_end is None else 2.0 * self.c2 + 6.0 * self.c3 * tt)
+        return np.stack([np.where(tt < self.t_b, -self.decel, 0.0),
+                         np.where(tt < self.t_lat, lat, 0.0)], axis=1)
 
 
 def vehicle_hits(hits: list[Intrusion]) -> list[Intrusion]:
@@ -474,8 +457,7 @@ def rss_stops_behind(cr: CommonRoadProblem, decel: float) -> bool:
 
 
 def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = None,
-             rear: set[int] | None = None, lane_d: float | None = None,
-             lane_slope: float = 0.0) -> tuple[Braking, float]:
+             rear: set[int] | None = None, lane_d: float | None = None) -> tuple[Braking, float]:
     """The fail-safe when no plan keeps clear: braking in the lane (:class:`Braking`, the lateral
     speed brought to zero over 1 s) at the gentlest of :data:`FAILSAFE_DECEL` and 0.9 ``a_max``,
     and at that deceleration to the highest of :data:`FAILSAFE_SPEEDS` (fractions of the current
@@ -503,9 +485,6 @@ def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = N
         falls to zero is not clear, the same braking that brings the ego back to rest at that
         centre over :data:`FAILSAFE_RETURN_S` is tried next (a car SUMO inserted beside a lane
         change under way: USA_US101-23_1, vehicle 75 at 3.3 s, 0.5 m beside the ego's body).
-    lane_slope : float
-        The direction of that lane in the road frame (``dd/ds`` of its centre at the ego): the
-        braking keeps it (:class:`Braking`'s ``slope``).
 
     Returns
     -------
@@ -519,10 +498,9 @@ def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = N
     excused = (followers or set()) | (rear or set())
     for b in decels:
         for frac in FAILSAFE_SPEEDS:
-            plans = [Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_MIN_S, slope=lane_slope)]
+            plans = [Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_MIN_S)]
             if lane_d is not None and abs(cr.x0[2] - lane_d) > FAILSAFE_RETURN_M:
-                plans.append(Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_RETURN_S, lane_d,
-                                     slope=lane_slope))
+                plans.append(Braking((cr.x0[0], v0, cr.x0[2], cr.x0[3]), b, frac * v0, FAILSAFE_RETURN_S, lane_d))
             for brake in plans:
                 T = max(FAILSAFE_HORIZON_S, brake.t_b)
                 if brake.d_end is None:
@@ -543,9 +521,6 @@ def failsafe(cr: CommonRoadProblem, a_max: float, followers: set[int] | None = N
     return last
 
 
-#: The fail-safe keeps the direction of the ego's lane over this much road ahead (the secant of
-#: its centre in the road frame, :func:`failsafe`'s ``lane_slope``) [m].
-FAILSAFE_SLOPE_M = 20.0
 #: The time over which a fail-safe brings the ego back to its lane's centre (:func:`failsafe`'s ``lane_d``) [s].
 FAILSAFE_RETURN_S = 1.5
 #: A fail-safe returns to the lane's centre only when the ego is farther from it than this [m].
@@ -1055,10 +1030,8 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
                         if tac is not None and tac.trajectory is not None and tac.candidate is not None:
                             options.append(("lane change", tac.trajectory, tac.candidate.tf, tac.intrusions))
                     lid = lane_map.at(x[0], x[2])
-                    here = None if lid is None else lane_map.centre(lid, x[0])
-                    ahead = None if lid is None else lane_map.centre(lid, x[0] + FAILSAFE_SLOPE_M)
-                    slope = 0.0 if here is None or ahead is None else (ahead - here) / FAILSAFE_SLOPE_M
-                    fs, fs_T = failsafe(live, cr.a_max, followers, rear, here, slope)
+                    fs, fs_T = failsafe(live, cr.a_max, followers, rear,
+                                        None if lid is None else lane_map.centre(lid, x[0]))
                     options.append(("fail-safe", fs, fs_T, intrusions(live, fs, fs_T)))
                     action, chosen, chosen_T, hits = options[choose(options, followers, rear)]
                     if action == "new plan":
