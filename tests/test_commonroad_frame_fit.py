@@ -170,3 +170,44 @@ def test_the_text_names_the_steps_off_the_road_and_the_exit_is_5(tmp_path: Path,
     assert main(["simulate", "--commonroad", str(tmp_path)]) == 5
     out = capsys.readouterr().out
     assert "off road  5 executed steps at 3.0-3.4 s" in out
+
+
+def test_sumo_refusing_the_ego_is_one_line_and_exit_2(monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """The public RUS_Bicycle-11_1: SUMO refuses to insert the ego (the scene's default vehicle type
+    is a bicycle slower than the ego's initial speed) and the loop ended in "internal error"; now
+    one line naming the scene file and the field, SUMO's reason, exit 2.  SUMO's refusal is
+    reproduced on a shared scene by a ``vehicle.add`` that raises as SUMO's does."""
+    pytest.importorskip("commonroad")
+    from conftest import data_path
+
+    folder = data_path("commonroad", "interactive-US101", "USA_US101-11_1_I-1-1")
+    if not folder.is_dir():
+        pytest.skip(f"the shared CommonRoad data is absent ({folder})")
+    import iamp.commonroad.interactive as interactive
+    from iamp.cli.main import main
+
+    try:
+        traci, sumolib = interactive._sumo()
+    except Exception as exc:  # the [sim] extra absent
+        pytest.skip(str(exc))
+
+    class Refusing:
+        def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
+            return getattr(traci.vehicle, name)
+
+        def add(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+            raise traci.TraCIException("Vehicle 'ego' has no valid route (Departure speed for vehicle 'ego' is "
+                                       "too high for the vehicle type 'bicycle'.)")
+
+    class Wrapped:
+        vehicle = Refusing()
+
+        def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
+            return getattr(traci, name)
+
+    monkeypatch.setattr(interactive, "_sumo", lambda: (Wrapped(), sumolib))
+    assert main(["simulate", "--commonroad", str(folder)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "SUMO refuses to insert the ego" in err[0] and "bicycle" in err[0]
+    assert "planningProblem.initialState" in err[0] and "Traceback" not in err[0]

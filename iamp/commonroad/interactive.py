@@ -887,9 +887,14 @@ def simulate_with_log(folder: str | Path, planner: str = DEFAULT_PLANNER, *, rep
         except Exception as exc:  # SUMO raises its own error types
             raise ScenarioError(f"the ego's initial position is on no SUMO edge ({exc})", "planningProblem",
                                 str(cr_path)) from None
-        traci.route.add("iamp_ego_route", [edge])
-        traci.vehicle.add("ego", "iamp_ego_route", depart="now", departPos=str(max(pos, 0.0)),
-                          departLane=str(lane), departSpeed=str(v0))
+        try:
+            traci.route.add("iamp_ego_route", [edge])
+            traci.vehicle.add("ego", "iamp_ego_route", depart="now", departPos=str(max(pos, 0.0)),
+                              departLane=str(lane), departSpeed=str(v0))
+        except Exception as exc:  # SUMO refuses the ego (its message says why: the public
+            # RUS_Bicycle-11_1's default vehicle type is a bicycle slower than the ego's initial speed)
+            raise ScenarioError(f"SUMO refuses to insert the ego ({type(exc).__name__}: {exc})",
+                                "planningProblem.initialState", str(cr_path)) from None
         traci.vehicle.setLength("ego", L)
         traci.vehicle.setWidth("ego", W)
         traci.vehicle.setSpeedMode("ego", 0)
