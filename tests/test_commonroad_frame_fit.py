@@ -58,6 +58,8 @@ def test_a_ramp_before_a_long_road_is_fitted_near_the_ego(radius: float, turn: f
     start = np.array([start_x, 0.0])
     frame, res, note = road_frame(centre, start, 200.0)
     assert note is not None and f"{whole_res:.2f} m" in note and f"{res:.2f} m" in note
+    assert f"from {FRAME_BEHIND_M:.0f} m behind it to 250 m ahead" in note  # reach 200 m + 50 m
+    assert ("more than 1 m" in note) is (res > FRAME_TOL_M)
     dense = densify(centre, 1.0)
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))]
     a0 = arc[np.argmin(np.linalg.norm(dense - start, axis=1))]
