@@ -400,18 +400,16 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
         # two lanelets of the corridor sharing a bound without adjacency (the goal's branch beside
         # the ego's section, or two lanelets each adjacent to others): the checker's boundary runs
         # along it, a line the body may not cross
+        here = {lid: b for lid, b in ((lid, at(ll, float(s))) for lid, ll in sorted(group.items())) if b is not None}
         barriers: list[float] = []
-        members = sorted(group.values(), key=lambda ll: ll.lanelet_id)
-        for ia, a_ll in enumerate(members):
-            for b_ll in members[ia + 1:]:
-                if adjacent(a_ll, b_ll) or same_bound(a_ll, b_ll):
+        for ia, (a_id, ba) in enumerate(here.items()):
+            for b_id, bb in list(here.items())[ia + 1:]:
+                if adjacent(group[a_id], group[b_id]) or same_bound(group[a_id], group[b_id]):
                     continue
-                ba, bb = at(a_ll, float(s)), at(b_ll, float(s))
-                if ba is not None and bb is not None:
-                    gap, mid = min((abs(x - y), 0.5 * (x + y)) for x in ba for y in bb)
-                    if gap < EDGE_JOIN_M:  # side by side here (a gore where they part: up to its tip)
-                        barriers.append(mid)
-        spans = sorted((min(b), max(b)) for b in (at(ll, float(s)) for ll in group.values()) if b is not None)
+                gap, mid = min((abs(x - y), 0.5 * (x + y)) for x in ba for y in bb)
+                if gap < EDGE_JOIN_M:  # side by side here (a gore where they part: up to its tip)
+                    barriers.append(mid)
+        spans = sorted((min(b), max(b)) for b in here.values())
         lo[i], hi[i] = spans[0][0], max(b for _, b in spans)
         top = spans[0][1]
         for a, b in spans[1:]:  # a gap between the group's lanelets: outside CommonRoad's road too
@@ -684,7 +682,8 @@ def road_frame(centre: FloatArray, start: FloatArray, reach: float) -> tuple[Roa
     dense = densify(np.asarray(centre, dtype=float), FRAME_DENSE_M)
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))]
     a0 = float(arc[int(np.argmin(np.linalg.norm(dense - np.asarray(start, dtype=float), axis=1)))])
-    window = (arc >= a0 - FRAME_BEHIND_M) & (arc <= a0 + max(reach, 0.0) + FRAME_AHEAD_M)
+    ahead = max(reach, 0.0) + FRAME_AHEAD_M
+    window = (arc >= a0 - FRAME_BEHIND_M) & (arc <= a0 + ahead)
     near = dense[window]
     if len(near) > FRAME_DEGREE:
         whole_near = float(np.max(np.abs(frame.to_road(near)[:, 1])))
@@ -692,7 +691,7 @@ def road_frame(centre: FloatArray, start: FloatArray, reach: float) -> tuple[Roa
         local_res = float(np.max(np.abs(local.to_road(near)[:, 1])))
         if local_res < whole_near:
             note = (f"road frame fitted to the ego's lane from {FRAME_BEHIND_M:.0f} m behind it to "
-                    f"{a0 + max(reach, 0.0) + FRAME_AHEAD_M - a0:.0f} m ahead (the fit to its whole chain of "
+                    f"{ahead:.0f} m ahead (the fit to its whole chain of "
                     f"lanelets left {res:.2f} m); it leaves the lane's centre line by up to {local_res:.2f} m")
             if local_res > FRAME_TOL_M:
                 note += f", more than {FRAME_TOL_M:g} m: the lanes are not straight in it, the plan approximate"
