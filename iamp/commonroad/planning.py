@@ -636,9 +636,10 @@ def road_checked(cr: CommonRoadProblem, rp: RoadPlan) -> bool:
     """Does CommonRoad's own road-boundary checker find the body of the solution written from
     ``rp`` on the road at every step (:func:`off_road_steps`)?  The road-edge boxes count only
     where it finds the body off the road, but it can find it off where no box is entered: the
-    public hand-crafted DEU_Muc-2_1's corridor holds its two lanelets (no adjacency given, bounds
-    shared), whose plan was called ``optimal`` while the checker finds its body off the road at
-    0.6-1.5 s (which part of the map its boundary draws there was not identified).
+    public hand-crafted DEU_Muc-2_1's corridor held its two lanelets (bounds shared, no adjacency
+    given), whose plan was called ``optimal`` while the checker finds its body off the road at
+    0.6-1.5 s (it draws a boundary along such a bound; the corridor now follows the map's
+    adjacency, :func:`~iamp.commonroad.convert.load`, and this check stays as the last word).
     Where it does, the times go to :attr:`RoadPlan.off_road_s` and the plan is ``unsafe``."""
     if rp.trajectory is None or rp.candidate is None:
         return False
