@@ -360,3 +360,33 @@ def test_stdin_is_read_as_bytes_so_a_bare_cr_is_refused_there_too():
     r = subprocess.run([sys.executable, "-m", "iamp", "--debug", "plan", "-", "--json"], input=GOOD.encode(),
                        capture_output=True, timeout=120)
     assert r.returncode == 0 and json.loads(r.stdout)["status"] == "optimal"
+
+
+@pytest.mark.parametrize("depth", [1, 40, 120])
+def test_a_long_path_never_pushes_the_reason_off_the_error_line(monkeypatch, depth):
+    """The refusal names the file and field in full and the reason after them, however deep the
+    file lies (CI's checkout under a longer prefix once cut SUMO's reason off a 300-character line);
+    only an overlong reason is shortened, at its own end."""
+    from iamp.cli import plan as cli_plan
+    from iamp.core.errors import ScenarioError
+
+    source = "/" + "/".join(f"folder{k}" for k in range(depth)) + "/scene.cr.xml"
+    reason = "SUMO refuses to insert the ego (TraCIException: the vehicle type 'bicycle' is too slow)"
+
+    def refuse(args):
+        raise ScenarioError(reason, "planningProblem.initialState", source)
+
+    monkeypatch.setattr(cli_plan, "prepared_plan", refuse)
+    code, _, err = run("plan", "paper-1-poly")
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert lines[0] == f"iamp: error: {source}: field 'planningProblem.initialState': {reason}"
+
+    def refuse_long(args):
+        raise ScenarioError("x" * 1000, None, source)
+
+    monkeypatch.setattr(cli_plan, "prepared_plan", refuse_long)
+    code, _, err = run("plan", "paper-1-poly")
+    line = err.strip()
+    assert code == 2 and line.startswith(f"iamp: error: {source}: xxx") and line.endswith("...")
+    assert len(line) == len(f"iamp: error: {source}: ") + 300

@@ -136,7 +136,12 @@ def _run(args_list: list[str]) -> int:
     try:
         return int(args.func(args) or 0)
     except ScenarioError as exc:
-        sys.stderr.write(f"iamp: error: {_one_line(exc.one_line())}\n")
+        # the file and field in full (a long path must not push the reason off the line); only
+        # the reason is shortened
+        where = "".join(f"{part}: " for part in (
+            exc.source and " ".join(str(exc.source).split()),
+            exc.field and f"field '{' '.join(str(exc.field).split())}'") if part)
+        sys.stderr.write(f"iamp: error: {where}{_one_line(exc.message)}\n")
         return EXIT_BAD_INPUT
     except SolverError as exc:
         sys.stderr.write(f"iamp: solver failure ({exc.status}): {_one_line(str(exc))}\n")
