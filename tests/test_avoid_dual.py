@@ -223,16 +223,23 @@ def test_the_stores_polynomials_are_built_when_asked_for_and_are_the_eager_ones(
     finally:
         DualStore.__init__ = init  # type: ignore[method-assign]
     store = stores[0]
-    assert len(store._polys) >= 5
+    assert len(store._polys) >= 4
     unbuilt = sum(p is None for p in store._polys)
     assert unbuilt >= (1 if three else 0)
     fresh = DualStore(DualBounds(qp))
+    near = {v: a for a, v in store._near.items()}  # a candidate's second entry: its tangent interval
+    assert bool(near) == (not three)
     for at, (sol, lo, hi) in enumerate(store._sources):
-        ref = fresh.piece(sol)
+        ref = fresh.near(sol) if at in near else fresh.piece(sol)
         assert np.array_equal(store.dual.mass(sol), ref.mass)
         assert np.array_equal(store._binds[at], ref.mass > 0)
         k = np.array([piece_of(float(a), float(a), qp.h, qp.N) for _, _, a, _ in sol.spec], dtype=float)
-        assert np.array_equal(lo, k * qp.h) and np.array_equal(hi, (k + 1) * qp.h)
+        if at in near:
+            assert store._sources[near[at]][0] is sol and ref.second_order
+            la, lb = store.dual.tangent_interval(sol, 0, int(k[0]))
+            assert np.array_equal(lo, k * qp.h + la * qp.h) and np.array_equal(hi, k * qp.h + lb * qp.h)
+        else:
+            assert np.array_equal(lo, k * qp.h) and np.array_equal(hi, (k + 1) * qp.h)
         built = store._polys[at]
         if built is not None:
             assert built.vehicles == ref.vehicles and built.pieces == ref.pieces
@@ -300,3 +307,100 @@ def test_the_polynomial_from_the_node_solvers_columns_is_the_direct_solves(x0v, 
         assert kept.vehicles == direct.vehicles and kept.pieces == direct.pieces
         scale = max(1.0, float(np.abs(direct.coef).max()))
         assert np.abs(kept.coef - direct.coef).max() <= 1e-11 * scale
+
+
+def _fixed(qp: ContinuousAvoidQP) -> DualBounds:
+    """The dual bounds with every multiplier held at the candidate's (no tangent)."""
+    out = DualBounds(qp)
+    out.tangent = lambda sol, i, k: np.zeros(out._binding(sol).nz.size)  # type: ignore[method-assign]
+    return out
+
+
+def _multipliers(qp: ContinuousAvoidQP, sol) -> dict[int, float]:  # type: ignore[no-untyped-def]
+    """A solution's positive multipliers by layout number."""
+    _, _, ids = sol.spec_rows()
+    return {int(i): float(v) for i, v in zip(ids, sol.y[qp.data.n_eq:]) if v > 0}
+
+
+def test_the_tangent_is_the_multipliers_derivative_and_makes_the_bound_fourth_order():
+    """At the overtake's optimum (one vehicle, N = 50): :meth:`DualBounds.tangent` equals the
+    central difference of the multipliers of two solves ``±1e-5 h`` away (same binding rows); on
+    the interval where no multiplier on its tangent turns negative, ``J - g`` falls off as the
+    fourth power of the distance (halving it divides the loss by about 16) and the polynomial's
+    curvature is ``J``'s (central difference), where the multipliers held fixed lose the second
+    power (ratios about 4); every value is below ``J`` (weak duality)."""
+    prob = overtake_problem()
+    qp = ContinuousAvoidQP(prob, 50, "foh", "clarabel")
+    plan = ContinuousAvoidPlanner(steps=50).plan(prob)
+    tau = float(plan.info["avoidance"]["vehicles"][0]["crossing_time"])
+    h = qp.h
+    best = qp.solve(spec((1, 0), tau))
+    k = piece_of(tau, tau, h, qp.N)
+    assert k is not None
+    bounds = DualBounds(qp)
+    mu = bounds.tangent(best, 0, k)
+    e = 1e-5 * h
+    up, down = _multipliers(qp, qp.solve(spec((1, 0), tau + e))), _multipliers(qp, qp.solve(spec((1, 0), tau - e)))
+    _, _, ids = best.spec_rows()
+    rows = ids[bounds._binding(best).nz]
+    assert set(up) == set(down) == {int(r) for r in rows}
+    fd = np.array([(up[int(r)] - down[int(r)]) / (2 * e / h) for r in rows])
+    assert np.allclose(mu, fd, rtol=1e-6, atol=1e-8), (mu, fd)
+    la, lb = bounds.tangent_interval(best, 0, k)
+    lam = (tau - k * h) / h
+    assert la < lam < lb and (la, lb) != (0.0, 1.0)
+    near = bounds.polynomial(best, np.array([(k + la) * h]), np.array([(k + lb) * h]))
+    fixed = _fixed(qp).polynomial(best, np.array([(k + la) * h]), np.array([(k + lb) * h]))
+    assert near.second_order
+    steps = (0.16, 0.08, 0.04, 0.02)
+    assert lam + steps[0] < lb
+    loss_near, loss_fixed = [], []
+    for d in steps:
+        t = tau + d * h
+        J = qp.solve(spec((1, 0), t)).cost
+        loss_near.append(J - float(near.evaluate(np.array([[t]]))[0]))
+        loss_fixed.append(J - float(fixed.evaluate(np.array([[t]]))[0]))
+    assert all(x >= -1e-9 for x in loss_near + loss_fixed)
+    for a, b in zip(loss_near, loss_near[1:]):
+        assert 12.0 < a / b < 20.0, loss_near
+    for a, b in zip(loss_fixed, loss_fixed[1:]):
+        assert 3.0 < a / b < 5.0, loss_fixed
+    E = 1e-4 * h
+    curv = (qp.solve(spec((1, 0), tau + E)).cost - 2 * best.cost + qp.solve(spec((1, 0), tau - E)).cost) / E ** 2
+    assert near.curvature(np.array([tau]), 0) == pytest.approx(curv, rel=1e-3)
+    assert near.slope(np.array([tau]), 0) == pytest.approx(float(bounds.gradient(best)[0]), rel=1e-6, abs=1e-9)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
+@given(st_h.floats(-5.0, 12.0), st_h.floats(15.0, 24.0), st_h.floats(100.0, 125.0), st_h.floats(20.0, 26.0),
+       st_h.booleans(), st_h.sampled_from(["foh", "zoh"]), st_h.integers(6, 30), st_h.floats(0.02, 0.98),
+       st_h.floats(0.0, 1.0))
+def test_the_tangent_polynomial_bounds_j_on_its_interval_and_the_piece(x0v, speed, xf, vxf, limits, hold, steps,
+                                                                       where, frac):
+    """Generated one-vehicle problems, a candidate anywhere in a piece: the polynomial with the
+    multipliers on their tangent is below ``J`` at crossing times drawn on the interval where none
+    turns negative and, with the slopes cut to keep them nonnegative, on the whole piece; its
+    Bernstein bound is below every sampled ``J``."""
+    prob = problem(x0v, speed, xf, vxf, limits)
+    try:
+        qp = ContinuousAvoidQP(prob, steps, hold, "clarabel")
+    except ScenarioError:
+        assume(False)
+    h = qp.h
+    k = min(int(where * steps), steps - 1)
+    tau = (k + 0.02 + 0.96 * frac) * h
+    cand = qp.solve(spec((1, 0), tau))
+    assume(cand.status == st.OPTIMAL)
+    bounds = DualBounds(qp)
+    la, lb = bounds.tangent_interval(cand, 0, k)
+    assert 0.0 <= la <= (tau - k * h) / h <= lb <= 1.0
+    for a, b in ((la, lb), (0.0, 1.0)):
+        lo, hi = np.array([(k + a) * h]), np.array([(k + b) * h])
+        dp = bounds.polynomial(cand, lo, hi)
+        assert float(dp.evaluate(np.array([[tau]]))[0]) == pytest.approx(cand.cost, rel=1e-6, abs=1e-6)
+        lb_box = dp.lower_bound(lo, hi)
+        for t in np.linspace(lo[0], hi[0], 6):
+            s = qp.solve(spec((1, 0), float(t)))
+            if s.status == st.OPTIMAL:
+                assert float(dp.evaluate(np.array([[t]]))[0]) <= s.cost + 1e-7 * max(1.0, s.cost), (t, s.cost)
+                assert lb_box <= s.cost + 1e-9 * max(1.0, s.cost)

@@ -133,16 +133,18 @@ def test_valid_polys_is_the_box_containment_and_order_test() -> None:
 
 def test_polys_max_is_the_largest_tensor_polynomial_value() -> None:
     # against the sum over every multi-index of c_j prod_a lam_a^j_a (numpy), polynomials of zero
-    # to three axes on vehicles of a three-vehicle problem, their crossing times in their pieces
+    # to three axes on vehicles of a three-vehicle problem, their crossing times in their pieces,
+    # of 7 or 9 coefficients per axis side by side (the one-vehicle tangent polynomials have 2d + 3)
     from iamp.planners.avoid.dual import DualPolynomial, polys_values
 
     rng = np.random.default_rng(4)
-    h, n = 0.1, 7
+    h = 0.1
     fns = [kernel.polys_max] + ([jit.twin(kernel.polys_max, cache=True)] if jit.available() else [])
     for _ in range(20):
         polys = []
         for _ in range(int(rng.integers(1, 5))):
             q = int(rng.integers(0, 4))
+            n = int(rng.choice([7, 9]))
             vehicles = tuple(sorted(rng.choice(3, q, replace=False).tolist()))
             polys.append(DualPolynomial(vehicles, tuple(int(k) for k in rng.integers(0, 40, q)),
                                         rng.standard_normal((n,) * q), h, np.ones(3)))
@@ -166,6 +168,7 @@ def test_polys_max_is_the_largest_tensor_polynomial_value() -> None:
         assert np.allclose(got, ref, rtol=1e-12, atol=1e-10)
         for fn in fns:  # the twin: the same numbers bit for bit
             qs = np.array([dp.coef.ndim for dp in polys], dtype=np.int64)
+            ns = np.array([dp.coef.shape[0] if dp.coef.ndim else 1 for dp in polys], dtype=np.int64)
             V = np.zeros((len(polys), 3), dtype=np.int64)
             K = np.zeros((len(polys), 3), dtype=np.int64)
             for p, dp in enumerate(polys):
@@ -174,7 +177,7 @@ def test_polys_max_is_the_largest_tensor_polynomial_value() -> None:
             starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
             flat = np.concatenate([dp.coef.ravel() for dp in polys])
             out = np.empty(taus.shape[0])
-            fn(flat, starts, qs, V, K, n, h, taus, out, np.empty(3), np.empty(n ** 3))
+            fn(flat, starts, qs, ns, V, K, h, taus, out, np.empty(3), np.empty(9 ** 3))
             assert np.array_equal(out, got)
 
 

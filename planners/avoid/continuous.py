@@ -860,6 +860,44 @@ class ContinuousAvoidPlanner:
             return mid
         return float(min(max(int(round(mid / qp.h)), k_lo), k_hi) * qp.h)
 
+    #: A candidate at its box's upper end on a grid node moves this far (in steps ``h``) into the
+    #: box (:meth:`_inside`).
+    INSIDE_STEPS = 1e-6
+
+    def _inside(self, qp: ContinuousAvoidQP, box: _Box, tau: FloatArray) -> FloatArray:
+        """``tau`` with each crossing at its box's upper end, where that end is a grid node, moved
+        :attr:`INSIDE_STEPS` of a step into the box: a crossing on node ``k`` belongs to piece
+        ``k`` (:func:`~iamp.planners.avoid.dual.piece_of`), outside the box, so its piece
+        polynomial would not bound the box's last piece; inside, it bounds that piece (and its
+        cost differs from the node's by the slope times ``1e-6 h``).  One vehicle (with several,
+        the overtakes' searches took more QPs)."""
+        out = np.asarray(tau, dtype=float).copy()
+        if qp.problem.m != 1:
+            return out
+        for i in range(out.size):
+            hi, lo = float(box.hi[i]), float(box.lo[i])
+            node = round(hi / qp.h)
+            if (hi - lo > 2 * self.INSIDE_STEPS * qp.h and out[i] >= hi - 1e-9 * qp.h
+                    and abs(hi - node * qp.h) <= 1e-9 * qp.h):
+                out[i] = hi - self.INSIDE_STEPS * qp.h
+        return out
+
+    def _cuts(self, qp: ContinuousAvoidQP, lo: float, hi: float, at: float | None) -> list[float]:
+        """Where a box's interval ``[lo, hi]`` of one vehicle is split: around the grid piece of a
+        solved candidate's crossing ``at`` when the interval spans several pieces (that piece
+        becomes a child, which the candidate's piece polynomial bounds without a relaxation, and
+        the children beside it are bounded by their relaxations, cut off early by the incumbent;
+        one vehicle: with several, the third child of every split multiplies the boxes); else
+        :meth:`_cut`."""
+        if at is not None and qp.problem.m == 1 and piece_of(lo, hi, qp.h, qp.N) is None:
+            # the piece of ``at`` inside the interval (a crossing at its upper end: the piece below)
+            k = piece_of(at, at, qp.h, qp.N) if at < hi - 1e-9 * qp.h else piece_of(hi - qp.h, hi - qp.h, qp.h, qp.N)
+            if k is not None:
+                cuts = [float(c * qp.h) for c in (k, k + 1) if lo + 1e-9 * qp.h < c * qp.h < hi - 1e-9 * qp.h]
+                if cuts:
+                    return cuts
+        return [self._cut(qp, lo, hi)]
+
     def search(self, qp: ContinuousAvoidQP, orders: list[list[tuple[int, int]]]) -> dict[str, Any]:
         """Branch and bound over crossing-time boxes (module docstring)."""
         tf = qp.tf
@@ -926,6 +964,7 @@ class ContinuousAvoidPlanner:
             else:
                 if not box.own_relaxation or low > -np.inf:
                     tau = probe
+                tau = self._inside(qp, box, tau)
                 # warm-started from the incumbent's binding rows (a candidate's active set is
                 # nearer the incumbent's than the box's relaxation's: 62 -> 39 active-set steps
                 # per one-vehicle overtake plan, 173 -> 136 with three vehicles)
@@ -962,8 +1001,8 @@ class ContinuousAvoidPlanner:
                 i = int(np.argmax(widths))
             if not wide[i]:
                 continue  # a point: its bound is J(τ) itself
-            cuts = [self._cut(qp, float(box.lo[i]), float(box.hi[i]))]
             solved = cand is not None and cand.status == st.OPTIMAL
+            cuts = self._cuts(qp, float(box.lo[i]), float(box.hi[i]), float(tau[i]) if solved else None)
             ref = cand if cand is not None and solved else box.relaxed
             edges = [float(box.lo[i])] + cuts + [float(box.hi[i])]
             for lo_i, hi_i in zip(edges[:-1], edges[1:]):
@@ -1050,7 +1089,11 @@ class ContinuousAvoidPlanner:
             for _ in range(self.POLISH_STEPS if len(tau) == 1 else self.POLISH_PROBES):
                 slope = self._gradient(store, sol, t)[i]
                 if prev is None:
-                    step = -np.sign(slope) * 1e-3 * qp.h  # a first probe, then secant steps
+                    # a Newton step on the curvature of the candidate's piece polynomial where it
+                    # is J's (multipliers on their tangent), else a first probe; then secant steps
+                    dp = store.near(sol) if len(tau) == 1 else None
+                    c = dp.curvature(t, i) if dp is not None and dp.second_order else 0.0
+                    step = -slope / c if c > 0 else -np.sign(slope) * 1e-3 * qp.h
                 else:
                     ds = slope - prev[1]
                     step = -slope * (t[i] - prev[0]) / ds if ds != 0.0 else 0.0

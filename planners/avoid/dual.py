@@ -108,6 +108,8 @@ class _Binding:
     #: :meth:`DualBounds.polynomial` (``σ (y_j M)ᵀ``, ``rhs · y_j``), computed once per solution
     blocks: dict[tuple[int, int], list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64],
                                              FloatArray, FloatArray]]] = field(default_factory=dict)
+    #: :meth:`DualBounds.tangent` per ``(vehicle, piece)``, computed once per solution
+    tangents: dict[tuple[int, int], FloatArray] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -135,6 +137,10 @@ class DualPolynomial:
     coef: FloatArray
     h: float
     mass: FloatArray
+    #: The multipliers follow their tangent in the crossing time (:meth:`DualBounds.tangent`, one
+    #: polynomial vehicle): ``g`` then agrees with ``J`` to second order at the candidate, so its
+    #: curvature there is ``J``'s (where the binding set does not change).
+    second_order: bool = False
     #: :meth:`lower_bound` per box (its local intervals ``(λ_a, λ_b)``), computed once; at most
     #: :data:`BOUNDS_KEPT` (then emptied: a value is a function of its key, the same when computed
     #: again)
@@ -173,6 +179,17 @@ class DualPolynomial:
         pad[axis] = (0, 1)
         return float(self._values(np.pad(der, pad), np.asarray(tau, dtype=float)[None, :])[0])
 
+    def curvature(self, tau: FloatArray, vehicle: int) -> float:
+        """``∂²g/∂τ_vehicle²`` at ``tau`` (zero for a vehicle that is not polynomial); with
+        :attr:`second_order`, ``J``'s curvature at the candidate."""
+        if vehicle not in self.vehicles:
+            return 0.0
+        axis = self.vehicles.index(vehicle)
+        der = np.polynomial.polynomial.polyder(self.coef, m=2, axis=axis) / self.h ** 2
+        pad = [(0, 0)] * der.ndim
+        pad[axis] = (0, 2)
+        return float(self._values(np.pad(der, pad), np.asarray(tau, dtype=float)[None, :])[0])
+
     def _values(self, coef: FloatArray, taus: FloatArray) -> FloatArray:
         return polys_values([self], np.atleast_2d(np.asarray(taus, dtype=float)), [coef])
 
@@ -184,7 +201,7 @@ def polys_values(polys: list[DualPolynomial], taus: FloatArray, coefs: list[Floa
     the one evaluation of these polynomials."""
     coefs = [dp.coef for dp in polys] if coefs is None else coefs
     qs = np.array([c.ndim for c in coefs], dtype=np.int64)
-    n = max((int(c.shape[0]) for c in coefs if c.ndim), default=1)
+    ns = np.array([int(c.shape[0]) if c.ndim else 1 for c in coefs], dtype=np.int64)
     width = max(1, int(qs.max(initial=0)))
     vehicles = np.zeros((len(polys), width), dtype=np.int64)
     pieces = np.zeros((len(polys), width), dtype=np.int64)
@@ -195,7 +212,7 @@ def polys_values(polys: list[DualPolynomial], taus: FloatArray, coefs: list[Floa
     starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
     flat = np.concatenate([np.asarray(c, dtype=float).ravel() for c in coefs])
     out = np.empty(taus.shape[0])
-    _run("polys_max", search_kernel)(flat, starts, qs, vehicles, pieces, n, float(polys[0].h), taus, out,
+    _run("polys_max", search_kernel)(flat, starts, qs, ns, vehicles, pieces, float(polys[0].h), taus, out,
                                      np.empty(width), np.empty(int(sizes.max())))
     return out
 
@@ -324,34 +341,33 @@ class DualBounds:
         D, m = qp.degree, len(qp.problem.vehicles)
         #: per polynomial vehicle ``v``: the basis columns of ``λ_v^0..λ_v^d`` (:meth:`polynomial`)
         self._basis_columns = [np.concatenate(([0], 1 + v * D + np.arange(D))) for v in range(m)]
-        self._exps: dict[int, tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]] = {}
+        self._exps: dict[tuple[int, int], tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]] = {}
         self._bindings: dict[int, tuple[Solved, _Binding]] = {}
         #: the four node columns of piece ``k`` of half-plane axis ``pl`` (:meth:`_split_blocks`)
         self._cols: dict[tuple[int, int], NDArray[np.int64]] = {}
         self._ix: dict[tuple[bytes, int], tuple[NDArray[np.int64], ...]] = {}
-        self._flats: dict[int, NDArray[np.int64]] = {}
+        self._flats: dict[tuple[int, int], NDArray[np.int64]] = {}
 
-    def _exponents(self, q: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
-        """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..d``)
+    def _exponents(self, q: int, D: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
+        """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..D``)
         and of the products of two basis monomials, as index tuples into the coefficient tensor
-        (built once per ``q``)."""
-        out = self._exps.get(q)
+        (built once per ``(q, D)``)."""
+        out = self._exps.get((q, D))
         if out is None:
-            D = self.qp.degree
             C = 1 + q * D
             exps = np.zeros((C, q), dtype=np.int64)
             for v in range(q):
                 exps[1 + v * D:1 + (v + 1) * D, v] = np.arange(1, D + 1)
             pairs = (exps[:, None, :] + exps[None, :, :]).reshape(C * C, q)
-            out = self._exps[q] = (tuple(exps.T), tuple(pairs.T))
+            out = self._exps[(q, D)] = (tuple(exps.T), tuple(pairs.T))
         return out
 
-    def _flat(self, q: int, shape: tuple[int, ...], exps: tuple[NDArray[np.int64], ...],
+    def _flat(self, q: int, D: int, shape: tuple[int, ...], exps: tuple[NDArray[np.int64], ...],
               pairs: tuple[NDArray[np.int64], ...]) -> NDArray[np.int64]:
-        """The flat positions in the coefficient tensor of ``exps``, then ``pairs`` (once per ``q``)."""
-        out = self._flats.get(q)
+        """The flat positions in the coefficient tensor of ``exps``, then ``pairs`` (once per ``(q, D)``)."""
+        out = self._flats.get((q, D))
         if out is None:
-            out = self._flats[q] = np.concatenate((np.ravel_multi_index(exps, shape),
+            out = self._flats[(q, D)] = np.concatenate((np.ravel_multi_index(exps, shape),
                                                    np.ravel_multi_index(pairs, shape)))
         return out
 
@@ -442,6 +458,170 @@ class DualBounds:
                 out[i] += float(yj @ (sigma * (dM @ sol.z[cols]) - drhs)) / h
         return out
 
+    def _kinv(self, cols: NDArray[np.int64]) -> FloatArray:
+        """Rows ``cols`` of the primal block of ``K⁻¹`` (shape ``(len(cols), n)``; ``K`` symmetric:
+        the primal parts of its columns ``cols``), from the node solver's columns when it has them."""
+        qp = self.qp
+        if qp.schur is not None:
+            qp.schur._columns(cols)
+            return np.asarray(qp.schur._Kinv[cols], dtype=float)
+        n, n_eq = qp.data.n, qp.data.n_eq
+        E = np.zeros((n + n_eq, cols.size))
+        E[cols, np.arange(cols.size)] = 1.0
+        return np.asarray(self.lu.solve(E), dtype=float)[:n].T
+
+    def tangent(self, sol: Solved, i: int, k: int) -> FloatArray:
+        r"""``∂y/∂λ_i`` of the candidate's multipliers on its binding rows (the order of
+        ``_binding(sol).nz``) as vehicle ``i``'s crossing time moves in its piece ``k``
+        (:math:`\tau_i = t_k + \lambda_i h`), the binding set held: with :math:`S` the rows of a
+        positive multiplier, :math:`K` the equality-constrained KKT matrix and :math:`W = K^{-1}_{zz}
+        G_S^\top`, differentiating :math:`Pz + E^\top\nu + G_S^\top y_S = 0`, :math:`Ez = e`,
+        :math:`G_S(\lambda) z = h_S(\lambda)` gives
+
+        .. math::  (G_S W)\,\dot y_S = G_S K^{-1}_{zz}(-\dot G_S^\top y_S) - (\dot h_S - \dot G_S z),
+
+        where only the rows of the piece split at :math:`\tau_i` move (:math:`\dot G_S`,
+        :math:`\dot h_S`: their derivatives in :math:`\lambda`, from
+        :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.split_polynomials`).  Zero where no
+        split row binds, or where :math:`G_S W` is singular to working precision (rows binding
+        dependently).  Any value keeps the bound of :meth:`polynomial` valid (weak duality holds
+        for every nonnegative ``y``); this one makes it exact to second order in
+        :math:`\lambda - \lambda_c`, so that it falls off as :math:`(\lambda - \lambda_c)^4`
+        (``tests/test_avoid_dual.py``).
+
+        Returns
+        -------
+        ndarray, shape (number of binding rows,)
+        """
+        b = self._binding(sol)
+        kept = b.tangents.get((i, k))
+        if kept is None:
+            kept = b.tangents[(i, k)] = self._tangent(sol, b, i, k)
+            kept.flags.writeable = False
+        return kept
+
+    def _tangent(self, sol: Solved, b: _Binding, i: int, k: int) -> FloatArray:
+        qp, d = self.qp, self.qp.data
+        D, h = qp.degree, qp.h
+        S = b.nz.size
+        out = np.zeros(S)
+        lam0 = (float(sol.spec[i][2]) - k * h) / h
+        dpow = np.arange(1, D + 1)
+        basis = dpow * lam0 ** (dpow - 1)  # d/dλ of λ^p, p = 1..D
+        split: list[tuple[NDArray[np.int64], NDArray[np.int64], FloatArray, FloatArray]] = []
+        f, s = sol.spec[i][0], sol.spec[i][1]
+        for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
+            rows = np.flatnonzero(b.bern & (b.veh == i) & (b.plane == pl) & (b.piece == k))
+            if not rows.size:
+                continue
+            sigma = d.planes[i][pl].sigma
+            dM = sigma * np.tensordot(basis, M[1:], axes=(0, 0))  # (nb, 4): the rows' derivatives
+            drhs = basis @ self._rhs_poly(i, pl, k, pre)[1:]  # (nb,)
+            cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
+            split.append((rows, cols, dM[b.j[rows]], drhs[b.j[rows]]))
+        if not split:
+            return out
+        # the binding rows on the columns they touch (with the split rows' node columns), from the
+        # CSR arrays: G (S x |T|) and the split rows' derivatives dG
+        starts, ends = b.indptr[b.nz], b.indptr[b.nz + 1]
+        lens = ends - starts
+        owner = np.repeat(np.arange(S), lens)
+        pos = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(starts, lens)
+        split_cols = np.concatenate([cols for _, cols, _, _ in split])
+        T, where = np.unique(np.concatenate((b.indices[pos], split_cols)), return_inverse=True)
+        G = np.zeros((S, T.size))
+        G[owner, where[:pos.size]] = b.data[pos]
+        dG = np.zeros((S, T.size))
+        dh = np.zeros(S)
+        at = pos.size
+        for rows, cols, vals, dr in split:
+            c = where[at:at + cols.size]
+            at += cols.size
+            dG[np.ix_(rows, c)] = vals
+            dh[rows] = dr
+        Kt = self._kinv(T)[:, T]  # K⁻¹_zz on those columns
+        KG = Kt @ G.T
+        W = G @ KG
+        rhs = KG.T @ -(dG.T @ b.y) - (dh - dG @ sol.z[T])
+        try:
+            dy = np.linalg.solve(W, rhs)
+        except np.linalg.LinAlgError:
+            return out
+        # a singular or ill-conditioned system: the binding rows depend on each other; no tangent
+        if not np.all(np.isfinite(dy)) or np.linalg.norm(W @ dy - rhs) > 1e-8 * (1.0 + np.linalg.norm(rhs)):
+            return out
+        return np.asarray(dy, dtype=float)
+
+    def tangent_interval(self, sol: Solved, i: int, k: int) -> tuple[float, float]:
+        r"""The interval of :math:`\lambda_i` in piece ``k`` (within ``[0, 1]``) where every multiplier on
+        its tangent, :math:`y_c + (\lambda - \lambda_c)\dot y`, stays nonnegative: there the
+        polynomial of :meth:`polynomial` keeps every slope and is exact to second order at the
+        candidate (outside it, a slope is cut)."""
+        b = self._binding(sol)
+        mu = self.tangent(sol, i, k)
+        lam0 = min(max((float(sol.spec[i][2]) - k * self.qp.h) / self.qp.h, 0.0), 1.0)
+        lo, hi = 0.0, 1.0
+        down, up = mu < 0.0, mu > 0.0
+        if down.any():
+            hi = min(hi, lam0 + float(np.min(b.y[down] / -mu[down])))
+        if up.any():
+            lo = max(lo, lam0 - float(np.min(b.y[up] / mu[up])))
+        return min(lo, lam0), max(hi, lam0)
+
+    def _tangent_terms(self, sol: Solved, b: _Binding, rows_k: NDArray[np.int64], i: int, k: int,
+                       lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray, int]:
+        r"""The right-hand sides ``R`` and ``yᵀh`` of :meth:`polynomial` (power basis ``1, λ, ..,
+        λ^{d+1}``) for one polynomial vehicle ``i`` in piece ``k``, with the multipliers moving along
+        their tangent, :math:`y(\lambda) = y_c + (\lambda - \lambda_c)\,\dot y` (:meth:`tangent`),
+        each row's slope cut so that its multiplier stays nonnegative on the box's interval: a
+        nonnegative ``y`` for every ``λ`` of the box, so :math:`g(y(\lambda); \lambda) \le J`
+        there (weak duality), and it is one more polynomial (degree ``2d + 2``)."""
+        qp, d = self.qp, self.qp.data
+        D, h = qp.degree, qp.h
+        y = b.y
+        lam0 = (float(sol.spec[i][2]) - k * h) / h
+        la = min(max((float(lo[i]) - k * h) / h, 0.0), 1.0)
+        lb = min(max((float(hi[i]) - k * h) / h, la), 1.0)
+        mu = self.tangent(sol, i, k).copy()
+        for end in (la, lb):
+            dl = end - lam0
+            if dl == 0.0:
+                continue
+            low = y + dl * mu < 0.0
+            # the slope that reaches zero at this end (a little less: never a negative multiplier)
+            mu[low] = -y[low] / dl * (1.0 - 1e-12)
+        mu[~((y + (la - lam0) * mu >= 0.0) & (y + (lb - lam0) * mu >= 0.0))] = 0.0
+        alpha, beta = y - lam0 * mu, mu
+        Dp = D + 1
+        C = Dp + 1
+        R = np.zeros((d.n + d.n_eq, C))
+        hc = np.zeros(C)
+        # the kept rows (independent of λ): -A_keepᵀ (α + λ β)
+        keep = np.isin(b.nz, rows_k)
+        for col, wv in ((0, alpha), (1, beta)):
+            Aty = np.empty(d.n)
+            _run("row_transpose_dot")(b.indptr, b.indices, b.data, rows_k, wv[keep], rows_k.size, Aty)
+            R[:d.n, col] -= Aty
+            hc[col] += float(wv[keep] @ b.u_in[rows_k])
+        R[d.n:, 0] = d.b_eq
+        # the split piece: σ M(λ) with multipliers α_j + λ β_j per Bernstein index
+        f, s = sol.spec[i][0], sol.spec[i][1]
+        for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
+            rows = b.bern & (b.veh == i) & (b.plane == pl) & (b.piece == k)
+            if not rows.any():
+                continue
+            aj, bj = np.zeros(self.nb), np.zeros(self.nb)
+            aj[b.j[rows]], bj[b.j[rows]] = alpha[rows], beta[rows]
+            sigma = d.planes[i][pl].sigma
+            cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
+            rhs = self._rhs_poly(i, pl, k, pre)  # (d + 1 powers, nb)
+            aM, bM = sigma * (aj @ M), sigma * (bj @ M)  # (d + 1 powers, 4)
+            R[cols, :Dp] -= aM.T
+            R[cols, 1:] -= bM.T
+            hc[:Dp] += rhs @ aj
+            hc[1:] += rhs @ bj
+        return R, hc, Dp
+
     def polynomial(self, sol: Solved, lo: FloatArray, hi: FloatArray) -> DualPolynomial:
         """The dual bound ``g(y; τ)`` over the box ``[lo, hi]`` of the solved candidate ``sol``
         (its crossing times in the box), as a polynomial (module docstring).
@@ -476,26 +656,32 @@ class DualBounds:
                 keep |= mine & (plane == f) & ((piece + 1) * h <= lo[i] + tol)
                 keep |= mine & (plane == s) & (piece * h >= hi[i] - tol)
         q = len(poly_vehicles)
-        C = 1 + q * D  # basis: 1, then λ_i^p (p = 1..D) per polynomial vehicle
-        R = np.zeros((d.n + d.n_eq, C))
-        # -A_keepᵀ y_keep from the CSR arrays of the kept rows (the node solver's kernel: from 0.0,
-        # the rows in order, each row's entries in stored order)
-        rows_k, y_k = nz[keep], y[keep]
-        Aty = np.empty(d.n)
-        _run("row_transpose_dot")(b.indptr, b.indices, b.data, rows_k, y_k, rows_k.size, Aty)
-        R[:d.n, 0] = -Aty
-        R[d.n:, 0] = d.b_eq
-        hc = np.zeros(C)
-        hc[0] = float(y_k @ u_in[rows_k])
-        exps, pairs = self._exponents(q)
-        for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
-            cs = self._basis_columns[v]  # the basis columns of λ_i^0..λ_i^D
-            for _, _, _, _, cols, yM, ry in self._split_blocks(sol, b, i, k):
-                ix = self._ix.get((cols.tobytes(), v))
-                if ix is None:
-                    ix = self._ix[(cols.tobytes(), v)] = np.ix_(cols, cs)
-                R[ix] -= yM  # σ (y_j M)ᵀ
-                hc[cs] += ry  # rhs · y_j
+        rows_k = nz[keep]
+        if q == 1:
+            R, hc, Dp = self._tangent_terms(sol, b, rows_k, poly_vehicles[0], pieces[0], lo, hi)
+            C = Dp + 1  # basis: 1, λ, .., λ^(d+1)
+        else:
+            Dp = D
+            C = 1 + q * D  # basis: 1, then λ_i^p (p = 1..D) per polynomial vehicle
+            R = np.zeros((d.n + d.n_eq, C))
+            # -A_keepᵀ y_keep from the CSR arrays of the kept rows (the node solver's kernel: from 0.0,
+            # the rows in order, each row's entries in stored order)
+            y_k = y[keep]
+            Aty = np.empty(d.n)
+            _run("row_transpose_dot")(b.indptr, b.indices, b.data, rows_k, y_k, rows_k.size, Aty)
+            R[:d.n, 0] = -Aty
+            R[d.n:, 0] = d.b_eq
+            hc = np.zeros(C)
+            hc[0] = float(y_k @ u_in[rows_k])
+            for v, (i, k) in enumerate(zip(poly_vehicles, pieces)):
+                cs = self._basis_columns[v]  # the basis columns of λ_i^0..λ_i^D
+                for _, _, _, _, cols, yM, ry in self._split_blocks(sol, b, i, k):
+                    ix = self._ix.get((cols.tobytes(), v))
+                    if ix is None:
+                        ix = self._ix[(cols.tobytes(), v)] = np.ix_(cols, cs)
+                    R[ix] -= yM  # σ (y_j M)ᵀ
+                    hc[cs] += ry  # rhs · y_j
+        exps, pairs = self._exponents(q, Dp)
         schur = qp.schur
         if schur is None:
             X = self.lu.solve(R)
@@ -514,7 +700,7 @@ class DualBounds:
             lin = schur.z0 @ Rp + hc
             lin[0] += float(d.b_eq @ schur._x0[d.n:])
         G = Z.T @ (self.P @ Z)
-        coef = np.zeros((2 * D + 1,) * q)
+        coef = np.zeros((2 * Dp + 1,) * q)
         # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ: each product of two basis
         # monomials adds to the coefficient of their product
         if q == 0:
@@ -522,10 +708,10 @@ class DualBounds:
         else:
             # the sums of np.add.at over exps, then pairs, in the same order: each entry starts
             # at 0.0 and adds its terms one by one
-            flat = self._flat(q, coef.shape, exps, pairs)
+            flat = self._flat(q, Dp, coef.shape, exps, pairs)
             coef = np.asarray(np.bincount(flat, weights=np.concatenate((-lin, -0.5 * G.ravel())),
                                           minlength=coef.size), dtype=float).reshape(coef.shape)
-        return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, self.mass(sol))
+        return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, self.mass(sol), q == 1)
 
     def mass(self, sol: Solved) -> FloatArray:
         """Per vehicle, the sum of ``sol``'s multipliers on its Bernstein rows (:attr:`DualPolynomial.mass`
@@ -571,6 +757,9 @@ class DualStore:
         self._sources: list[tuple[Solved, FloatArray, FloatArray]] = []
         self._arrays: tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.int64]] | None = None
         self._order_arrays: dict[tuple[tuple[int, int], ...], NDArray[np.int64]] = {}
+        #: per stored candidate (its position), the position of its tangent polynomial on the
+        #: interval where no slope is cut (one vehicle, :meth:`add`)
+        self._near: dict[int, int] = {}
 
     def add(self, sol: Solved) -> int:
         """Store the optimal candidate ``sol`` (its ``spec`` has ``a = b = τ_c``; once per spec)
@@ -591,6 +780,20 @@ class DualStore:
         self._hi.append(np.where(binds, hi + slack, np.inf))
         self._polys.append(None)
         self._sources.append((sol, lo, hi))
+        if len(sol.spec) == 1 and binds[0]:
+            # one vehicle: the polynomial with every multiplier on its tangent, on the interval
+            # where none is cut (exact to second order at the candidate), beside the piece's
+            # (some slopes cut to keep the multipliers nonnegative over the whole piece)
+            la, lb = self.dual.tangent_interval(sol, 0, int(k[0]))
+            if lb > la and (la > 0.0 or lb < 1.0):
+                near_lo, near_hi = lo + la * self.h, lo + lb * self.h
+                self._near[at] = len(self._polys)
+                self._orders.append(self._orders[at])
+                self._binds.append(binds)
+                self._lo.append(near_lo - slack)
+                self._hi.append(near_hi + slack)
+                self._polys.append(None)
+                self._sources.append((sol, near_lo, near_hi))
         return at
 
     def _poly(self, at: int) -> DualPolynomial:
@@ -605,6 +808,13 @@ class DualStore:
         """The piece polynomial of the optimal candidate ``sol`` (computed once per spec; its
         ``spec`` has ``a = b = τ_c``), added to the store (:meth:`add`)."""
         return self._poly(self.add(sol))
+
+    def near(self, sol: Solved) -> DualPolynomial:
+        """The polynomial of ``sol`` exact to second order at its crossing time (every multiplier
+        on its tangent, :meth:`DualBounds.tangent`) where the store has one, else its piece
+        polynomial; ``sol`` is added to the store (:meth:`add`)."""
+        at = self.add(sol)
+        return self._poly(self._near.get(at, at))
 
     def valid(self, orders: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray) -> list[DualPolynomial]:
         """The stored polynomials that bound every crossing in the box ``[lo, hi]`` with

@@ -176,10 +176,11 @@ def tensor_polyval(coef: Any, start: int, q: int, n: int, lam: Any, work: Any) -
 
 
 @compilable
-def polys_max(coef: Any, starts: Any, qs: Any, vehicles: Any, pieces: Any, n: int, h: float, taus: Any,
+def polys_max(coef: Any, starts: Any, qs: Any, ns: Any, vehicles: Any, pieces: Any, h: float, taus: Any,
               out: Any, lam: Any, work: Any) -> None:
     """``out[t]`` the largest over the polynomials ``p`` of :func:`tensor_polyval` at the crossing
-    times ``taus[t]`` (shape ``(T, m)``): polynomial ``p`` has ``qs[p]`` axes, the vehicles
+    times ``taus[t]`` (shape ``(T, m)``): polynomial ``p`` has ``qs[p]`` axes of ``ns[p]``
+    coefficients each, the vehicles
     ``vehicles[p, :qs[p]]`` in the pieces ``pieces[p, :qs[p]]``, its coefficients from
     ``coef[starts[p]]``, and ``λ_a = (τ_v - k h) / h`` on its axis ``a`` (``lam``, ``work``:
     space)."""
@@ -189,7 +190,7 @@ def polys_max(coef: Any, starts: Any, qs: Any, vehicles: Any, pieces: Any, n: in
             q = qs[p]
             for a in range(q):
                 lam[a] = (taus[t, vehicles[p, a]] - pieces[p, a] * h) / h
-            v = tensor_polyval(coef, starts[p], q, n, lam, work)
+            v = tensor_polyval(coef, starts[p], q, ns[p], lam, work)
             if p == 0 or v > best or not v == v:
                 best = v
             if not best == best:
