@@ -33,7 +33,8 @@ its bound is within the gap of ``U``.  Two lower bounds:
 * the *dual polynomial* of every solved candidate (:mod:`iamp.planners.avoid.dual`): weak
   duality with the candidate's multipliers, as a polynomial in the crossing times of the
   vehicles whose interval lies in one piece, bounded by its Bernstein coefficients; it equals
-  :math:`J` at the candidate and falls off quadratically (the relaxation: linearly), and it
+  :math:`J` at the candidate and falls off quadratically (the relaxation: linearly; with one
+  vehicle, whose multipliers follow their tangent, as the fourth power), and it
   holds on every sub-box, so a box inside one piece needs no relaxation solve (its candidate is
   where its polynomials' largest value is lowest).  Every candidate's *piece polynomial* (over
   the grid pieces of its crossing times) is kept in one store for the whole search
@@ -44,12 +45,16 @@ its bound is within the gap of ``U``.  Two lower bounds:
 
 A box that spans several grid pieces for the split vehicle is cut at the grid node nearest its
 midpoint (within one piece: at the midpoint), so that boxes near the optimum soon lie within one
-piece, where the polynomials bound them without relaxation solves.
+piece, where the polynomials bound them without relaxation solves.  With one vehicle such a box
+is cut instead at both ends of its solved candidate's piece (:meth:`ContinuousAvoidPlanner._cuts`):
+that piece is bounded by the candidate's polynomial, the boxes beside it by relaxations that the
+incumbent cuts off early.
 
 The search stops when every remaining box has bound :math:`\ge U - \text{gap}` (``closed``: the
 best :math:`\tau` is the global minimiser over all crossing times, to the gap :data:`GAP_REL`)
 or after ``max_solves`` QPs (``local``, with the remaining bound reported); then a secant
 search on :math:`\partial J/\partial \tau_i` (each candidate's slope read off its dual
+polynomial; with one vehicle the first step a Newton step on the curvature of its second-order
 polynomial) polishes the best crossing within one grid step.  No work limit refuses a problem:
 the budget only decides between ``optimal`` and ``local``.
 
@@ -882,20 +887,26 @@ class ContinuousAvoidPlanner:
                 out[i] = hi - self.INSIDE_STEPS * qp.h
         return out
 
-    def _cuts(self, qp: ContinuousAvoidQP, lo: float, hi: float, at: float | None) -> list[float]:
+    def _cuts(self, qp: ContinuousAvoidQP, lo: float, hi: float, at: float | None,
+              improved: bool = False) -> list[float]:
         """Where a box's interval ``[lo, hi]`` of one vehicle is split: around the grid piece of a
         solved candidate's crossing ``at`` when the interval spans several pieces (that piece
         becomes a child, which the candidate's piece polynomial bounds without a relaxation, and
         the children beside it are bounded by their relaxations, cut off early by the incumbent;
-        one vehicle: with several, the third child of every split multiplies the boxes); else
-        :meth:`_cut`."""
+        where that piece lies at an end of the interval, only when the candidate ``improved`` the
+        incumbent, else the rest would be nearly the whole box; one vehicle: with several, the
+        third child of every split multiplies the boxes); else :meth:`_cut`."""
         if at is not None and qp.problem.m == 1 and piece_of(lo, hi, qp.h, qp.N) is None:
             # the piece of ``at`` inside the interval (a crossing at its upper end: the piece below)
             k = piece_of(at, at, qp.h, qp.N) if at < hi - 1e-9 * qp.h else piece_of(hi - qp.h, hi - qp.h, qp.h, qp.N)
             if k is not None:
                 cuts = [float(c * qp.h) for c in (k, k + 1) if lo + 1e-9 * qp.h < c * qp.h < hi - 1e-9 * qp.h]
                 if cuts:
-                    return cuts
+                    if len(cuts) == 2 or improved:
+                        return cuts
+                    # the piece at an end of the interval and the candidate no better than the
+                    # incumbent: the rest would be nearly the whole box, and where J is flat the
+                    # search walked the pieces one by one; bisect
         return [self._cut(qp, lo, hi)]
 
     def search(self, qp: ContinuousAvoidQP, orders: list[list[tuple[int, int]]]) -> dict[str, Any]:
@@ -1002,7 +1013,8 @@ class ContinuousAvoidPlanner:
             if not wide[i]:
                 continue  # a point: its bound is J(τ) itself
             solved = cand is not None and cand.status == st.OPTIMAL
-            cuts = self._cuts(qp, float(box.lo[i]), float(box.hi[i]), float(tau[i]) if solved else None)
+            cuts = self._cuts(qp, float(box.lo[i]), float(box.hi[i]), float(tau[i]) if solved else None,
+                              solved and cand is best)
             ref = cand if cand is not None and solved else box.relaxed
             edges = [float(box.lo[i])] + cuts + [float(box.hi[i])]
             for lo_i, hi_i in zip(edges[:-1], edges[1:]):

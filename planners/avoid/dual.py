@@ -38,6 +38,19 @@ is :math:`J(\tau_c)` at the solver's optimum: the bound is tight there and falls
 quadratically, where the relaxation of :mod:`iamp.planners.avoid.continuous` (rows dropped
 inside the box) falls off linearly in the box's width.  A round-off margin
 (:data:`ROUND_OFF_REL`) is subtracted.
+
+With **one** polynomial vehicle the multipliers need not stay fixed: weak duality holds for every
+:math:`y \ge 0`, so they may move with :math:`\lambda` along their tangent,
+:math:`y(\lambda) = y_c + (\lambda - \lambda_c)\,\dot y`, the derivative of the optimal
+multipliers with the binding rows held (:meth:`DualBounds.tangent`, one small solve with the
+Schur complement of those rows).  The dual function is concave in :math:`y` and maximal at the
+optimal multipliers, so an error of second order in :math:`y` costs fourth order in the bound:
+:math:`g(y(\lambda); \lambda)` agrees with :math:`J` to second order at the candidate and falls
+below it as :math:`(\lambda - \lambda_c)^4` (``tests/test_avoid_dual.py``), a polynomial of degree
+``2d + 2`` (:math:`z` and :math:`y^\top h` gain one degree).  Where a multiplier on its tangent would
+turn negative within the box its slope is cut to keep it nonnegative (still a bound, no longer
+second order); the store keeps, beside the piece's polynomial, the one on the interval where no
+slope is cut (:meth:`DualBounds.tangent_interval`, :meth:`DualStore.near`).
 """
 
 from __future__ import annotations
@@ -124,7 +137,8 @@ class DualPolynomial:
     pieces : tuple of int
         Their grid pieces ``k``: ``τ_i = t_k + λ_i h``.
     coef : ndarray
-        Power coefficients, shape ``(2d + 1,) * len(vehicles)``.
+        Power coefficients, shape ``(2d + 1,) * len(vehicles)``, or ``(2d + 3,)`` for one
+        polynomial vehicle (the multipliers on their tangent, :attr:`second_order`).
     h : float
         The grid step.
     mass : ndarray, shape (m,)
