@@ -74,13 +74,18 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["ROUND_OFF_REL", "DualBounds", "DualPolynomial", "DualStore", "fit_polynomial", "lower_bounds",
-           "max_lower_bound", "piece_of"]
+__all__ = ["ROUND_OFF_REL", "ROUND_OFF_TERMS", "DualBounds", "DualPolynomial", "DualStore", "fit_polynomial",
+           "lower_bounds", "max_lower_bound", "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
 #: point (one sparse LU solve, or a sum of columns of ``K⁻¹``, and a Bernstein transform); far
 #: below the search's gap (1e-4).
 ROUND_OFF_REL = 1e-9
+#: Times the size of the terms that cancel in ``g`` (:attr:`DualPolynomial.roundoff`): the
+#: coefficients are sums of products of those terms, each exact to a few units of round-off
+#: times its size (``tests/test_avoid_dual.py``: a nearly infeasible candidate's terms of 1e15
+#: left 0.57 in a value of 2).
+ROUND_OFF_TERMS = 1e-12
 
 
 def piece_of(lo: float, hi: float, h: float, N: int) -> int | None:
@@ -155,6 +160,10 @@ class DualPolynomial:
     #: polynomial vehicle): ``g`` then agrees with ``J`` to second order at the candidate, so its
     #: curvature there is ``J``'s (where the binding set does not change).
     second_order: bool = False
+    #: A bound on the round-off of the polynomial's values (:data:`ROUND_OFF_TERMS` times the size
+    #: of the terms that cancel in ``g``), subtracted by :meth:`lower_bound` besides
+    #: :data:`ROUND_OFF_REL`.
+    roundoff: float = 0.0
     #: :meth:`lower_bound` per box (its local intervals ``(λ_a, λ_b)``), computed once; at most
     #: :data:`BOUNDS_KEPT` (then emptied: a value is a function of its key, the same when computed
     #: again)
@@ -273,7 +282,7 @@ def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) ->
         mins = np.empty(len(items))
         _run("bernstein_min", search_kernel)(T, q, n, B, mins, np.empty(T.shape[1]), np.empty(T.shape[1]))
         for (c, dp, key), m in zip(items, mins):
-            v = float(m) - ROUND_OFF_REL * max(1.0, abs(float(m)))
+            v = float(m) - ROUND_OFF_REL * max(1.0, abs(float(m))) - dp.roundoff
             if len(dp._bounds) >= BOUNDS_KEPT:
                 dp._bounds.clear()
             dp._bounds[key] = v
@@ -347,6 +356,7 @@ class DualBounds:
         d = qp.data
         # the node solver's symmetric P and factorisation of the same matrix when it has one
         self.P = qp.schur.P_full_csc if qp.schur is not None else full_hessian(d.P)
+        self.P_abs = abs(self.P)
         self.lu = qp.schur.lu if qp.schur is not None else spla.splu(kkt_matrix(d.P, qp.A_eq, self.P))
         self.nb = qp.degree + 1
         # σ-free values of the split piece's rows as polynomials in λ: M(0, λ) (first half-plane),
@@ -714,6 +724,12 @@ class DualBounds:
             lin = schur.z0 @ Rp + hc
             lin[0] += float(d.b_eq @ schur._x0[d.n:])
         G = Z.T @ (self.P @ Z)
+        # the size of the terms that cancel in g (its round-off scales with them, not with g: a
+        # nearly infeasible candidate's multipliers of 5e7 give coefficients of 1e15 for a g of 2)
+        absZ = np.abs(Z)
+        lin_abs = (np.abs(nu).T @ np.abs(d.b_eq) if schur is None
+                   else np.abs(schur.z0) @ np.abs(R[:d.n]) + (np.abs(d.b_eq) @ np.abs(schur._x0[d.n:])))
+        terms = 0.5 * float(np.sum(absZ.T @ (self.P_abs @ absZ))) + float(np.sum(lin_abs)) + float(np.sum(np.abs(hc)))
         coef = np.zeros((2 * Dp + 1,) * q)
         # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ: each product of two basis
         # monomials adds to the coefficient of their product
@@ -725,7 +741,8 @@ class DualBounds:
             flat = self._flat(q, Dp, coef.shape, exps, pairs)
             coef = np.asarray(np.bincount(flat, weights=np.concatenate((-lin, -0.5 * G.ravel())),
                                           minlength=coef.size), dtype=float).reshape(coef.shape)
-        return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, self.mass(sol), q == 1)
+        return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, self.mass(sol), q == 1,
+                              ROUND_OFF_TERMS * terms)
 
     def mass(self, sol: Solved) -> FloatArray:
         """Per vehicle, the sum of ``sol``'s multipliers on its Bernstein rows (:attr:`DualPolynomial.mass`
