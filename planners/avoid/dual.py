@@ -592,7 +592,7 @@ class DualBounds:
             lo = max(lo, lam0 - float(np.min(b.y[up] / mu[up])))
         return min(lo, lam0), max(hi, lam0)
 
-    def _tangent_terms(self, sol: Solved, b: _Binding, rows_k: NDArray[np.int64], i: int, k: int,
+    def _tangent_terms(self, sol: Solved, b: _Binding, keep: NDArray[np.bool_], i: int, k: int,
                        lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray, int]:
         r"""The right-hand sides ``R`` and ``yᵀh`` of :meth:`polynomial` (power basis ``1, λ, ..,
         λ^{d+1}``) for one polynomial vehicle ``i`` in piece ``k``, with the multipliers moving along
@@ -620,8 +620,8 @@ class DualBounds:
         C = Dp + 1
         R = np.zeros((d.n + d.n_eq, C))
         hc = np.zeros(C)
-        # the kept rows (independent of λ): -A_keepᵀ (α + λ β)
-        keep = np.isin(b.nz, rows_k)
+        # the kept rows (independent of λ; ``keep`` marks them among the binding rows): -A_keepᵀ (α + λ β)
+        rows_k = b.nz[keep]
         for col, wv in ((0, alpha), (1, beta)):
             Aty = np.empty(d.n)
             _run("row_transpose_dot")(b.indptr, b.indices, b.data, rows_k, wv[keep], rows_k.size, Aty)
@@ -680,9 +680,8 @@ class DualBounds:
                 keep |= mine & (plane == f) & ((piece + 1) * h <= lo[i] + tol)
                 keep |= mine & (plane == s) & (piece * h >= hi[i] - tol)
         q = len(poly_vehicles)
-        rows_k = nz[keep]
         if q == 1:
-            R, hc, Dp = self._tangent_terms(sol, b, rows_k, poly_vehicles[0], pieces[0], lo, hi)
+            R, hc, Dp = self._tangent_terms(sol, b, keep, poly_vehicles[0], pieces[0], lo, hi)
             C = Dp + 1  # basis: 1, λ, .., λ^(d+1)
         else:
             Dp = D
@@ -690,7 +689,7 @@ class DualBounds:
             R = np.zeros((d.n + d.n_eq, C))
             # -A_keepᵀ y_keep from the CSR arrays of the kept rows (the node solver's kernel: from 0.0,
             # the rows in order, each row's entries in stored order)
-            y_k = y[keep]
+            rows_k, y_k = nz[keep], y[keep]
             Aty = np.empty(d.n)
             _run("row_transpose_dot")(b.indptr, b.indices, b.data, rows_k, y_k, rows_k.size, Aty)
             R[:d.n, 0] = -Aty
