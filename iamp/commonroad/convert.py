@@ -320,8 +320,7 @@ def _road_edges(frame: RoadFrame, network: Any, chain: list[Any], s_a: float, s_
         (:func:`road_frame`) its path is extrapolated and the projection of a point kilometres
         away is not unique (DEU_A9-1_2: a lanelet's end 2 km ahead at s = 50 km, d = 50 km)."""
         sd = frame.to_road(points)
-        back = frame.to_world(sd[:, 0], sd[:, 1])
-        return np.asarray(sd[np.linalg.norm(back - points, axis=1) <= FRAME_ROUND_TRIP_M], dtype=float)
+        return np.asarray(sd[_maps_back(frame, points, sd)], dtype=float)
 
     def at(ll: Any, s: float) -> tuple[float, float] | None:
         rs, rd, ls, ld = bounds(ll)
@@ -700,6 +699,14 @@ def road_frame(centre: FloatArray, start: FloatArray, reach: float) -> tuple[Roa
                         f"{FRAME_TOL_M:g} m: the lanes are not straight in it, the plan approximate")
 
 
+def _maps_back(frame: RoadFrame, points: FloatArray, sd: FloatArray) -> npt.NDArray[np.bool_]:
+    """Which ``points`` (world) map back to themselves, to :data:`FRAME_ROUND_TRIP_M`, from their
+    road-frame coordinates ``sd`` (``frame.to_road(points)``): in the frame's reach (far beyond a
+    frame fitted near the ego the projection is not unique)."""
+    back = frame.to_world(sd[:, 0], sd[:, 1])
+    return np.asarray(np.linalg.norm(back - points, axis=1) <= FRAME_ROUND_TRIP_M, dtype=bool)
+
+
 def _lane_end(frame: RoadFrame, chain: list[Any]) -> float:
     """Where the chain of lanelets ``chain`` (:func:`_chain`) ends along the road: the nearer of
     its last lanelet's bounds' ends in ``frame`` [m]; ``inf`` where an end lies beyond the frame's
@@ -712,9 +719,8 @@ def _lane_end(frame: RoadFrame, chain: list[Any]) -> float:
         P = np.asarray(v, dtype=float)
         sd = frame.to_road(P)
         k = int(np.argmax(sd[:, 0]))
-        back = frame.to_world(sd[k:k + 1, 0], sd[k:k + 1, 1])[0]
         if (float(frame.u_of_s(sd[k, 0])) > frame.u_range[1] + 1.0
-                or float(np.linalg.norm(back - P[k])) > FRAME_ROUND_TRIP_M):
+                or not _maps_back(frame, P[k:k + 1], sd[k:k + 1])[0]):
             return math.inf
         ends.append(float(sd[k, 0]))
     return min(ends)
