@@ -27,7 +27,8 @@ takes over and the ego seeks again.
 Prediction (batched)
 --------------------
 Once per period every neighbour within ``relevant_m + 20`` m in the ego's and the target lane
-is predicted; neighbours with a full history share its sample times and go through
+(SPEC §17's loop: in every lane within ``relevant_m + 60`` m, and beyond that every one within its
+RSS distance of the ego plus a margin, :func:`~iamp.simulation.rss.within_rss_reach`) is predicted; neighbours with a full history share its sample times and go through
 :meth:`~iamp.prediction.predictor.Predictor.predict_batch` in one call (the cubic fitted to the
 predicted path, read back at four Chebyshev points, which determine it); a neighbour seen for
 less than the predictor needs is extrapolated at constant speed.
@@ -64,6 +65,7 @@ from iamp.simulation.failsafe import Obstacle, body_half_extents, feasible_brake
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
+from iamp.simulation.rss import safe_lateral_distance, safe_longitudinal_float, within_rss_reach
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
@@ -77,6 +79,12 @@ from iamp.simulation.tactical import (
 
 #: The share of the jerk bound the tactical layer's inputs use (:meth:`Controller._move`).
 JERK_SHARE = 0.9
+#: The lane keeping's lateral speed toward a car RSS constrains laterally is at most this share of
+#: RSS's lateral fluctuation ``μ/ρ`` (:meth:`Controller._lateral_caps`).
+LATERAL_REST_SHARE = 0.8
+#: A lateral gap within this of RSS's lateral distance already caps the speed toward it [m]
+#: (:meth:`Controller._lateral_caps`: the cap acts before the pair is dangerous).
+LATERAL_ROOM_M = 0.5
 
 @dataclass(frozen=True)
 class ControllerConfig:
@@ -209,7 +217,14 @@ class Controller:
         xs, ln = obs.x.tolist(), obs.lane.tolist()  # Python floats: the same comparisons
         reach = self.cfg.decision.relevant_m + (60.0 if all_lanes else 20.0)
         ex = ego.x
-        near = [k for k in range(len(obs.ids)) if (all_lanes or ln[k] in lanes) and abs(xs[k] - ex) <= reach]
+        rss = self.cfg.tactical.safe.rss if self.cfg.safe else None
+        vs, lens = obs.v.tolist(), obs.length.tolist()
+        # beyond ``reach``, a vehicle within its RSS distance of the ego (a fast car from behind, a
+        # slow one ahead of a fast ego: the judge sees them)
+        near = [k for k in range(len(obs.ids)) if (all_lanes or ln[k] in lanes)
+                and (abs(xs[k] - ex) <= reach
+                     or (rss is not None and within_rss_reach(xs[k] - ex, lens[k], vs[k], ego.vx,
+                                                              self.sim.ego_length, rss)))]
         polys: dict[int, tuple[float, ...]] = {}
         full: list[tuple[int, np.ndarray, np.ndarray]] = []
         need = self.predictor.min_history_s
@@ -509,7 +524,46 @@ class Controller:
         B = np.asarray(self.cfg.tactical.safe.brakes)
         return float(B[ok[0]][0]) if ok[0].any() else None
 
-    def _move(self, ego: EgoState, ax: float, y_c: float, urgent: bool = False) -> EgoState:
+    def _lateral_caps(self, ego: EgoState, nbs: list[Neighbour]) -> tuple[float, float]:
+        """The largest lateral speeds to the left and to the right (magnitudes) that RSS's lateral
+        proper response leaves the lane keeping: toward a vehicle beside the ego that is closer
+        than its RSS longitudinal distance (so only the lateral distance keeps the pair safe) and
+        whose lateral gap is within the RSS lateral distance of the speeds toward each other plus
+        :data:`LATERAL_ROOM_M`, at most RSS's lateral fluctuation ``μ/ρ`` (the judge's
+        ``rest``: :func:`iamp.simulation.rss.judge_pair`), with a margin; else unbounded.  A pair
+        level within ``μ``, or whose bodies overlap sideways, caps both sides (the judge takes the
+        roles of the dangerous run's threshold time, which may be a side it no longer has: a car
+        changing lanes behind the ego crosses it).  Without it the fail-safe's return to its lane's centre
+        and the lane keeping after a withdrawn change moved at 0.3-0.9 m/s toward a car in the
+        next lane closing from behind, which RSS blames on the ego."""
+        if not self.cfg.safe:
+            return np.inf, np.inf
+        p = self.cfg.tactical.safe.rss
+        rest = LATERAL_REST_SHARE * p.lat_margin_m / p.response_time_s
+        Le, We = self.sim.ego_length, self.sim.ego_width
+        caps = [np.inf, np.inf]  # left, right
+        for n in nbs:
+            dx, dy = n.x(0.0) - ego.x, n.y - ego.y
+            lon_gap = abs(dx) - (n.length + Le) / 2
+            d_lon = (safe_longitudinal_float(ego.vx, n.v(0.0), p) if dx > 0
+                     else safe_longitudinal_float(n.v(0.0), ego.vx, p))
+            if lon_gap > 0 and lon_gap >= d_lon:
+                continue  # longitudinally safe: no lateral constraint
+            if abs(dy) <= p.lat_margin_m or abs(dy) < (n.width + We) / 2:
+                # level, or the bodies overlapping sideways (one may be crossing behind the other):
+                # the judge's roles are those of the run's threshold time, unknown here
+                caps = [rest, rest]
+                continue
+            left = dy > 0
+            u_ego = ego.vy if left else -ego.vy  # toward the other
+            u_oth = -n.vy if left else n.vy
+            d_lat = float(safe_lateral_distance(max(u_ego, rest), u_oth, p))
+            if abs(dy) - (n.width + We) / 2 <= d_lat + LATERAL_ROOM_M:
+                caps[0 if left else 1] = rest
+        return caps[0], caps[1]
+
+    def _move(self, ego: EgoState, ax: float, y_c: float, urgent: bool = False,
+              caps: tuple[float, float] = (np.inf, np.inf)) -> EgoState:
         """One period of constant input: ``a_x`` (within the car's range, never reversing) and the
         lane keeping toward ``y_c`` (bounded; at a crawl the lateral speed is only brought to 0: a car
         does not move sideways without moving forward — the abort's drift of issue 30 item 4).
@@ -537,6 +591,12 @@ class Controller:
         # a car moves sideways only while it moves forward: |v_y| <= tan(psi_max) v_x after the period
         cap = self.cfg.max_slip * (ego.vx + ax * dt)
         ay = float(np.clip(np.clip(ay, (-cap - ego.vy) / dt, (cap - ego.vy) / dt), -lim, lim))
+        # RSS's lateral proper response (:meth:`_lateral_caps`): toward a side with a cap, the lateral
+        # speed is brought below it at the lane keeping's bound, at once (as an urgent brake)
+        if ego.vy + ay * dt > caps[0]:
+            ay = max(-lim, min(ay, (caps[0] - ego.vy) / dt))
+        if ego.vy + ay * dt < -caps[1]:
+            ay = min(lim, max(ay, (-caps[1] - ego.vy) / dt))
         return EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt,
                         y=ego.y + ego.vy * dt + ay * dt**2 / 2, vy=ego.vy + ay * dt, ax=ax, ay=ay)
 
@@ -560,7 +620,7 @@ class Controller:
         a = seek_accel(self.ego_now(ego), self._lane_leader(ego, nbs), stop_x, target, hw.speed_limit,
                        self.cfg.tactical, lane_speed)
         urgent = a <= -self.cfg.tactical.safe.rss.brake_min  # RSS's proper response (or harder)
-        return self._move(ego, a, hw.lane_centre(lane), urgent)
+        return self._move(ego, a, hw.lane_centre(lane), urgent, self._lateral_caps(ego, nbs))
 
     def _safe_step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
         """One period of the SPEC §17 loop (module docstring)."""
@@ -579,7 +639,8 @@ class Controller:
             if b is not None:
                 self.fs_brake = b
             b = self.fs_brake if self.fs_brake is not None else 3.5
-            nxt = self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane), urgent=True)
+            nxt = self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane), urgent=True,
+                             caps=self._lateral_caps(ego, nbs))
             centred = abs(ego.y - self.sim.highway.lane_centre(self.fs_lane)) < 0.3 and abs(ego.vy) < 0.3
             if centred or ego.vx < 0.5:  # back in its lane, or stopped (it cannot move sideways standing)
                 if self.fs_lane == self.target:
@@ -591,7 +652,7 @@ class Controller:
             return self._mobil_safe(t, obs, ego, nbs)
         if self.mode == "seek":
             target = [n for n in nbs if n.lane == self.target]
-            wide = replace(cfg, max_gaps=10, relevant_m=cfg.relevant_m + 40.0)
+            wide = replace(cfg, max_gaps=10, relevant_m=cfg.relevant_m + 40.0, rss=tac.safe.rss)
             gaps = candidate_gaps(en, target, wide)
             drop = self.mission.drop_x
             x_limit = None if drop is None else drop - self.sim.ego_length
@@ -659,17 +720,18 @@ class Controller:
                     self.mode, self.plan = "abort", None
                     self.fs_lane = self.sim.highway.lane_of(ego.y)
                     self.n.aborts += 1
-                    return self._abort_now(ego, obstacles)
+                    return self._abort_now(ego, obstacles, nbs)
                 self.fs_brake = b if b is not None else self.fs_brake
         return self._execute(t, dt)
 
-    def _abort_now(self, ego: EgoState, obstacles: list[Obstacle]) -> EgoState:
+    def _abort_now(self, ego: EgoState, obstacles: list[Obstacle], nbs: list[Neighbour]) -> EgoState:
         """The first period of the fail-safe: brake in the lane of the ego's centre."""
         b = self._brakes_now(ego, obstacles)
         if b is not None:
             self.fs_brake = b
         b = self.fs_brake if self.fs_brake is not None else 3.5
-        return self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane), urgent=True)
+        return self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane), urgent=True,
+                          caps=self._lateral_caps(ego, nbs))
 
     def _mobil_safe(self, t: float, obs: Observation, ego: EgoState, nbs: list[Neighbour]) -> EgoState | None:
         """IDM + MOBIL for a mandatory change (:mod:`iamp.simulation.mobil`): IDM drives the ego in

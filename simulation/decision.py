@@ -16,7 +16,8 @@ accepts the **first** gap whose plan is
 
 Candidate gaps
 --------------
-The target-lane vehicles within ``relevant_m`` sorted by ``x`` bound gaps (the first and
+The target-lane vehicles within ``relevant_m`` (or, with :attr:`DecisionConfig.rss`, within
+their RSS distance of the ego plus a margin) sorted by ``x`` bound gaps (the first and
 last open-ended).  Each gap ``(f, l)`` is scored by how far its usable middle at ``T`` is from
 where the ego would be at constant speed, ``x_0 + v_{x,0} T``; the ``max_gaps`` nearest are
 tried, nearest first.
@@ -71,6 +72,7 @@ from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.safety import SAFETY_TOLERANCE_M, safety_report
 from iamp.core.status import SUCCESS
 from iamp.prediction.leader.ego import iterate_with_planner
+from iamp.simulation.rss import RssParameters, within_rss_reach
 
 #: A :class:`Problem` holds at most 8 vehicles: the §9 check takes the nearest ones.
 MAX_CHECKED = 8
@@ -184,6 +186,19 @@ class DecisionConfig:
     #: ``qp``; the registry's ``constraint == "equality"``): the problem carries only the corners in
     #: the way (:func:`corners_in_the_way`).
     equality: bool = False
+    #: With RSS's parameters (the closed loop, SPEC §17), a target-lane vehicle beyond
+    #: ``relevant_m`` still bounds a gap while it is within its RSS distance of the ego plus
+    #: :data:`~iamp.simulation.rss.RSS_REACH_MARGIN_M` (:func:`~iamp.simulation.rss.within_rss_reach`:
+    #: a fast follower far behind); None: ``relevant_m`` alone.
+    rss: RssParameters | None = None
+
+
+def _near(n: Neighbour, ego: EgoNow, cfg: DecisionConfig) -> bool:
+    """``n`` within ``relevant_m`` of the ego, or within its RSS reach (:attr:`DecisionConfig.rss`)."""
+    dx = n.x(0.0) - ego.x
+    if abs(dx) <= cfg.relevant_m:
+        return True
+    return cfg.rss is not None and within_rss_reach(dx, n.length, n.v(0.0), ego.vx, ego.length, cfg.rss)
 
 
 #: ``(safety_x, safety_y)`` of the closed loop (SPEC §17): the region around each neighbour's body
@@ -208,7 +223,7 @@ class Verdict:
 def candidate_gaps(ego: EgoNow, target: Sequence[Neighbour], cfg: DecisionConfig) -> list[Gap]:
     """The ``max_gaps`` gaps of the target lane nearest the ego's constant-speed end point."""
     T = cfg.horizon_s
-    near = sorted((n for n in target if abs(n.x(0.0) - ego.x) <= cfg.relevant_m), key=lambda n: n.x(0.0))
+    near = sorted((n for n in target if _near(n, ego, cfg)), key=lambda n: n.x(0.0))
     bounds: list[Neighbour | None] = [None, *near, None]
     gaps = [Gap(bounds[k], bounds[k + 1]) for k in range(len(bounds) - 1)]
     x_cs = ego.x + ego.vx * T

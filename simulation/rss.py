@@ -220,6 +220,43 @@ def safe_longitudinal_distance(v_rear: npt.ArrayLike, v_front: npt.ArrayLike,
     return rss_distance(v_rear, v_front, p.response_time_s, p.accel_max, p.brake_min, p.brake_max)
 
 
+#: How far beyond its RSS distance a vehicle is still followed by the closed loop [m]
+#: (:func:`within_rss_reach`): at the judge's 0.1 s steps a closing speed of 20 m/s takes one
+#: second to cover it.
+RSS_REACH_MARGIN_M = 20.0
+
+
+def within_rss_reach(dx: float, other_length: float, other_vx: float, ego_vx: float, ego_length: float,
+                     p: RssParameters = DEFAULT, margin: float = RSS_REACH_MARGIN_M) -> bool:
+    """Whether a vehicle ``dx`` ahead of the ego (centres; negative: behind) is within its RSS
+    longitudinal distance of the ego plus ``margin``: the rear car of the pair (the ego when the
+    other is ahead) at its speed, the front at its own (:func:`safe_longitudinal_float`).  A
+    fixed sensing range misses a fast car approaching from behind, or a slow one ahead of a fast
+    ego, whose RSS distance exceeds it (130-190 m at closing speeds of 5-17 m/s), and the judge
+    holds the ego responsible for a lane change in front of it or for not braking behind it.
+
+    Parameters
+    ----------
+    dx : float
+        The other's centre minus the ego's along the road [m].
+    other_length, ego_length : float
+        Body lengths [m].
+    other_vx, ego_vx : float
+        Longitudinal speeds [m/s].
+    p : RssParameters
+    margin : float
+        [m].
+
+    Returns
+    -------
+    bool
+    """
+    gap = abs(float(dx)) - (float(other_length) + float(ego_length)) / 2
+    d = (safe_longitudinal_float(float(ego_vx), float(other_vx), p) if dx > 0
+         else safe_longitudinal_float(float(other_vx), float(ego_vx), p))
+    return gap <= d + margin
+
+
 def lateral_reach(u_toward: npt.ArrayLike, p: RssParameters = DEFAULT) -> FloatArray:
     """How far a car moves toward the other under the worst lateral response, ``o(u)``.
 
@@ -334,24 +371,37 @@ def _complies(resp: str, k: int, kb: int, dt: float, rear: bool, left: bool, m: 
     return True
 
 
-def _ego_left(dy: np.ndarray) -> np.ndarray:
-    """Whether the ego is the left car (larger ``y``) of the pair, from ``dy = y_other - y_ego``.
-
-    Where the two centres are level (``dy == 0``, e.g. both on one lane's centre) left and right
-    are undefined and a sideways move either way opens the gap; the roles there are those of
-    the nearest later step where the two differ (the side they separate to), else of the
-    nearest earlier one, else the ego is taken as the right car.  Without this a level pair
-    made the ego "the right car" and its move to the left counted as moving toward the other.
-    """
-    side = np.sign(np.nan_to_num(dy, nan=0.0))
+def _fill_sides(side: np.ndarray) -> np.ndarray:
+    """``side`` (``-1``, ``0``, ``+1`` per step) with each ``0`` replaced by the nearest later
+    nonzero entry, else the nearest earlier one, else left ``0``."""
     idx = np.arange(side.size)
     nz = side != 0
     nxt = np.where(nz, idx, side.size)
     nxt = np.minimum.accumulate(nxt[::-1])[::-1]  # index of the next nonzero (size: none)
     prv = np.maximum.accumulate(np.where(nz, idx, -1))  # index of the previous nonzero (-1: none)
-    filled = np.where(nz, side, np.where(nxt < side.size, side[np.minimum(nxt, side.size - 1)],
-                                         np.where(prv >= 0, side[np.maximum(prv, 0)], 0.0)))
-    out: np.ndarray = filled < 0
+    out: np.ndarray = np.where(nz, side, np.where(nxt < side.size, side[np.minimum(nxt, side.size - 1)],
+                                                  np.where(prv >= 0, side[np.maximum(prv, 0)], 0.0)))
+    return out
+
+
+def _ego_left(dy: np.ndarray, level: float = 0.0) -> np.ndarray:
+    """Whether the ego is the left car (larger ``y``) of the pair, from ``dy = y_other - y_ego``.
+
+    Where the two centres are level (``|dy| <= level``; the judge passes RSS's lateral
+    fluctuation margin ``μ``: e.g. both on one lane's centre, a few millimetres apart) left and
+    right are undefined and a sideways move either way opens the gap; the roles there are those
+    of the nearest later step where the two are more than ``level`` apart (the side they
+    separate to), else of the nearest earlier one; a pair never that far apart takes the sign
+    of ``dy`` itself (the nearest step where it is not 0, later first), and else the ego is the
+    right car.  Without this a level pair made the ego "the right car" and its move to the left
+    counted as moving toward the other: at ``dy == 0`` (fixed in 66128b0), and as long as the
+    lane keeping's drift of a few millimetres put the ego to the right of a follower in its lane
+    (slow-leader LOS E seed 69: 12.6 s at fault for a lane change away from it).
+    """
+    dy = np.nan_to_num(dy, nan=0.0)
+    exact = _fill_sides(np.sign(dy))
+    apart = _fill_sides(np.where(np.abs(dy) > level, np.sign(dy), 0.0))
+    out: np.ndarray = np.where(apart != 0, apart, exact) < 0
     return out
 
 
@@ -378,7 +428,7 @@ def judge_pair(ego: Motion, other: Motion, dt: float, p: RssParameters = DEFAULT
     v_rear = np.where(ego_front, other.vx, ego.vx)
     v_front = np.where(ego_front, ego.vx, other.vx)
     d_lon = safe_longitudinal_distance(np.nan_to_num(v_rear), np.nan_to_num(v_front), p)
-    ego_left = _ego_left(dy)
+    ego_left = _ego_left(dy, p.lat_margin_m)
     u_ego = np.where(ego_left, -ego.vy, ego.vy)  # toward the other
     u_oth = np.where(ego_left, other.vy, -other.vy)
     d_lat = safe_lateral_distance(np.nan_to_num(u_ego), np.nan_to_num(u_oth), p)

@@ -126,3 +126,21 @@ def test_the_checked_vehicles_are_the_nearest_in_the_lanes_within_reach() -> Non
     assert problem.vehicles[0].safety_x == pytest.approx(106.0 - 2.4 - 100.0 - 0.5, abs=1e-12)
     assert problem.vehicles[1].safety_x == 5.0 and problem.vehicles[2].safety_x == 5.0
     assert check_problem(boundary, ego, [at("far", 170.0, 0, 0.0)], [0, 1], cfg()) is None
+
+
+def test_a_fast_follower_beyond_relevant_m_bounds_the_gap_while_within_its_rss_distance() -> None:
+    """A target-lane car 137 m behind at 34 m/s, the ego at 20 m/s: beyond ``relevant_m`` (60 m), so
+    without RSS's parameters the gap behind the nearest car is open-ended; with them (the closed
+    loop) that car bounds it (its RSS distance is about 150 m), and a car as far behind at the
+    ego's own speed does not."""
+    from iamp.simulation.rss import DEFAULT
+
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0, length=EGO_L)
+    fast, near = car("fast", -137.0, 34.0), car("near", 30.0, 20.0)
+    plain = candidate_gaps(ego, [fast, near], cfg())
+    assert all(g.follower is None or g.follower.name != "fast" for g in plain)
+    with_rss = candidate_gaps(ego, [fast, near], cfg(rss=DEFAULT))  # type: ignore[arg-type]
+    assert any(g.follower is not None and g.follower.name == "fast" for g in with_rss)
+    slow = car("slow", -137.0, 20.0)
+    assert all(g.follower is None or g.follower.name != "slow"
+               for g in candidate_gaps(ego, [slow, near], cfg(rss=DEFAULT)))  # type: ignore[arg-type]

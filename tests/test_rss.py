@@ -21,6 +21,8 @@ from iamp.simulation.rss import (
     lateral_reach,
     safe_lateral_distance,
     safe_longitudinal_distance,
+    safe_longitudinal_float,
+    within_rss_reach,
 )
 
 # -- hand-computed cases (the paper's formulas, worked by hand) -------------------------------------
@@ -272,6 +274,52 @@ def test_a_level_pair_takes_the_side_it_separates_to(side: float) -> None:
     swapped = judge_ad(fol, ego, dt)  # the same pair from the follower's side: the same blame
     assert np.array_equal(swapped.other_responsible, j.ego_responsible)
     assert np.array_equal(swapped.ego_responsible, j.other_responsible)
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+@pytest.mark.parametrize("drift", [5e-5, 5e-3, -5e-3, 0.09])
+def test_a_pair_a_few_millimetres_apart_is_level_and_takes_the_side_it_separates_to(side: float,
+                                                                                     drift: float) -> None:
+    """As above, with the lane keeping's drift: the follower ``drift`` metres beside the ego (within
+    RSS's lateral fluctuation margin μ = 0.1 m) until the ego moves sideways either way.  The pair
+    is level there, so the ego moving away is not responsible.  Before, the sign of a 0.05 mm
+    offset decided the roles, and a lane change away from the follower counted as a move toward
+    it (slow-leader LOS E seed 69: 12.6 s at fault)."""
+    dt, n = 0.1, 40
+    t = np.arange(n) * dt
+    vy = np.where(t >= 0.5, side * 1.0, 0.0)
+    y = np.concatenate([[0.0], np.cumsum(vy[:-1])]) * dt
+    ego = _motion(100 + 20 * t, y, np.full(n, 20.0), vy)
+    fol = _motion(100 - 4.8 - 8 + 20 * t, np.full(n, drift), np.full(n, 20.0), np.zeros(n))
+    j = judge_pair(ego, fol, dt)  # DEFAULT: μ = 0.1 m
+    assert j.dangerous[0] and set(r for r in j.response if r) == {"both"}
+    assert not j.ego_responsible.any() and j.other_responsible.any()
+    swapped = judge_pair(fol, ego, dt)
+    assert np.array_equal(swapped.other_responsible, j.ego_responsible)
+    # a pair that was apart by more than μ keeps its roles: the ego 0.5 m to the right of the
+    # follower and moving left is moving toward it
+    apart = _motion(100 - 4.8 - 8 + 20 * t, np.full(n, 0.5), np.full(n, 20.0), np.zeros(n))
+    moving_left = _motion(100 + 20 * t, np.concatenate([[0.0], np.cumsum(np.where(t >= 0.5, 1.0, 0.0)[:-1])]) * dt,
+                          np.full(n, 20.0), np.where(t >= 0.5, 1.0, 0.0))
+    assert judge_pair(moving_left, apart, dt).ego_responsible.any()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-300.0, 300.0), st.floats(0.0, 45.0), st.floats(0.0, 45.0), st.floats(3.0, 18.0))
+def test_rss_reach_is_the_rss_distance_of_the_pair_s_rear_car_plus_the_margin(dx, v_other, v_ego, length):
+    """``within_rss_reach``: the bumper gap at most the RSS distance (the rear car's speed first)
+    plus 20 m; ahead the ego is the rear car, behind the other."""
+    gap = abs(dx) - (length + 4.8) / 2
+    d = safe_longitudinal_float(v_ego, v_other) if dx > 0 else safe_longitudinal_float(v_other, v_ego)
+    assert within_rss_reach(dx, length, v_other, v_ego, 4.8) == (gap <= d + 20.0)
+
+
+def test_rss_reach_follows_a_fast_car_beyond_a_fixed_range() -> None:
+    """A car 137 m behind at 34 m/s closing on the ego at 20 m/s (slow-leader medium seed 29's):
+    its RSS distance is about 150 m, so it is within reach; at the ego's speed it is not."""
+    assert within_rss_reach(-137.0, 4.8, 34.0, 20.0, 4.8)
+    assert not within_rss_reach(-137.0, 4.8, 20.0, 20.0, 4.8)
+    assert within_rss_reach(144.9, 4.8, 21.5, 37.9, 4.8)  # a slow car ahead of a fast ego (merge medium 9)
 
 
 def test_a_car_accelerating_sideways_beyond_alpha_within_rho_is_responsible() -> None:

@@ -1,0 +1,113 @@
+"""The closed loop's RSS responses beyond the plan (SPEC §17): the lane keeping's lateral proper
+response (``Controller._lateral_caps``) and the cars it follows beyond a fixed range
+(``rss.within_rss_reach``), judged by the independent monitor on episodes where the ego had been
+responsible (docs/closed-loop.md, "RSS at fault").
+
+The lateral proper response (the judge, :func:`iamp.simulation.rss.judge_pair`): in a dangerous
+run whose proper response is lateral, a car may not move toward the other faster than RSS's
+fluctuation ``μ/ρ`` (0.2 m/s) unless it brakes that motion with at least ``lat_brake_min``.  The
+lane keeping caps its speed toward a car that is closer than its RSS longitudinal distance and
+laterally near at 0.8 ``μ/ρ``, and brakes a faster motion at its own 1.5 m/s² bound at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.simulation.controller import LATERAL_REST_SHARE, Controller, ControllerConfig
+from iamp.simulation.decision import Neighbour
+from iamp.simulation.rss import DEFAULT, safe_longitudinal_float
+from iamp.simulation.simulator import EgoState
+
+REST = LATERAL_REST_SHARE * DEFAULT.lat_margin_m / DEFAULT.response_time_s
+
+
+@dataclass
+class _Sim:
+    ego_length: float = 4.8
+    ego_width: float = 1.8
+    step: float = 0.1
+
+
+def _controller() -> Controller:
+    """A controller with only what the lane keeping reads (its configuration and the ego's body)."""
+    c = Controller.__new__(Controller)
+    c.cfg = ControllerConfig()
+    c.sim = _Sim()  # type: ignore[assignment]
+    return c
+
+
+def car(dx: float, dy: float, v: float, vy: float = 0.0) -> Neighbour:
+    return Neighbour("n", (dx, v), y=dy, length=4.8, width=1.8, lane=0, vy=vy)
+
+
+EGO = EgoState(x=0.0, vx=20.0, y=0.0, vy=0.0)
+
+
+def test_a_faster_car_behind_in_the_next_lane_caps_the_motion_toward_it_only() -> None:
+    """30 m behind at 28 m/s (RSS distance about 62 m), 2.5 m to the right (a 0.7 m gap between
+    the bodies: the ego straddles the lane line), the ego returning right at 0.3 m/s: it may move
+    right at most at the cap, left freely; 130 m behind (beyond its RSS distance, 100 m) nothing; one lane
+    away (3.5 m, a 1.7 m gap) the ego at rest is not capped, at 1 m/s toward it is (RSS's lateral
+    distance grows with the speed toward the other)."""
+    c = _controller()
+    assert safe_longitudinal_float(28.0, 20.0) > 30.0
+    returning = EgoState(x=0.0, vx=20.0, y=0.0, vy=-0.3)
+    left, right = c._lateral_caps(returning, [car(-30.0, -2.5, 28.0)])
+    assert right == pytest.approx(REST) and left == np.inf
+    assert c._lateral_caps(returning, [car(-130.0, -2.5, 28.0)]) == (np.inf, np.inf)
+    assert c._lateral_caps(EGO, [car(-30.0, -3.5, 28.0)]) == (np.inf, np.inf)
+    fast = EgoState(x=0.0, vx=20.0, y=0.0, vy=-1.0)
+    assert c._lateral_caps(fast, [car(-30.0, -3.5, 28.0)])[1] == pytest.approx(REST)
+    # two lanes away (7 m): laterally far, no cap
+    assert c._lateral_caps(fast, [car(-30.0, -7.0, 28.0)]) == (np.inf, np.inf)
+
+
+def test_a_level_or_overlapping_car_caps_both_sides() -> None:
+    """A follower 10 m behind in the ego's lane (level within μ, or overlapping sideways while it
+    changes lanes behind the ego): the judge's roles are those of the run's threshold time, so
+    both sides are capped."""
+    c = _controller()
+    assert c._lateral_caps(EGO, [car(-15.0, 0.05, 22.0)]) == (pytest.approx(REST), pytest.approx(REST))
+    assert c._lateral_caps(EGO, [car(-15.0, 1.2, 22.0)]) == (pytest.approx(REST), pytest.approx(REST))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.floats(-1.0, 1.0), st.floats(-3.0, 3.0), st.floats(1.0, 30.0))
+def test_the_lane_keeping_keeps_the_cap_or_brakes_toward_it(vy0: float, offset: float, vx: float) -> None:
+    """One period of :meth:`Controller._move` toward any lane centre, with the right side capped:
+    the lateral speed to the right after it is at most the cap, or (already faster) smaller by the
+    lane keeping's full bound 1.5 m/s² per period, more than RSS's ``lat_brake_min`` (0.8 m/s²);
+    the left side is left alone."""
+    c = _controller()
+    ego = EgoState(x=0.0, vx=vx, y=0.0, vy=vy0, ax=0.0, ay=0.0)
+    nxt = c._move(ego, 0.0, offset, caps=(np.inf, REST))
+    free = c._move(ego, 0.0, offset)
+    toward0, toward1 = -vy0, -nxt.vy
+    lim = c.cfg.lane_keep_ay * 0.1
+    assert toward1 <= max(REST, toward0 - min(lim, toward0 - REST)) + 1e-12
+    assert toward1 <= REST + 1e-12 or toward1 <= toward0 - DEFAULT.lat_brake_min * 0.1
+    if -free.vy <= REST:
+        assert nxt.vy == free.vy  # a cap not reached changes nothing
+
+
+@pytest.mark.parametrize(("mission", "traffic", "seed", "before"),
+                         [("slow-leader", "los-e", 69, 12.9), ("slow-leader", "medium", 29, 11.2),
+                          ("merge", "medium", 9, 2.5)])
+def test_episodes_where_the_ego_was_at_fault_are_not_any_more(mission: str, traffic: str, seed: int,
+                                                              before: float) -> None:
+    """``free`` episodes of reports/campaign-safe (15351b0) with RSS-dangerous time at fault
+    ``before`` [s]: a lane change away from a follower level with the ego (LOS E 69: the judge's
+    roles), a lane change in front of a car 137 m behind at 34 m/s (medium 29: beyond the fixed
+    range; then the fail-safe's return toward a car in the next lane), a fast ego behind a slow car
+    145 m ahead (merge medium 9).  Now none, each still a success without a contact."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission=mission, traffic=traffic, seed=seed, planner="free")).summary
+    assert s["rss_dangerous_s"] == 0.0 and s["success"] and s["contacts"] == 0
