@@ -37,8 +37,9 @@ def _markdown_module() -> Any:
     return mod
 
 
-def command(folder: Path, man: dict[str, Any], seeds: int, out: str) -> list[str]:
-    """The ``iamp campaign`` arguments that made ``folder`` (its manifest) with ``seeds`` seeds."""
+def command(folder: Path, man: dict[str, Any], seeds: int, out: str, workers: int = 2) -> list[str]:
+    """The ``iamp campaign`` arguments that made ``folder`` (its manifest) with ``seeds`` seeds and
+    ``workers`` local workers (the episodes do not depend on them)."""
     args = ["iamp", "campaign", "--missions", ",".join(man["missions"]), "--planners", ",".join(man["planners"])]
     if man.get("sublane"):
         args.append("--sublane")
@@ -49,7 +50,7 @@ def command(folder: Path, man: dict[str, Any], seeds: int, out: str) -> list[str
     args += ["--seeds", str(seeds)]
     if ref:
         args += ["--reference", ref]
-    return args + ["--workers", "3", "--out", out]
+    return args + ["--workers", str(workers), "--out", out]
 
 
 def paired_lines(md: str) -> list[str]:
@@ -72,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("folder", type=Path)
     ap.add_argument("--commit", required=True)
+    ap.add_argument("--workers", type=int, default=2, help="the --workers the campaign ran with")
     ap.add_argument("--reference", default="mobil,sumo", help="planners to pair against as well ('' for none)")
     a = ap.parse_args(argv)
     folder = a.folder
@@ -79,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     with (folder / "episodes.csv").open() as fh:
         seeds = len({r["seed"] for r in csv.DictReader(fh)})
     rel = folder.as_posix()
-    cmd = command(folder, man, seeds, rel)
+    cmd = command(folder, man, seeds, rel, a.workers)
     cm = _markdown_module()
     rss = {k: v for k, v in man["rss"].items() if k != "source"}
     parts = [f"# SPEC §17's closed loop: {folder.name}", "",
