@@ -384,7 +384,7 @@ def _fill_sides(side: np.ndarray) -> np.ndarray:
     return out
 
 
-def _ego_left(dy: np.ndarray, level: float = 0.0) -> np.ndarray:
+def _ego_left(dy: np.ndarray, level: float) -> np.ndarray:
     """Whether the ego is the left car (larger ``y``) of the pair, from ``dy = y_other - y_ego``.
 
     Where the two centres are level (``|dy| <= level``; the judge passes RSS's lateral

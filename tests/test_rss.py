@@ -304,6 +304,36 @@ def test_a_pair_a_few_millimetres_apart_is_level_and_takes_the_side_it_separates
     assert judge_pair(moving_left, apart, dt).ego_responsible.any()
 
 
+def test_unseen_steps_do_not_give_a_level_pair_its_side() -> None:
+    """The level pair above (ego moving left from 0.5 s, the follower on the lane's centre), the
+    follower unseen for two steps while the pair is still level: the roles come from the steps where
+    the two are seen more than μ apart (the ego left of the follower), not from the unseen ones."""
+    dt, n = 0.1, 40
+    t = np.arange(n) * dt
+    vy = np.where(t >= 0.5, 1.0, 0.0)
+    ego = _motion(100 + 20 * t, np.concatenate([[0.0], np.cumsum(vy[:-1])]) * dt, np.full(n, 20.0), vy)
+    y = np.zeros(n)
+    y[7:9] = np.nan
+    fol = _motion(100 - 4.8 - 8 + 20 * t, y, np.full(n, 20.0), np.zeros(n))
+    j = judge_pair(ego, fol, dt)
+    assert j.dangerous[:7].all() and not j.ego_responsible.any()
+
+
+def test_a_pair_never_apart_takes_the_ego_as_the_right_car() -> None:
+    """Both cars on one lane's centre, moving left in step (``dy == 0`` throughout, the follower too
+    close): left and right are never decided by the motion, and the ego is the right car, so its
+    move to the left is toward the other and it is responsible (as the front car keeping its speed
+    it keeps its longitudinal response: the lateral one is what it breaks)."""
+    dt, n = 0.1, 30
+    t = np.arange(n) * dt
+    vy = np.where(t >= 0.5, 1.0, 0.0)
+    y = np.concatenate([[0.0], np.cumsum(vy[:-1])]) * dt
+    ego = _motion(100 + 20 * t, y, np.full(n, 20.0), vy)
+    fol = _motion(100 - 4.8 - 8 + 20 * t, y, np.full(n, 20.0), vy)
+    j = judge_pair(ego, fol, dt)
+    assert j.ego_responsible.any()
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.floats(-300.0, 300.0), st.floats(0.0, 45.0), st.floats(0.0, 45.0), st.floats(3.0, 18.0))
 def test_rss_reach_is_the_rss_distance_of_the_pair_s_rear_car_plus_the_margin(dx, v_other, v_ego, length):
