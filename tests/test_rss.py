@@ -304,6 +304,18 @@ def test_a_pair_a_few_millimetres_apart_is_level_and_takes_the_side_it_separates
     assert judge_pair(moving_left, apart, dt).ego_responsible.any()
 
 
+def test_a_rear_car_creeping_toward_a_standing_car_is_responsible() -> None:
+    """The rear car's bound after the response time is ``max(0, v - (b_min - tol) dt)``: a rear ego
+    creeping at 0.6 m/s 1 m behind a standing car does not brake and is responsible (a floor above
+    its speed, e.g. 1 m/s, would excuse it)."""
+    dt, n = 0.1, 15
+    t = np.arange(n) * dt
+    ego = _motion(100 + 0.6 * t, np.zeros(n), np.full(n, 0.6), np.zeros(n))
+    stand = _motion(np.full(n, 100 + 4.8 + 1.0), np.zeros(n), np.zeros(n), np.zeros(n))  # RSS: 1.43 m
+    j = judge_pair(ego, stand, dt)
+    assert j.dangerous.all() and j.ego_responsible[-1] and not j.other_responsible.any()
+
+
 def test_unseen_steps_do_not_give_a_level_pair_its_side() -> None:
     """The level pair above (ego moving left from 0.5 s, the follower on the lane's centre), the
     follower unseen for two steps while the pair is still level: the roles come from the steps where
