@@ -28,7 +28,8 @@ Prediction (batched)
 --------------------
 Once per period every neighbour within ``relevant_m + 20`` m in the ego's and the target lane
 (SPEC §17's loop: in every lane within ``relevant_m + 60`` m, and beyond that every one within its
-RSS distance of the ego plus a margin, :func:`~iamp.simulation.rss.within_rss_reach`) is predicted; neighbours with a full history share its sample times and go through
+RSS distance of the ego plus a margin, :func:`~iamp.simulation.rss.within_rss_reach`) is
+predicted; neighbours with a full history share its sample times and go through
 :meth:`~iamp.prediction.predictor.Predictor.predict_batch` in one call (the cubic fitted to the
 predicted path, read back at four Chebyshev points, which determine it); a neighbour seen for
 less than the predictor needs is extrapolated at constant speed.
