@@ -66,7 +66,7 @@ from iamp.simulation.failsafe import Obstacle, body_half_extents, feasible_brake
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
-from iamp.simulation.rss import safe_lateral_distance, safe_longitudinal_float, within_rss_reach
+from iamp.simulation.rss import longitudinal_room, safe_lateral_distance, within_rss_reach
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
@@ -544,17 +544,14 @@ class Controller:
         Le, We = self.sim.ego_length, self.sim.ego_width
         caps = [np.inf, np.inf]  # left, right
         for n in nbs:
-            dx, dy = n.x(0.0) - ego.x, n.y - ego.y
-            lon_gap = abs(dx) - (n.length + Le) / 2
-            d_lon = (safe_longitudinal_float(ego.vx, n.v(0.0), p) if dx > 0
-                     else safe_longitudinal_float(n.v(0.0), ego.vx, p))
+            lon_gap, d_lon = longitudinal_room(n.x(0.0) - ego.x, n.length, n.v(0.0), ego.vx, Le, p)
             if lon_gap > 0 and lon_gap >= d_lon:
                 continue  # longitudinally safe: no lateral constraint
+            dy = n.y - ego.y
             if abs(dy) <= p.lat_margin_m or abs(dy) < (n.width + We) / 2:
                 # level, or the bodies overlapping sideways (one may be crossing behind the other):
                 # the judge's roles are those of the run's threshold time, unknown here
-                caps = [rest, rest]
-                continue
+                return rest, rest
             left = dy > 0
             u_ego = ego.vy if left else -ego.vy  # toward the other
             u_oth = -n.vy if left else n.vy

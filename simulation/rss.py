@@ -226,11 +226,21 @@ def safe_longitudinal_distance(v_rear: npt.ArrayLike, v_front: npt.ArrayLike,
 RSS_REACH_MARGIN_M = 20.0
 
 
+def longitudinal_room(dx: float, other_length: float, other_vx: float, ego_vx: float, ego_length: float,
+                      p: RssParameters = DEFAULT) -> tuple[float, float]:
+    """The bumper gap between the ego and a vehicle ``dx`` ahead of it (centres; negative:
+    behind) and the pair's RSS longitudinal distance: the rear car (the ego when the other is
+    ahead) at its speed, the front at its own (:func:`safe_longitudinal_float`) [m]."""
+    gap = abs(float(dx)) - (float(other_length) + float(ego_length)) / 2
+    d = (safe_longitudinal_float(float(ego_vx), float(other_vx), p) if dx > 0
+         else safe_longitudinal_float(float(other_vx), float(ego_vx), p))
+    return gap, d
+
+
 def within_rss_reach(dx: float, other_length: float, other_vx: float, ego_vx: float, ego_length: float,
                      p: RssParameters = DEFAULT, margin: float = RSS_REACH_MARGIN_M) -> bool:
     """Whether a vehicle ``dx`` ahead of the ego (centres; negative: behind) is within its RSS
-    longitudinal distance of the ego plus ``margin``: the rear car of the pair (the ego when the
-    other is ahead) at its speed, the front at its own (:func:`safe_longitudinal_float`).  A
+    longitudinal distance of the ego plus ``margin`` (:func:`longitudinal_room`).  A
     fixed sensing range misses a fast car approaching from behind, or a slow one ahead of a fast
     ego, whose RSS distance exceeds it (130-190 m at closing speeds of 5-17 m/s), and the judge
     holds the ego responsible for a lane change in front of it or for not braking behind it.
@@ -251,9 +261,7 @@ def within_rss_reach(dx: float, other_length: float, other_vx: float, ego_vx: fl
     -------
     bool
     """
-    gap = abs(float(dx)) - (float(other_length) + float(ego_length)) / 2
-    d = (safe_longitudinal_float(float(ego_vx), float(other_vx), p) if dx > 0
-         else safe_longitudinal_float(float(other_vx), float(ego_vx), p))
+    gap, d = longitudinal_room(dx, other_length, other_vx, ego_vx, ego_length, p)
     return gap <= d + margin
 
 
