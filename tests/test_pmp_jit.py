@@ -74,3 +74,35 @@ def test_the_twin_as_python_equals_the_default_path_bit_for_bit() -> None:
 def test_the_compiled_twin_equals_the_python_source_bit_for_bit() -> None:
     """numba's machine code (compiled in the subprocess) against the same source run as Python."""
     assert _run("twin", disable_jit=False) == _run("pure", disable_jit=True)
+
+
+CACHE_SCRIPT = r"""
+import os, numba
+from iamp.core import jit
+from iamp.core import polyroots_kernel as kernel
+import numpy as np
+C = np.array([[-0.25, 0.0, 1.0]])
+M = np.zeros((1, 3))
+nb = np.zeros(1, dtype=np.int64)
+jit.twin(kernel.root_degrees, cache=True)(C, M, 1e-6, True, nb)
+print(numba.config.CACHE_DIR)
+"""
+
+
+def test_the_twins_machine_code_goes_to_the_user_cache_not_into_the_package(tmp_path) -> None:
+    """``jit.twin(..., cache=True)`` keeps numba's cache in ``$XDG_CACHE_HOME/iamp/numba`` (unless
+    ``NUMBA_CACHE_DIR`` is set): numba's default, ``__pycache__`` beside the source, wrote files into
+    an installed package that pip does not remove, and after ``pip install .`` the README's
+    ``pip install -e .`` left ``site-packages/iamp`` behind as a namespace package that hid the
+    editable install (``module 'iamp' has no attribute 'load_scenario'``)."""
+    pytest.importorskip("numba")
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+    env["XDG_CACHE_HOME"] = str(tmp_path)
+    r = subprocess.run([sys.executable, "-c", CACHE_SCRIPT], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    target = tmp_path / "iamp" / "numba"
+    assert r.stdout.strip() == str(target)
+    assert any(p.suffix == ".nbi" and "root_degrees" in p.name for p in target.rglob("*"))
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "mine")  # the user's own choice wins
+    r = subprocess.run([sys.executable, "-c", CACHE_SCRIPT], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0 and r.stdout.strip() == str(tmp_path / "mine")

@@ -10,6 +10,14 @@ and without ``NUMBA_DISABLE_JIT``), and no result depends on whether numba is in
 loaded.  A function numba cannot compile as written (a dict cache) names a stand-in with
 :func:`compiled_as`: the same sums in the same order, without the cache.
 
+Machine code kept on disk (``cache=True``) goes to the user's cache folder,
+``$XDG_CACHE_HOME/iamp/numba`` (default ``~/.cache/iamp/numba``; :func:`cache_dir`), unless
+``NUMBA_CACHE_DIR`` names another: numba's default, ``__pycache__`` beside the source, wrote files
+into an installed package that ``pip`` does not know, so after ``pip install .`` the README's
+``pip install -e .`` left ``site-packages/iamp`` behind as a namespace package that hid the editable
+install from every other directory.  (numba falls back to its own locations where that folder is
+not writable.)
+
 Nothing here imports numba until :func:`twin` is called.  It lives in the core, the lowest layer, so
 that the core's kernels (:mod:`iamp.core.polyroots_kernel`) compile through it as the planners'
 do (they import it as :mod:`iamp.planners.pmp.jit`).
@@ -18,6 +26,7 @@ do (they import it as :mod:`iamp.planners.pmp.jit`).
 from __future__ import annotations
 
 import importlib.util
+import os
 import types
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -73,6 +82,13 @@ def available() -> bool:
     return importlib.util.find_spec("numba") is not None
 
 
+def cache_dir() -> str:
+    """The folder of numba's on-disk cache of the twins (module docstring):
+    ``$XDG_CACHE_HOME/iamp/numba``, else ``~/.cache/iamp/numba``."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "iamp", "numba")
+
+
 def twin(fn: Callable[..., Any], cache: bool = False) -> Any:
     """The numba-compiled twin of the compilable ``fn`` (cached; compiled on its first call).
 
@@ -81,8 +97,8 @@ def twin(fn: Callable[..., Any], cache: bool = False) -> Any:
     fn : callable
         A function marked with :func:`compilable` or :func:`compiled_as`.
     cache : bool
-        Let numba keep the machine code on disk (beside the source, or in its user cache
-        directory) for later processes.  Only for a set of functions that call nothing
+        Let numba keep the machine code on disk (in :func:`cache_dir`, unless
+        ``NUMBA_CACHE_DIR`` is set) for later processes.  Only for a set of functions that call nothing
         compilable outside their own source file: numba invalidates a cached function when
         its own file changes, not when a callee's file does.  The compilable functions it
         calls get the same flag.
@@ -101,6 +117,9 @@ def twin(fn: Callable[..., Any], cache: bool = False) -> Any:
         return _TWINS[fn]
     import numba
 
+    config: Any = numba.config
+    if cache and not config.CACHE_DIR:
+        config.CACHE_DIR = cache_dir()
     src = _SOURCE[fn]
     env = dict(src.__globals__)
     for name in src.__code__.co_names:  # the globals the code reads
