@@ -244,8 +244,13 @@ def test_piqp_backend_check_agrees_on_a_two_vehicle_zoh_plan() -> None:
     for p in plans.values():
         # each backend's answer refined on the rows it holds active is the node solver's optimum
         check = p.info["backend_check"]
-        assert check["agrees"] and check["polished"]
-        assert abs(check["cost"] - p.cost) <= 1e-12 * p.cost
+        assert check["agrees"]
+        # refined where the backend's own answer missed the comparison tolerance (PIQP's duality
+        # gap); then the refined point is the node solver's optimum
+        tol_cost = check["cost_tol_rel"]
+        assert check["polished"] == (abs(check.get("backend_cost", check["cost"]) - p.cost) > tol_cost * p.cost
+                                     or max(check.get("backend_kkt", check["kkt"]).values()) > p.info["kkt_tol"])
+        assert abs(check["cost"] - p.cost) <= (1e-12 if check["polished"] else tol_cost) * p.cost
         assert _same(p, plans["clarabel"])
 
 
