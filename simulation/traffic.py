@@ -142,14 +142,17 @@ def routes_xml(traffic: str, seed: int, *, lanes: int, edge: str, ego_pos: float
             if clear and lane not in empty_lanes:
                 vehicles.append((pos, lane, vtype))
             pos += gap_min + float(rng.exponential(max(mean_gap - gap_min, 1.0)))
-    r, p, ln = place(ego_pos, ego_lane) or ("r0", ego_pos, ego_lane)
-    lines.append(f'    <vehicle id="ego" type="ego_type" route="{r}" depart="0" departLane="{ln}" '
-                 f'departPos="{p:.2f}" departSpeed="max"/>')
     if truck is not None and truck_pos is not None:
+        # before the ego: SUMO inserts the vehicles of one departure time in file order, and a truck
+        # inserted after the ego was refused (the ego, departing at its maximum speed, could not
+        # brake for it) and appeared seconds later, behind the ego
         lines.append('    ' + TRUCK_TYPE.format(v=truck[1]))
         r, p, ln = place(truck_pos, ego_lane) or ("r0", truck_pos, ego_lane)
         lines.append(f'    <vehicle id="truck_lead" type="truck_lead_type" route="{r}" depart="0" departLane="{ln}" '
                      f'departPos="{p:.2f}" departSpeed="max"/>')
+    r, p, ln = place(ego_pos, ego_lane) or ("r0", ego_pos, ego_lane)
+    lines.append(f'    <vehicle id="ego" type="ego_type" route="{r}" depart="0" departLane="{ln}" '
+                 f'departPos="{p:.2f}" departSpeed="max"/>')
     n = 0
     for pos, lane, vtype in sorted(vehicles, key=lambda v: (-v[0], v[1])):
         where = place(pos, lane)
