@@ -63,7 +63,10 @@ Key = tuple[str, str, str, int]
 #: 17.2: courteous target-lane followers open a gap for the signalling ego (the manifest's ``courtesy``).
 #: 17.3: the tactical layer's lane end as a braking bound, end speeds searched within the gap, courteous
 #: followers asked within their RSS distance behind the ego plus 60.5 m (issue 30, the on-ramp).
-EPISODE_FORMAT = "17.3"
+#: 17.4: the initial traffic: the slow-leader truck departs before the ego (it was refused and
+#: appeared behind it), initial vehicles SUMO refuses at t = 0 are removed (they appeared later
+#: beside the ego), the loop follows every vehicle within its RSS distance (b0ecb32).
+EPISODE_FORMAT = "17.4"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")
