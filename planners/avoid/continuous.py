@@ -835,10 +835,28 @@ class ContinuousAvoidPlanner:
             np.empty((m, 33)), np.empty(33), np.empty(33), out, worst)
         return out, worst
 
-    def _probe(self, box: _Box, tau: FloatArray, polys: Sequence[DualPolynomial]) -> tuple[FloatArray, float]:
+    #: A probe point within this many steps ``h`` of a solved candidate (every vehicle) is passed
+    #: over (:meth:`_probe`).
+    PROBE_SKIP_STEPS = 1e-4
+
+    @staticmethod
+    def _solved_points(qp: ContinuousAvoidQP, orders: tuple[tuple[int, int], ...]) -> FloatArray:
+        """The crossing times of the optimal candidates solved so far with ``orders`` (rows)."""
+        pts = [[a for _, _, a, _ in spec] for spec, r in qp.solved.items()
+               if r.status == st.OPTIMAL and all(a == b for _, _, a, b in spec)
+               and tuple((f, s) for f, s, _, _ in spec) == orders]
+        return np.array(pts, dtype=float).reshape(-1, len(orders))
+
+    def _probe(self, box: _Box, tau: FloatArray, polys: Sequence[DualPolynomial],
+               solved: FloatArray | None = None, h: float = 0.0) -> tuple[FloatArray, float]:
         """``tau`` with each vehicle that a polynomial of ``polys`` (valid on the box) depends on
         moved to where their largest value, the box's dual bound, is lowest on a product grid,
-        and that value (``-inf`` without such a polynomial)."""
+        and that value (``-inf`` without such a polynomial).  A grid point within
+        :attr:`PROBE_SKIP_STEPS` steps ``h`` of a point of ``solved`` (crossing times of solved
+        candidates, e.g. :meth:`_solved_points`) is passed over unless every point is: its cost
+        is known to the QPs' accuracy, and a candidate there (a box's end, beside the candidate
+        moved inside the box below it, :meth:`_inside`) would only repeat it.  One vehicle (the
+        search passes ``solved`` only then: with three, the overtakes' searches took more QPs)."""
         polys = [dp for dp in polys if dp.vehicles]
         if not polys:
             return tau, -np.inf
@@ -850,6 +868,13 @@ class ContinuousAvoidPlanner:
         for c, v in enumerate(vs):
             pts[:, v] = grids[c].ravel()
         vals = polys_values(polys, pts)
+        if solved is not None and len(solved):
+            # a point a solved candidate (in a piece beside the box's) all but shares: its cost
+            # is known to the QPs' accuracy, so the probe takes the next lowest point instead
+            apart = np.max(np.abs(pts[:, None, :] - solved[None, :, :]), axis=2)  # (points, solved)
+            near = np.min(apart, axis=1) <= self.PROBE_SKIP_STEPS * h
+            if not near.all():
+                vals = np.where(near, np.inf, vals)
         at = int(np.argmin(vals))
         return np.asarray(pts[at], dtype=float), float(vals[at])
 
@@ -967,7 +992,7 @@ class ContinuousAvoidPlanner:
                 tau, margin = 0.5 * (box.lo + box.hi), np.zeros(m)
             mass = np.zeros(m)
             cand: Solved | None = None
-            probe, low = self._probe(box, tau, polys)
+            probe, low = self._probe(box, tau, polys, self._solved_points(qp, box.orders) if m == 1 else None, qp.h)
             if low >= U - gap(U) and wide.any() and np.max(widths) > 1e-6 * qp.h:
                 # the polynomials keep the box above U - gap at every probe: only their Bernstein
                 # bound is loose, and splitting tightens it without a QP
