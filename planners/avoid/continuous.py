@@ -848,7 +848,7 @@ class ContinuousAvoidPlanner:
         return np.array(pts, dtype=float).reshape(-1, len(orders))
 
     def _probe(self, box: _Box, tau: FloatArray, polys: Sequence[DualPolynomial],
-               solved: FloatArray | None = None, h: float = 0.0) -> tuple[FloatArray, float]:
+               solved: FloatArray | None, h: float) -> tuple[FloatArray, float]:
         """``tau`` with each vehicle that a polynomial of ``polys`` (valid on the box) depends on
         moved to where their largest value, the box's dual bound, is lowest on a product grid,
         and that value (``-inf`` without such a polynomial).  A grid point within
