@@ -183,3 +183,40 @@ def test_the_tactical_layer_follows_a_car_cutting_in_before_its_body_is_over_the
     # behind the ego: never a leader
     behind = Neighbour("behind", (-30.0, 18.0), y=y - 2.6, length=4.8, width=1.8, lane=0, vy=1.0)
     assert c._rss_leader(ego, [behind]) is None
+
+
+@settings(max_examples=300, deadline=None)
+@given(vy=st.floats(-1.5, 1.5),
+       cars=st.lists(st.tuples(st.floats(-60.0, 80.0), st.sampled_from([-1.0, 1.0]),
+                               st.floats(-1.0, 1.0).filter(lambda e: abs(e) > 1e-9),  # no exact tie
+                               st.floats(-1.5, 1.5), st.floats(1.6, 2.6), st.floats(0.0, 35.0)),
+                     min_size=0, max_size=6))
+def test_the_followed_car_is_the_nearest_of_the_lane_leader_and_the_cars_rss_finds_laterally_near(
+        vy: float, cars: list[tuple[float, float, float, float, float, float]]) -> None:
+    """:meth:`Controller._rss_leader` against its statement, computed here from RSS's lateral
+    distance: of the vehicles ahead, those whose body overlaps the ego's lane band (less 0.2 m) and
+    those whose lateral gap to the ego is below RSS's lateral distance of their lateral speeds
+    toward each other, the nearest; none without such a vehicle.  Each car is placed on a side with
+    its lateral gap within 1 m of that distance (``excess``), where the two sets part."""
+    from iamp.simulation.rss import safe_lateral_distance
+
+    c = _controller()
+    c.sim = _RoadSim()  # type: ignore[assignment]
+    hw = c.sim.highway
+    y = hw.lane_centre(1)
+    ego = EgoState(x=0.0, vx=20.0, y=y, vy=vy)
+    nbs, want = [], []
+    for i, (dx, side, excess, nvy, w, v) in enumerate(cars):
+        toward_ego, toward_other = (vy, -nvy) if side > 0 else (-vy, nvy)
+        d_lat = float(safe_lateral_distance(toward_ego, toward_other, DEFAULT))
+        dy = side * ((w + 1.8) / 2 + d_lat + excess)
+        n = Neighbour(f"n{i}", (dx, v), y=y + dy, length=4.8, width=w, lane=hw.lane_of(y + dy), vy=nvy)
+        nbs.append(n)
+        in_band = abs(dy) < hw.lane_width / 2 + w / 2 - 0.2
+        if dx > 0 and (in_band or abs(dy) - (w + 1.8) / 2 < d_lat):
+            want.append(n)
+    got = c._rss_leader(ego, nbs)
+    if not want:
+        assert got is None
+    else:
+        assert got is not None and got.x(0.0) == min(n.x(0.0) for n in want)
