@@ -87,6 +87,13 @@ LATERAL_REST_SHARE = 0.8
 #: (:meth:`Controller._lateral_caps`: the cap acts before the pair is dangerous).
 LATERAL_ROOM_M = 0.5
 
+def _toward(ego: EgoState, n: Neighbour) -> tuple[float, float]:
+    """The lateral speeds of the ego and of ``n`` toward each other (``n`` on the side of the sign of
+    its offset ``n.y - ego.y``; level: the right)."""
+    left = n.y - ego.y > 0
+    return (ego.vy, -n.vy) if left else (-ego.vy, n.vy)
+
+
 @dataclass(frozen=True)
 class ControllerConfig:
     """Parameters of the controller (see the module docstring)."""
@@ -525,10 +532,6 @@ class Controller:
         B = np.asarray(self.cfg.tactical.safe.brakes)
         return float(B[ok[0]][0]) if ok[0].any() else None
 
-    #: A lane change does not start while :meth:`_lateral_caps` caps the target lane's side (a
-    #: vehicle RSS constrains laterally there, or level with the ego), rejection ``rss-lateral``.
-    RSS_START = True
-
     def _lateral_caps(self, ego: EgoState, nbs: list[Neighbour]) -> tuple[float, float]:
         """The largest lateral speeds to the left and to the right (magnitudes) that RSS's lateral
         proper response leaves the lane keeping: toward a vehicle beside the ego that is closer
@@ -562,8 +565,7 @@ class Controller:
                 # the judge's roles are those of the run's threshold time, unknown here
                 return rest, rest
             left = dy > 0
-            u_ego = ego.vy if left else -ego.vy  # toward the other
-            u_oth = -n.vy if left else n.vy
+            u_ego, u_oth = _toward(ego, n)
             d_lat = float(safe_lateral_distance(max(u_ego, rest), u_oth, p))
             if abs(dy) - (n.width + We) / 2 <= d_lat + LATERAL_ROOM_M:
                 # unsafe: at most RSS's fluctuation; about to be (within a response time): no faster
@@ -635,11 +637,7 @@ class Controller:
             dx = n.x(0.0) - ego.x
             if dx <= 0 or (lead is not None and n.x(0.0) >= lead.x(0.0)):
                 continue
-            dy = n.y - ego.y
-            left = dy > 0
-            u_ego = ego.vy if left else -ego.vy  # toward the other
-            u_oth = -n.vy if left else n.vy
-            if abs(dy) - (n.width + We) / 2 < float(safe_lateral_distance(u_ego, u_oth, p)):
+            if abs(n.y - ego.y) - (n.width + We) / 2 < float(safe_lateral_distance(*_toward(ego, n), p)):
                 lead = n
         return lead
 
@@ -697,7 +695,7 @@ class Controller:
             if t + 1e-9 < self.next_seek:
                 return self._follow(ego, nbs, chosen)
             self.next_seek = t + self.cfg.seek_every_s
-            if self.cfg.safe and self.RSS_START:
+            if self.cfg.safe:
                 # RSS's lateral proper response toward the target lane's side (:meth:`_lateral_caps`):
                 # a lane change does not start while a vehicle RSS constrains laterally on that side (or
                 # level with the ego: a tailgater in its lane, who may change lanes too) holds it

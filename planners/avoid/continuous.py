@@ -731,6 +731,26 @@ class ContinuousAvoidQP:
         return HoldTrajectory(self.data.t_nodes.copy(), X, U, self.hold)
 
 
+class _SolvedPoints:
+    """The crossing times of the optimal candidates a search has solved, per combination of orders
+    (:meth:`ContinuousAvoidPlanner._probe`'s ``solved``), read from
+    :attr:`ContinuousAvoidQP.solved` as it grows: each entry once (it only gains entries, each
+    stored once), so a search of thousands of boxes does not rescan every solve per box."""
+
+    def __init__(self) -> None:
+        self._seen = 0
+        self._points: dict[tuple[tuple[int, int], ...], list[list[float]]] = {}
+
+    def of(self, qp: ContinuousAvoidQP, orders: tuple[tuple[int, int], ...]) -> FloatArray:
+        """The rows of crossing times solved so far with ``orders``."""
+        for spec, r in itertools.islice(qp.solved.items(), self._seen, None):
+            if r.status == st.OPTIMAL and all(a == b for _, _, a, b in spec):
+                self._points.setdefault(tuple((f, s) for f, s, _, _ in spec), []).append(
+                    [a for _, _, a, _ in spec])
+        self._seen = len(qp.solved)
+        return np.array(self._points.get(orders, []), dtype=float).reshape(-1, len(orders))
+
+
 @dataclass(order=True)
 class _Box:
     bound: float
@@ -839,21 +859,13 @@ class ContinuousAvoidPlanner:
     #: over (:meth:`_probe`).
     PROBE_SKIP_STEPS = 1e-4
 
-    @staticmethod
-    def _solved_points(qp: ContinuousAvoidQP, orders: tuple[tuple[int, int], ...]) -> FloatArray:
-        """The crossing times of the optimal candidates solved so far with ``orders`` (rows)."""
-        pts = [[a for _, _, a, _ in spec] for spec, r in qp.solved.items()
-               if r.status == st.OPTIMAL and all(a == b for _, _, a, b in spec)
-               and tuple((f, s) for f, s, _, _ in spec) == orders]
-        return np.array(pts, dtype=float).reshape(-1, len(orders))
-
     def _probe(self, box: _Box, tau: FloatArray, polys: Sequence[DualPolynomial],
                solved: FloatArray | None, h: float) -> tuple[FloatArray, float]:
         """``tau`` with each vehicle that a polynomial of ``polys`` (valid on the box) depends on
         moved to where their largest value, the box's dual bound, is lowest on a product grid,
         and that value (``-inf`` without such a polynomial).  A grid point within
         :attr:`PROBE_SKIP_STEPS` steps ``h`` of a point of ``solved`` (crossing times of solved
-        candidates, e.g. :meth:`_solved_points`) is passed over unless every point is: its cost
+        candidates, :class:`_SolvedPoints`) is passed over unless every point is: its cost
         is known to the QPs' accuracy, and a candidate there (a box's end, beside the candidate
         moved inside the box below it, :meth:`_inside`) would only repeat it.  One vehicle (the
         search passes ``solved`` only then: with three, the overtakes' searches took more QPs)."""
@@ -957,6 +969,7 @@ class ContinuousAvoidPlanner:
                     "open_boxes": len(heap) - 1, "failures": failures, "free": free, "free_certified": True}
         dual = DualBounds(qp)
         store = DualStore(dual)
+        points = _SolvedPoints()
 
         def gap(u: float) -> float:
             # no incumbent (u = inf): no gap, so that U - gap(U) is inf, not inf - inf = nan (a
@@ -992,7 +1005,7 @@ class ContinuousAvoidPlanner:
                 tau, margin = 0.5 * (box.lo + box.hi), np.zeros(m)
             mass = np.zeros(m)
             cand: Solved | None = None
-            probe, low = self._probe(box, tau, polys, self._solved_points(qp, box.orders) if m == 1 else None, qp.h)
+            probe, low = self._probe(box, tau, polys, points.of(qp, box.orders) if m == 1 else None, qp.h)
             if low >= U - gap(U) and wide.any() and np.max(widths) > 1e-6 * qp.h:
                 # the polynomials keep the box above U - gap at every probe: only their Bernstein
                 # bound is loose, and splitting tightens it without a QP
