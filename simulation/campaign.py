@@ -66,7 +66,11 @@ Key = tuple[str, str, str, int]
 #: 17.4: the initial traffic: the slow-leader truck departs before the ego (it was refused and
 #: appeared behind it), initial vehicles SUMO refuses at t = 0 are removed (they appeared later
 #: beside the ego), the loop follows every vehicle within its RSS distance (b0ecb32).
-EPISODE_FORMAT = "17.4"
+#: 17.5: the ego's (and the truck's) speed factor fixed at 1 (SUMO drew it from its default
+#: ``speedDev`` 0.1: the ego began missions at up to 1.43 times the speed limit); the target gap
+#: chosen beyond ``reach_m`` when none is within it (beside a single car the ego drove level
+#: with it to its lane's end).
+EPISODE_FORMAT = "17.5"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

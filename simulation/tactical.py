@@ -252,14 +252,14 @@ def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfi
     return [(T, end) for _, T, end in out[: cfg.max_horizons]]
 
 
-def aim_point(ego: EgoNow, gap: Gap, cfg: TacticalConfig) -> tuple[float, float] | None:
+def aim_point(ego: EgoNow, gap: Gap, cfg: TacticalConfig, reach: bool = True) -> tuple[float, float] | None:
     """``(x_m, v_g)``: where in ``gap`` the ego aims now and the gap's speed; ``None`` when the
-    gap's safe interval is narrower than ``min_width_m`` or its near end lies beyond ``reach_m`` ahead
-    or behind (an open gap past
-    the vehicles in view is not a gap)."""
+    gap's safe interval is narrower than ``min_width_m`` or (``reach``) its near end lies beyond
+    ``reach_m`` ahead or behind (an open gap past the vehicles in view is not a gap while a gap
+    within reach exists, :func:`choose_gap`)."""
     v = gap_speed(ego, gap, 0.0)
     lo, hi = safe_interval(ego, gap, v, 0.0, cfg)
-    if not hi - lo >= cfg.min_width_m or lo > ego.x + cfg.reach_m or hi < ego.x - cfg.reach_m:
+    if not hi - lo >= cfg.min_width_m or (reach and (lo > ego.x + cfg.reach_m or hi < ego.x - cfg.reach_m)):
         return None
     if np.isfinite(lo) and np.isfinite(hi):
         return (lo + hi) / 2, v
@@ -273,21 +273,27 @@ def aim_point(ego: EgoNow, gap: Gap, cfg: TacticalConfig) -> tuple[float, float]
 def choose_gap(ego: EgoNow, gaps: Sequence[Gap], previous: tuple[str | None, str | None] | None,
                cfg: TacticalConfig, x_limit: float | None = None) -> Gap | None:
     """The target gap (module docstring): the aim point nearest where the ego would meet it after
-    matching the gap's speed at ``b_match``, with hysteresis."""
-    best: list[tuple[float, Gap]] = []
-    for g in gaps:
-        aim = aim_point(ego, g, cfg)
-        if aim is None:
-            continue
-        xm, v = aim
-        w = v - ego.vx
-        if x_limit is not None and xm + max(v, 0.0) * cfg.aim_s > x_limit:
-            continue
-        cost = abs((xm - ego.x) + w * abs(w) / (2 * cfg.b_match))
-        if previous is not None and names(g) == previous:
-            cost -= cfg.switch_m
-        best.append((cost, g))
-    return min(best, key=lambda r: r[0])[1] if best else None
+    matching the gap's speed at ``b_match``, with hysteresis; among the gaps within ``reach_m``,
+    else among all (beside a single car whose RSS distances reach past ``reach_m`` on both
+    sides, no gap is within reach, and without a target the ego drove level with it to its
+    lane's end: merge light 30, every planner)."""
+    for reach in (True, False):
+        best: list[tuple[float, Gap]] = []
+        for g in gaps:
+            aim = aim_point(ego, g, cfg, reach)
+            if aim is None:
+                continue
+            xm, v = aim
+            w = v - ego.vx
+            if x_limit is not None and xm + max(v, 0.0) * cfg.aim_s > x_limit:
+                continue
+            cost = abs((xm - ego.x) + w * abs(w) / (2 * cfg.b_match))
+            if previous is not None and names(g) == previous:
+                cost -= cfg.switch_m
+            best.append((cost, g))
+        if best:
+            return min(best, key=lambda r: r[0])[1]
+    return None
 
 
 def names(g: Gap) -> tuple[str | None, str | None]:
@@ -334,7 +340,7 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
         if lane_speed is not None:
             acc.append(float(np.clip(cfg.k_speed * (lane_speed + cfg.match_dv - ego.vx), *cfg.gap_accel)))
     if target is not None:
-        aim = aim_point(ego, target, cfg)
+        aim = aim_point(ego, target, cfg, reach=False)  # the chosen gap, within reach or not
         if aim is not None:
             xm, v = aim
             w_des = float(np.clip(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max))

@@ -65,10 +65,11 @@ DRIVER_TYPES: tuple[tuple[str, float, str], ...] = (
 #: The ego's vType: SPEC §9's default body 4.8 x 1.8 m; iamp moves it during a manoeuvre,
 #: SUMO's Krauss drives it in its lane otherwise (no own lane changes).
 EGO_TYPE = ('<vType id="ego_type" vClass="passenger" length="4.8" width="1.8" minGap="2.5" accel="2.6" decel="4.5" '
-            'emergencyDecel="9.0" sigma="0.0" tau="1.2" speedFactor="1.0" color="1,0,0"/>')
+            'emergencyDecel="9.0" sigma="0.0" tau="1.2" speedFactor="1.0" speedDev="0" color="1,0,0"/>')
 #: The slow-leader mission's truck: 60 km/h, no imperfection, no lane changes (set by TraCI).
 TRUCK_TYPE = ('<vType id="truck_lead_type" vClass="truck" length="12.0" width="2.5" minGap="3.0" accel="1.0" '
-              'decel="3.5" emergencyDecel="7.0" sigma="0.0" tau="1.5" maxSpeed="{v:.2f}" speedFactor="1.0"/>')
+              'decel="3.5" emergencyDecel="7.0" sigma="0.0" tau="1.5" maxSpeed="{v:.2f}" speedFactor="1.0" '
+              'speedDev="0"/>')
 
 
 def _with(attrs: str, over: dict[str, float]) -> str:

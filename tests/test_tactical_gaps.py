@@ -243,3 +243,56 @@ def test_the_lane_end_bound_counts_from_the_ego_s_front_end_room_m_before_the_en
     assert want < 0.0
     assert seek_accel(ego, None, stop_x, None, 30.0, cfg) == pytest.approx(want, abs=1e-12)
     assert lane_end_accel(15.0, 39.0, cfg) < want  # the distance matters at this speed
+
+
+@settings(max_examples=60, deadline=None)
+@given(dx=st.floats(-25.0, 25.0), v_car=st.floats(15.0, 33.0), dv=st.floats(-10.0, 10.0))
+def test_beside_a_single_car_a_gap_beyond_reach_is_still_the_target(dx: float, v_car: float, dv: float) -> None:
+    """Beside one car of the target lane whose RSS distances reach past ``reach_m`` on both sides,
+    no gap is within reach; :func:`choose_gap` then takes the best gap beyond it (the same cost
+    formula), and :func:`seek_accel` steers toward it.  Before, no gap was chosen, and the ego
+    drove level with the car to its lane's end (merge light 30, every planner)."""
+    from iamp.simulation.tactical import seek_accel
+
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, v_car + dv, 0.0, 0.0)
+    car = _nb("c", dx, v_car)
+    ahead_of_car, behind_car = Gap(car, None), Gap(None, car)
+    gaps = [ahead_of_car, behind_car]
+    within = [g for g in gaps if aim_point(ego, g, cfg) is not None]
+    chosen = choose_gap(ego, gaps, None, cfg)
+    assert chosen is not None  # a car that leaves a gap on either side always leaves a target
+
+    def cost(g: Gap) -> float:
+        xm, v = aim_point(ego, g, cfg, reach=False)  # type: ignore[misc]
+        w = v - ego.vx
+        return abs(xm - ego.x + w * abs(w) / (2 * cfg.b_match))
+
+    pool = within or gaps  # within reach first, else every gap
+    assert chosen in pool
+    assert cost(chosen) == min(cost(g) for g in pool)
+    # the chosen gap steers the ego: toward its aim point at the gap's speed (the gap term, clipped)
+    xm, v = aim_point(ego, chosen, cfg, reach=False)  # type: ignore[misc]
+    a_g = float(np.clip(cfg.k_speed * (v + np.clip(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max)
+                                       - ego.vx), *cfg.gap_accel))
+    a = seek_accel(ego, None, None, chosen, 33.33, cfg)
+    assert a <= a_g + 1e-12
+    free_road = replace(cfg.idm, v0=1.1 * 33.33).accel(ego.vx)
+    assert a == pytest.approx(min(a_g, free_road), abs=1e-12)
+
+
+def test_a_gap_within_reach_is_preferred_to_a_cheaper_one_beyond() -> None:
+    """The fallback only applies when no gap is within reach: a gap within ``reach_m`` wins over
+    a cheaper one beyond it."""
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    hi0 = safe_interval(ego, Gap(None, _nb("l", 0.0, 20.0)), 20.0, 0.0, cfg)[1]
+    near = Gap(None, _nb("l", -55.0 - hi0, 20.0))  # its far end 55 m behind: within reach, aim 65 m behind
+    assert aim_point(ego, near, cfg) is not None
+    lo0 = safe_interval(ego, Gap(_nb("f", 0.0, 14.0), None), 14.0, 0.0, cfg)[0]
+    far = Gap(_nb("f", 61.0 - lo0, 14.0), None)  # 61 m ahead, slower: beyond reach, aim 71 m ahead
+    assert aim_point(ego, far, cfg) is None and aim_point(ego, far, cfg, reach=False) is not None
+    # cheaper: |71 - 6·6/(2·2)| = 62 m against 65 m
+    assert aim_point(ego, far, cfg, reach=False)[0] - 9.0 < -aim_point(ego, near, cfg)[0]  # type: ignore[index]
+    assert choose_gap(ego, [far, near], None, cfg) is near
+    assert choose_gap(ego, [far], None, cfg) is far

@@ -72,3 +72,26 @@ def test_the_slow_leader_truck_departs_ahead_of_the_ego(traffic, seed):
         assert ls.vehicle.getSpeed("ego") <= 25.0
     finally:
         sim.close()
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(mission=st.sampled_from(["merge", "onramp", "slow-leader", "discretionary"]),
+       traffic=st.sampled_from(["light", "medium", "dense", "los-e"]), seed=st.integers(1, 10_000))
+def test_the_ego_drives_at_most_the_speed_limit_before_the_mission(mission, traffic, seed):
+    """The ego's (and the truck's) speed factor is 1: SUMO draws a vType's factor from its
+    ``speedDev`` (0.1 by default) unless it is set to 0, and the ego began missions at up to 1.43
+    times the speed limit (merge light 9: 47.5 m/s on a 33.3 m/s road).  During the warm-up SUMO
+    drives the ego at no more than the limit of its lane."""
+    m, sim = _simulator(mission, traffic, seed)
+    sim.start()
+    try:
+        ls = sim._ls
+        assert ls.vehicle.getSpeedFactor("ego") == 1.0
+        if m.truck:
+            assert ls.vehicle.getSpeedFactor("truck_lead") == 1.0
+        for _ in range(40):  # 4 s
+            sim.advance()
+            lane_limit = ls.lane.getMaxSpeed(ls.vehicle.getLaneID("ego"))
+            assert ls.vehicle.getSpeed("ego") <= lane_limit + 1e-6
+    finally:
+        sim.close()
