@@ -50,15 +50,19 @@ def markdown(report: dict[str, Any]) -> str:
     out: list[str] = []
     missions = list(dict.fromkeys(c["mission"] for c in report["cells"]))
     rss = all("contact_at_fault_episodes" in c for c in report["cells"])
+    # episode format 17.5 measures the executed path's turns (simulation/kinematics.py)
+    turns = all(c.get("curvature_violation_episodes") is not None for c in report["cells"])
     extra_head = " contact at fault | follower emergency brake | RSS-dangerous at fault |" if rss else ""
     for m in missions:
         cells = [c for c in report["cells"] if c["mission"] == m]
         planners = list(dict.fromkeys(c["planner"] for c in cells))
         out += [f"\n**{m}**\n",
                 "| planner | n | success | contact |" + extra_head + " new follower brakes > 4.5 m/s² | "
-                "executed limit violation | t_merge [s] | follower decel [m/s²] | executed peak ‖a‖ [m/s²] | "
+                "executed limit violation |" + (" executed turn < 5 m radius |" if turns else "")
+                + " t_merge [s] | follower decel [m/s²] | executed peak ‖a‖ [m/s²] | "
                 "constrained / executed plans | infeasible plans | fallbacks | plan p50 [ms] |",
-                "|---|---|---|---|" + "---|" * (3 if rss else 0) + "---|---|---|---|---|---|---|---|---|"]
+                "|---|---|---|---|" + "---|" * ((3 if rss else 0) + (1 if turns else 0))
+                + "---|---|---|---|---|---|---|---|---|"]
         for p in planners:
             cs = [c for c in cells if c["planner"] == p]
             extra = (f" {_pooled(cs, 'contact_at_fault')} | {_pooled(cs, 'emergency_brake')} | "
@@ -66,6 +70,7 @@ def markdown(report: dict[str, Any]) -> str:
             out.append(
                 f"| {p} | {sum(c['episodes'] for c in cs)} | {_pooled(cs, 'success')} | {_pooled(cs, 'contact')} |"
                 f"{extra} {_pooled(cs, 'hard_brake')} | {_pooled(cs, 'limit_violation')} | "
+                + (f"{_pooled(cs, 'curvature_violation')} | " if turns else "") +
                 f"{_median(cs, 'time_to_merge_s_median')} | {_median(cs, 'follower_max_decel_median')} | "
                 f"{_median(cs, 'ego_peak_accel_median')} | {sum(c['constrained_plans'] for c in cs)}/"
                 f"{sum(c['executed_plans'] for c in cs)} | {sum(c['infeasible_plans'] for c in cs)} | "

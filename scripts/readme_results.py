@@ -112,7 +112,8 @@ def safety_table(campaigns: list[Path], root: Path = ROOT, sublane: Path | None 
     """Closed loop of SPEC §17, per campaign (cooperation) and planner, with RSS's responsibility
     columns: contacts split by blame, the new follower's emergency (>= 8 m/s²) and hard
     (> :data:`HARD_BRAKE` m/s²) braking, the time in a dangerous situation the ego is responsible
-    for, and executed limit violations. ``sublane``: the ``episodes.csv`` of the ``sumo`` baseline
+    for, executed limit violations and (episode format 17.5 on) executed turns tighter than a car's
+    5 m radius (``–`` where a campaign did not measure them). ``sublane``: the ``episodes.csv`` of the ``sumo`` baseline
     with SL2015 (``iamp campaign --sublane``), a row ``sumo (SL2015)`` of the default-cooperation
     table over the episodes of the same missions, densities and seeds."""
     lines: list[str] = []
@@ -125,13 +126,15 @@ def safety_table(campaigns: list[Path], root: Path = ROOT, sublane: Path | None 
         missions = sorted({r["mission"] for r in rows})
         traffic = sorted({r["traffic"] for r in rows})
         seeds = len({r["seed"] for r in rows})
+        turns = bool(rows) and "curvature_violations" in rows[0]  # measured since episode format 17.5
         lines += [f"Closed loop with verified plans (`{episodes.relative_to(root).as_posix()}`, episode format {fmt}; "
                   f"missions {', '.join(missions)}; traffic {', '.join(traffic)}; cooperation {coop}; {seeds} paired "
                   f"seeds; RSS judge with response time {rho} s; {command(meta, episodes.parent, root, seeds)}):", "",
                   "| planner | episodes | success | contacts at fault | contacts not at fault | follower emergency "
                   f"brakes | new follower braking > {HARD_BRAKE:g} m/s² (episodes) | RSS-dangerous time at fault [s] | "
-                  "executed limit violations (episodes) |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  "executed limit violations (episodes) |"
+                  + (" executed turns < 5 m radius (episodes) |" if turns else ""),
+                  "|---|---|---|---|---|---|---|---|---|" + ("---|" if turns else "")]
         by: dict[str, list[dict[str, str]]] = defaultdict(list)
         for r in rows:
             by[r["planner"]].append(r)
@@ -150,8 +153,11 @@ def safety_table(campaigns: list[Path], root: Path = ROOT, sublane: Path | None 
             hard = sum(is_hard_brake(_num(r["follower_max_decel"])) for r in eps)
             danger = sum(_num(r["rss_dangerous_s"]) for r in eps)
             limits = sum(_num(r["limit_violations"]) > 0 for r in eps)
+            turn = (f" {sum(_num(r.get('curvature_violations') or '') > 0 for r in eps)} |"
+                    if turns and all(r.get("curvature_violations") not in (None, "") for r in eps) else
+                    (" – |" if turns else ""))
             lines.append(f"| {planner} | {n} | {ok} ({100 * ok / n:.1f} %) | {fault} | {other} | {emergency} | "
-                         f"{hard} | {danger:.1f} | {limits} |")
+                         f"{hard} | {danger:.1f} | {limits} |{turn}")
         lines.append("")
     return lines[:-1]
 

@@ -51,7 +51,8 @@ COLUMNS = ("mission", "planner", "traffic", "seed", "cooperation", "sublane", "d
            "axis_aligned_contacts", "sumo_only_contacts", "monitor_only_contacts", "contact_disagreements",
            "overlap_contacts", "sumo_contacts", "mingap_violations", "min_ttc_s", "ttc_below_1_5_s",
            "new_follower", "follower_max_decel", "ego_peak_accel", "ego_ax_min", "ego_ax_max", "ego_ay_peak",
-           "ego_jerk_peak", "limit_violations", "jerk_violations", "ego_lost", "lane_change_done_s", "lane_changes",
+           "ego_jerk_peak", "limit_violations", "jerk_violations", "curvature_max", "curvature_violations", "ego_lost",
+           "lane_change_done_s", "lane_changes",
            "intrusion_s", "min_gap_m", "min_follower_accel", "rms_accel_x", "rms_accel_y", "rms_jerk_x",
            "rms_jerk_y", "plan_time_p50_s", "plan_time_p95_s", "plan_time_max_s", "plans", "planner_calls",
            "executed_plans", "constrained_plans", "infeasible_plans", "rejected", "late_plans", "fallbacks",
@@ -69,7 +70,10 @@ Key = tuple[str, str, str, int]
 #: 17.5: the ego's (and the truck's) speed factor fixed at 1 (SUMO drew it from its default
 #: ``speedDev`` 0.1: the ego began missions at up to 1.43 times the speed limit); the target gap
 #: chosen beyond ``reach_m`` when none is within it (beside a single car the ego drove level
-#: with it to its lane's end).
+#: with it to its lane's end); a plan is driven only if its path turns no tighter than a car's
+#: turning radius and does not start sideways, and the tactical layer steers within it
+#: (plans at a crawl turned on radii down to 0.4 m, the ego slid sideways at a standstill); the
+#: columns ``curvature_max`` and ``curvature_violations``.
 EPISODE_FORMAT = "17.5"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",

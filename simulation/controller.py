@@ -63,6 +63,7 @@ from iamp.simulation.decision import (
     lane_change_problem,
 )
 from iamp.simulation.failsafe import Obstacle, body_half_extents, feasible_brakes, verify_trajectory
+from iamp.simulation.kinematics import start_heading
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
@@ -70,6 +71,7 @@ from iamp.simulation.rss import longitudinal_room, safe_lateral_distance, within
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
+    all_horizons,
     choose_gap,
     gap_end,
     horizons_for,
@@ -86,6 +88,15 @@ LATERAL_REST_SHARE = 0.8
 #: A lateral gap within this of RSS's lateral distance already caps the speed toward it [m]
 #: (:meth:`Controller._lateral_caps`: the cap acts before the pair is dangerous).
 LATERAL_ROOM_M = 0.5
+
+#: The share of ``κ_max`` the tactical layer's turns use (:meth:`Controller._turn_bound`): the
+#: monitor measures the executed path by its chords, whose headings are the periods' mean
+#: velocities, not the velocities the bound holds.
+TURN_SHARE = 0.9
+#: The tactical layer bounds the turn of the ego's velocity (:meth:`Controller._turn_bound`) from
+#: headings within this [rad] (45°; a drivable plan ends far inside it).
+MAX_TURN_HEADING = math.pi / 4
+
 
 def _toward(ego: EgoState, n: Neighbour) -> tuple[float, float]:
     """The lateral speeds of the ego and of ``n`` toward each other (``n`` on the side of the sign of
@@ -211,6 +222,9 @@ class Controller:
         self.fs_lane: int = self.origin
         self.prev_y: dict[str, float] = {}
         self.following = False  # iamp drives the ego in its lane (done / hold) with the tactical IDM
+        #: The ego's heading [rad]: its velocity's direction when it moves, else the one it stopped
+        #: with (a car keeps its heading standing, :mod:`iamp.simulation.kinematics`).
+        self.heading = 0.0
         if self.cfg.ego_in_forecast and self.iamp:
             from iamp.prediction.leader.model import LeaderPredictor, default_leader_model
 
@@ -343,6 +357,7 @@ class Controller:
     # -- one period -----------------------------------------------------------------------------
     def step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
         """The ego's state for the next step, or ``None`` when SUMO drives it this step."""
+        self.heading = start_heading(ego.vx, ego.vy, self.heading)
         if self.cfg.safe and self.name != "sumo":
             try:
                 return self._safe_step(t, obs, ego)
@@ -605,6 +620,8 @@ class Controller:
         # a car moves sideways only while it moves forward: |v_y| <= tan(psi_max) v_x after the period
         cap = self.cfg.max_slip * (ego.vx + ax * dt)
         ay = float(np.clip(np.clip(ay, (-cap - ego.vy) / dt, (cap - ego.vy) / dt), -lim, lim))
+        # a car turns only while it moves (:meth:`_turn_bound`); RSS's proper response below overrides it
+        ay = self._turn_bound(ego, ax, ay)
         # RSS's lateral proper response (:meth:`_lateral_caps`): toward a side with a cap, the lateral
         # speed is brought below it at the lane keeping's bound, at once (as an urgent brake)
         if ego.vy + ay * dt > caps[0]:
@@ -613,6 +630,30 @@ class Controller:
             ay = min(lim, max(ay, (-caps[1] - ego.vy) / dt))
         return EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt,
                         y=ego.y + ego.vy * dt + ay * dt**2 / 2, vy=ego.vy + ay * dt, ax=ax, ay=ay)
+
+    def _turn_bound(self, ego: EgoState, ax: float, ay: float) -> float:
+        """``a_y`` such that the velocity's heading turns by at most :data:`TURN_SHARE` ``κ_max`` per
+        metre travelled in the period (a car turns only while it moves, :mod:`iamp.simulation.kinematics`): the
+        lane keeping, the fail-safe and RSS's lateral response steer, they do not slide."""
+        kappa = self.cfg.decision.kappa_max
+        if kappa is None:
+            return ay
+        dt = self.sim.step
+        vx1, vy1 = ego.vx + ax * dt, ego.vy + ay * dt
+        speed1 = math.hypot(vx1, vy1)
+        psi0 = start_heading(ego.vx, ego.vy, self.heading)
+        if speed1 <= 0.0 or vx1 <= 0.0 or abs(psi0) > MAX_TURN_HEADING:
+            # standing, or a heading no drivable plan leaves (handed over from SUMO): as before
+            return ay
+        turn = TURN_SHARE * kappa * 0.5 * (math.hypot(ego.vx, ego.vy) + speed1) * dt
+        psi1 = math.atan2(vy1, vx1)
+        bounded = min(max(psi1, psi0 - turn), psi0 + turn)
+        if bounded == psi1:
+            return ay
+        # the longitudinal input kept: the lateral speed that puts the velocity on the bounded
+        # heading, within the lane keeping's lateral bound
+        lim = self.cfg.lane_keep_ay
+        return float(np.clip((vx1 * math.tan(bounded) - ego.vy) / dt, -lim, lim))
 
     def _lane_leader(self, ego: EgoState, nbs: list[Neighbour]) -> Neighbour | None:
         """The nearest vehicle ahead whose body overlaps the ego's lane band."""
@@ -659,7 +700,7 @@ class Controller:
     def _safe_step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
         """One period of the SPEC §17 loop (module docstring)."""
         dt, cfg, tac = self.sim.step, self.cfg.decision, self.cfg.tactical
-        nbs = self.neighbours(obs, ego, max(tac.horizons), all_lanes=True)
+        nbs = self.neighbours(obs, ego, max(all_horizons(self.ego_now(ego), tac)), all_lanes=True)
         if self.mode in ("done", "hold"):
             if self.mode == "hold" and t + 1e-9 >= self.hold_until:
                 self.origin, self.target = self.target, self.origin
@@ -709,9 +750,10 @@ class Controller:
             cur = [n for n in nbs if n.lane == self.origin]
             verdict, all_v = decide(en, self.y_target(), self.target, self.origin, cur + target, self._plan, cfg,
                                     verify=lambda p: self._verify(p, obstacles, accept=True)[0],
-                                    ends=lambda g: horizons_for(en, g, cfg, tac, a0=ego.ax),
+                                    ends=lambda g: horizons_for(en, g, cfg, tac, a0=ego.ax,
+                                                                dy=self.y_target() - ego.y),
                                     gaps=order[: self.cfg.seek_gaps],
-                                    region=rss_regions(en, tac))
+                                    region=rss_regions(en, tac), heading=self.heading)
             for v in all_v:
                 if not v.accepted:
                     self._reject(v.reason)
@@ -742,7 +784,7 @@ class Controller:
                     dcfg = replace(cfg, horizon_s=tf)
                     prob = lane_change_problem(en, self.y_target(), gap, lead, dcfg, tf, end, rss_regions(en, tac))
                     plan = self._plan(prob)
-                    reason = judge(plan, None, dcfg, lambda p: self._verify(p, obstacles)[0])
+                    reason = judge(plan, None, dcfg, lambda p: self._verify(p, obstacles)[0], self.heading)
                     if reason == "accepted":
                         reason = self._continues(plan, ego)
                     if reason == "accepted" and not plan.info.get("late"):

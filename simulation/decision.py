@@ -10,6 +10,8 @@ accepts the **first** gap whose plan is
    (the jerk bound is measured on the executed trajectory but not used here: the paper's
    PMP input jumps at its contact times by construction, so every constrained PMP plan
    would fail it);
+2b. **drivable** — the plan's path turns no tighter than a car's turning radius and does not
+   start sideways (:mod:`iamp.simulation.kinematics`, ``kappa_max``; reason ``kinematics``);
 3. **intrusion-free** — :func:`iamp.core.safety.safety_report` of the plan's own continuous
    trajectory against *every* predicted neighbour in the two lanes within ``relevant_m``
    (not only the constrained ones) says the ego's point never enters a safety region.
@@ -72,6 +74,7 @@ from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.safety import SAFETY_TOLERANCE_M, safety_report
 from iamp.core.status import SUCCESS
 from iamp.prediction.leader.ego import iterate_with_planner
+from iamp.simulation.kinematics import KAPPA_MAX, TOL_REL, plan_turning
 from iamp.simulation.rss import RssParameters, within_rss_reach
 
 #: A :class:`Problem` holds at most 8 vehicles: the §9 check takes the nearest ones.
@@ -182,6 +185,9 @@ class DecisionConfig:
     speed_cap: float = 40.0
     check_dt: float = 0.01
     limits: PhysicalLimits = field(default=PASSENGER_CAR)
+    #: The largest curvature of a plan's path [1/m] (a car's turning radius,
+    #: :mod:`iamp.simulation.kinematics`; None: not tested).
+    kappa_max: float | None = KAPPA_MAX
     #: The planner imposes every vehicle of its problem as the paper's corner *equality* (``pmp``,
     #: ``qp``; the registry's ``constraint == "equality"``): the problem carries only the corners in
     #: the way (:func:`corners_in_the_way`).
@@ -398,8 +404,12 @@ def limit_violations_of(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: 
 Verify = Callable[[Plan], str]
 
 
-def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig, verify: Verify | None = None) -> str:
-    """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``intrusion:``, ``rss:``).
+def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig, verify: Verify | None = None,
+          heading: float | None = None) -> str:
+    """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``kinematics``, ``intrusion:``,
+    ``rss:``); ``kinematics``: the path turns tighter than ``cfg.kappa_max`` or starts off the
+    ego's ``heading`` (its velocity's direction when it moves, else the heading it stopped with;
+    :func:`iamp.simulation.kinematics.plan_turning`).
 
     With ``verify`` the safety test is ``verify(plan)`` (the ego's body, RSS distances and a
     verified fail-safe, :mod:`iamp.simulation.failsafe`) instead of the §9 report of the ego's
@@ -411,6 +421,11 @@ def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig, verify: Verify
     bad = limit_violations(plan.trajectory, tf, cfg.limits, cfg.check_dt)
     if bad:
         return "limits:" + ",".join(bad)
+    if cfg.kappa_max is not None:
+        # the path a car can drive: no sideways start, no turn tighter than its turning radius
+        kappa = plan_turning(plan.trajectory, tf, heading=heading)
+        if kappa.size and float(kappa.max()) > cfg.kappa_max * (1.0 + TOL_REL):
+            return "kinematics"
     if verify is not None:
         return verify(plan)
     if check is not None:
@@ -432,7 +447,8 @@ def decide(ego: EgoNow, y_target: float, target_lane: int, origin_lane: int, nei
            on_iterate: Callable[[dict[str, Any]], None] | None = None,
            verify: Verify | None = None,
            ends: Callable[[Gap], list[tuple[float, tuple[float, float]]]] | None = None,
-           gaps: Sequence[Gap] | None = None, region: Region | None = None) -> tuple[Verdict, list[Verdict]]:
+           gaps: Sequence[Gap] | None = None, region: Region | None = None,
+           heading: float | None = None) -> tuple[Verdict, list[Verdict]]:
     """Try the candidate gaps in order; the first accepted verdict (or the last rejection) and all.
 
     ``planner`` is called once per candidate (without ``react``); ``on_plan`` sees every plan
@@ -469,7 +485,7 @@ def decide(ego: EgoNow, y_target: float, target_lane: int, origin_lane: int, nei
             boundary = prob.ego if isinstance(prob, Problem) else prob
             check = None if verify is not None else check_problem(boundary, ego, nbs, (origin_lane, target_lane), cfg)
             v = Verdict(False, "", plan, gap, prob, check)
-            v.reason = judge(plan, check, cfg, verify)
+            v.reason = judge(plan, check, cfg, verify, heading)
             v.accepted = v.reason == "accepted"
             verdicts.append(v)
             if v.accepted:

@@ -35,7 +35,11 @@ neighbour's centre, speed, acceleration, heading and body per step).  With ``Δx
   estimate for every planner, SUMO-driven stretches included); ``ego_peak_accel`` =
   ``max_k |a_k|``, the per-axis extremes, the jerk peak ``max |a_{k+1} - a_k|/Δt``, and
   ``limit_violations`` = steps at which :data:`~iamp.core.physical.PASSENGER_CAR`'s ``ax``,
-  ``ay``, ``a_total`` or ``vx`` is broken (``jerk_violations`` counted apart).
+  ``ay``, ``a_total`` or ``vx`` is broken (``jerk_violations`` counted apart);
+  ``curvature_max`` = the largest curvature of the executed path (points every period, from the
+  heading of the first step's velocity: :func:`iamp.simulation.kinematics.turning`) and
+  ``curvature_violations`` = its turns tighter than a car's turning radius
+  (:data:`~iamp.simulation.kinematics.KAPPA_MAX`; a sideways start from a standstill counts).
 * **mission** — ``time_to_merge_s`` = the first time the ego's centre is in the target lane;
   ``success`` = that happened by the deadline, before the ego's front passed its lane's end,
   and no contact; ``stopped_at_end`` = never merged and stood still (``v < 0.5`` m/s) within
@@ -55,6 +59,7 @@ import numpy as np
 
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
 from iamp.simulation.decision import limit_violations_of
+from iamp.simulation.kinematics import KAPPA_MAX, TOL_REL, start_heading, turning
 from iamp.simulation.metrics import (
     StepGeometry,
     StepLog,
@@ -407,6 +412,8 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
     jerk = np.abs(np.diff(np.stack([ax, ay], axis=1), axis=0)) / dt if ax.size > 1 else np.zeros((0, 2))
     jerk_peak = float(jerk.max()) if jerk.size else 0.0
     jv = int(np.sum(np.any(jerk > limits.jerk, axis=1))) if (limits.jerk is not None and jerk.size) else 0
+    # the executed path's turns (a car's turning radius, :mod:`iamp.simulation.kinematics`)
+    kappa = turning(E[:, 0], E[:, 2], start_heading(float(E[0, 1]), float(E[0, 3]))) if E.size else np.zeros(0)
     return {
         "success": bool(in_time and not contacts),
         "time_to_merge_s": None if t_merge is None else round(t_merge, 10),
@@ -423,4 +430,6 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
         "ego_jerk_peak": jerk_peak,
         "limit_violations": int(viol),
         "jerk_violations": jv,
+        "curvature_max": float(kappa.max()) if kappa.size else 0.0,
+        "curvature_violations": int(np.sum(kappa > KAPPA_MAX * (1.0 + TOL_REL))),
     }

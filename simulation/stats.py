@@ -110,10 +110,12 @@ EVENTS: dict[str, Any] = {
     "contact_at_fault": lambda r: (_f(r, "contacts_at_fault") or 0) > 0,
     "emergency_brake": lambda r: (_f(r, "follower_emergency_brakes") or 0) > 0,
     "rss_dangerous": lambda r: (_f(r, "rss_dangerous_s") or 0) > 0,
+    # episode format 17.5: an executed turn tighter than a car's (simulation/kinematics.py)
+    "curvature_violation": lambda r: (_f(r, "curvature_violations") or 0) > 0,
 }
 #: Events measured only since a later episode format: the column they need.
 EVENT_COLUMNS = {"contact_at_fault": "contacts_at_fault", "emergency_brake": "follower_emergency_brakes",
-                 "rss_dangerous": "rss_dangerous_s"}
+                 "rss_dangerous": "rss_dangerous_s", "curvature_violation": "curvature_violations"}
 
 
 def _measured(rows: Sequence[dict[str, Any]], name: str) -> bool:

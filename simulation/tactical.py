@@ -28,7 +28,9 @@ and :class:`~iamp.simulation.failsafe.SafeParams`' others, plus ``margin_x`` (0.
 .. math::  lo = x_f + \tfrac{L_f + L_e}{2} + d(v_f, v, ρ_o, a_o, b_{min,o}, b) + m_x, \qquad
            hi = x_l - \tfrac{L_l + L_e}{2} - d(v, v_l, ρ_e, 0, b, b_{max,o}) - m_x .
 
-**Horizon and end state.**  For each ``T`` of ``horizons`` the end speed is the gap's mean
+**Horizon and end state.**  For each ``T`` of ``horizons`` (and ``crawl_horizons`` below
+``crawl_speed``: a lane change at a crawl needs more time to stay within a car's turning radius)
+the end speed is the gap's mean
 predicted speed when its end is reachable, else the reachable speed (at ``REACH`` of the ``a_x``
 bounds, every ``speed_step``) whose end needs the least peak acceleration (:func:`gap_end`); the end point is the
 constant-acceleration point ``x_0 + (v_0 + v_f)T/2`` clipped into ``[lo + s, hi - s]``
@@ -41,6 +43,7 @@ the ``max_horizons`` best are planned (none whose unconstrained cubic already br
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -54,6 +57,7 @@ from iamp.simulation.rss import safe_longitudinal_distance, safe_longitudinal_fl
 
 __all__ = [
     "TacticalConfig",
+    "all_horizons",
     "choose_gap",
     "continuing_end",
     "end_accels",
@@ -75,6 +79,22 @@ class TacticalConfig:
 
     horizons: tuple[float, ...] = (4.0, 5.0, 6.0, 7.0)
     max_horizons: int = 2
+    #: Below ``crawl_speed`` [m/s] the horizons ``crawl_horizons`` [s] are planned too: a lane
+    #: change needs about 11 m of road at a car's turning radius (a plan's path ``y(x)`` over the
+    #: length ``L`` turns by up to about ``6 Δy/L²``, :mod:`iamp.simulation.kinematics`), more than
+    #: 7 s at a crawl covers.  An end point nearer than ``sqrt(6 |Δy| / kappa_max)`` is moved that
+    #: far ahead where the gap allows it, else the horizon is not planned (its plan would be refused).
+    crawl_speed: float = 4.0
+    crawl_horizons: tuple[float, ...] = (9.0, 12.0, 15.0)
+    #: Inside its target gap's safe interval with ``roll_room_m`` of it ahead, the ego keeps rolling
+    #: at ``roll_speed`` at least [m/s, m] (the gap term's speed): a lane change from a standstill
+    #: starts sideways, which a car cannot (:mod:`iamp.simulation.kinematics`); its own lane's
+    #: leader, its end and RSS still bound the speed.
+    roll_speed: float = 1.5
+    roll_room_m: float = 11.0
+    #: Rolling into a gap the ego may drive to ``roll_end_m`` before its lane's end [m] (``end_room_m``
+    #: otherwise: the room a lane change from a crawl needs, about 11 m within the turning radius).
+    roll_end_m: float = 3.0
     b_plan: float = 4.5
     omega: float = 0.5
     k_speed: float = 1.0
@@ -84,7 +104,7 @@ class TacticalConfig:
     plan_window_m: float = 5.0
     window_s: float = 2.0
     #: The ego stops this far before the lane's end (room to merge from a standstill) [m].
-    end_room_m: float = 8.0
+    end_room_m: float = 16.0
     #: The lane's end: the ego keeps the deceleration that stops it ``end_room_m`` before the end,
     #: ``v²/(2s)``, at most ``b_end``; it starts braking when that exceeds ``end_onset`` of ``b_end``
     #: (:func:`lane_end_accel`) [m/s², 1].
@@ -228,10 +248,17 @@ def within_reach(ego: EgoNow, end: tuple[float, float], T: float, dcfg: Decision
     return min(a_0, a_1) >= cfg.reach_limits * ax[0] and max(a_0, a_1) <= cfg.reach_limits * ax[1]
 
 
+def all_horizons(ego: EgoNow, cfg: TacticalConfig) -> tuple[float, ...]:
+    """The horizons tried for the ego now: ``horizons``, and ``crawl_horizons`` below ``crawl_speed``."""
+    return cfg.horizons + (cfg.crawl_horizons if ego.vx < cfg.crawl_speed else ())
+
+
 def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfig, t_max: float | None = None,
-                 a0: float | None = None) -> list[tuple[float, tuple[float, float]]]:
+                 a0: float | None = None, dy: float | None = None) -> list[tuple[float, tuple[float, float]]]:
     """The ``max_horizons`` best ``(T, end)`` for ``gap`` (module docstring); ``t_max`` bounds ``T``;
-    ``a0`` (the executed acceleration) places each end point where the plan continues it (:func:`gap_end`).
+    ``a0`` (the executed acceleration) places each end point where the plan continues it (:func:`gap_end`);
+    ``dy`` (the lateral distance to the target lane's centre) leaves out the horizons too short
+    to turn within ``dcfg.kappa_max`` (:attr:`TacticalConfig.crawl_horizons`).
     None while the ego is farther than ``plan_window_m + window_s |v_g - v|`` from the gap's
     safe interval now (the tactical layer brings it there first)."""
     lo, hi = safe_interval(ego, gap, ego.vx, 0.0, cfg)
@@ -239,7 +266,7 @@ def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfi
     if not (lo - window <= ego.x <= hi + window):
         return []
     out = []
-    for T in cfg.horizons:
+    for T in all_horizons(ego, cfg):
         if t_max is not None and T > t_max + 1e-9:
             continue
         end = gap_end(ego, gap, T, dcfg, cfg, a0)
@@ -247,6 +274,18 @@ def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfi
             continue
         if not within_reach(ego, end, T, dcfg, cfg):
             continue  # even the unconstrained plan breaks the a_x bounds: not planned
+        if dy is not None and dcfg.kappa_max is not None:
+            # the road a lane change needs within the turning radius: the end point moved that far
+            # ahead when the gap's safe interval at T allows it (a crawl into a standing lane)
+            need = math.sqrt(6.0 * abs(dy) / dcfg.kappa_max)
+            if end[0] - ego.x < need:
+                lo, hi = safe_interval(ego, gap, end[1], T, cfg)
+                s = min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
+                if ego.x + need > hi - s:
+                    continue  # its path would turn tighter than a car can: refused (kinematics)
+                end = (float(max(ego.x + need, lo + s)), end[1])
+                if not within_reach(ego, end, T, dcfg, cfg):
+                    continue
         out.append((peak_accel(ego, end, T), T, end))
     out.sort(key=lambda r: r[0])
     return [(T, end) for _, T, end in out[: cfg.max_horizons]]
@@ -335,18 +374,27 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
         acc.append(idm.accel(ego.vx, rss_follow_gap(gap, ego.vx, leader.v(0.0), cfg), leader.v(0.0)))
         if gap < safe_longitudinal_float(ego.vx, leader.v(0.0), cfg.safe.rss):
             acc.append(-cfg.safe.rss.brake_min)  # RSS's proper response of the rear car
-    if stop_x is not None:
-        acc.append(lane_end_accel(ego.vx, stop_x - cfg.end_room_m - ego.x - ego.length / 2, cfg))
-        if lane_speed is not None:
-            acc.append(float(np.clip(cfg.k_speed * (lane_speed + cfg.match_dv - ego.vx), *cfg.gap_accel)))
+    rolling = False
     if target is not None:
         aim = aim_point(ego, target, cfg, reach=False)  # the chosen gap, within reach or not
         if aim is not None:
             xm, v = aim
             w_des = float(np.clip(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max))
-            a_g = cfg.k_speed * (v + w_des - ego.vx)
+            v_des = v + w_des
+            if v_des < cfg.roll_speed:
+                lo, hi = safe_interval(ego, target, v, 0.0, cfg)
+                if lo <= ego.x and ego.x + cfg.roll_room_m <= hi:
+                    # rolling into the gap: a car changes lanes only while it moves
+                    v_des, rolling = cfg.roll_speed, True
+            a_g = cfg.k_speed * (v_des - ego.vx)
             acc.append(float(np.clip(a_g, *cfg.gap_accel)))
             acc[0] = replace(idm, v0=1.1 * idm.v0).accel(ego.vx)
+    if stop_x is not None:
+        # rolling into a gap, the ego may use the room it keeps before its lane's end
+        room = cfg.roll_end_m if rolling else cfg.end_room_m
+        acc.append(lane_end_accel(ego.vx, stop_x - room - ego.x - ego.length / 2, cfg))
+        if lane_speed is not None:
+            acc.append(float(np.clip(cfg.k_speed * (lane_speed + cfg.match_dv - ego.vx), *cfg.gap_accel)))
     return float(min(acc))
 
 

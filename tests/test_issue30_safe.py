@@ -22,6 +22,7 @@ from iamp.simulation.failsafe import (
     verify_states,
     verify_trajectory,
 )
+from iamp.simulation.kinematics import KAPPA_MAX
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.rss import rss_distance
 from iamp.simulation.tactical import TacticalConfig, horizons_for, rss_regions, seek_accel
@@ -250,6 +251,7 @@ def test_a_period_of_lane_keeping_is_within_the_car_limits_and_does_not_drift_at
     ``PASSENGER_CAR``'s ``a_x`` range and ``|a_y| <= 1.5``, never reverses, and below 1 m/s it only
     brings the lateral speed to 0 (the abort's sideways drift at ``v_x = 0`` is gone)."""
     from iamp.core.physical import PASSENGER_CAR
+    from iamp.simulation.controller import TURN_SHARE
     from iamp.simulation.simulator import EgoState
 
     ctl = _controller()
@@ -261,9 +263,19 @@ def test_a_period_of_lane_keeping_is_within_the_car_limits_and_does_not_drift_at
     assert nxt.vx >= -1e-9
     # exact for one step of constant input: the executed second difference is the input
     assert nxt.x == pytest.approx(ego.x + ego.vx * 0.1 + nxt.ax * 0.005)
-    # a car moves sideways only while it moves forward: |v_y| <= 0.1 v_x, or v_y falls at the bound
-    assert abs(nxt.vy) <= 0.1 * nxt.vx + 1e-9 or abs(nxt.vy) == pytest.approx(abs(vy) - 0.15, abs=1e-9)
-    if vx < 1.0:
-        assert abs(nxt.vy) <= abs(vy) + 1e-12
-        if abs(vy) <= 0.15:  # within one period's lateral bound: stopped at once
-            assert nxt.vy == pytest.approx(0.0, abs=1e-12)
+    psi0 = math.atan2(vy, vx) if math.hypot(vx, vy) > 0.05 else 0.0
+    if nxt.vx > 0.0 and abs(psi0) <= math.pi / 4:
+        # a car turns only while it moves: its velocity turns by at most kappa_max per metre
+        # travelled (simulation/kinematics.py), or the lateral input is at its bound
+        turn = TURN_SHARE * KAPPA_MAX * 0.5 * (math.hypot(vx, vy) + math.hypot(nxt.vx, nxt.vy)) * 0.1
+        assert abs(math.atan2(nxt.vy, nxt.vx) - psi0) <= turn + 1e-9 or abs(nxt.ay) == pytest.approx(1.5)
+        # and toward the lane: the heading never grows at a crawl
+        if vx < 1.0:
+            assert abs(math.atan2(nxt.vy, nxt.vx)) <= abs(psi0) + 1e-9
+    else:
+        # a heading no plan leaves (or a standstill): |v_y| <= 0.1 v_x, or v_y falls at the bound
+        assert abs(nxt.vy) <= 0.1 * nxt.vx + 1e-9 or abs(nxt.vy) == pytest.approx(abs(vy) - 0.15, abs=1e-9)
+        if vx < 1.0:
+            assert abs(nxt.vy) <= abs(vy) + 1e-12
+            if abs(vy) <= 0.15:  # within one period's lateral bound: stopped at once
+                assert nxt.vy == pytest.approx(0.0, abs=1e-12)

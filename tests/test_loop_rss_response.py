@@ -40,6 +40,7 @@ def _controller() -> Controller:
     c = Controller.__new__(Controller)
     c.cfg = ControllerConfig()
     c.sim = _Sim()  # type: ignore[assignment]
+    c.heading = 0.0
     return c
 
 

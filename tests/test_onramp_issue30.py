@@ -194,6 +194,7 @@ def test_executed_inputs_change_within_the_jerk_bound_except_an_urgent_brake(a_p
     ctl = Controller.__new__(Controller)
     ctl.cfg = ControllerConfig()
     ctl.sim = SimpleNamespace(step=0.1)  # type: ignore[assignment]
+    ctl.heading = 0.0
     jerk = ctl.cfg.decision.limits.jerk
     assert jerk is not None
     step = JERK_SHARE * jerk * 0.1

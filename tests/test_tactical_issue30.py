@@ -122,6 +122,7 @@ def _controller() -> Controller:
     ctl = Controller.__new__(Controller)
     ctl.cfg = ControllerConfig()
     ctl.sim = SimpleNamespace(step=0.1)  # type: ignore[assignment]
+    ctl.heading = 0.0
     return ctl
 
 

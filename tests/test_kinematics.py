@@ -1,0 +1,192 @@
+"""A path a car can drive (:mod:`iamp.simulation.kinematics`): the curvature measured from points,
+the plans the closed loop refuses, and the tactical layer's steering.
+
+Before: plans accepted at a crawl turned on radii down to 0.4 m, and the ego slid sideways at a
+standstill (merge dense 2: heading 87° at 0.8 m/s; 6 of 18 dense and LOS E episodes turned
+tighter than 5 m), because the point-mass plans move ``s_x`` and ``s_y`` independently.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from iamp.core.problem import EgoBoundary
+from iamp.simulation.decision import DecisionConfig, judge
+from iamp.simulation.kinematics import KAPPA_MAX, TOL_REL, plan_turning, start_heading, turning
+from iamp.simulation.planning import free_plan
+
+
+@settings(max_examples=80, deadline=None)
+@given(radius=st.floats(2.0, 500.0), step=st.floats(0.21, 3.0), psi0=st.floats(-math.pi, math.pi),
+       sweep=st.floats(0.3, 3.0), left=st.booleans())
+def test_the_curvature_of_a_circular_arc_is_one_over_its_radius(radius, step, psi0, sweep, left):
+    """Points every ``step`` metres of arc on a circle of radius ``R`` leaving the heading ``ψ_0``:
+    every vertex and the start measure ``1/R`` (chords ``2R sin(θ/2)`` turn by ``θ`` and leave the
+    tangent by ``θ/2``), to round-off."""
+    n = max(3, int(sweep * radius / step))
+    s = np.arange(n + 1) * step
+    sign = 1.0 if left else -1.0
+    ang = sign * s / radius
+    # centre to the left (right) of the heading psi0
+    cx, cy = -sign * radius * math.sin(psi0), sign * radius * math.cos(psi0)
+    x = cx + sign * radius * np.sin(psi0 + ang)
+    y = cy - sign * radius * np.cos(psi0 + ang)
+    k = turning(x, y, psi0)
+    assert k.size == n
+    np.testing.assert_allclose(k, 1.0 / radius, rtol=1e-6, atol=1e-9)
+
+
+def test_a_straight_path_and_a_standstill_do_not_turn_and_a_sideways_start_does():
+    x = np.linspace(0.0, 30.0, 61)
+    assert np.all(turning(x, np.zeros_like(x), 0.0) < 1e-12)
+    # standing still (all points within ds_min) then driving straight on: no turn
+    xs = np.concatenate((np.zeros(20), np.linspace(0.0, 10.0, 21)))
+    assert np.all(turning(xs, np.zeros_like(xs), 0.0) < 1e-12)
+    # sliding sideways from a standstill: the start turns by pi/2 over the first chord
+    y = np.linspace(0.0, 1.0, 11)
+    k = turning(np.zeros_like(y), y, 0.0)
+    assert k[0] == pytest.approx(2.0 / 0.2)
+    assert turning(np.zeros(5), np.zeros(5), 0.0).size == 0
+
+
+def test_the_start_heading_is_the_velocity_s_direction_or_the_road_s():
+    assert start_heading(10.0, 10.0) == pytest.approx(math.pi / 4)
+    assert start_heading(0.0, 0.01) == 0.0  # a standstill: along the road
+    assert start_heading(0.0, 0.5) == pytest.approx(math.pi / 2)
+
+
+def test_judge_refuses_a_lane_change_from_a_crawl_and_accepts_it_at_speed():
+    """The same 3.5 m lane change in 5 s: from 25 m/s its path turns on radii of hundreds of
+    metres; from 0.5 m/s it starts almost sideways (``kinematics``)."""
+    cfg = DecisionConfig()
+    fast = EgoBoundary(tf=5.0, x0=0.0, y0=0.0, vx0=25.0, vy0=0.0, xf=125.0, yf=3.5, vxf=25.0, vyf=0.0)
+    plan = free_plan(fast, "free")
+    assert judge(plan, None, cfg) == "accepted"
+    assert float(plan_turning(plan.require_trajectory(), 5.0).max()) < 0.01
+    crawl = EgoBoundary(tf=5.0, x0=0.0, y0=0.0, vx0=0.5, vy0=0.0, xf=6.0, yf=3.5, vxf=2.0, vyf=0.0)
+    slow = free_plan(crawl, "free")
+    assert float(plan_turning(slow.require_trajectory(), 5.0).max()) > KAPPA_MAX * (1 + TOL_REL)
+    assert judge(slow, None, cfg) == "kinematics"
+    from dataclasses import replace
+
+    assert judge(slow, None, replace(cfg, kappa_max=None)) == "accepted"  # the test is the turning radius
+
+
+@settings(max_examples=120, deadline=None)
+@given(vx=st.floats(0.0, 35.0), psi=st.floats(-0.3, 0.3), ax=st.floats(-6.0, 3.0), ay=st.floats(-4.0, 4.0))
+def test_the_tactical_layer_turns_the_velocity_by_at_most_kappa_max_per_metre(vx, psi, ax, ay):
+    """:meth:`Controller._turn_bound`: from a velocity on heading ``ψ`` (``v_y = v_x tan ψ``), the
+    next period's velocity turns by at most ``TURN_SHARE κ_max`` times the distance travelled (the
+    mean speed times the period); an input that turns less is kept as it is."""
+    from iamp.simulation.controller import TURN_SHARE, Controller, ControllerConfig
+    from iamp.simulation.simulator import EgoState
+
+    ctl = Controller.__new__(Controller)
+    ctl.cfg = ControllerConfig()
+    ctl.heading = 0.0
+
+    class _Sim:
+        step = 0.1
+
+    ctl.sim = _Sim()
+    vy = vx * math.tan(psi)
+    ego = EgoState(x=0.0, vx=vx, y=0.0, vy=vy, ax=0.0, ay=0.0)
+    vx1 = vx + ax * 0.1
+    out = ctl._turn_bound(ego, ax, ay)
+    vy1 = vy + out * 0.1
+    if vx1 <= 0.0 or math.hypot(vx1, vy + ay * 0.1) == 0.0:
+        return
+    turn = TURN_SHARE * KAPPA_MAX * 0.5 * (math.hypot(vx, vy) + math.hypot(vx1, vy + ay * 0.1)) * 0.1
+    psi0 = start_heading(vx, vy)
+    # within the bound, or the lateral input at the lane keeping's bound on the way to it
+    assert abs(math.atan2(vy1, vx1) - psi0) <= turn + 1e-9 or abs(out) == pytest.approx(ctl.cfg.lane_keep_ay)
+    if abs(math.atan2(vy + ay * 0.1, vx1) - psi0) <= turn:
+        assert out == ay
+
+
+def test_the_monitor_counts_the_executed_turns_tighter_than_a_car_s():
+    """``curvature_max``/``curvature_violations`` of an episode: a lane change at 20 m/s passes;
+    the same log with the ego sliding sideways while standing counts its turns."""
+    from iamp.simulation.metrics import StepLog
+    from iamp.simulation.monitor import monitor
+
+    def log_of(rows):
+        log = StepLog()
+        for k, r in enumerate(rows):
+            log.t.append(0.1 * k)
+            log.ego.append(tuple(r))
+            log.mode.append("active")
+            log.plan_time.append(float("nan"))
+            log.ids.append(())
+            log.nb.append(np.zeros((0, 8)))
+        return log
+
+    t = np.arange(61) * 0.1
+    y = 3.5 * (10 * (t / 6) ** 3 - 15 * (t / 6) ** 4 + 6 * (t / 6) ** 5)  # quintic lane change
+    vy = np.gradient(y, t)
+    smooth = [(20.0 * tk, 20.0, yk, vyk, 0.0, 0.0) for tk, yk, vyk in zip(t, y, vy)]
+    lane = lambda yy: int(round(yy / 3.5))  # noqa: E731
+    out = monitor(log_of(smooth), 0.1, (4.8, 1.8), lane, 1, 60.0, None, [])
+    assert out["curvature_violations"] == 0 and 0.0 < out["curvature_max"] < 0.01
+    stand = [(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)] * 5
+    slide = stand + [(0.0, 0.0, yk, 0.5, 0.0, 0.0) for yk in np.linspace(0.05, 3.0, 60)]
+    out = monitor(log_of(slide), 0.1, (4.8, 1.8), lane, 1, 60.0, None, [])
+    assert out["curvature_violations"] >= 1 and out["curvature_max"] == pytest.approx(2.0 / 0.2)
+
+
+def _nb(name: str, x: float, v: float):
+    from iamp.simulation.decision import Neighbour
+
+    return Neighbour(name, (x, v, 0.0, 0.0), 3.75, 4.6, 1.8, 1)
+
+
+def test_at_a_crawl_the_longer_horizons_are_planned_with_the_road_a_lane_change_needs():
+    """Below ``crawl_speed`` the horizons ``crawl_horizons`` join; an end point nearer than
+    ``sqrt(6 |Δy| / κ_max)`` (10.6 m for 3.75 m) is moved that far ahead inside the gap, and a
+    horizon whose gap has no such room is not planned.  At speed nothing changes."""
+    from iamp.simulation.decision import EgoNow, Gap
+    from iamp.simulation.tactical import TacticalConfig, all_horizons, horizons_for
+
+    cfg, dcfg = TacticalConfig(), DecisionConfig()
+    need = math.sqrt(6 * 3.75 / KAPPA_MAX)
+    crawl = EgoNow(0.0, 1.0, 0.0, 0.0)
+    assert all_horizons(crawl, cfg) == cfg.horizons + cfg.crawl_horizons
+    assert all_horizons(EgoNow(0.0, 20.0, 0.0, 0.0), cfg) == cfg.horizons
+    # a standing target lane with a long gap beside the ego
+    gap = Gap(_nb("f", -60.0, 0.0), _nb("l", 80.0, 0.0))
+    out = horizons_for(crawl, gap, dcfg, cfg, dy=3.75)
+    assert out and all(T in cfg.crawl_horizons for T, _ in out)
+    for _, (xf, _) in out:
+        assert xf - crawl.x >= need - 1e-9
+        assert 6 * 3.75 / (xf - crawl.x) ** 2 <= KAPPA_MAX + 1e-12
+    # the leader 12 m ahead: the gap has no 10.6 m of room ahead of the ego, nothing is planned
+    assert horizons_for(crawl, Gap(_nb("f", -60.0, 0.0), _nb("l", 12.0, 0.0)), dcfg, cfg, dy=3.75) == []
+    # without dy (the old call) the crawl horizons are planned with their own end points
+    assert horizons_for(crawl, gap, dcfg, cfg) != []
+
+
+def test_inside_its_gap_the_ego_rolls_and_may_use_the_room_before_its_lane_s_end():
+    """Inside the target gap's safe interval with ``roll_room_m`` of it ahead, the gap term's speed
+    is at least ``roll_speed`` and the lane's end bounds the ego ``roll_end_m`` before it instead of
+    ``end_room_m``; outside, the gap term and the end room are as before."""
+    from iamp.simulation.decision import EgoNow, Gap
+    from iamp.simulation.tactical import TacticalConfig, lane_end_accel, seek_accel
+
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, 0.0, 0.0, 0.0)
+    standing = Gap(_nb("f", -60.0, 0.0), _nb("l", 80.0, 0.0))
+    end = 30.0  # the lane ends 30 m ahead: within end_room_m + ..., beyond roll_end_m
+    a = seek_accel(ego, None, end, standing, 33.3, cfg)
+    assert a == pytest.approx(min(cfg.k_speed * cfg.roll_speed, cfg.gap_accel[1],
+                                  lane_end_accel(0.0, end - cfg.roll_end_m - ego.length / 2, cfg)))
+    assert a > 0.0
+    # no room ahead in the gap (its leader 12 m ahead): no rolling, the end room as before
+    tight = Gap(_nb("f", -60.0, 0.0), _nb("l", 12.0, 0.0))
+    assert seek_accel(ego, None, end, tight, 33.3, cfg) <= 0.0
+    # the end room: standing 10 m before the end with no gap, the ego does not move
+    assert seek_accel(EgoNow(end - 10.0, 0.0, 0.0, 0.0), None, end, None, 33.3, cfg) <= 0.0
