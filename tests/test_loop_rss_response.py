@@ -221,3 +221,23 @@ def test_the_followed_car_is_the_nearest_of_the_lane_leader_and_the_cars_rss_fin
         assert got is None
     else:
         assert got is not None and got.x(0.0) == min(n.x(0.0) for n in want)
+
+
+def test_the_fail_safe_brakes_at_least_as_rss_s_proper_response_behind_a_car_too_close() -> None:
+    """During the fail-safe (``abort``) the ego brakes at least ``brake_min`` while the car it
+    follows is closer than RSS's distance (merge light 68: 2.3 s at fault braking at the verified
+    fail-safe's 1.5 m/s² behind a car 69 m ahead where RSS asked 72 m); beyond it, 0 (the
+    fail-safe's own deceleration applies)."""
+    from iamp.simulation.network import Highway
+    from iamp.simulation.rss import safe_longitudinal_float
+
+    c = _controller()
+    c.sim.highway = Highway()  # type: ignore[attr-defined]
+    ego = EgoState(x=0.0, vx=21.7, y=c.sim.highway.lane_centre(1), vy=0.0)  # type: ignore[attr-defined]
+    d = safe_longitudinal_float(21.7, 13.5, DEFAULT)
+    half = (4.8 + c.sim.ego_length) / 2
+    near = car(d + half - 1.0, ego.y, 13.5)
+    far = car(d + half + 1.0, ego.y, 13.5)
+    assert c._proper_brake(ego, [near]) == DEFAULT.brake_min
+    assert c._proper_brake(ego, [far]) == 0.0
+    assert c._proper_brake(ego, []) == 0.0
