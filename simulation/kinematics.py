@@ -86,12 +86,12 @@ def start_heading(vx: float, vy: float, standing: float = 0.0) -> float:
     return math.atan2(vy, vx) if math.hypot(vx, vy) > MOVING_MPS else standing
 
 
-def plan_turning(trajectory: Any, tf: float, t0: float = 0.0, heading: float | None = None) -> NDArray[np.float64]:
-    """:func:`turning` of a plan's path on ``[t0, tf]`` sampled every :data:`PLAN_DT_S` (and at
-    both ends), from the heading of its velocity at ``t0``, or ``heading`` (the car's) when it
-    stands there (:func:`start_heading`)."""
-    n = max(int(math.ceil((tf - t0) / PLAN_DT_S)), 1) + 1
-    t = np.linspace(t0, tf, n)
+def plan_turning(trajectory: Any, tf: float, heading: float | None = None) -> NDArray[np.float64]:
+    """:func:`turning` of a plan's path on ``[0, tf]`` sampled every :data:`PLAN_DT_S` (and at
+    both ends), from the heading of its velocity at 0, or ``heading`` (the car's) when it stands
+    there (:func:`start_heading`)."""
+    n = max(int(math.ceil(tf / PLAN_DT_S)), 1) + 1
+    t = np.linspace(0.0, tf, n)
     X = np.asarray(trajectory.states(t), dtype=float)
     return turning(X[:, 0], X[:, 2], start_heading(float(X[0, 1]), float(X[0, 3]),
                                                    0.0 if heading is None else heading))

@@ -190,3 +190,27 @@ def test_inside_its_gap_the_ego_rolls_and_may_use_the_room_before_its_lane_s_end
     assert seek_accel(ego, None, end, tight, 33.3, cfg) <= 0.0
     # the end room: standing 10 m before the end with no gap, the ego does not move
     assert seek_accel(EgoNow(end - 10.0, 0.0, 0.0, 0.0), None, end, None, 33.3, cfg) <= 0.0
+
+
+def test_a_vertex_turns_by_its_angle_over_the_mean_of_its_chords_and_a_reversal_counts():
+    """Chords of 1 m and 2 m meeting at an angle θ: ``2 sin(θ/2) / 1.5``; a path that starts
+    backwards from the heading counts as a sideways start (the deviation capped at 90°: ``2/l_0``)."""
+    theta = 0.3
+    x = np.array([0.0, 1.0, 1.0 + 2.0 * math.cos(theta)])
+    y = np.array([0.0, 0.0, 2.0 * math.sin(theta)])
+    k = turning(x, y, 0.0, ds_min=0.1)
+    assert k[0] == pytest.approx(0.0, abs=1e-12)
+    assert k[1] == pytest.approx(2.0 * math.sin(theta / 2) / 1.5, rel=1e-12)
+    back = turning(-np.linspace(0.0, 1.0, 6), np.zeros(6), 0.0)
+    assert back[0] == pytest.approx(2.0 / 0.2)
+
+
+def test_a_plan_from_a_standstill_starts_from_the_heading_the_car_stopped_with():
+    """A straight plan along the road from a standstill: from the road's heading (None: 0) it
+    does not turn; from a car standing at 0.3 rad it starts off its heading by 0.3 rad."""
+    stand = EgoBoundary(tf=5.0, x0=0.0, y0=0.0, vx0=0.0, vy0=0.0, xf=20.0, yf=0.0, vxf=8.0, vyf=0.0)
+    tr = free_plan(stand, "free").require_trajectory()
+    assert float(plan_turning(tr, 5.0).max()) < 1e-9
+    assert float(plan_turning(tr, 5.0, heading=0.0).max()) < 1e-9
+    k = plan_turning(tr, 5.0, heading=0.3)
+    assert k[0] > KAPPA_MAX and k[0] == pytest.approx(2.0 * math.sin(0.3) / 0.2, rel=0.05)
