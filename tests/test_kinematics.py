@@ -196,11 +196,14 @@ def test_a_vertex_turns_by_its_angle_over_the_mean_of_its_chords_and_a_reversal_
     """Chords of 1 m and 2 m meeting at an angle θ: ``2 sin(θ/2) / 1.5``; a path that starts
     backwards from the heading counts as a sideways start (the deviation capped at 90°: ``2/l_0``)."""
     theta = 0.3
-    x = np.array([0.0, 1.0, 1.0 + 2.0 * math.cos(theta)])
-    y = np.array([0.0, 0.0, 2.0 * math.sin(theta)])
+    x = np.array([0.0, 1.0, 1.0 + 2.0 * math.cos(theta), 1.0 + 2.0 * math.cos(theta) + 0.5])
+    y = np.array([0.0, 0.0, 2.0 * math.sin(theta), 2.0 * math.sin(theta)])
     k = turning(x, y, 0.0, ds_min=0.1)
     assert k[0] == pytest.approx(0.0, abs=1e-12)
     assert k[1] == pytest.approx(2.0 * math.sin(theta / 2) / 1.5, rel=1e-12)
+    assert k[2] == pytest.approx(2.0 * math.sin(theta / 2) / 1.25, rel=1e-12)
+    # leaving the heading -0.2 by 0.2 over a first chord of 1 m (the second 2 m long)
+    assert turning(x, y, -0.2, ds_min=0.1)[0] == pytest.approx(2.0 * math.sin(0.2) / 1.0, rel=1e-12)
     back = turning(-np.linspace(0.0, 1.0, 6), np.zeros(6), 0.0)
     assert back[0] == pytest.approx(2.0 / 0.2)
 
