@@ -74,7 +74,7 @@ from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.safety import SAFETY_TOLERANCE_M, safety_report
 from iamp.core.status import SUCCESS
 from iamp.prediction.leader.ego import iterate_with_planner
-from iamp.simulation.kinematics import KAPPA_MAX, TOL_REL, plan_turning
+from iamp.simulation.kinematics import KAPPA_MAX, TOL_REL, sampled_turning
 from iamp.simulation.rss import RssParameters, within_rss_reach
 
 #: A :class:`Problem` holds at most 8 vehicles: the §9 check takes the nearest ones.
@@ -409,7 +409,7 @@ def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig, verify: Verify
     """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``kinematics``, ``intrusion:``,
     ``rss:``); ``kinematics``: the path turns tighter than ``cfg.kappa_max`` or starts off the
     ego's ``heading`` (its velocity's direction when it moves, else the heading it stopped with;
-    :func:`iamp.simulation.kinematics.plan_turning`).
+    :func:`iamp.simulation.kinematics.sampled_turning` on the states the limits are checked on).
 
     With ``verify`` the safety test is ``verify(plan)`` (the ego's body, RSS distances and a
     verified fail-safe, :mod:`iamp.simulation.failsafe`) instead of the §9 report of the ego's
@@ -418,12 +418,16 @@ def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig, verify: Verify
     if plan.status not in SUCCESS or plan.trajectory is None:
         return f"failed:{plan.status}"
     tf = float(plan.problem.tf)
-    bad = limit_violations(plan.trajectory, tf, cfg.limits, cfg.check_dt)
+    # the limits and the path's turns on one sampling of the plan (every check_dt and both ends)
+    t = check_times(tf, cfg.check_dt)
+    X = np.asarray(plan.trajectory.states(t))
+    U = np.asarray(plan.trajectory.inputs(t))
+    bad = limit_violations_of(U[:, 0], U[:, 1], X[:, 1], cfg.limits)
     if bad:
         return "limits:" + ",".join(bad)
     if cfg.kappa_max is not None:
         # the path a car can drive: no sideways start, no turn tighter than its turning radius
-        kappa = plan_turning(plan.trajectory, tf, heading=heading)
+        kappa = sampled_turning(X, heading)
         if kappa.size and float(kappa.max()) > cfg.kappa_max * (1.0 + TOL_REL):
             return "kinematics"
     if verify is not None:

@@ -34,7 +34,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["DS_MIN_M", "KAPPA_MAX", "MOVING_MPS", "TOL_REL", "plan_turning", "start_heading", "turning"]
+__all__ = ["DS_MIN_M", "KAPPA_MAX", "MOVING_MPS", "PLAN_DT_S", "TOL_REL", "plan_turning", "sampled_turning",
+           "start_heading", "turning"]
 
 #: The largest curvature a passenger car drives [1/m] (turning radius 5 m, module docstring).
 KAPPA_MAX = 0.2
@@ -86,12 +87,17 @@ def start_heading(vx: float, vy: float, standing: float = 0.0) -> float:
     return math.atan2(vy, vx) if math.hypot(vx, vy) > MOVING_MPS else standing
 
 
-def plan_turning(trajectory: Any, tf: float, heading: float | None = None) -> NDArray[np.float64]:
-    """:func:`turning` of a plan's path on ``[0, tf]`` sampled every :data:`PLAN_DT_S` (and at
-    both ends), from the heading of its velocity at 0, or ``heading`` (the car's) when it stands
-    there (:func:`start_heading`)."""
-    n = max(int(math.ceil(tf / PLAN_DT_S)), 1) + 1
-    t = np.linspace(0.0, tf, n)
-    X = np.asarray(trajectory.states(t), dtype=float)
+def plan_turning(trajectory: Any, tf: float, heading: float | None = None, dt: float = PLAN_DT_S
+                 ) -> NDArray[np.float64]:
+    """:func:`turning` of a plan's path on ``[0, tf]`` sampled every ``dt`` (and at both ends),
+    :func:`sampled_turning` of those states."""
+    n = max(int(math.ceil(tf / dt)), 1) + 1
+    return sampled_turning(np.asarray(trajectory.states(np.linspace(0.0, tf, n)), dtype=float), heading)
+
+
+def sampled_turning(X: NDArray[np.float64], heading: float | None = None) -> NDArray[np.float64]:
+    """:func:`turning` of a path given by sampled states ``X`` (rows ``s_x, v_x, s_y, v_y``), from
+    the heading of its first velocity, or ``heading`` (the car's) when it stands there
+    (:func:`start_heading`)."""
     return turning(X[:, 0], X[:, 2], start_heading(float(X[0, 1]), float(X[0, 3]),
                                                    0.0 if heading is None else heading))
