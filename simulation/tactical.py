@@ -190,6 +190,11 @@ def continuing_end(ego: EgoNow, a0: float, T: float, vxf: float) -> float:
     return float(ego.x + ego.vx * T + a0 * T**2 / 6 + (vxf - ego.vx) * T / 3)
 
 
+def _end_margin(lo: float, hi: float) -> float:
+    """How far inside a gap's safe interval ``[lo, hi]`` an end point is placed: ``min(2, (hi - lo)/2)``."""
+    return min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
+
+
 def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: TacticalConfig, a0: float | None = None
             ) -> tuple[float, float] | None:
     """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when no reachable end
@@ -211,7 +216,7 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
         lo, hi = safe_interval(ego, gap, vxf, T, cfg)
         if not lo < hi:
             return None
-        s = min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
+        s = _end_margin(lo, hi)
         x = ego.x + (ego.vx + vxf) * T / 2 if a0 is None else continuing_end(ego, a0, T, vxf)
         return float(np.clip(x, lo + s, hi - s)), vxf
 
@@ -280,7 +285,7 @@ def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfi
             need = math.sqrt(6.0 * abs(dy) / dcfg.kappa_max)
             if end[0] - ego.x < need:
                 lo, hi = safe_interval(ego, gap, end[1], T, cfg)
-                s = min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
+                s = _end_margin(lo, hi)
                 if ego.x + need > hi - s:
                     continue  # its path would turn tighter than a car can: refused (kinematics)
                 end = (float(max(ego.x + need, lo + s)), end[1])
