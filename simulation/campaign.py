@@ -74,7 +74,11 @@ Key = tuple[str, str, str, int]
 #: turning radius and does not start sideways, and the tactical layer steers within it
 #: (plans at a crawl turned on radii down to 0.4 m, the ego slid sideways at a standstill); the
 #: columns ``curvature_max`` and ``curvature_violations``.
-EPISODE_FORMAT = "17.5"
+#: 17.6: a plan's path also ends on its last velocity's heading and leaves the ego standing at most
+#: :data:`~iamp.simulation.kinematics.STOP_HEADING_MAX` to the road (plans that stopped the ego at
+#: up to 50° to its lane, then straightened in place), and the lane keeping brakes along the heading
+#: where RSS's lateral response cuts a lateral speed faster than a car turns.
+EPISODE_FORMAT = "17.6"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

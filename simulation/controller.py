@@ -63,7 +63,7 @@ from iamp.simulation.decision import (
     lane_change_problem,
 )
 from iamp.simulation.failsafe import Obstacle, body_half_extents, feasible_brakes, verify_trajectory
-from iamp.simulation.kinematics import start_heading
+from iamp.simulation.kinematics import STEER_SHARE, start_heading
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
@@ -97,7 +97,7 @@ LATERAL_ROOM_M = 0.5
 #: The share of ``κ_max`` the tactical layer's turns use (:meth:`Controller._turn_bound`): the
 #: monitor measures the executed path by its chords, whose headings are the periods' mean
 #: velocities, not the velocities the bound holds.
-TURN_SHARE = 0.9
+TURN_SHARE = STEER_SHARE
 #: The tactical layer bounds the turn of the ego's velocity (:meth:`Controller._turn_bound`) from
 #: headings within this [rad] (45°; a drivable plan ends far inside it).
 MAX_TURN_HEADING = math.pi / 4
@@ -633,8 +633,45 @@ class Controller:
             ay = max(-lim, min(ay, (caps[0] - ego.vy) / dt))
         if ego.vy + ay * dt < -caps[1]:
             ay = min(lim, max(ay, (-caps[1] - ego.vy) / dt))
+        ax = self._heading_brake(ego, ax, ay)
         return EgoState(x=ego.x + ego.vx * dt + ax * dt**2 / 2, vx=ego.vx + ax * dt,
                         y=ego.y + ego.vy * dt + ay * dt**2 / 2, vy=ego.vy + ay * dt, ax=ax, ay=ay)
+
+    def _heading_brake(self, ego: EgoState, ax: float, ay: float) -> float:
+        """``a_x`` such that the velocity after the period keeps the turn bound of :meth:`_turn_bound`
+        when the lateral input ``ay`` is not the one it chose (RSS's lateral proper response, or the
+        lane keeping's bound, cut the lateral speed): a car's lateral speed is ``v sin ψ``, so with
+        its heading turning at most :data:`TURN_SHARE` ``κ_max`` per metre it sheds lateral speed by
+        braking along its heading, down to a standstill (merge medium 74: the ego, stopped at 38° to
+        the road after a lane change at a crawl, restarted under a lateral cap toward a car in the
+        next lane and turned on a 1 m radius).  No more than the car's brake (:data:`PASSENGER_CAR`'s
+        ``a_x``); unchanged from a heading :meth:`_turn_bound` does not bound."""
+        kappa = self.cfg.decision.kappa_max
+        if kappa is None:
+            return ax
+        dt = self.sim.step
+        vx1, vy1 = ego.vx + ax * dt, ego.vy + ay * dt
+        psi0 = start_heading(ego.vx, ego.vy, self.heading)
+        if vx1 <= 0.0 or abs(psi0) > MAX_TURN_HEADING:
+            return ax
+        speed0 = math.hypot(ego.vx, ego.vy)
+        turn = TURN_SHARE * kappa * 0.5 * (speed0 + math.hypot(vx1, vy1)) * dt
+        psi1 = math.atan2(vy1, vx1)
+        if psi0 - turn - 1e-12 <= psi1 <= psi0 + turn + 1e-12:
+            return ax
+        # the heading the lateral speed ``vy1`` allows: the nearest to ``ψ0`` within the smallest turn
+        # (the one of a car that stops in the period, ``speed1 = 0``)
+        least = TURN_SHARE * kappa * 0.5 * speed0 * dt
+        psi = psi0 - least if psi1 < psi0 else psi0 + least
+        if psi * vy1 > 0.0 and abs(psi) > 1e-9:
+            vx_new = vy1 / math.tan(psi)
+        else:  # a lateral speed of the other sign, or none, from a heading off the road: stop
+            vx_new = 0.0
+        if vx_new >= vx1:  # braking would turn it further (a lateral speed the turn bound left)
+            return ax
+        vx_new = max(vx_new, 0.0)
+        lo = (PASSENGER_CAR.ax or (-6.0, 3.0))[0]
+        return float(max((vx_new - ego.vx) / dt, lo, -ego.vx / dt))
 
     def _turn_bound(self, ego: EgoState, ax: float, ay: float) -> float:
         """``a_y`` such that the velocity's heading turns by at most :data:`TURN_SHARE` ``κ_max`` per

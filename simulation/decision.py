@@ -74,7 +74,7 @@ from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.core.safety import SAFETY_TOLERANCE_M, safety_report
 from iamp.core.status import SUCCESS
 from iamp.prediction.leader.ego import iterate_with_planner
-from iamp.simulation.kinematics import KAPPA_MAX, TOL_REL, sampled_turning
+from iamp.simulation.kinematics import KAPPA_MAX, STOP_HEADING_MAX, TOL_REL, sampled_turning, stop_heading
 from iamp.simulation.rss import RssParameters, within_rss_reach
 
 #: A :class:`Problem` holds at most 8 vehicles: the §9 check takes the nearest ones.
@@ -188,6 +188,9 @@ class DecisionConfig:
     #: The largest curvature of a plan's path [1/m] (a car's turning radius,
     #: :mod:`iamp.simulation.kinematics`; None: not tested).
     kappa_max: float | None = KAPPA_MAX
+    #: The largest angle to the road [rad] a plan may leave the ego standing at
+    #: (:func:`iamp.simulation.kinematics.stop_heading`; tested with ``kappa_max``).
+    stop_heading_max: float = STOP_HEADING_MAX
     #: The planner imposes every vehicle of its problem as the paper's corner *equality* (``pmp``,
     #: ``qp``; the registry's ``constraint == "equality"``): the problem carries only the corners in
     #: the way (:func:`corners_in_the_way`).
@@ -407,9 +410,11 @@ Verify = Callable[[Plan], str]
 def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig, verify: Verify | None = None,
           heading: float | None = None) -> str:
     """``"accepted"`` or the first failed test (``failed:``, ``limits:``, ``kinematics``, ``intrusion:``,
-    ``rss:``); ``kinematics``: the path turns tighter than ``cfg.kappa_max`` or starts off the
-    ego's ``heading`` (its velocity's direction when it moves, else the heading it stopped with;
-    :func:`iamp.simulation.kinematics.sampled_turning` on the states the limits are checked on).
+    ``rss:``); ``kinematics``: the path turns tighter than ``cfg.kappa_max``, starts off the
+    ego's ``heading`` (its velocity's direction when it moves, else the heading it stopped with) or
+    ends off its last velocity's direction (:func:`iamp.simulation.kinematics.sampled_turning` on
+    the states the limits are checked on), or leaves the ego standing at more than
+    ``cfg.stop_heading_max`` to the road (:func:`iamp.simulation.kinematics.stop_heading`).
 
     With ``verify`` the safety test is ``verify(plan)`` (the ego's body, RSS distances and a
     verified fail-safe, :mod:`iamp.simulation.failsafe`) instead of the §9 report of the ego's
@@ -429,6 +434,8 @@ def judge(plan: Plan, check: Problem | None, cfg: DecisionConfig, verify: Verify
         # the path a car can drive: no sideways start, no turn tighter than its turning radius
         kappa = sampled_turning(X, heading)
         if kappa.size and float(kappa.max()) > cfg.kappa_max * (1.0 + TOL_REL):
+            return "kinematics"
+        if stop_heading(X) > cfg.stop_heading_max:  # standing across the road: it drives on along it
             return "kinematics"
     if verify is not None:
         return verify(plan)

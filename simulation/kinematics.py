@@ -22,8 +22,18 @@ by ``θ``, so each vertex's
 
 is ``1/R`` on a circle; the first chord of an arc leaving the heading ``ψ_0`` deviates from it by
 ``θ/2``, so the start counts ``2 sin|ψ_1 - ψ_0| / l_0`` (the deviation capped at 90°: a path that
-starts sideways from a standstill counts ``2/l_0``, 10 1/m).  A path passes when every value is
-at most ``κ_max`` (to the tolerance :data:`TOL_REL`).
+starts sideways from a standstill counts ``2/l_0``, 10 1/m).  A plan's path also ends on a heading
+when the car still moves there (its last velocity's direction ``ψ_f``): its last point is then kept
+(in place of the last kept one when nearer than ``ds_min`` to it) and the end counts
+``2 sin|ψ_f - ψ_K| / l_K`` of the last chord, as the start does (a plan that ends rolling along the
+road after a lane change at a crawl straightens in its last centimetres: slow-leader light 44
+turned by 22° in its last 2 cm, unseen by the chords, and the car drove straight on).  A path
+passes when every value is at most ``κ_max`` (to the tolerance :data:`TOL_REL`).
+
+**Where a plan leaves the car standing** (:func:`stop_heading`) its heading is that of its last
+chord, and the car drives on from it: a plan may not leave it at more than
+:data:`STOP_HEADING_MAX` to the road, the angle from which straightening on the tactical layer's
+radius keeps the car within its lane.
 """
 
 from __future__ import annotations
@@ -34,8 +44,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["DS_MIN_M", "KAPPA_MAX", "MOVING_MPS", "PLAN_DT_S", "TOL_REL", "plan_turning", "sampled_turning",
-           "start_heading", "turning"]
+__all__ = ["DS_MIN_M", "KAPPA_MAX", "LANE_ROOM_M", "MOVING_MPS", "PLAN_DT_S", "STEER_SHARE", "STOP_HEADING_MAX",
+           "TOL_REL", "plan_turning", "sampled_turning", "start_heading", "stop_heading", "turning"]
 
 #: The largest curvature a passenger car drives [1/m] (turning radius 5 m, module docstring).
 KAPPA_MAX = 0.2
@@ -45,6 +55,17 @@ DS_MIN_M = 0.2
 TOL_REL = 1e-3
 #: The plan's sampling step [s] for :func:`plan_turning`.
 PLAN_DT_S = 0.01
+#: The room [m] beside a passenger car (1.8 m wide) in the middle of a 3.75 m lane, on either side.
+LANE_ROOM_M = (3.75 - 1.8) / 2
+#: The share of :data:`KAPPA_MAX` the closed loop's tactical layer turns with (its ``TURN_SHARE``).
+STEER_SHARE = 0.9
+#: The largest angle to the road [rad] a plan may leave the car standing at (:func:`stop_heading`):
+#: a car drives on along its heading, and straightening from ``ψ`` on the tactical layer's radius
+#: ``R = 1/(STEER_SHARE κ_max)`` (5.6 m) drifts sideways by ``R (1 - cos ψ)``, which stays within
+#: the room the lane leaves beside the car (:data:`LANE_ROOM_M`) up to 34.4°.  (Merge medium 74: a
+#: plan stopped the ego at 43° in the middle of its new lane; driving on it crossed the lane's
+#: line, toward a car in the next lane.)
+STOP_HEADING_MAX = math.acos(1.0 - LANE_ROOM_M * STEER_SHARE * KAPPA_MAX)
 
 
 def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -52,16 +73,19 @@ def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def turning(x: NDArray[np.float64], y: NDArray[np.float64], psi0: float | None = None,
-            ds_min: float = DS_MIN_M) -> NDArray[np.float64]:
+            ds_min: float = DS_MIN_M, psi_end: float | None = None) -> NDArray[np.float64]:
     """The path's curvatures (module docstring): the start's ``2 sin|ψ_1 - ψ_0| / l_0`` first when
-    ``psi0`` is given, then each vertex's :math:`\\kappa_k` [1/m]; empty for a path shorter than
-    ``ds_min``."""
+    ``psi0`` is given, then each vertex's :math:`\\kappa_k` [1/m], then the end's
+    ``2 sin|ψ_f - ψ_K| / l_K`` when ``psi_end`` is given (the last point kept); empty for a path
+    shorter than ``ds_min``."""
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     keep = [0]
     for k in range(1, x.size):
         if math.hypot(x[k] - x[keep[-1]], y[k] - y[keep[-1]]) >= ds_min:
             keep.append(k)
+    if psi_end is not None and len(keep) > 1 and keep[-1] != x.size - 1:
+        keep[-1] = x.size - 1  # the end's heading is measured on a chord that ends at the end
     px, py = x[keep], y[keep]
     if px.size < 2:
         return np.zeros(0)
@@ -73,6 +97,9 @@ def turning(x: NDArray[np.float64], y: NDArray[np.float64], psi0: float | None =
     if psi0 is not None:
         dev = min(abs(float(_wrap(np.array([psi[0] - psi0]))[0])), 0.5 * np.pi)
         out = np.concatenate(([2.0 * math.sin(dev) / length[0]], out))
+    if psi_end is not None:
+        dev = min(abs(float(_wrap(np.array([psi_end - psi[-1]]))[0])), 0.5 * np.pi)
+        out = np.concatenate((out, [2.0 * math.sin(dev) / length[-1]]))
     return out
 
 
@@ -98,6 +125,27 @@ def plan_turning(trajectory: Any, tf: float, heading: float | None = None, dt: f
 def sampled_turning(X: NDArray[np.float64], heading: float | None = None) -> NDArray[np.float64]:
     """:func:`turning` of a path given by sampled states ``X`` (rows ``s_x, v_x, s_y, v_y``), from
     the heading of its first velocity, or ``heading`` (the car's) when it stands there
-    (:func:`start_heading`)."""
+    (:func:`start_heading`), to the heading of its last velocity when the car still moves there
+    (above :data:`MOVING_MPS`; a path that ends at a standstill ends on the heading of its last
+    chord)."""
+    vxf, vyf = float(X[-1, 1]), float(X[-1, 3])
+    end = math.atan2(vyf, vxf) if math.hypot(vxf, vyf) > MOVING_MPS else None
     return turning(X[:, 0], X[:, 2], start_heading(float(X[0, 1]), float(X[0, 3]),
-                                                   0.0 if heading is None else heading))
+                                                   0.0 if heading is None else heading), psi_end=end)
+
+
+def stop_heading(X: NDArray[np.float64], ds_min: float = DS_MIN_M) -> float:
+    """The angle to the road [rad] (``|ψ|`` folded into ``[0, π/2]``) of the heading a path given
+    by sampled states ``X`` (rows ``s_x, v_x, s_y, v_y``) leaves the car standing at: its last
+    chord of at least ``ds_min`` (to its last point); 0 when it ends moving (above
+    :data:`MOVING_MPS`: its end heading is tested by :func:`sampled_turning`) or moves less than
+    ``ds_min`` (it keeps the heading it had)."""
+    if math.hypot(float(X[-1, 1]), float(X[-1, 3])) > MOVING_MPS:
+        return 0.0
+    x, y = np.asarray(X[:, 0], dtype=float), np.asarray(X[:, 2], dtype=float)
+    far = np.flatnonzero(np.hypot(x - x[-1], y - y[-1]) >= ds_min)
+    if far.size == 0:
+        return 0.0
+    k = int(far[-1])
+    psi = abs(math.atan2(y[-1] - y[k], x[-1] - x[k]))
+    return min(psi, math.pi - psi)

@@ -217,3 +217,125 @@ def test_a_plan_from_a_standstill_starts_from_the_heading_the_car_stopped_with()
     assert float(plan_turning(tr, 5.0, heading=0.0).max()) < 1e-9
     k = plan_turning(tr, 5.0, heading=0.3)
     assert k[0] > KAPPA_MAX and k[0] == pytest.approx(2.0 * math.sin(0.3) / 0.2, rel=0.05)
+
+
+@settings(max_examples=80, deadline=None)
+@given(radius=st.floats(2.0, 500.0), step=st.floats(0.21, 3.0), psi0=st.floats(-math.pi, math.pi),
+       sweep=st.floats(0.3, 3.0), left=st.booleans(), tail=st.floats(0.0, 0.19))
+def test_an_arc_ends_on_its_tangent_and_the_end_counts_one_over_its_radius(radius, step, psi0, sweep, left, tail):
+    """The end test mirrors the start: an arc of radius ``R`` sampled every ``step`` metres, with a
+    last point ``tail`` metres of arc beyond the last full step (nearer than ``ds_min``: kept in place
+    of the last kept point), ending on its tangent: every value is ``1/R``; ending on the road's
+    heading after turning away from it, the end counts the turn."""
+    n = max(3, int(sweep * radius / step))
+    s = np.concatenate((np.arange(n + 1) * step, [n * step + tail] if tail > 0 else []))
+    sign = 1.0 if left else -1.0
+    ang = sign * s / radius
+    cx, cy = -sign * radius * math.sin(psi0), sign * radius * math.cos(psi0)
+    x = cx + sign * radius * np.sin(psi0 + ang)
+    y = cy - sign * radius * np.cos(psi0 + ang)
+    end = psi0 + float(ang[-1])
+    k = turning(x, y, psi0, psi_end=end)
+    assert k.size == n + 1
+    np.testing.assert_allclose(k[:-2], 1.0 / radius, rtol=1e-6, atol=1e-9)
+    # the last vertex and the end: chords of unequal arcs (step, step + tail), exact to second order
+    np.testing.assert_allclose(k[-2:], 1.0 / radius, rtol=(step / radius) ** 2 / 4 + 1e-6, atol=1e-9)
+    # ending on a heading turned 0.5 rad further away from the last chord: it counts at least that
+    assert turning(x, y, psi0, psi_end=end + sign * 0.5)[-1] >= 2.0 * math.sin(0.5) / (step + tail) * (1 - 1e-9)
+
+
+def test_a_plan_that_ends_rolling_straightens_before_its_end():
+    """Slow-leader light 44: a lane change at a crawl that ends rolling along the road (``v_y = 0``)
+    after decelerating on a heading of 22°: its path turns by 22° in its last centimetres, which the
+    chords of at least 0.2 m do not see; the end test does (``kinematics``), while the same plan at
+    highway speed straightens on a radius of hundreds of metres and passes."""
+    slow = EgoBoundary(tf=1.5, x0=0.0, y0=0.0, vx0=2.2, vy0=0.9, xf=1.7, yf=0.7, vxf=0.07, vyf=0.0)
+    plan = free_plan(slow, "free")
+    X = plan.require_trajectory().states(np.linspace(0.0, 1.5, 151))
+    assert float(turning(X[:, 0], X[:, 2], start_heading(2.2, 0.9)).max()) <= KAPPA_MAX  # the chords alone
+    assert judge(plan, None, DecisionConfig(), heading=start_heading(2.2, 0.9)) == "kinematics"
+    fast = EgoBoundary(tf=5.0, x0=0.0, y0=0.0, vx0=25.0, vy0=0.5, xf=125.0, yf=2.0, vxf=25.0, vyf=0.0)
+    assert judge(free_plan(fast, "free"), None, DecisionConfig(), heading=start_heading(25.0, 0.5)) == "accepted"
+
+
+@settings(max_examples=60, deadline=None)
+@given(psi=st.floats(-1.5, 1.5), length=st.floats(0.25, 20.0), moving=st.booleans())
+def test_the_stop_heading_is_the_last_chord_s_angle_to_the_road(psi, length, moving):
+    """A straight path of ``length`` metres on heading ``ψ`` ending at a standstill leaves the car at
+    ``|ψ|`` to the road; ending in motion, 0 (its end heading is the end test's)."""
+    from iamp.simulation.kinematics import stop_heading
+
+    s = np.linspace(0.0, length, 50)
+    X = np.zeros((s.size, 4))
+    X[:, 0], X[:, 2] = s * math.cos(psi), s * math.sin(psi)
+    X[:-1, 1], X[:-1, 3] = math.cos(psi), math.sin(psi)
+    if moving:
+        X[-1, 1], X[-1, 3] = math.cos(psi), math.sin(psi)
+    assert stop_heading(X) == (0.0 if moving else pytest.approx(abs(psi), abs=1e-9))
+    # a standstill reached after less than ds_min of motion: the heading the car had, not tested
+    short = X.copy()
+    short[:, 0], short[:, 2] = X[:, 0] * 0.19 / length, X[:, 2] * 0.19 / length
+    short[-1, 1] = short[-1, 3] = 0.0
+    assert stop_heading(short) == 0.0
+
+
+def test_judge_refuses_a_plan_that_leaves_the_ego_standing_across_the_road():
+    """Merge medium 74: a plan stopped the ego at 43° to the road in its new lane, and a car drives on
+    along its heading (the lane keeping could only straighten it 1.3 m further across).  A plan that
+    stops the ego after a lane change at a crawl is refused beyond ``stop_heading_max``; the same
+    stop straight along the road is accepted."""
+    from dataclasses import replace
+
+    from iamp.simulation.kinematics import STOP_HEADING_MAX, stop_heading
+
+    cfg = DecisionConfig()
+    across = EgoBoundary(tf=2.0, x0=0.0, y0=0.0, vx0=1.2, vy0=1.0, xf=1.2, yf=1.0, vxf=0.0, vyf=0.0)
+    plan = free_plan(across, "free")
+    X = plan.require_trajectory().states(np.linspace(0.0, 2.0, 201))
+    assert stop_heading(X) > STOP_HEADING_MAX
+    assert judge(plan, None, cfg, heading=start_heading(1.2, 1.0)) == "kinematics"
+    assert judge(plan, None, replace(cfg, stop_heading_max=math.pi / 2),
+                 heading=start_heading(1.2, 1.0)) == "accepted"
+    along = EgoBoundary(tf=2.0, x0=0.0, y0=0.0, vx0=1.2, vy0=0.0, xf=1.2, yf=0.0, vxf=0.0, vyf=0.0)
+    assert judge(free_plan(along, "free"), None, cfg) == "accepted"
+
+
+@settings(max_examples=150, deadline=None)
+@given(speed=st.floats(0.06, 6.0), psi=st.floats(-0.75, 0.75), ax=st.floats(-3.0, 3.0), cut=st.floats(0.0, 1.0))
+def test_a_lateral_cut_the_heading_cannot_follow_is_met_by_braking_along_the_heading(speed, psi, ax, cut):
+    """:meth:`Controller._heading_brake`: RSS's lateral response cuts the lateral speed (by the share
+    ``cut``, never past zero); where the velocity would then turn faster than ``TURN_SHARE κ_max``
+    per metre, the car brakes along its heading instead: after the period its velocity is on a
+    heading within the bound of its own (smaller) distance, or it stands, or it brakes at the car's
+    limit; it never accelerates more than asked, and a velocity within the bound is left alone.
+    (Merge medium 74 and merge dense 13: the ego, at 38° and 15° to the road at a crawl, turned on
+    radii of 1-4 m under a lateral cap.)"""
+    from iamp.core.physical import PASSENGER_CAR
+    from iamp.simulation.controller import TURN_SHARE, Controller, ControllerConfig
+    from iamp.simulation.simulator import EgoState
+
+    ctl = Controller.__new__(Controller)
+    ctl.cfg = ControllerConfig()
+    ctl.heading = psi
+
+    class _Sim:
+        step = 0.1
+
+    ctl.sim = _Sim()
+    vx, vy = speed * math.cos(psi), speed * math.sin(psi)
+    ay = -cut * vy / 0.1
+    ego = EgoState(x=0.0, vx=vx, y=0.0, vy=vy, ax=0.0, ay=0.0)
+    out = ctl._heading_brake(ego, ax, ay)
+    assert out <= ax
+    vx1, vy1 = vx + out * 0.1, vy + ay * 0.1
+    vx_asked = vx + ax * 0.1
+    bound = TURN_SHARE * KAPPA_MAX * 0.5 * 0.1
+    asked = math.atan2(vy1, vx_asked) if vx_asked > 0.0 else psi
+    if vx_asked <= 0.0 or abs(asked - psi) <= bound * (speed + math.hypot(vx_asked, vy1)) or abs(asked) > abs(psi):
+        # standing, within the bound, or turned away from the road (by braking harder along the road
+        # than the cut: :meth:`_turn_bound`'s case, before the caps; braking more would turn it further)
+        assert out == ax
+        return
+    lo = PASSENGER_CAR.ax[0] if PASSENGER_CAR.ax is not None else -6.0
+    within = abs(math.atan2(vy1, vx1) - psi) <= bound * (speed + math.hypot(vx1, vy1)) + 1e-9
+    assert out < ax and (within or vx1 <= 1e-12 or out == pytest.approx(lo))
