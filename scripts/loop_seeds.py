@@ -3,7 +3,8 @@
 The check of docs/closed-loop.md on seeds no campaign uses: every mission (merge, onramp,
 slow-leader, discretionary) and density (light, medium, dense, LOS E), default cooperation, the
 episode's SPEC §17 verdicts (success, contacts, executed limit violations, follower emergency
-brakes, RSS-dangerous time at fault and by response, time to merge)::
+brakes, RSS-dangerous time at fault and by response, time to merge, executed turns tighter than a
+car's turning radius)::
 
     python scripts/loop_seeds.py 5001,5002,5003,5004 pmp-active,qp-avoid OUT.jsonl
     python scripts/loop_seeds.py summary OUT.jsonl
@@ -22,7 +23,7 @@ from collections import Counter
 MISSIONS = ("merge", "onramp", "slow-leader", "discretionary")
 TRAFFIC = ("light", "medium", "dense", "los-e")
 KEYS = ("success", "contacts", "contacts_at_fault", "limit_violations", "follower_emergency_brakes",
-        "rss_dangerous_s", "rss_dangerous_by_response_s", "time_to_merge_s")
+        "rss_dangerous_s", "rss_dangerous_by_response_s", "time_to_merge_s", "curvature_violations")
 
 
 def run(seeds: list[int], planners: list[str], out: str) -> None:
@@ -46,6 +47,7 @@ def summary(path: str) -> None:
         print(f"{planner}: {len(rs)} episodes, {sum(bool(r['success']) for r in rs)} successes, "
               f"{sum(r['contacts'] for r in rs)} contacts ({sum(r['contacts_at_fault'] for r in rs)} at fault), "
               f"{sum(1 for r in rs if r['limit_violations'])} with executed limit violations, "
+              f"{sum(1 for r in rs if r.get('curvature_violations'))} with executed turns tighter than 5 m, "
               f"{sum(r['follower_emergency_brakes'] for r in rs)} follower emergency brakes, "
               f"RSS-dangerous time at fault {sum(r['rss_dangerous_s'] for r in rs):.1f} s in "
               f"{sum(1 for r in rs if r['rss_dangerous_s'] > 0)} episodes "

@@ -339,3 +339,24 @@ def test_a_lateral_cut_the_heading_cannot_follow_is_met_by_braking_along_the_hea
     lo = PASSENGER_CAR.ax[0] if PASSENGER_CAR.ax is not None else -6.0
     within = abs(math.atan2(vy1, vx1) - psi) <= bound * (speed + math.hypot(vx1, vy1)) + 1e-9
     assert out < ax and (within or vx1 <= 1e-12 or out == pytest.approx(lo))
+
+
+def test_the_stop_heading_is_read_on_the_last_chord_and_a_sideways_roll_is_motion():
+    """On an arc of radius 10 m from the road's heading, stopping after 3 m: the car stands on the
+    heading of its last chord of 0.2 m (about 0.29 rad), not of its first; a path whose last velocity
+    is sideways (``v_x = 0``, ``v_y`` above :data:`MOVING_MPS`) still moves: no stop heading."""
+    from iamp.simulation.kinematics import MOVING_MPS, stop_heading
+
+    s = np.linspace(0.0, 3.0, 301)
+    X = np.zeros((s.size, 4))
+    X[:, 0], X[:, 2] = 10.0 * np.sin(s / 10.0), 10.0 * (1.0 - np.cos(s / 10.0))
+    X[:-1, 1], X[:-1, 3] = np.cos(s[:-1] / 10.0), np.sin(s[:-1] / 10.0)
+    # the chord of the last 0.21 m of arc (the nearest sample at least 0.2 m away) leaves the end's
+    # tangent (0.3 rad) by half its turn, 0.0105 rad
+    assert stop_heading(X) == pytest.approx(0.3 - 0.0105, abs=1e-4)
+    side = X.copy()
+    side[-1, 1], side[-1, 3] = 0.0, 2 * MOVING_MPS
+    assert stop_heading(side) == 0.0
+    rolling = X.copy()  # still rolling along the road at the end: its heading is the end test's
+    rolling[-1, 1], rolling[-1, 3] = 2 * MOVING_MPS, 0.0
+    assert stop_heading(rolling) == 0.0
