@@ -67,12 +67,7 @@ from iamp.simulation.kinematics import STEER_SHARE, start_heading
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
-from iamp.simulation.rss import (
-    longitudinal_room,
-    safe_lateral_distance,
-    safe_longitudinal_float,
-    within_rss_reach,
-)
+from iamp.simulation.rss import longitudinal_room, safe_lateral_distance, within_rss_reach
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
@@ -81,6 +76,7 @@ from iamp.simulation.tactical import (
     gap_end,
     horizons_for,
     names,
+    proper_response,
     rss_regions,
     seek_accel,
 )
@@ -646,22 +642,17 @@ class Controller:
         the road after a lane change at a crawl, restarted under a lateral cap toward a car in the
         next lane and turned on a 1 m radius).  No more than the car's brake (:data:`PASSENGER_CAR`'s
         ``a_x``); unchanged from a heading :meth:`_turn_bound` does not bound."""
-        kappa = self.cfg.decision.kappa_max
-        if kappa is None:
-            return ax
         dt = self.sim.step
         vx1, vy1 = ego.vx + ax * dt, ego.vy + ay * dt
-        psi0 = start_heading(ego.vx, ego.vy, self.heading)
-        if vx1 <= 0.0 or abs(psi0) > MAX_TURN_HEADING:
+        window = self._turn_window(ego, vx1, vy1)
+        if window is None:
             return ax
-        speed0 = math.hypot(ego.vx, ego.vy)
-        turn = TURN_SHARE * kappa * 0.5 * (speed0 + math.hypot(vx1, vy1)) * dt
+        psi0, turn, least = window
         psi1 = math.atan2(vy1, vx1)
         if psi0 - turn - 1e-12 <= psi1 <= psi0 + turn + 1e-12:
             return ax
         # the heading the lateral speed ``vy1`` allows: the nearest to ``ψ0`` within the smallest turn
         # (the one of a car that stops in the period, ``speed1 = 0``)
-        least = TURN_SHARE * kappa * 0.5 * speed0 * dt
         psi = psi0 - least if psi1 < psi0 else psi0 + least
         if psi * vy1 > 0.0 and abs(psi) > 1e-9:
             vx_new = vy1 / math.tan(psi)
@@ -673,21 +664,33 @@ class Controller:
         lo = (PASSENGER_CAR.ax or (-6.0, 3.0))[0]
         return float(max((vx_new - ego.vx) / dt, lo, -ego.vx / dt))
 
+    def _turn_window(self, ego: EgoState, vx1: float, vy1: float) -> tuple[float, float, float] | None:
+        """The turn a car may make in the period to the velocity ``(vx1, vy1)``: its heading ``ψ0``
+        (:func:`~iamp.simulation.kinematics.start_heading`), the largest turn, :data:`TURN_SHARE`
+        ``κ_max`` times the distance travelled (the mean of both speeds times the period), and the
+        turn of a car that stops in the period (its distance at half today's speed); None where no
+        turn is bounded (``κ_max`` not tested, not moving forward after the period, or a heading
+        beyond :data:`MAX_TURN_HEADING`, which no drivable plan leaves: handed over from SUMO)."""
+        kappa = self.cfg.decision.kappa_max
+        if kappa is None or vx1 <= 0.0:
+            return None
+        psi0 = start_heading(ego.vx, ego.vy, self.heading)
+        if abs(psi0) > MAX_TURN_HEADING:
+            return None
+        dt, speed0 = self.sim.step, math.hypot(ego.vx, ego.vy)
+        return (psi0, TURN_SHARE * kappa * 0.5 * (speed0 + math.hypot(vx1, vy1)) * dt,
+                TURN_SHARE * kappa * 0.5 * speed0 * dt)
+
     def _turn_bound(self, ego: EgoState, ax: float, ay: float) -> float:
         """``a_y`` such that the velocity's heading turns by at most :data:`TURN_SHARE` ``κ_max`` per
         metre travelled in the period (a car turns only while it moves, :mod:`iamp.simulation.kinematics`): the
         lane keeping, the fail-safe and RSS's lateral response steer, they do not slide."""
-        kappa = self.cfg.decision.kappa_max
-        if kappa is None:
-            return ay
         dt = self.sim.step
         vx1, vy1 = ego.vx + ax * dt, ego.vy + ay * dt
-        speed1 = math.hypot(vx1, vy1)
-        psi0 = start_heading(ego.vx, ego.vy, self.heading)
-        if speed1 <= 0.0 or vx1 <= 0.0 or abs(psi0) > MAX_TURN_HEADING:
-            # standing, or a heading no drivable plan leaves (handed over from SUMO): as before
+        window = self._turn_window(ego, vx1, vy1)
+        if window is None:
             return ay
-        turn = TURN_SHARE * kappa * 0.5 * (math.hypot(ego.vx, ego.vy) + speed1) * dt
+        psi0, turn, _ = window
         psi1 = math.atan2(vy1, vx1)
         bounded = min(max(psi1, psi0 - turn), psi0 + turn)
         if bounded == psi1:
@@ -752,12 +755,7 @@ class Controller:
         obstacles = self._obstacles(nbs)  # the verification's road users (not needed to follow in lane)
         en = self.ego_now(ego)
         if self.mode == "abort":  # the last verified fail-safe
-            b = self._brakes_now(ego, obstacles)
-            if b is not None:
-                self.fs_brake = b
-            b = max(self.fs_brake if self.fs_brake is not None else 3.5, self._proper_brake(ego, nbs))
-            nxt = self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane), urgent=True,
-                             caps=self._lateral_caps(ego, nbs))
+            nxt = self._abort_now(ego, obstacles, nbs)
             centred = abs(ego.y - self.sim.highway.lane_centre(self.fs_lane)) < 0.3 and abs(ego.vy) < 0.3
             if centred or ego.vx < 0.5:  # back in its lane, or stopped (it cannot move sideways standing)
                 if self.fs_lane == self.target:
@@ -852,7 +850,8 @@ class Controller:
         return self._execute(t, dt)
 
     def _abort_now(self, ego: EgoState, obstacles: list[Obstacle], nbs: list[Neighbour]) -> EgoState:
-        """The first period of the fail-safe: brake in the lane of the ego's centre."""
+        """One period of the fail-safe (its first, and each while aborting): brake in the lane
+        ``fs_lane`` at the last verified deceleration, at least RSS's proper response."""
         b = self._brakes_now(ego, obstacles)
         if b is not None:
             self.fs_brake = b
@@ -868,12 +867,7 @@ class Controller:
         at 1.5 m/s² behind a car 69 m ahead where RSS asked 72 m)."""
         if not self.cfg.safe:
             return 0.0
-        lead = self._rss_leader(ego, nbs)
-        if lead is None:
-            return 0.0
-        p = self.cfg.tactical.safe.rss
-        gap = lead.x(0.0) - ego.x - (lead.length + self.sim.ego_length) / 2
-        return float(p.brake_min) if gap < safe_longitudinal_float(ego.vx, lead.v(0.0), p) else 0.0
+        return proper_response(self.ego_now(ego), self._rss_leader(ego, nbs), self.cfg.tactical.safe.rss)
 
     def _mobil_safe(self, t: float, obs: Observation, ego: EgoState, nbs: list[Neighbour]) -> EgoState | None:
         """IDM + MOBIL for a mandatory change (:mod:`iamp.simulation.mobil`): IDM drives the ego in

@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["DS_MIN_M", "KAPPA_MAX", "LANE_ROOM_M", "MOVING_MPS", "PLAN_DT_S", "STEER_SHARE", "STOP_HEADING_MAX",
-           "TOL_REL", "plan_turning", "sampled_turning", "start_heading", "stop_heading", "turning"]
+           "TOL_REL", "end_heading", "plan_turning", "sampled_turning", "start_heading", "stop_heading", "turning"]
 
 #: The largest curvature a passenger car drives [1/m] (turning radius 5 m, module docstring).
 KAPPA_MAX = 0.2
@@ -128,10 +128,15 @@ def sampled_turning(X: NDArray[np.float64], heading: float | None = None) -> NDA
     (:func:`start_heading`), to the heading of its last velocity when the car still moves there
     (above :data:`MOVING_MPS`; a path that ends at a standstill ends on the heading of its last
     chord)."""
-    vxf, vyf = float(X[-1, 1]), float(X[-1, 3])
-    end = math.atan2(vyf, vxf) if math.hypot(vxf, vyf) > MOVING_MPS else None
     return turning(X[:, 0], X[:, 2], start_heading(float(X[0, 1]), float(X[0, 3]),
-                                                   0.0 if heading is None else heading), psi_end=end)
+                                                   0.0 if heading is None else heading), psi_end=end_heading(X))
+
+
+def end_heading(X: NDArray[np.float64]) -> float | None:
+    """The heading of the last velocity of sampled states ``X`` (rows ``s_x, v_x, s_y, v_y``) where
+    the car still moves there (above :data:`MOVING_MPS`), else None (it ends standing)."""
+    vxf, vyf = float(X[-1, 1]), float(X[-1, 3])
+    return math.atan2(vyf, vxf) if math.hypot(vxf, vyf) > MOVING_MPS else None
 
 
 def stop_heading(X: NDArray[np.float64], ds_min: float = DS_MIN_M) -> float:
@@ -140,7 +145,7 @@ def stop_heading(X: NDArray[np.float64], ds_min: float = DS_MIN_M) -> float:
     chord of at least ``ds_min`` (to its last point); 0 when it ends moving (above
     :data:`MOVING_MPS`: its end heading is tested by :func:`sampled_turning`) or moves less than
     ``ds_min`` (it keeps the heading it had)."""
-    if math.hypot(float(X[-1, 1]), float(X[-1, 3])) > MOVING_MPS:
+    if end_heading(X) is not None:
         return 0.0
     x, y = np.asarray(X[:, 0], dtype=float), np.asarray(X[:, 2], dtype=float)
     far = np.flatnonzero(np.hypot(x - x[-1], y - y[-1]) >= ds_min)

@@ -53,7 +53,7 @@ from iamp.core.problem import EgoBoundary
 from iamp.simulation.decision import REACH, DecisionConfig, EgoNow, Gap, Neighbour
 from iamp.simulation.failsafe import SafeParams
 from iamp.simulation.mobil import IDM
-from iamp.simulation.rss import safe_longitudinal_distance, safe_longitudinal_float
+from iamp.simulation.rss import RssParameters, safe_longitudinal_distance, safe_longitudinal_float
 
 __all__ = [
     "TacticalConfig",
@@ -344,6 +344,15 @@ def names(g: Gap) -> tuple[str | None, str | None]:
     return (g.follower.name if g.follower else None, g.leader.name if g.leader else None)
 
 
+def proper_response(ego: EgoNow, leader: Neighbour | None, p: RssParameters) -> float:
+    """RSS's longitudinal proper response of the rear car: ``brake_min`` while ``leader`` (ahead
+    of the ego) is closer, bumper to bumper, than RSS's safe distance of their speeds, else 0."""
+    if leader is None:
+        return 0.0
+    gap = leader.x(0.0) - ego.x - (leader.length + ego.length) / 2
+    return float(p.brake_min) if gap < safe_longitudinal_float(ego.vx, leader.v(0.0), p) else 0.0
+
+
 def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, target: Gap | None, v0: float,
                cfg: TacticalConfig, lane_speed: float | None = None) -> float:
     """The ego's longitudinal acceleration while it seeks (module docstring), unclipped.
@@ -377,8 +386,8 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
     if leader is not None:
         gap = leader.x(0.0) - ego.x - (leader.length + ego.length) / 2
         acc.append(idm.accel(ego.vx, rss_follow_gap(gap, ego.vx, leader.v(0.0), cfg), leader.v(0.0)))
-        if gap < safe_longitudinal_float(ego.vx, leader.v(0.0), cfg.safe.rss):
-            acc.append(-cfg.safe.rss.brake_min)  # RSS's proper response of the rear car
+        if brake := proper_response(ego, leader, cfg.safe.rss):
+            acc.append(-brake)
     rolling = False
     if target is not None:
         aim = aim_point(ego, target, cfg, reach=False)  # the chosen gap, within reach or not

@@ -9,6 +9,7 @@ tighter than 5 m), because the point-mass plans move ``s_x`` and ``s_y`` indepen
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,6 +20,21 @@ from iamp.core.problem import EgoBoundary
 from iamp.simulation.decision import DecisionConfig, judge
 from iamp.simulation.kinematics import KAPPA_MAX, TOL_REL, plan_turning, start_heading, turning
 from iamp.simulation.planning import free_plan
+
+
+def _controller(heading: float) -> Any:
+    """A controller with the default configuration, a 0.1 s period and ``heading``, for its
+    one-period steering methods (no simulator)."""
+    from iamp.simulation.controller import Controller, ControllerConfig
+
+    class _Sim:
+        step = 0.1
+
+    ctl = Controller.__new__(Controller)
+    ctl.cfg = ControllerConfig()
+    ctl.heading = heading
+    ctl.sim = _Sim()
+    return ctl
 
 
 @settings(max_examples=80, deadline=None)
@@ -83,17 +99,10 @@ def test_the_tactical_layer_turns_the_velocity_by_at_most_kappa_max_per_metre(vx
     """:meth:`Controller._turn_bound`: from a velocity on heading ``ψ`` (``v_y = v_x tan ψ``), the
     next period's velocity turns by at most ``TURN_SHARE κ_max`` times the distance travelled (the
     mean speed times the period); an input that turns less is kept as it is."""
-    from iamp.simulation.controller import TURN_SHARE, Controller, ControllerConfig
+    from iamp.simulation.controller import TURN_SHARE
     from iamp.simulation.simulator import EgoState
 
-    ctl = Controller.__new__(Controller)
-    ctl.cfg = ControllerConfig()
-    ctl.heading = 0.0
-
-    class _Sim:
-        step = 0.1
-
-    ctl.sim = _Sim()
+    ctl = _controller(0.0)
     vy = vx * math.tan(psi)
     ego = EgoState(x=0.0, vx=vx, y=0.0, vy=vy, ax=0.0, ay=0.0)
     vx1 = vx + ax * 0.1
@@ -311,17 +320,10 @@ def test_a_lateral_cut_the_heading_cannot_follow_is_met_by_braking_along_the_hea
     (Merge medium 74 and merge dense 13: the ego, at 38° and 15° to the road at a crawl, turned on
     radii of 1-4 m under a lateral cap.)"""
     from iamp.core.physical import PASSENGER_CAR
-    from iamp.simulation.controller import TURN_SHARE, Controller, ControllerConfig
+    from iamp.simulation.controller import TURN_SHARE
     from iamp.simulation.simulator import EgoState
 
-    ctl = Controller.__new__(Controller)
-    ctl.cfg = ControllerConfig()
-    ctl.heading = psi
-
-    class _Sim:
-        step = 0.1
-
-    ctl.sim = _Sim()
+    ctl = _controller(psi)
     vx, vy = speed * math.cos(psi), speed * math.sin(psi)
     ay = -cut * vy / 0.1
     ego = EgoState(x=0.0, vx=vx, y=0.0, vy=vy, ax=0.0, ay=0.0)
