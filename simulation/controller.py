@@ -41,7 +41,7 @@ import functools
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -89,6 +89,11 @@ LATERAL_REST_SHARE = 0.8
 #: A lateral gap within this of RSS's lateral distance already caps the speed toward it [m]
 #: (:meth:`Controller._lateral_caps`: the cap acts before the pair is dangerous).
 LATERAL_ROOM_M = 0.5
+#: The lane keeping's lateral acceleration toward a car beside the ego that RSS could constrain laterally
+#: is at most this share of RSS's lateral ``a_lat,max`` (:meth:`Controller._lateral_caps`): RSS allows
+#: that much for a response time after the threshold, whenever the other's own lateral motion makes
+#: the pair dangerous.
+LATERAL_ACCEL_SHARE = 0.75
 
 #: The share of ``κ_max`` the tactical layer's turns use (:meth:`Controller._turn_bound`): the
 #: monitor measures the executed path by its chords, whose headings are the periods' mean
@@ -97,6 +102,21 @@ TURN_SHARE = STEER_SHARE
 #: The tactical layer bounds the turn of the ego's velocity (:meth:`Controller._turn_bound`) from
 #: headings within this [rad] (45°; a drivable plan ends far inside it).
 MAX_TURN_HEADING = math.pi / 4
+
+
+class LateralCaps(NamedTuple):
+    """What RSS's lateral proper response leaves the lane keeping (:meth:`Controller._lateral_caps`):
+    the largest lateral speeds to the left and to the right (magnitudes, m/s) and the largest lateral
+    accelerations toward each side (m/s²; applied where the speed toward that side would exceed
+    RSS's fluctuation ``μ/ρ`` share); ``inf``: unbounded."""
+
+    left: float
+    right: float
+    accel_left: float = np.inf
+    accel_right: float = np.inf
+
+
+NO_CAPS = LateralCaps(np.inf, np.inf)
 
 
 def _toward(ego: EgoState, n: Neighbour) -> tuple[float, float]:
@@ -548,24 +568,38 @@ class Controller:
         B = np.asarray(self.cfg.tactical.safe.brakes)
         return float(B[ok[0]][0]) if ok[0].any() else None
 
-    def _lateral_caps(self, ego: EgoState, nbs: list[Neighbour]) -> tuple[float, float]:
-        """The largest lateral speeds to the left and to the right (magnitudes) that RSS's lateral
-        proper response leaves the lane keeping: toward a vehicle beside the ego that is closer
-        than its RSS longitudinal distance (so only the lateral distance keeps the pair safe) and
-        whose lateral gap is within the RSS lateral distance of the speeds toward each other plus
-        :data:`LATERAL_ROOM_M`, at most RSS's lateral fluctuation ``μ/ρ`` (the judge's
-        ``rest``: :func:`iamp.simulation.rss.judge_pair`), with a margin; else unbounded.  A pair
-        level within ``μ``, or whose bodies overlap sideways, caps both sides (the judge takes the
-        roles of the dangerous run's threshold time, which may be a side it no longer has: a car
-        changing lanes behind the ego crosses it).  Without it the fail-safe's return to its lane's centre
-        and the lane keeping after a withdrawn change moved at 0.3-0.9 m/s toward a car in the
-        next lane closing from behind, which RSS blames on the ego."""
+    def _lateral_caps(self, ego: EgoState, nbs: list[Neighbour]) -> LateralCaps:
+        """What RSS's lateral proper response leaves the lane keeping, per side (:class:`LateralCaps`).
+
+        *Speed*: toward a vehicle beside the ego that is closer than its RSS longitudinal distance
+        (so only the lateral distance keeps the pair safe) and whose lateral gap is within the RSS
+        lateral distance of the speeds toward each other plus :data:`LATERAL_ROOM_M`, at most RSS's
+        lateral fluctuation ``μ/ρ`` (the judge's ``rest``: :func:`iamp.simulation.rss.judge_pair`),
+        with a margin; else unbounded.  A pair level within ``μ``, or whose bodies overlap
+        sideways, caps both sides (the judge takes the roles of the dangerous run's threshold time,
+        which may be a side it no longer has: a car changing lanes behind the ego crosses it).
+        Without it the fail-safe's return to its lane's centre and the lane keeping after a
+        withdrawn change moved at 0.3-0.9 m/s toward a car in the next lane closing from behind,
+        which RSS blames on the ego.
+
+        *Acceleration*: toward a vehicle not longitudinally safe for a response time whose lateral
+        gap is within a lane width, at most :data:`LATERAL_ACCEL_SHARE` of RSS's ``a_lat,max``
+        wherever the speed toward it would exceed the speed cap's ``μ/ρ`` share.  The pair turns
+        dangerous when *the other* starts a lane change toward the ego (its lateral speed raises the
+        RSS lateral distance by ~0.4 m per period, faster than :data:`LATERAL_ROOM_M` foresees), and
+        RSS then judges the ego's lateral acceleration toward it in that very period against
+        ``a_lat,max`` (discretionary LOS E 7003 and dense 7005: the fail-safe's return to its lane
+        accelerated at 0.27 and 1.5 m/s² toward a car of the lane beyond that changed lanes behind it,
+        6.1 and 6.8 s at fault).
+        """
         if not self.cfg.safe:
-            return np.inf, np.inf
+            return NO_CAPS
         p = self.cfg.tactical.safe.rss
         rest = LATERAL_REST_SHARE * p.lat_margin_m / p.response_time_s
+        accel = LATERAL_ACCEL_SHARE * p.lat_accel_max
         Le, We = self.sim.ego_length, self.sim.ego_width
-        caps = [np.inf, np.inf]  # left, right
+        lane_width = self.sim.highway.lane_width
+        caps = [np.inf, np.inf, np.inf, np.inf]  # speed left, right; acceleration left, right
         for n in nbs:
             dx = n.x(0.0) - ego.x
             lon_gap, d_lon = longitudinal_room(dx, n.length, n.v(0.0), ego.vx, Le, p)
@@ -575,25 +609,28 @@ class Controller:
             if lon_gap > 0 and soon >= d_lon:
                 continue  # longitudinally safe, and still for a response time: no lateral constraint
             dy = n.y - ego.y
+            gap = abs(dy) - (n.width + We) / 2
             unsafe = not (lon_gap > 0 and lon_gap >= d_lon)
-            if unsafe and (abs(dy) <= p.lat_margin_m or abs(dy) < (n.width + We) / 2):
+            if unsafe and (abs(dy) <= p.lat_margin_m or gap < 0.0):
                 # level, or the bodies overlapping sideways (one may be crossing behind the other):
                 # the judge's roles are those of the run's threshold time, unknown here
-                return rest, rest
-            left = dy > 0
+                return LateralCaps(rest, rest, accel, accel)
+            side = 0 if dy > 0 else 1
+            if gap <= lane_width:
+                caps[2 + side] = accel
             u_ego, u_oth = _toward(ego, n)
             d_lat = float(safe_lateral_distance(max(u_ego, rest), u_oth, p))
-            if abs(dy) - (n.width + We) / 2 <= d_lat + LATERAL_ROOM_M:
+            if gap <= d_lat + LATERAL_ROOM_M:
                 # unsafe: at most RSS's fluctuation; about to be (within a response time): no faster
                 # than now toward it (the judge allows RSS's lateral acceleration, 0.2 m/s², for a
                 # response time after the threshold; the lane keeping's return accelerated at 1.3 m/s²
                 # toward a car closing from behind the step it became unsafe: slow-leader medium 45)
                 cap = rest if unsafe else max(rest, u_ego)
-                caps[0 if left else 1] = min(caps[0 if left else 1], cap)
-        return caps[0], caps[1]
+                caps[side] = min(caps[side], cap)
+        return LateralCaps(*caps)
 
     def _move(self, ego: EgoState, ax: float, y_c: float, urgent: bool = False,
-              caps: tuple[float, float] = (np.inf, np.inf)) -> EgoState:
+              caps: LateralCaps = NO_CAPS) -> EgoState:
         """One period of constant input: ``a_x`` (within the car's range, never reversing) and the
         lane keeping toward ``y_c`` (bounded; at a crawl the lateral speed is only brought to 0: a car
         does not move sideways without moving forward — the abort's drift of issue 30 item 4).
@@ -623,8 +660,15 @@ class Controller:
         ay = float(np.clip(np.clip(ay, (-cap - ego.vy) / dt, (cap - ego.vy) / dt), -lim, lim))
         # a car turns only while it moves (:meth:`_turn_bound`); RSS's proper response below overrides it
         ay = self._turn_bound(ego, ax, ay)
-        # RSS's lateral proper response (:meth:`_lateral_caps`): toward a side with a cap, the lateral
-        # speed is brought below it at the lane keeping's bound, at once (as an urgent brake)
+        # RSS's lateral proper response (:meth:`_lateral_caps`): toward a side with an acceleration
+        # cap, the lateral speed gains at most that cap per period once above the rest share
+        rest = LATERAL_REST_SHARE * cfg.tactical.safe.rss.lat_margin_m / cfg.tactical.safe.rss.response_time_s
+        if ego.vy + ay * dt > max(ego.vy + caps.accel_left * dt, rest):
+            ay = max(min(ay, caps.accel_left), (rest - ego.vy) / dt)
+        if -(ego.vy + ay * dt) > max(-ego.vy + caps.accel_right * dt, rest):
+            ay = min(max(ay, -caps.accel_right), (-rest - ego.vy) / dt)
+        # toward a side with a speed cap, the lateral speed is brought below it at the lane keeping's
+        # bound, at once (as an urgent brake)
         if ego.vy + ay * dt > caps[0]:
             ay = max(-lim, min(ay, (caps[0] - ego.vy) / dt))
         if ego.vy + ay * dt < -caps[1]:

@@ -19,7 +19,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from iamp.simulation.controller import LATERAL_REST_SHARE, Controller, ControllerConfig
+from iamp.simulation.controller import (
+    LATERAL_ACCEL_SHARE,
+    LATERAL_REST_SHARE,
+    Controller,
+    ControllerConfig,
+    LateralCaps,
+)
 from iamp.simulation.decision import Neighbour
 from iamp.simulation.network import Highway
 from iamp.simulation.rss import DEFAULT, safe_longitudinal_float
@@ -33,6 +39,7 @@ class _Sim:
     ego_length: float = 4.8
     ego_width: float = 1.8
     step: float = 0.1
+    highway: Highway = field(default_factory=Highway)
 
 
 def _controller() -> Controller:
@@ -60,14 +67,14 @@ def test_a_faster_car_behind_in_the_next_lane_caps_the_motion_toward_it_only() -
     c = _controller()
     assert safe_longitudinal_float(28.0, 20.0) > 30.0
     returning = EgoState(x=0.0, vx=20.0, y=0.0, vy=-0.3)
-    left, right = c._lateral_caps(returning, [car(-30.0, -2.5, 28.0)])
+    left, right = c._lateral_caps(returning, [car(-30.0, -2.5, 28.0)])[:2]
     assert right == pytest.approx(REST) and left == np.inf
-    assert c._lateral_caps(returning, [car(-130.0, -2.5, 28.0)]) == (np.inf, np.inf)
-    assert c._lateral_caps(EGO, [car(-30.0, -3.5, 28.0)]) == (np.inf, np.inf)
+    assert c._lateral_caps(returning, [car(-130.0, -2.5, 28.0)])[:2] == (np.inf, np.inf)
+    assert c._lateral_caps(EGO, [car(-30.0, -3.5, 28.0)])[:2] == (np.inf, np.inf)
     fast = EgoState(x=0.0, vx=20.0, y=0.0, vy=-1.0)
     assert c._lateral_caps(fast, [car(-30.0, -3.5, 28.0)])[1] == pytest.approx(REST)
     # two lanes away (7 m): laterally far, no cap
-    assert c._lateral_caps(fast, [car(-30.0, -7.0, 28.0)]) == (np.inf, np.inf)
+    assert c._lateral_caps(fast, [car(-30.0, -7.0, 28.0)])[:2] == (np.inf, np.inf)
 
 
 def test_a_level_or_overlapping_car_caps_both_sides() -> None:
@@ -75,8 +82,8 @@ def test_a_level_or_overlapping_car_caps_both_sides() -> None:
     changes lanes behind the ego): the judge's roles are those of the run's threshold time, so
     both sides are capped."""
     c = _controller()
-    assert c._lateral_caps(EGO, [car(-15.0, 0.05, 22.0)]) == (pytest.approx(REST), pytest.approx(REST))
-    assert c._lateral_caps(EGO, [car(-15.0, 1.2, 22.0)]) == (pytest.approx(REST), pytest.approx(REST))
+    assert c._lateral_caps(EGO, [car(-15.0, 0.05, 22.0)])[:2] == (pytest.approx(REST), pytest.approx(REST))
+    assert c._lateral_caps(EGO, [car(-15.0, 1.2, 22.0)])[:2] == (pytest.approx(REST), pytest.approx(REST))
 
 
 @settings(max_examples=100, deadline=None)
@@ -88,7 +95,7 @@ def test_the_lane_keeping_keeps_the_cap_or_brakes_toward_it(vy0: float, offset: 
     the left side is left alone."""
     c = _controller()
     ego = EgoState(x=0.0, vx=vx, y=0.0, vy=vy0, ax=0.0, ay=0.0)
-    nxt = c._move(ego, 0.0, offset, caps=(np.inf, REST))
+    nxt = c._move(ego, 0.0, offset, caps=LateralCaps(np.inf, REST))
     free = c._move(ego, 0.0, offset)
     toward0, toward1 = -vy0, -nxt.vy
     lim = c.cfg.lane_keep_ay * 0.1
@@ -129,18 +136,18 @@ def test_a_car_about_to_be_too_close_keeps_the_speed_toward_it_from_growing() ->
     ego = EgoState(x=0.0, vx=20.0, y=0.0, vy=-0.5)
     d = safe_longitudinal_float(24.0, 20.0)
     dx = -(d + 1.0 + 4.8)  # bumper gap d + 1 m: safe now, unsafe within ρ at 4 m/s closing (2 m)
-    assert c._lateral_caps(ego, [car(dx, -2.5, 24.0)]) == (np.inf, pytest.approx(0.5))
+    assert c._lateral_caps(ego, [car(dx, -2.5, 24.0)])[:2] == (np.inf, pytest.approx(0.5))
     still = EgoState(x=0.0, vx=20.0, y=0.0, vy=0.0)
-    assert c._lateral_caps(still, [car(dx, -2.5, 24.0)]) == (np.inf, pytest.approx(REST))
+    assert c._lateral_caps(still, [car(dx, -2.5, 24.0)])[:2] == (np.inf, pytest.approx(REST))
     # safe for longer than a response time (3 m beyond the distance at 4 m/s closing): free
-    assert c._lateral_caps(ego, [car(-(d + 3.0 + 4.8), -2.5, 24.0)]) == (np.inf, np.inf)
+    assert c._lateral_caps(ego, [car(-(d + 3.0 + 4.8), -2.5, 24.0)])[:2] == (np.inf, np.inf)
     # a car as fast as the ego with the same gap stays safe: free
-    assert c._lateral_caps(ego, [car(dx, -2.5, 20.0)]) == (np.inf, np.inf)
+    assert c._lateral_caps(ego, [car(dx, -2.5, 20.0)])[:2] == (np.inf, np.inf)
     # unsafe now: RSS's fluctuation
-    assert c._lateral_caps(ego, [car(-(d - 1.0 + 4.8), -2.5, 24.0)]) == (np.inf, pytest.approx(REST))
+    assert c._lateral_caps(ego, [car(-(d - 1.0 + 4.8), -2.5, 24.0)])[:2] == (np.inf, pytest.approx(REST))
     # level (5 cm to the left) and about to be unsafe: its side only; unsafe: both sides
-    assert c._lateral_caps(still, [car(dx, 0.05, 24.0)]) == (pytest.approx(REST), np.inf)
-    assert c._lateral_caps(still, [car(-(d - 1.0 + 4.8), 0.05, 24.0)]) == (pytest.approx(REST), pytest.approx(REST))
+    assert c._lateral_caps(still, [car(dx, 0.05, 24.0)])[:2] == (pytest.approx(REST), np.inf)
+    assert c._lateral_caps(still, [car(-(d - 1.0 + 4.8), 0.05, 24.0)])[:2] == (pytest.approx(REST), pytest.approx(REST))
 
 
 @pytest.mark.parametrize(("mission", "traffic", "seed"),
@@ -160,9 +167,7 @@ def test_a_lane_change_does_not_start_beside_a_car_rss_constrains(mission: str, 
     assert s["rejected"].get("rss-lateral", 0) > 0
 
 
-@dataclass
-class _RoadSim(_Sim):
-    highway: Highway = field(default_factory=Highway)
+_RoadSim = _Sim  # the lane keeping reads the highway's lane width too
 
 
 def test_the_tactical_layer_follows_a_car_cutting_in_before_its_body_is_over_the_lane() -> None:
@@ -241,3 +246,67 @@ def test_the_fail_safe_brakes_at_least_as_rss_s_proper_response_behind_a_car_too
     assert c._proper_brake(ego, [near]) == DEFAULT.brake_min
     assert c._proper_brake(ego, [far]) == 0.0
     assert c._proper_brake(ego, []) == 0.0
+
+
+ACCEL = LATERAL_ACCEL_SHARE * DEFAULT.lat_accel_max
+
+
+def test_a_car_beside_not_longitudinally_safe_caps_the_acceleration_toward_it() -> None:
+    """A car of the next lane 30 m behind at 28 m/s (not longitudinally safe), its lateral gap 2 m
+    (farther than RSS's lateral distance plus the room at these lateral speeds: no speed cap): the
+    lateral acceleration toward it is capped at ``LATERAL_ACCEL_SHARE`` of RSS's ``a_lat,max``, the
+    other side is not; a car beyond a lane width, or longitudinally safe, caps nothing."""
+    c = _controller()
+    caps = c._lateral_caps(EGO, [car(-30.0, -(1.8 + 2.0), 28.0)])
+    assert caps == (np.inf, np.inf, np.inf, pytest.approx(ACCEL))
+    assert c._lateral_caps(EGO, [car(-30.0, 1.8 + 2.0, 28.0)]) == (np.inf, np.inf, pytest.approx(ACCEL), np.inf)
+    lane = c.sim.highway.lane_width
+    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + lane + 0.01), 28.0)]) == (np.inf,) * 4
+    assert c._lateral_caps(EGO, [car(-130.0, -(1.8 + 2.0), 28.0)]) == (np.inf,) * 4
+    # the bodies overlapping sideways, not longitudinally safe: both sides, speed and acceleration
+    assert c._lateral_caps(EGO, [car(-15.0, 1.2, 22.0)]) == (pytest.approx(REST), pytest.approx(REST),
+                                                                pytest.approx(ACCEL), pytest.approx(ACCEL))
+
+
+@settings(max_examples=400, deadline=None)
+@given(u0=st.floats(-0.5, 1.5), a0=st.floats(-0.5, 1.5), toward=st.floats(0.0, 4.0), vx=st.floats(1.0, 30.0),
+       dx=st.floats(-50.0, 20.0), side=st.sampled_from([-1.0, 1.0]), gap=st.floats(-0.5, 4.5),
+       nvy=st.floats(-1.5, 1.5), v=st.floats(10.0, 35.0))
+def test_the_lane_keeping_never_accelerates_toward_a_car_faster_than_rss_allows_at_a_threshold(
+        u0: float, a0: float, toward: float, vx: float, dx: float, side: float, gap: float, nvy: float,
+        v: float) -> None:
+    """The judge's rule for the first period of a dangerous run whose response is lateral
+    (:func:`iamp.simulation.rss._complies`, the period starting at the threshold time): the speed toward
+    the other after it at most ``max(u0 + a_lat,max dt, μ/ρ)``.  Whatever the lane keeping's target and
+    state (``u0``, ``a0``: the lateral speed and input toward the car's side; ``toward``: the lane centre
+    that far toward it), one period of :meth:`Controller._move` under :meth:`Controller._lateral_caps`
+    keeps it toward every car within a lane width that is not longitudinally safe (the pair may turn
+    dangerous in that period by the other's own lateral motion)."""
+    from iamp.simulation.rss import longitudinal_room
+
+    c = _controller()
+    vy0 = side * u0
+    ego = EgoState(x=0.0, vx=vx, y=0.0, vy=vy0, ax=0.0, ay=side * a0)
+    n = Neighbour("n", (dx, v), y=side * ((1.8 + 1.8) / 2 + gap), length=4.8, width=1.8, lane=0, vy=nvy)
+    nxt = c._move(ego, 0.0, side * toward, caps=c._lateral_caps(ego, [n]))
+    lon_gap, d_lon = longitudinal_room(dx, 4.8, v, vx, 4.8, DEFAULT)
+    if (lon_gap > 0 and lon_gap >= d_lon) or gap > c.sim.highway.lane_width:
+        return
+    toward0, toward1 = side * vy0, side * nxt.vy
+    rest = DEFAULT.lat_margin_m / DEFAULT.response_time_s
+    assert toward1 <= max(toward0 + DEFAULT.lat_accel_max * 0.1, rest) + 1e-12
+
+
+@pytest.mark.parametrize(("traffic", "seed", "before"), [("los-e", 7003, 6.1), ("dense", 7005, 6.8)])
+def test_the_fail_safe_return_does_not_accelerate_toward_a_car_changing_lanes_behind(
+        traffic: str, seed: int, before: float) -> None:
+    """Discretionary episodes of seeds no campaign uses (docs/closed-loop.md): after an abort the
+    fail-safe's return to its lane accelerated sideways (0.27 and 1.5 m/s²) toward a car of the lane
+    beyond that started a lane change behind the ego into that lane in the same period, ``before``
+    seconds at fault with ``pmp-active``.  With the acceleration cap of :meth:`Controller._lateral_caps`:
+    none, still a success without a contact."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="discretionary", traffic=traffic, seed=seed, planner="pmp-active")).summary
+    assert s["rss_dangerous_s"] == 0.0 and s["success"] and s["contacts"] == 0
