@@ -310,3 +310,27 @@ def test_the_fail_safe_return_does_not_accelerate_toward_a_car_changing_lanes_be
 
     s = run_episode(EpisodeSpec(mission="discretionary", traffic=traffic, seed=seed, planner="pmp-active")).summary
     assert s["rss_dangerous_s"] == 0.0 and s["success"] and s["contacts"] == 0
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_the_acceleration_cap_adds_its_own_share_per_period_above_the_rest_share(side: float) -> None:
+    """One period of :meth:`Controller._move` with an acceleration cap on one side and the lane keeping
+    pulling hard toward it (its lane centre 3 m away): moving toward it at 0.5 m/s, the speed toward
+    it grows by exactly the cap times the period; from below the rest share 0.8 μ/ρ, it reaches it (the
+    judge's fluctuation allows it whatever the acceleration); moving away, nothing changes; the
+    other side's cap leaves it alone."""
+    c = _controller()
+    caps = LateralCaps(np.inf, np.inf, ACCEL, np.inf) if side > 0 else LateralCaps(np.inf, np.inf, np.inf, ACCEL)
+    other = LateralCaps(np.inf, np.inf, np.inf, ACCEL) if side > 0 else LateralCaps(np.inf, np.inf, ACCEL, np.inf)
+    moving = EgoState(x=0.0, vx=20.0, y=0.0, vy=side * 0.5, ax=0.0, ay=side * 1.0)
+    nxt = c._move(moving, 0.0, side * 3.0, caps=caps)
+    assert side * nxt.vy == pytest.approx(0.5 + ACCEL * 0.1, abs=1e-12)
+    assert side * nxt.ay == pytest.approx(ACCEL, abs=1e-12)
+    free = c._move(moving, 0.0, side * 3.0)
+    assert side * free.vy > 0.5 + 0.2 * 0.1  # the lane keeping alone: faster than RSS allows
+    assert c._move(moving, 0.0, side * 3.0, caps=other) == free
+    slow = EgoState(x=0.0, vx=20.0, y=0.0, vy=side * 0.1, ax=0.0, ay=side * 1.5)
+    assert side * c._move(slow, 0.0, side * 3.0).vy > REST
+    assert side * c._move(slow, 0.0, side * 3.0, caps=caps).vy == pytest.approx(REST, abs=1e-12)
+    away = EgoState(x=0.0, vx=20.0, y=0.0, vy=-side * 0.5, ax=0.0, ay=side * 1.0)
+    assert c._move(away, 0.0, side * 3.0, caps=caps) == c._move(away, 0.0, side * 3.0)
