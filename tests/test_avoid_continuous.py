@@ -229,6 +229,27 @@ def test_the_search_budget_counts_solves_not_seconds(monkeypatch: pytest.MonkeyP
     assert "time_limit_s" not in few.info["avoidance"]["search"]
 
 
+@pytest.mark.parametrize("budget", [1, 2])
+def test_a_budget_spent_before_any_feasible_crossing_is_not_a_proof_of_infeasibility(budget: int) -> None:
+    """A feasible problem (the overtake, optimal with the default budget) whose budget runs out
+    before any crossing-time candidate is solved: boxes stay open, so no plan and no certificate;
+    status ``maximum_iterations_reached`` naming the budget, never ``infeasible`` (a box leaves the
+    search without an incumbent only when its relaxation is infeasible).  Found on an unseen draw of
+    the reference sweep (HARD 20159: ``infeasible`` with 656 boxes open after 2000 QPs)."""
+    import iamp
+    from iamp.planners.examples import overtake_problem
+
+    prob = overtake_problem()
+    assert iamp.plan(prob, "qp", constraint="avoid").status == st.OPTIMAL
+    plan = iamp.plan(prob, "qp", constraint="avoid", max_solves=budget)
+    s = plan.info["search"]
+    if s["n_solves"] > 1:  # the first candidate solved: an incumbent, the plan is local
+        assert plan.status == st.LOCAL and not s["closed"]
+        return
+    assert plan.status == st.MAX_ITER and plan.cost is None and s["open_boxes"] > 0
+    assert f"max_solves {budget}" in plan.info["reason"] and "not proved" in plan.info["reason"]
+
+
 def test_the_removed_wall_clock_budget_is_refused_naming_max_solves() -> None:
     import iamp
     from iamp.core.errors import OptionError

@@ -1244,6 +1244,14 @@ class ContinuousAvoidPlanner:
         best: Solved | None = out["best"]
         if best is None:
             free: Solved = out["free"]
+            if free.status != st.INFEASIBLE and not out["failures"] and out["open_boxes"]:
+                # no candidate solved, but boxes left open at the budget: infeasibility is not proved
+                # (a box leaves the search without an incumbent only when its relaxation is infeasible)
+                return failed_plan(problem, st.MAX_ITER,
+                                   f"the crossing-time search stopped at its budget (max_solves {self.max_solves}, "
+                                   f"max_boxes {self.max_boxes}) with {out['open_boxes']} boxes open before any "
+                                   f"crossing time gave a feasible QP: infeasibility not proved", start, **common,
+                                   info=info)
             if free.status == st.INFEASIBLE or not out["failures"]:
                 why = ("no trajectory satisfies the boundary conditions and the bounds" if free.status == st.INFEASIBLE
                        else "no crossing time gives a feasible QP")
