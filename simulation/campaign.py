@@ -79,8 +79,9 @@ Key = tuple[str, str, str, int]
 #: up to 50° to its lane, then straightened in place), and the lane keeping brakes along the heading
 #: where RSS's lateral response cuts a lateral speed faster than a car turns.
 #: 17.7: the lane keeping's lateral acceleration toward a vehicle beside the ego that is not
-#: longitudinally safe for a response time (within a lane width) is at most 0.75 of RSS's
-#: ``a_lat,max`` once its speed toward it exceeds the rest share (``Controller._lateral_caps``).
+#: longitudinally safe for a response time (within a lane width) and changes lanes toward it is at
+#: most 0.75 of RSS's ``a_lat,max`` once its speed toward it exceeds the rest share
+#: (``Controller._lateral_caps``).
 EPISODE_FORMAT = "17.7"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",

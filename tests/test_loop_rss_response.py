@@ -252,17 +252,23 @@ ACCEL = LATERAL_ACCEL_SHARE * DEFAULT.lat_accel_max
 
 
 def test_a_car_beside_not_longitudinally_safe_caps_the_acceleration_toward_it() -> None:
-    """A car of the next lane 30 m behind at 28 m/s (not longitudinally safe), its lateral gap 2 m
-    (farther than RSS's lateral distance plus the room at these lateral speeds: no speed cap): the
-    lateral acceleration toward it is capped at ``LATERAL_ACCEL_SHARE`` of RSS's ``a_lat,max``, the
-    other side is not; a car beyond a lane width, or longitudinally safe, caps nothing."""
+    """A car of the next lane 30 m behind at 28 m/s (not longitudinally safe), its lateral gap 2.6 m
+    (farther than RSS's lateral distance plus the room at these lateral speeds: no speed cap),
+    changing lanes toward the ego at 0.3 m/s (beyond RSS's fluctuation μ/ρ = 0.2 m/s): the lateral
+    acceleration toward it is capped at ``LATERAL_ACCEL_SHARE`` of RSS's ``a_lat,max``, the other
+    side is not; the same car keeping its lane (or moving at μ/ρ), beyond a lane width, or
+    longitudinally safe caps nothing."""
     c = _controller()
-    caps = c._lateral_caps(EGO, [car(-30.0, -(1.8 + 2.0), 28.0)])
+    caps = c._lateral_caps(EGO, [car(-30.0, -(1.8 + 2.6), 28.0, vy=0.3)])
     assert caps == (np.inf, np.inf, np.inf, pytest.approx(ACCEL))
-    assert c._lateral_caps(EGO, [car(-30.0, 1.8 + 2.0, 28.0)]) == (np.inf, np.inf, pytest.approx(ACCEL), np.inf)
+    assert c._lateral_caps(EGO, [car(-30.0, 1.8 + 2.6, 28.0, vy=-0.3)]) == (np.inf, np.inf, pytest.approx(ACCEL),
+                                                                           np.inf)
+    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + 2.6), 28.0)]) == (np.inf,) * 4
+    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + 2.6), 28.0, vy=0.2)]) == (np.inf,) * 4
+    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + 2.6), 28.0, vy=-0.3)]) == (np.inf,) * 4
     lane = c.sim.highway.lane_width
-    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + lane + 0.01), 28.0)]) == (np.inf,) * 4
-    assert c._lateral_caps(EGO, [car(-130.0, -(1.8 + 2.0), 28.0)]) == (np.inf,) * 4
+    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + lane + 0.01), 28.0, vy=0.3)]) == (np.inf,) * 4
+    assert c._lateral_caps(EGO, [car(-130.0, -(1.8 + 2.6), 28.0, vy=0.3)]) == (np.inf,) * 4
     # the bodies overlapping sideways, not longitudinally safe: both sides, speed and acceleration
     assert c._lateral_caps(EGO, [car(-15.0, 1.2, 22.0)]) == (pytest.approx(REST), pytest.approx(REST),
                                                                 pytest.approx(ACCEL), pytest.approx(ACCEL))
@@ -280,8 +286,9 @@ def test_the_lane_keeping_never_accelerates_toward_a_car_faster_than_rss_allows_
     the other after it at most ``max(u0 + a_lat,max dt, μ/ρ)``.  Whatever the lane keeping's target and
     state (``u0``, ``a0``: the lateral speed and input toward the car's side; ``toward``: the lane centre
     that far toward it), one period of :meth:`Controller._move` under :meth:`Controller._lateral_caps`
-    keeps it toward every car within a lane width that is not longitudinally safe (the pair may turn
-    dangerous in that period by the other's own lateral motion)."""
+    keeps it toward every car within a lane width that is not longitudinally safe and moves toward
+    the ego beyond RSS's fluctuation (the pair may turn dangerous in that period by the other's own
+    lateral motion)."""
     from iamp.simulation.rss import longitudinal_room
 
     c = _controller()
@@ -290,10 +297,10 @@ def test_the_lane_keeping_never_accelerates_toward_a_car_faster_than_rss_allows_
     n = Neighbour("n", (dx, v), y=side * ((1.8 + 1.8) / 2 + gap), length=4.8, width=1.8, lane=0, vy=nvy)
     nxt = c._move(ego, 0.0, side * toward, caps=c._lateral_caps(ego, [n]))
     lon_gap, d_lon = longitudinal_room(dx, 4.8, v, vx, 4.8, DEFAULT)
-    if (lon_gap > 0 and lon_gap >= d_lon) or gap > c.sim.highway.lane_width:
+    rest = DEFAULT.lat_margin_m / DEFAULT.response_time_s
+    if (lon_gap > 0 and lon_gap >= d_lon) or gap > c.sim.highway.lane_width or -side * nvy <= rest:
         return
     toward0, toward1 = side * vy0, side * nxt.vy
-    rest = DEFAULT.lat_margin_m / DEFAULT.response_time_s
     assert toward1 <= max(toward0 + DEFAULT.lat_accel_max * 0.1, rest) + 1e-12
 
 
