@@ -12,6 +12,7 @@ are removed, nothing half-written is left).
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import signal
 import sys
@@ -92,6 +93,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     traceback with ``--debug``).
     """
     args_list = list(sys.argv[1:] if argv is None else argv)
+    _tolerant_streams()
     debug = os.environ.get("IAMP_DEBUG", "") not in ("", "0")
     if "--debug" in args_list:
         cut = args_list.index("--") if "--" in args_list else len(args_list)
@@ -103,7 +105,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             # user: the plan's status and residuals say whether the result is good
             warnings.simplefilter("ignore", RuntimeWarning)
         try:
-            return _run(args_list)
+            code = _run(args_list)
+            if code != EXIT_OK:
+                # the failed work's objects, held in reference cycles through the caught error's frames,
+                # are freed now: at interpreter exit the drivability checker's bindings (nanobind)
+                # printed one line per object still alive (431 lines after a one-line error)
+                gc.collect()
+            return code
         except KeyboardInterrupt:
             sys.stderr.write("iamp: interrupted\n")
             return EXIT_INTERRUPTED
@@ -150,7 +158,11 @@ def _run(args_list: list[str]) -> int:
         sys.stderr.write(f"iamp: error: {_one_line(str(exc))}\n")
         return EXIT_BAD_INPUT
     except (FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError) as exc:
-        sys.stderr.write(f"iamp: error: {_one_line(str(exc))}\n")
+        if exc.filename is None and isinstance(exc, FileNotFoundError) and not _cwd_exists():
+            sys.stderr.write("iamp: error: the current working directory no longer exists (removed while in "
+                             "it): change to an existing folder\n")
+        else:
+            sys.stderr.write(f"iamp: error: {_one_line(str(exc))}\n")
         return EXIT_BAD_INPUT
     except BrokenPipeError:
         # the reader went away (``iamp ... | head``): stop quietly, without a second error at exit
@@ -164,9 +176,31 @@ def _run(args_list: list[str]) -> int:
 
         if exc.errno not in WRITE_REFUSED:
             raise
-        where = f"{exc.filename}: " if exc.filename else ""
+        # a write without a file name is the standard output's (files go through iamp.core.atomic,
+        # which names them)
+        where = f"{exc.filename}: " if exc.filename else "cannot write the standard output: "
         sys.stderr.write(f"iamp: error: {where}{_one_line(exc.strerror or str(exc))}\n")
         return EXIT_BAD_INPUT
+
+
+def _cwd_exists() -> bool:
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        return False
+    return True
+
+
+def _tolerant_streams() -> None:
+    """Standard output and error that cannot encode a character (``PYTHONIOENCODING=ascii``, a
+    C locale) write ``?`` for it instead of failing (the summaries print ``Φ``, ``²``, ``τ``)."""
+    for stream in (sys.stdout, sys.stderr):
+        enc = (getattr(stream, "encoding", None) or "").lower().replace("-", "").replace("_", "")
+        if enc not in ("utf8", "utf8sig") and hasattr(stream, "reconfigure"):
+            try:
+                stream.reconfigure(errors="replace")
+            except (ValueError, OSError):  # pragma: no cover - a closed or detached stream
+                pass
 
 
 if __name__ == "__main__":

@@ -41,6 +41,11 @@ def _error(exc: BaseException) -> int:
 
 
 
+#: The most acceleration bins ``--bins`` / ``--bin-width`` may ask for: the chain's transition
+#: matrices grow with the square of the bins (the default is 13; 10^8 bins asked for 284 PiB).
+MAX_BINS = 1000
+
+
 def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
     """Interior acceleration bin edges from the ``--bins`` / ``--bin-width`` / ``--a-max`` options.
 
@@ -51,6 +56,8 @@ def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
     from iamp.prediction.predictor import symmetric_edges
 
     if spec is None:
+        if 2 * round(a_max / width) + 1 > MAX_BINS:  # symmetric_edges' number of bins
+            raise ValueError(f"--bin-width {width:g} over --a-max {a_max:g} gives more than {MAX_BINS} bins")
         return symmetric_edges(width, a_max)
     spec = spec.strip()
     if "," not in spec:
@@ -58,8 +65,8 @@ def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
             n = int(spec)
         except ValueError:
             raise ValueError(f"--bins must be a number of bins or comma-separated edges (got {spec!r})") from None
-        if n < 2:
-            raise ValueError(f"--bins needs at least 2 bins (got {n})")
+        if not 2 <= n <= MAX_BINS:
+            raise ValueError(f"--bins must be between 2 and {MAX_BINS} bins (got {n})")
         return np.linspace(-a_max, a_max, n + 1)[1:-1]
     try:
         edges = np.array([float(s) for s in spec.split(",") if s.strip()], dtype=float)
@@ -67,6 +74,8 @@ def parse_bins(spec: str | None, width: float, a_max: float) -> np.ndarray:
         raise ValueError(f"--bins edges must be numbers (got {spec!r})") from None
     if edges.size < 1 or not np.all(np.isfinite(edges)) or np.any(np.diff(edges) <= 0):
         raise ValueError("--bins edges must be finite and strictly increasing")
+    if edges.size + 1 > MAX_BINS:
+        raise ValueError(f"--bins gives {edges.size + 1} bins, more than {MAX_BINS}")
     return edges
 
 
@@ -74,7 +83,8 @@ def add_ngsim_options(parser: argparse.ArgumentParser) -> None:
     """``--location`` and ``--units`` of every command that reads NGSIM data."""
     parser.add_argument("--location", default=None,
                         help="NGSIM only: keep the rows of this Location (e.g. us-101, i-80); other rows are counted "
-                             "as dropped")
+                             "as dropped (a file without a Location column: its rows are labelled with it, "
+                             "noted in the report)")
     parser.add_argument("--units", default=None, choices=("feet", "metres"),
                         help="NGSIM only: the unit of lengths, speeds and accelerations in the file (default: "
                              "detected from vehicle lengths and widths, lane width and speeds; a file whose data "

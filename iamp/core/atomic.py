@@ -59,6 +59,25 @@ def write_through(path: Path) -> Path:
     return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
+def refuse_special(path: Path) -> None:
+    """Raise :class:`~iamp.core.errors.EnvironmentProblem` when ``path`` exists and is not a
+    regular file (a device, a named pipe, a socket): the atomic rename would replace it by a regular
+    file (``--csv /dev/null --force`` run as root replaced the system's ``/dev/null``), and writing
+    into it is not a file a user can keep."""
+    import stat
+
+    from iamp.core.errors import EnvironmentProblem
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return  # missing (created), or the write itself reports why not
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        kind = ("a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else
+                "a named pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "not a file")
+        raise EnvironmentProblem(f"cannot write {path}", f"it is {kind}, not a regular file; give a file name")
+
+
 #: The temporary names :func:`atomic_path` makes: ``.<name>.<8 random characters>.tmp``.
 TEMPORARY_NAME = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.tmp$")
 
@@ -91,6 +110,7 @@ def atomic_path(path: PathLike) -> Iterator[str]:
     interrupted run leaves the previous file and no ``.tmp`` behind.
     """
     path = write_through(Path(path))
+    refuse_special(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))

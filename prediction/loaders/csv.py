@@ -10,6 +10,7 @@ import csv
 import gzip
 import os
 import warnings
+import zlib
 from array import array
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -38,7 +39,11 @@ def _bounded_lines(fh: IO[str], path: Path, first_line: int = 1) -> Iterable[str
     limit = MAX_LINE_CHARS
     number = first_line
     while True:
-        line = fh.readline(limit + 1)
+        try:
+            line = fh.readline(limit + 1)
+        except (EOFError, zlib.error, gzip.BadGzipFile) as exc:  # a truncated or corrupt .gz
+            raise TrackDataError(f"the compressed file is truncated or corrupt after line {number - 1} ({exc})",
+                                 source=path) from None
         if not line:
             return
         if len(line) > limit:
@@ -64,7 +69,7 @@ def _read_header(path: Path, delimiter: str | None) -> tuple[list[str], str]:
             first = next(iter(_bounded_lines(fh, path)), "")
     except FileNotFoundError:
         raise TrackDataError("no such file", source=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, EOFError, zlib.error) as exc:
         raise TrackDataError(f"cannot read the file ({exc})", source=path) from None
     if not first.strip():
         raise TrackDataError("the file is empty (no header line)", source=path)

@@ -16,6 +16,7 @@ time step is the median step of the log; a vehicle's track is split where steps 
 from __future__ import annotations
 
 import os
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +43,7 @@ def is_iamp_log(path: Path) -> bool:
     try:
         with _open_text(path) as fh:
             first = fh.readline(4096)
-    except (OSError, UnicodeDecodeError):
+    except (OSError, UnicodeDecodeError, EOFError, zlib.error):
         return False
     return tuple(c.strip() for c in first.strip().split(",")) == IAMP_LOG_COLUMNS
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import os
 import re
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -80,7 +81,7 @@ def _first_line(path: Path) -> str:
                     return str(line)
     except FileNotFoundError:
         raise TrackDataError("no such file", source=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, EOFError, zlib.error) as exc:
         raise TrackDataError(f"cannot read the file ({exc})", source=path) from None
     raise TrackDataError("the file is empty", source=path)
 
@@ -95,6 +96,8 @@ def _read_txt(path: Path) -> dict[str, Array]:
             data = np.loadtxt(fh, usecols=list(want.values()), dtype=np.float64, ndmin=2)
     except ValueError as exc:
         raise TrackDataError(f"not the 18-column NGSIM text layout ({exc})", source=path) from None
+    except (OSError, EOFError, zlib.error) as exc:  # a truncated or corrupt .gz
+        raise TrackDataError(f"cannot read the file ({exc})", source=path) from None
     cols: dict[str, Array] = {name: data[:, k] for k, name in enumerate(want)}
     cols["v_length"] = cols.pop("v_Length")
     bad = ~np.isfinite(data)
@@ -192,6 +195,9 @@ def load_ngsim(csv_path: str | os.PathLike[str], location: str | None = None, un
         locations = np.asarray([(location or "unknown").strip().lower()])
         loc_code = np.zeros(n, dtype=np.int64)
         meta["location_source"] = "argument" if location else "unknown (no Location column)"
+        if location:
+            report.note(f"no Location column: every row is labelled {location.strip().lower()!r} (--location "
+                        "filters only a file with that column)")
     if location is not None and "location_source" not in meta:
         want = location.strip().lower()
         if want not in locations:

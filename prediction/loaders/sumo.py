@@ -6,6 +6,7 @@ import gzip
 import math
 import os
 import xml.etree.ElementTree as ET
+import zlib
 from array import array
 from collections.abc import Mapping
 from pathlib import Path
@@ -50,7 +51,7 @@ def _is_xml(path: Path) -> bool:
             head = fh.read(256)
     except FileNotFoundError:
         raise TrackDataError("no such file", source=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, EOFError, zlib.error) as exc:
         raise TrackDataError(f"cannot read the file ({exc})", source=path) from None
     return bool(head.lstrip().startswith("<"))
 
