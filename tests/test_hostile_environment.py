@@ -100,3 +100,19 @@ def test_an_ascii_only_terminal_gets_the_summary_with_placeholders() -> None:
     assert r.returncode == 0, r.stderr
     assert b"status    optimal" in r.stdout and b"?" in r.stdout
     r.stdout.decode("ascii")  # nothing but ASCII was written
+
+
+def test_location_on_a_file_without_a_location_column_is_noted(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """``--location`` filters a file with a Location column; on one without it the rows are labelled
+    with it (documented), and the report now says so instead of keeping every row silently."""
+    import csv
+
+    rows = list(csv.reader((FIXTURES / "ngsim.csv").read_text().splitlines()))
+    loc = rows[0].index("Location")
+    plain = tmp_path / "plain.csv"
+    plain.write_text("\n".join(",".join(r[:loc] + r[loc + 1:]) for r in rows) + "\n")
+    assert main(["train", str(plain), "--format", "ngsim", "--location", "i-80", "--out",
+                 str(tmp_path / "m.json")]) == 0
+    out = capsys.readouterr().out
+    assert "no Location column" in out and "'i-80'" in out
