@@ -116,3 +116,10 @@ def test_location_on_a_file_without_a_location_column_is_noted(tmp_path: Path,
                  str(tmp_path / "m.json")]) == 0
     out = capsys.readouterr().out
     assert "no Location column" in out and "'i-80'" in out
+
+
+def test_an_empty_output_name_is_named_as_empty(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--csv ''`` was "is a folder" (``Path('')`` is the working directory)."""
+    assert main(["plan", "paper-1-poly", "--csv", ""]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "--csv" in line and "empty" in line

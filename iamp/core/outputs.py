@@ -100,6 +100,8 @@ def check_output(path: PathLike, inputs: Iterable[PathLike] = (), force: bool = 
     """
     p = Path(path)
     shown = str(path)
+    if not shown.strip():
+        raise OutputError("is empty; give a file name", option, shown)
     for inp in inputs:
         q = Path(inp)
         if _same(p, q):
