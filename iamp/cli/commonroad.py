@@ -109,7 +109,13 @@ def cmd_check(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from iamp.commonroad.planning import PLANNERS
 
-    planners = [p.strip() for p in args.planners.split(",") if p.strip()]
+    names = [p.strip() for p in args.planners.split(",")]
+    if not any(names) or not all(names):
+        sys.stderr.write(f"iamp: error: --planners: {args.planners!r} "
+                         + ("names no planner" if not any(names) else "has an empty planner name")
+                         + f"; give one or more of {', '.join(PLANNERS)}, separated by commas\n")
+        return EXIT_BAD_INPUT
+    planners = names
     from iamp.commonroad.bench import PREDICT_SUFFIX
 
     for p in planners:
@@ -134,14 +140,28 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _bench_into(args: argparse.Namespace, planners: list[str], folder: Path, out: Path | None) -> int:
+    from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.commonroad.bench import bench, peer_rows, summary, write_reports
 
-    def progress(text: str) -> None:
-        if not args.json:
-            sys.stderr.write(f"  {text}\n")
+    total = len(planners) * len(list(folder.glob("*.xml")))
+    announced = [0, 0]  # (scenario, planner) pairs begun, of which stored
 
-    rows = bench(folder, planners, out, args.timeout, progress, cost_function=args.cost_function,
-                 vehicle_model=args.vehicle_model, vehicle_type=args.vehicle_type, force=args.force)
+    # progress as every iamp command shows it: a bar on a terminal, labelled with the scenario and
+    # planner under way; nothing under --json or when standard error is not a terminal
+    with progress_bar(total, "commonroad bench", enabled=progress_enabled(args)) as tick:
+        def progress(text: str) -> None:
+            tick(announced[0], total)
+            tick.describe(text)
+            announced[0] += 1
+            announced[1] += text.endswith("(stored)")
+
+        rows = bench(folder, planners, out, args.timeout, progress, cost_function=args.cost_function,
+                     vehicle_model=args.vehicle_model, vehicle_type=args.vehicle_type, force=args.force)
+        tick(announced[0], total)
+    if announced[1] and not args.json:
+        # a resumed bench says so (not progress: what the tables are made of)
+        sys.stderr.write(f"iamp: {announced[1]} of {announced[0]} (scenario, planner) results taken from {out} "
+                         "(stored), not planned again\n")
     for peer in args.peer or []:
         extra = peer_rows(folder, peer)
         rows += extra

@@ -296,8 +296,7 @@ def peer_rows(folder: str | Path, peer_dir: str | Path) -> list[Row]:
     same checks and costs as iamp's plans.  The label is ``peer.json``'s ``planner`` field
     (:data:`PEER_LABEL` when absent)."""
     require()
-    from commonroad.common.solution import CommonRoadSolutionReader
-
+    from iamp.commonroad.inputs import read_solution
     from iamp.core.errors import ScenarioError
 
     pdir = Path(peer_dir)
@@ -315,7 +314,7 @@ def peer_rows(folder: str | Path, peer_dir: str | Path) -> list[Row]:
                   plan={"reason": str(info.get("status"))})
         sol_path = pdir / f"{f.stem}.solution.xml"
         if sol_path.is_file():
-            solution = CommonRoadSolutionReader.open(str(sol_path))
+            solution = read_solution(sol_path)
             verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
             row.category = verdict.category
             row.valid_raw = verdict.valid_commonroad_raw

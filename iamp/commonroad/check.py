@@ -134,24 +134,18 @@ class Verdict:
 
 
 def read(scenario_path: str | Path, solution_path: str | Path) -> tuple[Any, Any, Any]:
-    """Scenario, planning-problem set and solution from their files (one-line errors)."""
+    """Scenario, planning-problem set and solution from their files (one-line errors naming the
+    file and the element, :mod:`iamp.commonroad.inputs`)."""
     require()
-    from commonroad.common.file_reader import CommonRoadFileReader
-    from commonroad.common.solution import CommonRoadSolutionReader
+    from iamp.commonroad.inputs import read_scenario, read_solution
 
-    for p in (scenario_path, solution_path):
+    for p in (scenario_path, solution_path):  # both named before either is read
+        if Path(p).is_dir():
+            raise ScenarioError("is a folder, not a CommonRoad file", None, str(p))
         if not Path(p).is_file():
             raise ScenarioError("no such file", None, str(p))
-    try:
-        scenario, pps = CommonRoadFileReader(str(scenario_path)).open()
-    except Exception as exc:
-        raise ScenarioError(f"not a readable CommonRoad scenario ({exc.__class__.__name__})", None,
-                            str(scenario_path)) from None
-    try:
-        solution = CommonRoadSolutionReader.open(str(solution_path))
-    except Exception as exc:
-        raise ScenarioError(f"not a readable CommonRoad solution ({exc.__class__.__name__}: {exc})", None,
-                            str(solution_path)) from None
+    scenario, pps = read_scenario(scenario_path)
+    solution = read_solution(solution_path)
     return scenario, pps, solution
 
 

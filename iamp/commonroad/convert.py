@@ -750,22 +750,23 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     Raises
     ------
     iamp.ScenarioError
-        Unreadable file, no planning problem, or an ego outside every lanelet.
+        A folder or an unreadable file, an element that cannot be read or whose value no plan can
+        use (:mod:`iamp.commonroad.inputs`, the element named), no planning problem, or an ego
+        outside every lanelet.
     """
     require()
-    from commonroad.common.file_reader import CommonRoadFileReader
     from commonroad.common.solution import VehicleType
     from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics
 
+    from iamp.commonroad.inputs import read_scenario
+
     src = str(path)
     p = Path(path)
-    if not p.is_file():
-        raise ScenarioError("no such file", None, src)
-    try:
-        scenario, pps = CommonRoadFileReader(src).open()
-    except Exception as exc:  # the reader raises anything from XML errors to KeyError
-        raise ScenarioError(f"not a readable CommonRoad scenario ({exc.__class__.__name__}: {exc})", None,
-                            src) from None
+    params = VehicleDynamics.PM(VehicleType(vehicle_type)).parameters
+    # the file, its elements and values (each refused naming it: iamp.commonroad.inputs); an initial
+    # speed must lie in the speed range of the vehicle type that is planned
+    scenario, pps = read_scenario(p, (float(params.longitudinal.v_min), float(params.longitudinal.v_max)),
+                                  f"CommonRoad vehicle type {vehicle_type}")
     problems = list(pps.planning_problem_dict.values())
     if not problems:
         raise ScenarioError("has no planning problem", "planningProblem", src)
@@ -773,7 +774,6 @@ def load(path: str | Path, vehicle_type: int = 2) -> CommonRoadProblem:
     notes: list[str] = []
     if len(problems) > 1:
         notes.append(f"{len(problems)} planning problems; the first ({pp.planning_problem_id}) is planned")
-    params = VehicleDynamics.PM(VehicleType(vehicle_type)).parameters
     dt = float(scenario.dt)
     network = scenario.lanelet_network
 
