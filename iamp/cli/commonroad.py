@@ -12,6 +12,7 @@ from iamp.cli.types import EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVER, positive_float
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
+    from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.commonroad.check import check
     from iamp.commonroad.convert import load
     from iamp.commonroad.planning import describe, ks_engine, plan
@@ -20,13 +21,29 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     if args.out:
         check_output(args.out, inputs=[args.scenario], force=args.force)
-    cr = load(args.scenario, args.vehicle_type)  # the type's body and limits in the plan too
-    seen = cr
-    if args.predict:
-        from iamp.commonroad.predicted import predict_obstacles
+    # progress by stage (a plan takes up to tens of seconds): a bar on a terminal, nothing under --json
+    with progress_bar(3, "commonroad plan", enabled=progress_enabled(args)) as tick:
+        tick.describe("commonroad plan: reading the scenario")
+        cr = load(args.scenario, args.vehicle_type)  # the type's body and limits in the plan too
+        seen = cr
+        if args.predict:
+            from iamp.commonroad.predicted import predict_obstacles
 
-        seen = predict_obstacles(cr)
-    rp = plan(seen, args.planner, engine=ks_engine(args.vehicle_type) if args.vehicle_model == "KS" else None)
+            seen = predict_obstacles(cr)
+        tick(1, 3)
+        tick.describe(f"commonroad plan: planning ({args.planner})")
+        rp = plan(seen, args.planner, engine=ks_engine(args.vehicle_type) if args.vehicle_model == "KS" else None)
+        tick(2, 3)
+        tick.describe("commonroad plan: checking the solution")
+        if rp.trajectory is not None and rp.candidate is not None:
+            solution, drift = build_solution(cr, rp.trajectory, rp.candidate.steps, args.cost_function,
+                                             args.vehicle_type, args.vehicle_model)
+            verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
+            from iamp.commonroad.costs import REPORTED, evaluate
+
+            named = tuple(dict.fromkeys([args.cost_function, *REPORTED]))
+            costs = evaluate(cr, solution, named)
+        tick(3, 3)
     out: dict[str, Any] = dict(describe(rp))
     out["scenario"] = cr.name
     out["frame_fit_residual_m"] = cr.frame_fit_residual_m
@@ -38,18 +55,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
         else:
             sys.stdout.write(f"{cr.name}: {args.planner}: no plan ({rp.reason or rp.status})\n")
         return EXIT_SOLVER
-    solution, drift = build_solution(cr, rp.trajectory, rp.candidate.steps, args.cost_function, args.vehicle_type,
-                                     args.vehicle_model)
     out["zoh_drift_m" if args.vehicle_model == "PM" else "ks_deviation_m"] = drift
     out["benchmark_id"] = str(solution.benchmark_id)  # type: ignore[attr-defined]  # commonroad: untyped
     if args.out:
         write_solution(solution, args.out, force=args.force)
         out["solution"] = str(args.out)
-    verdict = check(cr.scenario, cr.planning_problem_set, solution, cost=False)
-    from iamp.commonroad.costs import REPORTED, evaluate
-
-    named = tuple(dict.fromkeys([args.cost_function, *REPORTED]))
-    costs = evaluate(cr, solution, named)
     verdict.cost = costs[args.cost_function]["total"]
     verdict.cost_function = args.cost_function
     out["commonroad"] = verdict.to_json()
