@@ -98,6 +98,17 @@ def problem_field(pps: Any, pp: Any) -> str:
 
 
 # --- reading a scenario ----------------------------------------------------------------------------
+def _existing_file(path: Any, what: str) -> str:
+    """``path`` as a string, refused (naming it) when it is a folder or no file."""
+    src = str(path)
+    p = Path(path)
+    if p.is_dir():
+        raise ScenarioError(f"is a folder, not a CommonRoad {what} file", None, src)
+    if not p.is_file():
+        raise ScenarioError("no such file", None, src)
+    return src
+
+
 def read_scenario(path: str | Path, speed_range: tuple[float, float] | None = None,
                   vehicle: str | None = None) -> tuple[Any, Any]:
     """The scenario and planning-problem set of the CommonRoad file ``path``, validated.
@@ -123,17 +134,12 @@ def read_scenario(path: str | Path, speed_range: tuple[float, float] | None = No
     """
     from commonroad.common.file_reader import CommonRoadFileReader
 
-    src = str(path)
-    p = Path(path)
-    if p.is_dir():
-        raise ScenarioError("is a folder, not a CommonRoad scenario file", None, src)
-    if not p.is_file():
-        raise ScenarioError("no such file", None, src)
+    src = _existing_file(path, "scenario")
     try:
         scenario, pps = CommonRoadFileReader(src).open()
     except Exception as exc:  # the reader raises anything from XML errors to TypeError
         try:
-            found = diagnose_scenario_xml(p)
+            found = diagnose_scenario_xml(Path(src))
         except RecursionError:  # nested too deeply to walk: the reader's message stands
             found = None
         if found is not None:
@@ -411,17 +417,12 @@ def read_solution(path: str | Path) -> Any:
     """
     from commonroad.common.solution import CommonRoadSolutionReader
 
-    src = str(path)
-    p = Path(path)
-    if p.is_dir():
-        raise ScenarioError("is a folder, not a CommonRoad solution file", None, src)
-    if not p.is_file():
-        raise ScenarioError("no such file", None, src)
+    src = _existing_file(path, "solution")
     try:
         solution = CommonRoadSolutionReader.open(src)
     except Exception as exc:  # the reader raises anything from XML errors to AttributeError
         try:
-            found = diagnose_solution_xml(p)
+            found = diagnose_solution_xml(Path(src))
         except RecursionError:
             found = None
         if found is not None:
