@@ -119,6 +119,12 @@ class LateralCaps(NamedTuple):
 NO_CAPS = LateralCaps(np.inf, np.inf)
 
 
+def _rest_speed(p: Any) -> float:
+    """The lateral speed the lane keeping allows toward a car RSS constrains laterally:
+    :data:`LATERAL_REST_SHARE` of RSS's fluctuation ``μ/ρ`` (``p``: the RSS parameters)."""
+    return float(LATERAL_REST_SHARE * p.lat_margin_m / p.response_time_s)
+
+
 def _toward(ego: EgoState, n: Neighbour) -> tuple[float, float]:
     """The lateral speeds of the ego and of ``n`` toward each other (``n`` on the side of the sign of
     its offset ``n.y - ego.y``; level: the right)."""
@@ -598,9 +604,9 @@ class Controller:
         if not self.cfg.safe:
             return NO_CAPS
         p = self.cfg.tactical.safe.rss
-        rest = LATERAL_REST_SHARE * p.lat_margin_m / p.response_time_s
+        moving = p.lat_margin_m / p.response_time_s  # RSS's fluctuation μ/ρ: beyond it, a lane change
+        rest = _rest_speed(p)
         accel = LATERAL_ACCEL_SHARE * p.lat_accel_max
-        moving = p.lat_margin_m / p.response_time_s  # a lateral speed beyond RSS's fluctuation: a lane change
         Le, We = self.sim.ego_length, self.sim.ego_width
         lane_width = self.sim.highway.lane_width
         caps = [np.inf, np.inf, np.inf, np.inf]  # speed left, right; acceleration left, right
@@ -666,7 +672,7 @@ class Controller:
         ay = self._turn_bound(ego, ax, ay)
         # RSS's lateral proper response (:meth:`_lateral_caps`): toward a side with an acceleration
         # cap, the lateral speed gains at most that cap per period once above the rest share
-        rest = LATERAL_REST_SHARE * cfg.tactical.safe.rss.lat_margin_m / cfg.tactical.safe.rss.response_time_s
+        rest = _rest_speed(cfg.tactical.safe.rss)
         if ego.vy + ay * dt > max(ego.vy + caps.accel_left * dt, rest):
             ay = max(min(ay, caps.accel_left), (rest - ego.vy) / dt)
         if -(ego.vy + ay * dt) > max(-ego.vy + caps.accel_right * dt, rest):

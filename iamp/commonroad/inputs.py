@@ -371,22 +371,14 @@ def _shape_fault(shape: Any, prefix: str = "") -> tuple[str, str] | None:
             if why is not None:
                 return why
         return None
-    if kind == "Rectangle":
-        where = f"{prefix}.rectangle"
-        for attr in ("length", "width"):
+    if kind in ("Rectangle", "Circle"):
+        where = f"{prefix}.{kind.lower()}"
+        for attr in ("length", "width") if kind == "Rectangle" else ("radius",):
             v = _exact_number(getattr(shape, attr, None))
             if v is None or v <= 0:
                 return f"{where}.{attr}", f"must be a finite size > 0 m (got {getattr(shape, attr, None)!r})"
         if _exact_number(getattr(shape, "orientation", 0.0)) is None:
             return f"{where}.orientation", f"must be a finite angle (got {shape.orientation!r})"
-        if not _finite_point(shape.center):
-            return f"{where}.center", f"must have finite coordinates (got {shape.center!r})"
-        return None
-    if kind == "Circle":
-        where = f"{prefix}.circle"
-        v = _exact_number(getattr(shape, "radius", None))
-        if v is None or v <= 0:
-            return f"{where}.radius", f"must be a finite size > 0 m (got {getattr(shape, 'radius', None)!r})"
         if not _finite_point(shape.center):
             return f"{where}.center", f"must have finite coordinates (got {shape.center!r})"
         return None
