@@ -147,43 +147,46 @@ class KKTCheck:
 
 
 def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
-    r"""The last instant the trajectory is in ``plane``: :math:`\sup\{t : c(t) - \sigma s(t) \ge 0\}`
-    (1 ms scan, then a root to 1e-12 s); ``tf`` when it ends inside, 0 when it never is.
+    r"""The last instant the trajectory is in ``plane``: :math:`\sup\{t : c(t) - \sigma s(t) \ge -10^{-12}\}`
+    (1e-12 m tolerance); ``tf`` when it ends inside, 0 when it never is.
 
-    A held trajectory (:class:`~iamp.planners.qp.hold.HoldTrajectory`) finds the scan's bracket
-    from the exact roots of its margin, a polynomial per piece (:func:`_scan_bracket`), and checks
-    it at the bracket's two scan points; the root is then solved on that bracket as after the scan
-    (the same number, without evaluating the 1 ms scan; Brent's method takes the margins at the
-    bracket's ends from that check, the numbers it would compute), and any other case scans."""
+    A held trajectory (:class:`~iamp.planners.qp.hold.HoldTrajectory`) gives it as the last exact
+    root of its margin, a polynomial per piece (:func:`_scan_bracket`: the margin is negative
+    after it, up to ``t_f``), once the trajectory evaluated at the 1 ms scan points on either side
+    of that root confirms the sign change there.  Any other case scans those points and solves
+    the root on the last bracket (Brent's method to 1e-13 s).
+    """
     t = np.linspace(0.0, tf, max(2, int(np.ceil(tf / 1e-3)) + 1))
     axis = 0 if plane.axis == "x" else 2
 
     def margin(x: FloatArray) -> FloatArray:
         return np.asarray(plane.margin(x, traj.states(x)[:, axis]), dtype=float)
 
-    seen: dict[float, float] = {}
-    k = _scan_bracket(traj, plane, t, margin, seen)
-    if k is None:
+    exact = _scan_bracket(traj, plane, t, margin)
+    if exact is None:
         inside = np.flatnonzero(margin(t) >= -1e-12)
         if inside.size == 0:
             return 0.0
         k = int(inside[-1])
-    elif k < 0:
-        return 0.0
+    else:
+        k, root = exact
+        if k < 0:
+            return 0.0
+        if root is not None:
+            return float(min(max(root, float(t[k])), float(t[k + 1])))
     if k == t.size - 1:
         return float(tf)
 
     def g(x: float) -> float:  # the same 1e-12 m tolerance as the scan: a sign change is bracketed
-        m = seen.get(x)  # the bracket's ends, evaluated by _scan_bracket (brentq's first two calls)
-        return float(margin(np.array([x]))[0] if m is None else m) + 1e-12
+        return float(margin(np.array([x]))[0]) + 1e-12
 
     return float(optimize.brentq(g, float(t[k]), float(t[k + 1]), xtol=1e-13))
 
 
-def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any,
-                  seen: dict[float, float] | None = None) -> int | None:
-    r"""The last index of the scan ``t`` whose margin is ``>= -1e-12`` (``-1``: none), from the
-    exact roots of the margin of a held trajectory, or None (the caller scans).
+def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any) -> tuple[int, float | None] | None:
+    r"""The last index ``k`` of the scan ``t`` whose margin is ``>= -1e-12`` (``-1``: none) and the
+    margin's last root (``t_k <= root <= t_{k+1}``; None when ``k`` is the last index or ``-1``),
+    from the exact roots of the margin of a held trajectory, or None (the caller scans).
 
     On each piece of the hold the margin :math:`c(t) - \sigma s(t)` is a polynomial (the
     position a cubic of FOH, a quadratic of ZOH; ``c`` the vehicle's polynomial or a constant);
@@ -200,7 +203,7 @@ def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any,
         return None
     end = margin(t[-1:])[0]
     if end >= -1e-12:
-        return int(t.size - 1)
+        return int(t.size - 1), None
     nodes = np.asarray(nodes, dtype=float)
     h = np.diff(nodes)
     a = 0 if plane.axis == "x" else 1
@@ -223,12 +226,10 @@ def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any,
     M[:, 0] += 1e-12
     rows, sig = roots_in_unit_interval(M)
     if rows.size == 0:
-        return -1 if margin(t[:1])[0] < -1e-12 else None
+        return (-1, None) if margin(t[:1])[0] < -1e-12 else None
     last = float(np.max(nodes[:-1][rows] + np.clip(sig, 0.0, 1.0) * h[rows]))
     k = int(np.clip(np.searchsorted(t, last, side="right") - 1, 0, t.size - 2))
     pair = margin(t[k:k + 2])
     if pair[0] >= -1e-12 and pair[1] < -1e-12:
-        if seen is not None:  # a held trajectory's margin at a time is the same evaluated alone
-            seen.update({float(t[k]): float(pair[0]), float(t[k + 1]): float(pair[1])})
-        return k
+        return k, last
     return None

@@ -472,8 +472,10 @@ class ContinuousAvoidQP:
             hp = self.data.planes[i][plane]
             tk = float(self.data.t_nodes[k])
             lam = np.linspace(0.0, 1.0, self.degree + 1)
-            vals = np.array([self._rhs(hp, tk, tk + x * self.h) if pre else self._rhs(hp, tk + x * self.h, tk + self.h)
-                             for x in lam])
+            # every sample interval in one call (the same operations per interval as one at a time)
+            ends = tk + lam * self.h
+            vals = (self._rhs(hp, np.full_like(ends, tk), ends) if pre
+                    else self._rhs(hp, ends, np.full_like(ends, tk + self.h)))
             out = kept[(k, pre)] = fit_polynomial(vals, self.degree)
         return out
 
