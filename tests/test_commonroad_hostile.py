@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -217,3 +218,31 @@ def test_bench_shows_no_progress_off_a_terminal(tmp_path: Path, capsys: pytest.C
         line = _refused(capsys, ["commonroad", "bench", str(folder), "--planners", "free", *json_flag],
                         str(path), "'commonRoad.timeStepSize'")
         assert "x.xml free" not in line
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_FSIZE and SIGXFSZ as on Linux")
+def test_a_full_disk_after_the_plan_is_one_line_without_leak_lines(tmp_path: Path) -> None:
+    """A disk that fills while the solution is written (simulated by a 2 kB file-size limit,
+    ``RLIMIT_FSIZE``, with ``SIGXFSZ`` ignored: the write fails with ``EFBIG``) is one line naming
+    the file, exit 2.  The plan's drivability-checker objects are freed before the interpreter
+    exits: without that (``gc.collect`` on a failed command) nanobind printed one line per object
+    still alive -- 431 lines for this scenario."""
+    import resource
+    import signal
+    import subprocess
+
+    scenario = _scenario(tmp_path)
+    out = tmp_path / "sol.xml"
+
+    def limited() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (2000, 2000))
+
+    r = subprocess.run([sys.executable, "-m", "iamp", "commonroad", "plan", str(scenario), "--out", str(out)],
+                       preexec_fn=limited, capture_output=True, text=True, timeout=600)
+    lines = r.stderr.splitlines()
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert len(lines) == 1, lines[:5]
+    assert str(out) in lines[0] and "too large" in lines[0].lower()
+    assert "leak" not in r.stderr
+    assert not out.exists()
