@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from iamp.cli.types import EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVER, positive_float
+from iamp.cli.types import EXIT_OK, EXIT_SOLVER, positive_float
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
@@ -117,43 +117,40 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    from iamp.commonroad.bench import PREDICT_SUFFIX
     from iamp.commonroad.planning import PLANNERS
+    from iamp.core.errors import OptionError, ScenarioError
 
     names = [p.strip() for p in args.planners.split(",")]
     if not any(names) or not all(names):
-        sys.stderr.write(f"iamp: error: --planners: {args.planners!r} "
-                         + ("names no planner" if not any(names) else "has an empty planner name")
-                         + f"; give one or more of {', '.join(PLANNERS)}, separated by commas\n")
-        return EXIT_BAD_INPUT
+        why = "names no planner" if not any(names) else "has an empty planner name"
+        raise OptionError(f"{args.planners!r} {why}; give one or more of {', '.join(PLANNERS)}, separated by commas",
+                          "--planners")
     planners = names
-    from iamp.commonroad.bench import PREDICT_SUFFIX
-
     for p in planners:
         if p.removesuffix(PREDICT_SUFFIX) not in PLANNERS:
-            sys.stderr.write(f"iamp: error: --planners: unknown planner {p!r}; choose from {', '.join(PLANNERS)}\n")
-            return EXIT_BAD_INPUT
+            raise OptionError(f"unknown planner {p!r}; choose from {', '.join(PLANNERS)}", "--planners")
     folder = Path(args.folder)
-    if not folder.is_dir() or not any(folder.glob("*.xml")):
-        sys.stderr.write(f"iamp: error: {folder}: not a folder of CommonRoad *.xml scenarios\n")
-        return EXIT_BAD_INPUT
+    scenarios = sorted(folder.glob("*.xml")) if folder.is_dir() else []
+    if not scenarios:
+        raise ScenarioError("not a folder of CommonRoad *.xml scenarios", None, str(folder))
     for peer in args.peer or []:
         if not (Path(peer) / "peer.json").is_file():
-            sys.stderr.write(f"iamp: error: --peer: {peer}: holds no peer.json (run scripts/commonroad_peer.py "
-                             "first)\n")
-            return EXIT_BAD_INPUT
+            raise OptionError(f"{peer}: holds no peer.json (run scripts/commonroad_peer.py first)", "--peer")
     if args.out is None:
-        return _bench_into(args, planners, folder, None)
+        return _bench_into(args, planners, folder, len(scenarios), None)
     from iamp.core.outputs import guarded_folder  # checked (ours, empty or --force), locked, marked
 
     with guarded_folder(args.out, "commonroad bench", args.force, inputs=[folder]) as out:
-        return _bench_into(args, planners, folder, out)
+        return _bench_into(args, planners, folder, len(scenarios), out)
 
 
-def _bench_into(args: argparse.Namespace, planners: list[str], folder: Path, out: Path | None) -> int:
+def _bench_into(args: argparse.Namespace, planners: list[str], folder: Path, n_scenarios: int,
+                out: Path | None) -> int:
     from iamp.cli.progress import progress_bar, progress_enabled
     from iamp.commonroad.bench import bench, peer_rows, summary, write_reports
 
-    total = len(planners) * len(list(folder.glob("*.xml")))
+    total = len(planners) * n_scenarios
     announced = [0, 0]  # (scenario, planner) pairs begun, of which stored
 
     # progress as every iamp command shows it: a bar on a terminal, labelled with the scenario and
