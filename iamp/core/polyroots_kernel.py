@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from iamp.core.jit import compilable
+from iamp.core.jit import compilable, inlined
 
 #: Bound on the coefficient backward error of the companion-matrix eigenvalues, relative to the
 #: monic polynomial's :math:`(1 + \max_k |a_k|)^2` (the unbalanced worst case): about 45,000 times
@@ -30,7 +30,7 @@ from iamp.core.jit import compilable
 BACKWARD_REL = 1e-11
 
 
-@compilable
+@inlined
 def horner(C: Any, x: Any) -> Any:
     r""":math:`p_r(x_r)` of every row ``r`` of ``C`` by Horner's rule from the highest power, starting at 0
     (:func:`iamp.core.polyroots.polyval_rows`)."""
@@ -40,7 +40,7 @@ def horner(C: Any, x: Any) -> Any:
     return out
 
 
-@compilable
+@inlined
 def horner_deriv(C: Any, x: Any) -> Any:
     r"""The derivative of every row of ``C`` at ``x``: Horner's rule on :math:`(k + 1) C_{r,k+1}`, the
     numbers of :func:`iamp.core.polyroots.poly_deriv` then :func:`horner`."""

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from iamp.planners.pmp.jit import compilable
+from iamp.planners.pmp.jit import compilable, inlined
 
 #: Status codes of :func:`active_set`.
 OPTIMAL, INFEASIBLE, NUMERICAL_ERROR, MAX_ITER, CUTOFF = 0, 1, 2, 3, 4
@@ -30,7 +30,7 @@ OPTIMAL, INFEASIBLE, NUMERICAL_ERROR, MAX_ITER, CUTOFF = 0, 1, 2, 3, 4
 CAPACITY = 5
 
 
-@compilable
+@inlined
 def _row_dot(indptr: Any, indices: Any, data: Any, r: int, x: Any) -> float:
     """``g_r · x``."""
     s = 0.0

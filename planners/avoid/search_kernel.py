@@ -22,10 +22,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from iamp.planners.pmp.jit import compilable
+from iamp.planners.pmp.jit import compilable, inlined
 
 
-@compilable
+@inlined
 def held_position(z: Any, t_nodes: Any, N: int, block: int, foh: bool, axis: int, t: float) -> float:
     r"""The position ``s_axis(t)`` of the held trajectory of the QP variables ``z`` (layout of
     :class:`~iamp.planners.qp.data.StateIndex`: per axis ``block`` variables, ``s_0..s_N``,
@@ -59,7 +59,7 @@ def held_position(z: Any, t_nodes: Any, N: int, block: int, foh: bool, axis: int
     return s0 + v0 * d + u0 * (d * d) / 2 + du * (d * d * d) / 6
 
 
-@compilable
+@inlined
 def plane_margin(i: int, plane: int, t: float, s: float, sigma: Any, half: Any, lateral: Any, polys: Any,
                  plen: Any) -> float:
     r"""Vehicle ``i``'s half-plane ``plane`` (0 = ``H_x``, 1 = ``H_y``): the margin
@@ -153,7 +153,7 @@ def valid_polys(LO: Any, HI: Any, B: Any, O: Any, want: Any, lo: Any, hi: Any, o
     return n
 
 
-@compilable
+@inlined
 def tensor_polyval(coef: Any, start: int, q: int, n: int, lam: Any, work: Any) -> float:
     """The tensor polynomial with power coefficients ``coef[start:start + n**q]`` (C order, shape
     ``(n,) * q``) at ``λ = lam[:q]``: Horner's rule along the last axis for every index of the

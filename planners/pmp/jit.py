@@ -3,6 +3,6 @@
 
 from __future__ import annotations
 
-from iamp.core.jit import available, compilable, compiled_as, twin
+from iamp.core.jit import available, compilable, compiled_as, inlined, twin
 
-__all__ = ["available", "compilable", "compiled_as", "twin"]
+__all__ = ["available", "compilable", "compiled_as", "inlined", "twin"]
