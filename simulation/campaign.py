@@ -82,7 +82,9 @@ Key = tuple[str, str, str, int]
 #: longitudinally safe for a response time (within a lane width) and changes lanes toward it is at
 #: most 0.75 of RSS's ``a_lat,max`` once its speed toward it exceeds the rest share
 #: (``Controller._lateral_caps``).
-EPISODE_FORMAT = "17.7"
+#: 17.8: past the aim point of a target gap open ahead (a follower, no leader) the gap term asks
+#: no drop back and no slowing to the follower's speed (``tactical.seek_accel``).
+EPISODE_FORMAT = "17.8"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

@@ -13,7 +13,11 @@ gap's safe interval (below) ``[lo(t), hi(t)]``, its speed ``v_g`` and the aim po
 middle), the gap term is ``a_g = k (v_g + clip(ω (x_m - x), ±w_max) - v)`` (``k = 1`` s⁻¹,
 ``ω = 0.5`` s⁻¹, ``w_max = 8`` m/s: a damping ratio of 0.71), clipped to ``[-3, 1.5]`` m/s²;
 the ego's acceleration is the smallest of the IDM terms and ``a_g`` (IDM's free-road term
-toward ``1.1 v_0`` bounds ``a_g`` from above).  The target gap is re-chosen every period (its
+toward ``1.1 v_0`` bounds ``a_g`` from above).  In a gap open ahead (a follower, no leader) the
+aim point is ``open_m`` ahead of the safe interval's start and every point ahead of it is in the
+gap: past it the gap term's speed is ``max(v_g, v)`` (no drop back, and no slowing to a
+follower that, courteous, keeps its RSS distance behind the ego: both braked to a crawl).
+The target gap is re-chosen every period (its
 vehicles may change lanes or brake) among the gaps whose safe interval is at least
 ``min_width_m`` wide and begins within ``reach_m`` (an open gap past the vehicles in view is no
 gap): the one whose aim point is nearest where the ego meets it after matching its speed at
@@ -395,8 +399,15 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
             xm, v = aim
             w_des = float(np.clip(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max))
             v_des = v + w_des
+            lo, hi = safe_interval(ego, target, v, 0.0, cfg)
+            if w_des < 0.0 and not np.isfinite(hi):
+                # a gap open ahead (a follower, no leader) with the ego past its aim point: every
+                # point ahead of the aim is in the gap, so the gap asks neither a drop back nor its
+                # follower's speed.  (Dropping back to the aim at below the follower's speed, behind a
+                # courteous follower that keeps its RSS distance behind the ego, braked both to a
+                # crawl beside an empty lane: slow-leader light 4, 18; seeds 8002, 8005.)
+                v_des = max(v, ego.vx)
             if v_des < cfg.roll_speed:
-                lo, hi = safe_interval(ego, target, v, 0.0, cfg)
                 if lo <= ego.x and ego.x + cfg.roll_room_m <= hi:
                     # rolling into the gap: a car changes lanes only while it moves
                     v_des, rolling = cfg.roll_speed, True
