@@ -296,3 +296,53 @@ def test_a_gap_within_reach_is_preferred_to_a_cheaper_one_beyond() -> None:
     assert aim_point(ego, far, cfg, reach=False)[0] - 9.0 < -aim_point(ego, near, cfg)[0]  # type: ignore[index]
     assert choose_gap(ego, [far, near], None, cfg) is near
     assert choose_gap(ego, [far], None, cfg) is far
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.0, 40.0), st.floats(0.0, 35.0), st.floats(-80.0, -5.0), st.floats(0.0, 30.0),
+       st.floats(-60.0, 60.0))
+def test_past_the_aim_of_a_gap_open_ahead_the_gap_term_neither_drops_back_nor_slows(
+        v: float, vf: float, xf: float, v_leader_own: float, dx_own: float) -> None:
+    """A gap open ahead (a follower ``f`` at ``x_f`` and ``v_f``, no leader) with the ego past its
+    aim point ``lo + open_m``: the gap term's speed is ``max(v_g, v)``, so the gap term asks no
+    braking -- no drop back to the aim point and no slowing to the follower's speed.  (A
+    courteous follower keeps its RSS distance behind the ego: matching its speed and dropping
+    back braked both to a crawl, slow-leader light 4 and 18.)  Behind the aim point the term
+    still pulls the ego forward, above the follower's speed."""
+    from iamp.simulation.tactical import seek_accel
+
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, v, 0.0, 0.0)
+    gap = Gap(_nb("f", xf, vf), None)
+    aim = aim_point(ego, gap, cfg, reach=False)
+    assert aim is not None
+    own = _nb("own", dx_own if dx_own > 6.0 else 6.0 + abs(dx_own), v_leader_own)
+    with_gap = seek_accel(ego, own, None, gap, 30.0, cfg)
+    alone = seek_accel(ego, own, None, None, 30.0, cfg)
+    xm, vg = aim
+    if ego.x >= xm:
+        # the gap term asks no braking: IDM's terms alone, their free road raised to 1.1 v_0, or
+        # the gap term's k (max(v_g, v) - v) >= 0
+        assert with_gap >= min(alone, 0.0) - 1e-12
+    else:
+        v_des = vg + min(cfg.omega * (xm - ego.x), cfg.closing_max)
+        lo = safe_interval(ego, gap, vg, 0.0, cfg)[0]
+        if v_des < cfg.roll_speed and lo <= ego.x:
+            v_des = cfg.roll_speed  # rolling into the gap (a car changes lanes only while it moves)
+        assert with_gap <= float(np.clip(cfg.k_speed * (v_des - v), *cfg.gap_accel)) + 1e-12
+
+
+@pytest.mark.parametrize(("traffic", "seed", "before"), [("light", 4, 35.9), ("light", 8002, 35.7)])
+def test_slow_leader_episodes_where_ego_and_courteous_follower_braked_to_a_crawl(traffic: str, seed: int,
+                                                                                 before: float) -> None:
+    """``free`` slow-leader episodes that merged after the deadline (``before`` [s], episode format
+    17.7): the ego, past the aim point of the gap open ahead of a courteous follower, dropped
+    back toward it at below its speed while the follower kept its RSS distance behind the ego;
+    both braked to 1.5 m/s beside an empty lane, where most lane changes are refused.  Now each
+    merges within 20 s, without a contact or RSS time at fault."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="slow-leader", traffic=traffic, seed=seed, planner="free")).summary
+    assert s["success"] and s["time_to_merge_s"] < min(20.0, before)
+    assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0
