@@ -346,3 +346,30 @@ def test_slow_leader_episodes_where_ego_and_courteous_follower_braked_to_a_crawl
     s = run_episode(EpisodeSpec(mission="slow-leader", traffic=traffic, seed=seed, planner="free")).summary
     assert s["success"] and s["time_to_merge_s"] < min(20.0, before)
     assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(0.0, 40.0), st.floats(0.0, 35.0), st.floats(-80.0, 40.0), st.floats(5.0, 40.0))
+def test_the_gap_term_of_a_gap_open_ahead_is_the_docstrings(v: float, vf: float, xf: float, v0: float) -> None:
+    """No leader of the ego's own, no lane end: the seek acceleration is the smaller of IDM's
+    free-road term toward ``1.1 v_0`` and the gap term ``clip(k (v_des - v), [-3, 1.5])`` with
+    ``v_des = v_g + clip(ω (x_m - x), ±w_max)``, ``max(v_g, v)`` past the aim point of a gap open
+    ahead, and ``roll_speed`` where that is slower while the ego is inside the gap's safe interval
+    with ``roll_room_m`` of it ahead (module docstring), to round-off."""
+    from iamp.simulation.tactical import seek_accel
+
+    cfg = TacticalConfig()
+    ego = EgoNow(0.0, v, 0.0, 0.0)
+    gap = Gap(_nb("f", xf, vf), None)
+    aim = aim_point(ego, gap, cfg, reach=False)
+    assert aim is not None
+    xm, vg = aim
+    w = float(np.clip(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max))
+    v_des = max(vg, v) if w < 0.0 else vg + w
+    lo, hi = safe_interval(ego, gap, vg, 0.0, cfg)
+    assert hi == np.inf
+    if v_des < cfg.roll_speed and lo <= ego.x:
+        v_des = cfg.roll_speed
+    free = replace(cfg.idm, v0=1.1 * max(v0, 1.0)).accel(v)
+    want = min(free, float(np.clip(cfg.k_speed * (v_des - v), *cfg.gap_accel)))
+    assert seek_accel(ego, None, None, gap, v0, cfg) == pytest.approx(want, abs=1e-12)
