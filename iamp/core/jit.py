@@ -8,7 +8,9 @@ names another compilable function is replaced by that function's twin, recursive
 compiled and the Python path give the same numbers bit for bit (tested in a subprocess with
 and without ``NUMBA_DISABLE_JIT``), and no result depends on whether numba is installed or
 loaded.  A function numba cannot compile as written (a dict cache) names a stand-in with
-:func:`compiled_as`: the same sums in the same order, without the cache.
+:func:`compiled_as`: the same sums in the same order, without the cache.  A small helper called
+in an inner loop is marked :func:`inlined`: its compiled callers carry its code in place of a
+call.
 
 Machine code kept on disk (``cache=True``) goes to the user's cache folder,
 ``$XDG_CACHE_HOME/iamp/numba`` (default ``~/.cache/iamp/numba``; :func:`cache_dir`), unless
