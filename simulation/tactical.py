@@ -399,8 +399,7 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
             xm, v = aim
             w_des = float(np.clip(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max))
             v_des = v + w_des
-            lo, hi = safe_interval(ego, target, v, 0.0, cfg)
-            if w_des < 0.0 and not np.isfinite(hi):
+            if w_des < 0.0 and target.leader is None:
                 # a gap open ahead (a follower, no leader) with the ego past its aim point: every
                 # point ahead of the aim is in the gap, so the gap asks neither a drop back nor its
                 # follower's speed.  (Dropping back to the aim at below the follower's speed, behind a
@@ -408,6 +407,7 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
                 # crawl beside an empty lane: slow-leader light 4, 18; seeds 8002, 8005.)
                 v_des = max(v, ego.vx)
             if v_des < cfg.roll_speed:
+                lo, hi = safe_interval(ego, target, v, 0.0, cfg)
                 if lo <= ego.x and ego.x + cfg.roll_room_m <= hi:
                     # rolling into the gap: a car changes lanes only while it moves
                     v_des, rolling = cfg.roll_speed, True
