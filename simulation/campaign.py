@@ -84,7 +84,11 @@ Key = tuple[str, str, str, int]
 #: (``Controller._lateral_caps``).
 #: 17.8: past the aim point of a target gap open ahead (a follower, no leader) the gap term asks
 #: no drop back and no slowing to the follower's speed (``tactical.seek_accel``).
-EPISODE_FORMAT = "17.8"
+#: 17.9: the lane keeping's lateral caps measure the gaps between the bodies at their headings, as
+#: the judge does (the ego stopped turned toward the next lane reaches 2 m into it, not 0.9 m), and
+#: allow no motion toward a car not longitudinally safe that is already nearer than RSS's lateral
+#: distance (``Controller._lateral_caps``).
+EPISODE_FORMAT = "17.9"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

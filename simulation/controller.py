@@ -577,11 +577,17 @@ class Controller:
     def _lateral_caps(self, ego: EgoState, nbs: list[Neighbour]) -> LateralCaps:
         """What RSS's lateral proper response leaves the lane keeping, per side (:class:`LateralCaps`).
 
+        The gaps are those of the bodies at their headings, as the judge measures them
+        (:func:`iamp.simulation.rss.body_extents`): the ego's heading as the simulator sets it (kept
+        at a standstill), the others' from their velocities
+        (:func:`~iamp.simulation.failsafe.body_half_extents`).
+
         *Speed*: toward a vehicle beside the ego that is closer than its RSS longitudinal distance
         (so only the lateral distance keeps the pair safe) and whose lateral gap is within the RSS
         lateral distance of the speeds toward each other plus :data:`LATERAL_ROOM_M`, at most RSS's
         lateral fluctuation ``μ/ρ`` (the judge's ``rest``: :func:`iamp.simulation.rss.judge_pair`),
-        with a margin; else unbounded.  A pair level within ``μ``, or whose bodies overlap
+        with a margin, and none where the gap is already below that lateral distance; else
+        unbounded.  A pair level within ``μ``, or whose bodies overlap
         sideways, caps both sides (the judge takes the roles of the dangerous run's threshold time,
         which may be a side it no longer has: a car changing lanes behind the ego crosses it).
         Without it the fail-safe's return to its lane's centre and the lane keeping after a
@@ -608,18 +614,25 @@ class Controller:
         rest = _rest_speed(p)
         accel = LATERAL_ACCEL_SHARE * p.lat_accel_max
         Le, We = self.sim.ego_length, self.sim.ego_width
+        # the bodies at their headings, as the judge measures the gaps (:func:`iamp.simulation.rss.body_extents`):
+        # the ego's as the simulator sets it (kept at a crawl: a car that stopped turned toward the next lane
+        # still reaches into it, 2 m for a 4.8 m car at 33°), the others' from their velocities
+        psi = float(getattr(self.sim, "ego_heading", self.heading))
+        c, s = abs(math.cos(psi)), abs(math.sin(psi))
+        hx_e, hy_e = Le / 2 * c + We / 2 * s, Le / 2 * s + We / 2 * c
         lane_width = self.sim.highway.lane_width
         caps = [np.inf, np.inf, np.inf, np.inf]  # speed left, right; acceleration left, right
         for n in nbs:
             dx = n.x(0.0) - ego.x
-            lon_gap, d_lon = longitudinal_room(dx, n.length, n.v(0.0), ego.vx, Le, p)
+            hx_n, hy_n = (float(e) for e in body_half_extents(n.v(0.0), n.vy, n.length, n.width))
+            lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, n.v(0.0), ego.vx, 2 * hx_e, p)
             # the gap one response time ahead at today's speeds (closing: the rear car faster)
             closing = (ego.vx - n.v(0.0)) if dx > 0 else (n.v(0.0) - ego.vx)
             soon = lon_gap - max(closing, 0.0) * p.response_time_s
             if lon_gap > 0 and soon >= d_lon:
                 continue  # longitudinally safe, and still for a response time: no lateral constraint
             dy = n.y - ego.y
-            gap = abs(dy) - (n.width + We) / 2
+            gap = abs(dy) - (hy_n + hy_e)
             unsafe = not (lon_gap > 0 and lon_gap >= d_lon)
             if unsafe and (abs(dy) <= p.lat_margin_m or gap < 0.0):
                 # level, or the bodies overlapping sideways (one may be crossing behind the other):
@@ -636,6 +649,11 @@ class Controller:
                 # response time after the threshold; the lane keeping's return accelerated at 1.3 m/s²
                 # toward a car closing from behind the step it became unsafe: slow-leader medium 45)
                 cap = rest if unsafe else max(rest, u_ego)
+                if unsafe and gap < d_lat:
+                    # already within RSS's lateral distance: no nearer at all (RSS lets a car drift at its
+                    # fluctuation; a car stopped turned toward the next lane crept its nose into a passing
+                    # car that way, onramp LOS E 9003)
+                    cap = 0.0
                 caps[side] = min(caps[side], cap)
         return LateralCaps(*caps)
 

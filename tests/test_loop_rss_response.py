@@ -267,7 +267,9 @@ def test_a_car_beside_not_longitudinally_safe_caps_the_acceleration_toward_it() 
     assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + 2.6), 28.0, vy=0.2)]) == (np.inf,) * 4
     assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + 2.6), 28.0, vy=-0.3)]) == (np.inf,) * 4
     lane = c.sim.highway.lane_width
-    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + lane + 0.01), 28.0, vy=0.3)]) == (np.inf,) * 4
+    # beyond a lane width at its heading (0.6° at 0.3 m/s sideways and 28 m/s: 2.5 cm wider than straight)
+    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + lane + 0.01), 28.0, vy=0.3)])[3] == pytest.approx(ACCEL)
+    assert c._lateral_caps(EGO, [car(-30.0, -(1.8 + lane + 0.04), 28.0, vy=0.3)]) == (np.inf,) * 4
     assert c._lateral_caps(EGO, [car(-130.0, -(1.8 + 2.6), 28.0, vy=0.3)]) == (np.inf,) * 4
     # the bodies overlapping sideways, not longitudinally safe: both sides, speed and acceleration
     assert c._lateral_caps(EGO, [car(-15.0, 1.2, 22.0)]) == (pytest.approx(REST), pytest.approx(REST),
@@ -341,3 +343,51 @@ def test_the_acceleration_cap_adds_its_own_share_per_period_above_the_rest_share
     assert side * c._move(slow, 0.0, side * 3.0, caps=caps).vy == pytest.approx(REST, abs=1e-12)
     away = EgoState(x=0.0, vx=20.0, y=0.0, vy=-side * 0.5, ax=0.0, ay=side * 1.0)
     assert c._move(away, 0.0, side * 3.0, caps=caps) == c._move(away, 0.0, side * 3.0)
+
+
+@dataclass
+class _TurnedSim(_Sim):
+    ego_heading: float = 0.0
+
+
+def test_the_gaps_are_the_bodies_at_their_headings() -> None:
+    """The judge measures the gaps between the bodies at their headings (``rss.body_extents``), and
+    so do the caps.  The ego stopped 33° to the road after merging at a crawl (onramp LOS E 9003,
+    the simulator keeps the heading it stopped with): its body reaches 2.07 m sideways, not 0.9 m.
+    A car of the next lane 19 m behind at 13 m/s (not longitudinally safe), 3.7 m to the left:
+    straight, the gap 1.9 m is beyond RSS's lateral distance plus the room, no cap; at 33° it is
+    0.73 m, the speed toward it capped at the rest share; nearer than RSS's lateral distance,
+    no motion toward it at all (RSS lets a car drift at its fluctuation; the ego crept its nose into a
+    passing car that way); the side away from it is free in every case."""
+    c = _controller()
+    psi = np.radians(33.0)
+    ego = EgoState(x=0.0, vx=0.0, y=0.0, vy=0.0)
+    behind = car(-(19.0 + 4.8), 3.7, 13.0)
+    c.sim = _TurnedSim(ego_heading=0.0)  # type: ignore[assignment]
+    assert c._lateral_caps(ego, [behind])[:2] == (np.inf, np.inf)
+    c.sim = _TurnedSim(ego_heading=float(psi))  # type: ignore[assignment]
+    hy = 2.4 * np.sin(psi) + 0.9 * np.cos(psi)
+    assert 3.7 - hy - 0.9 == pytest.approx(0.73, abs=0.01)
+    assert c._lateral_caps(ego, [behind])[:2] == (pytest.approx(REST), np.inf)
+    assert c._lateral_caps(ego, [car(-(19.0 + 4.8), hy + 0.9 + 0.15, 13.0)])[:2] == (0.0, np.inf)
+    # longitudinally safe (far behind): no cap whatever the heading
+    assert c._lateral_caps(ego, [car(-200.0, hy + 0.9 + 0.15, 13.0)])[:2] == (np.inf, np.inf)
+    # the mirror image: the car on the right, the ego turned right
+    c.sim = _TurnedSim(ego_heading=float(-psi))  # type: ignore[assignment]
+    assert c._lateral_caps(ego, [car(-(19.0 + 4.8), -3.7, 13.0)])[:2] == (np.inf, pytest.approx(REST))
+
+
+@pytest.mark.parametrize(("mission", "traffic", "seed", "before"),
+                         [("onramp", "los-e", 9003, 0.9), ("discretionary", "light", 9001, 0.1)])
+def test_episodes_at_fault_with_the_body_at_its_heading_are_not_any_more(mission: str, traffic: str, seed: int,
+                                                                        before: float) -> None:
+    """Seeds no campaign uses, ``free`` (the same for ``pmp-active`` and ``qp-avoid``), with RSS time at
+    fault ``before`` [s] when the caps took the bodies straight: the ego stopped 33° to the road at the
+    end of the ramp and straightened toward a car of the next lane closing from behind (9003); the
+    abort's return moved away from a car whose body, at the ego's heading, overlapped it sideways, at
+    more than RSS's fluctuation (9001).  Now none, a success without a contact."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission=mission, traffic=traffic, seed=seed, planner="free")).summary
+    assert s["rss_dangerous_s"] == 0.0 and s["success"] and s["contacts"] == 0
