@@ -28,7 +28,7 @@ status, tolerances, errors, atomic output) <- :mod:`iamp.planners`, :mod:`iamp.p
 from typing import TYPE_CHECKING, Any
 
 from iamp import (
-    _blas,  # noqa: F401  (first: one BLAS kernel on every x86-64 machine, before numpy loads)
+    _blas,  # first: one BLAS kernel on every x86-64 machine, before numpy loads
     status,
 )
 from iamp._version import __version__
@@ -40,6 +40,9 @@ from iamp.core.errors import (
     ScenarioError,
     SolverError,
 )
+
+# numpy imported before iamp with other kernels than the pinned ones: say so (iamp/_blas.py)
+_blas.warn_if_unpinned()
 
 if TYPE_CHECKING:
     from iamp.api import compare, load_scenario, plan

@@ -11,18 +11,23 @@ decisions compare such numbers with thresholds, can take another course.  On one
 since 2013; its generic kernels where the CPU lacks them) and Intel MKL for its conditional
 numerical reproducibility (``MKL_CBWR=COMPATIBLE``), each with one thread. It only takes effect
 before numpy is first imported (OpenBLAS reads the setting when it loads): ``iamp``'s command line
-always does so; a program that imports numpy before iamp keeps its machine's kernels. A value the
-user set is kept. Importing this module (``iamp`` does so first) calls it. Other processors (ARM)
-and other BLAS libraries keep their kernels.
+always does so; a program that imports numpy before iamp keeps its machine's kernels, and
+``import iamp`` then warns (:class:`BlasKernelWarning`, :func:`warn_if_unpinned`) where the kernels
+numpy loaded are not the pinned ones (a closed-loop episode may then differ from the command
+line's). A value the user set is kept. Importing this module (``iamp`` does so first) calls
+:func:`pin`. Other processors (ARM) and other BLAS libraries keep their kernels.
 """
 
 from __future__ import annotations
 
+import ctypes
+import glob
 import os
 import platform
 import sys
+import warnings
 
-__all__ = ["KERNEL", "THREADS", "pin", "pinned_kernel"]
+__all__ = ["KERNEL", "THREADS", "BlasKernelWarning", "loaded_kernel", "pin", "pinned_kernel", "warn_if_unpinned"]
 
 #: The OpenBLAS kernels iamp asks for on an x86-64 CPU with AVX2 and FMA.
 KERNEL = "Haswell"
@@ -68,4 +73,55 @@ def pin() -> None:
         os.environ.setdefault("MKL_CBWR", "COMPATIBLE")
 
 
+#: The corename functions of the OpenBLAS builds numpy's wheels bundle (scipy-openblas, 64-bit
+#: interface) and of a plain OpenBLAS.
+_CORENAME_FUNCTIONS = ("scipy_openblas_get_corename64_", "openblas_get_corename64_", "openblas_get_corename")
+
+
+class BlasKernelWarning(RuntimeWarning):
+    """numpy was imported before iamp with other BLAS kernels than the ones iamp pins: numbers may
+    differ in their last bits from the command line's, and a closed-loop episode may take another
+    course (module docstring)."""
+
+
+def loaded_kernel() -> str | None:
+    """The kernels (corename) of the OpenBLAS that numpy's wheel bundles, as loaded in this process;
+    ``None`` where numpy is not loaded, or its BLAS is not a bundled OpenBLAS (a system BLAS, MKL)."""
+    numpy = sys.modules.get("numpy")
+    path = getattr(numpy, "__file__", None)
+    if not path:
+        return None
+    for lib in sorted(glob.glob(os.path.join(os.path.dirname(path), os.pardir, "numpy.libs", "*openblas*"))):
+        try:
+            handle = ctypes.CDLL(lib)
+        except OSError:
+            continue
+        for name in _CORENAME_FUNCTIONS:
+            f = getattr(handle, name, None)
+            if f is not None:
+                f.restype = ctypes.c_char_p
+                out = f()
+                return out.decode("ascii", "replace").strip() if out else None
+    return None
+
+
+def warn_if_unpinned() -> str | None:
+    """Warn (:class:`BlasKernelWarning`) when numpy's OpenBLAS runs other kernels than
+    :func:`pinned_kernel` and the user did not choose them (``OPENBLAS_CORETYPE`` unset): numpy was
+    imported before iamp (:data:`NUMPY_FIRST`).  Returns the warning's text, or None."""
+    wanted = pinned_kernel()
+    if not NUMPY_FIRST or wanted is None or os.environ.get("OPENBLAS_CORETYPE"):
+        return None
+    loaded = loaded_kernel()
+    if loaded is None or loaded.lower() == wanted.lower():
+        return None
+    text = (f"numpy was imported before iamp and its OpenBLAS runs the {loaded} kernels, not {wanted}: results "
+            f"may differ in their last bits from the command line's, and a closed-loop episode may take another "
+            f"course; import iamp before numpy, or set OPENBLAS_CORETYPE={wanted} before starting Python")
+    warnings.warn(text, BlasKernelWarning, stacklevel=3)
+    return text
+
+
+#: Whether numpy was loaded before this module (then :func:`pin` could not choose its kernels).
+NUMPY_FIRST = "numpy" in sys.modules
 pin()

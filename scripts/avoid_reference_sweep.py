@@ -18,6 +18,9 @@ import traceback
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 from avoid_reference import Ref, cost_of, depth, feasible_search, integrate, limit_violation
 

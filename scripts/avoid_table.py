@@ -21,6 +21,9 @@ import sys
 import time
 from typing import Any
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 from iamp.core.atomic import write_text

@@ -22,6 +22,9 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

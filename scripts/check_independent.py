@@ -20,6 +20,9 @@ import sys
 import tempfile
 from pathlib import Path
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 from scipy import interpolate, optimize
 

@@ -22,6 +22,9 @@ import time
 import traceback
 from pathlib import Path
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 #: The desired speed: "current" (the package's 2024.1 example: keep the current speed), "goal"

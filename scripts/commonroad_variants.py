@@ -57,6 +57,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 #: Lane width of the moved goals [m].

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import argparse
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 from iamp.prediction.evaluation.evaluate import DEFAULT_CONFIG

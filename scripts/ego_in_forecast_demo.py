@@ -16,6 +16,9 @@ import dataclasses
 import tempfile
 from pathlib import Path
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 from iamp.core.scenario import load_scenario

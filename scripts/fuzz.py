@@ -49,6 +49,9 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 BASES = ("paper-1-poly", "paper-2", "two-vehicle", "paper-3-poly", "paper-3")

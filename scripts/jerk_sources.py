@@ -43,6 +43,9 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 from iamp.core.physical import PASSENGER_CAR

@@ -18,6 +18,9 @@ from __future__ import annotations
 import argparse
 import csv
 
+import iamp  # noqa: F401  (before numpy: the BLAS kernels iamp pins, iamp/_blas.py)
+
+# isort: split
 import numpy as np
 
 

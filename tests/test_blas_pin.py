@@ -3,6 +3,7 @@ the same numbers whatever CPU it runs on, and a kernel the user chose is kept.""
 
 from __future__ import annotations
 
+import ast
 import os
 import platform
 import subprocess
@@ -92,3 +93,75 @@ def test_the_flags_are_read_from_cpuinfo_and_avx2_with_fma_is_enough(monkeypatch
     monkeypatch.setattr(platform, "machine", lambda: "x86_64")
     monkeypatch.setattr(_blas, "_cpu_flags", lambda: {"avx2", "fma"})  # exactly the two: enough
     assert _blas.pinned_kernel() == "Haswell"
+
+
+NATIVE = """
+import numpy, iamp
+print(iamp._blas.loaded_kernel())
+"""
+
+
+def _stderr_and_kernel(code: str, **env: str) -> tuple[str, str]:
+    clean = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_CORETYPE", "MKL_CBWR", "PYTHONWARNINGS")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**clean, **env},
+                         timeout=120, check=True)
+    return out.stderr, out.stdout.strip()
+
+
+@needs_x86
+def test_numpy_imported_first_with_other_kernels_warns_once_and_names_the_fix() -> None:
+    """A program that imports numpy before iamp keeps the CPU's own kernels (OpenBLAS chose them
+    when it loaded): ``import iamp`` warns exactly when they are not the pinned ones, naming both
+    and the two ways out; iamp imported first, or a kernel the user chose, warns nothing."""
+    err, native = _stderr_and_kernel(NATIVE)
+    if native == "None":
+        pytest.skip("numpy's BLAS is not the bundled OpenBLAS")
+    wanted = str(_blas.pinned_kernel())
+    if native.lower() == wanted.lower():
+        assert "BlasKernelWarning" not in err
+    else:
+        assert err.count("BlasKernelWarning") == 1
+        assert f"runs the {native} kernels, not {wanted}" in err and f"OPENBLAS_CORETYPE={wanted}" in err
+    err, first = _stderr_and_kernel("import iamp, numpy\nprint(iamp._blas.loaded_kernel())")
+    assert first.lower() == wanted.lower() and "BlasKernelWarning" not in err
+    err, chosen = _stderr_and_kernel(NATIVE, OPENBLAS_CORETYPE="Sandybridge")
+    assert chosen.lower() == "sandybridge" and "BlasKernelWarning" not in err
+
+
+def test_no_numpy_no_kernel_and_no_warning(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without numpy loaded there is nothing to read; a kernel that differs warns with the class
+    a caller can filter (``warnings.simplefilter("ignore", iamp._blas.BlasKernelWarning)``)."""
+    monkeypatch.delitem(sys.modules, "numpy", raising=False)
+    assert _blas.loaded_kernel() is None
+    monkeypatch.setattr(_blas, "loaded_kernel", lambda: "SkylakeX")
+    monkeypatch.setattr(_blas, "pinned_kernel", lambda: "Haswell")
+    monkeypatch.delenv("OPENBLAS_CORETYPE", raising=False)
+    monkeypatch.setattr(_blas, "NUMPY_FIRST", False)
+    assert _blas.warn_if_unpinned() is None  # numpy loaded after iamp: the kernels are the pinned ones
+    monkeypatch.setattr(_blas, "NUMPY_FIRST", True)
+    with pytest.warns(_blas.BlasKernelWarning, match="SkylakeX kernels, not Haswell"):
+        assert _blas.warn_if_unpinned() is not None
+    monkeypatch.setattr(_blas, "loaded_kernel", lambda: "haswell")
+    assert _blas.warn_if_unpinned() is None
+
+
+def _first_import_line(tree: ast.Module, wanted: tuple[str, ...]) -> int | None:
+    for node in tree.body:
+        names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                 else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+        if any(n == w or n.startswith(w + ".") for n in names for w in wanted):
+            return node.lineno
+    return None
+
+
+def test_every_script_imports_iamp_before_numpy() -> None:
+    """The scripts whose numbers the docs quote pin the BLAS kernels as the command line does: at
+    module level, ``iamp`` is imported before numpy, scipy or matplotlib (which load OpenBLAS)."""
+    late = []
+    for path in sorted((Path(__file__).resolve().parents[1] / "scripts").glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        heavy = _first_import_line(tree, ("numpy", "scipy", "matplotlib"))
+        first = _first_import_line(tree, ("iamp",))
+        if heavy is not None and (first is None or first > heavy):
+            late.append(path.name)
+    assert late == []
