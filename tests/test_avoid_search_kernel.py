@@ -135,7 +135,7 @@ def test_polys_max_is_the_largest_tensor_polynomial_value() -> None:
     # against the sum over every multi-index of c_j prod_a lam_a^j_a (numpy), polynomials of zero
     # to three axes on vehicles of a three-vehicle problem, their crossing times in their pieces,
     # of 7 or 9 coefficients per axis side by side (the one-vehicle tangent polynomials have 2d + 3)
-    from iamp.planners.avoid.dual import DualPolynomial, polys_values
+    from iamp.planners.avoid.dual import DualPolynomial, _pack, polys_values
 
     rng = np.random.default_rng(4)
     h = 0.1
@@ -167,58 +167,90 @@ def test_polys_max_is_the_largest_tensor_polynomial_value() -> None:
         got = polys_values(polys, taus)
         assert np.allclose(got, ref, rtol=1e-12, atol=1e-10)
         for fn in fns:  # the twin: the same numbers bit for bit
-            qs = np.array([dp.coef.ndim for dp in polys], dtype=np.int64)
-            ns = np.array([dp.coef.shape[0] if dp.coef.ndim else 1 for dp in polys], dtype=np.int64)
-            V = np.zeros((len(polys), 3), dtype=np.int64)
-            K = np.zeros((len(polys), 3), dtype=np.int64)
-            for p, dp in enumerate(polys):
-                V[p, :len(dp.vehicles)], K[p, :len(dp.pieces)] = dp.vehicles, dp.pieces
-            sizes = np.array([dp.coef.size for dp in polys])
-            starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
-            flat = np.concatenate([dp.coef.ravel() for dp in polys])
+            flat, meta, W, largest = _pack(polys)
             out = np.empty(taus.shape[0])
-            fn(flat, starts, qs, ns, V, K, h, taus, out, np.empty(3), np.empty(9 ** 3))
+            fn(flat, meta, W, h, taus, out, np.empty(W), np.empty(largest))
             assert np.array_equal(out, got)
 
 
-def test_bernstein_min_is_the_smallest_tensor_bernstein_coefficient() -> None:
-    # against the tensor Bernstein transform by numpy (one einsum per axis) and against the
-    # polynomial's minimum on a dense grid of the box (which the smallest coefficient bounds)
-    from iamp.planners.avoid.dual import _bernstein_on
+def _bernstein_reference(dp, lo, hi):  # type: ignore[no-untyped-def]
+    """The tensor Bernstein coefficients of ``dp`` on the box by numpy: per axis the matrix
+    ``power_to_bernstein(d) @ reparametrise(d, λ_a, λ_b - λ_a)`` applied along it."""
+    from iamp.planners.avoid.bernstein import power_to_bernstein, reparametrise
 
-    rng = np.random.default_rng(8)
-    n = 7
-    fns = [kernel.bernstein_min] + ([jit.twin(kernel.bernstein_min, cache=True)] if jit.available() else [])
-    for q in (0, 1, 2, 3):
-        P = 5
-        coef = rng.standard_normal((P,) + (n,) * q)
-        ab = np.sort(rng.uniform(0.0, 1.0, (P, max(q, 1), 2)), axis=2)
-        B = np.zeros((P, max(q, 1), n, n))
-        for p in range(P):
-            for a in range(q):
-                B[p, a] = _bernstein_on(n - 1, float(ab[p, a, 0]), float(ab[p, a, 1]))
-        ref = coef.copy()
+    ref = np.asarray(dp.coef, dtype=float)
+    n = ref.shape[0] if ref.ndim else 1
+    for a, (v, k) in enumerate(zip(dp.vehicles, dp.pieces)):
+        la = min(max((lo[v] - k * dp.h) / dp.h, 0.0), 1.0)
+        lb = min(max((hi[v] - k * dp.h) / dp.h, la), 1.0)
+        B = power_to_bernstein(n - 1) @ reparametrise(n - 1, la, lb - la)
+        ref = np.moveaxis(np.tensordot(B, np.moveaxis(ref, a, 0), axes=(1, 0)), 0, a)
+    return ref
+
+
+def _random_poly(rng, h, flat_axes=False):  # type: ignore[no-untyped-def]
+    from iamp.planners.avoid.dual import DualPolynomial
+
+    q = int(rng.integers(0, 4))
+    n = int(rng.choice([7, 9])) if q == 1 else 7
+    vehicles = tuple(sorted(rng.choice(3, q, replace=False).tolist()))
+    coef = rng.standard_normal((n,) * q) * 10.0 ** rng.uniform(-2.0, 3.0, (n,) * q)
+    if flat_axes and q:  # a vehicle that does not bind: the polynomial constant along its axis
         for a in range(q):
-            ref = np.moveaxis(np.einsum("p...i,pri->p...r", np.moveaxis(ref, a + 1, -1), B[:, a]), -1, a + 1)
-        want = ref.reshape(P, -1).min(axis=1)
-        outs = []
-        for fn in fns:
-            out = np.empty(P)
-            fn(coef.reshape(P, -1), q, n, B, out, np.empty(n ** q), np.empty(n ** q))
-            outs.append(out)
-            assert np.allclose(out, want, rtol=1e-12, atol=1e-12)
-        for out in outs[1:]:
-            assert np.array_equal(out, outs[0])
-        if q in (1, 2):  # the smallest coefficient bounds the polynomial on its box
-            g = [np.linspace(ab[0, a, 0], ab[0, a, 1], 25) for a in range(q)]
-            mesh = np.meshgrid(*g, indexing="ij")
+            if rng.uniform() < 0.5:
+                index = [slice(None)] * q
+                index[a] = slice(1, None)
+                coef[tuple(index)] = 0.0
+    return DualPolynomial(vehicles, tuple(int(k) for k in rng.integers(0, 4, q)), coef, h, np.ones(3),
+                          roundoff=float(rng.uniform(0.0, 1e-9)))
+
+
+@settings(max_examples=80, deadline=None)
+@given(st_h.integers(0, 10_000), st_h.booleans())
+def test_a_bound_is_the_smallest_tensor_bernstein_coefficient_less_the_margin(seed: int, flat: bool) -> None:
+    """:func:`~iamp.planners.avoid.dual.lower_bounds` (:func:`~iamp.planners.avoid.search_kernel.poly_bounds`)
+    against the tensor Bernstein transform by numpy (:func:`_bernstein_reference`), less the margin,
+    to 1e-15 of the coefficients' size, for polynomials of zero to three axes with coefficients
+    over five orders of magnitude, some constant along axes (dropped by the kernel, the same
+    coefficients); the smallest coefficient bounds the polynomial on a dense grid of the box; the
+    Python kernel and its numba twin agree bit for bit."""
+    from iamp.planners.avoid.dual import ROUND_OFF_REL, _binomials, _pack, lower_bounds
+
+    rng = np.random.default_rng(seed)
+    h = 0.1
+    polys = [_random_poly(rng, h, flat) for _ in range(int(rng.integers(1, 5)))]
+    lo = rng.uniform(0.0, 0.4, 3)
+    hi = lo + rng.uniform(0.0, 0.12, 3) * rng.integers(0, 2, 3)
+    got = lower_bounds(polys, lo, hi)
+    for dp, g in zip(polys, got):
+        m = float(np.min(_bernstein_reference(dp, lo, hi)))
+        want = m - ROUND_OFF_REL * max(1.0, abs(m)) - dp.roundoff
+        assert abs(g - want) <= 1e-15 * max(1.0, float(np.abs(dp.coef).sum()))
+        if 1 <= len(dp.vehicles) <= 2:  # the smallest coefficient bounds the polynomial on its box
+            grids = []
+            for v, k in zip(dp.vehicles, dp.pieces):
+                la = min(max((lo[v] - k * h) / h, 0.0), 1.0)
+                grids.append(np.linspace(la, min(max((hi[v] - k * h) / h, la), 1.0), 15))
+            mesh = np.meshgrid(*grids, indexing="ij")
             val = np.zeros(mesh[0].shape)
-            for j in np.ndindex(*coef.shape[1:]):
-                term = np.full(mesh[0].shape, coef[(0,) + j])
+            for j in np.ndindex(*dp.coef.shape):
+                term = np.full(mesh[0].shape, dp.coef[j])
                 for a, e in enumerate(j):
                     term = term * mesh[a] ** e
                 val = val + term
-            assert outs[0][0] <= val.min() + 1e-12
+            assert g <= val.min() + 1e-9 * max(1.0, float(np.abs(dp.coef).sum()))
+    fns = [kernel.poly_bounds] + ([jit.twin(kernel.poly_bounds, cache=True)] if jit.available() else [])
+    outs = []
+    for fn in fns:
+        flat_c, meta, W, largest = _pack(polys)
+        n = int(meta[:, 1].max())
+        out = np.empty(len(polys))
+        fn(flat_c, meta, W, np.array([dp.roundoff for dp in polys]), h, ROUND_OFF_REL, lo, hi, *_binomials(n), out,
+           np.empty(largest), np.empty(largest), np.empty(n), np.empty((n, n)), np.empty(W, dtype=np.int64))
+        outs.append(out)
+    assert np.array_equal(outs[0], np.array(got))
+    for out in outs[1:]:
+        assert np.array_equal(out, outs[0])
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)
@@ -227,9 +259,9 @@ def test_the_screened_maximum_bound_is_the_maximum_of_every_bound(seed: int, cou
     """:func:`~iamp.planners.avoid.dual.max_lower_bound` bounds only the polynomials whose value at
     the box's centre can reach the best bound so far: its answer is ``max(lower_bounds(...))``
     bit for bit, over polynomials of zero to three vehicles whose coefficients span many orders
-    of magnitude (cancellation), on boxes inside and across their pieces; a polynomial's kept
-    bounds are at most :data:`~iamp.planners.avoid.dual.BOUNDS_KEPT`."""
-    from iamp.planners.avoid.dual import BOUNDS_KEPT, DualPolynomial, lower_bounds, max_lower_bound
+    of magnitude (cancellation), on boxes inside and across their pieces, asked again (work space
+    kept between calls) the same."""
+    from iamp.planners.avoid.dual import DualPolynomial, lower_bounds, max_lower_bound
 
     rng = np.random.default_rng(seed)
     h, n = 0.1, 7
@@ -242,15 +274,25 @@ def test_the_screened_maximum_bound_is_the_maximum_of_every_bound(seed: int, cou
     for _ in range(3):
         lo = rng.uniform(0.0, 0.35, 3)
         hi = lo + rng.uniform(0.0, 0.08, 3) * rng.integers(0, 2, 3)
-        fresh = [DualPolynomial(p.vehicles, p.pieces, p.coef, p.h, p.mass) for p in polys]  # empty caches
-        assert max_lower_bound(polys, lo, hi) == max(lower_bounds(fresh, lo, hi))
+        best = max_lower_bound(polys, lo, hi)
+        assert best == max(lower_bounds(polys, lo, hi))
+        assert max_lower_bound(polys, lo, hi) == best
     assert max_lower_bound([], lo, hi) == -np.inf
-    dp = polys[0]
-    for k in range(BOUNDS_KEPT + 5):  # many boxes: the kept bounds stay few, each the same again
-        box = (np.full(3, 0.001 * k), np.full(3, 0.001 * k + 0.05))
-        first = lower_bounds([dp], *box)[0]
-        assert len(dp._bounds) <= BOUNDS_KEPT
-        assert lower_bounds([dp], *box)[0] == first
+
+
+def test_a_nan_bound_proves_nothing_and_mixed_widths_pack() -> None:
+    """A polynomial with a NaN coefficient has a NaN bound, which the maximum skips (it proves
+    nothing); polynomials of problems with different numbers of vehicles are padded to one width."""
+    from iamp.planners.avoid.dual import ROUND_OFF_REL, DualPolynomial, lower_bounds, max_lower_bound
+
+    h = 0.1
+    bad = DualPolynomial((0,), (1,), np.array([np.nan] + [0.0] * 6), h, np.ones(3))
+    good = DualPolynomial((), (), np.array(2.0), h, np.ones(1))
+    lo, hi = np.array([0.12, 0.0, 0.0]), np.array([0.15, 0.0, 0.0])
+    bounds = lower_bounds([bad, good], lo, hi)
+    assert np.isnan(bounds[0]) and bounds[1] == 2.0 - 2.0 * ROUND_OFF_REL
+    assert max_lower_bound([bad, good], lo, hi) == bounds[1]
+    assert max_lower_bound([bad], lo, hi) == -np.inf
 
 
 def test_the_screened_maximum_reaches_a_flat_polynomial_behind_spiky_ones() -> None:

@@ -55,9 +55,11 @@ slope is cut (:meth:`DualBounds.tangent_interval`, :meth:`DualStore.near`).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
+from math import comb
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -66,7 +68,6 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from . import search_kernel
-from .bernstein import _power_to_bernstein, reparametrise
 from .schur import _run, full_hessian, kkt_matrix
 
 if TYPE_CHECKING:
@@ -164,20 +165,20 @@ class DualPolynomial:
     #: of the terms that cancel in ``g``), subtracted by :meth:`lower_bound` besides
     #: :data:`ROUND_OFF_REL`.
     roundoff: float = 0.0
-    #: :meth:`lower_bound` per box (its local intervals ``(λ_a, λ_b)``), computed once; at most
-    #: :data:`BOUNDS_KEPT` (then emptied: a value is a function of its key, the same when computed
-    #: again)
-    _bounds: dict[tuple[tuple[float, float], ...], float] = field(default_factory=dict, compare=False, repr=False)
 
-    def _lam(self, lo: Sequence[float] | FloatArray, hi: Sequence[float] | FloatArray) -> list[tuple[float, float]]:
-        """Per polynomial vehicle, the box's interval in its piece's local coordinate (clipped to
-        ``[0, 1]``); ``lo``, ``hi`` as Python floats are fastest (the same IEEE operations)."""
-        out = []
-        for i, k in zip(self.vehicles, self.pieces):
-            a = min(max((lo[i] - k * self.h) / self.h, 0.0), 1.0)
-            b = min(max((hi[i] - k * self.h) / self.h, a), 1.0)
-            out.append((a, b))
-        return out
+    @functools.cached_property
+    def meta(self) -> NDArray[np.int64]:
+        """Its row for the search kernels (:func:`_pack`): ``q`` (its axes), ``n`` (coefficients per
+        axis), its size, then its vehicles and their pieces, each padded with zeros to
+        ``W = max(m, q, 1)`` (``m`` the vehicles of :attr:`mass`); computed once, read-only."""
+        q = self.coef.ndim
+        W = max(int(np.size(self.mass)), q, 1)
+        row = np.zeros(3 + 2 * W, dtype=np.int64)
+        row[0], row[1], row[2] = q, int(self.coef.shape[0]) if q else 1, self.coef.size
+        row[3:3 + q] = self.vehicles
+        row[3 + W:3 + W + q] = self.pieces
+        row.flags.writeable = False
+        return row
 
     def lower_bound(self, lo: FloatArray, hi: FloatArray) -> float:
         """A lower bound of ``g`` (hence of every ``J(τ)``) over the box ``lo <= τ <= hi`` (a
@@ -217,77 +218,93 @@ class DualPolynomial:
         return polys_values([self], np.atleast_2d(np.asarray(taus, dtype=float)), [coef])
 
 
+def _pack(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None = None
+          ) -> tuple[FloatArray, NDArray[np.int64], int, int]:
+    """``polys`` as the search kernels take them (:func:`~iamp.planners.avoid.search_kernel.polys_max`):
+    their coefficients (``coefs`` in place of theirs, of the same shapes) one after the other, a row
+    per polynomial (:attr:`DualPolynomial.meta`, padded to the widest), the rows' width ``W`` and the
+    largest size."""
+    metas = [dp.meta for dp in polys]
+    widths = {m.size for m in metas}
+    if len(widths) == 1:
+        meta = np.stack(metas)
+        W = (meta.shape[1] - 3) // 2
+    else:  # polynomials of problems with different numbers of vehicles: padded to the widest
+        W = max((m.size - 3) // 2 for m in metas)
+        meta = np.zeros((len(metas), 3 + 2 * W), dtype=np.int64)
+        for p, m in enumerate(metas):
+            w = (m.size - 3) // 2
+            meta[p, :3 + w] = m[:3 + w]
+            meta[p, 3 + W:3 + W + w] = m[3 + w:]
+    flat = np.concatenate([np.asarray(c, dtype=float).ravel() for c in
+                           ([dp.coef for dp in polys] if coefs is None else coefs)])
+    return flat, meta, W, int(meta[:, 2].max())
+
+
 def polys_values(polys: list[DualPolynomial], taus: FloatArray, coefs: list[FloatArray] | None = None) -> FloatArray:
     """At each row of ``taus`` (crossing times, shape ``(T, m)``; every polynomial vehicle's time in
     its piece), the largest value of the polynomials ``polys`` (``coefs``: their coefficients in
-    place of ``coef``, e.g. a derivative's): :func:`~iamp.planners.avoid.search_kernel.polys_max`,
-    the one evaluation of these polynomials."""
-    coefs = [dp.coef for dp in polys] if coefs is None else coefs
-    qs = np.array([c.ndim for c in coefs], dtype=np.int64)
-    ns = np.array([int(c.shape[0]) if c.ndim else 1 for c in coefs], dtype=np.int64)
-    width = max(1, int(qs.max(initial=0)))
-    vehicles = np.zeros((len(polys), width), dtype=np.int64)
-    pieces = np.zeros((len(polys), width), dtype=np.int64)
-    for p, dp in enumerate(polys):
-        vehicles[p, :len(dp.vehicles)] = dp.vehicles
-        pieces[p, :len(dp.pieces)] = dp.pieces
-    sizes = np.array([c.size for c in coefs], dtype=np.int64)
-    starts = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
-    flat = np.concatenate([np.asarray(c, dtype=float).ravel() for c in coefs])
+    place of ``coef``, of the same shapes, e.g. a derivative's):
+    :func:`~iamp.planners.avoid.search_kernel.polys_max`, the one evaluation of these polynomials."""
+    flat, meta, W, largest = _pack(polys, coefs)
     out = np.empty(taus.shape[0])
-    _run("polys_max", search_kernel)(flat, starts, qs, ns, vehicles, pieces, float(polys[0].h), taus, out,
-                                     np.empty(width), np.empty(int(sizes.max())))
+    _run("polys_max", search_kernel)(flat, meta, W, float(polys[0].h), taus, out, np.empty(W), np.empty(largest))
     return out
 
 
-@lru_cache(maxsize=4096)
-def _bernstein_on(degree: int, a: float, b: float) -> FloatArray:
-    """Bernstein coefficients on ``[a, b]`` from power coefficients on ``[0, 1]`` (read-only)."""
-    B = np.asarray(_power_to_bernstein(degree) @ reparametrise(degree, a, b - a), dtype=float)
-    B.flags.writeable = False
-    return B
+def _contract(w: FloatArray, T: FloatArray) -> FloatArray:
+    """``np.tensordot(w, T, axes=(0, 0))`` as tensordot computes it (one ``dot`` of ``w`` as a row
+    with ``T`` flattened after its first axis: the same numbers), without its argument handling."""
+    return np.asarray(np.dot(w[None, :], T.reshape(T.shape[0], -1)).reshape(T.shape[1:]), dtype=float)
 
 
-#: Boxes whose bound a dual polynomial keeps (:attr:`DualPolynomial._bounds`): a box is bounded
-#: again when popped, after its candidate and for its children, so a few recent ones serve; kept
-#: for every box, a three-vehicle ZOH search of 2000 QPs (``scripts/avoid_reference_sweep.py``'s
-#: draw 3147) held ~40 million bounds, about 6 GB.
-BOUNDS_KEPT = 64
+@lru_cache(maxsize=32)
+def _binomials(n: int) -> tuple[FloatArray, FloatArray]:
+    """``binom[i, j] = binom(i, j)`` (zero for ``j > i``) as floats, ``i, j < n`` (exact integers), and
+    ``p2b[m, r, j] = binom(r, j) / binom(m - 1, j)`` for ``m <= n`` (the power-to-Bernstein matrix of
+    degree ``m - 1``, :func:`~iamp.planners.avoid.bernstein.power_to_bernstein`, the same quotients)."""
+    binom = np.array([[float(comb(i, j)) for j in range(n)] for i in range(n)])
+    p2b = np.zeros((n + 1, n, n))
+    for m in range(1, n + 1):
+        for r in range(m):
+            for j in range(r + 1):
+                p2b[m, r, j] = comb(r, j) / comb(m - 1, j)
+    binom.flags.writeable = False
+    p2b.flags.writeable = False
+    return binom, p2b
+
+
+_SPACE: dict[tuple[int, int, int], tuple[FloatArray, ...]] = {}
+
+
+def _space(largest: int, n: int, W: int, P: int) -> tuple[FloatArray, ...]:
+    """Work space of the bound kernels (their contents are not read before written): per ``(largest,
+    n, W)`` kept and grown for ``P`` polynomials; ``work``, ``spare``, ``pw_a``, ``R``, ``kept``,
+    ``lam``, ``est``, ``chosen``."""
+    key = (largest, n, W)
+    out = _SPACE.get(key)
+    if out is None or out[6].size < P:
+        cap = max(P, 16, 2 * out[6].size if out is not None else 0)
+        out = _SPACE[key] = (np.empty(largest), np.empty(largest), np.empty(n), np.empty((n, n)),
+                             np.empty(W, dtype=np.int64), np.empty(W), np.empty(cap), np.zeros(cap, dtype=np.bool_))
+    return out
 
 
 def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) -> list[float]:
-    """:meth:`DualPolynomial.lower_bound` of every polynomial of ``polys`` over the box
-    ``[lo, hi]``: the tensor Bernstein transform of the polynomials not yet bounded on it done
-    for all of them at once (:func:`~iamp.planners.avoid.search_kernel.bernstein_min`), each
-    result kept on its polynomial."""
-    out: list[float] = [0.0] * len(polys)
-    todo: dict[tuple[int, ...], list[tuple[int, DualPolynomial, tuple[tuple[float, float], ...]]]] = {}
-    lo_l, hi_l = np.asarray(lo, dtype=float).tolist(), np.asarray(hi, dtype=float).tolist()
-    for c, dp in enumerate(polys):
-        key = tuple(dp._lam(lo_l, hi_l))
-        v = dp._bounds.get(key)
-        if v is None:
-            todo.setdefault(dp.coef.shape, []).append((c, dp, key))
-        else:
-            out[c] = v
-    for shape, items in todo.items():
-        q = len(shape)
-        n = shape[0] if q else 1
-        T = np.stack([dp.coef.reshape(-1) for _, dp, _ in items])  # (P, n**q)
-        # per polynomial and axis the Bernstein matrix of its interval on that axis
-        B = np.zeros((len(items), max(q, 1), n, n))
-        for p, (_, _, key) in enumerate(items):
-            for axis in range(q):
-                B[p, axis] = _bernstein_on(n - 1, *key[axis])
-        mins = np.empty(len(items))
-        _run("bernstein_min", search_kernel)(T, q, n, B, mins, np.empty(T.shape[1]), np.empty(T.shape[1]))
-        for (c, dp, key), m in zip(items, mins):
-            v = float(m) - ROUND_OFF_REL * max(1.0, abs(float(m))) - dp.roundoff
-            if len(dp._bounds) >= BOUNDS_KEPT:
-                dp._bounds.clear()
-            dp._bounds[key] = v
-            out[c] = v
-    return out
+    """:meth:`DualPolynomial.lower_bound` of every polynomial of ``polys`` over the box ``[lo, hi]``:
+    its smallest tensor Bernstein coefficient on the box less the round-off margin
+    (:data:`ROUND_OFF_REL` and :attr:`DualPolynomial.roundoff`), all of them in one kernel call
+    (:func:`~iamp.planners.avoid.search_kernel.poly_bounds`)."""
+    if not polys:
+        return []
+    flat, meta, W, largest = _pack(polys)
+    n = int(meta[:, 1].max())
+    out = np.empty(len(polys))
+    work, spare, pw_a, R, kept, _, _, _ = _space(largest, n, W, len(polys))
+    _run("poly_bounds", search_kernel)(flat, meta, W, np.array([dp.roundoff for dp in polys], dtype=float),
+                                       float(polys[0].h), ROUND_OFF_REL, np.asarray(lo, dtype=float),
+                                       np.asarray(hi, dtype=float), *_binomials(n), out, work, spare, pw_a, R, kept)
+    return [float(v) for v in out]
 
 
 #: Polynomials bounded first by :func:`max_lower_bound` (those with the highest values at the
@@ -296,8 +313,9 @@ MAX_BOUND_FIRST = 8
 
 
 def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) -> float:
-    r"""``max(lower_bounds(polys, lo, hi))`` (``-inf`` without polynomials), bounding only the
-    polynomials that can reach it.
+    r"""The largest of :func:`lower_bounds` (``-inf`` without polynomials; a NaN bound proves nothing
+    and counts as ``-inf``), bounding only the polynomials that can reach it
+    (:func:`~iamp.planners.avoid.search_kernel.max_poly_bound`).
 
     A polynomial's bound on the box (its smallest Bernstein coefficient, less the round-off margin)
     is at most its value anywhere in the box, e.g. at the centre.  The
@@ -308,38 +326,15 @@ def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray)
     number: a polynomial left out cannot exceed it.  (A box of a long search is covered by
     hundreds of stored polynomials, whose bounds had made the search quadratic in its QPs.)
     """
-    if len(polys) <= MAX_BOUND_FIRST:
-        return max(lower_bounds(polys, lo, hi), default=-np.inf)
-    lo_a, hi_a = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
-    est = np.empty(len(polys))
-    groups: dict[tuple[int, ...], list[int]] = {}
-    for c, dp in enumerate(polys):
-        groups.setdefault(dp.coef.shape, []).append(c)
-    for shape, idx in groups.items():
-        q = len(shape)
-        C = np.stack([polys[c].coef for c in idx])  # (P,) + shape
-        reach = 1e-12 * np.abs(C.reshape(len(idx), -1)).sum(axis=1)
-        if q == 0:
-            est[idx] = C + reach
-            continue
-        n = shape[0]
-        V = np.array([polys[c].vehicles for c in idx], dtype=np.int64)
-        K = np.array([polys[c].pieces for c in idx], dtype=float)
-        h = polys[idx[0]].h
-        a = np.clip((lo_a[V] - K * h) / h, 0.0, 1.0)
-        b = np.minimum(np.maximum((hi_a[V] - K * h) / h, a), 1.0)
-        powers = (0.5 * (a + b))[..., None] ** np.arange(n)  # (P, q, n)
-        val = C
-        for axis in range(q - 1, -1, -1):  # contract the last axis with that vehicle's powers
-            val = np.einsum("p...i,pi->p...", val, powers[:, axis])
-        est[idx] = val + reach
-    order = np.argsort(-est, kind="stable")
-    first = [polys[c] for c in order[:MAX_BOUND_FIRST]]
-    best = max(lower_bounds(first, lo, hi))
-    rest = [polys[c] for c in order[MAX_BOUND_FIRST:] if est[c] > best]
-    if rest:
-        best = max(best, max(lower_bounds(rest, lo, hi)))
-    return float(best)
+    if not polys:
+        return -np.inf
+    flat, meta, W, largest = _pack(polys)
+    n = int(meta[:, 1].max())
+    work, spare, pw_a, R, kept, lam, est, chosen = _space(largest, n, W, len(polys))
+    return float(_run("max_poly_bound", search_kernel)(
+        flat, meta, W, np.array([dp.roundoff for dp in polys], dtype=float), float(polys[0].h), ROUND_OFF_REL,
+        np.asarray(lo, dtype=float), np.asarray(hi, dtype=float), *_binomials(n), MAX_BOUND_FIRST, est, chosen, lam,
+        work, spare, pw_a, R, kept))
 
 
 class DualBounds:
@@ -449,11 +444,16 @@ class DualBounds:
                 continue
             yj = np.zeros(self.nb)
             yj[b.j[rows]] = b.y[rows]
-            cols = self._cols.get((pl, k))
-            if cols is None:
-                cols = self._cols[(pl, k)] = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1),
-                                                       d.idx_v(pl, k + 1)])
-            yield M, yj, self._rhs_poly(i, pl, k, pre), d.planes[i][pl].sigma, cols
+            yield M, yj, self._rhs_poly(i, pl, k, pre), d.planes[i][pl].sigma, self._node_cols(pl, k)
+
+    def _node_cols(self, pl: int, k: int) -> NDArray[np.int64]:
+        """The four node columns ``s, v`` at ``t_k`` and ``t_{k+1}`` of half-plane axis ``pl`` (kept)."""
+        cols = self._cols.get((pl, k))
+        if cols is None:
+            d = self.qp.data
+            cols = self._cols[(pl, k)] = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1),
+                                                   d.idx_v(pl, k + 1)])
+        return cols
 
     def gradient(self, sol: Solved) -> FloatArray:
         r"""``∂J/∂τ`` at the candidate ``sol`` (its ``spec`` has ``a = b = τ_c``), by the envelope
@@ -477,7 +477,7 @@ class DualBounds:
             lam = (float(a) - k * h) / h
             basis = dpow * lam ** (dpow - 1)  # d/dλ of λ^p, p = 1..D
             for M, yj, rhs, sigma, cols, _, _ in self._split_blocks(sol, b, i, k):
-                dM = np.tensordot(basis, M[1:], axes=(0, 0))  # (nb, 4)
+                dM = _contract(basis, M[1:])  # (nb, 4)
                 drhs = basis @ rhs[1:]  # (nb,)
                 out[i] += float(yj @ (sigma * (dM @ sol.z[cols]) - drhs)) / h
         return out
@@ -539,10 +539,9 @@ class DualBounds:
             if not rows.size:
                 continue
             sigma = d.planes[i][pl].sigma
-            dM = sigma * np.tensordot(basis, M[1:], axes=(0, 0))  # (nb, 4): the rows' derivatives
+            dM = sigma * _contract(basis, M[1:])  # (nb, 4): the rows' derivatives
             drhs = basis @ self._rhs_poly(i, pl, k, pre)[1:]  # (nb,)
-            cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
-            split.append((rows, cols, dM[b.j[rows]], drhs[b.j[rows]]))
+            split.append((rows, self._node_cols(pl, k), dM[b.j[rows]], drhs[b.j[rows]]))
         if not split:
             return out
         # the binding rows on the columns they touch (with the split rows' node columns), from the
@@ -552,7 +551,9 @@ class DualBounds:
         owner = np.repeat(np.arange(S), lens)
         pos = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(starts, lens)
         split_cols = np.concatenate([cols for _, cols, _, _ in split])
-        T, where = np.unique(np.concatenate((b.indices[pos], split_cols)), return_inverse=True)
+        touched = np.concatenate((b.indices[pos], split_cols))
+        T = np.unique(touched)
+        where = np.searchsorted(T, touched)  # each entry's column among T (return_inverse, cheaper)
         G = np.zeros((S, T.size))
         G[owner, where[:pos.size]] = b.data[pos]
         dG = np.zeros((S, T.size))
@@ -637,7 +638,7 @@ class DualBounds:
             aj, bj = np.zeros(self.nb), np.zeros(self.nb)
             aj[b.j[rows]], bj[b.j[rows]] = alpha[rows], beta[rows]
             sigma = d.planes[i][pl].sigma
-            cols = np.array([d.idx_s(pl, k), d.idx_v(pl, k), d.idx_s(pl, k + 1), d.idx_v(pl, k + 1)])
+            cols = self._node_cols(pl, k)
             rhs = self._rhs_poly(i, pl, k, pre)  # (d + 1 powers, nb)
             aM, bM = sigma * (aj @ M), sigma * (bj @ M)  # (d + 1 powers, 4)
             R[cols, :Dp] -= aM.T
@@ -728,7 +729,9 @@ class DualBounds:
         absZ = np.abs(Z)
         lin_abs = (np.abs(nu).T @ np.abs(d.b_eq) if schur is None
                    else np.abs(schur.z0) @ np.abs(R[:d.n]) + (np.abs(d.b_eq) @ np.abs(schur._x0[d.n:])))
-        terms = 0.5 * float(np.sum(absZ.T @ (self.P_abs @ absZ))) + float(np.sum(lin_abs)) + float(np.sum(np.abs(hc)))
+        # Σ_ij (|Z|ᵀ|P||Z|)_ij = wᵀ|P|w with w = |Z| 1 (the row sums): one product with |P|, not C
+        w = absZ.sum(axis=1)
+        terms = 0.5 * float(w @ (self.P_abs @ w)) + float(np.sum(lin_abs)) + float(np.sum(np.abs(hc)))
         coef = np.zeros((2 * Dp + 1,) * q)
         # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ: each product of two basis
         # monomials adds to the coefficient of their product

@@ -14,12 +14,15 @@ for bit; ``tests/test_avoid_search_kernel.py`` compares the two), else this Pyth
   (:meth:`~iamp.planners.avoid.dual.DualStore.valid`);
 * :func:`polys_max` — the largest of several dual polynomials at each of several crossing
   times (:meth:`~iamp.planners.avoid.dual.DualPolynomial.evaluate`, the search's probe);
-* :func:`bernstein_min` — the smallest tensor Bernstein coefficient of each of several dual
-  polynomials on a box (:func:`~iamp.planners.avoid.dual.lower_bounds`).
+* :func:`poly_bounds` — the lower bound of each of several dual polynomials on a box, its smallest
+  tensor Bernstein coefficient there less a round-off margin (:func:`~iamp.planners.avoid.dual.lower_bounds`);
+* :func:`max_poly_bound` — the largest of those bounds, bounding only the polynomials that can reach
+  it (:func:`~iamp.planners.avoid.dual.max_lower_bound`).
 """
 
 from __future__ import annotations
 
+from math import inf
 from typing import Any
 
 from iamp.planners.pmp.jit import compilable, inlined
@@ -175,22 +178,34 @@ def tensor_polyval(coef: Any, start: int, q: int, n: int, lam: Any, work: Any) -
     return out
 
 
+@inlined
+def sizes_to_starts(meta: Any) -> None:
+    """The sizes in column 2 of ``meta`` (one row per polynomial, :func:`~iamp.planners.avoid.dual._pack`)
+    replaced by the polynomials' starts in the coefficients laid end to end (an exclusive running sum)."""
+    acc = 0
+    for p in range(meta.shape[0]):
+        size = meta[p, 2]
+        meta[p, 2] = acc
+        acc += size
+
+
 @compilable
-def polys_max(coef: Any, starts: Any, qs: Any, ns: Any, vehicles: Any, pieces: Any, h: float, taus: Any,
-              out: Any, lam: Any, work: Any) -> None:
+def polys_max(coef: Any, meta: Any, W: int, h: float, taus: Any, out: Any, lam: Any, work: Any) -> None:
     """``out[t]`` the largest over the polynomials ``p`` of :func:`tensor_polyval` at the crossing
-    times ``taus[t]`` (shape ``(T, m)``): polynomial ``p`` has ``qs[p]`` axes of ``ns[p]``
-    coefficients each, the vehicles
-    ``vehicles[p, :qs[p]]`` in the pieces ``pieces[p, :qs[p]]``, its coefficients from
-    ``coef[starts[p]]``, and ``λ_a = (τ_v - k h) / h`` on its axis ``a`` (``lam``, ``work``:
-    space)."""
+    times ``taus[t]`` (shape ``(T, m)``).  Row ``p`` of ``meta`` describes polynomial ``p``
+    (:func:`~iamp.planners.avoid.dual._pack`): its number of axes ``q = meta[p, 0]`` of
+    ``n = meta[p, 1]`` coefficients each, its size ``meta[p, 2]`` (its coefficients follow the
+    previous ones' in ``coef``; replaced by its start, :func:`sizes_to_starts`), its vehicles
+    ``meta[p, 3:3 + q]`` and their pieces ``meta[p, 3 + W:3 + W + q]``; on axis ``a``
+    ``λ_a = (τ_v - k h) / h`` (``lam``, ``work``: space)."""
+    sizes_to_starts(meta)
     for t in range(taus.shape[0]):
         best = 0.0
-        for p in range(starts.shape[0]):
-            q = qs[p]
+        for p in range(meta.shape[0]):
+            q = meta[p, 0]
             for a in range(q):
-                lam[a] = (taus[t, vehicles[p, a]] - pieces[p, a] * h) / h
-            v = tensor_polyval(coef, starts[p], q, ns[p], lam, work)
+                lam[a] = (taus[t, meta[p, 3 + a]] - meta[p, 3 + W + a] * h) / h
+            v = tensor_polyval(coef, meta[p, 2], q, meta[p, 1], lam, work)
             if p == 0 or v > best or not v == v:
                 best = v
             if not best == best:
@@ -198,36 +213,174 @@ def polys_max(coef: Any, starts: Any, qs: Any, ns: Any, vehicles: Any, pieces: A
         out[t] = best
 
 
-@compilable
-def bernstein_min(coef: Any, q: int, n: int, B: Any, out: Any, work: Any, spare: Any) -> None:
-    """Per polynomial ``p`` (``coef[p]``: its power coefficients, C order, shape ``(n,) * q``),
-    ``out[p]`` the smallest of its tensor Bernstein coefficients: along axis ``a`` (first to last)
-    ``T'[.., r, ..] = Σ_i B[p, a, r, i] T[.., i, ..]`` (the sum over ``i`` ascending), then the
-    minimum over every entry (``work``, ``spare``: space for ``n**q`` numbers each)."""
+@inlined
+def poly_bound(coef: Any, meta: Any, W: int, p: int, h: float, lo: Any, hi: Any, binom: Any, p2b: Any, work: Any,
+               spare: Any, pw_a: Any, R: Any, kept: Any) -> float:
+    r"""The smallest tensor Bernstein coefficient of polynomial ``p`` (row ``p`` of ``meta`` as for
+    :func:`polys_max`, its starts in place: power coefficients ``coef[start:start + n**q]``, C order,
+    shape ``(n,) * q``; axis ``a`` the local coordinate :math:`\lambda` of its vehicle
+    ``meta[p, 3 + a]`` in its piece ``meta[p, 3 + W + a]``) on the box
+    ``[lo, hi]``: per axis the box's interval in that coordinate, :math:`[\lambda_a, \lambda_b]`
+    (clipped to ``[0, 1]``, :math:`\lambda_b \ge \lambda_a`), and along it (first axis to last)
+    the power coefficients of :math:`p(\lambda_a + w\rho)`, :math:`w = \lambda_b - \lambda_a`,
+    :math:`c'_r = \sum_{i \ge r} \binom{i}{r} \lambda_a^{i-r} w^r c_i`
+    (:func:`~iamp.planners.avoid.bernstein.reparametrise`), then their Bernstein coefficients on
+    ``[0, 1]``, :math:`b_r = \sum_{j \le r} \binom{r}{j}/\binom{d}{j}\, c'_j`
+    (:func:`~iamp.planners.avoid.bernstein.power_to_bernstein`; ``binom[i, j]`` the binomial
+    coefficients as floats, ``p2b[n, r, j]`` the quotients for ``d = n - 1``); the reparametrisation's
+    matrix once per axis, its powers as products, every sum in ascending index.  An axis along which
+    the polynomial is constant (every coefficient of a positive power zero: a vehicle that does not
+    bind in its piece) is dropped first: along it every Bernstein coefficient is ``c_0``, as the
+    transform gives it, so the smallest is that of the slice ``i = 0`` (``work``, ``spare``: space for
+    ``n**q`` numbers; ``pw_a``: for ``n``, ``R``: for ``n × n``; ``kept``: for ``q`` integers)."""
+    q = meta[p, 0]
+    n = meta[p, 1]
+    start = meta[p, 2]
     size = 1
     for _ in range(q):
         size *= n
-    for p in range(coef.shape[0]):
-        for t in range(size):
-            work[t] = coef[p, t]
-        cur = work
-        nxt = spare
-        pre = 1
-        for a in range(q):
-            post = size // (pre * n)
+    for t in range(size):
+        work[t] = coef[start + t]
+    cur = work
+    nxt = spare
+    # the constant axes dropped (kept[a] = 0): the slice i = 0 of each, the others' order kept
+    pre = 1
+    for a in range(q):
+        post = size // (pre * n)
+        flat = True
+        for u in range(pre):
+            for i in range(1, n):
+                for s in range(post):
+                    if cur[(u * n + i) * post + s] != 0.0:
+                        flat = False
+                        break
+                if not flat:
+                    break
+            if not flat:
+                break
+        if flat:
             for u in range(pre):
-                for w in range(post):
-                    for r in range(n):
-                        acc = 0.0
-                        for i in range(n):
-                            acc += B[p, a, r, i] * cur[(u * n + i) * post + w]
-                        nxt[(u * n + r) * post + w] = acc
-            tmp = cur
-            cur = nxt
-            nxt = tmp
+                for s in range(post):
+                    cur[u * post + s] = cur[u * n * post + s]
+            size = size // n
+            kept[a] = 0
+        else:
+            kept[a] = 1
             pre *= n
-        m = cur[0]
-        for t in range(1, size):
-            if cur[t] < m:
-                m = cur[t]
-        out[p] = m
+    pre = 1
+    for a in range(q):
+        if kept[a] == 0:
+            continue
+        v = meta[p, 3 + a]
+        k = meta[p, 3 + W + a]
+        la = (lo[v] - k * h) / h
+        la = 0.0 if la < 0.0 else (1.0 if la > 1.0 else la)
+        lb = (hi[v] - k * h) / h
+        lb = la if lb < la else (1.0 if lb > 1.0 else lb)
+        w = lb - la
+        pw_a[0] = 1.0
+        for e in range(1, n):
+            pw_a[e] = pw_a[e - 1] * la
+        ww = 1.0  # w^r
+        for r in range(n):  # R[r, i] = binom(i, r) λ_a^(i-r) w^r, i >= r
+            for i in range(r, n):
+                R[r, i] = binom[i, r] * pw_a[i - r] * ww
+            ww = ww * w
+        post = size // (pre * n)
+        for u in range(pre):
+            for s in range(post):
+                for r in range(n):  # reparametrised into nxt
+                    acc = 0.0
+                    for i in range(r, n):
+                        acc += R[r, i] * cur[(u * n + i) * post + s]
+                    nxt[(u * n + r) * post + s] = acc
+                for r in range(n):  # to Bernstein, back into cur
+                    acc = 0.0
+                    for j in range(r + 1):
+                        acc += p2b[n, r, j] * nxt[(u * n + j) * post + s]
+                    cur[(u * n + r) * post + s] = acc
+        pre *= n
+    m: float = cur[0]
+    for t in range(1, size):
+        if cur[t] < m or not cur[t] == cur[t]:
+            m = cur[t]
+        if not m == m:
+            break
+    return m
+
+
+@inlined
+def margin_bound(m: float, rel: float, roundoff: float) -> float:
+    """A smallest Bernstein coefficient ``m`` less the round-off margin ``rel · max(1, |m|) + roundoff``
+    (:data:`~iamp.planners.avoid.dual.ROUND_OFF_REL`, :attr:`~iamp.planners.avoid.dual.DualPolynomial.roundoff`)."""
+    mag = m if m >= 0.0 else -m
+    return m - rel * (mag if mag > 1.0 else 1.0) - roundoff
+
+
+@compilable
+def poly_bounds(coef: Any, meta: Any, W: int, roundoff: Any, h: float, rel: float, lo: Any, hi: Any, binom: Any,
+                p2b: Any, out: Any, work: Any, spare: Any, pw_a: Any, R: Any, kept: Any) -> None:
+    """``out[p]`` the lower bound of every polynomial ``p`` on the box ``[lo, hi]``: its smallest tensor
+    Bernstein coefficient there (:func:`poly_bound`; the polynomials laid out as for :func:`polys_max`)
+    less its round-off margin (:func:`margin_bound`)."""
+    sizes_to_starts(meta)
+    for p in range(meta.shape[0]):
+        out[p] = margin_bound(poly_bound(coef, meta, W, p, h, lo, hi, binom, p2b, work, spare, pw_a, R, kept), rel,
+                              roundoff[p])
+
+
+@compilable
+def max_poly_bound(coef: Any, meta: Any, W: int, roundoff: Any, h: float, rel: float, lo: Any, hi: Any, binom: Any,
+                   p2b: Any, first: int, est: Any, chosen: Any, lam: Any, work: Any, spare: Any, pw_a: Any, R: Any,
+                   kept: Any) -> float:
+    r"""The largest of :func:`poly_bounds` over the polynomials (``-inf`` without any; a NaN bound counts as
+    ``-inf``: it proves nothing), bounding only those that can reach it.  A polynomial's bound is at most
+    its value anywhere in the box, e.g. at the centre of its intervals; that value raised by a bound on
+    its evaluation's round-off, :math:`10^{-12}\sum|c|`, is its estimate ``est[p]``.  The ``first``
+    polynomials of the highest estimates (the lowest number first among equal ones) are bounded first,
+    then, in order, each other one whose estimate exceeds the best bound so far: the maximum over all of
+    them, since one left out cannot exceed it (``chosen``, ``lam``: space for the count of polynomials and
+    for their axes)."""
+    P = meta.shape[0]
+    best = -inf
+    if P == 0:
+        return best
+    sizes_to_starts(meta)
+    for p in range(P):
+        q = meta[p, 0]
+        n = meta[p, 1]
+        size = 1
+        for _ in range(q):
+            size *= n
+        for a in range(q):
+            v = meta[p, 3 + a]
+            k = meta[p, 3 + W + a]
+            la = (lo[v] - k * h) / h
+            la = 0.0 if la < 0.0 else (1.0 if la > 1.0 else la)
+            lb = (hi[v] - k * h) / h
+            lb = la if lb < la else (1.0 if lb > 1.0 else lb)
+            lam[a] = 0.5 * (la + lb)
+        reach = 0.0
+        for t in range(size):
+            c = coef[meta[p, 2] + t]
+            reach += c if c >= 0.0 else -c
+        est[p] = tensor_polyval(coef, meta[p, 2], q, n, lam, work) + 1e-12 * reach
+        chosen[p] = False
+    picks = first if first < P else P
+    for _ in range(picks):  # the highest estimates (the lowest number among equal ones)
+        top = -1
+        for p in range(P):
+            if not chosen[p] and (top < 0 or est[p] > est[top] or (not est[top] == est[top] and est[p] == est[p])):
+                top = p
+        chosen[top] = True
+        b = margin_bound(poly_bound(coef, meta, W, top, h, lo, hi, binom, p2b, work, spare, pw_a, R, kept), rel,
+                         roundoff[top])
+        if b > best:
+            best = b
+    for p in range(P):
+        if not chosen[p] and not est[p] <= best:  # a NaN estimate is bounded too
+            b = margin_bound(poly_bound(coef, meta, W, p, h, lo, hi, binom, p2b, work, spare, pw_a, R, kept), rel,
+                             roundoff[p])
+            if b > best:
+                best = b
+    return best
