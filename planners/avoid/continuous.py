@@ -877,10 +877,17 @@ class ContinuousAvoidPlanner:
         # a vehicle without multipliers in a polynomial leaves it constant: only the others move
         vs = sorted({v for dp in polys for v in dp.vehicles if box.hi[v] > box.lo[v] and dp.mass[v] > 0})
         n = {1: 9, 2: 5}.get(len(vs), 3)
-        grids = np.meshgrid(*[np.linspace(box.lo[v], box.hi[v], n) for v in vs], indexing="ij")
-        pts = np.tile(tau, (grids[0].size if vs else 1, 1))
+        # the product grid in meshgrid's "ij" order: vehicle c's samples (numpy.linspace's numbers:
+        # j step + lo, the last one hi) each repeated n^(k-1-c) times, that run n^c times
+        k = len(vs)
+        pts = np.tile(tau, (n ** k, 1))
+        ramp = np.arange(n, dtype=float)
         for c, v in enumerate(vs):
-            pts[:, v] = grids[c].ravel()
+            lo_v, hi_v = float(box.lo[v]), float(box.hi[v])
+            step = (hi_v - lo_v) / (n - 1)
+            line = ramp / (n - 1) * (hi_v - lo_v) + lo_v if step == 0.0 else ramp * step + lo_v
+            line[-1] = hi_v
+            pts[:, v] = np.tile(np.repeat(line, n ** (k - 1 - c)), n ** c)
         vals = polys_values(polys, pts)
         if solved is not None and len(solved):
             # a point a solved candidate (in a piece beside the box's) all but shares: its cost
