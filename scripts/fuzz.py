@@ -2,7 +2,7 @@
 
 Usage::
 
-    python scripts/fuzz.py [--n 1000] [--seed 0] [--timeout 60] [--workers 2] [--subprocess]
+    python scripts/fuzz.py [--n 1000] [--seed 0] [--timeout 60] [--subprocess]
                            [--keep DIR] [--json]
 
 Each case takes a built-in scenario, applies one to three random mutations (delete or

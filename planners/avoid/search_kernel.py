@@ -213,7 +213,7 @@ def polys_max(coef: Any, meta: Any, W: int, h: float, taus: Any, out: Any, lam: 
         out[t] = best
 
 
-@inlined
+@compilable
 def poly_bound(coef: Any, meta: Any, W: int, p: int, h: float, lo: Any, hi: Any, binom: Any, p2b: Any, work: Any,
                spare: Any, pw_a: Any, R: Any, kept: Any) -> float:
     r"""The smallest tensor Bernstein coefficient of polynomial ``p`` (row ``p`` of ``meta`` as for
