@@ -213,6 +213,20 @@ def polys_max(coef: Any, meta: Any, W: int, h: float, taus: Any, out: Any, lam: 
         out[t] = best
 
 
+@inlined
+def local_interval(meta: Any, W: int, p: int, a: int, h: float, lo: Any, hi: Any) -> tuple[float, float]:
+    r"""The box ``[lo, hi]``'s interval on axis ``a`` of polynomial ``p`` (row ``p`` of ``meta``, as for
+    :func:`polys_max`) in its piece's local coordinate, :math:`[\lambda_a, \lambda_b]`:
+    :math:`(\tau - k h)/h` of both ends, clipped to ``[0, 1]``, with :math:`\lambda_b \ge \lambda_a`."""
+    v = meta[p, 3 + a]
+    k = meta[p, 3 + W + a]
+    la = (lo[v] - k * h) / h
+    la = 0.0 if la < 0.0 else (1.0 if la > 1.0 else la)
+    lb = (hi[v] - k * h) / h
+    lb = la if lb < la else (1.0 if lb > 1.0 else lb)
+    return la, lb
+
+
 @compilable
 def poly_bound(coef: Any, meta: Any, W: int, p: int, h: float, lo: Any, hi: Any, binom: Any, p2b: Any, work: Any,
                spare: Any, pw_a: Any, R: Any, kept: Any) -> float:
@@ -271,12 +285,7 @@ def poly_bound(coef: Any, meta: Any, W: int, p: int, h: float, lo: Any, hi: Any,
     for a in range(q):
         if kept[a] == 0:
             continue
-        v = meta[p, 3 + a]
-        k = meta[p, 3 + W + a]
-        la = (lo[v] - k * h) / h
-        la = 0.0 if la < 0.0 else (1.0 if la > 1.0 else la)
-        lb = (hi[v] - k * h) / h
-        lb = la if lb < la else (1.0 if lb > 1.0 else lb)
+        la, lb = local_interval(meta, W, p, a, h, lo, hi)
         w = lb - la
         pw_a[0] = 1.0
         for e in range(1, n):
@@ -353,12 +362,7 @@ def max_poly_bound(coef: Any, meta: Any, W: int, roundoff: Any, h: float, rel: f
         for _ in range(q):
             size *= n
         for a in range(q):
-            v = meta[p, 3 + a]
-            k = meta[p, 3 + W + a]
-            la = (lo[v] - k * h) / h
-            la = 0.0 if la < 0.0 else (1.0 if la > 1.0 else la)
-            lb = (hi[v] - k * h) / h
-            lb = la if lb < la else (1.0 if lb > 1.0 else lb)
+            la, lb = local_interval(meta, W, p, a, h, lo, hi)
             lam[a] = 0.5 * (la + lb)
         reach = 0.0
         for t in range(size):
