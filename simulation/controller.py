@@ -617,7 +617,7 @@ class Controller:
         # the bodies at their headings, as the judge measures the gaps (:func:`iamp.simulation.rss.body_extents`):
         # the ego's as the simulator sets it (kept at a crawl: a car that stopped turned toward the next lane
         # still reaches into it, 2 m for a 4.8 m car at 33°), the others' from their velocities
-        psi = float(getattr(self.sim, "ego_heading", self.heading))
+        psi = self.sim.ego_heading
         c, s = abs(math.cos(psi)), abs(math.sin(psi))
         hx_e, hy_e = Le / 2 * c + We / 2 * s, Le / 2 * s + We / 2 * c
         lane_width = self.sim.highway.lane_width

@@ -214,7 +214,7 @@ def test_a_bound_is_the_smallest_tensor_bernstein_coefficient_less_the_margin(se
     over five orders of magnitude, some constant along axes (dropped by the kernel, the same
     coefficients); the smallest coefficient bounds the polynomial on a dense grid of the box; the
     Python kernel and its numba twin agree bit for bit."""
-    from iamp.planners.avoid.dual import ROUND_OFF_REL, _binomials, _pack, lower_bounds
+    from iamp.planners.avoid.dual import ROUND_OFF_REL, _kernel_tables, _pack, lower_bounds
 
     rng = np.random.default_rng(seed)
     h = 0.1
@@ -245,7 +245,7 @@ def test_a_bound_is_the_smallest_tensor_bernstein_coefficient_less_the_margin(se
         flat_c, meta, W, largest = _pack(polys)
         n = int(meta[:, 1].max())
         out = np.empty(len(polys))
-        fn(flat_c, meta, W, np.array([dp.roundoff for dp in polys]), h, ROUND_OFF_REL, lo, hi, *_binomials(n), out,
+        fn(flat_c, meta, W, np.array([dp.roundoff for dp in polys]), h, ROUND_OFF_REL, lo, hi, *_kernel_tables(n), out,
            np.empty(largest), np.empty(largest), np.empty(n), np.empty((n, n)), np.empty(W, dtype=np.int64))
         outs.append(out)
     assert np.array_equal(outs[0], np.array(got))

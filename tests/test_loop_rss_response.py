@@ -38,6 +38,7 @@ REST = LATERAL_REST_SHARE * DEFAULT.lat_margin_m / DEFAULT.response_time_s
 class _Sim:
     ego_length: float = 4.8
     ego_width: float = 1.8
+    ego_heading: float = 0.0
     step: float = 0.1
     highway: Highway = field(default_factory=Highway)
 
@@ -345,11 +346,6 @@ def test_the_acceleration_cap_adds_its_own_share_per_period_above_the_rest_share
     assert c._move(away, 0.0, side * 3.0, caps=caps) == c._move(away, 0.0, side * 3.0)
 
 
-@dataclass
-class _TurnedSim(_Sim):
-    ego_heading: float = 0.0
-
-
 def test_the_gaps_are_the_bodies_at_their_headings() -> None:
     """The judge measures the gaps between the bodies at their headings (``rss.body_extents``), and
     so do the caps.  The ego stopped 33° to the road after merging at a crawl (onramp LOS E 9003,
@@ -363,9 +359,9 @@ def test_the_gaps_are_the_bodies_at_their_headings() -> None:
     psi = np.radians(33.0)
     ego = EgoState(x=0.0, vx=0.0, y=0.0, vy=0.0)
     behind = car(-(19.0 + 4.8), 3.7, 13.0)
-    c.sim = _TurnedSim(ego_heading=0.0)  # type: ignore[assignment]
+    c.sim = _Sim(ego_heading=0.0)  # type: ignore[assignment]
     assert c._lateral_caps(ego, [behind])[:2] == (np.inf, np.inf)
-    c.sim = _TurnedSim(ego_heading=float(psi))  # type: ignore[assignment]
+    c.sim = _Sim(ego_heading=float(psi))  # type: ignore[assignment]
     hy = 2.4 * np.sin(psi) + 0.9 * np.cos(psi)
     assert 3.7 - hy - 0.9 == pytest.approx(0.73, abs=0.01)
     assert c._lateral_caps(ego, [behind])[:2] == (pytest.approx(REST), np.inf)
@@ -373,7 +369,7 @@ def test_the_gaps_are_the_bodies_at_their_headings() -> None:
     # longitudinally safe (far behind): no cap whatever the heading
     assert c._lateral_caps(ego, [car(-200.0, hy + 0.9 + 0.15, 13.0)])[:2] == (np.inf, np.inf)
     # the mirror image: the car on the right, the ego turned right
-    c.sim = _TurnedSim(ego_heading=float(-psi))  # type: ignore[assignment]
+    c.sim = _Sim(ego_heading=float(-psi))  # type: ignore[assignment]
     assert c._lateral_caps(ego, [car(-(19.0 + 4.8), -3.7, 13.0)])[:2] == (np.inf, pytest.approx(REST))
 
 

@@ -59,7 +59,6 @@ import functools
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from math import comb
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -68,6 +67,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from . import search_kernel
+from .bernstein import _binomials, _power_to_bernstein
 from .schur import _run, full_hessian, kkt_matrix
 
 if TYPE_CHECKING:
@@ -259,16 +259,15 @@ def _contract(w: FloatArray, T: FloatArray) -> FloatArray:
 
 
 @lru_cache(maxsize=32)
-def _binomials(n: int) -> tuple[FloatArray, FloatArray]:
-    """``binom[i, j] = binom(i, j)`` (zero for ``j > i``) as floats, ``i, j < n`` (exact integers), and
-    ``p2b[m, r, j] = binom(r, j) / binom(m - 1, j)`` for ``m <= n`` (the power-to-Bernstein matrix of
-    degree ``m - 1``, :func:`~iamp.planners.avoid.bernstein.power_to_bernstein`, the same quotients)."""
-    binom = np.array([[float(comb(i, j)) for j in range(n)] for i in range(n)])
+def _kernel_tables(n: int) -> tuple[FloatArray, FloatArray]:
+    """The bound kernels' tables for up to ``n`` coefficients per axis, from
+    :mod:`~iamp.planners.avoid.bernstein`'s: ``binom[i, j] = binom(i, j)`` (zero for ``j > i``) and
+    ``p2b[m, :m, :m]`` the power-to-Bernstein matrix of degree ``m - 1``
+    (:func:`~iamp.planners.avoid.bernstein.power_to_bernstein`)."""
+    binom = np.ascontiguousarray(_binomials(n - 1)[0].T)
     p2b = np.zeros((n + 1, n, n))
     for m in range(1, n + 1):
-        for r in range(m):
-            for j in range(r + 1):
-                p2b[m, r, j] = comb(r, j) / comb(m - 1, j)
+        p2b[m, :m, :m] = _power_to_bernstein(m - 1)
     binom.flags.writeable = False
     p2b.flags.writeable = False
     return binom, p2b
@@ -303,7 +302,7 @@ def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) ->
     work, spare, pw_a, R, kept, _, _, _ = _space(largest, n, W, len(polys))
     _run("poly_bounds", search_kernel)(flat, meta, W, np.array([dp.roundoff for dp in polys], dtype=float),
                                        float(polys[0].h), ROUND_OFF_REL, np.asarray(lo, dtype=float),
-                                       np.asarray(hi, dtype=float), *_binomials(n), out, work, spare, pw_a, R, kept)
+                                       np.asarray(hi, dtype=float), *_kernel_tables(n), out, work, spare, pw_a, R, kept)
     return [float(v) for v in out]
 
 
@@ -333,7 +332,7 @@ def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray)
     work, spare, pw_a, R, kept, lam, est, chosen = _space(largest, n, W, len(polys))
     return float(_run("max_poly_bound", search_kernel)(
         flat, meta, W, np.array([dp.roundoff for dp in polys], dtype=float), float(polys[0].h), ROUND_OFF_REL,
-        np.asarray(lo, dtype=float), np.asarray(hi, dtype=float), *_binomials(n), MAX_BOUND_FIRST, est, chosen, lam,
+        np.asarray(lo, dtype=float), np.asarray(hi, dtype=float), *_kernel_tables(n), MAX_BOUND_FIRST, est, chosen, lam,
         work, spare, pw_a, R, kept))
 
 

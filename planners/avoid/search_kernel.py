@@ -214,6 +214,18 @@ def polys_max(coef: Any, meta: Any, W: int, h: float, taus: Any, out: Any, lam: 
 
 
 @inlined
+def poly_shape(meta: Any, p: int) -> tuple[int, int, int]:
+    """Polynomial ``p``'s number of axes ``q``, coefficients per axis ``n`` and size ``n**q`` (row ``p``
+    of ``meta``, as for :func:`polys_max`)."""
+    q = meta[p, 0]
+    n = meta[p, 1]
+    size = 1
+    for _ in range(q):
+        size *= n
+    return q, n, size
+
+
+@inlined
 def local_interval(meta: Any, W: int, p: int, a: int, h: float, lo: Any, hi: Any) -> tuple[float, float]:
     r"""The box ``[lo, hi]``'s interval on axis ``a`` of polynomial ``p`` (row ``p`` of ``meta``, as for
     :func:`polys_max`) in its piece's local coordinate, :math:`[\lambda_a, \lambda_b]`:
@@ -247,12 +259,8 @@ def poly_bound(coef: Any, meta: Any, W: int, p: int, h: float, lo: Any, hi: Any,
     bind in its piece) is dropped first: along it every Bernstein coefficient is ``c_0``, as the
     transform gives it, so the smallest is that of the slice ``i = 0`` (``work``, ``spare``: space for
     ``n**q`` numbers; ``pw_a``: for ``n``, ``R``: for ``n × n``; ``kept``: for ``q`` integers)."""
-    q = meta[p, 0]
-    n = meta[p, 1]
+    q, n, size = poly_shape(meta, p)
     start = meta[p, 2]
-    size = 1
-    for _ in range(q):
-        size *= n
     for t in range(size):
         work[t] = coef[start + t]
     cur = work
@@ -356,11 +364,7 @@ def max_poly_bound(coef: Any, meta: Any, W: int, roundoff: Any, h: float, rel: f
         return best
     sizes_to_starts(meta)
     for p in range(P):
-        q = meta[p, 0]
-        n = meta[p, 1]
-        size = 1
-        for _ in range(q):
-            size *= n
+        q, n, size = poly_shape(meta, p)
         for a in range(q):
             la, lb = local_interval(meta, W, p, a, h, lo, hi)
             lam[a] = 0.5 * (la + lb)
