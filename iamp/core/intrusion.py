@@ -214,19 +214,19 @@ class _CutPolynomials:
             sel = (group >= lo) & (group < hi)
             return cut_times(breaks, rows[sel] % P, sig[sel])
 
-        if self.with_intrusion:
-            cuts = cuts_of(0, self.first_overlap)
-            mid = 0.5 * (cuts[:-1] + cuts[1:])
-            mx, my = _offsets(v, traj, mid)
-            intrusion = _runs(cuts, depth(mx, my, Ax, Ay) > d)
-        else:
-            intrusion = ()
-        cuts = cuts_of(self.first_overlap, self.first_extreme)
-        mid = 0.5 * (cuts[:-1] + cuts[1:])
-        mx, my = _offsets(v, traj, mid)
-        overlap = _runs(cuts, (np.abs(mx) < Bx) & (np.abs(my) < By))
+        # the three sets of times (the intrusion's and the overlap's midpoints, the extremes'
+        # candidates) evaluated in one call: the trajectory and the vehicle are evaluated point by
+        # point, so the numbers are those of three calls
+        i_cuts = cuts_of(0, self.first_overlap) if self.with_intrusion else np.zeros(0)
+        i_mid = 0.5 * (i_cuts[:-1] + i_cuts[1:])
+        o_cuts = cuts_of(self.first_overlap, self.first_extreme)
+        o_mid = 0.5 * (o_cuts[:-1] + o_cuts[1:])
         cand = cuts_of(self.first_extreme, self.n_groups)
-        cx, cy = _offsets(v, traj, cand)
+        dx, dy = _offsets(v, traj, np.concatenate((i_mid, o_mid, cand)))
+        a, b = i_mid.size, i_mid.size + o_mid.size
+        intrusion = _runs(i_cuts, depth(dx[:a], dy[:a], Ax, Ay) > d) if self.with_intrusion else ()
+        overlap = _runs(o_cuts, (np.abs(dx[a:b]) < Bx) & (np.abs(dy[a:b]) < By))
+        cx, cy = dx[b:], dy[b:]
         max_depth = max(0.0, float(np.max(depth(cx, cy, Ax, Ay))))
         min_clear = float(np.min(distance(cx, cy, Ax, Ay)))
         return VehicleSets(intrusion=intrusion, max_intrusion_m=max_depth, overlap=overlap,

@@ -69,9 +69,13 @@ def taylor_pieces(traj: PiecewiseTrajectory, breaks: FloatArray) -> tuple[FloatA
     shape ``(P, 2, 4)``, plus the largest end-of-piece mismatch (position and speed)."""
     a, b = breaks[:-1], breaks[1:]
     h = b - a
-    Xa = traj.states(a)
-    Ua = traj.inputs(a)
-    Um = traj.inputs(0.5 * (a + b))
+    P = a.size
+    # the states at both ends, the inputs at the start and the middle, each in one call (a
+    # trajectory is evaluated point by point: the numbers of one call per set of times)
+    Xab = traj.states(np.concatenate((a, b)))
+    Xa, Xb = Xab[:P], Xab[P:]
+    Uam = traj.inputs(np.concatenate((a, 0.5 * (a + b))))
+    Ua, Um = Uam[:P], Uam[P:]
     jerk = (Um - Ua) / (0.5 * h)[:, None]
     C = np.empty((a.size, 2, 4))
     hh = h[:, None]
@@ -79,7 +83,6 @@ def taylor_pieces(traj: PiecewiseTrajectory, breaks: FloatArray) -> tuple[FloatA
     C[:, :, 1] = Xa[:, [1, 3]] * hh
     C[:, :, 2] = Ua * hh**2 / 2
     C[:, :, 3] = jerk * hh**3 / 6
-    Xb = traj.states(b)
     s_end = C.sum(axis=2)
     v_end = (C[:, :, 1] + 2 * C[:, :, 2] + 3 * C[:, :, 3]) / hh
     scale = max(1.0, float(np.max(np.abs(Xb))))

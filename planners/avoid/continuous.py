@@ -199,6 +199,9 @@ class _GridLayout:
         self.full_vals = {(i, a): np.tile(hp.sigma * self.M_full.ravel(), N)
                           for i, pair in enumerate(d.planes) for a, hp in enumerate(pair)}
         self.split_polys: tuple[FloatArray, FloatArray] | None = None
+        #: the samples ``λ_j = j / d`` of :meth:`ContinuousAvoidQP.rhs_polynomial`
+        self.lam = np.linspace(0.0, 1.0, degree + 1)
+        self.lam.flags.writeable = False
 
 
 class _PlaneRows:
@@ -471,7 +474,7 @@ class ContinuousAvoidQP:
         if out is None:
             hp = self.data.planes[i][plane]
             tk = float(self.data.t_nodes[k])
-            lam = np.linspace(0.0, 1.0, self.degree + 1)
+            lam = self._grid.lam
             # every sample interval in one call (the same operations per interval as one at a time)
             ends = tk + lam * self.h
             vals = (self._rhs(hp, np.full_like(ends, tk), ends) if pre

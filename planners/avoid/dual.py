@@ -97,10 +97,16 @@ def piece_of(lo: float, hi: float, h: float, N: int) -> int | None:
 
 def fit_polynomial(values: FloatArray, degree: int) -> FloatArray:
     """Power coefficients (axis 0) of the polynomials of ``degree`` sampled at ``λ_j = j/degree``."""
-    lam = np.linspace(0.0, 1.0, degree + 1)
-    V = np.vander(lam, degree + 1, increasing=True)
+    V = _VANDER.get(degree)
+    if V is None:
+        V = _VANDER[degree] = np.vander(np.linspace(0.0, 1.0, degree + 1), degree + 1, increasing=True)
+        V.flags.writeable = False
     shape = values.shape
     return np.asarray(np.linalg.solve(V, values.reshape(degree + 1, -1)).reshape(shape), dtype=float)
+
+
+#: per degree, the Vandermonde matrix of :func:`fit_polynomial`'s samples (built once)
+_VANDER: dict[int, FloatArray] = {}
 
 
 @dataclass(frozen=True)
@@ -129,6 +135,17 @@ class _Binding:
                                              FloatArray, FloatArray]]] = field(default_factory=dict)
     #: :meth:`DualBounds.tangent` per ``(vehicle, piece)``, computed once per solution
     tangents: dict[tuple[int, int], FloatArray] = field(default_factory=dict)
+    #: :meth:`split_rows` per ``(vehicle, half-plane axis, piece)``
+    _split: dict[tuple[int, int, int], NDArray[np.int64]] = field(default_factory=dict)
+
+    def split_rows(self, i: int, pl: int, k: int) -> NDArray[np.int64]:
+        """The positions (ascending) of the binding Bernstein rows of vehicle ``i``'s half-plane
+        axis ``pl`` on piece ``k`` (computed once per solution and ``(i, pl, k)``)."""
+        out = self._split.get((i, pl, k))
+        if out is None:
+            out = self._split[(i, pl, k)] = np.flatnonzero(self.bern & (self.veh == i) & (self.plane == pl)
+                                                           & (self.piece == k))
+        return out
 
 
 @dataclass(frozen=True)
@@ -350,7 +367,7 @@ class DualBounds:
         d = qp.data
         # the node solver's symmetric P and factorisation of the same matrix when it has one
         self.P = qp.schur.P_full_csc if qp.schur is not None else full_hessian(d.P)
-        self.P_abs = abs(self.P)
+        self.P_abs = qp.schur.P_full_abs if qp.schur is not None else abs(self.P)
         self.lu = qp.schur.lu if qp.schur is not None else spla.splu(kkt_matrix(d.P, qp.A_eq, self.P))
         self.nb = qp.degree + 1
         # σ-free values of the split piece's rows as polynomials in λ: M(0, λ) (first half-plane),
@@ -365,6 +382,8 @@ class DualBounds:
         self._cols: dict[tuple[int, int], NDArray[np.int64]] = {}
         self._ix: dict[tuple[bytes, int], tuple[NDArray[np.int64], ...]] = {}
         self._flats: dict[tuple[int, int], NDArray[np.int64]] = {}
+        #: one flag per column, all False between uses (:meth:`_tangent`)
+        self._mark = np.zeros(d.n, dtype=bool)
 
     def _exponents(self, q: int, D: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
         """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..D``)
@@ -438,8 +457,8 @@ class DualBounds:
         d = self.qp.data
         f, s = sol.spec[i][0], sol.spec[i][1]
         for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
-            rows = b.bern & (b.veh == i) & (b.plane == pl) & (b.piece == k)
-            if not rows.any():
+            rows = b.split_rows(i, pl, k)
+            if not rows.size:
                 continue
             yj = np.zeros(self.nb)
             yj[b.j[rows]] = b.y[rows]
@@ -534,7 +553,7 @@ class DualBounds:
         split: list[tuple[NDArray[np.int64], NDArray[np.int64], FloatArray, FloatArray]] = []
         f, s = sol.spec[i][0], sol.spec[i][1]
         for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
-            rows = np.flatnonzero(b.bern & (b.veh == i) & (b.plane == pl) & (b.piece == k))
+            rows = b.split_rows(i, pl, k)
             if not rows.size:
                 continue
             sigma = d.planes[i][pl].sigma
@@ -551,7 +570,10 @@ class DualBounds:
         pos = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(starts, lens)
         split_cols = np.concatenate([cols for _, cols, _, _ in split])
         touched = np.concatenate((b.indices[pos], split_cols))
-        T = np.unique(touched)
+        # the columns touched, ascending and each once (np.unique's, from a mark per column)
+        self._mark[touched] = True
+        T = np.flatnonzero(self._mark)
+        self._mark[T] = False
         where = np.searchsorted(T, touched)  # each entry's column among T (return_inverse, cheaper)
         G = np.zeros((S, T.size))
         G[owner, where[:pos.size]] = b.data[pos]
@@ -631,8 +653,8 @@ class DualBounds:
         # the split piece: σ M(λ) with multipliers α_j + λ β_j per Bernstein index
         f, s = sol.spec[i][0], sol.spec[i][1]
         for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
-            rows = b.bern & (b.veh == i) & (b.plane == pl) & (b.piece == k)
-            if not rows.any():
+            rows = b.split_rows(i, pl, k)
+            if not rows.size:
                 continue
             aj, bj = np.zeros(self.nb), np.zeros(self.nb)
             aj[b.j[rows]], bj[b.j[rows]] = alpha[rows], beta[rows]

@@ -138,9 +138,12 @@ class LimitRows:
         return np.asarray(np.maximum(np.maximum(self.lo - Az, Az - self.hi), 0.0), dtype=float)
 
     def describe(self) -> dict[str, int]:
-        """Rows per kind (for reports)."""
-        kinds, counts = np.unique(self.kind, return_counts=True)
-        return {str(k): int(c) for k, c in zip(kinds, counts)}
+        """Rows per kind (for reports; counted once per ``kind`` array, a new dict each call)."""
+        kept = self.__dict__.get("_described")
+        if kept is None or kept[0] is not self.kind:
+            kinds, counts = np.unique(self.kind, return_counts=True)
+            kept = self.__dict__["_described"] = (self.kind, {str(k): int(c) for k, c in zip(kinds, counts)})
+        return dict(kept[1])
 
 
 def polygon_normals(sides: int = POLYGON_SIDES) -> tuple[FloatArray, float]:
