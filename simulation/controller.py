@@ -764,9 +764,16 @@ class Controller:
             return ay
         psi0, turn, _ = window
         psi1 = math.atan2(vy1, vx1)
-        bounded = min(max(psi1, psi0 - turn), psi0 + turn)
-        if bounded == psi1:
+        if psi0 - turn <= psi1 <= psi0 + turn:
             return ay
+        # the turn allowed grows with the speed after the period, and the bounded heading changes
+        # that speed (``v_x / cos ψ`` at the kept ``v_x``): bounded with the least speed the kept
+        # ``v_x`` allows, ``v_x`` itself, so that the turn holds at whatever speed results (the
+        # window of ``psi1``'s own speed let a turn toward the road exceed the bound by 8e-6 rad
+        # at v_x = 1 m/s)
+        kappa = float(self.cfg.decision.kappa_max)  # type: ignore[arg-type]  (a window: tested)
+        turn = TURN_SHARE * kappa * 0.5 * (math.hypot(ego.vx, ego.vy) + vx1) * dt
+        bounded = min(max(psi1, psi0 - turn), psi0 + turn)
         # the longitudinal input kept: the lateral speed that puts the velocity on the bounded
         # heading, within the lane keeping's lateral bound
         lim = self.cfg.lane_keep_ay
