@@ -88,7 +88,12 @@ Key = tuple[str, str, str, int]
 #: the judge does (the ego stopped turned toward the next lane reaches 2 m into it, not 0.9 m), and
 #: allow no motion toward a car not longitudinally safe that is already nearer than RSS's lateral
 #: distance (``Controller._lateral_caps``).
-EPISODE_FORMAT = "17.9"
+#: 17.10: RSS's longitudinal proper response as the rear car, as the judge measures the situation
+#: (``Controller._front_danger``): a plan that does not brake with ``brake_min`` while a vehicle ahead
+#: is closer than RSS's distance and laterally unsafe is left (withdrawn in the origin lane, else the
+#: fail-safe), no lane change starts then and the following brakes; the tactical layer's turn bound
+#: taken at the least speed the kept ``v_x`` allows (``Controller._turn_bound``).
+EPISODE_FORMAT = "17.10"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

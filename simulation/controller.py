@@ -657,6 +657,33 @@ class Controller:
                 caps[side] = min(caps[side], cap)
         return LateralCaps(*caps)
 
+    def _front_danger(self, ego: EgoState, nbs: list[Neighbour]) -> Neighbour | None:
+        """The nearest vehicle ahead with which the ego is RSS-dangerous as the rear car, as the judge
+        measures it (:func:`iamp.simulation.rss.judge_pair`): the bumper gap below RSS's longitudinal
+        distance of their speeds (:func:`~iamp.simulation.rss.longitudinal_room`) and the lateral gap
+        of the bodies at their headings below RSS's lateral distance of their lateral speeds toward
+        each other; None when there is none (or without the safe loop).  RSS's proper response is
+        then the rear car's: brake with at least ``brake_min``."""
+        if not self.cfg.safe:
+            return None
+        p = self.cfg.tactical.safe.rss
+        psi = self.sim.ego_heading
+        c, s = abs(math.cos(psi)), abs(math.sin(psi))
+        Le, We = self.sim.ego_length, self.sim.ego_width
+        hx_e, hy_e = Le / 2 * c + We / 2 * s, Le / 2 * s + We / 2 * c
+        found: Neighbour | None = None
+        for n in nbs:
+            dx = n.x(0.0) - ego.x
+            if dx <= 0.0 or (found is not None and dx >= found.x(0.0) - ego.x):
+                continue
+            hx_n, hy_n = (float(e) for e in body_half_extents(n.v(0.0), n.vy, n.length, n.width))
+            lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, n.v(0.0), ego.vx, 2 * hx_e, p)
+            if lon_gap >= d_lon:
+                continue
+            if abs(n.y - ego.y) - (hy_n + hy_e) < float(safe_lateral_distance(*_toward(ego, n), p)):
+                found = n
+        return found
+
     def _move(self, ego: EgoState, ax: float, y_c: float, urgent: bool = False,
               caps: LateralCaps = NO_CAPS) -> EgoState:
         """One period of constant input: ``a_x`` (within the car's range, never reversing) and the
@@ -818,6 +845,8 @@ class Controller:
             lane_speed = float(np.mean(beside)) if beside else None
         a = seek_accel(self.ego_now(ego), self._rss_leader(ego, nbs), stop_x, target, hw.speed_limit,
                        self.cfg.tactical, lane_speed)
+        if self._front_danger(ego, nbs) is not None:  # RSS-dangerous as the judge measures it
+            a = min(a, -self.cfg.tactical.safe.rss.brake_min)
         urgent = a <= -self.cfg.tactical.safe.rss.brake_min  # RSS's proper response (or harder)
         return self._move(ego, a, hw.lane_centre(lane), urgent, self._lateral_caps(ego, nbs))
 
@@ -863,6 +892,10 @@ class Controller:
                 cap = self._lateral_caps(ego, nbs)[0 if left else 1]
                 if np.isfinite(cap):
                     self._reject("rss-lateral")
+                    return self._follow(ego, nbs, chosen)
+                if self._front_danger(ego, nbs) is not None:
+                    # nor while RSS asks the ego to brake behind a vehicle ahead (the following brakes)
+                    self._reject("rss-front")
                     return self._follow(ego, nbs, chosen)
             order = ([chosen] if chosen is not None else []) + [g for g in gaps  # candidate_gaps(en, target, wide)
                                                                  if chosen is None or names(g) != names(chosen)]
@@ -926,7 +959,28 @@ class Controller:
                     self.n.aborts += 1
                     return self._abort_now(ego, obstacles, nbs)
                 self.fs_brake = b if b is not None else self.fs_brake
+            if self._front_danger(ego, nbs) is not None and self._plan_accel(t) > -self.cfg.tactical.safe.rss.brake_min:
+                # RSS-dangerous behind a vehicle ahead (it braked, or the ego closed in during the change)
+                # and the plan does not brake with RSS's proper response: the fail-safe does (the
+                # verification lets a leader already too close come no closer, RSS asks the rear car to
+                # brake: discretionary light 7105, 1.4-2.5 s at fault 80 m behind a car slowing at 35 m/s)
+                self._reject("rss-front")
+                if self._in_origin_lane(ego):
+                    self.mode, self.plan, self.next_seek = "seek", None, t + self.cfg.seek_every_s
+                    self.n.withdrawn += 1
+                    return self._follow(ego, nbs)
+                self.mode, self.plan = "abort", None
+                self.fs_lane = self.sim.highway.lane_of(ego.y)
+                self.n.aborts += 1
+                return self._abort_now(ego, obstacles, nbs)
         return self._execute(t, dt)
+
+    def _plan_accel(self, t: float) -> float:
+        """The plan's longitudinal input over the period from ``t`` (at its middle, as :meth:`_execute`
+        applies it)."""
+        assert self.plan is not None
+        tau = max(min(t + self.sim.step - self.plan_t0, float(self.plan.problem.tf)) - self.sim.step / 2, 0.0)
+        return float(np.asarray(self.plan.require_trajectory().inputs(np.array([tau])))[0, 0])
 
     def _abort_now(self, ego: EgoState, obstacles: list[Obstacle], nbs: list[Neighbour]) -> EgoState:
         """One period of the fail-safe (its first, and each while aborting): brake in the lane
@@ -946,7 +1000,10 @@ class Controller:
         at 1.5 m/s² behind a car 69 m ahead where RSS asked 72 m)."""
         if not self.cfg.safe:
             return 0.0
-        return proper_response(self.ego_now(ego), self._rss_leader(ego, nbs), self.cfg.tactical.safe.rss)
+        p = self.cfg.tactical.safe.rss
+        if self._front_danger(ego, nbs) is not None:  # dangerous as the judge measures it
+            return float(p.brake_min)
+        return proper_response(self.ego_now(ego), self._rss_leader(ego, nbs), p)
 
     def _mobil_safe(self, t: float, obs: Observation, ego: EgoState, nbs: list[Neighbour]) -> EgoState | None:
         """IDM + MOBIL for a mandatory change (:mod:`iamp.simulation.mobil`): IDM drives the ego in

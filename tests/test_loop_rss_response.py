@@ -387,3 +387,48 @@ def test_episodes_at_fault_with_the_body_at_its_heading_are_not_any_more(mission
 
     s = run_episode(EpisodeSpec(mission=mission, traffic=traffic, seed=seed, planner="free")).summary
     assert s["rss_dangerous_s"] == 0.0 and s["success"] and s["contacts"] == 0
+
+
+def test_the_front_danger_is_rss_s_rear_car_situation() -> None:
+    """:meth:`Controller._front_danger`: a vehicle ahead closer, bumper to bumper, than RSS's
+    longitudinal distance of the two speeds and laterally nearer than RSS's lateral distance (the
+    bodies at their headings) — the situation in which RSS asks the rear car, the ego, to brake with
+    ``brake_min``; the nearest such vehicle; none behind, beyond the distance, or a lane away."""
+    c = _controller()
+    c.sim = _RoadSim()  # type: ignore[assignment]
+    y = c.sim.highway.lane_centre(1)
+    ego = EgoState(x=0.0, vx=30.0, y=y, vy=0.0)
+    d = safe_longitudinal_float(30.0, 20.0)
+    near = Neighbour("near", (d - 1.0 + 4.8, 20.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+    far = Neighbour("far", (d + 1.0 + 4.8, 20.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+    assert c._front_danger(ego, [near]) is near and c._proper_brake(ego, [near]) == DEFAULT.brake_min
+    assert c._front_danger(ego, [far]) is None
+    # a lane away, keeping its lane (1.95 m between the bodies, RSS's lateral distance 0.1 m): none
+    beside = Neighbour("beside", (d - 1.0 + 4.8, 20.0), y=y + 3.75, length=4.8, width=1.8, lane=2, vy=0.0)
+    assert c._front_danger(ego, [beside]) is None
+    # the same car moving toward the ego's lane at 2 m/s: RSS's lateral distance exceeds the gap
+    cutting = Neighbour("cut", (d - 1.0 + 4.8, 20.0), y=y + 3.75, length=4.8, width=1.8, lane=2, vy=-2.0)
+    assert c._front_danger(ego, [cutting]) is cutting
+    # behind the ego, however close: not the ego's to brake for
+    behind = Neighbour("behind", (-10.0, 35.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+    assert c._front_danger(ego, [behind]) is None
+    nearer = Neighbour("nearer", (d - 10.0 + 4.8, 20.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+    assert c._front_danger(ego, [near, nearer]) is nearer and c._front_danger(ego, [nearer, near]) is nearer
+    # the ego turned 20° toward the next lane reaches 2.3 m sideways: the car a lane away overlaps it
+    c.sim.ego_heading = 0.35
+    assert c._front_danger(EgoState(x=0.0, vx=30.0, y=y + 1.5, vy=0.0), [beside]) is beside
+
+
+def test_a_plan_that_does_not_brake_behind_a_car_rss_finds_too_close_is_left() -> None:
+    """Discretionary light 7105 (a seed no campaign uses): 80 m behind a car at 35 m/s that slowed a
+    little, the ego, at 31 m/s, was 1-2 m inside RSS's distance while its lane change carried it out
+    of that car's lane; the verification lets a leader already too close come no closer, RSS asks
+    the rear car to brake: 1.4 s (``free``) and 2.5 s (``pmp-active``, ``qp-avoid``) at fault.  The
+    loop now leaves a plan that does not brake with ``brake_min`` while :meth:`Controller._front_danger`
+    finds a car (rejection ``rss-front``; the following brakes): none at fault, still a success."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="discretionary", traffic="light", seed=7105, planner="free")).summary
+    assert s["rss_dangerous_s"] == 0.0 and s["success"] and s["contacts"] == 0
+    assert s["rejected"].get("rss-front", 0) > 0
