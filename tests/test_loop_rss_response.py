@@ -393,30 +393,53 @@ def test_the_front_danger_is_rss_s_rear_car_situation() -> None:
     """:meth:`Controller._front_danger`: a vehicle ahead closer, bumper to bumper, than RSS's
     longitudinal distance of the two speeds and laterally nearer than RSS's lateral distance (the
     bodies at their headings) — the situation in which RSS asks the rear car, the ego, to brake with
-    ``brake_min``; the nearest such vehicle; none behind, beyond the distance, or a lane away."""
+    ``brake_min``; the nearest such vehicle; none behind, beyond the distance, or a lane away.  Each
+    threshold is probed 5 cm either side; the others' predictions accelerate (their speed now is
+    the one that counts) and the ego is away from the origin."""
     c = _controller()
     c.sim = _RoadSim()  # type: ignore[assignment]
     y = c.sim.highway.lane_centre(1)
-    ego = EgoState(x=0.0, vx=30.0, y=y, vy=0.0)
+    x0 = 250.0
+    ego = EgoState(x=x0, vx=30.0, y=y, vy=0.0)
     d = safe_longitudinal_float(30.0, 20.0)
-    near = Neighbour("near", (d - 1.0 + 4.8, 20.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
-    far = Neighbour("far", (d + 1.0 + 4.8, 20.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+
+    def ahead(name: str, gap: float, dy: float = 0.0, vy: float = 0.0, lane: int = 1) -> Neighbour:
+        # a bumper gap ``gap`` ahead at 20 m/s now, accelerating at 1 m/s²
+        return Neighbour(name, (x0 + gap + 4.8, 20.0, 0.5), y=y + dy, length=4.8, width=1.8, lane=lane, vy=vy)
+
+    near, far = ahead("near", d - 0.05), ahead("far", d + 0.05)
     assert c._front_danger(ego, [near]) is near and c._proper_brake(ego, [near]) == DEFAULT.brake_min
     assert c._front_danger(ego, [far]) is None
+    # overlapping the ego's body from just ahead (centres 0.5 m apart): dangerous
+    touching = Neighbour("touch", (x0 + 0.5, 20.0, 0.5), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+    assert c._front_danger(ego, [touching]) is touching
     # a lane away, keeping its lane (1.95 m between the bodies, RSS's lateral distance 0.1 m): none
-    beside = Neighbour("beside", (d - 1.0 + 4.8, 20.0), y=y + 3.75, length=4.8, width=1.8, lane=2, vy=0.0)
+    beside = ahead("beside", d - 0.05, 3.75, lane=2)
     assert c._front_danger(ego, [beside]) is None
-    # the same car moving toward the ego's lane at 2 m/s: RSS's lateral distance exceeds the gap
-    cutting = Neighbour("cut", (d - 1.0 + 4.8, 20.0), y=y + 3.75, length=4.8, width=1.8, lane=2, vy=-2.0)
-    assert c._front_danger(ego, [cutting]) is cutting
+    # moving toward the ego's lane: dangerous once the gap is below RSS's lateral distance of that speed
+    from iamp.simulation.rss import safe_lateral_distance
+
+    for vy in (-1.0, -2.0):
+        d_lat = float(safe_lateral_distance(0.0, -vy, DEFAULT))
+        psi = np.arctan2(vy, 20.0)  # its body at its heading reaches further sideways
+        hy = 2.4 * abs(np.sin(psi)) + 0.9 * abs(np.cos(psi))
+        inside = ahead("in", d - 0.05, 0.9 + hy + d_lat - 0.05, vy=vy, lane=2)
+        outside = ahead("out", d - 0.05, 0.9 + hy + d_lat + 0.05, vy=vy, lane=2)
+        assert c._front_danger(ego, [inside]) is inside and c._front_danger(ego, [outside]) is None
     # behind the ego, however close: not the ego's to brake for
-    behind = Neighbour("behind", (-10.0, 35.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+    behind = Neighbour("behind", (x0 - 10.0, 35.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
     assert c._front_danger(ego, [behind]) is None
-    nearer = Neighbour("nearer", (d - 10.0 + 4.8, 20.0), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+    nearer = ahead("nearer", d - 10.0)
     assert c._front_danger(ego, [near, nearer]) is nearer and c._front_danger(ego, [nearer, near]) is nearer
-    # the ego turned 20° toward the next lane reaches 2.3 m sideways: the car a lane away overlaps it
+    # the ego turned 20° reaches 2.56 m ahead, not 2.4 m: a car 8 cm beyond the distance of a straight
+    # body is inside it; and 1.67 m sideways, not 0.9 m: the car a lane away overlaps its band
     c.sim.ego_heading = 0.35
-    assert c._front_danger(EgoState(x=0.0, vx=30.0, y=y + 1.5, vy=0.0), [beside]) is beside
+    hx = 2.4 * np.cos(0.35) + 0.9 * np.sin(0.35)
+    assert hx - 2.4 > 0.13
+    turned = ahead("turned", d + 0.08)
+    assert c._front_danger(ego, [turned]) is turned
+    assert c._front_danger(ego, [ahead("clear", d + 0.08 + (hx - 2.4))]) is None
+    assert c._front_danger(EgoState(x=x0, vx=30.0, y=y + 1.5, vy=0.0), [beside]) is beside
 
 
 def test_a_plan_that_does_not_brake_behind_a_car_rss_finds_too_close_is_left() -> None:
