@@ -440,6 +440,10 @@ def test_the_front_danger_is_rss_s_rear_car_situation() -> None:
     assert c._front_danger(ego, [turned]) is turned
     assert c._front_danger(ego, [ahead("clear", d + 0.08 + (hx - 2.4))]) is None
     assert c._front_danger(EgoState(x=x0, vx=30.0, y=y + 1.5, vy=0.0), [beside]) is beside
+    assert c._front_danger(ego, [beside]) is None  # turned, from its lane's centre: 1.18 m between the bodies
+    # a car level with the ego (the same centre x) is not ahead of it
+    level = Neighbour("level", (x0, 20.0, 0.5), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
+    assert c._front_danger(ego, [level]) is None
 
 
 def test_a_plan_that_does_not_brake_behind_a_car_rss_finds_too_close_is_left() -> None:
