@@ -676,6 +676,14 @@ class Controller:
             dx = n.x(0.0) - ego.x
             if dx <= 0.0 or (found is not None and dx >= found.x(0.0) - ego.x):
                 continue
+            # first with the body's largest half extent at any heading (the half diagonal, plus 1 nm
+            # for round-off): a gap safe with it is safe at the body's own heading
+            reach = 0.5 * math.hypot(n.length, n.width) + 1e-9
+            lon_lo, d_lon = longitudinal_room(dx, 2 * reach, n.v(0.0), ego.vx, 2 * hx_e, p)
+            if lon_lo >= d_lon:
+                continue
+            if abs(n.y - ego.y) - (reach + hy_e) >= float(safe_lateral_distance(*_toward(ego, n), p)):
+                continue
             hx_n, hy_n = (float(e) for e in body_half_extents(n.v(0.0), n.vy, n.length, n.width))
             lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, n.v(0.0), ego.vx, 2 * hx_e, p)
             if lon_gap >= d_lon:
