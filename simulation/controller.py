@@ -806,7 +806,8 @@ class Controller:
         # ``v_x`` allows, ``v_x`` itself, so that the turn holds at whatever speed results (the
         # window of ``psi1``'s own speed let a turn toward the road exceed the bound by 8e-6 rad
         # at v_x = 1 m/s)
-        kappa = float(self.cfg.decision.kappa_max)  # type: ignore[arg-type]  (a window: tested)
+        kappa = self.cfg.decision.kappa_max
+        assert kappa is not None  # a window exists only with a turn bound (:meth:`_turn_window`)
         turn = TURN_SHARE * kappa * 0.5 * (math.hypot(ego.vx, ego.vy) + vx1) * dt
         bounded = min(max(psi1, psi0 - turn), psi0 + turn)
         # the longitudinal input kept: the lateral speed that puts the velocity on the bounded
