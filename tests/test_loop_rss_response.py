@@ -441,6 +441,11 @@ def test_the_front_danger_is_rss_s_rear_car_situation() -> None:
     assert c._front_danger(ego, [ahead("clear", d + 0.08 + (hx - 2.4))]) is None
     assert c._front_danger(EgoState(x=x0, vx=30.0, y=y + 1.5, vy=0.0), [beside]) is beside
     assert c._front_danger(ego, [beside]) is None  # turned, from its lane's centre: 1.18 m between the bodies
+    # turned, its half width at the heading (1.67 m) against RSS's lateral distance, 5 cm either side
+    hy = 2.4 * np.sin(0.35) + 0.9 * np.cos(0.35)
+    d_lat0 = float(safe_lateral_distance(0.0, 0.0, DEFAULT))
+    for off, want in ((0.9 + hy + d_lat0 + 0.05, None), (0.9 + hy + d_lat0 - 0.05, beside)):
+        assert c._front_danger(EgoState(x=x0, vx=30.0, y=beside.y - off, vy=0.0), [beside]) is want
     # a car level with the ego (the same centre x) is not ahead of it
     level = Neighbour("level", (x0, 20.0, 0.5), y=y, length=4.8, width=1.8, lane=1, vy=0.0)
     assert c._front_danger(ego, [level]) is None
