@@ -461,9 +461,9 @@ class Controller:
         self.n.executed_plans += 1
         if imposed(self.plan) > 0:
             self.n.constrained_plans += 1
-        tau = min(t + dt - self.plan_t0, float(self.plan.problem.tf))
+        tau, tau_u = self._period_times(t, dt)
         X = np.asarray(self.plan.require_trajectory().states(np.array([tau])))[0]
-        U = np.asarray(self.plan.require_trajectory().inputs(np.array([max(tau - dt / 2, 0.0)])))[0]
+        U = np.asarray(self.plan.require_trajectory().inputs(np.array([tau_u])))[0]
         nxt = EgoState(x=float(X[0]), vx=float(X[1]), y=float(X[2]), vy=float(X[3]), ax=float(U[0]), ay=float(U[1]))
         if t + dt >= self.t_end - 1e-9:
             self._done(t + dt)
@@ -613,13 +613,10 @@ class Controller:
         moving = p.lat_margin_m / p.response_time_s  # RSS's fluctuation μ/ρ: beyond it, a lane change
         rest = _rest_speed(p)
         accel = LATERAL_ACCEL_SHARE * p.lat_accel_max
-        Le, We = self.sim.ego_length, self.sim.ego_width
         # the bodies at their headings, as the judge measures the gaps (:func:`iamp.simulation.rss.body_extents`):
         # the ego's as the simulator sets it (kept at a crawl: a car that stopped turned toward the next lane
         # still reaches into it, 2 m for a 4.8 m car at 33°), the others' from their velocities
-        psi = self.sim.ego_heading
-        c, s = abs(math.cos(psi)), abs(math.sin(psi))
-        hx_e, hy_e = Le / 2 * c + We / 2 * s, Le / 2 * s + We / 2 * c
+        hx_e, hy_e = self._ego_half_extents()
         lane_width = self.sim.highway.lane_width
         caps = [np.inf, np.inf, np.inf, np.inf]  # speed left, right; acceleration left, right
         for n in nbs:
@@ -657,6 +654,15 @@ class Controller:
                 caps[side] = min(caps[side], cap)
         return LateralCaps(*caps)
 
+    def _ego_half_extents(self) -> tuple[float, float]:
+        """The ego body's half extents along and across the road at its heading as the simulator sets
+        it (kept at a crawl): ``L/2 |cos ψ| + W/2 |sin ψ|``, ``L/2 |sin ψ| + W/2 |cos ψ|``, as the judge
+        measures the bodies (:func:`iamp.simulation.rss.body_extents`)."""
+        psi = self.sim.ego_heading
+        c, s = abs(math.cos(psi)), abs(math.sin(psi))
+        Le, We = self.sim.ego_length, self.sim.ego_width
+        return Le / 2 * c + We / 2 * s, Le / 2 * s + We / 2 * c
+
     def _front_danger(self, ego: EgoState, nbs: list[Neighbour]) -> Neighbour | None:
         """The nearest vehicle ahead with which the ego is RSS-dangerous as the rear car, as the judge
         measures it (:func:`iamp.simulation.rss.judge_pair`): the bumper gap below RSS's longitudinal
@@ -667,10 +673,7 @@ class Controller:
         if not self.cfg.safe:
             return None
         p = self.cfg.tactical.safe.rss
-        psi = self.sim.ego_heading
-        c, s = abs(math.cos(psi)), abs(math.sin(psi))
-        Le, We = self.sim.ego_length, self.sim.ego_width
-        hx_e, hy_e = Le / 2 * c + We / 2 * s, Le / 2 * s + We / 2 * c
+        hx_e, hy_e = self._ego_half_extents()
         found: Neighbour | None = None
         for n in nbs:
             dx = n.x(0.0) - ego.x
@@ -984,12 +987,18 @@ class Controller:
                 return self._abort_now(ego, obstacles, nbs)
         return self._execute(t, dt)
 
-    def _plan_accel(self, t: float) -> float:
-        """The plan's longitudinal input over the period from ``t`` (at its middle, as :meth:`_execute`
-        applies it)."""
+    def _period_times(self, t: float, dt: float) -> tuple[float, float]:
+        """Plan times of the period from ``t``: its end (the state :meth:`_execute` reaches, at most the
+        plan's horizon) and its middle (the input applied, at least 0)."""
         assert self.plan is not None
-        tau = max(min(t + self.sim.step - self.plan_t0, float(self.plan.problem.tf)) - self.sim.step / 2, 0.0)
-        return float(np.asarray(self.plan.require_trajectory().inputs(np.array([tau])))[0, 0])
+        tau = min(t + dt - self.plan_t0, float(self.plan.problem.tf))
+        return tau, max(tau - dt / 2, 0.0)
+
+    def _plan_accel(self, t: float) -> float:
+        """The plan's longitudinal input over the period from ``t``, as :meth:`_execute` applies it."""
+        assert self.plan is not None
+        tau_u = self._period_times(t, self.sim.step)[1]
+        return float(np.asarray(self.plan.require_trajectory().inputs(np.array([tau_u])))[0, 0])
 
     def _abort_now(self, ego: EgoState, obstacles: list[Obstacle], nbs: list[Neighbour]) -> EgoState:
         """One period of the fail-safe (its first, and each while aborting): brake in the lane
