@@ -214,22 +214,29 @@ class DualPolynomial:
         touches ``J`` at ``τ_c``."""
         if vehicle not in self.vehicles:
             return 0.0
-        axis = self.vehicles.index(vehicle)
-        der = np.polynomial.polynomial.polyder(self.coef, axis=axis) / self.h
-        pad = [(0, 0)] * der.ndim
-        pad[axis] = (0, 1)
-        return float(self._values(np.pad(der, pad), np.asarray(tau, dtype=float)[None, :])[0])
+        return self._derivative_at(tau, self.vehicles.index(vehicle), 1)
 
     def curvature(self, tau: FloatArray, vehicle: int) -> float:
         """``∂²g/∂τ_vehicle²`` at ``tau`` (zero for a vehicle that is not polynomial); with
         :attr:`second_order`, ``J``'s curvature at the candidate."""
         if vehicle not in self.vehicles:
             return 0.0
-        axis = self.vehicles.index(vehicle)
-        der = np.polynomial.polynomial.polyder(self.coef, m=2, axis=axis) / self.h ** 2
-        pad = [(0, 0)] * der.ndim
-        pad[axis] = (0, 2)
-        return float(self._values(np.pad(der, pad), np.asarray(tau, dtype=float)[None, :])[0])
+        return self._derivative_at(tau, self.vehicles.index(vehicle), 2)
+
+    def _derivative_at(self, tau: FloatArray, axis: int, order: int) -> float:
+        """The ``order``-th derivative of ``g`` in ``τ`` along tensor axis ``axis`` at ``tau``: the
+        coefficients of ``numpy.polynomial.polynomial.polyder`` (``der[j - 1] = j c[j]``, once per
+        order: the same products in the same order), divided by ``h^order``, padded with zeros to
+        the coefficients' shape and evaluated by :func:`polys_values`."""
+        c = np.moveaxis(self.coef, axis, 0) if self.coef.ndim > 1 else self.coef
+        n = c.shape[0]
+        for _ in range(order):
+            n -= 1
+            c = np.arange(1, n + 1, dtype=float).reshape((n,) + (1,) * (c.ndim - 1)) * c[1:]
+        der = np.zeros_like(self.coef)
+        lead = np.moveaxis(der, axis, 0) if der.ndim > 1 else der
+        lead[:n] = c / self.h ** order
+        return float(self._values(der, np.asarray(tau, dtype=float)[None, :])[0])
 
     def _values(self, coef: FloatArray, taus: FloatArray) -> FloatArray:
         return polys_values([self], np.atleast_2d(np.asarray(taus, dtype=float)), [coef])
