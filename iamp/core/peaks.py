@@ -209,7 +209,7 @@ def peaks_report(trajectory: PiecewiseTrajectory, tf: float, limits: PhysicalLim
     h2 = (h**2)[:, None]
     u0 = 2 * C[:, :, 2] / h2  # (P, 2) at the piece starts
     u1 = (2 * C[:, :, 2] + 6 * C[:, :, 3]) / h2  # at the piece ends
-    ut = np.r_[a, b]
+    ut = np.concatenate((a, b))
     U = np.concatenate([u0, u1])  # (2P, 2)
     out: dict[str, Peak] = {}
     for axis, name in enumerate(("ax", "ay")):

@@ -56,9 +56,9 @@ def breakpoints(traj: object, tf: float) -> FloatArray | None:
         bp = ct[(ct > 0) & (ct < tf)]
     if bp is None:
         return None
-    b = np.unique(np.r_[0.0, np.asarray(bp, dtype=float).ravel(), tf])
+    b = np.unique(np.concatenate(([0.0], np.asarray(bp, dtype=float).ravel(), [float(tf)])))
     b = b[(b >= 0) & (b <= tf)]
-    keep = np.r_[True, np.diff(b) > MERGE_S]
+    keep = np.concatenate(([True], np.diff(b) > MERGE_S))
     b = b[keep]
     b[-1] = tf
     return b
@@ -108,9 +108,9 @@ def shifted_poly(coeffs: Sequence[float], a: FloatArray, h: FloatArray, degree: 
 def cut_times(breaks: FloatArray, p: NDArray[np.intp], sigma: FloatArray) -> FloatArray:
     """The piece ends plus the roots ``σ`` of piece ``p``, as sorted times (merged within 1 ns)."""
     a, h = breaks[:-1], np.diff(breaks)
-    t = np.r_[breaks, a[p] + h[p] * sigma]
+    t = np.concatenate((breaks, a[p] + h[p] * sigma))
     t = np.unique(t)
-    keep = np.r_[True, np.diff(t) > MERGE_S]
+    keep = np.concatenate(([True], np.diff(t) > MERGE_S))
     out: FloatArray = t[keep]
     out[-1] = breaks[-1]
     return out

@@ -288,7 +288,7 @@ class Solved:
     def u(self) -> FloatArray:
         """``[b_eq; bounds of the imposed rows]``."""
         _, u_in, _ = self.qp.spec_rows(self.spec)
-        return np.asarray(np.r_[self.qp.data.b_eq, u_in], dtype=float)
+        return np.asarray(np.concatenate((self.qp.data.b_eq, u_in)), dtype=float)
 
 
 class ContinuousAvoidQP:
@@ -714,8 +714,8 @@ class ContinuousAvoidQP:
 
         A_in, u_in, ids = sol.spec_rows()
         d = self.data
-        l = np.r_[d.b_eq, np.full(u_in.size, -np.inf)]
-        r = polish(d.P, d.q, _stacked(self.A_eq, A_in), l, np.r_[d.b_eq, u_in], sol.z, sol.y)
+        l = np.concatenate((d.b_eq, np.full(u_in.size, -np.inf)))
+        r = polish(d.P, d.q, _stacked(self.A_eq, A_in), l, np.concatenate((d.b_eq, u_in)), sol.z, sol.y)
         if r is None:
             return None
         rows = RowsSolution(st.OPTIMAL, r.z, r.y, sol.iterations, sol.solves,
@@ -1301,8 +1301,8 @@ class ContinuousAvoidPlanner:
         n_eq = d.n_eq
         A_in, u_in, layout = sol.spec_rows()
         A = _stacked(qp.A_eq, A_in)
-        u = np.r_[d.b_eq, u_in]
-        l = np.r_[d.b_eq, np.full(A_in.shape[0], -np.inf)]
+        u = np.concatenate((d.b_eq, u_in))
+        l = np.concatenate((d.b_eq, np.full(A_in.shape[0], -np.inf)))
         # both KKT checks below; the node solver's copy was built from this P (or checked
         # against it bit for bit, :meth:`ContinuousAvoidQP._schur`)
         lower = qp.schur.P_lower if qp.schur is not None else sp.triu(sp.csc_matrix(d.P), 1).T

@@ -251,7 +251,7 @@ def _pack(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None = 
     metas = [dp.meta for dp in polys]
     widths = {m.size for m in metas}
     if len(widths) == 1:
-        meta = np.stack(metas)
+        meta = np.array(metas)  # np.stack's array, without its argument handling
         W = (meta.shape[1] - 3) // 2
     else:  # polynomials of problems with different numbers of vehicles: padded to the widest
         W = max((m.size - 3) // 2 for m in metas)

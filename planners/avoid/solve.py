@@ -80,20 +80,20 @@ class BoundSolver:
         self.n_eq = self.b_eq.size
         u_in = np.asarray(u_in, dtype=float)
         n = P.shape[0]
-        l = np.r_[self.b_eq, np.full(u_in.size, -np.inf)]
+        l = np.concatenate((self.b_eq, np.full(u_in.size, -np.inf)))
         given = {**AVOID_SETTINGS.get(name, {}), **(settings or {})}
-        self.backend = get_backend(name)(P, np.zeros(n), A, l, np.r_[self.b_eq, u_in], given)
+        self.backend = get_backend(name)(P, np.zeros(n), A, l, np.concatenate((self.b_eq, u_in)), given)
         self.settings = dict(self.backend.settings)
 
     def set_upper(self, u_in: FloatArray) -> None:
         """New upper bounds of the inequality rows."""
-        self.backend.update(u=np.r_[self.b_eq, u_in])
+        self.backend.update(u=np.concatenate((self.b_eq, u_in)))
 
     def set_values(self, A: sp.spmatrix, u_in: FloatArray) -> None:
         """New values of ``A`` on the pattern it was set up with (CSC, sorted), and new upper bounds."""
         A = sp.csc_matrix(A)
         A.sort_indices()
-        self.backend.update(Ax=np.array(A.data, dtype=float), u=np.r_[self.b_eq, u_in])
+        self.backend.update(Ax=np.array(A.data, dtype=float), u=np.concatenate((self.b_eq, u_in)))
 
     def warm_start(self, z: FloatArray, y: FloatArray) -> None:
         """Start the next solve from ``(z, y)`` (OSQP; interior-point backends ignore it)."""
@@ -164,7 +164,8 @@ def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -
     rows (a stable sort by column of the row-major entries), without building the CSR matrix."""
     start, stop = A.indptr[rows], A.indptr[rows + 1]
     lens = stop - start
-    take = np.repeat(start - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(int(lens.sum()))
+    ends = np.cumsum(lens)
+    take = np.repeat(start - np.concatenate((np.zeros(1, dtype=ends.dtype), ends[:-1])), lens) + np.arange(int(lens.sum()))
     m, n = top.shape[0] + rows.size, top.shape[1]
     cols = np.concatenate((top.indices, A.indices[take]))
     data = np.concatenate((top.data, A.data[take]))

@@ -137,7 +137,7 @@ def farkas_residuals(A: sp.spmatrix, l: FloatArray, u: FloatArray, dy: FloatArra
     yp, ym = np.maximum(dy, 0.0), np.maximum(-dy, 0.0)
     if np.any((yp > 0) & ~np.isfinite(u)) or np.any((ym > 0) & ~np.isfinite(l)):
         return stat, float("inf")
-    finite = np.r_[np.abs(l[np.isfinite(l)]), np.abs(u[np.isfinite(u)])]
+    finite = np.concatenate((np.abs(l[np.isfinite(l)]), np.abs(u[np.isfinite(u)])))
     scale = max(1.0, float(np.max(finite, initial=0.0)))
     pos, neg = yp > 0, ym > 0  # only rows that push (their bounds are finite, checked above)
     support = float(np.sum(u[pos] * yp[pos]) - np.sum(l[neg] * ym[neg]))
