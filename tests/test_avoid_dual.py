@@ -411,3 +411,27 @@ def test_the_tangent_polynomial_bounds_j_on_its_interval_and_the_piece(x0v, spee
                 value = float(dp.evaluate(np.array([[t]]))[0]) - dp.roundoff
                 assert value <= s.cost + 1e-7 * max(1.0, s.cost), (t, s.cost)
                 assert lb_box <= s.cost + 1e-9 * max(1.0, s.cost)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
+@given(st_h.floats(-5.0, 12.0), st_h.floats(15.0, 24.0), st_h.floats(100.0, 125.0), st_h.floats(20.0, 26.0),
+       st_h.booleans(), st_h.sampled_from(["foh", "zoh"]), st_h.integers(6, 20), st_h.floats(0.0, 1.0),
+       st_h.floats(0.0, 1.0), st_h.floats(0.0, 1.0))
+def test_a_box_over_several_pieces_gains_nothing_from_its_candidates_polynomial(x0v, speed, xf, vxf, limits, hold,
+                                                                                 steps, a, b, c):
+    """The search builds no polynomial for a box whose every vehicle spans several pieces
+    (``ContinuousAvoidPlanner.search``): it keeps only rows the box's relaxation imposes, so its
+    bound is at most the relaxation's optimum, which the box's bound holds. Checked on generated
+    boxes and candidates inside them."""
+    prob = problem(x0v, speed, xf, vxf, limits)
+    qp = grid_qp(prob, steps, hold)
+    lo, hi = sorted((a * prob.tf, b * prob.tf))
+    assume(piece_of(lo, hi, qp.h, steps) is None)  # spans several pieces
+    order = (1, 0)
+    relaxed = qp.solve(((order[0], order[1], float(lo), float(hi)),))
+    assume(relaxed.status == st.OPTIMAL)
+    cand = qp.solve(spec(order, lo + c * (hi - lo)))
+    assume(cand.status == st.OPTIMAL)
+    dp = DualBounds(qp).polynomial(cand, np.array([lo]), np.array([hi]))
+    assert dp.vehicles == ()
+    assert dp.lower_bound(np.array([lo]), np.array([hi])) <= relaxed.cost

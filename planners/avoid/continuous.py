@@ -1037,10 +1037,23 @@ class ContinuousAvoidPlanner:
                                for a, b, t in zip(box.lo, box.hi, tau))
                     # the candidate's piece polynomial joins the store (built when first needed)
                     store.add(cand)
-                    dp = store.piece(cand) if same else dual.polynomial(cand, box.lo, box.hi)
-                    bound, mass = max(bound, dp.lower_bound(box.lo, box.hi)), dp.mass
-                    if dp.vehicles:
-                        box.duals = (box.duals + (dp,))[-self.DUALS_KEPT:]
+                    if same:
+                        dp: DualPolynomial | None = store.piece(cand)
+                    elif box.own_relaxation and all(piece_of(float(a), float(b), qp.h, qp.N) is None
+                                                    for a, b in zip(box.lo, box.hi)):
+                        # no vehicle's interval lies in one piece: the box's polynomial would keep only
+                        # rows that the box's own relaxation imposes (each half-plane's full pieces
+                        # outside the box, the limit rows), so by weak duality its bound cannot
+                        # exceed that relaxation's optimum, which the box's bound already holds
+                        dp = None
+                    else:
+                        dp = dual.polynomial(cand, box.lo, box.hi)
+                    if dp is None:
+                        mass = dual.mass(cand)
+                    else:
+                        bound, mass = max(bound, dp.lower_bound(box.lo, box.hi)), dp.mass
+                        if dp.vehicles:
+                            box.duals = (box.duals + (dp,))[-self.DUALS_KEPT:]
                     poly_bound, polys = bound_of(box.orders, box.lo, box.hi, box.duals)
                     bound = max(bound, poly_bound)
                 elif cand.status != st.INFEASIBLE:
