@@ -56,6 +56,7 @@ slope is cut (:meth:`DualBounds.tangent_interval`, :meth:`DualStore.near`).
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -66,7 +67,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from . import search_kernel
+from . import dual_kernel, search_kernel
 from .bernstein import _binomials, _power_to_bernstein
 from .schur import _run, full_hessian, kkt_matrix
 
@@ -129,6 +130,8 @@ class _Binding:
     indptr: NDArray[np.int64]
     indices: NDArray[np.int64]
     data: FloatArray
+    #: the columns of the binding rows' entries (the rows of ``K⁻¹`` their tangent reads)
+    cols: NDArray[np.int64]
     #: :meth:`DualBounds._split_blocks` per ``(vehicle, piece)``, each block with its terms of
     #: :meth:`DualBounds.polynomial` (``σ (y_j M)ᵀ``, ``rhs · y_j``), computed once per solution
     blocks: dict[tuple[int, int], list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64],
@@ -374,7 +377,10 @@ class DualBounds:
         d = qp.data
         # the node solver's symmetric P and factorisation of the same matrix when it has one
         self.P = qp.schur.P_full_csc if qp.schur is not None else full_hessian(d.P)
-        self.P_abs = qp.schur.P_full_abs if qp.schur is not None else abs(self.P)
+        #: the full Hessian's CSC arrays (:func:`~iamp.planners.avoid.dual_kernel.coefficients`)
+        self._Pp = np.asarray(self.P.indptr, dtype=np.int64)
+        self._Pi = np.asarray(self.P.indices, dtype=np.int64)
+        self._Px = np.asarray(self.P.data, dtype=float)
         self.lu = qp.schur.lu if qp.schur is not None else spla.splu(kkt_matrix(d.P, qp.A_eq, self.P))
         self.nb = qp.degree + 1
         # σ-free values of the split piece's rows as polynomials in λ: M(0, λ) (first half-plane),
@@ -389,8 +395,16 @@ class DualBounds:
         self._cols: dict[tuple[int, int], NDArray[np.int64]] = {}
         self._ix: dict[tuple[bytes, int], tuple[NDArray[np.int64], ...]] = {}
         self._flats: dict[tuple[int, int], NDArray[np.int64]] = {}
-        #: one flag per column, all False between uses (:meth:`_tangent`)
-        self._mark = np.zeros(d.n, dtype=bool)
+        #: b·ν0 and |b|·|ν0| of the equality optimum (:meth:`polynomial`)
+        self._beq_nu = float(d.b_eq @ qp.schur._x0[d.n:]) if qp.schur is not None else 0.0
+        self._beq_nu_abs = float(np.abs(d.b_eq) @ np.abs(qp.schur._x0[d.n:])) if qp.schur is not None else 0.0
+        #: the coefficient positions of a polynomial without a polynomial vehicle (a constant)
+        self._flat_const = np.zeros(2, dtype=np.int64)
+        #: zero bounds of a half-plane with no binding row on the split piece (:meth:`_halves`)
+        self._no_rhs = np.zeros((qp.degree + 1, qp.degree + 1))
+        #: ``(n, n)``, rows of :math:`K^{-1}_{zz}` solved here when there is no node solver (:meth:`_kinv_rows`)
+        self._own_kinv: FloatArray | None = None
+        self._own_have: NDArray[np.bool_] | None = None
 
     def _exponents(self, q: int, D: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
         """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..D``)
@@ -438,8 +452,12 @@ class DualBounds:
         ids = ids_all[nz]
         bern = ids < qp.n_b
         blk = np.where(bern, ids // (N * nb), -1)
+        indptr, indices, data = qp.csr_arrays(A_in)
+        starts, lens = indptr[nz], indptr[nz + 1] - indptr[nz]
+        ends = np.cumsum(lens)
+        cols = indices[np.arange(int(ends[-1]) if ends.size else 0) - np.repeat(ends - lens - starts, lens)]
         return _Binding(A_in, u_in, nz, y_all[nz], bern, blk // 2, blk % 2, (ids // nb) % N, ids % nb,
-                        *qp.csr_arrays(A_in))
+                        indptr, indices, data, cols)
 
     def _split_blocks(self, sol: Solved, b: _Binding, i: int, k: int
                       ) -> list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64], FloatArray,
@@ -550,60 +568,51 @@ class DualBounds:
         return kept
 
     def _tangent(self, sol: Solved, b: _Binding, i: int, k: int) -> FloatArray:
-        qp, d = self.qp, self.qp.data
-        D, h = qp.degree, qp.h
-        S = b.nz.size
-        out = np.zeros(S)
+        """:meth:`tangent` (:func:`~iamp.planners.avoid.dual_kernel.tangent`)."""
+        out = np.zeros(b.nz.size)
+        halves = self._halves(sol, b, i, k)
+        if not halves[0][0].size + halves[1][0].size:
+            return out
+        h = self.qp.h
         lam0 = (float(sol.spec[i][2]) - k * h) / h
-        dpow = np.arange(1, D + 1)
-        basis = dpow * lam0 ** (dpow - 1)  # d/dλ of λ^p, p = 1..D
-        split: list[tuple[NDArray[np.int64], NDArray[np.int64], FloatArray, FloatArray]] = []
+        Kinv = self._kinv_rows(np.concatenate((b.cols, halves[0][4], halves[1][4])))
+        _run("tangent", dual_kernel)(b.indptr, b.indices, b.data, b.nz, b.y, b.j, sol.z, Kinv, lam0, *halves[0],
+                                     *halves[1], out)
+        return out
+
+    def _halves(self, sol: Solved, b: _Binding, i: int, k: int
+                ) -> tuple[tuple[NDArray[np.int64], FloatArray, FloatArray, float, NDArray[np.int64]], ...]:
+        """Vehicle ``i``'s two half-planes on its split piece ``k`` (first on ``[0, λ]``, second on
+        ``[λ, 1]``) as :mod:`~iamp.planners.avoid.dual_kernel` takes them: per half-plane its binding
+        rows among ``b``'s, the σ-free row values and the bounds as polynomials in ``λ``
+        (:meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.split_polynomials`,
+        :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.rhs_polynomial`; zeros where no
+        row binds), its sign and the piece's four node columns."""
+        d = self.qp.data
         f, s = sol.spec[i][0], sol.spec[i][1]
+        out = []
         for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
             rows = b.split_rows(i, pl, k)
-            if not rows.size:
-                continue
-            sigma = d.planes[i][pl].sigma
-            dM = sigma * _contract(basis, M[1:])  # (nb, 4): the rows' derivatives
-            drhs = basis @ self._rhs_poly(i, pl, k, pre)[1:]  # (nb,)
-            split.append((rows, self._node_cols(pl, k), dM[b.j[rows]], drhs[b.j[rows]]))
-        if not split:
-            return out
-        # the binding rows on the columns they touch (with the split rows' node columns), from the
-        # CSR arrays: G (S x |T|) and the split rows' derivatives dG
-        starts, ends = b.indptr[b.nz], b.indptr[b.nz + 1]
-        lens = ends - starts
-        owner = np.repeat(np.arange(S), lens)
-        pos = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(starts, lens)
-        split_cols = np.concatenate([cols for _, cols, _, _ in split])
-        touched = np.concatenate((b.indices[pos], split_cols))
-        # the columns touched, ascending and each once (np.unique's, from a mark per column)
-        self._mark[touched] = True
-        T = np.flatnonzero(self._mark)
-        self._mark[T] = False
-        where = np.searchsorted(T, touched)  # each entry's column among T (return_inverse, cheaper)
-        G = np.zeros((S, T.size))
-        G[owner, where[:pos.size]] = b.data[pos]
-        dG = np.zeros((S, T.size))
-        dh = np.zeros(S)
-        at = pos.size
-        for rows, cols, vals, dr in split:
-            c = where[at:at + cols.size]
-            at += cols.size
-            dG[np.ix_(rows, c)] = vals
-            dh[rows] = dr
-        Kt = self._kinv(T)[:, T]  # K⁻¹_zz on those columns
-        KG = Kt @ G.T
-        W = G @ KG
-        rhs = KG.T @ -(dG.T @ b.y) - (dh - dG @ sol.z[T])
-        try:
-            dy = np.linalg.solve(W, rhs)
-        except np.linalg.LinAlgError:
-            return out
-        # a singular or ill-conditioned system: the binding rows depend on each other; no tangent
-        if not np.all(np.isfinite(dy)) or np.linalg.norm(W @ dy - rhs) > 1e-8 * (1.0 + np.linalg.norm(rhs)):
-            return out
-        return np.asarray(dy, dtype=float)
+            rhs = self._rhs_poly(i, pl, k, pre) if rows.size else self._no_rhs
+            out.append((rows, M, rhs, float(d.planes[i][pl].sigma), self._node_cols(pl, k)))
+        return tuple(out)
+
+    def _kinv_rows(self, cols: NDArray[np.int64]) -> FloatArray:
+        """An ``(n, n)`` array whose rows ``cols`` are those of :math:`K^{-1}_{zz}` (``K`` symmetric:
+        its columns): the node solver's own array once it solved them, else one kept here."""
+        qp = self.qp
+        if qp.schur is not None:
+            qp.schur._columns(cols)
+            return np.asarray(qp.schur._Kinv)
+        if self._own_kinv is None:
+            n = qp.data.n
+            self._own_kinv, self._own_have = np.zeros((n, n)), np.zeros(n, dtype=bool)
+        assert self._own_have is not None
+        missing = np.unique(cols[~self._own_have[cols]])
+        if missing.size:
+            self._own_kinv[missing] = self._kinv(missing)
+            self._own_have[missing] = True
+        return self._own_kinv
 
     def tangent_interval(self, sol: Solved, i: int, k: int) -> tuple[float, float]:
         r"""The interval of :math:`\lambda_i` in piece ``k`` (within ``[0, 1]``) where every multiplier on
@@ -620,60 +629,6 @@ class DualBounds:
         if up.any():
             lo = max(lo, lam0 - float(np.min(b.y[up] / mu[up])))
         return min(lo, lam0), max(hi, lam0)
-
-    def _tangent_terms(self, sol: Solved, b: _Binding, keep: NDArray[np.bool_], i: int, k: int,
-                       lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray, int]:
-        r"""The right-hand sides ``R`` and ``yᵀh`` of :meth:`polynomial` (power basis ``1, λ, ..,
-        λ^{d+1}``) for one polynomial vehicle ``i`` in piece ``k``, with the multipliers moving along
-        their tangent, :math:`y(\lambda) = y_c + (\lambda - \lambda_c)\,\dot y` (:meth:`tangent`),
-        each row's slope cut so that its multiplier stays nonnegative on the box's interval: a
-        nonnegative ``y`` for every ``λ`` of the box, so :math:`g(y(\lambda); \lambda) \le J`
-        there (weak duality), and it is one more polynomial (degree ``2d + 2``)."""
-        qp, d = self.qp, self.qp.data
-        D, h = qp.degree, qp.h
-        y = b.y
-        lam0 = (float(sol.spec[i][2]) - k * h) / h
-        la = min(max((float(lo[i]) - k * h) / h, 0.0), 1.0)
-        lb = min(max((float(hi[i]) - k * h) / h, la), 1.0)
-        mu = self.tangent(sol, i, k).copy()
-        for end in (la, lb):
-            dl = end - lam0
-            if dl == 0.0:
-                continue
-            low = y + dl * mu < 0.0
-            # the slope that reaches zero at this end (a little less: never a negative multiplier)
-            mu[low] = -y[low] / dl * (1.0 - 1e-12)
-        mu[~((y + (la - lam0) * mu >= 0.0) & (y + (lb - lam0) * mu >= 0.0))] = 0.0
-        alpha, beta = y - lam0 * mu, mu
-        Dp = D + 1
-        C = Dp + 1
-        R = np.zeros((d.n + d.n_eq, C))
-        hc = np.zeros(C)
-        # the kept rows (independent of λ; ``keep`` marks them among the binding rows): -A_keepᵀ (α + λ β)
-        rows_k = b.nz[keep]
-        for col, wv in ((0, alpha), (1, beta)):
-            Aty = np.empty(d.n)
-            _run("row_transpose_dot")(b.indptr, b.indices, b.data, rows_k, wv[keep], rows_k.size, Aty)
-            R[:d.n, col] -= Aty
-            hc[col] += float(wv[keep] @ b.u_in[rows_k])
-        R[d.n:, 0] = d.b_eq
-        # the split piece: σ M(λ) with multipliers α_j + λ β_j per Bernstein index
-        f, s = sol.spec[i][0], sol.spec[i][1]
-        for pl, M, pre in ((f, self.M_pre, True), (s, self.M_post, False)):
-            rows = b.split_rows(i, pl, k)
-            if not rows.size:
-                continue
-            aj, bj = np.zeros(self.nb), np.zeros(self.nb)
-            aj[b.j[rows]], bj[b.j[rows]] = alpha[rows], beta[rows]
-            sigma = d.planes[i][pl].sigma
-            cols = self._node_cols(pl, k)
-            rhs = self._rhs_poly(i, pl, k, pre)  # (d + 1 powers, nb)
-            aM, bM = sigma * (aj @ M), sigma * (bj @ M)  # (d + 1 powers, 4)
-            R[cols, :Dp] -= aM.T
-            R[cols, 1:] -= bM.T
-            hc[:Dp] += rhs @ aj
-            hc[1:] += rhs @ bj
-        return R, hc, Dp
 
     def polynomial(self, sol: Solved, lo: FloatArray, hi: FloatArray) -> DualPolynomial:
         """The dual bound ``g(y; τ)`` over the box ``[lo, hi]`` of the solved candidate ``sol``
@@ -710,11 +665,25 @@ class DualBounds:
                 keep |= mine & (plane == s) & (piece * h >= hi[i] - tol)
         q = len(poly_vehicles)
         if q == 1:
-            R, hc, Dp = self._tangent_terms(sol, b, keep, poly_vehicles[0], pieces[0], lo, hi)
-            C = Dp + 1  # basis: 1, λ, .., λ^(d+1)
+            # the multipliers on their tangent (module docstring): basis 1, λ, .., λ^(d+2)
+            i, k = poly_vehicles[0], pieces[0]
+            Dp = D + 1
+            C = Dp + 1
+            R = np.zeros((d.n + d.n_eq, C))
+            hc = np.zeros(C)
+            lam0 = (float(sol.spec[i][2]) - k * h) / h
+            la = min(max((float(lo[i]) - k * h) / h, 0.0), 1.0)
+            lb = min(max((float(hi[i]) - k * h) / h, la), 1.0)
+            first, second = self._halves(sol, b, i, k)
+            _run("tangent_terms", dual_kernel)(b.indptr, b.indices, b.data, nz, y, b.j, u_in, keep,
+                                               self.tangent(sol, i, k), lam0, la, lb, *first, *second, R[:d.n], hc)
+            R[d.n:, 0] = d.b_eq
+            # R's rows with an entry: among the kept rows' columns and the piece's node columns
+            entries: NDArray[np.int64] | None = np.concatenate((b.cols, first[4], second[4]))
         else:
             Dp = D
             C = 1 + q * D  # basis: 1, then λ_i^p (p = 1..D) per polynomial vehicle
+            entries = None
             R = np.zeros((d.n + d.n_eq, C))
             # -A_keepᵀ y_keep from the CSR arrays of the kept rows (the node solver's kernel: from 0.0,
             # the rows in order, each row's entries in stored order)
@@ -733,44 +702,32 @@ class DualBounds:
                         ix = self._ix[(cols.tobytes(), v)] = np.ix_(cols, cs)
                     R[ix] -= yM  # σ (y_j M)ᵀ
                     hc[cs] += ry  # rhs · y_j
-        exps, pairs = self._exponents(q, Dp)
         schur = qp.schur
+        lin = np.empty(C)
         if schur is None:
             X = self.lu.solve(R)
-            Z, nu = X[:d.n], X[d.n:]
-            lin = nu.T @ d.b_eq + hc
+            Z, nu = np.ascontiguousarray(X[:d.n], dtype=float), X[d.n:]
+            lin[:] = nu.T @ d.b_eq + hc
+            lin_abs = float(np.sum(np.abs(nu).T @ np.abs(d.b_eq)))
         else:
             # K⁻¹R from the node solver's columns of K⁻¹ (K symmetric): R's primal rows are zero
             # but on the kept rows' columns and the split pieces' node columns, its dual rows are
             # b (column 0), and K⁻¹[0; b] = (z0, ν0) is the equality optimum; νᵀb by symmetry:
             # (K⁻¹r)_ν · b = r · K⁻¹[0; b] = r_z · z0 + r_ν · ν0
             Rp = R[:d.n]
-            touched = np.flatnonzero(np.abs(Rp) @ np.ones(C))  # the rows with an entry
-            schur._columns(touched)
-            Z = schur._Kinv[touched].T @ Rp[touched]
-            Z[:, 0] += schur.z0
-            lin = schur.z0 @ Rp + hc
-            lin[0] += float(d.b_eq @ schur._x0[d.n:])
-        G = Z.T @ (self.P @ Z)
-        # the size of the terms that cancel in g (its round-off scales with them, not with g: a
-        # nearly infeasible candidate's multipliers of 5e7 give coefficients of 1e15 for a g of 2)
-        absZ = np.abs(Z)
-        lin_abs = (np.abs(nu).T @ np.abs(d.b_eq) if schur is None
-                   else np.abs(schur.z0) @ np.abs(R[:d.n]) + (np.abs(d.b_eq) @ np.abs(schur._x0[d.n:])))
-        # Σ_ij (|Z|ᵀ|P||Z|)_ij = wᵀ|P|w with w = |Z| 1 (the row sums): one product with |P|, not C
-        w = absZ.sum(axis=1)
-        terms = 0.5 * float(w @ (self.P_abs @ w)) + float(np.sum(lin_abs)) + float(np.sum(np.abs(hc)))
-        coef = np.zeros((2 * Dp + 1,) * q)
-        # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ: each product of two basis
-        # monomials adds to the coefficient of their product
-        if q == 0:
-            coef = np.array(-lin[0] - 0.5 * G[0, 0])
-        else:
-            # the sums of np.add.at over exps, then pairs, in the same order: each entry starts
-            # at 0.0 and adds its terms one by one
-            flat = self._flat(q, Dp, coef.shape, exps, pairs)
-            coef = np.asarray(np.bincount(flat, weights=np.concatenate((-lin, -0.5 * G.ravel())),
-                                          minlength=coef.size), dtype=float).reshape(coef.shape)
+            schur._columns(entries if entries is not None else np.flatnonzero(np.abs(Rp) @ np.ones(C)))
+            Z = np.empty((d.n, C))
+            lin_abs = _run("primal", dual_kernel)(Rp, schur._Kinv, schur.z0, hc, self._beq_nu, self._beq_nu_abs, Z,
+                                                  lin)
+        # g = -½ zᵀPz - νᵀe - yᵀh with z, ν, h polynomial in λ: each product of two basis monomials
+        # adds to the coefficient of their product; with the size of the terms that cancel in g
+        # (its round-off scales with them, not with g: a nearly infeasible candidate's
+        # multipliers of 5e7 give coefficients of 1e15 for a g of 2)
+        shape = (2 * Dp + 1,) * q
+        flat = self._flat(q, Dp, shape, *self._exponents(q, Dp)) if q else self._flat_const
+        out = np.zeros(math.prod(shape))
+        terms = _run("coefficients", dual_kernel)(Z, lin, lin_abs, hc, self._Pp, self._Pi, self._Px, flat, out)
+        coef = out.reshape(shape) if q else np.array(out[0])
         return DualPolynomial(tuple(poly_vehicles), tuple(pieces), coef, h, self.mass(sol), q == 1,
                               ROUND_OFF_TERMS * terms)
 

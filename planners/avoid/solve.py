@@ -165,7 +165,8 @@ def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -
     start, stop = A.indptr[rows], A.indptr[rows + 1]
     lens = stop - start
     ends = np.cumsum(lens)
-    take = np.repeat(start - np.concatenate((np.zeros(1, dtype=ends.dtype), ends[:-1])), lens) + np.arange(int(lens.sum()))
+    offsets = np.concatenate((np.zeros(1, dtype=ends.dtype), ends[:-1]))
+    take = np.repeat(start - offsets, lens) + np.arange(int(lens.sum()))
     m, n = top.shape[0] + rows.size, top.shape[1]
     cols = np.concatenate((top.indices, A.indices[take]))
     data = np.concatenate((top.data, A.data[take]))

@@ -1,0 +1,310 @@
+r"""Kernels of the weak-duality bounds (:mod:`iamp.planners.avoid.dual`), written once.
+
+Plain Python over numpy arrays and scalars (loops, no BLAS or LAPACK calls): every sum runs in one
+fixed order and every power as products, so the numbers depend neither on the machine nor on
+whether numba is installed.  Each function is marked :func:`~iamp.planners.pmp.jit.compilable`:
+where numba is installed the bounds run its twin (the same code compiled, no fastmath: the same
+IEEE operations in the same order), else this Python function itself
+(``tests/test_avoid_dual_kernel.py`` compares the two bit for bit, and each kernel with the numpy
+formulation it replaced).
+
+Notation of :mod:`iamp.planners.avoid.dual`: ``K`` the equality-constrained KKT matrix, whose
+inverse's primal block :math:`K^{-1}_{zz}` the node solver keeps column by column (``Kinv[c]``:
+column ``c``, a row by symmetry); a solved candidate's binding rows ``nz`` of its imposed rows
+(CSR arrays ``indptr, indices, data``) with multipliers ``y``; per half-plane of the polynomial
+vehicle's split piece the binding rows ``rows`` among them, their Bernstein indices ``jidx``, the
+sign ``σ``, the piece's four node columns ``cols``, the σ-free row values ``M`` (power
+coefficients in :math:`\lambda`, shape ``(d + 1, d + 1, 4)``) and bounds ``rhs`` (shape
+``(d + 1, d + 1)``).
+
+* :func:`tangent` — :math:`\dot y` of :meth:`~iamp.planners.avoid.dual.DualBounds.tangent`;
+* :func:`tangent_terms` — the right-hand sides ``R`` and ``yᵀh`` of one polynomial vehicle with
+  its multipliers on their (cut) tangent (:meth:`~iamp.planners.avoid.dual.DualBounds.polynomial`);
+* :func:`primal` — :math:`Z = K^{-1}_{zz} R + z_0 e_0^\top` from the kept columns;
+* :func:`coefficients` — the polynomial's coefficients
+  :math:`-\mathrm{lin} - \tfrac12 Z^\top P Z` summed per power, and the size of the terms that
+  cancel in them (its round-off margin).
+"""
+
+from __future__ import annotations
+
+from math import isfinite, sqrt
+from typing import Any
+
+import numpy as np
+
+from iamp.planners.pmp.jit import compilable
+
+
+@compilable
+def _split_derivatives(lam0: float, rows: Any, jidx: Any, M: Any, rhs: Any, sigma: float, cols: Any,
+                       dGv: Any, dGc: Any, dh: Any, has: Any) -> None:
+    r"""For each binding row ``r`` of ``rows`` (one half-plane of the split piece): the derivative in
+    :math:`\lambda` at ``lam0`` of its values on the node columns ``cols`` (``σ Σ_p p λ^{p-1} M[p, j]``,
+    into ``dGv[r]``, ``dGc[r]``) and of its bound (``Σ_p p λ^{p-1} rhs[p, j]``, into ``dh[r]``)."""
+    D = M.shape[0] - 1
+    for t in range(rows.shape[0]):
+        r = rows[t]
+        jj = jidx[r]
+        for c in range(4):
+            acc = 0.0
+            pw = 1.0
+            for p in range(1, D + 1):
+                acc += (p * pw) * M[p, jj, c]
+                pw = pw * lam0
+            dGv[r, c] = sigma * acc
+            dGc[r, c] = cols[c]
+        acc = 0.0
+        pw = 1.0
+        for p in range(1, D + 1):
+            acc += (p * pw) * rhs[p, jj]
+            pw = pw * lam0
+        dh[r] = acc
+        has[r] = True
+
+
+@compilable
+def tangent(indptr: Any, indices: Any, data: Any, nz: Any, y: Any, jidx: Any, z: Any, Kinv: Any, lam0: float,
+            rows_f: Any, M_f: Any, rhs_f: Any, sigma_f: float, cols_f: Any,
+            rows_s: Any, M_s: Any, rhs_s: Any, sigma_s: float, cols_s: Any, out: Any) -> bool:
+    r"""``out`` :math:`= \dot y_S`, the solution of
+    :math:`(G_S K^{-1}_{zz} G_S^\top)\,\dot y_S = G_S K^{-1}_{zz}(-\dot G_S^\top y_S) - (\dot h_S - \dot G_S z)`
+    (:meth:`~iamp.planners.avoid.dual.DualBounds.tangent`; ``f``: the first half-plane's split
+    rows, ``s``: the second's), by Gaussian elimination with partial pivoting.
+
+    Returns False, ``out`` zero, where no split row binds, where a pivot is zero, or where the
+    solution is not finite or leaves a residual above :math:`10^{-8}(1 + \|rhs\|)` (binding rows
+    that depend on each other: no tangent)."""
+    S = nz.shape[0]
+    for r in range(S):
+        out[r] = 0.0
+    if rows_f.shape[0] + rows_s.shape[0] == 0:
+        return False
+    dGv = np.zeros((S, 4))
+    dGc = np.zeros((S, 4), dtype=np.int64)
+    dh = np.zeros(S)
+    has = np.zeros(S, dtype=np.bool_)
+    _split_derivatives(lam0, rows_f, jidx, M_f, rhs_f, sigma_f, cols_f, dGv, dGc, dh, has)
+    _split_derivatives(lam0, rows_s, jidx, M_s, rhs_s, sigma_s, cols_s, dGv, dGc, dh, has)
+    W = np.zeros((S, S))
+    for r1 in range(S):
+        a0 = indptr[nz[r1]]
+        a1 = indptr[nz[r1] + 1]
+        for r2 in range(r1, S):
+            b0 = indptr[nz[r2]]
+            b1 = indptr[nz[r2] + 1]
+            acc = 0.0
+            for a in range(a0, a1):
+                ca = indices[a]
+                inner = 0.0
+                for b in range(b0, b1):
+                    inner += Kinv[ca, indices[b]] * data[b]
+                acc += data[a] * inner
+            W[r1, r2] = acc
+            W[r2, r1] = acc
+    rhs = np.zeros(S)
+    for r in range(S):
+        acc = 0.0
+        for a in range(indptr[nz[r]], indptr[nz[r] + 1]):
+            ca = indices[a]
+            inner = 0.0
+            for r2 in range(S):
+                if has[r2]:
+                    for c in range(4):
+                        inner += Kinv[ca, dGc[r2, c]] * (dGv[r2, c] * y[r2])
+            acc += data[a] * inner
+        dgz = 0.0
+        if has[r]:
+            for c in range(4):
+                dgz += dGv[r, c] * z[dGc[r, c]]
+        rhs[r] = -acc - (dh[r] - dgz)
+    # Gaussian elimination with partial pivoting on copies
+    A = W.copy()
+    x = rhs.copy()
+    for k in range(S):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, S):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        if not big > 0.0:
+            return False
+        if p != k:
+            for j in range(S):
+                tmp = A[k, j]
+                A[k, j] = A[p, j]
+                A[p, j] = tmp
+            tmp = x[k]
+            x[k] = x[p]
+            x[p] = tmp
+        for i in range(k + 1, S):
+            f = A[i, k] / A[k, k]
+            if f != 0.0:
+                for j in range(k, S):
+                    A[i, j] -= f * A[k, j]
+                x[i] -= f * x[k]
+    for k in range(S - 1, -1, -1):
+        acc = x[k]
+        for j in range(k + 1, S):
+            acc -= A[k, j] * x[j]
+        x[k] = acc / A[k, k]
+    res = 0.0
+    size = 0.0
+    for i in range(S):
+        if not isfinite(x[i]):
+            return False
+        acc = 0.0
+        for j in range(S):
+            acc += W[i, j] * x[j]
+        d = acc - rhs[i]
+        res += d * d
+        size += rhs[i] * rhs[i]
+    if sqrt(res) > 1e-8 * (1.0 + sqrt(size)):
+        return False
+    for r in range(S):
+        out[r] = x[r]
+    return True
+
+
+@compilable
+def _split_terms(rows: Any, jidx: Any, alpha: Any, beta: Any, M: Any, rhs: Any, sigma: float, cols: Any,
+                 R: Any, hc: Any) -> None:
+    r"""One half-plane of the split piece in :func:`tangent_terms`: with multipliers
+    :math:`\alpha_j + \lambda\beta_j` per Bernstein index ``j``, ``R[cols, p] -= σ Σ_j α_j M[p, j]``,
+    ``R[cols, p + 1] -= σ Σ_j β_j M[p, j]``, ``hc[p] += Σ_j rhs[p, j] α_j``, ``hc[p + 1] += Σ_j rhs[p, j] β_j``."""
+    D1 = M.shape[0]
+    nb = M.shape[1]
+    aj = np.zeros(nb)
+    bj = np.zeros(nb)
+    for t in range(rows.shape[0]):
+        r = rows[t]
+        aj[jidx[r]] = alpha[r]
+        bj[jidx[r]] = beta[r]
+    for shift in range(2):  # the α terms on powers 0..d, then the β terms on 1..d + 1
+        wj = aj if shift == 0 else bj
+        for c in range(4):
+            for p in range(D1):
+                acc = 0.0
+                for jj in range(nb):
+                    acc += wj[jj] * M[p, jj, c]
+                R[cols[c], p + shift] -= sigma * acc
+        for p in range(D1):
+            acc = 0.0
+            for jj in range(nb):
+                acc += rhs[p, jj] * wj[jj]
+            hc[p + shift] += acc
+
+
+@compilable
+def tangent_terms(indptr: Any, indices: Any, data: Any, nz: Any, y: Any, jidx: Any, u_in: Any, keep: Any,
+                  mu_in: Any, lam0: float, la: float, lb: float,
+                  rows_f: Any, M_f: Any, rhs_f: Any, sigma_f: float, cols_f: Any,
+                  rows_s: Any, M_s: Any, rhs_s: Any, sigma_s: float, cols_s: Any, R: Any, hc: Any) -> None:
+    r"""``R`` (primal rows, shape ``(n, d + 3)``, zero on entry) and ``hc`` (``d + 3``, zero on entry)
+    of :meth:`~iamp.planners.avoid.dual.DualBounds.polynomial` for one polynomial vehicle in its
+    piece, the basis :math:`1, \lambda, .., \lambda^{d+2}`: the multipliers move along their tangent
+    ``mu_in``, :math:`y(\lambda) = \alpha + \lambda\beta` with :math:`\alpha = y - \lambda_c\beta`,
+    each slope cut where its multiplier would turn negative on ``[la, lb]`` (to ``-y/Δλ (1 - 10⁻¹²)``
+    at the end it reaches first, zero if it still would), so ``y(λ) >= 0`` on the box.  The kept rows
+    (``keep``, independent of :math:`\lambda`) add :math:`-A^\top(\alpha + \lambda\beta)` to columns
+    0 and 1 and their bounds to ``hc``; the split piece's rows (``f``, ``s``) their moving values
+    (:func:`_split_terms`)."""
+    S = nz.shape[0]
+    mu = mu_in.copy()
+    for e in range(2):
+        end = la if e == 0 else lb
+        dl = end - lam0
+        if dl == 0.0:
+            continue
+        for r in range(S):
+            if y[r] + dl * mu[r] < 0.0:
+                mu[r] = -y[r] / dl * (1.0 - 1e-12)
+    for r in range(S):
+        if not (y[r] + (la - lam0) * mu[r] >= 0.0 and y[r] + (lb - lam0) * mu[r] >= 0.0):
+            mu[r] = 0.0
+    alpha = np.zeros(S)
+    for r in range(S):
+        alpha[r] = y[r] - lam0 * mu[r]
+    for r in range(S):
+        if keep[r]:
+            row = nz[r]
+            for a in range(indptr[row], indptr[row + 1]):
+                R[indices[a], 0] -= alpha[r] * data[a]
+                R[indices[a], 1] -= mu[r] * data[a]
+            hc[0] += alpha[r] * u_in[row]
+            hc[1] += mu[r] * u_in[row]
+    _split_terms(rows_f, jidx, alpha, mu, M_f, rhs_f, sigma_f, cols_f, R, hc)
+    _split_terms(rows_s, jidx, alpha, mu, M_s, rhs_s, sigma_s, cols_s, R, hc)
+
+
+@compilable
+def primal(R: Any, Kinv: Any, z0: Any, hc: Any, beq_x0: float, beq_x0_abs: float, Z: Any, lin: Any) -> float:
+    r"""``Z`` (shape ``(n, C)``) :math:`= K^{-1}_{zz} R + z_0 e_0^\top` from the columns of
+    :math:`K^{-1}_{zz}` at the rows where ``R`` has an entry (ascending; they must be solved), and
+    ``lin`` :math:`= z_0^\top R + h_c` plus :math:`b^\top \nu_0` (``beq_x0``) on its first entry
+    (:math:`(K^{-1}[0; b])_z = z_0` is the equality optimum, :math:`\nu^\top b` by the symmetry of
+    ``K``).  Returns the size of ``lin``'s terms, :math:`\sum_c (|z_0|^\top |R_c| + |b|^\top
+    |\nu_0|)` (``beq_x0_abs`` the last)."""
+    n = Z.shape[0]
+    C = Z.shape[1]
+    for i in range(n):
+        for c in range(C):
+            Z[i, c] = 0.0
+    s = np.zeros(C)
+    sa = np.zeros(C)
+    for a in range(n):
+        for c in range(C):
+            w = R[a, c]
+            if w != 0.0:
+                for i in range(n):
+                    Z[i, c] += Kinv[a, i] * w
+                s[c] += z0[a] * w
+                sa[c] += abs(z0[a]) * abs(w)
+    for i in range(n):
+        Z[i, 0] += z0[i]
+    size = 0.0
+    for c in range(C):
+        lin[c] = s[c] + hc[c]
+        size += sa[c] + beq_x0_abs
+    lin[0] += beq_x0
+    return size
+
+
+@compilable
+def coefficients(Z: Any, lin: Any, lin_abs: float, hc: Any, Pp: Any, Pi: Any, Px: Any, flat: Any, coef: Any) -> float:
+    r"""``coef`` (flat, zero on entry): :math:`g = -\mathrm{lin} - \tfrac12 Z^\top P Z` per power, each
+    basis term ``c`` adding ``-lin[c]`` to ``coef[flat[c]]``, then each product ``(c1, c2)`` (row by row)
+    adding :math:`-\tfrac12 (Z^\top P Z)_{c_1 c_2}` to ``coef[flat[C + c1 C + c2]]`` (``P`` the full
+    symmetric Hessian, CSC ``Pp, Pi, Px``).  Returns the size of the terms that cancel in ``g``:
+    :math:`\tfrac12 w^\top |P| w` with :math:`w = |Z| 1`, plus ``lin_abs`` and :math:`\sum |hc|`
+    (:attr:`~iamp.planners.avoid.dual.DualPolynomial.roundoff`, times ``ROUND_OFF_TERMS``)."""
+    n = Z.shape[0]
+    C = Z.shape[1]
+    PZ = np.zeros((n, C))
+    w = np.zeros(n)
+    for j in range(n):
+        for c in range(C):
+            w[j] += abs(Z[j, c])
+    Pw = np.zeros(n)
+    for j in range(n):
+        for k in range(Pp[j], Pp[j + 1]):
+            i = Pi[k]
+            v = Px[k]
+            for c in range(C):
+                PZ[i, c] += v * Z[j, c]
+            Pw[i] += abs(v) * w[j]
+    quad = 0.0
+    for i in range(n):
+        quad += w[i] * Pw[i]
+    hsum = 0.0
+    for c in range(C):
+        coef[flat[c]] += -lin[c]
+        hsum += abs(hc[c])
+    for c1 in range(C):
+        for c2 in range(C):
+            acc = 0.0
+            for i in range(n):
+                acc += Z[i, c1] * PZ[i, c2]
+            coef[flat[C + c1 * C + c2]] += -0.5 * acc
+    return 0.5 * quad + lin_abs + hsum
