@@ -30,7 +30,7 @@ from iamp.planners.avoid.dual import DualBounds, piece_of
 from iamp.planners.examples import overtake_problem, overtake_three_problem
 from iamp.planners.pmp import jit
 
-KERNELS = ("tangent", "tangent_terms", "primal", "coefficients")
+KERNELS = ("slope", "tangent", "tangent_terms", "primal", "coefficients")
 
 
 def _recorded_calls(three: bool, hold: str) -> list[tuple[str, tuple]]:  # type: ignore[type-arg]
@@ -65,7 +65,7 @@ def _recorded_calls(three: bool, hold: str) -> list[tuple[str, tuple]]:  # type:
 def test_the_compiled_kernels_are_the_python_functions_bit_for_bit(three: bool, hold: str) -> None:
     calls = _recorded_calls(three, hold)
     seen = {name for name, _ in calls}
-    assert {"primal", "coefficients"} <= seen and (three or {"tangent", "tangent_terms"} <= seen)
+    assert {"primal", "coefficients", "slope"} <= seen and (three or {"tangent", "tangent_terms"} <= seen)
     twins = {name: jit.twin(getattr(dual_kernel, name), cache=True) for name in KERNELS}
     for name, args in calls:
         a = tuple(x.copy() if isinstance(x, np.ndarray) else x for x in args)

@@ -279,12 +279,6 @@ def polys_values(polys: list[DualPolynomial], taus: FloatArray, coefs: list[Floa
     return out
 
 
-def _contract(w: FloatArray, T: FloatArray) -> FloatArray:
-    """``np.tensordot(w, T, axes=(0, 0))`` as tensordot computes it (one ``dot`` of ``w`` as a row
-    with ``T`` flattened after its first axis: the same numbers), without its argument handling."""
-    return np.asarray(np.dot(w[None, :], T.reshape(T.shape[0], -1)).reshape(T.shape[1:]), dtype=float)
-
-
 @lru_cache(maxsize=32)
 def _kernel_tables(n: int) -> tuple[FloatArray, FloatArray]:
     """The bound kernels' tables for up to ``n`` coefficients per axis, from
@@ -510,19 +504,14 @@ class DualBounds:
         ndarray, shape (m,)
         """
         qp = self.qp
-        N, h, D = qp.N, qp.h, qp.degree
+        N, h = qp.N, qp.h
         b = self._binding(sol)
         out = np.zeros(len(sol.spec))
-        dpow = np.arange(1, D + 1)
         for i, (_, _, a, _) in enumerate(sol.spec):
             k = piece_of(float(a), float(a), h, N)
             assert k is not None
-            lam = (float(a) - k * h) / h
-            basis = dpow * lam ** (dpow - 1)  # d/dλ of λ^p, p = 1..D
-            for M, yj, rhs, sigma, cols, _, _ in self._split_blocks(sol, b, i, k):
-                dM = _contract(basis, M[1:])  # (nb, 4)
-                drhs = basis @ rhs[1:]  # (nb,)
-                out[i] += float(yj @ (sigma * (dM @ sol.z[cols]) - drhs)) / h
+            first, second = self._halves(sol, b, i, k)
+            out[i] = _run("slope", dual_kernel)(b.y, b.j, sol.z, (float(a) - k * h) / h, *first, *second) / h
         return out
 
     def _kinv(self, cols: NDArray[np.int64]) -> FloatArray:

@@ -17,6 +17,8 @@ sign ``σ``, the piece's four node columns ``cols``, the σ-free row values ``M`
 coefficients in :math:`\lambda`, shape ``(d + 1, d + 1, 4)``) and bounds ``rhs`` (shape
 ``(d + 1, d + 1)``).
 
+* :func:`slope` — the envelope theorem's :math:`\partial J/\partial\tau` of a candidate
+  (:meth:`~iamp.planners.avoid.dual.DualBounds.gradient`);
 * :func:`tangent` — :math:`\dot y` of :meth:`~iamp.planners.avoid.dual.DualBounds.tangent`;
 * :func:`tangent_terms` — the right-hand sides ``R`` and ``yᵀh`` of one polynomial vehicle with
   its multipliers on their (cut) tangent (:meth:`~iamp.planners.avoid.dual.DualBounds.polynomial`);
@@ -165,6 +167,34 @@ def tangent(indptr: Any, indices: Any, data: Any, nz: Any, y: Any, jidx: Any, z:
     for r in range(S):
         out[r] = x[r]
     return True
+
+
+@compilable
+def slope(y: Any, jidx: Any, z: Any, lam0: float, rows_f: Any, M_f: Any, rhs_f: Any, sigma_f: float, cols_f: Any,
+          rows_s: Any, M_s: Any, rhs_s: Any, sigma_s: float, cols_s: Any) -> float:
+    r""":math:`\partial J/\partial\lambda = \sum_r y_r\,(\dot g_r z - \dot h_r)` over the split piece's binding
+    rows (first half-plane ``f``, then second ``s``; :func:`_split_derivatives`), the envelope
+    theorem's derivative of the candidate's optimum in its crossing time's local coordinate
+    (:meth:`~iamp.planners.avoid.dual.DualBounds.gradient` divides it by the step ``h``)."""
+    S = y.shape[0]
+    dGv = np.zeros((S, 4))
+    dGc = np.zeros((S, 4), dtype=np.int64)
+    dh = np.zeros(S)
+    has = np.zeros(S, dtype=np.bool_)
+    _split_derivatives(lam0, rows_f, jidx, M_f, rhs_f, sigma_f, cols_f, dGv, dGc, dh, has)
+    _split_derivatives(lam0, rows_s, jidx, M_s, rhs_s, sigma_s, cols_s, dGv, dGc, dh, has)
+    total = 0.0
+    for half in range(2):
+        rows = rows_f if half == 0 else rows_s
+        acc = 0.0
+        for t in range(rows.shape[0]):
+            r = rows[t]
+            v = 0.0
+            for c in range(4):
+                v += dGv[r, c] * z[dGc[r, c]]
+            acc += y[r] * (v - dh[r])
+        total += acc
+    return total
 
 
 @compilable

@@ -187,8 +187,6 @@ class SchurActiveSet:
         self.P_full = sp.csr_matrix(full)
         #: the symmetric ``P`` as CSC (:class:`~iamp.planners.avoid.dual.DualBounds`' products)
         self.P_full_csc = sp.csc_matrix(full)
-        #: ``|P|`` of it (the round-off scale of :meth:`~iamp.planners.avoid.dual.DualBounds.polynomial`)
-        self.P_full_abs = abs(self.P_full_csc)
         self._Pp = np.asarray(self.P_full.indptr, dtype=np.int64)
         self._Pi = np.asarray(self.P_full.indices, dtype=np.int64)
         self._Px = np.asarray(self.P_full.data, dtype=float)
