@@ -172,3 +172,39 @@ def test_the_tangent_is_the_dense_solution_of_its_equation() -> None:
         want = np.linalg.solve(W, rhs)
         assert np.allclose(mu, want, rtol=1e-5, atol=1e-7 * max(1.0, float(np.abs(want).max()))), (mu, want)
     assert checked >= 4
+
+
+@pytest.mark.parametrize("eps,solved", [(0.5, True), (1e-3, True), (1e-7, False), (0.0, False)])
+def test_the_tangent_of_rows_binding_dependently_is_refused(eps: float, solved: bool) -> None:
+    """Two binding rows on the same four columns, the second the first plus ``eps`` times another
+    direction, ``K⁻¹_zz`` the identity, the first row split: the tangent solves
+    ``(G Gᵀ) ẏ = G(-dGᵀ y) - (dh - dG z)`` (checked against ``numpy.linalg.solve``) while the rows are
+    independent enough, and is refused (False, zeros) where they are dependent (a zero pivot) or
+    nearly so (``eps`` = 1e-7: a solution of about 1e14 whose residual exceeds 1e-8 (1 + |rhs|))."""
+    rng = np.random.default_rng(7)
+    a0, dirn = rng.normal(size=4), rng.normal(size=4)
+    data = np.concatenate((a0, a0 + eps * dirn))
+    indptr, indices = np.array([0, 4, 8], dtype=np.int64), np.array([0, 1, 2, 3, 0, 1, 2, 3], dtype=np.int64)
+    nz, y, jidx = np.array([0, 1], dtype=np.int64), np.array([0.7, 0.4]), np.array([1, 2], dtype=np.int64)
+    z = rng.normal(size=6)
+    Kinv = np.eye(6)
+    D, nb = 3, 4
+    M, rhs_poly = rng.normal(size=(D + 1, nb, 4)), rng.normal(size=(D + 1, nb))
+    cols = np.array([0, 1, 2, 3], dtype=np.int64)
+    lam0 = 0.37
+    out = np.full(2, np.nan)
+    for fn in [dual_kernel.tangent] + ([jit.twin(dual_kernel.tangent, cache=True)] if jit.available() else []):
+        ok = fn(indptr, indices, data, nz, y, jidx, z, Kinv, lam0, np.array([0], dtype=np.int64), M, rhs_poly, -1.0,
+                cols, np.zeros(0, dtype=np.int64), M, rhs_poly, 1.0, cols, out)
+        assert ok is solved
+        if not solved:
+            assert np.array_equal(out, np.zeros(2))
+            continue
+        basis = np.array([p * lam0 ** (p - 1) for p in range(1, D + 1)])
+        dG = np.zeros((2, 6))
+        dG[0, :4] = -np.einsum("p,pc->c", basis, M[1:, 1, :])
+        dh = np.array([basis @ rhs_poly[1:, 1], 0.0])
+        G = np.zeros((2, 6))
+        G[0, :4], G[1, :4] = a0, a0 + eps * dirn
+        want = np.linalg.solve(G @ G.T, G @ -(dG.T @ y) - (dh - dG @ z))
+        assert np.allclose(out, want, rtol=1e-9, atol=0.0)

@@ -72,9 +72,10 @@ def tangent(indptr: Any, indices: Any, data: Any, nz: Any, y: Any, jidx: Any, z:
     r"""``out`` :math:`= \dot y_S`, the solution of
     :math:`(G_S K^{-1}_{zz} G_S^\top)\,\dot y_S = G_S K^{-1}_{zz}(-\dot G_S^\top y_S) - (\dot h_S - \dot G_S z)`
     (:meth:`~iamp.planners.avoid.dual.DualBounds.tangent`; ``f``: the first half-plane's split
-    rows, ``s``: the second's), by Gaussian elimination with partial pivoting.
+    rows, ``s``: the second's), by Gaussian elimination (the matrix is symmetric positive
+    semidefinite: no pivoting).
 
-    Returns False, ``out`` zero, where no split row binds, where a pivot is zero, or where the
+    Returns False, ``out`` zero, where no split row binds, where a pivot is not positive, or where the
     solution is not finite or leaves a residual above :math:`10^{-8}(1 + \|rhs\|)` (binding rows
     that depend on each other: no tangent)."""
     S = nz.shape[0]
@@ -120,26 +121,14 @@ def tangent(indptr: Any, indices: Any, data: Any, nz: Any, y: Any, jidx: Any, z:
             for c in range(4):
                 dgz += dGv[r, c] * z[dGc[r, c]]
         rhs[r] = -acc - (dh[r] - dgz)
-    # Gaussian elimination with partial pivoting on copies
+    # Gaussian elimination on copies, without pivoting: W = G K⁻¹ Gᵀ is symmetric positive
+    # semidefinite (K⁻¹_zz is, on the equality rows' null space), so every pivot of independent
+    # rows is positive, and a pivot that is not (rows binding dependently) leaves no tangent
     A = W.copy()
     x = rhs.copy()
     for k in range(S):
-        p = k
-        big = abs(A[k, k])
-        for i in range(k + 1, S):
-            if abs(A[i, k]) > big:
-                big = abs(A[i, k])
-                p = i
-        if not big > 0.0:
+        if not A[k, k] > 0.0:
             return False
-        if p != k:
-            for j in range(S):
-                tmp = A[k, j]
-                A[k, j] = A[p, j]
-                A[p, j] = tmp
-            tmp = x[k]
-            x[k] = x[p]
-            x[p] = tmp
         for i in range(k + 1, S):
             f = A[i, k] / A[k, k]
             if f != 0.0:
