@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from iamp.planners.avoid.schur_kernel import _solve
 from iamp.planners.pmp.jit import compilable
 
 
@@ -66,16 +67,30 @@ def _split_derivatives(lam0: float, rows: Any, jidx: Any, M: Any, rhs: Any, sigm
 
 
 @compilable
+def _both_derivatives(S: int, lam0: float, rows_f: Any, M_f: Any, rhs_f: Any, sigma_f: float, cols_f: Any,
+                      rows_s: Any, M_s: Any, rhs_s: Any, sigma_s: float, cols_s: Any, jidx: Any) -> Any:
+    """:func:`_split_derivatives` of both half-planes of the split piece, into new arrays
+    ``(dGv, dGc, dh, has)`` over the ``S`` binding rows (zero where a row is not split)."""
+    dGv = np.zeros((S, 4))
+    dGc = np.zeros((S, 4), dtype=np.int64)
+    dh = np.zeros(S)
+    has = np.zeros(S, dtype=np.bool_)
+    _split_derivatives(lam0, rows_f, jidx, M_f, rhs_f, sigma_f, cols_f, dGv, dGc, dh, has)
+    _split_derivatives(lam0, rows_s, jidx, M_s, rhs_s, sigma_s, cols_s, dGv, dGc, dh, has)
+    return dGv, dGc, dh, has
+
+
+@compilable
 def tangent(indptr: Any, indices: Any, data: Any, nz: Any, y: Any, jidx: Any, z: Any, Kinv: Any, lam0: float,
             rows_f: Any, M_f: Any, rhs_f: Any, sigma_f: float, cols_f: Any,
             rows_s: Any, M_s: Any, rhs_s: Any, sigma_s: float, cols_s: Any, out: Any) -> bool:
     r"""``out`` :math:`= \dot y_S`, the solution of
     :math:`(G_S K^{-1}_{zz} G_S^\top)\,\dot y_S = G_S K^{-1}_{zz}(-\dot G_S^\top y_S) - (\dot h_S - \dot G_S z)`
     (:meth:`~iamp.planners.avoid.dual.DualBounds.tangent`; ``f``: the first half-plane's split
-    rows, ``s``: the second's), by Gaussian elimination (the matrix is symmetric positive
-    semidefinite: no pivoting).
+    rows, ``s``: the second's), by the node solver's Gaussian elimination
+    (:func:`~iamp.planners.avoid.schur_kernel._solve`).
 
-    Returns False, ``out`` zero, where no split row binds, where a pivot is not positive, or where the
+    Returns False, ``out`` zero, where no split row binds, where a pivot is zero, or where the
     solution is not finite or leaves a residual above :math:`10^{-8}(1 + \|rhs\|)` (binding rows
     that depend on each other: no tangent)."""
     S = nz.shape[0]
@@ -83,12 +98,8 @@ def tangent(indptr: Any, indices: Any, data: Any, nz: Any, y: Any, jidx: Any, z:
         out[r] = 0.0
     if rows_f.shape[0] + rows_s.shape[0] == 0:
         return False
-    dGv = np.zeros((S, 4))
-    dGc = np.zeros((S, 4), dtype=np.int64)
-    dh = np.zeros(S)
-    has = np.zeros(S, dtype=np.bool_)
-    _split_derivatives(lam0, rows_f, jidx, M_f, rhs_f, sigma_f, cols_f, dGv, dGc, dh, has)
-    _split_derivatives(lam0, rows_s, jidx, M_s, rhs_s, sigma_s, cols_s, dGv, dGc, dh, has)
+    dGv, dGc, dh, has = _both_derivatives(S, lam0, rows_f, M_f, rhs_f, sigma_f, cols_f, rows_s, M_s, rhs_s, sigma_s,
+                                          cols_s, jidx)
     W = np.zeros((S, S))
     for r1 in range(S):
         a0 = indptr[nz[r1]]
@@ -121,25 +132,10 @@ def tangent(indptr: Any, indices: Any, data: Any, nz: Any, y: Any, jidx: Any, z:
             for c in range(4):
                 dgz += dGv[r, c] * z[dGc[r, c]]
         rhs[r] = -acc - (dh[r] - dgz)
-    # Gaussian elimination on copies, without pivoting: W = G K⁻¹ Gᵀ is symmetric positive
-    # semidefinite (K⁻¹_zz is, on the equality rows' null space), so every pivot of independent
-    # rows is positive, and a pivot that is not (rows binding dependently) leaves no tangent
-    A = W.copy()
-    x = rhs.copy()
-    for k in range(S):
-        if not A[k, k] > 0.0:
-            return False
-        for i in range(k + 1, S):
-            f = A[i, k] / A[k, k]
-            if f != 0.0:
-                for j in range(k, S):
-                    A[i, j] -= f * A[k, j]
-                x[i] -= f * x[k]
-    for k in range(S - 1, -1, -1):
-        acc = x[k]
-        for j in range(k + 1, S):
-            acc -= A[k, j] * x[j]
-        x[k] = acc / A[k, k]
+    # the node solver's Gaussian elimination (schur_kernel._solve, partial pivoting)
+    x = np.zeros(S)
+    if not _solve(W, S, rhs, x, np.empty((S, S))):
+        return False
     res = 0.0
     size = 0.0
     for i in range(S):
@@ -165,13 +161,8 @@ def slope(y: Any, jidx: Any, z: Any, lam0: float, rows_f: Any, M_f: Any, rhs_f: 
     rows (first half-plane ``f``, then second ``s``; :func:`_split_derivatives`), the envelope
     theorem's derivative of the candidate's optimum in its crossing time's local coordinate
     (:meth:`~iamp.planners.avoid.dual.DualBounds.gradient` divides it by the step ``h``)."""
-    S = y.shape[0]
-    dGv = np.zeros((S, 4))
-    dGc = np.zeros((S, 4), dtype=np.int64)
-    dh = np.zeros(S)
-    has = np.zeros(S, dtype=np.bool_)
-    _split_derivatives(lam0, rows_f, jidx, M_f, rhs_f, sigma_f, cols_f, dGv, dGc, dh, has)
-    _split_derivatives(lam0, rows_s, jidx, M_s, rhs_s, sigma_s, cols_s, dGv, dGc, dh, has)
+    dGv, dGc, dh, _ = _both_derivatives(y.shape[0], lam0, rows_f, M_f, rhs_f, sigma_f, cols_f, rows_s, M_s, rhs_s,
+                                        sigma_s, cols_s, jidx)
     total = 0.0
     for half in range(2):
         rows = rows_f if half == 0 else rows_s
