@@ -75,6 +75,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--commit", required=True)
     ap.add_argument("--workers", type=int, default=2, help="the --workers the campaign ran with")
     ap.add_argument("--reference", default="mobil,sumo", help="planners to pair against as well ('' for none)")
+    ap.add_argument("--note", default="", help="a sentence after the command (e.g. a planner's episodes re-made "
+                                               "on a later commit)")
     a = ap.parse_args(argv)
     folder = a.folder
     man = json.loads((folder / "manifest.json").read_text())
@@ -89,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
              "command resumes, so a larger `--seeds` adds seeds. Episode format "
              f"{man.get('episode_format')}, cooperation {man.get('cooperation')}; the RSS model of the judge and of "
              f"the loop's verification: {json.dumps(rss)} ({man['rss'].get('source', '')}). "
-             f"Courtesy: {json.dumps(man.get('courtesy'))}.", "",
+             f"Courtesy: {json.dumps(man.get('courtesy'))}." + (f" {a.note}" if a.note else ""), "",
              f"Tables: `python scripts/campaign_markdown.py {rel}/summary.json`; this file: "
              f"`python scripts/campaign_folder_readme.py {rel} --commit {a.commit}` (the paired tables against "
              "other references summarise the same episodes with `--no-run --reference P` in a temporary copy).", "",
