@@ -435,3 +435,22 @@ def test_a_box_over_several_pieces_gains_nothing_from_its_candidates_polynomial(
     dp = DualBounds(qp).polynomial(cand, np.array([lo]), np.array([hi]))
     assert dp.vehicles == ()
     assert dp.lower_bound(np.array([lo]), np.array([hi])) <= relaxed.cost
+
+
+@pytest.mark.parametrize("tau_c,lo,hi", [(3.78, 3.66, 3.95), (3.63, 3.45, 3.77)])
+def test_a_box_over_several_pieces_keeps_no_row_its_crossings_can_drop(tau_c, lo, hi):
+    """A vehicle whose box spans several pieces keeps only its first half-plane's rows on pieces
+    that end before the box and its second's on pieces that start after it: a candidate whose
+    binding rows lie in the box's pieces (here its crossing's own piece, the box's second) gives
+    no bound above ``J`` anywhere in the box, also where the crossing is earlier than those rows
+    (the overtake's optimum, 3.7127 s, inside the box)."""
+    prob = overtake_problem()
+    qp = ContinuousAvoidQP(prob, 50, "foh", "clarabel")
+    cand = qp.solve(spec((1, 0), tau_c))
+    assert cand.status == st.OPTIMAL
+    assert piece_of(lo, hi, qp.h, qp.N) is None
+    dp = DualBounds(qp).polynomial(cand, np.array([lo]), np.array([hi]))
+    bound = dp.lower_bound(np.array([lo]), np.array([hi]))
+    costs = [qp.solve(spec((1, 0), float(t))) for t in np.linspace(lo, hi, 25)]
+    feasible = [s.cost for s in costs if s.status == st.OPTIMAL]
+    assert feasible and bound <= min(feasible) + 1e-9 * max(1.0, min(feasible))
