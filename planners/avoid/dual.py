@@ -70,6 +70,7 @@ from numpy.typing import NDArray
 from . import dual_kernel, search_kernel
 from .bernstein import _binomials, _power_to_bernstein
 from .schur import _run, full_hessian, kkt_matrix
+from .solve import row_entries
 
 if TYPE_CHECKING:
     from .continuous import ContinuousAvoidQP, Solved
@@ -447,9 +448,7 @@ class DualBounds:
         bern = ids < qp.n_b
         blk = np.where(bern, ids // (N * nb), -1)
         indptr, indices, data = qp.csr_arrays(A_in)
-        starts, lens = indptr[nz], indptr[nz + 1] - indptr[nz]
-        ends = np.cumsum(lens)
-        cols = indices[np.arange(int(ends[-1]) if ends.size else 0) - np.repeat(ends - lens - starts, lens)]
+        cols = indices[row_entries(indptr, nz)[0]]
         return _Binding(A_in, u_in, nz, y_all[nz], bern, blk // 2, blk % 2, (ids // nb) % N, ids % nb,
                         indptr, indices, data, cols)
 

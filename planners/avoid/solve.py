@@ -157,16 +157,22 @@ class RowsSolution:
     certificate: FloatArray | None = None
 
 
+def row_entries(indptr: NDArray[Any], rows: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[Any]]:
+    """The positions in a CSR matrix's ``indices``/``data`` of the entries of ``rows``, row after row
+    in stored order, and each row's entry count (``indptr`` its row pointers)."""
+    start = indptr[rows]
+    lens = indptr[rows + 1] - start
+    ends = np.cumsum(lens)
+    offsets = np.concatenate((np.zeros(1, dtype=ends.dtype), ends[:-1]))
+    return np.repeat(start - offsets, lens) + np.arange(int(lens.sum())), lens
+
+
 def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -> sp.csc_matrix:
     """``[top; A[rows]]`` as CSC, every stored entry kept (explicit zeros too, so that the same
     rows always give the same pattern), gathered from the CSR arrays: the arrays of
     ``sp.csr_matrix((data, indices, indptr)).tocsc()``, each column's entries in the order of their
     rows (a stable sort by column of the row-major entries), without building the CSR matrix."""
-    start, stop = A.indptr[rows], A.indptr[rows + 1]
-    lens = stop - start
-    ends = np.cumsum(lens)
-    offsets = np.concatenate((np.zeros(1, dtype=ends.dtype), ends[:-1]))
-    take = np.repeat(start - offsets, lens) + np.arange(int(lens.sum()))
+    take, lens = row_entries(A.indptr, rows)
     m, n = top.shape[0] + rows.size, top.shape[1]
     cols = np.concatenate((top.indices, A.indices[take]))
     data = np.concatenate((top.data, A.data[take]))
