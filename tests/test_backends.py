@@ -336,6 +336,47 @@ def test_csc_copy_is_scipys_copy_with_sorted_indices_and_owns_its_arrays(form: s
             assert not np.shares_memory(a, getattr(given, name))
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=hs.integers(0, 2**31 - 1), csr=hs.booleans(), wide=hs.booleans(), unsorted=hs.booleans())
+def test_compressed_is_scipys_constructor(seed: int, csr: bool, wide: bool, unsorted: bool) -> None:
+    """:func:`~iamp.planners.qp.backends.base.compressed` (the avoidance's rows, the backends' row
+    stacks): for arrays scipy would keep as they are, the matrix ``kind((data, indices, indptr),
+    shape)`` builds — the same arrays (the same objects), shape, sortedness found again, products,
+    transpose and conversion — and for any other input the constructor's own result; a matrix
+    it returns owns no flag of the template it was copied from."""
+    from iamp.planners.qp.backends.base import compressed
+
+    rng = np.random.default_rng(seed)
+    kind = sp.csr_matrix if csr else sp.csc_matrix
+    m, n = int(rng.integers(0, 30)), int(rng.integers(1, 30))
+    if wide:
+        m, n = n, m + 1
+    M = kind(sp.random(m, n, density=float(rng.uniform(0.0, 0.6)), random_state=rng))
+    data, indices, indptr = M.data.copy(), M.indices.astype(np.int32), M.indptr.astype(np.int32)
+    if unsorted and data.size > 1:  # reverse each compressed row's entries: valid, unsorted
+        for a, b in zip(indptr[:-1], indptr[1:]):
+            data[a:b], indices[a:b] = data[a:b][::-1].copy(), indices[a:b][::-1].copy()
+    ref = kind((data, indices, indptr), shape=(m, n))
+    got = compressed(kind, data, indices, indptr, (m, n))
+    assert type(got) is kind and got.shape == ref.shape and got.dtype == ref.dtype
+    assert got.data is data and got.indices is indices and got.indptr is indptr
+    assert got.has_sorted_indices == ref.has_sorted_indices
+    x, w = rng.standard_normal(n), rng.standard_normal(m)
+    assert np.array_equal(got @ x, ref @ x) and np.array_equal(got.T @ w, ref.T @ w)
+    assert np.array_equal(got.toarray(), ref.toarray())
+    other = got.tocsc() if csr else got.tocsr()
+    ref_other = ref.tocsc() if csr else ref.tocsr()
+    for name in ("data", "indices", "indptr"):
+        assert np.array_equal(getattr(other, name), getattr(ref_other, name))
+    # inputs scipy would convert: the constructor's own result (int64 indices, int data, a short indptr)
+    for args in ((data, indices.astype(np.int64), indptr), (data.astype(np.int64), indices, indptr)):
+        out, exp = compressed(kind, *args, (m, n)), kind(args, shape=(m, n))
+        assert out.indices.dtype == exp.indices.dtype and out.data.dtype == exp.data.dtype
+        assert np.array_equal(out.toarray(), exp.toarray())
+    with pytest.raises(ValueError):
+        compressed(kind, data, indices, indptr[:-1], (m, n))
+
+
 @pytest.mark.parametrize("seed", range(25))
 def test_csc_rows_is_scipys_row_indexing(seed: int) -> None:
     """:func:`~iamp.planners.qp.backends.base.csc_rows` (the polish's active rows, PIQP's row split):

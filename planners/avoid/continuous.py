@@ -111,6 +111,7 @@ from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and
 from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, CsrArrays, SchurActiveSet, _run, csr_arrays
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration, RowsSolution
 from iamp.planners.qp.backends import BACKENDS
+from iamp.planners.qp.backends.base import compressed
 from iamp.planners.qp.hold import HoldTrajectory
 from iamp.planners.qp.options import check_choice
 
@@ -234,8 +235,8 @@ def _stacked(top: sp.csr_matrix, below: sp.csr_matrix) -> sp.csc_matrix:
     """``[top; below]`` (both CSR) as CSC, every stored entry kept: ``sp.vstack`` of the two,
     converted, entry for entry, from their CSR arrays without its general checks."""
     indptr = np.concatenate((top.indptr, top.indptr[-1] + below.indptr[1:]))
-    M = sp.csr_matrix((np.concatenate((top.data, below.data)), np.concatenate((top.indices, below.indices)), indptr),
-                      shape=(top.shape[0] + below.shape[0], top.shape[1]))
+    M = compressed(sp.csr_matrix, np.concatenate((top.data, below.data)), np.concatenate((top.indices, below.indices)),
+                   indptr, (top.shape[0] + below.shape[0], top.shape[1]))
     return M.tocsc()
 
 
@@ -611,9 +612,9 @@ class ContinuousAvoidQP:
         vals, rhs, ids = self.bernstein_rows(spec)
         nb = ids.size
         ptr = np.concatenate((np.arange(0, 4 * nb + 1, 4, dtype=np.int32), 4 * nb + self._lim_indptr[1:]))
-        A = sp.csr_matrix((np.concatenate((vals, self._lim_data)),
-                           np.concatenate((self._bern_cols[ids].ravel(), self._lim_indices)), ptr),
-                          shape=(nb + self.u_lim.size, self.data.n))
+        A = compressed(sp.csr_matrix, np.concatenate((vals, self._lim_data)),
+                       np.concatenate((self._bern_cols[ids].ravel(), self._lim_indices)), ptr,
+                       (nb + self.u_lim.size, self.data.n))
         return A, np.concatenate((rhs, self.u_lim)), np.concatenate((ids, self._lim_ids))
 
     # --- solving ---------------------------------------------------------------------------

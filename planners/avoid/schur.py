@@ -220,7 +220,9 @@ class SchurActiveSet:
             return (a.shape == b.shape and np.array_equal(a.indptr, b.indptr)
                     and np.array_equal(a.indices, b.indices) and np.array_equal(a.data, b.data))
 
-        return same(self.P, sp.csc_matrix(P)) and same(self.A_eq, sp.csr_matrix(A_eq))
+        # a matrix of the kind compared is compared as it is (the constructor would keep its arrays)
+        return (same(self.P, P if type(P) is sp.csc_matrix else sp.csc_matrix(P))
+                and same(self.A_eq, A_eq if type(A_eq) is sp.csr_matrix else sp.csr_matrix(A_eq)))
 
     def with_rhs(self, b_eq: FloatArray) -> SchurActiveSet:
         """The solver of the same ``P`` and ``E`` with the right-hand side ``b_eq``: it shares this

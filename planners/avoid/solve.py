@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 from iamp.core import status as st
 
 from ..qp.backends import QPSolution, get_backend
+from ..qp.backends.base import compressed
 from .options import check_avoid_solver
 
 FloatArray = NDArray[np.float64]
@@ -180,7 +181,7 @@ def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -
     order = np.argsort(cols, kind="stable")
     idx = np.promote_types(top.indices.dtype, A.indices.dtype)
     indptr = np.concatenate(([0], np.cumsum(np.bincount(cols, minlength=n))))
-    return sp.csc_matrix((data[order], row_of[order].astype(idx), indptr.astype(idx)), shape=(m, n))
+    return compressed(sp.csc_matrix, data[order], row_of[order].astype(idx), indptr.astype(idx), (m, n))
 
 
 class RowGeneration:
