@@ -375,6 +375,31 @@ def test_compressed_is_scipys_constructor(seed: int, csr: bool, wide: bool, unso
         assert np.array_equal(out.toarray(), exp.toarray())
     with pytest.raises(ValueError):
         compressed(kind, data, indices, indptr[:-1], (m, n))
+    if data.size:  # an index pointer that does not start at 0: refused as by the constructor
+        with pytest.raises(ValueError):
+            compressed(kind, data[1:], indices[1:], indptr - 1, (m, n))
+
+
+def test_compressed_takes_no_constructor_for_arrays_scipy_keeps(monkeypatch: pytest.MonkeyPatch) -> None:
+    """:func:`~iamp.planners.qp.backends.base.compressed` builds arrays scipy would keep without its
+    constructor (the point of it), and a shape beyond 32-bit indices with the constructor: scipy
+    then widens the indices to int64, and so does the result."""
+    from iamp.planners.qp.backends.base import compressed
+
+    calls = []
+    for kind in (sp.csr_matrix, sp.csc_matrix):
+        def counted(self: object, *a: object, _init: object = kind.__init__, **k: object) -> None:
+            calls.append(1)
+            _init(self, *a, **k)  # type: ignore[operator]
+
+        monkeypatch.setattr(kind, "__init__", counted)
+    i32 = np.array([0, 1], dtype=np.int32)
+    out = compressed(sp.csr_matrix, np.array([2.0]), np.array([1], dtype=np.int32), i32, (1, 3))
+    assert calls == [] and out.toarray().tolist() == [[0.0, 2.0, 0.0]]
+    for kind, shape in ((sp.csr_matrix, (1, 2**31)), (sp.csc_matrix, (2**31, 1))):
+        big = compressed(kind, np.array([2.0]), np.array([2**31 - 1], dtype=np.int32), i32, shape)
+        assert big.indices.dtype == big.indptr.dtype == np.int64 and big.shape == shape
+    assert len(calls) == 2
 
 
 @pytest.mark.parametrize("seed", range(25))
