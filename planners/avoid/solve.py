@@ -259,12 +259,12 @@ class RowGeneration:
         RowsSolution
             ``y`` holds a multiplier for every row of ``[A_eq; A_in]``.
         """
-        A_in = sp.csr_matrix(A_in)
+        A_in = A_in if type(A_in) is sp.csr_matrix else sp.csr_matrix(A_in)  # the spec's rows: CSR already
         u_in = np.asarray(u_in, dtype=float)
         ids = np.asarray(ids, dtype=np.int64)
         n_eq, n_in, n = self.A_eq.shape[0], A_in.shape[0], self.P.shape[0]
         if ids.size and ids.max() >= self.pool.size:
-            self.pool = np.r_[self.pool, np.zeros(int(ids.max()) + 1 - self.pool.size, dtype=bool)]
+            self.pool = np.concatenate((self.pool, np.zeros(int(ids.max()) + 1 - self.pool.size, dtype=bool)))
         work = np.ones(n_in, dtype=bool) if self.every_row else self.pool[ids].copy()
         if reference is not None and n_in:
             work |= A_in @ reference - u_in > -SEED_SLACK
