@@ -884,14 +884,14 @@ class ContinuousAvoidPlanner:
         # the product grid in meshgrid's "ij" order: vehicle c's samples (numpy.linspace's numbers:
         # j step + lo, the last one hi) each repeated n^(k-1-c) times, that run n^c times
         k = len(vs)
-        pts = np.tile(tau, (n ** k, 1))
+        pts = np.repeat(tau[None, :], n ** k, axis=0)  # np.tile's array, without its Python-level set-up
         ramp = np.arange(n, dtype=float)
         for c, v in enumerate(vs):
             lo_v, hi_v = float(box.lo[v]), float(box.hi[v])
             step = (hi_v - lo_v) / (n - 1)
             line = ramp / (n - 1) * (hi_v - lo_v) + lo_v if step == 0.0 else ramp * step + lo_v
             line[-1] = hi_v
-            pts[:, v] = np.tile(np.repeat(line, n ** (k - 1 - c)), n ** c)
+            pts[:, v] = np.repeat(np.repeat(line, n ** (k - 1 - c))[None, :], n ** c, axis=0).ravel()
         vals = polys_values(polys, pts)
         if solved is not None and len(solved):
             # a point a solved candidate (in a piece beside the box's) all but shares: its cost
