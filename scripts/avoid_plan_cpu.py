@@ -16,22 +16,32 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from typing import Any
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def case_arguments(description: str, plans: int) -> argparse.Namespace:
+    """The command line of this script and ``avoid_plan_instructions.py``: case, solver, ``--plans``."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("case", choices=("one", "three"))
     ap.add_argument("solver", choices=("osqp", "clarabel", "piqp"))
-    ap.add_argument("--plans", type=int, default=30)
-    args = ap.parse_args()
+    ap.add_argument("--plans", type=int, default=plans)
+    return ap.parse_args()
 
+
+def planner_and_problem(case: str, solver: str) -> tuple[Any, Any]:
+    """The timed planner and problem (module docstring), the compiled kernels made ready."""
     from iamp.planners import registry
     from iamp.planners.examples import overtake_problem, overtake_three_problem
     from iamp.planners.kernels import warm_kernels
 
     warm_kernels()
-    problem = overtake_problem() if args.case == "one" else overtake_three_problem()
-    planner = registry.make_planner("qp-avoid", steps=50, hold="foh", solver=args.solver, safety="continuous")
+    problem = overtake_problem() if case == "one" else overtake_three_problem()
+    return registry.make_planner("qp-avoid", steps=50, hold="foh", solver=solver, safety="continuous"), problem
+
+
+def main() -> None:
+    args = case_arguments(__doc__.splitlines()[0], 30)
+    planner, problem = planner_and_problem(args.case, args.solver)
     planner.plan(problem)  # warm-up
     times = []
     for _ in range(max(1, args.plans)):

@@ -17,7 +17,6 @@ it importing under valgrind.  For before/after comparisons run it on two checkou
 
 from __future__ import annotations
 
-import argparse
 import os
 import re
 import subprocess
@@ -25,36 +24,29 @@ import sys
 import tempfile
 from pathlib import Path
 
+# the same planner, problem and command line as the CPU-time script (this folder is on sys.path)
+from avoid_plan_cpu import case_arguments, planner_and_problem
+
 _INSIDE = "IAMP_UNDER_CALLGRIND"
 
 
 def _plans(case: str, solver: str, plans: int) -> None:
     """Runs under callgrind: warm-up uncounted, then ``plans`` counted plans."""
-    from iamp.planners import registry
-    from iamp.planners.examples import overtake_problem, overtake_three_problem
-    from iamp.planners.kernels import warm_kernels
-
-    warm_kernels()
-    problem = overtake_problem() if case == "one" else overtake_three_problem()
-    planner = registry.make_planner("qp-avoid", steps=50, hold="foh", solver=solver, safety="continuous")
+    planner, problem = planner_and_problem(case, solver)
     for _ in range(2):
-        planner.forget_vehicles()  # type: ignore[attr-defined]
+        planner.forget_vehicles()
         planner.plan(problem)
     pid = str(os.getpid())
     subprocess.run(["callgrind_control", "-i", "on", pid], check=True, capture_output=True)
     for _ in range(plans):
-        planner.forget_vehicles()  # type: ignore[attr-defined]
+        planner.forget_vehicles()
         plan = planner.plan(problem)
     subprocess.run(["callgrind_control", "-i", "off", pid], check=True, capture_output=True)
-    print(f"{plan.status}, cost {plan.cost}, {plan.diagnostics.n_solves} QP solves")  # type: ignore[union-attr]
+    print(f"{plan.status}, cost {plan.cost}, {plan.diagnostics.n_solves} QP solves")
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("one", "three"))
-    ap.add_argument("solver", choices=("osqp", "clarabel", "piqp"))
-    ap.add_argument("--plans", type=int, default=5)
-    args = ap.parse_args()
+    args = case_arguments(__doc__.splitlines()[0], 5)
     if os.environ.get(_INSIDE):
         _plans(args.case, args.solver, max(1, args.plans))
         return
