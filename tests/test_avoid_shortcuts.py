@@ -188,7 +188,7 @@ def test_leave_time_takes_the_exact_bracket_on_avoidance_plans() -> None:
         for v in problem.vehicles:
             for axis in ("x", "y"):
                 plane = HalfPlane(v, axis)
-                t = np.linspace(0.0, problem.tf, max(2, int(np.ceil(problem.tf / 1e-3)) + 1))
+                t = check.ScanGrid(problem.tf)
                 col = 0 if axis == "x" else 2
                 traj = plan.trajectory
                 k = check._scan_bracket(traj, plane, t,
@@ -197,6 +197,29 @@ def test_leave_time_takes_the_exact_bracket_on_avoidance_plans() -> None:
                 assert abs(check.leave_time(plan.trajectory, plane, problem.tf)
                            - _scan_leave_time(plan.trajectory, plane, problem.tf)) <= 1e-12
     assert taken >= 12
+
+
+@settings(max_examples=300, deadline=None)
+@given(st_h.one_of(st_h.floats(0.0, 60.0), st_h.sampled_from([0.0, 1e-3, 2e-3, 0.1, 5.0, 8.0, 12.3, 30.0])),
+       st_h.lists(st_h.floats(-1.0, 61.0) | st_h.sampled_from([float("nan"), float("inf"), -float("inf"), -0.0]),
+                  min_size=1, max_size=8))
+def test_scan_grid_is_linspace_and_searchsorted(tf: float, xs: list[float]) -> None:
+    """:class:`~iamp.planners.avoid.check.ScanGrid` gives ``numpy.linspace``'s points bit for bit
+    and ``numpy.searchsorted(..., side="right") - 1`` at any number (grid points and their
+    neighbours included), without building the ~10,000 points."""
+    from iamp.planners.avoid.check import ScanGrid
+
+    grid = ScanGrid(tf)
+    t = np.linspace(0.0, tf, max(2, int(np.ceil(tf / 1e-3)) + 1))
+    assert grid.size == t.size
+    assert grid.full().tobytes() == t.tobytes()
+    picks = sorted({0, 1, t.size // 2, t.size - 2, t.size - 1})
+    assert np.array([grid.at(k) for k in range(t.size)]).tobytes() == t.tobytes() if t.size <= 2000 else \
+        all(grid.at(k) == t[k] for k in picks)
+    probes = list(xs) + [float(t[k]) for k in picks] + [float(np.nextafter(t[k], -1.0)) for k in picks] \
+        + [float(np.nextafter(t[k], 2.0 * tf + 1.0)) for k in picks]
+    for x in probes:
+        assert grid.last_at_or_below(x) == int(np.searchsorted(t, x, side="right")) - 1, x
 
 
 def _same_sparse(a: object, b: object) -> None:

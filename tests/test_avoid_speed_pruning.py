@@ -103,3 +103,48 @@ def test_every_backend_certifies_the_same_optimum(solver: str) -> None:
     assert plan.status == ref.status == st.OPTIMAL
     assert plan.cost == pytest.approx(ref.cost, rel=1e-6)
     assert plan.info["backend_check"]["agrees"]
+
+
+@pytest.mark.parametrize("case", ["one", "three", "generated", "sweep-30007"])
+def test_a_box_popped_unchanged_keeps_its_push_bound(case: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A box popped while the dual store holds the polynomials it held at the box's push takes the
+    bound and polynomials of its push (``_Box.store_size``): the search is the same, bit for bit,
+    as one that bounds every box again at its pop, with fewer bound evaluations.  (Draw 30007 of
+    ``scripts/avoid_reference_sweep.py``: a box popped after a candidate joined the store; taking
+    its bound of the push there too, the search solved 13 QPs instead of 12.)"""
+    from conftest import load_script
+
+    from iamp.planners import registry
+    from iamp.planners.avoid import continuous, dual
+    from iamp.planners.examples import overtake_problem, overtake_three_problem
+
+    steps, hold = 50, "foh"
+    if case == "sweep-30007":
+        problem, steps, hold, _ = load_script("avoid_reference_sweep").case(30007)
+    else:
+        problem = {"one": overtake_problem(), "three": overtake_three_problem(),
+                   "generated": _overtake(112.0, 25.0, 9.0, 21.0, False)}[case]
+        steps = N if case == "generated" else steps
+    calls = {"n": 0}
+    bound = dual.max_lower_bound
+
+    def counted(*args: object) -> float:
+        calls["n"] += 1
+        return bound(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(continuous, "max_lower_bound", counted)
+
+    def plan() -> tuple[object, ...]:
+        calls["n"] = 0
+        p = registry.make_planner("qp-avoid", steps=steps, hold=hold, solver="piqp", safety="continuous").plan(problem)
+        X = np.asarray(p.trajectory.X) if p.trajectory is not None else np.zeros(0)
+        return (p.status, p.cost, np.asarray(p.contact_times).tobytes(), X.tobytes(),
+                p.diagnostics.n_solves, p.info["search"]["lower_bound"], p.info["search"]["boxes"]), calls["n"]
+
+    reused, n_reused = plan()
+    assert reused[0] == st.OPTIMAL
+    # every pop bounds its box again: a store size no box was pushed with
+    monkeypatch.setattr(continuous._Box, "store_size", property(lambda self: -1, lambda self, v: None))
+    fresh, n_fresh = plan()
+    assert reused == fresh
+    assert n_reused < n_fresh

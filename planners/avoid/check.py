@@ -146,6 +146,41 @@ class KKTCheck:
                 "kkt_complementarity_rel": compl / max(1.0, abs(zPz))}
 
 
+class ScanGrid:
+    r"""The 1 ms scan points of :func:`leave_time`, ``numpy.linspace(0, t_f, n)`` with
+    :math:`n = \max(2, \lceil t_f / 10^{-3} \rceil + 1)`, each computed when asked as
+    ``linspace`` computes it (:math:`t_k = k \cdot (t_f / (n - 1)) + 0`, the last one
+    :math:`t_f`): the exact-root path reads three of its ~10,000 points."""
+
+    def __init__(self, tf: float) -> None:
+        self.tf = float(tf)
+        self.size = max(2, int(np.ceil(self.tf / 1e-3)) + 1)
+        self.step = (self.tf - 0.0) / (self.size - 1)
+
+    def at(self, k: int) -> float:
+        """Point ``k`` (``0 <= k < size``)."""
+        return self.tf if k == self.size - 1 else (k * self.step if self.step != 0.0 else 0.0) + 0.0
+
+    def full(self) -> FloatArray:
+        """Every point (``numpy.linspace``)."""
+        return np.linspace(0.0, self.tf, self.size)
+
+    def last_at_or_below(self, x: float) -> int:
+        """``numpy.searchsorted(points, x, side="right") - 1``: the last index whose point is
+        ``<= x`` (-1: none; NaN sorts after every point)."""
+        n = self.size
+        if x != x or x >= self.tf:
+            return n - 1
+        if x < 0.0:
+            return -1
+        k = min(n - 1, int(x / self.step)) if self.step > 0.0 else n - 1
+        while k + 1 < n and self.at(k + 1) <= x:
+            k += 1
+        while k >= 0 and self.at(k) > x:
+            k -= 1
+        return k
+
+
 def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
     r"""The last instant the trajectory is in ``plane``: :math:`\sup\{t : c(t) - \sigma s(t) \ge -10^{-12}\}`
     (1e-12 m tolerance); ``tf`` when it ends inside, 0 when it never is.
@@ -153,18 +188,18 @@ def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
     A held trajectory (:class:`~iamp.planners.qp.hold.HoldTrajectory`) gives it as the last exact
     root of its margin, a polynomial per piece (:func:`_scan_bracket`: the margin is negative
     after it, up to ``t_f``), once the trajectory evaluated at the 1 ms scan points on either side
-    of that root confirms the sign change there.  Any other case scans those points and solves
-    the root on the last bracket (Brent's method to 1e-13 s).
+    of that root confirms the sign change there.  Any other case scans those points
+    (:class:`ScanGrid`) and solves the root on the last bracket (Brent's method to 1e-13 s).
     """
-    t = np.linspace(0.0, tf, max(2, int(np.ceil(tf / 1e-3)) + 1))
+    grid = ScanGrid(tf)
     axis = 0 if plane.axis == "x" else 2
 
     def margin(x: FloatArray) -> FloatArray:
         return np.asarray(plane.margin(x, traj.states(x)[:, axis]), dtype=float)
 
-    exact = _scan_bracket(traj, plane, t, margin)
+    exact = _scan_bracket(traj, plane, grid, margin)
     if exact is None:
-        inside = np.flatnonzero(margin(t) >= -1e-12)
+        inside = np.flatnonzero(margin(grid.full()) >= -1e-12)
         if inside.size == 0:
             return 0.0
         k = int(inside[-1])
@@ -173,17 +208,17 @@ def leave_time(traj: Any, plane: HalfPlane, tf: float) -> float:
         if k < 0:
             return 0.0
         if root is not None:
-            return float(min(max(root, float(t[k])), float(t[k + 1])))
-    if k == t.size - 1:
+            return float(min(max(root, grid.at(k)), grid.at(k + 1)))
+    if k == grid.size - 1:
         return float(tf)
 
     def g(x: float) -> float:  # the same 1e-12 m tolerance as the scan: a sign change is bracketed
         return float(margin(np.array([x]))[0]) + 1e-12
 
-    return float(optimize.brentq(g, float(t[k]), float(t[k + 1]), xtol=1e-13))
+    return float(optimize.brentq(g, grid.at(k), grid.at(k + 1), xtol=1e-13))
 
 
-def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any) -> tuple[int, float | None] | None:
+def _scan_bracket(traj: Any, plane: HalfPlane, t: ScanGrid, margin: Any) -> tuple[int, float | None] | None:
     r"""The last index ``k`` of the scan ``t`` whose margin is ``>= -1e-12`` (``-1``: none) and the
     margin's last root (``t_k <= root <= t_{k+1}``; None when ``k`` is the last index or ``-1``),
     from the exact roots of the margin of a held trajectory, or None (the caller scans).
@@ -201,9 +236,6 @@ def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any) -> tu
     hold = getattr(traj, "hold", None)
     if nodes is None or X is None or U is None or hold not in ("foh", "zoh"):
         return None
-    end = margin(t[-1:])[0]
-    if end >= -1e-12:
-        return int(t.size - 1), None
     nodes = np.asarray(nodes, dtype=float)
     h = np.diff(nodes)
     a = 0 if plane.axis == "x" else 1
@@ -225,11 +257,19 @@ def _scan_bracket(traj: Any, plane: HalfPlane, t: FloatArray, margin: Any) -> tu
     M[:, :4] -= plane.sigma * S
     M[:, 0] += 1e-12
     rows, sig = roots_in_unit_interval(M)
+    # the margin at the scan points the answer needs (t_k and t_{k+1} around the last root, or
+    # t_0 without a root) and at t_f, in one call (the trajectory is evaluated point by point:
+    # the numbers of one call per point)
     if rows.size == 0:
-        return (-1, None) if margin(t[:1])[0] < -1e-12 else None
+        first, end = margin(np.array([t.at(0), t.at(t.size - 1)]))
+        if end >= -1e-12:
+            return int(t.size - 1), None
+        return (-1, None) if first < -1e-12 else None
     last = float(np.max(nodes[:-1][rows] + np.clip(sig, 0.0, 1.0) * h[rows]))
-    k = int(np.clip(np.searchsorted(t, last, side="right") - 1, 0, t.size - 2))
-    pair = margin(t[k:k + 2])
-    if pair[0] >= -1e-12 and pair[1] < -1e-12:
+    k = min(max(t.last_at_or_below(last), 0), t.size - 2)
+    at_k, at_k1, end = margin(np.array([t.at(k), t.at(k + 1), t.at(t.size - 1)]))
+    if end >= -1e-12:
+        return int(t.size - 1), None
+    if at_k >= -1e-12 and at_k1 < -1e-12:
         return k, last
     return None

@@ -771,6 +771,12 @@ class _Box:
     #: dual polynomials of the box's ancestors' candidates (each valid on every sub-box; the
     #: piece polynomials of every candidate are in the search's :class:`DualStore`)
     duals: tuple[DualPolynomial, ...] = field(default=(), compare=False)
+    #: the stored polynomials valid on the box when it was pushed (:meth:`DualStore.valid` and
+    #: ``duals``) and the store's size then (:meth:`DualStore.__len__`; -1: none computed): at
+    #: its pop, a store of the same size gives the same polynomials and bound, which ``bound``
+    #: already holds
+    polys: list[DualPolynomial] = field(default_factory=list, compare=False)
+    store_size: int = field(default=-1, compare=False)
 
 
 def _spec(orders: Sequence[tuple[int, int]], a: Sequence[float] | FloatArray, b: Sequence[float] | FloatArray) -> Spec:
@@ -1003,9 +1009,14 @@ class ContinuousAvoidPlanner:
             if qp.n_solves >= self.max_solves or n_boxes >= self.max_boxes:
                 break
             heapq.heappop(heap)
-            # the candidates solved since the box was pushed may bound it now
-            poly_bound, polys = bound_of(box.orders, box.lo, box.hi, box.duals)
-            bound = max(box.bound, poly_bound)
+            if box.store_size == len(store):
+                # no candidate stored since the box was pushed: its polynomials and their bound
+                # (which ``box.bound`` includes) are those of its push
+                bound, polys = box.bound, box.polys
+            else:
+                # the candidates solved since the box was pushed may bound it now
+                poly_bound, polys = bound_of(box.orders, box.lo, box.hi, box.duals)
+                bound = max(box.bound, poly_bound)
             if bound >= U - gap(U):
                 closed_bound = min(closed_bound, bound)
                 continue
@@ -1084,8 +1095,9 @@ class ContinuousAvoidPlanner:
             for lo_i, hi_i in zip(edges[:-1], edges[1:]):
                 lo, hi = box.lo.copy(), box.hi.copy()
                 lo[i], hi[i] = lo_i, hi_i
-                child_poly, _ = bound_of(box.orders, lo, hi, box.duals)
+                child_poly, child_polys = bound_of(box.orders, lo, hi, box.duals)
                 child = max(bound, child_poly)
+                known = {"polys": child_polys, "store_size": len(store)}
                 n_boxes += 1
                 if child >= U - gap(U):
                     closed_bound = min(closed_bound, child)
@@ -1094,7 +1106,7 @@ class ContinuousAvoidPlanner:
                     # within one piece: its candidate's dual polynomial will bound it (no
                     # relaxation; a box whose candidate is infeasible is bounded, or pruned, by
                     # its relaxation)
-                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals))
+                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals, **known))
                     continue
                 rel_spec = _spec(box.orders, lo, hi)
                 # the parent's relaxed optimum, when it keeps the child's rows, is the child's
@@ -1108,13 +1120,13 @@ class ContinuousAvoidPlanner:
                 elif rel.status == st.OPTIMAL:
                     child = max(child, rel.cost)
                     if child < U - gap(U):
-                        heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, rel, True, box.duals))
+                        heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, rel, True, box.duals, **known))
                     else:
                         closed_bound = min(closed_bound, child)
                 elif rel.status != st.INFEASIBLE:
                     failures.append(rel.status)
                     # an unsolved relaxation cannot prune: keep the box with its parent's bound
-                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals))
+                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals, **known))
         if best is not None and best.cost > min(closed_bound, heap[0].bound if heap else np.inf) + 1e-12 * max(
                 1.0, best.cost):
             best, best_tau = self._polish_starts(qp, store, best, best_tau, gap(best.cost))

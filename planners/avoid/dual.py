@@ -767,6 +767,11 @@ class DualStore:
         #: interval where no slope is cut (one vehicle, :meth:`add`)
         self._near: dict[int, int] = {}
 
+    def __len__(self) -> int:
+        """The number of stored polynomials (built or not): it grows with every :meth:`add` of a
+        new candidate, and :meth:`valid` depends on nothing else."""
+        return len(self._lo)
+
     def add(self, sol: Solved) -> int:
         """Store the optimal candidate ``sol`` (its ``spec`` has ``a = b = τ_c``; once per spec)
         with the region where its piece polynomial bounds ``J``; returns its position.  The
