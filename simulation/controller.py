@@ -619,9 +619,13 @@ class Controller:
         hx_e, hy_e = self._ego_half_extents()
         lane_width = self.sim.highway.lane_width
         caps = [np.inf, np.inf, np.inf, np.inf]  # speed left, right; acceleration left, right
-        for n in nbs:
+        # every neighbour's half extents in one call (elementwise: each the number of its own call)
+        HX, HY = body_half_extents(np.array([n.v(0.0) for n in nbs], dtype=float),
+                                   np.array([n.vy for n in nbs], dtype=float),
+                                   np.array([n.length for n in nbs], dtype=float),
+                                   np.array([n.width for n in nbs], dtype=float))
+        for n, hx_n, hy_n in zip(nbs, HX.tolist(), HY.tolist()):
             dx = n.x(0.0) - ego.x
-            hx_n, hy_n = (float(e) for e in body_half_extents(n.v(0.0), n.vy, n.length, n.width))
             lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, n.v(0.0), ego.vx, 2 * hx_e, p)
             # the gap one response time ahead at today's speeds (closing: the rear car faster)
             closing = (ego.vx - n.v(0.0)) if dx > 0 else (n.v(0.0) - ego.vx)

@@ -105,7 +105,7 @@ class Obstacle:
         return np.asarray(x, dtype=float), np.maximum(np.asarray(v, dtype=float), 0.0)
 
 
-def body_half_extents(vx: Any, vy: Any, length: float, width: float) -> tuple[np.ndarray, np.ndarray]:
+def body_half_extents(vx: Any, vy: Any, length: Any, width: Any) -> tuple[np.ndarray, np.ndarray]:
     """Half extents ``(h_x, h_y)`` of the axis-aligned box containing a ``length × width`` body at
     the heading of its velocity (``ψ = 0`` when it stands).
 

@@ -67,8 +67,7 @@ def roots_in_unit_interval(C: FloatArray, imag_tol: float = 1e-6) -> tuple[NDArr
     rows_in: list[NDArray[np.intp]] = []
     eig: list[NDArray[np.complex128]] = []
     dsent = deg[sent]
-    for d in np.flatnonzero(np.bincount(dsent)):  # the degrees present, ascending (numpy.unique's)
-        d = int(d)
+    for d in np.flatnonzero(np.bincount(dsent)).tolist():  # the degrees present, ascending (numpy.unique's)
         idx = sent[dsent == d]
         lead = C[idx, d]
         if d == 1:

@@ -1097,7 +1097,7 @@ class ContinuousAvoidPlanner:
                 lo[i], hi[i] = lo_i, hi_i
                 child_poly, child_polys = bound_of(box.orders, lo, hi, box.duals)
                 child = max(bound, child_poly)
-                known = {"polys": child_polys, "store_size": len(store)}
+                stored = len(store)
                 n_boxes += 1
                 if child >= U - gap(U):
                     closed_bound = min(closed_bound, child)
@@ -1106,7 +1106,8 @@ class ContinuousAvoidPlanner:
                     # within one piece: its candidate's dual polynomial will bound it (no
                     # relaxation; a box whose candidate is infeasible is bounded, or pruned, by
                     # its relaxation)
-                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals, **known))
+                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals,
+                                              child_polys, stored))
                     continue
                 rel_spec = _spec(box.orders, lo, hi)
                 # the parent's relaxed optimum, when it keeps the child's rows, is the child's
@@ -1120,13 +1121,15 @@ class ContinuousAvoidPlanner:
                 elif rel.status == st.OPTIMAL:
                     child = max(child, rel.cost)
                     if child < U - gap(U):
-                        heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, rel, True, box.duals, **known))
+                        heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, rel, True, box.duals,
+                                                  child_polys, stored))
                     else:
                         closed_bound = min(closed_bound, child)
                 elif rel.status != st.INFEASIBLE:
                     failures.append(rel.status)
                     # an unsolved relaxation cannot prune: keep the box with its parent's bound
-                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals, **known))
+                    heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals,
+                                              child_polys, stored))
         if best is not None and best.cost > min(closed_bound, heap[0].bound if heap else np.inf) + 1e-12 * max(
                 1.0, best.cost):
             best, best_tau = self._polish_starts(qp, store, best, best_tau, gap(best.cost))
