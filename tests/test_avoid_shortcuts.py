@@ -175,11 +175,11 @@ def test_leave_time_from_exact_roots_is_the_scans(seed: int, hold: str, n: int, 
 
 def test_leave_time_takes_the_exact_bracket_on_avoidance_plans() -> None:
     """On the avoidance plans of generated problems the leave time comes from the roots (no
-    scan), the scan's root to 1e-12 s."""
+    scan), the scan's root to 1e-12 s, on every half-plane."""
     from iamp.planners.avoid import check
     from iamp.planners.avoid.data import HalfPlane
 
-    taken = 0
+    taken = total = roots = 0
     for seed in range(6):
         problem = _moved(seed, 2, -4.0 if seed % 2 else 0.0, bool(seed % 3))
         plan = _loop_planner().plan(problem)
@@ -194,9 +194,14 @@ def test_leave_time_takes_the_exact_bracket_on_avoidance_plans() -> None:
                 k = check._scan_bracket(traj, plane, t,
                                         lambda x, pl=plane, tr=traj, c=col: pl.margin(x, tr.states(x)[:, c]))
                 taken += k is not None
+                total += 1
+                roots += k is not None and k[1] is not None
                 assert abs(check.leave_time(plan.trajectory, plane, problem.tf)
                            - _scan_leave_time(plan.trajectory, plane, problem.tf)) <= 1e-12
-    assert taken >= 12
+    # every half-plane of every plan takes the exact path (none falls back to the scan), and 7 of
+    # the 24 through a root inside the horizon (the others end inside their half-plane)
+    assert taken == total == 24
+    assert roots >= 7
 
 
 @settings(max_examples=300, deadline=None)

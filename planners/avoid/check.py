@@ -149,17 +149,17 @@ class KKTCheck:
 class ScanGrid:
     r"""The 1 ms scan points of :func:`leave_time`, ``numpy.linspace(0, t_f, n)`` with
     :math:`n = \max(2, \lceil t_f / 10^{-3} \rceil + 1)`, each computed when asked as
-    ``linspace`` computes it (:math:`t_k = k \cdot (t_f / (n - 1)) + 0`, the last one
-    :math:`t_f`): the exact-root path reads three of its ~10,000 points."""
+    ``linspace`` computes it (:math:`t_k = k \cdot (t_f / (n - 1))`, plus 0, which changes no bit
+    here; the last one :math:`t_f`): the exact-root path reads three of its ~10,000 points."""
 
     def __init__(self, tf: float) -> None:
         self.tf = float(tf)
         self.size = max(2, int(np.ceil(self.tf / 1e-3)) + 1)
-        self.step = (self.tf - 0.0) / (self.size - 1)
+        self.step = self.tf / (self.size - 1)
 
     def at(self, k: int) -> float:
         """Point ``k`` (``0 <= k < size``)."""
-        return self.tf if k == self.size - 1 else (k * self.step if self.step != 0.0 else 0.0) + 0.0
+        return self.tf if k == self.size - 1 else k * self.step
 
     def full(self) -> FloatArray:
         """Every point (``numpy.linspace``)."""
