@@ -293,3 +293,17 @@ def test_a_half_planes_kept_rows_are_bounded() -> None:
     assert len(rows.segments) == cont._PlaneRows.LIMIT
     rows.keep(rows.segments, (0, -1.0, 1.0), (np.ones(1), np.ones(1), np.ones(1, dtype=np.int64)))
     assert list(rows.segments) == [(0, -1.0, 1.0)] and not rows.splits
+
+
+@pytest.mark.parametrize("tf", [0.0, 1e-3, 0.0071, 1.234, 4.6, 7.0])
+def test_scan_grid_finds_every_point_of_its_grid(tf: float) -> None:
+    """:meth:`~iamp.planners.avoid.check.ScanGrid.last_at_or_below` at every point of the grid and
+    at the floats on either side of it: ``numpy.searchsorted``'s index (the first guess
+    ``x / step`` rounds either way; both corrections are needed)."""
+    from iamp.planners.avoid.check import ScanGrid
+
+    grid = ScanGrid(tf)
+    t = grid.full()
+    xs = np.concatenate((t, np.nextafter(t, -np.inf), np.nextafter(t, np.inf)))
+    got = np.array([grid.last_at_or_below(float(x)) for x in xs])
+    assert np.array_equal(got, np.searchsorted(t, xs, side="right") - 1)
