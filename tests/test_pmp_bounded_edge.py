@@ -171,6 +171,29 @@ def test_stationary_within_one_ulp() -> None:
     assert sum(np.isfinite(scan)) > 40  # the scan reaches the edge (1.8e-9 t_f away) and beyond
 
 
+def test_a_failed_solve_is_not_a_root_of_r() -> None:
+    """random_problem(186935) under an ``a_x`` box at 0.4568 of its peaks (``bounded_sweep.py --rng
+    2501``): the feasible contact times are a window ~0.01 s wide at the end of the horizon (the
+    bounded QP, N = 60 to 240, certifies every node infeasible), ``J_b`` falls from its lower edge
+    and turns 6.8e-8 s inside it.  Brent's method on ``r`` met a time whose solve failed, where
+    ``r = 0`` stands in, and took it for the root (``r = +8.7e3`` on either side; the plan was
+    ``inaccurate``, Hamiltonian-jump check 0.024); the bisection on ``r``'s sign finds the
+    stationary minimum, certified."""
+    problem = boxed(186935, 1, 0.4568230413213062, "ax")
+    assert problem is not None
+    plan = PMPPlanner().plan(problem)
+    assert plan.status == stc.OPTIMAL, (plan.status, plan.info.get("failed_check"))
+    assert plan.cost is not None and plan.cost < 1545.6486  # the plan at the false root: 1545.64864
+    t, T = float(plan.contact_times[0]), float(problem.tf)
+    edge = plan.info["search"]["edge"]
+    assert edge["side"] == "lower" and 0.0 < t - edge["t"] < 1e-6 * T
+    # independently: J_b around the contact time (the evaluator's own solves) is nowhere below it
+    ev = B._Evaluator(problem)
+    scan = [ev(np.array([t + k * 1e-9]))[0] for k in range(-60, 61)]
+    assert sum(np.isfinite(scan)) > 100
+    assert plan.cost <= min(scan) * (1 + 1e-12)
+
+
 @pytest.mark.parametrize(("seed", "scale"), [EDGE_CASES[0], EDGE_CASES[5]])
 def test_what_the_edge_cover_claims_is_infeasible(seed: int, scale: float) -> None:
     """Sampled contact times of the edge cover admit no input for the fine-grid LP either."""

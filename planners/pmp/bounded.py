@@ -1662,6 +1662,32 @@ def _r_at(ev: _Evaluator, x: float) -> float:
     return rr if math.isfinite(rr) else 0.0
 
 
+def _sign_root(ev: _Evaluator, x0: float, x1: float, tol: float) -> float:
+    """One vehicle: where ``r`` changes sign between ``x0`` and ``x1`` (whose ``r`` have opposite
+    signs), by bisection to ``tol``; a midpoint whose solve fails is replaced by the points a
+    quarter of the way to either end, and NaN is returned when all three fail (or the ends do
+    not have opposite signs)."""
+    r0, r1 = ev.r_one(float(x0)), ev.r_one(float(x1))
+    if not (math.isfinite(r0) and math.isfinite(r1) and r0 * r1 < 0):
+        return math.nan
+    a, ra, b = float(x0), r0, float(x1)
+    while abs(b - a) > tol:
+        for f in (0.5, 0.25, 0.75):
+            mid = a + f * (b - a)
+            rm = ev.r_one(mid)
+            if math.isfinite(rm):
+                break
+        else:
+            return math.nan
+        if rm == 0.0:
+            return mid
+        if (rm < 0) == (ra < 0):
+            a, ra = mid, rm
+        else:
+            b = mid
+    return 0.5 * (a + b)
+
+
 def _edge_candidate(ev: _Evaluator, T: float, edge_t: float, probe: float, side: str
                     ) -> tuple[float, str | None, tuple[str, float] | None, bool]:
     """The candidate of :func:`_search_one` where ``J_b`` falls from ``probe`` towards the edge
@@ -1687,6 +1713,16 @@ def _edge_candidate(ev: _Evaluator, T: float, edge_t: float, probe: float, side:
         if math.isfinite(root):
             a, b = root - 4e-11 * T, root + 4e-11 * T
             ra, rb = _r_at(ev, a), _r_at(ev, b)
+            if ra * rb > 0:
+                # r keeps its sign beside Brent's root: a solve there failed, and its stand-in
+                # r = 0 ended Brent's method (random_problem(186935) under an a_x box at 0.4568:
+                # 1.2e-7 s inside the lower edge, r = +8.7e3 on either side); bisection on r's
+                # sign instead, a failed solve retried a quarter of the way to either end
+                root = _sign_root(ev, probe, at, 4e-11 * T)
+                if not math.isfinite(root):
+                    return at, side, (side, edge_t), False
+                a, b = root - 4e-11 * T, root + 4e-11 * T
+                ra, rb = _r_at(ev, a), _r_at(ev, b)
             ulp = ra * rb < 0
             while ulp:
                 mid = 0.5 * (a + b)
