@@ -35,8 +35,10 @@ and :class:`~iamp.simulation.failsafe.SafeParams`' others, plus ``margin_x`` (0.
 **Horizon and end state.**  For each ``T`` of ``horizons`` (and ``crawl_horizons`` below
 ``crawl_speed``: a lane change at a crawl needs more time to stay within a car's turning radius)
 the end speed is the gap's mean
-predicted speed when its end is reachable, else the reachable speed (at ``REACH`` of the ``a_x``
-bounds, every ``speed_step``) whose end needs the least peak acceleration (:func:`gap_end`); the end point is the
+predicted speed (in a gap open ahead at least the ego's speed: ahead of a follower with no
+leader the ego need not slow to the follower's speed) when its end is reachable, else the
+reachable speed (at ``REACH`` of the ``a_x`` bounds, every ``speed_step``) whose end needs the
+least peak acceleration (:func:`gap_end`); the end point is the
 constant-acceleration point ``x_0 + (v_0 + v_f)T/2`` clipped into ``[lo + s, hi - s]``
 (``s = min(2, (hi - lo)/2)``).  A ``T`` whose interval is empty is not planned; the others are
 ranked by the peak longitudinal acceleration of the unconstrained cubic to that end state,
@@ -204,7 +206,8 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when no reachable end
     speed leaves it non-empty.
 
-    The end speed is the gap's mean predicted speed (:func:`gap_speed`) when its end point is
+    The end speed is the gap's mean predicted speed (:func:`gap_speed`; in a gap with a follower
+    and no leader at least the ego's speed) when its end point is
     reachable (the unconstrained cubic within ``reach_limits`` of the ``a_x`` bounds); otherwise
     the speed, every ``speed_step`` m/s across what ``REACH`` of the bounds reaches in ``T``,
     whose end point needs the smallest peak acceleration (:func:`peak_accel`): behind a fast
@@ -224,7 +227,13 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
         x = ego.x + (ego.vx + vxf) * T / 2 if a0 is None else continuing_end(ego, a0, T, vxf)
         return float(np.clip(x, lo + s, hi - s)), vxf
 
-    first = end_at(float(np.clip(gap_speed(ego, gap, T), v_lo, v_hi)))
+    v_gap = gap_speed(ego, gap, T)
+    if gap.follower is not None and gap.leader is None:
+        # ahead of a follower with no leader every speed above the follower's keeps the gap: the
+        # end need not slow to it (a courteous follower slowing with the ego took both ends to a
+        # stop at the on-ramp's end: onramp light 11, 29, 25004)
+        v_gap = max(v_gap, ego.vx)
+    first = end_at(float(np.clip(v_gap, v_lo, v_hi)))
     if first is not None and within_reach(ego, first, T, dcfg, cfg):
         return first
     n = max(2, int(np.ceil((v_hi - v_lo) / cfg.speed_step)) + 1)

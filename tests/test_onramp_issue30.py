@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from iamp.simulation.controller import ControllerConfig
-from iamp.simulation.decision import EgoNow, Gap, Neighbour
+from iamp.simulation.decision import REACH, EgoNow, Gap, Neighbour
 from iamp.simulation.rss import DEFAULT, safe_longitudinal_distance
 from iamp.simulation.simulator import Courtesy
 from iamp.simulation.tactical import (
@@ -24,6 +24,7 @@ from iamp.simulation.tactical import (
     rss_follow_gap,
     safe_interval,
     seek_accel,
+    within_reach,
 )
 
 W_LANE = 3.75
@@ -270,3 +271,58 @@ def test_every_horizon_continues_the_executed_acceleration(v, xf, xl, dv, a0):
     gap = Gap(_nb("f", xf, v + dv), _nb("l", xl, v - dv))
     for T, end in horizons_for(ego, gap, dcfg, tac, a0=a0):
         assert end == gap_end(ego, gap, T, dcfg, tac, a0=a0)
+
+
+def test_ahead_of_a_slower_follower_the_end_keeps_the_ego_s_speed() -> None:
+    """A gap with a follower and no leader: every speed above the follower's keeps the gap, so the
+    end speed is ``max(v_f(T), v)`` (clipped to the reachable speeds), not the follower's speed.
+    The on-ramp (light, seed 25004, 10 s): the ego at 16.4 m/s, a courteous follower 40 m behind
+    at 16.3 m/s braking with it; ending each plan at the follower's speed took both to a stop at
+    the ramp's end.  A faster follower still sets the end speed; a gap with a leader keeps its mean."""
+    dcfg, tac = ControllerConfig().decision, TacticalConfig()
+    ax = dcfg.limits.ax
+    assert ax is not None
+    ego = EgoNow(0.0, 20.0, 0.0, 0.0)
+    for vf, want in ((12.0, 20.0), (0.0, 20.0), (24.0, 24.0), (40.0, min(20.0 + REACH * ax[1] * 5.0, 40.0))):
+        end = gap_end(ego, Gap(_nb("f", -150.0, vf), None), 5.0, dcfg, tac)
+        assert end is not None and end[1] == pytest.approx(want), (vf, end)
+    both = gap_end(ego, Gap(_nb("f", -150.0, 12.0), _nb("l", 150.0, 22.0)), 5.0, dcfg, tac)
+    assert both is not None and both[1] == pytest.approx(17.0)
+    ahead_only = gap_end(ego, Gap(None, _nb("l", 150.0, 14.0)), 5.0, dcfg, tac)
+    assert ahead_only is not None and ahead_only[1] == pytest.approx(14.0)
+
+
+@settings(max_examples=80, deadline=None, derandomize=True)
+@given(st.floats(0.0, 35.0), st.floats(0.0, 35.0), st.floats(-150.0, -8.0), st.sampled_from([4.0, 5.0, 6.0, 7.0, 9.0]))
+def test_a_follower_only_gap_never_ends_below_the_ego_or_the_follower(v, vf, xf, T):
+    """Property: in a gap with a follower and no leader, the end ``gap_end`` returns lies in the gap's
+    safe interval at its speed, and where the speed ``max(v_f, v)`` clipped to the reachable speeds
+    ends within reach that is the end speed (the follower's own speed only when it is the larger)."""
+    dcfg, tac = ControllerConfig().decision, TacticalConfig()
+    ax = dcfg.limits.ax
+    assert ax is not None
+    ego = EgoNow(0.0, v, 0.0, 0.0)
+    gap = Gap(_nb("f", xf, vf), None)
+    end = gap_end(ego, gap, T, dcfg, tac)
+    want = float(np.clip(max(vf, v), np.clip(v + REACH * ax[0] * T, 0.0, dcfg.speed_cap),
+                         np.clip(v + REACH * ax[1] * T, 0.0, dcfg.speed_cap)))
+    lo, _ = safe_interval(ego, gap, want, T, tac)
+    x = float(max(v * T + (want - v) * T / 2, lo + 2.0))
+    if within_reach(ego, (x, want), T, dcfg, tac):
+        assert end is not None and end[1] == pytest.approx(want, abs=1e-12) and end[0] == pytest.approx(x)
+    if end is not None:
+        assert safe_interval(ego, gap, end[1], T, tac)[0] < end[0]
+
+
+@pytest.mark.parametrize(("seed", "planner"), [(25004, "pmp-active"), (11, "qp-avoid")])
+def test_a_courteous_follower_and_the_ego_no_longer_stop_together_at_the_ramp_s_end(seed: int, planner: str) -> None:
+    """The on-ramp in light traffic (25004: a seed no campaign uses; 11 of ``reports/campaign-safe``):
+    the target lane's follower, courteous, kept its RSS distance behind the ego and braked with it;
+    every plan ended at that follower's speed, and both came to a stop, the ego at the ramp's end
+    (a failure of every iamp planner).  Now the ego merges, safely."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="onramp", traffic="light", seed=seed, planner=planner)).summary
+    assert s["success"] and not s["stopped_at_end"]
+    assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
