@@ -373,3 +373,34 @@ def test_the_gap_term_of_a_gap_open_ahead_is_the_docstrings(v: float, vf: float,
     free = replace(cfg.idm, v0=1.1 * max(v0, 1.0)).accel(v)
     want = min(free, float(np.clip(cfg.k_speed * (v_des - v), *cfg.gap_accel)))
     assert seek_accel(ego, None, None, gap, v0, cfg) == pytest.approx(want, abs=1e-12)
+
+
+@pytest.mark.parametrize(("v", "T", "follower", "leader"),
+                         [(27.9, 5.0, ("f", -79.0, 21.5), ("l", 24.0, 27.1)),
+                          (28.1, 5.0, ("f", -83.0, 18.5), ("l", 68.0, 6.5))])
+def test_the_end_speed_grid_starts_at_v_lo_when_it_is_not_zero(v: float, T: float, follower: tuple[str, float, float],
+                                                               leader: tuple[str, float, float]) -> None:
+    """The grid of :func:`gap_end` spans ``[v_lo, v_hi]`` with ``ceil((v_hi - v_lo)/step) + 1`` points
+    also where ``v_lo = v + REACH·a_min·T`` is above zero (the grid test above has ``v_lo = 0``): the
+    end returned is a point of that grid and no point of it needs a smaller peak acceleration."""
+    dcfg, tac = ControllerConfig().decision, TacticalConfig()
+    ax = dcfg.limits.ax
+    assert ax is not None
+    ego = EgoNow(0.0, v, 0.0, 0.0)
+    gap = Gap(_nb(*follower), _nb(*leader))
+    v_lo = float(np.clip(v + REACH * ax[0] * T, 0.0, dcfg.speed_cap))
+    v_hi = float(np.clip(v + REACH * ax[1] * T, 0.0, dcfg.speed_cap))
+    assert v_lo > 0.5
+    grid = np.linspace(v_lo, v_hi, int(np.ceil((v_hi - v_lo) / tac.speed_step)) + 1)
+    end = gap_end(ego, gap, T, dcfg, tac)
+    assert end is not None
+    assert abs(end[1] - (follower[2] + leader[2]) / 2) > 0.1, "the mean speed's end was reachable"
+    assert np.min(np.abs(grid - end[1])) < 1e-12, "the end speed is not on the grid"
+    best = np.inf
+    for w in grid:
+        lo, hi = safe_interval(ego, gap, float(w), T, tac)
+        if lo < hi:
+            s = min(2.0, (hi - lo) / 2)
+            x = float(np.clip(ego.x + (ego.vx + w) * T / 2, lo + s, hi - s))
+            best = min(best, peak_accel(ego, (x, float(w)), T))
+    assert peak_accel(ego, end, T) == pytest.approx(best, abs=1e-12)
