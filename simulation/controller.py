@@ -40,6 +40,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
 
@@ -67,7 +68,7 @@ from iamp.simulation.kinematics import STEER_SHARE, start_heading
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
-from iamp.simulation.rss import longitudinal_room, safe_lateral_distance, within_rss_reach
+from iamp.simulation.rss import body_extents, longitudinal_room, safe_lateral_distance, within_rss_reach
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
@@ -130,6 +131,25 @@ def _toward(ego: EgoState, n: Neighbour) -> tuple[float, float]:
     its offset ``n.y - ego.y``; level: the right)."""
     left = n.y - ego.y > 0
     return (ego.vy, -n.vy) if left else (-ego.vy, n.vy)
+
+
+def _observed_extents(nbs: Sequence[Neighbour]) -> tuple[np.ndarray, np.ndarray]:
+    """The neighbours' half extents along and across the road as the judge measures them: the body at
+    its observed heading (:attr:`Neighbour.now`, :func:`iamp.simulation.rss.body_extents`), else at the
+    heading of its predicted velocity (:func:`~iamp.simulation.failsafe.body_half_extents`); one call
+    for all (elementwise: each the number of its own call)."""
+    L = np.array([n.length for n in nbs], dtype=float)
+    W = np.array([n.width for n in nbs], dtype=float)
+    psi = np.array([n.now[2] if n.now is not None else np.nan for n in nbs], dtype=float)
+    known = np.isfinite(psi)
+    if known.all():
+        return body_extents(L, W, psi)
+    HX, HY = body_half_extents(np.array([n.v(0.0) for n in nbs], dtype=float),
+                               np.array([n.vy for n in nbs], dtype=float), L, W)
+    if known.any():
+        hx, hy = body_extents(L, W, np.where(known, psi, 0.0))
+        HX, HY = np.where(known, hx, HX), np.where(known, hy, HY)
+    return HX, HY
 
 
 @dataclass(frozen=True)
@@ -306,7 +326,9 @@ class Controller:
                 polys[it[0]] = tuple(float(c) for c in np.linalg.solve(V, vals1[0]))
         self.n.prediction_s += time.perf_counter() - start
         y, length, width, lane = obs.y.tolist(), obs.length.tolist(), obs.width.tolist(), obs.lane.tolist()
-        return [Neighbour(obs.ids[k], polys[k], y[k], length[k], width[k], lane[k], self._vy(obs.ids[k], y[k]))
+        psi = obs.heading.tolist() if obs.heading is not None else [0.0] * len(obs.ids)
+        return [Neighbour(obs.ids[k], polys[k], y[k], length[k], width[k], lane[k], self._vy(obs.ids[k], y[k]),
+                          now=(xs[k], vs[k] * math.cos(psi[k]), psi[k]))
                 for k in near]
 
     def _vy(self, vid: str, y: float) -> float:
@@ -619,16 +641,13 @@ class Controller:
         hx_e, hy_e = self._ego_half_extents()
         lane_width = self.sim.highway.lane_width
         caps = [np.inf, np.inf, np.inf, np.inf]  # speed left, right; acceleration left, right
-        # every neighbour's half extents in one call (elementwise: each the number of its own call)
-        HX, HY = body_half_extents(np.array([n.v(0.0) for n in nbs], dtype=float),
-                                   np.array([n.vy for n in nbs], dtype=float),
-                                   np.array([n.length for n in nbs], dtype=float),
-                                   np.array([n.width for n in nbs], dtype=float))
+        HX, HY = _observed_extents(nbs)
         for n, hx_n, hy_n in zip(nbs, HX.tolist(), HY.tolist()):
-            dx = n.x(0.0) - ego.x
-            lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, n.v(0.0), ego.vx, 2 * hx_e, p)
+            x_n, v_n = n.x_now(), n.v_now()
+            dx = x_n - ego.x
+            lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, v_n, ego.vx, 2 * hx_e, p)
             # the gap one response time ahead at today's speeds (closing: the rear car faster)
-            closing = (ego.vx - n.v(0.0)) if dx > 0 else (n.v(0.0) - ego.vx)
+            closing = (ego.vx - v_n) if dx > 0 else (v_n - ego.vx)
             soon = lon_gap - max(closing, 0.0) * p.response_time_s
             if lon_gap > 0 and soon >= d_lon:
                 continue  # longitudinally safe, and still for a response time: no lateral constraint
@@ -680,19 +699,21 @@ class Controller:
         hx_e, hy_e = self._ego_half_extents()
         found: Neighbour | None = None
         for n in nbs:
-            dx = n.x(0.0) - ego.x
-            if dx <= 0.0 or (found is not None and dx >= found.x(0.0) - ego.x):
+            x_n, v_n = n.x_now(), n.v_now()
+            dx = x_n - ego.x
+            if dx <= 0.0 or (found is not None and dx >= found.x_now() - ego.x):
                 continue
             # first with the body's largest half extent at any heading (the half diagonal, plus 1 nm
             # for round-off): a gap safe with it is safe at the body's own heading
             reach = 0.5 * math.hypot(n.length, n.width) + 1e-9
-            lon_lo, d_lon = longitudinal_room(dx, 2 * reach, n.v(0.0), ego.vx, 2 * hx_e, p)
+            lon_lo, d_lon = longitudinal_room(dx, 2 * reach, v_n, ego.vx, 2 * hx_e, p)
             if lon_lo >= d_lon:
                 continue
             if abs(n.y - ego.y) - (reach + hy_e) >= float(safe_lateral_distance(*_toward(ego, n), p)):
                 continue
-            hx_n, hy_n = (float(e) for e in body_half_extents(n.v(0.0), n.vy, n.length, n.width))
-            lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, n.v(0.0), ego.vx, 2 * hx_e, p)
+            HX, HY = _observed_extents([n])
+            hx_n, hy_n = float(HX[0]), float(HY[0])
+            lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, v_n, ego.vx, 2 * hx_e, p)
             if lon_gap >= d_lon:
                 continue
             if abs(n.y - ego.y) - (hy_n + hy_e) < float(safe_lateral_distance(*_toward(ego, n), p)):

@@ -94,9 +94,22 @@ class Neighbour:
     width: float
     lane: int
     vy: float = 0.0  # observed lateral speed (one-step difference), for the body check's sweep
+    #: The observed state now, as the monitor's RSS judge measures it: centre ``x``, longitudinal
+    #: speed ``v cos ψ`` and heading ``ψ`` (SUMO's); ``None`` where only the prediction is known.
+    #: The prediction's cubic starts within about 0.5 m/s of it (a car braking at 2 m/s² while it
+    #: changed lanes behind the ego: its RSS distance 1.1 m shorter than the judge's).
+    now: tuple[float, float, float] | None = None
 
     def x(self, t: float) -> float:
         return poly_value(self.poly, t)
+
+    def x_now(self) -> float:
+        """The observed centre now (:attr:`now`), else the prediction's ``x(0)``."""
+        return self.now[0] if self.now is not None else self.x(0.0)
+
+    def v_now(self) -> float:
+        """The observed longitudinal speed now (:attr:`now`), else the prediction's ``v(0)``."""
+        return self.now[1] if self.now is not None else self.v(0.0)
 
     def v(self, t: float) -> float:
         return poly_value(self._velocity_poly, t)

@@ -229,10 +229,11 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
 
     v_gap = gap_speed(ego, gap, T)
     if gap.follower is not None and gap.leader is None:
-        # ahead of a follower with no leader every speed above the follower's keeps the gap: the
-        # end need not slow to it (a courteous follower slowing with the ego took both ends to a
-        # stop at the on-ramp's end: onramp light 11, 29, 25004)
-        v_gap = max(v_gap, ego.vx)
+        # ahead of a follower with no leader every speed above the follower's keeps the gap: a plan
+        # from a roll need not end stopped behind a stopped follower (a courteous follower braking
+        # with the ego took both to a stop at the on-ramp's end, and every plan from the ego's
+        # roll ended at the follower's standstill: onramp light 11, 29, 25004)
+        v_gap = max(v_gap, min(ego.vx, cfg.roll_speed))
     first = end_at(float(np.clip(v_gap, v_lo, v_hi)))
     if first is not None and within_reach(ego, first, T, dcfg, cfg):
         return first
