@@ -93,7 +93,11 @@ Key = tuple[str, str, str, int]
 #: is closer than RSS's distance and laterally unsafe is left (withdrawn in the origin lane, else the
 #: fail-safe), no lane change starts then and the following brakes; the tactical layer's turn bound
 #: taken at the least speed the kept ``v_x`` allows (``Controller._turn_bound``).
-EPISODE_FORMAT = "17.10"
+#: 17.11: the lateral caps and the front danger measure each neighbour's observed state as the judge
+#: does (its logged speed times ``cos ψ`` and heading, not the prediction's cubic at 0); a plan into a
+#: gap with a follower and no leader ends at least at the ego's roll, ``min(v, roll_speed)``
+#: (``tactical.gap_end``: not at a stopped follower's standstill).
+EPISODE_FORMAT = "17.11"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")
