@@ -156,6 +156,21 @@ def test_the_plan_window_grows_with_the_speed_difference_either_way() -> None:
         assert planned is (v_g != 20.0)
 
 
+def _assert_the_least_peak_of_the_grid(ego: EgoNow, gap: Gap, T: float, grid: np.ndarray, end: tuple[float, float],
+                                       cfg: TacticalConfig) -> None:
+    """``end`` is a point of ``grid`` and no speed of the grid ends (at its constant-acceleration point
+    clipped ``min(2, (hi - lo)/2)`` inside the safe interval) with a smaller peak acceleration."""
+    assert np.min(np.abs(grid - end[1])) < 1e-12, "the end speed is not on the grid"
+    best = np.inf
+    for w in grid:
+        lo, hi = safe_interval(ego, gap, float(w), T, cfg)
+        if lo < hi:
+            s = min(2.0, (hi - lo) / 2)
+            x = float(np.clip(ego.x + (ego.vx + w) * T / 2, lo + s, hi - s))
+            best = min(best, peak_accel(ego, (x, float(w)), T))
+    assert peak_accel(ego, end, T) == pytest.approx(best, abs=1e-12)
+
+
 def test_the_end_speed_grid_steps_by_speed_step_across_the_reachable_speeds() -> None:
     """When the gap's mean speed is out of reach, ``gap_end`` tries ``ceil((v_hi - v_lo)/step) + 1``
     speeds evenly from ``v_lo = max(v + REACH·a_min·T, 0)`` to ``v_hi = v + REACH·a_max·T``: with
@@ -175,15 +190,7 @@ def test_the_end_speed_grid_steps_by_speed_step_across_the_reachable_speeds() ->
     assert end is not None
     mean = float(np.mean([13.1, 5.7]))
     assert abs(end[1] - mean) > 0.1, "the mean speed's end was reachable: the grid was not searched"
-    assert np.min(np.abs(grid - end[1])) < 1e-12, "the end speed is not on the grid"
-    best = np.inf
-    for w in grid:
-        lo, hi = safe_interval(ego, gap, float(w), T, cfg)
-        if lo < hi:
-            s = min(2.0, (hi - lo) / 2)
-            x = float(np.clip(ego.x + (ego.vx + w) * T / 2, lo + s, hi - s))
-            best = min(best, peak_accel(ego, (x, float(w)), T))
-    assert peak_accel(ego, end, T) == pytest.approx(best, abs=1e-12)
+    _assert_the_least_peak_of_the_grid(ego, gap, T, grid, end, cfg)
     assert v_lo + 1e-9 < end[1] < v_hi - 1e-9  # an interior grid point (every grid holds both bounds)
 
 
@@ -395,12 +402,4 @@ def test_the_end_speed_grid_starts_at_v_lo_when_it_is_not_zero(v: float, T: floa
     end = gap_end(ego, gap, T, dcfg, tac)
     assert end is not None
     assert abs(end[1] - (follower[2] + leader[2]) / 2) > 0.1, "the mean speed's end was reachable"
-    assert np.min(np.abs(grid - end[1])) < 1e-12, "the end speed is not on the grid"
-    best = np.inf
-    for w in grid:
-        lo, hi = safe_interval(ego, gap, float(w), T, tac)
-        if lo < hi:
-            s = min(2.0, (hi - lo) / 2)
-            x = float(np.clip(ego.x + (ego.vx + w) * T / 2, lo + s, hi - s))
-            best = min(best, peak_accel(ego, (x, float(w)), T))
-    assert peak_accel(ego, end, T) == pytest.approx(best, abs=1e-12)
+    _assert_the_least_peak_of_the_grid(ego, gap, T, grid, end, tac)
