@@ -25,6 +25,7 @@ from iamp.simulation.controller import (
     Controller,
     ControllerConfig,
     LateralCaps,
+    _observed_extents,
 )
 from iamp.simulation.decision import Neighbour
 from iamp.simulation.network import Highway
@@ -120,6 +121,27 @@ def test_the_caps_measure_the_observed_state_as_the_judge_does() -> None:
     assert safe_longitudinal_float(10.0, 9.0) > 20.0 - 4.8 > safe_longitudinal_float(10.0, 12.0)
     assert c._front_danger(fast, [ahead_obs]) is ahead_obs
     assert c._front_danger(fast, [ahead_pred]) is None
+
+
+def test_the_bodies_are_at_their_observed_headings_else_at_their_predicted_velocity() -> None:
+    """:func:`_observed_extents` of a list mixing neighbours with and without an observed state: a
+    body at its observed heading where it is known (``body_extents``), else at the heading of its
+    predicted velocity now, ``atan2(v_y, v(0))`` (a cubic whose speed changes: ``v(0) = 4`` m/s, not
+    its speed a second later, 10 m/s), each the number of its own call."""
+    from iamp.simulation.failsafe import body_half_extents
+    from iamp.simulation.rss import body_extents
+
+    seen = Neighbour("seen", (0.0, 10.0), y=0.0, length=4.8, width=1.8, lane=0, vy=1.0,
+                     now=(0.0, 10.0, float(np.radians(30.0))))
+    predicted = Neighbour("pred", (0.0, 4.0, 3.0), y=0.0, length=4.6, width=2.0, lane=0, vy=2.0)
+    HX, HY = _observed_extents([seen, predicted])
+    hx, hy = body_extents(4.8, 1.8, np.radians(30.0))
+    px, py = body_half_extents(4.0, 2.0, 4.6, 2.0)
+    assert (HX[0], HY[0]) == (float(hx), float(hy))
+    assert (HX[1], HY[1]) == (float(px), float(py))
+    assert float(py) != float(body_half_extents(10.0, 2.0, 4.6, 2.0)[1])
+    # every one known, every one predicted: the same numbers one by one
+    assert _observed_extents([seen])[1][0] == HY[0] and _observed_extents([predicted])[1][0] == HY[1]
 
 
 @settings(max_examples=100, deadline=None)
