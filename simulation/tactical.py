@@ -35,8 +35,9 @@ and :class:`~iamp.simulation.failsafe.SafeParams`' others, plus ``margin_x`` (0.
 **Horizon and end state.**  For each ``T`` of ``horizons`` (and ``crawl_horizons`` below
 ``crawl_speed``: a lane change at a crawl needs more time to stay within a car's turning radius)
 the end speed is the gap's mean
-predicted speed (in a gap open ahead at least the ego's speed: ahead of a follower with no
-leader the ego need not slow to the follower's speed) when its end is reachable, else the
+predicted speed (in a gap open ahead, a follower and no leader, at least the ego's roll
+``min(v, roll_speed)``: a plan from a roll does not end at a stopped follower's standstill) when
+its end is reachable, else the
 reachable speed (at ``REACH`` of the ``a_x`` bounds, every ``speed_step``) whose end needs the
 least peak acceleration (:func:`gap_end`); the end point is the
 constant-acceleration point ``x_0 + (v_0 + v_f)T/2`` clipped into ``[lo + s, hi - s]``
@@ -207,7 +208,7 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     speed leaves it non-empty.
 
     The end speed is the gap's mean predicted speed (:func:`gap_speed`; in a gap with a follower
-    and no leader at least the ego's speed) when its end point is
+    and no leader at least the ego's roll, ``min(v, roll_speed)``) when its end point is
     reachable (the unconstrained cubic within ``reach_limits`` of the ``a_x`` bounds); otherwise
     the speed, every ``speed_step`` m/s across what ``REACH`` of the bounds reaches in ``T``,
     whose end point needs the smallest peak acceleration (:func:`peak_accel`): behind a fast
@@ -232,7 +233,7 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
         # ahead of a follower with no leader every speed above the follower's keeps the gap: a plan
         # from a roll need not end stopped behind a stopped follower (a courteous follower braking
         # with the ego took both to a stop at the on-ramp's end, and every plan from the ego's
-        # roll ended at the follower's standstill: onramp light 11, 29, 25004)
+        # roll ended at the follower's standstill: onramp light 11 and 25004)
         v_gap = max(v_gap, min(ego.vx, cfg.roll_speed))
     first = end_at(float(np.clip(v_gap, v_lo, v_hi)))
     if first is not None and within_reach(ego, first, T, dcfg, cfg):
