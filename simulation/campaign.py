@@ -97,7 +97,10 @@ Key = tuple[str, str, str, int]
 #: does (its logged speed times ``cos ψ`` and heading, not the prediction's cubic at 0); a plan into a
 #: gap with a follower and no leader ends at least at the ego's roll, ``min(v, roll_speed)``
 #: (``tactical.gap_end``: not at a stopped follower's standstill).
-EPISODE_FORMAT = "17.11"
+#: 17.12: a vehicle behind that comes into the ego's lane by its own lateral motion (a cut-in behind)
+#: keeps the RSS distance itself, as the rear of a pair that already shared the lane does
+#: (``failsafe.feasible_brakes``; the ego not moving toward it sideways).
+EPISODE_FORMAT = "17.12"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

@@ -25,8 +25,11 @@ vehicle at ``v_f`` braking at most ``b_max``:
 * **who must keep the distance** (RSS's blame): a vehicle *behind* the ego that already shared
   its lane at the first sample while the ego does not move toward it sideways is the rear of
   an existing pair — keeping the distance is its duty, the ego's is not to brake beyond
-  ``b_max`` — so no distance is required from the ego there; a vehicle *ahead* already closer
-  than ``d`` at the first sample (it cut in, or braked) must not come closer than it is now.
+  ``b_max`` — so no distance is required from the ego there; so is a vehicle behind that shares
+  no lane with the ego at the first sample and comes into its lane by its own lateral motion
+  (a cut-in behind: it moves toward the ego at more than 0.1 m/s, the ego not toward it); a
+  vehicle *ahead* already closer than ``d`` at the first sample (it cut in, or braked) must not
+  come closer than it is now.
 
 **Sharing a lane** is decided on bodies, not centre points: the ego's body at its heading
 ``ψ = atan2(v_y, v_x)`` lies inside the axis-aligned box of half extents
@@ -212,8 +215,12 @@ def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequen
             d_front = rss_distance(ve, vo, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)
             d_rear = rss_distance(vo, ve, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)
             # RSS's blame: the rear of a pair that already shared the lane keeps the distance itself
-            # (unless the ego moves toward it sideways); a leader already too close must not come closer
-            waive_rear = share[:, :1] & (u_ego <= 0.1)
+            # (unless the ego moves toward it sideways), and so does a vehicle behind that comes into
+            # the ego's lane by its own lateral motion (a cut-in behind: it shares no lane at the first
+            # sample and moves toward the ego, which does not move toward it); a leader already too
+            # close must not come closer
+            cut_in = ~share[:, :1] & (u_oth[rows] > 0.1)
+            waive_rear = (share[:, :1] | cut_in) & (u_ego <= 0.1)
             front_now = np.where(share[:, 0] & (dx[:, 0] > 0), gap[:, 0] - params.margin_x, np.inf)
             need = np.where(ahead, np.minimum(d_front, np.maximum(front_now, 0.0)[:, None]),
                             np.where(waive_rear, 0.0, d_rear))

@@ -147,6 +147,44 @@ def test_a_verified_state_keeps_the_judges_rss_distances_with_the_blame_of_rss(v
         assert why[1] == "fol"
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.floats(5, 35), st.floats(0.3, 1.0), st.floats(2, 60), st.floats(0.2, 2.0), st.sampled_from([-1.0, 1.0]),
+       st.floats(-2.0, 2.0))
+def test_a_cut_in_behind_keeps_the_distance_itself(v, frac, gap_fol, vy_fol, side, vy_ego):
+    """RSS's blame for a cut-in behind (slow-leader medium 27001: a car 49 m behind, changing into
+    the lane the ego was leaving, undid the ego's verified lane change and the fail-safe braked
+    at 6 m/s² in front of it): a vehicle one lane over that does not share the ego's lane at the
+    first sample and moves toward it sideways by its own motion comes in as the rear, and keeping
+    the distance is its duty, unless the ego moves toward it too; then the ego needs the judge's
+    ``d(v_f, v)`` wherever they share the lane, as for a lane the ego enters itself.  The follower
+    is no faster than the ego, so it stays behind (never beside)."""
+    p = SafeParams()
+    r = p.rss
+    L = 4.8
+    y = lane_centre_at(0.1)
+    v_fol = frac * v
+    t = np.linspace(0.0, 3.0, 31)
+    X = np.stack([v * t, np.full_like(t, v), np.full_like(t, y), np.full_like(t, vy_ego)], axis=1)
+    # the follower one lane over on ``side`` (+1: to the left), drifting toward the ego's lane
+    x0 = -(L / 2 + gap_fol + 2.3)
+    fol = Obstacle("fol", (x0, v_fol), y + side * W_LANE, 4.6, 1.8, vy=-side * vy_fol)
+    ok, why = feasible_brakes(t, X, np.zeros_like(t), [fol], (L, 1.8), p, X[:, 2])
+    blocked = ~ok.any(axis=1)
+    if vy_ego * side <= 0.1:  # the ego does not move toward it: the cut-in's distance is its own duty
+        assert not blocked.any()
+    else:
+        hx, _ = body_half_extents(v, vy_ego, L, 1.8)  # the ego's body at its heading, as the check takes it
+        gap = X[:, 0] - (x0 + v_fol * t) - float(hx) - 2.3
+        need = float(rss_distance(v_fol, v, r.response_time_s, r.accel_max, r.brake_min, r.brake_max)) + p.margin_x
+        assert not (blocked & (gap >= need + 1e-6)).any()  # never blocked where the distance is kept
+        assert all(w == "fol" for w, b in zip(why, blocked) if b)
+    # the same follower without lateral speed, the ego keeping its lane: never shares, never excludes
+    still = Obstacle("fol", (x0, v_fol), y + side * W_LANE, 4.6, 1.8)
+    X0 = X.copy()
+    X0[:, 3] = 0.0
+    assert feasible_brakes(t, X0, np.zeros_like(t), [still], (L, 1.8), p, X0[:, 2])[0].any(axis=1).all()
+
+
 def test_an_end_state_behind_a_slower_leader_is_not_verified():
     """The 8 unsafe end states of issue 30: a plan ending 5 m behind a slower car is rejected
     although its body never overlaps the car's."""
