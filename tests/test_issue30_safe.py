@@ -322,3 +322,19 @@ def test_a_period_of_lane_keeping_is_within_the_car_limits_and_does_not_drift_at
             assert abs(nxt.vy) <= abs(vy) + 1e-12
             if abs(vy) <= 0.15:  # within one period's lateral bound: stopped at once
                 assert nxt.vy == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("planner", ["qp-avoid", "free"])
+def test_a_cut_in_behind_no_longer_aborts_the_lane_change(planner: str) -> None:
+    """Slow-leader medium 27001 (a seed no campaign uses): 2.6 s into its verified change to the
+    left lane, a car 49 m behind in the lane to the right began to change into the lane the ego was
+    leaving; the ego's plan was then re-verified as if the ego had to keep RSS's distance to it, the
+    change was aborted and the fail-safe braked at 6 m/s² in the lane the car was entering (merged at
+    31.0 s, after the 30 s deadline, for every iamp planner).  The cut-in's distance is its own duty
+    (RSS's blame): the ego now merges in time, with no contact and no RSS time at fault."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="slow-leader", traffic="medium", seed=27001, planner=planner)).summary
+    assert s["success"] and s["aborts"] == 0
+    assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
