@@ -148,7 +148,7 @@ def test_a_verified_state_keeps_the_judges_rss_distances_with_the_blame_of_rss(v
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.floats(5, 35), st.floats(0.3, 1.0), st.floats(2, 60), st.floats(0.2, 2.0), st.sampled_from([-1.0, 1.0]),
+@given(st.floats(5, 35), st.floats(0.3, 1.0), st.floats(0.7, 60), st.floats(0.2, 2.0), st.sampled_from([-1.0, 1.0]),
        st.floats(-2.0, 2.0))
 def test_a_cut_in_behind_keeps_the_distance_itself(v, frac, gap_fol, vy_fol, side, vy_ego):
     """RSS's blame for a cut-in behind (slow-leader medium 27001: a car 49 m behind, changing into
@@ -183,6 +183,39 @@ def test_a_cut_in_behind_keeps_the_distance_itself(v, frac, gap_fol, vy_fol, sid
     X0 = X.copy()
     X0[:, 3] = 0.0
     assert feasible_brakes(t, X0, np.zeros_like(t), [still], (L, 1.8), p, X0[:, 2])[0].any(axis=1).all()
+
+
+@pytest.mark.parametrize(("vy_ego", "blocked"), [(0.0, False), (-0.5, False), (0.5, True), (1.0, True)])
+def test_a_cut_in_behind_and_the_ego_moving_toward_it(vy_ego: float, blocked: bool) -> None:
+    """A car 5 m behind at the ego's speed, one lane to the left, moving toward the ego's lane at
+    1 m/s: it keeps the distance itself while the ego keeps its lane or moves away (``vy_ego <= 0.1``
+    toward it); with the ego moving toward it too the pair is the ego's to keep, RSS's distance
+    (about 40 m at 20 m/s) is not there, and the check names the car."""
+    p = SafeParams()
+    y = lane_centre_at(0.1)
+    t = np.linspace(0.0, 2.0, 21)
+    X = np.stack([20.0 * t, np.full_like(t, 20.0), y + vy_ego * t, np.full_like(t, vy_ego)], axis=1)
+    fol = Obstacle("fol", (-(2.4 + 5.0 + 2.3), 20.0), y + W_LANE, 4.6, 1.8, vy=-1.0)
+    ok, why = feasible_brakes(t, X, np.zeros_like(t), [fol], (4.8, 1.8), p, np.full_like(t, y))
+    assert (~ok.any(axis=1)).any() == blocked
+    assert all(w in ("", "fol") for w in why) and (("fol" in why) == blocked)
+
+
+@pytest.mark.parametrize(("gap0", "closing", "excluded"), [(1.0, -0.5, False), (1.0, 0.5, True), (0.8, -0.1, False),
+                                                        (0.4, -0.5, True)])
+def test_a_leader_already_too_close_must_not_come_closer(gap0: float, closing: float, excluded: bool) -> None:
+    """A car ``gap0`` ahead in the ego's lane at the first sample, far closer than RSS's distance
+    (a cut-in ahead): the state is kept while the gap does not shrink below its first value
+    (the distance then is the first gap less the 0.5 m margin, at least 0; here it opens), and
+    excluded once it shrinks or when the first gap is already below the margin."""
+    p = SafeParams()
+    y = lane_centre_at(0.1)
+    t = np.linspace(0.0, 1.0, 11)
+    X = np.stack([20.0 * t, np.full_like(t, 20.0), np.full_like(t, y), np.zeros_like(t)], axis=1)
+    lead = Obstacle("lead", (2.4 + gap0 + 2.3, 20.0 - closing), y, 4.6, 1.8)
+    ok, why = feasible_brakes(t, X, np.zeros_like(t), [lead], (4.8, 1.8), p, X[:, 2])
+    assert (~ok.any(axis=1)).any() == excluded
+    assert ("lead" in why) == excluded
 
 
 def test_an_end_state_behind_a_slower_leader_is_not_verified():
