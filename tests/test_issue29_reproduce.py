@@ -533,3 +533,23 @@ def test_item14_a_subfolder_another_run_is_writing_is_refused(tmp_path, capsys, 
     after = _tree(out)
     after.pop("campaign-new/.iamp-lock", None)
     assert after == before
+
+
+def test_the_workers_preload_leaves_the_dask_configuration_whole() -> None:
+    """The preload's block (``_workers_ignore_ctrl_c``) sets one key of ``distributed``'s
+    configuration; run before ``distributed`` was imported, the import inside the block merged
+    its defaults under that key and the block's exit removed them all, so every later Dask cluster
+    of the process failed (``KeyError: 'distributed'``: a test starting a ``LocalCluster`` after
+    the reproduction's campaign, in the same worker).  In a fresh interpreter: the configuration
+    after the block is the one before it."""
+    pytest.importorskip("distributed")
+    code = ("import dask\n"
+            "from iamp.comparison.report.campaign import PRELOAD, _workers_ignore_ctrl_c\n"
+            "with _workers_ignore_ctrl_c():\n"
+            "    import distributed\n"
+            "    assert PRELOAD in dask.config.get('distributed.worker.preload')\n"
+            "assert dask.config.get('distributed.comm.require-encryption', default='missing') != 'missing'\n"
+            "assert PRELOAD not in (dask.config.get('distributed.worker.preload') or [])\n"
+            "print('ok')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]

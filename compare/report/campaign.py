@@ -88,6 +88,14 @@ def _workers_ignore_ctrl_c() -> Iterator[None]:
     (a worker preload, handed to the worker processes with the Dask configuration)."""
     import dask
 
+    try:
+        # distributed registers its configuration's defaults when first imported; imported inside
+        # the block, they would be merged under the key the block sets and removed with it on exit
+        # (dask.config.set deletes a key it inserted), leaving no ``distributed`` configuration for
+        # the rest of the process
+        import distributed  # noqa: F401
+    except ImportError:  # pragma: no cover - the campaign itself says which extra it needs
+        pass
     preloads = list(dask.config.get("distributed.worker.preload", default=[]) or [])
     with dask.config.set({"distributed.worker.preload": [*preloads, PRELOAD]}):
         yield
