@@ -206,7 +206,7 @@ def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequen
         share = lat_gap < np.maximum(d_lat, params.margin_y)
         rows = np.flatnonzero(share.any(axis=1))  # only vehicles that share the ego's lane at some sample
         if rows.size:
-            share, u_ego = share[rows], u_ego[rows]
+            share, u_ego, u_oth = share[rows], u_ego[rows], u_oth[rows]
             sel = [others[int(i)] for i in rows]
             xo, vo = _positions_speeds([o.poly for o in sel], t)
             dx = xo - X[:, 0]
@@ -219,8 +219,7 @@ def feasible_brakes(t: np.ndarray, X: np.ndarray, ax: np.ndarray, others: Sequen
             # the ego's lane by its own lateral motion (a cut-in behind: it shares no lane at the first
             # sample and moves toward the ego, which does not move toward it); a leader already too
             # close must not come closer
-            cut_in = ~share[:, :1] & (u_oth[rows] > 0.1)
-            waive_rear = (share[:, :1] | cut_in) & (u_ego <= 0.1)
+            waive_rear = (share[:, :1] | (u_oth > 0.1)) & (u_ego <= 0.1)
             front_now = np.where(share[:, 0] & (dx[:, 0] > 0), gap[:, 0] - params.margin_x, np.inf)
             need = np.where(ahead, np.minimum(d_front, np.maximum(front_now, 0.0)[:, None]),
                             np.where(waive_rear, 0.0, d_rear))
