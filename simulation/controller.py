@@ -22,7 +22,10 @@ A re-plan that fails the test (or, with a deadline, arrives late) is not used: t
 executing the last accepted plan if that plan's remainder keeps its body clear of the newly
 predicted bodies; otherwise it brakes in lane (``a_x = -brake``, ``a_y = -k_p(y - y_lane) -
 k_d v_y`` back to the centre of the lane it is in; ``aborts``), and after ``abort_s`` SUMO
-takes over and the ego seeks again.
+takes over and the ego seeks again.  With the safe loop (SPEC §17) the fail-safe brakes at the
+verified deceleration only where RSS asks braking or the state one period ahead without braking
+would have no verified fail-safe (:meth:`Controller._abort_now`), and ends once the ego's body is
+inside its lane's band (:meth:`Controller._in_lane`).
 
 Prediction (batched)
 --------------------
@@ -581,8 +584,12 @@ class Controller:
 
     def _in_origin_lane(self, ego: EgoState) -> bool:
         """The ego's body (at its heading, plus ``margin_y``) is still inside its origin lane's band."""
+        return self._in_lane(ego, self.origin)
+
+    def _in_lane(self, ego: EgoState, lane: int) -> bool:
+        """The ego's body (at its heading, plus ``margin_y``) is inside lane ``lane``'s band."""
         hw = self.sim.highway
-        yc = hw.lane_centre(self.origin)
+        yc = hw.lane_centre(lane)
         _, hy = body_half_extents(ego.vx, ego.vy, self.sim.ego_length, self.sim.ego_width)
         return bool(abs(ego.y - yc) + float(hy) + self.cfg.tactical.safe.margin_y < hw.lane_width / 2)
 
@@ -901,8 +908,10 @@ class Controller:
         en = self.ego_now(ego)
         if self.mode == "abort":  # the last verified fail-safe
             nxt = self._abort_now(ego, obstacles, nbs)
-            centred = abs(ego.y - self.sim.highway.lane_centre(self.fs_lane)) < 0.3 and abs(ego.vy) < 0.3
-            if centred or ego.vx < 0.5:  # back in its lane, or stopped (it cannot move sideways standing)
+            # back in its lane (the body with margin_y inside its band, the test of a withdrawn change:
+            # the tactical layer's lane keeping and IDM take over there), or stopped (it cannot move
+            # sideways standing)
+            if self._in_lane(ego, self.fs_lane) or ego.vx < 0.5:
                 if self.fs_lane == self.target:
                     self._done(t + dt)
                 else:
@@ -1026,14 +1035,45 @@ class Controller:
         return float(np.asarray(self.plan.require_trajectory().inputs(np.array([tau_u])))[0, 0])
 
     def _abort_now(self, ego: EgoState, obstacles: list[Obstacle], nbs: list[Neighbour]) -> EgoState:
-        """One period of the fail-safe (its first, and each while aborting): brake in the lane
-        ``fs_lane`` at the last verified deceleration, at least RSS's proper response."""
+        """One period of the fail-safe (its first, and each while aborting), back toward the centre
+        of the lane ``fs_lane``: brake at the last verified deceleration, at least RSS's proper
+        response; but where RSS asks no braking (:meth:`_proper_brake` is 0) and the state one
+        period ahead without braking (the tactical layer's deceleration in that lane, or none) still
+        has a verified fail-safe (:func:`~iamp.simulation.failsafe.feasible_brakes` at that state),
+        that period is driven instead (Pek & Althoff's online verification: any input whose next
+        state has a verified fail-safe may be applied; the fail-safe runs when none has).  Braking
+        to a standstill when nothing asks for it stopped the ego on the highway with cars closing
+        from behind, its lateral return slowed by RSS's lateral caps beside them (slow-leader light
+        29006: from 9.9 m/s to 0.4 m/s in 6.3 s, 1.2 m from the lane's centre, the change then late)."""
         b = self._brakes_now(ego, obstacles)
         if b is not None:
             self.fs_brake = b
-        b = max(self.fs_brake if self.fs_brake is not None else 3.5, self._proper_brake(ego, nbs))
-        return self._move(ego, -b, self.sim.highway.lane_centre(self.fs_lane), urgent=True,
-                          caps=self._lateral_caps(ego, nbs))
+        proper = self._proper_brake(ego, nbs)
+        b = max(self.fs_brake if self.fs_brake is not None else 3.5, proper)
+        y_c = self.sim.highway.lane_centre(self.fs_lane)
+        caps = self._lateral_caps(ego, nbs)
+        if proper <= 0.0:
+            stop_x = self.mission.drop_x if self.fs_lane == self.mission.ego_lane else None
+            a = min(0.0, seek_accel(self.ego_now(ego), self._rss_leader(ego, nbs), stop_x, None,
+                                    self.sim.highway.speed_limit, self.cfg.tactical, None))
+            if a > -b:
+                nxt = self._move(ego, a, y_c, caps=caps)
+                if self._failsafe_after(ego, nxt, obstacles):
+                    return nxt
+        return self._move(ego, -b, y_c, urgent=True, caps=caps)
+
+    def _failsafe_after(self, ego: EgoState, nxt: EgoState, obstacles: list[Obstacle]) -> bool:
+        """Whether the state ``nxt`` one period ahead of ``ego`` has a verified fail-safe (some
+        deceleration of :attr:`~iamp.simulation.failsafe.SafeParams.brakes` keeps every RSS distance
+        there, and stops before the lane's end while in the ending lane;
+        :func:`~iamp.simulation.failsafe.feasible_brakes` on both states, the first the sample that
+        decides which vehicles already shared the lane)."""
+        stop_x, band = self._stop()
+        X = np.array([[ego.x, ego.vx, ego.y, ego.vy], [nxt.x, nxt.vx, nxt.y, nxt.vy]])
+        yfs = np.full(2, self.sim.highway.lane_centre(self.fs_lane))
+        ok, _ = feasible_brakes(np.array([0.0, self.sim.step]), X, np.array([ego.ax, nxt.ax]), obstacles,
+                                (self.sim.ego_length, self.sim.ego_width), self.cfg.tactical.safe, yfs, stop_x, band)
+        return bool(ok[1].any())
 
     def _proper_brake(self, ego: EgoState, nbs: list[Neighbour]) -> float:
         """RSS's longitudinal proper response during the fail-safe: ``brake_min`` while the vehicle

@@ -357,6 +357,89 @@ def test_a_period_of_lane_keeping_is_within_the_car_limits_and_does_not_drift_at
                 assert nxt.vy == pytest.approx(0.0, abs=1e-12)
 
 
+def _aborting(fs_lane: int, x: float = 500.0):
+    """A controller aborting back toward lane ``fs_lane`` of the merge highway (lane 0 ends at the
+    mission's ``drop_x``), its ego body straight."""
+    ctl = _controller()
+    ctl.sim.ego_heading = 0.0
+    ctl.mode, ctl.fs_lane, ctl.fs_brake = "abort", fs_lane, None
+    return ctl
+
+
+_CAR = st.tuples(st.floats(-120, 120), st.integers(0, 2), st.floats(-1.5, 1.5), st.floats(0, 35),
+                 st.floats(-1.2, 1.2))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.floats(1.0, 30.0), st.floats(-1.6, 1.6), st.floats(-0.8, 0.8), st.floats(-3.0, 0.5),
+       st.integers(0, 1), st.floats(0.0, 900.0), st.lists(_CAR, max_size=3))
+def test_the_abort_drives_only_into_states_with_a_verified_fail_safe(vx, dy, vy, ax, fs_lane, x, cars) -> None:
+    """The fail-safe's period (:meth:`Controller._abort_now`): where it does not brake at one of the
+    fail-safe's decelerations (or harder), RSS asks no braking of the ego and the state it reaches
+    one period later still has a verified fail-safe (Pek & Althoff: an input is applied only when its
+    next state has one), the lane's end included while the ego is in the ending lane."""
+    from iamp.simulation.simulator import EgoState
+
+    ctl = _aborting(fs_lane)
+    hw = ctl.sim.highway
+    ego = EgoState(x=x, vx=vx, y=hw.lane_centre(fs_lane) + dy, vy=vy, ax=ax)
+    nbs, obstacles = [], []
+    for k, (dx, lane, off, v, lat) in enumerate(cars):
+        name, y = f"v{k}", hw.lane_centre(lane) + off
+        nbs.append(Neighbour(name, (x + dx, v), y=y, length=4.8, width=1.8, lane=lane, vy=lat))
+        obstacles.append(Obstacle(name, (x + dx, v), y, 4.8, 1.8, lat))
+    nxt = ctl._abort_now(ego, obstacles, nbs)
+    brakes = ctl.cfg.tactical.safe.brakes
+    if nxt.ax > -min(brakes) + 1e-9:
+        assert ctl._proper_brake(ego, nbs) == 0.0
+        stop_x, band = ctl._stop()
+        X = np.array([[ego.x, ego.vx, ego.y, ego.vy], [nxt.x, nxt.vx, nxt.y, nxt.vy]])
+        ok, _ = feasible_brakes(np.array([0.0, 0.1]), X, np.array([ego.ax, nxt.ax]), obstacles, (4.8, 1.8),
+                                ctl.cfg.tactical.safe, np.full(2, hw.lane_centre(fs_lane)), stop_x, band)
+        assert ok[1].any()
+
+
+def test_the_abort_does_not_brake_when_nothing_asks_for_it() -> None:
+    """Back toward a lane that does not end, nobody near: the fail-safe's period keeps the speed
+    (before, it braked at 3.5 m/s² until the ego was centred in its lane, to a standstill where
+    RSS's lateral caps slowed the return: slow-leader light 29006); toward the ending lane close to
+    its end it brakes; and behind a car closer than RSS's distance it brakes at RSS's ``brake_min``."""
+    from iamp.simulation.rss import DEFAULT
+    from iamp.simulation.simulator import EgoState
+
+    ctl = _aborting(1)
+    y1 = ctl.sim.highway.lane_centre(1)
+    ego = EgoState(x=500.0, vx=20.0, y=y1 + 1.2, vy=0.2, ax=-1.5)
+    nxt = ctl._abort_now(ego, [], [])
+    assert nxt.ax > -1.5 + 1e-9 and nxt.ax <= 0.0 and nxt.vy < ego.vy  # released (jerk-limited), returning
+    # the same state toward the ending lane, 40 m before its end at 20 m/s: it brakes
+    ctl = _aborting(0)
+    y0 = ctl.sim.highway.lane_centre(0)
+    end = ctl.mission.drop_x
+    near = EgoState(x=end - 40.0, vx=20.0, y=y0 + 1.2, vy=0.2, ax=-1.5)
+    assert ctl._abort_now(near, [], []).ax <= -1.5
+    # a car 20 m ahead in lane 1 at 10 m/s (RSS's distance about 55 m): RSS's proper response
+    ctl = _aborting(1)
+    lead = [Neighbour("lead", (520.0, 10.0), y=y1, length=4.8, width=1.8, lane=1)]
+    nxt = ctl._abort_now(ego, [Obstacle("lead", (520.0, 10.0), y1, 4.8, 1.8)], lead)
+    assert nxt.ax <= -DEFAULT.brake_min
+
+
+def test_the_aborted_change_no_longer_stops_the_ego_on_the_highway() -> None:
+    """Slow-leader light 29006 (a seed no campaign uses): 2.5 s into its change to the left lane the
+    kept plan's re-verification failed on a car closing from behind in that lane; the fail-safe then
+    braked at 1.5 m/s² until the ego was centred in its own lane, which RSS's lateral caps beside a
+    car closing in that lane slowed to 0.16 m/s: 9.9 m/s to 0.4 m/s in 6.3 s, the change then made at
+    38.1 s, after the 30 s deadline, by every iamp planner.  Braking only where the next state would
+    have no verified fail-safe, it merges in time, with no contact and no RSS time at fault."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="slow-leader", traffic="light", seed=29006, planner="qp-avoid")).summary
+    assert s["success"] and s["aborts"] >= 1 and s["time_to_merge_s"] <= 30.0
+    assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
+
+
 @pytest.mark.parametrize("planner", ["qp-avoid", "free"])
 def test_a_cut_in_behind_no_longer_aborts_the_lane_change(planner: str) -> None:
     """Slow-leader medium 27001 (a seed no campaign uses): 2.6 s into its verified change to the
