@@ -877,18 +877,24 @@ class Controller:
                 lead = n
         return lead
 
+    def _tactical_accel(self, ego: EgoState, nbs: list[Neighbour], lane: int, target: Gap | None = None) -> float:
+        """The tactical layer's longitudinal input in lane ``lane`` (:func:`~iamp.simulation.tactical.seek_accel`:
+        behind its RSS leader, the lane's end a standing obstacle while in the ending lane, and there,
+        while seeking or aborting, at most a little faster than the target lane beside the ego)."""
+        stop_x = self.mission.drop_x if lane == self.mission.ego_lane else None
+        lane_speed = None
+        if stop_x is not None and self.mode in ("seek", "abort"):  # the target lane's speed beside the ego
+            beside = [n.v(0.0) for n in nbs
+                      if n.lane == self.target and abs(n.x(0.0) - ego.x) <= self.cfg.tactical.match_m]
+            lane_speed = float(np.mean(beside)) if beside else None
+        return float(seek_accel(self.ego_now(ego), self._rss_leader(ego, nbs), stop_x, target,
+                                self.sim.highway.speed_limit, self.cfg.tactical, lane_speed))
+
     def _follow(self, ego: EgoState, nbs: list[Neighbour], target: Gap | None = None) -> EgoState:
         """The tactical IDM in the ego's lane (the lane's end a standing obstacle while in it)."""
         hw = self.sim.highway
         lane = hw.lane_of(ego.y)
-        stop_x = self.mission.drop_x if lane == self.mission.ego_lane else None
-        lane_speed = None
-        if stop_x is not None and self.mode == "seek":  # the target lane's speed beside the ego
-            beside = [n.v(0.0) for n in nbs
-                      if n.lane == self.target and abs(n.x(0.0) - ego.x) <= self.cfg.tactical.match_m]
-            lane_speed = float(np.mean(beside)) if beside else None
-        a = seek_accel(self.ego_now(ego), self._rss_leader(ego, nbs), stop_x, target, hw.speed_limit,
-                       self.cfg.tactical, lane_speed)
+        a = self._tactical_accel(ego, nbs, lane, target)
         if self._front_danger(ego, nbs) is not None:  # RSS-dangerous as the judge measures it
             a = min(a, -self.cfg.tactical.safe.rss.brake_min)
         urgent = a <= -self.cfg.tactical.safe.rss.brake_min  # RSS's proper response (or harder)
@@ -1053,9 +1059,7 @@ class Controller:
         y_c = self.sim.highway.lane_centre(self.fs_lane)
         caps = self._lateral_caps(ego, nbs)
         if proper <= 0.0:
-            stop_x = self.mission.drop_x if self.fs_lane == self.mission.ego_lane else None
-            a = min(0.0, seek_accel(self.ego_now(ego), self._rss_leader(ego, nbs), stop_x, None,
-                                    self.sim.highway.speed_limit, self.cfg.tactical, None))
+            a = min(0.0, self._tactical_accel(ego, nbs, self.fs_lane))
             if a > -b:
                 nxt = self._move(ego, a, y_c, caps=caps)
                 if self._failsafe_after(ego, nxt, obstacles):
