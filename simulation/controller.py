@@ -269,6 +269,7 @@ class Controller:
         self.leader_predictor: Any = None
         self.target_gap: tuple[str | None, str | None] | None = None
         self.fs_brake: float | None = None   # the deceleration of the last verified fail-safe
+        self.fs_braking = True  # whether the fail-safe's last period braked (:meth:`_abort_now`)
         self.fs_lane: int = self.origin
         self.prev_y: dict[str, float] = {}
         self.following = False  # iamp drives the ego in its lane (done / hold) with the tactical IDM
@@ -917,7 +918,7 @@ class Controller:
             # back in its lane (the body with margin_y inside its band, the test of a withdrawn change:
             # the tactical layer's lane keeping and IDM take over there), or stopped (it cannot move
             # sideways standing)
-            if self._in_lane(ego, self.fs_lane) or ego.vx < 0.5:
+            if self._in_lane(ego, self.fs_lane) or ego.vx < 0.5 or not self.fs_braking:
                 if self.fs_lane == self.target:
                     self._done(t + dt)
                 else:
@@ -1063,7 +1064,9 @@ class Controller:
             if a > -b:
                 nxt = self._move(ego, a, y_c, caps=caps)
                 if self._failsafe_after(ego, nxt, obstacles):
+                    self.fs_braking = False
                     return nxt
+        self.fs_braking = True
         return self._move(ego, -b, y_c, urgent=True, caps=caps)
 
     def _failsafe_after(self, ego: EgoState, nxt: EgoState, obstacles: list[Obstacle]) -> bool:
