@@ -101,8 +101,10 @@ Key = tuple[str, str, str, int]
 #: keeps the RSS distance itself, as the rear of a pair that already shared the lane does
 #: (``failsafe.feasible_brakes``; the ego not moving toward it sideways).
 #: 17.13: the fail-safe brakes only where RSS asks it or the state one period ahead without braking
-#: would have no verified fail-safe (``Controller._abort_now``), and ends once the ego's body (plus
-#: ``margin_y``) is inside its lane's band, as a withdrawn change does (``Controller._in_lane``).
+#: would have no verified fail-safe (``Controller._abort_now``), and ends (the ego seeks again, or is
+#: done in the target lane) after its first period without braking, once the ego's body (plus
+#: ``margin_y``) is inside its lane's band as a withdrawn change's is (``Controller._in_lane``), or at a
+#: standstill.
 EPISODE_FORMAT = "17.13"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",

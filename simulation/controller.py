@@ -24,8 +24,9 @@ predicted bodies; otherwise it brakes in lane (``a_x = -brake``, ``a_y = -k_p(y 
 k_d v_y`` back to the centre of the lane it is in; ``aborts``), and after ``abort_s`` SUMO
 takes over and the ego seeks again.  With the safe loop (SPEC §17) the fail-safe brakes at the
 verified deceleration only where RSS asks braking or the state one period ahead without braking
-would have no verified fail-safe (:meth:`Controller._abort_now`), and ends once the ego's body is
-inside its lane's band (:meth:`Controller._in_lane`).
+would have no verified fail-safe (:meth:`Controller._abort_now`), and ends after its first period
+without braking, once the ego's body is inside its lane's band (:meth:`Controller._in_lane`), or at a
+standstill.
 
 Prediction (batched)
 --------------------
@@ -915,9 +916,11 @@ class Controller:
         en = self.ego_now(ego)
         if self.mode == "abort":  # the last verified fail-safe
             nxt = self._abort_now(ego, obstacles, nbs)
-            # back in its lane (the body with margin_y inside its band, the test of a withdrawn change:
-            # the tactical layer's lane keeping and IDM take over there), or stopped (it cannot move
-            # sideways standing)
+            # ended after a period it did not need to brake (Pek & Althoff: the fail-safe runs while no
+            # other input keeps a verified fail-safe; from there the ego seeks again, as after a
+            # standstill, and the lane keeping returns it), back in its lane (the body with margin_y
+            # inside its band, the test of a withdrawn change), or stopped (it cannot move sideways
+            # standing)
             if self._in_lane(ego, self.fs_lane) or ego.vx < 0.5 or not self.fs_braking:
                 if self.fs_lane == self.target:
                     self._done(t + dt)
@@ -1048,7 +1051,8 @@ class Controller:
         period ahead without braking (the tactical layer's deceleration in that lane, or none) still
         has a verified fail-safe (:func:`~iamp.simulation.failsafe.feasible_brakes` at that state),
         that period is driven instead (Pek & Althoff's online verification: any input whose next
-        state has a verified fail-safe may be applied; the fail-safe runs when none has).  Braking
+        state has a verified fail-safe may be applied; the fail-safe runs when none has) and the
+        fail-safe ends after it (:attr:`fs_braking` False; :meth:`_safe_step`).  Braking
         to a standstill when nothing asks for it stopped the ego on the highway with cars closing
         from behind, its lateral return slowed by RSS's lateral caps beside them (slow-leader light
         29006: from 9.9 m/s to 0.4 m/s in 6.3 s, 1.2 m from the lane's centre, the change then late)."""

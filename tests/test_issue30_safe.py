@@ -400,8 +400,8 @@ def test_the_abort_drives_only_into_states_with_a_verified_fail_safe(vx, dy, vy,
 
 
 def test_the_abort_does_not_brake_when_nothing_asks_for_it() -> None:
-    """Back toward a lane that does not end, nobody near: the fail-safe's period keeps the speed
-    (before, it braked at 3.5 m/s² until the ego was centred in its lane, to a standstill where
+    """Back toward a lane that does not end, nobody near: the fail-safe's period keeps the speed and
+    the fail-safe ends after it (before, it braked at 3.5 m/s² until the ego was centred in its lane, to a standstill where
     RSS's lateral caps slowed the return: slow-leader light 29006); toward the ending lane close to
     its end it brakes; and behind a car closer than RSS's distance it brakes at RSS's ``brake_min``."""
     from iamp.simulation.rss import DEFAULT
@@ -412,17 +412,18 @@ def test_the_abort_does_not_brake_when_nothing_asks_for_it() -> None:
     ego = EgoState(x=500.0, vx=20.0, y=y1 + 1.2, vy=0.2, ax=-1.5)
     nxt = ctl._abort_now(ego, [], [])
     assert nxt.ax > -1.5 + 1e-9 and nxt.ax <= 0.0 and nxt.vy < ego.vy  # released (jerk-limited), returning
+    assert not ctl.fs_braking  # so the fail-safe ends after this period (the ego seeks again)
     # the same state toward the ending lane, 40 m before its end at 20 m/s: it brakes
     ctl = _aborting(0)
     y0 = ctl.sim.highway.lane_centre(0)
     end = ctl.mission.drop_x
     near = EgoState(x=end - 40.0, vx=20.0, y=y0 + 1.2, vy=0.2, ax=-1.5)
-    assert ctl._abort_now(near, [], []).ax <= -1.5
+    assert ctl._abort_now(near, [], []).ax <= -1.5 and ctl.fs_braking
     # a car 20 m ahead in lane 1 at 10 m/s (RSS's distance about 55 m): RSS's proper response
     ctl = _aborting(1)
     lead = [Neighbour("lead", (520.0, 10.0), y=y1, length=4.8, width=1.8, lane=1)]
     nxt = ctl._abort_now(ego, [Obstacle("lead", (520.0, 10.0), y1, 4.8, 1.8)], lead)
-    assert nxt.ax <= -DEFAULT.brake_min
+    assert nxt.ax <= -DEFAULT.brake_min and ctl.fs_braking
 
 
 def test_the_aborted_change_no_longer_stops_the_ego_on_the_highway() -> None:
