@@ -413,6 +413,9 @@ def test_the_abort_does_not_brake_when_nothing_asks_for_it() -> None:
     nxt = ctl._abort_now(ego, [], [])
     assert nxt.ax > -1.5 + 1e-9 and nxt.ax <= 0.0 and nxt.vy < ego.vy  # released (jerk-limited), returning
     assert not ctl.fs_braking  # so the fail-safe ends after this period (the ego seeks again)
+    # below the speed limit the tactical layer would accelerate; the fail-safe does not
+    cruising = EgoState(x=500.0, vx=20.0, y=y1 + 1.2, vy=0.2, ax=0.0)
+    assert ctl._abort_now(cruising, [], []).ax == 0.0 and not ctl.fs_braking
     # the same state toward the ending lane, 40 m before its end at 20 m/s: it brakes
     ctl = _aborting(0)
     y0 = ctl.sim.highway.lane_centre(0)
