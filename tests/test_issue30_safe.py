@@ -401,9 +401,10 @@ def test_the_abort_drives_only_into_states_with_a_verified_fail_safe(vx, dy, vy,
 
 def test_the_abort_does_not_brake_when_nothing_asks_for_it() -> None:
     """Back toward a lane that does not end, nobody near: the fail-safe's period keeps the speed and
-    the fail-safe ends after it (before, it braked at 3.5 m/s² until the ego was centred in its lane, to a standstill where
-    RSS's lateral caps slowed the return: slow-leader light 29006); toward the ending lane close to
-    its end it brakes; and behind a car closer than RSS's distance it brakes at RSS's ``brake_min``."""
+    the fail-safe ends after it (before, it braked at 3.5 m/s² until the ego was centred in its lane,
+    to a standstill where RSS's lateral caps slowed the return: slow-leader light 29006); toward the
+    ending lane close to its end it brakes; and behind a car closer than RSS's distance it brakes at
+    RSS's ``brake_min``."""
     from iamp.simulation.rss import DEFAULT
     from iamp.simulation.simulator import EgoState
 
