@@ -597,13 +597,20 @@ class Controller:
 
     def _brakes_now(self, ego: EgoState, obstacles: list[Obstacle]) -> float | None:
         """The smallest fail-safe deceleration safe from the present state (``None``: none is)."""
-        stop_x, band = self._stop()
-        X = np.array([[ego.x, ego.vx, ego.y, ego.vy]])
-        yfs = np.array([self.sim.highway.lane_centre(self.fs_lane)])
-        ok, _ = feasible_brakes(np.zeros(1), X, np.zeros(1), obstacles, (self.sim.ego_length, self.sim.ego_width),
-                                self.cfg.tactical.safe, yfs, stop_x, band)
+        ok = self._fail_safes([ego], [0.0], obstacles)
         B = np.asarray(self.cfg.tactical.safe.brakes)
         return float(B[ok[0]][0]) if ok[0].any() else None
+
+    def _fail_safes(self, states: Sequence[EgoState], ax: Sequence[float], obstacles: list[Obstacle]) -> np.ndarray:
+        """:func:`~iamp.simulation.failsafe.feasible_brakes` of the ego's ``states``, one period apart
+        from now (their longitudinal inputs ``ax``), the fail-safe keeping the lane ``fs_lane`` and
+        stopping before the lane's end while in the ending lane: which decelerations are safe at each."""
+        stop_x, band = self._stop()
+        X = np.array([[s.x, s.vx, s.y, s.vy] for s in states])
+        yfs = np.full(len(states), self.sim.highway.lane_centre(self.fs_lane))
+        ok, _ = feasible_brakes(self.sim.step * np.arange(len(states)), X, np.asarray(ax, dtype=float), obstacles,
+                                (self.sim.ego_length, self.sim.ego_width), self.cfg.tactical.safe, yfs, stop_x, band)
+        return np.asarray(ok)
 
     def _lateral_caps(self, ego: EgoState, nbs: list[Neighbour]) -> LateralCaps:
         """What RSS's lateral proper response leaves the lane keeping, per side (:class:`LateralCaps`).
@@ -1074,17 +1081,9 @@ class Controller:
         return self._move(ego, -b, y_c, urgent=True, caps=caps)
 
     def _failsafe_after(self, ego: EgoState, nxt: EgoState, obstacles: list[Obstacle]) -> bool:
-        """Whether the state ``nxt`` one period ahead of ``ego`` has a verified fail-safe (some
-        deceleration of :attr:`~iamp.simulation.failsafe.SafeParams.brakes` keeps every RSS distance
-        there, and stops before the lane's end while in the ending lane;
-        :func:`~iamp.simulation.failsafe.feasible_brakes` on both states, the first the sample that
-        decides which vehicles already shared the lane)."""
-        stop_x, band = self._stop()
-        X = np.array([[ego.x, ego.vx, ego.y, ego.vy], [nxt.x, nxt.vx, nxt.y, nxt.vy]])
-        yfs = np.full(2, self.sim.highway.lane_centre(self.fs_lane))
-        ok, _ = feasible_brakes(np.array([0.0, self.sim.step]), X, np.array([ego.ax, nxt.ax]), obstacles,
-                                (self.sim.ego_length, self.sim.ego_width), self.cfg.tactical.safe, yfs, stop_x, band)
-        return bool(ok[1].any())
+        """Whether the state ``nxt`` one period ahead of ``ego`` has a verified fail-safe
+        (:meth:`_fail_safes` of both states: the first decides which vehicles already shared the lane)."""
+        return bool(self._fail_safes([ego, nxt], [ego.ax, nxt.ax], obstacles)[1].any())
 
     def _proper_brake(self, ego: EgoState, nbs: list[Neighbour]) -> float:
         """RSS's longitudinal proper response during the fail-safe: ``brake_min`` while the vehicle
