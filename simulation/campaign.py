@@ -102,7 +102,7 @@ Key = tuple[str, str, str, int]
 #: (``failsafe.feasible_brakes``; the ego not moving toward it sideways).
 #: 17.13: the fail-safe brakes only where RSS asks it or the state one period ahead without braking
 #: would have no verified fail-safe (``Controller._abort_now``), and ends (the ego seeks again, or is
-#: done in the target lane) after its first period without braking, once the ego's body (plus
+#: done in the target lane) after its first period without braking, or once the ego's body (plus
 #: ``margin_y``) is inside its lane's band as a withdrawn change's is (``Controller._in_lane``), or at a
 #: standstill.
 EPISODE_FORMAT = "17.13"

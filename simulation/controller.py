@@ -24,9 +24,9 @@ predicted bodies; otherwise it brakes in lane (``a_x = -brake``, ``a_y = -k_p(y 
 k_d v_y`` back to the centre of the lane it is in; ``aborts``), and after ``abort_s`` SUMO
 takes over and the ego seeks again.  With the safe loop (SPEC §17) the fail-safe brakes at the
 verified deceleration only where RSS asks braking or the state one period ahead without braking
-would have no verified fail-safe (:meth:`Controller._abort_now`), and ends after its first period
-without braking, once the ego's body is inside its lane's band (:meth:`Controller._in_lane`), or at a
-standstill.
+would have no verified fail-safe (:meth:`Controller._abort_now`); it ends after its first period
+without braking, or once the ego's body is inside its lane's band (:meth:`Controller._in_lane`), or at
+a standstill.
 
 Prediction (batched)
 --------------------
