@@ -105,7 +105,10 @@ Key = tuple[str, str, str, int]
 #: done in the target lane) after its first period without braking, or once the ego's body (plus
 #: ``margin_y``) is inside its lane's band as a withdrawn change's is (``Controller._in_lane``), or at a
 #: standstill.
-EPISODE_FORMAT = "17.13"
+#: 17.14: a change committed with an open end (no follower or no leader) takes the target lane's
+#: vehicle that bounds the gap there at a re-plan, by name (``Controller._committed_gap``): a slower
+#: car ahead or a faster one behind that comes near during the change.
+EPISODE_FORMAT = "17.14"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

@@ -988,8 +988,7 @@ class Controller:
             due = t + 1e-9 >= self.next_seek
             if tf > self.cfg.min_replan_s and due:
                 self.next_seek = t + self.cfg.replan_every_s
-                by = {n.name: n for n in nbs}
-                gap = Gap(by.get(self.committed[0] or ""), by.get(self.committed[1] or ""))
+                gap = self._committed_gap(en, nbs)
                 cur = [n for n in nbs if n.lane == self.origin and n.x(0.0) > ego.x
                        and n.x(0.0) - ego.x <= cfg.relevant_m]
                 lead = min(cur, key=lambda n: n.x(0.0)) if cur else None
@@ -1037,6 +1036,40 @@ class Controller:
                 self.n.aborts += 1
                 return self._abort_now(ego, obstacles, nbs)
         return self._execute(t, dt)
+
+    def _committed_gap(self, en: EgoNow, nbs: list[Neighbour]) -> Gap:
+        """The committed gap now (SPEC §17's loop): its follower and leader by name, and where the
+        change was committed with an open end (no follower, or no leader) the target lane's vehicle
+        that bounds the gap there now.  The seek delimits gaps by the target lane's vehicles near the
+        ego (:func:`~iamp.simulation.decision.candidate_gaps`: within ``relevant_m + 40`` m or their
+        RSS reach); a slower car far ahead, or a faster one far behind, comes near during the change.
+        It then bounds the gap as it would bound a gap chosen now (the gap of the partition whose
+        named end is the committed one; with both ends open, the gap around the ego), and it stays
+        committed by name.  Before, the re-plan kept planning into the open end and ignored it, and only
+        the re-verification saw it: merge light 30004 aborted twice halfway across, behind a car
+        braking 120 m ahead and then in front of one closing from 110 m behind, and stopped at the
+        lane's end."""
+        f_name, l_name = self.committed
+        by = {n.name: n for n in nbs}
+        gap = Gap(by.get(f_name or ""), by.get(l_name or ""))
+        if f_name is not None and l_name is not None:
+            return gap
+        cfg, tac = self.cfg.decision, self.cfg.tactical
+        target = [n for n in nbs if n.lane == self.target]
+        wide = replace(cfg, max_gaps=len(target) + 1, relevant_m=cfg.relevant_m + 40.0, rss=tac.safe.rss)
+        for g in candidate_gaps(en, target, wide):
+            gf, gl = names(g)
+            if f_name is not None:
+                match = gf == f_name
+            elif l_name is not None:
+                match = gl == l_name
+            else:
+                match = ((g.follower is None or g.follower.x(0.0) <= en.x)
+                         and (g.leader is None or g.leader.x(0.0) > en.x))
+            if match:
+                self.committed = (gf, gl)
+                return g
+        return gap
 
     def _period_times(self, t: float, dt: float) -> tuple[float, float]:
         """Plan times of the period from ``t``: its end (the state :meth:`_execute` reaches, at most the

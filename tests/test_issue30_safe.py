@@ -459,3 +459,70 @@ def test_a_cut_in_behind_no_longer_aborts_the_lane_change(planner: str) -> None:
     s = run_episode(EpisodeSpec(mission="slow-leader", traffic="medium", seed=27001, planner=planner)).summary
     assert s["success"] and s["aborts"] == 0
     assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
+
+
+# -- the committed gap bounded by the cars that come near during the change ------------------------------------
+_TARGET_CAR = st.tuples(st.floats(-95, 95), st.floats(5, 35))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(_TARGET_CAR, min_size=1, max_size=5, unique_by=lambda c: round(c[0])),
+       st.lists(_TARGET_CAR, max_size=2), st.integers(0, 3), st.floats(10, 35))
+def test_an_open_end_of_the_committed_gap_takes_the_car_that_now_bounds_it(near, far, which, v) -> None:
+    """A change committed with an open end (no follower, or no leader, or neither): at each re-plan the
+    car of the target lane that now bounds the gap there joins it, by name (the cars within
+    ``relevant_m + 40`` = 100 m of the ego are the seek's; a car 600 m or more away bounds nothing).
+    The independent reference sorts the near cars by position: the leader of a committed follower is
+    the first car ahead of it, the follower of a committed leader the last car behind it; with both
+    ends open the gap is the one around the ego.  A gap committed with both ends named is kept."""
+    from iamp.simulation.decision import EgoNow as Now
+
+    ctl = _controller()
+    y1 = ctl.y_target()
+    ego = Now(500.0, v, 0.0, 0.0)
+    cars = [_nb(f"n{k}", 500.0 + dx, vc, y1) for k, (dx, vc) in enumerate(near)]
+    cars += [_nb(f"far{k}", 500.0 + (600.0 + abs(dx)) * (1 if k % 2 else -1), vc, y1) for k, (dx, vc) in enumerate(far)]
+    nbs = cars + [Neighbour("other-lane", (510.0, 20.0, 0.0, 0.0), -9.375, 4.6, 1.8, 0)]  # lane 0: not a gap's
+    ranked = sorted(cars[:len(near)], key=lambda n: n.x(0.0))
+    pick = ranked[min(which, len(ranked) - 1)]
+    ahead = [n for n in ranked if n.x(0.0) > pick.x(0.0)]
+    behind = [n for n in ranked if n.x(0.0) < pick.x(0.0)]
+    # a committed follower: its leader is the next near car ahead (None: none)
+    ctl.committed = (pick.name, None)
+    g = ctl._committed_gap(ego, nbs)
+    want = ahead[0].name if ahead else None
+    assert (g.follower.name, g.leader.name if g.leader else None) == (pick.name, want)
+    assert ctl.committed == (pick.name, want)
+    # a committed leader: its follower is the last near car behind it
+    ctl.committed = (None, pick.name)
+    g = ctl._committed_gap(ego, nbs)
+    want = behind[-1].name if behind else None
+    assert (g.follower.name if g.follower else None, g.leader.name) == (want, pick.name)
+    # both ends open: the gap around the ego
+    ctl.committed = (None, None)
+    g = ctl._committed_gap(ego, nbs)
+    f = [n for n in ranked if n.x(0.0) <= 500.0]
+    l = [n for n in ranked if n.x(0.0) > 500.0]
+    assert (g.follower.name if g.follower else None, g.leader.name if g.leader else None) == \
+        (f[-1].name if f else None, l[0].name if l else None)
+    # both ends named: kept as they are (a car between them is the re-verification's)
+    ctl.committed = (ranked[0].name, "gone")
+    g = ctl._committed_gap(ego, nbs)
+    assert g.follower is ranked[0] and g.leader is None and ctl.committed == (ranked[0].name, "gone")
+
+
+def test_the_car_that_comes_near_during_the_change_no_longer_aborts_it() -> None:
+    """Merge light 30004 (a seed no campaign uses): the change was committed behind a follower 110 m
+    back with no leader (a car braking to 15 m/s was 190 m ahead, beyond the seek's gaps).  Every
+    re-plan kept planning into the open end at 21 m/s; only the re-verification saw the car when it
+    came near, and the change was aborted halfway across — twice, the second time in front of the
+    follower — and the ego stopped at the lane's end, for every iamp planner.  That car now bounds the
+    gap from the re-plan on: the ego is in the target lane at 8.6 s, with no contact and no RSS time at
+    fault.  (0.3 s before the plan's end, its body already in the target lane, the last re-verification
+    finds the follower within RSS's distance: the fail-safe then ends at once, in the target lane.)"""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="merge", traffic="light", seed=30004, planner="qp-avoid")).summary
+    assert s["success"] and s["time_to_merge_s"] <= 9.0 and s["lane_change_done_s"] <= 12.0 and s["aborts"] <= 1
+    assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
