@@ -509,6 +509,9 @@ def test_an_open_end_of_the_committed_gap_takes_the_car_that_now_bounds_it(near,
     ctl.committed = (ranked[0].name, "gone")
     g = ctl._committed_gap(ego, nbs)
     assert g.follower is ranked[0] and g.leader is None and ctl.committed == (ranked[0].name, "gone")
+    ctl.committed = ("gone", ranked[-1].name)
+    g = ctl._committed_gap(ego, nbs)
+    assert g.follower is None and g.leader is ranked[-1] and ctl.committed == ("gone", ranked[-1].name)
 
 
 def test_the_car_that_comes_near_during_the_change_no_longer_aborts_it() -> None:
