@@ -3,19 +3,13 @@
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import load_script
 
-ROOT = Path(__file__).resolve().parents[1]
-spec = importlib.util.spec_from_file_location("campaign_merge_rows", ROOT / "scripts" / "campaign_merge_rows.py")
-assert spec is not None and spec.loader is not None
-cm = importlib.util.module_from_spec(spec)
-sys.modules["campaign_merge_rows"] = cm
-spec.loader.exec_module(cm)
+cm = load_script("campaign_merge_rows")
 
 COLUMNS = ["mission", "planner", "traffic", "seed", "success", "time_to_merge_s"]
 MANIFEST = {"episode_format": "1.0", "duration_s": 60.0, "cooperation": "default", "planners": ["a", "b", "c"],
