@@ -76,6 +76,7 @@ __all__ = [
     "safe_interval",
     "seek_accel",
     "slot_length",
+    "turn_end_speed",
     "within_reach",
 ]
 
@@ -202,8 +203,27 @@ def _end_margin(lo: float, hi: float) -> float:
     return min(2.0, (hi - lo) / 2) if np.isfinite(hi - lo) else 2.0
 
 
-def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: TacticalConfig, a0: float | None = None
-            ) -> tuple[float, float] | None:
+def turn_end_speed(dy: float, vy0: float, T: float, kappa_max: float | None) -> float:
+    r"""The least end speed [m/s] at which a lane change's last turn stays within ``kappa_max``.
+
+    The unconstrained cubic of the lateral motion from ``(0, v_{y,0})`` to ``(Δy, 0)`` over ``T``
+    ends with the lateral acceleration :math:`a_{y,f} = -6Δy/T^2 + 2 v_{y,0}/T`; arriving at
+    ``v_f`` with :math:`v_{y,f} = 0` the path's curvature there is :math:`|a_{y,f}| / v_f^2`, within
+    ``kappa_max`` for
+
+    .. math::  v_f \ge \sqrt{|a_{y,f}| / κ_{max}} .
+
+    A plan that slows to a crawling gap's speed while it still turns ends tighter than a car can
+    (merge LOS E 31003: every plan into a gap at 0.3 m/s was refused, ``kinematics``).  0 without
+    ``kappa_max``.
+    """
+    if kappa_max is None or not kappa_max > 0 or not T > 0:
+        return 0.0
+    return math.sqrt(abs(-6.0 * dy / T**2 + 2.0 * vy0 / T) / kappa_max)
+
+
+def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: TacticalConfig, a0: float | None = None,
+            v_min: float = 0.0) -> tuple[float, float] | None:
     """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when no reachable end
     speed leaves it non-empty.
 
@@ -215,10 +235,12 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     leader that pulls away and ahead of a yielding follower the gap's mean is not where the ego
     can be. With ``a0`` (a re-plan) the end point is :func:`continuing_end`'s (the plan continues
     the executed acceleration) moved into the interval; without it the constant-acceleration
-    point."""
+    point.  ``v_min`` (:func:`turn_end_speed`) raises the end speeds tried to itself where it is
+    reachable (else to the highest reachable)."""
     ax = dcfg.limits.ax or (-np.inf, np.inf)
     v_lo = float(np.clip(ego.vx + REACH * ax[0] * T, 0.0, dcfg.speed_cap))
     v_hi = float(np.clip(ego.vx + REACH * ax[1] * T, 0.0, dcfg.speed_cap))
+    v_lo = max(v_lo, min(v_min, v_hi))
 
     def end_at(vxf: float) -> tuple[float, float] | None:
         lo, hi = safe_interval(ego, gap, vxf, T, cfg)
@@ -289,7 +311,8 @@ def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfi
     for T in all_horizons(ego, cfg):
         if t_max is not None and T > t_max + 1e-9:
             continue
-        end = gap_end(ego, gap, T, dcfg, cfg, a0)
+        v_min = 0.0 if dy is None else turn_end_speed(dy, ego.vy, T, dcfg.kappa_max)
+        end = gap_end(ego, gap, T, dcfg, cfg, a0, v_min)
         if end is None:
             continue
         if not within_reach(ego, end, T, dcfg, cfg):

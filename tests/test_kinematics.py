@@ -362,3 +362,58 @@ def test_the_stop_heading_is_read_on_the_last_chord_and_a_sideways_roll_is_motio
     rolling = X.copy()  # still rolling along the road at the end: its heading is the end test's
     rolling[-1, 1], rolling[-1, 3] = 2 * MOVING_MPS, 0.0
     assert stop_heading(rolling) == 0.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(dy=st.floats(-4.0, 4.0).filter(lambda d: abs(d) > 0.05), vy0=st.floats(-1.0, 1.0),
+       T=st.floats(3.0, 15.0))
+def test_the_end_speed_keeps_a_lane_change_s_last_turn_within_a_car_s_radius(dy, vy0, T):
+    """:func:`~iamp.simulation.tactical.turn_end_speed` against the planner's own optimum: the free
+    plan that drives at that speed along the road (``x`` uniform) while its lateral motion goes from
+    ``v_{y,0}`` to ``Δy`` ends on a radius of exactly ``1 / κ_max`` (``|u_y(T)| / v²``); 10 % slower
+    it ends tighter than a car can turn, 10 % faster within its radius."""
+    from iamp.simulation.tactical import turn_end_speed
+
+    v = turn_end_speed(dy, vy0, T, KAPPA_MAX)
+    assert v >= 0.0 and turn_end_speed(dy, vy0, T, None) == 0.0
+
+    def end_curvature(speed: float) -> float:
+        b = EgoBoundary(tf=T, x0=0.0, y0=0.0, vx0=speed, vy0=vy0, xf=speed * T, yf=dy, vxf=speed, vyf=0.0)
+        u = np.asarray(free_plan(b, "free").require_trajectory().inputs(np.array([T])))[0]
+        assert abs(u[0]) <= 1e-9  # uniform along the road
+        return float(abs(u[1]) / speed**2)
+
+    if v > 1e-3:
+        assert end_curvature(v) == pytest.approx(KAPPA_MAX, rel=1e-6)
+        assert end_curvature(0.9 * v) > KAPPA_MAX and end_curvature(1.1 * v) < KAPPA_MAX
+
+
+def test_a_plan_into_a_crawling_gap_ends_no_slower_than_its_last_turn_allows():
+    """Merge LOS E 31003: beside a gap of a jammed target lane whose cars were predicted to slow to
+    0.3 m/s, every plan ended at that speed while still turning (radius 2 m at its end) and was
+    refused (``kinematics``) for 35 s.  The end speed of :func:`~iamp.simulation.tactical.gap_end`
+    is now at least ``v_min`` where it is reachable (and the end point in the gap at that speed);
+    ``horizons_for`` passes the turn's speed for each horizon."""
+    from iamp.simulation.decision import EgoNow, Gap, Neighbour
+    from iamp.simulation.tactical import TacticalConfig, gap_end, horizons_for, safe_interval, turn_end_speed
+
+    cfg, dcfg = TacticalConfig(), DecisionConfig()
+    ego = EgoNow(0.0, 1.3, 0.0, 0.0)
+    # both cars of the gap slow from 1.2 m/s at 0.066 m/s²
+    slow = lambda name, x: Neighbour(name, (x, 1.2, -0.033, 0.0), 3.75, 4.6, 1.8, 1)  # noqa: E731
+    gap = Gap(slow("f", -20.0), slow("l", 25.0))
+    T = 15.0
+    plain = gap_end(ego, gap, T, dcfg, cfg)
+    assert plain is not None and plain[1] < 0.5  # the gap's speed at T
+    v_min = turn_end_speed(3.75, 0.0, T, dcfg.kappa_max)
+    raised = gap_end(ego, gap, T, dcfg, cfg, v_min=v_min)
+    assert raised is not None and raised[1] >= v_min - 1e-12
+    lo, hi = safe_interval(ego, gap, raised[1], T, cfg)
+    assert lo <= raised[0] <= hi
+    # out of reach (v_min above every reachable speed): the highest reachable speed
+    capped = gap_end(ego, gap, 1.0, dcfg, cfg, v_min=50.0)
+    assert capped is None or capped[1] <= 1.3 + dcfg.limits.ax[1] * 1.0 + 1e-9
+    planned = horizons_for(ego, gap, dcfg, cfg, dy=3.75)
+    assert planned
+    for Tk, (_, vf) in planned:
+        assert vf >= turn_end_speed(3.75, 0.0, Tk, dcfg.kappa_max) - 1e-12
