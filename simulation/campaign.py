@@ -108,7 +108,10 @@ Key = tuple[str, str, str, int]
 #: 17.14: a change committed with an open end (no follower or no leader) takes the target lane's
 #: vehicle that bounds the gap there at a re-plan, by name (``Controller._committed_gap``): a slower
 #: car ahead or a faster one behind that comes near during the change.
-EPISODE_FORMAT = "17.14"
+#: 17.15: a plan's end speed is at least the speed at which its lane change's last turn stays within a
+#: car's turning radius where that speed is reachable (``tactical.turn_end_speed``): a plan into a
+#: crawling gap no longer ends at the gap's speed while it still turns.
+EPISODE_FORMAT = "17.15"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")
