@@ -529,3 +529,20 @@ def test_the_car_that_comes_near_during_the_change_no_longer_aborts_it() -> None
     s = run_episode(EpisodeSpec(mission="merge", traffic="light", seed=30004, planner="qp-avoid")).summary
     assert s["success"] and s["time_to_merge_s"] <= 9.0 and s["lane_change_done_s"] <= 12.0 and s["aborts"] <= 1
     assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
+
+
+def test_a_change_into_a_crawling_gap_ends_fast_enough_to_turn_within_a_car_s_radius() -> None:
+    """Merge LOS E 31003 (a seed no campaign uses): the ego, braked beside a jammed target lane, was
+    level with a gap whose cars were predicted to slow to 0.3 m/s; every plan ended at that speed
+    while still turning (a radius of about 2 m at its end) and was refused (``kinematics``) from
+    10 s to 48 s, and the ego merged at 52.1 s.  A plan's end speed is now at least the speed at
+    which its last turn stays within the turning radius (:func:`iamp.simulation.tactical.turn_end_speed`):
+    the ego merges at 14.9 s, with no contact, no RSS time at fault and no executed limit or turn
+    beyond a car's."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="merge", traffic="los-e", seed=31003, planner="qp-avoid")).summary
+    assert s["success"] and s["time_to_merge_s"] <= 16.0
+    assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
+    assert s["curvature_violations"] == 0 and s["rejected"].get("kinematics", 0) < 40

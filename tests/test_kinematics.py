@@ -376,6 +376,10 @@ def test_the_end_speed_keeps_a_lane_change_s_last_turn_within_a_car_s_radius(dy,
 
     v = turn_end_speed(dy, vy0, T, KAPPA_MAX)
     assert v >= 0.0 and turn_end_speed(dy, vy0, T, None) == 0.0
+    # no turning bound, or no time: no floor (and no division by zero)
+    assert turn_end_speed(dy, vy0, T, 0.0) == 0.0 and turn_end_speed(dy, vy0, T, -KAPPA_MAX) == 0.0
+    assert turn_end_speed(dy, vy0, 0.0, KAPPA_MAX) == 0.0 and turn_end_speed(dy, vy0, -T, KAPPA_MAX) == 0.0
+    assert turn_end_speed(dy, vy0, 1e-3, 1e-6) > 0.0
 
     def end_curvature(speed: float) -> float:
         b = EgoBoundary(tf=T, x0=0.0, y0=0.0, vx0=speed, vy0=vy0, xf=speed * T, yf=dy, vxf=speed, vyf=0.0)
