@@ -111,7 +111,10 @@ Key = tuple[str, str, str, int]
 #: 17.15: a plan's end speed is at least the speed at which its lane change's last turn stays within a
 #: car's turning radius where that speed is reachable (``tactical.turn_end_speed``): a plan into a
 #: crawling gap no longer ends at the gap's speed while it still turns.
-EPISODE_FORMAT = "17.15"
+#: 17.16: a plan into an empty target lane (a gap with neither follower nor leader) ends at the reachable
+#: speed nearest the road's speed limit (``Gap.speed``, ``Controller._with_lane_speed``), not at the
+#: ego's own speed.
+EPISODE_FORMAT = "17.16"
 #: Manifest keys that define an episode: a resumed campaign must match them.
 EPISODE_KEYS = ("episode_format", "duration_s", "period_s", "deadline_s", "warmup_s", "settle_s", "cooperation",
                 "sublane", "ego_in_forecast", "rss", "courtesy")

@@ -940,7 +940,7 @@ class Controller:
         if self.mode == "seek":
             target = [n for n in nbs if n.lane == self.target]
             wide = replace(cfg, max_gaps=10, relevant_m=cfg.relevant_m + 40.0, rss=tac.safe.rss)
-            gaps = candidate_gaps(en, target, wide)
+            gaps = [self._with_lane_speed(g) for g in candidate_gaps(en, target, wide)]
             drop = self.mission.drop_x
             x_limit = None if drop is None else drop - self.sim.ego_length
             chosen = choose_gap(en, gaps, self.target_gap, tac, x_limit)
@@ -1053,7 +1053,7 @@ class Controller:
         lane's end."""
         f_name, l_name = self.committed
         by = {n.name: n for n in nbs}
-        gap = Gap(by.get(f_name or ""), by.get(l_name or ""))
+        gap = self._with_lane_speed(Gap(by.get(f_name or ""), by.get(l_name or "")))
         if f_name is not None and l_name is not None:
             return gap
         cfg, tac = self.cfg.decision, self.cfg.tactical
@@ -1070,7 +1070,15 @@ class Controller:
                          and (g.leader is None or g.leader.x(0.0) > en.x))
             if match:
                 self.committed = (gf, gl)
-                return g
+                return self._with_lane_speed(g)
+        return gap
+
+    def _with_lane_speed(self, gap: Gap) -> Gap:
+        """``gap`` with the lane's speed where it has neither follower nor leader: the road's speed
+        limit (:class:`~iamp.simulation.decision.Gap`; a plan into an empty lane ends at the speed
+        traffic from beyond the view arrives at, as far as it can reach it)."""
+        if gap.follower is None and gap.leader is None:
+            return replace(gap, speed=float(self.sim.highway.speed_limit))
         return gap
 
     def _period_times(self, t: float, dt: float) -> tuple[float, float]:

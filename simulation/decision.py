@@ -180,8 +180,16 @@ class EgoNow:
 
 @dataclass(frozen=True)
 class Gap:
+    """A gap of the target lane: its follower and leader (None: open at that end).
+
+    ``speed`` is the lane's speed for a gap with neither [m/s] (the closed loop: the road's speed
+    limit, at which traffic from beyond the view arrives); None: the ego's own speed
+    (:func:`iamp.simulation.tactical.gap_speed`).
+    """
+
     follower: Neighbour | None
     leader: Neighbour | None
+    speed: float | None = None
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,9 @@ and :class:`~iamp.simulation.failsafe.SafeParams`' others, plus ``margin_x`` (0.
 ``crawl_speed``: a lane change at a crawl needs more time to stay within a car's turning radius)
 the end speed is the gap's mean
 predicted speed (in a gap open ahead, a follower and no leader, at least the ego's roll
-``min(v, roll_speed)``: a plan from a roll does not end at a stopped follower's standstill) when
+``min(v, roll_speed)``: a plan from a roll does not end at a stopped follower's standstill; in an
+empty lane, neither follower nor leader, the lane's speed ``Gap.speed``, the road's limit in the
+closed loop, or the reachable speed nearest it whose cubic keeps the ``a_x`` bounds) when
 its end is reachable, else the
 reachable speed (at ``REACH`` of the ``a_x`` bounds, every ``speed_step``) whose end needs the
 least peak acceleration (:func:`gap_end`); the end point is the
@@ -175,10 +177,11 @@ def slot_length(v_follower: float, v_leader: float, ego_length: float, cfg: Tact
 
 
 def gap_speed(ego: EgoNow, gap: Gap, T: float) -> float:
-    """The mean predicted speed of the gap's vehicles at ``T`` (the ego's speed for an empty gap)."""
+    """The mean predicted speed of the gap's vehicles at ``T``; for a gap with neither, the lane's
+    speed ``gap.speed`` (the ego's speed where it is None)."""
     speeds = [n.v(T) for n in (gap.follower, gap.leader) if n is not None]
     if not speeds:
-        return ego.vx
+        return ego.vx if gap.speed is None else float(gap.speed)
     if all(s != 0 for s in speeds):  # np.mean's float without the array (its sum starts at +0: zeros differ)
         return float(speeds[0]) if len(speeds) == 1 else float((speeds[0] + speeds[1]) / 2)
     return float(np.mean(speeds))
@@ -233,7 +236,9 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     the speed, every ``speed_step`` m/s across what ``REACH`` of the bounds reaches in ``T``,
     whose end point needs the smallest peak acceleration (:func:`peak_accel`): behind a fast
     leader that pulls away and ahead of a yielding follower the gap's mean is not where the ego
-    can be. With ``a0`` (a re-plan) the end point is :func:`continuing_end`'s (the plan continues
+    can be. In an empty lane (neither follower nor leader) the fallback is instead the speed
+    nearest the lane's (``gap.speed``) whose cubic keeps that reach.  With ``a0`` (a re-plan)
+    the end point is :func:`continuing_end`'s (the plan continues
     the executed acceleration) moved into the interval; without it the constant-acceleration
     point.  ``v_min`` (:func:`turn_end_speed`) raises the end speeds tried to itself where it is
     reachable (else to the highest reachable)."""
@@ -264,6 +269,13 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     ends = [e for e in (end_at(float(v)) for v in np.linspace(v_lo, v_hi, n)) if e is not None]
     if not ends:
         return first
+    if gap.follower is None and gap.leader is None:
+        # an empty lane: the reachable speed nearest the lane's (traffic from beyond the view
+        # arrives at it, and RSS's distance to a follower shrinks as the ego's end speed grows: on-ramp
+        # light 19 ended at the ramp's 19.4 m/s, and a car arriving at 32 m/s 149 m behind aborted it)
+        near = [e for e in ends if within_reach(ego, e, T, dcfg, cfg)]
+        if near:
+            return min(near, key=lambda e: abs(e[1] - v_gap))
     return min(ends, key=lambda e: peak_accel(ego, e, T))
 
 

@@ -546,3 +546,18 @@ def test_a_change_into_a_crawling_gap_ends_fast_enough_to_turn_within_a_car_s_ra
     assert s["success"] and s["time_to_merge_s"] <= 16.0
     assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
     assert s["curvature_violations"] == 0 and s["rejected"].get("kinematics", 0) < 40
+
+
+def test_an_on_ramp_change_into_an_empty_lane_ends_at_the_lane_s_speed() -> None:
+    """On-ramp light 19 (every iamp planner failed in ``reports/campaign-safe``): the first change was
+    planned at 2.4 s into the empty target lane at the ramp's 19.4 m/s, a car arriving at 32 m/s
+    149 m behind aborted it at 4.5 s, and the ego stopped at the ramp's end.  A plan into an empty
+    lane now ends at the reachable speed nearest the road's limit: the ego merges within 7 s, with no
+    abort, no contact, no RSS time at fault and no executed limit or turn beyond a car's."""
+    pytest.importorskip("libsumo")
+    from iamp.simulation.episode import EpisodeSpec, run_episode
+
+    s = run_episode(EpisodeSpec(mission="onramp", traffic="light", seed=19, planner="qp-avoid")).summary
+    assert s["success"] and s["time_to_merge_s"] <= 7.0 and s["aborts"] == 0
+    assert s["contacts"] == 0 and s["rss_dangerous_s"] == 0.0 and s["limit_violations"] == 0
+    assert s["curvature_violations"] == 0

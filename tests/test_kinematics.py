@@ -421,3 +421,40 @@ def test_a_plan_into_a_crawling_gap_ends_no_slower_than_its_last_turn_allows():
     assert planned
     for Tk, (_, vf) in planned:
         assert vf >= turn_end_speed(3.75, 0.0, Tk, dcfg.kappa_max) - 1e-12
+
+
+@settings(max_examples=60, deadline=None)
+@given(v0=st.floats(0.0, 33.0), lane=st.floats(5.0, 40.0), T=st.sampled_from([3.0, 4.0, 5.0, 6.0, 7.0, 9.0]),
+       a0=st.one_of(st.none(), st.floats(-2.0, 2.0)))
+def test_a_plan_into_an_empty_lane_ends_as_near_the_lane_s_speed_as_it_reaches(v0: float, lane: float, T: float,
+                                                                               a0: float | None) -> None:
+    """On-ramp light 19: every plan into the empty target lane ended at the ramp's 19.4 m/s, and a
+    car arriving at 32 m/s 149 m behind aborted the change (RSS's distance to a follower shrinks as
+    the ego's end speed grows).  A gap with neither follower nor leader now carries the lane's speed
+    (:class:`~iamp.simulation.decision.Gap`), and :func:`~iamp.simulation.tactical.gap_end` ends at
+    the reachable speed nearest it whose cubic keeps the ``a_x`` bounds' reach: never farther from the
+    lane's speed than the ego is, nearer whenever a speed step toward it is within reach; without a
+    lane speed, at the ego's own speed (as before)."""
+    from iamp.simulation.decision import EgoNow, Gap
+    from iamp.simulation.rss import safe_longitudinal_float
+    from iamp.simulation.tactical import TacticalConfig, gap_end, within_reach
+
+    cfg, dcfg = TacticalConfig(), DecisionConfig()
+    ego = EgoNow(0.0, v0, 0.0, 0.0)
+    own = gap_end(ego, Gap(None, None), T, dcfg, cfg, a0)
+    assert own is not None and own[1] == pytest.approx(v0, abs=1e-12)
+    end = gap_end(ego, Gap(None, None, lane), T, dcfg, cfg, a0)
+    assert end is not None
+    assert abs(end[1] - lane) <= abs(v0 - lane) + 1e-9
+    if within_reach(ego, own, T, dcfg, cfg):
+        assert within_reach(ego, end, T, dcfg, cfg)
+    # a follower at the lane's speed needs no more room behind the ego's end than at its own speed
+    p = cfg.safe.rss
+    if lane >= v0:
+        assert safe_longitudinal_float(lane, end[1], p) <= safe_longitudinal_float(lane, v0, p) + 1e-9
+    if a0 is None:  # the constant-acceleration end keeps the reach: the lane's speed, clipped to what REACH reaches
+        from iamp.simulation.decision import REACH
+
+        ax = dcfg.limits.ax
+        v_lo, v_hi = max(0.0, v0 + REACH * ax[0] * T), min(dcfg.speed_cap, v0 + REACH * ax[1] * T)
+        assert end[1] == pytest.approx(float(np.clip(lane, v_lo, v_hi)), abs=1e-9)
