@@ -452,9 +452,34 @@ def test_a_plan_into_an_empty_lane_ends_as_near_the_lane_s_speed_as_it_reaches(v
     p = cfg.safe.rss
     if lane >= v0:
         assert safe_longitudinal_float(lane, end[1], p) <= safe_longitudinal_float(lane, v0, p) + 1e-9
-    if a0 is None:  # the constant-acceleration end keeps the reach: the lane's speed, clipped to what REACH reaches
-        from iamp.simulation.decision import REACH
+    from iamp.simulation.decision import REACH
+    from iamp.simulation.tactical import continuing_end
 
-        ax = dcfg.limits.ax
-        v_lo, v_hi = max(0.0, v0 + REACH * ax[0] * T), min(dcfg.speed_cap, v0 + REACH * ax[1] * T)
+    ax = dcfg.limits.ax
+    v_lo, v_hi = max(0.0, v0 + REACH * ax[0] * T), min(dcfg.speed_cap, v0 + REACH * ax[1] * T)
+    if a0 is None:  # the constant-acceleration end keeps the reach: the lane's speed, clipped to what REACH reaches
         assert end[1] == pytest.approx(float(np.clip(lane, v_lo, v_hi)), abs=1e-9)
+    else:  # no speed of the grid whose continuing end keeps the reach is nearer the lane's
+        for v in np.linspace(v_lo, v_hi, max(2, int(np.ceil((v_hi - v_lo) / cfg.speed_step)) + 1)):
+            other = (continuing_end(ego, a0, T, float(v)), float(v))
+            if within_reach(ego, other, T, dcfg, cfg):
+                assert abs(end[1] - lane) <= abs(v - lane) + 1e-9
+
+
+def test_a_gap_with_a_vehicle_keeps_the_least_peak_end_where_its_speed_is_out_of_reach() -> None:
+    """The empty lane's rule (the reachable end speed nearest the lane's) is for a gap with neither
+    follower nor leader; a gap with one, whose speed is out of reach, keeps the end that needs the
+    least peak acceleration (:func:`~iamp.simulation.tactical.gap_end`).  A re-plan braking at 2 m/s²
+    with a follower 400 m behind at 30 m/s (its safe interval binds no end): the two rules differ."""
+    from iamp.simulation.decision import EgoNow, Gap, Neighbour
+    from iamp.simulation.tactical import TacticalConfig, gap_end, peak_accel
+
+    cfg, dcfg = TacticalConfig(), DecisionConfig()
+    ego = EgoNow(0.0, 10.0, 0.0, 0.0)
+    far = Neighbour("f", (-400.0, 30.0, 0.0, 0.0), 3.75, 4.6, 1.8, 1)
+    T, a0 = 4.0, -2.0
+    one = gap_end(ego, Gap(far, None), T, dcfg, cfg, a0)
+    empty = gap_end(ego, Gap(None, None, 30.0), T, dcfg, cfg, a0)
+    assert one is not None and empty is not None
+    assert peak_accel(ego, one, T) < peak_accel(ego, empty, T) - 1e-6
+    assert empty[1] > one[1] + cfg.speed_step / 2
