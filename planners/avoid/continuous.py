@@ -401,6 +401,9 @@ class ContinuousAvoidQP:
         self._full_vals: dict[tuple[int, int], FloatArray] = self._grid.full_vals
         self._spec_rows: dict[Spec, tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]] = {}
         self._csr64: dict[int, tuple[sp.csr_matrix, CsrArrays]] = {}
+        #: per number of Bernstein rows, the row pointers of a spec's CSR rows (:meth:`_build_spec_rows`;
+        #: read-only, shared by the specs' matrices)
+        self._ptrs: dict[int, NDArray[np.int32]] = {}
         #: per vehicle and half-plane, its rows' values and bounds (:class:`_PlaneRows`): they depend
         #: on the grid, the degree and the half-plane (its vehicle's motion, size and corner) only,
         #: so the plans of one planner keep them (``shared``, under all of these; the same arrays as
@@ -611,7 +614,11 @@ class ContinuousAvoidQP:
     def _build_spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
         vals, rhs, ids = self.bernstein_rows(spec)
         nb = ids.size
-        ptr = np.concatenate((np.arange(0, 4 * nb + 1, 4, dtype=np.int32), 4 * nb + self._lim_indptr[1:]))
+        ptr = self._ptrs.get(nb)
+        if ptr is None:  # the row pointers of nb Bernstein rows (four entries each), then the limit rows
+            ptr = self._ptrs[nb] = np.concatenate((np.arange(0, 4 * nb + 1, 4, dtype=np.int32),
+                                                   4 * nb + self._lim_indptr[1:]))
+            ptr.flags.writeable = False
         A = compressed(sp.csr_matrix, np.concatenate((vals, self._lim_data)),
                        np.concatenate((self._bern_cols[ids].ravel(), self._lim_indices)), ptr,
                        (nb + self.u_lim.size, self.data.n))
@@ -746,15 +753,22 @@ class _SolvedPoints:
     def __init__(self) -> None:
         self._seen = 0
         self._points: dict[tuple[tuple[int, int], ...], list[list[float]]] = {}
+        #: :meth:`of` per combination of orders, until it gains a point
+        self._arrays: dict[tuple[tuple[int, int], ...], FloatArray] = {}
 
     def of(self, qp: ContinuousAvoidQP, orders: tuple[tuple[int, int], ...]) -> FloatArray:
-        """The rows of crossing times solved so far with ``orders``."""
+        """The rows of crossing times solved so far with ``orders`` (read-only)."""
         for spec, r in itertools.islice(qp.solved.items(), self._seen, None):
             if r.status == st.OPTIMAL and all(a == b for _, _, a, b in spec):
-                self._points.setdefault(tuple((f, s) for f, s, _, _ in spec), []).append(
-                    [a for _, _, a, _ in spec])
+                key = tuple((f, s) for f, s, _, _ in spec)
+                self._points.setdefault(key, []).append([a for _, _, a, _ in spec])
+                self._arrays.pop(key, None)
         self._seen = len(qp.solved)
-        return np.array(self._points.get(orders, []), dtype=float).reshape(-1, len(orders))
+        out = self._arrays.get(orders)
+        if out is None:
+            out = self._arrays[orders] = np.array(self._points.get(orders, []), dtype=float).reshape(-1, len(orders))
+            out.flags.writeable = False
+        return out
 
 
 @dataclass(order=True)
@@ -994,7 +1008,7 @@ class ContinuousAvoidPlanner:
             # no incumbent (u = inf): no gap, so that U - gap(U) is inf, not inf - inf = nan (a
             # relaxation compared with nan closed every box of a search whose first candidates
             # were infeasible: "infeasible" where a crossing time was feasible)
-            return self.gap_rel * max(1.0, abs(u)) if np.isfinite(u) else 0.0
+            return self.gap_rel * max(1.0, abs(u)) if math.isfinite(u) else 0.0
 
         def bound_of(orders_: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray,
                      duals: Sequence[DualPolynomial]) -> tuple[float, list[DualPolynomial]]:
@@ -1115,7 +1129,7 @@ class ContinuousAvoidPlanner:
                     if box.own_relaxation and rel_spec not in qp.solved else None
                 if inherited is not None:
                     qp.solved[rel_spec] = inherited
-                rel = self._qp_solve(qp, rel_spec, box.relaxed, cutoff=U - gap(U) if np.isfinite(U) else None)
+                rel = self._qp_solve(qp, rel_spec, box.relaxed, cutoff=U - gap(U) if math.isfinite(U) else None)
                 if rel.status == CUTOFF:  # its bound passed U - gap before its optimum: closed
                     closed_bound = min(closed_bound, max(child, rel.cost))
                 elif rel.status == st.OPTIMAL:

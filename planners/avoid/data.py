@@ -38,6 +38,7 @@ previous one).  A relaxed row's multiplier is checked to be zero.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -62,8 +63,10 @@ class HalfPlane:
     vehicle: SurroundingVehicle
     axis: str  # "x" or "y"
 
-    @property
+    @functools.cached_property
     def sigma(self) -> float:
+        """The sign ``σ`` (module docstring's table; computed once: the half-plane and its vehicle
+        are frozen)."""
         if self.axis == "x":
             return -1.0 if self.vehicle.corner.startswith("front") else 1.0
         return 1.0 if self.vehicle.corner.endswith("lower") else -1.0

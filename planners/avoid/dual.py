@@ -93,7 +93,7 @@ ROUND_OFF_TERMS = 1e-12
 
 def piece_of(lo: float, hi: float, h: float, N: int) -> int | None:
     """The grid piece ``k`` with ``[lo, hi] ⊂ [k h, (k + 1) h]`` (to round-off), or ``None``."""
-    k = min(max(int(np.floor(lo / h + 1e-9)), 0), N - 1)
+    k = min(max(math.floor(lo / h + 1e-9), 0), N - 1)  # numpy.floor's integer, without its scalar overhead
     return k if hi <= (k + 1) * h * (1 + 1e-12) + 1e-12 else None
 
 
@@ -109,6 +109,11 @@ def fit_polynomial(values: FloatArray, degree: int) -> FloatArray:
 
 #: per degree, the Vandermonde matrix of :func:`fit_polynomial`'s samples (built once)
 _VANDER: dict[int, FloatArray] = {}
+
+
+#: :meth:`_Binding.split_rows` of a piece without a binding row (empty; writeable like the arrays it
+#: stands for, as the kernels take them)
+_NO_ROWS = np.zeros(0, dtype=np.intp)
 
 
 @dataclass(frozen=True)
@@ -139,17 +144,24 @@ class _Binding:
                                              FloatArray, FloatArray]]] = field(default_factory=dict)
     #: :meth:`DualBounds.tangent` per ``(vehicle, piece)``, computed once per solution
     tangents: dict[tuple[int, int], FloatArray] = field(default_factory=dict)
-    #: :meth:`split_rows` per ``(vehicle, half-plane axis, piece)``
+    #: :meth:`split_rows` of every ``(vehicle, half-plane axis, piece)`` with a binding row (filled
+    #: on first use)
     _split: dict[tuple[int, int, int], NDArray[np.int64]] = field(default_factory=dict)
 
     def split_rows(self, i: int, pl: int, k: int) -> NDArray[np.int64]:
         """The positions (ascending) of the binding Bernstein rows of vehicle ``i``'s half-plane
-        axis ``pl`` on piece ``k`` (computed once per solution and ``(i, pl, k)``)."""
-        out = self._split.get((i, pl, k))
-        if out is None:
-            out = self._split[(i, pl, k)] = np.flatnonzero(self.bern & (self.veh == i) & (self.plane == pl)
-                                                           & (self.piece == k))
-        return out
+        axis ``pl`` on piece ``k``: ``numpy.flatnonzero`` of those rows, every ``(i, pl, k)`` found
+        in one pass over the binding rows on first use (once per solution)."""
+        groups = self._split
+        if not groups and self.bern.any():
+            rows: dict[tuple[int, int, int], list[int]] = {}
+            for r, (b, v, a, p) in enumerate(zip(self.bern.tolist(), self.veh.tolist(), self.plane.tolist(),
+                                                 self.piece.tolist())):
+                if b:
+                    rows.setdefault((v, a, p), []).append(r)
+            groups.update((key, np.array(r, dtype=np.intp)) for key, r in rows.items())
+        out = groups.get((i, pl, k))
+        return out if out is not None else _NO_ROWS
 
 
 @dataclass(frozen=True)
@@ -251,7 +263,33 @@ def _pack(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None = 
     """``polys`` as the search kernels take them (:func:`~iamp.planners.avoid.search_kernel.polys_max`):
     their coefficients (``coefs`` in place of theirs, of the same shapes) one after the other, a row
     per polynomial (:attr:`DualPolynomial.meta`, padded to the widest), the rows' width ``W`` and the
-    largest size."""
+    largest size.  The packing of their own coefficients is kept for the next calls with the same
+    polynomials (:data:`_PACKED`: a box's children, its probe and its bound often ask for the same
+    list); ``meta`` is returned as a new array each time (the kernels overwrite its sizes with starts)."""
+    if coefs is None:
+        key = tuple(map(id, polys))
+        kept = _PACKED.get(key)
+        if kept is not None and len(kept[0]) == len(polys) and all(a is b for a, b in zip(kept[0], polys)):
+            flat, meta, W, largest = kept[1]
+            return flat, meta.copy(), W, largest
+        out = _packed(polys, None)
+        if len(_PACKED) >= _PACKED_SIZE:
+            del _PACKED[next(iter(_PACKED))]
+        _PACKED[key] = (tuple(polys), out)
+        return out[0], out[1].copy(), out[2], out[3]
+    return _packed(polys, coefs)
+
+
+#: The last packings of :func:`_pack` (of the polynomials' own coefficients), keyed by the
+#: polynomials' identities, each kept with the polynomials themselves (so that an identity is not
+#: reused while its entry lives); at most :data:`_PACKED_SIZE`, the oldest dropped.
+_PACKED: dict[tuple[int, ...], tuple[tuple[DualPolynomial, ...], tuple[FloatArray, NDArray[np.int64], int, int]]] = {}
+_PACKED_SIZE = 32
+
+
+def _packed(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None
+            ) -> tuple[FloatArray, NDArray[np.int64], int, int]:
+    """:func:`_pack`, computed."""
     metas = [dp.meta for dp in polys]
     widths = {m.size for m in metas}
     if len(widths) == 1:

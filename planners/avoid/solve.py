@@ -229,7 +229,7 @@ class RowGeneration:
                  settings: dict[str, Any] | None = None, every_row: bool = False) -> None:
         check_avoid_solver(name)
         self.name, self.P, self.settings, self.every_row = name, P, settings, every_row
-        self.A_eq = sp.csr_matrix(A_eq)
+        self.A_eq = A_eq if type(A_eq) is sp.csr_matrix else sp.csr_matrix(A_eq)  # a CSR matrix kept as it is
         self.b_eq = np.asarray(b_eq, dtype=float)
         self.pool = np.zeros(0, dtype=bool)
         self._solvers: dict[bytes, BoundSolver] = {}

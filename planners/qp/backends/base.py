@@ -37,7 +37,6 @@ relative versions divide by the largest magnitude among each expression's terms 
 from __future__ import annotations
 
 import abc
-import copy
 import functools
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
@@ -197,13 +196,22 @@ def csc_copy(M: sp.spmatrix) -> sp.csc_matrix:
     three arrays copied directly, without scipy's conversion and format checks of a matrix that
     is already one (about 3 µs instead of 13 µs): the same arrays either way."""
     if type(M) is sp.csc_matrix and M.dtype == np.float64:
-        out = copy.copy(M)
+        out = _clone(M)
         out.data, out.indices, out.indptr = M.data.copy(), M.indices.copy(), M.indptr.copy()
         for flag in ("_has_sorted_indices", "_has_canonical_format"):  # found again, as for a new matrix
             out.__dict__.pop(flag, None)
     else:
         out = sp.csc_matrix(M, dtype=float, copy=True)
     out.sort_indices()
+    return out
+
+
+def _clone(M: Any) -> Any:
+    """``copy.copy(M)`` of a scipy sparse matrix (a new object of its class sharing its attributes,
+    as ``copy.copy`` builds it from ``__reduce_ex__``: ``object.__new__``, scipy's classes defining
+    none of their own, and its ``__dict__``), without ``copy``'s dispatch (about 1 µs instead of 5 µs)."""
+    out = object.__new__(type(M))
+    out.__dict__.update(M.__dict__)
     return out
 
 
@@ -222,7 +230,7 @@ def compressed(kind: type[sp.csr_matrix] | type[sp.csc_matrix], data: FloatArray
             and indptr.dtype == np.int32 and data.ndim == indices.ndim == indptr.ndim == 1
             and indptr.size == n_ptr + 1 and data.size == indices.size and int(indptr[-1]) == indices.size
             and int(indptr[0]) == 0 and max(shape) < 2**31 - 1 and min(shape) >= 0):
-        out = copy.copy(_TEMPLATES[kind])
+        out = _clone(_TEMPLATES[kind])
         out.data, out.indices, out.indptr, out._shape = data, indices, indptr, (int(shape[0]), int(shape[1]))
         return out
     return kind((data, indices, indptr), shape=shape)
