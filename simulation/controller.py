@@ -989,7 +989,7 @@ class Controller:
             due = t + 1e-9 >= self.next_seek
             if tf > self.cfg.min_replan_s and due:
                 self.next_seek = t + self.cfg.replan_every_s
-                gap = self._committed_gap(en, nbs)
+                gap = self._with_lane_speed(self._committed_gap(en, nbs))
                 cur = [n for n in nbs if n.lane == self.origin and n.x(0.0) > ego.x
                        and n.x(0.0) - ego.x <= cfg.relevant_m]
                 lead = min(cur, key=lambda n: n.x(0.0)) if cur else None
@@ -1053,7 +1053,7 @@ class Controller:
         lane's end."""
         f_name, l_name = self.committed
         by = {n.name: n for n in nbs}
-        gap = self._with_lane_speed(Gap(by.get(f_name or ""), by.get(l_name or "")))
+        gap = Gap(by.get(f_name or ""), by.get(l_name or ""))
         if f_name is not None and l_name is not None:
             return gap
         cfg, tac = self.cfg.decision, self.cfg.tactical
@@ -1070,7 +1070,7 @@ class Controller:
                          and (g.leader is None or g.leader.x(0.0) > en.x))
             if match:
                 self.committed = (gf, gl)
-                return self._with_lane_speed(g)
+                return g
         return gap
 
     def _with_lane_speed(self, gap: Gap) -> Gap:
