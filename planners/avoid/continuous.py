@@ -102,6 +102,7 @@ from iamp.planners.avoid.dual import (
     DualBounds,
     DualPolynomial,
     DualStore,
+    Packing,
     fit_polynomial,
     max_lower_bound,
     piece_of,
@@ -886,7 +887,7 @@ class ContinuousAvoidPlanner:
     PROBE_SKIP_STEPS = 1e-4
 
     def _probe(self, box: _Box, tau: FloatArray, polys: Sequence[DualPolynomial],
-               solved: FloatArray | None, h: float) -> tuple[FloatArray, float]:
+               solved: FloatArray | None, h: float, packing: Packing | None = None) -> tuple[FloatArray, float]:
         """``tau`` with each vehicle that a polynomial of ``polys`` (valid on the box) depends on
         moved to where their largest value, the box's dual bound, is lowest on a product grid,
         and that value (``-inf`` without such a polynomial).  A grid point within
@@ -894,7 +895,8 @@ class ContinuousAvoidPlanner:
         candidates, :class:`_SolvedPoints`) is passed over unless every point is: its cost
         is known to the QPs' accuracy, and a candidate there (a box's end, beside the candidate
         moved inside the box below it, :meth:`_inside`) would only repeat it.  One vehicle (the
-        search passes ``solved`` only then: with three, the overtakes' searches took more QPs)."""
+        search passes ``solved`` only then: with three, the overtakes' searches took more QPs).
+        ``packing``: the search's :class:`~iamp.planners.avoid.dual.Packing`."""
         polys = [dp for dp in polys if dp.vehicles]
         if not polys:
             return tau, -np.inf
@@ -912,7 +914,7 @@ class ContinuousAvoidPlanner:
             line = ramp / (n - 1) * (hi_v - lo_v) + lo_v if step == 0.0 else ramp * step + lo_v
             line[-1] = hi_v
             pts[:, v] = np.repeat(np.repeat(line, n ** (k - 1 - c))[None, :], n ** c, axis=0).ravel()
-        vals = polys_values(polys, pts)
+        vals = polys_values(polys, pts, packing=packing)
         if solved is not None and len(solved):
             # a point a solved candidate (in a piece beside the box's) all but shares: its cost
             # is known to the QPs' accuracy, so the probe takes the next lowest point instead
@@ -1013,7 +1015,7 @@ class ContinuousAvoidPlanner:
         def bound_of(orders_: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray,
                      duals: Sequence[DualPolynomial]) -> tuple[float, list[DualPolynomial]]:
             polys = store.valid(orders_, lo, hi) + list(duals)
-            return max_lower_bound(polys, lo, hi), polys
+            return max_lower_bound(polys, lo, hi, store.packing), polys
 
         while heap:
             box = heap[0]
@@ -1043,7 +1045,8 @@ class ContinuousAvoidPlanner:
                 tau, margin = 0.5 * (box.lo + box.hi), np.zeros(m)
             mass = np.zeros(m)
             cand: Solved | None = None
-            probe, low = self._probe(box, tau, polys, points.of(qp, box.orders) if m == 1 else None, qp.h)
+            probe, low = self._probe(box, tau, polys, points.of(qp, box.orders) if m == 1 else None, qp.h,
+                                     store.packing)
             if low >= U - gap(U) and wide.any() and np.max(widths) > 1e-6 * qp.h:
                 # the polynomials keep the box above U - gap at every probe: only their Bernstein
                 # bound is loose, and splitting tightens it without a QP

@@ -77,8 +77,8 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["ROUND_OFF_REL", "ROUND_OFF_TERMS", "DualBounds", "DualPolynomial", "DualStore", "fit_polynomial",
-           "lower_bounds", "max_lower_bound", "piece_of"]
+__all__ = ["ROUND_OFF_REL", "ROUND_OFF_TERMS", "DualBounds", "DualPolynomial", "DualStore", "Packing",
+           "fit_polynomial", "lower_bounds", "max_lower_bound", "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
 #: point (one sparse LU solve, or a sum of columns of ``K⁻¹``, and a Bernstein transform); far
@@ -258,33 +258,45 @@ class DualPolynomial:
         return polys_values([self], np.atleast_2d(np.asarray(taus, dtype=float)), [coef])
 
 
-def _pack(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None = None
-          ) -> tuple[FloatArray, NDArray[np.int64], int, int]:
+def _pack(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None = None,
+          packing: Packing | None = None) -> tuple[FloatArray, NDArray[np.int64], int, int]:
     """``polys`` as the search kernels take them (:func:`~iamp.planners.avoid.search_kernel.polys_max`):
     their coefficients (``coefs`` in place of theirs, of the same shapes) one after the other, a row
     per polynomial (:attr:`DualPolynomial.meta`, padded to the widest), the rows' width ``W`` and the
-    largest size.  The packing of their own coefficients is kept for the next calls with the same
-    polynomials (:data:`_PACKED`: a box's children, its probe and its bound often ask for the same
-    list); ``meta`` is returned as a new array each time (the kernels overwrite its sizes with starts)."""
-    if coefs is None:
-        key = tuple(map(id, polys))
-        kept = _PACKED.get(key)
-        if kept is not None and len(kept[0]) == len(polys) and all(a is b for a, b in zip(kept[0], polys)):
-            flat, meta, W, largest = kept[1]
-            return flat, meta.copy(), W, largest
-        out = _packed(polys, None)
-        if len(_PACKED) >= _PACKED_SIZE:
-            del _PACKED[next(iter(_PACKED))]
-        _PACKED[key] = (tuple(polys), out)
-        return out[0], out[1].copy(), out[2], out[3]
+    largest size.  With ``packing`` (one search's :class:`Packing`), the packing of their own
+    coefficients is kept there for the next calls with the same polynomials (a box's children, its
+    probe and its bound often ask for the same list); ``meta`` is returned as a new array each time
+    (the kernels overwrite its sizes with starts)."""
+    if coefs is None and packing is not None:
+        flat, meta, W, largest = packing.get(polys)
+        return flat, meta.copy(), W, largest
     return _packed(polys, coefs)
 
 
-#: The last packings of :func:`_pack` (of the polynomials' own coefficients), keyed by the
-#: polynomials' identities, each kept with the polynomials themselves (so that an identity is not
-#: reused while its entry lives); at most :data:`_PACKED_SIZE`, the oldest dropped.
-_PACKED: dict[tuple[int, ...], tuple[tuple[DualPolynomial, ...], tuple[FloatArray, NDArray[np.int64], int, int]]] = {}
-_PACKED_SIZE = 32
+class Packing:
+    """One search's last packings of :func:`_pack` (of the polynomials' own coefficients), keyed by
+    the polynomials' identities, each kept with the polynomials themselves (so that an identity is
+    not reused while its entry lives); at most :attr:`SIZE`, the oldest dropped.  A pure function's
+    memo: the packed arrays are those :func:`_packed` computes (read-only here; ``meta`` is copied
+    by :func:`_pack`), so a search gives the same numbers with or without it."""
+
+    SIZE = 32
+
+    def __init__(self) -> None:
+        self._kept: dict[tuple[int, ...], tuple[tuple[DualPolynomial, ...],
+                                                tuple[FloatArray, NDArray[np.int64], int, int]]] = {}
+
+    def get(self, polys: Sequence[DualPolynomial]) -> tuple[FloatArray, NDArray[np.int64], int, int]:
+        """The packing of ``polys`` (:func:`_packed`), computed on the first call with them."""
+        key = tuple(map(id, polys))
+        kept = self._kept.get(key)
+        if kept is not None and len(kept[0]) == len(polys) and all(a is b for a, b in zip(kept[0], polys)):
+            return kept[1]
+        out = _packed(polys, None)
+        if len(self._kept) >= self.SIZE:
+            del self._kept[next(iter(self._kept))]
+        self._kept[key] = (tuple(polys), out)
+        return out
 
 
 def _packed(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None
@@ -307,12 +319,14 @@ def _packed(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None
     return flat, meta, W, int(meta[:, 2].max())
 
 
-def polys_values(polys: list[DualPolynomial], taus: FloatArray, coefs: list[FloatArray] | None = None) -> FloatArray:
+def polys_values(polys: list[DualPolynomial], taus: FloatArray, coefs: list[FloatArray] | None = None,
+                 packing: Packing | None = None) -> FloatArray:
     """At each row of ``taus`` (crossing times, shape ``(T, m)``; every polynomial vehicle's time in
     its piece), the largest value of the polynomials ``polys`` (``coefs``: their coefficients in
     place of ``coef``, of the same shapes, e.g. a derivative's):
-    :func:`~iamp.planners.avoid.search_kernel.polys_max`, the one evaluation of these polynomials."""
-    flat, meta, W, largest = _pack(polys, coefs)
+    :func:`~iamp.planners.avoid.search_kernel.polys_max`, the one evaluation of these polynomials
+    (``packing``: the search's :class:`Packing`)."""
+    flat, meta, W, largest = _pack(polys, coefs, packing)
     out = np.empty(taus.shape[0])
     _run("polys_max", search_kernel)(flat, meta, W, float(polys[0].h), taus, out, np.empty(W), np.empty(largest))
     return out
@@ -371,7 +385,8 @@ def lower_bounds(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) ->
 MAX_BOUND_FIRST = 8
 
 
-def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray) -> float:
+def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray,
+                    packing: Packing | None = None) -> float:
     r"""The largest of :func:`lower_bounds` (``-inf`` without polynomials; a NaN bound proves nothing
     and counts as ``-inf``), bounding only the polynomials that can reach it
     (:func:`~iamp.planners.avoid.search_kernel.max_poly_bound`).
@@ -384,10 +399,11 @@ def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray)
     best bound so far are bounded too.  The result is the maximum over all of them, the same
     number: a polynomial left out cannot exceed it.  (A box of a long search is covered by
     hundreds of stored polynomials, whose bounds had made the search quadratic in its QPs.)
+    ``packing``: the search's :class:`Packing`.
     """
     if not polys:
         return -np.inf
-    flat, meta, W, largest = _pack(polys)
+    flat, meta, W, largest = _pack(polys, None, packing)
     n = int(meta[:, 1].max())
     work, spare, pw_a, R, kept, lam, est, chosen = _space(largest, n, W, len(polys))
     return float(_run("max_poly_bound", search_kernel)(
@@ -804,6 +820,8 @@ class DualStore:
         #: per stored candidate (its position), the position of its tangent polynomial on the
         #: interval where no slope is cut (one vehicle, :meth:`add`)
         self._near: dict[int, int] = {}
+        #: the search's packings of polynomial lists for the bound and probe kernels (:class:`Packing`)
+        self.packing = Packing()
 
     def __len__(self) -> int:
         """The number of stored polynomials (built or not): it grows with every :meth:`add` of a
