@@ -84,7 +84,6 @@ from iamp.simulation.tactical import (
     proper_response,
     rss_regions,
     seek_accel,
-    turn_end_speed,
 )
 
 #: The share of the jerk bound the tactical layer's inputs use (:meth:`Controller._move`).
@@ -993,8 +992,7 @@ class Controller:
                 cur = [n for n in nbs if n.lane == self.origin and n.x(0.0) > ego.x
                        and n.x(0.0) - ego.x <= cfg.relevant_m]
                 lead = min(cur, key=lambda n: n.x(0.0)) if cur else None
-                end = gap_end(en, gap, tf, cfg, tac, a0=ego.ax,
-                              v_min=turn_end_speed(self.y_target() - ego.y, ego.vy, tf, cfg.kappa_max))
+                end = gap_end(en, gap, tf, cfg, tac, a0=ego.ax, dy=self.y_target() - ego.y)
                 reason = "no-safe-end"
                 if end is not None:
                     dcfg = replace(cfg, horizon_s=tf)

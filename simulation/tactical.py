@@ -226,7 +226,7 @@ def turn_end_speed(dy: float, vy0: float, T: float, kappa_max: float | None) -> 
 
 
 def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: TacticalConfig, a0: float | None = None,
-            v_min: float = 0.0) -> tuple[float, float] | None:
+            dy: float | None = None) -> tuple[float, float] | None:
     """``(x_f, v_{x,f})`` inside ``gap``'s safe interval at ``T``, or ``None`` when no reachable end
     speed leaves it non-empty.
 
@@ -240,8 +240,10 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     nearest the lane's (``gap.speed``) whose cubic keeps that reach.  With ``a0`` (a re-plan)
     the end point is :func:`continuing_end`'s (the plan continues
     the executed acceleration) moved into the interval; without it the constant-acceleration
-    point.  ``v_min`` (:func:`turn_end_speed`) raises the end speeds tried to itself where it is
-    reachable (else to the highest reachable)."""
+    point.  With ``dy`` (the lateral distance to the target lane's centre), the least end speed of
+    the last turn, ``v_min = turn_end_speed(dy, ego.vy, T, dcfg.kappa_max)``, raises the end speeds
+    tried to itself where it is reachable (else to the highest reachable)."""
+    v_min = 0.0 if dy is None else turn_end_speed(dy, ego.vy, T, dcfg.kappa_max)
     ax = dcfg.limits.ax or (-np.inf, np.inf)
     v_lo = float(np.clip(ego.vx + REACH * ax[0] * T, 0.0, dcfg.speed_cap))
     v_hi = float(np.clip(ego.vx + REACH * ax[1] * T, 0.0, dcfg.speed_cap))
@@ -323,8 +325,7 @@ def horizons_for(ego: EgoNow, gap: Gap, dcfg: DecisionConfig, cfg: TacticalConfi
     for T in all_horizons(ego, cfg):
         if t_max is not None and T > t_max + 1e-9:
             continue
-        v_min = 0.0 if dy is None else turn_end_speed(dy, ego.vy, T, dcfg.kappa_max)
-        end = gap_end(ego, gap, T, dcfg, cfg, a0, v_min)
+        end = gap_end(ego, gap, T, dcfg, cfg, a0, dy)
         if end is None:
             continue
         if not within_reach(ego, end, T, dcfg, cfg):

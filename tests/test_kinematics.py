@@ -396,8 +396,8 @@ def test_a_plan_into_a_crawling_gap_ends_no_slower_than_its_last_turn_allows():
     """Merge LOS E 31003: beside a gap of a jammed target lane whose cars were predicted to slow to
     0.3 m/s, every plan ended at that speed while still turning (radius 2 m at its end) and was
     refused (``kinematics``) for 35 s.  The end speed of :func:`~iamp.simulation.tactical.gap_end`
-    is now at least ``v_min`` where it is reachable (and the end point in the gap at that speed);
-    ``horizons_for`` passes the turn's speed for each horizon."""
+    is now at least the last turn's speed ``turn_end_speed(dy, ...)`` where it is reachable (and the end
+    point in the gap at that speed); ``horizons_for`` passes ``dy`` for each horizon."""
     from iamp.simulation.decision import EgoNow, Gap, Neighbour
     from iamp.simulation.tactical import TacticalConfig, gap_end, horizons_for, safe_interval, turn_end_speed
 
@@ -410,12 +410,13 @@ def test_a_plan_into_a_crawling_gap_ends_no_slower_than_its_last_turn_allows():
     plain = gap_end(ego, gap, T, dcfg, cfg)
     assert plain is not None and plain[1] < 0.5  # the gap's speed at T
     v_min = turn_end_speed(3.75, 0.0, T, dcfg.kappa_max)
-    raised = gap_end(ego, gap, T, dcfg, cfg, v_min=v_min)
+    raised = gap_end(ego, gap, T, dcfg, cfg, dy=3.75)
     assert raised is not None and raised[1] >= v_min - 1e-12
     lo, hi = safe_interval(ego, gap, raised[1], T, cfg)
     assert lo <= raised[0] <= hi
-    # out of reach (v_min above every reachable speed): the highest reachable speed
-    capped = gap_end(ego, gap, 1.0, dcfg, cfg, v_min=50.0)
+    # out of reach (the turn's speed above every reachable speed): the highest reachable speed
+    assert turn_end_speed(100.0, 0.0, 1.0, dcfg.kappa_max) > 1.3 + dcfg.limits.ax[1] * 1.0
+    capped = gap_end(ego, gap, 1.0, dcfg, cfg, dy=100.0)
     assert capped is None or capped[1] <= 1.3 + dcfg.limits.ax[1] * 1.0 + 1e-9
     planned = horizons_for(ego, gap, dcfg, cfg, dy=3.75)
     assert planned
