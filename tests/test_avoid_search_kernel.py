@@ -280,6 +280,46 @@ def test_the_screened_maximum_bound_is_the_maximum_of_every_bound(seed: int, cou
     assert max_lower_bound([], lo, hi) == -np.inf
 
 
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st_h.integers(0, 10_000), st_h.integers(1, 12))
+def test_a_search_s_packing_memo_gives_the_packing_it_computes(seed: int, count: int) -> None:
+    """:class:`~iamp.planners.avoid.dual.Packing` (one search's memo of :func:`_pack`): the arrays
+    of a list of polynomials are those computed without it, kept for the same list (the same
+    objects), computed anew for another list of the same length or the same list after
+    :attr:`~iamp.planners.avoid.dual.Packing.SIZE` other lists, and ``meta`` handed out as a copy
+    (the kernels overwrite it); the bound and the values with the memo are those without it."""
+    from iamp.planners.avoid.dual import DualPolynomial, Packing, _pack, max_lower_bound, polys_values
+
+    rng = np.random.default_rng(seed)
+    h, n = 0.1, 7
+
+    def draw(k: int) -> list[DualPolynomial]:
+        return [DualPolynomial((0,), (int(rng.integers(0, 4)),), rng.standard_normal(n), h, np.ones(1))
+                for _ in range(k)]
+
+    polys = draw(count)
+    packing = Packing()
+    plain = _pack(polys)
+    first = _pack(polys, None, packing)
+    for a, b in zip(plain, first):
+        assert np.array_equal(np.asarray(a), np.asarray(b))
+    again = _pack(polys, None, packing)
+    assert again[0] is first[0]  # kept: not packed again
+    assert again[1] is not first[1] and np.array_equal(again[1], first[1])  # meta: a copy each time
+    first[1][:] = -1  # a kernel's overwrite of its copy leaves the kept meta alone
+    assert np.array_equal(_pack(polys, None, packing)[1], plain[1])
+    other = draw(count)
+    assert not np.array_equal(_pack(other, None, packing)[0], first[0]) or count == 0
+    for _ in range(Packing.SIZE):
+        _pack(draw(1), None, packing)
+    assert _pack(polys, None, packing)[0] is not first[0]  # dropped, packed anew: the same numbers
+    assert np.array_equal(_pack(polys, None, packing)[0], plain[0])
+    lo, hi = np.array([0.05]), np.array([0.3])
+    assert max_lower_bound(polys, lo, hi, packing) == max_lower_bound(polys, lo, hi)
+    taus = rng.uniform(0.0, 0.4, (5, 1))
+    assert np.array_equal(polys_values(polys, taus, packing=packing), polys_values(polys, taus))
+
+
 def test_a_nan_bound_proves_nothing_and_mixed_widths_pack() -> None:
     """A polynomial with a NaN coefficient has a NaN bound, which the maximum skips (it proves
     nothing); polynomials of problems with different numbers of vehicles are padded to one width."""
