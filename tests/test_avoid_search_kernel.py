@@ -310,10 +310,15 @@ def test_a_search_s_packing_memo_gives_the_packing_it_computes(seed: int, count:
     assert np.array_equal(_pack(polys, None, packing)[1], plain[1])
     other = draw(count)
     assert not np.array_equal(_pack(other, None, packing)[0], first[0]) or count == 0
-    for _ in range(Packing.SIZE):
-        _pack(draw(1), None, packing)
-    assert _pack(polys, None, packing)[0] is not first[0]  # dropped, packed anew: the same numbers
-    assert np.array_equal(_pack(polys, None, packing)[0], plain[0])
+    # SIZE lists are kept, the oldest dropped for the next: ``polys`` and SIZE - 1 others, then one more
+    fresh = Packing()
+    kept = _pack(polys, None, fresh)[0]
+    for _ in range(Packing.SIZE - 1):
+        _pack(draw(1), None, fresh)
+    assert _pack(polys, None, fresh)[0] is kept
+    _pack(draw(1), None, fresh)
+    assert _pack(polys, None, fresh)[0] is not kept  # dropped, packed anew: the same numbers
+    assert np.array_equal(_pack(polys, None, fresh)[0], plain[0])
     lo, hi = np.array([0.05]), np.array([0.3])
     assert max_lower_bound(polys, lo, hi, packing) == max_lower_bound(polys, lo, hi)
     taus = rng.uniform(0.0, 0.4, (5, 1))
