@@ -16,6 +16,15 @@ always does so; a program that imports numpy before iamp keeps its machine's ker
 numpy loaded are not the pinned ones (a closed-loop episode may then differ from the command
 line's). A value the user set is kept. Importing this module (``iamp`` does so first) calls
 :func:`pin`. Other processors (ARM) and other BLAS libraries keep their kernels.
+
+numpy's own loops dispatch by CPU too: on a CPU with AVX-512 (numpy's ``X86_V4`` group and beyond)
+its float64 ``power``, ``exp``, ``log``, ``sin``, ``cos`` and others run other implementations (SVML's,
+its own AVX-512 ones) than on an AVX2 CPU, which differ in the last bits (``np.power(xs, 3)`` is in the
+PMP's value function, ``planners/pmp/fixed.py``).  :func:`pin` therefore also switches those targets
+off (``NPY_DISABLE_CPU_FEATURES``, numpy >= 2.4's names, :data:`NUMPY_DISABLED`) on a CPU that has
+them, so that numpy runs its AVX2 (``X86_V3``) loops there as everywhere; a value the user set is
+kept, and with an older numpy, whose targets have other names, ``import iamp`` warns instead where
+its AVX-512 loops are active (:func:`warn_if_unpinned`).
 """
 
 from __future__ import annotations
@@ -27,7 +36,8 @@ import platform
 import sys
 import warnings
 
-__all__ = ["KERNEL", "THREADS", "BlasKernelWarning", "loaded_kernel", "pin", "pinned_kernel", "warn_if_unpinned"]
+__all__ = ["KERNEL", "NUMPY_DISABLED", "THREADS", "BlasKernelWarning", "loaded_kernel", "numpy_avx512",
+           "numpy_disabled", "pin", "pinned_kernel", "warn_if_unpinned"]
 
 #: The OpenBLAS kernels iamp asks for on an x86-64 CPU with AVX2 and FMA.
 KERNEL = "Haswell"
@@ -60,9 +70,36 @@ def pinned_kernel() -> str | None:
 THREADS = "1"
 
 
+#: numpy's SIMD targets above AVX2 and FMA (``X86_V3``) that :func:`pin` switches off, in numpy >= 2.4's
+#: names (its ``__cpu_dispatch__`` on x86-64: ``X86_V3 X86_V4 AVX512_ICL AVX512_SPR``).
+NUMPY_DISABLED = "X86_V4 AVX512_ICL AVX512_SPR"
+
+
+def _numpy_version() -> tuple[int, int] | None:
+    """numpy's installed ``(major, minor)`` from its metadata, without importing it (None: unknown)."""
+    try:
+        from importlib.metadata import version
+
+        major, minor = version("numpy").split(".")[:2]
+        return int(major), int("".join(c for c in minor if c.isdigit()) or 0)
+    except Exception:  # not installed, or a version string of another form
+        return None
+
+
+def numpy_disabled() -> str | None:
+    """The value :func:`pin` gives ``NPY_DISABLE_CPU_FEATURES`` on this machine: :data:`NUMPY_DISABLED`
+    on an x86-64 CPU with AVX-512 (``avx512f``) and numpy >= 2.4, else None (nothing to switch off, or
+    names this numpy does not know: it would print a complaint at import)."""
+    if pinned_kernel() is None or "avx512f" not in _cpu_flags():
+        return None
+    v = _numpy_version()
+    return NUMPY_DISABLED if v is not None and v >= (2, 4) else None
+
+
 def pin() -> None:
-    """Set ``OPENBLAS_CORETYPE`` (and ``MKL_CBWR``) and one BLAS thread (``OPENBLAS_NUM_THREADS``,
-    ``MKL_NUM_THREADS``) unless numpy is loaded or the user set them."""
+    """Set ``OPENBLAS_CORETYPE`` (and ``MKL_CBWR``), one BLAS thread (``OPENBLAS_NUM_THREADS``,
+    ``MKL_NUM_THREADS``) and numpy's SIMD targets (``NPY_DISABLE_CPU_FEATURES``, :func:`numpy_disabled`)
+    unless numpy is loaded or the user set them."""
     if "numpy" in sys.modules:
         return
     os.environ.setdefault("OPENBLAS_NUM_THREADS", THREADS)
@@ -71,6 +108,28 @@ def pin() -> None:
     if kernel is not None:
         os.environ.setdefault("OPENBLAS_CORETYPE", kernel)
         os.environ.setdefault("MKL_CBWR", "COMPATIBLE")
+    simd = numpy_disabled()
+    if simd is not None:
+        os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", simd)
+
+
+def numpy_avx512() -> list[str]:
+    """numpy's AVX-512 targets (``X86_V4``, ``AVX512*``) active in this process (its runtime
+    ``__cpu_features__``; empty where numpy is not loaded or does not say)."""
+    numpy = sys.modules.get("numpy")
+    if numpy is None:
+        return []
+    import importlib
+
+    for name in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):  # numpy >= 2, numpy 1
+        try:
+            features = importlib.import_module(name).__cpu_features__
+            break
+        except (ImportError, AttributeError):
+            continue
+    else:
+        return []
+    return sorted(k for k, on in features.items() if on and (k == "X86_V4" or k.startswith("AVX512")))
 
 
 #: The corename functions of the OpenBLAS builds numpy's wheels bundle (scipy-openblas, 64-bit
@@ -108,7 +167,17 @@ def loaded_kernel() -> str | None:
 def warn_if_unpinned() -> str | None:
     """Warn (:class:`BlasKernelWarning`) when numpy's OpenBLAS runs other kernels than
     :func:`pinned_kernel` and the user did not choose them (``OPENBLAS_CORETYPE`` unset): numpy was
-    imported before iamp (:data:`NUMPY_FIRST`).  Returns the warning's text, or None."""
+    imported before iamp (:data:`NUMPY_FIRST`); or when numpy's AVX-512 loops are active
+    (:func:`numpy_avx512`) and the user did not choose its targets (``NPY_DISABLE_CPU_FEATURES``
+    unset): numpy was imported first, or is older than 2.4.  Returns the warning's text, or None."""
+    simd = numpy_avx512()
+    if simd and "NPY_DISABLE_CPU_FEATURES" not in os.environ:
+        text = (f"numpy runs its AVX-512 loops ({' '.join(simd)}): results may differ in their last bits from "
+                f"a machine without AVX-512, and a closed-loop episode may take another course; import iamp "
+                f"before numpy (numpy >= 2.4), or set NPY_DISABLE_CPU_FEATURES to numpy's AVX-512 targets "
+                f"before starting Python")
+        warnings.warn(text, BlasKernelWarning, stacklevel=3)
+        return text
     wanted = pinned_kernel()
     if not NUMPY_FIRST or wanted is None or os.environ.get("OPENBLAS_CORETYPE"):
         return None
