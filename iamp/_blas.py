@@ -36,7 +36,7 @@ import platform
 import sys
 import warnings
 
-__all__ = ["KERNEL", "NUMPY_DISABLED", "THREADS", "BlasKernelWarning", "loaded_kernel", "numpy_avx512",
+__all__ = ["KERNEL", "NUMPY_DISABLED", "THREADS", "BlasKernelWarning", "cpu_model", "loaded_kernel", "numpy_avx512",
            "numpy_disabled", "pin", "pinned_kernel", "warn_if_unpinned"]
 
 #: The OpenBLAS kernels iamp asks for on an x86-64 CPU with AVX2 and FMA.
@@ -55,6 +55,18 @@ def _cpu_flags() -> set[str]:
     except OSError:
         pass
     return set()
+
+
+def cpu_model() -> str | None:
+    """The CPU's model name from ``/proc/cpuinfo`` (None where it is not there)."""
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return None
 
 
 def pinned_kernel() -> str | None:

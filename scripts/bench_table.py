@@ -130,7 +130,8 @@ def loop_table(after: Mapping[str, Any], before: Mapping[str, Any] | None) -> li
 
 def _machine(after: Mapping[str, Any]) -> str:
     m = after["machine"]
-    return (f"Machine: {m['cpu_count']} CPUs, {m['platform']}, Python {m['python']}; load average (1 min) "
+    cpu = f" ({m['cpu_model']})" if m.get("cpu_model") else ""
+    return (f"Machine: {m['cpu_count']} CPUs{cpu}, {m['platform']}, Python {m['python']}; load average (1 min) "
             f"{m['load_average_1min_before']:.2f} before the run, {m['load_average_1min_after']:.2f} after.")
 
 

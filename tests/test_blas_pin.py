@@ -91,6 +91,7 @@ def test_the_flags_are_read_from_cpuinfo_and_avx2_with_fma_is_enough(monkeypatch
     real_open = open
     monkeypatch.setattr(_blas, "open", lambda path, *a, **k: real_open(fake, *a, **k), raising=False)
     assert _blas._cpu_flags() == {"fpu", "sse3", "avx2", "fma"}
+    assert _blas.cpu_model() == "x: y"  # the bench's record of the CPU (the text after the first colon)
     monkeypatch.setattr(platform, "machine", lambda: "x86_64")
     monkeypatch.setattr(_blas, "_cpu_flags", lambda: {"avx2", "fma"})  # exactly the two: enough
     assert _blas.pinned_kernel() == "Haswell"

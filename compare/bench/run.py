@@ -62,6 +62,7 @@ from typing import NotRequired, TypedDict
 
 import numpy as np
 
+from iamp import _blas
 from iamp.comparison.timing import StatsJSON, TimingStats, VersionsJSON, measure, summarize, versions
 from iamp.core.plan import Plan
 from iamp.core.problem import Problem
@@ -184,6 +185,11 @@ class BenchMachine(TypedDict):
     python: str
     load_average_1min_before: float | None
     load_average_1min_after: float | None
+    #: the CPU's model name (``/proc/cpuinfo``; None where unknown): numbers may differ in their
+    #: last bits between CPUs where a library dispatches by CPU (``docs/spec.md``, "Determinism")
+    cpu_model: NotRequired[str | None]
+    #: numpy's AVX-512 loops active in the run (empty: its AVX2 or baseline loops, ``iamp._blas``)
+    numpy_avx512: NotRequired[list[str]]
 
 
 class BenchStats(TypedDict):
@@ -587,7 +593,8 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "versions": ver,
         "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(), "machine": platform.machine(),
                     "python": platform.python_version(), "load_average_1min_before": load_before,
-                    "load_average_1min_after": os.getloadavg()[0] if hasattr(os, "getloadavg") else None},
+                    "load_average_1min_after": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+                    "cpu_model": _blas.cpu_model(), "numpy_avx512": _blas.numpy_avx512()},
         "warnings": ([f"the machine was probably busy (spread above {BUSY_SPREAD:.0%} of the median): "
                       + "; ".join(busy)] if busy else []),
         "quick": bool(quick), "steps": STEPS, "problem": one.name,
