@@ -21,10 +21,11 @@ numpy's own loops dispatch by CPU too: on a CPU with AVX-512 (numpy's ``X86_V4``
 its float64 ``power``, ``exp``, ``log``, ``sin``, ``cos`` and others run other implementations (SVML's,
 its own AVX-512 ones) than on an AVX2 CPU, which differ in the last bits (``np.power(xs, 3)`` is in the
 PMP's value function, ``planners/pmp/fixed.py``).  :func:`pin` therefore also switches those targets
-off (``NPY_DISABLE_CPU_FEATURES``, numpy >= 2.4's names, :data:`NUMPY_DISABLED`) on a CPU that has
+off (``NPY_DISABLE_CPU_FEATURES``, numpy 2.4's names, :data:`NUMPY_DISABLED`) on a CPU that has
 them, so that numpy runs its AVX2 (``X86_V3``) loops there as everywhere; a value the user set is
-kept, and with an older numpy, whose targets have other names, ``import iamp`` warns instead where
-its AVX-512 loops are active (:func:`warn_if_unpinned`).
+kept.  Only numpy 2.4's target names are known here (another numpy is left alone: a name it does not
+dispatch makes it print a complaint at import), and a program that imports numpy before iamp keeps
+its loops (:func:`numpy_avx512` says which run; ``iamp bench`` records it).
 """
 
 from __future__ import annotations
@@ -45,28 +46,27 @@ KERNEL = "Haswell"
 FALLBACK = "Prescott"
 
 
-def _cpu_flags() -> set[str]:
-    """The CPU's feature flags as Linux lists them (empty where ``/proc/cpuinfo`` cannot be read)."""
+def _cpuinfo(field: str) -> str | None:
+    """The text after the colon of ``/proc/cpuinfo``'s first line starting with ``field`` (None where
+    the file cannot be read or has no such line)."""
     try:
         with open("/proc/cpuinfo", encoding="ascii", errors="replace") as f:
             for line in f:
-                if line.startswith("flags"):
-                    return set(line.split(":", 1)[1].split())
-    except OSError:
-        pass
-    return set()
-
-
-def cpu_model() -> str | None:
-    """The CPU's model name from ``/proc/cpuinfo`` (None where it is not there)."""
-    try:
-        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as f:
-            for line in f:
-                if line.startswith("model name"):
+                if line.startswith(field):
                     return line.split(":", 1)[1].strip()
     except OSError:
         pass
     return None
+
+
+def _cpu_flags() -> set[str]:
+    """The CPU's feature flags as Linux lists them (empty where ``/proc/cpuinfo`` cannot be read)."""
+    return set((_cpuinfo("flags") or "").split())
+
+
+def cpu_model() -> str | None:
+    """The CPU's model name from ``/proc/cpuinfo`` (None where it is not there)."""
+    return _cpuinfo("model name")
 
 
 def pinned_kernel() -> str | None:
@@ -82,7 +82,7 @@ def pinned_kernel() -> str | None:
 THREADS = "1"
 
 
-#: numpy's SIMD targets above AVX2 and FMA (``X86_V3``) that :func:`pin` switches off, in numpy >= 2.4's
+#: numpy's SIMD targets above AVX2 and FMA (``X86_V3``) that :func:`pin` switches off, in numpy 2.4's
 #: names (its ``__cpu_dispatch__`` on x86-64: ``X86_V3 X86_V4 AVX512_ICL AVX512_SPR``).
 NUMPY_DISABLED = "X86_V4 AVX512_ICL AVX512_SPR"
 
@@ -100,12 +100,12 @@ def _numpy_version() -> tuple[int, int] | None:
 
 def numpy_disabled() -> str | None:
     """The value :func:`pin` gives ``NPY_DISABLE_CPU_FEATURES`` on this machine: :data:`NUMPY_DISABLED`
-    on an x86-64 CPU with AVX-512 (``avx512f``) and numpy >= 2.4, else None (nothing to switch off, or
-    names this numpy does not know: it would print a complaint at import)."""
+    on an x86-64 CPU with AVX-512 (``avx512f``) and numpy 2.4, else None (nothing to switch off, or
+    a numpy whose target names are not known here: a name it does not dispatch makes it print a
+    complaint at import)."""
     if pinned_kernel() is None or "avx512f" not in _cpu_flags():
         return None
-    v = _numpy_version()
-    return NUMPY_DISABLED if v is not None and v >= (2, 4) else None
+    return NUMPY_DISABLED if _numpy_version() == (2, 4) else None
 
 
 def pin() -> None:
@@ -179,17 +179,9 @@ def loaded_kernel() -> str | None:
 def warn_if_unpinned() -> str | None:
     """Warn (:class:`BlasKernelWarning`) when numpy's OpenBLAS runs other kernels than
     :func:`pinned_kernel` and the user did not choose them (``OPENBLAS_CORETYPE`` unset): numpy was
-    imported before iamp (:data:`NUMPY_FIRST`); or when numpy's AVX-512 loops are active
-    (:func:`numpy_avx512`) and the user did not choose its targets (``NPY_DISABLE_CPU_FEATURES``
-    unset): numpy was imported first, or is older than 2.4.  Returns the warning's text, or None."""
-    simd = numpy_avx512()
-    if simd and "NPY_DISABLE_CPU_FEATURES" not in os.environ:
-        text = (f"numpy runs its AVX-512 loops ({' '.join(simd)}): results may differ in their last bits from "
-                f"a machine without AVX-512, and a closed-loop episode may take another course; import iamp "
-                f"before numpy (numpy >= 2.4), or set NPY_DISABLE_CPU_FEATURES to numpy's AVX-512 targets "
-                f"before starting Python")
-        warnings.warn(text, BlasKernelWarning, stacklevel=3)
-        return text
+    imported before iamp (:data:`NUMPY_FIRST`).  Returns the warning's text, or None.  (numpy's
+    AVX-512 loops, where numpy was imported first, are not warned about: :func:`numpy_avx512` says
+    whether they run, and ``iamp bench`` records it.)"""
     wanted = pinned_kernel()
     if not NUMPY_FIRST or wanted is None or os.environ.get("OPENBLAS_CORETYPE"):
         return None
