@@ -21,7 +21,7 @@ from iamp.core.physical import PASSENGER_CAR
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.planners.avoid.bernstein import piece_matrix
 from iamp.planners.avoid.continuous import ContinuousAvoidQP, GridShare
-from iamp.planners.avoid.dual import fit_polynomial
+from iamp.planners.avoid.dual import fit_polynomial, fit_polynomials
 
 
 def _problem(shift: float, vehicles: int, limits: bool) -> Problem:
@@ -117,3 +117,16 @@ def test_spec_rows_equal_the_segment_by_segment_construction(vehicles, hold, lim
                 for plane in (0, 1):
                     for k, pre in ((0, True), (steps - 1, False), (steps // 2, True), (steps // 2, False)):
                         assert _same(qp.rhs_polynomial(i, plane, k, pre), _old_rhs_polynomial(qp, i, plane, k, pre))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st_h.integers(3, 6), st_h.integers(1, 5), st_h.integers(1, 6), st_h.integers(0, 2**31 - 1))
+def test_stacked_fits_equal_one_at_a_time(degree, stack, width, seed):
+    # one stacked solve gives each system's own numbers (ContinuousAvoidQP.rhs_polynomial fits a
+    # piece and its neighbours at once)
+    values = np.random.default_rng(seed).normal(scale=10.0 ** (seed % 7), size=(stack, degree + 1, width))
+    fits = fit_polynomials(values, degree)
+    assert fits.shape == values.shape
+    for m in range(stack):
+        one = fit_polynomial(values[m], degree)
+        assert _same(fits[m], one) and fits[m].flags.c_contiguous == one.flags.c_contiguous

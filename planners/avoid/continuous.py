@@ -104,6 +104,7 @@ from iamp.planners.avoid.dual import (
     DualStore,
     Packing,
     fit_polynomial,
+    fit_polynomials,
     max_lower_bound,
     piece_of,
     polys_values,
@@ -499,27 +500,35 @@ class ContinuousAvoidQP:
     def rhs_polynomial(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
         """Power coefficients in ``λ`` (shape ``(d + 1, d + 1)``) of the bounds of vehicle ``i``'s
         half-plane ``plane`` on ``[t_k, t_k + λh]`` (``pre``) or ``[t_k + λh, t_{k+1}]`` (a
-        polynomial of degree ``d`` in ``λ``; fitted once per piece)."""
+        polynomial of degree ``d`` in ``λ``; fitted once per piece, with the pieces beside it not
+        yet fitted: the search's boxes move between neighbouring pieces, and one pass computes the
+        same numbers per piece as one piece at a time (:func:`~iamp.planners.avoid.dual.fit_polynomials`);
+        for ``H_y``, whose bound is the same number on every interval, once for all pieces)."""
         kept = self._planes[(i, plane)].polys
         out = kept.get((k, pre))
-        if out is None:
-            hp = self.data.planes[i][plane]
-            if hp.axis == "y":
-                # the bound of H_y is the same number on every sub-interval: one polynomial for
-                # every piece and either end (fitted from the same samples: the same numbers)
-                out = kept.get((-1, True))
-                if out is not None:
-                    kept[(k, pre)] = out
-                    return out
-            tk = float(self.data.t_nodes[k])
-            lam = self._grid.lam
-            # every sample interval in one call (the same operations per interval as one at a time)
-            ends = tk + lam * self.h
-            vals = (self._rhs(hp, np.full_like(ends, tk), ends) if pre
-                    else self._rhs(hp, ends, np.full_like(ends, tk + self.h)))
-            out = kept[(k, pre)] = fit_polynomial(vals, self.degree)
-            if hp.axis == "y":
-                kept[(-1, True)] = out
+        if out is not None:
+            return out
+        hp = self.data.planes[i][plane]
+        if hp.axis == "y":
+            out = kept.get((-1, True))  # the same samples on every piece and at either end
+            if out is not None:
+                kept[(k, pre)] = out
+                return out
+            ks = [k]
+        else:
+            ks = [j for j in (k - 1, k, k + 1) if 0 <= j < self.N and (j, pre) not in kept]
+        # every sample interval of every piece in one call (the same operations per interval as
+        # one at a time): ends t_k + λ_j h
+        tk = np.array([self._t_nodes[j] for j in ks])[:, None]
+        ends = tk + self._grid.lam * self.h
+        fixed = np.empty_like(ends)  # the other end of every sample interval
+        fixed[...] = tk if pre else tk + self.h
+        vals = self._rhs(hp, fixed, ends) if pre else self._rhs(hp, ends, fixed)
+        for j, fit in zip(ks, fit_polynomials(vals, self.degree)):
+            kept[(j, pre)] = fit
+        out = kept[(k, pre)]
+        if hp.axis == "y":
+            kept[(-1, True)] = out
         return out
 
     def _split_values(self, pre: bool, x: float) -> tuple[FloatArray, FloatArray]:
@@ -610,26 +619,24 @@ class ContinuousAvoidQP:
             base = (i * 2 + plane) * self.N * n
             vals: list[FloatArray] = []
             rhs: list[FloatArray] = []
-            start = rows = 0
+            start = 0
             parts = self._segment_parts(ta, tb)
             if parts is not None:
                 head, full_lo, full_hi, tail = parts
-                full_vals, full_rhs = self._full_vals[(i, plane)], self._full_rhs[(i, plane)]
+                start = base + (head[0] if head is not None else full_lo) * n
                 # the first sub-piece, the full pieces (contiguous: one block), the last sub-piece
-                for k, k1, sub in ((head[0], head[0] + 1, head) if head is not None else (0, 0, None),
-                                   (full_lo, full_hi + 1, None), (tail[0], tail[0] + 1, tail) if tail is not None
-                                   else (0, 0, None)):
-                    if k1 <= k:
-                        continue
-                    if sub is None:
-                        v, c = full_vals[4 * k * n:4 * k1 * n], full_rhs[k * n:k1 * n]
-                    else:
-                        v, c = self._split(i, plane, k, sub[1], sub[2])
-                    if not vals:
-                        start = base + k * n
+                if head is not None:
+                    v, c = self._split(i, plane, *head)
                     vals.append(v)
                     rhs.append(c)
-                    rows += c.size
+                if full_lo <= full_hi:
+                    vals.append(self._full_vals[(i, plane)][4 * full_lo * n:4 * (full_hi + 1) * n])
+                    rhs.append(self._full_rhs[(i, plane)][full_lo * n:(full_hi + 1) * n])
+                if tail is not None:
+                    v, c = self._split(i, plane, *tail)
+                    vals.append(v)
+                    rhs.append(c)
+            rows = sum(c.size for c in rhs)
             # the sub-pieces and full pieces are consecutive pieces: consecutive layout rows
             out = _Segment(vals, rhs, np.arange(start, start + rows, dtype=np.int64),
                            self._grid.bern_cols_flat[4 * start:4 * (start + rows)])
