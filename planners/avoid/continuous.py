@@ -224,12 +224,13 @@ class _PlaneRows:
     """One half-plane's Bernstein rows on one grid (:class:`ContinuousAvoidQP`; kept in
     :class:`GridShare` under the grid, the degree and the half-plane, so the plans of one planner
     compute each once): the bounds on every full piece, the polynomials of split pieces
-    (:meth:`~ContinuousAvoidQP.rhs_polynomial`, per ``(k, pre)``), the values and bounds of
+    (:meth:`~ContinuousAvoidQP.rhs_polynomial`, per ``(k, pre)``; ``H_y``'s one polynomial also
+    under ``(-1, True)``), the values and bounds of
     sub-pieces (:meth:`~ContinuousAvoidQP._split`, per ``(k, λ0, λ1)``) and of segments
     (:meth:`~ContinuousAvoidQP._segment_blocks`, per ``(vehicle, t_a, t_b)``: the layout numbers depend on
     the vehicle's index).  Each value is a function of its key alone (read-only once kept); beyond
     :attr:`LIMIT` entries a kind is emptied and computed again (a plan of the bench overtakes adds
-    ~16-23 segments of ~5 KB per half-plane)."""
+    ~16-23 segments per half-plane, each a few small arrays and views of the full pieces' rows)."""
 
     LIMIT = 512
 
