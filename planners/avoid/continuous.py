@@ -104,6 +104,7 @@ from iamp.planners.avoid.dual import (
     DualStore,
     Packing,
     fit_polynomial,
+    fit_polynomials,
     max_lower_bound,
     piece_of,
     polys_values,
@@ -115,6 +116,9 @@ from iamp.planners.qp.backends import BACKENDS
 from iamp.planners.qp.backends.base import compressed
 from iamp.planners.qp.hold import HoldTrajectory
 from iamp.planners.qp.options import check_choice
+
+#: At most this many sub-pieces' values per grid (:attr:`_GridLayout.split_vals`).
+SPLIT_LIMIT = 4096
 
 __all__ = ["GAP_REL", "ROW_TOL_M", "ContinuousAvoidPlanner", "ContinuousAvoidQP", "GridShare", "Spec"]
 
@@ -184,7 +188,8 @@ class _GridLayout:
     once): the equality rows ``A_eq`` (CSR), ``P``'s diagonal, the full piece's Bernstein matrix
     ``M_full``, the node columns of every Bernstein row of the layout, per vehicle and half-plane
     the row values ``σ M_full`` of every piece, and :meth:`ContinuousAvoidQP.split_polynomials`
-    (filled on first use).  Read-only once built."""
+    (filled on first use), and the σ-free values of the sub-pieces' rows (:attr:`split_vals`, filled
+    on use).  Read-only once built, but for those."""
 
     def __init__(self, d: AvoidData, h: float, degree: int) -> None:
         self.A_eq = sp.csr_matrix(d.A[: d.n_eq])
@@ -198,24 +203,34 @@ class _GridLayout:
                 cs = np.stack([d.idx_s(a, k), d.idx_v(a, k), d.idx_s(a, k + 1), d.idx_v(a, k + 1)], axis=1)
                 blocks.append(np.repeat(cs, n, axis=0))  # (N n, 4): piece k's n rows
         self.bern_cols = (np.concatenate(blocks) if blocks else np.zeros((0, 4))).astype(np.int32)
+        #: the same, raveled (four per row: a segment's columns are one slice of it)
+        self.bern_cols_flat = self.bern_cols.ravel()
         self.full_vals = {(i, a): np.tile(hp.sigma * self.M_full.ravel(), N)
                           for i, pair in enumerate(d.planes) for a, hp in enumerate(pair)}
         self.split_polys: tuple[FloatArray, FloatArray] | None = None
         #: the samples ``λ_j = j / d`` of :meth:`ContinuousAvoidQP.rhs_polynomial`
         self.lam = np.linspace(0.0, 1.0, degree + 1)
         self.lam.flags.writeable = False
+        #: the exponents ``0..d`` of the powers ``λ^j`` of :meth:`ContinuousAvoidQP._split`
+        self.exponents = np.arange(degree + 1)
+        #: per sub-piece ``[0, λ]`` (``pre``) or ``[λ, 1]``: the powers ``λ^j`` and the σ-free row
+        #: values ``Σ_j λ^j M_j`` of :meth:`ContinuousAvoidQP._split` (filled on use; functions of
+        #: the key and the grid alone, so every plan of the grid reads them: a box's ends recur in
+        #: the plans of a closed loop; beyond :data:`SPLIT_LIMIT` entries emptied first)
+        self.split_vals: dict[tuple[bool, float], tuple[FloatArray, FloatArray]] = {}
 
 
 class _PlaneRows:
     """One half-plane's Bernstein rows on one grid (:class:`ContinuousAvoidQP`; kept in
     :class:`GridShare` under the grid, the degree and the half-plane, so the plans of one planner
     compute each once): the bounds on every full piece, the polynomials of split pieces
-    (:meth:`~ContinuousAvoidQP.rhs_polynomial`, per ``(k, pre)``), the values and bounds of
+    (:meth:`~ContinuousAvoidQP.rhs_polynomial`, per ``(k, pre)``; ``H_y``'s one polynomial also
+    under ``(-1, True)``), the values and bounds of
     sub-pieces (:meth:`~ContinuousAvoidQP._split`, per ``(k, λ0, λ1)``) and of segments
-    (:meth:`~ContinuousAvoidQP._segment`, per ``(vehicle, t_a, t_b)``: the layout numbers depend on
+    (:meth:`~ContinuousAvoidQP._segment_blocks`, per ``(vehicle, t_a, t_b)``: the layout numbers depend on
     the vehicle's index).  Each value is a function of its key alone (read-only once kept); beyond
     :attr:`LIMIT` entries a kind is emptied and computed again (a plan of the bench overtakes adds
-    ~16-23 segments of ~5 KB per half-plane)."""
+    ~16-23 segments per half-plane, each a few small arrays and views of the full pieces' rows)."""
 
     LIMIT = 512
 
@@ -223,13 +238,26 @@ class _PlaneRows:
         self.full_rhs = full_rhs
         self.polys: dict[tuple[int, bool], FloatArray] = {}
         self.splits: dict[tuple[int, float, float], tuple[FloatArray, FloatArray]] = {}
-        self.segments: dict[tuple[int, float, float], tuple[FloatArray, FloatArray, NDArray[np.int64]]] = {}
+        self.segments: dict[tuple[int, float, float], _Segment] = {}
 
     def keep(self, kind: dict[Any, Any], key: Any, value: Any) -> None:
         """``kind[key] = value``, after emptying ``kind`` when it holds :attr:`LIMIT` entries."""
         if len(kind) >= self.LIMIT:
             kind.clear()
         kind[key] = value
+
+
+class _Segment:
+    """One half-plane imposed on one interval (:meth:`ContinuousAvoidQP._segment_blocks`): the
+    values (four per row) and bounds of its rows as blocks (a sub-piece, or a run of full pieces: a
+    slice of the half-plane's arrays), in layout order, the rows' layout numbers (consecutive) and
+    their node columns (a slice of the layout's, four per row).  Read-only once built."""
+
+    __slots__ = ("cols", "ids", "rhs", "vals")
+
+    def __init__(self, vals: list[FloatArray], rhs: list[FloatArray], ids: NDArray[np.int64],
+                 cols: NDArray[np.int32]) -> None:
+        self.vals, self.rhs, self.ids, self.cols = vals, rhs, ids, cols
 
 
 def _stacked(top: sp.csr_matrix, below: sp.csr_matrix) -> sp.csc_matrix:
@@ -473,18 +501,55 @@ class ContinuousAvoidQP:
     def rhs_polynomial(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
         """Power coefficients in ``λ`` (shape ``(d + 1, d + 1)``) of the bounds of vehicle ``i``'s
         half-plane ``plane`` on ``[t_k, t_k + λh]`` (``pre``) or ``[t_k + λh, t_{k+1}]`` (a
-        polynomial of degree ``d`` in ``λ``; fitted once per piece)."""
+        polynomial of degree ``d`` in ``λ``; fitted once per piece, with the pieces beside it not
+        yet fitted: the search's boxes move between neighbouring pieces, and one pass computes the
+        same numbers per piece as one piece at a time (:func:`~iamp.planners.avoid.dual.fit_polynomials`);
+        for ``H_y``, whose bound is the same number on every interval, once for all pieces)."""
         kept = self._planes[(i, plane)].polys
         out = kept.get((k, pre))
-        if out is None:
-            hp = self.data.planes[i][plane]
-            tk = float(self.data.t_nodes[k])
-            lam = self._grid.lam
-            # every sample interval in one call (the same operations per interval as one at a time)
-            ends = tk + lam * self.h
-            vals = (self._rhs(hp, np.full_like(ends, tk), ends) if pre
-                    else self._rhs(hp, ends, np.full_like(ends, tk + self.h)))
-            out = kept[(k, pre)] = fit_polynomial(vals, self.degree)
+        if out is not None:
+            return out
+        hp = self.data.planes[i][plane]
+        if hp.axis == "y":
+            out = kept.get((-1, True))  # the same samples on every piece and at either end
+            if out is not None:
+                kept[(k, pre)] = out
+                return out
+            ks = [k]
+        else:
+            ks = [j for j in (k - 1, k, k + 1) if 0 <= j < self.N and (j, pre) not in kept]
+        # every sample interval of every piece in one call (the same operations per interval as
+        # one at a time): ends t_k + λ_j h
+        tk = np.array([self._t_nodes[j] for j in ks])[:, None]
+        ends = tk + self._grid.lam * self.h
+        fixed = np.empty_like(ends)  # the other end of every sample interval
+        fixed[...] = tk if pre else tk + self.h
+        vals = self._rhs(hp, fixed, ends) if pre else self._rhs(hp, ends, fixed)
+        for j, fit in zip(ks, fit_polynomials(vals, self.degree)):
+            kept[(j, pre)] = fit
+        out = kept[(k, pre)]
+        if hp.axis == "y":
+            kept[(-1, True)] = out
+        return out
+
+    def _split_values(self, pre: bool, x: float) -> tuple[FloatArray, FloatArray]:
+        r"""The powers :math:`p = (1, \lambda, .., \lambda^d)` of ``λ = x`` and the σ-free row values
+        :math:`p\,M` (raveled) of the sub-piece ``[0, λ]`` (``pre``) or ``[λ, 1]`` of any piece, ``M``
+        of :meth:`split_polynomials`; kept with the grid (:attr:`_GridLayout.split_vals`: they depend
+        on nothing else, and every plan of a closed loop on the grid splits pieces at the same box
+        ends; read-only)."""
+        split_vals = self._grid.split_vals
+        # (not at zero: its key is also -0.0's, whose powers differ in sign)
+        kept = split_vals.get((pre, x)) if x != 0.0 else None
+        if kept is not None:
+            return kept
+        pw: FloatArray = np.asarray(x ** self._grid.exponents, dtype=float)
+        M = self.split_polynomials()[0 if pre else 1]
+        out = (pw, np.asarray(pw @ M.reshape(M.shape[0], -1), dtype=float))
+        if x != 0.0:
+            if len(split_vals) >= SPLIT_LIMIT:
+                split_vals.clear()
+            split_vals[(pre, x)] = out
         return out
 
     def _split(self, i: int, plane: int, k: int, l0: float, l1: float) -> tuple[FloatArray, FloatArray]:
@@ -501,9 +566,8 @@ class ContinuousAvoidQP:
             if l0 == 0.0 or l1 == 1.0:
                 pre = l0 == 0.0
                 x = l1 if pre else l0
-                pw = x ** np.arange(self.degree + 1)
-                M = self.split_polynomials()[0 if pre else 1]
-                out = (hp.sigma * (pw @ M.reshape(M.shape[0], -1)), pw @ self.rhs_polynomial(i, plane, k, pre))
+                pw, vals = self._split_values(pre, x)
+                out = (hp.sigma * vals, pw @ self.rhs_polynomial(i, plane, k, pre))
             else:
                 t0 = float(self.data.t_nodes[k])
                 out = (hp.sigma * piece_matrix(self.h, l0, l1, self.degree).ravel(),
@@ -541,10 +605,13 @@ class ContinuousAvoidQP:
         return ((ka, lam[0], 1.0) if full_lo > ka else None, full_lo, full_hi,
                 (kb, 0.0, lam[1]) if full_hi < kb else None)
 
-    def _segment(self, i: int, plane: int, ta: float, tb: float) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
-        """Vehicle ``i``'s half-plane ``plane`` imposed on ``[ta, tb]``: the values (four per row),
-        bounds and layout numbers of its Bernstein rows, in layout order (kept with the half-plane,
-        :class:`_PlaneRows`: a box's ends recur in its children, candidates and relaxations)."""
+    def _segment_blocks(self, i: int, plane: int, ta: float, tb: float) -> _Segment:
+        """Vehicle ``i``'s half-plane ``plane`` imposed on ``[ta, tb]`` as the blocks of its
+        Bernstein rows, in layout order (:class:`_Segment`: the first sub-piece, the full pieces as
+        one slice of the half-plane's arrays, the last sub-piece; the layout numbers and the node
+        columns of its rows); kept with the half-plane (:class:`_PlaneRows`: a box's ends recur in
+        its children, candidates and relaxations).  :meth:`_build_spec_rows` concatenates the
+        blocks of every segment of a spec at once."""
         kept = self._planes[(i, plane)]
         key = (i, ta, tb)
         out = kept.segments.get(key)
@@ -553,46 +620,59 @@ class ContinuousAvoidQP:
             base = (i * 2 + plane) * self.N * n
             vals: list[FloatArray] = []
             rhs: list[FloatArray] = []
-            starts: list[int] = []
+            start = 0
             parts = self._segment_parts(ta, tb)
             if parts is not None:
                 head, full_lo, full_hi, tail = parts
-                full_vals, full_rhs = self._full_vals[(i, plane)], self._full_rhs[(i, plane)]
+                start = base + (head[0] if head is not None else full_lo) * n
                 # the first sub-piece, the full pieces (contiguous: one block), the last sub-piece
-                for k, k1, sub in ((head[0], head[0] + 1, head) if head is not None else (0, 0, None),
-                                   (full_lo, full_hi + 1, None), (tail[0], tail[0] + 1, tail) if tail is not None
-                                   else (0, 0, None)):
-                    if k1 <= k:
-                        continue
-                    if sub is None:
-                        v, c = full_vals[4 * k * n:4 * k1 * n], full_rhs[k * n:k1 * n]
-                    else:
-                        v, c = self._split(i, plane, k, sub[1], sub[2])
+                if head is not None:
+                    v, c = self._split(i, plane, *head)
                     vals.append(v)
                     rhs.append(c)
-                    starts.append(base + k * n)
+                if full_lo <= full_hi:
+                    vals.append(self._full_vals[(i, plane)][4 * full_lo * n:4 * (full_hi + 1) * n])
+                    rhs.append(self._full_rhs[(i, plane)][full_lo * n:(full_hi + 1) * n])
+                if tail is not None:
+                    v, c = self._split(i, plane, *tail)
+                    vals.append(v)
+                    rhs.append(c)
+            rows = sum(c.size for c in rhs)
             # the sub-pieces and full pieces are consecutive pieces: consecutive layout rows
-            ids = np.arange(starts[0], starts[0] + sum(c.size for c in rhs), dtype=np.int64) \
-                if rhs else np.zeros(0, dtype=np.int64)
-            out = (np.concatenate(vals) if vals else np.zeros(0), np.concatenate(rhs) if rhs else np.zeros(0), ids)
+            out = _Segment(vals, rhs, np.arange(start, start + rows, dtype=np.int64),
+                           self._grid.bern_cols_flat[4 * start:4 * (start + rows)])
             kept.keep(kept.segments, key, out)
+        return out
+
+    def _segment(self, i: int, plane: int, ta: float, tb: float) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+        """Vehicle ``i``'s half-plane ``plane`` imposed on ``[ta, tb]``: the values (four per row),
+        bounds and layout numbers of its Bernstein rows, in layout order (:meth:`_segment_blocks`
+        concatenated)."""
+        seg = self._segment_blocks(i, plane, ta, tb)
+        return (np.concatenate(seg.vals) if seg.vals else np.zeros(0),
+                np.concatenate(seg.rhs) if seg.rhs else np.zeros(0), seg.ids)
+
+    def _spec_segments(self, spec: Spec) -> list[_Segment]:
+        """The segments that ``spec`` imposes (per vehicle ``(first, second, a, b)``: ``first`` on
+        ``[0, a]``, ``second`` on ``[b, t_f]``), in layout order (class docstring)."""
+        out = []
+        for i, (first, second, a, b) in enumerate(spec):
+            segs = [(first, 0.0, a)] if a > 0.0 else []
+            if b < self.tf:
+                segs.append((second, b, self.tf))
+            for plane, ta, tb in sorted(segs):  # layout order: half-plane 0, then 1
+                out.append(self._segment_blocks(i, plane, ta, tb))
         return out
 
     def bernstein_rows(self, spec: Spec) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
         """The Bernstein rows that ``spec`` imposes (per vehicle ``(first, second, a, b)``:
         ``first`` on ``[0, a]``, ``second`` on ``[b, t_f]``), in layout order (class docstring):
         their values (four per row, on the columns of the layout), bounds and layout numbers."""
-        parts = []
-        for i, (first, second, a, b) in enumerate(spec):
-            segs = [(first, 0.0, a)] if a > 0.0 else []
-            if b < self.tf:
-                segs.append((second, b, self.tf))
-            for plane, ta, tb in sorted(segs):  # layout order: half-plane 0, then 1
-                parts.append(self._segment(i, plane, ta, tb))
-        if not parts:
-            return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
-        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
-                np.concatenate([p[2] for p in parts]))
+        segs = self._spec_segments(spec)
+        vals = [v for s in segs for v in s.vals]
+        rhs = [c for s in segs for c in s.rhs]
+        return (np.concatenate(vals) if vals else np.zeros(0), np.concatenate(rhs) if rhs else np.zeros(0),
+                np.concatenate([s.ids for s in segs]) if segs else np.zeros(0, dtype=np.int64))
 
     def spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
         """The imposed rows of ``spec`` (CSR, in layout order): its Bernstein rows
@@ -613,17 +693,28 @@ class ContinuousAvoidQP:
         return kept[1]
 
     def _build_spec_rows(self, spec: Spec) -> tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]:
-        vals, rhs, ids = self.bernstein_rows(spec)
-        nb = ids.size
+        """:meth:`spec_rows` built: the blocks of the spec's segments (:meth:`_spec_segments`) and
+        the limit rows, each of the matrix's values, column indices, the bounds and the layout
+        numbers concatenated once (the same arrays as :meth:`bernstein_rows` followed by the limit
+        rows)."""
+        segs = self._spec_segments(spec)
+        vals: list[FloatArray] = []
+        rhs: list[FloatArray] = []
+        for seg in segs:
+            vals += seg.vals
+            rhs += seg.rhs
+        nb = sum(seg.ids.size for seg in segs)
         ptr = self._ptrs.get(nb)
         if ptr is None:  # the row pointers of nb Bernstein rows (four entries each), then the limit rows
             ptr = self._ptrs[nb] = np.concatenate((np.arange(0, 4 * nb + 1, 4, dtype=np.int32),
                                                    4 * nb + self._lim_indptr[1:]))
             ptr.flags.writeable = False
-        A = compressed(sp.csr_matrix, np.concatenate((vals, self._lim_data)),
-                       np.concatenate((self._bern_cols[ids].ravel(), self._lim_indices)), ptr,
+        vals.append(self._lim_data)
+        rhs.append(self.u_lim)
+        A = compressed(sp.csr_matrix, np.concatenate(vals),
+                       np.concatenate([seg.cols for seg in segs] + [self._lim_indices]), ptr,
                        (nb + self.u_lim.size, self.data.n))
-        return A, np.concatenate((rhs, self.u_lim)), np.concatenate((ids, self._lim_ids))
+        return A, np.concatenate(rhs), np.concatenate([seg.ids for seg in segs] + [self._lim_ids])
 
     # --- solving ---------------------------------------------------------------------------
     def solve(self, spec: Spec, reference: FloatArray | None = None, active: NDArray[np.int64] | None = None,

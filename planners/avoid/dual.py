@@ -78,7 +78,7 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 
 __all__ = ["ROUND_OFF_REL", "ROUND_OFF_TERMS", "DualBounds", "DualPolynomial", "DualStore", "Packing",
-           "fit_polynomial", "lower_bounds", "max_lower_bound", "piece_of"]
+           "fit_polynomial", "fit_polynomials", "lower_bounds", "max_lower_bound", "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
 #: point (one sparse LU solve, or a sum of columns of ``K⁻¹``, and a Bernstein transform); far
@@ -99,12 +99,26 @@ def piece_of(lo: float, hi: float, h: float, N: int) -> int | None:
 
 def fit_polynomial(values: FloatArray, degree: int) -> FloatArray:
     """Power coefficients (axis 0) of the polynomials of ``degree`` sampled at ``λ_j = j/degree``."""
+    shape = values.shape
+    return np.asarray(np.linalg.solve(_vander(degree), values.reshape(degree + 1, -1)).reshape(shape), dtype=float)
+
+
+def fit_polynomials(values: FloatArray, degree: int) -> FloatArray:
+    """:func:`fit_polynomial` of every ``values[m]`` (samples on axis 1), in one stacked solve:
+    numpy's solve runs LAPACK's ``gesv`` on each ``(degree + 1) × (degree + 1)`` system of the stack
+    on its own, so each result is bit for bit the one of ``fit_polynomial(values[m], degree)``."""
+    shape = values.shape
+    return np.asarray(np.linalg.solve(_vander(degree), values.reshape(shape[0], degree + 1, -1)).reshape(shape),
+                      dtype=float)
+
+
+def _vander(degree: int) -> FloatArray:
+    """The Vandermonde matrix of :func:`fit_polynomial`'s samples ``λ_j = j/degree`` (built once)."""
     V = _VANDER.get(degree)
     if V is None:
         V = _VANDER[degree] = np.vander(np.linspace(0.0, 1.0, degree + 1), degree + 1, increasing=True)
         V.flags.writeable = False
-    shape = values.shape
-    return np.asarray(np.linalg.solve(V, values.reshape(degree + 1, -1)).reshape(shape), dtype=float)
+    return V
 
 
 #: per degree, the Vandermonde matrix of :func:`fit_polynomial`'s samples (built once)
