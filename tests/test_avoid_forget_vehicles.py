@@ -14,7 +14,10 @@ def test_forget_vehicles_drops_rows_and_keeps_the_plan() -> None:
     planner = AvoidQPPlanner(steps=20, hold="foh", solver="clarabel")
     prob = overtake_problem()
     first = planner.plan(prob)
+    layouts = planner._shared.values("layout")
+    assert len(layouts) == 1 and layouts[0].split_vals  # the plan split pieces at its box ends
     assert planner.forget_vehicles() == 2 * len(prob.vehicles)  # one entry per half-plane
+    assert not layouts[0].split_vals  # a new problem's crossing times are others: not timed as hits
     assert planner.forget_vehicles() == 0
     second = planner.plan(prob)  # built again from the problem: the same plan
     assert str(first.status) == str(second.status) == "optimal"

@@ -173,6 +173,10 @@ class GridShare:
             del self._items[k]
         return len(gone)
 
+    def values(self, kind: str) -> list[Any]:
+        """The values kept under keys of ``kind`` (oldest first)."""
+        return [v for k, v in self._items.items() if k[0] == kind]
+
     def put(self, key: tuple[Any, ...], value: Any) -> None:
         """Keep ``value`` under ``key``; beyond :attr:`SIZE` values per kind, drop the oldest."""
         self._items.pop(key, None)

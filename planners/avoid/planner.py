@@ -147,8 +147,12 @@ class AvoidQPPlanner:
     def forget_vehicles(self) -> int:
         """Forget the half-planes' rows kept from earlier plans (they depend on the vehicles'
         motion, so a closed loop's next plan, whose predictions moved, cannot reuse them; the
-        per-grid factorisations stay): what ``iamp bench`` does before each timed plan, so that
-        it times a new problem on the loop's grid, not a repeat.  The number of entries dropped."""
+        per-grid factorisations stay), and each grid's sub-piece values at the box ends and
+        crossing times of earlier plans (``_GridLayout.split_vals``: a new problem's crossing times
+        are others): what ``iamp bench`` does before each timed plan, so that it times a new
+        problem on the loop's grid, not a repeat.  The number of half-plane entries dropped."""
+        for layout in self._shared.values("layout"):
+            layout.split_vals.clear()
         return self._shared.forget("rhs")
 
     def _continuous(self) -> ContinuousAvoidPlanner:
