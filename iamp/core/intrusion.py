@@ -65,18 +65,17 @@ def distance(dx: FloatArray, dy: FloatArray, ax: float, ay: float) -> FloatArray
 
 
 def _runs(cuts: FloatArray, flags: NDArray[np.bool_]) -> tuple[Interval, ...]:
-    """The maximal runs of consecutive sub-intervals ``[cuts[j], cuts[j+1]]`` with ``flags[j]``."""
-    out: list[Interval] = []
-    start = None
-    for j, f in enumerate(flags):
-        if f and start is None:
-            start = float(cuts[j])
-        if not f and start is not None:
-            out.append((start, float(cuts[j])))
-            start = None
-    if start is not None:
-        out.append((start, float(cuts[-1])))
-    return tuple(out)
+    r"""The maximal runs of consecutive sub-intervals ``[cuts[j], cuts[j+1]]`` with ``flags[j]``.
+
+    With ``flags`` padded by ``False`` at both ends, the flag changes at positions
+    :math:`i_0 < i_1 < \dots`: a run starts at each even one (``flags[i]`` set, ``flags[i-1]`` not)
+    and ends at the next (``flags[i]`` not set or the end, :math:`i \le` ``flags.size``), so the runs
+    are :math:`[c_{i_0}, c_{i_1}], [c_{i_2}, c_{i_3}], \dots` (``cuts`` has one more entry than ``flags``).
+    """
+    f = np.zeros(flags.size + 2, dtype=np.bool_)
+    f[1:-1] = flags
+    change = np.flatnonzero(f[1:] != f[:-1])
+    return tuple(zip(cuts[change[0::2]].tolist(), cuts[change[1::2]].tolist()))
 
 
 def _offsets(vehicle: Any, traj: PiecewiseTrajectory, t: FloatArray) -> tuple[FloatArray, FloatArray]:
