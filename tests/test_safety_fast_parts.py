@@ -7,7 +7,11 @@
 * :func:`iamp.core.polyroots._eigvals` (numpy's LAPACK ufunc called directly) against
   ``numpy.linalg.eigvals``, as :func:`~iamp.core.polyroots.roots_in_unit_interval` reads them;
 * :func:`iamp.core.trajectory_pieces.shifted_poly` (powers computed once) against the sum
-  written out.
+  written out;
+* :func:`iamp.core.polyroots_kernel.root_degrees` (the largest by ``numpy.maximum``, the degree
+  from below, the leading coefficient gathered, Bernstein sums from the first product) against
+  its first formulation, with NaN, infinite, huge and signed-zero coefficients (the compiled twin
+  against the Python function: ``tests/test_polyroots_kernel.py``).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import iamp.core.polyroots as pr
+from iamp.core import polyroots_kernel as kernel
 from iamp.core.intrusion import _runs
 from iamp.core.trajectory_pieces import MERGE_S, cut_times, shifted_poly
 
@@ -131,3 +136,55 @@ def test_shifted_poly_is_the_sum(seed, ncoef, pieces):
                 acc += c[j] * comb(j, k) * a ** (j - k)
         want[:, k] = acc * h**k
     assert _bits(shifted_poly(tuple(coeffs), a, h, degree)) == _bits(want)
+
+
+def _root_degrees_reference(C, M, imag_tol, skip_far):
+    """The degrees and Bernstein test as first written (each row's largest by comparisons, its
+    degree from the top, its leading coefficient by selection, sums from 0): the reference."""
+    Ct = np.ascontiguousarray(C.T)
+    absC = np.abs(Ct)
+    K, D1 = C.shape
+    scale = absC[0].copy()
+    for k in range(1, D1):
+        col = absC[k]
+        scale = np.where((col > scale) | (col != col), col, scale)
+    d = np.zeros(K, dtype=np.int64)
+    found = np.zeros(K, dtype=bool)
+    for k in range(D1 - 1, -1, -1):
+        big = (absC[k] > 1e-12 * scale) & ~found
+        d = np.where(big, k, d)
+        found |= big
+    if not skip_far:
+        return d
+    lead, s0, s1 = np.zeros(K), np.zeros(K), np.zeros(K)
+    for k in range(D1):
+        lead = np.where(d == k, absC[k], lead)
+        s0 = s0 + absC[k]
+        s1 = s1 + k * absC[k]
+    sent = (d > 0) & (lead > 0)
+    amax = scale / np.where(sent, lead, 1.0)
+    T = (kernel.BACKWARD_REL * 1.01 * (d + 1) * lead * ((1.0 + amax) * (1.0 + amax))
+         + 1.01 * (imag_tol + 1e-9) * s1 + 1e-12 * s0 + 1.1e-12 * D1 * scale)
+    above, below = np.ones(K, dtype=bool), np.ones(K, dtype=bool)
+    for j in range(D1):
+        b = np.zeros(K)
+        for k in range(j + 1):
+            b = b + Ct[k] * M[k, j]
+        above &= b > T
+        below &= b < -T
+    return np.where((above | below) & sent & np.isfinite(T), 0, d)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(1, 9), st.booleans())
+def test_root_degrees_are_the_reference(seed, degree, skip):
+    rng = np.random.default_rng(seed)
+    C = rng.normal(size=(200, degree + 1)) * 10.0 ** rng.uniform(-12, 12, (200, degree + 1))
+    for value, share in ((np.nan, 0.02), (np.inf, 0.02), (0.0, 0.1), (-0.0, 0.1), (1e300, 0.02)):
+        C[rng.random(C.shape) < share] = value
+    M = pr._bernstein_matrix(degree)
+    got = np.empty(200, dtype=np.int64)
+    with np.errstate(all="ignore"):
+        kernel.root_degrees(C, M, 1e-6, skip, got)
+        want = _root_degrees_reference(C, M, 1e-6, skip)
+    assert got.tolist() == want.tolist()
