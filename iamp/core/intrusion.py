@@ -138,11 +138,9 @@ def vehicles_sets(vehicles: Sequence[Any], traj: PiecewiseTrajectory, breaks: Fl
     return [c.sets(traj, breaks, P, *r) for c, r in zip(cuts, roots)]
 
 
-def _shifted(A: FloatArray, c: float) -> FloatArray:
-    """``A`` with ``c`` subtracted from its σ⁰ coefficient."""
-    B = A.copy()
-    B[:, 0] -= c
-    return B
+#: The sign pairs (sx, sy) of :class:`_CutPolynomials`, in order, shaped to multiply ``(P, D)`` arrays.
+_SX = np.array([1.0, 1.0, -1.0, -1.0])[:, None, None]
+_SY = np.array([1.0, -1.0, 1.0, -1.0])[:, None, None]
 
 
 class _CutPolynomials:
@@ -179,13 +177,15 @@ class _CutPolynomials:
         # the products (dx − sx Ax) dx' and (dy − sy Ay) dy', each computed once (one row-wise
         # product of the four stacked: each row's numbers are those of its own product)
         P, D = dX.shape
-        prods = poly_mul(np.concatenate([_shifted(dX, Ax), _shifted(dX, -Ax), _shifted(dY, Ay), _shifted(dY, -Ay)]),
-                         np.concatenate([ddX, ddX, ddY, ddY])).reshape(4, P, -1)
+        # dx − Ax, dx + Ax, dy − Ay, dy + Ay stacked: each copy's σ⁰ coefficient less its constant
+        # (one subtraction per number, as one copy at a time)
+        shifted = np.stack((dX, dX, dY, dY))
+        shifted[:, :, 0] -= np.array([[Ax], [-Ax], [Ay], [-Ay]])
+        prods = poly_mul(shifted.reshape(4 * P, D), np.stack((ddX, ddX, ddY, ddY)).reshape(4 * P, D - 1))
+        prods = prods.reshape(4, P, -1)
         # per sign pair (sx, sy) = (1, 1), (1, −1), (−1, 1), (−1, −1): the depth crossing
         # Ax − sx dx = Ay − sy dy and the stationary points of (dx − sx Ax)² + (dy − sy Ay)²
-        sx = np.array([1.0, 1.0, -1.0, -1.0])[:, None, None]
-        sy = np.array([1.0, -1.0, 1.0, -1.0])[:, None, None]
-        cross = sy * dY - sx * dX
+        cross = _SY * dY - _SX * dX
         stationary = prods[[0, 0, 1, 1]] + prods[[2, 3, 2, 3]]
         # the polynomials, zero-padded to n2 columns: dX, dY, dX', dY', then per sign pair its
         # crossing and its stationary points
