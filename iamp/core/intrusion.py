@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from iamp.core.polyroots import pad_coeffs, poly_deriv, poly_mul, roots_in_unit_interval
-from iamp.core.trajectory_pieces import PiecewiseTrajectory, cut_times, shifted_poly
+from iamp.core.trajectory_pieces import PiecewiseTrajectory, merged_times, shifted_poly
 
 __all__ = ["INTRUSION_TOL_M", "Interval", "VehicleSets", "depth", "distance", "vehicle_sets", "vehicles_sets"]
 
@@ -208,19 +208,21 @@ class _CutPolynomials:
         """The sets from the roots ``sig`` of rows ``rows`` of :attr:`rows`."""
         v, Ax, Ay, Bx, By, d = self.v, self.Ax, self.Ay, self.Bx, self.By, INTRUSION_TOL_M
         group = rows // P
-
-        def cuts_of(lo: int, hi: int) -> FloatArray:
-            sel = (group >= lo) & (group < hi)
-            return cut_times(breaks, rows[sel] % P, sig[sel])
+        # every root's time a_p + h_p σ at once (cut_times's numbers, element by element), and its
+        # set: 0 intrusion, 1 overlap, 2 extremes (groups [0, first_overlap), [first_overlap,
+        # first_extreme), [first_extreme, n_groups))
+        p = rows % P
+        times = breaks[:-1][p] + np.diff(breaks)[p] * sig
+        kind = (group >= self.first_overlap).astype(np.int64) + (group >= self.first_extreme)
 
         # the three sets of times (the intrusion's and the overlap's midpoints, the extremes'
         # candidates) evaluated in one call: the trajectory and the vehicle are evaluated point by
         # point, so the numbers are those of three calls
-        i_cuts = cuts_of(0, self.first_overlap) if self.with_intrusion else np.zeros(0)
+        i_cuts = merged_times(breaks, times[kind == 0]) if self.with_intrusion else np.zeros(0)
         i_mid = 0.5 * (i_cuts[:-1] + i_cuts[1:])
-        o_cuts = cuts_of(self.first_overlap, self.first_extreme)
+        o_cuts = merged_times(breaks, times[kind == 1])
         o_mid = 0.5 * (o_cuts[:-1] + o_cuts[1:])
-        cand = cuts_of(self.first_extreme, self.n_groups)
+        cand = merged_times(breaks, times[kind == 2])
         dx, dy = _offsets(v, traj, np.concatenate((i_mid, o_mid, cand)))
         a, b = i_mid.size, i_mid.size + o_mid.size
         intrusion = _runs(i_cuts, depth(dx[:a], dy[:a], Ax, Ay) > d) if self.with_intrusion else ()
