@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from iamp.core.polyroots import pad_coeffs, poly_deriv, poly_mul, roots_in_unit_interval
-from iamp.core.trajectory_pieces import PiecewiseTrajectory, cut_times, shifted_poly
+from iamp.core.trajectory_pieces import PiecewiseTrajectory, merged_times, shifted_poly
 
 __all__ = ["INTRUSION_TOL_M", "Interval", "VehicleSets", "depth", "distance", "vehicle_sets", "vehicles_sets"]
 
@@ -65,18 +65,17 @@ def distance(dx: FloatArray, dy: FloatArray, ax: float, ay: float) -> FloatArray
 
 
 def _runs(cuts: FloatArray, flags: NDArray[np.bool_]) -> tuple[Interval, ...]:
-    """The maximal runs of consecutive sub-intervals ``[cuts[j], cuts[j+1]]`` with ``flags[j]``."""
-    out: list[Interval] = []
-    start = None
-    for j, f in enumerate(flags):
-        if f and start is None:
-            start = float(cuts[j])
-        if not f and start is not None:
-            out.append((start, float(cuts[j])))
-            start = None
-    if start is not None:
-        out.append((start, float(cuts[-1])))
-    return tuple(out)
+    r"""The maximal runs of consecutive sub-intervals ``[cuts[j], cuts[j+1]]`` with ``flags[j]``.
+
+    With ``flags`` padded by ``False`` at both ends, the flag changes at positions
+    :math:`i_0 < i_1 < \dots`: a run starts at each even one (``flags[i]`` set, ``flags[i-1]`` not)
+    and ends at the next (``flags[i]`` not set or the end, :math:`i \le` ``flags.size``), so the runs
+    are :math:`[c_{i_0}, c_{i_1}], [c_{i_2}, c_{i_3}], \dots` (``cuts`` has one more entry than ``flags``).
+    """
+    f = np.zeros(flags.size + 2, dtype=np.bool_)
+    f[1:-1] = flags
+    change = np.flatnonzero(f[1:] != f[:-1])
+    return tuple(zip(cuts[change[0::2]].tolist(), cuts[change[1::2]].tolist()))
 
 
 def _offsets(vehicle: Any, traj: PiecewiseTrajectory, t: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -139,11 +138,9 @@ def vehicles_sets(vehicles: Sequence[Any], traj: PiecewiseTrajectory, breaks: Fl
     return [c.sets(traj, breaks, P, *r) for c, r in zip(cuts, roots)]
 
 
-def _shifted(A: FloatArray, c: float) -> FloatArray:
-    """``A`` with ``c`` subtracted from its σ⁰ coefficient."""
-    B = A.copy()
-    B[:, 0] -= c
-    return B
+#: The sign pairs (sx, sy) of :class:`_CutPolynomials`, in order, shaped to multiply ``(P, D)`` arrays.
+_SX = np.array([1.0, 1.0, -1.0, -1.0])[:, None, None]
+_SY = np.array([1.0, -1.0, 1.0, -1.0])[:, None, None]
 
 
 class _CutPolynomials:
@@ -180,13 +177,15 @@ class _CutPolynomials:
         # the products (dx − sx Ax) dx' and (dy − sy Ay) dy', each computed once (one row-wise
         # product of the four stacked: each row's numbers are those of its own product)
         P, D = dX.shape
-        prods = poly_mul(np.concatenate([_shifted(dX, Ax), _shifted(dX, -Ax), _shifted(dY, Ay), _shifted(dY, -Ay)]),
-                         np.concatenate([ddX, ddX, ddY, ddY])).reshape(4, P, -1)
+        # dx − Ax, dx + Ax, dy − Ay, dy + Ay stacked: each copy's σ⁰ coefficient less its constant
+        # (one subtraction per number, as one copy at a time)
+        shifted = np.stack((dX, dX, dY, dY))
+        shifted[:, :, 0] -= np.array([[Ax], [-Ax], [Ay], [-Ay]])
+        prods = poly_mul(shifted.reshape(4 * P, D), np.stack((ddX, ddX, ddY, ddY)).reshape(4 * P, D - 1))
+        prods = prods.reshape(4, P, -1)
         # per sign pair (sx, sy) = (1, 1), (1, −1), (−1, 1), (−1, −1): the depth crossing
         # Ax − sx dx = Ay − sy dy and the stationary points of (dx − sx Ax)² + (dy − sy Ay)²
-        sx = np.array([1.0, 1.0, -1.0, -1.0])[:, None, None]
-        sy = np.array([1.0, -1.0, 1.0, -1.0])[:, None, None]
-        cross = sy * dY - sx * dX
+        cross = _SY * dY - _SX * dX
         stationary = prods[[0, 0, 1, 1]] + prods[[2, 3, 2, 3]]
         # the polynomials, zero-padded to n2 columns: dX, dY, dX', dY', then per sign pair its
         # crossing and its stationary points
@@ -209,19 +208,21 @@ class _CutPolynomials:
         """The sets from the roots ``sig`` of rows ``rows`` of :attr:`rows`."""
         v, Ax, Ay, Bx, By, d = self.v, self.Ax, self.Ay, self.Bx, self.By, INTRUSION_TOL_M
         group = rows // P
-
-        def cuts_of(lo: int, hi: int) -> FloatArray:
-            sel = (group >= lo) & (group < hi)
-            return cut_times(breaks, rows[sel] % P, sig[sel])
+        # every root's time a_p + h_p σ at once (cut_times's numbers, element by element), and its
+        # set: 0 intrusion, 1 overlap, 2 extremes (groups [0, first_overlap), [first_overlap,
+        # first_extreme), [first_extreme, n_groups))
+        p = rows % P
+        times = breaks[:-1][p] + np.diff(breaks)[p] * sig
+        kind = (group >= self.first_overlap).astype(np.int64) + (group >= self.first_extreme)
 
         # the three sets of times (the intrusion's and the overlap's midpoints, the extremes'
         # candidates) evaluated in one call: the trajectory and the vehicle are evaluated point by
         # point, so the numbers are those of three calls
-        i_cuts = cuts_of(0, self.first_overlap) if self.with_intrusion else np.zeros(0)
+        i_cuts = merged_times(breaks, times[kind == 0]) if self.with_intrusion else np.zeros(0)
         i_mid = 0.5 * (i_cuts[:-1] + i_cuts[1:])
-        o_cuts = cuts_of(self.first_overlap, self.first_extreme)
+        o_cuts = merged_times(breaks, times[kind == 1])
         o_mid = 0.5 * (o_cuts[:-1] + o_cuts[1:])
-        cand = cuts_of(self.first_extreme, self.n_groups)
+        cand = merged_times(breaks, times[kind == 2])
         dx, dy = _offsets(v, traj, np.concatenate((i_mid, o_mid, cand)))
         a, b = i_mid.size, i_mid.size + o_mid.size
         intrusion = _runs(i_cuts, depth(dx[:a], dy[:a], Ax, Ay) > d) if self.with_intrusion else ()

@@ -76,7 +76,7 @@ def roots_in_unit_interval(C: FloatArray, imag_tol: float = 1e-6) -> tuple[NDArr
             comp = np.zeros((idx.size, d, d))
             comp[:, 1:, :-1] = np.eye(d - 1)
             comp[:, :, -1] = -C[idx, :d] / lead[:, None]
-            r = np.linalg.eigvals(comp)
+            r = _eigvals(comp)
         rows_in.append(np.repeat(idx, d))
         eig.append(r.ravel())
     rr = np.concatenate(rows_in).astype(np.int64)
@@ -85,6 +85,38 @@ def roots_in_unit_interval(C: FloatArray, imag_tol: float = 1e-6) -> tuple[NDArr
         rows, x = kernel("polish_roots")(C, rr, np.ascontiguousarray(z.real), np.ascontiguousarray(z.imag),
                                          float(imag_tol))
     return rows.astype(np.intp), x
+
+
+def _eigvals(comp: FloatArray) -> NDArray[Any]:
+    r"""The eigenvalues of the stacked real matrices ``comp``, bit for bit those of
+    ``numpy.linalg.eigvals(comp)`` as :func:`roots_in_unit_interval` uses them.
+
+    ``numpy.linalg.eigvals`` checks the input, calls its LAPACK ``geev`` ufunc
+    (``_umath_linalg.eigvals``, signature ``d->D``) under an error state that turns an invalid
+    result (no convergence) into ``LinAlgError``, and returns the real parts alone when every
+    imaginary part is zero: some 20-40 µs of Python per call around a few µs of LAPACK.  Here the
+    same ufunc is called on the same array, so the same eigenvalues; an imaginary part left at
+    zero (either sign) is read only through :math:`|\mathrm{Im}\,z| \le` ``imag_tol``, as the
+    ``+0`` of numpy's real result would be.  A non-finite input or output goes to
+    ``numpy.linalg.eigvals`` itself (its error, or its numbers), as does a numpy without the ufunc.
+    """
+    if _GEEV is None or not np.isfinite(comp).all():
+        out: NDArray[Any] = np.linalg.eigvals(comp)
+        return out
+    with np.errstate(all="ignore"):
+        w: NDArray[np.complex128] = _GEEV(comp, signature="d->D")
+    if not np.isfinite(w).all():
+        out = np.linalg.eigvals(comp)
+        return out
+    return w
+
+
+try:  # numpy's LAPACK eigenvalue ufunc (private; numpy.linalg.eigvals where it moved)
+    from numpy.linalg import _umath_linalg
+
+    _GEEV: Any = _umath_linalg.eigvals
+except (ImportError, AttributeError):  # pragma: no cover
+    _GEEV = None
 
 
 def _degrees(C: FloatArray, imag_tol: float, skip_far: bool = True) -> NDArray[np.int64]:
@@ -147,11 +179,19 @@ _BERNSTEIN: dict[int, FloatArray] = {}
 
 
 def poly_mul(A: FloatArray, B: FloatArray) -> FloatArray:
-    """Row-wise product of ascending coefficient arrays."""
-    out = np.zeros((A.shape[0], A.shape[1] + B.shape[1] - 1))
-    for i in range(A.shape[1]):
-        out[:, i:i + B.shape[1]] += A[:, i:i + 1] * B
-    return out
+    r"""Row-wise product of ascending coefficient arrays: :math:`(AB)_{r,m} = \sum_i A_{r,i} B_{r,m-i}`,
+    summed from 0 in ascending :math:`i`.
+
+    Computed on the transposed coefficients (one contiguous row per power: each in-place
+    addition reads consecutive numbers, twice as fast on 200 x 4 by 200 x 3), the same products
+    added in the same order, so the same numbers; returned C-contiguous, shape ``(K, D_A + D_B - 1)``.
+    """
+    na, nb = A.shape[1], B.shape[1]
+    At, Bt = np.ascontiguousarray(A.T), np.ascontiguousarray(B.T)
+    out = np.zeros((na + nb - 1, A.shape[0]))
+    for i in range(na):
+        out[i:i + nb] += At[i] * Bt
+    return np.ascontiguousarray(out.T)
 
 
 def pad_coeffs(A: FloatArray, n: int) -> FloatArray:

@@ -77,22 +77,18 @@ def root_degrees(C: Any, M: Any, imag_tol: float, skip_far: bool, deg: Any) -> N
     absC = np.abs(Ct)
     scale = absC[0].copy()
     for k in range(1, D1):
-        col = absC[k]
-        scale = np.where((col > scale) | (col != col), col, scale)  # the largest, NaN when one is
+        scale = np.maximum(scale, absC[k])  # the largest, NaN when one is (no -0.0 after abs)
+    thr = 1e-12 * scale
     d = np.zeros(K, dtype=np.int64)
-    found = np.zeros(K, dtype=np.bool_)
-    for k in range(D1 - 1, -1, -1):
-        big = (absC[k] > 1e-12 * scale) & np.logical_not(found)
-        d = np.where(big, k, d)
-        found = found | big
+    for k in range(1, D1):  # ascending: the last k set is the highest above the threshold
+        d = np.where(absC[k] > thr, k, d)
     if not skip_far or D1 < 2:
         deg[:] = d
         return
-    lead = np.zeros(K)
+    lead = absC.ravel()[d * K + np.arange(K)]  # |c_d| of each row (0 <= d < D1)
     s0 = np.zeros(K)
     s1 = np.zeros(K)
     for k in range(D1):
-        lead = np.where(d == k, absC[k], lead)
         s0 = s0 + absC[k]
         s1 = s1 + k * absC[k]
     sent = (d > 0) & (lead > 0)  # the rows sent to the eigenvalues
@@ -102,8 +98,10 @@ def root_degrees(C: Any, M: Any, imag_tol: float, skip_far: bool, deg: Any) -> N
     above = np.ones(K, dtype=np.bool_)
     below = np.ones(K, dtype=np.bool_)
     for j in range(D1):
-        b = np.zeros(K)
-        for k in range(j + 1):
+        # from the first product rather than from 0: a partial sum can differ only in the sign of
+        # a zero (x + y is y for y != 0, a zero for y = ±0), which no comparison below sees
+        b = Ct[0] * M[0, j]
+        for k in range(1, j + 1):
             b = b + Ct[k] * M[k, j]
         above = above & (b > T)
         below = below & (b < -T)

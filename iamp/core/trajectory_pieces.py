@@ -24,8 +24,8 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["FALLBACK_PIECE_S", "MERGE_S", "PiecewiseTrajectory", "breakpoints", "cut_times", "shifted_poly",
-           "taylor_pieces"]
+__all__ = ["FALLBACK_PIECE_S", "MERGE_S", "PiecewiseTrajectory", "breakpoints", "cut_times", "merged_times",
+           "shifted_poly", "taylor_pieces"]
 
 FloatArray = NDArray[np.float64]
 
@@ -96,21 +96,43 @@ def shifted_poly(coeffs: Sequence[float], a: FloatArray, h: FloatArray, degree: 
     c = np.zeros(degree + 1)
     c[:len(coeffs)] = coeffs
     out = np.zeros((a.size, degree + 1))
+    powers: dict[int, FloatArray] = {}  # a ** e, each computed once (the same numbers)
     for k in range(degree + 1):
         acc = np.zeros(a.size)
         for j in range(k, degree + 1):
             if c[j] != 0.0:
-                acc += c[j] * comb(j, k) * a ** (j - k)
+                ae = powers.get(j - k)
+                if ae is None:
+                    ae = powers[j - k] = a ** (j - k)
+                acc += c[j] * comb(j, k) * ae
         out[:, k] = acc * h**k
     return out
 
 
 def cut_times(breaks: FloatArray, p: NDArray[np.intp], sigma: FloatArray) -> FloatArray:
-    """The piece ends plus the roots ``σ`` of piece ``p``, as sorted times (merged within 1 ns)."""
+    """The piece ends plus the roots ``σ`` of piece ``p``, as sorted times (merged within 1 ns):
+    :func:`merged_times` of the times :math:`a_p + h_p σ`."""
     a, h = breaks[:-1], np.diff(breaks)
-    t = np.concatenate((breaks, a[p] + h[p] * sigma))
-    t = np.unique(t)
-    keep = np.concatenate(([True], np.diff(t) > MERGE_S))
+    return merged_times(breaks, a[p] + h[p] * sigma)
+
+
+def merged_times(breaks: FloatArray, times: FloatArray) -> FloatArray:
+    r"""The piece ends plus ``times``, as sorted times merged within 1 ns (:data:`MERGE_S`).
+
+    The times :math:`t_0 \le t_1 \le \dots` sorted (as ``numpy.unique`` sorts: the same sort of
+    the same array), then :math:`t_j` kept where :math:`t_j - t_{j-1} > 10^{-9}` (and :math:`t_0`):
+    the numbers of ``numpy.unique`` followed by that merge, without its overhead.  An exact
+    duplicate has difference 0 and is dropped, as ``numpy.unique`` drops it; the first of a run
+    of equal values is the one kept by both (a ``+0``/``-0`` pair too), and the next distinct
+    value's difference is to that same value; a NaN's difference is NaN, never kept after the
+    first place, where ``numpy.unique`` keeps one NaN that the merge then drops.  The last time
+    is set to the last piece end.
+    """
+    t = np.concatenate((breaks, times))
+    t.sort()
+    keep = np.empty(t.size, dtype=np.bool_)
+    keep[0] = True
+    np.greater(t[1:] - t[:-1], MERGE_S, out=keep[1:])
     out: FloatArray = t[keep]
     out[-1] = breaks[-1]
     return out
