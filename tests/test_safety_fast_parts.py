@@ -123,6 +123,7 @@ def test_shifted_poly_is_the_sum(seed, ncoef, pieces):
     rng = np.random.default_rng(seed)
     coeffs = rng.normal(size=ncoef) * 10.0 ** rng.uniform(-3, 3, ncoef)
     coeffs[rng.random(ncoef) < 0.3] = 0.0
+    coeffs[rng.random(ncoef) < 0.2] = 1.0  # a unit coefficient is a term like any other
     degree = max(3, ncoef - 1)
     a = np.sort(rng.uniform(0, 10, pieces))
     h = rng.uniform(0.01, 0.5, pieces)
@@ -136,6 +137,12 @@ def test_shifted_poly_is_the_sum(seed, ncoef, pieces):
                 acc += c[j] * comb(j, k) * a ** (j - k)
         want[:, k] = acc * h**k
     assert _bits(shifted_poly(tuple(coeffs), a, h, degree)) == _bits(want)
+    # and the polynomial itself: p(a + h σ) at a few σ, to the round-off of the two sums
+    sig = np.array([0.0, 0.37, 1.0])
+    got = np.polynomial.polynomial.polyval(sig, shifted_poly(tuple(coeffs), a, h, degree).T)
+    ref = np.polynomial.polynomial.polyval(a[:, None] + h[:, None] * sig, c)
+    scale = np.polynomial.polynomial.polyval(np.abs(a[:, None]) + h[:, None], np.abs(c)) + 1.0
+    assert np.all(np.abs(got - ref) <= 1e-9 * scale)
 
 
 def _root_degrees_reference(C, M, imag_tol, skip_far):
