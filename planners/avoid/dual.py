@@ -100,7 +100,8 @@ def piece_of(lo: float, hi: float, h: float, N: int) -> int | None:
 def fit_polynomial(values: FloatArray, degree: int) -> FloatArray:
     """Power coefficients (axis 0) of the polynomials of ``degree`` sampled at ``λ_j = j/degree``
     (:func:`fit_polynomials` of a stack of one)."""
-    return fit_polynomials(values[np.newaxis], degree)[0]
+    out: FloatArray = fit_polynomials(values[np.newaxis], degree)[0]
+    return out
 
 
 def fit_polynomials(values: FloatArray, degree: int) -> FloatArray:
