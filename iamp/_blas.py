@@ -15,7 +15,7 @@ always does so; a program that imports numpy before iamp keeps its machine's ker
 ``import iamp`` then warns (:class:`BlasKernelWarning`, :func:`warn_if_unpinned`) where the kernels
 numpy loaded are not the pinned ones (a closed-loop episode may then differ from the command
 line's). A value the user set is kept. Importing this module (``iamp`` does so first) calls
-:func:`pin`. Other processors (ARM) and other BLAS libraries keep their kernels.
+:func:`pin` and :func:`pin_piqp`. Other processors (ARM) and other BLAS libraries keep their kernels.
 
 numpy's own loops dispatch by CPU too: on a CPU with AVX-512 (numpy's ``X86_V4`` group and beyond)
 its float64 ``power``, ``exp``, ``log``, ``sin``, ``cos`` and others run other implementations (SVML's,
@@ -26,6 +26,17 @@ them, so that numpy runs its AVX2 (``X86_V3``) loops there as everywhere; a valu
 kept.  Only numpy 2.4's target names are known here (another numpy is left alone: a name it does not
 dispatch makes it print a complaint at import), and a program that imports numpy before iamp keeps
 its loops (:func:`numpy_avx512` says which run; ``iamp bench`` records it).
+
+PIQP ships three builds of its bindings (``piqp_python_avx512``, ``piqp_python_avx2`` and a baseline
+one) and its package picks the first the CPU supports, as told by its ``piqp.instruction_set``
+module. Its AVX-512 build reports the backend check's KKT residuals of an avoidance plan differently
+in the last bits (measured on an AMD EPYC with AVX-512: the plans themselves, statuses, costs,
+crossing times, states and inputs, were the same on 60 plans).  Importing this module therefore
+installs an import hook (:func:`pin_piqp`) that switches the ``avx512f`` flag of piqp's own
+``instruction_set`` module off when piqp loads it, so that PIQP loads its AVX2 build there as on
+every AVX2 machine; iamp's import loads nothing of piqp, and only one build is ever loaded.  A
+program that imports piqp before iamp keeps its build (:func:`piqp_build` says which is loaded;
+``iamp bench`` records it).
 """
 
 from __future__ import annotations
@@ -36,9 +47,10 @@ import os
 import platform
 import sys
 import warnings
+from typing import Any
 
 __all__ = ["KERNEL", "NUMPY_DISABLED", "THREADS", "BlasKernelWarning", "cpu_model", "loaded_kernel", "numpy_avx512",
-           "numpy_disabled", "pin", "pinned_kernel", "warn_if_unpinned"]
+           "numpy_disabled", "pin", "pin_piqp", "pinned_kernel", "piqp_build", "warn_if_unpinned"]
 
 #: The OpenBLAS kernels iamp asks for on an x86-64 CPU with AVX2 and FMA.
 KERNEL = "Haswell"
@@ -125,9 +137,82 @@ def pin() -> None:
         os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", simd)
 
 
+#: PIQP's bindings, by the module its package loads (``piqp/__init__.py``, version 0.7).
+PIQP_BUILDS = ("piqp_python_avx512", "piqp_python_avx2", "piqp_python")
+
+
+class _PiqpAvx2:
+    """The import hook of :func:`pin_piqp`: finds ``piqp.instruction_set`` as the other finders do and
+    switches its ``avx512f`` flag off once loaded, where piqp's folder has its AVX2 build."""
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> Any:
+        if fullname != "piqp.instruction_set" or not path:
+            return None
+        from importlib.machinery import PathFinder
+
+        spec = PathFinder.find_spec(fullname, path, target)
+        if spec is None or spec.loader is None or not any(
+                glob.glob(os.path.join(folder, PIQP_BUILDS[1] + ".*")) for folder in path):
+            return spec
+        spec.loader = _FlagOff(spec.loader)  # type: ignore[assignment]
+        return spec
+
+
+class _FlagOff:
+    """A loader that runs ``loader`` and then switches the module's ``avx512f`` flag off (where it has one)."""
+
+    def __init__(self, loader: Any) -> None:
+        self.loader = loader
+
+    def create_module(self, spec: Any) -> Any:
+        return self.loader.create_module(spec)
+
+    def exec_module(self, module: Any) -> None:
+        self.loader.exec_module(module)
+        if isinstance(getattr(module, "avx512f", None), bool):
+            module.avx512f = False
+
+
+def pin_piqp() -> bool:
+    """Make piqp load its AVX2 build on an x86-64 CPU with AVX-512 (module docstring).
+
+    Installs an import hook (first in ``sys.meta_path``) that, when piqp's package imports its own
+    ``instruction_set`` extension module, loads it from piqp's folder as Python would and then
+    switches its ``avx512f`` flag off, so that the package's choice falls on ``piqp_python_avx2``.
+    Nothing of piqp is imported here.  Nothing happens where piqp is already imported, where the CPU
+    lacks AVX-512 or AVX2 and FMA, or on another processor; the hook leaves the module alone where
+    piqp's folder has no AVX2 build or the module no ``avx512f`` flag (another layout of piqp).
+
+    Returns
+    -------
+    bool
+        Whether the hook is installed (now or before).
+    """
+    if any(isinstance(f, _PiqpAvx2) for f in sys.meta_path):
+        return True
+    if "piqp" in sys.modules or "piqp.instruction_set" in sys.modules:
+        return False
+    if pinned_kernel() != KERNEL or "avx512f" not in _cpu_flags():
+        return False
+    sys.meta_path.insert(0, _PiqpAvx2())
+    return True
+
+
+def piqp_build() -> str | None:
+    """The build of piqp's bindings loaded in this process (one of :data:`PIQP_BUILDS`; None where
+    piqp is not loaded)."""
+    for name in PIQP_BUILDS:
+        if "piqp." + name in sys.modules:
+            return name
+    return None
+
+
 def numpy_avx512() -> list[str]:
-    """numpy's AVX-512 targets (``X86_V4``, ``AVX512*``) active in this process (its runtime
-    ``__cpu_features__``; empty where numpy is not loaded or does not say)."""
+    """numpy's AVX-512 dispatch targets (``X86_V4``, ``AVX512*``) that run in this process: those
+    among the targets its loops were built for (``__cpu_dispatch__``) that its runtime
+    ``__cpu_features__`` reports on (empty where numpy is not loaded or does not say).  The CPU's
+    own AVX-512 features stay on in ``__cpu_features__`` when ``NPY_DISABLE_CPU_FEATURES`` switches
+    the targets off, so they are not what is reported."""
     numpy = sys.modules.get("numpy")
     if numpy is None:
         return []
@@ -135,13 +220,14 @@ def numpy_avx512() -> list[str]:
 
     for name in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):  # numpy >= 2, numpy 1
         try:
-            features = importlib.import_module(name).__cpu_features__
+            module = importlib.import_module(name)
+            features, dispatch = module.__cpu_features__, module.__cpu_dispatch__
             break
         except (ImportError, AttributeError):
             continue
     else:
         return []
-    return sorted(k for k, on in features.items() if on and (k == "X86_V4" or k.startswith("AVX512")))
+    return sorted(k for k in dispatch if features.get(k) and (k == "X86_V4" or k.startswith("AVX512")))
 
 
 #: The corename functions of the OpenBLAS builds numpy's wheels bundle (scipy-openblas, 64-bit
@@ -198,3 +284,4 @@ def warn_if_unpinned() -> str | None:
 #: Whether numpy was loaded before this module (then :func:`pin` could not choose its kernels).
 NUMPY_FIRST = "numpy" in sys.modules
 pin()
+pin_piqp()

@@ -223,9 +223,105 @@ def test_the_switched_off_targets_are_every_numpy_target_above_avx2() -> None:
 
 
 def test_numpy_s_avx512_loops_are_read_from_its_runtime_features() -> None:
-    """``numpy_avx512`` (what ``iamp bench`` records) lists numpy's active ``X86_V4`` and ``AVX512*``
-    targets, as its runtime ``__cpu_features__`` says."""
-    from numpy._core._multiarray_umath import __cpu_features__
+    """``numpy_avx512`` (what ``iamp bench`` records) lists numpy's dispatch targets ``X86_V4`` and
+    ``AVX512*`` that its runtime ``__cpu_features__`` reports on, not the CPU's AVX-512 features
+    (which stay on when the targets are switched off); in a process where iamp switched them off it is
+    empty, and where the user switched nothing off it lists every such target the CPU runs."""
+    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
 
-    assert _blas.numpy_avx512() == sorted(k for k, on in __cpu_features__.items()
-                                          if on and (k == "X86_V4" or k.startswith("AVX512")))
+    assert _blas.numpy_avx512() == sorted(k for k in __cpu_dispatch__ if __cpu_features__.get(k)
+                                          and (k == "X86_V4" or k.startswith("AVX512")))
+    code = "import iamp, numpy; print(' '.join(iamp._blas.numpy_avx512()) or '-')"
+    clean = {k: v for k, v in os.environ.items() if k != "NPY_DISABLE_CPU_FEATURES"}
+    pinned = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                            check=True, env=clean).stdout.strip()
+    native = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                            check=True, env={**clean, "NPY_DISABLE_CPU_FEATURES": ""}).stdout.strip()
+    if _blas.numpy_disabled() is not None:  # a CPU with AVX-512 and numpy 2.4: iamp switches them off
+        assert pinned == "-" and "X86_V4" in native.split()
+    elif "avx512f" not in _blas._cpu_flags():
+        assert pinned == native == "-"
+
+
+def _piqp_folder() -> Path | None:
+    import importlib.util
+
+    spec = importlib.util.find_spec("piqp")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    return Path(next(iter(spec.submodule_search_locations)))
+
+
+@needs_x86
+def test_piqp_loads_its_avx2_build_where_the_cpu_has_avx512() -> None:
+    """In a fresh process ``import iamp`` then ``import piqp`` loads piqp's AVX2 bindings on a CPU with
+    AVX-512 and AVX2 (one build only, never two), and the package still works (a QP solved); importing
+    piqp first keeps piqp's own choice, which ``piqp_build`` reports."""
+    folder = _piqp_folder()
+    if folder is None or not list(folder.glob("piqp_python_avx2.*")):
+        pytest.skip("piqp with an AVX2 build is not installed")
+    code = ("import sys\nFIRST\nimport iamp, piqp, numpy as np, scipy.sparse as sp\n"
+            "s = piqp.SparseSolver(); s.setup(sp.csc_matrix(np.eye(2)), np.array([1.0, -2.0]))\n"
+            "s.solve(); print(iamp._blas.piqp_build(), s.result.x[0], s.result.x[1],"
+            " sorted(k for k in sys.modules if k.startswith('piqp.piqp_python')))")
+    out = subprocess.run([sys.executable, "-c", code.replace("FIRST", "")], capture_output=True, text=True,
+                         timeout=120, check=True).stdout.split()
+    flags = _blas._cpu_flags()
+    if "avx512f" in flags and {"avx2", "fma"} <= flags:
+        assert out[0] == "piqp_python_avx2"
+    assert out[3:] == [f"['piqp.{out[0]}']"]  # exactly one build loaded
+    assert float(out[1]) == pytest.approx(-1.0, abs=1e-8) and float(out[2]) == pytest.approx(2.0, abs=1e-8)
+    first = subprocess.run([sys.executable, "-c", code.replace("FIRST", "import piqp")], capture_output=True,
+                           text=True, timeout=120, check=True).stdout.split()
+    if "avx512f" in flags:
+        assert first[0] == "piqp_python_avx512"  # piqp's own choice, kept
+
+
+def test_pin_piqp_changes_nothing_where_it_must_not(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``pin_piqp`` installs its import hook only on an x86-64 CPU with AVX-512, AVX2 and FMA and
+    before piqp is loaded, once; the hook answers only for ``piqp.instruction_set`` in a folder that
+    has piqp's AVX2 build, and its loader switches ``avx512f`` off after the module's own code ran."""
+    import types
+
+    monkeypatch.setattr(sys, "meta_path", [f for f in sys.meta_path if not isinstance(f, _blas._PiqpAvx2)])
+    saved = {k: v for k, v in sys.modules.items() if k == "piqp" or k.startswith("piqp.")}
+    try:
+        for k in saved:
+            del sys.modules[k]
+        monkeypatch.setattr(platform, "machine", lambda: "x86_64")
+        for flags in ({"avx2", "fma"}, {"avx512f"}, {"avx512f", "avx2"}):
+            monkeypatch.setattr(_blas, "_cpu_flags", lambda f=flags: f)
+            assert _blas.pin_piqp() is False
+        monkeypatch.setattr(_blas, "_cpu_flags", lambda: {"avx2", "fma", "avx512f"})
+        monkeypatch.setattr(platform, "machine", lambda: "aarch64")
+        assert _blas.pin_piqp() is False
+        monkeypatch.setattr(platform, "machine", lambda: "x86_64")
+        sys.modules["piqp"] = types.ModuleType("piqp")
+        assert _blas.pin_piqp() is False
+        del sys.modules["piqp"]
+        assert not any(isinstance(f, _blas._PiqpAvx2) for f in sys.meta_path)
+        assert _blas.pin_piqp() is True and _blas.pin_piqp() is True
+        assert sum(isinstance(f, _blas._PiqpAvx2) for f in sys.meta_path) == 1
+    finally:
+        for k in [k for k in sys.modules if k == "piqp" or k.startswith("piqp.")]:
+            del sys.modules[k]
+        sys.modules.update(saved)
+    hook = _blas._PiqpAvx2()
+    assert hook.find_spec("piqp.other", ["/nowhere"]) is None and hook.find_spec("piqp.instruction_set") is None
+
+    class Loader:
+        def create_module(self, spec: object) -> None:
+            return None
+
+        def exec_module(self, module: types.ModuleType) -> None:
+            module.avx512f = True  # type: ignore[attr-defined]
+            module.avx2 = True  # type: ignore[attr-defined]
+
+    module = types.ModuleType("piqp.instruction_set")
+    _blas._FlagOff(Loader()).exec_module(module)
+    assert module.avx512f is False and module.avx2 is True  # type: ignore[attr-defined]
+    folder = _piqp_folder()
+    if folder is not None:
+        spec = hook.find_spec("piqp.instruction_set", [str(folder)])
+        has_avx2 = bool(list(folder.glob("piqp_python_avx2.*")))
+        assert spec is not None and isinstance(spec.loader, _blas._FlagOff) == has_avx2

@@ -190,6 +190,9 @@ class BenchMachine(TypedDict):
     cpu_model: NotRequired[str | None]
     #: numpy's AVX-512 loops active in the run (empty: its AVX2 or baseline loops, ``iamp._blas``)
     numpy_avx512: NotRequired[list[str]]
+    #: the build of PIQP's bindings loaded in the run (``piqp_python_avx2`` on every CPU with AVX2,
+    #: ``iamp._blas.pin_piqp``; None where PIQP did not run)
+    piqp_build: NotRequired[str | None]
 
 
 class BenchStats(TypedDict):
@@ -594,7 +597,8 @@ def run_bench(quick: bool = False, progress: Callable[[int, int], None] | None =
         "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(), "machine": platform.machine(),
                     "python": platform.python_version(), "load_average_1min_before": load_before,
                     "load_average_1min_after": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
-                    "cpu_model": _blas.cpu_model(), "numpy_avx512": _blas.numpy_avx512()},
+                    "cpu_model": _blas.cpu_model(), "numpy_avx512": _blas.numpy_avx512(),
+                    "piqp_build": _blas.piqp_build()},
         "warnings": ([f"the machine was probably busy (spread above {BUSY_SPREAD:.0%} of the median): "
                       + "; ".join(busy)] if busy else []),
         "quick": bool(quick), "steps": STEPS, "problem": one.name,
