@@ -25,7 +25,7 @@ from iamp.core.errors import ScenarioError
 from iamp.core.physical import PASSENGER_CAR
 from iamp.core.problem import EgoBoundary, Problem, SurroundingVehicle
 from iamp.planners.avoid.check import kkt_conditions
-from iamp.planners.avoid.continuous import ContinuousAvoidPlanner, ContinuousAvoidQP, _spec
+from iamp.planners.avoid.continuous import GAP_REL, ContinuousAvoidPlanner, ContinuousAvoidQP, _spec
 from iamp.planners.avoid.schur import SchurActiveSet
 from iamp.planners.avoid.solve import RowGeneration
 from iamp.planners.examples import overtake_problem, overtake_three_problem
@@ -144,12 +144,35 @@ def test_the_node_solver_plan_equals_the_backend_only_plan():
     assert slow.info["node_solver"]["backend_solves"] == slow.info["n_solves"]
 
 
+def _agree_within_the_gap(fast, slow) -> None:
+    """Two searches of one problem, each certified to the gap :data:`GAP_REL` (``optimal``: its cost is
+    within ``GAP_REL · max(1, |cost|)`` of its lower bound of the global optimum) or not (``local``),
+    agree as far as that certifies: never a plan against none; each lower bound below the other's cost;
+    two ``optimal`` costs within one gap of each other (each is within the gap of the optimum, which
+    is at most the other's cost); a ``local`` cost at least the ``optimal`` plan's lower bound."""
+    statuses = {fast.status, slow.status}
+    assert statuses <= {st.OPTIMAL, st.LOCAL} or len(statuses) == 1, (fast.status, slow.status)
+    if not statuses <= {st.OPTIMAL, st.LOCAL}:
+        return
+    for a, b in ((fast, slow), (slow, fast)):
+        assert a.info["search"]["lower_bound"] <= b.cost * (1 + 1e-8)
+        if a.status == st.OPTIMAL:
+            gap = GAP_REL * max(1.0, abs(a.cost))
+            assert a.cost - a.info["search"]["lower_bound"] <= gap * (1 + 1e-8)
+            assert a.cost <= b.cost + gap * (1 + 1e-8)
+
+
 @settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(st_h.floats(20.0, 40.0), st_h.floats(6.0, 14.0), st_h.floats(-30.0, -10.0), st_h.booleans())
 def test_generated_three_vehicle_plans_equal_the_backend_only_search(x2, v2, x3, limits):
     """Generated three-vehicle problems (the slow vehicle ahead and the fast one behind moved):
-    the search on the node solver and the search with every QP by Clarabel reach the same
-    status and cost, and each plan's lower bound brackets the other's cost within the gap."""
+    the search on the node solver and the search with every QP by Clarabel agree to the gap that
+    certifies them (:func:`_agree_within_the_gap`).  The two searches' QP answers differ within the
+    backend's tolerance, so their dual bounds and branchings differ and they may stop at different
+    points of the gap: e.g. ``x2 = 32.86, v2 = 9.913104976261373, x3 = -14.12`` without limits gives
+    6.735576865790912 and 6.735583167257168 (relative 9.4e-7), both ``optimal`` with lower bounds
+    6.7350278; with ``v2 = 6.0, x3 = -14.25`` and limits, 6.90855133994868 ``optimal`` and
+    6.90855133994881 ``local`` (the backend search's bound 6.90781 leaves a gap of 1.1e-4)."""
     import dataclasses
 
     base = overtake_three_problem(limits)
@@ -162,11 +185,27 @@ def test_generated_three_vehicle_plans_equal_the_backend_only_search(x2, v2, x3,
         slow = ContinuousAvoidPlanner(steps=12, node_solver="backend").plan(prob)
     except ScenarioError:
         assume(False)
-    assert fast.status == slow.status, (fast.status, slow.status)
-    assume(fast.status == st.OPTIMAL)
-    assert fast.cost == pytest.approx(slow.cost, rel=1e-8)
-    for a, b in ((fast, slow), (slow, fast)):
-        assert a.info["search"]["lower_bound"] <= b.cost * (1 + 1e-8)
+    _agree_within_the_gap(fast, slow)
+
+
+@pytest.mark.parametrize("x2, v2, x3, limits", [(32.86, 9.913104976261373, -14.12, False),
+                                                (32.86, 6.0, -14.25, True)])
+def test_the_two_searches_may_stop_at_different_points_of_the_gap(x2, v2, x3, limits):
+    """The two examples of the docstring above, found by hypothesis under pytest-xdist (whose
+    derandomised draws differ from a single process's): the searches disagree beyond 1e-8 in cost, or
+    in status, and agree to the gap."""
+    import dataclasses
+
+    base = overtake_three_problem(limits)
+    vs = list(base.vehicles)
+    vs[1] = dataclasses.replace(vs[1], x_poly=(x2, v2))
+    vs[2] = dataclasses.replace(vs[2], x_poly=(x3, 26.0))
+    prob = base.with_vehicles(vs)
+    fast = ContinuousAvoidPlanner(steps=12).plan(prob)
+    slow = ContinuousAvoidPlanner(steps=12, node_solver="backend").plan(prob)
+    assert fast.status == st.OPTIMAL
+    assert fast.status != slow.status or abs(fast.cost - slow.cost) > 1e-8 * abs(fast.cost)
+    _agree_within_the_gap(fast, slow)
 
 
 def test_the_node_solver_proves_the_near_infeasible_qps_of_a_narrow_window_infeasible() -> None:
