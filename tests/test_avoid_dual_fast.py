@@ -8,7 +8,7 @@ expression it replaced gave, bit for bit, run as Python and compiled by numba.
 * :func:`~iamp.planners.avoid.dual_kernel.ratio_limits` against ``numpy.min`` of the masked ratios;
 * :func:`~iamp.planners.avoid.dual_kernel.primal` and :func:`~iamp.planners.avoid.dual_kernel.coefficients`
   against their former loops (the same sums in the same order), and against the dense linear algebra;
-* the kept arrays (``DualPolynomial.meta``, the coefficient positions, ``Packing.bound_data``,
+* the kept arrays (``DualPolynomial.meta``, the coefficient positions, ``Packing.bound``,
   ``DualBounds.mass``) against what they stand for.
 """
 
@@ -301,11 +301,13 @@ def test_packing_keeps_the_largest_count_and_the_roundoffs() -> None:
              for k, n in enumerate((5, 7, 3))]
     polys.append(DualPolynomial((0, 1), (1, 2), rng.normal(size=(5, 5)), 0.1, np.ones(2), roundoff=0.25))
     packing = Packing()
-    n, roundoff = packing.bound_data(polys)
-    meta = dual._packed(polys, None)[1]
-    assert n == int(meta[:, 1].max()) == 7
-    assert np.array_equal(roundoff, [dp.roundoff for dp in polys]) and not roundoff.flags.writeable
-    assert packing.bound_data(polys)[1] is roundoff
+    assert packing.get(polys) is packing.get(polys)
+    flat, meta, W, largest, n, roundoff = packing.bound(polys)
+    want = dual._packed(polys, None)
+    assert np.array_equal(flat, want[0]) and np.array_equal(meta, want[1]) and (W, largest) == want[2:]
+    assert n == int(want[1][:, 1].max()) == 7
+    assert np.array_equal(roundoff, [dp.roundoff for dp in polys])
+    assert packing.bound(polys)[5] is roundoff
     lo, hi = np.array([0.1, 0.1]), np.array([0.12, 0.2])
     assert dual.max_lower_bound(polys, lo, hi, packing) == dual.max_lower_bound(polys, lo, hi)
 

@@ -311,18 +311,17 @@ class Packing:
     SIZE = 32
 
     def __init__(self) -> None:
-        self._kept: dict[tuple[int, ...], tuple[tuple[DualPolynomial, ...],
-                                                tuple[FloatArray, NDArray[np.int64], int, int],
-                                                tuple[int, FloatArray]]] = {}
+        self._kept: dict[tuple[int, ...], _Packed] = {}
 
     def get(self, polys: Sequence[DualPolynomial]) -> tuple[FloatArray, NDArray[np.int64], int, int]:
         """The packing of ``polys`` (:func:`_packed`), computed on the first call with them."""
-        return self._entry(polys)[1]
+        return self._entry(polys).packed
 
-    def bound_data(self, polys: Sequence[DualPolynomial]) -> tuple[int, FloatArray]:
-        """What the bound kernels take of ``polys`` besides their packing, kept with it: the largest
-        coefficient count per axis (``meta[:, 1].max()``) and the polynomials' round-off margins
-        (:attr:`DualPolynomial.roundoff`, read-only).
+    def bound(self, polys: Sequence[DualPolynomial]
+              ) -> tuple[FloatArray, NDArray[np.int64], int, int, int, FloatArray]:
+        """The packing of ``polys`` (:meth:`get`) and what the bound kernels take besides, kept with
+        it: the largest coefficient count per axis (``meta[:, 1].max()``) and the polynomials'
+        round-off margins (:attr:`DualPolynomial.roundoff`; not to be written).
 
         Parameters
         ----------
@@ -332,25 +331,40 @@ class Packing:
         Returns
         -------
         tuple
-            ``(n, roundoff)``.
+            ``(flat, meta, W, largest, n, roundoff)``; ``meta`` is the kept array (copy it before a
+            kernel overwrites it).
         """
-        return self._entry(polys)[2]
+        entry = self._entry(polys)
+        flat, meta, W, largest = entry.packed
+        if entry.roundoff is None:
+            entry.n = int(meta[:, 1].max())
+            entry.roundoff = np.array([dp.roundoff for dp in polys], dtype=float)
+        return flat, meta, W, largest, entry.n, entry.roundoff
 
-    def _entry(self, polys: Sequence[DualPolynomial]) -> tuple[tuple[DualPolynomial, ...],
-                                                               tuple[FloatArray, NDArray[np.int64], int, int],
-                                                               tuple[int, FloatArray]]:
-        """The kept entry of ``polys``, computed on the first call with them."""
+    def _entry(self, polys: Sequence[DualPolynomial]) -> _Packed:
+        """The kept entry of ``polys``, its packing computed on the first call with them."""
         key = tuple(map(id, polys))
         kept = self._kept.get(key)
-        if kept is not None and len(kept[0]) == len(polys) and all(a is b for a, b in zip(kept[0], polys)):
+        if kept is not None and len(kept.polys) == len(polys) and all(a is b for a, b in zip(kept.polys, polys)):
             return kept
-        out = _packed(polys, None)
-        roundoff = np.array([dp.roundoff for dp in polys], dtype=float)
-        roundoff.flags.writeable = False
         if len(self._kept) >= self.SIZE:
             del self._kept[next(iter(self._kept))]
-        entry = self._kept[key] = (tuple(polys), out, (int(out[1][:, 1].max()), roundoff))
+        entry = self._kept[key] = _Packed(tuple(polys), _packed(polys, None))
         return entry
+
+
+class _Packed:
+    """One entry of :class:`Packing`: the polynomials, their packing (:func:`_packed`) and, once
+    :meth:`Packing.bound` asked, the largest coefficient count per axis and the round-off margins."""
+
+    __slots__ = ("n", "packed", "polys", "roundoff")
+
+    def __init__(self, polys: tuple[DualPolynomial, ...],
+                 packed: tuple[FloatArray, NDArray[np.int64], int, int]) -> None:
+        self.polys = polys
+        self.packed = packed
+        self.n = 0
+        self.roundoff: FloatArray | None = None
 
 
 def _packed(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None
@@ -457,10 +471,11 @@ def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray,
     """
     if not polys:
         return -np.inf
-    flat, meta, W, largest = _pack(polys, None, packing)
     if packing is not None:
-        n, roundoff = packing.bound_data(polys)
+        flat, kept_meta, W, largest, n, roundoff = packing.bound(polys)
+        meta = kept_meta.copy()  # the kernel overwrites its sizes with starts (:func:`_pack`)
     else:
+        flat, meta, W, largest = _packed(polys, None)
         n, roundoff = int(meta[:, 1].max()), np.array([dp.roundoff for dp in polys], dtype=float)
     work, spare, pw_a, R, kept, lam, est, chosen = _space(largest, n, W, len(polys))
     return float(_run("max_poly_bound", search_kernel)(
