@@ -70,7 +70,6 @@ from numpy.typing import NDArray
 from . import dual_kernel, search_kernel
 from .bernstein import _binomials, _power_to_bernstein
 from .schur import _run, full_hessian, kkt_matrix
-from .solve import row_entries
 
 if TYPE_CHECKING:
     from .continuous import ContinuousAvoidQP, Solved
@@ -126,6 +125,10 @@ def _vander(degree: int) -> FloatArray:
 _VANDER: dict[int, FloatArray] = {}
 
 
+#: per ``(q, D)``: :meth:`DualBounds._exponents` and :meth:`DualBounds._flat` (shared by every grid)
+_EXPONENTS: dict[tuple[int, int], tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]] = {}
+_FLATS: dict[tuple[int, int], NDArray[np.int64]] = {}
+
 #: :meth:`_Binding.split_rows` of a piece without a binding row (empty; writeable like the arrays it
 #: stands for, as the kernels take them)
 _NO_ROWS = np.zeros(0, dtype=np.intp)
@@ -153,30 +156,41 @@ class _Binding:
     data: FloatArray
     #: the columns of the binding rows' entries (the rows of ``K⁻¹`` their tangent reads)
     cols: NDArray[np.int64]
+    #: per vehicle, the sum of the multipliers on its Bernstein rows (:meth:`DualBounds.mass`;
+    #: read-only, shared by every polynomial of the solution)
+    mass: FloatArray
+    #: per vehicle, the axes of its first and second half-planes (its spec's ``f``, ``s``)
+    first: NDArray[np.int64]
+    second: NDArray[np.int64]
     #: :meth:`DualBounds._split_blocks` per ``(vehicle, piece)``, each block with its terms of
     #: :meth:`DualBounds.polynomial` (``σ (y_j M)ᵀ``, ``rhs · y_j``), computed once per solution
     blocks: dict[tuple[int, int], list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64],
                                              FloatArray, FloatArray]]] = field(default_factory=dict)
     #: :meth:`DualBounds.tangent` per ``(vehicle, piece)``, computed once per solution
     tangents: dict[tuple[int, int], FloatArray] = field(default_factory=dict)
-    #: :meth:`split_rows` of every ``(vehicle, half-plane axis, piece)`` with a binding row (filled
-    #: on first use)
+    #: :meth:`DualBounds._halves` per ``(vehicle, piece)``, computed once per solution
+    halves: dict[tuple[int, int], tuple[tuple[NDArray[np.int64], FloatArray, FloatArray, float,
+                                              NDArray[np.int64]], ...]] = field(default_factory=dict)
+    #: per ``(vehicle, piece)``, the columns of ``K⁻¹`` the tangent and the polynomial read (the
+    #: binding rows' entries and the split piece's node columns), and whether the node solver has
+    #: them solved already
+    entries: dict[tuple[int, int], NDArray[np.int64]] = field(default_factory=dict)
+    solved: set[tuple[int, int]] = field(default_factory=set)
+    #: :meth:`split_rows` per ``(vehicle, half-plane axis, piece)`` (filled on first use)
     _split: dict[tuple[int, int, int], NDArray[np.int64]] = field(default_factory=dict)
 
     def split_rows(self, i: int, pl: int, k: int) -> NDArray[np.int64]:
         """The positions (ascending) of the binding Bernstein rows of vehicle ``i``'s half-plane
-        axis ``pl`` on piece ``k``: ``numpy.flatnonzero`` of those rows, every ``(i, pl, k)`` found
-        in one pass over the binding rows on first use (once per solution)."""
-        groups = self._split
-        if not groups and self.bern.any():
-            rows: dict[tuple[int, int, int], list[int]] = {}
-            for r, (b, v, a, p) in enumerate(zip(self.bern.tolist(), self.veh.tolist(), self.plane.tolist(),
-                                                 self.piece.tolist())):
-                if b:
-                    rows.setdefault((v, a, p), []).append(r)
-            groups.update((key, np.array(r, dtype=np.intp)) for key, r in rows.items())
-        out = groups.get((i, pl, k))
-        return out if out is not None else _NO_ROWS
+        axis ``pl`` on piece ``k``: ``numpy.flatnonzero`` of those rows
+        (:func:`~iamp.planners.avoid.dual_kernel.select_rows`, once per solution and key)."""
+        key = (i, pl, k)
+        out = self._split.get(key)
+        if out is None:
+            out = _run("select_rows", dual_kernel)(self.bern, self.veh, self.plane, self.piece, i, pl, k)
+            if not out.size:
+                out = _NO_ROWS
+            self._split[key] = out
+        return out
 
 
 @dataclass(frozen=True)
@@ -221,10 +235,9 @@ class DualPolynomial:
         ``W = max(m, q, 1)`` (``m`` the vehicles of :attr:`mass`); computed once, read-only."""
         q = self.coef.ndim
         W = max(int(np.size(self.mass)), q, 1)
-        row = np.zeros(3 + 2 * W, dtype=np.int64)
-        row[0], row[1], row[2] = q, int(self.coef.shape[0]) if q else 1, self.coef.size
-        row[3:3 + q] = self.vehicles
-        row[3 + W:3 + W + q] = self.pieces
+        pad = (0,) * (W - q)
+        row = np.array((q, int(self.coef.shape[0]) if q else 1, self.coef.size) + tuple(self.vehicles) + pad
+                       + tuple(self.pieces) + pad, dtype=np.int64)
         row.flags.writeable = False
         return row
 
@@ -298,20 +311,60 @@ class Packing:
     SIZE = 32
 
     def __init__(self) -> None:
-        self._kept: dict[tuple[int, ...], tuple[tuple[DualPolynomial, ...],
-                                                tuple[FloatArray, NDArray[np.int64], int, int]]] = {}
+        self._kept: dict[tuple[int, ...], _Packed] = {}
 
     def get(self, polys: Sequence[DualPolynomial]) -> tuple[FloatArray, NDArray[np.int64], int, int]:
         """The packing of ``polys`` (:func:`_packed`), computed on the first call with them."""
+        return self._entry(polys).packed
+
+    def bound(self, polys: Sequence[DualPolynomial]
+              ) -> tuple[FloatArray, NDArray[np.int64], int, int, int, FloatArray]:
+        """The packing of ``polys`` (:meth:`get`) and what the bound kernels take besides, kept with
+        it: the largest coefficient count per axis (``meta[:, 1].max()``) and the polynomials'
+        round-off margins (:attr:`DualPolynomial.roundoff`; not to be written).
+
+        Parameters
+        ----------
+        polys : sequence of DualPolynomial
+            The polynomials (at least one).
+
+        Returns
+        -------
+        tuple
+            ``(flat, meta, W, largest, n, roundoff)``; ``meta`` is the kept array (copy it before a
+            kernel overwrites it).
+        """
+        entry = self._entry(polys)
+        flat, meta, W, largest = entry.packed
+        if entry.roundoff is None:
+            entry.n = int(meta[:, 1].max())
+            entry.roundoff = np.array([dp.roundoff for dp in polys], dtype=float)
+        return flat, meta, W, largest, entry.n, entry.roundoff
+
+    def _entry(self, polys: Sequence[DualPolynomial]) -> _Packed:
+        """The kept entry of ``polys``, its packing computed on the first call with them."""
         key = tuple(map(id, polys))
         kept = self._kept.get(key)
-        if kept is not None and len(kept[0]) == len(polys) and all(a is b for a, b in zip(kept[0], polys)):
-            return kept[1]
-        out = _packed(polys, None)
+        if kept is not None and len(kept.polys) == len(polys) and all(a is b for a, b in zip(kept.polys, polys)):
+            return kept
         if len(self._kept) >= self.SIZE:
             del self._kept[next(iter(self._kept))]
-        self._kept[key] = (tuple(polys), out)
-        return out
+        entry = self._kept[key] = _Packed(tuple(polys), _packed(polys, None))
+        return entry
+
+
+class _Packed:
+    """One entry of :class:`Packing`: the polynomials, their packing (:func:`_packed`) and, once
+    :meth:`Packing.bound` asked, the largest coefficient count per axis and the round-off margins."""
+
+    __slots__ = ("n", "packed", "polys", "roundoff")
+
+    def __init__(self, polys: tuple[DualPolynomial, ...],
+                 packed: tuple[FloatArray, NDArray[np.int64], int, int]) -> None:
+        self.polys = polys
+        self.packed = packed
+        self.n = 0
+        self.roundoff: FloatArray | None = None
 
 
 def _packed(polys: Sequence[DualPolynomial], coefs: Sequence[FloatArray] | None
@@ -418,11 +471,15 @@ def max_lower_bound(polys: list[DualPolynomial], lo: FloatArray, hi: FloatArray,
     """
     if not polys:
         return -np.inf
-    flat, meta, W, largest = _pack(polys, None, packing)
-    n = int(meta[:, 1].max())
+    if packing is not None:
+        flat, kept_meta, W, largest, n, roundoff = packing.bound(polys)
+        meta = kept_meta.copy()  # the kernel overwrites its sizes with starts (:func:`_pack`)
+    else:
+        flat, meta, W, largest = _packed(polys, None)
+        n, roundoff = int(meta[:, 1].max()), np.array([dp.roundoff for dp in polys], dtype=float)
     work, spare, pw_a, R, kept, lam, est, chosen = _space(largest, n, W, len(polys))
     return float(_run("max_poly_bound", search_kernel)(
-        flat, meta, W, np.array([dp.roundoff for dp in polys], dtype=float), float(polys[0].h), ROUND_OFF_REL,
+        flat, meta, W, roundoff, float(polys[0].h), ROUND_OFF_REL,
         np.asarray(lo, dtype=float), np.asarray(hi, dtype=float), *_kernel_tables(n), MAX_BOUND_FIRST, est, chosen, lam,
         work, spare, pw_a, R, kept))
 
@@ -453,12 +510,10 @@ class DualBounds:
         D, m = qp.degree, len(qp.problem.vehicles)
         #: per polynomial vehicle ``v``: the basis columns of ``λ_v^0..λ_v^d`` (:meth:`polynomial`)
         self._basis_columns = [np.concatenate(([0], 1 + v * D + np.arange(D))) for v in range(m)]
-        self._exps: dict[tuple[int, int], tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]] = {}
         self._bindings: dict[int, tuple[Solved, _Binding]] = {}
         #: the four node columns of piece ``k`` of half-plane axis ``pl`` (:meth:`_split_blocks`)
         self._cols: dict[tuple[int, int], NDArray[np.int64]] = {}
         self._ix: dict[tuple[bytes, int], tuple[NDArray[np.int64], ...]] = {}
-        self._flats: dict[tuple[int, int], NDArray[np.int64]] = {}
         #: b·ν0 and |b|·|ν0| of the equality optimum (:meth:`polynomial`)
         self._beq_nu = float(d.b_eq @ qp.schur._x0[d.n:]) if qp.schur is not None else 0.0
         self._beq_nu_abs = float(np.abs(d.b_eq) @ np.abs(qp.schur._x0[d.n:])) if qp.schur is not None else 0.0
@@ -470,27 +525,40 @@ class DualBounds:
         self._own_kinv: FloatArray | None = None
         self._own_have: NDArray[np.bool_] | None = None
 
-    def _exponents(self, q: int, D: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
+    @staticmethod
+    def _exponents(q: int, D: int) -> tuple[tuple[NDArray[np.int64], ...], tuple[NDArray[np.int64], ...]]:
         """With ``q`` polynomial vehicles: the exponents of the basis ``1, λ_i^p`` (``p = 1..D``)
         and of the products of two basis monomials, as index tuples into the coefficient tensor
-        (built once per ``(q, D)``)."""
-        out = self._exps.get((q, D))
+        (built once per ``(q, D)`` and process, :data:`_EXPONENTS`)."""
+        out = _EXPONENTS.get((q, D))
         if out is None:
             C = 1 + q * D
             exps = np.zeros((C, q), dtype=np.int64)
             for v in range(q):
                 exps[1 + v * D:1 + (v + 1) * D, v] = np.arange(1, D + 1)
             pairs = (exps[:, None, :] + exps[None, :, :]).reshape(C * C, q)
-            out = self._exps[(q, D)] = (tuple(exps.T), tuple(pairs.T))
+            out = _EXPONENTS[(q, D)] = (tuple(exps.T), tuple(pairs.T))
         return out
 
-    def _flat(self, q: int, D: int, shape: tuple[int, ...], exps: tuple[NDArray[np.int64], ...],
+    @staticmethod
+    def _flat(q: int, D: int, shape: tuple[int, ...], exps: tuple[NDArray[np.int64], ...],
               pairs: tuple[NDArray[np.int64], ...]) -> NDArray[np.int64]:
-        """The flat positions in the coefficient tensor of ``exps``, then ``pairs`` (once per ``(q, D)``)."""
-        out = self._flats.get((q, D))
+        """The flat positions in the coefficient tensor of ``exps``, then ``pairs`` (once per ``(q, D)``
+        and process, :data:`_FLATS`; read-only)."""
+        out = _FLATS.get((q, D))
         if out is None:
-            out = self._flats[(q, D)] = np.concatenate((np.ravel_multi_index(exps, shape),
-                                                   np.ravel_multi_index(pairs, shape)))
+            out = np.concatenate((np.ravel_multi_index(exps, shape), np.ravel_multi_index(pairs, shape)))
+            out.flags.writeable = False
+            _FLATS[(q, D)] = out
+        return out
+
+    @staticmethod
+    def _positions(q: int, D: int) -> NDArray[np.int64]:
+        """:meth:`_flat` of ``q`` polynomial vehicles of degree ``D`` (coefficient tensor of shape
+        ``(2D + 1,) * q``), looked up once per ``(q, D)`` and process."""
+        out = _FLATS.get((q, D))
+        if out is None:
+            out = DualBounds._flat(q, D, (2 * D + 1,) * q, *DualBounds._exponents(q, D))
         return out
 
     def _rhs_poly(self, i: int, plane: int, k: int, pre: bool) -> FloatArray:
@@ -508,18 +576,20 @@ class DualBounds:
         return out
 
     def _decode(self, sol: Solved) -> _Binding:
+        """The binding rows of ``sol`` (only rows with a positive multiplier enter ``g``), their
+        layout numbers decoded and their multipliers summed per vehicle
+        (:func:`~iamp.planners.avoid.dual_kernel.binding_rows`)."""
         qp = self.qp
-        N, nb = qp.N, self.nb
         A_in, u_in, ids_all = sol.spec_rows()
-        y_all = sol.y[qp.data.n_eq:]
-        nz = np.flatnonzero(y_all > 0)  # only rows with a positive multiplier enter g
-        ids = ids_all[nz]
-        bern = ids < qp.n_b
-        blk = np.where(bern, ids // (N * nb), -1)
         indptr, indices, data = qp.csr_arrays(A_in)
-        cols = indices[row_entries(indptr, nz)[0]]
-        return _Binding(A_in, u_in, nz, y_all[nz], bern, blk // 2, blk % 2, (ids // nb) % N, ids % nb,
-                        indptr, indices, data, cols)
+        nz, y, bern, veh, plane, piece, j, cols, mass = _run("binding_rows", dual_kernel)(
+            np.asarray(sol.y[qp.data.n_eq:], dtype=float), np.asarray(ids_all, dtype=np.int64), int(qp.n_b),
+            int(qp.N), int(self.nb), len(sol.spec), indptr, indices)
+        mass.flags.writeable = False
+        first = np.array([f for f, _, _, _ in sol.spec], dtype=np.int64)
+        second = np.array([s for _, s, _, _ in sol.spec], dtype=np.int64)
+        return _Binding(A_in, u_in, nz, y, bern, veh, plane, piece, j, indptr, indices, data, cols, mass, first,
+                        second)
 
     def _split_blocks(self, sol: Solved, b: _Binding, i: int, k: int
                       ) -> list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64], FloatArray,
@@ -632,7 +702,7 @@ class DualBounds:
             return out
         h = self.qp.h
         lam0 = (float(sol.spec[i][2]) - k * h) / h
-        Kinv = self._kinv_rows(np.concatenate((b.cols, halves[0][4], halves[1][4])))
+        Kinv = self._kinv_rows(self._entries(b, i, k), b, (i, k))
         _run("tangent", dual_kernel)(b.indptr, b.indices, b.data, b.nz, b.y, b.j, sol.z, Kinv, lam0, *halves[0],
                                      *halves[1], out)
         return out
@@ -645,6 +715,9 @@ class DualBounds:
         (:meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.split_polynomials`,
         :meth:`~iamp.planners.avoid.continuous.ContinuousAvoidQP.rhs_polynomial`; zeros where no
         row binds), its sign and the piece's four node columns."""
+        kept = b.halves.get((i, k))
+        if kept is not None:
+            return kept
         d = self.qp.data
         f, s = sol.spec[i][0], sol.spec[i][1]
         out = []
@@ -652,14 +725,31 @@ class DualBounds:
             rows = b.split_rows(i, pl, k)
             rhs = self._rhs_poly(i, pl, k, pre) if rows.size else self._no_rhs
             out.append((rows, M, rhs, float(d.planes[i][pl].sigma), self._node_cols(pl, k)))
-        return tuple(out)
+        kept = b.halves[(i, k)] = tuple(out)
+        return kept
 
-    def _kinv_rows(self, cols: NDArray[np.int64]) -> FloatArray:
+    def _entries(self, b: _Binding, i: int, k: int) -> NDArray[np.int64]:
+        """The columns of :math:`K^{-1}_{zz}` that vehicle ``i``'s tangent and polynomial on its split
+        piece ``k`` read: the binding rows' entries, then the piece's node columns of its two
+        half-planes (:meth:`_halves` must have been computed; once per solution and ``(i, k)``)."""
+        out = b.entries.get((i, k))
+        if out is None:
+            first, second = b.halves[(i, k)]
+            out = b.entries[(i, k)] = np.concatenate((b.cols, first[4], second[4]))
+        return out
+
+    def _kinv_rows(self, cols: NDArray[np.int64], b: _Binding | None = None,
+                   key: tuple[int, int] | None = None) -> FloatArray:
         """An ``(n, n)`` array whose rows ``cols`` are those of :math:`K^{-1}_{zz}` (``K`` symmetric:
-        its columns): the node solver's own array once it solved them, else one kept here."""
+        its columns): the node solver's own array once it solved them, else one kept here.  With
+        ``b`` and ``key`` (``cols`` is ``b``'s :meth:`_entries` of ``key``) the node solver is
+        asked once per solution (its columns, once solved, stay)."""
         qp = self.qp
         if qp.schur is not None:
-            qp.schur._columns(cols)
+            if b is None or key is None or key not in b.solved:
+                qp.schur._columns(cols)
+                if b is not None and key is not None:
+                    b.solved.add(key)
             return np.asarray(qp.schur._Kinv)
         if self._own_kinv is None:
             n = qp.data.n
@@ -680,11 +770,12 @@ class DualBounds:
         mu = self.tangent(sol, i, k)
         lam0 = min(max((float(sol.spec[i][2]) - k * self.qp.h) / self.qp.h, 0.0), 1.0)
         lo, hi = 0.0, 1.0
-        down, up = mu < 0.0, mu > 0.0
-        if down.any():
-            hi = min(hi, lam0 + float(np.min(b.y[down] / -mu[down])))
-        if up.any():
-            lo = max(lo, lam0 - float(np.min(b.y[up] / mu[up])))
+        # the smallest y / |μ| of the falling and of the rising multipliers (numpy.min's)
+        down, has_down, up, has_up = _run("ratio_limits", dual_kernel)(b.y, mu)
+        if has_down:
+            hi = min(hi, lam0 + float(down))
+        if has_up:
+            lo = max(lo, lam0 - float(up))
         return min(lo, lam0), max(hi, lam0)
 
     def polynomial(self, sol: Solved, lo: FloatArray, hi: FloatArray) -> DualPolynomial:
@@ -705,21 +796,22 @@ class DualBounds:
         qp, d = self.qp, self.qp.data
         N, h, D = qp.N, qp.h, qp.degree
         b = self._binding(sol)
-        u_in, nz, y, bern, veh, plane, piece = b.u_in, b.nz, b.y, b.bern, b.veh, b.plane, b.piece
-        keep = ~bern  # the limit rows
+        u_in, nz, y = b.u_in, b.nz, b.y
         poly_vehicles: list[int] = []
         pieces: list[int] = []
-        tol = 1e-9 * h
-        for i, (f, s, _, _) in enumerate(sol.spec):
-            mine = bern & (veh == i)
+        m = len(sol.spec)
+        split = np.empty(m, dtype=np.int64)
+        for i in range(m):
             k = piece_of(float(lo[i]), float(hi[i]), h, N)
+            split[i] = -1 if k is None else k
             if k is not None:
                 poly_vehicles.append(i)
                 pieces.append(k)
-                keep |= mine & (((plane == f) & (piece < k)) | ((plane == s) & (piece > k)))
-            else:
-                keep |= mine & (plane == f) & ((piece + 1) * h <= lo[i] + tol)
-                keep |= mine & (plane == s) & (piece * h >= hi[i] - tol)
+        first_pl, second_pl = b.first, b.second
+        # the limit rows, and the Bernstein rows that every crossing in the box imposes (module docstring)
+        keep = np.empty(nz.size, dtype=np.bool_)
+        _run("kept_rows", dual_kernel)(b.bern, b.veh, b.plane, b.piece, first_pl, second_pl, split,
+                                       np.asarray(lo, dtype=float), np.asarray(hi, dtype=float), h, 1e-9 * h, keep)
         q = len(poly_vehicles)
         if q == 1:
             # the multipliers on their tangent (module docstring): basis 1, λ, .., λ^(d+2)
@@ -736,11 +828,12 @@ class DualBounds:
                                                self.tangent(sol, i, k), lam0, la, lb, *first, *second, R[:d.n], hc)
             R[d.n:, 0] = d.b_eq
             # R's rows with an entry: among the kept rows' columns and the piece's node columns
-            entries: NDArray[np.int64] | None = np.concatenate((b.cols, first[4], second[4]))
+            entries: NDArray[np.int64] | None = self._entries(b, i, k)
+            entry_key: tuple[int, int] | None = (i, k)
         else:
             Dp = D
             C = 1 + q * D  # basis: 1, then λ_i^p (p = 1..D) per polynomial vehicle
-            entries = None
+            entries = entry_key = None
             R = np.zeros((d.n + d.n_eq, C))
             # -A_keepᵀ y_keep from the CSR arrays of the kept rows (the node solver's kernel: from 0.0,
             # the rows in order, each row's entries in stored order)
@@ -772,7 +865,10 @@ class DualBounds:
             # b (column 0), and K⁻¹[0; b] = (z0, ν0) is the equality optimum; νᵀb by symmetry:
             # (K⁻¹r)_ν · b = r · K⁻¹[0; b] = r_z · z0 + r_ν · ν0
             Rp = R[:d.n]
-            schur._columns(entries if entries is not None else np.flatnonzero(np.abs(Rp) @ np.ones(C)))
+            if entries is None:
+                schur._columns(np.flatnonzero(np.abs(Rp) @ np.ones(C)))
+            else:
+                self._kinv_rows(entries, b, entry_key)
             Z = np.empty((d.n, C))
             lin_abs = _run("primal", dual_kernel)(Rp, schur._Kinv, schur.z0, hc, self._beq_nu, self._beq_nu_abs, Z,
                                                   lin)
@@ -781,7 +877,7 @@ class DualBounds:
         # (its round-off scales with them, not with g: a nearly infeasible candidate's
         # multipliers of 5e7 give coefficients of 1e15 for a g of 2)
         shape = (2 * Dp + 1,) * q
-        flat = self._flat(q, Dp, shape, *self._exponents(q, Dp)) if q else self._flat_const
+        flat = self._positions(q, Dp) if q else self._flat_const
         out = np.zeros(math.prod(shape))
         terms = _run("coefficients", dual_kernel)(Z, lin, lin_abs, hc, self._Pp, self._Pi, self._Px, flat, out)
         coef = out.reshape(shape) if q else np.array(out[0])
@@ -791,8 +887,7 @@ class DualBounds:
     def mass(self, sol: Solved) -> FloatArray:
         """Per vehicle, the sum of ``sol``'s multipliers on its Bernstein rows (:attr:`DualPolynomial.mass`
         of every polynomial of ``sol``, without building one)."""
-        b = self._binding(sol)
-        return np.bincount(b.veh[b.bern], weights=b.y[b.bern], minlength=len(sol.spec)).astype(float)
+        return self._binding(sol).mass
 
 
 class DualStore:

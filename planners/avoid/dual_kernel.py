@@ -25,7 +25,15 @@ coefficients in :math:`\lambda`, shape ``(d + 1, d + 1, 4)``) and bounds ``rhs``
 * :func:`primal` — :math:`Z = K^{-1}_{zz} R + z_0 e_0^\top` from the kept columns;
 * :func:`coefficients` — the polynomial's coefficients
   :math:`-\mathrm{lin} - \tfrac12 Z^\top P Z` summed per power, and the size of the terms that
-  cancel in them (its round-off margin).
+  cancel in them (its round-off margin);
+* :func:`binding_rows` — a solution's binding rows decoded from their layout numbers, and the
+  multipliers' sums per vehicle (:meth:`~iamp.planners.avoid.dual.DualBounds._decode`);
+* :func:`select_rows` — the binding Bernstein rows of one half-plane on one piece
+  (:meth:`~iamp.planners.avoid.dual._Binding.split_rows`);
+* :func:`kept_rows` — the binding rows whose multipliers stay valid over a box
+  (:meth:`~iamp.planners.avoid.dual.DualBounds.polynomial`);
+* :func:`ratio_limits` — the smallest ratios ``y / |μ|`` of the multipliers falling and rising along
+  their tangent (:meth:`~iamp.planners.avoid.dual.DualBounds.tangent_interval`).
 """
 
 from __future__ import annotations
@@ -258,20 +266,24 @@ def primal(R: Any, Kinv: Any, z0: Any, hc: Any, beq_x0: float, beq_x0_abs: float
     |\nu_0|)` (``beq_x0_abs`` the last)."""
     n = Z.shape[0]
     C = Z.shape[1]
-    for i in range(n):
-        for c in range(C):
-            Z[i, c] = 0.0
+    # column by column into a contiguous buffer (each entry the same sum over the rows ``a`` in
+    # ascending order, from 0.0), then copied into Z
+    ZT = np.zeros((C, n))
     s = np.zeros(C)
     sa = np.zeros(C)
-    for a in range(n):
-        for c in range(C):
+    for c in range(C):
+        zc = ZT[c]
+        for a in range(n):
             w = R[a, c]
             if w != 0.0:
+                ka = Kinv[a]
                 for i in range(n):
-                    Z[i, c] += Kinv[a, i] * w
+                    zc[i] += ka[i] * w
                 s[c] += z0[a] * w
                 sa[c] += abs(z0[a]) * abs(w)
     for i in range(n):
+        for c in range(C):
+            Z[i, c] = ZT[c, i]
         Z[i, 0] += z0[i]
     size = 0.0
     for c in range(C):
@@ -311,10 +323,187 @@ def coefficients(Z: Any, lin: Any, lin_abs: float, hc: Any, Pp: Any, Pi: Any, Px
     for c in range(C):
         coef[flat[c]] += -lin[c]
         hsum += abs(hc[c])
+    # every product (c1, c2) in one pass over the rows (each the same sum over i ascending, from 0.0)
+    ZPZ = np.zeros((C, C))
+    for i in range(n):
+        for c1 in range(C):
+            zi = Z[i, c1]
+            for c2 in range(C):
+                ZPZ[c1, c2] += zi * PZ[i, c2]
     for c1 in range(C):
         for c2 in range(C):
-            acc = 0.0
-            for i in range(n):
-                acc += Z[i, c1] * PZ[i, c2]
-            coef[flat[C + c1 * C + c2]] += -0.5 * acc
+            coef[flat[C + c1 * C + c2]] += -0.5 * ZPZ[c1, c2]
     return 0.5 * quad + lin_abs + hsum
+
+
+@compilable
+def binding_rows(y_all: Any, ids_all: Any, n_b: int, N: int, nb: int, m: int, indptr: Any, indices: Any) -> Any:
+    """The rows of a solution with a positive multiplier, decoded from their layout numbers
+    (:meth:`~iamp.planners.avoid.dual.DualBounds._decode`): from the multipliers ``y_all`` of the
+    imposed rows and their layout numbers ``ids_all`` (``n_b`` Bernstein rows, ``N`` pieces, ``nb``
+    Bernstein indices per piece; ``m`` vehicles; ``indptr, indices`` the rows' CSR arrays).
+
+    Parameters
+    ----------
+    y_all, ids_all : ndarray
+        The imposed rows' multipliers and layout numbers.
+    n_b, N, nb, m : int
+        The layout's sizes.
+    indptr, indices : ndarray
+        The imposed rows' CSR row pointers and column indices.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(nz, y, bern, veh, plane, piece, j, cols, mass)``: ``numpy.flatnonzero(y_all > 0)``, the
+        multipliers there, per binding row whether it is a Bernstein row (``id < n_b``), its vehicle
+        and half-plane axis (``blk // 2``, ``blk % 2`` of ``blk = id // (N nb)``, ``-1`` for a limit
+        row), piece ``(id // nb) % N`` and Bernstein index ``id % nb`` (Python's floor division and
+        remainder, as numpy's), the columns of the binding rows' entries (row after row, in stored
+        order) and per vehicle the sum of the multipliers on its Bernstein rows (in row order from
+        0.0: ``numpy.bincount``'s sums).
+    """
+    S = 0
+    for r in range(y_all.shape[0]):
+        if y_all[r] > 0.0:
+            S += 1
+    nz = np.empty(S, dtype=np.int64)
+    y = np.empty(S)
+    bern = np.empty(S, dtype=np.bool_)
+    veh = np.empty(S, dtype=np.int64)
+    plane = np.empty(S, dtype=np.int64)
+    piece = np.empty(S, dtype=np.int64)
+    j = np.empty(S, dtype=np.int64)
+    mass = np.zeros(m)
+    t = 0
+    E = 0
+    for r in range(y_all.shape[0]):
+        if y_all[r] > 0.0:
+            ident = ids_all[r]
+            nz[t] = r
+            y[t] = y_all[r]
+            b = ident < n_b
+            bern[t] = b
+            blk = ident // (N * nb) if b else -1
+            veh[t] = blk // 2
+            plane[t] = blk % 2
+            piece[t] = (ident // nb) % N
+            j[t] = ident % nb
+            if b:
+                mass[blk // 2] += y_all[r]
+            E += indptr[r + 1] - indptr[r]
+            t += 1
+    cols = np.empty(E, dtype=np.int64)
+    e = 0
+    for t in range(S):
+        for a in range(indptr[nz[t]], indptr[nz[t] + 1]):
+            cols[e] = indices[a]
+            e += 1
+    return nz, y, bern, veh, plane, piece, j, cols, mass
+
+
+@compilable
+def select_rows(bern: Any, veh: Any, plane: Any, piece: Any, i: int, pl: int, k: int) -> Any:
+    """The positions (ascending) of the Bernstein rows of vehicle ``i``'s half-plane axis ``pl`` on
+    piece ``k`` (:meth:`~iamp.planners.avoid.dual._Binding.split_rows`).
+
+    Parameters
+    ----------
+    bern, veh, plane, piece : ndarray
+        Per binding row, whether it is a Bernstein row, its vehicle, half-plane axis and piece.
+    i, pl, k : int
+        The vehicle, half-plane axis and piece.
+
+    Returns
+    -------
+    ndarray of int64
+        ``numpy.flatnonzero(bern & (veh == i) & (plane == pl) & (piece == k))``.
+    """
+    S = bern.shape[0]
+    count = 0
+    for r in range(S):
+        if bern[r] and veh[r] == i and plane[r] == pl and piece[r] == k:
+            count += 1
+    out = np.empty(count, dtype=np.int64)
+    t = 0
+    for r in range(S):
+        if bern[r] and veh[r] == i and plane[r] == pl and piece[r] == k:
+            out[t] = r
+            t += 1
+    return out
+
+
+@compilable
+def kept_rows(bern: Any, veh: Any, plane: Any, piece: Any, first: Any, second: Any, split: Any, lo: Any, hi: Any,
+              h: float, tol: float, keep: Any) -> None:
+    """``keep`` (per binding row): the rows whose multipliers stay valid over the box ``[lo, hi]``
+    (:meth:`~iamp.planners.avoid.dual.DualBounds.polynomial`): the limit rows, and of vehicle
+    ``i``'s Bernstein rows (``first[i]``, ``second[i]`` its half-plane axes), where its box lies in
+    piece ``split[i] >= 0``, the first half-plane's rows on the pieces before it and the second's
+    after it, else (``split[i] < 0``) the first's on pieces that end by ``lo[i] + tol`` and the
+    second's on pieces that start from ``hi[i] - tol``.
+
+    Parameters
+    ----------
+    bern, veh, plane, piece : ndarray
+        Per binding row, whether it is a Bernstein row, its vehicle, half-plane axis and piece.
+    first, second, split : ndarray of int64
+        Per vehicle, its half-plane axes and its box's piece (``-1``: none).
+    lo, hi : ndarray
+        The box.
+    h, tol : float
+        The grid step and the tolerance of a piece's end.
+    keep : ndarray of bool
+        Output.
+    """
+    for r in range(bern.shape[0]):
+        if not bern[r]:
+            keep[r] = True
+            continue
+        i = veh[r]
+        k = split[i]
+        p = piece[r]
+        if k >= 0:
+            keep[r] = (plane[r] == first[i] and p < k) or (plane[r] == second[i] and p > k)
+        else:
+            keep[r] = ((plane[r] == first[i] and (p + 1) * h <= lo[i] + tol)
+                       or (plane[r] == second[i] and p * h >= hi[i] - tol))
+
+
+@compilable
+def ratio_limits(y: Any, mu: Any) -> Any:
+    """The smallest ratio ``y / -μ`` over the multipliers falling along their tangent (``μ < 0``) and
+    the smallest ``y / μ`` over those rising (``μ > 0``), each NaN where there is none or where a
+    ratio is NaN (``numpy.min``'s)
+    (:meth:`~iamp.planners.avoid.dual.DualBounds.tangent_interval`).
+
+    Parameters
+    ----------
+    y, mu : ndarray
+        The multipliers and their slopes.
+
+    Returns
+    -------
+    tuple
+        ``(down, has_down, up, has_up)``.
+    """
+    down = np.nan
+    up = np.nan
+    has_down = False
+    has_up = False
+    for r in range(y.shape[0]):
+        if mu[r] < 0.0:
+            v = y[r] / -mu[r]
+            if not has_down:
+                down = v
+                has_down = True
+            elif down == down and (v < down or v != v):
+                down = v
+        elif mu[r] > 0.0:
+            v = y[r] / mu[r]
+            if not has_up:
+                up = v
+                has_up = True
+            elif up == up and (v < up or v != v):
+                up = v
+    return down, has_down, up, has_up
