@@ -31,6 +31,7 @@ from scipy import optimize
 from iamp.core.errors import ScenarioError
 from iamp.core.problem import Problem
 
+from ..qp.backends.base import compressed
 from .data import HalfPlane
 
 FloatArray = NDArray[np.float64]
@@ -120,7 +121,11 @@ class KKTCheck:
                  lower: sp.spmatrix | None = None) -> None:
         self.Pu = P if type(P) is sp.csc_matrix else sp.csc_matrix(P)  # the same arrays, the same products
         self.lower = sp.triu(self.Pu, 1).T if lower is None else lower
-        self.A, self.AT = A, A.T
+        self.A = A
+        # Aᵀ of a CSC matrix is the CSR matrix of its own three arrays (what ``A.T`` builds, without
+        # the constructor's checks: :func:`~iamp.planners.qp.backends.base.compressed`)
+        self.AT = (compressed(sp.csr_matrix, A.data, A.indices, A.indptr, (A.shape[1], A.shape[0]))
+                   if type(A) is sp.csc_matrix else A.T)
         self.q, self.l, self.u, self.n_eq = q, l, u, n_eq
         self.bound_max = float(max(np.abs(l[np.isfinite(l)]).max(initial=0.0),
                                    np.abs(u[np.isfinite(u)]).max(initial=0.0)))

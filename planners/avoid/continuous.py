@@ -113,7 +113,7 @@ from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and
 from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, CsrArrays, SchurActiveSet, _run, csr_arrays
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration, RowsSolution
 from iamp.planners.qp.backends import BACKENDS
-from iamp.planners.qp.backends.base import compressed
+from iamp.planners.qp.backends.base import compressed, csr_to_csc
 from iamp.planners.qp.hold import HoldTrajectory
 from iamp.planners.qp.options import check_choice
 
@@ -266,11 +266,18 @@ class _Segment:
 
 def _stacked(top: sp.csr_matrix, below: sp.csr_matrix) -> sp.csc_matrix:
     """``[top; below]`` (both CSR) as CSC, every stored entry kept: ``sp.vstack`` of the two,
-    converted, entry for entry, from their CSR arrays without its general checks."""
+    converted, entry for entry, from their CSR arrays without its general checks — the arrays of
+    ``compressed(sp.csr_matrix, …).tocsc()`` (:func:`~iamp.planners.qp.backends.base.csr_to_csc`,
+    scipy's own conversion without its wrapper) and, as ``tocsc`` marks it, sorted indices."""
     indptr = np.concatenate((top.indptr, top.indptr[-1] + below.indptr[1:]))
-    M = compressed(sp.csr_matrix, np.concatenate((top.data, below.data)), np.concatenate((top.indices, below.indices)),
-                   indptr, (top.shape[0] + below.shape[0], top.shape[1]))
-    return M.tocsc()
+    indices, data = np.concatenate((top.indices, below.indices)), np.concatenate((top.data, below.data))
+    shape = (top.shape[0] + below.shape[0], top.shape[1])
+    if indptr.dtype != np.int32 or indices.dtype != np.int32 or data.dtype != np.float64:
+        return compressed(sp.csr_matrix, data, indices, indptr, shape).tocsc()  # scipy's own index types
+    ptr_c, ind_c, data_c = csr_to_csc(indptr, indices, data, shape)
+    M = compressed(sp.csc_matrix, data_c, ind_c, ptr_c, shape)
+    M.has_sorted_indices = True
+    return M
 
 
 @dataclass

@@ -46,6 +46,7 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
+from scipy.sparse._sparsetools import csr_tocsc as _csr_tocsc
 
 from iamp.core.errors import IampError, MissingDependencyError
 
@@ -244,6 +245,46 @@ for _kind in (sp.csr_matrix, sp.csc_matrix):
     _TEMPLATES[_kind] = _kind((np.zeros(0), np.zeros(0, dtype=np.int32), np.zeros(2, dtype=np.int32)), shape=(1, 1))
     for _flag in ("_has_sorted_indices", "_has_canonical_format"):
         _TEMPLATES[_kind].__dict__.pop(_flag, None)
+
+
+_INT32_MAX = int(np.iinfo(np.int32).max)
+
+
+def csr_to_csc(indptr: NDArray[Any], indices: NDArray[Any], data: FloatArray,
+               shape: tuple[int, int]) -> tuple[NDArray[Any], NDArray[Any], FloatArray]:
+    """The CSC arrays ``(indptr, indices, data)`` of the CSR matrix of ``shape`` with these arrays,
+    as ``tocsc()`` of that matrix computes them (its CSC constructor then narrows int64 indices
+    that fit to int32: :func:`compressed` of the result does the same).
+
+    Parameters
+    ----------
+    indptr, indices : ndarray of int
+        The CSR row pointers (``shape[0] + 1`` of them, starting at 0) and column indices.
+    data : ndarray of float64
+        The stored values (``indptr[-1]`` of them).
+    shape : tuple of int
+        ``(rows, columns)``.
+
+    Returns
+    -------
+    tuple of ndarray
+        The column pointers, row indices and values of the CSC form: scipy's compiled
+        ``csr_tocsc`` itself, called on the index type ``tocsc`` picks (int32 when both index arrays
+        are int32 or narrower and ``max(nnz, rows)`` fits, else int64), so each column's entries are
+        in the order of their rows (a stable sort by column of the row-major entries; sorted
+        indices) and the numbers are the same, bit for bit, without the conversion's wrapper
+        (the matrix's construction, checks and index-type search).
+    """
+    M, N = int(shape[0]), int(shape[1])
+    nnz = int(indptr[-1])
+    idx = (np.int32 if (np.can_cast(indptr.dtype, np.int32) and np.can_cast(indices.dtype, np.int32)
+                        and max(nnz, M) <= _INT32_MAX) else np.int64)
+    out_ptr = np.empty(N + 1, dtype=idx)
+    out_ind = np.empty(nnz, dtype=idx)
+    out_data = np.empty(nnz, dtype=data.dtype)
+    _csr_tocsc(M, N, indptr.astype(idx, copy=False), indices.astype(idx, copy=False), data, out_ptr, out_ind,
+               out_data)
+    return out_ptr, out_ind, out_data
 
 
 def csc_rows(A: sp.csc_matrix, rows: IntArray) -> sp.csc_matrix:
