@@ -53,7 +53,6 @@ Python otherwise: the same numbers either way.
 
 from __future__ import annotations
 
-import copy
 from typing import Any
 
 import numpy as np
@@ -228,12 +227,15 @@ class SchurActiveSet:
         """The solver of the same ``P`` and ``E`` with the right-hand side ``b_eq``: it shares this
         one's factored KKT matrix and its solved columns of ``K⁻¹`` (which depend on ``P`` and
         ``E`` only; a column is the same bit for bit whichever batch solved it), so the plans of
-        one grid factor it once (the closed loop plans the same horizon many times)."""
-        out = copy.copy(self)
+        one grid factor it once (the closed loop plans the same horizon many times).  A shallow copy
+        (what ``copy.copy`` builds: a new object of this class sharing this one's attributes,
+        without its dispatch) with the equality optimum of ``b_eq``."""
+        out = object.__new__(type(self))
+        out.__dict__.update(self.__dict__)
         out.b_eq = np.asarray(b_eq, dtype=float)
         if out.b_eq.shape != self.b_eq.shape:
             raise ValueError(f"b_eq has {out.b_eq.size} rows, the factored matrix {self.n_eq}")
-        out._x0 = np.asarray(self.lu.solve(np.r_[np.zeros(self.n), out.b_eq]), dtype=float)
+        out._x0 = np.asarray(self.lu.solve(np.concatenate((np.zeros(self.n), out.b_eq))), dtype=float)
         out.z0 = out._x0[:self.n].copy()
         out.columns = 0
         return out
