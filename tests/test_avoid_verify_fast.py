@@ -30,13 +30,13 @@ from iamp.core.hold_trajectory import HoldTrajectory
 from iamp.core.polyroots import roots_in_unit_interval
 from iamp.core.problem import SurroundingVehicle
 from iamp.core.trajectory_pieces import shifted_poly
-from iamp.planners.avoid.check import KKTCheck, ScanGrid, _matvec, leave_time
+from iamp.planners.avoid.check import KKTCheck, ScanGrid, leave_time
 from iamp.planners.avoid.continuous import _stacked
 from iamp.planners.avoid.data import AvoidData, HalfPlane
 from iamp.planners.avoid.schur import SchurActiveSet
 from iamp.planners.avoid.solve import _stack_rows, row_entries
 from iamp.planners.examples import overtake_problem, overtake_three_problem
-from iamp.planners.qp.backends.base import compressed, csr_to_csc
+from iamp.planners.qp.backends.base import compressed, csr_to_csc, matvec
 
 
 def _random_csr(rng: np.random.Generator, m: int, n: int, unsorted: bool, zeros: bool) -> sp.csr_matrix:
@@ -161,19 +161,20 @@ def test_kkt_check_transpose_is_a_T(seed: int, m: int, n: int) -> None:
 @settings(max_examples=40, deadline=None)
 @given(seed=hs.integers(0, 2**31 - 1), m=hs.integers(1, 20), n=hs.integers(1, 15))
 def test_matvec_is_scipys_product(seed: int, m: int, n: int) -> None:
-    """``_matvec`` of a CSR, CSC and COO float matrix is ``M @ x`` bit for bit (explicit zeros,
-    duplicate COO entries summed in stored order); an integer vector goes to ``@``."""
+    """:func:`~iamp.planners.qp.backends.base.matvec` of a CSR, CSC and COO float matrix is
+    ``M @ x`` bit for bit (explicit zeros, duplicate COO entries summed in stored order); an
+    integer vector goes to ``@``."""
     rng = np.random.default_rng(seed)
     C = sp.random(m, n, density=0.4, random_state=rng, format="coo")
     C = sp.coo_matrix((np.r_[C.data, C.data[:3]], (np.r_[C.row, C.row[:3]], np.r_[C.col, C.col[:3]])), shape=(m, n))
     x = rng.standard_normal(n) * 10.0 ** rng.integers(-8, 8, n)
     y = rng.standard_normal(m)
     for M in (sp.csr_matrix(C), sp.csc_matrix(C), C):
-        assert type(_matvec(M, x)) is np.ndarray and _matvec(M, x).tobytes() == (M @ x).tobytes()
+        assert type(matvec(M, x)) is np.ndarray and matvec(M, x).tobytes() == (M @ x).tobytes()
     for M in (sp.csc_matrix(C).T, sp.csr_matrix(C).T, C.T):
-        assert _matvec(M, y).tobytes() == (M @ y).tobytes()
+        assert matvec(M, y).tobytes() == (M @ y).tobytes()
     xi = rng.integers(-5, 5, n)
-    assert np.array_equal(_matvec(sp.csr_matrix(C), xi), sp.csr_matrix(C) @ xi)
+    assert np.array_equal(matvec(sp.csr_matrix(C), xi), sp.csr_matrix(C) @ xi)
 
 
 class _ScanGridFormer:
@@ -394,3 +395,31 @@ def test_avoid_data_builds_the_same_matrices(hold: str) -> None:
     for name in ("data", "indices", "indptr"):
         assert getattr(first.A, name).tobytes() == getattr(d.A, name).tobytes()
         assert getattr(first.P, name).tobytes() == getattr(d.P, name).tobytes()
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=hs.integers(0, 2**31 - 1), m=hs.integers(1, 20), n=hs.integers(1, 15), unsorted=hs.booleans())
+def test_csc_copy_keeps_a_known_sorted_flag_only(seed: int, m: int, n: int, unsorted: bool) -> None:
+    """:func:`~iamp.planners.qp.backends.base.csc_copy` of a CSC matrix that knows its indices are
+    sorted (``_stack_rows``' result, a matrix after ``sort_indices``) has the arrays of the copy
+    of the same matrix without that knowledge, and is itself known sorted; an unsorted matrix is
+    sorted as before (its flag, ``False``, is found again)."""
+    from iamp.planners.qp.backends.base import csc_copy
+
+    rng = np.random.default_rng(seed)
+    top, A = _random_csr(rng, m, n, unsorted, True), _random_csr(rng, m, n, unsorted, True)
+    rows = np.arange(m, dtype=np.int64)
+    known = _stack_rows(top, A, rows)
+    assert known.__dict__.get("_has_sorted_indices") is True
+    fresh = compressed(sp.csc_matrix, known.data.copy(), known.indices.copy(), known.indptr.copy(), known.shape)
+    assert "_has_sorted_indices" not in fresh.__dict__
+    a, b = csc_copy(known), csc_copy(fresh)
+    _same_arrays(a, b)
+    assert a.__dict__.get("_has_sorted_indices") is True and b.has_sorted_indices
+    assert "_has_canonical_format" not in a.__dict__
+    C = sp.csc_matrix(A.T)  # rows reversed in each column when unsorted
+    if not C.has_sorted_indices:
+        out = csc_copy(C)
+        ref = sp.csc_matrix(C, dtype=float, copy=True)
+        ref.sort_indices()
+        _same_arrays(out, ref)

@@ -28,14 +28,13 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy import optimize
-from scipy.sparse import _sparsetools
 
 from iamp.core.errors import ScenarioError
 from iamp.core.polyroots import roots_in_unit_interval
 from iamp.core.problem import Problem
 from iamp.core.trajectory_pieces import shifted_poly
 
-from ..qp.backends.base import compressed
+from ..qp.backends.base import compressed, matvec
 from .data import HalfPlane
 
 FloatArray = NDArray[np.float64]
@@ -116,31 +115,6 @@ def kkt_conditions(P: sp.spmatrix, q: FloatArray, A: sp.spmatrix, l: FloatArray,
     return KKTCheck(P, q, A, l, u, n_eq, lower)(z, y)
 
 
-#: scipy's compiled products of a CSR and a CSC matrix with a vector (what ``@`` calls)
-_MATVEC: dict[type, Any] = {sp.csr_matrix: _sparsetools.csr_matvec, sp.csc_matrix: _sparsetools.csc_matvec}
-
-
-def _matvec(M: sp.spmatrix, x: FloatArray) -> FloatArray:
-    """``M @ x`` of a float matrix (CSR, CSC or COO) and a float vector: the compiled product
-    scipy's ``@`` calls (``csr_matvec``, ``csc_matvec``, ``coo_matvec``) on the same arrays, into
-    zeros of the same type, without its dispatch: the same numbers.  Any other operand goes to
-    ``@``."""
-    if x.__class__ is np.ndarray and x.dtype == np.float64 and M.dtype == np.float64:
-        m, n = M.shape
-        if x.shape == (n,):
-            kind = type(M)
-            fn = _MATVEC.get(kind)
-            if fn is not None:
-                out = np.zeros(m)
-                fn(m, n, M.indptr, M.indices, M.data, x, out)
-                return out
-            if kind is sp.coo_matrix:
-                out = np.zeros(m)
-                _sparsetools.coo_matvec(len(M.data), M.row, M.col, M.data, x, out)
-                return out
-    return np.asarray(M @ x)
-
-
 class KKTCheck:
     """:func:`kkt_conditions` of any point ``(z, y)`` of one QP: what depends on the QP alone
     (``P``'s two triangles, ``Aᵀ``, the largest finite bound) is set up once, so checking a second
@@ -163,9 +137,9 @@ class KKTCheck:
         """The four relative KKT residuals at ``(z, y)`` (each largest magnitude one reduction,
         exact in any order)."""
         l, u, n_eq = self.l, self.u, self.n_eq
-        Pz = _matvec(self.Pu, z) + _matvec(self.lower, z)
-        Az = _matvec(self.A, z)
-        Aty = _matvec(self.AT, y)
+        Pz = matvec(self.Pu, z) + matvec(self.lower, z)
+        Az = matvec(self.A, z)
+        Aty = matvec(self.AT, y)
         stat = float(np.abs(Pz + self.q + Aty).max())
         stat_scale = max(1.0, float(np.abs(Pz).max()), float(np.abs(Aty).max()))
         primal = float(np.abs(Az - Az.clip(l, u)).max())

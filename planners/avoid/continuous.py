@@ -113,7 +113,7 @@ from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and
 from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, CsrArrays, SchurActiveSet, _run, csr_arrays
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration, RowsSolution
 from iamp.planners.qp.backends import BACKENDS
-from iamp.planners.qp.backends.base import compressed, csr_to_csc
+from iamp.planners.qp.backends.base import compressed, csr_to_csc, matvec
 from iamp.planners.qp.hold import HoldTrajectory
 from iamp.planners.qp.options import check_choice
 
@@ -777,7 +777,7 @@ class ContinuousAvoidQP:
             return None
         A_in, u_in, ids = self.spec_rows(spec)
         z = parent.z
-        if A_in.shape[0] and float(np.max(A_in @ z - u_in)) > GENERATION_TOL:
+        if A_in.shape[0] and float(np.max(matvec(A_in, z) - u_in)) > GENERATION_TOL:
             return None
         n_eq = self.data.n_eq
         pA, pu, pids = parent.spec_rows()
@@ -838,7 +838,7 @@ class ContinuousAvoidQP:
         """:class:`Solved` of a solver's answer; cost :math:`J = \\tfrac12 z^\\top P z`."""
         d = self.data
         ok = sol.status == st.OPTIMAL and sol.finite
-        cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (self._P_diag * sol.z)) if ok else np.inf
+        cost = float(sol.z @ matvec(d.P, sol.z) - 0.5 * sol.z @ (self._P_diag * sol.z)) if ok else np.inf
         status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
         return Solved(spec, status, cost, sol.z, sol.y, sol.iterations, self, sol.solves, rows)
 
@@ -1500,7 +1500,7 @@ class ContinuousAvoidPlanner:
         info["node_solver"] = {"name": qp.node_solver, "backend_solves": qp.n_backend_solves}
         traj = qp.trajectory(sol.z)
         cost = traj.cost()
-        slack = u_in - A_in @ sol.z
+        slack = u_in - matvec(A_in, sol.z)
         y_in = sol.y[n_eq:]
         jumps = np.zeros((problem.m, 2))
         vehicles: list[dict[str, Any]] = []
