@@ -423,3 +423,41 @@ def test_csc_copy_keeps_a_known_sorted_flag_only(seed: int, m: int, n: int, unso
         ref = sp.csc_matrix(C, dtype=float, copy=True)
         ref.sort_indices()
         _same_arrays(out, ref)
+
+
+@pytest.mark.parametrize("three", [False, True])
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_avoid_data_bounds_are_the_rows(three: bool, hold: str) -> None:
+    """``AvoidData``'s row bounds ``c_on`` (written block by block) are each half-plane's ``c(t)``
+    at the interior nodes in the rows :meth:`~iamp.planners.avoid.data.AvoidData.row` names, and
+    ``b_eq`` holds the boundary values in each axis's four boundary rows, as the former fancy
+    indexing wrote them."""
+    problem = overtake_three_problem() if three else overtake_problem()
+    d = AvoidData(problem, np.linspace(0.0, problem.tf, 17), hold)
+    c_on = np.zeros(d.n_rows - d.n_eq)
+    for i, pair in enumerate(d.planes):
+        for a, hp in enumerate(pair):
+            c_on[d.row(i, a, d.interior) - d.n_eq] = hp.bound(d.t_nodes[d.interior])
+    assert d.c_on.tobytes() == c_on.tobytes()
+    ego, N = problem.ego, d.N
+    b_eq = np.zeros(d.n_eq)
+    for axi, vals in enumerate(((ego.x0, ego.vx0, ego.xf, ego.vxf), (ego.y0, ego.vy0, ego.yf, ego.vyf))):
+        b_eq[axi * (2 * N + 4) + 2 * N + np.arange(4)] = vals
+    assert d.b_eq.tobytes() == b_eq.tobytes()
+
+
+def test_diagnostics_field_names_are_the_dataclass_fields() -> None:
+    """``field_names`` (kept per class) is every family's typed fields, each class its own."""
+    from dataclasses import fields
+
+    from iamp.core.diagnostics import Diagnostics
+    from iamp.planners.avoid.diagnostics import AvoidDiagnostics
+    from iamp.planners.qp.diagnostics import QPDiagnostics
+
+    for cls in (Diagnostics, QPDiagnostics, AvoidDiagnostics, Diagnostics, AvoidDiagnostics):
+        want = tuple(f.name for f in fields(cls) if f.name not in ("extra", "order"))
+        assert cls.field_names() == want
+    assert "safety_mode" in AvoidDiagnostics.field_names() and "safety_mode" not in Diagnostics.field_names()
+    info = {"safety_mode": "continuous", "kkt": {"a": 1.0}, "unknown_key": 3, "reason": None}
+    d = AvoidDiagnostics.from_info(info)
+    assert d.safety_mode == "continuous" and d.extra == {"unknown_key": 3} and d.as_info() == info

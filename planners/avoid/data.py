@@ -130,11 +130,14 @@ class AvoidData(StateIndex):
         ends = ((ego.x0, ego.vx0, ego.xf, ego.vxf), (ego.y0, ego.vy0, ego.yf, ego.vyf))
         self.planes = [(HalfPlane(v, "x"), HalfPlane(v, "y")) for v in problem.vehicles]
         c_on = np.zeros(2 * m * ni)
+        t_in = self.t_nodes[1:N]  # the interior nodes' times (``t_nodes[interior]``)
         for i, pair in enumerate(self.planes):
             for a, hp in enumerate(pair):
-                c_on[self.row(i, a, self.interior) - self.n_eq] = hp.bound(self.t_nodes[self.interior])
+                first = (2 * i + a) * ni  # rows ``row(i, a, interior) - n_eq``: consecutive
+                c_on[first:first + ni] = hp.bound(t_in)
         for axi, (s0, v0, sf, vf) in enumerate(ends):
-            b_eq[axi * (2 * N + 4) + 2 * N + np.arange(4)] = (s0, v0, sf, vf)
+            first = axi * (2 * N + 4) + 2 * N
+            b_eq[first:first + 4] = (s0, v0, sf, vf)
         # A (equality rows, then the vehicles' rows) and P depend on the grid, the hold and the
         # half-planes' signs only: a planner's plans on one grid share them (``shared``, a
         # :class:`~iamp.planners.avoid.continuous.GridShare`; the same arrays as built here)

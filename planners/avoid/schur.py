@@ -216,8 +216,11 @@ class SchurActiveSet:
         """Whether ``P`` (upper triangle) and ``A_eq`` are, bit for bit, the matrices this solver
         factored (then :meth:`with_rhs` may serve them)."""
         def same(a: sp.spmatrix, b: sp.spmatrix) -> bool:
-            return (a.shape == b.shape and np.array_equal(a.indptr, b.indptr)
-                    and np.array_equal(a.indices, b.indices) and np.array_equal(a.data, b.data))
+            # an index array is equal to itself (the plans of one grid share the matrices' arrays);
+            # the values are compared always (a NaN is not equal to itself)
+            return (a.shape == b.shape and (a.indptr is b.indptr or np.array_equal(a.indptr, b.indptr))
+                    and (a.indices is b.indices or np.array_equal(a.indices, b.indices))
+                    and np.array_equal(a.data, b.data))
 
         # a matrix of the kind compared is compared as it is (the constructor would keep its arrays)
         return (same(self.P, P if type(P) is sp.csc_matrix else sp.csc_matrix(P))
