@@ -25,6 +25,8 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any, TypeVar
 
 D = TypeVar("D", bound="Diagnostics")
+#: :meth:`Diagnostics.field_names` per class.
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}
 #: A JSON-like object a planner reports as it is (a search record, a certificate).
 Record = Mapping[str, Any]
 
@@ -88,8 +90,12 @@ class Diagnostics:
     # --- the legacy mapping ----------------------------------------------------------------
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
-        """The typed fields (the keys this family models)."""
-        return tuple(f.name for f in fields(cls) if f.name not in ("extra", "order"))
+        """The typed fields (the keys this family models; found once per class: a dataclass's
+        fields are fixed when it is created)."""
+        names = _FIELD_NAMES.get(cls)
+        if names is None:
+            names = _FIELD_NAMES[cls] = tuple(f.name for f in fields(cls) if f.name not in ("extra", "order"))
+        return names
 
     @classmethod
     def from_info(cls: type[D], info: Mapping[str, object]) -> D:

@@ -20,6 +20,7 @@ with :math:`\mathcal I` the inequality rows (``l = −∞``, so the multiplier m
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,8 +30,11 @@ from numpy.typing import NDArray
 from scipy import optimize
 
 from iamp.core.errors import ScenarioError
+from iamp.core.polyroots import roots_in_unit_interval
 from iamp.core.problem import Problem
+from iamp.core.trajectory_pieces import shifted_poly
 
+from ..qp.backends.base import compressed, matvec
 from .data import HalfPlane
 
 FloatArray = NDArray[np.float64]
@@ -120,7 +124,11 @@ class KKTCheck:
                  lower: sp.spmatrix | None = None) -> None:
         self.Pu = P if type(P) is sp.csc_matrix else sp.csc_matrix(P)  # the same arrays, the same products
         self.lower = sp.triu(self.Pu, 1).T if lower is None else lower
-        self.A, self.AT = A, A.T
+        self.A = A
+        # Aᵀ of a CSC matrix is the CSR matrix of its own three arrays (what ``A.T`` builds, without
+        # the constructor's checks: :func:`~iamp.planners.qp.backends.base.compressed`)
+        self.AT = (compressed(sp.csr_matrix, A.data, A.indices, A.indptr, (A.shape[1], A.shape[0]))
+                   if type(A) is sp.csc_matrix else A.T)
         self.q, self.l, self.u, self.n_eq = q, l, u, n_eq
         self.bound_max = float(max(np.abs(l[np.isfinite(l)]).max(initial=0.0),
                                    np.abs(u[np.isfinite(u)]).max(initial=0.0)))
@@ -129,9 +137,9 @@ class KKTCheck:
         """The four relative KKT residuals at ``(z, y)`` (each largest magnitude one reduction,
         exact in any order)."""
         l, u, n_eq = self.l, self.u, self.n_eq
-        Pz = self.Pu @ z + self.lower @ z
-        Az = self.A @ z
-        Aty = self.AT @ y
+        Pz = matvec(self.Pu, z) + matvec(self.lower, z)
+        Az = matvec(self.A, z)
+        Aty = matvec(self.AT, y)
         stat = float(np.abs(Pz + self.q + Aty).max())
         stat_scale = max(1.0, float(np.abs(Pz).max()), float(np.abs(Aty).max()))
         primal = float(np.abs(Az - Az.clip(l, u)).max())
@@ -154,7 +162,7 @@ class ScanGrid:
 
     def __init__(self, tf: float) -> None:
         self.tf = float(tf)
-        self.size = max(2, int(np.ceil(self.tf / 1e-3)) + 1)
+        self.size = max(2, math.ceil(self.tf / 1e-3) + 1)  # numpy.ceil's integer, without numpy
         self.step = self.tf / (self.size - 1)
 
     def at(self, k: int) -> float:
@@ -229,23 +237,25 @@ def _scan_bracket(traj: Any, plane: HalfPlane, t: ScanGrid, margin: Any) -> tupl
     names the scan's interval ``[t_k, t_{k+1}]`` holding it, which is accepted only when the
     margin evaluated as the scan does is inside at ``t_k`` and outside at ``t_{k+1}`` and at
     ``t_f``; past ``t*`` the margin keeps the sign it has at ``t_f``."""
-    from iamp.core.polyroots import roots_in_unit_interval
-    from iamp.core.trajectory_pieces import shifted_poly
-
     nodes, X, U = (getattr(traj, name, None) for name in ("t_nodes", "X", "U"))
     hold = getattr(traj, "hold", None)
     if nodes is None or X is None or U is None or hold not in ("foh", "zoh"):
         return None
     nodes = np.asarray(nodes, dtype=float)
-    h = np.diff(nodes)
+    t0 = nodes[:-1]
+    h = nodes[1:] - t0  # numpy.diff's subtraction
     a = 0 if plane.axis == "x" else 1
-    s0, v0 = X[:-1, 2 * a], X[:-1, 2 * a + 1]
-    u0 = U[:h.size, a]
-    du = (U[1:, a] - U[:-1, a]) / h if hold == "foh" else np.zeros(h.size)
-    S = np.stack([s0, v0 * h, u0 * h**2 / 2, du * h**3 / 6], axis=1)  # s(t_k + σ h) in σ
+    S = np.empty((h.size, 4))  # s(t_k + σ h) in σ, column by column (numpy.stack's numbers)
+    S[:, 0] = X[:-1, 2 * a]
+    np.multiply(X[:-1, 2 * a + 1], h, out=S[:, 1])
+    S[:, 2] = U[:h.size, a] * h**2 / 2
+    if hold == "foh":
+        S[:, 3] = (U[1:, a] - U[:-1, a]) / h * h**3 / 6
+    else:
+        S[:, 3] = np.zeros(h.size) * h**3 / 6
     v = plane.vehicle
     if plane.axis == "x":
-        xs = shifted_poly(v.x_poly, nodes[:-1], h, max(3, len(v.x_poly) - 1))
+        xs = shifted_poly(v.x_poly, t0, h, max(3, len(v.x_poly) - 1))
         half = v.length / 2 + v.safety_x
         c = -xs if plane.sigma < 0 else xs
         c[:, 0] += -half
@@ -265,7 +275,7 @@ def _scan_bracket(traj: Any, plane: HalfPlane, t: ScanGrid, margin: Any) -> tupl
         if end >= -1e-12:
             return int(t.size - 1), None
         return (-1, None) if first < -1e-12 else None
-    last = float(np.max(nodes[:-1][rows] + np.clip(sig, 0.0, 1.0) * h[rows]))
+    last = float((t0[rows] + sig.clip(0.0, 1.0) * h[rows]).max())
     k = min(max(t.last_at_or_below(last), 0), t.size - 2)
     at_k, at_k1, end = margin(np.array([t.at(k), t.at(k + 1), t.at(t.size - 1)]))
     if end >= -1e-12:

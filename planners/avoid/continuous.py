@@ -113,7 +113,7 @@ from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and
 from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, CsrArrays, SchurActiveSet, _run, csr_arrays
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration, RowsSolution
 from iamp.planners.qp.backends import BACKENDS
-from iamp.planners.qp.backends.base import compressed
+from iamp.planners.qp.backends.base import compressed, csr_to_csc, matvec
 from iamp.planners.qp.hold import HoldTrajectory
 from iamp.planners.qp.options import check_choice
 
@@ -266,11 +266,18 @@ class _Segment:
 
 def _stacked(top: sp.csr_matrix, below: sp.csr_matrix) -> sp.csc_matrix:
     """``[top; below]`` (both CSR) as CSC, every stored entry kept: ``sp.vstack`` of the two,
-    converted, entry for entry, from their CSR arrays without its general checks."""
+    converted, entry for entry, from their CSR arrays without its general checks — the arrays of
+    ``compressed(sp.csr_matrix, …).tocsc()`` (:func:`~iamp.planners.qp.backends.base.csr_to_csc`,
+    scipy's own conversion without its wrapper) and, as ``tocsc`` marks it, sorted indices."""
     indptr = np.concatenate((top.indptr, top.indptr[-1] + below.indptr[1:]))
-    M = compressed(sp.csr_matrix, np.concatenate((top.data, below.data)), np.concatenate((top.indices, below.indices)),
-                   indptr, (top.shape[0] + below.shape[0], top.shape[1]))
-    return M.tocsc()
+    indices, data = np.concatenate((top.indices, below.indices)), np.concatenate((top.data, below.data))
+    shape = (top.shape[0] + below.shape[0], top.shape[1])
+    if indptr.dtype != np.int32 or indices.dtype != np.int32 or data.dtype != np.float64:
+        return compressed(sp.csr_matrix, data, indices, indptr, shape).tocsc()  # scipy's own index types
+    ptr_c, ind_c, data_c = csr_to_csc(indptr, indices, data, shape)
+    M = compressed(sp.csc_matrix, data_c, ind_c, ptr_c, shape)
+    M.has_sorted_indices = True
+    return M
 
 
 @dataclass
@@ -770,7 +777,7 @@ class ContinuousAvoidQP:
             return None
         A_in, u_in, ids = self.spec_rows(spec)
         z = parent.z
-        if A_in.shape[0] and float(np.max(A_in @ z - u_in)) > GENERATION_TOL:
+        if A_in.shape[0] and float(np.max(matvec(A_in, z) - u_in)) > GENERATION_TOL:
             return None
         n_eq = self.data.n_eq
         pA, pu, pids = parent.spec_rows()
@@ -831,7 +838,7 @@ class ContinuousAvoidQP:
         """:class:`Solved` of a solver's answer; cost :math:`J = \\tfrac12 z^\\top P z`."""
         d = self.data
         ok = sol.status == st.OPTIMAL and sol.finite
-        cost = float(sol.z @ (d.P @ sol.z) - 0.5 * sol.z @ (self._P_diag * sol.z)) if ok else np.inf
+        cost = float(sol.z @ matvec(d.P, sol.z) - 0.5 * sol.z @ (self._P_diag * sol.z)) if ok else np.inf
         status = sol.status if (ok or sol.status != st.OPTIMAL) else st.NUMERICAL_ERROR
         return Solved(spec, status, cost, sol.z, sol.y, sol.iterations, self, sol.solves, rows)
 
@@ -1493,7 +1500,7 @@ class ContinuousAvoidPlanner:
         info["node_solver"] = {"name": qp.node_solver, "backend_solves": qp.n_backend_solves}
         traj = qp.trajectory(sol.z)
         cost = traj.cost()
-        slack = u_in - A_in @ sol.z
+        slack = u_in - matvec(A_in, sol.z)
         y_in = sol.y[n_eq:]
         jumps = np.zeros((problem.m, 2))
         vehicles: list[dict[str, Any]] = []

@@ -116,7 +116,6 @@ class AvoidData(StateIndex):
         self.problem, self.hold = problem, hold
         self.t_nodes = np.asarray(t_nodes, dtype=float)
         N = self.N = self.t_nodes.size - 1
-        h = np.diff(self.t_nodes)
         foh = hold == "foh"
         self.nu = N + 1 if foh else N
         self.block = 2 * (N + 1) + self.nu
@@ -126,17 +125,19 @@ class AvoidData(StateIndex):
         self.interior = np.arange(1, N)
         ni = N - 1
         self.n_rows = self.n_eq + 2 * m * ni
-        alpha, gamma = (h**2 / 3, h / 2) if foh else (h**2 / 2, h)
         b_eq = np.zeros(self.n_eq)
         ego = problem.ego
         ends = ((ego.x0, ego.vx0, ego.xf, ego.vxf), (ego.y0, ego.vy0, ego.yf, ego.vyf))
         self.planes = [(HalfPlane(v, "x"), HalfPlane(v, "y")) for v in problem.vehicles]
         c_on = np.zeros(2 * m * ni)
+        t_in = self.t_nodes[1:N]  # the interior nodes' times (``t_nodes[interior]``)
         for i, pair in enumerate(self.planes):
             for a, hp in enumerate(pair):
-                c_on[self.row(i, a, self.interior) - self.n_eq] = hp.bound(self.t_nodes[self.interior])
+                first = (2 * i + a) * ni  # rows ``row(i, a, interior) - n_eq``: consecutive
+                c_on[first:first + ni] = hp.bound(t_in)
         for axi, (s0, v0, sf, vf) in enumerate(ends):
-            b_eq[axi * (2 * N + 4) + 2 * N + np.arange(4)] = (s0, v0, sf, vf)
+            first = axi * (2 * N + 4) + 2 * N
+            b_eq[first:first + 4] = (s0, v0, sf, vf)
         # A (equality rows, then the vehicles' rows) and P depend on the grid, the hold and the
         # half-planes' signs only: a planner's plans on one grid share them (``shared``, a
         # :class:`~iamp.planners.avoid.continuous.GridShare`; the same arrays as built here)
@@ -144,7 +145,7 @@ class AvoidData(StateIndex):
                tuple(hp.sigma for pair in self.planes for hp in pair))
         kept = shared.get(key) if shared is not None and not with_limits else None
         if kept is None:
-            self.A, self.P = self._matrices(h, alpha, gamma, foh)
+            self.A, self.P = self._matrices(foh)
             if shared is not None and not with_limits:
                 shared.put(key, (self.A, self.P))
         else:
@@ -171,11 +172,14 @@ class AvoidData(StateIndex):
         #: Added to a relaxed row's bound: ten times any position scale in the problem.
         self.relax = 10.0 * scale + 1e3
 
-    def _matrices(self, h: FloatArray, alpha: FloatArray, gamma: FloatArray,
-                  foh: bool) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    def _matrices(self, foh: bool) -> tuple[sp.csc_matrix, sp.csc_matrix]:
         """``A`` (the equality rows, then the vehicles' rows at the interior nodes) and ``P``
-        (upper triangle), both CSC with sorted indices."""
+        (upper triangle), both CSC with sorted indices; the steps ``h`` and the coefficients
+        ``α, γ`` of the module docstring computed here, where they are used (a plan whose grid
+        keeps its matrices, :class:`~iamp.planners.avoid.continuous.GridShare`, needs none)."""
         N = self.N
+        h = np.diff(self.t_nodes)
+        alpha, gamma = (h**2 / 3, h / 2) if foh else (h**2 / 2, h)
         k = np.arange(N)
         rows: list[IntArray] = []
         cols: list[IntArray] = []

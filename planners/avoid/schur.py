@@ -53,7 +53,6 @@ Python otherwise: the same numbers either way.
 
 from __future__ import annotations
 
-import copy
 from typing import Any
 
 import numpy as np
@@ -217,8 +216,11 @@ class SchurActiveSet:
         """Whether ``P`` (upper triangle) and ``A_eq`` are, bit for bit, the matrices this solver
         factored (then :meth:`with_rhs` may serve them)."""
         def same(a: sp.spmatrix, b: sp.spmatrix) -> bool:
-            return (a.shape == b.shape and np.array_equal(a.indptr, b.indptr)
-                    and np.array_equal(a.indices, b.indices) and np.array_equal(a.data, b.data))
+            # an index array is equal to itself (the plans of one grid share the matrices' arrays);
+            # the values are compared always (a NaN is not equal to itself)
+            return (a.shape == b.shape and (a.indptr is b.indptr or np.array_equal(a.indptr, b.indptr))
+                    and (a.indices is b.indices or np.array_equal(a.indices, b.indices))
+                    and np.array_equal(a.data, b.data))
 
         # a matrix of the kind compared is compared as it is (the constructor would keep its arrays)
         return (same(self.P, P if type(P) is sp.csc_matrix else sp.csc_matrix(P))
@@ -228,12 +230,15 @@ class SchurActiveSet:
         """The solver of the same ``P`` and ``E`` with the right-hand side ``b_eq``: it shares this
         one's factored KKT matrix and its solved columns of ``K⁻¹`` (which depend on ``P`` and
         ``E`` only; a column is the same bit for bit whichever batch solved it), so the plans of
-        one grid factor it once (the closed loop plans the same horizon many times)."""
-        out = copy.copy(self)
+        one grid factor it once (the closed loop plans the same horizon many times).  A shallow copy
+        (what ``copy.copy`` builds: a new object of this class sharing this one's attributes,
+        without its dispatch) with the equality optimum of ``b_eq``."""
+        out = object.__new__(type(self))
+        out.__dict__.update(self.__dict__)
         out.b_eq = np.asarray(b_eq, dtype=float)
         if out.b_eq.shape != self.b_eq.shape:
             raise ValueError(f"b_eq has {out.b_eq.size} rows, the factored matrix {self.n_eq}")
-        out._x0 = np.asarray(self.lu.solve(np.r_[np.zeros(self.n), out.b_eq]), dtype=float)
+        out._x0 = np.asarray(self.lu.solve(np.concatenate((np.zeros(self.n), out.b_eq))), dtype=float)
         out.z0 = out._x0[:self.n].copy()
         out.columns = 0
         return out

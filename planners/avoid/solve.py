@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from iamp.core import status as st
 
 from ..qp.backends import QPSolution, get_backend
-from ..qp.backends.base import compressed
+from ..qp.backends.base import compressed, csr_to_csc, matvec
 from .options import check_avoid_solver
 
 FloatArray = NDArray[np.float64]
@@ -172,16 +172,32 @@ def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -
     """``[top; A[rows]]`` as CSC, every stored entry kept (explicit zeros too, so that the same
     rows always give the same pattern), gathered from the CSR arrays: the arrays of
     ``sp.csr_matrix((data, indices, indptr)).tocsc()``, each column's entries in the order of their
-    rows (a stable sort by column of the row-major entries), without building the CSR matrix."""
+    rows (a stable sort by column of the row-major entries), without building the CSR matrix
+    (scipy's compiled conversion, :func:`~iamp.planners.qp.backends.base.csr_to_csc`, on the
+    index type of the two matrices), marked sorted as ``tocsc`` marks its result (the backend's
+    copy, :func:`~iamp.planners.qp.backends.base.csc_copy`, then skips the scan that would find
+    them sorted)."""
     take, lens = row_entries(A.indptr, rows)
     m, n = top.shape[0] + rows.size, top.shape[1]
-    cols = np.concatenate((top.indices, A.indices[take]))
-    data = np.concatenate((top.data, A.data[take]))
-    row_of = np.repeat(np.arange(m), np.concatenate((np.diff(top.indptr), lens)))
-    order = np.argsort(cols, kind="stable")
     idx = np.promote_types(top.indices.dtype, A.indices.dtype)
-    indptr = np.concatenate(([0], np.cumsum(np.bincount(cols, minlength=n))))
-    return compressed(sp.csc_matrix, data[order], row_of[order].astype(idx), indptr.astype(idx), (m, n))
+    cols = np.concatenate((top.indices, A.indices[take])).astype(idx, copy=False)
+    data = np.concatenate((top.data, A.data[take]))
+    indptr = np.concatenate((top.indptr, top.indptr[-1] + np.cumsum(lens))).astype(idx, copy=False)
+    if data.dtype != np.float64 or idx not in (np.dtype(np.int32), np.dtype(np.int64)):
+        return _stack_rows_sorted(cols, data, indptr, m, n, idx)
+    ptr_c, ind_c, data_c = csr_to_csc(indptr, cols, data, (m, n))
+    out = compressed(sp.csc_matrix, data_c, ind_c.astype(idx, copy=False), ptr_c.astype(idx, copy=False), (m, n))
+    out.has_sorted_indices = True  # each column's rows in increasing order, as tocsc marks its result
+    return out
+
+
+def _stack_rows_sorted(cols: NDArray[Any], data: FloatArray, indptr: NDArray[Any], m: int, n: int,
+                       idx: np.dtype[Any]) -> sp.csc_matrix:
+    """:func:`_stack_rows` of the stacked CSR arrays by a stable sort by column (any types)."""
+    row_of = np.repeat(np.arange(m), np.diff(indptr))
+    order = np.argsort(cols, kind="stable")
+    ptr = np.concatenate(([0], np.cumsum(np.bincount(cols, minlength=n))))
+    return compressed(sp.csc_matrix, data[order], row_of[order].astype(idx), ptr.astype(idx), (m, n))
 
 
 class RowGeneration:
@@ -267,7 +283,7 @@ class RowGeneration:
             self.pool = np.concatenate((self.pool, np.zeros(int(ids.max()) + 1 - self.pool.size, dtype=bool)))
         work = np.ones(n_in, dtype=bool) if self.every_row else self.pool[ids].copy()
         if reference is not None and n_in:
-            work |= A_in @ reference - u_in > -SEED_SLACK
+            work |= matvec(A_in, reference) - u_in > -SEED_SLACK
         if start is not None:
             work[start] = True
         solves = iterations = 0
@@ -293,7 +309,7 @@ class RowGeneration:
                 continue
             if sol.status != st.OPTIMAL or not sol.finite:
                 return RowsSolution(sol.status, sol.z, np.zeros(n_eq + n_in), iterations, solves, rows, sol.finite)
-            r = A_in @ sol.z - u_in
+            r = matvec(A_in, sol.z) - u_in
             new = (r > GENERATION_TOL) & ~work
             if not new.any():
                 break

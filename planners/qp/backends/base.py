@@ -46,6 +46,7 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
+from scipy.sparse import _sparsetools
 
 from iamp.core.errors import IampError, MissingDependencyError
 
@@ -194,12 +195,17 @@ def csc_copy(M: sp.spmatrix) -> sp.csc_matrix:
     """``M`` as a CSC float matrix of its own, indices sorted: ``sp.csc_matrix(M, dtype=float,
     copy=True)`` then ``sort_indices()``.  A ``csc_matrix`` of floats (what the planners pass) has its
     three arrays copied directly, without scipy's conversion and format checks of a matrix that
-    is already one (about 3 µs instead of 13 µs): the same arrays either way."""
+    is already one (about 3 µs instead of 13 µs): the same arrays either way.  Its flags are found
+    again, as for a new matrix, but for sorted indices that ``M`` already knows of (scipy's own
+    ``sort_indices`` or ``tocsc`` set it, or :func:`csr_to_csc`'s callers): the copy's are the
+    same indices, so ``sort_indices`` below would find them sorted and change nothing."""
     if type(M) is sp.csc_matrix and M.dtype == np.float64:
         out = _clone(M)
         out.data, out.indices, out.indptr = M.data.copy(), M.indices.copy(), M.indptr.copy()
         for flag in ("_has_sorted_indices", "_has_canonical_format"):  # found again, as for a new matrix
             out.__dict__.pop(flag, None)
+        if M.__dict__.get("_has_sorted_indices") is True:  # known sorted: the same indices
+            out._has_sorted_indices = True
     else:
         out = sp.csc_matrix(M, dtype=float, copy=True)
     out.sort_indices()
@@ -244,6 +250,85 @@ for _kind in (sp.csr_matrix, sp.csc_matrix):
     _TEMPLATES[_kind] = _kind((np.zeros(0), np.zeros(0, dtype=np.int32), np.zeros(2, dtype=np.int32)), shape=(1, 1))
     for _flag in ("_has_sorted_indices", "_has_canonical_format"):
         _TEMPLATES[_kind].__dict__.pop(_flag, None)
+
+
+_INT32_MAX = int(np.iinfo(np.int32).max)
+
+
+def csr_to_csc(indptr: NDArray[Any], indices: NDArray[Any], data: FloatArray,
+               shape: tuple[int, int]) -> tuple[NDArray[Any], NDArray[Any], FloatArray]:
+    """The CSC arrays ``(indptr, indices, data)`` of the CSR matrix of ``shape`` with these arrays,
+    as ``tocsc()`` of that matrix computes them (its CSC constructor then narrows int64 indices
+    that fit to int32: :func:`compressed` of the result does the same).
+
+    Parameters
+    ----------
+    indptr, indices : ndarray of int
+        The CSR row pointers (``shape[0] + 1`` of them, starting at 0) and column indices.
+    data : ndarray of float64
+        The stored values (``indptr[-1]`` of them).
+    shape : tuple of int
+        ``(rows, columns)``.
+
+    Returns
+    -------
+    tuple of ndarray
+        The column pointers, row indices and values of the CSC form: scipy's compiled
+        ``csr_tocsc`` itself, called on the index type ``tocsc`` picks (int32 when both index arrays
+        are int32 or narrower and ``max(nnz, rows)`` fits, else int64), so each column's entries are
+        in the order of their rows (a stable sort by column of the row-major entries; sorted
+        indices) and the numbers are the same, bit for bit, without the conversion's wrapper
+        (the matrix's construction, checks and index-type search).
+    """
+    M, N = int(shape[0]), int(shape[1])
+    nnz = int(indptr[-1])
+    idx = (np.int32 if (np.can_cast(indptr.dtype, np.int32) and np.can_cast(indices.dtype, np.int32)
+                        and max(nnz, M) <= _INT32_MAX) else np.int64)
+    out_ptr = np.empty(N + 1, dtype=idx)
+    out_ind = np.empty(nnz, dtype=idx)
+    out_data = np.empty(nnz, dtype=data.dtype)
+    _sparsetools.csr_tocsc(M, N, indptr.astype(idx, copy=False), indices.astype(idx, copy=False), data,
+                           out_ptr, out_ind, out_data)
+    return out_ptr, out_ind, out_data
+
+
+#: scipy's compiled products of a CSR and a CSC matrix with a vector (what ``@`` calls)
+_MATVEC: dict[type, Any] = {sp.csr_matrix: _sparsetools.csr_matvec, sp.csc_matrix: _sparsetools.csc_matvec}
+
+
+def matvec(M: sp.spmatrix, x: FloatArray) -> FloatArray:
+    """``M @ x`` of a sparse float matrix and a float vector, without scipy's dispatch.
+
+    Parameters
+    ----------
+    M : scipy.sparse matrix
+        Any sparse matrix; a ``csr_matrix``, ``csc_matrix`` or ``coo_matrix`` of float64 takes
+        the direct path.
+    x : ndarray
+        The vector (``M.shape[1]`` entries).
+
+    Returns
+    -------
+    ndarray
+        ``M @ x``: for a float64 CSR, CSC or COO matrix and a float64 vector of its width, the
+        compiled product scipy's ``@`` calls (``csr_matvec``, ``csc_matvec``, ``coo_matvec``) on
+        the same arrays into zeros of the same type, so the same numbers bit for bit (each
+        row's sum in the same order); any other operand goes to ``@`` itself.
+    """
+    if x.__class__ is np.ndarray and x.dtype == np.float64 and M.dtype == np.float64:
+        m, n = M.shape
+        if x.shape == (n,):
+            kind = type(M)
+            fn = _MATVEC.get(kind)
+            if fn is not None:
+                out = np.zeros(m)
+                fn(m, n, M.indptr, M.indices, M.data, x, out)
+                return out
+            if kind is sp.coo_matrix:
+                out = np.zeros(m)
+                _sparsetools.coo_matvec(len(M.data), M.row, M.col, M.data, x, out)
+                return out
+    return np.asarray(M @ x)
 
 
 def csc_rows(A: sp.csc_matrix, rows: IntArray) -> sp.csc_matrix:
