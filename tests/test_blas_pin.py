@@ -5,6 +5,7 @@ SIMD target the user chose is kept."""
 from __future__ import annotations
 
 import ast
+import importlib
 import os
 import platform
 import subprocess
@@ -189,6 +190,8 @@ def test_numpy_s_avx512_targets_are_switched_off_on_a_cpu_that_has_them(monkeypa
     assert _blas.numpy_disabled() is None
     # pin() with numpy not loaded: set where unset, kept where the user chose
     monkeypatch.setattr(platform, "machine", lambda: "x86_64")
+    importlib.import_module("numpy")  # loaded whatever ran before (``import iamp`` alone does not load it)
+
     numpy = sys.modules.pop("numpy")
     try:
         monkeypatch.delenv("NPY_DISABLE_CPU_FEATURES", raising=False)
