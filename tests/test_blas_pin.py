@@ -328,3 +328,30 @@ def test_pin_piqp_changes_nothing_where_it_must_not(monkeypatch: pytest.MonkeyPa
         spec = hook.find_spec("piqp.instruction_set", [str(folder)])
         has_avx2 = bool(list(folder.glob("piqp_python_avx2.*")))
         assert spec is not None and isinstance(spec.loader, _blas._FlagOff) == has_avx2
+
+
+def test_the_piqp_hook_answers_only_for_piqp_s_instruction_set_beside_an_avx2_build(tmp_path: Path) -> None:
+    """The import hook returns no spec for another name (even one its folder holds), the ordinary
+    spec where the folder has no ``piqp_python_avx2`` build, and a spec whose loader switches
+    ``avx512f`` off (after the module's own code set it) where it has one: checked on two folders
+    made here, each with an ``instruction_set`` module in Python."""
+    import importlib.util
+
+    hook = _blas._PiqpAvx2()
+    for name, build in (("plain", None), ("avx2", "piqp_python_avx2.cpython-311-x86_64-linux-gnu.so"),
+                        ("baseline", "piqp_python.cpython-311-x86_64-linux-gnu.so")):
+        folder = tmp_path / name
+        folder.mkdir()
+        (folder / "instruction_set.py").write_text("avx512f = True\navx2 = True\n")
+        (folder / "other.py").write_text("x = 1\n")
+        if build:
+            (folder / build).write_bytes(b"")
+        assert hook.find_spec("piqp.other", [str(folder)]) is None
+        assert hook.find_spec("piqp.instruction_set", []) is None
+        spec = hook.find_spec("piqp.instruction_set", [str(folder)])
+        assert spec is not None and spec.origin == str(folder / "instruction_set.py")
+        module = importlib.util.module_from_spec(spec)
+        assert spec.loader is not None
+        spec.loader.exec_module(module)
+        assert isinstance(spec.loader, _blas._FlagOff) == (name == "avx2")
+        assert module.avx512f is (name != "avx2") and module.avx2 is True
