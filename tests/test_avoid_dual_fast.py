@@ -345,3 +345,31 @@ def test_the_kept_mass_and_halves_are_what_they_stand_for(three: bool, monkeypat
                 assert np.array_equal(rows, np.flatnonzero(mask))
             assert np.array_equal(bounds._entries(b, i, k), np.concatenate((b.cols, halves[0][4], halves[1][4])))
     assert binding >= 1
+
+
+@pytest.mark.parametrize("split, lo, hi, first_kept, second_kept", [
+    (-1, 2.0, 2.0, [0, 1], [2, 3]),  # the box at node 2: first-half-plane pieces end by it, second ones start there
+    (-1, 1.5, 2.5, [0], [3]),  # inside pieces 1 and 2: neither piece is kept
+    (1, 1.2, 1.8, [0], [2, 3]),  # the box in piece 1: the pieces before it and after it
+    (0, 0.0, 0.5, [], [1, 2, 3]),
+])
+def test_kept_rows_at_the_nodes_themselves(split: int, lo: float, hi: float, first_kept: list[int],
+                                           second_kept: list[int]) -> None:
+    """One vehicle, four unit pieces, a binding row of each half-plane on each piece and a limit row,
+    tolerance 0: a piece is kept exactly when it ends at or before ``lo`` (first half-plane) or
+    starts at or after ``hi`` (second), or lies before or after the box's piece; the limit row
+    always."""
+    plane = np.array([0, 0, 0, 0, 1, 1, 1, 1, 0], dtype=np.int64)
+    piece = np.array([0, 1, 2, 3, 0, 1, 2, 3, 0], dtype=np.int64)
+    bern = np.array([True] * 8 + [False])
+    veh = np.array([0] * 8 + [-1], dtype=np.int64)
+    first, second = np.array([0], dtype=np.int64), np.array([1], dtype=np.int64)
+    want = np.zeros(9, dtype=bool)
+    want[first_kept] = True
+    want[[4 + p for p in second_kept]] = True
+    want[8] = True
+    for fn in _both("kept_rows"):
+        keep = np.empty(9, dtype=np.bool_)
+        fn(bern, veh, plane, piece, first, second, np.array([split], dtype=np.int64), np.array([lo]),
+           np.array([hi]), 1.0, 0.0, keep)
+        assert keep.tolist() == want.tolist()
