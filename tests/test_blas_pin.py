@@ -247,9 +247,12 @@ def test_numpy_s_avx512_loops_are_read_from_its_runtime_features() -> None:
 
 
 def _piqp_folder() -> Path | None:
-    import importlib.util
+    """piqp's package folder, found on ``sys.path`` (not through ``sys.modules``: once imported, piqp's
+    ``__init__`` copies its bindings' namespace into its own, ``__spec__`` included, so
+    ``importlib.util.find_spec("piqp")`` then answers with the bindings' spec, which has no folder)."""
+    from importlib.machinery import PathFinder
 
-    spec = importlib.util.find_spec("piqp")
+    spec = PathFinder.find_spec("piqp")
     if spec is None or not spec.submodule_search_locations:
         return None
     return Path(next(iter(spec.submodule_search_locations)))
