@@ -461,3 +461,23 @@ def test_diagnostics_field_names_are_the_dataclass_fields() -> None:
     info = {"safety_mode": "continuous", "kkt": {"a": 1.0}, "unknown_key": 3, "reason": None}
     d = AvoidDiagnostics.from_info(info)
     assert d.safety_mode == "continuous" and d.extra == {"unknown_key": 3} and d.as_info() == info
+
+
+def test_without_scipy_s_private_routines_the_public_api_gives_the_same_arrays(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where scipy has no ``scipy.sparse._sparsetools`` (a private module another scipy may move),
+    ``csr_to_csc`` and ``matvec`` fall back on ``tocsc`` and ``@``: the same arrays and numbers as the
+    direct calls."""
+    from iamp.planners.qp.backends import base
+
+    rng = np.random.default_rng(35)
+    A = sp.random(40, 30, density=0.2, format="csr", random_state=rng)
+    x = rng.standard_normal(30)
+    fast = csr_to_csc(A.indptr, A.indices, A.data, A.shape)
+    direct = [matvec(M, x) for M in (A, A.tocsc(), A.tocoo())]
+    monkeypatch.setattr(base, "_sparsetools", None)
+    monkeypatch.setattr(base, "_MATVEC", {})
+    slow = csr_to_csc(A.indptr, A.indices, A.data, A.shape)
+    for a, b in zip(fast, slow):
+        assert np.array_equal(a, b)
+    for M, want in zip((A, A.tocsc(), A.tocoo()), direct):
+        assert np.array_equal(matvec(M, x), want) and np.array_equal(want, M @ x)

@@ -46,7 +46,11 @@ from typing import Any, ClassVar
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.sparse import _sparsetools
+
+try:  # scipy's compiled sparse routines (private; another scipy may move them: then its public API)
+    from scipy.sparse import _sparsetools
+except ImportError:  # pragma: no cover - every scipy iamp supports has it
+    _sparsetools = None
 
 from iamp.core.errors import IampError, MissingDependencyError
 
@@ -281,6 +285,9 @@ def csr_to_csc(indptr: NDArray[Any], indices: NDArray[Any], data: FloatArray,
         (the matrix's construction, checks and index-type search).
     """
     M, N = int(shape[0]), int(shape[1])
+    if _sparsetools is None:  # another scipy: its own conversion (the same arrays)
+        C = sp.csr_matrix((data, indices, indptr), shape=(M, N)).tocsc()
+        return C.indptr, C.indices, C.data
     nnz = int(indptr[-1])
     idx = (np.int32 if (np.can_cast(indptr.dtype, np.int32) and np.can_cast(indices.dtype, np.int32)
                         and max(nnz, M) <= _INT32_MAX) else np.int64)
@@ -293,7 +300,8 @@ def csr_to_csc(indptr: NDArray[Any], indices: NDArray[Any], data: FloatArray,
 
 
 #: scipy's compiled products of a CSR and a CSC matrix with a vector (what ``@`` calls)
-_MATVEC: dict[type, Any] = {sp.csr_matrix: _sparsetools.csr_matvec, sp.csc_matrix: _sparsetools.csc_matvec}
+_MATVEC: dict[type, Any] = ({} if _sparsetools is None else
+                            {sp.csr_matrix: _sparsetools.csr_matvec, sp.csc_matrix: _sparsetools.csc_matvec})
 
 
 def matvec(M: sp.spmatrix, x: FloatArray) -> FloatArray:
@@ -324,7 +332,7 @@ def matvec(M: sp.spmatrix, x: FloatArray) -> FloatArray:
                 out = np.zeros(m)
                 fn(m, n, M.indptr, M.indices, M.data, x, out)
                 return out
-            if kind is sp.coo_matrix:
+            if kind is sp.coo_matrix and _sparsetools is not None:
                 out = np.zeros(m)
                 _sparsetools.coo_matvec(len(M.data), M.row, M.col, M.data, x, out)
                 return out
