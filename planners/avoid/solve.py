@@ -183,21 +183,10 @@ def _stack_rows(top: sp.csr_matrix, A: sp.csr_matrix, rows: NDArray[np.int64]) -
     cols = np.concatenate((top.indices, A.indices[take])).astype(idx, copy=False)
     data = np.concatenate((top.data, A.data[take]))
     indptr = np.concatenate((top.indptr, top.indptr[-1] + np.cumsum(lens))).astype(idx, copy=False)
-    if data.dtype != np.float64 or idx not in (np.dtype(np.int32), np.dtype(np.int64)):
-        return _stack_rows_sorted(cols, data, indptr, m, n, idx)
     ptr_c, ind_c, data_c = csr_to_csc(indptr, cols, data, (m, n))
     out = compressed(sp.csc_matrix, data_c, ind_c.astype(idx, copy=False), ptr_c.astype(idx, copy=False), (m, n))
     out.has_sorted_indices = True  # each column's rows in increasing order, as tocsc marks its result
     return out
-
-
-def _stack_rows_sorted(cols: NDArray[Any], data: FloatArray, indptr: NDArray[Any], m: int, n: int,
-                       idx: np.dtype[Any]) -> sp.csc_matrix:
-    """:func:`_stack_rows` of the stacked CSR arrays by a stable sort by column (any types)."""
-    row_of = np.repeat(np.arange(m), np.diff(indptr))
-    order = np.argsort(cols, kind="stable")
-    ptr = np.concatenate(([0], np.cumsum(np.bincount(cols, minlength=n))))
-    return compressed(sp.csc_matrix, data[order], row_of[order].astype(idx), ptr.astype(idx), (m, n))
 
 
 class RowGeneration:
