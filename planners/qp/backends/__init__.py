@@ -55,9 +55,15 @@ SUPPORTS_INEQUALITIES = {"osqp": True, "clarabel": True, "piqp": True, "kkt": Fa
 class _Backends(Mapping[str, "type[QPBackend]"]):
     """A read-only name -> class mapping that imports a backend's module when it is looked up."""
 
+    def __init__(self) -> None:
+        #: the classes imported so far (a plan looks its backend up several times)
+        self._loaded: dict[str, type[QPBackend]] = {}
+
     def __getitem__(self, name: str) -> type[QPBackend]:
-        module, cls = _CLASSES[name]
-        backend: type[QPBackend] = getattr(importlib.import_module(f"{__name__}.{module}"), cls)
+        backend = self._loaded.get(name)
+        if backend is None:
+            module, cls = _CLASSES[name]
+            backend = self._loaded[name] = getattr(importlib.import_module(f"{__name__}.{module}"), cls)
         return backend
 
     def __iter__(self) -> Iterator[str]:
