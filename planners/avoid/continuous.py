@@ -1390,6 +1390,21 @@ class ContinuousAvoidPlanner:
                                info={"safety_mode": "continuous"})
         qp = ContinuousAvoidQP(problem, N, self.hold, self.solver, self.solver_settings, self.row_generation,
                                self.node_solver, self.limits_between, self.shared)
+        try:
+            return self._searched(problem, qp, orders, common, start)
+        finally:
+            # each QP the search kept (``qp.solved``) refers back to ``qp`` (:attr:`Solved.qp`):
+            # without this cycle the plan's QPs, their rows and the backend are freed by reference
+            # counting when the plan returns, not by the cyclic garbage collector (some 120
+            # objects a plan, sparse matrices among them: its passes took a few per cent of a
+            # one-vehicle plan's CPU time, tests/test_avoid_no_cycles.py)
+            qp.solved.clear()
+
+    def _searched(self, problem: Problem, qp: ContinuousAvoidQP, orders: list[list[tuple[int, int]]],
+                  common: dict[str, Any], start: float) -> Plan:
+        """:meth:`plan` from its QP ``qp`` on: search the crossing times (``orders``: each vehicle's
+        possible orders), then verify the best candidate (:meth:`_verified`) or say why there is none
+        (``common``: the failed plan's solver, hold and steps; ``start``: the plan's start time)."""
         out = self.search(qp, orders)
         info: dict[str, Any] = {"constraint": "avoid", "safety_mode": "continuous", "n_solves": qp.n_solves}
         search = {"method": "branch and bound over crossing-time boxes (bounds: each box's half-planes outside "
@@ -1419,7 +1434,7 @@ class ContinuousAvoidPlanner:
                              if qp.limit_rows is not None and k in qp.limit_rows.describe()]
                 if certified and free.status == st.INFEASIBLE:
                     # the Bernstein rows are sufficient, not necessary: say what was proved
-                    why += (f" on this grid of {N} pieces, the {' and '.join(k.split('_')[0] for k in certified)} "
+                    why += (f" on this grid of {qp.N} pieces, the {' and '.join(k.split('_')[0] for k in certified)} "
                             f"bound certified between the nodes (Bernstein rows: sufficient, not necessary)")
                 return failed_plan(problem, st.INFEASIBLE, why, start, **common, info=info)
             return failed_plan(problem, out["failures"][0], "no crossing-time candidate solved", start, **common,
