@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+IntArray = NDArray[np.intp]
 
 
 @dataclass
@@ -55,43 +55,72 @@ class HoldTrajectory:
 
     def _locate(self, t: ArrayLike) -> tuple[IntArray, FloatArray]:
         """Each time's piece ``k`` (the last node ``<= t``, clipped to ``0..N-1``: the count of the
-        interior nodes ``<= t``) and its offset ``t − t_k``."""
-        tt = np.atleast_1d(np.asarray(t, dtype=float))
+        interior nodes ``<= t``) and its offset ``t − t_k`` (a scalar ``t`` as one time, as
+        ``numpy.atleast_1d`` makes it; ``take`` copies the nodes that indexing with ``k`` would)."""
+        tt = np.asarray(t, dtype=float)
+        if tt.ndim == 0:
+            tt = tt.reshape(1)
         nodes = np.asarray(self.t_nodes, dtype=float)
-        k = np.searchsorted(nodes[1:-1], tt, side="right").astype(np.int64, copy=False)
-        return k, tt - nodes[k]
+        k = nodes[1:-1].searchsorted(tt, side="right")
+        return k, tt - nodes.take(k)
+
+    def _cached(self, name: str) -> FloatArray | None:
+        """The per-piece rows kept under ``name`` by a first call (never changed in place)."""
+        rows: FloatArray | None = self.__dict__.get(name)
+        return rows
 
     def inputs(self, t: ArrayLike) -> FloatArray:
-        """``(u_x, u_y)`` at the times ``t``, shape ``(len(t), 2)``."""
+        """``(u_x, u_y)`` at the times ``t``, shape ``(len(t), 2)``.
+
+        ZOH ``u_k``; FOH ``u_k + (u_{k+1} − u_k)(δ / h_k)``, ``δ = t − t_k``, from the located
+        piece's row of :meth:`_input_rows` (the same subtractions per piece as for the located
+        pieces alone, so the same numbers)."""
         k, dt = self._locate(t)
         if self.hold == "zoh":
-            return np.asarray(self.U[k], dtype=float)
-        nodes = np.asarray(self.t_nodes, dtype=float)
-        h = nodes[k + 1] - nodes[k]  # the widths of the located pieces (np.diff(nodes)[k]: the same subtraction)
-        u0 = self.U[k]
-        return np.asarray(u0 + (self.U[k + 1] - u0) * (dt / h)[:, None], dtype=float)
+            return np.asarray(np.asarray(self.U).take(k, 0), dtype=float)
+        r = self._input_rows().take(k, 0)
+        u0 = r[:, :2]
+        return np.asarray(u0 + r[:, 2:4] * (dt / r[:, 4])[:, None], dtype=float)
 
-    def _piece_rows(self) -> tuple[FloatArray, FloatArray]:
-        """Per piece ``k`` (computed once per trajectory; its arrays are never changed in place):
-        ``G1[k] = (v_x, u_x, v_y, u_y)`` at ``t_k``, the factors of ``δ`` in the state's columns,
-        and ``G2[k]``, those of ``δ²/2``: FOH ``(u_x, u̇_x, u_y, u̇_y)``, ZOH ``(u_x, u_y)`` (the
-        position's only), with ``u̇ = (u_{k+1} − u_k)/h_k`` (the same subtraction and division per
-        piece as for the located pieces alone)."""
-        rows = self.__dict__.get("_rows")
+    def _input_rows(self) -> FloatArray:
+        """Per FOH piece ``k`` (computed once per trajectory): ``(u_k, u_{k+1} − u_k, h_k)``,
+        ``h_k = t_{k+1} − t_k``, five columns."""
+        rows = self._cached("_inrows")
         if rows is None:
             nodes = np.asarray(self.t_nodes, dtype=float)
             n = nodes.size - 1
-            U = self.U
-            G1 = np.empty((n, 4), dtype=np.result_type(self.X, U))
-            G1[:, 0::2] = self.X[:n, 1::2]
-            G1[:, 1::2] = U[:n]
-            if self.hold == "zoh":
-                G2 = np.asarray(U[:n])
+            U = np.asarray(self.U)
+            rows = np.empty((n, 5), dtype=np.result_type(U, nodes))
+            rows[:, :2] = U[:n]
+            rows[:, 2:4] = U[1:n + 1] - U[:n]
+            rows[:, 4] = nodes[1:] - nodes[:-1]
+            self.__dict__["_inrows"] = rows
+        return rows
+
+    def _piece_rows(self) -> FloatArray:
+        """Per piece ``k`` (computed once per trajectory; never changed in place), one row:
+        the nodal state ``X[k]`` (4 columns), ``G1[k] = (v_x, u_x, v_y, u_y)`` at ``t_k``, the
+        factors of ``δ`` in the state's columns (4), and ``G2[k]``, those of ``δ²/2``: FOH
+        ``(u_x, u̇_x, u_y, u̇_y)`` (4), ZOH ``(u_x, u_y)`` (2, the position's only), with
+        ``u̇ = (u_{k+1} − u_k)/h_k`` (the same subtraction and division per piece as for the
+        located pieces alone).  One ``take`` of these rows gives what indexing ``X``, ``G1`` and
+        ``G2`` with ``k`` would, in one call."""
+        rows = self._cached("_state_rows")
+        if rows is None:
+            nodes = np.asarray(self.t_nodes, dtype=float)
+            n = nodes.size - 1
+            X, U = np.asarray(self.X), np.asarray(self.U)
+            zoh = self.hold == "zoh"
+            rows = np.empty((n, 10 if zoh else 12), dtype=np.result_type(X, U))
+            rows[:, :4] = X[:n]
+            rows[:, 4:8:2] = X[:n, 1::2]
+            rows[:, 5:8:2] = U[:n]
+            if zoh:
+                rows[:, 8:] = U[:n]
             else:
-                G2 = np.empty((n, 4), dtype=G1.dtype)
-                G2[:, 0::2] = U[:n]
-                G2[:, 1::2] = (U[1:n + 1] - U[:n]) / (nodes[1:] - nodes[:-1])[:, None]
-            rows = self.__dict__["_rows"] = (G1, G2)
+                rows[:, 8::2] = U[:n]
+                rows[:, 9::2] = (U[1:n + 1] - U[:n]) / (nodes[1:] - nodes[:-1])[:, None]
+            self.__dict__["_state_rows"] = rows
         return rows
 
     def states(self, t: ArrayLike) -> FloatArray:
@@ -101,14 +130,14 @@ class HoldTrajectory:
         ``v = v_k + u_k δ + u̇ δ²/2``, ``s = s_k + v_k δ + u_k δ²/2 + u̇ δ³/6``, each sum from the
         left, its terms computed for the four columns at once (:meth:`_piece_rows`)."""
         k, dt = self._locate(t)
-        G1, G2 = self._piece_rows()
+        r = self._piece_rows().take(k, 0)
         d = dt[:, None]
         d2 = d**2
-        out = self.X[k] + G1[k] * d  # (s + v δ, v + u δ)
+        out = r[:, :4] + r[:, 4:8] * d  # (s + v δ, v + u δ)
+        g2 = r[:, 8:]
         if self.hold == "zoh":
-            out[:, 0::2] += G2[k] * d2 / 2
+            out[:, 0::2] += g2 * d2 / 2
         else:
-            g2 = G2[k]
             out += g2 * d2 / 2  # (u δ²/2, u̇ δ²/2)
             out[:, 0::2] += g2[:, 1::2] * d**3 / 6
         return out

@@ -74,7 +74,7 @@ def _runs(cuts: FloatArray, flags: NDArray[np.bool_]) -> tuple[Interval, ...]:
     """
     f = np.zeros(flags.size + 2, dtype=np.bool_)
     f[1:-1] = flags
-    change = np.flatnonzero(f[1:] != f[:-1])
+    change = (f[1:] != f[:-1]).nonzero()[0]  # numpy.flatnonzero of a 1-d array, without its wrapper
     return tuple(zip(cuts[change[0::2]].tolist(), cuts[change[1::2]].tolist()))
 
 
@@ -141,13 +141,17 @@ def vehicles_sets(vehicles: Sequence[Any], traj: PiecewiseTrajectory, breaks: Fl
 #: The sign pairs (sx, sy) of :class:`_CutPolynomials`, in order, shaped to multiply ``(P, D)`` arrays.
 _SX = np.array([1.0, 1.0, -1.0, -1.0])[:, None, None]
 _SY = np.array([1.0, -1.0, 1.0, -1.0])[:, None, None]
+#: The products of :class:`_CutPolynomials` added per sign pair: (dx − sx Ax) dx' of the first,
+#: (dy − sy Ay) dy' of the second.
+_FIRST, _SECOND = np.array([0, 0, 1, 1], dtype=np.intp), np.array([2, 3, 2, 3], dtype=np.intp)
 
 
 class _CutPolynomials:
     """Vehicle ``v``'s polynomials whose roots are cut points: groups of ``P`` rows (one per piece)."""
 
     def __init__(self, v: Any, breaks: FloatArray, C: FloatArray, Le: float, We: float) -> None:
-        a, h = breaks[:-1], np.diff(breaks)
+        a = breaks[:-1]
+        h = breaks[1:] - a  # numpy.diff's subtraction
         degree = max(3, len(v.x_poly) - 1)
         xs = shifted_poly(v.x_poly, a, h, degree)
         dX = pad_coeffs(C[:, 0, :], degree + 1) - xs
@@ -179,14 +183,15 @@ class _CutPolynomials:
         P, D = dX.shape
         # dx − Ax, dx + Ax, dy − Ay, dy + Ay stacked: each copy's σ⁰ coefficient less its constant
         # (one subtraction per number, as one copy at a time)
-        shifted = np.stack((dX, dX, dY, dY))
+        # (numpy.stack's array, by one concatenation of the four)
+        shifted = np.concatenate((dX, dX, dY, dY)).reshape(4, P, D)
         shifted[:, :, 0] -= np.array([[Ax], [-Ax], [Ay], [-Ay]])
-        prods = poly_mul(shifted.reshape(4 * P, D), np.stack((ddX, ddX, ddY, ddY)).reshape(4 * P, D - 1))
+        prods = poly_mul(shifted.reshape(4 * P, D), np.concatenate((ddX, ddX, ddY, ddY)))
         prods = prods.reshape(4, P, -1)
         # per sign pair (sx, sy) = (1, 1), (1, −1), (−1, 1), (−1, −1): the depth crossing
         # Ax − sx dx = Ay − sy dy and the stationary points of (dx − sx Ax)² + (dy − sy Ay)²
         cross = _SY * dY - _SX * dX
-        stationary = prods[[0, 0, 1, 1]] + prods[[2, 3, 2, 3]]
+        stationary = prods.take(_FIRST, 0) + prods.take(_SECOND, 0)  # (indexing with lists: the same copies)
         # the polynomials, zero-padded to n2 columns: dX, dY, dX', dY', then per sign pair its
         # crossing and its stationary points
         padded = np.zeros((12, P, n2))
@@ -199,7 +204,7 @@ class _CutPolynomials:
         self.n_groups = len(base)
         # every group's polynomial written into its rows, then its constant subtracted
         # (subtracting 0.0 changes no bit)
-        rows = padded[base]
+        rows = padded.take(base, 0)
         rows[:, :, 0] -= np.asarray(const)[:, None]
         self.rows = rows.reshape(self.n_groups * P, n2)
 
@@ -212,7 +217,7 @@ class _CutPolynomials:
         # set: 0 intrusion, 1 overlap, 2 extremes (groups [0, first_overlap), [first_overlap,
         # first_extreme), [first_extreme, n_groups))
         p = rows % P
-        times = breaks[:-1][p] + np.diff(breaks)[p] * sig
+        times = breaks[:-1][p] + (breaks[1:] - breaks[:-1])[p] * sig
         kind = (group >= self.first_overlap).astype(np.int64) + (group >= self.first_extreme)
 
         # the three sets of times (the intrusion's and the overlap's midpoints, the extremes'

@@ -61,29 +61,33 @@ def roots_in_unit_interval(C: FloatArray, imag_tol: float = 1e-6) -> tuple[NDArr
     if K == 0 or D1 < 2:
         return np.zeros(0, dtype=np.intp), np.zeros(0)
     deg = _degrees(C, imag_tol, _SKIP_FAR)
-    sent = np.flatnonzero(deg)
+    sent = deg.nonzero()[0]
     if sent.size == 0:
         return np.zeros(0, dtype=np.intp), np.zeros(0)
     rows_in: list[NDArray[np.intp]] = []
     eig: list[NDArray[np.complex128]] = []
     dsent = deg[sent]
-    for d in np.flatnonzero(np.bincount(dsent)).tolist():  # the degrees present, ascending (numpy.unique's)
+    for d in np.bincount(dsent).nonzero()[0].tolist():  # the degrees present, ascending (numpy.unique's)
         idx = sent[dsent == d]
-        lead = C[idx, d]
+        Ci = C.take(idx, 0)  # C[idx] (one copy of the rows, as indexing makes it)
+        lead = Ci[:, d]
         if d == 1:
-            r = (-C[idx, 0] / lead)[:, None].astype(complex)
+            r = (-Ci[:, 0] / lead)[:, None].astype(complex)
         else:
             comp = np.zeros((idx.size, d, d))
-            comp[:, 1:, :-1] = np.eye(d - 1)
-            comp[:, :, -1] = -C[idx, :d] / lead[:, None]
+            comp.reshape(idx.size, d * d)[:, d::d + 1] = 1.0  # the ones below the diagonal (numpy.eye(d - 1)'s)
+            comp[:, :, -1] = -Ci[:, :d] / lead[:, None]
             r = _eigvals(comp)
         rows_in.append(np.repeat(idx, d))
         eig.append(r.ravel())
     rr = np.concatenate(rows_in).astype(np.int64)
     z = np.concatenate(eig)
-    with np.errstate(invalid="ignore"):  # NaN coefficients (kept, as numpy's eigenvalues give them)
-        rows, x = kernel("polish_roots")(C, rr, np.ascontiguousarray(z.real), np.ascontiguousarray(z.imag),
-                                         float(imag_tol))
+    args = (C, rr, np.ascontiguousarray(z.real), np.ascontiguousarray(z.imag), float(imag_tol))
+    if _PYTHON:
+        with np.errstate(invalid="ignore"):  # NaN coefficients (kept, as numpy's eigenvalues give them)
+            rows, x = kernel("polish_roots")(*args)
+    else:  # compiled: no numpy error state to set (the same numbers, no warnings either way)
+        rows, x = kernel("polish_roots")(*args)
     return rows.astype(np.intp), x
 
 
@@ -124,8 +128,12 @@ def _degrees(C: FloatArray, imag_tol: float, skip_far: bool = True) -> NDArray[n
     a row whose Bernstein coefficients prove no eigenvalue in the accepted window
     (:func:`~iamp.core.polyroots_kernel.root_degrees`); ``C`` C-contiguous floats with >= 2 columns."""
     deg = np.empty(C.shape[0], dtype=np.int64)
-    with np.errstate(over="ignore", invalid="ignore"):  # an overflowing bound keeps its row
-        kernel("root_degrees")(C, _bernstein_matrix(C.shape[1] - 1), float(imag_tol), bool(skip_far), deg)
+    args = (C, _bernstein_matrix(C.shape[1] - 1), float(imag_tol), bool(skip_far), deg)
+    if _PYTHON:
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflowing bound keeps its row
+            kernel("root_degrees")(*args)
+    else:  # compiled code raises no numpy floating-point warnings: no error state to set
+        kernel("root_degrees")(*args)
     return deg
 
 

@@ -56,9 +56,15 @@ def breakpoints(traj: object, tf: float) -> FloatArray | None:
         bp = ct[(ct > 0) & (ct < tf)]
     if bp is None:
         return None
-    b = np.unique(np.concatenate(([0.0], np.asarray(bp, dtype=float).ravel(), [float(tf)])))
-    b = b[(b >= 0) & (b <= tf)]
-    keep = np.concatenate(([True], np.diff(b) > MERGE_S))
+    # numpy.unique's sort of the same array, the times outside [0, tf] (and NaN) dropped, then
+    # the merge: an exact duplicate differs by 0 from the first of its run, which numpy.unique
+    # keeps and the merge keeps too (the merge of merged_times; the same numbers)
+    t = np.concatenate(([0.0], np.asarray(bp, dtype=float).ravel(), [float(tf)]))
+    t.sort()
+    b = t[(t >= 0) & (t <= tf)]
+    keep = np.empty(b.size, dtype=np.bool_)
+    keep[0] = True
+    np.greater(b[1:] - b[:-1], MERGE_S, out=keep[1:])
     b = b[keep]
     b[-1] = tf
     return b
@@ -79,14 +85,15 @@ def taylor_pieces(traj: PiecewiseTrajectory, breaks: FloatArray) -> tuple[FloatA
     jerk = (Um - Ua) / (0.5 * h)[:, None]
     C = np.empty((a.size, 2, 4))
     hh = h[:, None]
-    C[:, :, 0] = Xa[:, [0, 2]]
-    C[:, :, 1] = Xa[:, [1, 3]] * hh
+    # the position's and the speed's columns as slices (the numbers of indexing with lists)
+    C[:, :, 0] = Xa[:, 0:3:2]
+    C[:, :, 1] = Xa[:, 1:4:2] * hh
     C[:, :, 2] = Ua * hh**2 / 2
     C[:, :, 3] = jerk * hh**3 / 6
     s_end = C.sum(axis=2)
     v_end = (C[:, :, 1] + 2 * C[:, :, 2] + 3 * C[:, :, 3]) / hh
-    scale = max(1.0, float(np.max(np.abs(Xb))))
-    mismatch = max(float(np.max(np.abs(s_end - Xb[:, [0, 2]]))), float(np.max(np.abs(v_end - Xb[:, [1, 3]]))))
+    scale = max(1.0, float(np.abs(Xb).max()))
+    mismatch = max(float(np.abs(s_end - Xb[:, 0:3:2]).max()), float(np.abs(v_end - Xb[:, 1:4:2]).max()))
     return C, mismatch / scale
 
 
