@@ -188,7 +188,7 @@ def test_every_stored_polynomial_bounds_j_on_its_whole_region(solver):
         assert sol.status == st.OPTIMAL
         store.piece(sol)
     checked = 0
-    for o, lo, hi, dp in zip(store._orders, store._lo, store._hi, store._polys):
+    for o, lo, hi, dp in zip(store._orders, store._LO, store._HI, store._polys):
         a, b = np.maximum(lo, 1e-3), np.minimum(hi, qp.tf - 1e-3)
         for _ in range(4):
             t = a + (b - a) * rng.random(3)
@@ -238,7 +238,7 @@ def test_the_stores_polynomials_are_built_when_asked_for_and_are_the_eager_ones(
     for at, (sol, lo, hi) in enumerate(store._sources):
         ref = fresh.near(sol) if at in near else fresh.piece(sol)
         assert np.array_equal(store.dual.mass(sol), ref.mass)
-        assert np.array_equal(store._binds[at], ref.mass > 0)
+        assert np.array_equal(store._B[at], ref.mass > 0)
         k = np.array([piece_of(float(a), float(a), qp.h, qp.N) for _, _, a, _ in sol.spec], dtype=float)
         if at in near:
             assert store._sources[near[at]][0] is sol and ref.second_order

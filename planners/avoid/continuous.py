@@ -105,9 +105,9 @@ from iamp.planners.avoid.dual import (
     Packing,
     fit_polynomial,
     fit_polynomials,
+    grid_minimum,
     max_lower_bound,
     piece_of,
-    polys_values,
 )
 from iamp.planners.avoid.result import ACTIVE_SLACK_M, failed_plan, residual_and_safety_lines
 from iamp.planners.avoid.schur import CHECK_TOL, CUTOFF, CsrArrays, SchurActiveSet, _run, csr_arrays
@@ -1003,29 +1003,14 @@ class ContinuousAvoidPlanner:
         if not polys:
             return tau, -np.inf
         # a vehicle without multipliers in a polynomial leaves it constant: only the others move
-        vs = sorted({v for dp in polys for v in dp.vehicles if box.hi[v] > box.lo[v] and dp.mass[v] > 0})
-        n = {1: 9, 2: 5}.get(len(vs), 3)
-        # the product grid in meshgrid's "ij" order: vehicle c's samples (numpy.linspace's numbers:
-        # j step + lo, the last one hi) each repeated n^(k-1-c) times, that run n^c times
-        k = len(vs)
-        pts = np.repeat(tau[None, :], n ** k, axis=0)  # np.tile's array, without its Python-level set-up
-        ramp = np.arange(n, dtype=float)
-        for c, v in enumerate(vs):
-            lo_v, hi_v = float(box.lo[v]), float(box.hi[v])
-            step = (hi_v - lo_v) / (n - 1)
-            line = ramp / (n - 1) * (hi_v - lo_v) + lo_v if step == 0.0 else ramp * step + lo_v
-            line[-1] = hi_v
-            pts[:, v] = np.repeat(np.repeat(line, n ** (k - 1 - c))[None, :], n ** c, axis=0).ravel()
-        vals = polys_values(polys, pts, packing=packing)
-        if solved is not None and len(solved):
-            # a point a solved candidate (in a piece beside the box's) all but shares: its cost
-            # is known to the QPs' accuracy, so the probe takes the next lowest point instead
-            apart = np.max(np.abs(pts[:, None, :] - solved[None, :, :]), axis=2)  # (points, solved)
-            near = np.min(apart, axis=1) <= self.PROBE_SKIP_STEPS * h
-            if not near.all():
-                vals = np.where(near, np.inf, vals)
-        at = int(np.argmin(vals))
-        return np.asarray(pts[at], dtype=float), float(vals[at])
+        lo, hi = box.lo.tolist(), box.hi.tolist()
+        vs = sorted({v for dp in polys for v in dp.vehicles if hi[v] > lo[v] and dp.binds[v]})
+        # the product grid in meshgrid's "ij" order; a point a solved candidate (in a piece beside
+        # the box's) all but shares: its cost is known to the QPs' accuracy, so the probe takes
+        # the next lowest point instead
+        return grid_minimum(polys, tau, vs, box.lo, box.hi, {1: 9, 2: 5}.get(len(vs), 3),
+                            solved if solved is not None and len(solved) else None, self.PROBE_SKIP_STEPS * h,
+                            packing)
 
     def _cut(self, qp: ContinuousAvoidQP, lo: float, hi: float) -> float:
         """Where a box's interval ``[lo, hi]`` of one vehicle is split: at the midpoint within one
@@ -1138,40 +1123,46 @@ class ContinuousAvoidPlanner:
             if bound >= U - gap(U):
                 closed_bound = min(closed_bound, bound)
                 continue
-            widths = box.hi - box.lo
-            wide = widths > 1e-9 * tf
-            covered = {v for dp in polys for v in dp.vehicles if dp.mass[v] > 0}
-            if box.own_relaxation or not all(v in covered for v in np.flatnonzero(wide)):
+            # the box's ends as floats (finite: the root's 0 and tf, then cuts between them)
+            box_lo, box_hi = box.lo.tolist(), box.hi.tolist()
+            widths = [b - a for a, b in zip(box_lo, box_hi)]
+            wide = [w > 1e-9 * tf for w in widths]
+            covered = {v for dp in polys for v in dp.vehicles if dp.binds[v]}
+            if box.own_relaxation or not all(v in covered for v, w in enumerate(wide) if w):
                 tau, margin = self._candidate_tau(qp, box)
             else:  # the probe of the box's polynomials moves every vehicle: no relaxed margin needed
                 tau, margin = 0.5 * (box.lo + box.hi), np.zeros(m)
-            mass = np.zeros(m)
+            # per vehicle, whether the candidate's multipliers on its rows sum to a positive number
+            # (those of the box's polynomials without a candidate)
+            binds = [False] * m
             cand: Solved | None = None
+            tau_c: list[float] = []  # the candidate's crossing times
             probe, low = self._probe(box, tau, polys, points.of(qp, box.orders) if m == 1 else None, qp.h,
                                      store.packing)
-            if low >= U - gap(U) and wide.any() and np.max(widths) > 1e-6 * qp.h:
+            if low >= U - gap(U) and any(wide) and max(widths) > 1e-6 * qp.h:
                 # the polynomials keep the box above U - gap at every probe: only their Bernstein
-                # bound is loose, and splitting tightens it without a QP
-                mass = np.max([dp.mass for dp in polys], axis=0)
+                # bound is loose, and splitting tightens it without a QP (the multipliers' sums are
+                # never NaN: sums of positive multipliers)
+                binds = [any(dp.binds[v] for dp in polys) for v in range(m)]
             else:
                 if not box.own_relaxation or low > -np.inf:
                     tau = probe
-                tau = self._inside(qp, box, tau)
+                tau = self._inside(qp, box, tau)  # a new array
+                tau_c = tau.tolist()
                 # warm-started from the incumbent's binding rows (a candidate's active set is
                 # nearer the incumbent's than the box's relaxation's: 62 -> 39 active-set steps
                 # per one-vehicle overtake plan, 173 -> 136 with three vehicles)
-                cand = self._qp_solve(qp, _spec(box.orders, tau, tau), best if best is not None else box.relaxed)
+                cand = self._qp_solve(qp, _spec(box.orders, tau_c, tau_c), best if best is not None else box.relaxed)
                 if cand.status == st.OPTIMAL:
                     if best is None or cand.cost < best.cost:
-                        best, best_tau = cand, tau.copy()
-                    same = all(piece_of(float(a), float(b), qp.h, qp.N) == piece_of(float(t), float(t), qp.h, qp.N)
-                               for a, b, t in zip(box.lo, box.hi, tau))
+                        best, best_tau = cand, tau
+                    pieces = [piece_of(a, b, qp.h, qp.N) for a, b in zip(box_lo, box_hi)]
+                    same = all(k == piece_of(t, t, qp.h, qp.N) for k, t in zip(pieces, tau_c))
                     # the candidate's piece polynomial joins the store (built when first needed)
                     store.add(cand)
                     if same:
                         dp: DualPolynomial | None = store.piece(cand)
-                    elif box.own_relaxation and all(piece_of(float(a), float(b), qp.h, qp.N) is None
-                                                    for a, b in zip(box.lo, box.hi)):
+                    elif box.own_relaxation and all(k is None for k in pieces):
                         # no vehicle's interval lies in one piece: the box's polynomial would keep only
                         # rows that the box's own relaxation imposes (each half-plane's full pieces
                         # outside the box, the limit rows), so by weak duality its bound cannot
@@ -1180,9 +1171,9 @@ class ContinuousAvoidPlanner:
                     else:
                         dp = dual.polynomial(cand, box.lo, box.hi)
                     if dp is None:
-                        mass = dual.mass(cand)
+                        binds = list(dual.binds(cand))
                     else:
-                        bound, mass = max(bound, dp.lower_bound(box.lo, box.hi)), dp.mass
+                        bound, binds = max(bound, dp.lower_bound(box.lo, box.hi)), list(dp.binds)
                         if dp.vehicles:
                             box.duals = (box.duals + (dp,))[-self.DUALS_KEPT:]
                     poly_bound, polys = bound_of(box.orders, box.lo, box.hi, box.duals)
@@ -1195,25 +1186,29 @@ class ContinuousAvoidPlanner:
                 continue  # the box is closed: no crossing in it is cheaper than U by more than the gap
             # branch on the vehicle whose constraint the relaxed optimum breaks most (a vehicle it
             # keeps gains nothing from a split); else the widest vehicle that binds at the candidate;
-            # else the widest box
-            broken = (margin < 0) & wide & box.own_relaxation
-            binds = (mass > 0) & wide
-            if broken.any():
-                i = int(np.argmin(np.where(broken, margin, np.inf)))
-            elif binds.any():
-                i = int(np.argmax(np.where(binds, widths, -np.inf)))
-            else:
-                i = int(np.argmax(widths))
+            # else the widest box (numpy.argmin's and argmax's first index of the extreme)
+            i = -1
+            if box.own_relaxation:
+                margins = margin.tolist()
+                for j in range(m):
+                    if margins[j] < 0 and wide[j] and (i < 0 or margins[j] < margins[i]):
+                        i = j
+            if i < 0:
+                for j in range(m):
+                    if binds[j] and wide[j] and (i < 0 or widths[j] > widths[i]):
+                        i = j
+            if i < 0:
+                i = widths.index(max(widths))
             if not wide[i]:
                 continue  # a point: its bound is J(τ) itself
             solved = cand is not None and cand.status == st.OPTIMAL
-            cuts = self._cuts(qp, float(box.lo[i]), float(box.hi[i]), float(tau[i]) if solved else None,
-                              solved and cand is best)
+            cuts = self._cuts(qp, box_lo[i], box_hi[i], tau_c[i] if solved else None, solved and cand is best)
             ref = cand if cand is not None and solved else box.relaxed
-            edges = [float(box.lo[i])] + cuts + [float(box.hi[i])]
+            edges = [box_lo[i]] + cuts + [box_hi[i]]
             for lo_i, hi_i in zip(edges[:-1], edges[1:]):
-                lo, hi = box.lo.copy(), box.hi.copy()
-                lo[i], hi[i] = lo_i, hi_i
+                lo_c, hi_c = box_lo.copy(), box_hi.copy()
+                lo_c[i], hi_c[i] = lo_i, hi_i
+                lo, hi = np.array(lo_c), np.array(hi_c)
                 child_poly, child_polys = bound_of(box.orders, lo, hi, box.duals)
                 child = max(bound, child_poly)
                 stored = len(store)
@@ -1228,7 +1223,7 @@ class ContinuousAvoidPlanner:
                     heapq.heappush(heap, _Box(child, next(serial), box.orders, lo, hi, ref, False, box.duals,
                                               child_polys, stored))
                     continue
-                rel_spec = _spec(box.orders, lo, hi)
+                rel_spec = _spec(box.orders, lo_c, hi_c)
                 # the parent's relaxed optimum, when it keeps the child's rows, is the child's
                 inherited = qp.inherit(rel_spec, box.relaxed) \
                     if box.own_relaxation and rel_spec not in qp.solved else None
@@ -1279,6 +1274,17 @@ class ContinuousAvoidPlanner:
             return cand, tau
         return None
 
+    @staticmethod
+    def _clip(x: float, lo: float, hi: float) -> float:
+        """``numpy.clip(x, lo, hi)`` of floats, its numbers without its array set-up: a NaN of any of
+        them propagated, else ``lo`` where ``lo > x``, then ``hi`` where ``hi`` is below that (of equal
+        numbers, e.g. ``-0.0`` and ``0.0``, ``x`` kept; ``hi`` where ``lo > hi``)."""
+        for v in (x, lo, hi):
+            if v != v:
+                return v
+        y = lo if lo > x else x
+        return hi if hi < y else y
+
     def _polish(self, qp: ContinuousAvoidQP, store: DualStore, best: Solved, tau: FloatArray
                 ) -> tuple[Solved, FloatArray]:
         """Per vehicle, a secant search for a zero of ``∂J/∂τ_i`` within one grid step of the
@@ -1312,7 +1318,7 @@ class ContinuousAvoidPlanner:
                     if curvature[i] > 0 and 0.5 * abs(slope * step) <= self.POLISH_TOL_REL * max(1.0, abs(best.cost)):
                         break  # the secant model's decrease is below the QPs' own accuracy
                 prev = (float(t[i]), slope)
-                x = float(np.clip(t[i] + step, lo_all[i], hi_all[i]))
+                x = self._clip(float(t[i] + step), float(lo_all[i]), float(hi_all[i]))
                 if not abs(x - t[i]) > 1e-9 * qp.tf:
                     break
                 nxt = t.copy()

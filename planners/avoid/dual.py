@@ -77,7 +77,7 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 
 __all__ = ["ROUND_OFF_REL", "ROUND_OFF_TERMS", "DualBounds", "DualPolynomial", "DualStore", "Packing",
-           "fit_polynomial", "fit_polynomials", "lower_bounds", "max_lower_bound", "piece_of"]
+           "fit_polynomial", "fit_polynomials", "grid_minimum", "lower_bounds", "max_lower_bound", "piece_of"]
 
 #: Subtracted from every bound, relative to ``max(1, |bound|)``: the bound is computed in floating
 #: point (one sparse LU solve, or a sum of columns of ``K⁻¹``, and a Bernstein transform); far
@@ -162,6 +162,8 @@ class _Binding:
     #: per vehicle, the axes of its first and second half-planes (its spec's ``f``, ``s``)
     first: NDArray[np.int64]
     second: NDArray[np.int64]
+    #: per vehicle, whether it binds (``mass > 0`` as Python booleans)
+    binds: tuple[bool, ...]
     #: :meth:`DualBounds._split_blocks` per ``(vehicle, piece)``, each block with its terms of
     #: :meth:`DualBounds.polynomial` (``σ (y_j M)ᵀ``, ``rhs · y_j``), computed once per solution
     blocks: dict[tuple[int, int], list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64],
@@ -227,6 +229,12 @@ class DualPolynomial:
     #: of the terms that cancel in ``g``), subtracted by :meth:`lower_bound` besides
     #: :data:`ROUND_OFF_REL`.
     roundoff: float = 0.0
+
+    @functools.cached_property
+    def binds(self) -> tuple[bool, ...]:
+        """Per vehicle of :attr:`mass`, whether its multipliers' sum is positive (``mass > 0`` as
+        Python booleans; computed once)."""
+        return tuple(x > 0 for x in np.asarray(self.mass, dtype=float).ravel().tolist())
 
     @functools.cached_property
     def meta(self) -> NDArray[np.int64]:
@@ -345,7 +353,7 @@ class Packing:
         """The kept entry of ``polys``, its packing computed on the first call with them."""
         key = tuple(map(id, polys))
         kept = self._kept.get(key)
-        if kept is not None and len(kept.polys) == len(polys) and all(a is b for a, b in zip(kept.polys, polys)):
+        if kept is not None:  # the same objects: the entry keeps them alive, so no other has their ids
             return kept
         if len(self._kept) >= self.SIZE:
             del self._kept[next(iter(self._kept))]
@@ -399,6 +407,59 @@ def polys_values(polys: list[DualPolynomial], taus: FloatArray, coefs: list[Floa
     _run("polys_max", search_kernel)(flat, meta, W, float(polys[0].h), taus, out, np.empty(W), np.empty(largest))
     return out
 
+
+
+#: :func:`grid_minimum`'s crossing times of solved candidates where it is given none (read-only)
+_NO_POINTS: dict[int, FloatArray] = {}
+
+
+def grid_minimum(polys: list[DualPolynomial], tau: FloatArray, vehicles: Sequence[int], lo: FloatArray,
+                 hi: FloatArray, n: int, solved: FloatArray | None, tol: float,
+                 packing: Packing | None = None) -> tuple[FloatArray, float]:
+    """The point of a product grid where the largest value of ``polys`` is lowest, and that value
+    (:func:`~iamp.planners.avoid.search_kernel.probe_grid`): ``tau`` with each vehicle of ``vehicles``
+    at ``n`` samples of its interval ``[lo_v, hi_v]``; a point within ``tol`` of a row of ``solved``
+    (crossing times of solved candidates, or None) is passed over unless every point is
+    (:meth:`~iamp.planners.avoid.continuous.ContinuousAvoidPlanner._probe`).
+
+    Parameters
+    ----------
+    polys : list of DualPolynomial
+        At least one polynomial.
+    tau : ndarray, shape (m,)
+        The crossing times of the vehicles that do not move.
+    vehicles : sequence of int
+        The vehicles that move (the grid's axes, in this order).
+    lo, hi : ndarray, shape (m,)
+        The box.
+    n : int
+        Samples per moving vehicle (at least 2).
+    solved : ndarray, shape (S, m), or None
+        Crossing times whose points are passed over.
+    tol : float
+        How near a point must be to one of ``solved``, in every vehicle's time.
+    packing : Packing, optional
+        The search's :class:`Packing`.
+
+    Returns
+    -------
+    tuple
+        The point (a row of the grid, shape ``(m,)``) and its value.
+    """
+    flat, meta, W, largest = _pack(polys, None, packing)
+    tau = np.asarray(tau, dtype=float)
+    m = tau.shape[0]
+    T = n ** len(vehicles)
+    if solved is None:
+        solved = _NO_POINTS.get(m)
+        if solved is None:
+            solved = _NO_POINTS[m] = np.empty((0, m))
+            solved.flags.writeable = False
+    pts, vals = np.empty((T, m)), np.empty(T)
+    at = _run("probe_grid", search_kernel)(flat, meta, W, float(polys[0].h), tau, np.array(vehicles, dtype=np.int64),
+                                           np.asarray(lo, dtype=float), np.asarray(hi, dtype=float), n, solved, tol,
+                                           pts, vals, np.empty(T, dtype=np.bool_), np.empty(W), np.empty(largest))
+    return pts[at], float(vals[at])
 
 @lru_cache(maxsize=32)
 def _kernel_tables(n: int) -> tuple[FloatArray, FloatArray]:
@@ -589,7 +650,7 @@ class DualBounds:
         first = np.array([f for f, _, _, _ in sol.spec], dtype=np.int64)
         second = np.array([s for _, s, _, _ in sol.spec], dtype=np.int64)
         return _Binding(A_in, u_in, nz, y, bern, veh, plane, piece, j, indptr, indices, data, cols, mass, first,
-                        second)
+                        second, tuple(x > 0 for x in mass.tolist()))
 
     def _split_blocks(self, sol: Solved, b: _Binding, i: int, k: int
                       ) -> list[tuple[FloatArray, FloatArray, FloatArray, float, NDArray[np.int64], FloatArray,
@@ -889,6 +950,11 @@ class DualBounds:
         of every polynomial of ``sol``, without building one)."""
         return self._binding(sol).mass
 
+    def binds(self, sol: Solved) -> tuple[bool, ...]:
+        """Per vehicle, whether ``sol``'s multipliers on its Bernstein rows sum to a positive number
+        (:meth:`mass` ``> 0``, as Python booleans; once per solution)."""
+        return self._binding(sol).binds
+
 
 class DualStore:
     r"""Every solved candidate's *piece polynomial*, each with the region of crossing times where
@@ -915,17 +981,22 @@ class DualStore:
         self.dual = dual
         qp = dual.qp
         self.h, self.N, self.tf = qp.h, qp.N, qp.tf
-        #: per stored spec, its position in the lists below
+        #: per stored spec, its position in the rows below
         self._by_spec: dict[object, int] = {}
         self._orders: list[tuple[tuple[int, int], ...]] = []
-        self._binds: list[NDArray[np.bool_]] = []
-        self._lo: list[FloatArray] = []
-        self._hi: list[FloatArray] = []
+        #: the stored regions as :func:`~iamp.planners.avoid.search_kernel.valid_polys` takes them,
+        #: one row per stored polynomial (the first :meth:`__len__` rows; grown by doubling): their
+        #: bounds, per vehicle whether it binds, and the orders
+        self._LO: FloatArray = np.empty((0, 0))
+        self._HI: FloatArray = np.empty((0, 0))
+        self._B: NDArray[np.bool_] = np.empty((0, 0), dtype=np.bool_)
+        self._O: NDArray[np.int64] = np.empty((0, 0, 2), dtype=np.int64)
+        #: :func:`~iamp.planners.avoid.search_kernel.valid_polys`'s output (as long as the rows)
+        self._out: NDArray[np.int64] = np.empty(0, dtype=np.int64)
         #: the piece polynomials, None until first asked for (:meth:`_poly`)
         self._polys: list[DualPolynomial | None] = []
         #: what builds each one: the candidate and its pieces' bounds
         self._sources: list[tuple[Solved, FloatArray, FloatArray]] = []
-        self._arrays: tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.int64]] | None = None
         self._order_arrays: dict[tuple[tuple[int, int], ...], NDArray[np.int64]] = {}
         #: per stored candidate (its position), the position of its tangent polynomial on the
         #: interval where no slope is cut (one vehicle, :meth:`add`)
@@ -936,7 +1007,28 @@ class DualStore:
     def __len__(self) -> int:
         """The number of stored polynomials (built or not): it grows with every :meth:`add` of a
         new candidate, and :meth:`valid` depends on nothing else."""
-        return len(self._lo)
+        return len(self._polys)
+
+    def _row(self, orders: tuple[tuple[int, int], ...], binds: Sequence[bool], lo: Sequence[float],
+             hi: Sequence[float], source: tuple[Solved, FloatArray, FloatArray]) -> None:
+        """Store one region (its row of the arrays) and what builds its polynomial."""
+        at = len(self._polys)
+        if at == self._LO.shape[0]:
+            m = len(orders)
+            cap = max(8, 2 * at)
+            LO, HI = np.empty((cap, m)), np.empty((cap, m))
+            B, O = np.zeros((cap, m), dtype=np.bool_), np.zeros((cap, m, 2), dtype=np.int64)
+            if at:
+                LO[:at], HI[:at], B[:at], O[:at] = self._LO, self._HI, self._B, self._O
+            self._LO, self._HI, self._B, self._O = LO, HI, B, O
+            self._out = np.empty(cap, dtype=np.int64)
+        self._LO[at] = lo
+        self._HI[at] = hi
+        self._B[at] = binds
+        self._O[at] = orders
+        self._orders.append(orders)
+        self._polys.append(None)
+        self._sources.append(source)
 
     def add(self, sol: Solved) -> int:
         """Store the optimal candidate ``sol`` (its ``spec`` has ``a = b = τ_c``; once per spec)
@@ -945,32 +1037,27 @@ class DualStore:
         at = self._by_spec.get(sol.spec)
         if at is not None:
             return at
-        tau = np.array([a for _, _, a, _ in sol.spec], dtype=float)
-        k = np.array([piece_of(float(t), float(t), self.h, self.N) for t in tau], dtype=float)
-        lo, hi = k * self.h, (k + 1) * self.h
-        binds = self.dual.mass(sol) > 0
+        h, N = self.h, self.N
+        # per vehicle its piece k and that piece's ends k h, (k + 1) h (as floats)
+        ks = [piece_of(float(a), float(a), h, N) for _, _, a, _ in sol.spec]
+        lo = [float(k) * h for k in ks]  # type: ignore[arg-type]
+        hi = [(float(k) + 1.0) * h for k in ks]  # type: ignore[arg-type]
+        binds = self.dual.binds(sol)
         at = self._by_spec[sol.spec] = len(self._polys)
-        self._orders.append(tuple((int(f), int(s)) for f, s, _, _ in sol.spec))
-        self._binds.append(binds)
+        orders = tuple((int(f), int(s)) for f, s, _, _ in sol.spec)
         slack = 1e-12 * self.tf
-        self._lo.append(np.where(binds, lo - slack, -np.inf))
-        self._hi.append(np.where(binds, hi + slack, np.inf))
-        self._polys.append(None)
-        self._sources.append((sol, lo, hi))
-        if len(sol.spec) == 1 and binds[0]:
+        self._row(orders, binds, [a - slack if b else -np.inf for a, b in zip(lo, binds)],
+                  [a + slack if b else np.inf for a, b in zip(hi, binds)], (sol, np.array(lo), np.array(hi)))
+        if len(ks) == 1 and binds[0]:
             # one vehicle: the polynomial with every multiplier on its tangent, on the interval
             # where none is cut (exact to second order at the candidate), beside the piece's
             # (some slopes cut to keep the multipliers nonnegative over the whole piece)
-            la, lb = self.dual.tangent_interval(sol, 0, int(k[0]))
+            la, lb = self.dual.tangent_interval(sol, 0, int(ks[0]))  # type: ignore[arg-type]
             if lb > la and (la > 0.0 or lb < 1.0):
-                near_lo, near_hi = lo + la * self.h, lo + lb * self.h
+                near_lo, near_hi = lo[0] + la * h, lo[0] + lb * h
                 self._near[at] = len(self._polys)
-                self._orders.append(self._orders[at])
-                self._binds.append(binds)
-                self._lo.append(near_lo - slack)
-                self._hi.append(near_hi + slack)
-                self._polys.append(None)
-                self._sources.append((sol, near_lo, near_hi))
+                self._row(orders, binds, [near_lo - slack], [near_hi + slack],
+                          (sol, np.array([near_lo]), np.array([near_hi])))
         return at
 
     def _poly(self, at: int) -> DualPolynomial:
@@ -996,16 +1083,14 @@ class DualStore:
     def valid(self, orders: tuple[tuple[int, int], ...], lo: FloatArray, hi: FloatArray) -> list[DualPolynomial]:
         """The stored polynomials that bound every crossing in the box ``[lo, hi]`` with
         ``orders`` (each binding vehicle in its polynomial's piece and order)."""
-        if not self._polys:
+        P = len(self._polys)
+        if not P:
             return []
-        if self._arrays is None or self._arrays[0].shape[0] != len(self._polys):
-            self._arrays = (np.array(self._lo), np.array(self._hi), np.array(self._binds),
-                            np.array(self._orders, dtype=np.int64))
-        LO, HI, B, O = self._arrays
         want = self._order_arrays.get(orders)
         if want is None:
             want = self._order_arrays[orders] = np.asarray(orders, dtype=np.int64).reshape(-1, 2)
-        out = np.empty(LO.shape[0], dtype=np.int64)
-        n = _run("valid_polys", search_kernel)(LO, HI, B, O, want, np.asarray(lo, dtype=float),
-                                               np.asarray(hi, dtype=float), out)
-        return [self._poly(int(c)) for c in out[:n]]
+        out = self._out
+        n = _run("valid_polys", search_kernel)(self._LO[:P], self._HI[:P], self._B[:P], self._O[:P], want,
+                                               np.asarray(lo, dtype=float), np.asarray(hi, dtype=float), out)
+        polys, build = self._polys, self._poly
+        return [polys[c] or build(c) for c in out[:n].tolist()]

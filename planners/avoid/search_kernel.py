@@ -392,3 +392,73 @@ def max_poly_bound(coef: Any, meta: Any, W: int, roundoff: Any, h: float, rel: f
             if b > best:
                 best = b
     return best
+
+
+@compilable
+def probe_grid(coef: Any, meta: Any, W: int, h: float, tau: Any, vs: Any, lo: Any, hi: Any, n: int, solved: Any,
+               tol: float, pts: Any, vals: Any, near: Any, lam: Any, work: Any) -> int:
+    r"""The search's probe (:meth:`~iamp.planners.avoid.continuous.ContinuousAvoidPlanner._probe`): the
+    product grid ``pts`` (shape ``(n**k, m)``, ``k`` the vehicles ``vs``), every row ``tau`` but on the
+    vehicles ``vs``, where vehicle ``vs[c]`` takes ``n`` samples of ``[lo_v, hi_v]`` (``numpy.linspace``'s
+    numbers: ``j · step + lo``, or ``(j / (n - 1)) · (hi - lo) + lo`` where the step is zero, the last
+    one ``hi``) in ``numpy.meshgrid``'s ``"ij"`` order (sample ``j = (t // n^(k-1-c)) % n`` at row
+    ``t``); ``vals`` the polynomials' largest value there (:func:`polys_max`, the polynomials laid out
+    as for it); where ``solved`` (crossing times of solved candidates, shape ``(S, m)``) has rows, a
+    point within ``tol`` of one (the largest ``|Δτ|`` over the vehicles, its smallest over the rows,
+    NaN-propagating as ``numpy.max`` and ``numpy.min``) is ``near`` and, unless every point is, its
+    value is set to ``inf``.  Returns the point of the smallest value (``numpy.argmin``'s: the first
+    NaN, else the first smallest; ``lam``, ``work``: space for :func:`polys_max`)."""
+    T = pts.shape[0]
+    m = pts.shape[1]
+    for t in range(T):
+        for v in range(m):
+            pts[t, v] = tau[v]
+    run = T
+    for c in range(vs.shape[0]):
+        v = vs[c]
+        run = run // n
+        lo_v = lo[v]
+        hi_v = hi[v]
+        delta = hi_v - lo_v
+        step = delta / (n - 1)
+        for t in range(T):
+            j = (t // run) % n
+            if j == n - 1:
+                pts[t, v] = hi_v
+            elif step == 0.0:
+                pts[t, v] = j / (n - 1) * delta + lo_v
+            else:
+                pts[t, v] = j * step + lo_v
+    polys_max(coef, meta, W, h, pts, vals, lam, work)
+    S = solved.shape[0]
+    if S > 0:
+        every = True
+        for t in range(T):
+            low = 0.0
+            for s in range(S):
+                top = 0.0
+                for v in range(m):
+                    d = abs(pts[t, v] - solved[s, v])
+                    if v == 0 or d > top or not d == d:
+                        top = d
+                    if not top == top:
+                        break
+                if s == 0 or top < low or not top == top:
+                    low = top
+                if not low == low:
+                    break
+            near[t] = low <= tol
+            if not near[t]:
+                every = False
+        if not every:
+            for t in range(T):
+                if near[t]:
+                    vals[t] = inf
+    at = 0
+    for t in range(T):
+        x = vals[t]
+        if not x == x:
+            return t
+        if x < vals[at]:
+            at = t
+    return at
