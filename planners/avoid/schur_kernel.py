@@ -219,14 +219,16 @@ def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data
     """
     n = z0.shape[0]
     m = u.shape[0]
-    W = np.zeros((cap, n))
-    S = np.zeros((cap, cap))
-    L = np.zeros((cap, cap))
-    rhs = np.zeros(cap)
-    dlam = np.zeros(cap)
-    col = np.zeros(cap)
-    w = np.zeros(n)
-    wp = np.zeros(n)
+    # work space written before it is read (the working rows' ``w_r``, ``S``, its factors, the
+    # right-hand sides): not zeroed (``W`` alone is ``cap`` rows of ``n``)
+    W = np.empty((cap, n))
+    S = np.empty((cap, cap))
+    L = np.empty((cap, cap))
+    rhs = np.empty(cap)
+    dlam = np.empty(cap)
+    col = np.empty(cap)
+    w = np.empty(n)
+    wp = np.empty(n)
     inw = np.zeros(m, dtype=np.bool_)
     k = 0
     for i in range(n):
