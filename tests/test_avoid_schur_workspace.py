@@ -102,3 +102,50 @@ def test_the_kernel_reads_no_work_space_before_writing_it(m: int, taus: list[flo
         assert lam[:k].tobytes() == arr0[1][:k].tobytes()
         assert rows[:k].tobytes() == arr0[2][:k].tobytes()
         assert out.tobytes() == arr0[3].tobytes()
+
+
+@st_h.composite
+def _rows(draw: Any) -> tuple[Any, ...]:
+    """Rows ``G z <= u`` (CSR, a few entries each, some rows empty), ``z`` and ``u``; NaN sometimes."""
+    n, m = draw(st_h.integers(1, 8)), draw(st_h.integers(0, 12))
+    fl = st_h.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
+    lens = draw(st_h.lists(st_h.integers(0, 4), min_size=m, max_size=m))
+    indptr = np.concatenate(([0], np.cumsum(lens))).astype(np.int32)
+    nnz = int(indptr[-1])
+    indices = np.array(draw(st_h.lists(st_h.integers(0, n - 1), min_size=nnz, max_size=nnz)), dtype=np.int32)
+    data = np.array(draw(st_h.lists(fl, min_size=nnz, max_size=nnz)), dtype=float)
+    z = np.array(draw(st_h.lists(fl, min_size=n, max_size=n)), dtype=float)
+    u = np.array(draw(st_h.lists(fl, min_size=m, max_size=m)), dtype=float)
+    if m and draw(st_h.booleans()) and draw(st_h.booleans()):
+        u[draw(st_h.integers(0, m - 1))] = np.nan
+    return indptr, indices, data, z, u, n
+
+
+@settings(max_examples=200, deadline=None)
+@given(rows=_rows())
+def test_the_violation_of_inherit_is_the_former_matvec_test(rows: tuple[Any, ...]) -> None:
+    """:meth:`~iamp.planners.avoid.schur.SchurActiveSet.violation` (``inherit``'s first test) against
+    the former ``max(matvec(A, z) - u)``: the same number bit for bit, floored at zero, where no row
+    is NaN; ``inf`` where one is (the former test then passed on to the KKT residual, which gives
+    ``inf`` on the same row: ``inherit`` returns None either way)."""
+    import scipy.sparse as sp
+
+    from iamp.planners.avoid.schur import SchurActiveSet, csr_arrays
+    from iamp.planners.qp.backends.base import compressed, matvec
+
+    indptr, indices, data, z, u, n = rows
+    A = compressed(sp.csr_matrix, data, indices, indptr, (u.size, n))
+    solver = object.__new__(SchurActiveSet)  # violation reads no factored matrix
+    got = solver.violation(csr_arrays(A), z, u)
+    fns = [kernel._abs_max_rows] + ([jit.twin(kernel._abs_max_rows, cache=True)] if jit.available() else [])
+    for fn in fns:
+        assert np.float64(fn(*csr_arrays(A), z, u, 0.0)).tobytes() == np.float64(got).tobytes()
+    if not u.size:
+        assert got == 0.0
+        return
+    former = float(np.max(matvec(A, z) - u))
+    if np.isnan(former):
+        assert got == np.inf
+    else:
+        assert np.float64(got).tobytes() == np.float64(max(0.0, former)).tobytes()
+        assert (got > GENERATION_TOL) == (former > GENERATION_TOL)

@@ -383,6 +383,12 @@ class SchurActiveSet:
             self._have[missing] = True
             self.columns += int(missing.size)
 
+    def violation(self, arrays: CsrArrays, z: FloatArray, u: FloatArray) -> float:
+        """The largest violation ``max(0, max_r (g_r · z - u_r))`` of the rows ``G z <= u`` (``arrays``:
+        ``G``'s :func:`csr_arrays`; each ``g_r · z`` summed in stored order from zero, as scipy's
+        product does), ``inf`` when one is NaN."""
+        return float(_run("_abs_max_rows")(*arrays, np.asarray(z, dtype=float), np.asarray(u, dtype=float), 0.0))
+
     def residual(self, A_in: sp.csr_matrix, u: FloatArray, z: FloatArray, y: FloatArray,
                  Gt: FloatArray | None = None, arrays: CsrArrays | None = None) -> float:
         """The largest KKT residual of ``(z, y)``, recomputed from the data: the equality rows'
