@@ -244,7 +244,7 @@ class SchurActiveSet:
         return out
 
     def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, start: NDArray[np.int64] | None = None,
-              cutoff: float | None = None, arrays: CsrArrays | None = None) -> RowsSolution:
+              cutoff: float | None = None, arrays: CsrArrays | None = None, mirrored: int = 0) -> RowsSolution:
         """Solve with the inequality rows ``A_in z <= u_in``.
 
         Parameters
@@ -264,6 +264,10 @@ class SchurActiveSet:
         arrays : tuple, optional
             ``A_in``'s CSR arrays as the kernels take them (:func:`csr_arrays`), when the caller
             keeps them.
+        mirrored : int, optional
+            The last ``mirrored`` rows of ``A_in`` are the negations of the as many rows before
+            them (the same columns in the same stored order, every value negated; the limit rows
+            ``[A_lim; -A_lim]``): the kernel forms each pair's product once.
 
         Returns
         -------
@@ -285,7 +289,7 @@ class SchurActiveSet:
             lam = np.zeros(cap)
             rows = np.zeros(cap, dtype=np.int64)
             code, k, iterations = _run("active_set")(
-                self.z0, self._Kinv, self._colnorm, indptr, indices, data, u, seed, cutoff is not None,
+                self.z0, self._Kinv, self._colnorm, indptr, indices, data, u, n_in - mirrored, seed, cutoff is not None,
                 float(cutoff) if cutoff is not None else 0.0, self._Pp, self._Pi, self._Px, self.max_iter,
                 GENERATION_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND, cap, z, lam, rows, out)
             if code != kernel.CAPACITY:

@@ -190,12 +190,60 @@ def _dual_feasible(z0: Any, u: Any, indptr: Any, indices: Any, data: Any, rows: 
 
 
 @compilable
-def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data: Any, u: Any, start: Any,
-               use_cutoff: bool, cutoff: float, Pp: Any, Pi: Any, Px: Any, max_iter: int, gen_tol: float,
+def _most_violated(indptr: Any, indices: Any, data: Any, u: Any, mirror: int, z: Any, inw: Any,
+                   prod: Any) -> tuple[int, float]:
+    """The first row ``r`` not in the working set (``inw[r]`` False) of the largest violation
+    ``g_r · z - u_r``, and that violation (``(-1, 0.0)`` when every row is working); a NaN
+    violation is never larger, so a NaN in the first row keeps it.
+
+    Rows ``r >= mirror`` are the negations of rows ``r - h`` (``h = m - mirror``, ``m`` the number
+    of rows; :func:`active_set`): their products are the negated products of their twins, kept in
+    ``prod`` (``h`` numbers) as the scan passes the twins — the former scan's sum of the negated
+    terms in the same order is the same number (negation is exact and rounding symmetric) but for
+    the sign of a zero sum; ``±0 - u_r`` is then the same number unless ``u_r`` is a zero, and then
+    a zero again, and the violations are only compared (``>`` here, ``best`` with the caller's
+    tolerance), which no zero's sign changes: the same row, and ``best`` the same number.
+    """
+    m = u.shape[0]
+    lo = 2 * mirror - m
+    p = -1
+    best = 0.0
+    for r in range(lo):
+        if inw[r]:
+            continue
+        v = _row_dot(indptr, indices, data, r, z) - u[r]
+        if p < 0 or v > best:
+            p = r
+            best = v
+    for r in range(lo, mirror):
+        s = _row_dot(indptr, indices, data, r, z)
+        prod[r - lo] = s
+        if inw[r]:
+            continue
+        v = s - u[r]
+        if p < 0 or v > best:
+            p = r
+            best = v
+    for r in range(mirror, m):
+        if inw[r]:
+            continue
+        v = -prod[r - mirror] - u[r]
+        if p < 0 or v > best:
+            p = r
+            best = v
+    return p, best
+
+
+@compilable
+def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data: Any, u: Any, mirror: int,
+               start: Any, use_cutoff: bool, cutoff: float, Pp: Any, Pi: Any, Px: Any, max_iter: int, gen_tol: float,
                dependent_rel: float, fixed_rel: float, warm_cond: float, cap: int, z: Any, lam: Any, rows: Any,
                out: Any) -> tuple[int, int, int]:
     """The dual active-set method (module docstring) on the rows ``(indptr, indices, data) z <= u``.
 
+    ``mirror``: the rows from ``mirror`` on are the negations of the as many rows before it, row
+    ``mirror + i`` of row ``2 mirror - m + i`` (the same columns in the same order, every value
+    negated; :func:`_most_violated`), ``m`` the number of rows: ``m`` when none are.
     ``z0``: the equality optimum; ``Kinv[c]``: the primal part of column ``c`` of ``K⁻¹`` (every
     column a row touches); ``start``: rows that start the working set (warm start; dropped when
     their ``S`` is not positive definite or its squared Cholesky pivots spread beyond
@@ -230,6 +278,7 @@ def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data
     w = np.empty(n)
     wp = np.empty(n)
     inw = np.zeros(m, dtype=np.bool_)
+    prod = np.empty(m - mirror)
     k = 0
     for i in range(n):
         z[i] = z0[i]
@@ -276,15 +325,7 @@ def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data
                 return CUTOFF, k, iterations
         for r in range(k):
             inw[rows[r]] = True
-        p = -1
-        best = 0.0
-        for r in range(m):
-            if inw[r]:
-                continue
-            v = _row_dot(indptr, indices, data, r, z) - u[r]
-            if p < 0 or v > best:
-                p = r
-                best = v
+        p, best = _most_violated(indptr, indices, data, u, mirror, z, inw, prod)
         for r in range(k):
             inw[rows[r]] = False
         if p < 0 or best <= gen_tol:
