@@ -169,3 +169,18 @@ def test_the_kernel_with_pairs_is_the_kernel_without(m: int, taus: list[float], 
         assert code == code0
         assert arr[0] == arr0[0] and arr[3] == arr0[3]  # z, the cutoff's bound
         assert arr[1][:8 * k] == arr0[1][:8 * k] and arr[2][:8 * k] == arr0[2][:8 * k]  # lam, rows
+
+
+@settings(max_examples=300, deadline=None)
+@given(rows=_mirrored_rows(), sign=st_h.sampled_from([0.0, 1.0]))
+def test_the_mirrored_residual_rows_are_the_former_rows(rows: tuple[Any, ...], sign: float) -> None:
+    """:func:`~iamp.planners.avoid.schur_kernel._abs_max_rows` (the KKT residual's and ``inherit``'s
+    row test) with the pairs is the same number bit for bit as without (every row summed, the
+    former implementation), Python and compiled."""
+    indptr, indices, data, u, z, _, h = rows
+    m = u.size
+    fns = [kernel._abs_max_rows] + ([jit.twin(kernel._abs_max_rows, cache=True)] if jit.available() else [])
+    want = np.float64(kernel._abs_max_rows(indptr, indices, data, z, u, sign, m)).tobytes()
+    for fn in fns:
+        assert np.float64(fn(indptr, indices, data, z, u, sign, m - h)).tobytes() == want
+        assert np.float64(fn(indptr, indices, data, z, u, sign, m)).tobytes() == want

@@ -140,7 +140,7 @@ def test_the_violation_of_inherit_is_the_former_matvec_test(rows: tuple[Any, ...
     got = solver.violation(csr_arrays(A), z, u)
     fns = [kernel._abs_max_rows] + ([jit.twin(kernel._abs_max_rows, cache=True)] if jit.available() else [])
     for fn in fns:
-        assert np.float64(fn(*csr_arrays(A), z, u, 0.0)).tobytes() == np.float64(got).tobytes()
+        assert np.float64(fn(*csr_arrays(A), z, u, 0.0, u.size)).tobytes() == np.float64(got).tobytes()
     if not u.size:
         assert got == 0.0
         return

@@ -795,7 +795,7 @@ class ContinuousAvoidQP:
         A_in, u_in, ids = self.spec_rows(spec)
         z = parent.z
         arrays = self.csr_arrays(A_in)
-        if A_in.shape[0] and self.schur.violation(arrays, z, u_in) > GENERATION_TOL:
+        if A_in.shape[0] and self.schur.violation(arrays, z, u_in, self._lim_mirrored) > GENERATION_TOL:
             return None
         n_eq = self.data.n_eq
         pA, pu, pids = parent.spec_rows()
@@ -814,7 +814,7 @@ class ContinuousAvoidQP:
                         or not np.array_equal(pA.data[a:b], A_in.data[e:f])):
                     return None
             y[n_eq + at] = y_p[bind]
-        if self.schur.residual(A_in, u_in, z, y, None, arrays) > CHECK_TOL:
+        if self.schur.residual(A_in, u_in, z, y, None, arrays, self._lim_mirrored) > CHECK_TOL:
             return None
         self.n_inherited += 1
         return Solved(spec, st.OPTIMAL, parent.cost, z, y, 0, self, 0, (A_in, u_in, ids))

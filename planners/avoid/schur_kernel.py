@@ -432,12 +432,25 @@ def row_transpose_dot(indptr: Any, indices: Any, data: Any, rows: Any, lam: Any,
 
 
 @compilable
-def _abs_max_rows(indptr: Any, indices: Any, data: Any, x: Any, off: Any, sign: float) -> float:
+def _abs_max_rows(indptr: Any, indices: Any, data: Any, x: Any, off: Any, sign: float, mirror: int) -> float:
     """``max_r |g_r · x - off_r|`` (``sign`` 1) or ``max(0, max_r (g_r · x - off_r))`` (``sign``
-    0); NaN gives ``inf``."""
+    0); NaN gives ``inf``.  Rows from ``mirror`` on negate the as many rows before it
+    (:func:`active_set`): their products are their twins' negated (:func:`_most_violated`: the
+    same numbers but for a zero's sign, which neither the absolute value nor a comparison with
+    the floor ``0.0`` sees)."""
+    m = indptr.shape[0] - 1
+    lo = 2 * mirror - m
+    prod = np.empty(m - mirror)
     best = 0.0
-    for r in range(indptr.shape[0] - 1):
-        v = _row_dot(indptr, indices, data, r, x) - off[r]
+    for r in range(m):
+        if r < lo:
+            v = _row_dot(indptr, indices, data, r, x) - off[r]
+        elif r < mirror:
+            t = _row_dot(indptr, indices, data, r, x)
+            prod[r - lo] = t
+            v = t - off[r]
+        else:
+            v = -prod[r - mirror] - off[r]
         if sign > 0.0:
             v = abs(v)
         if not v == v:
@@ -449,14 +462,15 @@ def _abs_max_rows(indptr: Any, indices: Any, data: Any, x: Any, off: Any, sign: 
 
 @compilable
 def kkt_residual(Ep: Any, Ei: Any, Ex: Any, b: Any, ETp: Any, ETi: Any, ETx: Any, Pp: Any, Pi: Any, Px: Any,
-                 Gp: Any, Gi: Any, Gx: Any, u: Any, z: Any, y: Any, Gt: Any, n_eq: int, work: Any) -> float:
+                 Gp: Any, Gi: Any, Gx: Any, u: Any, mirror: int, z: Any, y: Any, Gt: Any, n_eq: int,
+                 work: Any) -> float:
     """:meth:`~iamp.planners.avoid.schur.SchurActiveSet.residual`: the largest of the equality
     rows' violation ``|E z - b|``, the inequality rows' ``G z - u``, a negative multiplier and the
     stationarity ``|P z + Eᵀν + Gᵀλ|`` relative to its largest term (``Gt = Gᵀλ``; ``E``, ``Eᵀ``,
-    ``P`` (symmetric) and ``G`` as CSR arrays; ``work``: space for ``n`` numbers); NaN gives
-    ``inf``."""
-    primal = _abs_max_rows(Ep, Ei, Ex, z, b, 1.0)
-    v = _abs_max_rows(Gp, Gi, Gx, z, u, 0.0)
+    ``P`` (symmetric) and ``G`` as CSR arrays, ``G``'s rows from ``mirror`` on negating the as many
+    before it (:func:`active_set`); ``work``: space for ``n`` numbers); NaN gives ``inf``."""
+    primal = _abs_max_rows(Ep, Ei, Ex, z, b, 1.0, b.shape[0])
+    v = _abs_max_rows(Gp, Gi, Gx, z, u, 0.0, mirror)
     if v > primal:
         primal = v
     n = z.shape[0]
