@@ -29,7 +29,8 @@ def _args(qp: ContinuousAvoidQP, spec, start=None, cutoff=None):  # type: ignore
     s._columns(indices)
     seed = np.zeros(0, dtype=np.int64) if start is None else np.asarray(start, dtype=np.int64)
     cap = min(u.size, s.n) + 1
-    return (s.z0, s._Kinv, s._colnorm, indptr, indices, np.asarray(A.data, dtype=float), u, seed,
+    return (s.z0, s._Kinv, s._colnorm, indptr, indices, np.asarray(A.data, dtype=float), u,
+            u.size - qp._lim_mirrored, seed,
             cutoff is not None, 0.0 if cutoff is None else float(cutoff), s._Pp, s._Pi, s._Px, s.max_iter,
             GENERATION_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND, cap, np.empty(s.n), np.zeros(cap),
             np.zeros(cap, dtype=np.int64), np.zeros(1))

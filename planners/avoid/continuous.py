@@ -332,6 +332,20 @@ class Solved:
         return np.asarray(np.concatenate((self.qp.data.b_eq, u_in)), dtype=float)
 
 
+def _mirrored(indptr: NDArray[np.int32], indices: NDArray[np.int32], data: FloatArray) -> int:
+    """``h`` when the ``2h`` CSR rows ``(indptr, indices, data)`` are ``[B; -B]`` entry for entry
+    (the second half's rows the first half's columns in the same order, every value negated bit for
+    bit), else 0."""
+    m = indptr.size - 1
+    h = m // 2
+    if m % 2 or not h:
+        return 0
+    mid = int(indptr[h])
+    same = (np.array_equal(indptr[h:] - mid, indptr[:h + 1]) and np.array_equal(indices[mid:], indices[:mid])
+            and (-data[:mid]).tobytes() == data[mid:].tobytes())
+    return h if same else 0
+
+
 class ContinuousAvoidQP:
     """The data of the continuous-time avoidance QP on the uniform grid of ``steps`` pieces.
 
@@ -433,6 +447,9 @@ class ContinuousAvoidQP:
         self._lim_data = np.asarray(self.A_lim.data, dtype=float)
         self._lim_indices = np.asarray(self.A_lim.indices, dtype=np.int32)
         self._lim_indptr = np.asarray(self.A_lim.indptr, dtype=np.int32)
+        #: the number of limit rows that negate the first half (``-A_lim``, entry for entry: the
+        #: node solver forms each pair's product once), else 0
+        self._lim_mirrored = _mirrored(self._lim_indptr, self._lim_indices, self._lim_data)
         #: whether a layout row is in a set (:meth:`solve`'s warm start), reset after each use
         self._mark = np.zeros(self.n_b + self.u_lim.size, dtype=bool)
         self._lim_ids = self.n_b + np.arange(self.u_lim.size, dtype=np.int64)
@@ -748,7 +765,7 @@ class ContinuousAvoidQP:
                 self._mark[active] = True
                 start = np.flatnonzero(self._mark[ids])
                 self._mark[active] = False
-            sol = self.schur.solve(A_in, u_in, start, cutoff, self.csr_arrays(A_in))
+            sol = self.schur.solve(A_in, u_in, start, cutoff, self.csr_arrays(A_in), self._lim_mirrored)
             self.n_solves += 1
             if sol.status == CUTOFF:
                 return Solved(spec, CUTOFF, float(sol.bound), sol.z, sol.y, sol.iterations, self, 1,
@@ -777,7 +794,8 @@ class ContinuousAvoidQP:
             return None
         A_in, u_in, ids = self.spec_rows(spec)
         z = parent.z
-        if A_in.shape[0] and float(np.max(matvec(A_in, z) - u_in)) > GENERATION_TOL:
+        arrays = self.csr_arrays(A_in)
+        if A_in.shape[0] and self.schur.violation(arrays, z, u_in, self._lim_mirrored) > GENERATION_TOL:
             return None
         n_eq = self.data.n_eq
         pA, pu, pids = parent.spec_rows()
@@ -796,7 +814,7 @@ class ContinuousAvoidQP:
                         or not np.array_equal(pA.data[a:b], A_in.data[e:f])):
                     return None
             y[n_eq + at] = y_p[bind]
-        if self.schur.residual(A_in, u_in, z, y, None, self.csr_arrays(A_in)) > CHECK_TOL:
+        if self.schur.residual(A_in, u_in, z, y, None, arrays, self._lim_mirrored) > CHECK_TOL:
             return None
         self.n_inherited += 1
         return Solved(spec, st.OPTIMAL, parent.cost, z, y, 0, self, 0, (A_in, u_in, ids))

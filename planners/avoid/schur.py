@@ -244,7 +244,7 @@ class SchurActiveSet:
         return out
 
     def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, start: NDArray[np.int64] | None = None,
-              cutoff: float | None = None, arrays: CsrArrays | None = None) -> RowsSolution:
+              cutoff: float | None = None, arrays: CsrArrays | None = None, mirrored: int = 0) -> RowsSolution:
         """Solve with the inequality rows ``A_in z <= u_in``.
 
         Parameters
@@ -264,6 +264,10 @@ class SchurActiveSet:
         arrays : tuple, optional
             ``A_in``'s CSR arrays as the kernels take them (:func:`csr_arrays`), when the caller
             keeps them.
+        mirrored : int, optional
+            The last ``mirrored`` rows of ``A_in`` are the negations of the as many rows before
+            them (the same columns in the same stored order, every value negated; the limit rows
+            ``[A_lim; -A_lim]``): the kernel forms each pair's product once.
 
         Returns
         -------
@@ -285,7 +289,7 @@ class SchurActiveSet:
             lam = np.zeros(cap)
             rows = np.zeros(cap, dtype=np.int64)
             code, k, iterations = _run("active_set")(
-                self.z0, self._Kinv, self._colnorm, indptr, indices, data, u, seed, cutoff is not None,
+                self.z0, self._Kinv, self._colnorm, indptr, indices, data, u, n_in - mirrored, seed, cutoff is not None,
                 float(cutoff) if cutoff is not None else 0.0, self._Pp, self._Pi, self._Px, self.max_iter,
                 GENERATION_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND, cap, z, lam, rows, out)
             if code != kernel.CAPACITY:
@@ -313,7 +317,7 @@ class SchurActiveSet:
         if k:
             y[self.n_eq + rows] = lam
         finite = bool(np.isfinite(z).all() and np.isfinite(y).all())
-        if not finite or self.residual(A_in, u, z, y, Gt_lam, (indptr, indices, data)) > CHECK_TOL:
+        if not finite or self.residual(A_in, u, z, y, Gt_lam, (indptr, indices, data), mirrored) > CHECK_TOL:
             # e.g. a nearly dependent row of an infeasible QP
             return self._unsolved(st.NUMERICAL_ERROR, A_in, u, (indptr, indices, data), z, rows, lam, iterations)
         return RowsSolution(status, z, y, iterations, 1, np.sort(rows), finite)
@@ -383,12 +387,21 @@ class SchurActiveSet:
             self._have[missing] = True
             self.columns += int(missing.size)
 
+    def violation(self, arrays: CsrArrays, z: FloatArray, u: FloatArray, mirrored: int = 0) -> float:
+        """The largest violation ``max(0, max_r (g_r · z - u_r))`` of the rows ``G z <= u`` (``arrays``:
+        ``G``'s :func:`csr_arrays`; each ``g_r · z`` summed in stored order from zero, as scipy's
+        product does), ``inf`` when one is NaN; the last ``mirrored`` rows negate the as many
+        before them (:meth:`solve`)."""
+        u = np.asarray(u, dtype=float)
+        return float(_run("_abs_max_rows")(*arrays, np.asarray(z, dtype=float), u, 0.0, u.size - mirrored))
+
     def residual(self, A_in: sp.csr_matrix, u: FloatArray, z: FloatArray, y: FloatArray,
-                 Gt: FloatArray | None = None, arrays: CsrArrays | None = None) -> float:
+                 Gt: FloatArray | None = None, arrays: CsrArrays | None = None, mirrored: int = 0) -> float:
         """The largest KKT residual of ``(z, y)``, recomputed from the data: the equality rows'
         and the inequality rows' violations (absolute, metres or the limit's unit), a negative
         multiplier, and stationarity ``Pz + Eᵀν + Gᵀλ`` relative to its largest term (``Gt``:
-        ``Gᵀλ`` when known; ``arrays``: ``A_in``'s :func:`csr_arrays` when known)."""
+        ``Gᵀλ`` when known; ``arrays``: ``A_in``'s :func:`csr_arrays` when known; ``mirrored``: the
+        last rows that negate the as many before them, :meth:`solve`)."""
         Gp, Gi, Gx = csr_arrays(A_in) if arrays is None else arrays
         y = np.asarray(y, dtype=float)
         if Gt is None:
@@ -397,5 +410,6 @@ class SchurActiveSet:
             rows = np.arange(lam.size, dtype=np.int64)
             _run("row_transpose_dot")(Gp, Gi, Gx, rows, lam, lam.size, Gt)
         return float(_run("kkt_residual")(*self._csr, self.b_eq, *self._csr_T, self._Pp, self._Pi, self._Px,
-                                          Gp, Gi, Gx, np.asarray(u, dtype=float), np.asarray(z, dtype=float), y,
+                                          Gp, Gi, Gx, np.asarray(u, dtype=float), len(u) - mirrored,
+                                          np.asarray(z, dtype=float), y,
                                           np.asarray(Gt, dtype=float), self.n_eq, np.empty(self.n)))

@@ -190,12 +190,60 @@ def _dual_feasible(z0: Any, u: Any, indptr: Any, indices: Any, data: Any, rows: 
 
 
 @compilable
-def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data: Any, u: Any, start: Any,
-               use_cutoff: bool, cutoff: float, Pp: Any, Pi: Any, Px: Any, max_iter: int, gen_tol: float,
+def _most_violated(indptr: Any, indices: Any, data: Any, u: Any, mirror: int, z: Any, inw: Any,
+                   prod: Any) -> tuple[int, float]:
+    """The first row ``r`` not in the working set (``inw[r]`` False) of the largest violation
+    ``g_r · z - u_r``, and that violation (``(-1, 0.0)`` when every row is working); a NaN
+    violation is never larger, so a NaN in the first row keeps it.
+
+    Rows ``r >= mirror`` are the negations of rows ``r - h`` (``h = m - mirror``, ``m`` the number
+    of rows; :func:`active_set`): their products are the negated products of their twins, kept in
+    ``prod`` (``h`` numbers) as the scan passes the twins — the former scan's sum of the negated
+    terms in the same order is the same number (negation is exact and rounding symmetric) but for
+    the sign of a zero sum; ``±0 - u_r`` is then the same number unless ``u_r`` is a zero, and then
+    a zero again, and the violations are only compared (``>`` here, ``best`` with the caller's
+    tolerance), which no zero's sign changes: the same row, and ``best`` the same number.
+    """
+    m = u.shape[0]
+    lo = 2 * mirror - m
+    p = -1
+    best = 0.0
+    for r in range(lo):
+        if inw[r]:
+            continue
+        v = _row_dot(indptr, indices, data, r, z) - u[r]
+        if p < 0 or v > best:
+            p = r
+            best = v
+    for r in range(lo, mirror):
+        s = _row_dot(indptr, indices, data, r, z)
+        prod[r - lo] = s
+        if inw[r]:
+            continue
+        v = s - u[r]
+        if p < 0 or v > best:
+            p = r
+            best = v
+    for r in range(mirror, m):
+        if inw[r]:
+            continue
+        v = -prod[r - mirror] - u[r]
+        if p < 0 or v > best:
+            p = r
+            best = v
+    return p, best
+
+
+@compilable
+def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data: Any, u: Any, mirror: int,
+               start: Any, use_cutoff: bool, cutoff: float, Pp: Any, Pi: Any, Px: Any, max_iter: int, gen_tol: float,
                dependent_rel: float, fixed_rel: float, warm_cond: float, cap: int, z: Any, lam: Any, rows: Any,
                out: Any) -> tuple[int, int, int]:
     """The dual active-set method (module docstring) on the rows ``(indptr, indices, data) z <= u``.
 
+    ``mirror``: the rows from ``mirror`` on are the negations of the as many rows before it, row
+    ``mirror + i`` of row ``2 mirror - m + i`` (the same columns in the same order, every value
+    negated; :func:`_most_violated`), ``m`` the number of rows: ``m`` when none are.
     ``z0``: the equality optimum; ``Kinv[c]``: the primal part of column ``c`` of ``K⁻¹`` (every
     column a row touches); ``start``: rows that start the working set (warm start; dropped when
     their ``S`` is not positive definite or its squared Cholesky pivots spread beyond
@@ -219,15 +267,18 @@ def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data
     """
     n = z0.shape[0]
     m = u.shape[0]
-    W = np.zeros((cap, n))
-    S = np.zeros((cap, cap))
-    L = np.zeros((cap, cap))
-    rhs = np.zeros(cap)
-    dlam = np.zeros(cap)
-    col = np.zeros(cap)
-    w = np.zeros(n)
-    wp = np.zeros(n)
+    # work space written before it is read (the working rows' ``w_r``, ``S``, its factors, the
+    # right-hand sides): not zeroed (``W`` alone is ``cap`` rows of ``n``)
+    W = np.empty((cap, n))
+    S = np.empty((cap, cap))
+    L = np.empty((cap, cap))
+    rhs = np.empty(cap)
+    dlam = np.empty(cap)
+    col = np.empty(cap)
+    w = np.empty(n)
+    wp = np.empty(n)
     inw = np.zeros(m, dtype=np.bool_)
+    prod = np.empty(m - mirror)
     k = 0
     for i in range(n):
         z[i] = z0[i]
@@ -274,15 +325,7 @@ def active_set(z0: Any, Kinv: Any, colnorm: Any, indptr: Any, indices: Any, data
                 return CUTOFF, k, iterations
         for r in range(k):
             inw[rows[r]] = True
-        p = -1
-        best = 0.0
-        for r in range(m):
-            if inw[r]:
-                continue
-            v = _row_dot(indptr, indices, data, r, z) - u[r]
-            if p < 0 or v > best:
-                p = r
-                best = v
+        p, best = _most_violated(indptr, indices, data, u, mirror, z, inw, prod)
         for r in range(k):
             inw[rows[r]] = False
         if p < 0 or best <= gen_tol:
@@ -389,12 +432,25 @@ def row_transpose_dot(indptr: Any, indices: Any, data: Any, rows: Any, lam: Any,
 
 
 @compilable
-def _abs_max_rows(indptr: Any, indices: Any, data: Any, x: Any, off: Any, sign: float) -> float:
+def _abs_max_rows(indptr: Any, indices: Any, data: Any, x: Any, off: Any, sign: float, mirror: int) -> float:
     """``max_r |g_r · x - off_r|`` (``sign`` 1) or ``max(0, max_r (g_r · x - off_r))`` (``sign``
-    0); NaN gives ``inf``."""
+    0); NaN gives ``inf``.  Rows from ``mirror`` on negate the as many rows before it
+    (:func:`active_set`): their products are their twins' negated (:func:`_most_violated`: the
+    same numbers but for a zero's sign, which neither the absolute value nor a comparison with
+    the floor ``0.0`` sees)."""
+    m = indptr.shape[0] - 1
+    lo = 2 * mirror - m
+    prod = np.empty(m - mirror)
     best = 0.0
-    for r in range(indptr.shape[0] - 1):
-        v = _row_dot(indptr, indices, data, r, x) - off[r]
+    for r in range(m):
+        if r < lo:
+            v = _row_dot(indptr, indices, data, r, x) - off[r]
+        elif r < mirror:
+            t = _row_dot(indptr, indices, data, r, x)
+            prod[r - lo] = t
+            v = t - off[r]
+        else:
+            v = -prod[r - mirror] - off[r]
         if sign > 0.0:
             v = abs(v)
         if not v == v:
@@ -406,14 +462,15 @@ def _abs_max_rows(indptr: Any, indices: Any, data: Any, x: Any, off: Any, sign: 
 
 @compilable
 def kkt_residual(Ep: Any, Ei: Any, Ex: Any, b: Any, ETp: Any, ETi: Any, ETx: Any, Pp: Any, Pi: Any, Px: Any,
-                 Gp: Any, Gi: Any, Gx: Any, u: Any, z: Any, y: Any, Gt: Any, n_eq: int, work: Any) -> float:
+                 Gp: Any, Gi: Any, Gx: Any, u: Any, mirror: int, z: Any, y: Any, Gt: Any, n_eq: int,
+                 work: Any) -> float:
     """:meth:`~iamp.planners.avoid.schur.SchurActiveSet.residual`: the largest of the equality
     rows' violation ``|E z - b|``, the inequality rows' ``G z - u``, a negative multiplier and the
     stationarity ``|P z + Eᵀν + Gᵀλ|`` relative to its largest term (``Gt = Gᵀλ``; ``E``, ``Eᵀ``,
-    ``P`` (symmetric) and ``G`` as CSR arrays; ``work``: space for ``n`` numbers); NaN gives
-    ``inf``."""
-    primal = _abs_max_rows(Ep, Ei, Ex, z, b, 1.0)
-    v = _abs_max_rows(Gp, Gi, Gx, z, u, 0.0)
+    ``P`` (symmetric) and ``G`` as CSR arrays, ``G``'s rows from ``mirror`` on negating the as many
+    before it (:func:`active_set`); ``work``: space for ``n`` numbers); NaN gives ``inf``."""
+    primal = _abs_max_rows(Ep, Ei, Ex, z, b, 1.0, b.shape[0])
+    v = _abs_max_rows(Gp, Gi, Gx, z, u, 0.0, mirror)
     if v > primal:
         primal = v
     n = z.shape[0]
