@@ -11,29 +11,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from schur_args import kernel_args
 
 from iamp.planners.avoid import schur_kernel as kernel
 from iamp.planners.avoid.check import crossing_orders
 from iamp.planners.avoid.continuous import ContinuousAvoidPlanner, ContinuousAvoidQP
-from iamp.planners.avoid.schur import CHECK_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND
+from iamp.planners.avoid.schur import CHECK_TOL
 from iamp.planners.avoid.solve import GENERATION_TOL, RowGeneration
 from iamp.planners.examples import overtake_problem, overtake_three_problem
 from iamp.planners.pmp import jit
 
 
 def _args(qp: ContinuousAvoidQP, spec, start=None, cutoff=None):  # type: ignore[no-untyped-def]
-    s = qp.schur
-    assert s is not None
-    A, u, _ = qp.spec_rows(spec)
-    indptr, indices = np.asarray(A.indptr, dtype=np.int64), np.asarray(A.indices, dtype=np.int64)
-    s._columns(indices)
-    seed = np.zeros(0, dtype=np.int64) if start is None else np.asarray(start, dtype=np.int64)
-    cap = min(u.size, s.n) + 1
-    return (s.z0, s._Kinv, s._colnorm, indptr, indices, np.asarray(A.data, dtype=float), u,
-            u.size - qp._lim_mirrored, seed,
-            cutoff is not None, 0.0 if cutoff is None else float(cutoff), s._Pp, s._Pi, s._Px, s.max_iter,
-            GENERATION_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND, cap, np.empty(s.n), np.zeros(cap),
-            np.zeros(cap, dtype=np.int64), np.zeros(1))
+    _, u, _ = qp.spec_rows(spec)
+    assert qp.schur is not None
+    return kernel_args(qp, spec, start, cutoff, cap=min(u.size, qp.schur.n) + 1)
 
 
 def _specs(m: int):  # type: ignore[no-untyped-def]

@@ -17,38 +17,14 @@ from typing import Any
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st_h
+from schur_args import kernel_args, overtake_qp
 
 from iamp.planners.avoid import schur_kernel as kernel
 from iamp.planners.avoid.check import crossing_orders
 from iamp.planners.avoid.continuous import ContinuousAvoidQP, _mirrored
-from iamp.planners.avoid.schur import DEPENDENT_REL, FIXED_REL, WARM_COND
-from iamp.planners.avoid.solve import GENERATION_TOL
-from iamp.planners.examples import overtake_problem, overtake_three_problem
 from iamp.planners.pmp import jit
 
-_QPS: dict[int, ContinuousAvoidQP] = {}
-
-
-def _qp(m: int) -> ContinuousAvoidQP:
-    """The QP of the overtake with ``m`` vehicles (one or three) on 20 pieces, built once."""
-    if m not in _QPS:
-        _QPS[m] = ContinuousAvoidQP(overtake_problem() if m == 1 else overtake_three_problem(), 20, "foh", "clarabel")
-    return _QPS[m]
-
-
-def _args(qp: ContinuousAvoidQP, spec: Any, start: Any, cutoff: float | None) -> tuple[Any, ...]:
-    """:func:`~iamp.planners.avoid.schur_kernel.active_set`'s arguments for ``spec``, the limit rows paired."""
-    s = qp.schur
-    assert s is not None
-    A, u, _ = qp.spec_rows(spec)
-    indptr, indices = np.asarray(A.indptr, dtype=np.int64), np.asarray(A.indices, dtype=np.int64)
-    s._columns(indices)
-    seed = np.zeros(0, dtype=np.int64) if start is None else np.asarray(start, dtype=np.int64)
-    cap = min(max(32, 2 * seed.size), u.size, s.n) + 1
-    return (s.z0, s._Kinv, s._colnorm, indptr, indices, np.asarray(A.data, dtype=float), u,
-            u.size - qp._lim_mirrored, seed, cutoff is not None, 0.0 if cutoff is None else float(cutoff), s._Pp,
-            s._Pi, s._Px, s.max_iter, GENERATION_TOL, DEPENDENT_REL, FIXED_REL, WARM_COND, cap, np.empty(s.n),
-            np.zeros(cap), np.zeros(cap, dtype=np.int64), np.zeros(1))
+_qp, _args = overtake_qp, kernel_args
 
 
 def _former_scan(indptr: Any, indices: Any, data: Any, u: Any, z: Any, inw: Any) -> tuple[int, float]:
