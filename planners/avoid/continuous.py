@@ -1191,9 +1191,14 @@ class ContinuousAvoidPlanner:
                     if dp is None:
                         binds = list(dual.binds(cand))
                     else:
-                        bound, binds = max(bound, dp.lower_bound(box.lo, box.hi)), list(dp.binds)
+                        binds = list(dp.binds)
                         if dp.vehicles:
+                            # dp joins the box's polynomials, whose largest bound on the box
+                            # (bound_of, below) counts dp's own, the same number as dp.lower_bound
+                            # (a NaN counts in neither): one Bernstein bound of dp on the box, not two
                             box.duals = (box.duals + (dp,))[-self.DUALS_KEPT:]
+                        else:
+                            bound = max(bound, dp.lower_bound(box.lo, box.hi))
                     poly_bound, polys = bound_of(box.orders, box.lo, box.hi, box.duals)
                     bound = max(bound, poly_bound)
                 elif cand.status != st.INFEASIBLE:
