@@ -394,13 +394,20 @@ class ContinuousAvoidQP:
                 # the stacked rows depend on the limit rows only: kept with them
                 A_lim = sp.csr_matrix(sp.vstack([lr.A, -lr.A]))
                 A_lim.sort_indices()
-                kept = (lr, A_lim, np.r_[lr.hi, -lr.lo])
+                # and so does the number of its rows that negate the others (:func:`_mirrored`)
+                kept = (lr, A_lim, np.r_[lr.hi, -lr.lo],
+                        _mirrored(np.asarray(A_lim.indptr, dtype=np.int32), np.asarray(A_lim.indices, dtype=np.int32),
+                                  np.asarray(A_lim.data, dtype=float)))
                 if shared is not None:
                     shared.put(key, kept)
-            self.limit_rows, A_lim, u_lim = kept
+            self.limit_rows, A_lim, u_lim, mirrored = kept
         if A_lim is None:  # no limit rows
             A_lim = sp.csr_matrix((0, d.n))
+            mirrored = 0
         A_lim.sort_indices()
+        #: the number of limit rows that negate the first half (``-A_lim``, entry for entry: the
+        #: node solver forms each pair's product once), else 0
+        self._lim_mirrored: int = mirrored
         self.A_lim, self.u_lim = A_lim, u_lim
         self.n_solves = 0
         #: the search's solved specs (:meth:`ContinuousAvoidPlanner._qp_solve`)
@@ -447,9 +454,9 @@ class ContinuousAvoidQP:
         self._lim_data = np.asarray(self.A_lim.data, dtype=float)
         self._lim_indices = np.asarray(self.A_lim.indices, dtype=np.int32)
         self._lim_indptr = np.asarray(self.A_lim.indptr, dtype=np.int32)
-        #: the number of limit rows that negate the first half (``-A_lim``, entry for entry: the
-        #: node solver forms each pair's product once), else 0
-        self._lim_mirrored = _mirrored(self._lim_indptr, self._lim_indices, self._lim_data)
+        #: whether the node solver has solved the columns of ``K⁻¹`` of the limit rows' entries
+        #: (after this QP's first node solve, :meth:`solve`)
+        self._lim_columns = False
         #: whether a layout row is in a set (:meth:`solve`'s warm start), reset after each use
         self._mark = np.zeros(self.n_b + self.u_lim.size, dtype=bool)
         self._lim_ids = self.n_b + np.arange(self.u_lim.size, dtype=np.int64)
@@ -459,8 +466,8 @@ class ContinuousAvoidQP:
         self._spec_rows: dict[Spec, tuple[sp.csr_matrix, FloatArray, NDArray[np.int64]]] = {}
         self._csr64: dict[int, tuple[sp.csr_matrix, CsrArrays]] = {}
         #: per number of Bernstein rows, the row pointers of a spec's CSR rows (:meth:`_build_spec_rows`;
-        #: read-only, shared by the specs' matrices)
-        self._ptrs: dict[int, NDArray[np.int32]] = {}
+        #: read-only, shared by the specs' matrices), as int32 (scipy's) and int64 (the kernels')
+        self._ptrs: dict[int, tuple[NDArray[np.int32], NDArray[np.int64]]] = {}
         #: per vehicle and half-plane, its rows' values and bounds (:class:`_PlaneRows`): they depend
         #: on the grid, the degree and the half-plane (its vehicle's motion, size and corner) only,
         #: so the plans of one planner keep them (``shared``, under all of these; the same arrays as
@@ -732,16 +739,19 @@ class ContinuousAvoidQP:
             vals += seg.vals
             rhs += seg.rhs
         nb = sum(seg.ids.size for seg in segs)
-        ptr = self._ptrs.get(nb)
-        if ptr is None:  # the row pointers of nb Bernstein rows (four entries each), then the limit rows
-            ptr = self._ptrs[nb] = np.concatenate((np.arange(0, 4 * nb + 1, 4, dtype=np.int32),
-                                                   4 * nb + self._lim_indptr[1:]))
+        ptrs = self._ptrs.get(nb)
+        if ptrs is None:  # the row pointers of nb Bernstein rows (four entries each), then the limit rows
+            ptr = np.concatenate((np.arange(0, 4 * nb + 1, 4, dtype=np.int32), 4 * nb + self._lim_indptr[1:]))
             ptr.flags.writeable = False
+            ptrs = self._ptrs[nb] = (ptr, ptr.astype(np.int64))  # (numba: a writeable int64 array)
         vals.append(self._lim_data)
         rhs.append(self.u_lim)
-        A = compressed(sp.csr_matrix, np.concatenate(vals),
-                       np.concatenate([seg.cols for seg in segs] + [self._lim_indices]), ptr,
-                       (nb + self.u_lim.size, self.data.n))
+        data = np.concatenate(vals)
+        indices = np.concatenate([seg.cols for seg in segs] + [self._lim_indices])
+        A = compressed(sp.csr_matrix, data, indices, ptrs[0], (nb + self.u_lim.size, self.data.n))
+        # the kernels' arrays (:meth:`csr_arrays`: what csr_arrays(A) returns, the row pointers
+        # converted once per number of Bernstein rows)
+        self._csr64[id(A)] = (A, (ptrs[1], indices.astype(np.int64), data))
         return A, np.concatenate(rhs), np.concatenate([seg.ids for seg in segs] + [self._lim_ids])
 
     # --- solving ---------------------------------------------------------------------------
@@ -765,7 +775,12 @@ class ContinuousAvoidQP:
                 self._mark[active] = True
                 start = np.flatnonzero(self._mark[ids])
                 self._mark[active] = False
-            sol = self.schur.solve(A_in, u_in, start, cutoff, self.csr_arrays(A_in), self._lim_mirrored)
+            arrays = self.csr_arrays(A_in)
+            # the columns of K⁻¹ the limit rows touch are solved by this QP's first solve (every
+            # spec imposes them): the later solves test the Bernstein rows' columns only
+            cols = arrays[1][:int(arrays[0][ids.size - self.u_lim.size])] if self._lim_columns else None
+            sol = self.schur.solve(A_in, u_in, start, cutoff, arrays, self._lim_mirrored, cols)
+            self._lim_columns = True
             self.n_solves += 1
             if sol.status == CUTOFF:
                 return Solved(spec, CUTOFF, float(sol.bound), sol.z, sol.y, sol.iterations, self, 1,

@@ -244,7 +244,8 @@ class SchurActiveSet:
         return out
 
     def solve(self, A_in: sp.csr_matrix, u_in: FloatArray, start: NDArray[np.int64] | None = None,
-              cutoff: float | None = None, arrays: CsrArrays | None = None, mirrored: int = 0) -> RowsSolution:
+              cutoff: float | None = None, arrays: CsrArrays | None = None, mirrored: int = 0,
+              columns: NDArray[np.int64] | None = None) -> RowsSolution:
         """Solve with the inequality rows ``A_in z <= u_in``.
 
         Parameters
@@ -268,6 +269,11 @@ class SchurActiveSet:
             The last ``mirrored`` rows of ``A_in`` are the negations of the as many rows before
             them (the same columns in the same stored order, every value negated; the limit rows
             ``[A_lim; -A_lim]``): the kernel forms each pair's product once.
+        columns : ndarray of int, optional
+            The column indices of ``A_in``'s entries whose columns of ``K⁻¹`` may not be solved
+            yet (:meth:`_columns`; by default every entry's): a caller that solved the columns of
+            some of the rows before (every spec of a search shares the limit rows) passes the others',
+            so the test of which are solved reads fewer indices.  The columns solved are the same.
 
         Returns
         -------
@@ -280,7 +286,7 @@ class SchurActiveSet:
         u = np.asarray(u_in, dtype=float)
         n_in = u.size
         indptr, indices, data = csr_arrays(A_in) if arrays is None else arrays
-        self._columns(indices)
+        self._columns(indices if columns is None else columns)
         seed = np.zeros(0, dtype=np.int64) if start is None else np.asarray(start, dtype=np.int64)
         z = np.empty(self.n)
         out = np.zeros(1)
@@ -316,7 +322,9 @@ class SchurActiveSet:
         y[:self.n_eq] = x[self.n:]
         if k:
             y[self.n_eq + rows] = lam
-        finite = bool(np.isfinite(z).all() and np.isfinite(y).all())
+        # z and y are finite exactly when x and λ are (y is x's dual part, zeros and λ): the
+        # shorter arrays tested
+        finite = bool(np.isfinite(x).all() and np.isfinite(lam).all())
         if not finite or self.residual(A_in, u, z, y, Gt_lam, (indptr, indices, data), mirrored) > CHECK_TOL:
             # e.g. a nearly dependent row of an infeasible QP
             return self._unsolved(st.NUMERICAL_ERROR, A_in, u, (indptr, indices, data), z, rows, lam, iterations)
