@@ -122,3 +122,49 @@ def test_the_bernstein_test_skips_rows_of_the_stress_set() -> None:
     new, old = _degrees(kernel.root_degrees, C, 1e-6, True), _degrees(_former, C, 1e-6, True)
     assert new == old
     assert old.count(0) > 150
+
+
+def _documented_bound(v: float, lead: float, d: int, imag_tol: float) -> float:
+    """``T`` of ``root_degrees``' docstring for the row ``v + lead x^d`` (``v, lead > 0``), written
+    from the docstring: the backward error of the eigenvalues of the monic polynomial (``max |a_k|
+    = v / lead``), the window's reach, the dropped coefficients and the Bernstein round-off."""
+    scale, s0, s1 = max(v, lead), v + lead, d * lead
+    amax = scale / lead
+    return (kernel.BACKWARD_REL * 1.01 * (d + 1) * lead * (1.0 + amax) ** 2
+            + 1.01 * (imag_tol + 1e-9) * s1 + 1e-12 * s0 + 1.1e-12 * (d + 1) * scale)
+
+
+def _boundaries(lead: float, d: int, imag_tol: float) -> tuple[float, float]:
+    """The two values of ``v`` where ``v = T(v)`` (bisection in log scale): the row's Bernstein
+    coefficients (``v`` and ``v + lead``) exceed ``T`` strictly between them."""
+    def crossing(a: float, b: float) -> float:  # g = v - T(v) changes sign on [a, b]
+        ga = a - _documented_bound(a, lead, d, imag_tol)
+        for _ in range(200):
+            m = float(np.sqrt(a * b))
+            gm = m - _documented_bound(m, lead, d, imag_tol)
+            if (gm > 0) == (ga > 0):
+                a, ga = m, gm
+            else:
+                b = m
+        return a
+    peak = lead / (2 * kernel.BACKWARD_REL * 1.01 * (d + 1))  # about where v - T(v) is largest
+    assert peak - _documented_bound(peak, lead, d, imag_tol) > 0
+    assert 1e-30 - _documented_bound(1e-30, lead, d, imag_tol) < 0
+    return crossing(1e-30, peak), crossing(peak, 1e6 * peak)
+
+
+@pytest.mark.parametrize("compiled", [False, pytest.param(True, marks=needs_numba)])
+@pytest.mark.parametrize("lead, d, imag_tol", [(1.0, 3, 1e-6), (0.37, 5, 1e-3), (2.5e-3, 2, 0.0), (40.0, 6, 1e-6)])
+def test_the_bernstein_test_skips_exactly_where_its_documented_bound_says(compiled: bool, lead: float, d: int,
+                                                                         imag_tol: float) -> None:
+    """At both ends of the interval of ``v`` where ``v + lead x^d`` is skipped, one part per million
+    inside is skipped (degree 0) and one part per million outside is kept (degree ``d``): the
+    kernel's bound is the docstring's ``T``, each of its terms (a term off by a factor 1.5 or the
+    degree's ``d + 1`` changed moves an end by more than that)."""
+    fn = jit.twin(kernel.root_degrees, cache=True) if compiled else kernel.root_degrees
+    lo, hi = _boundaries(lead, d, imag_tol)
+    vs = [lo * (1 - 1e-6), lo * (1 + 1e-6), hi * (1 - 1e-6), hi * (1 + 1e-6)]
+    C = np.zeros((len(vs), d + 1))
+    C[:, 0] = vs
+    C[:, d] = lead
+    assert _degrees(fn, np.ascontiguousarray(C), imag_tol, True) == [d, 0, 0, d]
