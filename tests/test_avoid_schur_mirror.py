@@ -17,10 +17,9 @@ from typing import Any
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st_h
-from schur_args import kernel_args, overtake_qp
+from schur_args import SOLVE_DRAWS, drawn_solve, kernel_args, overtake_qp
 
 from iamp.planners.avoid import schur_kernel as kernel
-from iamp.planners.avoid.check import crossing_orders
 from iamp.planners.avoid.continuous import ContinuousAvoidQP, _mirrored
 from iamp.planners.pmp import jit
 
@@ -111,26 +110,12 @@ def test_the_limit_rows_are_mirrored() -> None:
 
 
 @settings(max_examples=25, deadline=None)
-@given(m=st_h.sampled_from([1, 3]), taus=st_h.lists(st_h.floats(0.05, 0.95), min_size=3, max_size=3),
-       widths=st_h.lists(st_h.floats(0.0, 0.3), min_size=3, max_size=3),
-       mode=st_h.sampled_from(["cold", "warm", "cutoff"]))
+@given(**SOLVE_DRAWS)
 def test_the_kernel_with_pairs_is_the_kernel_without(m: int, taus: list[float], widths: list[float],
                                                      mode: str) -> None:
     qp: ContinuousAvoidQP = _qp(m)
     assert qp._lim_mirrored > 0 or qp.u_lim.size == 0
-    tf = qp.tf
-    orders, _ = crossing_orders(qp.problem)
-    first = [o[0] for o in orders]
-    spec = tuple((f, s, float(t * tf), float(min(1.0, t + w) * tf)) for (f, s), t, w in zip(first, taus, widths))
-    ref = qp.solve(spec)
-    start, cutoff = None, None
-    if mode == "warm":
-        near = tuple((f, s, a, a) for f, s, a in ((f, s, min(b + 0.05 * tf, tf)) for f, s, _, b in spec))
-        other = qp.solve(near)
-        _, _, ids = qp.spec_rows(spec)
-        start = np.flatnonzero(np.isin(ids, other.active()))
-    elif mode == "cutoff":
-        cutoff = 0.5 * ref.cost if np.isfinite(ref.cost) else 1.0
+    spec, start, cutoff = drawn_solve(qp, taus, widths, mode)
     fns = [kernel.active_set] + ([jit.twin(kernel.active_set, cache=True)] if jit.available() else [])
     outs = []
     for fn in fns:

@@ -17,10 +17,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st_h
-from schur_args import kernel_args, overtake_qp
+from schur_args import SOLVE_DRAWS, drawn_solve, kernel_args, overtake_qp
 
 from iamp.planners.avoid import schur_kernel as kernel
-from iamp.planners.avoid.check import crossing_orders
 from iamp.planners.avoid.solve import GENERATION_TOL
 from iamp.planners.pmp import jit
 
@@ -41,26 +40,12 @@ def _run_python(args: tuple[Any, ...], fill: float, monkeypatch: pytest.MonkeyPa
 
 
 @settings(max_examples=25, deadline=None)
-@given(m=st_h.sampled_from([1, 3]), taus=st_h.lists(st_h.floats(0.05, 0.95), min_size=3, max_size=3),
-       widths=st_h.lists(st_h.floats(0.0, 0.3), min_size=3, max_size=3),
-       mode=st_h.sampled_from(["cold", "warm", "cutoff"]))
+@given(**SOLVE_DRAWS)
 def test_the_kernel_reads_no_work_space_before_writing_it(m: int, taus: list[float], widths: list[float],
                                                           mode: str) -> None:
     monkeypatch = pytest.MonkeyPatch()
     qp = _qp(m)
-    tf = qp.tf
-    orders, _ = crossing_orders(qp.problem)
-    first = [o[0] for o in orders]
-    spec = tuple((f, s, float(t * tf), float(min(1.0, t + w) * tf)) for (f, s), t, w in zip(first, taus, widths))
-    ref = qp.solve(spec)
-    start, cutoff = None, None
-    if mode == "warm":  # the rows of a nearby candidate (every vehicle crossing 5 % later)
-        near = tuple((f, s, a, a) for f, s, a in ((f, s, min(b + 0.05 * tf, tf)) for f, s, _, b in spec))
-        other = qp.solve(near)
-        _, _, ids = qp.spec_rows(spec)
-        start = np.flatnonzero(np.isin(ids, other.active()))
-    elif mode == "cutoff":
-        cutoff = 0.5 * ref.cost if np.isfinite(ref.cost) else 1.0
+    spec, start, cutoff = drawn_solve(qp, taus, widths, mode)
     outs = []
     for fill in (0.0, np.nan):  # the former implementation (zeroed), and poisoned work space
         args = _args(qp, spec, start, cutoff)
