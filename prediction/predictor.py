@@ -60,7 +60,7 @@ from numpy.typing import ArrayLike
 
 from iamp.core.scenario import History
 from iamp.prediction._typing import FloatArray, IntArray, PathLike, Seed
-from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
+from iamp.prediction.initial_state import DEFAULT_JERK_PSD, _smooth
 from iamp.prediction.kinematics import (
     cubic_fit,
     history_grid,
@@ -246,6 +246,18 @@ def _grid_weights(t_bytes: bytes, K: int, dt: float, n: int) -> tuple[IntArray, 
     return idx, nxt, w, w1
 
 
+@functools.lru_cache(maxsize=256)
+def _tail_weights(t_bytes: bytes, K: int, dt: float, n: int) -> tuple[int, IntArray, IntArray, FloatArray, FloatArray]:
+    """``(first, i - first, j - first, w, 1 - w)`` of :func:`_grid_weights`: the interpolation reads the samples
+    ``first..K-1`` alone (``first = min i``), counted from ``first``."""
+    idx, nxt, w, w1 = _grid_weights(t_bytes, K, dt, n)
+    first = int(idx.min()) if idx.size else K - 1
+    i, j = idx - first, nxt - first
+    i.setflags(write=False)
+    j.setflags(write=False)
+    return first, i, j, w, w1
+
+
 @functools.lru_cache(maxsize=1)
 def _default_model() -> MTDModel:
     name = f"iamp.prediction/data/{DEFAULT_MODEL_FILE}"
@@ -423,8 +435,8 @@ class Predictor:
             The bins of the last ``n`` second differences, oldest first.
         """
         t_hist = np.asarray(t_hist, dtype=float)
-        sm = smooth_histories(t_hist, X_hist, self.jerk_psd)
-        idx, nxt, w, w1 = _grid_weights(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
+        first, idx, nxt, w, w1 = _tail_weights(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
+        sm = _smooth(t_hist, X_hist, self.jerk_psd, None, first)  # the samples first..K-1 alone
         resampled = sm.x[:, idx] * w1 + sm.x[:, nxt] * w
         states = self.model.states(second_differences(resampled, self.dt))
         return sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0), states
