@@ -474,7 +474,8 @@ class Predictor:
         """
         S = np.ascontiguousarray(np.atleast_2d(states), dtype=np.int64)
         kept = self._abar_rows.setdefault(M, {})
-        keys = [row.tobytes() for row in S]
+        raw, w = S.tobytes(), S.shape[1] * S.itemsize  # each row's bytes, sliced from the batch's (C order)
+        keys = [raw[i:i + w] for i in range(0, len(raw), w)] if w else [b""] * S.shape[0]
         new = [k for k in dict.fromkeys(keys) if k not in kept]
         if new:
             if sum(len(d) for d in self._abar_rows.values()) + len(new) > ABAR_CACHE_ROWS:
@@ -485,7 +486,9 @@ class Predictor:
             for k, row in zip(new, abar):
                 row.setflags(write=False)
                 kept[k] = row
-        out: FloatArray = np.stack([kept[k] for k in keys])
+        if not keys:
+            np.stack([])  # no rows: numpy's error, as ever
+        out: FloatArray = np.concatenate([kept[k] for k in keys]).reshape(len(keys), M + 1)
         return out
 
     def predict(self, history: History, tf: float = 5.0, *, n_samples: int = 0, quantiles: Iterable[float] = (),
