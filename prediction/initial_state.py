@@ -196,10 +196,14 @@ def _smooth(t: FloatArray, Z: FloatArray, jerk_psd: float, sigma: FloatArray | f
         levels, inverse = np.unique(sig, return_inverse=True)
         groups = [(float(level), inverse == j) for j, level in enumerate(levels)]
     else:  # np.unique's levels, in its order, without its sort of the whole array
-        groups = [(level, sig == level) for level in sorted(set(sig.tolist()))]
+        distinct = sorted(set(sig.tolist()))
+        # one level (the closed loop's histories sit at the noise floor): every row, without a mask
+        groups = [(distinct[0], slice(None))] if len(distinct) == 1 else [(level, sig == level) for level in distinct]
     for level, rows in groups:
         Mq = _operator_tail(key, K, float(level), float(jerk_psd), first)  # (K, 3 W)
-        out[:, rows] = np.einsum("bj,jq->bq", Z[rows], Mq).reshape(-1, 3, W).transpose(1, 0, 2)
+        # the rows C-contiguous, as a mask's selection gives them (einsum's loops follow the strides)
+        Zr = np.ascontiguousarray(Z[rows])
+        out[:, rows] = np.einsum("bj,jq->bq", Zr, Mq).reshape(-1, 3, W).transpose(1, 0, 2)
     return SmoothedHistory(out[0], out[1], out[2], sig)
 
 

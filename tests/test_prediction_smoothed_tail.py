@@ -116,3 +116,27 @@ def test_long_histories_take_the_recursions_tail(monkeypatch: pytest.MonkeyPatch
     assert np.allclose(rec.x, full.x, atol=1e-9)
     for a, b in ((tail.x, rec.x), (tail.v, rec.v), (tail.a, rec.a)):
         assert a.tobytes() == np.ascontiguousarray(b[:, 50:]).tobytes()
+
+
+@settings(max_examples=80, deadline=None)
+@given(hist=_histories(), layout=st.sampled_from(["C", "F", "strided", "reversed"]),
+       sigma=st.sampled_from([None, 0.001, 0.02]))
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_one_noise_level_takes_every_row_whatever_the_layout(hist: tuple[np.ndarray, np.ndarray], layout: str,
+                                                            sigma: float | None) -> None:
+    """One noise level (every row selected without a mask): the rows of any memory layout give the numbers
+    of the former mask's contiguous copy."""
+    t, Z = hist
+    if layout == "F":
+        Zl = np.asfortranarray(Z)
+    elif layout == "strided":
+        Zl = np.repeat(Z, 2, axis=1)[:, ::2]
+    elif layout == "reversed":
+        Zl = Z[::-1, ::-1].copy()[::-1, ::-1]
+    else:
+        Zl = Z
+    assert np.array_equal(Zl, Z, equal_nan=True)
+    want = _smooth_former(t, Z, 10.0, sigma)
+    got = I.smooth_histories(t, Zl, 10.0, sigma)
+    for a, b in ((got.x, want.x), (got.v, want.v), (got.a, want.a)):
+        assert a.tobytes() == b.tobytes()
