@@ -158,6 +158,21 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
     two significant digits (the estimate's own sampling error is far larger, about
     ``1/√(K-3)``).
     """
+    return _smooth(t, Z, jerk_psd, sigma, 0)
+
+
+def _smooth(t: FloatArray, Z: FloatArray, jerk_psd: float, sigma: FloatArray | float | None,
+            first: int) -> SmoothedHistory:
+    """:func:`smooth_histories` at the samples ``first..K-1`` alone (arrays ``(B, K - first)``).
+
+    The dense operator's product is an ``einsum`` that accumulates each output over the samples ``j`` in
+    their order, ``((0 + z_0 M[c, 0, k]) + z_1 M[c, 1, k]) + …``, whatever outputs it is asked for and however
+    they are laid out: the operator's columns ``first..K-1`` of the three components side by side, one row
+    per sample (:func:`_operator_tail`, ``"bj,jq->bq"``: one long run of outputs per sample instead of
+    ``3 B`` short ones), give the numbers of :func:`smooth_histories`' ``"bj,cjk->cbk"`` bit for bit
+    (``tests/test_prediction_smoothed_tail.py``) at a fraction of the work, and less again when few samples
+    are needed (the predictor reads the last ``n + 2`` grid nodes of a 3-s history: 11 of 31 samples).
+    """
     t = np.asarray(t, dtype=float)
     Z = np.atleast_2d(np.asarray(Z, dtype=float))
     B, K = Z.shape
@@ -173,17 +188,22 @@ def smooth_histories(t: FloatArray, Z: FloatArray, jerk_psd: float = DEFAULT_JER
         sig = np.broadcast_to(np.asarray(sigma, dtype=float), (B,)).copy()
     if K > OPERATOR_MAX_K:  # linear: the recursions on the data, O(B·K) time and memory
         s = _rts(t, Z, float(jerk_psd), sig)
-        return SmoothedHistory(s.x, s.v, s.a, sig)
-    out = np.empty((3, B, K))
+        return SmoothedHistory(s.x[:, first:], s.v[:, first:], s.a[:, first:], sig)
+    W = K - first
+    out = np.empty((3, B, W))
     key = t.tobytes()
     if np.isnan(sig).any():  # np.unique groups the NaNs; == cannot
         levels, inverse = np.unique(sig, return_inverse=True)
         groups = [(float(level), inverse == j) for j, level in enumerate(levels)]
     else:  # np.unique's levels, in its order, without its sort of the whole array
-        groups = [(level, sig == level) for level in sorted(set(sig.tolist()))]
+        distinct = sorted(set(sig.tolist()))
+        # one level (the closed loop's histories sit at the noise floor): every row, without a mask
+        groups = [(distinct[0], slice(None))] if len(distinct) == 1 else [(level, sig == level) for level in distinct]
     for level, rows in groups:
-        M = _operator(key, K, float(level), float(jerk_psd))  # (3, K, K)
-        out[:, rows] = np.einsum("bj,cjk->cbk", Z[rows], M)
+        Mq = _operator_tail(key, K, float(level), float(jerk_psd), first)  # (K, 3 W)
+        # the rows C-contiguous, as a mask's selection gives them (einsum's loops follow the strides)
+        Zr = np.ascontiguousarray(Z[rows])
+        out[:, rows] = np.einsum("bj,jq->bq", Zr, Mq).reshape(-1, 3, W).transpose(1, 0, 2)
     return SmoothedHistory(out[0], out[1], out[2], sig)
 
 
@@ -213,6 +233,26 @@ def _operator(t_bytes: bytes, K: int, sigma: float, jerk_psd: float) -> FloatArr
     while sum(m.nbytes for m in _OPERATORS.values()) > OPERATOR_CACHE_BYTES and len(_OPERATORS) > 1:
         _OPERATORS.popitem(last=False)
     return M
+
+
+_TAILS: collections.OrderedDict[tuple[bytes, int, float, float, int], FloatArray] = collections.OrderedDict()
+
+
+def _operator_tail(t_bytes: bytes, K: int, sigma: float, jerk_psd: float, first: int) -> FloatArray:
+    """``Mq[j, c W + r] = M[c, j, first + r]`` (``W = K - first``): :func:`_operator`'s columns ``first..K-1``,
+    the three components side by side, C-contiguous; cached like the operators (their own bound)."""
+    key = (t_bytes, K, sigma, jerk_psd, first)
+    Mq = _TAILS.get(key)
+    if Mq is not None:
+        _TAILS.move_to_end(key)
+        return Mq
+    M = _operator(t_bytes, K, sigma, jerk_psd)
+    Mq = np.ascontiguousarray(M[:, :, first:].transpose(1, 0, 2)).reshape(K, 3 * (K - first))
+    Mq.setflags(write=False)
+    _TAILS[key] = Mq
+    while sum(m.nbytes for m in _TAILS.values()) > OPERATOR_CACHE_BYTES and len(_TAILS) > 1:
+        _TAILS.popitem(last=False)
+    return Mq
 
 
 def _rts(t: FloatArray, Z: FloatArray, jerk_psd: float, sig: FloatArray) -> SmoothedHistory:

@@ -60,7 +60,7 @@ from numpy.typing import ArrayLike
 
 from iamp.core.scenario import History
 from iamp.prediction._typing import FloatArray, IntArray, PathLike, Seed
-from iamp.prediction.initial_state import DEFAULT_JERK_PSD, smooth_histories
+from iamp.prediction.initial_state import DEFAULT_JERK_PSD, _smooth
 from iamp.prediction.kinematics import (
     cubic_fit,
     history_grid,
@@ -246,6 +246,18 @@ def _grid_weights(t_bytes: bytes, K: int, dt: float, n: int) -> tuple[IntArray, 
     return idx, nxt, w, w1
 
 
+@functools.lru_cache(maxsize=256)
+def _tail_weights(t_bytes: bytes, K: int, dt: float, n: int) -> tuple[int, IntArray, IntArray, FloatArray, FloatArray]:
+    """``(first, i - first, j - first, w, 1 - w)`` of :func:`_grid_weights`: the interpolation reads the samples
+    ``first..K-1`` alone (``first = min i``), counted from ``first``."""
+    idx, nxt, w, w1 = _grid_weights(t_bytes, K, dt, n)
+    first = int(idx.min()) if idx.size else K - 1
+    i, j = idx - first, nxt - first
+    i.setflags(write=False)
+    j.setflags(write=False)
+    return first, i, j, w, w1
+
+
 @functools.lru_cache(maxsize=1)
 def _default_model() -> MTDModel:
     name = f"iamp.prediction/data/{DEFAULT_MODEL_FILE}"
@@ -423,8 +435,8 @@ class Predictor:
             The bins of the last ``n`` second differences, oldest first.
         """
         t_hist = np.asarray(t_hist, dtype=float)
-        sm = smooth_histories(t_hist, X_hist, self.jerk_psd)
-        idx, nxt, w, w1 = _grid_weights(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
+        first, idx, nxt, w, w1 = _tail_weights(t_hist.tobytes(), t_hist.size, self.dt, self.model.order)
+        sm = _smooth(t_hist, X_hist, self.jerk_psd, None, first)  # the samples first..K-1 alone
         resampled = sm.x[:, idx] * w1 + sm.x[:, nxt] * w
         states = self.model.states(second_differences(resampled, self.dt))
         return sm.x[:, -1], np.maximum(sm.v[:, -1], 0.0), states
@@ -462,7 +474,8 @@ class Predictor:
         """
         S = np.ascontiguousarray(np.atleast_2d(states), dtype=np.int64)
         kept = self._abar_rows.setdefault(M, {})
-        keys = [row.tobytes() for row in S]
+        raw, w = S.tobytes(), S.shape[1] * S.itemsize  # each row's bytes, sliced from the batch's (C order)
+        keys = [raw[i:i + w] for i in range(0, len(raw), w)] if w else [b""] * S.shape[0]
         new = [k for k in dict.fromkeys(keys) if k not in kept]
         if new:
             if sum(len(d) for d in self._abar_rows.values()) + len(new) > ABAR_CACHE_ROWS:
@@ -473,7 +486,9 @@ class Predictor:
             for k, row in zip(new, abar):
                 row.setflags(write=False)
                 kept[k] = row
-        out: FloatArray = np.stack([kept[k] for k in keys])
+        if not keys:
+            np.stack([])  # no rows: numpy's error, as ever
+        out: FloatArray = np.concatenate([kept[k] for k in keys]).reshape(len(keys), M + 1)
         return out
 
     def predict(self, history: History, tf: float = 5.0, *, n_samples: int = 0, quantiles: Iterable[float] = (),

@@ -13,6 +13,7 @@ Sampling uses the latent-lag form: at every step a lag ``i`` is drawn with proba
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -23,7 +24,11 @@ from iamp.prediction._typing import FloatArray, IntArray, Seed
 if TYPE_CHECKING:
     from .model import MTDModel
 
-__all__ = ["expected_value", "propagate", "propagate_batch", "sample"]
+__all__ = ["SPREAD_BYTES", "expected_value", "propagate", "propagate_batch", "sample"]
+
+#: Bytes of the spread distributions :func:`propagate_batch` holds (``m`` times a distribution; longer
+#: propagations reuse the buffer, larger batches go in chunks of rows).
+SPREAD_BYTES = 16 << 20
 
 
 def _initial_distributions(model: MTDModel, init: ArrayLike) -> FloatArray:
@@ -103,32 +108,67 @@ def propagate_batch(model: MTDModel, init_states: IntArray, steps: int) -> Float
 
 
 def _propagate(model: MTDModel, past: FloatArray, steps: int) -> FloatArray:
-    """The propagation of :func:`propagate_batch` from ``past`` ``(n, B, m)``, newest first."""
+    """The propagation of :func:`propagate_batch` from ``past`` ``(n, B, m)``, newest first.
+
+    The distributions are held spread along a last axis, ``X[r, k, b, j] = \\hat x_τ[b, k]`` for every
+    ``j``, newest at the lowest row ``r``: the lags of a step (newest first) are then a contiguous block
+    ``X[a : a + n]``, and their products with ``W`` spread alike are one elementwise product of two
+    contiguous arrays (a broadcast product costs numpy a buffered copy of both operands, and the closed
+    loop's batches are small: numpy's per-call work, not the arithmetic, is the propagation's time).
+    Each step is one product, one reduction into the output and one spread copy of its result into
+    ``X[a - 1]``; when the block reaches row 0 it is moved to the end of ``X`` (a copy: the same
+    numbers).  ``X`` holds at most :data:`SPREAD_BYTES` (rows of the batch are propagated in chunks
+    when needed: no sum mixes two rows, so chunks give the same numbers).
+    """
     n, B, m = past.shape
+    row_bytes = 8 * m * m  # one distribution of one row, spread
+    rows = max(1, SPREAD_BYTES // (row_bytes * min(n + steps, 64)))
+    if B > rows:
+        return np.concatenate([_propagate(model, past[:, r:r + rows], steps) for r in range(0, B, rows)])
+    T = min(n + steps, max(n + 1, SPREAD_BYTES // (row_bytes * max(B, 1))))  # time rows of X
     W = _lag_operators(model)  # (n, m, m): W[i, j, k] = λ_i Q_i[j, k]
-    L = n + steps
-    # Z[L - 1 - τ] is \hat x at time τ: τ < n the given past, τ = n + s step s; the lags of step s
-    # (newest first: t-1, t-2, …, t-n) are the window Z[L - n - s : L - s]
-    Z = np.empty((L, B, m))
-    Z[L - n:] = past
+    X = np.empty((T, m, B, m))
+    X[T - n:] = past.transpose(0, 2, 1)[:, :, :, None]
+    # Wb[i, k, b, j] = W_i[j, k] for every b
+    Wb = np.ascontiguousarray(np.broadcast_to(W.transpose(0, 2, 1)[:, :, None, :], (n, m, B, m)))
     P = np.empty((n, m, B, m))  # P[i, k, b, j] = x_{t-1-i}[b, k] · W_i[j, k]
-    Wk = W.transpose(0, 2, 1)[:, :, None, :]  # (n, m, 1, m): [i, k, ., j] = W_i[j, k]
     flat = P.reshape(n * m, B, m)
+    out = np.empty((steps, B, m))  # out[s] = \\hat x at step s
+    spread = out.transpose(0, 2, 1)[:, :, :, None]  # (steps, m, B, 1): [s, k, b, .] = out[s, b, k]
+    multiply, reduce = np.multiply, np.add.reduce
+    a = T - n
     for s in range(steps):
-        a = L - n - s
-        np.multiply(Z[a:a + n].transpose(0, 2, 1)[:, :, :, None], Wk, out=P)
-        np.add.reduce(flat, axis=0, out=Z[a - 1])
-    out: FloatArray = np.ascontiguousarray(Z[:L - n][::-1].transpose(1, 0, 2))
-    return out
+        if a == 0:
+            X[T - n:] = X[:n].copy()
+            a = T - n
+        multiply(X[a:a + n], Wb, out=P)
+        reduce(flat, 0, None, out[s])
+        a -= 1
+        X[a] = spread[s]
+    res: FloatArray = np.ascontiguousarray(out.transpose(1, 0, 2))
+    return res
 
 
 def expected_value(probs: FloatArray, values: FloatArray) -> FloatArray:
     """``Σ_k probs[..., k] · values[k]``, added in the order of ``k`` (no BLAS: the same numbers for a
-    row whatever else is in the batch, on any machine)."""
-    acc: FloatArray = probs[..., 0] * values[0]
-    for k in range(1, probs.shape[-1]):
-        acc = acc + probs[..., k] * values[k]
-    return acc
+    row whatever else is in the batch, on any machine).
+
+    The products are laid out ``(k, row)`` in a C-contiguous buffer of at least two columns and added by
+    one reduction along its outer axis, which numpy does row after row (with a single column it would
+    sum along the column, pairwise: the spare zero column, discarded, prevents that), from
+    ``initial = -0.0``: ``-0 + p = p`` for every ``p``, signed zeros and NaN included, so each sum is
+    ``((p_0 + p_1) + p_2) + …`` exactly as a loop over ``k`` adding one product at a time, in 3 numpy calls
+    instead of ``2 m`` (``tests/test_prediction_expected_value.py``).  A single distribution (1-D ``probs``)
+    gives a numpy scalar, the same number (a NaN's sign aside: numpy's scalar arithmetic picks a NaN operand
+    in the compiler's order).
+    """
+    m = probs.shape[-1]
+    lead = probs.shape[:-1]
+    N = math.prod(lead)
+    P = np.zeros((m, max(N, 2)))
+    np.multiply(probs.reshape(N, m).T, values[:, None], out=P[:, :N])
+    acc: FloatArray = np.add.reduce(P, axis=0, initial=-0.0)[:N].reshape(lead)
+    return acc if lead else acc[()]
 
 
 def _lag_operators(model: MTDModel) -> FloatArray:
