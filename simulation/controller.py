@@ -72,7 +72,7 @@ from iamp.simulation.kinematics import STEER_SHARE, start_heading
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
-from iamp.simulation.rss import body_extents, longitudinal_room, safe_lateral_distance, within_rss_reach
+from iamp.simulation.rss import body_extents, longitudinal_room, safe_lateral_float, within_rss_reach
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
@@ -678,7 +678,7 @@ class Controller:
             u_ego, u_oth = _toward(ego, n)
             if gap <= lane_width and u_oth > moving:
                 caps[2 + side] = accel
-            d_lat = float(safe_lateral_distance(max(u_ego, rest), u_oth, p))
+            d_lat = safe_lateral_float(max(u_ego, rest), u_oth, p)
             if gap <= d_lat + LATERAL_ROOM_M:
                 # unsafe: at most RSS's fluctuation; about to be (within a response time): no faster
                 # than now toward it (the judge allows RSS's lateral acceleration, 0.2 m/s², for a
@@ -725,14 +725,14 @@ class Controller:
             lon_lo, d_lon = longitudinal_room(dx, 2 * reach, v_n, ego.vx, 2 * hx_e, p)
             if lon_lo >= d_lon:
                 continue
-            if abs(n.y - ego.y) - (reach + hy_e) >= float(safe_lateral_distance(*_toward(ego, n), p)):
+            if abs(n.y - ego.y) - (reach + hy_e) >= safe_lateral_float(*_toward(ego, n), p):
                 continue
             HX, HY = _observed_extents([n])
             hx_n, hy_n = float(HX[0]), float(HY[0])
             lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, v_n, ego.vx, 2 * hx_e, p)
             if lon_gap >= d_lon:
                 continue
-            if abs(n.y - ego.y) - (hy_n + hy_e) < float(safe_lateral_distance(*_toward(ego, n), p)):
+            if abs(n.y - ego.y) - (hy_n + hy_e) < safe_lateral_float(*_toward(ego, n), p):
                 found = n
         return found
 
@@ -882,7 +882,7 @@ class Controller:
             dx = n.x(0.0) - ego.x
             if dx <= 0 or (lead is not None and n.x(0.0) >= lead.x(0.0)):
                 continue
-            if abs(n.y - ego.y) - (n.width + We) / 2 < float(safe_lateral_distance(*_toward(ego, n), p)):
+            if abs(n.y - ego.y) - (n.width + We) / 2 < safe_lateral_float(*_toward(ego, n), p):
                 lead = n
         return lead
 
