@@ -342,14 +342,14 @@ def end_state(ego: EgoNow, gap: Gap, cfg: DecisionConfig, T: float) -> tuple[flo
     speeds = [n.v(T) for n in (gap.follower, gap.leader) if n is not None]
     vxf = float(np.mean(speeds)) if speeds else ego.vx
     ax = cfg.limits.ax or (-np.inf, np.inf)  # reachable at a constant REACH of the a_x bounds
-    vxf = float(np.clip(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T))
-    vxf = float(np.clip(vxf, 0.0, cfg.speed_cap))
+    vxf = clip_scalar(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T)
+    vxf = clip_scalar(vxf, 0.0, cfg.speed_cap)
     x = ego.x + (ego.vx + vxf) * T / 2
     head = cfg.headway_s * vxf
     lo = -np.inf if gap.follower is None else gap.follower.x(T) + gap.follower.length / 2 + ego.length / 2
     hi = np.inf if gap.leader is None else gap.leader.x(T) - gap.leader.length / 2 - ego.length / 2
     if hi - lo >= 2 * head:
-        x = float(np.clip(x, lo + head, hi - head))
+        x = clip_scalar(x, lo + head, hi - head)
     else:
         x = float((lo + hi) / 2)
     return x, vxf
