@@ -479,16 +479,43 @@ def limit_violations(trajectory: Any, tf: float, limits: PhysicalLimits, dt: flo
     return limit_violations_of(U[:, 0], U[:, 1], X[:, 1], limits, tol)
 
 
+def _outside(low: Any, high: Any, rng: tuple[float, float], tol: float) -> Any:
+    """``low`` below ``rng[0] - tol`` or ``high`` above ``rng[1] + tol`` (elementwise for arrays; ``nan``
+    breaks nothing)."""
+    return (low < rng[0] - tol) | (high > rng[1] + tol)
+
+
 def limit_violations_of(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: PhysicalLimits,
                         tol: float = 1e-6) -> list[str]:
     """Which of ``ax``, ``ay``, ``a_total``, ``vx`` the samples break."""
     bad = []
     for name, values in (("ax", ax), ("ay", ay), ("vx", vx)):
         rng = getattr(limits, name)
-        if rng is not None and values.size and (values.min() < rng[0] - tol or values.max() > rng[1] + tol):
+        if rng is not None and values.size and _outside(values.min(), values.max(), rng, tol):
             bad.append(name)
     if limits.a_total is not None and ax.size and float(np.max(np.hypot(ax, ay))) > limits.a_total + tol:
         bad.append("a_total")
+    return bad
+
+
+def limit_violation_samples(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: PhysicalLimits,
+                            tol: float = 1e-6) -> np.ndarray:
+    """Per sample ``k`` (``ax``, ``ay``, ``vx`` of one length), whether it breaks a limit on its own:
+    ``bool(limit_violations_of(ax[k:k+1], ay[k:k+1], vx[k:k+1], limits, tol))`` for every ``k`` in one
+    pass (a sample's minimum and maximum are itself; the monitor counts the executed steps that break one).
+
+    Returns
+    -------
+    numpy.ndarray
+        Booleans, the shape of ``ax``.
+    """
+    bad = np.zeros(np.shape(ax), dtype=bool)
+    for name, values in (("ax", ax), ("ay", ay), ("vx", vx)):
+        rng = getattr(limits, name)
+        if rng is not None:
+            bad |= _outside(values, values, rng, tol)
+    if limits.a_total is not None:
+        bad |= np.hypot(ax, ay) > limits.a_total + tol
     return bad
 
 
