@@ -62,6 +62,7 @@ from iamp.simulation.decision import (
     Neighbour,
     candidate_gaps,
     check_problem,
+    clip_scalar,
     decide,
     end_state,
     judge,
@@ -72,7 +73,7 @@ from iamp.simulation.kinematics import STEER_SHARE, start_heading
 from iamp.simulation.missions import Mission, mission_of
 from iamp.simulation.mobil import IDM, MOBIL, Car, mobil_accepts
 from iamp.simulation.planning import EQUALITY_PLANNERS, FreeTrajectory, PlanFn, free_plan, make_planner
-from iamp.simulation.rss import body_extents, longitudinal_room, safe_lateral_distance, within_rss_reach
+from iamp.simulation.rss import body_extents, longitudinal_room, safe_lateral_float, within_rss_reach
 from iamp.simulation.simulator import EgoState, Observation, Simulator
 from iamp.simulation.tactical import (
     TacticalConfig,
@@ -416,7 +417,7 @@ class Controller:
             try:
                 return self._safe_step(t, obs, ego)
             finally:
-                self.prev_y = {vid: float(y) for vid, y in zip(obs.ids, obs.y)}
+                self.prev_y = dict(zip(obs.ids, obs.y.tolist()))  # Python floats: float() of each
         if self.mode == "done":
             return None
         if self.mode == "hold":
@@ -678,7 +679,7 @@ class Controller:
             u_ego, u_oth = _toward(ego, n)
             if gap <= lane_width and u_oth > moving:
                 caps[2 + side] = accel
-            d_lat = float(safe_lateral_distance(max(u_ego, rest), u_oth, p))
+            d_lat = safe_lateral_float(max(u_ego, rest), u_oth, p)
             if gap <= d_lat + LATERAL_ROOM_M:
                 # unsafe: at most RSS's fluctuation; about to be (within a response time): no faster
                 # than now toward it (the judge allows RSS's lateral acceleration, 0.2 m/s², for a
@@ -725,14 +726,14 @@ class Controller:
             lon_lo, d_lon = longitudinal_room(dx, 2 * reach, v_n, ego.vx, 2 * hx_e, p)
             if lon_lo >= d_lon:
                 continue
-            if abs(n.y - ego.y) - (reach + hy_e) >= float(safe_lateral_distance(*_toward(ego, n), p)):
+            if abs(n.y - ego.y) - (reach + hy_e) >= safe_lateral_float(*_toward(ego, n), p):
                 continue
             HX, HY = _observed_extents([n])
             hx_n, hy_n = float(HX[0]), float(HY[0])
             lon_gap, d_lon = longitudinal_room(dx, 2 * hx_n, v_n, ego.vx, 2 * hx_e, p)
             if lon_gap >= d_lon:
                 continue
-            if abs(n.y - ego.y) - (hy_n + hy_e) < float(safe_lateral_distance(*_toward(ego, n), p)):
+            if abs(n.y - ego.y) - (hy_n + hy_e) < safe_lateral_float(*_toward(ego, n), p):
                 found = n
         return found
 
@@ -750,10 +751,10 @@ class Controller:
         monitor differentiates twice (±0.4 m/s³)."""
         dt, cfg = self.sim.step, self.cfg
         lo, hi = PASSENGER_CAR.ax or (-6.0, 3.0)
-        ax = float(np.clip(ax, lo, hi))
+        ax = clip_scalar(ax, lo, hi)
         jerk = cfg.decision.limits.jerk
         step = JERK_SHARE * jerk * dt if jerk is not None else np.inf
-        ax = float(np.clip(ax, ego.ax - (np.inf if urgent else step), ego.ax + step))
+        ax = clip_scalar(ax, ego.ax - (np.inf if urgent else step), ego.ax + step)
         if ego.vx + ax * dt < 0.0:
             ax = -ego.vx / dt
         lim = cfg.lane_keep_ay
@@ -761,10 +762,10 @@ class Controller:
             ay = -ego.vy / dt
         else:  # lane keeping, rate-limited like a_x (at a crawl the lateral speed is stopped at once)
             ay = -cfg.kp * (ego.y - y_c) - cfg.kd * ego.vy
-            ay = float(np.clip(ay, ego.ay - step, ego.ay + step))
+            ay = clip_scalar(ay, ego.ay - step, ego.ay + step)
         # a car moves sideways only while it moves forward: |v_y| <= tan(psi_max) v_x after the period
         cap = self.cfg.max_slip * (ego.vx + ax * dt)
-        ay = float(np.clip(np.clip(ay, (-cap - ego.vy) / dt, (cap - ego.vy) / dt), -lim, lim))
+        ay = clip_scalar(clip_scalar(ay, (-cap - ego.vy) / dt, (cap - ego.vy) / dt), -lim, lim)
         # a car turns only while it moves (:meth:`_turn_bound`); RSS's proper response below overrides it
         ay = self._turn_bound(ego, ax, ay)
         # RSS's lateral proper response (:meth:`_lateral_caps`): toward a side with an acceleration
@@ -857,7 +858,7 @@ class Controller:
         # the longitudinal input kept: the lateral speed that puts the velocity on the bounded
         # heading, within the lane keeping's lateral bound
         lim = self.cfg.lane_keep_ay
-        return float(np.clip((vx1 * math.tan(bounded) - ego.vy) / dt, -lim, lim))
+        return clip_scalar((vx1 * math.tan(bounded) - ego.vy) / dt, -lim, lim)
 
     def _lane_leader(self, ego: EgoState, nbs: list[Neighbour]) -> Neighbour | None:
         """The nearest vehicle ahead whose body overlaps the ego's lane band."""
@@ -882,7 +883,7 @@ class Controller:
             dx = n.x(0.0) - ego.x
             if dx <= 0 or (lead is not None and n.x(0.0) >= lead.x(0.0)):
                 continue
-            if abs(n.y - ego.y) - (n.width + We) / 2 < float(safe_lateral_distance(*_toward(ego, n), p)):
+            if abs(n.y - ego.y) - (n.width + We) / 2 < safe_lateral_float(*_toward(ego, n), p):
                 lead = n
         return lead
 
@@ -912,17 +913,16 @@ class Controller:
     def _safe_step(self, t: float, obs: Observation, ego: EgoState) -> EgoState | None:
         """One period of the SPEC §17 loop (module docstring)."""
         dt, cfg, tac = self.sim.step, self.cfg.decision, self.cfg.tactical
-        nbs = self.neighbours(obs, ego, max(all_horizons(self.ego_now(ego), tac)), all_lanes=True)
+        en = self.ego_now(ego)
+        nbs = self.neighbours(obs, ego, max(all_horizons(en, tac)), all_lanes=True)
         if self.mode in ("done", "hold"):
             if self.mode == "hold" and t + 1e-9 >= self.hold_until:
                 self.origin, self.target = self.target, self.origin
                 self.mode, self.next_seek, self.target_gap = "seek", t, None
             else:
                 return self._follow(ego, nbs)
-        obstacles = self._obstacles(nbs)  # the verification's road users (not needed to follow in lane)
-        en = self.ego_now(ego)
         if self.mode == "abort":  # the last verified fail-safe
-            nxt = self._abort_now(ego, obstacles, nbs)
+            nxt = self._abort_now(ego, self._obstacles(nbs), nbs)
             # ended after a period it did not need to brake (Pek & Althoff: the fail-safe runs while no
             # other input keeps a verified fail-safe; from there the ego seeks again, as after a
             # standstill, and the lane keeping returns it), back in its lane (the body with margin_y
@@ -960,6 +960,8 @@ class Controller:
                     # nor while RSS asks the ego to brake behind a vehicle ahead (the following brakes)
                     self._reject("rss-front")
                     return self._follow(ego, nbs, chosen)
+            # the verification's road users (built where a plan is verified: not needed to follow in lane)
+            obstacles = self._obstacles(nbs)
             order = ([chosen] if chosen is not None else []) + [g for g in gaps  # candidate_gaps(en, target, wide)
                                                                  if chosen is None or names(g) != names(chosen)]
             cur = [n for n in nbs if n.lane == self.origin]
@@ -983,6 +985,7 @@ class Controller:
             self.n.accepted_t.append(t)
         else:
             assert self.plan is not None
+            obstacles = self._obstacles(nbs)
             tf = self.t_end - t
             kept = False
             due = t + 1e-9 >= self.next_seek
@@ -1198,7 +1201,7 @@ class Controller:
         acc = min((idm.accel(me.v, c.x - me.x - (c.length + me.length) / 2, c.v) for c in leaders),
                   default=idm.accel(me.v))
         lo, hi = PASSENGER_CAR.ax or (-math.inf, math.inf)
-        ax = float(np.clip(acc, lo, hi))
+        ax = clip_scalar(acc, lo, hi)
         if ego.vx + ax * dt < 0:
             ax = -ego.vx / dt
         P = np.polynomial.polynomial

@@ -83,7 +83,7 @@ MAX_CHECKED = 8
 REACH = 0.8
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Neighbour:
     """A predicted neighbour: ``x(t) = Σ poly[k] t^k`` from now, its lateral centre and body."""
 
@@ -100,8 +100,23 @@ class Neighbour:
     #: changed lanes behind the ego: its RSS distance 1.1 m shorter than the judge's).
     now: tuple[float, float, float] | None = None
 
+    def __init__(self, name: str, poly: tuple[float, ...], y: float, length: float, width: float, lane: int,
+                 vy: float = 0.0, now: tuple[float, float, float] | None = None) -> None:
+        # the dataclass's own ``__init__`` with the fields written straight into the instance's dict:
+        # a frozen dataclass's generated one sets each through ``object.__setattr__`` (about twice the
+        # time; the loop builds thousands of neighbours per episode); the same attributes, in field order
+        d = self.__dict__
+        d["name"] = name
+        d["poly"] = poly
+        d["y"] = y
+        d["length"] = length
+        d["width"] = width
+        d["lane"] = lane
+        d["vy"] = vy
+        d["now"] = now
+
     def x(self, t: float) -> float:
-        return poly_value(self.poly, t)
+        return horner(self._position_poly, t)
 
     def x_now(self) -> float:
         """The observed centre now (:attr:`now`), else the prediction's ``x(0)``."""
@@ -112,12 +127,18 @@ class Neighbour:
         return self.now[1] if self.now is not None else self.v(0.0)
 
     def v(self, t: float) -> float:
-        return poly_value(self._velocity_poly, t)
+        return horner(self._velocity_poly, t)
+
+    @functools.cached_property
+    def _position_poly(self) -> tuple[float, ...]:
+        """:attr:`poly` as Python floats (:func:`float_coefficients`), once per neighbour (the loop asks for
+        positions thousands of times per episode)."""
+        return float_coefficients(self.poly)
 
     @functools.cached_property
     def _velocity_poly(self) -> tuple[float, ...]:
-        """:func:`poly_derivative` of :attr:`poly`, once per neighbour (the loop asks for speeds thousands
-        of times per episode)."""
+        """:func:`poly_derivative` of :attr:`poly` (Python floats), once per neighbour (the loop asks for
+        speeds thousands of times per episode)."""
         return poly_derivative(self.poly)
 
 
@@ -139,10 +160,67 @@ def poly_derivative(poly: Sequence[float]) -> tuple[float, ...]:
     return tuple(k * float(poly[k]) for k in range(1, len(poly)))
 
 
+def clip_scalar(x: float, lo: float, hi: float) -> float:
+    """``float(np.clip(x, lo, hi))`` of three numbers without the arrays (the loop clips a few thousand
+    scalars per episode): numpy's rule for floats, bit for bit — a ``nan`` bound is the result (the lower
+    one first), else a ``nan`` ``x``; otherwise ``x`` raised to ``lo`` unless ``x >= lo`` and then lowered to
+    ``hi`` unless ``<= hi`` (so ``-0.0`` stays ``-0.0`` between zero bounds, and ``lo > hi`` gives ``hi``).
+
+    Parameters
+    ----------
+    x, lo, hi : float
+
+    Returns
+    -------
+    float
+    """
+    if lo != lo:
+        return float(lo)
+    if hi != hi:
+        return float(hi)
+    if x != x:
+        return float(x)
+    m = x if x >= lo else lo
+    return float(m if m <= hi else hi)
+
+
+def float_coefficients(poly: Sequence[float]) -> tuple[float, ...]:
+    """``poly``'s coefficients as Python floats (``float`` of each), the input of :func:`horner`."""
+    return tuple([float(c) for c in poly])
+
+
+def horner(coefficients: tuple[float, ...], t: float) -> float:
+    """``Σ c[k] t^k`` of Python float coefficients (:func:`float_coefficients`, lowest power first, at least
+    one) at a scalar ``t`` by Horner's rule in the order of ``numpy.polynomial.polynomial.polyval`` (the same
+    float, bit for bit, without its per-call array overhead: the loop evaluates neighbours' cubics
+    thousands of times per episode; a neighbour converts its coefficients once).
+
+    Parameters
+    ----------
+    coefficients : tuple of float
+        Python floats, lowest power first.
+    t : float
+
+    Returns
+    -------
+    float
+    """
+    if len(coefficients) == 4:  # a neighbour's cubic: the loop below unrolled (the same operations)
+        c0, c1, c2, c3 = coefficients
+        return float(c0 + (c1 + (c2 + (c3 + t * 0) * t) * t) * t)
+    if len(coefficients) == 3:  # its speed
+        c0, c1, c2 = coefficients
+        return float(c0 + (c1 + (c2 + t * 0) * t) * t)
+    acc = coefficients[-1] + t * 0
+    for k in range(len(coefficients) - 2, -1, -1):
+        acc = coefficients[k] + acc * t
+    return float(acc)
+
+
 def poly_value(poly: Sequence[float], t: float) -> float:
     """``Σ poly[k] t^k`` at a scalar ``t`` by Horner's rule in the order of
     ``numpy.polynomial.polynomial.polyval`` (the same float, bit for bit, without its per-call
-    array overhead: the loop evaluates neighbours' cubics thousands of times per episode).
+    array overhead): :func:`horner` of :func:`float_coefficients`.
 
     Parameters
     ----------
@@ -154,16 +232,7 @@ def poly_value(poly: Sequence[float], t: float) -> float:
     -------
     float
     """
-    if len(poly) == 4:  # a neighbour's cubic: the loop below unrolled (the same operations)
-        c0, c1, c2, c3 = poly
-        return float(float(c0) + (float(c1) + (float(c2) + (float(c3) + t * 0) * t) * t) * t)
-    if len(poly) == 3:  # its speed
-        c0, c1, c2 = poly
-        return float(float(c0) + (float(c1) + (float(c2) + t * 0) * t) * t)
-    acc = float(poly[-1]) + t * 0
-    for k in range(len(poly) - 2, -1, -1):
-        acc = float(poly[k]) + acc * t
-    return float(acc)
+    return horner(float_coefficients(poly), t)
 
 
 @dataclass(frozen=True)
@@ -273,14 +342,14 @@ def end_state(ego: EgoNow, gap: Gap, cfg: DecisionConfig, T: float) -> tuple[flo
     speeds = [n.v(T) for n in (gap.follower, gap.leader) if n is not None]
     vxf = float(np.mean(speeds)) if speeds else ego.vx
     ax = cfg.limits.ax or (-np.inf, np.inf)  # reachable at a constant REACH of the a_x bounds
-    vxf = float(np.clip(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T))
-    vxf = float(np.clip(vxf, 0.0, cfg.speed_cap))
+    vxf = clip_scalar(vxf, ego.vx + REACH * ax[0] * T, ego.vx + REACH * ax[1] * T)
+    vxf = clip_scalar(vxf, 0.0, cfg.speed_cap)
     x = ego.x + (ego.vx + vxf) * T / 2
     head = cfg.headway_s * vxf
     lo = -np.inf if gap.follower is None else gap.follower.x(T) + gap.follower.length / 2 + ego.length / 2
     hi = np.inf if gap.leader is None else gap.leader.x(T) - gap.leader.length / 2 - ego.length / 2
     if hi - lo >= 2 * head:
-        x = float(np.clip(x, lo + head, hi - head))
+        x = clip_scalar(x, lo + head, hi - head)
     else:
         x = float((lo + hi) / 2)
     return x, vxf
@@ -410,16 +479,43 @@ def limit_violations(trajectory: Any, tf: float, limits: PhysicalLimits, dt: flo
     return limit_violations_of(U[:, 0], U[:, 1], X[:, 1], limits, tol)
 
 
+def _outside(low: Any, high: Any, rng: tuple[float, float], tol: float) -> Any:
+    """``low`` below ``rng[0] - tol`` or ``high`` above ``rng[1] + tol`` (elementwise for arrays; ``nan``
+    breaks nothing)."""
+    return (low < rng[0] - tol) | (high > rng[1] + tol)
+
+
 def limit_violations_of(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: PhysicalLimits,
                         tol: float = 1e-6) -> list[str]:
     """Which of ``ax``, ``ay``, ``a_total``, ``vx`` the samples break."""
     bad = []
     for name, values in (("ax", ax), ("ay", ay), ("vx", vx)):
         rng = getattr(limits, name)
-        if rng is not None and values.size and (values.min() < rng[0] - tol or values.max() > rng[1] + tol):
+        if rng is not None and values.size and _outside(values.min(), values.max(), rng, tol):
             bad.append(name)
     if limits.a_total is not None and ax.size and float(np.max(np.hypot(ax, ay))) > limits.a_total + tol:
         bad.append("a_total")
+    return bad
+
+
+def limit_violation_samples(ax: np.ndarray, ay: np.ndarray, vx: np.ndarray, limits: PhysicalLimits,
+                            tol: float = 1e-6) -> np.ndarray:
+    """Per sample ``k`` (``ax``, ``ay``, ``vx`` of one length), whether it breaks a limit on its own:
+    ``bool(limit_violations_of(ax[k:k+1], ay[k:k+1], vx[k:k+1], limits, tol))`` for every ``k`` in one
+    pass (a sample's minimum and maximum are itself; the monitor counts the executed steps that break one).
+
+    Returns
+    -------
+    numpy.ndarray
+        Booleans, the shape of ``ax``.
+    """
+    bad = np.zeros(np.shape(ax), dtype=bool)
+    for name, values in (("ax", ax), ("ay", ay), ("vx", vx)):
+        rng = getattr(limits, name)
+        if rng is not None:
+            bad |= _outside(values, values, rng, tol)
+    if limits.a_total is not None:
+        bad |= np.hypot(ax, ay) > limits.a_total + tol
     return bad
 
 

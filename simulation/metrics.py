@@ -116,6 +116,29 @@ def neighbour_headings(nb: np.ndarray) -> np.ndarray:
     return nb[:, 7].astype(float) if nb.shape[1] > 7 else np.zeros(nb.shape[0])
 
 
+def _first_axes(psi1: float) -> np.ndarray:
+    """The first rectangle's two edge normals (rows ``(cos ψ, sin ψ)``, ``(-sin ψ, cos ψ)``; libm's
+    ``cos``/``sin`` of the float ``ψ``)."""
+    return np.array([[math.cos(psi1), math.sin(psi1)], [-math.sin(psi1), math.cos(psi1)]])
+
+
+def _separation_rows(d: np.ndarray, a1: np.ndarray, L1: float, W1: float, L2: np.ndarray, W2: np.ndarray,
+                     psi2: np.ndarray) -> np.ndarray:
+    """:func:`separation` of row ``i``'s pair: the first rectangle (``L1 × W1``, edge normals ``a1[i]``,
+    :func:`_first_axes`) and the other (``L2[i] × W2[i]`` at ``psi2[i]``) ``d[i]`` apart; rows of any
+    number of steps at once (each row's numbers as its step alone gives them: elementwise operations,
+    one ``(4, 2) @ (2,)`` product per row, a maximum per row)."""
+    a2 = np.stack([np.stack([np.cos(psi2), np.sin(psi2)], axis=1),
+                   np.stack([-np.sin(psi2), np.cos(psi2)], axis=1)], axis=1)  # (n, 2 axes, xy)
+    axes = np.concatenate([a1, a2], axis=1)  # (n, 4, 2)
+    r1 = L1 / 2 * np.abs(np.matmul(axes, a1[:, 0, :, None])[..., 0]) \
+        + W1 / 2 * np.abs(np.matmul(axes, a1[:, 1, :, None])[..., 0])  # (n, 4)
+    r2 = L2[:, None] / 2 * np.abs(np.einsum("nkx,nx->nk", axes, a2[:, 0])) \
+        + W2[:, None] / 2 * np.abs(np.einsum("nkx,nx->nk", axes, a2[:, 1]))
+    dist = np.abs(np.einsum("nkx,nx->nk", axes, d))
+    return np.asarray(np.max(dist - r1 - r2, axis=1), dtype=float)
+
+
 def separation(c1: np.ndarray, L1: float, W1: float, psi1: float, c2: np.ndarray, L2: np.ndarray,
                W2: np.ndarray, psi2: np.ndarray) -> np.ndarray:
     """Separating-axis test of one rectangle against several: the largest gap between their
@@ -137,22 +160,15 @@ def separation(c1: np.ndarray, L1: float, W1: float, psi1: float, c2: np.ndarray
     c2 = np.asarray(c2, dtype=float).reshape(-1, 2)
     L2, W2, psi2 = (np.asarray(a, dtype=float).reshape(-1) for a in (L2, W2, psi2))
     d = c2 - np.asarray(c1, dtype=float).reshape(1, 2)
-    a1 = np.array([[math.cos(psi1), math.sin(psi1)], [-math.sin(psi1), math.cos(psi1)]])  # (2 axes, xy)
-    a2 = np.stack([np.stack([np.cos(psi2), np.sin(psi2)], axis=1),
-                   np.stack([-np.sin(psi2), np.cos(psi2)], axis=1)], axis=1)  # (n, 2 axes, xy)
-    axes = np.concatenate([np.broadcast_to(a1, (c2.shape[0], 2, 2)), a2], axis=1)  # (n, 4, 2)
-    r1 = L1 / 2 * np.abs(axes @ a1[0]) + W1 / 2 * np.abs(axes @ a1[1])  # (n, 4)
-    r2 = L2[:, None] / 2 * np.abs(np.einsum("nkx,nx->nk", axes, a2[:, 0])) \
-        + W2[:, None] / 2 * np.abs(np.einsum("nkx,nx->nk", axes, a2[:, 1]))
-    dist = np.abs(np.einsum("nkx,nx->nk", axes, d))
-    return np.asarray(np.max(dist - r1 - r2, axis=1), dtype=float)
-
+    a1 = np.repeat(_first_axes(psi1)[None], c2.shape[0], axis=0)
+    return _separation_rows(d, a1, L1, W1, L2, W2, psi2)
 
 
 def episode_geometry(log: StepLog, ego_size: tuple[float, float]) -> list[tuple[StepGeometry, np.ndarray]]:
     """Every :class:`StepGeometry` of :func:`step_geometry` with the oriented bodies' :func:`separation`
     of that step, computed once for :func:`episode_metrics` and :func:`iamp.simulation.monitor.monitor`
-    (which pass it around instead of each recomputing it).
+    (which pass it around instead of each recomputing it); the separations of all steps in one
+    call (:func:`_separation_rows`: each row's numbers are its step's alone).
 
     Parameters
     ----------
@@ -167,9 +183,19 @@ def episode_geometry(log: StepLog, ego_size: tuple[float, float]) -> list[tuple[
     """
     E = np.asarray(log.ego, dtype=float).reshape(-1, 6)
     psi_e = ego_headings(log)
-    return [(g, separation(np.array([E[g.k, 0], E[g.k, 2]]), ego_size[0], ego_size[1], float(psi_e[g.k]),
-                           g.nb[:, :2], g.L, g.W, neighbour_headings(g.nb)))
-            for g in step_geometry(log, ego_size)]
+    geo = list(step_geometry(log, ego_size))
+    if not geo:
+        return []
+    counts = [g.nb.shape[0] for g in geo]
+    ks = np.repeat([g.k for g in geo], counts)
+    c2 = np.concatenate([np.asarray(g.nb[:, :2], dtype=float) for g in geo])
+    d = c2 - E[ks][:, [0, 2]]
+    a1 = np.repeat(np.stack([_first_axes(float(psi_e[g.k])) for g in geo]), counts, axis=0)
+    sep = _separation_rows(d, a1, ego_size[0], ego_size[1],
+                           np.concatenate([np.asarray(g.L, dtype=float) for g in geo]),
+                           np.concatenate([np.asarray(g.W, dtype=float) for g in geo]),
+                           np.concatenate([neighbour_headings(g.nb) for g in geo]))
+    return list(zip(geo, np.split(sep, np.cumsum(counts)[:-1])))
 
 
 def percentile_stats(values: list[float]) -> dict[str, float | None]:

@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from iamp.core.physical import PASSENGER_CAR, PhysicalLimits
-from iamp.simulation.decision import limit_violations_of
+from iamp.simulation.decision import limit_violation_samples
 from iamp.simulation.kinematics import KAPPA_MAX, TOL_REL, start_heading, turning
 from iamp.simulation.metrics import (
     StepGeometry,
@@ -405,10 +405,7 @@ def monitor(log: StepLog, dt: float, ego_size: tuple[float, float], lane_of: Cal
     ax, ay = executed_accel(E, dt)
     vx = E[1:-1, 1] if E.shape[0] >= 3 else np.zeros(0)
     a_abs = np.hypot(ax, ay)
-    viol = 0
-    if ax.size:
-        for k in range(ax.size):
-            viol += bool(limit_violations_of(ax[k:k + 1], ay[k:k + 1], vx[k:k + 1], limits))
+    viol = int(np.count_nonzero(limit_violation_samples(ax, ay, vx, limits))) if ax.size else 0
     jerk = np.abs(np.diff(np.stack([ax, ay], axis=1), axis=0)) / dt if ax.size > 1 else np.zeros((0, 2))
     jerk_peak = float(jerk.max()) if jerk.size else 0.0
     jv = int(np.sum(np.any(jerk > limits.jerk, axis=1))) if (limits.jerk is not None and jerk.size) else 0

@@ -52,7 +52,9 @@ implementation's defaults for vehicles (see :data:`SOURCE`).
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -123,19 +125,47 @@ class RssParameters:
         """The parameters and their :data:`SOURCE` (for the manifest and the episode JSON)."""
         return {**asdict(self), "source": SOURCE}
 
+    @functools.cached_property
+    def scalar_terms(self) -> tuple[float, float, float, float, float] | None:
+        """The longitudinal distance's parameter terms (:func:`_rss_terms`) when its four parameters are
+        floats, computed once per parameter set (the loop asks for thousands of distances per episode);
+        None otherwise (:func:`safe_longitudinal_float` then takes the array path, as before)."""
+        args = (self.response_time_s, self.accel_max, self.brake_min, self.brake_max)
+        return _rss_terms(*args) if all(type(z) is float for z in args) else None
+
 
 DEFAULT = RssParameters()
 
+
+
+def _rss_terms(rho: float, a_acc: float, b_min: float, b_max: float) -> tuple[float, float, float, float, float]:
+    """The parts of :func:`_rss_scalar` that depend on the parameters only: ``ρ``, ``ρ a_acc``,
+    ``½ a_acc ρ²`` (``ρ²`` as ``ρ·ρ``), ``2 b_min``, ``2 b_max`` (the same floats whether computed once per
+    parameter set, :attr:`RssParameters.scalar_terms`, or once per call)."""
+    return rho, rho * a_acc, 0.5 * a_acc * (rho * rho), 2.0 * b_min, 2.0 * b_max
+
+
+def _rss_of_terms(v_r: float, v_f: float, rho: float, rho_a: float, half_a_rho2: float, two_b_min: float,
+                  two_b_max: float) -> float:
+    """:func:`_rss_scalar` of two speeds with the parameters' terms (:func:`_rss_terms`) given.
+
+    Each ``max(z, 0.0)`` is written ``0.0 if 0.0 > z else z``: the builtin's rule (the first argument
+    unless the second is larger), so ``-0.0`` and ``nan`` come through as they do from ``max`` and
+    ``np.maximum``, without the call."""
+    vr = 0.0 if 0.0 > v_r else v_r
+    vf = 0.0 if 0.0 > v_f else v_f
+    v_rho = vr + rho_a
+    if 0.0 > v_rho:
+        v_rho = 0.0
+    d = vr * rho + half_a_rho2 + v_rho**2 / two_b_min - vf**2 / two_b_max
+    return 0.0 if 0.0 > d else d
 
 
 def _rss_scalar(v_r: float, v_f: float, rho: float, a_acc: float, b_min: float, b_max: float) -> float:
     """:func:`rss_distance` of six floats (the tactical layer asks thousands of times per episode):
     the same IEEE operations in the same order as the array expression on 0-d inputs, where
     ``np.maximum`` returns numpy scalars whose ``**2`` is C ``pow`` while the 0-d ``rho**2`` is ``rho*rho``."""
-    vr, vf = max(v_r, 0.0), max(v_f, 0.0)
-    v_rho = max(vr + rho * a_acc, 0.0)
-    d = vr * rho + 0.5 * a_acc * (rho * rho) + v_rho**2 / (2.0 * b_min) - vf**2 / (2.0 * b_max)
-    return max(d, 0.0)
+    return _rss_of_terms(v_r, v_f, *_rss_terms(rho, a_acc, b_min, b_max))
 
 
 def rss_distance(v_r: npt.ArrayLike, v_f: npt.ArrayLike, rho: npt.ArrayLike, a_acc: npt.ArrayLike,
@@ -193,6 +223,9 @@ def safe_longitudinal_float(v_rear: float, v_front: float, p: RssParameters = DE
     float
         The RSS distance [m].
     """
+    terms = p.scalar_terms
+    if terms is not None and type(v_rear) is float and type(v_front) is float:
+        return _rss_of_terms(v_rear, v_front, *terms)
     rho, a_acc, b_min, b_max = p.response_time_s, p.accel_max, p.brake_min, p.brake_max
     if isinstance(v_rear, float) and isinstance(v_front, float) and isinstance(rho, float) \
             and isinstance(a_acc, float) and isinstance(b_min, float) and isinstance(b_max, float):
@@ -265,6 +298,15 @@ def within_rss_reach(dx: float, other_length: float, other_vx: float, ego_vx: fl
     return gap <= d + margin
 
 
+def _lateral_reach_of(u: Any, rho: Any, alpha: Any, beta: Any, maximum: Callable[[Any, float], Any]) -> Any:
+    """``o(u) = u ρ + ½ α ρ² + max(u + ρ α, 0)²/(2 β)``: the one expression of :func:`lateral_reach` (arrays,
+    ``maximum = np.maximum``) and :func:`safe_lateral_float` (floats, ``maximum = max``: the same float, the
+    builtin keeping the first argument unless the second is larger, as ``np.maximum`` does with ``-0.0``
+    and ``nan``; a numpy scalar's ``**2`` is C ``pow``, as a Python float's is)."""
+    after = maximum(u + rho * alpha, 0.0)
+    return u * rho + 0.5 * alpha * rho**2 + after**2 / (2 * beta)
+
+
 def lateral_reach(u_toward: npt.ArrayLike, p: RssParameters = DEFAULT) -> FloatArray:
     """How far a car moves toward the other under the worst lateral response, ``o(u)``.
 
@@ -280,9 +322,8 @@ def lateral_reach(u_toward: npt.ArrayLike, p: RssParameters = DEFAULT) -> FloatA
         ``u ρ + ½ α ρ² + max(u + ρ α, 0)²/(2 β)`` [m] (negative when it moves away).
     """
     u = np.asarray(u_toward, dtype=float)
-    rho, a = p.response_time_s, p.lat_accel_max
-    after = np.maximum(u + rho * a, 0.0)
-    return np.asarray(u * rho + 0.5 * a * rho**2 + after**2 / (2 * p.lat_brake_min), dtype=float)
+    return np.asarray(_lateral_reach_of(u, p.response_time_s, p.lat_accel_max, p.lat_brake_min, np.maximum),
+                      dtype=float)
 
 
 def safe_lateral_distance(u1_toward: npt.ArrayLike, u2_toward: npt.ArrayLike,
@@ -302,6 +343,33 @@ def safe_lateral_distance(u1_toward: npt.ArrayLike, u2_toward: npt.ArrayLike,
     """
     return np.asarray(p.lat_margin_m + np.maximum(lateral_reach(u1_toward, p) + lateral_reach(u2_toward, p), 0.0),
                       dtype=float)
+
+
+def safe_lateral_float(u1_toward: float, u2_toward: float, p: RssParameters = DEFAULT) -> float:
+    """``float(safe_lateral_distance(u1_toward, u2_toward, p))`` of two speeds (the same float; the loop's
+    many scalar questions skip the array wrapping: two Python floats go through :func:`_lateral_reach_of`
+    with the builtin ``max``, anything else through :func:`safe_lateral_distance`).
+
+    Parameters
+    ----------
+    u1_toward, u2_toward : float
+        Each car's lateral speed toward the other [m/s].
+    p : RssParameters
+
+    Returns
+    -------
+    float
+        The distance [m], at least ``μ``.
+    """
+    if type(u1_toward) is float and type(u2_toward) is float:
+        rho, alpha, beta = p.response_time_s, p.lat_accel_max, p.lat_brake_min
+        try:
+            o = _lateral_reach_of(u1_toward, rho, alpha, beta, max) + _lateral_reach_of(u2_toward, rho, alpha, beta,
+                                                                                          max)
+        except OverflowError:  # a Python float's square beyond the range raises; numpy's is inf, as before
+            return float(safe_lateral_distance(u1_toward, u2_toward, p))
+        return float(p.lat_margin_m + max(o, 0.0))
+    return float(safe_lateral_distance(u1_toward, u2_toward, p))
 
 
 def body_extents(length: npt.ArrayLike, width: npt.ArrayLike, heading: npt.ArrayLike

@@ -34,6 +34,7 @@ so SUMO drivers and the ``sumo`` ego move laterally over seconds, not in one ste
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 import tempfile
@@ -152,13 +153,16 @@ class TrackBuffer:
     period (:meth:`Simulator.history`).
     """
 
-    __slots__ = ("hi", "lo", "t", "x")
+    __slots__ = ("hi", "last", "lo", "t", "x")
 
     def __init__(self, capacity: int = 64) -> None:
         self.t = np.empty(capacity)
         self.x = np.empty(capacity)
         self.lo = 0
         self.hi = 0
+        #: The newest sample's time as the Python float stored (``t[hi - 1]`` when ``hi > lo``), so
+        #: that :meth:`record` compares without reading a numpy scalar.
+        self.last = 0.0
 
     def __len__(self) -> int:
         return self.hi - self.lo
@@ -167,7 +171,7 @@ class TrackBuffer:
         """Append the sample ``(t, x)``, replacing the last one when it is not older than ``t - 1e-9``
         (observed twice in a step), and drop the samples before ``oldest``."""
         lo, hi, tt = self.lo, self.hi, self.t
-        if hi > lo and tt[hi - 1] >= t - 1e-9:
+        if hi > lo and self.last >= t - 1e-9:
             hi -= 1
         if hi == tt.size:
             n = hi - lo
@@ -179,8 +183,9 @@ class TrackBuffer:
             lo, hi, tt = 0, n, self.t
         tt[hi] = t
         self.x[hi] = x
+        self.last = tt.item(hi)
         hi += 1
-        while hi > lo and tt[lo] < oldest:
+        while hi > lo and tt.item(lo) < oldest:
             lo += 1
         self.lo, self.hi = lo, hi
 
@@ -363,7 +368,10 @@ class Simulator:
         if len(histories) > len(ids):
             for vid in [k for k in histories if k not in res]:
                 del histories[vid]
-        cols = np.array(rows, dtype=np.float64).reshape(len(rows), 7).T.copy()  # one row per quantity
+        # one row per quantity: the rows' floats read in order into one array (np.array of the list of
+        # tuples gives the same floats after discovering its shape element by element)
+        cols = np.fromiter(itertools.chain.from_iterable(rows), dtype=np.float64,
+                           count=7 * len(rows)).reshape(len(rows), 7).T.copy()
         x, y, v, a, L, W, H = cols
         # global lane indices (edges downstream of a drop have fewer): Highway.lane_of of each y at once
         return Observation(self.t, ids, x, y, v, a, self.highway.lanes_of(y), L, W, H)

@@ -59,7 +59,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from iamp.core.problem import EgoBoundary
-from iamp.simulation.decision import REACH, DecisionConfig, EgoNow, Gap, Neighbour
+from iamp.simulation.decision import REACH, DecisionConfig, EgoNow, Gap, Neighbour, clip_scalar
 from iamp.simulation.failsafe import SafeParams
 from iamp.simulation.mobil import IDM
 from iamp.simulation.rss import RssParameters, safe_longitudinal_distance, safe_longitudinal_float
@@ -245,8 +245,8 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
     tried to itself where it is reachable (else to the highest reachable)."""
     v_min = 0.0 if dy is None else turn_end_speed(dy, ego.vy, T, dcfg.kappa_max)
     ax = dcfg.limits.ax or (-np.inf, np.inf)
-    v_lo = float(np.clip(ego.vx + REACH * ax[0] * T, 0.0, dcfg.speed_cap))
-    v_hi = float(np.clip(ego.vx + REACH * ax[1] * T, 0.0, dcfg.speed_cap))
+    v_lo = clip_scalar(ego.vx + REACH * ax[0] * T, 0.0, dcfg.speed_cap)
+    v_hi = clip_scalar(ego.vx + REACH * ax[1] * T, 0.0, dcfg.speed_cap)
     v_lo = max(v_lo, min(v_min, v_hi))
 
     def end_at(vxf: float) -> tuple[float, float] | None:
@@ -255,7 +255,7 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
             return None
         s = _end_margin(lo, hi)
         x = ego.x + (ego.vx + vxf) * T / 2 if a0 is None else continuing_end(ego, a0, T, vxf)
-        return float(np.clip(x, lo + s, hi - s)), vxf
+        return clip_scalar(x, lo + s, hi - s), vxf
 
     v_gap = gap_speed(ego, gap, T)
     if gap.follower is not None and gap.leader is None:
@@ -264,7 +264,7 @@ def gap_end(ego: EgoNow, gap: Gap, T: float, dcfg: DecisionConfig, cfg: Tactical
         # with the ego took both to a stop at the on-ramp's end, and every plan from the ego's
         # roll ended at the follower's standstill: onramp light 11 and 25004)
         v_gap = max(v_gap, min(ego.vx, cfg.roll_speed))
-    first = end_at(float(np.clip(v_gap, v_lo, v_hi)))
+    first = end_at(clip_scalar(v_gap, v_lo, v_hi))
     if first is not None and within_reach(ego, first, T, dcfg, cfg):
         return first
     n = max(2, int(np.ceil((v_hi - v_lo) / cfg.speed_step)) + 1)
@@ -444,7 +444,7 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
         aim = aim_point(ego, target, cfg, reach=False)  # the chosen gap, within reach or not
         if aim is not None:
             xm, v = aim
-            w_des = float(np.clip(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max))
+            w_des = clip_scalar(cfg.omega * (xm - ego.x), -cfg.closing_max, cfg.closing_max)
             v_des = v + w_des
             if w_des < 0.0 and target.leader is None:
                 # a gap open ahead (a follower, no leader) with the ego past its aim point: every
@@ -459,14 +459,14 @@ def seek_accel(ego: EgoNow, leader: Neighbour | None, stop_x: float | None, targ
                     # rolling into the gap: a car changes lanes only while it moves
                     v_des, rolling = cfg.roll_speed, True
             a_g = cfg.k_speed * (v_des - ego.vx)
-            acc.append(float(np.clip(a_g, *cfg.gap_accel)))
+            acc.append(clip_scalar(a_g, *cfg.gap_accel))
             acc[0] = replace(idm, v0=1.1 * idm.v0).accel(ego.vx)
     if stop_x is not None:
         # rolling into a gap, the ego may use the room it keeps before its lane's end
         room = cfg.roll_end_m if rolling else cfg.end_room_m
         acc.append(lane_end_accel(ego.vx, stop_x - room - ego.x - ego.length / 2, cfg))
         if lane_speed is not None:
-            acc.append(float(np.clip(cfg.k_speed * (lane_speed + cfg.match_dv - ego.vx), *cfg.gap_accel)))
+            acc.append(clip_scalar(cfg.k_speed * (lane_speed + cfg.match_dv - ego.vx), *cfg.gap_accel))
     return float(min(acc))
 
 
