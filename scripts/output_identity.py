@@ -36,7 +36,7 @@ COMMANDS["plan-two-vehicle-refine"] = ["plan", "two-vehicle", "--planner", "qp",
 COMMANDS["predict-paper-2"] = ["predict", "paper-2", "--json"]
 #: Closed-loop episodes (``--sim``: need SUMO; ``--no-deadline`` makes them independent of speed).
 SIM_COMMANDS = {f"simulate-{p}": ["simulate", "--planner", p, "--duration", "12", "--seed", "3", "--no-deadline",
-                                  "--json"] for p in ("pmp", "qp", "qp-avoid", "sumo", "pmp-all")}
+                                  "--json"] for p in ("pmp", "qp", "pmp-active", "qp-avoid", "free", "sumo")}
 
 #: Keys whose values are wall times, memory or machine facts (everything else is compared).
 TIMING = re.compile(r"^(solve_time_s|time_s|plan_time_s|wall_s|max_rss_mb|budget_s|timing|timing_summary|machine|"
