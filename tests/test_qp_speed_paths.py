@@ -259,7 +259,7 @@ def test_a_family_sweep_equals_the_sweep_one_candidate_at_a_time(seed, m, hold, 
     same best.  (``N = 8``: the selector rows are core rows, the family does not apply.)"""
     N = N if m < 3 else min(N, 11)  # three vehicles: (N−1)(N−2)(N−3) candidates
     p = random_problem(seed, m=m)
-    fam = run_sweep(DiscretisedQP(p, N, hold, "kkt"))
+    fam = run_sweep(DiscretisedQP(p, N, hold, "kkt"), keep_solutions=True)
     one = DiscretisedQP(p, N, hold, "kkt")
     one.set_uniform_grid()
     ref = [one.solve_nodes(c) for c in one.candidate_nodes()]

@@ -46,7 +46,7 @@ from .data import QPData
 from .hold import HoldTrajectory, aligned_grid
 
 
-@dataclass
+@dataclass(slots=True)  # no per-instance dict: a sweep holds up to ~10⁶ of them
 class CandidateResult:
     """One solve of the QP with the contacts at given grid nodes.
 
@@ -83,6 +83,14 @@ class CandidateResult:
     @property
     def ok(self) -> bool:
         return self.status == st.OPTIMAL
+
+    def drop_solution(self) -> None:
+        """Forget the solution's arrays (``z``, ``y``, ``trajectory``, ``multipliers``) and keep
+        the verdict: nodes, status, cost, times, KKT residuals and checks.  A sweep keeps the
+        arrays of its best candidate only (:func:`~iamp.planners.qp.sweep.run_sweep`): with three
+        vehicles and ``N = 100`` it has 941,094 candidates, whose arrays would take some 14 GB."""
+        self.z = self.y = self.multipliers = None
+        self.trajectory = None
 
     @classmethod
     def of_solve(cls, nodes: tuple[int, ...], status: str, contact_times: FloatArray, sol: QPSolution, backend_s: float,

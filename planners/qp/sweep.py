@@ -98,14 +98,18 @@ def pmp_lower_bound(qp: CandidateSolver, nodes: tuple[int, ...]) -> float:
 
 def run_sweep(qp: CandidateSolver, progress: Progress | None = None,
               screen: Callable[[tuple[int, ...], np.ndarray], str | None] | None = None,
-              known: dict[tuple[int, ...], CandidateResult] | None = None) -> SweepResult:
+              known: dict[tuple[int, ...], CandidateResult] | None = None, keep_solutions: bool = False
+              ) -> SweepResult:
     """Solve every candidate on the uniform grid; bound the unverified ones (module doc).
 
     ``screen(nodes, times)`` (the bounded QP: :meth:`iamp.planners.qp.planner.QPPlanner.sweep`)
     returns a reason when a candidate is certified infeasible without a QP solve; such a
     candidate is recorded ``infeasible`` (certified) and not solved.  ``known`` maps candidates
     already solved on ``qp``'s uniform grid to their results, which are used as they are (not
-    solved again)."""
+    solved again).  Only the best candidate keeps its solution's arrays (``z``, ``y``, its
+    trajectory and multipliers; :meth:`~iamp.planners.qp.core.CandidateResult.drop_solution`),
+    every candidate its verdict, cost and residuals: the memory of a sweep grows by a few hundred
+    bytes per candidate, not by its solution; ``keep_solutions=True`` keeps every candidate's."""
     import time
 
     t0 = time.perf_counter()
@@ -140,7 +144,11 @@ def run_sweep(qp: CandidateSolver, progress: Progress | None = None,
         for r in rs:
             results.append(r)
             if r.ok and (best is None or r.cost < best.cost):
+                if best is not None and not keep_solutions:
+                    best.drop_solution()
                 best = r
+            elif not keep_solutions:
+                r.drop_solution()
         if progress is not None:
             progress(len(results), total)
     out = SweepResult(best=best, results=results)
