@@ -73,3 +73,54 @@ def test_a_three_vehicle_sweep_keeps_a_small_part_of_its_solutions(solver: str) 
     (light, _), (full, arrays) = held(False), held(True)
     assert light <= 2500 * 15 * 14 * 13, light
     assert full - light >= 0.5 * arrays, (light, full, arrays)
+
+
+class _Costs:
+    """A candidate solver whose candidates cost what a list says (a stand-in for the QP: the sweep's
+    choice of its best, judged independently of the QP's numbers)."""
+
+    def __init__(self, costs: list[float | None]) -> None:
+        self.costs = costs
+        self.t_nodes = np.arange(len(costs) + 2, dtype=float)
+        self.n_solves = 0
+
+    def set_uniform_grid(self) -> None:
+        pass
+
+    def n_candidates(self) -> int:
+        return len(self.costs)
+
+    def candidate_nodes(self):  # type: ignore[no-untyped-def]
+        return iter([(k + 1,) for k in range(len(self.costs))])
+
+    def solve_nodes(self, nodes):  # type: ignore[no-untyped-def]
+        from iamp.core import status as st
+        from iamp.planners.qp.core import CandidateResult
+
+        cost = self.costs[nodes[0] - 1]
+        self.n_solves += 1
+        ok = cost is not None
+        r = CandidateResult(nodes=tuple(nodes), status=st.OPTIMAL if ok else st.INFEASIBLE,
+                            solver_status=st.OPTIMAL if ok else st.INFEASIBLE, raw_status="stub",
+                            cost=float(cost) if ok else np.inf, contact_times=self.t_nodes[list(nodes)],
+                            infeasible_certified=not ok)
+        r.z = r.y = np.full(3, float(nodes[0]))
+        return r
+
+
+@settings(max_examples=60, deadline=None)
+@given(costs=hs.lists(hs.one_of(hs.none(), hs.sampled_from([1.0, 2.0, 3.0]), hs.floats(0.0, 5.0)),
+                      min_size=1, max_size=12))
+def test_the_best_is_the_first_cheapest_solved_candidate(costs: list[float | None]) -> None:
+    """The best candidate is the first of the cheapest solved ones (ties included: the costs are drawn
+    from a few values), it alone keeps its arrays, and a sweep without a solved candidate has none."""
+    sw = run_sweep(_Costs(costs))  # type: ignore[arg-type]
+    solved = [k for k, c in enumerate(costs) if c is not None]
+    if not solved:
+        assert sw.best is None
+        assert all(r.z is None for r in sw.results)
+        return
+    first = min(solved, key=lambda k: (costs[k], k))
+    assert sw.best is sw.results[first] and sw.best.nodes == (first + 1,)
+    assert np.array_equal(sw.best.z, np.full(3, first + 1.0))
+    assert [k for k, r in enumerate(sw.results) if r.z is not None] == [first]
