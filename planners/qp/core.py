@@ -88,7 +88,7 @@ class CandidateResult:
         """Forget the solution's arrays (``z``, ``y``, ``trajectory``, ``multipliers``) and keep
         the verdict: nodes, status, cost, times, KKT residuals and checks.  A sweep keeps the
         arrays of its best candidate only (:func:`~iamp.planners.qp.sweep.run_sweep`): with three
-        vehicles and ``N = 100`` it has 941,094 candidates, whose arrays would take some 14 GB."""
+        vehicles and ``N = 100`` it has 941,094 candidates, whose arrays took the process past 15 GB."""
         self.z = self.y = self.multipliers = None
         self.trajectory = None
 

@@ -108,8 +108,8 @@ def run_sweep(qp: CandidateSolver, progress: Progress | None = None,
     already solved on ``qp``'s uniform grid to their results, which are used as they are (not
     solved again).  Only the best candidate keeps its solution's arrays (``z``, ``y``, its
     trajectory and multipliers; :meth:`~iamp.planners.qp.core.CandidateResult.drop_solution`),
-    every candidate its verdict, cost and residuals: the memory of a sweep grows by a few hundred
-    bytes per candidate, not by its solution; ``keep_solutions=True`` keeps every candidate's."""
+    every candidate its verdict, cost and residuals: the memory of a sweep grows by about 1.7 kB
+    per candidate at ``N = 100`` (16.7 kB with every solution kept); ``keep_solutions=True`` keeps every candidate's."""
     import time
 
     t0 = time.perf_counter()
